@@ -1,0 +1,310 @@
+#define _POSIX_C_SOURCE 200809L
+#include "cli.h"
+
+#include <errno.h>
+#include <math.h>
+#include <stdarg.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+#include <unistd.h>
+
+void cli_parser_init(cli_parser *p, const char *cmd, int argc, char **argv, const cli_opt *opts)
+{
+    p->argc = argc;
+    p->argv = argv;
+    p->i = 1;
+    p->cmd = cmd;
+    p->opts = opts;
+}
+
+int cli_next(cli_parser *p, const cli_opt **opt, const char **value)
+{
+    const char *arg, *eq;
+    const cli_opt *o;
+    size_t len;
+    *opt = NULL;
+    *value = NULL;
+    if (p->i >= p->argc) return -1;
+    arg = p->argv[p->i++];
+    if (arg[0] != '-' || arg[1] == '\0' || (arg[1] >= '0' && arg[1] <= '9') || arg[1] == '.') {
+        *value = arg; /* positional, including negative numbers */
+        return 0;
+    }
+    if (arg[1] == '-') {
+        const char *name = arg + 2;
+        eq = strchr(name, '=');
+        len = eq ? (size_t)(eq - name) : strlen(name);
+        for (o = p->opts; o->name; o++)
+            if (strlen(o->name) == len && strncmp(o->name, name, len) == 0) break;
+    } else {
+        eq = NULL;
+        for (o = p->opts; o->name; o++)
+            if (o->short_name && o->short_name == arg[1] && arg[2] == '\0') break;
+    }
+    if (!o->name) return cli_usage(p->cmd, "unknown option '%s' (see 'wvol %s --help')", arg, p->cmd);
+    *opt = o;
+    if (o->takes_value) {
+        if (eq) {
+            *value = eq + 1;
+        } else if (p->i < p->argc) {
+            *value = p->argv[p->i++];
+        } else {
+            return cli_usage(p->cmd, "option --%s needs a value", o->name);
+        }
+    } else if (eq) {
+        return cli_usage(p->cmd, "option --%s takes no value", o->name);
+    }
+    return 1;
+}
+
+void cli_print_help(const char *cmd, const char *usage, const char *about, const cli_opt *opts)
+{
+    const cli_opt *o;
+    printf("usage: wvol %s %s\n\n%s\n\noptions:\n", cmd, usage, about);
+    for (o = opts; o->name; o++) {
+        char left[64];
+        snprintf(left, sizeof left, "%s%c%s--%s%s", o->short_name ? "-" : "",
+                 o->short_name ? o->short_name : ' ', o->short_name ? ", " : "  ", o->name,
+                 o->takes_value ? " VALUE" : "");
+        printf("  %-28s %s\n", o->short_name ? left : left + 2, o->help);
+    }
+}
+
+static int vmessage(const char *cmd, int code, const char *fmt, va_list ap)
+{
+    cli_progress_done();
+    fprintf(stderr, "wvol %s: ", cmd);
+    vfprintf(stderr, fmt, ap);
+    fputc('\n', stderr);
+    return code;
+}
+
+int cli_usage(const char *cmd, const char *fmt, ...)
+{
+    va_list ap;
+    int r;
+    va_start(ap, fmt);
+    r = vmessage(cmd, CLI_USAGE, fmt, ap);
+    va_end(ap);
+    return r;
+}
+
+int cli_fail(const char *cmd, const char *fmt, ...)
+{
+    va_list ap;
+    int r;
+    va_start(ap, fmt);
+    r = vmessage(cmd, CLI_FAILED, fmt, ap);
+    va_end(ap);
+    return r;
+}
+
+int cli_fail_err(const char *cmd, const wvol_error *err)
+{
+    if (err->status == WVOL_ERR_ARG || err->status == WVOL_ERR_DIMS)
+        return cli_usage(cmd, "%s", err->message);
+    return cli_fail(cmd, "%s", err->message[0] ? err->message : wvol_status_string(err->status));
+}
+
+int cli_parse_dims(const char *cmd, const char *opt, const char *s, size_t dims[3])
+{
+    const char *p = s;
+    int n = 0;
+    while (n < 3) {
+        char *end;
+        unsigned long long v;
+        if (*p < '0' || *p > '9') break;
+        errno = 0;
+        v = strtoull(p, &end, 10);
+        if (errno || v == 0 || v > (unsigned long long)((size_t)-1)) {
+            cli_usage(cmd, "--%s '%s': each dimension must be an integer from 1 to %zu", opt, s,
+                      (size_t)-1);
+            return 0;
+        }
+        dims[n++] = (size_t)v;
+        p = end;
+        if (*p == 'x' || *p == 'X' || *p == ',') p++;
+        else break;
+    }
+    if (*p || (n != 1 && n != 3)) {
+        cli_usage(cmd, "--%s '%s': expected N or NXxNYxNZ (positive integers)", opt, s);
+        return 0;
+    }
+    if (n == 1) dims[1] = dims[2] = dims[0];
+    return 1;
+}
+
+int cli_parse_double(const char *cmd, const char *opt, const char *s, double *out)
+{
+    char *end;
+    errno = 0;
+    *out = strtod(s, &end);
+    if (!*s || *end || errno || !isfinite(*out)) {
+        cli_usage(cmd, "--%s '%s': expected a finite number", opt, s);
+        return 0;
+    }
+    return 1;
+}
+
+int cli_parse_double3(const char *cmd, const char *opt, const char *s, double out[3])
+{
+    char buf[256], *tok, *save = NULL;
+    int n = 0;
+    if (strlen(s) >= sizeof buf) return cli_usage(cmd, "--%s: value too long", opt), 0;
+    strcpy(buf, s);
+    for (tok = strtok_r(buf, ",x", &save); tok && n < 4; tok = strtok_r(NULL, ",x", &save)) {
+        if (n == 3 || !cli_parse_double(cmd, opt, tok, &out[n])) {
+            if (n == 3) cli_usage(cmd, "--%s '%s': expected X,Y,Z or one number", opt, s);
+            return 0;
+        }
+        n++;
+    }
+    if (n == 1) out[1] = out[2] = out[0];
+    else if (n != 3) return cli_usage(cmd, "--%s '%s': expected X,Y,Z or one number", opt, s), 0;
+    return 1;
+}
+
+int cli_parse_long(const char *cmd, const char *opt, const char *s, long lo, long hi, long *out)
+{
+    char *end;
+    errno = 0;
+    *out = strtol(s, &end, 10);
+    if (!*s || *end || errno || *out < lo || *out > hi) {
+        cli_usage(cmd, "--%s '%s': expected an integer from %ld to %ld", opt, s, lo, hi);
+        return 0;
+    }
+    return 1;
+}
+
+int cli_parse_fraction(const char *cmd, const char *opt, const char *s, double *out)
+{
+    char *end;
+    double v;
+    errno = 0;
+    v = strtod(s, &end);
+    if (*end == '%' && end[1] == '\0') {
+        v /= 100.0;
+    } else if (*end) {
+        cli_usage(cmd, "--%s '%s': expected a fraction like 0.05 or 5%%", opt, s);
+        return 0;
+    }
+    if (!*s || errno || !(v > 0.0 && v <= 1.0)) {
+        cli_usage(cmd, "--%s '%s': the fraction must be in (0, 1] (or (0%%, 100%%])", opt, s);
+        return 0;
+    }
+    *out = v;
+    return 1;
+}
+
+/* ---- JSON ---- */
+static int json_need_comma[32];
+static int json_depth;
+
+static void json_sep(void)
+{
+    if (json_need_comma[json_depth]) fputc(',', stdout);
+    json_need_comma[json_depth] = 1;
+}
+
+void cli_json_key(const char *key)
+{
+    const char *c;
+    json_sep();
+    if (!key) return;
+    fputc('"', stdout);
+    for (c = key; *c; c++) {
+        if (*c == '"' || *c == '\\') fputc('\\', stdout);
+        fputc(*c, stdout);
+    }
+    fputs("\":", stdout);
+}
+
+void cli_json_begin(void)
+{
+    json_depth = 0;
+    json_need_comma[0] = 0;
+    fputc('{', stdout);
+    json_depth = 1;
+    json_need_comma[1] = 0;
+}
+
+void cli_json_end(void)
+{
+    fputs("}\n", stdout);
+    json_depth = 0;
+}
+
+void cli_json_str(const char *key, const char *value)
+{
+    const unsigned char *c;
+    cli_json_key(key);
+    fputc('"', stdout);
+    for (c = (const unsigned char *)value; *c; c++) {
+        if (*c == '"' || *c == '\\') fprintf(stdout, "\\%c", *c);
+        else if (*c < 0x20) fprintf(stdout, "\\u%04x", *c);
+        else fputc(*c, stdout);
+    }
+    fputc('"', stdout);
+}
+
+void cli_json_num(const char *key, double value)
+{
+    cli_json_key(key);
+    if (isfinite(value)) fprintf(stdout, "%.17g", value);
+    else fputs("null", stdout);
+}
+
+void cli_json_int(const char *key, long long value)
+{
+    cli_json_key(key);
+    fprintf(stdout, "%lld", value);
+}
+
+void cli_json_open(const char *key, char bracket)
+{
+    cli_json_key(key);
+    fputc(bracket, stdout);
+    if (json_depth < 31) json_depth++;
+    json_need_comma[json_depth] = 0;
+}
+
+void cli_json_close(char bracket)
+{
+    fputc(bracket, stdout);
+    if (json_depth > 0) json_depth--;
+}
+
+/* ---- progress ---- */
+double cli_now(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
+
+static double progress_start = -1;
+static int progress_shown;
+
+void cli_progress(const char *label, double fraction)
+{
+    int w = 30, k;
+    double now = cli_now();
+    if (progress_start < 0) progress_start = now;
+    if (!isatty(2) || now - progress_start < 1.0) return;
+    if (fraction < 0) fraction = 0;
+    if (fraction > 1) fraction = 1;
+    k = (int)(fraction * w);
+    fprintf(stderr, "\r%-16s [", label);
+    for (int i = 0; i < w; i++) fputc(i < k ? '#' : '.', stderr);
+    fprintf(stderr, "] %3d%%", (int)(fraction * 100));
+    progress_shown = 1;
+}
+
+void cli_progress_done(void)
+{
+    if (progress_shown) fputs("\r\033[K", stderr);
+    progress_shown = 0;
+    progress_start = -1;
+}

@@ -1,0 +1,71 @@
+/* Shared helpers of the wvol sub-commands: option parsing, messages, JSON, progress.
+ * Exit codes: 0 ok, 1 failed, 2 bad usage. Every error is one line on stderr. */
+#ifndef WVOL_CLI_H
+#define WVOL_CLI_H
+
+#include <stddef.h>
+#include "wvol/status.h"
+
+enum { CLI_OK = 0, CLI_FAILED = 1, CLI_USAGE = 2 };
+
+typedef struct cli_opt {
+    const char *name;   /* long name without "--" */
+    char short_name;    /* 0 if none */
+    int takes_value;
+    const char *help;
+} cli_opt;
+
+typedef struct cli_parser {
+    int argc;
+    char **argv;
+    int i;
+    const char *cmd;
+    const cli_opt *opts;  /* terminated by {NULL} */
+} cli_parser;
+
+void cli_parser_init(cli_parser *p, const char *cmd, int argc, char **argv, const cli_opt *opts);
+
+/* Returns 1 for an option (*opt set, *value its value or NULL), 0 for a positional
+ * argument (*opt NULL, *value the argument), -1 at the end, CLI_USAGE after
+ * printing an error for an unknown option or a missing value. "--help"/"-h" must
+ * be listed in opts by the command if it wants them (cli_help_opt). */
+int cli_next(cli_parser *p, const cli_opt **opt, const char **value);
+
+#define CLI_HELP_OPT {"help", 'h', 0, "show this help"}
+#define CLI_JSON_OPT {"json", 0, 0, "machine-readable JSON on stdout"}
+
+void cli_print_help(const char *cmd, const char *usage, const char *about, const cli_opt *opts);
+
+/* "wvol CMD: message" on stderr; return CLI_USAGE / CLI_FAILED. */
+int cli_usage(const char *cmd, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
+int cli_fail(const char *cmd, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
+int cli_fail_err(const char *cmd, const wvol_error *err);
+
+/* Value parsers: return 1 on success; on failure print a usage error naming the
+ * option and return 0. */
+int cli_parse_dims(const char *cmd, const char *opt, const char *s, size_t dims[3]);
+int cli_parse_double(const char *cmd, const char *opt, const char *s, double *out);
+int cli_parse_double3(const char *cmd, const char *opt, const char *s, double out[3]);
+int cli_parse_long(const char *cmd, const char *opt, const char *s, long lo, long hi, long *out);
+/* "5%" -> 0.05, "0.05" -> 0.05; must be in (0, 1]. */
+int cli_parse_fraction(const char *cmd, const char *opt, const char *s, double *out);
+
+/* Minimal JSON writer on stdout (one object, nested objects/arrays allowed). */
+void cli_json_begin(void);
+void cli_json_end(void);
+void cli_json_key(const char *key);
+void cli_json_str(const char *key, const char *value);
+void cli_json_num(const char *key, double value);
+void cli_json_int(const char *key, long long value);
+void cli_json_open(const char *key, char bracket);  /* '{' or '[' ; key may be NULL in arrays */
+void cli_json_close(char bracket);
+
+/* Progress bar on stderr, shown only when stderr is a terminal and the work has
+ * taken over a second. */
+void cli_progress(const char *label, double fraction);
+void cli_progress_done(void);
+
+/* Seconds from a monotonic clock. */
+double cli_now(void);
+
+#endif

@@ -1,0 +1,77 @@
+/* Volume files. The format follows the extension:
+ *   .raw        headerless samples; dimensions and sample type from wvol_load_options
+ *   .nrrd .nhdr NRRD, attached or detached header, raw or gzip encoding (built in)
+ *   .vdb        OpenVDB FloatGrid/DoubleGrid (OpenVDB adapter)
+ *   .vti .vtk .mha .mhd .nii .nii.gz, a DICOM folder   (VTK adapter)
+ * Writers never leave a partial file: they write a temporary name and rename it. */
+#ifndef WVOL_IO_H
+#define WVOL_IO_H
+
+#include <stdio.h>
+#include "wvol/volume.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+typedef enum wvol_sample_type {
+    WVOL_F32 = 0, WVOL_F64, WVOL_U8, WVOL_I8, WVOL_U16, WVOL_I16, WVOL_U32, WVOL_I32
+} wvol_sample_type;
+
+/* Parses "float32", "f32", "uint8", "int16", ...; returns -1 if unknown. */
+int wvol_sample_type_parse(const char *name);
+const char *wvol_sample_type_name(wvol_sample_type t);
+size_t wvol_sample_type_size(wvol_sample_type t);
+
+typedef struct wvol_load_options {
+    size_t dims[3];            /* raw only: required */
+    wvol_sample_type raw_type; /* raw only: default float32 */
+    int big_endian;            /* raw only: default 0 (little-endian) */
+    double spacing[3];         /* raw only: default 1 */
+    double origin[3];          /* raw only: default 0 */
+    const char *grid_name;     /* .vdb only: NULL = first float grid */
+} wvol_load_options;
+
+void wvol_load_options_default(wvol_load_options *opt);
+
+/* Loads any supported format (by extension; a directory is read as a DICOM series).
+ * Integer samples become float32 without loss; NaN/Inf are refused. opt may be NULL. */
+wvol_status wvol_volume_load(wvol_volume **out, const char *path, const wvol_load_options *opt,
+                             wvol_error *err);
+
+/* Saves to any supported format, by extension. */
+wvol_status wvol_volume_save(const wvol_volume *v, const char *path, wvol_error *err);
+
+/* The formats behind the dispatch. */
+wvol_status wvol_raw_read(wvol_volume **out, const char *path, const wvol_load_options *opt,
+                          wvol_error *err);
+wvol_status wvol_raw_write(const wvol_volume *v, const char *path, wvol_error *err);
+wvol_status wvol_nrrd_read(wvol_volume **out, const char *path, wvol_error *err);
+wvol_status wvol_nrrd_write(const wvol_volume *v, const char *path, wvol_error *err);
+
+/* 1 if the format of this path can be read / written with this build. */
+int wvol_format_supported(const char *path, int for_writing);
+
+/* Converts n samples of type t (byte order as given) to float32; reports values
+ * that float32 cannot hold exactly only through the return of non-finite checks. */
+void wvol_samples_to_float(float *dst, const void *src, size_t n, wvol_sample_type t, int big_endian);
+
+/* Atomic output file: write to "<path>.tmp-XXXXXX" beside the target, then rename.
+ * wvol_atomic_abort removes the temporary file. */
+typedef struct wvol_atomic_file {
+    FILE *fp;
+    char *tmp_path;
+    char *final_path;
+} wvol_atomic_file;
+
+wvol_status wvol_atomic_open(wvol_atomic_file *f, const char *path, wvol_error *err);
+wvol_status wvol_atomic_commit(wvol_atomic_file *f, wvol_error *err);
+void wvol_atomic_abort(wvol_atomic_file *f);
+
+/* 1 if path ends with ext (case-insensitive). */
+int wvol_path_has_ext(const char *path, const char *ext);
+
+#ifdef __cplusplus
+}
+#endif
+#endif

@@ -1,0 +1,7 @@
+#ifndef WVOL_VERSION_H
+#define WVOL_VERSION_H
+#define WVOL_VERSION_MAJOR 0
+#define WVOL_VERSION_MINOR 1
+#define WVOL_VERSION_PATCH 0
+#define WVOL_VERSION_STRING "0.1.0"
+#endif

@@ -1,0 +1,11 @@
+/* libwvol umbrella header: includes only.
+ * Threading: handles are not shared between threads while one of them mutates;
+ * read-only functions on const handles are safe to run concurrently. */
+#ifndef WVOL_WVOL_H
+#define WVOL_WVOL_H
+#include "wvol/version.h"
+#include "wvol/status.h"
+#include "wvol/volume.h"
+#include "wvol/io.h"
+#include "wvol/wavelet.h"
+#endif

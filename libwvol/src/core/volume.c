@@ -1,0 +1,143 @@
+#include "wvol/volume.h"
+
+#include <math.h>
+#include <stdint.h>
+#include <stdlib.h>
+#include <string.h>
+
+int wvol_size_mul3(size_t a, size_t b, size_t c, size_t elem, size_t *out)
+{
+    size_t r = a;
+    if (b && r > SIZE_MAX / b) return 0;
+    r *= b;
+    if (c && r > SIZE_MAX / c) return 0;
+    r *= c;
+    if (elem && r > SIZE_MAX / elem) return 0;
+    r *= elem;
+    *out = r;
+    return 1;
+}
+
+static wvol_status volume_new(wvol_volume **out, size_t nx, size_t ny, size_t nz, wvol_error *err)
+{
+    size_t bytes;
+    wvol_volume *v;
+    WVOL_RETURN_IF(!out, err, WVOL_ERR_ARG, "volume: output pointer is NULL");
+    *out = NULL;
+    WVOL_RETURN_IF(nx == 0 || ny == 0 || nz == 0, err, WVOL_ERR_DIMS,
+                   "volume dimensions %zux%zux%zu: every dimension must be at least 1", nx, ny, nz);
+    WVOL_RETURN_IF(!wvol_size_mul3(nx, ny, nz, sizeof(float), &bytes) || bytes > (SIZE_MAX >> 1),
+                   err, WVOL_ERR_DIMS, "volume dimensions %zux%zux%zu overflow the address space",
+                   nx, ny, nz);
+    v = calloc(1, sizeof *v);
+    WVOL_RETURN_IF(!v, err, WVOL_ERR_NOMEM, "volume: out of memory");
+    v->nx = nx;
+    v->ny = ny;
+    v->nz = nz;
+    v->spacing[0] = v->spacing[1] = v->spacing[2] = 1.0;
+    *out = v;
+    return WVOL_OK;
+}
+
+wvol_status wvol_volume_create(wvol_volume **out, size_t nx, size_t ny, size_t nz, wvol_error *err)
+{
+    wvol_volume *v;
+    WVOL_FORWARD(volume_new(&v, nx, ny, nz, err));
+    v->data = calloc(nx * ny * nz, sizeof(float));
+    if (!v->data) {
+        free(v);
+        return wvol_error_set(err, WVOL_ERR_NOMEM, "volume %zux%zux%zu: out of memory (%zu bytes)",
+                              nx, ny, nz, nx * ny * nz * sizeof(float));
+    }
+    v->owns = 1;
+    *out = v;
+    return WVOL_OK;
+}
+
+wvol_status wvol_volume_wrap(wvol_volume **out, float *data, size_t nx, size_t ny, size_t nz,
+                             wvol_error *err)
+{
+    wvol_volume *v;
+    WVOL_RETURN_IF(!data, err, WVOL_ERR_ARG, "volume_wrap: data pointer is NULL");
+    WVOL_FORWARD(volume_new(&v, nx, ny, nz, err));
+    v->data = data;
+    v->owns = 0;
+    *out = v;
+    return WVOL_OK;
+}
+
+wvol_status wvol_volume_clone(wvol_volume **out, const wvol_volume *v, wvol_error *err)
+{
+    WVOL_RETURN_IF(!v, err, WVOL_ERR_ARG, "volume_clone: input is NULL");
+    WVOL_FORWARD(wvol_volume_create(out, v->nx, v->ny, v->nz, err));
+    memcpy((*out)->data, v->data, wvol_volume_count(v) * sizeof(float));
+    memcpy((*out)->spacing, v->spacing, sizeof v->spacing);
+    memcpy((*out)->origin, v->origin, sizeof v->origin);
+    return WVOL_OK;
+}
+
+void wvol_volume_destroy(wvol_volume *v)
+{
+    if (!v) return;
+    if (v->owns) free(v->data);
+    free(v);
+}
+
+size_t wvol_volume_count(const wvol_volume *v)
+{
+    return v ? v->nx * v->ny * v->nz : 0;
+}
+
+wvol_status wvol_volume_set_geometry(wvol_volume *v, const double spacing[3], const double origin[3],
+                                     wvol_error *err)
+{
+    int a;
+    WVOL_RETURN_IF(!v, err, WVOL_ERR_ARG, "volume is NULL");
+    for (a = 0; a < 3; a++) {
+        if (spacing) {
+            WVOL_RETURN_IF(!(spacing[a] > 0) || !isfinite(spacing[a]), err, WVOL_ERR_ARG,
+                           "spacing[%d] = %g: spacing must be finite and positive", a, spacing[a]);
+        }
+        if (origin) {
+            WVOL_RETURN_IF(!isfinite(origin[a]), err, WVOL_ERR_ARG,
+                           "origin[%d] = %g: origin must be finite", a, origin[a]);
+        }
+    }
+    if (spacing) memcpy(v->spacing, spacing, sizeof v->spacing);
+    if (origin) memcpy(v->origin, origin, sizeof v->origin);
+    return WVOL_OK;
+}
+
+wvol_status wvol_check_finite(const float *data, size_t nx, size_t ny, size_t nz, const char *what,
+                              wvol_error *err)
+{
+    size_t n = nx * ny * nz, idx;
+    for (idx = 0; idx < n; idx++) {
+        if (!isfinite(data[idx])) {
+            size_t i = idx % nx, j = (idx / nx) % ny, k = idx / (nx * ny);
+            return wvol_error_set(err, WVOL_ERR_NONFINITE,
+                                  "%s: %s at voxel (i=%zu, j=%zu, k=%zu); NaN and Inf are refused",
+                                  what ? what : "input", isnan(data[idx]) ? "NaN" : "Inf", i, j, k);
+        }
+    }
+    return WVOL_OK;
+}
+
+void wvol_volume_range(const wvol_volume *v, double *vmin, double *vmax, double *mean)
+{
+    size_t n = wvol_volume_count(v), i;
+    double lo = 0, hi = 0, sum = 0;
+    if (n) {
+        lo = hi = v->data[0];
+        for (i = 0; i < n; i++) {
+            double x = v->data[i];
+            if (x < lo) lo = x;
+            if (x > hi) hi = x;
+            sum += x;
+        }
+        sum /= (double)n;
+    }
+    if (vmin) *vmin = lo;
+    if (vmax) *vmax = hi;
+    if (mean) *mean = sum;
+}

@@ -1,0 +1,80 @@
+#define _POSIX_C_SOURCE 200809L
+#include "wvol/io.h"
+
+#include <errno.h>
+#include <stdlib.h>
+#include <string.h>
+#include <strings.h>
+#include <unistd.h>
+
+int wvol_path_has_ext(const char *path, const char *ext)
+{
+    size_t n, e;
+    if (!path || !ext) return 0;
+    n = strlen(path);
+    e = strlen(ext);
+    return n >= e && strcasecmp(path + n - e, ext) == 0;
+}
+
+wvol_status wvol_atomic_open(wvol_atomic_file *f, const char *path, wvol_error *err)
+{
+    int fd;
+    size_t n;
+    memset(f, 0, sizeof *f);
+    WVOL_RETURN_IF(!path || !*path, err, WVOL_ERR_ARG, "output path is empty");
+    n = strlen(path);
+    f->final_path = strdup(path);
+    f->tmp_path = malloc(n + 16);
+    if (!f->final_path || !f->tmp_path) {
+        wvol_atomic_abort(f);
+        return wvol_error_set(err, WVOL_ERR_NOMEM, "%s: out of memory", path);
+    }
+    memcpy(f->tmp_path, path, n);
+    memcpy(f->tmp_path + n, ".tmp-XXXXXX", 12);
+    fd = mkstemp(f->tmp_path);
+    if (fd < 0) {
+        int e = errno;
+        free(f->tmp_path);
+        f->tmp_path = NULL;
+        wvol_atomic_abort(f);
+        return wvol_error_set(err, WVOL_ERR_IO, "%s: cannot create output file: %s", path, strerror(e));
+    }
+    f->fp = fdopen(fd, "wb");
+    if (!f->fp) {
+        close(fd);
+        wvol_atomic_abort(f);
+        return wvol_error_set(err, WVOL_ERR_IO, "%s: cannot open output stream", path);
+    }
+    return WVOL_OK;
+}
+
+wvol_status wvol_atomic_commit(wvol_atomic_file *f, wvol_error *err)
+{
+    int bad = 0, e = 0;
+    if (!f->fp) return wvol_error_set(err, WVOL_ERR_ARG, "atomic file is not open");
+    if (fflush(f->fp) != 0 || ferror(f->fp)) { bad = 1; e = errno; }
+    if (fclose(f->fp) != 0 && !bad) { bad = 1; e = errno; }
+    f->fp = NULL;
+    if (!bad && rename(f->tmp_path, f->final_path) != 0) { bad = 1; e = errno; }
+    if (bad) {
+        wvol_status s = wvol_error_set(err, WVOL_ERR_IO, "%s: write failed: %s", f->final_path,
+                                       e ? strerror(e) : "stream error");
+        wvol_atomic_abort(f);
+        return s;
+    }
+    free(f->tmp_path);
+    free(f->final_path);
+    f->tmp_path = f->final_path = NULL;
+    return WVOL_OK;
+}
+
+void wvol_atomic_abort(wvol_atomic_file *f)
+{
+    if (!f) return;
+    if (f->fp) fclose(f->fp);
+    f->fp = NULL;
+    if (f->tmp_path) remove(f->tmp_path);
+    free(f->tmp_path);
+    free(f->final_path);
+    f->tmp_path = f->final_path = NULL;
+}

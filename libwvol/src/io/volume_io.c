@@ -1,0 +1,85 @@
+/* Load/save dispatch by extension (see wvol/io.h for the table). */
+#define _POSIX_C_SOURCE 200809L
+#include "wvol/io.h"
+#include "io/adapters.h"
+
+#include <errno.h>
+#include <string.h>
+#include <sys/stat.h>
+
+typedef enum { FMT_UNKNOWN, FMT_RAW, FMT_NRRD, FMT_VDB, FMT_VTK, FMT_VTI, FMT_DICOM } fmt_kind;
+
+static fmt_kind format_of(const char *path)
+{
+    static const char *vtk_ext[] = {".vtk", ".mha", ".mhd", ".nii", ".nii.gz"};
+    struct stat st;
+    size_t i;
+    if (wvol_path_has_ext(path, ".raw") || wvol_path_has_ext(path, ".bin")) return FMT_RAW;
+    if (wvol_path_has_ext(path, ".nrrd") || wvol_path_has_ext(path, ".nhdr")) return FMT_NRRD;
+    if (wvol_path_has_ext(path, ".vdb")) return FMT_VDB;
+    if (wvol_path_has_ext(path, ".vti")) return FMT_VTI;
+    for (i = 0; i < sizeof vtk_ext / sizeof vtk_ext[0]; i++)
+        if (wvol_path_has_ext(path, vtk_ext[i])) return FMT_VTK;
+    if (stat(path, &st) == 0 && S_ISDIR(st.st_mode)) return FMT_DICOM;
+    return FMT_UNKNOWN;
+}
+
+int wvol_format_supported(const char *path, int for_writing)
+{
+    (void)for_writing; /* used only when the VTK adapter is built */
+    switch (format_of(path)) {
+    case FMT_RAW:
+    case FMT_NRRD: return 1;
+#ifdef WVOL_HAVE_OPENVDB
+    case FMT_VDB: return 1;
+#endif
+#ifdef WVOL_HAVE_VTK
+    case FMT_VTI: return 1;
+    case FMT_VTK: return !for_writing || wvol_path_has_ext(path, ".mha") || wvol_path_has_ext(path, ".vtk");
+    case FMT_DICOM: return !for_writing;
+#endif
+    default: return 0;
+    }
+}
+
+wvol_status wvol_volume_load(wvol_volume **out, const char *path, const wvol_load_options *opt,
+                             wvol_error *err)
+{
+    wvol_load_options defaults;
+    struct stat st;
+    WVOL_RETURN_IF(!out || !path, err, WVOL_ERR_ARG, "load: NULL argument");
+    *out = NULL;
+    if (!opt) {
+        wvol_load_options_default(&defaults);
+        opt = &defaults;
+    }
+    WVOL_RETURN_IF(stat(path, &st) != 0, err, WVOL_ERR_IO, "%s: %s", path, strerror(errno));
+    switch (format_of(path)) {
+    case FMT_RAW: return wvol_raw_read(out, path, opt, err);
+    case FMT_NRRD: return wvol_nrrd_read(out, path, err);
+    case FMT_VDB: return wvol__vdb_read(out, path, opt->grid_name, err);
+    case FMT_VTI:
+    case FMT_VTK:
+    case FMT_DICOM: return wvol__vtk_read(out, path, err);
+    default:
+        return wvol_error_set(err, WVOL_ERR_UNSUPPORTED,
+                              "%s: unknown volume format (known: .raw .nrrd .nhdr .vdb .vti .vtk .mha "
+                              ".mhd .nii .nii.gz, or a DICOM folder)", path);
+    }
+}
+
+wvol_status wvol_volume_save(const wvol_volume *v, const char *path, wvol_error *err)
+{
+    WVOL_RETURN_IF(!v || !path, err, WVOL_ERR_ARG, "save: NULL argument");
+    switch (format_of(path)) {
+    case FMT_RAW: return wvol_raw_write(v, path, err);
+    case FMT_NRRD: return wvol_nrrd_write(v, path, err);
+    case FMT_VDB: return wvol__vdb_write(v, path, err);
+    case FMT_VTI:
+    case FMT_VTK: return wvol__vtk_write(v, path, err);
+    default:
+        return wvol_error_set(err, WVOL_ERR_UNSUPPORTED,
+                              "%s: cannot write this format (known: .raw .nrrd .nhdr .vdb .vti .mha)",
+                              path);
+    }
+}

@@ -1,0 +1,28 @@
+#!/usr/bin/env bash
+# The whole test suite: setup + build (warnings are errors), C tests under ctest,
+# Python tests under pytest, the C tests again under AddressSanitizer and
+# UndefinedBehaviorSanitizer, and a bounded libFuzzer run of the .wvc reader.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+WVOL_WERROR=ON bash scripts/setup.sh
+echo "== C tests"
+ctest --test-dir build --output-on-failure -j 2
+
+echo "== Python tests"
+PYTHONPATH="$PWD/build/python:$PWD/python${PYTHONPATH:+:$PYTHONPATH}" WVOL_BIN="$PWD/build/wvol" \
+  /usr/bin/python3 -m pytest -q tests/python
+
+echo "== C tests under ASan + UBSan"
+cmake -S . -B build-asan -DCMAKE_BUILD_TYPE=Debug -DWVOL_SANITIZE=ON -DWVOL_WERROR=ON \
+      -DWVOL_BUILD_PYTHON=OFF -DWVOL_WITH_OPENVDB=AUTO -DWVOL_WITH_VTK=AUTO > build-asan.configure.log 2>&1 \
+  || { cat build-asan.configure.log; exit 1; }
+cmake --build build-asan -j "$(nproc)"
+ASAN_OPTIONS=detect_leaks=1 UBSAN_OPTIONS=print_stacktrace=1 \
+  ctest --test-dir build-asan --output-on-failure -j 2
+
+if [ -x scripts/fuzz.sh ]; then
+  echo "== fuzzing"
+  bash scripts/fuzz.sh
+fi
+echo "== all tests passed"

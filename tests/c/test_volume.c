@@ -1,0 +1,88 @@
+/* Volume type, status messages, raw I/O and atomic writes. */
+#include <stdint.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+
+#include "check.h"
+#include "wvol/io.h"
+
+static void test_create_and_overflow(void)
+{
+    wvol_volume *v = NULL;
+    wvol_error err;
+    CHECK(wvol_volume_create(&v, 4, 5, 6, &err) == WVOL_OK, "create: %s", err.message);
+    CHECK(v && wvol_volume_count(v) == 120, "count");
+    CHECK(v && v->data[119] == 0.0f, "zero-filled");
+    wvol_volume_destroy(v);
+    v = NULL;
+    CHECK(wvol_volume_create(&v, SIZE_MAX / 2, 4, 4, &err) == WVOL_ERR_DIMS, "overflow refused");
+    CHECK(v == NULL && strstr(err.message, "overflow") != NULL, "message names overflow: %s", err.message);
+    CHECK(wvol_volume_create(&v, 0, 4, 4, &err) == WVOL_ERR_DIMS, "zero dim refused");
+    wvol_volume_destroy(NULL);
+}
+
+static void test_finite(void)
+{
+    float d[8] = {0, 1, 2, 3, 4, 5, 6, 7};
+    wvol_error err;
+    CHECK(wvol_check_finite(d, 2, 2, 2, "x", &err) == WVOL_OK, "finite ok");
+    d[5] = NAN;
+    CHECK(wvol_check_finite(d, 2, 2, 2, "x", &err) == WVOL_ERR_NONFINITE, "NaN refused");
+    CHECK(strstr(err.message, "i=1, j=0, k=1") != NULL, "names voxel: %s", err.message);
+    d[5] = 0;
+    d[2] = INFINITY;
+    CHECK(wvol_check_finite(d, 2, 2, 2, "x", &err) == WVOL_ERR_NONFINITE && strstr(err.message, "Inf"),
+          "Inf refused: %s", err.message);
+}
+
+static void test_raw_roundtrip(void)
+{
+    wvol_volume *v = NULL, *w = NULL;
+    wvol_load_options lo;
+    wvol_error err;
+    const char *path = "test_volume_rt.raw";
+    size_t i;
+    wvol_volume_create(&v, 3, 5, 7, &err);
+    for (i = 0; i < 105; i++) v->data[i] = (float)i * 0.5f - 10.0f;
+    CHECK(wvol_raw_write(v, path, &err) == WVOL_OK, "raw write: %s", err.message);
+    wvol_load_options_default(&lo);
+    lo.dims[0] = 3; lo.dims[1] = 5; lo.dims[2] = 7;
+    CHECK(wvol_volume_load(&w, path, &lo, &err) == WVOL_OK, "raw load: %s", err.message);
+    CHECK(w && memcmp(v->data, w->data, 105 * sizeof(float)) == 0, "raw round trip exact");
+    wvol_volume_destroy(w);
+    w = NULL;
+    lo.dims[2] = 8; /* file too short for these dims */
+    CHECK(wvol_volume_load(&w, path, &lo, &err) == WVOL_ERR_FORMAT && w == NULL, "short file refused");
+    CHECK(strstr(err.message, "bytes") != NULL, "message gives sizes: %s", err.message);
+    lo.dims[2] = 6; /* file too long */
+    CHECK(wvol_volume_load(&w, path, &lo, &err) == WVOL_ERR_FORMAT, "long file refused");
+    remove(path);
+    /* unwritable path: error, and nothing left behind */
+    CHECK(wvol_raw_write(v, "/nonexistent-dir/x.raw", &err) == WVOL_ERR_IO, "unwritable refused");
+    wvol_volume_destroy(v);
+}
+
+static void test_sample_types(void)
+{
+    const uint8_t u8[3] = {0, 128, 255};
+    const int16_t i16[2] = {-32768, 32767};
+    const uint8_t be16[2] = {0x01, 0x02}; /* big-endian 258 */
+    float out[3];
+    wvol_samples_to_float(out, u8, 3, WVOL_U8, 0);
+    CHECK(out[0] == 0 && out[1] == 128 && out[2] == 255, "u8");
+    wvol_samples_to_float(out, i16, 2, WVOL_I16, 0);
+    CHECK(out[0] == -32768 && out[1] == 32767, "i16");
+    wvol_samples_to_float(out, be16, 1, WVOL_U16, 1);
+    CHECK(out[0] == 258, "big-endian u16: %g", out[0]);
+    CHECK(wvol_sample_type_parse("int16") == WVOL_I16 && wvol_sample_type_parse("bogus") < 0, "parse");
+}
+
+int main(void)
+{
+    test_create_and_overflow();
+    test_finite();
+    test_raw_roundtrip();
+    test_sample_types();
+    return check_summary("test_volume");
+}
