@@ -1,0 +1,208 @@
+/* Volume rendering of the low-albedo integral (DESIGN.md section 8; paper eqs 32-47).
+ *
+ *   I = integral over [t1, t2] of C(t) exp(-integral over [t1, t] of kappa(s) ds) dt
+ *
+ * Modes: X-ray (I = integral of f dt, in value x world length), emission-absorption with the
+ * transfer function (colour c(f), opacity kappa(f) per unit world length; emission c*kappa, so
+ * that compositing alpha = 1 - exp(-kappa dt) converges to it), and the paper's linearised
+ * exponential. Methods: the reference integrator (eq 33) on a dense volume, and the
+ * spline-projected integrator from wavelet coefficients (eqs 34-46), exact for the spline model.
+ *
+ * Geometry: the rendered domain is the box of voxel cells, index coordinates
+ * [-1/2, n-1/2] per axis (each sample owns the cell of size `spacing` around it), in world
+ * units origin + index * spacing. Images are linear, premultiplied RGBA floats (wvol/image.h);
+ * alpha = 1 - transmittance (X-ray: 1 where the ray meets the domain). Docs: docs/render.md.
+ * Threading: the render calls run OpenMP over image tiles; the inputs are read only. */
+#ifndef WVOL_RENDER_H
+#define WVOL_RENDER_H
+
+#include <stddef.h>
+#include "wvol/image.h"
+#include "wvol/volume.h"
+#include "wvol/wavelet.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/* Where the data sits in the world: sample (i, j, k) at origin + (i, j, k) * spacing. */
+typedef struct wvol_geometry {
+    size_t dims[3];
+    double spacing[3];
+    double origin[3];
+} wvol_geometry;
+
+void wvol_geometry_of_volume(wvol_geometry *g, const wvol_volume *v);
+void wvol_geometry_of_coeffs(wvol_geometry *g, const wvol_coeffs *c);
+/* World box of the rendered domain: lo = origin - spacing/2, hi = origin + (n - 1/2) spacing. */
+void wvol_geometry_bounds(const wvol_geometry *g, double lo[3], double hi[3]);
+
+/* ---- cameras ---------------------------------------------------------------------------- */
+
+typedef enum wvol_projection { WVOL_ORTHOGRAPHIC = 0, WVOL_PERSPECTIVE = 1 } wvol_projection;
+
+/* A look-at camera in world units. Pixel (x, y), row 0 at the top, has its centre at image
+ * coordinates u = (x + 1/2)/width * 2 - 1 (right), v = 1 - (y + 1/2)/height * 2 (up).
+ * Orthographic: rays start on the plane through `eye` normal to the view direction at
+ * eye + u*(view_height*aspect/2)*right + v*(view_height/2)*up, all parallel to the view.
+ * Perspective: rays leave `eye` towards forward + u*tan(fov/2)*aspect*right + v*tan(fov/2)*up.
+ * forward = normalise(center - eye); right = normalise(forward x up); true up = right x forward.
+ * Rays are whole lines clipped to the volume's box: an orthographic eye inside or in front of
+ * the volume still sees all of it; a perspective ray starts at the eye. */
+typedef struct wvol_camera {
+    wvol_projection projection;
+    int width, height;      /* pixels, 1..65536 */
+    double eye[3];          /* world */
+    double center[3];       /* look-at point, world */
+    double up[3];           /* need not be orthogonal to the view; must not be parallel to it */
+    double fov_y;           /* perspective: vertical field of view in degrees, (0, 180) */
+    double view_height;     /* orthographic: world height the image covers, > 0 */
+} wvol_camera;
+
+/* Refuses non-finite values, eye == center, up parallel to the view, bad sizes. */
+wvol_status wvol_camera_check(const wvol_camera *cam, wvol_error *err);
+
+/* A camera looking along `view_dir` (from the camera towards the volume; need not be unit)
+ * at the centre of the volume's box, framing the box exactly (orthographic: the projected
+ * box fits the image; perspective: its bounding sphere fits the field of view fov_y, default
+ * 30 degrees when fov_y <= 0). Up is +z, or +y when the view is along z. For a view along an
+ * axis with width x height = the two other dimensions, pixel centres fall on voxel centres. */
+wvol_status wvol_camera_frame(wvol_camera *cam, const wvol_geometry *g, const double view_dir[3],
+                              wvol_projection projection, int width, int height, double fov_y,
+                              wvol_error *err);
+
+/* Parses a camera description (docs/render.md), for example
+ *   "+z"   "-x"   "ortho dir=1,1,0.5"   "persp fov=40 from=-y zoom=1.5"
+ *   "persp eye=300,200,100 center=64,64,64 up=0,0,1 fov=35"   "ortho eye=.. center=.. height=180"
+ * Words: ortho|persp, an axis (+x -x +y -y +z -z: the side the camera looks from), from=AXIS,
+ * dir=X,Y,Z (view direction), eye= center= up= (world), fov= (degrees), height= (ortho world
+ * height), zoom= (> 1 magnifies the framed view). Unknown words and malformed values are refused
+ * with a message naming them. */
+wvol_status wvol_camera_parse(wvol_camera *cam, const char *spec, const wvol_geometry *g, int width,
+                              int height, wvol_error *err);
+
+/* World ray of pixel position (px, py) in pixel units (px = x + 0.5 is pixel x's centre):
+ * origin and unit direction. The camera must have passed wvol_camera_check. */
+void wvol_camera_ray(const wvol_camera *cam, double px, double py, double origin[3], double dir[3]);
+
+/* ---- transfer functions ------------------------------------------------------------------- */
+
+#define WVOL_TF_MAX_POINTS 64
+
+typedef struct wvol_tf_point {
+    double value;           /* scalar value of the volume */
+    double rgb[3];          /* linear colour, >= 0 */
+    double opacity;         /* kappa, extinction per unit length (>= 0) */
+} wvol_tf_point;
+
+/* Piecewise-linear map value -> (colour, kappa); constant beyond the first and last points.
+ * Units of kappa: per world unit, or per length of the volume's box diagonal when
+ * per_diagonal is set (kappa_world = opacity / diagonal), which makes one TF fit any size. */
+typedef struct wvol_tf {
+    int count;              /* 1..WVOL_TF_MAX_POINTS, values strictly increasing */
+    int per_diagonal;
+    wvol_tf_point points[WVOL_TF_MAX_POINTS];
+} wvol_tf;
+
+wvol_status wvol_tf_check(const wvol_tf *tf, wvol_error *err);
+
+/* Presets: "gaussian" (linear ramp over [vmin, vmax], the data range: blue to warm white,
+ * kappa from 0 to 16 per diagonal), "ct-bone" and "ct-soft" (Hounsfield units; vmin/vmax
+ * unused), "grey" (white, kappa linear 0..8 per diagonal over [vmin, vmax]). */
+wvol_status wvol_tf_preset(wvol_tf *tf, const char *name, double vmin, double vmax, wvol_error *err);
+
+/* Parses the text form: one point per line "value r g b opacity", '#' comments, and optional
+ * lines "units world" (default) or "units diagonal"; or the JSON form
+ *   {"units": "world"|"diagonal", "points": [[value, r, g, b, opacity], ...]}.
+ * `what` names the source in messages (a file name). */
+wvol_status wvol_tf_parse(wvol_tf *tf, const char *text, const char *what, wvol_error *err);
+/* Reads a file in either form (JSON when its first non-blank character is '{'). */
+wvol_status wvol_tf_load(wvol_tf *tf, const char *path, wvol_error *err);
+
+/* Colour and kappa (in the TF's own units) at value v. Either output may be NULL. */
+void wvol_tf_eval(const wvol_tf *tf, double v, double rgb[3], double *kappa);
+
+/* ---- rendering ------------------------------------------------------------------------------ */
+
+typedef enum wvol_render_mode {
+    WVOL_MODE_XRAY = 0,              /* I = integral of f dt (grey; R = G = B) */
+    WVOL_MODE_ABSORPTION = 1,        /* emission-absorption, exact exponential */
+    WVOL_MODE_ABSORPTION_LINEAR = 2  /* the paper's linearised exponential (eqs 33, 45) */
+} wvol_render_mode;
+
+typedef enum wvol_sample_kind {
+    WVOL_SAMPLE_TRILINEAR = 0,       /* reference: trilinear interpolation of the voxels */
+    WVOL_SAMPLE_FHAT = 1             /* reference: f^ through the spline tables */
+} wvol_sample_kind;
+
+typedef struct wvol_render_params {
+    wvol_render_mode mode;
+    double step;            /* reference: step in voxels of the smallest spacing (default 0.5) */
+    double termination;     /* stop a ray once transmittance < this (default 1e-6; 0 = never) */
+    int shading;            /* 1: headlight diffuse shading from the gradient (eq 47); default 0 */
+    double ambient;         /* shading: ambient share in [0, 1] (default 0.3) */
+    int threads;            /* 0: OpenMP's default */
+    int tile;               /* tile side in pixels (default 16) */
+    int brick;              /* reference: min/max brick side for empty-space skipping, voxels
+                               (default 8; 0 = off) */
+    wvol_sample_kind sample;/* reference only */
+    int gauss_nodes;        /* spline: Gauss-Legendre nodes per polynomial piece for the
+                               exponential (default 5; 1..10) */
+} wvol_render_params;
+
+void wvol_render_params_default(wvol_render_params *p);
+
+typedef struct wvol_render_stats {
+    double seconds;
+    size_t rays, rays_hit;
+    size_t samples;         /* reference: field samples taken; spline: quadrature nodes */
+    size_t pieces;          /* spline: polynomial pieces integrated */
+    size_t functions;       /* spline: basis-function / ray pairs integrated */
+    size_t skipped;         /* reference: bricks skipped as empty; spline: pieces with no kept
+                               function */
+    size_t terminated;      /* rays stopped early by the termination threshold */
+    size_t clamped;         /* absorption-linear: factors (1 - dtau) clamped at 0 */
+} wvol_render_stats;
+
+/* Reference integrator (eq 33) on a dense volume. img must exist with the camera's size.
+ * Trilinear samples clamp to the edge voxels within the box. params/stats may be NULL. */
+wvol_status wvol_render_reference(wvol_image *img, const wvol_volume *v, const wvol_camera *cam,
+                                  const wvol_tf *tf, const wvol_render_params *params,
+                                  wvol_render_stats *stats, wvol_error *err);
+
+/* Reference integrator sampling f^ (all coefficients of c, zeros count as dropped) through
+ * the spline tables b: the converged reference of the spline model (DESIGN.md section 8). */
+wvol_status wvol_render_reference_fhat(wvol_image *img, const wvol_coeffs *c, const wvol_basis *b,
+                                       const wvol_camera *cam, const wvol_tf *tf,
+                                       const wvol_render_params *params, wvol_render_stats *stats,
+                                       wvol_error *err);
+
+/* Spline-projected integrator from coefficients (zeros = dropped). Along each ray f^ is an
+ * exact piecewise polynomial (degree <= 9) on the lattice where any axis crosses a spline
+ * knot of the finest level; the kept basis functions whose support the ray crosses are
+ * enumerated level by level and accumulated at Gauss-Legendre nodes. X-ray is exact; the
+ * absorption modes split pieces where f^ crosses a TF knot, integrate the optical depth
+ * exactly and the emission with gauss_nodes nodes per piece. The basis must belong to
+ * c->filter. */
+wvol_status wvol_render_spline(wvol_image *img, const wvol_coeffs *c, const wvol_basis *b,
+                               const wvol_camera *cam, const wvol_tf *tf,
+                               const wvol_render_params *params, wvol_render_stats *stats,
+                               wvol_error *err);
+
+/* Fast path: X-ray along a coordinate axis (orthographic camera whose view is parallel to an
+ * axis) from 2D coefficients alone: every band with a high-pass along the ray integrates to 0,
+ * the rest are summed along it into a 2D pyramid, inverse transformed in 2D, and the 2D scaling
+ * expansion is evaluated at pixel centres. Exact for the spline model (equals
+ * wvol_render_spline to rounding). WVOL_ERR_UNSUPPORTED for other cameras or modes. */
+wvol_status wvol_render_xray_axis(wvol_image *img, const wvol_coeffs *c, const wvol_basis *b,
+                                  const wvol_camera *cam, const wvol_render_params *params,
+                                  wvol_render_stats *stats, wvol_error *err);
+
+/* Image error: RMSE over all pixels and the 4 channels (or only `channel` 0..3 if >= 0) of a
+ * against b, relative to the max |b| of those channels when relative is set. Same sizes. */
+double wvol_image_rmse(const wvol_image *a, const wvol_image *b, int channel, int relative);
+
+#ifdef __cplusplus
+}
+#endif
+#endif

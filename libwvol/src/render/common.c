@@ -1,0 +1,98 @@
+/* SPDX-License-Identifier: MIT
+ * Shared render plumbing: parameter defaults, argument checks, shading, image error. */
+#define _POSIX_C_SOURCE 200809L
+#include "render_internal.h"
+
+#include <math.h>
+#include <omp.h>
+#include <time.h>
+
+void wvol_render_params_default(wvol_render_params *p)
+{
+    p->mode = WVOL_MODE_ABSORPTION;
+    p->step = 0.5;
+    p->termination = 1e-6;
+    p->shading = 0;
+    p->ambient = 0.3;
+    p->threads = 0;
+    p->tile = 16;
+    p->brick = 8;
+    p->sample = WVOL_SAMPLE_TRILINEAR;
+    p->gauss_nodes = 5;
+}
+
+void wvol__params(wvol_render_params *out, const wvol_render_params *in)
+{
+    if (in) *out = *in;
+    else wvol_render_params_default(out);
+}
+
+wvol_status wvol__render_check(const wvol_image *img, const wvol_camera *cam, const wvol_tf *tf,
+                               const wvol_render_params *p, wvol_error *err)
+{
+    WVOL_RETURN_IF(!img || !img->rgba, err, WVOL_ERR_ARG, "render: no output image");
+    WVOL_FORWARD(wvol_camera_check(cam, err));
+    WVOL_RETURN_IF(img->width != cam->width || img->height != cam->height, err, WVOL_ERR_ARG,
+                   "render: image is %dx%d but the camera is %dx%d", img->width, img->height, cam->width, cam->height);
+    WVOL_RETURN_IF(p->mode != WVOL_MODE_XRAY && p->mode != WVOL_MODE_ABSORPTION && p->mode != WVOL_MODE_ABSORPTION_LINEAR,
+                   err, WVOL_ERR_ARG, "render: unknown mode %d", (int)p->mode);
+    if (p->mode != WVOL_MODE_XRAY) {
+        WVOL_RETURN_IF(!tf, err, WVOL_ERR_ARG, "render: absorption modes need a transfer function");
+        WVOL_FORWARD(wvol_tf_check(tf, err));
+    }
+    WVOL_RETURN_IF(!(p->step > 0) || !isfinite(p->step), err, WVOL_ERR_ARG, "render: step %g (must be > 0)", p->step);
+    WVOL_RETURN_IF(!(p->termination >= 0 && p->termination < 1), err, WVOL_ERR_ARG,
+                   "render: termination threshold %g (must be in [0, 1))", p->termination);
+    WVOL_RETURN_IF(!(p->ambient >= 0 && p->ambient <= 1), err, WVOL_ERR_ARG, "render: ambient %g (must be in [0, 1])",
+                   p->ambient);
+    WVOL_RETURN_IF(p->tile < 1 || p->tile > 4096, err, WVOL_ERR_ARG, "render: tile %d (1..4096)", p->tile);
+    WVOL_RETURN_IF(p->brick < 0 || p->brick > 4096, err, WVOL_ERR_ARG, "render: brick %d (0..4096)", p->brick);
+    WVOL_RETURN_IF(p->threads < 0, err, WVOL_ERR_ARG, "render: threads %d (>= 0)", p->threads);
+    WVOL_RETURN_IF(p->gauss_nodes < 1 || p->gauss_nodes > 10, err, WVOL_ERR_ARG, "render: gauss_nodes %d (1..10)",
+                   p->gauss_nodes);
+    return WVOL_OK;
+}
+
+int wvol__tiles(int width, int height, int tile)
+{
+    return ((width + tile - 1) / tile) * ((height + tile - 1) / tile);
+}
+
+double wvol__shade(const double grad[3], const double dir[3], double ambient)
+{
+    double n = sqrt(grad[0] * grad[0] + grad[1] * grad[1] + grad[2] * grad[2]), d;
+    if (!(n > 1e-30)) return 1.0; /* no gradient: unshaded */
+    d = fabs(grad[0] * dir[0] + grad[1] * dir[1] + grad[2] * dir[2]) / n;
+    return ambient + (1.0 - ambient) * d;
+}
+
+double wvol_image_rmse(const wvol_image *a, const wvol_image *b, int channel, int relative)
+{
+    size_t n = (size_t)a->width * (size_t)a->height, i, cnt = 0;
+    double s = 0, mx = 0;
+    int c;
+    if (!a || !b || a->width != b->width || a->height != b->height) return NAN;
+    for (i = 0; i < n; i++)
+        for (c = 0; c < 4; c++) {
+            double d;
+            if (channel >= 0 && c != channel) continue;
+            d = (double)a->rgba[4 * i + c] - (double)b->rgba[4 * i + c];
+            s += d * d;
+            cnt++;
+            if (fabs(b->rgba[4 * i + c]) > mx) mx = fabs(b->rgba[4 * i + c]);
+        }
+    s = sqrt(s / (double)(cnt ? cnt : 1));
+    return relative ? (mx > 0 ? s / mx : s) : s;
+}
+
+double wvol__now(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
+
+int wvol__threads(int requested)
+{
+    return requested > 0 ? requested : omp_get_max_threads();
+}

@@ -1,0 +1,42 @@
+/* Private helpers shared by the render sources (not installed). */
+#ifndef WVOL_RENDER_INTERNAL_H
+#define WVOL_RENDER_INTERNAL_H
+
+#include "wvol/render.h"
+
+/* A camera with its frame precomputed for ray generation. */
+typedef struct wvol__cam {
+    wvol_camera c;
+    double fwd[3], right[3], up[3];
+    double half_w, half_h;    /* ortho: world half extents; persp: tan(fov/2) * aspect, tan(fov/2) */
+} wvol__cam;
+
+void wvol__cam_init(wvol__cam *k, const wvol_camera *cam);
+void wvol__cam_ray(const wvol__cam *k, double px, double py, double o[3], double d[3]);
+
+/* Slab test of the line o + t d against the box [lo, hi]: 1 and [*t0, *t1] (t0 < t1) when
+ * the line crosses the box's interior, else 0. Parallel components outside the slab miss. */
+int wvol__ray_box(const double o[3], const double d[3], const double lo[3], const double hi[3], double *t0,
+                  double *t1);
+
+/* The TF resolved for one volume: kappa in per-world-unit. */
+void wvol__tf_world(wvol_tf *out, const wvol_tf *tf, const wvol_geometry *g);
+
+/* Per-tile parallel loop helpers. */
+int wvol__tiles(int width, int height, int tile);
+
+/* Shading factor for a normalised gradient and the view direction (headlight). */
+double wvol__shade(const double grad[3], const double dir[3], double ambient);
+
+/* Fills defaults for a NULL params. */
+void wvol__params(wvol_render_params *out, const wvol_render_params *in);
+
+/* Checks img size against the camera, the camera, the TF (for absorption modes). */
+wvol_status wvol__render_check(const wvol_image *img, const wvol_camera *cam, const wvol_tf *tf,
+                               const wvol_render_params *p, wvol_error *err);
+
+/* Monotonic seconds; OpenMP thread count for a requested count (0 = default). */
+double wvol__now(void);
+int wvol__threads(int requested);
+
+#endif
