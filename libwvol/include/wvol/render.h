@@ -19,6 +19,7 @@
 #include <stddef.h>
 #include "wvol/image.h"
 #include "wvol/volume.h"
+#include "wvol/store.h"
 #include "wvol/wavelet.h"
 
 #ifdef __cplusplus
@@ -177,26 +178,31 @@ wvol_status wvol_render_reference_fhat(wvol_image *img, const wvol_coeffs *c, co
                                        const wvol_render_params *params, wvol_render_stats *stats,
                                        wvol_error *err);
 
-/* Spline-projected integrator from coefficients (zeros = dropped). Along each ray f^ is an
- * exact piecewise polynomial (degree <= 9) on the lattice where any axis crosses a spline
- * knot of the finest level; the kept basis functions whose support the ray crosses are
- * enumerated level by level and accumulated at Gauss-Legendre nodes. X-ray is exact; the
- * absorption modes split pieces where f^ crosses a TF knot, integrate the optical depth
- * exactly and the emission with gauss_nodes nodes per piece. The basis must belong to
- * c->filter. */
-wvol_status wvol_render_spline(wvol_image *img, const wvol_coeffs *c, const wvol_basis *b,
-                               const wvol_camera *cam, const wvol_tf *tf,
-                               const wvol_render_params *params, wvol_render_stats *stats,
-                               wvol_error *err);
+/* Spline-projected integrator from a store (DESIGN.md section 8), never touching a dense
+ * volume. Along a ray f^ is an exact piecewise polynomial (degree <= 9) on the lattice where
+ * any axis crosses a spline knot of the finest level (x + s in 2^{1-J} Z). Each ray asks the
+ * store for the kept basis functions whose support it crosses (wvol_store_query_ray descends
+ * the octree) and adds each one's product of three composed cubic pieces to the polynomial of
+ * every lattice piece it covers. X-ray integrates the polynomials exactly. The absorption
+ * modes split each piece where f^ crosses a transfer-function knot (polynomial roots on the
+ * piece), integrate the optical depth exactly (primitive of the polynomial) and the emission
+ * with gauss_nodes Gauss-Legendre nodes per sub-piece; absorption-linear replaces exp(-dtau)
+ * by max(0, 1 - dtau) per sub-piece (eq 45) and counts the clamps. Shading uses the analytic
+ * gradient (eq 47), accumulated the same way from the derivative splines. */
+wvol_status wvol_render_spline(wvol_image *img, const wvol_store *s, const wvol_camera *cam,
+                               const wvol_tf *tf, const wvol_render_params *params,
+                               wvol_render_stats *stats, wvol_error *err);
 
-/* Fast path: X-ray along a coordinate axis (orthographic camera whose view is parallel to an
- * axis) from 2D coefficients alone: every band with a high-pass along the ray integrates to 0,
- * the rest are summed along it into a 2D pyramid, inverse transformed in 2D, and the 2D scaling
- * expansion is evaluated at pixel centres. Exact for the spline model (equals
- * wvol_render_spline to rounding). WVOL_ERR_UNSUPPORTED for other cameras or modes. */
-wvol_status wvol_render_xray_axis(wvol_image *img, const wvol_coeffs *c, const wvol_basis *b,
-                                  const wvol_camera *cam, const wvol_render_params *params,
-                                  wvol_render_stats *stats, wvol_error *err);
+/* Fast path: X-ray along a coordinate axis (orthographic camera looking along an axis whose
+ * extent is a multiple of 2^levels, so the ray covers whole periods of the model) from 2D
+ * coefficients alone: each kept coefficient's ray-axis factor integrates to 2^{m/2} times the
+ * integral of phi or psi (the spline's own, ~1 and ~0), leaving a 2D pyramid that is inverse
+ * transformed in 2D level by level; the 2D scaling expansion is then evaluated at the pixel
+ * centres. Equals wvol_render_spline in X-ray mode to rounding. WVOL_ERR_UNSUPPORTED (with
+ * the reason) for other cameras. */
+wvol_status wvol_render_xray_axis(wvol_image *img, const wvol_store *s, const wvol_camera *cam,
+                                  const wvol_render_params *params, wvol_render_stats *stats,
+                                  wvol_error *err);
 
 /* Image error: RMSE over all pixels and the 4 channels (or only `channel` 0..3 if >= 0) of a
  * against b, relative to the max |b| of those channels when relative is set. Same sizes. */

@@ -11,17 +11,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-typedef struct sampler {
-    const wvol_volume *v;            /* trilinear */
-    const wvol_coeffs *c;            /* f^ */
-    const wvol_basis *b;
-    size_t n[3];
-    double spacing[3], origin[3];
-    /* brick grid */
-    int B;
-    size_t bn[3];
-    unsigned char *empty;
-} sampler;
+
 
 static double trilinear(const wvol_volume *v, const double x[3])
 {
@@ -61,7 +51,7 @@ static double trilinear(const wvol_volume *v, const double x[3])
 }
 
 /* Value at index position x; world gradient into grad when not NULL. */
-static double sample_at(const sampler *s, const double x[3], double grad[3])
+static double sample_at(const wvol__sampler *s, const double x[3], double grad[3])
 {
     if (s->v) {
         double val = trilinear(s->v, x);
@@ -76,7 +66,7 @@ static double sample_at(const sampler *s, const double x[3], double grad[3])
         }
         return val;
     } else {
-        double g[3], val = wvol_fhat_eval(s->c, s->b, x, grad ? g : NULL);
+        double g[3], val = s->eval(s->ctx, x, grad ? g : NULL);
         if (grad) {
             int a;
             for (a = 0; a < 3; a++) grad[a] = g[a] / s->spacing[a];
@@ -101,7 +91,7 @@ static double tf_max_kappa(const wvol_tf *tf, double lo, double hi)
 /* Marks bricks whose samples cannot contribute. Each brick covers the voxel cells
  * [b*B - 1/2, (b+1)*B - 1/2) and its min/max is taken over voxels b*B-1 .. (b+1)*B, every
  * voxel a trilinear sample inside the brick can touch. */
-static wvol_status build_bricks(sampler *s, const wvol_tf *tf, wvol_render_mode mode, wvol_error *err)
+static wvol_status build_bricks(wvol__sampler *s, const wvol_tf *tf, wvol_render_mode mode, wvol_error *err)
 {
     const wvol_volume *v = s->v;
     size_t bi, bj, bk, nb;
@@ -136,7 +126,7 @@ static wvol_status build_bricks(sampler *s, const wvol_tf *tf, wvol_render_mode 
 }
 
 /* If x lies in an empty brick, the ray parameter where the ray (index direction e) leaves it. */
-static int empty_exit(const sampler *s, const double x[3], const double e[3], double t, double *t_exit)
+static int empty_exit(const wvol__sampler *s, const double x[3], const double e[3], double t, double *t_exit)
 {
     size_t b[3];
     int a;
@@ -165,7 +155,7 @@ typedef struct ray_out {
     int terminated, clamped;
 } ray_out;
 
-static void march(const sampler *s, const wvol_tf *tf, const wvol_render_params *p, const double o[3],
+static void march(const wvol__sampler *s, const wvol_tf *tf, const wvol_render_params *p, const double o[3],
                   const double d[3], double t0, double t1, double dt, ray_out *out)
 {
     double x0[3], e[3], T = 1.0, acc[3] = {0, 0, 0}, xr = 0;
@@ -232,7 +222,7 @@ static void march(const sampler *s, const wvol_tf *tf, const wvol_render_params 
     }
 }
 
-static wvol_status render(wvol_image *img, sampler *s, const wvol_camera *cam, const wvol_tf *tf_in,
+wvol_status wvol__render_sampled(wvol_image *img, wvol__sampler *s, const wvol_camera *cam, const wvol_tf *tf_in,
                           const wvol_render_params *pin, wvol_render_stats *stats, wvol_error *err)
 {
     wvol_render_params p;
@@ -308,7 +298,7 @@ static wvol_status render(wvol_image *img, sampler *s, const wvol_camera *cam, c
 wvol_status wvol_render_reference(wvol_image *img, const wvol_volume *v, const wvol_camera *cam, const wvol_tf *tf,
                                   const wvol_render_params *params, wvol_render_stats *stats, wvol_error *err)
 {
-    sampler s;
+    wvol__sampler s;
     int a;
     WVOL_RETURN_IF(!v || !v->data, err, WVOL_ERR_ARG, "render: no volume");
     memset(&s, 0, sizeof s);
@@ -320,27 +310,5 @@ wvol_status wvol_render_reference(wvol_image *img, const wvol_volume *v, const w
         s.spacing[a] = v->spacing[a];
         s.origin[a] = v->origin[a];
     }
-    return render(img, &s, cam, tf, params, stats, err);
-}
-
-wvol_status wvol_render_reference_fhat(wvol_image *img, const wvol_coeffs *c, const wvol_basis *b,
-                                       const wvol_camera *cam, const wvol_tf *tf, const wvol_render_params *params,
-                                       wvol_render_stats *stats, wvol_error *err)
-{
-    sampler s;
-    int a;
-    WVOL_RETURN_IF(!c || !c->data || !b, err, WVOL_ERR_ARG, "render: no coefficients or basis tables");
-    WVOL_RETURN_IF(b->filter != c->filter, err, WVOL_ERR_ARG, "render: basis tables of %s for coefficients of %s",
-                   b->filter ? b->filter->name : "?", c->filter ? c->filter->name : "?");
-    memset(&s, 0, sizeof s);
-    s.c = c;
-    s.b = b;
-    s.n[0] = c->nx;
-    s.n[1] = c->ny;
-    s.n[2] = c->nz;
-    for (a = 0; a < 3; a++) {
-        s.spacing[a] = c->spacing[a];
-        s.origin[a] = c->origin[a];
-    }
-    return render(img, &s, cam, tf, params, stats, err);
+    return wvol__render_sampled(img, &s, cam, tf, params, stats, err);
 }

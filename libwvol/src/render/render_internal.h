@@ -35,6 +35,21 @@ void wvol__params(wvol_render_params *out, const wvol_render_params *in);
 wvol_status wvol__render_check(const wvol_image *img, const wvol_camera *cam, const wvol_tf *tf,
                                const wvol_render_params *p, wvol_error *err);
 
+/* What the reference integrator samples: a dense volume (trilinear) or a callback. */
+typedef struct wvol__sampler {
+    const wvol_volume *v;                                             /* trilinear, or NULL */
+    double (*eval)(const void *ctx, const double x[3], double grad[3]); /* index coords; grad in index units */
+    const void *ctx;
+    size_t n[3];
+    double spacing[3], origin[3];
+    int B;                  /* brick grid, filled by the integrator */
+    size_t bn[3];
+    unsigned char *empty;
+} wvol__sampler;
+
+wvol_status wvol__render_sampled(wvol_image *img, wvol__sampler *s, const wvol_camera *cam, const wvol_tf *tf,
+                                 const wvol_render_params *params, wvol_render_stats *stats, wvol_error *err);
+
 /* Monotonic seconds; OpenMP thread count for a requested count (0 = default). */
 double wvol__now(void);
 int wvol__threads(int requested);

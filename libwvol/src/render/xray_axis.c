@@ -1,0 +1,157 @@
+/* SPDX-License-Identifier: MIT
+ * Fast path: X-ray along a coordinate axis from 2D coefficients alone (DESIGN.md section 8).
+ * The integral of a level-m factor 2^{-m/2} B(2^{-m}(x + s) - p) over a whole period of the
+ * model is 2^{m/2} times the integral of B (the spline's phi or psi: ~1 and ~0, taken as
+ * computed, so the result is the spline model's exactly). What is left of each coefficient
+ * is a 2D basis function of the same level and position; the 2D pyramid is inverse
+ * transformed level by level (scaling terms from psi along the ray enter at their level),
+ * and the 2D scaling expansion sum c0[i,j] phi(u + s - i) phi(v + s - j) is evaluated at the
+ * pixel centres. Cost: O(kept) + O(P^2) + O(pixels (L-1)^2), independent of the ray length. */
+#include "render_internal.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+wvol_status wvol_render_xray_axis(wvol_image *img, const wvol_store *s, const wvol_camera *cam,
+                                  const wvol_render_params *params, wvol_render_stats *stats, wvol_error *err)
+{
+    wvol_render_params p;
+    wvol_store_info info;
+    const wvol_basis *b;
+    wvol__cam k;
+    wvol_store_iter it;
+    wvol_store_coeff cf;
+    size_t P[3], Pu, Pv, m, i;
+    double **acc = NULL, *buf = NULL, lo[3], hi[3], t_start = wvol__now(), Iphi, Ipsi, sp_ray;
+    int a = -1, ua, va, M, ax, y;
+    wvol_status st = WVOL_OK;
+
+    wvol__params(&p, params);
+    WVOL_RETURN_IF(!s, err, WVOL_ERR_ARG, "render: no store");
+    WVOL_FORWARD(wvol__render_check(img, cam, NULL, &p, err));
+    WVOL_RETURN_IF(p.mode != WVOL_MODE_XRAY, err, WVOL_ERR_UNSUPPORTED, "render: the axis fast path is X-ray only");
+    WVOL_RETURN_IF(cam->projection != WVOL_ORTHOGRAPHIC, err, WVOL_ERR_UNSUPPORTED,
+                   "render: the axis fast path needs an orthographic camera");
+    wvol__cam_init(&k, cam);
+    for (ax = 0; ax < 3; ax++)
+        if (fabs(k.fwd[ax]) > 1.0 - 1e-12) a = ax;
+    WVOL_RETURN_IF(a < 0, err, WVOL_ERR_UNSUPPORTED,
+                   "render: the axis fast path needs a view along x, y or z (got %g, %g, %g)", k.fwd[0], k.fwd[1],
+                   k.fwd[2]);
+    wvol_store_get_info(s, &info);
+    b = wvol_store_basis(s);
+    M = info.levels;
+    P[0] = info.px, P[1] = info.py, P[2] = info.pz;
+    ua = a == 0 ? 1 : 0;
+    va = a == 2 ? 1 : 2;
+    {
+        size_t n[3] = {info.nx, info.ny, info.nz};
+        WVOL_RETURN_IF(n[a] != P[a], err, WVOL_ERR_UNSUPPORTED,
+                       "render: the axis fast path needs the ray axis extent (%zu) to be a whole period (%zu, a "
+                       "multiple of 2^levels): a padded axis is rendered only over its original extent",
+                       n[a], P[a]);
+        WVOL_RETURN_IF(!info.transformed[ua] || !info.transformed[va], err, WVOL_ERR_UNSUPPORTED,
+                       "render: the axis fast path needs both image axes transformed (extent > 1)");
+    }
+    Pu = P[ua];
+    Pv = P[va];
+    Iphi = b->phi_integral;
+    Ipsi = b->psi_integral;
+    sp_ray = info.spacing[a];
+
+    /* acc[4*m + band2]: (Pu >> m) x (Pv >> m) arrays, band2 bit 0 = high-pass along u, bit 1 along v */
+    acc = calloc((size_t)(M + 1) * 4, sizeof *acc);
+    buf = malloc(Pu * Pv * sizeof *buf);
+    if (!acc || !buf) goto nomem;
+    for (m = 0; m <= (size_t)M; m++) {
+        int bd;
+        for (bd = 0; bd < 4; bd++) {
+            if (m == 0 && bd) continue;
+            acc[4 * m + bd] = calloc((Pu >> m) * (Pv >> m), sizeof(double));
+            if (!acc[4 * m + bd]) goto nomem;
+        }
+    }
+    memset(&it, 0, sizeof it);
+    while (wvol_store_next(s, &it, &cf)) {
+        size_t pos[3] = {cf.p, cf.q, cf.r}, lev = cf.level;
+        int rb = (cf.band >> a) & 1, bd = ((cf.band >> ua) & 1) | (((cf.band >> va) & 1) << 1);
+        double w;
+        if (info.transformed[a]) w = sqrt(ldexp(1.0, (int)lev)) * (rb ? Ipsi : Iphi) * sp_ray;
+        else w = sp_ray;
+        acc[4 * lev + bd][pos[ua] + (Pu >> lev) * pos[va]] += w * cf.value;
+    }
+    /* level by level: [low | u-high ; v-high | both] -> low of the next finer level */
+    for (m = (size_t)M; m >= 1; m--) {
+        size_t hu = Pu >> m, hv = Pv >> m, r;
+        for (r = 0; r < hv; r++) {
+            memcpy(buf + r * 2 * hu, acc[4 * m] + r * hu, hu * sizeof(double));
+            memcpy(buf + r * 2 * hu + hu, acc[4 * m + 1] + r * hu, hu * sizeof(double));
+            memcpy(buf + (r + hv) * 2 * hu, acc[4 * m + 2] + r * hu, hu * sizeof(double));
+            memcpy(buf + (r + hv) * 2 * hu + hu, acc[4 * m + 3] + r * hu, hu * sizeof(double));
+        }
+        st = wvol_idwt3_inplace_f64(buf, 2 * hu, 2 * hv, 1, info.filter, 1, err);
+        if (st != WVOL_OK) goto done;
+        for (i = 0; i < 4 * hu * hv; i++) acc[4 * (m - 1)][i] += buf[i];
+    }
+    /* the 2D scaling expansion at the pixel centres */
+    {
+        wvol_geometry g;
+        double *c0 = acc[0], sft = b->center;
+        int L1 = b->length - 1;
+        g.dims[0] = info.nx, g.dims[1] = info.ny, g.dims[2] = info.nz;
+        for (ax = 0; ax < 3; ax++) g.spacing[ax] = info.spacing[ax], g.origin[ax] = info.origin[ax];
+        wvol_geometry_bounds(&g, lo, hi);
+#pragma omp parallel for schedule(dynamic, 4) num_threads(wvol__threads(p.threads))
+        for (y = 0; y < img->height; y++) {
+            double wu[WVOL_BASIS_MAX_LENGTH], wv[WVOL_BASIS_MAX_LENGTH];
+            int xx, ch;
+            for (xx = 0; xx < img->width; xx++) {
+                double o[3], d[3], vox[3], val = 0, hit;
+                long iu0, iv0;
+                int ku, kv;
+                float *px = img->rgba + 4 * ((size_t)xx + (size_t)img->width * (size_t)y);
+                wvol__cam_ray(&k, xx + 0.5, y + 0.5, o, d);
+                hit = o[ua] > lo[ua] && o[ua] < hi[ua] && o[va] > lo[va] && o[va] < hi[va];
+                if (!hit) {
+                    for (ch = 0; ch < 4; ch++) px[ch] = 0;
+                    continue;
+                }
+                wvol_store_world_to_voxel(s, o, vox);
+                iu0 = (long)floor(vox[ua] + sft) - L1 + 1;
+                iv0 = (long)floor(vox[va] + sft) - L1 + 1;
+                for (ku = 0; ku < L1; ku++) wu[ku] = wvol_basis_value(b, WVOL_PHI, vox[ua] + sft - (double)(iu0 + ku));
+                for (kv = 0; kv < L1; kv++) wv[kv] = wvol_basis_value(b, WVOL_PHI, vox[va] + sft - (double)(iv0 + kv));
+                for (kv = 0; kv < L1; kv++) {
+                    long jv = (iv0 + kv) % (long)Pv;
+                    double rowv = 0;
+                    if (jv < 0) jv += (long)Pv;
+                    if (wv[kv] == 0) continue;
+                    for (ku = 0; ku < L1; ku++) {
+                        long ju = (iu0 + ku) % (long)Pu;
+                        if (ju < 0) ju += (long)Pu;
+                        rowv += wu[ku] * c0[(size_t)ju + Pu * (size_t)jv];
+                    }
+                    val += wv[kv] * rowv;
+                }
+                px[0] = px[1] = px[2] = (float)val;
+                px[3] = 1.0f;
+            }
+        }
+    }
+    if (stats) {
+        memset(stats, 0, sizeof *stats);
+        stats->seconds = wvol__now() - t_start;
+        stats->rays = (size_t)img->width * (size_t)img->height;
+        stats->functions = info.kept;
+    }
+    goto done;
+nomem:
+    st = wvol_error_set(err, WVOL_ERR_NOMEM, "render: out of memory for the projected %zux%zu pyramid", Pu, Pv);
+done:
+    if (acc)
+        for (i = 0; i < (size_t)(M + 1) * 4; i++) free(acc[i]);
+    free(acc);
+    free(buf);
+    return st;
+}

@@ -1,0 +1,294 @@
+/* Tests of the renderer (libwvol/src/render) and the image files (libwvol/src/io/image_*.c). */
+#define _POSIX_C_SOURCE 200809L
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+
+#include "check.h"
+#include "wvol/image.h"
+#include "wvol/render.h"
+#include "wvol/volume.h"
+
+/* The paper's Gaussian density, exp(-r^2 / (2 sigma^2)) about the centre, sigma = n/6. */
+static wvol_volume *gaussian(size_t nx, size_t ny, size_t nz)
+{
+    wvol_volume *v = NULL;
+    size_t i, j, k;
+    if (wvol_volume_create(&v, nx, ny, nz, NULL) != WVOL_OK) return NULL;
+    for (k = 0; k < nz; k++)
+        for (j = 0; j < ny; j++)
+            for (i = 0; i < nx; i++) {
+                double x = (i - (nx - 1) / 2.0) / (nx / 6.0), y = (j - (ny - 1) / 2.0) / (ny / 6.0),
+                       z = (k - (nz - 1) / 2.0) / (nz / 6.0);
+                v->data[i + nx * (j + ny * k)] = (float)exp(-0.5 * (x * x + y * y + z * z));
+            }
+    return v;
+}
+
+static int image_finite(const wvol_image *img)
+{
+    size_t i, n = (size_t)img->width * img->height * 4;
+    for (i = 0; i < n; i++)
+        if (!isfinite(img->rgba[i])) return 0;
+    return 1;
+}
+
+static void camera_description_is_parsed_and_checked(void)
+{
+    wvol_geometry g = {{32, 16, 8}, {1, 2, 0.5}, {10, 20, 30}};
+    wvol_camera cam;
+    wvol_error err;
+    double o[3], d[3];
+    CHECK(wvol_camera_parse(&cam, "+z", &g, 32, 32, &err) == WVOL_OK, "%s", err.message);
+    CHECK(cam.projection == WVOL_ORTHOGRAPHIC, "ortho by default");
+    /* from +z: looking along -z, right = +x, up = +y; the box is 32 x 32 world units */
+    CHECK_NEAR(cam.view_height, 32.0, 1e-12, "framed height");
+    wvol_camera_ray(&cam, 0.5, 0.5, o, d);
+    CHECK_NEAR(d[2], -1.0, 1e-12, "direction");
+    CHECK_NEAR(o[0], 10.0, 1e-9, "first pixel centre on voxel 0 (x)");
+    CHECK_NEAR(o[1], 20.0 + 15.5 * 2.0 - 0.5, 1e-9, "first pixel centre half a pixel below the top (y)");
+    CHECK(wvol_camera_parse(&cam, "persp fov=40 dir=1,1,0.5 zoom=2", &g, 64, 48, &err) == WVOL_OK, "%s", err.message);
+    CHECK(cam.projection == WVOL_PERSPECTIVE && cam.fov_y < 40, "perspective, zoomed");
+    CHECK(wvol_camera_parse(&cam, "persp eye=100,100,100 center=26,35,32 up=0,0,1", &g, 64, 48, &err) == WVOL_OK,
+          "%s", err.message);
+    CHECK(wvol_camera_parse(&cam, "+w", &g, 8, 8, &err) == WVOL_ERR_ARG && strstr(err.message, "+w"), "%s",
+          err.message);
+    CHECK(wvol_camera_parse(&cam, "persp fov=190", &g, 8, 8, &err) == WVOL_ERR_ARG && strstr(err.message, "fov"), "%s",
+          err.message);
+    CHECK(wvol_camera_parse(&cam, "dir=0,0,0", &g, 8, 8, &err) == WVOL_ERR_ARG && strstr(err.message, "zero"), "%s",
+          err.message);
+    CHECK(wvol_camera_parse(&cam, "eye=1,2 center=0,0,0", &g, 8, 8, &err) == WVOL_ERR_ARG, "%s", err.message);
+    CHECK(wvol_camera_parse(&cam, "eye=0,0,5 center=0,0,0 up=0,0,1", &g, 8, 8, &err) == WVOL_ERR_ARG &&
+              strstr(err.message, "parallel"),
+          "%s", err.message);
+    CHECK(wvol_camera_parse(&cam, "+z", &g, 0, 8, &err) == WVOL_ERR_ARG, "%s", err.message);
+    CHECK(wvol_camera_parse(&cam, "+z height=-1", &g, 8, 8, &err) == WVOL_ERR_ARG, "%s", err.message);
+}
+
+static void transfer_functions_parse_and_refuse_bad_input(void)
+{
+    wvol_tf tf;
+    wvol_error err;
+    double rgb[3], k;
+    CHECK(wvol_tf_parse(&tf, "# comment\nunits diagonal\n0 0 0 1 0\n1 1 0.5 0 2  # end\n", "t", &err) == WVOL_OK,
+          "%s", err.message);
+    CHECK(tf.count == 2 && tf.per_diagonal == 1, "two points, per diagonal");
+    wvol_tf_eval(&tf, 0.5, rgb, &k);
+    CHECK_NEAR(k, 1.0, 1e-15, "kappa halfway");
+    CHECK_NEAR(rgb[1], 0.25, 1e-15, "green halfway");
+    wvol_tf_eval(&tf, -5, rgb, &k);
+    CHECK(k == 0 && rgb[2] == 1, "clamped below");
+    CHECK(wvol_tf_parse(&tf, "{\"units\": \"world\", \"points\": [[0, 0,0,0, 0], [10, 1,1,1, 0.5]]}", "j", &err) ==
+              WVOL_OK,
+          "%s", err.message);
+    CHECK(tf.count == 2 && !tf.per_diagonal && tf.points[1].opacity == 0.5, "json");
+    CHECK(wvol_tf_parse(&tf, "1 0 0 0 0\n0 1 1 1 1\n", "t", &err) == WVOL_ERR_ARG && strstr(err.message, "increase"),
+          "%s", err.message);
+    CHECK(wvol_tf_parse(&tf, "0 0 0 0 -1\n", "t", &err) == WVOL_ERR_ARG && strstr(err.message, "opacity"), "%s",
+          err.message);
+    CHECK(wvol_tf_parse(&tf, "0 0 0 0\n", "t.txt", &err) == WVOL_ERR_FORMAT && strstr(err.message, "t.txt:1"), "%s",
+          err.message);
+    CHECK(wvol_tf_parse(&tf, "0 0 0 0 nan\n", "t", &err) != WVOL_OK, "NaN refused");
+    CHECK(wvol_tf_parse(&tf, "{\"points\": [[0,1,2]]}", "j", &err) == WVOL_ERR_FORMAT, "%s", err.message);
+    CHECK(wvol_tf_parse(&tf, "", "e", &err) == WVOL_ERR_FORMAT && strstr(err.message, "no points"), "%s", err.message);
+    CHECK(wvol_tf_preset(&tf, "ct-bone", 0, 0, &err) == WVOL_OK, "%s", err.message);
+    CHECK(wvol_tf_preset(&tf, "gaussian", 0, 1, &err) == WVOL_OK, "%s", err.message);
+    CHECK(wvol_tf_preset(&tf, "nope", 0, 1, &err) == WVOL_ERR_ARG && strstr(err.message, "nope"), "%s", err.message);
+}
+
+static void image_files_round_trip(void)
+{
+    wvol_image *img = NULL;
+    wvol_error err;
+    float *z, *back = NULL;
+    int w = 0, h = 0, i;
+    char path[] = "render_test_img.exr";
+    CHECK(wvol_image_create(&img, 37, 21, &err) == WVOL_OK, "%s", err.message);
+    if (!img) return;
+    z = malloc(37 * 21 * sizeof *z);
+    for (i = 0; i < 37 * 21; i++) {
+        img->rgba[4 * i] = (float)i * 0.25f;
+        img->rgba[4 * i + 3] = 1.0f / (1 + i);
+        z[i] = (float)(1000 - i);
+    }
+    CHECK(wvol_image_write_exr(img, path, z, &err) == WVOL_OK, "%s", err.message);
+    CHECK(wvol_exr_read_channel(&back, &w, &h, path, "R", &err) == WVOL_OK, "%s", err.message);
+    if (back) {
+        int same = w == 37 && h == 21;
+        for (i = 0; same && i < 37 * 21; i++) same = back[i] == img->rgba[4 * i];
+        CHECK(same, "R channel round trip");
+        free(back);
+        back = NULL;
+    }
+    CHECK(wvol_exr_read_channel(&back, &w, &h, path, "Z", &err) == WVOL_OK && back && back[5] == 995.0f, "Z channel");
+    free(back);
+    back = NULL;
+    CHECK(wvol_exr_read_channel(&back, &w, &h, path, "Q", &err) == WVOL_ERR_FORMAT && strstr(err.message, "'Q'"), "%s",
+          err.message);
+    CHECK(wvol_exr_read_channel(&back, &w, &h, "no_such_file.exr", "R", &err) != WVOL_OK, "missing file");
+    CHECK(wvol_image_write_png(img, "render_test_img.png", NULL, 1.0, &err) == WVOL_OK, "%s", err.message);
+    CHECK(access("render_test_img.png", F_OK) == 0, "png written");
+    CHECK(wvol_image_write_exr(img, "no_such_dir/x.exr", NULL, &err) == WVOL_ERR_IO, "%s", err.message);
+    CHECK(wvol_image_write_png(img, "no_such_dir/x.png", NULL, 1.0, &err) == WVOL_ERR_IO, "%s", err.message);
+    CHECK_NEAR(wvol_linear_to_srgb(0.5), 0.735356983052, 1e-9, "sRGB of 0.5");
+    CHECK_NEAR(wvol_linear_to_srgb(0.002), 0.02584, 1e-9, "sRGB linear segment");
+    remove(path);
+    remove("render_test_img.png");
+    free(z);
+    wvol_image_destroy(img);
+}
+
+/* Along an axis through voxel centres, trilinear interpolation clamped to the edge
+ * integrates over the cell box to exactly sum(f) * spacing (midpoint rule with knots
+ * on step boundaries). */
+static void reference_xray_along_axis_sums_voxels(void)
+{
+    wvol_volume *v = gaussian(12, 10, 9);
+    wvol_geometry g;
+    wvol_camera cam;
+    wvol_image *img = NULL;
+    wvol_render_params p;
+    wvol_error err;
+    double maxrel = 0, dir[3] = {0, 0, -1};
+    size_t i, j, k;
+    double sp[3] = {0.5, 0.5, 1.3}, org[3] = {-3, 2, 5};
+    if (!v) return;
+    wvol_volume_set_geometry(v, sp, org, NULL);
+    wvol_geometry_of_volume(&g, v);
+    CHECK(wvol_camera_frame(&cam, &g, dir, WVOL_ORTHOGRAPHIC, 12, 10, 0, &err) == WVOL_OK, "%s", err.message);
+    wvol_image_create(&img, 12, 10, NULL);
+    wvol_render_params_default(&p);
+    p.mode = WVOL_MODE_XRAY;
+    p.step = 0.5 / 0.5 * 1.3 / 2; /* step in smallest spacing: half a voxel along z */
+    CHECK(wvol_render_reference(img, v, &cam, NULL, &p, NULL, &err) == WVOL_OK, "%s", err.message);
+    for (j = 0; j < 10; j++)
+        for (i = 0; i < 12; i++) {
+            double s = 0, got = img->rgba[4 * (i + 12 * (9 - j))];
+            for (k = 0; k < 9; k++) s += v->data[i + 12 * (j + 10 * k)];
+            s *= 1.3;
+            if (fabs(got - s) / s > maxrel) maxrel = fabs(got - s) / s;
+        }
+    CHECK(maxrel < 1e-6, "reference X-ray = sum * spacing: max relative error %g", maxrel);
+    wvol_image_destroy(img);
+    wvol_volume_destroy(v);
+}
+
+static void empty_space_skipping_changes_nothing(void)
+{
+    wvol_volume *v = gaussian(40, 40, 40);
+    wvol_geometry g;
+    wvol_camera cam;
+    wvol_image *a = NULL, *b = NULL;
+    wvol_render_params p;
+    wvol_render_stats st;
+    wvol_tf tf;
+    wvol_error err;
+    size_t i;
+    if (!v) return;
+    for (i = 0; i < 40 * 40 * 40; i++)
+        if (v->data[i] < 0.3f) v->data[i] = 0; /* empty space around the blob */
+    wvol_geometry_of_volume(&g, v);
+    wvol_camera_parse(&cam, "persp dir=1,0.7,0.4", &g, 48, 40, NULL);
+    wvol_image_create(&a, 48, 40, NULL);
+    wvol_image_create(&b, 48, 40, NULL);
+    wvol_tf_preset(&tf, "gaussian", 0, 1, NULL);
+    wvol_render_params_default(&p);
+    p.brick = 4;
+    CHECK(wvol_render_reference(a, v, &cam, &tf, &p, &st, &err) == WVOL_OK, "%s", err.message);
+    CHECK(st.skipped > 0, "some bricks skipped (%zu)", st.skipped);
+    p.brick = 0;
+    CHECK(wvol_render_reference(b, v, &cam, &tf, &p, NULL, &err) == WVOL_OK, "%s", err.message);
+    CHECK(wvol_image_rmse(a, b, -1, 0) < 1e-7, "skipping: rmse %g", wvol_image_rmse(a, b, -1, 0));
+    wvol_image_destroy(a);
+    wvol_image_destroy(b);
+    wvol_volume_destroy(v);
+}
+
+/* Rays that miss, graze an edge or a corner, start inside, run parallel to a face; opacity
+ * so high that transmittance underflows; an empty volume: no NaN anywhere. */
+static void degenerate_rays_give_no_nan(void)
+{
+    wvol_volume *v = gaussian(16, 16, 16), *e = NULL;
+    wvol_geometry g;
+    wvol_camera cam;
+    wvol_image *img = NULL;
+    wvol_render_params p;
+    wvol_tf tf, hot;
+    wvol_error err;
+    const char *specs[] = {"+z",  "+z height=100",           "dir=1,1,1",
+                           "ortho eye=-0.5,-0.5,40 center=-0.5,-0.5,0 up=0,1,0 height=1",
+                           "ortho eye=-0.5,7,40 center=-0.5,7,0 up=0,1,0 height=2", /* along a face */
+                           "persp eye=7.5,7.5,7.5 center=0,0,0 fov=120",              /* inside */
+                           "persp eye=100,100,100 center=200,200,200 fov=10"};        /* looks away */
+    int s, m;
+    if (!v) return;
+    wvol_volume_create(&e, 16, 16, 16, NULL);
+    wvol_geometry_of_volume(&g, v);
+    wvol_image_create(&img, 24, 24, NULL);
+    wvol_tf_preset(&tf, "gaussian", 0, 1, NULL);
+    wvol_tf_parse(&hot, "0 1 1 1 1e30\n1 1 1 1 1e300\n", "hot", NULL);
+    for (s = 0; s < (int)(sizeof specs / sizeof *specs); s++)
+        for (m = 0; m < 3; m++) {
+            const wvol_tf *tfs[2] = {&tf, &hot};
+            int t;
+            CHECK(wvol_camera_parse(&cam, specs[s], &g, 24, 24, &err) == WVOL_OK, "%s: %s", specs[s], err.message);
+            for (t = 0; t < 2; t++) {
+                wvol_render_params_default(&p);
+                p.mode = (wvol_render_mode)m;
+                p.termination = t ? 0 : 1e-6;
+                CHECK(wvol_render_reference(img, v, &cam, tfs[t], &p, NULL, &err) == WVOL_OK, "%s", err.message);
+                CHECK(image_finite(img), "finite image: camera '%s' mode %d tf %d", specs[s], m, t);
+                CHECK(wvol_render_reference(img, e, &cam, tfs[t], &p, NULL, &err) == WVOL_OK, "%s", err.message);
+                CHECK(image_finite(img), "finite image of an empty volume: camera '%s' mode %d", specs[s], m);
+            }
+        }
+    /* a bad image size is refused */
+    wvol_camera_parse(&cam, "+z", &g, 8, 8, NULL);
+    CHECK(wvol_render_reference(img, v, &cam, &tf, NULL, NULL, &err) == WVOL_ERR_ARG && strstr(err.message, "24x24"),
+          "%s", err.message);
+    wvol_image_destroy(img);
+    wvol_volume_destroy(v);
+    wvol_volume_destroy(e);
+}
+
+/* Reference convergence: halving the step changes the absorption image less and less. */
+static void reference_converges_with_step(void)
+{
+    wvol_volume *v = gaussian(24, 24, 24);
+    wvol_geometry g;
+    wvol_camera cam;
+    wvol_image *img[3] = {NULL, NULL, NULL};
+    wvol_render_params p;
+    wvol_tf tf;
+    double steps[3] = {0.5, 0.25, 0.125}, e1, e2;
+    int i;
+    if (!v) return;
+    wvol_geometry_of_volume(&g, v);
+    wvol_camera_parse(&cam, "persp dir=0.3,1,0.2", &g, 32, 32, NULL);
+    wvol_tf_preset(&tf, "gaussian", 0, 1, NULL);
+    wvol_render_params_default(&p);
+    for (i = 0; i < 3; i++) {
+        wvol_image_create(&img[i], 32, 32, NULL);
+        p.step = steps[i];
+        wvol_render_reference(img[i], v, &cam, &tf, &p, NULL, NULL);
+    }
+    e1 = wvol_image_rmse(img[0], img[2], -1, 1);
+    e2 = wvol_image_rmse(img[1], img[2], -1, 1);
+    CHECK(e2 < e1 && e1 < 1e-2, "step refinement: %g then %g", e1, e2);
+    for (i = 0; i < 3; i++) wvol_image_destroy(img[i]);
+    wvol_volume_destroy(v);
+}
+
+int main(void)
+{
+    camera_description_is_parsed_and_checked();
+    transfer_functions_parse_and_refuse_bad_input();
+    image_files_round_trip();
+    reference_xray_along_axis_sums_voxels();
+    empty_space_skipping_changes_nothing();
+    degenerate_rays_give_no_nan();
+    reference_converges_with_step();
+    return check_summary("test_render");
+}
