@@ -87,9 +87,11 @@ int wvol_cmd_transform(int argc, char **argv)
     max = wvol_dwt_max_levels(v->nx, v->ny, v->nz);
     if (levels == 0) levels = max < 3 ? max : 3;
     if (levels < 1 || levels > max) {
+        size_t d[3] = {v->nx, v->ny, v->nz};
         wvol_volume_destroy(v);
-        return cli_usage("transform", "--levels %ld: a %zu x %zu x %zu volume allows 1..%d", levels, v->nx,
-                         v->ny, v->nz, max);
+        if (max == 0) return cli_usage("transform", "a 1 x 1 x 1 volume cannot be transformed");
+        return cli_usage("transform", "--levels %ld: a %zu x %zu x %zu volume allows 1..%d", levels, d[0], d[1],
+                         d[2], max);
     }
     t0 = cli_now();
     if (wvol_dwt3_ex(&c, v, f, (int)levels, pad, f64, &err) != WVOL_OK) {

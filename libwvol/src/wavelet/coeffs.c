@@ -91,7 +91,7 @@ wvol_status wvol_coeffs_clone(wvol_coeffs **out, const wvol_coeffs *c, wvol_erro
     static void pad_fill_##T(T *dst, const wvol_coeffs *c, const wvol_volume *v, wvol_pad_mode pad) \
     {                                                                                        \
         long long planes = (long long)c->pz;                                                 \
-        _Pragma("omp parallel for schedule(static)")                                         \
+        _Pragma("omp parallel for schedule(static) if (c->px * c->py * c->pz > 65536)")        \
         for (long long kk = 0; kk < planes; kk++) {                                          \
             size_t k = (size_t)kk, sk, sj;                                                   \
             int zero_k = k >= v->nz && pad == WVOL_PAD_ZERO;                                 \

@@ -92,11 +92,12 @@ static void gather(double *dst, const wvol_coeffs *c, int m, int band, const reg
     }
 }
 
-/* Synthesis along `axis` on unwrapped indices: in arrays lo/hi have extent `in` (the
- * coefficient region, starting at k0), out has extent `outr` along the axis (starting
- * at o0); the other axes have extent in->n. out[i] = sum_k h[i-2k] lo[k] + g[i-2k] hi[k]. */
+/* Synthesis along `axis` on unwrapped indices: in arrays lo/hi cover the region `in`
+ * (along the axis [k0, k0+kn)), out covers [o0, o0+on) along the axis and in's extent
+ * along the others. out[i] = sum_k h[i-2k] lo[k] + g[i-2k] hi[k], 0 <= i-2k < L. When
+ * the input region is a whole period (full), k is taken modulo it. */
 static void synth_axis(double *out, const double *lo, const double *hi, const region *in, ptrdiff_t o0,
-                       ptrdiff_t on, int axis, const wvol_filter *f)
+                       ptrdiff_t on, int axis, int full, const wvol_filter *f)
 {
     ptrdiff_t n[3] = {in->n[0], in->n[1], in->n[2]}, st[3], ost[3], k0 = in->lo[axis], kn = in->n[axis];
     ptrdiff_t L = f->length;
@@ -112,10 +113,13 @@ static void synth_axis(double *out, const double *lo, const double *hi, const re
             for (ptrdiff_t i = 0; i < on; i++) {
                 ptrdiff_t gi = o0 + i, kmin = -floor_div2(L - 1 - gi), kmax = floor_div2(gi), k;
                 double acc = 0.0;
-                if (kmin < k0) kmin = k0;
-                if (kmax > k0 + kn - 1) kmax = k0 + kn - 1;
+                if (!full) {
+                    if (kmin < k0) kmin = k0;
+                    if (kmax > k0 + kn - 1) kmax = k0 + kn - 1;
+                }
                 for (k = kmin; k <= kmax; k++) {
-                    ptrdiff_t tap = gi - 2 * k, at = (k - k0) * st[axis];
+                    ptrdiff_t tap = gi - 2 * k, rel = (k - k0) % kn;
+                    ptrdiff_t at = (rel < 0 ? rel + kn : rel) * st[axis];
                     acc += f->h[tap] * l[at] + (h ? f->g[tap] * h[at] : 0.0);
                 }
                 o[i * ost[axis]] = acc;
@@ -156,6 +160,10 @@ wvol_status wvol_idwt3_brick(wvol_volume **out, const wvol_coeffs *c, const size
             }
             ptrdiff_t l0 = reg[m - 1].lo[a], h0 = l0 + reg[m - 1].n[a];
             ptrdiff_t kl = -floor_div2(c->filter->length - 1 - l0), kh = floor_div2(h0 - 1) + 1;
+            ptrdiff_t e = (ptrdiff_t)wvol__extent(pad[a], m);
+            /* a region at least one period long is the whole period (long filters, deep
+             * levels): its synthesis indexes the coefficients periodically */
+            if (kh - kl >= e) kl = 0, kh = e;
             reg[m].lo[a] = kl, reg[m].n[a] = kh - kl;
         }
     A = malloc(region_count(&reg[M]) * sizeof *A);
@@ -190,7 +198,8 @@ wvol_status wvol_idwt3_brick(wvol_volume **out, const wvol_coeffs *c, const size
                 if ((b & half) || !src[b]) continue; /* NULL: high-pass on a 1-voxel axis */
                 double *o = malloc(ncnt * sizeof *o);
                 if (!o) goto nomem;
-                synth_axis(o, src[b], src[b | half], &cur, q->lo[ax], q->n[ax], ax, c->filter);
+                synth_axis(o, src[b], src[b | half], &cur, q->lo[ax], q->n[ax], ax,
+                           cur.n[ax] == (ptrdiff_t)wvol__extent(pad[ax], m), c->filter);
                 free(src[b]);
                 free(src[b | half]);
                 src[b] = o;
