@@ -196,9 +196,8 @@ wvol_status wvol_render_spline(wvol_image *img, const wvol_store *s, const wvol_
 /* Fast path: X-ray along a coordinate axis (orthographic camera looking along an axis whose
  * extent is a multiple of 2^levels, so the ray covers whole periods of the model) from 2D
  * coefficients alone: each kept coefficient's ray-axis factor integrates to 2^{m/2} times the
- * integral of phi or psi (the spline's own, ~1 and ~0), leaving a 2D pyramid that is inverse
- * transformed in 2D level by level; the 2D scaling expansion is then evaluated at the pixel
- * centres. Equals wvol_render_spline in X-ray mode to rounding. WVOL_ERR_UNSUPPORTED (with
+ * integral of phi or psi (the spline's own, ~1 and ~0), leaving a 2D pyramid whose multi-level
+ * expansion is evaluated at the pixel centres (O(kept + pixels * levels * 4 (L-1)^2)). Equals wvol_render_spline in X-ray mode to rounding. WVOL_ERR_UNSUPPORTED (with
  * the reason) for other cameras. */
 wvol_status wvol_render_xray_axis(wvol_image *img, const wvol_store *s, const wvol_camera *cam,
                                   const wvol_render_params *params, wvol_render_stats *stats,

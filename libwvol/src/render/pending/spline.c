@@ -23,13 +23,20 @@
 
 #define NC 10 /* coefficients of a degree-9 polynomial */
 
+typedef struct level_ws {
+    double *T;          /* breakpoints of this level's lattice: x + s in 2^{m-J} Z */
+    size_t capT, E;     /* E pieces */
+    double *acc;        /* E * NC (value), then E * 3 * NC (gradient) when shading */
+    size_t capA;
+    int used;           /* a function of this level was added */
+} level_ws;
+
 typedef struct ray_ws {
-    double *T;          /* breakpoints */
-    double *ax[3];      /* per-axis crossings */
-    size_t capT, capA[3];
-    double *acc;        /* pieces * NC */
-    double *gacc;       /* pieces * 3 * NC (shading) */
-    size_t capE;
+    level_ws lev[WVOL_SELECT_MAX_LEVELS + 1];
+    double *ax[3];      /* per-axis crossings (scratch) */
+    size_t capX[3];
+    double *macc;       /* absorption: all levels merged on level 1's lattice */
+    size_t capM;
     wvol_store_hits hits;
 } ray_ws;
 
@@ -112,10 +119,10 @@ static double pint(const double *a, double u)
     return r * u;
 }
 
-/* Merges the sorted crossings of the three axes with [ta, tb] into ws->T; returns the
- * number of pieces. */
-static size_t lattice(const spline_ctx *c, ray_ws *ws, const double o[3], const double d[3], double ta, double tb,
-                      int *ok)
+/* Merges the sorted crossings x_a + s in grid Z of the three axes with [ta, tb] into
+ * L->T and sets L->E, the number of pieces. */
+static size_t lattice(const spline_ctx *c, ray_ws *ws, level_ws *L, double grid, const double o[3], const double d[3],
+                      double ta, double tb, int *ok)
 {
     size_t n[3] = {0, 0, 0}, pos[3] = {0, 0, 0}, total = 2, E = 0;
     int a;
@@ -127,29 +134,29 @@ static size_t lattice(const spline_ctx *c, ray_ws *ws, const double o[3], const 
         if (!c->info.transformed[a] || d[a] == 0.0) continue;
         x0 = o[a] + ta * d[a];
         x1 = o[a] + tb * d[a];
-        kd0 = ceil((fmin(x0, x1) + c->shift) / c->grid);
-        kd1 = floor((fmax(x0, x1) + c->shift) / c->grid);
+        kd0 = ceil((fmin(x0, x1) + c->shift) / grid);
+        kd1 = floor((fmax(x0, x1) + c->shift) / grid);
         if (kd1 < kd0) continue;
         k0 = (long)kd0;
         k1 = (long)kd1;
         n[a] = (size_t)(k1 - k0 + 1);
         total += n[a];
     }
-    if (!grow((void **)&ws->T, &ws->capT, total + 1, sizeof(double))) return *ok = 0, 0;
+    if (!grow((void **)&L->T, &L->capT, total + 1, sizeof(double))) return *ok = 0, 0;
     for (a = 0; a < 3; a++) {
         if (!n[a]) continue;
-        if (!grow((void **)&ws->ax[a], &ws->capA[a], n[a], sizeof(double))) return *ok = 0, 0;
+        if (!grow((void **)&ws->ax[a], &ws->capX[a], n[a], sizeof(double))) return *ok = 0, 0;
         {
             double x0 = o[a] + ta * d[a], x1 = o[a] + tb * d[a];
-            long k0 = (long)ceil((fmin(x0, x1) + c->shift) / c->grid), k;
+            long k0 = (long)ceil((fmin(x0, x1) + c->shift) / grid), k;
             size_t i;
             for (i = 0; i < n[a]; i++) {
                 k = d[a] > 0 ? k0 + (long)i : k0 + (long)(n[a] - 1 - i);
-                ws->ax[a][i] = ((double)k * c->grid - c->shift - o[a]) / d[a];
+                ws->ax[a][i] = ((double)k * grid - c->shift - o[a]) / d[a];
             }
         }
     }
-    ws->T[E++] = ta;
+    L->T[E++] = ta;
     for (;;) {
         double best = INFINITY;
         int ba = -1;
@@ -157,9 +164,10 @@ static size_t lattice(const spline_ctx *c, ray_ws *ws, const double o[3], const 
             if (pos[a] < n[a] && ws->ax[a][pos[a]] < best) best = ws->ax[a][pos[a]], ba = a;
         if (ba < 0) break;
         pos[ba]++;
-        if (best > ws->T[E - 1] + eps && best < tb - eps) ws->T[E++] = best;
+        if (best > L->T[E - 1] + eps && best < tb - eps) L->T[E++] = best;
     }
-    ws->T[E++] = tb;
+    L->T[E++] = tb;
+    L->E = E - 1;
     return E - 1;
 }
 
@@ -183,9 +191,10 @@ static void addmul63(double *acc, double w, const double a[7], const double b[4]
 }
 
 /* Adds one basis function (hit) to the piece polynomials. */
-static void add_hit(const spline_ctx *c, ray_ws *ws, size_t E, const double o[3], const double d[3],
-                    const wvol_store_hit *h, int shading, ray_res *r)
+static void add_hit(const spline_ctx *c, level_ws *L, const double o[3], const double d[3], const wvol_store_hit *h,
+                    int shading, ray_res *r)
 {
+    size_t E = L->E;
     const wvol_basis *b = c->b;
     double inv2m = ldexp(1.0, -(int)h->level), norm = 1.0, w;
     size_t lo = 0, hi = E, e;
@@ -196,12 +205,13 @@ static void add_hit(const spline_ctx *c, ray_ws *ws, size_t E, const double o[3]
     /* first piece: largest e with T[e] <= t0 */
     while (hi - lo > 1) {
         size_t mid = (lo + hi) / 2;
-        if (ws->T[mid] <= h->t0) lo = mid;
+        if (L->T[mid] <= h->t0) lo = mid;
         else hi = mid;
     }
     r->functions++;
-    for (e = lo; e < E && ws->T[e] < h->t1; e++) {
-        double t0 = ws->T[e], t1 = ws->T[e + 1], len = t1 - t0, tm = 0.5 * (t0 + t1);
+    L->used = 1;
+    for (e = lo; e < E && L->T[e] < h->t1; e++) {
+        double t0 = L->T[e], t1 = L->T[e + 1], len = t1 - t0, tm = 0.5 * (t0 + t1);
         double f[3][4], g[3][4], f01[7];
         int skip = 0;
         if (!(len > 0)) continue;
@@ -227,14 +237,14 @@ static void add_hit(const spline_ctx *c, ray_ws *ws, size_t E, const double o[3]
         if (skip) continue;
         r->pieces++;
         mul33(f01, f[0], f[1]);
-        addmul63(ws->acc + e * NC, w, f01, f[2]);
+        addmul63(L->acc + e * NC, w, f01, f[2]);
         if (shading) {
             double t[7];
             mul33(t, g[0], f[1]);
-            addmul63(ws->gacc + (e * 3 + 0) * NC, w * inv2m, t, f[2]);
+            addmul63(L->acc + (E + e * 3 + 0) * NC, w * inv2m, t, f[2]);
             mul33(t, f[0], g[1]);
-            addmul63(ws->gacc + (e * 3 + 1) * NC, w * inv2m, t, f[2]);
-            addmul63(ws->gacc + (e * 3 + 2) * NC, w * inv2m, f01, g[2]);
+            addmul63(L->acc + (E + e * 3 + 1) * NC, w * inv2m, t, f[2]);
+            addmul63(L->acc + (E + e * 3 + 2) * NC, w * inv2m, f01, g[2]);
         }
     }
 }
@@ -297,24 +307,82 @@ static void tf_segment(const wvol_tf *tf, double f, double *k0, double *k1, doub
     }
 }
 
-static void integrate(const spline_ctx *c, ray_ws *ws, size_t E, const double d_world[3], ray_res *r)
+/* q(v) = p(alpha + beta v), degree 9 (Taylor shift by synthetic division, then scaling). */
+static void reexpand(double *q, const double *p, double alpha, double beta)
+{
+    int i, k;
+    double bk = 1;
+    for (k = 0; k < NC; k++) q[k] = p[k];
+    for (i = 0; i < NC - 1; i++)
+        for (k = NC - 2; k >= i; k--) q[k] += alpha * q[k + 1];
+    for (k = 1; k < NC; k++) {
+        bk *= beta;
+        q[k] *= bk;
+    }
+}
+
+static void addv(double *acc, const double *q, int n)
+{
+    int k;
+    for (k = 0; k < n; k++) acc[k] += q[k];
+}
+
+/* Sums every level's piece polynomials onto level 1's (the finest) lattice: ws->macc. */
+static int merge_levels(const spline_ctx *c, ray_ws *ws, int shading)
+{
+    level_ws *F = &ws->lev[1];
+    size_t E = F->E, e, per = shading ? 4 : 1, ptr[WVOL_SELECT_MAX_LEVELS + 1];
+    int m, M = c->info.levels, k;
+    if (!grow((void **)&ws->macc, &ws->capM, E * NC * per, sizeof(double))) return 0;
+    if (F->used) memcpy(ws->macc, F->acc, E * NC * per * sizeof(double));
+    else memset(ws->macc, 0, E * NC * per * sizeof(double));
+    for (m = 2; m <= M; m++) ptr[m] = 0;
+    for (e = 0; e < E; e++) {
+        double t0 = F->T[e], t1 = F->T[e + 1], tm = 0.5 * (t0 + t1), q[NC];
+        for (m = 2; m <= M; m++) {
+            level_ws *L = &ws->lev[m];
+            double plen, alpha, beta;
+            size_t pe;
+            if (!L->used) continue;
+            while (ptr[m] + 1 < L->E && L->T[ptr[m] + 1] <= tm) ptr[m]++;
+            pe = ptr[m];
+            plen = L->T[pe + 1] - L->T[pe];
+            if (!(plen > 0)) continue;
+            alpha = (t0 - L->T[pe]) / plen;
+            beta = (t1 - t0) / plen;
+            reexpand(q, L->acc + pe * NC, alpha, beta);
+            addv(ws->macc + e * NC, q, NC);
+            if (shading)
+                for (k = 0; k < 3; k++) {
+                    reexpand(q, L->acc + (L->E + pe * 3 + (size_t)k) * NC, alpha, beta);
+                    addv(ws->macc + (E + e * 3 + (size_t)k) * NC, q, NC);
+                }
+        }
+    }
+    return 1;
+}
+
+static void integrate(const spline_ctx *c, ray_ws *ws, const double d_world[3], ray_res *r)
 {
     const wvol_render_params *p = &c->p;
     double T = 1.0, col[3] = {0, 0, 0}, xr = 0;
-    size_t e;
-    int ch, q;
+    size_t e, E = ws->lev[1].E;
+    const double *Tb = ws->lev[1].T;
+    int ch, q, m;
     if (p->mode == WVOL_MODE_XRAY) {
-        for (e = 0; e < E; e++) {
-            double len = ws->T[e + 1] - ws->T[e];
-            xr += len * pint(ws->acc + e * NC, 1.0);
+        /* no merge needed: the integral is a sum over every level's own pieces */
+        for (m = 1; m <= c->info.levels; m++) {
+            level_ws *L = &ws->lev[m];
+            if (!L->used) continue;
+            for (e = 0; e < L->E; e++) xr += (L->T[e + 1] - L->T[e]) * pint(L->acc + e * NC, 1.0);
         }
         r->rgba[0] = r->rgba[1] = r->rgba[2] = xr;
         r->rgba[3] = 1.0;
         return;
     }
     for (e = 0; e < E && !r->terminated; e++) {
-        const double *a = ws->acc + e * NC;
-        double len = ws->T[e + 1] - ws->T[e], bmin = INFINITY, bmax = -INFINITY, cuts[2 * WVOL_TF_MAX_POINTS + 2];
+        const double *a = ws->macc + e * NC;
+        double len = Tb[e + 1] - Tb[e], bmin = INFINITY, bmax = -INFINITY, cuts[2 * WVOL_TF_MAX_POINTS + 2];
         int nc = 0, k, j, i;
         if (!(len > 0)) continue;
         /* Bernstein range of the piece: knots outside it cannot be crossed */
@@ -344,7 +412,7 @@ static void integrate(const spline_ctx *c, ray_ws *ws, size_t E, const double d_
                 if (p->shading) {
                     double grad[3];
                     for (ch = 0; ch < 3; ch++)
-                        grad[ch] = peval(ws->gacc + (e * 3 + (size_t)ch) * NC, s) / c->info.spacing[ch];
+                        grad[ch] = peval(ws->macc + (E + e * 3 + (size_t)ch) * NC, s) / c->info.spacing[ch];
                     shade = wvol__shade(grad, d_world, p->ambient);
                 }
                 for (ch = 0; ch < 3; ch++) col[ch] += c->gl_w[q] * h * len * (c0[ch] + c1[ch] * f) * kap * Tq * shade;
@@ -371,22 +439,29 @@ static wvol_status trace(const spline_ctx *c, ray_ws *ws, const double ow[3], co
                          ray_res *r, wvol_error *err)
 {
     double o[3], d[3];
-    size_t E, i;
-    int ok;
+    size_t i, per = c->p.shading ? 4 : 1;
+    int ok, m, M = c->info.levels;
     wvol_store_world_to_voxel(c->s, ow, o);
     wvol_store_dir_to_voxel(c->s, dw, d);
-    E = lattice(c, ws, o, d, ta, tb, &ok);
-    WVOL_RETURN_IF(!ok, err, WVOL_ERR_NOMEM, "render: out of memory for the ray's pieces");
-    if (!grow((void **)&ws->acc, &ws->capE, E * NC * (c->p.shading ? 4 : 1), sizeof(double)))
-        return wvol_error_set(err, WVOL_ERR_NOMEM, "render: out of memory for %zu pieces", E);
-    memset(ws->acc, 0, E * NC * sizeof(double));
-    if (c->p.shading) {
-        ws->gacc = ws->acc + E * NC;
-        memset(ws->gacc, 0, E * 3 * NC * sizeof(double));
-    }
     WVOL_FORWARD(wvol_store_query_ray(c->s, o, d, ta, tb, &ws->hits, err));
-    for (i = 0; i < ws->hits.count; i++) add_hit(c, ws, E, o, d, &ws->hits.hits[i], c->p.shading, r);
-    integrate(c, ws, E, dw, r);
+    for (m = 1; m <= M; m++) ws->lev[m].used = 0, ws->lev[m].E = 0;
+    /* level 1's lattice is needed by the absorption modes even without level-1 functions */
+    if (c->p.mode != WVOL_MODE_XRAY) ws->lev[1].used = 2;
+    for (i = 0; i < ws->hits.count; i++) ws->lev[ws->hits.hits[i].level].used = 2;
+    for (m = 1; m <= M; m++) {
+        level_ws *L = &ws->lev[m];
+        if (!L->used) continue;
+        lattice(c, ws, L, ldexp(c->grid, m - 1), o, d, ta, tb, &ok);
+        if (ok) ok = grow((void **)&L->acc, &L->capA, L->E * NC * per, sizeof(double));
+        WVOL_RETURN_IF(!ok, err, WVOL_ERR_NOMEM, "render: out of memory for the ray's pieces");
+        memset(L->acc, 0, L->E * NC * per * sizeof(double));
+        L->used = 0;
+    }
+    for (i = 0; i < ws->hits.count; i++)
+        add_hit(c, &ws->lev[ws->hits.hits[i].level], o, d, &ws->hits.hits[i], c->p.shading, r);
+    if (c->p.mode != WVOL_MODE_XRAY)
+        WVOL_RETURN_IF(!merge_levels(c, ws, c->p.shading), err, WVOL_ERR_NOMEM, "render: out of memory");
+    integrate(c, ws, dw, r);
     return WVOL_OK;
 }
 
@@ -465,9 +540,12 @@ wvol_status wvol_render_spline(wvol_image *img, const wvol_store *s, const wvol_
                     clamped += r.clamped;
                 }
         }
-        free(ws.T);
+        for (a = 0; a <= WVOL_SELECT_MAX_LEVELS; a++) {
+            free(ws.lev[a].T);
+            free(ws.lev[a].acc);
+        }
         for (a = 0; a < 3; a++) free(ws.ax[a]);
-        free(ws.acc);
+        free(ws.macc);
         wvol_store_hits_free(&ws.hits);
     }
     if (failed) {

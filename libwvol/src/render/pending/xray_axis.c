@@ -3,10 +3,9 @@
  * The integral of a level-m factor 2^{-m/2} B(2^{-m}(x + s) - p) over a whole period of the
  * model is 2^{m/2} times the integral of B (the spline's phi or psi: ~1 and ~0, taken as
  * computed, so the result is the spline model's exactly). What is left of each coefficient
- * is a 2D basis function of the same level and position; the 2D pyramid is inverse
- * transformed level by level (scaling terms from psi along the ray enter at their level),
- * and the 2D scaling expansion sum c0[i,j] phi(u + s - i) phi(v + s - j) is evaluated at the
- * pixel centres. Cost: O(kept) + O(P^2) + O(pixels (L-1)^2), independent of the ray length. */
+ * is a 2D basis function of the same level and position, and the 2D multi-level sum is
+ * evaluated at the pixel centres level by level (separable weights, (L-1)^2 terms per level
+ * and 2D band). Cost: O(kept) + O(pixels levels 4 (L-1)^2), independent of the ray length. */
 #include "render_internal.h"
 
 #include <math.h>
@@ -23,7 +22,7 @@ wvol_status wvol_render_xray_axis(wvol_image *img, const wvol_store *s, const wv
     wvol_store_iter it;
     wvol_store_coeff cf;
     size_t P[3], Pu, Pv, m, i;
-    double **acc = NULL, *buf = NULL, lo[3], hi[3], t_start = wvol__now(), Iphi, Ipsi, sp_ray;
+    double **acc = NULL, lo[3], hi[3], t_start = wvol__now(), Iphi, Ipsi, sp_ray;
     int a = -1, ua, va, M, ax, y;
     wvol_status st = WVOL_OK;
 
@@ -62,12 +61,11 @@ wvol_status wvol_render_xray_axis(wvol_image *img, const wvol_store *s, const wv
 
     /* acc[4*m + band2]: (Pu >> m) x (Pv >> m) arrays, band2 bit 0 = high-pass along u, bit 1 along v */
     acc = calloc((size_t)(M + 1) * 4, sizeof *acc);
-    buf = malloc(Pu * Pv * sizeof *buf);
-    if (!acc || !buf) goto nomem;
+    if (!acc) goto nomem;
     for (m = 0; m <= (size_t)M; m++) {
         int bd;
         for (bd = 0; bd < 4; bd++) {
-            if (m == 0 && bd) continue;
+            if (m == 0) continue;
             acc[4 * m + bd] = calloc((Pu >> m) * (Pv >> m), sizeof(double));
             if (!acc[4 * m + bd]) goto nomem;
         }
@@ -81,35 +79,25 @@ wvol_status wvol_render_xray_axis(wvol_image *img, const wvol_store *s, const wv
         else w = sp_ray;
         acc[4 * lev + bd][pos[ua] + (Pu >> lev) * pos[va]] += w * cf.value;
     }
-    /* level by level: [low | u-high ; v-high | both] -> low of the next finer level */
-    for (m = (size_t)M; m >= 1; m--) {
-        size_t hu = Pu >> m, hv = Pv >> m, r;
-        for (r = 0; r < hv; r++) {
-            memcpy(buf + r * 2 * hu, acc[4 * m] + r * hu, hu * sizeof(double));
-            memcpy(buf + r * 2 * hu + hu, acc[4 * m + 1] + r * hu, hu * sizeof(double));
-            memcpy(buf + (r + hv) * 2 * hu, acc[4 * m + 2] + r * hu, hu * sizeof(double));
-            memcpy(buf + (r + hv) * 2 * hu + hu, acc[4 * m + 3] + r * hu, hu * sizeof(double));
-        }
-        st = wvol_idwt3_inplace_f64(buf, 2 * hu, 2 * hv, 1, info.filter, 1, err);
-        if (st != WVOL_OK) goto done;
-        for (i = 0; i < 4 * hu * hv; i++) acc[4 * (m - 1)][i] += buf[i];
-    }
-    /* the 2D scaling expansion at the pixel centres */
+    /* f2(u, v) = sum over levels m and 2D bands of acc * 2^{-m} B_u(2^{-m}(u + s) - p) B_v(...),
+     * evaluated directly level by level. (A 2D inverse transform down to level 0 followed by the
+     * level-0 scaling expansion is the same function for the true phi, but not for its cubic
+     * spline, which satisfies the two-scale relation only up to the spline's error; the direct
+     * sum is what the spline-projected integrator integrates.) */
     {
         wvol_geometry g;
-        double *c0 = acc[0], sft = b->center;
+        double sft = b->center;
         int L1 = b->length - 1;
         g.dims[0] = info.nx, g.dims[1] = info.ny, g.dims[2] = info.nz;
         for (ax = 0; ax < 3; ax++) g.spacing[ax] = info.spacing[ax], g.origin[ax] = info.origin[ax];
         wvol_geometry_bounds(&g, lo, hi);
 #pragma omp parallel for schedule(dynamic, 4) num_threads(wvol__threads(p.threads))
         for (y = 0; y < img->height; y++) {
-            double wu[WVOL_BASIS_MAX_LENGTH], wv[WVOL_BASIS_MAX_LENGTH];
+            double wu[2][WVOL_BASIS_MAX_LENGTH], wv[2][WVOL_BASIS_MAX_LENGTH];
             int xx, ch;
             for (xx = 0; xx < img->width; xx++) {
-                double o[3], d[3], vox[3], val = 0, hit;
-                long iu0, iv0;
-                int ku, kv;
+                double o[3], d[3], vox[3], val = 0;
+                int hit, lev;
                 float *px = img->rgba + 4 * ((size_t)xx + (size_t)img->width * (size_t)y);
                 wvol__cam_ray(&k, xx + 0.5, y + 0.5, o, d);
                 hit = o[ua] > lo[ua] && o[ua] < hi[ua] && o[va] > lo[va] && o[va] < hi[va];
@@ -118,21 +106,34 @@ wvol_status wvol_render_xray_axis(wvol_image *img, const wvol_store *s, const wv
                     continue;
                 }
                 wvol_store_world_to_voxel(s, o, vox);
-                iu0 = (long)floor(vox[ua] + sft) - L1 + 1;
-                iv0 = (long)floor(vox[va] + sft) - L1 + 1;
-                for (ku = 0; ku < L1; ku++) wu[ku] = wvol_basis_value(b, WVOL_PHI, vox[ua] + sft - (double)(iu0 + ku));
-                for (kv = 0; kv < L1; kv++) wv[kv] = wvol_basis_value(b, WVOL_PHI, vox[va] + sft - (double)(iv0 + kv));
-                for (kv = 0; kv < L1; kv++) {
-                    long jv = (iv0 + kv) % (long)Pv;
-                    double rowv = 0;
-                    if (jv < 0) jv += (long)Pv;
-                    if (wv[kv] == 0) continue;
+                for (lev = 1; lev <= M; lev++) {
+                    double sc = ldexp(1.0, -lev), zu = (vox[ua] + sft) * sc, zv = (vox[va] + sft) * sc;
+                    long nu = (long)(Pu >> lev), nv = (long)(Pv >> lev), iu0 = (long)floor(zu) - L1 + 1,
+                         iv0 = (long)floor(zv) - L1 + 1;
+                    int ku, kv, bd;
                     for (ku = 0; ku < L1; ku++) {
-                        long ju = (iu0 + ku) % (long)Pu;
-                        if (ju < 0) ju += (long)Pu;
-                        rowv += wu[ku] * c0[(size_t)ju + Pu * (size_t)jv];
+                        wu[0][ku] = wvol_basis_value(b, WVOL_PHI, zu - (double)(iu0 + ku));
+                        wu[1][ku] = wvol_basis_value(b, WVOL_PSI, zu - (double)(iu0 + ku));
                     }
-                    val += wv[kv] * rowv;
+                    for (kv = 0; kv < L1; kv++) {
+                        wv[0][kv] = wvol_basis_value(b, WVOL_PHI, zv - (double)(iv0 + kv));
+                        wv[1][kv] = wvol_basis_value(b, WVOL_PSI, zv - (double)(iv0 + kv));
+                    }
+                    for (bd = 0; bd < 4; bd++) {
+                        const double *A = acc[4 * lev + bd];
+                        const double *WU = wu[bd & 1], *WV = wv[bd >> 1];
+                        double part = 0;
+                        for (kv = 0; kv < L1; kv++) {
+                            long jv = ((iv0 + kv) % nv + nv) % nv;
+                            double row = 0;
+                            for (ku = 0; ku < L1; ku++) {
+                                long ju = ((iu0 + ku) % nu + nu) % nu;
+                                row += WU[ku] * A[(size_t)ju + (size_t)nu * (size_t)jv];
+                            }
+                            part += WV[kv] * row;
+                        }
+                        val += sc * part;
+                    }
                 }
                 px[0] = px[1] = px[2] = (float)val;
                 px[3] = 1.0f;
@@ -152,6 +153,5 @@ done:
     if (acc)
         for (i = 0; i < (size_t)(M + 1) * 4; i++) free(acc[i]);
     free(acc);
-    free(buf);
     return st;
 }
