@@ -198,7 +198,7 @@ int wvol_cmd_render(int argc, char **argv)
     if (wvol_image_create(&img, (int)W, (int)H, &err) != WVOL_OK) goto fail;
     t_prep = cli_now() - t0;
     {
-        wvol_status s;
+        wvol_status s = WVOL_ERR_INTERNAL;
         if (!strcmp(method, "reference")) s = wvol_render_reference(img, v, &cam, &tf, &rp, &stats, &err);
         else if (!strcmp(method, "reference-fhat")) {
             wvol_basis *b = NULL;

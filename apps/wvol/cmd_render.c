@@ -1,0 +1,304 @@
+/* wvol render: an image of a volume or a .wvc store (DESIGN.md section 8, docs/render.md). */
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+
+#include "cli.h"
+#include "wvol/image.h"
+#include "wvol/io.h"
+#include "wvol/render.h"
+#ifdef WVOL_RENDER_WAVELET
+#include "wvol/store.h"
+#endif
+#include "wvol/wavelet.h"
+
+const char wvol_cmd_render_summary[] = "render a volume or a .wvc store to an EXR or PNG image";
+
+static const cli_opt opts[] = {
+    {"output", 'o', 1, "output image: .exr (float RGBA, linear) or .png (8-bit sRGB)"},
+    {"camera", 0, 1, "camera: +z, -x, \"persp dir=1,1,0.5\", \"ortho eye=X,Y,Z center=X,Y,Z up=0,0,1\" ... (default +z)"},
+    {"size", 0, 1, "image size WxH (default 512x512)"},
+    {"tf", 0, 1, "transfer function: gaussian, grey, ct-bone, ct-soft, or a file (default gaussian)"},
+    {"mode", 0, 1, "xray | absorption | absorption-linear (default absorption)"},
+    {"method", 0, 1, "auto | reference | reference-fhat | spline | axis (default auto)"},
+    {"keep", 0, 1, "volume input, wavelet methods: fraction of coefficients kept, e.g. 5% (default 100%)"},
+    {"wavelet", 0, 1, "volume input, wavelet methods: family (default db2)"},
+    {"levels", 0, 1, "volume input, wavelet methods: levels (default 3, or fewer when the volume is small)"},
+    {"spline-j", 0, 1, "basis splines: 2^J knots per unit (default 4)"},
+    {"step", 0, 1, "reference methods: step in voxels (default 0.5)"},
+    {"gauss", 0, 1, "spline method: Gauss-Legendre nodes per piece for the exponential (default 5)"},
+    {"shading", 0, 0, "diffuse headlight shading from the gradient"},
+    {"threads", 0, 1, "threads (default: all)"},
+    {"exposure", 0, 1, "PNG: scale before sRGB encoding (default 1; X-ray: 1/max)"},
+    {"dims", 0, 1, "raw input: NXxNYxNZ"},
+    {"type", 0, 1, "raw input: sample type"},
+    CLI_JSON_OPT,
+    CLI_HELP_OPT,
+    {NULL, 0, 0, NULL}};
+
+static int is_file(const char *p)
+{
+    struct stat st;
+    return stat(p, &st) == 0 && S_ISREG(st.st_mode);
+}
+
+int wvol_cmd_render(int argc, char **argv)
+{
+    const char *cmd = "render";
+    cli_parser ps;
+    const cli_opt *o;
+    const char *val, *in = NULL, *out = NULL, *camspec = "+z", *tfname = "gaussian", *wname = "db2";
+    const char *method = "auto";
+    int r, json = 0, rc = CLI_FAILED;
+    long W = 512, H = 512, levels = 0, spline_j = 4, threads = 0, gauss = 5;
+    double keep = 1.0, exposure = 0, step = 0.5;
+    int keep_given = 0, exposure_given = 0, auto_fast = 0;
+    wvol_render_params rp;
+    wvol_load_options lo;
+    wvol_error err;
+    wvol_volume *v = NULL;
+#ifdef WVOL_RENDER_WAVELET
+    wvol_coeffs *c = NULL;
+#endif
+#ifdef WVOL_RENDER_WAVELET
+    wvol_selection *sel = NULL;
+#endif
+#ifdef WVOL_RENDER_WAVELET
+    wvol_store *st = NULL;
+#endif
+    wvol_image *img = NULL;
+    wvol_camera cam;
+    wvol_tf tf;
+    wvol_geometry g;
+    wvol_render_stats stats;
+#ifdef WVOL_RENDER_WAVELET
+    wvol_select_report rep;
+#endif
+    double vmin = 0, vmax = 1, t0, t_prep = 0;
+    const wvol_filter *filt = NULL;
+
+    wvol_render_params_default(&rp);
+    memset(&tf, 0, sizeof tf);
+    memset(&stats, 0, sizeof stats);
+    wvol_load_options_default(&lo);
+#ifdef WVOL_RENDER_WAVELET
+    memset(&rep, 0, sizeof rep);
+#endif
+    cli_parser_init(&ps, cmd, argc, argv, opts);
+    while ((r = cli_next(&ps, &o, &val)) >= 0) {
+        if (r == CLI_USAGE) return CLI_USAGE;
+        if (!o) {
+            if (in) return cli_usage(cmd, "one input expected, got '%s' too", val);
+            in = val;
+        } else if (o->short_name == 'h') {
+            cli_print_help(cmd, "IN(.wvc|volume) -o OUT.exr|.png [--camera C] [--tf TF] [--mode M] [--method M] [--keep 5%]",
+                           "Renders the low-albedo integral along rays: X-ray (integral of the value) or\n"
+                           "emission-absorption with a transfer function. 'reference' composites trilinear\n"
+                           "samples of the volume; 'spline' integrates the kept wavelet basis functions\n"
+                           "analytically from a store without reconstructing the volume; 'axis' is the X-ray\n"
+                           "fast path for views along an axis; 'reference-fhat' samples the wavelet model.\n"
+                           "'auto' picks reference for a volume at 100%, else axis when it applies, else spline.\n"
+                           "See docs/render.md for cameras, transfer-function files and errors.",
+                           opts);
+            return CLI_OK;
+        } else if (!strcmp(o->name, "json")) json = 1;
+        else if (!strcmp(o->name, "output")) out = val;
+        else if (!strcmp(o->name, "camera")) camspec = val;
+        else if (!strcmp(o->name, "tf")) tfname = val;
+        else if (!strcmp(o->name, "wavelet")) wname = val;
+        else if (!strcmp(o->name, "method")) method = val;
+        else if (!strcmp(o->name, "shading")) rp.shading = 1;
+        else if (!strcmp(o->name, "size")) {
+            char *e1, *e2;
+            W = strtol(val, &e1, 10);
+            if (e1 == val || (*e1 != 'x' && *e1 != 'X')) return cli_usage(cmd, "--size '%s': expected WxH", val);
+            H = strtol(e1 + 1, &e2, 10);
+            if (e2 == e1 + 1 || *e2 || W < 1 || H < 1 || W > 65536 || H > 65536)
+                return cli_usage(cmd, "--size '%s': expected WxH with sides 1..65536", val);
+        } else if (!strcmp(o->name, "mode")) {
+            if (!strcmp(val, "xray")) rp.mode = WVOL_MODE_XRAY;
+            else if (!strcmp(val, "absorption")) rp.mode = WVOL_MODE_ABSORPTION;
+            else if (!strcmp(val, "absorption-linear")) rp.mode = WVOL_MODE_ABSORPTION_LINEAR;
+            else return cli_usage(cmd, "--mode '%s': expected xray, absorption or absorption-linear", val);
+        } else if (!strcmp(o->name, "keep")) {
+            if (!cli_parse_fraction(cmd, "keep", val, &keep)) return CLI_USAGE;
+            keep_given = 1;
+        } else if (!strcmp(o->name, "levels")) {
+            if (!cli_parse_long(cmd, "levels", val, 1, 30, &levels)) return CLI_USAGE;
+        } else if (!strcmp(o->name, "spline-j")) {
+            if (!cli_parse_long(cmd, "spline-j", val, 1, 12, &spline_j)) return CLI_USAGE;
+        } else if (!strcmp(o->name, "gauss")) {
+            if (!cli_parse_long(cmd, "gauss", val, 1, 10, &gauss)) return CLI_USAGE;
+        } else if (!strcmp(o->name, "threads")) {
+            if (!cli_parse_long(cmd, "threads", val, 0, 4096, &threads)) return CLI_USAGE;
+        } else if (!strcmp(o->name, "step")) {
+            if (!cli_parse_double(cmd, "step", val, &step)) return CLI_USAGE;
+            if (!(step > 0)) return cli_usage(cmd, "--step %g: must be > 0", step);
+        } else if (!strcmp(o->name, "exposure")) {
+            if (!cli_parse_double(cmd, "exposure", val, &exposure)) return CLI_USAGE;
+            if (!(exposure > 0)) return cli_usage(cmd, "--exposure %g: must be > 0", exposure);
+            exposure_given = 1;
+        } else if (!strcmp(o->name, "dims")) {
+            if (!cli_parse_dims(cmd, "dims", val, lo.dims)) return CLI_USAGE;
+        } else if (!strcmp(o->name, "type")) {
+            int t = wvol_sample_type_parse(val);
+            if (t < 0) return cli_usage(cmd, "--type '%s': unknown sample type", val);
+            lo.raw_type = (wvol_sample_type)t;
+        }
+    }
+    if (!in) return cli_usage(cmd, "missing input (see 'wvol render --help')");
+    if (!out) return cli_usage(cmd, "missing output image (-o OUT.exr or OUT.png)");
+    if (!wvol_path_has_ext(out, ".exr") && !wvol_path_has_ext(out, ".png"))
+        return cli_usage(cmd, "output '%s': the extension must be .exr or .png", out);
+    if (strcmp(method, "auto") && strcmp(method, "reference") && strcmp(method, "reference-fhat") &&
+        strcmp(method, "spline") && strcmp(method, "axis"))
+        return cli_usage(cmd, "--method '%s': expected auto, reference, reference-fhat, spline or axis", method);
+    if (wvol_path_has_ext(in, ".wvc"))
+        return cli_fail(cmd, "%s: .wvc input needs the codec's reader, not in this build yet; render the volume", in);
+    rp.step = step;
+    rp.threads = (int)threads;
+    rp.gauss_nodes = (int)gauss;
+    if (!strcmp(method, "auto")) {
+        method = !keep_given || keep >= 1.0 ? "reference" : "spline";
+        auto_fast = 1;
+    }
+    if (wvol_filter_get(&filt, wname, &err) != WVOL_OK) return cli_usage(cmd, "--wavelet: %s", err.message);
+
+    t0 = cli_now();
+    if (wvol_volume_load(&v, in, &lo, &err) != WVOL_OK) return cli_fail_err(cmd, &err);
+    wvol_volume_range(v, &vmin, &vmax, NULL);
+    wvol_geometry_of_volume(&g, v);
+    if (wvol_camera_parse(&cam, camspec, &g, (int)W, (int)H, &err) != WVOL_OK) {
+        rc = cli_usage(cmd, "--camera: %s", err.message);
+        goto done;
+    }
+    if (rp.mode != WVOL_MODE_XRAY) {
+        wvol_status s = is_file(tfname) ? wvol_tf_load(&tf, tfname, &err) : wvol_tf_preset(&tf, tfname, vmin, vmax, &err);
+        if (s != WVOL_OK) {
+            rc = is_file(tfname) ? cli_fail_err(cmd, &err) : cli_usage(cmd, "--tf: %s", err.message);
+            goto done;
+        }
+    }
+#ifdef WVOL_RENDER_WAVELET
+    if (strcmp(method, "reference")) {
+        wvol_select_params sp = wvol_select_params_default();
+        wvol_store_params stp = wvol_store_params_default();
+        int maxl = wvol_dwt_max_levels(v->nx, v->ny, v->nz);
+        int lev = levels ? (int)levels : (maxl < 3 ? maxl : 3);
+        if (lev > maxl) {
+            rc = cli_usage(cmd, "--levels %d: at most %d for %zux%zux%zu", lev, maxl, v->nx, v->ny, v->nz);
+            goto done;
+        }
+        if (wvol_dwt3(&c, v, filt, lev, &err) != WVOL_OK) goto fail;
+        if (keep < 1.0) {
+            sp.mode = WVOL_SELECT_FRACTION;
+            sp.fraction = keep;
+        }
+        if (wvol_select(&sel, c, &sp, v, &rep, &err) != WVOL_OK) goto fail;
+        stp.spline_J = (int)spline_j;
+        if (!strcmp(method, "reference-fhat")) {
+            if (wvol_selection_apply(sel, c, &err) != WVOL_OK) goto fail;
+        } else {
+            if (wvol_store_build(&st, c, sel, &stp, &err) != WVOL_OK) goto fail;
+            wvol_coeffs_destroy(c);
+            c = NULL;
+            wvol_volume_destroy(v); /* the store path never holds the dense volume */
+            v = NULL;
+        }
+    }
+#else
+    if (strcmp(method, "reference")) {
+        (void)auto_fast;
+        rc = cli_fail(cmd, "--method %s: the wavelet methods are not in this build yet", method);
+        goto done;
+    }
+#endif
+    if (wvol_image_create(&img, (int)W, (int)H, &err) != WVOL_OK) goto fail;
+    t_prep = cli_now() - t0;
+    {
+        wvol_status s = WVOL_ERR_INTERNAL;
+        if (!strcmp(method, "reference")) s = wvol_render_reference(img, v, &cam, &tf, &rp, &stats, &err);
+#ifdef WVOL_RENDER_WAVELET
+        else if (!strcmp(method, "reference-fhat")) {
+            wvol_basis *b = NULL;
+            s = wvol_basis_create(&b, filt, (int)spline_j, &err);
+            if (s == WVOL_OK) s = wvol_render_reference_fhat(img, c, b, &cam, &tf, &rp, &stats, &err);
+            wvol_basis_destroy(b);
+        } else if (!strcmp(method, "axis")) s = wvol_render_xray_axis(img, st, &cam, &rp, &stats, &err);
+        else {
+            s = WVOL_ERR_UNSUPPORTED;
+            if (auto_fast && rp.mode == WVOL_MODE_XRAY) {
+                s = wvol_render_xray_axis(img, st, &cam, &rp, &stats, &err);
+                if (s == WVOL_OK) method = "axis";
+            }
+            if (s == WVOL_ERR_UNSUPPORTED) s = wvol_render_spline(img, st, &cam, &tf, &rp, &stats, &err);
+        }
+#endif
+        if (s != WVOL_OK) goto fail;
+    }
+    {
+        wvol_status s;
+        if (wvol_path_has_ext(out, ".exr")) {
+            s = wvol_image_write_exr(img, out, NULL, &err);
+        } else {
+            if (!exposure_given) {
+                exposure = 1.0;
+                if (rp.mode == WVOL_MODE_XRAY) {
+                    size_t i, n = (size_t)W * (size_t)H;
+                    double mx = 0;
+                    for (i = 0; i < n; i++) mx = fmax(mx, img->rgba[4 * i]);
+                    exposure = mx > 0 ? 1.0 / mx : 1.0;
+                }
+            }
+            s = wvol_image_write_png(img, out, NULL, exposure, &err);
+        }
+        if (s != WVOL_OK) goto fail;
+    }
+    if (json) {
+        cli_json_begin();
+        cli_json_str("input", in);
+        cli_json_str("output", out);
+        cli_json_str("method", method);
+        cli_json_str("mode", rp.mode == WVOL_MODE_XRAY ? "xray" : rp.mode == WVOL_MODE_ABSORPTION ? "absorption"
+                                                                                                 : "absorption-linear");
+        cli_json_int("width", W);
+        cli_json_int("height", H);
+#ifdef WVOL_RENDER_WAVELET
+        if (strcmp(method, "reference")) {
+            cli_json_str("wavelet", filt->name);
+            cli_json_num("keep", keep);
+            cli_json_int("kept", (long long)rep.kept);
+            cli_json_num("predicted_rmse", rep.predicted_rmse);
+            cli_json_int("spline_j", spline_j);
+        }
+#endif
+        cli_json_num("prepare_seconds", t_prep);
+        cli_json_num("render_seconds", stats.seconds);
+        cli_json_int("rays_hit", (long long)stats.rays_hit);
+        cli_json_int("samples", (long long)stats.samples);
+        cli_json_int("pieces", (long long)stats.pieces);
+        cli_json_int("functions", (long long)stats.functions);
+        cli_json_int("terminated", (long long)stats.terminated);
+        cli_json_int("clamped", (long long)stats.clamped);
+        cli_json_end();
+    } else {
+        printf("wrote %s (%ldx%ld, %s, %s) in %.3f s render + %.3f s preparation\n", out, W, H, method,
+               rp.mode == WVOL_MODE_XRAY ? "xray" : rp.mode == WVOL_MODE_ABSORPTION ? "absorption" : "absorption-linear",
+               stats.seconds, t_prep);
+    }
+    rc = CLI_OK;
+    goto done;
+fail:
+    rc = cli_fail_err(cmd, &err);
+done:
+    wvol_image_destroy(img);
+#ifdef WVOL_RENDER_WAVELET
+    wvol_store_destroy(st);
+    wvol_selection_destroy(sel);
+    wvol_coeffs_destroy(c);
+#endif
+    wvol_volume_destroy(v);
+    return rc;
+}
