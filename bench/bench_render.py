@@ -1,0 +1,348 @@
+#!/usr/bin/env python3
+"""Run time against image error for every render method and mode (issue 5).
+
+Volumes: the Gaussian and a skull-like phantom at --size^3; images --image^2; kept fractions
+--keep. Every image is compared with the converged trilinear reference of the original volume
+(total error, DESIGN.md section 8) as relative RMSE over all pixels and channels; the wavelet
+model's own difference (spline at 100%) is listed too. In the same run: OpenVDB's vdb_render on the
+same volume written as .vdb and VTK's vtkFixedPointVolumeRayCastMapper under xvfb-run, both in an
+opacity-only setting matched to ours (white emission, kappa linear in the value), compared on
+alpha. Peak memory is the child's maximum resident set (/usr/bin/time -v).
+Writes bench/results/render.json, render.md and render.png.
+
+Defaults are small enough for a smoke test; the issue's run is
+  bench/bench_render.py --size 256 --image 512 --keep 1,5,20,100
+"""
+import argparse
+import json
+import math
+import os
+import pathlib
+import re
+import shutil
+import struct
+import subprocess
+import sys
+import tempfile
+import time
+import zlib
+
+import numpy as np
+
+ROOT = pathlib.Path(__file__).resolve().parents[1]
+WVOL = os.environ.get("WVOL_BIN", str(ROOT / "build" / "wvol"))
+
+
+# ---- volumes ---------------------------------------------------------------------------------
+def gaussian(n):
+    x = np.arange(n) - (n - 1) / 2
+    X, Y, Z = np.meshgrid(x, x, x, indexing="ij")
+    return np.exp(-0.5 * ((X / (n / 6)) ** 2 + (Y / (n / 5)) ** 2 + (Z / (n / 7)) ** 2)).astype(np.float32)
+
+
+def skull(n, tmp):
+    """The project's skull phantom through `wvol synth` when it exists, else a stand-in shell."""
+    out = tmp / "skull_synth.nrrd"
+    r = subprocess.run([WVOL, "synth", "skull", "--size", f"{n}x{n}x{n}", "-o", str(out)], capture_output=True)
+    if r.returncode == 0 and out.exists():
+        raw = tmp / "skull_synth.raw"
+        subprocess.run([WVOL, "convert", str(out), "-o", str(raw)], capture_output=True)
+        if raw.exists():
+            return np.fromfile(raw, dtype="<f4").reshape(n, n, n).transpose(2, 1, 0)
+    x = (np.arange(n) - (n - 1) / 2) / (n / 2)
+    X, Y, Z = np.meshgrid(x, x, x, indexing="ij")
+    r = np.sqrt((X / 0.8) ** 2 + (Y / 0.95) ** 2 + (Z / 0.85) ** 2)
+    v = np.full((n, n, n), -1000.0, np.float32)
+    v[r < 0.95] = 40.0
+    shell = (r > 0.8) & (r < 0.88 + 0.03 * np.sin(6 * X))
+    v[shell] = 1200.0
+    v[((X + 0.3) ** 2 + (Y - 0.6) ** 2 + (Z - 0.1) ** 2) < 0.03] = -1000.0  # an eye socket
+    v[((X - 0.3) ** 2 + (Y - 0.6) ** 2 + (Z - 0.1) ** 2) < 0.03] = -1000.0
+    return v
+
+
+def write_raw(v, path):
+    v.transpose(2, 1, 0).astype("<f4").tofile(path)  # x fastest
+
+
+# ---- EXR (scanline, float/half, no/zip compression) -----------------------------------------
+def read_exr(path):
+    data = pathlib.Path(path).read_bytes()
+    assert data[:4] == b"\x76\x2f\x31\x01", "not an EXR"
+    pos, attrs = 8, {}
+    while data[pos] != 0:
+        e = data.index(b"\0", pos); name = data[pos:e].decode(); pos = e + 1
+        e = data.index(b"\0", pos); typ = data[pos:e].decode(); pos = e + 1
+        size = struct.unpack_from("<i", data, pos)[0]; pos += 4
+        attrs[name] = (typ, data[pos:pos + size]); pos += size
+    pos += 1
+    chans, b = [], attrs["channels"][1]
+    i = 0
+    while b[i] != 0:
+        e = b.index(b"\0", i); nm = b[i:e].decode(); i = e + 1
+        ptype = struct.unpack_from("<i", b, i)[0]; i += 16
+        chans.append((nm, ptype))
+    x0, y0, x1, y1 = struct.unpack("<iiii", attrs["dataWindow"][1])
+    w, h = x1 - x0 + 1, y1 - y0 + 1
+    comp = attrs["compression"][1][0]
+    lines = {0: 1, 2: 1, 3: 16}[comp]
+    nchunks = (h + lines - 1) // lines
+    offsets = struct.unpack_from(f"<{nchunks}Q", data, pos)
+    out = {nm: np.zeros((h, w), np.float32) for nm, _ in chans}
+    for off in offsets:
+        y, size = struct.unpack_from("<ii", data, off)
+        raw = data[off + 8: off + 8 + size]
+        nl = min(lines, y1 + 1 - y)
+        expect = sum(w * (2 if pt == 1 else 4) for _, pt in chans) * nl
+        if comp and size < expect:
+            t = bytearray(zlib.decompress(raw))
+            arr = np.frombuffer(bytes(t), np.uint8).astype(np.int32)
+            arr = (np.cumsum(arr - 128 * (np.arange(arr.size) > 0)) % 256).astype(np.uint8)
+            half = (arr.size + 1) // 2
+            inter = np.empty(arr.size, np.uint8)
+            inter[0::2] = arr[:half]; inter[1::2] = arr[half:]
+            raw = inter.tobytes()
+        p = 0
+        for li in range(nl):
+            for nm, pt in chans:
+                dt = "<f2" if pt == 1 else "<f4"
+                n = w * (2 if pt == 1 else 4)
+                out[nm][y - y0 + li] = np.frombuffer(raw[p:p + n], dt).astype(np.float32)
+                p += n
+    return out
+
+
+def rgba(path):
+    c = read_exr(path)
+    return np.stack([c.get(k, np.zeros_like(c["A"])) for k in "RGBA"], -1)
+
+
+def rel_rmse(a, b):
+    return float(np.sqrt(np.mean((a - b) ** 2)) / max(np.abs(b).max(), 1e-30))
+
+
+# ---- runs ------------------------------------------------------------------------------------
+def timed(cmd, env=None, timeout=3600):
+    """Runs under /usr/bin/time -v; returns (seconds, peak RSS MB, stdout, stderr, rc)."""
+    t0 = time.perf_counter()
+    r = subprocess.run(["/usr/bin/time", "-v", *map(str, cmd)], capture_output=True, text=True, env=env,
+                       timeout=timeout)
+    dt = time.perf_counter() - t0
+    m = re.search(r"Maximum resident set size \(kbytes\): (\d+)", r.stderr)
+    return dt, (int(m.group(1)) / 1024 if m else float("nan")), r.stdout, r.stderr, r.returncode
+
+
+def wvol_render(vol, n, out, args, threads):
+    cmd = [WVOL, "render", vol, "--dims", f"{n}x{n}x{n}", "-o", out, "--json", "--threads", threads, *args]
+    dt, mem, so, se, rc = timed(cmd)
+    if rc != 0:
+        return None, dt, mem, se.strip().splitlines()[-1] if se.strip() else "failed"
+    info = json.loads(so)
+    return info, dt, mem, None
+
+
+def vdb_write(v, path):
+    import pyopenvdb as vdb
+    g = vdb.FloatGrid()
+    g.copyFromArray(v.astype(np.float32))  # numpy (i, j, k) -> voxel (i, j, k)
+    g.name = "density"
+    g.transform = vdb.createLinearTransform(voxelSize=1.0)
+    vdb.write(str(path), grids=[g])
+
+
+def run_vdb(vdbpath, n, img, out, kappa, threads):
+    c = (n - 1) / 2 + 0.5  # vdb's voxel i covers [i, i+1): shift to our cell-centred box
+    cmd = ["vdb_render", vdbpath, out, "-res", f"{img}x{img}", "-camera", "ortho", "-frame", str(n),
+           "-translate", f"{c},{c},{c + 2 * n}", "-lookat", f"{c},{c},{c}", "-up", "0,1,0",
+           "-absorb", f"{kappa},{kappa},{kappa}", "-scatter", "0,0,0", "-step", "0.5", "-cutoff", "1e-6",
+           "-compression", "none", "-cpus", str(threads)]
+    return timed(cmd)
+
+
+VTK_SCRIPT = r"""
+import sys, time, numpy as np, vtk
+from vtk.util import numpy_support
+raw, n, img, kappa, out, threads = sys.argv[1], int(sys.argv[2]), int(sys.argv[3]), float(sys.argv[4]), sys.argv[5], int(sys.argv[6])
+vtk.vtkMultiThreader.SetGlobalMaximumNumberOfThreads(threads)
+v = np.fromfile(raw, dtype='<f4')
+imgd = vtk.vtkImageData(); imgd.SetDimensions(n, n, n); imgd.SetSpacing(1, 1, 1); imgd.SetOrigin(0, 0, 0)
+imgd.GetPointData().SetScalars(numpy_support.numpy_to_vtk(v, deep=True))
+lo, hi = float(v.min()), float(v.max())
+col = vtk.vtkColorTransferFunction(); col.AddRGBPoint(lo, 1, 1, 1); col.AddRGBPoint(hi, 1, 1, 1)
+op = vtk.vtkPiecewiseFunction()
+for t in np.linspace(lo, hi, 64):   # alpha per unit length from kappa(value) = kappa * value
+    op.AddPoint(float(t), float(1 - np.exp(-kappa * max(t, 0))))
+prop = vtk.vtkVolumeProperty(); prop.SetColor(col); prop.SetScalarOpacity(op); prop.SetScalarOpacityUnitDistance(1.0)
+prop.SetInterpolationTypeToLinear(); prop.ShadeOff()
+mapper = vtk.vtkFixedPointVolumeRayCastMapper(); mapper.SetInputData(imgd); mapper.SetNumberOfThreads(threads)
+mapper.SetSampleDistance(0.5); mapper.SetAutoAdjustSampleDistances(0)
+vol = vtk.vtkVolume(); vol.SetMapper(mapper); vol.SetProperty(prop)
+ren = vtk.vtkRenderer(); ren.AddVolume(vol); ren.SetBackground(0, 0, 0)
+win = vtk.vtkRenderWindow(); win.SetOffScreenRendering(1); win.AddRenderer(ren); win.SetSize(img, img)
+cam = ren.GetActiveCamera(); c = (n - 1) / 2
+cam.SetFocalPoint(c, c, c); cam.SetPosition(c, c, c + 2 * n); cam.SetViewUp(0, 1, 0)
+cam.ParallelProjectionOn(); cam.SetParallelScale(n / 2); cam.SetClippingRange(0.1, 10 * n)
+win.Render()                      # first frame: set-up (textures, min/max volume)
+t0 = time.perf_counter(); win.Render(); t1 = time.perf_counter()
+w2i = vtk.vtkWindowToImageFilter(); w2i.SetInput(win); w2i.SetInputBufferTypeToRGB(); w2i.ReadFrontBufferOff(); w2i.Update()
+a = numpy_support.vtk_to_numpy(w2i.GetOutput().GetPointData().GetScalars()).reshape(img, img, -1)[::-1, :, 0]
+np.save(out, a.astype(np.float32) / 255.0)
+print(t1 - t0)
+"""
+
+
+def run_vtk(rawpath, n, img, out, kappa, threads, tmp):
+    script = tmp / "vtk_render.py"
+    script.write_text(VTK_SCRIPT)
+    dt, mem, so, se, rc = timed(["xvfb-run", "-a", "/usr/bin/python3", script, rawpath, n, img, kappa, out, threads])
+    if rc != 0:
+        return None, mem, se.strip().splitlines()[-1] if se.strip() else "failed"
+    return float(so.strip().splitlines()[-1]), mem, None
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--size", type=int, default=48)
+    ap.add_argument("--image", type=int, default=64)
+    ap.add_argument("--keep", default="1,5,20,100", help="kept percentages")
+    ap.add_argument("--volumes", default="gaussian,skull")
+    ap.add_argument("--threads", type=int, default=os.cpu_count())
+    ap.add_argument("--spline-j", default="2,4")
+    ap.add_argument("--ref-step", type=float, default=0.05, help="converged reference step (voxels)")
+    ap.add_argument("--spline-budget", type=float, default=600, help="skip spline runs predicted beyond (s)")
+    ap.add_argument("--out", default=str(ROOT / "bench" / "results"))
+    a = ap.parse_args()
+    outdir = pathlib.Path(a.out); outdir.mkdir(parents=True, exist_ok=True)
+    tmp = pathlib.Path(tempfile.mkdtemp(prefix="bench_render_"))
+    n, img, thr = a.size, a.image, str(a.threads)
+    keeps = [float(k) for k in a.keep.split(",")]
+    rows = []
+    machine = {"cpus": os.cpu_count(), "threads": a.threads, "uname": " ".join(os.uname())}
+    try:
+        for vname in a.volumes.split(","):
+            v = gaussian(n) if vname == "gaussian" else skull(n, tmp)
+            raw = tmp / f"{vname}.raw"; write_raw(v, raw)
+            tf = "gaussian" if vname == "gaussian" else "ct-soft"
+            diag = n * math.sqrt(3)
+            for mode in ["xray", "absorption", "absorption-linear"]:
+                common = ["--size", f"{img}x{img}", "--camera", "+z", "--mode", mode, "--tf", tf]
+                ref = tmp / f"ref_{vname}_{mode}.exr"
+                info, dt, mem, e = wvol_render(raw, n, ref, common + ["--method", "reference", "--step", str(a.ref_step)], thr)
+                if e: print("reference failed:", e); continue
+                R = rgba(ref)
+
+                def record(method, keep, out, info, dt, mem, e, extra=None):
+                    row = {"volume": vname, "mode": mode, "method": method, "keep": keep, "wall_s": dt,
+                           "peak_mb": mem}
+                    if e:
+                        row["error"] = e
+                    else:
+                        row["render_s"] = info.get("render_seconds") if info else dt
+                        row["rel_rmse"] = rel_rmse(rgba(out), R)
+                        for k in ("kept", "pieces", "functions", "samples", "clamped"):
+                            if info and k in info: row[k] = info[k]
+                    row.update(extra or {})
+                    rows.append(row)
+                    print(json.dumps(row), flush=True)
+
+                record("reference (converged)", 100, ref, info, dt, mem, None, {"step": a.ref_step})
+                for step in [1.0, 0.5, 0.25]:
+                    out = tmp / "o.exr"
+                    info, dt, mem, e = wvol_render(raw, n, out, common + ["--method", "reference", "--step", str(step)], thr)
+                    record("reference", 100, out, info, dt, mem, e, {"step": step})
+                for keep in keeps:
+                    ka = [] if keep >= 100 else ["--keep", f"{keep}%"]
+                    if mode == "xray":
+                        out = tmp / "o.exr"
+                        info, dt, mem, e = wvol_render(raw, n, out, common + ["--method", "axis"] + ka, thr)
+                        record("axis", keep, out, info, dt, mem, e)
+                    for J in a.spline_j.split(","):
+                        out = tmp / "o.exr"
+                        info, dt, mem, e = wvol_render(raw, n, out, common + ["--method", "spline", "--spline-j", J] + ka, thr)
+                        record(f"spline J={J}", keep, out, info, dt, mem, e, {"J": int(J)})
+            # peers, opacity-only: kappa(value) = k * value per voxel length, white emission
+            k = 8.0 / diag
+            if vname == "gaussian":
+                tfp = tmp / "peer_tf.txt"
+                tfp.write_text(f"units world\n0 1 1 1 0\n1 1 1 1 {k}\n")
+                ref = tmp / "ref_peer.exr"
+                info, dt, mem, e = wvol_render(raw, n, ref, ["--size", f"{img}x{img}", "--camera", "+z", "--tf", tfp,
+                                                             "--method", "reference", "--step", str(a.ref_step)], thr)
+                RA = rgba(ref)[..., 3]
+                for step in [0.5]:
+                    out = tmp / "o.exr"
+                    info, dt, mem, e = wvol_render(raw, n, out, ["--size", f"{img}x{img}", "--camera", "+z", "--tf", tfp,
+                                                                 "--method", "reference", "--step", str(step)], thr)
+                    rows.append({"volume": vname, "mode": "opacity-only", "method": "wvol reference", "keep": 100,
+                                 "wall_s": dt, "render_s": info["render_seconds"], "peak_mb": mem,
+                                 "rel_rmse": rel_rmse(rgba(out)[..., 3], RA)})
+                    print(json.dumps(rows[-1]), flush=True)
+                for keep in keeps:
+                    out = tmp / "o.exr"
+                    ka = [] if keep >= 100 else ["--keep", f"{keep}%"]
+                    info, dt, mem, e = wvol_render(raw, n, out, ["--size", f"{img}x{img}", "--camera", "+z", "--tf", tfp,
+                                                                 "--method", "spline", "--spline-j", "2"] + ka, thr)
+                    row = {"volume": vname, "mode": "opacity-only", "method": "wvol spline J=2", "keep": keep,
+                           "wall_s": dt, "peak_mb": mem}
+                    if e: row["error"] = e
+                    else: row.update(render_s=info["render_seconds"], rel_rmse=rel_rmse(rgba(out)[..., 3], RA))
+                    rows.append(row); print(json.dumps(row), flush=True)
+                if shutil.which("vdb_render"):
+                    try:
+                        vp = tmp / "g.vdb"; vdb_write(v, vp)
+                        out = tmp / "vdb.exr"
+                        dt, mem, so, se, rc = run_vdb(vp, n, img, out, k, a.threads)
+                        row = {"volume": vname, "mode": "opacity-only", "method": "vdb_render", "keep": 100,
+                               "wall_s": dt, "render_s": dt, "peak_mb": mem}
+                        if rc == 0:
+                            row["rel_rmse"] = rel_rmse(rgba(out)[..., 3], RA)
+                        else:
+                            row["error"] = se.strip().splitlines()[-1] if se.strip() else "failed"
+                        rows.append(row); print(json.dumps(row), flush=True)
+                    except Exception as ex:  # pyopenvdb missing or failing
+                        rows.append({"volume": vname, "method": "vdb_render", "error": repr(ex)})
+                if shutil.which("xvfb-run"):
+                    out = tmp / "vtk.npy"
+                    sec, mem, e = run_vtk(raw, n, img, out, k, a.threads, tmp)
+                    row = {"volume": vname, "mode": "opacity-only", "method": "VTK fixed-point", "keep": 100,
+                           "render_s": sec, "peak_mb": mem}
+                    if e: row["error"] = e
+                    else: row["rel_rmse"] = rel_rmse(np.load(out), RA)
+                    rows.append(row); print(json.dumps(row), flush=True)
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+
+    res = {"size": n, "image": img, "machine": machine, "rows": rows,
+           "note": "rel_rmse: image against the converged trilinear reference of the original volume "
+                   "(total error); opacity-only rows compare alpha only"}
+    (outdir / "render.json").write_text(json.dumps(res, indent=1))
+    lines = [f"# Render benchmark: {n}^3 volumes, {img}x{img} images, {a.threads} threads\n",
+             "| volume | mode | method | kept % | render s | wall s | peak MB | rel. RMSE |", "|---|---|---|---|---|---|---|---|"]
+    for r in rows:
+        lines.append(f"| {r.get('volume')} | {r.get('mode')} | {r.get('method')} | {r.get('keep')} | "
+                     f"{r.get('render_s', float('nan')):.3f} | {r.get('wall_s', float('nan')):.2f} | "
+                     f"{r.get('peak_mb', float('nan')):.0f} | "
+                     + (f"{r['rel_rmse']:.3g}" if "rel_rmse" in r else r.get("error", "")) + " |")
+    (outdir / "render.md").write_text("\n".join(lines) + "\n")
+    try:
+        import matplotlib
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+        fig, axes = plt.subplots(1, 2, figsize=(12, 5))
+        for ax, vname in zip(axes, ["gaussian", "skull"]):
+            for meth in sorted({r["method"] for r in rows if r.get("volume") == vname}):
+                pts = [(r["render_s"], r["rel_rmse"]) for r in rows
+                       if r.get("volume") == vname and r["method"] == meth and "rel_rmse" in r and r.get("render_s")]
+                if pts:
+                    x, y = zip(*pts)
+                    ax.loglog(x, np.maximum(y, 1e-9), "o", label=meth)
+            ax.set_title(f"{vname} {n}^3, {img}^2"); ax.set_xlabel("render time (s)"); ax.set_ylabel("relative RMSE")
+            ax.legend(fontsize=7)
+        fig.tight_layout(); fig.savefig(outdir / "render.png", dpi=90)
+    except Exception as ex:
+        print("plot skipped:", ex)
+    print((outdir / "render.md").read_text())
+
+
+if __name__ == "__main__":
+    sys.exit(main())
