@@ -273,7 +273,7 @@ wvol_status wvol__render_sampled(wvol_image *img, wvol__sampler *s, const wvol_c
                         march(s, &tf, &p, o, d, t0, t1, dt, &r);
                     }
                 }
-                for (a = 0; a < 4; a++) px[a] = (float)r.rgba[a];
+                for (int c = 0; c < 4; c++) px[c] = (float)r.rgba[c];
                 samples += r.samples;
                 skipped += r.skipped;
                 terminated += (size_t)r.terminated;

@@ -540,11 +540,11 @@ wvol_status wvol_render_spline(wvol_image *img, const wvol_store *s, const wvol_
                     clamped += r.clamped;
                 }
         }
-        for (a = 0; a <= WVOL_SELECT_MAX_LEVELS; a++) {
-            free(ws.lev[a].T);
-            free(ws.lev[a].acc);
+        for (int l = 0; l <= WVOL_SELECT_MAX_LEVELS; l++) {
+            free(ws.lev[l].T);
+            free(ws.lev[l].acc);
         }
-        for (a = 0; a < 3; a++) free(ws.ax[a]);
+        for (int l = 0; l < 3; l++) free(ws.ax[l]);
         free(ws.macc);
         wvol_store_hits_free(&ws.hits);
     }
