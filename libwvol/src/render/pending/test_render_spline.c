@@ -175,21 +175,21 @@ static void spline_matches_the_converged_reference_of_the_model(void)
     if (!s || !c) return;
     CHECK(wvol_basis_create(&b, c->filter, 4, NULL) == WVOL_OK, "basis");
     wvol_geometry_of_volume(&g, v);
-    wvol_camera_parse(&cam, "persp dir=1,0.6,0.3 zoom=1.3", &g, 20, 20, NULL);
+    wvol_camera_parse(&cam, "persp dir=1,0.6,0.3 zoom=1.3", &g, 16, 16, NULL);
     wvol_tf_preset(&tf, "gaussian", 0, 1, NULL);
     for (m = 0; m < 2; m++) {
         wvol_image *a = NULL, *r = NULL;
         wvol_render_params p;
         wvol_error err;
         double rel;
-        wvol_image_create(&a, 20, 20, NULL);
-        wvol_image_create(&r, 20, 20, NULL);
+        wvol_image_create(&a, 16, 16, NULL);
+        wvol_image_create(&r, 16, 16, NULL);
         wvol_render_params_default(&p);
         p.mode = m ? WVOL_MODE_ABSORPTION : WVOL_MODE_XRAY;
         p.gauss_nodes = 8;
         p.termination = 0;
         CHECK(wvol_render_spline(a, s, &cam, &tf, &p, NULL, &err) == WVOL_OK, "%s", err.message);
-        p.step = 0.01;
+        p.step = 0.02;
         CHECK(wvol_render_reference_fhat(r, c, b, &cam, &tf, &p, NULL, &err) == WVOL_OK, "%s", err.message);
         rel = wvol_image_rmse(a, r, -1, 1);
         printf("spline vs converged f^ reference, %s: relative RMSE %.3g\n", m ? "absorption" : "xray", rel);
