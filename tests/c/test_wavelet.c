@@ -334,6 +334,12 @@ static void nonfinite_input_refused_with_voxel(void)
     CHECK(wvol_dwt3(&c, v, filt("db2"), 1, &err) == WVOL_ERR_NONFINITE, "Inf refused");
     CHECK(strstr(err.message, "i=4, j=6, k=5") != NULL && strstr(err.message, "Inf"), "names the voxel: %s", err.message);
     wvol_volume_destroy(v);
+    /* finite input whose low-pass overflows float32: refused, not Inf coefficients */
+    v = random_volume(8, 8, 8, 3e38, 3.4e38);
+    c = NULL;
+    CHECK(wvol_dwt3(&c, v, filt("db2"), 3, &err) == WVOL_ERR_NONFINITE && !c, "overflow refused");
+    CHECK(strstr(err.message, "overflow") != NULL, "says overflow: %s", err.message);
+    wvol_volume_destroy(v);
 }
 
 /* ---- layout ---------------------------------------------------------------------- */
