@@ -84,9 +84,11 @@ static void gather(double *dst, const wvol_coeffs *c, int m, int band, const reg
             ptrdiff_t yj = (r->lo[1] + j) % (ptrdiff_t)e[1];
             size_t y = off[1] + (size_t)(yj < 0 ? yj + (ptrdiff_t)e[1] : yj);
             const float *row = c->data + c->px * (y + c->py * z) + off[0];
+            ptrdiff_t xi = r->lo[0] % (ptrdiff_t)e[0];
+            if (xi < 0) xi += (ptrdiff_t)e[0];
             for (ptrdiff_t i = 0; i < r->n[0]; i++) {
-                ptrdiff_t xi = (r->lo[0] + i) % (ptrdiff_t)e[0];
-                dst[t++] = row[xi < 0 ? xi + (ptrdiff_t)e[0] : xi];
+                dst[t++] = row[xi];
+                if (++xi == (ptrdiff_t)e[0]) xi = 0;
             }
         }
     }
@@ -117,10 +119,20 @@ static void synth_axis(double *out, const double *lo, const double *hi, const re
                     if (kmin < k0) kmin = k0;
                     if (kmax > k0 + kn - 1) kmax = k0 + kn - 1;
                 }
-                for (k = kmin; k <= kmax; k++) {
-                    ptrdiff_t tap = gi - 2 * k, rel = (k - k0) % kn;
-                    ptrdiff_t at = (rel < 0 ? rel + kn : rel) * st[axis];
-                    acc += f->h[tap] * l[at] + (h ? f->g[tap] * h[at] : 0.0);
+                /* rel = (k - k0) mod kn, stepped without a division per tap */
+                ptrdiff_t rel = (kmin - k0) % kn, sa = st[axis];
+                if (rel < 0) rel += kn;
+                if (h) {
+                    for (k = kmin; k <= kmax; k++) {
+                        ptrdiff_t tap = gi - 2 * k;
+                        acc += f->h[tap] * l[rel * sa] + f->g[tap] * h[rel * sa];
+                        if (++rel == kn) rel = 0;
+                    }
+                } else {
+                    for (k = kmin; k <= kmax; k++) {
+                        acc += f->h[gi - 2 * k] * l[rel * sa];
+                        if (++rel == kn) rel = 0;
+                    }
                 }
                 o[i * ost[axis]] = acc;
             }
