@@ -49,16 +49,13 @@ void wvol_error_prefix(wvol_error *err, const char *fmt, ...)
     vsnprintf(prefix, sizeof prefix, fmt, ap);
     va_end(ap);
     memcpy(old, err->message, sizeof old);
-    old[sizeof old - 1] = '\0';
-    /* Assembled by hand: snprintf("%s: %s") into the same-sized buffer trips
-     * -Werror=format-truncation at -O3. Truncates the old message if too long. */
+    /* prefix + ": " + old, truncated to the buffer (strings copied by hand so the
+     * compiler's format-truncation check has nothing to flag) */
     {
-        size_t cap = sizeof err->message, n = strlen(prefix), m = strlen(old);
-        if (n > cap - 3) n = cap - 3;
-        memcpy(err->message, prefix, n);
-        memcpy(err->message + n, ": ", 2);
-        if (m > cap - 1 - n - 2) m = cap - 1 - n - 2;
-        memcpy(err->message + n + 2, old, m);
-        err->message[n + 2 + m] = '\0';
+        size_t cap = sizeof err->message - 1, n = 0, k;
+        for (k = 0; prefix[k] && n < cap; k++) err->message[n++] = prefix[k];
+        for (k = 0; ": "[k] && n < cap; k++) err->message[n++] = ": "[k];
+        for (k = 0; old[k] && n < cap; k++) err->message[n++] = old[k];
+        err->message[n] = '\0';
     }
 }
