@@ -42,13 +42,11 @@ def gaussian(n):
 
 def skull(n, tmp):
     """The project's skull phantom through `wvol synth` when it exists, else a stand-in shell."""
-    out = tmp / "skull_synth.nrrd"
-    r = subprocess.run([WVOL, "synth", "skull", "--size", f"{n}x{n}x{n}", "-o", str(out)], capture_output=True)
+    out = tmp / "skull_synth.raw"
+    r = subprocess.run([WVOL, "synth", "skull", "--size", str(n), "--spacing", "1", "-o", str(out)], capture_output=True)
     if r.returncode == 0 and out.exists():
-        raw = tmp / "skull_synth.raw"
-        subprocess.run([WVOL, "convert", str(out), "-o", str(raw)], capture_output=True)
-        if raw.exists():
-            return np.fromfile(raw, dtype="<f4").reshape(n, n, n).transpose(2, 1, 0)
+        return np.fromfile(out, dtype="<f4").reshape(n, n, n).transpose(2, 1, 0)
+    print("wvol synth skull failed; using a stand-in shell:", r.stderr.decode().strip())
     x = (np.arange(n) - (n - 1) / 2) / (n / 2)
     X, Y, Z = np.meshgrid(x, x, x, indexing="ij")
     r = np.sqrt((X / 0.8) ** 2 + (Y / 0.95) ** 2 + (Z / 0.85) ** 2)
