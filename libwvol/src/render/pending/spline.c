@@ -48,6 +48,7 @@ typedef struct spline_ctx {
     wvol_tf tf;         /* kappa per world unit */
     double shift;       /* s: knots at x + s in grid * Z */
     double grid;        /* 2^{1-J} */
+    double norm[WVOL_SELECT_MAX_LEVELS + 1];  /* 2^{-m d / 2}, d = transformed axes */
     double bern[NC][NC];/* monomial -> Bernstein on [0, 1] */
     double gl_x[10], gl_w[10];   /* nodes on [0, 1] */
     int gl_n;
@@ -191,18 +192,56 @@ static void addmul63(double *acc, double w, const double a[7], const double b[4]
 }
 
 /* Adds one basis function (hit) to the piece polynomials. */
+/* c(a u + d) as a cubic in u (Taylor shift to d, then scale by a); inline twin of
+ * wvol_poly3_affine for the innermost loop. */
+static inline void compose3(double out[4], const double *c, double a, double d)
+{
+    double c3 = c[3], c2 = c[2] + 3.0 * d * c3;
+    double c1 = c[1] + d * (2.0 * c[2] + 3.0 * d * c3);
+    double c0 = c[0] + d * (c[1] + d * (c[2] + d * c3));
+    out[0] = c0;
+    out[1] = c1 * a;
+    out[2] = c2 * a * a;
+    out[3] = c3 * a * a * a;
+}
+
+/* Adds one basis function (hit) to its level's piece polynomials. Factors along axes the ray
+ * does not move on (or untransformed axes) are constants of the hit, so an axis-aligned ray
+ * costs one cubic per piece. */
 static void add_hit(const spline_ctx *c, level_ws *L, const double o[3], const double d[3], const wvol_store_hit *h,
                     int shading, ray_res *r)
 {
     size_t E = L->E;
     const wvol_basis *b = c->b;
-    double inv2m = ldexp(1.0, -(int)h->level), norm = 1.0, w;
+    double inv2m = ldexp(1.0, -(int)h->level), w = (double)h->value * c->norm[h->level];
+    double base[3], slope[3], cval = 1.0, cder[3] = {1, 1, 1}; /* cder[q]: d/dx_q of the constant factors */
     size_t lo = 0, hi = E, e;
-    int a, ntr = 0;
-    for (a = 0; a < 3; a++) ntr += c->info.transformed[a];
-    norm = pow(2.0, -0.5 * h->level * ntr);
-    w = (double)h->value * norm;
-    /* first piece: largest e with T[e] <= t0 */
+    int a, nvar = 0, var[3], which[3];
+    for (a = 0; a < 3; a++) {
+        which[a] = (h->band >> a) & 1;
+        if (!c->info.transformed[a]) {
+            cder[a] = 0;          /* d/dx of a constant factor */
+            continue;
+        }
+        base[a] = (o[a] - h->lo[a]) * inv2m;
+        slope[a] = d[a] * inv2m;
+        if (d[a] == 0.0) {
+            int i = wvol_basis_piece(b, base[a]);
+            double u, v, dv;
+            const double *k, *kd;
+            if (i < 0) return; /* the ray runs outside this factor's support */
+            u = base[a] - i * b->h;
+            k = wvol_basis_coeffs(b, which[a], WVOL_BASIS_VALUE, i);
+            kd = wvol_basis_coeffs(b, which[a], WVOL_BASIS_DERIV, i);
+            v = k[0] + u * (k[1] + u * (k[2] + u * k[3]));
+            dv = kd[0] + u * (kd[1] + u * kd[2]);
+            /* gradient component a: derivative of this factor times the others */
+            for (int q = 0; q < 3; q++) cder[q] *= (q == a) ? dv * inv2m : v;
+            cval *= v;
+        } else {
+            var[nvar++] = a;
+        }
+    }
     while (hi - lo > 1) {
         size_t mid = (lo + hi) / 2;
         if (L->T[mid] <= h->t0) lo = mid;
@@ -211,40 +250,71 @@ static void add_hit(const spline_ctx *c, level_ws *L, const double o[3], const d
     r->functions++;
     L->used = 1;
     for (e = lo; e < E && L->T[e] < h->t1; e++) {
-        double t0 = L->T[e], t1 = L->T[e + 1], len = t1 - t0, tm = 0.5 * (t0 + t1);
-        double f[3][4], g[3][4], f01[7];
-        int skip = 0;
+        double t0 = L->T[e], len = L->T[e + 1] - t0;
+        double f[3][4], g[3][4], prod[NC];
+        int skip = 0, k, j;
         if (!(len > 0)) continue;
-        for (a = 0; a < 3; a++) {
-            int which = (h->band >> a) & 1, i;
-            double am, a0;
-            if (!c->info.transformed[a]) {
-                f[a][0] = 1, f[a][1] = f[a][2] = f[a][3] = 0;
-                g[a][0] = g[a][1] = g[a][2] = g[a][3] = 0;
-                continue;
-            }
-            am = (o[a] + tm * d[a] - h->lo[a]) * inv2m;
+        for (k = 0; k < nvar; k++) {
+            int ax = var[k], i;
+            double a0 = base[ax] + t0 * slope[ax], am = a0 + 0.5 * len * slope[ax];
             i = wvol_basis_piece(b, am);
             if (i < 0) {
                 skip = 1;
                 break;
             }
-            a0 = (o[a] + t0 * d[a] - h->lo[a]) * inv2m - i * b->h;
-            wvol_poly3_affine(f[a], wvol_basis_coeffs(b, which, WVOL_BASIS_VALUE, i), len * d[a] * inv2m, a0);
+            compose3(f[k], wvol_basis_coeffs(b, which[ax], WVOL_BASIS_VALUE, i), len * slope[ax], a0 - i * b->h);
             if (shading)
-                wvol_poly3_affine(g[a], wvol_basis_coeffs(b, which, WVOL_BASIS_DERIV, i), len * d[a] * inv2m, a0);
+                compose3(g[k], wvol_basis_coeffs(b, which[ax], WVOL_BASIS_DERIV, i), len * slope[ax], a0 - i * b->h);
         }
         if (skip) continue;
         r->pieces++;
-        mul33(f01, f[0], f[1]);
-        addmul63(L->acc + e * NC, w, f01, f[2]);
+        /* the product of the varying factors, times the constant ones */
+        for (j = 0; j < NC; j++) prod[j] = 0;
+        if (nvar == 0) {
+            prod[0] = 1;
+        } else if (nvar == 1) {
+            for (j = 0; j < 4; j++) prod[j] = f[0][j];
+        } else if (nvar == 2) {
+            mul33(prod, f[0], f[1]);
+        } else {
+            double f01[7];
+            mul33(f01, f[0], f[1]);
+            addmul63(prod, 1.0, f01, f[2]);
+        }
+        {
+            double *acc = L->acc + e * NC, wc = w * cval;
+            for (j = 0; j < NC; j++) acc[j] += wc * prod[j];
+        }
         if (shading) {
-            double t[7];
-            mul33(t, g[0], f[1]);
-            addmul63(L->acc + (E + e * 3 + 0) * NC, w * inv2m, t, f[2]);
-            mul33(t, f[0], g[1]);
-            addmul63(L->acc + (E + e * 3 + 1) * NC, w * inv2m, t, f[2]);
-            addmul63(L->acc + (E + e * 3 + 2) * NC, w * inv2m, f01, g[2]);
+            /* component q: d/dx_q of factor q times the other factors */
+            int q;
+            for (q = 0; q < 3; q++) {
+                double gp[NC], t7[7], *acc = L->acc + (E + e * 3 + (size_t)q) * NC, wq = w;
+                int kq = -1;
+                for (k = 0; k < nvar; k++)
+                    if (var[k] == q) kq = k;
+                for (j = 0; j < NC; j++) gp[j] = 0;
+                if (kq < 0) {
+                    /* factor q is constant: its derivative (and the other constants) in cder[q] */
+                    wq *= cder[q];
+                    if (nvar == 0) gp[0] = 1;
+                    else for (j = 0; j < NC; j++) gp[j] = prod[j];
+                } else {
+                    const double *fa[3];
+                    int n = 0;
+                    wq *= inv2m * cval;
+                    fa[n++] = g[kq];
+                    for (k = 0; k < nvar; k++)
+                        if (k != kq) fa[n++] = f[k];
+                    if (n == 1) for (j = 0; j < 4; j++) gp[j] = fa[0][j];
+                    else if (n == 2) mul33(gp, fa[0], fa[1]);
+                    else {
+                        mul33(t7, fa[0], fa[1]);
+                        addmul63(gp, 1.0, t7, fa[2]);
+                    }
+                }
+                for (j = 0; j < NC; j++) acc[j] += wq * gp[j];
+            }
         }
     }
 }
@@ -491,6 +561,10 @@ wvol_status wvol_render_spline(wvol_image *img, const wvol_store *s, const wvol_
     }
     if (c.p.mode != WVOL_MODE_XRAY) wvol__tf_world(&c.tf, tf_in, &g);
     c.shift = c.b->center;
+    {
+        int ntr = c.info.transformed[0] + c.info.transformed[1] + c.info.transformed[2], m;
+        for (m = 0; m <= WVOL_SELECT_MAX_LEVELS; m++) c.norm[m] = pow(2.0, -0.5 * m * ntr);
+    }
     c.grid = 2.0 * c.b->h;
     for (j = 0; j < NC; j++)
         for (q = 0; q <= j; q++) c.bern[j][q] = binom(j, q) / binom(NC - 1, q);

@@ -177,7 +177,7 @@ static void spline_matches_the_converged_reference_of_the_model(void)
     wvol_geometry_of_volume(&g, v);
     wvol_camera_parse(&cam, "persp dir=1,0.6,0.3 zoom=1.3", &g, 16, 16, NULL);
     wvol_tf_preset(&tf, "gaussian", 0, 1, NULL);
-    for (m = 0; m < 2; m++) {
+    for (m = 0; m < 3; m++) {
         wvol_image *a = NULL, *r = NULL;
         wvol_render_params p;
         wvol_error err;
@@ -186,13 +186,15 @@ static void spline_matches_the_converged_reference_of_the_model(void)
         wvol_image_create(&r, 16, 16, NULL);
         wvol_render_params_default(&p);
         p.mode = m ? WVOL_MODE_ABSORPTION : WVOL_MODE_XRAY;
+        p.shading = m == 2; /* the analytic gradient (eq 47) against wvol_fhat_eval's */
         p.gauss_nodes = 8;
         p.termination = 0;
         CHECK(wvol_render_spline(a, s, &cam, &tf, &p, NULL, &err) == WVOL_OK, "%s", err.message);
         p.step = 0.02;
         CHECK(wvol_render_reference_fhat(r, c, b, &cam, &tf, &p, NULL, &err) == WVOL_OK, "%s", err.message);
         rel = wvol_image_rmse(a, r, -1, 1);
-        printf("spline vs converged f^ reference, %s: relative RMSE %.3g\n", m ? "absorption" : "xray", rel);
+        printf("spline vs converged f^ reference, %s: relative RMSE %.3g\n",
+               m == 2 ? "absorption, shaded" : m ? "absorption" : "xray", rel);
         CHECK(rel < 1e-3, "mode %d: relative RMSE %g", m, rel);
         CHECK(image_finite(a), "finite");
         wvol_image_destroy(a);
