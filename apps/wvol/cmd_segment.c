@@ -13,6 +13,7 @@ const char wvol_cmd_segment_summary[] = "segment textures with wavelet features 
 static const cli_opt opts[] = {
     {"output", 'o', 1, "label volume to write (.raw .nrrd ...): winner neuron (or class with --train-box)"},
     {"colors", 0, 1, "colour volume to write: interleaved RGB float32 .raw"},
+    {"features-out", 0, 1, "write the normalised PCA features: planar float32 .raw, one plane per component"},
     {"wavelet", 0, 1, "filter (default db2)"},
     {"levels", 0, 1, "pyramid depth (default 3)"},
     {"smooth", 0, 1, "box average radius of |d| per band, in coarse samples (default 1)"},
@@ -32,8 +33,6 @@ static const cli_opt opts[] = {
 static int write_colors(const char *path, const float *rgb, size_t n, wvol_error *err)
 {
     wvol_atomic_file f;
-    if (!wvol_path_has_ext(path, ".raw"))
-        return wvol_error_set(err, WVOL_ERR_ARG, "--colors %s: only .raw (interleaved RGB float32) is written", path);
     if (wvol_atomic_open(&f, path, err)) return err->status;
     if (fwrite(rgb, 3 * sizeof(float), n, f.fp) != n) {
         wvol_atomic_abort(&f);
@@ -80,7 +79,8 @@ int wvol_cmd_segment(int argc, char **argv)
 {
     cli_parser p;
     const cli_opt *o;
-    const char *val, *in = NULL, *outp = NULL, *colors = NULL, *truth_path = NULL, *wname = "db2";
+    const char *val, *in = NULL, *outp = NULL, *colors = NULL, *truth_path = NULL, *wname = "db2",
+               *features_out = NULL;
     int r, json = 0, have_box = 0, rc = CLI_FAILED;
     long lv, boundary = -1;
     double box[6] = {0}, variance = 1.0;
@@ -117,6 +117,7 @@ int wvol_cmd_segment(int argc, char **argv)
             return CLI_OK;
         } else if (!strcmp(o->name, "output")) outp = val;
         else if (!strcmp(o->name, "colors")) colors = val;
+        else if (!strcmp(o->name, "features-out")) features_out = val;
         else if (!strcmp(o->name, "wavelet")) wname = val;
         else if (!strcmp(o->name, "levels")) {
             if (!cli_parse_long("segment", "levels", val, 1, 30, &lv)) return CLI_USAGE;
@@ -158,7 +159,11 @@ int wvol_cmd_segment(int argc, char **argv)
         } else if (!strcmp(o->name, "json")) json = 1;
     }
     if (!in) return cli_usage("segment", "missing input volume (see 'wvol segment --help')");
-    if (!outp && !colors && !truth_path) return cli_usage("segment", "nothing to do: give -o, --colors or --truth");
+    if (!outp && !colors && !truth_path && !features_out) return cli_usage("segment", "nothing to do: give -o, --colors or --truth");
+    if (features_out && !wvol_path_has_ext(features_out, ".raw"))
+        return cli_usage("segment", "--features-out %s: only .raw is written", features_out);
+    if (colors && !wvol_path_has_ext(colors, ".raw"))
+        return cli_usage("segment", "--colors %s: only .raw (interleaved RGB float32) is written", colors);
     if (have_box && !truth_path) return cli_usage("segment", "--train-box needs --truth");
     if (wvol_filter_get(&filt, wname, &err)) return cli_usage("segment", "--wavelet: %s", err.message);
 
@@ -170,6 +175,10 @@ int wvol_cmd_segment(int argc, char **argv)
     t_feat = cli_now();
     if (wvol_features_pca(feat, variance, NULL, &err)) goto fail;
     t_pca = cli_now();
+    if (features_out) {
+        wvol_volume planes = {v->nx, v->ny, v->nz * (size_t)feat->count, {1, 1, 1}, {0, 0, 0}, feat->data, 0};
+        if (wvol_raw_write(&planes, features_out, &err)) goto fail;
+    }
     if (wvol_som_train(&som, feat, &sp, &err)) goto fail;
     t_som = cli_now();
     labels = malloc(n * sizeof *labels);
