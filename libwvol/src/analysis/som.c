@@ -4,8 +4,9 @@
  * every neuron j within the shrinking neighbourhood moves by
  *   dw_j = eta(t) h(j, winner, t) (g - w_j),
  * with eta decaying exponentially eta0 -> eta1 and h a Gaussian of lattice distance
- * whose radius decays sigma0 -> sigma1 (cut at 3 sigma). Deterministic per seed. */
+ * whose radius decays sigma0 -> sigma1 (cut at 3 sigma). Deterministic per seed (wvol_rng, the generators' xoshiro256**). */
 #include "wvol/analysis.h"
+#include "wvol_synth.h" /* wvol_rng: the project's one PRNG */
 
 #include <float.h>
 #include <math.h>
@@ -30,19 +31,6 @@ void wvol_som_destroy(wvol_som *s)
     free(s->colors);
     free(s->neuron_class);
     free(s);
-}
-
-static uint64_t splitmix64(uint64_t *state)
-{
-    uint64_t z = (*state += 0x9E3779B97F4A7C15ull);
-    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
-    z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
-    return z ^ (z >> 31);
-}
-
-static double uniform01(uint64_t *state)
-{
-    return (double)(splitmix64(state) >> 11) * (1.0 / 9007199254740992.0);
 }
 
 /* Nearest neuron to voxel i's feature vector. */
@@ -77,7 +65,7 @@ wvol_status wvol_som_train(wvol_som **out, const wvol_features *f, const wvol_so
 {
     wvol_som *s;
     size_t n;
-    uint64_t rng;
+    wvol_rng rng;
     float *g;
 
     WVOL_RETURN_IF(!out || !f || !f->data || !p, err, WVOL_ERR_ARG, "som: NULL argument");
@@ -106,7 +94,7 @@ wvol_status wvol_som_train(wvol_som **out, const wvol_features *f, const wvol_so
         wvol_som_destroy(s);
         return wvol_error_set(err, WVOL_ERR_NOMEM, "som: out of memory");
     }
-    rng = p->seed ^ 0x5DEECE66Dull;
+    wvol_rng_seed(&rng, p->seed);
     for (int j = 0; j < s->neurons; j++) {
         int pos[3];
         lattice_pos(s, j, pos);
@@ -114,7 +102,7 @@ wvol_status wvol_som_train(wvol_som **out, const wvol_features *f, const wvol_so
             s->colors[3 * j + a] = s->dims[a] > 1 ? (float)pos[a] / (float)(s->dims[a] - 1) : 0.5f;
         s->neuron_class[j] = -1;
         /* initialise on random samples so every neuron starts inside the data */
-        size_t i = (size_t)(uniform01(&rng) * (double)n);
+        size_t i = (size_t)(wvol_rng_uniform(&rng) * (double)n);
         if (i >= n) i = n - 1;
         for (int a = 0; a < s->features; a++)
             s->weights[(size_t)j * s->features + a] = f->data[(size_t)a * n + i];
@@ -123,7 +111,7 @@ wvol_status wvol_som_train(wvol_som **out, const wvol_features *f, const wvol_so
         double frac = p->iterations > 1 ? (double)t / (double)(p->iterations - 1) : 1.0;
         double eta = p->eta0 * pow(p->eta1 / p->eta0, frac);
         double sigma = p->sigma0 * pow(p->sigma1 / p->sigma0, frac);
-        size_t i = (size_t)(uniform01(&rng) * (double)n);
+        size_t i = (size_t)(wvol_rng_uniform(&rng) * (double)n);
         int w, wp[3];
         if (i >= n) i = n - 1;
         for (int a = 0; a < s->features; a++) g[a] = f->data[(size_t)a * n + i];
