@@ -228,6 +228,11 @@ def main():
                 info, dt, mem, e = wvol_render(raw, n, ref, common + ["--method", "reference", "--step", str(a.ref_step)], thr)
                 if e: print("reference failed:", e); continue
                 R = rgba(ref)
+                small_ref = {}
+
+                def ref_of(extra):
+                    ps = (extra or {}).get("image", img)
+                    return small_ref[ps] if ps != img else R
 
                 def record(method, keep, out, info, dt, mem, e, extra=None):
                     row = {"volume": vname, "mode": mode, "method": method, "keep": keep, "wall_s": dt,
@@ -236,18 +241,18 @@ def main():
                         row["error"] = e
                     else:
                         row["render_s"] = info.get("render_seconds") if info else dt
-                        row["rel_rmse"] = rel_rmse(rgba(out), R)
+                        row["rel_rmse"] = rel_rmse(rgba(out), ref_of(extra))
                         for k in ("kept", "pieces", "functions", "samples", "clamped"):
                             if info and k in info: row[k] = info[k]
                     row.update(extra or {})
                     rows.append(row)
                     print(json.dumps(row), flush=True)
 
-                record("reference (converged)", 100, ref, info, dt, mem, None, {"step": a.ref_step})
+                record(f"reference step={a.ref_step} (converged)", 100, ref, info, dt, mem, None, {"step": a.ref_step})
                 for step in [1.0, 0.5, 0.25]:
                     out = tmp / "o.exr"
                     info, dt, mem, e = wvol_render(raw, n, out, common + ["--method", "reference", "--step", str(step)], thr)
-                    record("reference", 100, out, info, dt, mem, e, {"step": step})
+                    record(f"reference step={step}", 100, out, info, dt, mem, e, {"step": step})
                 for keep in keeps:
                     ka = [] if keep >= 100 else ["--keep", f"{keep}%"]
                     if mode == "xray":
@@ -255,9 +260,22 @@ def main():
                         info, dt, mem, e = wvol_render(raw, n, out, common + ["--method", "axis"] + ka, thr)
                         record("axis", keep, out, info, dt, mem, e)
                     for J in a.spline_j.split(","):
+                        # pilot at 1/8 of the pixels per side: run full size only if it fits the budget
+                        ps = max(img // 8, 8)
+                        pc = ["--size", f"{ps}x{ps}"] + common[2:]
+                        if ps not in small_ref:
+                            sref = tmp / f"sref_{ps}.exr"
+                            wvol_render(raw, n, sref, pc + ["--method", "reference", "--step", str(a.ref_step)], thr)
+                            small_ref[ps] = rgba(sref)
                         out = tmp / "o.exr"
+                        info, dt, mem, e = wvol_render(raw, n, out, pc + ["--method", "spline", "--spline-j", J] + ka, thr)
+                        pred = (info["render_seconds"] if info else dt) * (img / ps) ** 2
+                        if e or pred > a.spline_budget or ps == img:
+                            row_extra = {"J": int(J), "image": ps, "predicted_full_s": pred}
+                            record(f"spline J={J}", keep, out, info, dt, mem, e, row_extra)
+                            continue
                         info, dt, mem, e = wvol_render(raw, n, out, common + ["--method", "spline", "--spline-j", J] + ka, thr)
-                        record(f"spline J={J}", keep, out, info, dt, mem, e, {"J": int(J)})
+                        record(f"spline J={J}", keep, out, info, dt, mem, e, {"J": int(J), "image": img})
             # peers, opacity-only: kappa(value) = k * value per voxel length, white emission
             k = 8.0 / diag
             if vname == "gaussian":
@@ -315,10 +333,16 @@ def main():
                    "(total error); opacity-only rows compare alpha only"}
     (outdir / "render.json").write_text(json.dumps(res, indent=1))
     lines = [f"# Render benchmark: {n}^3 volumes, {img}x{img} images, {a.threads} threads\n",
-             "| volume | mode | method | kept % | render s | wall s | peak MB | rel. RMSE |", "|---|---|---|---|---|---|---|---|"]
+             "Spline rows whose full-size run would pass the budget are pilots at a smaller image (column "
+             "'image'; error against the converged reference at that size; 'full s' = predicted time at "
+             f"{img}x{img}).\n",
+             "| volume | mode | method | kept % | image | render s | full s | wall s | peak MB | rel. RMSE |",
+             "|---|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
+        full = r.get("predicted_full_s", r.get("render_s", float("nan")))
         lines.append(f"| {r.get('volume')} | {r.get('mode')} | {r.get('method')} | {r.get('keep')} | "
-                     f"{r.get('render_s', float('nan')):.3f} | {r.get('wall_s', float('nan')):.2f} | "
+                     f"{r.get('image', img)} | {r.get('render_s', float('nan')):.3f} | {full:.3g} | "
+                     f"{r.get('wall_s', float('nan')):.2f} | "
                      f"{r.get('peak_mb', float('nan')):.0f} | "
                      + (f"{r['rel_rmse']:.3g}" if "rel_rmse" in r else r.get("error", "")) + " |")
     (outdir / "render.md").write_text("\n".join(lines) + "\n")
@@ -329,12 +353,12 @@ def main():
         fig, axes = plt.subplots(1, 2, figsize=(12, 5))
         for ax, vname in zip(axes, ["gaussian", "skull"]):
             for meth in sorted({r["method"] for r in rows if r.get("volume") == vname}):
-                pts = [(r["render_s"], r["rel_rmse"]) for r in rows
+                pts = [(r.get("predicted_full_s", r["render_s"]), r["rel_rmse"]) for r in rows
                        if r.get("volume") == vname and r["method"] == meth and "rel_rmse" in r and r.get("render_s")]
                 if pts:
                     x, y = zip(*pts)
                     ax.loglog(x, np.maximum(y, 1e-9), "o", label=meth)
-            ax.set_title(f"{vname} {n}^3, {img}^2"); ax.set_xlabel("render time (s)"); ax.set_ylabel("relative RMSE")
+            ax.set_title(f"{vname} {n}^3, {img}^2"); ax.set_xlabel("render time (s; spline pilots: predicted at full size)"); ax.set_ylabel("relative RMSE")
             ax.legend(fontsize=7)
         fig.tight_layout(); fig.savefig(outdir / "render.png", dpi=90)
     except Exception as ex:
