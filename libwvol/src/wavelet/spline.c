@@ -41,6 +41,7 @@ wvol_status wvol__spline_clamped(double *c, const double *y, size_t n, double h,
         p[2] = 0.5 * m[i];
         p[3] = (m[i + 1] - m[i]) / (6.0 * h);
     }
+    c[1] = 0.0; /* the clamped start slope, exactly rather than to rounding */
     free(m);
     return WVOL_OK;
 }

@@ -1,0 +1,309 @@
+/* Basis functions: cascade, spline tables and their checks (DESIGN.md section 7),
+ * and f^ evaluation from coefficients. Every tolerance below is a measured value
+ * times a margin, with the measurement in the comment. */
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "check.h"
+#include "wvol/wavelet.h"
+
+static const wvol_filter *filt(const char *name)
+{
+    const wvol_filter *f = NULL;
+    wvol_error err;
+    if (wvol_filter_get(&f, name, &err) != WVOL_OK) {
+        CHECK(0, "filter %s: %s", name, err.message);
+        return NULL;
+    }
+    return f;
+}
+
+static wvol_basis *make(const char *name, int J)
+{
+    wvol_basis *b = NULL;
+    wvol_error err;
+    const wvol_filter *f = filt(name);
+    if (!f) return NULL;
+    CHECK(wvol_basis_create(&b, f, J, &err) == WVOL_OK, "basis %s J=%d: %s", name, J, err.message);
+    return b;
+}
+
+/* Deterministic uniform numbers in [0, 1). */
+static double rnd(unsigned long long *s)
+{
+    *s = *s * 6364136223846793005ULL + 1442695040888963407ULL;
+    return (double)(*s >> 11) / 9007199254740992.0;
+}
+
+/* db2's integer and half-integer values are known in closed form:
+ * phi(1) = (1+sqrt3)/2, phi(2) = (1-sqrt3)/2, phi(1/2) = (2+sqrt3)/4,
+ * phi(3/2) = 0, phi(5/2) = (2-sqrt3)/4. */
+static void cascade_db2_matches_closed_form(void)
+{
+    const wvol_filter *f = filt("db2");
+    double v[3 * 2 + 1], s3 = sqrt(3.0);
+    if (!f) return;
+    CHECK(wvol_cascade(v, f, 0, 1, NULL) == WVOL_OK, "cascade");
+    CHECK_NEAR(v[0], 0.0, 1e-15, "phi(0)");
+    CHECK_NEAR(v[1], (2 + s3) / 4, 1e-14, "phi(1/2)");
+    CHECK_NEAR(v[2], (1 + s3) / 2, 1e-14, "phi(1)");
+    CHECK_NEAR(v[3], 0.0, 1e-14, "phi(3/2)");
+    CHECK_NEAR(v[4], (1 - s3) / 2, 1e-14, "phi(2)");
+    CHECK_NEAR(v[5], (2 - s3) / 4, 1e-14, "phi(5/2)");
+    CHECK_NEAR(v[6], 0.0, 1e-15, "phi(3)");
+}
+
+/* For every family and J = 5: the cascade values satisfy the two-scale relation
+ * at every point (phi and psi), sum_k phi(x - k) = 1 at every dyadic x
+ * (partition of unity), and the level-(J-1) values are the even level-J ones.
+ * Measured worst: 4e-15 (partition of unity, db10); bl3 6e-11 (its truncation). */
+static void cascade_is_refinable_and_a_partition_of_unity(void)
+{
+    int i, J = 5, count = wvol_filter_count();
+    for (i = 0; i < count; i++) {
+        const wvol_filter *f = wvol_filter_at(i);
+        int L = f->length, per = 1 << J, n, k, bl = f->family == WVOL_BATTLE_LEMARIE;
+        size_t N = (size_t)(L - 1) << J, N2 = (size_t)(L - 1) << (J - 1);
+        double *phi = malloc((N + 1) * sizeof *phi), *psi = malloc((N + 1) * sizeof *psi);
+        double *phic = malloc((N2 + 1) * sizeof *phic), worst_pu = 0.0, worst_ref = 0.0, worst_sub = 0.0;
+        double tol = bl ? 1e-9 : 1e-12;
+        CHECK(wvol_cascade(phi, f, 0, J, NULL) == WVOL_OK, "%s phi", f->name);
+        CHECK(wvol_cascade(psi, f, 1, J, NULL) == WVOL_OK, "%s psi", f->name);
+        CHECK(wvol_cascade(phic, f, 0, J - 1, NULL) == WVOL_OK, "%s phi coarse", f->name);
+        for (n = 0; n < per; n++) {
+            double s = 0.0;
+            for (k = 0; k < L - 1; k++) s += phi[n + (size_t)k * per];
+            if (fabs(s - 1.0) > worst_pu) worst_pu = fabs(s - 1.0);
+        }
+        /* two-scale relation at x = n / 2^{J-1}: phi(x) = sqrt2 sum_j h[j] phi(2x - j) and
+         * psi(x) = sqrt2 sum_j g[j] phi(2x - j), with 2x - j on the same level-(J-1) grid */
+        for (n = 0; n <= (int)N2; n++) {
+            double s = 0.0, t = 0.0;
+            for (k = 0; k < L; k++) {
+                long idx = 2L * n - (long)k * (per / 2);
+                if (idx >= 0 && idx < (long)N2) s += f->h[k] * phic[idx], t += f->g[k] * phic[idx];
+            }
+            s *= sqrt(2.0), t *= sqrt(2.0);
+            if (fabs(s - phic[n]) > worst_ref) worst_ref = fabs(s - phic[n]);
+            if (fabs(t - psi[2 * (size_t)n]) > worst_ref) worst_ref = fabs(t - psi[2 * (size_t)n]);
+            if (fabs(phi[2 * (size_t)n] - phic[n]) > worst_sub) worst_sub = fabs(phi[2 * (size_t)n] - phic[n]);
+        }
+        CHECK(worst_pu < tol, "%s partition of unity %g", f->name, worst_pu);
+        CHECK(worst_ref < tol, "%s two-scale relation %g", f->name, worst_ref);
+        CHECK(worst_sub < 1e-15, "%s nested levels %g", f->name, worst_sub);
+        free(phi);
+        free(psi);
+        free(phic);
+    }
+}
+
+static void haar_is_exact(void)
+{
+    const char *names[2] = {"haar", "db1"};
+    int i;
+    for (i = 0; i < 2; i++) {
+        wvol_basis *b = make(names[i], 8);
+        if (!b) continue;
+        CHECK(b->exact == 1 && b->degree == 0 && b->J == 1 && b->pieces == 2, "%s: exact, 2 pieces", names[i]);
+        CHECK(b->spline_error == 0.0 && b->ortho_error == 0.0 && b->ortho_error_psi == 0.0, "%s checks are 0",
+              names[i]);
+        CHECK(b->phi_integral == 1.0 && b->psi_integral == 0.0, "%s integrals", names[i]);
+        CHECK(wvol_basis_value(b, WVOL_PHI, 0.0) == 1.0 && wvol_basis_value(b, WVOL_PHI, 0.999) == 1.0 &&
+                  wvol_basis_value(b, WVOL_PHI, 1.0) == 0.0 && wvol_basis_value(b, WVOL_PHI, -1e-300) == 0.0,
+              "%s box [0,1)", names[i]);
+        CHECK(wvol_basis_value(b, WVOL_PSI, 0.25) == 1.0 && wvol_basis_value(b, WVOL_PSI, 0.5) == -1.0 &&
+                  wvol_basis_value(b, WVOL_PSI, 0.75) == -1.0,
+              "%s psi +1 / -1", names[i]);
+        CHECK(wvol_basis_deriv(b, WVOL_PHI, 0.3) == 0.0 && wvol_basis_deriv(b, WVOL_PSI, 0.7) == 0.0,
+              "%s derivative 0", names[i]);
+        CHECK_NEAR(wvol_basis_primitive(b, WVOL_PHI, 0.3), 0.3, 1e-16, "haar primitive phi");
+        CHECK_NEAR(wvol_basis_primitive(b, WVOL_PSI, 0.75), 0.25, 1e-16, "haar primitive psi");
+        CHECK(wvol_basis_primitive(b, WVOL_PSI, 7.0) == 0.0 && wvol_basis_primitive(b, WVOL_PHI, 7.0) == 1.0,
+              "haar primitive past the support");
+        CHECK(b->vmax[0] >= 1.0 && b->vmax[0] < 1.0 + 1e-9 && b->dmax[0] < 1e-200, "haar bounds");
+        CHECK_NEAR(b->center, 0.5, 0.0, "haar centre");
+        wvol_basis_destroy(b);
+    }
+}
+
+/* Measured at J = 6 (wvol basis -J 6): max |spline - cascade at J+2| for phi and
+ * psi, and the orthonormality errors of the spline model. Asserted below 2x. */
+static const struct {
+    const char *name;
+    double err_phi, err_psi, ortho, ortho_psi;
+} measured_j6[] = {
+    {"db2", 7.58e-02, 1.87e-01, 1.29e-03, 7.60e-03},
+    {"db3", 4.37e-03, 1.73e-02, 1.11e-05, 1.46e-04},
+    {"db4", 3.86e-04, 2.18e-03, 5.20e-07, 1.08e-05},
+    {"db5", 8.60e-05, 6.55e-04, 1.77e-08, 5.52e-07},
+    {"db6", 2.63e-05, 2.13e-04, 5.99e-09, 1.73e-07},
+    {"db7", 4.57e-06, 5.03e-05, 4.93e-09, 1.54e-07},
+    {"db8", 1.87e-06, 2.65e-05, 4.38e-09, 1.37e-07},
+    {"db9", 5.94e-07, 8.86e-06, 4.11e-09, 1.28e-07},
+    {"db10", 1.22e-07, 2.31e-06, 3.96e-09, 1.23e-07},
+    {"coif1", 6.99e-02, 1.75e-01, 1.68e-03, 1.02e-02},
+    {"coif2", 4.94e-04, 2.53e-03, 6.16e-07, 1.39e-05},
+    {"coif3", 1.39e-05, 1.24e-04, 4.53e-09, 1.05e-07},
+    {"coif4", 5.86e-07, 8.27e-06, 4.21e-09, 1.30e-07},
+    {"coif5", 4.40e-08, 8.77e-07, 3.89e-09, 1.21e-07},
+    {"bl3", 6.78e-11, 5.70e-11, 1.87e-09, 1.90e-01},
+};
+
+/* DESIGN.md section 7's checks from the spline form, every family at J = 6.
+ * Integrals: the clamped spline integrates the cascade values exactly like the
+ * trapezoid rule (the end corrections vanish with the zero end slopes), so
+ * int phi = h sum phi(n h) = 1 and int psi = 0 to rounding: measured <= 9e-16
+ * (bl3 3e-11: its truncated filter's partition of unity). */
+static void spline_checks_hold_for_every_family(void)
+{
+    size_t i;
+    for (i = 0; i < sizeof measured_j6 / sizeof measured_j6[0]; i++) {
+        wvol_basis *b = make(measured_j6[i].name, 6);
+        int bl;
+        if (!b) continue;
+        bl = b->filter->family == WVOL_BATTLE_LEMARIE;
+        CHECK(b->J == 6 && b->per_unit == 64 && b->pieces == (b->length - 1) * 64, "%s layout", b->filter->name);
+        CHECK_NEAR(b->phi_integral, 1.0, bl ? 1e-9 : 4e-15, b->filter->name);
+        CHECK_NEAR(b->psi_integral, 0.0, bl ? 1e-9 : 4e-15, b->filter->name);
+        CHECK(b->spline_error_phi < 2 * measured_j6[i].err_phi, "%s spline error phi %g (measured %g)",
+              b->filter->name, b->spline_error_phi, measured_j6[i].err_phi);
+        CHECK(b->spline_error_psi < 2 * measured_j6[i].err_psi, "%s spline error psi %g (measured %g)",
+              b->filter->name, b->spline_error_psi, measured_j6[i].err_psi);
+        CHECK(b->ortho_error < 2 * measured_j6[i].ortho, "%s orthonormality %g (measured %g)", b->filter->name,
+              b->ortho_error, measured_j6[i].ortho);
+        CHECK(b->ortho_error_psi < 2 * measured_j6[i].ortho_psi, "%s psi orthonormality %g (measured %g)",
+              b->filter->name, b->ortho_error_psi, measured_j6[i].ortho_psi);
+        CHECK_NEAR(b->center, b->filter->center, 1e-12, b->filter->name);
+        /* the spline's own centre of mass: within the spline error of the exact one
+         * (db2: 7e-7 off; bl3, divided by its integral 1 + 3e-11, is 2.3e-10 off: the
+         * truncated filter's sum rules hold to 1e-10 only) */
+        CHECK(fabs(b->center_spline / b->phi_integral - b->center) < (bl ? 1e-9 : b->spline_error), "%s centre %.17g vs %.17g", b->filter->name,
+              b->center_spline, b->center);
+        wvol_basis_destroy(b);
+    }
+}
+
+/* Spline error and orthonormality error fall as J grows. Smooth families
+ * converge like h^4: db10 and coif5 measured ratios 8.5..16 per level for J = 3..10;
+ * db4 ~3 (phi is C^1.6 only); db2 and coif1, Hoelder ~0.55, ratio ~1.46.
+ * Asserted: strictly decreasing, and a ratio of at least 4 per level from
+ * J = 4 on for db10/coif5. */
+static void spline_error_converges_with_J(void)
+{
+    const char *names[] = {"db2", "coif1", "db4", "db10", "coif5"};
+    size_t i;
+    int J;
+    for (i = 0; i < sizeof names / sizeof names[0]; i++) {
+        double prev = INFINITY, prev_o = INFINITY;
+        int smooth = !strcmp(names[i], "db10") || !strcmp(names[i], "coif5");
+        for (J = 2; J <= 10; J++) {
+            wvol_basis *b = make(names[i], J);
+            if (!b) continue;
+            CHECK(b->spline_error < prev, "%s J=%d error %g not below %g", names[i], J, b->spline_error, prev);
+            CHECK(b->ortho_error < prev_o, "%s J=%d ortho %g not below %g", names[i], J, b->ortho_error, prev_o);
+            if (smooth && J >= 4)
+                CHECK(prev / b->spline_error > 4.0, "%s J=%d ratio %g", names[i], J, prev / b->spline_error);
+            prev = b->spline_error;
+            prev_o = b->ortho_error;
+            wvol_basis_destroy(b);
+        }
+    }
+}
+
+/* value, derivative and primitive agree with each other: the derivative table
+ * against central differences of the value, the primitive against central
+ * differences too, continuity of value and slope across breakpoints (a clamped
+ * cubic spline is C^2 inside and C^1 at the support ends), and the bounds hold
+ * on dense samples. */
+static void tables_are_consistent(void)
+{
+    const char *names[] = {"db2", "db5", "coif2", "bl3"};
+    size_t i;
+    for (i = 0; i < sizeof names / sizeof names[0]; i++) {
+        wvol_basis *b = make(names[i], 5);
+        unsigned long long seed = 7;
+        double worst_d = 0.0, worst_p = 0.0, worst_c = 0.0, worst_c1 = 0.0, e = 1e-6;
+        int w, k, n;
+        if (!b) continue;
+        for (w = 0; w < 2; w++) {
+            double scale_v = b->vmax[w], scale_d = b->dmax[w];
+            for (k = 0; k < 2000; k++) {
+                double x = e + rnd(&seed) * (b->support - 2 * e);
+                double fd = (wvol_basis_value(b, w, x + e) - wvol_basis_value(b, w, x - e)) / (2 * e);
+                double pd = (wvol_basis_primitive(b, w, x + e) - wvol_basis_primitive(b, w, x - e)) / (2 * e);
+                double d = wvol_basis_deriv(b, w, x), v = wvol_basis_value(b, w, x);
+                if (fabs(fd - d) / scale_d > worst_d) worst_d = fabs(fd - d) / scale_d;
+                if (fabs(pd - v) / scale_v > worst_p) worst_p = fabs(pd - v) / scale_v;
+                CHECK(fabs(v) <= b->vmax[w] && fabs(d) <= b->dmax[w], "%s bounds at %g", names[i], x);
+            }
+            for (n = 1; n < b->pieces; n++) {
+                const double *l = wvol_basis_coeffs(b, w, WVOL_BASIS_VALUE, n - 1);
+                const double *r = wvol_basis_coeffs(b, w, WVOL_BASIS_VALUE, n);
+                double h = b->h;
+                double vl = l[0] + h * (l[1] + h * (l[2] + h * l[3])), sl = l[1] + h * (2 * l[2] + 3 * h * l[3]);
+                if (fabs(vl - r[0]) / scale_v > worst_c) worst_c = fabs(vl - r[0]) / scale_v;
+                if (fabs(sl - r[1]) / scale_d > worst_c1) worst_c1 = fabs(sl - r[1]) / scale_d;
+                CHECK(wvol_basis_piece(b, n * h) == n, "%s piece of breakpoint %d", names[i], n);
+            }
+            /* zero end slopes and zero ends */
+            CHECK(wvol_basis_coeffs(b, w, WVOL_BASIS_VALUE, 0)[1] == 0.0, "%s zero start slope", names[i]);
+            CHECK(wvol_basis_value(b, w, b->support) == 0.0 && wvol_basis_value(b, w, -0.5) == 0.0,
+                  "%s zero outside", names[i]);
+            CHECK(wvol_basis_primitive(b, w, -3.0) == 0.0, "%s primitive left of support", names[i]);
+        }
+        CHECK(wvol_basis_piece(b, -0.1) == -1 && wvol_basis_piece(b, b->support) == -1 &&
+                  wvol_basis_piece(b, NAN) == -1,
+              "%s piece outside", names[i]);
+        /* measured: derivative vs central difference 1e-10 of max|phi'|, primitive 4e-12 */
+        CHECK(worst_d < 1e-7, "%s derivative vs FD %g", names[i], worst_d);
+        CHECK(worst_p < 1e-8, "%s primitive vs FD %g", names[i], worst_p);
+        CHECK(worst_c < 1e-13 && worst_c1 < 1e-11, "%s continuity %g %g", names[i], worst_c, worst_c1);
+        CHECK(isnan(wvol_basis_value(b, 0, NAN)) && isnan(wvol_basis_primitive(b, 0, NAN)), "NaN in, NaN out");
+        wvol_basis_destroy(b);
+    }
+}
+
+static void poly3_affine_composes(void)
+{
+    double c[4] = {0.3, -1.2, 2.5, 0.7}, o[4], a = -1.7, d = 0.45, t;
+    wvol_poly3_affine(o, c, a, d);
+    for (t = -2.0; t <= 2.0; t += 0.37) {
+        double u = a * t + d;
+        double want = c[0] + u * (c[1] + u * (c[2] + u * c[3]));
+        double got = o[0] + t * (o[1] + t * (o[2] + t * o[3]));
+        CHECK_NEAR(got, want, 1e-13, "poly3_affine");
+    }
+    wvol_poly3_affine(c, c, a, d); /* in place */
+    CHECK(memcmp(c, o, sizeof o) == 0, "poly3_affine in place");
+}
+
+static void bad_arguments_are_refused(void)
+{
+    wvol_basis *b = NULL;
+    wvol_error err;
+    const wvol_filter *f = filt("db2");
+    double v[8];
+    CHECK(wvol_basis_create(&b, f, 0, &err) == WVOL_ERR_ARG && !b && strstr(err.message, "J = 0"),
+          "J=0 refused: %s", err.message);
+    CHECK(wvol_basis_create(&b, f, 13, &err) == WVOL_ERR_ARG && !b, "J=13 refused");
+    CHECK(wvol_basis_create(&b, NULL, 4, &err) == WVOL_ERR_ARG, "NULL filter refused");
+    CHECK(wvol_basis_create(NULL, f, 4, &err) == WVOL_ERR_ARG, "NULL out refused");
+    CHECK(wvol_cascade(v, f, 2, 1, &err) == WVOL_ERR_ARG, "which=2 refused");
+    CHECK(wvol_cascade(v, f, 0, -1, &err) == WVOL_ERR_ARG, "J=-1 refused");
+    CHECK(wvol_cascade(NULL, f, 0, 1, &err) == WVOL_ERR_ARG, "NULL out refused");
+    wvol_basis_destroy(NULL);
+}
+
+int main(void)
+{
+    cascade_db2_matches_closed_form();
+    cascade_is_refinable_and_a_partition_of_unity();
+    haar_is_exact();
+    spline_checks_hold_for_every_family();
+    spline_error_converges_with_J();
+    tables_are_consistent();
+    poly3_affine_composes();
+    bad_arguments_are_refused();
+    return check_summary("test_basis");
+}
