@@ -59,6 +59,8 @@ static void json_basis(const wvol_basis *b, double seconds)
     cli_json_num("dpsi_max", b->dmax[WVOL_PSI]);
     cli_json_num("phi_abs_integral", b->abs_integral[WVOL_PHI]);
     cli_json_num("psi_abs_integral", b->abs_integral[WVOL_PSI]);
+    cli_json_num("phi_end_slope", b->end_slope[WVOL_PHI]);
+    cli_json_num("psi_end_slope", b->end_slope[WVOL_PSI]);
     cli_json_num("build_seconds", seconds);
     cli_json_close('}');
 }
@@ -120,7 +122,8 @@ int wvol_cmd_basis(int argc, char **argv)
             cli_print_help("basis", "[--wavelet NAME] [-J N|A:B] [--json] [--csv OUT.csv]",
                            "Builds the basis-function tables (DESIGN.md section 7): phi and psi by the\n"
                            "cascade algorithm at x = n/2^J, a cubic spline per interval of width 2^-J\n"
-                           "(clamped, zero end slopes; Haar exact), and prints the checks from the\n"
+                           "(periodic end conditions: exact partition of unity; Haar exact), and\n"
+                           "prints the checks from the\n"
                            "spline form: int phi - 1, int psi, max_k |<phi(.-k),phi> - delta_k|, the same\n"
                            "for psi (and phi against psi), and the spline's max error against the\n"
                            "cascade at J+2. 'per unit' is the number of pieces per unit of x (a ray\n"

@@ -105,12 +105,17 @@ void wvol_idwt1(double *out, const double *ad, size_t n, const wvol_filter *f);
 /* ---- basis functions as cubic splines (DESIGN.md section 7) ---------------- */
 
 /* The continuous model of every family except Haar is a cubic spline through the
- * cascade values of phi (and psi) at the knots x = n / 2^J of [0, length-1],
- * clamped with zero end slopes: phi and psi vanish outside their support, so the
- * zero extension of the spline is C^1 on the whole line (C^2 inside), and so is
- * f^. Haar (and db1, the same filter) is exact: phi is the box [0,1), psi is +1
- * on [0,1/2) and -1 on [1/2,1), stored as constant pieces with J = 1. See
- * docs/basis.md for the measured errors per family and J. */
+ * cascade values of phi (and psi) at the knots x = n / 2^J of [0, length-1], with
+ * periodic end conditions on the support (S'(0) = S'(L-1), S''(0) = S''(L-1)):
+ * the copies of S that end at an integer then cancel the jumps of those that
+ * start there, so sum_p S(x - p) = 1 exactly (a constant volume gives a constant
+ * f^, a constant transfer function integrates exactly) and int S = 1 exactly. The
+ * zero extension is continuous everywhere and C^2 inside the support; at the
+ * support ends the slope jumps by end_slope (db2 5.0, db3 0.43, db4 0.03, below
+ * 1e-4 from db6 and for every Coiflet: measured at J = 6, end_slope in JSON). Haar (and db1, the same
+ * filter) is exact: phi is the box [0,1), psi is +1 on [0,1/2) and -1 on
+ * [1/2,1), stored as constant pieces with J = 1. docs/basis.md has the measured
+ * errors per family and J. */
 
 #define WVOL_BASIS_J_MIN 1
 #define WVOL_BASIS_J_MAX 12
@@ -162,6 +167,7 @@ typedef struct wvol_basis {
      * value and Lipschitz bounds): max |value| and max |derivative| over x */
     double vmax[2], dmax[2];    /* [WVOL_PHI], [WVOL_PSI] */
     double abs_integral[2];     /* integral of |spline|: bounds |integral over any interval| */
+    double end_slope[2];        /* |S'(0)| = |S'(L-1)|: the slope jump at the support ends */
 } wvol_basis;
 
 /* Builds the tables for filter f with 2^J knots per unit (J in 1..12; Haar and

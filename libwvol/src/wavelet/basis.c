@@ -1,5 +1,5 @@
-/* Basis-function tables per family and J: phi and psi as clamped cubic splines
- * through the cascade values, their derivatives and primitives, the checks of
+/* Basis-function tables per family and J: phi and psi as cubic splines (periodic
+ * end conditions on the support, see spline.c) through the cascade values, their derivatives and primitives, the checks of
  * DESIGN.md section 7 and the bounds the store and the iso tracer need. */
 #include <math.h>
 #include <stdlib.h>
@@ -103,6 +103,7 @@ static void compute_checks(wvol_basis *b, const double *phic, const double *psic
         b->vmax[w] = BOUND_SLACK(vm);
         b->dmax[w] = BOUND_SLACK(dm);
         b->abs_integral[w] = BOUND_SLACK(ai);
+        b->end_slope[w] = fabs(tab[1]);
     }
 }
 
@@ -175,9 +176,9 @@ wvol_status wvol_basis_create(wvol_basis **out, const wvol_filter *f, int J, wvo
             goto fail;
         }
         for (i = 0; i <= N; i++) y[i] = phic[i << 2];
-        s = wvol__spline_clamped(b->phi, y, N, b->h, err);
+        s = wvol__spline_periodic(b->phi, y, N, b->h, err);
         for (i = 0; s == WVOL_OK && i <= N; i++) y[i] = psic[i << 2];
-        if (s == WVOL_OK) s = wvol__spline_clamped(b->psi, y, N, b->h, err);
+        if (s == WVOL_OK) s = wvol__spline_periodic(b->psi, y, N, b->h, err);
         free(y);
         if (s != WVOL_OK) goto fail;
     }

@@ -19,9 +19,9 @@ wvol_status wvol__cascade_phi(double *out, const wvol_filter *f, int J, wvol_err
 /* psi at the same points from phi at the same level J. */
 void wvol__cascade_psi_from_phi(double *psi, const double *phi, const wvol_filter *f, int J);
 
-/* Clamped (zero end slopes) cubic spline through y[0..n] at spacing h: n pieces
- * of 4 monomial coefficients in the local variable. */
-wvol_status wvol__spline_clamped(double *c, const double *y, size_t n, double h, wvol_error *err);
+/* Periodic cubic spline through y[0..n] (y[0] == y[n]) at spacing h: n pieces of
+ * 4 monomial coefficients in the local variable. n >= 3. */
+wvol_status wvol__spline_periodic(double *c, const double *y, size_t n, double h, wvol_error *err);
 void wvol__spline_deriv(double *d, const double *c, size_t n);
 double wvol__spline_primitive(double *P, const double *c, size_t n, double h);
 double wvol__cubic_product_integral(const double *p, const double *q, double h);

@@ -1,39 +1,60 @@
 /* Cubic splines on a uniform grid in monomial form, with their derivative and
- * primitive pieces, exact products and bounds. The spline is clamped with zero end
- * slopes (phi and psi vanish outside their support, so the zero extension is C^1).
+ * primitive pieces, exact products and bounds. The spline of phi (psi) on its
+ * support [0, L-1] has periodic end conditions: S'(0) = S'(L-1), S''(0) = S''(L-1).
+ * Then at every integer the jumps of S', S'' of the copies of S that end there
+ * cancel those of the copies that start there, so sum_p S(x - p) is a C^2
+ * periodic spline interpolating 1 at every knot, i.e. exactly 1: the spline model
+ * keeps the partition of unity (a constant volume stays constant) and the
+ * integral h sum_i y_i (trapezoid rule, exact for periodic splines).
  * Based on: de Boor, A Practical Guide to Splines (1978), chapter IV (the
- * second-derivative form and its tridiagonal system). */
+ * second-derivative form); Sherman-Morrison for the cyclic tridiagonal system. */
 #include <math.h>
 #include <stdlib.h>
 
 #include "wavelet/basis_internal.h"
 
-/* y[0..n] at x_i = i h; c gets n pieces of 4 coefficients in u = x - x_i.
- * Moments M_i = S''(x_i) solve, for uniform h,
- *   2 M_0 + M_1         = 6 (y_1 - y_0) / h^2                (S'(x_0) = 0)
- *   M_{i-1} + 4 M_i + M_{i+1} = 6 (y_{i-1} - 2 y_i + y_{i+1}) / h^2
- *   M_{n-1} + 2 M_n     = -6 (y_n - y_{n-1}) / h^2           (S'(x_n) = 0)
- * (strictly diagonally dominant: the Thomas algorithm is stable). */
-wvol_status wvol__spline_clamped(double *c, const double *y, size_t n, double h, wvol_error *err)
+/* Periodic cubic spline through y[0..n] (y[n] == y[0]) with period n h. The
+ * moments M_i = S''(x_i) solve the cyclic system
+ *   M_{i-1} + 4 M_i + M_{i+1} = 6 (y_{i-1} - 2 y_i + y_{i+1}) / h^2,  i mod n,
+ * strictly diagonally dominant, by Sherman-Morrison around the Thomas algorithm;
+ * then on [x_i, x_i + h): S = y_i + b u + M_i/2 u^2 + (M_{i+1} - M_i)/(6h) u^3
+ * with b = (y_{i+1} - y_i)/h - h (2 M_i + M_{i+1})/6. */
+wvol_status wvol__spline_periodic(double *c, const double *y, size_t n, double h, wvol_error *err)
 {
-    double *m, *cp, inv_h2 = 1.0 / (h * h), beta, r;
+    double *m, *z, *cp, inv_h2 = 1.0 / (h * h);
     size_t i;
-    if (n < 1) return wvol_error_set(err, WVOL_ERR_ARG, "spline: no intervals");
-    m = malloc(2 * (n + 1) * sizeof *m);
+    if (n < 3) return wvol_error_set(err, WVOL_ERR_ARG, "spline: %zu intervals (3 or more needed)", n);
+    m = malloc(3 * (n + 1) * sizeof *m);
     if (!m) return wvol_error_set(err, WVOL_ERR_NOMEM, "spline: out of memory for %zu knots", n + 1);
-    cp = m + (n + 1);
-    /* forward sweep: row i is sub*M_{i-1} + diag*M_i + sup*M_{i+1} = r_i */
-    beta = 2.0;
-    cp[0] = 1.0 / beta;
-    m[0] = 6.0 * (y[1] - y[0]) * inv_h2 / beta;
-    for (i = 1; i <= n; i++) {
-        double sub = 1.0, diag = (i == n) ? 2.0 : 4.0, sup = 1.0;
-        r = (i == n) ? -6.0 * (y[n] - y[n - 1]) * inv_h2 : 6.0 * (y[i - 1] - 2.0 * y[i] + y[i + 1]) * inv_h2;
-        beta = diag - sub * cp[i - 1];
-        cp[i] = sup / beta;
-        m[i] = (r - sub * m[i - 1]) / beta;
+    z = m + (n + 1);
+    cp = z + (n + 1);
+    {
+        /* A = T + u v^T with T tridiagonal: gamma = -4, T[0][0] = 4 - gamma, T[n-1][n-1] = 4 - 1/gamma,
+         * u = (gamma, 0.., 1), v = (1, 0.., 1/gamma). Solve T x = r and T z = u. */
+        double gamma = -4.0, beta, fact;
+        double *r = m; /* right-hand side, overwritten by x */
+        for (i = 0; i < n; i++) {
+            double ym = y[i == 0 ? n - 1 : i - 1], yp = y[i + 1];
+            r[i] = 6.0 * (ym - 2.0 * y[i] + yp) * inv_h2;
+            z[i] = (i == 0) ? gamma : (i == n - 1 ? 1.0 : 0.0);
+        }
+        for (i = 0; i < n; i++) {
+            double diag = 4.0;
+            if (i == 0) diag = 4.0 - gamma;
+            if (i == n - 1) diag = 4.0 - 1.0 / gamma;
+            beta = diag - (i ? cp[i - 1] : 0.0);
+            cp[i] = 1.0 / beta;
+            r[i] = (r[i] - (i ? r[i - 1] : 0.0)) / beta;
+            z[i] = (z[i] - (i ? z[i - 1] : 0.0)) / beta;
+        }
+        for (i = n - 1; i-- > 0;) {
+            r[i] -= cp[i] * r[i + 1];
+            z[i] -= cp[i] * z[i + 1];
+        }
+        fact = (r[0] + r[n - 1] / gamma) / (1.0 + z[0] + z[n - 1] / gamma);
+        for (i = 0; i < n; i++) r[i] -= fact * z[i];
+        r[n] = r[0];
     }
-    for (i = n; i-- > 0;) m[i] -= cp[i] * m[i + 1];
     for (i = 0; i < n; i++) {
         double *p = c + 4 * i;
         p[0] = y[i];
@@ -41,7 +62,6 @@ wvol_status wvol__spline_clamped(double *c, const double *y, size_t n, double h,
         p[2] = 0.5 * m[i];
         p[3] = (m[i + 1] - m[i]) / (6.0 * h);
     }
-    c[1] = 0.0; /* the clamped start slope, exactly rather than to rounding */
     free(m);
     return WVOL_OK;
 }
