@@ -27,9 +27,30 @@ static void fill_haar(wvol_basis *b)
     }
 }
 
-/* max_k |<a(. - k), c> - (a == c) delta_k| over k = kmin..kmax, by exact
- * integration of the products of the aligned cubic pieces. */
-static double gram_error(const wvol_basis *b, const double *a, const double *c, int kmin, int kmax, int delta)
+/* Pieces scaled to the unit interval: pt[4i + a] = p_a h^a, and for the second
+ * factor qt[4i + a] = sum_b q_b h^b / (a + b + 1), so that the integral over a
+ * piece of p(u) q(u) is h * dot(pt_i, qt_j): 4 products per pair of pieces. */
+static void scale_pieces(double *pt, double *qt, const double *c, int P, double h)
+{
+    int i, a, k;
+    for (i = 0; i < P; i++) {
+        double t[4], hp = 1.0;
+        for (a = 0; a < 4; a++, hp *= h) t[a] = c[4 * (size_t)i + a] * hp;
+        if (pt)
+            for (a = 0; a < 4; a++) pt[4 * (size_t)i + a] = t[a];
+        if (qt)
+            for (a = 0; a < 4; a++) {
+                double s = 0.0;
+                for (k = 0; k < 4; k++) s += t[k] / (double)(a + k + 1);
+                qt[4 * (size_t)i + a] = s;
+            }
+    }
+}
+
+/* max_k |<a(. - k), c> - delta_k| (delta only when asked) over k = kmin..kmax,
+ * by exact integration of the products of the aligned cubic pieces; at is a's
+ * scaled table, ct c's integrated one (scale_pieces). */
+static double gram_error(const wvol_basis *b, const double *at, const double *ct, int kmin, int kmax, int delta)
 {
     int k, i, i0, i1, P = b->pieces;
     double worst = 0.0;
@@ -38,14 +59,19 @@ static double gram_error(const wvol_basis *b, const double *a, const double *c, 
         double s = 0.0;
         i0 = shift > 0 ? (int)shift : 0;
         i1 = shift < 0 ? P + (int)shift : P;
-        for (i = i0; i < i1; i++) s += wvol__cubic_product_integral(a + 4 * (i - shift), c + 4 * i, b->h);
+        for (i = i0; i < i1; i++) {
+            const double *p = at + 4 * (i - shift), *q = ct + 4 * (size_t)i;
+            s += p[0] * q[0] + p[1] * q[1] + p[2] * q[2] + p[3] * q[3];
+        }
+        s *= b->h;
         if (delta && k == 0) s -= 1.0;
         if (fabs(s) > worst) worst = fabs(s);
     }
     return worst;
 }
 
-static void compute_checks(wvol_basis *b, const double *phic, const double *psic, int Jc)
+/* scaled: scratch of 16 doubles per piece */
+static void compute_checks(wvol_basis *b, const double *phic, const double *psic, int Jc, double *scaled)
 {
     int i, w, P = b->pieces, L = b->length;
     size_t n, Nc = (size_t)(L - 1) << Jc;
@@ -83,10 +109,14 @@ static void compute_checks(wvol_basis *b, const double *phic, const double *psic
     b->spline_error_psi = err[1];
     b->spline_error = err[0] > err[1] ? err[0] : err[1];
     /* orthonormality of the spline model */
-    b->ortho_error = gram_error(b, b->phi, b->phi, 0, L - 2, 1);
     {
-        double e1 = gram_error(b, b->psi, b->psi, 0, L - 2, 1);
-        double e2 = gram_error(b, b->phi, b->psi, -(L - 2), L - 2, 0);
+        double *pt = scaled, *pq = pt + 4 * (size_t)P, *st = pq + 4 * (size_t)P, *sq = st + 4 * (size_t)P;
+        double e1, e2;
+        scale_pieces(pt, pq, b->phi, P, b->h);
+        scale_pieces(st, sq, b->psi, P, b->h);
+        b->ortho_error = gram_error(b, pt, pq, 0, L - 2, 1);
+        e1 = gram_error(b, st, sq, 0, L - 2, 1);
+        e2 = gram_error(b, pt, sq, -(L - 2), L - 2, 0);
         b->ortho_error_psi = e1 > e2 ? e1 : e2;
     }
     /* bounds */
@@ -186,7 +216,16 @@ wvol_status wvol_basis_create(wvol_basis **out, const wvol_filter *f, int J, wvo
     wvol__spline_deriv(b->dpsi, b->psi, N);
     wvol__spline_primitive(b->phi_int, b->phi, N, b->h);
     wvol__spline_primitive(b->psi_int, b->psi, N, b->h);
-    compute_checks(b, phic, psic, Jc);
+    {
+        /* 16 doubles per piece: phi and psi scaled and integrated (scale_pieces) */
+        double *scratch = malloc(16 * P * sizeof *scratch);
+        if (!scratch) {
+            s = wvol_error_set(err, WVOL_ERR_NOMEM, "basis: out of memory for the checks");
+            goto fail;
+        }
+        compute_checks(b, phic, psic, Jc, scratch);
+        free(scratch);
+    }
     free(phic);
     *out = b;
     return WVOL_OK;

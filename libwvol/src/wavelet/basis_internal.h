@@ -7,6 +7,9 @@
 
 #include "wvol/wavelet.h"
 
+#ifndef M_SQRT1_2
+#define M_SQRT1_2 0.70710678118654752440
+#endif
 #ifndef M_SQRT2
 #define M_SQRT2 1.41421356237309504880
 #endif
@@ -24,7 +27,6 @@ void wvol__cascade_psi_from_phi(double *psi, const double *phi, const wvol_filte
 wvol_status wvol__spline_periodic(double *c, const double *y, size_t n, double h, wvol_error *err);
 void wvol__spline_deriv(double *d, const double *c, size_t n);
 double wvol__spline_primitive(double *P, const double *c, size_t n, double h);
-double wvol__cubic_product_integral(const double *p, const double *q, double h);
 double wvol__cubic_absmax(const double *c, double h);
 double wvol__cubic_absint(const double *c, double h);
 

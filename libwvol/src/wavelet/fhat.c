@@ -21,7 +21,7 @@ typedef struct axis_eval {
 static void axis_setup(axis_eval *ax, const wvol_basis *b, size_t P, int m, double y, int need_grad)
 {
     int k, n = b->length - 1, per = b->per_unit;
-    double scale, dscale, t, fr, u;
+    double scale, dscale, t, fr, u, inv2m;
     long long i0;
     long long Pm;
     int j;
@@ -37,10 +37,11 @@ static void axis_setup(axis_eval *ax, const wvol_basis *b, size_t P, int m, doub
     Pm = (long long)(P >> m);
     ax->n = n;
     ax->ext = (size_t)Pm;
-    scale = ldexp(1.0, -(m / 2)) / (m & 1 ? M_SQRT2 : 1.0);   /* 2^{-m/2} */
-    dscale = ldexp(scale, -m);                            /* chain rule: d/dy of phi(2^-m y - p) */
-    t = ldexp(y, -m);
-    i0 = (long long)floor(t);
+    inv2m = 1.0 / (double)(1ULL << m);                            /* 2^-m, exact */
+    scale = (m & 1 ? M_SQRT1_2 : 1.0) / (double)(1ULL << (m / 2)); /* 2^{-m/2} */
+    dscale = scale * inv2m;                   /* chain rule: d/dy of phi(2^-m y - p) */
+    t = y * inv2m;                            /* exact */
+    i0 = (long long)t;                        /* y >= 0 */
     fr = t - (double)i0;
     j = (int)(fr * b->inv_h);
     if (j >= per) j = per - 1;
@@ -49,7 +50,7 @@ static void axis_setup(axis_eval *ax, const wvol_basis *b, size_t P, int m, doub
     /* the position p = i0 - k sees the point at 2^-m y - p = fr + k: piece j + k 2^J,
      * the same local u for every k */
     {
-        long long p = i0 % Pm;
+        long long p = i0 < Pm ? i0 : i0 % Pm;
         for (k = 0; k < n; k++) {
             const double *a = b->phi + 4 * (size_t)(j + k * per);
             const double *c = b->psi + 4 * (size_t)(j + k * per);
@@ -93,7 +94,7 @@ double wvol_fhat_eval(const wvol_coeffs *c, const wvol_basis *b, const double x[
     int m, a, band, need = grad != NULL;
 
     if (!c || !b || !x || !c->data || !same_filter(c->filter, b->filter) || !(x[0] == x[0]) ||
-        !(x[1] == x[1]) || !(x[2] == x[2]) || c->levels < 1) {
+        !(x[1] == x[1]) || !(x[2] == x[2]) || c->levels < 1 || c->levels > 62) {
         if (grad) grad[0] = grad[1] = grad[2] = NAN;
         return NAN;
     }

@@ -101,18 +101,6 @@ double wvol__spline_primitive(double *P, const double *c, size_t n, double h)
     return acc;
 }
 
-/* integral over [0, h] of p(u) q(u), two cubics: sum_{a,b} p_a q_b h^{a+b+1}/(a+b+1) */
-double wvol__cubic_product_integral(const double *p, const double *q, double h)
-{
-    double s = 0.0, hp[8];
-    int a, b;
-    hp[0] = h;
-    for (a = 1; a < 8; a++) hp[a] = hp[a - 1] * h;
-    for (a = 0; a < 4; a++)
-        for (b = 0; b < 4; b++) s += p[a] * q[b] * hp[a + b] / (double)(a + b + 1);
-    return s;
-}
-
 /* max |c(u)| over u in [0, h]: ends and the roots of c'(u) = c1 + 2 c2 u + 3 c3 u^2 */
 double wvol__cubic_absmax(const double *c, double h)
 {
