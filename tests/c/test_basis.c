@@ -446,6 +446,11 @@ static void fhat_refuses_mismatched_basis(void)
     CHECK(isnan(wvol_fhat_eval(c, b, x, g)) && isnan(g[0]), "db3 basis on db2 coefficients: NaN");
     x[1] = NAN;
     CHECK(isnan(wvol_fhat_eval(c, b, x, NULL)), "NaN point: NaN");
+    wvol_basis_destroy(b);
+    b = make("db2", 4);
+    x[1] = 1.0;
+    c->levels = 3; /* 4 is not a multiple of 2^3 */
+    CHECK(isnan(wvol_fhat_eval(c, b, x, NULL)), "grid too small for the levels: NaN");
     coeffs_free(c);
     wvol_basis_destroy(b);
 }

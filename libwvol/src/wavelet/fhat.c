@@ -99,6 +99,12 @@ double wvol_fhat_eval(const wvol_coeffs *c, const wvol_basis *b, const double x[
         return NAN;
     }
     P[0] = c->px, P[1] = c->py, P[2] = c->pz;
+    for (a = 0; a < 3; a++)
+        if (P[a] == 0 || (P[a] != 1 && ((P[a] >> c->levels) == 0 || (P[a] & (((size_t)1 << c->levels) - 1))))) {
+            /* not a padded grid of this many levels */
+            if (grad) grad[0] = grad[1] = grad[2] = NAN;
+            return NAN;
+        }
     sx = c->px;
     sxy = c->px * c->py;
     for (a = 0; a < 3; a++) y[a] = wrap(x[a] + b->center, P[a]);
