@@ -15,15 +15,19 @@ from . import _wvol
 
 __version__ = _wvol.version
 
-__all__ = ["Volume", "load", "save", "filters", "dwt3", "idwt3", "Coeffs", "compress", "Store", "ErrorEstimate"]
+__all__ = ["Volume", "load", "save", "filters", "dwt3", "idwt3", "Coeffs", "compress", "Store", "ErrorEstimate",
+           "synth"]
 
 
 @dataclass
 class Volume:
-    """A volume with its geometry: ``data`` is (z, y, x) float32; spacing/origin are (x, y, z)."""
+    """A volume with its geometry: ``data`` is (z, y, x) float32; spacing/origin are (x, y, z)
+    world units (sample ``data[k, j, i]`` sits at ``origin + (i, j, k) * spacing``).
+    ``labels`` (optional, int32, same shape) is a ground-truth label map (synthetic volumes)."""
     data: np.ndarray
     spacing: tuple = (1.0, 1.0, 1.0)
     origin: tuple = (0.0, 0.0, 0.0)
+    labels: Optional[np.ndarray] = None
 
     def __array__(self, dtype=None):
         return self.data if dtype is None else self.data.astype(dtype)
@@ -276,3 +280,6 @@ def compress(vol, wavelet="db2", levels=3, *, keep=None, keep_count=None, energy
     name = wavelet.lower() if isinstance(wavelet, str) else wavelet
     shape = a.shape if a.ndim == 3 else (1,) + a.shape
     return Store(coeffs, name, levels, shape, spacing, origin, report, value_range, original=arr)
+
+
+from . import synth  # noqa: E402  (wvol.synth.*: needs Volume defined above)
