@@ -127,6 +127,9 @@ def timed(cmd, env=None, timeout=3600):
                        timeout=timeout)
     dt = time.perf_counter() - t0
     m = re.search(r"Maximum resident set size \(kbytes\): (\d+)", r.stderr)
+    u = re.search(r"User time \(seconds\): ([0-9.]+)", r.stderr)
+    sy = re.search(r"System time \(seconds\): ([0-9.]+)", r.stderr)
+    timed.cpu = float(u.group(1)) + float(sy.group(1)) if u and sy else float("nan")
     return dt, (int(m.group(1)) / 1024 if m else float("nan")), r.stdout, r.stderr, r.returncode
 
 
@@ -181,7 +184,7 @@ cam = ren.GetActiveCamera(); c = (n - 1) / 2
 cam.SetFocalPoint(c, c, c); cam.SetPosition(c, c, c + 2 * n); cam.SetViewUp(0, 1, 0)
 cam.ParallelProjectionOn(); cam.SetParallelScale(n / 2); cam.SetClippingRange(0.1, 10 * n)
 win.Render()                      # first frame: set-up (textures, min/max volume)
-t0 = time.perf_counter(); win.Render(); t1 = time.perf_counter()
+t0 = time.process_time(); win.Render(); t1 = time.process_time()
 w2i = vtk.vtkWindowToImageFilter(); w2i.SetInput(win); w2i.SetInputBufferTypeToRGB(); w2i.ReadFrontBufferOff(); w2i.Update()
 a = numpy_support.vtk_to_numpy(w2i.GetOutput().GetPointData().GetScalars()).reshape(img, img, -1)[::-1, :, 0]
 np.save(out, a.astype(np.float32) / 255.0)
@@ -204,7 +207,7 @@ def main():
     ap.add_argument("--image", type=int, default=64)
     ap.add_argument("--keep", default="1,5,20,100", help="kept percentages")
     ap.add_argument("--volumes", default="gaussian,skull")
-    ap.add_argument("--threads", type=int, default=os.cpu_count())
+    ap.add_argument("--threads", type=int, default=1, help="threads for every renderer (default 1)")
     ap.add_argument("--spline-j", default="2,4")
     ap.add_argument("--ref-step", type=float, default=0.05, help="converged reference step (voxels)")
     ap.add_argument("--spline-budget", type=float, default=600, help="skip spline runs predicted beyond (s)")
@@ -241,6 +244,7 @@ def main():
                         row["error"] = e
                     else:
                         row["render_s"] = info.get("render_seconds") if info else dt
+                        row["cpu_s"] = info.get("render_cpu_seconds") if info else timed.cpu
                         row["rel_rmse"] = rel_rmse(rgba(out), ref_of(extra))
                         for k in ("kept", "pieces", "functions", "samples", "clamped"):
                             if info and k in info: row[k] = info[k]
@@ -269,7 +273,7 @@ def main():
                             small_ref[ps] = rgba(sref)
                         out = tmp / "o.exr"
                         info, dt, mem, e = wvol_render(raw, n, out, pc + ["--method", "spline", "--spline-j", J] + ka, thr)
-                        pred = (info["render_seconds"] if info else dt) * (img / ps) ** 2
+                        pred = (info["render_cpu_seconds"] if info else dt) * (img / ps) ** 2
                         if e or pred > a.spline_budget or ps == img:
                             row_extra = {"J": int(J), "image": ps, "predicted_full_s": pred}
                             record(f"spline J={J}", keep, out, info, dt, mem, e, row_extra)
@@ -289,8 +293,9 @@ def main():
                     out = tmp / "o.exr"
                     info, dt, mem, e = wvol_render(raw, n, out, ["--size", f"{img}x{img}", "--camera", "+z", "--tf", tfp,
                                                                  "--method", "reference", "--step", str(step)], thr)
-                    rows.append({"volume": vname, "mode": "opacity-only", "method": "wvol reference", "keep": 100,
-                                 "wall_s": dt, "render_s": info["render_seconds"], "peak_mb": mem,
+                    rows.append({"volume": vname, "mode": "opacity-only", "method": f"wvol reference step={step}",
+                                 "keep": 100, "wall_s": dt, "render_s": info["render_seconds"],
+                                 "cpu_s": info["render_cpu_seconds"], "peak_mb": mem,
                                  "rel_rmse": rel_rmse(rgba(out)[..., 3], RA)})
                     print(json.dumps(rows[-1]), flush=True)
                 for keep in keeps:
@@ -301,7 +306,8 @@ def main():
                     row = {"volume": vname, "mode": "opacity-only", "method": "wvol spline J=2", "keep": keep,
                            "wall_s": dt, "peak_mb": mem}
                     if e: row["error"] = e
-                    else: row.update(render_s=info["render_seconds"], rel_rmse=rel_rmse(rgba(out)[..., 3], RA))
+                    else: row.update(render_s=info["render_seconds"], cpu_s=info["render_cpu_seconds"],
+                                     rel_rmse=rel_rmse(rgba(out)[..., 3], RA))
                     rows.append(row); print(json.dumps(row), flush=True)
                 if shutil.which("vdb_render"):
                     try:
@@ -309,7 +315,8 @@ def main():
                         out = tmp / "vdb.exr"
                         dt, mem, so, se, rc = run_vdb(vp, n, img, out, k, a.threads)
                         row = {"volume": vname, "mode": "opacity-only", "method": "vdb_render", "keep": 100,
-                               "wall_s": dt, "render_s": dt, "peak_mb": mem}
+                               "wall_s": dt, "render_s": dt, "cpu_s": timed.cpu, "peak_mb": mem,
+                               "note": "cpu_s includes reading the .vdb"}
                         if rc == 0:
                             row["rel_rmse"] = rel_rmse(rgba(out)[..., 3], RA)
                         else:
@@ -321,7 +328,7 @@ def main():
                     out = tmp / "vtk.npy"
                     sec, mem, e = run_vtk(raw, n, img, out, k, a.threads, tmp)
                     row = {"volume": vname, "mode": "opacity-only", "method": "VTK fixed-point", "keep": 100,
-                           "render_s": sec, "peak_mb": mem}
+                           "render_s": sec, "cpu_s": sec, "peak_mb": mem, "note": "CPU time of one Render()"}
                     if e: row["error"] = e
                     else: row["rel_rmse"] = rel_rmse(np.load(out), RA)
                     rows.append(row); print(json.dumps(row), flush=True)
@@ -336,12 +343,14 @@ def main():
              "Spline rows whose full-size run would pass the budget are pilots at a smaller image (column "
              "'image'; error against the converged reference at that size; 'full s' = predicted time at "
              f"{img}x{img}).\n",
-             "| volume | mode | method | kept % | image | render s | full s | wall s | peak MB | rel. RMSE |",
+             "Times are CPU seconds of the render alone (wvol: the render call; VTK: one Render(); vdb_render: "
+             "the whole process, reading included); the machine is shared, so wall times are noisy.\n",
+             "| volume | mode | method | kept % | image | CPU s | full-size CPU s | wall s | peak MB | rel. RMSE |",
              "|---|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
-        full = r.get("predicted_full_s", r.get("render_s", float("nan")))
+        full = r.get("predicted_full_s", r.get("cpu_s", float("nan")))
         lines.append(f"| {r.get('volume')} | {r.get('mode')} | {r.get('method')} | {r.get('keep')} | "
-                     f"{r.get('image', img)} | {r.get('render_s', float('nan')):.3f} | {full:.3g} | "
+                     f"{r.get('image', img)} | {r.get('cpu_s', float('nan')):.3f} | {full:.3g} | "
                      f"{r.get('wall_s', float('nan')):.2f} | "
                      f"{r.get('peak_mb', float('nan')):.0f} | "
                      + (f"{r['rel_rmse']:.3g}" if "rel_rmse" in r else r.get("error", "")) + " |")
@@ -353,12 +362,12 @@ def main():
         fig, axes = plt.subplots(1, 2, figsize=(12, 5))
         for ax, vname in zip(axes, ["gaussian", "skull"]):
             for meth in sorted({r["method"] for r in rows if r.get("volume") == vname}):
-                pts = [(r.get("predicted_full_s", r["render_s"]), r["rel_rmse"]) for r in rows
-                       if r.get("volume") == vname and r["method"] == meth and "rel_rmse" in r and r.get("render_s")]
+                pts = [(r.get("predicted_full_s", r.get("cpu_s")), r["rel_rmse"]) for r in rows
+                       if r.get("volume") == vname and r["method"] == meth and "rel_rmse" in r and r.get("cpu_s")]
                 if pts:
                     x, y = zip(*pts)
                     ax.loglog(x, np.maximum(y, 1e-9), "o", label=meth)
-            ax.set_title(f"{vname} {n}^3, {img}^2"); ax.set_xlabel("render time (s; spline pilots: predicted at full size)"); ax.set_ylabel("relative RMSE")
+            ax.set_title(f"{vname} {n}^3, {img}^2"); ax.set_xlabel("render CPU time (s; spline pilots: predicted at full size)"); ax.set_ylabel("relative RMSE")
             ax.legend(fontsize=7)
         fig.tight_layout(); fig.savefig(outdir / "render.png", dpi=90)
     except Exception as ex:

@@ -154,7 +154,8 @@ typedef struct wvol_render_params {
 void wvol_render_params_default(wvol_render_params *p);
 
 typedef struct wvol_render_stats {
-    double seconds;
+    double seconds;         /* wall clock */
+    double cpu_seconds;     /* CPU time of the process during the render (all threads) */
     size_t rays, rays_hit;
     size_t samples;         /* reference: field samples taken; spline: quadrature nodes */
     size_t pieces;          /* spline: polynomial pieces integrated */

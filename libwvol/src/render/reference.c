@@ -13,7 +13,30 @@
 
 
 
-static double trilinear(const wvol_volume *v, const double x[3])
+static double trilinear_slow(const wvol_volume *v, const double x[3]);
+
+/* Trilinear sample at index position x; the common case (strictly inside the sample grid)
+ * without clamping branches. */
+static inline double trilinear(const wvol_volume *v, const double x[3])
+{
+    size_t nx = v->nx, ny = v->ny;
+    if (x[0] > 0 && x[1] > 0 && x[2] > 0 && x[0] < (double)(nx - 1) && x[1] < (double)(ny - 1) &&
+        x[2] < (double)(v->nz - 1)) {
+        size_t i = (size_t)x[0], j = (size_t)x[1], k = (size_t)x[2];
+        double wx = x[0] - (double)i, wy = x[1] - (double)j, wz = x[2] - (double)k;
+        const float *p = v->data + i + nx * (j + ny * k);
+        size_t sy = nx, sz = nx * ny;
+        double c00 = p[0] + wx * (p[1] - p[0]);
+        double c10 = p[sy] + wx * (p[sy + 1] - p[sy]);
+        double c01 = p[sz] + wx * (p[sz + 1] - p[sz]);
+        double c11 = p[sz + sy] + wx * (p[sz + sy + 1] - p[sz + sy]);
+        double c0 = c00 + wy * (c10 - c00), c1 = c01 + wy * (c11 - c01);
+        return c0 + wz * (c1 - c0);
+    }
+    return trilinear_slow(v, x);
+}
+
+static double trilinear_slow(const wvol_volume *v, const double x[3])
 {
     size_t n[3] = {v->nx, v->ny, v->nz}, i0[3], i1[3];
     double w[3];
@@ -125,6 +148,19 @@ static wvol_status build_bricks(wvol__sampler *s, const wvol_tf *tf, wvol_render
     return WVOL_OK;
 }
 
+/* Index of the brick holding x (clamped to the grid). */
+static inline long brick_id(const wvol__sampler *s, const double x[3])
+{
+    long b[3];
+    int a;
+    for (a = 0; a < 3; a++) {
+        double c = (x[a] + 0.5) / s->B;
+        b[a] = c > 0 ? (long)c : 0;
+        if (b[a] > (long)s->bn[a] - 1) b[a] = (long)s->bn[a] - 1;
+    }
+    return b[0] + (long)s->bn[0] * (b[1] + (long)s->bn[1] * b[2]);
+}
+
 /* If x lies in an empty brick, the ray parameter where the ray (index direction e) leaves it. */
 static int empty_exit(const wvol__sampler *s, const double x[3], const double e[3], double t, double *t_exit)
 {
@@ -165,6 +201,8 @@ static void march(const wvol__sampler *s, const wvol_tf *tf, const wvol_render_p
         x0[a] = (o[a] - s->origin[a]) / s->spacing[a];
         e[a] = d[a] / s->spacing[a];
     }
+    long last_brick = -1;
+    int last_empty = 0;
     nsteps = (long)ceil((t1 - t0) / dt);
     if (nsteps < 1) nsteps = 1;
     for (k = 0; k < nsteps; k++) {
@@ -176,7 +214,12 @@ static void march(const wvol__sampler *s, const wvol_tf *tf, const wvol_render_p
         for (a = 0; a < 3; a++) x[a] = x0[a] + t * e[a];
         if (s->empty) {
             double te;
-            if (empty_exit(s, x, e, t, &te)) {
+            long bid = brick_id(s, x);
+            if (bid != last_brick) {
+                last_brick = bid;
+                last_empty = s->empty[bid];
+            }
+            if (last_empty && empty_exit(s, x, e, t, &te)) {
                 long kn = (long)floor((te - t0) / dt);
                 out->skipped++;
                 if (kn > k) k = kn - 1;
@@ -229,7 +272,7 @@ wvol_status wvol__render_sampled(wvol_image *img, wvol__sampler *s, const wvol_c
     wvol_geometry g;
     wvol_tf tf;
     wvol__cam k;
-    double lo[3], hi[3], dt, t_start;
+    double lo[3], hi[3], dt, t_start, c_start;
     int ntiles, tx, a;
     size_t rays_hit = 0, samples = 0, skipped = 0, terminated = 0, clamped = 0;
 
@@ -247,6 +290,7 @@ wvol_status wvol__render_sampled(wvol_image *img, wvol__sampler *s, const wvol_c
     wvol_geometry_bounds(&g, lo, hi);
     dt = p.step * fmin(s->spacing[0], fmin(s->spacing[1], s->spacing[2]));
     t_start = wvol__now();
+    c_start = wvol__cpu_now();
     s->empty = NULL;
     if (s->v && p.brick > 0) {
         s->B = p.brick;
@@ -285,6 +329,7 @@ wvol_status wvol__render_sampled(wvol_image *img, wvol__sampler *s, const wvol_c
     if (stats) {
         memset(stats, 0, sizeof *stats);
         stats->seconds = wvol__now() - t_start;
+        stats->cpu_seconds = wvol__cpu_now() - c_start;
         stats->rays = (size_t)img->width * (size_t)img->height;
         stats->rays_hit = rays_hit;
         stats->samples = samples;

@@ -52,6 +52,7 @@ wvol_status wvol__render_sampled(wvol_image *img, wvol__sampler *s, const wvol_c
 
 /* Monotonic seconds; OpenMP thread count for a requested count (0 = default). */
 double wvol__now(void);
+double wvol__cpu_now(void);
 int wvol__threads(int requested);
 
 #endif

@@ -252,6 +252,7 @@ int wvol_cmd_render(int argc, char **argv)
         }
         cli_json_num("prepare_seconds", t_prep);
         cli_json_num("render_seconds", stats.seconds);
+        cli_json_num("render_cpu_seconds", stats.cpu_seconds);
         cli_json_int("rays_hit", (long long)stats.rays_hit);
         cli_json_int("samples", (long long)stats.samples);
         cli_json_int("pieces", (long long)stats.pieces);

@@ -541,7 +541,7 @@ wvol_status wvol_render_spline(wvol_image *img, const wvol_store *s, const wvol_
     spline_ctx c;
     wvol_geometry g;
     wvol__cam k;
-    double lo[3], hi[3], t_start = wvol__now();
+    double lo[3], hi[3], t_start = wvol__now(), c_start = wvol__cpu_now();
     int ntiles, tx, a, j, q, failed = 0;
     size_t rays_hit = 0, pieces = 0, functions = 0, samples = 0, skipped = 0, terminated = 0, clamped = 0;
     wvol_error first_err;
@@ -629,6 +629,7 @@ wvol_status wvol_render_spline(wvol_image *img, const wvol_store *s, const wvol_
     if (stats) {
         memset(stats, 0, sizeof *stats);
         stats->seconds = wvol__now() - t_start;
+        stats->cpu_seconds = wvol__cpu_now() - c_start;
         stats->rays = (size_t)img->width * (size_t)img->height;
         stats->rays_hit = rays_hit;
         stats->pieces = pieces;

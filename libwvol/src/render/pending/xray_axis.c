@@ -22,7 +22,7 @@ wvol_status wvol_render_xray_axis(wvol_image *img, const wvol_store *s, const wv
     wvol_store_iter it;
     wvol_store_coeff cf;
     size_t P[3], Pu, Pv, m, i;
-    double **acc = NULL, lo[3], hi[3], t_start = wvol__now(), Iphi, Ipsi, sp_ray;
+    double **acc = NULL, lo[3], hi[3], t_start = wvol__now(), c_start = wvol__cpu_now(), Iphi, Ipsi, sp_ray;
     int a = -1, ua, va, M, ax, y;
     wvol_status st = WVOL_OK;
 
@@ -143,6 +143,7 @@ wvol_status wvol_render_xray_axis(wvol_image *img, const wvol_store *s, const wv
     if (stats) {
         memset(stats, 0, sizeof *stats);
         stats->seconds = wvol__now() - t_start;
+        stats->cpu_seconds = wvol__cpu_now() - c_start;
         stats->rays = (size_t)img->width * (size_t)img->height;
         stats->functions = info.kept;
     }
