@@ -112,32 +112,74 @@ static wvol_status check_extent(const wvol_store *s, const double a[3], const do
     return WVOL_OK;
 }
 
-static void traverse(const trav *tv)
+/* One root-level image: its low-pass function, then the root node's subtree. */
+static void root_image(const trav *tv, const int64_t j[3])
 {
     const wvol_store *s = tv->s;
     int M = s->ly.levels;
-    double S = s->ly.L - 1, unit = s->pow2[M];
-    int64_t j0[3], j1[3], j[3];
-    for (int a = 0; a < 3; a++) {
-        if (!s->ly.tr[a]) {
-            j0[a] = j1[a] = 0;
-            continue;
-        }
-        j0[a] = (int64_t)ceil((tv->a[a] + s->ly.s) / unit - S);
-        j1[a] = (int64_t)floor((tv->b[a] + s->ly.s) / unit);
+    double lo[3], hi[3], t0, t1;
+    size_t pos[3], i;
+    image_box(s, M, j, lo, hi);
+    if (!meets(tv, lo, hi, &t0, &t1)) return;
+    for (int a = 0; a < 3; a++) pos[a] = s->ly.tr[a] ? pmod(j[a], s->E[a]) : 0;
+    i = pos[0] + s->E[0] * (pos[1] + s->E[1] * pos[2]);
+    tv->fn(tv, tv->arg, M, 1u, s->lowpass + i, pos, lo, hi, t0, t1);
+    if (s->root_of[i] >= 0) descend(tv, (size_t)s->root_of[i], M, j);
+}
+
+/* Root images j along axis a whose slab can hold [x0, x1]. */
+static inline void root_range(const wvol_store *s, int a, double x0, double x1, int64_t *j0, int64_t *j1)
+{
+    double unit = s->pow2[s->ly.levels];
+    if (!s->ly.tr[a]) {
+        *j0 = *j1 = 0;
+        return;
     }
+    *j0 = (int64_t)ceil((x0 + s->ly.s) / unit - (s->ly.L - 1));
+    *j1 = (int64_t)floor((x1 + s->ly.s) / unit);
+}
+
+/* Rays: the root images are enumerated axis by axis, each axis' slab narrowing
+ * the parameter interval, so a long oblique ray costs what it meets rather than
+ * the volume of its bounding box. */
+static void ray_roots(const trav *tv, int a, double u0, double u1, int64_t j[3])
+{
+    const wvol_store *s = tv->s;
+    int64_t j0, j1;
+    if (a == 3) {
+        root_image(tv, j);
+        return;
+    }
+    double p0 = tv->o[a] + u0 * tv->d[a], p1 = tv->o[a] + u1 * tv->d[a];
+    root_range(s, a, wvol__min(p0, p1), wvol__max(p0, p1), &j0, &j1);
+    for (j[a] = j0; j[a] <= j1; j[a]++) {
+        double v0 = u0, v1 = u1;
+        if (s->ly.tr[a] && tv->d[a] != 0.0) {
+            double lo = (double)j[a] * s->pow2[s->ly.levels] - s->ly.s;
+            double hi = (double)(j[a] + s->ly.L - 1) * s->pow2[s->ly.levels] - s->ly.s;
+            double ta = (lo - tv->o[a]) / tv->d[a], tb = (hi - tv->o[a]) / tv->d[a];
+            if (ta > tb) {
+                double t = ta;
+                ta = tb, tb = t;
+            }
+            v0 = wvol__max(v0, ta), v1 = wvol__min(v1, tb);
+            if (v0 > v1) continue;
+        }
+        ray_roots(tv, a + 1, v0, v1, j);
+    }
+}
+
+static void traverse(const trav *tv)
+{
+    int64_t j0[3], j1[3], j[3];
+    if (tv->ray) {
+        ray_roots(tv, 0, tv->tmin, tv->tmax, j);
+        return;
+    }
+    for (int a = 0; a < 3; a++) root_range(tv->s, a, tv->a[a], tv->b[a], j0 + a, j1 + a);
     for (j[2] = j0[2]; j[2] <= j1[2]; j[2]++)
         for (j[1] = j0[1]; j[1] <= j1[1]; j[1]++)
-            for (j[0] = j0[0]; j[0] <= j1[0]; j[0]++) {
-                double lo[3], hi[3], t0, t1;
-                size_t pos[3], i;
-                image_box(s, M, j, lo, hi);
-                if (!meets(tv, lo, hi, &t0, &t1)) continue;
-                for (int a = 0; a < 3; a++) pos[a] = s->ly.tr[a] ? pmod(j[a], s->E[a]) : 0;
-                i = pos[0] + s->E[0] * (pos[1] + s->E[1] * pos[2]);
-                tv->fn(tv, tv->arg, M, 1u, s->lowpass + i, pos, lo, hi, t0, t1);
-                if (s->root_of[i] >= 0) descend(tv, (size_t)s->root_of[i], M, j);
-            }
+            for (j[0] = j0[0]; j[0] <= j1[0]; j[0]++) root_image(tv, j);
 }
 
 /* ---- hit lists ----------------------------------------------------------------------------- */
@@ -332,8 +374,9 @@ wvol_status wvol_store_box_bounds(const wvol_store *s, const double lo[3], const
         out->grad_norm += out->grad[a] * out->grad[a];
     }
     out->grad_norm = sqrt(out->grad_norm) * (1.0 + 1e-12);
-    /* centred form: f^ is C^1 (the clamped splines' zero extension), so on the box
-       |f^(x) - f^(c)| <= sum_a grad[a] |x_a - c_a|; Haar's f^ jumps, so not there */
+    /* centred form: f^ is continuous and piecewise C^1, hence Lipschitz along every
+       axis with the constants grad[a], so |f^(x) - f^(c)| <= sum_a grad[a] |x_a - c_a|;
+       Haar's f^ jumps, so not there */
     if (s->ly.L > 2) {
         double r = 0.0, e = 1e-10 * (ac.fc_abs + ac.vabs);
         for (int a = 0; a < 3; a++)
