@@ -16,7 +16,7 @@ from . import _wvol
 __version__ = _wvol.version
 
 __all__ = ["Volume", "load", "save", "filters", "dwt3", "idwt3", "Coeffs", "compress", "Store", "ErrorEstimate",
-           "synth"]
+           "synth", "segment", "Segmentation", "features"]
 
 
 @dataclass
@@ -208,6 +208,32 @@ class Store:
         return ErrorEstimate(l2, l2 / math.sqrt(self.voxels), _psnr(l2, self.voxels, peak),
                              float(np.abs(diff).max()))
 
+    def _c(self, spline_j=None):
+        """The C store over the kept coefficients (built once per spline resolution)."""
+        j = 0 if spline_j is None else int(spline_j)
+        if self._cstore is None or self._cstore[0] != j:
+            cap = _wvol.store_build(self.coeffs, self.wavelet, self.levels, self.shape, spacing=self.spacing,
+                                    origin=self.origin, spline_j=j)
+            self._cstore = (j, cap)
+        return self._cstore[1]
+
+    def info(self):
+        """Numbers of the C store (sparse octree of the kept coefficients): ``kept``,
+        ``nodes``, ``bytes`` (memory it holds), ``bytes_per_coeff``, ``basis_bytes``
+        (spline tables), ``spline_j``..."""
+        return _wvol.store_info(self._c())
+
+    @property
+    def bytes_per_coeff(self):
+        """Memory of the C store per kept coefficient (octree, masks, values, bounds)."""
+        return float(self.info()["bytes_per_coeff"])
+
+    def evaluate(self, points):
+        """The continuous model f^ (sum of the kept coefficients' spline basis functions) at
+        world positions ``points`` ((n, 3), (x, y, z) order); returns ``(values (n,),
+        gradients (n, 3))`` in world units."""
+        return _wvol.store_eval(self._c(), np.atleast_2d(np.asarray(points, dtype=np.float64)))
+
     def reconstruct(self, level=None, box=None):
         """Reconstructs a :class:`Volume` from the kept coefficients.
 
@@ -280,6 +306,54 @@ def compress(vol, wavelet="db2", levels=3, *, keep=None, keep_count=None, energy
     name = wavelet.lower() if isinstance(wavelet, str) else wavelet
     shape = a.shape if a.ndim == 3 else (1,) + a.shape
     return Store(coeffs, name, levels, shape, spacing, origin, report, value_range, original=arr)
+
+
+
+# ---- analysis: segmentation in wavelet space ---------------------------------------------
+
+@dataclass
+class Segmentation:
+    """Result of :func:`segment`: ``labels`` (z, y, x) int32 = winning neuron per voxel,
+    ``colors`` (z, y, x, 3) float32 = its RGB colour from the lattice position (in [0, 1]),
+    ``classes`` (z, y, x) int32 = ground-truth class each neuron was given (only when
+    ``truth`` was passed), ``score`` = {"error_all", "error_interior", "interior"} (only with
+    ``truth``), and the sizes ``features`` (raw), ``components`` (after PCA), ``neurons``."""
+    labels: np.ndarray
+    colors: np.ndarray
+    classes: Optional[np.ndarray]
+    score: Optional[dict]
+    features: int
+    components: int
+    neurons: int
+
+
+def segment(vol, wavelet="db2", levels=3, *, smooth=1, include_lowpass=True, variance=1.0, som=(4, 4, 4),
+            iterations=20000, seed=1, truth=None, train_mask=None, boundary=None):
+    """Segments a volume (or 2D image) with wavelet features and a 3D Kohonen map.
+
+    Per voxel: the magnitude of every detail band of each of ``levels`` levels (box-averaged
+    over ``smooth`` coarse samples) and each level's low-pass value, interpolated to the
+    voxel -> PCA keeping ``variance`` of the total -> min-max normalised -> a Kohonen map of
+    ``som`` = (a, b, c) neurons trained on ``iterations`` samples (deterministic for
+    ``seed``) -> winner neuron and colour per voxel. With ``truth`` (int class ids >= 0, the
+    volume's shape) each neuron takes the majority class of the voxels it wins among
+    ``train_mask`` (bool, default all voxels), giving ``classes`` and a ``score``
+    (misclassified share overall and away from boundaries of radius ``boundary``, default
+    ``2**levels``). Returns a :class:`Segmentation`.
+    """
+    r = _wvol.segment(_data(vol), wavelet=wavelet, levels=levels, smooth=smooth,
+                      include_lowpass=bool(include_lowpass), variance=variance, som=tuple(som),
+                      iterations=iterations, seed=seed, truth=truth, train_mask=train_mask,
+                      boundary=-1 if boundary is None else boundary)
+    return Segmentation(**r)
+
+
+def features(vol, wavelet="db2", levels=3, *, smooth=1, include_lowpass=True, pca=None):
+    """The per-voxel wavelet feature planes of :func:`segment`, as a (count, z, y, x) float32
+    array. ``pca=v`` (in (0, 1]) projects onto the principal components explaining share v
+    of the variance and normalises each to [0, 1] (as :func:`segment` does)."""
+    return _wvol.features(_data(vol), wavelet=wavelet, levels=levels, smooth=smooth,
+                          include_lowpass=bool(include_lowpass), variance=pca)
 
 
 from . import synth  # noqa: E402  (wvol.synth.*: needs Volume defined above)
