@@ -9,9 +9,7 @@
 #include "wvol/image.h"
 #include "wvol/io.h"
 #include "wvol/render.h"
-#ifdef WVOL_RENDER_WAVELET
 #include "wvol/store.h"
-#endif
 #include "wvol/wavelet.h"
 
 const char wvol_cmd_render_summary[] = "render a volume or a .wvc store to an EXR or PNG image";
@@ -59,23 +57,15 @@ int wvol_cmd_render(int argc, char **argv)
     wvol_load_options lo;
     wvol_error err;
     wvol_volume *v = NULL;
-#ifdef WVOL_RENDER_WAVELET
     wvol_coeffs *c = NULL;
-#endif
-#ifdef WVOL_RENDER_WAVELET
     wvol_selection *sel = NULL;
-#endif
-#ifdef WVOL_RENDER_WAVELET
     wvol_store *st = NULL;
-#endif
     wvol_image *img = NULL;
     wvol_camera cam;
     wvol_tf tf;
     wvol_geometry g;
     wvol_render_stats stats;
-#ifdef WVOL_RENDER_WAVELET
     wvol_select_report rep;
-#endif
     double vmin = 0, vmax = 1, t0, t_prep = 0;
     const wvol_filter *filt = NULL;
 
@@ -83,9 +73,7 @@ int wvol_cmd_render(int argc, char **argv)
     memset(&tf, 0, sizeof tf);
     memset(&stats, 0, sizeof stats);
     wvol_load_options_default(&lo);
-#ifdef WVOL_RENDER_WAVELET
     memset(&rep, 0, sizeof rep);
-#endif
     cli_parser_init(&ps, cmd, argc, argv, opts);
     while ((r = cli_next(&ps, &o, &val)) >= 0) {
         if (r == CLI_USAGE) return CLI_USAGE;
@@ -181,7 +169,6 @@ int wvol_cmd_render(int argc, char **argv)
             goto done;
         }
     }
-#ifdef WVOL_RENDER_WAVELET
     if (strcmp(method, "reference")) {
         wvol_select_params sp = wvol_select_params_default();
         wvol_store_params stp = wvol_store_params_default();
@@ -208,19 +195,11 @@ int wvol_cmd_render(int argc, char **argv)
             v = NULL;
         }
     }
-#else
-    if (strcmp(method, "reference")) {
-        (void)auto_fast;
-        rc = cli_fail(cmd, "--method %s: the wavelet methods are not in this build yet", method);
-        goto done;
-    }
-#endif
     if (wvol_image_create(&img, (int)W, (int)H, &err) != WVOL_OK) goto fail;
     t_prep = cli_now() - t0;
     {
         wvol_status s = WVOL_ERR_INTERNAL;
         if (!strcmp(method, "reference")) s = wvol_render_reference(img, v, &cam, &tf, &rp, &stats, &err);
-#ifdef WVOL_RENDER_WAVELET
         else if (!strcmp(method, "reference-fhat")) {
             wvol_basis *b = NULL;
             s = wvol_basis_create(&b, filt, (int)spline_j, &err);
@@ -235,7 +214,6 @@ int wvol_cmd_render(int argc, char **argv)
             }
             if (s == WVOL_ERR_UNSUPPORTED) s = wvol_render_spline(img, st, &cam, &tf, &rp, &stats, &err);
         }
-#endif
         if (s != WVOL_OK) goto fail;
     }
     {
@@ -265,7 +243,6 @@ int wvol_cmd_render(int argc, char **argv)
                                                                                                  : "absorption-linear");
         cli_json_int("width", W);
         cli_json_int("height", H);
-#ifdef WVOL_RENDER_WAVELET
         if (strcmp(method, "reference")) {
             cli_json_str("wavelet", filt->name);
             cli_json_num("keep", keep);
@@ -273,7 +250,6 @@ int wvol_cmd_render(int argc, char **argv)
             cli_json_num("predicted_rmse", rep.predicted_rmse);
             cli_json_int("spline_j", spline_j);
         }
-#endif
         cli_json_num("prepare_seconds", t_prep);
         cli_json_num("render_seconds", stats.seconds);
         cli_json_num("render_cpu_seconds", stats.cpu_seconds);
@@ -295,11 +271,9 @@ fail:
     rc = cli_fail_err(cmd, &err);
 done:
     wvol_image_destroy(img);
-#ifdef WVOL_RENDER_WAVELET
     wvol_store_destroy(st);
     wvol_selection_destroy(sel);
     wvol_coeffs_destroy(c);
-#endif
     wvol_volume_destroy(v);
     return rc;
 }
