@@ -8,4 +8,5 @@
 #include "wvol/volume.h"
 #include "wvol/io.h"
 #include "wvol/wavelet.h"
+#include "wvol/store.h"
 #endif
