@@ -139,13 +139,55 @@ def loops(case):
     return out
 
 
+def faces_of_edge(e):
+    a, b = EDGES[e]
+    return {fi for fi, (cyc, _) in enumerate(FACES) if a in cyc and b in cyc}
+
+
+def triangulations(idx):
+    """All triangulations of the convex polygon idx (list of loop positions)."""
+    if len(idx) < 3:
+        yield []
+        return
+    a, b = idx[0], idx[-1]
+    for k in range(1, len(idx) - 1):
+        for left in triangulations(idx[:k + 1]):
+            for right in triangulations(idx[k:]):
+                yield left + right + [(a, idx[k], b)]
+
+
+def quality(p, q, r):
+    """min angle-like measure: 4 sqrt(3) area / sum of squared sides."""
+    u, v = sub(q, p), sub(r, p)
+    c = cross(u, v)
+    area = 0.5 * dot(c, c) ** 0.5
+    s = dot(u, u) + dot(v, v) + dot(sub(r, q), sub(r, q))
+    return 4 * 3 ** 0.5 * area / s
+
+
 def triangulate(lp):
+    """Triangulates a loop without any diagonal between two points on one cube
+    face: a neighbour across an ambiguous face could draw the same diagonal, and
+    the edge would then belong to four triangles. Among the allowed
+    triangulations, the one with the best worst triangle (on edge midpoints)."""
     n = len(lp)
-    if n == 6:
-        idx = [(0, 1, 2), (2, 3, 4), (4, 5, 0), (0, 2, 4)]
-    else:
-        idx = [(0, i, i + 1) for i in range(1, n - 1)]
-    return [tuple(lp[i] for i in t) for t in idx]
+    best, best_q = None, -1.0
+    for tri in triangulations(list(range(n))):
+        ok = True
+        for t in tri:
+            for i, j in ((t[0], t[1]), (t[1], t[2]), (t[0], t[2])):
+                i, j = min(i, j), max(i, j)
+                if j - i not in (1, n - 1) and faces_of_edge(lp[i]) & faces_of_edge(lp[j]):
+                    ok = False
+        if not ok:
+            continue
+        # keep the loop's winding: each triangle listed in increasing loop order
+        tri = [tuple(sorted(t)) for t in tri]
+        q = min(quality(mid(lp[a]), mid(lp[b]), mid(lp[c])) for a, b, c in tri)
+        if q > best_q + 1e-12:
+            best, best_q = tri, q
+    assert best is not None, lp
+    return [tuple(lp[i] for i in t) for t in best]
 
 
 def orientation_sign(case, lp):
