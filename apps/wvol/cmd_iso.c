@@ -21,6 +21,8 @@ static const cli_opt opts[] = {
     {"repeat", 0, 1, "extract N times and report the fastest (benchmarking)"},
     {"dims", 0, 1, "raw input: NXxNYxNZ"},
     {"type", 0, 1, "raw input: sample type (float32, uint8, int16, ...)"},
+    {"spacing", 0, 1, "raw input: voxel size X,Y,Z (default 1)"},
+    {"origin", 0, 1, "raw input: world position of voxel (0,0,0) (default 0)"},
     {"grid", 0, 1, ".vdb input: grid name"},
     CLI_JSON_OPT,
     CLI_HELP_OPT,
@@ -193,6 +195,12 @@ int wvol_cmd_iso(int argc, char **argv)
             int t = wvol_sample_type_parse(val);
             if (t < 0) return cli_usage("iso", "--type '%s': unknown sample type", val);
             a.lo.raw_type = (wvol_sample_type)t;
+        } else if (!strcmp(o->name, "spacing")) {
+            if (!cli_parse_double3("iso", "spacing", val, a.lo.spacing)) return CLI_USAGE;
+            if (!(a.lo.spacing[0] > 0 && a.lo.spacing[1] > 0 && a.lo.spacing[2] > 0))
+                return cli_usage("iso", "--spacing '%s': must be positive", val);
+        } else if (!strcmp(o->name, "origin")) {
+            if (!cli_parse_double3("iso", "origin", val, a.lo.origin)) return CLI_USAGE;
         } else if (!strcmp(o->name, "grid")) {
             a.lo.grid_name = val;
         }
