@@ -17,6 +17,7 @@
 #include <stdint.h>
 #include "wvol/status.h"
 #include "wvol/volume.h"
+#include "wvol/wavelet.h"
 
 #ifdef __cplusplus
 extern "C" {
@@ -116,6 +117,16 @@ typedef struct wvol_iso_stats {
  * may be NULL. */
 wvol_status wvol_iso_extract(wvol_mesh **out, const wvol_volume *v, double iso,
                              const wvol_iso_params *p, wvol_iso_stats *stats, wvol_error *err);
+
+/* Marching cubes on the reconstruction of wavelet coefficients c (dropped
+ * coefficients zeroed, e.g. by wvol_selection_apply), brick by brick: bricks of
+ * p->brick^3 cells whose rigorous value bound (from the coefficients alone) does
+ * not straddle iso are skipped without reconstruction; the others are rebuilt
+ * with wvol_idwt3_brick, meshed, and stitched by global edge ids (no duplicate
+ * vertices, no cracks). The mesh equals wvol_iso_extract on wvol_idwt3(c) up to
+ * the float rounding of the two reconstructions. stats report bricks skipped. */
+wvol_status wvol_iso_extract_coeffs(wvol_mesh **out, const wvol_coeffs *c, double iso,
+                                    const wvol_iso_params *p, wvol_iso_stats *stats, wvol_error *err);
 
 #ifdef __cplusplus
 }

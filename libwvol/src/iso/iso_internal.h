@@ -42,4 +42,9 @@ static inline uint64_t wvol__edge_key(const size_t gdims[3], uint64_t gi, uint64
 wvol_status wvol__mc_run(wvol_mesh **out, const wvol__mc_job *job, wvol_iso_stats *stats,
                          wvol_error *err);
 
+/* Bound [vmin, vmax] of the reconstructed samples of the box [s0, s1] (inclusive
+ * voxel indices), computed from the coefficients alone (bricks.c; for tests). */
+wvol_status wvol__iso_box_bound(const wvol_coeffs *c, const long s0[3], const long s1[3], double *vmin,
+                                double *vmax, wvol_error *err);
+
 #endif
