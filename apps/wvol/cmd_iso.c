@@ -9,6 +9,7 @@
 #include "cli.h"
 #include "wvol/io.h"
 #include "wvol/iso.h"
+#include "wvol/store.h"
 
 const char wvol_cmd_iso_summary[] = "isosurface: marching cubes mesh (.ply .obj .stl .vtp) or ray-traced image";
 
@@ -19,6 +20,10 @@ static const cli_opt opts[] = {
     {"threads", 0, 1, "threads (default: all)"},
     {"normals", 0, 1, "gradient (default) or none"},
     {"repeat", 0, 1, "extract N times and report the fastest (benchmarking)"},
+    {"wavelet", 0, 1, "mesh the reconstruction of kept wavelet coefficients (haar, db2, coif1, bl3, ...)"},
+    {"levels", 0, 1, "wavelet levels (default 3)"},
+    {"keep", 0, 1, "kept fraction of the coefficients, e.g. 5% (default 100%)"},
+    {"brick", 0, 1, "cells per brick edge for --wavelet (default 32)"},
     {"dims", 0, 1, "raw input: NXxNYxNZ"},
     {"type", 0, 1, "raw input: sample type (float32, uint8, int16, ...)"},
     {"spacing", 0, 1, "raw input: voxel size X,Y,Z (default 1)"},
@@ -31,8 +36,9 @@ static const cli_opt opts[] = {
 typedef struct iso_args {
     const char *in, *out;
     double iso;
-    int have_iso, json, threads, repeat;
-    const char *method;
+    int have_iso, json, threads, repeat, levels, brick;
+    double keep;
+    const char *method, *wavelet;
     wvol_iso_normals normals;
     wvol_load_options lo;
 } iso_args;
@@ -47,7 +53,16 @@ static void report(const iso_args *a, const wvol_mesh *m, const wvol_iso_stats *
         cli_json_begin();
         cli_json_str("input", a->in);
         if (a->out) cli_json_str("output", a->out);
-        cli_json_str("method", "mc");
+        cli_json_str("method", a->wavelet ? "mc-bricks" : "mc");
+        if (a->wavelet) {
+            cli_json_str("wavelet", a->wavelet);
+            cli_json_int("levels", a->levels);
+            cli_json_num("keep", a->keep);
+            cli_json_int("brick", a->brick);
+            cli_json_int("bricks_meshed", (long long)st->bricks_meshed);
+            cli_json_num("seconds_bounds", st->seconds_bounds);
+            cli_json_num("seconds_reconstruct_mesh", st->seconds_reconstruct);
+        }
         cli_json_num("iso", a->iso);
         cli_json_int("vertices", (long long)m->nverts);
         cli_json_int("triangles", (long long)m->ntris);
@@ -88,14 +103,42 @@ static void report(const iso_args *a, const wvol_mesh *m, const wvol_iso_stats *
         printf("time       extract %.3f ms (classify %.3f, count %.3f, generate %.3f), load %.3f s, save %.3f s\n",
                best * 1e3, st->seconds[0] * 1e3, st->seconds[1] * 1e3, st->seconds[2] * 1e3, t_load, t_save);
         if (st->bricks_total)
-            printf("bricks     %zu of %zu skipped\n", st->bricks_skipped, st->bricks_total);
+            printf("bricks     %zu of %zu skipped (%d^3 cells each; bounds %.3f ms, reconstruct + mesh %.3f ms)\n",
+                   st->bricks_skipped, st->bricks_total, a->brick, st->seconds_bounds * 1e3,
+                   st->seconds_reconstruct * 1e3);
     }
+}
+
+/* Forward transform and selection for --wavelet; *c receives the coefficients with
+ * the dropped ones zeroed. */
+static int prepare_coeffs(const iso_args *a, const wvol_volume *v, wvol_coeffs **c, wvol_error *err)
+{
+    const wvol_filter *f = NULL;
+    wvol_selection *sel = NULL;
+    wvol_select_params sp = wvol_select_params_default();
+    int maxl = wvol_dwt_max_levels(v->nx, v->ny, v->nz);
+    if (wvol_filter_get(&f, a->wavelet, err) != WVOL_OK) return cli_usage("iso", "%s", err->message);
+    if (a->levels < 1 || a->levels > maxl)
+        return cli_usage("iso", "--levels %d: this volume allows 1..%d", a->levels, maxl);
+    if (wvol_dwt3(c, v, f, a->levels, err) != WVOL_OK) return cli_fail_err("iso", err);
+    if (a->keep < 1.0) {
+        sp.mode = WVOL_SELECT_FRACTION;
+        sp.fraction = a->keep;
+        if (wvol_select(&sel, *c, &sp, NULL, NULL, err) != WVOL_OK ||
+            wvol_selection_apply(sel, *c, err) != WVOL_OK) {
+            wvol_selection_destroy(sel);
+            return cli_fail_err("iso", err);
+        }
+        wvol_selection_destroy(sel);
+    }
+    return CLI_OK;
 }
 
 static int run_mc(const iso_args *a)
 {
     wvol_error err;
     wvol_volume *v = NULL;
+    wvol_coeffs *c = NULL;
     wvol_mesh *m = NULL;
     wvol_iso_params p;
     wvol_iso_stats st, best_st;
@@ -109,12 +152,19 @@ static int run_mc(const iso_args *a)
     wvol_iso_params_default(&p);
     p.threads = a->threads;
     p.normals = a->normals;
+    p.brick = a->brick;
     memset(&best_st, 0, sizeof best_st);
+    if (a->wavelet) {
+        rc = prepare_coeffs(a, v, &c, &err);
+        if (rc != CLI_OK) goto done;
+    }
     for (r = 0; r < a->repeat; r++) {
         double t1 = cli_now(), dt;
+        wvol_status s;
         wvol_mesh_destroy(m);
         m = NULL;
-        if (wvol_iso_extract(&m, v, a->iso, &p, &st, &err) != WVOL_OK) {
+        s = c ? wvol_iso_extract_coeffs(&m, c, a->iso, &p, &st, &err) : wvol_iso_extract(&m, v, a->iso, &p, &st, &err);
+        if (s != WVOL_OK) {
             rc = cli_fail_err("iso", &err);
             goto done;
         }
@@ -136,6 +186,7 @@ static int run_mc(const iso_args *a)
     report(a, m, &best_st, best, t_load, t_save);
 done:
     wvol_mesh_destroy(m);
+    wvol_coeffs_destroy(c);
     wvol_volume_destroy(v);
     return rc;
 }
@@ -153,6 +204,9 @@ int wvol_cmd_iso(int argc, char **argv)
     a.method = "mc";
     a.normals = WVOL_NORMALS_GRADIENT;
     a.repeat = 1;
+    a.levels = 3;
+    a.keep = 1.0;
+    a.brick = 32;
     wvol_load_options_default(&a.lo);
     cli_parser_init(&p, "iso", argc, argv, opts);
     while ((r = cli_next(&p, &o, &val)) >= 0) {
@@ -183,6 +237,16 @@ int wvol_cmd_iso(int argc, char **argv)
         } else if (!strcmp(o->name, "repeat")) {
             if (!cli_parse_long("iso", "repeat", val, 1, 1000, &lv)) return CLI_USAGE;
             a.repeat = (int)lv;
+        } else if (!strcmp(o->name, "wavelet")) {
+            a.wavelet = val;
+        } else if (!strcmp(o->name, "levels")) {
+            if (!cli_parse_long("iso", "levels", val, 1, 30, &lv)) return CLI_USAGE;
+            a.levels = (int)lv;
+        } else if (!strcmp(o->name, "keep")) {
+            if (!cli_parse_fraction("iso", "keep", val, &a.keep)) return CLI_USAGE;
+        } else if (!strcmp(o->name, "brick")) {
+            if (!cli_parse_long("iso", "brick", val, 2, 4096, &lv)) return CLI_USAGE;
+            a.brick = (int)lv;
         } else if (!strcmp(o->name, "normals")) {
             if (!strcmp(val, "none")) a.normals = WVOL_NORMALS_NONE;
             else if (!strcmp(val, "gradient")) a.normals = WVOL_NORMALS_GRADIENT;

@@ -127,7 +127,8 @@ static wvol_status responses(resp1 *lp, resp1 *hp, const wvol_filter *f, int M, 
 
 typedef struct band_blocks {
     size_t e[3];       /* band extent (coefficient positions) */
-    size_t bs[3];      /* block size */
+    size_t bs[3];      /* block size (a power of two) */
+    int bshift[3];     /* log2 bs */
     size_t nb[3];      /* blocks per axis */
     float *absmax;     /* nb0 nb1 nb2; detail bands only (the low-pass cube is scanned) */
     float gmax;        /* max |c| over the whole band */
@@ -182,7 +183,8 @@ static wvol_status bounds_create(brick_bounds **out, const wvol_coeffs *c, wvol_
                 const resp1 *r = ((l >> a) & 1) ? &hp[m] : &lp[m];
                 q->e[a] = pad[a] >> m;
                 /* blocks of 4, 2, 1 positions at levels 1, 2, >= 3: about 8 samples wide */
-                q->bs[a] = m >= 3 ? 1 : (size_t)(8 >> m);
+                q->bshift[a] = m >= 3 ? 0 : 3 - m;
+                q->bs[a] = (size_t)1 << q->bshift[a];
                 q->nb[a] = (q->e[a] + q->bs[a] - 1) / q->bs[a];
                 q->leb *= r->leb;
                 full *= r->leb + r->tail;
@@ -207,24 +209,37 @@ static wvol_status bounds_create(brick_bounds **out, const wvol_coeffs *c, wvol_
         size_t off[3];
         float gmax = 0.0f;
         for (a = 0; a < 3; a++) off[a] = ((q->band >> a) & 1) ? q->e[a] : 0;
+        if (q->band == 0) { /* global max of the low-pass cube, for the tail terms */
+            size_t x, y, z;
+            for (z = 0; z < q->e[2]; z++)
+                for (y = 0; y < q->e[1]; y++)
+                    for (x = 0; x < q->e[0]; x++) {
+                        float av = fabsf(c->data[x + c->px * (y + c->py * z)]);
+                        if (!(av <= gmax)) gmax = isnan(av) ? INFINITY : av;
+                    }
+            q->gmax = gmax;
+            continue;
+        }
 #ifdef _OPENMP
-#pragma omp parallel for schedule(dynamic, 1) reduction(max : gmax)
+#pragma omp parallel for schedule(dynamic, 1)
 #endif
         for (zb = 0; zb < (long)q->nb[2]; zb++) {
             size_t z0 = (size_t)zb * q->bs[2], z1 = z0 + q->bs[2] < q->e[2] ? z0 + q->bs[2] : q->e[2], z, y, x;
             for (z = z0; z < z1; z++)
                 for (y = 0; y < q->e[1]; y++) {
                     const float *row = c->data + off[0] + c->px * ((off[1] + y) + c->py * (off[2] + z));
-                    size_t brow = q->nb[0] * (y / q->bs[1] + q->nb[1] * (size_t)zb);
+                    float *brow = q->absmax + q->nb[0] * ((y >> q->bshift[1]) + q->nb[1] * (size_t)zb);
+                    const int sh = q->bshift[0];
                     for (x = 0; x < q->e[0]; x++) {
                         float av = fabsf(row[x]);
-                        if (q->absmax) {
-                            size_t bi = brow + x / q->bs[0];
-                            if (!(av <= q->absmax[bi])) q->absmax[bi] = av; /* NaN propagates */
-                        }
-                        if (!(av <= gmax)) gmax = isnan(av) ? INFINITY : av;
+                        if (!(av <= brow[x >> sh])) brow[x >> sh] = av; /* NaN propagates */
                     }
                 }
+        }
+        {
+            size_t i, nblk = q->absmax ? q->nb[0] * q->nb[1] * q->nb[2] : 0;
+            for (i = 0; i < nblk; i++)
+                if (!(q->absmax[i] <= gmax)) gmax = isnan(q->absmax[i]) ? INFINITY : q->absmax[i];
         }
         q->gmax = gmax;
     }
