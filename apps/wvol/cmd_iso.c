@@ -23,7 +23,7 @@ static const cli_opt opts[] = {
     {"wavelet", 0, 1, "mesh the reconstruction of kept wavelet coefficients (haar, db2, coif1, bl3, ...)"},
     {"levels", 0, 1, "wavelet levels (default 3)"},
     {"keep", 0, 1, "kept fraction of the coefficients, e.g. 5% (default 100%)"},
-    {"brick", 0, 1, "cells per brick edge for --wavelet (default 32)"},
+    {"brick", 0, 1, "cells per brick edge for --wavelet (default 32; 0: full inverse, then dense MC)"},
     {"dims", 0, 1, "raw input: NXxNYxNZ"},
     {"type", 0, 1, "raw input: sample type (float32, uint8, int16, ...)"},
     {"spacing", 0, 1, "raw input: voxel size X,Y,Z (default 1)"},
@@ -152,7 +152,7 @@ static int run_mc(const iso_args *a)
     wvol_iso_params_default(&p);
     p.threads = a->threads;
     p.normals = a->normals;
-    p.brick = a->brick;
+    p.brick = a->brick > 0 ? a->brick : 32;
     memset(&best_st, 0, sizeof best_st);
     if (a->wavelet) {
         rc = prepare_coeffs(a, v, &c, &err);
@@ -163,7 +163,15 @@ static int run_mc(const iso_args *a)
         wvol_status s;
         wvol_mesh_destroy(m);
         m = NULL;
-        s = c ? wvol_iso_extract_coeffs(&m, c, a->iso, &p, &st, &err) : wvol_iso_extract(&m, v, a->iso, &p, &st, &err);
+        if (c && a->brick == 0) { /* the peer of the brick path: whole inverse, then dense MC */
+            wvol_volume *rec = NULL;
+            s = wvol_idwt3(&rec, c, &err);
+            if (s == WVOL_OK) s = wvol_iso_extract(&m, rec, a->iso, &p, &st, &err);
+            wvol_volume_destroy(rec);
+        } else {
+            s = c ? wvol_iso_extract_coeffs(&m, c, a->iso, &p, &st, &err)
+                  : wvol_iso_extract(&m, v, a->iso, &p, &st, &err);
+        }
         if (s != WVOL_OK) {
             rc = cli_fail_err("iso", &err);
             goto done;
@@ -245,7 +253,8 @@ int wvol_cmd_iso(int argc, char **argv)
         } else if (!strcmp(o->name, "keep")) {
             if (!cli_parse_fraction("iso", "keep", val, &a.keep)) return CLI_USAGE;
         } else if (!strcmp(o->name, "brick")) {
-            if (!cli_parse_long("iso", "brick", val, 2, 4096, &lv)) return CLI_USAGE;
+            if (!cli_parse_long("iso", "brick", val, 0, 4096, &lv)) return CLI_USAGE;
+            if (lv == 1) return cli_usage("iso", "--brick 1: bricks need at least 2 cells per edge");
             a.brick = (int)lv;
         } else if (!strcmp(o->name, "normals")) {
             if (!strcmp(val, "none")) a.normals = WVOL_NORMALS_NONE;
