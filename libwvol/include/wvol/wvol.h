@@ -8,5 +8,6 @@
 #include "wvol/volume.h"
 #include "wvol/io.h"
 #include "wvol/wavelet.h"
+#include "wvol/iso.h"
 #include "wvol/store.h"
 #endif
