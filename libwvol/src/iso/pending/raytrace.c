@@ -11,8 +11,11 @@
  * straddle iso holds the first crossing: every earlier interval was excluded by a
  * rigorous bound, so no earlier crossing exists, except a pair of crossings both
  * inside one interval shorter than tolerance / 16 (a sliver below the tolerance,
- * counted as a graze). Haar's f^ is piecewise constant (no Lipschitz bound): only
- * the value bounds exclude, and bisection converges on the jump.
+ * counted as a graze). Box bounds are refreshed every other halving; in between
+ * the parent's Lipschitz bound still holds (the child's box lies inside).
+ * Haar's f^ is piecewise constant on unit boxes (faces at k + 1/2): the ray walks
+ * the boxes (3D DDA), one evaluation per box, and the first sign change is a face:
+ * the depth is exact and the normal is the face's.
  * Based on: Kalra & Barr 1989 (guaranteed ray intersection with implicit surfaces);
  * DESIGN.md section 9. */
 #include <math.h>
@@ -37,6 +40,8 @@ void wvol_iso_trace_params_default(wvol_iso_trace_params *p)
 
 typedef struct iv {
     double a, b, fa, fb;
+    double L;   /* Lipschitz bound of the parent box (valid here: the child's box is inside) */
+    int level;
 } iv;
 
 typedef struct tracer {
@@ -94,6 +99,43 @@ static wvol_status trace(const tracer *tr, const double o[3], const double d[3],
         }
     }
     if (!(t0 <= t1) || !isfinite(t1) || speed == 0.0) return WVOL_OK;
+    if (!tr->smooth) { /* Haar: f^ is constant on unit boxes with faces at k + 1/2 */
+        double t = t0, prev = eval_at(tr, ov, dv, t0, NULL);
+        int prev_axis = -1;
+        h->evals++;
+        while (t < t1) {
+            double tn = t1, mid, f;
+            int ax = -1;
+            for (a = 0; a < 3; a++) {
+                double x, face, tf;
+                if (dv[a] == 0.0 || !tr->info.transformed[a]) continue;
+                x = ov[a] + t * dv[a];
+                face = dv[a] > 0 ? floor(x - 0.5 + 1e-9) + 1.5 : ceil(x + 0.5 - 1e-9) - 1.5;
+                tf = (face - ov[a]) / dv[a];
+                if (tf <= t) tf = t + 1e-12;
+                if (tf < tn) tn = tf, ax = a;
+            }
+            mid = 0.5 * (t + tn);
+            f = eval_at(tr, ov, dv, mid, NULL);
+            h->evals++;
+            if ((f >= tr->iso) != (prev >= tr->iso)) {
+                h->hit = 1;
+                h->t = t;
+                h->value = f;
+                for (a = 0; a < 3; a++) {
+                    h->pos[a] = o[a] + t * d[a];
+                    h->normal[a] = 0.0;
+                }
+                if (prev_axis >= 0) /* -grad points back across the face when entering f >= iso */
+                    h->normal[prev_axis] = ((f >= tr->iso) ? -1.0 : 1.0) * (dv[prev_axis] > 0 ? 1.0 : -1.0);
+                return WVOL_OK;
+            }
+            prev = f;
+            prev_axis = ax;
+            t = tn;
+        }
+        return WVOL_OK;
+    }
     seg = tr->step / sqrt(speed); /* coarse segments of `step` voxels */
     {
         double fa = eval_at(tr, ov, dv, t0, NULL), ta = t0;
@@ -102,7 +144,7 @@ static wvol_status trace(const tracer *tr, const double o[3], const double d[3],
             double tb = ta + seg < t1 ? ta + seg : t1, fb = eval_at(tr, ov, dv, tb, NULL);
             h->evals++;
             sp = 0;
-            stack[sp++] = (iv){ta, tb, fa, fb};
+            stack[sp++] = (iv){ta, tb, fa, fb, INFINITY, 0};
             while (sp > 0) {
                 iv c = stack[--sp];
                 double lo[3], hi[3], m, fm;
@@ -113,13 +155,15 @@ static wvol_status trace(const tracer *tr, const double o[3], const double d[3],
                     lo[a] = p < q ? p : q;
                     hi[a] = p < q ? q : p;
                 }
-                if (wvol_store_box_bounds(tr->s, lo, hi, &bd, NULL) != WVOL_OK) return WVOL_ERR_INTERNAL;
-                h->bounds++;
-                if (tr->iso < bd.vmin || tr->iso > bd.vmax) continue;
-                if (tr->smooth) {
-                    double L = fabs(dv[0]) * bd.grad[0] + fabs(dv[1]) * bd.grad[1] + fabs(dv[2]) * bd.grad[2];
-                    if (fabs(c.fa - tr->iso) + fabs(c.fb - tr->iso) > L * (c.b - c.a) * (1.0 + 1e-9)) continue;
+                /* fresh box bounds every other level (they cost ~10 point evaluations);
+                 * in between, the parent's Lipschitz bound holds on the smaller box */
+                if (c.level % 2 == 0 || !isfinite(c.L)) {
+                    if (wvol_store_box_bounds(tr->s, lo, hi, &bd, NULL) != WVOL_OK) return WVOL_ERR_INTERNAL;
+                    h->bounds++;
+                    if (tr->iso < bd.vmin || tr->iso > bd.vmax) continue;
+                    c.L = fabs(dv[0]) * bd.grad[0] + fabs(dv[1]) * bd.grad[1] + fabs(dv[2]) * bd.grad[2];
                 }
+                if (fabs(c.fa - tr->iso) + fabs(c.fb - tr->iso) > c.L * (c.b - c.a) * (1.0 + 1e-9)) continue;
                 sa = c.fa >= tr->iso;
                 sb = c.fb >= tr->iso;
                 if (sa != sb && c.b - c.a <= tr->tol) {
@@ -149,8 +193,8 @@ static wvol_status trace(const tracer *tr, const double o[3], const double d[3],
                 m = 0.5 * (c.a + c.b);
                 fm = eval_at(tr, ov, dv, m, NULL);
                 h->evals++;
-                stack[sp++] = (iv){m, c.b, fm, c.fb};
-                stack[sp++] = (iv){c.a, m, c.fa, fm};
+                stack[sp++] = (iv){m, c.b, fm, c.fb, c.L, c.level + 1};
+                stack[sp++] = (iv){c.a, m, c.fa, fm, c.L, c.level + 1};
             }
             ta = tb;
             fa = fb;
@@ -273,7 +317,7 @@ wvol_status wvol_iso_raytrace(float *rgb, float *depth, float *normals, int widt
                          "iso-value %.9g is outside the range of f^ (bounded by [%.9g, %.9g]): no surface", iso,
                          bd.vmin, bd.vmax);
             else
-                snprintf(st->message, sizeof st->message, "no ray meets the surface f^ = %.9g", iso);
+                snprintf(st->message, sizeof st->message, "no ray meets the surface f^ = %.9g: empty image", iso);
         }
     }
     if (bad) return wvol_error_set(err, WVOL_ERR_INTERNAL, "iso trace: store bounds failed on %d rays", bad);
