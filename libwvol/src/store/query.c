@@ -85,8 +85,8 @@ static void descend(const trav *tv, size_t ni, int m, const int64_t j[3])
     image_box(s, m, j, lo, hi);
     if (!meets(tv, lo, hi, &t0, &t1)) return;
     if (nd->band_mask) {
-        size_t pos[3] = {(nd->key >> 38) & (WVOL__POS_MAX - 1), (nd->key >> 19) & (WVOL__POS_MAX - 1),
-                         nd->key & (WVOL__POS_MAX - 1)};
+        size_t pos[3];
+        wvol__key_pos(nd->key, pos);
         tv->fn(tv, tv->arg, m, (unsigned)nd->band_mask << 1, s->values + nd->coef_first, pos, lo, hi, t0, t1);
     }
     if (!nd->child_mask) return;
@@ -390,8 +390,6 @@ wvol_status wvol_store_box_bounds(const wvol_store *s, const double lo[3], const
 
 /* ---- point evaluation ------------------------------------------------------------------- */
 
-static inline double horner(const double *c, double u) { return c[0] + u * (c[1] + u * (c[2] + u * c[3])); }
-
 /* phi, psi, phi', psi' at local u (0 outside [0, support)). */
 static inline void spline4(const wvol_store *s, double u, double out[4])
 {
@@ -405,10 +403,10 @@ static inline void spline4(const wvol_store *s, double u, double out[4])
     i = (int)(u * s->rg.per_unit);
     if (i >= b->pieces) i = b->pieces - 1;
     t = u - i * s->rg.h;
-    out[0] = horner(b->phi + 4 * (size_t)i, t);
-    out[1] = horner(b->psi + 4 * (size_t)i, t);
-    out[2] = horner(b->dphi + 4 * (size_t)i, t);
-    out[3] = horner(b->dpsi + 4 * (size_t)i, t);
+    out[0] = wvol__horner3(b->phi + 4 * (size_t)i, t);
+    out[1] = wvol__horner3(b->psi + 4 * (size_t)i, t);
+    out[2] = wvol__horner3(b->dphi + 4 * (size_t)i, t);
+    out[3] = wvol__horner3(b->dpsi + 4 * (size_t)i, t);
 }
 
 /* Point evaluation caches the 1D factors: at level m only the S + 1 images j in
