@@ -10,8 +10,12 @@ import pytest
 
 from conftest import run_wvol
 
-vtk = pytest.importorskip("vtk")
-from vtk.util import numpy_support  # noqa: E402
+# Only the VTK modules used here: importing the umbrella `vtk` module changes what
+# vtkNrrdReader returns for the other tests of the same pytest process.
+vtk_dm = pytest.importorskip("vtkmodules.vtkCommonDataModel")
+from vtkmodules.vtkFiltersCore import vtkFlyingEdges3D  # noqa: E402
+from vtkmodules.vtkIOXML import vtkXMLPolyDataReader  # noqa: E402
+from vtkmodules.util import numpy_support  # noqa: E402
 
 try:
     import pyopenvdb as vdb
@@ -108,7 +112,7 @@ def wvol_mesh(tmp_path, f, iso, *extra):
 
 
 def vtk_image(f):
-    img = vtk.vtkImageData()
+    img = vtk_dm.vtkImageData()
     img.SetDimensions(*f.shape)
     arr = numpy_support.numpy_to_vtk(np.ascontiguousarray(f.transpose(2, 1, 0)).ravel(), deep=1)
     img.GetPointData().SetScalars(arr)
@@ -116,7 +120,7 @@ def vtk_image(f):
 
 
 def vtk_flying_edges(f, iso):
-    fe = vtk.vtkFlyingEdges3D()
+    fe = vtkFlyingEdges3D()
     fe.SetInputData(vtk_image(f))
     fe.SetValue(0, iso)
     fe.ComputeNormalsOff()
@@ -277,7 +281,7 @@ def test_other_formats(tmp_path, ext):
         assert sum(1 for s in lines if s.startswith("v ")) == rep["vertices"]
         assert sum(1 for s in lines if s.startswith("f ")) == rep["triangles"]
     else:
-        rd = vtk.vtkXMLPolyDataReader()
+        rd = vtkXMLPolyDataReader()
         rd.SetFileName(str(out))
         rd.Update()
         assert rd.GetOutput().GetNumberOfPolys() == rep["triangles"]
