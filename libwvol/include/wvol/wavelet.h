@@ -32,6 +32,8 @@ typedef struct wvol_filter {
 /* Looks a filter up by name ("haar", "db1".."db10", "coif1".."coif5", "bl3").
  * The returned filter is static and never freed. */
 wvol_status wvol_filter_get(const wvol_filter **out, const char *name, wvol_error *err);
+/* "haar", "daubechies", "coiflet", "battle-lemarie" ("?" for anything else). */
+const char *wvol_family_name(wvol_family f);
 /* All filters, for listing: index 0..count-1. */
 int wvol_filter_count(void);
 const wvol_filter *wvol_filter_at(int i);
@@ -62,13 +64,30 @@ wvol_status wvol_dwt3(wvol_coeffs **out, const wvol_volume *v, const wvol_filter
                       wvol_error *err);
 wvol_status wvol_dwt3_pad(wvol_coeffs **out, const wvol_volume *v, const wvol_filter *f, int levels,
                           wvol_pad_mode pad, wvol_error *err);
+/* Same with the arithmetic in float64 (use_f64 = 1) before rounding the coefficients
+ * to float32; wvol_dwt3 and wvol_dwt3_pad compute in float32. */
+wvol_status wvol_dwt3_ex(wvol_coeffs **out, const wvol_volume *v, const wvol_filter *f, int levels,
+                         wvol_pad_mode pad, int use_f64, wvol_error *err);
+
+/* Zero coefficients for an nx x ny x nz volume (padded as wvol_dwt3 pads it): for
+ * readers that fill c->data themselves (the CLI's raw coefficient files, the store). */
+wvol_status wvol_coeffs_create(wvol_coeffs **out, const wvol_filter *f, int levels, size_t nx, size_t ny,
+                               size_t nz, wvol_error *err);
+/* Padded size of an axis of n samples for `levels` levels: 1 stays 1, else n rounded up
+ * to a multiple of 2^levels. */
+size_t wvol_dwt_padded_size(size_t n, int levels);
 
 /* Full inverse, cropped back to nx x ny x nz. */
 wvol_status wvol_idwt3(wvol_volume **out, const wvol_coeffs *c, wvol_error *err);
+/* Same with float64 arithmetic (use_f64 = 1). */
+wvol_status wvol_idwt3_ex(wvol_volume **out, const wvol_coeffs *c, int use_f64, wvol_error *err);
 
 /* Coarser volume: undo levels..stop_level+1 only, giving the low-pass cube of
- * level stop_level (size p/2^stop_level, spacing * 2^stop_level, values scaled
- * by 2^{-3 stop_level/2} so they are comparable with the samples). stop_level 0 = full. */
+ * level stop_level s, cropped to the cells that touch the original grid: size
+ * ceil(n/2^s) per transformed axis (1-voxel axes stay 1), spacing * 2^s, values scaled
+ * by 2^{-s/2} per transformed axis (2^{-3s/2} for a full 3D volume) so they are
+ * comparable with the samples, and origin moved to the scaling functions' centres:
+ * origin + spacing * (2^s - 1) * filter->center. stop_level 0 = wvol_idwt3. */
 wvol_status wvol_idwt3_level(wvol_volume **out, const wvol_coeffs *c, int stop_level, wvol_error *err);
 
 /* Reconstruct only the finest-level samples in the box [lo, hi) (voxel indices of
@@ -81,9 +100,12 @@ void wvol_coeffs_destroy(wvol_coeffs *c);
 wvol_status wvol_coeffs_clone(wvol_coeffs **out, const wvol_coeffs *c, wvol_error *err);
 
 /* Index into c->data of coefficient (level, band, p, q, r); positions are within
- * the band's extent (px >> level, ...). */
+ * the band's extent (px >> level, ...; 1 along an untransformed axis). Returns
+ * (size_t)-1 for an invalid request: level outside 1..levels, band 0 below the
+ * coarsest level, a band that is high-pass along an untransformed (1-voxel) axis,
+ * or a position outside the band. */
 size_t wvol_coeffs_index(const wvol_coeffs *c, int level, int band, size_t p, size_t q, size_t r);
-/* Inverse of wvol_coeffs_index. */
+/* Inverse of wvol_coeffs_index (index < px*py*pz; otherwise level is set to 0). */
 void wvol_coeffs_locate(const wvol_coeffs *c, size_t index, int *level, int *band, size_t *p,
                         size_t *q, size_t *r);
 
@@ -98,7 +120,9 @@ wvol_status wvol_dwt3_inplace_f64(double *data, size_t nx, size_t ny, size_t nz,
 wvol_status wvol_idwt3_inplace_f64(double *data, size_t nx, size_t ny, size_t nz, const wvol_filter *f,
                                    int levels, wvol_error *err);
 
-/* 1D periodic single level: n even; out has n values: a[0..n/2) then d[0..n/2). */
+/* 1D periodic single level (the plain reference form, double): n even; out has n
+ * values: a[0..n/2) then d[0..n/2); out must not alias the input. Does nothing when
+ * an argument is NULL or n is odd or < 2. */
 void wvol_dwt1(double *out, const double *x, size_t n, const wvol_filter *f);
 void wvol_idwt1(double *out, const double *ad, size_t n, const wvol_filter *f);
 

@@ -47,13 +47,17 @@ int wvol__bl_compute(int order, double tol, double *h, int cap, int *len)
     /* centre tap c[0]; truncate beyond the last |c[n]| >= tol */
     for (n = 0; n < NMAX; n++)
         if (fabs(c[n]) >= tol) K = n;
-    if (K < 0 || K >= NMAX - 1 || 2 * K + 1 > cap) return -1;
+    if (K < 0 || K >= NMAX - 1 || 2 * K + 2 > cap) return -1;
     /* h[K + n] = h[K - n] = c[n]: our filters start at index 0 */
     for (n = -K; n <= K; n++) h[K + n] = c[n < 0 ? -n : n];
     /* The two-scale relation needs sum h = sqrt(2) (phi integrates to 1); truncation
      * moves it by ~1e-10, so rescale. The residual orthonormality defect is reported. */
     for (n = 0; n < 2 * K + 1; n++) sum += h[n];
     for (n = 0; n < 2 * K + 1; n++) h[n] *= sqrt(2.0) / sum;
-    *len = 2 * K + 1;
+    /* One zero tap at the end: the quadrature mirror g[n] = (-1)^n h[L-1-n] is orthogonal
+     * to h only for an even length L (an odd shift), so the 2K+1 symmetric taps become
+     * L = 2K+2 with h[L-1] = 0 (and g[0] = 0). The centre tap stays at index K. */
+    h[2 * K + 1] = 0.0;
+    *len = 2 * K + 2;
     return 0;
 }
