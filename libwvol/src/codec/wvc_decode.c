@@ -172,28 +172,18 @@ wvol_status wvol_wvc_parse_info(wvol_wvc_info *info, const void *buf, size_t siz
     return parse(info, buf, size, size, 0, err);
 }
 
-/* Allocates coefficients as the wavelet module does (struct and data from malloc). */
 static wvol_status coeffs_new(wvol_coeffs **out, const wvol_wvc_info *I, wvol_error *err)
 {
-    wvol_coeffs *c = calloc(1, sizeof *c);
-    size_t n = I->px * I->py * I->pz;
-    WVOL_RETURN_IF(!c, err, WVOL_ERR_NOMEM, "wvc: out of memory");
-    c->data = calloc(n, sizeof(float));
-    if (!c->data) {
-        free(c);
-        return wvol_error_set(err, WVOL_ERR_NOMEM, "wvc: out of memory for %zu coefficients", n);
+    const wvol_filter *f;
+    WVOL_FORWARD(wvol_filter_get(&f, I->filter, err));
+    WVOL_FORWARD(wvol_coeffs_create(out, f, I->levels, I->nx, I->ny, I->nz, err));
+    if ((*out)->px != I->px || (*out)->py != I->py || (*out)->pz != I->pz) {
+        wvol_coeffs_destroy(*out);
+        *out = NULL;
+        return wvol_error_set(err, WVOL_ERR_DIMS, ".wvc header: padded size does not match the transform's");
     }
-    wvol_filter_get(&c->filter, I->filter, NULL);
-    c->levels = I->levels;
-    c->nx = I->nx;
-    c->ny = I->ny;
-    c->nz = I->nz;
-    c->px = I->px;
-    c->py = I->py;
-    c->pz = I->pz;
-    memcpy(c->spacing, I->spacing, sizeof c->spacing);
-    memcpy(c->origin, I->origin, sizeof c->origin);
-    *out = c;
+    memcpy((*out)->spacing, I->spacing, sizeof I->spacing);
+    memcpy((*out)->origin, I->origin, sizeof I->origin);
     return WVOL_OK;
 }
 
