@@ -81,27 +81,26 @@ typedef struct sec_stats {
 
 static double sec_rounding(const wvc_band *b, double f) { return b->band == 0 ? 0.5 : f; }
 
-static void band_stats(sec_stats *st, const float *C, int32_t *Q, const size_t p[3], const wvc_band *b,
-                       double step, double f)
+/* Sums over rows [y0, y1) x slices [z0, z1) of one band (serial; the caller spreads
+ * work items over threads). Q (may be NULL) receives the quantised values. */
+static void rows_stats(sec_stats *st, const float *C, int32_t *Q, const size_t p[3], const wvc_band *b,
+                       double step, double f, size_t z0, size_t z1)
 {
     const double inv = 1.0 / step;
     double zero_sse = 0, energy = 0, s1 = 0, ss1 = 0, s2 = 0, ss2 = 0, maxabs = 0;
     uint64_t n1 = 0, n2 = 0;
-    long z;
-    memset(st, 0, sizeof *st);
-    if (b->count == 0) return;
-#pragma omp parallel for reduction(+ : zero_sse, energy, s1, ss1, s2, ss2, n1, n2) \
-    reduction(max : maxabs) schedule(static) if (b->count > 65536)
-    for (z = 0; z < (long)b->ext[2]; z++) {
-        size_t x, y;
+    size_t x, y, z;
+    for (z = z0; z < z1; z++)
         for (y = 0; y < b->ext[1]; y++) {
-            size_t base = wvc_index(p, b, 0, y, (size_t)z);
+            size_t base = wvc_index(p, b, 0, y, z);
             const float *row = C + base;
             int32_t *qrow = Q ? Q + base : NULL;
             for (x = 0; x < b->ext[0]; x++) {
-                double c = row[x], a = fabs(c) * inv, q = floor(a + f), r = a - q;
+                double c = row[x], ac = fabs(c), a = ac * inv, t = a + f;
+                /* truncation, not floor(): t >= 0, and floor is a libm call without SSE4.1 */
+                double q = t < 2147483647.0 ? (double)(int32_t)t : 2147483647.0, r = a - q;
                 energy += c * c;
-                if (fabs(c) > maxabs) maxabs = fabs(c);
+                if (ac > maxabs) maxabs = ac;
                 if (q == 0) {
                     zero_sse += c * c;
                 } else if (q == 1) {
@@ -119,7 +118,7 @@ static void band_stats(sec_stats *st, const float *C, int32_t *Q, const size_t p
                 }
             }
         }
-    }
+    memset(st, 0, sizeof *st);
     st->zero_sse = zero_sse;
     st->energy = energy;
     st->s1 = s1;
@@ -129,6 +128,74 @@ static void band_stats(sec_stats *st, const float *C, int32_t *Q, const size_t p
     st->n1 = n1;
     st->n2 = n2;
     st->maxabs = maxabs;
+}
+
+/* Work items: slabs of about 64K coefficients of one section each. */
+typedef struct work_item {
+    int sec;
+    size_t z0, z1;
+} work_item;
+
+static work_item *work_items(const wvc_layout *L, int *count)
+{
+    int s, n = 0;
+    work_item *w;
+    size_t total = 0;
+    for (s = 0; s < L->nsec; s++) {
+        const wvc_band *b = &L->sec[s];
+        size_t slab = b->ext[0] * b->ext[1], per = slab ? (65536 + slab - 1) / slab : 1;
+        if (b->count) total += (b->ext[2] + per - 1) / per;
+    }
+    w = malloc((total ? total : 1) * sizeof *w);
+    if (!w) return NULL;
+    for (s = 0; s < L->nsec; s++) {
+        const wvc_band *b = &L->sec[s];
+        size_t slab = b->ext[0] * b->ext[1], per = slab ? (65536 + slab - 1) / slab : 1, z;
+        if (!b->count) continue;
+        for (z = 0; z < b->ext[2]; z += per) {
+            w[n].sec = s;
+            w[n].z0 = z;
+            w[n].z1 = z + per < b->ext[2] ? z + per : b->ext[2];
+            n++;
+        }
+    }
+    *count = n;
+    return w;
+}
+
+/* Per-section sums over the whole pyramid in one parallel pass. */
+static int all_stats(sec_stats *st, const wvc_layout *L, const float *C, int32_t *Q, double step, double f)
+{
+    int n = 0, i, s;
+    work_item *w = work_items(L, &n);
+    sec_stats *part;
+    if (!w) return -1;
+    part = malloc((n ? n : 1) * sizeof *part);
+    if (!part) {
+        free(w);
+        return -1;
+    }
+#pragma omp parallel for schedule(dynamic, 1)
+    for (i = 0; i < n; i++)
+        rows_stats(&part[i], C, Q, L->p, &L->sec[w[i].sec], step, sec_rounding(&L->sec[w[i].sec], f), w[i].z0,
+                   w[i].z1);
+    memset(st, 0, (size_t)L->nsec * sizeof *st);
+    for (i = 0; i < n; i++) {
+        sec_stats *d = &st[w[i].sec], *a = &part[i];
+        d->zero_sse += a->zero_sse;
+        d->energy += a->energy;
+        d->s1 += a->s1;
+        d->ss1 += a->ss1;
+        d->s2 += a->s2;
+        d->ss2 += a->ss2;
+        d->n1 += a->n1;
+        d->n2 += a->n2;
+        if (a->maxabs > d->maxabs) d->maxabs = a->maxabs;
+    }
+    (void)s;
+    free(part);
+    free(w);
+    return 0;
 }
 
 /* The offsets as stored (float32) and the section's exact squared error with them. */
@@ -148,10 +215,8 @@ static double total_error(const wvc_layout *L, const float *C, double step, doub
 {
     double e = 0;
     int s;
-    for (s = 0; s < L->nsec; s++) {
-        band_stats(&st[s], C, NULL, L->p, &L->sec[s], step, sec_rounding(&L->sec[s], f));
-        e += sec_error(&st[s], step, NULL, NULL);
-    }
+    if (all_stats(st, L, C, NULL, step, f)) return NAN;
+    for (s = 0; s < L->nsec; s++) e += sec_error(&st[s], step, NULL, NULL);
     return e;
 }
 
@@ -346,8 +411,11 @@ wvol_status wvol_wvc_encode(void **out, size_t *out_size, const wvol_coeffs *c,
     rep.seconds_step = t1 - t0;
 
     /* quantise, with the exact error per section */
+    if (all_stats(st, L, c->data, Q, step, p->rounding)) {
+        status = wvol_error_set(err, WVOL_ERR_NOMEM, "wvc encode: out of memory");
+        goto done;
+    }
     for (s = 0; s < L->nsec; s++) {
-        band_stats(&st[s], c->data, Q, L->p, &L->sec[s], step, sec_rounding(&L->sec[s], p->rounding));
         serr[s] = sec_error(&st[s], step, &d1[s], &d2[s]);
         sse += serr[s];
         energy += st[s].energy;
