@@ -161,7 +161,8 @@ FORCE_INLINE int detail_band(int dec, coder *cd, int32_t *Q, const size_t p[3], 
                     /* first touch of the group: its flag */
                     int any = 0, gn;
                     pc = parent_class(Q, p, b, gi, gj, gk, &P);
-                    gn = (gi > 0 && grow[gi - 1]) + (gj > 0 && grow[gi - gx]) + (gk > 0 && grow[gi - gx * gy]);
+                    gn = (gi > 0 && grow[gi - 1]) + (gj > 0 && grow[(ptrdiff_t)gi - (ptrdiff_t)gx]) +
+                         (gk > 0 && grow[(ptrdiff_t)gi - (ptrdiff_t)(gx * gy)]);
                     if (!dec) {
                         size_t x1 = x + 2 < ex ? x + 2 : ex, y1 = y + 2 < ey ? y + 2 : ey;
                         size_t z1 = z + 2 < ez ? z + 2 : ez, xx, yy, zz;
