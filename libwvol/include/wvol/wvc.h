@@ -118,7 +118,8 @@ wvol_status wvol_wvc_decode(wvol_coeffs **out, const void *buf, size_t size,
 
 /* Files. save is atomic (temporary name, then rename). read reads the header, the
  * table and only the sections it needs; a file whose size differs from what its
- * header declares is refused. */
+ * header declares is refused. read_info parses the header and the table and checks
+ * every section's checksum, without decoding. */
 wvol_status wvol_wvc_save(const char *path, const void *buf, size_t size, wvol_error *err);
 wvol_status wvol_wvc_read_info(wvol_wvc_info *info, const char *path, wvol_error *err);
 wvol_status wvol_wvc_read(wvol_coeffs **out, const char *path, const wvol_wvc_read_options *opt,
