@@ -162,10 +162,13 @@ static void perfect_reconstruction_all_families(void)
                              wvol_idwt3_ex(&r, c, prec, &err) == WVOL_OK;
                     CHECK(ok, "%s %d levels: %s", f->name, lev, err.message);
                     if (ok) {
-                        /* range 2; coefficients are stored as float32 even on the f64 path,
-                         * so both paths carry float32 rounding */
+                        /* range 2. The f64 path still rounds twice to float32 (stored
+                         * coefficients, output samples): 16 float32 epsilons of the range covers
+                         * that rounding spread by the synthesis filters (measured: 1 ulp), plus the
+                         * double-precision arithmetic bound (which holds bl3's defect). */
                         double e = max_abs_diff(r->data, v->data, wvol_volume_count(v));
-                        double tol = recon_bound(f, lev, FLT_EPSILON, 2.0);
+                        double tol = prec ? 16 * FLT_EPSILON * 2.0 + recon_bound(f, lev, DBL_EPSILON, 2.0)
+                                          : recon_bound(f, lev, FLT_EPSILON, 2.0);
                         CHECK(e <= tol, "%s %zux%zux%zu %d levels %s: error %g > %g", f->name, v->nx, v->ny,
                               v->nz, lev, prec ? "f64" : "f32", e, tol);
                         CHECK(r->nx == v->nx && r->ny == v->ny && r->nz == v->nz, "cropped size");

@@ -210,8 +210,8 @@ int wvol_store_next(const wvol_store *s, wvol_store_iter *it, wvol_store_coeff *
 typedef struct wvol_store_hit {
     double lo[3], hi[3];  /* support box of this image (voxel coords); +-inf on an untransformed axis */
     double t0, t1;        /* ray queries: the part of [tmin, tmax] inside the box; box queries: 0, 0 */
+    double norm;          /* 2^{-m d/2}: w(x) = norm * prod_a B_a((x_a - lo_a) / 2^m) */
     float value;          /* coefficient */
-    float norm;           /* 2^{-m d/2}: w(x) = norm * prod_a B_a((x_a - lo_a) / 2^m) */
     uint8_t level, band;
     uint16_t reserved;
     uint32_t p, q, r;

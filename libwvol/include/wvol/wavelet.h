@@ -21,7 +21,7 @@ typedef struct wvol_filter {
     char name[16];          /* "haar", "db2", "coif1", "bl3" ... */
     wvol_family family;
     int order;              /* N of dbN / coifN, M of blM (spline order; bl3 = cubic) */
-    int length;             /* taps */
+    int length;             /* taps, always even (bl3: 127 symmetric taps + one zero = 128) */
     const double *h;        /* low-pass, length taps */
     const double *g;        /* high-pass, length taps */
     int vanishing_moments;  /* of psi */
@@ -30,7 +30,8 @@ typedef struct wvol_filter {
 } wvol_filter;
 
 /* Looks a filter up by name ("haar", "db1".."db10", "coif1".."coif5", "bl3").
- * The returned filter is static and never freed. */
+ * The returned filter is static and never freed; lookup is thread-safe (everything
+ * derived is computed once, at first use). docs/wavelets.md has the conventions. */
 wvol_status wvol_filter_get(const wvol_filter **out, const char *name, wvol_error *err);
 /* "haar", "daubechies", "coiflet", "battle-lemarie" ("?" for anything else). */
 const char *wvol_family_name(wvol_family f);

@@ -61,6 +61,14 @@ wvol_status wvol__dwt_plan(dwt_plan *pl, const void *data, const size_t n[3], co
     return WVOL_OK;
 }
 
+/* The kernels are compiled for AVX2+FMA and for the baseline, chosen at load time
+ * (GCC function multi-versioning); the build itself stays portable (no -march). */
+#if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__) && !defined(__SANITIZE_ADDRESS__)
+#define WVOL__KERNEL __attribute__((noinline, target_clones("arch=x86-64-v3", "default")))
+#else
+#define WVOL__KERNEL
+#endif
+
 #define T float
 #define SUF f32
 #include "wavelet/dwt3_impl.h"
