@@ -215,7 +215,7 @@ static wvol_status decode(wvol_coeffs **out, const uint8_t *buf, size_t avail, c
         int lev = L->sec[first].level;
         if (first > 0 && lev <= stop_level) break;
         last = first + (first == 0 ? 1 : 7);
-#pragma omp parallel for schedule(dynamic, 1)
+#pragma omp parallel for schedule(dynamic, 1) if (L->sec[last - 1].count > 32768)
         for (s = first; s < last; s++) {
             const wvol_wvc_section *S = &I->sections[s];
             const char *w = NULL;

@@ -175,7 +175,7 @@ static int all_stats(sec_stats *st, const wvc_layout *L, const float *C, int32_t
         free(w);
         return -1;
     }
-#pragma omp parallel for schedule(dynamic, 1)
+#pragma omp parallel for schedule(dynamic, 1) if (n > 2)
     for (i = 0; i < n; i++)
         rows_stats(&part[i], C, Q, L->p, &L->sec[w[i].sec], step, sec_rounding(&L->sec[w[i].sec], f), w[i].z0,
                    w[i].z1);
@@ -379,7 +379,7 @@ wvol_status wvol_wvc_encode(void **out, size_t *out_size, const wvol_coeffs *c,
         const float *C = c->data;
         long i;
         int bad = 0;
-#pragma omp parallel for reduction(max : maxabs) reduction(| : bad) schedule(static)
+#pragma omp parallel for reduction(max : maxabs) reduction(| : bad) schedule(static) if (n > 65536)
         for (i = 0; i < (long)n; i++) {
             float a = fabsf(C[i]);
             if (!(a <= 3.0e38f)) bad = 1;
@@ -425,7 +425,7 @@ wvol_status wvol_wvc_encode(void **out, size_t *out_size, const wvol_coeffs *c,
     rep.seconds_quantise = t2 - t1;
 
     /* code the sections (independent given Q), largest first */
-#pragma omp parallel for schedule(dynamic, 1) reduction(| : failed)
+#pragma omp parallel for schedule(dynamic, 1) reduction(| : failed) if (n > 65536)
     for (s = L->nsec - 1; s >= 0; s--) {
         const wvc_band *b = &L->sec[s];
         uint8_t *a = NULL, *z = NULL;
