@@ -133,6 +133,7 @@ static void rows_stats(sec_stats *st, const float *C, int32_t *Q, const size_t p
 /* Work items: slabs of about 64K coefficients of one section each. */
 typedef struct work_item {
     int sec;
+    int sampled; /* in the 1-in-8 subsample used while searching the step */
     size_t z0, z1;
 } work_item;
 
@@ -154,6 +155,8 @@ static work_item *work_items(const wvc_layout *L, int *count)
         if (!b->count) continue;
         for (z = 0; z < b->ext[2]; z += per) {
             w[n].sec = s;
+            /* small sections are always taken whole; large ones one slab in eight */
+            w[n].sampled = b->count <= 8 * 65536 || (z / per) % 8 == 3;
             w[n].z0 = z;
             w[n].z1 = z + per < b->ext[2] ? z + per : b->ext[2];
             n++;
@@ -164,10 +167,12 @@ static work_item *work_items(const wvc_layout *L, int *count)
 }
 
 /* Per-section sums over the whole pyramid in one parallel pass. */
-static int all_stats(sec_stats *st, const wvc_layout *L, const float *C, int32_t *Q, double step, double f)
+static int all_stats(sec_stats *st, const wvc_layout *L, const float *C, int32_t *Q, double step, double f,
+                     int sample)
 {
     int n = 0, i, s;
     work_item *w = work_items(L, &n);
+    double seen[WVOL_WVC_MAX_SECTIONS] = {0};
     sec_stats *part;
     if (!w) return -1;
     part = malloc((n ? n : 1) * sizeof *part);
@@ -176,12 +181,17 @@ static int all_stats(sec_stats *st, const wvc_layout *L, const float *C, int32_t
         return -1;
     }
 #pragma omp parallel for schedule(dynamic, 1) if (n > 2)
-    for (i = 0; i < n; i++)
+    for (i = 0; i < n; i++) {
+        if (sample && !w[i].sampled) continue;
         rows_stats(&part[i], C, Q, L->p, &L->sec[w[i].sec], step, sec_rounding(&L->sec[w[i].sec], f), w[i].z0,
                    w[i].z1);
+    }
     memset(st, 0, (size_t)L->nsec * sizeof *st);
     for (i = 0; i < n; i++) {
         sec_stats *d = &st[w[i].sec], *a = &part[i];
+        const wvc_band *b = &L->sec[w[i].sec];
+        if (sample && !w[i].sampled) continue;
+        seen[w[i].sec] += (double)(w[i].z1 - w[i].z0) * (double)(b->ext[0] * b->ext[1]);
         d->zero_sse += a->zero_sse;
         d->energy += a->energy;
         d->s1 += a->s1;
@@ -192,7 +202,20 @@ static int all_stats(sec_stats *st, const wvc_layout *L, const float *C, int32_t
         d->n2 += a->n2;
         if (a->maxabs > d->maxabs) d->maxabs = a->maxabs;
     }
-    (void)s;
+    if (sample)
+        for (s = 0; s < L->nsec; s++) {
+            /* scale the subsample's sums up to the section (the counts stay estimates) */
+            double k = seen[s] > 0 ? (double)L->sec[s].count / seen[s] : 1.0;
+            if (k == 1.0) continue;
+            st[s].zero_sse *= k;
+            st[s].energy *= k;
+            st[s].s1 *= k;
+            st[s].ss1 *= k;
+            st[s].s2 *= k;
+            st[s].ss2 *= k;
+            st[s].n1 = (uint64_t)((double)st[s].n1 * k);
+            st[s].n2 = (uint64_t)((double)st[s].n2 * k);
+        }
     free(part);
     free(w);
     return 0;
@@ -211,28 +234,26 @@ static double sec_error(const sec_stats *st, double step, float *d1, float *d2)
     return e < 0 ? 0 : e;
 }
 
-static double total_error(const wvc_layout *L, const float *C, double step, double f, sec_stats *st)
+static double total_error(const wvc_layout *L, const float *C, double step, double f, sec_stats *st, int sample)
 {
     double e = 0;
     int s;
-    if (all_stats(st, L, C, NULL, step, f)) return NAN;
+    if (all_stats(st, L, C, NULL, step, f, sample)) return NAN;
     for (s = 0; s < L->nsec; s++) e += sec_error(&st[s], step, NULL, NULL);
     return e;
 }
 
 /* Finds the largest step (to within ~0.5%) whose error stays at or below target:
  * secant iterations on log(error) against log(step), each an exact pass. */
-static double choose_step(const wvc_layout *L, const float *C, double target, double f, double maxabs,
-                          double min_step, sec_stats *st, int *iters)
+static double search_step(const wvc_layout *L, const float *C, double target, double f, double maxabs,
+                          double min_step, sec_stats *st, int *iters, int sample, double d0, double *slope_io)
 {
-    double total = 0, d0, e0, d1, e1, best_ok = 0, best_bad = INFINITY, slope = 2.0;
-    int s, it;
-    for (s = 0; s < L->nsec; s++) total += (double)L->sec[s].count;
-    d0 = sqrt(12.0 * target / (total > 0 ? total : 1));
+    double e0, d1, e1, best_ok = 0, best_bad = INFINITY, slope = *slope_io;
+    int it;
     if (d0 < min_step) d0 = min_step;
     if (d0 > 4 * maxabs) d0 = 4 * maxabs;
-    e0 = total_error(L, C, d0, f, st);
-    *iters = 1;
+    e0 = total_error(L, C, d0, f, st, sample);
+    (*iters)++;
     if (e0 <= target) best_ok = d0; else best_bad = d0;
     d1 = d0;
     e1 = e0;
@@ -256,7 +277,7 @@ static double choose_step(const wvc_layout *L, const float *C, double target, do
         d0 = d1;
         e0 = e1;
         d1 = next;
-        e1 = total_error(L, C, d1, f, st);
+        e1 = total_error(L, C, d1, f, st, sample);
         (*iters)++;
         if (e1 <= target) {
             if (d1 > best_ok) best_ok = d1;
@@ -270,9 +291,25 @@ static double choose_step(const wvc_layout *L, const float *C, double target, do
         }
         if (isfinite(best_bad) && best_ok > 0 && best_bad / best_ok < 1.002) break;
     }
+    *slope_io = slope;
     if (best_ok > 0) return best_ok;
     /* not reached even at the smallest step the quantiser allows */
     return min_step;
+}
+
+/* The largest step whose error stays within [0.995, 1] x target: first on a
+ * 1-in-8 subsample of the large sections (cheap), then exact passes from there
+ * (usually one or two). */
+static double choose_step(const wvc_layout *L, const float *C, double target, double f, double maxabs,
+                          double min_step, sec_stats *st, int *iters)
+{
+    double total = 0, d, slope = 2.0;
+    int s;
+    for (s = 0; s < L->nsec; s++) total += (double)L->sec[s].count;
+    *iters = 0;
+    d = sqrt(12.0 * target / (total > 0 ? total : 1));
+    d = search_step(L, C, target, f, maxabs, min_step, st, iters, 1, d, &slope);
+    return search_step(L, C, target, f, maxabs, min_step, st, iters, 0, d, &slope);
 }
 
 static void header_write(uint8_t *h, const wvol_coeffs *c, const wvol_wvc_params *p, double step,
@@ -411,7 +448,7 @@ wvol_status wvol_wvc_encode(void **out, size_t *out_size, const wvol_coeffs *c,
     rep.seconds_step = t1 - t0;
 
     /* quantise, with the exact error per section */
-    if (all_stats(st, L, c->data, Q, step, p->rounding)) {
+    if (all_stats(st, L, c->data, Q, step, p->rounding, 0)) {
         status = wvol_error_set(err, WVOL_ERR_NOMEM, "wvc encode: out of memory");
         goto done;
     }
