@@ -21,7 +21,7 @@ typedef struct rc_ctx {
 } rc_ctx;
 
 #define RC_FAST_SHIFT 4
-#define RC_SLOW_SHIFT 7
+#define RC_SLOW_SHIFT 6
 #define RC_TOP (1u << 24)
 
 static inline void rc_ctx_init(rc_ctx *c, int n)

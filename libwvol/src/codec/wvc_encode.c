@@ -398,6 +398,9 @@ wvol_status wvol_wvc_encode(void **out, size_t *out_size, const wvol_coeffs *c,
     WVOL_RETURN_IF(!isfinite(p->value_min) || !isfinite(p->value_max) || p->value_min > p->value_max ||
                        !(p->dropped_energy >= 0) || !isfinite(p->dropped_energy),
                    err, WVOL_ERR_ARG, "wvc encode: bad value range or dropped energy");
+    for (s = 0; s < 3; s++)
+        WVOL_RETURN_IF(!(isfinite(c->spacing[s]) && c->spacing[s] > 0) || !isfinite(c->origin[s]), err,
+                       WVOL_ERR_ARG, "wvc encode: spacing must be > 0 and origin finite");
     WVOL_RETURN_IF(!wvol_size_mul3(c->px, c->py, c->pz, sizeof(int32_t), &n), err, WVOL_ERR_DIMS,
                    "wvc encode: padded size overflows");
     n /= sizeof(int32_t);
