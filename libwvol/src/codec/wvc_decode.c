@@ -187,14 +187,15 @@ static wvol_status coeffs_new(wvol_coeffs **out, const wvol_wvc_info *I, wvol_er
     return WVOL_OK;
 }
 
-/* Decodes the sections of levels > stop_level from buf (the file's first avail bytes). */
+/* Decodes the sections of levels > stop_level from buf (the file's first avail bytes).
+ * The quantised values are decoded into the output's own buffer (as int32, which
+ * has the size of a float and whose zero is 0.0f) and dequantised in place. */
 static wvol_status decode(wvol_coeffs **out, const uint8_t *buf, size_t avail, const wvol_wvc_info *I,
                           int stop_level, wvol_error *err)
 {
     wvc_layout *L;
     int32_t *Q;
     wvol_coeffs *c = NULL;
-    size_t n = I->px * I->py * I->pz;
     int s, first, last, bad_sec = -1;
     const char *why = NULL;
     wvol_status st;
@@ -202,13 +203,13 @@ static wvol_status decode(wvol_coeffs **out, const uint8_t *buf, size_t avail, c
     *out = NULL;
     WVOL_RETURN_IF(stop_level < 0 || stop_level > I->levels, err, WVOL_ERR_ARG,
                    "wvc: stop level %d outside 0..%d", stop_level, I->levels);
+    WVOL_FORWARD(coeffs_new(&c, I, err));
     L = malloc(sizeof *L);
-    Q = calloc(n ? n : 1, sizeof *Q);
-    if (!L || !Q) {
-        free(L);
-        free(Q);
-        return wvol_error_set(err, WVOL_ERR_NOMEM, "wvc: out of memory for %zu coefficients", n);
+    if (!L) {
+        wvol_coeffs_destroy(c);
+        return wvol_error_set(err, WVOL_ERR_NOMEM, "wvc: out of memory");
     }
+    Q = (int32_t *)(void *)c->data;
     wvol__wvc_layout(L, I->px, I->py, I->pz, I->levels);
     /* low-pass cube, then one level at a time; the bands of a level in parallel */
     for (first = 0; first < L->nsec && bad_sec < 0; first = last) {
@@ -220,7 +221,6 @@ static wvol_status decode(wvol_coeffs **out, const uint8_t *buf, size_t avail, c
             const wvol_wvc_section *S = &I->sections[s];
             const char *w = NULL;
             int r = 0;
-            uint64_t nz = 0;
             if (S->coder == WVOL_WVC_CODER_EMPTY) continue;
             if (S->offset + S->bytes > avail) {
                 w = "section lies past the end of the data read";
@@ -233,17 +233,6 @@ static wvol_status decode(wvol_coeffs **out, const uint8_t *buf, size_t avail, c
             } else {
                 r = wvol__wvc_zstd_decode(Q, L->p, &L->sec[s], buf + S->offset, (size_t)S->bytes, &w);
             }
-            if (!r) {
-                const wvc_band *b = &L->sec[s];
-                size_t x, y, z;
-                for (z = 0; z < b->ext[2]; z++)
-                    for (y = 0; y < b->ext[1]; y++)
-                        for (x = 0; x < b->ext[0]; x++) nz += Q[wvc_index(L->p, b, x, y, z)] != 0;
-                if (nz != S->nonzero) {
-                    w = "decoded coefficient count does not match the section table";
-                    r = -1;
-                }
-            }
             if (r) {
 #pragma omp critical(wvc_decode_error)
                 if (bad_sec < 0 || s < bad_sec) {
@@ -253,47 +242,45 @@ static wvol_status decode(wvol_coeffs **out, const uint8_t *buf, size_t avail, c
             }
         }
     }
-    if (bad_sec >= 0) {
-        st = wvol_error_set(err, WVOL_ERR_FORMAT, ".wvc section level %d band %d: %s",
-                            I->sections[bad_sec].level, I->sections[bad_sec].band, why ? why : "malformed");
-        free(Q);
-        free(L);
-        return st;
-    }
-    st = coeffs_new(&c, I, err);
-    if (st != WVOL_OK) {
-        free(Q);
-        free(L);
-        return st;
-    }
-    /* dequantise: sign(q) (|q| + delta) step */
-    for (s = 0; s < L->nsec; s++) {
+    /* dequantise in place, sign(q) (|q| + delta) step, counting the non-zeros */
+    for (s = 0; s < L->nsec && bad_sec < 0; s++) {
         const wvc_band *b = &L->sec[s];
         const wvol_wvc_section *S = &I->sections[s];
         const float step = (float)I->step;
         const float o1 = (1.0f + S->delta1) * step, d2 = S->delta2;
+        uint64_t nz = 0;
         long z;
         if (s > 0 && b->level <= stop_level) break;
         if (S->coder == WVOL_WVC_CODER_EMPTY) continue;
-#pragma omp parallel for schedule(static) if (b->count > 65536)
+#pragma omp parallel for schedule(static) reduction(+ : nz) if (b->count > 65536)
         for (z = 0; z < (long)b->ext[2]; z++) {
             size_t x, y;
             for (y = 0; y < b->ext[1]; y++) {
-                size_t base = wvc_index(L->p, b, 0, y, (size_t)z);
-                const int32_t *q = Q + base;
-                float *o = c->data + base;
+                float *o = c->data + wvc_index(L->p, b, 0, y, (size_t)z);
                 for (x = 0; x < b->ext[0]; x++) {
-                    int32_t v = q[x];
+                    int32_t v;
                     float a;
+                    memcpy(&v, o + x, sizeof v); /* the int32 the coder stored there */
                     if (v == 0) continue;
+                    nz++;
                     a = (v == 1 || v == -1) ? o1 : ((float)(v < 0 ? -v : v) + d2) * step;
-                    o[x] = v < 0 ? -a : a;
+                    a = v < 0 ? -a : a;
+                    memcpy(o + x, &a, sizeof a);
                 }
             }
         }
+        if (nz != S->nonzero) {
+            bad_sec = s;
+            why = "decoded coefficient count does not match the section table";
+        }
     }
-    free(Q);
     free(L);
+    if (bad_sec >= 0) {
+        st = wvol_error_set(err, WVOL_ERR_FORMAT, ".wvc section level %d band %d: %s",
+                            I->sections[bad_sec].level, I->sections[bad_sec].band, why ? why : "malformed");
+        wvol_coeffs_destroy(c);
+        return st;
+    }
     *out = c;
     return WVOL_OK;
 }
