@@ -9,6 +9,27 @@
 #include "check.h"
 #include "wvol/wavelet.h"
 
+/* First use from several threads at once (must run before any other lookup): every
+ * thread sees the same, fully built bl3 (pthread_once). */
+static void first_lookup_is_thread_safe(void)
+{
+    const wvol_filter *seen[8] = {0};
+    double sums[8] = {0};
+#pragma omp parallel num_threads(8)
+    {
+        int t = omp_get_thread_num();
+        const wvol_filter *f = NULL;
+        if (wvol_filter_get(&f, "bl3", NULL) == WVOL_OK) {
+            seen[t] = f;
+            for (int n = 0; n < f->length; n++) sums[t] += f->h[n];
+        }
+    }
+    for (int t = 0; t < 8; t++) {
+        CHECK(seen[t] != NULL && seen[t] == seen[0], "thread %d got filter %p", t, (const void *)seen[t]);
+        CHECK(sums[t] == sums[0] && fabs(sums[t] - sqrt(2.0)) < 1e-14, "thread %d taps sum %.17g", t, sums[t]);
+    }
+}
+
 /* Every filter: sum h = sqrt2, orthonormal to < 1e-12 (bl3: its reported defect < 1e-8,
  * the price of truncating at 1e-10), g from h, the stated vanishing moments hold
  * (sum (-1)^n n^k h[n] = 0 for k < vm, relative to sum |n^k h[n]|), and the centre is
@@ -334,6 +355,12 @@ static void nonfinite_input_refused_with_voxel(void)
     CHECK(wvol_dwt3(&c, v, filt("db2"), 1, &err) == WVOL_ERR_NONFINITE, "Inf refused");
     CHECK(strstr(err.message, "i=4, j=6, k=5") != NULL && strstr(err.message, "Inf"), "names the voxel: %s", err.message);
     wvol_volume_destroy(v);
+    /* finite input whose low-pass overflows float32: refused, not Inf coefficients */
+    v = random_volume(8, 8, 8, 3e38, 3.4e38);
+    c = NULL;
+    CHECK(wvol_dwt3(&c, v, filt("db2"), 3, &err) == WVOL_ERR_NONFINITE && !c, "overflow refused");
+    CHECK(strstr(err.message, "overflow") != NULL, "says overflow: %s", err.message);
+    wvol_volume_destroy(v);
 }
 
 /* ---- layout ---------------------------------------------------------------------- */
@@ -522,6 +549,7 @@ static void bad_arguments_are_refused(void)
 
 int main(void)
 {
+    TIMED(first_lookup_is_thread_safe);
     TIMED(filters_are_orthonormal_qmf);
     TIMED(dwt1_matches_formula_and_fast_path);
     TIMED(perfect_reconstruction_all_families);

@@ -60,7 +60,8 @@ typedef struct wvol_coeffs {
 typedef enum wvol_pad_mode { WVOL_PAD_EDGE = 0, WVOL_PAD_ZERO, WVOL_PAD_PERIODIC } wvol_pad_mode;
 
 /* Forward transform of a volume (padded as needed, edge-replicate by default).
- * Refuses NaN/Inf naming the first voxel. levels in 1..wvol_dwt_max_levels. */
+ * Refuses NaN/Inf naming the first voxel, and inputs so large that a coefficient
+ * overflows float32 (WVOL_ERR_NONFINITE). levels in 1..wvol_dwt_max_levels. */
 wvol_status wvol_dwt3(wvol_coeffs **out, const wvol_volume *v, const wvol_filter *f, int levels,
                       wvol_error *err);
 wvol_status wvol_dwt3_pad(wvol_coeffs **out, const wvol_volume *v, const wvol_filter *f, int levels,

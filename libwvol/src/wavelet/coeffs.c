@@ -142,6 +142,13 @@ wvol_status wvol_dwt3_ex(wvol_coeffs **out, const wvol_volume *v, const wvol_fil
         pad_fill_float(c->data, c, v, pad);
         st = wvol_dwt3_inplace_f32(c->data, c->px, c->py, c->pz, f, levels, err);
     }
+    /* the low-pass gains 2^(3/2) per level: inputs near FLT_MAX overflow float32 */
+    if (st == WVOL_OK &&
+        wvol_check_finite(c->data, c->px, c->py, c->pz, "wavelet coefficients", NULL) != WVOL_OK)
+        st = wvol_error_set(err, WVOL_ERR_NONFINITE,
+                            "wvol_dwt3: coefficients overflow float32 (the low-pass grows by 2^1.5 per "
+                            "level; input magnitudes must stay below about FLT_MAX / 2^(1.5 * %d))",
+                            levels);
     if (st != WVOL_OK) {
         wvol_coeffs_destroy(c);
         return st;
@@ -217,6 +224,8 @@ wvol_status wvol_idwt3_ex(wvol_volume **out, const wvol_coeffs *c, int use_f64, 
             wvol_error_set(err, st, "wvol_idwt3: no memory for %zu floats", n);
         }
     }
+    if (st == WVOL_OK && wvol_check_finite(v->data, v->nx, v->ny, v->nz, "reconstruction", NULL) != WVOL_OK)
+        st = wvol_error_set(err, WVOL_ERR_NONFINITE, "wvol_idwt3: the reconstruction overflows float32");
     if (st != WVOL_OK) {
         wvol_volume_destroy(v);
         return st;

@@ -4,10 +4,11 @@
  * Memory layout and speed (DESIGN.md section 4): the transform is memory-bound, so
  *  - along x, each contiguous row is split into its even and odd samples (periodically
  *    extended by a few samples), and a[k] = sum_j h[2j] e[k+j] + h[2j+1] o[k+j] runs
- *    with unit stride over k, which the compiler vectorises;
+ *    with unit stride over k;
  *  - along y and z, a block of B x-adjacent columns is copied row by row into a
- *    periodically extended scratch (B floats per row: whole cache lines), and each
- *    output row is accumulated tap by tap over the B columns (vectorised, in L1);
+ *    periodically extended scratch (B floats per row: whole cache lines, <= 128 KiB in
+ *    all), and each output row is summed over the taps 2 vectors of columns at a time,
+ *    the sums held in registers (explicit vector code: GCC left the plain loops scalar);
  *  - the periodic wrap lives in the extension copy, never as % in an inner loop;
  *  - x and y run back to back on one z-slice while it sits in L2 (one trip to memory
  *    for both), z on (row, column-block) tasks;

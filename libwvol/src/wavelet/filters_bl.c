@@ -33,17 +33,24 @@ int wvol__bl_compute(int order, double tol, double *h, int cap, int *len)
      * NS = 4096 makes aliasing far below double rounding. H is real and even, so the
      * inverse DFT reduces to a cosine sum, done directly (the tap count is small). */
     enum { NS = 4096, NMAX = 200 };
-    double c[NMAX], sum = 0.0;
+    static const double two_pi = 6.283185307179586476925286766559;
+    double c[NMAX], sum = 0.0, *Hs, *ctab;
     int n, j, K = -1;
     if (order != 3 || !h || !len) return -1;
+    Hs = malloc(2 * NS * sizeof *Hs);
+    if (!Hs) return -1;
+    ctab = Hs + NS;
+    for (j = 0; j < NS; j++) {
+        Hs[j] = bl3_H(two_pi * j / NS);
+        ctab[j] = cos(two_pi * j / NS);
+    }
+    /* cos(n w_j) = cos(2 pi (n j mod NS) / NS): a table lookup, exact */
     for (n = 0; n < NMAX; n++) {
         double acc = 0.0;
-        for (j = 0; j < NS; j++) {
-            double w = 2.0 * 3.14159265358979323846 * j / NS;
-            acc += bl3_H(w) * cos(n * w);
-        }
+        for (j = 0; j < NS; j++) acc += Hs[j] * ctab[((size_t)n * (size_t)j) % NS];
         c[n] = acc / NS;
     }
+    free(Hs);
     /* centre tap c[0]; truncate beyond the last |c[n]| >= tol */
     for (n = 0; n < NMAX; n++)
         if (fabs(c[n]) >= tol) K = n;

@@ -84,9 +84,11 @@ static void gather(double *dst, const wvol_coeffs *c, int m, int band, const reg
             ptrdiff_t yj = (r->lo[1] + j) % (ptrdiff_t)e[1];
             size_t y = off[1] + (size_t)(yj < 0 ? yj + (ptrdiff_t)e[1] : yj);
             const float *row = c->data + c->px * (y + c->py * z) + off[0];
+            ptrdiff_t xi = r->lo[0] % (ptrdiff_t)e[0];
+            if (xi < 0) xi += (ptrdiff_t)e[0];
             for (ptrdiff_t i = 0; i < r->n[0]; i++) {
-                ptrdiff_t xi = (r->lo[0] + i) % (ptrdiff_t)e[0];
-                dst[t++] = row[xi < 0 ? xi + (ptrdiff_t)e[0] : xi];
+                dst[t++] = row[xi];
+                if (++xi == (ptrdiff_t)e[0]) xi = 0;
             }
         }
     }
@@ -99,32 +101,37 @@ static void gather(double *dst, const wvol_coeffs *c, int m, int band, const reg
 static void synth_axis(double *out, const double *lo, const double *hi, const region *in, ptrdiff_t o0,
                        ptrdiff_t on, int axis, int full, const wvol_filter *f)
 {
-    ptrdiff_t n[3] = {in->n[0], in->n[1], in->n[2]}, st[3], ost[3], k0 = in->lo[axis], kn = in->n[axis];
-    ptrdiff_t L = f->length;
-    st[0] = 1, st[1] = n[0], st[2] = n[0] * n[1];
-    ptrdiff_t m[3] = {n[0], n[1], n[2]};
-    m[axis] = on;
-    ost[0] = 1, ost[1] = m[0], ost[2] = m[0] * m[1];
-    int a1 = axis == 0 ? 1 : 0, a2 = axis == 2 ? 1 : 2;
-    for (ptrdiff_t u = 0; u < n[a2]; u++)
-        for (ptrdiff_t v = 0; v < n[a1]; v++) {
-            const double *l = lo + u * st[a2] + v * st[a1], *h = hi ? hi + u * st[a2] + v * st[a1] : NULL;
-            double *o = out + u * ost[a2] + v * ost[a1];
-            for (ptrdiff_t i = 0; i < on; i++) {
-                ptrdiff_t gi = o0 + i, kmin = -floor_div2(L - 1 - gi), kmax = floor_div2(gi), k;
-                double acc = 0.0;
-                if (!full) {
-                    if (kmin < k0) kmin = k0;
-                    if (kmax > k0 + kn - 1) kmax = k0 + kn - 1;
+    /* [outer][axis][inner] view, inner contiguous: the tap loop adds whole inner rows
+     * (x for the y axis, xy-planes for z), which the compiler vectorises */
+    ptrdiff_t inner = 1, outer = 1, kn = in->n[axis], k0 = in->lo[axis], L = f->length;
+    for (int a = 0; a < axis; a++) inner *= in->n[a];
+    for (int a = axis + 1; a < 3; a++) outer *= in->n[a];
+    for (ptrdiff_t u = 0; u < outer; u++) {
+        const double *lu = lo + u * kn * inner, *hu = hi ? hi + u * kn * inner : NULL;
+        for (ptrdiff_t i = 0; i < on; i++) {
+            double *restrict o = out + (u * on + i) * inner;
+            ptrdiff_t gi = o0 + i, kmin = -floor_div2(L - 1 - gi), kmax = floor_div2(gi), k;
+            if (!full) {
+                if (kmin < k0) kmin = k0;
+                if (kmax > k0 + kn - 1) kmax = k0 + kn - 1;
+            }
+            for (ptrdiff_t x = 0; x < inner; x++) o[x] = 0.0;
+            /* rel = (k - k0) mod kn, stepped without a division per tap */
+            ptrdiff_t rel = (kmin - k0) % kn;
+            if (rel < 0) rel += kn;
+            for (k = kmin; k <= kmax; k++) {
+                double wh = f->h[gi - 2 * k], wg = f->g[gi - 2 * k];
+                const double *restrict l = lu + rel * inner;
+                if (hu) {
+                    const double *restrict hh = hu + rel * inner;
+                    for (ptrdiff_t x = 0; x < inner; x++) o[x] += wh * l[x] + wg * hh[x];
+                } else {
+                    for (ptrdiff_t x = 0; x < inner; x++) o[x] += wh * l[x];
                 }
-                for (k = kmin; k <= kmax; k++) {
-                    ptrdiff_t tap = gi - 2 * k, rel = (k - k0) % kn;
-                    ptrdiff_t at = (rel < 0 ? rel + kn : rel) * st[axis];
-                    acc += f->h[tap] * l[at] + (h ? f->g[tap] * h[at] : 0.0);
-                }
-                o[i * ost[axis]] = acc;
+                if (++rel == kn) rel = 0;
             }
         }
+    }
 }
 
 wvol_status wvol_idwt3_brick(wvol_volume **out, const wvol_coeffs *c, const size_t lo[3], const size_t hi[3],

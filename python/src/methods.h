@@ -1,0 +1,11 @@
+/* Method tables of the extension, one per area (py_<area>.c). Add new ones here. */
+#ifndef WVOL_PY_METHODS_H
+#define WVOL_PY_METHODS_H
+#include "wvol/version.h"
+#include <Python.h>
+
+extern PyMethodDef wvolpy_io_methods[];
+extern PyMethodDef wvolpy_wavelet_methods[];
+
+#define WVOLPY_METHOD_TABLES wvolpy_io_methods, wvolpy_wavelet_methods
+#endif

@@ -1,0 +1,119 @@
+#include "pyutil.h"
+
+#include <string.h>
+
+PyObject *wvolpy_raise(const wvol_error *err)
+{
+    PyObject *type;
+    switch (err->status) {
+    case WVOL_ERR_IO:
+    case WVOL_ERR_FORMAT: type = PyExc_OSError; break;
+    case WVOL_ERR_NOMEM: type = PyExc_MemoryError; break;
+    case WVOL_ERR_UNSUPPORTED: type = PyExc_NotImplementedError; break;
+    case WVOL_ERR_INTERNAL: type = PyExc_RuntimeError; break;
+    default: type = PyExc_ValueError; break;
+    }
+    PyErr_SetString(type, err->message[0] ? err->message : wvol_status_string(err->status));
+    return NULL;
+}
+
+int wvolpy_as_volume(PyObject *obj, wvol_volume *out, PyArrayObject **holder, int check_finite)
+{
+    PyArrayObject *arr;
+    PyArray_Descr *dt;
+    int nd;
+    npy_intp *shape;
+    *holder = NULL;
+    memset(out, 0, sizeof *out);
+    if (!PyArray_Check(obj)) {
+        PyObject *tmp = PyArray_FROM_O(obj);
+        if (!tmp) return -1;
+        Py_DECREF(tmp);
+    }
+    arr = (PyArrayObject *)PyArray_FROM_O(obj);
+    if (!arr) return -1;
+    dt = PyArray_DESCR(arr);
+    if (!(dt->kind == 'f' || dt->kind == 'i' || dt->kind == 'u') || dt->elsize > 8) {
+        PyErr_Format(PyExc_TypeError, "expected an array of real numbers (float or integer), got dtype %S",
+                     (PyObject *)dt);
+        Py_DECREF(arr);
+        return -1;
+    }
+    nd = PyArray_NDIM(arr);
+    if (nd != 2 && nd != 3) {
+        PyErr_Format(PyExc_ValueError, "expected a 3D (z, y, x) or 2D (y, x) array, got %d dimensions", nd);
+        Py_DECREF(arr);
+        return -1;
+    }
+    if (PyArray_SIZE(arr) == 0) {
+        PyErr_SetString(PyExc_ValueError, "the array is empty");
+        Py_DECREF(arr);
+        return -1;
+    }
+    {
+        PyArrayObject *f = (PyArrayObject *)PyArray_FROM_OTF((PyObject *)arr, NPY_FLOAT32,
+                                                             NPY_ARRAY_IN_ARRAY | NPY_ARRAY_FORCECAST);
+        Py_DECREF(arr);
+        if (!f) return -1;
+        arr = f;
+    }
+    shape = PyArray_DIMS(arr);
+    out->nx = (size_t)shape[nd - 1];
+    out->ny = (size_t)shape[nd - 2];
+    out->nz = nd == 3 ? (size_t)shape[0] : 1;
+    out->spacing[0] = out->spacing[1] = out->spacing[2] = 1.0;
+    out->data = (float *)PyArray_DATA(arr);
+    out->owns = 0;
+    if (check_finite) {
+        wvol_error err;
+        if (wvol_check_finite(out->data, out->nx, out->ny, out->nz, "array", &err) != WVOL_OK) {
+            Py_DECREF(arr);
+            wvolpy_raise(&err);
+            return -1;
+        }
+    }
+    *holder = arr;
+    return 0;
+}
+
+PyObject *wvolpy_volume_to_array(const wvol_volume *v, int squeeze2d)
+{
+    npy_intp dims[3] = {(npy_intp)v->nz, (npy_intp)v->ny, (npy_intp)v->nx};
+    PyObject *a;
+    if (squeeze2d && v->nz == 1)
+        a = PyArray_SimpleNew(2, dims + 1, NPY_FLOAT32);
+    else
+        a = PyArray_SimpleNew(3, dims, NPY_FLOAT32);
+    if (!a) return NULL;
+    memcpy(PyArray_DATA((PyArrayObject *)a), v->data, v->nx * v->ny * v->nz * sizeof(float));
+    return a;
+}
+
+int wvolpy_triple(PyObject *obj, double out[3], const char *what)
+{
+    PyObject *seq;
+    if (obj == NULL || obj == Py_None) return 0;
+    if (PyNumber_Check(obj)) {
+        double v = PyFloat_AsDouble(obj);
+        if (PyErr_Occurred()) return -1;
+        out[0] = out[1] = out[2] = v;
+        return 0;
+    }
+    seq = PySequence_Fast(obj, "expected a number or a sequence of 3 numbers");
+    if (!seq) return -1;
+    if (PySequence_Fast_GET_SIZE(seq) != 3) {
+        PyErr_Format(PyExc_ValueError, "%s: expected 3 values (x, y, z), got %zd", what,
+                     PySequence_Fast_GET_SIZE(seq));
+        Py_DECREF(seq);
+        return -1;
+    }
+    for (int a = 0; a < 3; a++) {
+        out[a] = PyFloat_AsDouble(PySequence_Fast_GET_ITEM(seq, a));
+        if (PyErr_Occurred()) {
+            Py_DECREF(seq);
+            return -1;
+        }
+    }
+    Py_DECREF(seq);
+    return 0;
+}

@@ -1,0 +1,32 @@
+/* Shared helpers of the extension: errors as exceptions, arrays as volumes. */
+#ifndef WVOL_PY_UTIL_H
+#define WVOL_PY_UTIL_H
+
+#define PY_SSIZE_T_CLEAN
+#include <Python.h>
+#define NO_IMPORT_ARRAY
+#define PY_ARRAY_UNIQUE_SYMBOL wvol_ARRAY_API
+#include <numpy/arrayobject.h>
+
+#include "wvol/wvol.h"
+
+/* Raises the Python exception matching err's status (ValueError for arguments and
+ * data, OSError for files, MemoryError, NotImplementedError for missing features,
+ * RuntimeError for internal errors) with the library's message; returns NULL. */
+PyObject *wvolpy_raise(const wvol_error *err);
+
+/* Views a NumPy array (3D (z, y, x) or 2D (y, x) => nz = 1) as a float32 volume.
+ * Float32 C-contiguous arrays are used without a copy; other real dtypes or layouts
+ * are converted (a copy). *holder receives the array that owns the memory (DECREF it
+ * after use). Refuses empty arrays, wrong ndim, non-real dtypes; checks NaN/Inf
+ * when check_finite. spacing/origin may be NULL (1 and 0). Returns 0 on success,
+ * -1 with an exception set. */
+int wvolpy_as_volume(PyObject *obj, wvol_volume *out, PyArrayObject **holder, int check_finite);
+
+/* New float32 array (nz, ny, nx) copying v's samples (2D (ny, nx) when squeeze2d and nz == 1). */
+PyObject *wvolpy_volume_to_array(const wvol_volume *v, int squeeze2d);
+
+/* Parses an optional 3-sequence of floats (x, y, z order); returns 0 or -1 with exception. */
+int wvolpy_triple(PyObject *obj, double out[3], const char *what);
+
+#endif
