@@ -513,6 +513,35 @@ static void wvc_refuses_bad_parameters(void)
     p.rounding = 0.38;
     p.step = 1e-30;
     CHECK(wvol_wvc_encode(&buf, &n, F.c, &p, NULL, &err) == WVOL_ERR_ARG, "step too small for the range");
+    {
+        /* all-zero coefficients: any target is met, the file holds empty sections */
+        wvol_coeffs *z = NULL, *d = NULL;
+        void *zb = NULL;
+        size_t zn = 0;
+        wvol_wvc_params q = p;
+        CHECK(wvol_coeffs_clone(&z, F.c, NULL) == WVOL_OK, "clone");
+        if (z) {
+            memset(z->data, 0, z->px * z->py * z->pz * sizeof(float));
+            q.step = 0;
+            q.target_sse = 1;
+            CHECK(wvol_wvc_encode(&zb, &zn, z, &q, NULL, &err) == WVOL_OK, "zeros: %s", err.message);
+            CHECK(zb && wvol_wvc_decode(&d, zb, zn, NULL, NULL, &err) == WVOL_OK, "zeros decode");
+            if (d) {
+                size_t i, bad = 0;
+                for (i = 0; i < d->px * d->py * d->pz; i++) bad += d->data[i] != 0;
+                CHECK(bad == 0, "zeros decoded as %zu non-zeros", bad);
+            }
+        }
+        wvol_coeffs_destroy(d);
+        wvol_coeffs_destroy(z);
+        free(zb);
+    }
+    p.step = 1e30;
+    CHECK(wvol_wvc_encode(&buf, &n, F.c, &p, NULL, &err) == WVOL_ERR_ARG, "step above the format's limit");
+    p.step = 0.1;
+    F.c->spacing[1] = 0;
+    CHECK(wvol_wvc_encode(&buf, &n, F.c, &p, NULL, &err) == WVOL_ERR_ARG, "zero spacing");
+    F.c->spacing[1] = 1;
     F.c->data[5] = NAN;
     p.step = 0.1;
     CHECK(wvol_wvc_encode(&buf, &n, F.c, &p, NULL, &err) == WVOL_ERR_NONFINITE, "nan coefficient");

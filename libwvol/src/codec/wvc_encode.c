@@ -257,8 +257,9 @@ static double search_step(const wvc_layout *L, const float *C, double target, do
     double e0, d1, e1, best_ok = 0, best_bad = INFINITY, slope = *slope_io;
     int it;
     if (d0 < min_step) d0 = min_step;
-    if (d0 > 4 * maxabs) d0 = 4 * maxabs;
+    if (maxabs > 0 && d0 > 4 * maxabs) d0 = 4 * maxabs;
     e0 = total_error(L, C, d0, f, st, sample, Q);
+    if (!isfinite(e0)) return NAN;
     *last = d0;
     (*iters)++;
     if (e0 <= target) best_ok = d0; else best_bad = d0;
@@ -289,6 +290,7 @@ static double search_step(const wvc_layout *L, const float *C, double target, do
         e0 = e1;
         d1 = next;
         e1 = total_error(L, C, d1, f, st, sample, Q);
+        if (!isfinite(e1)) return NAN;
         *last = d1;
         (*iters)++;
         if (e1 <= target) {
@@ -323,10 +325,11 @@ static double choose_step(const wvc_layout *L, const float *C, double target, do
     *iters = 0;
     d = sqrt(12.0 * target / (total > 0 ? total : 1));
     d = search_step(L, C, target, f, maxabs, min_step, st, iters, 1, d, &slope, 0.99, NULL, &last);
+    if (!isfinite(d)) return NAN;
     d = search_step(L, C, target, f, maxabs, min_step, st, iters, 0, d, &slope, 0.99, Q, &last);
     if (last != d) {
-        total_error(L, C, d, f, st, 0, Q);
         (*iters)++;
+        if (!isfinite(total_error(L, C, d, f, st, 0, Q))) return NAN;
     }
     return d;
 }
@@ -455,14 +458,24 @@ wvol_status wvol_wvc_encode(void **out, size_t *out_size, const wvol_coeffs *c,
         if (min_step < 1e-30) min_step = 1e-30;
         if (p->step > 0) {
             step = p->step;
+            if (step > WVC_MAX_STEP) {
+                status = wvol_error_set(err, WVOL_ERR_ARG, "wvc encode: step %g is above %g", step, WVC_MAX_STEP);
+                goto done;
+            }
             if (step < min_step) {
                 status = wvol_error_set(err, WVOL_ERR_ARG,
                                         "wvc encode: step %g is below %g, the smallest this range allows",
                                         step, min_step);
                 goto done;
             }
+        } else if (maxabs == 0) {
+            step = 1.0; /* every coefficient is zero: any step is exact */
         } else {
             step = choose_step(L, c->data, p->target_sse, p->rounding, maxabs, min_step, st, &iters, Q);
+            if (!isfinite(step)) {
+                status = wvol_error_set(err, WVOL_ERR_NOMEM, "wvc encode: out of memory");
+                goto done;
+            }
             if (step > WVC_MAX_STEP) step = WVC_MAX_STEP, searched = 0;
             else searched = 1;
         }
