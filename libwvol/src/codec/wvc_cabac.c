@@ -144,6 +144,10 @@ FORCE_INLINE int detail_band(int dec, coder *cd, int32_t *Q, const size_t p[3], 
     const size_t ex = b->ext[0], ey = b->ext[1], ez = b->ext[2];
     const size_t gx = (ex + 1) / 2, gy = (ey + 1) / 2;
     const ptrdiff_t sy = (ptrdiff_t)p[0], sz = (ptrdiff_t)(p[0] * p[1]);
+    const size_t ngroups = gx * gy * ((ez + 1) / 2);
+    /* the parent class and |parent| of the current slab of groups, computed at first touch */
+    uint32_t *gP = (uint32_t *)(void *)(gstate + ((ngroups + 7) & ~(size_t)7));
+    uint8_t *gpc = (uint8_t *)(gP + gx * gy);
     size_t x, y, z;
     for (z = 0; z < ez; z++)
         for (y = 0; y < ey; y++) {
@@ -161,6 +165,8 @@ FORCE_INLINE int detail_band(int dec, coder *cd, int32_t *Q, const size_t p[3], 
                     /* first touch of the group: its flag */
                     int any = 0, gn;
                     pc = parent_class(Q, p, b, gi, gj, gk, &P);
+                    gpc[gi + gx * gj] = (uint8_t)pc;
+                    gP[gi + gx * gj] = P;
                     gn = (gi > 0 && grow[gi - 1]) + (gj > 0 && grow[(ptrdiff_t)gi - (ptrdiff_t)gx]) +
                          (gk > 0 && grow[(ptrdiff_t)gi - (ptrdiff_t)(gx * gy)]);
                     if (!dec) {
@@ -182,7 +188,8 @@ FORCE_INLINE int detail_band(int dec, coder *cd, int32_t *Q, const size_t p[3], 
                     x |= 1; /* the group's other column is zero too */
                     continue;
                 }
-                pc = parent_class(Q, p, b, gi, gj, gk, &P);
+                pc = gpc[gi + gx * gj];
+                P = gP[gi + gx * gj];
                 aW = x > 0 ? absq(c[-1]) : 0;
                 aN = hasN ? absq(c[-sy]) : 0;
                 aU = hasU ? absq(c[-sz]) : 0;
@@ -270,8 +277,8 @@ static void model_init(band_model *m)
 
 static int band_scratch(const wvc_band *b, void **scratch)
 {
-    size_t n = b->band == 0 ? (size_t)b->count * sizeof(uint16_t)
-                            : ((b->ext[0] + 1) / 2) * ((b->ext[1] + 1) / 2) * ((b->ext[2] + 1) / 2);
+    size_t gxy = ((b->ext[0] + 1) / 2) * ((b->ext[1] + 1) / 2), ng = gxy * ((b->ext[2] + 1) / 2);
+    size_t n = b->band == 0 ? (size_t)b->count * sizeof(uint16_t) : ((ng + 7) & ~(size_t)7) + gxy * 5;
     *scratch = malloc(n ? n : 1);
     return *scratch ? 0 : -1;
 }
