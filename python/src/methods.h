@@ -6,6 +6,9 @@
 
 extern PyMethodDef wvolpy_io_methods[];
 extern PyMethodDef wvolpy_wavelet_methods[];
+extern PyMethodDef wvolpy_compress_methods[];
+extern PyMethodDef wvolpy_synth_methods[];
+extern PyMethodDef wvolpy_analysis_methods[];
 
-#define WVOLPY_METHOD_TABLES wvolpy_io_methods, wvolpy_wavelet_methods
+#define WVOLPY_METHOD_TABLES wvolpy_io_methods, wvolpy_wavelet_methods, wvolpy_compress_methods, wvolpy_synth_methods, wvolpy_analysis_methods
 #endif

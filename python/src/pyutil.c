@@ -1,6 +1,96 @@
 #include "pyutil.h"
 
+#include <stdlib.h>
 #include <string.h>
+
+static void free_capsule(PyObject *cap)
+{
+    free(PyCapsule_GetPointer(cap, "wvol.buffer"));
+}
+
+PyObject *wvolpy_array_take(float *data, int nd, const npy_intp *dims)
+{
+    PyObject *a, *cap;
+    a = PyArray_SimpleNewFromData(nd, (npy_intp *)dims, NPY_FLOAT32, data);
+    if (!a) {
+        free(data);
+        return NULL;
+    }
+    cap = PyCapsule_New(data, "wvol.buffer", free_capsule);
+    if (!cap) {
+        Py_DECREF(a);
+        free(data);
+        return NULL;
+    }
+    if (PyArray_SetBaseObject((PyArrayObject *)a, cap) < 0) { /* steals cap (freed on failure) */
+        Py_DECREF(a);
+        return NULL;
+    }
+    return a;
+}
+
+PyObject *wvolpy_volume_take(wvol_volume *v, int squeeze2d)
+{
+    PyObject *a;
+    npy_intp dims[3] = {(npy_intp)v->nz, (npy_intp)v->ny, (npy_intp)v->nx};
+    int nd = squeeze2d && v->nz == 1 ? 2 : 3;
+    if (!v->owns || !v->data) {
+        a = wvolpy_volume_to_array(v, squeeze2d);
+        wvol_volume_destroy(v);
+        return a;
+    }
+    {
+        float *data = v->data;
+        v->data = NULL;
+        v->owns = 0;
+        wvol_volume_destroy(v);
+        return wvolpy_array_take(data, nd, dims + (3 - nd));
+    }
+}
+
+int wvolpy_as_coeffs(PyObject *arr, const char *wavelet, int levels, PyObject *shape, PyObject *spacing,
+                     PyObject *origin, wvol_coeffs *c, PyArrayObject **holder)
+{
+    wvol_volume v;
+    wvol_error err;
+    Py_ssize_t sz, sy, sx;
+    memset(c, 0, sizeof *c);
+    *holder = NULL;
+    if (!PyArg_ParseTuple(shape, "nnn;shape must be (nz, ny, nx)", &sz, &sy, &sx)) return -1;
+    if (wvol_filter_get(&c->filter, wavelet, &err) != WVOL_OK) {
+        wvolpy_raise(&err);
+        return -1;
+    }
+    if (levels < 1 || levels > 30) {
+        PyErr_Format(PyExc_ValueError, "levels must be in 1..30, got %d", levels);
+        return -1;
+    }
+    if (sx < 1 || sy < 1 || sz < 1) {
+        PyErr_Format(PyExc_ValueError, "shape (%zd, %zd, %zd) must be positive", sz, sy, sx);
+        return -1;
+    }
+    c->spacing[0] = c->spacing[1] = c->spacing[2] = 1.0;
+    if (wvolpy_triple(spacing, c->spacing, "spacing") < 0 || wvolpy_triple(origin, c->origin, "origin") < 0)
+        return -1;
+    if (wvolpy_as_volume(arr, &v, holder, 1) < 0) return -1;
+    c->levels = levels;
+    c->nx = (size_t)sx;
+    c->ny = (size_t)sy;
+    c->nz = (size_t)sz;
+    c->px = v.nx;
+    c->py = v.ny;
+    c->pz = v.nz;
+    c->data = v.data;
+    if (c->px != wvol_dwt_padded_size(c->nx, levels) || c->py != wvol_dwt_padded_size(c->ny, levels) ||
+        c->pz != wvol_dwt_padded_size(c->nz, levels)) {
+        PyErr_Format(PyExc_ValueError,
+                     "coefficient array shape (%zu, %zu, %zu) is not the padded size of shape (%zd, %zd, %zd) "
+                     "for %d levels", c->pz, c->py, c->px, sz, sy, sx, levels);
+        Py_CLEAR(*holder);
+        return -1;
+    }
+    return 0;
+}
 
 PyObject *wvolpy_raise(const wvol_error *err)
 {

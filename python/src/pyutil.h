@@ -26,6 +26,22 @@ int wvolpy_as_volume(PyObject *obj, wvol_volume *out, PyArrayObject **holder, in
 /* New float32 array (nz, ny, nx) copying v's samples (2D (ny, nx) when squeeze2d and nz == 1). */
 PyObject *wvolpy_volume_to_array(const wvol_volume *v, int squeeze2d);
 
+/* Float32 array of nd dims (C order) over malloc'ed memory, taking ownership: the array
+ * frees it with free() when it dies (no copy). On failure frees data and returns NULL. */
+PyObject *wvolpy_array_take(float *data, int nd, const npy_intp *dims);
+
+/* Array (nz, ny, nx) (2D when squeeze2d and nz == 1) of a library volume, then destroys v:
+ * the samples are handed over without a copy when v owns them, copied otherwise. */
+PyObject *wvolpy_volume_take(wvol_volume *v, int squeeze2d);
+
+/* Maps a padded Mallat coefficient array (z, y, x) onto *c (no copy for float32
+ * C-contiguous input): wavelet by name, levels, the original shape (nz, ny, nx) as a
+ * Python sequence, spacing/origin (x, y, z; None = 1 / 0). Checks that the array's
+ * shape is the padded size of `shape` for `levels` and refuses NaN/Inf. *holder owns
+ * the memory (DECREF after use). Returns 0, or -1 with an exception set. */
+int wvolpy_as_coeffs(PyObject *arr, const char *wavelet, int levels, PyObject *shape, PyObject *spacing,
+                     PyObject *origin, wvol_coeffs *c, PyArrayObject **holder);
+
 /* Parses an optional 3-sequence of floats (x, y, z order); returns 0 or -1 with exception. */
 int wvolpy_triple(PyObject *obj, double out[3], const char *what);
 

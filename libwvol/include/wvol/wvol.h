@@ -10,4 +10,5 @@
 #include "wvol/wavelet.h"
 #include "wvol/store.h"
 #include "wvol/wvc.h"
+#include "wvol/analysis.h"
 #endif
