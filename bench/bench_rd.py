@@ -54,8 +54,7 @@ def psnr_of(ref, rec):
 def make_volume(kind, n, workdir):
     """Writes kind at n^3 with `wvol synth`; returns (path, array (z, y, x), source)."""
     path = workdir / f"{kind}_{n}.raw"
-    tries = [[WVOL, "synth", kind, "--dims", f"{n}x{n}x{n}", "-o", str(path)],
-             [WVOL, "synth", "--kind", kind, "--dims", f"{n}x{n}x{n}", "-o", str(path)]]
+    tries = [[WVOL, "synth", kind, "--size", str(n), "-o", str(path)]]
     for cmd in tries:
         r = subprocess.run(cmd, capture_output=True, text=True)
         if r.returncode == 0 and path.exists() and path.stat().st_size == 4 * n**3:
