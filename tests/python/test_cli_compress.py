@@ -180,3 +180,20 @@ def test_missing_input(wvol, tmp_path):
     assert not (tmp_path / "o.wvc").exists()
     r = wvol("decompress", tmp_path / "nope.wvc", "-o", tmp_path / "o.raw")
     assert r.returncode == 1 and "nope.wvc" in r.stderr
+
+
+def test_nrrd_geometry_survives_the_round_trip(wvol, tmp_path):
+    src = tmp_path / "skull.nrrd"
+    r = wvol("synth", "skull", "--size", "32", "-o", src)
+    if r.returncode != 0:
+        pytest.skip("wvol synth unavailable: " + r.stderr.strip())
+    out, back = tmp_path / "s.wvc", tmp_path / "back.nrrd"
+    assert wvol("compress", src, "-o", out, "--levels", "2", "--psnr", "45").returncode == 0
+    assert wvol("decompress", out, "-o", back).returncode == 0
+    a = json.loads(wvol("info", src, "--json").stdout)
+    b = json.loads(wvol("info", back, "--json").stdout)
+    w = json.loads(wvol("info", out, "--json").stdout)
+    assert a["dims"] == b["dims"] == w["dims"]
+    assert a["spacing"] == b["spacing"] == w["spacing"]
+    assert a["origin"] == b["origin"] == w["origin"]
+    assert w["value_min"] == a["min"] and w["value_max"] == a["max"]
