@@ -549,6 +549,34 @@ static void wvc_refuses_bad_parameters(void)
     fixture_free(&F);
 }
 
+/* The fuzz corpus doubles as golden files: valid_* decode, damaged_* are refused.
+ * A change of the coder that breaks them needs a new format version (and a new corpus). */
+static void wvc_corpus_files_decode_or_are_refused(void)
+{
+    const char *root = getenv("WVOL_SOURCE_DIR");
+    const char *names[] = {"valid_haar_8_cabac.wvc", "valid_db2_8x8x4_zstd.wvc", "valid_coif1_4x4x1_auto.wvc",
+                           "valid_db2_8x6x5_padded.wvc", "valid_bl3_8_3levels.wvc", "damaged_truncated.wvc",
+                           "damaged_bitflip_payload.wvc", "damaged_magic.wvc", "damaged_version.wvc"};
+    char path[1024];
+    size_t i;
+    if (!root) {
+        printf("test_wvc: WVOL_SOURCE_DIR not set, corpus check skipped\n");
+        return;
+    }
+    for (i = 0; i < sizeof names / sizeof names[0]; i++) {
+        wvol_coeffs *c = NULL;
+        wvol_error err;
+        wvol_status st;
+        snprintf(path, sizeof path, "%s/tests/fuzz/corpus/%s", root, names[i]);
+        st = wvol_wvc_read(&c, path, NULL, NULL, &err);
+        if (names[i][0] == 'v')
+            CHECK(st == WVOL_OK, "%s: %s", names[i], err.message);
+        else
+            CHECK(st != WVOL_OK && st != WVOL_ERR_IO, "%s: status %d", names[i], (int)st);
+        wvol_coeffs_destroy(c);
+    }
+}
+
 int main(void)
 {
     const char *fam[] = {"haar", "db2", "coif1", "bl3"};
@@ -562,5 +590,6 @@ int main(void)
     wvc_survives_garbage_payloads_with_valid_checksums();
     wvc_files_are_atomic_and_checked();
     wvc_refuses_bad_parameters();
+    wvc_corpus_files_decode_or_are_refused();
     return check_summary("test_wvc");
 }
