@@ -312,6 +312,201 @@ static double search_step(const wvc_layout *L, const float *C, double target, do
     return min_step;
 }
 
+/* ---- using the rest of the error budget ----------------------------------------
+ * The error is a staircase in the step: when many coefficients share a magnitude
+ * (piecewise-constant volumes), the largest step that meets the target can leave a
+ * good part of the budget unused. The slack is spent by zeroing |q| = 1 detail
+ * coefficients, those whose removal adds the least error first (an O(N) histogram
+ * cut on the added error, never a sort). */
+#define SLACK_BINS 4096
+
+/* Added error of zeroing a |q| = 1 coefficient: c^2 - (|c| - (1 + d1) step)^2. */
+static inline double zeroing_cost(double ac, double rec)
+{
+    return ac * ac - (ac - rec) * (ac - rec);
+}
+
+static inline int cost_bin(double e)
+{
+    float f = (float)e;
+    uint32_t u;
+    if (!(f > 0)) return 0;
+    memcpy(&u, &f, 4);
+    return 1 + (int)((u >> 20) & 0x7FF); /* sign is 0: 11 bits of exponent and mantissa */
+}
+
+static void slack_hist(const wvc_layout *L, const float *C, const int32_t *Q, double step, const float *d1,
+                       const work_item *w, int nw, double (*hsum)[SLACK_BINS + 1], uint64_t (*hcnt)[SLACK_BINS + 1])
+{
+    int i;
+#pragma omp parallel for schedule(dynamic, 1) if (nw > 2)
+    for (i = 0; i < nw; i++) {
+        const wvc_band *b = &L->sec[w[i].sec];
+        const double rec = (1.0 + d1[w[i].sec]) * step;
+        double *hs = hsum[i];
+        uint64_t *hc = hcnt[i];
+        size_t x, y, z;
+        memset(hs, 0, sizeof *hsum);
+        memset(hc, 0, sizeof *hcnt);
+        if (b->band == 0) continue;
+        for (z = w[i].z0; z < w[i].z1; z++)
+            for (y = 0; y < b->ext[1]; y++) {
+                size_t base = wvc_index(L->p, b, 0, y, z);
+                for (x = 0; x < b->ext[0]; x++) {
+                    int32_t q = Q[base + x];
+                    if (q == 1 || q == -1) {
+                        double e = zeroing_cost(fabs((double)C[base + x]), rec);
+                        int k = cost_bin(e);
+                        hs[k] += e;
+                        hc[k]++;
+                    }
+                }
+            }
+    }
+}
+
+/* Zeroes the cheapest |q| = 1 coefficients within `slack`; returns how many. */
+static uint64_t spend_slack(const wvc_layout *L, const float *C, int32_t *Q, double step, const float *d1,
+                            double slack)
+{
+    int nw = 0, i, k, cut = -1;
+    work_item *w = work_items(L, &nw);
+    double (*hsum)[SLACK_BINS + 1] = NULL, tot[SLACK_BINS + 1], acc = 0;
+    uint64_t (*hcnt)[SLACK_BINS + 1] = NULL, cnt[SLACK_BINS + 1], zeroed = 0;
+    if (!w || nw == 0) {
+        free(w);
+        return 0;
+    }
+    hsum = malloc((size_t)nw * sizeof *hsum);
+    hcnt = malloc((size_t)nw * sizeof *hcnt);
+    if (!hsum || !hcnt) goto out;
+    slack_hist(L, C, Q, step, d1, w, nw, hsum, hcnt);
+    memset(tot, 0, sizeof tot);
+    memset(cnt, 0, sizeof cnt);
+    for (i = 0; i < nw; i++)
+        for (k = 0; k <= SLACK_BINS; k++) {
+            tot[k] += hsum[i][k];
+            cnt[k] += hcnt[i][k];
+        }
+    /* bin 0 (zeroing does not add error) always; then whole bins while they fit */
+    for (k = 0; k <= SLACK_BINS; k++) {
+        if (k > 0 && acc + tot[k] > slack) break;
+        acc += tot[k];
+        cut = k;
+    }
+    if (cut < 0) goto out;
+#pragma omp parallel for schedule(dynamic, 1) reduction(+ : zeroed) if (nw > 2)
+    for (i = 0; i < nw; i++) {
+        const wvc_band *b = &L->sec[w[i].sec];
+        const double rec = (1.0 + d1[w[i].sec]) * step;
+        size_t x, y, z;
+        if (b->band == 0) continue;
+        for (z = w[i].z0; z < w[i].z1; z++)
+            for (y = 0; y < b->ext[1]; y++) {
+                size_t base = wvc_index(L->p, b, 0, y, z);
+                for (x = 0; x < b->ext[0]; x++) {
+                    int32_t q = Q[base + x];
+                    if ((q == 1 || q == -1) && cost_bin(zeroing_cost(fabs((double)C[base + x]), rec)) <= cut) {
+                        Q[base + x] = 0;
+                        zeroed++;
+                    }
+                }
+            }
+    }
+    /* the next bin in part, in index order (serial, so the result does not depend on threads) */
+    if (cut < SLACK_BINS && cnt[cut + 1] > 0) {
+        double left = slack - acc;
+        for (i = 0; i < nw && left > 0; i++) {
+            const wvc_band *b = &L->sec[w[i].sec];
+            const double rec = (1.0 + d1[w[i].sec]) * step;
+            size_t x, y, z;
+            if (b->band == 0) continue;
+            for (z = w[i].z0; z < w[i].z1 && left > 0; z++)
+                for (y = 0; y < b->ext[1] && left > 0; y++) {
+                    size_t base = wvc_index(L->p, b, 0, y, z);
+                    for (x = 0; x < b->ext[0]; x++) {
+                        int32_t q = Q[base + x];
+                        double e;
+                        if (q != 1 && q != -1) continue;
+                        e = zeroing_cost(fabs((double)C[base + x]), rec);
+                        if (cost_bin(e) != cut + 1) continue;
+                        if (e > left) {
+                            left = 0;
+                            break;
+                        }
+                        left -= e;
+                        Q[base + x] = 0;
+                        zeroed++;
+                    }
+                }
+        }
+    }
+out:
+    free(hsum);
+    free(hcnt);
+    free(w);
+    return zeroed;
+}
+
+/* Per-section sums for a given Q (after spend_slack changed it). */
+static int stats_from_q(sec_stats *st, const wvc_layout *L, const float *C, const int32_t *Q, double step)
+{
+    int nw = 0, i;
+    work_item *w = work_items(L, &nw);
+    sec_stats *part;
+    const double inv = 1.0 / step;
+    if (!w) return -1;
+    part = calloc(nw ? (size_t)nw : 1, sizeof *part);
+    if (!part) {
+        free(w);
+        return -1;
+    }
+#pragma omp parallel for schedule(dynamic, 1) if (nw > 2)
+    for (i = 0; i < nw; i++) {
+        const wvc_band *b = &L->sec[w[i].sec];
+        sec_stats *o = &part[i];
+        size_t x, y, z;
+        for (z = w[i].z0; z < w[i].z1; z++)
+            for (y = 0; y < b->ext[1]; y++) {
+                size_t base = wvc_index(L->p, b, 0, y, z);
+                for (x = 0; x < b->ext[0]; x++) {
+                    double c = C[base + x], ac = fabs(c);
+                    int32_t q = Q[base + x];
+                    double aq = q < 0 ? -(double)q : (double)q, r = ac * inv - aq;
+                    o->energy += c * c;
+                    if (ac > o->maxabs) o->maxabs = ac;
+                    if (q == 0) {
+                        o->zero_sse += c * c;
+                    } else if (aq == 1) {
+                        o->n1++;
+                        o->s1 += r;
+                        o->ss1 += r * r;
+                    } else {
+                        o->n2++;
+                        o->s2 += r;
+                        o->ss2 += r * r;
+                    }
+                }
+            }
+    }
+    memset(st, 0, (size_t)L->nsec * sizeof *st);
+    for (i = 0; i < nw; i++) {
+        sec_stats *d = &st[w[i].sec], *a = &part[i];
+        d->zero_sse += a->zero_sse;
+        d->energy += a->energy;
+        d->s1 += a->s1;
+        d->ss1 += a->ss1;
+        d->s2 += a->s2;
+        d->ss2 += a->ss2;
+        d->n1 += a->n1;
+        d->n2 += a->n2;
+        if (a->maxabs > d->maxabs) d->maxabs = a->maxabs;
+    }
+    free(part);
+    free(w);
+    return 0;
+}
+
 /* The largest step whose error stays within [0.99, 1] x target (PSNR at most
  * 0.044 dB above the target): first on a 1-in-8 subsample of the rows of the large
  * sections (cheap), then exact passes that also quantise into Q (usually one or two).
@@ -491,6 +686,21 @@ wvol_status wvol_wvc_encode(void **out, size_t *out_size, const wvol_coeffs *c,
     for (s = 0; s < L->nsec; s++) {
         serr[s] = sec_error(&st[s], step, &d1[s], &d2[s]);
         sse += serr[s];
+    }
+    if (p->step == 0 && sse < p->target_sse) {
+        /* spend what the staircase left of the budget, then the exact sums again */
+        if (spend_slack(L, c->data, Q, step, d1, p->target_sse - sse) > 0) {
+            if (stats_from_q(st, L, c->data, Q, step)) {
+                status = wvol_error_set(err, WVOL_ERR_NOMEM, "wvc encode: out of memory");
+                goto done;
+            }
+            for (sse = 0, s = 0; s < L->nsec; s++) {
+                serr[s] = sec_error(&st[s], step, &d1[s], &d2[s]);
+                sse += serr[s];
+            }
+        }
+    }
+    for (s = 0; s < L->nsec; s++) {
         energy += st[s].energy;
         nonzero += st[s].n1 + st[s].n2;
     }
