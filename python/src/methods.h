@@ -9,6 +9,7 @@ extern PyMethodDef wvolpy_wavelet_methods[];
 extern PyMethodDef wvolpy_compress_methods[];
 extern PyMethodDef wvolpy_synth_methods[];
 extern PyMethodDef wvolpy_analysis_methods[];
+extern PyMethodDef wvolpy_store_methods[];
 
-#define WVOLPY_METHOD_TABLES wvolpy_io_methods, wvolpy_wavelet_methods, wvolpy_compress_methods, wvolpy_synth_methods, wvolpy_analysis_methods
+#define WVOLPY_METHOD_TABLES wvolpy_io_methods, wvolpy_wavelet_methods, wvolpy_compress_methods, wvolpy_synth_methods, wvolpy_analysis_methods, wvolpy_store_methods
 #endif

@@ -10,8 +10,13 @@ static void free_capsule(PyObject *cap)
 
 PyObject *wvolpy_array_take(float *data, int nd, const npy_intp *dims)
 {
+    return wvolpy_array_take_type(data, nd, dims, NPY_FLOAT32);
+}
+
+PyObject *wvolpy_array_take_type(void *data, int nd, const npy_intp *dims, int typenum)
+{
     PyObject *a, *cap;
-    a = PyArray_SimpleNewFromData(nd, (npy_intp *)dims, NPY_FLOAT32, data);
+    a = PyArray_SimpleNewFromData(nd, (npy_intp *)dims, typenum, data);
     if (!a) {
         free(data);
         return NULL;

@@ -29,6 +29,8 @@ PyObject *wvolpy_volume_to_array(const wvol_volume *v, int squeeze2d);
 /* Float32 array of nd dims (C order) over malloc'ed memory, taking ownership: the array
  * frees it with free() when it dies (no copy). On failure frees data and returns NULL. */
 PyObject *wvolpy_array_take(float *data, int nd, const npy_intp *dims);
+/* Same for any NumPy type number (NPY_UINT32, ...). */
+PyObject *wvolpy_array_take_type(void *data, int nd, const npy_intp *dims, int typenum);
 
 /* Array (nz, ny, nx) (2D when squeeze2d and nz == 1) of a library volume, then destroys v:
  * the samples are handed over without a copy when v owns them, copied otherwise. */

@@ -29,7 +29,8 @@ class Volume:
     origin: tuple = (0.0, 0.0, 0.0)
     labels: Optional[np.ndarray] = None
 
-    def __array__(self, dtype=None):
+    def __array__(self, dtype=None, copy=None):
+        """``np.asarray(volume)`` is its data (no copy unless a dtype conversion is asked)."""
         return self.data if dtype is None else self.data.astype(dtype)
 
     @property
@@ -207,6 +208,32 @@ class Store:
         peak = float(ref.max()) - float(ref.min())
         return ErrorEstimate(l2, l2 / math.sqrt(self.voxels), _psnr(l2, self.voxels, peak),
                              float(np.abs(diff).max()))
+
+    def _c(self, spline_j=None):
+        """The C store over the kept coefficients (built once per spline resolution)."""
+        j = 0 if spline_j is None else int(spline_j)
+        if self._cstore is None or self._cstore[0] != j:
+            cap = _wvol.store_build(self.coeffs, self.wavelet, self.levels, self.shape, spacing=self.spacing,
+                                    origin=self.origin, spline_j=j)
+            self._cstore = (j, cap)
+        return self._cstore[1]
+
+    def info(self):
+        """Numbers of the C store (sparse octree of the kept coefficients): ``kept``,
+        ``nodes``, ``bytes`` (memory it holds), ``bytes_per_coeff``, ``basis_bytes``
+        (spline tables), ``spline_j``..."""
+        return _wvol.store_info(self._c())
+
+    @property
+    def bytes_per_coeff(self):
+        """Memory of the C store per kept coefficient (octree, masks, values, bounds)."""
+        return float(self.info()["bytes_per_coeff"])
+
+    def evaluate(self, points):
+        """The continuous model f^ (sum of the kept coefficients' spline basis functions) at
+        world positions ``points`` ((n, 3), (x, y, z) order); returns ``(values (n,),
+        gradients (n, 3))`` in world units."""
+        return _wvol.store_eval(self._c(), np.atleast_2d(np.asarray(points, dtype=np.float64)))
 
     def reconstruct(self, level=None, box=None):
         """Reconstructs a :class:`Volume` from the kept coefficients.

@@ -151,3 +151,32 @@ def test_reconstruct_refuses_bad_requests():
     s.coeffs = np.zeros((4, 4, 4), np.float32)
     with pytest.raises(ValueError):
         s.reconstruct()
+
+
+def test_c_store_info_and_evaluate():
+    v = wvol.synth.gaussian(shape=(16, 16, 16))
+    s = wvol.compress(v, "haar", 2, keep=0.1)
+    info = s.info()
+    assert info["kept"] <= s.kept and info["kept_lowpass"] == 64        # 16/4 cubed low-pass
+    assert info["bytes"] > 0 and s.bytes_per_coeff == pytest.approx(info["bytes"] / info["kept"])
+    # Haar: f^ is piecewise constant and, at a voxel centre, equals the reconstructed sample
+    k, j, i = np.mgrid[:16, :16, :16]
+    pts = np.stack([i.ravel(), j.ravel(), k.ravel()], 1) * np.array(v.spacing) + np.array(v.origin)
+    val, grad = s.evaluate(pts)
+    assert val.shape == (4096,) and grad.shape == (4096, 3)
+    np.testing.assert_allclose(val, s.reconstruct().data.ravel(), atol=1e-6)   # float32 coefficients
+    with pytest.raises(ValueError):
+        s.evaluate(np.zeros((3, 2)))
+    with pytest.raises(ValueError):
+        s.evaluate([[0.0, np.nan, 0.0]])
+
+
+def test_2d_images_compress_as_one_slice():
+    a = np.random.default_rng(0).random((30, 40), dtype=np.float32)
+    s = wvol.compress(a, "db2", 2, keep=0.3)
+    assert s.shape == (1, 30, 40) and s.coeffs.shape == (1, 32, 40)    # the 1-voxel axis is not transformed
+    assert s.total == 32 * 40 and s.kept == round(0.3 * s.total)
+    assert s.reconstruct().data.shape == (1, 30, 40)
+    assert s.reconstruct(level=1).data.shape == (1, 15, 20)
+    # measured against the 2D original; the prediction bounds it (padding 30 -> 32 rows)
+    assert s.measured_error(a).l2 <= s.predicted_error.l2 * (1 + 1e-4)

@@ -34,11 +34,12 @@ static inline double axis_term(const wvol_lod_ellipsoid *el, int a, double world
     return t * t;
 }
 
-static inline double gauss(const wvol_lod_ellipsoid *el, double d2)
-{
-    double pw = el->power > 1.0 ? el->power : 1.0;
-    return exp(-0.5 * (pw == 1.0 ? d2 : pow(d2, pw)));
-}
+/* The Gaussian (power 1) is separable: the product of three 1D factors, which
+ * the tables below precompute per axis. Other powers go through d^2. Both
+ * wvol_lod_weight and the tables use these same expressions. */
+static inline int separable(const wvol_lod_ellipsoid *el) { return !(el->power > 1.0); }
+static inline double gauss_axis(double t2) { return exp(-0.5 * t2); }
+static inline double gauss_d2(const wvol_lod_ellipsoid *el, double d2) { return exp(-0.5 * pow(d2, el->power)); }
 
 double wvol_lod_weight(const wvol_select_params *prm, const double world[3])
 {
@@ -46,8 +47,8 @@ double wvol_lod_weight(const wvol_select_params *prm, const double world[3])
     if (!prm || prm->n_ellipsoids <= 0) return 1.0;
     for (int e = 0; e < prm->n_ellipsoids && e < WVOL_LOD_MAX_ELLIPSOIDS; e++) {
         const wvol_lod_ellipsoid *el = prm->ellipsoids + e;
-        double d2 = axis_term(el, 0, world[0]) + axis_term(el, 1, world[1]) + axis_term(el, 2, world[2]);
-        double ge = gauss(el, d2);
+        double t0 = axis_term(el, 0, world[0]), t1 = axis_term(el, 1, world[1]), t2 = axis_term(el, 2, world[2]);
+        double ge = separable(el) ? gauss_axis(t0) * gauss_axis(t1) * gauss_axis(t2) : gauss_d2(el, t0 + t1 + t2);
         if (ge > g) g = ge;
     }
     return prm->lod_floor + (1.0 - prm->lod_floor) * g;
@@ -78,13 +79,16 @@ wvol_status wvol__lod_weights(wvol__lodw *out, const wvol_coeffs *c, const wvol_
             return wvol_error_set(err, WVOL_ERR_NOMEM, "level of detail: out of memory");
         }
         out->w[m] = w;
-        /* per ellipsoid and axis: the normalised squared distance of each position's centre */
+        /* per ellipsoid and axis: the normalised squared distance of each position's
+           centre, or for the Gaussian directly its 1D factor */
         for (int e = 0; e < ne; e++)
             for (int a = 0; a < 3; a++) {
+                const wvol_lod_ellipsoid *el = prm->ellipsoids + e;
                 size_t ea = a == 0 ? e0 : a == 1 ? e1 : e2;
                 for (size_t p = 0; p < ea; p++) {
                     double world = c->origin[a] + wvol__support_centre(ly, a, m, p) * c->spacing[a];
-                    t[((size_t)e * 3 + a) * emax + p] = axis_term(prm->ellipsoids + e, a, world);
+                    double tt = axis_term(el, a, world);
+                    t[((size_t)e * 3 + a) * emax + p] = separable(el) ? gauss_axis(tt) : tt;
                 }
             }
 #pragma omp parallel for schedule(static)
@@ -95,8 +99,10 @@ wvol_status wvol__lod_weights(wvol__lodw *out, const wvol_coeffs *c, const wvol_
                 for (size_t p = 0; p < e0; p++) {
                     double g = 0.0;
                     for (int e = 0; e < ne; e++) {
+                        const wvol_lod_ellipsoid *el = prm->ellipsoids + e;
                         const double *te = t + (size_t)e * 3 * emax;
-                        double ge = gauss(prm->ellipsoids + e, te[p] + te[emax + q] + te[2 * emax + r]);
+                        double ge = separable(el) ? te[p] * te[emax + q] * te[2 * emax + r]
+                                                  : gauss_d2(el, te[p] + te[emax + q] + te[2 * emax + r]);
                         if (ge > g) g = ge;
                     }
                     row[p] = (float)(prm->lod_floor + (1.0 - prm->lod_floor) * g);

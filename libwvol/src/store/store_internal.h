@@ -106,11 +106,12 @@ enum { WVOL__PHI = 0, WVOL__PSI = 1, WVOL__DPHI = 2, WVOL__DPSI = 3, WVOL__KINDS
 typedef struct wvol__ranges {
     int pieces;
     int J;
-    double per_unit;       /* 2^J */
+    double per_unit, h;    /* 2^J, 2^-J */
     double support;        /* L - 1 */
     int n;                 /* segment tree leaves (power of 2 >= pieces) */
     double *mn[WVOL__KINDS], *mx[WVOL__KINDS];   /* 2n nodes each */
-    double absmax[WVOL__KINDS];                  /* max |.| over the support */
+    double absmax[WVOL__KINDS];                  /* max |.| over the support (spline model) */
+    double spline_error;                         /* the basis' measured spline error */
 } wvol__ranges;
 
 wvol_status wvol__ranges_build(wvol__ranges *rg, const wvol_basis *b, wvol_error *err);
@@ -118,6 +119,15 @@ void wvol__ranges_free(wvol__ranges *rg);
 /* Range of kind k over local u in [u0, u1] (clipped to the support), widened by
  * one piece each side; empty (u1 < 0 or u0 > support) gives [0, 0]. */
 void wvol__ranges_query(const wvol__ranges *rg, int kind, double u0, double u1, double *lo, double *hi);
+/* max over u of sum_n |B(u + n T)| for a period of T = period_pieces pieces (0:
+ * no copies), plus the spline error per copy for phi and psi: a bound for the
+ * periodized spline and the periodized cascade function alike. */
+double wvol__ranges_periodic_max(const wvol__ranges *rg, int kind, size_t period_pieces);
+
+static inline double wvol__horner3(const double *c, double u) { return c[0] + u * (c[1] + u * (c[2] + u * c[3])); }
+
+static inline double wvol__min(double a, double b) { return a < b ? a : b; }
+static inline double wvol__max(double a, double b) { return a > b ? a : b; }
 
 /* ---- the octree ----------------------------------------------------------------- */
 
@@ -137,6 +147,14 @@ typedef struct wvol__node {
 static inline uint64_t wvol__key(int m, size_t p, size_t q, size_t r)
 {
     return ((uint64_t)m << 57) | ((uint64_t)p << 38) | ((uint64_t)q << 19) | (uint64_t)r;
+}
+
+static inline int wvol__key_level(uint64_t k) { return (int)(k >> 57); }
+static inline void wvol__key_pos(uint64_t k, size_t pos[3])
+{
+    pos[0] = (size_t)(k >> 38) & (WVOL__POS_MAX - 1);
+    pos[1] = (size_t)(k >> 19) & (WVOL__POS_MAX - 1);
+    pos[2] = (size_t)k & (WVOL__POS_MAX - 1);
 }
 
 struct wvol_store {
@@ -159,6 +177,7 @@ struct wvol_store {
     double fvmax[WVOL_SELECT_MAX_LEVELS + 1][8];
     double fgmax[WVOL_SELECT_MAX_LEVELS + 1][8][3];
     double norm[WVOL_SELECT_MAX_LEVELS + 1];  /* 2^{-m d / 2} */
+    double pow2[WVOL_SELECT_MAX_LEVELS + 1], ipow2[WVOL_SELECT_MAX_LEVELS + 1];  /* 2^m, 2^-m */
 };
 
 #endif
