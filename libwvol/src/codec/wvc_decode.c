@@ -246,8 +246,8 @@ static wvol_status decode(wvol_coeffs **out, const uint8_t *buf, size_t avail, c
     for (s = 0; s < L->nsec && bad_sec < 0; s++) {
         const wvc_band *b = &L->sec[s];
         const wvol_wvc_section *S = &I->sections[s];
-        const float step = (float)I->step;
-        const float o1 = (1.0f + S->delta1) * step, d2 = S->delta2;
+        /* in double, rounded once: the only error left beyond the quantiser's is half an ulp */
+        const double step = I->step, o1 = (1.0 + (double)S->delta1) * step, d2 = S->delta2;
         uint64_t nz = 0;
         long z;
         if (s > 0 && b->level <= stop_level) break;
@@ -263,7 +263,7 @@ static wvol_status decode(wvol_coeffs **out, const uint8_t *buf, size_t avail, c
                     memcpy(&v, o + x, sizeof v); /* the int32 the coder stored there */
                     if (v == 0) continue;
                     nz++;
-                    a = (v == 1 || v == -1) ? o1 : ((float)(v < 0 ? -v : v) + d2) * step;
+                    a = (float)((v == 1 || v == -1) ? o1 : ((double)(v < 0 ? -v : v) + d2) * step);
                     a = v < 0 ? -a : a;
                     memcpy(o + x, &a, sizeof a);
                 }
