@@ -10,7 +10,7 @@ echo "== C tests"
 ctest --test-dir build --output-on-failure -j 2
 
 echo "== Python tests"
-PYTHONPATH="$PWD/build/python:$PWD/python${PYTHONPATH:+:$PYTHONPATH}" WVOL_BIN="$PWD/build/wvol" \
+PYTHONPATH="$PWD/build/python${PYTHONPATH:+:$PYTHONPATH}" WVOL_BIN="$PWD/build/wvol" \
   /usr/bin/python3 -m pytest -q tests/python
 
 echo "== C tests under ASan + UBSan"

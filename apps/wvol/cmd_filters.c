@@ -14,17 +14,6 @@ static const cli_opt opts[] = {
     CLI_HELP_OPT,
     {NULL, 0, 0, NULL}};
 
-static const char *family_name(wvol_family f)
-{
-    switch (f) {
-    case WVOL_HAAR: return "haar";
-    case WVOL_DAUBECHIES: return "daubechies";
-    case WVOL_COIFLET: return "coiflet";
-    case WVOL_BATTLE_LEMARIE: return "battle-lemarie";
-    }
-    return "?";
-}
-
 int wvol_cmd_filters(int argc, char **argv)
 {
     cli_parser p;
@@ -56,7 +45,7 @@ int wvol_cmd_filters(int argc, char **argv)
             const wvol_filter *f = wvol_filter_at(i);
             cli_json_open(NULL, '{');
             cli_json_str("name", f->name);
-            cli_json_str("family", family_name(f->family));
+            cli_json_str("family", wvol_family_name(f->family));
             cli_json_int("order", f->order);
             cli_json_int("length", f->length);
             cli_json_open("support", '[');
@@ -84,7 +73,7 @@ int wvol_cmd_filters(int argc, char **argv)
         const wvol_filter *f = wvol_filter_at(i);
         char sup[24];
         snprintf(sup, sizeof sup, "[0,%d]", f->length - 1);
-        printf("%-7s %-15s %5d %-9s %4d %10.2e %9.6f\n", f->name, family_name(f->family), f->length, sup,
+        printf("%-7s %-15s %5d %-9s %4d %10.2e %9.6f\n", f->name, wvol_family_name(f->family), f->length, sup,
                f->vanishing_moments, f->defect, f->center);
         if (taps)
             for (n = 0; n < f->length; n++) printf("    h[%d] = % .17g\n", n, f->h[n]);

@@ -46,8 +46,30 @@ wvol_status wvol_volume_save(const wvol_volume *v, const char *path, wvol_error 
 wvol_status wvol_raw_read(wvol_volume **out, const char *path, const wvol_load_options *opt,
                           wvol_error *err);
 wvol_status wvol_raw_write(const wvol_volume *v, const char *path, wvol_error *err);
+/* NRRD (NRRD0001-0005): attached (.nrrd) or detached (.nhdr + the file its
+ * "data file" names, relative to the header's folder); encodings raw, gzip and
+ * ascii; types int8 .. int64, uint8 .. uint64, float, double, either endianness;
+ * 1 to 3 axes (a 2D image becomes nz = 1). Spacing is the length of each axis's
+ * "space directions" vector (else "spacings", else 1); the origin is "space
+ * origin" (else "axis mins", else 0). The orientation (direction signs, rotation,
+ * the named space) is not kept, as in VTK's vtkNrrdReader. Anything malformed
+ * (missing or repeated fields, bad numbers, sizes that overflow, data shorter or
+ * longer than the sizes say, truncated or corrupt gzip) is refused with a message
+ * naming the file, the line and the problem. docs/datasets.md has the details. */
 wvol_status wvol_nrrd_read(wvol_volume **out, const char *path, wvol_error *err);
+/* Writes float32 samples in raw encoding (same as wvol_nrrd_write_gzip(v, path, 0, err)). */
 wvol_status wvol_nrrd_write(const wvol_volume *v, const char *path, wvol_error *err);
+/* Writes "NRRD0004", type float, dimension 3, space left-posterior-superior,
+ * space directions diag(spacing), space origin, host endianness.
+ * gzip_level 0: raw encoding; 1..9: gzip at that zlib level. For a path ending in
+ * .nhdr the samples go to a detached data file beside it (wvol_nrrd_data_path);
+ * both files are written to temporary names first, and neither is left behind
+ * on failure. */
+wvol_status wvol_nrrd_write_gzip(const wvol_volume *v, const char *path, int gzip_level,
+                                 wvol_error *err);
+/* The data file a detached header gets: "<path minus .nhdr>.raw" (".raw.gz" with
+ * gzip). Writes it into buf; returns 0 if it does not fit in cap bytes. */
+int wvol_nrrd_data_path(char *buf, size_t cap, const char *nhdr_path, int gzip);
 
 /* 1 if the format of this path can be read / written with this build. */
 int wvol_format_supported(const char *path, int for_writing);

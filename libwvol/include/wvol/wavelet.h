@@ -21,7 +21,7 @@ typedef struct wvol_filter {
     char name[16];          /* "haar", "db2", "coif1", "bl3" ... */
     wvol_family family;
     int order;              /* N of dbN / coifN, M of blM (spline order; bl3 = cubic) */
-    int length;             /* taps */
+    int length;             /* taps, always even (bl3: 127 symmetric taps + one zero = 128) */
     const double *h;        /* low-pass, length taps */
     const double *g;        /* high-pass, length taps */
     int vanishing_moments;  /* of psi */
@@ -30,8 +30,11 @@ typedef struct wvol_filter {
 } wvol_filter;
 
 /* Looks a filter up by name ("haar", "db1".."db10", "coif1".."coif5", "bl3").
- * The returned filter is static and never freed. */
+ * The returned filter is static and never freed; lookup is thread-safe (everything
+ * derived is computed once, at first use). docs/wavelets.md has the conventions. */
 wvol_status wvol_filter_get(const wvol_filter **out, const char *name, wvol_error *err);
+/* "haar", "daubechies", "coiflet", "battle-lemarie" ("?" for anything else). */
+const char *wvol_family_name(wvol_family f);
 /* All filters, for listing: index 0..count-1. */
 int wvol_filter_count(void);
 const wvol_filter *wvol_filter_at(int i);
@@ -57,18 +60,36 @@ typedef struct wvol_coeffs {
 typedef enum wvol_pad_mode { WVOL_PAD_EDGE = 0, WVOL_PAD_ZERO, WVOL_PAD_PERIODIC } wvol_pad_mode;
 
 /* Forward transform of a volume (padded as needed, edge-replicate by default).
- * Refuses NaN/Inf naming the first voxel. levels in 1..wvol_dwt_max_levels. */
+ * Refuses NaN/Inf naming the first voxel, and inputs so large that a coefficient
+ * overflows float32 (WVOL_ERR_NONFINITE). levels in 1..wvol_dwt_max_levels. */
 wvol_status wvol_dwt3(wvol_coeffs **out, const wvol_volume *v, const wvol_filter *f, int levels,
                       wvol_error *err);
 wvol_status wvol_dwt3_pad(wvol_coeffs **out, const wvol_volume *v, const wvol_filter *f, int levels,
                           wvol_pad_mode pad, wvol_error *err);
+/* Same with the arithmetic in float64 (use_f64 = 1) before rounding the coefficients
+ * to float32; wvol_dwt3 and wvol_dwt3_pad compute in float32. */
+wvol_status wvol_dwt3_ex(wvol_coeffs **out, const wvol_volume *v, const wvol_filter *f, int levels,
+                         wvol_pad_mode pad, int use_f64, wvol_error *err);
+
+/* Zero coefficients for an nx x ny x nz volume (padded as wvol_dwt3 pads it): for
+ * readers that fill c->data themselves (the CLI's raw coefficient files, the store). */
+wvol_status wvol_coeffs_create(wvol_coeffs **out, const wvol_filter *f, int levels, size_t nx, size_t ny,
+                               size_t nz, wvol_error *err);
+/* Padded size of an axis of n samples for `levels` levels: 1 stays 1, else n rounded up
+ * to a multiple of 2^levels. */
+size_t wvol_dwt_padded_size(size_t n, int levels);
 
 /* Full inverse, cropped back to nx x ny x nz. */
 wvol_status wvol_idwt3(wvol_volume **out, const wvol_coeffs *c, wvol_error *err);
+/* Same with float64 arithmetic (use_f64 = 1). */
+wvol_status wvol_idwt3_ex(wvol_volume **out, const wvol_coeffs *c, int use_f64, wvol_error *err);
 
 /* Coarser volume: undo levels..stop_level+1 only, giving the low-pass cube of
- * level stop_level (size p/2^stop_level, spacing * 2^stop_level, values scaled
- * by 2^{-3 stop_level/2} so they are comparable with the samples). stop_level 0 = full. */
+ * level stop_level s, cropped to the cells that touch the original grid: size
+ * ceil(n/2^s) per transformed axis (1-voxel axes stay 1), spacing * 2^s, values scaled
+ * by 2^{-s/2} per transformed axis (2^{-3s/2} for a full 3D volume) so they are
+ * comparable with the samples, and origin moved to the scaling functions' centres:
+ * origin + spacing * (2^s - 1) * filter->center. stop_level 0 = wvol_idwt3. */
 wvol_status wvol_idwt3_level(wvol_volume **out, const wvol_coeffs *c, int stop_level, wvol_error *err);
 
 /* Reconstruct only the finest-level samples in the box [lo, hi) (voxel indices of
@@ -81,9 +102,12 @@ void wvol_coeffs_destroy(wvol_coeffs *c);
 wvol_status wvol_coeffs_clone(wvol_coeffs **out, const wvol_coeffs *c, wvol_error *err);
 
 /* Index into c->data of coefficient (level, band, p, q, r); positions are within
- * the band's extent (px >> level, ...). */
+ * the band's extent (px >> level, ...; 1 along an untransformed axis). Returns
+ * (size_t)-1 for an invalid request: level outside 1..levels, band 0 below the
+ * coarsest level, a band that is high-pass along an untransformed (1-voxel) axis,
+ * or a position outside the band. */
 size_t wvol_coeffs_index(const wvol_coeffs *c, int level, int band, size_t p, size_t q, size_t r);
-/* Inverse of wvol_coeffs_index. */
+/* Inverse of wvol_coeffs_index (index < px*py*pz; otherwise level is set to 0). */
 void wvol_coeffs_locate(const wvol_coeffs *c, size_t index, int *level, int *band, size_t *p,
                         size_t *q, size_t *r);
 
@@ -98,51 +122,137 @@ wvol_status wvol_dwt3_inplace_f64(double *data, size_t nx, size_t ny, size_t nz,
 wvol_status wvol_idwt3_inplace_f64(double *data, size_t nx, size_t ny, size_t nz, const wvol_filter *f,
                                    int levels, wvol_error *err);
 
-/* 1D periodic single level: n even; out has n values: a[0..n/2) then d[0..n/2). */
+/* 1D periodic single level (the plain reference form, double): n even; out has n
+ * values: a[0..n/2) then d[0..n/2); out must not alias the input. Does nothing when
+ * an argument is NULL or n is odd or < 2. */
 void wvol_dwt1(double *out, const double *x, size_t n, const wvol_filter *f);
 void wvol_idwt1(double *out, const double *ad, size_t n, const wvol_filter *f);
 
 /* ---- basis functions as cubic splines (DESIGN.md section 7) ---------------- */
 
-/* Tables for one family: phi and psi on [0, length-1] sampled by the cascade at
- * x = n / 2^J, then a cubic spline per interval of width 2^-J, stored in monomial
- * form in the local variable u = x - x0 in [0, 2^-J):
- *   value(x0 + u) = c[0] + c[1] u + c[2] u^2 + c[3] u^3
- * plus the primitive (integral from 0) and the derivative as their own pieces.
- * Haar is exact piecewise constant (c[1..3] = 0 and J = 0 for phi... see impl). */
+/* The continuous model of every family except Haar is a cubic spline through the
+ * cascade values of phi (and psi) at the knots x = n / 2^J of [0, length-1], with
+ * periodic end conditions on the support (S'(0) = S'(L-1), S''(0) = S''(L-1)):
+ * the copies of S that end at an integer then cancel the jumps of those that
+ * start there, so sum_p S(x - p) = 1 exactly (a constant volume gives a constant
+ * f^, a constant transfer function integrates exactly) and int S = 1 exactly. The
+ * zero extension is continuous everywhere and C^2 inside the support; at the
+ * support ends the slope jumps by end_slope (db2 5.0, db3 0.43, db4 0.03, below
+ * 1e-4 from db6 and for every Coiflet: measured at J = 6, end_slope in JSON). Haar (and db1, the same
+ * filter) is exact: phi is the box [0,1), psi is +1 on [0,1/2) and -1 on
+ * [1/2,1), stored as constant pieces with J = 1. docs/basis.md has the measured
+ * errors per family and J. */
+
+#define WVOL_BASIS_J_MIN 1
+#define WVOL_BASIS_J_MAX 12
+/* Longest filter the tables accept: evaluation keeps per-axis scratch of this
+ * size on the stack (no allocation in eval paths). */
+#define WVOL_BASIS_MAX_LENGTH 256
+
+enum { WVOL_PHI = 0, WVOL_PSI = 1 };   /* `which` */
+/* `kind` of table: the spline, its derivative, its primitive (integral from 0) */
+typedef enum wvol_basis_kind { WVOL_BASIS_VALUE = 0, WVOL_BASIS_DERIV = 1, WVOL_BASIS_PRIMITIVE = 2 } wvol_basis_kind;
+
+/* Doubles per piece in each kind of table (the derivative is a quadratic whose
+ * c[3] is 0; the primitive is a quartic). */
+#define WVOL_BASIS_VALUE_STRIDE 4
+#define WVOL_BASIS_DERIV_STRIDE 4
+#define WVOL_BASIS_PRIMITIVE_STRIDE 5
+
+/* Tables for one family. Piece i (0 <= i < pieces) covers [i h, (i+1) h) with
+ * h = 2^-J; in the local variable u = x - i h (0 <= u < h, same units as x):
+ *   value(i h + u)     = c[0] + c[1] u + c[2] u^2 + c[3] u^3          c = phi + 4 i
+ *   deriv(i h + u)     = d[0] + d[1] u + d[2] u^2                      d = dphi + 4 i
+ *   primitive(i h + u) = P[0] + P[1] u + ... + P[4] u^4               P = phi_int + 5 i
+ * P[0] is the integral of the spline from 0 to i h (pieces summed exactly).
+ * Breakpoints are i h, i = 0..pieces. Outside [0, support) value and deriv are 0
+ * and the primitive is 0 left of the support and the full integral right of it.
+ * The struct is read-only after creation: share one between threads freely. */
 typedef struct wvol_basis {
     const wvol_filter *filter;
-    int J;                  /* knots per unit = 2^J */
-    int pieces;             /* (length-1) * 2^J */
-    double support;         /* length - 1 */
-    double *phi;            /* pieces * 4 */
-    double *psi;            /* pieces * 4 */
-    double *phi_int;        /* primitive of phi, pieces * 4; phi_int at support = integral */
-    double *psi_int;
-    double *dphi;           /* derivative of the phi spline, pieces * 4 (quadratics) */
-    double *dpsi;
-    double phi_integral, psi_integral;   /* from the spline: ~1 and ~0 */
-    double spline_error;    /* max |spline - cascade at J+2| over phi and psi */
-    double ortho_error;     /* max_k |<phi(.-k), phi> - delta_k| from the spline */
+    int J;                  /* knots per unit = 2^J (Haar: 1, exact) */
+    int exact;              /* 1 for Haar / db1: piecewise constant, no spline */
+    int degree;             /* polynomial degree of the value pieces: 0 (Haar) or 3 */
+    int length;             /* filter taps L; the support is [0, L-1] */
+    int pieces;             /* (L-1) * 2^J */
+    int per_unit;           /* 2^J: pieces per unit of x (per voxel at level 1) */
+    double h, inv_h;        /* 2^-J, 2^J */
+    double support;         /* L - 1 */
+    double center;          /* s = sum_n n h[n] / sqrt(2) = integral of x phi, exact from the filter */
+    double *phi, *psi;      /* pieces * 4 */
+    double *dphi, *dpsi;    /* pieces * 4 */
+    double *phi_int, *psi_int;  /* pieces * 5 */
+    /* checks (DESIGN.md section 7), all from the spline form */
+    double phi_integral, psi_integral;   /* ~1 and ~0 */
+    double center_spline;   /* integral of x * spline(phi): ~center */
+    double spline_error;    /* max of the two below */
+    double spline_error_phi, spline_error_psi;  /* max |spline - cascade at J+2| */
+    double ortho_error;     /* max_k |<phi(.-k), phi> - delta_k| */
+    double ortho_error_psi; /* max_k of |<psi(.-k), psi> - delta_k| and |<phi(.-k), psi>| */
+    /* bounds of the spline model (rigorous, for the store's and the iso tracer's
+     * value and Lipschitz bounds): max |value| and max |derivative| over x */
+    double vmax[2], dmax[2];    /* [WVOL_PHI], [WVOL_PSI] */
+    double abs_integral[2];     /* integral of |spline|: bounds |integral over any interval| */
+    double end_slope[2];        /* |S'(0)| = |S'(L-1)|: the slope jump at the support ends */
 } wvol_basis;
 
-/* Builds the tables (J from 1 to 12). */
+/* Builds the tables for filter f with 2^J knots per unit (J in 1..12; Haar and
+ * db1 ignore J and are exact). Cost O(L^2 2^J); a few ms for db2 at J = 8. */
 wvol_status wvol_basis_create(wvol_basis **out, const wvol_filter *f, int J, wvol_error *err);
-void wvol_basis_destroy(wvol_basis *b);
+void wvol_basis_destroy(wvol_basis *b);   /* NULL is fine */
 
-/* Evaluate phi / psi and derivatives (0 outside the support). which: 0 = phi, 1 = psi. */
+/* Evaluate the spline model: which is WVOL_PHI or WVOL_PSI. O(1), no allocation.
+ * value/deriv are 0 outside [0, support); primitive is the integral from 0 to x. */
 double wvol_basis_value(const wvol_basis *b, int which, double x);
 double wvol_basis_deriv(const wvol_basis *b, int which, double x);
 double wvol_basis_primitive(const wvol_basis *b, int which, double x);
 
+/* Per-piece access for analytic integration (a ray crosses the pieces of three
+ * 1D factors). Index of the piece holding x: floor(x 2^J), or -1 when x is
+ * outside [0, support). Start of piece i: i * b->h. */
+static inline int wvol_basis_piece(const wvol_basis *b, double x)
+{
+    if (!(x >= 0.0) || x >= b->support) return -1;
+    int i = (int)(x * b->inv_h);
+    return i < b->pieces ? i : b->pieces - 1;
+}
+/* Coefficients of piece i of a table, local variable u = x - i h; stride per
+ * kind as above. i must be in [0, pieces). */
+static inline const double *wvol_basis_coeffs(const wvol_basis *b, int which, wvol_basis_kind kind, int i)
+{
+    switch (kind) {
+    case WVOL_BASIS_DERIV: return (which ? b->dpsi : b->dphi) + (size_t)i * WVOL_BASIS_DERIV_STRIDE;
+    case WVOL_BASIS_PRIMITIVE: return (which ? b->psi_int : b->phi_int) + (size_t)i * WVOL_BASIS_PRIMITIVE_STRIDE;
+    default: return (which ? b->psi : b->phi) + (size_t)i * WVOL_BASIS_VALUE_STRIDE;
+    }
+}
+
+/* A cubic c(u) = c0 + c1 u + c2 u^2 + c3 u^3 composed with u = a t + d, as a
+ * cubic in t: out(t) = c(a t + d). (A ray x(t) = alpha t + beta puts the level-m
+ * factor 2^{-m/2} phi(2^{-m} (x + s) - p) on piece i with a = 2^{-m} alpha and
+ * d = 2^{-m} (beta + s) - p - i h.) out may alias c. */
+void wvol_poly3_affine(double out[4], const double c[4], double a, double d);
+
 /* Cascade algorithm: values of phi (which 0) or psi (which 1) at x = n/2^J,
- * n = 0 .. (length-1)*2^J, into out (caller provides that many + 1 values). */
+ * n = 0 .. (length-1)*2^J, into out (caller provides (length-1)*2^J + 1 values).
+ * Method: the integer values phi(1..L-2) are the eigenvector of eigenvalue 1 of
+ * the matrix sqrt(2) h[2k-j] (normalised so they sum to 1, which is the partition
+ * of unity), then the two-scale relation phi(x) = sqrt(2) sum_n h[n] phi(2x-n)
+ * fills in level after level; psi(x) = sqrt(2) sum_n g[n] phi(2x-n). The values
+ * are exact up to rounding at every dyadic point (no iteration to converge).
+ * Haar/db1: the box and the Haar wavelet (right-continuous). J in 0..20. */
 wvol_status wvol_cascade(double *out, const wvol_filter *f, int which, int J, wvol_error *err);
 
 /* f^ and its gradient at a point in voxel coordinates of the original grid
- * (x = i means sample i), from all coefficients of c: f^(x) = sum over the
- * pyramid's basis functions at y = x + center (DESIGN.md section 2), periodic
- * on the padded grid. Exact for the spline model. grad may be NULL. */
+ * (x = i means sample i): f^(x) = sum over the pyramid of c * prod_axes
+ * 2^{-m/2} theta(2^{-m} (x + s) - p), theta = psi on an axis whose bit is set in
+ * the band and phi otherwise, s = b->center, periodic on the padded grid
+ * (DESIGN.md section 2). An axis of extent 1 is not transformed: f^ is constant
+ * along it. Exact for the spline model: per level and band only the (L-1)^3
+ * positions whose support holds the point are visited. grad (may be NULL) gets
+ * d f^/dx in voxel units (divide by the spacing for world units). b must have
+ * been built for c's filter (same taps); otherwise NaN is returned. Thread-safe,
+ * no allocation. */
 double wvol_fhat_eval(const wvol_coeffs *c, const wvol_basis *b, const double x[3], double grad[3]);
 
 #ifdef __cplusplus

@@ -9,4 +9,5 @@
 #include "wvol/io.h"
 #include "wvol/wavelet.h"
 #include "wvol/store.h"
+#include "wvol/analysis.h"
 #endif

@@ -5,6 +5,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include <strings.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 int wvol_path_has_ext(const char *path, const char *ext)
@@ -38,6 +39,13 @@ wvol_status wvol_atomic_open(wvol_atomic_file *f, const char *path, wvol_error *
         f->tmp_path = NULL;
         wvol_atomic_abort(f);
         return wvol_error_set(err, WVOL_ERR_IO, "%s: cannot create output file: %s", path, strerror(e));
+    }
+    /* mkstemp creates the file 0600; give it the mode a plain fopen would (0666
+     * less the umask). Reading the umask means setting it back at once. */
+    {
+        mode_t mask = umask(0);
+        umask(mask);
+        (void)fchmod(fd, 0666 & ~mask); /* on failure the file merely stays private */
     }
     f->fp = fdopen(fd, "wb");
     if (!f->fp) {

@@ -85,6 +85,17 @@ static void init_filters(void)
     nfilters = k;
 }
 
+const char *wvol_family_name(wvol_family f)
+{
+    switch (f) {
+    case WVOL_HAAR: return "haar";
+    case WVOL_DAUBECHIES: return "daubechies";
+    case WVOL_COIFLET: return "coiflet";
+    case WVOL_BATTLE_LEMARIE: return "battle-lemarie";
+    }
+    return "?";
+}
+
 int wvol_filter_count(void)
 {
     pthread_once(&once, init_filters);

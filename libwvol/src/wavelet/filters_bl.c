@@ -33,27 +33,38 @@ int wvol__bl_compute(int order, double tol, double *h, int cap, int *len)
      * NS = 4096 makes aliasing far below double rounding. H is real and even, so the
      * inverse DFT reduces to a cosine sum, done directly (the tap count is small). */
     enum { NS = 4096, NMAX = 200 };
-    double c[NMAX], sum = 0.0;
+    static const double two_pi = 6.283185307179586476925286766559;
+    double c[NMAX], sum = 0.0, *Hs, *ctab;
     int n, j, K = -1;
     if (order != 3 || !h || !len) return -1;
+    Hs = malloc(2 * NS * sizeof *Hs);
+    if (!Hs) return -1;
+    ctab = Hs + NS;
+    for (j = 0; j < NS; j++) {
+        Hs[j] = bl3_H(two_pi * j / NS);
+        ctab[j] = cos(two_pi * j / NS);
+    }
+    /* cos(n w_j) = cos(2 pi (n j mod NS) / NS): a table lookup, exact */
     for (n = 0; n < NMAX; n++) {
         double acc = 0.0;
-        for (j = 0; j < NS; j++) {
-            double w = 2.0 * 3.14159265358979323846 * j / NS;
-            acc += bl3_H(w) * cos(n * w);
-        }
+        for (j = 0; j < NS; j++) acc += Hs[j] * ctab[((size_t)n * (size_t)j) % NS];
         c[n] = acc / NS;
     }
+    free(Hs);
     /* centre tap c[0]; truncate beyond the last |c[n]| >= tol */
     for (n = 0; n < NMAX; n++)
         if (fabs(c[n]) >= tol) K = n;
-    if (K < 0 || K >= NMAX - 1 || 2 * K + 1 > cap) return -1;
+    if (K < 0 || K >= NMAX - 1 || 2 * K + 2 > cap) return -1;
     /* h[K + n] = h[K - n] = c[n]: our filters start at index 0 */
     for (n = -K; n <= K; n++) h[K + n] = c[n < 0 ? -n : n];
     /* The two-scale relation needs sum h = sqrt(2) (phi integrates to 1); truncation
      * moves it by ~1e-10, so rescale. The residual orthonormality defect is reported. */
     for (n = 0; n < 2 * K + 1; n++) sum += h[n];
     for (n = 0; n < 2 * K + 1; n++) h[n] *= sqrt(2.0) / sum;
-    *len = 2 * K + 1;
+    /* One zero tap at the end: the quadrature mirror g[n] = (-1)^n h[L-1-n] is orthogonal
+     * to h only for an even length L (an odd shift), so the 2K+1 symmetric taps become
+     * L = 2K+2 with h[L-1] = 0 (and g[0] = 0). The centre tap stays at index K. */
+    h[2 * K + 1] = 0.0;
+    *len = 2 * K + 2;
     return 0;
 }

@@ -10,11 +10,37 @@
 
 /* Battle-Lemarie filter of spline order `order` (3 = cubic) from its Fourier form,
  * centred (h[K] is the centre tap), truncated where |h| < tol and renormalised to
- * sum sqrt(2). Writes *len <= cap taps; returns 0 on success, -1 if unsupported or
+ * sum sqrt(2), then one zero tap appended (the length must be even for the QMF pair). Writes *len <= cap taps; returns 0 on success, -1 if unsupported or
  * longer than cap. */
 int wvol__bl_compute(int order, double tol, double *h, int cap, int *len);
 
 /* Defect max_k |sum_n h[n] h[n+2k] - delta_k| of a low-pass filter. */
 double wvol__filter_defect(const double *h, int length);
+
+/* Plan of an in-place multi-level transform: validated sizes, scratch per thread. */
+typedef struct dwt_plan {
+    int L;           /* taps */
+    int threads;     /* scratch slots (omp_get_max_threads at plan time) */
+    size_t scratch;  /* values of scratch per thread */
+} dwt_plan;
+
+/* Validates an in-place transform request (n[a] == 1 or a multiple of 2^levels) and
+ * sizes the scratch. */
+wvol_status wvol__dwt_plan(dwt_plan *pl, const void *data, const size_t n[3], const wvol_filter *f,
+                           int levels, size_t elem, wvol_error *err);
+/* Width of the column blocks of the y/z passes for a cube row length cx, n samples
+ * along the axis, L taps: the block's extended copy stays within ~128 KiB. */
+size_t wvol__block_width(size_t cx, size_t n, int L, size_t elem);
+int wvol__thread_id(void);
+/* Validates a coefficient pyramid (sizes consistent with its levels). */
+wvol_status wvol__coeffs_check(const wvol_coeffs *c, wvol_error *err);
+
+/* Inverse of levels..stop+1 only, in place: the corner cube of extent n >> stop then
+ * holds the level-`stop` low-pass coefficients. */
+wvol_status wvol__idwt3_partial_f32(float *data, size_t nx, size_t ny, size_t nz, const wvol_filter *f,
+                                    int levels, int stop, wvol_error *err);
+
+/* Extent of axis a at level m (0 = the padded grid): 1 stays 1. */
+static inline size_t wvol__extent(size_t p, int m) { return p == 1 ? 1 : p >> m; }
 
 #endif

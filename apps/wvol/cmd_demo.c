@@ -1,0 +1,285 @@
+/* wvol demo: the main job, run as a sequence of stages. Each stage is one
+ * function that reads and fills the shared demo state, prints what it did (text
+ * mode) and records its JSON fields; later issues add their stages to the table
+ * (transform, select, render, iso, ...). */
+#define _POSIX_C_SOURCE 200809L
+#include <errno.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+
+#include "cli.h"
+#include "volume_out.h"
+#include "wvol/io.h"
+#include "wvol/store.h"
+#include "wvol/wavelet.h"
+#include "wvol_synth.h"
+
+const char wvol_cmd_demo_summary[] = "run the main job on a skull phantom and say what it made";
+
+static const cli_opt opts[] = {
+    {"out", 0, 1, "output folder (default out/demo)"},
+    {"size", 0, 1, "phantom size N or NXxNYxNZ (default 128)"},
+    {"seed", 0, 1, "phantom seed (default 1)"},
+    CLI_JSON_OPT,
+    CLI_HELP_OPT,
+    {NULL, 0, 0, NULL}};
+
+typedef struct demo {
+    /* options */
+    const char *out_dir;
+    size_t dims[3];
+    uint64_t seed;
+    int json;
+    /* results, filled by the stages */
+    wvol_volume *phantom;
+    double range[3]; /* min, max, mean */
+    volume_out phantom_file;
+    const char *wavelet;
+    int levels;
+    double keep;                 /* fraction of coefficients kept */
+    wvol_coeffs *coeffs;
+    wvol_selection *selection;
+    wvol_select_report report;
+} demo;
+
+typedef struct demo_stage {
+    const char *name;
+    int (*run)(demo *d);              /* returns CLI_OK or an exit code (message printed) */
+    void (*json)(const demo *d);      /* the stage's JSON fields; may be NULL */
+} demo_stage;
+
+/* ---- stage: phantom ------------------------------------------------------- */
+
+static void progress(void *user, double f)
+{
+    (void)user;
+    cli_progress("phantom", f);
+}
+
+static int stage_phantom(demo *d)
+{
+    wvol_synth_params p;
+    wvol_error err;
+    wvol_synth_params_default(&p);
+    memcpy(p.dims, d->dims, sizeof p.dims);
+    p.seed = d->seed;
+    p.progress = progress;
+    wvol_error_clear(&err);
+    if (wvol_synth_skull(&d->phantom, NULL, &p, &err) != WVOL_OK) return cli_fail_err("demo", &err);
+    cli_progress_done();
+    wvol_volume_range(d->phantom, &d->range[0], &d->range[1], &d->range[2]);
+    if (!d->json)
+        printf("phantom  skull %zu x %zu x %zu, spacing %g mm, values %g .. %g HU\n", d->phantom->nx,
+               d->phantom->ny, d->phantom->nz, d->phantom->spacing[0], d->range[0], d->range[1]);
+    return CLI_OK;
+}
+
+static void json_phantom(const demo *d)
+{
+    int a;
+    cli_json_str("kind", "skull");
+    cli_json_open("dims", '[');
+    cli_json_int(NULL, (long long)d->phantom->nx);
+    cli_json_int(NULL, (long long)d->phantom->ny);
+    cli_json_int(NULL, (long long)d->phantom->nz);
+    cli_json_close(']');
+    cli_json_open("spacing", '[');
+    for (a = 0; a < 3; a++) cli_json_num(NULL, d->phantom->spacing[a]);
+    cli_json_close(']');
+    cli_json_num("min", d->range[0]);
+    cli_json_num("max", d->range[1]);
+    cli_json_num("mean", d->range[2]);
+}
+
+/* ---- stage: write ----------------------------------------------------------- */
+
+static int stage_write(demo *d)
+{
+    char path[4096];
+    wvol_error err;
+    if ((size_t)snprintf(path, sizeof path, "%s/skull.nrrd", d->out_dir) >= sizeof path)
+        return cli_fail("demo", "--out %s: path too long", d->out_dir);
+    wvol_error_clear(&err);
+    if (volume_out_save(&d->phantom_file, d->phantom, path, 0, &err) != WVOL_OK) return cli_fail_err("demo", &err);
+    if (!d->json) printf("wrote    %s (%llu bytes, NRRD)\n", path, d->phantom_file.bytes);
+    return CLI_OK;
+}
+
+static void json_write(const demo *d)
+{
+    cli_json_str("file", d->phantom_file.path);
+    cli_json_int("bytes", (long long)d->phantom_file.bytes);
+}
+
+/* ---- stage: transform -------------------------------------------------------- */
+
+static int stage_transform(demo *d)
+{
+    const wvol_filter *f;
+    wvol_error err;
+    wvol_error_clear(&err);
+    if (wvol_filter_get(&f, d->wavelet, &err) != WVOL_OK ||
+        wvol_dwt3(&d->coeffs, d->phantom, f, d->levels, &err) != WVOL_OK)
+        return cli_fail_err("demo", &err);
+    if (!d->json)
+        printf("transform %s, %d levels: %zu x %zu x %zu coefficients (Mallat layout)\n", f->name, d->levels,
+               d->coeffs->px, d->coeffs->py, d->coeffs->pz);
+    return CLI_OK;
+}
+
+static void json_transform(const demo *d)
+{
+    cli_json_str("wavelet", d->coeffs->filter->name);
+    cli_json_int("levels", d->coeffs->levels);
+}
+
+/* ---- stage: select -------------------------------------------------------------- */
+
+static int stage_select(demo *d)
+{
+    wvol_select_params prm = wvol_select_params_default();
+    wvol_error err;
+    const wvol_select_report *r = &d->report;
+    prm.mode = WVOL_SELECT_FRACTION;
+    prm.fraction = d->keep;
+    prm.measure = 1;
+    wvol_error_clear(&err);
+    if (wvol_select(&d->selection, d->coeffs, &prm, d->phantom, &d->report, &err) != WVOL_OK)
+        return cli_fail_err("demo", &err);
+    if (!d->json) {
+        printf("select   kept %zu of %zu coefficients (%.2f%%), energy kept %.6f%%\n", r->kept, r->total,
+               100.0 * (double)r->kept / (double)r->total, 100.0 * r->energy_kept / r->energy_total);
+        printf("error    predicted (Parseval): RMSE %.4g HU, PSNR %.2f dB\n", r->predicted_rmse, r->predicted_psnr);
+        printf("         measured:             RMSE %.4g HU, PSNR %.2f dB, max %.4g HU\n", r->measured_rmse,
+               r->measured_psnr, r->measured_max);
+    }
+    return CLI_OK;
+}
+
+static void json_select(const demo *d)
+{
+    const wvol_select_report *r = &d->report;
+    cli_json_num("keep", d->keep);
+    cli_json_int("kept", (long long)r->kept);
+    cli_json_int("total", (long long)r->total);
+    cli_json_num("predicted_rmse", r->predicted_rmse);
+    cli_json_num("predicted_psnr", r->predicted_psnr);
+    cli_json_num("measured_rmse", r->measured_rmse);
+    cli_json_num("measured_psnr", r->measured_psnr);
+    cli_json_num("measured_max", r->measured_max);
+}
+
+/* ---- the sequence ------------------------------------------------------------ */
+
+static const demo_stage stages[] = {
+    {"phantom", stage_phantom, json_phantom},
+    {"write", stage_write, json_write},
+    {"transform", stage_transform, json_transform},
+    {"select", stage_select, json_select},
+};
+enum { STAGE_COUNT = sizeof stages / sizeof stages[0] };
+
+static void demo_free(demo *d)
+{
+    wvol_selection_destroy(d->selection);
+    wvol_coeffs_destroy(d->coeffs);
+    wvol_volume_destroy(d->phantom);
+}
+
+/* mkdir -p; returns 0 or an errno. */
+static int make_dirs(const char *dir)
+{
+    char buf[4096];
+    size_t n = strlen(dir), i;
+    struct stat st;
+    if (n == 0 || n >= sizeof buf) return ENAMETOOLONG;
+    memcpy(buf, dir, n + 1);
+    for (i = 1; i <= n; i++) {
+        if (buf[i] != '/' && buf[i] != '\0') continue;
+        buf[i] = '\0';
+        if (mkdir(buf, 0777) != 0 && errno != EEXIST) return errno;
+        buf[i] = i < n ? '/' : '\0';
+    }
+    if (stat(dir, &st) != 0) return errno;
+    return S_ISDIR(st.st_mode) ? 0 : ENOTDIR;
+}
+
+int wvol_cmd_demo(int argc, char **argv)
+{
+    cli_parser p;
+    const cli_opt *o;
+    const char *val;
+    int r, s, e, code = CLI_OK;
+    demo d;
+    double t_start, t[STAGE_COUNT];
+
+    memset(&d, 0, sizeof d);
+    d.out_dir = "out/demo";
+    d.dims[0] = d.dims[1] = d.dims[2] = 128;
+    d.seed = 1;
+    d.wavelet = "db2";
+    d.levels = 3;
+    d.keep = 0.05;
+    cli_parser_init(&p, "demo", argc, argv, opts);
+    while ((r = cli_next(&p, &o, &val)) >= 0) {
+        if (r == CLI_USAGE) return CLI_USAGE;
+        if (!o) return cli_usage("demo", "unexpected argument '%s' (see 'wvol demo --help')", val);
+        if (o->short_name == 'h') {
+            cli_print_help("demo", "[--out DIR] [--size N] [--seed S] [--json]",
+                           "The main job: makes a skull-like CT phantom and writes it as NRRD, transforms it\n"
+                           "(db2, 3 levels), keeps 5% of the coefficients and prints the predicted and\n"
+                           "measured error, "
+                           "printing what each stage made and how long it took.", opts);
+            return CLI_OK;
+        } else if (!strcmp(o->name, "json")) {
+            d.json = 1;
+        } else if (!strcmp(o->name, "out")) {
+            if (!*val) return cli_usage("demo", "--out: empty folder name");
+            d.out_dir = val;
+        } else if (!strcmp(o->name, "size")) {
+            size_t bytes;
+            if (!cli_parse_dims("demo", "size", val, d.dims)) return CLI_USAGE;
+            if (!wvol_size_mul3(d.dims[0], d.dims[1], d.dims[2], sizeof(float), &bytes) || bytes > ((size_t)-1 >> 1))
+                return cli_usage("demo", "--size %s: the voxel count overflows the address space", val);
+        } else if (!strcmp(o->name, "seed")) {
+            if (!parse_seed("demo", val, &d.seed)) return CLI_USAGE;
+        }
+    }
+    if ((e = make_dirs(d.out_dir)) != 0) return cli_fail("demo", "cannot create output folder %s: %s", d.out_dir, strerror(e));
+
+    t_start = cli_now();
+    for (s = 0; s < STAGE_COUNT && code == CLI_OK; s++) {
+        double t0 = cli_now();
+        code = stages[s].run(&d);
+        t[s] = cli_now() - t0;
+    }
+    if (code != CLI_OK) {
+        volume_out_remove(&d.phantom_file); /* no half-made results */
+        demo_free(&d);
+        return code;
+    }
+    if (d.json) {
+        cli_json_begin();
+        cli_json_str("command", "demo");
+        cli_json_str("out", d.out_dir);
+        cli_json_open("stages", '[');
+        for (s = 0; s < STAGE_COUNT; s++) {
+            cli_json_open(NULL, '{');
+            cli_json_str("name", stages[s].name);
+            cli_json_num("seconds", t[s]);
+            if (stages[s].json) stages[s].json(&d);
+            cli_json_close('}');
+        }
+        cli_json_close(']');
+        cli_json_num("seconds", cli_now() - t_start);
+        cli_json_end();
+    } else {
+        printf("timings ");
+        for (s = 0; s < STAGE_COUNT; s++) printf(" %s %.2f s,", stages[s].name, t[s]);
+        printf(" total %.2f s\nresults  %s/\n", cli_now() - t_start, d.out_dir);
+    }
+    demo_free(&d);
+    return CLI_OK;
+}

@@ -1,0 +1,118 @@
+#!/usr/bin/env python3
+"""DWT benchmark: forward + inverse 3-level transforms of one float32 volume (default 256^3)
+with haar, db2 and coif1, by libwvol (1 and 2 threads, bench_dwt driver) and by PyWavelets
+(wavedecn / waverecn, mode='periodization', same data, same run), against the copy bound:
+
+    copy bound = bytes a level moves / copy bandwidth, where a level reads and writes the
+    current low-pass cube once per axis (3 axes), summed over levels, forward + inverse:
+    bound = t_copy(whole array) * 2 * 3 * sum_m 8^-(m-1)  (t_copy reads + writes the array once)
+
+Prints the ratios and writes bench/results/dwt.json.
+Usage: /usr/bin/python3 bench/bench_dwt.py [--n 256] [--levels 3] [--reps 3] [--build build]
+"""
+import argparse
+import json
+import os
+import pathlib
+import platform
+import subprocess
+import tempfile
+import time
+
+import numpy as np
+import pywt
+
+ROOT = pathlib.Path(__file__).resolve().parents[1]
+
+
+def cpu_model():
+    try:
+        for line in open("/proc/cpuinfo"):
+            if line.startswith("model name"):
+                return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return platform.processor() or "unknown"
+
+
+def time_pywt(vol, wavelet, levels, reps):
+    best_f = best_i = float("inf")
+    err = 0.0
+    for _ in range(reps):
+        t0 = time.perf_counter()
+        c = pywt.wavedecn(vol, wavelet, mode="periodization", level=levels)
+        t1 = time.perf_counter()
+        r = pywt.waverecn(c, wavelet, mode="periodization")
+        t2 = time.perf_counter()
+        best_f, best_i = min(best_f, t1 - t0), min(best_i, t2 - t1)
+        err = float(np.abs(r - vol).max())
+    return best_f, best_i, err
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--n", type=int, default=256)
+    ap.add_argument("--levels", type=int, default=3)
+    ap.add_argument("--reps", type=int, default=3)
+    ap.add_argument("--pywt-reps", type=int, default=2)
+    ap.add_argument("--threads", default="1,2")
+    ap.add_argument("--wavelets", default="haar,db2,coif1")
+    ap.add_argument("--build", default=str(ROOT / "build"))
+    ap.add_argument("--out", default=str(ROOT / "bench" / "results" / "dwt.json"))
+    args = ap.parse_args()
+
+    n, levels = args.n, args.levels
+    vol = np.random.default_rng(2024).standard_normal((n, n, n)).astype(np.float32)
+    with tempfile.TemporaryDirectory() as tmp:
+        raw = pathlib.Path(tmp) / "vol.raw"
+        vol.tofile(raw)
+        proc = subprocess.run([str(pathlib.Path(args.build) / "bench" / "bench_dwt"), "--n", str(n),
+                               "--levels", str(levels), "--reps", str(args.reps), "--input", str(raw),
+                               "--threads", args.threads, "--wavelets", args.wavelets],
+                              capture_output=True, text=True, check=True)
+    ours = json.loads(proc.stdout)
+    copy = {r["threads"]: r["seconds"] for r in ours["runs"] if r["what"] == "copy"}
+    level_factor = 2 * 3 * sum(8.0 ** -(m - 1) for m in range(1, levels + 1))
+
+    results = []
+    print(f"DWT benchmark: {n}^3 float32, {levels} levels, forward + inverse; {cpu_model()}, "
+          f"{os.cpu_count()} CPUs")
+    print(f"{'wavelet':8} {'thr':>3} {'wvol s':>9} {'pywt s':>9} {'vs pywt':>8} {'bound s':>9} "
+          f"{'/ bound':>8} {'max err':>9}")
+    for name in args.wavelets.split(","):
+        pf, pi, perr = time_pywt(vol, name, levels, args.pywt_reps)
+        for r in ours["runs"]:
+            if r["what"] != "wvol" or r["wavelet"] != name:
+                continue
+            t = r["forward"] + r["inverse"]
+            bound = copy[r["threads"]] * level_factor
+            row = {"wavelet": name, "threads": r["threads"], "wvol_forward_s": r["forward"],
+                   "wvol_inverse_s": r["inverse"], "wvol_s": t, "pywt_forward_s": pf, "pywt_inverse_s": pi,
+                   "pywt_s": pf + pi, "speedup_vs_pywt": (pf + pi) / t, "copy_s": copy[r["threads"]],
+                   "copy_bound_s": bound, "ratio_to_copy_bound": t / bound,
+                   "wvol_max_roundtrip_error": r["max_error"], "pywt_max_roundtrip_error": perr}
+            results.append(row)
+            print(f"{name:8} {r['threads']:3d} {t:9.4f} {pf + pi:9.4f} {row['speedup_vs_pywt']:7.1f}x "
+                  f"{bound:9.4f} {row['ratio_to_copy_bound']:7.2f}x {r['max_error']:9.2e}")
+    one = [r for r in results if r["threads"] == 1]
+    summary = {
+        "goal_10x_pywt_one_thread": all(r["speedup_vs_pywt"] >= 10 for r in one),
+        "goal_within_3x_copy_bound": all(r["ratio_to_copy_bound"] <= 3 for r in results),
+        "min_speedup_vs_pywt_one_thread": min(r["speedup_vs_pywt"] for r in one) if one else None,
+        "max_ratio_to_copy_bound": max(r["ratio_to_copy_bound"] for r in results) if results else None,
+    }
+    print("goals: >= 10x PyWavelets with 1 thread: %s (min %.1fx); within 3x of the copy bound: %s (max %.2fx)"
+          % (summary["goal_10x_pywt_one_thread"], summary["min_speedup_vs_pywt_one_thread"],
+             summary["goal_within_3x_copy_bound"], summary["max_ratio_to_copy_bound"]))
+    out = {"benchmark": "dwt", "n": n, "levels": levels, "dtype": "float32",
+           "machine": {"cpu": cpu_model(), "cpus": os.cpu_count(), "omp_max_threads": ours["max_threads"]},
+           "pywt_version": pywt.__version__, "copy_seconds_by_threads": copy,
+           "copy_bound_factor": level_factor, "results": results, "summary": summary,
+           "when": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())}
+    pathlib.Path(args.out).parent.mkdir(parents=True, exist_ok=True)
+    pathlib.Path(args.out).write_text(json.dumps(out, indent=2) + "\n")
+    print(f"wrote {args.out}")
+
+
+if __name__ == "__main__":
+    main()

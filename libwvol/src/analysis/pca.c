@@ -1,0 +1,97 @@
+/* PCA decorrelation of the feature planes, then min-max normalisation to [0, 1]
+ * (paper section 4.2: the amplitude distribution is unknown, so each component
+ * is scaled straightforwardly by its minimum and maximum). */
+#include "wvol/analysis.h"
+
+#include <lapacke.h>
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+wvol_status wvol_features_pca(wvol_features *f, double variance, double *eigenvalues, wvol_error *err)
+{
+    size_t n;
+    int F, keep;
+    double *mean = NULL, *cov = NULL, *eval = NULL, total = 0, acc = 0;
+    float *out = NULL;
+    wvol_status s = WVOL_OK;
+
+    WVOL_RETURN_IF(!f || !f->data || f->count < 1, err, WVOL_ERR_ARG, "pca: no features");
+    WVOL_RETURN_IF(!(variance > 0 && variance <= 1), err, WVOL_ERR_ARG,
+                   "pca: variance share %g must be in (0, 1]", variance);
+    n = f->nx * f->ny * f->nz;
+    F = f->count;
+    mean = calloc((size_t)F, sizeof *mean);
+    cov = calloc((size_t)F * (size_t)F, sizeof *cov);
+    eval = calloc((size_t)F, sizeof *eval);
+    if (!mean || !cov || !eval) {
+        s = wvol_error_set(err, WVOL_ERR_NOMEM, "pca: out of memory");
+        goto done;
+    }
+    for (int a = 0; a < F; a++) {
+        const float *pa = f->data + (size_t)a * n;
+        double sum = 0;
+        for (size_t i = 0; i < n; i++) sum += pa[i];
+        mean[a] = sum / (double)n;
+    }
+    /* covariance in float64; upper triangle, one pair of planes at a time */
+    #pragma omp parallel for schedule(dynamic)
+    for (int a = 0; a < F; a++) {
+        const float *pa = f->data + (size_t)a * n;
+        for (int b = a; b < F; b++) {
+            const float *pb = f->data + (size_t)b * n;
+            double sum = 0;
+            for (size_t i = 0; i < n; i++) sum += ((double)pa[i] - mean[a]) * ((double)pb[i] - mean[b]);
+            cov[(size_t)a * F + b] = cov[(size_t)b * F + a] = sum / (double)n;
+        }
+    }
+    /* eigenvectors in the columns of cov (row-major: cov[i*F + j] = component j's weight i) */
+    if (LAPACKE_dsyev(LAPACK_ROW_MAJOR, 'V', 'U', F, cov, F, eval) != 0) {
+        s = wvol_error_set(err, WVOL_ERR_INTERNAL, "pca: LAPACK dsyev did not converge");
+        goto done;
+    }
+    /* dsyev sorts ascending; we take components from the last (largest) down */
+    for (int j = 0; j < F; j++) total += eval[j] > 0 ? eval[j] : 0;
+    keep = 0;
+    for (int j = F - 1; j >= 0; j--) {
+        acc += eval[j] > 0 ? eval[j] : 0;
+        keep++;
+        if (total <= 0 || acc >= variance * total - 1e-15 * total) break;
+    }
+    if (eigenvalues)
+        for (int c = 0; c < keep; c++) eigenvalues[c] = eval[F - 1 - c];
+    out = malloc((size_t)keep * n * sizeof(float));
+    if (!out) {
+        s = wvol_error_set(err, WVOL_ERR_NOMEM, "pca: out of memory");
+        goto done;
+    }
+    #pragma omp parallel for schedule(static)
+    for (long ii = 0; ii < (long)n; ii++) {
+        size_t i = (size_t)ii;
+        for (int c = 0; c < keep; c++) {
+            int col = F - 1 - c;
+            double v = 0;
+            for (int a = 0; a < F; a++) v += cov[(size_t)a * F + col] * ((double)f->data[(size_t)a * n + i] - mean[a]);
+            out[(size_t)c * n + i] = (float)v;
+        }
+    }
+    for (int c = 0; c < keep; c++) {
+        float *pc = out + (size_t)c * n, lo = pc[0], hi = pc[0];
+        for (size_t i = 0; i < n; i++) {
+            lo = pc[i] < lo ? pc[i] : lo;
+            hi = pc[i] > hi ? pc[i] : hi;
+        }
+        float inv = hi > lo ? 1.0f / (hi - lo) : 0.0f;
+        for (size_t i = 0; i < n; i++) pc[i] = (pc[i] - lo) * inv;
+    }
+    free(f->data);
+    f->data = out;
+    f->count = keep;
+    out = NULL;
+done:
+    free(mean);
+    free(cov);
+    free(eval);
+    free(out);
+    return s;
+}

@@ -1,0 +1,114 @@
+/* Separable periodic 3D wavelet transform in place (non-standard / Mallat decomposition,
+ * DESIGN.md section 4), float32 and float64, multi-threaded with OpenMP.
+ * Based on: Mallat 1989 (pyramid algorithm); the kernels are in dwt3_impl.h. */
+#include <omp.h>
+#include <stdint.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "wavelet/wavelet_internal.h"
+
+int wvol__thread_id(void) { return omp_get_thread_num(); }
+
+size_t wvol__block_width(size_t cx, size_t n, int L, size_t elem)
+{
+    const size_t budget = 128 * 1024;
+    size_t rows = n + (size_t)L, B = budget / (elem * rows), nb;
+    B = B < 16 ? 16 : B & ~(size_t)15;
+    if (cx <= B) return cx;
+    nb = (cx + B - 1) / B;         /* even blocks: no thin last block */
+    B = (cx + nb - 1) / nb;
+    return (B + 15) & ~(size_t)15;
+}
+
+wvol_status wvol__dwt_plan(dwt_plan *pl, const void *data, const size_t n[3], const wvol_filter *f,
+                           int levels, size_t elem, wvol_error *err)
+{
+    size_t total, need = 0;
+    WVOL_RETURN_IF(!data, err, WVOL_ERR_ARG, "wavelet transform: data is NULL");
+    WVOL_RETURN_IF(!f || !f->h || f->length < 2 || f->length > WVOL__MAX_TAPS, err, WVOL_ERR_ARG,
+                   "wavelet transform: no valid filter given");
+    WVOL_RETURN_IF(levels < 1 || levels > 30, err, WVOL_ERR_ARG,
+                   "wavelet transform: levels = %d (must be at least 1)", levels);
+    WVOL_RETURN_IF(!wvol_size_mul3(n[0], n[1], n[2], elem, &total) || total == 0, err, WVOL_ERR_DIMS,
+                   "wavelet transform: bad size %zu x %zu x %zu", n[0], n[1], n[2]);
+    int transformed = 0;
+    for (int a = 0; a < 3; a++) {
+        if (n[a] == 1) continue;
+        transformed = 1;
+        WVOL_RETURN_IF(n[a] % ((size_t)1 << levels) != 0, err, WVOL_ERR_DIMS,
+                       "wavelet transform: size %zu along %c is not 1 or a multiple of 2^%d = %zu", n[a],
+                       "xyz"[a], levels, (size_t)1 << levels);
+    }
+    WVOL_RETURN_IF(!transformed, err, WVOL_ERR_DIMS, "wavelet transform: a 1 x 1 x 1 volume has no levels");
+    pl->L = f->length;
+    pl->threads = omp_get_max_threads();
+    if (pl->threads < 1) pl->threads = 1;
+    for (int m = 0; m < levels; m++) {
+        size_t cx = wvol__extent(n[0], m);
+        size_t x = 4 * (cx / 2 + (size_t)f->length);
+        if (x > need) need = x;
+        for (int a = 1; a < 3; a++) {
+            size_t na = wvol__extent(n[a], m), B;
+            if (na < 2) continue;
+            B = wvol__block_width(cx, na, f->length, elem);
+            if ((na + (size_t)f->length) * B > need) need = (na + (size_t)f->length) * B;
+        }
+    }
+    pl->scratch = (need + 15) & ~(size_t)15; /* keeps every thread's slot 64-byte apart */
+    WVOL_RETURN_IF(pl->scratch > SIZE_MAX / elem / (size_t)pl->threads, err, WVOL_ERR_NOMEM,
+                   "wavelet transform: scratch size overflows");
+    return WVOL_OK;
+}
+
+/* The kernels are compiled for AVX2+FMA and for the baseline, chosen at load time
+ * (GCC function multi-versioning); the build itself stays portable (no -march). */
+#if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__) && !defined(__SANITIZE_ADDRESS__)
+#define WVOL__KERNEL __attribute__((noinline, target_clones("arch=x86-64-v3", "default")))
+#else
+#define WVOL__KERNEL
+#endif
+
+#define T float
+#define SUF f32
+#include "wavelet/dwt3_impl.h"
+#undef T
+#undef SUF
+#define T double
+#define SUF f64
+#include "wavelet/dwt3_impl.h"
+#undef T
+#undef SUF
+
+wvol_status wvol_dwt3_inplace_f32(float *data, size_t nx, size_t ny, size_t nz, const wvol_filter *f,
+                                  int levels, wvol_error *err)
+{
+    return transform_f32(data, nx, ny, nz, f, levels, 0, 0, err);
+}
+
+wvol_status wvol_idwt3_inplace_f32(float *data, size_t nx, size_t ny, size_t nz, const wvol_filter *f,
+                                   int levels, wvol_error *err)
+{
+    return transform_f32(data, nx, ny, nz, f, levels, 1, 0, err);
+}
+
+wvol_status wvol_dwt3_inplace_f64(double *data, size_t nx, size_t ny, size_t nz, const wvol_filter *f,
+                                  int levels, wvol_error *err)
+{
+    return transform_f64(data, nx, ny, nz, f, levels, 0, 0, err);
+}
+
+wvol_status wvol_idwt3_inplace_f64(double *data, size_t nx, size_t ny, size_t nz, const wvol_filter *f,
+                                   int levels, wvol_error *err)
+{
+    return transform_f64(data, nx, ny, nz, f, levels, 1, 0, err);
+}
+
+wvol_status wvol__idwt3_partial_f32(float *data, size_t nx, size_t ny, size_t nz, const wvol_filter *f,
+                                    int levels, int stop, wvol_error *err)
+{
+    WVOL_RETURN_IF(stop < 0 || stop > levels, err, WVOL_ERR_ARG,
+                   "partial inverse: stop level %d outside 0..%d", stop, levels);
+    if (stop == levels) return WVOL_OK;
+    return transform_f32(data, nx, ny, nz, f, levels, 1, stop, err);
+}

@@ -1,0 +1,15 @@
+/* Method tables of the extension, one per area (py_<area>.c). Add new ones here. */
+#ifndef WVOL_PY_METHODS_H
+#define WVOL_PY_METHODS_H
+#include "wvol/version.h"
+#include <Python.h>
+
+extern PyMethodDef wvolpy_io_methods[];
+extern PyMethodDef wvolpy_wavelet_methods[];
+extern PyMethodDef wvolpy_compress_methods[];
+extern PyMethodDef wvolpy_synth_methods[];
+extern PyMethodDef wvolpy_analysis_methods[];
+extern PyMethodDef wvolpy_store_methods[];
+
+#define WVOLPY_METHOD_TABLES wvolpy_io_methods, wvolpy_wavelet_methods, wvolpy_compress_methods, wvolpy_synth_methods, wvolpy_analysis_methods, wvolpy_store_methods
+#endif

@@ -1,0 +1,152 @@
+/* compress: forward transform + coefficient selection (wvol/store.h) in one call. */
+#include "pyutil.h"
+#include "methods.h"
+
+#include <math.h>
+#include <string.h>
+
+static const struct {
+    const char *name;
+    wvol_select_mode mode;
+} select_modes[] = {{"all", WVOL_SELECT_ALL},           {"count", WVOL_SELECT_COUNT},
+                    {"fraction", WVOL_SELECT_FRACTION}, {"energy", WVOL_SELECT_ENERGY},
+                    {"threshold", WVOL_SELECT_THRESHOLD}, {"psnr", WVOL_SELECT_PSNR}};
+
+/* roi: a sequence of (center, radii[, power]) with center/radii in (x, y, z) world units. */
+static int parse_roi(PyObject *roi, wvol_select_params *prm)
+{
+    PyObject *seq;
+    Py_ssize_t n;
+    if (roi == Py_None) return 0;
+    seq = PySequence_Fast(roi, "roi must be a sequence of (center, radii[, power]) tuples");
+    if (!seq) return -1;
+    n = PySequence_Fast_GET_SIZE(seq);
+    if (n > WVOL_LOD_MAX_ELLIPSOIDS) {
+        PyErr_Format(PyExc_ValueError, "roi: at most %d ellipsoids, got %zd", WVOL_LOD_MAX_ELLIPSOIDS, n);
+        goto fail;
+    }
+    for (Py_ssize_t i = 0; i < n; i++) {
+        PyObject *c = NULL, *r = NULL;
+        double power = 1.0;
+        wvol_lod_ellipsoid *e = &prm->ellipsoids[i];
+        if (!PyArg_ParseTuple(PySequence_Fast_GET_ITEM(seq, i), "OO|d;roi entry must be (center, radii[, power])",
+                              &c, &r, &power))
+            goto fail;
+        if (wvolpy_triple(c, e->center, "roi center") < 0 || wvolpy_triple(r, e->radii, "roi radii") < 0) goto fail;
+        e->power = power;
+    }
+    prm->n_ellipsoids = (int)n;
+    Py_DECREF(seq);
+    return 0;
+fail:
+    Py_DECREF(seq);
+    return -1;
+}
+
+static PyObject *report_dict(const wvol_select_report *r)
+{
+    PyObject *lk = PyList_New(r->levels + 1), *lt = PyList_New(r->levels + 1);
+    PyObject *le = PyList_New(r->levels + 1), *lek = PyList_New(r->levels + 1);
+    if (!lk || !lt || !le || !lek) goto fail;
+    for (int m = 0; m <= r->levels; m++) {
+        PyList_SET_ITEM(lk, m, PyLong_FromSize_t(r->level_kept[m]));
+        PyList_SET_ITEM(lt, m, PyLong_FromSize_t(m == 0 ? r->kept_lowpass : r->level_total[m]));
+        PyList_SET_ITEM(le, m, PyFloat_FromDouble(r->level_energy[m]));
+        PyList_SET_ITEM(lek, m, PyFloat_FromDouble(r->level_energy_kept[m]));
+    }
+    return Py_BuildValue("{s:n,s:n,s:n,s:n,s:d,s:d,s:d,s:d,s:d,s:d,s:d,s:d,s:i,s:d,s:d,s:d,s:d,s:N,s:N,s:N,s:N}",
+                         "total", (Py_ssize_t)r->total, "kept", (Py_ssize_t)r->kept, "kept_lowpass",
+                         (Py_ssize_t)r->kept_lowpass, "candidates", (Py_ssize_t)r->candidates, "key_cut",
+                         r->key_cut, "energy_total", r->energy_total, "energy_kept", r->energy_kept,
+                         "energy_dropped", r->energy_dropped, "predicted_l2", r->predicted_l2, "predicted_rmse",
+                         r->predicted_rmse, "predicted_psnr", r->predicted_psnr, "peak", r->peak, "measured",
+                         r->measured, "measured_l2", r->measured_l2, "measured_rmse", r->measured_rmse,
+                         "measured_psnr", r->measured_psnr, "measured_max", r->measured_max, "level_kept", lk,
+                         "level_total", lt, "level_energy", le, "level_energy_kept", lek);
+fail:
+    Py_XDECREF(lk);
+    Py_XDECREF(lt);
+    Py_XDECREF(le);
+    Py_XDECREF(lek);
+    return NULL;
+}
+
+static PyObject *py_compress(PyObject *self, PyObject *args, PyObject *kw)
+{
+    static char *kwlist[] = {"array", "wavelet", "levels", "mode", "value", "drop_levels", "roi", "roi_floor",
+                             "spacing", "origin", "measure", NULL};
+    PyObject *arr_obj, *roi = Py_None, *sp = Py_None, *org = Py_None, *out = NULL, *rep_obj;
+    const char *name = "db2", *mode = "all";
+    int levels = 3, drop = 0, measure = 0;
+    double value = 0, floor_ = 0;
+    PyArrayObject *holder;
+    wvol_volume v;
+    const wvol_filter *f;
+    wvol_coeffs *c = NULL;
+    wvol_selection *sel = NULL;
+    wvol_select_params prm = wvol_select_params_default();
+    wvol_select_report rep;
+    wvol_error err;
+    wvol_status s;
+    size_t i;
+    (void)self;
+    if (!PyArg_ParseTupleAndKeywords(args, kw, "O|sisdiOdOOp", kwlist, &arr_obj, &name, &levels, &mode, &value,
+                                     &drop, &roi, &floor_, &sp, &org, &measure))
+        return NULL;
+    for (i = 0; i < sizeof select_modes / sizeof select_modes[0]; i++)
+        if (strcmp(mode, select_modes[i].name) == 0) break;
+    if (i == sizeof select_modes / sizeof select_modes[0])
+        return PyErr_Format(PyExc_ValueError,
+                            "unknown selection mode '%s' (all, count, fraction, energy, threshold, psnr)", mode);
+    prm.mode = select_modes[i].mode;
+    if (!isfinite(value)) return PyErr_Format(PyExc_ValueError, "selection value must be finite");
+    switch (prm.mode) {
+    case WVOL_SELECT_COUNT:
+        if (value < 0 || value > 1.8e19) return PyErr_Format(PyExc_ValueError, "keep_count must be >= 0");
+        prm.count = (size_t)value;
+        break;
+    case WVOL_SELECT_FRACTION: prm.fraction = value; break;
+    case WVOL_SELECT_ENERGY: prm.energy = value; break;
+    case WVOL_SELECT_THRESHOLD: prm.threshold = value; break;
+    case WVOL_SELECT_PSNR: prm.psnr = value; break;
+    default: break;
+    }
+    prm.drop_levels = drop;
+    prm.lod_floor = floor_;
+    prm.measure = measure;
+    if (parse_roi(roi, &prm) < 0) return NULL;
+    if (wvol_filter_get(&f, name, &err) != WVOL_OK) return wvolpy_raise(&err);
+    if (wvolpy_as_volume(arr_obj, &v, &holder, 0) < 0) return NULL;
+    if (wvolpy_triple(sp, v.spacing, "spacing") < 0 || wvolpy_triple(org, v.origin, "origin") < 0) {
+        Py_DECREF(holder);
+        return NULL;
+    }
+    Py_BEGIN_ALLOW_THREADS
+    s = wvol_volume_set_geometry(&v, v.spacing, v.origin, &err);
+    if (s == WVOL_OK) s = wvol_dwt3(&c, &v, f, levels, &err);
+    if (s == WVOL_OK) s = wvol_select(&sel, c, &prm, &v, &rep, &err);
+    if (s == WVOL_OK) s = wvol_selection_apply(sel, c, &err);
+    Py_END_ALLOW_THREADS
+    Py_DECREF(holder);
+    wvol_selection_destroy(sel);
+    if (s != WVOL_OK) {
+        wvol_coeffs_destroy(c);
+        return wvolpy_raise(&err);
+    }
+    rep_obj = report_dict(&rep);
+    if (rep_obj) {
+        npy_intp dims[3] = {(npy_intp)c->pz, (npy_intp)c->py, (npy_intp)c->px};
+        PyObject *a = wvolpy_array_take(c->data, 3, dims);
+        c->data = NULL;
+        out = a ? Py_BuildValue("NN", a, rep_obj) : NULL;
+        if (!a) Py_DECREF(rep_obj);
+    }
+    wvol_coeffs_destroy(c);
+    return out;
+}
+
+PyMethodDef wvolpy_compress_methods[] = {
+    {"compress", (PyCFunction)(void (*)(void))py_compress, METH_VARARGS | METH_KEYWORDS,
+     "compress(array, wavelet='db2', levels=3, mode='all', value=0, drop_levels=0, roi=None, roi_floor=0,\n"
+     "         spacing=None, origin=None, measure=False) -> (kept coefficients with the rest zeroed, report)"},
+    {NULL, NULL, 0, NULL}};

@@ -1,0 +1,214 @@
+#include "pyutil.h"
+
+#include <stdlib.h>
+#include <string.h>
+
+static void free_capsule(PyObject *cap)
+{
+    free(PyCapsule_GetPointer(cap, "wvol.buffer"));
+}
+
+PyObject *wvolpy_array_take(float *data, int nd, const npy_intp *dims)
+{
+    return wvolpy_array_take_type(data, nd, dims, NPY_FLOAT32);
+}
+
+PyObject *wvolpy_array_take_type(void *data, int nd, const npy_intp *dims, int typenum)
+{
+    PyObject *a, *cap;
+    a = PyArray_SimpleNewFromData(nd, (npy_intp *)dims, typenum, data);
+    if (!a) {
+        free(data);
+        return NULL;
+    }
+    cap = PyCapsule_New(data, "wvol.buffer", free_capsule);
+    if (!cap) {
+        Py_DECREF(a);
+        free(data);
+        return NULL;
+    }
+    if (PyArray_SetBaseObject((PyArrayObject *)a, cap) < 0) { /* steals cap (freed on failure) */
+        Py_DECREF(a);
+        return NULL;
+    }
+    return a;
+}
+
+PyObject *wvolpy_volume_take(wvol_volume *v, int squeeze2d)
+{
+    PyObject *a;
+    npy_intp dims[3] = {(npy_intp)v->nz, (npy_intp)v->ny, (npy_intp)v->nx};
+    int nd = squeeze2d && v->nz == 1 ? 2 : 3;
+    if (!v->owns || !v->data) {
+        a = wvolpy_volume_to_array(v, squeeze2d);
+        wvol_volume_destroy(v);
+        return a;
+    }
+    {
+        float *data = v->data;
+        v->data = NULL;
+        v->owns = 0;
+        wvol_volume_destroy(v);
+        return wvolpy_array_take(data, nd, dims + (3 - nd));
+    }
+}
+
+int wvolpy_as_coeffs(PyObject *arr, const char *wavelet, int levels, PyObject *shape, PyObject *spacing,
+                     PyObject *origin, wvol_coeffs *c, PyArrayObject **holder)
+{
+    wvol_volume v;
+    wvol_error err;
+    Py_ssize_t sz, sy, sx;
+    memset(c, 0, sizeof *c);
+    *holder = NULL;
+    if (!PyArg_ParseTuple(shape, "nnn;shape must be (nz, ny, nx)", &sz, &sy, &sx)) return -1;
+    if (wvol_filter_get(&c->filter, wavelet, &err) != WVOL_OK) {
+        wvolpy_raise(&err);
+        return -1;
+    }
+    if (levels < 1 || levels > 30) {
+        PyErr_Format(PyExc_ValueError, "levels must be in 1..30, got %d", levels);
+        return -1;
+    }
+    if (sx < 1 || sy < 1 || sz < 1) {
+        PyErr_Format(PyExc_ValueError, "shape (%zd, %zd, %zd) must be positive", sz, sy, sx);
+        return -1;
+    }
+    c->spacing[0] = c->spacing[1] = c->spacing[2] = 1.0;
+    if (wvolpy_triple(spacing, c->spacing, "spacing") < 0 || wvolpy_triple(origin, c->origin, "origin") < 0)
+        return -1;
+    if (wvolpy_as_volume(arr, &v, holder, 1) < 0) return -1;
+    c->levels = levels;
+    c->nx = (size_t)sx;
+    c->ny = (size_t)sy;
+    c->nz = (size_t)sz;
+    c->px = v.nx;
+    c->py = v.ny;
+    c->pz = v.nz;
+    c->data = v.data;
+    if (c->px != wvol_dwt_padded_size(c->nx, levels) || c->py != wvol_dwt_padded_size(c->ny, levels) ||
+        c->pz != wvol_dwt_padded_size(c->nz, levels)) {
+        PyErr_Format(PyExc_ValueError,
+                     "coefficient array shape (%zu, %zu, %zu) is not the padded size of shape (%zd, %zd, %zd) "
+                     "for %d levels", c->pz, c->py, c->px, sz, sy, sx, levels);
+        Py_CLEAR(*holder);
+        return -1;
+    }
+    return 0;
+}
+
+PyObject *wvolpy_raise(const wvol_error *err)
+{
+    PyObject *type;
+    switch (err->status) {
+    case WVOL_ERR_IO:
+    case WVOL_ERR_FORMAT: type = PyExc_OSError; break;
+    case WVOL_ERR_NOMEM: type = PyExc_MemoryError; break;
+    case WVOL_ERR_UNSUPPORTED: type = PyExc_NotImplementedError; break;
+    case WVOL_ERR_INTERNAL: type = PyExc_RuntimeError; break;
+    default: type = PyExc_ValueError; break;
+    }
+    PyErr_SetString(type, err->message[0] ? err->message : wvol_status_string(err->status));
+    return NULL;
+}
+
+int wvolpy_as_volume(PyObject *obj, wvol_volume *out, PyArrayObject **holder, int check_finite)
+{
+    PyArrayObject *arr;
+    PyArray_Descr *dt;
+    int nd;
+    npy_intp *shape;
+    *holder = NULL;
+    memset(out, 0, sizeof *out);
+    if (!PyArray_Check(obj)) {
+        PyObject *tmp = PyArray_FROM_O(obj);
+        if (!tmp) return -1;
+        Py_DECREF(tmp);
+    }
+    arr = (PyArrayObject *)PyArray_FROM_O(obj);
+    if (!arr) return -1;
+    dt = PyArray_DESCR(arr);
+    if (!(dt->kind == 'f' || dt->kind == 'i' || dt->kind == 'u') || dt->elsize > 8) {
+        PyErr_Format(PyExc_TypeError, "expected an array of real numbers (float or integer), got dtype %S",
+                     (PyObject *)dt);
+        Py_DECREF(arr);
+        return -1;
+    }
+    nd = PyArray_NDIM(arr);
+    if (nd != 2 && nd != 3) {
+        PyErr_Format(PyExc_ValueError, "expected a 3D (z, y, x) or 2D (y, x) array, got %d dimensions", nd);
+        Py_DECREF(arr);
+        return -1;
+    }
+    if (PyArray_SIZE(arr) == 0) {
+        PyErr_SetString(PyExc_ValueError, "the array is empty");
+        Py_DECREF(arr);
+        return -1;
+    }
+    {
+        PyArrayObject *f = (PyArrayObject *)PyArray_FROM_OTF((PyObject *)arr, NPY_FLOAT32,
+                                                             NPY_ARRAY_IN_ARRAY | NPY_ARRAY_FORCECAST);
+        Py_DECREF(arr);
+        if (!f) return -1;
+        arr = f;
+    }
+    shape = PyArray_DIMS(arr);
+    out->nx = (size_t)shape[nd - 1];
+    out->ny = (size_t)shape[nd - 2];
+    out->nz = nd == 3 ? (size_t)shape[0] : 1;
+    out->spacing[0] = out->spacing[1] = out->spacing[2] = 1.0;
+    out->data = (float *)PyArray_DATA(arr);
+    out->owns = 0;
+    if (check_finite) {
+        wvol_error err;
+        if (wvol_check_finite(out->data, out->nx, out->ny, out->nz, "array", &err) != WVOL_OK) {
+            Py_DECREF(arr);
+            wvolpy_raise(&err);
+            return -1;
+        }
+    }
+    *holder = arr;
+    return 0;
+}
+
+PyObject *wvolpy_volume_to_array(const wvol_volume *v, int squeeze2d)
+{
+    npy_intp dims[3] = {(npy_intp)v->nz, (npy_intp)v->ny, (npy_intp)v->nx};
+    PyObject *a;
+    if (squeeze2d && v->nz == 1)
+        a = PyArray_SimpleNew(2, dims + 1, NPY_FLOAT32);
+    else
+        a = PyArray_SimpleNew(3, dims, NPY_FLOAT32);
+    if (!a) return NULL;
+    memcpy(PyArray_DATA((PyArrayObject *)a), v->data, v->nx * v->ny * v->nz * sizeof(float));
+    return a;
+}
+
+int wvolpy_triple(PyObject *obj, double out[3], const char *what)
+{
+    PyObject *seq;
+    if (obj == NULL || obj == Py_None) return 0;
+    if (PyNumber_Check(obj)) {
+        double v = PyFloat_AsDouble(obj);
+        if (PyErr_Occurred()) return -1;
+        out[0] = out[1] = out[2] = v;
+        return 0;
+    }
+    seq = PySequence_Fast(obj, "expected a number or a sequence of 3 numbers");
+    if (!seq) return -1;
+    if (PySequence_Fast_GET_SIZE(seq) != 3) {
+        PyErr_Format(PyExc_ValueError, "%s: expected 3 values (x, y, z), got %zd", what,
+                     PySequence_Fast_GET_SIZE(seq));
+        Py_DECREF(seq);
+        return -1;
+    }
+    for (int a = 0; a < 3; a++) {
+        out[a] = PyFloat_AsDouble(PySequence_Fast_GET_ITEM(seq, a));
+        if (PyErr_Occurred()) {
+            Py_DECREF(seq);
+            return -1;
+        }
+    }
+    Py_DECREF(seq);
+    return 0;
+}

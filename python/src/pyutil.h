@@ -1,0 +1,50 @@
+/* Shared helpers of the extension: errors as exceptions, arrays as volumes. */
+#ifndef WVOL_PY_UTIL_H
+#define WVOL_PY_UTIL_H
+
+#define PY_SSIZE_T_CLEAN
+#include <Python.h>
+#define NO_IMPORT_ARRAY
+#define PY_ARRAY_UNIQUE_SYMBOL wvol_ARRAY_API
+#include <numpy/arrayobject.h>
+
+#include "wvol/wvol.h"
+
+/* Raises the Python exception matching err's status (ValueError for arguments and
+ * data, OSError for files, MemoryError, NotImplementedError for missing features,
+ * RuntimeError for internal errors) with the library's message; returns NULL. */
+PyObject *wvolpy_raise(const wvol_error *err);
+
+/* Views a NumPy array (3D (z, y, x) or 2D (y, x) => nz = 1) as a float32 volume.
+ * Float32 C-contiguous arrays are used without a copy; other real dtypes or layouts
+ * are converted (a copy). *holder receives the array that owns the memory (DECREF it
+ * after use). Refuses empty arrays, wrong ndim, non-real dtypes; checks NaN/Inf
+ * when check_finite. spacing/origin may be NULL (1 and 0). Returns 0 on success,
+ * -1 with an exception set. */
+int wvolpy_as_volume(PyObject *obj, wvol_volume *out, PyArrayObject **holder, int check_finite);
+
+/* New float32 array (nz, ny, nx) copying v's samples (2D (ny, nx) when squeeze2d and nz == 1). */
+PyObject *wvolpy_volume_to_array(const wvol_volume *v, int squeeze2d);
+
+/* Float32 array of nd dims (C order) over malloc'ed memory, taking ownership: the array
+ * frees it with free() when it dies (no copy). On failure frees data and returns NULL. */
+PyObject *wvolpy_array_take(float *data, int nd, const npy_intp *dims);
+/* Same for any NumPy type number (NPY_UINT32, ...). */
+PyObject *wvolpy_array_take_type(void *data, int nd, const npy_intp *dims, int typenum);
+
+/* Array (nz, ny, nx) (2D when squeeze2d and nz == 1) of a library volume, then destroys v:
+ * the samples are handed over without a copy when v owns them, copied otherwise. */
+PyObject *wvolpy_volume_take(wvol_volume *v, int squeeze2d);
+
+/* Maps a padded Mallat coefficient array (z, y, x) onto *c (no copy for float32
+ * C-contiguous input): wavelet by name, levels, the original shape (nz, ny, nx) as a
+ * Python sequence, spacing/origin (x, y, z; None = 1 / 0). Checks that the array's
+ * shape is the padded size of `shape` for `levels` and refuses NaN/Inf. *holder owns
+ * the memory (DECREF after use). Returns 0, or -1 with an exception set. */
+int wvolpy_as_coeffs(PyObject *arr, const char *wavelet, int levels, PyObject *shape, PyObject *spacing,
+                     PyObject *origin, wvol_coeffs *c, PyArrayObject **holder);
+
+/* Parses an optional 3-sequence of floats (x, y, z order); returns 0 or -1 with exception. */
+int wvolpy_triple(PyObject *obj, double out[3], const char *what);
+
+#endif

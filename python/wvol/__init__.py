@@ -1,0 +1,360 @@
+"""wvol: volume rendering and isosurfaces in wavelet space (Python interface to libwvol).
+
+Arrays are NumPy float32 in C order indexed (z, y, x): ``a[k, j, i]`` is voxel (i, j, k)
+of the library (x fastest). 2D images are (y, x). Spacing and origin are given in
+(x, y, z) order, like the command line. Errors raise ValueError (bad arguments or
+data), OSError (files), MemoryError or NotImplementedError (feature not built).
+"""
+import math
+from dataclasses import dataclass, field
+from typing import NamedTuple, Optional
+
+import numpy as np
+
+from . import _wvol
+
+__version__ = _wvol.version
+
+__all__ = ["Volume", "load", "save", "filters", "dwt3", "idwt3", "Coeffs", "compress", "Store", "ErrorEstimate",
+           "synth", "segment", "Segmentation", "features"]
+
+
+@dataclass
+class Volume:
+    """A volume with its geometry: ``data`` is (z, y, x) float32; spacing/origin are (x, y, z)
+    world units (sample ``data[k, j, i]`` sits at ``origin + (i, j, k) * spacing``).
+    ``labels`` (optional, int32, same shape) is a ground-truth label map (synthetic volumes)."""
+    data: np.ndarray
+    spacing: tuple = (1.0, 1.0, 1.0)
+    origin: tuple = (0.0, 0.0, 0.0)
+    labels: Optional[np.ndarray] = None
+
+    def __array__(self, dtype=None, copy=None):
+        """``np.asarray(volume)`` is its data (no copy unless a dtype conversion is asked)."""
+        return self.data if dtype is None else self.data.astype(dtype)
+
+    @property
+    def shape(self):
+        return self.data.shape
+
+
+def _data(vol):
+    return vol.data if isinstance(vol, Volume) else vol
+
+
+def load(path, dims=None, dtype="float32", grid=None, big_endian=False):
+    """Reads a volume file (.raw needs ``dims=(nx, ny, nz)``; .nrrd, .vdb, .vti, ... carry theirs).
+
+    Returns a :class:`Volume`.
+    """
+    data, spacing, origin = _wvol.load(path, dims=dims, dtype=dtype, grid=grid, big_endian=big_endian)
+    return Volume(data, spacing, origin)
+
+
+def save(vol, path, spacing=None, origin=None):
+    """Writes a volume (array or :class:`Volume`); the format follows the extension."""
+    if isinstance(vol, Volume):
+        spacing = vol.spacing if spacing is None else spacing
+        origin = vol.origin if origin is None else origin
+    _wvol.save(_data(vol), str(path), spacing=spacing, origin=origin)
+
+
+def filters():
+    """The wavelet filters: a list of dicts (name, taps, h, vanishing_moments, defect, center)."""
+    return _wvol.filters()
+
+
+@dataclass
+class Coeffs:
+    """A multi-level 3D transform in Mallat layout on the padded grid (z, y, x)."""
+    data: np.ndarray
+    wavelet: str
+    levels: int
+    shape: tuple = field(default=())
+
+
+def dwt3(vol, wavelet="db2", levels=3):
+    """Forward separable 3D periodic transform (float32 arithmetic, edge-replicate padding
+    to multiples of ``2**levels``); returns :class:`Coeffs`. ``wavelet`` is a name of
+    :func:`filters` ("haar", "db1".."db10", "coif1".."coif5", "bl3")."""
+    data, info = _wvol.dwt3(_data(vol), wavelet=wavelet, levels=levels)
+    return Coeffs(data, info["wavelet"], info["levels"], info["shape"])
+
+
+def idwt3(coeffs):
+    """Inverse of :func:`dwt3`, cropped back to the original shape (a (z, y, x) array)."""
+    return _wvol.idwt3(coeffs.data, coeffs.wavelet, coeffs.levels, tuple(coeffs.shape))
+
+
+# ---- compression: selection of coefficients, the store ---------------------------------
+
+class ErrorEstimate(NamedTuple):
+    """Reconstruction error: ``l2`` = ||f - f~||_2 over the voxels, ``rmse`` = l2 / sqrt(voxels),
+    ``psnr`` in dB with peak = data range (inf when nothing is lost), ``max`` = max |f - f~|
+    (None for predictions, which come from Parseval and carry no maximum)."""
+    l2: float
+    rmse: float
+    psnr: float
+    max: Optional[float] = None
+
+
+def _geometry(vol, spacing, origin):
+    if isinstance(vol, Volume):
+        spacing = vol.spacing if spacing is None else spacing
+        origin = vol.origin if origin is None else origin
+    return (tuple(float(v) for v in spacing) if spacing is not None else (1.0, 1.0, 1.0),
+            tuple(float(v) for v in origin) if origin is not None else (0.0, 0.0, 0.0))
+
+
+def _psnr(l2, n, peak):
+    if l2 == 0:
+        return math.inf
+    if not peak > 0:
+        return math.nan
+    return 20.0 * math.log10(peak / (l2 / math.sqrt(n)))
+
+
+def _box_bounds(box, shape):
+    """Box as (z, y, x) slices or (start, stop) pairs -> lo, hi in (x, y, z) order."""
+    if len(box) != 3:
+        raise ValueError(f"box must give 3 ranges (z, y, x), got {len(box)}")
+    lo, hi = [], []
+    for ax, (r, n) in enumerate(zip(box, shape)):
+        if isinstance(r, slice):
+            if r.step not in (None, 1):
+                raise ValueError("box slices must have step 1")
+            start, stop, _ = r.indices(n)
+        else:
+            start, stop = (int(v) for v in r)
+        if not 0 <= start < stop <= n:
+            raise ValueError(f"box: axis {'zyx'[ax]} range [{start}, {stop}) must be non-empty and inside [0, {n})")
+        lo.append(start)
+        hi.append(stop)
+    return tuple(lo[::-1]), tuple(hi[::-1])
+
+
+class Store:
+    """Compressed wavelet representation of a volume: the kept coefficients of a
+    ``levels``-level transform (the others are zero), made by :func:`compress` or read by
+    :func:`open`.
+
+    Attributes: ``coeffs`` (padded Mallat array, (z, y, x), dropped coefficients zero),
+    ``wavelet``, ``levels``, ``shape`` (original (z, y, x)), ``spacing`` / ``origin``
+    ((x, y, z) world units), ``kept`` and ``total`` (coefficient counts, the low-pass cube
+    included in ``kept``), ``value_range`` (min, max of the original samples), ``report``
+    (the selection's numbers, a dict).
+    """
+
+    def __init__(self, coeffs, wavelet, levels, shape, spacing, origin, report, value_range,
+                 original=None, file_info=None):
+        self.coeffs = coeffs
+        self.wavelet = wavelet
+        self.levels = int(levels)
+        self.shape = tuple(int(v) for v in shape)
+        self.spacing = tuple(spacing)
+        self.origin = tuple(origin)
+        self.report = report
+        self.value_range = tuple(value_range)
+        self.file_info = file_info
+        self._original = original
+        self._cstore = None
+
+    def __repr__(self):
+        e = self.predicted_error
+        return (f"<wvol.Store {self.wavelet} levels={self.levels} shape={self.shape} kept={self.kept}/"
+                f"{self.total} predicted PSNR {e.psnr:.2f} dB>")
+
+    @property
+    def kept(self):
+        """Kept coefficients, the low-pass cube included."""
+        return int(self.report["kept"])
+
+    @property
+    def total(self):
+        """All coefficients of the padded grid."""
+        return int(self.report["total"])
+
+    @property
+    def voxels(self):
+        """Samples of the original grid."""
+        return int(np.prod(self.shape))
+
+    @property
+    def peak(self):
+        """Data range used for PSNR."""
+        return float(self.value_range[1] - self.value_range[0])
+
+    @property
+    def predicted_error(self):
+        """:class:`ErrorEstimate` from Parseval: the energy of what was dropped (and, for a
+        store read from a .wvc file, the quantisation error its header records). Over the
+        padded grid, so an upper bound of the error over the original voxels."""
+        l2 = math.sqrt(max(self.report["energy_dropped"], 0.0))
+        return ErrorEstimate(l2, l2 / math.sqrt(self.voxels), _psnr(l2, self.voxels, self.peak))
+
+    def measured_error(self, original=None):
+        """:class:`ErrorEstimate` of the full reconstruction against ``original`` (array or
+        :class:`Volume`; default: the volume this store was compressed from, when known)."""
+        ref = self._original if original is None else _data(original)
+        if ref is None:
+            raise ValueError("measured_error: no original volume (pass original=...)")
+        ref = np.asarray(ref)
+        if ref.shape != self.shape and ref.reshape(-1).size == self.voxels:
+            ref = ref.reshape(self.shape)
+        if ref.shape != self.shape:
+            raise ValueError(f"measured_error: original shape {ref.shape} differs from the store's {self.shape}")
+        diff = self.reconstruct().data.astype(np.float64) - ref.astype(np.float64)
+        l2 = float(np.sqrt(np.sum(diff * diff)))
+        peak = float(ref.max()) - float(ref.min())
+        return ErrorEstimate(l2, l2 / math.sqrt(self.voxels), _psnr(l2, self.voxels, peak),
+                             float(np.abs(diff).max()))
+
+    def _c(self, spline_j=None):
+        """The C store over the kept coefficients (built once per spline resolution)."""
+        j = 0 if spline_j is None else int(spline_j)
+        if self._cstore is None or self._cstore[0] != j:
+            cap = _wvol.store_build(self.coeffs, self.wavelet, self.levels, self.shape, spacing=self.spacing,
+                                    origin=self.origin, spline_j=j)
+            self._cstore = (j, cap)
+        return self._cstore[1]
+
+    def info(self):
+        """Numbers of the C store (sparse octree of the kept coefficients): ``kept``,
+        ``nodes``, ``bytes`` (memory it holds), ``bytes_per_coeff``, ``basis_bytes``
+        (spline tables), ``spline_j``..."""
+        return _wvol.store_info(self._c())
+
+    @property
+    def bytes_per_coeff(self):
+        """Memory of the C store per kept coefficient (octree, masks, values, bounds)."""
+        return float(self.info()["bytes_per_coeff"])
+
+    def evaluate(self, points):
+        """The continuous model f^ (sum of the kept coefficients' spline basis functions) at
+        world positions ``points`` ((n, 3), (x, y, z) order); returns ``(values (n,),
+        gradients (n, 3))`` in world units."""
+        return _wvol.store_eval(self._c(), np.atleast_2d(np.asarray(points, dtype=np.float64)))
+
+    def reconstruct(self, level=None, box=None):
+        """Reconstructs a :class:`Volume` from the kept coefficients.
+
+        ``level=None`` (or 0): the full-resolution volume. ``level=s`` (1..levels): the
+        coarser level-s volume, ``ceil(n / 2**s)`` samples per axis, spacing ``* 2**s``,
+        values comparable with the samples (docs/wavelets.md). ``box``: only that brick of
+        the full-resolution volume, given as (z, y, x) slices or (start, stop) pairs, e.g.
+        ``np.s_[0:8, 4:20, :]``; it equals ``reconstruct().data[box]`` to float32 rounding
+        and is computed from only the coefficients that reach it.
+        """
+        if box is not None and level not in (None, 0):
+            raise ValueError("reconstruct: give level or box, not both")
+        args = (self.coeffs, self.wavelet, self.levels, self.shape)
+        if box is not None:
+            lo, hi = _box_bounds(box, self.shape)
+            data, origin = _wvol.idwt3_brick(*args, lo, hi, spacing=self.spacing, origin=self.origin)
+            return Volume(data, self.spacing, origin)
+        if level in (None, 0):
+            return Volume(_wvol.idwt3(*args), self.spacing, self.origin)
+        if not isinstance(level, (int, np.integer)):
+            raise TypeError(f"level must be an integer, got {type(level).__name__}")
+        data, spacing, origin = _wvol.idwt3_level(*args, int(level), spacing=self.spacing, origin=self.origin)
+        return Volume(data, spacing, origin)
+
+
+_MODES = ("keep", "keep_count", "energy", "psnr", "threshold")
+
+
+def compress(vol, wavelet="db2", levels=3, *, keep=None, keep_count=None, energy=None, psnr=None,
+             threshold=None, roi=None, roi_floor=0.1, drop_levels=0, spacing=None, origin=None):
+    """Transforms a volume and keeps its most important coefficients; returns a :class:`Store`.
+
+    ``vol``: a (z, y, x) array or a :class:`Volume` (float32 C-order arrays are read in place).
+    At most one criterion (none: keep every coefficient):
+
+    - ``keep=0.05``: the largest 5% of all coefficients;
+    - ``keep_count=K``: the K largest (the low-pass cube counts);
+    - ``energy=0.999``: the fewest whose energy is 99.9% of the total;
+    - ``psnr=50``: drop the most that keep the predicted PSNR (peak = data range) >= 50 dB;
+    - ``threshold=t``: those with weighted magnitude > t.
+
+    ``roi``: regions of interest, a list of ``(center, radii)`` or ``(center, radii, power)``
+    with center and radii in (x, y, z) world units: coefficients are ranked by
+    ``|c| * w`` with ``w = roi_floor + (1 - roi_floor) * max G(x)`` over the Gaussian
+    ellipsoids G (super-Gaussian for power > 1). ``drop_levels``: the finest levels dropped
+    entirely. Ranking is by magnitude; the low-pass cube is always kept.
+    """
+    given = [(n, v) for n, v in zip(_MODES, (keep, keep_count, energy, psnr, threshold)) if v is not None]
+    if len(given) > 1:
+        raise ValueError("compress: give at most one of keep, keep_count, energy, psnr, threshold")
+    mode, value = "all", 0.0
+    if given:
+        name, value = given[0]
+        mode = {"keep": "fraction", "keep_count": "count"}.get(name, name)
+        if name == "keep_count":
+            if isinstance(value, float) and not value.is_integer():
+                raise ValueError("keep_count must be an integer")
+            if int(value) < 0:
+                raise ValueError("keep_count must be >= 0")
+        value = float(value)
+    spacing, origin = _geometry(vol, spacing, origin)
+    arr = _data(vol)
+    if roi is not None and not isinstance(roi, (list, tuple)):
+        raise TypeError("roi must be a list of (center, radii[, power]) tuples")
+    coeffs, report = _wvol.compress(arr, wavelet=wavelet, levels=levels, mode=mode, value=value,
+                                    drop_levels=drop_levels, roi=roi, roi_floor=roi_floor,
+                                    spacing=spacing, origin=origin)
+    a = np.asarray(arr)
+    value_range = (float(a.min()), float(a.max()))
+    name = wavelet.lower() if isinstance(wavelet, str) else wavelet
+    shape = a.shape if a.ndim == 3 else (1,) + a.shape
+    return Store(coeffs, name, levels, shape, spacing, origin, report, value_range, original=arr)
+
+
+
+# ---- analysis: segmentation in wavelet space ---------------------------------------------
+
+@dataclass
+class Segmentation:
+    """Result of :func:`segment`: ``labels`` (z, y, x) int32 = winning neuron per voxel,
+    ``colors`` (z, y, x, 3) float32 = its RGB colour from the lattice position (in [0, 1]),
+    ``classes`` (z, y, x) int32 = ground-truth class each neuron was given (only when
+    ``truth`` was passed), ``score`` = {"error_all", "error_interior", "interior"} (only with
+    ``truth``), and the sizes ``features`` (raw), ``components`` (after PCA), ``neurons``."""
+    labels: np.ndarray
+    colors: np.ndarray
+    classes: Optional[np.ndarray]
+    score: Optional[dict]
+    features: int
+    components: int
+    neurons: int
+
+
+def segment(vol, wavelet="db2", levels=3, *, smooth=1, include_lowpass=True, variance=1.0, som=(4, 4, 4),
+            iterations=20000, seed=1, truth=None, train_mask=None, boundary=None):
+    """Segments a volume (or 2D image) with wavelet features and a 3D Kohonen map.
+
+    Per voxel: the magnitude of every detail band of each of ``levels`` levels (box-averaged
+    over ``smooth`` coarse samples) and each level's low-pass value, interpolated to the
+    voxel -> PCA keeping ``variance`` of the total -> min-max normalised -> a Kohonen map of
+    ``som`` = (a, b, c) neurons trained on ``iterations`` samples (deterministic for
+    ``seed``) -> winner neuron and colour per voxel. With ``truth`` (int class ids >= 0, the
+    volume's shape) each neuron takes the majority class of the voxels it wins among
+    ``train_mask`` (bool, default all voxels), giving ``classes`` and a ``score``
+    (misclassified share overall and away from boundaries of radius ``boundary``, default
+    ``2**levels``). Returns a :class:`Segmentation`.
+    """
+    r = _wvol.segment(_data(vol), wavelet=wavelet, levels=levels, smooth=smooth,
+                      include_lowpass=bool(include_lowpass), variance=variance, som=tuple(som),
+                      iterations=iterations, seed=seed, truth=truth, train_mask=train_mask,
+                      boundary=-1 if boundary is None else boundary)
+    return Segmentation(**r)
+
+
+def features(vol, wavelet="db2", levels=3, *, smooth=1, include_lowpass=True, pca=None):
+    """The per-voxel wavelet feature planes of :func:`segment`, as a (count, z, y, x) float32
+    array. ``pca=v`` (in (0, 1]) projects onto the principal components explaining share v
+    of the variance and normalises each to [0, 1] (as :func:`segment` does)."""
+    return _wvol.features(_data(vol), wavelet=wavelet, levels=levels, smooth=smooth,
+                          include_lowpass=bool(include_lowpass), variance=pca)
+
+
+from . import synth  # noqa: E402  (wvol.synth.*: needs Volume defined above)

@@ -1,0 +1,66 @@
+"""The Python package: load/save, filters, dwt3/idwt3, errors as exceptions."""
+import numpy as np
+import pytest
+import pywt
+
+import wvol
+
+
+def test_save_load_roundtrip_keeps_values_and_geometry(tmp_path):
+    a = np.random.default_rng(0).random((5, 6, 7), dtype=np.float32)
+    p = tmp_path / "a.raw"
+    wvol.save(a, p)
+    v = wvol.load(p, dims=(7, 6, 5))
+    assert v.data.shape == (5, 6, 7)
+    assert np.array_equal(v.data, a)
+
+
+def test_filters_match_pywavelets():
+    by_name = {f["name"]: f for f in wvol.filters()}
+    for name in ("haar", "db2", "db4", "coif1", "coif3"):
+        ours = np.array(by_name[name]["h"])
+        ref = np.array(pywt.Wavelet(name).rec_lo)
+        assert ours.shape == ref.shape
+        assert np.abs(ours - ref).max() < 1e-12, name
+
+
+@pytest.mark.parametrize("wavelet", ["haar", "db2", "coif1", "bl3"])
+def test_dwt3_roundtrip_odd_shape(wavelet):
+    a = np.random.default_rng(1).standard_normal((9, 10, 11)).astype(np.float32)
+    c = wvol.dwt3(a, wavelet, 2)
+    assert c.data.shape == (12, 12, 12)  # padded to multiples of 2^2
+    back = wvol.idwt3(c)
+    # float32 transform: rounding ~ levels * taps * eps * range
+    assert np.abs(back - a).max() < 1e-4 * np.abs(a).max()
+
+
+def test_dwt3_parseval_without_padding():
+    a = np.random.default_rng(2).standard_normal((16, 16, 16)).astype(np.float32)
+    c = wvol.dwt3(a, "db2", 3)
+    e_in = np.sum(a.astype(np.float64) ** 2)
+    e_out = np.sum(c.data.astype(np.float64) ** 2)
+    assert abs(e_in - e_out) < 1e-5 * e_in
+
+
+def test_noncontiguous_and_integer_arrays_are_accepted():
+    a = np.arange(16 * 16 * 32, dtype=np.int32).reshape(16, 16, 32)[:, :, ::2]
+    c = wvol.dwt3(a, "haar", 1)
+    back = wvol.idwt3(c)
+    assert np.abs(back - a).max() < 1e-3 * a.max()
+
+
+@pytest.mark.parametrize("bad, exc", [
+    (lambda: wvol.save(np.zeros((0, 3, 3)), "/tmp/wvol_never.raw"), ValueError),
+    (lambda: wvol.save(np.array([[1.0, np.nan]]), "/tmp/wvol_never.raw"), ValueError),
+    (lambda: wvol.save(np.array([["a"]]), "/tmp/wvol_never.raw"), TypeError),
+    (lambda: wvol.load("/nonexistent/x.raw", dims=(1, 1, 1)), OSError),
+    (lambda: wvol.load("/tmp", dims=(0, 1, 1)), ValueError),
+    (lambda: wvol.dwt3(np.zeros((8, 8, 8)), "db99"), ValueError),
+    (lambda: wvol.dwt3(np.zeros((8, 8, 8)), "db2", 9), ValueError),
+    (lambda: wvol.dwt3(np.zeros(5)), ValueError),
+    (lambda: wvol.dwt3(np.zeros((2, 2, 2, 2))), ValueError),
+    (lambda: wvol.dwt3(np.zeros((4, 4), dtype=complex)), TypeError),
+])
+def test_bad_input_raises(bad, exc):
+    with pytest.raises(exc):
+        bad()
