@@ -14,8 +14,22 @@ import pytest
 
 from conftest import WVOL_BIN
 
-vtk = pytest.importorskip("vtk")
-from vtk.util.numpy_support import numpy_to_vtk, vtk_to_numpy  # noqa: E402
+# Only the VTK modules used here: importing the whole `vtk` package registers every
+# reader factory, after which vtkNrrdReader in test_nrrd_vtk.py reads no scalars when
+# both files run in one pytest process.
+import types  # noqa: E402
+
+from vtkmodules.util.numpy_support import numpy_to_vtk, vtk_to_numpy  # noqa: E402
+from vtkmodules.vtkCommonDataModel import vtkImageData  # noqa: E402
+from vtkmodules.vtkCommonMath import vtkMatrix4x4  # noqa: E402
+from vtkmodules.vtkFiltersSources import vtkSphereSource  # noqa: E402
+from vtkmodules.vtkIOImage import vtkMetaImageWriter, vtkNIFTIImageWriter  # noqa: E402
+from vtkmodules.vtkIOLegacy import vtkPolyDataWriter, vtkStructuredPointsWriter  # noqa: E402
+from vtkmodules.vtkIOXML import vtkXMLImageDataWriter, vtkXMLPolyDataReader  # noqa: E402
+
+vtk = types.SimpleNamespace(**{c.__name__: c for c in (
+    vtkImageData, vtkMatrix4x4, vtkSphereSource, vtkMetaImageWriter, vtkNIFTIImageWriter,
+    vtkPolyDataWriter, vtkStructuredPointsWriter, vtkXMLImageDataWriter, vtkXMLPolyDataReader)})
 
 
 # ---------------------------------------------------------------- helpers
