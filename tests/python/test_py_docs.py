@@ -8,7 +8,7 @@ ROOT = pathlib.Path(__file__).resolve().parents[2]
 
 
 def _example():
-    text = (ROOT / "docs" / "python.md").read_text()
+    text = (ROOT / "docs" / "python.md").read_text(encoding="utf-8")
     m = re.search(r"<!-- readme-example[^>]*-->\s*```python\n(.*?)```", text, re.S)
     assert m, "docs/python.md lost its marked example"
     return m.group(1)

@@ -10,5 +10,6 @@
 #include "wvol/wavelet.h"
 #include "wvol/iso.h"
 #include "wvol/store.h"
+#include "wvol/wvc.h"
 #include "wvol/analysis.h"
 #endif
