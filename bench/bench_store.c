@@ -103,7 +103,7 @@ int main(int argc, char **argv)
 
     /* rays through the volume along random directions, box queries of 8^3 bricks, point evaluations */
     wvol_store_hits hits = {0};
-    size_t nrays = 2000, total = 0;
+    size_t small = n < 128, nrays = small ? 100 : 2000, total = 0;
     t0 = now();
     for (size_t r = 0; r < nrays; r++) {
         double o[3], d[3], len = 0;
@@ -113,7 +113,7 @@ int main(int argc, char **argv)
         total += hits.count;
     }
     double t_ray = now() - t0;
-    size_t nbox = 2000, btotal = 0;
+    size_t nbox = small ? 100 : 2000, btotal = 0;
     t0 = now();
     for (size_t b = 0; b < nbox; b++) {
         double lo[3], hi[3];
@@ -130,7 +130,7 @@ int main(int argc, char **argv)
         wvol_store_box_bounds(st, lo, hi, &bd, NULL);
     }
     double t_bounds = now() - t0;
-    size_t npts = 100000;
+    size_t npts = small ? 2000 : 100000;
     double acc = 0;
     t0 = now();
     for (size_t i = 0; i < npts; i++) {

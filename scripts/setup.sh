@@ -17,7 +17,7 @@ if [ ${#missing[@]} -gt 0 ]; then
 fi
 
 BUILD=${WVOL_BUILD_DIR:-build}
-cmake -S . -B "$BUILD" -DCMAKE_BUILD_TYPE=Release -DWVOL_WITH_OPENVDB=AUTO -DWVOL_WITH_VTK=AUTO \
+cmake -S . -B "$BUILD" -DCMAKE_BUILD_TYPE=Release -DWVOL_WITH_OPENVDB=ON -DWVOL_WITH_VTK=ON \
       -DWVOL_WERROR="${WVOL_WERROR:-OFF}" ${WVOL_CMAKE_ARGS:-} > "$BUILD.configure.log" 2>&1 \
   || { cat "$BUILD.configure.log"; exit 1; }
 cmake --build "$BUILD" -j "$(nproc)"

@@ -15,7 +15,7 @@ PYTHONPATH="$PWD/build/python${PYTHONPATH:+:$PYTHONPATH}" WVOL_BIN="$PWD/build/w
 
 echo "== C tests under ASan + UBSan"
 cmake -S . -B build-asan -DCMAKE_BUILD_TYPE=Debug -DWVOL_SANITIZE=ON -DWVOL_WERROR=ON \
-      -DWVOL_BUILD_PYTHON=OFF -DWVOL_WITH_OPENVDB=AUTO -DWVOL_WITH_VTK=AUTO > build-asan.configure.log 2>&1 \
+      -DWVOL_BUILD_PYTHON=OFF -DWVOL_WITH_OPENVDB=ON -DWVOL_WITH_VTK=ON > build-asan.configure.log 2>&1 \
   || { cat build-asan.configure.log; exit 1; }
 cmake --build build-asan -j "$(nproc)"
 ASAN_OPTIONS=detect_leaks=1 UBSAN_OPTIONS=print_stacktrace=1 \

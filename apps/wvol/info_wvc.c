@@ -1,8 +1,147 @@
+/* wvol info FILE.wvc: header, sizes, ratio, predicted error, per-level counts and energies. */
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+
 #include "cli.h"
 #include "info_wvc.h"
+#include "wvol/wvc.h"
+
+static const char *coder_name(int c)
+{
+    return c == WVOL_WVC_CODER_CABAC ? "cabac" : c == WVOL_WVC_CODER_ZSTD ? "zstd" : "empty";
+}
 
 int wvol_cli_info_wvc(const char *path, int json)
 {
-    (void)json;
-    return cli_fail("info", "%s: .wvc stores are not supported by this build yet", path);
+    wvol_error err;
+    wvol_wvc_info *I = malloc(sizeof *I);
+    double nvox, raw, ratio, bpv, sse, rmse, psnr;
+    uint64_t count = 0;
+    int s, m;
+    if (!I) return cli_fail("info", "out of memory");
+    wvol_error_clear(&err);
+    if (wvol_wvc_read_info(I, path, &err) != WVOL_OK) {
+        free(I);
+        return cli_fail_err("info", &err);
+    }
+    nvox = (double)I->nx * (double)I->ny * (double)I->nz;
+    raw = nvox * 4.0;
+    ratio = raw / (double)I->file_bytes;
+    bpv = 8.0 * (double)I->file_bytes / nvox;
+    sse = I->sse + I->dropped_energy;
+    rmse = sqrt(sse / nvox);
+    psnr = wvol_wvc_psnr(sse, nvox, I->value_min, I->value_max);
+    for (s = 0; s < I->nsections; s++) count += I->sections[s].count;
+    if (json) {
+        cli_json_begin();
+        cli_json_str("file", path);
+        cli_json_str("format", "wvc");
+        cli_json_int("version", I->version);
+        cli_json_str("wavelet", I->filter);
+        cli_json_int("levels", I->levels);
+        cli_json_open("dims", '[');
+        cli_json_int(NULL, (long long)I->nx);
+        cli_json_int(NULL, (long long)I->ny);
+        cli_json_int(NULL, (long long)I->nz);
+        cli_json_close(']');
+        cli_json_open("padded", '[');
+        cli_json_int(NULL, (long long)I->px);
+        cli_json_int(NULL, (long long)I->py);
+        cli_json_int(NULL, (long long)I->pz);
+        cli_json_close(']');
+        cli_json_open("spacing", '[');
+        for (int a = 0; a < 3; a++) cli_json_num(NULL, I->spacing[a]);
+        cli_json_close(']');
+        cli_json_open("origin", '[');
+        for (int a = 0; a < 3; a++) cli_json_num(NULL, I->origin[a]);
+        cli_json_close(']');
+        cli_json_num("value_min", I->value_min);
+        cli_json_num("value_max", I->value_max);
+        cli_json_int("bytes", (long long)I->file_bytes);
+        cli_json_int("header_bytes", (long long)I->header_bytes);
+        cli_json_int("raw_bytes", (long long)raw);
+        cli_json_num("ratio", ratio);
+        cli_json_num("bits_per_voxel", bpv);
+        cli_json_num("step", I->step);
+        cli_json_num("rounding", I->rounding);
+        cli_json_int("coefficients", (long long)count);
+        cli_json_int("nonzero", (long long)I->nonzero);
+        cli_json_num("energy", I->energy + I->dropped_energy);
+        cli_json_num("dropped_energy", I->dropped_energy);
+        cli_json_num("quantisation_sse", I->sse);
+        cli_json_num("predicted_rmse", rmse);
+        cli_json_num("predicted_psnr", isfinite(psnr) ? psnr : 999);
+        cli_json_open("levels_detail", '[');
+        for (int k = 0; k <= I->levels; k++) {
+            m = k == 0 ? 0 : I->levels + 1 - k;
+            uint64_t n = 0, nz = 0, by = 0;
+            double e = 0, er = 0;
+            for (s = 0; s < I->nsections; s++) {
+                const wvol_wvc_section *S = &I->sections[s];
+                if ((m == 0 && S->band == 0) || (m > 0 && S->band != 0 && S->level == m)) {
+                    n += S->count, nz += S->nonzero, by += S->bytes, e += S->energy, er += S->error;
+                }
+            }
+            cli_json_open(NULL, '{');
+            cli_json_str("part", m == 0 ? "lowpass" : "detail");
+            cli_json_int("level", m == 0 ? I->levels : m);
+            cli_json_int("coefficients", (long long)n);
+            cli_json_int("nonzero", (long long)nz);
+            cli_json_int("bytes", (long long)by);
+            cli_json_num("energy", e);
+            cli_json_num("error", er);
+            cli_json_close('}');
+        }
+        cli_json_close(']');
+        cli_json_open("sections", '[');
+        for (s = 0; s < I->nsections; s++) {
+            const wvol_wvc_section *S = &I->sections[s];
+            cli_json_open(NULL, '{');
+            cli_json_int("level", S->level);
+            cli_json_int("band", S->band);
+            cli_json_str("coder", coder_name(S->coder));
+            cli_json_int("bytes", (long long)S->bytes);
+            cli_json_int("coefficients", (long long)S->count);
+            cli_json_int("nonzero", (long long)S->nonzero);
+            cli_json_num("energy", S->energy);
+            cli_json_num("error", S->error);
+            cli_json_close('}');
+        }
+        cli_json_close(']');
+        cli_json_end();
+    } else {
+        printf("file       %s (.wvc version %d)\n", path, I->version);
+        printf("wavelet    %s, %d levels\n", I->filter, I->levels);
+        printf("dims       %zu x %zu x %zu (padded %zu x %zu x %zu)\n", I->nx, I->ny, I->nz, I->px, I->py, I->pz);
+        printf("spacing    %g %g %g\n", I->spacing[0], I->spacing[1], I->spacing[2]);
+        printf("origin     %g %g %g\n", I->origin[0], I->origin[1], I->origin[2]);
+        printf("range      %g .. %g\n", I->value_min, I->value_max);
+        printf("size       %llu bytes (header %llu), ratio %.1f against float32, %.4f bits/voxel\n",
+               (unsigned long long)I->file_bytes, (unsigned long long)I->header_bytes, ratio, bpv);
+        printf("quantiser  step %.6g, rounding %.3g, %llu of %llu coefficients non-zero\n", I->step, I->rounding,
+               (unsigned long long)I->nonzero, (unsigned long long)count);
+        printf("predicted  RMSE %.6g, PSNR %.3f dB (dropped energy %.6g + quantisation %.6g)\n", rmse, psnr,
+               I->dropped_energy, I->sse);
+        printf("%-9s %12s %12s %10s %14s %14s\n", "level", "coeffs", "non-zero", "bytes", "energy", "error");
+        for (int k = 0; k <= I->levels; k++) {
+            m = k == 0 ? 0 : I->levels + 1 - k;
+            uint64_t n = 0, nz = 0, by = 0;
+            double e = 0, er = 0;
+            for (s = 0; s < I->nsections; s++) {
+                const wvol_wvc_section *S = &I->sections[s];
+                if ((m == 0 && S->band == 0) || (m > 0 && S->band != 0 && S->level == m)) {
+                    n += S->count, nz += S->nonzero, by += S->bytes, e += S->energy, er += S->error;
+                }
+            }
+            if (m == 0)
+                printf("low-pass  %12llu %12llu %10llu %14.6g %14.6g\n", (unsigned long long)n, (unsigned long long)nz,
+                       (unsigned long long)by, e, er);
+            else
+                printf("%-9d %12llu %12llu %10llu %14.6g %14.6g\n", m, (unsigned long long)n, (unsigned long long)nz,
+                       (unsigned long long)by, e, er);
+        }
+    }
+    free(I);
+    return CLI_OK;
 }

@@ -29,7 +29,8 @@ class Volume:
     origin: tuple = (0.0, 0.0, 0.0)
     labels: Optional[np.ndarray] = None
 
-    def __array__(self, dtype=None):
+    def __array__(self, dtype=None, copy=None):
+        """``np.asarray(volume)`` is its data (no copy unless a dtype conversion is asked)."""
         return self.data if dtype is None else self.data.astype(dtype)
 
     @property

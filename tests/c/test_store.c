@@ -297,10 +297,10 @@ static void queries_match_brute_force(void)
         size_t nf, boxes_bad = 0, rays_bad = 0, tbad = 0, total_hits = 0;
         fn *f = kept_list(c, sel, &nf);
         wvol_store_build(&st, c, sel, NULL, NULL);
-        for (int t = 0; t < 150; t++) {
+        for (int t = 0; t < 100; t++) {
             double a[3], b[3];
             size_t ne;
-            random_box(c, a, b, t < 50 ? 2.0 : 20.0);
+            random_box(c, a, b, t < 40 ? 2.0 : 20.0);
             if (t == 0) memcpy(b, a, sizeof b); /* a point */
             CHECK(wvol_store_query_box(st, a, b, &hits, NULL) == WVOL_OK, "box query");
             img *exp_ = brute_images(c, f, nf, a, b, NULL, NULL, 0, 0, &ne), *got = hits_to_images(c, &hits);
@@ -314,7 +314,7 @@ static void queries_match_brute_force(void)
             total_hits += hits.count;
             free(exp_), free(got);
         }
-        for (int t = 0; t < 150; t++) {
+        for (int t = 0; t < 100; t++) {
             double o[3], d[3], a[3], b[3], tmin = urand() * 2 - 1, tmax = tmin + 0.1 + 3 * urand();
             size_t P[3] = {c->px, c->py, c->pz}, ne;
             for (int x = 0; x < 3; x++) {
@@ -340,8 +340,8 @@ static void queries_match_brute_force(void)
             total_hits += hits.count;
             free(exp_), free(got);
         }
-        CHECK(boxes_bad == 0, "%s: %zu of 150 boxes differ from brute force", su->family, boxes_bad);
-        CHECK(rays_bad == 0 && tbad == 0, "%s: %zu of 150 rays differ (%zu t intervals)", su->family, rays_bad, tbad);
+        CHECK(boxes_bad == 0, "%s: %zu of 100 boxes differ from brute force", su->family, boxes_bad);
+        CHECK(rays_bad == 0 && tbad == 0, "%s: %zu of 100 rays differ (%zu t intervals)", su->family, rays_bad, tbad);
         CHECK(total_hits > 1000, "%s: the queries found something (%zu)", su->family, total_hits);
         wvol_store_hits_free(&hits);
         free(f);
@@ -448,7 +448,7 @@ static void bounds_are_never_exceeded(void)
                 if (P[x] == 1) a[x] = b[x] = 0.0;
             CHECK(wvol_store_box_bounds(st, a, b, &bd, NULL) == WVOL_OK, "bounds");
             double fmin_ = INFINITY, fmax_ = -INFINITY, gmax[3] = {0, 0, 0}, gn = 0;
-            for (int k = 0; k < 400; k++) {
+            for (int k = 0; k < 200; k++) {
                 double x[3], g[3];
                 for (int ax = 0; ax < 3; ax++) {
                     /* grid corners and edges first, then random points */
@@ -487,14 +487,15 @@ static void function_and_node_bounds_hold(void)
 {
     const char *fams[] = {"haar", "db2", "db4", "coif1", "bl3"};
     for (int fi = 0; fi < 5; fi++) {
-        int bl = !strcmp(fams[fi], "bl3"), levels = bl ? 1 : 3, samples = bl ? 6 : 1500;
+        /* bl3: a point meets 128^3 root images at level 1, so only a few samples of two bands */
+        int bl = !strcmp(fams[fi], "bl3"), levels = bl ? 1 : 3, samples = bl ? 3 : 600;
         size_t n = 16; /* level 3: period 16 holds less than one db4 support (56): copies overlap */
         wvol_coeffs *c = NULL;
         wvol_coeffs_create(&c, filt(fams[fi]), levels, n, n, n, NULL);
         size_t worst_v = 0;
         double tv = 0, tg = 0;
         for (int m = 1; m <= levels; m++)
-            for (int band = (m == levels ? 0 : 1); band < 8; band++) {
+            for (int band = (m == levels ? 0 : 1); band < 8; band += bl ? 7 : 1) {
                 wvol_store *st = NULL;
                 memset(c->data, 0, n * n * n * sizeof(float));
                 size_t e = n >> m, idx = wvol_coeffs_index(c, m, band, e / 2, e - 1, 0);

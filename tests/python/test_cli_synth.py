@@ -4,6 +4,7 @@ Every bad input must give exactly one line on stderr naming the problem, exit 2
 for bad usage or 1 for a failure, and leave no file behind (not even a partial or
 temporary one): each case runs in an empty folder whose listing is checked."""
 import json
+import pathlib
 import os
 
 import numpy as np
@@ -186,6 +187,8 @@ def test_demo_makes_and_writes_the_phantom(wvol, tmp_path):
     d = json.loads(r.stdout)
     assert [s["name"] for s in d["stages"]][:2] == ["phantom", "write"]
     assert d["stages"][0]["dims"] == [24, 24, 24] and d["stages"][1]["file"] == str(f)
+    mesh = next(s for s in d["stages"] if s["name"] == "mesh")
+    assert mesh["triangles"] > 0 and pathlib.Path(mesh["file"]).stat().st_size > 0
     sel = next(s for s in d["stages"] if s["name"] == "select")
     assert abs(sel["kept"] - 0.05 * sel["total"]) <= 1
     # 24 is a multiple of 2^3: no padding, so Parseval's prediction is the measured error

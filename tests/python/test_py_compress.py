@@ -169,3 +169,14 @@ def test_c_store_info_and_evaluate():
         s.evaluate(np.zeros((3, 2)))
     with pytest.raises(ValueError):
         s.evaluate([[0.0, np.nan, 0.0]])
+
+
+def test_2d_images_compress_as_one_slice():
+    a = np.random.default_rng(0).random((30, 40), dtype=np.float32)
+    s = wvol.compress(a, "db2", 2, keep=0.3)
+    assert s.shape == (1, 30, 40) and s.coeffs.shape == (1, 32, 40)    # the 1-voxel axis is not transformed
+    assert s.total == 32 * 40 and s.kept == round(0.3 * s.total)
+    assert s.reconstruct().data.shape == (1, 30, 40)
+    assert s.reconstruct(level=1).data.shape == (1, 15, 20)
+    # measured against the 2D original; the prediction bounds it (padding 30 -> 32 rows)
+    assert s.measured_error(a).l2 <= s.predicted_error.l2 * (1 + 1e-4)

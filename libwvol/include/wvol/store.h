@@ -94,7 +94,8 @@ typedef struct wvol_select_report {
     double predicted_l2;     /* sqrt(energy_dropped): ||f - f^||_2 over the padded grid (Parseval),
                                 an upper bound over the original voxels, equal without padding */
     double predicted_rmse;   /* predicted_l2 / sqrt(nx ny nz) */
-    double predicted_psnr;   /* 20 log10(peak / predicted_rmse); +inf when nothing is dropped */
+    double predicted_psnr;   /* 20 log10(peak / predicted_rmse); +inf when nothing is dropped,
+                                0 when the peak is 0 (unknown or a constant volume) */
     double peak;             /* data range used (0 when not known and not needed) */
     int measured;            /* 1 when the measured_* fields are filled */
     double measured_l2;      /* over the original nx ny nz voxels, against the original volume
@@ -240,10 +241,11 @@ wvol_status wvol_store_query_ray(const wvol_store *s, const double o[3], const d
 
 /* Rigorous bounds of the spline model f^ and its gradient on a closed box
  * (voxel coords): for every x in the box, vmin <= f^(x) <= vmax, |f^(x)| <= vabs,
- * |df^/dx_a (x)| <= grad[a], |grad f^(x)| <= grad_norm. Never exceeded (ranges
- * of the spline pieces are computed exactly and padded for rounding and for the
- * spline's measured error against the cascade). For Haar f^ is piecewise constant:
- * its gradient is 0 almost everywhere (grad = 0) and it jumps at voxel faces. */
+ * |df^/dx_a (x)| <= grad[a], |grad f^(x)| <= grad_norm (a.e.; f^ is Lipschitz with
+ * these constants on the box). Never exceeded: ranges of the spline pieces are
+ * computed exactly and padded for rounding (docs/store.md). For Haar f^ is
+ * piecewise constant: its gradient is 0 almost everywhere (grad = 0) and it
+ * jumps at voxel faces. */
 typedef struct wvol_store_bounds {
     double vmin, vmax;
     double vabs;          /* sum over touching functions of |c| max|w| on the box */
@@ -260,7 +262,9 @@ wvol_status wvol_store_box_bounds(const wvol_store *s, const double lo[3], const
 double wvol_store_eval(const wvol_store *s, const double x[3], double grad[3]);
 
 /* Bounds of a single basis function of (level, band) over all space, periodic
- * copies included: |w| <= *vmax, |dw/dx_a| <= gmax[a]. Either output may be NULL. */
+ * copies included: |w| <= *vmax, |dw/dx_a| <= gmax[a], for the spline model and,
+ * with the spline's measured error added, for the cascade's phi and psi too (the
+ * node bounds are sums of these). Either output may be NULL. */
 void wvol_store_function_bounds(const wvol_store *s, int level, int band, double *vmax, double gmax[3]);
 
 /* Read-only view of the octree for custom traversals. Nodes 0..roots-1 are the

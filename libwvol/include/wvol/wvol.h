@@ -8,6 +8,8 @@
 #include "wvol/volume.h"
 #include "wvol/io.h"
 #include "wvol/wavelet.h"
+#include "wvol/iso.h"
 #include "wvol/store.h"
+#include "wvol/wvc.h"
 #include "wvol/analysis.h"
 #endif

@@ -14,8 +14,13 @@ wvol_status wvol__vdb_read(wvol_volume **out, const char *path, const char *grid
 wvol_status wvol__vdb_write(const wvol_volume *v, const char *path, wvol_error *err);
 /* .vti .vtk .mha .mhd .nii .nii.gz or a DICOM directory */
 wvol_status wvol__vtk_read(wvol_volume **out, const char *path, wvol_error *err);
-/* .vti (also .mha, .nii when VTK can) */
+/* .vti .mha .nii .nii.gz, and legacy .vtk (float32 samples named "density") */
 wvol_status wvol__vtk_write(const wvol_volume *v, const char *path, wvol_error *err);
+/* A triangle mesh as VTK XML polydata (.vtp): nverts points (xyz: 3 floats each),
+ * ntris triangles (tris: 3 vertex indices each, < nverts), optional per-vertex
+ * normals (3 floats each, NULL for none). Written to a temporary name, then renamed. */
+wvol_status wvol__vtk_write_mesh(const char *path, const float *xyz, size_t nverts, const unsigned *tris,
+                                 size_t ntris, const float *normals /* may be NULL */, wvol_error *err);
 
 #ifdef __cplusplus
 }

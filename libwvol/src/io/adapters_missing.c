@@ -26,4 +26,10 @@ wvol_status wvol__vtk_write(const wvol_volume *v, const char *path, wvol_error *
     (void)v;
     return wvol_error_set(err, WVOL_ERR_UNSUPPORTED, "%s: this build has no VTK support", path);
 }
+wvol_status wvol__vtk_write_mesh(const char *path, const float *xyz, size_t nverts, const unsigned *tris,
+                                 size_t ntris, const float *normals, wvol_error *err)
+{
+    (void)xyz, (void)nverts, (void)tris, (void)ntris, (void)normals;
+    return wvol_error_set(err, WVOL_ERR_UNSUPPORTED, "%s: this build has no VTK support", path);
+}
 #endif

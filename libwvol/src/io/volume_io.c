@@ -35,7 +35,7 @@ int wvol_format_supported(const char *path, int for_writing)
 #endif
 #ifdef WVOL_HAVE_VTK
     case FMT_VTI: return 1;
-    case FMT_VTK: return !for_writing || wvol_path_has_ext(path, ".mha") || wvol_path_has_ext(path, ".vtk");
+    case FMT_VTK: return !for_writing || !wvol_path_has_ext(path, ".mhd"); /* .mhd: header + data pair */
     case FMT_DICOM: return !for_writing;
 #endif
     default: return 0;
@@ -79,7 +79,8 @@ wvol_status wvol_volume_save(const wvol_volume *v, const char *path, wvol_error 
     case FMT_VTK: return wvol__vtk_write(v, path, err);
     default:
         return wvol_error_set(err, WVOL_ERR_UNSUPPORTED,
-                              "%s: cannot write this format (known: .raw .nrrd .nhdr .vdb .vti .mha)",
+                              "%s: cannot write this format (known: .raw .nrrd .nhdr .vdb .vti .vtk .mha .nii "
+                              ".nii.gz)",
                               path);
     }
 }

@@ -85,8 +85,8 @@ static void descend(const trav *tv, size_t ni, int m, const int64_t j[3])
     image_box(s, m, j, lo, hi);
     if (!meets(tv, lo, hi, &t0, &t1)) return;
     if (nd->band_mask) {
-        size_t pos[3] = {(nd->key >> 38) & (WVOL__POS_MAX - 1), (nd->key >> 19) & (WVOL__POS_MAX - 1),
-                         nd->key & (WVOL__POS_MAX - 1)};
+        size_t pos[3];
+        wvol__key_pos(nd->key, pos);
         tv->fn(tv, tv->arg, m, (unsigned)nd->band_mask << 1, s->values + nd->coef_first, pos, lo, hi, t0, t1);
     }
     if (!nd->child_mask) return;
@@ -285,61 +285,86 @@ static inline iv imul(iv x, iv y)
 
 static inline double iabs(iv x) { return wvol__max(fabs(x.lo), fabs(x.hi)); }
 
+/* The 1D factors of one axis on the box: ranges of phi, psi (R) and of their
+ * derivatives per voxel (D), and phi, psi at the box centre (C). */
+typedef struct axisf {
+    iv R[2], D[2];
+    double C[2];
+} axisf;
+
+/* Every node image at level m shares the factors of its j along each axis, and
+ * only the j in [j0, j0 + span) can meet the box: they are computed once. */
+#define BC_LEVELS 8
+#define BC_SPAN 24
+
 typedef struct bacc {
     double vmin, vmax, vabs, g[3];
     double centre[3], fc, fc_abs;   /* f^ at the box centre, and the sum of |terms| there */
     size_t touching;
+    int64_t j0[BC_LEVELS + 1][3];
+    unsigned char have[BC_LEVELS + 1][3][BC_SPAN];
+    axisf cache[BC_LEVELS + 1][3][BC_SPAN];
 } bacc;
 
 static inline void spline4(const wvol_store *s, double u, double out[4]);
 
+static void axis_factors(const wvol_store *s, const trav *tv, const bacc *ac, int m, int a, double lo, axisf *f)
+{
+    double scale = s->ipow2[m], u0 = (tv->a[a] - lo) * scale, u1 = (tv->b[a] - lo) * scale, c4[4];
+    for (int w = 0; w < 2; w++) {
+        wvol__ranges_query(&s->rg, w ? WVOL__PSI : WVOL__PHI, u0, u1, &f->R[w].lo, &f->R[w].hi);
+        wvol__ranges_query(&s->rg, w ? WVOL__DPSI : WVOL__DPHI, u0, u1, &f->D[w].lo, &f->D[w].hi);
+        f->D[w].lo *= scale, f->D[w].hi *= scale;
+    }
+    spline4(s, (ac->centre[a] - lo) * scale, c4);
+    f->C[0] = c4[0], f->C[1] = c4[1];
+}
+
 static void bounds_fn(const trav *tv, void *arg, int m, unsigned mask, const float *vals, const size_t pos[3],
                       const double lo[3], const double hi[3], double t0, double t1)
 {
+    static const axisf unit = {{{1.0, 1.0}, {1.0, 1.0}}, {{0.0, 0.0}, {0.0, 0.0}}, {1.0, 1.0}};
     const wvol_store *s = tv->s;
     bacc *ac = arg;
-    iv R[3][2], D[3][2];
-    double scale = s->ipow2[m];
+    axisf local[3];
+    const axisf *F[3];
     int k = 0;
     (void)pos, (void)hi, (void)t0, (void)t1;
     for (int a = 0; a < 3; a++) {
         if (!s->ly.tr[a]) {
-            R[a][0].lo = R[a][0].hi = R[a][1].lo = R[a][1].hi = 1.0;
-            D[a][0].lo = D[a][0].hi = D[a][1].lo = D[a][1].hi = 0.0;
+            F[a] = &unit;
             continue;
         }
-        double u0 = (tv->a[a] - lo[a]) * scale, u1 = (tv->b[a] - lo[a]) * scale;
-        for (int w = 0; w < 2; w++) {
-            wvol__ranges_query(&s->rg, w ? WVOL__PSI : WVOL__PHI, u0, u1, &R[a][w].lo, &R[a][w].hi);
-            wvol__ranges_query(&s->rg, w ? WVOL__DPSI : WVOL__DPHI, u0, u1, &D[a][w].lo, &D[a][w].hi);
-            D[a][w].lo *= scale, D[a][w].hi *= scale;
+        if (m <= BC_LEVELS) {
+            int64_t idx = (int64_t)floor((lo[a] + s->ly.s) * s->ipow2[m] + 0.5) - ac->j0[m][a];
+            if (idx >= 0 && idx < BC_SPAN) {
+                axisf *e = &ac->cache[m][a][idx];
+                if (!ac->have[m][a][idx]) axis_factors(s, tv, ac, m, a, lo[a], e), ac->have[m][a][idx] = 1;
+                F[a] = e;
+                continue;
+            }
         }
-    }
-    double C[3][4];
-    for (int a = 0; a < 3; a++) {
-        if (!s->ly.tr[a]) {
-            C[a][0] = C[a][1] = 1.0;
-            continue;
-        }
-        spline4(s, (ac->centre[a] - lo[a]) * scale, C[a]);
+        axis_factors(s, tv, ac, m, a, lo[a], local + a);
+        F[a] = local + a;
     }
     for (int l = 0; l < 8; l++) {
         if (!((mask >> l) & 1)) continue;
-        double c = vals[k++], nm = s->norm[m];
+        double c = vals[k++], nm = s->norm[m], ac_ = fabs(c) * nm;
         int b0 = l & 1, b1 = (l >> 1) & 1, b2 = (l >> 2) & 1;
-        double tc = c * nm * C[0][b0] * C[1][b1] * C[2][b2];
+        double tc = c * nm * F[0]->C[b0] * F[1]->C[b1] * F[2]->C[b2];
         ac->fc += tc, ac->fc_abs += fabs(tc);
-        iv v = imul(imul(R[0][b0], R[1][b1]), R[2][b2]);
-        iv g0 = imul(imul(D[0][b0], R[1][b1]), R[2][b2]);
-        iv g1 = imul(imul(R[0][b0], D[1][b1]), R[2][b2]);
-        iv g2 = imul(imul(R[0][b0], R[1][b1]), D[2][b2]);
+        iv ryz = imul(F[1]->R[b1], F[2]->R[b2]);
+        iv v = imul(F[0]->R[b0], ryz);
+        iv g0 = imul(F[0]->D[b0], ryz);
+        iv g1 = imul(imul(F[0]->R[b0], F[1]->D[b1]), F[2]->R[b2]);
+        iv g2 = imul(imul(F[0]->R[b0], F[1]->R[b1]), F[2]->D[b2]);
         double x = c * nm * v.lo, y = c * nm * v.hi;
         ac->vmin += wvol__min(x, y);
         ac->vmax += wvol__max(x, y);
-        ac->vabs += fabs(c) * nm * iabs(v);
-        ac->g[0] += fabs(c) * nm * iabs(g0);
-        ac->g[1] += fabs(c) * nm * iabs(g1);
-        ac->g[2] += fabs(c) * nm * iabs(g2);
+        ac->vabs += ac_ * iabs(v);
+        ac->g[0] += ac_ * iabs(g0);
+        ac->g[1] += ac_ * iabs(g1);
+        ac->g[2] += ac_ * iabs(g2);
         ac->touching++;
     }
 }
@@ -354,7 +379,14 @@ wvol_status wvol_store_box_bounds(const wvol_store *s, const double lo[3], const
     memset(out, 0, sizeof *out);
     WVOL_FORWARD(check_extent(s, lo, hi, err));
     memset(&tv, 0, sizeof tv);
-    memset(&ac, 0, sizeof ac);
+    ac.vmin = ac.vmax = ac.vabs = ac.fc = ac.fc_abs = 0.0;
+    ac.g[0] = ac.g[1] = ac.g[2] = 0.0;
+    ac.touching = 0;
+    for (int m = 1; m <= s->ly.levels && m <= BC_LEVELS; m++)
+        for (int a = 0; a < 3; a++) {
+            ac.j0[m][a] = (int64_t)ceil((lo[a] + s->ly.s) * s->ipow2[m] - (s->ly.L - 1));
+            memset(ac.have[m][a], 0, BC_SPAN);
+        }
     tv.s = s, tv.fn = bounds_fn, tv.arg = &ac;
     for (int a = 0; a < 3; a++) {
         WVOL_RETURN_IF(lo[a] > hi[a], err, WVOL_ERR_ARG, "wvol_store_box_bounds: lo %g > hi %g on axis %d", lo[a], hi[a],
@@ -390,8 +422,6 @@ wvol_status wvol_store_box_bounds(const wvol_store *s, const double lo[3], const
 
 /* ---- point evaluation ------------------------------------------------------------------- */
 
-static inline double horner(const double *c, double u) { return c[0] + u * (c[1] + u * (c[2] + u * c[3])); }
-
 /* phi, psi, phi', psi' at local u (0 outside [0, support)). */
 static inline void spline4(const wvol_store *s, double u, double out[4])
 {
@@ -405,10 +435,10 @@ static inline void spline4(const wvol_store *s, double u, double out[4])
     i = (int)(u * s->rg.per_unit);
     if (i >= b->pieces) i = b->pieces - 1;
     t = u - i * s->rg.h;
-    out[0] = horner(b->phi + 4 * (size_t)i, t);
-    out[1] = horner(b->psi + 4 * (size_t)i, t);
-    out[2] = horner(b->dphi + 4 * (size_t)i, t);
-    out[3] = horner(b->dpsi + 4 * (size_t)i, t);
+    out[0] = wvol__horner3(b->phi + 4 * (size_t)i, t);
+    out[1] = wvol__horner3(b->psi + 4 * (size_t)i, t);
+    out[2] = wvol__horner3(b->dphi + 4 * (size_t)i, t);
+    out[3] = wvol__horner3(b->dpsi + 4 * (size_t)i, t);
 }
 
 /* Point evaluation caches the 1D factors: at level m only the S + 1 images j in

@@ -18,11 +18,9 @@
 
 #include "store/store_internal.h"
 
-static double horner(const double *c, double u) { return c[0] + u * (c[1] + u * (c[2] + u * c[3])); }
-
 static void cubic_range(const double *c, double h, double *lo, double *hi)
 {
-    double v0 = horner(c, 0.0), v1 = horner(c, h), mn = v0 < v1 ? v0 : v1, mx = v0 < v1 ? v1 : v0;
+    double v0 = wvol__horner3(c, 0.0), v1 = wvol__horner3(c, h), mn = v0 < v1 ? v0 : v1, mx = v0 < v1 ? v1 : v0;
     /* roots of c1 + 2 c2 u + 3 c3 u^2 */
     double A = 3.0 * c[3], B = 2.0 * c[2], C = c[1], r[2];
     int nr = 0;
@@ -38,7 +36,7 @@ static void cubic_range(const double *c, double h, double *lo, double *hi)
     }
     for (int i = 0; i < nr; i++)
         if (r[i] > 0.0 && r[i] < h) {
-            double v = horner(c, r[i]);
+            double v = wvol__horner3(c, r[i]);
             if (v < mn) mn = v;
             if (v > mx) mx = v;
         }

@@ -243,11 +243,11 @@ wvol_status wvol_store_build(wvol_store **out, const wvol_coeffs *c, const wvol_
         lvl_start[m - 1] = end;
         for (size_t ni = lvl_start[m]; ni < end; ni++) {
             wvol__node *nd = s->nodes + ni;
-            uint64_t k = nd->key;
-            size_t p = (k >> 38) & (WVOL__POS_MAX - 1), q = (k >> 19) & (WVOL__POS_MAX - 1), r = k & (WVOL__POS_MAX - 1);
+            size_t pos[3];
+            wvol__key_pos(nd->key, pos);
             nd->child_first = (uint32_t)s->nnodes;
             for (int ci = 0; ci < 8; ci++) {
-                size_t cp = 2 * p + (ci & 1), cq = 2 * q + ((ci >> 1) & 1), cr = 2 * r + ((ci >> 2) & 1);
+                size_t cp = 2 * pos[0] + (ci & 1), cq = 2 * pos[1] + ((ci >> 1) & 1), cr = 2 * pos[2] + ((ci >> 2) & 1);
                 if (!wvol__band_ok(&ly, ci)) continue; /* no split along an untransformed axis */
                 if (!bs_get(pres + m - 1, cp + e0 * (cq + e1 * cr))) continue;
                 nd->child_mask |= (uint8_t)(1u << ci);
@@ -265,14 +265,14 @@ wvol_status wvol_store_build(wvol_store **out, const wvol_coeffs *c, const wvol_
         size_t nv = 0;
         for (size_t ni = 0; ni < s->nnodes; ni++) {
             wvol__node *nd = s->nodes + ni;
-            uint64_t k = nd->key;
-            int m = (int)(k >> 57);
-            size_t p = (k >> 38) & (WVOL__POS_MAX - 1), q = (k >> 19) & (WVOL__POS_MAX - 1), r = k & (WVOL__POS_MAX - 1);
+            int m = wvol__key_level(nd->key);
+            size_t pos[3];
+            wvol__key_pos(nd->key, pos);
             nd->coef_first = (uint32_t)nv;
             for (int l = 1; l < 8; l++) {
                 size_t idx;
                 if (!wvol__band_ok(&ly, l)) continue;
-                idx = wvol__index(&ly, m, l, p, q, r);
+                idx = wvol__index(&ly, m, l, pos[0], pos[1], pos[2]);
                 if (!((kept[idx >> 6] >> (idx & 63)) & 1)) continue;
                 if (nv >= s->nvalues) {
                     st = wvol_error_set(err, WVOL_ERR_INTERNAL, "store: more kept coefficients than counted");
@@ -289,7 +289,7 @@ wvol_status wvol_store_build(wvol_store **out, const wvol_coeffs *c, const wvol_
     }
     for (size_t ni = s->nnodes; ni-- > 0;) {
         wvol__node *nd = s->nodes + ni;
-        int m = (int)(nd->key >> 57), j = 0;
+        int m = wvol__key_level(nd->key), j = 0;
         double vb = 0.0, gb[3] = {0.0, 0.0, 0.0};
         for (int l = 1; l < 8; l++) {
             if (!((nd->band_mask >> (l - 1)) & 1)) continue;
@@ -367,14 +367,6 @@ void wvol_store_get_info(const wvol_store *s, wvol_store_info *info)
                         (size_t)s->rg.n * 2 * 2 * WVOL__KINDS * sizeof(double);
 }
 
-static void node_pos(const wvol__node *nd, int *m, size_t *p, size_t *q, size_t *r)
-{
-    *m = (int)(nd->key >> 57);
-    *p = (nd->key >> 38) & (WVOL__POS_MAX - 1);
-    *q = (nd->key >> 19) & (WVOL__POS_MAX - 1);
-    *r = nd->key & (WVOL__POS_MAX - 1);
-}
-
 void wvol_store_node_get(const wvol_store *s, size_t i, wvol_store_node *out)
 {
     const wvol__node *nd;
@@ -384,7 +376,8 @@ void wvol_store_node_get(const wvol_store *s, size_t i, wvol_store_node *out)
     memset(out, 0, sizeof *out);
     if (!s || i >= s->nnodes) return;
     nd = s->nodes + i;
-    node_pos(nd, &m, pos, pos + 1, pos + 2);
+    m = wvol__key_level(nd->key);
+    wvol__key_pos(nd->key, pos);
     out->level = m;
     out->p = (uint32_t)pos[0], out->q = (uint32_t)pos[1], out->r = (uint32_t)pos[2];
     out->band_mask = nd->band_mask;
@@ -405,11 +398,10 @@ void wvol_store_node_get(const wvol_store *s, size_t i, wvol_store_node *out)
 
 int wvol_store_lookup(const wvol_store *s, int level, int band, size_t p, size_t q, size_t r, float *value)
 {
-    const wvol_store *st = s;
     size_t ni;
     const wvol__node *nd;
     if (!s || level < 1 || level > s->ly.levels || band < 0 || band > 7 || !wvol__band_ok(&s->ly, band)) return 0;
-    if (p >= wvol__ext(&st->ly, 0, level) || q >= wvol__ext(&st->ly, 1, level) || r >= wvol__ext(&st->ly, 2, level))
+    if (p >= wvol__ext(&s->ly, 0, level) || q >= wvol__ext(&s->ly, 1, level) || r >= wvol__ext(&s->ly, 2, level))
         return 0;
     if (band == 0) {
         if (level != s->ly.levels) return 0;
@@ -449,12 +441,11 @@ int wvol_store_next(const wvol_store *s, wvol_store_iter *it, wvol_store_coeff *
         if (rest) {
             int bit = __builtin_ctz(rest);
             if (c) {
-                size_t p, q, r;
-                int m;
-                node_pos(nd, &m, &p, &q, &r);
+                size_t pos[3];
+                wvol__key_pos(nd->key, pos);
                 c->value = s->values[nd->coef_first + (uint32_t)popc(nd->band_mask & ((1u << bit) - 1u))];
-                c->level = (uint8_t)m, c->band = (uint8_t)(bit + 1);
-                c->p = (uint32_t)p, c->q = (uint32_t)q, c->r = (uint32_t)r;
+                c->level = (uint8_t)wvol__key_level(nd->key), c->band = (uint8_t)(bit + 1);
+                c->p = (uint32_t)pos[0], c->q = (uint32_t)pos[1], c->r = (uint32_t)pos[2];
             }
             it->k = (size_t)bit + 1;
             return 1;

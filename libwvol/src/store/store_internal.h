@@ -124,6 +124,8 @@ void wvol__ranges_query(const wvol__ranges *rg, int kind, double u0, double u1, 
  * periodized spline and the periodized cascade function alike. */
 double wvol__ranges_periodic_max(const wvol__ranges *rg, int kind, size_t period_pieces);
 
+static inline double wvol__horner3(const double *c, double u) { return c[0] + u * (c[1] + u * (c[2] + u * c[3])); }
+
 static inline double wvol__min(double a, double b) { return a < b ? a : b; }
 static inline double wvol__max(double a, double b) { return a > b ? a : b; }
 
@@ -145,6 +147,14 @@ typedef struct wvol__node {
 static inline uint64_t wvol__key(int m, size_t p, size_t q, size_t r)
 {
     return ((uint64_t)m << 57) | ((uint64_t)p << 38) | ((uint64_t)q << 19) | (uint64_t)r;
+}
+
+static inline int wvol__key_level(uint64_t k) { return (int)(k >> 57); }
+static inline void wvol__key_pos(uint64_t k, size_t pos[3])
+{
+    pos[0] = (size_t)(k >> 38) & (WVOL__POS_MAX - 1);
+    pos[1] = (size_t)(k >> 19) & (WVOL__POS_MAX - 1);
+    pos[2] = (size_t)k & (WVOL__POS_MAX - 1);
 }
 
 struct wvol_store {

@@ -1,0 +1,369 @@
+/* wvol compress: volume -> wavelet transform -> selection -> quantiser + coder -> .wvc,
+ * then decodes the file it wrote and reports the measured error beside the predicted one. */
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "cli.h"
+#include "wvol/io.h"
+#include "wvol/store.h"
+#include "wvol/wavelet.h"
+#include "wvol/wvc.h"
+
+const char wvol_cmd_compress_summary[] = "compress a volume into a .wvc file (wavelets, quantiser, entropy coder)";
+
+static const cli_opt opts[] = {
+    {"output", 'o', 1, "output file OUT.wvc"},
+    {"wavelet", 'w', 1, "filter: haar, db1..db10, coif1..coif5, bl3 (default db2)"},
+    {"levels", 'l', 1, "levels 1..max (default min(5, max))"},
+    {"psnr", 0, 1, "target PSNR in dB (peak = data range): the quantiser step is chosen to meet it"},
+    {"keep", 0, 1, "keep this fraction of the coefficients, largest first (5% or 0.05)"},
+    {"keep-count", 0, 1, "keep the K largest coefficients (low-pass cube included)"},
+    {"energy", 0, 1, "keep the smallest set holding this share of the energy (0.999)"},
+    {"step", 0, 1, "quantiser step (overrides the one chosen from the error target)"},
+    {"roi", 0, 1, "region of interest cx,cy,cz,rx,ry,rz (world units; repeatable): ranks detail there first"},
+    {"roi-floor", 0, 1, "LOD weight far from every region, 0..1 (default 0.1)"},
+    {"drop-levels", 0, 1, "drop the n finest levels entirely"},
+    {"quant-share", 0, 1, "selection modes: quantisation error as a share of the dropped energy (default 0.02)"},
+    {"coder", 0, 1, "auto (default: per section the smaller), cabac or zstd"},
+    {"rounding", 0, 1, "dead-zone rounding offset in [0, 0.5] (default 0.38)"},
+    {"dims", 0, 1, "raw input: NXxNYxNZ"},
+    {"type", 0, 1, "raw input: sample type (float32, uint8, int16, ...)"},
+    {"grid", 0, 1, ".vdb input: grid name (default: first float grid)"},
+    CLI_JSON_OPT,
+    CLI_HELP_OPT,
+    {NULL, 0, 0, NULL}};
+
+enum { MODE_NONE, MODE_PSNR, MODE_KEEP, MODE_COUNT, MODE_ENERGY };
+
+static int parse_roi(const char *s, wvol_lod_ellipsoid *e)
+{
+    double v[6];
+    char *end;
+    const char *q = s;
+    int i;
+    for (i = 0; i < 6; i++) {
+        v[i] = strtod(q, &end);
+        if (end == q || !isfinite(v[i])) break;
+        q = end;
+        if (i < 5) {
+            if (*q != ',') break;
+            q++;
+        }
+    }
+    if (i < 6 || *q) return cli_usage("compress", "--roi '%s': expected cx,cy,cz,rx,ry,rz", s), 0;
+    for (i = 0; i < 3; i++) {
+        e->center[i] = v[i];
+        e->radii[i] = v[3 + i];
+        if (!(v[3 + i] > 0)) return cli_usage("compress", "--roi '%s': radii must be > 0", s), 0;
+    }
+    e->power = 2; /* flat-topped: full detail inside the ellipsoid, fading outside */
+    return 1;
+}
+
+int wvol_cmd_compress(int argc, char **argv)
+{
+    cli_parser p;
+    const cli_opt *o;
+    const char *val, *in = NULL, *outp = NULL, *wname = "db2";
+    int r, json = 0, mode = MODE_NONE, modes = 0, max, rc = CLI_FAILED;
+    long levels = 0, drop = 0, kcount = 0;
+    double psnr = 0, frac = 0, energy = 0, step = 0, quant_share = 0.02, roi_floor = 0.1, rounding = -1;
+    wvol_wvc_coder coder = WVOL_WVC_CODER_AUTO;
+    wvol_load_options lo;
+    wvol_error err;
+    wvol_volume *v = NULL, *rec = NULL;
+    wvol_coeffs *c = NULL, *dec = NULL;
+    wvol_selection *sel = NULL;
+    wvol_select_params sp = wvol_select_params_default();
+    wvol_select_report srep;
+    wvol_wvc_params wp;
+    wvol_wvc_report wrep;
+    const wvol_filter *f;
+    void *buf = NULL;
+    size_t nbytes = 0, nvox;
+    double vmin, vmax, t0, t_load, t_dwt, t_sel = 0, t_enc, t_write, t_dec, t_idwt, dropped = 0;
+    double sse_pred, sse_meas = 0, maxerr = 0;
+    int use_select;
+
+    memset(&srep, 0, sizeof srep);
+    wvol_load_options_default(&lo);
+    cli_parser_init(&p, "compress", argc, argv, opts);
+    while ((r = cli_next(&p, &o, &val)) >= 0) {
+        if (r == CLI_USAGE) return CLI_USAGE;
+        if (!o) {
+            if (in) return cli_usage("compress", "one input file expected, got '%s' too", val);
+            in = val;
+        } else if (o->short_name == 'h') {
+            cli_print_help("compress",
+                           "IN -o OUT.wvc [--wavelet db2] [--levels 5] (--psnr 50 | --keep 5% | --keep-count K |\n"
+                           "       --energy 0.999) [--roi cx,cy,cz,rx,ry,rz ...] [--drop-levels n] [--json]",
+                           "Transforms the volume, optionally selects coefficients by energy (with regions of\n"
+                           "interest and a level cut), quantises with a dead-zone step chosen from the error\n"
+                           "target and entropy-codes each sub-band (docs/wvc-format.md). With --psnr the step\n"
+                           "alone meets the target (default: --psnr 50). It then decodes what it wrote and\n"
+                           "prints sizes, ratio, bits per voxel, predicted and measured error, and timings.",
+                           opts);
+            return CLI_OK;
+        } else if (!strcmp(o->name, "output")) {
+            outp = val;
+        } else if (!strcmp(o->name, "wavelet")) {
+            wname = val;
+        } else if (!strcmp(o->name, "levels")) {
+            if (!cli_parse_long("compress", "levels", val, 1, 30, &levels)) return CLI_USAGE;
+        } else if (!strcmp(o->name, "psnr")) {
+            if (!cli_parse_double("compress", "psnr", val, &psnr)) return CLI_USAGE;
+            if (!(psnr > 0 && psnr < 200)) return cli_usage("compress", "--psnr %s: expected 0 < dB < 200", val);
+            mode = MODE_PSNR, modes++;
+        } else if (!strcmp(o->name, "keep")) {
+            if (!cli_parse_fraction("compress", "keep", val, &frac)) return CLI_USAGE;
+            mode = MODE_KEEP, modes++;
+        } else if (!strcmp(o->name, "keep-count")) {
+            if (!cli_parse_long("compress", "keep-count", val, 1, 0x7fffffffffffffffL, &kcount)) return CLI_USAGE;
+            mode = MODE_COUNT, modes++;
+        } else if (!strcmp(o->name, "energy")) {
+            if (!cli_parse_fraction("compress", "energy", val, &energy)) return CLI_USAGE;
+            mode = MODE_ENERGY, modes++;
+        } else if (!strcmp(o->name, "step")) {
+            if (!cli_parse_double("compress", "step", val, &step)) return CLI_USAGE;
+            if (!(step > 0)) return cli_usage("compress", "--step %s: must be > 0", val);
+        } else if (!strcmp(o->name, "roi")) {
+            if (sp.n_ellipsoids >= WVOL_LOD_MAX_ELLIPSOIDS)
+                return cli_usage("compress", "--roi: at most %d regions", WVOL_LOD_MAX_ELLIPSOIDS);
+            if (!parse_roi(val, &sp.ellipsoids[sp.n_ellipsoids])) return CLI_USAGE;
+            sp.n_ellipsoids++;
+        } else if (!strcmp(o->name, "roi-floor")) {
+            if (!cli_parse_double("compress", "roi-floor", val, &roi_floor)) return CLI_USAGE;
+            if (!(roi_floor >= 0 && roi_floor <= 1)) return cli_usage("compress", "--roi-floor %s: expected 0..1", val);
+        } else if (!strcmp(o->name, "drop-levels")) {
+            if (!cli_parse_long("compress", "drop-levels", val, 0, 29, &drop)) return CLI_USAGE;
+        } else if (!strcmp(o->name, "quant-share")) {
+            if (!cli_parse_double("compress", "quant-share", val, &quant_share)) return CLI_USAGE;
+            if (!(quant_share > 0 && quant_share <= 1))
+                return cli_usage("compress", "--quant-share %s: expected 0 < share <= 1", val);
+        } else if (!strcmp(o->name, "coder")) {
+            if (!strcmp(val, "auto")) coder = WVOL_WVC_CODER_AUTO;
+            else if (!strcmp(val, "cabac")) coder = WVOL_WVC_CODER_CABAC;
+            else if (!strcmp(val, "zstd")) coder = WVOL_WVC_CODER_ZSTD;
+            else return cli_usage("compress", "--coder '%s': expected auto, cabac or zstd", val);
+        } else if (!strcmp(o->name, "rounding")) {
+            if (!cli_parse_double("compress", "rounding", val, &rounding)) return CLI_USAGE;
+            if (!(rounding >= 0 && rounding <= 0.5)) return cli_usage("compress", "--rounding %s: expected 0..0.5", val);
+        } else if (!strcmp(o->name, "json")) {
+            json = 1;
+        } else if (!strcmp(o->name, "dims")) {
+            if (!cli_parse_dims("compress", "dims", val, lo.dims)) return CLI_USAGE;
+        } else if (!strcmp(o->name, "type")) {
+            int t = wvol_sample_type_parse(val);
+            if (t < 0) return cli_usage("compress", "--type '%s': unknown sample type", val);
+            lo.raw_type = (wvol_sample_type)t;
+        } else if (!strcmp(o->name, "grid")) {
+            lo.grid_name = val;
+        }
+    }
+    if (!in) return cli_usage("compress", "missing input file (see 'wvol compress --help')");
+    if (!outp) return cli_usage("compress", "missing -o OUT.wvc");
+    if (!wvol_path_has_ext(outp, ".wvc")) return cli_usage("compress", "-o %s: the output must end in .wvc", outp);
+    if (modes > 1) return cli_usage("compress", "choose one of --psnr, --keep, --keep-count, --energy");
+    if (mode == MODE_NONE) mode = MODE_PSNR, psnr = 50;
+    if (sp.n_ellipsoids && mode == MODE_PSNR)
+        return cli_usage("compress", "--roi ranks coefficients: use it with --keep, --keep-count or --energy");
+    wvol_error_clear(&err);
+    if (wvol_filter_get(&f, wname, &err) != WVOL_OK) return cli_usage("compress", "--wavelet: %s", err.message);
+
+    t0 = cli_now();
+    if (wvol_volume_load(&v, in, &lo, &err) != WVOL_OK) return cli_fail_err("compress", &err);
+    t_load = cli_now() - t0;
+    nvox = wvol_volume_count(v);
+    max = wvol_dwt_max_levels(v->nx, v->ny, v->nz);
+    if (max < 1) {
+        rc = cli_fail("compress", "%s: a %zux%zux%zu volume cannot be transformed", in, v->nx, v->ny, v->nz);
+        goto done;
+    }
+    if (levels == 0) levels = max < 5 ? max : 5;
+    if (levels > max) {
+        rc = cli_usage("compress", "--levels %ld: a %zux%zux%zu volume allows 1..%d", levels, v->nx, v->ny, v->nz, max);
+        goto done;
+    }
+    if (drop >= levels) {
+        rc = cli_usage("compress", "--drop-levels %ld: must be below --levels %ld", drop, levels);
+        goto done;
+    }
+    wvol_volume_range(v, &vmin, &vmax, NULL);
+
+    t0 = cli_now();
+    if (wvol_dwt3(&c, v, f, (int)levels, &err) != WVOL_OK) {
+        rc = cli_fail_err("compress", &err);
+        goto done;
+    }
+    t_dwt = cli_now() - t0;
+
+    /* selection: the store ranks by energy (with LOD weights) and zeroes what it drops */
+    use_select = mode != MODE_PSNR || drop > 0;
+    if (use_select) {
+        sp.mode = mode == MODE_KEEP ? WVOL_SELECT_FRACTION
+                  : mode == MODE_COUNT ? WVOL_SELECT_COUNT
+                  : mode == MODE_ENERGY ? WVOL_SELECT_ENERGY
+                                        : WVOL_SELECT_ALL;
+        sp.fraction = frac;
+        sp.count = (size_t)kcount;
+        sp.energy = energy;
+        sp.drop_levels = (int)drop;
+        sp.lod_floor = roi_floor;
+        sp.peak = vmax - vmin;
+        t0 = cli_now();
+        if (wvol_select(&sel, c, &sp, v, &srep, &err) != WVOL_OK ||
+            wvol_selection_apply(sel, c, &err) != WVOL_OK) {
+            rc = cli_fail_err("compress", &err);
+            goto done;
+        }
+        t_sel = cli_now() - t0;
+        dropped = srep.energy_dropped;
+    }
+
+    wvol_wvc_params_default(&wp);
+    wp.value_min = vmin;
+    wp.value_max = vmax;
+    wp.dropped_energy = dropped;
+    wp.coder = coder;
+    if (rounding >= 0) wp.rounding = rounding;
+    wp.step = step;
+    if (mode == MODE_PSNR) {
+        double budget = wvol_wvc_sse_for_psnr(psnr, (double)nvox, vmin, vmax);
+        if (!(vmax > vmin) && step == 0) {
+            rc = cli_fail("compress", "%s: the volume is constant; PSNR (peak = range) is undefined: use --step", in);
+            goto done;
+        }
+        if (dropped >= budget && step == 0) {
+            rc = cli_fail("compress", "--drop-levels %ld alone loses more than --psnr %g allows (%.2f dB)", drop, psnr,
+                          wvol_wvc_psnr(dropped, (double)nvox, vmin, vmax));
+            goto done;
+        }
+        wp.target_sse = budget - dropped;
+    } else {
+        /* a small share of the dropped energy; never below what PSNR 120 dB would allow */
+        double floor_sse = wvol_wvc_sse_for_psnr(120, (double)nvox, vmin, vmax);
+        wp.target_sse = quant_share * dropped;
+        if (!(wp.target_sse > floor_sse)) wp.target_sse = floor_sse > 0 ? floor_sse : 1e-12;
+    }
+    t0 = cli_now();
+    if (wvol_wvc_encode(&buf, &nbytes, c, &wp, &wrep, &err) != WVOL_OK) {
+        rc = cli_fail_err("compress", &err);
+        goto done;
+    }
+    t_enc = cli_now() - t0;
+    t0 = cli_now();
+    if (wvol_wvc_save(outp, buf, nbytes, &err) != WVOL_OK) {
+        rc = cli_fail_err("compress", &err);
+        goto done;
+    }
+    t_write = cli_now() - t0;
+
+    /* measure: decode what was written and compare with the input */
+    t0 = cli_now();
+    if (wvol_wvc_decode(&dec, buf, nbytes, NULL, NULL, &err) != WVOL_OK) {
+        rc = cli_fail_err("compress", &err);
+        goto done;
+    }
+    t_dec = cli_now() - t0;
+    t0 = cli_now();
+    if (wvol_idwt3(&rec, dec, &err) != WVOL_OK || wvol_wvc_compare(&sse_meas, &maxerr, v, rec, &err) != WVOL_OK) {
+        rc = cli_fail_err("compress", &err);
+        goto done;
+    }
+    t_idwt = cli_now() - t0;
+    sse_pred = dropped + wrep.sse_quant;
+    {
+        double raw_bytes = (double)nvox * sizeof(float), bpv = 8.0 * (double)nbytes / (double)nvox;
+        double ratio = raw_bytes / (double)nbytes;
+        double p_rmse = sqrt(sse_pred / (double)nvox), m_rmse = sqrt(sse_meas / (double)nvox);
+        double p_psnr = wvol_wvc_psnr(sse_pred, (double)nvox, vmin, vmax);
+        double m_psnr = wvol_wvc_psnr(sse_meas, (double)nvox, vmin, vmax);
+        double t_total = t_dwt + t_sel + t_enc;
+        double mbs = raw_bytes / 1e6 / (t_total > 0 ? t_total : 1e-9);
+        if (json) {
+            cli_json_begin();
+            cli_json_str("input", in);
+            cli_json_str("output", outp);
+            cli_json_str("wavelet", f->name);
+            cli_json_int("levels", levels);
+            cli_json_open("dims", '[');
+            cli_json_int(NULL, (long long)v->nx);
+            cli_json_int(NULL, (long long)v->ny);
+            cli_json_int(NULL, (long long)v->nz);
+            cli_json_close(']');
+            cli_json_str("mode", mode == MODE_PSNR ? "psnr" : mode == MODE_KEEP ? "keep"
+                                 : mode == MODE_COUNT ? "keep-count" : "energy");
+            if (mode == MODE_PSNR) cli_json_num("target_psnr", psnr);
+            cli_json_int("raw_bytes", (long long)raw_bytes);
+            cli_json_int("bytes", (long long)nbytes);
+            cli_json_int("bytes_cabac", (long long)wrep.bytes_cabac);
+            cli_json_int("bytes_zstd", (long long)wrep.bytes_zstd);
+            cli_json_num("ratio", ratio);
+            cli_json_num("bits_per_voxel", bpv);
+            cli_json_num("step", wrep.step);
+            cli_json_int("step_iterations", wrep.step_iterations);
+            cli_json_int("coefficients", (long long)wrep.coefficients);
+            cli_json_int("nonzero", (long long)wrep.nonzero);
+            if (use_select) cli_json_int("kept_by_selection", (long long)srep.kept);
+            cli_json_num("value_min", vmin);
+            cli_json_num("value_max", vmax);
+            cli_json_open("predicted", '{');
+            cli_json_num("dropped_energy", dropped);
+            cli_json_num("quantisation_sse", wrep.sse_quant);
+            cli_json_num("sse", sse_pred);
+            cli_json_num("rmse", p_rmse);
+            cli_json_num("psnr", isfinite(p_psnr) ? p_psnr : 999);
+            cli_json_close('}');
+            cli_json_open("measured", '{');
+            cli_json_num("sse", sse_meas);
+            cli_json_num("rmse", m_rmse);
+            cli_json_num("psnr", isfinite(m_psnr) ? m_psnr : 999);
+            cli_json_num("max_error", maxerr);
+            cli_json_close('}');
+            cli_json_open("seconds", '{');
+            cli_json_num("load", t_load);
+            cli_json_num("transform", t_dwt);
+            cli_json_num("select", t_sel);
+            cli_json_num("step_search", wrep.seconds_step);
+            cli_json_num("quantise", wrep.seconds_quantise);
+            cli_json_num("code", wrep.seconds_code);
+            cli_json_num("encode", t_enc);
+            cli_json_num("write", t_write);
+            cli_json_num("decode", t_dec);
+            cli_json_num("inverse_transform", t_idwt);
+            cli_json_close('}');
+            cli_json_num("compress_mb_per_s", mbs);
+            cli_json_num("decompress_mb_per_s", raw_bytes / 1e6 / (t_dec + t_idwt > 0 ? t_dec + t_idwt : 1e-9));
+            cli_json_end();
+        } else {
+            printf("%s -> %s (%s, %ld levels)\n", in, outp, f->name, levels);
+            printf("size       %.0f -> %zu bytes, ratio %.1f, %.4f bits/voxel (cabac %zu, zstd %zu payload bytes)\n",
+                   raw_bytes, nbytes, ratio, bpv, wrep.bytes_cabac, wrep.bytes_zstd);
+            printf("quantiser  step %.6g, %llu of %llu coefficients non-zero", wrep.step,
+                   (unsigned long long)wrep.nonzero, (unsigned long long)wrep.coefficients);
+            if (use_select) printf(" (%zu kept by the selection)", srep.kept);
+            printf("\n");
+            printf("predicted  RMSE %.6g, PSNR %.3f dB (dropped energy %.6g + quantisation %.6g)\n", p_rmse, p_psnr,
+                   dropped, wrep.sse_quant);
+            printf("measured   RMSE %.6g, PSNR %.3f dB, max error %.6g (peak = range %.6g)\n", m_rmse, m_psnr, maxerr,
+                   vmax - vmin);
+            printf("time       transform %.3f s, select %.3f s, encode %.3f s (step %.3f, quantise %.3f, code %.3f): "
+                   "%.1f MB/s; decode %.3f s + inverse %.3f s\n",
+                   t_dwt, t_sel, t_enc, wrep.seconds_step, wrep.seconds_quantise, wrep.seconds_code, mbs, t_dec,
+                   t_idwt);
+        }
+        if (mode == MODE_PSNR && step == 0 && m_psnr < psnr - 0.01)
+            fprintf(stderr, "wvol compress: warning: measured PSNR %.3f dB is below the target %g dB\n", m_psnr, psnr);
+    }
+    rc = CLI_OK;
+done:
+    free(buf);
+    wvol_volume_destroy(rec);
+    wvol_coeffs_destroy(dec);
+    wvol_selection_destroy(sel);
+    wvol_coeffs_destroy(c);
+    wvol_volume_destroy(v);
+    return rc;
+}

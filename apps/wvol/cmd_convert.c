@@ -1,0 +1,98 @@
+/* wvol convert: any readable volume format to any writable one (by extension). */
+#include <stdio.h>
+#include <string.h>
+
+#include "cli.h"
+#include "wvol/io.h"
+
+const char wvol_cmd_convert_summary[] = "convert a volume between formats (raw, nrrd, vdb, vti, mha, nii, ...)";
+
+static const cli_opt opts[] = {
+    {"dims", 0, 1, "raw input: NXxNYxNZ"},
+    {"type", 0, 1, "raw input: sample type (float32, uint8, int16, ...; default float32)"},
+    {"big-endian", 0, 0, "raw input: samples are big-endian"},
+    {"spacing", 0, 1, "raw input: voxel spacing X,Y,Z or one number (default 1)"},
+    {"origin", 0, 1, "raw input: world position of voxel (0,0,0), X,Y,Z (default 0)"},
+    {"grid", 0, 1, ".vdb input: grid name (default: first float grid)"},
+    CLI_HELP_OPT,
+    {NULL, 0, 0, NULL}};
+
+/* A short name of the format a path stands for. */
+static const char *format_name(const char *path)
+{
+    static const struct { const char *ext, *name; } names[] = {
+        {".raw", "raw"}, {".bin", "raw"}, {".nrrd", "NRRD"}, {".nhdr", "NRRD (detached)"},
+        {".vdb", "OpenVDB"}, {".vti", "VTK XML image"}, {".vtk", "VTK legacy structured points"},
+        {".mha", "MetaImage"}, {".mhd", "MetaImage (detached)"}, {".nii", "NIfTI"},
+        {".nii.gz", "NIfTI (gzip)"}};
+    size_t i;
+    for (i = 0; i < sizeof names / sizeof names[0]; i++)
+        if (wvol_path_has_ext(path, names[i].ext)) return names[i].name;
+    return "DICOM series";
+}
+
+int wvol_cmd_convert(int argc, char **argv)
+{
+    cli_parser p;
+    const cli_opt *o;
+    const char *val, *in = NULL, *out = NULL;
+    int r;
+    wvol_load_options lo;
+    wvol_error err;
+    wvol_volume *v = NULL;
+    double t0;
+
+    wvol_load_options_default(&lo);
+    cli_parser_init(&p, "convert", argc, argv, opts);
+    while ((r = cli_next(&p, &o, &val)) >= 0) {
+        if (r == CLI_USAGE) return CLI_USAGE;
+        if (!o) {
+            if (!in) in = val;
+            else if (!out) out = val;
+            else return cli_usage("convert", "two files expected (IN OUT), got '%s' too", val);
+        } else if (o->short_name == 'h') {
+            cli_print_help("convert", "IN OUT [--dims NXxNYxNZ --type T] [--grid NAME]",
+                           "Reads IN and writes OUT; the formats follow the extensions.\n"
+                           "Readable: .raw .nrrd .nhdr .vdb .vti .vtk .mha .mhd .nii .nii.gz, a DICOM folder.\n"
+                           "Writable: .raw (float32) .nrrd .vdb .vti .vtk .mha .nii .nii.gz.\n"
+                           "Samples are float32 in between: integer input is converted exactly.",
+                           opts);
+            return CLI_OK;
+        } else if (!strcmp(o->name, "dims")) {
+            if (!cli_parse_dims("convert", "dims", val, lo.dims)) return CLI_USAGE;
+        } else if (!strcmp(o->name, "type")) {
+            int t = wvol_sample_type_parse(val);
+            if (t < 0) return cli_usage("convert", "--type '%s': unknown sample type", val);
+            lo.raw_type = (wvol_sample_type)t;
+        } else if (!strcmp(o->name, "big-endian")) {
+            lo.big_endian = 1;
+        } else if (!strcmp(o->name, "spacing")) {
+            if (!cli_parse_double3("convert", "spacing", val, lo.spacing)) return CLI_USAGE;
+            for (int a = 0; a < 3; a++)
+                if (!(lo.spacing[a] > 0))
+                    return cli_usage("convert", "--spacing '%s': spacing must be positive", val);
+        } else if (!strcmp(o->name, "origin")) {
+            if (!cli_parse_double3("convert", "origin", val, lo.origin)) return CLI_USAGE;
+        } else if (!strcmp(o->name, "grid")) {
+            lo.grid_name = val;
+        }
+    }
+    if (!in || !out) return cli_usage("convert", "expected IN and OUT files (see 'wvol convert --help')");
+    if (!wvol_format_supported(out, 1))
+        return cli_fail("convert", "%s: cannot write this format with this build (see 'wvol convert --help')",
+                        out);
+
+    t0 = cli_now();
+    wvol_error_clear(&err);
+    if (wvol_volume_load(&v, in, &lo, &err) != WVOL_OK) return cli_fail_err("convert", &err);
+    if (wvol_volume_save(v, out, &err) != WVOL_OK) {
+        wvol_volume_destroy(v);
+        return cli_fail_err("convert", &err);
+    }
+    printf("converted %s (%s) -> %s (%s): %zu x %zu x %zu float32 voxels, spacing %.10g %.10g %.10g, "
+           "origin %.10g %.10g %.10g, %.2f s\n",
+           in, format_name(in), out, format_name(out), v->nx, v->ny, v->nz, v->spacing[0],
+           v->spacing[1], v->spacing[2], v->origin[0], v->origin[1], v->origin[2], cli_now() - t0);
+    wvol_volume_destroy(v);
+    return CLI_OK;
+}

@@ -1,0 +1,289 @@
+/* wvol iso: isosurface of a volume as a mesh (marching cubes on the samples or,
+ * with --wavelet, brick by brick from kept wavelet coefficients) or as an image
+ * (guaranteed ray tracing of the wavelet model f^ = iso). */
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "cli.h"
+#include "wvol/io.h"
+#include "wvol/iso.h"
+#include "wvol/store.h"
+
+const char wvol_cmd_iso_summary[] = "isosurface: marching cubes mesh (.ply .obj .stl .vtp) or ray-traced image";
+
+static const cli_opt opts[] = {
+    {"output", 'o', 1, "mesh file (.ply .obj .stl .vtp)"},
+    {"iso", 0, 1, "iso-value theta (required)"},
+    {"method", 0, 1, "mc (default) or raytrace"},
+    {"threads", 0, 1, "threads (default: all)"},
+    {"normals", 0, 1, "gradient (default) or none"},
+    {"repeat", 0, 1, "extract N times and report the fastest (benchmarking)"},
+    {"wavelet", 0, 1, "mesh the reconstruction of kept wavelet coefficients (haar, db2, coif1, bl3, ...)"},
+    {"levels", 0, 1, "wavelet levels (default 3)"},
+    {"keep", 0, 1, "kept fraction of the coefficients, e.g. 5% (default 100%)"},
+    {"brick", 0, 1, "cells per brick edge for --wavelet (default 32; 0: full inverse, then dense MC)"},
+    {"dims", 0, 1, "raw input: NXxNYxNZ"},
+    {"type", 0, 1, "raw input: sample type (float32, uint8, int16, ...)"},
+    {"spacing", 0, 1, "raw input: voxel size X,Y,Z (default 1)"},
+    {"origin", 0, 1, "raw input: world position of voxel (0,0,0) (default 0)"},
+    {"grid", 0, 1, ".vdb input: grid name"},
+    CLI_JSON_OPT,
+    CLI_HELP_OPT,
+    {NULL, 0, 0, NULL}};
+
+typedef struct iso_args {
+    const char *in, *out;
+    double iso;
+    int have_iso, json, threads, repeat, levels, brick;
+    double keep;
+    const char *method, *wavelet;
+    wvol_iso_normals normals;
+    wvol_load_options lo;
+} iso_args;
+
+static void report(const iso_args *a, const wvol_mesh *m, const wvol_iso_stats *st, double best,
+                   double t_load, double t_save)
+{
+    wvol_mesh_topo topo;
+    double area = wvol_mesh_area(m), vol = wvol_mesh_volume(m);
+    int have_topo = wvol_mesh_topology(m, &topo, NULL) == WVOL_OK;
+    if (a->json) {
+        cli_json_begin();
+        cli_json_str("input", a->in);
+        if (a->out) cli_json_str("output", a->out);
+        cli_json_str("method", a->wavelet ? "mc-bricks" : "mc");
+        if (a->wavelet) {
+            cli_json_str("wavelet", a->wavelet);
+            cli_json_int("levels", a->levels);
+            cli_json_num("keep", a->keep);
+            cli_json_int("brick", a->brick);
+            cli_json_int("bricks_meshed", (long long)st->bricks_meshed);
+            cli_json_num("seconds_bounds", st->seconds_bounds);
+            cli_json_num("seconds_reconstruct_mesh", st->seconds_reconstruct);
+        }
+        cli_json_num("iso", a->iso);
+        cli_json_int("vertices", (long long)m->nverts);
+        cli_json_int("triangles", (long long)m->ntris);
+        cli_json_num("area", area);
+        cli_json_num("enclosed_volume", fabs(vol));
+        cli_json_num("signed_volume", vol);
+        if (have_topo) {
+            cli_json_int("watertight", topo.watertight);
+            cli_json_int("boundary_edges", (long long)topo.boundary_edges);
+            cli_json_int("euler", topo.euler);
+            cli_json_int("components", (long long)topo.components);
+        }
+        cli_json_int("empty", st->empty);
+        if (st->empty) cli_json_str("message", st->message);
+        cli_json_int("cells_active", (long long)st->cells_active);
+        cli_json_int("bricks_total", (long long)st->bricks_total);
+        cli_json_int("bricks_skipped", (long long)st->bricks_skipped);
+        cli_json_open("seconds", '{');
+        cli_json_num("load", t_load);
+        cli_json_num("extract", best);
+        cli_json_num("classify", st->seconds[0]);
+        cli_json_num("count", st->seconds[1]);
+        cli_json_num("generate", st->seconds[2]);
+        cli_json_num("save", t_save);
+        cli_json_close('}');
+        cli_json_int("threads", a->threads);
+        cli_json_int("repeat", a->repeat);
+        cli_json_end();
+    } else {
+        if (st->empty) printf("note: %s\n", st->message);
+        printf("triangles  %zu\nvertices   %zu\n", m->ntris, m->nverts);
+        printf("area       %.9g\nvolume     %.9g (enclosed, %s)\n", area, fabs(vol),
+               have_topo && topo.watertight ? "closed surface" : "surface is open: volume is approximate");
+        if (have_topo)
+            printf("topology   %s, %zu component%s, Euler characteristic %lld\n",
+                   topo.watertight ? "watertight" : "open", topo.components, topo.components == 1 ? "" : "s",
+                   topo.euler);
+        printf("time       extract %.3f ms (classify %.3f, count %.3f, generate %.3f), load %.3f s, save %.3f s\n",
+               best * 1e3, st->seconds[0] * 1e3, st->seconds[1] * 1e3, st->seconds[2] * 1e3, t_load, t_save);
+        if (st->bricks_total)
+            printf("bricks     %zu of %zu skipped (%d^3 cells each; bounds %.3f ms, reconstruct + mesh %.3f ms)\n",
+                   st->bricks_skipped, st->bricks_total, a->brick, st->seconds_bounds * 1e3,
+                   st->seconds_reconstruct * 1e3);
+    }
+}
+
+/* Forward transform and selection for --wavelet; *c receives the coefficients with
+ * the dropped ones zeroed. */
+static int prepare_coeffs(const iso_args *a, const wvol_volume *v, wvol_coeffs **c, wvol_error *err)
+{
+    const wvol_filter *f = NULL;
+    wvol_selection *sel = NULL;
+    wvol_select_params sp = wvol_select_params_default();
+    int maxl = wvol_dwt_max_levels(v->nx, v->ny, v->nz);
+    if (wvol_filter_get(&f, a->wavelet, err) != WVOL_OK) return cli_usage("iso", "%s", err->message);
+    if (a->levels < 1 || a->levels > maxl)
+        return cli_usage("iso", "--levels %d: this volume allows 1..%d", a->levels, maxl);
+    if (wvol_dwt3(c, v, f, a->levels, err) != WVOL_OK) return cli_fail_err("iso", err);
+    if (a->keep < 1.0) {
+        sp.mode = WVOL_SELECT_FRACTION;
+        sp.fraction = a->keep;
+        if (wvol_select(&sel, *c, &sp, NULL, NULL, err) != WVOL_OK ||
+            wvol_selection_apply(sel, *c, err) != WVOL_OK) {
+            wvol_selection_destroy(sel);
+            return cli_fail_err("iso", err);
+        }
+        wvol_selection_destroy(sel);
+    }
+    return CLI_OK;
+}
+
+static int run_mc(const iso_args *a)
+{
+    wvol_error err;
+    wvol_volume *v = NULL;
+    wvol_coeffs *c = NULL;
+    wvol_mesh *m = NULL;
+    wvol_iso_params p;
+    wvol_iso_stats st, best_st;
+    double t0, t_load, best = INFINITY, t_save = 0.0;
+    int r, rc = CLI_OK;
+
+    wvol_error_clear(&err);
+    t0 = cli_now();
+    if (wvol_volume_load(&v, a->in, &a->lo, &err) != WVOL_OK) return cli_fail_err("iso", &err);
+    t_load = cli_now() - t0;
+    wvol_iso_params_default(&p);
+    p.threads = a->threads;
+    p.normals = a->normals;
+    p.brick = a->brick > 0 ? a->brick : 32;
+    memset(&best_st, 0, sizeof best_st);
+    if (a->wavelet) {
+        rc = prepare_coeffs(a, v, &c, &err);
+        if (rc != CLI_OK) goto done;
+    }
+    for (r = 0; r < a->repeat; r++) {
+        double t1 = cli_now(), dt;
+        wvol_status s;
+        wvol_mesh_destroy(m);
+        m = NULL;
+        if (c && a->brick == 0) { /* the peer of the brick path: whole inverse, then dense MC */
+            wvol_volume *rec = NULL;
+            s = wvol_idwt3(&rec, c, &err);
+            if (s == WVOL_OK) s = wvol_iso_extract(&m, rec, a->iso, &p, &st, &err);
+            wvol_volume_destroy(rec);
+        } else {
+            s = c ? wvol_iso_extract_coeffs(&m, c, a->iso, &p, &st, &err)
+                  : wvol_iso_extract(&m, v, a->iso, &p, &st, &err);
+        }
+        if (s != WVOL_OK) {
+            rc = cli_fail_err("iso", &err);
+            goto done;
+        }
+        dt = cli_now() - t1;
+        if (dt < best) {
+            best = dt;
+            best_st = st;
+        }
+    }
+    if (a->out) {
+        double t1 = cli_now();
+        if (wvol_mesh_save(m, a->out, &err) != WVOL_OK) {
+            rc = cli_fail_err("iso", &err);
+            goto done;
+        }
+        t_save = cli_now() - t1;
+    }
+    if (best_st.empty && !a->json) fprintf(stderr, "wvol iso: %s\n", best_st.message);
+    report(a, m, &best_st, best, t_load, t_save);
+done:
+    wvol_mesh_destroy(m);
+    wvol_coeffs_destroy(c);
+    wvol_volume_destroy(v);
+    return rc;
+}
+
+int wvol_cmd_iso(int argc, char **argv)
+{
+    cli_parser p;
+    const cli_opt *o;
+    const char *val;
+    int r;
+    long lv;
+    iso_args a;
+
+    memset(&a, 0, sizeof a);
+    a.method = "mc";
+    a.normals = WVOL_NORMALS_GRADIENT;
+    a.repeat = 1;
+    a.levels = 3;
+    a.keep = 1.0;
+    a.brick = 32;
+    wvol_load_options_default(&a.lo);
+    cli_parser_init(&p, "iso", argc, argv, opts);
+    while ((r = cli_next(&p, &o, &val)) >= 0) {
+        if (r == CLI_USAGE) return CLI_USAGE;
+        if (!o) {
+            if (a.in) return cli_usage("iso", "one input expected, got '%s' too", val);
+            a.in = val;
+        } else if (o->short_name == 'h') {
+            cli_print_help("iso", "IN -o OUT.(ply|obj|stl|vtp) --iso THETA [--method mc|raytrace] [--json]",
+                           "Extracts the isosurface f = THETA. Marching cubes writes a mesh in world\n"
+                           "coordinates with normals from the gradient; it prints triangle and vertex\n"
+                           "counts, area, enclosed volume, topology and timings. An iso-value outside\n"
+                           "the data range gives an empty mesh and a note, not an error.",
+                           opts);
+            return CLI_OK;
+        } else if (!strcmp(o->name, "output")) {
+            a.out = val;
+        } else if (!strcmp(o->name, "iso")) {
+            if (!cli_parse_double("iso", "iso", val, &a.iso)) return CLI_USAGE;
+            a.have_iso = 1;
+        } else if (!strcmp(o->name, "method")) {
+            if (strcmp(val, "mc") && strcmp(val, "raytrace"))
+                return cli_usage("iso", "--method '%s': expected mc or raytrace", val);
+            a.method = val;
+        } else if (!strcmp(o->name, "threads")) {
+            if (!cli_parse_long("iso", "threads", val, 1, 4096, &lv)) return CLI_USAGE;
+            a.threads = (int)lv;
+        } else if (!strcmp(o->name, "repeat")) {
+            if (!cli_parse_long("iso", "repeat", val, 1, 1000, &lv)) return CLI_USAGE;
+            a.repeat = (int)lv;
+        } else if (!strcmp(o->name, "wavelet")) {
+            a.wavelet = val;
+        } else if (!strcmp(o->name, "levels")) {
+            if (!cli_parse_long("iso", "levels", val, 1, 30, &lv)) return CLI_USAGE;
+            a.levels = (int)lv;
+        } else if (!strcmp(o->name, "keep")) {
+            if (!cli_parse_fraction("iso", "keep", val, &a.keep)) return CLI_USAGE;
+        } else if (!strcmp(o->name, "brick")) {
+            if (!cli_parse_long("iso", "brick", val, 0, 4096, &lv)) return CLI_USAGE;
+            if (lv == 1) return cli_usage("iso", "--brick 1: bricks need at least 2 cells per edge");
+            a.brick = (int)lv;
+        } else if (!strcmp(o->name, "normals")) {
+            if (!strcmp(val, "none")) a.normals = WVOL_NORMALS_NONE;
+            else if (!strcmp(val, "gradient")) a.normals = WVOL_NORMALS_GRADIENT;
+            else return cli_usage("iso", "--normals '%s': expected gradient or none", val);
+        } else if (!strcmp(o->name, "json")) {
+            a.json = 1;
+        } else if (!strcmp(o->name, "dims")) {
+            if (!cli_parse_dims("iso", "dims", val, a.lo.dims)) return CLI_USAGE;
+        } else if (!strcmp(o->name, "type")) {
+            int t = wvol_sample_type_parse(val);
+            if (t < 0) return cli_usage("iso", "--type '%s': unknown sample type", val);
+            a.lo.raw_type = (wvol_sample_type)t;
+        } else if (!strcmp(o->name, "spacing")) {
+            if (!cli_parse_double3("iso", "spacing", val, a.lo.spacing)) return CLI_USAGE;
+            if (!(a.lo.spacing[0] > 0 && a.lo.spacing[1] > 0 && a.lo.spacing[2] > 0))
+                return cli_usage("iso", "--spacing '%s': must be positive", val);
+        } else if (!strcmp(o->name, "origin")) {
+            if (!cli_parse_double3("iso", "origin", val, a.lo.origin)) return CLI_USAGE;
+        } else if (!strcmp(o->name, "grid")) {
+            a.lo.grid_name = val;
+        }
+    }
+    if (!a.in) return cli_usage("iso", "missing input volume (see 'wvol iso --help')");
+    if (!a.have_iso) return cli_usage("iso", "missing --iso THETA");
+    if (!strcmp(a.method, "raytrace"))
+        return cli_fail("iso", "--method raytrace is not available in this build yet");
+    if (a.out && !wvol_path_has_ext(a.out, ".ply") && !wvol_path_has_ext(a.out, ".obj") &&
+        !wvol_path_has_ext(a.out, ".stl") && !wvol_path_has_ext(a.out, ".vtp"))
+        return cli_usage("iso", "-o '%s': mesh output must end in .ply, .obj, .stl or .vtp", a.out);
+    return run_mc(&a);
+}

@@ -1,0 +1,232 @@
+#!/usr/bin/env python3
+"""Isosurface benchmark: marching cubes on one float32 volume (default 256^3: the
+paper's Gaussian and a skull-like CT phantom) by libwvol, VTK's vtkFlyingEdges3D
+and vtkMarchingCubes, scikit-image's marching_cubes and OpenVDB's volumeToMesh,
+with 1 and 2 threads, in the same run (time, triangles, area); then marching cubes
+from kept wavelet coefficients brick by brick (bricks skipped, against a full
+reconstruction followed by dense marching cubes).
+
+Every timing is the fastest of --reps runs of the extraction alone (the volume is
+already in memory; file I/O excluded). Thread counts are enforced with CPU
+affinity (taskset) for every tool, and with the tool's own knob where it has one
+(wvol --threads, vtkSMPTools.Initialize). Normals: wvol, vtkFlyingEdges3D,
+vtkMarchingCubes and scikit-image compute vertex normals; OpenVDB does not.
+
+Goal (issue 6): wvol at least as fast as vtkFlyingEdges3D at the same thread count.
+Writes bench/results/iso.json and bench/results/iso.md.
+Usage: /usr/bin/python3 bench/bench_iso.py [--n 256] [--reps 5] [--build build] [--quick]
+"""
+import argparse
+import json
+import os
+import pathlib
+import platform
+import subprocess
+import sys
+import tempfile
+
+import numpy as np
+
+ROOT = pathlib.Path(__file__).resolve().parents[1]
+
+PEER = r'''
+import sys, time, json
+import numpy as np
+tool, path, n, iso, threads, reps = sys.argv[1], sys.argv[2], int(sys.argv[3]), float(sys.argv[4]), int(sys.argv[5]), int(sys.argv[6])
+f = np.fromfile(path, dtype=np.float32).reshape(n, n, n)  # [k, j, i]
+def area(v, t):
+    a, b, c = v[t[:, 0]], v[t[:, 1]], v[t[:, 2]]
+    return float(0.5 * np.linalg.norm(np.cross(b - a, c - a), axis=1).sum())
+best = float("inf")
+if tool in ("vtkFlyingEdges3D", "vtkMarchingCubes"):
+    import vtk
+    from vtk.util import numpy_support as ns
+    vtk.vtkSMPTools.Initialize(threads)
+    img = vtk.vtkImageData(); img.SetDimensions(n, n, n)
+    arr = ns.numpy_to_vtk(f.ravel(), deep=1); img.GetPointData().SetScalars(arr)
+    for _ in range(reps):
+        fl = getattr(vtk, tool)(); fl.SetInputData(img); fl.SetValue(0, iso); fl.ComputeNormalsOn()
+        t = time.perf_counter(); fl.Update(); best = min(best, time.perf_counter() - t)
+    out = fl.GetOutput()
+    v = ns.vtk_to_numpy(out.GetPoints().GetData()).astype(np.float64)
+    tri = ns.vtk_to_numpy(out.GetPolys().GetConnectivityArray()).reshape(-1, 3)
+elif tool == "skimage":
+    from skimage import measure
+    g = np.ascontiguousarray(f.transpose(2, 1, 0))
+    for _ in range(reps):
+        t = time.perf_counter(); v, tri, nrm, val = measure.marching_cubes(g, level=iso); best = min(best, time.perf_counter() - t)
+elif tool == "openvdb":
+    import pyopenvdb as vdb
+    g = vdb.FloatGrid(background=float(f.min()) - 1.0)
+    g.copyFromArray(np.ascontiguousarray(f.transpose(2, 1, 0)))  # copyFromArray ignores strides
+    for _ in range(reps):
+        t = time.perf_counter(); pts, tris, quads = g.convertToPolygons(isovalue=iso, adaptivity=0.0); best = min(best, time.perf_counter() - t)
+    q = np.asarray(quads).reshape(-1, 4)
+    tri = np.concatenate([np.asarray(tris).reshape(-1, 3), q[:, [0, 1, 2]], q[:, [0, 2, 3]]])
+    v = np.asarray(pts, dtype=np.float64)
+print(json.dumps({"seconds": best, "triangles": int(len(tri)), "area": area(np.asarray(v, np.float64), np.asarray(tri))}))
+'''
+
+
+def cpu_model():
+    try:
+        for line in open("/proc/cpuinfo"):
+            if line.startswith("model name"):
+                return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return platform.processor() or "unknown"
+
+
+def cpus(threads):
+    return ",".join(str(i) for i in range(threads))
+
+
+def gaussian(n):
+    x = (np.arange(n) - (n - 1) / 2) / (n / 2)
+    X, Y, Z = np.meshgrid(x, x, x, indexing="ij")
+    return np.exp(-(X ** 2 + Y ** 2 + Z ** 2) / (2 * 0.25 ** 2)).astype(np.float32)
+
+
+def skull(n, seed=7):
+    """Skull-like CT phantom in HU (array [i, j, k]): air, skin, a bone shell of
+    varying thickness with a textured diploe, brain, ventricles, orbits and
+    sinuses as air pockets in the bone, additive noise."""
+    rng = np.random.default_rng(seed)
+    u = (np.arange(n) - (n - 1) / 2) / (n / 2)
+    X, Y, Z = np.meshgrid(u, u, u, indexing="ij")
+    r_head = np.sqrt((X / 0.78) ** 2 + (Y / 0.9) ** 2 + (Z / 0.85) ** 2)
+    f = np.full((n, n, n), -1000.0, dtype=np.float32)
+    f[r_head < 1.0] = 40.0
+    thick = 0.07 + 0.03 * np.sin(5 * np.arctan2(Y, X)) * np.cos(3 * Z)
+    bone = (r_head < 0.94) & (r_head > 0.94 - thick)
+    tex = np.cos(40 * X) * np.cos(37 * Y) * np.cos(43 * Z)
+    f[bone] = (1200 + 400 * tex)[bone]
+    jaw = (np.sqrt((X / 0.55) ** 2 + ((Y + 0.55) / 0.25) ** 2 + ((Z + 0.45) / 0.2) ** 2) < 1.0) & (Y < -0.4)
+    f[jaw] = 1100.0
+    for cx in (-0.3, 0.3):  # orbits
+        f[np.sqrt((X - cx) ** 2 + (Y + 0.7) ** 2 + (Z - 0.05) ** 2) < 0.15] = -1000.0
+    vent = np.sqrt((X / 0.15) ** 2 + (Y / 0.3) ** 2 + ((Z - 0.1) / 0.12) ** 2) < 1.0
+    f[vent] = 8.0
+    f += rng.normal(0, 20, f.shape).astype(np.float32)
+    return f
+
+
+def write_raw(path, f):
+    np.ascontiguousarray(f.transpose(2, 1, 0)).tofile(path)
+
+
+def run_peer(tool, raw, n, iso, threads, reps):
+    cmd = ["taskset", "-c", cpus(threads), sys.executable, "-c", PEER, tool, str(raw), str(n), str(iso),
+           str(threads), str(reps)]
+    env = dict(os.environ, OMP_NUM_THREADS=str(threads), TBB_NUM_THREADS=str(threads))
+    p = subprocess.run(cmd, capture_output=True, text=True, env=env, timeout=3600)
+    if p.returncode != 0:
+        return {"error": p.stderr.strip().splitlines()[-1] if p.stderr.strip() else "failed"}
+    return json.loads(p.stdout.strip().splitlines()[-1])
+
+
+def run_wvol(build, raw, n, iso, threads, reps, extra=()):
+    cmd = ["taskset", "-c", cpus(threads), str(pathlib.Path(build) / "wvol"), "iso", str(raw), "--dims", str(n),
+           "--iso", str(iso), "--threads", str(threads), "--repeat", str(reps), "--json", *extra]
+    p = subprocess.run(cmd, capture_output=True, text=True, timeout=3600)
+    if p.returncode != 0:
+        return {"error": p.stderr.strip()}
+    r = json.loads(p.stdout)
+    r["seconds"] = r["seconds"]["extract"]
+    return r
+
+
+def full_reconstruction_seconds(raw, n, wavelet, levels, keep, iso, threads, build):
+    """Peer of the brick path: the library's (vectorised) inverse transform of the
+    whole volume, then dense marching cubes (wvol iso --brick 0)."""
+    return run_wvol(build, raw, n, iso, threads, 1,
+                    ["--wavelet", wavelet, "--levels", str(levels), "--keep", keep, "--brick", "0"])
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--n", type=int, default=256)
+    ap.add_argument("--reps", type=int, default=5)
+    ap.add_argument("--threads", default="1,2")
+    ap.add_argument("--build", default=str(ROOT / "build"))
+    ap.add_argument("--out", default=str(ROOT / "bench" / "results"))
+    ap.add_argument("--quick", action="store_true", help="smoke test: 48^3, 1 rep, no brick section peers")
+    args = ap.parse_args()
+    if args.quick:
+        args.n, args.reps = 48, 1
+    n = args.n
+    threads = [int(t) for t in args.threads.split(",")]
+    threads = [t for t in threads if t <= os.cpu_count()]
+    phantoms = {"gaussian": (gaussian(n), 0.5), "skull": (skull(n), 400.0)}
+    tools = ["vtkFlyingEdges3D", "vtkMarchingCubes", "skimage", "openvdb"]
+    res = {"machine": {"cpu": cpu_model(), "cores": os.cpu_count(), "load_avg_start": os.getloadavg()[0]},
+           "n": n, "reps": args.reps, "mc": [], "bricks": []}
+    with tempfile.TemporaryDirectory() as tmp:
+        for name, (f, iso) in phantoms.items():
+            raw = pathlib.Path(tmp) / f"{name}.raw"
+            write_raw(raw, f)
+            for t in threads:
+                row = {"phantom": name, "iso": iso, "threads": t}
+                w = run_wvol(args.build, raw, n, iso, t, args.reps)
+                row["wvol"] = {k: w.get(k) for k in ("seconds", "triangles", "area", "error") if k in w}
+                for tool in tools:
+                    row[tool] = run_peer(tool, raw, n, iso, t, args.reps)
+                fe = row["vtkFlyingEdges3D"].get("seconds")
+                if fe and w.get("seconds"):
+                    row["speedup_vs_flying_edges"] = fe / w["seconds"]
+                res["mc"].append(row)
+                print(f"{name:8s} {t} thr  wvol {w.get('seconds', float('nan')) * 1e3:8.2f} ms  "
+                      + "  ".join(f"{k} {row[k].get('seconds', float('nan')) * 1e3:8.2f} ms" for k in tools),
+                      flush=True)
+            # brick path from coefficients
+            for wavelet, keep in (("haar", "5%"), ("db2", "5%"), ("db2", "100%")):
+                if args.quick and wavelet != "db2":
+                    continue
+                b = run_wvol(args.build, raw, n, iso, max(threads), 1,
+                             ["--wavelet", wavelet, "--levels", "3", "--keep", keep])
+                full = full_reconstruction_seconds(raw, n, wavelet, 3, keep, iso, max(threads), args.build)
+                entry = {"phantom": name, "wavelet": wavelet, "keep": keep, "threads": max(threads)}
+                for k in ("seconds", "triangles", "area", "bricks_total", "bricks_skipped", "seconds_bounds",
+                          "seconds_reconstruct_mesh", "error"):
+                    if k in b:
+                        entry[k] = b[k]
+                entry["one_brick_seconds"] = full.get("seconds")
+                res["bricks"].append(entry)
+                print(f"{name:8s} bricks {wavelet} keep {keep}: {b.get('seconds', float('nan')) * 1e3:.1f} ms, "
+                      f"{b.get('bricks_skipped')} of {b.get('bricks_total')} skipped; full inverse + MC "
+                      f"{(full.get('seconds') or float('nan')) * 1e3:.1f} ms", flush=True)
+    res["machine"]["load_avg_end"] = os.getloadavg()[0]
+    out = pathlib.Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    name = "iso_quick" if args.quick else "iso"
+    (out / f"{name}.json").write_text(json.dumps(res, indent=1) + "\n")
+    lines = [f"# Isosurface benchmark ({n}^3, fastest of {args.reps}, {res['machine']['cpu']}, "
+             f"{res['machine']['cores']} cores, load average {res['machine']['load_avg_start']:.1f} at start)", "",
+             "| phantom | threads | tool | ms | triangles | area | wvol speed-up |", "|---|---|---|---|---|---|---|"]
+    for row in res["mc"]:
+        for tool in ["wvol"] + tools:
+            r = row[tool]
+            if "error" in r:
+                lines.append(f"| {row['phantom']} | {row['threads']} | {tool} | error: {r['error']} | | | |")
+                continue
+            sp = (r["seconds"] / row["wvol"]["seconds"]) if row["wvol"].get("seconds") else float("nan")
+            lines.append(f"| {row['phantom']} | {row['threads']} | {tool} | {r['seconds'] * 1e3:.2f} | "
+                         f"{r['triangles']} | {r['area']:.1f} | {sp:.2f}x |")
+    lines += ["", "Brick path (marching cubes from kept coefficients, 3 levels, 32^3-cell bricks):", "",
+              "| phantom | wavelet | keep | ms | bricks skipped | bounds ms | reconstruct+mesh ms | full inverse + MC ms |",
+              "|---|---|---|---|---|---|---|---|"]
+    for e in res["bricks"]:
+        if "error" in e:
+            lines.append(f"| {e['phantom']} | {e['wavelet']} | {e['keep']} | error: {e['error']} | | | | |")
+            continue
+        lines.append(f"| {e['phantom']} | {e['wavelet']} | {e['keep']} | {e['seconds'] * 1e3:.1f} | "
+                     f"{e['bricks_skipped']}/{e['bricks_total']} | {e['seconds_bounds'] * 1e3:.1f} | "
+                     f"{e['seconds_reconstruct_mesh'] * 1e3:.1f} | "
+                     f"{(e['one_brick_seconds'] or float('nan')) * 1e3:.1f} |")
+    (out / f"{name}.md").write_text("\n".join(lines) + "\n")
+    print("\n".join(lines))
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,141 @@
+/* .wvc files: wavelet coefficients quantised and entropy-coded, coarse to fine,
+ * behind a versioned header, with a CRC-32 per section (DESIGN.md sections 5-6;
+ * the byte layout is in docs/wvc-format.md).
+ *
+ * Quantiser: uniform with a dead zone, q = sign(c) floor(|c|/step + rounding),
+ * reconstructed at sign(q) (|q| + delta) step with delta the centroid offset of each
+ * section (one for |q| = 1, one for |q| >= 2). The transform is orthonormal, so the
+ * squared error of the volume equals the squared error of the coefficients
+ * (Parseval): the encoder knows it exactly and can choose the step that meets a
+ * target error.
+ * Coder: per sub-band, a context-adaptive binary range coder; the contexts are
+ * the quantised parent (same band, next coarser level) and the causal neighbours,
+ * over 2x2x2 groups (the children of one parent). zstd on the same symbols is the
+ * alternative; each section keeps the smaller.
+ *
+ * Threading: functions are reentrant; they use OpenMP threads internally. */
+#ifndef WVOL_WVC_H
+#define WVOL_WVC_H
+
+#include <stddef.h>
+#include <stdint.h>
+#include "wvol/status.h"
+#include "wvol/wavelet.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+#define WVOL_WVC_FORMAT_VERSION 1
+#define WVOL_WVC_MAX_LEVELS 30
+#define WVOL_WVC_MAX_SECTIONS (1 + 7 * WVOL_WVC_MAX_LEVELS)
+
+typedef enum wvol_wvc_coder {
+    WVOL_WVC_CODER_AUTO = 0,  /* per section, the smaller of CABAC and zstd (encoder only) */
+    WVOL_WVC_CODER_EMPTY = 0, /* in a file: all coefficients of the section are zero */
+    WVOL_WVC_CODER_CABAC = 1, /* context-adaptive binary range coder */
+    WVOL_WVC_CODER_ZSTD = 2   /* zigzag varints of the same symbols, zstd */
+} wvol_wvc_coder;
+
+typedef struct wvol_wvc_params {
+    double step;         /* > 0: this quantiser step; 0: choose from target_sse */
+    double target_sse;   /* wanted sum of squared coefficient errors (quantisation only) */
+    double rounding;     /* dead-zone rounding offset in [0, 0.5] (default 0.38) */
+    wvol_wvc_coder coder;/* AUTO (default), CABAC or ZSTD */
+    int zstd_level;      /* default 3 */
+    double value_min, value_max; /* range of the original samples (header; PSNR peak) */
+    double dropped_energy;       /* energy the caller zeroed before encoding (header; reports) */
+} wvol_wvc_params;
+
+void wvol_wvc_params_default(wvol_wvc_params *p);
+
+/* One section of a file (the low-pass cube is level == levels, band 0). */
+typedef struct wvol_wvc_section {
+    int level, band;
+    int coder;               /* wvol_wvc_coder */
+    uint64_t bytes;          /* payload bytes */
+    uint64_t count;          /* coefficients in the band */
+    uint64_t nonzero;        /* quantised coefficients != 0 */
+    float delta1, delta2;    /* reconstruction offsets */
+    double energy;           /* sum c^2 of the coefficients as given to the encoder */
+    double error;            /* sum (c - c_hat)^2 */
+    uint32_t crc;
+    uint64_t offset;         /* of the payload in the file */
+} wvol_wvc_section;
+
+/* What the header and the section table say (no payload decoded). */
+typedef struct wvol_wvc_info {
+    int version;
+    char filter[16];
+    int levels;
+    size_t nx, ny, nz, px, py, pz;
+    double spacing[3], origin[3];
+    double value_min, value_max;
+    double step, rounding;
+    double sse;              /* predicted squared error: quantisation + dropped_energy */
+    double energy;           /* sum c^2 as given to the encoder */
+    double dropped_energy;
+    uint64_t nonzero;
+    uint64_t file_bytes;     /* header + table + payloads */
+    uint64_t header_bytes;
+    int nsections;
+    wvol_wvc_section sections[WVOL_WVC_MAX_SECTIONS];
+} wvol_wvc_info;
+
+/* What encoding did. */
+typedef struct wvol_wvc_report {
+    double step;
+    int step_iterations;     /* exact error evaluations while searching the step */
+    double sse_quant;        /* sum (c - c_hat)^2 over the given coefficients */
+    uint64_t nonzero, coefficients;
+    size_t bytes;            /* the whole file */
+    size_t bytes_cabac;      /* payload bytes if every section used CABAC (0: not tried) */
+    size_t bytes_zstd;       /* ... if every section used zstd (0: not tried) */
+    double seconds_step, seconds_quantise, seconds_code;
+} wvol_wvc_report;
+
+/* Encodes coefficients (zero the ones a selection dropped before calling) into a
+ * heap buffer *out of *out_size bytes (free with free()). report may be NULL. */
+wvol_status wvol_wvc_encode(void **out, size_t *out_size, const wvol_coeffs *c,
+                            const wvol_wvc_params *p, wvol_wvc_report *report, wvol_error *err);
+
+typedef struct wvol_wvc_read_options {
+    int stop_level;          /* 0: everything; m: decode the levels above m only (then
+                                wvol_idwt3_level(c, m) gives the coarser volume) */
+    uint64_t max_voxels;     /* refuse larger padded grids (0: 2^34) */
+} wvol_wvc_read_options;
+
+void wvol_wvc_read_options_default(wvol_wvc_read_options *o);
+
+/* Parses and checks the header and section table of a buffer (the whole file,
+ * or at least its first info->header_bytes). */
+wvol_status wvol_wvc_parse_info(wvol_wvc_info *info, const void *buf, size_t size, wvol_error *err);
+
+/* Decodes a whole file held in memory. The coefficients of levels <= stop_level
+ * are zero. info may be NULL. Free the result with wvol_coeffs_destroy. */
+wvol_status wvol_wvc_decode(wvol_coeffs **out, const void *buf, size_t size,
+                            const wvol_wvc_read_options *opt, wvol_wvc_info *info, wvol_error *err);
+
+/* Files. save is atomic (temporary name, then rename). read reads the header, the
+ * table and only the sections it needs; a file whose size differs from what its
+ * header declares is refused. read_info parses the header and the table and checks
+ * every section's checksum, without decoding. */
+wvol_status wvol_wvc_save(const char *path, const void *buf, size_t size, wvol_error *err);
+wvol_status wvol_wvc_read_info(wvol_wvc_info *info, const char *path, wvol_error *err);
+wvol_status wvol_wvc_read(wvol_coeffs **out, const char *path, const wvol_wvc_read_options *opt,
+                          wvol_wvc_info *info, wvol_error *err);
+
+/* Predicted and measured error. sse is a sum of squared errors over n samples;
+ * PSNR uses peak = value range (infinite for sse 0). */
+double wvol_wvc_psnr(double sse, double n, double vmin, double vmax);
+/* The sum of squared errors that gives this PSNR over n samples. */
+double wvol_wvc_sse_for_psnr(double psnr, double n, double vmin, double vmax);
+
+/* Compares two volumes of equal size: sum of squared differences and max |a-b|. */
+wvol_status wvol_wvc_compare(double *sse, double *maxabs, const wvol_volume *a,
+                             const wvol_volume *b, wvol_error *err);
+
+#ifdef __cplusplus
+}
+#endif
+#endif

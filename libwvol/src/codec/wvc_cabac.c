@@ -1,0 +1,345 @@
+/* SPDX-License-Identifier: MIT
+ * Context-adaptive binary coding of one sub-band of quantised wavelet coefficients.
+ * Based on: Shapiro 1993 (zerotrees: an insignificant parent predicts insignificant
+ * children); Wu 1997 / Chrysafis & Ortega 2000 (context modelling of wavelet
+ * coefficients from causal neighbours); Marpe, Schwarz & Wiegand 2003 (CABAC:
+ * binarisation, significance flag, unary + exp-Golomb magnitude, bypass signs).
+ *
+ * A detail band is visited in 2x2x2 groups, the children of one parent coefficient
+ * (same band, next coarser level). Per group one flag says whether any child is
+ * non-zero; its context is the parent's magnitude (or, for a zero parent, how many
+ * of the parent's six neighbours are non-zero) and how many of the three causal
+ * neighbour groups were non-zero. Inside a non-zero group each coefficient gets a
+ * significance flag (context: parent class x non-zero causal neighbours; the last
+ * one is implied when the others are zero), then |q| >= 2, |q| >= 3 flags and an
+ * exp-Golomb remainder with adaptive prefix contexts (context: magnitude of causal
+ * neighbours and parent), then a raw sign bit. The low-pass cube codes the residual
+ * of the 3D Lorenzo predictor with the same magnitude binarisation.
+ *
+ * One body serves both directions: `dec` is a compile-time constant at each call,
+ * so encoder and decoder share every context decision by construction. */
+#include <stdlib.h>
+
+#include "rangecoder.h"
+#include "wvc_internal.h"
+
+#define NPC 6   /* parent classes: 0..2 zero parent (0, 1-2, 3+ non-zero neighbours), 3: |p|=1, 4: |p|>=2, 5: none */
+#define NMC 16  /* magnitude classes: bit length of a weighted neighbourhood magnitude */
+#define NLEN 40 /* longest magnitude bit length */
+
+typedef struct band_model {
+    rc_ctx group[NPC * 4];
+    rc_ctx sig[NPC * 4 * 4];
+    rc_ctx len[NMC][NLEN + 1];  /* unary bit length of |q| */
+    rc_ctx sub[NMC][NLEN + 1];  /* the bit below the leading one */
+    rc_ctx sign[9];
+    rc_ctx lsig[NMC];
+} band_model;
+
+typedef struct coder {
+    rc_enc *e;
+    rc_dec *d;
+} coder;
+
+#define FORCE_INLINE static inline __attribute__((always_inline))
+
+#ifdef WVC_STATS
+#include <math.h>
+double wvc_stat_bits[8];
+int wvc_stat_cat;
+#define STAT_CAT(k) (wvc_stat_cat = (k))
+#else
+#define STAT_CAT(k) ((void)0)
+#endif
+FORCE_INLINE int code_bit(int dec, coder *c, rc_ctx *ctx, int bit)
+{
+#ifdef WVC_STATS
+    if (!dec) { double p0 = rc_ctx_p0(ctx) / 65536.0; wvc_stat_bits[wvc_stat_cat] -= log2(bit ? 1 - p0 : p0); }
+#endif
+    if (dec) return rc_dec_bit(c->d, ctx);
+    rc_enc_bit(c->e, ctx, bit);
+    return bit;
+}
+
+FORCE_INLINE uint64_t code_direct(int dec, coder *c, uint64_t v, int n)
+{
+    uint64_t out = 0;
+    while (n > 0) {
+        int k = n > 24 ? 24 : n;
+        n -= k;
+#ifdef WVC_STATS
+        if (!dec) wvc_stat_bits[wvc_stat_cat] += k;
+#endif
+        if (dec) {
+            out = (out << k) | rc_dec_direct(c->d, k);
+        } else {
+            rc_enc_direct(c->e, (uint32_t)((v >> n) & ((1u << k) - 1)), k);
+        }
+    }
+    return dec ? out : v;
+}
+
+/* Bit length of a weighted neighbourhood sum, the magnitude context. */
+static inline int mag_class(uint32_t t)
+{
+    int n = t ? 32 - __builtin_clz(t) : 0;
+    return n < NMC ? n : NMC - 1;
+}
+
+/* |value| >= 1 as its bit length n + 1 (unary, adaptive per class and position),
+ * the bit below the leading one (adaptive), the rest raw. At most max_len + 1 bits
+ * of magnitude. Returns 0 on a malformed code (decoder). */
+FORCE_INLINE uint64_t code_mag(int dec, coder *c, band_model *m, int mc, uint64_t a, int max_len)
+{
+    int n = 0, i;
+    uint64_t v;
+    rc_ctx *len = m->len[mc];
+    if (!dec) n = 63 - __builtin_clzll(a);
+    for (i = 0;; i++) {
+        if (!code_bit(dec, c, &len[i < NLEN ? i : NLEN], i < n)) break;
+        if (i + 1 > max_len) return 0;
+    }
+    n = i;
+    if (n == 0) return 1;
+    v = (uint64_t)1 << n;
+    if (code_bit(dec, c, &m->sub[mc][n < NLEN ? n : NLEN], (int)((a >> (n - 1)) & 1))) v |= (uint64_t)1 << (n - 1);
+    if (n > 1) v |= code_direct(dec, c, a & (((uint64_t)1 << (n - 1)) - 1), n - 1);
+    return v;
+}
+
+static inline int sign_of(int32_t v) { return v > 0 ? 1 : v < 0 ? 2 : 0; }
+
+static inline uint32_t absq(int32_t v)
+{
+    uint32_t a = v < 0 ? (uint32_t)0 - (uint32_t)v : (uint32_t)v;
+    return a > 65535 ? 65535 : a;
+}
+
+/* Parent class of group (gi, gj, gk): see NPC. *P receives the parent's |q|. */
+FORCE_INLINE int parent_class(const int32_t *Q, const size_t p[3], const wvc_band *b, size_t gi, size_t gj,
+                              size_t gk, uint32_t *P)
+{
+    const ptrdiff_t sy = (ptrdiff_t)p[0], sz = (ptrdiff_t)(p[0] * p[1]);
+    size_t pi, pj, pk;
+    const int32_t *pp;
+    int pn;
+    *P = 0;
+    if (!b->has_parent) return 5;
+    pi = gi < b->pext[0] ? gi : b->pext[0] - 1;
+    pj = gj < b->pext[1] ? gj : b->pext[1] - 1;
+    pk = gk < b->pext[2] ? gk : b->pext[2] - 1;
+    pp = Q + (b->poff[0] + pi) + (size_t)sy * (b->poff[1] + pj) + (size_t)sz * (b->poff[2] + pk);
+    *P = absq(*pp);
+    if (*P >= 2) return 4;
+    if (*P == 1) return 3;
+    pn = (pi > 0 && pp[-1]) + (pi + 1 < b->pext[0] && pp[1]) + (pj > 0 && pp[-sy]) +
+         (pj + 1 < b->pext[1] && pp[sy]) + (pk > 0 && pp[-sz]) + (pk + 1 < b->pext[2] && pp[sz]);
+    return pn == 0 ? 0 : pn <= 2 ? 1 : 2;
+}
+
+/* Group states: 0 all zero, 1 non-zero with no non-zero child coded yet, 2 one seen. */
+FORCE_INLINE int detail_band(int dec, coder *cd, int32_t *Q, const size_t p[3], const wvc_band *b,
+                             band_model *m, uint8_t *gstate)
+{
+    const size_t ex = b->ext[0], ey = b->ext[1], ez = b->ext[2];
+    const size_t gx = (ex + 1) / 2, gy = (ey + 1) / 2;
+    const ptrdiff_t sy = (ptrdiff_t)p[0], sz = (ptrdiff_t)(p[0] * p[1]);
+    const size_t ngroups = gx * gy * ((ez + 1) / 2);
+    /* the parent class and |parent| of the current slab of groups, computed at first touch */
+    uint32_t *gP = (uint32_t *)(void *)(gstate + ((ngroups + 7) & ~(size_t)7));
+    uint8_t *gpc = (uint8_t *)(gP + gx * gy);
+    size_t x, y, z;
+    for (z = 0; z < ez; z++)
+        for (y = 0; y < ey; y++) {
+            const size_t gk = z >> 1, gj = y >> 1;
+            uint8_t *grow = gstate + gx * (gj + gy * gk);
+            int32_t *row = Q + wvc_index(p, b, 0, y, z);
+            const int hasN = y > 0, hasU = z > 0;
+            for (x = 0; x < ex; x++) {
+                const size_t gi = x >> 1;
+                int32_t *c = row + x;
+                uint32_t P, aW, aN, aU, dsum;
+                int pc, sig, a, dn;
+                uint64_t mag;
+                if ((x & 1) == 0 && (y & 1) == 0 && (z & 1) == 0) {
+                    /* first touch of the group: its flag */
+                    int any = 0, gn;
+                    pc = parent_class(Q, p, b, gi, gj, gk, &P);
+                    gpc[gi + gx * gj] = (uint8_t)pc;
+                    gP[gi + gx * gj] = P;
+                    gn = (gi > 0 && grow[gi - 1]) + (gj > 0 && grow[(ptrdiff_t)gi - (ptrdiff_t)gx]) +
+                         (gk > 0 && grow[(ptrdiff_t)gi - (ptrdiff_t)(gx * gy)]);
+                    if (!dec) {
+                        size_t x1 = x + 2 < ex ? x + 2 : ex, y1 = y + 2 < ey ? y + 2 : ey;
+                        size_t z1 = z + 2 < ez ? z + 2 : ez, xx, yy, zz;
+                        for (zz = z; zz < z1 && !any; zz++)
+                            for (yy = y; yy < y1 && !any; yy++)
+                                for (xx = x; xx < x1; xx++)
+                                    if (Q[wvc_index(p, b, xx, yy, zz)]) {
+                                        any = 1;
+                                        break;
+                                    }
+                    }
+                    STAT_CAT(0);
+                    any = code_bit(dec, cd, &m->group[pc * 4 + gn], any);
+                    grow[gi] = (uint8_t)any;
+                }
+                if (!grow[gi]) {
+                    x |= 1; /* the group's other column is zero too */
+                    continue;
+                }
+                pc = gpc[gi + gx * gj];
+                P = gP[gi + gx * gj];
+                aW = x > 0 ? absq(c[-1]) : 0;
+                aN = hasN ? absq(c[-sy]) : 0;
+                aU = hasU ? absq(c[-sz]) : 0;
+                dsum = 0;
+                dn = 0;
+                if (hasN) {
+                    if (x > 0) { uint32_t t = absq(c[-sy - 1]); dsum += t; dn += t != 0; }
+                    if (x + 1 < ex) { uint32_t t = absq(c[-sy + 1]); dsum += t; dn += t != 0; }
+                }
+                if (hasU) {
+                    if (x > 0) { uint32_t t = absq(c[-sz - 1]); dsum += t; dn += t != 0; }
+                    if (x + 1 < ex) { uint32_t t = absq(c[-sz + 1]); dsum += t; dn += t != 0; }
+                    if (y > 0) { uint32_t t = absq(c[-sz - sy]); dsum += t; dn += t != 0; }
+                    if (y + 1 < ey) { uint32_t t = absq(c[-sz + sy]); dsum += t; dn += t != 0; }
+                }
+                {
+                    /* the last child of a non-zero group whose others are all zero is non-zero */
+                    int last = (x == ex - 1 || (x & 1)) && (y == ey - 1 || (y & 1)) && (z == ez - 1 || (z & 1));
+                    if (last && grow[gi] == 1) {
+                        sig = 1;
+                    } else {
+                        a = (aW != 0) + (aN != 0) + (aU != 0);
+                        STAT_CAT(1);
+                        sig = code_bit(dec, cd, &m->sig[(pc * 4 + a) * 4 + (dn > 3 ? 3 : dn)], *c != 0);
+                    }
+                }
+                if (!sig) continue;
+                grow[gi] = 2;
+                STAT_CAT(2);
+                mag = dec ? 0 : *c < 0 ? (uint64_t)(-(int64_t)*c) : (uint64_t)*c;
+                mag = code_mag(dec, cd, m, mag_class(2 * (aW + aN + aU) + dsum + 4 * P), mag, 30);
+                STAT_CAT(3);
+                {
+                    rc_ctx *sc = &m->sign[3 * (x > 0 ? sign_of(c[-1]) : 0) + (hasN ? sign_of(c[-sy]) : 0)];
+                    if (dec) {
+                        if (mag == 0 || mag > WVC_QMAX) return -1;
+                        *c = code_bit(dec, cd, sc, 0) ? -(int32_t)mag : (int32_t)mag;
+                    } else {
+                        code_bit(dec, cd, sc, *c < 0);
+                    }
+                }
+            }
+        }
+    return 0;
+}
+
+FORCE_INLINE int lowpass_band(int dec, coder *cd, int32_t *Q, const size_t p[3], const wvc_band *b,
+                              band_model *m, uint16_t *R)
+{
+    const size_t ex = b->ext[0], ey = b->ext[1], ez = b->ext[2];
+    size_t x, y, z, i = 0;
+    for (z = 0; z < ez; z++)
+        for (y = 0; y < ey; y++)
+            for (x = 0; x < ex; x++, i++) {
+                int32_t *c = Q + wvc_index(p, b, x, y, z);
+                int64_t pred = wvc_lorenzo(Q, p, b, x, y, z), r = dec ? 0 : (int64_t)*c - pred;
+                uint32_t s = (x ? R[i - 1] : 0) + (y ? R[i - ex] : 0) + (z ? R[i - ex * ey] : 0);
+                int mc = mag_class(4 * s);
+                uint64_t mag = 0;
+                if (code_bit(dec, cd, &m->lsig[mc], r != 0)) {
+                    mag = code_mag(dec, cd, m, mc, r < 0 ? (uint64_t)(-r) : (uint64_t)r, 36);
+                    if (dec) {
+                        int neg;
+                        if (mag == 0) return -1;
+                        neg = (int)code_direct(dec, cd, 0, 1);
+                        r = neg ? -(int64_t)mag : (int64_t)mag;
+                        if (r + pred > WVC_QMAX || r + pred < -(int64_t)WVC_QMAX) return -1;
+                        *c = (int32_t)(r + pred);
+                    } else {
+                        code_direct(dec, cd, r < 0, 1);
+                    }
+                } else if (dec) {
+                    if (pred > WVC_QMAX || pred < -(int64_t)WVC_QMAX) return -1;
+                    *c = (int32_t)pred;
+                }
+                R[i] = (uint16_t)(mag > 65535 ? 65535 : mag);
+            }
+    return 0;
+}
+
+static void model_init(band_model *m)
+{
+    rc_ctx_init((rc_ctx *)m, (int)(sizeof *m / sizeof(rc_ctx)));
+}
+
+static int band_scratch(const wvc_band *b, void **scratch)
+{
+    size_t gxy = ((b->ext[0] + 1) / 2) * ((b->ext[1] + 1) / 2), ng = gxy * ((b->ext[2] + 1) / 2);
+    size_t n = b->band == 0 ? (size_t)b->count * sizeof(uint16_t) : ((ng + 7) & ~(size_t)7) + gxy * 5;
+    *scratch = malloc(n ? n : 1);
+    return *scratch ? 0 : -1;
+}
+
+int wvol__wvc_cabac_encode(uint8_t **buf, size_t *size, const int32_t *Q, const size_t p[3],
+                           const wvc_band *b)
+{
+    rc_enc e;
+    coder cd = {&e, NULL};
+    band_model m;
+    void *scratch;
+    const uint8_t *data;
+    size_t n;
+    *buf = NULL;
+    *size = 0;
+    if (band_scratch(b, &scratch)) return -1;
+    model_init(&m);
+    rc_enc_init(&e);
+    if (b->band == 0)
+        lowpass_band(0, &cd, (int32_t *)Q, p, b, &m, scratch);
+    else
+        detail_band(0, &cd, (int32_t *)Q, p, b, &m, scratch);
+    rc_enc_finish(&e);
+    free(scratch);
+    if (e.oom) {
+        rc_enc_free(&e);
+        return -1;
+    }
+    data = rc_enc_data(&e, &n);
+    memmove(e.buf, data, n);
+    *buf = e.buf;
+    *size = n;
+    return 0;
+}
+
+int wvol__wvc_cabac_decode(int32_t *Q, const size_t p[3], const wvc_band *b, const uint8_t *buf,
+                           size_t size, const char **why)
+{
+    rc_dec d;
+    coder cd = {NULL, &d};
+    band_model m;
+    void *scratch;
+    int r;
+    if (band_scratch(b, &scratch)) {
+        *why = "out of memory";
+        return -1;
+    }
+    model_init(&m);
+    rc_dec_init(&d, buf, size);
+    if (b->band == 0)
+        r = lowpass_band(1, &cd, Q, p, b, &m, scratch);
+    else
+        r = detail_band(1, &cd, Q, p, b, &m, scratch);
+    free(scratch);
+    if (r) {
+        *why = "malformed coefficient code";
+        return -1;
+    }
+    if (d.overrun) {
+        *why = "coded data ends early";
+        return -1;
+    }
+    return 0;
+}

@@ -1,0 +1,421 @@
+/* SPDX-License-Identifier: MIT
+ * .wvc reader: header and section table checks, per-section CRC-32, decoding
+ * coarse to fine with an optional early stop, dequantisation, files.
+ * Every field is checked before it is used; the coders check every byte they
+ * read (docs/wvc-format.md lists the checks). */
+#define _POSIX_C_SOURCE 200809L
+#include <errno.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <zlib.h>
+
+#include "wvc_format.h"
+#include "wvc_internal.h"
+#include "wvol/io.h"
+
+void wvol_wvc_read_options_default(wvol_wvc_read_options *o)
+{
+    memset(o, 0, sizeof *o);
+}
+
+static int finite_nonneg(double v) { return isfinite(v) && v >= 0; }
+
+/* Checks header + table in buf[0..avail) for a file of file_size bytes. */
+static wvol_status parse(wvol_wvc_info *I, const uint8_t *h, size_t avail, uint64_t file_size,
+                         uint64_t max_voxels, wvol_error *err)
+{
+    uint32_t nsec;
+    uint64_t hbytes, payload = 0, off, nonzero = 0, dims[6];
+    int levels, a, s, maxlev;
+    const wvol_filter *f;
+    wvc_layout L;
+    size_t nbytes;
+    memset(I, 0, sizeof *I);
+    WVOL_RETURN_IF(avail < 16 || file_size < 16, err, WVOL_ERR_FORMAT,
+                   "not a .wvc file: %llu bytes is too short for a header", (unsigned long long)file_size);
+    WVOL_RETURN_IF(memcmp(h, WVC_MAGIC, 8) != 0, err, WVOL_ERR_FORMAT,
+                   "not a .wvc file (wrong magic bytes)");
+    I->version = wvc_get_u16(h + 8);
+    WVOL_RETURN_IF(I->version > WVOL_WVC_FORMAT_VERSION, err, WVOL_ERR_UNSUPPORTED,
+                   ".wvc format version %d is newer than this reader (version %d): update libwvol",
+                   I->version, WVOL_WVC_FORMAT_VERSION);
+    WVOL_RETURN_IF(I->version != WVOL_WVC_FORMAT_VERSION, err, WVOL_ERR_FORMAT,
+                   ".wvc format version %d is not valid", I->version);
+    WVOL_RETURN_IF(wvc_get_u16(h + 10) != 0, err, WVOL_ERR_UNSUPPORTED,
+                   ".wvc header flags 0x%x are not known to this reader", wvc_get_u16(h + 10));
+    nsec = wvc_get_u32(h + 12);
+    WVOL_RETURN_IF(nsec > WVOL_WVC_MAX_SECTIONS, err, WVOL_ERR_FORMAT,
+                   ".wvc header: %u sections is more than %d levels allow", nsec, WVOL_WVC_MAX_LEVELS);
+    hbytes = WVC_HEADER_SIZE + (uint64_t)nsec * WVC_SECTION_SIZE + 4;
+    WVOL_RETURN_IF(file_size < hbytes || avail < hbytes, err, WVOL_ERR_FORMAT,
+                   ".wvc file truncated: %llu bytes, the header alone needs %llu",
+                   (unsigned long long)(file_size < avail ? file_size : avail), (unsigned long long)hbytes);
+    WVOL_RETURN_IF(wvc_get_u32(h + hbytes - 4) != (uint32_t)crc32(0L, h, (uInt)(hbytes - 4)), err,
+                   WVOL_ERR_FORMAT, ".wvc header checksum mismatch: the file is corrupt");
+    /* from here on the header is what a writer wrote, but still check every field:
+     * a crafted file can carry a valid checksum */
+    WVOL_RETURN_IF(memchr(h + 16, 0, 16) == NULL, err, WVOL_ERR_FORMAT, ".wvc header: filter name unterminated");
+    memcpy(I->filter, h + 16, 16);
+    {
+        wvol_error e2;
+        WVOL_RETURN_IF(wvol_filter_get(&f, I->filter, &e2) != WVOL_OK, err, WVOL_ERR_UNSUPPORTED,
+                       ".wvc header: unknown wavelet '%s'", I->filter);
+    }
+    levels = h[32];
+    WVOL_RETURN_IF(h[33] || h[34] || h[35] || wvc_get_u32(h + 36), err, WVOL_ERR_FORMAT,
+                   ".wvc header: reserved bytes are not zero");
+    WVOL_RETURN_IF(levels < 1 || levels > WVOL_WVC_MAX_LEVELS, err, WVOL_ERR_FORMAT,
+                   ".wvc header: %d levels outside 1..%d", levels, WVOL_WVC_MAX_LEVELS);
+    WVOL_RETURN_IF(nsec != (uint32_t)(1 + 7 * levels), err, WVOL_ERR_FORMAT,
+                   ".wvc header: %u sections for %d levels (expected %d)", nsec, levels, 1 + 7 * levels);
+    for (a = 0; a < 6; a++) dims[a] = wvc_get_u64(h + 40 + 8 * a);
+    for (a = 0; a < 3; a++) {
+        uint64_t n = dims[a], p = dims[3 + a];
+        WVOL_RETURN_IF(n < 1 || n > ((uint64_t)1 << 40) || p < n || p > n + ((uint64_t)1 << levels), err,
+                       WVOL_ERR_DIMS, ".wvc header: size %llu padded to %llu is not valid",
+                       (unsigned long long)n, (unsigned long long)p);
+        WVOL_RETURN_IF((n == 1) != (p == 1) || (p > 1 && (p & (((uint64_t)1 << levels) - 1))), err,
+                       WVOL_ERR_DIMS, ".wvc header: padded size %llu is not a multiple of 2^%d",
+                       (unsigned long long)p, levels);
+    }
+    WVOL_RETURN_IF(!wvol_size_mul3((size_t)dims[3], (size_t)dims[4], (size_t)dims[5], sizeof(float), &nbytes),
+                   err, WVOL_ERR_DIMS, ".wvc header: %llux%llux%llu overflows",
+                   (unsigned long long)dims[3], (unsigned long long)dims[4], (unsigned long long)dims[5]);
+    WVOL_RETURN_IF(nbytes / sizeof(float) > (max_voxels ? max_voxels : WVC_DEFAULT_MAX_VOXELS), err,
+                   WVOL_ERR_DIMS, ".wvc header: %llux%llux%llu is larger than the reader's limit",
+                   (unsigned long long)dims[3], (unsigned long long)dims[4], (unsigned long long)dims[5]);
+    maxlev = wvol_dwt_max_levels((size_t)dims[0], (size_t)dims[1], (size_t)dims[2]);
+    WVOL_RETURN_IF(levels > maxlev, err, WVOL_ERR_DIMS,
+                   ".wvc header: %d levels is more than a %llux%llux%llu volume allows (%d)", levels,
+                   (unsigned long long)dims[0], (unsigned long long)dims[1], (unsigned long long)dims[2],
+                   maxlev);
+    I->levels = levels;
+    I->nx = (size_t)dims[0];
+    I->ny = (size_t)dims[1];
+    I->nz = (size_t)dims[2];
+    I->px = (size_t)dims[3];
+    I->py = (size_t)dims[4];
+    I->pz = (size_t)dims[5];
+    for (a = 0; a < 3; a++) {
+        I->spacing[a] = wvc_get_f64(h + 88 + 8 * a);
+        I->origin[a] = wvc_get_f64(h + 112 + 8 * a);
+        WVOL_RETURN_IF(!(isfinite(I->spacing[a]) && I->spacing[a] > 0) || !isfinite(I->origin[a]), err,
+                       WVOL_ERR_FORMAT, ".wvc header: spacing or origin is not valid");
+    }
+    I->value_min = wvc_get_f64(h + 136);
+    I->value_max = wvc_get_f64(h + 144);
+    I->step = wvc_get_f64(h + 152);
+    I->rounding = wvc_get_f64(h + 160);
+    I->sse = wvc_get_f64(h + 168);
+    I->energy = wvc_get_f64(h + 176);
+    I->dropped_energy = wvc_get_f64(h + 184);
+    I->nonzero = wvc_get_u64(h + 192);
+    payload = wvc_get_u64(h + 200);
+    WVOL_RETURN_IF(!isfinite(I->value_min) || !isfinite(I->value_max) || I->value_min > I->value_max, err,
+                   WVOL_ERR_FORMAT, ".wvc header: value range is not valid");
+    WVOL_RETURN_IF(!(I->step >= WVC_MIN_STEP && I->step <= WVC_MAX_STEP), err, WVOL_ERR_FORMAT,
+                   ".wvc header: quantiser step %g is not valid", I->step);
+    WVOL_RETURN_IF(!(I->rounding >= 0 && I->rounding <= 0.5) || !finite_nonneg(I->sse) ||
+                       !finite_nonneg(I->energy) || !finite_nonneg(I->dropped_energy),
+                   err, WVOL_ERR_FORMAT, ".wvc header: quantiser or error fields are not valid");
+    WVOL_RETURN_IF(payload > file_size || hbytes + payload != file_size, err, WVOL_ERR_FORMAT,
+                   ".wvc file is %llu bytes but its header declares %llu: truncated or extended",
+                   (unsigned long long)file_size, (unsigned long long)(hbytes + payload));
+    wvol__wvc_layout(&L, I->px, I->py, I->pz, levels);
+    off = hbytes;
+    I->nsections = (int)nsec;
+    for (s = 0; s < (int)nsec; s++) {
+        const uint8_t *e = h + WVC_HEADER_SIZE + (size_t)s * WVC_SECTION_SIZE;
+        wvol_wvc_section *S = &I->sections[s];
+        S->level = e[0];
+        S->band = e[1];
+        S->coder = e[2];
+        S->crc = wvc_get_u32(e + 4);
+        S->bytes = wvc_get_u64(e + 8);
+        S->nonzero = wvc_get_u64(e + 16);
+        S->delta1 = wvc_get_f32(e + 24);
+        S->delta2 = wvc_get_f32(e + 28);
+        S->energy = wvc_get_f64(e + 32);
+        S->error = wvc_get_f64(e + 40);
+        S->count = L.sec[s].count;
+        WVOL_RETURN_IF(S->level != L.sec[s].level || S->band != L.sec[s].band || e[3], err, WVOL_ERR_FORMAT,
+                       ".wvc section table: entry %d is level %d band %d, expected level %d band %d", s,
+                       S->level, S->band, L.sec[s].level, L.sec[s].band);
+        WVOL_RETURN_IF(S->coder > WVOL_WVC_CODER_ZSTD, err, WVOL_ERR_UNSUPPORTED,
+                       ".wvc section level %d band %d: unknown coder %d", S->level, S->band, S->coder);
+        WVOL_RETURN_IF((S->coder == WVOL_WVC_CODER_EMPTY) != (S->bytes == 0) ||
+                           (S->coder == WVOL_WVC_CODER_EMPTY) != (S->nonzero == 0) ||
+                           S->nonzero > S->count || S->bytes > file_size - off,
+                       err, WVOL_ERR_FORMAT, ".wvc section level %d band %d: sizes are not consistent",
+                       S->level, S->band);
+        WVOL_RETURN_IF(!(fabsf(S->delta1) <= 1.0f) || !(fabsf(S->delta2) <= 1.0f) ||
+                           !finite_nonneg(S->energy) || !finite_nonneg(S->error),
+                       err, WVOL_ERR_FORMAT, ".wvc section level %d band %d: fields are not valid",
+                       S->level, S->band);
+        S->offset = off;
+        off += S->bytes;
+        nonzero += S->nonzero;
+    }
+    WVOL_RETURN_IF(off != file_size || nonzero != I->nonzero, err, WVOL_ERR_FORMAT,
+                   ".wvc section table does not add up to the header's totals");
+    I->file_bytes = file_size;
+    I->header_bytes = hbytes;
+    return WVOL_OK;
+}
+
+wvol_status wvol_wvc_parse_info(wvol_wvc_info *info, const void *buf, size_t size, wvol_error *err)
+{
+    WVOL_RETURN_IF(!info || (!buf && size), err, WVOL_ERR_ARG, "wvc: missing argument");
+    return parse(info, buf, size, size, 0, err);
+}
+
+static wvol_status coeffs_new(wvol_coeffs **out, const wvol_wvc_info *I, wvol_error *err)
+{
+    const wvol_filter *f;
+    WVOL_FORWARD(wvol_filter_get(&f, I->filter, err));
+    WVOL_FORWARD(wvol_coeffs_create(out, f, I->levels, I->nx, I->ny, I->nz, err));
+    if ((*out)->px != I->px || (*out)->py != I->py || (*out)->pz != I->pz) {
+        wvol_coeffs_destroy(*out);
+        *out = NULL;
+        return wvol_error_set(err, WVOL_ERR_DIMS, ".wvc header: padded size does not match the transform's");
+    }
+    memcpy((*out)->spacing, I->spacing, sizeof I->spacing);
+    memcpy((*out)->origin, I->origin, sizeof I->origin);
+    return WVOL_OK;
+}
+
+/* Decodes the sections of levels > stop_level from buf (the file's first avail bytes).
+ * The quantised values are decoded into the output's own buffer (as int32, which
+ * has the size of a float and whose zero is 0.0f) and dequantised in place. */
+static wvol_status decode(wvol_coeffs **out, const uint8_t *buf, size_t avail, const wvol_wvc_info *I,
+                          int stop_level, wvol_error *err)
+{
+    wvc_layout *L;
+    int32_t *Q;
+    wvol_coeffs *c = NULL;
+    int s, first, last, bad_sec = -1;
+    const char *why = NULL;
+    wvol_status st;
+
+    *out = NULL;
+    WVOL_RETURN_IF(stop_level < 0 || stop_level > I->levels, err, WVOL_ERR_ARG,
+                   "wvc: stop level %d outside 0..%d", stop_level, I->levels);
+    WVOL_FORWARD(coeffs_new(&c, I, err));
+    L = malloc(sizeof *L);
+    if (!L) {
+        wvol_coeffs_destroy(c);
+        return wvol_error_set(err, WVOL_ERR_NOMEM, "wvc: out of memory");
+    }
+    Q = (int32_t *)(void *)c->data;
+    wvol__wvc_layout(L, I->px, I->py, I->pz, I->levels);
+    /* low-pass cube, then one level at a time; the bands of a level in parallel */
+    for (first = 0; first < L->nsec && bad_sec < 0; first = last) {
+        int lev = L->sec[first].level;
+        if (first > 0 && lev <= stop_level) break;
+        last = first + (first == 0 ? 1 : 7);
+#pragma omp parallel for schedule(dynamic, 1) if (L->sec[last - 1].count > 32768)
+        for (s = first; s < last; s++) {
+            const wvol_wvc_section *S = &I->sections[s];
+            const char *w = NULL;
+            int r = 0;
+            if (S->coder == WVOL_WVC_CODER_EMPTY) continue;
+            if (S->offset + S->bytes > avail) {
+                w = "section lies past the end of the data read";
+                r = -1;
+            } else if ((uint32_t)crc32(0L, buf + S->offset, (uInt)S->bytes) != S->crc) {
+                w = "checksum mismatch: the file is corrupt";
+                r = -1;
+            } else if (S->coder == WVOL_WVC_CODER_CABAC) {
+                r = wvol__wvc_cabac_decode(Q, L->p, &L->sec[s], buf + S->offset, (size_t)S->bytes, &w);
+            } else {
+                r = wvol__wvc_zstd_decode(Q, L->p, &L->sec[s], buf + S->offset, (size_t)S->bytes, &w);
+            }
+            if (r) {
+#pragma omp critical(wvc_decode_error)
+                if (bad_sec < 0 || s < bad_sec) {
+                    bad_sec = s;
+                    why = w;
+                }
+            }
+        }
+    }
+    /* dequantise in place, sign(q) (|q| + delta) step, counting the non-zeros */
+    for (s = 0; s < L->nsec && bad_sec < 0; s++) {
+        const wvc_band *b = &L->sec[s];
+        const wvol_wvc_section *S = &I->sections[s];
+        /* in double, rounded once: the only error left beyond the quantiser's is half an ulp */
+        const double step = I->step, o1 = (1.0 + (double)S->delta1) * step, d2 = S->delta2;
+        uint64_t nz = 0;
+        long z;
+        if (s > 0 && b->level <= stop_level) break;
+        if (S->coder == WVOL_WVC_CODER_EMPTY) continue;
+#pragma omp parallel for schedule(static) reduction(+ : nz) if (b->count > 65536)
+        for (z = 0; z < (long)b->ext[2]; z++) {
+            size_t x, y;
+            for (y = 0; y < b->ext[1]; y++) {
+                float *o = c->data + wvc_index(L->p, b, 0, y, (size_t)z);
+                for (x = 0; x < b->ext[0]; x++) {
+                    int32_t v;
+                    float a;
+                    memcpy(&v, o + x, sizeof v); /* the int32 the coder stored there */
+                    if (v == 0) continue;
+                    nz++;
+                    a = (float)((v == 1 || v == -1) ? o1 : ((double)(v < 0 ? -v : v) + d2) * step);
+                    a = v < 0 ? -a : a;
+                    memcpy(o + x, &a, sizeof a);
+                }
+            }
+        }
+        if (nz != S->nonzero) {
+            bad_sec = s;
+            why = "decoded coefficient count does not match the section table";
+        }
+    }
+    free(L);
+    if (bad_sec >= 0) {
+        st = wvol_error_set(err, WVOL_ERR_FORMAT, ".wvc section level %d band %d: %s",
+                            I->sections[bad_sec].level, I->sections[bad_sec].band, why ? why : "malformed");
+        wvol_coeffs_destroy(c);
+        return st;
+    }
+    *out = c;
+    return WVOL_OK;
+}
+
+wvol_status wvol_wvc_decode(wvol_coeffs **out, const void *buf, size_t size,
+                            const wvol_wvc_read_options *opt, wvol_wvc_info *info, wvol_error *err)
+{
+    wvol_wvc_info *I;
+    wvol_status st;
+    WVOL_RETURN_IF(!out || (!buf && size), err, WVOL_ERR_ARG, "wvc: missing argument");
+    *out = NULL;
+    I = malloc(sizeof *I);
+    WVOL_RETURN_IF(!I, err, WVOL_ERR_NOMEM, "wvc: out of memory");
+    st = parse(I, buf, size, size, opt ? opt->max_voxels : 0, err);
+    if (st == WVOL_OK) st = decode(out, buf, size, I, opt ? opt->stop_level : 0, err);
+    if (st == WVOL_OK && info) *info = *I;
+    free(I);
+    return st;
+}
+
+wvol_status wvol_wvc_save(const char *path, const void *buf, size_t size, wvol_error *err)
+{
+    wvol_atomic_file f;
+    WVOL_FORWARD(wvol_atomic_open(&f, path, err));
+    if (size && fwrite(buf, 1, size, f.fp) != size) {
+        int e = errno;
+        wvol_atomic_abort(&f);
+        return wvol_error_set(err, WVOL_ERR_IO, "%s: write failed: %s", path, strerror(e));
+    }
+    return wvol_atomic_commit(&f, err);
+}
+
+/* Reads the first `want` bytes (or fewer when the file is shorter) into a new buffer. */
+static wvol_status read_prefix(uint8_t **buf, size_t *got, FILE *fp, size_t want, const char *path,
+                               wvol_error *err)
+{
+    uint8_t *b = malloc(want ? want : 1);
+    (void)path;
+    WVOL_RETURN_IF(!b, err, WVOL_ERR_NOMEM, "out of memory");
+    *got = fread(b, 1, want, fp);
+    if (*got < want && ferror(fp)) {
+        free(b);
+        return wvol_error_set(err, WVOL_ERR_IO, "read error");
+    }
+    *buf = b;
+    return WVOL_OK;
+}
+
+static wvol_status read_file(wvol_coeffs **out, wvol_wvc_info *info, const char *path,
+                             const wvol_wvc_read_options *opt, wvol_error *err)
+{
+    FILE *fp;
+    struct stat sb;
+    uint8_t *buf = NULL;
+    size_t got = 0, want;
+    uint64_t fsize;
+    wvol_wvc_info *I = NULL;
+    wvol_status st;
+    int stop = opt ? opt->stop_level : 0, s;
+
+    WVOL_RETURN_IF(!path, err, WVOL_ERR_ARG, "wvc: missing path");
+    fp = fopen(path, "rb");
+    WVOL_RETURN_IF(!fp, err, WVOL_ERR_IO, "%s: cannot open: %s", path, strerror(errno));
+    if (fstat(fileno(fp), &sb) != 0 || !S_ISREG(sb.st_mode)) {
+        fclose(fp);
+        return wvol_error_set(err, WVOL_ERR_IO, "%s: not a regular file", path);
+    }
+    fsize = (uint64_t)sb.st_size;
+    I = malloc(sizeof *I);
+    if (!I) {
+        fclose(fp);
+        return wvol_error_set(err, WVOL_ERR_NOMEM, "wvc: out of memory");
+    }
+    /* the fixed header says how long the table is */
+    want = WVC_HEADER_SIZE + (size_t)WVOL_WVC_MAX_SECTIONS * WVC_SECTION_SIZE + 4;
+    if (want > fsize) want = (size_t)fsize;
+    st = read_prefix(&buf, &got, fp, want, path, err);
+    if (st == WVOL_OK) st = parse(I, buf, got, fsize, opt ? opt->max_voxels : 0, err);
+    if (st == WVOL_OK && !out) {
+        /* info only: check every section's checksum as well (CRC-32 runs at GB/s) */
+        free(buf);
+        buf = NULL;
+        if (fseek(fp, 0, SEEK_SET) != 0 || I->file_bytes > SIZE_MAX) {
+            st = wvol_error_set(err, WVOL_ERR_IO, "cannot read");
+        } else {
+            st = read_prefix(&buf, &got, fp, (size_t)I->file_bytes, "", err);
+            if (st == WVOL_OK && got != I->file_bytes)
+                st = wvol_error_set(err, WVOL_ERR_FORMAT, "file changed while reading");
+            for (s = 0; st == WVOL_OK && s < I->nsections; s++) {
+                const wvol_wvc_section *S = &I->sections[s];
+                if (S->bytes && (uint32_t)crc32(0L, buf + S->offset, (uInt)S->bytes) != S->crc)
+                    st = wvol_error_set(err, WVOL_ERR_FORMAT,
+                                        ".wvc section level %d band %d: checksum mismatch: the file is corrupt",
+                                        S->level, S->band);
+            }
+        }
+    }
+    if (st == WVOL_OK && out) {
+        /* sections are stored coarse to fine: what a stop level needs is a prefix */
+        uint64_t end = I->header_bytes;
+        for (s = 0; s < I->nsections; s++)
+            if (s == 0 || I->sections[s].level > stop) end = I->sections[s].offset + I->sections[s].bytes;
+        free(buf);
+        buf = NULL;
+        if (stop < 0 || stop > I->levels) {
+            st = wvol_error_set(err, WVOL_ERR_ARG, "level %d outside 0..%d", stop, I->levels);
+        } else if (fseek(fp, 0, SEEK_SET) != 0) {
+            st = wvol_error_set(err, WVOL_ERR_IO, "cannot seek");
+        } else if (end > SIZE_MAX) {
+            st = wvol_error_set(err, WVOL_ERR_NOMEM, "too large");
+        } else {
+            st = read_prefix(&buf, &got, fp, (size_t)end, "", err);
+            if (st == WVOL_OK && got != end)
+                st = wvol_error_set(err, WVOL_ERR_FORMAT, "file changed while reading");
+            if (st == WVOL_OK) st = decode(out, buf, got, I, stop, err);
+        }
+        }
+    fclose(fp);
+    free(buf);
+    if (st == WVOL_OK && info) *info = *I;
+    free(I);
+    if (st != WVOL_OK) wvol_error_prefix(err, "%s", path);
+    return st;
+}
+
+wvol_status wvol_wvc_read_info(wvol_wvc_info *info, const char *path, wvol_error *err)
+{
+    WVOL_RETURN_IF(!info, err, WVOL_ERR_ARG, "wvc: missing argument");
+    return read_file(NULL, info, path, NULL, err);
+}
+
+wvol_status wvol_wvc_read(wvol_coeffs **out, const char *path, const wvol_wvc_read_options *opt,
+                          wvol_wvc_info *info, wvol_error *err)
+{
+    WVOL_RETURN_IF(!out, err, WVOL_ERR_ARG, "wvc: missing argument");
+    *out = NULL;
+    return read_file(out, info, path, opt, err);
+}

@@ -1,0 +1,819 @@
+/* SPDX-License-Identifier: MIT
+ * .wvc encoder: dead-zone quantiser with the step chosen from an error target,
+ * centroid reconstruction offsets, per-section coding, header and section table.
+ * Based on: Sullivan 1996 (dead-zone uniform quantiser with centroid
+ * reconstruction for Laplacian sources); Parseval for orthonormal transforms
+ * (the coefficient error is the volume error, DESIGN.md section 5). */
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+#include <zlib.h>
+
+#include "wvc_format.h"
+#include "wvc_internal.h"
+
+static double now(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
+
+void wvol_wvc_params_default(wvol_wvc_params *p)
+{
+    memset(p, 0, sizeof *p);
+    p->rounding = WVC_DEFAULT_ROUNDING;
+    p->coder = WVOL_WVC_CODER_AUTO;
+    p->zstd_level = 3;
+}
+
+static size_t band_extent(size_t pa, int level, int high)
+{
+    if (pa == 1) return high ? 0 : 1;
+    return pa >> level;
+}
+
+void wvol__wvc_layout(wvc_layout *L, size_t px, size_t py, size_t pz, int levels)
+{
+    const size_t p[3] = {px, py, pz};
+    int m, l, a, s = 0;
+    memset(L, 0, sizeof *L);
+    L->levels = levels;
+    memcpy(L->p, p, sizeof p);
+    /* low-pass cube */
+    L->sec[s].level = levels;
+    L->sec[s].band = 0;
+    for (a = 0; a < 3; a++) L->sec[s].ext[a] = band_extent(p[a], levels, 0);
+    s++;
+    for (m = levels; m >= 1; m--)
+        for (l = 1; l <= 7; l++, s++) {
+            wvc_band *b = &L->sec[s];
+            b->level = m;
+            b->band = l;
+            b->has_parent = m < levels;
+            for (a = 0; a < 3; a++) {
+                int high = (l >> a) & 1;
+                b->ext[a] = band_extent(p[a], m, high);
+                b->off[a] = (high && p[a] > 1) ? p[a] >> m : 0;
+                if (b->has_parent) {
+                    b->pext[a] = band_extent(p[a], m + 1, high);
+                    b->poff[a] = (high && p[a] > 1) ? p[a] >> (m + 1) : 0;
+                }
+            }
+        }
+    L->nsec = s;
+    for (s = 0; s < L->nsec; s++) {
+        wvc_band *b = &L->sec[s];
+        b->count = (uint64_t)b->ext[0] * b->ext[1] * b->ext[2];
+        if (b->count == 0) b->has_parent = 0;
+    }
+}
+
+/* Per-section sums for one step: the zeroed coefficients' energy, and for
+ * |q| = 1 and |q| >= 2 the count, sum and sum of squares of r = |c|/step - |q|. */
+typedef struct sec_stats {
+    double zero_sse, energy;
+    double s1, ss1, s2, ss2;
+    uint64_t n1, n2;
+    double maxabs;
+} sec_stats;
+
+static double sec_rounding(const wvc_band *b, double f) { return b->band == 0 ? 0.5 : f; }
+
+/* Sums over rows [y0, y1) x slices [z0, z1) of one band (serial; the caller spreads
+ * work items over threads). Q (may be NULL) receives the quantised values. */
+static void rows_stats(sec_stats *st, const float *C, int32_t *Q, const size_t p[3], const wvc_band *b,
+                       double step, double f, size_t z0, size_t z1, int sample)
+{
+    const double inv = 1.0 / step;
+    double zero_sse = 0, energy = 0, s1 = 0, ss1 = 0, s2 = 0, ss2 = 0, maxabs = 0;
+    uint64_t n1 = 0, n2 = 0;
+    size_t x, y, z;
+    for (z = z0; z < z1; z++)
+        for (y = 0; y < b->ext[1]; y++) {
+            size_t base = wvc_index(p, b, 0, y, z);
+            const float *row = C + base;
+            if (sample && (y + 3 * z) % 8 != 0) continue;
+            int32_t *qrow = Q ? Q + base : NULL;
+            for (x = 0; x < b->ext[0]; x++) {
+                double c = row[x], ac = fabs(c), a = ac * inv, t = a + f;
+                /* truncation, not floor(): t >= 0, and floor is a libm call without SSE4.1 */
+                double q = t < 2147483647.0 ? (double)(int32_t)t : 2147483647.0, r = a - q;
+                energy += c * c;
+                if (ac > maxabs) maxabs = ac;
+                if (q == 0) {
+                    zero_sse += c * c;
+                } else if (q == 1) {
+                    n1++;
+                    s1 += r;
+                    ss1 += r * r;
+                } else {
+                    n2++;
+                    s2 += r;
+                    ss2 += r * r;
+                }
+                if (qrow) {
+                    if (q > WVC_QMAX) q = WVC_QMAX;
+                    qrow[x] = c < 0 ? -(int32_t)q : (int32_t)q;
+                }
+            }
+        }
+    memset(st, 0, sizeof *st);
+    st->zero_sse = zero_sse;
+    st->energy = energy;
+    st->s1 = s1;
+    st->ss1 = ss1;
+    st->s2 = s2;
+    st->ss2 = ss2;
+    st->n1 = n1;
+    st->n2 = n2;
+    st->maxabs = maxabs;
+}
+
+/* Work items: slabs of about 64K coefficients of one section each. */
+typedef struct work_item {
+    int sec;
+    int sampled; /* in the 1-in-8 subsample used while searching the step */
+    size_t z0, z1;
+} work_item;
+
+static work_item *work_items(const wvc_layout *L, int *count)
+{
+    int s, n = 0;
+    work_item *w;
+    size_t total = 0;
+    for (s = 0; s < L->nsec; s++) {
+        const wvc_band *b = &L->sec[s];
+        size_t slab = b->ext[0] * b->ext[1], per = slab ? (65536 + slab - 1) / slab : 1;
+        if (b->count) total += (b->ext[2] + per - 1) / per;
+    }
+    w = malloc((total ? total : 1) * sizeof *w);
+    if (!w) return NULL;
+    for (s = 0; s < L->nsec; s++) {
+        const wvc_band *b = &L->sec[s];
+        size_t slab = b->ext[0] * b->ext[1], per = slab ? (65536 + slab - 1) / slab : 1, z;
+        if (!b->count) continue;
+        for (z = 0; z < b->ext[2]; z += per) {
+            w[n].sec = s;
+            /* small sections are always taken whole; in large ones one row in eight */
+            w[n].sampled = b->count > 2 * 65536 && b->ext[1] * b->ext[2] >= 64;
+            w[n].z0 = z;
+            w[n].z1 = z + per < b->ext[2] ? z + per : b->ext[2];
+            n++;
+        }
+    }
+    *count = n;
+    return w;
+}
+
+/* Per-section sums over the whole pyramid in one parallel pass. */
+static int all_stats(sec_stats *st, const wvc_layout *L, const float *C, int32_t *Q, double step, double f,
+                     int sample)
+{
+    int n = 0, i, s;
+    work_item *w = work_items(L, &n);
+    double seen[WVOL_WVC_MAX_SECTIONS] = {0};
+    sec_stats *part;
+    if (!w) return -1;
+    part = malloc((n ? n : 1) * sizeof *part);
+    if (!part) {
+        free(w);
+        return -1;
+    }
+#pragma omp parallel for schedule(dynamic, 1) if (n > 2)
+    for (i = 0; i < n; i++)
+        rows_stats(&part[i], C, Q, L->p, &L->sec[w[i].sec], step, sec_rounding(&L->sec[w[i].sec], f), w[i].z0,
+                   w[i].z1, sample && w[i].sampled);
+    memset(st, 0, (size_t)L->nsec * sizeof *st);
+    for (i = 0; i < n; i++) {
+        sec_stats *d = &st[w[i].sec], *a = &part[i];
+        const wvc_band *b = &L->sec[w[i].sec];
+        size_t z, y;
+        if (sample && w[i].sampled) {
+            for (z = w[i].z0; z < w[i].z1; z++)
+                for (y = 0; y < b->ext[1]; y++) seen[w[i].sec] += (y + 3 * z) % 8 == 0 ? (double)b->ext[0] : 0.0;
+        } else {
+            seen[w[i].sec] += (double)(w[i].z1 - w[i].z0) * (double)(b->ext[0] * b->ext[1]);
+        }
+        d->zero_sse += a->zero_sse;
+        d->energy += a->energy;
+        d->s1 += a->s1;
+        d->ss1 += a->ss1;
+        d->s2 += a->s2;
+        d->ss2 += a->ss2;
+        d->n1 += a->n1;
+        d->n2 += a->n2;
+        if (a->maxabs > d->maxabs) d->maxabs = a->maxabs;
+    }
+    if (sample)
+        for (s = 0; s < L->nsec; s++) {
+            /* scale the subsample's sums up to the section (the counts stay estimates) */
+            double k = seen[s] > 0 ? (double)L->sec[s].count / seen[s] : 1.0;
+            if (k == 1.0) continue;
+            st[s].zero_sse *= k;
+            st[s].energy *= k;
+            st[s].s1 *= k;
+            st[s].ss1 *= k;
+            st[s].s2 *= k;
+            st[s].ss2 *= k;
+            st[s].n1 = (uint64_t)((double)st[s].n1 * k);
+            st[s].n2 = (uint64_t)((double)st[s].n2 * k);
+        }
+    free(part);
+    free(w);
+    return 0;
+}
+
+/* The offsets as stored (float32) and the section's exact squared error with them. */
+static double sec_error(const sec_stats *st, double step, float *d1, float *d2)
+{
+    double e = st->zero_sse;
+    float a = st->n1 ? (float)(st->s1 / (double)st->n1) : 0.0f;
+    float b = st->n2 ? (float)(st->s2 / (double)st->n2) : 0.0f;
+    e += step * step * (st->ss1 - 2.0 * a * st->s1 + (double)st->n1 * a * a);
+    e += step * step * (st->ss2 - 2.0 * b * st->s2 + (double)st->n2 * b * b);
+    if (d1) *d1 = a;
+    if (d2) *d2 = b;
+    return e < 0 ? 0 : e;
+}
+
+static double total_error(const wvc_layout *L, const float *C, double step, double f, sec_stats *st, int sample,
+                          int32_t *Q)
+{
+    double e = 0;
+    int s;
+    if (all_stats(st, L, C, Q, step, f, sample)) return NAN;
+    for (s = 0; s < L->nsec; s++) e += sec_error(&st[s], step, NULL, NULL);
+    return e;
+}
+
+/* Finds the largest step (to within ~0.5%) whose error stays at or below target:
+ * secant iterations on log(error) against log(step), each an exact pass. */
+static double search_step(const wvc_layout *L, const float *C, double target, double f, double maxabs,
+                          double min_step, sec_stats *st, int *iters, int sample, double d0, double *slope_io,
+                          double accept, int32_t *Q, double *last)
+{
+    double e0, d1, e1, best_ok = 0, best_bad = INFINITY, slope = *slope_io;
+    int it;
+    if (d0 < min_step) d0 = min_step;
+    if (maxabs > 0 && d0 > 4 * maxabs) d0 = 4 * maxabs;
+    e0 = total_error(L, C, d0, f, st, sample, Q);
+    if (!isfinite(e0)) return NAN;
+    *last = d0;
+    (*iters)++;
+    if (e0 <= target) best_ok = d0; else best_bad = d0;
+    d1 = d0;
+    e1 = e0;
+    for (it = 0; it < 14; it++) {
+        double ratio, next, aim = sample ? target : 0.5 * (1 + accept) * target;
+        if (sample ? fabs(e1 - target) <= (1 - accept) * target : (e1 <= target && e1 >= accept * target)) break;
+        if (e1 <= 0) {
+            next = d1 * 4;
+        } else {
+            ratio = pow(aim / e1, 1.0 / slope);
+            if (ratio > 8) ratio = 8;
+            if (ratio < 0.125) ratio = 0.125;
+            next = d1 * ratio;
+        }
+        /* stay inside the bracket; bisect (geometrically) when the secant leaves it */
+        if (best_ok > 0 && isfinite(best_bad) && (next <= best_ok || next >= best_bad))
+            next = sqrt(best_ok * best_bad);
+        if (next < min_step) next = min_step;
+        if (next > 4 * maxabs && maxabs > 0) next = 4 * maxabs;
+        /* the error is a staircase in the step: changes below 0.05% are noise */
+        if (fabs(next / d1 - 1) < 5e-4) {
+            if (e1 <= target || sample) break;
+            next = d1 * 0.995;
+        }
+        d0 = d1;
+        e0 = e1;
+        d1 = next;
+        e1 = total_error(L, C, d1, f, st, sample, Q);
+        if (!isfinite(e1)) return NAN;
+        *last = d1;
+        (*iters)++;
+        if (e1 <= target) {
+            if (d1 > best_ok) best_ok = d1;
+        } else if (d1 < best_bad) {
+            best_bad = d1;
+        }
+        if (e0 > 0 && e1 > 0 && fabs(log(d1 / d0)) > 1e-9) {
+            slope = log(e1 / e0) / log(d1 / d0);
+            if (!(slope >= 0.3)) slope = 0.3;
+            if (slope > 3) slope = 3;
+        }
+        if (isfinite(best_bad) && best_ok > 0 && best_bad / best_ok < 1.002) break;
+    }
+    *slope_io = slope;
+    if (sample) return d1; /* an estimate: the exact search starts there */
+    if (best_ok > 0) return best_ok;
+    /* not reached even at the smallest step the quantiser allows */
+    return min_step;
+}
+
+/* ---- using the rest of the error budget ----------------------------------------
+ * The error is a staircase in the step: when many coefficients share a magnitude
+ * (piecewise-constant volumes), the largest step that meets the target can leave a
+ * good part of the budget unused. The slack is spent by zeroing |q| = 1 detail
+ * coefficients, those whose removal adds the least error first (an O(N) histogram
+ * cut on the added error, never a sort). */
+#define SLACK_BINS 4096
+
+/* Added error of zeroing a |q| = 1 coefficient: c^2 - (|c| - (1 + d1) step)^2. */
+static inline double zeroing_cost(double ac, double rec)
+{
+    return ac * ac - (ac - rec) * (ac - rec);
+}
+
+static inline int cost_bin(double e)
+{
+    float f = (float)e;
+    uint32_t u;
+    if (!(f > 0)) return 0;
+    memcpy(&u, &f, 4);
+    return 1 + (int)((u >> 20) & 0x7FF); /* sign is 0: 11 bits of exponent and mantissa */
+}
+
+static void slack_hist(const wvc_layout *L, const float *C, const int32_t *Q, double step, const float *d1,
+                       const work_item *w, int nw, double (*hsum)[SLACK_BINS + 1], uint64_t (*hcnt)[SLACK_BINS + 1])
+{
+    int i;
+#pragma omp parallel for schedule(dynamic, 1) if (nw > 2)
+    for (i = 0; i < nw; i++) {
+        const wvc_band *b = &L->sec[w[i].sec];
+        const double rec = (1.0 + d1[w[i].sec]) * step;
+        double *hs = hsum[i];
+        uint64_t *hc = hcnt[i];
+        size_t x, y, z;
+        memset(hs, 0, sizeof *hsum);
+        memset(hc, 0, sizeof *hcnt);
+        if (b->band == 0) continue;
+        for (z = w[i].z0; z < w[i].z1; z++)
+            for (y = 0; y < b->ext[1]; y++) {
+                size_t base = wvc_index(L->p, b, 0, y, z);
+                for (x = 0; x < b->ext[0]; x++) {
+                    int32_t q = Q[base + x];
+                    if (q == 1 || q == -1) {
+                        double e = zeroing_cost(fabs((double)C[base + x]), rec);
+                        int k = cost_bin(e);
+                        hs[k] += e;
+                        hc[k]++;
+                    }
+                }
+            }
+    }
+}
+
+/* Zeroes the cheapest |q| = 1 coefficients within `slack`; returns how many. */
+static uint64_t spend_slack(const wvc_layout *L, const float *C, int32_t *Q, double step, const float *d1,
+                            double slack)
+{
+    int nw = 0, i, k, cut = -1;
+    work_item *w = work_items(L, &nw);
+    double (*hsum)[SLACK_BINS + 1] = NULL, tot[SLACK_BINS + 1], acc = 0;
+    uint64_t (*hcnt)[SLACK_BINS + 1] = NULL, cnt[SLACK_BINS + 1], zeroed = 0;
+    if (!w || nw == 0) {
+        free(w);
+        return 0;
+    }
+    hsum = malloc((size_t)nw * sizeof *hsum);
+    hcnt = malloc((size_t)nw * sizeof *hcnt);
+    if (!hsum || !hcnt) goto out;
+    slack_hist(L, C, Q, step, d1, w, nw, hsum, hcnt);
+    memset(tot, 0, sizeof tot);
+    memset(cnt, 0, sizeof cnt);
+    for (i = 0; i < nw; i++)
+        for (k = 0; k <= SLACK_BINS; k++) {
+            tot[k] += hsum[i][k];
+            cnt[k] += hcnt[i][k];
+        }
+    /* bin 0 (zeroing does not add error) always; then whole bins while they fit */
+    for (k = 0; k <= SLACK_BINS; k++) {
+        if (k > 0 && acc + tot[k] > slack) break;
+        acc += tot[k];
+        cut = k;
+    }
+    if (cut < 0) goto out;
+#pragma omp parallel for schedule(dynamic, 1) reduction(+ : zeroed) if (nw > 2)
+    for (i = 0; i < nw; i++) {
+        const wvc_band *b = &L->sec[w[i].sec];
+        const double rec = (1.0 + d1[w[i].sec]) * step;
+        size_t x, y, z;
+        if (b->band == 0) continue;
+        for (z = w[i].z0; z < w[i].z1; z++)
+            for (y = 0; y < b->ext[1]; y++) {
+                size_t base = wvc_index(L->p, b, 0, y, z);
+                for (x = 0; x < b->ext[0]; x++) {
+                    int32_t q = Q[base + x];
+                    if ((q == 1 || q == -1) && cost_bin(zeroing_cost(fabs((double)C[base + x]), rec)) <= cut) {
+                        Q[base + x] = 0;
+                        zeroed++;
+                    }
+                }
+            }
+    }
+    /* the next bin in part, in index order (serial, so the result does not depend on threads) */
+    if (cut < SLACK_BINS && cnt[cut + 1] > 0) {
+        double left = slack - acc;
+        for (i = 0; i < nw && left > 0; i++) {
+            const wvc_band *b = &L->sec[w[i].sec];
+            const double rec = (1.0 + d1[w[i].sec]) * step;
+            size_t x, y, z;
+            if (b->band == 0) continue;
+            for (z = w[i].z0; z < w[i].z1 && left > 0; z++)
+                for (y = 0; y < b->ext[1] && left > 0; y++) {
+                    size_t base = wvc_index(L->p, b, 0, y, z);
+                    for (x = 0; x < b->ext[0]; x++) {
+                        int32_t q = Q[base + x];
+                        double e;
+                        if (q != 1 && q != -1) continue;
+                        e = zeroing_cost(fabs((double)C[base + x]), rec);
+                        if (cost_bin(e) != cut + 1) continue;
+                        if (e > left) {
+                            left = 0;
+                            break;
+                        }
+                        left -= e;
+                        Q[base + x] = 0;
+                        zeroed++;
+                    }
+                }
+        }
+    }
+out:
+    free(hsum);
+    free(hcnt);
+    free(w);
+    return zeroed;
+}
+
+/* Per-section sums for a given Q (after spend_slack changed it). */
+static int stats_from_q(sec_stats *st, const wvc_layout *L, const float *C, const int32_t *Q, double step)
+{
+    int nw = 0, i;
+    work_item *w = work_items(L, &nw);
+    sec_stats *part;
+    const double inv = 1.0 / step;
+    if (!w) return -1;
+    part = calloc(nw ? (size_t)nw : 1, sizeof *part);
+    if (!part) {
+        free(w);
+        return -1;
+    }
+#pragma omp parallel for schedule(dynamic, 1) if (nw > 2)
+    for (i = 0; i < nw; i++) {
+        const wvc_band *b = &L->sec[w[i].sec];
+        sec_stats *o = &part[i];
+        size_t x, y, z;
+        for (z = w[i].z0; z < w[i].z1; z++)
+            for (y = 0; y < b->ext[1]; y++) {
+                size_t base = wvc_index(L->p, b, 0, y, z);
+                for (x = 0; x < b->ext[0]; x++) {
+                    double c = C[base + x], ac = fabs(c);
+                    int32_t q = Q[base + x];
+                    double aq = q < 0 ? -(double)q : (double)q, r = ac * inv - aq;
+                    o->energy += c * c;
+                    if (ac > o->maxabs) o->maxabs = ac;
+                    if (q == 0) {
+                        o->zero_sse += c * c;
+                    } else if (aq == 1) {
+                        o->n1++;
+                        o->s1 += r;
+                        o->ss1 += r * r;
+                    } else {
+                        o->n2++;
+                        o->s2 += r;
+                        o->ss2 += r * r;
+                    }
+                }
+            }
+    }
+    memset(st, 0, (size_t)L->nsec * sizeof *st);
+    for (i = 0; i < nw; i++) {
+        sec_stats *d = &st[w[i].sec], *a = &part[i];
+        d->zero_sse += a->zero_sse;
+        d->energy += a->energy;
+        d->s1 += a->s1;
+        d->ss1 += a->ss1;
+        d->s2 += a->s2;
+        d->ss2 += a->ss2;
+        d->n1 += a->n1;
+        d->n2 += a->n2;
+        if (a->maxabs > d->maxabs) d->maxabs = a->maxabs;
+    }
+    free(part);
+    free(w);
+    return 0;
+}
+
+/* The largest step whose error stays within [0.985, 1] x target (PSNR at most
+ * 0.066 dB above the target): first on a 1-in-8 subsample of the rows of the large
+ * sections (cheap; aimed a little below the target), then exact passes that also
+ * quantise into Q (usually one). On return Q and st hold the quantisation with the
+ * returned step. */
+static double choose_step(const wvc_layout *L, const float *C, double target, double f, double maxabs,
+                          double min_step, sec_stats *st, int *iters, int32_t *Q)
+{
+    double total = 0, d, slope = 2.0, last = 0;
+    int s;
+    for (s = 0; s < L->nsec; s++) total += (double)L->sec[s].count;
+    *iters = 0;
+    d = sqrt(12.0 * target / (total > 0 ? total : 1));
+    d = search_step(L, C, 0.9925 * target, f, maxabs, min_step, st, iters, 1, d, &slope, 0.993, NULL, &last);
+    if (!isfinite(d)) return NAN;
+    d = search_step(L, C, target, f, maxabs, min_step, st, iters, 0, d, &slope, 0.985, Q, &last);
+    if (last != d) {
+        (*iters)++;
+        if (!isfinite(total_error(L, C, d, f, st, 0, Q))) return NAN;
+    }
+    return d;
+}
+
+static void header_write(uint8_t *h, const wvol_coeffs *c, const wvol_wvc_params *p, double step,
+                         double sse, double energy, uint64_t nonzero, uint64_t payload,
+                         const wvc_layout *L, const uint8_t coder[], const uint64_t bytes[],
+                         const uint32_t crc[], const sec_stats st[], const float d1[], const float d2[],
+                         const double err[])
+{
+    int s;
+    size_t n;
+    memset(h, 0, WVC_HEADER_SIZE + (size_t)L->nsec * WVC_SECTION_SIZE + 4);
+    memcpy(h, WVC_MAGIC, 8);
+    wvc_put_u16(h + 8, WVOL_WVC_FORMAT_VERSION);
+    wvc_put_u16(h + 10, 0);
+    wvc_put_u32(h + 12, (uint32_t)L->nsec);
+    n = strlen(c->filter->name);
+    memcpy(h + 16, c->filter->name, n < 15 ? n : 15);
+    h[32] = (uint8_t)c->levels;
+    wvc_put_u64(h + 40, c->nx);
+    wvc_put_u64(h + 48, c->ny);
+    wvc_put_u64(h + 56, c->nz);
+    wvc_put_u64(h + 64, c->px);
+    wvc_put_u64(h + 72, c->py);
+    wvc_put_u64(h + 80, c->pz);
+    for (s = 0; s < 3; s++) {
+        wvc_put_f64(h + 88 + 8 * s, c->spacing[s]);
+        wvc_put_f64(h + 112 + 8 * s, c->origin[s]);
+    }
+    wvc_put_f64(h + 136, p->value_min);
+    wvc_put_f64(h + 144, p->value_max);
+    wvc_put_f64(h + 152, step);
+    wvc_put_f64(h + 160, p->rounding);
+    wvc_put_f64(h + 168, sse);
+    wvc_put_f64(h + 176, energy);
+    wvc_put_f64(h + 184, p->dropped_energy);
+    wvc_put_u64(h + 192, nonzero);
+    wvc_put_u64(h + 200, payload);
+    for (s = 0; s < L->nsec; s++) {
+        uint8_t *e = h + WVC_HEADER_SIZE + (size_t)s * WVC_SECTION_SIZE;
+        e[0] = (uint8_t)L->sec[s].level;
+        e[1] = (uint8_t)L->sec[s].band;
+        e[2] = coder[s];
+        wvc_put_u32(e + 4, crc[s]);
+        wvc_put_u64(e + 8, bytes[s]);
+        wvc_put_u64(e + 16, st[s].n1 + st[s].n2);
+        wvc_put_f32(e + 24, d1[s]);
+        wvc_put_f32(e + 28, d2[s]);
+        wvc_put_f64(e + 32, st[s].energy);
+        wvc_put_f64(e + 40, err[s]);
+    }
+    n = WVC_HEADER_SIZE + (size_t)L->nsec * WVC_SECTION_SIZE;
+    wvc_put_u32(h + n, (uint32_t)crc32(0L, h, (uInt)n));
+}
+
+wvol_status wvol_wvc_encode(void **out, size_t *out_size, const wvol_coeffs *c,
+                            const wvol_wvc_params *p, wvol_wvc_report *report, wvol_error *err)
+{
+    wvc_layout *L = NULL;
+    sec_stats *st = NULL;
+    int32_t *Q = NULL;
+    uint8_t *pay[WVOL_WVC_MAX_SECTIONS] = {0}, coder[WVOL_WVC_MAX_SECTIONS] = {0};
+    uint64_t bytes[WVOL_WVC_MAX_SECTIONS] = {0};
+    uint32_t crc[WVOL_WVC_MAX_SECTIONS] = {0};
+    size_t alt_cabac[WVOL_WVC_MAX_SECTIONS] = {0}, alt_zstd[WVOL_WVC_MAX_SECTIONS] = {0};
+    float d1[WVOL_WVC_MAX_SECTIONS], d2[WVOL_WVC_MAX_SECTIONS];
+    double serr[WVOL_WVC_MAX_SECTIONS];
+    size_t n, hsize, total;
+    double step, maxabs = 0, energy = 0, sse = 0, t0, t1, t2;
+    uint64_t nonzero = 0, payload = 0;
+    int s, iters = 0, failed = 0, searched = 0;
+    uint8_t *file;
+    wvol_status status = WVOL_OK;
+    wvol_wvc_report rep;
+
+    memset(&rep, 0, sizeof rep);
+    *out = NULL;
+    *out_size = 0;
+    WVOL_RETURN_IF(!c || !c->data || !c->filter || !p, err, WVOL_ERR_ARG, "wvc encode: missing input");
+    WVOL_RETURN_IF(c->levels < 1 || c->levels > WVOL_WVC_MAX_LEVELS, err, WVOL_ERR_ARG,
+                   "wvc encode: levels %d outside 1..%d", c->levels, WVOL_WVC_MAX_LEVELS);
+    WVOL_RETURN_IF(!(p->rounding >= 0 && p->rounding <= 0.5), err, WVOL_ERR_ARG,
+                   "wvc encode: rounding %g outside [0, 0.5]", p->rounding);
+    WVOL_RETURN_IF(!(p->step >= 0) || !isfinite(p->step) || !(p->target_sse >= 0) ||
+                       !isfinite(p->target_sse) || (p->step == 0 && p->target_sse <= 0),
+                   err, WVOL_ERR_ARG, "wvc encode: give a step > 0 or an error target > 0");
+    WVOL_RETURN_IF(!isfinite(p->value_min) || !isfinite(p->value_max) || p->value_min > p->value_max ||
+                       !(p->dropped_energy >= 0) || !isfinite(p->dropped_energy),
+                   err, WVOL_ERR_ARG, "wvc encode: bad value range or dropped energy");
+    for (s = 0; s < 3; s++)
+        WVOL_RETURN_IF(!(isfinite(c->spacing[s]) && c->spacing[s] > 0) || !isfinite(c->origin[s]), err,
+                       WVOL_ERR_ARG, "wvc encode: spacing must be > 0 and origin finite");
+    WVOL_RETURN_IF(!wvol_size_mul3(c->px, c->py, c->pz, sizeof(int32_t), &n), err, WVOL_ERR_DIMS,
+                   "wvc encode: padded size overflows");
+    n /= sizeof(int32_t);
+    L = malloc(sizeof *L);
+    st = calloc(WVOL_WVC_MAX_SECTIONS, sizeof *st);
+    Q = malloc(n * sizeof *Q);
+    if (!L || !st || !Q) {
+        status = wvol_error_set(err, WVOL_ERR_NOMEM, "wvc encode: out of memory");
+        goto done;
+    }
+    wvol__wvc_layout(L, c->px, c->py, c->pz, c->levels);
+
+    /* range and finiteness of the coefficients */
+    t0 = now();
+    {
+        const float *C = c->data;
+        long i;
+        int bad = 0;
+#pragma omp parallel for reduction(max : maxabs) reduction(| : bad) schedule(static) if (n > 65536)
+        for (i = 0; i < (long)n; i++) {
+            float a = fabsf(C[i]);
+            if (!(a <= 3.0e38f)) bad = 1;
+            else if (a > maxabs) maxabs = a;
+        }
+        if (bad) {
+            status = wvol_error_set(err, WVOL_ERR_NONFINITE, "wvc encode: coefficients hold NaN or Inf");
+            goto done;
+        }
+    }
+    {
+        /* |q| stays below WVC_QMAX/2 so that the quantiser never clips */
+        double min_step = maxabs > 0 ? maxabs / (double)(WVC_QMAX / 2) : 1e-30;
+        if (min_step < 1e-30) min_step = 1e-30;
+        if (p->step > 0) {
+            step = p->step;
+            if (step > WVC_MAX_STEP) {
+                status = wvol_error_set(err, WVOL_ERR_ARG, "wvc encode: step %g is above %g", step, WVC_MAX_STEP);
+                goto done;
+            }
+            if (step < min_step) {
+                status = wvol_error_set(err, WVOL_ERR_ARG,
+                                        "wvc encode: step %g is below %g, the smallest this range allows",
+                                        step, min_step);
+                goto done;
+            }
+        } else if (maxabs == 0) {
+            step = 1.0; /* every coefficient is zero: any step is exact */
+        } else {
+            step = choose_step(L, c->data, p->target_sse, p->rounding, maxabs, min_step, st, &iters, Q);
+            if (!isfinite(step)) {
+                status = wvol_error_set(err, WVOL_ERR_NOMEM, "wvc encode: out of memory");
+                goto done;
+            }
+            if (step > WVC_MAX_STEP) step = WVC_MAX_STEP, searched = 0;
+            else searched = 1;
+        }
+    }
+    t1 = now();
+    rep.seconds_step = t1 - t0;
+
+    /* quantise, with the exact error per section */
+    if (!searched && all_stats(st, L, c->data, Q, step, p->rounding, 0)) {
+        status = wvol_error_set(err, WVOL_ERR_NOMEM, "wvc encode: out of memory");
+        goto done;
+    }
+    for (s = 0; s < L->nsec; s++) {
+        serr[s] = sec_error(&st[s], step, &d1[s], &d2[s]);
+        sse += serr[s];
+    }
+    if (p->step == 0 && sse < 0.99 * p->target_sse) {
+        /* spend what the staircase left of the budget, then the exact sums again */
+        if (spend_slack(L, c->data, Q, step, d1, p->target_sse - sse) > 0) {
+            if (stats_from_q(st, L, c->data, Q, step)) {
+                status = wvol_error_set(err, WVOL_ERR_NOMEM, "wvc encode: out of memory");
+                goto done;
+            }
+            for (sse = 0, s = 0; s < L->nsec; s++) {
+                serr[s] = sec_error(&st[s], step, &d1[s], &d2[s]);
+                sse += serr[s];
+            }
+        }
+    }
+    for (s = 0; s < L->nsec; s++) {
+        energy += st[s].energy;
+        nonzero += st[s].n1 + st[s].n2;
+    }
+    t2 = now();
+    rep.seconds_quantise = t2 - t1;
+
+    /* code the sections (independent given Q), largest first */
+#pragma omp parallel for schedule(dynamic, 1) reduction(| : failed) if (n > 65536)
+    for (s = L->nsec - 1; s >= 0; s--) {
+        const wvc_band *b = &L->sec[s];
+        uint8_t *a = NULL, *z = NULL;
+        size_t na = 0, nz = 0;
+        if (st[s].n1 + st[s].n2 == 0) {
+            coder[s] = WVOL_WVC_CODER_EMPTY; /* a zero low-pass cube too: everything quantised to 0 */
+            continue;
+        }
+        if (p->coder != WVOL_WVC_CODER_ZSTD) {
+            if (wvol__wvc_cabac_encode(&a, &na, Q, L->p, b)) failed = 1;
+            alt_cabac[s] = na;
+        }
+        if (p->coder != WVOL_WVC_CODER_CABAC) {
+            if (wvol__wvc_zstd_encode(&z, &nz, Q, L->p, b, p->zstd_level)) failed = 1;
+            alt_zstd[s] = nz;
+        }
+        if (a && (!z || na <= nz)) {
+            pay[s] = a;
+            bytes[s] = na;
+            coder[s] = WVOL_WVC_CODER_CABAC;
+            free(z);
+        } else {
+            pay[s] = z;
+            bytes[s] = nz;
+            coder[s] = WVOL_WVC_CODER_ZSTD;
+            free(a);
+        }
+        if (!pay[s] || bytes[s] == 0) failed = 1;
+        else crc[s] = (uint32_t)crc32(0L, pay[s], (uInt)bytes[s]);
+    }
+    if (failed) {
+        status = wvol_error_set(err, WVOL_ERR_NOMEM, "wvc encode: out of memory while coding");
+        goto done;
+    }
+    for (s = 0; s < L->nsec; s++) {
+        payload += bytes[s];
+        rep.bytes_cabac += alt_cabac[s];
+        rep.bytes_zstd += alt_zstd[s];
+    }
+    hsize = WVC_HEADER_SIZE + (size_t)L->nsec * WVC_SECTION_SIZE + 4;
+    total = hsize + (size_t)payload;
+    file = malloc(total);
+    if (!file) {
+        status = wvol_error_set(err, WVOL_ERR_NOMEM, "wvc encode: out of memory (%zu bytes)", total);
+        goto done;
+    }
+    header_write(file, c, p, step, sse, energy, nonzero, payload, L, coder, bytes, crc, st, d1, d2, serr);
+    {
+        size_t off = hsize;
+        for (s = 0; s < L->nsec; s++) {
+            if (bytes[s]) memcpy(file + off, pay[s], (size_t)bytes[s]);
+            off += (size_t)bytes[s];
+        }
+    }
+    rep.seconds_code = now() - t2;
+    rep.step = step;
+    rep.step_iterations = iters;
+    rep.sse_quant = sse;
+    rep.nonzero = nonzero;
+    rep.coefficients = n;
+    rep.bytes = total;
+    if (p->coder == WVOL_WVC_CODER_ZSTD) rep.bytes_cabac = 0;
+    if (p->coder == WVOL_WVC_CODER_CABAC) rep.bytes_zstd = 0;
+    *out = file;
+    *out_size = total;
+    if (report) *report = rep;
+done:
+    for (s = 0; s < WVOL_WVC_MAX_SECTIONS; s++) free(pay[s]);
+    free(Q);
+    free(st);
+    free(L);
+    return status;
+}
+
+double wvol_wvc_psnr(double sse, double n, double vmin, double vmax)
+{
+    double range = vmax - vmin;
+    if (!(n > 0)) return NAN;
+    if (sse <= 0) return INFINITY;
+    if (!(range > 0)) return -INFINITY;
+    return 20.0 * log10(range / sqrt(sse / n));
+}
+
+double wvol_wvc_sse_for_psnr(double psnr, double n, double vmin, double vmax)
+{
+    double range = vmax - vmin, rmse = range / pow(10.0, psnr / 20.0);
+    return rmse * rmse * n;
+}
+
+wvol_status wvol_wvc_compare(double *sse, double *maxabs, const wvol_volume *a,
+                             const wvol_volume *b, wvol_error *err)
+{
+    double s = 0, m = 0;
+    long i, n;
+    WVOL_RETURN_IF(!a || !b || a->nx != b->nx || a->ny != b->ny || a->nz != b->nz, err, WVOL_ERR_DIMS,
+                   "compare: volumes differ in size");
+    n = (long)wvol_volume_count(a);
+#pragma omp parallel for reduction(+ : s) reduction(max : m) schedule(static)
+    for (i = 0; i < n; i++) {
+        double d = (double)a->data[i] - (double)b->data[i];
+        s += d * d;
+        if (fabs(d) > m) m = fabs(d);
+    }
+    if (sse) *sse = s;
+    if (maxabs) *maxabs = m;
+    return WVOL_OK;
+}

@@ -1,0 +1,117 @@
+/* SPDX-License-Identifier: MIT
+ * Shared between the .wvc files: the Mallat layout of sections, the band coders,
+ * byte order helpers. Not installed. */
+#ifndef WVOL_CODEC_WVC_INTERNAL_H
+#define WVOL_CODEC_WVC_INTERNAL_H
+
+#include <stddef.h>
+#include <stdint.h>
+#include <string.h>
+
+#include "wvol/wvc.h"
+
+/* One section = one sub-band (or the low-pass cube) in the padded grid. */
+typedef struct wvc_band {
+    int level, band;
+    size_t off[3], ext[3];   /* position and extent in the padded grid */
+    int has_parent;          /* level < levels and band != 0 */
+    size_t poff[3], pext[3]; /* the parent band (level + 1, same band) */
+    uint64_t count;
+} wvc_band;
+
+typedef struct wvc_layout {
+    int levels;
+    size_t p[3];
+    int nsec;
+    wvc_band sec[WVOL_WVC_MAX_SECTIONS];
+} wvc_layout;
+
+/* Fills the layout; sections in file order: low-pass cube, then level = levels..1,
+ * bands 1..7. An axis of padded size 1 is not transformed: bands with a high-pass
+ * along it are empty. */
+void wvol__wvc_layout(wvc_layout *L, size_t px, size_t py, size_t pz, int levels);
+
+/* Largest |q| the coders accept, so that sums and reconstructions stay finite. */
+#define WVC_QMAX (1 << 30)
+
+/* Band coders over the global quantised array Q (padded grid, x fastest).
+ * encode: appends the CABAC payload to *buf (heap, caller frees); returns 0 or -1 (memory).
+ * decode: writes the band into Q; returns 0, or -1 if the payload is malformed. */
+int wvol__wvc_cabac_encode(uint8_t **buf, size_t *size, const int32_t *Q, const size_t p[3],
+                           const wvc_band *b);
+int wvol__wvc_cabac_decode(int32_t *Q, const size_t p[3], const wvc_band *b, const uint8_t *buf,
+                           size_t size, const char **why);
+int wvol__wvc_zstd_encode(uint8_t **buf, size_t *size, const int32_t *Q, const size_t p[3],
+                          const wvc_band *b, int level);
+int wvol__wvc_zstd_decode(int32_t *Q, const size_t p[3], const wvc_band *b, const uint8_t *buf,
+                          size_t size, const char **why);
+
+/* Low-pass cube symbols: residuals of the 3D Lorenzo predictor on q. */
+static inline int64_t wvc_lorenzo(const int32_t *Q, const size_t p[3], const wvc_band *b, size_t x,
+                                  size_t y, size_t z)
+{
+    const size_t sy = p[0], sz = p[0] * p[1];
+    const int32_t *c = Q + (b->off[0] + x) + sy * (b->off[1] + y) + sz * (b->off[2] + z);
+    int64_t a = x ? c[-1] : 0, bb = y ? c[-(ptrdiff_t)sy] : 0, cc = z ? c[-(ptrdiff_t)sz] : 0;
+    int64_t ab = (x && y) ? c[-1 - (ptrdiff_t)sy] : 0, ac = (x && z) ? c[-1 - (ptrdiff_t)sz] : 0;
+    int64_t bc = (y && z) ? c[-(ptrdiff_t)sy - (ptrdiff_t)sz] : 0;
+    int64_t abc = (x && y && z) ? c[-1 - (ptrdiff_t)sy - (ptrdiff_t)sz] : 0;
+    return a + bb + cc - ab - ac - bc + abc;
+}
+
+static inline size_t wvc_index(const size_t p[3], const wvc_band *b, size_t x, size_t y, size_t z)
+{
+    return (b->off[0] + x) + p[0] * ((b->off[1] + y) + p[1] * (b->off[2] + z));
+}
+
+/* Little-endian field access. */
+static inline void wvc_put_u16(uint8_t *d, uint16_t v) { d[0] = (uint8_t)v; d[1] = (uint8_t)(v >> 8); }
+static inline void wvc_put_u32(uint8_t *d, uint32_t v)
+{
+    for (int i = 0; i < 4; i++) d[i] = (uint8_t)(v >> (8 * i));
+}
+static inline void wvc_put_u64(uint8_t *d, uint64_t v)
+{
+    for (int i = 0; i < 8; i++) d[i] = (uint8_t)(v >> (8 * i));
+}
+static inline void wvc_put_f64(uint8_t *d, double v)
+{
+    uint64_t u;
+    memcpy(&u, &v, 8);
+    wvc_put_u64(d, u);
+}
+static inline void wvc_put_f32(uint8_t *d, float v)
+{
+    uint32_t u;
+    memcpy(&u, &v, 4);
+    wvc_put_u32(d, u);
+}
+static inline uint16_t wvc_get_u16(const uint8_t *d) { return (uint16_t)(d[0] | (d[1] << 8)); }
+static inline uint32_t wvc_get_u32(const uint8_t *d)
+{
+    uint32_t v = 0;
+    for (int i = 3; i >= 0; i--) v = (v << 8) | d[i];
+    return v;
+}
+static inline uint64_t wvc_get_u64(const uint8_t *d)
+{
+    uint64_t v = 0;
+    for (int i = 7; i >= 0; i--) v = (v << 8) | d[i];
+    return v;
+}
+static inline double wvc_get_f64(const uint8_t *d)
+{
+    uint64_t u = wvc_get_u64(d);
+    double v;
+    memcpy(&v, &u, 8);
+    return v;
+}
+static inline float wvc_get_f32(const uint8_t *d)
+{
+    uint32_t u = wvc_get_u32(d);
+    float v;
+    memcpy(&v, &u, 4);
+    return v;
+}
+
+#endif

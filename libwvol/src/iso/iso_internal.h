@@ -1,0 +1,50 @@
+/* Internal interface of the iso module: the flying-edges kernel on a region of a
+ * dense array, shared by wvol_iso_extract (whole volume) and the brick path
+ * (one reconstructed brick with a halo). Not installed. */
+#ifndef WVOL_ISO_INTERNAL_H
+#define WVOL_ISO_INTERNAL_H
+
+#include <stdint.h>
+#include "wvol/iso.h"
+
+/* Hot loops are compiled twice on x86-64 with GCC (baseline and x86-64-v3, i.e.
+ * with popcnt/AVX2) and picked at load time; elsewhere, once. */
+#if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__) && !defined(WVOL_NO_CLONES)
+#define WVOL__HOT __attribute__((target_clones("arch=x86-64-v3", "default")))
+#else
+#define WVOL__HOT
+#endif
+
+typedef struct wvol__mc_job {
+    const float *data;        /* array, x fastest */
+    size_t adims[3];          /* array dimensions */
+    size_t lo[3], n[3];       /* meshed region: samples lo .. lo + n - 1 per axis */
+    long long gofs[3];        /* global sample index of array element (0, 0, 0) */
+    size_t gdims[3];          /* global grid dimensions (for edge keys) */
+    double origin[3], spacing[3];
+    double iso;
+    int threads;              /* 1 = no OpenMP region */
+    wvol_iso_normals normals;
+    void (*gradient)(void *user, const double xyz[3], double grad[3]);
+    void *gradient_user;
+    uint64_t **keys;          /* optional: receives malloc'ed per-vertex edge keys */
+} wvol__mc_job;
+
+/* Edge key: ((gk * gny + gj) * 3 + axis) * gnx + gi for the edge from global
+ * sample (gi, gj, gk) along axis. Keys increase in the kernel's vertex order. */
+static inline uint64_t wvol__edge_key(const size_t gdims[3], uint64_t gi, uint64_t gj, uint64_t gk,
+                                      int axis)
+{
+    return ((gk * gdims[1] + gj) * 3 + (uint64_t)axis) * gdims[0] + gi;
+}
+
+/* Meshes the region; *out is a new mesh (possibly empty). stats may be NULL. */
+wvol_status wvol__mc_run(wvol_mesh **out, const wvol__mc_job *job, wvol_iso_stats *stats,
+                         wvol_error *err);
+
+/* Bound [vmin, vmax] of the reconstructed samples of the box [s0, s1] (inclusive
+ * voxel indices), computed from the coefficients alone (bricks.c; for tests). */
+wvol_status wvol__iso_box_bound(const wvol_coeffs *c, const long s0[3], const long s1[3], double *vmin,
+                                double *vmax, wvol_error *err);
+
+#endif

@@ -1,0 +1,277 @@
+/* SPDX-License-Identifier: MIT */
+/* Triangle meshes: allocation, area, enclosed volume, bounds and the
+ * combinatorial checks (watertight, manifold edges and vertices, orientation,
+ * Euler characteristic, components) that the tests rely on. */
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "wvol/iso.h"
+
+wvol_status wvol_mesh_create(wvol_mesh **out, size_t nverts, size_t ntris, int with_normals, wvol_error *err)
+{
+    wvol_mesh *m;
+    size_t vb, tb;
+    *out = NULL;
+    if (!wvol_size_mul3(nverts, 3, 1, sizeof(float), &vb) || !wvol_size_mul3(ntris, 3, 1, sizeof(uint32_t), &tb))
+        return wvol_error_set(err, WVOL_ERR_NOMEM, "mesh of %zu vertices, %zu triangles is too large", nverts,
+                              ntris);
+    m = calloc(1, sizeof *m);
+    if (!m) return wvol_error_set(err, WVOL_ERR_NOMEM, "mesh: out of memory");
+    m->nverts = nverts;
+    m->ntris = ntris;
+    m->verts = malloc(vb ? vb : 1);
+    m->tris = malloc(tb ? tb : 1);
+    if (with_normals) m->normals = malloc(vb ? vb : 1);
+    if (!m->verts || !m->tris || (with_normals && !m->normals)) {
+        wvol_mesh_destroy(m);
+        return wvol_error_set(err, WVOL_ERR_NOMEM, "mesh of %zu vertices, %zu triangles: out of memory",
+                              nverts, ntris);
+    }
+    *out = m;
+    return WVOL_OK;
+}
+
+void wvol_mesh_destroy(wvol_mesh *m)
+{
+    if (!m) return;
+    free(m->verts);
+    free(m->normals);
+    free(m->tris);
+    free(m);
+}
+
+static void tri_pts(const wvol_mesh *m, size_t t, double p[3][3])
+{
+    int a, d;
+    for (a = 0; a < 3; a++) {
+        const float *v = m->verts + 3 * (size_t)m->tris[3 * t + a];
+        for (d = 0; d < 3; d++) p[a][d] = v[d];
+    }
+}
+
+double wvol_mesh_area(const wvol_mesh *m)
+{
+    double sum = 0.0;
+    long long t, n = m ? (long long)m->ntris : 0;
+#ifdef _OPENMP
+#pragma omp parallel for reduction(+ : sum) schedule(static)
+#endif
+    for (t = 0; t < n; t++) {
+        double p[3][3], u[3], v[3], c[3];
+        int d;
+        tri_pts(m, (size_t)t, p);
+        for (d = 0; d < 3; d++) {
+            u[d] = p[1][d] - p[0][d];
+            v[d] = p[2][d] - p[0][d];
+        }
+        c[0] = u[1] * v[2] - u[2] * v[1];
+        c[1] = u[2] * v[0] - u[0] * v[2];
+        c[2] = u[0] * v[1] - u[1] * v[0];
+        sum += 0.5 * sqrt(c[0] * c[0] + c[1] * c[1] + c[2] * c[2]);
+    }
+    return sum;
+}
+
+double wvol_mesh_volume(const wvol_mesh *m)
+{
+    double sum = 0.0, ref[3] = {0, 0, 0}, lo[3], hi[3];
+    long long t, n = m ? (long long)m->ntris : 0;
+    int d;
+    if (n == 0) return 0.0;
+    /* relative to the bounding-box centre: keeps the sum well conditioned far from the origin */
+    wvol_mesh_bounds(m, lo, hi);
+    for (d = 0; d < 3; d++) ref[d] = 0.5 * (lo[d] + hi[d]);
+#ifdef _OPENMP
+#pragma omp parallel for reduction(+ : sum) schedule(static)
+#endif
+    for (t = 0; t < n; t++) {
+        double p[3][3];
+        int a, e;
+        tri_pts(m, (size_t)t, p);
+        for (a = 0; a < 3; a++)
+            for (e = 0; e < 3; e++) p[a][e] -= ref[e];
+        sum += p[0][0] * (p[1][1] * p[2][2] - p[1][2] * p[2][1]) -
+               p[0][1] * (p[1][0] * p[2][2] - p[1][2] * p[2][0]) +
+               p[0][2] * (p[1][0] * p[2][1] - p[1][1] * p[2][0]);
+    }
+    return sum / 6.0;
+}
+
+void wvol_mesh_bounds(const wvol_mesh *m, double lo[3], double hi[3])
+{
+    size_t i;
+    int d;
+    if (!m || m->nverts == 0) return;
+    for (d = 0; d < 3; d++) lo[d] = hi[d] = m->verts[d];
+    for (i = 1; i < m->nverts; i++)
+        for (d = 0; d < 3; d++) {
+            double x = m->verts[3 * i + d];
+            if (x < lo[d]) lo[d] = x;
+            if (x > hi[d]) hi[d] = x;
+        }
+}
+
+/* ---- topology -------------------------------------------------------------- */
+
+typedef struct half_edge {
+    uint32_t a, b; /* a < b */
+    int dir;       /* +1 if the triangle walks a -> b */
+} half_edge;
+
+static int cmp_half_edge(const void *x, const void *y)
+{
+    const half_edge *p = x, *q = y;
+    if (p->a != q->a) return p->a < q->a ? -1 : 1;
+    if (p->b != q->b) return p->b < q->b ? -1 : 1;
+    return p->dir - q->dir;
+}
+
+static uint32_t uf_find(uint32_t *par, uint32_t x)
+{
+    while (par[x] != x) {
+        par[x] = par[par[x]];
+        x = par[x];
+    }
+    return x;
+}
+
+wvol_status wvol_mesh_topology(const wvol_mesh *m, wvol_mesh_topo *o, wvol_error *err)
+{
+    size_t nt, nv, t, i, nh = 0, used = 0;
+    half_edge *h = NULL;
+    uint32_t *par = NULL, *start = NULL, *fan = NULL, *cnt = NULL;
+    unsigned char *seen = NULL;
+    wvol_status s = WVOL_OK;
+
+    WVOL_RETURN_IF(!m || !o, err, WVOL_ERR_ARG, "mesh topology: NULL argument");
+    memset(o, 0, sizeof *o);
+    nt = m->ntris;
+    nv = m->nverts;
+    for (t = 0; t < 3 * nt; t++)
+        WVOL_RETURN_IF(m->tris[t] >= nv, err, WVOL_ERR_FORMAT, "mesh: triangle %zu uses vertex %u of %zu",
+                       t / 3, m->tris[t], nv);
+    h = malloc((3 * nt + 1) * sizeof *h);
+    par = malloc((nv + 1) * sizeof *par);
+    start = calloc(nv + 2, sizeof *start);
+    fan = malloc((3 * nt + 1) * sizeof *fan);
+    cnt = calloc(nv + 1, sizeof *cnt);
+    seen = calloc(nt + 1, 1);
+    if (!h || !par || !start || !fan || !cnt || !seen) {
+        s = wvol_error_set(err, WVOL_ERR_NOMEM, "mesh topology: out of memory");
+        goto done;
+    }
+    for (i = 0; i < nv; i++) par[i] = (uint32_t)i;
+    for (t = 0; t < nt; t++) {
+        const uint32_t *v = m->tris + 3 * t;
+        int a;
+        if (v[0] == v[1] || v[1] == v[2] || v[0] == v[2]) {
+            o->degenerate_tris++;
+            continue;
+        }
+        for (a = 0; a < 3; a++) {
+            uint32_t p = v[a], q = v[(a + 1) % 3];
+            h[nh].a = p < q ? p : q;
+            h[nh].b = p < q ? q : p;
+            h[nh].dir = p < q ? 1 : -1;
+            nh++;
+            {
+                uint32_t rp = uf_find(par, p), rq = uf_find(par, q);
+                if (rp != rq) par[rp] = rq;
+            }
+        }
+    }
+    qsort(h, nh, sizeof *h, cmp_half_edge);
+    for (i = 0; i < nh;) {
+        size_t j = i, fwd = 0, bwd = 0;
+        while (j < nh && h[j].a == h[i].a && h[j].b == h[i].b) {
+            if (h[j].dir > 0) fwd++; else bwd++;
+            j++;
+        }
+        o->edges++;
+        if (j - i == 1)
+            o->boundary_edges++;
+        else if (j - i > 2)
+            o->nonmanifold_edges++;
+        else if (fwd != 1 || bwd != 1)
+            o->misoriented_edges++;
+        i = j;
+    }
+    /* vertex fans: triangles around each vertex must form one disc or one half-disc;
+     * walk the fan through shared edges and compare with the vertex's triangle count */
+    for (t = 0; t < nt; t++) {
+        const uint32_t *v = m->tris + 3 * t;
+        int a;
+        if (v[0] == v[1] || v[1] == v[2] || v[0] == v[2]) continue;
+        for (a = 0; a < 3; a++) cnt[v[a]]++;
+    }
+    for (i = 0; i < nv; i++) start[i + 1] = start[i] + cnt[i];
+    memset(cnt, 0, nv * sizeof *cnt);
+    for (t = 0; t < nt; t++) {
+        const uint32_t *v = m->tris + 3 * t;
+        int a;
+        if (v[0] == v[1] || v[1] == v[2] || v[0] == v[2]) continue;
+        for (a = 0; a < 3; a++) fan[start[v[a]] + cnt[v[a]]++] = (uint32_t)t;
+    }
+    for (i = 0; i < nv; i++) {
+        uint32_t k = cnt[i], reached = 1, cur, prev_other, q;
+        const uint32_t *f = fan + start[i];
+        if (k == 0) {
+            o->unused_verts++;
+            continue;
+        }
+        used++;
+        /* walk from the first triangle in one direction, then the other */
+        for (int dirn = 0; dirn < 2; dirn++) {
+            cur = f[0];
+            {
+                const uint32_t *v = m->tris + 3 * cur;
+                int a = v[0] == i ? 0 : v[1] == i ? 1 : 2;
+                prev_other = dirn == 0 ? v[(a + 1) % 3] : v[(a + 2) % 3];
+            }
+            for (;;) {
+                /* next triangle sharing edge (i, prev_other), other than cur */
+                uint32_t next = UINT32_MAX;
+                for (q = 0; q < k; q++) {
+                    const uint32_t *v = m->tris + 3 * f[q];
+                    if (f[q] == cur) continue;
+                    if (v[0] == prev_other || v[1] == prev_other || v[2] == prev_other) {
+                        next = f[q];
+                        break;
+                    }
+                }
+                if (next == UINT32_MAX || next == f[0]) break;
+                if (seen[next]) break;
+                seen[next] = 1;
+                reached++;
+                {
+                    const uint32_t *v = m->tris + 3 * next;
+                    int a;
+                    for (a = 0; a < 3; a++)
+                        if (v[a] != i && v[a] != prev_other) break;
+                    prev_other = v[a];
+                }
+                cur = next;
+            }
+        }
+        for (q = 0; q < k; q++) seen[f[q]] = 0;
+        if (reached != k) o->nonmanifold_verts++;
+    }
+    {
+        size_t comps = 0;
+        for (i = 0; i < nv; i++)
+            if (cnt[i] && uf_find(par, (uint32_t)i) == i) comps++;
+        o->components = comps;
+    }
+    o->euler = (long long)used - (long long)o->edges + (long long)(nt - o->degenerate_tris);
+    o->watertight = o->boundary_edges == 0 && o->nonmanifold_edges == 0 && o->misoriented_edges == 0 &&
+                    o->nonmanifold_verts == 0;
+done:
+    free(h);
+    free(par);
+    free(start);
+    free(fan);
+    free(cnt);
+    free(seen);
+    return s;
+}

@@ -1,0 +1,218 @@
+/* Isosurfaces (wvol/iso.h): marching cubes on a dense volume or brick by brick on the
+ * reconstruction of wavelet coefficients. Returns NumPy arrays over the mesh's memory. */
+#include "pyutil.h"
+#include "methods.h"
+#include "wvol/iso.h"
+
+#include <math.h>
+#include <string.h>
+
+static int parse_normals(const char *name, wvol_iso_normals *out)
+{
+    if (!strcmp(name, "gradient")) *out = WVOL_NORMALS_GRADIENT;
+    else if (!strcmp(name, "none")) *out = WVOL_NORMALS_NONE;
+    else {
+        PyErr_Format(PyExc_ValueError, "normals '%s': expected 'gradient' or 'none'", name);
+        return -1;
+    }
+    return 0;
+}
+
+/* (vertices (n, 3) float32, faces (m, 3) uint32, normals (n, 3) float32 or None, stats); destroys m. */
+static PyObject *mesh_take(wvol_mesh *m, const wvol_iso_stats *st)
+{
+    npy_intp vd[2] = {(npy_intp)m->nverts, 3}, td[2] = {(npy_intp)m->ntris, 3};
+    PyObject *v, *t, *n, *d;
+    v = wvolpy_array_take_type(m->verts, 2, vd, NPY_FLOAT32);
+    m->verts = NULL;
+    t = wvolpy_array_take_type(m->tris, 2, td, NPY_UINT32);
+    m->tris = NULL;
+    if (m->normals) {
+        n = wvolpy_array_take_type(m->normals, 2, vd, NPY_FLOAT32);
+        m->normals = NULL;
+    } else {
+        n = Py_NewRef(Py_None);
+    }
+    wvol_mesh_destroy(m);
+    d = Py_BuildValue("{s:O,s:s,s:(dd),s:n,s:n,s:n,s:n,s:d}", "empty", st->empty ? Py_True : Py_False, "message",
+                      st->message, "data_range", st->data_min, st->data_max, "cells_active",
+                      (Py_ssize_t)st->cells_active, "bricks_total", (Py_ssize_t)st->bricks_total, "bricks_skipped",
+                      (Py_ssize_t)st->bricks_skipped, "bricks_meshed", (Py_ssize_t)st->bricks_meshed, "seconds",
+                      st->seconds[3]);
+    if (!v || !t || !n || !d) {
+        Py_XDECREF(v);
+        Py_XDECREF(t);
+        Py_XDECREF(n);
+        Py_XDECREF(d);
+        return NULL;
+    }
+    return Py_BuildValue("NNNN", v, t, n, d);
+}
+
+/* isosurface_volume(array, iso, spacing=None, origin=None, normals='gradient', threads=0) */
+static PyObject *py_iso_volume(PyObject *self, PyObject *args, PyObject *kw)
+{
+    static char *kwlist[] = {"array", "iso", "spacing", "origin", "normals", "threads", NULL};
+    PyObject *arr_obj, *sp = Py_None, *org = Py_None;
+    const char *normals = "gradient";
+    double iso;
+    int threads = 0;
+    PyArrayObject *holder;
+    wvol_volume v;
+    wvol_iso_params p;
+    wvol_iso_stats st;
+    wvol_mesh *m = NULL;
+    wvol_error err;
+    wvol_status s;
+    (void)self;
+    if (!PyArg_ParseTupleAndKeywords(args, kw, "Od|OOsi", kwlist, &arr_obj, &iso, &sp, &org, &normals, &threads))
+        return NULL;
+    if (!isfinite(iso)) return PyErr_Format(PyExc_ValueError, "iso-value must be finite");
+    if (threads < 0) return PyErr_Format(PyExc_ValueError, "threads must be >= 0");
+    wvol_iso_params_default(&p);
+    p.threads = threads;
+    if (parse_normals(normals, &p.normals) < 0) return NULL;
+    if (wvolpy_as_volume(arr_obj, &v, &holder, 1) < 0) return NULL;
+    if (wvolpy_triple(sp, v.spacing, "spacing") < 0 || wvolpy_triple(org, v.origin, "origin") < 0) {
+        Py_DECREF(holder);
+        return NULL;
+    }
+    memset(&st, 0, sizeof st);
+    Py_BEGIN_ALLOW_THREADS
+    s = wvol_volume_set_geometry(&v, v.spacing, v.origin, &err);
+    if (s == WVOL_OK) s = wvol_iso_extract(&m, &v, iso, &p, &st, &err);
+    Py_END_ALLOW_THREADS
+    Py_DECREF(holder);
+    if (s != WVOL_OK) {
+        wvol_mesh_destroy(m);
+        return wvolpy_raise(&err);
+    }
+    return mesh_take(m, &st);
+}
+
+/* isosurface_coeffs(coeffs, wavelet, levels, shape, iso, spacing, origin, normals, threads, brick) */
+static PyObject *py_iso_coeffs(PyObject *self, PyObject *args, PyObject *kw)
+{
+    static char *kwlist[] = {"coeffs", "wavelet", "levels", "shape", "iso", "spacing", "origin", "normals",
+                             "threads", "brick", NULL};
+    PyObject *arr_obj, *shape, *sp = Py_None, *org = Py_None;
+    const char *name, *normals = "gradient";
+    int levels, threads = 0, brick = 0;
+    double iso;
+    PyArrayObject *holder;
+    wvol_coeffs c;
+    wvol_iso_params p;
+    wvol_iso_stats st;
+    wvol_mesh *m = NULL;
+    wvol_error err;
+    wvol_status s;
+    (void)self;
+    if (!PyArg_ParseTupleAndKeywords(args, kw, "OsiOd|OOsii", kwlist, &arr_obj, &name, &levels, &shape, &iso, &sp,
+                                     &org, &normals, &threads, &brick))
+        return NULL;
+    if (!isfinite(iso)) return PyErr_Format(PyExc_ValueError, "iso-value must be finite");
+    if (threads < 0) return PyErr_Format(PyExc_ValueError, "threads must be >= 0");
+    if (brick < 0) return PyErr_Format(PyExc_ValueError, "brick must be >= 0 (0: default)");
+    wvol_iso_params_default(&p);
+    p.threads = threads;
+    if (brick > 0) p.brick = brick;
+    if (parse_normals(normals, &p.normals) < 0) return NULL;
+    if (wvolpy_as_coeffs(arr_obj, name, levels, shape, sp, org, &c, &holder) < 0) return NULL;
+    memset(&st, 0, sizeof st);
+    Py_BEGIN_ALLOW_THREADS
+    s = wvol_iso_extract_coeffs(&m, &c, iso, &p, &st, &err);
+    Py_END_ALLOW_THREADS
+    Py_DECREF(holder);
+    if (s != WVOL_OK) {
+        wvol_mesh_destroy(m);
+        return wvolpy_raise(&err);
+    }
+    return mesh_take(m, &st);
+}
+
+/* save_mesh(path, vertices (n, 3), faces (m, 3), normals (n, 3) or None): .ply .obj .stl .vtp */
+static PyObject *py_save_mesh(PyObject *self, PyObject *args, PyObject *kw)
+{
+    static char *kwlist[] = {"path", "vertices", "faces", "normals", NULL};
+    PyObject *path_obj, *vo, *fo, *no = Py_None, *bytes = NULL, *res = NULL;
+    PyArrayObject *va = NULL, *fa = NULL, *na = NULL;
+    wvol_mesh m;
+    wvol_error err;
+    wvol_status s;
+    (void)self;
+    if (!PyArg_ParseTupleAndKeywords(args, kw, "OOO|O", kwlist, &path_obj, &vo, &fo, &no)) return NULL;
+    va = (PyArrayObject *)PyArray_FROM_OTF(vo, NPY_FLOAT32, NPY_ARRAY_IN_ARRAY | NPY_ARRAY_FORCECAST);
+    if (!va) goto done;
+    if (PyArray_NDIM(va) != 2 || PyArray_DIM(va, 1) != 3) {
+        PyErr_SetString(PyExc_ValueError, "vertices must be an (n, 3) array");
+        goto done;
+    }
+    {
+        PyArrayObject *f64 = (PyArrayObject *)PyArray_FROM_OTF(fo, NPY_INT64, NPY_ARRAY_IN_ARRAY);
+        npy_intp nf, nv = PyArray_DIM(va, 0);
+        if (!f64) goto done;
+        if (PyArray_NDIM(f64) != 2 || PyArray_DIM(f64, 1) != 3) {
+            Py_DECREF(f64);
+            PyErr_SetString(PyExc_ValueError, "faces must be an (m, 3) array of vertex indices");
+            goto done;
+        }
+        nf = PyArray_DIM(f64, 0);
+        {
+            const int64_t *f = PyArray_DATA(f64);
+            for (npy_intp i = 0; i < 3 * nf; i++)
+                if (f[i] < 0 || f[i] >= nv) {
+                    Py_DECREF(f64);
+                    PyErr_Format(PyExc_ValueError, "faces: index %lld of face %zd is not a vertex (0..%zd)",
+                                 (long long)f[i], (Py_ssize_t)(i / 3), (Py_ssize_t)nv - 1);
+                    goto done;
+                }
+        }
+        fa = (PyArrayObject *)PyArray_FROM_OTF((PyObject *)f64, NPY_UINT32, NPY_ARRAY_IN_ARRAY | NPY_ARRAY_FORCECAST);
+        Py_DECREF(f64);
+        if (!fa) goto done;
+    }
+    if (no != Py_None) {
+        na = (PyArrayObject *)PyArray_FROM_OTF(no, NPY_FLOAT32, NPY_ARRAY_IN_ARRAY | NPY_ARRAY_FORCECAST);
+        if (!na) goto done;
+        if (PyArray_NDIM(na) != 2 || PyArray_DIM(na, 1) != 3 || PyArray_DIM(na, 0) != PyArray_DIM(va, 0)) {
+            PyErr_SetString(PyExc_ValueError, "normals must be an (n, 3) array, one per vertex");
+            goto done;
+        }
+    }
+    {
+        const float *p = PyArray_DATA(va);
+        for (npy_intp i = 0; i < 3 * PyArray_DIM(va, 0); i++)
+            if (!isfinite(p[i])) {
+                PyErr_Format(PyExc_ValueError, "vertices: non-finite coordinate at vertex %zd", (Py_ssize_t)(i / 3));
+                goto done;
+            }
+    }
+    if (!PyUnicode_FSConverter(path_obj, &bytes)) goto done;
+    m.nverts = (size_t)PyArray_DIM(va, 0);
+    m.ntris = (size_t)PyArray_DIM(fa, 0);
+    m.verts = PyArray_DATA(va);
+    m.tris = PyArray_DATA(fa);
+    m.normals = na ? PyArray_DATA(na) : NULL;
+    Py_BEGIN_ALLOW_THREADS
+    s = wvol_mesh_save(&m, PyBytes_AS_STRING(bytes), &err);
+    Py_END_ALLOW_THREADS
+    if (s != WVOL_OK) wvolpy_raise(&err);
+    else res = Py_NewRef(Py_None);
+done:
+    Py_XDECREF(bytes);
+    Py_XDECREF(va);
+    Py_XDECREF(fa);
+    Py_XDECREF(na);
+    return res;
+}
+
+PyMethodDef wvolpy_iso_methods[] = {
+    {"save_mesh", (PyCFunction)(void (*)(void))py_save_mesh, METH_VARARGS | METH_KEYWORDS,
+     "save_mesh(path, vertices, faces, normals=None): .ply .obj .stl .vtp by extension"},
+    {"isosurface_volume", (PyCFunction)(void (*)(void))py_iso_volume, METH_VARARGS | METH_KEYWORDS,
+     "isosurface_volume(array, iso, spacing=None, origin=None, normals='gradient', threads=0)\n"
+     "-> (vertices, faces, normals, stats)"},
+    {"isosurface_coeffs", (PyCFunction)(void (*)(void))py_iso_coeffs, METH_VARARGS | METH_KEYWORDS,
+     "isosurface_coeffs(coeffs, wavelet, levels, shape, iso, spacing=None, origin=None, normals='gradient',\n"
+     "                  threads=0, brick=0) -> (vertices, faces, normals, stats)"},
+    {NULL, NULL, 0, NULL}};

@@ -1,0 +1,603 @@
+/* .wvc files: round trips in every coder and step mode, the error target met,
+ * early stop at each level, and refusal of damaged files (truncation at every
+ * byte, a flipped bit anywhere, crafted headers with valid checksums). */
+#define _POSIX_C_SOURCE 200809L
+#include <math.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+#include <zlib.h>
+
+#include "check.h"
+#include "codec/wvc_format.h"
+#include "wvol/io.h"
+#include "wvol/wvc.h"
+
+/* A small volume with smooth parts, a sharp sphere and a little texture. */
+static wvol_volume *make_volume(size_t nx, size_t ny, size_t nz)
+{
+    wvol_volume *v = NULL;
+    size_t i, j, k;
+    if (wvol_volume_create(&v, nx, ny, nz, NULL) != WVOL_OK) return NULL;
+    for (k = 0; k < nz; k++)
+        for (j = 0; j < ny; j++)
+            for (i = 0; i < nx; i++) {
+                double x = (i + 0.5) / nx - 0.5, y = (j + 0.5) / ny - 0.5, z = (k + 0.5) / nz - 0.5;
+                double r2 = x * x + y * y + z * z, f = 100.0 * exp(-8 * r2);
+                if (r2 < 0.09) f += 40.0;
+                f += 3.0 * sin(13.0 * x + 7.0 * y) * cos(5.0 * z);
+                v->data[i + nx * (j + ny * k)] = (float)f;
+            }
+    return v;
+}
+
+typedef struct fixture {
+    wvol_volume *v;
+    wvol_coeffs *c;
+    double vmin, vmax;
+} fixture;
+
+static int fixture_make(fixture *F, size_t nx, size_t ny, size_t nz, const char *wavelet, int levels)
+{
+    const wvol_filter *f;
+    wvol_error err;
+    memset(F, 0, sizeof *F);
+    F->v = make_volume(nx, ny, nz);
+    if (!F->v || wvol_filter_get(&f, wavelet, &err) != WVOL_OK) return 0;
+    if (wvol_dwt3(&F->c, F->v, f, levels, &err) != WVOL_OK) {
+        fprintf(stderr, "dwt3: %s\n", err.message);
+        return 0;
+    }
+    wvol_volume_range(F->v, &F->vmin, &F->vmax, NULL);
+    return 1;
+}
+
+static void fixture_free(fixture *F)
+{
+    wvol_coeffs_destroy(F->c);
+    wvol_volume_destroy(F->v);
+}
+
+static int encode(void **buf, size_t *n, const fixture *F, double psnr, double step, wvol_wvc_coder coder,
+                  wvol_wvc_report *rep)
+{
+    wvol_wvc_params p;
+    wvol_error err;
+    size_t nv = wvol_volume_count(F->v);
+    wvol_wvc_params_default(&p);
+    p.value_min = F->vmin;
+    p.value_max = F->vmax;
+    p.coder = coder;
+    p.step = step;
+    if (step == 0) p.target_sse = wvol_wvc_sse_for_psnr(psnr, (double)nv, F->vmin, F->vmax);
+    if (wvol_wvc_encode(buf, n, F->c, &p, rep, &err) != WVOL_OK) {
+        fprintf(stderr, "encode: %s\n", err.message);
+        return 0;
+    }
+    return 1;
+}
+
+static double coeff_sse(const wvol_coeffs *a, const wvol_coeffs *b, double *maxabs)
+{
+    size_t i, n = a->px * a->py * a->pz;
+    double s = 0, m = 0;
+    for (i = 0; i < n; i++) {
+        double d = (double)a->data[i] - b->data[i];
+        s += d * d;
+        if (fabs(d) > m) m = fabs(d);
+    }
+    if (maxabs) *maxabs = m;
+    return s;
+}
+
+static void wvc_round_trip_meets_psnr_target(const char *wavelet, size_t nx, size_t ny, size_t nz, int levels)
+{
+    fixture F;
+    double targets[3] = {35, 50, 70};
+    int t;
+    CHECK(fixture_make(&F, nx, ny, nz, wavelet, levels), "fixture %s", wavelet);
+    if (!F.c) return;
+    for (t = 0; t < 3; t++) {
+        void *buf = NULL;
+        size_t n = 0;
+        wvol_wvc_report rep;
+        wvol_coeffs *d = NULL;
+        wvol_volume *r = NULL;
+        wvol_wvc_info info;
+        wvol_error err;
+        double sse, maxabs, vsse, vmax, psnr;
+        if (!encode(&buf, &n, &F, targets[t], 0, WVOL_WVC_CODER_AUTO, &rep)) {
+            CHECK(0, "encode %s psnr %g", wavelet, targets[t]);
+            continue;
+        }
+        CHECK(wvol_wvc_decode(&d, buf, n, NULL, &info, &err) == WVOL_OK, "decode: %s", err.message);
+        if (d) {
+            sse = coeff_sse(F.c, d, &maxabs);
+            /* dead-zone quantiser: every coefficient within one step */
+            CHECK(maxabs <= rep.step * 1.0001, "%s: max coefficient error %g > step %g", wavelet, maxabs, rep.step);
+            /* the encoder's predicted error is the coefficient error (Parseval), up to the
+             * rounding of each reconstructed coefficient to float32 (half an ulp) */
+            {
+                double ulp = 0, cmax = 0;
+                size_t i, nc = F.c->px * F.c->py * F.c->pz;
+                for (i = 0; i < nc; i++)
+                    if (fabs(F.c->data[i]) > cmax) cmax = fabs(F.c->data[i]);
+                ulp = (double)nc * pow(cmax * ldexp(1.0, -24), 2) + 2 * sqrt(rep.sse_quant * (double)nc) * cmax * ldexp(1.0, -24);
+                CHECK(fabs(sse - rep.sse_quant) <= 1e-5 * rep.sse_quant + ulp + 1e-12, "%s: sse %g vs predicted %g",
+                      wavelet, sse, rep.sse_quant);
+            }
+            CHECK(fabs(info.sse - rep.sse_quant) <= 1e-12 * rep.sse_quant, "header sse");
+            CHECK(wvol_idwt3(&r, d, &err) == WVOL_OK, "idwt3: %s", err.message);
+            if (r) {
+                wvol_wvc_compare(&vsse, &vmax, F.v, r, NULL);
+                psnr = wvol_wvc_psnr(vsse, (double)wvol_volume_count(F.v), F.vmin, F.vmax);
+                CHECK(psnr >= targets[t] - 0.01, "%s %zux%zux%zu: measured PSNR %.3f below target %g", wavelet,
+                      nx, ny, nz, psnr, targets[t]);
+                /* padding can only add error outside the original grid */
+                CHECK(vsse <= rep.sse_quant * 1.001 + 1e-6, "%s: volume sse %g > coefficient sse %g", wavelet,
+                      vsse, rep.sse_quant);
+            }
+        }
+        wvol_volume_destroy(r);
+        wvol_coeffs_destroy(d);
+        free(buf);
+    }
+    fixture_free(&F);
+}
+
+static void wvc_coders_decode_to_the_same_coefficients(void)
+{
+    fixture F;
+    void *b1 = NULL, *b2 = NULL, *b3 = NULL;
+    size_t n1, n2, n3;
+    wvol_wvc_report r1, r2, r3;
+    wvol_coeffs *d1 = NULL, *d2 = NULL, *d3 = NULL;
+    CHECK(fixture_make(&F, 16, 16, 16, "db2", 2), "fixture");
+    if (!F.c) return;
+    CHECK(encode(&b1, &n1, &F, 0, 0.05, WVOL_WVC_CODER_CABAC, &r1), "cabac");
+    CHECK(encode(&b2, &n2, &F, 0, 0.05, WVOL_WVC_CODER_ZSTD, &r2), "zstd");
+    CHECK(encode(&b3, &n3, &F, 0, 0.05, WVOL_WVC_CODER_AUTO, &r3), "auto");
+    CHECK(r1.step == 0.05 && r2.step == 0.05, "fixed step kept: %g", r1.step);
+    CHECK(r1.bytes_zstd == 0 && r2.bytes_cabac == 0 && r3.bytes_cabac > 0 && r3.bytes_zstd > 0, "alternatives");
+    CHECK(n3 <= n1 && n3 <= n2, "auto keeps the smaller per section: %zu %zu %zu", n1, n2, n3);
+    CHECK(wvol_wvc_decode(&d1, b1, n1, NULL, NULL, NULL) == WVOL_OK, "decode cabac");
+    CHECK(wvol_wvc_decode(&d2, b2, n2, NULL, NULL, NULL) == WVOL_OK, "decode zstd");
+    CHECK(wvol_wvc_decode(&d3, b3, n3, NULL, NULL, NULL) == WVOL_OK, "decode auto");
+    if (d1 && d2 && d3) {
+        size_t n = F.c->px * F.c->py * F.c->pz;
+        CHECK(!memcmp(d1->data, d2->data, n * sizeof(float)), "cabac and zstd differ");
+        CHECK(!memcmp(d1->data, d3->data, n * sizeof(float)), "cabac and auto differ");
+    }
+    wvol_coeffs_destroy(d1);
+    wvol_coeffs_destroy(d2);
+    wvol_coeffs_destroy(d3);
+    free(b1);
+    free(b2);
+    free(b3);
+    fixture_free(&F);
+}
+
+/* The low-pass cube of level m depends only on levels > m: stopping early must give it exactly. */
+static void wvc_early_stop_gives_the_coarser_volume(void)
+{
+    fixture F;
+    void *buf = NULL;
+    size_t n;
+    int m, levels = 3;
+    wvol_coeffs *full = NULL;
+    CHECK(fixture_make(&F, 32, 24, 16, "coif1", levels), "fixture");
+    if (!F.c) return;
+    CHECK(encode(&buf, &n, &F, 45, 0, WVOL_WVC_CODER_AUTO, NULL), "encode");
+    CHECK(wvol_wvc_decode(&full, buf, n, NULL, NULL, NULL) == WVOL_OK, "full decode");
+    for (m = 0; m <= levels && full; m++) {
+        wvol_wvc_read_options o;
+        wvol_coeffs *part = NULL;
+        wvol_volume *a = NULL, *b = NULL;
+        wvol_error err;
+        wvol_wvc_read_options_default(&o);
+        o.stop_level = m;
+        CHECK(wvol_wvc_decode(&part, buf, n, &o, NULL, &err) == WVOL_OK, "stop %d: %s", m, err.message);
+        if (!part) continue;
+        CHECK(wvol_idwt3_level(&a, part, m, &err) == WVOL_OK, "idwt3_level part %d: %s", m, err.message);
+        CHECK(wvol_idwt3_level(&b, full, m, &err) == WVOL_OK, "idwt3_level full %d: %s", m, err.message);
+        if (a && b) {
+            double sse = 0, mx = 0;
+            CHECK(a->nx == b->nx && a->ny == b->ny && a->nz == b->nz, "sizes at level %d", m);
+            wvol_wvc_compare(&sse, &mx, a, b, NULL);
+            CHECK(mx <= 1e-3, "level %d: early stop differs by %g", m, mx);
+        }
+        if (m > 0) {
+            /* the finer levels really were not decoded */
+            size_t i, nz = 0;
+            for (i = 0; i < part->px * part->py * part->pz; i++) {
+                int lev, band;
+                size_t p, q, r;
+                wvol_coeffs_locate(part, i, &lev, &band, &p, &q, &r);
+                if (lev <= m && band != 0 && part->data[i] != 0) nz++;
+            }
+            CHECK(nz == 0, "stop %d: %zu finer coefficients are set", m, nz);
+        }
+        wvol_volume_destroy(a);
+        wvol_volume_destroy(b);
+        wvol_coeffs_destroy(part);
+    }
+    {
+        wvol_wvc_read_options o;
+        wvol_coeffs *part = NULL;
+        wvol_wvc_read_options_default(&o);
+        o.stop_level = levels + 1;
+        CHECK(wvol_wvc_decode(&part, buf, n, &o, NULL, NULL) == WVOL_ERR_ARG, "stop level beyond levels");
+    }
+    wvol_coeffs_destroy(full);
+    free(buf);
+    fixture_free(&F);
+}
+
+static void wvc_odd_sizes_and_flat_axes_round_trip(void)
+{
+    wvc_round_trip_meets_psnr_target("db2", 13, 10, 7, 2);  /* padded */
+    wvc_round_trip_meets_psnr_target("haar", 16, 16, 1, 3); /* one axis not transformed */
+    wvc_round_trip_meets_psnr_target("coif1", 9, 1, 1, 3);  /* a line */
+}
+
+static int refused(const void *buf, size_t n, wvol_status want_any_error, const char *what, size_t pos)
+{
+    wvol_coeffs *d = NULL;
+    wvol_error err;
+    wvol_status s;
+    memset(&err, 0, sizeof err);
+    s = wvol_wvc_decode(&d, buf, n, NULL, NULL, &err);
+    wvol_coeffs_destroy(d);
+    if (s == WVOL_OK) {
+        fprintf(stderr, "%s at %zu: accepted\n", what, pos);
+        return 0;
+    }
+    if (want_any_error != WVOL_OK && s != want_any_error) {
+        fprintf(stderr, "%s at %zu: status %d (%s)\n", what, pos, (int)s, err.message);
+        return 0;
+    }
+    if (!err.message[0]) {
+        fprintf(stderr, "%s at %zu: no message\n", what, pos);
+        return 0;
+    }
+    return 1;
+}
+
+static void wvc_refuses_truncation_and_bit_flips_everywhere(void)
+{
+    fixture F;
+    void *buf = NULL;
+    uint8_t *copy;
+    size_t n, pos, bad_trunc = 0, bad_flip = 0, header_bytes;
+    int bit;
+    CHECK(fixture_make(&F, 16, 16, 16, "db2", 2), "fixture");
+    if (!F.c) return;
+    CHECK(encode(&buf, &n, &F, 40, 0, WVOL_WVC_CODER_AUTO, NULL), "encode");
+    if (!buf) return;
+    copy = malloc(n);
+    {
+        wvol_wvc_info info;
+        header_bytes = wvol_wvc_parse_info(&info, buf, n, NULL) == WVOL_OK ? (size_t)info.header_bytes : n;
+    }
+    for (pos = 0; pos < n; pos++) {
+        /* an exact-size copy so ASan sees any read past the end */
+        uint8_t *t = malloc(pos ? pos : 1);
+        memcpy(t, buf, pos);
+        if (!refused(t, pos, WVOL_OK, "truncation", pos)) bad_trunc++;
+        free(t);
+    }
+    /* one flipped bit at every byte (the bit rotates with the position), and all
+     * eight bits of every header and table byte */
+    for (pos = 0; pos < n; pos++)
+        for (bit = 0; bit < 8; bit++) {
+            if (pos >= header_bytes && bit != (int)(pos % 8)) continue;
+            memcpy(copy, buf, n);
+            copy[pos] ^= (uint8_t)(1u << bit);
+            if (!refused(copy, n, WVOL_OK, "bit flip", pos * 8 + bit)) bad_flip++;
+        }
+    CHECK(bad_trunc == 0, "%zu truncations accepted", bad_trunc);
+    CHECK(bad_flip == 0, "%zu bit flips accepted", bad_flip);
+    {
+        /* one byte more is refused too */
+        uint8_t *t = malloc(n + 1);
+        memcpy(t, buf, n);
+        t[n] = 0;
+        CHECK(refused(t, n + 1, WVOL_ERR_FORMAT, "extension", n), "trailing byte accepted");
+        free(t);
+    }
+    free(copy);
+    free(buf);
+    fixture_free(&F);
+}
+
+/* Rewrites the header checksum so that only the field checks can refuse. */
+static void reseal(uint8_t *b)
+{
+    uint32_t nsec = b[12] | (b[13] << 8) | (b[14] << 16) | ((uint32_t)b[15] << 24);
+    size_t h;
+    uint32_t c;
+    if (nsec > WVOL_WVC_MAX_SECTIONS) return;
+    h = WVC_HEADER_SIZE + (size_t)nsec * WVC_SECTION_SIZE;
+    c = (uint32_t)crc32(0L, b, (uInt)h);
+    for (int i = 0; i < 4; i++) b[h + i] = (uint8_t)(c >> (8 * i));
+}
+
+static void put64(uint8_t *d, uint64_t v)
+{
+    for (int i = 0; i < 8; i++) d[i] = (uint8_t)(v >> (8 * i));
+}
+
+static void wvc_refuses_crafted_headers(void)
+{
+    fixture F;
+    void *buf = NULL;
+    uint8_t *t;
+    size_t n;
+    wvol_error err;
+    wvol_coeffs *d = NULL;
+    CHECK(fixture_make(&F, 16, 16, 16, "haar", 2), "fixture");
+    if (!F.c) return;
+    CHECK(encode(&buf, &n, &F, 40, 0, WVOL_WVC_CODER_CABAC, NULL), "encode");
+    if (!buf) return;
+    t = malloc(n);
+
+#define TRY(label, mutate, want, needle)                                                     \
+    do {                                                                                     \
+        memcpy(t, buf, n);                                                                   \
+        mutate;                                                                              \
+        memset(&err, 0, sizeof err);                                                         \
+        CHECK(wvol_wvc_decode(&d, t, n, NULL, NULL, &err) == (want), "%s: %s", label, err.message); \
+        CHECK(strstr(err.message, needle) != NULL, "%s: message '%s' lacks '%s'", label, err.message, needle); \
+        wvol_coeffs_destroy(d);                                                              \
+        d = NULL;                                                                            \
+    } while (0)
+
+    TRY("magic", t[1] = 'X', WVOL_ERR_FORMAT, "magic");
+    TRY("newer version", (t[8] = 2, reseal(t)), WVOL_ERR_UNSUPPORTED, "newer");
+    TRY("version 0", (t[8] = 0, reseal(t)), WVOL_ERR_FORMAT, "version");
+    TRY("header checksum", t[40] ^= 1, WVOL_ERR_FORMAT, "checksum");
+    TRY("flags", (t[10] = 1, reseal(t)), WVOL_ERR_UNSUPPORTED, "flags");
+    TRY("huge nx", (put64(t + 40, (uint64_t)1 << 62), reseal(t)), WVOL_ERR_DIMS, "size");
+    TRY("overflowing padded size",
+        (put64(t + 40, (uint64_t)1 << 40), put64(t + 48, (uint64_t)1 << 40), put64(t + 56, (uint64_t)1 << 40),
+         put64(t + 64, (uint64_t)1 << 40), put64(t + 72, (uint64_t)1 << 40), put64(t + 80, (uint64_t)1 << 40),
+         reseal(t)),
+        WVOL_ERR_DIMS, "overflow");
+    TRY("padded smaller than size", (put64(t + 64, 8), reseal(t)), WVOL_ERR_DIMS, "padded");
+    TRY("zero size", (put64(t + 40, 0), reseal(t)), WVOL_ERR_DIMS, "size");
+    TRY("levels beyond size", (t[32] = 6, reseal(t)), WVOL_ERR_FORMAT, "sections");
+    TRY("too many levels", (t[32] = 200, reseal(t)), WVOL_ERR_FORMAT, "levels");
+    TRY("section count", (t[12] = 250, reseal(t)), WVOL_ERR_FORMAT, "sections");
+    TRY("unknown wavelet", (memcpy(t + 16, "db99", 5), reseal(t)), WVOL_ERR_UNSUPPORTED, "wavelet");
+    TRY("negative step", (t[152 + 7] ^= 0x80, reseal(t)), WVOL_ERR_FORMAT, "step");
+    TRY("nan spacing", (put64(t + 88, 0x7ff8000000000000ull), reseal(t)), WVOL_ERR_FORMAT, "spacing");
+    TRY("section order", (t[WVC_HEADER_SIZE + WVC_SECTION_SIZE + 1] = 5, reseal(t)), WVOL_ERR_FORMAT, "expected");
+    TRY("section length", (t[WVC_HEADER_SIZE + 8] += 1, reseal(t)), WVOL_ERR_FORMAT, "");
+    TRY("unknown coder", (t[WVC_HEADER_SIZE + 2] = 9, reseal(t)), WVOL_ERR_UNSUPPORTED, "coder");
+#undef TRY
+    {
+        /* levels beyond what the size allows, with a consistent section count and table:
+         * a 16^3 file of 4 levels relabelled as 9^3 (still padded to 16, but 2^4 > 9) */
+        fixture G;
+        void *b4 = NULL;
+        size_t n4;
+        CHECK(fixture_make(&G, 16, 16, 16, "haar", 4), "fixture 4 levels");
+        if (G.c && encode(&b4, &n4, &G, 40, 0, WVOL_WVC_CODER_AUTO, NULL)) {
+            uint8_t *u = b4;
+            for (int a = 0; a < 3; a++) put64(u + 40 + 8 * a, 9);
+            reseal(u);
+            CHECK(wvol_wvc_decode(&d, u, n4, NULL, NULL, &err) == WVOL_ERR_DIMS, "levels beyond size: %s",
+                  err.message);
+            CHECK(strstr(err.message, "allows") != NULL, "message: %s", err.message);
+            wvol_coeffs_destroy(d);
+            d = NULL;
+        }
+        free(b4);
+        fixture_free(&G);
+    }
+    free(t);
+    free(buf);
+    fixture_free(&F);
+}
+
+/* Payload bytes replaced with noise and the section checksums recomputed: the
+ * coders themselves must refuse or decode something, never read out of bounds. */
+static void wvc_survives_garbage_payloads_with_valid_checksums(void)
+{
+    fixture F;
+    void *buf = NULL;
+    size_t n;
+    wvol_wvc_info info;
+    uint8_t *t;
+    int trial, ok = 0, refused_n = 0;
+    uint32_t seed = 12345;
+    CHECK(fixture_make(&F, 16, 16, 16, "db2", 2), "fixture");
+    if (!F.c) return;
+    CHECK(encode(&buf, &n, &F, 50, 0, WVOL_WVC_CODER_AUTO, NULL), "encode");
+    if (!buf || wvol_wvc_parse_info(&info, buf, n, NULL) != WVOL_OK) return;
+    t = malloc(n);
+    for (trial = 0; trial < 400; trial++) {
+        int s;
+        wvol_coeffs *d = NULL;
+        memcpy(t, buf, n);
+        for (s = 0; s < info.nsections; s++) {
+            wvol_wvc_section *S = &info.sections[s];
+            uint64_t k;
+            uint32_t c;
+            uint8_t *e = t + WVC_HEADER_SIZE + (size_t)s * WVC_SECTION_SIZE;
+            for (k = 0; k < S->bytes; k++) {
+                seed = seed * 1664525u + 1013904223u;
+                if ((seed >> 24) < (uint32_t)(trial % 64) || trial % 3 == 0) t[S->offset + k] = (uint8_t)(seed >> 16);
+            }
+            c = (uint32_t)crc32(0L, t + S->offset, (uInt)S->bytes);
+            for (int i = 0; i < 4; i++) e[4 + i] = (uint8_t)(c >> (8 * i));
+        }
+        reseal(t);
+        if (wvol_wvc_decode(&d, t, n, NULL, NULL, NULL) == WVOL_OK) {
+            ok++;
+            for (size_t i = 0; i < d->px * d->py * d->pz; i++)
+                if (!isfinite(d->data[i])) {
+                    CHECK(0, "non-finite coefficient decoded");
+                    break;
+                }
+        } else {
+            refused_n++;
+        }
+        wvol_coeffs_destroy(d);
+    }
+    CHECK(refused_n > 0, "garbage was never refused (%d decoded)", ok);
+    free(t);
+    free(buf);
+    fixture_free(&F);
+}
+
+static void wvc_files_are_atomic_and_checked(void)
+{
+    fixture F;
+    void *buf = NULL;
+    size_t n;
+    char dir[] = "/tmp/wvc_test_XXXXXX", path[256], bad[256];
+    wvol_error err;
+    wvol_wvc_info info;
+    wvol_coeffs *d = NULL;
+    wvol_wvc_read_options o;
+    FILE *fp;
+    CHECK(mkdtemp(dir) != NULL, "mkdtemp");
+    snprintf(path, sizeof path, "%s/a.wvc", dir);
+    snprintf(bad, sizeof bad, "%s/no/such/dir/a.wvc", dir);
+    CHECK(fixture_make(&F, 16, 16, 16, "db2", 3), "fixture");
+    if (!F.c) return;
+    CHECK(encode(&buf, &n, &F, 45, 0, WVOL_WVC_CODER_AUTO, NULL), "encode");
+    CHECK(wvol_wvc_save(path, buf, n, &err) == WVOL_OK, "save: %s", err.message);
+    CHECK(wvol_wvc_save(bad, buf, n, &err) == WVOL_ERR_IO, "save into a missing folder");
+    CHECK(wvol_wvc_read_info(&info, path, &err) == WVOL_OK, "read_info: %s", err.message);
+    CHECK(info.file_bytes == n && info.levels == 3 && info.nx == 16 && !strcmp(info.filter, "db2"), "info");
+    wvol_wvc_read_options_default(&o);
+    o.stop_level = 2;
+    CHECK(wvol_wvc_read(&d, path, &o, &info, &err) == WVOL_OK, "read stop 2: %s", err.message);
+    wvol_coeffs_destroy(d);
+    d = NULL;
+    CHECK(wvol_wvc_read(&d, path, NULL, NULL, &err) == WVOL_OK, "read: %s", err.message);
+    wvol_coeffs_destroy(d);
+    d = NULL;
+    /* truncated on disk: refused even when only coarse levels are asked for */
+    CHECK(truncate(path, (off_t)n - 1) == 0, "truncate");
+    CHECK(wvol_wvc_read(&d, path, &o, NULL, &err) == WVOL_ERR_FORMAT, "truncated file read");
+    CHECK(strstr(err.message, "a.wvc") != NULL, "message names the file: %s", err.message);
+    CHECK(wvol_wvc_read(&d, "/nonexistent/x.wvc", NULL, NULL, &err) == WVOL_ERR_IO, "missing file");
+    /* nothing but the one file in the folder: no temporary left behind */
+    snprintf(bad, sizeof bad, "ls %s | wc -l", dir);
+    fp = popen(bad, "r");
+    if (fp) {
+        int count = -1;
+        CHECK(fscanf(fp, "%d", &count) == 1 && count == 1, "files in the folder: %d", count);
+        pclose(fp);
+    }
+    remove(path);
+    rmdir(dir);
+    free(buf);
+    fixture_free(&F);
+}
+
+static void wvc_refuses_bad_parameters(void)
+{
+    fixture F;
+    wvol_wvc_params p;
+    void *buf = NULL;
+    size_t n;
+    wvol_error err;
+    CHECK(fixture_make(&F, 16, 16, 16, "haar", 2), "fixture");
+    if (!F.c) return;
+    wvol_wvc_params_default(&p);
+    p.value_max = 1;
+    CHECK(wvol_wvc_encode(&buf, &n, F.c, &p, NULL, &err) == WVOL_ERR_ARG, "no step, no target");
+    p.step = NAN;
+    CHECK(wvol_wvc_encode(&buf, &n, F.c, &p, NULL, &err) == WVOL_ERR_ARG, "nan step");
+    p.step = 0.1;
+    p.rounding = 0.7;
+    CHECK(wvol_wvc_encode(&buf, &n, F.c, &p, NULL, &err) == WVOL_ERR_ARG, "rounding");
+    p.rounding = 0.38;
+    p.step = 1e-30;
+    CHECK(wvol_wvc_encode(&buf, &n, F.c, &p, NULL, &err) == WVOL_ERR_ARG, "step too small for the range");
+    {
+        /* all-zero coefficients: any target is met, the file holds empty sections */
+        wvol_coeffs *z = NULL, *d = NULL;
+        void *zb = NULL;
+        size_t zn = 0;
+        wvol_wvc_params q = p;
+        CHECK(wvol_coeffs_clone(&z, F.c, NULL) == WVOL_OK, "clone");
+        if (z) {
+            memset(z->data, 0, z->px * z->py * z->pz * sizeof(float));
+            q.step = 0;
+            q.target_sse = 1;
+            CHECK(wvol_wvc_encode(&zb, &zn, z, &q, NULL, &err) == WVOL_OK, "zeros: %s", err.message);
+            CHECK(zb && wvol_wvc_decode(&d, zb, zn, NULL, NULL, &err) == WVOL_OK, "zeros decode");
+            if (d) {
+                size_t i, bad = 0;
+                for (i = 0; i < d->px * d->py * d->pz; i++) bad += d->data[i] != 0;
+                CHECK(bad == 0, "zeros decoded as %zu non-zeros", bad);
+            }
+        }
+        wvol_coeffs_destroy(d);
+        wvol_coeffs_destroy(z);
+        free(zb);
+    }
+    p.step = 1e30;
+    CHECK(wvol_wvc_encode(&buf, &n, F.c, &p, NULL, &err) == WVOL_ERR_ARG, "step above the format's limit");
+    p.step = 0.1;
+    F.c->spacing[1] = 0;
+    CHECK(wvol_wvc_encode(&buf, &n, F.c, &p, NULL, &err) == WVOL_ERR_ARG, "zero spacing");
+    F.c->spacing[1] = 1;
+    F.c->data[5] = NAN;
+    p.step = 0.1;
+    CHECK(wvol_wvc_encode(&buf, &n, F.c, &p, NULL, &err) == WVOL_ERR_NONFINITE, "nan coefficient");
+    CHECK(buf == NULL, "no output on failure");
+    fixture_free(&F);
+}
+
+/* The fuzz corpus doubles as golden files: valid_* decode, damaged_* are refused.
+ * A change of the coder that breaks them needs a new format version (and a new corpus). */
+static void wvc_corpus_files_decode_or_are_refused(void)
+{
+    const char *root = getenv("WVOL_SOURCE_DIR");
+    const char *names[] = {"valid_haar_8_cabac.wvc", "valid_db2_8x8x4_zstd.wvc", "valid_coif1_4x4x1_auto.wvc",
+                           "valid_db2_8x6x5_padded.wvc", "valid_bl3_8_3levels.wvc", "damaged_truncated.wvc",
+                           "damaged_bitflip_payload.wvc", "damaged_magic.wvc", "damaged_version.wvc"};
+    char path[1024];
+    size_t i;
+    if (!root) {
+        printf("test_wvc: WVOL_SOURCE_DIR not set, corpus check skipped\n");
+        return;
+    }
+    for (i = 0; i < sizeof names / sizeof names[0]; i++) {
+        wvol_coeffs *c = NULL;
+        wvol_error err;
+        wvol_status st;
+        snprintf(path, sizeof path, "%s/tests/fuzz/corpus/%s", root, names[i]);
+        st = wvol_wvc_read(&c, path, NULL, NULL, &err);
+        if (names[i][0] == 'v')
+            CHECK(st == WVOL_OK, "%s: %s", names[i], err.message);
+        else
+            CHECK(st != WVOL_OK && st != WVOL_ERR_IO, "%s: status %d", names[i], (int)st);
+        wvol_coeffs_destroy(c);
+    }
+}
+
+int main(void)
+{
+    const char *fam[] = {"haar", "db2", "coif1", "bl3"};
+    for (int i = 0; i < 4; i++) wvc_round_trip_meets_psnr_target(fam[i], 16, 16, 16, 2);
+    wvc_round_trip_meets_psnr_target("db4", 32, 32, 32, 3);
+    wvc_odd_sizes_and_flat_axes_round_trip();
+    wvc_coders_decode_to_the_same_coefficients();
+    wvc_early_stop_gives_the_coarser_volume();
+    wvc_refuses_truncation_and_bit_flips_everywhere();
+    wvc_refuses_crafted_headers();
+    wvc_survives_garbage_payloads_with_valid_checksums();
+    wvc_files_are_atomic_and_checked();
+    wvc_refuses_bad_parameters();
+    wvc_corpus_files_decode_or_are_refused();
+    return check_summary("test_wvc");
+}
