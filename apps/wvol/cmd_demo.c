@@ -256,6 +256,8 @@ static void json_render(const demo *d)
     cli_json_str("xray_image", d->xray_path);
     cli_json_str("xray_method", "axis (from the store)");
     cli_json_num("xray_seconds", d->xray_stats.seconds);
+}
+
 /* ---- stage: compress (the kept coefficients into a .wvc file, decoded back) ----- */
 
 static int stage_compress(demo *d)
