@@ -8,7 +8,10 @@
 #include <stdlib.h>
 #include <string.h>
 #include <time.h>
+#include <sys/stat.h>
 #include <unistd.h>
+
+#include "wvol/render.h"
 
 void cli_parser_init(cli_parser *p, const char *cmd, int argc, char **argv, const cli_opt *opts)
 {
@@ -196,6 +199,33 @@ int cli_parse_fraction(const char *cmd, const char *opt, const char *s, double *
     }
     *out = v;
     return 1;
+}
+
+int cli_parse_size(const char *cmd, const char *opt, const char *s, long *w, long *h)
+{
+    char *e1, *e2;
+    long W = strtol(s, &e1, 10), H;
+    if (e1 == s || (*e1 != 'x' && *e1 != 'X')) {
+        cli_usage(cmd, "--%s '%s': expected WxH", opt, s);
+        return 0;
+    }
+    H = strtol(e1 + 1, &e2, 10);
+    if (e2 == e1 + 1 || *e2 || W < 1 || H < 1 || W > 65536 || H > 65536) {
+        cli_usage(cmd, "--%s '%s': expected WxH with sides 1..65536", opt, s);
+        return 0;
+    }
+    *w = W;
+    *h = H;
+    return 1;
+}
+
+int cli_load_tf(const char *cmd, const char *name, double vmin, double vmax, struct wvol_tf *tf)
+{
+    struct stat st;
+    wvol_error err;
+    if (stat(name, &st) == 0 && S_ISREG(st.st_mode))
+        return wvol_tf_load(tf, name, &err) == WVOL_OK ? CLI_OK : cli_fail_err(cmd, &err);
+    return wvol_tf_preset(tf, name, vmin, vmax, &err) == WVOL_OK ? CLI_OK : cli_usage(cmd, "--tf: %s", err.message);
 }
 
 /* ---- JSON ---- */

@@ -49,6 +49,13 @@ int cli_parse_double3(const char *cmd, const char *opt, const char *s, double ou
 int cli_parse_long(const char *cmd, const char *opt, const char *s, long lo, long hi, long *out);
 /* "5%" -> 0.05, "0.05" -> 0.05; must be in (0, 1]. */
 int cli_parse_fraction(const char *cmd, const char *opt, const char *s, double *out);
+/* "WxH", sides 1..65536. */
+int cli_parse_size(const char *cmd, const char *opt, const char *s, long *w, long *h);
+
+/* A transfer function: a file (text or JSON) when `name` is one, else a preset over the data
+ * range [vmin, vmax]. Returns CLI_OK, or the exit code after printing the error. */
+struct wvol_tf;
+int cli_load_tf(const char *cmd, const char *name, double vmin, double vmax, struct wvol_tf *tf);
 
 /* Minimal JSON writer on stdout (one object, nested objects/arrays allowed). */
 void cli_json_begin(void);

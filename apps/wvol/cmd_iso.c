@@ -7,20 +7,28 @@
 #include <string.h>
 
 #include "cli.h"
+#include "wvol/image.h"
 #include "wvol/io.h"
 #include "wvol/iso.h"
+#include "wvol/render.h"
 #include "wvol/store.h"
 
 const char wvol_cmd_iso_summary[] = "isosurface: marching cubes mesh (.ply .obj .stl .vtp) or ray-traced image";
 
 static const cli_opt opts[] = {
-    {"output", 'o', 1, "mesh file (.ply .obj .stl .vtp)"},
+    {"output", 'o', 1, "mesh file (.ply .obj .stl .vtp); raytrace and hybrid: image (.exr with Z depth, .png)"},
     {"iso", 0, 1, "iso-value theta (required)"},
-    {"method", 0, 1, "mc (default) or raytrace"},
+    {"method", 0, 1, "mc (default), raytrace (image of f^ = theta) or hybrid (surface behind the volume)"},
+    {"camera", 0, 1, "raytrace/hybrid: camera, as for wvol render (default +z)"},
+    {"size", 0, 1, "raytrace/hybrid: image size WxH (default 512x512)"},
+    {"tf", 0, 1, "hybrid: transfer function of the volume in front (default gaussian)"},
+    {"tolerance", 0, 1, "raytrace/hybrid: depth tolerance in voxels (default 0.001)"},
+    {"spline-j", 0, 1, "raytrace/hybrid: basis splines with 2^J knots per unit (default 4)"},
     {"threads", 0, 1, "threads (default: all)"},
     {"normals", 0, 1, "gradient (default) or none"},
     {"repeat", 0, 1, "extract N times and report the fastest (benchmarking)"},
-    {"wavelet", 0, 1, "mesh the reconstruction of kept wavelet coefficients (haar, db2, coif1, bl3, ...)"},
+    {"wavelet", 0, 1, "mesh the reconstruction of kept wavelet coefficients (haar, db2, coif1, bl3, ...);\n"
+                      "raytrace/hybrid: the store's wavelet (default db2)"},
     {"levels", 0, 1, "wavelet levels (default 3)"},
     {"keep", 0, 1, "kept fraction of the coefficients, e.g. 5% (default 100%)"},
     {"brick", 0, 1, "cells per brick edge for --wavelet (default 32; 0: full inverse, then dense MC)"},
@@ -36,9 +44,10 @@ static const cli_opt opts[] = {
 typedef struct iso_args {
     const char *in, *out;
     double iso;
-    int have_iso, json, threads, repeat, levels, brick;
-    double keep;
-    const char *method, *wavelet;
+    int have_iso, json, threads, repeat, levels, brick, spline_j;
+    long width, height;
+    double keep, tolerance;
+    const char *method, *wavelet, *camera, *tf;
     wvol_iso_normals normals;
     wvol_load_options lo;
 } iso_args;
@@ -199,6 +208,123 @@ done:
     return rc;
 }
 
+/* --method raytrace | hybrid: an image of f^ = theta traced from a store of the kept
+ * coefficients (never reconstructing the volume), alone or behind the volume in front. */
+static int run_image(const iso_args *a)
+{
+    wvol_error err;
+    wvol_volume *v = NULL;
+    wvol_coeffs *c = NULL;
+    wvol_store *st = NULL;
+    wvol_image *img = NULL;
+    float *depth = NULL;
+    wvol_camera cam;
+    wvol_geometry g;
+    wvol_tf tf;
+    wvol_iso_trace_params tp;
+    wvol_iso_trace_stats ts;
+    wvol_render_stats rs;
+    wvol_store_params stp = wvol_store_params_default();
+    double t0 = cli_now(), t_prep, vmin = 0, vmax = 1;
+    int hybrid = !strcmp(a->method, "hybrid"), rc = CLI_FAILED;
+    iso_args b = *a;
+
+    wvol_error_clear(&err);
+    memset(&rs, 0, sizeof rs);
+    if (!b.wavelet) b.wavelet = "db2";
+    if (wvol_volume_load(&v, a->in, &a->lo, &err) != WVOL_OK) return cli_fail_err("iso", &err);
+    wvol_volume_range(v, &vmin, &vmax, NULL);
+    wvol_geometry_of_volume(&g, v);
+    if (wvol_camera_parse(&cam, a->camera, &g, (int)a->width, (int)a->height, &err) != WVOL_OK) {
+        rc = cli_usage("iso", "--camera: %s", err.message);
+        goto done;
+    }
+    if (hybrid && (rc = cli_load_tf("iso", a->tf, vmin, vmax, &tf)) != CLI_OK) goto done;
+    rc = CLI_FAILED;
+    if (b.levels > wvol_dwt_max_levels(v->nx, v->ny, v->nz)) b.levels = wvol_dwt_max_levels(v->nx, v->ny, v->nz);
+    if ((rc = prepare_coeffs(&b, v, &c, &err)) != CLI_OK) goto done;
+    rc = CLI_FAILED;
+    stp.spline_J = a->spline_j;
+    if (wvol_store_build(&st, c, NULL, &stp, &err) != WVOL_OK) goto fail;
+    wvol_coeffs_destroy(c);
+    c = NULL;
+    wvol_volume_destroy(v); /* the tracer never touches the dense volume */
+    v = NULL;
+    if (wvol_image_create(&img, (int)a->width, (int)a->height, &err) != WVOL_OK) goto fail;
+    depth = malloc((size_t)a->width * (size_t)a->height * sizeof *depth);
+    if (!depth) {
+        rc = cli_fail("iso", "out of memory for the depth buffer");
+        goto done;
+    }
+    wvol_iso_trace_params_default(&tp);
+    tp.threads = a->threads;
+    tp.tolerance = a->tolerance * fmin(g.spacing[0], fmin(g.spacing[1], g.spacing[2]));
+    t_prep = cli_now() - t0;
+    if (hybrid) {
+        wvol_render_params rp;
+        wvol_render_params_default(&rp);
+        rp.threads = a->threads;
+        if (wvol_iso_render_hybrid(img, depth, st, &cam, &tf, a->iso, &rp, &tp, &ts, &rs, &err) != WVOL_OK) goto fail;
+    } else if (wvol_iso_raytrace(img, depth, NULL, st, &cam, a->iso, &tp, &ts, &err) != WVOL_OK) {
+        goto fail;
+    }
+    if (a->out) {
+        wvol_status s = wvol_path_has_ext(a->out, ".exr") ? wvol_image_write_exr(img, a->out, depth, &err)
+                                                          : wvol_image_write_png(img, a->out, NULL, 1.0, &err);
+        if (s != WVOL_OK) goto fail;
+    }
+    if (ts.message[0] && !a->json) fprintf(stderr, "wvol iso: note: %s\n", ts.message);
+    if (a->json) {
+        cli_json_begin();
+        cli_json_str("input", a->in);
+        if (a->out) cli_json_str("output", a->out);
+        cli_json_str("method", a->method);
+        cli_json_str("wavelet", b.wavelet);
+        cli_json_int("levels", b.levels);
+        cli_json_num("keep", a->keep);
+        cli_json_int("spline_j", a->spline_j);
+        cli_json_num("iso", a->iso);
+        cli_json_int("width", a->width);
+        cli_json_int("height", a->height);
+        cli_json_int("threads", a->threads);
+        cli_json_int("rays", (long long)ts.rays);
+        cli_json_int("hits", (long long)ts.hits);
+        cli_json_int("functions", (long long)ts.functions);
+        cli_json_int("pieces", (long long)ts.pieces);
+        cli_json_int("intervals", (long long)ts.intervals);
+        cli_json_int("evals", (long long)ts.evals);
+        cli_json_int("grazes", (long long)ts.grazes);
+        cli_json_num("prepare_seconds", t_prep);
+        cli_json_num("trace_seconds", ts.seconds);
+        cli_json_num("trace_cpu_seconds", ts.cpu_seconds);
+        cli_json_num("us_per_ray", ts.rays ? 1e6 * ts.seconds / (double)ts.rays : 0);
+        if (hybrid) cli_json_num("volume_seconds", rs.seconds);
+        cli_json_int("empty", ts.hits == 0);
+        if (ts.message[0]) cli_json_str("message", ts.message);
+        cli_json_end();
+    } else {
+        printf("hits       %zu of %zu rays (%zu grazes)\n", ts.hits, ts.rays, ts.grazes);
+        printf("work       %.0f functions, %.0f pieces, %.1f intervals per ray\n",
+               (double)ts.functions / (double)ts.rays, (double)ts.pieces / (double)ts.rays,
+               (double)ts.intervals / (double)ts.rays);
+        printf("time       trace %.3f s (%.1f us per ray)%s, preparation %.3f s\n", ts.seconds,
+               1e6 * ts.seconds / (double)ts.rays, hybrid ? "" : "", t_prep);
+        if (hybrid) printf("volume     %.3f s (spline integrator up to the surface)\n", rs.seconds);
+        if (a->out) printf("wrote      %s\n", a->out);
+    }
+    rc = CLI_OK;
+    goto done;
+fail:
+    rc = cli_fail_err("iso", &err);
+done:
+    free(depth);
+    wvol_image_destroy(img);
+    wvol_store_destroy(st);
+    wvol_coeffs_destroy(c);
+    wvol_volume_destroy(v);
+    return rc;
+}
+
 int wvol_cmd_iso(int argc, char **argv)
 {
     cli_parser p;
@@ -215,6 +341,11 @@ int wvol_cmd_iso(int argc, char **argv)
     a.levels = 3;
     a.keep = 1.0;
     a.brick = 32;
+    a.spline_j = 4;
+    a.width = a.height = 512;
+    a.tolerance = 1e-3;
+    a.camera = "+z";
+    a.tf = "gaussian";
     wvol_load_options_default(&a.lo);
     cli_parser_init(&p, "iso", argc, argv, opts);
     while ((r = cli_next(&p, &o, &val)) >= 0) {
@@ -223,11 +354,15 @@ int wvol_cmd_iso(int argc, char **argv)
             if (a.in) return cli_usage("iso", "one input expected, got '%s' too", val);
             a.in = val;
         } else if (o->short_name == 'h') {
-            cli_print_help("iso", "IN -o OUT.(ply|obj|stl|vtp) --iso THETA [--method mc|raytrace] [--json]",
+            cli_print_help("iso", "IN -o OUT.(ply|obj|stl|vtp|exr|png) --iso THETA [--method mc|raytrace|hybrid] [--json]",
                            "Extracts the isosurface f = THETA. Marching cubes writes a mesh in world\n"
                            "coordinates with normals from the gradient; it prints triangle and vertex\n"
                            "counts, area, enclosed volume, topology and timings. An iso-value outside\n"
-                           "the data range gives an empty mesh and a note, not an error.",
+                           "the data range gives an empty mesh and a note, not an error.\n"
+                           "raytrace traces f^ = THETA of the wavelet model from a store of the kept\n"
+                           "coefficients (--wavelet, --levels, --keep) with no missed hit and writes\n"
+                           "colour, alpha and depth (EXR channel Z); hybrid puts the surface behind the\n"
+                           "translucent volume in front of it (--tf). See docs/iso.md.",
                            opts);
             return CLI_OK;
         } else if (!strcmp(o->name, "output")) {
@@ -236,8 +371,8 @@ int wvol_cmd_iso(int argc, char **argv)
             if (!cli_parse_double("iso", "iso", val, &a.iso)) return CLI_USAGE;
             a.have_iso = 1;
         } else if (!strcmp(o->name, "method")) {
-            if (strcmp(val, "mc") && strcmp(val, "raytrace"))
-                return cli_usage("iso", "--method '%s': expected mc or raytrace", val);
+            if (strcmp(val, "mc") && strcmp(val, "raytrace") && strcmp(val, "hybrid"))
+                return cli_usage("iso", "--method '%s': expected mc, raytrace or hybrid", val);
             a.method = val;
         } else if (!strcmp(o->name, "threads")) {
             if (!cli_parse_long("iso", "threads", val, 1, 4096, &lv)) return CLI_USAGE;
@@ -274,14 +409,30 @@ int wvol_cmd_iso(int argc, char **argv)
                 return cli_usage("iso", "--spacing '%s': must be positive", val);
         } else if (!strcmp(o->name, "origin")) {
             if (!cli_parse_double3("iso", "origin", val, a.lo.origin)) return CLI_USAGE;
+        } else if (!strcmp(o->name, "camera")) {
+            a.camera = val;
+        } else if (!strcmp(o->name, "size")) {
+            if (!cli_parse_size("iso", "size", val, &a.width, &a.height)) return CLI_USAGE;
+        } else if (!strcmp(o->name, "tf")) {
+            a.tf = val;
+        } else if (!strcmp(o->name, "tolerance")) {
+            if (!cli_parse_double("iso", "tolerance", val, &a.tolerance)) return CLI_USAGE;
+            if (!(a.tolerance > 0)) return cli_usage("iso", "--tolerance %g: must be > 0", a.tolerance);
+        } else if (!strcmp(o->name, "spline-j")) {
+            if (!cli_parse_long("iso", "spline-j", val, 1, 12, &lv)) return CLI_USAGE;
+            a.spline_j = (int)lv;
         } else if (!strcmp(o->name, "grid")) {
             a.lo.grid_name = val;
         }
     }
     if (!a.in) return cli_usage("iso", "missing input volume (see 'wvol iso --help')");
     if (!a.have_iso) return cli_usage("iso", "missing --iso THETA");
-    if (!strcmp(a.method, "raytrace"))
-        return cli_fail("iso", "--method raytrace is not available in this build yet");
+    if (strcmp(a.method, "mc")) {
+        if (a.out && !wvol_path_has_ext(a.out, ".exr") && !wvol_path_has_ext(a.out, ".png"))
+            return cli_usage("iso", "-o '%s': --method %s writes an image: .exr (with Z depth) or .png", a.out,
+                             a.method);
+        return run_image(&a);
+    }
     if (a.out && !wvol_path_has_ext(a.out, ".ply") && !wvol_path_has_ext(a.out, ".obj") &&
         !wvol_path_has_ext(a.out, ".stl") && !wvol_path_has_ext(a.out, ".vtp"))
         return cli_usage("iso", "-o '%s': mesh output must end in .ply, .obj, .stl or .vtp", a.out);

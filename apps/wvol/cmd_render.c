@@ -3,7 +3,6 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <sys/stat.h>
 
 #include "cli.h"
 #include "wvol/image.h"
@@ -35,12 +34,6 @@ static const cli_opt opts[] = {
     CLI_JSON_OPT,
     CLI_HELP_OPT,
     {NULL, 0, 0, NULL}};
-
-static int is_file(const char *p)
-{
-    struct stat st;
-    return stat(p, &st) == 0 && S_ISREG(st.st_mode);
-}
 
 int wvol_cmd_render(int argc, char **argv)
 {
@@ -99,12 +92,7 @@ int wvol_cmd_render(int argc, char **argv)
         else if (!strcmp(o->name, "method")) method = val;
         else if (!strcmp(o->name, "shading")) rp.shading = 1;
         else if (!strcmp(o->name, "size")) {
-            char *e1, *e2;
-            W = strtol(val, &e1, 10);
-            if (e1 == val || (*e1 != 'x' && *e1 != 'X')) return cli_usage(cmd, "--size '%s': expected WxH", val);
-            H = strtol(e1 + 1, &e2, 10);
-            if (e2 == e1 + 1 || *e2 || W < 1 || H < 1 || W > 65536 || H > 65536)
-                return cli_usage(cmd, "--size '%s': expected WxH with sides 1..65536", val);
+            if (!cli_parse_size(cmd, "size", val, &W, &H)) return CLI_USAGE;
         } else if (!strcmp(o->name, "mode")) {
             if (!strcmp(val, "xray")) rp.mode = WVOL_MODE_XRAY;
             else if (!strcmp(val, "absorption")) rp.mode = WVOL_MODE_ABSORPTION;
@@ -162,13 +150,7 @@ int wvol_cmd_render(int argc, char **argv)
         rc = cli_usage(cmd, "--camera: %s", err.message);
         goto done;
     }
-    if (rp.mode != WVOL_MODE_XRAY) {
-        wvol_status s = is_file(tfname) ? wvol_tf_load(&tf, tfname, &err) : wvol_tf_preset(&tf, tfname, vmin, vmax, &err);
-        if (s != WVOL_OK) {
-            rc = is_file(tfname) ? cli_fail_err(cmd, &err) : cli_usage(cmd, "--tf: %s", err.message);
-            goto done;
-        }
-    }
+    if (rp.mode != WVOL_MODE_XRAY && (rc = cli_load_tf(cmd, tfname, vmin, vmax, &tf)) != CLI_OK) goto done;
     if (strcmp(method, "reference")) {
         wvol_select_params sp = wvol_select_params_default();
         wvol_store_params stp = wvol_store_params_default();

@@ -1,5 +1,6 @@
 /* Isosurfaces: marching cubes on dense volumes (flying-edges passes), triangle
- * meshes (measures, topology checks, PLY/OBJ/STL/VTP output) (DESIGN.md section 9).
+ * meshes (measures, topology checks, PLY/OBJ/STL/VTP output), and guaranteed ray
+ * tracing of the implicit surface f^ = iso of a coefficient store (DESIGN.md section 9).
  *
  * Conventions. A sample is "positive" when f >= iso. Meshes carry world
  * coordinates (origin + index * spacing). Triangles are wound so that their
@@ -15,7 +16,10 @@
 
 #include <stddef.h>
 #include <stdint.h>
+#include "wvol/image.h"
+#include "wvol/render.h"
 #include "wvol/status.h"
+#include "wvol/store.h"
 #include "wvol/volume.h"
 #include "wvol/wavelet.h"
 
@@ -127,6 +131,73 @@ wvol_status wvol_iso_extract(wvol_mesh **out, const wvol_volume *v, double iso,
  * the float rounding of the two reconstructions. stats report bricks skipped. */
 wvol_status wvol_iso_extract_coeffs(wvol_mesh **out, const wvol_coeffs *c, double iso,
                                     const wvol_iso_params *p, wvol_iso_stats *stats, wvol_error *err);
+
+/* ---- ray tracing the implicit surface f^ = iso of a store (Kalra-Barr) ---------- */
+
+/* Along a ray, f^ is an exact polynomial of degree <= 9 on each piece of the finest spline
+ * lattice, built from the kept basis functions whose support the ray crosses (as the spline
+ * integrator does). Pieces are searched front to back: Bernstein coefficients discard
+ * intervals whose convex hull excludes iso, intervals are halved until a single sign change
+ * of the coefficients guarantees exactly one crossing, which bisection refines.
+ * Guarantee: the hit is the first crossing of f^ = iso (a change of the class f^ >= iso)
+ * along the ray inside the sample extent [0, n-1] of every transformed axis, at depth within
+ * tolerance/2, except that two crossings closer together than tolerance/8 may be skipped
+ * (a "graze", counted); see docs/iso.md. Haar's f^ jumps at voxel faces: a jump across iso
+ * is a crossing at the face. */
+typedef struct wvol_iso_trace_params {
+    double tolerance;   /* depth accuracy in world units; <= 0: 1e-3 of the smallest spacing */
+    double chunk;       /* ray segment built at a time, voxels (default 16): a ray stops building
+                           at the chunk of its first hit */
+    int threads;        /* 0: OpenMP's default */
+    double light[3];    /* direction towards the light (world); all 0: a headlight */
+    float color[3];     /* albedo */
+    float ambient;      /* in [0, 1] */
+} wvol_iso_trace_params;
+
+void wvol_iso_trace_params_default(wvol_iso_trace_params *p);
+
+typedef struct wvol_iso_hit {
+    int hit;            /* 1 when the ray meets f^ = iso inside the extent */
+    double t;           /* world distance from the origin along the unit direction (+inf: miss) */
+    double pos[3];      /* world position */
+    double normal[3];   /* unit -grad f^ (world), pointing towards f^ < iso (0 where grad f^ = 0) */
+    double value;       /* f^ at the hit */
+    size_t functions;   /* basis-function / ray-chunk pairs added */
+    size_t pieces;      /* polynomial pieces built */
+    size_t intervals;   /* Bernstein intervals examined */
+    int evals;          /* polynomial evaluations (bisection and undecided intervals) */
+    int grazes;         /* intervals shorter than the tolerance left without a sign change */
+} wvol_iso_hit;
+
+/* The first crossing of f^ = iso along o + t d, t >= 0 (world; d need not be unit; t is then
+ * in world units along the unit direction). */
+wvol_status wvol_iso_trace_ray(const wvol_store *s, double iso, const double o[3], const double d[3],
+                               const wvol_iso_trace_params *p, wvol_iso_hit *hit, wvol_error *err);
+
+typedef struct wvol_iso_trace_stats {
+    size_t rays, hits, functions, pieces, intervals, evals, grazes;
+    double seconds, cpu_seconds;
+    char message[256];  /* set when nothing is hit (e.g. iso outside the range of f^) */
+} wvol_iso_trace_stats;
+
+/* Traces one ray per pixel of cam (the renderer's rays: wvol_camera_ray; orthographic rays
+ * are whole lines, perspective ones start at the eye). img (the camera's size) receives the
+ * Lambert-shaded albedo (two-sided) with alpha 1 on a hit, 0 elsewhere; depth (w*h floats,
+ * +inf on a miss) the ray parameter t of the hit; normals (w*h*3) the unit normals. depth and
+ * normals may be NULL. Nothing hit is not an error: stats->message says why. */
+wvol_status wvol_iso_raytrace(wvol_image *img, float *depth, float *normals, const wvol_store *s,
+                              const wvol_camera *cam, double iso, const wvol_iso_trace_params *p,
+                              wvol_iso_trace_stats *stats, wvol_error *err);
+
+/* The paper's Fig. 15: the opaque surface f^ = iso composited behind the translucent volume in
+ * front of it. Per pixel the surface is traced (wvol_iso_raytrace), the spline integrator runs
+ * from the box's entry to the surface's depth (wvol_render_spline_until) with tf and rp, and
+ * the shaded surface is added with the remaining transmittance. depth (may be NULL) receives
+ * the surface depth. */
+wvol_status wvol_iso_render_hybrid(wvol_image *img, float *depth, const wvol_store *s, const wvol_camera *cam,
+                                   const wvol_tf *tf, double iso, const wvol_render_params *rp,
+                                   const wvol_iso_trace_params *tp, wvol_iso_trace_stats *tstats,
+                                   wvol_render_stats *rstats, wvol_error *err);
 
 #ifdef __cplusplus
 }

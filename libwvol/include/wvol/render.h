@@ -194,6 +194,15 @@ wvol_status wvol_render_spline(wvol_image *img, const wvol_store *s, const wvol_
                                const wvol_tf *tf, const wvol_render_params *params,
                                wvol_render_stats *stats, wvol_error *err);
 
+/* wvol_render_spline with each pixel's ray ending at world depth stop[x + width*y] (the ray
+ * parameter t of wvol_camera_ray: world distance from the ray's origin); NaN or +inf (or a
+ * depth past the box) integrates the whole ray, a depth before the box's entry gives nothing.
+ * With the depth of an opaque surface this is the volume in front of it (the hybrid picture,
+ * wvol_iso_render_hybrid). stop may be NULL. */
+wvol_status wvol_render_spline_until(wvol_image *img, const wvol_store *s, const wvol_camera *cam,
+                                     const wvol_tf *tf, const wvol_render_params *params, const float *stop,
+                                     wvol_render_stats *stats, wvol_error *err);
+
 /* Fast path: X-ray along a coordinate axis (orthographic camera looking along an axis whose
  * extent is a multiple of 2^levels, so the ray covers whole periods of the model) from 2D
  * coefficients alone: each kept coefficient's ray-axis factor integrates to 2^{m/2} times the

@@ -15,43 +15,26 @@
  * Based on: Gross, Lippert et al. (paper, section 5); Max 1995; Weiss & Westermann 2021
  * (ray splitting at TF control points). */
 #include "render_internal.h"
+#include "spline_ray.h"
 
+#include <float.h>
 #include <math.h>
 #include <omp.h>
 #include <stdlib.h>
 #include <string.h>
 
-#define NC 10 /* coefficients of a degree-9 polynomial */
+#define NC WVOL__NC
 
-typedef struct level_ws {
-    double *T;          /* breakpoints of this level's lattice: x + s in 2^{m-J} Z */
-    size_t capT, E;     /* E pieces */
-    double *acc;        /* E * NC (value), then E * 3 * NC (gradient) when shading */
-    size_t capA;
-    int used;           /* a function of this level was added */
-} level_ws;
-
-typedef struct ray_ws {
-    level_ws lev[WVOL_SELECT_MAX_LEVELS + 1];
-    double *ax[3];      /* per-axis crossings (scratch) */
-    size_t capX[3];
-    double *macc;       /* absorption: all levels merged on level 1's lattice */
-    size_t capM;
-    wvol_store_hits hits;
-} ray_ws;
+typedef wvol__level_ws level_ws;
+typedef wvol__spline_ws ray_ws;
 
 typedef struct spline_ctx {
-    const wvol_store *s;
-    const wvol_basis *b;
-    wvol_store_info info;
+    wvol__spline_geom g;
     wvol_render_params p;
     wvol_tf tf;         /* kappa per world unit */
-    double shift;       /* s: knots at x + s in grid * Z */
-    double grid;        /* 2^{1-J} */
-    double norm[WVOL_SELECT_MAX_LEVELS + 1];  /* 2^{-m d / 2}, d = transformed axes */
-    double bern[NC][NC];/* monomial -> Bernstein on [0, 1] */
     double gl_x[10], gl_w[10];   /* nodes on [0, 1] */
     int gl_n;
+    const float *stop;  /* per-pixel end of the ray (world t), or NULL */
 } spline_ctx;
 
 typedef struct ray_res {
@@ -103,7 +86,7 @@ static double binom(int n, int k)
     return r;
 }
 
-static double peval(const double *a, double u)
+double wvol__poly_eval(const double *a, double u)
 {
     double r = a[NC - 1];
     int k;
@@ -122,7 +105,7 @@ static double pint(const double *a, double u)
 
 /* Merges the sorted crossings x_a + s in grid Z of the three axes with [ta, tb] into
  * L->T and sets L->E, the number of pieces. */
-static size_t lattice(const spline_ctx *c, ray_ws *ws, level_ws *L, double grid, const double o[3], const double d[3],
+static size_t lattice(const wvol__spline_geom *c, ray_ws *ws, level_ws *L, double grid, const double o[3], const double d[3],
                       double ta, double tb, int *ok)
 {
     size_t n[3] = {0, 0, 0}, pos[3] = {0, 0, 0}, total = 2, E = 0;
@@ -208,8 +191,8 @@ static inline void compose3(double out[4], const double *c, double a, double d)
 /* Adds one basis function (hit) to its level's piece polynomials. Factors along axes the ray
  * does not move on (or untransformed axes) are constants of the hit, so an axis-aligned ray
  * costs one cubic per piece. */
-static void add_hit(const spline_ctx *c, level_ws *L, const double o[3], const double d[3], const wvol_store_hit *h,
-                    int shading, ray_res *r)
+static void add_hit(const wvol__spline_geom *c, level_ws *L, const double o[3], const double d[3],
+                    const wvol_store_hit *h, int shading, wvol__spline_count *r)
 {
     size_t E = L->E;
     const wvol_basis *b = c->b;
@@ -324,13 +307,13 @@ static int crossings(const double *p, double v, double *roots, int cap)
 {
     enum { NS = 32 };
     int n = 0, i, it;
-    double u0 = 0, q0 = peval(p, 0) - v;
+    double u0 = 0, q0 = wvol__poly_eval(p, 0) - v;
     for (i = 1; i <= NS && n < cap; i++) {
-        double u1 = (double)i / NS, q1 = peval(p, u1) - v;
+        double u1 = (double)i / NS, q1 = wvol__poly_eval(p, u1) - v;
         if ((q0 < 0 && q1 > 0) || (q0 > 0 && q1 < 0)) {
             double a = u0, b = u1, qa = q0;
             for (it = 0; it < 60; it++) {
-                double m = 0.5 * (a + b), qm = peval(p, m) - v;
+                double m = 0.5 * (a + b), qm = wvol__poly_eval(p, m) - v;
                 if ((qm < 0) == (qa < 0)) a = m, qa = qm;
                 else b = m;
                 if (b - a < 1e-15) break;
@@ -398,7 +381,7 @@ static void addv(double *acc, const double *q, int n)
 }
 
 /* Sums every level's piece polynomials onto level 1's (the finest) lattice: ws->macc. */
-static int merge_levels(const spline_ctx *c, ray_ws *ws, int shading)
+static int merge_levels(const wvol__spline_geom *c, ray_ws *ws, int shading)
 {
     level_ws *F = &ws->lev[1];
     size_t E = F->E, e, per = shading ? 4 : 1, ptr[WVOL_SELECT_MAX_LEVELS + 1];
@@ -441,7 +424,7 @@ static void integrate(const spline_ctx *c, ray_ws *ws, const double d_world[3], 
     int ch, q, m;
     if (p->mode == WVOL_MODE_XRAY) {
         /* no merge needed: the integral is a sum over every level's own pieces */
-        for (m = 1; m <= c->info.levels; m++) {
+        for (m = 1; m <= c->g.info.levels; m++) {
             level_ws *L = &ws->lev[m];
             if (!L->used) continue;
             for (e = 0; e < L->E; e++) xr += (L->T[e + 1] - L->T[e]) * pint(L->acc + e * NC, 1.0);
@@ -452,15 +435,14 @@ static void integrate(const spline_ctx *c, ray_ws *ws, const double d_world[3], 
     }
     for (e = 0; e < E && !r->terminated; e++) {
         const double *a = ws->macc + e * NC;
-        double len = Tb[e + 1] - Tb[e], bmin = INFINITY, bmax = -INFINITY, cuts[2 * WVOL_TF_MAX_POINTS + 2];
+        double len = Tb[e + 1] - Tb[e], bz[NC], bmin = INFINITY, bmax = -INFINITY, cuts[2 * WVOL_TF_MAX_POINTS + 2];
         int nc = 0, k, j, i;
         if (!(len > 0)) continue;
         /* Bernstein range of the piece: knots outside it cannot be crossed */
+        wvol__bernstein(&c->g, a, bz);
         for (j = 0; j < NC; j++) {
-            double bj = 0;
-            for (k = 0; k <= j; k++) bj += c->bern[j][k] * a[k];
-            if (bj < bmin) bmin = bj;
-            if (bj > bmax) bmax = bj;
+            if (bz[j] < bmin) bmin = bz[j];
+            if (bz[j] > bmax) bmax = bz[j];
         }
         cuts[nc++] = 0.0;
         for (k = 0; k < c->tf.count && nc < 2 * WVOL_TF_MAX_POINTS; k++) {
@@ -472,17 +454,17 @@ static void integrate(const spline_ctx *c, ray_ws *ws, const double d_world[3], 
         for (i = 0; i + 1 < nc; i++) {
             double s0 = cuts[i], s1 = cuts[i + 1], k0, k1, c0[3], c1[3], P0, h = s1 - s0, dtau1;
             if (!(h > 0)) continue;
-            tf_segment(&c->tf, peval(a, 0.5 * (s0 + s1)), &k0, &k1, c0, c1);
+            tf_segment(&c->tf, wvol__poly_eval(a, 0.5 * (s0 + s1)), &k0, &k1, c0, c1);
             P0 = pint(a, s0);
             for (q = 0; q < c->gl_n; q++) {
-                double s = s0 + h * c->gl_x[q], f = peval(a, s), kap = k0 + k1 * f, dtau, Tq, shade = 1.0;
+                double s = s0 + h * c->gl_x[q], f = wvol__poly_eval(a, s), kap = k0 + k1 * f, dtau, Tq, shade = 1.0;
                 if (kap <= 0) continue;
                 dtau = len * (k0 * (s - s0) + k1 * (pint(a, s) - P0));
                 Tq = p->mode == WVOL_MODE_ABSORPTION ? T * exp(-dtau) : T * fmax(0.0, 1.0 - dtau);
                 if (p->shading) {
                     double grad[3];
                     for (ch = 0; ch < 3; ch++)
-                        grad[ch] = peval(ws->macc + (E + e * 3 + (size_t)ch) * NC, s) / c->info.spacing[ch];
+                        grad[ch] = wvol__poly_eval(ws->macc + (E + e * 3 + (size_t)ch) * NC, s) / c->g.info.spacing[ch];
                     shade = wvol__shade(grad, d_world, p->ambient);
                 }
                 for (ch = 0; ch < 3; ch++) col[ch] += c->gl_w[q] * h * len * (c0[ch] + c1[ch] * f) * kap * Tq * shade;
@@ -505,32 +487,88 @@ static void integrate(const spline_ctx *c, ray_ws *ws, const double d_world[3], 
     r->rgba[3] = 1.0 - T;
 }
 
-static wvol_status trace(const spline_ctx *c, ray_ws *ws, const double ow[3], const double dw[3], double ta, double tb,
-                         ray_res *r, wvol_error *err)
+double wvol__bernstein(const wvol__spline_geom *g, const double *a, double *bcoef)
 {
-    double o[3], d[3];
-    size_t i, per = c->p.shading ? 4 : 1;
-    int ok, m, M = c->info.levels;
-    wvol_store_world_to_voxel(c->s, ow, o);
-    wvol_store_dir_to_voxel(c->s, dw, d);
-    WVOL_FORWARD(wvol_store_query_ray(c->s, o, d, ta, tb, &ws->hits, err));
+    double worst = 0;
+    int j, k;
+    for (j = 0; j < NC; j++) {
+        double bj = 0, mag = 0;
+        for (k = 0; k <= j; k++) {
+            double t = g->bern[j][k] * a[k];
+            bj += t;
+            mag += fabs(t);
+        }
+        bcoef[j] = bj;
+        if (mag > worst) worst = mag;
+    }
+    return worst;
+}
+
+wvol_status wvol__spline_ray(const wvol__spline_geom *g, wvol__spline_ws *ws, const double o[3], const double d[3],
+                             double ta, double tb, int shading, int merge, wvol__spline_count *cnt, wvol_error *err)
+{
+    size_t i, per = shading ? 4 : 1;
+    int ok, m, M = g->info.levels;
+    WVOL_FORWARD(wvol_store_query_ray(g->s, o, d, ta, tb, &ws->hits, err));
     for (m = 1; m <= M; m++) ws->lev[m].used = 0, ws->lev[m].E = 0;
-    /* level 1's lattice is needed by the absorption modes even without level-1 functions */
-    if (c->p.mode != WVOL_MODE_XRAY) ws->lev[1].used = 2;
+    /* level 1's lattice is needed for the merge even without level-1 functions */
+    if (merge) ws->lev[1].used = 2;
     for (i = 0; i < ws->hits.count; i++) ws->lev[ws->hits.hits[i].level].used = 2;
     for (m = 1; m <= M; m++) {
         level_ws *L = &ws->lev[m];
         if (!L->used) continue;
-        lattice(c, ws, L, ldexp(c->grid, m - 1), o, d, ta, tb, &ok);
+        lattice(g, ws, L, ldexp(g->grid, m - 1), o, d, ta, tb, &ok);
         if (ok) ok = grow((void **)&L->acc, &L->capA, L->E * NC * per, sizeof(double));
         WVOL_RETURN_IF(!ok, err, WVOL_ERR_NOMEM, "render: out of memory for the ray's pieces");
         memset(L->acc, 0, L->E * NC * per * sizeof(double));
         L->used = 0;
     }
     for (i = 0; i < ws->hits.count; i++)
-        add_hit(c, &ws->lev[ws->hits.hits[i].level], o, d, &ws->hits.hits[i], c->p.shading, r);
-    if (c->p.mode != WVOL_MODE_XRAY)
-        WVOL_RETURN_IF(!merge_levels(c, ws, c->p.shading), err, WVOL_ERR_NOMEM, "render: out of memory");
+        add_hit(g, &ws->lev[ws->hits.hits[i].level], o, d, &ws->hits.hits[i], shading, cnt);
+    if (merge) WVOL_RETURN_IF(!merge_levels(g, ws, shading), err, WVOL_ERR_NOMEM, "render: out of memory");
+    return WVOL_OK;
+}
+
+void wvol__spline_ws_free(wvol__spline_ws *ws)
+{
+    int l;
+    for (l = 0; l <= WVOL_SELECT_MAX_LEVELS; l++) {
+        free(ws->lev[l].T);
+        free(ws->lev[l].acc);
+    }
+    for (l = 0; l < 3; l++) free(ws->ax[l]);
+    free(ws->macc);
+    wvol_store_hits_free(&ws->hits);
+    memset(ws, 0, sizeof *ws);
+}
+
+wvol_status wvol__spline_geom_init(wvol__spline_geom *g, const wvol_store *s, wvol_error *err)
+{
+    int j, q, m, ntr;
+    memset(g, 0, sizeof *g);
+    g->s = s;
+    g->b = wvol_store_basis(s);
+    WVOL_RETURN_IF(!g->b, err, WVOL_ERR_ARG, "the store has no basis tables");
+    wvol_store_get_info(s, &g->info);
+    g->shift = g->b->center;
+    ntr = g->info.transformed[0] + g->info.transformed[1] + g->info.transformed[2];
+    for (m = 0; m <= WVOL_SELECT_MAX_LEVELS; m++) g->norm[m] = pow(2.0, -0.5 * m * ntr);
+    g->grid = 2.0 * g->b->h;
+    for (j = 0; j < NC; j++)
+        for (q = 0; q <= j; q++) g->bern[j][q] = binom(j, q) / binom(NC - 1, q);
+    return WVOL_OK;
+}
+
+static wvol_status trace(const spline_ctx *c, ray_ws *ws, const double ow[3], const double dw[3], double ta, double tb,
+                         ray_res *r, wvol_error *err)
+{
+    double o[3], d[3];
+    wvol__spline_count cnt = {0, 0};
+    wvol_store_world_to_voxel(c->g.s, ow, o);
+    wvol_store_dir_to_voxel(c->g.s, dw, d);
+    WVOL_FORWARD(wvol__spline_ray(&c->g, ws, o, d, ta, tb, c->p.shading, c->p.mode != WVOL_MODE_XRAY, &cnt, err));
+    r->pieces += cnt.pieces;
+    r->functions += cnt.functions;
     integrate(c, ws, dw, r);
     return WVOL_OK;
 }
@@ -538,11 +576,18 @@ static wvol_status trace(const spline_ctx *c, ray_ws *ws, const double ow[3], co
 wvol_status wvol_render_spline(wvol_image *img, const wvol_store *s, const wvol_camera *cam, const wvol_tf *tf_in,
                                const wvol_render_params *params, wvol_render_stats *stats, wvol_error *err)
 {
+    return wvol_render_spline_until(img, s, cam, tf_in, params, NULL, stats, err);
+}
+
+wvol_status wvol_render_spline_until(wvol_image *img, const wvol_store *s, const wvol_camera *cam,
+                                     const wvol_tf *tf_in, const wvol_render_params *params, const float *stop,
+                                     wvol_render_stats *stats, wvol_error *err)
+{
     spline_ctx c;
     wvol_geometry g;
     wvol__cam k;
     double lo[3], hi[3], t_start = wvol__now(), c_start = wvol__cpu_now();
-    int ntiles, tx, a, j, q, failed = 0;
+    int ntiles, tx, a, failed = 0;
     size_t rays_hit = 0, pieces = 0, functions = 0, samples = 0, skipped = 0, terminated = 0, clamped = 0;
     wvol_error first_err;
 
@@ -550,24 +595,14 @@ wvol_status wvol_render_spline(wvol_image *img, const wvol_store *s, const wvol_
     memset(&c, 0, sizeof c);
     wvol__params(&c.p, params);
     WVOL_FORWARD(wvol__render_check(img, cam, tf_in, &c.p, err));
-    c.s = s;
-    c.b = wvol_store_basis(s);
-    WVOL_RETURN_IF(!c.b, err, WVOL_ERR_ARG, "render: the store has no basis tables");
-    wvol_store_get_info(s, &c.info);
+    WVOL_FORWARD(wvol__spline_geom_init(&c.g, s, err));
     for (a = 0; a < 3; a++) {
-        g.dims[a] = a == 0 ? c.info.nx : a == 1 ? c.info.ny : c.info.nz;
-        g.spacing[a] = c.info.spacing[a];
-        g.origin[a] = c.info.origin[a];
+        g.dims[a] = a == 0 ? c.g.info.nx : a == 1 ? c.g.info.ny : c.g.info.nz;
+        g.spacing[a] = c.g.info.spacing[a];
+        g.origin[a] = c.g.info.origin[a];
     }
     if (c.p.mode != WVOL_MODE_XRAY) wvol__tf_world(&c.tf, tf_in, &g);
-    c.shift = c.b->center;
-    {
-        int ntr = c.info.transformed[0] + c.info.transformed[1] + c.info.transformed[2], m;
-        for (m = 0; m <= WVOL_SELECT_MAX_LEVELS; m++) c.norm[m] = pow(2.0, -0.5 * m * ntr);
-    }
-    c.grid = 2.0 * c.b->h;
-    for (j = 0; j < NC; j++)
-        for (q = 0; q <= j; q++) c.bern[j][q] = binom(j, q) / binom(NC - 1, q);
+    c.stop = stop;
     c.gl_n = c.p.gauss_nodes;
     gauss_legendre(c.gl_n, c.gl_x, c.gl_w);
     wvol_geometry_bounds(&g, lo, hi);
@@ -593,6 +628,10 @@ wvol_status wvol_render_spline(wvol_image *img, const wvol_store *s, const wvol_
                     wvol__cam_ray(&k, x + 0.5, y + 0.5, o, d);
                     if (!failed && wvol__ray_box(o, d, lo, hi, &t0, &t1)) {
                         if (cam->projection == WVOL_PERSPECTIVE && t0 < 0) t0 = 0;
+                        if (c.stop) { /* NaN or +inf: the whole ray */
+                            float st = c.stop[(size_t)x + (size_t)img->width * (size_t)y];
+                            if (st < t1) t1 = st;
+                        }
                         if (t1 > t0) {
                             wvol_error e2;
                             rays_hit++;
@@ -614,13 +653,7 @@ wvol_status wvol_render_spline(wvol_image *img, const wvol_store *s, const wvol_
                     clamped += r.clamped;
                 }
         }
-        for (int l = 0; l <= WVOL_SELECT_MAX_LEVELS; l++) {
-            free(ws.lev[l].T);
-            free(ws.lev[l].acc);
-        }
-        for (int l = 0; l < 3; l++) free(ws.ax[l]);
-        free(ws.macc);
-        wvol_store_hits_free(&ws.hits);
+        wvol__spline_ws_free(&ws);
     }
     if (failed) {
         if (err) *err = first_err;

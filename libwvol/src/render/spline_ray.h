@@ -1,0 +1,72 @@
+/* Private: f^ along one ray as exact piecewise polynomials, built from a store's kept
+ * basis functions. Shared by the spline integrator (spline.c) and the implicit-surface
+ * ray tracer (iso/raytrace.c). Not installed.
+ *
+ * Along x(t) = o + t d (voxel coordinates, t the world ray parameter) a level-m basis
+ * function is a product of three cubic spline pieces in t between the knots of its level's
+ * lattice x_a + s in 2^m h Z (h = basis->h). wvol__spline_ray asks the store for the
+ * functions whose support meets [ta, tb], lays out each used level's lattice pieces and adds
+ * every function's product of composed cubics to the pieces it covers; with `merge` it sums
+ * all levels onto level 1's (the finest) lattice in ws->macc. Each piece's polynomial is in
+ * its normalised variable u in [0, 1] (t = T[e] + u (T[e+1] - T[e])), degree <= 9. */
+#ifndef WVOL_SPLINE_RAY_H
+#define WVOL_SPLINE_RAY_H
+
+#include "wvol/store.h"
+
+#define WVOL__NC 10 /* coefficients of a degree-9 polynomial */
+
+typedef struct wvol__level_ws {
+    double *T;          /* breakpoints of this level's lattice */
+    size_t capT, E;     /* E pieces */
+    double *acc;        /* E * NC (value), then E * 3 * NC (gradient) when shading */
+    size_t capA;
+    int used;           /* a function of this level was added */
+} wvol__level_ws;
+
+/* Per-thread scratch, reused across rays; start zeroed, free with wvol__spline_ws_free. */
+typedef struct wvol__spline_ws {
+    wvol__level_ws lev[WVOL_SELECT_MAX_LEVELS + 1];
+    double *ax[3];      /* per-axis crossings (scratch) */
+    size_t capX[3];
+    double *macc;       /* merged: every level on level 1's lattice (value, then gradient) */
+    size_t capM;
+    wvol_store_hits hits;
+} wvol__spline_ws;
+
+/* What a store contributes to every ray (read-only, shared by threads). */
+typedef struct wvol__spline_geom {
+    const wvol_store *s;
+    const wvol_basis *b;
+    wvol_store_info info;
+    double shift;       /* s: knots at x + s in grid * Z */
+    double grid;        /* 2h: level 1's lattice spacing */
+    double norm[WVOL_SELECT_MAX_LEVELS + 1];  /* 2^{-m d / 2}, d = transformed axes */
+    double bern[WVOL__NC][WVOL__NC];          /* monomial -> Bernstein on [0, 1] */
+} wvol__spline_geom;
+
+wvol_status wvol__spline_geom_init(wvol__spline_geom *g, const wvol_store *s, wvol_error *err);
+
+/* Counters a ray adds to. */
+typedef struct wvol__spline_count {
+    size_t pieces, functions;
+} wvol__spline_count;
+
+/* Builds the piece polynomials of f^ (and of its voxel-space gradient when shading) on
+ * [ta, tb] of the voxel-space ray o + t d. merge: sum the levels into ws->macc on
+ * ws->lev[1]'s lattice (which then always exists). */
+wvol_status wvol__spline_ray(const wvol__spline_geom *g, wvol__spline_ws *ws, const double o[3], const double d[3],
+                             double ta, double tb, int shading, int merge, wvol__spline_count *cnt, wvol_error *err);
+
+void wvol__spline_ws_free(wvol__spline_ws *ws);
+
+/* Horner evaluation of a degree-9 polynomial (WVOL__NC coefficients, increasing degree). */
+double wvol__poly_eval(const double *a, double u);
+
+/* Bernstein coefficients on [0, 1] of the monomial polynomial a; the end ones are the end
+ * values and the polynomial lies in their convex hull. Returns max over j of the summed
+ * magnitudes |bern[j][k] a[k]|, which bounds the rounding of every coefficient by
+ * NC * DBL_EPSILON times it. */
+double wvol__bernstein(const wvol__spline_geom *g, const double *a, double *bcoef);
+
+#endif
