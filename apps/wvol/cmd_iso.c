@@ -297,6 +297,7 @@ static int run_image(const iso_args *a)
         cli_json_num("prepare_seconds", t_prep);
         cli_json_num("trace_seconds", ts.seconds);
         cli_json_num("trace_cpu_seconds", ts.cpu_seconds);
+        cli_json_num("cells_seconds", ts.seconds_cells);
         cli_json_num("us_per_ray", ts.rays ? 1e6 * ts.seconds / (double)ts.rays : 0);
         if (hybrid) cli_json_num("volume_seconds", rs.seconds);
         cli_json_int("empty", ts.hits == 0);
@@ -304,11 +305,11 @@ static int run_image(const iso_args *a)
         cli_json_end();
     } else {
         printf("hits       %zu of %zu rays (%zu grazes)\n", ts.hits, ts.rays, ts.grazes);
-        printf("work       %.0f functions, %.0f pieces, %.1f intervals per ray\n",
-               (double)ts.functions / (double)ts.rays, (double)ts.pieces / (double)ts.rays,
+        printf("work       %.0f functions, %.0f pieces, %.1f refined, %.1f intervals per ray\n",
+               (double)ts.functions / (double)ts.rays, (double)ts.pieces / (double)ts.rays, (double)ts.refined / (double)ts.rays,
                (double)ts.intervals / (double)ts.rays);
-        printf("time       trace %.3f s (%.1f us per ray)%s, preparation %.3f s\n", ts.seconds,
-               1e6 * ts.seconds / (double)ts.rays, hybrid ? "" : "", t_prep);
+        printf("time       trace %.3f s (%.1f us per ray; cell grid %.3f s), preparation %.3f s\n", ts.seconds,
+               1e6 * ts.seconds / (double)ts.rays, ts.seconds_cells, t_prep);
         if (hybrid) printf("volume     %.3f s (spline integrator up to the surface)\n", rs.seconds);
         if (a->out) printf("wrote      %s\n", a->out);
     }

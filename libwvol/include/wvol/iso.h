@@ -164,6 +164,7 @@ typedef struct wvol_iso_hit {
     double value;       /* f^ at the hit */
     size_t functions;   /* basis-function / ray-chunk pairs added */
     size_t pieces;      /* polynomial pieces built */
+    size_t refined;     /* pieces the small functions' bound left undecided, made exact */
     size_t intervals;   /* Bernstein intervals examined */
     int evals;          /* polynomial evaluations (bisection and undecided intervals) */
     int grazes;         /* intervals shorter than the tolerance left without a sign change */
@@ -175,8 +176,9 @@ wvol_status wvol_iso_trace_ray(const wvol_store *s, double iso, const double o[3
                                const wvol_iso_trace_params *p, wvol_iso_hit *hit, wvol_error *err);
 
 typedef struct wvol_iso_trace_stats {
-    size_t rays, hits, functions, pieces, intervals, evals, grazes;
+    size_t rays, hits, functions, pieces, refined, intervals, evals, grazes;
     double seconds, cpu_seconds;
+    double seconds_cells;   /* of seconds: classifying the cell grid */
     char message[256];  /* set when nothing is hit (e.g. iso outside the range of f^) */
 } wvol_iso_trace_stats;
 

@@ -47,4 +47,25 @@ wvol_status wvol__mc_run(wvol_mesh **out, const wvol__mc_job *job, wvol_iso_stat
 wvol_status wvol__iso_box_bound(const wvol_coeffs *c, const long s0[3], const long s1[3], double *vmin,
                                 double *vmax, wvol_error *err);
 
+/* ---- the ray tracer's cell bounds (raytrace.c) ---- */
+
+#include "wvol/store.h"
+
+/* Per-store constants of wvol__iso_box_range. */
+typedef struct wvol__iso_boxk {
+    int levels;
+    double fb[WVOL_SELECT_MAX_LEVELS + 1][8]; /* max |w| of a function of (level, band) */
+    double norm;                              /* the low-pass functions' 2^{-M d / 2} */
+    double smin, smax;  /* range of prod_a sum_p phi(y_a - p): the low-pass partition of unity */
+} wvol__iso_boxk;
+
+void wvol__iso_boxk_init(wvol__iso_boxk *k, const wvol_store *s);
+
+/* Rigorous range [*vmin, *vmax] of f^ on the closed box [lo, hi] (voxel coords), from the
+ * functions touching it (queried into hl): low-pass sum c w = a0 norm S(x) + sum (c - a0) w,
+ * a0 the mid-range of their c and S(x) in [smin, smax]; details |sum c w| <= sum |c| max|w|.
+ * A constant background (CT air) costs nothing, unlike |c| max|w| per low-pass function. */
+wvol_status wvol__iso_box_range(const wvol__iso_boxk *k, const wvol_store *s, wvol_store_hits *hl, const double lo[3],
+                                const double hi[3], double *vmin, double *vmax, wvol_error *err);
+
 #endif

@@ -42,10 +42,14 @@
 
 #include "render/render_internal.h"
 #include "render/spline_ray.h"
+#include "iso_internal.h"
 #include "wvol/iso.h"
 
 #define NC WVOL__NC
 #define PAD_REL 1e-10
+#define SMALL_BUDGET (1.0 / 64) /* the small functions' |c| max|w| sum to at most this share of the largest */
+#define RUN_MAX 32         /* undecided pieces refined at once */
+#define CELL 8.0           /* cell grid side, voxels */
 
 void wvol_iso_trace_params_default(wvol_iso_trace_params *p)
 {
@@ -60,7 +64,161 @@ void wvol_iso_trace_params_default(wvol_iso_trace_params *p)
 typedef struct tracer {
     wvol__spline_geom g;
     double iso, tol, chunk;
+    wvol__iso_boxk k;   /* function bounds for the cells and the small functions' envelope */
+    /* cell grid (images only): cells of `cell` voxels, class 1 (f^ >= iso on the whole closed
+     * cell), 0 (f^ < iso) or -1 (undecided), from the store's rigorous box bounds */
+    double cell;
+    size_t nc[3];
+    signed char *cls;
+    double vmin, vmax;  /* over all cells */
 } tracer;
+
+static int cmp_double(const void *a, const void *b)
+{
+    double x = *(const double *)a, y = *(const double *)b;
+    return x < y ? -1 : x > y;
+}
+
+/* Range of s(y) = sum over p of phi(y - p) (the spline phi's periodised sum, ~1 by the
+ * partition of unity) over all y: per piece of the unit, the sum of the pieces' cubics, whose
+ * range lies in the hull of its Bernstein coefficients. */
+static void phi_sum_range(const wvol_basis *b, double *smin, double *smax)
+{
+    int j, q, k;
+    *smin = INFINITY;
+    *smax = -INFINITY;
+    for (j = 0; j < b->per_unit && j < b->pieces; j++) {
+        double c[4] = {0, 0, 0, 0}, hk = 1, bz[4];
+        for (q = j; q < b->pieces; q += b->per_unit) {
+            const double *pc = wvol_basis_coeffs(b, WVOL_PHI, WVOL_BASIS_VALUE, q);
+            for (k = 0; k < 4; k++) c[k] += pc[k];
+        }
+        for (k = 0; k < 4; k++, hk *= b->h) c[k] *= hk; /* in v = u / h on [0, 1] */
+        bz[0] = c[0];
+        bz[1] = c[0] + c[1] / 3;
+        bz[2] = c[0] + 2 * c[1] / 3 + c[2] / 3;
+        bz[3] = c[0] + c[1] + c[2] + c[3];
+        for (k = 0; k < 4; k++) *smin = fmin(*smin, bz[k]), *smax = fmax(*smax, bz[k]);
+    }
+    *smin -= 1e-12 * fabs(*smin) + 1e-15;
+    *smax += 1e-12 * fabs(*smax) + 1e-15;
+}
+
+void wvol__iso_boxk_init(wvol__iso_boxk *k, const wvol_store *s)
+{
+    wvol_store_info info;
+    double s0, s1, lo = 1, hi = 1;
+    int m, l, a;
+    memset(k, 0, sizeof *k);
+    wvol_store_get_info(s, &info);
+    k->levels = info.levels;
+    for (m = 1; m <= info.levels; m++)
+        for (l = 0; l < 8; l++) wvol_store_function_bounds(s, m, l, &k->fb[m][l], NULL);
+    phi_sum_range(wvol_store_basis(s), &s0, &s1);
+    for (a = 0; a < 3; a++) {
+        double c[4] = {lo * s0, lo * s1, hi * s0, hi * s1};
+        if (!info.transformed[a]) continue; /* a factor 1 */
+        lo = fmin(fmin(c[0], c[1]), fmin(c[2], c[3]));
+        hi = fmax(fmax(c[0], c[1]), fmax(c[2], c[3]));
+    }
+    k->norm = pow(2.0, -0.5 * info.levels * (info.transformed[0] + info.transformed[1] + info.transformed[2]));
+    k->smin = lo;
+    k->smax = hi;
+}
+
+wvol_status wvol__iso_box_range(const wvol__iso_boxk *k, const wvol_store *s, wvol_store_hits *hl, const double lo[3],
+                                const double hi[3], double *vmin, double *vmax, wvol_error *err)
+{
+    size_t i;
+    double cmin = INFINITY, cmax = -INFINITY, a0, dev = 0, mag = 0, s0, s1, pad;
+    WVOL_FORWARD(wvol_store_query_box(s, lo, hi, hl, err));
+    for (i = 0; i < hl->count; i++)
+        if (hl->hits[i].band == 0) {
+            cmin = fmin(cmin, hl->hits[i].value);
+            cmax = fmax(cmax, hl->hits[i].value);
+        }
+    a0 = cmin <= cmax ? 0.5 * (cmin + cmax) : 0.0;
+    for (i = 0; i < hl->count; i++) {
+        const wvol_store_hit *h = &hl->hits[i];
+        double c = h->band == 0 ? (double)h->value - a0 : (double)h->value;
+        dev += fabs(c) * k->fb[h->level][h->band];
+        mag += fabs((double)h->value) * k->fb[h->level][h->band];
+    }
+    s0 = a0 * k->norm * (a0 >= 0 ? k->smin : k->smax);
+    s1 = a0 * k->norm * (a0 >= 0 ? k->smax : k->smin);
+    pad = 1e-9 * (mag + fabs(s1) + fabs(s0));
+    *vmin = s0 - dev - pad;
+    *vmax = s1 + dev + pad;
+    return WVOL_OK;
+}
+
+/* Class of the closed box of cell idx (side `side` voxels): 1 when f^ > iso on all of it,
+ * 0 when f^ < iso, -1 undecided. */
+static int box_class(const tracer *tr, wvol_store_hits *hl, double side, const size_t idx[3], double *vmin,
+                     double *vmax, int *bad)
+{
+    size_t n[3] = {tr->g.info.nx, tr->g.info.ny, tr->g.info.nz};
+    double lo[3], hi[3], blo, bhi;
+    int k;
+    for (k = 0; k < 3; k++) {
+        lo[k] = (double)idx[k] * side;
+        hi[k] = fmin(lo[k] + side, n[k] > 1 ? (double)n[k] - 1 : 0.0);
+    }
+    if (wvol__iso_box_range(&tr->k, tr->g.s, hl, lo, hi, &blo, &bhi, NULL) != WVOL_OK) {
+        (*bad)++;
+        return -1;
+    }
+    *vmin = fmin(*vmin, blo);
+    *vmax = fmax(*vmax, bhi);
+    return blo > tr->iso ? 1 : bhi < tr->iso ? 0 : -1;
+}
+
+/* Classifies cells of CELL voxels by wvol_store_box_bounds, then halves the undecided ones
+ * (cells of CELL/2; the decided ones pass their class on). Threads over cells. */
+static wvol_status build_cells(tracer *tr, int nth, wvol_error *err)
+{
+    size_t n[3] = {tr->g.info.nx, tr->g.info.ny, tr->g.info.nz}, nc[3], total = 1, ftotal = 1;
+    double vmin = INFINITY, vmax = -INFINITY;
+    signed char *coarse;
+    int a, bad = 0;
+    for (a = 0; a < 3; a++) {
+        nc[a] = n[a] > 1 ? (size_t)ceil(((double)n[a] - 1) / CELL) : 1;
+        tr->nc[a] = n[a] > 1 ? (size_t)ceil(((double)n[a] - 1) / (0.5 * CELL)) : 1;
+        total *= nc[a];
+        ftotal *= tr->nc[a];
+    }
+    tr->cell = 0.5 * CELL;
+    coarse = malloc(total);
+    tr->cls = malloc(ftotal);
+    if (!coarse || !tr->cls) {
+        free(coarse);
+        return wvol_error_set(err, WVOL_ERR_NOMEM, "iso trace: out of memory for %zu cells", ftotal);
+    }
+#pragma omp parallel num_threads(nth) reduction(min : vmin) reduction(max : vmax) reduction(+ : bad)
+    {
+        wvol_store_hits hl;
+        memset(&hl, 0, sizeof hl);
+#pragma omp for schedule(dynamic, 16)
+        for (long c = 0; c < (long)total; c++) {
+            size_t idx[3] = {(size_t)c % nc[0], ((size_t)c / nc[0]) % nc[1], (size_t)c / (nc[0] * nc[1])};
+            coarse[c] = (signed char)box_class(tr, &hl, CELL, idx, &vmin, &vmax, &bad);
+        }
+#pragma omp for schedule(dynamic, 64)
+        for (long c = 0; c < (long)ftotal; c++) {
+            size_t idx[3] = {(size_t)c % tr->nc[0], ((size_t)c / tr->nc[0]) % tr->nc[1],
+                             (size_t)c / (tr->nc[0] * tr->nc[1])};
+            size_t p = idx[0] / 2 + nc[0] * (idx[1] / 2 + nc[1] * (idx[2] / 2));
+            tr->cls[c] =
+                coarse[p] >= 0 ? coarse[p] : (signed char)box_class(tr, &hl, 0.5 * CELL, idx, &vmin, &vmax, &bad);
+        }
+        wvol_store_hits_free(&hl);
+    }
+    free(coarse);
+    tr->vmin = vmin;
+    tr->vmax = vmax;
+    WVOL_RETURN_IF(bad, err, WVOL_ERR_INTERNAL, "iso trace: store bounds failed on %d cells", bad);
+    return WVOL_OK;
+}
 
 typedef struct sub {
     double u0, u1, B[NC];
@@ -209,46 +367,263 @@ static int clip(const tracer *tr, const double ov[3], const double dv[3], double
     return a0 < a1 && isfinite(a0) && isfinite(a1);
 }
 
-/* d: unit world direction. */
-static wvol_status trace(const tracer *tr, wvol__spline_ws *ws, const double o[3], const double d[3], double tmin,
-                         wvol_iso_hit *h, wvol_error *err)
+/* Per-thread scratch. */
+typedef struct tws {
+    wvol__spline_ws s;
+    double *env;        /* per level-1 piece: sum of |c| max|w| of the small functions covering it */
+    size_t capE;
+    double *cut;        /* cell boundaries along the ray */
+    size_t capC;
+} tws;
+
+static void tws_free(tws *w)
 {
-    double ov[3], dv[3], t0, t1, ta, speed, prev = 0.0;
-    int have_prev = 0;
+    wvol__spline_ws_free(&w->s);
+    free(w->env);
+    free(w->cut);
+    memset(w, 0, sizeof *w);
+}
+
+/* The class of f^ on piece e from the big functions' polynomial and the small ones'
+ * envelope: 1 (surely >= iso), 0 (surely < iso) or -1 (undecided). */
+static int decide(const tracer *tr, const double *a, double env)
+{
+    double B[NC], lo = INFINITY, hi = -INFINITY, pad;
+    int j;
+    pad = PAD_REL * (wvol__bernstein(&tr->g, a, B) + fabs(tr->iso) + env);
+    for (j = 0; j < NC; j++) lo = fmin(lo, B[j]), hi = fmax(hi, B[j]);
+    if (lo - env - tr->iso > pad) return 1;
+    if (hi + env - tr->iso < -pad) return 0;
+    return -1;
+}
+
+/* First piece index e with T[e + 1] > t (T has E + 1 breakpoints). */
+static size_t piece_at(const double *T, size_t E, double t)
+{
+    size_t lo = 0, hi = E;
+    while (lo < hi) {
+        size_t m = (lo + hi) / 2;
+        if (T[m + 1] > t) hi = m;
+        else lo = m + 1;
+    }
+    return lo;
+}
+
+/* The cut tau: functions with |c| max|w| <= tau are "small"; together they sum to at most
+ * SMALL_BUDGET of the largest one (buckets by binary exponent, smallest first). */
+static double small_cut(const wvol_store_hit *hits, size_t n, const tracer *tr, double wmax)
+{
+    enum { NB = 80 };
+    double sum[NB], acc = 0, budget = SMALL_BUDGET * wmax;
+    size_t i;
+    int k, ex;
+    if (!(wmax > 0)) return 0;
+    memset(sum, 0, sizeof sum);
+    frexp(wmax, &ex);
+    for (i = 0; i < n; i++) {
+        double wb = fabs((double)hits[i].value) * tr->k.fb[hits[i].level][hits[i].band];
+        int e;
+        if (!(wb > 0)) continue;
+        frexp(wb, &e);
+        k = ex - e; /* 0: the largest bucket */
+        sum[k < NB - 1 ? k : NB - 1] += wb;
+    }
+    for (k = NB - 1; k > 0; k--) {
+        if (acc + sum[k] > budget) break;
+        acc += sum[k];
+    }
+    /* buckets k+1.. are small: wb < 2^(ex - k - 1) */
+    return ldexp(1.0, ex - k - 1);
+}
+
+/* d: unit world direction. Chunk by chunk: the big functions (the low-pass band and details
+ * with |c| max|w| above TAU_REL of the chunk's largest) are expanded into polynomials, the
+ * small ones only bound per piece (their |c| max|w| summed over the pieces they cover). A
+ * piece whose polynomial's Bernstein hull, widened by that bound, excludes iso is decided
+ * whole; runs of undecided pieces get the small functions added exactly and are searched. */
+static wvol_status trace_span(const tracer *tr, tws *w, const double o[3], const double d[3], const double ov[3],
+                              const double dv[3], double t0, double t1, double speed, int *prevp, wvol_iso_hit *h,
+                              wvol_error *err)
+{
+    double ta;
+    int prev = *prevp;
+    for (ta = t0; ta < t1;) {
+        double tb = ta + tr->chunk / speed, wmax = 0, wsum = 0, tau;
+        wvol_store_hit *hits;
+        wvol__spline_count cnt = {0, 0};
+        const wvol__level_ws *F = &w->s.lev[1];
+        size_t n, nb = 0, i, e, E;
+        if (tb > t1 || t1 - tb < 1e-9 * (t1 - t0)) tb = t1;
+        WVOL_FORWARD(wvol_store_query_ray(tr->g.s, ov, dv, ta, tb, &w->s.hits, err));
+        hits = w->s.hits.hits;
+        n = w->s.hits.count;
+        for (i = 0; i < n; i++) {
+            double wb = fabs((double)hits[i].value) * tr->k.fb[hits[i].level][hits[i].band];
+            if (wb > wmax) wmax = wb;
+        }
+        tau = small_cut(hits, n, tr, wmax);
+        for (i = 0; i < n; i++) /* big ones first */
+            if (fabs((double)hits[i].value) * tr->k.fb[hits[i].level][hits[i].band] >= tau) {
+                wvol_store_hit tmp = hits[nb];
+                hits[nb++] = hits[i];
+                hits[i] = tmp;
+            }
+        WVOL_FORWARD(wvol__spline_build(&tr->g, &w->s, ov, dv, ta, tb, hits, nb, 0, 1, &cnt, err));
+        E = F->E;
+        h->pieces += E;
+        if (E + 1 > w->capE) {
+            double *q = realloc(w->env, (E + 1) * sizeof *q);
+            WVOL_RETURN_IF(!q, err, WVOL_ERR_NOMEM, "iso trace: out of memory");
+            w->env = q;
+            w->capE = E + 1;
+        }
+        memset(w->env, 0, (E + 1) * sizeof *w->env);
+        for (i = nb; i < n; i++) { /* difference array, then prefix sums */
+            double wb = fabs((double)hits[i].value) * tr->k.fb[hits[i].level][hits[i].band];
+            size_t e0 = piece_at(F->T, E, hits[i].t0), e1 = piece_at(F->T, E, hits[i].t1);
+            if (e0 >= E) continue;
+            if (e1 >= E) e1 = E - 1;
+            w->env[e0] += wb;
+            wsum += wb;
+            w->env[e1 + 1] -= wb;
+        }
+        for (e = 1; e < E; e++) w->env[e] += w->env[e - 1];
+        /* the prefix sums' rounding: n * DBL_EPSILON of the total at most */
+        for (e = 0; e < E; e++) w->env[e] = w->env[e] + 1e-11 * wsum;
+        for (e = 0; e < E;) {
+            int cls = decide(tr, w->s.macc + e * NC, w->env[e]);
+            size_t e2, q;
+            if (cls >= 0) {
+                if (prev >= 0 && prev != cls) { /* a jump across iso at the piece boundary */
+                    set_hit(tr, o, d, ov, dv, F->T[e], h);
+                    h->functions += cnt.functions;
+                    return WVOL_OK;
+                }
+                prev = cls;
+                e++;
+                continue;
+            }
+            for (e2 = e + 1; e2 < E && e2 - e < RUN_MAX && decide(tr, w->s.macc + e2 * NC, w->env[e2]) < 0;)
+                e2++;
+            for (i = nb; i < n; i++)
+                if (hits[i].t1 >= F->T[e] && hits[i].t0 <= F->T[e2])
+                    wvol__spline_add_finest(&tr->g, &w->s, ov, dv, &hits[i], e, e2, &cnt);
+            h->refined += e2 - e;
+            for (q = e; q < e2; q++) {
+                const double *a = w->s.macc + q * NC;
+                double len = F->T[q + 1] - F->T[q], u, last = 0;
+                int k;
+                if (!(len > 0)) continue;
+                if (prev >= 0 && prev != (a[0] >= tr->iso)) {
+                    set_hit(tr, o, d, ov, dv, F->T[q], h);
+                    h->functions += cnt.functions;
+                    return WVOL_OK;
+                }
+                u = piece_root(tr, a, len, h);
+                if (u >= 0) {
+                    set_hit(tr, o, d, ov, dv, F->T[q] + u * len, h);
+                    h->functions += cnt.functions;
+                    return WVOL_OK;
+                }
+                for (k = 0; k < NC; k++) last += a[k];
+                prev = last >= tr->iso;
+            }
+            e = e2;
+        }
+        h->functions += cnt.functions;
+        ta = tb;
+    }
+    *prevp = prev;
+    return WVOL_OK;
+}
+
+/* Crossings of the cell planes x_a = C k inside (t0, t1), merged with t0 and t1 into w->cut. */
+static size_t cell_cuts(const tracer *tr, tws *w, const double ov[3], const double dv[3], double t0, double t1)
+{
+    size_t n = 0, cap = 8;
+    int a;
+    for (a = 0; a < 3; a++)
+        if (dv[a] != 0.0 && tr->g.info.transformed[a])
+            cap += (size_t)(fabs((t1 - t0) * dv[a]) / tr->cell) + 2;
+    if (cap > w->capC) {
+        double *q = realloc(w->cut, cap * sizeof *q);
+        if (!q) return 0;
+        w->cut = q;
+        w->capC = cap;
+    }
+    w->cut[n++] = t0;
+    for (a = 0; a < 3; a++) {
+        double x0, x1, k0, k1, k;
+        if (dv[a] == 0.0 || !tr->g.info.transformed[a]) continue;
+        x0 = ov[a] + t0 * dv[a];
+        x1 = ov[a] + t1 * dv[a];
+        k0 = floor(fmin(x0, x1) / tr->cell) + 1;
+        k1 = ceil(fmax(x0, x1) / tr->cell) - 1;
+        for (k = k0; k <= k1 && n < w->capC - 1; k++) {
+            double t = (k * tr->cell - ov[a]) / dv[a];
+            if (t > t0 && t < t1) w->cut[n++] = t;
+        }
+    }
+    w->cut[n++] = t1;
+    qsort(w->cut + 1, n - 2, sizeof *w->cut, cmp_double);
+    return n;
+}
+
+/* The class of f^ in the cell holding x (voxel coords): 1, 0 or -1 (undecided). */
+static int cell_class(const tracer *tr, const double x[3])
+{
+    size_t idx = 0, stride = 1;
+    int a;
+    for (a = 0; a < 3; a++) {
+        double c = floor(x[a] / tr->cell);
+        size_t ci = c < 0 ? 0 : (size_t)c;
+        if (ci >= tr->nc[a]) ci = tr->nc[a] - 1;
+        idx += ci * stride;
+        stride *= tr->nc[a];
+    }
+    return tr->cls[idx];
+}
+
+/* d: unit world direction. With the cell grid, cells whose rigorous bounds exclude iso are
+ * stepped over; runs of the others are traced exactly (trace_span). */
+static wvol_status trace(const tracer *tr, tws *w, const double o[3], const double d[3], double tmin, wvol_iso_hit *h,
+                         wvol_error *err)
+{
+    double ov[3], dv[3], t0, t1, speed;
+    size_t n, i;
+    int prev = -1; /* class of f^ at the end of what is done, -1 before the start */
     memset(h, 0, sizeof *h);
     h->t = INFINITY;
     wvol_store_world_to_voxel(tr->g.s, o, ov);
     wvol_store_dir_to_voxel(tr->g.s, d, dv);
     speed = sqrt(dv[0] * dv[0] + dv[1] * dv[1] + dv[2] * dv[2]);
     if (!(speed > 0) || !clip(tr, ov, dv, tmin, &t0, &t1)) return WVOL_OK;
-    for (ta = t0; ta < t1;) {
-        double tb = ta + tr->chunk / speed;
-        const wvol__level_ws *F = &ws->lev[1];
-        wvol__spline_count cnt = {0, 0};
-        size_t e;
-        if (tb > t1 || t1 - tb < 1e-9 * (t1 - t0)) tb = t1;
-        WVOL_FORWARD(wvol__spline_ray(&tr->g, ws, ov, dv, ta, tb, 0, 1, &cnt, err));
-        h->functions += cnt.functions;
-        h->pieces += F->E;
-        for (e = 0; e < F->E; e++) {
-            const double *a = ws->macc + e * NC;
-            double len = F->T[e + 1] - F->T[e], u, first = a[0], last = 0.0;
-            int k;
-            if (!(len > 0)) continue;
-            if (have_prev && (prev >= tr->iso) != (first >= tr->iso)) { /* a jump across iso */
-                set_hit(tr, o, d, ov, dv, F->T[e], h);
+    if (!tr->cls) return trace_span(tr, w, o, d, ov, dv, t0, t1, speed, &prev, h, err);
+    n = cell_cuts(tr, w, ov, dv, t0, t1);
+    WVOL_RETURN_IF(n < 2, err, WVOL_ERR_NOMEM, "iso trace: out of memory");
+    for (i = 0; i + 1 < n;) {
+        double tm = 0.5 * (w->cut[i] + w->cut[i + 1]), x[3];
+        size_t j;
+        int a, cls;
+        for (a = 0; a < 3; a++) x[a] = ov[a] + tm * dv[a];
+        cls = cell_class(tr, x);
+        if (cls >= 0) {
+            if (prev >= 0 && prev != cls) { /* a jump across iso on the cell face */
+                set_hit(tr, o, d, ov, dv, w->cut[i], h);
                 return WVOL_OK;
             }
-            u = piece_root(tr, a, len, h);
-            if (u >= 0) {
-                set_hit(tr, o, d, ov, dv, F->T[e] + u * len, h);
-                return WVOL_OK;
-            }
-            for (k = 0; k < NC; k++) last += a[k];
-            prev = last;
-            have_prev = 1;
+            prev = cls;
+            i++;
+            continue;
         }
-        ta = tb;
+        for (j = i + 1; j + 1 < n; j++) { /* the run of undecided cells */
+            double tj = 0.5 * (w->cut[j] + w->cut[j + 1]);
+            for (a = 0; a < 3; a++) x[a] = ov[a] + tj * dv[a];
+            if (cell_class(tr, x) >= 0) break;
+        }
+        WVOL_FORWARD(trace_span(tr, w, o, d, ov, dv, w->cut[i], w->cut[j], speed, &prev, h, err));
+        if (h->hit) return WVOL_OK;
+        i = j;
     }
     return WVOL_OK;
 }
@@ -267,6 +642,7 @@ static wvol_status make_tracer(tracer *tr, const wvol_store *s, double iso, cons
     smin = fmin(tr->g.info.spacing[0], fmin(tr->g.info.spacing[1], tr->g.info.spacing[2]));
     tr->tol = p && p->tolerance > 0 ? p->tolerance : 1e-3 * smin;
     tr->chunk = p && p->chunk > 0 ? p->chunk : 16.0;
+    wvol__iso_boxk_init(&tr->k, s);
     return WVOL_OK;
 }
 
@@ -274,7 +650,7 @@ wvol_status wvol_iso_trace_ray(const wvol_store *s, double iso, const double o[3
                                const wvol_iso_trace_params *p, wvol_iso_hit *hit, wvol_error *err)
 {
     tracer tr;
-    wvol__spline_ws ws;
+    tws ws;
     double dn[3], len;
     wvol_status st;
     WVOL_RETURN_IF(!o || !d || !hit, err, WVOL_ERR_ARG, "iso trace: NULL argument");
@@ -286,19 +662,16 @@ wvol_status wvol_iso_trace_ray(const wvol_store *s, double iso, const double o[3
     dn[0] = d[0] / len, dn[1] = d[1] / len, dn[2] = d[2] / len;
     memset(&ws, 0, sizeof ws);
     st = trace(&tr, &ws, o, dn, 0.0, hit, err);
-    wvol__spline_ws_free(&ws);
+    tws_free(&ws);
     return st;
 }
 
-/* The empty-image message: the store's bound of f^ over the extent tells whether iso is out of range. */
+/* The empty-image message: the cells' bounds of f^ tell whether iso is out of its range. */
 static void empty_message(const tracer *tr, double iso, char *msg, size_t cap)
 {
-    wvol_store_bounds bd;
-    double lo[3] = {0, 0, 0},
-           hi[3] = {(double)tr->g.info.nx - 1, (double)tr->g.info.ny - 1, (double)tr->g.info.nz - 1};
-    if (wvol_store_box_bounds(tr->g.s, lo, hi, &bd, NULL) == WVOL_OK && (iso < bd.vmin || iso > bd.vmax))
+    if (iso < tr->vmin || iso > tr->vmax)
         snprintf(msg, cap, "iso-value %.9g is outside the range of f^ (bounded by [%.9g, %.9g]): empty image", iso,
-                 bd.vmin, bd.vmax);
+                 tr->vmin, tr->vmax);
     else
         snprintf(msg, cap, "no ray meets the surface f^ = %.9g: empty image", iso);
 }
@@ -311,8 +684,8 @@ wvol_status wvol_iso_raytrace(wvol_image *img, float *depth, float *normals, con
     wvol_iso_trace_params def;
     wvol__cam k;
     int nth, failed = 0;
-    size_t hits = 0, functions = 0, pieces = 0, intervals = 0, evals = 0, grazes = 0;
-    double t_start = wvol__now(), c_start = wvol__cpu_now(), tmin;
+    size_t hits = 0, functions = 0, pieces = 0, refined = 0, intervals = 0, evals = 0, grazes = 0;
+    double t_start = wvol__now(), c_start = wvol__cpu_now(), tmin, t_cells;
     wvol_error first_err;
     WVOL_RETURN_IF(!img || !img->rgba, err, WVOL_ERR_ARG, "iso trace: no image");
     WVOL_RETURN_IF(!cam, err, WVOL_ERR_ARG, "iso trace: no camera");
@@ -325,14 +698,19 @@ wvol_status wvol_iso_raytrace(wvol_image *img, float *depth, float *normals, con
         p = &def;
     }
     WVOL_FORWARD(make_tracer(&tr, s, iso, p, err));
+    nth = wvol__threads(p->threads);
+    if (build_cells(&tr, nth, err) != WVOL_OK) {
+        free(tr.cls);
+        return err ? err->status : WVOL_ERR_INTERNAL;
+    }
+    t_cells = wvol__now() - t_start;
     wvol__cam_init(&k, cam);
     /* an orthographic ray is the whole line (as in the renderer); a perspective one starts at the eye */
     tmin = cam->projection == WVOL_PERSPECTIVE ? 0.0 : -INFINITY;
-    nth = wvol__threads(p->threads);
     wvol_error_clear(&first_err);
-#pragma omp parallel num_threads(nth) reduction(+ : hits, functions, pieces, intervals, evals, grazes)
+#pragma omp parallel num_threads(nth) reduction(+ : hits, functions, pieces, refined, intervals, evals, grazes)
     {
-        wvol__spline_ws ws;
+        tws ws;
         memset(&ws, 0, sizeof ws);
 #pragma omp for schedule(dynamic, 1)
         for (int row = 0; row < img->height; row++) {
@@ -354,6 +732,7 @@ wvol_status wvol_iso_raytrace(wvol_image *img, float *depth, float *normals, con
                 }
                 functions += h.functions;
                 pieces += h.pieces;
+                refined += h.refined;
                 intervals += h.intervals;
                 evals += (size_t)h.evals;
                 grazes += (size_t)h.grazes;
@@ -376,8 +755,9 @@ wvol_status wvol_iso_raytrace(wvol_image *img, float *depth, float *normals, con
                 c[3] = 1.0f;
             }
         }
-        wvol__spline_ws_free(&ws);
+        tws_free(&ws);
     }
+    free(tr.cls);
     if (failed) {
         if (err) *err = first_err;
         return first_err.status ? first_err.status : WVOL_ERR_INTERNAL;
@@ -388,11 +768,13 @@ wvol_status wvol_iso_raytrace(wvol_image *img, float *depth, float *normals, con
         st->hits = hits;
         st->functions = functions;
         st->pieces = pieces;
+        st->refined = refined;
         st->intervals = intervals;
         st->evals = evals;
         st->grazes = grazes;
         st->seconds = wvol__now() - t_start;
         st->cpu_seconds = wvol__cpu_now() - c_start;
+        st->seconds_cells = t_cells;
         if (hits == 0) empty_message(&tr, iso, st->message, sizeof st->message);
     }
     return WVOL_OK;

@@ -191,10 +191,11 @@ static inline void compose3(double out[4], const double *c, double a, double d)
 /* Adds one basis function (hit) to its level's piece polynomials. Factors along axes the ray
  * does not move on (or untransformed axes) are constants of the hit, so an axis-aligned ray
  * costs one cubic per piece. */
-static void add_hit(const wvol__spline_geom *c, level_ws *L, const double o[3], const double d[3],
-                    const wvol_store_hit *h, int shading, wvol__spline_count *r)
+static void add_hit(const wvol__spline_geom *c, const level_ws *L, double *accbase, size_t elo, size_t ehi,
+                    const double o[3], const double d[3], const wvol_store_hit *h, int shading,
+                    wvol__spline_count *r)
 {
-    size_t E = L->E;
+    size_t E = L->E < ehi ? L->E : ehi;
     const wvol_basis *b = c->b;
     double inv2m = ldexp(1.0, -(int)h->level), w = (double)h->value * c->norm[h->level];
     double base[3], slope[3], cval = 1.0, cder[3] = {1, 1, 1}; /* cder[q]: d/dx_q of the constant factors */
@@ -231,7 +232,7 @@ static void add_hit(const wvol__spline_geom *c, level_ws *L, const double o[3], 
         else hi = mid;
     }
     r->functions++;
-    L->used = 1;
+    if (lo < elo) lo = elo;
     for (e = lo; e < E && L->T[e] < h->t1; e++) {
         double t0 = L->T[e], len = L->T[e + 1] - t0;
         double f[3][4], g[3][4], prod[NC];
@@ -265,14 +266,14 @@ static void add_hit(const wvol__spline_geom *c, level_ws *L, const double o[3], 
             addmul63(prod, 1.0, f01, f[2]);
         }
         {
-            double *acc = L->acc + e * NC, wc = w * cval;
+            double *acc = accbase + e * NC, wc = w * cval;
             for (j = 0; j < NC; j++) acc[j] += wc * prod[j];
         }
         if (shading) {
             /* component q: d/dx_q of factor q times the other factors */
             int q;
             for (q = 0; q < 3; q++) {
-                double gp[NC], t7[7], *acc = L->acc + (E + e * 3 + (size_t)q) * NC, wq = w;
+                double gp[NC], t7[7], *acc = accbase + (L->E + e * 3 + (size_t)q) * NC, wq = w;
                 int kq = -1;
                 for (k = 0; k < nvar; k++)
                     if (var[k] == q) kq = k;
@@ -507,13 +508,27 @@ double wvol__bernstein(const wvol__spline_geom *g, const double *a, double *bcoe
 wvol_status wvol__spline_ray(const wvol__spline_geom *g, wvol__spline_ws *ws, const double o[3], const double d[3],
                              double ta, double tb, int shading, int merge, wvol__spline_count *cnt, wvol_error *err)
 {
+    WVOL_FORWARD(wvol_store_query_ray(g->s, o, d, ta, tb, &ws->hits, err));
+    return wvol__spline_build(g, ws, o, d, ta, tb, ws->hits.hits, ws->hits.count, shading, merge, cnt, err);
+}
+
+void wvol__spline_add_finest(const wvol__spline_geom *g, wvol__spline_ws *ws, const double o[3], const double d[3],
+                             const wvol_store_hit *h, size_t elo, size_t ehi, wvol__spline_count *cnt)
+{
+    /* every level's knots lie on level 1's lattice: one polynomial per finest piece */
+    add_hit(g, &ws->lev[1], ws->macc, elo, ehi, o, d, h, 0, cnt);
+}
+
+wvol_status wvol__spline_build(const wvol__spline_geom *g, wvol__spline_ws *ws, const double o[3], const double d[3],
+                               double ta, double tb, const wvol_store_hit *hits, size_t n, int shading, int merge,
+                               wvol__spline_count *cnt, wvol_error *err)
+{
     size_t i, per = shading ? 4 : 1;
     int ok, m, M = g->info.levels;
-    WVOL_FORWARD(wvol_store_query_ray(g->s, o, d, ta, tb, &ws->hits, err));
     for (m = 1; m <= M; m++) ws->lev[m].used = 0, ws->lev[m].E = 0;
     /* level 1's lattice is needed for the merge even without level-1 functions */
     if (merge) ws->lev[1].used = 2;
-    for (i = 0; i < ws->hits.count; i++) ws->lev[ws->hits.hits[i].level].used = 2;
+    for (i = 0; i < n; i++) ws->lev[hits[i].level].used = 2;
     for (m = 1; m <= M; m++) {
         level_ws *L = &ws->lev[m];
         if (!L->used) continue;
@@ -523,8 +538,11 @@ wvol_status wvol__spline_ray(const wvol__spline_geom *g, wvol__spline_ws *ws, co
         memset(L->acc, 0, L->E * NC * per * sizeof(double));
         L->used = 0;
     }
-    for (i = 0; i < ws->hits.count; i++)
-        add_hit(g, &ws->lev[ws->hits.hits[i].level], o, d, &ws->hits.hits[i], shading, cnt);
+    for (i = 0; i < n; i++) {
+        level_ws *L = &ws->lev[hits[i].level];
+        L->used = 1;
+        add_hit(g, L, L->acc, 0, L->E, o, d, &hits[i], shading, cnt);
+    }
     if (merge) WVOL_RETURN_IF(!merge_levels(g, ws, shading), err, WVOL_ERR_NOMEM, "render: out of memory");
     return WVOL_OK;
 }

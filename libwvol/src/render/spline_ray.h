@@ -58,6 +58,17 @@ typedef struct wvol__spline_count {
 wvol_status wvol__spline_ray(const wvol__spline_geom *g, wvol__spline_ws *ws, const double o[3], const double d[3],
                              double ta, double tb, int shading, int merge, wvol__spline_count *cnt, wvol_error *err);
 
+/* The same from an explicit list of hits (e.g. a subset of ws->hits; they must not alias
+ * storage that the build reallocates: ws->hits is not touched). */
+wvol_status wvol__spline_build(const wvol__spline_geom *g, wvol__spline_ws *ws, const double o[3], const double d[3],
+                               double ta, double tb, const wvol_store_hit *hits, size_t n, int shading, int merge,
+                               wvol__spline_count *cnt, wvol_error *err);
+
+/* Adds one more function's value to the merged polynomials ws->macc, on level 1's pieces
+ * [elo, ehi) only (after a build with merge; no gradient). */
+void wvol__spline_add_finest(const wvol__spline_geom *g, wvol__spline_ws *ws, const double o[3], const double d[3],
+                             const wvol_store_hit *h, size_t elo, size_t ehi, wvol__spline_count *cnt);
+
 void wvol__spline_ws_free(wvol__spline_ws *ws);
 
 /* Horner evaluation of a degree-9 polynomial (WVOL__NC coefficients, increasing degree). */
