@@ -12,9 +12,17 @@ affinity (taskset) for every tool, and with the tool's own knob where it has one
 (wvol --threads, vtkSMPTools.Initialize). Normals: wvol, vtkFlyingEdges3D,
 vtkMarchingCubes and scikit-image compute vertex normals; OpenVDB does not.
 
+Ray tracer rows: `wvol iso --method raytrace` (the implicit surface f^ = iso of the
+wavelet model, db2, 3 levels, from a store of the kept coefficients; no peer draws
+that surface) on both phantoms for kept fractions 1%, 5% and 100%, an image of
+--rt-size pixels (default 512x512) with --rt-threads threads (default 2): trace time,
+time per ray, hits, basis functions and polynomial pieces per ray. `--raytrace-only`
+runs just these rows and merges them into an existing iso.json / iso.md.
+
 Goal (issue 6): wvol at least as fast as vtkFlyingEdges3D at the same thread count.
 Writes bench/results/iso.json and bench/results/iso.md.
 Usage: /usr/bin/python3 bench/bench_iso.py [--n 256] [--reps 5] [--build build] [--quick]
+       /usr/bin/python3 bench/bench_iso.py --raytrace-only [--rt-size 512x512] [--rt-keep 1%,5%,100%]
 """
 import argparse
 import json
@@ -144,6 +152,91 @@ def full_reconstruction_seconds(raw, n, wavelet, levels, keep, iso, threads, bui
                     ["--wavelet", wavelet, "--levels", str(levels), "--keep", keep, "--brick", "0"])
 
 
+def run_raytrace(build, raw, n, iso, keep, size, threads, out_image):
+    cmd = ["taskset", "-c", cpus(threads), str(pathlib.Path(build) / "wvol"), "iso", str(raw), "--dims", str(n),
+           "--iso", str(iso), "--method", "raytrace", "--keep", keep, "--size", size, "--threads", str(threads),
+           "--camera", RT_CAMERA, "-o", str(out_image), "--json"]
+    p = subprocess.run(cmd, capture_output=True, text=True, timeout=7200)
+    if p.returncode != 0:
+        return {"error": p.stderr.strip()}
+    return json.loads(p.stdout)
+
+
+RT_CAMERA = "persp dir=1,0.6,-0.3"
+RT_KEYS = ("trace_seconds", "cells_seconds", "us_per_ray", "prepare_seconds", "rays", "hits", "functions", "pieces",
+           "refined", "intervals", "evals", "grazes", "message", "error")
+
+
+def raytrace_rows(args, phantoms, tmp):
+    rows = []
+    for name, (f, iso) in phantoms.items():
+        raw = pathlib.Path(tmp) / f"{name}.raw"
+        if not raw.exists():
+            write_raw(raw, f)
+        for keep in args.rt_keep.split(","):
+            size = args.rt_size
+            for entry in args.rt_size_override.split(","):
+                if entry and entry.split("=")[0] == f"{name}:{keep}":
+                    size = entry.split("=")[1]
+            r = run_raytrace(args.build, raw, args.n, iso, keep, size, args.rt_threads,
+                             pathlib.Path(tmp) / f"{name}_{keep.rstrip('%')}.exr")
+            row = {"phantom": name, "iso": iso, "keep": keep, "size": size, "threads": args.rt_threads,
+                   "camera": RT_CAMERA}
+            row.update({k: r[k] for k in RT_KEYS if k in r})
+            rows.append(row)
+            print(f"{name:8s} raytrace keep {keep:5s} {size}: {r.get('trace_seconds', float('nan')):.2f} s, "
+                  f"{r.get('us_per_ray', float('nan')):.1f} us/ray, {r.get('hits')} hits, "
+                  f"{(r.get('functions') or 0) / max(1, r.get('rays') or 1):.0f} functions/ray", flush=True)
+    return rows
+
+
+def write_md(res, out, name, tools):
+    n = res["n"]
+    lines = [f"# Isosurface benchmark ({n}^3, fastest of {res['reps']}, {res['machine']['cpu']}, "
+             f"{res['machine']['cores']} cores, load average {res['machine']['load_avg_start']:.1f} at start)", "",
+             "| phantom | threads | tool | ms | triangles | area | wvol speed-up |", "|---|---|---|---|---|---|---|"]
+    for row in res["mc"]:
+        for tool in ["wvol"] + tools:
+            r = row[tool]
+            if "error" in r:
+                lines.append(f"| {row['phantom']} | {row['threads']} | {tool} | error: {r['error']} | | | |")
+                continue
+            sp = (r["seconds"] / row["wvol"]["seconds"]) if row["wvol"].get("seconds") else float("nan")
+            lines.append(f"| {row['phantom']} | {row['threads']} | {tool} | {r['seconds'] * 1e3:.2f} | "
+                         f"{r['triangles']} | {r['area']:.1f} | {sp:.2f}x |")
+    lines += ["", "Brick path (marching cubes from kept coefficients, 3 levels, 32^3-cell bricks):", "",
+              "| phantom | wavelet | keep | ms | bricks skipped | bounds ms | reconstruct+mesh ms | full inverse + MC ms |",
+              "|---|---|---|---|---|---|---|---|"]
+    for e in res["bricks"]:
+        if "error" in e:
+            lines.append(f"| {e['phantom']} | {e['wavelet']} | {e['keep']} | error: {e['error']} | | | | |")
+            continue
+        lines.append(f"| {e['phantom']} | {e['wavelet']} | {e['keep']} | {e['seconds'] * 1e3:.1f} | "
+                     f"{e['bricks_skipped']}/{e['bricks_total']} | {e['seconds_bounds'] * 1e3:.1f} | "
+                     f"{e['seconds_reconstruct_mesh'] * 1e3:.1f} | "
+                     f"{(e['one_brick_seconds'] or float('nan')) * 1e3:.1f} |")
+    if res.get("raytrace"):
+        rt = res["raytrace"]
+        lines += ["", f"Ray tracer (`wvol iso --method raytrace`, f^ = iso of db2 with 3 levels from a store, camera "
+                      f"\"{rt[0]['camera']}\", {rt[0]['threads']} threads; load average "
+                      f"{res.get('raytrace_load_avg', float('nan')):.1f} at start). Time is the whole trace "
+                      f"including the cell grid; no missed hits by construction (tests/c/test_iso_trace.c):", "",
+                  "| phantom | keep | image | trace s | cell grid s | us per ray | hits | functions per ray | "
+                  "pieces per ray | refined per ray | root intervals | grazes |",
+                  "|---|---|---|---|---|---|---|---|---|---|---|---|"]
+        for r in rt:
+            if "error" in r:
+                lines.append(f"| {r['phantom']} | {r['keep']} | {r['size']} | error: {r['error']} |" + " |" * 8)
+                continue
+            rays = max(1, r["rays"])
+            lines.append(f"| {r['phantom']} | {r['keep']} | {r['size']} | {r['trace_seconds']:.2f} | "
+                         f"{r['cells_seconds']:.2f} | {r['us_per_ray']:.1f} | {r['hits']} | "
+                         f"{r['functions'] / rays:.0f} | {r['pieces'] / rays:.0f} | {r['refined'] / rays:.1f} | "
+                         f"{r['intervals']} | {r['grazes']} |")
+    (out / f"{name}.md").write_text("\n".join(lines) + "\n")
+    print("\n".join(lines))
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--n", type=int, default=256)
@@ -152,6 +245,14 @@ def main():
     ap.add_argument("--build", default=str(ROOT / "build"))
     ap.add_argument("--out", default=str(ROOT / "bench" / "results"))
     ap.add_argument("--quick", action="store_true", help="smoke test: 48^3, 1 rep, no brick section peers")
+    ap.add_argument("--raytrace-only", action="store_true",
+                    help="run only the ray tracer rows and merge them into the existing results")
+    ap.add_argument("--no-raytrace", action="store_true", help="skip the ray tracer rows")
+    ap.add_argument("--rt-size", default="512x512", help="ray tracer image size (default 512x512)")
+    ap.add_argument("--rt-size-override", default="",
+                    help="per-row sizes, e.g. 'skull:100%%=128x128,gaussian:100%%=256x256' (labelled in the table)")
+    ap.add_argument("--rt-keep", default="1%,5%,100%")
+    ap.add_argument("--rt-threads", type=int, default=2)
     args = ap.parse_args()
     if args.quick:
         args.n, args.reps = 48, 1
@@ -160,6 +261,18 @@ def main():
     threads = [t for t in threads if t <= os.cpu_count()]
     phantoms = {"gaussian": (gaussian(n), 0.5), "skull": (skull(n), 400.0)}
     tools = ["vtkFlyingEdges3D", "vtkMarchingCubes", "skimage", "openvdb"]
+    out = pathlib.Path(args.out)
+    rname = "iso_quick" if args.quick else "iso"
+    if args.raytrace_only:
+        res = json.loads((out / f"{rname}.json").read_text())
+        if res["n"] != n:
+            sys.exit(f"--raytrace-only: {rname}.json is for n = {res['n']}, not {n}")
+        res["raytrace_load_avg"] = os.getloadavg()[0]
+        with tempfile.TemporaryDirectory() as tmp:
+            res["raytrace"] = raytrace_rows(args, phantoms, tmp)
+        (out / f"{rname}.json").write_text(json.dumps(res, indent=1) + "\n")
+        write_md(res, out, rname, tools)
+        return
     res = {"machine": {"cpu": cpu_model(), "cores": os.cpu_count(), "load_avg_start": os.getloadavg()[0]},
            "n": n, "reps": args.reps, "mc": [], "bricks": []}
     with tempfile.TemporaryDirectory() as tmp:
@@ -196,36 +309,13 @@ def main():
                 print(f"{name:8s} bricks {wavelet} keep {keep}: {b.get('seconds', float('nan')) * 1e3:.1f} ms, "
                       f"{b.get('bricks_skipped')} of {b.get('bricks_total')} skipped; full inverse + MC "
                       f"{(full.get('seconds') or float('nan')) * 1e3:.1f} ms", flush=True)
+        if not args.no_raytrace:
+            res["raytrace_load_avg"] = os.getloadavg()[0]
+            res["raytrace"] = raytrace_rows(args, phantoms, tmp)
     res["machine"]["load_avg_end"] = os.getloadavg()[0]
-    out = pathlib.Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
-    name = "iso_quick" if args.quick else "iso"
-    (out / f"{name}.json").write_text(json.dumps(res, indent=1) + "\n")
-    lines = [f"# Isosurface benchmark ({n}^3, fastest of {args.reps}, {res['machine']['cpu']}, "
-             f"{res['machine']['cores']} cores, load average {res['machine']['load_avg_start']:.1f} at start)", "",
-             "| phantom | threads | tool | ms | triangles | area | wvol speed-up |", "|---|---|---|---|---|---|---|"]
-    for row in res["mc"]:
-        for tool in ["wvol"] + tools:
-            r = row[tool]
-            if "error" in r:
-                lines.append(f"| {row['phantom']} | {row['threads']} | {tool} | error: {r['error']} | | | |")
-                continue
-            sp = (r["seconds"] / row["wvol"]["seconds"]) if row["wvol"].get("seconds") else float("nan")
-            lines.append(f"| {row['phantom']} | {row['threads']} | {tool} | {r['seconds'] * 1e3:.2f} | "
-                         f"{r['triangles']} | {r['area']:.1f} | {sp:.2f}x |")
-    lines += ["", "Brick path (marching cubes from kept coefficients, 3 levels, 32^3-cell bricks):", "",
-              "| phantom | wavelet | keep | ms | bricks skipped | bounds ms | reconstruct+mesh ms | full inverse + MC ms |",
-              "|---|---|---|---|---|---|---|---|"]
-    for e in res["bricks"]:
-        if "error" in e:
-            lines.append(f"| {e['phantom']} | {e['wavelet']} | {e['keep']} | error: {e['error']} | | | | |")
-            continue
-        lines.append(f"| {e['phantom']} | {e['wavelet']} | {e['keep']} | {e['seconds'] * 1e3:.1f} | "
-                     f"{e['bricks_skipped']}/{e['bricks_total']} | {e['seconds_bounds'] * 1e3:.1f} | "
-                     f"{e['seconds_reconstruct_mesh'] * 1e3:.1f} | "
-                     f"{(e['one_brick_seconds'] or float('nan')) * 1e3:.1f} |")
-    (out / f"{name}.md").write_text("\n".join(lines) + "\n")
-    print("\n".join(lines))
+    (out / f"{rname}.json").write_text(json.dumps(res, indent=1) + "\n")
+    write_md(res, out, rname, tools)
 
 
 if __name__ == "__main__":

@@ -291,6 +291,7 @@ static int run_image(const iso_args *a)
         cli_json_int("hits", (long long)ts.hits);
         cli_json_int("functions", (long long)ts.functions);
         cli_json_int("pieces", (long long)ts.pieces);
+        cli_json_int("refined", (long long)ts.refined);
         cli_json_int("intervals", (long long)ts.intervals);
         cli_json_int("evals", (long long)ts.evals);
         cli_json_int("grazes", (long long)ts.grazes);
