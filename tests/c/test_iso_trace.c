@@ -375,6 +375,14 @@ static void tangent_rays(const wvol_store *s, double iso, const char *what)
     CHECK(bad == 0, "%s: %d tangent rays with NaN", what, bad);
 }
 
+static void geometry_of_store(const wvol_store *s, wvol_geometry *g)
+{
+    wvol_store_info info;
+    wvol_store_get_info(s, &info);
+    g->dims[0] = info.nx, g->dims[1] = info.ny, g->dims[2] = info.nz;
+    for (int a = 0; a < 3; a++) g->spacing[a] = info.spacing[a], g->origin[a] = info.origin[a];
+}
+
 /* The image path (which steps over cells its bounds decide) against single rays (which do
  * not): the same hits at the same depths (both within tolerance/2 of the root: 1e-3 voxel). */
 static void image_matches_rays(const wvol_store *s, const wvol_camera *cam, const float *depth, double iso,
@@ -407,16 +415,12 @@ static void image_matches_rays(const wvol_store *s, const wvol_camera *cam, cons
 /* Any phantom: a small perspective image against single rays. */
 static void small_image(const wvol_store *s, double iso, const char *what)
 {
-    wvol_store_info info;
     wvol_geometry g;
     wvol_camera cam;
     wvol_image *img = NULL;
     float *depth = malloc(24 * 24 * sizeof(float));
     double dir[3] = {-0.5, 1, 0.3};
-    int a;
-    wvol_store_get_info(s, &info);
-    g.dims[0] = info.nx, g.dims[1] = info.ny, g.dims[2] = info.nz;
-    for (a = 0; a < 3; a++) g.spacing[a] = info.spacing[a], g.origin[a] = info.origin[a];
+    geometry_of_store(s, &g);
     wvol_camera_frame(&cam, &g, dir, WVOL_PERSPECTIVE, 24, 24, 0, NULL);
     wvol_image_create(&img, 24, 24, NULL);
     CHECK(wvol_iso_raytrace(img, depth, NULL, s, &cam, iso, NULL, NULL, NULL) == WVOL_OK, "%s: image", what);
@@ -436,8 +440,7 @@ static void image_and_empty(const wvol_store *s, double iso, const char *what)
     wvol_iso_trace_stats st;
     int a, nan = 0, i;
     wvol_store_get_info(s, &info);
-    g.dims[0] = info.nx, g.dims[1] = info.ny, g.dims[2] = info.nz;
-    for (a = 0; a < 3; a++) g.spacing[a] = info.spacing[a], g.origin[a] = info.origin[a];
+    geometry_of_store(s, &g);
     CHECK(wvol_camera_frame(&cam, &g, dir, WVOL_ORTHOGRAPHIC, 48, 48, 0, NULL) == WVOL_OK, "%s: camera", what);
     cam.view_height /= 2.5; /* the iso sphere's radius is 0.29 of the half box */
     CHECK(wvol_image_create(&img, 48, 48, NULL) == WVOL_OK, "%s: image", what);
@@ -481,8 +484,7 @@ static void hybrid(const wvol_store *s, double iso, const char *what)
     wvol_tf tf;
     int a, i, covered = 0;
     wvol_store_get_info(s, &info);
-    g.dims[0] = info.nx, g.dims[1] = info.ny, g.dims[2] = info.nz;
-    for (a = 0; a < 3; a++) g.spacing[a] = info.spacing[a], g.origin[a] = info.origin[a];
+    geometry_of_store(s, &g);
     wvol_camera_frame(&cam, &g, dir, WVOL_PERSPECTIVE, 32, 32, 0, NULL);
     cam.fov_y /= 2.5;
     wvol_tf_preset(&tf, "gaussian", 0, 1, NULL);

@@ -56,15 +56,22 @@ typedef struct wvol__iso_boxk {
     int levels;
     double fb[WVOL_SELECT_MAX_LEVELS + 1][8]; /* max |w| of a function of (level, band) */
     double norm;                              /* the low-pass functions' 2^{-M d / 2} */
-    double smin, smax;  /* range of prod_a sum_p phi(y_a - p): the low-pass partition of unity */
+    double scale, shift;                      /* 2^M and the filter's centre s */
+    int transformed[3];
+    double s1[2];       /* range of s(y) = sum_p phi(y - p), the partition of unity */
+    double m1[2];       /* range of m(y) = sum_p (y - p) phi(y - p), its first moment */
 } wvol__iso_boxk;
 
 void wvol__iso_boxk_init(wvol__iso_boxk *k, const wvol_store *s);
 
 /* Rigorous range [*vmin, *vmax] of f^ on the closed box [lo, hi] (voxel coords), from the
- * functions touching it (queried into hl): low-pass sum c w = a0 norm S(x) + sum (c - a0) w,
- * a0 the mid-range of their c and S(x) in [smin, smax]; details |sum c w| <= sum |c| max|w|.
- * A constant background (CT air) costs nothing, unlike |c| max|w| per low-pass function. */
+ * functions touching it (queried into hl). The low-pass coefficients are fitted by a plane,
+ * c_p = a0 + g . (p - pbar) + r_p (least squares over the touching ones), and
+ *   sum c w = a0 norm S(x) + sum_a g_a norm [(y_a - pbar_a) s(y_a) - m(y_a)] prod_{b != a} s(y_b)
+ *             + sum r_p w_p,
+ * y = (x + s) / 2^M, with the ranges of s and m from the spline's pieces and |sum r w| <=
+ * sum |r| max|w|; details |sum c w| <= sum |c| max|w|. A constant or linear background (CT
+ * air, the smooth flanks of a Gaussian) costs nothing, unlike |c| max|w| per function. */
 wvol_status wvol__iso_box_range(const wvol__iso_boxk *k, const wvol_store *s, wvol_store_hits *hl, const double lo[3],
                                 const double hi[3], double *vmin, double *vmax, wvol_error *err);
 

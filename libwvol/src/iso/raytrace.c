@@ -79,76 +79,148 @@ static int cmp_double(const void *a, const void *b)
     return x < y ? -1 : x > y;
 }
 
-/* Range of s(y) = sum over p of phi(y - p) (the spline phi's periodised sum, ~1 by the
- * partition of unity) over all y: per piece of the unit, the sum of the pieces' cubics, whose
- * range lies in the hull of its Bernstein coefficients. */
-static void phi_sum_range(const wvol_basis *b, double *smin, double *smax)
+/* Range over [0, 1] of the polynomial a (degree deg <= 4): the hull of its Bernstein
+ * coefficients, padded for rounding. */
+static void bern_range(const double *a, int deg, double *lo, double *hi)
+{
+    static const double C[5][5] = {{1}, {1, 1}, {1, 2, 1}, {1, 3, 3, 1}, {1, 4, 6, 4, 1}};
+    int j, i;
+    for (j = 0; j <= deg; j++) {
+        double b = 0, mag = 0;
+        for (i = 0; i <= j; i++) {
+            double t = C[j][i] / C[deg][i] * a[i];
+            b += t;
+            mag += fabs(t);
+        }
+        *lo = fmin(*lo, b - 1e-12 * mag);
+        *hi = fmax(*hi, b + 1e-12 * mag);
+    }
+}
+
+/* Ranges over all y of s(y) = sum_p phi(y - p) (the spline phi's partition of unity, ~1)
+ * and m(y) = sum_p (y - p) phi(y - p) (its first moment, ~ the centre): per piece of the
+ * unit, sums of the pieces' cubics (times the linear y - p for m). */
+static void phi_sums_range(const wvol_basis *b, double s[2], double m[2])
 {
     int j, q, k;
-    *smin = INFINITY;
-    *smax = -INFINITY;
+    s[0] = m[0] = INFINITY;
+    s[1] = m[1] = -INFINITY;
     for (j = 0; j < b->per_unit && j < b->pieces; j++) {
-        double c[4] = {0, 0, 0, 0}, hk = 1, bz[4];
+        double c[4] = {0, 0, 0, 0}, c4[5] = {0, 0, 0, 0, 0}, hk = 1;
         for (q = j; q < b->pieces; q += b->per_unit) {
             const double *pc = wvol_basis_coeffs(b, WVOL_PHI, WVOL_BASIS_VALUE, q);
-            for (k = 0; k < 4; k++) c[k] += pc[k];
+            double v0 = q * b->h; /* y - p = v0 + u on this piece */
+            for (k = 0; k < 4; k++) {
+                c[k] += pc[k];
+                c4[k] += v0 * pc[k];
+                c4[k + 1] += pc[k];
+            }
         }
-        for (k = 0; k < 4; k++, hk *= b->h) c[k] *= hk; /* in v = u / h on [0, 1] */
-        bz[0] = c[0];
-        bz[1] = c[0] + c[1] / 3;
-        bz[2] = c[0] + 2 * c[1] / 3 + c[2] / 3;
-        bz[3] = c[0] + c[1] + c[2] + c[3];
-        for (k = 0; k < 4; k++) *smin = fmin(*smin, bz[k]), *smax = fmax(*smax, bz[k]);
+        for (k = 0; k < 5; k++, hk *= b->h) { /* in u / h on [0, 1] */
+            if (k < 4) c[k] *= hk;
+            c4[k] *= hk;
+        }
+        bern_range(c, 3, &s[0], &s[1]);
+        bern_range(c4, 4, &m[0], &m[1]);
     }
-    *smin -= 1e-12 * fabs(*smin) + 1e-15;
-    *smax += 1e-12 * fabs(*smax) + 1e-15;
+}
+
+/* Interval product. */
+static void imul(double a0, double a1, double b0, double b1, double *lo, double *hi)
+{
+    double p[4] = {a0 * b0, a0 * b1, a1 * b0, a1 * b1};
+    *lo = fmin(fmin(p[0], p[1]), fmin(p[2], p[3]));
+    *hi = fmax(fmax(p[0], p[1]), fmax(p[2], p[3]));
 }
 
 void wvol__iso_boxk_init(wvol__iso_boxk *k, const wvol_store *s)
 {
     wvol_store_info info;
-    double s0, s1, lo = 1, hi = 1;
+    const wvol_basis *b = wvol_store_basis(s);
     int m, l, a;
     memset(k, 0, sizeof *k);
     wvol_store_get_info(s, &info);
     k->levels = info.levels;
     for (m = 1; m <= info.levels; m++)
         for (l = 0; l < 8; l++) wvol_store_function_bounds(s, m, l, &k->fb[m][l], NULL);
-    phi_sum_range(wvol_store_basis(s), &s0, &s1);
-    for (a = 0; a < 3; a++) {
-        double c[4] = {lo * s0, lo * s1, hi * s0, hi * s1};
-        if (!info.transformed[a]) continue; /* a factor 1 */
-        lo = fmin(fmin(c[0], c[1]), fmin(c[2], c[3]));
-        hi = fmax(fmax(c[0], c[1]), fmax(c[2], c[3]));
-    }
+    phi_sums_range(b, k->s1, k->m1);
+    for (a = 0; a < 3; a++) k->transformed[a] = info.transformed[a];
     k->norm = pow(2.0, -0.5 * info.levels * (info.transformed[0] + info.transformed[1] + info.transformed[2]));
-    k->smin = lo;
-    k->smax = hi;
+    k->scale = ldexp(1.0, info.levels);
+    k->shift = b->center;
+}
+
+/* The product of s over the transformed axes other than `skip` (-1: all). */
+static void s_product(const wvol__iso_boxk *k, int skip, double *lo, double *hi)
+{
+    int a;
+    *lo = *hi = 1;
+    for (a = 0; a < 3; a++)
+        if (a != skip && k->transformed[a]) imul(*lo, *hi, k->s1[0], k->s1[1], lo, hi);
 }
 
 wvol_status wvol__iso_box_range(const wvol__iso_boxk *k, const wvol_store *s, wvol_store_hits *hl, const double lo[3],
                                 const double hi[3], double *vmin, double *vmax, wvol_error *err)
 {
-    size_t i;
-    double cmin = INFINITY, cmax = -INFINITY, a0, dev = 0, mag = 0, s0, s1, pad;
+    size_t i, nlow = 0;
+    double a0 = 0, pbar[3] = {0, 0, 0}, g[3] = {0, 0, 0}, sxx[3] = {0, 0, 0}, dev = 0, mag = 0, blo, bhi, t0, t1;
+    int a;
     WVOL_FORWARD(wvol_store_query_box(s, lo, hi, hl, err));
-    for (i = 0; i < hl->count; i++)
-        if (hl->hits[i].band == 0) {
-            cmin = fmin(cmin, hl->hits[i].value);
-            cmax = fmax(cmax, hl->hits[i].value);
-        }
-    a0 = cmin <= cmax ? 0.5 * (cmin + cmax) : 0.0;
+    /* low-pass coefficients ~ a0 + g . (p - pbar), least squares over the touching ones
+     * (p: the function's position on the level-M grid, periodic images included) */
     for (i = 0; i < hl->count; i++) {
         const wvol_store_hit *h = &hl->hits[i];
-        double c = h->band == 0 ? (double)h->value - a0 : (double)h->value;
+        if (h->band != 0) continue;
+        nlow++;
+        a0 += h->value;
+        for (a = 0; a < 3; a++)
+            if (k->transformed[a]) pbar[a] += (h->lo[a] + k->shift) / k->scale;
+    }
+    if (nlow) {
+        a0 /= (double)nlow;
+        for (a = 0; a < 3; a++) pbar[a] /= (double)nlow;
+        for (i = 0; i < hl->count; i++) {
+            const wvol_store_hit *h = &hl->hits[i];
+            if (h->band != 0) continue;
+            for (a = 0; a < 3; a++)
+                if (k->transformed[a]) {
+                    double dp = (h->lo[a] + k->shift) / k->scale - pbar[a];
+                    g[a] += (double)h->value * dp;
+                    sxx[a] += dp * dp;
+                }
+        }
+        for (a = 0; a < 3; a++) g[a] = sxx[a] > 0 ? g[a] / sxx[a] : 0.0;
+    }
+    for (i = 0; i < hl->count; i++) {
+        const wvol_store_hit *h = &hl->hits[i];
+        double c = h->value;
+        if (h->band == 0)
+            for (a = 0, c -= a0; a < 3; a++)
+                if (k->transformed[a]) c -= g[a] * ((h->lo[a] + k->shift) / k->scale - pbar[a]);
         dev += fabs(c) * k->fb[h->level][h->band];
         mag += fabs((double)h->value) * k->fb[h->level][h->band];
     }
-    s0 = a0 * k->norm * (a0 >= 0 ? k->smin : k->smax);
-    s1 = a0 * k->norm * (a0 >= 0 ? k->smax : k->smin);
-    pad = 1e-9 * (mag + fabs(s1) + fabs(s0));
-    *vmin = s0 - dev - pad;
-    *vmax = s1 + dev + pad;
+    /* a0 sum_p w_p = a0 norm S(x) */
+    s_product(k, -1, &t0, &t1);
+    imul(a0 * k->norm, a0 * k->norm, t0, t1, &blo, &bhi);
+    /* g_a sum_p (p_a - pbar_a) w_p = g_a norm [(y_a - pbar_a) s(y_a) - m(y_a)] prod_{b != a} s(y_b) */
+    for (a = 0; a < 3; a++) {
+        double y0, y1, l0, l1, o0, o1;
+        if (!k->transformed[a] || g[a] == 0.0) continue;
+        y0 = (lo[a] + k->shift) / k->scale - pbar[a];
+        y1 = (hi[a] + k->shift) / k->scale - pbar[a];
+        imul(y0, y1, k->s1[0], k->s1[1], &l0, &l1);
+        l0 -= k->m1[1];
+        l1 -= k->m1[0];
+        s_product(k, a, &o0, &o1);
+        imul(l0, l1, o0, o1, &l0, &l1);
+        imul(g[a] * k->norm, g[a] * k->norm, l0, l1, &l0, &l1);
+        blo += l0;
+        bhi += l1;
+    }
+    dev += 1e-9 * (mag + fabs(blo) + fabs(bhi)); /* rounding of the sums */
+    *vmin = blo - dev;
+    *vmax = bhi + dev;
     return WVOL_OK;
 }
 
