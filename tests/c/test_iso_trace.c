@@ -466,11 +466,11 @@ static void image_and_empty(const wvol_store *s, double iso, const char *what)
     CHECK(wvol_iso_raytrace(img, depth, NULL, s, &cam, 1e6, NULL, &st, NULL) == WVOL_OK, "%s: empty", what);
     CHECK(st.hits == 0 && strstr(st.message, "above f^ everywhere"), "%s: message '%s'", what, st.message);
     printf("  %s: iso 1e6: %s\n", what, st.message);
-    /* just above the peak (~0.98): the loose cell bounds cannot prove it, the samples say so */
-    CHECK(wvol_iso_raytrace(img, depth, NULL, s, &cam, 1.2, NULL, &st, NULL) == WVOL_OK, "%s: empty", what);
+    /* well above the peak (~0.98; f^ of 1% overshoots it a little): the loose cell bounds cannot prove it, the samples say so */
+    CHECK(wvol_iso_raytrace(img, depth, NULL, s, &cam, 3.0, NULL, &st, NULL) == WVOL_OK, "%s: empty", what);
     CHECK(st.hits == 0 && (strstr(st.message, "outside the range") || strstr(st.message, "above f^")),
           "%s: message '%s'", what, st.message);
-    printf("  %s: iso 1.2: %s\n", what, st.message);
+    printf("  %s: iso 3: %zu hits, %s\n", what, st.hits, st.message);
     CHECK(wvol_iso_raytrace(img, depth, NULL, s, &cam, NAN, NULL, &st, NULL) == WVOL_ERR_ARG, "%s: NaN iso", what);
     wvol_image_destroy(img);
     free(depth);
