@@ -24,6 +24,7 @@ static const cli_opt opts[] = {
     {"tf", 0, 1, "hybrid: transfer function of the volume in front (default gaussian)"},
     {"tolerance", 0, 1, "raytrace/hybrid: depth tolerance in voxels (default 0.001)"},
     {"spline-j", 0, 1, "raytrace/hybrid: basis splines with 2^J knots per unit (default 4)"},
+    {"chunk", 0, 1, "raytrace/hybrid: ray segment built at a time, voxels (default 16)"},
     {"threads", 0, 1, "threads (default: all)"},
     {"normals", 0, 1, "gradient (default) or none"},
     {"repeat", 0, 1, "extract N times and report the fastest (benchmarking)"},
@@ -46,7 +47,7 @@ typedef struct iso_args {
     double iso;
     int have_iso, json, threads, repeat, levels, brick, spline_j;
     long width, height;
-    double keep, tolerance;
+    double keep, tolerance, chunk;
     const char *method, *wavelet, *camera, *tf;
     wvol_iso_normals normals;
     wvol_load_options lo;
@@ -259,6 +260,7 @@ static int run_image(const iso_args *a)
     wvol_iso_trace_params_default(&tp);
     tp.threads = a->threads;
     tp.tolerance = a->tolerance * fmin(g.spacing[0], fmin(g.spacing[1], g.spacing[2]));
+    if (a->chunk > 0) tp.chunk = a->chunk;
     t_prep = cli_now() - t0;
     if (hybrid) {
         wvol_render_params rp;
@@ -420,6 +422,9 @@ int wvol_cmd_iso(int argc, char **argv)
         } else if (!strcmp(o->name, "tolerance")) {
             if (!cli_parse_double("iso", "tolerance", val, &a.tolerance)) return CLI_USAGE;
             if (!(a.tolerance > 0)) return cli_usage("iso", "--tolerance %g: must be > 0", a.tolerance);
+        } else if (!strcmp(o->name, "chunk")) {
+            if (!cli_parse_double("iso", "chunk", val, &a.chunk)) return CLI_USAGE;
+            if (!(a.chunk > 0)) return cli_usage("iso", "--chunk %g: must be > 0", a.chunk);
         } else if (!strcmp(o->name, "spline-j")) {
             if (!cli_parse_long("iso", "spline-j", val, 1, 12, &lv)) return CLI_USAGE;
             a.spline_j = (int)lv;

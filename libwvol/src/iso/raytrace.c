@@ -23,7 +23,7 @@
  * detected by comparing the last value of a piece with the first of the next.
  *
  * Cost. Building a function's polynomials costs ~2 us; two rigorous shortcuts avoid most:
- *   - small functions (the smallest |c| max|w|, summing to <= 1/64 of the chunk's largest)
+ *   - small functions (the smallest |c| max|w|, summing to <= 1/16 of the chunk's largest)
  *     are not expanded but bounded per piece (sum of |c| max|w| of those covering it); a
  *     piece whose hull widened by that envelope excludes iso is decided, and only runs of
  *     undecided pieces get the small functions added exactly;
@@ -57,7 +57,7 @@
 
 #define NC WVOL__NC
 #define PAD_REL 1e-10
-#define SMALL_BUDGET (1.0 / 64) /* the small functions' |c| max|w| sum to at most this share of the largest */
+#define SMALL_BUDGET (1.0 / 16) /* the small functions' |c| max|w| sum to at most this share of the largest */
 #define RUN_MAX 32         /* undecided pieces refined at once */
 #define CELL 8.0           /* cell grid side, voxels */
 
