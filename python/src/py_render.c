@@ -111,7 +111,7 @@ static int parse_tf(PyObject *opts, wvol_tf *tf, double vmin, double vmax)
 int wvolpy_render_setup(PyObject *opts, const wvol_geometry *g, double vmin, double vmax, wvol_camera *cam,
                         wvol_tf *tf, wvol_render_params *rp)
 {
-    const char *camspec, *mode, *sample;
+    const char *camspec, *mode;
     int width = 256, height = 256;
     wvol_error err;
     if (!PyDict_Check(opts)) {
@@ -131,13 +131,6 @@ int wvolpy_render_setup(PyObject *opts, const wvol_geometry *g, double vmin, dou
     else if (!strcmp(mode, "absorption-linear")) rp->mode = WVOL_MODE_ABSORPTION_LINEAR;
     else {
         PyErr_Format(PyExc_ValueError, "mode '%s': expected xray, absorption or absorption-linear", mode);
-        return -1;
-    }
-    if (!(sample = opt_str(opts, "sample", "trilinear"))) return -1;
-    if (!strcmp(sample, "trilinear")) rp->sample = WVOL_SAMPLE_TRILINEAR;
-    else if (!strcmp(sample, "fhat")) rp->sample = WVOL_SAMPLE_FHAT;
-    else {
-        PyErr_Format(PyExc_ValueError, "sample '%s': expected trilinear or fhat", sample);
         return -1;
     }
     if (opt_double(opts, "step", &rp->step) < 0 || opt_double(opts, "termination", &rp->termination) < 0 ||

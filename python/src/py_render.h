@@ -5,8 +5,7 @@
 #include "wvol/render.h"
 
 /* Camera, transfer function and parameters from the options dict (keys: camera, width,
- * height, mode, tf, tf_units, step, termination, ambient, shading, gauss_nodes, threads,
- * sample); vmin/vmax: the data range for TF presets. 0, or -1 with an exception. */
+ * height, mode, tf, tf_units, step, termination, ambient, shading, gauss_nodes, threads); vmin/vmax: the data range for TF presets. 0, or -1 with an exception. */
 int wvolpy_render_setup(PyObject *opts, const wvol_geometry *g, double vmin, double vmax, wvol_camera *cam,
                         wvol_tf *tf, wvol_render_params *rp);
 /* (h, w, 4) float32 array over the image's pixels (no copy); destroys img. */

@@ -365,7 +365,7 @@ def features(vol, wavelet="db2", levels=3, *, smooth=1, include_lowpass=True, pc
 
 def render(source, camera="+z", size=(256, 256), *, mode="absorption", tf="gaussian", tf_units="world",
            method="auto", step=0.5, shading=False, ambient=0.3, gauss_nodes=5, spline_j=None, termination=1e-6,
-           sample="trilinear", threads=0, return_stats=False):
+           threads=0, return_stats=False):
     """Renders a volume (array or :class:`Volume`) or a :class:`Store`; returns the image as
     an (height, width, 4) float32 array of linear, premultiplied RGBA, row 0 at the top
     (X-ray: R = G = B = the integral of f along the ray in value x world length, A = 1 where
@@ -385,12 +385,14 @@ def render(source, camera="+z", size=(256, 256), *, mode="absorption", tf="gauss
     along an axis from 2D coefficients), "reference-fhat" (ray marching over the spline
     model) or "reference" (on the reconstructed volume). "auto": "reference" for volumes;
     for stores "axis" when it applies (X-ray along an axis), else "spline".
+    ``termination``: stop a ray once its transmittance falls below this (0: never).
+    ``threads``: OpenMP threads (0: the default).
     ``return_stats=True`` returns ``(image, stats)`` (rays, samples, seconds...).
     """
     w, h = (int(v) for v in size)
     opts = dict(camera=camera, width=w, height=h, mode=mode, tf=tf, tf_units=tf_units, step=step,
                 shading=int(bool(shading)), ambient=ambient, gauss_nodes=gauss_nodes, termination=termination,
-                sample=sample, threads=threads)
+                threads=threads)
     if isinstance(tf, os.PathLike):
         opts["tf"] = os.fspath(tf)
     if isinstance(source, Store):
@@ -402,6 +404,8 @@ def render(source, camera="+z", size=(256, 256), *, mode="absorption", tf="gauss
                     return (img, st) if return_stats else img
                 except NotImplementedError:
                     pass
+        if method == "axis" and mode != "xray":
+            raise ValueError(f"method 'axis' renders X-ray only (mode='xray'), not mode '{mode}'")
         if method in ("spline", "axis"):
             fn = _wvol.render_spline if method == "spline" else _wvol.render_axis
             img, st = fn(source._c(4 if spline_j is None else spline_j), source.value_range, opts)

@@ -56,11 +56,51 @@ def test_store_methods_agree(gauss):
     (dict(step=0), ValueError),
     (dict(step=float("nan")), ValueError),
     (dict(method="spline"), ValueError),                              # needs a store
+    (dict(tf_units="furlongs", tf=[(0.0, 1, 1, 1, 1)]), ValueError),
+    (dict(camera=3), TypeError),
+    (dict(size=(8,)), ValueError),
+    (dict(tf="/nonexistent/dir/tf.txt"), ValueError),                 # not a file: read as a preset name
 ])
 def test_bad_arguments(gauss, kw, exc):
     kw.setdefault("size", (8, 8))
     with pytest.raises(exc):
         wvol.render(gauss, **kw)
+
+
+def test_store_reference_methods_and_options(gauss, tmp_path):
+    s = wvol.compress(gauss, "db2", 2, keep=0.2)
+    fhat = wvol.render(s, size=(12, 12), mode="xray", method="reference-fhat")
+    spline = wvol.render(s, size=(12, 12), mode="xray", method="spline")
+    # ray marching over f^ (step 0.5 voxel) converges to the exact spline integral: 1% of the peak
+    np.testing.assert_allclose(fhat[..., 0], spline[..., 0], atol=0.01 * spline.max())
+    # auto on a store in X-ray along an axis is the axis fast path; off-axis it is the spline path
+    np.testing.assert_allclose(wvol.render(s, size=(12, 12), mode="xray"), spline, atol=1e-5 * spline.max())
+    # a transfer-function file, the per-diagonal units and shading (Lambert from the gradient)
+    (tmp_path / "tf.txt").write_text("units diagonal\n0 0 1 0 0\n1 0 1 0 8\n")
+    flat = wvol.render(gauss, size=(12, 12), tf=tmp_path / "tf.txt")
+    shaded = wvol.render(gauss, size=(12, 12), tf=str(tmp_path / "tf.txt"), shading=True, ambient=0.2)
+    assert np.all(flat[..., [0, 2]] == 0) and flat[..., 1].max() > 0     # green only
+    assert np.array_equal(flat[..., 3], shaded[..., 3])                  # shading changes colour, not opacity
+    assert not np.array_equal(flat[..., 1], shaded[..., 1])
+    # a store read back from a file renders the same as the one it was saved from, up to
+    # quantisation (1% of the peak)
+    s.save(tmp_path / "s.wvc")
+    o = wvol.open(tmp_path / "s.wvc")
+    np.testing.assert_allclose(wvol.render(o, size=(12, 12), mode="xray"), spline, atol=0.01 * spline.max())
+
+
+@pytest.mark.parametrize("kw, exc, words", [
+    (dict(method="magic"), ValueError, "method"),
+    (dict(method="axis", mode="xray", camera="ortho dir=1,1,0"), NotImplementedError, "axis"),
+    (dict(method="axis"), ValueError, "X-ray only"),
+    (dict(method="reference-fhat", spline_j=40), ValueError, ""),
+    (dict(method="spline", spline_j=-1), ValueError, "spline_j"),
+    (dict(gauss_nodes=0), ValueError, ""),
+])
+def test_bad_store_arguments(gauss, kw, exc, words):
+    s = wvol.compress(gauss, "haar", 1, keep=0.5)
+    with pytest.raises(exc, match=words):
+        wvol.render(s, size=(4, 4), **kw)
 
 
 def test_bad_volumes():
