@@ -68,7 +68,8 @@ static PyObject *py_iso_volume(PyObject *self, PyObject *args, PyObject *kw)
     if (!PyArg_ParseTupleAndKeywords(args, kw, "Od|OOsi", kwlist, &arr_obj, &iso, &sp, &org, &normals, &threads))
         return NULL;
     if (!isfinite(iso)) return PyErr_Format(PyExc_ValueError, "iso-value must be finite");
-    if (threads < 0) return PyErr_Format(PyExc_ValueError, "threads must be >= 0");
+    if (threads < 0 || threads > WVOLPY_MAX_THREADS)
+        return PyErr_Format(PyExc_ValueError, "threads must be in 0..%d (0: default)", WVOLPY_MAX_THREADS);
     wvol_iso_params_default(&p);
     p.threads = threads;
     if (parse_normals(normals, &p.normals) < 0) return NULL;
@@ -111,7 +112,8 @@ static PyObject *py_iso_coeffs(PyObject *self, PyObject *args, PyObject *kw)
                                      &org, &normals, &threads, &brick))
         return NULL;
     if (!isfinite(iso)) return PyErr_Format(PyExc_ValueError, "iso-value must be finite");
-    if (threads < 0) return PyErr_Format(PyExc_ValueError, "threads must be >= 0");
+    if (threads < 0 || threads > WVOLPY_MAX_THREADS)
+        return PyErr_Format(PyExc_ValueError, "threads must be in 0..%d (0: default)", WVOLPY_MAX_THREADS);
     if (brick < 0) return PyErr_Format(PyExc_ValueError, "brick must be >= 0 (0: default)");
     wvol_iso_params_default(&p);
     p.threads = threads;

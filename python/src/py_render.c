@@ -87,8 +87,15 @@ static int parse_tf(PyObject *opts, wvol_tf *tf, double vmin, double vmax)
         }
         for (Py_ssize_t i = 0; i < n; i++) {
             wvol_tf_point *p = &tf->points[i];
-            if (!PyArg_ParseTuple(PySequence_Fast_GET_ITEM(seq, i), "ddddd;tf point must be (value, r, g, b, opacity)",
-                                  &p->value, &p->rgb[0], &p->rgb[1], &p->rgb[2], &p->opacity)) {
+            PyObject *item = PySequence_Fast_GET_ITEM(seq, i);
+            /* any 5-sequence: a tuple, a list, a row of an (n, 5) array */
+            PyObject *tup = PySequence_Check(item) ? PySequence_Tuple(item) : NULL;
+            int ok = tup && PyArg_ParseTuple(tup, "ddddd;tf point must be (value, r, g, b, opacity)", &p->value,
+                                             &p->rgb[0], &p->rgb[1], &p->rgb[2], &p->opacity);
+            if (!tup && !PyErr_Occurred())
+                PyErr_SetString(PyExc_TypeError, "tf point must be (value, r, g, b, opacity)");
+            Py_XDECREF(tup);
+            if (!ok) {
                 Py_DECREF(seq);
                 return -1;
             }
@@ -137,6 +144,10 @@ int wvolpy_render_setup(PyObject *opts, const wvol_geometry *g, double vmin, dou
         opt_double(opts, "ambient", &rp->ambient) < 0 || opt_int(opts, "shading", &rp->shading) < 0 ||
         opt_int(opts, "gauss_nodes", &rp->gauss_nodes) < 0 || opt_int(opts, "threads", &rp->threads) < 0)
         return -1;
+    if (rp->threads < 0 || rp->threads > WVOLPY_MAX_THREADS) {
+        PyErr_Format(PyExc_ValueError, "threads must be in 0..%d (0: default)", WVOLPY_MAX_THREADS);
+        return -1;
+    }
     memset(tf, 0, sizeof *tf);
     if (rp->mode != WVOL_MODE_XRAY && parse_tf(opts, tf, vmin, vmax) < 0) return -1;
     return 0;

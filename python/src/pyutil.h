@@ -44,6 +44,10 @@ PyObject *wvolpy_volume_take(wvol_volume *v, int squeeze2d);
 int wvolpy_as_coeffs(PyObject *arr, const char *wavelet, int levels, PyObject *shape, PyObject *spacing,
                      PyObject *origin, wvol_coeffs *c, PyArrayObject **holder);
 
+/* Most OpenMP threads a call may ask for (as the command line): libgomp aborts the
+ * process when it cannot create the threads asked for, so absurd counts are refused. */
+#define WVOLPY_MAX_THREADS 4096
+
 /* Parses an optional 3-sequence of floats (x, y, z order); returns 0 or -1 with exception. */
 int wvolpy_triple(PyObject *obj, double out[3], const char *what);
 

@@ -60,6 +60,7 @@ def test_empty_and_no_normals(gauss):
     (lambda g: wvol.isosurface(g, 0.5, normals="magic"), ValueError, "normals 'magic'"),
     (lambda g: wvol.isosurface(g, 0.5, brick=4), ValueError, "brick"),
     (lambda g: wvol.isosurface(g, 0.5, threads=-1), ValueError, "threads"),
+    (lambda g: wvol.isosurface(g, 0.5, threads=10 ** 6), ValueError, "threads"),
     (lambda g: wvol.isosurface(wvol.compress(g, "haar", 1), 0.5, brick=-1), ValueError, "brick"),
     (lambda g: wvol.isosurface(wvol.compress(g, "haar", 1), float("inf")), ValueError, "finite"),
     (lambda g: wvol.isosurface(g.data.astype(complex), 0.5), TypeError, ""),

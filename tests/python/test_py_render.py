@@ -29,6 +29,7 @@ def test_absorption_modes_and_tf(gauss):
     tf = [(0.0, 1, 0, 0, 0.0), (1.0, 1, 0, 0, 2.0)]                  # red, opacity up to 2 / unit
     r = wvol.render(gauss, size=(24, 20), tf=tf)
     assert np.all(r[..., 1] == 0) and r[..., 0].max() > 0           # only red light
+    assert np.array_equal(wvol.render(gauss, size=(24, 20), tf=np.array(tf, np.float32)), r)   # (n, 5) array
     lin = wvol.render(gauss, size=(24, 20), tf=tf, mode="absorption-linear")
     assert np.isfinite(lin).all()
 
@@ -60,6 +61,12 @@ def test_store_methods_agree(gauss):
     (dict(camera=3), TypeError),
     (dict(size=(8,)), ValueError),
     (dict(tf="/nonexistent/dir/tf.txt"), ValueError),                 # not a file: read as a preset name
+    (dict(tf=[(float("nan"), 1, 1, 1, 1)]), ValueError),
+    (dict(tf=[(0.0, 1, 1, 1, -1)]), ValueError),                      # negative opacity
+    (dict(tf=[]), ValueError),
+    (dict(tf=[1, 2, 3]), TypeError),
+    (dict(threads=10 ** 6), ValueError),                              # refused, not an OpenMP abort
+    (dict(termination=float("inf")), ValueError),
 ])
 def test_bad_arguments(gauss, kw, exc):
     kw.setdefault("size", (8, 8))
