@@ -153,7 +153,7 @@ int wvolpy_render_setup(PyObject *opts, const wvol_geometry *g, double vmin, dou
     return 0;
 }
 
-PyObject *wvolpy_image_take(wvol_image *img)
+static PyObject *image_take(wvol_image *img)
 {
     npy_intp dims[3] = {img->height, img->width, 4};
     float *data = img->rgba;
@@ -162,7 +162,7 @@ PyObject *wvolpy_image_take(wvol_image *img)
     return wvolpy_array_take(data, 3, dims); /* row 0 at the top: (h, w, 4) with no copy */
 }
 
-PyObject *wvolpy_stats_dict(const wvol_render_stats *st)
+static PyObject *stats_dict(const wvol_render_stats *st)
 {
     return Py_BuildValue("{s:d,s:n,s:n,s:n,s:n,s:n,s:n,s:n,s:n}", "seconds", st->seconds, "rays",
                          (Py_ssize_t)st->rays, "rays_hit", (Py_ssize_t)st->rays_hit, "samples",
@@ -171,16 +171,16 @@ PyObject *wvolpy_stats_dict(const wvol_render_stats *st)
                          (Py_ssize_t)st->terminated, "clamped", (Py_ssize_t)st->clamped);
 }
 
-static PyObject *finish(wvol_image *img, wvol_status s, const wvol_render_stats *st, wvol_error *err)
+PyObject *wvolpy_render_finish(wvol_image *img, wvol_status s, const wvol_render_stats *st, const wvol_error *err)
 {
     PyObject *a, *d;
     if (s != WVOL_OK) {
         wvol_image_destroy(img);
         return wvolpy_raise(err);
     }
-    a = wvolpy_image_take(img);
+    a = image_take(img);
     if (!a) return NULL;
-    d = wvolpy_stats_dict(st);
+    d = stats_dict(st);
     if (!d) {
         Py_DECREF(a);
         return NULL;
@@ -220,7 +220,7 @@ static PyObject *py_render_volume(PyObject *self, PyObject *args)
     if (s == WVOL_OK) s = wvol_render_reference(img, &v, &cam, &tf, &rp, &st, &err);
     Py_END_ALLOW_THREADS
     Py_DECREF(holder);
-    return finish(img, s, &st, &err);
+    return wvolpy_render_finish(img, s, &st, &err);
 fail:
     Py_DECREF(holder);
     return NULL;
@@ -261,7 +261,7 @@ static PyObject *py_render_fhat(PyObject *self, PyObject *args)
     Py_END_ALLOW_THREADS
     wvol_basis_destroy(b);
     Py_DECREF(holder);
-    return finish(img, s, &st, &err);
+    return wvolpy_render_finish(img, s, &st, &err);
 }
 
 PyMethodDef wvolpy_render_methods[] = {

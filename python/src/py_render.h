@@ -8,7 +8,7 @@
  * height, mode, tf, tf_units, step, termination, ambient, shading, gauss_nodes, threads); vmin/vmax: the data range for TF presets. 0, or -1 with an exception. */
 int wvolpy_render_setup(PyObject *opts, const wvol_geometry *g, double vmin, double vmax, wvol_camera *cam,
                         wvol_tf *tf, wvol_render_params *rp);
-/* (h, w, 4) float32 array over the image's pixels (no copy); destroys img. */
-PyObject *wvolpy_image_take(wvol_image *img);
-PyObject *wvolpy_stats_dict(const wvol_render_stats *st);
+/* (image (h, w, 4) float32 over the image's pixels, no copy; stats dict) when s is
+ * WVOL_OK, else err raised; destroys img either way. */
+PyObject *wvolpy_render_finish(wvol_image *img, wvol_status s, const wvol_render_stats *st, const wvol_error *err);
 #endif

@@ -8,7 +8,7 @@
 
 static PyObject *render_store(PyObject *args, int axis)
 {
-    PyObject *cap, *opts, *a, *d;
+    PyObject *cap, *opts;
     const wvol_store *st;
     wvol_store_info in;
     wvol_geometry g;
@@ -36,18 +36,7 @@ static PyObject *render_store(PyObject *args, int axis)
         s = axis ? wvol_render_xray_axis(img, st, &cam, &rp, &stats, &err)
                  : wvol_render_spline(img, st, &cam, &tf, &rp, &stats, &err);
     Py_END_ALLOW_THREADS
-    if (s != WVOL_OK) {
-        wvol_image_destroy(img);
-        return wvolpy_raise(&err);
-    }
-    a = wvolpy_image_take(img);
-    if (!a) return NULL;
-    d = wvolpy_stats_dict(&stats);
-    if (!d) {
-        Py_DECREF(a);
-        return NULL;
-    }
-    return Py_BuildValue("NN", a, d);
+    return wvolpy_render_finish(img, s, &stats, &err);
 }
 
 static PyObject *py_render_spline(PyObject *self, PyObject *args)
