@@ -30,6 +30,26 @@ static void white_tf(wvol_tf *tf)
     tf->points[1] = (wvol_tf_point){1.0, {1, 1, 1}, 0.2};
 }
 
+/* Renders v (white TF, colour volume rgb) through the camera `spec` into a new w x h image. */
+static wvol_image *render_coloured(const wvol_volume *v, const float *rgb, const char *spec, int w, int h)
+{
+    wvol_geometry g;
+    wvol_camera cam;
+    wvol_image *img = NULL;
+    wvol_render_params p;
+    wvol_tf tf;
+    wvol_error err;
+    wvol_geometry_of_volume(&g, v);
+    CHECK(wvol_camera_parse(&cam, spec, &g, w, h, &err) == WVOL_OK, "%s", err.message);
+    if (wvol_image_create(&img, w, h, NULL) != WVOL_OK) return NULL;
+    white_tf(&tf);
+    wvol_render_params_default(&p);
+    p.colors = rgb;
+    p.colors_count = 3 * wvol_volume_count(v);
+    CHECK(wvol_render_reference(img, v, &cam, &tf, &p, NULL, &err) == WVOL_OK, "%s", err.message);
+    return img;
+}
+
 /* Emission is colour x kappa, so with one colour c everywhere the composited colour is
  * c (1 - T) = c A exactly in real arithmetic; accumulation is in double and the stored
  * channels are float, so each side carries at most one float rounding (< 1e-7 for values
@@ -39,24 +59,13 @@ static void uniform_colour_scales_alpha(void)
     wvol_volume *v = constant_volume(12, 10, 9, 0.7f);
     float *rgb = malloc(3 * 12 * 10 * 9 * sizeof *rgb);
     const float c[3] = {0.2f, 0.5f, 0.9f};
-    wvol_geometry g;
-    wvol_camera cam;
-    wvol_image *img = NULL;
-    wvol_render_params p;
-    wvol_tf tf;
-    wvol_error err;
+    wvol_image *img;
     size_t i, n = 12 * 10 * 9;
     double worst = 0, amax = 0;
     if (!v || !rgb) return;
     for (i = 0; i < 3 * n; i++) rgb[i] = c[i % 3];
-    wvol_geometry_of_volume(&g, v);
-    CHECK(wvol_camera_parse(&cam, "persp dir=1,0.6,0.3", &g, 24, 20, &err) == WVOL_OK, "%s", err.message);
-    wvol_image_create(&img, 24, 20, NULL);
-    white_tf(&tf);
-    wvol_render_params_default(&p);
-    p.colors = rgb;
-    p.colors_count = 3 * n;
-    CHECK(wvol_render_reference(img, v, &cam, &tf, &p, NULL, &err) == WVOL_OK, "%s", err.message);
+    img = render_coloured(v, rgb, "persp dir=1,0.6,0.3", 24, 20);
+    if (!img) return;
     for (i = 0; i < (size_t)(24 * 20); i++) {
         int a;
         for (a = 0; a < 3; a++) worst = fmax(worst, fabs(img->rgba[4 * i + a] - c[a] * img->rgba[4 * i + 3]));
@@ -76,24 +85,13 @@ static void classes_keep_their_colours(void)
     const size_t nx = 16, ny = 8, nz = 6, n = nx * ny * nz;
     wvol_volume *v = constant_volume(nx, ny, nz, 1.0f);
     float *rgb = calloc(3 * n, sizeof *rgb);
-    wvol_geometry g;
-    wvol_camera cam;
-    wvol_image *img = NULL;
-    wvol_render_params p;
-    wvol_tf tf;
-    wvol_error err;
+    wvol_image *img;
     size_t i;
     int x, y, clean = 1;
     if (!v || !rgb) return;
     for (i = 0; i < n; i++) rgb[3 * i + (i % nx < nx / 2 ? 0 : 2)] = 1.0f; /* left red, right blue */
-    wvol_geometry_of_volume(&g, v);
-    CHECK(wvol_camera_parse(&cam, "+z", &g, (int)nx, (int)ny, &err) == WVOL_OK, "%s", err.message);
-    wvol_image_create(&img, (int)nx, (int)ny, NULL);
-    white_tf(&tf);
-    wvol_render_params_default(&p);
-    p.colors = rgb;
-    p.colors_count = 3 * n;
-    CHECK(wvol_render_reference(img, v, &cam, &tf, &p, NULL, &err) == WVOL_OK, "%s", err.message);
+    img = render_coloured(v, rgb, "+z", (int)nx, (int)ny);
+    if (!img) return;
     for (y = 0; y < (int)ny; y++)
         for (x = 0; x < (int)nx; x++) {
             const float *px = img->rgba + 4 * (x + (int)nx * y);
