@@ -115,9 +115,38 @@ static int parse_tf(PyObject *opts, wvol_tf *tf, double vmin, double vmax)
     return 0;
 }
 
-int wvolpy_render_setup(PyObject *opts, const wvol_geometry *g, double vmin, double vmax, wvol_camera *cam,
-                        wvol_tf *tf, wvol_render_params *rp)
+/* colors: a (z, y, x, 3) array ((y, x, 3) for one slice) on the grid g; its float32 C-order
+ * form goes to *holder and rp (finite and >= 0 is the library's check). */
+static int parse_colors(PyObject *opts, const wvol_geometry *g, wvol_render_params *rp, PyArrayObject **holder)
 {
+    PyObject *o = PyDict_GetItemString(opts, "colors");
+    PyArrayObject *a;
+    npy_intp *d;
+    int nd;
+    if (!o || o == Py_None) return 0;
+    if (!(a = wvolpy_real_f32(o))) return -1;
+    nd = PyArray_NDIM(a);
+    d = PyArray_DIMS(a);
+    if (!((nd == 4 && (size_t)d[0] == g->dims[2] && (size_t)d[1] == g->dims[1] && (size_t)d[2] == g->dims[0] &&
+           d[3] == 3) ||
+          (nd == 3 && g->dims[2] == 1 && (size_t)d[0] == g->dims[1] && (size_t)d[1] == g->dims[0] && d[2] == 3))) {
+        PyObject *shape = PyObject_GetAttrString((PyObject *)a, "shape");
+        PyErr_Format(PyExc_ValueError, "colors must be a (z, y, x, 3) array on the volume's grid (%zu, %zu, %zu, 3), "
+                     "got %S", g->dims[2], g->dims[1], g->dims[0], shape ? shape : Py_None);
+        Py_XDECREF(shape);
+        Py_DECREF(a);
+        return -1;
+    }
+    rp->colors = PyArray_DATA(a);
+    rp->colors_count = (size_t)PyArray_SIZE(a);
+    *holder = a;
+    return 0;
+}
+
+int wvolpy_render_setup(PyObject *opts, const wvol_geometry *g, double vmin, double vmax, wvol_camera *cam,
+                        wvol_tf *tf, wvol_render_params *rp, PyArrayObject **colors)
+{
+    *colors = NULL;
     const char *camspec, *mode;
     int width = 256, height = 256;
     wvol_error err;
@@ -150,7 +179,7 @@ int wvolpy_render_setup(PyObject *opts, const wvol_geometry *g, double vmin, dou
     }
     memset(tf, 0, sizeof *tf);
     if (rp->mode != WVOL_MODE_XRAY && parse_tf(opts, tf, vmin, vmax) < 0) return -1;
-    return 0;
+    return parse_colors(opts, g, rp, colors);
 }
 
 static PyObject *image_take(wvol_image *img)
@@ -171,9 +200,11 @@ static PyObject *stats_dict(const wvol_render_stats *st)
                          (Py_ssize_t)st->terminated, "clamped", (Py_ssize_t)st->clamped);
 }
 
-PyObject *wvolpy_render_finish(wvol_image *img, wvol_status s, const wvol_render_stats *st, const wvol_error *err)
+PyObject *wvolpy_render_finish(wvol_image *img, wvol_status s, const wvol_render_stats *st, const wvol_error *err,
+                               PyArrayObject *colors)
 {
     PyObject *a, *d;
+    Py_XDECREF(colors);
     if (s != WVOL_OK) {
         wvol_image_destroy(img);
         return wvolpy_raise(err);
@@ -192,7 +223,7 @@ PyObject *wvolpy_render_finish(wvol_image *img, wvol_status s, const wvol_render
 static PyObject *py_render_volume(PyObject *self, PyObject *args)
 {
     PyObject *arr_obj, *sp, *org, *opts;
-    PyArrayObject *holder;
+    PyArrayObject *holder, *colors;
     wvol_volume v;
     wvol_geometry g;
     wvol_camera cam;
@@ -213,14 +244,14 @@ static PyObject *py_render_volume(PyObject *self, PyObject *args)
     }
     wvol_volume_range(&v, &vmin, &vmax, NULL);
     wvol_geometry_of_volume(&g, &v);
-    if (wvolpy_render_setup(opts, &g, vmin, vmax, &cam, &tf, &rp) < 0) goto fail;
+    if (wvolpy_render_setup(opts, &g, vmin, vmax, &cam, &tf, &rp, &colors) < 0) goto fail;
     memset(&st, 0, sizeof st);
     Py_BEGIN_ALLOW_THREADS
     s = wvol_image_create(&img, cam.width, cam.height, &err);
     if (s == WVOL_OK) s = wvol_render_reference(img, &v, &cam, &tf, &rp, &st, &err);
     Py_END_ALLOW_THREADS
     Py_DECREF(holder);
-    return wvolpy_render_finish(img, s, &st, &err);
+    return wvolpy_render_finish(img, s, &st, &err, colors);
 fail:
     Py_DECREF(holder);
     return NULL;
@@ -233,7 +264,7 @@ static PyObject *py_render_fhat(PyObject *self, PyObject *args)
     const char *name;
     int levels, J;
     double vmin, vmax;
-    PyArrayObject *holder;
+    PyArrayObject *holder, *colors;
     wvol_coeffs c;
     wvol_geometry g;
     wvol_camera cam;
@@ -249,7 +280,7 @@ static PyObject *py_render_fhat(PyObject *self, PyObject *args)
         return NULL;
     if (wvolpy_as_coeffs(arr_obj, name, levels, shape, sp, org, &c, &holder) < 0) return NULL;
     wvol_geometry_of_coeffs(&g, &c);
-    if (wvolpy_render_setup(opts, &g, vmin, vmax, &cam, &tf, &rp) < 0) {
+    if (wvolpy_render_setup(opts, &g, vmin, vmax, &cam, &tf, &rp, &colors) < 0) {
         Py_DECREF(holder);
         return NULL;
     }
@@ -261,7 +292,7 @@ static PyObject *py_render_fhat(PyObject *self, PyObject *args)
     Py_END_ALLOW_THREADS
     wvol_basis_destroy(b);
     Py_DECREF(holder);
-    return wvolpy_render_finish(img, s, &st, &err);
+    return wvolpy_render_finish(img, s, &st, &err, colors);
 }
 
 PyMethodDef wvolpy_render_methods[] = {

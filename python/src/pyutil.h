@@ -15,6 +15,11 @@
  * RuntimeError for internal errors) with the library's message; returns NULL. */
 PyObject *wvolpy_raise(const wvol_error *err);
 
+/* Any real-valued array (float or integer dtype) as a float32 C-contiguous array: a new
+ * reference, the same memory when it already is one, else a converted copy. NULL with
+ * TypeError naming the dtype for anything else (complex, object, strings). */
+PyArrayObject *wvolpy_real_f32(PyObject *obj);
+
 /* Views a NumPy array (3D (z, y, x) or 2D (y, x) => nz = 1) as a float32 volume.
  * Float32 C-contiguous arrays are used without a copy; other real dtypes or layouts
  * are converted (a copy). *holder receives the array that owns the memory (DECREF it

@@ -365,7 +365,7 @@ def features(vol, wavelet="db2", levels=3, *, smooth=1, include_lowpass=True, pc
 
 def render(source, camera="+z", size=(256, 256), *, mode="absorption", tf="gaussian", tf_units="world",
            method="auto", step=0.5, shading=False, ambient=0.3, gauss_nodes=5, spline_j=None, termination=1e-6,
-           threads=0, return_stats=False):
+           threads=0, colors=None, return_stats=False):
     """Renders a volume (array or :class:`Volume`) or a :class:`Store`; returns the image as
     an (height, width, 4) float32 array of linear, premultiplied RGBA, row 0 at the top
     (X-ray: R = G = B = the integral of f along the ray in value x world length, A = 1 where
@@ -385,6 +385,11 @@ def render(source, camera="+z", size=(256, 256), *, mode="absorption", tf="gauss
     along an axis from 2D coefficients), "reference-fhat" (ray marching over the spline
     model) or "reference" (on the reconstructed volume). "auto": "reference" for volumes;
     for stores "axis" when it applies (X-ray along an axis), else "spline".
+    ``colors``: a colour volume, (z, y, x, 3) linear RGB per voxel on the volume's grid (e.g.
+    :func:`segment`'s ``colors``), replacing the transfer function's colour (opacity still
+    comes from ``tf``; nearest voxel, so classes keep crisp edges). Absorption modes and the
+    sampling methods only ("reference", "reference-fhat"; "auto" picks "reference-fhat" for a
+    store); "spline" and "axis" refuse it.
     ``termination``: stop a ray once its transmittance falls below this (0: never).
     ``threads``: OpenMP threads (0: the default).
     ``return_stats=True`` returns ``(image, stats)`` (rays, samples, seconds...).
@@ -392,10 +397,12 @@ def render(source, camera="+z", size=(256, 256), *, mode="absorption", tf="gauss
     w, h = (int(v) for v in size)
     opts = dict(camera=camera, width=w, height=h, mode=mode, tf=tf, tf_units=tf_units, step=step,
                 shading=int(bool(shading)), ambient=ambient, gauss_nodes=gauss_nodes, termination=termination,
-                threads=threads)
+                threads=threads, colors=colors)
     if isinstance(tf, os.PathLike):
         opts["tf"] = os.fspath(tf)
     if isinstance(source, Store):
+        if method == "auto" and colors is not None:
+            method = "reference-fhat"          # the spline paths have no voxels to colour
         if method == "auto":
             method = "spline"
             if mode == "xray":
@@ -424,8 +431,6 @@ def render(source, camera="+z", size=(256, 256), *, mode="absorption", tf="gauss
         spacing, origin = _geometry(source, None, None)
         img, st = _wvol.render_volume(_data(source), spacing, origin, opts)
     return (img, st) if return_stats else img
-
-
 
 
 # ---- isosurfaces ----------------------------------------------------------------------------

@@ -115,3 +115,58 @@ def test_bad_volumes():
                      (np.zeros((4, 4, 4), complex), TypeError)]:
         with pytest.raises(exc):
             wvol.render(arr, size=(8, 8))
+
+
+# ---- colour volumes (the segmentation's colours replace the TF colour) ----
+
+def test_uniform_colour_volume_gives_colour_times_alpha(gauss):
+    c = np.array([0.2, 0.5, 0.9], np.float32)
+    colors = np.broadcast_to(c, gauss.shape + (3,))                    # a read-only, non-contiguous view
+    plain = wvol.render(gauss, size=(12, 12))
+    img = wvol.render(gauss, size=(12, 12), colors=colors)
+    # kappa still comes from the TF: the same opacity; emission = c kappa, so RGB = c A
+    # exactly up to float32 accumulation (1e-5 of A)
+    assert np.array_equal(img[..., 3], plain[..., 3]) and img[..., 3].max() > 0.3
+    np.testing.assert_allclose(img[..., :3], c * img[..., 3:], rtol=0, atol=1e-5)
+    # a store: auto picks reference-fhat (the spline paths have no voxels to colour)
+    s = wvol.compress(gauss, "db2", 2, keep=0.2)
+    simg = wvol.render(s, size=(12, 12), colors=colors)
+    np.testing.assert_allclose(simg[..., :3], c * simg[..., 3:], rtol=0, atol=1e-5)
+    ref = wvol.render(s, size=(12, 12), colors=colors, method="reference")
+    np.testing.assert_allclose(ref[..., :3], c * ref[..., 3:], rtol=0, atol=1e-5)
+
+
+def test_segmentation_colours_render():
+    vol = wvol.synth.blobs(shape=(16, 16, 16), seed=2)
+    seg = wvol.segment(vol, levels=2, iterations=500)
+    img = wvol.render(vol, size=(16, 16), colors=seg.colors, camera="persp dir=1,1,1")
+    plain = wvol.render(vol, size=(16, 16), camera="persp dir=1,1,1")
+    assert np.isfinite(img).all() and np.array_equal(img[..., 3], plain[..., 3])
+    # premultiplied colours from [0, 1] lattice colours: each channel within [0, A]
+    assert np.all(img[..., :3] <= img[..., 3:] + 1e-6) and img[..., :3].max() > 0
+    # a 2D image takes (y, x, 3) colours
+    flat = wvol.render(vol.data[8], size=(16, 16), colors=seg.colors[8])
+    assert flat.shape == (16, 16, 4) and np.isfinite(flat).all()
+
+
+@pytest.mark.parametrize("colors, kw, exc, words", [
+    (np.zeros((16, 16, 16, 4)), {}, ValueError, "colors must be"),
+    (np.zeros((16, 16, 16)), {}, ValueError, "colors must be"),
+    (np.zeros((8, 16, 16, 3)), {}, ValueError, r"\(16, 16, 16, 3\)"),
+    (np.zeros((16, 16, 16, 3), complex), {}, TypeError, "real numbers"),
+    (np.full((16, 16, 16, 3), np.nan), {}, ValueError, "finite"),
+    (np.full((16, 16, 16, 3), -1.0), {}, ValueError, ">= 0"),
+    (np.zeros((16, 16, 16, 3)), dict(mode="xray"), ValueError, "absorption mode"),
+    ("red", {}, TypeError, ""),
+])
+def test_bad_colours(gauss, colors, kw, exc, words):
+    with pytest.raises(exc, match=words):
+        wvol.render(gauss, size=(4, 4), colors=colors, **kw)
+
+
+def test_colours_refused_by_the_spline_paths(gauss):
+    s = wvol.compress(gauss, "haar", 1, keep=0.5)
+    ones = np.ones(gauss.shape + (3,), np.float32)
+    for kw in (dict(method="spline"), dict(method="axis", mode="xray")):
+        with pytest.raises(NotImplementedError, match="reference"):
+            wvol.render(s, size=(4, 4), colors=ones, **kw)
