@@ -223,7 +223,7 @@ static void bounds_hold(const wvol_store *s, const wvol_volume *v, const char *w
     memset(&ws, 0, sizeof ws);
     CHECK(wvol__spline_geom_init(&g, s, NULL) == WVOL_OK, "%s: geometry", what);
     for (size_t i = 0; i < v->nx * v->ny * v->nz; i++) scale = fmax(scale, fabs(v->data[i]));
-    for (r = 0; r < 12; r++) {
+    for (r = 0; r < 8; r++) {
         double o[3], d[3], ov[3], dv[3], t0, t1, speed;
         random_ray(s, v, 0.0, 3, o, d);
         if (!extent(s, o, d, &t0, &t1, &speed)) continue;
@@ -251,7 +251,7 @@ static void bounds_hold(const wvol_store *s, const wvol_volume *v, const char *w
      * hull must hold to the same rounding (the tracer pads it by 1e-10 of the coefficients) */
     printf("  %s: %zu samples: |poly - f^| <= %.3g, hull exceeded by %.3g (scale %.3g)\n", what, checked, worst_eq,
            worst_hull, scale);
-    CHECK(checked > 500, "%s: only %zu samples", what, checked);
+    CHECK(checked > 300, "%s: only %zu samples", what, checked);
     CHECK(worst_eq <= 1e-9 * scale, "%s: piece polynomial differs from f^ by %g", what, worst_eq);
     CHECK(worst_hull <= 1e-9 * scale, "%s: f^ leaves the Bernstein hull by %g", what, worst_hull);
 }
@@ -547,7 +547,8 @@ int main(void)
         if (s) {
             bounds_hold(s, v, what);
             cell_bounds_hold(s, what);
-            no_missed_hit(s, v, cases[i].iso, 40, what);
+            /* 100% stores evaluate f^ from ~10x more functions: fewer rays keep the test fast */
+            no_missed_hit(s, v, cases[i].iso, cases[i].keep < 1 ? 40 : 24, what);
             degenerate_rays(s, cases[i].iso, !strcmp(cases[i].kind, "gaussian"), what);
             if (!strcmp(cases[i].kind, "gaussian")) tangent_rays(s, cases[i].iso, what);
             /* images cost a few seconds at 100%: the small stores have them */
