@@ -431,27 +431,28 @@ static void small_image(const wvol_store *s, double iso, const char *what)
 
 static void image_and_empty(const wvol_store *s, double iso, const char *what)
 {
+    enum { W = 32 };
     wvol_store_info info;
     wvol_geometry g;
     wvol_camera cam;
     wvol_image *img = NULL;
-    float *depth = malloc(48 * 48 * sizeof(float));
+    float *depth = malloc(W * W * sizeof(float));
     double dir[3] = {0.3, 1, -0.4};
     wvol_iso_trace_stats st;
     int a, nan = 0, i;
     wvol_store_get_info(s, &info);
     geometry_of_store(s, &g);
-    CHECK(wvol_camera_frame(&cam, &g, dir, WVOL_ORTHOGRAPHIC, 48, 48, 0, NULL) == WVOL_OK, "%s: camera", what);
+    CHECK(wvol_camera_frame(&cam, &g, dir, WVOL_ORTHOGRAPHIC, W, W, 0, NULL) == WVOL_OK, "%s: camera", what);
     cam.view_height /= 2.5; /* the iso sphere's radius is 0.29 of the half box */
-    CHECK(wvol_image_create(&img, 48, 48, NULL) == WVOL_OK, "%s: image", what);
+    CHECK(wvol_image_create(&img, W, W, NULL) == WVOL_OK, "%s: image", what);
     CHECK(wvol_iso_raytrace(img, depth, NULL, s, &cam, iso, NULL, &st, NULL) == WVOL_OK, "%s: image", what);
-    CHECK(st.hits > 500 && st.hits < 48 * 48 - 200, "%s: %zu hits", what, st.hits);
-    CHECK(isinf(depth[0]) && img->rgba[3] == 0.0f && isfinite(depth[24 * 48 + 24]) && img->rgba[4 * (24 * 48 + 24) + 3] == 1.0f,
+    CHECK(st.hits > 150 && st.hits < W * W - 100, "%s: %zu hits", what, st.hits);
+    CHECK(isinf(depth[0]) && img->rgba[3] == 0.0f && isfinite(depth[W / 2 * W + W / 2]) && img->rgba[4 * (W / 2 * W + W / 2) + 3] == 1.0f,
           "%s: depth buffer and alpha", what);
-    for (i = 0; i < 4 * 48 * 48; i++) nan += !isfinite(img->rgba[i]);
+    for (i = 0; i < 4 * W * W; i++) nan += !isfinite(img->rgba[i]);
     CHECK(nan == 0, "%s: %d non-finite pixels", what, nan);
     image_matches_rays(s, &cam, depth, iso, what);
-    printf("  %s: 48x48 image, %zu hits, %.0f functions, %.0f pieces, %.1f intervals per ray, %.3f s\n", what, st.hits,
+    printf("  %s: 32x32 image, %zu hits, %.0f functions, %.0f pieces, %.1f intervals per ray, %.3f s\n", what, st.hits,
            (double)st.functions / st.rays, (double)st.pieces / st.rays, (double)st.intervals / st.rays, st.seconds);
     /* perspective camera from inside the volume: rays start at the eye */
     {
@@ -460,9 +461,14 @@ static void image_and_empty(const wvol_store *s, double iso, const char *what)
         in.fov_y = 60;
         for (a = 0; a < 3; a++) in.eye[a] = cam.center[a], in.center[a] = cam.center[a] + dir[a];
         CHECK(wvol_iso_raytrace(img, depth, NULL, s, &in, iso, NULL, &st, NULL) == WVOL_OK, "%s: inside", what);
-        for (i = 0; i < 48 * 48; i++) nan += isnan(depth[i]) || depth[i] < 0;
+        for (i = 0; i < W * W; i++) nan += isnan(depth[i]) || depth[i] < 0;
         CHECK(nan == 0, "%s: camera inside: %d bad depths", what, nan);
     }
+    /* empty images: a 12x12 corner of the same frame is enough */
+    wvol_image_destroy(img);
+    img = NULL;
+    cam.width = cam.height = 12;
+    CHECK(wvol_image_create(&img, 12, 12, NULL) == WVOL_OK, "%s: image", what);
     CHECK(wvol_iso_raytrace(img, depth, NULL, s, &cam, 1e6, NULL, &st, NULL) == WVOL_OK, "%s: empty", what);
     CHECK(st.hits == 0 && strstr(st.message, "above f^ everywhere"), "%s: message '%s'", what, st.message);
     printf("  %s: iso 1e6: %s\n", what, st.message);
@@ -484,23 +490,23 @@ static void hybrid(const wvol_store *s, double iso, const char *what)
     wvol_geometry g;
     wvol_camera cam;
     wvol_image *hy = NULL, *plain = NULL, *front = NULL;
-    float *depth = malloc(32 * 32 * sizeof(float));
+    float *depth = malloc(24 * 24 * sizeof(float));
     double dir[3] = {1, 0.2, 0.1}, worst_out = 0, worst_in = 0;
     wvol_tf tf;
     int a, i, covered = 0;
     wvol_store_get_info(s, &info);
     geometry_of_store(s, &g);
-    wvol_camera_frame(&cam, &g, dir, WVOL_PERSPECTIVE, 32, 32, 0, NULL);
+    wvol_camera_frame(&cam, &g, dir, WVOL_PERSPECTIVE, 24, 24, 0, NULL);
     cam.fov_y /= 2.5;
     wvol_tf_preset(&tf, "gaussian", 0, 1, NULL);
-    wvol_image_create(&hy, 32, 32, NULL);
-    wvol_image_create(&plain, 32, 32, NULL);
-    wvol_image_create(&front, 32, 32, NULL);
+    wvol_image_create(&hy, 24, 24, NULL);
+    wvol_image_create(&plain, 24, 24, NULL);
+    wvol_image_create(&front, 24, 24, NULL);
     CHECK(wvol_iso_render_hybrid(hy, depth, s, &cam, &tf, iso, NULL, NULL, NULL, NULL, NULL) == WVOL_OK, "%s: hybrid",
           what);
     CHECK(wvol_render_spline(plain, s, &cam, &tf, NULL, NULL, NULL) == WVOL_OK, "%s: plain", what);
     CHECK(wvol_render_spline_until(front, s, &cam, &tf, NULL, depth, NULL, NULL) == WVOL_OK, "%s: front", what);
-    for (i = 0; i < 32 * 32; i++) {
+    for (i = 0; i < 24 * 24; i++) {
         const float *h = hy->rgba + 4 * i, *p = plain->rgba + 4 * i, *f = front->rgba + 4 * i;
         if (isinf(depth[i])) {
             for (a = 0; a < 4; a++) worst_out = fmax(worst_out, fabs(h[a] - p[a]));
@@ -515,8 +521,8 @@ static void hybrid(const wvol_store *s, double iso, const char *what)
     /* identical code paths: equality to float rounding of the compositing */
     CHECK(worst_out == 0, "%s: hybrid differs from the plain render off the surface by %g", what, worst_out);
     CHECK(worst_in <= 1e-6, "%s: hybrid over the surface off by %g", what, worst_in);
-    CHECK(covered > 100, "%s: only %d pixels see the surface", what, covered);
-    printf("  %s: hybrid 32x32, %d pixels on the surface\n", what, covered);
+    CHECK(covered > 40, "%s: only %d pixels see the surface", what, covered);
+    printf("  %s: hybrid 24x24, %d pixels on the surface\n", what, covered);
     wvol_image_destroy(hy);
     wvol_image_destroy(plain);
     wvol_image_destroy(front);
