@@ -8,6 +8,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include <time.h>
+#include <stdio.h>
 #include <zlib.h>
 
 #include "wvc_format.h"
@@ -79,54 +80,126 @@ typedef struct sec_stats {
     double zero_sse, energy;
     double s1, ss1, s2, ss2;
     uint64_t n1, n2;
-    double maxabs;
 } sec_stats;
 
 static double sec_rounding(const wvc_band *b, double f) { return b->band == 0 ? 0.5 : f; }
 
 /* Sums over slices [z0, z1) of one band (serial; the caller spreads work items over
- * threads). Q (may be NULL) receives the quantised values. Branch-free per row so
- * that it vectorises (4 doubles per AVX2 register in the x86-64-v3 clone); counts
- * are summed as doubles within a row (exact below 2^53). */
+ * threads). Q (may be NULL) receives the quantised values; with `sparse` Q is known
+ * to be all zero and only groups with a non-zero are written (the pages of an
+ * all-zero stretch are never touched: fresh pages cost more to write than to read).
+ *
+ * Most coefficients quantise to zero: a group of eight whose |c| all lie below the
+ * dead zone (float test, with a margin far above rounding) only adds c^2 to the
+ * zeroed energy; the others get the full arithmetic, in double. Explicit vectors
+ * (AVX2 in the x86-64-v3 clone; GCC will not reorder a double reduction itself),
+ * branch-free selects; counts are summed as doubles within a row (exact below
+ * 2^53); the scalar tail does the same arithmetic. */
+typedef double wvc_v4d __attribute__((vector_size(32)));
+typedef int64_t wvc_v4l __attribute__((vector_size(32)));
+typedef int32_t wvc_v4i __attribute__((vector_size(16)));
+typedef float wvc_v4f __attribute__((vector_size(16)));
+typedef float wvc_v8f __attribute__((vector_size(32)));
+typedef int32_t wvc_v8i __attribute__((vector_size(32)));
+#define SEL(v, m) ((wvc_v4d)((wvc_v4l)(v) & (m))) /* v where the mask is set, else 0 */
+
+typedef struct row_acc {
+    wvc_v4d rz, re, r1, rr1, r2, rr2, c1, c2;
+} row_acc;
+
+/* The full arithmetic on four coefficients; writes their q when qrow is given. */
+static inline __attribute__((always_inline)) void quad_stats(row_acc *A, wvc_v4f cf, double inv, double f,
+                                                               int32_t *qrow, int sparse)
+{
+    const wvc_v4d vinv = {inv, inv, inv, inv}, vf = {f, f, f, f};
+    const wvc_v4d vq = {WVC_QMAX, WVC_QMAX, WVC_QMAX, WVC_QMAX}, one = {1, 1, 1, 1}, two = {2, 2, 2, 2};
+    const wvc_v4l absmask = {INT64_MAX, INT64_MAX, INT64_MAX, INT64_MAX};
+    wvc_v4d c = __builtin_convertvector(cf, wvc_v4d), ac = (wvc_v4d)((wvc_v4l)c & absmask);
+    wvc_v4d a = ac * vinv, tt = a + vf;
+    wvc_v4l big = tt >= vq;
+    /* truncation, not floor(): t >= 0; the step's lower bound keeps t < 2^30 anyway */
+    tt = (wvc_v4d)(((wvc_v4l)tt & ~big) | ((wvc_v4l)vq & big));
+    wvc_v4i qi = __builtin_convertvector(tt, wvc_v4i);
+    wvc_v4d q = __builtin_convertvector(qi, wvc_v4d), r = a - q, cc = c * c;
+    wvc_v4l is0 = q < one, is1 = q == one, is2 = q >= two;
+    A->re += cc;
+    A->rz += SEL(cc, is0);
+    A->c1 += SEL(one, is1);
+    A->r1 += SEL(r, is1);
+    A->rr1 += SEL(r * r, is1);
+    A->c2 += SEL(one, is2);
+    A->r2 += SEL(r, is2);
+    A->rr2 += SEL(r * r, is2);
+    if (qrow && (!sparse || (qi[0] | qi[1] | qi[2] | qi[3]))) {
+        wvc_v4i neg = cf < (wvc_v4f){0, 0, 0, 0};
+        qi = (qi ^ neg) - neg;
+        memcpy(qrow, &qi, sizeof qi);
+    }
+}
+
 WVC_HOT static void rows_stats(sec_stats *st, const float *C, int32_t *Q, const size_t p[3], const wvc_band *b,
-                               double step, double f, size_t z0, size_t z1, int sample)
+                               double step, double f, size_t z0, size_t z1, int sparse)
 {
     const double inv = 1.0 / step, qmax = WVC_QMAX;
-    double zero_sse = 0, energy = 0, s1 = 0, ss1 = 0, s2 = 0, ss2 = 0, maxabs = 0;
+    /* below this |c| / step + f < 1 for sure: the relative margin 1e-6 dwarfs float rounding */
+    const float thr = (float)((1.0 - f) * step * (1.0 - 1e-6));
+    const wvc_v8f vthr = {thr, thr, thr, thr, thr, thr, thr, thr};
+    const wvc_v8i absmask = {INT32_MAX, INT32_MAX, INT32_MAX, INT32_MAX, INT32_MAX, INT32_MAX, INT32_MAX, INT32_MAX};
+    double zero_sse = 0, energy = 0, s1 = 0, ss1 = 0, s2 = 0, ss2 = 0;
     uint64_t n1 = 0, n2 = 0;
-    size_t x, y, z;
+    size_t x, y, z, ex = b->ext[0];
     for (z = z0; z < z1; z++)
         for (y = 0; y < b->ext[1]; y++) {
             size_t base = wvc_index(p, b, 0, y, z);
             const float *restrict row = C + base;
-            double rz = 0, re = 0, r1 = 0, rr1 = 0, r2 = 0, rr2 = 0, rm = 0, c1 = 0, c2 = 0;
-            if (sample && (y + 3 * z) % 8 != 0) continue;
             int32_t *restrict qrow = Q ? Q + base : NULL;
-            for (x = 0; x < b->ext[0]; x++) {
-                double c = row[x], ac = fabs(c), a = ac * inv, t = a + f;
-                /* truncation, not floor(): t >= 0; the encoder's range check keeps t < 2^30 */
-                double q = (double)(int32_t)(t < qmax ? t : qmax), r = a - q, cc = c * c;
-                int is0 = q == 0, is1 = q == 1, is2 = q >= 2;
-                re += cc;
-                rm = ac > rm ? ac : rm;
-                rz += is0 ? cc : 0;
-                c1 += is1 ? 1.0 : 0.0;
-                r1 += is1 ? r : 0;
-                rr1 += is1 ? r * r : 0;
-                c2 += is2 ? 1.0 : 0.0;
-                r2 += is2 ? r : 0;
-                rr2 += is2 ? r * r : 0;
-                if (qrow) qrow[x] = c < 0 ? -(int32_t)q : (int32_t)q; /* loop-invariant test: unswitched */
+            row_acc A;
+            wvc_v4d zq = {0, 0, 0, 0};
+            double t[8];
+            memset(&A, 0, sizeof A);
+            for (x = 0; x + 8 <= ex; x += 8) {
+                wvc_v8f cf;
+                wvc_v8i hit;
+                wvc_v4l h4;
+                memcpy(&cf, row + x, sizeof cf);
+                hit = (wvc_v8f)((wvc_v8i)cf & absmask) >= vthr;
+                h4 = (wvc_v4l)hit;
+                if (!(h4[0] | h4[1] | h4[2] | h4[3])) {
+                    /* all zero: only their energy */
+                    wvc_v4f lo = {cf[0], cf[1], cf[2], cf[3]}, hi = {cf[4], cf[5], cf[6], cf[7]};
+                    wvc_v4d dl = __builtin_convertvector(lo, wvc_v4d), dh = __builtin_convertvector(hi, wvc_v4d);
+                    zq += dl * dl + dh * dh;
+                    if (qrow && !sparse) memset(qrow + x, 0, 8 * sizeof *qrow);
+                    continue;
+                }
+                {
+                    wvc_v4f lo = {cf[0], cf[1], cf[2], cf[3]}, hi = {cf[4], cf[5], cf[6], cf[7]};
+                    quad_stats(&A, lo, inv, f, qrow ? qrow + x : NULL, sparse);
+                    quad_stats(&A, hi, inv, f, qrow ? qrow + x + 4 : NULL, sparse);
+                }
             }
-            zero_sse += rz;
-            energy += re;
-            s1 += r1;
-            ss1 += rr1;
-            s2 += r2;
-            ss2 += rr2;
-            n1 += (uint64_t)c1;
-            n2 += (uint64_t)c2;
-            if (rm > maxabs) maxabs = rm;
+            memset(t, 0, sizeof t);
+            for (int k = 0; k < 4; k++) {
+                t[0] += A.rz[k] + zq[k], t[1] += A.re[k] + zq[k], t[2] += A.r1[k], t[3] += A.rr1[k];
+                t[4] += A.r2[k], t[5] += A.rr2[k], t[6] += A.c1[k], t[7] += A.c2[k];
+            }
+            for (; x < ex; x++) {
+                double c = row[x], ac = fabs(c), a = ac * inv, tt = a + f;
+                double q = (double)(int32_t)(tt < qmax ? tt : qmax), r = a - q, cc = c * c;
+                t[1] += cc;
+                if (q == 0) t[0] += cc;
+                else if (q == 1) t[2] += r, t[3] += r * r, t[6] += 1;
+                else t[4] += r, t[5] += r * r, t[7] += 1;
+                if (qrow && (!sparse || q != 0)) qrow[x] = c < 0 ? -(int32_t)q : (int32_t)q;
+            }
+            zero_sse += t[0];
+            energy += t[1];
+            s1 += t[2];
+            ss1 += t[3];
+            s2 += t[4];
+            ss2 += t[5];
+            n1 += (uint64_t)t[6];
+            n2 += (uint64_t)t[7];
         }
     memset(st, 0, sizeof *st);
     st->zero_sse = zero_sse;
@@ -137,13 +210,12 @@ WVC_HOT static void rows_stats(sec_stats *st, const float *C, int32_t *Q, const 
     st->ss2 = ss2;
     st->n1 = n1;
     st->n2 = n2;
-    st->maxabs = maxabs;
 }
+#undef SEL
 
 /* Work items: slabs of about 64K coefficients of one section each. */
 typedef struct work_item {
     int sec;
-    int sampled; /* in the 1-in-8 subsample used while searching the step */
     size_t z0, z1;
 } work_item;
 
@@ -165,8 +237,6 @@ static work_item *work_items(const wvc_layout *L, int *count)
         if (!b->count) continue;
         for (z = 0; z < b->ext[2]; z += per) {
             w[n].sec = s;
-            /* small sections are always taken whole; in large ones one row in eight */
-            w[n].sampled = b->count > 2 * 65536 && b->ext[1] * b->ext[2] >= 64;
             w[n].z0 = z;
             w[n].z1 = z + per < b->ext[2] ? z + per : b->ext[2];
             n++;
@@ -176,13 +246,13 @@ static work_item *work_items(const wvc_layout *L, int *count)
     return w;
 }
 
-/* Per-section sums over the whole pyramid in one parallel pass. */
+/* Per-section sums over the whole pyramid in one parallel pass; Q as in rows_stats
+ * (*qzero: Q is all zero, cleared once written). */
 static int all_stats(sec_stats *st, const wvc_layout *L, const float *C, int32_t *Q, double step, double f,
-                     int sample)
+                     int *qzero)
 {
-    int n = 0, i, s;
+    int n = 0, i, sparse = Q && *qzero;
     work_item *w = work_items(L, &n);
-    double seen[WVOL_WVC_MAX_SECTIONS] = {0};
     sec_stats *part;
     if (!w) return -1;
     part = malloc((n ? n : 1) * sizeof *part);
@@ -193,18 +263,11 @@ static int all_stats(sec_stats *st, const wvc_layout *L, const float *C, int32_t
 #pragma omp parallel for schedule(dynamic, 1) if (n > 2)
     for (i = 0; i < n; i++)
         rows_stats(&part[i], C, Q, L->p, &L->sec[w[i].sec], step, sec_rounding(&L->sec[w[i].sec], f), w[i].z0,
-                   w[i].z1, sample && w[i].sampled);
+                   w[i].z1, sparse);
+    if (Q) *qzero = 0;
     memset(st, 0, (size_t)L->nsec * sizeof *st);
     for (i = 0; i < n; i++) {
         sec_stats *d = &st[w[i].sec], *a = &part[i];
-        const wvc_band *b = &L->sec[w[i].sec];
-        size_t z, y;
-        if (sample && w[i].sampled) {
-            for (z = w[i].z0; z < w[i].z1; z++)
-                for (y = 0; y < b->ext[1]; y++) seen[w[i].sec] += (y + 3 * z) % 8 == 0 ? (double)b->ext[0] : 0.0;
-        } else {
-            seen[w[i].sec] += (double)(w[i].z1 - w[i].z0) * (double)(b->ext[0] * b->ext[1]);
-        }
         d->zero_sse += a->zero_sse;
         d->energy += a->energy;
         d->s1 += a->s1;
@@ -213,22 +276,7 @@ static int all_stats(sec_stats *st, const wvc_layout *L, const float *C, int32_t
         d->ss2 += a->ss2;
         d->n1 += a->n1;
         d->n2 += a->n2;
-        if (a->maxabs > d->maxabs) d->maxabs = a->maxabs;
     }
-    if (sample)
-        for (s = 0; s < L->nsec; s++) {
-            /* scale the subsample's sums up to the section (the counts stay estimates) */
-            double k = seen[s] > 0 ? (double)L->sec[s].count / seen[s] : 1.0;
-            if (k == 1.0) continue;
-            st[s].zero_sse *= k;
-            st[s].energy *= k;
-            st[s].s1 *= k;
-            st[s].ss1 *= k;
-            st[s].s2 *= k;
-            st[s].ss2 *= k;
-            st[s].n1 = (uint64_t)((double)st[s].n1 * k);
-            st[s].n2 = (uint64_t)((double)st[s].n2 * k);
-        }
     free(part);
     free(w);
     return 0;
@@ -247,27 +295,29 @@ static double sec_error(const sec_stats *st, double step, float *d1, float *d2)
     return e < 0 ? 0 : e;
 }
 
-static double total_error(const wvc_layout *L, const float *C, double step, double f, sec_stats *st, int sample,
-                          int32_t *Q)
+static double total_error(const wvc_layout *L, const float *C, double step, double f, sec_stats *st, int32_t *Q,
+                          int *qzero)
 {
     double e = 0;
     int s;
-    if (all_stats(st, L, C, Q, step, f, sample)) return NAN;
+    if (all_stats(st, L, C, Q, step, f, qzero)) return NAN;
     for (s = 0; s < L->nsec; s++) e += sec_error(&st[s], step, NULL, NULL);
+    if (getenv("WVC_DEBUG")) fprintf(stderr, "pass step=%.6g err=%.6g t=%.4f\n", step, e, now());
     return e;
 }
 
-/* Finds the largest step (to within ~0.5%) whose error stays at or below target:
- * secant iterations on log(error) against log(step), each an exact pass. */
+/* Finds the largest step (to within ~0.2%) whose error lies in [accept, 1] x target:
+ * secant iterations on log(error) against log(step) from d0, each an exact pass
+ * that also quantises into Q. *last: the step of the last pass (what Q holds). */
 static double search_step(const wvc_layout *L, const float *C, double target, double f, double maxabs,
-                          double min_step, sec_stats *st, int *iters, int sample, double d0, double *slope_io,
-                          double accept, int32_t *Q, double *last)
+                          double min_step, sec_stats *st, int *iters, double d0, double accept, int32_t *Q,
+                          int *qzero, double *last)
 {
-    double e0, d1, e1, best_ok = 0, best_bad = INFINITY, slope = *slope_io;
+    double e0, d1, e1, best_ok = 0, best_bad = INFINITY, slope = 2.0;
     int it;
     if (d0 < min_step) d0 = min_step;
     if (maxabs > 0 && d0 > 4 * maxabs) d0 = 4 * maxabs;
-    e0 = total_error(L, C, d0, f, st, sample, Q);
+    e0 = total_error(L, C, d0, f, st, Q, qzero);
     if (!isfinite(e0)) return NAN;
     *last = d0;
     (*iters)++;
@@ -275,8 +325,8 @@ static double search_step(const wvc_layout *L, const float *C, double target, do
     d1 = d0;
     e1 = e0;
     for (it = 0; it < 14; it++) {
-        double ratio, next, aim = sample ? target : 0.5 * (1 + accept) * target;
-        if (sample ? fabs(e1 - target) <= (1 - accept) * target : (e1 <= target && e1 >= accept * target)) break;
+        double ratio, next, aim = 0.5 * (1 + accept) * target;
+        if (e1 <= target && e1 >= accept * target) break;
         if (e1 <= 0) {
             next = d1 * 4;
         } else {
@@ -292,13 +342,13 @@ static double search_step(const wvc_layout *L, const float *C, double target, do
         if (next > 4 * maxabs && maxabs > 0) next = 4 * maxabs;
         /* the error is a staircase in the step: changes below 0.05% are noise */
         if (fabs(next / d1 - 1) < 5e-4) {
-            if (e1 <= target || sample) break;
+            if (e1 <= target) break;
             next = d1 * 0.995;
         }
         d0 = d1;
         e0 = e1;
         d1 = next;
-        e1 = total_error(L, C, d1, f, st, sample, Q);
+        e1 = total_error(L, C, d1, f, st, Q, qzero);
         if (!isfinite(e1)) return NAN;
         *last = d1;
         (*iters)++;
@@ -314,8 +364,6 @@ static double search_step(const wvc_layout *L, const float *C, double target, do
         }
         if (isfinite(best_bad) && best_ok > 0 && best_bad / best_ok < 1.002) break;
     }
-    *slope_io = slope;
-    if (sample) return d1; /* an estimate: the exact search starts there */
     if (best_ok > 0) return best_ok;
     /* not reached even at the smallest step the quantiser allows */
     return min_step;
@@ -490,24 +538,22 @@ out:
 }
 
 /* The largest step whose error stays within [0.985, 1] x target (PSNR at most
- * 0.066 dB above the target): first on a 1-in-8 subsample of the rows of the large
- * sections (cheap; aimed a little below the target), then exact passes that also
- * quantise into Q (usually one). On return Q and st hold the quantisation with the
- * returned step. */
-static double choose_step(const wvc_layout *L, const float *C, double target, double f, double maxabs,
-                          double min_step, sec_stats *st, int *iters, int32_t *Q)
+ * 0.066 dB above the target): first the step the histograms predict for 0.9925 x
+ * target (no pass over the data), then exact passes that also quantise into Q
+ * (usually one). On return Q and st hold the quantisation with the returned step. */
+static double choose_step(const wvc_layout *L, const float *C, const uint64_t *H, double target, double f,
+                          double maxabs, double min_step, sec_stats *st, int *iters, int32_t *Q)
 {
-    double total = 0, d, slope = 2.0, last = 0;
-    int s;
-    for (s = 0; s < L->nsec; s++) total += (double)L->sec[s].count;
+    double d, last = 0;
+    int qzero = 1;
     *iters = 0;
-    d = sqrt(12.0 * target / (total > 0 ? total : 1));
-    d = search_step(L, C, 0.9925 * target, f, maxabs, min_step, st, iters, 1, d, &slope, 0.993, NULL, &last);
+    d = wvol__wvc_hist_step(H, L, 0.9925 * target, f, min_step, 4 * maxabs);
+    if (getenv("WVC_DEBUG")) fprintf(stderr, "hist step=%.6g target=%.6g t=%.4f\n", d, target, now());
     if (!isfinite(d)) return NAN;
-    d = search_step(L, C, target, f, maxabs, min_step, st, iters, 0, d, &slope, 0.985, Q, &last);
-    if (last != d) {
+    d = search_step(L, C, target, f, maxabs, min_step, st, iters, d, 0.985, Q, &qzero, &last);
+    if (isfinite(d) && last != d) {
         (*iters)++;
-        if (!isfinite(total_error(L, C, d, f, st, 0, Q))) return NAN;
+        if (!isfinite(total_error(L, C, d, f, st, Q, &qzero))) return NAN;
     }
     return d;
 }
@@ -579,7 +625,8 @@ wvol_status wvol_wvc_encode(void **out, size_t *out_size, const wvol_coeffs *c,
     size_t n, hsize, total;
     double step, maxabs = 0, energy = 0, sse = 0, t0, t1, t2;
     uint64_t nonzero = 0, payload = 0;
-    int s, iters = 0, failed = 0, searched = 0;
+    int s, iters = 0, failed = 0, searched = 0, bad = 0, qzero = 1;
+    uint64_t *H = NULL;
     uint8_t *file;
     wvol_status status = WVOL_OK;
     wvol_wvc_report rep;
@@ -606,29 +653,24 @@ wvol_status wvol_wvc_encode(void **out, size_t *out_size, const wvol_coeffs *c,
     n /= sizeof(int32_t);
     L = malloc(sizeof *L);
     st = calloc(WVOL_WVC_MAX_SECTIONS, sizeof *st);
-    Q = malloc(n * sizeof *Q);
+    /* zero pages until written: the quantiser writes only where a row has non-zeros */
+    Q = calloc(n, sizeof *Q);
     if (!L || !st || !Q) {
         status = wvol_error_set(err, WVOL_ERR_NOMEM, "wvc encode: out of memory");
         goto done;
     }
     wvol__wvc_layout(L, c->px, c->py, c->pz, c->levels);
 
-    /* range and finiteness of the coefficients */
+    /* range and finiteness of the coefficients, and their magnitude histograms */
     t0 = now();
-    {
-        const float *C = c->data;
-        long i;
-        int bad = 0;
-#pragma omp parallel for reduction(max : maxabs) reduction(| : bad) schedule(static) if (n > 65536)
-        for (i = 0; i < (long)n; i++) {
-            float a = fabsf(C[i]);
-            if (!(a <= 3.0e38f)) bad = 1;
-            else if (a > maxabs) maxabs = a;
-        }
-        if (bad) {
-            status = wvol_error_set(err, WVOL_ERR_NONFINITE, "wvc encode: coefficients hold NaN or Inf");
-            goto done;
-        }
+    H = malloc((size_t)L->nsec * WVC_HBINS * sizeof *H);
+    if (!H || wvol__wvc_hist(H, L, c->data, &maxabs, &bad)) {
+        status = wvol_error_set(err, WVOL_ERR_NOMEM, "wvc encode: out of memory");
+        goto done;
+    }
+    if (bad) {
+        status = wvol_error_set(err, WVOL_ERR_NONFINITE, "wvc encode: coefficients hold NaN or Inf");
+        goto done;
     }
     {
         /* |q| stays below WVC_QMAX/2 so that the quantiser never clips */
@@ -649,7 +691,7 @@ wvol_status wvol_wvc_encode(void **out, size_t *out_size, const wvol_coeffs *c,
         } else if (maxabs == 0) {
             step = 1.0; /* every coefficient is zero: any step is exact */
         } else {
-            step = choose_step(L, c->data, p->target_sse, p->rounding, maxabs, min_step, st, &iters, Q);
+            step = choose_step(L, c->data, H, p->target_sse, p->rounding, maxabs, min_step, st, &iters, Q);
             if (!isfinite(step)) {
                 status = wvol_error_set(err, WVOL_ERR_NOMEM, "wvc encode: out of memory");
                 goto done;
@@ -662,7 +704,7 @@ wvol_status wvol_wvc_encode(void **out, size_t *out_size, const wvol_coeffs *c,
     rep.seconds_step = t1 - t0;
 
     /* quantise, with the exact error per section */
-    if (!searched && all_stats(st, L, c->data, Q, step, p->rounding, 0)) {
+    if (!searched && all_stats(st, L, c->data, Q, step, p->rounding, &qzero)) {
         status = wvol_error_set(err, WVOL_ERR_NOMEM, "wvc encode: out of memory");
         goto done;
     }
@@ -758,6 +800,7 @@ wvol_status wvol_wvc_encode(void **out, size_t *out_size, const wvol_coeffs *c,
     if (report) *report = rep;
 done:
     for (s = 0; s < WVOL_WVC_MAX_SECTIONS; s++) free(pay[s]);
+    free(H);
     free(Q);
     free(st);
     free(L);

@@ -42,6 +42,14 @@ void wvol__wvc_layout(wvc_layout *L, size_t px, size_t py, size_t pz, int levels
 /* Largest |q| the coders accept, so that sums and reconstructions stay finite. */
 #define WVC_QMAX (1 << 30)
 
+/* Magnitude histograms (wvc_hist.c): H holds nsec x WVC_HBINS counts of |c| per
+ * logarithmic bin. wvol__wvc_hist fills them in one pass and reports max |c| and
+ * whether any coefficient is NaN or Inf; returns 0 or -1 (memory). hist_step is
+ * the largest step in [lo, hi] whose estimated error stays within target (NAN: memory). */
+#define WVC_HBINS 8192
+int wvol__wvc_hist(uint64_t *H, const wvc_layout *L, const float *C, double *maxabs, int *nonfinite);
+double wvol__wvc_hist_step(const uint64_t *H, const wvc_layout *L, double target, double f, double lo, double hi);
+
 /* Band coders over the global quantised array Q (padded grid, x fastest).
  * encode: appends the CABAC payload to *buf (heap, caller frees); returns 0 or -1 (memory).
  * decode: writes the band into Q; returns 0, or -1 if the payload is malformed. */

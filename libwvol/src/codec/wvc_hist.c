@@ -1,0 +1,199 @@
+/* SPDX-License-Identifier: MIT
+ * Magnitude histograms of the sub-bands and the quantiser step they predict.
+ *
+ * One pass over the coefficients counts |c| per section in logarithmic bins (the
+ * top 14 bits of the float32 pattern: exponent and 5 mantissa bits, 32 bins per
+ * octave, each at most 2.2% wide); it also finds max |c| and refuses NaN/Inf. From
+ * the counts the squared error of the dead-zone quantiser with centroid offsets
+ * (docs/wvc-format.md, "Quantiser") is estimated for any step without touching the
+ * data again, so the step that meets an error target is found by bisection on the
+ * estimate; one exact pass then checks it (wvc_encode.c). Integer counts make the
+ * result independent of the number of threads. */
+#include <math.h>
+#include <omp.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "wvc_internal.h"
+
+#define HSHIFT 18 /* float bits >> HSHIFT = bin */
+
+static inline uint32_t float_bits(float v)
+{
+    uint32_t u;
+    memcpy(&u, &v, 4);
+    return u;
+}
+
+static inline double bin_edge(uint32_t k)
+{
+    uint32_t u = k << HSHIFT;
+    float v;
+    if (u >= 0x7F800000u) return 3.4028234663852886e38; /* top finite bin ends at FLT_MAX */
+    memcpy(&v, &u, 4);
+    return v;
+}
+
+WVC_HOT static void slice_hist(uint64_t *restrict H, const float *restrict row0, size_t ex, size_t ey, size_t sy,
+                               uint32_t *maxbits)
+{
+    uint32_t mx = *maxbits;
+    for (size_t y = 0; y < ey; y++) {
+        const float *restrict row = row0 + y * sy;
+        for (size_t x = 0; x < ex; x++) {
+            uint32_t u = float_bits(row[x]) & 0x7FFFFFFFu;
+            mx = u > mx ? u : mx;
+            H[u >> HSHIFT]++;
+        }
+    }
+    *maxbits = mx;
+}
+
+int wvol__wvc_hist(uint64_t *H, const wvc_layout *L, const float *C, double *maxabs, int *nonfinite)
+{
+    const size_t nb = WVC_HBINS;
+    size_t ntask = 0, *task_sec, t;
+    int nthr = omp_get_max_threads(), s;
+    uint64_t *part;
+    uint32_t maxbits = 0;
+    for (s = 0; s < L->nsec; s++) ntask += L->sec[s].count ? L->sec[s].ext[2] : 0;
+    task_sec = malloc((ntask ? ntask : 1) * sizeof *task_sec);
+    part = calloc((size_t)nthr * (size_t)L->nsec * nb, sizeof *part);
+    if (!task_sec || !part) {
+        free(task_sec);
+        free(part);
+        return -1;
+    }
+    for (t = 0, s = 0; s < L->nsec; s++)
+        for (size_t z = 0; L->sec[s].count && z < L->sec[s].ext[2]; z++) task_sec[t++] = (size_t)s << 32 | z;
+#pragma omp parallel num_threads(nthr) reduction(max : maxbits) if (ntask > 16)
+    {
+        uint64_t *mine = part + (size_t)omp_get_thread_num() * (size_t)L->nsec * nb;
+        uint32_t mb = 0;
+        long i;
+#pragma omp for schedule(dynamic, 8)
+        for (i = 0; i < (long)ntask; i++) {
+            const wvc_band *b = &L->sec[task_sec[i] >> 32];
+            size_t z = task_sec[i] & 0xFFFFFFFFu;
+            slice_hist(mine + (task_sec[i] >> 32) * nb, C + wvc_index(L->p, b, 0, 0, z), b->ext[0], b->ext[1],
+                       L->p[0], &mb);
+        }
+        maxbits = mb > maxbits ? mb : maxbits;
+    }
+    memset(H, 0, (size_t)L->nsec * nb * sizeof *H);
+    for (int th = 0; th < nthr; th++)
+        for (size_t k = 0; k < (size_t)L->nsec * nb; k++) H[k] += part[(size_t)th * L->nsec * nb + k];
+    free(part);
+    free(task_sec);
+    *nonfinite = maxbits >= 0x7F800000u;
+    *maxabs = INFINITY;
+    if (!*nonfinite) {
+        float m;
+        memcpy(&m, &maxbits, 4);
+        *maxabs = m;
+    }
+    return 0;
+}
+
+/* The non-empty bins of all sections, for repeated evaluation. */
+typedef struct hbin {
+    double lo, hi, n;
+} hbin;
+
+typedef struct hlist {
+    hbin *bins;
+    size_t start[WVOL_WVC_MAX_SECTIONS + 1];
+} hlist;
+
+static int hist_compact(hlist *hl, const uint64_t *H, const wvc_layout *L)
+{
+    size_t n = 0, k;
+    for (k = 0; k < (size_t)L->nsec * WVC_HBINS; k++) n += H[k] != 0;
+    hl->bins = malloc((n ? n : 1) * sizeof *hl->bins);
+    if (!hl->bins) return -1;
+    n = 0;
+    for (int s = 0; s < L->nsec; s++) {
+        hl->start[s] = n;
+        for (k = 0; k < WVC_HBINS; k++) {
+            uint64_t c = H[(size_t)s * WVC_HBINS + k];
+            if (!c) continue;
+            hl->bins[n].lo = bin_edge((uint32_t)k);
+            hl->bins[n].hi = bin_edge((uint32_t)k + 1);
+            hl->bins[n].n = (double)c;
+            n++;
+        }
+    }
+    hl->start[L->nsec] = n;
+    return 0;
+}
+
+/* Estimated squared error of the quantiser with step d on one section's counts:
+ * within a bin |c| is taken as uniform; a bin across the zero threshold is split;
+ * a bin wider than the step spreads its remainders r over the whole cell. */
+static double hist_section_error(const hbin *bins, size_t nbins, double d, double f)
+{
+    const double inv = 1.0 / d, T = (1.0 - f) * d;
+    double zero = 0, n1 = 0, s1 = 0, ss1 = 0, n2 = 0, s2 = 0, ss2 = 0;
+    const double ur = 0.5 - f, urr = ((1 - f) * (1 - f) * (1 - f) + f * f * f) / 3.0; /* r uniform on [-f, 1-f) */
+    for (size_t k = 0; k < nbins; k++) {
+        double n = bins[k].n, lo = bins[k].lo, hi = bins[k].hi;
+        if (hi <= T) {
+            zero += n * (lo * lo + lo * hi + hi * hi) / 3.0;
+            continue;
+        }
+        if (lo < T) { /* split at the threshold */
+            double phi = (T - lo) / (hi - lo);
+            zero += n * phi * (lo * lo + lo * T + T * T) / 3.0;
+            n *= 1 - phi;
+            lo = T;
+        }
+        {
+            double a = 0.5 * (lo + hi) * inv, w = (hi - lo) * inv, q = floor(a + f), r, rr;
+            if (w >= 1) {
+                r = ur;
+                rr = urr;
+            } else {
+                r = a - q;
+                rr = r * r + w * w / 12.0;
+            }
+            if (q <= 1) {
+                n1 += n, s1 += n * r, ss1 += n * rr;
+            } else {
+                n2 += n, s2 += n * r, ss2 += n * rr;
+            }
+        }
+    }
+    {
+        double e = zero;
+        if (n1 > 0) e += d * d * (ss1 - s1 * s1 / n1);
+        if (n2 > 0) e += d * d * (ss2 - s2 * s2 / n2);
+        return e;
+    }
+}
+
+static double hlist_error(const hlist *hl, const wvc_layout *L, double step, double f_detail)
+{
+    double e = 0;
+    for (int s = 0; s < L->nsec; s++)
+        e += hist_section_error(hl->bins + hl->start[s], hl->start[s + 1] - hl->start[s], step,
+                                L->sec[s].band ? f_detail : 0.5);
+    return e;
+}
+
+double wvol__wvc_hist_step(const uint64_t *H, const wvc_layout *L, double target, double f, double lo, double hi)
+{
+    hlist hl;
+    if (hist_compact(&hl, H, L)) return NAN;
+    /* the error grows with the step: bisection in log(step) to 0.1% */
+    if (hlist_error(&hl, L, hi, f) <= target) {
+        lo = hi;
+    } else if (hlist_error(&hl, L, lo, f) <= target) {
+        while (hi / lo > 1.001) {
+            double mid = sqrt(lo * hi);
+            if (hlist_error(&hl, L, mid, f) <= target) lo = mid;
+            else hi = mid;
+        }
+    }
+    free(hl.bins);
+    return lo;
+}
