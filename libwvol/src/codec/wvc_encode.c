@@ -8,7 +8,6 @@
 #include <stdlib.h>
 #include <string.h>
 #include <time.h>
-#include <stdio.h>
 #include <zlib.h>
 
 #include "wvc_format.h"
@@ -302,7 +301,6 @@ static double total_error(const wvc_layout *L, const float *C, double step, doub
     int s;
     if (all_stats(st, L, C, Q, step, f, qzero)) return NAN;
     for (s = 0; s < L->nsec; s++) e += sec_error(&st[s], step, NULL, NULL);
-    if (getenv("WVC_DEBUG")) fprintf(stderr, "pass step=%.6g err=%.6g t=%.4f\n", step, e, now());
     return e;
 }
 
@@ -373,38 +371,52 @@ static double search_step(const wvc_layout *L, const float *C, double target, do
  * The error is a staircase in the step: when many coefficients share a magnitude
  * (piecewise-constant volumes), the largest step that meets the target can leave a
  * good part of the budget unused. The slack is spent by zeroing |q| = 1 detail
- * coefficients, those whose removal adds the least error first (an O(N) histogram
- * cut on the added error, never a sort). */
-#define SLACK_BINS 4096
+ * coefficients, those whose removal adds the least error first. Zeroing one adds
+ * c^2 - (|c| - rec)^2 = 2 |c| rec - rec^2 (rec = (1 + d1) step, per section), which
+ * grows with |c|: so each section gets a threshold, found from a histogram of the
+ * |q| = 1 coefficients' position u = |c|/step - (1 - f) in [0, 1) (SLACK_BINS bins
+ * with count, sum |c| and sum c^2, so a bin's added error is exact): bins are taken
+ * cheapest first (mean added error per coefficient) while they fit. No sort of the
+ * coefficients; one pass to count, one to zero. */
+#define SLACK_BINS 256
 
-/* Added error of zeroing a |q| = 1 coefficient: c^2 - (|c| - (1 + d1) step)^2. */
-static inline double zeroing_cost(double ac, double rec)
+typedef struct slack_bin {
+    double n, sa, sa2;
+} slack_bin;
+
+static inline int slack_index(double ac, double inv, double f)
 {
-    return ac * ac - (ac - rec) * (ac - rec);
+    int k = (int)((ac * inv - (1.0 - f)) * SLACK_BINS);
+    return k < 0 ? 0 : k >= SLACK_BINS ? SLACK_BINS - 1 : k;
 }
 
-static inline int cost_bin(double e)
+static int slack_cmp(const void *pa, const void *pb)
 {
-    float f = (float)e;
-    uint32_t u;
-    if (!(f > 0)) return 0;
-    memcpy(&u, &f, 4);
-    return 1 + (int)((u >> 20) & 0x7FF); /* sign is 0: 11 bits of exponent and mantissa */
+    const double *a = pa, *b = pb;
+    return a[0] < b[0] ? -1 : a[0] > b[0] ? 1 : (a[1] < b[1] ? -1 : a[1] > b[1]);
 }
 
-static void slack_hist(const wvc_layout *L, const float *C, const int32_t *Q, double step, const float *d1,
-                       const work_item *w, int nw, double (*hsum)[SLACK_BINS + 1], uint64_t (*hcnt)[SLACK_BINS + 1])
+/* Zeroes the cheapest |q| = 1 coefficients within `slack` and updates the sums in
+ * st to match (no further pass over the data); returns how many. */
+static uint64_t spend_slack(const wvc_layout *L, const float *C, int32_t *Q, double step, double f, const float *d1,
+                            double slack, sec_stats *st)
 {
-    int i;
+    int nw = 0, i, s, k, cut[WVOL_WVC_MAX_SECTIONS];
+    work_item *w = work_items(L, &nw);
+    slack_bin(*part)[SLACK_BINS] = NULL, (*tot)[SLACK_BINS] = NULL;
+    double(*order)[2] = NULL, acc = 0;
+    const double inv = 1.0 / step;
+    uint64_t zeroed = 0;
+    size_t nord = 0;
+    if (!w || nw == 0) goto out;
+    part = calloc((size_t)nw, sizeof *part);
+    tot = calloc((size_t)L->nsec, sizeof *tot);
+    order = malloc((size_t)L->nsec * SLACK_BINS * sizeof *order);
+    if (!part || !tot || !order) goto out;
 #pragma omp parallel for schedule(dynamic, 1) if (nw > 2)
     for (i = 0; i < nw; i++) {
         const wvc_band *b = &L->sec[w[i].sec];
-        const double rec = (1.0 + d1[w[i].sec]) * step;
-        double *hs = hsum[i];
-        uint64_t *hc = hcnt[i];
         size_t x, y, z;
-        memset(hs, 0, sizeof *hsum);
-        memset(hc, 0, sizeof *hcnt);
         if (b->band == 0) continue;
         for (z = w[i].z0; z < w[i].z1; z++)
             for (y = 0; y < b->ext[1]; y++) {
@@ -412,145 +424,102 @@ static void slack_hist(const wvc_layout *L, const float *C, const int32_t *Q, do
                 for (x = 0; x < b->ext[0]; x++) {
                     int32_t q = Q[base + x];
                     if (q == 1 || q == -1) {
-                        double e = zeroing_cost(fabs((double)C[base + x]), rec);
-                        int k = cost_bin(e);
-                        hs[k] += e;
-                        hc[k]++;
+                        double ac = fabs((double)C[base + x]);
+                        slack_bin *h = &part[i][slack_index(ac, inv, f)];
+                        h->n += 1;
+                        h->sa += ac;
+                        h->sa2 += ac * ac;
                     }
                 }
             }
     }
-}
-
-/* What zeroing one |q| = 1 coefficient does to its section's sums (the terms
- * rows_stats added for it move to the zeroed energy). */
-static inline void unquantise_one(sec_stats *d, double c, double inv)
-{
-    double r = fabs(c) * inv - 1.0;
-    d->zero_sse += c * c;
-    d->n1++;
-    d->s1 += r;
-    d->ss1 += r * r;
-}
-
-/* Zeroes the cheapest |q| = 1 coefficients within `slack` and updates the sums in
- * st to match (no further pass over the data); returns how many. */
-static uint64_t spend_slack(const wvc_layout *L, const float *C, int32_t *Q, double step, const float *d1,
-                            double slack, sec_stats *st)
-{
-    int nw = 0, i, k, cut = -1;
-    work_item *w = work_items(L, &nw);
-    double (*hsum)[SLACK_BINS + 1] = NULL, tot[SLACK_BINS + 1], acc = 0;
-    uint64_t (*hcnt)[SLACK_BINS + 1] = NULL, cnt[SLACK_BINS + 1], zeroed = 0;
-    const double inv = 1.0 / step;
-    sec_stats *delta = NULL, tail[WVOL_WVC_MAX_SECTIONS];
-    if (!w || nw == 0) {
-        free(w);
-        return 0;
-    }
-    hsum = malloc((size_t)nw * sizeof *hsum);
-    hcnt = malloc((size_t)nw * sizeof *hcnt);
-    delta = calloc((size_t)nw, sizeof *delta);
-    if (!hsum || !hcnt || !delta) goto out;
-    slack_hist(L, C, Q, step, d1, w, nw, hsum, hcnt);
-    memset(tot, 0, sizeof tot);
-    memset(cnt, 0, sizeof cnt);
-    for (i = 0; i < nw; i++)
-        for (k = 0; k <= SLACK_BINS; k++) {
-            tot[k] += hsum[i][k];
-            cnt[k] += hcnt[i][k];
+    for (i = 0; i < nw; i++) /* in work-item order: the sums do not depend on threads */
+        for (k = 0; k < SLACK_BINS; k++) {
+            tot[w[i].sec][k].n += part[i][k].n;
+            tot[w[i].sec][k].sa += part[i][k].sa;
+            tot[w[i].sec][k].sa2 += part[i][k].sa2;
         }
-    /* bin 0 (zeroing does not add error) always; then whole bins while they fit */
-    for (k = 0; k <= SLACK_BINS; k++) {
-        if (k > 0 && acc + tot[k] > slack) break;
-        acc += tot[k];
-        cut = k;
+    for (s = 0; s < L->nsec; s++) {
+        const double rec = (1.0 + d1[s]) * step;
+        cut[s] = 0;
+        for (k = 0; k < SLACK_BINS; k++)
+            if (tot[s][k].n > 0) {
+                order[nord][0] = (2 * rec * tot[s][k].sa - tot[s][k].n * rec * rec) / tot[s][k].n;
+                order[nord][1] = (double)(s * SLACK_BINS + k);
+                nord++;
+            }
     }
-    if (cut < 0) goto out;
+    qsort(order, nord, sizeof *order, slack_cmp); /* at most 7 x levels x SLACK_BINS entries */
+    for (size_t j = 0; j < nord; j++) {
+        int sk = (int)order[j][1];
+        const slack_bin *h;
+        double rec, add;
+        s = sk / SLACK_BINS;
+        k = sk % SLACK_BINS;
+        if (k != cut[s]) break; /* a section's bins are taken in order: costs grow with |c| */
+        h = &tot[s][k];
+        rec = (1.0 + d1[s]) * step;
+        add = 2 * rec * h->sa - h->n * rec * rec;
+        if (acc + add > slack) break;
+        acc += add;
+        cut[s] = k + 1;
+        /* the sums rows_stats made for these coefficients move to the zeroed energy */
+        st[s].zero_sse += h->sa2;
+        st[s].n1 -= (uint64_t)h->n;
+        st[s].s1 -= inv * h->sa - h->n;
+        st[s].ss1 -= inv * inv * h->sa2 - 2 * inv * h->sa + h->n;
+    }
 #pragma omp parallel for schedule(dynamic, 1) reduction(+ : zeroed) if (nw > 2)
     for (i = 0; i < nw; i++) {
         const wvc_band *b = &L->sec[w[i].sec];
-        const double rec = (1.0 + d1[w[i].sec]) * step;
+        const int c = cut[w[i].sec];
         size_t x, y, z;
-        if (b->band == 0) continue;
+        if (b->band == 0 || c == 0) continue;
         for (z = w[i].z0; z < w[i].z1; z++)
             for (y = 0; y < b->ext[1]; y++) {
                 size_t base = wvc_index(L->p, b, 0, y, z);
                 for (x = 0; x < b->ext[0]; x++) {
                     int32_t q = Q[base + x];
-                    if ((q == 1 || q == -1) && cost_bin(zeroing_cost(fabs((double)C[base + x]), rec)) <= cut) {
+                    if ((q == 1 || q == -1) && slack_index(fabs((double)C[base + x]), inv, f) < c) {
                         Q[base + x] = 0;
-                        unquantise_one(&delta[i], C[base + x], inv);
                         zeroed++;
                     }
                 }
             }
     }
-    memset(tail, 0, sizeof tail);
-    /* the next bin in part, in index order (serial, so the result does not depend on threads) */
-    if (cut < SLACK_BINS && cnt[cut + 1] > 0) {
-        double left = slack - acc;
-        for (i = 0; i < nw && left > 0; i++) {
-            const wvc_band *b = &L->sec[w[i].sec];
-            const double rec = (1.0 + d1[w[i].sec]) * step;
-            size_t x, y, z;
-            if (b->band == 0) continue;
-            for (z = w[i].z0; z < w[i].z1 && left > 0; z++)
-                for (y = 0; y < b->ext[1] && left > 0; y++) {
-                    size_t base = wvc_index(L->p, b, 0, y, z);
-                    for (x = 0; x < b->ext[0]; x++) {
-                        int32_t q = Q[base + x];
-                        double e;
-                        if (q != 1 && q != -1) continue;
-                        e = zeroing_cost(fabs((double)C[base + x]), rec);
-                        if (cost_bin(e) != cut + 1) continue;
-                        if (e > left) {
-                            left = 0;
-                            break;
-                        }
-                        left -= e;
-                        Q[base + x] = 0;
-                        unquantise_one(&tail[w[i].sec], C[base + x], inv);
-                        zeroed++;
-                    }
-                }
-        }
-    }
-    for (i = 0; i < nw; i++) {
-        sec_stats *d = &st[w[i].sec];
-        d->zero_sse += delta[i].zero_sse;
-        d->n1 -= delta[i].n1;
-        d->s1 -= delta[i].s1;
-        d->ss1 -= delta[i].ss1;
-    }
-    for (i = 0; i < L->nsec; i++) {
-        st[i].zero_sse += tail[i].zero_sse;
-        st[i].n1 -= tail[i].n1;
-        st[i].s1 -= tail[i].s1;
-        st[i].ss1 -= tail[i].ss1;
-    }
 out:
-    free(delta);
-    free(hsum);
-    free(hcnt);
+    free(order);
+    free(tot);
+    free(part);
     free(w);
     return zeroed;
 }
 
 /* The largest step whose error stays within [0.985, 1] x target (PSNR at most
- * 0.066 dB above the target): first the step the histograms predict for 0.9925 x
- * target (no pass over the data), then exact passes that also quantise into Q
- * (usually one). On return Q and st hold the quantisation with the returned step. */
+ * 0.066 dB above the target): the step the histograms predict for 0.9925 x target
+ * (no pass over the data); an exact pass that also quantises into Q; if that misses,
+ * the prediction again, scaled by what the pass measured against what was
+ * predicted at that step, then secant iterations on exact passes (rarely needed).
+ * On return Q and st hold the quantisation with the returned step. */
 static double choose_step(const wvc_layout *L, const float *C, const uint64_t *H, double target, double f,
                           double maxabs, double min_step, sec_stats *st, int *iters, int32_t *Q)
 {
-    double d, last = 0;
+    const double aim = 0.9925, accept = 0.985;
+    double d, e, last = 0;
     int qzero = 1;
-    *iters = 0;
-    d = wvol__wvc_hist_step(H, L, 0.9925 * target, f, min_step, 4 * maxabs);
-    if (getenv("WVC_DEBUG")) fprintf(stderr, "hist step=%.6g target=%.6g t=%.4f\n", d, target, now());
-    if (!isfinite(d)) return NAN;
-    d = search_step(L, C, target, f, maxabs, min_step, st, iters, d, 0.985, Q, &qzero, &last);
+    wvc_hist_est *est = wvol__wvc_hist_prepare(H, L);
+    if (!est) return NAN;
+    *iters = 1;
+    d = wvol__wvc_hist_step(est, L, aim * target, f, min_step, 4 * maxabs);
+    e = total_error(L, C, d, f, st, Q, &qzero);
+    last = d;
+    if (isfinite(e) && !(e <= target && e >= accept * target)) {
+        double predicted = wvol__wvc_hist_error(est, L, d, f), k = predicted > 0 && e > 0 ? e / predicted : 1;
+        d = wvol__wvc_hist_step(est, L, aim * target / k, f, min_step, 4 * maxabs);
+        d = search_step(L, C, target, f, maxabs, min_step, st, iters, d, accept, Q, &qzero, &last);
+    }
+    wvol__wvc_hist_free(est);
+    if (!isfinite(e)) return NAN;
     if (isfinite(d) && last != d) {
         (*iters)++;
         if (!isfinite(total_error(L, C, d, f, st, Q, &qzero))) return NAN;
@@ -714,7 +683,7 @@ wvol_status wvol_wvc_encode(void **out, size_t *out_size, const wvol_coeffs *c,
     }
     if (p->step == 0 && sse < 0.99 * p->target_sse) {
         /* spend what the staircase left of the budget, then the exact sums again */
-        if (spend_slack(L, c->data, Q, step, d1, p->target_sse - sse, st) > 0) {
+        if (spend_slack(L, c->data, Q, step, p->rounding, d1, p->target_sse - sse, st) > 0) {
             for (sse = 0, s = 0; s < L->nsec; s++) {
                 serr[s] = sec_error(&st[s], step, &d1[s], &d2[s]);
                 sse += serr[s];

@@ -100,17 +100,22 @@ typedef struct hbin {
     double lo, hi, n;
 } hbin;
 
-typedef struct hlist {
+struct wvc_hist_est {
     hbin *bins;
     size_t start[WVOL_WVC_MAX_SECTIONS + 1];
-} hlist;
+};
 
-static int hist_compact(hlist *hl, const uint64_t *H, const wvc_layout *L)
+wvc_hist_est *wvol__wvc_hist_prepare(const uint64_t *H, const wvc_layout *L)
 {
     size_t n = 0, k;
+    wvc_hist_est *hl = malloc(sizeof *hl);
+    if (!hl) return NULL;
     for (k = 0; k < (size_t)L->nsec * WVC_HBINS; k++) n += H[k] != 0;
     hl->bins = malloc((n ? n : 1) * sizeof *hl->bins);
-    if (!hl->bins) return -1;
+    if (!hl->bins) {
+        free(hl);
+        return NULL;
+    }
     n = 0;
     for (int s = 0; s < L->nsec; s++) {
         hl->start[s] = n;
@@ -124,7 +129,13 @@ static int hist_compact(hlist *hl, const uint64_t *H, const wvc_layout *L)
         }
     }
     hl->start[L->nsec] = n;
-    return 0;
+    return hl;
+}
+
+void wvol__wvc_hist_free(wvc_hist_est *hl)
+{
+    if (hl) free(hl->bins);
+    free(hl);
 }
 
 /* Estimated squared error of the quantiser with step d on one section's counts:
@@ -171,7 +182,7 @@ static double hist_section_error(const hbin *bins, size_t nbins, double d, doubl
     }
 }
 
-static double hlist_error(const hlist *hl, const wvc_layout *L, double step, double f_detail)
+double wvol__wvc_hist_error(const wvc_hist_est *hl, const wvc_layout *L, double step, double f_detail)
 {
     double e = 0;
     for (int s = 0; s < L->nsec; s++)
@@ -180,20 +191,16 @@ static double hlist_error(const hlist *hl, const wvc_layout *L, double step, dou
     return e;
 }
 
-double wvol__wvc_hist_step(const uint64_t *H, const wvc_layout *L, double target, double f, double lo, double hi)
+double wvol__wvc_hist_step(const wvc_hist_est *hl, const wvc_layout *L, double target, double f, double lo,
+                           double hi)
 {
-    hlist hl;
-    if (hist_compact(&hl, H, L)) return NAN;
     /* the error grows with the step: bisection in log(step) to 0.1% */
-    if (hlist_error(&hl, L, hi, f) <= target) {
-        lo = hi;
-    } else if (hlist_error(&hl, L, lo, f) <= target) {
-        while (hi / lo > 1.001) {
-            double mid = sqrt(lo * hi);
-            if (hlist_error(&hl, L, mid, f) <= target) lo = mid;
-            else hi = mid;
-        }
+    if (wvol__wvc_hist_error(hl, L, hi, f) <= target) return hi;
+    if (wvol__wvc_hist_error(hl, L, lo, f) > target) return lo;
+    while (hi / lo > 1.001) {
+        double mid = sqrt(lo * hi);
+        if (wvol__wvc_hist_error(hl, L, mid, f) <= target) lo = mid;
+        else hi = mid;
     }
-    free(hl.bins);
     return lo;
 }
