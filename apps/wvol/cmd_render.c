@@ -28,6 +28,7 @@ static const cli_opt opts[] = {
     {"step", 0, 1, "reference methods: step in voxels (default 0.5)"},
     {"gauss", 0, 1, "spline method: Gauss-Legendre nodes per piece for the exponential (default 5)"},
     {"shading", 0, 0, "diffuse headlight shading from the gradient"},
+    {"colors", 0, 1, "colour volume replacing the TF colour: interleaved RGB float32 .raw, e.g. from 'wvol segment --colors'"},
     {"threads", 0, 1, "threads (default: all)"},
     {"exposure", 0, 1, "PNG: scale before sRGB encoding (default 1; X-ray: 1/max)"},
     {"dims", 0, 1, "raw input: NXxNYxNZ"},
@@ -48,7 +49,7 @@ int wvol_cmd_render(int argc, char **argv)
     cli_parser ps;
     const cli_opt *o;
     const char *val, *in = NULL, *out = NULL, *camspec = "+z", *tfname = "gaussian", *wname = "db2";
-    const char *method = "auto";
+    const char *method = "auto", *colors_path = NULL;
     int r, json = 0, rc = CLI_FAILED;
     long W = 512, H = 512, levels = 0, spline_j = 4, threads = 0, gauss = 5;
     double keep = 1.0, exposure = 0, step = 0.5;
@@ -56,7 +57,7 @@ int wvol_cmd_render(int argc, char **argv)
     wvol_render_params rp;
     wvol_load_options lo;
     wvol_error err;
-    wvol_volume *v = NULL;
+    wvol_volume *v = NULL, *colors = NULL;
     wvol_coeffs *c = NULL;
     wvol_selection *sel = NULL;
     wvol_store *st = NULL;
@@ -98,6 +99,7 @@ int wvol_cmd_render(int argc, char **argv)
         else if (!strcmp(o->name, "wavelet")) wname = val;
         else if (!strcmp(o->name, "method")) method = val;
         else if (!strcmp(o->name, "shading")) rp.shading = 1;
+        else if (!strcmp(o->name, "colors")) colors_path = val;
         else if (!strcmp(o->name, "size")) {
             char *e1, *e2;
             W = strtol(val, &e1, 10);
@@ -148,16 +150,34 @@ int wvol_cmd_render(int argc, char **argv)
     rp.step = step;
     rp.threads = (int)threads;
     rp.gauss_nodes = (int)gauss;
+    if (colors_path && rp.mode == WVOL_MODE_XRAY) return cli_usage(cmd, "--colors needs an absorption mode (X-ray has no colour)");
     if (!strcmp(method, "auto")) {
-        method = !keep_given || keep >= 1.0 ? "reference" : "spline";
-        auto_fast = 1;
+        /* A colour volume is looked up per voxel: only the sampling methods can use it. */
+        method = !keep_given || keep >= 1.0 ? "reference" : colors_path ? "reference-fhat" : "spline";
+        auto_fast = !colors_path;
     }
+    if (colors_path && strcmp(method, "reference") && strcmp(method, "reference-fhat"))
+        return cli_usage(cmd, "--colors needs --method reference or reference-fhat (got %s)", method);
     if (wvol_filter_get(&filt, wname, &err) != WVOL_OK) return cli_usage(cmd, "--wavelet: %s", err.message);
 
     t0 = cli_now();
     if (wvol_volume_load(&v, in, &lo, &err) != WVOL_OK) return cli_fail_err(cmd, &err);
     wvol_volume_range(v, &vmin, &vmax, NULL);
     wvol_geometry_of_volume(&g, v);
+    if (colors_path) {
+        /* RGB interleaved: read through the raw reader as a volume 3 nx wide, which checks the size. */
+        wvol_load_options co;
+        wvol_load_options_default(&co);
+        co.dims[0] = 3 * v->nx, co.dims[1] = v->ny, co.dims[2] = v->nz;
+        co.raw_type = WVOL_F32;
+        if (!wvol_path_has_ext(colors_path, ".raw")) {
+            rc = cli_usage(cmd, "--colors %s: expected interleaved RGB float32 .raw", colors_path);
+            goto done;
+        }
+        if (wvol_volume_load(&colors, colors_path, &co, &err) != WVOL_OK) goto fail;
+        rp.colors = colors->data;
+        rp.colors_count = wvol_volume_count(colors);
+    }
     if (wvol_camera_parse(&cam, camspec, &g, (int)W, (int)H, &err) != WVOL_OK) {
         rc = cli_usage(cmd, "--camera: %s", err.message);
         goto done;
@@ -275,5 +295,6 @@ done:
     wvol_selection_destroy(sel);
     wvol_coeffs_destroy(c);
     wvol_volume_destroy(v);
+    wvol_volume_destroy(colors);
     return rc;
 }
