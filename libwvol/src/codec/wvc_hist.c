@@ -138,46 +138,57 @@ void wvol__wvc_hist_free(wvc_hist_est *hl)
     free(hl);
 }
 
-/* Estimated squared error of the quantiser with step d on one section's counts:
- * within a bin |c| is taken as uniform; a bin across the zero threshold is split;
- * a bin wider than the step spreads its remainders r over the whole cell. */
+/* Adds the share `n` of a bin whose t = |c|/d + f lies uniformly in [t0, t1), all
+ * with the same q = floor(t): to the zeroed energy (q = 0) or to the sums of
+ * r = t - f - q of its class (q = 1, q >= 2). */
+typedef struct hsums {
+    double zero, n1, s1, ss1, n2, s2, ss2;
+} hsums;
+
+static inline void hist_piece(hsums *h, double n, double t0, double t1, double q, double d, double f)
+{
+    if (q < 1) {
+        double a0 = (t0 - f) * d, a1 = (t1 - f) * d;
+        h->zero += n * (a0 * a0 + a0 * a1 + a1 * a1) / 3.0;
+    } else {
+        double r0 = t0 - f - q, r1 = t1 - f - q, m = 0.5 * (r0 + r1), m2 = (r0 * r0 + r0 * r1 + r1 * r1) / 3.0;
+        if (q < 2) h->n1 += n, h->s1 += n * m, h->ss1 += n * m2;
+        else h->n2 += n, h->s2 += n * m, h->ss2 += n * m2;
+    }
+}
+
+/* Estimated squared error of the quantiser with step d on one section's counts,
+ * with |c| taken as uniform within each bin: a bin that crosses a quantiser
+ * boundary is split there; a bin wider than the step spreads its remainders r over
+ * the whole cell (its part below the dead zone split off first). */
 static double hist_section_error(const hbin *bins, size_t nbins, double d, double f)
 {
-    const double inv = 1.0 / d, T = (1.0 - f) * d;
-    double zero = 0, n1 = 0, s1 = 0, ss1 = 0, n2 = 0, s2 = 0, ss2 = 0;
+    const double inv = 1.0 / d;
+    hsums h = {0, 0, 0, 0, 0, 0, 0};
     const double ur = 0.5 - f, urr = ((1 - f) * (1 - f) * (1 - f) + f * f * f) / 3.0; /* r uniform on [-f, 1-f) */
     for (size_t k = 0; k < nbins; k++) {
-        double n = bins[k].n, lo = bins[k].lo, hi = bins[k].hi;
-        if (hi <= T) {
-            zero += n * (lo * lo + lo * hi + hi * hi) / 3.0;
-            continue;
-        }
-        if (lo < T) { /* split at the threshold */
-            double phi = (T - lo) / (hi - lo);
-            zero += n * phi * (lo * lo + lo * T + T * T) / 3.0;
-            n *= 1 - phi;
-            lo = T;
-        }
-        {
-            double a = 0.5 * (lo + hi) * inv, w = (hi - lo) * inv, q = floor(a + f), r, rr;
-            if (w >= 1) {
-                r = ur;
-                rr = urr;
-            } else {
-                r = a - q;
-                rr = r * r + w * w / 12.0;
+        double n = bins[k].n, t0 = bins[k].lo * inv + f, t1 = bins[k].hi * inv + f, q = floor(t0);
+        if (t1 - t0 >= 1) {
+            if (t0 < 1) { /* the part in the dead zone */
+                double phi = (1 - t0) / (t1 - t0);
+                hist_piece(&h, n * phi, t0, 1, 0, d, f);
+                n *= 1 - phi;
+                t0 = 1;
             }
-            if (q <= 1) {
-                n1 += n, s1 += n * r, ss1 += n * rr;
-            } else {
-                n2 += n, s2 += n * r, ss2 += n * rr;
-            }
+            if (floor(0.5 * (t0 + t1)) < 2) h.n1 += n, h.s1 += n * ur, h.ss1 += n * urr;
+            else h.n2 += n, h.s2 += n * ur, h.ss2 += n * urr;
+        } else if (t1 <= q + 1) {
+            hist_piece(&h, n, t0, t1, q, d, f);
+        } else { /* crosses q + 1 */
+            double phi = (q + 1 - t0) / (t1 - t0);
+            hist_piece(&h, n * phi, t0, q + 1, q, d, f);
+            hist_piece(&h, n * (1 - phi), q + 1, t1, q + 1, d, f);
         }
     }
     {
-        double e = zero;
-        if (n1 > 0) e += d * d * (ss1 - s1 * s1 / n1);
-        if (n2 > 0) e += d * d * (ss2 - s2 * s2 / n2);
+        double e = h.zero;
+        if (h.n1 > 0) e += d * d * (h.ss1 - h.s1 * h.s1 / h.n1);
+        if (h.n2 > 0) e += d * d * (h.ss2 - h.s2 * h.s2 / h.n2);
         return e;
     }
 }
