@@ -13,9 +13,6 @@
 #include "wvc_format.h"
 #include "wvc_internal.h"
 
-/* --coder auto tries zstd only on sections of at most this many coefficients */
-#define WVC_AUTO_ZSTD_MAX 32768
-
 static double now(void)
 {
     struct timespec ts;
@@ -376,8 +373,10 @@ static double search_step(const wvc_layout *L, const float *C, double target, do
  * grows with |c|: so each section gets a threshold, found from a histogram of the
  * |q| = 1 coefficients' position u = |c|/step - (1 - f) in [0, 1) (SLACK_BINS bins
  * with count, sum |c| and sum c^2, so a bin's added error is exact): bins are taken
- * cheapest first (mean added error per coefficient) while they fit. No sort of the
- * coefficients; one pass to count, one to zero. */
+ * cheapest first (mean added error per coefficient) while they fit, then the next
+ * bin in part, coefficient by coefficient in index order (serial, so the result does
+ * not depend on threads). No sort of the coefficients; one pass to count, one to
+ * zero, and a scan of one section for the partial bin. */
 #define SLACK_BINS 256
 
 typedef struct slack_bin {
@@ -401,13 +400,13 @@ static int slack_cmp(const void *pa, const void *pb)
 static uint64_t spend_slack(const wvc_layout *L, const float *C, int32_t *Q, double step, double f, const float *d1,
                             double slack, sec_stats *st)
 {
-    int nw = 0, i, s, k, cut[WVOL_WVC_MAX_SECTIONS];
+    int nw = 0, i, s, k, cut[WVOL_WVC_MAX_SECTIONS], part_sec = -1, part_bin = 0;
     work_item *w = work_items(L, &nw);
     slack_bin(*part)[SLACK_BINS] = NULL, (*tot)[SLACK_BINS] = NULL;
     double(*order)[2] = NULL, acc = 0;
     const double inv = 1.0 / step;
     uint64_t zeroed = 0;
-    size_t nord = 0;
+    size_t nord = 0, j;
     if (!w || nw == 0) goto out;
     part = calloc((size_t)nw, sizeof *part);
     tot = calloc((size_t)L->nsec, sizeof *tot);
@@ -450,13 +449,14 @@ static uint64_t spend_slack(const wvc_layout *L, const float *C, int32_t *Q, dou
             }
     }
     qsort(order, nord, sizeof *order, slack_cmp); /* at most 7 x levels x SLACK_BINS entries */
-    for (size_t j = 0; j < nord; j++) {
+    /* whole bins, cheapest first, while they fit (within a section the order is that
+     * of |c|, so each section's taken bins are a prefix) */
+    for (j = 0; j < nord; j++) {
         int sk = (int)order[j][1];
         const slack_bin *h;
         double rec, add;
         s = sk / SLACK_BINS;
         k = sk % SLACK_BINS;
-        if (k != cut[s]) break; /* a section's bins are taken in order: costs grow with |c| */
         h = &tot[s][k];
         rec = (1.0 + d1[s]) * step;
         add = 2 * rec * h->sa - h->n * rec * rec;
@@ -468,6 +468,11 @@ static uint64_t spend_slack(const wvc_layout *L, const float *C, int32_t *Q, dou
         st[s].n1 -= (uint64_t)h->n;
         st[s].s1 -= inv * h->sa - h->n;
         st[s].ss1 -= inv * inv * h->sa2 - 2 * inv * h->sa + h->n;
+    }
+    if (j < nord) { /* the bin that did not fit, in part: its coefficients in index order */
+        int sk = (int)order[j][1];
+        part_sec = sk / SLACK_BINS;
+        part_bin = sk % SLACK_BINS;
     }
 #pragma omp parallel for schedule(dynamic, 1) reduction(+ : zeroed) if (nw > 2)
     for (i = 0; i < nw; i++) {
@@ -486,6 +491,40 @@ static uint64_t spend_slack(const wvc_layout *L, const float *C, int32_t *Q, dou
                     }
                 }
             }
+    }
+    if (part_sec >= 0) {
+        const double rec = (1.0 + d1[part_sec]) * step;
+        double left = slack - acc;
+        sec_stats *d = &st[part_sec];
+        for (i = 0; i < nw && left > 0; i++) {
+            const wvc_band *b = &L->sec[w[i].sec];
+            size_t x, y, z;
+            if (w[i].sec != part_sec) continue;
+            for (z = w[i].z0; z < w[i].z1 && left > 0; z++)
+                for (y = 0; y < b->ext[1] && left > 0; y++) {
+                    size_t base = wvc_index(L->p, b, 0, y, z);
+                    for (x = 0; x < b->ext[0]; x++) {
+                        int32_t q = Q[base + x];
+                        double ac, e, r;
+                        if (q != 1 && q != -1) continue;
+                        ac = fabs((double)C[base + x]);
+                        if (slack_index(ac, inv, f) != part_bin) continue;
+                        e = 2 * ac * rec - rec * rec;
+                        if (e > left) {
+                            left = 0;
+                            break;
+                        }
+                        left -= e;
+                        Q[base + x] = 0;
+                        zeroed++;
+                        r = ac * inv - 1.0; /* as rows_stats summed it */
+                        d->zero_sse += ac * ac;
+                        d->n1--;
+                        d->s1 -= r;
+                        d->ss1 -= r * r;
+                    }
+                }
+        }
     }
 out:
     free(order);
@@ -711,9 +750,9 @@ wvol_status wvol_wvc_encode(void **out, size_t *out_size, const wvol_coeffs *c,
             if (wvol__wvc_cabac_encode(&a, &na, Q, L->p, b)) failed = 1;
             alt_cabac[s] = na;
         }
-        /* auto: zstd only where it can win, the small sections (range-coder start-up and
-         * fresh contexts); on large ones it was 1.35-2.4x larger and cost a second pass */
-        if (p->coder == WVOL_WVC_CODER_ZSTD || (p->coder == WVOL_WVC_CODER_AUTO && b->count <= WVC_AUTO_ZSTD_MAX)) {
+        /* auto: both, the smaller wins (zstd's matches beat the contexts on small
+         * sections and on some regular ones, e.g. Haar levels 1-2 of smooth volumes) */
+        if (p->coder != WVOL_WVC_CODER_CABAC) {
             if (wvol__wvc_zstd_encode(&z, &nz, Q, L->p, b, p->zstd_level)) failed = 1;
             alt_zstd[s] = nz;
         }
