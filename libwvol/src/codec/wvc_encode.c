@@ -541,27 +541,26 @@ out:
  * predicted at that step, then secant iterations on exact passes (rarely needed).
  * On return Q and st hold the quantisation with the returned step. */
 static double choose_step(const wvc_layout *L, const float *C, const uint64_t *H, double target, double f,
-                          double maxabs, double min_step, sec_stats *st, int *iters, int32_t *Q)
+                          double maxabs, double min_step, sec_stats *st, int *iters, int32_t *Q, int *qzero)
 {
     const double aim = 0.9925, accept = 0.985;
     double d, e, last = 0;
-    int qzero = 1;
     wvc_hist_est *est = wvol__wvc_hist_prepare(H, L);
     if (!est) return NAN;
     *iters = 1;
     d = wvol__wvc_hist_step(est, L, aim * target, f, min_step, 4 * maxabs);
-    e = total_error(L, C, d, f, st, Q, &qzero);
+    e = total_error(L, C, d, f, st, Q, qzero);
     last = d;
     if (isfinite(e) && !(e <= target && e >= accept * target)) {
         double predicted = wvol__wvc_hist_error(est, L, d, f), k = predicted > 0 && e > 0 ? e / predicted : 1;
         d = wvol__wvc_hist_step(est, L, aim * target / k, f, min_step, 4 * maxabs);
-        d = search_step(L, C, target, f, maxabs, min_step, st, iters, d, accept, Q, &qzero, &last);
+        d = search_step(L, C, target, f, maxabs, min_step, st, iters, d, accept, Q, qzero, &last);
     }
     wvol__wvc_hist_free(est);
     if (!isfinite(e)) return NAN;
     if (isfinite(d) && last != d) {
         (*iters)++;
-        if (!isfinite(total_error(L, C, d, f, st, Q, &qzero))) return NAN;
+        if (!isfinite(total_error(L, C, d, f, st, Q, qzero))) return NAN;
     }
     return d;
 }
@@ -699,7 +698,7 @@ wvol_status wvol_wvc_encode(void **out, size_t *out_size, const wvol_coeffs *c,
         } else if (maxabs == 0) {
             step = 1.0; /* every coefficient is zero: any step is exact */
         } else {
-            step = choose_step(L, c->data, H, p->target_sse, p->rounding, maxabs, min_step, st, &iters, Q);
+            step = choose_step(L, c->data, H, p->target_sse, p->rounding, maxabs, min_step, st, &iters, Q, &qzero);
             if (!isfinite(step)) {
                 status = wvol_error_set(err, WVOL_ERR_NOMEM, "wvc encode: out of memory");
                 goto done;

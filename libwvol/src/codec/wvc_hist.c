@@ -49,23 +49,31 @@ WVC_HOT static void slice_hist(uint64_t *restrict H, const float *restrict row0,
     *maxbits = mx;
 }
 
+typedef struct hist_task {
+    int sec;
+    size_t z;
+} hist_task;
+
 int wvol__wvc_hist(uint64_t *H, const wvc_layout *L, const float *C, double *maxabs, int *nonfinite)
 {
     const size_t nb = WVC_HBINS;
-    size_t ntask = 0, *task_sec, t;
-    int nthr = omp_get_max_threads(), s;
+    size_t ntask = 0, t;
+    hist_task *task;
+    /* each thread counts into its own histograms: a few threads saturate the memory */
+    int nthr = omp_get_max_threads() < 4 ? omp_get_max_threads() : 4, s;
     uint64_t *part;
     uint32_t maxbits = 0;
+    if (nthr < 1) nthr = 1;
     for (s = 0; s < L->nsec; s++) ntask += L->sec[s].count ? L->sec[s].ext[2] : 0;
-    task_sec = malloc((ntask ? ntask : 1) * sizeof *task_sec);
+    task = malloc((ntask ? ntask : 1) * sizeof *task);
     part = calloc((size_t)nthr * (size_t)L->nsec * nb, sizeof *part);
-    if (!task_sec || !part) {
-        free(task_sec);
+    if (!task || !part) {
+        free(task);
         free(part);
         return -1;
     }
     for (t = 0, s = 0; s < L->nsec; s++)
-        for (size_t z = 0; L->sec[s].count && z < L->sec[s].ext[2]; z++) task_sec[t++] = (size_t)s << 32 | z;
+        for (size_t z = 0; L->sec[s].count && z < L->sec[s].ext[2]; z++, t++) task[t].sec = s, task[t].z = z;
 #pragma omp parallel num_threads(nthr) reduction(max : maxbits) if (ntask > 16)
     {
         uint64_t *mine = part + (size_t)omp_get_thread_num() * (size_t)L->nsec * nb;
@@ -73,10 +81,9 @@ int wvol__wvc_hist(uint64_t *H, const wvc_layout *L, const float *C, double *max
         long i;
 #pragma omp for schedule(dynamic, 8)
         for (i = 0; i < (long)ntask; i++) {
-            const wvc_band *b = &L->sec[task_sec[i] >> 32];
-            size_t z = task_sec[i] & 0xFFFFFFFFu;
-            slice_hist(mine + (task_sec[i] >> 32) * nb, C + wvc_index(L->p, b, 0, 0, z), b->ext[0], b->ext[1],
-                       L->p[0], &mb);
+            const wvc_band *b = &L->sec[task[i].sec];
+            slice_hist(mine + (size_t)task[i].sec * nb, C + wvc_index(L->p, b, 0, 0, task[i].z), b->ext[0],
+                       b->ext[1], L->p[0], &mb);
         }
         maxbits = mb > maxbits ? mb : maxbits;
     }
@@ -84,7 +91,7 @@ int wvol__wvc_hist(uint64_t *H, const wvc_layout *L, const float *C, double *max
     for (int th = 0; th < nthr; th++)
         for (size_t k = 0; k < (size_t)L->nsec * nb; k++) H[k] += part[(size_t)th * L->nsec * nb + k];
     free(part);
-    free(task_sec);
+    free(task);
     *nonfinite = maxbits >= 0x7F800000u;
     *maxabs = INFINITY;
     if (!*nonfinite) {
