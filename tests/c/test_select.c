@@ -8,24 +8,12 @@
 #include <string.h>
 
 #include "check.h"
+#include "fixtures.h"
 #include "wvol/store.h"
 #include "wvol/wavelet.h"
 
 static uint64_t rng_state = 0x9E3779B97F4A7C15ull;
-static double urand(void)
-{
-    rng_state ^= rng_state << 13;
-    rng_state ^= rng_state >> 7;
-    rng_state ^= rng_state << 17;
-    return (double)(rng_state >> 11) * (1.0 / 9007199254740992.0);
-}
-
-static const wvol_filter *filt(const char *name)
-{
-    const wvol_filter *f = NULL;
-    wvol_filter_get(&f, name, NULL);
-    return f;
-}
+static double urand(void) { return fixture_urand(&rng_state); }
 
 /* Coefficients with arbitrary values: `quant` > 0 rounds them to multiples of
  * 1/quant (small integers: exact energies, many ties), zero_share of them 0. */
@@ -33,7 +21,7 @@ static wvol_coeffs *random_coeffs(const char *fname, int levels, size_t nx, size
                                   double zero_share)
 {
     wvol_coeffs *c = NULL;
-    if (wvol_coeffs_create(&c, filt(fname), levels, nx, ny, nz, NULL) != WVOL_OK) return NULL;
+    if (wvol_coeffs_create(&c, fixture_filter(fname), levels, nx, ny, nz, NULL) != WVOL_OK) return NULL;
     size_t n = c->px * c->py * c->pz;
     for (size_t i = 0; i < n; i++) {
         double v = (urand() - 0.5) * 8.0 * pow(urand(), 3.0);
@@ -322,7 +310,7 @@ static void predicted_error_matches_measured(void)
             wvol_coeffs *c = NULL;
             wvol_error err;
             int levels = fi == 3 ? 2 : 3;
-            CHECK(wvol_dwt3_ex(&c, v, filt(fams[fi]), levels, WVOL_PAD_EDGE, 1, &err) == WVOL_OK, "%s", err.message);
+            CHECK(wvol_dwt3_ex(&c, v, fixture_filter(fams[fi]), levels, WVOL_PAD_EDGE, 1, &err) == WVOL_OK, "%s", err.message);
             double fr[] = {0.01, 0.05, 0.3, 1.0};
             for (int t = 0; t < 4; t++) {
                 wvol_select_params prm = wvol_select_params_default();
@@ -364,7 +352,7 @@ static void psnr_target_is_met(void)
 {
     wvol_volume *v = blob_volume(32, 32, 32, 2.0);
     wvol_coeffs *c = NULL;
-    wvol_dwt3_ex(&c, v, filt("db2"), 3, WVOL_PAD_EDGE, 1, NULL);
+    wvol_dwt3_ex(&c, v, fixture_filter("db2"), 3, WVOL_PAD_EDGE, 1, NULL);
     double targets[] = {25.0, 35.0, 45.0, 60.0};
     size_t last = 0;
     for (int t = 0; t < 4; t++) {
@@ -399,7 +387,7 @@ static void lod_region_keeps_detail(void)
     wvol_volume *v = blob_volume(n, n, n, 30.0);
     wvol_coeffs *c = NULL;
     wvol_error err;
-    const wvol_filter *f = filt("db2");
+    const wvol_filter *f = fixture_filter("db2");
     int M = 3, L = f->length;
     double s = f->center, S = L - 1;
     wvol_dwt3_ex(&c, v, f, M, WVOL_PAD_EDGE, 1, NULL);
