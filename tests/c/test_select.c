@@ -283,18 +283,17 @@ static void energy_mode_is_smallest_set(void)
     wvol_coeffs_destroy(c);
 }
 
+static double blob_at(const wvol_volume *v, size_t i, size_t j, size_t k, const void *noise)
+{
+    size_t nx = v->nx, ny = v->ny, nz = v->nz;
+    double x = (i - 0.4 * nx) / (0.2 * nx), y = (j - 0.5 * ny) / (0.25 * ny), z = (k - 0.55 * nz) / (0.3 * nz);
+    double f = 100.0 * exp(-(x * x + y * y + z * z)) + 20.0 * sin(0.7 * i) * cos(0.3 * j + 0.2 * k);
+    return (float)(f + *(const double *)noise * (urand() - 0.5));
+}
+
 static wvol_volume *blob_volume(size_t nx, size_t ny, size_t nz, double noise)
 {
-    wvol_volume *v = NULL;
-    wvol_volume_create(&v, nx, ny, nz, NULL);
-    for (size_t k = 0; k < nz; k++)
-        for (size_t j = 0; j < ny; j++)
-            for (size_t i = 0; i < nx; i++) {
-                double x = (i - 0.4 * nx) / (0.2 * nx), y = (j - 0.5 * ny) / (0.25 * ny), z = (k - 0.55 * nz) / (0.3 * nz);
-                double f = 100.0 * exp(-(x * x + y * y + z * z)) + 20.0 * sin(0.7 * i) * cos(0.3 * j + 0.2 * k);
-                v->data[i + nx * (j + ny * k)] = (float)(f + noise * (urand() - 0.5));
-            }
-    return v;
+    return fixture_volume(nx, ny, nz, blob_at, &noise);
 }
 
 /* Parseval: without padding, the measured error (f64 reconstruction of the
