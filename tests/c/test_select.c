@@ -184,6 +184,21 @@ static void check_mode(const char *what, const wvol_coeffs *c, const wvol_select
     wvol_selection_destroy(sel);
 }
 
+/* check_mode for a mode that takes one value (fraction, threshold, energy, psnr). */
+static void check_mode_value(const char *name, wvol_select_mode mode, double value, int variant,
+                             const wvol_coeffs *c, double peak)
+{
+    wvol_select_params prm = wvol_select_params_default();
+    char what[128];
+    prm.mode = mode;
+    if (mode == WVOL_SELECT_FRACTION) prm.fraction = value;
+    else if (mode == WVOL_SELECT_THRESHOLD) prm.threshold = value;
+    else if (mode == WVOL_SELECT_ENERGY) prm.energy = value;
+    else prm.psnr = value, prm.peak = peak;
+    snprintf(what, sizeof what, "%s %g (variant %d)", name, value, variant);
+    check_mode(what, c, &prm, peak);
+}
+
 static void selection_modes_match_brute_force(void)
 {
     /* exact small-integer values (ties everywhere, exact energies) and plain floats */
@@ -206,34 +221,15 @@ static void selection_modes_match_brute_force(void)
         check_mode("count N-1", c, &prm, peak);
         prm.count = (size_t)-1;
         check_mode("count huge", c, &prm, peak);
-        for (double f = 0.0; f <= 1.0; f += 0.125) {
-            prm = wvol_select_params_default();
-            prm.mode = WVOL_SELECT_FRACTION, prm.fraction = f;
-            snprintf(what, sizeof what, "fraction %g (variant %d)", f, variant);
-            check_mode(what, c, &prm, peak);
-        }
+        for (double f = 0.0; f <= 1.0; f += 0.125)
+            check_mode_value("fraction", WVOL_SELECT_FRACTION, f, variant, c, peak);
         double thr[] = {0.0, 0.25, 0.5, 1.0, 3.0, 100.0};
-        for (int t = 0; t < 6; t++) {
-            prm = wvol_select_params_default();
-            prm.mode = WVOL_SELECT_THRESHOLD, prm.threshold = thr[t];
-            snprintf(what, sizeof what, "threshold %g (variant %d)", thr[t], variant);
-            check_mode(what, c, &prm, peak);
-        }
+        for (int t = 0; t < 6; t++) check_mode_value("threshold", WVOL_SELECT_THRESHOLD, thr[t], variant, c, peak);
         if (quant > 0) { /* exact energies: the brute force's sums equal the histogram's */
             double es[] = {0.0, 0.5, 0.9, 0.99, 0.999, 1.0};
-            for (int e = 0; e < 6; e++) {
-                prm = wvol_select_params_default();
-                prm.mode = WVOL_SELECT_ENERGY, prm.energy = es[e];
-                snprintf(what, sizeof what, "energy %g (variant %d)", es[e], variant);
-                check_mode(what, c, &prm, peak);
-            }
+            for (int e = 0; e < 6; e++) check_mode_value("energy", WVOL_SELECT_ENERGY, es[e], variant, c, peak);
             double ps[] = {10.0, 20.0, 30.0, 200.0};
-            for (int e = 0; e < 4; e++) {
-                prm = wvol_select_params_default();
-                prm.mode = WVOL_SELECT_PSNR, prm.psnr = ps[e], prm.peak = peak;
-                snprintf(what, sizeof what, "psnr %g (variant %d)", ps[e], variant);
-                check_mode(what, c, &prm, peak);
-            }
+            for (int e = 0; e < 4; e++) check_mode_value("psnr", WVOL_SELECT_PSNR, ps[e], variant, c, peak);
         }
         /* a global level cut and an ellipsoid weight */
         prm = wvol_select_params_default();
