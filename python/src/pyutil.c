@@ -182,6 +182,17 @@ PyObject *wvolpy_volume_to_array(const wvol_volume *v, int squeeze2d)
     return a;
 }
 
+int wvolpy_as_placed_volume(PyObject *obj, PyObject *spacing, PyObject *origin, wvol_volume *out,
+                            PyArrayObject **holder, int check_finite)
+{
+    if (wvolpy_as_volume(obj, out, holder, check_finite) < 0) return -1;
+    if (wvolpy_triple(spacing, out->spacing, "spacing") < 0 || wvolpy_triple(origin, out->origin, "origin") < 0) {
+        Py_CLEAR(*holder);
+        return -1;
+    }
+    return 0;
+}
+
 int wvolpy_triple(PyObject *obj, double out[3], const char *what)
 {
     PyObject *seq;

@@ -27,6 +27,11 @@ PyArrayObject *wvolpy_real_f32(PyObject *obj);
  * when check_finite. spacing/origin may be NULL (1 and 0). Returns 0 on success,
  * -1 with an exception set. */
 int wvolpy_as_volume(PyObject *obj, wvol_volume *out, PyArrayObject **holder, int check_finite);
+/* wvolpy_as_volume, then spacing and origin (x, y, z; None keeps 1 / 0) from Python
+ * sequences into out (not yet checked: wvol_volume_set_geometry does that). On failure
+ * *holder is released and NULL. */
+int wvolpy_as_placed_volume(PyObject *obj, PyObject *spacing, PyObject *origin, wvol_volume *out,
+                            PyArrayObject **holder, int check_finite);
 
 /* New float32 array (nz, ny, nx) copying v's samples (2D (ny, nx) when squeeze2d and nz == 1). */
 PyObject *wvolpy_volume_to_array(const wvol_volume *v, int squeeze2d);
