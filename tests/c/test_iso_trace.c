@@ -14,6 +14,7 @@
 #include <string.h>
 
 #include "check.h"
+#include "fixtures.h"
 #include "iso/iso_internal.h"
 #include "render/spline_ray.h"
 #include "wvol/iso.h"
@@ -24,10 +25,7 @@
 static uint64_t rs = 0x2545F4914F6CDD1Dull;
 static double rnd(void)
 {
-    rs ^= rs << 13;
-    rs ^= rs >> 7;
-    rs ^= rs << 17;
-    return (double)(rs >> 11) / 9007199254740992.0;
+    return fixture_urand(&rs);
 }
 
 static wvol_volume *phantom(const char *kind, size_t n)
@@ -43,14 +41,14 @@ static wvol_volume *phantom(const char *kind, size_t n)
 
 static wvol_store *make_store(const wvol_volume *v, const char *filter, int levels, double keep)
 {
-    const wvol_filter *f = NULL;
+    const wvol_filter *f = fixture_filter(filter);
     wvol_coeffs *c = NULL;
     wvol_selection *sel = NULL;
     wvol_store *s = NULL;
     wvol_select_params sp = wvol_select_params_default();
     wvol_store_params stp = wvol_store_params_default();
     wvol_error err;
-    if (wvol_filter_get(&f, filter, &err) != WVOL_OK || wvol_dwt3(&c, v, f, levels, &err) != WVOL_OK) return NULL;
+    if (!f || wvol_dwt3(&c, v, f, levels, &err) != WVOL_OK) return NULL;
     if (keep < 1.0) {
         sp.mode = WVOL_SELECT_FRACTION;
         sp.fraction = keep;
