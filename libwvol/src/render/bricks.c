@@ -321,6 +321,7 @@ hit:
     }
     view->sy = (size_t)(view->hi[0] - view->lo[0] + 1);
     view->sz = view->sy * (size_t)(view->hi[1] - view->lo[1] + 1);
+    wvol__view_finish(view);
     *empty = wvol__brick_empty(src->tf, src->mode, c->mn[slot], c->mx[slot]);
     return WVOL_OK;
 }

@@ -20,8 +20,8 @@ static double trilinear_slow(const wvol__view *w, const double x[3]);
  * view's voxel range) without clamping branches. */
 static inline double trilinear(const wvol__view *w, const double x[3])
 {
-    if (x[0] > w->lo[0] && x[1] > w->lo[1] && x[2] > w->lo[2] && x[0] < w->hi[0] && x[1] < w->hi[1] &&
-        x[2] < w->hi[2]) {
+    if (x[0] > w->flo[0] && x[1] > w->flo[1] && x[2] > w->flo[2] && x[0] < w->fhi[0] && x[1] < w->fhi[1] &&
+        x[2] < w->fhi[2]) {
         long i = (long)x[0], j = (long)x[1], k = (long)x[2];
         double wx = x[0] - (double)i, wy = x[1] - (double)j, wz = x[2] - (double)k;
         size_t sy = w->sy, sz = w->sz;
@@ -110,6 +110,14 @@ static double tf_max_kappa(const wvol_tf *tf, double lo, double hi)
     for (i = 0; i < tf->count; i++)
         if (tf->points[i].value > lo && tf->points[i].value < hi && tf->points[i].opacity > m) m = tf->points[i].opacity;
     return m;
+}
+
+void wvol__view_finish(wvol__view *w)
+{
+    for (int a = 0; a < 3; a++) {
+        w->flo[a] = (double)w->lo[a];
+        w->fhi[a] = (double)w->hi[a];
+    }
 }
 
 int wvol__brick_empty(const wvol_tf *tf, wvol_render_mode mode, double mn, double mx)
@@ -250,18 +258,53 @@ static inline void tf_fast_eval(const tf_fast *f, double val, int *seg, double r
     *kappa = f->c0[i][3] + w * f->dc[i][3];
 }
 
+/* exp(x) for x <= 0, inlined for the inner loop: x = n ln2 + r with |r| <= ln2/2 (ln2 split
+ * in two parts, Cody-Waite), e^r by its Taylor series to degree 12 (truncation below
+ * 0.35^13/13! ~ 2e-16), scaled by 2^n through the exponent bits. Relative error a few ulp;
+ * 0 below -708 (where the result would be subnormal). */
+static inline double exp_neg(double x)
+{
+    static const double ln2_hi = 6.93147180369123816490e-01, ln2_lo = 1.90821492927058770002e-10;
+    double n, r, q;
+    union {
+        double d;
+        unsigned long long u;
+    } sc;
+    if (!(x > -708.0)) return 0.0; /* also NaN: an opaque step */
+    n = -(double)(long long)(0.5 - x * 1.4426950408889634); /* round to nearest, x <= 0 */
+    r = (x - n * ln2_hi) - n * ln2_lo;
+    q = 1.0 / 479001600.0;
+    q = q * r + 1.0 / 39916800.0;
+    q = q * r + 1.0 / 3628800.0;
+    q = q * r + 1.0 / 362880.0;
+    q = q * r + 1.0 / 40320.0;
+    q = q * r + 1.0 / 5040.0;
+    q = q * r + 1.0 / 720.0;
+    q = q * r + 1.0 / 120.0;
+    q = q * r + 1.0 / 24.0;
+    q = q * r + 1.0 / 6.0;
+    q = q * r + 0.5;
+    q = q * r + 1.0;
+    q = q * r + 1.0;
+    sc.u = (unsigned long long)((long long)n + 1023) << 52;
+    return q * sc.d;
+}
+
 /* One ray: samples at the midpoints of steps of dt over [t0, t1], front to back. A dense
  * source's view is the whole volume; a bricked source's is fetched (through the thread's
  * context tc) when the ray enters a brick not known to be empty. The brick is looked up
  * only when the ray passes the current brick's exit. */
-static void march(const wvol__sampler *s, void *tc, const tf_fast *tfx,
-                  const wvol_render_params *p, const double o[3], const double d[3], double t0, double t1,
-                  double dt, ray_out *out)
+static inline __attribute__((always_inline)) void march(const wvol__sampler *s, void *tc, const tf_fast *tfx,
+                                                         const wvol_render_params *p, const wvol_render_mode mode,
+                                                         const int shading, const double o[3], const double d[3],
+                                                         double t0, double t1, double dt, ray_out *out)
 {
     wvol__view view = s->whole;
     double x0[3], e[3], T = 1.0, acc[3] = {0, 0, 0}, xr = 0, t_exit = -INFINITY;
     long k, nsteps;
-    int a, seg = -1, bricked = s->empty || s->fetch, cur_empty = 0;
+    int a, seg = -1, bricked = s->empty || s->fetch, cur_empty = 0, nclamp = 0;
+    size_t nsamp = 0, nskip = 0; /* counted in locals: out may alias nothing, but the
+                                    compiler cannot know */
     for (a = 0; a < 3; a++) {
         x0[a] = (o[a] - s->origin[a]) / s->spacing[a];
         e[a] = d[a] / s->spacing[a];
@@ -287,13 +330,13 @@ static void march(const wvol__sampler *s, void *tc, const tf_fast *tfx,
             }
             if (cur_empty) {
                 long kn = (long)floor((t_exit - t0) / dt);
-                out->skipped++;
+                nskip++;
                 if (kn > k) k = kn - 1;
                 continue;
             }
         }
-        out->samples++;
-        if (p->mode == WVOL_MODE_XRAY) {
+        nsamp++;
+        if (mode == WVOL_MODE_XRAY) {
             xr += sample_at(s, &view, x, NULL) * h;
             continue;
         }
@@ -301,17 +344,17 @@ static void march(const wvol__sampler *s, void *tc, const tf_fast *tfx,
         tf_fast_eval(tfx, val, &seg, rgb, &kappa);
         if (kappa > 0) {
             double alpha, shade = 1.0;
-            if (p->mode == WVOL_MODE_ABSORPTION) {
-                alpha = 1.0 - exp(-kappa * h); /* exp is cheaper than expm1; the difference
-                                                  is far below the step's own error */
+            if (mode == WVOL_MODE_ABSORPTION) {
+                alpha = 1.0 - exp_neg(-kappa * h); /* not expm1: the difference is far
+                                                      below the step's own error */
             } else {
                 alpha = kappa * h;
                 if (alpha > 1) {
                     alpha = 1;
-                    out->clamped++;
+                    nclamp++;
                 }
             }
-            if (p->shading) {
+            if (shading) {
                 sample_at(s, &view, x, grad);
                 shade = wvol__shade(grad, d, p->ambient);
             }
@@ -323,7 +366,10 @@ static void march(const wvol__sampler *s, void *tc, const tf_fast *tfx,
             }
         }
     }
-    if (p->mode == WVOL_MODE_XRAY) {
+    out->samples += nsamp;
+    out->skipped += nskip;
+    out->clamped += nclamp;
+    if (mode == WVOL_MODE_XRAY) {
         out->rgba[0] = out->rgba[1] = out->rgba[2] = xr;
         out->rgba[3] = 1.0;
     } else {
@@ -387,7 +433,14 @@ wvol_status wvol__render_sampled(wvol_image *img, wvol__sampler *s, const wvol_c
                     if (cam->projection == WVOL_PERSPECTIVE && t0 < 0) t0 = 0;
                     if (t1 > t0) {
                         rays_hit++;
-                        march(s, tc, &tfx, &p, o, d, t0, t1, dt, &r);
+                        /* the common cases get their own copy of the loop, the mode and
+                         * shading tests compiled away */
+                        if (p.mode == WVOL_MODE_ABSORPTION && !p.shading)
+                            march(s, tc, &tfx, &p, WVOL_MODE_ABSORPTION, 0, o, d, t0, t1, dt, &r);
+                        else if (p.mode == WVOL_MODE_XRAY && !p.shading)
+                            march(s, tc, &tfx, &p, WVOL_MODE_XRAY, 0, o, d, t0, t1, dt, &r);
+                        else
+                            march(s, tc, &tfx, &p, p.mode, p.shading, o, d, t0, t1, dt, &r);
                     }
                 }
                 for (int c = 0; c < 4; c++) px[c] = (float)r.rgba[c];
@@ -433,6 +486,7 @@ wvol_status wvol_render_reference(wvol_image *img, const wvol_volume *v, const w
     s.whole.sy = v->nx;
     s.whole.sz = v->nx * v->ny;
     for (a = 0; a < 3; a++) s.whole.hi[a] = (long)s.n[a] - 1;
+    wvol__view_finish(&s.whole);
     for (a = 0; a < 3; a++) {
         s.spacing[a] = v->spacing[a];
         s.origin[a] = v->origin[a];

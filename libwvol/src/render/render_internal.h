@@ -41,8 +41,11 @@ wvol_status wvol__render_check(const wvol_image *img, const wvol_camera *cam, co
 typedef struct wvol__view {
     const float *data;
     long off[3], lo[3], hi[3];
+    double flo[3], fhi[3];  /* lo, hi as doubles (wvol__view_finish) */
     size_t sy, sz;
 } wvol__view;
+
+void wvol__view_finish(wvol__view *w);
 
 /* What the reference integrator samples: trilinear interpolation of voxels, from a dense
  * volume (v, whole) or a bricked source (fetch), or a callback (eval). Bricks are cubes of
