@@ -38,6 +38,32 @@ static const cli_opt opts[] = {
     CLI_HELP_OPT,
     {NULL, 0, 0, NULL}};
 
+/* Resident memory in MiB from /proc/self/status ("VmRSS" now, "VmHWM" peak), -1 if unknown. */
+static double rss_mib(const char *key)
+{
+    char line[256];
+    double v = -1;
+    FILE *f = fopen("/proc/self/status", "r");
+    if (!f) return -1;
+    while (fgets(line, sizeof line, f))
+        if (!strncmp(line, key, strlen(key)) && line[strlen(key)] == ':') {
+            v = atof(line + strlen(key) + 1) / 1024.0; /* kB */
+            break;
+        }
+    fclose(f);
+    return v;
+}
+
+/* Resets the peak resident size to the current one (Linux >= 4.0); 0 when that worked. */
+static int rss_reset_peak(void)
+{
+    FILE *f = fopen("/proc/self/clear_refs", "w");
+    int ok;
+    if (!f) return -1;
+    ok = fputs("5", f) >= 0;
+    return fclose(f) == 0 && ok ? 0 : -1;
+}
+
 static int is_file(const char *p)
 {
     struct stat st;
@@ -68,7 +94,8 @@ int wvol_cmd_render(int argc, char **argv)
     wvol_geometry g;
     wvol_render_stats stats;
     wvol_select_report rep;
-    double vmin = 0, vmax = 1, t0, t_prep = 0;
+    double vmin = 0, vmax = 1, t0, t_prep = 0, rss_before = -1, rss_peak = -1;
+    size_t store_bytes = 0;
     const wvol_filter *filt = NULL;
 
     wvol_render_params_default(&rp);
@@ -224,8 +251,17 @@ int wvol_cmd_render(int argc, char **argv)
             v = NULL;
         }
     }
+    if (!strcmp(method, "bricks") && brick <= 0) rp.brick = 16; /* faster than the reference's 8 */
+    if (st) {
+        wvol_store_info si;
+        wvol_store_get_info(st, &si);
+        store_bytes = si.bytes;
+    }
     if (wvol_image_create(&img, (int)W, (int)H, &err) != WVOL_OK) goto fail;
     t_prep = cli_now() - t0;
+    /* the render's own peak: the process's peak resident size from here on (the volume or
+     * decoded coefficients that built the store are freed by now) */
+    if (rss_reset_peak() == 0) rss_before = rss_mib("VmRSS");
     {
         wvol_status s = WVOL_ERR_INTERNAL;
         if (!strcmp(method, "reference")) s = wvol_render_reference(img, v, &cam, &tf, &rp, &stats, &err);
@@ -245,6 +281,7 @@ int wvol_cmd_render(int argc, char **argv)
             if (s == WVOL_ERR_UNSUPPORTED) s = wvol_render_bricks(img, st, &cam, &tf, &rp, &stats, &err);
         }
         if (s != WVOL_OK) goto fail;
+        if (rss_before >= 0) rss_peak = rss_mib("VmHWM");
     }
     {
         wvol_status s;
@@ -290,10 +327,15 @@ int wvol_cmd_render(int argc, char **argv)
         cli_json_int("terminated", (long long)stats.terminated);
         cli_json_int("clamped", (long long)stats.clamped);
         if (!strcmp(method, "bricks")) {
+            cli_json_int("brick", rp.brick);
+            cli_json_num("step", rp.step);
             cli_json_int("bricks_built", (long long)stats.bricks_built);
             cli_json_int("bricks_bound_skipped", (long long)stats.bricks_bound_skipped);
             cli_json_int("render_bytes", (long long)stats.bytes);
         }
+        if (st) cli_json_int("store_bytes", (long long)store_bytes);
+        cli_json_num("rss_before_render_mib", rss_before);
+        cli_json_num("rss_peak_render_mib", rss_peak);
         cli_json_end();
     } else {
         printf("wrote %s (%ldx%ld, %s, %s) in %.3f s render + %.3f s preparation\n", out, W, H, method,

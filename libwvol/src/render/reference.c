@@ -387,7 +387,7 @@ wvol_status wvol__render_sampled(wvol_image *img, wvol__sampler *s, const wvol_c
     tf_fast tfx;
     wvol__cam k;
     double lo[3], hi[3], dt, t_start, c_start;
-    int ntiles, tx, a;
+    int ntiles, tx, a, *order;
     size_t rays_hit = 0, samples = 0, skipped = 0, terminated = 0, clamped = 0;
     wvol_status failed = WVOL_OK;
 
@@ -417,10 +417,18 @@ wvol_status wvol__render_sampled(wvol_image *img, wvol__sampler *s, const wvol_c
     wvol__cam_init(&k, cam);
     ntiles = wvol__tiles(img->width, img->height, p.tile);
     tx = (img->width + p.tile - 1) / p.tile;
-#pragma omp parallel for schedule(dynamic, 1) num_threads(wvol__threads(p.threads)) \
+    order = wvol__tile_order(img->width, img->height, p.tile);
+    if (!order) {
+        free(s->empty);
+        s->empty = NULL;
+        return wvol_error_set(err, WVOL_ERR_NOMEM, "render: out of memory");
+    }
+#pragma omp parallel for schedule(dynamic, 4) num_threads(wvol__threads(p.threads)) \
     reduction(+ : rays_hit, samples, skipped, terminated, clamped)
+    /* chunks of 4 Z-ordered tiles (2 x 2): a thread keeps neighbouring tiles, and with them
+     * the bricks its cache holds */
     for (int ti = 0; ti < ntiles; ti++) {
-        int x0 = (ti % tx) * p.tile, y0 = (ti / tx) * p.tile, x, y;
+        int x0 = (order[ti] % tx) * p.tile, y0 = (order[ti] / tx) * p.tile, x, y;
         void *tc = s->tctx ? s->tctx[omp_get_thread_num()] : NULL;
         for (y = y0; y < y0 + p.tile && y < img->height; y++)
             for (x = x0; x < x0 + p.tile && x < img->width; x++) {
@@ -454,6 +462,7 @@ wvol_status wvol__render_sampled(wvol_image *img, wvol__sampler *s, const wvol_c
                 }
             }
     }
+    free(order);
     free(s->empty);
     s->empty = NULL;
     WVOL_RETURN_IF(failed != WVOL_OK, err, failed, "render: a brick could not be reconstructed (out of memory)");

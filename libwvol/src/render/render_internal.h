@@ -24,6 +24,9 @@ void wvol__tf_world(wvol_tf *out, const wvol_tf *tf, const wvol_geometry *g);
 
 /* Per-tile parallel loop helpers. */
 int wvol__tiles(int width, int height, int tile);
+/* The tiles (index x + tiles_x * y) in Z order (Morton), so that consecutive tiles are
+ * neighbours and share the bricks they read; malloc'ed, NULL when out of memory. */
+int *wvol__tile_order(int width, int height, int tile);
 
 /* Shading factor for a normalised gradient and the view direction (headlight). */
 double wvol__shade(const double grad[3], const double dir[3], double ambient);
