@@ -30,6 +30,7 @@ static const cli_opt opts[] = {
     {"brick", 0, 1, "bricks: brick side in voxels (default 16); reference: empty-space brick side (default 8)"},
     {"gauss", 0, 1, "spline method: Gauss-Legendre nodes per piece for the exponential (default 5)"},
     {"shading", 0, 0, "diffuse headlight shading from the gradient"},
+    {"colors", 0, 1, "colour volume replacing the TF colour: interleaved RGB float32 .raw, e.g. from 'wvol segment --colors'"},
     {"threads", 0, 1, "threads (default: all)"},
     {"exposure", 0, 1, "PNG: scale before sRGB encoding (default 1; X-ray: 1/max)"},
     {"dims", 0, 1, "raw input: NXxNYxNZ"},
@@ -76,7 +77,7 @@ int wvol_cmd_render(int argc, char **argv)
     cli_parser ps;
     const cli_opt *o;
     const char *val, *in = NULL, *out = NULL, *camspec = "+z", *tfname = "gaussian", *wname = "db2";
-    const char *method = "auto";
+    const char *method = "auto", *colors_path = NULL;
     int r, json = 0, rc = CLI_FAILED;
     long W = 512, H = 512, levels = 0, spline_j = 4, threads = 0, gauss = 5, brick = -1;
     double keep = 1.0, exposure = 0, step = 0.5;
@@ -84,7 +85,7 @@ int wvol_cmd_render(int argc, char **argv)
     wvol_render_params rp;
     wvol_load_options lo;
     wvol_error err;
-    wvol_volume *v = NULL;
+    wvol_volume *v = NULL, *colors = NULL;
     wvol_coeffs *c = NULL;
     wvol_selection *sel = NULL;
     wvol_store *st = NULL;
@@ -128,6 +129,7 @@ int wvol_cmd_render(int argc, char **argv)
         else if (!strcmp(o->name, "wavelet")) wname = val;
         else if (!strcmp(o->name, "method")) method = val;
         else if (!strcmp(o->name, "shading")) rp.shading = 1;
+        else if (!strcmp(o->name, "colors")) colors_path = val;
         else if (!strcmp(o->name, "size")) {
             char *e1, *e2;
             W = strtol(val, &e1, 10);
@@ -181,11 +183,15 @@ int wvol_cmd_render(int argc, char **argv)
     if (brick > 0) rp.brick = (int)brick;
     rp.threads = (int)threads;
     rp.gauss_nodes = (int)gauss;
+    if (colors_path && rp.mode == WVOL_MODE_XRAY) return cli_usage(cmd, "--colors needs an absorption mode (X-ray has no colour)");
     if (!strcmp(method, "auto")) {
-        /* a .wvc is rendered from its store unless a reference was asked for */
+        /* a .wvc is rendered from its store unless a reference was asked for; bricks read
+         * a colour volume like the reference does */
         method = !is_wvc && (!keep_given || keep >= 1.0) ? "reference" : "bricks";
-        auto_fast = 1;
+        auto_fast = !colors_path;
     }
+    if (colors_path && strcmp(method, "reference") && strcmp(method, "reference-fhat") && strcmp(method, "bricks"))
+        return cli_usage(cmd, "--colors needs --method reference, reference-fhat or bricks (got %s)", method);
     if (wvol_filter_get(&filt, wname, &err) != WVOL_OK) return cli_usage(cmd, "--wavelet: %s", err.message);
 
     t0 = cli_now();
@@ -202,6 +208,20 @@ int wvol_cmd_render(int argc, char **argv)
         if (wvol_volume_load(&v, in, &lo, &err) != WVOL_OK) return cli_fail_err(cmd, &err);
         wvol_volume_range(v, &vmin, &vmax, NULL);
         wvol_geometry_of_volume(&g, v);
+    }
+    if (colors_path) {
+        /* RGB interleaved: read through the raw reader as a volume 3 nx wide, which checks the size. */
+        wvol_load_options co;
+        wvol_load_options_default(&co);
+        co.dims[0] = 3 * g.dims[0], co.dims[1] = g.dims[1], co.dims[2] = g.dims[2];
+        co.raw_type = WVOL_F32;
+        if (!wvol_path_has_ext(colors_path, ".raw")) {
+            rc = cli_usage(cmd, "--colors %s: expected interleaved RGB float32 .raw", colors_path);
+            goto done;
+        }
+        if (wvol_volume_load(&colors, colors_path, &co, &err) != WVOL_OK) goto fail;
+        rp.colors = colors->data;
+        rp.colors_count = wvol_volume_count(colors);
     }
     if (wvol_camera_parse(&cam, camspec, &g, (int)W, (int)H, &err) != WVOL_OK) {
         rc = cli_usage(cmd, "--camera: %s", err.message);
@@ -352,5 +372,6 @@ done:
     wvol_selection_destroy(sel);
     wvol_coeffs_destroy(c);
     wvol_volume_destroy(v);
+    wvol_volume_destroy(colors);
     return rc;
 }

@@ -149,6 +149,12 @@ typedef struct wvol_render_params {
     wvol_sample_kind sample;/* reference only */
     int gauss_nodes;        /* spline: Gauss-Legendre nodes per polynomial piece for the
                                exponential (default 5; 1..10) */
+    const float *colors;    /* optional colour volume (the segmentation's, DESIGN.md section 10):
+                               linear RGB per voxel, 3 floats, x fastest, same grid as the
+                               volume; replaces the TF's colour (kappa still comes from the TF).
+                               Looked up at the nearest voxel, so classes keep crisp edges.
+                               Absorption modes of the reference methods only; default NULL */
+    size_t colors_count;    /* floats in colors: must be 3 * nx * ny * nz */
 } wvol_render_params;
 
 void wvol_render_params_default(wvol_render_params *p);

@@ -20,6 +20,8 @@ void wvol_render_params_default(wvol_render_params *p)
     p->brick = 8;
     p->sample = WVOL_SAMPLE_TRILINEAR;
     p->gauss_nodes = 5;
+    p->colors = NULL;
+    p->colors_count = 0;
 }
 
 void wvol__params(wvol_render_params *out, const wvol_render_params *in)
@@ -51,6 +53,30 @@ wvol_status wvol__render_check(const wvol_image *img, const wvol_camera *cam, co
     WVOL_RETURN_IF(p->threads < 0, err, WVOL_ERR_ARG, "render: threads %d (>= 0)", p->threads);
     WVOL_RETURN_IF(p->gauss_nodes < 1 || p->gauss_nodes > 10, err, WVOL_ERR_ARG, "render: gauss_nodes %d (1..10)",
                    p->gauss_nodes);
+    return WVOL_OK;
+}
+
+wvol_status wvol__check_colors(const wvol_render_params *p, const size_t n[3], int supported, wvol_error *err)
+{
+    size_t want, i;
+    if (!p->colors) return WVOL_OK;
+    WVOL_RETURN_IF(!supported, err, WVOL_ERR_UNSUPPORTED,
+                   "render: a colour volume needs method reference or reference-fhat (this method has no voxels to "
+                   "look colours up in)");
+    WVOL_RETURN_IF(p->mode == WVOL_MODE_XRAY, err, WVOL_ERR_ARG,
+                   "render: a colour volume needs an absorption mode (X-ray has no colour)");
+    want = n[0] * n[1];
+    WVOL_RETURN_IF(n[0] && want / n[0] != n[1], err, WVOL_ERR_ARG, "render: volume too large for a colour volume");
+    WVOL_RETURN_IF(n[2] && (want * n[2]) / n[2] != want, err, WVOL_ERR_ARG, "render: volume too large for a colour volume");
+    want *= n[2];
+    WVOL_RETURN_IF(want > ((size_t)-1) / 3, err, WVOL_ERR_ARG, "render: volume too large for a colour volume");
+    WVOL_RETURN_IF(p->colors_count != 3 * want, err, WVOL_ERR_ARG,
+                   "render: colour volume has %zu floats, the %zux%zux%zu volume needs %zu (3 per voxel)", p->colors_count,
+                   n[0], n[1], n[2], 3 * want);
+    for (i = 0; i < p->colors_count; i++)
+        WVOL_RETURN_IF(!(p->colors[i] >= 0) || !isfinite(p->colors[i]), err, WVOL_ERR_ARG,
+                       "render: colour volume value %g at voxel %zu channel %zu (must be finite and >= 0)",
+                       (double)p->colors[i], i / 3, i % 3);
     return WVOL_OK;
 }
 
@@ -86,10 +112,11 @@ double wvol__shade(const double grad[3], const double dir[3], double ambient)
 
 double wvol_image_rmse(const wvol_image *a, const wvol_image *b, int channel, int relative)
 {
-    size_t n = (size_t)a->width * (size_t)a->height, i, cnt = 0;
+    size_t n, i, cnt = 0;
     double s = 0, mx = 0;
     int c;
     if (!a || !b || a->width != b->width || a->height != b->height) return NAN;
+    n = (size_t)a->width * (size_t)a->height;
     for (i = 0; i < n; i++)
         for (c = 0; c < 4; c++) {
             double d;

@@ -99,6 +99,21 @@ static double sample_at(const wvol__sampler *s, const wvol__view *w, const doubl
     }
 }
 
+/* The colour volume's RGB at the voxel nearest to index position x (clamped to the grid):
+ * nearest rather than trilinear so that segmented classes keep their own colours. */
+static void nearest_color(const wvol__sampler *s, const float *colors, const double x[3], double rgb[3])
+{
+    size_t i[3], off;
+    int a;
+    for (a = 0; a < 3; a++) {
+        double r = floor(x[a] + 0.5);
+        i[a] = r > 0 ? (size_t)r : 0;
+        if (i[a] > s->n[a] - 1) i[a] = s->n[a] - 1;
+    }
+    off = 3 * (i[0] + s->n[0] * (i[1] + s->n[1] * i[2]));
+    for (a = 0; a < 3; a++) rgb[a] = colors[off + (size_t)a];
+}
+
 /* Largest kappa of the TF over [lo, hi] (piecewise linear: endpoints and knots inside). */
 static double tf_max_kappa(const wvol_tf *tf, double lo, double hi)
 {
@@ -342,6 +357,7 @@ static inline __attribute__((always_inline)) void march(const wvol__sampler *s, 
         }
         val = sample_at(s, &view, x, NULL);
         tf_fast_eval(tfx, val, &seg, rgb, &kappa);
+        if (kappa > 0 && p->colors) nearest_color(s, p->colors, x, rgb);
         if (kappa > 0) {
             double alpha, shade = 1.0;
             if (mode == WVOL_MODE_ABSORPTION) {
@@ -393,6 +409,7 @@ wvol_status wvol__render_sampled(wvol_image *img, wvol__sampler *s, const wvol_c
 
     wvol__params(&p, pin);
     WVOL_FORWARD(wvol__render_check(img, cam, tf_in, &p, err));
+    WVOL_FORWARD(wvol__check_colors(&p, s->n, 1, err));
     for (a = 0; a < 3; a++) {
         g.dims[a] = s->n[a];
         g.spacing[a] = s->spacing[a];

@@ -22,6 +22,10 @@ int wvol__ray_box(const double o[3], const double d[3], const double lo[3], cons
 /* The TF resolved for one volume: kappa in per-world-unit. */
 void wvol__tf_world(wvol_tf *out, const wvol_tf *tf, const wvol_geometry *g);
 
+/* Checks params->colors (if set) against a grid of n voxels; `supported` is 0 for methods
+ * that cannot use a colour volume (they refuse it rather than ignore it). */
+wvol_status wvol__check_colors(const wvol_render_params *p, const size_t n[3], int supported, wvol_error *err);
+
 /* Per-tile parallel loop helpers. */
 int wvol__tiles(int width, int height, int tile);
 /* The tiles (index x + tiles_x * y) in Z order (Morton), so that consecutive tiles are

@@ -550,6 +550,7 @@ wvol_status wvol_render_spline(wvol_image *img, const wvol_store *s, const wvol_
     memset(&c, 0, sizeof c);
     wvol__params(&c.p, params);
     WVOL_FORWARD(wvol__render_check(img, cam, tf_in, &c.p, err));
+    WVOL_FORWARD(wvol__check_colors(&c.p, NULL, 0, err));
     c.s = s;
     c.b = wvol_store_basis(s);
     WVOL_RETURN_IF(!c.b, err, WVOL_ERR_ARG, "render: the store has no basis tables");
