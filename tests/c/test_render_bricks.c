@@ -58,7 +58,7 @@ static wvol_store *store_and_recon(const wvol_volume *v, double keep, wvol_volum
 }
 
 static void one_case(const wvol_store *s, const wvol_volume *recon, const char *camspec, wvol_render_mode mode,
-                     int shading, int brick, int threads, const char *what)
+                     int shading, int brick, int threads, const float *colors, const char *what)
 {
     wvol_geometry g;
     wvol_camera cam;
@@ -80,6 +80,10 @@ static void one_case(const wvol_store *s, const wvol_volume *recon, const char *
     p.shading = shading;
     p.threads = threads;
     p.step = 0.4;
+    if (colors) {
+        p.colors = colors;
+        p.colors_count = 3 * wvol_volume_count(recon);
+    }
     CHECK(wvol_image_create(&a, 40, 32, &err) == WVOL_OK && wvol_image_create(&b, 40, 32, &err) == WVOL_OK, "%s",
           err.message);
     if (!a || !b) return;
@@ -103,26 +107,43 @@ static void bricks_equal_reference_on_the_reconstruction(void)
 {
     wvol_volume *v = phantom(66, 60, 52), *recon = NULL;
     const double keeps[2] = {1.0, 0.05};
+    float *colors;
+    size_t nv, q;
     int i;
     if (!v) return;
+    /* a colour volume of blocky classes: the nearest-voxel lookup must read the same voxel */
+    nv = wvol_volume_count(v);
+    colors = malloc(3 * nv * sizeof *colors);
+    if (colors)
+        for (q = 0; q < nv; q++) {
+            size_t cls = ((q % 66) / 7 + (q / 66 % 60) / 5 + q / (66 * 60) / 6) % 3;
+            colors[3 * q] = cls == 0 ? 1.0f : 0.1f;
+            colors[3 * q + 1] = cls == 1 ? 1.0f : 0.2f;
+            colors[3 * q + 2] = cls == 2 ? 1.0f : 0.3f;
+        }
     for (i = 0; i < 2; i++) {
         wvol_store *s = store_and_recon(v, keeps[i], &recon);
         char what[96];
         if (!s || !recon) break;
         snprintf(what, sizeof what, "keep %g persp absorption B=16", keeps[i]);
-        one_case(s, recon, "persp dir=1,0.7,0.4", WVOL_MODE_ABSORPTION, 0, 16, 2, what);
+        one_case(s, recon, "persp dir=1,0.7,0.4", WVOL_MODE_ABSORPTION, 0, 16, 2, NULL, what);
         snprintf(what, sizeof what, "keep %g ortho +z absorption-linear B=8", keeps[i]);
-        one_case(s, recon, "+z", WVOL_MODE_ABSORPTION_LINEAR, 0, 8, 1, what);
+        one_case(s, recon, "+z", WVOL_MODE_ABSORPTION_LINEAR, 0, 8, 1, NULL, what);
         snprintf(what, sizeof what, "keep %g ortho oblique xray B=5", keeps[i]);
-        one_case(s, recon, "ortho dir=-0.3,1,-0.6", WVOL_MODE_XRAY, 0, 5, 2, what);
+        one_case(s, recon, "ortho dir=-0.3,1,-0.6", WVOL_MODE_XRAY, 0, 5, 2, NULL, what);
         snprintf(what, sizeof what, "keep %g persp inside, shaded B=16", keeps[i]);
-        one_case(s, recon, "persp eye=30,28,25 center=60,40,40 fov=70", WVOL_MODE_ABSORPTION, 1, 16, 1, what);
+        one_case(s, recon, "persp eye=30,28,25 center=60,40,40 fov=70", WVOL_MODE_ABSORPTION, 1, 16, 1, NULL, what);
+        if (colors) {
+            snprintf(what, sizeof what, "keep %g persp, colour volume B=16", keeps[i]);
+            one_case(s, recon, "persp dir=-1,0.5,0.8", WVOL_MODE_ABSORPTION, 0, 16, 2, colors, what);
+        }
         wvol_store_destroy(s);
         wvol_volume_destroy(recon);
         recon = NULL;
     }
     wvol_volume_destroy(recon);
     wvol_volume_destroy(v);
+    free(colors);
 }
 
 /* A bricked brick reconstruction equals wvol_idwt3_brick on the dense coefficients, which
