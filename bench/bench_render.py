@@ -250,9 +250,17 @@ def main():
             tf = "gaussian" if vname == "gaussian" else "ct-soft"
             diag = n * math.sqrt(3)
             for mode in ["xray", "absorption", "absorption-linear"]:
-                if any(r.get("volume") == vname and r.get("mode") == mode and "spline" in str(r.get("method"))
-                       and r.get("keep") == 100.0 and "J=" + a.spline_j.split(",")[-1] in r["method"] for r in rows):
-                    continue  # this mode was finished by the resumed run
+                # the runs of this mode; a resumed run's rows are kept and their runs skipped
+                skeeps = [float(x) for x in a.spline_keep.split(",")] if a.spline_keep else keeps
+                bsteps = [float(x) for x in a.bricks_steps.split(",")]
+                plan = [(f"reference step={a.ref_step} (converged)", 100)] + [(f"reference step={st}", 100)
+                                                                            for st in [1.0, 0.5, 0.25]]
+                for keep in keeps:
+                    plan += [("axis", keep)] if mode == "xray" else []
+                    plan += [(f"bricks step={st}", keep) for st in bsteps]
+                    plan += [(f"spline J={J}", keep) for J in a.spline_j.split(",") if keep in skeeps]
+                if all(have(vname, mode, m, k) for m, k in plan):
+                    continue
                 common = ["--size", f"{img}x{img}", "--camera", "+z", "--mode", mode, "--tf", tf]
                 ref = tmp / f"ref_{vname}_{mode}.exr"
                 info, dt, mem, e = wvol_render(raw, n, ref, common + ["--method", "reference", "--step", str(a.ref_step)], thr)
@@ -279,24 +287,31 @@ def main():
                     rows.append(row)
                     print(json.dumps(row), flush=True)
 
-                record(f"reference step={a.ref_step} (converged)", 100, ref, info, dt, mem, None, {"step": a.ref_step})
+                if not have(vname, mode, f"reference step={a.ref_step} (converged)", 100):
+                    record(f"reference step={a.ref_step} (converged)", 100, ref, info, dt, mem, None, {"step": a.ref_step})
                 for step in [1.0, 0.5, 0.25]:
+                    if have(vname, mode, f"reference step={step}", 100):
+                        continue
                     out = tmp / "o.exr"
                     info, dt, mem, e = wvol_render(raw, n, out, common + ["--method", "reference", "--step", str(step)], thr)
                     record(f"reference step={step}", 100, out, info, dt, mem, e, {"step": step})
                 for keep in keeps:
                     ka = [] if keep >= 100 else ["--keep", f"{keep}%"]
-                    if mode == "xray":
+                    if mode == "xray" and not have(vname, mode, "axis", keep):
                         out = tmp / "o.exr"
                         info, dt, mem, e = wvol_render(raw, n, out, common + ["--method", "axis"] + ka, thr)
                         record("axis", keep, out, info, dt, mem, e)
-                    for step in [float(x) for x in a.bricks_steps.split(",")]:
+                    for step in bsteps:
+                        if have(vname, mode, f"bricks step={step}", keep):
+                            continue
                         out = tmp / "o.exr"
                         info, dt, mem, e = wvol_render(raw, n, out, common + ["--method", "bricks", "--step", str(step)] + ka, thr)
                         record(f"bricks step={step}", keep, out, info, dt, mem, e, {"step": step})
-                    if a.spline_keep and keep not in [float(x) for x in a.spline_keep.split(",")]:
+                    if keep not in skeeps:
                         continue
                     for J in a.spline_j.split(","):
+                        if have(vname, mode, f"spline J={J}", keep):
+                            continue
                         # pilot at 1/8 of the pixels per side: run full size only if it fits the budget
                         ps = max(img // 8, 8)
                         pc = ["--size", f"{ps}x{ps}"] + common[2:]
