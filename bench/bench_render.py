@@ -244,7 +244,7 @@ def main():
 
     machine = {"cpus": os.cpu_count(), "threads": a.threads, "uname": " ".join(os.uname())}
     try:
-        for vname in a.volumes.split(","):
+        for vname in [x for x in a.volumes.split(",") if x]:  # --volumes "": only tabulate --resume rows
             v = gaussian(n) if vname == "gaussian" else skull(n, tmp)
             raw = tmp / f"{vname}.raw"; write_raw(v, raw)
             tf = "gaussian" if vname == "gaussian" else "ct-soft"
