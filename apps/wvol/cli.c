@@ -198,6 +198,37 @@ int cli_parse_fraction(const char *cmd, const char *opt, const char *s, double *
     return 1;
 }
 
+int cli_load_option(const char *cmd, const cli_opt *o, const char *val, wvol_load_options *lo)
+{
+    if (!strcmp(o->name, "dims")) {
+        if (!cli_parse_dims(cmd, "dims", val, lo->dims)) return CLI_USAGE;
+    } else if (!strcmp(o->name, "type")) {
+        int t = wvol_sample_type_parse(val);
+        if (t < 0) return cli_usage(cmd, "--type '%s': unknown sample type", val);
+        lo->raw_type = (wvol_sample_type)t;
+    } else if (!strcmp(o->name, "big-endian")) {
+        lo->big_endian = 1;
+    } else if (!strcmp(o->name, "spacing")) {
+        if (!cli_parse_double3(cmd, "spacing", val, lo->spacing)) return CLI_USAGE;
+        for (int a = 0; a < 3; a++)
+            if (!(lo->spacing[a] > 0)) return cli_usage(cmd, "--spacing '%s': spacing must be positive", val);
+    } else if (!strcmp(o->name, "origin")) {
+        if (!cli_parse_double3(cmd, "origin", val, lo->origin)) return CLI_USAGE;
+    } else if (!strcmp(o->name, "grid")) {
+        lo->grid_name = val;
+    } else {
+        return -1;
+    }
+    return CLI_OK;
+}
+
+int cli_one_input(const char *cmd, const char **in, const char *val)
+{
+    if (*in) return cli_usage(cmd, "one input file expected, got '%s' too", val);
+    *in = val;
+    return CLI_OK;
+}
+
 /* ---- JSON ---- */
 static int json_need_comma[32];
 static int json_depth;
@@ -274,6 +305,22 @@ void cli_json_close(char bracket)
 {
     fputc(bracket, stdout);
     if (json_depth > 0) json_depth--;
+}
+
+void cli_json_size3(const char *key, size_t a, size_t b, size_t c)
+{
+    cli_json_open(key, '[');
+    cli_json_int(NULL, (long long)a);
+    cli_json_int(NULL, (long long)b);
+    cli_json_int(NULL, (long long)c);
+    cli_json_close(']');
+}
+
+void cli_json_num3(const char *key, const double v[3])
+{
+    cli_json_open(key, '[');
+    for (int a = 0; a < 3; a++) cli_json_num(NULL, v[a]);
+    cli_json_close(']');
 }
 
 /* ---- progress ---- */

@@ -4,6 +4,7 @@
 #define WVOL_CLI_H
 
 #include <stddef.h>
+#include "wvol/io.h"
 #include "wvol/status.h"
 
 enum { CLI_OK = 0, CLI_FAILED = 1, CLI_USAGE = 2 };
@@ -34,6 +35,22 @@ int cli_next(cli_parser *p, const cli_opt **opt, const char **value);
 #define CLI_HELP_OPT {"help", 'h', 0, "show this help"}
 #define CLI_JSON_OPT {"json", 0, 0, "machine-readable JSON on stdout"}
 
+/* The raw and .vdb input options of the commands that load a volume. */
+#define CLI_LOAD_OPTS                                                    \
+    {"dims", 0, 1, "raw input: NXxNYxNZ"},                                \
+    {"type", 0, 1, "raw input: sample type (float32, uint8, int16, ...)"}, \
+    {"grid", 0, 1, ".vdb input: grid name (default: first float grid)"}
+
+/* Applies o to lo when o is one of the loading options (--dims, --type, --big-endian,
+ * --spacing, --origin, --grid): returns CLI_OK, or CLI_USAGE after printing an error
+ * for a bad value; returns -1 when o is none of them. Only for commands whose options
+ * of those names describe the input volume. */
+int cli_load_option(const char *cmd, const cli_opt *o, const char *val, wvol_load_options *lo);
+
+/* Takes val as the one positional input file of cmd: CLI_OK, or CLI_USAGE after an
+ * error if *in is already set. */
+int cli_one_input(const char *cmd, const char **in, const char *val);
+
 void cli_print_help(const char *cmd, const char *usage, const char *about, const cli_opt *opts);
 
 /* "wvol CMD: message" on stderr; return CLI_USAGE / CLI_FAILED. */
@@ -59,6 +76,9 @@ void cli_json_num(const char *key, double value);
 void cli_json_int(const char *key, long long value);
 void cli_json_open(const char *key, char bracket);  /* '{' or '[' ; key may be NULL in arrays */
 void cli_json_close(char bracket);
+/* "key":[a,b,c] of sizes; "key":[x,y,z] of numbers. */
+void cli_json_size3(const char *key, size_t a, size_t b, size_t c);
+void cli_json_num3(const char *key, const double v[3]);
 
 /* Progress bar on stderr, shown only when stderr is a terminal and the work has
  * taken over a second. */

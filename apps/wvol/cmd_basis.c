@@ -74,6 +74,14 @@ static void text_basis(const wvol_basis *b)
 
 static int write_csv(const char *path, const wvol_basis *b, wvol_error *err)
 {
+    /* The column groups of a row, in the order of the header: function, polynomial, coefficients. */
+    static const struct {
+        int which;
+        wvol_basis_kind kind;
+        int n;
+    } groups[] = {{WVOL_PHI, WVOL_BASIS_VALUE, 4},     {WVOL_PSI, WVOL_BASIS_VALUE, 4},
+                  {WVOL_PHI, WVOL_BASIS_DERIV, 3},     {WVOL_PSI, WVOL_BASIS_DERIV, 3},
+                  {WVOL_PHI, WVOL_BASIS_PRIMITIVE, 5}, {WVOL_PSI, WVOL_BASIS_PRIMITIVE, 5}};
     wvol_atomic_file af;
     int i, k;
     if (wvol_atomic_open(&af, path, err) != WVOL_OK) return 0;
@@ -84,20 +92,11 @@ static int write_csv(const char *path, const wvol_basis *b, wvol_error *err)
                    "phi_int_c0,phi_int_c1,phi_int_c2,phi_int_c3,phi_int_c4,"
                    "psi_int_c0,psi_int_c1,psi_int_c2,psi_int_c3,psi_int_c4\n");
     for (i = 0; i < b->pieces; i++) {
-        const double *t;
         fprintf(af.fp, "%d,%.17g", i, i * b->h);
-        t = wvol_basis_coeffs(b, WVOL_PHI, WVOL_BASIS_VALUE, i);
-        for (k = 0; k < 4; k++) fprintf(af.fp, ",%.17g", t[k]);
-        t = wvol_basis_coeffs(b, WVOL_PSI, WVOL_BASIS_VALUE, i);
-        for (k = 0; k < 4; k++) fprintf(af.fp, ",%.17g", t[k]);
-        t = wvol_basis_coeffs(b, WVOL_PHI, WVOL_BASIS_DERIV, i);
-        for (k = 0; k < 3; k++) fprintf(af.fp, ",%.17g", t[k]);
-        t = wvol_basis_coeffs(b, WVOL_PSI, WVOL_BASIS_DERIV, i);
-        for (k = 0; k < 3; k++) fprintf(af.fp, ",%.17g", t[k]);
-        t = wvol_basis_coeffs(b, WVOL_PHI, WVOL_BASIS_PRIMITIVE, i);
-        for (k = 0; k < 5; k++) fprintf(af.fp, ",%.17g", t[k]);
-        t = wvol_basis_coeffs(b, WVOL_PSI, WVOL_BASIS_PRIMITIVE, i);
-        for (k = 0; k < 5; k++) fprintf(af.fp, ",%.17g", t[k]);
+        for (size_t g = 0; g < sizeof groups / sizeof groups[0]; g++) {
+            const double *t = wvol_basis_coeffs(b, groups[g].which, groups[g].kind, i);
+            for (k = 0; k < groups[g].n; k++) fprintf(af.fp, ",%.17g", t[k]);
+        }
         fputc('\n', af.fp);
     }
     return wvol_atomic_commit(&af, err) == WVOL_OK;

@@ -58,23 +58,8 @@ int wvol_cmd_convert(int argc, char **argv)
                            "Samples are float32 in between: integer input is converted exactly.",
                            opts);
             return CLI_OK;
-        } else if (!strcmp(o->name, "dims")) {
-            if (!cli_parse_dims("convert", "dims", val, lo.dims)) return CLI_USAGE;
-        } else if (!strcmp(o->name, "type")) {
-            int t = wvol_sample_type_parse(val);
-            if (t < 0) return cli_usage("convert", "--type '%s': unknown sample type", val);
-            lo.raw_type = (wvol_sample_type)t;
-        } else if (!strcmp(o->name, "big-endian")) {
-            lo.big_endian = 1;
-        } else if (!strcmp(o->name, "spacing")) {
-            if (!cli_parse_double3("convert", "spacing", val, lo.spacing)) return CLI_USAGE;
-            for (int a = 0; a < 3; a++)
-                if (!(lo.spacing[a] > 0))
-                    return cli_usage("convert", "--spacing '%s': spacing must be positive", val);
-        } else if (!strcmp(o->name, "origin")) {
-            if (!cli_parse_double3("convert", "origin", val, lo.origin)) return CLI_USAGE;
-        } else if (!strcmp(o->name, "grid")) {
-            lo.grid_name = val;
+        } else if (cli_load_option("convert", o, val, &lo) == CLI_USAGE) {
+            return CLI_USAGE;
         }
     }
     if (!in || !out) return cli_usage("convert", "expected IN and OUT files (see 'wvol convert --help')");

@@ -36,8 +36,7 @@ int wvol_cmd_decompress(int argc, char **argv)
     while ((r = cli_next(&p, &o, &val)) >= 0) {
         if (r == CLI_USAGE) return CLI_USAGE;
         if (!o) {
-            if (in) return cli_usage("decompress", "one input file expected, got '%s' too", val);
-            in = val;
+            if (cli_one_input("decompress", &in, val)) return CLI_USAGE;
         } else if (o->short_name == 'h') {
             cli_print_help("decompress", "IN.wvc -o OUT.(raw|nrrd) [--level m] [--json]",
                            "Decodes a .wvc file and reconstructs the volume. With --level m only the levels\n"
@@ -93,14 +92,8 @@ int wvol_cmd_decompress(int argc, char **argv)
         cli_json_str("input", in);
         cli_json_str("output", outp);
         cli_json_int("level", level);
-        cli_json_open("dims", '[');
-        cli_json_int(NULL, (long long)v->nx);
-        cli_json_int(NULL, (long long)v->ny);
-        cli_json_int(NULL, (long long)v->nz);
-        cli_json_close(']');
-        cli_json_open("spacing", '[');
-        for (int a = 0; a < 3; a++) cli_json_num(NULL, v->spacing[a]);
-        cli_json_close(']');
+        cli_json_size3("dims", v->nx, v->ny, v->nz);
+        cli_json_num3("spacing", v->spacing);
         cli_json_open("seconds", '{');
         cli_json_num("read_decode", t_read);
         cli_json_num("inverse_transform", t_inv);

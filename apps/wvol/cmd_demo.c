@@ -92,16 +92,9 @@ static int stage_phantom(demo *d)
 
 static void json_phantom(const demo *d)
 {
-    int a;
     cli_json_str("kind", "skull");
-    cli_json_open("dims", '[');
-    cli_json_int(NULL, (long long)d->phantom->nx);
-    cli_json_int(NULL, (long long)d->phantom->ny);
-    cli_json_int(NULL, (long long)d->phantom->nz);
-    cli_json_close(']');
-    cli_json_open("spacing", '[');
-    for (a = 0; a < 3; a++) cli_json_num(NULL, d->phantom->spacing[a]);
-    cli_json_close(']');
+    cli_json_size3("dims", d->phantom->nx, d->phantom->ny, d->phantom->nz);
+    cli_json_num3("spacing", d->phantom->spacing);
     cli_json_num("min", d->range[0]);
     cli_json_num("max", d->range[1]);
     cli_json_num("mean", d->range[2]);

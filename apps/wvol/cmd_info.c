@@ -6,14 +6,13 @@
 
 #include "cli.h"
 #include "info_wvc.h"
+#include "volume_out.h"
 #include "wvol/io.h"
 
 const char wvol_cmd_info_summary[] = "describe a volume file or a .wvc store";
 
 static const cli_opt opts[] = {
-    {"dims", 0, 1, "raw input: NXxNYxNZ"},
-    {"type", 0, 1, "raw input: sample type (float32, uint8, int16, ...)"},
-    {"grid", 0, 1, ".vdb input: grid name (default: first float grid)"},
+    CLI_LOAD_OPTS,
     CLI_JSON_OPT,
     CLI_HELP_OPT,
     {NULL, 0, 0, NULL}};
@@ -58,8 +57,7 @@ int wvol_cmd_info(int argc, char **argv)
     while ((r = cli_next(&p, &o, &val)) >= 0) {
         if (r == CLI_USAGE) return CLI_USAGE;
         if (!o) {
-            if (path) return cli_usage("info", "one input file expected, got '%s' too", val);
-            path = val;
+            if (cli_one_input("info", &path, val)) return CLI_USAGE;
         } else if (o->short_name == 'h') {
             cli_print_help("info", "FILE [--dims NXxNYxNZ --type T] [--json]",
                            "Prints type, dimensions, spacing, origin, range and a histogram summary\n"
@@ -67,14 +65,8 @@ int wvol_cmd_info(int argc, char **argv)
             return CLI_OK;
         } else if (!strcmp(o->name, "json")) {
             json = 1;
-        } else if (!strcmp(o->name, "dims")) {
-            if (!cli_parse_dims("info", "dims", val, lo.dims)) return CLI_USAGE;
-        } else if (!strcmp(o->name, "type")) {
-            int t = wvol_sample_type_parse(val);
-            if (t < 0) return cli_usage("info", "--type '%s': unknown sample type", val);
-            lo.raw_type = (wvol_sample_type)t;
-        } else if (!strcmp(o->name, "grid")) {
-            lo.grid_name = val;
+        } else if (cli_load_option("info", o, val, &lo) == CLI_USAGE) {
+            return CLI_USAGE;
         }
     }
     if (!path) return cli_usage("info", "missing input file (see 'wvol info --help')");
@@ -88,17 +80,7 @@ int wvol_cmd_info(int argc, char **argv)
         cli_json_begin();
         cli_json_str("file", path);
         cli_json_str("type", "float32");
-        cli_json_open("dims", '[');
-        cli_json_int(NULL, (long long)v->nx);
-        cli_json_int(NULL, (long long)v->ny);
-        cli_json_int(NULL, (long long)v->nz);
-        cli_json_close(']');
-        cli_json_open("spacing", '[');
-        for (int a = 0; a < 3; a++) cli_json_num(NULL, v->spacing[a]);
-        cli_json_close(']');
-        cli_json_open("origin", '[');
-        for (int a = 0; a < 3; a++) cli_json_num(NULL, v->origin[a]);
-        cli_json_close(']');
+        volume_json_grid(v);
         cli_json_num("min", vmin);
         cli_json_num("max", vmax);
         cli_json_num("mean", mean);

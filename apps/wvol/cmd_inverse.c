@@ -6,6 +6,7 @@
 
 #include "cli.h"
 #include "coeffs_file.h"
+#include "volume_out.h"
 #include "wvol/io.h"
 #include "wvol/wavelet.h"
 
@@ -49,8 +50,7 @@ int wvol_cmd_inverse(int argc, char **argv)
     while ((r = cli_next(&p, &o, &val)) >= 0) {
         if (r == CLI_USAGE) return CLI_USAGE;
         if (!o) {
-            if (in) return cli_usage("inverse", "one input file expected, got '%s' too", val);
-            in = val;
+            if (cli_one_input("inverse", &in, val)) return CLI_USAGE;
         } else if (o->short_name == 'h') {
             cli_print_help("inverse", "COEFFS.raw -o OUT.(raw|nrrd) [--level S | --brick X0,Y0,Z0,X1,Y1,Z1] [--f64]",
                            "Inverse wavelet transform of COEFFS.raw, described by COEFFS.json (written by\n"
@@ -97,15 +97,7 @@ int wvol_cmd_inverse(int argc, char **argv)
     if (json) {
         cli_json_begin();
         cli_json_str("output", outp);
-        cli_json_open("dims", '[');
-        cli_json_int(NULL, (long long)v->nx), cli_json_int(NULL, (long long)v->ny), cli_json_int(NULL, (long long)v->nz);
-        cli_json_close(']');
-        cli_json_open("spacing", '[');
-        for (int a = 0; a < 3; a++) cli_json_num(NULL, v->spacing[a]);
-        cli_json_close(']');
-        cli_json_open("origin", '[');
-        for (int a = 0; a < 3; a++) cli_json_num(NULL, v->origin[a]);
-        cli_json_close(']');
+        volume_json_grid(v);
         cli_json_num("seconds", t0);
         cli_json_end();
     } else {

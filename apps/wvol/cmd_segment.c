@@ -150,13 +150,11 @@ int wvol_cmd_segment(int argc, char **argv)
             have_box = 1;
         } else if (!strcmp(o->name, "boundary")) {
             if (!cli_parse_long("segment", "boundary", val, 0, 64, &boundary)) return CLI_USAGE;
-        } else if (!strcmp(o->name, "dims")) {
-            if (!cli_parse_dims("segment", "dims", val, lo.dims)) return CLI_USAGE;
-        } else if (!strcmp(o->name, "type")) {
-            int t = wvol_sample_type_parse(val);
-            if (t < 0) return cli_usage("segment", "--type '%s': unknown sample type", val);
-            lo.raw_type = (wvol_sample_type)t;
-        } else if (!strcmp(o->name, "json")) json = 1;
+        } else if (!strcmp(o->name, "json")) {
+            json = 1;
+        } else if (cli_load_option("segment", o, val, &lo) == CLI_USAGE) {
+            return CLI_USAGE;
+        }
     }
     if (!in) return cli_usage("segment", "missing input volume (see 'wvol segment --help')");
     if (!outp && !colors && !truth_path && !features_out) return cli_usage("segment", "nothing to do: give -o, --colors or --truth");

@@ -16,9 +16,7 @@ static const cli_opt opts[] = {
     {"levels", 'l', 1, "levels 1..max (default min(3, max))"},
     {"pad", 0, 1, "padding to a multiple of 2^levels: edge (default), zero, periodic"},
     {"f64", 0, 0, "compute in float64 (coefficients are still stored as float32)"},
-    {"dims", 0, 1, "raw input: NXxNYxNZ"},
-    {"type", 0, 1, "raw input: sample type (float32, uint8, int16, ...)"},
-    {"grid", 0, 1, ".vdb input: grid name (default: first float grid)"},
+    CLI_LOAD_OPTS,
     CLI_JSON_OPT,
     CLI_HELP_OPT,
     {NULL, 0, 0, NULL}};
@@ -43,8 +41,7 @@ int wvol_cmd_transform(int argc, char **argv)
     while ((r = cli_next(&p, &o, &val)) >= 0) {
         if (r == CLI_USAGE) return CLI_USAGE;
         if (!o) {
-            if (in) return cli_usage("transform", "one input file expected, got '%s' too", val);
-            in = val;
+            if (cli_one_input("transform", &in, val)) return CLI_USAGE;
         } else if (o->short_name == 'h') {
             cli_print_help("transform", "IN -o OUT.raw [--wavelet db2] [--levels 3] [--pad edge] [--f64]",
                            "Forward separable periodic 3D wavelet transform (non-standard, Mallat layout).\n"
@@ -69,14 +66,8 @@ int wvol_cmd_transform(int argc, char **argv)
             f64 = 1;
         } else if (!strcmp(o->name, "json")) {
             json = 1;
-        } else if (!strcmp(o->name, "dims")) {
-            if (!cli_parse_dims("transform", "dims", val, lo.dims)) return CLI_USAGE;
-        } else if (!strcmp(o->name, "type")) {
-            int t = wvol_sample_type_parse(val);
-            if (t < 0) return cli_usage("transform", "--type '%s': unknown sample type", val);
-            lo.raw_type = (wvol_sample_type)t;
-        } else if (!strcmp(o->name, "grid")) {
-            lo.grid_name = val;
+        } else if (cli_load_option("transform", o, val, &lo) == CLI_USAGE) {
+            return CLI_USAGE;
         }
     }
     if (!in) return cli_usage("transform", "missing input file (see 'wvol transform --help')");
@@ -109,12 +100,8 @@ int wvol_cmd_transform(int argc, char **argv)
         cli_json_str("output", outp);
         cli_json_str("wavelet", f->name);
         cli_json_int("levels", levels);
-        cli_json_open("dims", '[');
-        cli_json_int(NULL, (long long)c->nx), cli_json_int(NULL, (long long)c->ny), cli_json_int(NULL, (long long)c->nz);
-        cli_json_close(']');
-        cli_json_open("padded", '[');
-        cli_json_int(NULL, (long long)c->px), cli_json_int(NULL, (long long)c->py), cli_json_int(NULL, (long long)c->pz);
-        cli_json_close(']');
+        cli_json_size3("dims", c->nx, c->ny, c->nz);
+        cli_json_size3("padded", c->px, c->py, c->pz);
         cli_json_num("seconds", t0);
         cli_json_end();
     } else {

@@ -12,6 +12,28 @@ static const char *coder_name(int c)
     return c == WVOL_WVC_CODER_CABAC ? "cabac" : c == WVOL_WVC_CODER_ZSTD ? "zstd" : "empty";
 }
 
+/* What the sections of one level hold together. */
+typedef struct level_totals {
+    uint64_t count, nonzero, bytes;
+    double energy, error;
+} level_totals;
+
+/* Row k of the level table: k = 0 the low-pass band, then the detail levels from the
+ * coarsest (*m = levels) to the finest (*m = 1); *m = 0 for the low-pass row. */
+static level_totals level_sum(const wvol_wvc_info *I, int k, int *m)
+{
+    level_totals t = {0, 0, 0, 0, 0};
+    *m = k == 0 ? 0 : I->levels + 1 - k;
+    for (int s = 0; s < I->nsections; s++) {
+        const wvol_wvc_section *S = &I->sections[s];
+        if ((*m == 0 && S->band == 0) || (*m > 0 && S->band != 0 && S->level == *m)) {
+            t.count += S->count, t.nonzero += S->nonzero, t.bytes += S->bytes;
+            t.energy += S->energy, t.error += S->error;
+        }
+    }
+    return t;
+}
+
 int wvol_cli_info_wvc(const char *path, int json)
 {
     wvol_error err;
@@ -40,22 +62,10 @@ int wvol_cli_info_wvc(const char *path, int json)
         cli_json_int("version", I->version);
         cli_json_str("wavelet", I->filter);
         cli_json_int("levels", I->levels);
-        cli_json_open("dims", '[');
-        cli_json_int(NULL, (long long)I->nx);
-        cli_json_int(NULL, (long long)I->ny);
-        cli_json_int(NULL, (long long)I->nz);
-        cli_json_close(']');
-        cli_json_open("padded", '[');
-        cli_json_int(NULL, (long long)I->px);
-        cli_json_int(NULL, (long long)I->py);
-        cli_json_int(NULL, (long long)I->pz);
-        cli_json_close(']');
-        cli_json_open("spacing", '[');
-        for (int a = 0; a < 3; a++) cli_json_num(NULL, I->spacing[a]);
-        cli_json_close(']');
-        cli_json_open("origin", '[');
-        for (int a = 0; a < 3; a++) cli_json_num(NULL, I->origin[a]);
-        cli_json_close(']');
+        cli_json_size3("dims", I->nx, I->ny, I->nz);
+        cli_json_size3("padded", I->px, I->py, I->pz);
+        cli_json_num3("spacing", I->spacing);
+        cli_json_num3("origin", I->origin);
         cli_json_num("value_min", I->value_min);
         cli_json_num("value_max", I->value_max);
         cli_json_int("bytes", (long long)I->file_bytes);
@@ -74,23 +84,15 @@ int wvol_cli_info_wvc(const char *path, int json)
         cli_json_num("predicted_psnr", isfinite(psnr) ? psnr : 999);
         cli_json_open("levels_detail", '[');
         for (int k = 0; k <= I->levels; k++) {
-            m = k == 0 ? 0 : I->levels + 1 - k;
-            uint64_t n = 0, nz = 0, by = 0;
-            double e = 0, er = 0;
-            for (s = 0; s < I->nsections; s++) {
-                const wvol_wvc_section *S = &I->sections[s];
-                if ((m == 0 && S->band == 0) || (m > 0 && S->band != 0 && S->level == m)) {
-                    n += S->count, nz += S->nonzero, by += S->bytes, e += S->energy, er += S->error;
-                }
-            }
+            level_totals t = level_sum(I, k, &m);
             cli_json_open(NULL, '{');
             cli_json_str("part", m == 0 ? "lowpass" : "detail");
             cli_json_int("level", m == 0 ? I->levels : m);
-            cli_json_int("coefficients", (long long)n);
-            cli_json_int("nonzero", (long long)nz);
-            cli_json_int("bytes", (long long)by);
-            cli_json_num("energy", e);
-            cli_json_num("error", er);
+            cli_json_int("coefficients", (long long)t.count);
+            cli_json_int("nonzero", (long long)t.nonzero);
+            cli_json_int("bytes", (long long)t.bytes);
+            cli_json_num("energy", t.energy);
+            cli_json_num("error", t.error);
             cli_json_close('}');
         }
         cli_json_close(']');
@@ -125,21 +127,11 @@ int wvol_cli_info_wvc(const char *path, int json)
                I->dropped_energy, I->sse);
         printf("%-9s %12s %12s %10s %14s %14s\n", "level", "coeffs", "non-zero", "bytes", "energy", "error");
         for (int k = 0; k <= I->levels; k++) {
-            m = k == 0 ? 0 : I->levels + 1 - k;
-            uint64_t n = 0, nz = 0, by = 0;
-            double e = 0, er = 0;
-            for (s = 0; s < I->nsections; s++) {
-                const wvol_wvc_section *S = &I->sections[s];
-                if ((m == 0 && S->band == 0) || (m > 0 && S->band != 0 && S->level == m)) {
-                    n += S->count, nz += S->nonzero, by += S->bytes, e += S->energy, er += S->error;
-                }
-            }
-            if (m == 0)
-                printf("low-pass  %12llu %12llu %10llu %14.6g %14.6g\n", (unsigned long long)n, (unsigned long long)nz,
-                       (unsigned long long)by, e, er);
-            else
-                printf("%-9d %12llu %12llu %10llu %14.6g %14.6g\n", m, (unsigned long long)n, (unsigned long long)nz,
-                       (unsigned long long)by, e, er);
+            level_totals t = level_sum(I, k, &m);
+            if (m == 0) printf("low-pass  ");
+            else printf("%-9d ", m);
+            printf("%12llu %12llu %10llu %14.6g %14.6g\n", (unsigned long long)t.count,
+                   (unsigned long long)t.nonzero, (unsigned long long)t.bytes, t.energy, t.error);
         }
     }
     free(I);

@@ -39,24 +39,20 @@ void volume_out_remove(const volume_out *f)
 
 void volume_out_json(const volume_out *f, const wvol_volume *v)
 {
-    int a;
     cli_json_str("file", f->path);
     cli_json_open("files", '[');
     cli_json_str(NULL, f->path);
     if (f->data_path[0]) cli_json_str(NULL, f->data_path);
     cli_json_close(']');
     cli_json_int("bytes", (long long)f->bytes);
-    cli_json_open("dims", '[');
-    cli_json_int(NULL, (long long)v->nx);
-    cli_json_int(NULL, (long long)v->ny);
-    cli_json_int(NULL, (long long)v->nz);
-    cli_json_close(']');
-    cli_json_open("spacing", '[');
-    for (a = 0; a < 3; a++) cli_json_num(NULL, v->spacing[a]);
-    cli_json_close(']');
-    cli_json_open("origin", '[');
-    for (a = 0; a < 3; a++) cli_json_num(NULL, v->origin[a]);
-    cli_json_close(']');
+    volume_json_grid(v);
+}
+
+void volume_json_grid(const wvol_volume *v)
+{
+    cli_json_size3("dims", v->nx, v->ny, v->nz);
+    cli_json_num3("spacing", v->spacing);
+    cli_json_num3("origin", v->origin);
 }
 
 int parse_seed(const char *cmd, const char *s, uint64_t *out)

@@ -19,6 +19,8 @@ wvol_status volume_out_save(volume_out *f, const wvol_volume *v, const char *pat
 void volume_out_remove(const volume_out *f);
 /* JSON fields "file", "files", "bytes", "dims", "spacing", "origin". */
 void volume_out_json(const volume_out *f, const wvol_volume *v);
+/* JSON fields "dims", "spacing", "origin" of v. */
+void volume_json_grid(const wvol_volume *v);
 
 /* "--seed S": an integer from 0 to 2^64 - 1; prints a usage error and returns 0 if not. */
 int parse_seed(const char *cmd, const char *s, uint64_t *out);

@@ -10,6 +10,13 @@ extern PyMethodDef wvolpy_compress_methods[];
 extern PyMethodDef wvolpy_synth_methods[];
 extern PyMethodDef wvolpy_analysis_methods[];
 extern PyMethodDef wvolpy_store_methods[];
+extern PyMethodDef wvolpy_codec_methods[];
+extern PyMethodDef wvolpy_iso_methods[];
+extern PyMethodDef wvolpy_render_methods[];
+extern PyMethodDef wvolpy_render_store_methods[];
 
-#define WVOLPY_METHOD_TABLES wvolpy_io_methods, wvolpy_wavelet_methods, wvolpy_compress_methods, wvolpy_synth_methods, wvolpy_analysis_methods, wvolpy_store_methods
+#define WVOLPY_METHOD_TABLES                                                                             \
+    wvolpy_io_methods, wvolpy_wavelet_methods, wvolpy_compress_methods, wvolpy_synth_methods,             \
+    wvolpy_analysis_methods, wvolpy_store_methods,                                                        \
+    wvolpy_codec_methods, wvolpy_iso_methods, wvolpy_render_methods, wvolpy_render_store_methods
 #endif

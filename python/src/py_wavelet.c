@@ -46,11 +46,7 @@ static PyObject *py_dwt3(PyObject *self, PyObject *args, PyObject *kw)
     if (!PyArg_ParseTupleAndKeywords(args, kw, "O|siOO", kwlist, &arr_obj, &name, &levels, &sp, &org))
         return NULL;
     if (wvol_filter_get(&f, name, &err) != WVOL_OK) return wvolpy_raise(&err);
-    if (wvolpy_as_volume(arr_obj, &v, &holder, 0) < 0) return NULL;
-    if (wvolpy_triple(sp, v.spacing, "spacing") < 0 || wvolpy_triple(org, v.origin, "origin") < 0) {
-        Py_DECREF(holder);
-        return NULL;
-    }
+    if (wvolpy_as_placed_volume(arr_obj, sp, org, &v, &holder, 0) < 0) return NULL;
     Py_BEGIN_ALLOW_THREADS
     s = wvol_volume_set_geometry(&v, v.spacing, v.origin, &err);
     if (s == WVOL_OK) s = wvol_dwt3(&c, &v, f, levels, &err);

@@ -112,28 +112,33 @@ PyObject *wvolpy_raise(const wvol_error *err)
     return NULL;
 }
 
-int wvolpy_as_volume(PyObject *obj, wvol_volume *out, PyArrayObject **holder, int check_finite)
+PyArrayObject *wvolpy_real_f32(PyObject *obj)
 {
-    PyArrayObject *arr;
+    PyArrayObject *arr, *f;
     PyArray_Descr *dt;
-    int nd;
-    npy_intp *shape;
-    *holder = NULL;
-    memset(out, 0, sizeof *out);
-    if (!PyArray_Check(obj)) {
-        PyObject *tmp = PyArray_FROM_O(obj);
-        if (!tmp) return -1;
-        Py_DECREF(tmp);
-    }
     arr = (PyArrayObject *)PyArray_FROM_O(obj);
-    if (!arr) return -1;
+    if (!arr) return NULL;
     dt = PyArray_DESCR(arr);
     if (!(dt->kind == 'f' || dt->kind == 'i' || dt->kind == 'u') || dt->elsize > 8) {
         PyErr_Format(PyExc_TypeError, "expected an array of real numbers (float or integer), got dtype %S",
                      (PyObject *)dt);
         Py_DECREF(arr);
-        return -1;
+        return NULL;
     }
+    f = (PyArrayObject *)PyArray_FROM_OTF((PyObject *)arr, NPY_FLOAT32, NPY_ARRAY_IN_ARRAY | NPY_ARRAY_FORCECAST);
+    Py_DECREF(arr);
+    return f;
+}
+
+int wvolpy_as_volume(PyObject *obj, wvol_volume *out, PyArrayObject **holder, int check_finite)
+{
+    PyArrayObject *arr;
+    int nd;
+    npy_intp *shape;
+    *holder = NULL;
+    memset(out, 0, sizeof *out);
+    arr = wvolpy_real_f32(obj);
+    if (!arr) return -1;
     nd = PyArray_NDIM(arr);
     if (nd != 2 && nd != 3) {
         PyErr_Format(PyExc_ValueError, "expected a 3D (z, y, x) or 2D (y, x) array, got %d dimensions", nd);
@@ -144,13 +149,6 @@ int wvolpy_as_volume(PyObject *obj, wvol_volume *out, PyArrayObject **holder, in
         PyErr_SetString(PyExc_ValueError, "the array is empty");
         Py_DECREF(arr);
         return -1;
-    }
-    {
-        PyArrayObject *f = (PyArrayObject *)PyArray_FROM_OTF((PyObject *)arr, NPY_FLOAT32,
-                                                             NPY_ARRAY_IN_ARRAY | NPY_ARRAY_FORCECAST);
-        Py_DECREF(arr);
-        if (!f) return -1;
-        arr = f;
     }
     shape = PyArray_DIMS(arr);
     out->nx = (size_t)shape[nd - 1];
@@ -182,6 +180,17 @@ PyObject *wvolpy_volume_to_array(const wvol_volume *v, int squeeze2d)
     if (!a) return NULL;
     memcpy(PyArray_DATA((PyArrayObject *)a), v->data, v->nx * v->ny * v->nz * sizeof(float));
     return a;
+}
+
+int wvolpy_as_placed_volume(PyObject *obj, PyObject *spacing, PyObject *origin, wvol_volume *out,
+                            PyArrayObject **holder, int check_finite)
+{
+    if (wvolpy_as_volume(obj, out, holder, check_finite) < 0) return -1;
+    if (wvolpy_triple(spacing, out->spacing, "spacing") < 0 || wvolpy_triple(origin, out->origin, "origin") < 0) {
+        Py_CLEAR(*holder);
+        return -1;
+    }
+    return 0;
 }
 
 int wvolpy_triple(PyObject *obj, double out[3], const char *what)

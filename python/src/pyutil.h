@@ -15,6 +15,11 @@
  * RuntimeError for internal errors) with the library's message; returns NULL. */
 PyObject *wvolpy_raise(const wvol_error *err);
 
+/* Any real-valued array (float or integer dtype) as a float32 C-contiguous array: a new
+ * reference, the same memory when it already is one, else a converted copy. NULL with
+ * TypeError naming the dtype for anything else (complex, object, strings). */
+PyArrayObject *wvolpy_real_f32(PyObject *obj);
+
 /* Views a NumPy array (3D (z, y, x) or 2D (y, x) => nz = 1) as a float32 volume.
  * Float32 C-contiguous arrays are used without a copy; other real dtypes or layouts
  * are converted (a copy). *holder receives the array that owns the memory (DECREF it
@@ -22,6 +27,11 @@ PyObject *wvolpy_raise(const wvol_error *err);
  * when check_finite. spacing/origin may be NULL (1 and 0). Returns 0 on success,
  * -1 with an exception set. */
 int wvolpy_as_volume(PyObject *obj, wvol_volume *out, PyArrayObject **holder, int check_finite);
+/* wvolpy_as_volume, then spacing and origin (x, y, z; None keeps 1 / 0) from Python
+ * sequences into out (not yet checked: wvol_volume_set_geometry does that). On failure
+ * *holder is released and NULL. */
+int wvolpy_as_placed_volume(PyObject *obj, PyObject *spacing, PyObject *origin, wvol_volume *out,
+                            PyArrayObject **holder, int check_finite);
 
 /* New float32 array (nz, ny, nx) copying v's samples (2D (ny, nx) when squeeze2d and nz == 1). */
 PyObject *wvolpy_volume_to_array(const wvol_volume *v, int squeeze2d);
@@ -43,6 +53,10 @@ PyObject *wvolpy_volume_take(wvol_volume *v, int squeeze2d);
  * the memory (DECREF after use). Returns 0, or -1 with an exception set. */
 int wvolpy_as_coeffs(PyObject *arr, const char *wavelet, int levels, PyObject *shape, PyObject *spacing,
                      PyObject *origin, wvol_coeffs *c, PyArrayObject **holder);
+
+/* Most OpenMP threads a call may ask for (as the command line): libgomp aborts the
+ * process when it cannot create the threads asked for, so absurd counts are refused. */
+#define WVOLPY_MAX_THREADS 4096
 
 /* Parses an optional 3-sequence of floats (x, y, z order); returns 0 or -1 with exception. */
 int wvolpy_triple(PyObject *obj, double out[3], const char *what);

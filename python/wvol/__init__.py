@@ -6,6 +6,7 @@ of the library (x fastest). 2D images are (y, x). Spacing and origin are given i
 data), OSError (files), MemoryError or NotImplementedError (feature not built).
 """
 import math
+import os
 from dataclasses import dataclass, field
 from typing import NamedTuple, Optional
 
@@ -16,7 +17,8 @@ from . import _wvol
 __version__ = _wvol.version
 
 __all__ = ["Volume", "load", "save", "filters", "dwt3", "idwt3", "Coeffs", "compress", "Store", "ErrorEstimate",
-           "synth", "segment", "Segmentation", "features"]
+           "synth", "segment", "Segmentation", "features", "open", "wvc_info", "render", "isosurface",
+           "save_mesh"]
 
 
 @dataclass
@@ -355,6 +357,159 @@ def features(vol, wavelet="db2", levels=3, *, smooth=1, include_lowpass=True, pc
     of the variance and normalises each to [0, 1] (as :func:`segment` does)."""
     return _wvol.features(_data(vol), wavelet=wavelet, levels=levels, smooth=smooth,
                           include_lowpass=bool(include_lowpass), variance=pca)
+
+
+
+
+# ---- rendering ------------------------------------------------------------------------------
+
+def render(source, camera="+z", size=(256, 256), *, mode="absorption", tf="gaussian", tf_units="world",
+           method="auto", step=0.5, shading=False, ambient=0.3, gauss_nodes=5, spline_j=None, termination=1e-6,
+           threads=0, colors=None, return_stats=False):
+    """Renders a volume (array or :class:`Volume`) or a :class:`Store`; returns the image as
+    an (height, width, 4) float32 array of linear, premultiplied RGBA, row 0 at the top
+    (X-ray: R = G = B = the integral of f along the ray in value x world length, A = 1 where
+    the ray meets the volume).
+
+    ``camera``: the library's camera text (docs/render.md): "+z", "-x", "ortho dir=1,1,0.5",
+    "persp fov=40 from=-y zoom=1.5", "persp eye=X,Y,Z center=X,Y,Z up=0,0,1 fov=35", ...
+    (world (x, y, z) units). ``size``: (width, height) in pixels.
+    ``mode``: "xray", "absorption" (emission-absorption, exact exponential) or
+    "absorption-linear" (the paper's linearised exponential). ``tf``: a preset ("gaussian",
+    "grey" over the data range, "ct-bone", "ct-soft"), a transfer-function file, or a list
+    of (value, r, g, b, opacity) points (opacity = extinction per world unit, or per box
+    diagonal with ``tf_units="diagonal"``).
+    ``method``: for a volume "reference" (ray marching with trilinear samples, ``step``
+    in voxels); for a store "spline" (the spline-projected integral from the kept
+    coefficients, exact for the spline model; ``gauss_nodes`` per piece), "axis" (X-ray
+    along an axis from 2D coefficients), "reference-fhat" (ray marching over the spline
+    model) or "reference" (on the reconstructed volume). "auto": "reference" for volumes;
+    for stores "axis" when it applies (X-ray along an axis), else "spline".
+    ``colors``: a colour volume, (z, y, x, 3) linear RGB per voxel on the volume's grid (e.g.
+    :func:`segment`'s ``colors``), replacing the transfer function's colour (opacity still
+    comes from ``tf``; nearest voxel, so classes keep crisp edges). Absorption modes and the
+    sampling methods only ("reference", "reference-fhat"; "auto" picks "reference-fhat" for a
+    store); "spline" and "axis" refuse it.
+    ``termination``: stop a ray once its transmittance falls below this (0: never).
+    ``threads``: OpenMP threads (0: the default).
+    ``return_stats=True`` returns ``(image, stats)`` (rays, samples, seconds...).
+    """
+    w, h = (int(v) for v in size)
+    opts = dict(camera=camera, width=w, height=h, mode=mode, tf=tf, tf_units=tf_units, step=step,
+                shading=int(bool(shading)), ambient=ambient, gauss_nodes=gauss_nodes, termination=termination,
+                threads=threads, colors=colors)
+    if isinstance(tf, os.PathLike):
+        opts["tf"] = os.fspath(tf)
+    if isinstance(source, Store):
+        if method == "auto" and colors is not None:
+            method = "reference-fhat"          # the spline paths have no voxels to colour
+        if method == "auto":
+            method = "spline"
+            if mode == "xray":
+                try:
+                    img, st = _wvol.render_axis(source._c(4 if spline_j is None else spline_j), source.value_range, opts)
+                    return (img, st) if return_stats else img
+                except NotImplementedError:
+                    pass
+        if method == "axis" and mode != "xray":
+            raise ValueError(f"method 'axis' renders X-ray only (mode='xray'), not mode '{mode}'")
+        if method in ("spline", "axis"):
+            fn = _wvol.render_spline if method == "spline" else _wvol.render_axis
+            img, st = fn(source._c(4 if spline_j is None else spline_j), source.value_range, opts)
+        elif method == "reference-fhat":
+            img, st = _wvol.render_fhat(source.coeffs, source.wavelet, source.levels, source.shape, source.spacing,
+                                        source.origin, source.value_range, 4 if spline_j is None else int(spline_j),
+                                        opts)
+        elif method == "reference":
+            vol = source.reconstruct()
+            img, st = _wvol.render_volume(vol.data, vol.spacing, vol.origin, opts)
+        else:
+            raise ValueError(f"method '{method}': expected auto, spline, axis, reference-fhat or reference")
+    else:
+        if method not in ("auto", "reference"):
+            raise ValueError(f"method '{method}' needs a Store (wvol.compress); volumes render with 'reference'")
+        spacing, origin = _geometry(source, None, None)
+        img, st = _wvol.render_volume(_data(source), spacing, origin, opts)
+    return (img, st) if return_stats else img
+
+
+# ---- isosurfaces ----------------------------------------------------------------------------
+
+def isosurface(source, iso, *, normals="gradient", brick=None, threads=0, return_stats=False):
+    """Marching cubes at ``iso`` on a volume (array or :class:`Volume`) or on the
+    reconstruction of a :class:`Store` (brick by brick: bricks whose bound from the
+    coefficients does not straddle ``iso`` are skipped without reconstruction; ``brick`` =
+    cells per brick edge).
+
+    Returns ``(vertices, faces, normals)``: vertices (n, 3) float32 in world (x, y, z)
+    coordinates, faces (m, 3) uint32 indices wound so their normal points from f >= iso to
+    f < iso (outward for a bright blob), normals (n, 3) float32 unit vectors along -grad f
+    (None with ``normals="none"``). An iso-value the data never crosses gives empty arrays
+    (``return_stats=True`` also returns the stats, whose "message" says why).
+    """
+    if isinstance(source, Store):
+        v, f, n, st = _wvol.isosurface_coeffs(source.coeffs, source.wavelet, source.levels, source.shape, iso,
+                                              spacing=source.spacing, origin=source.origin, normals=normals,
+                                              threads=threads, brick=0 if brick is None else brick)
+    else:
+        if brick is not None:
+            raise ValueError("brick applies to a Store (coefficient path), not to a dense volume")
+        spacing, origin = _geometry(source, None, None)
+        v, f, n, st = _wvol.isosurface_volume(_data(source), iso, spacing=spacing, origin=origin, normals=normals,
+                                              threads=threads)
+    return (v, f, n, st) if return_stats else (v, f, n)
+
+
+def save_mesh(path, vertices, faces, normals=None):
+    """Writes a triangle mesh (as returned by :func:`isosurface`); the format follows the
+    extension: .ply (binary, with normals when given), .obj, .stl, .vtp (when built with
+    VTK). Atomic: no partial file."""
+    _wvol.save_mesh(os.fspath(path), vertices, faces, normals)
+
+
+
+
+# ---- .wvc files -----------------------------------------------------------------------------
+
+def _store_save(self, path, quant_share=0.02, step=None):
+    """Writes the kept coefficients to a .wvc file (quantised with a dead-zone step and
+    entropy-coded per sub-band; docs/wvc-format.md). The step is chosen so that the
+    quantisation adds ``quant_share`` of the squared error already dropped by the selection
+    (never less than what 120 dB PSNR allows), unless ``step`` is given. Atomic: no partial
+    file. Returns the encoder's report (step, sse_quant, nonzero, bytes)."""
+    n = self.voxels
+    dropped = float(self.report["energy_dropped"])
+    if step is None:
+        if not quant_share > 0:
+            raise ValueError("quant_share must be > 0")
+        floor = n * (self.peak * 10 ** (-120 / 20)) ** 2 if self.peak > 0 else 0.0
+        target = max(quant_share * dropped, floor, 1e-12)
+        step = 0.0
+    else:
+        target = 0.0
+    return _wvol.wvc_save(self.coeffs, self.wavelet, self.levels, self.shape, os.fspath(path), self.spacing,
+                          self.origin, self.value_range, dropped, target_sse=target, step=float(step))
+
+
+Store.save = _store_save
+
+
+def open(path, level=None):  # noqa: A001  (wvol.open mirrors the built-in for .wvc files)
+    """Reads a .wvc file into a :class:`Store`. ``level=m`` decodes only the levels coarser
+    than m (the finer ones stay zero): ``store.reconstruct(level=m)`` is then the coarser
+    volume at a fraction of the decoding cost. The store's ``predicted_error`` is the
+    header's record: selection + quantisation error of the whole file."""
+    coeffs, info = _wvol.wvc_open(os.fspath(path), stop_level=0 if level is None else int(level))
+    report = {"kept": int(info["nonzero"]), "total": int(coeffs.size), "energy_dropped": float(info["sse"]),
+              "energy_total": float(info["energy"]), "file_bytes": int(info["file_bytes"]),
+              "step": float(info["step"])}
+    return Store(coeffs, info["wavelet"], info["levels"], info["shape"], info["spacing"], info["origin"], report,
+                 info["value_range"], file_info=info)
+
+
+def wvc_info(path):
+    """Header and section table of a .wvc file (checksums verified, nothing decoded)."""
+    return _wvol.wvc_info(os.fspath(path))
 
 
 from . import synth  # noqa: E402  (wvol.synth.*: needs Volume defined above)

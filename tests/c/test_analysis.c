@@ -3,18 +3,12 @@
 #include <string.h>
 
 #include "check.h"
+#include "fixtures.h"
 #include "wvol/analysis.h"
 #include "wvol_synth.h"
 
 /* measured: see the printed value; the bound leaves room for the SOM's randomness */
 #define WVOL_TEST_MOSAIC_BOUND 0.05
-
-static const wvol_filter *filter(const char *name)
-{
-    const wvol_filter *f = NULL;
-    wvol_filter_get(&f, name, NULL);
-    return f;
-}
 
 /* A 2D image with two gratings of different frequency: period 4 in the middle half,
  * period 16 in the outer quarters (so the periodic wrap of the transform joins a
@@ -40,7 +34,7 @@ static void test_two_gratings(void)
         }
     wvol_feature_params_default(&fp);
     fp.levels = 3;
-    CHECK(wvol_features_compute(&f, v, filter("db2"), &fp, &err) == WVOL_OK, "features: %s", err.message);
+    CHECK(wvol_features_compute(&f, v, fixture_filter("db2"), &fp, &err) == WVOL_OK, "features: %s", err.message);
     CHECK(f && f->count == 3 * (3 + 1), "2D: 3 bands + low-pass per level, got %d", f ? f->count : -1);
     CHECK(wvol_features_pca(f, 1.0, NULL, &err) == WVOL_OK, "pca: %s", err.message);
     for (int c = 0; f && c < f->count; c++) {
@@ -81,7 +75,7 @@ static void test_determinism(void)
     p.dims[0] = p.dims[1] = 64;
     p.dims[2] = 1;
     CHECK(wvol_synth_textures(&v, &labels, &p, &err) == WVOL_OK, "textures: %s", err.message);
-    CHECK(wvol_features_compute(&f, v, filter("haar"), NULL, &err) == WVOL_OK, "features: %s", err.message);
+    CHECK(wvol_features_compute(&f, v, fixture_filter("haar"), NULL, &err) == WVOL_OK, "features: %s", err.message);
     wvol_features_pca(f, 1.0, NULL, &err);
     wvol_som_params_default(&sp);
     sp.iterations = 2000;
@@ -124,7 +118,7 @@ static void test_gratings_mosaic(void)
     for (size_t i = 0; labels && i < n * n; i++) truth[i] = (int32_t)labels->data[i];
     wvol_feature_params_default(&fp);
     fp.levels = 3;
-    wvol_features_compute(&f, v, filter("db2"), &fp, &err);
+    wvol_features_compute(&f, v, fixture_filter("db2"), &fp, &err);
     wvol_features_pca(f, 1.0, NULL, &err);
     wvol_som_params_default(&sp);
     wvol_som_train(&som, f, &sp, &err);
@@ -152,12 +146,12 @@ static void test_bad_input(void)
     wvol_volume_create(&v, 8, 8, 8, &err);
     wvol_feature_params_default(&fp);
     fp.levels = 10;
-    CHECK(wvol_features_compute(&f, v, filter("haar"), &fp, &err) == WVOL_ERR_ARG && !f, "too many levels");
+    CHECK(wvol_features_compute(&f, v, fixture_filter("haar"), &fp, &err) == WVOL_ERR_ARG && !f, "too many levels");
     fp.levels = 1;
     v->data[3] = NAN;
-    CHECK(wvol_features_compute(&f, v, filter("haar"), &fp, &err) == WVOL_ERR_NONFINITE, "NaN refused");
+    CHECK(wvol_features_compute(&f, v, fixture_filter("haar"), &fp, &err) == WVOL_ERR_NONFINITE, "NaN refused");
     v->data[3] = 0;
-    CHECK(wvol_features_compute(&f, v, filter("haar"), &fp, &err) == WVOL_OK, "constant volume ok");
+    CHECK(wvol_features_compute(&f, v, fixture_filter("haar"), &fp, &err) == WVOL_OK, "constant volume ok");
     CHECK(wvol_features_pca(f, 1.5, NULL, &err) == WVOL_ERR_ARG, "variance > 1 refused");
     CHECK(wvol_features_pca(f, 1.0, NULL, &err) == WVOL_OK, "pca of constant features: %s", err.message);
     wvol_som_params_default(&sp);

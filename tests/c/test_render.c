@@ -7,24 +7,24 @@
 #include <unistd.h>
 
 #include "check.h"
+#include "fixtures.h"
 #include "wvol/image.h"
 #include "wvol/render.h"
 #include "wvol/volume.h"
 
 /* The paper's Gaussian density, exp(-r^2 / (2 sigma^2)) about the centre, sigma = n/6. */
+static double gaussian_at(const wvol_volume *v, size_t i, size_t j, size_t k, const void *ctx)
+{
+    size_t nx = v->nx, ny = v->ny, nz = v->nz;
+    double x = (i - (nx - 1) / 2.0) / (nx / 6.0), y = (j - (ny - 1) / 2.0) / (ny / 6.0),
+           z = (k - (nz - 1) / 2.0) / (nz / 6.0);
+    (void)ctx;
+    return (float)exp(-0.5 * (x * x + y * y + z * z));
+}
+
 static wvol_volume *gaussian(size_t nx, size_t ny, size_t nz)
 {
-    wvol_volume *v = NULL;
-    size_t i, j, k;
-    if (wvol_volume_create(&v, nx, ny, nz, NULL) != WVOL_OK) return NULL;
-    for (k = 0; k < nz; k++)
-        for (j = 0; j < ny; j++)
-            for (i = 0; i < nx; i++) {
-                double x = (i - (nx - 1) / 2.0) / (nx / 6.0), y = (j - (ny - 1) / 2.0) / (ny / 6.0),
-                       z = (k - (nz - 1) / 2.0) / (nz / 6.0);
-                v->data[i + nx * (j + ny * k)] = (float)exp(-0.5 * (x * x + y * y + z * z));
-            }
-    return v;
+    return fixture_volume(nx, ny, nz, gaussian_at, NULL);
 }
 
 static int image_finite(const wvol_image *img)

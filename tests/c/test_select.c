@@ -8,24 +8,12 @@
 #include <string.h>
 
 #include "check.h"
+#include "fixtures.h"
 #include "wvol/store.h"
 #include "wvol/wavelet.h"
 
 static uint64_t rng_state = 0x9E3779B97F4A7C15ull;
-static double urand(void)
-{
-    rng_state ^= rng_state << 13;
-    rng_state ^= rng_state >> 7;
-    rng_state ^= rng_state << 17;
-    return (double)(rng_state >> 11) * (1.0 / 9007199254740992.0);
-}
-
-static const wvol_filter *filt(const char *name)
-{
-    const wvol_filter *f = NULL;
-    wvol_filter_get(&f, name, NULL);
-    return f;
-}
+static double urand(void) { return fixture_urand(&rng_state); }
 
 /* Coefficients with arbitrary values: `quant` > 0 rounds them to multiples of
  * 1/quant (small integers: exact energies, many ties), zero_share of them 0. */
@@ -33,7 +21,7 @@ static wvol_coeffs *random_coeffs(const char *fname, int levels, size_t nx, size
                                   double zero_share)
 {
     wvol_coeffs *c = NULL;
-    if (wvol_coeffs_create(&c, filt(fname), levels, nx, ny, nz, NULL) != WVOL_OK) return NULL;
+    if (wvol_coeffs_create(&c, fixture_filter(fname), levels, nx, ny, nz, NULL) != WVOL_OK) return NULL;
     size_t n = c->px * c->py * c->pz;
     for (size_t i = 0; i < n; i++) {
         double v = (urand() - 0.5) * 8.0 * pow(urand(), 3.0);
@@ -196,6 +184,21 @@ static void check_mode(const char *what, const wvol_coeffs *c, const wvol_select
     wvol_selection_destroy(sel);
 }
 
+/* check_mode for a mode that takes one value (fraction, threshold, energy, psnr). */
+static void check_mode_value(const char *name, wvol_select_mode mode, double value, int variant,
+                             const wvol_coeffs *c, double peak)
+{
+    wvol_select_params prm = wvol_select_params_default();
+    char what[128];
+    prm.mode = mode;
+    if (mode == WVOL_SELECT_FRACTION) prm.fraction = value;
+    else if (mode == WVOL_SELECT_THRESHOLD) prm.threshold = value;
+    else if (mode == WVOL_SELECT_ENERGY) prm.energy = value;
+    else prm.psnr = value, prm.peak = peak;
+    snprintf(what, sizeof what, "%s %g (variant %d)", name, value, variant);
+    check_mode(what, c, &prm, peak);
+}
+
 static void selection_modes_match_brute_force(void)
 {
     /* exact small-integer values (ties everywhere, exact energies) and plain floats */
@@ -218,34 +221,15 @@ static void selection_modes_match_brute_force(void)
         check_mode("count N-1", c, &prm, peak);
         prm.count = (size_t)-1;
         check_mode("count huge", c, &prm, peak);
-        for (double f = 0.0; f <= 1.0; f += 0.125) {
-            prm = wvol_select_params_default();
-            prm.mode = WVOL_SELECT_FRACTION, prm.fraction = f;
-            snprintf(what, sizeof what, "fraction %g (variant %d)", f, variant);
-            check_mode(what, c, &prm, peak);
-        }
+        for (double f = 0.0; f <= 1.0; f += 0.125)
+            check_mode_value("fraction", WVOL_SELECT_FRACTION, f, variant, c, peak);
         double thr[] = {0.0, 0.25, 0.5, 1.0, 3.0, 100.0};
-        for (int t = 0; t < 6; t++) {
-            prm = wvol_select_params_default();
-            prm.mode = WVOL_SELECT_THRESHOLD, prm.threshold = thr[t];
-            snprintf(what, sizeof what, "threshold %g (variant %d)", thr[t], variant);
-            check_mode(what, c, &prm, peak);
-        }
+        for (int t = 0; t < 6; t++) check_mode_value("threshold", WVOL_SELECT_THRESHOLD, thr[t], variant, c, peak);
         if (quant > 0) { /* exact energies: the brute force's sums equal the histogram's */
             double es[] = {0.0, 0.5, 0.9, 0.99, 0.999, 1.0};
-            for (int e = 0; e < 6; e++) {
-                prm = wvol_select_params_default();
-                prm.mode = WVOL_SELECT_ENERGY, prm.energy = es[e];
-                snprintf(what, sizeof what, "energy %g (variant %d)", es[e], variant);
-                check_mode(what, c, &prm, peak);
-            }
+            for (int e = 0; e < 6; e++) check_mode_value("energy", WVOL_SELECT_ENERGY, es[e], variant, c, peak);
             double ps[] = {10.0, 20.0, 30.0, 200.0};
-            for (int e = 0; e < 4; e++) {
-                prm = wvol_select_params_default();
-                prm.mode = WVOL_SELECT_PSNR, prm.psnr = ps[e], prm.peak = peak;
-                snprintf(what, sizeof what, "psnr %g (variant %d)", ps[e], variant);
-                check_mode(what, c, &prm, peak);
-            }
+            for (int e = 0; e < 4; e++) check_mode_value("psnr", WVOL_SELECT_PSNR, ps[e], variant, c, peak);
         }
         /* a global level cut and an ellipsoid weight */
         prm = wvol_select_params_default();
@@ -295,18 +279,17 @@ static void energy_mode_is_smallest_set(void)
     wvol_coeffs_destroy(c);
 }
 
+static double blob_at(const wvol_volume *v, size_t i, size_t j, size_t k, const void *noise)
+{
+    size_t nx = v->nx, ny = v->ny, nz = v->nz;
+    double x = (i - 0.4 * nx) / (0.2 * nx), y = (j - 0.5 * ny) / (0.25 * ny), z = (k - 0.55 * nz) / (0.3 * nz);
+    double f = 100.0 * exp(-(x * x + y * y + z * z)) + 20.0 * sin(0.7 * i) * cos(0.3 * j + 0.2 * k);
+    return (float)(f + *(const double *)noise * (urand() - 0.5));
+}
+
 static wvol_volume *blob_volume(size_t nx, size_t ny, size_t nz, double noise)
 {
-    wvol_volume *v = NULL;
-    wvol_volume_create(&v, nx, ny, nz, NULL);
-    for (size_t k = 0; k < nz; k++)
-        for (size_t j = 0; j < ny; j++)
-            for (size_t i = 0; i < nx; i++) {
-                double x = (i - 0.4 * nx) / (0.2 * nx), y = (j - 0.5 * ny) / (0.25 * ny), z = (k - 0.55 * nz) / (0.3 * nz);
-                double f = 100.0 * exp(-(x * x + y * y + z * z)) + 20.0 * sin(0.7 * i) * cos(0.3 * j + 0.2 * k);
-                v->data[i + nx * (j + ny * k)] = (float)(f + noise * (urand() - 0.5));
-            }
-    return v;
+    return fixture_volume(nx, ny, nz, blob_at, &noise);
 }
 
 /* Parseval: without padding, the measured error (f64 reconstruction of the
@@ -322,7 +305,7 @@ static void predicted_error_matches_measured(void)
             wvol_coeffs *c = NULL;
             wvol_error err;
             int levels = fi == 3 ? 2 : 3;
-            CHECK(wvol_dwt3_ex(&c, v, filt(fams[fi]), levels, WVOL_PAD_EDGE, 1, &err) == WVOL_OK, "%s", err.message);
+            CHECK(wvol_dwt3_ex(&c, v, fixture_filter(fams[fi]), levels, WVOL_PAD_EDGE, 1, &err) == WVOL_OK, "%s", err.message);
             double fr[] = {0.01, 0.05, 0.3, 1.0};
             for (int t = 0; t < 4; t++) {
                 wvol_select_params prm = wvol_select_params_default();
@@ -364,7 +347,7 @@ static void psnr_target_is_met(void)
 {
     wvol_volume *v = blob_volume(32, 32, 32, 2.0);
     wvol_coeffs *c = NULL;
-    wvol_dwt3_ex(&c, v, filt("db2"), 3, WVOL_PAD_EDGE, 1, NULL);
+    wvol_dwt3_ex(&c, v, fixture_filter("db2"), 3, WVOL_PAD_EDGE, 1, NULL);
     double targets[] = {25.0, 35.0, 45.0, 60.0};
     size_t last = 0;
     for (int t = 0; t < 4; t++) {
@@ -399,7 +382,7 @@ static void lod_region_keeps_detail(void)
     wvol_volume *v = blob_volume(n, n, n, 30.0);
     wvol_coeffs *c = NULL;
     wvol_error err;
-    const wvol_filter *f = filt("db2");
+    const wvol_filter *f = fixture_filter("db2");
     int M = 3, L = f->length;
     double s = f->center, S = L - 1;
     wvol_dwt3_ex(&c, v, f, M, WVOL_PAD_EDGE, 1, NULL);

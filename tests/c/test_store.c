@@ -10,39 +10,27 @@
 #include <string.h>
 
 #include "check.h"
+#include "fixtures.h"
 #include "wvol/store.h"
 #include "wvol/wavelet.h"
 
 static uint64_t rng_state = 0x2545F4914F6CDD1Dull;
-static double urand(void)
-{
-    rng_state ^= rng_state << 13;
-    rng_state ^= rng_state >> 7;
-    rng_state ^= rng_state << 17;
-    return (double)(rng_state >> 11) * (1.0 / 9007199254740992.0);
-}
+static double urand(void) { return fixture_urand(&rng_state); }
 
-static const wvol_filter *filt(const char *name)
+static double blob_at(const wvol_volume *v, size_t i, size_t j, size_t k, const void *ctx)
 {
-    const wvol_filter *f = NULL;
-    wvol_filter_get(&f, name, NULL);
-    return f;
+    size_t nx = v->nx, ny = v->ny, nz = v->nz;
+    double x = (i - 0.4 * nx) / (0.25 * nx), y = (j - 0.5 * ny) / (0.3 * ny), z = (k - 0.5 * nz) / (0.3 * nz + 1);
+    (void)ctx;
+    return (float)(50.0 * exp(-(x * x + y * y + z * z)) + 4.0 * (urand() - 0.5) + (i > nx / 2 ? 10.0 : 0.0));
 }
 
 /* Coefficients of a smooth blob plus noise, and a selection keeping `fraction`. */
 static wvol_coeffs *make_coeffs(const char *fname, int levels, size_t nx, size_t ny, size_t nz)
 {
-    wvol_volume *v = NULL;
+    wvol_volume *v = fixture_volume(nx, ny, nz, blob_at, NULL);
     wvol_coeffs *c = NULL;
-    wvol_volume_create(&v, nx, ny, nz, NULL);
-    for (size_t k = 0; k < nz; k++)
-        for (size_t j = 0; j < ny; j++)
-            for (size_t i = 0; i < nx; i++) {
-                double x = (i - 0.4 * nx) / (0.25 * nx), y = (j - 0.5 * ny) / (0.3 * ny), z = (k - 0.5 * nz) / (0.3 * nz + 1);
-                v->data[i + nx * (j + ny * k)] =
-                    (float)(50.0 * exp(-(x * x + y * y + z * z)) + 4.0 * (urand() - 0.5) + (i > nx / 2 ? 10.0 : 0.0));
-            }
-    wvol_dwt3_ex(&c, v, filt(fname), levels, WVOL_PAD_EDGE, 1, NULL);
+    wvol_dwt3_ex(&c, v, fixture_filter(fname), levels, WVOL_PAD_EDGE, 1, NULL);
     wvol_volume_destroy(v);
     return c;
 }
@@ -491,7 +479,7 @@ static void function_and_node_bounds_hold(void)
         int bl = !strcmp(fams[fi], "bl3"), levels = bl ? 1 : 3, samples = bl ? 3 : 600;
         size_t n = 16; /* level 3: period 16 holds less than one db4 support (56): copies overlap */
         wvol_coeffs *c = NULL;
-        wvol_coeffs_create(&c, filt(fams[fi]), levels, n, n, n, NULL);
+        wvol_coeffs_create(&c, fixture_filter(fams[fi]), levels, n, n, n, NULL);
         size_t worst_v = 0;
         double tv = 0, tg = 0;
         for (int m = 1; m <= levels; m++)

@@ -7,6 +7,7 @@
 #include <string.h>
 
 #include "check.h"
+#include "fixtures.h"
 #include "wvol/wavelet.h"
 
 /* First use from several threads at once (must run before any other lookup): every
@@ -76,13 +77,7 @@ static void filters_are_orthonormal_qmf(void)
 /* ---- helpers ---------------------------------------------------------------------- */
 
 static uint64_t rng_state = 88172645463325252ull;
-static double urand(void) /* xorshift64: deterministic, [0, 1) */
-{
-    rng_state ^= rng_state << 13;
-    rng_state ^= rng_state >> 7;
-    rng_state ^= rng_state << 17;
-    return (double)(rng_state >> 11) / 9007199254740992.0;
-}
+static double urand(void) { return fixture_urand(&rng_state); }
 
 static wvol_volume *random_volume(size_t nx, size_t ny, size_t nz, double lo, double hi)
 {
@@ -100,13 +95,6 @@ static double max_abs_diff(const float *a, const float *b, size_t n)
         if (!(d <= m)) m = d; /* NaN propagates */
     }
     return m;
-}
-
-static const wvol_filter *filt(const char *name)
-{
-    const wvol_filter *f = NULL;
-    wvol_filter_get(&f, name, NULL);
-    return f;
 }
 
 /* Reconstruction error bound. Each 1D pass forms outputs as sums of L products with
@@ -257,9 +245,9 @@ static void thread_count_does_not_change_results(void)
     int saved = omp_get_max_threads();
     for (size_t i = 0; i < n; i++) a[i] = b[i] = (float)urand();
     omp_set_num_threads(1);
-    wvol_dwt3_inplace_f32(a, NX, NY, NZ, filt("coif1"), 3, NULL);
+    wvol_dwt3_inplace_f32(a, NX, NY, NZ, fixture_filter("coif1"), 3, NULL);
     omp_set_num_threads(3);
-    wvol_dwt3_inplace_f32(b, NX, NY, NZ, filt("coif1"), 3, NULL);
+    wvol_dwt3_inplace_f32(b, NX, NY, NZ, fixture_filter("coif1"), 3, NULL);
     omp_set_num_threads(saved);
     CHECK(memcmp(a, b, n * sizeof *a) == 0, "1 thread vs 3 threads differ");
     free(a);
@@ -331,10 +319,10 @@ static void denormals_roundtrip(void)
     wvol_volume *v = random_volume(8, 8, 8, 0.0, 1.0), *r = NULL;
     wvol_coeffs *c = NULL;
     for (size_t i = 0; i < wvol_volume_count(v); i++) v->data[i] *= 1e-39f;
-    CHECK(wvol_dwt3(&c, v, filt("db2"), 2, NULL) == WVOL_OK && wvol_idwt3(&r, c, NULL) == WVOL_OK, "denormals");
+    CHECK(wvol_dwt3(&c, v, fixture_filter("db2"), 2, NULL) == WVOL_OK && wvol_idwt3(&r, c, NULL) == WVOL_OK, "denormals");
     if (r) {
         double e = max_abs_diff(r->data, v->data, wvol_volume_count(v));
-        CHECK(e <= 18.0 * 2 * 4 * 1.5e-45 * 64 + recon_bound(filt("db2"), 2, FLT_EPSILON, 1e-39), "denormal error %g", e);
+        CHECK(e <= 18.0 * 2 * 4 * 1.5e-45 * 64 + recon_bound(fixture_filter("db2"), 2, FLT_EPSILON, 1e-39), "denormal error %g", e);
         for (size_t i = 0; i < wvol_volume_count(r); i++) CHECK(isfinite(r->data[i]), "finite");
     }
     wvol_coeffs_destroy(c);
@@ -349,16 +337,16 @@ static void nonfinite_input_refused_with_voxel(void)
     wvol_error err;
     v->data[3 + 9 * (2 + 8 * 1)] = NAN;
     v->data[4 + 9 * (6 + 8 * 5)] = INFINITY;
-    CHECK(wvol_dwt3(&c, v, filt("db2"), 1, &err) == WVOL_ERR_NONFINITE && !c, "NaN refused");
+    CHECK(wvol_dwt3(&c, v, fixture_filter("db2"), 1, &err) == WVOL_ERR_NONFINITE && !c, "NaN refused");
     CHECK(strstr(err.message, "i=3, j=2, k=1") != NULL && strstr(err.message, "NaN"), "names the voxel: %s", err.message);
     v->data[3 + 9 * (2 + 8 * 1)] = 0;
-    CHECK(wvol_dwt3(&c, v, filt("db2"), 1, &err) == WVOL_ERR_NONFINITE, "Inf refused");
+    CHECK(wvol_dwt3(&c, v, fixture_filter("db2"), 1, &err) == WVOL_ERR_NONFINITE, "Inf refused");
     CHECK(strstr(err.message, "i=4, j=6, k=5") != NULL && strstr(err.message, "Inf"), "names the voxel: %s", err.message);
     wvol_volume_destroy(v);
     /* finite input whose low-pass overflows float32: refused, not Inf coefficients */
     v = random_volume(8, 8, 8, 3e38, 3.4e38);
     c = NULL;
-    CHECK(wvol_dwt3(&c, v, filt("db2"), 3, &err) == WVOL_ERR_NONFINITE && !c, "overflow refused");
+    CHECK(wvol_dwt3(&c, v, fixture_filter("db2"), 3, &err) == WVOL_ERR_NONFINITE && !c, "overflow refused");
     CHECK(strstr(err.message, "overflow") != NULL, "says overflow: %s", err.message);
     wvol_volume_destroy(v);
 }
@@ -382,7 +370,7 @@ static void index_and_locate_are_inverse(void)
     for (int si = 0; si < 3; si++) {
         wvol_volume *v = random_volume(sizes[si][0], sizes[si][1], sizes[si][2], 0, 1);
         wvol_coeffs *c = NULL;
-        wvol_dwt3(&c, v, filt("haar"), 2, NULL);
+        wvol_dwt3(&c, v, fixture_filter("haar"), 2, NULL);
         size_t n = c->px * c->py * c->pz, seen = 0;
         char *hit = calloc(n, 1);
         for (int m = 1; m <= c->levels; m++)
@@ -468,7 +456,7 @@ static void brick_equals_box_of_full(void)
     for (int si = 0; si < 3; si++) {
         wvol_volume *v = random_volume(sizes[si][0], sizes[si][1], sizes[si][2], -1, 1);
         for (int fi = 0; fi < 6; fi++) {
-            const wvol_filter *f = filt(names[fi]);
+            const wvol_filter *f = fixture_filter(names[fi]);
             int M = wvol_dwt_max_levels(v->nx, v->ny, v->nz);
             wvol_coeffs *c = NULL;
             wvol_volume *full = NULL;
@@ -512,7 +500,7 @@ static void bad_arguments_are_refused(void)
     wvol_volume *v = random_volume(16, 8, 4, 0, 1), *one = random_volume(1, 1, 1, 0, 1), *r = NULL;
     wvol_coeffs *c = NULL;
     wvol_error err;
-    const wvol_filter *f = filt("db2");
+    const wvol_filter *f = fixture_filter("db2");
     float buf[24 * 8 * 8];
     CHECK(wvol_dwt3(&c, v, f, 0, &err) == WVOL_ERR_ARG && !c, "levels 0");
     CHECK(wvol_dwt3(&c, v, f, 3, &err) == WVOL_ERR_ARG && !c, "levels 3 on a 4-thick volume");

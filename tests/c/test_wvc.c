@@ -11,26 +11,25 @@
 #include <zlib.h>
 
 #include "check.h"
+#include "fixtures.h"
 #include "codec/wvc_format.h"
 #include "wvol/io.h"
 #include "wvol/wvc.h"
 
 /* A small volume with smooth parts, a sharp sphere and a little texture. */
+static double make_volume_at(const wvol_volume *v, size_t i, size_t j, size_t k, const void *ctx)
+{
+    double x = (i + 0.5) / v->nx - 0.5, y = (j + 0.5) / v->ny - 0.5, z = (k + 0.5) / v->nz - 0.5;
+    double r2 = x * x + y * y + z * z, f = 100.0 * exp(-8 * r2);
+    (void)ctx;
+    if (r2 < 0.09) f += 40.0;
+    f += 3.0 * sin(13.0 * x + 7.0 * y) * cos(5.0 * z);
+    return f;
+}
+
 static wvol_volume *make_volume(size_t nx, size_t ny, size_t nz)
 {
-    wvol_volume *v = NULL;
-    size_t i, j, k;
-    if (wvol_volume_create(&v, nx, ny, nz, NULL) != WVOL_OK) return NULL;
-    for (k = 0; k < nz; k++)
-        for (j = 0; j < ny; j++)
-            for (i = 0; i < nx; i++) {
-                double x = (i + 0.5) / nx - 0.5, y = (j + 0.5) / ny - 0.5, z = (k + 0.5) / nz - 0.5;
-                double r2 = x * x + y * y + z * z, f = 100.0 * exp(-8 * r2);
-                if (r2 < 0.09) f += 40.0;
-                f += 3.0 * sin(13.0 * x + 7.0 * y) * cos(5.0 * z);
-                v->data[i + nx * (j + ny * k)] = (float)f;
-            }
-    return v;
+    return fixture_volume(nx, ny, nz, make_volume_at, NULL);
 }
 
 typedef struct fixture {

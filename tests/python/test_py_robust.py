@@ -30,6 +30,8 @@ ENTRY_POINTS = {
     "segment": lambda a, tmp: wvol.segment(a, levels=1, iterations=10),
     "features": lambda a, tmp: wvol.features(a, levels=1),
     "idwt3": lambda a, tmp: wvol.idwt3(wvol.Coeffs(a, "haar", 1, (8, 8, 8))),
+    "render": lambda a, tmp: wvol.render(a, size=(4, 4)),
+    "isosurface": lambda a, tmp: wvol.isosurface(a, 0.5),
 }
 
 
@@ -70,6 +72,24 @@ def test_concurrent_calls_match_serial():
         parallel = list(ex.map(work, vols))
     for (a, ea), (b, eb) in zip(serial, parallel):
         assert np.array_equal(a, b) and ea == eb
+
+
+def test_concurrent_render_isosurface_and_files_match_serial(tmp_path):
+    """Rendering, marching cubes and .wvc files release the GIL too; threads must agree."""
+    vols = [wvol.synth.blobs(shape=(16, 16, 16), seed=s) for s in range(4)]
+
+    def work(i):
+        s = wvol.compress(vols[i], "db2", 2, keep=0.1)
+        s.save(tmp_path / f"{i}.wvc")
+        o = wvol.open(tmp_path / f"{i}.wvc")
+        return (wvol.render(o, size=(6, 6), camera="persp dir=1,1,1"),
+                wvol.render(vols[i], size=(16, 16)), *wvol.isosurface(o, 0.2)[:2])
+
+    serial = [work(i) for i in range(4)]
+    with cf.ThreadPoolExecutor(4) as ex:
+        parallel = list(ex.map(work, range(4)))
+    for a, b in zip(serial, parallel):
+        assert all(np.array_equal(x, y) for x, y in zip(a, b))
 
 
 def test_handed_over_buffers_outlive_their_owners():

@@ -72,7 +72,7 @@ typedef struct wvol_wvc_info {
     double spacing[3], origin[3];
     double value_min, value_max;
     double step, rounding;
-    double sse;              /* predicted squared error: quantisation + dropped_energy */
+    double sse;              /* quantisation error sum (c - c_hat)^2 (the prediction adds dropped_energy) */
     double energy;           /* sum c^2 as given to the encoder */
     double dropped_energy;
     uint64_t nonzero;

@@ -20,6 +20,7 @@
 //
 // Every C++ exception stops at the C boundary and becomes a wvol_error.
 #include "io/adapters.h"
+#include "io/adapter_errors.hpp"
 
 #include <openvdb/openvdb.h>
 #include <openvdb/io/File.h>
@@ -45,16 +46,7 @@ namespace {
 using openvdb::Coord;
 using openvdb::CoordBBox;
 
-// Thrown inside the adapter to leave with a given status and message.
-struct Failure {
-    wvol_status status;
-    std::string message;
-};
-
-[[noreturn]] void fail(wvol_status s, std::string msg)
-{
-    throw Failure{s, std::move(msg)};
-}
+using wvol_adapter::fail;
 
 void init_once()
 {
@@ -485,18 +477,12 @@ wvol_status guarded(const char *path, wvol_error *err, F &&body)
     try {
         body();
         return WVOL_OK;
-    } catch (const Failure &f) {
-        return wvol_error_set(err, f.status, "%s", f.message.c_str());
-    } catch (const std::bad_alloc &) {
-        return wvol_error_set(err, WVOL_ERR_NOMEM, "%s: out of memory", path);
     } catch (const openvdb::IoError &e) {
         return wvol_error_set(err, WVOL_ERR_IO, "%s: %s", path, e.what());
     } catch (const openvdb::Exception &e) {
         return wvol_error_set(err, WVOL_ERR_FORMAT, "%s: OpenVDB: %s", path, e.what());
-    } catch (const std::exception &e) {
-        return wvol_error_set(err, WVOL_ERR_FORMAT, "%s: %s", path, e.what());
     } catch (...) {
-        return wvol_error_set(err, WVOL_ERR_INTERNAL, "%s: unknown C++ exception in the OpenVDB adapter", path);
+        return wvol_adapter::current_error(path, "OpenVDB", err);
     }
 }
 

@@ -20,6 +20,7 @@
 // replaced by one that collects the text, and std::cerr is redirected into a buffer:
 // the library prints nothing, and VTK's words end up in the wvol_error message.
 #include "io/adapters.h"
+#include "io/adapter_errors.hpp"
 
 #include <vtkCellArray.h>
 #include <vtkCommand.h>
@@ -72,15 +73,7 @@
 
 namespace {
 
-struct Failure {
-    wvol_status status;
-    std::string message;
-};
-
-[[noreturn]] void fail(wvol_status s, const std::string &msg)
-{
-    throw Failure{s, msg};
-}
+using wvol_adapter::fail;
 
 // Text taken from a file, made safe for a one-line message (no control or non-ASCII bytes).
 std::string printable(std::string s)
@@ -1128,14 +1121,8 @@ wvol_status guarded(const char *path, wvol_error *err, F &&body)
     try {
         body();
         return WVOL_OK;
-    } catch (const Failure &f) {
-        return wvol_error_set(err, f.status, "%s", f.message.c_str());
-    } catch (const std::bad_alloc &) {
-        return wvol_error_set(err, WVOL_ERR_NOMEM, "%s: out of memory", path);
-    } catch (const std::exception &e) {
-        return wvol_error_set(err, WVOL_ERR_FORMAT, "%s: %s", path, e.what());
     } catch (...) {
-        return wvol_error_set(err, WVOL_ERR_INTERNAL, "%s: unknown C++ exception in the VTK adapter", path);
+        return wvol_adapter::current_error(path, "VTK", err);
     }
 }
 

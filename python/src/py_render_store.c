@@ -8,7 +8,8 @@
 
 static PyObject *render_store(PyObject *args, int axis)
 {
-    PyObject *cap, *opts, *a, *d;
+    PyObject *cap, *opts;
+    PyArrayObject *colors;
     const wvol_store *st;
     wvol_store_info in;
     wvol_geometry g;
@@ -28,7 +29,7 @@ static PyObject *render_store(PyObject *args, int axis)
     g.dims[2] = in.nz;
     memcpy(g.spacing, in.spacing, sizeof g.spacing);
     memcpy(g.origin, in.origin, sizeof g.origin);
-    if (wvolpy_render_setup(opts, &g, vmin, vmax, &cam, &tf, &rp) < 0) return NULL;
+    if (wvolpy_render_setup(opts, &g, vmin, vmax, &cam, &tf, &rp, &colors) < 0) return NULL;
     memset(&stats, 0, sizeof stats);
     Py_BEGIN_ALLOW_THREADS
     s = wvol_image_create(&img, cam.width, cam.height, &err);
@@ -36,18 +37,7 @@ static PyObject *render_store(PyObject *args, int axis)
         s = axis ? wvol_render_xray_axis(img, st, &cam, &rp, &stats, &err)
                  : wvol_render_spline(img, st, &cam, &tf, &rp, &stats, &err);
     Py_END_ALLOW_THREADS
-    if (s != WVOL_OK) {
-        wvol_image_destroy(img);
-        return wvolpy_raise(&err);
-    }
-    a = wvolpy_image_take(img);
-    if (!a) return NULL;
-    d = wvolpy_stats_dict(&stats);
-    if (!d) {
-        Py_DECREF(a);
-        return NULL;
-    }
-    return Py_BuildValue("NN", a, d);
+    return wvolpy_render_finish(img, s, &stats, &err, colors);
 }
 
 static PyObject *py_render_spline(PyObject *self, PyObject *args)

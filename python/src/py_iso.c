@@ -49,6 +49,37 @@ static PyObject *mesh_take(wvol_mesh *m, const wvol_iso_stats *st)
     return Py_BuildValue("NNNN", v, t, n, d);
 }
 
+/* Checks the arguments both extraction paths share and fills *p; 0, or -1 with an exception. */
+static int iso_setup(double iso, int threads, int brick, const char *normals, wvol_iso_params *p)
+{
+    if (!isfinite(iso)) {
+        PyErr_SetString(PyExc_ValueError, "iso-value must be finite");
+        return -1;
+    }
+    if (threads < 0 || threads > WVOLPY_MAX_THREADS) {
+        PyErr_Format(PyExc_ValueError, "threads must be in 0..%d (0: default)", WVOLPY_MAX_THREADS);
+        return -1;
+    }
+    if (brick < 0) {
+        PyErr_SetString(PyExc_ValueError, "brick must be >= 0 (0: default)");
+        return -1;
+    }
+    wvol_iso_params_default(p);
+    p->threads = threads;
+    if (brick > 0) p->brick = brick;
+    return parse_normals(normals, &p->normals);
+}
+
+/* The extraction's result as mesh_take's tuple, or its error raised. */
+static PyObject *iso_finish(wvol_mesh *m, wvol_status s, const wvol_iso_stats *st, const wvol_error *err)
+{
+    if (s != WVOL_OK) {
+        wvol_mesh_destroy(m);
+        return wvolpy_raise(err);
+    }
+    return mesh_take(m, st);
+}
+
 /* isosurface_volume(array, iso, spacing=None, origin=None, normals='gradient', threads=0) */
 static PyObject *py_iso_volume(PyObject *self, PyObject *args, PyObject *kw)
 {
@@ -67,11 +98,7 @@ static PyObject *py_iso_volume(PyObject *self, PyObject *args, PyObject *kw)
     (void)self;
     if (!PyArg_ParseTupleAndKeywords(args, kw, "Od|OOsi", kwlist, &arr_obj, &iso, &sp, &org, &normals, &threads))
         return NULL;
-    if (!isfinite(iso)) return PyErr_Format(PyExc_ValueError, "iso-value must be finite");
-    if (threads < 0) return PyErr_Format(PyExc_ValueError, "threads must be >= 0");
-    wvol_iso_params_default(&p);
-    p.threads = threads;
-    if (parse_normals(normals, &p.normals) < 0) return NULL;
+    if (iso_setup(iso, threads, 0, normals, &p) < 0) return NULL;
     if (wvolpy_as_volume(arr_obj, &v, &holder, 1) < 0) return NULL;
     if (wvolpy_triple(sp, v.spacing, "spacing") < 0 || wvolpy_triple(org, v.origin, "origin") < 0) {
         Py_DECREF(holder);
@@ -83,11 +110,7 @@ static PyObject *py_iso_volume(PyObject *self, PyObject *args, PyObject *kw)
     if (s == WVOL_OK) s = wvol_iso_extract(&m, &v, iso, &p, &st, &err);
     Py_END_ALLOW_THREADS
     Py_DECREF(holder);
-    if (s != WVOL_OK) {
-        wvol_mesh_destroy(m);
-        return wvolpy_raise(&err);
-    }
-    return mesh_take(m, &st);
+    return iso_finish(m, s, &st, &err);
 }
 
 /* isosurface_coeffs(coeffs, wavelet, levels, shape, iso, spacing, origin, normals, threads, brick) */
@@ -110,24 +133,14 @@ static PyObject *py_iso_coeffs(PyObject *self, PyObject *args, PyObject *kw)
     if (!PyArg_ParseTupleAndKeywords(args, kw, "OsiOd|OOsii", kwlist, &arr_obj, &name, &levels, &shape, &iso, &sp,
                                      &org, &normals, &threads, &brick))
         return NULL;
-    if (!isfinite(iso)) return PyErr_Format(PyExc_ValueError, "iso-value must be finite");
-    if (threads < 0) return PyErr_Format(PyExc_ValueError, "threads must be >= 0");
-    if (brick < 0) return PyErr_Format(PyExc_ValueError, "brick must be >= 0 (0: default)");
-    wvol_iso_params_default(&p);
-    p.threads = threads;
-    if (brick > 0) p.brick = brick;
-    if (parse_normals(normals, &p.normals) < 0) return NULL;
+    if (iso_setup(iso, threads, brick, normals, &p) < 0) return NULL;
     if (wvolpy_as_coeffs(arr_obj, name, levels, shape, sp, org, &c, &holder) < 0) return NULL;
     memset(&st, 0, sizeof st);
     Py_BEGIN_ALLOW_THREADS
     s = wvol_iso_extract_coeffs(&m, &c, iso, &p, &st, &err);
     Py_END_ALLOW_THREADS
     Py_DECREF(holder);
-    if (s != WVOL_OK) {
-        wvol_mesh_destroy(m);
-        return wvolpy_raise(&err);
-    }
-    return mesh_take(m, &st);
+    return iso_finish(m, s, &st, &err);
 }
 
 /* save_mesh(path, vertices (n, 3), faces (m, 3), normals (n, 3) or None): .ply .obj .stl .vtp */

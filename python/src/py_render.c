@@ -87,8 +87,15 @@ static int parse_tf(PyObject *opts, wvol_tf *tf, double vmin, double vmax)
         }
         for (Py_ssize_t i = 0; i < n; i++) {
             wvol_tf_point *p = &tf->points[i];
-            if (!PyArg_ParseTuple(PySequence_Fast_GET_ITEM(seq, i), "ddddd;tf point must be (value, r, g, b, opacity)",
-                                  &p->value, &p->rgb[0], &p->rgb[1], &p->rgb[2], &p->opacity)) {
+            PyObject *item = PySequence_Fast_GET_ITEM(seq, i);
+            /* any 5-sequence: a tuple, a list, a row of an (n, 5) array */
+            PyObject *tup = PySequence_Check(item) ? PySequence_Tuple(item) : NULL;
+            int ok = tup && PyArg_ParseTuple(tup, "ddddd;tf point must be (value, r, g, b, opacity)", &p->value,
+                                             &p->rgb[0], &p->rgb[1], &p->rgb[2], &p->opacity);
+            if (!tup && !PyErr_Occurred())
+                PyErr_SetString(PyExc_TypeError, "tf point must be (value, r, g, b, opacity)");
+            Py_XDECREF(tup);
+            if (!ok) {
                 Py_DECREF(seq);
                 return -1;
             }
@@ -108,10 +115,39 @@ static int parse_tf(PyObject *opts, wvol_tf *tf, double vmin, double vmax)
     return 0;
 }
 
-int wvolpy_render_setup(PyObject *opts, const wvol_geometry *g, double vmin, double vmax, wvol_camera *cam,
-                        wvol_tf *tf, wvol_render_params *rp)
+/* colors: a (z, y, x, 3) array ((y, x, 3) for one slice) on the grid g; its float32 C-order
+ * form goes to *holder and rp (finite and >= 0 is the library's check). */
+static int parse_colors(PyObject *opts, const wvol_geometry *g, wvol_render_params *rp, PyArrayObject **holder)
 {
-    const char *camspec, *mode, *sample;
+    PyObject *o = PyDict_GetItemString(opts, "colors");
+    PyArrayObject *a;
+    npy_intp *d;
+    int nd;
+    if (!o || o == Py_None) return 0;
+    if (!(a = wvolpy_real_f32(o))) return -1;
+    nd = PyArray_NDIM(a);
+    d = PyArray_DIMS(a);
+    if (!((nd == 4 && (size_t)d[0] == g->dims[2] && (size_t)d[1] == g->dims[1] && (size_t)d[2] == g->dims[0] &&
+           d[3] == 3) ||
+          (nd == 3 && g->dims[2] == 1 && (size_t)d[0] == g->dims[1] && (size_t)d[1] == g->dims[0] && d[2] == 3))) {
+        PyObject *shape = PyObject_GetAttrString((PyObject *)a, "shape");
+        PyErr_Format(PyExc_ValueError, "colors must be a (z, y, x, 3) array on the volume's grid (%zu, %zu, %zu, 3), "
+                     "got %S", g->dims[2], g->dims[1], g->dims[0], shape ? shape : Py_None);
+        Py_XDECREF(shape);
+        Py_DECREF(a);
+        return -1;
+    }
+    rp->colors = PyArray_DATA(a);
+    rp->colors_count = (size_t)PyArray_SIZE(a);
+    *holder = a;
+    return 0;
+}
+
+int wvolpy_render_setup(PyObject *opts, const wvol_geometry *g, double vmin, double vmax, wvol_camera *cam,
+                        wvol_tf *tf, wvol_render_params *rp, PyArrayObject **colors)
+{
+    *colors = NULL;
+    const char *camspec, *mode;
     int width = 256, height = 256;
     wvol_error err;
     if (!PyDict_Check(opts)) {
@@ -133,23 +169,20 @@ int wvolpy_render_setup(PyObject *opts, const wvol_geometry *g, double vmin, dou
         PyErr_Format(PyExc_ValueError, "mode '%s': expected xray, absorption or absorption-linear", mode);
         return -1;
     }
-    if (!(sample = opt_str(opts, "sample", "trilinear"))) return -1;
-    if (!strcmp(sample, "trilinear")) rp->sample = WVOL_SAMPLE_TRILINEAR;
-    else if (!strcmp(sample, "fhat")) rp->sample = WVOL_SAMPLE_FHAT;
-    else {
-        PyErr_Format(PyExc_ValueError, "sample '%s': expected trilinear or fhat", sample);
-        return -1;
-    }
     if (opt_double(opts, "step", &rp->step) < 0 || opt_double(opts, "termination", &rp->termination) < 0 ||
         opt_double(opts, "ambient", &rp->ambient) < 0 || opt_int(opts, "shading", &rp->shading) < 0 ||
         opt_int(opts, "gauss_nodes", &rp->gauss_nodes) < 0 || opt_int(opts, "threads", &rp->threads) < 0)
         return -1;
+    if (rp->threads < 0 || rp->threads > WVOLPY_MAX_THREADS) {
+        PyErr_Format(PyExc_ValueError, "threads must be in 0..%d (0: default)", WVOLPY_MAX_THREADS);
+        return -1;
+    }
     memset(tf, 0, sizeof *tf);
     if (rp->mode != WVOL_MODE_XRAY && parse_tf(opts, tf, vmin, vmax) < 0) return -1;
-    return 0;
+    return parse_colors(opts, g, rp, colors);
 }
 
-PyObject *wvolpy_image_take(wvol_image *img)
+static PyObject *image_take(wvol_image *img)
 {
     npy_intp dims[3] = {img->height, img->width, 4};
     float *data = img->rgba;
@@ -158,7 +191,7 @@ PyObject *wvolpy_image_take(wvol_image *img)
     return wvolpy_array_take(data, 3, dims); /* row 0 at the top: (h, w, 4) with no copy */
 }
 
-PyObject *wvolpy_stats_dict(const wvol_render_stats *st)
+static PyObject *stats_dict(const wvol_render_stats *st)
 {
     return Py_BuildValue("{s:d,s:n,s:n,s:n,s:n,s:n,s:n,s:n,s:n}", "seconds", st->seconds, "rays",
                          (Py_ssize_t)st->rays, "rays_hit", (Py_ssize_t)st->rays_hit, "samples",
@@ -167,16 +200,18 @@ PyObject *wvolpy_stats_dict(const wvol_render_stats *st)
                          (Py_ssize_t)st->terminated, "clamped", (Py_ssize_t)st->clamped);
 }
 
-static PyObject *finish(wvol_image *img, wvol_status s, const wvol_render_stats *st, wvol_error *err)
+PyObject *wvolpy_render_finish(wvol_image *img, wvol_status s, const wvol_render_stats *st, const wvol_error *err,
+                               PyArrayObject *colors)
 {
     PyObject *a, *d;
+    Py_XDECREF(colors);
     if (s != WVOL_OK) {
         wvol_image_destroy(img);
         return wvolpy_raise(err);
     }
-    a = wvolpy_image_take(img);
+    a = image_take(img);
     if (!a) return NULL;
-    d = wvolpy_stats_dict(st);
+    d = stats_dict(st);
     if (!d) {
         Py_DECREF(a);
         return NULL;
@@ -188,7 +223,7 @@ static PyObject *finish(wvol_image *img, wvol_status s, const wvol_render_stats 
 static PyObject *py_render_volume(PyObject *self, PyObject *args)
 {
     PyObject *arr_obj, *sp, *org, *opts;
-    PyArrayObject *holder;
+    PyArrayObject *holder, *colors;
     wvol_volume v;
     wvol_geometry g;
     wvol_camera cam;
@@ -209,14 +244,14 @@ static PyObject *py_render_volume(PyObject *self, PyObject *args)
     }
     wvol_volume_range(&v, &vmin, &vmax, NULL);
     wvol_geometry_of_volume(&g, &v);
-    if (wvolpy_render_setup(opts, &g, vmin, vmax, &cam, &tf, &rp) < 0) goto fail;
+    if (wvolpy_render_setup(opts, &g, vmin, vmax, &cam, &tf, &rp, &colors) < 0) goto fail;
     memset(&st, 0, sizeof st);
     Py_BEGIN_ALLOW_THREADS
     s = wvol_image_create(&img, cam.width, cam.height, &err);
     if (s == WVOL_OK) s = wvol_render_reference(img, &v, &cam, &tf, &rp, &st, &err);
     Py_END_ALLOW_THREADS
     Py_DECREF(holder);
-    return finish(img, s, &st, &err);
+    return wvolpy_render_finish(img, s, &st, &err, colors);
 fail:
     Py_DECREF(holder);
     return NULL;
@@ -229,7 +264,7 @@ static PyObject *py_render_fhat(PyObject *self, PyObject *args)
     const char *name;
     int levels, J;
     double vmin, vmax;
-    PyArrayObject *holder;
+    PyArrayObject *holder, *colors;
     wvol_coeffs c;
     wvol_geometry g;
     wvol_camera cam;
@@ -245,7 +280,7 @@ static PyObject *py_render_fhat(PyObject *self, PyObject *args)
         return NULL;
     if (wvolpy_as_coeffs(arr_obj, name, levels, shape, sp, org, &c, &holder) < 0) return NULL;
     wvol_geometry_of_coeffs(&g, &c);
-    if (wvolpy_render_setup(opts, &g, vmin, vmax, &cam, &tf, &rp) < 0) {
+    if (wvolpy_render_setup(opts, &g, vmin, vmax, &cam, &tf, &rp, &colors) < 0) {
         Py_DECREF(holder);
         return NULL;
     }
@@ -257,7 +292,7 @@ static PyObject *py_render_fhat(PyObject *self, PyObject *args)
     Py_END_ALLOW_THREADS
     wvol_basis_destroy(b);
     Py_DECREF(holder);
-    return finish(img, s, &st, &err);
+    return wvolpy_render_finish(img, s, &st, &err, colors);
 }
 
 PyMethodDef wvolpy_render_methods[] = {

@@ -1,0 +1,172 @@
+"""wvol.render from volumes and stores."""
+import numpy as np
+import pytest
+
+import wvol
+
+
+@pytest.fixture(scope="module")
+def gauss():
+    return wvol.synth.gaussian(shape=(16, 16, 16))
+
+
+def test_xray_of_a_volume_integrates_along_the_axis(gauss):
+    img = wvol.render(gauss, camera="+z", size=(16, 16), mode="xray")
+    assert img.shape == (16, 16, 4) and img.dtype == np.float32
+    # along z, with pixel centres on voxel centres (docs/render.md): the integral of the
+    # trilinear field over the box of cells = sum of the samples along the column (end cells
+    # are clamped halves, so compare with the trapezoid + half end cells); 1% covers the step
+    col = gauss.data.astype(np.float64).sum(axis=0)                 # (y, x)
+    ref = col[::-1, :]                                               # image row 0 = top = +y
+    np.testing.assert_allclose(img[..., 0], ref, rtol=0.02, atol=0.02 * ref.max())
+    assert np.all(img[..., 3] == 1)
+
+
+def test_absorption_modes_and_tf(gauss):
+    a = wvol.render(gauss, size=(24, 20))
+    assert a.shape == (20, 24, 4)
+    assert 0 <= a[..., 3].min() and a[..., 3].max() <= 1 and a[10, 12, 3] > a[0, 0, 3]
+    tf = [(0.0, 1, 0, 0, 0.0), (1.0, 1, 0, 0, 2.0)]                  # red, opacity up to 2 / unit
+    r = wvol.render(gauss, size=(24, 20), tf=tf)
+    assert np.all(r[..., 1] == 0) and r[..., 0].max() > 0           # only red light
+    assert np.array_equal(wvol.render(gauss, size=(24, 20), tf=np.array(tf, np.float32)), r)   # (n, 5) array
+    lin = wvol.render(gauss, size=(24, 20), tf=tf, mode="absorption-linear")
+    assert np.isfinite(lin).all()
+
+
+def test_store_methods_agree(gauss):
+    s = wvol.compress(gauss, "db2", 2, keep=0.2)
+    spline = wvol.render(s, size=(16, 16), mode="xray", method="spline")
+    axis = wvol.render(s, size=(16, 16), mode="xray", method="axis")
+    # the axis fast path equals the spline integrator to rounding (render.h)
+    np.testing.assert_allclose(axis, spline, atol=1e-4 * spline.max())
+    ref = wvol.render(s, size=(16, 16), mode="xray", method="reference")
+    # f^ vs trilinear samples of the reconstruction: same integral to a few percent
+    np.testing.assert_allclose(spline[..., 0], ref[..., 0], atol=0.05 * ref.max())
+    img, st = wvol.render(s, size=(16, 16), camera="persp dir=1,1,0.5", return_stats=True)
+    assert st["rays"] == 256 and img.shape == (16, 16, 4)
+
+
+@pytest.mark.parametrize("kw, exc", [
+    (dict(camera="sideways"), ValueError),
+    (dict(size=(0, 16)), ValueError),
+    (dict(mode="mri"), ValueError),
+    (dict(tf="no-such-preset"), ValueError),
+    (dict(tf=[(0.0, 1, 1)]), TypeError),
+    (dict(tf=[(1.0, 1, 1, 1, 1), (0.0, 1, 1, 1, 1)]), ValueError),   # values must increase
+    (dict(step=0), ValueError),
+    (dict(step=float("nan")), ValueError),
+    (dict(method="spline"), ValueError),                              # needs a store
+    (dict(tf_units="furlongs", tf=[(0.0, 1, 1, 1, 1)]), ValueError),
+    (dict(camera=3), TypeError),
+    (dict(size=(8,)), ValueError),
+    (dict(tf="/nonexistent/dir/tf.txt"), ValueError),                 # not a file: read as a preset name
+    (dict(tf=[(float("nan"), 1, 1, 1, 1)]), ValueError),
+    (dict(tf=[(0.0, 1, 1, 1, -1)]), ValueError),                      # negative opacity
+    (dict(tf=[]), ValueError),
+    (dict(tf=[1, 2, 3]), TypeError),
+    (dict(threads=10 ** 6), ValueError),                              # refused, not an OpenMP abort
+    (dict(termination=float("inf")), ValueError),
+])
+def test_bad_arguments(gauss, kw, exc):
+    kw.setdefault("size", (8, 8))
+    with pytest.raises(exc):
+        wvol.render(gauss, **kw)
+
+
+def test_store_reference_methods_and_options(gauss, tmp_path):
+    s = wvol.compress(gauss, "db2", 2, keep=0.2)
+    fhat = wvol.render(s, size=(12, 12), mode="xray", method="reference-fhat")
+    spline = wvol.render(s, size=(12, 12), mode="xray", method="spline")
+    # ray marching over f^ (step 0.5 voxel) converges to the exact spline integral: 1% of the peak
+    np.testing.assert_allclose(fhat[..., 0], spline[..., 0], atol=0.01 * spline.max())
+    # auto on a store in X-ray along an axis is the axis fast path; off-axis it is the spline path
+    np.testing.assert_allclose(wvol.render(s, size=(12, 12), mode="xray"), spline, atol=1e-5 * spline.max())
+    # a transfer-function file, the per-diagonal units and shading (Lambert from the gradient)
+    (tmp_path / "tf.txt").write_text("units diagonal\n0 0 1 0 0\n1 0 1 0 8\n")
+    flat = wvol.render(gauss, size=(12, 12), tf=tmp_path / "tf.txt")
+    shaded = wvol.render(gauss, size=(12, 12), tf=str(tmp_path / "tf.txt"), shading=True, ambient=0.2)
+    assert np.all(flat[..., [0, 2]] == 0) and flat[..., 1].max() > 0     # green only
+    assert np.array_equal(flat[..., 3], shaded[..., 3])                  # shading changes colour, not opacity
+    assert not np.array_equal(flat[..., 1], shaded[..., 1])
+    # a store read back from a file renders the same as the one it was saved from, up to
+    # quantisation (1% of the peak)
+    s.save(tmp_path / "s.wvc")
+    o = wvol.open(tmp_path / "s.wvc")
+    np.testing.assert_allclose(wvol.render(o, size=(12, 12), mode="xray"), spline, atol=0.01 * spline.max())
+
+
+@pytest.mark.parametrize("kw, exc, words", [
+    (dict(method="magic"), ValueError, "method"),
+    (dict(method="axis", mode="xray", camera="ortho dir=1,1,0"), NotImplementedError, "axis"),
+    (dict(method="axis"), ValueError, "X-ray only"),
+    (dict(method="reference-fhat", spline_j=40), ValueError, ""),
+    (dict(method="spline", spline_j=-1), ValueError, "spline_j"),
+    (dict(gauss_nodes=0), ValueError, ""),
+])
+def test_bad_store_arguments(gauss, kw, exc, words):
+    s = wvol.compress(gauss, "haar", 1, keep=0.5)
+    with pytest.raises(exc, match=words):
+        wvol.render(s, size=(4, 4), **kw)
+
+
+def test_bad_volumes():
+    for arr, exc in [(np.zeros((0, 4, 4)), ValueError), (np.full((4, 4, 4), np.inf), ValueError),
+                     (np.zeros((4, 4, 4), complex), TypeError)]:
+        with pytest.raises(exc):
+            wvol.render(arr, size=(8, 8))
+
+
+# ---- colour volumes (the segmentation's colours replace the TF colour) ----
+
+def test_uniform_colour_volume_gives_colour_times_alpha(gauss):
+    c = np.array([0.2, 0.5, 0.9], np.float32)
+    colors = np.broadcast_to(c, gauss.shape + (3,))                    # a read-only, non-contiguous view
+    plain = wvol.render(gauss, size=(12, 12))
+    img = wvol.render(gauss, size=(12, 12), colors=colors)
+    # kappa still comes from the TF: the same opacity; emission = c kappa, so RGB = c A
+    # exactly up to float32 accumulation (1e-5 of A)
+    assert np.array_equal(img[..., 3], plain[..., 3]) and img[..., 3].max() > 0.3
+    np.testing.assert_allclose(img[..., :3], c * img[..., 3:], rtol=0, atol=1e-5)
+    # a store: auto picks reference-fhat (the spline paths have no voxels to colour)
+    s = wvol.compress(gauss, "db2", 2, keep=0.2)
+    simg = wvol.render(s, size=(12, 12), colors=colors)
+    np.testing.assert_allclose(simg[..., :3], c * simg[..., 3:], rtol=0, atol=1e-5)
+    ref = wvol.render(s, size=(12, 12), colors=colors, method="reference")
+    np.testing.assert_allclose(ref[..., :3], c * ref[..., 3:], rtol=0, atol=1e-5)
+
+
+def test_segmentation_colours_render():
+    vol = wvol.synth.blobs(shape=(16, 16, 16), seed=2)
+    seg = wvol.segment(vol, levels=2, iterations=500)
+    img = wvol.render(vol, size=(16, 16), colors=seg.colors, camera="persp dir=1,1,1")
+    plain = wvol.render(vol, size=(16, 16), camera="persp dir=1,1,1")
+    assert np.isfinite(img).all() and np.array_equal(img[..., 3], plain[..., 3])
+    # premultiplied colours from [0, 1] lattice colours: each channel within [0, A]
+    assert np.all(img[..., :3] <= img[..., 3:] + 1e-6) and img[..., :3].max() > 0
+    # a 2D image takes (y, x, 3) colours
+    flat = wvol.render(vol.data[8], size=(16, 16), colors=seg.colors[8])
+    assert flat.shape == (16, 16, 4) and np.isfinite(flat).all()
+
+
+@pytest.mark.parametrize("colors, kw, exc, words", [
+    (np.zeros((16, 16, 16, 4)), {}, ValueError, "colors must be"),
+    (np.zeros((16, 16, 16)), {}, ValueError, "colors must be"),
+    (np.zeros((8, 16, 16, 3)), {}, ValueError, r"\(16, 16, 16, 3\)"),
+    (np.zeros((16, 16, 16, 3), complex), {}, TypeError, "real numbers"),
+    (np.full((16, 16, 16, 3), np.nan), {}, ValueError, "finite"),
+    (np.full((16, 16, 16, 3), -1.0), {}, ValueError, ">= 0"),
+    (np.zeros((16, 16, 16, 3)), dict(mode="xray"), ValueError, "absorption mode"),
+    ("red", {}, TypeError, ""),
+])
+def test_bad_colours(gauss, colors, kw, exc, words):
+    with pytest.raises(exc, match=words):
+        wvol.render(gauss, size=(4, 4), colors=colors, **kw)
+
+
+def test_colours_refused_by_the_spline_paths(gauss):
+    s = wvol.compress(gauss, "haar", 1, keep=0.5)
+    ones = np.ones(gauss.shape + (3,), np.float32)
+    for kw in (dict(method="spline"), dict(method="axis", mode="xray")):
+        with pytest.raises(NotImplementedError, match="reference"):
+            wvol.render(s, size=(4, 4), colors=ones, **kw)
