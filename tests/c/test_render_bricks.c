@@ -7,6 +7,7 @@
 #include <string.h>
 
 #include "check.h"
+#include "fixtures.h"
 #include "wvol/render.h"
 #include "wvol/store.h"
 #include "wvol/wavelet.h"
@@ -14,22 +15,17 @@
 /* A shell (value 1 for radius in [0.25, 0.4] of the half size, smooth edges) in a zero
  * background, plus a faint Gaussian blob: bricks far from both are empty. Not a cube, and
  * not a multiple of 2^levels along x, so padding and clipped edge bricks are exercised. */
-static wvol_volume *phantom(size_t nx, size_t ny, size_t nz)
+static double phantom_voxel(const wvol_volume *v, size_t i, size_t j, size_t k, const void *ctx)
 {
-    wvol_volume *v = NULL;
-    size_t i, j, k;
-    if (wvol_volume_create(&v, nx, ny, nz, NULL) != WVOL_OK) return NULL;
-    for (k = 0; k < nz; k++)
-        for (j = 0; j < ny; j++)
-            for (i = 0; i < nx; i++) {
-                double x = (i - (nx - 1) / 2.0) / (nx / 2.0), y = (j - (ny - 1) / 2.0) / (ny / 2.0),
-                       z = (k - (nz - 1) / 2.0) / (nz / 2.0), r = sqrt(x * x + y * y + z * z);
-                double shell = 0.5 * (tanh((r - 0.25) / 0.04) - tanh((r - 0.4) / 0.04));
-                double blob = 0.3 * exp(-((x - 0.1) * (x - 0.1) + y * y + z * z) / 0.02);
-                v->data[i + nx * (j + ny * k)] = (float)(r > 0.5 ? 0.0 : shell + blob);
-            }
-    return v;
+    double x = (i - (v->nx - 1) / 2.0) / (v->nx / 2.0), y = (j - (v->ny - 1) / 2.0) / (v->ny / 2.0),
+           z = (k - (v->nz - 1) / 2.0) / (v->nz / 2.0), r = sqrt(x * x + y * y + z * z);
+    double shell = 0.5 * (tanh((r - 0.25) / 0.04) - tanh((r - 0.4) / 0.04));
+    double blob = 0.3 * exp(-((x - 0.1) * (x - 0.1) + y * y + z * z) / 0.02);
+    (void)ctx;
+    return r > 0.5 ? 0.0 : shell + blob;
 }
+
+static wvol_volume *phantom(size_t nx, size_t ny, size_t nz) { return fixture_volume(nx, ny, nz, phantom_voxel, NULL); }
 
 /* Store of the kept coefficients and the dense reconstruction of the same coefficients. */
 static wvol_store *store_and_recon(const wvol_volume *v, double keep, wvol_volume **recon)
