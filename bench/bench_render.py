@@ -225,6 +225,8 @@ def main():
     ap.add_argument("--bricks-steps", default="0.5,1", help="steps (voxels) of the bricks rows")
     ap.add_argument("--peer-steps", default="0.5,1,2", help="steps of the bricks rows beside the peers")
     ap.add_argument("--peer-threads", default="1,2", help="thread counts of the peer comparison")
+    ap.add_argument("--peers-only", action="store_true", help="only the comparison with the peers")
+    ap.add_argument("--no-vdb", action="store_true", help="leave vdb_render out (it can take many minutes)")
     ap.add_argument("--out", default=str(ROOT / "bench" / "results"))
     ap.add_argument("--resume", help="a previous run's stdout: its rows are kept and their runs skipped")
     a = ap.parse_args()
@@ -249,7 +251,7 @@ def main():
             raw = tmp / f"{vname}.raw"; write_raw(v, raw)
             tf = "gaussian" if vname == "gaussian" else "ct-soft"
             diag = n * math.sqrt(3)
-            for mode in ["xray", "absorption", "absorption-linear"]:
+            for mode in [] if a.peers_only else ["xray", "absorption", "absorption-linear"]:
                 # the runs of this mode; a resumed run's rows are kept and their runs skipped
                 skeeps = [float(x) for x in a.spline_keep.split(",")] if a.spline_keep else keeps
                 bsteps = [float(x) for x in a.bricks_steps.split(",")]
@@ -368,7 +370,7 @@ def main():
                     peer_row(name, pt, keep, wall_s=dt, render_s=info["render_seconds"],
                              cpu_s=info["render_cpu_seconds"], peak_mb=mem, rel_rmse=rel_rmse(rgba(out)[..., 3], RA),
                              **extra)
-                if shutil.which("vdb_render"):
+                if shutil.which("vdb_render") and not a.no_vdb:
                     try:
                         vp = tmp / "g.vdb"
                         if not vp.exists(): vdb_write(u, vp)
