@@ -35,15 +35,14 @@ static inline uint32_t rc_ctx_p0(const rc_ctx *c)
     return ((uint32_t)c->fast + c->slow) >> 1; /* in [8, 65528]: never 0 or 1 */
 }
 
+/* Both outcomes computed, one selected: no branch on a bit that is hard to predict. */
 static inline void rc_ctx_update(rc_ctx *c, int bit)
 {
-    if (bit) {
-        c->fast -= c->fast >> RC_FAST_SHIFT;
-        c->slow -= c->slow >> RC_SLOW_SHIFT;
-    } else {
-        c->fast += (65536u - c->fast) >> RC_FAST_SHIFT;
-        c->slow += (65536u - c->slow) >> RC_SLOW_SHIFT;
-    }
+    uint32_t f = c->fast, s = c->slow;
+    uint32_t f1 = f - (f >> RC_FAST_SHIFT), s1 = s - (s >> RC_SLOW_SHIFT);
+    uint32_t f0 = f + ((65536u - f) >> RC_FAST_SHIFT), s0 = s + ((65536u - s) >> RC_SLOW_SHIFT);
+    c->fast = (uint16_t)(bit ? f1 : f0);
+    c->slow = (uint16_t)(bit ? s1 : s0);
 }
 
 /* ---- encoder: output into a growing heap buffer ---- */
@@ -173,15 +172,10 @@ static inline void rc_dec_init(rc_dec *d, const uint8_t *buf, size_t size)
 static inline int rc_dec_bit(rc_dec *d, rc_ctx *c)
 {
     uint32_t bound = (d->range >> 16) * rc_ctx_p0(c);
-    int bit;
-    if (d->code < bound) {
-        d->range = bound;
-        bit = 0;
-    } else {
-        d->code -= bound;
-        d->range -= bound;
-        bit = 1;
-    }
+    int bit = d->code >= bound;
+    uint32_t mask = 0u - (uint32_t)bit;
+    d->code -= bound & mask;
+    d->range = bit ? d->range - bound : bound;
     rc_ctx_update(c, bit);
     while (d->range < RC_TOP) {
         d->range <<= 8;

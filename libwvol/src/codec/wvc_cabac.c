@@ -115,26 +115,79 @@ static inline uint32_t absq(int32_t v)
     return a > 65535 ? 65535 : a;
 }
 
-/* Parent class of group (gi, gj, gk): see NPC. *P receives the parent's |q|. */
-FORCE_INLINE int parent_class(const int32_t *Q, const size_t p[3], const wvc_band *b, size_t gi, size_t gj,
-                              size_t gk, uint32_t *P)
+/* Parent class (see NPC) and |parent| of every group of the group row (gj, gk),
+ * written to pc[0..gx) and P[0..gx). A group's parent is its index clamped to the
+ * parent band; rows and columns outside the parent band count as zero (the
+ * pointer then aims at the parent row itself and the flag masks it out). */
+static void parent_row(const int32_t *Q, const size_t p[3], const wvc_band *b, size_t gx, size_t gj, size_t gk,
+                       uint8_t *pc, uint32_t *P)
 {
     const ptrdiff_t sy = (ptrdiff_t)p[0], sz = (ptrdiff_t)(p[0] * p[1]);
-    size_t pi, pj, pk;
-    const int32_t *pp;
-    int pn;
-    *P = 0;
-    if (!b->has_parent) return 5;
-    pi = gi < b->pext[0] ? gi : b->pext[0] - 1;
+    size_t pj, pk, gi, pe = b->pext[0];
+    const int32_t *pr, *rN, *rS, *rD, *rU;
+    int fN, fS, fD, fU;
+    if (!b->has_parent) {
+        memset(pc, 5, gx);
+        memset(P, 0, gx * sizeof *P);
+        return;
+    }
     pj = gj < b->pext[1] ? gj : b->pext[1] - 1;
     pk = gk < b->pext[2] ? gk : b->pext[2] - 1;
-    pp = Q + (b->poff[0] + pi) + (size_t)sy * (b->poff[1] + pj) + (size_t)sz * (b->poff[2] + pk);
-    *P = absq(*pp);
-    if (*P >= 2) return 4;
-    if (*P == 1) return 3;
-    pn = (pi > 0 && pp[-1]) + (pi + 1 < b->pext[0] && pp[1]) + (pj > 0 && pp[-sy]) +
-         (pj + 1 < b->pext[1] && pp[sy]) + (pk > 0 && pp[-sz]) + (pk + 1 < b->pext[2] && pp[sz]);
-    return pn == 0 ? 0 : pn <= 2 ? 1 : 2;
+    pr = Q + b->poff[0] + (size_t)sy * (b->poff[1] + pj) + (size_t)sz * (b->poff[2] + pk);
+    fN = pj > 0, fS = pj + 1 < b->pext[1], fD = pk > 0, fU = pk + 1 < b->pext[2];
+    rN = fN ? pr - sy : pr, rS = fS ? pr + sy : pr, rD = fD ? pr - sz : pr, rU = fU ? pr + sz : pr;
+    for (gi = 0; gi < gx; gi++) {
+        size_t pi = gi < pe ? gi : pe - 1;
+        uint32_t v;
+        int pn;
+        if (pi > 0 && pi + 1 < pe && gi + 1 < gx) {
+            /* interior: no bounds to test along x, so the loop runs without branches */
+            size_t end = (gx < pe ? gx : pe) - 1;
+            for (; gi < end; gi++) {
+                v = absq(pr[gi]);
+                pn = (pr[gi - 1] != 0) + (pr[gi + 1] != 0) + (fN & (rN[gi] != 0)) + (fS & (rS[gi] != 0)) +
+                     (fD & (rD[gi] != 0)) + (fU & (rU[gi] != 0));
+                P[gi] = v;
+                pc[gi] = (uint8_t)(v >= 2 ? 4 : v == 1 ? 3 : pn == 0 ? 0 : pn <= 2 ? 1 : 2);
+            }
+            gi--;
+            continue;
+        }
+        v = absq(pr[pi]);
+        pn = (pi > 0 && pr[pi - 1] != 0) + (pi + 1 < pe && pr[pi + 1] != 0) + (fN & (rN[pi] != 0)) +
+             (fS & (rS[pi] != 0)) + (fD & (rD[pi] != 0)) + (fU & (rU[pi] != 0));
+        P[gi] = v;
+        pc[gi] = (uint8_t)(v >= 2 ? 4 : v == 1 ? 3 : pn == 0 ? 0 : pn <= 2 ? 1 : 2);
+    }
+}
+
+/* Encoder: whether each 2x2x2 group of the group row starting at (y, z) holds a non-zero. */
+static void any_row(const int32_t *Q, const size_t p[3], const wvc_band *b, size_t y, size_t z, size_t gx,
+                    uint8_t *any)
+{
+    const size_t ex = b->ext[0];
+    const int32_t *r0 = Q + wvc_index(p, b, 0, y, z);
+    const int32_t *r1 = y + 1 < b->ext[1] ? r0 + p[0] : r0, *r2 = z + 1 < b->ext[2] ? r0 + p[0] * p[1] : r0;
+    const int32_t *r3 = y + 1 < b->ext[1] ? r2 + p[0] : r2;
+    size_t gi, full = ex / 2; /* groups with two columns; an odd extent leaves one of one */
+    for (gi = 0; gi < full; gi++) {
+        size_t x = 2 * gi;
+        any[gi] = ((r0[x] | r1[x] | r2[x] | r3[x]) | (r0[x + 1] | r1[x + 1] | r2[x + 1] | r3[x + 1])) != 0;
+    }
+    if (full < gx) any[full] = (r0[2 * full] | r1[2 * full] | r2[2 * full] | r3[2 * full]) != 0;
+}
+
+/* The next group at or after g in [0, gx) whose state is non-zero (gx if none). */
+static inline size_t next_group(const uint8_t *grow, size_t g, size_t gx)
+{
+    uint64_t w;
+    while (g + 8 <= gx) {
+        memcpy(&w, grow + g, 8);
+        if (w) break;
+        g += 8;
+    }
+    while (g < gx && !grow[g]) g++;
+    return g;
 }
 
 /* Group states: 0 all zero, 1 non-zero with no non-zero child coded yet, 2 one seen. */
@@ -147,45 +200,41 @@ FORCE_INLINE int detail_band(int dec, coder *cd, int32_t *Q, const size_t p[3], 
     const size_t ngroups = gx * gy * ((ez + 1) / 2);
     /* the parent class and |parent| of the current slab of groups, computed at first touch */
     uint32_t *gP = (uint32_t *)(void *)(gstate + ((ngroups + 7) & ~(size_t)7));
-    uint8_t *gpc = (uint8_t *)(gP + gx * gy);
+    uint8_t *gpc = (uint8_t *)(gP + gx * gy), *gany = gpc + gx * gy;
     size_t x, y, z;
     for (z = 0; z < ez; z++)
         for (y = 0; y < ey; y++) {
             const size_t gk = z >> 1, gj = y >> 1;
             uint8_t *grow = gstate + gx * (gj + gy * gk);
             int32_t *row = Q + wvc_index(p, b, 0, y, z);
-            const int hasN = y > 0, hasU = z > 0;
+            const int hasN = y > 0, hasU = z > 0, first = (y & 1) == 0 && (z & 1) == 0;
+            if (first) {
+                parent_row(Q, p, b, gx, gj, gk, gpc + gx * gj, gP + gx * gj);
+                if (!dec) any_row(Q, p, b, y, z, gx, gany);
+            }
             for (x = 0; x < ex; x++) {
                 const size_t gi = x >> 1;
                 int32_t *c = row + x;
                 uint32_t P, aW, aN, aU, dsum;
                 int pc, sig, a, dn;
                 uint64_t mag;
-                if ((x & 1) == 0 && (y & 1) == 0 && (z & 1) == 0) {
+                if (first && (x & 1) == 0) {
                     /* first touch of the group: its flag */
-                    int any = 0, gn;
-                    pc = parent_class(Q, p, b, gi, gj, gk, &P);
-                    gpc[gi + gx * gj] = (uint8_t)pc;
-                    gP[gi + gx * gj] = P;
-                    gn = (gi > 0 && grow[gi - 1]) + (gj > 0 && grow[(ptrdiff_t)gi - (ptrdiff_t)gx]) +
-                         (gk > 0 && grow[(ptrdiff_t)gi - (ptrdiff_t)(gx * gy)]);
-                    if (!dec) {
-                        size_t x1 = x + 2 < ex ? x + 2 : ex, y1 = y + 2 < ey ? y + 2 : ey;
-                        size_t z1 = z + 2 < ez ? z + 2 : ez, xx, yy, zz;
-                        for (zz = z; zz < z1 && !any; zz++)
-                            for (yy = y; yy < y1 && !any; yy++)
-                                for (xx = x; xx < x1; xx++)
-                                    if (Q[wvc_index(p, b, xx, yy, zz)]) {
-                                        any = 1;
-                                        break;
-                                    }
-                    }
+                    int any = dec ? 0 : gany[gi];
+                    int gn = (gi > 0 && grow[gi - 1]) + (gj > 0 && grow[(ptrdiff_t)gi - (ptrdiff_t)gx]) +
+                             (gk > 0 && grow[(ptrdiff_t)gi - (ptrdiff_t)(gx * gy)]);
+                    pc = gpc[gi + gx * gj];
                     STAT_CAT(0);
                     any = code_bit(dec, cd, &m->group[pc * 4 + gn], any);
                     grow[gi] = (uint8_t)any;
                 }
                 if (!grow[gi]) {
-                    x |= 1; /* the group's other column is zero too */
+                    if (first) {
+                        x |= 1; /* the group's other column is zero too */
+                    } else {
+                        size_t g = next_group(grow, gi + 1, gx); /* flags were coded: skip to a non-zero group */
+                        x = 2 * g - 1;
+                    }
                     continue;
                 }
                 pc = gpc[gi + gx * gj];
@@ -278,7 +327,8 @@ static void model_init(band_model *m)
 static int band_scratch(const wvc_band *b, void **scratch)
 {
     size_t gxy = ((b->ext[0] + 1) / 2) * ((b->ext[1] + 1) / 2), ng = gxy * ((b->ext[2] + 1) / 2);
-    size_t n = b->band == 0 ? (size_t)b->count * sizeof(uint16_t) : ((ng + 7) & ~(size_t)7) + gxy * 5;
+    size_t n = b->band == 0 ? (size_t)b->count * sizeof(uint16_t)
+                             : ((ng + 7) & ~(size_t)7) + gxy * 5 + (b->ext[0] + 1) / 2;
     *scratch = malloc(n ? n : 1);
     return *scratch ? 0 : -1;
 }

@@ -260,6 +260,14 @@ static wvol_status decode(wvol_coeffs **out, const uint8_t *buf, size_t avail, c
                 for (x = 0; x < b->ext[0]; x++) {
                     int32_t v;
                     float a;
+                    if ((x & 7) == 0 && x + 8 <= b->ext[0]) {
+                        uint64_t w[4]; /* eight int32 zeros are 0.0f already: skip them in one test */
+                        memcpy(w, o + x, sizeof w);
+                        if (!(w[0] | w[1] | w[2] | w[3])) {
+                            x += 7;
+                            continue;
+                        }
+                    }
                     memcpy(&v, o + x, sizeof v); /* the int32 the coder stored there */
                     if (v == 0) continue;
                     nz++;

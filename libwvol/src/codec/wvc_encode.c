@@ -76,48 +76,126 @@ typedef struct sec_stats {
     double zero_sse, energy;
     double s1, ss1, s2, ss2;
     uint64_t n1, n2;
-    double maxabs;
 } sec_stats;
 
 static double sec_rounding(const wvc_band *b, double f) { return b->band == 0 ? 0.5 : f; }
 
-/* Sums over rows [y0, y1) x slices [z0, z1) of one band (serial; the caller spreads
- * work items over threads). Q (may be NULL) receives the quantised values. */
-static void rows_stats(sec_stats *st, const float *C, int32_t *Q, const size_t p[3], const wvc_band *b,
-                       double step, double f, size_t z0, size_t z1, int sample)
+/* Sums over slices [z0, z1) of one band (serial; the caller spreads work items over
+ * threads). Q (may be NULL) receives the quantised values; with `sparse` Q is known
+ * to be all zero and only groups with a non-zero are written (the pages of an
+ * all-zero stretch are never touched: fresh pages cost more to write than to read).
+ *
+ * Most coefficients quantise to zero: a group of eight whose |c| all lie below the
+ * dead zone (float test, with a margin far above rounding) only adds c^2 to the
+ * zeroed energy; the others get the full arithmetic, in double. Explicit vectors
+ * (AVX2 in the x86-64-v3 clone; GCC will not reorder a double reduction itself),
+ * branch-free selects; counts are summed as doubles within a row (exact below
+ * 2^53); the scalar tail does the same arithmetic. */
+typedef double wvc_v4d __attribute__((vector_size(32)));
+typedef int64_t wvc_v4l __attribute__((vector_size(32)));
+typedef int32_t wvc_v4i __attribute__((vector_size(16)));
+typedef float wvc_v4f __attribute__((vector_size(16)));
+typedef float wvc_v8f __attribute__((vector_size(32)));
+typedef int32_t wvc_v8i __attribute__((vector_size(32)));
+#define SEL(v, m) ((wvc_v4d)((wvc_v4l)(v) & (m))) /* v where the mask is set, else 0 */
+
+typedef struct row_acc {
+    wvc_v4d rz, re, r1, rr1, r2, rr2, c1, c2;
+} row_acc;
+
+/* The full arithmetic on four coefficients; writes their q when qrow is given. */
+static inline __attribute__((always_inline)) void quad_stats(row_acc *A, wvc_v4f cf, double inv, double f,
+                                                               int32_t *qrow, int sparse)
 {
-    const double inv = 1.0 / step;
-    double zero_sse = 0, energy = 0, s1 = 0, ss1 = 0, s2 = 0, ss2 = 0, maxabs = 0;
+    const wvc_v4d vinv = {inv, inv, inv, inv}, vf = {f, f, f, f};
+    const wvc_v4d vq = {WVC_QMAX, WVC_QMAX, WVC_QMAX, WVC_QMAX}, one = {1, 1, 1, 1}, two = {2, 2, 2, 2};
+    const wvc_v4l absmask = {INT64_MAX, INT64_MAX, INT64_MAX, INT64_MAX};
+    wvc_v4d c = __builtin_convertvector(cf, wvc_v4d), ac = (wvc_v4d)((wvc_v4l)c & absmask);
+    wvc_v4d a = ac * vinv, tt = a + vf;
+    wvc_v4l big = tt >= vq;
+    /* truncation, not floor(): t >= 0; the step's lower bound keeps t < 2^30 anyway */
+    tt = (wvc_v4d)(((wvc_v4l)tt & ~big) | ((wvc_v4l)vq & big));
+    wvc_v4i qi = __builtin_convertvector(tt, wvc_v4i);
+    wvc_v4d q = __builtin_convertvector(qi, wvc_v4d), r = a - q, cc = c * c;
+    wvc_v4l is0 = q < one, is1 = q == one, is2 = q >= two;
+    A->re += cc;
+    A->rz += SEL(cc, is0);
+    A->c1 += SEL(one, is1);
+    A->r1 += SEL(r, is1);
+    A->rr1 += SEL(r * r, is1);
+    A->c2 += SEL(one, is2);
+    A->r2 += SEL(r, is2);
+    A->rr2 += SEL(r * r, is2);
+    if (qrow && (!sparse || (qi[0] | qi[1] | qi[2] | qi[3]))) {
+        wvc_v4i neg = cf < (wvc_v4f){0, 0, 0, 0};
+        qi = (qi ^ neg) - neg;
+        memcpy(qrow, &qi, sizeof qi);
+    }
+}
+
+WVC_HOT static void rows_stats(sec_stats *st, const float *C, int32_t *Q, const size_t p[3], const wvc_band *b,
+                               double step, double f, size_t z0, size_t z1, int sparse)
+{
+    const double inv = 1.0 / step, qmax = WVC_QMAX;
+    /* below this |c| / step + f < 1 for sure: the relative margin 1e-6 dwarfs float rounding */
+    const float thr = (float)((1.0 - f) * step * (1.0 - 1e-6));
+    const wvc_v8f vthr = {thr, thr, thr, thr, thr, thr, thr, thr};
+    const wvc_v8i absmask = {INT32_MAX, INT32_MAX, INT32_MAX, INT32_MAX, INT32_MAX, INT32_MAX, INT32_MAX, INT32_MAX};
+    double zero_sse = 0, energy = 0, s1 = 0, ss1 = 0, s2 = 0, ss2 = 0;
     uint64_t n1 = 0, n2 = 0;
-    size_t x, y, z;
+    size_t x, y, z, ex = b->ext[0];
     for (z = z0; z < z1; z++)
         for (y = 0; y < b->ext[1]; y++) {
             size_t base = wvc_index(p, b, 0, y, z);
-            const float *row = C + base;
-            if (sample && (y + 3 * z) % 8 != 0) continue;
-            int32_t *qrow = Q ? Q + base : NULL;
-            for (x = 0; x < b->ext[0]; x++) {
-                double c = row[x], ac = fabs(c), a = ac * inv, t = a + f;
-                /* truncation, not floor(): t >= 0, and floor is a libm call without SSE4.1 */
-                double q = t < 2147483647.0 ? (double)(int32_t)t : 2147483647.0, r = a - q;
-                energy += c * c;
-                if (ac > maxabs) maxabs = ac;
-                if (q == 0) {
-                    zero_sse += c * c;
-                } else if (q == 1) {
-                    n1++;
-                    s1 += r;
-                    ss1 += r * r;
-                } else {
-                    n2++;
-                    s2 += r;
-                    ss2 += r * r;
+            const float *restrict row = C + base;
+            int32_t *restrict qrow = Q ? Q + base : NULL;
+            row_acc A;
+            wvc_v4d zq = {0, 0, 0, 0};
+            double t[8];
+            memset(&A, 0, sizeof A);
+            for (x = 0; x + 8 <= ex; x += 8) {
+                wvc_v8f cf;
+                wvc_v8i hit;
+                wvc_v4l h4;
+                memcpy(&cf, row + x, sizeof cf);
+                hit = (wvc_v8f)((wvc_v8i)cf & absmask) >= vthr;
+                h4 = (wvc_v4l)hit;
+                if (!(h4[0] | h4[1] | h4[2] | h4[3])) {
+                    /* all zero: only their energy */
+                    wvc_v4f lo = {cf[0], cf[1], cf[2], cf[3]}, hi = {cf[4], cf[5], cf[6], cf[7]};
+                    wvc_v4d dl = __builtin_convertvector(lo, wvc_v4d), dh = __builtin_convertvector(hi, wvc_v4d);
+                    zq += dl * dl + dh * dh;
+                    if (qrow && !sparse) memset(qrow + x, 0, 8 * sizeof *qrow);
+                    continue;
                 }
-                if (qrow) {
-                    if (q > WVC_QMAX) q = WVC_QMAX;
-                    qrow[x] = c < 0 ? -(int32_t)q : (int32_t)q;
+                {
+                    wvc_v4f lo = {cf[0], cf[1], cf[2], cf[3]}, hi = {cf[4], cf[5], cf[6], cf[7]};
+                    quad_stats(&A, lo, inv, f, qrow ? qrow + x : NULL, sparse);
+                    quad_stats(&A, hi, inv, f, qrow ? qrow + x + 4 : NULL, sparse);
                 }
             }
+            memset(t, 0, sizeof t);
+            for (int k = 0; k < 4; k++) {
+                t[0] += A.rz[k] + zq[k], t[1] += A.re[k] + zq[k], t[2] += A.r1[k], t[3] += A.rr1[k];
+                t[4] += A.r2[k], t[5] += A.rr2[k], t[6] += A.c1[k], t[7] += A.c2[k];
+            }
+            for (; x < ex; x++) {
+                double c = row[x], ac = fabs(c), a = ac * inv, tt = a + f;
+                double q = (double)(int32_t)(tt < qmax ? tt : qmax), r = a - q, cc = c * c;
+                t[1] += cc;
+                if (q == 0) t[0] += cc;
+                else if (q == 1) t[2] += r, t[3] += r * r, t[6] += 1;
+                else t[4] += r, t[5] += r * r, t[7] += 1;
+                if (qrow && (!sparse || q != 0)) qrow[x] = c < 0 ? -(int32_t)q : (int32_t)q;
+            }
+            zero_sse += t[0];
+            energy += t[1];
+            s1 += t[2];
+            ss1 += t[3];
+            s2 += t[4];
+            ss2 += t[5];
+            n1 += (uint64_t)t[6];
+            n2 += (uint64_t)t[7];
         }
     memset(st, 0, sizeof *st);
     st->zero_sse = zero_sse;
@@ -128,13 +206,12 @@ static void rows_stats(sec_stats *st, const float *C, int32_t *Q, const size_t p
     st->ss2 = ss2;
     st->n1 = n1;
     st->n2 = n2;
-    st->maxabs = maxabs;
 }
+#undef SEL
 
 /* Work items: slabs of about 64K coefficients of one section each. */
 typedef struct work_item {
     int sec;
-    int sampled; /* in the 1-in-8 subsample used while searching the step */
     size_t z0, z1;
 } work_item;
 
@@ -156,8 +233,6 @@ static work_item *work_items(const wvc_layout *L, int *count)
         if (!b->count) continue;
         for (z = 0; z < b->ext[2]; z += per) {
             w[n].sec = s;
-            /* small sections are always taken whole; in large ones one row in eight */
-            w[n].sampled = b->count > 2 * 65536 && b->ext[1] * b->ext[2] >= 64;
             w[n].z0 = z;
             w[n].z1 = z + per < b->ext[2] ? z + per : b->ext[2];
             n++;
@@ -167,13 +242,13 @@ static work_item *work_items(const wvc_layout *L, int *count)
     return w;
 }
 
-/* Per-section sums over the whole pyramid in one parallel pass. */
+/* Per-section sums over the whole pyramid in one parallel pass; Q as in rows_stats
+ * (*qzero: Q is all zero, cleared once written). */
 static int all_stats(sec_stats *st, const wvc_layout *L, const float *C, int32_t *Q, double step, double f,
-                     int sample)
+                     int *qzero)
 {
-    int n = 0, i, s;
+    int n = 0, i, sparse = Q && *qzero;
     work_item *w = work_items(L, &n);
-    double seen[WVOL_WVC_MAX_SECTIONS] = {0};
     sec_stats *part;
     if (!w) return -1;
     part = malloc((n ? n : 1) * sizeof *part);
@@ -184,18 +259,11 @@ static int all_stats(sec_stats *st, const wvc_layout *L, const float *C, int32_t
 #pragma omp parallel for schedule(dynamic, 1) if (n > 2)
     for (i = 0; i < n; i++)
         rows_stats(&part[i], C, Q, L->p, &L->sec[w[i].sec], step, sec_rounding(&L->sec[w[i].sec], f), w[i].z0,
-                   w[i].z1, sample && w[i].sampled);
+                   w[i].z1, sparse);
+    if (Q) *qzero = 0;
     memset(st, 0, (size_t)L->nsec * sizeof *st);
     for (i = 0; i < n; i++) {
         sec_stats *d = &st[w[i].sec], *a = &part[i];
-        const wvc_band *b = &L->sec[w[i].sec];
-        size_t z, y;
-        if (sample && w[i].sampled) {
-            for (z = w[i].z0; z < w[i].z1; z++)
-                for (y = 0; y < b->ext[1]; y++) seen[w[i].sec] += (y + 3 * z) % 8 == 0 ? (double)b->ext[0] : 0.0;
-        } else {
-            seen[w[i].sec] += (double)(w[i].z1 - w[i].z0) * (double)(b->ext[0] * b->ext[1]);
-        }
         d->zero_sse += a->zero_sse;
         d->energy += a->energy;
         d->s1 += a->s1;
@@ -204,22 +272,7 @@ static int all_stats(sec_stats *st, const wvc_layout *L, const float *C, int32_t
         d->ss2 += a->ss2;
         d->n1 += a->n1;
         d->n2 += a->n2;
-        if (a->maxabs > d->maxabs) d->maxabs = a->maxabs;
     }
-    if (sample)
-        for (s = 0; s < L->nsec; s++) {
-            /* scale the subsample's sums up to the section (the counts stay estimates) */
-            double k = seen[s] > 0 ? (double)L->sec[s].count / seen[s] : 1.0;
-            if (k == 1.0) continue;
-            st[s].zero_sse *= k;
-            st[s].energy *= k;
-            st[s].s1 *= k;
-            st[s].ss1 *= k;
-            st[s].s2 *= k;
-            st[s].ss2 *= k;
-            st[s].n1 = (uint64_t)((double)st[s].n1 * k);
-            st[s].n2 = (uint64_t)((double)st[s].n2 * k);
-        }
     free(part);
     free(w);
     return 0;
@@ -238,27 +291,28 @@ static double sec_error(const sec_stats *st, double step, float *d1, float *d2)
     return e < 0 ? 0 : e;
 }
 
-static double total_error(const wvc_layout *L, const float *C, double step, double f, sec_stats *st, int sample,
-                          int32_t *Q)
+static double total_error(const wvc_layout *L, const float *C, double step, double f, sec_stats *st, int32_t *Q,
+                          int *qzero)
 {
     double e = 0;
     int s;
-    if (all_stats(st, L, C, Q, step, f, sample)) return NAN;
+    if (all_stats(st, L, C, Q, step, f, qzero)) return NAN;
     for (s = 0; s < L->nsec; s++) e += sec_error(&st[s], step, NULL, NULL);
     return e;
 }
 
-/* Finds the largest step (to within ~0.5%) whose error stays at or below target:
- * secant iterations on log(error) against log(step), each an exact pass. */
+/* Finds the largest step (to within ~0.2%) whose error lies in [accept, 1] x target:
+ * secant iterations on log(error) against log(step) from d0, each an exact pass
+ * that also quantises into Q. *last: the step of the last pass (what Q holds). */
 static double search_step(const wvc_layout *L, const float *C, double target, double f, double maxabs,
-                          double min_step, sec_stats *st, int *iters, int sample, double d0, double *slope_io,
-                          double accept, int32_t *Q, double *last)
+                          double min_step, sec_stats *st, int *iters, double d0, double accept, int32_t *Q,
+                          int *qzero, double *last)
 {
-    double e0, d1, e1, best_ok = 0, best_bad = INFINITY, slope = *slope_io;
+    double e0, d1, e1, best_ok = 0, best_bad = INFINITY, slope = 2.0;
     int it;
     if (d0 < min_step) d0 = min_step;
     if (maxabs > 0 && d0 > 4 * maxabs) d0 = 4 * maxabs;
-    e0 = total_error(L, C, d0, f, st, sample, Q);
+    e0 = total_error(L, C, d0, f, st, Q, qzero);
     if (!isfinite(e0)) return NAN;
     *last = d0;
     (*iters)++;
@@ -266,8 +320,8 @@ static double search_step(const wvc_layout *L, const float *C, double target, do
     d1 = d0;
     e1 = e0;
     for (it = 0; it < 14; it++) {
-        double ratio, next, aim = sample ? target : 0.5 * (1 + accept) * target;
-        if (sample ? fabs(e1 - target) <= (1 - accept) * target : (e1 <= target && e1 >= accept * target)) break;
+        double ratio, next, aim = 0.5 * (1 + accept) * target;
+        if (e1 <= target && e1 >= accept * target) break;
         if (e1 <= 0) {
             next = d1 * 4;
         } else {
@@ -283,13 +337,13 @@ static double search_step(const wvc_layout *L, const float *C, double target, do
         if (next > 4 * maxabs && maxabs > 0) next = 4 * maxabs;
         /* the error is a staircase in the step: changes below 0.05% are noise */
         if (fabs(next / d1 - 1) < 5e-4) {
-            if (e1 <= target || sample) break;
+            if (e1 <= target) break;
             next = d1 * 0.995;
         }
         d0 = d1;
         e0 = e1;
         d1 = next;
-        e1 = total_error(L, C, d1, f, st, sample, Q);
+        e1 = total_error(L, C, d1, f, st, Q, qzero);
         if (!isfinite(e1)) return NAN;
         *last = d1;
         (*iters)++;
@@ -305,8 +359,6 @@ static double search_step(const wvc_layout *L, const float *C, double target, do
         }
         if (isfinite(best_bad) && best_ok > 0 && best_bad / best_ok < 1.002) break;
     }
-    *slope_io = slope;
-    if (sample) return d1; /* an estimate: the exact search starts there */
     if (best_ok > 0) return best_ok;
     /* not reached even at the smallest step the quantiser allows */
     return min_step;
@@ -316,38 +368,54 @@ static double search_step(const wvc_layout *L, const float *C, double target, do
  * The error is a staircase in the step: when many coefficients share a magnitude
  * (piecewise-constant volumes), the largest step that meets the target can leave a
  * good part of the budget unused. The slack is spent by zeroing |q| = 1 detail
- * coefficients, those whose removal adds the least error first (an O(N) histogram
- * cut on the added error, never a sort). */
-#define SLACK_BINS 4096
+ * coefficients, those whose removal adds the least error first. Zeroing one adds
+ * c^2 - (|c| - rec)^2 = 2 |c| rec - rec^2 (rec = (1 + d1) step, per section), which
+ * grows with |c|: so each section gets a threshold, found from a histogram of the
+ * |q| = 1 coefficients' position u = |c|/step - (1 - f) in [0, 1) (SLACK_BINS bins
+ * with count, sum |c| and sum c^2, so a bin's added error is exact): bins are taken
+ * cheapest first (mean added error per coefficient) while they fit, then the next
+ * bin in part, coefficient by coefficient in index order (serial, so the result does
+ * not depend on threads). No sort of the coefficients; one pass to count, one to
+ * zero, and a scan of one section for the partial bin. */
+#define SLACK_BINS 256
 
-/* Added error of zeroing a |q| = 1 coefficient: c^2 - (|c| - (1 + d1) step)^2. */
-static inline double zeroing_cost(double ac, double rec)
+typedef struct slack_bin {
+    double n, sa, sa2;
+} slack_bin;
+
+static inline int slack_index(double ac, double inv, double f)
 {
-    return ac * ac - (ac - rec) * (ac - rec);
+    int k = (int)((ac * inv - (1.0 - f)) * SLACK_BINS);
+    return k < 0 ? 0 : k >= SLACK_BINS ? SLACK_BINS - 1 : k;
 }
 
-static inline int cost_bin(double e)
+static int slack_cmp(const void *pa, const void *pb)
 {
-    float f = (float)e;
-    uint32_t u;
-    if (!(f > 0)) return 0;
-    memcpy(&u, &f, 4);
-    return 1 + (int)((u >> 20) & 0x7FF); /* sign is 0: 11 bits of exponent and mantissa */
+    const double *a = pa, *b = pb;
+    return a[0] < b[0] ? -1 : a[0] > b[0] ? 1 : (a[1] < b[1] ? -1 : a[1] > b[1]);
 }
 
-static void slack_hist(const wvc_layout *L, const float *C, const int32_t *Q, double step, const float *d1,
-                       const work_item *w, int nw, double (*hsum)[SLACK_BINS + 1], uint64_t (*hcnt)[SLACK_BINS + 1])
+/* Zeroes the cheapest |q| = 1 coefficients within `slack` and updates the sums in
+ * st to match (no further pass over the data); returns how many. */
+static uint64_t spend_slack(const wvc_layout *L, const float *C, int32_t *Q, double step, double f, const float *d1,
+                            double slack, sec_stats *st)
 {
-    int i;
+    int nw = 0, i, s, k, cut[WVOL_WVC_MAX_SECTIONS], part_sec = -1, part_bin = 0;
+    work_item *w = work_items(L, &nw);
+    slack_bin(*part)[SLACK_BINS] = NULL, (*tot)[SLACK_BINS] = NULL;
+    double(*order)[2] = NULL, acc = 0;
+    const double inv = 1.0 / step;
+    uint64_t zeroed = 0;
+    size_t nord = 0, j;
+    if (!w || nw == 0) goto out;
+    part = calloc((size_t)nw, sizeof *part);
+    tot = calloc((size_t)L->nsec, sizeof *tot);
+    order = malloc((size_t)L->nsec * SLACK_BINS * sizeof *order);
+    if (!part || !tot || !order) goto out;
 #pragma omp parallel for schedule(dynamic, 1) if (nw > 2)
     for (i = 0; i < nw; i++) {
         const wvc_band *b = &L->sec[w[i].sec];
-        const double rec = (1.0 + d1[w[i].sec]) * step;
-        double *hs = hsum[i];
-        uint64_t *hc = hcnt[i];
         size_t x, y, z;
-        memset(hs, 0, sizeof *hsum);
-        memset(hc, 0, sizeof *hcnt);
         if (b->band == 0) continue;
         for (z = w[i].z0; z < w[i].z1; z++)
             for (y = 0; y < b->ext[1]; y++) {
@@ -355,81 +423,93 @@ static void slack_hist(const wvc_layout *L, const float *C, const int32_t *Q, do
                 for (x = 0; x < b->ext[0]; x++) {
                     int32_t q = Q[base + x];
                     if (q == 1 || q == -1) {
-                        double e = zeroing_cost(fabs((double)C[base + x]), rec);
-                        int k = cost_bin(e);
-                        hs[k] += e;
-                        hc[k]++;
+                        double ac = fabs((double)C[base + x]);
+                        slack_bin *h = &part[i][slack_index(ac, inv, f)];
+                        h->n += 1;
+                        h->sa += ac;
+                        h->sa2 += ac * ac;
                     }
                 }
             }
     }
-}
-
-/* Zeroes the cheapest |q| = 1 coefficients within `slack`; returns how many. */
-static uint64_t spend_slack(const wvc_layout *L, const float *C, int32_t *Q, double step, const float *d1,
-                            double slack)
-{
-    int nw = 0, i, k, cut = -1;
-    work_item *w = work_items(L, &nw);
-    double (*hsum)[SLACK_BINS + 1] = NULL, tot[SLACK_BINS + 1], acc = 0;
-    uint64_t (*hcnt)[SLACK_BINS + 1] = NULL, cnt[SLACK_BINS + 1], zeroed = 0;
-    if (!w || nw == 0) {
-        free(w);
-        return 0;
-    }
-    hsum = malloc((size_t)nw * sizeof *hsum);
-    hcnt = malloc((size_t)nw * sizeof *hcnt);
-    if (!hsum || !hcnt) goto out;
-    slack_hist(L, C, Q, step, d1, w, nw, hsum, hcnt);
-    memset(tot, 0, sizeof tot);
-    memset(cnt, 0, sizeof cnt);
-    for (i = 0; i < nw; i++)
-        for (k = 0; k <= SLACK_BINS; k++) {
-            tot[k] += hsum[i][k];
-            cnt[k] += hcnt[i][k];
+    for (i = 0; i < nw; i++) /* in work-item order: the sums do not depend on threads */
+        for (k = 0; k < SLACK_BINS; k++) {
+            tot[w[i].sec][k].n += part[i][k].n;
+            tot[w[i].sec][k].sa += part[i][k].sa;
+            tot[w[i].sec][k].sa2 += part[i][k].sa2;
         }
-    /* bin 0 (zeroing does not add error) always; then whole bins while they fit */
-    for (k = 0; k <= SLACK_BINS; k++) {
-        if (k > 0 && acc + tot[k] > slack) break;
-        acc += tot[k];
-        cut = k;
+    for (s = 0; s < L->nsec; s++) {
+        const double rec = (1.0 + d1[s]) * step;
+        cut[s] = 0;
+        for (k = 0; k < SLACK_BINS; k++)
+            if (tot[s][k].n > 0) {
+                order[nord][0] = (2 * rec * tot[s][k].sa - tot[s][k].n * rec * rec) / tot[s][k].n;
+                order[nord][1] = (double)(s * SLACK_BINS + k);
+                nord++;
+            }
     }
-    if (cut < 0) goto out;
+    qsort(order, nord, sizeof *order, slack_cmp); /* at most 7 x levels x SLACK_BINS entries */
+    /* whole bins, cheapest first, while they fit (within a section the order is that
+     * of |c|, so each section's taken bins are a prefix) */
+    for (j = 0; j < nord; j++) {
+        int sk = (int)order[j][1];
+        const slack_bin *h;
+        double rec, add;
+        s = sk / SLACK_BINS;
+        k = sk % SLACK_BINS;
+        h = &tot[s][k];
+        rec = (1.0 + d1[s]) * step;
+        add = 2 * rec * h->sa - h->n * rec * rec;
+        if (acc + add > slack) break;
+        acc += add;
+        cut[s] = k + 1;
+        /* the sums rows_stats made for these coefficients move to the zeroed energy */
+        st[s].zero_sse += h->sa2;
+        st[s].n1 -= (uint64_t)h->n;
+        st[s].s1 -= inv * h->sa - h->n;
+        st[s].ss1 -= inv * inv * h->sa2 - 2 * inv * h->sa + h->n;
+    }
+    if (j < nord) { /* the bin that did not fit, in part: its coefficients in index order */
+        int sk = (int)order[j][1];
+        part_sec = sk / SLACK_BINS;
+        part_bin = sk % SLACK_BINS;
+    }
 #pragma omp parallel for schedule(dynamic, 1) reduction(+ : zeroed) if (nw > 2)
     for (i = 0; i < nw; i++) {
         const wvc_band *b = &L->sec[w[i].sec];
-        const double rec = (1.0 + d1[w[i].sec]) * step;
+        const int c = cut[w[i].sec];
         size_t x, y, z;
-        if (b->band == 0) continue;
+        if (b->band == 0 || c == 0) continue;
         for (z = w[i].z0; z < w[i].z1; z++)
             for (y = 0; y < b->ext[1]; y++) {
                 size_t base = wvc_index(L->p, b, 0, y, z);
                 for (x = 0; x < b->ext[0]; x++) {
                     int32_t q = Q[base + x];
-                    if ((q == 1 || q == -1) && cost_bin(zeroing_cost(fabs((double)C[base + x]), rec)) <= cut) {
+                    if ((q == 1 || q == -1) && slack_index(fabs((double)C[base + x]), inv, f) < c) {
                         Q[base + x] = 0;
                         zeroed++;
                     }
                 }
             }
     }
-    /* the next bin in part, in index order (serial, so the result does not depend on threads) */
-    if (cut < SLACK_BINS && cnt[cut + 1] > 0) {
+    if (part_sec >= 0) {
+        const double rec = (1.0 + d1[part_sec]) * step;
         double left = slack - acc;
+        sec_stats *d = &st[part_sec];
         for (i = 0; i < nw && left > 0; i++) {
             const wvc_band *b = &L->sec[w[i].sec];
-            const double rec = (1.0 + d1[w[i].sec]) * step;
             size_t x, y, z;
-            if (b->band == 0) continue;
+            if (w[i].sec != part_sec) continue;
             for (z = w[i].z0; z < w[i].z1 && left > 0; z++)
                 for (y = 0; y < b->ext[1] && left > 0; y++) {
                     size_t base = wvc_index(L->p, b, 0, y, z);
                     for (x = 0; x < b->ext[0]; x++) {
                         int32_t q = Q[base + x];
-                        double e;
+                        double ac, e, r;
                         if (q != 1 && q != -1) continue;
-                        e = zeroing_cost(fabs((double)C[base + x]), rec);
-                        if (cost_bin(e) != cut + 1) continue;
+                        ac = fabs((double)C[base + x]);
+                        if (slack_index(ac, inv, f) != part_bin) continue;
+                        e = 2 * ac * rec - rec * rec;
                         if (e > left) {
                             left = 0;
                             break;
@@ -437,95 +517,50 @@ static uint64_t spend_slack(const wvc_layout *L, const float *C, int32_t *Q, dou
                         left -= e;
                         Q[base + x] = 0;
                         zeroed++;
+                        r = ac * inv - 1.0; /* as rows_stats summed it */
+                        d->zero_sse += ac * ac;
+                        d->n1--;
+                        d->s1 -= r;
+                        d->ss1 -= r * r;
                     }
                 }
         }
     }
 out:
-    free(hsum);
-    free(hcnt);
+    free(order);
+    free(tot);
+    free(part);
     free(w);
     return zeroed;
 }
 
-/* Per-section sums for a given Q (after spend_slack changed it). */
-static int stats_from_q(sec_stats *st, const wvc_layout *L, const float *C, const int32_t *Q, double step)
-{
-    int nw = 0, i;
-    work_item *w = work_items(L, &nw);
-    sec_stats *part;
-    const double inv = 1.0 / step;
-    if (!w) return -1;
-    part = calloc(nw ? (size_t)nw : 1, sizeof *part);
-    if (!part) {
-        free(w);
-        return -1;
-    }
-#pragma omp parallel for schedule(dynamic, 1) if (nw > 2)
-    for (i = 0; i < nw; i++) {
-        const wvc_band *b = &L->sec[w[i].sec];
-        sec_stats *o = &part[i];
-        size_t x, y, z;
-        for (z = w[i].z0; z < w[i].z1; z++)
-            for (y = 0; y < b->ext[1]; y++) {
-                size_t base = wvc_index(L->p, b, 0, y, z);
-                for (x = 0; x < b->ext[0]; x++) {
-                    double c = C[base + x], ac = fabs(c);
-                    int32_t q = Q[base + x];
-                    double aq = q < 0 ? -(double)q : (double)q, r = ac * inv - aq;
-                    o->energy += c * c;
-                    if (ac > o->maxabs) o->maxabs = ac;
-                    if (q == 0) {
-                        o->zero_sse += c * c;
-                    } else if (aq == 1) {
-                        o->n1++;
-                        o->s1 += r;
-                        o->ss1 += r * r;
-                    } else {
-                        o->n2++;
-                        o->s2 += r;
-                        o->ss2 += r * r;
-                    }
-                }
-            }
-    }
-    memset(st, 0, (size_t)L->nsec * sizeof *st);
-    for (i = 0; i < nw; i++) {
-        sec_stats *d = &st[w[i].sec], *a = &part[i];
-        d->zero_sse += a->zero_sse;
-        d->energy += a->energy;
-        d->s1 += a->s1;
-        d->ss1 += a->ss1;
-        d->s2 += a->s2;
-        d->ss2 += a->ss2;
-        d->n1 += a->n1;
-        d->n2 += a->n2;
-        if (a->maxabs > d->maxabs) d->maxabs = a->maxabs;
-    }
-    free(part);
-    free(w);
-    return 0;
-}
-
 /* The largest step whose error stays within [0.985, 1] x target (PSNR at most
- * 0.066 dB above the target): first on a 1-in-8 subsample of the rows of the large
- * sections (cheap; aimed a little below the target), then exact passes that also
- * quantise into Q (usually one). On return Q and st hold the quantisation with the
- * returned step. */
-static double choose_step(const wvc_layout *L, const float *C, double target, double f, double maxabs,
-                          double min_step, sec_stats *st, int *iters, int32_t *Q)
+ * 0.066 dB above the target): the step the histograms predict for 0.9925 x target
+ * (no pass over the data); an exact pass that also quantises into Q; if that misses,
+ * the prediction again, scaled by what the pass measured against what was
+ * predicted at that step, then secant iterations on exact passes (rarely needed).
+ * On return Q and st hold the quantisation with the returned step. */
+static double choose_step(const wvc_layout *L, const float *C, const uint64_t *H, double target, double f,
+                          double maxabs, double min_step, sec_stats *st, int *iters, int32_t *Q, int *qzero)
 {
-    double total = 0, d, slope = 2.0, last = 0;
-    int s;
-    for (s = 0; s < L->nsec; s++) total += (double)L->sec[s].count;
-    *iters = 0;
-    d = sqrt(12.0 * target / (total > 0 ? total : 1));
-    d = search_step(L, C, 0.9925 * target, f, maxabs, min_step, st, iters, 1, d, &slope, 0.993, NULL, &last);
-    if (!isfinite(d)) return NAN;
-    d = search_step(L, C, target, f, maxabs, min_step, st, iters, 0, d, &slope, 0.985, Q, &last);
-    if (last != d) {
+    const double aim = 0.9925, accept = 0.985;
+    double d, e, last = 0;
+    wvc_hist_est *est = wvol__wvc_hist_prepare(H, L);
+    if (!est) return NAN;
+    *iters = 1;
+    d = wvol__wvc_hist_step(est, L, aim * target, f, min_step, 4 * maxabs);
+    e = total_error(L, C, d, f, st, Q, qzero);
+    last = d;
+    if (isfinite(e) && !(e <= target && e >= accept * target)) {
+        double predicted = wvol__wvc_hist_error(est, L, d, f), k = predicted > 0 && e > 0 ? e / predicted : 1;
+        d = wvol__wvc_hist_step(est, L, aim * target / k, f, min_step, 4 * maxabs);
+        d = search_step(L, C, target, f, maxabs, min_step, st, iters, d, accept, Q, qzero, &last);
+    }
+    wvol__wvc_hist_free(est);
+    if (!isfinite(e)) return NAN;
+    if (isfinite(d) && last != d) {
         (*iters)++;
-        if (!isfinite(total_error(L, C, d, f, st, 0, Q))) return NAN;
+        if (!isfinite(total_error(L, C, d, f, st, Q, qzero))) return NAN;
     }
     return d;
 }
@@ -597,7 +632,8 @@ wvol_status wvol_wvc_encode(void **out, size_t *out_size, const wvol_coeffs *c,
     size_t n, hsize, total;
     double step, maxabs = 0, energy = 0, sse = 0, t0, t1, t2;
     uint64_t nonzero = 0, payload = 0;
-    int s, iters = 0, failed = 0, searched = 0;
+    int s, iters = 0, failed = 0, searched = 0, bad = 0, qzero = 1;
+    uint64_t *H = NULL;
     uint8_t *file;
     wvol_status status = WVOL_OK;
     wvol_wvc_report rep;
@@ -624,29 +660,24 @@ wvol_status wvol_wvc_encode(void **out, size_t *out_size, const wvol_coeffs *c,
     n /= sizeof(int32_t);
     L = malloc(sizeof *L);
     st = calloc(WVOL_WVC_MAX_SECTIONS, sizeof *st);
-    Q = malloc(n * sizeof *Q);
+    /* zero pages until written: the quantiser writes only where a row has non-zeros */
+    Q = calloc(n, sizeof *Q);
     if (!L || !st || !Q) {
         status = wvol_error_set(err, WVOL_ERR_NOMEM, "wvc encode: out of memory");
         goto done;
     }
     wvol__wvc_layout(L, c->px, c->py, c->pz, c->levels);
 
-    /* range and finiteness of the coefficients */
+    /* range and finiteness of the coefficients, and their magnitude histograms */
     t0 = now();
-    {
-        const float *C = c->data;
-        long i;
-        int bad = 0;
-#pragma omp parallel for reduction(max : maxabs) reduction(| : bad) schedule(static) if (n > 65536)
-        for (i = 0; i < (long)n; i++) {
-            float a = fabsf(C[i]);
-            if (!(a <= 3.0e38f)) bad = 1;
-            else if (a > maxabs) maxabs = a;
-        }
-        if (bad) {
-            status = wvol_error_set(err, WVOL_ERR_NONFINITE, "wvc encode: coefficients hold NaN or Inf");
-            goto done;
-        }
+    H = malloc((size_t)L->nsec * WVC_HBINS * sizeof *H);
+    if (!H || wvol__wvc_hist(H, L, c->data, &maxabs, &bad)) {
+        status = wvol_error_set(err, WVOL_ERR_NOMEM, "wvc encode: out of memory");
+        goto done;
+    }
+    if (bad) {
+        status = wvol_error_set(err, WVOL_ERR_NONFINITE, "wvc encode: coefficients hold NaN or Inf");
+        goto done;
     }
     {
         /* |q| stays below WVC_QMAX/2 so that the quantiser never clips */
@@ -667,7 +698,7 @@ wvol_status wvol_wvc_encode(void **out, size_t *out_size, const wvol_coeffs *c,
         } else if (maxabs == 0) {
             step = 1.0; /* every coefficient is zero: any step is exact */
         } else {
-            step = choose_step(L, c->data, p->target_sse, p->rounding, maxabs, min_step, st, &iters, Q);
+            step = choose_step(L, c->data, H, p->target_sse, p->rounding, maxabs, min_step, st, &iters, Q, &qzero);
             if (!isfinite(step)) {
                 status = wvol_error_set(err, WVOL_ERR_NOMEM, "wvc encode: out of memory");
                 goto done;
@@ -680,7 +711,7 @@ wvol_status wvol_wvc_encode(void **out, size_t *out_size, const wvol_coeffs *c,
     rep.seconds_step = t1 - t0;
 
     /* quantise, with the exact error per section */
-    if (!searched && all_stats(st, L, c->data, Q, step, p->rounding, 0)) {
+    if (!searched && all_stats(st, L, c->data, Q, step, p->rounding, &qzero)) {
         status = wvol_error_set(err, WVOL_ERR_NOMEM, "wvc encode: out of memory");
         goto done;
     }
@@ -690,11 +721,7 @@ wvol_status wvol_wvc_encode(void **out, size_t *out_size, const wvol_coeffs *c,
     }
     if (p->step == 0 && sse < 0.99 * p->target_sse) {
         /* spend what the staircase left of the budget, then the exact sums again */
-        if (spend_slack(L, c->data, Q, step, d1, p->target_sse - sse) > 0) {
-            if (stats_from_q(st, L, c->data, Q, step)) {
-                status = wvol_error_set(err, WVOL_ERR_NOMEM, "wvc encode: out of memory");
-                goto done;
-            }
+        if (spend_slack(L, c->data, Q, step, p->rounding, d1, p->target_sse - sse, st) > 0) {
             for (sse = 0, s = 0; s < L->nsec; s++) {
                 serr[s] = sec_error(&st[s], step, &d1[s], &d2[s]);
                 sse += serr[s];
@@ -722,6 +749,8 @@ wvol_status wvol_wvc_encode(void **out, size_t *out_size, const wvol_coeffs *c,
             if (wvol__wvc_cabac_encode(&a, &na, Q, L->p, b)) failed = 1;
             alt_cabac[s] = na;
         }
+        /* auto: both, the smaller wins (zstd's matches beat the contexts on small
+         * sections and on some regular ones, e.g. Haar levels 1-2 of smooth volumes) */
         if (p->coder != WVOL_WVC_CODER_CABAC) {
             if (wvol__wvc_zstd_encode(&z, &nz, Q, L->p, b, p->zstd_level)) failed = 1;
             alt_zstd[s] = nz;
@@ -778,6 +807,7 @@ wvol_status wvol_wvc_encode(void **out, size_t *out_size, const wvol_coeffs *c,
     if (report) *report = rep;
 done:
     for (s = 0; s < WVOL_WVC_MAX_SECTIONS; s++) free(pay[s]);
+    free(H);
     free(Q);
     free(st);
     free(L);

@@ -31,8 +31,31 @@ typedef struct wvc_layout {
  * along it are empty. */
 void wvol__wvc_layout(wvc_layout *L, size_t px, size_t py, size_t pz, int levels);
 
+/* Hot loops are compiled twice on x86-64 with GCC (baseline and x86-64-v3, i.e.
+ * AVX2/FMA) and picked at load time; elsewhere, once. */
+#if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__) && !defined(__SANITIZE_ADDRESS__)
+#define WVC_HOT __attribute__((target_clones("arch=x86-64-v3", "default")))
+#else
+#define WVC_HOT
+#endif
+
 /* Largest |q| the coders accept, so that sums and reconstructions stay finite. */
 #define WVC_QMAX (1 << 30)
+
+/* Magnitude histograms (wvc_hist.c): H holds nsec x WVC_HBINS counts of |c| per
+ * logarithmic bin. wvol__wvc_hist fills them in one pass and reports max |c| and
+ * whether any coefficient is NaN or Inf; returns 0 or -1 (memory). From them an
+ * estimator (prepare: NULL when out of memory) predicts the quantiser's squared
+ * error for any step (f: the detail bands' rounding offset), and hist_step finds the
+ * largest step in [lo, hi] whose predicted error stays within target. */
+#define WVC_HBINS 8192
+typedef struct wvc_hist_est wvc_hist_est;
+int wvol__wvc_hist(uint64_t *H, const wvc_layout *L, const float *C, double *maxabs, int *nonfinite);
+wvc_hist_est *wvol__wvc_hist_prepare(const uint64_t *H, const wvc_layout *L);
+double wvol__wvc_hist_error(const wvc_hist_est *e, const wvc_layout *L, double step, double f);
+double wvol__wvc_hist_step(const wvc_hist_est *e, const wvc_layout *L, double target, double f, double lo,
+                           double hi);
+void wvol__wvc_hist_free(wvc_hist_est *e);
 
 /* Band coders over the global quantised array Q (padded grid, x fastest).
  * encode: appends the CABAC payload to *buf (heap, caller frees); returns 0 or -1 (memory).

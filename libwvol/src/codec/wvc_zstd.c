@@ -25,11 +25,16 @@ int wvol__wvc_zstd_encode(uint8_t **buf, size_t *size, const int32_t *Q, const s
     sym = malloc(cap ? cap : 1);
     if (!sym) return -1;
     for (z = 0; z < b->ext[2]; z++)
-        for (y = 0; y < b->ext[1]; y++)
+        for (y = 0; y < b->ext[1]; y++) {
+            const int32_t *row = Q + wvc_index(p, b, 0, y, z);
             for (x = 0; x < b->ext[0]; x++) {
-                int64_t v = Q[wvc_index(p, b, x, y, z)];
+                int64_t v = row[x];
                 uint64_t u;
                 if (b->band == 0) v -= wvc_lorenzo(Q, p, b, x, y, z);
+                else if (v == 0) { /* most detail symbols: one zero byte */
+                    sym[n++] = 0;
+                    continue;
+                }
                 u = zigzag(v);
                 while (u >= 0x80) {
                     sym[n++] = (uint8_t)(u | 0x80);
@@ -37,6 +42,7 @@ int wvol__wvc_zstd_encode(uint8_t **buf, size_t *size, const int32_t *Q, const s
                 }
                 sym[n++] = (uint8_t)u;
             }
+        }
     bound = ZSTD_compressBound(n);
     out = malloc(bound);
     if (!out) {
