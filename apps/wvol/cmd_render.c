@@ -10,6 +10,7 @@
 #include "wvol/render.h"
 #include "wvol/store.h"
 #include "wvol/wavelet.h"
+#include "wvol/wvc.h"
 
 const char wvol_cmd_render_summary[] = "render a volume or a .wvc store to an EXR or PNG image";
 
@@ -19,12 +20,13 @@ static const cli_opt opts[] = {
     {"size", 0, 1, "image size WxH (default 512x512)"},
     {"tf", 0, 1, "transfer function: gaussian, grey, ct-bone, ct-soft, or a file (default gaussian)"},
     {"mode", 0, 1, "xray | absorption | absorption-linear (default absorption)"},
-    {"method", 0, 1, "auto | reference | reference-fhat | spline | axis (default auto)"},
-    {"keep", 0, 1, "volume input, wavelet methods: fraction of coefficients kept, e.g. 5% (default 100%)"},
+    {"method", 0, 1, "auto | reference | reference-fhat | spline | axis | bricks (default auto)"},
+    {"keep", 0, 1, "fraction of coefficients kept, e.g. 5% (default 100%: a .wvc's nonzero ones)"},
     {"wavelet", 0, 1, "volume input, wavelet methods: family (default db2)"},
     {"levels", 0, 1, "volume input, wavelet methods: levels (default 3, or fewer when the volume is small)"},
     {"spline-j", 0, 1, "basis splines: 2^J knots per unit (default 4)"},
     {"step", 0, 1, "reference methods: step in voxels (default 0.5)"},
+    {"brick", 0, 1, "bricks: brick side in voxels (default 16); reference: empty-space brick side (default 8)"},
     {"gauss", 0, 1, "spline method: Gauss-Legendre nodes per piece for the exponential (default 5)"},
     {"shading", 0, 0, "diffuse headlight shading from the gradient"},
     {"colors", 0, 1, "colour volume replacing the TF colour: interleaved RGB float32 .raw, e.g. from 'wvol segment --colors'"},
@@ -36,6 +38,32 @@ static const cli_opt opts[] = {
     CLI_HELP_OPT,
     {NULL, 0, 0, NULL}};
 
+/* Resident memory in MiB from /proc/self/status ("VmRSS" now, "VmHWM" peak), -1 if unknown. */
+static double rss_mib(const char *key)
+{
+    char line[256];
+    double v = -1;
+    FILE *f = fopen("/proc/self/status", "r");
+    if (!f) return -1;
+    while (fgets(line, sizeof line, f))
+        if (!strncmp(line, key, strlen(key)) && line[strlen(key)] == ':') {
+            v = atof(line + strlen(key) + 1) / 1024.0; /* kB */
+            break;
+        }
+    fclose(f);
+    return v;
+}
+
+/* Resets the peak resident size to the current one (Linux >= 4.0); 0 when that worked. */
+static int rss_reset_peak(void)
+{
+    FILE *f = fopen("/proc/self/clear_refs", "w");
+    int ok;
+    if (!f) return -1;
+    ok = fputs("5", f) >= 0;
+    return fclose(f) == 0 && ok ? 0 : -1;
+}
+
 int wvol_cmd_render(int argc, char **argv)
 {
     const char *cmd = "render";
@@ -44,9 +72,9 @@ int wvol_cmd_render(int argc, char **argv)
     const char *val, *in = NULL, *out = NULL, *camspec = "+z", *tfname = "gaussian", *wname = "db2";
     const char *method = "auto", *colors_path = NULL;
     int r, json = 0, rc = CLI_FAILED;
-    long W = 512, H = 512, levels = 0, spline_j = 4, threads = 0, gauss = 5;
+    long W = 512, H = 512, levels = 0, spline_j = 4, threads = 0, gauss = 5, brick = -1;
     double keep = 1.0, exposure = 0, step = 0.5;
-    int keep_given = 0, exposure_given = 0, auto_fast = 0;
+    int keep_given = 0, exposure_given = 0, auto_fast = 0, is_wvc;
     wvol_render_params rp;
     wvol_load_options lo;
     wvol_error err;
@@ -60,7 +88,8 @@ int wvol_cmd_render(int argc, char **argv)
     wvol_geometry g;
     wvol_render_stats stats;
     wvol_select_report rep;
-    double vmin = 0, vmax = 1, t0, t_prep = 0;
+    double vmin = 0, vmax = 1, t0, t_prep = 0, rss_before = -1, rss_peak = -1;
+    size_t store_bytes = 0;
     const wvol_filter *filt = NULL;
 
     wvol_render_params_default(&rp);
@@ -78,10 +107,11 @@ int wvol_cmd_render(int argc, char **argv)
             cli_print_help(cmd, "IN(.wvc|volume) -o OUT.exr|.png [--camera C] [--tf TF] [--mode M] [--method M] [--keep 5%]",
                            "Renders the low-albedo integral along rays: X-ray (integral of the value) or\n"
                            "emission-absorption with a transfer function. 'reference' composites trilinear\n"
-                           "samples of the volume; 'spline' integrates the kept wavelet basis functions\n"
-                           "analytically from a store without reconstructing the volume; 'axis' is the X-ray\n"
-                           "fast path for views along an axis; 'reference-fhat' samples the wavelet model.\n"
-                           "'auto' picks reference for a volume at 100%, else axis when it applies, else spline.\n"
+                           "samples of the volume; 'bricks' does the same from a store, reconstructing bricks\n"
+                           "on demand (never the whole volume); 'spline' integrates the kept wavelet basis\n"
+                           "functions analytically (the exact model, slow); 'axis' is the X-ray fast path for\n"
+                           "views along an axis; 'reference-fhat' samples the wavelet model.\n"
+                           "'auto' picks reference for a volume at 100%, else axis when it applies, else bricks.\n"
                            "See docs/render.md for cameras, transfer-function files and errors.",
                            opts);
             return CLI_OK;
@@ -107,6 +137,8 @@ int wvol_cmd_render(int argc, char **argv)
             if (!cli_parse_long(cmd, "levels", val, 1, 30, &levels)) return CLI_USAGE;
         } else if (!strcmp(o->name, "spline-j")) {
             if (!cli_parse_long(cmd, "spline-j", val, 1, 12, &spline_j)) return CLI_USAGE;
+        } else if (!strcmp(o->name, "brick")) {
+            if (!cli_parse_long(cmd, "brick", val, 2, 4096, &brick)) return CLI_USAGE;
         } else if (!strcmp(o->name, "gauss")) {
             if (!cli_parse_long(cmd, "gauss", val, 1, 10, &gauss)) return CLI_USAGE;
         } else if (!strcmp(o->name, "threads")) {
@@ -131,32 +163,45 @@ int wvol_cmd_render(int argc, char **argv)
     if (!wvol_path_has_ext(out, ".exr") && !wvol_path_has_ext(out, ".png"))
         return cli_usage(cmd, "output '%s': the extension must be .exr or .png", out);
     if (strcmp(method, "auto") && strcmp(method, "reference") && strcmp(method, "reference-fhat") &&
-        strcmp(method, "spline") && strcmp(method, "axis"))
-        return cli_usage(cmd, "--method '%s': expected auto, reference, reference-fhat, spline or axis", method);
-    if (wvol_path_has_ext(in, ".wvc"))
-        return cli_fail(cmd, "%s: .wvc input needs the codec's reader, not in this build yet; render the volume", in);
+        strcmp(method, "spline") && strcmp(method, "axis") && strcmp(method, "bricks"))
+        return cli_usage(cmd, "--method '%s': expected auto, reference, reference-fhat, spline, axis or bricks",
+                         method);
+    is_wvc = wvol_path_has_ext(in, ".wvc");
     rp.step = step;
+    if (brick > 0) rp.brick = (int)brick;
     rp.threads = (int)threads;
     rp.gauss_nodes = (int)gauss;
     if (colors_path && rp.mode == WVOL_MODE_XRAY) return cli_usage(cmd, "--colors needs an absorption mode (X-ray has no colour)");
     if (!strcmp(method, "auto")) {
-        /* A colour volume is looked up per voxel: only the sampling methods can use it. */
-        method = !keep_given || keep >= 1.0 ? "reference" : colors_path ? "reference-fhat" : "spline";
+        /* a .wvc is rendered from its store unless a reference was asked for; bricks read
+         * a colour volume like the reference does */
+        method = !is_wvc && (!keep_given || keep >= 1.0) ? "reference" : "bricks";
         auto_fast = !colors_path;
     }
-    if (colors_path && strcmp(method, "reference") && strcmp(method, "reference-fhat"))
-        return cli_usage(cmd, "--colors needs --method reference or reference-fhat (got %s)", method);
+    if (colors_path && strcmp(method, "reference") && strcmp(method, "reference-fhat") && strcmp(method, "bricks"))
+        return cli_usage(cmd, "--colors needs --method reference, reference-fhat or bricks (got %s)", method);
     if (wvol_filter_get(&filt, wname, &err) != WVOL_OK) return cli_usage(cmd, "--wavelet: %s", err.message);
 
     t0 = cli_now();
-    if (wvol_volume_load(&v, in, &lo, &err) != WVOL_OK) return cli_fail_err(cmd, &err);
-    wvol_volume_range(v, &vmin, &vmax, NULL);
-    wvol_geometry_of_volume(&g, v);
+    if (is_wvc) {
+        /* the decoder gives dense coefficients (the file's own layout); they become a store
+         * (or, for the reference, a volume) and are freed before rendering */
+        wvol_wvc_info wi;
+        if (wvol_wvc_read(&c, in, NULL, &wi, &err) != WVOL_OK) return cli_fail_err(cmd, &err);
+        filt = c->filter;
+        vmin = wi.value_min;
+        vmax = wi.value_max;
+        wvol_geometry_of_coeffs(&g, c);
+    } else {
+        if (wvol_volume_load(&v, in, &lo, &err) != WVOL_OK) return cli_fail_err(cmd, &err);
+        wvol_volume_range(v, &vmin, &vmax, NULL);
+        wvol_geometry_of_volume(&g, v);
+    }
     if (colors_path) {
         /* RGB interleaved: read through the raw reader as a volume 3 nx wide, which checks the size. */
         wvol_load_options co;
         wvol_load_options_default(&co);
-        co.dims[0] = 3 * v->nx, co.dims[1] = v->ny, co.dims[2] = v->nz;
+        co.dims[0] = 3 * g.dims[0], co.dims[1] = g.dims[1], co.dims[2] = g.dims[2];
         co.raw_type = WVOL_F32;
         if (!wvol_path_has_ext(colors_path, ".raw")) {
             rc = cli_usage(cmd, "--colors %s: expected interleaved RGB float32 .raw", colors_path);
@@ -171,24 +216,35 @@ int wvol_cmd_render(int argc, char **argv)
         goto done;
     }
     if (rp.mode != WVOL_MODE_XRAY && (rc = cli_load_tf(cmd, tfname, vmin, vmax, &tf)) != CLI_OK) goto done;
-    if (strcmp(method, "reference")) {
+    if (strcmp(method, "reference") || is_wvc) {
         wvol_select_params sp = wvol_select_params_default();
         wvol_store_params stp = wvol_store_params_default();
-        int maxl = wvol_dwt_max_levels(v->nx, v->ny, v->nz);
-        int lev = levels ? (int)levels : (maxl < 3 ? maxl : 3);
-        if (lev > maxl) {
-            rc = cli_usage(cmd, "--levels %d: at most %d for %zux%zux%zu", lev, maxl, v->nx, v->ny, v->nz);
-            goto done;
+        if (!is_wvc) {
+            int maxl = wvol_dwt_max_levels(v->nx, v->ny, v->nz);
+            int lev = levels ? (int)levels : (maxl < 3 ? maxl : 3);
+            if (lev > maxl) {
+                rc = cli_usage(cmd, "--levels %d: at most %d for %zux%zux%zu", lev, maxl, v->nx, v->ny, v->nz);
+                goto done;
+            }
+            if (wvol_dwt3(&c, v, filt, lev, &err) != WVOL_OK) goto fail;
         }
-        if (wvol_dwt3(&c, v, filt, lev, &err) != WVOL_OK) goto fail;
         if (keep < 1.0) {
             sp.mode = WVOL_SELECT_FRACTION;
             sp.fraction = keep;
         }
         if (wvol_select(&sel, c, &sp, v, &rep, &err) != WVOL_OK) goto fail;
+        if (is_wvc && keep >= 1.0) { /* the store of a file holds its nonzero coefficients only */
+            wvol_selection_destroy(sel);
+            sel = NULL;
+        }
         stp.spline_J = (int)spline_j;
-        if (!strcmp(method, "reference-fhat")) {
-            if (wvol_selection_apply(sel, c, &err) != WVOL_OK) goto fail;
+        if (!strcmp(method, "reference")) { /* a .wvc: the dense reconstruction of its kept part */
+            if (sel && wvol_selection_apply(sel, c, &err) != WVOL_OK) goto fail;
+            if (wvol_idwt3(&v, c, &err) != WVOL_OK) goto fail;
+            wvol_coeffs_destroy(c);
+            c = NULL;
+        } else if (!strcmp(method, "reference-fhat")) {
+            if (sel && wvol_selection_apply(sel, c, &err) != WVOL_OK) goto fail;
         } else {
             if (wvol_store_build(&st, c, sel, &stp, &err) != WVOL_OK) goto fail;
             wvol_coeffs_destroy(c);
@@ -197,8 +253,17 @@ int wvol_cmd_render(int argc, char **argv)
             v = NULL;
         }
     }
+    if (!strcmp(method, "bricks") && brick <= 0) rp.brick = 16; /* faster than the reference's 8 */
+    if (st) {
+        wvol_store_info si;
+        wvol_store_get_info(st, &si);
+        store_bytes = si.bytes;
+    }
     if (wvol_image_create(&img, (int)W, (int)H, &err) != WVOL_OK) goto fail;
     t_prep = cli_now() - t0;
+    /* the render's own peak: the process's peak resident size from here on (the volume or
+     * decoded coefficients that built the store are freed by now) */
+    if (rss_reset_peak() == 0) rss_before = rss_mib("VmRSS");
     {
         wvol_status s = WVOL_ERR_INTERNAL;
         if (!strcmp(method, "reference")) s = wvol_render_reference(img, v, &cam, &tf, &rp, &stats, &err);
@@ -208,15 +273,17 @@ int wvol_cmd_render(int argc, char **argv)
             if (s == WVOL_OK) s = wvol_render_reference_fhat(img, c, b, &cam, &tf, &rp, &stats, &err);
             wvol_basis_destroy(b);
         } else if (!strcmp(method, "axis")) s = wvol_render_xray_axis(img, st, &cam, &rp, &stats, &err);
+        else if (!strcmp(method, "spline")) s = wvol_render_spline(img, st, &cam, &tf, &rp, &stats, &err);
         else {
             s = WVOL_ERR_UNSUPPORTED;
             if (auto_fast && rp.mode == WVOL_MODE_XRAY) {
                 s = wvol_render_xray_axis(img, st, &cam, &rp, &stats, &err);
                 if (s == WVOL_OK) method = "axis";
             }
-            if (s == WVOL_ERR_UNSUPPORTED) s = wvol_render_spline(img, st, &cam, &tf, &rp, &stats, &err);
+            if (s == WVOL_ERR_UNSUPPORTED) s = wvol_render_bricks(img, st, &cam, &tf, &rp, &stats, &err);
         }
         if (s != WVOL_OK) goto fail;
+        if (rss_before >= 0) rss_peak = rss_mib("VmHWM");
     }
     {
         wvol_status s;
@@ -245,7 +312,7 @@ int wvol_cmd_render(int argc, char **argv)
                                                                                                  : "absorption-linear");
         cli_json_int("width", W);
         cli_json_int("height", H);
-        if (strcmp(method, "reference")) {
+        if (strcmp(method, "reference") || is_wvc) {
             cli_json_str("wavelet", filt->name);
             cli_json_num("keep", keep);
             cli_json_int("kept", (long long)rep.kept);
@@ -261,6 +328,16 @@ int wvol_cmd_render(int argc, char **argv)
         cli_json_int("functions", (long long)stats.functions);
         cli_json_int("terminated", (long long)stats.terminated);
         cli_json_int("clamped", (long long)stats.clamped);
+        if (!strcmp(method, "bricks")) {
+            cli_json_int("brick", rp.brick);
+            cli_json_num("step", rp.step);
+            cli_json_int("bricks_built", (long long)stats.bricks_built);
+            cli_json_int("bricks_bound_skipped", (long long)stats.bricks_bound_skipped);
+            cli_json_int("render_bytes", (long long)stats.bytes);
+        }
+        if (st) cli_json_int("store_bytes", (long long)store_bytes);
+        cli_json_num("rss_before_render_mib", rss_before);
+        cli_json_num("rss_peak_render_mib", rss_peak);
         cli_json_end();
     } else {
         printf("wrote %s (%ldx%ld, %s, %s) in %.3f s render + %.3f s preparation\n", out, W, H, method,

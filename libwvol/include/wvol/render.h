@@ -170,6 +170,10 @@ typedef struct wvol_render_stats {
                                function */
     size_t terminated;      /* rays stopped early by the termination threshold */
     size_t clamped;         /* absorption-linear: factors (1 - dtau) clamped at 0 */
+    size_t bricks_built;    /* bricks: bricks reconstructed (cache misses, all threads) */
+    size_t bricks_bound_skipped; /* bricks: bricks skipped on their coefficient bound alone */
+    size_t bytes;           /* bricks: memory the call allocated (coefficient blocks, bounds,
+                               brick caches and scratch; the image and the store excluded) */
 } wvol_render_stats;
 
 /* Reference integrator (eq 33) on a dense volume. img must exist with the camera's size.
@@ -208,6 +212,16 @@ wvol_status wvol_render_spline(wvol_image *img, const wvol_store *s, const wvol_
 wvol_status wvol_render_spline_until(wvol_image *img, const wvol_store *s, const wvol_camera *cam,
                                      const wvol_tf *tf, const wvol_render_params *params, const float *stop,
                                      wvol_render_stats *stats, wvol_error *err);
+
+/* The reference integrator (same samples, weights, compositing, termination) on the
+ * trilinear interpolation of the store's reconstruction, which is never formed whole:
+ * bricks of params->brick^3 voxel cells (0: 16) are reconstructed on demand by local
+ * inverse transforms from a block-sparse view of the kept coefficients, into a bounded
+ * cache per thread; a brick whose coefficient bound shows kappa = 0 throughout is skipped
+ * unreconstructed. Equals wvol_render_reference on wvol_idwt3 of the same coefficients to
+ * float rounding. stats->bytes reports what the call allocated. */
+wvol_status wvol_render_bricks(wvol_image *img, const wvol_store *s, const wvol_camera *cam, const wvol_tf *tf,
+                               const wvol_render_params *params, wvol_render_stats *stats, wvol_error *err);
 
 /* Fast path: X-ray along a coordinate axis (orthographic camera looking along an axis whose
  * extent is a multiple of 2^levels, so the ray covers whole periods of the model) from 2D

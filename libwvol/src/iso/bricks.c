@@ -11,18 +11,7 @@
  * bricks' triangles find it by binary search among the owner's sorted keys, so
  * the stitched mesh has no duplicates and no cracks.
  *
- * The bound. A sample is v(n) = sum over coefficients c R(n - 2^m k), with R the
- * discrete synthesis response of the coefficient's level and band: a product of
- * 1D responses phi_m (low-pass) and psi_m (high-pass) per axis. Per axis
- *   Leb(r) = max over residues rho of sum_t |r[rho + 2^m t]|
- * bounds sum_k |R(n - 2^m k)| at every n. So on a brick
- *   |detail part| <= sum over (m, band) of max|c| (over coefficients reaching the
- *                    brick) * prod_axes Leb,
- *   low-pass part  = a0 S(n) + sum (a_k - a0) R(...), a0 = mid-range of the reaching
- *                    low-pass coefficients, S(n) = sum_t Phi(n - 2^M t) in [Smin, Smax],
- *                    |second term| <= half-range * prod Leb.
- * max|c| per brick comes from per-(level, band) block maxima, one pass over the
- * coefficients.
+ * The bound is wavelet/bounds.c (shared with the bricked renderer).
  * Based on: DESIGN.md section 9; Lorensen & Cline 1987. */
 #include <math.h>
 #include <stdio.h>
@@ -34,6 +23,7 @@
 
 #include "iso/iso_internal.h"
 #include "wvol/wavelet.h"
+#include "wavelet/wavelet_internal.h"
 
 static double now_s(void)
 {
@@ -44,306 +34,25 @@ static double now_s(void)
 #endif
 }
 
-/* ---- 1D responses ----------------------------------------------------------------- */
+/* ---- bounds (wavelet/bounds.c) ------------------------------------------------------- */
 
-/* A response split into a core window [lo, hi] and tails: the core carries all but
- * a 1e-4 share of sum |r|, so long filters (Battle-Lemarie's truncated taps, deep
- * levels) do not make every coefficient "reach" every brick; the tails are
- * bounded with the band's global maximum instead. */
-typedef struct resp1 {
-    double leb;        /* max_rho sum_t |r[rho + 2^m t]| over the core */
-    double tail;       /* sum |r| outside the core */
-    double smin, smax; /* min/max_rho sum_t r[rho + 2^m t] (whole response) */
-    long lo, hi;       /* core window, offsets in [0, len) */
-} resp1;
-
-static void split_core(resp1 *o, const double *r, long nl, long P)
+static wvol_status bounds_from_coeffs(wvol__brick_bounds **out, const wvol_coeffs *c, wvol_error *err)
 {
-    double total = 0.0, cut, out = 0.0;
-    long n, rho, lo = 0, hi = nl - 1;
-    for (n = 0; n < nl; n++) total += fabs(r[n]);
-    cut = 1e-4 * total;
-    /* peel the smaller end while the peeled mass stays under the cut */
-    while (lo < hi) {
-        double a = fabs(r[lo]), b = fabs(r[hi]);
-        if (a <= b && out + a <= cut) out += a, lo++;
-        else if (b < a && out + b <= cut) out += b, hi--;
-        else if (out + a <= cut) out += a, lo++;
-        else break;
-    }
-    o->lo = lo;
-    o->hi = hi;
-    o->tail = 0.0;
-    for (n = 0; n < nl; n++)
-        if (n < lo || n > hi) o->tail += fabs(r[n]);
-    o->leb = 0.0;
-    o->smin = INFINITY;
-    o->smax = -INFINITY;
-    for (rho = 0; rho < P; rho++) {
-        double sa = 0.0, sum = 0.0;
-        for (n = rho; n < nl; n += P) {
-            if (n >= lo && n <= hi) sa += fabs(r[n]);
-            sum += r[n];
-        }
-        if (sa > o->leb) o->leb = sa;
-        if (sum < o->smin) o->smin = sum;
-        if (sum > o->smax) o->smax = sum;
-    }
-}
-
-/* phi_m and psi_m responses for m = 1..M into lp[m], hp[m]. */
-static wvol_status responses(resp1 *lp, resp1 *hp, const wvol_filter *f, int M, wvol_error *err)
-{
-    long L = f->length, len = 1, m;
-    double *phi = malloc(sizeof(double));
-    if (!phi) return wvol_error_set(err, WVOL_ERR_NOMEM, "brick bounds: out of memory");
-    phi[0] = 1.0;
-    for (m = 1; m <= M; m++) {
-        long step = 1L << (m - 1), nl = len + step * (L - 1), n, t;
-        double *nphi = calloc((size_t)nl, sizeof(double)), *npsi = calloc((size_t)nl, sizeof(double));
-        if (!nphi || !npsi) {
-            free(nphi);
-            free(npsi);
-            free(phi);
-            return wvol_error_set(err, WVOL_ERR_NOMEM, "brick bounds: out of memory");
-        }
-        for (t = 0; t < L; t++)
-            for (n = 0; n < len; n++) {
-                nphi[n + step * t] += f->h[t] * phi[n];
-                npsi[n + step * t] += f->g[t] * phi[n];
-            }
-        split_core(&lp[m], nphi, nl, 1L << m);
-        split_core(&hp[m], npsi, nl, 1L << m);
-        free(phi);
-        free(npsi);
-        phi = nphi;
-        len = nl;
-    }
-    free(phi);
-    return WVOL_OK;
-}
-
-/* ---- block maxima of the detail coefficients ---------------------------------------- */
-
-typedef struct band_blocks {
-    size_t e[3];       /* band extent (coefficient positions) */
-    size_t bs[3];      /* block size (a power of two) */
-    int bshift[3];     /* log2 bs */
-    size_t nb[3];      /* blocks per axis */
-    float *absmax;     /* nb0 nb1 nb2; detail bands only (the low-pass cube is scanned) */
-    float gmax;        /* max |c| over the whole band */
-    double leb;        /* prod over axes of the core sums */
-    double tailw;      /* prod (leb + tail) - prod leb: weight of everything off the cores */
-    double smin, smax; /* low-pass: prod over axes of [smin, smax] */
-    long lo[3], hi[3]; /* core windows */
-    int m, band;
-} band_blocks;
-
-struct wvol__brick_bounds {
-    const wvol_coeffs *c;
-    int M;
-    int nbands;
-    band_blocks bb[7 * 32 + 1];
-};
-typedef struct wvol__brick_bounds brick_bounds;
-
-static void bounds_free(brick_bounds *b)
-{
-    int i;
-    if (!b) return;
-    for (i = 0; i < b->nbands; i++) free(b->bb[i].absmax);
-    free(b);
-}
-
-static wvol_status bounds_create(brick_bounds **out, const wvol_coeffs *c, wvol_error *err)
-{
-    brick_bounds *b;
-    resp1 lp[33], hp[33];
     size_t pad[3] = {c->px, c->py, c->pz};
-    int m, l, a;
-    *out = NULL;
-    WVOL_RETURN_IF(c->levels < 1 || c->levels > 32, err, WVOL_ERR_ARG, "brick bounds: %d levels", c->levels);
-    for (a = 0; a < 3; a++)
-        WVOL_RETURN_IF(pad[a] < 2, err, WVOL_ERR_DIMS, "brick bounds: axis %c is not transformed", "xyz"[a]);
-    WVOL_FORWARD(responses(lp, hp, c->filter, c->levels, err));
-    b = calloc(1, sizeof *b);
-    if (!b) return wvol_error_set(err, WVOL_ERR_NOMEM, "brick bounds: out of memory");
-    b->c = c;
-    b->M = c->levels;
-    for (m = 1; m <= b->M; m++)
-        for (l = (m == b->M ? 0 : 1); l < 8; l++) {
-            band_blocks *q = &b->bb[b->nbands++];
-            double full = 1.0;
-            size_t nblk;
-            q->m = m;
-            q->band = l;
-            q->leb = 1.0;
-            q->smin = q->smax = 1.0;
-            for (a = 0; a < 3; a++) {
-                const resp1 *r = ((l >> a) & 1) ? &hp[m] : &lp[m];
-                q->e[a] = pad[a] >> m;
-                /* blocks of 4, 2, 1 positions at levels 1, 2, >= 3: about 8 samples wide */
-                q->bshift[a] = m >= 3 ? 0 : 3 - m;
-                q->bs[a] = (size_t)1 << q->bshift[a];
-                q->nb[a] = (q->e[a] + q->bs[a] - 1) / q->bs[a];
-                q->leb *= r->leb;
-                full *= r->leb + r->tail;
-                q->smin *= r->smin;
-                q->smax *= r->smax;
-                q->lo[a] = r->lo;
-                q->hi[a] = r->hi;
-            }
-            q->tailw = full - q->leb;
-            if (l == 0) continue;
-            nblk = q->nb[0] * q->nb[1] * q->nb[2];
-            q->absmax = calloc(nblk, sizeof(float));
-            if (!q->absmax) {
-                bounds_free(b);
-                return wvol_error_set(err, WVOL_ERR_NOMEM, "brick bounds: out of memory");
-            }
-        }
-    /* one pass over the coefficients; a thread owns whole z-slabs of blocks */
-    for (int qi = 0; qi < b->nbands; qi++) {
-        band_blocks *q = &b->bb[qi];
-        long zb;
-        size_t off[3];
-        float gmax = 0.0f;
-        for (a = 0; a < 3; a++) off[a] = ((q->band >> a) & 1) ? q->e[a] : 0;
-        if (q->band == 0) { /* global max of the low-pass cube, for the tail terms */
-            size_t x, y, z;
-            for (z = 0; z < q->e[2]; z++)
-                for (y = 0; y < q->e[1]; y++)
-                    for (x = 0; x < q->e[0]; x++) {
-                        float av = fabsf(c->data[x + c->px * (y + c->py * z)]);
-                        if (!(av <= gmax)) gmax = isnan(av) ? INFINITY : av;
-                    }
-            q->gmax = gmax;
-            continue;
-        }
-#ifdef _OPENMP
-#pragma omp parallel for schedule(dynamic, 1)
-#endif
-        for (zb = 0; zb < (long)q->nb[2]; zb++) {
-            size_t z0 = (size_t)zb * q->bs[2], z1 = z0 + q->bs[2] < q->e[2] ? z0 + q->bs[2] : q->e[2], z, y, x;
-            for (z = z0; z < z1; z++)
-                for (y = 0; y < q->e[1]; y++) {
-                    const float *row = c->data + off[0] + c->px * ((off[1] + y) + c->py * (off[2] + z));
-                    float *brow = q->absmax + q->nb[0] * ((y >> q->bshift[1]) + q->nb[1] * (size_t)zb);
-                    const int sh = q->bshift[0];
-                    for (x = 0; x < q->e[0]; x++) {
-                        float av = fabsf(row[x]);
-                        if (!(av <= brow[x >> sh])) brow[x >> sh] = av; /* NaN propagates */
-                    }
-                }
-        }
-        {
-            size_t i, nblk = q->absmax ? q->nb[0] * q->nb[1] * q->nb[2] : 0;
-            for (i = 0; i < nblk; i++)
-                if (!(q->absmax[i] <= gmax)) gmax = isnan(q->absmax[i]) ? INFINITY : q->absmax[i];
-        }
-        q->gmax = gmax;
-    }
-    *out = b;
+    WVOL_FORWARD(wvol__bounds_create(out, c->filter, c->levels, pad, c->data, c->px, c->px * c->py, err));
+    wvol__bounds_fill_coeffs(*out, c);
+    wvol__bounds_finish(*out);
     return WVOL_OK;
-}
-
-/* Coefficient positions [*k0, *k0 + *kn) (unwrapped) whose core reaches samples
- * [s0, s1] along axis a; the whole band when that covers the period. */
-static void reach(const band_blocks *q, int a, long s0, long s1, long *k0, long *kn)
-{
-    long step = 1L << q->m, e = (long)q->e[a], klo = s0 - q->hi[a], khi = s1 - q->lo[a];
-    long c0 = klo >= 0 ? (klo + step - 1) / step : -((-klo) / step); /* ceil */
-    long c1 = khi >= 0 ? khi / step : -((-khi + step - 1) / step);   /* floor */
-    *k0 = c0;
-    *kn = c1 - c0 + 1;
-    if (*kn > e) *k0 = 0, *kn = e;
-    if (*kn < 0) *kn = 0;
-}
-
-static inline long wrap(long k, long e) { return ((k % e) + e) % e; }
-
-/* Bound of the reconstructed samples in the box [s0, s1] (inclusive, voxel indices). */
-static void box_bound(const brick_bounds *b, const long s0[3], const long s1[3], double *vmin, double *vmax)
-{
-    double detail = 0.0, lo = 0.0, hi = 0.0, mag = 0.0;
-    int qi, a;
-    for (qi = 0; qi < b->nbands; qi++) {
-        const band_blocks *q = &b->bb[qi];
-        long k0[3], kn[3], x, y, z;
-        float amax = 0.0f;
-        for (a = 0; a < 3; a++) reach(q, a, s0[a], s1[a], &k0[a], &kn[a]);
-        if (q->band == 0) {
-            /* the low-pass cube is small: scan the coefficients whose core reaches the box */
-            float cmin = INFINITY, cmax = -INFINITY;
-            for (z = 0; z < kn[2]; z++) {
-                size_t kz = (size_t)wrap(k0[2] + z, (long)q->e[2]);
-                for (y = 0; y < kn[1]; y++) {
-                    size_t ky = (size_t)wrap(k0[1] + y, (long)q->e[1]);
-                    const float *row = b->c->data + b->c->px * (ky + b->c->py * kz);
-                    for (x = 0; x < kn[0]; x++) {
-                        float v = row[wrap(k0[0] + x, (long)q->e[0])];
-                        if (!(v >= cmin)) cmin = v;
-                        if (!(v <= cmax)) cmax = v;
-                    }
-                }
-            }
-            if (cmin > cmax) cmin = cmax = 0.0f; /* no core reaches (cannot happen for a non-empty box) */
-            {
-                double a0 = 0.5 * ((double)cmin + (double)cmax), half = 0.5 * ((double)cmax - (double)cmin);
-                double p1 = a0 * q->smin, p2 = a0 * q->smax;
-                double off = half * q->leb + ((double)q->gmax + fabs(a0)) * q->tailw;
-                lo = (p1 < p2 ? p1 : p2) - off;
-                hi = (p1 > p2 ? p1 : p2) + off;
-                mag += (double)q->gmax * (q->leb + q->tailw);
-            }
-            continue;
-        }
-        /* detail band: block maxima over the reach */
-        {
-            long b0[3], b1[3];
-            for (a = 0; a < 3; a++) {
-                long bs = (long)q->bs[a], nbk = (long)q->nb[a];
-                if (kn[a] >= (long)q->e[a]) {
-                    b0[a] = 0, b1[a] = nbk - 1;
-                } else {
-                    long m0 = wrap(k0[a], (long)q->e[a]), last = m0 + kn[a] - 1;
-                    b0[a] = m0 / bs;
-                    b1[a] = last < (long)q->e[a] ? last / bs : nbk + (last - (long)q->e[a]) / bs;
-                    if (b1[a] - b0[a] + 1 > nbk) b1[a] = b0[a] + nbk - 1;
-                }
-            }
-            if (kn[0] > 0 && kn[1] > 0 && kn[2] > 0)
-                for (z = b0[2]; z <= b1[2]; z++) {
-                    size_t bz = (size_t)(z % (long)q->nb[2]);
-                    for (y = b0[1]; y <= b1[1]; y++) {
-                        size_t by = (size_t)(y % (long)q->nb[1]);
-                        const float *row = q->absmax + q->nb[0] * (by + q->nb[1] * bz);
-                        for (x = b0[0]; x <= b1[0]; x++) {
-                            float v = row[x % (long)q->nb[0]];
-                            if (!(v <= amax)) amax = v;
-                        }
-                    }
-                }
-            detail += (double)amax * q->leb + (double)q->gmax * q->tailw;
-        }
-    }
-    mag += detail;
-    /* rounding: float coefficients summed in double, the result rounded to float */
-    {
-        double pad = 1e-5 * mag + 1e-30;
-        *vmin = lo - detail - pad;
-        *vmax = hi + detail + pad;
-    }
 }
 
 /* Exposed for the tests: bound of the samples of box [s0, s1] (inclusive). */
 wvol_status wvol__iso_box_bound(const wvol_coeffs *c, const long s0[3], const long s1[3], double *vmin,
                                 double *vmax, wvol_error *err)
 {
-    brick_bounds *b;
-    WVOL_FORWARD(bounds_create(&b, c, err));
-    box_bound(b, s0, s1, vmin, vmax);
-    bounds_free(b);
+    wvol__brick_bounds *b;
+    WVOL_FORWARD(bounds_from_coeffs(&b, c, err));
+    wvol__bounds_box(b, s0, s1, vmin, vmax);
+    wvol__bounds_free(b);
     return WVOL_OK;
 }
 
@@ -449,7 +158,7 @@ wvol_status wvol_iso_extract_coeffs(wvol_mesh **out, const wvol_coeffs *c, doubl
 {
     wvol_iso_params def;
     wvol_iso_stats local;
-    brick_bounds *bb = NULL;
+    wvol__brick_bounds *bb = NULL;
     brick_grid g;
     size_t nbricks, nneed = 0, i, *need = NULL, *slot = NULL, nv = 0, nt = 0, misses = 0;
     brick_out *res = NULL;
@@ -489,7 +198,7 @@ wvol_status wvol_iso_extract_coeffs(wvol_mesh **out, const wvol_coeffs *c, doubl
 #else
     nth = 1;
 #endif
-    s = bounds_create(&bb, c, err);
+    s = bounds_from_coeffs(&bb, c, err);
     if (s != WVOL_OK) return s;
     need = malloc(nbricks * sizeof *need);
     slot = malloc(nbricks * sizeof *slot);
@@ -506,7 +215,7 @@ wvol_status wvol_iso_extract_coeffs(wvol_mesh **out, const wvol_coeffs *c, doubl
             s0[a] = (long)(bidx[a] * (size_t)g.B);
             s1[a] = s0[a] + g.B < (long)g.n[a] - 1 ? s0[a] + g.B : (long)g.n[a] - 1;
         }
-        box_bound(bb, s0, s1, &lo, &hi);
+        wvol__bounds_box(bb, s0, s1, &lo, &hi);
         if (lo < gmin) gmin = lo;
         if (hi > gmax) gmax = hi;
         slot[i] = (size_t)-1;
@@ -653,6 +362,6 @@ done:
     wvol_mesh_destroy(m);
     free(need);
     free(slot);
-    bounds_free(bb);
+    wvol__bounds_free(bb);
     return s;
 }

@@ -4,6 +4,7 @@
 #include "render_internal.h"
 
 #include <math.h>
+#include <stdlib.h>
 #include <omp.h>
 #include <time.h>
 
@@ -82,6 +83,23 @@ wvol_status wvol__check_colors(const wvol_render_params *p, const size_t n[3], i
 int wvol__tiles(int width, int height, int tile)
 {
     return ((width + tile - 1) / tile) * ((height + tile - 1) / tile);
+}
+
+int *wvol__tile_order(int width, int height, int tile)
+{
+    int tx = (width + tile - 1) / tile, ty = (height + tile - 1) / tile, side = 1, n = 0;
+    int *order = malloc((size_t)tx * (size_t)ty * sizeof *order + sizeof *order);
+    if (!order) return NULL;
+    while (side < tx || side < ty) side *= 2;
+    for (long code = 0; code < (long)side * side; code++) {
+        int x = 0, y = 0;
+        for (int b = 0; b < 16; b++) { /* de-interleave the bits */
+            x |= (int)((code >> (2 * b)) & 1) << b;
+            y |= (int)((code >> (2 * b + 1)) & 1) << b;
+        }
+        if (x < tx && y < ty) order[n++] = x + tx * y;
+    }
+    return order;
 }
 
 double wvol__shade(const double grad[3], const double dir[3], double ambient)

@@ -10,22 +10,22 @@
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
+#include <omp.h>
 
 
 
-static double trilinear_slow(const wvol_volume *v, const double x[3]);
+static double trilinear_slow(const wvol__view *w, const double x[3]);
 
-/* Trilinear sample at index position x; the common case (strictly inside the sample grid)
- * without clamping branches. */
-static inline double trilinear(const wvol_volume *v, const double x[3])
+/* Trilinear sample at index position x from a view; the common case (strictly inside the
+ * view's voxel range) without clamping branches. */
+static inline double trilinear(const wvol__view *w, const double x[3])
 {
-    size_t nx = v->nx, ny = v->ny;
-    if (x[0] > 0 && x[1] > 0 && x[2] > 0 && x[0] < (double)(nx - 1) && x[1] < (double)(ny - 1) &&
-        x[2] < (double)(v->nz - 1)) {
-        size_t i = (size_t)x[0], j = (size_t)x[1], k = (size_t)x[2];
+    if (x[0] > w->flo[0] && x[1] > w->flo[1] && x[2] > w->flo[2] && x[0] < w->fhi[0] && x[1] < w->fhi[1] &&
+        x[2] < w->fhi[2]) {
+        long i = (long)x[0], j = (long)x[1], k = (long)x[2];
         double wx = x[0] - (double)i, wy = x[1] - (double)j, wz = x[2] - (double)k;
-        const float *p = v->data + i + nx * (j + ny * k);
-        size_t sy = nx, sz = nx * ny;
+        size_t sy = w->sy, sz = w->sz;
+        const float *p = w->data + (size_t)(i - w->off[0]) + sy * (size_t)(j - w->off[1]) + sz * (size_t)(k - w->off[2]);
         double c00 = p[0] + wx * (p[1] - p[0]);
         double c10 = p[sy] + wx * (p[sy + 1] - p[sy]);
         double c01 = p[sz] + wx * (p[sz + 1] - p[sz]);
@@ -33,58 +33,59 @@ static inline double trilinear(const wvol_volume *v, const double x[3])
         double c0 = c00 + wy * (c10 - c00), c1 = c01 + wy * (c11 - c01);
         return c0 + wz * (c1 - c0);
     }
-    return trilinear_slow(v, x);
+    return trilinear_slow(w, x);
 }
 
-static double trilinear_slow(const wvol_volume *v, const double x[3])
+/* Clamped to the view's voxel range per axis (the volume's edge voxels for a whole volume). */
+static double trilinear_slow(const wvol__view *w, const double x[3])
 {
-    size_t n[3] = {v->nx, v->ny, v->nz}, i0[3], i1[3];
-    double w[3];
+    size_t i0[3], i1[3];
+    double wt[3];
     int a;
     for (a = 0; a < 3; a++) {
         double xa = x[a], f;
-        if (n[a] == 1 || !(xa > 0)) {
-            i0[a] = i1[a] = 0;
-            w[a] = 0;
-            if (n[a] > 1 && xa != xa) w[a] = 0;
+        long lo = w->lo[a], hi = w->hi[a];
+        if (hi == lo || !(xa > (double)lo)) { /* also NaN */
+            i0[a] = i1[a] = (size_t)(lo - w->off[a]);
+            wt[a] = 0;
             continue;
         }
-        if (xa >= (double)(n[a] - 1)) {
-            i0[a] = i1[a] = n[a] - 1;
-            w[a] = 0;
+        if (xa >= (double)hi) {
+            i0[a] = i1[a] = (size_t)(hi - w->off[a]);
+            wt[a] = 0;
             continue;
         }
         f = floor(xa);
-        i0[a] = (size_t)f;
+        i0[a] = (size_t)((long)f - w->off[a]);
         i1[a] = i0[a] + 1;
-        w[a] = xa - f;
+        wt[a] = xa - f;
     }
     {
-        const float *d = v->data;
-        size_t sx = 1, sy = v->nx, sz = v->nx * v->ny;
+        const float *d = w->data;
+        size_t sy = w->sy, sz = w->sz;
         size_t b00 = i0[1] * sy + i0[2] * sz, b10 = i1[1] * sy + i0[2] * sz, b01 = i0[1] * sy + i1[2] * sz,
                b11 = i1[1] * sy + i1[2] * sz;
-        double c00 = d[b00 + i0[0] * sx] + w[0] * (d[b00 + i1[0] * sx] - d[b00 + i0[0] * sx]);
-        double c10 = d[b10 + i0[0] * sx] + w[0] * (d[b10 + i1[0] * sx] - d[b10 + i0[0] * sx]);
-        double c01 = d[b01 + i0[0] * sx] + w[0] * (d[b01 + i1[0] * sx] - d[b01 + i0[0] * sx]);
-        double c11 = d[b11 + i0[0] * sx] + w[0] * (d[b11 + i1[0] * sx] - d[b11 + i0[0] * sx]);
-        double c0 = c00 + w[1] * (c10 - c00), c1 = c01 + w[1] * (c11 - c01);
-        return c0 + w[2] * (c1 - c0);
+        double c00 = d[b00 + i0[0]] + wt[0] * (d[b00 + i1[0]] - d[b00 + i0[0]]);
+        double c10 = d[b10 + i0[0]] + wt[0] * (d[b10 + i1[0]] - d[b10 + i0[0]]);
+        double c01 = d[b01 + i0[0]] + wt[0] * (d[b01 + i1[0]] - d[b01 + i0[0]]);
+        double c11 = d[b11 + i0[0]] + wt[0] * (d[b11 + i1[0]] - d[b11 + i0[0]]);
+        double c0 = c00 + wt[1] * (c10 - c00), c1 = c01 + wt[1] * (c11 - c01);
+        return c0 + wt[2] * (c1 - c0);
     }
 }
 
 /* Value at index position x; world gradient into grad when not NULL. */
-static double sample_at(const wvol__sampler *s, const double x[3], double grad[3])
+static double sample_at(const wvol__sampler *s, const wvol__view *w, const double x[3], double grad[3])
 {
-    if (s->v) {
-        double val = trilinear(s->v, x);
+    if (!s->eval) {
+        double val = trilinear(w, x);
         if (grad) {
             int a;
             for (a = 0; a < 3; a++) {
                 double xp[3] = {x[0], x[1], x[2]}, xm[3] = {x[0], x[1], x[2]};
                 xp[a] += 0.5;
                 xm[a] -= 0.5;
-                grad[a] = (trilinear(s->v, xp) - trilinear(s->v, xm)) / s->spacing[a];
+                grad[a] = (trilinear(w, xp) - trilinear(w, xm)) / s->spacing[a];
             }
         }
         return val;
@@ -126,6 +127,19 @@ static double tf_max_kappa(const wvol_tf *tf, double lo, double hi)
     return m;
 }
 
+void wvol__view_finish(wvol__view *w)
+{
+    for (int a = 0; a < 3; a++) {
+        w->flo[a] = (double)w->lo[a];
+        w->fhi[a] = (double)w->hi[a];
+    }
+}
+
+int wvol__brick_empty(const wvol_tf *tf, wvol_render_mode mode, double mn, double mx)
+{
+    return mode == WVOL_MODE_XRAY ? (mn == 0 && mx == 0) : (tf_max_kappa(tf, mn, mx) <= 0);
+}
+
 /* Marks bricks whose samples cannot contribute. Each brick covers the voxel cells
  * [b*B - 1/2, (b+1)*B - 1/2) and its min/max is taken over voxels b*B-1 .. (b+1)*B, every
  * voxel a trilinear sample inside the brick can touch. */
@@ -157,8 +171,7 @@ static wvol_status build_bricks(wvol__sampler *s, const wvol_tf *tf, wvol_render
                             if (row[i] > mx) mx = row[i];
                         }
                     }
-                s->empty[bi + s->bn[0] * (bj + s->bn[1] * bk)] =
-                    mode == WVOL_MODE_XRAY ? (mn == 0 && mx == 0) : (tf_max_kappa(tf, mn, mx) <= 0);
+                s->empty[bi + s->bn[0] * (bj + s->bn[1] * bk)] = (unsigned char)wvol__brick_empty(tf, mode, mn, mx);
             }
     return WVOL_OK;
 }
@@ -176,8 +189,8 @@ static inline long brick_id(const wvol__sampler *s, const double x[3])
     return b[0] + (long)s->bn[0] * (b[1] + (long)s->bn[1] * b[2]);
 }
 
-/* If x lies in an empty brick, the ray parameter where the ray (index direction e) leaves it. */
-static int empty_exit(const wvol__sampler *s, const double x[3], const double e[3], double t, double *t_exit)
+/* The ray parameter where the ray (index direction e) leaves the brick holding x. */
+static int brick_exit(const wvol__sampler *s, const double x[3], const double e[3], double t, double *t_exit)
 {
     size_t b[3];
     int a;
@@ -188,7 +201,6 @@ static int empty_exit(const wvol__sampler *s, const double x[3], const double e[
         if (c > (double)(s->bn[a] - 1)) c = (double)(s->bn[a] - 1);
         b[a] = (size_t)c;
     }
-    if (!s->empty[b[0] + s->bn[0] * (b[1] + s->bn[1] * b[2])]) return 0;
     for (a = 0; a < 3; a++) {
         double lo = (double)b[a] * s->B - 0.5, hi = lo + s->B, ta;
         if (e[a] > 0) ta = (hi - x[a]) / e[a];
@@ -204,20 +216,120 @@ typedef struct ray_out {
     double rgba[4];
     size_t samples, skipped;
     int terminated, clamped;
+    wvol_status failed;     /* a bricked source's fetch failed */
 } ray_out;
 
-static void march(const wvol__sampler *s, const wvol_tf *tf, const wvol_render_params *p, const double o[3],
-                  const double d[3], double t0, double t1, double dt, ray_out *out)
+/* The TF prepared for the inner loop: per segment [v[i], v[i+1]) the colour and kappa at
+ * its start and their slopes (no division per sample); constant beyond the end points. */
+typedef struct tf_fast {
+    int n;
+    double v[WVOL_TF_MAX_POINTS];
+    double c0[WVOL_TF_MAX_POINTS][4], dc[WVOL_TF_MAX_POINTS][4]; /* r, g, b, kappa */
+} tf_fast;
+
+static void tf_fast_init(tf_fast *f, const wvol_tf *tf)
 {
-    double x0[3], e[3], T = 1.0, acc[3] = {0, 0, 0}, xr = 0;
+    int i, c;
+    f->n = tf->count;
+    for (i = 0; i < tf->count; i++) {
+        const wvol_tf_point *p = &tf->points[i], *q = i + 1 < tf->count ? p + 1 : p;
+        double span = q->value - p->value;
+        f->v[i] = p->value;
+        for (c = 0; c < 4; c++) {
+            double a = c < 3 ? p->rgb[c] : p->opacity, b = c < 3 ? q->rgb[c] : q->opacity;
+            f->c0[i][c] = a;
+            f->dc[i][c] = span > 0 ? (b - a) / span : 0.0;
+        }
+    }
+}
+
+/* Colour and kappa at val; *seg is the segment found last (values along a ray change
+ * little from one sample to the next), -1 below the first point. */
+static inline void tf_fast_eval(const tf_fast *f, double val, int *seg, double rgb[3], double *kappa)
+{
+    int i = *seg, n = f->n, c;
+    double w;
+    if (!(val > f->v[0])) { /* also NaN */
+        for (c = 0; c < 3; c++) rgb[c] = f->c0[0][c];
+        *kappa = f->c0[0][3];
+        return;
+    }
+    if (val >= f->v[n - 1]) {
+        for (c = 0; c < 3; c++) rgb[c] = f->c0[n - 1][c];
+        *kappa = f->c0[n - 1][3];
+        return;
+    }
+    if (i < 0 || i >= n - 1 || !(val >= f->v[i] && val < f->v[i + 1])) {
+        int lo = 0, hi = n - 1;
+        while (hi - lo > 1) {
+            int mid = (lo + hi) / 2;
+            if (f->v[mid] <= val) lo = mid;
+            else hi = mid;
+        }
+        i = *seg = lo;
+    }
+    w = val - f->v[i];
+    for (c = 0; c < 3; c++) rgb[c] = f->c0[i][c] + w * f->dc[i][c];
+    *kappa = f->c0[i][3] + w * f->dc[i][3];
+}
+
+/* exp(x) for x <= 0, inlined for the inner loop: x = (32 m + j) ln2/32 + r with |r| <=
+ * ln2/64 (ln2/32 split in two parts, Cody-Waite), e^x = 2^m 2^(j/32) e^r, 2^(j/32) from a
+ * table and e^r by its Taylor series to degree 6 (truncation below 0.0109^7/7! ~ 4e-18),
+ * evaluated in Estrin's scheme: the dependency chain is a few operations long, so samples
+ * overlap in the pipeline (Horner's 13-deep chain made the exponential a third of a step).
+ * Relative error a few ulp; 0 below -708 (where the result would be subnormal). */
+static const double exp2_32[32] = {
+    1.0, 1.0218971486541166, 1.0442737824274138, 1.0671404006768237, 1.0905077326652577, 1.1143867425958924,
+    1.1387886347566916, 1.1637248587775775, 1.1892071150027210, 1.2152473599804690, 1.2418578120734840,
+    1.2690509571917332, 1.2968395546510096, 1.3252366431597413, 1.3542555469368927, 1.3839098819638320,
+    1.4142135623730951, 1.4451808069770467, 1.4768261459394993, 1.5091644275934228, 1.5422108254079407,
+    1.5759808451078865, 1.6104903319492543, 1.6457554781539650, 1.6817928305074290, 1.7186192981224779,
+    1.7562521603732995, 1.7947090750031072, 1.8340080864093424, 1.8741676341103000, 1.9152065613971474,
+    1.9571441241754002};
+
+static inline double exp_neg(double x)
+{
+    static const double k = 46.166241308446828;            /* 32 / ln2 */
+    /* ln2 / 32 in two parts: fdlibm's ln2_hi (low bits zero, so n * c_hi is exact) and ln2_lo,
+     * both divided by 32 (exact) */
+    static const double c_hi = 6.93147180369123816490e-01 / 32, c_lo = 1.90821492927058770002e-10 / 32;
+    double n, r, r2, r4, p;
+    long long ni;
+    union {
+        double d;
+        unsigned long long u;
+    } sc;
+    if (!(x > -708.0)) return 0.0; /* also NaN: an opaque step */
+    ni = -(long long)(0.5 - x * k); /* round to nearest, x <= 0 */
+    n = (double)ni;
+    r = (x - n * c_hi) - n * c_lo;
+    r2 = r * r;
+    r4 = r2 * r2;
+    p = (1.0 + r) + r2 * (0.5 + r * (1.0 / 6.0)) + r4 * ((1.0 / 24.0 + r * (1.0 / 120.0)) + r2 * (1.0 / 720.0));
+    sc.u = (unsigned long long)((ni >> 5) + 1023) << 52; /* arithmetic shift: floor(n / 32) */
+    return p * exp2_32[ni & 31] * sc.d;
+}
+
+/* One ray: samples at the midpoints of steps of dt over [t0, t1], front to back. A dense
+ * source's view is the whole volume; a bricked source's is fetched (through the thread's
+ * context tc) when the ray enters a brick not known to be empty. The brick is looked up
+ * only when the ray passes the current brick's exit. */
+static inline __attribute__((always_inline)) void march(const wvol__sampler *s, void *tc, const tf_fast *tfx,
+                                                         const wvol_render_params *p, const wvol_render_mode mode,
+                                                         const int shading, const double o[3], const double d[3],
+                                                         double t0, double t1, double dt, ray_out *out)
+{
+    wvol__view view = s->whole;
+    double x0[3], e[3], T = 1.0, acc[3] = {0, 0, 0}, xr = 0, t_exit = -INFINITY;
     long k, nsteps;
-    int a;
+    int a, seg = -1, bricked = s->empty || s->fetch, cur_empty = 0, nclamp = 0;
+    size_t nsamp = 0, nskip = 0; /* counted in locals: out may alias nothing, but the
+                                    compiler cannot know */
     for (a = 0; a < 3; a++) {
         x0[a] = (o[a] - s->origin[a]) / s->spacing[a];
         e[a] = d[a] / s->spacing[a];
     }
-    long last_brick = -1;
-    int last_empty = 0;
     nsteps = (long)ceil((t1 - t0) / dt);
     if (nsteps < 1) nsteps = 1;
     for (k = 0; k < nsteps; k++) {
@@ -227,41 +339,45 @@ static void march(const wvol__sampler *s, const wvol_tf *tf, const wvol_render_p
         if (!(h > 0)) break;
         t = 0.5 * (ta + tb);
         for (a = 0; a < 3; a++) x[a] = x0[a] + t * e[a];
-        if (s->empty) {
-            double te;
-            long bid = brick_id(s, x);
-            if (bid != last_brick) {
-                last_brick = bid;
-                last_empty = s->empty[bid];
+        if (bricked) {
+            if (!(t < t_exit)) { /* entering the next brick */
+                long bid = brick_id(s, x);
+                brick_exit(s, x, e, t, &t_exit);
+                cur_empty = s->empty ? s->empty[bid] : 0;
+                if (!cur_empty && s->fetch) {
+                    out->failed = s->fetch(tc, (size_t)bid, &view, &cur_empty);
+                    if (out->failed != WVOL_OK) break;
+                }
             }
-            if (last_empty && empty_exit(s, x, e, t, &te)) {
-                long kn = (long)floor((te - t0) / dt);
-                out->skipped++;
+            if (cur_empty) {
+                long kn = (long)floor((t_exit - t0) / dt);
+                nskip++;
                 if (kn > k) k = kn - 1;
                 continue;
             }
         }
-        out->samples++;
-        if (p->mode == WVOL_MODE_XRAY) {
-            xr += sample_at(s, x, NULL) * h;
+        nsamp++;
+        if (mode == WVOL_MODE_XRAY) {
+            xr += sample_at(s, &view, x, NULL) * h;
             continue;
         }
-        val = sample_at(s, x, NULL);
-        wvol_tf_eval(tf, val, rgb, &kappa);
+        val = sample_at(s, &view, x, NULL);
+        tf_fast_eval(tfx, val, &seg, rgb, &kappa);
         if (kappa > 0 && p->colors) nearest_color(s, p->colors, x, rgb);
         if (kappa > 0) {
             double alpha, shade = 1.0;
-            if (p->mode == WVOL_MODE_ABSORPTION) {
-                alpha = -expm1(-kappa * h);
+            if (mode == WVOL_MODE_ABSORPTION) {
+                alpha = 1.0 - exp_neg(-kappa * h); /* not expm1: the difference is far
+                                                      below the step's own error */
             } else {
                 alpha = kappa * h;
                 if (alpha > 1) {
                     alpha = 1;
-                    out->clamped++;
+                    nclamp++;
                 }
             }
-            if (p->shading) {
-                sample_at(s, x, grad);
+            if (shading) {
+                sample_at(s, &view, x, grad);
                 shade = wvol__shade(grad, d, p->ambient);
             }
             for (a = 0; a < 3; a++) acc[a] += T * alpha * rgb[a] * shade;
@@ -272,7 +388,10 @@ static void march(const wvol__sampler *s, const wvol_tf *tf, const wvol_render_p
             }
         }
     }
-    if (p->mode == WVOL_MODE_XRAY) {
+    out->samples += nsamp;
+    out->skipped += nskip;
+    out->clamped += nclamp;
+    if (mode == WVOL_MODE_XRAY) {
         out->rgba[0] = out->rgba[1] = out->rgba[2] = xr;
         out->rgba[3] = 1.0;
     } else {
@@ -287,10 +406,12 @@ wvol_status wvol__render_sampled(wvol_image *img, wvol__sampler *s, const wvol_c
     wvol_render_params p;
     wvol_geometry g;
     wvol_tf tf;
+    tf_fast tfx;
     wvol__cam k;
     double lo[3], hi[3], dt, t_start, c_start;
-    int ntiles, tx, a;
+    int ntiles, tx, a, *order;
     size_t rays_hit = 0, samples = 0, skipped = 0, terminated = 0, clamped = 0;
+    wvol_status failed = WVOL_OK;
 
     wvol__params(&p, pin);
     WVOL_FORWARD(wvol__render_check(img, cam, tf_in, &p, err));
@@ -304,6 +425,7 @@ wvol_status wvol__render_sampled(wvol_image *img, wvol__sampler *s, const wvol_c
     }
     if (p.mode != WVOL_MODE_XRAY) wvol__tf_world(&tf, tf_in, &g);
     else memset(&tf, 0, sizeof tf);
+    tf_fast_init(&tfx, &tf);
     wvol_geometry_bounds(&g, lo, hi);
     dt = p.step * fmin(s->spacing[0], fmin(s->spacing[1], s->spacing[2]));
     t_start = wvol__now();
@@ -312,14 +434,25 @@ wvol_status wvol__render_sampled(wvol_image *img, wvol__sampler *s, const wvol_c
     if (s->v && p.brick > 0) {
         s->B = p.brick;
         WVOL_FORWARD(build_bricks(s, &tf, p.mode, err));
+    } else if (s->prepare) {
+        WVOL_FORWARD(s->prepare(s, &tf, &p, err));
     }
     wvol__cam_init(&k, cam);
     ntiles = wvol__tiles(img->width, img->height, p.tile);
     tx = (img->width + p.tile - 1) / p.tile;
-#pragma omp parallel for schedule(dynamic, 1) num_threads(wvol__threads(p.threads)) \
+    order = wvol__tile_order(img->width, img->height, p.tile);
+    if (!order) {
+        free(s->empty);
+        s->empty = NULL;
+        return wvol_error_set(err, WVOL_ERR_NOMEM, "render: out of memory");
+    }
+#pragma omp parallel for schedule(dynamic, 4) num_threads(wvol__threads(p.threads)) \
     reduction(+ : rays_hit, samples, skipped, terminated, clamped)
+    /* chunks of 4 Z-ordered tiles (2 x 2): a thread keeps neighbouring tiles, and with them
+     * the bricks its cache holds */
     for (int ti = 0; ti < ntiles; ti++) {
-        int x0 = (ti % tx) * p.tile, y0 = (ti / tx) * p.tile, x, y;
+        int x0 = (order[ti] % tx) * p.tile, y0 = (order[ti] / tx) * p.tile, x, y;
+        void *tc = s->tctx ? s->tctx[omp_get_thread_num()] : NULL;
         for (y = y0; y < y0 + p.tile && y < img->height; y++)
             for (x = x0; x < x0 + p.tile && x < img->width; x++) {
                 double o[3], d[3], t0, t1;
@@ -331,7 +464,14 @@ wvol_status wvol__render_sampled(wvol_image *img, wvol__sampler *s, const wvol_c
                     if (cam->projection == WVOL_PERSPECTIVE && t0 < 0) t0 = 0;
                     if (t1 > t0) {
                         rays_hit++;
-                        march(s, &tf, &p, o, d, t0, t1, dt, &r);
+                        /* the common cases get their own copy of the loop, the mode and
+                         * shading tests compiled away */
+                        if (p.mode == WVOL_MODE_ABSORPTION && !p.shading)
+                            march(s, tc, &tfx, &p, WVOL_MODE_ABSORPTION, 0, o, d, t0, t1, dt, &r);
+                        else if (p.mode == WVOL_MODE_XRAY && !p.shading)
+                            march(s, tc, &tfx, &p, WVOL_MODE_XRAY, 0, o, d, t0, t1, dt, &r);
+                        else
+                            march(s, tc, &tfx, &p, p.mode, p.shading, o, d, t0, t1, dt, &r);
                     }
                 }
                 for (int c = 0; c < 4; c++) px[c] = (float)r.rgba[c];
@@ -339,10 +479,16 @@ wvol_status wvol__render_sampled(wvol_image *img, wvol__sampler *s, const wvol_c
                 skipped += r.skipped;
                 terminated += (size_t)r.terminated;
                 clamped += (size_t)r.clamped;
+                if (r.failed != WVOL_OK) {
+#pragma omp atomic write
+                    failed = r.failed;
+                }
             }
     }
+    free(order);
     free(s->empty);
     s->empty = NULL;
+    WVOL_RETURN_IF(failed != WVOL_OK, err, failed, "render: a brick could not be reconstructed (out of memory)");
     if (stats) {
         memset(stats, 0, sizeof *stats);
         stats->seconds = wvol__now() - t_start;
@@ -368,6 +514,11 @@ wvol_status wvol_render_reference(wvol_image *img, const wvol_volume *v, const w
     s.n[0] = v->nx;
     s.n[1] = v->ny;
     s.n[2] = v->nz;
+    s.whole.data = v->data;
+    s.whole.sy = v->nx;
+    s.whole.sz = v->nx * v->ny;
+    for (a = 0; a < 3; a++) s.whole.hi[a] = (long)s.n[a] - 1;
+    wvol__view_finish(&s.whole);
     for (a = 0; a < 3; a++) {
         s.spacing[a] = v->spacing[a];
         s.origin[a] = v->origin[a];

@@ -28,6 +28,9 @@ wvol_status wvol__check_colors(const wvol_render_params *p, const size_t n[3], i
 
 /* Per-tile parallel loop helpers. */
 int wvol__tiles(int width, int height, int tile);
+/* The tiles (index x + tiles_x * y) in Z order (Morton), so that consecutive tiles are
+ * neighbours and share the bricks they read; malloc'ed, NULL when out of memory. */
+int *wvol__tile_order(int width, int height, int tile);
 
 /* Shading factor for a normalised gradient and the view direction (headlight). */
 double wvol__shade(const double grad[3], const double dir[3], double ambient);
@@ -39,17 +42,48 @@ void wvol__params(wvol_render_params *out, const wvol_render_params *in);
 wvol_status wvol__render_check(const wvol_image *img, const wvol_camera *cam, const wvol_tf *tf,
                                const wvol_render_params *p, wvol_error *err);
 
-/* What the reference integrator samples: a dense volume (trilinear) or a callback. */
+/* Voxels lo..hi (inclusive, global indices per axis) of a volume or of one brick:
+ * voxel (i, j, k) at data[(i - off[0]) + sy (j - off[1]) + sz (k - off[2])]. Trilinear
+ * samples clamp to that range. */
+typedef struct wvol__view {
+    const float *data;
+    long off[3], lo[3], hi[3];
+    double flo[3], fhi[3];  /* lo, hi as doubles (wvol__view_finish) */
+    size_t sy, sz;
+} wvol__view;
+
+void wvol__view_finish(wvol__view *w);
+
+/* What the reference integrator samples: trilinear interpolation of voxels, from a dense
+ * volume (v, whole) or a bricked source (fetch), or a callback (eval). Bricks are cubes of
+ * B^3 voxel cells: brick b covers index coordinates [b B - 1/2, (b + 1) B - 1/2) per axis,
+ * and its trilinear samples (and the +-1/2 voxel differences of shading) touch voxels
+ * b B - 1 .. (b + 1) B only. */
 typedef struct wvol__sampler {
-    const wvol_volume *v;                                             /* trilinear, or NULL */
+    const wvol_volume *v;                                             /* dense, or NULL */
+    wvol__view whole;                                                 /* dense: all of v */
     double (*eval)(const void *ctx, const double x[3], double grad[3]); /* index coords; grad in index units */
     const void *ctx;
+    /* bricked source: prepare() (called once the TF is in world units) sets B, bn and tctx
+     * (one context per thread, indexed by omp_get_thread_num()); fetch() gives brick b's
+     * view of voxels b B - 1 .. (b + 1) B (clipped to the volume), and sets *empty when no
+     * sample of the brick contributes (wvol__brick_empty on the voxels' range, or on a
+     * bound of it, in which case the view is not updated). */
+    wvol_status (*prepare)(struct wvol__sampler *s, const wvol_tf *tf_world, const wvol_render_params *p,
+                           wvol_error *err);
+    wvol_status (*fetch)(void *tctx, size_t brick, wvol__view *view, int *empty);
+    void **tctx;
+    void *src;              /* the bricked source's own state */
     size_t n[3];
     double spacing[3], origin[3];
-    int B;                  /* brick grid, filled by the integrator */
+    int B;                  /* brick grid: filled by the integrator (dense) or prepare() */
     size_t bn[3];
-    unsigned char *empty;
+    unsigned char *empty;   /* dense: 1 for an empty brick; freed by the integrator */
 } wvol__sampler;
+
+/* A brick whose samples lie in [mn, mx] adds nothing: kappa is 0 over that range, or (X-ray)
+ * every sample is 0. tf in world units. */
+int wvol__brick_empty(const wvol_tf *tf, wvol_render_mode mode, double mn, double mx);
 
 wvol_status wvol__render_sampled(wvol_image *img, wvol__sampler *s, const wvol_camera *cam, const wvol_tf *tf,
                                  const wvol_render_params *params, wvol_render_stats *stats, wvol_error *err);

@@ -62,52 +62,63 @@ wvol_status wvol_idwt3_level(wvol_volume **out, const wvol_coeffs *c, int stop_l
 
 static ptrdiff_t floor_div2(ptrdiff_t a) { return a >= 0 ? a / 2 : -((-a + 1) / 2); }
 
-typedef struct region {
-    ptrdiff_t lo[3], n[3]; /* unwrapped indices [lo, lo + n) per axis */
-} region;
+static size_t region_count(const ptrdiff_t n[3]) { return (size_t)(n[0] * n[1] * n[2]); }
 
-static size_t region_count(const region *r) { return (size_t)(r->n[0] * r->n[1] * r->n[2]); }
-
-/* Band `band` of level m of c on region r (indices taken periodically) into dst. */
-static void gather(double *dst, const wvol_coeffs *c, int m, int band, const region *r)
+/* Dense source: band `band` of level m of a wvol_coeffs on the region (indices taken
+ * periodically). Returns 0 when every value is zero. */
+static int gather_dense(const void *ctx, double *dst, int m, int band, const ptrdiff_t lo[3], const ptrdiff_t n[3])
 {
+    const wvol_coeffs *c = ctx;
     size_t pad[3] = {c->px, c->py, c->pz}, e[3], off[3];
+    int any = 0;
     for (int a = 0; a < 3; a++) {
         e[a] = wvol__extent(pad[a], m);
         off[a] = ((band >> a) & 1) ? e[a] : 0;
     }
     size_t t = 0;
-    for (ptrdiff_t k = 0; k < r->n[2]; k++) {
-        ptrdiff_t zk = (r->lo[2] + k) % (ptrdiff_t)e[2];
+    for (ptrdiff_t k = 0; k < n[2]; k++) {
+        ptrdiff_t zk = (lo[2] + k) % (ptrdiff_t)e[2];
         size_t z = off[2] + (size_t)(zk < 0 ? zk + (ptrdiff_t)e[2] : zk);
-        for (ptrdiff_t j = 0; j < r->n[1]; j++) {
-            ptrdiff_t yj = (r->lo[1] + j) % (ptrdiff_t)e[1];
+        for (ptrdiff_t j = 0; j < n[1]; j++) {
+            ptrdiff_t yj = (lo[1] + j) % (ptrdiff_t)e[1];
             size_t y = off[1] + (size_t)(yj < 0 ? yj + (ptrdiff_t)e[1] : yj);
             const float *row = c->data + c->px * (y + c->py * z) + off[0];
-            ptrdiff_t xi = r->lo[0] % (ptrdiff_t)e[0];
+            ptrdiff_t xi = lo[0] % (ptrdiff_t)e[0];
             if (xi < 0) xi += (ptrdiff_t)e[0];
-            for (ptrdiff_t i = 0; i < r->n[0]; i++) {
-                dst[t++] = row[xi];
+            for (ptrdiff_t i = 0; i < n[0]; i++) {
+                dst[t] = row[xi];
+                any |= dst[t++] != 0.0;
                 if (++xi == (ptrdiff_t)e[0]) xi = 0;
             }
         }
     }
+    return any;
 }
 
-/* Synthesis along `axis` on unwrapped indices: in arrays lo/hi cover the region `in`
- * (along the axis [k0, k0+kn)), out covers [o0, o0+on) along the axis and in's extent
- * along the others. out[i] = sum_k h[i-2k] lo[k] + g[i-2k] hi[k], 0 <= i-2k < L. When
- * the input region is a whole period (full), k is taken modulo it. */
-static void synth_axis(double *out, const double *lo, const double *hi, const region *in, ptrdiff_t o0,
-                       ptrdiff_t on, int axis, int full, const wvol_filter *f)
+void wvol__coef_source_of_coeffs(wvol__coef_source *src, const wvol_coeffs *c)
+{
+    src->gather = gather_dense;
+    src->ctx = c;
+    src->filter = c->filter;
+    src->levels = c->levels;
+    src->dims[0] = c->nx, src->dims[1] = c->ny, src->dims[2] = c->nz;
+    src->pad[0] = c->px, src->pad[1] = c->py, src->pad[2] = c->pz;
+}
+
+/* Synthesis along `axis` on unwrapped indices: in arrays lo/hi (either may be NULL: all
+ * zero) cover the region (in_lo, in_n) (along the axis [k0, k0+kn)), out covers [o0, o0+on)
+ * along the axis and in's extent along the others. out[i] = sum_k h[i-2k] lo[k] + g[i-2k]
+ * hi[k], 0 <= i-2k < L. When the input region is a whole period (full), k is taken modulo it. */
+static void synth_axis(double *out, const double *lo, const double *hi, const ptrdiff_t in_lo[3],
+                       const ptrdiff_t in_n[3], ptrdiff_t o0, ptrdiff_t on, int axis, int full, const wvol_filter *f)
 {
     /* [outer][axis][inner] view, inner contiguous: the tap loop adds whole inner rows
      * (x for the y axis, xy-planes for z), which the compiler vectorises */
-    ptrdiff_t inner = 1, outer = 1, kn = in->n[axis], k0 = in->lo[axis], L = f->length;
-    for (int a = 0; a < axis; a++) inner *= in->n[a];
-    for (int a = axis + 1; a < 3; a++) outer *= in->n[a];
+    ptrdiff_t inner = 1, outer = 1, kn = in_n[axis], k0 = in_lo[axis], L = f->length;
+    for (int a = 0; a < axis; a++) inner *= in_n[a];
+    for (int a = axis + 1; a < 3; a++) outer *= in_n[a];
     for (ptrdiff_t u = 0; u < outer; u++) {
-        const double *lu = lo + u * kn * inner, *hu = hi ? hi + u * kn * inner : NULL;
+        const double *lu = lo ? lo + u * kn * inner : NULL, *hu = hi ? hi + u * kn * inner : NULL;
         for (ptrdiff_t i = 0; i < on; i++) {
             double *restrict o = out + (u * on + i) * inner;
             ptrdiff_t gi = o0 + i, kmin = -floor_div2(L - 1 - gi), kmax = floor_div2(gi), k;
@@ -121,12 +132,15 @@ static void synth_axis(double *out, const double *lo, const double *hi, const re
             if (rel < 0) rel += kn;
             for (k = kmin; k <= kmax; k++) {
                 double wh = f->h[gi - 2 * k], wg = f->g[gi - 2 * k];
-                const double *restrict l = lu + rel * inner;
-                if (hu) {
-                    const double *restrict hh = hu + rel * inner;
+                if (lu && hu) {
+                    const double *restrict l = lu + rel * inner, *restrict hh = hu + rel * inner;
                     for (ptrdiff_t x = 0; x < inner; x++) o[x] += wh * l[x] + wg * hh[x];
-                } else {
+                } else if (lu) {
+                    const double *restrict l = lu + rel * inner;
                     for (ptrdiff_t x = 0; x < inner; x++) o[x] += wh * l[x];
+                } else {
+                    const double *restrict hh = hu + rel * inner;
+                    for (ptrdiff_t x = 0; x < inner; x++) o[x] += wg * hh[x];
                 }
                 if (++rel == kn) rel = 0;
             }
@@ -134,104 +148,157 @@ static void synth_axis(double *out, const double *lo, const double *hi, const re
     }
 }
 
+/* Scratch arrays: grown, never shrunk; freed by wvol__brick_scratch_free. */
+static double *scratch_get(wvol__brick_scratch *s, int slot, size_t n)
+{
+    if (s->cap[slot] < n) {
+        double *p = realloc(s->buf[slot], n * sizeof *p);
+        if (!p) return NULL;
+        s->buf[slot] = p;
+        s->cap[slot] = n;
+    }
+    return s->buf[slot];
+}
+
+void wvol__brick_scratch_free(wvol__brick_scratch *s)
+{
+    for (int i = 0; i < WVOL__BRICK_SCRATCH; i++) free(s->buf[i]);
+    memset(s, 0, sizeof *s);
+}
+
+size_t wvol__brick_scratch_bytes(const wvol__brick_scratch *s)
+{
+    size_t b = 0;
+    for (int i = 0; i < WVOL__BRICK_SCRATCH; i++) b += s->cap[i] * sizeof(double);
+    return b;
+}
+
+wvol_status wvol__idwt3_brick_src(float *out, const wvol__coef_source *src, const size_t lo[3], const size_t hi[3],
+                                  wvol__brick_scratch *scr, wvol_error *err)
+{
+    const size_t *pad = src->pad;
+    ptrdiff_t rlo[33][3], rn[33][3];
+    /* bands[b] is scratch slot slot[b] or NULL (all zero); slots 0..7 hold bands, 8..15 spare */
+    double *bands[8];
+    int slot[8], free_slots[16], nfree = 0, M = src->levels, a;
+    size_t outn = (hi[0] - lo[0]) * (hi[1] - lo[1]) * (hi[2] - lo[2]);
+    WVOL_RETURN_IF(M < 0 || M > 32, err, WVOL_ERR_ARG, "brick: %d levels", M);
+    /* R_m: the level-m coefficients that reach R_{m-1}: 0 <= i - 2k <= L-1 */
+    for (a = 0; a < 3; a++) {
+        rlo[0][a] = (ptrdiff_t)lo[a];
+        rn[0][a] = (ptrdiff_t)(hi[a] - lo[a]);
+    }
+    for (int m = 1; m <= M; m++)
+        for (a = 0; a < 3; a++) {
+            if (pad[a] == 1) {
+                rlo[m][a] = 0, rn[m][a] = 1;
+                continue;
+            }
+            ptrdiff_t l0 = rlo[m - 1][a], h0 = l0 + rn[m - 1][a];
+            ptrdiff_t kl = -floor_div2(src->filter->length - 1 - l0), kh = floor_div2(h0 - 1) + 1;
+            ptrdiff_t e = (ptrdiff_t)wvol__extent(pad[a], m);
+            /* a region at least one period long is the whole period (long filters, deep
+             * levels): its synthesis indexes the coefficients periodically */
+            if (kh - kl >= e) kl = 0, kh = e;
+            rlo[m][a] = kl, rn[m][a] = kh - kl;
+        }
+    for (int i = 15; i >= 0; i--) free_slots[nfree++] = i;
+#define TAKE(b, n)                                                                                          \
+    do {                                                                                                    \
+        slot[b] = free_slots[--nfree];                                                                      \
+        bands[b] = scratch_get(scr, slot[b], (n));                                                          \
+        if (!bands[b]) return wvol_error_set(err, WVOL_ERR_NOMEM, "brick: out of memory");                  \
+    } while (0)
+#define DROP(b)                                                                                             \
+    do {                                                                                                    \
+        if (bands[b]) free_slots[nfree++] = slot[b];                                                        \
+        bands[b] = NULL;                                                                                    \
+    } while (0)
+    for (int b = 0; b < 8; b++) bands[b] = NULL;
+    if (M == 0) {
+        TAKE(0, region_count(rn[0]));
+        if (!src->gather(src->ctx, bands[0], 0, 0, rlo[0], rn[0])) DROP(0);
+    } else {
+        TAKE(0, region_count(rn[M]));
+        if (!src->gather(src->ctx, bands[0], M, 0, rlo[M], rn[M])) DROP(0);
+    }
+    for (int m = M; m >= 1; m--) {
+        size_t cnt = region_count(rn[m]);
+        for (int b = 1; b < 8; b++) {
+            int valid = 1;
+            for (a = 0; a < 3; a++)
+                if (((b >> a) & 1) && pad[a] == 1) valid = 0;
+            if (!valid) continue;
+            TAKE(b, cnt);
+            if (!src->gather(src->ctx, bands[b], m, b, rlo[m], rn[m])) DROP(b);
+        }
+        /* z, then y, then x: each halves the number of band arrays */
+        ptrdiff_t cl[3], cn[3];
+        int nb = 8;
+        for (a = 0; a < 3; a++) cl[a] = rlo[m][a], cn[a] = rn[m][a];
+        for (int ax = 2; ax >= 0; ax--) {
+            if (pad[ax] == 1) continue; /* untransformed: only the low band exists */
+            ptrdiff_t nl[3] = {cl[0], cl[1], cl[2]}, nn[3] = {cn[0], cn[1], cn[2]};
+            nl[ax] = rlo[m - 1][ax], nn[ax] = rn[m - 1][ax];
+            size_t ncnt = region_count(nn);
+            int half = 1 << ax; /* band bit of this axis */
+            for (int b = 0; b < nb; b++) {
+                if (b & half) continue;
+                if (!bands[b] && !bands[b | half]) continue; /* both zero: the output is zero */
+                int so = free_slots[--nfree];
+                double *o = scratch_get(scr, so, ncnt);
+                if (!o) return wvol_error_set(err, WVOL_ERR_NOMEM, "brick: out of memory");
+                synth_axis(o, bands[b], bands[b | half], cl, cn, rlo[m - 1][ax], rn[m - 1][ax], ax,
+                           cn[ax] == (ptrdiff_t)wvol__extent(pad[ax], m), src->filter);
+                DROP(b);
+                DROP(b | half);
+                bands[b] = o;
+                slot[b] = so;
+            }
+            for (a = 0; a < 3; a++) cl[a] = nl[a], cn[a] = nn[a];
+        }
+    }
+    if (bands[0]) {
+        for (size_t i = 0; i < outn; i++) out[i] = (float)bands[0][i];
+    } else {
+        memset(out, 0, outn * sizeof *out);
+    }
+#undef TAKE
+#undef DROP
+    return WVOL_OK;
+}
+
 wvol_status wvol_idwt3_brick(wvol_volume **out, const wvol_coeffs *c, const size_t lo[3], const size_t hi[3],
                              wvol_error *err)
 {
-    size_t dims[3], pad[3];
-    region reg[31];
-    double *A = NULL, *bands[8] = {0};
+    size_t dims[3];
     wvol_volume *v = NULL;
-    wvol_status st = WVOL_OK;
-    int M, a;
+    wvol__coef_source src;
+    wvol__brick_scratch scr;
+    wvol_status st;
+    int a;
     WVOL_RETURN_IF(!out, err, WVOL_ERR_ARG, "wvol_idwt3_brick: out is NULL");
     *out = NULL;
     WVOL_FORWARD(wvol__coeffs_check(c, err));
     WVOL_RETURN_IF(!lo || !hi, err, WVOL_ERR_ARG, "wvol_idwt3_brick: box is NULL");
     dims[0] = c->nx, dims[1] = c->ny, dims[2] = c->nz;
-    pad[0] = c->px, pad[1] = c->py, pad[2] = c->pz;
     for (a = 0; a < 3; a++)
         WVOL_RETURN_IF(lo[a] >= hi[a] || hi[a] > dims[a], err, WVOL_ERR_ARG,
                        "wvol_idwt3_brick: box [%zu, %zu) along %c is empty or outside 0..%zu", lo[a], hi[a],
                        "xyz"[a], dims[a]);
-    M = c->levels;
-    /* R_m: the level-m coefficients that reach R_{m-1}: 0 <= i - 2k <= L-1 */
+    WVOL_FORWARD(wvol_volume_create(&v, hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2], err));
+    wvol__coef_source_of_coeffs(&src, c);
+    memset(&scr, 0, sizeof scr);
+    st = wvol__idwt3_brick_src(v->data, &src, lo, hi, &scr, err);
+    wvol__brick_scratch_free(&scr);
+    if (st != WVOL_OK) {
+        wvol_volume_destroy(v);
+        return st;
+    }
     for (a = 0; a < 3; a++) {
-        reg[0].lo[a] = (ptrdiff_t)lo[a];
-        reg[0].n[a] = (ptrdiff_t)(hi[a] - lo[a]);
+        v->spacing[a] = c->spacing[a];
+        v->origin[a] = c->origin[a] + c->spacing[a] * (double)lo[a];
     }
-    for (int m = 1; m <= M; m++)
-        for (a = 0; a < 3; a++) {
-            if (pad[a] == 1) {
-                reg[m].lo[a] = 0, reg[m].n[a] = 1;
-                continue;
-            }
-            ptrdiff_t l0 = reg[m - 1].lo[a], h0 = l0 + reg[m - 1].n[a];
-            ptrdiff_t kl = -floor_div2(c->filter->length - 1 - l0), kh = floor_div2(h0 - 1) + 1;
-            ptrdiff_t e = (ptrdiff_t)wvol__extent(pad[a], m);
-            /* a region at least one period long is the whole period (long filters, deep
-             * levels): its synthesis indexes the coefficients periodically */
-            if (kh - kl >= e) kl = 0, kh = e;
-            reg[m].lo[a] = kl, reg[m].n[a] = kh - kl;
-        }
-    A = malloc(region_count(&reg[M]) * sizeof *A);
-    if (!A) goto nomem;
-    gather(A, c, M, 0, &reg[M]);
-    for (int m = M; m >= 1; m--) {
-        const region *r = &reg[m], *q = &reg[m - 1];
-        size_t cnt = region_count(r);
-        bands[0] = A;
-        A = NULL;
-        for (int b = 1; b < 8; b++) {
-            int valid = 1;
-            for (a = 0; a < 3; a++)
-                if (((b >> a) & 1) && pad[a] == 1) valid = 0;
-            free(bands[b]);
-            bands[b] = NULL;
-            if (!valid) continue;
-            if (!(bands[b] = malloc(cnt * sizeof(double)))) goto nomem;
-            gather(bands[b], c, m, b, r);
-        }
-        /* z, then y, then x: each halves the number of band arrays */
-        region cur = *r;
-        int nb = 8;
-        double **src = bands;
-        for (int ax = 2; ax >= 0; ax--) {
-            if (pad[ax] == 1) continue; /* untransformed: only the low band exists */
-            region nxt = cur;
-            nxt.lo[ax] = q->lo[ax], nxt.n[ax] = q->n[ax];
-            size_t ncnt = region_count(&nxt);
-            int half = 1 << ax; /* band bit of this axis */
-            for (int b = 0; b < nb; b++) {
-                if ((b & half) || !src[b]) continue; /* NULL: high-pass on a 1-voxel axis */
-                double *o = malloc(ncnt * sizeof *o);
-                if (!o) goto nomem;
-                synth_axis(o, src[b], src[b | half], &cur, q->lo[ax], q->n[ax], ax,
-                           cur.n[ax] == (ptrdiff_t)wvol__extent(pad[ax], m), c->filter);
-                free(src[b]);
-                free(src[b | half]);
-                src[b] = o;
-                src[b | half] = NULL;
-            }
-            cur = nxt;
-        }
-        A = bands[0];
-        bands[0] = NULL;
-    }
-    st = wvol_volume_create(&v, hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2], err);
-    if (st == WVOL_OK) {
-        size_t cnt = wvol_volume_count(v);
-        for (size_t i = 0; i < cnt; i++) v->data[i] = (float)A[i];
-        for (a = 0; a < 3; a++) {
-            v->spacing[a] = c->spacing[a];
-            v->origin[a] = c->origin[a] + c->spacing[a] * (double)lo[a];
-        }
-        *out = v;
-    }
-    free(A);
-    for (int b = 0; b < 8; b++) free(bands[b]);
-    return st;
-nomem:
-    free(A);
-    for (int b = 0; b < 8; b++) free(bands[b]);
-    return wvol_error_set(err, WVOL_ERR_NOMEM, "wvol_idwt3_brick: out of memory");
+    *out = v;
+    return WVOL_OK;
 }

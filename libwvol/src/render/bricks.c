@@ -1,0 +1,477 @@
+/* SPDX-License-Identifier: MIT
+ * The bricked renderer: the reference integrator (trilinear samples, front-to-back, early
+ * termination; reference.c) reading its samples from bricks reconstructed on demand from a
+ * store, never from the dense volume.
+ *
+ * - A block-sparse view of the store's coefficients: per (level, band) a directory of
+ *   blocks of 4^3 coefficient positions, a block present only where a kept coefficient
+ *   lies: a 64-bit mask of its kept positions and the offset of its values, stored
+ *   compactly (rank of a position = popcount of the mask below it). Built in two passes
+ *   over the kept coefficients: 4 bytes per kept coefficient, 12 per present block, 4 per
+ *   directory entry (1/64 of the bands' size). The low-pass cube is read from the store.
+ * - Bricks of B^3 voxel cells (render_internal.h): a brick's voxels b B - 1 .. (b + 1) B are
+ *   reconstructed by a local inverse transform (wvol__idwt3_brick_src) that gathers its
+ *   coefficients through the view and skips every band that is zero there.
+ * - Before reconstructing, a brick's samples are bounded from the coefficients alone
+ *   (wavelet/bounds.c, the bound the bricked isosurface uses); when kappa is 0 over the
+ *   bound the brick is skipped unreconstructed. After reconstruction its actual min/max
+ *   decide like the dense path's min/max grid, so skipping never changes the image.
+ * - Threads take image tiles; each has a bounded 4-way set-associative cache of bricks
+ *   (least recently used way evicted). A brick evicted and met again is rebuilt.
+ * Samples, weights and compositing are the reference's, so on the same voxels the image
+ * is the reference's image to float rounding (tests/c/test_render_bricks.c). */
+#include "render_internal.h"
+#include "wavelet/wavelet_internal.h"
+
+#include <math.h>
+#include <omp.h>
+#include <stdint.h>
+#include <stdlib.h>
+#include <string.h>
+
+#define CB_SHIFT 2 /* blocks of 4^3 = 64 coefficient positions: one 64-bit mask */
+#define CB (1 << CB_SHIFT)
+
+typedef struct cblock {
+    uint64_t mask;     /* bit x + 4 y + 16 z: position kept */
+    uint32_t first;    /* index of its first value in the values array */
+} cblock;
+
+/* ---- block-sparse view of the kept coefficients ---------------------------------------- */
+
+typedef struct band_view {
+    size_t e[3];       /* band extent */
+    size_t nb[3];      /* blocks per axis */
+    uint32_t *dir;     /* nb0 nb1 nb2: 1 + block number in the pool, 0 = no kept coefficient */
+} band_view;
+
+typedef struct coef_blocks {
+    int M;
+    band_view bv[WVOL_SELECT_MAX_LEVELS + 1][8];
+    cblock *blocks;    /* nblocks; directory entries index it + 1 */
+    float *values;     /* nvalues, block by block, position order within a block */
+    size_t nblocks, nvalues;
+    const float *low;  /* the store's low-pass cube, E0 E1 E2 */
+    size_t E[3];
+    size_t bytes;
+} coef_blocks;
+
+static void blocks_free(coef_blocks *cb)
+{
+    for (int m = 0; m <= WVOL_SELECT_MAX_LEVELS; m++)
+        for (int l = 0; l < 8; l++) free(cb->bv[m][l].dir);
+    free(cb->blocks);
+    free(cb->values);
+}
+
+/* Builds the view; when bb is not NULL, also feeds every kept detail coefficient to the
+ * brick bounds (one pass over the store serves both). */
+static wvol_status blocks_build(coef_blocks *cb, const wvol_store *s, wvol__brick_bounds *bb, wvol_error *err)
+{
+    wvol_store_info info;
+    wvol_store_iter it;
+    wvol_store_coeff c;
+    size_t pad[3];
+    int a, m, l;
+    wvol_store_get_info(s, &info);
+    memset(cb, 0, sizeof *cb);
+    cb->M = info.levels;
+    cb->low = wvol_store_lowpass(s);
+    for (a = 0; a < 3; a++) cb->E[a] = info.lowpass[a];
+    pad[0] = info.px, pad[1] = info.py, pad[2] = info.pz;
+    for (m = 1; m <= cb->M; m++)
+        for (l = 1; l < 8; l++) {
+            band_view *bv = &cb->bv[m][l];
+            size_t n = 1;
+            for (a = 0; a < 3; a++) {
+                bv->e[a] = wvol__extent(pad[a], m);
+                bv->nb[a] = (bv->e[a] + CB - 1) >> CB_SHIFT;
+                n *= bv->nb[a];
+                if (((l >> a) & 1) && pad[a] == 1) n = 0; /* no high-pass on an untransformed axis */
+            }
+            if (!n) continue;
+            bv->dir = calloc(n, sizeof *bv->dir);
+            WVOL_RETURN_IF(!bv->dir, err, WVOL_ERR_NOMEM, "render: out of memory for the coefficient blocks");
+            cb->bytes += n * sizeof *bv->dir;
+        }
+    /* pass 1: the blocks and their masks; the blocks grow by doubling */
+    {
+        size_t cap = 0;
+        memset(&it, 0, sizeof it);
+        while (wvol_store_next(s, &it, &c)) {
+            band_view *bv;
+            size_t i;
+            if (c.band == 0) continue; /* the low-pass cube */
+            bv = &cb->bv[c.level][c.band];
+            i = (c.p >> CB_SHIFT) + bv->nb[0] * ((c.q >> CB_SHIFT) + bv->nb[1] * (c.r >> CB_SHIFT));
+            if (!bv->dir[i]) {
+                if (cb->nblocks == cap) {
+                    size_t nc = cap ? 2 * cap : 1024;
+                    cblock *nb = realloc(cb->blocks, nc * sizeof *nb);
+                    WVOL_RETURN_IF(!nb || nc >= UINT32_MAX, err, WVOL_ERR_NOMEM,
+                                   "render: out of memory for the coefficient blocks");
+                    cb->blocks = nb;
+                    cap = nc;
+                }
+                cb->blocks[cb->nblocks].mask = 0;
+                bv->dir[i] = (uint32_t)++cb->nblocks;
+            }
+            cb->blocks[bv->dir[i] - 1].mask |= (uint64_t)1 << ((c.p & (CB - 1)) + CB * ((c.q & (CB - 1)) +
+                                                                                   CB * (c.r & (CB - 1))));
+            if (bb) wvol__bounds_add(bb, c.level, c.band, c.p, c.q, c.r, c.value);
+        }
+        cb->bytes += cap * sizeof *cb->blocks;
+    }
+    for (size_t i = 0; i < cb->nblocks; i++) {
+        cb->blocks[i].first = (uint32_t)cb->nvalues;
+        cb->nvalues += (size_t)__builtin_popcountll(cb->blocks[i].mask);
+    }
+    cb->values = malloc((cb->nvalues + 1) * sizeof *cb->values);
+    WVOL_RETURN_IF(!cb->values, err, WVOL_ERR_NOMEM, "render: out of memory for %zu coefficients", cb->nvalues);
+    cb->bytes += cb->nvalues * sizeof *cb->values;
+    /* pass 2: the values, each at its rank within its block */
+    memset(&it, 0, sizeof it);
+    while (wvol_store_next(s, &it, &c)) {
+        band_view *bv;
+        const cblock *b;
+        size_t i;
+        int bit;
+        if (c.band == 0) continue;
+        bv = &cb->bv[c.level][c.band];
+        i = (c.p >> CB_SHIFT) + bv->nb[0] * ((c.q >> CB_SHIFT) + bv->nb[1] * (c.r >> CB_SHIFT));
+        b = &cb->blocks[bv->dir[i] - 1];
+        bit = (int)((c.p & (CB - 1)) + CB * ((c.q & (CB - 1)) + CB * (c.r & (CB - 1))));
+        cb->values[b->first + (size_t)__builtin_popcountll(b->mask & (((uint64_t)1 << bit) - 1))] = c.value;
+    }
+    return WVOL_OK;
+}
+
+static inline size_t wrap(ptrdiff_t k, size_t e)
+{
+    ptrdiff_t r = k % (ptrdiff_t)e;
+    return (size_t)(r < 0 ? r + (ptrdiff_t)e : r);
+}
+
+/* wvol__coef_source gather through the view. */
+static int gather_blocks(const void *ctx, double *dst, int m, int band, const ptrdiff_t lo[3], const ptrdiff_t n[3])
+{
+    const coef_blocks *cb = ctx;
+    size_t t = 0;
+    int any = 0;
+    if (m == cb->M && band == 0) {
+        for (ptrdiff_t k = 0; k < n[2]; k++) {
+            size_t z = wrap(lo[2] + k, cb->E[2]);
+            for (ptrdiff_t j = 0; j < n[1]; j++) {
+                const float *row = cb->low + cb->E[0] * (wrap(lo[1] + j, cb->E[1]) + cb->E[1] * z);
+                size_t x = wrap(lo[0], cb->E[0]);
+                for (ptrdiff_t i = 0; i < n[0]; i++) {
+                    dst[t++] = row[x];
+                    if (++x == cb->E[0]) x = 0;
+                }
+            }
+        }
+        return 1;
+    }
+    const band_view *bv = &cb->bv[m][band];
+    if (!bv->dir) return 0;
+    for (ptrdiff_t k = 0; k < n[2]; k++) {
+        size_t z = wrap(lo[2] + k, bv->e[2]);
+        for (ptrdiff_t j = 0; j < n[1]; j++) {
+            size_t y = wrap(lo[1] + j, bv->e[1]);
+            const uint32_t *drow = bv->dir + bv->nb[0] * ((y >> CB_SHIFT) + bv->nb[1] * (z >> CB_SHIFT));
+            size_t inner = CB * ((y & (CB - 1)) + CB * (z & (CB - 1)));
+            size_t x = wrap(lo[0], bv->e[0]);
+            for (ptrdiff_t i = 0; i < n[0];) {
+                /* a run of positions within one block */
+                size_t run = CB - (x & (CB - 1)), left = (size_t)(n[0] - i), r;
+                uint32_t blk = drow[x >> CB_SHIFT];
+                if (run > left) run = left;
+                if (run > bv->e[0] - x) run = bv->e[0] - x;
+                if (blk) {
+                    const cblock *b = &cb->blocks[blk - 1];
+                    const float *vals = cb->values + b->first;
+                    int bit = (int)(inner + (x & (CB - 1)));
+                    for (r = 0; r < run; r++, bit++) {
+                        uint64_t m = (uint64_t)1 << bit;
+                        dst[t + r] = (b->mask & m) ? vals[__builtin_popcountll(b->mask & (m - 1))] : 0.0;
+                    }
+                    any = 1;
+                } else {
+                    for (r = 0; r < run; r++) dst[t + r] = 0.0;
+                }
+                t += run;
+                i += (ptrdiff_t)run;
+                x += run;
+                if (x == bv->e[0]) x = 0;
+            }
+        }
+    }
+    return any;
+}
+
+/* ---- the source: bounds, per-thread brick caches ------------------------------------------ */
+
+#define WAYS 4
+
+typedef struct brick_src {
+    wvol__coef_source cs;
+    coef_blocks blocks;
+    wvol__brick_bounds *bounds;   /* NULL: no bound (an untransformed axis) */
+    const wvol_tf *tf;            /* world units */
+    wvol_render_mode mode;
+    size_t n[3], bn[3];
+    int B;
+    size_t slot_floats;
+    int nthreads;
+    unsigned char *state;         /* per brick: 0 not seen, 1 empty by its bound, 2 reconstructed */
+} brick_src;
+
+typedef struct brick_cache {
+    const brick_src *src;
+    size_t nsets;
+    long *id;                /* per slot: brick index or -1 */
+    uint64_t *used;          /* per slot: last use */
+    float *data;             /* per slot: slot_floats */
+    double *mn, *mx;
+    long (*box)[6];          /* per slot: lo[3], hi[3] (inclusive) */
+    uint64_t clock;
+    wvol__brick_scratch scr;
+    size_t built;
+} brick_cache;
+
+static void cache_free(brick_cache *c)
+{
+    if (!c) return;
+    free(c->id);
+    free(c->used);
+    free(c->data);
+    free(c->mn);
+    free(c->mx);
+    free(c->box);
+    wvol__brick_scratch_free(&c->scr);
+    free(c);
+}
+
+static brick_cache *cache_new(const brick_src *src, size_t slots)
+{
+    brick_cache *c = calloc(1, sizeof *c);
+    if (!c) return NULL;
+    c->src = src;
+    c->nsets = (slots + WAYS - 1) / WAYS;
+    slots = c->nsets * WAYS;
+    c->id = malloc(slots * sizeof *c->id);
+    c->used = calloc(slots, sizeof *c->used);
+    c->data = malloc(slots * src->slot_floats * sizeof *c->data);
+    c->mn = malloc(slots * sizeof *c->mn);
+    c->mx = malloc(slots * sizeof *c->mx);
+    c->box = malloc(slots * sizeof *c->box);
+    if (!c->id || !c->used || !c->data || !c->mn || !c->mx || !c->box) {
+        cache_free(c);
+        return NULL;
+    }
+    for (size_t i = 0; i < slots; i++) c->id[i] = -1;
+    return c;
+}
+
+static size_t cache_bytes(const brick_cache *c)
+{
+    size_t slots = c->nsets * WAYS;
+    return sizeof *c + slots * (c->src->slot_floats * sizeof(float) + sizeof(long) + sizeof(uint64_t) +
+                                2 * sizeof(double) + 6 * sizeof(long)) +
+           wvol__brick_scratch_bytes(&c->scr);
+}
+
+static void brick_box(const brick_src *src, size_t b, long lo[3], long hi[3])
+{
+    size_t bi[3] = {b % src->bn[0], (b / src->bn[0]) % src->bn[1], b / (src->bn[0] * src->bn[1])};
+    for (int a = 0; a < 3; a++) {
+        long l = (long)bi[a] * src->B - 1, h = ((long)bi[a] + 1) * src->B;
+        lo[a] = l < 0 ? 0 : l;
+        hi[a] = h > (long)src->n[a] - 1 ? (long)src->n[a] - 1 : h;
+    }
+}
+
+static wvol_status fetch(void *tctx, size_t b, wvol__view *view, int *empty)
+{
+    brick_cache *c = tctx;
+    const brick_src *src = c->src;
+    size_t set = (b * 0x9E3779B97F4A7C15ull >> 20) % c->nsets, w, slot, victim = set * WAYS;
+    long lo[3], hi[3];
+    c->clock++;
+    for (w = 0; w < WAYS; w++) {
+        slot = set * WAYS + w;
+        if (c->id[slot] == (long)b) goto hit;
+        if (c->used[slot] < c->used[victim]) victim = slot;
+    }
+    brick_box(src, b, lo, hi);
+    if (src->bounds) {
+        /* the bound is computed once per brick (by whichever thread meets it first; two
+         * threads may both compute it, with the same result) */
+        unsigned char known;
+#pragma omp atomic read
+        known = src->state[b];
+        if (known == 0) {
+            double bl, bh;
+            wvol__bounds_box(src->bounds, lo, hi, &bl, &bh);
+            known = wvol__brick_empty(src->tf, src->mode, bl, bh) ? 1 : 2;
+#pragma omp atomic write
+            src->state[b] = known;
+        }
+        if (known == 1) { /* no sample can contribute: no view needed */
+            *empty = 1;
+            return WVOL_OK;
+        }
+    }
+    {
+        size_t blo[3], bhi[3], cnt, i;
+        float *d = c->data + victim * src->slot_floats;
+        double mn = INFINITY, mx = -INFINITY;
+        wvol_status st;
+        for (int a = 0; a < 3; a++) {
+            blo[a] = (size_t)lo[a];
+            bhi[a] = (size_t)hi[a] + 1;
+        }
+        st = wvol__idwt3_brick_src(d, &src->cs, blo, bhi, &c->scr, NULL);
+        if (st != WVOL_OK) return st;
+        cnt = (bhi[0] - blo[0]) * (bhi[1] - blo[1]) * (bhi[2] - blo[2]);
+        for (i = 0; i < cnt; i++) {
+            if (d[i] < mn) mn = d[i];
+            if (d[i] > mx) mx = d[i];
+        }
+        slot = victim;
+        c->id[slot] = (long)b;
+        c->mn[slot] = mn;
+        c->mx[slot] = mx;
+        for (int a = 0; a < 3; a++) {
+            c->box[slot][a] = lo[a];
+            c->box[slot][3 + a] = hi[a];
+        }
+        c->built++;
+    }
+hit:
+    c->used[slot] = c->clock;
+    view->data = c->data + slot * src->slot_floats;
+    for (int a = 0; a < 3; a++) {
+        view->off[a] = view->lo[a] = c->box[slot][a];
+        view->hi[a] = c->box[slot][3 + a];
+    }
+    view->sy = (size_t)(view->hi[0] - view->lo[0] + 1);
+    view->sz = view->sy * (size_t)(view->hi[1] - view->lo[1] + 1);
+    wvol__view_finish(view);
+    *empty = wvol__brick_empty(src->tf, src->mode, c->mn[slot], c->mx[slot]);
+    return WVOL_OK;
+}
+
+/* Bytes of brick cache per thread (the bricks' samples; a 16^3 brick with its apron is
+ * 23 KiB): ~90 bricks of 16^3 + 2, ~2000 of 8^3 + 2. With tiles in Z order a thread's
+ * next tiles read mostly the bricks its last ones did (measured: about 1.1 builds per
+ * brick met for a 512^2 view of a 256^3 volume). */
+#define CACHE_BYTES ((size_t)2 << 20)
+
+static wvol_status prepare(wvol__sampler *s, const wvol_tf *tf_world, const wvol_render_params *p, wvol_error *err)
+{
+    brick_src *src = s->src;
+    size_t slots;
+    int a;
+    src->tf = tf_world;
+    src->mode = p->mode;
+    s->B = src->B;
+    for (a = 0; a < 3; a++) s->bn[a] = src->bn[a];
+    slots = CACHE_BYTES / (src->slot_floats * sizeof(float));
+    if (slots < 4 * WAYS) slots = 4 * WAYS;
+    s->tctx = calloc((size_t)src->nthreads, sizeof *s->tctx);
+    WVOL_RETURN_IF(!s->tctx, err, WVOL_ERR_NOMEM, "render: out of memory");
+    for (int t = 0; t < src->nthreads; t++) {
+        s->tctx[t] = cache_new(src, slots);
+        WVOL_RETURN_IF(!s->tctx[t], err, WVOL_ERR_NOMEM, "render: out of memory for the brick caches");
+    }
+    return WVOL_OK;
+}
+
+wvol_status wvol_render_bricks(wvol_image *img, const wvol_store *st, const wvol_camera *cam, const wvol_tf *tf,
+                               const wvol_render_params *params, wvol_render_stats *stats, wvol_error *err)
+{
+    wvol_render_params p;
+    wvol_store_info info;
+    wvol__sampler s;
+    brick_src src;
+    wvol_status status;
+    size_t pad[3], bytes = 0, built = 0, bound_skipped = 0;
+    double t0 = wvol__now(), c0 = wvol__cpu_now();
+    int a;
+    WVOL_RETURN_IF(!st, err, WVOL_ERR_ARG, "render: no store");
+    wvol__params(&p, params);
+    WVOL_FORWARD(wvol__render_check(img, cam, tf, &p, err));
+    WVOL_RETURN_IF(p.brick == 1, err, WVOL_ERR_ARG, "render: brick %d (bricks: 2..4096, or 0 for the default)",
+                   p.brick);
+    wvol_store_get_info(st, &info);
+    memset(&s, 0, sizeof s);
+    memset(&src, 0, sizeof src);
+    src.B = p.brick > 0 ? p.brick : 16;
+    src.n[0] = info.nx, src.n[1] = info.ny, src.n[2] = info.nz;
+    pad[0] = info.px, pad[1] = info.py, pad[2] = info.pz;
+    for (a = 0; a < 3; a++) {
+        src.bn[a] = (src.n[a] + (size_t)src.B - 1) / (size_t)src.B;
+        s.n[a] = src.n[a];
+        s.spacing[a] = info.spacing[a];
+        s.origin[a] = info.origin[a];
+    }
+    src.slot_floats = (size_t)(src.B + 2) * (size_t)(src.B + 2) * (size_t)(src.B + 2);
+    src.nthreads = wvol__threads(p.threads);
+    /* the bound needs every axis transformed; without it every brick is reconstructed */
+    if (pad[0] > 1 && pad[1] > 1 && pad[2] > 1 && info.levels >= 1) {
+        const float *low = wvol_store_lowpass(st);
+        WVOL_FORWARD(wvol__bounds_create(&src.bounds, info.filter, info.levels, pad, low, info.lowpass[0],
+                                         info.lowpass[0] * info.lowpass[1], err));
+    }
+    if (src.bounds) {
+        src.state = calloc(src.bn[0] * src.bn[1] * src.bn[2], 1);
+        if (!src.state) {
+            status = wvol_error_set(err, WVOL_ERR_NOMEM, "render: out of memory for the brick states");
+            goto done;
+        }
+    }
+    status = blocks_build(&src.blocks, st, src.bounds, err);
+    if (status != WVOL_OK) goto done;
+    if (src.bounds) wvol__bounds_finish(src.bounds);
+    src.cs.gather = gather_blocks;
+    src.cs.ctx = &src.blocks;
+    src.cs.filter = info.filter;
+    src.cs.levels = info.levels;
+    for (a = 0; a < 3; a++) {
+        src.cs.dims[a] = src.n[a];
+        src.cs.pad[a] = pad[a];
+    }
+    s.src = &src;
+    s.prepare = prepare;
+    s.fetch = fetch;
+    status = wvol__render_sampled(img, &s, cam, tf, &p, stats, err);
+    bytes = src.blocks.bytes + wvol__bounds_bytes(src.bounds) + (size_t)src.nthreads * sizeof(void *) +
+            (src.state ? src.bn[0] * src.bn[1] * src.bn[2] : 0);
+    if (src.state)
+        for (size_t i = 0; i < src.bn[0] * src.bn[1] * src.bn[2]; i++) bound_skipped += src.state[i] == 1;
+    if (s.tctx)
+        for (int t = 0; t < src.nthreads; t++)
+            if (s.tctx[t]) {
+                brick_cache *c = s.tctx[t];
+                bytes += cache_bytes(c);
+                built += c->built;
+            }
+    if (status == WVOL_OK && stats) {
+        /* the whole call: building the view and the bounds included */
+        stats->seconds = wvol__now() - t0;
+        stats->cpu_seconds = wvol__cpu_now() - c0;
+        stats->bricks_built = built;
+        stats->bricks_bound_skipped = bound_skipped;
+        stats->bytes = bytes;
+    }
+done:
+    if (s.tctx) {
+        for (int t = 0; t < src.nthreads; t++) cache_free(s.tctx[t]);
+        free(s.tctx);
+    }
+    blocks_free(&src.blocks);
+    wvol__bounds_free(src.bounds);
+    free(src.state);
+    return status;
+}
