@@ -311,19 +311,90 @@ static inline double exp_neg(double x)
     return p * exp2_32[ni & 31] * sc.d;
 }
 
+/* Trilinear sample at x known to lie strictly inside the view's voxel range (the caller
+ * checked the run's first and last positions; x is linear in t, so every one between). */
+static inline double trilinear_in(const wvol__view *w, const double x[3])
+{
+    long i = (long)x[0], j = (long)x[1], k = (long)x[2];
+    double wx = x[0] - (double)i, wy = x[1] - (double)j, wz = x[2] - (double)k;
+    size_t sy = w->sy, sz = w->sz;
+    const float *p = w->data + (size_t)(i - w->off[0]) + sy * (size_t)(j - w->off[1]) + sz * (size_t)(k - w->off[2]);
+    double c00 = p[0] + wx * (p[1] - p[0]);
+    double c10 = p[sy] + wx * (p[sy + 1] - p[sy]);
+    double c01 = p[sz] + wx * (p[sz + 1] - p[sz]);
+    double c11 = p[sz + sy] + wx * (p[sz + sy + 1] - p[sz + sy]);
+    double c0 = c00 + wy * (c10 - c00), c1 = c01 + wy * (c11 - c01);
+    return c0 + wz * (c1 - c0);
+}
+
+static inline int strictly_inside(const wvol__view *w, const double x[3])
+{
+    return x[0] > w->flo[0] && x[1] > w->flo[1] && x[2] > w->flo[2] && x[0] < w->fhi[0] && x[1] < w->fhi[1] &&
+           x[2] < w->fhi[2];
+}
+
+/* The compositing state of one ray. */
+typedef struct ray_acc {
+    double T, acc[3], xr;
+    int seg, nclamp;
+} ray_acc;
+
+/* One sample at index position x for a step of length h: returns 1 when the ray
+ * terminates. `inside`: x is known to be strictly inside the view (no clamping). */
+static inline __attribute__((always_inline)) int step(const wvol__sampler *s, const wvol__view *view,
+                                                      const tf_fast *tfx, const wvol_render_params *p,
+                                                      const wvol_render_mode mode, const int shading,
+                                                      const int inside, const double x[3], const double d[3],
+                                                      double h, ray_acc *r)
+{
+    double val, grad[3], rgb[3], kappa;
+    val = inside && !s->eval ? trilinear_in(view, x) : sample_at(s, view, x, NULL);
+    if (mode == WVOL_MODE_XRAY) {
+        r->xr += val * h;
+        return 0;
+    }
+    tf_fast_eval(tfx, val, &r->seg, rgb, &kappa);
+    if (kappa > 0) {
+        double alpha, shade = 1.0;
+        int a;
+        if (p->colors) nearest_color(s, p->colors, x, rgb);
+        if (mode == WVOL_MODE_ABSORPTION) {
+            alpha = 1.0 - exp_neg(-kappa * h); /* not expm1: the difference is far below the
+                                                  step's own error */
+        } else {
+            alpha = kappa * h;
+            if (alpha > 1) {
+                alpha = 1;
+                r->nclamp++;
+            }
+        }
+        if (shading) {
+            sample_at(s, view, x, grad);
+            shade = wvol__shade(grad, d, p->ambient);
+        }
+        for (a = 0; a < 3; a++) r->acc[a] += r->T * alpha * rgb[a] * shade;
+        r->T *= 1.0 - alpha;
+        if (r->T < p->termination) return 1;
+    }
+    return 0;
+}
+
 /* One ray: samples at the midpoints of steps of dt over [t0, t1], front to back. A dense
  * source's view is the whole volume; a bricked source's is fetched (through the thread's
- * context tc) when the ray enters a brick not known to be empty. The brick is looked up
- * only when the ray passes the current brick's exit. */
+ * context tc) when the ray enters a brick not known to be empty. The ray is walked in runs
+ * of full steps (length dt), one run per brick crossed: the brick is looked up once per
+ * run, and when the run's first and last sample lie strictly inside the view, its samples
+ * are taken without clamping tests. The last, shorter step (if any) is taken on its own. */
 static inline __attribute__((always_inline)) void march(const wvol__sampler *s, void *tc, const tf_fast *tfx,
                                                          const wvol_render_params *p, const wvol_render_mode mode,
                                                          const int shading, const double o[3], const double d[3],
                                                          double t0, double t1, double dt, ray_out *out)
 {
     wvol__view view = s->whole;
-    double x0[3], e[3], T = 1.0, acc[3] = {0, 0, 0}, xr = 0, t_exit = -INFINITY;
-    long k, nsteps;
-    int a, seg = -1, bricked = s->empty || s->fetch, cur_empty = 0, nclamp = 0;
+    double x0[3], e[3], t_exit = -INFINITY;
+    ray_acc r = {1.0, {0, 0, 0}, 0, -1, 0};
+    long k = 0, nsteps, nfull;
+    int a, bricked = s->empty || s->fetch, cur_empty = 0, done = 0;
     size_t nsamp = 0, nskip = 0; /* counted in locals: out may alias nothing, but the
                                     compiler cannot know */
     for (a = 0; a < 3; a++) {
@@ -332,12 +403,12 @@ static inline __attribute__((always_inline)) void march(const wvol__sampler *s, 
     }
     nsteps = (long)ceil((t1 - t0) / dt);
     if (nsteps < 1) nsteps = 1;
-    for (k = 0; k < nsteps; k++) {
-        double ta = t0 + k * dt, tb = ta + dt, t, x[3], val, grad[3], rgb[3], kappa, h;
-        if (tb > t1) tb = t1;
-        h = tb - ta;
-        if (!(h > 0)) break;
-        t = 0.5 * (ta + tb);
+    nfull = nsteps;
+    while (nfull > 0 && t0 + (double)nfull * dt > t1) nfull--; /* steps ending by t1 */
+#define T_AT(kk) (t0 + ((double)(kk) + 0.5) * dt)
+    while (k < nfull && !done) {
+        double t = T_AT(k), x[3], xl[3];
+        long ke = nfull; /* this run: steps k .. ke - 1 */
         for (a = 0; a < 3; a++) x[a] = x0[a] + t * e[a];
         if (bricked) {
             if (!(t < t_exit)) { /* entering the next brick */
@@ -349,54 +420,76 @@ static inline __attribute__((always_inline)) void march(const wvol__sampler *s, 
                     if (out->failed != WVOL_OK) break;
                 }
             }
+            /* the first step whose sample is at or past the exit */
+            if (t_exit < T_AT(nfull)) {
+                double q = (t_exit - t0) / dt - 0.5;
+                ke = q > (double)k ? (long)q : k;
+                while (ke < nfull && T_AT(ke) < t_exit) ke++;
+                while (ke > k + 1 && !(T_AT(ke - 1) < t_exit)) ke--;
+                if (ke <= k) ke = k + 1;
+            }
             if (cur_empty) {
-                long kn = (long)floor((t_exit - t0) / dt);
                 nskip++;
-                if (kn > k) k = kn - 1;
+                k = ke;
                 continue;
             }
         }
-        nsamp++;
-        if (mode == WVOL_MODE_XRAY) {
-            xr += sample_at(s, &view, x, NULL) * h;
-            continue;
-        }
-        val = sample_at(s, &view, x, NULL);
-        tf_fast_eval(tfx, val, &seg, rgb, &kappa);
-        if (kappa > 0 && p->colors) nearest_color(s, p->colors, x, rgb);
-        if (kappa > 0) {
-            double alpha, shade = 1.0;
-            if (mode == WVOL_MODE_ABSORPTION) {
-                alpha = 1.0 - exp_neg(-kappa * h); /* not expm1: the difference is far
-                                                      below the step's own error */
-            } else {
-                alpha = kappa * h;
-                if (alpha > 1) {
-                    alpha = 1;
-                    nclamp++;
+        for (a = 0; a < 3; a++) xl[a] = x0[a] + T_AT(ke - 1) * e[a];
+        nsamp += (size_t)(ke - k);
+        if (!s->eval && strictly_inside(&view, x) && strictly_inside(&view, xl)) {
+            for (; k < ke; k++) {
+                t = T_AT(k);
+                for (a = 0; a < 3; a++) x[a] = x0[a] + t * e[a];
+                if (step(s, &view, tfx, p, mode, shading, 1, x, d, dt, &r)) {
+                    done = 1;
+                    break;
                 }
             }
-            if (shading) {
-                sample_at(s, &view, x, grad);
-                shade = wvol__shade(grad, d, p->ambient);
+        } else {
+            for (; k < ke; k++) {
+                t = T_AT(k);
+                for (a = 0; a < 3; a++) x[a] = x0[a] + t * e[a];
+                if (step(s, &view, tfx, p, mode, shading, 0, x, d, dt, &r)) {
+                    done = 1;
+                    break;
+                }
             }
-            for (a = 0; a < 3; a++) acc[a] += T * alpha * rgb[a] * shade;
-            T *= 1.0 - alpha;
-            if (T < p->termination) {
-                out->terminated = 1;
-                break;
+        }
+        if (done) nsamp -= (size_t)(ke - k - 1); /* the samples not taken */
+    }
+    /* the last step, shorter than dt */
+    if (!done && out->failed == WVOL_OK && nfull < nsteps) {
+        double ta = t0 + (double)nfull * dt, h = t1 - ta, t = 0.5 * (ta + t1), x[3];
+        for (a = 0; a < 3; a++) x[a] = x0[a] + t * e[a];
+        if (h > 0) {
+            int skip = 0;
+            if (bricked && !(t < t_exit)) {
+                long bid = brick_id(s, x);
+                cur_empty = s->empty ? s->empty[bid] : 0;
+                if (!cur_empty && s->fetch) out->failed = s->fetch(tc, (size_t)bid, &view, &cur_empty);
+            }
+            if (out->failed != WVOL_OK) skip = 1;
+            else if (bricked && cur_empty) {
+                nskip++;
+                skip = 1;
+            }
+            if (!skip) {
+                nsamp++;
+                done = step(s, &view, tfx, p, mode, shading, 0, x, d, h, &r);
             }
         }
     }
+#undef T_AT
+    out->terminated = done;
     out->samples += nsamp;
     out->skipped += nskip;
-    out->clamped += nclamp;
+    out->clamped += r.nclamp;
     if (mode == WVOL_MODE_XRAY) {
-        out->rgba[0] = out->rgba[1] = out->rgba[2] = xr;
+        out->rgba[0] = out->rgba[1] = out->rgba[2] = r.xr;
         out->rgba[3] = 1.0;
     } else {
-        for (a = 0; a < 3; a++) out->rgba[a] = acc[a];
-        out->rgba[3] = 1.0 - T;
+        for (a = 0; a < 3; a++) out->rgba[a] = r.acc[a];
+        out->rgba[3] = 1.0 - r.T;
     }
 }
 
