@@ -16,23 +16,15 @@
 
 static double trilinear_slow(const wvol__view *w, const double x[3]);
 
+static inline double trilinear_in(const wvol__view *w, const double x[3]);
+
 /* Trilinear sample at index position x from a view; the common case (strictly inside the
  * view's voxel range) without clamping branches. */
 static inline double trilinear(const wvol__view *w, const double x[3])
 {
     if (x[0] > w->flo[0] && x[1] > w->flo[1] && x[2] > w->flo[2] && x[0] < w->fhi[0] && x[1] < w->fhi[1] &&
-        x[2] < w->fhi[2]) {
-        long i = (long)x[0], j = (long)x[1], k = (long)x[2];
-        double wx = x[0] - (double)i, wy = x[1] - (double)j, wz = x[2] - (double)k;
-        size_t sy = w->sy, sz = w->sz;
-        const float *p = w->data + (size_t)(i - w->off[0]) + sy * (size_t)(j - w->off[1]) + sz * (size_t)(k - w->off[2]);
-        double c00 = p[0] + wx * (p[1] - p[0]);
-        double c10 = p[sy] + wx * (p[sy + 1] - p[sy]);
-        double c01 = p[sz] + wx * (p[sz + 1] - p[sz]);
-        double c11 = p[sz + sy] + wx * (p[sz + sy + 1] - p[sz + sy]);
-        double c0 = c00 + wy * (c10 - c00), c1 = c01 + wy * (c11 - c01);
-        return c0 + wz * (c1 - c0);
-    }
+        x[2] < w->fhi[2])
+        return trilinear_in(w, x);
     return trilinear_slow(w, x);
 }
 
@@ -225,12 +217,14 @@ typedef struct tf_fast {
     int n;
     double v[WVOL_TF_MAX_POINTS];
     double c0[WVOL_TF_MAX_POINTS][4], dc[WVOL_TF_MAX_POINTS][4]; /* r, g, b, kappa */
+    double exp2_256[256];                                          /* 2^(j/256), for exp_neg */
 } tf_fast;
 
 static void tf_fast_init(tf_fast *f, const wvol_tf *tf)
 {
     int i, c;
     f->n = tf->count;
+    for (i = 0; i < 256; i++) f->exp2_256[i] = exp2(i / 256.0);
     for (i = 0; i < tf->count; i++) {
         const wvol_tf_point *p = &tf->points[i], *q = i + 1 < tf->count ? p + 1 : p;
         double span = q->value - p->value;
@@ -249,17 +243,17 @@ static inline void tf_fast_eval(const tf_fast *f, double val, int *seg, double r
 {
     int i = *seg, n = f->n, c;
     double w;
-    if (!(val > f->v[0])) { /* also NaN */
-        for (c = 0; c < 3; c++) rgb[c] = f->c0[0][c];
-        *kappa = f->c0[0][3];
-        return;
-    }
-    if (val >= f->v[n - 1]) {
-        for (c = 0; c < 3; c++) rgb[c] = f->c0[n - 1][c];
-        *kappa = f->c0[n - 1][3];
-        return;
-    }
-    if (i < 0 || i >= n - 1 || !(val >= f->v[i] && val < f->v[i + 1])) {
+    if (!(i >= 0 && val >= f->v[i] && val < f->v[i + 1])) { /* not the last segment (the common case) */
+        if (!(val > f->v[0])) { /* also NaN */
+            for (c = 0; c < 3; c++) rgb[c] = f->c0[0][c];
+            *kappa = f->c0[0][3];
+            return;
+        }
+        if (val >= f->v[n - 1]) {
+            for (c = 0; c < 3; c++) rgb[c] = f->c0[n - 1][c];
+            *kappa = f->c0[n - 1][3];
+            return;
+        }
         int lo = 0, hi = n - 1;
         while (hi - lo > 1) {
             int mid = (lo + hi) / 2;
@@ -273,58 +267,57 @@ static inline void tf_fast_eval(const tf_fast *f, double val, int *seg, double r
     *kappa = f->c0[i][3] + w * f->dc[i][3];
 }
 
-/* exp(x) for x <= 0, inlined for the inner loop: x = (32 m + j) ln2/32 + r with |r| <=
- * ln2/64 (ln2/32 split in two parts, Cody-Waite), e^x = 2^m 2^(j/32) e^r, 2^(j/32) from a
- * table and e^r by its Taylor series to degree 6 (truncation below 0.0109^7/7! ~ 4e-18),
- * evaluated in Estrin's scheme: the dependency chain is a few operations long, so samples
- * overlap in the pipeline (Horner's 13-deep chain made the exponential a third of a step).
- * Relative error a few ulp; 0 below -708 (where the result would be subnormal). */
-static const double exp2_32[32] = {
-    1.0, 1.0218971486541166, 1.0442737824274138, 1.0671404006768237, 1.0905077326652577, 1.1143867425958924,
-    1.1387886347566916, 1.1637248587775775, 1.1892071150027210, 1.2152473599804690, 1.2418578120734840,
-    1.2690509571917332, 1.2968395546510096, 1.3252366431597413, 1.3542555469368927, 1.3839098819638320,
-    1.4142135623730951, 1.4451808069770467, 1.4768261459394993, 1.5091644275934228, 1.5422108254079407,
-    1.5759808451078865, 1.6104903319492543, 1.6457554781539650, 1.6817928305074290, 1.7186192981224779,
-    1.7562521603732995, 1.7947090750031072, 1.8340080864093424, 1.8741676341103000, 1.9152065613971474,
-    1.9571441241754002};
-
-static inline double exp_neg(double x)
+/* exp(x) for x <= 0, inlined for the inner loop: x = (256 m + j) ln2/256 + r with |r| <=
+ * ln2/512 (ln2/256 split in two parts, Cody-Waite), e^x = 2^m 2^(j/256) e^r, 2^(j/256)
+ * from the table (tf_fast) and e^r by its Taylor series to degree 4 (truncation below
+ * 0.00136^5/5! ~ 4e-17), evaluated in Estrin's scheme: the dependency chain is a few
+ * operations long, so samples overlap in the pipeline (Horner's chain made the exponential
+ * a third of a step; the 32-entry table it had needed degree 6). Relative error a few ulp;
+ * 0 below -708 (where the result would be subnormal). */
+static inline double exp_neg(double x, const double *exp2_256)
 {
-    static const double k = 46.166241308446828;            /* 32 / ln2 */
-    /* ln2 / 32 in two parts: fdlibm's ln2_hi (low bits zero, so n * c_hi is exact) and ln2_lo,
-     * both divided by 32 (exact) */
-    static const double c_hi = 6.93147180369123816490e-01 / 32, c_lo = 1.90821492927058770002e-10 / 32;
-    double n, r, r2, r4, p;
+    static const double k = 369.32993046757463;            /* 256 / ln2 */
+    /* ln2 / 256 in two parts: fdlibm's ln2_hi (low bits zero, so n * c_hi is exact) and
+     * ln2_lo, both divided by 256 (exact) */
+    static const double c_hi = 6.93147180369123816490e-01 / 256, c_lo = 1.90821492927058770002e-10 / 256;
+    /* 1.5 2^52: adding it rounds x k (|x k| < 2^31) to an integer held in the low bits of
+     * the sum's mantissa, shorter than a conversion to integer and back */
+    static const double shifter = 6755399441055744.0;
+    double n, r, r2, p;
     long long ni;
     union {
         double d;
         unsigned long long u;
-    } sc;
+    } sc, nr;
     if (!(x > -708.0)) return 0.0; /* also NaN: an opaque step */
-    ni = -(long long)(0.5 - x * k); /* round to nearest, x <= 0 */
-    n = (double)ni;
+    nr.d = x * k + shifter;
+    n = nr.d - shifter;
+    ni = (long long)(int)(unsigned)(nr.u & 0xffffffffu); /* two's complement low 32 bits */
     r = (x - n * c_hi) - n * c_lo;
     r2 = r * r;
-    r4 = r2 * r2;
-    p = (1.0 + r) + r2 * (0.5 + r * (1.0 / 6.0)) + r4 * ((1.0 / 24.0 + r * (1.0 / 120.0)) + r2 * (1.0 / 720.0));
-    sc.u = (unsigned long long)((ni >> 5) + 1023) << 52; /* arithmetic shift: floor(n / 32) */
-    return p * exp2_32[ni & 31] * sc.d;
+    p = (1.0 + r) + r2 * ((0.5 + r * (1.0 / 6.0)) + r2 * (1.0 / 24.0));
+    sc.u = (unsigned long long)((ni >> 8) + 1023) << 52; /* arithmetic shift: floor(n / 256) */
+    return p * exp2_256[ni & 255] * sc.d;
 }
 
 /* Trilinear sample at x known to lie strictly inside the view's voxel range (the caller
- * checked the run's first and last positions; x is linear in t, so every one between). */
+ * checked; for a run of samples, its first and last positions: x is linear in t, so every
+ * one between). In single precision, from float voxels: the sample carries a relative
+ * rounding of a few 1e-8 (samples near a voxel value's zero crossing, a few 1e-8 of the
+ * neighbours' values), far below the step's own error, and saves the eight conversions
+ * to double. */
 static inline double trilinear_in(const wvol__view *w, const double x[3])
 {
     long i = (long)x[0], j = (long)x[1], k = (long)x[2];
-    double wx = x[0] - (double)i, wy = x[1] - (double)j, wz = x[2] - (double)k;
+    float wx = (float)(x[0] - (double)i), wy = (float)(x[1] - (double)j), wz = (float)(x[2] - (double)k);
     size_t sy = w->sy, sz = w->sz;
     const float *p = w->data + (size_t)(i - w->off[0]) + sy * (size_t)(j - w->off[1]) + sz * (size_t)(k - w->off[2]);
-    double c00 = p[0] + wx * (p[1] - p[0]);
-    double c10 = p[sy] + wx * (p[sy + 1] - p[sy]);
-    double c01 = p[sz] + wx * (p[sz + 1] - p[sz]);
-    double c11 = p[sz + sy] + wx * (p[sz + sy + 1] - p[sz + sy]);
-    double c0 = c00 + wy * (c10 - c00), c1 = c01 + wy * (c11 - c01);
-    return c0 + wz * (c1 - c0);
+    float c00 = p[0] + wx * (p[1] - p[0]);
+    float c10 = p[sy] + wx * (p[sy + 1] - p[sy]);
+    float c01 = p[sz] + wx * (p[sz + 1] - p[sz]);
+    float c11 = p[sz + sy] + wx * (p[sz + sy + 1] - p[sz + sy]);
+    float c0 = c00 + wy * (c10 - c00), c1 = c01 + wy * (c11 - c01);
+    return (double)(c0 + wz * (c1 - c0));
 }
 
 static inline int strictly_inside(const wvol__view *w, const double x[3])
@@ -344,11 +337,12 @@ typedef struct ray_acc {
 static inline __attribute__((always_inline)) int step(const wvol__sampler *s, const wvol__view *view,
                                                       const tf_fast *tfx, const wvol_render_params *p,
                                                       const wvol_render_mode mode, const int shading,
-                                                      const int inside, const double x[3], const double d[3],
+                                                      const int colors, const int inside, const double x[3],
+                                                      const double d[3],
                                                       double h, ray_acc *r)
 {
     double val, grad[3], rgb[3], kappa;
-    val = inside && !s->eval ? trilinear_in(view, x) : sample_at(s, view, x, NULL);
+    val = inside ? trilinear_in(view, x) : sample_at(s, view, x, NULL);
     if (mode == WVOL_MODE_XRAY) {
         r->xr += val * h;
         return 0;
@@ -357,9 +351,9 @@ static inline __attribute__((always_inline)) int step(const wvol__sampler *s, co
     if (kappa > 0) {
         double alpha, shade = 1.0;
         int a;
-        if (p->colors) nearest_color(s, p->colors, x, rgb);
+        if (colors) nearest_color(s, p->colors, x, rgb);
         if (mode == WVOL_MODE_ABSORPTION) {
-            alpha = 1.0 - exp_neg(-kappa * h); /* not expm1: the difference is far below the
+            alpha = 1.0 - exp_neg(-kappa * h, tfx->exp2_256); /* not expm1: the difference is far below the
                                                   step's own error */
         } else {
             alpha = kappa * h;
@@ -387,8 +381,9 @@ static inline __attribute__((always_inline)) int step(const wvol__sampler *s, co
  * are taken without clamping tests. The last, shorter step (if any) is taken on its own. */
 static inline __attribute__((always_inline)) void march(const wvol__sampler *s, void *tc, const tf_fast *tfx,
                                                          const wvol_render_params *p, const wvol_render_mode mode,
-                                                         const int shading, const double o[3], const double d[3],
-                                                         double t0, double t1, double dt, ray_out *out)
+                                                         const int shading, const int colors, const double o[3],
+                                                         const double d[3], double t0, double t1, double dt,
+                                                         ray_out *out)
 {
     wvol__view view = s->whole;
     double x0[3], e[3], t_exit = -INFINITY;
@@ -440,7 +435,7 @@ static inline __attribute__((always_inline)) void march(const wvol__sampler *s, 
             for (; k < ke; k++) {
                 t = T_AT(k);
                 for (a = 0; a < 3; a++) x[a] = x0[a] + t * e[a];
-                if (step(s, &view, tfx, p, mode, shading, 1, x, d, dt, &r)) {
+                if (step(s, &view, tfx, p, mode, shading, colors, 1, x, d, dt, &r)) {
                     done = 1;
                     break;
                 }
@@ -449,7 +444,7 @@ static inline __attribute__((always_inline)) void march(const wvol__sampler *s, 
             for (; k < ke; k++) {
                 t = T_AT(k);
                 for (a = 0; a < 3; a++) x[a] = x0[a] + t * e[a];
-                if (step(s, &view, tfx, p, mode, shading, 0, x, d, dt, &r)) {
+                if (step(s, &view, tfx, p, mode, shading, colors, 0, x, d, dt, &r)) {
                     done = 1;
                     break;
                 }
@@ -475,7 +470,7 @@ static inline __attribute__((always_inline)) void march(const wvol__sampler *s, 
             }
             if (!skip) {
                 nsamp++;
-                done = step(s, &view, tfx, p, mode, shading, 0, x, d, h, &r);
+                done = step(s, &view, tfx, p, mode, shading, colors, 0, x, d, h, &r);
             }
         }
     }
@@ -557,14 +552,15 @@ wvol_status wvol__render_sampled(wvol_image *img, wvol__sampler *s, const wvol_c
                     if (cam->projection == WVOL_PERSPECTIVE && t0 < 0) t0 = 0;
                     if (t1 > t0) {
                         rays_hit++;
-                        /* the common cases get their own copy of the loop, the mode and
-                         * shading tests compiled away */
-                        if (p.mode == WVOL_MODE_ABSORPTION && !p.shading)
-                            march(s, tc, &tfx, &p, WVOL_MODE_ABSORPTION, 0, o, d, t0, t1, dt, &r);
+                        /* the common cases get their own copy of the loop, the mode,
+                         * shading and colour tests compiled away (and with them every call
+                         * in the inner loop: the compositing state stays in registers) */
+                        if (p.mode == WVOL_MODE_ABSORPTION && !p.shading && !p.colors)
+                            march(s, tc, &tfx, &p, WVOL_MODE_ABSORPTION, 0, 0, o, d, t0, t1, dt, &r);
                         else if (p.mode == WVOL_MODE_XRAY && !p.shading)
-                            march(s, tc, &tfx, &p, WVOL_MODE_XRAY, 0, o, d, t0, t1, dt, &r);
+                            march(s, tc, &tfx, &p, WVOL_MODE_XRAY, 0, 0, o, d, t0, t1, dt, &r);
                         else
-                            march(s, tc, &tfx, &p, p.mode, p.shading, o, d, t0, t1, dt, &r);
+                            march(s, tc, &tfx, &p, p.mode, p.shading, p.colors != NULL, o, d, t0, t1, dt, &r);
                     }
                 }
                 for (int c = 0; c < 4; c++) px[c] = (float)r.rgba[c];
