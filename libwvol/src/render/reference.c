@@ -373,6 +373,28 @@ static inline __attribute__((always_inline)) int step(const wvol__sampler *s, co
     return 0;
 }
 
+/* Full steps *k .. ke - 1 of a ray, all in one view (`inside`: strictly inside it); returns 1
+ * when the ray terminates, *k then the terminating step. */
+static inline __attribute__((always_inline)) int run(const wvol__sampler *s, const wvol__view *view,
+                                                     const tf_fast *tfx, const wvol_render_params *p,
+                                                     const wvol_render_mode mode, const int shading,
+                                                     const int colors, const int inside, const double x0[3],
+                                                     const double e[3], const double d[3], double t0, double dt,
+                                                     long *k, long ke, ray_acc *r)
+{
+    long kk;
+    for (kk = *k; kk < ke; kk++) {
+        double t = t0 + ((double)kk + 0.5) * dt, x[3];
+        for (int a = 0; a < 3; a++) x[a] = x0[a] + t * e[a];
+        if (step(s, view, tfx, p, mode, shading, colors, inside, x, d, dt, r)) {
+            *k = kk;
+            return 1;
+        }
+    }
+    *k = ke;
+    return 0;
+}
+
 /* One ray: samples at the midpoints of steps of dt over [t0, t1], front to back. A dense
  * source's view is the whole volume; a bricked source's is fetched (through the thread's
  * context tc) when the ray enters a brick not known to be empty. The ray is walked in runs
@@ -431,25 +453,10 @@ static inline __attribute__((always_inline)) void march(const wvol__sampler *s, 
         }
         for (a = 0; a < 3; a++) xl[a] = x0[a] + T_AT(ke - 1) * e[a];
         nsamp += (size_t)(ke - k);
-        if (!s->eval && strictly_inside(&view, x) && strictly_inside(&view, xl)) {
-            for (; k < ke; k++) {
-                t = T_AT(k);
-                for (a = 0; a < 3; a++) x[a] = x0[a] + t * e[a];
-                if (step(s, &view, tfx, p, mode, shading, colors, 1, x, d, dt, &r)) {
-                    done = 1;
-                    break;
-                }
-            }
-        } else {
-            for (; k < ke; k++) {
-                t = T_AT(k);
-                for (a = 0; a < 3; a++) x[a] = x0[a] + t * e[a];
-                if (step(s, &view, tfx, p, mode, shading, colors, 0, x, d, dt, &r)) {
-                    done = 1;
-                    break;
-                }
-            }
-        }
+        if (!s->eval && strictly_inside(&view, x) && strictly_inside(&view, xl))
+            done = run(s, &view, tfx, p, mode, shading, colors, 1, x0, e, d, t0, dt, &k, ke, &r);
+        else
+            done = run(s, &view, tfx, p, mode, shading, colors, 0, x0, e, d, t0, dt, &k, ke, &r);
         if (done) nsamp -= (size_t)(ke - k - 1); /* the samples not taken */
     }
     /* the last step, shorter than dt */
