@@ -99,11 +99,7 @@ static PyObject *py_iso_volume(PyObject *self, PyObject *args, PyObject *kw)
     if (!PyArg_ParseTupleAndKeywords(args, kw, "Od|OOsi", kwlist, &arr_obj, &iso, &sp, &org, &normals, &threads))
         return NULL;
     if (iso_setup(iso, threads, 0, normals, &p) < 0) return NULL;
-    if (wvolpy_as_volume(arr_obj, &v, &holder, 1) < 0) return NULL;
-    if (wvolpy_triple(sp, v.spacing, "spacing") < 0 || wvolpy_triple(org, v.origin, "origin") < 0) {
-        Py_DECREF(holder);
-        return NULL;
-    }
+    if (wvolpy_as_placed_volume(arr_obj, sp, org, &v, &holder, 1) < 0) return NULL;
     memset(&st, 0, sizeof st);
     Py_BEGIN_ALLOW_THREADS
     s = wvol_volume_set_geometry(&v, v.spacing, v.origin, &err);

@@ -236,8 +236,7 @@ static PyObject *py_render_volume(PyObject *self, PyObject *args)
     double vmin, vmax;
     (void)self;
     if (!PyArg_ParseTuple(args, "OOOO", &arr_obj, &sp, &org, &opts)) return NULL;
-    if (wvolpy_as_volume(arr_obj, &v, &holder, 1) < 0) return NULL;
-    if (wvolpy_triple(sp, v.spacing, "spacing") < 0 || wvolpy_triple(org, v.origin, "origin") < 0) goto fail;
+    if (wvolpy_as_placed_volume(arr_obj, sp, org, &v, &holder, 1) < 0) return NULL;
     if (wvol_volume_set_geometry(&v, v.spacing, v.origin, &err) != WVOL_OK) {
         wvolpy_raise(&err);
         goto fail;
