@@ -211,6 +211,45 @@ def run_vtk(rawpath, n, img, out, kappa, threads, tmp):
     return cpu, wall, mem, None
 
 
+def equal_error_table(rows):
+    """The issue's first speed goal, read off the rows: for each wvol row that is not the dense
+    reference, the cheapest reference row (same volume, mode, thread count) whose error is no larger,
+    and the ratio of their CPU times. Rows more accurate than every reference row are left out (no
+    reference row to compare with at equal error)."""
+    out = ["", "## At equal image error: each wvol path against the dense reference integrator\n",
+           "For each row below, the cheapest reference row (dense volume, fixed step, same volume, mode and "
+           "threads, in the same run) whose rel. RMSE is at most the row's; 'ref / row' > 1 means the row is "
+           "faster than the reference at equal or lower error. When every reference row is more accurate "
+           "than the row, the reference's coarsest step stands in and the cell says 'coarsest ref more "
+           "accurate': the reference could take a coarser step at that error, so the ratio overstates the "
+           "row's advantage; run with coarser --ref-steps to bracket every row).\n",
+           "| volume | mode | method | kept % | CPU s | rel. RMSE | cheapest reference at <= that error | ref CPU s "
+           "| ref / row |", "|---|---|---|---|---|---|---|---|---|"]
+    def is_ref(r):
+        return str(r.get("method", "")).startswith(("reference step", "wvol reference"))
+    for r in rows:
+        if is_ref(r) or "rel_rmse" not in r or not r.get("cpu_s") or "predicted_full_s" in r:
+            continue
+        if str(r.get("method", "")).startswith(("VTK", "vdb")):
+            continue
+        refs = [q for q in rows if is_ref(q) and "converged" not in q["method"] and q.get("volume") == r.get("volume")
+                and q.get("mode") == r.get("mode") and q.get("threads") == r.get("threads") and q.get("cpu_s")
+                and "rel_rmse" in q]
+        if not refs:
+            continue
+        ok = [q for q in refs if q["rel_rmse"] <= r["rel_rmse"]]
+        if not ok:
+            continue
+        note = ""
+        best = min(ok, key=lambda q: q["cpu_s"])
+        if all(q["rel_rmse"] <= r["rel_rmse"] for q in refs):
+            note = " (coarsest ref more accurate)"
+        out.append(f"| {r.get('volume')} | {r.get('mode')} | {r.get('method')} | {r.get('keep')} | {r['cpu_s']:.3f} | "
+                   f"{r['rel_rmse']:.3g} | {best['method']}{note} | {best['cpu_s']:.3f} | "
+                   f"{best['cpu_s'] / r['cpu_s']:.2f} |")
+    return out
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--size", type=int, default=48)
@@ -222,6 +261,9 @@ def main():
     ap.add_argument("--ref-step", type=float, default=0.05, help="converged reference step (voxels)")
     ap.add_argument("--spline-budget", type=float, default=600, help="skip spline runs predicted beyond (s)")
     ap.add_argument("--spline-keep", default="", help="kept percentages for the spline rows (default: all of --keep)")
+    ap.add_argument("--ref-steps", default="1,0.5,0.25",
+                    help="steps (voxels) of the reference rows: the curve every other method is compared with "
+                         "at equal error (the equal-error table)")
     ap.add_argument("--bricks-steps", default="0.5,1", help="steps (voxels) of the bricks rows")
     ap.add_argument("--peer-steps", default="0.5,1,2", help="steps of the bricks rows beside the peers")
     ap.add_argument("--peer-threads", default="1,2", help="thread counts of the peer comparison")
@@ -234,6 +276,7 @@ def main():
     tmp = pathlib.Path(tempfile.mkdtemp(prefix="bench_render_"))
     n, img, thr = a.size, a.image, str(a.threads)
     keeps = [float(k) for k in a.keep.split(",")]
+    rsteps = [float(x) for x in a.ref_steps.split(",")]
     rows = []
     if a.resume:
         for line in pathlib.Path(a.resume).read_text().splitlines():
@@ -256,7 +299,7 @@ def main():
                 skeeps = [float(x) for x in a.spline_keep.split(",")] if a.spline_keep else keeps
                 bsteps = [float(x) for x in a.bricks_steps.split(",")]
                 plan = [(f"reference step={a.ref_step} (converged)", 100)] + [(f"reference step={st}", 100)
-                                                                            for st in [1.0, 0.5, 0.25]]
+                                                                            for st in rsteps]
                 for keep in keeps:
                     plan += [("axis", keep)] if mode == "xray" else []
                     plan += [(f"bricks step={st}", keep) for st in bsteps]
@@ -291,7 +334,7 @@ def main():
 
                 if not have(vname, mode, f"reference step={a.ref_step} (converged)", 100):
                     record(f"reference step={a.ref_step} (converged)", 100, ref, info, dt, mem, None, {"step": a.ref_step})
-                for step in [1.0, 0.5, 0.25]:
+                for step in rsteps:
                     if have(vname, mode, f"reference step={step}", 100):
                         continue
                     out = tmp / "o.exr"
@@ -355,7 +398,8 @@ def main():
                 print(json.dumps(row), flush=True)
 
             for pt in [int(x) for x in a.peer_threads.split(",")]:
-                runs = [("wvol reference step=0.5", ["--method", "reference", "--step", "0.5"], 100)]
+                runs = [(f"wvol reference step={st}", ["--method", "reference", "--step", str(st)], 100)
+                        for st in a.peer_steps.split(",")]
                 runs += [(f"wvol bricks step={st}", ["--method", "bricks", "--step", str(st), "--keep", "5%"], 5)
                          for st in a.peer_steps.split(",")]
                 for name, args, keep in runs:
@@ -449,6 +493,7 @@ def main():
                      + (f"{r['rel_rmse']:.3g}" if "rel_rmse" in r else r.get("error", "")) +
                      f" | {r.get('peak_mb', nan):.0f} | {render_rss(r):.1f} | {mib(r, 'render_bytes'):.1f} | "
                      f"{mib(r, 'store_bytes'):.1f} |")
+    lines += equal_error_table(rows)
     (outdir / "render.md").write_text("\n".join(lines) + "\n")
     try:
         import matplotlib
