@@ -29,9 +29,7 @@ static const cli_opt opts[] = {
     {"quant-share", 0, 1, "selection modes: quantisation error as a share of the dropped energy (default 0.02)"},
     {"coder", 0, 1, "auto (default: per section the smaller), cabac or zstd"},
     {"rounding", 0, 1, "dead-zone rounding offset in [0, 0.5] (default 0.38)"},
-    {"dims", 0, 1, "raw input: NXxNYxNZ"},
-    {"type", 0, 1, "raw input: sample type (float32, uint8, int16, ...)"},
-    {"grid", 0, 1, ".vdb input: grid name (default: first float grid)"},
+    CLI_LOAD_OPTS,
     {"threads", 0, 1, "threads for the transforms and the coder (default: all, or OMP_NUM_THREADS)"},
     CLI_JSON_OPT,
     CLI_HELP_OPT,
@@ -95,8 +93,7 @@ int wvol_cmd_compress(int argc, char **argv)
     while ((r = cli_next(&p, &o, &val)) >= 0) {
         if (r == CLI_USAGE) return CLI_USAGE;
         if (!o) {
-            if (in) return cli_usage("compress", "one input file expected, got '%s' too", val);
-            in = val;
+            if (cli_one_input("compress", &in, val)) return CLI_USAGE;
         } else if (o->short_name == 'h') {
             cli_print_help("compress",
                            "IN -o OUT.wvc [--wavelet db2] [--levels 5] (--psnr 50 | --keep 5% | --keep-count K |\n"
@@ -154,18 +151,12 @@ int wvol_cmd_compress(int argc, char **argv)
             if (!(rounding >= 0 && rounding <= 0.5)) return cli_usage("compress", "--rounding %s: expected 0..0.5", val);
         } else if (!strcmp(o->name, "json")) {
             json = 1;
-        } else if (!strcmp(o->name, "dims")) {
-            if (!cli_parse_dims("compress", "dims", val, lo.dims)) return CLI_USAGE;
-        } else if (!strcmp(o->name, "type")) {
-            int t = wvol_sample_type_parse(val);
-            if (t < 0) return cli_usage("compress", "--type '%s': unknown sample type", val);
-            lo.raw_type = (wvol_sample_type)t;
-        } else if (!strcmp(o->name, "grid")) {
-            lo.grid_name = val;
         } else if (!strcmp(o->name, "threads")) {
             long th;
             if (!cli_parse_long("compress", "threads", val, 1, 4096, &th)) return CLI_USAGE;
             omp_set_num_threads((int)th); /* the process's default: every OpenMP region of this run */
+        } else if (cli_load_option("compress", o, val, &lo) == CLI_USAGE) {
+            return CLI_USAGE;
         }
     }
     if (!in) return cli_usage("compress", "missing input file (see 'wvol compress --help')");
@@ -299,11 +290,7 @@ int wvol_cmd_compress(int argc, char **argv)
             cli_json_str("wavelet", f->name);
             cli_json_int("levels", levels);
             cli_json_int("threads", omp_get_max_threads());
-            cli_json_open("dims", '[');
-            cli_json_int(NULL, (long long)v->nx);
-            cli_json_int(NULL, (long long)v->ny);
-            cli_json_int(NULL, (long long)v->nz);
-            cli_json_close(']');
+            cli_json_size3("dims", v->nx, v->ny, v->nz);
             cli_json_str("mode", mode == MODE_PSNR ? "psnr" : mode == MODE_KEEP ? "keep"
                                  : mode == MODE_COUNT ? "keep-count" : "energy");
             if (mode == MODE_PSNR) cli_json_num("target_psnr", psnr);
