@@ -21,7 +21,7 @@ wvol_status wvol_render_xray_axis(wvol_image *img, const wvol_store *s, const wv
     wvol__cam k;
     wvol_store_iter it;
     wvol_store_coeff cf;
-    size_t P[3], Pu, Pv, m, i;
+    size_t P[3], Pu, Pv, m, i, rays_hit = 0;
     double **acc = NULL, lo[3], hi[3], t_start = wvol__now(), c_start = wvol__cpu_now(), Iphi, Ipsi, sp_ray;
     int a = -1, ua, va, M, ax, y;
     wvol_status st = WVOL_OK;
@@ -92,7 +92,7 @@ wvol_status wvol_render_xray_axis(wvol_image *img, const wvol_store *s, const wv
         g.dims[0] = info.nx, g.dims[1] = info.ny, g.dims[2] = info.nz;
         for (ax = 0; ax < 3; ax++) g.spacing[ax] = info.spacing[ax], g.origin[ax] = info.origin[ax];
         wvol_geometry_bounds(&g, lo, hi);
-#pragma omp parallel for schedule(dynamic, 4) num_threads(wvol__threads(p.threads))
+#pragma omp parallel for schedule(dynamic, 4) num_threads(wvol__threads(p.threads)) reduction(+ : rays_hit)
         for (y = 0; y < img->height; y++) {
             double wu[2][WVOL_BASIS_MAX_LENGTH], wv[2][WVOL_BASIS_MAX_LENGTH];
             int xx, ch;
@@ -106,6 +106,7 @@ wvol_status wvol_render_xray_axis(wvol_image *img, const wvol_store *s, const wv
                     for (ch = 0; ch < 4; ch++) px[ch] = 0;
                     continue;
                 }
+                rays_hit++;
                 wvol_store_world_to_voxel(s, o, vox);
                 for (lev = 1; lev <= M; lev++) {
                     double sc = ldexp(1.0, -lev), zu = (vox[ua] + sft) * sc, zv = (vox[va] + sft) * sc;
@@ -146,6 +147,7 @@ wvol_status wvol_render_xray_axis(wvol_image *img, const wvol_store *s, const wv
         stats->seconds = wvol__now() - t_start;
         stats->cpu_seconds = wvol__cpu_now() - c_start;
         stats->rays = (size_t)img->width * (size_t)img->height;
+        stats->rays_hit = rays_hit;
         stats->functions = info.kept;
     }
     goto done;
