@@ -32,6 +32,7 @@ typedef struct resp1 {
     double tail;       /* sum |r| outside the core */
     double smin, smax; /* min/max_rho sum_t r[rho + 2^m t] (whole response) */
     long lo, hi;       /* core window, offsets in [0, len) */
+    long len;          /* the whole response: offsets [0, len) */
 } resp1;
 
 static void split_core(resp1 *o, const double *r, long nl, long P)
@@ -50,6 +51,7 @@ static void split_core(resp1 *o, const double *r, long nl, long P)
     }
     o->lo = lo;
     o->hi = hi;
+    o->len = nl;
     o->tail = 0.0;
     for (n = 0; n < nl; n++)
         if (n < lo || n > hi) o->tail += fabs(r[n]);
@@ -113,6 +115,7 @@ typedef struct band_blocks {
     double tailw;      /* prod (leb + tail) - prod leb: weight of everything off the cores */
     double smin, smax; /* low-pass: prod over axes of [smin, smax] */
     long lo[3], hi[3]; /* core windows */
+    long len[3];       /* whole responses: offsets [0, len) */
     int m, band;
 } band_blocks;
 
@@ -173,6 +176,7 @@ wvol_status wvol__bounds_create(brick_bounds **out, const wvol_filter *f, int le
                 q->smax *= r->smax;
                 q->lo[a] = r->lo;
                 q->hi[a] = r->hi;
+                q->len[a] = r->len;
             }
             q->tailw = full - q->leb;
             b->bytes += sizeof *q;
@@ -261,11 +265,12 @@ void wvol__bounds_finish(brick_bounds *b)
 
 size_t wvol__bounds_bytes(const brick_bounds *b) { return b ? sizeof *b + b->bytes : 0; }
 
-/* Coefficient positions [*k0, *k0 + *kn) (unwrapped) whose core reaches samples
- * [s0, s1] along axis a; the whole band when that covers the period. */
-static void reach(const band_blocks *q, int a, long s0, long s1, long *k0, long *kn)
+/* Coefficient positions [*k0, *k0 + *kn) (unwrapped) whose response window [wlo, whi]
+ * (the core, or the whole response) reaches samples [s0, s1] along axis a; the whole
+ * band when that covers the period. */
+static void reach(const band_blocks *q, int a, long wlo, long whi, long s0, long s1, long *k0, long *kn)
 {
-    long step = 1L << q->m, e = (long)q->e[a], klo = s0 - q->hi[a], khi = s1 - q->lo[a];
+    long step = 1L << q->m, e = (long)q->e[a], klo = s0 - whi, khi = s1 - wlo;
     long c0 = klo >= 0 ? (klo + step - 1) / step : -((-klo) / step); /* ceil */
     long c1 = khi >= 0 ? khi / step : -((-khi + step - 1) / step);   /* floor */
     *k0 = c0;
@@ -276,75 +281,135 @@ static void reach(const band_blocks *q, int a, long s0, long s1, long *k0, long 
 
 static inline long wrap(long k, long e) { return ((k % e) + e) % e; }
 
-/* Bound of the reconstructed samples in the box [s0, s1] (inclusive, voxel indices). */
+/* Positions of one band reaching a box along each axis. */
+typedef struct band_reach {
+    long k0[3], kn[3];
+} band_reach;
+
+static band_reach reach_box(const band_blocks *q, int whole, const long s0[3], const long s1[3])
+{
+    band_reach r;
+    for (int a = 0; a < 3; a++)
+        reach(q, a, whole ? 0 : q->lo[a], whole ? q->len[a] - 1 : q->hi[a], s0[a], s1[a], &r.k0[a], &r.kn[a]);
+    return r;
+}
+
+/* min and max of the low-pass coefficients at the reached positions (+inf, -inf if none). */
+static void low_range(const brick_bounds *b, const band_blocks *q, const band_reach *r, float *cmin, float *cmax)
+{
+    long x, y, z;
+    *cmin = INFINITY;
+    *cmax = -INFINITY;
+    for (z = 0; z < r->kn[2]; z++) {
+        size_t kz = (size_t)wrap(r->k0[2] + z, (long)q->e[2]);
+        for (y = 0; y < r->kn[1]; y++) {
+            size_t ky = (size_t)wrap(r->k0[1] + y, (long)q->e[1]);
+            const float *row = b->low + b->low_sy * ky + b->low_sz * kz;
+            for (x = 0; x < r->kn[0]; x++) {
+                float v = row[wrap(r->k0[0] + x, (long)q->e[0])];
+                if (!(v >= *cmin)) *cmin = v;
+                if (!(v <= *cmax)) *cmax = v;
+            }
+        }
+    }
+}
+
+/* Blocks of a detail band covering the reached positions, per axis [b0, b1] (unwrapped). */
+static size_t block_span(const band_blocks *q, const band_reach *r, long b0[3], long b1[3])
+{
+    size_t count = 1;
+    for (int a = 0; a < 3; a++) {
+        long bs = (long)q->bs[a], nbk = (long)q->nb[a];
+        if (r->kn[a] <= 0) return 0;
+        if (r->kn[a] >= (long)q->e[a]) {
+            b0[a] = 0, b1[a] = nbk - 1;
+        } else {
+            long m0 = wrap(r->k0[a], (long)q->e[a]), last = m0 + r->kn[a] - 1;
+            b0[a] = m0 / bs;
+            b1[a] = last < (long)q->e[a] ? last / bs : nbk + (last - (long)q->e[a]) / bs;
+            if (b1[a] - b0[a] + 1 > nbk) b1[a] = b0[a] + nbk - 1;
+        }
+        count *= (size_t)(b1[a] - b0[a] + 1);
+    }
+    return count;
+}
+
+/* Largest block maximum of a detail band over the blocks [b0, b1]. */
+static float block_absmax(const band_blocks *q, const long b0[3], const long b1[3])
+{
+    float amax = 0.0f;
+    long x, y, z;
+    for (z = b0[2]; z <= b1[2]; z++) {
+        size_t bz = (size_t)(z % (long)q->nb[2]);
+        for (y = b0[1]; y <= b1[1]; y++) {
+            size_t by = (size_t)(y % (long)q->nb[1]);
+            const float *row = q->absmax + q->nb[0] * (by + q->nb[1] * bz);
+            for (x = b0[0]; x <= b1[0]; x++) {
+                float v = row[x % (long)q->nb[0]];
+                if (!(v <= amax)) amax = v;
+            }
+        }
+    }
+    return amax;
+}
+
+/* Scans of the whole responses' reach longer than this many blocks (or low-pass
+ * positions) fall back to the band's global maximum: long filters at deep levels
+ * reach most of a band, and the scan would cost more than the bound saves. */
+#define WHOLE_SCAN_MAX 4096
+
+/* Bound of the reconstructed samples in the box [s0, s1] (inclusive, voxel indices).
+ * The coefficients whose core reaches the box carry the core sums; those reached only
+ * by the tails carry the tail weights, with their own maximum when the whole response's
+ * reach is small enough to scan (always for Haar, Daubechies and Coiflets at the usual
+ * depths), else the band's. So where every coefficient whose support reaches the box is
+ * zero, the bound is exactly [0, 0] (the samples are exact zeros there: a sum of
+ * products with zero), and the rounding pad scales with the magnitude of what reaches
+ * the box rather than with the whole volume's. */
 void wvol__bounds_box(const brick_bounds *b, const long s0[3], const long s1[3], double *vmin, double *vmax)
 {
     double detail = 0.0, lo = 0.0, hi = 0.0, mag = 0.0;
-    int qi, a;
+    int qi;
     for (qi = 0; qi < b->nbands; qi++) {
         const band_blocks *q = &b->bb[qi];
-        long k0[3], kn[3], x, y, z;
-        float amax = 0.0f;
-        for (a = 0; a < 3; a++) reach(q, a, s0[a], s1[a], &k0[a], &kn[a]);
+        band_reach core = reach_box(q, 0, s0, s1), whole = reach_box(q, 1, s0, s1);
         if (q->band == 0) {
-            /* the low-pass cube is small: scan the coefficients whose core reaches the box */
-            float cmin = INFINITY, cmax = -INFINITY;
-            for (z = 0; z < kn[2]; z++) {
-                size_t kz = (size_t)wrap(k0[2] + z, (long)q->e[2]);
-                for (y = 0; y < kn[1]; y++) {
-                    size_t ky = (size_t)wrap(k0[1] + y, (long)q->e[1]);
-                    const float *row = b->low + b->low_sy * ky + b->low_sz * kz;
-                    for (x = 0; x < kn[0]; x++) {
-                        float v = row[wrap(k0[0] + x, (long)q->e[0])];
-                        if (!(v >= cmin)) cmin = v;
-                        if (!(v <= cmax)) cmax = v;
-                    }
-                }
-            }
+            float cmin, cmax, wmin, wmax;
+            double wabs = (double)q->gmax;
+            low_range(b, q, &core, &cmin, &cmax);
             if (cmin > cmax) cmin = cmax = 0.0f; /* no core reaches (cannot happen for a non-empty box) */
+            if (q->tailw > 0 && (size_t)whole.kn[0] * (size_t)whole.kn[1] * (size_t)whole.kn[2] <= WHOLE_SCAN_MAX) {
+                low_range(b, q, &whole, &wmin, &wmax);
+                wabs = wmin > wmax ? 0.0 : fmax(fabs((double)wmin), fabs((double)wmax));
+            } else if (q->tailw == 0) {
+                wabs = fmax(fabs((double)cmin), fabs((double)cmax));
+            }
             {
                 double a0 = 0.5 * ((double)cmin + (double)cmax), half = 0.5 * ((double)cmax - (double)cmin);
                 double p1 = a0 * q->smin, p2 = a0 * q->smax;
-                double off = half * q->leb + ((double)q->gmax + fabs(a0)) * q->tailw;
+                double off = half * q->leb + (wabs + fabs(a0)) * q->tailw;
                 lo = (p1 < p2 ? p1 : p2) - off;
                 hi = (p1 > p2 ? p1 : p2) + off;
-                mag += (double)q->gmax * (q->leb + q->tailw);
+                mag += wabs * (q->leb + q->tailw);
             }
             continue;
         }
         /* detail band: block maxima over the reach */
         {
             long b0[3], b1[3];
-            for (a = 0; a < 3; a++) {
-                long bs = (long)q->bs[a], nbk = (long)q->nb[a];
-                if (kn[a] >= (long)q->e[a]) {
-                    b0[a] = 0, b1[a] = nbk - 1;
-                } else {
-                    long m0 = wrap(k0[a], (long)q->e[a]), last = m0 + kn[a] - 1;
-                    b0[a] = m0 / bs;
-                    b1[a] = last < (long)q->e[a] ? last / bs : nbk + (last - (long)q->e[a]) / bs;
-                    if (b1[a] - b0[a] + 1 > nbk) b1[a] = b0[a] + nbk - 1;
-                }
+            float amax = block_span(q, &core, b0, b1) ? block_absmax(q, b0, b1) : 0.0f, wmax = q->gmax;
+            if (q->tailw > 0) {
+                size_t nw = block_span(q, &whole, b0, b1);
+                if (nw <= WHOLE_SCAN_MAX) wmax = nw ? block_absmax(q, b0, b1) : 0.0f;
             }
-            if (kn[0] > 0 && kn[1] > 0 && kn[2] > 0)
-                for (z = b0[2]; z <= b1[2]; z++) {
-                    size_t bz = (size_t)(z % (long)q->nb[2]);
-                    for (y = b0[1]; y <= b1[1]; y++) {
-                        size_t by = (size_t)(y % (long)q->nb[1]);
-                        const float *row = q->absmax + q->nb[0] * (by + q->nb[1] * bz);
-                        for (x = b0[0]; x <= b1[0]; x++) {
-                            float v = row[x % (long)q->nb[0]];
-                            if (!(v <= amax)) amax = v;
-                        }
-                    }
-                }
-            detail += (double)amax * q->leb + (double)q->gmax * q->tailw;
+            detail += (double)amax * q->leb + (double)wmax * q->tailw;
         }
     }
     mag += detail;
-    /* rounding: float coefficients summed in double, the result rounded to float */
+    /* rounding: float coefficients summed in double, the result rounded to float; no
+     * absolute term, so that a box reached by zeros only is bounded by exactly [0, 0] */
     {
-        double pad = 1e-5 * mag + 1e-30;
+        double pad = 1e-5 * mag;
         *vmin = lo - detail - pad;
         *vmax = hi + detail + pad;
     }
