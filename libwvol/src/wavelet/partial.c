@@ -126,10 +126,24 @@ static void synth_axis(double *out, const double *lo, const double *hi, const pt
                 if (kmin < k0) kmin = k0;
                 if (kmax > k0 + kn - 1) kmax = k0 + kn - 1;
             }
-            for (ptrdiff_t x = 0; x < inner; x++) o[x] = 0.0;
             /* rel = (k - k0) mod kn, stepped without a division per tap */
             ptrdiff_t rel = (kmin - k0) % kn;
             if (rel < 0) rel += kn;
+            if (inner == 1) {
+                /* the x axis: one output per row position, summed in a register (adding
+                 * into o[0] tap by tap made every tap wait for the last one's store) */
+                double acc = 0.0;
+                for (k = kmin; k <= kmax; k++) {
+                    double wh = f->h[gi - 2 * k], wg = f->g[gi - 2 * k];
+                    if (lu && hu) acc += wh * lu[rel] + wg * hu[rel]; /* the order below: same sums */
+                    else if (lu) acc += wh * lu[rel];
+                    else acc += wg * hu[rel];
+                    if (++rel == kn) rel = 0;
+                }
+                o[0] = acc;
+                continue;
+            }
+            for (ptrdiff_t x = 0; x < inner; x++) o[x] = 0.0;
             for (k = kmin; k <= kmax; k++) {
                 double wh = f->h[gi - 2 * k], wg = f->g[gi - 2 * k];
                 if (lu && hu) {
