@@ -49,6 +49,7 @@ typedef struct wvol__view {
     const float *data;
     long off[3], lo[3], hi[3];
     double flo[3], fhi[3];  /* lo, hi as doubles (wvol__view_finish) */
+    int blocked_ok;         /* offsets and coordinates fit 32 bits (wvol__view_finish) */
     size_t sy, sz;
 } wvol__view;
 
