@@ -232,7 +232,7 @@ typedef struct brick_cache {
     long *id;                /* per slot: brick index or -1 */
     uint64_t *used;          /* per slot: last use */
     float *data;             /* per slot: slot_floats */
-    double *mn, *mx;
+    unsigned char *empty;    /* per slot: no sample of the brick contributes (its min/max) */
     long (*box)[6];          /* per slot: lo[3], hi[3] (inclusive) */
     uint64_t clock;
     wvol__brick_scratch scr;
@@ -245,8 +245,7 @@ static void cache_free(brick_cache *c)
     free(c->id);
     free(c->used);
     free(c->data);
-    free(c->mn);
-    free(c->mx);
+    free(c->empty);
     free(c->box);
     wvol__brick_scratch_free(&c->scr);
     free(c);
@@ -262,10 +261,9 @@ static brick_cache *cache_new(const brick_src *src, size_t slots)
     c->id = malloc(slots * sizeof *c->id);
     c->used = calloc(slots, sizeof *c->used);
     c->data = malloc(slots * src->slot_floats * sizeof *c->data);
-    c->mn = malloc(slots * sizeof *c->mn);
-    c->mx = malloc(slots * sizeof *c->mx);
+    c->empty = malloc(slots * sizeof *c->empty);
     c->box = malloc(slots * sizeof *c->box);
-    if (!c->id || !c->used || !c->data || !c->mn || !c->mx || !c->box) {
+    if (!c->id || !c->used || !c->data || !c->empty || !c->box) {
         cache_free(c);
         return NULL;
     }
@@ -277,7 +275,7 @@ static size_t cache_bytes(const brick_cache *c)
 {
     size_t slots = c->nsets * WAYS;
     return sizeof *c + slots * (c->src->slot_floats * sizeof(float) + sizeof(long) + sizeof(uint64_t) +
-                                2 * sizeof(double) + 6 * sizeof(long)) +
+                                sizeof(unsigned char) + 6 * sizeof(long)) +
            wvol__brick_scratch_bytes(&c->scr);
 }
 
@@ -340,8 +338,7 @@ static wvol_status fetch(void *tctx, size_t b, wvol__view *view, int *empty)
         }
         slot = victim;
         c->id[slot] = (long)b;
-        c->mn[slot] = mn;
-        c->mx[slot] = mx;
+        c->empty[slot] = (unsigned char)wvol__brick_empty(src->tf, src->mode, mn, mx); /* once per build */
         for (int a = 0; a < 3; a++) {
             c->box[slot][a] = lo[a];
             c->box[slot][3 + a] = hi[a];
@@ -358,7 +355,7 @@ hit:
     view->sy = (size_t)(view->hi[0] - view->lo[0] + 1);
     view->sz = view->sy * (size_t)(view->hi[1] - view->lo[1] + 1);
     wvol__view_finish(view);
-    *empty = wvol__brick_empty(src->tf, src->mode, c->mn[slot], c->mx[slot]);
+    *empty = c->empty[slot];
     return WVOL_OK;
 }
 
