@@ -9,6 +9,9 @@
 
 #include <math.h>
 #include <stdint.h>
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
 #include <stdlib.h>
 #include <string.h>
 #include <omp.h>
@@ -419,11 +422,11 @@ static inline __attribute__((always_inline)) void exp_neg_block(const double *x,
  * double, exact below 2^53, and the view must have fewer than 2^31 voxels: the caller
  * checks). The last block may be shorter. Returns 1 when the ray terminates, *k then the
  * terminating step. */
-static inline __attribute__((always_inline)) int run_blocked(const wvol__view *view, const tf_fast *tfx,
-                                                             const wvol_render_params *p,
-                                                             const wvol_render_mode mode, const double x0[3],
-                                                             const double e[3], double t0, double dt, long *k,
-                                                             long ke, ray_acc *r)
+static inline __attribute__((always_inline)) int run_blocked_c(const wvol__view *view, const tf_fast *tfx,
+                                                               const wvol_render_params *p,
+                                                               const wvol_render_mode mode, const double x0[3],
+                                                               const double e[3], double t0, double dt, long *k,
+                                                               long ke, ray_acc *r)
 {
     long kk = *k;
     const double term = p->termination, syd = (double)view->sy, szd = (double)view->sz;
@@ -505,6 +508,174 @@ static inline __attribute__((always_inline)) int run_blocked(const wvol__view *v
     *k = ke;
     return 0;
 }
+
+/* The compositing of a block's samples, one after the other (the only dependency from
+ * one sample to the next): step's arithmetic. Returns 1 when the ray terminates, *k then
+ * the terminating step. */
+static inline __attribute__((always_inline)) int composite_block(const double *alpha, const double *kappa,
+                                                                 const double (*rgb)[RUN_BLOCK], int nb,
+                                                                 const wvol_render_mode mode, double term, long kk,
+                                                                 long *k, ray_acc *r)
+{
+    for (int l = 0; l < nb; l++) {
+        double al = alpha[l];
+        if (!(kappa[l] > 0)) continue;
+        if (mode != WVOL_MODE_ABSORPTION && al > 1) {
+            al = 1;
+            r->nclamp++;
+        }
+        for (int a = 0; a < 3; a++) r->acc[a] += r->T * al * rgb[a][l];
+        r->T *= 1.0 - al;
+        if (r->T < term) {
+            *k = kk + l;
+            return 1;
+        }
+    }
+    return 0;
+}
+
+#if defined(__SSE2__)
+/* run_blocked_c in SSE2 (every x86-64 has it), for the same results bit for bit with about
+ * a third of the instructions: the compiler's vectorisation of the portable loop gathers
+ * voxels one float at a time and converts lane by lane (~190 instructions a sample). Here
+ * positions, offsets and weights take two lanes per double operation; a voxel row's two
+ * neighbours along x are one 64-bit load, and two shuffles turn four lanes' pairs into the
+ * four low and four high neighbours, so the interpolation runs four lanes per float
+ * operation; the transfer function and the exponential run two lanes per operation, the
+ * table read as two loads. Each operation is the scalar one lane-wise (IEEE, same order,
+ * no fused multiply-add on baseline x86-64), which the tests check against the per-sample
+ * path. A short last block repeats its last sample in the spare lanes. */
+static inline __attribute__((always_inline)) int run_blocked(const wvol__view *view, const tf_fast *tfx,
+                                                             const wvol_render_params *p,
+                                                             const wvol_render_mode mode, const double x0[3],
+                                                             const double e[3], double t0, double dt, long *k,
+                                                             long ke, ray_acc *r)
+{
+    const double term = p->termination;
+    const __m128d vt0 = _mm_set1_pd(t0), vdt = _mm_set1_pd(dt), half = _mm_set1_pd(0.5);
+    const __m128d ex = _mm_set1_pd(e[0]), ey = _mm_set1_pd(e[1]), ez = _mm_set1_pd(e[2]);
+    const __m128d xx = _mm_set1_pd(x0[0]), xy = _mm_set1_pd(x0[1]), xz = _mm_set1_pd(x0[2]);
+    const __m128d o0 = _mm_set1_pd((double)view->off[0]), o1 = _mm_set1_pd((double)view->off[1]),
+                  o2 = _mm_set1_pd((double)view->off[2]);
+    const __m128d syd = _mm_set1_pd((double)view->sy), szd = _mm_set1_pd((double)view->sz);
+    const float *data = view->data;
+    const size_t sy = view->sy, sz = view->sz, rows[4] = {0, sy, sz, sz + sy};
+    long kk;
+    for (kk = *k; kk < ke; kk += RUN_BLOCK) {
+        int l, pr, nb = ke - kk < RUN_BLOCK ? (int)(ke - kk) : RUN_BLOCK, seg = r->seg, same;
+        double lanes[RUN_BLOCK], val[RUN_BLOCK], kappa[RUN_BLOCK], alpha[RUN_BLOCK], rgb[3][RUN_BLOCK];
+        int32_t idx[RUN_BLOCK];
+        __m128 wx[2], wy[2], wz[2];
+        const __m128d kd = _mm_set1_pd((double)kk);
+        for (l = 0; l < RUN_BLOCK; l++) lanes[l] = l < nb ? l : nb - 1;
+        for (pr = 0; pr < RUN_BLOCK / 2; pr++) {
+            /* t = t0 + ((kk + l) + 0.5) dt; the voxel's integer coordinates in double */
+            __m128d t = _mm_add_pd(vt0, _mm_mul_pd(_mm_add_pd(_mm_add_pd(kd, _mm_loadu_pd(lanes + 2 * pr)), half), vdt));
+            __m128d x = _mm_add_pd(xx, _mm_mul_pd(t, ex)), y = _mm_add_pd(xy, _mm_mul_pd(t, ey)),
+                    z = _mm_add_pd(xz, _mm_mul_pd(t, ez));
+            __m128d fi = _mm_cvtepi32_pd(_mm_cvttpd_epi32(x)), fj = _mm_cvtepi32_pd(_mm_cvttpd_epi32(y)),
+                    fk = _mm_cvtepi32_pd(_mm_cvttpd_epi32(z));
+            __m128d off = _mm_add_pd(_mm_add_pd(_mm_sub_pd(fi, o0), _mm_mul_pd(syd, _mm_sub_pd(fj, o1))),
+                                     _mm_mul_pd(szd, _mm_sub_pd(fk, o2)));
+            __m128 px = _mm_cvtpd_ps(_mm_sub_pd(x, fi)), py = _mm_cvtpd_ps(_mm_sub_pd(y, fj)),
+                   pz = _mm_cvtpd_ps(_mm_sub_pd(z, fk));
+            _mm_storel_epi64((__m128i *)(void *)(idx + 2 * pr), _mm_cvttpd_epi32(off));
+            if (pr & 1) {
+                wx[pr / 2] = _mm_movelh_ps(wx[pr / 2], px);
+                wy[pr / 2] = _mm_movelh_ps(wy[pr / 2], py);
+                wz[pr / 2] = _mm_movelh_ps(wz[pr / 2], pz);
+            } else {
+                wx[pr / 2] = px, wy[pr / 2] = py, wz[pr / 2] = pz;
+            }
+        }
+        for (int qd = 0; qd < 2; qd++) {
+            const float *qa = data + idx[4 * qd], *qb = data + idx[4 * qd + 1], *qc = data + idx[4 * qd + 2],
+                        *qe = data + idx[4 * qd + 3];
+            __m128 lo[4], c0, c1, v;
+            for (int row = 0; row < 4; row++) {
+                size_t o = rows[row];
+                __m128 ab = _mm_loadh_pi(_mm_loadl_pi(_mm_setzero_ps(), (const __m64 *)(const void *)(qa + o)),
+                                         (const __m64 *)(const void *)(qb + o));
+                __m128 ce = _mm_loadh_pi(_mm_loadl_pi(_mm_setzero_ps(), (const __m64 *)(const void *)(qc + o)),
+                                         (const __m64 *)(const void *)(qe + o));
+                __m128 p0 = _mm_shuffle_ps(ab, ce, _MM_SHUFFLE(2, 0, 2, 0)); /* the voxels at i */
+                __m128 p1 = _mm_shuffle_ps(ab, ce, _MM_SHUFFLE(3, 1, 3, 1)); /* and at i + 1 */
+                lo[row] = _mm_add_ps(p0, _mm_mul_ps(wx[qd], _mm_sub_ps(p1, p0)));
+            }
+            c0 = _mm_add_ps(lo[0], _mm_mul_ps(wy[qd], _mm_sub_ps(lo[1], lo[0])));
+            c1 = _mm_add_ps(lo[2], _mm_mul_ps(wy[qd], _mm_sub_ps(lo[3], lo[2])));
+            v = _mm_add_ps(c0, _mm_mul_ps(wz[qd], _mm_sub_ps(c1, c0)));
+            _mm_storeu_pd(val + 4 * qd, _mm_cvtps_pd(v));
+            _mm_storeu_pd(val + 4 * qd + 2, _mm_cvtps_pd(_mm_movehl_ps(v, v)));
+        }
+        if (mode == WVOL_MODE_XRAY) {
+            for (l = 0; l < nb; l++) r->xr += val[l] * dt;
+            continue;
+        }
+        /* the transfer function: every sample in the current segment (the common case), or
+         * one by one */
+        same = seg >= 0;
+        if (same) {
+            const __m128d v0 = _mm_set1_pd(tfx->v[seg]), v1 = _mm_set1_pd(tfx->v[seg + 1]);
+            for (pr = 0; pr < RUN_BLOCK / 2; pr++) {
+                __m128d v = _mm_loadu_pd(val + 2 * pr);
+                same &= _mm_movemask_pd(_mm_and_pd(_mm_cmpge_pd(v, v0), _mm_cmplt_pd(v, v1))) == 3;
+            }
+        }
+        if (same) {
+            const double *cs = tfx->c0[seg], *dc = tfx->dc[seg];
+            const __m128d v0 = _mm_set1_pd(tfx->v[seg]);
+            for (pr = 0; pr < RUN_BLOCK / 2; pr++) {
+                __m128d w = _mm_sub_pd(_mm_loadu_pd(val + 2 * pr), v0);
+                for (int c = 0; c < 3; c++)
+                    _mm_storeu_pd(rgb[c] + 2 * pr, _mm_add_pd(_mm_set1_pd(cs[c]), _mm_mul_pd(w, _mm_set1_pd(dc[c]))));
+                _mm_storeu_pd(kappa + 2 * pr, _mm_add_pd(_mm_set1_pd(cs[3]), _mm_mul_pd(w, _mm_set1_pd(dc[3]))));
+            }
+        } else {
+            for (l = 0; l < nb; l++) {
+                double c[3];
+                tf_fast_eval(tfx, val[l], &r->seg, c, &kappa[l]);
+                rgb[0][l] = c[0], rgb[1][l] = c[1], rgb[2][l] = c[2];
+            }
+        }
+        if (mode == WVOL_MODE_ABSORPTION) {
+            /* alpha = 1 - exp_neg(-kappa dt), exp_neg's operations two lanes at a time */
+            const __m128d kexp = _mm_set1_pd(369.32993046757463), shifter = _mm_set1_pd(6755399441055744.0);
+            const __m128d c_hi = _mm_set1_pd(6.93147180369123816490e-01 / 256),
+                          c_lo = _mm_set1_pd(1.90821492927058770002e-10 / 256);
+            const __m128d one = _mm_set1_pd(1.0), sixth = _mm_set1_pd(1.0 / 6.0), p24 = _mm_set1_pd(1.0 / 24.0),
+                          lim = _mm_set1_pd(-708.0), sign = _mm_set1_pd(-0.0);
+            const __m128i bias = _mm_set1_epi32(1023);
+            for (pr = 0; pr < RUN_BLOCK / 2; pr++) {
+                /* -kappa dt: the negation is exact, so (-kappa) dt = -(kappa dt) */
+                __m128d x = _mm_xor_pd(_mm_mul_pd(_mm_loadu_pd(kappa + 2 * pr), vdt), sign);
+                __m128d nrd = _mm_add_pd(_mm_mul_pd(x, kexp), shifter), n = _mm_sub_pd(nrd, shifter);
+                __m128i ni = _mm_castpd_si128(nrd); /* each lane's low 32 bits: the rounded x k */
+                __m128d rr = _mm_sub_pd(_mm_sub_pd(x, _mm_mul_pd(n, c_hi)), _mm_mul_pd(n, c_lo));
+                __m128d r2 = _mm_mul_pd(rr, rr);
+                __m128d pp = _mm_add_pd(_mm_add_pd(one, rr),
+                                        _mm_mul_pd(r2, _mm_add_pd(_mm_add_pd(half, _mm_mul_pd(rr, sixth)),
+                                                                  _mm_mul_pd(r2, p24))));
+                /* 2^floor(n / 256): the biased exponent in the low 12 bits of the low half,
+                 * shifted to bits 52..63 (the high half shifted out) */
+                __m128d sc = _mm_castsi128_pd(_mm_slli_epi64(_mm_add_epi32(_mm_srai_epi32(ni, 8), bias), 52));
+                int n0 = _mm_cvtsi128_si32(ni), n1 = _mm_cvtsi128_si32(_mm_srli_si128(ni, 8));
+                __m128d tab = _mm_set_pd(tfx->exp2_256[n1 & 255], tfx->exp2_256[n0 & 255]);
+                __m128d ev = _mm_and_pd(_mm_mul_pd(_mm_mul_pd(pp, tab), sc), _mm_cmpgt_pd(x, lim));
+                _mm_storeu_pd(alpha + 2 * pr, _mm_sub_pd(one, ev));
+            }
+        } else {
+            for (pr = 0; pr < RUN_BLOCK / 2; pr++)
+                _mm_storeu_pd(alpha + 2 * pr, _mm_mul_pd(_mm_loadu_pd(kappa + 2 * pr), vdt));
+        }
+        if (composite_block(alpha, kappa, (const double(*)[RUN_BLOCK])rgb, nb, mode, term, kk, k, r)) return 1;
+    }
+    *k = ke;
+    return 0;
+}
+#else
+#define run_blocked run_blocked_c
+#endif
 
 /* Full steps *k .. ke - 1 of a ray, all in one view (`inside`: strictly inside it); returns 1
  * when the ray terminates, *k then the terminating step. */
