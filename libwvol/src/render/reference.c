@@ -625,11 +625,15 @@ static inline __attribute__((always_inline)) int run_blocked(const wvol__view *v
         if (same) {
             const double *cs = tfx->c0[seg], *dc = tfx->dc[seg];
             const __m128d v0 = _mm_set1_pd(tfx->v[seg]);
+            const __m128d c0r = _mm_set1_pd(cs[0]), c0g = _mm_set1_pd(cs[1]), c0b = _mm_set1_pd(cs[2]),
+                          c0k = _mm_set1_pd(cs[3]), dcr = _mm_set1_pd(dc[0]), dcg = _mm_set1_pd(dc[1]),
+                          dcb = _mm_set1_pd(dc[2]), dck = _mm_set1_pd(dc[3]);
             for (pr = 0; pr < RUN_BLOCK / 2; pr++) {
                 __m128d w = _mm_sub_pd(_mm_loadu_pd(val + 2 * pr), v0);
-                for (int c = 0; c < 3; c++)
-                    _mm_storeu_pd(rgb[c] + 2 * pr, _mm_add_pd(_mm_set1_pd(cs[c]), _mm_mul_pd(w, _mm_set1_pd(dc[c]))));
-                _mm_storeu_pd(kappa + 2 * pr, _mm_add_pd(_mm_set1_pd(cs[3]), _mm_mul_pd(w, _mm_set1_pd(dc[3]))));
+                _mm_storeu_pd(rgb[0] + 2 * pr, _mm_add_pd(c0r, _mm_mul_pd(w, dcr)));
+                _mm_storeu_pd(rgb[1] + 2 * pr, _mm_add_pd(c0g, _mm_mul_pd(w, dcg)));
+                _mm_storeu_pd(rgb[2] + 2 * pr, _mm_add_pd(c0b, _mm_mul_pd(w, dcb)));
+                _mm_storeu_pd(kappa + 2 * pr, _mm_add_pd(c0k, _mm_mul_pd(w, dck)));
             }
         } else {
             for (l = 0; l < nb; l++) {
@@ -668,7 +672,41 @@ static inline __attribute__((always_inline)) int run_blocked(const wvol__view *v
             for (pr = 0; pr < RUN_BLOCK / 2; pr++)
                 _mm_storeu_pd(alpha + 2 * pr, _mm_mul_pd(_mm_loadu_pd(kappa + 2 * pr), vdt));
         }
-        if (composite_block(alpha, kappa, (const double(*)[RUN_BLOCK])rgb, nb, mode, term, kk, k, r)) return 1;
+        {
+            /* the compositing, branch-free where step branches: a sample with kappa <= 0
+             * (or NaN) composites with alpha 0, which leaves T and the colour exactly as
+             * they were (acc + T 0 c = acc, T (1 - 0) = T); absorption-linear clamps
+             * alpha to 1 and counts the clamps of the samples composited (up to the one
+             * that terminates the ray) */
+            const __m128d zero = _mm_setzero_pd(), one = _mm_set1_pd(1.0);
+            double om[RUN_BLOCK], T = r->T, a0 = r->acc[0], a1 = r->acc[1], a2 = r->acc[2];
+            unsigned clamps = 0; /* bit l: sample l clamped */
+            for (pr = 0; pr < RUN_BLOCK / 2; pr++) {
+                __m128d al = _mm_loadu_pd(alpha + 2 * pr), live = _mm_cmpgt_pd(_mm_loadu_pd(kappa + 2 * pr), zero);
+                if (mode != WVOL_MODE_ABSORPTION) {
+                    __m128d over = _mm_and_pd(_mm_cmpgt_pd(al, one), live);
+                    clamps |= (unsigned)_mm_movemask_pd(over) << (2 * pr);
+                    al = _mm_or_pd(_mm_andnot_pd(over, al), _mm_and_pd(over, one));
+                }
+                al = _mm_and_pd(al, live);
+                _mm_storeu_pd(alpha + 2 * pr, al);
+                _mm_storeu_pd(om + 2 * pr, _mm_sub_pd(one, al));
+            }
+            for (l = 0; l < nb; l++) {
+                double ta = T * alpha[l];
+                a0 += ta * rgb[0][l];
+                a1 += ta * rgb[1][l];
+                a2 += ta * rgb[2][l];
+                T *= om[l];
+                if (T < term) break;
+            }
+            r->T = T, r->acc[0] = a0, r->acc[1] = a1, r->acc[2] = a2;
+            if (clamps) r->nclamp += __builtin_popcount(clamps & ((2u << (l < nb ? l : nb - 1)) - 1));
+            if (l < nb) {
+                *k = kk + l;
+                return 1;
+            }
+        }
     }
     *k = ke;
     return 0;
