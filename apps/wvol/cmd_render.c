@@ -3,6 +3,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <time.h>
 
 #include "cli.h"
 #include "wvol/image.h"
@@ -88,7 +89,7 @@ int wvol_cmd_render(int argc, char **argv)
     wvol_geometry g;
     wvol_render_stats stats;
     wvol_select_report rep;
-    double vmin = 0, vmax = 1, t0, t_prep = 0, rss_before = -1, rss_peak = -1;
+    double vmin = 0, vmax = 1, t0, t_prep = 0, rss_before = -1, rss_peak = -1, recon_cpu = -1;
     size_t store_bytes = 0;
     const wvol_filter *filt = NULL;
 
@@ -216,7 +217,9 @@ int wvol_cmd_render(int argc, char **argv)
         goto done;
     }
     if (rp.mode != WVOL_MODE_XRAY && (rc = cli_load_tf(cmd, tfname, vmin, vmax, &tf)) != CLI_OK) goto done;
-    if (strcmp(method, "reference") || is_wvc) {
+    /* a store is built for the store methods, for a .wvc, and for the reference with --keep
+     * below 100% (which renders the dense reconstruction of the kept coefficients) */
+    if (strcmp(method, "reference") || is_wvc || keep < 1.0) {
         wvol_select_params sp = wvol_select_params_default();
         wvol_store_params stp = wvol_store_params_default();
         if (!is_wvc) {
@@ -238,9 +241,13 @@ int wvol_cmd_render(int argc, char **argv)
             sel = NULL;
         }
         stp.spline_J = (int)spline_j;
-        if (!strcmp(method, "reference")) { /* a .wvc: the dense reconstruction of its kept part */
+        if (!strcmp(method, "reference")) { /* the dense reconstruction of the kept part */
+            clock_t c0 = clock();
+            wvol_volume_destroy(v);
+            v = NULL;
             if (sel && wvol_selection_apply(sel, c, &err) != WVOL_OK) goto fail;
             if (wvol_idwt3(&v, c, &err) != WVOL_OK) goto fail;
+            recon_cpu = (double)(clock() - c0) / CLOCKS_PER_SEC; /* the reference's price of a store */
             wvol_coeffs_destroy(c);
             c = NULL;
         } else if (!strcmp(method, "reference-fhat")) {
@@ -312,7 +319,7 @@ int wvol_cmd_render(int argc, char **argv)
                                                                                                  : "absorption-linear");
         cli_json_int("width", W);
         cli_json_int("height", H);
-        if (strcmp(method, "reference") || is_wvc) {
+        if (strcmp(method, "reference") || is_wvc || keep < 1.0) {
             cli_json_str("wavelet", filt->name);
             cli_json_num("keep", keep);
             cli_json_int("kept", (long long)rep.kept);
@@ -320,6 +327,7 @@ int wvol_cmd_render(int argc, char **argv)
             cli_json_int("spline_j", spline_j);
         }
         cli_json_num("prepare_seconds", t_prep);
+        if (recon_cpu >= 0) cli_json_num("reconstruct_cpu_seconds", recon_cpu);
         cli_json_num("render_seconds", stats.seconds);
         cli_json_num("render_cpu_seconds", stats.cpu_seconds);
         cli_json_int("rays_hit", (long long)stats.rays_hit);

@@ -174,3 +174,25 @@ def test_bricks_from_a_store_and_from_a_wvc(wvol, tmp_path):
     assert a.size == b.size == 4 * 20 * 16
     peak = abs(b).max()
     assert 0 < peak < 10 and abs(a - b).max() < 1e-5 * peak
+
+
+def test_reference_with_keep_renders_the_kept_reconstruction(wvol, tmp_path):
+    """`--method reference --keep F` on a volume renders the dense reconstruction of the kept
+    coefficients (it used to ignore --keep): the bricked image of the same store up to float
+    rounding (1e-5 of the largest channel, as above), and visibly not the original's image."""
+    n = 24
+    vol = gaussian_raw(tmp_path / "g24.raw", n)
+    common = ["--dims", f"{n}x{n}x{n}", "--size", "20x16", "--camera", "persp dir=1,0.6,0.3", "--json"]
+    out = {}
+    for name, extra in (("ref5", ["--method", "reference", "--keep", "1%"]),
+                        ("bricks5", ["--method", "bricks", "--keep", "1%"]),
+                        ("ref100", ["--method", "reference"])):
+        r = wvol("render", vol, "-o", tmp_path / f"{name}.exr", *common, *extra)
+        assert r.returncode == 0, r.stderr
+        info = json.loads(r.stdout)
+        out[name] = read_exr_rgba(tmp_path / f"{name}.exr")
+        if name == "ref5":
+            assert info["method"] == "reference" and info["kept"] > 0 and info["reconstruct_cpu_seconds"] >= 0
+    peak = abs(out["ref100"]).max()
+    assert abs(out["ref5"] - out["bricks5"]).max() < 1e-5 * peak
+    assert abs(out["ref5"] - out["ref100"]).max() > 1e-3 * peak
