@@ -287,25 +287,6 @@ wvol_status wvol_store_build(wvol_store **out, const wvol_coeffs *c, const wvol_
             goto fail;
         }
     }
-    for (size_t ni = s->nnodes; ni-- > 0;) {
-        wvol__node *nd = s->nodes + ni;
-        int m = wvol__key_level(nd->key), j = 0;
-        double vb = 0.0, gb[3] = {0.0, 0.0, 0.0};
-        for (int l = 1; l < 8; l++) {
-            if (!((nd->band_mask >> (l - 1)) & 1)) continue;
-            double a = fabs((double)s->values[nd->coef_first + (uint32_t)j++]);
-            vb += a * s->fvmax[m][l];
-            for (int x = 0; x < 3; x++) gb[x] += a * s->fgmax[m][l][x];
-        }
-        for (int ci = 0, k = 0; ci < 8; ci++) {
-            if (!((nd->child_mask >> ci) & 1)) continue;
-            const wvol__node *ch = s->nodes + nd->child_first + k++;
-            vb += ch->vbound;
-            for (int x = 0; x < 3; x++) gb[x] += ch->gbound[x];
-        }
-        nd->vbound = up_float(vb);
-        for (int x = 0; x < 3; x++) nd->gbound[x] = up_float(gb[x]);
-    }
 
     /* the hash of nodes: open addressing, linear probing, load <= 1/2 */
     {
@@ -367,8 +348,34 @@ void wvol_store_get_info(const wvol_store *s, wvol_store_info *info)
                         (size_t)s->rg.n * 2 * 2 * WVOL__KINDS * sizeof(double);
 }
 
+/* A node's subtree bounds: sum over the subtree of |c| max|w| (vb) and of |c| max|dw/dx_a|
+ * (gb), each child's sum rounded up to float before it is added. Computed on request from
+ * the subtree (no algorithm of the library needs them, so the nodes do not carry them:
+ * 16 bytes less per node, a third of the store). */
+static void node_bounds(const wvol_store *s, const wvol__node *nd, float *vbound, float gbound[3])
+{
+    int m = wvol__key_level(nd->key), j = 0;
+    double vb = 0.0, gb[3] = {0.0, 0.0, 0.0};
+    for (int l = 1; l < 8; l++) {
+        if (!((nd->band_mask >> (l - 1)) & 1)) continue;
+        double a = fabs((double)s->values[nd->coef_first + (uint32_t)j++]);
+        vb += a * s->fvmax[m][l];
+        for (int x = 0; x < 3; x++) gb[x] += a * s->fgmax[m][l][x];
+    }
+    for (int ci = 0, k = 0; ci < 8; ci++) {
+        float cv, cg[3];
+        if (!((nd->child_mask >> ci) & 1)) continue;
+        node_bounds(s, s->nodes + nd->child_first + k++, &cv, cg); /* depth <= levels */
+        vb += cv;
+        for (int x = 0; x < 3; x++) gb[x] += cg[x];
+    }
+    *vbound = up_float(vb);
+    for (int x = 0; x < 3; x++) gbound[x] = up_float(gb[x]);
+}
+
 void wvol_store_node_get(const wvol_store *s, size_t i, wvol_store_node *out)
 {
+    float vb, gb[3];
     const wvol__node *nd;
     size_t pos[3];
     int m;
@@ -391,9 +398,10 @@ void wvol_store_node_get(const wvol_store *s, size_t i, wvol_store_node *out)
         } else {
             out->lo[a] = -INFINITY, out->hi[a] = INFINITY;
         }
-        out->gbound[a] = nd->gbound[a];
     }
-    out->vbound = nd->vbound;
+    node_bounds(s, nd, &vb, gb);
+    out->vbound = vb;
+    for (int a = 0; a < 3; a++) out->gbound[a] = gb[a];
 }
 
 int wvol_store_lookup(const wvol_store *s, int level, int band, size_t p, size_t q, size_t r, float *value)

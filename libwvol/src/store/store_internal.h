@@ -135,11 +135,9 @@ typedef struct wvol__node {
     uint64_t key;          /* level << 57 | p << 38 | q << 19 | r */
     uint32_t coef_first;
     uint32_t child_first;
-    float vbound;
-    float gbound[3];
     uint8_t band_mask, child_mask;
     uint16_t pad;
-} wvol__node;
+} wvol__node;                /* 24 bytes; subtree bounds are computed on request (store.c) */
 
 #define WVOL__POS_BITS 19
 #define WVOL__POS_MAX ((size_t)1 << WVOL__POS_BITS)
