@@ -16,7 +16,7 @@ void wvol_render_params_default(wvol_render_params *p)
     p->shading = 0;
     p->ambient = 0.3;
     p->threads = 0;
-    p->tile = 16;
+    p->tile = 0;
     p->brick = 8;
     p->sample = WVOL_SAMPLE_TRILINEAR;
     p->gauss_nodes = 5;
@@ -48,7 +48,8 @@ wvol_status wvol__render_check(const wvol_image *img, const wvol_camera *cam, co
                    "render: termination threshold %g (must be in [0, 1))", p->termination);
     WVOL_RETURN_IF(!(p->ambient >= 0 && p->ambient <= 1), err, WVOL_ERR_ARG, "render: ambient %g (must be in [0, 1])",
                    p->ambient);
-    WVOL_RETURN_IF(p->tile < 1 || p->tile > 4096, err, WVOL_ERR_ARG, "render: tile %d (1..4096)", p->tile);
+    WVOL_RETURN_IF(p->tile < 0 || p->tile > 4096, err, WVOL_ERR_ARG, "render: tile %d (0 for the default, or 1..4096)",
+                   p->tile);
     WVOL_RETURN_IF(p->brick < 0 || p->brick > 4096, err, WVOL_ERR_ARG, "render: brick %d (0..4096)", p->brick);
     WVOL_RETURN_IF(p->threads < 0, err, WVOL_ERR_ARG, "render: threads %d (>= 0)", p->threads);
     WVOL_RETURN_IF(p->gauss_nodes < 1 || p->gauss_nodes > 10, err, WVOL_ERR_ARG, "render: gauss_nodes %d (1..10)",
@@ -78,6 +79,11 @@ wvol_status wvol__check_colors(const wvol_render_params *p, const size_t n[3], i
                        "render: colour volume value %g at voxel %zu channel %zu (must be finite and >= 0)",
                        (double)p->colors[i], i / 3, i % 3);
     return WVOL_OK;
+}
+
+int wvol__tile_side(const wvol_render_params *p, int bricked)
+{
+    return p->tile > 0 ? p->tile : bricked ? 32 : 16;
 }
 
 int wvol__tiles(int width, int height, int tile)

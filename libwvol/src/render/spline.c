@@ -626,6 +626,7 @@ wvol_status wvol_render_spline_until(wvol_image *img, const wvol_store *s, const
     gauss_legendre(c.gl_n, c.gl_x, c.gl_w);
     wvol_geometry_bounds(&g, lo, hi);
     wvol__cam_init(&k, cam);
+    c.p.tile = wvol__tile_side(&c.p, 0);
     ntiles = wvol__tiles(img->width, img->height, c.p.tile);
     tx = (img->width + c.p.tile - 1) / c.p.tile;
     wvol_error_clear(&first_err);
