@@ -173,6 +173,7 @@ VTK_SCRIPT = r"""
 import sys, time, numpy as np, vtk
 from vtk.util import numpy_support
 raw, n, img, kappa, out, threads = sys.argv[1], int(sys.argv[2]), int(sys.argv[3]), float(sys.argv[4]), sys.argv[5], int(sys.argv[6])
+view = sys.argv[7] if len(sys.argv) > 7 else "+z"   # "+z", or "persp X,Y,Z": wvol's "persp dir=X,Y,Z"
 vtk.vtkMultiThreader.SetGlobalMaximumNumberOfThreads(threads)
 v = np.fromfile(raw, dtype='<f4')
 imgd = vtk.vtkImageData(); imgd.SetDimensions(n, n, n); imgd.SetSpacing(1, 1, 1); imgd.SetOrigin(0, 0, 0)
@@ -190,8 +191,17 @@ vol = vtk.vtkVolume(); vol.SetMapper(mapper); vol.SetProperty(prop)
 ren = vtk.vtkRenderer(); ren.AddVolume(vol); ren.SetBackground(0, 0, 0)
 win = vtk.vtkRenderWindow(); win.SetOffScreenRendering(1); win.AddRenderer(ren); win.SetSize(img, img)
 cam = ren.GetActiveCamera(); c = (n - 1) / 2
-cam.SetFocalPoint(c, c, c); cam.SetPosition(c, c, c + 2 * n); cam.SetViewUp(0, 1, 0)
-cam.ParallelProjectionOn(); cam.SetParallelScale(n / 2); cam.SetClippingRange(0.1, 10 * n)
+if view == "+z":
+    cam.SetFocalPoint(c, c, c); cam.SetPosition(c, c, c + 2 * n); cam.SetViewUp(0, 1, 0)
+    cam.ParallelProjectionOn(); cam.SetParallelScale(n / 2); cam.SetClippingRange(0.1, 10 * n)
+else:
+    # wvol's perspective framing (camera.c): the eye on the view direction d through the box
+    # centre, at radius / sin(fov / 2) with the box [-1/2, n - 1/2]^3's half diagonal as radius,
+    # up +z, vertical field of view 30 degrees
+    d = np.array([float(x) for x in view.split()[1].split(",")]); d /= np.linalg.norm(d)
+    radius = n * np.sqrt(3) / 2; dist = radius / np.sin(np.radians(15))
+    cam.SetFocalPoint(c, c, c); cam.SetPosition(*(np.array([c, c, c]) - d * dist)); cam.SetViewUp(0, 0, 1)
+    cam.ParallelProjectionOff(); cam.SetViewAngle(30); cam.SetClippingRange(dist - 2 * radius, dist + 2 * radius)
 win.Render()                      # first frame: set-up (textures, min/max volume)
 t0 = time.process_time(); w0 = time.perf_counter(); win.Render(); t1 = time.process_time(); w1 = time.perf_counter()
 w2i = vtk.vtkWindowToImageFilter(); w2i.SetInput(win); w2i.SetInputBufferTypeToRGB(); w2i.ReadFrontBufferOff(); w2i.Update()
@@ -201,10 +211,11 @@ print(t1 - t0, w1 - w0)
 """
 
 
-def run_vtk(rawpath, n, img, out, kappa, threads, tmp):
+def run_vtk(rawpath, n, img, out, kappa, threads, tmp, view="+z"):
     script = tmp / "vtk_render.py"
     script.write_text(VTK_SCRIPT)
-    dt, mem, so, se, rc = timed(["xvfb-run", "-a", "/usr/bin/python3", script, rawpath, n, img, kappa, out, threads])
+    dt, mem, so, se, rc = timed(["xvfb-run", "-a", "/usr/bin/python3", script, rawpath, n, img, kappa, out, threads,
+                                 view])
     if rc != 0:
         return None, None, mem, se.strip().splitlines()[-1] if se.strip() else "failed"
     cpu, wall = map(float, so.strip().splitlines()[-1].split())
@@ -234,7 +245,7 @@ def equal_error_table(rows):
             continue
         refs = [q for q in rows if is_ref(q) and "converged" not in q["method"] and q.get("volume") == r.get("volume")
                 and q.get("mode") == r.get("mode") and q.get("threads") == r.get("threads") and q.get("cpu_s")
-                and "rel_rmse" in q]
+                and q.get("camera", "+z") == r.get("camera", "+z") and "rel_rmse" in q]
         if not refs:
             continue
         ok = [q for q in refs if q["rel_rmse"] <= r["rel_rmse"]]
@@ -267,6 +278,8 @@ def main():
     ap.add_argument("--bricks-steps", default="0.5,1", help="steps (voxels) of the bricks rows")
     ap.add_argument("--peer-steps", default="0.5,1,2", help="steps of the bricks rows beside the peers")
     ap.add_argument("--peer-threads", default="1,2", help="thread counts of the peer comparison")
+    ap.add_argument("--peer-cameras", default="+z;persp dir=1,0.7,0.4",
+                    help="';'-separated wvol cameras of the peer comparison (+z, or persp dir=X,Y,Z: VTK matched)")
     ap.add_argument("--peers-only", action="store_true", help="only the comparison with the peers")
     ap.add_argument("--no-vdb", action="store_true", help="leave vdb_render out (it can take many minutes)")
     ap.add_argument("--out", default=str(ROOT / "bench" / "results"))
@@ -382,65 +395,69 @@ def main():
             uraw = tmp / f"{vname}_u.raw"; write_raw(u, uraw)
             tfp = tmp / "peer_tf.txt"
             tfp.write_text(f"units world\n0 1 1 1 0\n1 1 1 1 {k}\n")
-            pc = ["--size", f"{img}x{img}", "--camera", "+z", "--tf", tfp]
-            ref = tmp / "ref_peer.exr"
-            info, dt, mem, e = wvol_render(uraw, n, ref, pc + ["--method", "reference", "--step", str(a.ref_step)], thr)
-            if e:
-                print("peer reference failed:", e)
-                continue
-            RA = rgba(ref)[..., 3]
+            for pcam in [c for c in a.peer_cameras.split(";") if c]:
+                pc = ["--size", f"{img}x{img}", "--camera", pcam, "--tf", tfp]
+                cam_note = "" if pcam == "+z" else f" ({pcam})"
+                ref = tmp / "ref_peer.exr"
+                info, dt, mem, e = wvol_render(uraw, n, ref, pc + ["--method", "reference", "--step", str(a.ref_step)], thr)
+                if e:
+                    print("peer reference failed:", e)
+                    continue
+                RA = rgba(ref)[..., 3]
+                print(f"peer reference ({vname}, {pcam}):", info["render_cpu_seconds"], "CPU s", flush=True)
 
-            def peer_row(method, threads, keep, **kw):
-                row = {"volume": vname, "mode": "opacity-only", "method": f"{method} [{threads} thr]",
-                       "threads": threads, "keep": keep}
-                row.update(kw)
-                rows.append(row)
-                print(json.dumps(row), flush=True)
+                def peer_row(method, threads, keep, **kw):
+                    row = {"volume": vname, "mode": "opacity-only", "method": f"{method}{cam_note} [{threads} thr]",
+                           "threads": threads, "keep": keep, "camera": pcam}
+                    row.update(kw)
+                    rows.append(row)
+                    print(json.dumps(row), flush=True)
 
-            for pt in [int(x) for x in a.peer_threads.split(",")]:
-                runs = [(f"wvol reference step={st}", ["--method", "reference", "--step", str(st)], 100)
-                        for st in a.peer_steps.split(",")]
-                runs += [(f"wvol bricks step={st}", ["--method", "bricks", "--step", str(st), "--keep", "5%"], 5)
-                         for st in a.peer_steps.split(",")]
-                # the reference integrator on the dense reconstruction of the same 5% store: the
-                # same image as bricks up to rounding, its price the inverse transform plus the
-                # render (reconstruct_cpu_seconds is added to the row's CPU time)
-                runs += [(f"wvol reference of 5% step={st}", ["--method", "reference", "--step", str(st), "--keep", "5%"],
-                          5) for st in a.peer_steps.split(",")]
-                for name, args, keep in runs:
-                    if have(vname, "opacity-only", f"{name} [{pt} thr]", keep):
-                        continue
-                    out = tmp / "o.exr"
-                    info, dt, mem, e = wvol_render(uraw, n, out, pc + args, str(pt))
-                    if e:
-                        peer_row(name, pt, keep, error=e)
-                        continue
-                    extra = {k2: info[k2] for k2 in WVOL_FIELDS if k2 in info}
-                    cpu = info["render_cpu_seconds"] + info.get("reconstruct_cpu_seconds", 0)
-                    if "reconstruct_cpu_seconds" in info:
-                        extra["note"] = "CPU s: dense reconstruction + render"
-                    peer_row(name, pt, keep, wall_s=dt, render_s=info["render_seconds"],
-                             cpu_s=cpu, peak_mb=mem, rel_rmse=rel_rmse(rgba(out)[..., 3], RA),
-                             **extra)
-                if shutil.which("vdb_render") and not a.no_vdb:
-                    try:
-                        vp = tmp / "g.vdb"
-                        if not vp.exists(): vdb_write(u, vp)
-                        out = tmp / "vdb.exr"
-                        dt, mem, so, se, rc = run_vdb(vp, n, img, out, k, pt)
-                        kw = {"wall_s": dt, "render_s": dt, "cpu_s": timed.cpu, "peak_mb": mem,
-                              "note": "whole process: reading the .vdb included"}
-                        if rc == 0: kw["rel_rmse"] = rel_rmse(rgba(out)[..., 3], RA)
-                        else: kw["error"] = se.strip().splitlines()[-1] if se.strip() else "failed"
-                        peer_row("vdb_render", pt, 100, **kw)
-                    except Exception as ex:  # pyopenvdb missing or failing
-                        peer_row("vdb_render", pt, 100, error=repr(ex))
-                if shutil.which("xvfb-run"):
-                    out = tmp / "vtk.npy"
-                    cpu, wall, mem, e = run_vtk(uraw, n, img, out, k, pt, tmp)
-                    if e: peer_row("VTK fixed-point", pt, 100, peak_mb=mem, error=e)
-                    else: peer_row("VTK fixed-point", pt, 100, render_s=wall, cpu_s=cpu, peak_mb=mem,
-                                   rel_rmse=rel_rmse(np.load(out), RA), note="one Render(), set-up frame excluded")
+                for pt in [int(x) for x in a.peer_threads.split(",")]:
+                    runs = [(f"wvol reference step={st}", ["--method", "reference", "--step", str(st)], 100)
+                            for st in a.peer_steps.split(",")]
+                    runs += [(f"wvol bricks step={st}", ["--method", "bricks", "--step", str(st), "--keep", "5%"], 5)
+                             for st in a.peer_steps.split(",")]
+                    # the reference integrator on the dense reconstruction of the same 5% store: the
+                    # same image as bricks up to rounding, its price the inverse transform plus the
+                    # render (reconstruct_cpu_seconds is added to the row's CPU time)
+                    runs += [(f"wvol reference of 5% step={st}", ["--method", "reference", "--step", str(st), "--keep", "5%"],
+                              5) for st in a.peer_steps.split(",")]
+                    for name, args, keep in runs:
+                        if have(vname, "opacity-only", f"{name}{cam_note} [{pt} thr]", keep):
+                            continue
+                        out = tmp / "o.exr"
+                        info, dt, mem, e = wvol_render(uraw, n, out, pc + args, str(pt))
+                        if e:
+                            peer_row(name, pt, keep, error=e)
+                            continue
+                        extra = {k2: info[k2] for k2 in WVOL_FIELDS if k2 in info}
+                        cpu = info["render_cpu_seconds"] + info.get("reconstruct_cpu_seconds", 0)
+                        if "reconstruct_cpu_seconds" in info:
+                            extra["note"] = "CPU s: dense reconstruction + render"
+                        peer_row(name, pt, keep, wall_s=dt, render_s=info["render_seconds"],
+                                 cpu_s=cpu, peak_mb=mem, rel_rmse=rel_rmse(rgba(out)[..., 3], RA),
+                                 **extra)
+                    if shutil.which("vdb_render") and not a.no_vdb and pcam == "+z":
+                        try:
+                            vp = tmp / "g.vdb"
+                            if not vp.exists(): vdb_write(u, vp)
+                            out = tmp / "vdb.exr"
+                            dt, mem, so, se, rc = run_vdb(vp, n, img, out, k, pt)
+                            kw = {"wall_s": dt, "render_s": dt, "cpu_s": timed.cpu, "peak_mb": mem,
+                                  "note": "whole process: reading the .vdb included"}
+                            if rc == 0: kw["rel_rmse"] = rel_rmse(rgba(out)[..., 3], RA)
+                            else: kw["error"] = se.strip().splitlines()[-1] if se.strip() else "failed"
+                            peer_row("vdb_render", pt, 100, **kw)
+                        except Exception as ex:  # pyopenvdb missing or failing
+                            peer_row("vdb_render", pt, 100, error=repr(ex))
+                    if shutil.which("xvfb-run"):
+                        out = tmp / "vtk.npy"
+                        vview = "+z" if pcam == "+z" else "persp " + pcam.split("dir=")[1].split()[0]
+                        cpu, wall, mem, e = run_vtk(uraw, n, img, out, k, pt, tmp, vview)
+                        if e: peer_row("VTK fixed-point", pt, 100, peak_mb=mem, error=e)
+                        else: peer_row("VTK fixed-point", pt, 100, render_s=wall, cpu_s=cpu, peak_mb=mem,
+                                       rel_rmse=rel_rmse(np.load(out), RA), note="one Render(), set-up frame excluded")
             (tmp / "g.vdb").unlink(missing_ok=True)
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
@@ -482,10 +499,14 @@ def main():
                      + (f"{r['rel_rmse']:.3g}" if "rel_rmse" in r else r.get("error", "")) + " |")
     lines += ["", "## Against the peers (opacity only)\n",
               "kappa(u) = 8 u per box diagonal, white emission, on the volume normalised to u in [0, 1]; "
-              "orthographic +z; alpha compared with wvol's converged reference on the same volume. wvol bricks "
-              "render from a 5% store; the others from the dense volume. VTK: one Render() after a set-up "
-              "frame (CPU and wall); vdb_render: the whole process (reading the .vdb included). Ratios are "
-              "CPU time over VTK's CPU time at the same thread count, in this run.\n",
+              "orthographic +z, and (rows marked with the camera) a perspective view from an oblique "
+              "direction, VTK's camera placed as wvol frames it (eye at the box's bounding-sphere distance "
+              "for a 30 degree field of view); alpha compared with wvol's converged reference on the same "
+              "volume and view. wvol bricks render from a 5% store; 'wvol reference of 5%' is the reference "
+              "integrator on the dense reconstruction of that store (CPU: the inverse transform plus the "
+              "render); the others render the dense volume. VTK: one Render() after a set-up frame (CPU and "
+              "wall); vdb_render: the whole process (reading the .vdb included). Ratios are CPU time over "
+              "VTK's CPU time at the same thread count and view, in this run.\n",
               "| volume | threads | method | kept % | CPU s | wall s | / VTK CPU | rel. RMSE (alpha) | peak MB "
               "| render MiB | alloc MiB | store MiB |",
               "|---|---|---|---|---|---|---|---|---|---|---|---|"]
@@ -494,7 +515,7 @@ def main():
             continue
         vtk = [q for q in rows if q.get("mode") == "opacity-only" and q.get("volume") == r.get("volume")
                and q.get("threads") == r.get("threads") and str(q.get("method", "")).startswith("VTK")
-               and q.get("cpu_s")]
+               and q.get("camera", "+z") == r.get("camera", "+z") and q.get("cpu_s")]
         ratio = r.get("cpu_s", nan) / vtk[0]["cpu_s"] if vtk and r.get("cpu_s") else nan
         lines.append(f"| {r.get('volume')} | {r.get('threads')} | {r.get('method')} | {r.get('keep')} | "
                      f"{r.get('cpu_s', nan) or nan:.3f} | {r.get('render_s', nan) or nan:.3f} | {ratio:.2f} | "
