@@ -516,6 +516,7 @@ def main():
         vtk = [q for q in rows if q.get("mode") == "opacity-only" and q.get("volume") == r.get("volume")
                and q.get("threads") == r.get("threads") and str(q.get("method", "")).startswith("VTK")
                and q.get("camera", "+z") == r.get("camera", "+z") and q.get("cpu_s")]
+        vtk = [q for q in vtk if q.get("run") == r.get("run")] or vtk  # rows merged from several runs
         ratio = r.get("cpu_s", nan) / vtk[0]["cpu_s"] if vtk and r.get("cpu_s") else nan
         lines.append(f"| {r.get('volume')} | {r.get('threads')} | {r.get('method')} | {r.get('keep')} | "
                      f"{r.get('cpu_s', nan) or nan:.3f} | {r.get('render_s', nan) or nan:.3f} | {ratio:.2f} | "

@@ -383,168 +383,26 @@ static inline __attribute__((always_inline)) int step(const wvol__sampler *s, co
 /* Samples per block of the blocked loop (run_blocked). */
 #define RUN_BLOCK 8
 
-/* exp(x) of exp_neg for the count <= RUN_BLOCK lanes of a block, written without branches
- * or calls so that the compiler vectorises it (the table read becomes a gather); the same
- * operations in the same order as exp_neg, so the same results bit for bit. */
-static inline __attribute__((always_inline)) void exp_neg_block(const double *x, double *out, int count,
-                                                                const double *exp2_256)
-{
-    static const double k = 369.32993046757463;
-    static const double c_hi = 6.93147180369123816490e-01 / 256, c_lo = 1.90821492927058770002e-10 / 256;
-    static const double shifter = 6755399441055744.0;
-    for (int l = 0; l < count; l++) {
-        double xl = x[l], nrd = xl * k + shifter, n = nrd - shifter, r, r2, p, scd;
-        uint64_t nru, scu;
-        int32_t ni;
-        memcpy(&nru, &nrd, sizeof nru);
-        ni = (int32_t)(uint32_t)nru; /* two's complement low 32 bits */
-        r = (xl - n * c_hi) - n * c_lo;
-        r2 = r * r;
-        p = (1.0 + r) + r2 * ((0.5 + r * (1.0 / 6.0)) + r2 * (1.0 / 24.0));
-        scu = (uint64_t)(uint32_t)((ni >> 8) + 1023) << 52; /* 2^floor(n / 256); garbage where masked */
-        memcpy(&scd, &scu, sizeof scd);
-        p = p * exp2_256[ni & 255] * scd;
-        out[l] = xl > -708.0 ? p : 0.0; /* also NaN: an opaque step */
-    }
-}
-
-/* Full steps *k .. ke - 1 of a ray strictly inside one view, without shading or colour
- * volume, in blocks of RUN_BLOCK samples taken phase by phase: the block's positions and
- * trilinear weights, its samples, their colours and kappas, their opacities, then the
- * compositing. The samples of a block are independent; only the compositing carries a
- * dependency from one to the next. Sample by sample (step), each sample's chain (about
- * 140 instructions: addresses, eight loads, interpolation, transfer function, exponential,
- * and for a dense volume cache misses) ended before the next could start beyond what the
- * out-of-order window holds; phase by phase, the block's chains overlap and the compiler
- * vectorises the arithmetic phases. (Explicit 8-lane vector types were tried: no fewer
- * instructions with baseline x86-64's SSE2, and slower.) The arithmetic per sample is
- * exactly step's, so the image is the same bit for bit (the voxel offsets are computed in
- * double, exact below 2^53, and the view must have fewer than 2^31 voxels: the caller
- * checks). The last block may be shorter. Returns 1 when the ray terminates, *k then the
- * terminating step. */
-static inline __attribute__((always_inline)) int run_blocked_c(const wvol__view *view, const tf_fast *tfx,
-                                                               const wvol_render_params *p,
-                                                               const wvol_render_mode mode, const double x0[3],
-                                                               const double e[3], double t0, double dt, long *k,
-                                                               long ke, ray_acc *r)
-{
-    long kk = *k;
-    const double term = p->termination, syd = (double)view->sy, szd = (double)view->sz;
-    const double offd[3] = {(double)view->off[0], (double)view->off[1], (double)view->off[2]};
-    const float *data = view->data;
-    for (; kk < ke; kk += RUN_BLOCK) {
-        double val[RUN_BLOCK], rgb[3][RUN_BLOCK], kappa[RUN_BLOCK], alpha[RUN_BLOCK], kd = (double)kk;
-        float wx[RUN_BLOCK], wy[RUN_BLOCK], wz[RUN_BLOCK];
-        int32_t idx[RUN_BLOCK];
-        int l, seg = r->seg, same, nb = ke - kk < RUN_BLOCK ? (int)(ke - kk) : RUN_BLOCK;
-        size_t sy = view->sy, sz = view->sz;
-        for (l = 0; l < nb; l++) {
-            /* (double)(kk + l) = kd + l exactly; the voxel's integer coordinates in double */
-            double t = t0 + ((kd + (double)l) + 0.5) * dt;
-            double x = x0[0] + t * e[0], y = x0[1] + t * e[1], z = x0[2] + t * e[2];
-            double fi = (double)(int32_t)x, fj = (double)(int32_t)y, fk = (double)(int32_t)z;
-            wx[l] = (float)(x - fi);
-            wy[l] = (float)(y - fj);
-            wz[l] = (float)(z - fk);
-            idx[l] = (int32_t)((fi - offd[0]) + syd * (fj - offd[1]) + szd * (fk - offd[2]));
-        }
-        for (l = 0; l < nb; l++) {
-            const float *q = data + idx[l];
-            float c00 = q[0] + wx[l] * (q[1] - q[0]);
-            float c10 = q[sy] + wx[l] * (q[sy + 1] - q[sy]);
-            float c01 = q[sz] + wx[l] * (q[sz + 1] - q[sz]);
-            float c11 = q[sz + sy] + wx[l] * (q[sz + sy + 1] - q[sz + sy]);
-            float c0 = c00 + wy[l] * (c10 - c00), c1 = c01 + wy[l] * (c11 - c01);
-            val[l] = (double)(c0 + wz[l] * (c1 - c0));
-        }
-        if (mode == WVOL_MODE_XRAY) {
-            for (l = 0; l < nb; l++) r->xr += val[l] * dt;
-            continue;
-        }
-        /* the transfer function: every sample in the current segment (the common case), or
-         * one by one */
-        same = seg >= 0;
-        if (same)
-            for (l = 0; l < nb; l++) same &= (val[l] >= tfx->v[seg]) & (val[l] < tfx->v[seg + 1]);
-        if (same) {
-            const double *c0 = tfx->c0[seg], *dc = tfx->dc[seg], v0 = tfx->v[seg];
-            for (l = 0; l < nb; l++) {
-                double w = val[l] - v0;
-                rgb[0][l] = c0[0] + w * dc[0];
-                rgb[1][l] = c0[1] + w * dc[1];
-                rgb[2][l] = c0[2] + w * dc[2];
-                kappa[l] = c0[3] + w * dc[3];
-            }
-        } else {
-            for (l = 0; l < nb; l++) {
-                double c[3];
-                tf_fast_eval(tfx, val[l], &r->seg, c, &kappa[l]);
-                rgb[0][l] = c[0], rgb[1][l] = c[1], rgb[2][l] = c[2];
-            }
-        }
-        if (mode == WVOL_MODE_ABSORPTION) {
-            double xs[RUN_BLOCK];
-            for (l = 0; l < nb; l++) xs[l] = -kappa[l] * dt;
-            exp_neg_block(xs, alpha, nb, tfx->exp2_256);
-            for (l = 0; l < nb; l++) alpha[l] = 1.0 - alpha[l];
-        } else {
-            for (l = 0; l < nb; l++) alpha[l] = kappa[l] * dt;
-        }
-        for (l = 0; l < nb; l++) {
-            double al = alpha[l];
-            if (!(kappa[l] > 0)) continue;
-            if (mode != WVOL_MODE_ABSORPTION && al > 1) {
-                al = 1;
-                r->nclamp++;
-            }
-            for (int a = 0; a < 3; a++) r->acc[a] += r->T * al * rgb[a][l];
-            r->T *= 1.0 - al;
-            if (r->T < term) {
-                *k = kk + l;
-                return 1;
-            }
-        }
-    }
-    *k = ke;
-    return 0;
-}
-
-/* The compositing of a block's samples, one after the other (the only dependency from
- * one sample to the next): step's arithmetic. Returns 1 when the ray terminates, *k then
- * the terminating step. */
-static inline __attribute__((always_inline)) int composite_block(const double *alpha, const double *kappa,
-                                                                 const double (*rgb)[RUN_BLOCK], int nb,
-                                                                 const wvol_render_mode mode, double term, long kk,
-                                                                 long *k, ray_acc *r)
-{
-    for (int l = 0; l < nb; l++) {
-        double al = alpha[l];
-        if (!(kappa[l] > 0)) continue;
-        if (mode != WVOL_MODE_ABSORPTION && al > 1) {
-            al = 1;
-            r->nclamp++;
-        }
-        for (int a = 0; a < 3; a++) r->acc[a] += r->T * al * rgb[a][l];
-        r->T *= 1.0 - al;
-        if (r->T < term) {
-            *k = kk + l;
-            return 1;
-        }
-    }
-    return 0;
-}
-
 #if defined(__SSE2__)
-/* run_blocked_c in SSE2 (every x86-64 has it), for the same results bit for bit with about
- * a third of the instructions: the compiler's vectorisation of the portable loop gathers
- * voxels one float at a time and converts lane by lane (~190 instructions a sample). Here
- * positions, offsets and weights take two lanes per double operation; a voxel row's two
- * neighbours along x are one 64-bit load, and two shuffles turn four lanes' pairs into the
- * four low and four high neighbours, so the interpolation runs four lanes per float
- * operation; the transfer function and the exponential run two lanes per operation, the
- * table read as two loads. Each operation is the scalar one lane-wise (IEEE, same order,
- * no fused multiply-add on baseline x86-64), which the tests check against the per-sample
- * path. A short last block repeats its last sample in the spare lanes. */
+/* Full steps *k .. ke - 1 of a ray strictly inside one view, without shading or colour
+ * volume, in blocks of RUN_BLOCK samples computed lane-parallel in SSE2 (every x86-64 has
+ * it): the block's positions, voxel offsets and trilinear weights two lanes per double
+ * operation; a voxel row's two neighbours along x as one 64-bit load, two shuffles turning
+ * four lanes' pairs into the four low and the four high neighbours, so the interpolation
+ * runs four lanes per float operation; the transfer function and the exponential two lanes
+ * per operation (the table read as two loads); then the compositing, sample by sample (the
+ * only dependency from one sample to the next). Sample by sample (step), each sample's
+ * chain (about 140 instructions: addresses, eight loads, interpolation, transfer function,
+ * exponential, and for a dense volume cache misses) ended before the next could start
+ * beyond what the out-of-order window holds; here the block's chains overlap. (Written as
+ * plain loops over the lanes, the compiler's vectorisation gathered voxels one float at a
+ * time and converted lane by lane, ~190 instructions a sample; GCC's generic 8-lane vector
+ * types did no better.) Each operation is step's, lane-wise (IEEE, same order, no fused
+ * multiply-add on baseline x86-64), so the image is the same bit for bit, which the tests
+ * check against the per-sample path; voxel offsets are computed in double, exact below
+ * 2^53, and the view must have fewer than 2^31 voxels (view->blocked_ok). A short last
+ * block repeats its last sample in the spare lanes. Returns 1 when the ray terminates, *k
+ * then the terminating step. Other targets take the per-sample loop. */
 static inline __attribute__((always_inline)) int run_blocked(const wvol__view *view, const tf_fast *tfx,
                                                              const wvol_render_params *p,
                                                              const wvol_render_mode mode, const double x0[3],
@@ -711,8 +569,6 @@ static inline __attribute__((always_inline)) int run_blocked(const wvol__view *v
     *k = ke;
     return 0;
 }
-#else
-#define run_blocked run_blocked_c
 #endif
 
 /* Full steps *k .. ke - 1 of a ray, all in one view (`inside`: strictly inside it); returns 1
@@ -725,8 +581,10 @@ static inline __attribute__((always_inline)) int run(const wvol__sampler *s, con
                                                      long *k, long ke, ray_acc *r)
 {
     long kk;
+#if defined(__SSE2__)
     if (inside && !shading && !colors && view->blocked_ok && run_blocked(view, tfx, p, mode, x0, e, t0, dt, k, ke, r))
         return 1;
+#endif
     for (kk = *k; kk < ke; kk++) {
         double t = t0 + ((double)kk + 0.5) * dt, x[3];
         for (int a = 0; a < 3; a++) x[a] = x0[a] + t * e[a];
