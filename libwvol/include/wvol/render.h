@@ -143,8 +143,9 @@ typedef struct wvol_render_params {
     int shading;            /* 1: headlight diffuse shading from the gradient (eq 47); default 0 */
     double ambient;         /* shading: ambient share in [0, 1] (default 0.3) */
     int threads;            /* 0: OpenMP's default */
-    int tile;               /* tile side in pixels; 0 (default): 32 for the bricked path (its
-                               rays walk a tile's bricks together), 16 otherwise */
+    int tile;               /* tile side in pixels; 0 (default): 32 or 128 for the bricked
+                               path (a tile's rays walk its bricks together; larger with a
+                               larger brick cache), 16 otherwise */
     int brick;              /* reference: min/max brick side for empty-space skipping, voxels
                                (default 8; 0 = off) */
     wvol_sample_kind sample;/* reference only */

@@ -81,9 +81,9 @@ wvol_status wvol__check_colors(const wvol_render_params *p, const size_t n[3], i
     return WVOL_OK;
 }
 
-int wvol__tile_side(const wvol_render_params *p, int bricked)
+int wvol__tile_side(const wvol_render_params *p, int preferred)
 {
-    return p->tile > 0 ? p->tile : bricked ? 32 : 16;
+    return p->tile > 0 ? p->tile : preferred > 0 ? preferred : 16;
 }
 
 int wvol__tiles(int width, int height, int tile)

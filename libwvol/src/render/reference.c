@@ -832,7 +832,7 @@ wvol_status wvol__render_sampled(wvol_image *img, wvol__sampler *s, const wvol_c
         WVOL_FORWARD(s->prepare(s, &tf, &p, err));
     }
     wvol__cam_init(&k, cam);
-    p.tile = wvol__tile_side(&p, s->fetch != NULL);
+    p.tile = wvol__tile_side(&p, s->tile);
     ntiles = wvol__tiles(img->width, img->height, p.tile);
     tx = (img->width + p.tile - 1) / p.tile;
     order = wvol__tile_order(img->width, img->height, p.tile);

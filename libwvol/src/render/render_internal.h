@@ -26,11 +26,10 @@ void wvol__tf_world(wvol_tf *out, const wvol_tf *tf, const wvol_geometry *g);
  * that cannot use a colour volume (they refuse it rather than ignore it). */
 wvol_status wvol__check_colors(const wvol_render_params *p, const size_t n[3], int supported, wvol_error *err);
 
-/* Per-tile parallel loop helpers. The tile side: params->tile, or its default (0) resolved:
- * 32 for a bricked source (render_tile in reference.c walks a tile's rays together, and a
- * larger tile shares each brick among more rays: 512^2 perspective view of a 256^3 volume,
- * 16 -> 32 cuts brick builds 16k -> 11k and CPU time by a quarter), 16 otherwise. */
-int wvol__tile_side(const wvol_render_params *p, int bricked);
+/* Per-tile parallel loop helpers. The tile side: params->tile, or for its default (0) the
+ * source's preferred side when it has one (a bricked source's tile rays walk its bricks
+ * together: render_tile in reference.c; bricks.c sizes it with its cache), else 16. */
+int wvol__tile_side(const wvol_render_params *p, int preferred);
 int wvol__tiles(int width, int height, int tile);
 /* The tiles (index x + tiles_x * y) in Z order (Morton), so that consecutive tiles are
  * neighbours and share the bricks they read; malloc'ed, NULL when out of memory. */
@@ -82,6 +81,7 @@ typedef struct wvol__sampler {
     size_t n[3];
     double spacing[3], origin[3];
     int B;                  /* brick grid: filled by the integrator (dense) or prepare() */
+    int tile;               /* preferred tile side (prepare()), 0: none */
     size_t bn[3];
     unsigned char *empty;   /* dense: 1 for an empty brick; freed by the integrator */
 } wvol__sampler;
