@@ -281,6 +281,9 @@ def main():
     ap.add_argument("--peer-cameras", default="+z;persp dir=1,0.7,0.4",
                     help="';'-separated wvol cameras of the peer comparison (+z, or persp dir=X,Y,Z: VTK matched)")
     ap.add_argument("--peers-only", action="store_true", help="only the comparison with the peers")
+    ap.add_argument("--no-peers", action="store_true", help="leave the comparison with the peers out")
+    ap.add_argument("--run-tag", default="", help="a tag stored in every row (tables merged from several runs "
+                    "pair each row with the VTK row of its own run)")
     ap.add_argument("--no-vdb", action="store_true", help="leave vdb_render out (it can take many minutes)")
     ap.add_argument("--out", default=str(ROOT / "bench" / "results"))
     ap.add_argument("--resume", help="a previous run's stdout: its rows are kept and their runs skipped")
@@ -386,6 +389,8 @@ def main():
                             continue
                         info, dt, mem, e = wvol_render(raw, n, out, common + ["--method", "spline", "--spline-j", J] + ka, thr)
                         record(f"spline J={J}", keep, out, info, dt, mem, e, {"J": int(J), "image": img})
+            if a.no_peers:
+                continue
             # peers, opacity-only: kappa(u) = k u per voxel length, white emission, on the volume
             # normalised to u in [0, 1] (the Gaussian already is), so vdb's density and VTK's scalar
             # mean the same as ours
@@ -409,6 +414,8 @@ def main():
                 def peer_row(method, threads, keep, **kw):
                     row = {"volume": vname, "mode": "opacity-only", "method": f"{method}{cam_note} [{threads} thr]",
                            "threads": threads, "keep": keep, "camera": pcam}
+                    if a.run_tag:
+                        row["run"] = a.run_tag
                     row.update(kw)
                     rows.append(row)
                     print(json.dumps(row), flush=True)
