@@ -22,7 +22,7 @@ static const cli_opt opts[] = {
     {"tf", 0, 1, "transfer function: gaussian, grey, ct-bone, ct-soft, or a file (default gaussian)"},
     {"mode", 0, 1, "xray | absorption | absorption-linear (default absorption)"},
     {"method", 0, 1, "auto | reference | reference-fhat | spline | axis | bricks (default auto)"},
-    {"keep", 0, 1, "fraction of coefficients kept, e.g. 5% (default 100%: a .wvc's nonzero ones)"},
+    {"keep", 0, 1, "fraction of coefficients kept, e.g. 5% (default 100%: a .wvc's nonzero ones); with --method reference the dense reconstruction of those is rendered"},
     {"wavelet", 0, 1, "volume input, wavelet methods: family (default db2)"},
     {"levels", 0, 1, "volume input, wavelet methods: levels (default 3, or fewer when the volume is small)"},
     {"spline-j", 0, 1, "basis splines: 2^J knots per unit (default 4)"},
