@@ -536,21 +536,30 @@ def main():
         import matplotlib
         matplotlib.use("Agg")
         import matplotlib.pyplot as plt
-        fig, axes = plt.subplots(1, 3, figsize=(18, 5.5))
-        panels = [("gaussian", lambda r: r.get("volume") == "gaussian" and r.get("mode") != "opacity-only"),
-                  ("skull", lambda r: r.get("volume") == "skull" and r.get("mode") != "opacity-only"),
-                  ("opacity-only, against the peers", lambda r: r.get("mode") == "opacity-only")]
-        for ax, (title, sel) in zip(axes, panels):
+        # the peers' panels: one thread, one per view, a series per method (steps joined)
+        cams = sorted({r.get("camera", "+z") for r in rows if r.get("mode") == "opacity-only"})
+        fig, axes = plt.subplots(1, 2 + len(cams), figsize=(9 * (2 + len(cams)) / 2, 6))
+        panels = [("gaussian", lambda r: r.get("volume") == "gaussian" and r.get("mode") != "opacity-only", None),
+                  ("skull", lambda r: r.get("volume") == "skull" and r.get("mode") != "opacity-only", None)]
+        for cam in cams:
+            panels.append((f"peers, opacity only, {cam}, 1 thread",
+                           lambda r, cam=cam: r.get("mode") == "opacity-only" and r.get("camera", "+z") == cam
+                           and r.get("threads") == 1, cam))
+        for ax, (title, sel, cam) in zip(axes, panels):
             groups = {}
             for r in rows:
                 if sel(r) and "rel_rmse" in r and r.get("cpu_s"):
-                    label = (f"{r['volume']}: {r['method']}" if title.startswith("opacity")
-                             else f"{r['method']} ({r['mode']})")
+                    if cam is None:
+                        label = f"{r['method']} ({r['mode']})"
+                    else:  # "wvol bricks step=1 (persp ...) [1 thr]" -> "skull: wvol bricks"
+                        label = f"{r['volume']}: " + re.sub(r" step=\S+| \(.*?\)| \[.*?\]", "", r["method"])
                     groups.setdefault(label, []).append((r.get("predicted_full_s", r.get("cpu_s")), r["rel_rmse"]))
             for label, pts in sorted(groups.items()):
-                x, y = zip(*pts)
-                ax.loglog(x, np.maximum(y, 1e-9), "o" if "bricks" not in label else "s", label=label)
-            ax.set_title(f"{title} ({n}^3, {img}^2)"); ax.set_xlabel("render CPU time (s; spline pilots: predicted at full size)")
+                x, y = zip(*sorted(pts))
+                style = ("s" if "bricks" in label else "o") + ("-" if cam is not None and len(pts) > 1 else "")
+                ax.loglog(x, np.maximum(y, 1e-9), style, label=label)
+            ax.set_title(f"{title} ({n}^3, {img}^2)", fontsize=9)
+            ax.set_xlabel("render CPU time (s; spline pilots: predicted at full size)")
             ax.set_ylabel("relative RMSE")
             ax.legend(fontsize=6)
         fig.tight_layout(); fig.savefig(outdir / "render.png", dpi=90)
