@@ -126,9 +126,13 @@ static void synth_axis(double *out, const double *lo, const double *hi, const pt
                 if (kmin < k0) kmin = k0;
                 if (kmax > k0 + kn - 1) kmax = k0 + kn - 1;
             }
-            /* rel = (k - k0) mod kn, stepped without a division per tap */
-            ptrdiff_t rel = (kmin - k0) % kn;
-            if (rel < 0) rel += kn;
+            /* rel = (k - k0) mod kn, stepped without a division per tap; clipped to the
+             * input region, kmin - k0 already lies in [0, kn) (no division per output) */
+            ptrdiff_t rel = kmin - k0;
+            if (full) {
+                rel %= kn;
+                if (rel < 0) rel += kn;
+            }
             if (inner == 1) {
                 /* the x axis: one output per row position, summed in a register (adding
                  * into o[0] tap by tap made every tap wait for the last one's store) */
