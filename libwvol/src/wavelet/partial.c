@@ -105,6 +105,62 @@ void wvol__coef_source_of_coeffs(wvol__coef_source *src, const wvol_coeffs *c)
     src->pad[0] = c->px, src->pad[1] = c->py, src->pad[2] = c->pz;
 }
 
+/* The x axis of synth_axis (inner stride 1: one output per row position) with its taps
+ * planned once for all rows: per output i, the input positions (rel), and the two filters'
+ * taps, in the order of k, which synth_axis's general loop recomputes for every row (index
+ * arithmetic outweighed the two or so multiply-adds per output of a short filter). Same sums
+ * in the same order, so the same results. */
+#define SYNTH_PLAN_MAX 1024
+static void synth_x_planned(double *out, const double *lo, const double *hi, ptrdiff_t kn, ptrdiff_t k0,
+                            ptrdiff_t o0, ptrdiff_t on, ptrdiff_t outer, int full, const wvol_filter *f)
+{
+    ptrdiff_t rel[SYNTH_PLAN_MAX], first[SYNTH_PLAN_MAX + 1], L = f->length, nt = 0;
+    double wh[SYNTH_PLAN_MAX], wg[SYNTH_PLAN_MAX];
+    for (ptrdiff_t i = 0; i < on; i++) {
+        ptrdiff_t gi = o0 + i, kmin = -floor_div2(L - 1 - gi), kmax = floor_div2(gi), r;
+        if (!full) {
+            if (kmin < k0) kmin = k0;
+            if (kmax > k0 + kn - 1) kmax = k0 + kn - 1;
+        }
+        r = kmin - k0;
+        if (full) {
+            r %= kn;
+            if (r < 0) r += kn;
+        }
+        first[i] = nt;
+        for (ptrdiff_t k = kmin; k <= kmax; k++) {
+            rel[nt] = r;
+            wh[nt] = f->h[gi - 2 * k];
+            wg[nt++] = f->g[gi - 2 * k];
+            if (++r == kn) r = 0;
+        }
+    }
+    first[on] = nt;
+    for (ptrdiff_t u = 0; u < outer; u++) {
+        const double *lu = lo ? lo + u * kn : NULL, *hu = hi ? hi + u * kn : NULL;
+        double *restrict o = out + u * on;
+        if (lu && hu) {
+            for (ptrdiff_t i = 0; i < on; i++) {
+                double acc = 0.0;
+                for (ptrdiff_t t = first[i]; t < first[i + 1]; t++) acc += wh[t] * lu[rel[t]] + wg[t] * hu[rel[t]];
+                o[i] = acc;
+            }
+        } else if (lu) {
+            for (ptrdiff_t i = 0; i < on; i++) {
+                double acc = 0.0;
+                for (ptrdiff_t t = first[i]; t < first[i + 1]; t++) acc += wh[t] * lu[rel[t]];
+                o[i] = acc;
+            }
+        } else {
+            for (ptrdiff_t i = 0; i < on; i++) {
+                double acc = 0.0;
+                for (ptrdiff_t t = first[i]; t < first[i + 1]; t++) acc += wg[t] * hu[rel[t]];
+                o[i] = acc;
+            }
+        }
+    }
+}
+
 /* Synthesis along `axis` on unwrapped indices: in arrays lo/hi (either may be NULL: all
  * zero) cover the region (in_lo, in_n) (along the axis [k0, k0+kn)), out covers [o0, o0+on)
  * along the axis and in's extent along the others. out[i] = sum_k h[i-2k] lo[k] + g[i-2k]
@@ -117,6 +173,10 @@ static void synth_axis(double *out, const double *lo, const double *hi, const pt
     ptrdiff_t inner = 1, outer = 1, kn = in_n[axis], k0 = in_lo[axis], L = f->length;
     for (int a = 0; a < axis; a++) inner *= in_n[a];
     for (int a = axis + 1; a < 3; a++) outer *= in_n[a];
+    if (inner == 1 && on * ((L + 1) / 2) <= SYNTH_PLAN_MAX) {
+        synth_x_planned(out, lo, hi, kn, k0, o0, on, outer, full, f);
+        return;
+    }
     for (ptrdiff_t u = 0; u < outer; u++) {
         const double *lu = lo ? lo + u * kn * inner : NULL, *hu = hi ? hi + u * kn * inner : NULL;
         for (ptrdiff_t i = 0; i < on; i++) {
