@@ -191,10 +191,12 @@ static int gather_blocks(const void *ctx, double *dst, int m, int band, const pt
                     const cblock *b = &cb->blocks[blk - 1];
                     const float *vals = cb->values + b->first;
                     int bit = (int)(inner + (x & (CB - 1)));
-                    for (r = 0; r < run; r++, bit++) {
-                        uint64_t m = (uint64_t)1 << bit;
-                        dst[t + r] = (b->mask & m) ? vals[__builtin_popcountll(b->mask & (m - 1))] : 0.0;
-                    }
+                    /* the rank of the run's first position, then counted up along the run
+                     * (one population count per run: baseline x86-64 has no instruction
+                     * for it, each is a library call) */
+                    size_t rank = (size_t)__builtin_popcountll(b->mask & (((uint64_t)1 << bit) - 1));
+                    for (r = 0; r < run; r++, bit++)
+                        dst[t + r] = (b->mask >> bit) & 1 ? vals[rank++] : 0.0;
                     any = 1;
                 } else {
                     for (r = 0; r < run; r++) dst[t + r] = 0.0;
