@@ -16,8 +16,8 @@
  *   (wavelet/bounds.c, the bound the bricked isosurface uses); when kappa is 0 over the
  *   bound the brick is skipped unreconstructed. After reconstruction its actual min/max
  *   decide like the dense path's min/max grid, so skipping never changes the image.
- * - Threads take image tiles; each has a bounded 4-way set-associative cache of bricks
- *   (least recently used way evicted). A brick evicted and met again is rebuilt.
+ * - Threads take image tiles; each has a bounded, fully associative cache of bricks (least
+ *   recently used slot evicted). A brick evicted and met again is rebuilt.
  * Samples, weights and compositing are the reference's, so on the same voxels the image
  * is the reference's image to float rounding (tests/c/test_render_bricks.c). */
 #include "render_internal.h"
