@@ -452,16 +452,17 @@ static size_t cache_bytes_per_thread(const brick_src *src)
 static wvol_status prepare(wvol__sampler *s, const wvol_tf *tf_world, const wvol_render_params *p, wvol_error *err)
 {
     brick_src *src = s->src;
-    size_t slots;
+    size_t slots, cache;
     int a;
     src->tf = tf_world;
     src->mode = p->mode;
     s->B = src->B;
     for (a = 0; a < 3; a++) s->bn[a] = src->bn[a];
-    slots = cache_bytes_per_thread(src) / (src->slot_floats * sizeof(float));
+    cache = cache_bytes_per_thread(src);
+    slots = cache / (src->slot_floats * sizeof(float));
     /* the tile (unless the caller chose one): larger with a larger cache, whose rounds it
      * holds (above) */
-    s->tile = cache_bytes_per_thread(src) >= ((size_t)8 << 20) ? 128 : 32;
+    s->tile = cache >= ((size_t)8 << 20) ? 128 : 32;
     if (slots < 16) slots = 16;
     s->tctx = calloc((size_t)src->nthreads, sizeof *s->tctx);
     WVOL_RETURN_IF(!s->tctx, err, WVOL_ERR_NOMEM, "render: out of memory");

@@ -211,13 +211,6 @@ static int brick_exit(const wvol__sampler *s, const double x[3], const double e[
     return 1;
 }
 
-typedef struct ray_out {
-    double rgba[4];
-    size_t samples, skipped;
-    int terminated, clamped;
-    wvol_status failed;     /* a bricked source's fetch failed */
-} ray_out;
-
 /* The TF prepared for the inner loop: per segment [v[i], v[i+1]) the colour and kappa at
  * its start and their slopes (no division per sample); constant beyond the end points. */
 typedef struct tf_fast {
@@ -281,15 +274,18 @@ static inline void tf_fast_eval(const tf_fast *f, double val, int *seg, double r
  * operations long, so samples overlap in the pipeline (Horner's chain made the exponential
  * a third of a step; the 32-entry table it had needed degree 6). Relative error a few ulp;
  * 0 below -708 (where the result would be subnormal). */
+#define EXP_K 369.32993046757463 /* 256 / ln2 */
+/* ln2 / 256 in two parts: fdlibm's ln2_hi (low bits zero, so n * c_hi is exact) and ln2_lo,
+ * both divided by 256 (exact) */
+#define EXP_C_HI (6.93147180369123816490e-01 / 256)
+#define EXP_C_LO (1.90821492927058770002e-10 / 256)
+/* 1.5 2^52: adding it rounds x k (|x k| < 2^31) to an integer held in the low bits of the
+ * sum's mantissa, shorter than a conversion to integer and back */
+#define EXP_SHIFTER 6755399441055744.0
+
 static inline double exp_neg(double x, const double *exp2_256)
 {
-    static const double k = 369.32993046757463;            /* 256 / ln2 */
-    /* ln2 / 256 in two parts: fdlibm's ln2_hi (low bits zero, so n * c_hi is exact) and
-     * ln2_lo, both divided by 256 (exact) */
-    static const double c_hi = 6.93147180369123816490e-01 / 256, c_lo = 1.90821492927058770002e-10 / 256;
-    /* 1.5 2^52: adding it rounds x k (|x k| < 2^31) to an integer held in the low bits of
-     * the sum's mantissa, shorter than a conversion to integer and back */
-    static const double shifter = 6755399441055744.0;
+    const double k = EXP_K, c_hi = EXP_C_HI, c_lo = EXP_C_LO, shifter = EXP_SHIFTER;
     double n, r, r2, p;
     long long ni;
     union {
@@ -502,9 +498,8 @@ static inline __attribute__((always_inline)) int run_blocked(const wvol__view *v
         }
         if (mode == WVOL_MODE_ABSORPTION) {
             /* alpha = 1 - exp_neg(-kappa dt), exp_neg's operations two lanes at a time */
-            const __m128d kexp = _mm_set1_pd(369.32993046757463), shifter = _mm_set1_pd(6755399441055744.0);
-            const __m128d c_hi = _mm_set1_pd(6.93147180369123816490e-01 / 256),
-                          c_lo = _mm_set1_pd(1.90821492927058770002e-10 / 256);
+            const __m128d kexp = _mm_set1_pd(EXP_K), shifter = _mm_set1_pd(EXP_SHIFTER);
+            const __m128d c_hi = _mm_set1_pd(EXP_C_HI), c_lo = _mm_set1_pd(EXP_C_LO);
             const __m128d one = _mm_set1_pd(1.0), sixth = _mm_set1_pd(1.0 / 6.0), p24 = _mm_set1_pd(1.0 / 24.0),
                           lim = _mm_set1_pd(-708.0), sign = _mm_set1_pd(-0.0);
             const __m128i bias = _mm_set1_epi32(1023);
@@ -597,7 +592,7 @@ static inline __attribute__((always_inline)) int run(const wvol__sampler *s, con
     return 0;
 }
 
-/* One ray's walk, resumable: samples at the midpoints of steps of dt over [t0, t1], front to
+/* One ray's walk, resumable: samples at the midpoints of steps of dt over [t0, t1], front
  * to back, in runs of full steps, one run per brick crossed (ray_advance), then the last,
  * shorter step (ray_finish). A dense source's view is the whole volume; a bricked source's
  * is fetched (through the thread's context) at the start of each run, so no view is held
@@ -712,40 +707,31 @@ static inline __attribute__((always_inline)) int ray_advance(const wvol__sampler
     return !done && k < nfull;
 }
 
-/* The last step (shorter than dt), and the ray's pixel and counters into out. */
+/* The last step (shorter than dt), and the ray's pixel; its counters stay in st. */
 static void ray_finish(const wvol__sampler *s, void *tc, const tf_fast *tfx, const wvol_render_params *p, double dt,
-                       ray_state *st, ray_out *out)
+                       ray_state *st, float px[4])
 {
-    const wvol_render_mode mode = p->mode;
     int a;
     if (!st->done && st->failed == WVOL_OK && st->nfull < st->nsteps) {
         double ta = st->t0 + (double)st->nfull * dt, h = st->t1 - ta, t = 0.5 * (ta + st->t1), x[3];
         wvol__view view = s->whole;
+        int bricked = s->empty || s->fetch;
         for (a = 0; a < 3; a++) x[a] = st->x0[a] + t * st->e[a];
-        if (h > 0) {
-            int skip = 0;
-            if ((s->empty || s->fetch) && !ray_view(s, tc, st, x, t, &view)) skip = 1;
-            else if ((s->empty || s->fetch) && st->cur_empty) {
+        if (h > 0 && (!bricked || ray_view(s, tc, st, x, t, &view))) {
+            if (bricked && st->cur_empty) {
                 st->nskip++;
-                skip = 1;
-            }
-            if (!skip) {
+            } else {
                 st->nsamp++;
-                st->done = step(s, &view, tfx, p, mode, p->shading, p->colors != NULL, 0, x, st->d, h, &st->r);
+                st->done = step(s, &view, tfx, p, p->mode, p->shading, p->colors != NULL, 0, x, st->d, h, &st->r);
             }
         }
     }
-    out->failed = st->failed;
-    out->terminated = st->done;
-    out->samples = st->nsamp;
-    out->skipped = st->nskip;
-    out->clamped = st->r.nclamp;
-    if (mode == WVOL_MODE_XRAY) {
-        out->rgba[0] = out->rgba[1] = out->rgba[2] = st->r.xr;
-        out->rgba[3] = 1.0;
+    if (p->mode == WVOL_MODE_XRAY) {
+        px[0] = px[1] = px[2] = (float)st->r.xr;
+        px[3] = 1.0f;
     } else {
-        for (a = 0; a < 3; a++) out->rgba[a] = st->r.acc[a];
-        out->rgba[3] = 1.0 - st->r.T;
+        for (a = 0; a < 3; a++) px[a] = (float)st->r.acc[a];
+        px[3] = (float)(1.0 - st->r.T);
     }
 }
 
@@ -882,18 +868,16 @@ wvol_status wvol__render_sampled(wvol_image *img, wvol__sampler *s, const wvol_c
         rays_hit += (size_t)n;
         render_tile(s, tc, &tfx, &p, dt, rs, n);
         for (int i = 0; i < n; i++) {
-            ray_out r;
-            float *px = img->rgba + 4 * ((size_t)(x0 + rs[i].pixel % tw) +
-                                         (size_t)img->width * (size_t)(y0 + rs[i].pixel / tw));
-            ray_finish(s, tc, &tfx, &p, dt, &rs[i], &r);
-            for (int c = 0; c < 4; c++) px[c] = (float)r.rgba[c];
-            samples += r.samples;
-            skipped += r.skipped;
-            terminated += (size_t)r.terminated;
-            clamped += (size_t)r.clamped;
-            if (r.failed != WVOL_OK) {
+            ray_state *st = &rs[i];
+            ray_finish(s, tc, &tfx, &p, dt, st,
+                       img->rgba + 4 * ((size_t)(x0 + st->pixel % tw) + (size_t)img->width * (size_t)(y0 + st->pixel / tw)));
+            samples += st->nsamp;
+            skipped += st->nskip;
+            terminated += (size_t)st->done;
+            clamped += (size_t)st->r.nclamp;
+            if (st->failed != WVOL_OK) {
 #pragma omp atomic write
-                failed = r.failed;
+                failed = st->failed;
             }
         }
     }

@@ -105,6 +105,26 @@ void wvol__coef_source_of_coeffs(wvol__coef_source *src, const wvol_coeffs *c)
     src->pad[0] = c->px, src->pad[1] = c->py, src->pad[2] = c->pz;
 }
 
+/* The taps of output gi: k in [*kmin, *kmax] with 0 <= gi - 2k <= L - 1, clipped to the
+ * input region [k0, k0 + kn) unless it is a whole period (full); *rel = (kmin - k0) mod kn,
+ * the input position of the first (a division only in the periodic case: clipped, kmin - k0
+ * already lies in [0, kn)). */
+static inline void tap_range(ptrdiff_t gi, ptrdiff_t L, ptrdiff_t k0, ptrdiff_t kn, int full, ptrdiff_t *kmin,
+                             ptrdiff_t *kmax, ptrdiff_t *rel)
+{
+    *kmin = -floor_div2(L - 1 - gi);
+    *kmax = floor_div2(gi);
+    if (!full) {
+        if (*kmin < k0) *kmin = k0;
+        if (*kmax > k0 + kn - 1) *kmax = k0 + kn - 1;
+    }
+    *rel = *kmin - k0;
+    if (full) {
+        *rel %= kn;
+        if (*rel < 0) *rel += kn;
+    }
+}
+
 /* The x axis of synth_axis (inner stride 1: one output per row position) with its taps
  * planned once for all rows: per output i, the input positions (rel), and the two filters'
  * taps, in the order of k, which synth_axis's general loop recomputes for every row (index
@@ -117,16 +137,8 @@ static void synth_x_planned(double *out, const double *lo, const double *hi, ptr
     ptrdiff_t rel[SYNTH_PLAN_MAX], first[SYNTH_PLAN_MAX + 1], L = f->length, nt = 0;
     double wh[SYNTH_PLAN_MAX], wg[SYNTH_PLAN_MAX];
     for (ptrdiff_t i = 0; i < on; i++) {
-        ptrdiff_t gi = o0 + i, kmin = -floor_div2(L - 1 - gi), kmax = floor_div2(gi), r;
-        if (!full) {
-            if (kmin < k0) kmin = k0;
-            if (kmax > k0 + kn - 1) kmax = k0 + kn - 1;
-        }
-        r = kmin - k0;
-        if (full) {
-            r %= kn;
-            if (r < 0) r += kn;
-        }
+        ptrdiff_t gi = o0 + i, kmin, kmax, r;
+        tap_range(gi, L, k0, kn, full, &kmin, &kmax, &r);
         first[i] = nt;
         for (ptrdiff_t k = kmin; k <= kmax; k++) {
             rel[nt] = r;
@@ -181,18 +193,8 @@ static void synth_axis(double *out, const double *lo, const double *hi, const pt
         const double *lu = lo ? lo + u * kn * inner : NULL, *hu = hi ? hi + u * kn * inner : NULL;
         for (ptrdiff_t i = 0; i < on; i++) {
             double *restrict o = out + (u * on + i) * inner;
-            ptrdiff_t gi = o0 + i, kmin = -floor_div2(L - 1 - gi), kmax = floor_div2(gi), k;
-            if (!full) {
-                if (kmin < k0) kmin = k0;
-                if (kmax > k0 + kn - 1) kmax = k0 + kn - 1;
-            }
-            /* rel = (k - k0) mod kn, stepped without a division per tap; clipped to the
-             * input region, kmin - k0 already lies in [0, kn) (no division per output) */
-            ptrdiff_t rel = kmin - k0;
-            if (full) {
-                rel %= kn;
-                if (rel < 0) rel += kn;
-            }
+            ptrdiff_t gi = o0 + i, kmin, kmax, k, rel; /* rel: stepped without a division per tap */
+            tap_range(gi, L, k0, kn, full, &kmin, &kmax, &rel);
             if (inner == 1) {
                 /* the x axis: one output per row position, summed in a register (adding
                  * into o[0] tap by tap made every tap wait for the last one's store) */
