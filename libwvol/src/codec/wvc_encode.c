@@ -133,7 +133,7 @@ static inline __attribute__((always_inline)) void quad_stats(row_acc *A, wvc_v4f
     }
 }
 
-WVC_HOT static void rows_stats(sec_stats *st, const float *C, int32_t *Q, const size_t p[3], const wvc_band *b,
+WVOL__CLONES static void rows_stats(sec_stats *st, const float *C, int32_t *Q, const size_t p[3], const wvc_band *b,
                                double step, double f, size_t z0, size_t z1, int sparse)
 {
     const double inv = 1.0 / step, qmax = WVC_QMAX;

@@ -34,7 +34,7 @@ static inline double bin_edge(uint32_t k)
     return v;
 }
 
-WVC_HOT static void slice_hist(uint64_t *restrict H, const float *restrict row0, size_t ex, size_t ey, size_t sy,
+WVOL__CLONES static void slice_hist(uint64_t *restrict H, const float *restrict row0, size_t ex, size_t ey, size_t sy,
                                uint32_t *maxbits)
 {
     uint32_t mx = *maxbits;

@@ -8,6 +8,7 @@
 #include <stdint.h>
 #include <string.h>
 
+#include "core/clones.h"
 #include "wvol/wvc.h"
 
 /* One section = one sub-band (or the low-pass cube) in the padded grid. */
@@ -31,13 +32,6 @@ typedef struct wvc_layout {
  * along it are empty. */
 void wvol__wvc_layout(wvc_layout *L, size_t px, size_t py, size_t pz, int levels);
 
-/* Hot loops are compiled twice on x86-64 with GCC (baseline and x86-64-v3, i.e.
- * AVX2/FMA) and picked at load time; elsewhere, once. */
-#if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__) && !defined(__SANITIZE_ADDRESS__)
-#define WVC_HOT __attribute__((target_clones("arch=x86-64-v3", "default")))
-#else
-#define WVC_HOT
-#endif
 
 /* Largest |q| the coders accept, so that sums and reconstructions stay finite. */
 #define WVC_QMAX (1 << 30)

@@ -5,15 +5,9 @@
 #define WVOL_ISO_INTERNAL_H
 
 #include <stdint.h>
+#include "core/clones.h"
 #include "wvol/iso.h"
 
-/* Hot loops are compiled twice on x86-64 with GCC (baseline and x86-64-v3, i.e.
- * with popcnt/AVX2) and picked at load time; elsewhere, once. */
-#if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__) && !defined(WVOL_NO_CLONES)
-#define WVOL__HOT __attribute__((target_clones("arch=x86-64-v3", "default")))
-#else
-#define WVOL__HOT
-#endif
 
 typedef struct wvol__mc_job {
     const float *data;        /* array, x fastest */

@@ -43,7 +43,7 @@ static inline int popc(uint64_t x) { return __builtin_popcountll(x); }
 
 /* ---- pass 1 ---------------------------------------------------------------- */
 
-WVOL__HOT
+WVOL__CLONES
 static void classify_row(uint64_t *bits, const float *row, size_t n, float iso)
 {
     size_t nw = (n + 63) >> 6, w;
@@ -95,7 +95,7 @@ static inline uint64_t valid_mask(const mc_ctx *c, size_t w)
 
 /* ---- pass 2 ---------------------------------------------------------------- */
 
-WVOL__HOT
+WVOL__CLONES
 static void count_row(mc_ctx *c, size_t r)
 {
     const size_t nw = c->nw, ny = c->ny;
@@ -269,7 +269,7 @@ static void vertices_row(mc_ctx *c, size_t r)
     }
 }
 
-WVOL__HOT
+WVOL__CLONES
 static void triangles_row(mc_ctx *c, size_t r)
 {
     const size_t nw = c->nw, ny = c->ny;

@@ -6,6 +6,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "core/clones.h"
 #include "wavelet/wavelet_internal.h"
 
 int wvol__thread_id(void) { return omp_get_thread_num(); }
@@ -61,13 +62,8 @@ wvol_status wvol__dwt_plan(dwt_plan *pl, const void *data, const size_t n[3], co
     return WVOL_OK;
 }
 
-/* The kernels are compiled for AVX2+FMA and for the baseline, chosen at load time
- * (GCC function multi-versioning); the build itself stays portable (no -march). */
-#if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__) && !defined(__SANITIZE_ADDRESS__)
-#define WVOL__KERNEL __attribute__((noinline, target_clones("arch=x86-64-v3", "default")))
-#else
-#define WVOL__KERNEL
-#endif
+/* The kernels: noinline, multi-versioned (core/clones.h). */
+#define WVOL__KERNEL __attribute__((noinline)) WVOL__CLONES
 
 #define T float
 #define SUF f32

@@ -1,0 +1,17 @@
+/* SPDX-License-Identifier: MIT
+ * Function multi-versioning for hot loops (not installed): on x86-64 with GCC a function
+ * marked WVOL__CLONES is compiled twice, for the baseline and for x86-64-v3 (AVX2, FMA,
+ * POPCNT), and the copy for the running CPU is picked at load time; the build itself stays
+ * portable (no -march). Elsewhere, and under AddressSanitizer (whose interceptors and
+ * ifunc resolvers do not mix), it is compiled once. */
+#ifndef WVOL_CORE_CLONES_H
+#define WVOL_CORE_CLONES_H
+
+#if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__) && !defined(__SANITIZE_ADDRESS__) && \
+    !defined(WVOL_NO_CLONES)
+#define WVOL__CLONES __attribute__((target_clones("arch=x86-64-v3", "default")))
+#else
+#define WVOL__CLONES
+#endif
+
+#endif
