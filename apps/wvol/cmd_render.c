@@ -28,6 +28,7 @@ static const cli_opt opts[] = {
     {"spline-j", 0, 1, "basis splines: 2^J knots per unit (default 4)"},
     {"step", 0, 1, "reference methods: step in voxels (default 0.5)"},
     {"brick", 0, 1, "bricks: brick side in voxels (default 16); reference: empty-space brick side (default 8)"},
+    {"skip-tolerance", 0, 1, "reference, bricks: optical depth (X-ray: integral) each ray may skip in nearly empty bricks; bounds each pixel's change (default 0: skip only what adds nothing)"},
     {"gauss", 0, 1, "spline method: Gauss-Legendre nodes per piece for the exponential (default 5)"},
     {"shading", 0, 0, "diffuse headlight shading from the gradient"},
     {"colors", 0, 1, "colour volume replacing the TF colour: interleaved RGB float32 .raw, e.g. from 'wvol segment --colors'"},
@@ -147,6 +148,9 @@ int wvol_cmd_render(int argc, char **argv)
         } else if (!strcmp(o->name, "step")) {
             if (!cli_parse_double(cmd, "step", val, &step)) return CLI_USAGE;
             if (!(step > 0)) return cli_usage(cmd, "--step %g: must be > 0", step);
+        } else if (!strcmp(o->name, "skip-tolerance")) {
+            if (!cli_parse_double(cmd, "skip-tolerance", val, &rp.skip_tolerance)) return CLI_USAGE;
+            if (!(rp.skip_tolerance >= 0)) return cli_usage(cmd, "--skip-tolerance %g: must be >= 0", rp.skip_tolerance);
         } else if (!strcmp(o->name, "exposure")) {
             if (!cli_parse_double(cmd, "exposure", val, &exposure)) return CLI_USAGE;
             if (!(exposure > 0)) return cli_usage(cmd, "--exposure %g: must be > 0", exposure);
@@ -336,6 +340,11 @@ int wvol_cmd_render(int argc, char **argv)
         cli_json_int("functions", (long long)stats.functions);
         cli_json_int("terminated", (long long)stats.terminated);
         cli_json_int("clamped", (long long)stats.clamped);
+        if (rp.skip_tolerance > 0) {
+            cli_json_num("skip_tolerance", rp.skip_tolerance);
+            cli_json_int("skipped_tolerance", (long long)stats.skipped_tolerance);
+            cli_json_num("skip_bound", stats.skip_bound);
+        }
         if (!strcmp(method, "bricks")) {
             cli_json_int("brick", rp.brick);
             cli_json_num("step", rp.step);
@@ -351,6 +360,9 @@ int wvol_cmd_render(int argc, char **argv)
         printf("wrote %s (%ldx%ld, %s, %s) in %.3f s render + %.3f s preparation\n", out, W, H, method,
                rp.mode == WVOL_MODE_XRAY ? "xray" : rp.mode == WVOL_MODE_ABSORPTION ? "absorption" : "absorption-linear",
                stats.seconds, t_prep);
+        if (rp.skip_tolerance > 0)
+            printf("skipped %zu nearly empty brick runs: each pixel within %.3g of the unskipped image (tolerance %g)\n",
+                   stats.skipped_tolerance, stats.skip_bound, rp.skip_tolerance);
     }
     rc = CLI_OK;
     goto done;

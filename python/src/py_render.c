@@ -170,6 +170,7 @@ int wvolpy_render_setup(PyObject *opts, const wvol_geometry *g, double vmin, dou
         return -1;
     }
     if (opt_double(opts, "step", &rp->step) < 0 || opt_double(opts, "termination", &rp->termination) < 0 ||
+        opt_double(opts, "skip_tolerance", &rp->skip_tolerance) < 0 ||
         opt_double(opts, "ambient", &rp->ambient) < 0 || opt_int(opts, "shading", &rp->shading) < 0 ||
         opt_int(opts, "gauss_nodes", &rp->gauss_nodes) < 0 || opt_int(opts, "threads", &rp->threads) < 0)
         return -1;
@@ -193,11 +194,12 @@ static PyObject *image_take(wvol_image *img)
 
 static PyObject *stats_dict(const wvol_render_stats *st)
 {
-    return Py_BuildValue("{s:d,s:n,s:n,s:n,s:n,s:n,s:n,s:n,s:n}", "seconds", st->seconds, "rays",
+    return Py_BuildValue("{s:d,s:n,s:n,s:n,s:n,s:n,s:n,s:n,s:n,s:n,s:d}", "seconds", st->seconds, "rays",
                          (Py_ssize_t)st->rays, "rays_hit", (Py_ssize_t)st->rays_hit, "samples",
                          (Py_ssize_t)st->samples, "pieces", (Py_ssize_t)st->pieces, "functions",
                          (Py_ssize_t)st->functions, "skipped", (Py_ssize_t)st->skipped, "terminated",
-                         (Py_ssize_t)st->terminated, "clamped", (Py_ssize_t)st->clamped);
+                         (Py_ssize_t)st->terminated, "clamped", (Py_ssize_t)st->clamped, "skipped_tolerance",
+                         (Py_ssize_t)st->skipped_tolerance, "skip_bound", st->skip_bound);
 }
 
 PyObject *wvolpy_render_finish(wvol_image *img, wvol_status s, const wvol_render_stats *st, const wvol_error *err,

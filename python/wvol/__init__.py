@@ -365,7 +365,7 @@ def features(vol, wavelet="db2", levels=3, *, smooth=1, include_lowpass=True, pc
 
 def render(source, camera="+z", size=(256, 256), *, mode="absorption", tf="gaussian", tf_units="world",
            method="auto", step=0.5, shading=False, ambient=0.3, gauss_nodes=5, spline_j=None, termination=1e-6,
-           threads=0, colors=None, return_stats=False):
+           threads=0, colors=None, skip_tolerance=0.0, return_stats=False):
     """Renders a volume (array or :class:`Volume`) or a :class:`Store`; returns the image as
     an (height, width, 4) float32 array of linear, premultiplied RGBA, row 0 at the top
     (X-ray: R = G = B = the integral of f along the ray in value x world length, A = 1 where
@@ -391,13 +391,18 @@ def render(source, camera="+z", size=(256, 256), *, mode="absorption", tf="gauss
     sampling methods only ("reference", "reference-fhat"; "auto" picks "reference-fhat" for a
     store); "spline" and "axis" refuse it.
     ``termination``: stop a ray once its transmittance falls below this (0: never).
+    ``skip_tolerance``: "reference" only: the optical depth (X-ray: integral) each ray may skip in
+    nearly empty bricks (e.g. a compressed volume's ringing haze); every pixel then changes by
+    at most that much in alpha (a colour channel: times the largest colour), and
+    ``stats["skip_bound"]`` is the largest depth actually skipped. 0 (default): skip only
+    what adds nothing.
     ``threads``: OpenMP threads (0: the default).
     ``return_stats=True`` returns ``(image, stats)`` (rays, samples, seconds...).
     """
     w, h = (int(v) for v in size)
     opts = dict(camera=camera, width=w, height=h, mode=mode, tf=tf, tf_units=tf_units, step=step,
                 shading=int(bool(shading)), ambient=ambient, gauss_nodes=gauss_nodes, termination=termination,
-                threads=threads, colors=colors)
+                threads=threads, colors=colors, skip_tolerance=skip_tolerance)
     if isinstance(tf, os.PathLike):
         opts["tf"] = os.fspath(tf)
     if isinstance(source, Store):

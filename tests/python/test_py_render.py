@@ -67,6 +67,8 @@ def test_store_methods_agree(gauss):
     (dict(tf=[1, 2, 3]), TypeError),
     (dict(threads=10 ** 6), ValueError),                              # refused, not an OpenMP abort
     (dict(termination=float("inf")), ValueError),
+    (dict(skip_tolerance=-0.1), ValueError),
+    (dict(skip_tolerance=float("nan")), ValueError),
 ])
 def test_bad_arguments(gauss, kw, exc):
     kw.setdefault("size", (8, 8))
@@ -103,6 +105,7 @@ def test_store_reference_methods_and_options(gauss, tmp_path):
     (dict(method="reference-fhat", spline_j=40), ValueError, ""),
     (dict(method="spline", spline_j=-1), ValueError, "spline_j"),
     (dict(gauss_nodes=0), ValueError, ""),
+    (dict(method="spline", skip_tolerance=1e-3), NotImplementedError, "skip tolerance"),
 ])
 def test_bad_store_arguments(gauss, kw, exc, words):
     s = wvol.compress(gauss, "haar", 1, keep=0.5)
@@ -170,3 +173,19 @@ def test_colours_refused_by_the_spline_paths(gauss):
     for kw in (dict(method="spline"), dict(method="axis", mode="xray")):
         with pytest.raises(NotImplementedError, match="reference"):
             wvol.render(s, size=(4, 4), colors=ones, **kw)
+
+
+def test_skip_tolerance_bounds_each_pixel():
+    # a compressed shell's ringing leaves a faint haze around it; kappa linear from 0 makes the
+    # haze (slightly) opaque, so only the tolerance skips it, and each pixel's alpha moves by
+    # at most the depth skipped (stats["skip_bound"] <= the tolerance; + float rounding)
+    v = np.asarray(wvol.synth.skull(shape=(48, 48, 48)))
+    u = ((v - v.min()) / (v.max() - v.min())).astype(np.float32)
+    r = wvol.compress(u, "db2", 2, keep=0.05).reconstruct()
+    tf = [(0.0, 1, 1, 1, 0.0), (1.0, 1, 1, 1, 8.0)]
+    kw = dict(size=(32, 32), camera="persp dir=1,0.7,0.4", tf=tf, tf_units="diagonal", return_stats=True)
+    a, sa = wvol.render(r, **kw)
+    b, sb = wvol.render(r, skip_tolerance=0.01, **kw)
+    assert sb["skipped_tolerance"] > 0 and 0 < sb["skip_bound"] <= 0.01
+    assert sb["samples"] < sa["samples"]
+    assert np.abs(a[..., 3] - b[..., 3]).max() <= sb["skip_bound"] + 2e-6

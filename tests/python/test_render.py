@@ -66,6 +66,9 @@ def test_transfer_function_file(wvol, vol, tmp_path):
     (["--mode", "mip"], 2, "--mode"),
     (["--size", "0x5"], 2, "--size"),
     (["--method", "magic"], 2, "--method"),
+    (["--skip-tolerance", "-1"], 2, "--skip-tolerance"),
+    (["--skip-tolerance", "lots"], 2, "skip-tolerance"),
+    (["--skip-tolerance", "0.01", "--method", "spline", "--keep", "50%"], 1, "skip tolerance"),
 ])
 def test_bad_options_refused(wvol, vol, tmp_path, args, code, words):
     out = tmp_path / "x.png"
@@ -196,3 +199,22 @@ def test_reference_with_keep_renders_the_kept_reconstruction(wvol, tmp_path):
     peak = abs(out["ref100"]).max()
     assert abs(out["ref5"] - out["bricks5"]).max() < 1e-5 * peak
     assert abs(out["ref5"] - out["ref100"]).max() > 1e-3 * peak
+
+
+def test_skip_tolerance_reports_its_bound(wvol, tmp_path):
+    """`--skip-tolerance T` with bricks: the JSON reports the runs skipped and the largest depth
+    skipped (<= T), and the image's alpha moves by at most that (+ float rounding)."""
+    n = 32
+    vol = gaussian_raw(tmp_path / "g32.raw", n)
+    tf = tmp_path / "lin.txt"
+    tf.write_text("units diagonal\n0 1 1 1 0\n1 1 1 1 8\n")
+    common = ["--dims", f"{n}x{n}x{n}", "--size", "24x24", "--camera", "persp dir=1,0.7,0.4", "--tf", tf,
+              "--method", "bricks", "--keep", "2%", "--brick", "8", "--json"]
+    r0 = wvol("render", vol, "-o", tmp_path / "a.exr", *common)
+    r1 = wvol("render", vol, "-o", tmp_path / "b.exr", *common, "--skip-tolerance", "0.02")
+    assert r0.returncode == 0 and r1.returncode == 0, r0.stderr + r1.stderr
+    info = json.loads(r1.stdout)
+    assert "skip_bound" not in json.loads(r0.stdout)
+    assert info["skipped_tolerance"] > 0 and 0 < info["skip_bound"] <= 0.02
+    a, b = read_exr_rgba(tmp_path / "a.exr"), read_exr_rgba(tmp_path / "b.exr")
+    assert abs(a[..., 3] - b[..., 3]).max() <= info["skip_bound"] + 2e-6

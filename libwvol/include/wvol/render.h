@@ -157,6 +157,15 @@ typedef struct wvol_render_params {
                                Looked up at the nearest voxel, so classes keep crisp edges.
                                Absorption modes of the reference methods only; default NULL */
     size_t colors_count;    /* floats in colors: must be 3 * nx * ny * nz */
+    double skip_tolerance;  /* reference and bricks: what a ray may skip, default 0 (skip only
+                               what adds nothing). A brick whose bound on kappa (X-ray: on |f|)
+                               times the ray's length in it fits in what is left of this
+                               budget is skipped, so each pixel's optical depth (X-ray: its
+                               integral) changes by at most skip_tolerance: alpha by at most
+                               that much, a colour channel by at most that times the largest
+                               colour. For stores whose ringing leaves near-transparent
+                               haze where the original was empty. Needs the brick grid
+                               (brick > 0 for a dense volume); the spline methods refuse it. */
 } wvol_render_params;
 
 void wvol_render_params_default(wvol_render_params *p);
@@ -173,7 +182,13 @@ typedef struct wvol_render_stats {
     size_t terminated;      /* rays stopped early by the termination threshold */
     size_t clamped;         /* absorption-linear: factors (1 - dtau) clamped at 0 */
     size_t bricks_built;    /* bricks: bricks reconstructed (cache misses, all threads) */
-    size_t bricks_bound_skipped; /* bricks: bricks skipped on their coefficient bound alone */
+    size_t bricks_bound_skipped; /* bricks: bricks skipped on their coefficient bound alone
+                                    (bound kappa 0; under skip_tolerance others may be too) */
+    size_t skipped_tolerance; /* reference, bricks: brick runs skipped under skip_tolerance
+                                 (their contribution not 0; counted in skipped too) */
+    double skip_bound;      /* reference, bricks: the largest optical depth (X-ray: integral
+                               bound) skipped on any pixel, <= skip_tolerance: the image's
+                               bound on what skipping changed */
     size_t bytes;           /* bricks: memory the call allocated (coefficient blocks, bounds,
                                brick caches and scratch; the image and the store excluded) */
 } wvol_render_stats;

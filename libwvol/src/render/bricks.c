@@ -13,9 +13,10 @@
  *   reconstructed by a local inverse transform (wvol__idwt3_brick_src) that gathers its
  *   coefficients through the view and skips every band that is zero there.
  * - Before reconstructing, a brick's samples are bounded from the coefficients alone
- *   (wavelet/bounds.c, the bound the bricked isosurface uses); when kappa is 0 over the
- *   bound the brick is skipped unreconstructed. After reconstruction its actual min/max
- *   decide like the dense path's min/max grid, so skipping never changes the image.
+ *   (wavelet/bounds.c, the bound the bricked isosurface uses); when the brick's rate on
+ *   the bound (kappa 0 over it, or within the ray's skip tolerance) lets the ray skip it, it
+ *   is not reconstructed. After reconstruction its actual min/max decide like the dense
+ *   path's min/max grid, so skipping at tolerance 0 never changes the image.
  * - Threads take image tiles; each has a bounded, fully associative cache of bricks (least
  *   recently used slot evicted). A brick evicted and met again is rebuilt.
  * Samples, weights and compositing are the reference's, so on the same voxels the image
@@ -223,7 +224,8 @@ typedef struct brick_src {
     int B;
     size_t slot_floats;
     int nthreads;
-    unsigned char *state;         /* per brick: 0 not seen, 1 empty by its bound, 2 reconstructed */
+    double *bound_rate;           /* per brick: wvol__brick_rate of its coefficient bound, < 0 not
+                                     yet computed */
 } brick_src;
 
 /* A thread's brick cache: fully associative, least recently used slot evicted (a scan of
@@ -242,7 +244,7 @@ typedef struct brick_cache {
     long *id;                /* per slot: brick index or -1 */
     uint64_t *used;          /* per slot: last use */
     float *data;             /* per slot: slot_floats */
-    unsigned char *empty;    /* per slot: no sample of the brick contributes (its min/max) */
+    double *rate;            /* per slot: wvol__brick_rate of its voxels' min/max */
     wvol__view *view;        /* per slot: the brick's view (its voxels' box, finished) */
     uint64_t clock;
     wvol__brick_scratch scr;
@@ -256,7 +258,7 @@ static void cache_free(brick_cache *c)
     free(c->id);
     free(c->used);
     free(c->data);
-    free(c->empty);
+    free(c->rate);
     free(c->view);
     wvol__brick_scratch_free(&c->scr);
     free(c);
@@ -275,9 +277,9 @@ static brick_cache *cache_new(const brick_src *src, size_t slots)
     c->id = malloc(slots * sizeof *c->id);
     c->used = calloc(slots, sizeof *c->used);
     c->data = malloc(slots * src->slot_floats * sizeof *c->data);
-    c->empty = malloc(slots * sizeof *c->empty);
+    c->rate = malloc(slots * sizeof *c->rate);
     c->view = malloc(slots * sizeof *c->view);
-    if (!c->index || !c->id || !c->used || !c->data || !c->empty || !c->view) {
+    if (!c->index || !c->id || !c->used || !c->data || !c->rate || !c->view) {
         cache_free(c);
         return NULL;
     }
@@ -332,7 +334,7 @@ static size_t cache_bytes(const brick_cache *c)
 {
     size_t slots = c->nslots;
     return sizeof *c + slots * (c->src->slot_floats * sizeof(float) + sizeof(long) + sizeof(uint64_t) +
-                                sizeof(unsigned char) + sizeof(wvol__view)) +
+                                sizeof(double) + sizeof(wvol__view)) +
            (c->index_mask + 1) * sizeof *c->index + wvol__brick_scratch_bytes(&c->scr);
 }
 
@@ -346,7 +348,7 @@ static void brick_box(const brick_src *src, size_t b, long lo[3], long hi[3])
     }
 }
 
-static wvol_status fetch(void *tctx, size_t b, wvol__view *view, int *empty)
+static wvol_status fetch(void *tctx, size_t b, double allow, wvol__view *view, double *rate)
 {
     brick_cache *c = tctx;
     const brick_src *src = c->src;
@@ -366,18 +368,18 @@ static wvol_status fetch(void *tctx, size_t b, wvol__view *view, int *empty)
     if (src->bounds) {
         /* the bound is computed once per brick (by whichever thread meets it first; two
          * threads may both compute it, with the same result) */
-        unsigned char known;
+        double known;
 #pragma omp atomic read
-        known = src->state[b];
-        if (known == 0) {
+        known = src->bound_rate[b];
+        if (known < 0) {
             double bl, bh;
             wvol__bounds_box(src->bounds, lo, hi, &bl, &bh);
-            known = wvol__brick_empty(src->tf, src->mode, bl, bh) ? 1 : 2;
+            known = wvol__brick_rate(src->tf, src->mode, bl, bh);
 #pragma omp atomic write
-            src->state[b] = known;
+            src->bound_rate[b] = known;
         }
-        if (known == 1) { /* no sample can contribute: no view needed */
-            *empty = 1;
+        if (known <= allow) { /* skipped on the bound alone: no view needed */
+            *rate = known;
             return WVOL_OK;
         }
     }
@@ -410,7 +412,7 @@ static wvol_status fetch(void *tctx, size_t b, wvol__view *view, int *empty)
         }
         c->id[slot] = (long)b;
         index_insert(c, (long)b, slot);
-        c->empty[slot] = (unsigned char)wvol__brick_empty(src->tf, src->mode, mn, mx); /* once per build */
+        c->rate[slot] = wvol__brick_rate(src->tf, src->mode, mn, mx); /* once per build */
         {
             wvol__view *v = &c->view[slot];
             v->data = d;
@@ -429,7 +431,7 @@ hit:
     c->last_b = (long)b;
     c->last_slot = slot;
     *view = c->view[slot];
-    *empty = c->empty[slot];
+    *rate = c->rate[slot];
     return WVOL_OK;
 }
 
@@ -510,11 +512,13 @@ wvol_status wvol_render_bricks(wvol_image *img, const wvol_store *st, const wvol
                                          info.lowpass[0] * info.lowpass[1], err));
     }
     if (src.bounds) {
-        src.state = calloc(src.bn[0] * src.bn[1] * src.bn[2], 1);
-        if (!src.state) {
-            status = wvol_error_set(err, WVOL_ERR_NOMEM, "render: out of memory for the brick states");
+        size_t nb = src.bn[0] * src.bn[1] * src.bn[2];
+        src.bound_rate = malloc(nb * sizeof *src.bound_rate);
+        if (!src.bound_rate) {
+            status = wvol_error_set(err, WVOL_ERR_NOMEM, "render: out of memory for the brick bounds");
             goto done;
         }
+        for (size_t i = 0; i < nb; i++) src.bound_rate[i] = -1.0;
     }
     status = blocks_build(&src.blocks, st, src.bounds, err);
     if (status != WVOL_OK) goto done;
@@ -532,9 +536,9 @@ wvol_status wvol_render_bricks(wvol_image *img, const wvol_store *st, const wvol
     s.fetch = fetch;
     status = wvol__render_sampled(img, &s, cam, tf, &p, stats, err);
     bytes = src.blocks.bytes + wvol__bounds_bytes(src.bounds) + (size_t)src.nthreads * sizeof(void *) +
-            (src.state ? src.bn[0] * src.bn[1] * src.bn[2] : 0);
-    if (src.state)
-        for (size_t i = 0; i < src.bn[0] * src.bn[1] * src.bn[2]; i++) bound_skipped += src.state[i] == 1;
+            (src.bound_rate ? src.bn[0] * src.bn[1] * src.bn[2] * sizeof *src.bound_rate : 0);
+    if (src.bound_rate)
+        for (size_t i = 0; i < src.bn[0] * src.bn[1] * src.bn[2]; i++) bound_skipped += src.bound_rate[i] == 0;
     if (s.tctx)
         for (int t = 0; t < src.nthreads; t++)
             if (s.tctx[t]) {
@@ -557,6 +561,6 @@ done:
     }
     blocks_free(&src.blocks);
     wvol__bounds_free(src.bounds);
-    free(src.state);
+    free(src.bound_rate);
     return status;
 }

@@ -22,6 +22,7 @@ void wvol_render_params_default(wvol_render_params *p)
     p->gauss_nodes = 5;
     p->colors = NULL;
     p->colors_count = 0;
+    p->skip_tolerance = 0.0;
 }
 
 void wvol__params(wvol_render_params *out, const wvol_render_params *in)
@@ -52,8 +53,18 @@ wvol_status wvol__render_check(const wvol_image *img, const wvol_camera *cam, co
                    p->tile);
     WVOL_RETURN_IF(p->brick < 0 || p->brick > 4096, err, WVOL_ERR_ARG, "render: brick %d (0..4096)", p->brick);
     WVOL_RETURN_IF(p->threads < 0, err, WVOL_ERR_ARG, "render: threads %d (>= 0)", p->threads);
+    WVOL_RETURN_IF(!(p->skip_tolerance >= 0) || !isfinite(p->skip_tolerance), err, WVOL_ERR_ARG,
+                   "render: skip tolerance %g (must be finite and >= 0)", p->skip_tolerance);
     WVOL_RETURN_IF(p->gauss_nodes < 1 || p->gauss_nodes > 10, err, WVOL_ERR_ARG, "render: gauss_nodes %d (1..10)",
                    p->gauss_nodes);
+    return WVOL_OK;
+}
+
+wvol_status wvol__check_skip(const wvol_render_params *p, int supported, wvol_error *err)
+{
+    WVOL_RETURN_IF(p->skip_tolerance > 0 && !supported, err, WVOL_ERR_UNSUPPORTED,
+                   "render: a skip tolerance needs a brick grid to skip by (methods reference with brick > 0, "
+                   "or bricks)");
     return WVOL_OK;
 }
 

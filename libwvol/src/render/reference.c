@@ -2,7 +2,8 @@
  * Reference integrator (paper eq 33): front-to-back compositing of samples taken at a
  * regular step along each ray, with step-corrected opacity alpha = 1 - exp(-kappa dt)
  * (or the linearised kappa dt in absorption-linear mode), early ray termination and
- * empty-space skipping over a min/max brick grid. Samples are trilinear interpolation of
+ * skipping over a min/max brick grid (bricks that add nothing, and within
+ * params->skip_tolerance those that add little: ray_skip). Samples are trilinear interpolation of
  * the voxels, or f^ through the spline tables (the converged reference of the spline model).
  * Based on: Levoy 1988 (ray casting); Max 1995 (optical models); DESIGN.md section 8. */
 #include "render_internal.h"
@@ -134,12 +135,13 @@ void wvol__view_finish(wvol__view *w)
                     w->hi[1] < INT32_MAX && w->hi[2] < INT32_MAX;
 }
 
-int wvol__brick_empty(const wvol_tf *tf, wvol_render_mode mode, double mn, double mx)
+double wvol__brick_rate(const wvol_tf *tf, wvol_render_mode mode, double mn, double mx)
 {
-    return mode == WVOL_MODE_XRAY ? (mn == 0 && mx == 0) : (tf_max_kappa(tf, mn, mx) <= 0);
+    if (mode == WVOL_MODE_XRAY) return fmax(fabs(mn), fabs(mx));
+    return fmax(tf_max_kappa(tf, mn, mx), 0.0);
 }
 
-/* Marks bricks whose samples cannot contribute. Each brick covers the voxel cells
+/* Each brick's contribution rate (wvol__brick_rate), 0 where its samples cannot contribute. Each brick covers the voxel cells
  * [b*B - 1/2, (b+1)*B - 1/2) and its min/max is taken over voxels b*B-1 .. (b+1)*B, every
  * voxel a trilinear sample inside the brick can touch. */
 static wvol_status build_bricks(wvol__sampler *s, const wvol_tf *tf, wvol_render_mode mode, wvol_error *err)
@@ -149,8 +151,8 @@ static wvol_status build_bricks(wvol__sampler *s, const wvol_tf *tf, wvol_render
     int a, B = s->B;
     for (a = 0; a < 3; a++) s->bn[a] = (s->n[a] + (size_t)B - 1) / (size_t)B;
     nb = s->bn[0] * s->bn[1] * s->bn[2];
-    s->empty = malloc(nb);
-    WVOL_RETURN_IF(!s->empty, err, WVOL_ERR_NOMEM, "render: out of memory for %zu bricks", nb);
+    s->rate = malloc(nb * sizeof *s->rate);
+    WVOL_RETURN_IF(!s->rate, err, WVOL_ERR_NOMEM, "render: out of memory for %zu bricks", nb);
     for (bk = 0; bk < s->bn[2]; bk++)
         for (bj = 0; bj < s->bn[1]; bj++)
             for (bi = 0; bi < s->bn[0]; bi++) {
@@ -170,7 +172,7 @@ static wvol_status build_bricks(wvol__sampler *s, const wvol_tf *tf, wvol_render
                             if (row[i] > mx) mx = row[i];
                         }
                     }
-                s->empty[bi + s->bn[0] * (bj + s->bn[1] * bk)] = (unsigned char)wvol__brick_empty(tf, mode, mn, mx);
+                s->rate[bi + s->bn[0] * (bj + s->bn[1] * bk)] = wvol__brick_rate(tf, mode, mn, mx);
             }
     return WVOL_OK;
 }
@@ -603,8 +605,9 @@ typedef struct ray_state {
     long k, nsteps, nfull;      /* next step; steps; full steps (ending by t1) */
     long bid;                   /* the current brick (bricked sources), -1 before the first */
     ray_acc r;
-    size_t nsamp, nskip;
-    int cur_empty, done;        /* the current brick contributes nothing; ray terminated */
+    size_t nsamp, nskip, nskip_tol;
+    double skipped;             /* optical depth (X-ray: integral) skipped so far, bounded */
+    int done;                   /* ray terminated */
     wvol_status failed;         /* a bricked source's fetch failed */
     int pixel;                  /* index of its pixel in the tile */
 } ray_state;
@@ -626,23 +629,36 @@ static void ray_begin(const wvol__sampler *s, const double o[3], const double d[
     while (st->nfull > 0 && t0 + (double)st->nfull * dt > t1) st->nfull--; /* steps ending by t1 */
 }
 
-/* The view of the ray's current brick (entering the next one when t is at or past the
- * exit of the last): fetched anew each time (a cache lookup), since another ray may have
- * evicted it. Returns 0 when the fetch failed. */
-static inline __attribute__((always_inline)) int ray_view(const wvol__sampler *s, void *tc, ray_state *st,
-                                                          const double x[3], double t, wvol__view *view)
+/* Enters the brick holding x (sample parameter t) when t is at or past the current one's exit. */
+static inline void ray_enter(const wvol__sampler *s, ray_state *st, const double x[3], double t)
 {
-    if (!(t < st->t_exit)) { /* entering the next brick */
+    if (!(t < st->t_exit)) {
         st->bid = brick_id(s, x);
         brick_exit(s, x, st->e, t, &st->t_exit);
-        st->cur_empty = s->empty ? s->empty[st->bid] : 0;
-    } else if (st->cur_empty || !s->fetch) {
-        return 1;
     }
-    if (!st->cur_empty && s->fetch) {
-        st->failed = s->fetch(tc, (size_t)st->bid, view, &st->cur_empty);
-        if (st->failed != WVOL_OK) return 0;
+}
+
+/* Whether the ray's next `len` world units, in its current brick, are skipped: the brick's
+ * contribution rate (wvol__brick_rate) is 0, or times len it fits in what is left of the
+ * ray's skip tolerance, which it then spends (st->skipped). Otherwise returns 0 with *view
+ * the brick's (fetched anew each time, a cache lookup, since another ray may have evicted
+ * it; a dense source keeps the whole volume's); -1 when the fetch failed. */
+static inline __attribute__((always_inline)) int ray_skip(const wvol__sampler *s, void *tc, ray_state *st,
+                                                          double tol, double len, wvol__view *view)
+{
+    double rate, allow = tol > st->skipped ? (tol - st->skipped) / len : 0.0;
+    if (s->fetch) {
+        st->failed = s->fetch(tc, (size_t)st->bid, allow, view, &rate);
+        if (st->failed != WVOL_OK) return -1;
+    } else {
+        rate = s->rate[st->bid];
     }
+    if (rate > allow) return 0;
+    if (rate > 0) {
+        st->skipped += rate * len;
+        st->nskip_tol++;
+    }
+    st->nskip++;
     return 1;
 }
 
@@ -657,14 +673,15 @@ static inline __attribute__((always_inline)) int ray_advance(const wvol__sampler
     wvol__view view = s->whole;
     const double t0 = st->t0, *x0 = st->x0, *e = st->e;
     long k = st->k, nfull = st->nfull, ke = nfull; /* this run: steps k .. ke - 1 */
-    int a, bricked = s->empty || s->fetch, done;
+    int a, bricked = s->rate || s->fetch, done;
     double x[3], xl[3], t;
 #define T_AT(kk) (t0 + ((double)(kk) + 0.5) * dt)
     if (k >= nfull || st->done || st->failed != WVOL_OK) return 0;
     t = T_AT(k);
     for (a = 0; a < 3; a++) x[a] = x0[a] + t * e[a];
     if (bricked) {
-        if (!ray_view(s, tc, st, x, t, &view)) return 0;
+        int skip;
+        ray_enter(s, st, x, t);
         /* the first step whose sample is at or past the exit */
         if (st->t_exit < T_AT(nfull)) {
             double q = (st->t_exit - t0) / dt - 0.5;
@@ -673,8 +690,9 @@ static inline __attribute__((always_inline)) int ray_advance(const wvol__sampler
             while (ke > k + 1 && !(T_AT(ke - 1) < st->t_exit)) ke--;
             if (ke <= k) ke = k + 1;
         }
-        if (st->cur_empty) {
-            st->nskip++;
+        skip = ray_skip(s, tc, st, p->skip_tolerance, (double)(ke - k) * dt, &view);
+        if (skip < 0) return 0;
+        if (skip) {
             st->k = ke;
             return ke < nfull;
         }
@@ -715,12 +733,14 @@ static void ray_finish(const wvol__sampler *s, void *tc, const tf_fast *tfx, con
     if (!st->done && st->failed == WVOL_OK && st->nfull < st->nsteps) {
         double ta = st->t0 + (double)st->nfull * dt, h = st->t1 - ta, t = 0.5 * (ta + st->t1), x[3];
         wvol__view view = s->whole;
-        int bricked = s->empty || s->fetch;
+        int bricked = s->rate || s->fetch, skip = 0;
         for (a = 0; a < 3; a++) x[a] = st->x0[a] + t * st->e[a];
-        if (h > 0 && (!bricked || ray_view(s, tc, st, x, t, &view))) {
-            if (bricked && st->cur_empty) {
-                st->nskip++;
-            } else {
+        if (h > 0) {
+            if (bricked) {
+                ray_enter(s, st, x, t);
+                skip = ray_skip(s, tc, st, p->skip_tolerance, h, &view);
+            }
+            if (!skip) {
                 st->nsamp++;
                 st->done = step(s, &view, tfx, p, p->mode, p->shading, p->colors != NULL, 0, x, st->d, h, &st->r);
             }
@@ -791,12 +811,14 @@ wvol_status wvol__render_sampled(wvol_image *img, wvol__sampler *s, const wvol_c
     double lo[3], hi[3], dt, t_start, c_start;
     int ntiles, tx, a, *order, nthreads;
     ray_state **states;
-    size_t rays_hit = 0, samples = 0, skipped = 0, terminated = 0, clamped = 0;
+    size_t rays_hit = 0, samples = 0, skipped = 0, skipped_tol = 0, terminated = 0, clamped = 0;
+    double skip_bound = 0.0;
     wvol_status failed = WVOL_OK;
 
     wvol__params(&p, pin);
     WVOL_FORWARD(wvol__render_check(img, cam, tf_in, &p, err));
     WVOL_FORWARD(wvol__check_colors(&p, s->n, 1, err));
+    WVOL_FORWARD(wvol__check_skip(&p, (s->v && p.brick > 0) || s->prepare, err));
     for (a = 0; a < 3; a++) {
         g.dims[a] = s->n[a];
         g.spacing[a] = s->spacing[a];
@@ -811,7 +833,7 @@ wvol_status wvol__render_sampled(wvol_image *img, wvol__sampler *s, const wvol_c
     dt = p.step * fmin(s->spacing[0], fmin(s->spacing[1], s->spacing[2]));
     t_start = wvol__now();
     c_start = wvol__cpu_now();
-    s->empty = NULL;
+    s->rate = NULL;
     if (s->v && p.brick > 0) {
         s->B = p.brick;
         WVOL_FORWARD(build_bricks(s, &tf, p.mode, err));
@@ -831,12 +853,12 @@ wvol_status wvol__render_sampled(wvol_image *img, wvol__sampler *s, const wvol_c
     if (!order || !states) {
         free(order);
         free(states);
-        free(s->empty);
-        s->empty = NULL;
+        free(s->rate);
+        s->rate = NULL;
         return wvol_error_set(err, WVOL_ERR_NOMEM, "render: out of memory");
     }
 #pragma omp parallel for schedule(dynamic, 4) num_threads(nthreads) \
-    reduction(+ : rays_hit, samples, skipped, terminated, clamped)
+    reduction(+ : rays_hit, samples, skipped, skipped_tol, terminated, clamped) reduction(max : skip_bound)
     /* chunks of 4 Z-ordered tiles (2 x 2): a thread keeps neighbouring tiles, and with them
      * the bricks its cache holds */
     for (int ti = 0; ti < ntiles; ti++) {
@@ -873,6 +895,8 @@ wvol_status wvol__render_sampled(wvol_image *img, wvol__sampler *s, const wvol_c
                        img->rgba + 4 * ((size_t)(x0 + st->pixel % tw) + (size_t)img->width * (size_t)(y0 + st->pixel / tw)));
             samples += st->nsamp;
             skipped += st->nskip;
+            skipped_tol += st->nskip_tol;
+            if (st->skipped > skip_bound) skip_bound = st->skipped;
             terminated += (size_t)st->done;
             clamped += (size_t)st->r.nclamp;
             if (st->failed != WVOL_OK) {
@@ -884,8 +908,8 @@ wvol_status wvol__render_sampled(wvol_image *img, wvol__sampler *s, const wvol_c
     for (a = 0; a < nthreads; a++) free(states[a]);
     free(states);
     free(order);
-    free(s->empty);
-    s->empty = NULL;
+    free(s->rate);
+    s->rate = NULL;
     WVOL_RETURN_IF(failed != WVOL_OK, err, failed, "render: out of memory (a brick could not be reconstructed, or a tile's rays)");
     if (stats) {
         memset(stats, 0, sizeof *stats);
@@ -895,6 +919,8 @@ wvol_status wvol__render_sampled(wvol_image *img, wvol__sampler *s, const wvol_c
         stats->rays_hit = rays_hit;
         stats->samples = samples;
         stats->skipped = skipped;
+        stats->skipped_tolerance = skipped_tol;
+        stats->skip_bound = skip_bound;
         stats->terminated = terminated;
         stats->clamped = clamped;
     }

@@ -26,6 +26,9 @@ void wvol__tf_world(wvol_tf *out, const wvol_tf *tf, const wvol_geometry *g);
  * that cannot use a colour volume (they refuse it rather than ignore it). */
 wvol_status wvol__check_colors(const wvol_render_params *p, const size_t n[3], int supported, wvol_error *err);
 
+/* Refuses a skip tolerance > 0 where it is not `supported` (no brick grid to skip by). */
+wvol_status wvol__check_skip(const wvol_render_params *p, int supported, wvol_error *err);
+
 /* Per-tile parallel loop helpers. The tile side: params->tile, or for its default (0) the
  * source's preferred side when it has one (a bricked source's tile rays walk its bricks
  * together: render_tile in reference.c; bricks.c sizes it with its cache), else 16. */
@@ -69,13 +72,13 @@ typedef struct wvol__sampler {
     double (*eval)(const void *ctx, const double x[3], double grad[3]); /* index coords; grad in index units */
     const void *ctx;
     /* bricked source: prepare() (called once the TF is in world units) sets B, bn and tctx
-     * (one context per thread, indexed by omp_get_thread_num()); fetch() gives brick b's
-     * view of voxels b B - 1 .. (b + 1) B (clipped to the volume), and sets *empty when no
-     * sample of the brick contributes (wvol__brick_empty on the voxels' range, or on a
-     * bound of it, in which case the view is not updated). */
+     * (one context per thread, indexed by omp_get_thread_num()); fetch() sets *rate to brick
+     * b's contribution rate (wvol__brick_rate on its voxels' range, or on a bound of it) and,
+     * unless *rate <= allow (the caller then skips the brick), *view to its voxels
+     * b B - 1 .. (b + 1) B (clipped to the volume). */
     wvol_status (*prepare)(struct wvol__sampler *s, const wvol_tf *tf_world, const wvol_render_params *p,
                            wvol_error *err);
-    wvol_status (*fetch)(void *tctx, size_t brick, wvol__view *view, int *empty);
+    wvol_status (*fetch)(void *tctx, size_t brick, double allow, wvol__view *view, double *rate);
     void **tctx;
     void *src;              /* the bricked source's own state */
     size_t n[3];
@@ -83,12 +86,15 @@ typedef struct wvol__sampler {
     int B;                  /* brick grid: filled by the integrator (dense) or prepare() */
     int tile;               /* preferred tile side (prepare()), 0: none */
     size_t bn[3];
-    unsigned char *empty;   /* dense: 1 for an empty brick; freed by the integrator */
+    double *rate;           /* dense: each brick's wvol__brick_rate; freed by the integrator */
 } wvol__sampler;
 
-/* A brick whose samples lie in [mn, mx] adds nothing: kappa is 0 over that range, or (X-ray)
- * every sample is 0. tf in world units. */
-int wvol__brick_empty(const wvol_tf *tf, wvol_render_mode mode, double mn, double mx);
+/* The contribution rate of a brick whose samples lie in [mn, mx]: the largest kappa of the
+ * TF (world units) over that range, or (X-ray) the largest |sample|. 0: the brick adds
+ * nothing. A sample of step h adds at most rate h to the ray's optical depth (X-ray: to its
+ * integral, in absolute value), so skipping a run of length len in it changes the pixel by
+ * at most rate len (wvol_render_params.skip_tolerance). */
+double wvol__brick_rate(const wvol_tf *tf, wvol_render_mode mode, double mn, double mx);
 
 wvol_status wvol__render_sampled(wvol_image *img, wvol__sampler *s, const wvol_camera *cam, const wvol_tf *tf,
                                  const wvol_render_params *params, wvol_render_stats *stats, wvol_error *err);

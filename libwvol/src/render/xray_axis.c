@@ -30,6 +30,7 @@ wvol_status wvol_render_xray_axis(wvol_image *img, const wvol_store *s, const wv
     WVOL_RETURN_IF(!s, err, WVOL_ERR_ARG, "render: no store");
     WVOL_FORWARD(wvol__render_check(img, cam, NULL, &p, err));
     WVOL_FORWARD(wvol__check_colors(&p, NULL, 0, err));
+    WVOL_FORWARD(wvol__check_skip(&p, 0, err));
     WVOL_RETURN_IF(p.mode != WVOL_MODE_XRAY, err, WVOL_ERR_UNSUPPORTED, "render: the axis fast path is X-ray only");
     WVOL_RETURN_IF(cam->projection != WVOL_ORTHOGRAPHIC, err, WVOL_ERR_UNSUPPORTED,
                    "render: the axis fast path needs an orthographic camera");
