@@ -153,6 +153,37 @@ static inline size_t wrap(ptrdiff_t k, size_t e)
     return (size_t)(r < 0 ? r + (ptrdiff_t)e : r);
 }
 
+/* From position pos (wrapped into the extent e) the step to the next block: to the end of
+ * pos's block, or to the wrap if that comes first. */
+static ptrdiff_t next_block_step(size_t pos, size_t e)
+{
+    size_t step = CB - (pos & (CB - 1));
+    return (ptrdiff_t)(step < e - pos ? step : e - pos);
+}
+
+/* Whether any block of the region (lo, n) of a band is present: a scan of its directory
+ * entries, a few dozen, before the gather writes the region's positions one by one. At 5%
+ * most bands have no kept coefficient near a given brick (a 16^3 brick's finest-level region
+ * is 11^3 positions in at most 4^3 blocks), and their zeros need not be written at all. */
+static int region_has_blocks(const band_view *bv, const ptrdiff_t lo[3], const ptrdiff_t n[3])
+{
+    for (ptrdiff_t k = 0; k < n[2];) {
+        size_t z = wrap(lo[2] + k, bv->e[2]);
+        for (ptrdiff_t j = 0; j < n[1];) {
+            size_t y = wrap(lo[1] + j, bv->e[1]);
+            const uint32_t *drow = bv->dir + bv->nb[0] * ((y >> CB_SHIFT) + bv->nb[1] * (z >> CB_SHIFT));
+            for (ptrdiff_t i = 0; i < n[0];) {
+                size_t x = wrap(lo[0] + i, bv->e[0]);
+                if (drow[x >> CB_SHIFT]) return 1;
+                i += next_block_step(x, bv->e[0]);
+            }
+            j += next_block_step(y, bv->e[1]);
+        }
+        k += next_block_step(z, bv->e[2]);
+    }
+    return 0;
+}
+
 /* wvol__coef_source gather through the view. */
 static int gather_blocks(const void *ctx, double *dst, int m, int band, const ptrdiff_t lo[3], const ptrdiff_t n[3])
 {
@@ -174,7 +205,7 @@ static int gather_blocks(const void *ctx, double *dst, int m, int band, const pt
         return 1;
     }
     const band_view *bv = &cb->bv[m][band];
-    if (!bv->dir) return 0;
+    if (!bv->dir || !region_has_blocks(bv, lo, n)) return 0; /* all zero: the caller skips the band */
     for (ptrdiff_t k = 0; k < n[2]; k++) {
         size_t z = wrap(lo[2] + k, bv->e[2]);
         for (ptrdiff_t j = 0; j < n[1]; j++) {

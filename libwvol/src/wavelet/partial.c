@@ -125,6 +125,95 @@ static inline void tap_range(ptrdiff_t gi, ptrdiff_t L, ptrdiff_t k0, ptrdiff_t 
     }
 }
 
+/* The short filters' synthesis kernels, for tap counts 1..4 per output (Haar 1, db2 2,
+ * coif1 3, db4 4; longer filters take the general loops): NT and which of the two input
+ * bands exist (WHICH: 1 low, 2 high, 3 both) are constants, so the tap loops unroll and the
+ * output loops vectorise. Each output is summed as the general loops sum it, 0.0 first, then
+ * tap by tap in the order of k, each tap's two products added before they join the sum: the
+ * same operations in the same order, so the same results bit for bit. */
+#define SYNTH_FIXED_MAX 4
+
+/* A run of outputs along y or z (inner > 1): o[x] = sum_j wh[j] l[j][x] + wg[j] h[j][x]
+ * over whole inner rows, in one pass (the general loop adds each tap into o in its own pass). */
+static inline __attribute__((always_inline)) void synth_rows_fixed(double *restrict o, const double *const *l,
+                                                                   const double *const *h, const double *wh,
+                                                                   const double *wg, ptrdiff_t inner, const int NT,
+                                                                   const int WHICH)
+{
+    const double *lr[SYNTH_FIXED_MAX], *hr[SYNTH_FIXED_MAX];
+    for (int j = 0; j < NT; j++) {
+        lr[j] = WHICH & 1 ? l[j] : NULL;
+        hr[j] = WHICH & 2 ? h[j] : NULL;
+    }
+    for (ptrdiff_t x = 0; x < inner; x++) {
+        double acc = 0.0;
+        for (int j = 0; j < NT; j++) {
+            if (WHICH == 3) acc += wh[j] * lr[j][x] + wg[j] * hr[j][x];
+            else if (WHICH == 1) acc += wh[j] * lr[j][x];
+            else acc += wg[j] * hr[j][x];
+        }
+        o[x] = acc;
+    }
+}
+
+/* Outputs i0, i0 + 1, ... < i1 of one x row taken in pairs (even, odd output index): in the
+ * interior both read the same NT consecutive inputs from r0[i], with taps that depend only on
+ * the parity (eh, eg for the first of a pair, oh, og for the second), so a pair is two sums
+ * side by side over shared loads instead of two gathers of their own. */
+static inline __attribute__((always_inline)) void synth_x_pairs(double *restrict o, const double *lu,
+                                                                const double *hu, const ptrdiff_t *r0,
+                                                                const double *eh, const double *eg,
+                                                                const double *oh, const double *og, ptrdiff_t i0,
+                                                                ptrdiff_t i1, const int NT, const int WHICH)
+{
+    for (ptrdiff_t i = i0; i + 1 < i1; i += 2) {
+        const double *l = WHICH & 1 ? lu + r0[i] : NULL, *h = WHICH & 2 ? hu + r0[i] : NULL;
+        double e = 0.0, d = 0.0;
+        for (int j = 0; j < NT; j++) {
+            if (WHICH == 3) {
+                e += eh[j] * l[j] + eg[j] * h[j];
+                d += oh[j] * l[j] + og[j] * h[j];
+            } else if (WHICH == 1) {
+                e += eh[j] * l[j];
+                d += oh[j] * l[j];
+            } else {
+                e += eg[j] * h[j];
+                d += og[j] * h[j];
+            }
+        }
+        o[i] = e;
+        o[i + 1] = d;
+    }
+}
+
+/* Dispatch on (NT, WHICH) for the two kernels above; 0 when NT is outside 1..SYNTH_FIXED_MAX. */
+#define SYNTH_CASES(CALL)                                                                                    \
+    switch (nt) {                                                                                            \
+    case 1: if (which == 3) CALL(1, 3); else if (which == 1) CALL(1, 1); else CALL(1, 2); return 1;          \
+    case 2: if (which == 3) CALL(2, 3); else if (which == 1) CALL(2, 1); else CALL(2, 2); return 1;          \
+    case 3: if (which == 3) CALL(3, 3); else if (which == 1) CALL(3, 1); else CALL(3, 2); return 1;          \
+    case 4: if (which == 3) CALL(4, 3); else if (which == 1) CALL(4, 1); else CALL(4, 2); return 1;          \
+    default: return 0;                                                                                       \
+    }
+
+static int synth_rows_any(double *o, const double *const *l, const double *const *h, const double *wh,
+                          const double *wg, ptrdiff_t inner, int nt, int which)
+{
+#define ROWS_CALL(N, W) synth_rows_fixed(o, l, h, wh, wg, inner, N, W)
+    SYNTH_CASES(ROWS_CALL)
+#undef ROWS_CALL
+}
+
+static int synth_x_pairs_any(double *o, const double *lu, const double *hu, const ptrdiff_t *r0, const double *eh,
+                             const double *eg, const double *oh, const double *og, ptrdiff_t i0, ptrdiff_t i1,
+                             int nt, int which)
+{
+#define PAIRS_CALL(N, W) synth_x_pairs(o, lu, hu, r0, eh, eg, oh, og, i0, i1, N, W)
+    SYNTH_CASES(PAIRS_CALL)
+#undef PAIRS_CALL
+}
+#undef SYNTH_CASES
+
 /* The x axis of synth_axis (inner stride 1: one output per row position) with its taps
  * planned once for all rows: per output i, the input positions (rel), and the two filters'
  * taps, in the order of k, which synth_axis's general loop recomputes for every row (index
@@ -134,12 +223,15 @@ static inline void tap_range(ptrdiff_t gi, ptrdiff_t L, ptrdiff_t k0, ptrdiff_t 
 static void synth_x_planned(double *out, const double *lo, const double *hi, ptrdiff_t kn, ptrdiff_t k0,
                             ptrdiff_t o0, ptrdiff_t on, ptrdiff_t outer, int full, const wvol_filter *f)
 {
-    ptrdiff_t rel[SYNTH_PLAN_MAX], first[SYNTH_PLAN_MAX + 1], L = f->length, nt = 0;
+    ptrdiff_t rel[SYNTH_PLAN_MAX], first[SYNTH_PLAN_MAX + 1], r0[SYNTH_PLAN_MAX], L = f->length, nt = 0;
+    ptrdiff_t p0 = (o0 & 1) ? 1 : 0, p1; /* the pairs: outputs p0 .. p1 - 1, the first of each even */
     double wh[SYNTH_PLAN_MAX], wg[SYNTH_PLAN_MAX];
+    int paired, taps, which = (lo ? 1 : 0) | (hi ? 2 : 0);
     for (ptrdiff_t i = 0; i < on; i++) {
         ptrdiff_t gi = o0 + i, kmin, kmax, r;
         tap_range(gi, L, k0, kn, full, &kmin, &kmax, &r);
         first[i] = nt;
+        r0[i] = r;
         for (ptrdiff_t k = kmin; k <= kmax; k++) {
             rel[nt] = r;
             wh[nt] = f->h[gi - 2 * k];
@@ -148,9 +240,38 @@ static void synth_x_planned(double *out, const double *lo, const double *hi, ptr
         }
     }
     first[on] = nt;
+    /* pairs apply where every paired output has the same tap count at consecutive positions
+     * (no wrap) from its pair's shared start, with its parity's taps (the interior) */
+    p1 = p0 + ((on - p0) & ~(ptrdiff_t)1);
+    taps = p1 > p0 ? (int)(first[p0 + 1] - first[p0]) : 0;
+    paired = taps >= 1 && taps <= SYNTH_FIXED_MAX;
+    for (ptrdiff_t i = p0; paired && i < p1; i++) {
+        ptrdiff_t par = (i - p0) & 1, ref = first[p0 + par];
+        if (first[i + 1] - first[i] != taps || r0[i] != r0[i - par]) paired = 0;
+        for (int j = 0; paired && j < taps; j++)
+            if (rel[first[i] + j] != r0[i] + j || wh[first[i] + j] != wh[ref + j] || wg[first[i] + j] != wg[ref + j])
+                paired = 0;
+    }
     for (ptrdiff_t u = 0; u < outer; u++) {
         const double *lu = lo ? lo + u * kn : NULL, *hu = hi ? hi + u * kn : NULL;
         double *restrict o = out + u * on;
+        if (paired && synth_x_pairs_any(o, lu, hu, r0, wh + first[p0], wg + first[p0], wh + first[p0 + 1],
+                                        wg + first[p0 + 1], p0, p1, taps, which)) {
+            /* the unpaired first and last outputs, summed as the general loops below sum */
+            ptrdiff_t odd[2] = {p0 == 1 ? 0 : -1, p1 < on ? p1 : -1};
+            for (int e = 0; e < 2; e++) {
+                ptrdiff_t i = odd[e];
+                double acc = 0.0;
+                if (i < 0) continue;
+                for (ptrdiff_t t = first[i]; t < first[i + 1]; t++) {
+                    if (which == 3) acc += wh[t] * lu[rel[t]] + wg[t] * hu[rel[t]];
+                    else if (which == 1) acc += wh[t] * lu[rel[t]];
+                    else acc += wg[t] * hu[rel[t]];
+                }
+                o[i] = acc;
+            }
+            continue;
+        }
         if (lu && hu) {
             for (ptrdiff_t i = 0; i < on; i++) {
                 double acc = 0.0;
@@ -208,6 +329,19 @@ static void synth_axis(double *out, const double *lo, const double *hi, const pt
                 }
                 o[0] = acc;
                 continue;
+            }
+            if (kmax - kmin < SYNTH_FIXED_MAX) { /* a short filter: its rows in one pass */
+                const double *lr[SYNTH_FIXED_MAX], *hr[SYNTH_FIXED_MAX];
+                double wh[SYNTH_FIXED_MAX], wg[SYNTH_FIXED_MAX];
+                int nt = 0;
+                for (k = kmin; k <= kmax; k++, nt++) {
+                    wh[nt] = f->h[gi - 2 * k], wg[nt] = f->g[gi - 2 * k];
+                    lr[nt] = lu ? lu + rel * inner : NULL;
+                    hr[nt] = hu ? hu + rel * inner : NULL;
+                    if (++rel == kn) rel = 0;
+                }
+                if (synth_rows_any(o, lr, hr, wh, wg, inner, nt, (lu ? 1 : 0) | (hu ? 2 : 0))) continue;
+                tap_range(gi, L, k0, kn, full, &kmin, &kmax, &rel); /* nt 0: the loop below */
             }
             for (ptrdiff_t x = 0; x < inner; x++) o[x] = 0.0;
             for (k = kmin; k <= kmax; k++) {
