@@ -148,7 +148,8 @@ def wvol_render(vol, n, out, args, threads):
 
 
 WVOL_FIELDS = ("reconstruct_cpu_seconds", "kept", "pieces", "functions", "samples", "clamped", "bricks_built", "bricks_bound_skipped",
-               "render_bytes", "store_bytes", "rss_before_render_mib", "rss_peak_render_mib", "brick")
+               "render_bytes", "store_bytes", "rss_before_render_mib", "rss_peak_render_mib", "brick", "skip_bound",
+               "skipped_tolerance")
 
 
 def vdb_write(v, path):
@@ -278,6 +279,9 @@ def main():
     ap.add_argument("--bricks-steps", default="0.5,1", help="steps (voxels) of the bricks rows")
     ap.add_argument("--peer-steps", default="0.5,1,2", help="steps of the bricks rows beside the peers")
     ap.add_argument("--peer-threads", default="1,2", help="thread counts of the peer comparison")
+    ap.add_argument("--peer-skip", default="1e-3",
+                    help="skip tolerances of extra bricks rows beside the peers (each pixel's alpha within it of "
+                         "the unskipped image; '' for none)")
     ap.add_argument("--peer-cameras", default="+z;persp dir=1,0.7,0.4",
                     help="';'-separated wvol cameras of the peer comparison (+z, or persp dir=X,Y,Z: VTK matched)")
     ap.add_argument("--peers-only", action="store_true", help="only the comparison with the peers")
@@ -425,6 +429,11 @@ def main():
                             for st in a.peer_steps.split(",")]
                     runs += [(f"wvol bricks step={st}", ["--method", "bricks", "--step", str(st), "--keep", "5%"], 5)
                              for st in a.peer_steps.split(",")]
+                    # the same with a skip tolerance: the store's near-transparent ringing skipped
+                    # within a stated per-pixel bound (docs/render.md, "Skip tolerance")
+                    runs += [(f"wvol bricks step={st} skip={tol}", ["--method", "bricks", "--step", str(st), "--keep",
+                                                                    "5%", "--skip-tolerance", tol], 5)
+                             for tol in [t for t in a.peer_skip.split(",") if t] for st in a.peer_steps.split(",")]
                     # the reference integrator on the dense reconstruction of the same 5% store: the
                     # same image as bricks up to rounding, its price the inverse transform plus the
                     # render (reconstruct_cpu_seconds is added to the row's CPU time)
