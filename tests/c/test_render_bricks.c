@@ -96,6 +96,7 @@ static size_t one_case(const wvol_store *s, const wvol_volume *recon, const char
     e = wvol_image_rmse(b, a, -1, 1);
     CHECK(e < 2e-5, "%s: bricks against reference on the reconstruction: rel. RMSE %.3g", what, e);
     CHECK(st.bricks_built > 0 && st.bytes > 0, "%s: stats %zu bricks, %zu bytes", what, st.bricks_built, st.bytes);
+    CHECK(st.brick == (brick > 0 ? brick : 16), "%s: brick side %d used", what, st.brick);
     /* X-ray skips a brick only when its bound is exactly [0, 0]: every coefficient whose
      * support reaches it is zero (the phantom's corners, beyond r = 0.5), which the bound
      * proves without the rounding pad of a nonzero neighbourhood */
@@ -141,6 +142,12 @@ static void bricks_equal_reference_on_the_reconstruction(void)
             W = 40, H = 32;
             CHECK(built > 8192, "%s: %zu bricks built, no eviction exercised", what, built);
         }
+        /* 32, the side chosen when a thread's cache reaches 8 MiB (big volumes, few threads) */
+        snprintf(what, sizeof what, "keep %g persp absorption B=32", keeps[i]);
+        one_case(s, recon, "persp dir=1,0.7,0.4", WVOL_MODE_ABSORPTION, 0, 32, 1, NULL, what);
+        /* 0: the library chooses; this small volume's cache is the 2 MiB minimum, so 16 */
+        snprintf(what, sizeof what, "keep %g persp xray B=0 (chosen)", keeps[i]);
+        one_case(s, recon, "persp dir=1,0.7,0.4", WVOL_MODE_XRAY, 0, 0, 1, NULL, what);
         snprintf(what, sizeof what, "keep %g ortho +z absorption-linear B=8", keeps[i]);
         one_case(s, recon, "+z", WVOL_MODE_ABSORPTION_LINEAR, 0, 8, 1, NULL, what);
         snprintf(what, sizeof what, "keep %g ortho oblique xray B=5", keeps[i]);

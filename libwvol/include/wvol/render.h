@@ -189,6 +189,7 @@ typedef struct wvol_render_stats {
     double skip_bound;      /* reference, bricks: the largest optical depth (X-ray: integral
                                bound) skipped on any pixel, <= skip_tolerance: the image's
                                bound on what skipping changed */
+    int brick;              /* bricks: the brick side used (params->brick, or the one chosen) */
     size_t bytes;           /* bricks: memory the call allocated (coefficient blocks, bounds,
                                brick caches and scratch; the image and the store excluded) */
 } wvol_render_stats;
@@ -232,7 +233,8 @@ wvol_status wvol_render_spline_until(wvol_image *img, const wvol_store *s, const
 
 /* The reference integrator (same samples, weights, compositing, termination) on the
  * trilinear interpolation of the store's reconstruction, which is never formed whole:
- * bricks of params->brick^3 voxel cells (0: 16) are reconstructed on demand by local
+ * bricks of params->brick^3 voxel cells (0: 32 when a thread's brick cache, an eighth of the
+ * dense volume's size over the threads, reaches 8 MiB, else 16) are reconstructed on demand by local
  * inverse transforms from a block-sparse view of the kept coefficients, into a bounded
  * cache per thread; a brick whose coefficient bound shows kappa = 0 throughout is skipped
  * unreconstructed. Equals wvol_render_reference on wvol_idwt3 of the same coefficients to
