@@ -4,6 +4,7 @@
 #include "render_internal.h"
 
 #include <math.h>
+#include <string.h>
 #include <stdlib.h>
 #include <omp.h>
 #include <time.h>
@@ -58,6 +59,25 @@ wvol_status wvol__render_check(const wvol_image *img, const wvol_camera *cam, co
     WVOL_RETURN_IF(p->gauss_nodes < 1 || p->gauss_nodes > 10, err, WVOL_ERR_ARG, "render: gauss_nodes %d (1..10)",
                    p->gauss_nodes);
     return WVOL_OK;
+}
+
+void wvol__stats_fill(wvol_render_stats *stats, const wvol_image *img, double t_start, double c_start,
+                      const wvol__counts *c)
+{
+    if (!stats) return;
+    memset(stats, 0, sizeof *stats);
+    stats->seconds = wvol__now() - t_start;
+    stats->cpu_seconds = wvol__cpu_now() - c_start;
+    stats->rays = (size_t)img->width * (size_t)img->height;
+    stats->rays_hit = c->rays_hit;
+    stats->samples = c->samples;
+    stats->pieces = c->pieces;
+    stats->functions = c->functions;
+    stats->skipped = c->skipped;
+    stats->skipped_tolerance = c->skipped_tolerance;
+    stats->skip_bound = c->skip_bound;
+    stats->terminated = c->terminated;
+    stats->clamped = c->clamped;
 }
 
 wvol_status wvol__check_skip(const wvol_render_params *p, int supported, wvol_error *err)

@@ -911,18 +911,11 @@ wvol_status wvol__render_sampled(wvol_image *img, wvol__sampler *s, const wvol_c
     free(s->rate);
     s->rate = NULL;
     WVOL_RETURN_IF(failed != WVOL_OK, err, failed, "render: out of memory (a brick could not be reconstructed, or a tile's rays)");
-    if (stats) {
-        memset(stats, 0, sizeof *stats);
-        stats->seconds = wvol__now() - t_start;
-        stats->cpu_seconds = wvol__cpu_now() - c_start;
-        stats->rays = (size_t)img->width * (size_t)img->height;
-        stats->rays_hit = rays_hit;
-        stats->samples = samples;
-        stats->skipped = skipped;
-        stats->skipped_tolerance = skipped_tol;
-        stats->skip_bound = skip_bound;
-        stats->terminated = terminated;
-        stats->clamped = clamped;
+    {
+        wvol__counts c = {.rays_hit = rays_hit, .samples = samples, .skipped = skipped,
+                          .skipped_tolerance = skipped_tol, .terminated = terminated, .clamped = clamped,
+                          .skip_bound = skip_bound};
+        wvol__stats_fill(stats, img, t_start, c_start, &c);
     }
     return WVOL_OK;
 }

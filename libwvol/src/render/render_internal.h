@@ -26,6 +26,16 @@ void wvol__tf_world(wvol_tf *out, const wvol_tf *tf, const wvol_geometry *g);
  * that cannot use a colour volume (they refuse it rather than ignore it). */
 wvol_status wvol__check_colors(const wvol_render_params *p, const size_t n[3], int supported, wvol_error *err);
 
+/* The counters an integrator reduces over its threads; wvol__stats_fill writes them with
+ * the times since t_start / c_start (wvol__now, wvol__cpu_now) and the ray count into
+ * *stats (NULL: nothing), every other field 0. */
+typedef struct wvol__counts {
+    size_t rays_hit, samples, pieces, functions, skipped, skipped_tolerance, terminated, clamped;
+    double skip_bound;
+} wvol__counts;
+void wvol__stats_fill(wvol_render_stats *stats, const wvol_image *img, double t_start, double c_start,
+                      const wvol__counts *c);
+
 /* Refuses a skip tolerance > 0 where it is not `supported` (no brick grid to skip by). */
 wvol_status wvol__check_skip(const wvol_render_params *p, int supported, wvol_error *err);
 

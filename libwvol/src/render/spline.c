@@ -680,18 +680,10 @@ wvol_status wvol_render_spline_until(wvol_image *img, const wvol_store *s, const
         if (err) *err = first_err;
         return first_err.status ? first_err.status : WVOL_ERR_INTERNAL;
     }
-    if (stats) {
-        memset(stats, 0, sizeof *stats);
-        stats->seconds = wvol__now() - t_start;
-        stats->cpu_seconds = wvol__cpu_now() - c_start;
-        stats->rays = (size_t)img->width * (size_t)img->height;
-        stats->rays_hit = rays_hit;
-        stats->pieces = pieces;
-        stats->functions = functions;
-        stats->samples = samples;
-        stats->skipped = skipped;
-        stats->terminated = terminated;
-        stats->clamped = clamped;
+    {
+        wvol__counts c = {.rays_hit = rays_hit, .samples = samples, .pieces = pieces, .functions = functions,
+                          .skipped = skipped, .terminated = terminated, .clamped = clamped};
+        wvol__stats_fill(stats, img, t_start, c_start, &c);
     }
     return WVOL_OK;
 }

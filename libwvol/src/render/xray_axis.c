@@ -143,13 +143,9 @@ wvol_status wvol_render_xray_axis(wvol_image *img, const wvol_store *s, const wv
             }
         }
     }
-    if (stats) {
-        memset(stats, 0, sizeof *stats);
-        stats->seconds = wvol__now() - t_start;
-        stats->cpu_seconds = wvol__cpu_now() - c_start;
-        stats->rays = (size_t)img->width * (size_t)img->height;
-        stats->rays_hit = rays_hit;
-        stats->functions = info.kept;
+    {
+        wvol__counts c = {.rays_hit = rays_hit, .functions = info.kept};
+        wvol__stats_fill(stats, img, t_start, c_start, &c);
     }
     goto done;
 nomem:
