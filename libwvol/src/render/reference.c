@@ -3,8 +3,9 @@
  * regular step along each ray, with step-corrected opacity alpha = 1 - exp(-kappa dt)
  * (or the linearised kappa dt in absorption-linear mode), early ray termination and
  * skipping over a min/max brick grid (bricks that add nothing, and within
- * params->skip_tolerance those that add little: ray_skip). Samples are trilinear interpolation of
- * the voxels, or f^ through the spline tables (the converged reference of the spline model).
+ * params->skip_tolerance those that add little: ray_skip). Samples are trilinear
+ * interpolation of the voxels, or f^ through the spline tables (the converged reference
+ * of the spline model).
  * Based on: Levoy 1988 (ray casting); Max 1995 (optical models); DESIGN.md section 8. */
 #include "render_internal.h"
 
@@ -141,9 +142,9 @@ double wvol__brick_rate(const wvol_tf *tf, wvol_render_mode mode, double mn, dou
     return fmax(tf_max_kappa(tf, mn, mx), 0.0);
 }
 
-/* Each brick's contribution rate (wvol__brick_rate), 0 where its samples cannot contribute. Each brick covers the voxel cells
- * [b*B - 1/2, (b+1)*B - 1/2) and its min/max is taken over voxels b*B-1 .. (b+1)*B, every
- * voxel a trilinear sample inside the brick can touch. */
+/* Each brick's contribution rate (wvol__brick_rate), 0 where its samples cannot contribute.
+ * Each brick covers the voxel cells [b*B - 1/2, (b+1)*B - 1/2) and its min/max is taken
+ * over voxels b*B-1 .. (b+1)*B, every voxel a trilinear sample inside the brick can touch. */
 static wvol_status build_bricks(wvol__sampler *s, const wvol_tf *tf, wvol_render_mode mode, wvol_error *err)
 {
     const wvol_volume *v = s->v;
