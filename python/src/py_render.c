@@ -194,12 +194,13 @@ static PyObject *image_take(wvol_image *img)
 
 static PyObject *stats_dict(const wvol_render_stats *st)
 {
-    return Py_BuildValue("{s:d,s:n,s:n,s:n,s:n,s:n,s:n,s:n,s:n,s:n,s:d}", "seconds", st->seconds, "rays",
+    return Py_BuildValue("{s:d,s:n,s:n,s:n,s:n,s:n,s:n,s:n,s:n,s:n,s:d,s:n,s:i,s:n}", "seconds", st->seconds, "rays",
                          (Py_ssize_t)st->rays, "rays_hit", (Py_ssize_t)st->rays_hit, "samples",
                          (Py_ssize_t)st->samples, "pieces", (Py_ssize_t)st->pieces, "functions",
                          (Py_ssize_t)st->functions, "skipped", (Py_ssize_t)st->skipped, "terminated",
                          (Py_ssize_t)st->terminated, "clamped", (Py_ssize_t)st->clamped, "skipped_tolerance",
-                         (Py_ssize_t)st->skipped_tolerance, "skip_bound", st->skip_bound);
+                         (Py_ssize_t)st->skipped_tolerance, "skip_bound", st->skip_bound, "bricks_built",
+                         (Py_ssize_t)st->bricks_built, "brick", st->brick, "bytes", (Py_ssize_t)st->bytes);
 }
 
 PyObject *wvolpy_render_finish(wvol_image *img, wvol_status s, const wvol_render_stats *st, const wvol_error *err,

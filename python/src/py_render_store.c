@@ -1,4 +1,5 @@
-/* The spline-projected renderer and the X-ray axis fast path from a store capsule. */
+/* The renderers that read a store capsule: the spline-projected integral, the X-ray axis fast
+ * path and the bricked reference integrator. */
 #include "pyutil.h"
 #include "methods.h"
 #include "py_render.h"
@@ -6,7 +7,9 @@
 
 #include <string.h>
 
-static PyObject *render_store(PyObject *args, int axis)
+enum store_method { STORE_SPLINE, STORE_AXIS, STORE_BRICKS };
+
+static PyObject *render_store(PyObject *args, enum store_method method)
 {
     PyObject *cap, *opts;
     PyArrayObject *colors;
@@ -30,12 +33,15 @@ static PyObject *render_store(PyObject *args, int axis)
     memcpy(g.spacing, in.spacing, sizeof g.spacing);
     memcpy(g.origin, in.origin, sizeof g.origin);
     if (wvolpy_render_setup(opts, &g, vmin, vmax, &cam, &tf, &rp, &colors) < 0) return NULL;
+    if (method == STORE_BRICKS) rp.brick = 0; /* the library chooses the brick side */
     memset(&stats, 0, sizeof stats);
     Py_BEGIN_ALLOW_THREADS
     s = wvol_image_create(&img, cam.width, cam.height, &err);
-    if (s == WVOL_OK)
-        s = axis ? wvol_render_xray_axis(img, st, &cam, &rp, &stats, &err)
-                 : wvol_render_spline(img, st, &cam, &tf, &rp, &stats, &err);
+    if (s == WVOL_OK) {
+        if (method == STORE_AXIS) s = wvol_render_xray_axis(img, st, &cam, &rp, &stats, &err);
+        else if (method == STORE_BRICKS) s = wvol_render_bricks(img, st, &cam, &tf, &rp, &stats, &err);
+        else s = wvol_render_spline(img, st, &cam, &tf, &rp, &stats, &err);
+    }
     Py_END_ALLOW_THREADS
     return wvolpy_render_finish(img, s, &stats, &err, colors);
 }
@@ -43,16 +49,23 @@ static PyObject *render_store(PyObject *args, int axis)
 static PyObject *py_render_spline(PyObject *self, PyObject *args)
 {
     (void)self;
-    return render_store(args, 0);
+    return render_store(args, STORE_SPLINE);
 }
 
 static PyObject *py_render_axis(PyObject *self, PyObject *args)
 {
     (void)self;
-    return render_store(args, 1);
+    return render_store(args, STORE_AXIS);
+}
+
+static PyObject *py_render_bricks(PyObject *self, PyObject *args)
+{
+    (void)self;
+    return render_store(args, STORE_BRICKS);
 }
 
 PyMethodDef wvolpy_render_store_methods[] = {
     {"render_spline", py_render_spline, METH_VARARGS, "render_spline(store, value_range, opts) -> (image, stats)"},
     {"render_axis", py_render_axis, METH_VARARGS, "render_axis(store, value_range, opts) -> (image, stats)"},
+    {"render_bricks", py_render_bricks, METH_VARARGS, "render_bricks(store, value_range, opts) -> (image, stats)"},
     {NULL, NULL, 0, NULL}};

@@ -382,18 +382,19 @@ def render(source, camera="+z", size=(256, 256), *, mode="absorption", tf="gauss
     ``method``: for a volume "reference" (ray marching with trilinear samples, ``step``
     in voxels); for a store "spline" (the spline-projected integral from the kept
     coefficients, exact for the spline model; ``gauss_nodes`` per piece), "axis" (X-ray
-    along an axis from 2D coefficients), "reference-fhat" (ray marching over the spline
-    model) or "reference" (on the reconstructed volume). "auto": "reference" for volumes;
+    along an axis from 2D coefficients), "bricks" (the reference's ray marching on bricks
+    reconstructed on demand, never the whole volume: the fast one), "reference-fhat" (ray
+    marching over the spline model) or "reference" (on the reconstructed volume). "auto": "reference" for volumes;
     for stores "axis" when it applies (X-ray along an axis), else "spline".
     ``colors``: a colour volume, (z, y, x, 3) linear RGB per voxel on the volume's grid (e.g.
     :func:`segment`'s ``colors``), replacing the transfer function's colour (opacity still
     comes from ``tf``; nearest voxel, so classes keep crisp edges). Absorption modes and the
-    sampling methods only ("reference", "reference-fhat"; "auto" picks "reference-fhat" for a
-    store); "spline" and "axis" refuse it.
+    sampling methods only ("reference", "reference-fhat", "bricks"; "auto" picks
+    "reference-fhat" for a store); "spline" and "axis" refuse it.
     ``termination``: stop a ray once its transmittance falls below this (0: never).
-    ``skip_tolerance``: "reference" only: the optical depth (X-ray: integral) each ray may skip in
-    nearly empty bricks (e.g. a compressed volume's ringing haze); every pixel then changes by
-    at most that much in alpha (a colour channel: times the largest colour), and
+    ``skip_tolerance``: "reference" and "bricks": the optical depth (X-ray: integral) each ray
+    may skip in nearly empty bricks (e.g. a compressed volume's ringing haze); every pixel then
+    changes by at most that much in alpha (a colour channel: times the largest colour), and
     ``stats["skip_bound"]`` is the largest depth actually skipped. 0 (default): skip only
     what adds nothing.
     ``threads``: OpenMP threads (0: the default).
@@ -421,6 +422,8 @@ def render(source, camera="+z", size=(256, 256), *, mode="absorption", tf="gauss
         if method in ("spline", "axis"):
             fn = _wvol.render_spline if method == "spline" else _wvol.render_axis
             img, st = fn(source._c(4 if spline_j is None else spline_j), source.value_range, opts)
+        elif method == "bricks":
+            img, st = _wvol.render_bricks(source._c(spline_j), source.value_range, opts)
         elif method == "reference-fhat":
             img, st = _wvol.render_fhat(source.coeffs, source.wavelet, source.levels, source.shape, source.spacing,
                                         source.origin, source.value_range, 4 if spline_j is None else int(spline_j),
@@ -429,7 +432,7 @@ def render(source, camera="+z", size=(256, 256), *, mode="absorption", tf="gauss
             vol = source.reconstruct()
             img, st = _wvol.render_volume(vol.data, vol.spacing, vol.origin, opts)
         else:
-            raise ValueError(f"method '{method}': expected auto, spline, axis, reference-fhat or reference")
+            raise ValueError(f"method '{method}': expected auto, spline, axis, bricks, reference-fhat or reference")
     else:
         if method not in ("auto", "reference"):
             raise ValueError(f"method '{method}' needs a Store (wvol.compress); volumes render with 'reference'")

@@ -189,3 +189,25 @@ def test_skip_tolerance_bounds_each_pixel():
     assert sb["skipped_tolerance"] > 0 and 0 < sb["skip_bound"] <= 0.01
     assert sb["samples"] < sa["samples"]
     assert np.abs(a[..., 3] - b[..., 3]).max() <= sb["skip_bound"] + 2e-6
+
+
+def test_bricks_from_a_store_is_the_reference_on_its_reconstruction():
+    # method="bricks" renders the store's reconstruction brick by brick (never the whole
+    # volume): the reference integrator's image of s.reconstruct() up to float rounding (the
+    # bricks synthesise in double, the whole inverse in float: 1e-5 of the peak), with the
+    # skip tolerance and a colour volume as for "reference"
+    v = np.asarray(wvol.synth.skull(shape=(40, 36, 44)))
+    u = ((v - v.min()) / (v.max() - v.min())).astype(np.float32)
+    s = wvol.compress(u, "db2", 2, keep=0.05)
+    tf = [(0.0, 1, 0.9, 0.8, 0.0), (1.0, 1, 0.9, 0.8, 8.0)]
+    kw = dict(size=(24, 20), camera="persp dir=1,0.7,0.4", tf=tf, tf_units="diagonal", return_stats=True)
+    b, sb = wvol.render(s, method="bricks", **kw)
+    r, _ = wvol.render(s.reconstruct(), method="reference", **kw)
+    assert sb["bricks_built"] > 0 and sb["brick"] in (16, 32)
+    assert np.abs(b - r).max() <= 1e-5 * np.abs(r).max()
+    t, st = wvol.render(s, method="bricks", skip_tolerance=0.01, **kw)
+    assert st["skip_bound"] <= 0.01 and np.abs(t[..., 3] - b[..., 3]).max() <= st["skip_bound"] + 2e-6
+    colors = np.zeros(u.shape + (3,), np.float32)
+    colors[..., 1] = 1.0
+    g, _ = wvol.render(s, method="bricks", colors=colors, **kw)
+    assert np.allclose(g[..., 0], 0) and np.allclose(g[..., 1], b[..., 3], atol=1e-6)
