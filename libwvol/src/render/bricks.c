@@ -475,6 +475,9 @@ hit:
  * Gaussian at 5%, one thread: 2 MiB and 32^2 tiles 10 753 builds of 4096 bricks (2.9 s),
  * 8 MiB 6 181 (2.2 s), 8 MiB and 128^2 tiles 5 628 (1.9 s); a +z view builds each brick
  * once with any of them. */
+/* A thread's cache from which bricks are 32^3 (brick_side) and tiles 128^2 (prepare). */
+#define CACHE_LARGE ((size_t)8 << 20)
+
 static size_t cache_bytes_per_thread(const brick_src *src)
 {
     double dense = 4.0 * (double)src->n[0] * (double)src->n[1] * (double)src->n[2];
@@ -494,7 +497,7 @@ static size_t cache_bytes_per_thread(const brick_src *src)
  * view (skull 2.10 s against 1.61 s with 16). */
 static int brick_side(const brick_src *src)
 {
-    return cache_bytes_per_thread(src) >= ((size_t)8 << 20) ? 32 : 16;
+    return cache_bytes_per_thread(src) >= CACHE_LARGE ? 32 : 16;
 }
 
 static wvol_status prepare(wvol__sampler *s, const wvol_tf *tf_world, const wvol_render_params *p, wvol_error *err)
@@ -510,7 +513,7 @@ static wvol_status prepare(wvol__sampler *s, const wvol_tf *tf_world, const wvol
     slots = cache / (src->slot_floats * sizeof(float));
     /* the tile (unless the caller chose one): larger with a larger cache, whose rounds it
      * holds (above) */
-    s->tile = cache >= ((size_t)8 << 20) ? 128 : 32;
+    s->tile = cache >= CACHE_LARGE ? 128 : 32;
     if (slots < 16) slots = 16;
     s->tctx = calloc((size_t)src->nthreads, sizeof *s->tctx);
     WVOL_RETURN_IF(!s->tctx, err, WVOL_ERR_NOMEM, "render: out of memory");

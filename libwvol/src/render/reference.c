@@ -178,42 +178,6 @@ static wvol_status build_bricks(wvol__sampler *s, const wvol_tf *tf, wvol_render
     return WVOL_OK;
 }
 
-/* Index of the brick holding x (clamped to the grid). */
-static inline long brick_id(const wvol__sampler *s, const double x[3])
-{
-    long b[3];
-    int a;
-    for (a = 0; a < 3; a++) {
-        double c = (x[a] + 0.5) / s->B;
-        b[a] = c > 0 ? (long)c : 0;
-        if (b[a] > (long)s->bn[a] - 1) b[a] = (long)s->bn[a] - 1;
-    }
-    return b[0] + (long)s->bn[0] * (b[1] + (long)s->bn[1] * b[2]);
-}
-
-/* The ray parameter where the ray (index direction e) leaves the brick holding x. */
-static int brick_exit(const wvol__sampler *s, const double x[3], const double e[3], double t, double *t_exit)
-{
-    size_t b[3];
-    int a;
-    double te = INFINITY;
-    for (a = 0; a < 3; a++) {
-        double c = floor((x[a] + 0.5) / s->B);
-        if (c < 0) c = 0;
-        if (c > (double)(s->bn[a] - 1)) c = (double)(s->bn[a] - 1);
-        b[a] = (size_t)c;
-    }
-    for (a = 0; a < 3; a++) {
-        double lo = (double)b[a] * s->B - 0.5, hi = lo + s->B, ta;
-        if (e[a] > 0) ta = (hi - x[a]) / e[a];
-        else if (e[a] < 0) ta = (lo - x[a]) / e[a];
-        else continue;
-        if (ta < te) te = ta;
-    }
-    *t_exit = t + te;
-    return 1;
-}
-
 /* The TF prepared for the inner loop: per segment [v[i], v[i+1]) the colour and kappa at
  * its start and their slopes (no division per sample); constant beyond the end points. */
 typedef struct tf_fast {
@@ -630,13 +594,26 @@ static void ray_begin(const wvol__sampler *s, const double o[3], const double d[
     while (st->nfull > 0 && t0 + (double)st->nfull * dt > t1) st->nfull--; /* steps ending by t1 */
 }
 
-/* Enters the brick holding x (sample parameter t) when t is at or past the current one's exit. */
+/* Enters the brick holding x (sample parameter t; clamped to the grid) when t is at or past
+ * the current one's exit, and finds where the ray leaves it: per axis the face it moves
+ * towards. */
 static inline void ray_enter(const wvol__sampler *s, ray_state *st, const double x[3], double t)
 {
-    if (!(t < st->t_exit)) {
-        st->bid = brick_id(s, x);
-        brick_exit(s, x, st->e, t, &st->t_exit);
+    double te = INFINITY;
+    long b[3];
+    if (t < st->t_exit) return;
+    for (int a = 0; a < 3; a++) {
+        double c = (x[a] + 0.5) / s->B, lo, ta;
+        b[a] = c > 0 ? (long)c : 0;
+        if (b[a] > (long)s->bn[a] - 1) b[a] = (long)s->bn[a] - 1;
+        lo = (double)b[a] * s->B - 0.5;
+        if (st->e[a] > 0) ta = (lo + s->B - x[a]) / st->e[a];
+        else if (st->e[a] < 0) ta = (lo - x[a]) / st->e[a];
+        else continue;
+        if (ta < te) te = ta;
     }
+    st->bid = b[0] + (long)s->bn[0] * (b[1] + (long)s->bn[1] * b[2]);
+    st->t_exit = t + te;
 }
 
 /* Whether the ray's next `len` world units, in its current brick, are skipped: the brick's

@@ -220,6 +220,21 @@ static int synth_x_pairs_any(double *o, const double *lu, const double *hu, cons
  * arithmetic outweighed the two or so multiply-adds per output of a short filter). Same sums
  * in the same order, so the same results. */
 #define SYNTH_PLAN_MAX 1024
+
+/* Output i of a planned x row: its taps first[i] .. first[i + 1] - 1 summed in the order of k
+ * (which: 1 low band only, 2 high only, 3 both). */
+static inline double planned_sum(const double *lu, const double *hu, const ptrdiff_t *rel, const double *wh,
+                                 const double *wg, const ptrdiff_t *first, ptrdiff_t i, int which)
+{
+    double acc = 0.0;
+    for (ptrdiff_t t = first[i]; t < first[i + 1]; t++) {
+        if (which == 3) acc += wh[t] * lu[rel[t]] + wg[t] * hu[rel[t]];
+        else if (which == 1) acc += wh[t] * lu[rel[t]];
+        else acc += wg[t] * hu[rel[t]];
+    }
+    return acc;
+}
+
 static void synth_x_planned(double *out, const double *lo, const double *hi, ptrdiff_t kn, ptrdiff_t k0,
                             ptrdiff_t o0, ptrdiff_t on, ptrdiff_t outer, int full, const wvol_filter *f)
 {
@@ -257,40 +272,18 @@ static void synth_x_planned(double *out, const double *lo, const double *hi, ptr
         double *restrict o = out + u * on;
         if (paired && synth_x_pairs_any(o, lu, hu, r0, wh + first[p0], wg + first[p0], wh + first[p0 + 1],
                                         wg + first[p0 + 1], p0, p1, taps, which)) {
-            /* the unpaired first and last outputs, summed as the general loops below sum */
-            ptrdiff_t odd[2] = {p0 == 1 ? 0 : -1, p1 < on ? p1 : -1};
-            for (int e = 0; e < 2; e++) {
-                ptrdiff_t i = odd[e];
-                double acc = 0.0;
-                if (i < 0) continue;
-                for (ptrdiff_t t = first[i]; t < first[i + 1]; t++) {
-                    if (which == 3) acc += wh[t] * lu[rel[t]] + wg[t] * hu[rel[t]];
-                    else if (which == 1) acc += wh[t] * lu[rel[t]];
-                    else acc += wg[t] * hu[rel[t]];
-                }
-                o[i] = acc;
-            }
+            /* the unpaired first and last outputs */
+            if (p0 == 1) o[0] = planned_sum(lu, hu, rel, wh, wg, first, 0, which);
+            if (p1 < on) o[p1] = planned_sum(lu, hu, rel, wh, wg, first, p1, which);
             continue;
         }
-        if (lu && hu) {
-            for (ptrdiff_t i = 0; i < on; i++) {
-                double acc = 0.0;
-                for (ptrdiff_t t = first[i]; t < first[i + 1]; t++) acc += wh[t] * lu[rel[t]] + wg[t] * hu[rel[t]];
-                o[i] = acc;
-            }
-        } else if (lu) {
-            for (ptrdiff_t i = 0; i < on; i++) {
-                double acc = 0.0;
-                for (ptrdiff_t t = first[i]; t < first[i + 1]; t++) acc += wh[t] * lu[rel[t]];
-                o[i] = acc;
-            }
-        } else {
-            for (ptrdiff_t i = 0; i < on; i++) {
-                double acc = 0.0;
-                for (ptrdiff_t t = first[i]; t < first[i + 1]; t++) acc += wg[t] * hu[rel[t]];
-                o[i] = acc;
-            }
-        }
+        /* which is the same for every row: one copy of the loop per value, the test hoisted */
+        if (which == 3)
+            for (ptrdiff_t i = 0; i < on; i++) o[i] = planned_sum(lu, hu, rel, wh, wg, first, i, 3);
+        else if (which == 1)
+            for (ptrdiff_t i = 0; i < on; i++) o[i] = planned_sum(lu, hu, rel, wh, wg, first, i, 1);
+        else
+            for (ptrdiff_t i = 0; i < on; i++) o[i] = planned_sum(lu, hu, rel, wh, wg, first, i, 2);
     }
 }
 
@@ -340,8 +333,8 @@ static void synth_axis(double *out, const double *lo, const double *hi, const pt
                     hr[nt] = hu ? hu + rel * inner : NULL;
                     if (++rel == kn) rel = 0;
                 }
+                /* nt 0 (no tap) left kmin, kmax and rel as they were: the loop below writes zeros */
                 if (synth_rows_any(o, lr, hr, wh, wg, inner, nt, (lu ? 1 : 0) | (hu ? 2 : 0))) continue;
-                tap_range(gi, L, k0, kn, full, &kmin, &kmax, &rel); /* nt 0: the loop below */
             }
             for (ptrdiff_t x = 0; x < inner; x++) o[x] = 0.0;
             for (k = kmin; k <= kmax; k++) {
