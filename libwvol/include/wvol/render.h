@@ -143,9 +143,11 @@ typedef struct wvol_render_params {
     int shading;            /* 1: headlight diffuse shading from the gradient (eq 47); default 0 */
     double ambient;         /* shading: ambient share in [0, 1] (default 0.3) */
     int threads;            /* 0: OpenMP's default */
-    int tile;               /* tile side in pixels; 0 (default): 32 or 128 for the bricked
-                               path (a tile's rays walk its bricks together; larger with a
-                               larger brick cache), 16 otherwise */
+    int tile;               /* tile side in pixels; 0 (default): 16, or for the bricked path
+                               the largest tile whose rays fit a quarter of the dense
+                               volume's size over the threads (a tile's rays walk its bricks
+                               together and build each once: 256 for a 512^2 frame of a
+                               256^3 volume with one thread) */
     int brick;              /* reference: min/max brick side for empty-space skipping, voxels
                                (default 8; 0 = off) */
     wvol_sample_kind sample;/* reference only */
@@ -191,7 +193,8 @@ typedef struct wvol_render_stats {
                                bound on what skipping changed */
     int brick;              /* bricks: the brick side used (params->brick, or the one chosen) */
     size_t bytes;           /* bricks: memory the call allocated (coefficient blocks, bounds,
-                               brick caches and scratch; the image and the store excluded) */
+                               brick caches and scratch, the tiles' rays; the image and the
+                               store excluded) */
 } wvol_render_stats;
 
 /* Reference integrator (eq 33) on a dense volume. img must exist with the camera's size.
@@ -233,11 +236,11 @@ wvol_status wvol_render_spline_until(wvol_image *img, const wvol_store *s, const
 
 /* The reference integrator (same samples, weights, compositing, termination) on the
  * trilinear interpolation of the store's reconstruction, which is never formed whole:
- * bricks of params->brick^3 voxel cells (0: 32 when a thread's brick cache, an eighth of the
- * dense volume's size over the threads, reaches 8 MiB, else 16) are reconstructed on demand by local
- * inverse transforms from a block-sparse view of the kept coefficients, into a bounded
- * cache per thread; a brick whose coefficient bound shows kappa = 0 throughout is skipped
- * unreconstructed. Equals wvol_render_reference on wvol_idwt3 of the same coefficients to
+ * bricks of params->brick^3 voxel cells (0: 32) are reconstructed on demand by local
+ * inverse transforms from a block-sparse view of the kept coefficients; a tile's rays walk
+ * the bricks in front-to-back order, so each brick they need is reconstructed once per tile
+ * into a small cache per thread; a brick whose coefficient bound shows kappa = 0 throughout
+ * (or within the skip tolerance) is skipped unreconstructed. Equals wvol_render_reference on wvol_idwt3 of the same coefficients to
  * float rounding. stats->bytes reports what the call allocated. */
 wvol_status wvol_render_bricks(wvol_image *img, const wvol_store *s, const wvol_camera *cam, const wvol_tf *tf,
                                const wvol_render_params *params, wvol_render_stats *stats, wvol_error *err);

@@ -466,59 +466,49 @@ hit:
     return WVOL_OK;
 }
 
-/* Bytes of brick cache per thread: an eighth of the dense volume's size shared among the
- * threads, at least 2 MiB (~90 bricks of 16^3 + 2; a brick with its apron is 23 KiB) and at
- * most 64 MiB. A tile's rays walk its bricks together (reference.c, render_tile), so one
- * tile needs few; a brick is rebuilt when tiles that need it are further apart than the
- * cache holds, which happens on oblique views (a brick's footprint spans several tiles and
- * each tile walks the whole depth): 512^2 perspective view `dir=1,0.7,0.4` of the 256^3
- * Gaussian at 5%, one thread: 2 MiB and 32^2 tiles 10 753 builds of 4096 bricks (2.9 s),
- * 8 MiB 6 181 (2.2 s), 8 MiB and 128^2 tiles 5 628 (1.9 s); a +z view builds each brick
- * once with any of them. */
-/* A thread's cache from which bricks are 32^3 (brick_side) and tiles 128^2 (prepare). */
-#define CACHE_LARGE ((size_t)8 << 20)
+/* Slots of a thread's brick cache. A tile's rays walk brick by brick in front-to-back order
+ * (reference.c, render_tile), so a brick is needed only while its rays take their runs in it:
+ * one slot would do; a few keep the bricks a ray meets out of that order (which the order
+ * rules out for a straight walk) from being rebuilt. */
+#define CACHE_SLOTS 4
 
-static size_t cache_bytes_per_thread(const brick_src *src)
+/* Bytes per thread for a tile's rays (reference.c sizes the tile by it): a quarter of the
+ * dense volume's size shared among the threads, at least 1 MiB (a 64^2 tile) and at most
+ * 64 MiB. Two tiles build the bricks both their beams cross, so a larger tile builds fewer:
+ * 512^2 perspective frame `dir=1,0.7,0.4` of the 256^3 skull at 5% (391 bricks of 32^3
+ * needed): 128^2 tiles 712 builds, 256^2 561, one 512^2 tile 391. With one thread at 256^3
+ * this grants 16 MiB: 256^2 tiles. */
+static size_t walk_bytes_per_thread(const brick_src *src)
 {
     double dense = 4.0 * (double)src->n[0] * (double)src->n[1] * (double)src->n[2];
-    double b = dense / 8 / src->nthreads, lo = (double)(2u << 20), hi = (double)(64u << 20);
+    double b = dense / 4 / src->nthreads, lo = (double)(1u << 20), hi = (double)(64u << 20);
     return (size_t)(b < lo ? lo : b > hi ? hi : b);
 }
 
-/* The brick side when the caller leaves it to us (params->brick 0): 32 when a thread's cache
- * reaches 8 MiB (53 bricks of 34^3 floats), else 16. Larger bricks cost less per voxel to
- * reconstruct (the apron and the filters' reach are a smaller share: 34^3 voxels for 32^3
- * cells against 18^3 for 16^3) and halve a ray's runs, but skip empty space more coarsely and
- * need the cache to hold a tile's beam of them. 512^2 frames of the 256^3 phantoms from a 5%
- * store, one thread (8 MiB cache), CPU s for 16 -> 32: skull perspective 1.80 -> 1.34 (step
- * 0.5), 1.10 -> 0.95 (step 2); Gaussian perspective 1.75 -> 1.47; +z 3.17 -> 2.81 (Gaussian),
- * 2.66 -> 2.41 (skull); 24 about as fast as 32, 40 and 48 slower (more samples, partial
- * bricks). With two threads (4 MiB each) 32 rebuilt 3.7 times per brick on the perspective
- * view (skull 2.10 s against 1.61 s with 16). */
-static int brick_side(const brick_src *src)
-{
-    return cache_bytes_per_thread(src) >= CACHE_LARGE ? 32 : 16;
-}
+/* The brick side when the caller leaves it to us (params->brick 0). Larger bricks cost less
+ * per voxel to reconstruct (the apron and the filters' reach are a smaller share: 34^3 voxels
+ * for 32^3 cells against 18^3 for 16^3) and halve a ray's runs, but skip empty space more
+ * coarsely. 512^2 frames of the 256^3 phantoms from a 5% store, CPU s for 16 -> 32: one
+ * thread, skull perspective 1.80 -> 1.34 (step 0.5), Gaussian perspective 1.75 -> 1.47, +z
+ * 3.17 -> 2.81 (Gaussian), 2.66 -> 2.41 (skull); 24 about as fast as 32, 40 and 48 slower
+ * (more samples, partial bricks); two threads (walked brick by brick), skull perspective
+ * 1.38 -> 1.32, Gaussian 1.61 -> 1.18. */
+#define DEFAULT_BRICK 32
 
 static wvol_status prepare(wvol__sampler *s, const wvol_tf *tf_world, const wvol_render_params *p, wvol_error *err)
 {
     brick_src *src = s->src;
-    size_t slots, cache;
     int a;
+    (void)p;
     src->tf = tf_world;
     src->mode = p->mode;
     s->B = src->B;
     for (a = 0; a < 3; a++) s->bn[a] = src->bn[a];
-    cache = cache_bytes_per_thread(src);
-    slots = cache / (src->slot_floats * sizeof(float));
-    /* the tile (unless the caller chose one): larger with a larger cache, whose rounds it
-     * holds (above) */
-    s->tile = cache >= CACHE_LARGE ? 128 : 32;
-    if (slots < 16) slots = 16;
+    s->walk_bytes = walk_bytes_per_thread(src);
     s->tctx = calloc((size_t)src->nthreads, sizeof *s->tctx);
     WVOL_RETURN_IF(!s->tctx, err, WVOL_ERR_NOMEM, "render: out of memory");
     for (int t = 0; t < src->nthreads; t++) {
-        s->tctx[t] = cache_new(src, slots);
+        s->tctx[t] = cache_new(src, CACHE_SLOTS);
         WVOL_RETURN_IF(!s->tctx[t], err, WVOL_ERR_NOMEM, "render: out of memory for the brick caches");
     }
     return WVOL_OK;
@@ -545,7 +535,7 @@ wvol_status wvol_render_bricks(wvol_image *img, const wvol_store *st, const wvol
     memset(&src, 0, sizeof src);
     src.n[0] = info.nx, src.n[1] = info.ny, src.n[2] = info.nz;
     src.nthreads = wvol__threads(p.threads);
-    src.B = p.brick > 0 ? p.brick : brick_side(&src);
+    src.B = p.brick > 0 ? p.brick : DEFAULT_BRICK;
     pad[0] = info.px, pad[1] = info.py, pad[2] = info.pz;
     for (a = 0; a < 3; a++) {
         src.bn[a] = (src.n[a] + (size_t)src.B - 1) / (size_t)src.B;
@@ -602,7 +592,7 @@ wvol_status wvol_render_bricks(wvol_image *img, const wvol_store *st, const wvol
         stats->cpu_seconds = wvol__cpu_now() - c0;
         stats->bricks_built = built;
         stats->bricks_bound_skipped = bound_skipped;
-        stats->bytes = bytes;
+        stats->bytes += bytes; /* beside the walk's own */
     }
 done:
     if (s.tctx) {

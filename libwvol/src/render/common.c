@@ -78,6 +78,7 @@ void wvol__stats_fill(wvol_render_stats *stats, const wvol_image *img, double t_
     stats->skip_bound = c->skip_bound;
     stats->terminated = c->terminated;
     stats->clamped = c->clamped;
+    stats->bytes = c->bytes;
 }
 
 wvol_status wvol__check_skip(const wvol_render_params *p, int supported, wvol_error *err)

@@ -32,6 +32,7 @@ wvol_status wvol__check_colors(const wvol_render_params *p, const size_t n[3], i
 typedef struct wvol__counts {
     size_t rays_hit, samples, pieces, functions, skipped, skipped_tolerance, terminated, clamped;
     double skip_bound;
+    size_t bytes;           /* what the walk allocated (stats->bytes) */
 } wvol__counts;
 void wvol__stats_fill(wvol_render_stats *stats, const wvol_image *img, double t_start, double c_start,
                       const wvol__counts *c);
@@ -41,7 +42,8 @@ wvol_status wvol__check_skip(const wvol_render_params *p, int supported, wvol_er
 
 /* Per-tile parallel loop helpers. The tile side: params->tile, or for its default (0) the
  * source's preferred side when it has one (a bricked source's tile rays walk its bricks
- * together: render_tile in reference.c; bricks.c sizes it with its cache), else 16. */
+ * together, render_tile in reference.c: as large as the memory bricks.c grants allows),
+ * else 16. */
 int wvol__tile_side(const wvol_render_params *p, int preferred);
 int wvol__tiles(int width, int height, int tile);
 /* The tiles (index x + tiles_x * y) in Z order (Morton), so that consecutive tiles are
@@ -94,7 +96,8 @@ typedef struct wvol__sampler {
     size_t n[3];
     double spacing[3], origin[3];
     int B;                  /* brick grid: filled by the integrator (dense) or prepare() */
-    int tile;               /* preferred tile side (prepare()), 0: none */
+    size_t walk_bytes;      /* prepare(): bytes per thread for a tile's rays (their states
+                               and lists; the tile is the largest that fits), 0: no preference */
     size_t bn[3];
     double *rate;           /* dense: each brick's wvol__brick_rate; freed by the integrator */
 } wvol__sampler;
