@@ -290,13 +290,21 @@ static double noise_at(const wvol_volume *v, size_t i, size_t j, size_t k, const
 }
 
 /* The blocked inner loop (runs of samples strictly inside a brick, 8 at a time, reference.c)
- * against the sample-by-sample path: a colour volume forces the latter (its nearest-voxel
- * lookup is per sample), and a uniform white one with a white transfer function gives the
- * same colours, so the two images must be equal bit for bit: both do the same arithmetic
- * per sample. Odd sizes, oblique and perspective rays (runs of every length, blocks cut
- * short), a transfer function of several segments (the per-block segment test and its
+ * against the sample-by-sample path, which a colour volume forces (its nearest-voxel lookup
+ * is per sample). Odd sizes, oblique and perspective rays (runs of every length, blocks cut
+ * short), transfer functions of several segments (the per-block segment test and its
  * fallback), opacity high enough to terminate rays inside a block, both absorption modes
- * (the linear one with clamps), bricks of 3 and 8 voxels. */
+ * (the linear one with clamps), bricks of 3 and 8 voxels.
+ * - A coloured TF: the blocked loop composites sample by sample with the per-sample path's
+ *   arithmetic, so the transmittance, and the alpha channel, must be equal bit for bit (the
+ *   colours differ: the colour volume replaces the TF's).
+ * - A white TF and a uniform white colour volume: the same colours. Absorption-linear must
+ *   be equal bit for bit in every channel; absorption takes the one-colour shortcut (one
+ *   exponential per block, T_0 exp(-dt sum kappa), colour c (T_0 - T_8)), the same integral
+ *   rounded differently: a few ulp of double, at most an ulp of the float pixel, or a
+ *   termination one sample apart when T meets the threshold within those ulps, which moves
+ *   the pixel by less than the threshold (1e-6): 2e-6 bounds both, while a wrong block
+ *   (a lane counted twice or missed: ~1e-2 of a pixel at these opacities) exceeds it. */
 static void blocked_loop_equals_per_sample_path(void)
 {
     uint64_t seed = 0x5eed1234abcdull;
@@ -311,7 +319,7 @@ static void blocked_loop_equals_per_sample_path(void)
     size_t nvox = 37 * 29 * 23, i;
     const char *specs[] = {"+z", "dir=1,0.7,0.4", "persp dir=-0.3,1,0.2 fov=40"};
     const double opacity[2] = {1, 400}; /* per diagonal: faint, and opaque enough to terminate */
-    int s, m, o, brick;
+    int s, m, o, brick, coloured;
     if (!v) return;
     white = malloc(3 * nvox * sizeof *white);
     if (!white) {
@@ -322,34 +330,53 @@ static void blocked_loop_equals_per_sample_path(void)
     wvol_geometry_of_volume(&g, v);
     wvol_image_create(&a, 41, 33, NULL);
     wvol_image_create(&b, 41, 33, NULL);
-    for (o = 0; o < 2; o++) {
-        char text[256];
-        snprintf(text, sizeof text, "units diagonal\n0 1 1 1 0\n0.25 1 1 1 %g\n0.5 1 1 1 %g\n1 1 1 1 %g\n",
-                 0.5 * opacity[o], 0.1 * opacity[o], opacity[o]);
-        CHECK(wvol_tf_parse(&tf, text, "test", &err) == WVOL_OK, "%s", err.message);
-        for (s = 0; s < 3; s++)
-            for (m = WVOL_MODE_ABSORPTION; m <= WVOL_MODE_ABSORPTION_LINEAR; m++)
-                for (brick = 3; brick <= 8; brick += 5) {
-                    wvol_render_stats sa, sb;
-                    size_t diff = 0;
-                    CHECK(wvol_camera_parse(&cam, specs[s], &g, 41, 33, &err) == WVOL_OK, "%s", err.message);
-                    wvol_render_params_default(&p);
-                    p.mode = (wvol_render_mode)m;
-                    p.brick = brick;
-                    p.step = 0.37;
-                    CHECK(wvol_render_reference(a, v, &cam, &tf, &p, &sa, &err) == WVOL_OK, "%s", err.message);
-                    p.colors = white;
-                    p.colors_count = 3 * nvox;
-                    CHECK(wvol_render_reference(b, v, &cam, &tf, &p, &sb, &err) == WVOL_OK, "%s", err.message);
-                    for (i = 0; i < (size_t)41 * 33 * 4; i++) diff += a->rgba[i] != b->rgba[i];
-                    CHECK(diff == 0, "blocked vs per sample: %zu of %d channels differ ('%s', mode %d, opacity %g)",
-                          diff, 41 * 33 * 4, specs[s], m, opacity[o]);
-                    CHECK(sa.samples == sb.samples && sa.terminated == sb.terminated && sa.clamped == sb.clamped,
-                          "same counts: samples %zu/%zu terminated %zu/%zu clamped %zu/%zu", sa.samples, sb.samples,
-                          sa.terminated, sb.terminated, sa.clamped, sb.clamped);
-                    if (o == 1 && s == 0) CHECK(sa.terminated > 0, "opaque TF terminates rays (%zu)", sa.terminated);
-                }
-    }
+    for (coloured = 0; coloured < 2; coloured++)
+        for (o = 0; o < 2; o++) {
+            char text[256];
+            if (coloured)
+                snprintf(text, sizeof text, "units diagonal\n0 1 0 0 0\n0.25 0 1 0 %g\n0.5 0 0 1 %g\n1 1 1 0 %g\n",
+                         0.5 * opacity[o], 0.1 * opacity[o], opacity[o]);
+            else
+                snprintf(text, sizeof text, "units diagonal\n0 1 1 1 0\n0.25 1 1 1 %g\n0.5 1 1 1 %g\n1 1 1 1 %g\n",
+                         0.5 * opacity[o], 0.1 * opacity[o], opacity[o]);
+            CHECK(wvol_tf_parse(&tf, text, "test", &err) == WVOL_OK, "%s", err.message);
+            for (s = 0; s < 3; s++)
+                for (m = WVOL_MODE_ABSORPTION; m <= WVOL_MODE_ABSORPTION_LINEAR; m++)
+                    for (brick = 3; brick <= 8; brick += 5) {
+                        wvol_render_stats sa, sb;
+                        size_t diff = 0;
+                        double worst = 0;
+                        int exact = coloured || m == WVOL_MODE_ABSORPTION_LINEAR;
+                        CHECK(wvol_camera_parse(&cam, specs[s], &g, 41, 33, &err) == WVOL_OK, "%s", err.message);
+                        wvol_render_params_default(&p);
+                        p.mode = (wvol_render_mode)m;
+                        p.brick = brick;
+                        p.step = 0.37;
+                        CHECK(wvol_render_reference(a, v, &cam, &tf, &p, &sa, &err) == WVOL_OK, "%s", err.message);
+                        p.colors = white;
+                        p.colors_count = 3 * nvox;
+                        CHECK(wvol_render_reference(b, v, &cam, &tf, &p, &sb, &err) == WVOL_OK, "%s", err.message);
+                        for (i = 0; i < (size_t)41 * 33 * 4; i++) {
+                            double dv = fabs((double)a->rgba[i] - (double)b->rgba[i]);
+                            if (coloured && i % 4 != 3) continue; /* the colour volume's colours */
+                            diff += dv != 0;
+                            if (dv > worst) worst = dv;
+                        }
+                        if (exact)
+                            CHECK(diff == 0, "blocked vs per sample: %zu channels differ ('%s', mode %d, opacity %g, %s TF)",
+                                  diff, specs[s], m, opacity[o], coloured ? "coloured" : "white");
+                        else
+                            CHECK(worst <= 2e-6, "blocked (one colour) vs per sample: %.3g apart ('%s', opacity %g)",
+                                  worst, specs[s], opacity[o]);
+                        CHECK(sa.samples == sb.samples && sa.clamped == sb.clamped &&
+                                  (exact ? sa.terminated == sb.terminated
+                                         : (sa.terminated > sb.terminated ? sa.terminated - sb.terminated
+                                                                          : sb.terminated - sa.terminated) <= 2),
+                              "same counts: samples %zu/%zu terminated %zu/%zu clamped %zu/%zu", sa.samples,
+                              sb.samples, sa.terminated, sb.terminated, sa.clamped, sb.clamped);
+                        if (o == 1 && s == 0) CHECK(sa.terminated > 0, "opaque TF terminates rays (%zu)", sa.terminated);
+                    }
+        }
     free(white);
     wvol_image_destroy(a);
     wvol_image_destroy(b);

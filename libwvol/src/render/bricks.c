@@ -213,25 +213,25 @@ static int gather_blocks(const void *ctx, double *dst, int m, int band, const pt
             const uint32_t *drow = bv->dir + bv->nb[0] * ((y >> CB_SHIFT) + bv->nb[1] * (z >> CB_SHIFT));
             size_t inner = CB * ((y & (CB - 1)) + CB * (z & (CB - 1)));
             size_t x = wrap(lo[0], bv->e[0]);
+            memset(dst + t, 0, (size_t)n[0] * sizeof *dst); /* then the kept positions, few */
             for (ptrdiff_t i = 0; i < n[0];) {
                 /* a run of positions within one block */
-                size_t run = CB - (x & (CB - 1)), left = (size_t)(n[0] - i), r;
+                size_t run = CB - (x & (CB - 1)), left = (size_t)(n[0] - i);
                 uint32_t blk = drow[x >> CB_SHIFT];
                 if (run > left) run = left;
                 if (run > bv->e[0] - x) run = bv->e[0] - x;
                 if (blk) {
                     const cblock *b = &cb->blocks[blk - 1];
-                    const float *vals = cb->values + b->first;
-                    int bit = (int)(inner + (x & (CB - 1)));
-                    /* the rank of the run's first position, then counted up along the run
-                     * (one population count per run: baseline x86-64 has no instruction
-                     * for it, each is a library call) */
-                    size_t rank = (size_t)__builtin_popcountll(b->mask & (((uint64_t)1 << bit) - 1));
-                    for (r = 0; r < run; r++, bit++)
-                        dst[t + r] = (b->mask >> bit) & 1 ? vals[rank++] : 0.0;
+                    int bit0 = (int)(inner + (x & (CB - 1)));
+                    /* the run's kept positions: its bits of the mask, lowest first; a value's
+                     * index is the count of kept positions below it in the block (one
+                     * population count: baseline x86-64 has no instruction for it, each is a
+                     * library call; then counted up) */
+                    uint64_t below = b->mask & (((uint64_t)1 << bit0) - 1);
+                    uint64_t bits = (b->mask >> bit0) & (((uint64_t)1 << run) - 1);
+                    const float *vals = cb->values + b->first + __builtin_popcountll(below);
+                    for (; bits; bits &= bits - 1) dst[t + (size_t)__builtin_ctzll(bits)] = *vals++;
                     any = 1;
-                } else {
-                    for (r = 0; r < run; r++) dst[t + r] = 0.0;
                 }
                 t += run;
                 i += (ptrdiff_t)run;

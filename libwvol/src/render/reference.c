@@ -179,9 +179,11 @@ static wvol_status build_bricks(wvol__sampler *s, const wvol_tf *tf, wvol_render
 }
 
 /* The TF prepared for the inner loop: per segment [v[i], v[i+1]) the colour and kappa at
- * its start and their slopes (no division per sample); constant beyond the end points. */
+ * its start and their slopes (no division per sample); constant beyond the end points.
+ * grey: every point has the same colour (rgb), so the colour is that everywhere. */
 typedef struct tf_fast {
-    int n;
+    int n, grey;
+    double rgb[3];
     double v[WVOL_TF_MAX_POINTS];
     double c0[WVOL_TF_MAX_POINTS][4], dc[WVOL_TF_MAX_POINTS][4]; /* r, g, b, kappa */
     double exp2_256[256];                                          /* 2^(j/256), for exp_neg */
@@ -191,6 +193,8 @@ static void tf_fast_init(tf_fast *f, const wvol_tf *tf)
 {
     int i, c;
     f->n = tf->count;
+    f->grey = tf->count > 0;
+    for (c = 0; c < 3; c++) f->rgb[c] = tf->count > 0 ? tf->points[0].rgb[c] : 0.0;
     for (i = 0; i < 256; i++) f->exp2_256[i] = exp2(i / 256.0);
     for (i = 0; i < tf->count; i++) {
         const wvol_tf_point *p = &tf->points[i], *q = i + 1 < tf->count ? p + 1 : p;
@@ -200,6 +204,7 @@ static void tf_fast_init(tf_fast *f, const wvol_tf *tf)
             double a = c < 3 ? p->rgb[c] : p->opacity, b = c < 3 ? q->rgb[c] : q->opacity;
             f->c0[i][c] = a;
             f->dc[i][c] = span > 0 ? (b - a) / span : 0.0;
+            if (c < 3 && a != f->rgb[c]) f->grey = 0;
         }
     }
 }
@@ -373,6 +378,7 @@ static inline __attribute__((always_inline)) int run_blocked(const wvol__view *v
                                                              long ke, ray_acc *r)
 {
     const double term = p->termination;
+    const int grey = tfx->grey && mode == WVOL_MODE_ABSORPTION;
     const __m128d vt0 = _mm_set1_pd(t0), vdt = _mm_set1_pd(dt), half = _mm_set1_pd(0.5);
     const __m128d ex = _mm_set1_pd(e[0]), ey = _mm_set1_pd(e[1]), ez = _mm_set1_pd(e[2]);
     const __m128d xx = _mm_set1_pd(x0[0]), xy = _mm_set1_pd(x0[1]), xz = _mm_set1_pd(x0[2]);
@@ -451,10 +457,11 @@ static inline __attribute__((always_inline)) int run_blocked(const wvol__view *v
                           dcb = _mm_set1_pd(dc[2]), dck = _mm_set1_pd(dc[3]);
             for (pr = 0; pr < RUN_BLOCK / 2; pr++) {
                 __m128d w = _mm_sub_pd(_mm_loadu_pd(val + 2 * pr), v0);
+                _mm_storeu_pd(kappa + 2 * pr, _mm_add_pd(c0k, _mm_mul_pd(w, dck)));
+                if (grey) continue; /* the colours are filled below, if at all */
                 _mm_storeu_pd(rgb[0] + 2 * pr, _mm_add_pd(c0r, _mm_mul_pd(w, dcr)));
                 _mm_storeu_pd(rgb[1] + 2 * pr, _mm_add_pd(c0g, _mm_mul_pd(w, dcg)));
                 _mm_storeu_pd(rgb[2] + 2 * pr, _mm_add_pd(c0b, _mm_mul_pd(w, dcb)));
-                _mm_storeu_pd(kappa + 2 * pr, _mm_add_pd(c0k, _mm_mul_pd(w, dck)));
             }
         } else {
             for (l = 0; l < RUN_BLOCK; l++) { /* the spare lanes too: every lane is read below */
@@ -462,6 +469,32 @@ static inline __attribute__((always_inline)) int run_blocked(const wvol__view *v
                 tf_fast_eval(tfx, val[l], &r->seg, c, &kappa[l]);
                 rgb[0][l] = c[0], rgb[1][l] = c[1], rgb[2][l] = c[2];
             }
+        }
+        if (mode == WVOL_MODE_ABSORPTION && grey) {
+            /* One colour c: the block's colour sum_l T_l alpha_l c is c (T_0 - T_nb) (T_l+1 =
+             * T_l (1 - alpha_l)), and T_nb = T_0 exp(-dt sum_l kappa_l): one exponential for
+             * the block instead of one per sample. The same integral (the step-corrected
+             * opacities' product), rounded differently (a few ulp of double). When T_nb falls
+             * below the termination threshold, the block is composited sample by sample
+             * below, to stop at the sample where it falls. */
+            double od = 0.0, Tn;
+            if (nb == RUN_BLOCK) { /* a tree of lane sums: a short dependency chain */
+                const __m128d zero = _mm_setzero_pd(); /* max(kappa, 0): kappa <= 0 or NaN adds 0 */
+                __m128d s01 = _mm_add_pd(_mm_max_pd(_mm_loadu_pd(kappa), zero), _mm_max_pd(_mm_loadu_pd(kappa + 2), zero));
+                __m128d s23 = _mm_add_pd(_mm_max_pd(_mm_loadu_pd(kappa + 4), zero), _mm_max_pd(_mm_loadu_pd(kappa + 6), zero));
+                __m128d sum = _mm_add_pd(s01, s23);
+                od = _mm_cvtsd_f64(_mm_add_sd(sum, _mm_unpackhi_pd(sum, sum)));
+            } else {
+                for (l = 0; l < nb; l++) od += kappa[l] > 0 ? kappa[l] : 0.0;
+            }
+            if (od == 0.0) continue; /* nothing to composite */
+            Tn = r->T * exp_neg(-(od * dt), tfx->exp2_256);
+            if (Tn >= term) {
+                for (int c = 0; c < 3; c++) r->acc[c] += tfx->rgb[c] * (r->T - Tn);
+                r->T = Tn;
+                continue;
+            }
+            for (l = 0; l < RUN_BLOCK; l++) rgb[0][l] = tfx->rgb[0], rgb[1][l] = tfx->rgb[1], rgb[2][l] = tfx->rgb[2];
         }
         if (mode == WVOL_MODE_ABSORPTION) {
             /* alpha = 1 - exp_neg(-kappa dt), exp_neg's operations two lanes at a time */
