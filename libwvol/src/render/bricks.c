@@ -454,6 +454,7 @@ static wvol_status fetch(void *tctx, size_t b, double allow, wvol__view *view, d
             v->sy = (size_t)(hi[0] - lo[0] + 1);
             v->sz = v->sy * (size_t)(hi[1] - lo[1] + 1);
             wvol__view_finish(v);
+            v->local = hi[0] - lo[0] < 128 && hi[1] - lo[1] < 128 && hi[2] - lo[2] < 128;
         }
         c->built++;
     }

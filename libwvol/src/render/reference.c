@@ -134,6 +134,7 @@ void wvol__view_finish(wvol__view *w)
     /* run_blocked's voxel offsets and coordinates are 32-bit */
     w->blocked_ok = (double)w->sz * (double)(w->hi[2] - w->off[2] + 1) < 2147483647.0 && w->hi[0] < INT32_MAX &&
                     w->hi[1] < INT32_MAX && w->hi[2] < INT32_MAX;
+    w->local = 0;
 }
 
 double wvol__brick_rate(const wvol_tf *tf, wvol_render_mode mode, double mn, double mx)
@@ -371,6 +372,68 @@ static inline __attribute__((always_inline)) int step(const wvol__sampler *s, co
  * 2^53, and the view must have fewer than 2^31 voxels (view->blocked_ok). A short last
  * block repeats its last sample in the spare lanes. Returns 1 when the ray terminates, *k
  * then the terminating step. Other targets take the per-sample loop. */
+/* A block's sample positions: per lane its voxel's offset in the view's data and its
+ * trilinear weights (two quads of lanes). Exact: t = t0 + ((kk + l) + 0.5) dt and x = x0 + t e
+ * in double as step() computes them, lanes past nb repeating the last sample. */
+static inline __attribute__((always_inline)) void block_positions(const wvol__view *view, const double x0[3],
+                                                                  const double e[3], double t0, double dt, long kk,
+                                                                  int nb, int32_t idx[RUN_BLOCK], __m128 w[3][2])
+{
+    const __m128d vt0 = _mm_set1_pd(t0), vdt = _mm_set1_pd(dt), half = _mm_set1_pd(0.5);
+    const __m128d syd = _mm_set1_pd((double)view->sy), szd = _mm_set1_pd((double)view->sz);
+    const __m128d kd = _mm_set1_pd((double)kk);
+    double lanes[RUN_BLOCK];
+    for (int l = 0; l < RUN_BLOCK; l++) lanes[l] = l < nb ? l : nb - 1;
+    for (int pr = 0; pr < RUN_BLOCK / 2; pr++) {
+        /* t = t0 + ((kk + l) + 0.5) dt; the voxel's integer coordinates in double */
+        __m128d t = _mm_add_pd(vt0, _mm_mul_pd(_mm_add_pd(_mm_add_pd(kd, _mm_loadu_pd(lanes + 2 * pr)), half), vdt));
+        __m128d off = _mm_setzero_pd();
+        for (int a = 0; a < 3; a++) {
+            __m128d x = _mm_add_pd(_mm_set1_pd(x0[a]), _mm_mul_pd(t, _mm_set1_pd(e[a])));
+            __m128d fi = _mm_cvtepi32_pd(_mm_cvttpd_epi32(x)), rel = _mm_sub_pd(fi, _mm_set1_pd((double)view->off[a]));
+            __m128 px = _mm_cvtpd_ps(_mm_sub_pd(x, fi));
+            off = a == 0 ? rel : _mm_add_pd(off, _mm_mul_pd(a == 1 ? syd : szd, rel));
+            w[a][pr / 2] = pr & 1 ? _mm_movelh_ps(w[a][pr / 2], px) : px;
+        }
+        _mm_storel_epi64((__m128i *)(void *)(idx + 2 * pr), _mm_cvttpd_epi32(off));
+    }
+}
+
+/* The same for a brick's small view (view->local: extents below 128 voxels), in single
+ * precision relative to the view: the block's first position in double, x - off, rounded to
+ * float (below 128: within 4e-6 voxel), then x_l = x + l (dt e) four lanes per operation, and
+ * the offsets as floats (exact: a brick has far fewer than 2^24 voxels). A third of the
+ * exact version's operations. Rounding may put a position a few 1e-6 voxel outside the
+ * view's cells; the coordinate is clamped to the last cell (weight then ~1), so no read
+ * leaves the brick. */
+static inline __attribute__((always_inline)) void block_positions_local(const wvol__view *view, const double x0[3],
+                                                                        const double e[3], double t0, double dt,
+                                                                        long kk, int nb, int32_t idx[RUN_BLOCK],
+                                                                        __m128 w[3][2])
+{
+    const double t = t0 + ((double)kk + 0.5) * dt;
+    __m128 lane[2] = {_mm_setr_ps(0, 1, 2, 3), _mm_setr_ps(4, 5, 6, 7)}, off[2] = {_mm_setzero_ps(), _mm_setzero_ps()};
+    if (nb < RUN_BLOCK) {
+        const __m128 last = _mm_set1_ps((float)(nb - 1));
+        lane[0] = _mm_min_ps(lane[0], last);
+        lane[1] = _mm_min_ps(lane[1], last);
+    }
+    for (int a = 0; a < 3; a++) {
+        const __m128 xs = _mm_set1_ps((float)(x0[a] + t * e[a] - (double)view->off[a]));
+        const __m128 dx = _mm_set1_ps((float)(dt * e[a]));
+        const __m128 cell_max = _mm_set1_ps((float)(view->hi[a] - view->off[a] - 1));
+        const __m128 stride = _mm_set1_ps(a == 0 ? 1.0f : (float)(a == 1 ? view->sy : view->sz));
+        for (int h = 0; h < 2; h++) {
+            __m128 x = _mm_add_ps(xs, _mm_mul_ps(lane[h], dx));
+            __m128 fi = _mm_min_ps(_mm_cvtepi32_ps(_mm_cvttps_epi32(x)), cell_max);
+            w[a][h] = _mm_sub_ps(x, fi);
+            off[h] = _mm_add_ps(off[h], _mm_mul_ps(fi, stride));
+        }
+    }
+    _mm_storeu_si128((__m128i *)(void *)idx, _mm_cvttps_epi32(off[0]));
+    _mm_storeu_si128((__m128i *)(void *)(idx + 4), _mm_cvttps_epi32(off[1]));
+}
+
 static inline __attribute__((always_inline)) int run_blocked(const wvol__view *view, const tf_fast *tfx,
                                                              const wvol_render_params *p,
                                                              const wvol_render_mode mode, const double x0[3],
@@ -379,42 +442,17 @@ static inline __attribute__((always_inline)) int run_blocked(const wvol__view *v
 {
     const double term = p->termination;
     const int grey = tfx->grey && mode == WVOL_MODE_ABSORPTION;
-    const __m128d vt0 = _mm_set1_pd(t0), vdt = _mm_set1_pd(dt), half = _mm_set1_pd(0.5);
-    const __m128d ex = _mm_set1_pd(e[0]), ey = _mm_set1_pd(e[1]), ez = _mm_set1_pd(e[2]);
-    const __m128d xx = _mm_set1_pd(x0[0]), xy = _mm_set1_pd(x0[1]), xz = _mm_set1_pd(x0[2]);
-    const __m128d o0 = _mm_set1_pd((double)view->off[0]), o1 = _mm_set1_pd((double)view->off[1]),
-                  o2 = _mm_set1_pd((double)view->off[2]);
-    const __m128d syd = _mm_set1_pd((double)view->sy), szd = _mm_set1_pd((double)view->sz);
+    const __m128d vdt = _mm_set1_pd(dt), half = _mm_set1_pd(0.5);
     const float *data = view->data;
     const size_t sy = view->sy, sz = view->sz, rows[4] = {0, sy, sz, sz + sy};
     long kk;
     for (kk = *k; kk < ke; kk += RUN_BLOCK) {
         int l, pr, nb = ke - kk < RUN_BLOCK ? (int)(ke - kk) : RUN_BLOCK, seg = r->seg, same;
-        double lanes[RUN_BLOCK], val[RUN_BLOCK], kappa[RUN_BLOCK], alpha[RUN_BLOCK], rgb[3][RUN_BLOCK];
+        double val[RUN_BLOCK], kappa[RUN_BLOCK], alpha[RUN_BLOCK], rgb[3][RUN_BLOCK];
         int32_t idx[RUN_BLOCK];
-        __m128 wx[2], wy[2], wz[2];
-        const __m128d kd = _mm_set1_pd((double)kk);
-        for (l = 0; l < RUN_BLOCK; l++) lanes[l] = l < nb ? l : nb - 1;
-        for (pr = 0; pr < RUN_BLOCK / 2; pr++) {
-            /* t = t0 + ((kk + l) + 0.5) dt; the voxel's integer coordinates in double */
-            __m128d t = _mm_add_pd(vt0, _mm_mul_pd(_mm_add_pd(_mm_add_pd(kd, _mm_loadu_pd(lanes + 2 * pr)), half), vdt));
-            __m128d x = _mm_add_pd(xx, _mm_mul_pd(t, ex)), y = _mm_add_pd(xy, _mm_mul_pd(t, ey)),
-                    z = _mm_add_pd(xz, _mm_mul_pd(t, ez));
-            __m128d fi = _mm_cvtepi32_pd(_mm_cvttpd_epi32(x)), fj = _mm_cvtepi32_pd(_mm_cvttpd_epi32(y)),
-                    fk = _mm_cvtepi32_pd(_mm_cvttpd_epi32(z));
-            __m128d off = _mm_add_pd(_mm_add_pd(_mm_sub_pd(fi, o0), _mm_mul_pd(syd, _mm_sub_pd(fj, o1))),
-                                     _mm_mul_pd(szd, _mm_sub_pd(fk, o2)));
-            __m128 px = _mm_cvtpd_ps(_mm_sub_pd(x, fi)), py = _mm_cvtpd_ps(_mm_sub_pd(y, fj)),
-                   pz = _mm_cvtpd_ps(_mm_sub_pd(z, fk));
-            _mm_storel_epi64((__m128i *)(void *)(idx + 2 * pr), _mm_cvttpd_epi32(off));
-            if (pr & 1) {
-                wx[pr / 2] = _mm_movelh_ps(wx[pr / 2], px);
-                wy[pr / 2] = _mm_movelh_ps(wy[pr / 2], py);
-                wz[pr / 2] = _mm_movelh_ps(wz[pr / 2], pz);
-            } else {
-                wx[pr / 2] = px, wy[pr / 2] = py, wz[pr / 2] = pz;
-            }
-        }
+        __m128 w[3][2];
+        if (view->local) block_positions_local(view, x0, e, t0, dt, kk, nb, idx, w);
+        else block_positions(view, x0, e, t0, dt, kk, nb, idx, w);
         for (int qd = 0; qd < 2; qd++) {
             const float *qa = data + idx[4 * qd], *qb = data + idx[4 * qd + 1], *qc = data + idx[4 * qd + 2],
                         *qe = data + idx[4 * qd + 3];
@@ -427,11 +465,11 @@ static inline __attribute__((always_inline)) int run_blocked(const wvol__view *v
                                          (const __m64 *)(const void *)(qe + o));
                 __m128 p0 = _mm_shuffle_ps(ab, ce, _MM_SHUFFLE(2, 0, 2, 0)); /* the voxels at i */
                 __m128 p1 = _mm_shuffle_ps(ab, ce, _MM_SHUFFLE(3, 1, 3, 1)); /* and at i + 1 */
-                lo[row] = _mm_add_ps(p0, _mm_mul_ps(wx[qd], _mm_sub_ps(p1, p0)));
+                lo[row] = _mm_add_ps(p0, _mm_mul_ps(w[0][qd], _mm_sub_ps(p1, p0)));
             }
-            c0 = _mm_add_ps(lo[0], _mm_mul_ps(wy[qd], _mm_sub_ps(lo[1], lo[0])));
-            c1 = _mm_add_ps(lo[2], _mm_mul_ps(wy[qd], _mm_sub_ps(lo[3], lo[2])));
-            v = _mm_add_ps(c0, _mm_mul_ps(wz[qd], _mm_sub_ps(c1, c0)));
+            c0 = _mm_add_ps(lo[0], _mm_mul_ps(w[1][qd], _mm_sub_ps(lo[1], lo[0])));
+            c1 = _mm_add_ps(lo[2], _mm_mul_ps(w[1][qd], _mm_sub_ps(lo[3], lo[2])));
+            v = _mm_add_ps(c0, _mm_mul_ps(w[2][qd], _mm_sub_ps(c1, c0)));
             _mm_storeu_pd(val + 4 * qd, _mm_cvtps_pd(v));
             _mm_storeu_pd(val + 4 * qd + 2, _mm_cvtps_pd(_mm_movehl_ps(v, v)));
         }

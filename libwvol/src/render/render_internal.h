@@ -68,6 +68,8 @@ typedef struct wvol__view {
     long off[3], lo[3], hi[3];
     double flo[3], fhi[3];  /* lo, hi as doubles (wvol__view_finish) */
     int blocked_ok;         /* offsets and coordinates fit 32 bits (wvol__view_finish) */
+    int local;              /* a brick's small view: the blocked loop's positions in single
+                               precision relative to it (reference.c, block_positions_local) */
     size_t sy, sz;
 } wvol__view;
 
