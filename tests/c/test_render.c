@@ -334,8 +334,9 @@ static void blocked_loop_equals_per_sample_path(void)
         for (o = 0; o < 2; o++) {
             char text[256];
             if (coloured)
-                snprintf(text, sizeof text, "units diagonal\n0 1 0 0 0\n0.25 0 1 0 %g\n0.5 0 0 1 %g\n1 1 1 0 %g\n",
-                         0.5 * opacity[o], 0.1 * opacity[o], opacity[o]);
+                /* opaque below its first point: the values below 0 take the first point's kappa */
+                snprintf(text, sizeof text, "units diagonal\n0 1 0 0 %g\n0.25 0 1 0 %g\n0.5 0 0 1 %g\n1 1 1 0 %g\n",
+                         0.3 * opacity[o], 0.5 * opacity[o], 0.1 * opacity[o], opacity[o]);
             else
                 snprintf(text, sizeof text, "units diagonal\n0 1 1 1 0\n0.25 1 1 1 %g\n0.5 1 1 1 %g\n1 1 1 1 %g\n",
                          0.5 * opacity[o], 0.1 * opacity[o], opacity[o]);

@@ -447,7 +447,7 @@ static inline __attribute__((always_inline)) int run_blocked(const wvol__view *v
     const size_t sy = view->sy, sz = view->sz, rows[4] = {0, sy, sz, sz + sy};
     long kk;
     for (kk = *k; kk < ke; kk += RUN_BLOCK) {
-        int l, pr, nb = ke - kk < RUN_BLOCK ? (int)(ke - kk) : RUN_BLOCK, seg = r->seg, same;
+        int l, pr, nb = ke - kk < RUN_BLOCK ? (int)(ke - kk) : RUN_BLOCK, seg = r->seg, sg, same;
         double val[RUN_BLOCK], kappa[RUN_BLOCK], alpha[RUN_BLOCK], rgb[3][RUN_BLOCK];
         int32_t idx[RUN_BLOCK];
         __m128 w[3][2];
@@ -477,24 +477,29 @@ static inline __attribute__((always_inline)) int run_blocked(const wvol__view *v
             for (l = 0; l < nb; l++) r->xr += val[l] * dt;
             continue;
         }
-        /* the transfer function: every sample in the current segment (the common case), or
-         * one by one */
-        same = seg >= 0;
+        /* the transfer function: every sample in the current segment (the common case; for
+         * the first segment, or before any, also below the first point, where the TF is the
+         * first point's: w clamped to 0 gives exactly that, c0 + 0 dc = c0, so that a ray
+         * through a haze of values around the first point stays on this path), or one by
+         * one */
+        sg = seg < 0 ? 0 : seg;
+        same = tfx->n >= 2;
         if (same) {
-            const __m128d v0 = _mm_set1_pd(tfx->v[seg]), v1 = _mm_set1_pd(tfx->v[seg + 1]);
+            const __m128d v0 = _mm_set1_pd(tfx->v[sg]), v1 = _mm_set1_pd(tfx->v[sg + 1]);
             for (pr = 0; pr < RUN_BLOCK / 2; pr++) {
-                __m128d v = _mm_loadu_pd(val + 2 * pr);
-                same &= _mm_movemask_pd(_mm_and_pd(_mm_cmpge_pd(v, v0), _mm_cmplt_pd(v, v1))) == 3;
+                __m128d v = _mm_loadu_pd(val + 2 * pr), in = _mm_cmplt_pd(v, v1);
+                if (sg > 0) in = _mm_and_pd(in, _mm_cmpge_pd(v, v0));
+                same &= _mm_movemask_pd(in) == 3;
             }
         }
         if (same) {
-            const double *cs = tfx->c0[seg], *dc = tfx->dc[seg];
-            const __m128d v0 = _mm_set1_pd(tfx->v[seg]);
+            const double *cs = tfx->c0[sg], *dc = tfx->dc[sg];
+            const __m128d v0 = _mm_set1_pd(tfx->v[sg]), zero = _mm_setzero_pd();
             const __m128d c0r = _mm_set1_pd(cs[0]), c0g = _mm_set1_pd(cs[1]), c0b = _mm_set1_pd(cs[2]),
                           c0k = _mm_set1_pd(cs[3]), dcr = _mm_set1_pd(dc[0]), dcg = _mm_set1_pd(dc[1]),
                           dcb = _mm_set1_pd(dc[2]), dck = _mm_set1_pd(dc[3]);
             for (pr = 0; pr < RUN_BLOCK / 2; pr++) {
-                __m128d w = _mm_sub_pd(_mm_loadu_pd(val + 2 * pr), v0);
+                __m128d w = _mm_max_pd(_mm_sub_pd(_mm_loadu_pd(val + 2 * pr), v0), zero);
                 _mm_storeu_pd(kappa + 2 * pr, _mm_add_pd(c0k, _mm_mul_pd(w, dck)));
                 if (grey) continue; /* the colours are filled below, if at all */
                 _mm_storeu_pd(rgb[0] + 2 * pr, _mm_add_pd(c0r, _mm_mul_pd(w, dcr)));
