@@ -641,17 +641,25 @@ static inline __attribute__((always_inline)) int run(const wvol__sampler *s, con
  * is fetched (through the thread's context) at the start of each run, so no view is held
  * from one run to the next: other rays' fetches may evict it meanwhile (render_tile). */
 typedef struct ray_state {
-    double x0[3], e[3], d[3];   /* start and direction in index units; world direction */
+    double x0[3], e[3];         /* start and direction in index units (world direction: ray_dir) */
     double t0, t1, t_exit;      /* the ray's interval; where it leaves its current brick */
     long k, nsteps, nfull;      /* next step; steps; full steps (ending by t1) */
     long bid;                   /* the current brick (bricked sources), -1 before the first */
     ray_acc r;
-    size_t nsamp, nskip, nskip_tol;
+    size_t nsamp;
+    uint32_t nskip, nskip_tol;  /* runs skipped: at most the bricks the ray crosses */
     double skipped;             /* optical depth (X-ray: integral) skipped so far, bounded */
     int done;                   /* ray terminated */
     wvol_status failed;         /* a bricked source's fetch failed */
     int pixel;                  /* index of its pixel in the tile */
 } ray_state;
+
+/* The ray's world direction, for shading (a tile's rays are held for the whole walk, so
+ * their states are kept small): e times the spacing, the direction to an ulp. */
+static inline void ray_dir(const wvol__sampler *s, const ray_state *st, double d[3])
+{
+    for (int a = 0; a < 3; a++) d[a] = st->e[a] * s->spacing[a];
+}
 
 static void ray_begin(const wvol__sampler *s, const double o[3], const double d[3], double t0, double t1, double dt,
                       ray_state *st)
@@ -660,7 +668,6 @@ static void ray_begin(const wvol__sampler *s, const double o[3], const double d[
     for (int a = 0; a < 3; a++) {
         st->x0[a] = (o[a] - s->origin[a]) / s->spacing[a];
         st->e[a] = d[a] / s->spacing[a];
-        st->d[a] = d[a];
     }
     st->t0 = t0, st->t1 = t1, st->t_exit = -INFINITY, st->bid = -1;
     st->r.T = 1.0, st->r.seg = -1;
@@ -728,7 +735,7 @@ static inline __attribute__((always_inline)) int ray_advance(const wvol__sampler
     const double t0 = st->t0, *x0 = st->x0, *e = st->e;
     long k = st->k, nfull = st->nfull, ke = nfull; /* this run: steps k .. ke - 1 */
     int a, bricked = s->rate || s->fetch, done;
-    double x[3], xl[3], t;
+    double x[3], xl[3], d[3] = {0, 0, 0}, t;
 #define T_AT(kk) (t0 + ((double)(kk) + 0.5) * dt)
     if (k >= nfull || st->done || st->failed != WVOL_OK) return 0;
     t = T_AT(k);
@@ -752,8 +759,9 @@ static inline __attribute__((always_inline)) int ray_advance(const wvol__sampler
         }
     }
     st->nsamp += (size_t)(ke - k);
+    if (shading) ray_dir(s, st, d);
     if (s->eval) {
-        done = run(s, &view, tfx, p, mode, shading, colors, 0, x0, e, st->d, t0, dt, &k, ke, &st->r);
+        done = run(s, &view, tfx, p, mode, shading, colors, 0, x0, e, d, t0, dt, &k, ke, &st->r);
     } else {
         /* the steps whose samples lie strictly inside the view are an interval (x is
          * linear in t); the few outside it, where the ray enters or leaves the volume
@@ -768,9 +776,9 @@ static inline __attribute__((always_inline)) int ray_advance(const wvol__sampler
             kout--;
             for (a = 0; a < 3; a++) xl[a] = x0[a] + T_AT(kout - 1) * e[a];
         }
-        done = run(s, &view, tfx, p, mode, shading, colors, 0, x0, e, st->d, t0, dt, &k, kin, &st->r) ||
-               run(s, &view, tfx, p, mode, shading, colors, 1, x0, e, st->d, t0, dt, &k, kout, &st->r) ||
-               run(s, &view, tfx, p, mode, shading, colors, 0, x0, e, st->d, t0, dt, &k, ke, &st->r);
+        done = run(s, &view, tfx, p, mode, shading, colors, 0, x0, e, d, t0, dt, &k, kin, &st->r) ||
+               run(s, &view, tfx, p, mode, shading, colors, 1, x0, e, d, t0, dt, &k, kout, &st->r) ||
+               run(s, &view, tfx, p, mode, shading, colors, 0, x0, e, d, t0, dt, &k, ke, &st->r);
     }
     if (done) st->nsamp -= (size_t)(ke - k - 1); /* the samples not taken */
     st->k = k;
@@ -806,8 +814,10 @@ static void ray_last(const wvol__sampler *s, void *tc, const tf_fast *tfx, const
         skip = ray_skip(s, tc, st, p->skip_tolerance, h, &view);
     }
     if (!skip) {
+        double d[3];
+        ray_dir(s, st, d);
         st->nsamp++;
-        st->done = step(s, &view, tfx, p, p->mode, p->shading, p->colors != NULL, 0, x, st->d, h, &st->r);
+        st->done = step(s, &view, tfx, p, p->mode, p->shading, p->colors != NULL, 0, x, d, h, &st->r);
     }
 }
 
