@@ -22,10 +22,12 @@
  * Samples, weights and compositing are the reference's, so on the same voxels the image
  * is the reference's image to float rounding (tests/c/test_render_bricks.c). */
 #include "render_internal.h"
+#include "core/clones.h"
 #include "wavelet/wavelet_internal.h"
 
 #include <math.h>
 #include <omp.h>
+#include <emmintrin.h>
 #include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
@@ -184,8 +186,9 @@ static int region_has_blocks(const band_view *bv, const ptrdiff_t lo[3], const p
     return 0;
 }
 
-/* wvol__coef_source gather through the view. */
-static int gather_blocks(const void *ctx, double *dst, int m, int band, const ptrdiff_t lo[3], const ptrdiff_t n[3])
+/* wvol__coef_source gather through the view (cloned: its population counts are an
+ * instruction on x86-64-v3, a library call on the baseline). */
+WVOL__CLONES static int gather_blocks(const void *ctx, double *dst, int m, int band, const ptrdiff_t lo[3], const ptrdiff_t n[3])
 {
     const coef_blocks *cb = ctx;
     size_t t = 0;
@@ -379,6 +382,35 @@ static void brick_box(const brick_src *src, size_t b, long lo[3], long hi[3])
     }
 }
 
+/* The smallest and largest of n floats, four lanes at a time (the voxels are finite: the
+ * store holds finite coefficients). */
+static void voxel_range(const float *d, size_t n, double *mn, double *mx)
+{
+    size_t i = 0;
+    float lo = INFINITY, hi = -INFINITY;
+    if (n >= 4) {
+        __m128 vl = _mm_loadu_ps(d), vh = vl;
+        for (i = 4; i + 4 <= n; i += 4) {
+            __m128 v = _mm_loadu_ps(d + i);
+            vl = _mm_min_ps(vl, v);
+            vh = _mm_max_ps(vh, v);
+        }
+        float l4[4], h4[4];
+        _mm_storeu_ps(l4, vl);
+        _mm_storeu_ps(h4, vh);
+        for (int q = 0; q < 4; q++) {
+            lo = l4[q] < lo ? l4[q] : lo;
+            hi = h4[q] > hi ? h4[q] : hi;
+        }
+    }
+    for (; i < n; i++) {
+        lo = d[i] < lo ? d[i] : lo;
+        hi = d[i] > hi ? d[i] : hi;
+    }
+    *mn = lo;
+    *mx = hi;
+}
+
 static wvol_status fetch(void *tctx, size_t b, double allow, wvol__view *view, double *rate)
 {
     brick_cache *c = tctx;
@@ -437,10 +469,7 @@ static wvol_status fetch(void *tctx, size_t b, double allow, wvol__view *view, d
         st = wvol__idwt3_brick_src(d, &src->cs, blo, bhi, &c->scr, NULL);
         if (st != WVOL_OK) return st;
         cnt = (bhi[0] - blo[0]) * (bhi[1] - blo[1]) * (bhi[2] - blo[2]);
-        for (i = 0; i < cnt; i++) {
-            if (d[i] < mn) mn = d[i];
-            if (d[i] > mx) mx = d[i];
-        }
+        voxel_range(d, cnt, &mn, &mx);
         c->id[slot] = (long)b;
         index_insert(c, (long)b, slot);
         c->rate[slot] = wvol__brick_rate(src->tf, src->mode, mn, mx); /* once per build */
