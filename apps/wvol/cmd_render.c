@@ -27,7 +27,7 @@ static const cli_opt opts[] = {
     {"levels", 0, 1, "volume input, wavelet methods: levels (default 3, or fewer when the volume is small)"},
     {"spline-j", 0, 1, "basis splines: 2^J knots per unit (default 4)"},
     {"step", 0, 1, "reference methods: step in voxels (default 0.5)"},
-    {"brick", 0, 1, "bricks: brick side in voxels (default 32, or 16 when a thread's brick cache is under 8 MiB); reference: empty-space brick side (default 8)"},
+    {"brick", 0, 1, "bricks: brick side in voxels (default 32); reference: empty-space brick side (default 8)"},
     {"skip-tolerance", 0, 1, "reference, bricks: optical depth (X-ray: integral) each ray may skip in nearly empty bricks; bounds each pixel's change (default 0: skip only what adds nothing)"},
     {"gauss", 0, 1, "spline method: Gauss-Legendre nodes per piece for the exponential (default 5)"},
     {"shading", 0, 0, "diffuse headlight shading from the gradient"},

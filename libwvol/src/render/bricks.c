@@ -17,8 +17,9 @@
  *   the bound (kappa 0 over it, or within the ray's skip tolerance) lets the ray skip it, it
  *   is not reconstructed. After reconstruction its actual min/max decide like the dense
  *   path's min/max grid, so skipping at tolerance 0 never changes the image.
- * - Threads take image tiles; each has a bounded, fully associative cache of bricks (least
- *   recently used slot evicted). A brick evicted and met again is rebuilt.
+ * - Threads take image tiles, whose rays walk the bricks in front-to-back order (reference.c,
+ *   render_tile), so a tile builds each brick it needs once; each thread keeps a few built
+ *   bricks (least recently used evicted).
  * Samples, weights and compositing are the reference's, so on the same voxels the image
  * is the reference's image to float rounding (tests/c/test_render_bricks.c). */
 #include "render_internal.h"
@@ -27,7 +28,9 @@
 
 #include <math.h>
 #include <omp.h>
+#if defined(__SSE2__)
 #include <emmintrin.h>
+#endif
 #include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
@@ -262,19 +265,14 @@ typedef struct brick_src {
                                      yet computed */
 } brick_src;
 
-/* A thread's brick cache: fully associative, least recently used slot evicted (a scan of
- * the slots' stamps, once per build), slots found through an open-addressing index (linear
- * probing, backward-shift deletion) from brick number to slot. It was 4-way set
- * associative: with a tile's rays walking together (reference.c, render_tile) the bricks a
- * round needs are few but collide in sets, and a larger cache or tile rebuilt more bricks,
- * not fewer (512^2 perspective view, 64^2 tiles: 9 723 builds with 2 MiB, 17 371 with 4). */
+/* A thread's brick cache: a few slots (CACHE_SLOTS), found by a scan of their brick numbers,
+ * the least recently used evicted. (While tiles' rays walked one run each per round it was a
+ * cache of hundreds of slots with a hashed index.) */
 typedef struct brick_cache {
     const brick_src *src;
     size_t nslots, nused;
-    int32_t *index;          /* 2^k >= 2 nslots entries: a slot, or -1 */
-    size_t index_mask;
-    long last_b;             /* the brick fetched last and its slot: the next ray of a */
-    size_t last_slot;        /* round often needs the same one */
+    long last_b;             /* the brick fetched last and its slot: the next ray of the */
+    size_t last_slot;        /* brick's list needs the same one */
     long *id;                /* per slot: brick index or -1 */
     uint64_t *used;          /* per slot: last use */
     float *data;             /* per slot: slot_floats */
@@ -288,7 +286,6 @@ typedef struct brick_cache {
 static void cache_free(brick_cache *c)
 {
     if (!c) return;
-    free(c->index);
     free(c->id);
     free(c->used);
     free(c->data);
@@ -305,63 +302,17 @@ static brick_cache *cache_new(const brick_src *src, size_t slots)
     c->src = src;
     c->nslots = slots;
     c->last_b = -1;
-    for (c->index_mask = 1; c->index_mask < 2 * slots; c->index_mask <<= 1) continue;
-    c->index = malloc(c->index_mask * sizeof *c->index);
-    c->index_mask--;
     c->id = malloc(slots * sizeof *c->id);
     c->used = calloc(slots, sizeof *c->used);
     c->data = malloc(slots * src->slot_floats * sizeof *c->data);
     c->rate = malloc(slots * sizeof *c->rate);
     c->view = malloc(slots * sizeof *c->view);
-    if (!c->index || !c->id || !c->used || !c->data || !c->rate || !c->view) {
+    if (!c->id || !c->used || !c->data || !c->rate || !c->view) {
         cache_free(c);
         return NULL;
     }
     for (size_t i = 0; i < slots; i++) c->id[i] = -1;
-    for (size_t i = 0; i <= c->index_mask; i++) c->index[i] = -1;
     return c;
-}
-
-static size_t index_home(const brick_cache *c, long b)
-{
-    return (size_t)(((uint64_t)b * 0x9E3779B97F4A7C15ull) >> 32) & c->index_mask;
-}
-
-/* The slot holding brick b, or -1. */
-static long index_find(const brick_cache *c, long b)
-{
-    for (size_t h = index_home(c, b);; h = (h + 1) & c->index_mask) {
-        int32_t sl = c->index[h];
-        if (sl < 0) return -1;
-        if (c->id[sl] == b) return sl;
-    }
-}
-
-static void index_insert(brick_cache *c, long b, size_t slot)
-{
-    size_t h = index_home(c, b);
-    while (c->index[h] >= 0) h = (h + 1) & c->index_mask;
-    c->index[h] = (int32_t)slot;
-}
-
-/* Removes brick b (present): the entries after it in its probe run move back, so that no
- * lookup stops early at the hole. */
-static void index_erase(brick_cache *c, long b)
-{
-    size_t h = index_home(c, b), j;
-    while (c->id[c->index[h]] != b) h = (h + 1) & c->index_mask;
-    for (j = h;;) {
-        size_t k;
-        j = (j + 1) & c->index_mask;
-        if (c->index[j] < 0) break;
-        k = index_home(c, c->id[c->index[j]]);
-        /* the entry at j may move to the hole at h unless its home lies cyclically in (h, j] */
-        if (h <= j ? (k <= h || k > j) : (k <= h && k > j)) {
-            c->index[h] = c->index[j];
-            h = j;
-        }
-    }
-    c->index[h] = -1;
 }
 
 static size_t cache_bytes(const brick_cache *c)
@@ -369,7 +320,7 @@ static size_t cache_bytes(const brick_cache *c)
     size_t slots = c->nslots;
     return sizeof *c + slots * (c->src->slot_floats * sizeof(float) + sizeof(long) + sizeof(uint64_t) +
                                 sizeof(double) + sizeof(wvol__view)) +
-           (c->index_mask + 1) * sizeof *c->index + wvol__brick_scratch_bytes(&c->scr);
+           wvol__brick_scratch_bytes(&c->scr);
 }
 
 static void brick_box(const brick_src *src, size_t b, long lo[3], long hi[3])
@@ -388,6 +339,7 @@ static void voxel_range(const float *d, size_t n, double *mn, double *mx)
 {
     size_t i = 0;
     float lo = INFINITY, hi = -INFINITY;
+#if defined(__SSE2__)
     if (n >= 4) {
         __m128 vl = _mm_loadu_ps(d), vh = vl;
         for (i = 4; i + 4 <= n; i += 4) {
@@ -403,6 +355,7 @@ static void voxel_range(const float *d, size_t n, double *mn, double *mx)
             hi = h4[q] > hi ? h4[q] : hi;
         }
     }
+#endif
     for (; i < n; i++) {
         lo = d[i] < lo ? d[i] : lo;
         hi = d[i] > hi ? d[i] : hi;
@@ -416,17 +369,14 @@ static wvol_status fetch(void *tctx, size_t b, double allow, wvol__view *view, d
     brick_cache *c = tctx;
     const brick_src *src = c->src;
     size_t slot;
-    long lo[3], hi[3], found;
+    long lo[3], hi[3];
     c->clock++;
     if (c->last_b == (long)b) {
         slot = c->last_slot;
         goto hit;
     }
-    found = index_find(c, (long)b);
-    if (found >= 0) {
-        slot = (size_t)found;
-        goto hit;
-    }
+    for (slot = 0; slot < c->nused; slot++)
+        if (c->id[slot] == (long)b) goto hit;
     brick_box(src, b, lo, hi);
     if (src->bounds) {
         /* the bound is computed once per brick (by whichever thread meets it first; two
@@ -453,13 +403,12 @@ static wvol_status fetch(void *tctx, size_t b, double allow, wvol__view *view, d
         wvol_status st;
         if (c->nused < c->nslots) {
             slot = c->nused++;
-        } else { /* the least recently used slot; it leaves the index before it is overwritten */
+        } else { /* the least recently used slot */
             slot = 0;
             for (i = 1; i < c->nslots; i++)
                 if (c->used[i] < c->used[slot]) slot = i;
-            index_erase(c, c->id[slot]);
             c->id[slot] = -1;
-            if (c->last_b >= 0 && c->last_slot == slot) c->last_b = -1;
+            if (c->last_slot == slot) c->last_b = -1;
         }
         d = c->data + slot * src->slot_floats;
         for (int a = 0; a < 3; a++) {
@@ -471,7 +420,6 @@ static wvol_status fetch(void *tctx, size_t b, double allow, wvol__view *view, d
         cnt = (bhi[0] - blo[0]) * (bhi[1] - blo[1]) * (bhi[2] - blo[2]);
         voxel_range(d, cnt, &mn, &mx);
         c->id[slot] = (long)b;
-        index_insert(c, (long)b, slot);
         c->rate[slot] = wvol__brick_rate(src->tf, src->mode, mn, mx); /* once per build */
         {
             wvol__view *v = &c->view[slot];
@@ -529,7 +477,6 @@ static wvol_status prepare(wvol__sampler *s, const wvol_tf *tf_world, const wvol
 {
     brick_src *src = s->src;
     int a;
-    (void)p;
     src->tf = tf_world;
     src->mode = p->mode;
     s->B = src->B;
