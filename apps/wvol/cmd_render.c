@@ -264,7 +264,7 @@ int wvol_cmd_render(int argc, char **argv)
             v = NULL;
         }
     }
-    if (!strcmp(method, "bricks") && brick <= 0) rp.brick = 0; /* the library chooses (32 or 16) */
+    if (!strcmp(method, "bricks") && brick <= 0) rp.brick = 0; /* the library chooses (32) */
     if (st) {
         wvol_store_info si;
         wvol_store_get_info(st, &si);

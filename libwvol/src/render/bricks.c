@@ -450,16 +450,16 @@ hit:
  * rules out for a straight walk) from being rebuilt. */
 #define CACHE_SLOTS 4
 
-/* Bytes per thread for a tile's rays (reference.c sizes the tile by it): a quarter of the
- * dense volume's size shared among the threads, at least 1 MiB (a 64^2 tile) and at most
- * 64 MiB. Two tiles build the bricks both their beams cross, so a larger tile builds fewer:
- * 512^2 perspective frame `dir=1,0.7,0.4` of the 256^3 skull at 5% (391 bricks of 32^3
- * needed): 128^2 tiles 712 builds, 256^2 561, one 512^2 tile 391. With one thread at 256^3
- * this grants 16 MiB: 256^2 tiles. */
-static size_t walk_bytes_per_thread(const brick_src *src)
+/* Bytes for a tile's rays (reference.c sizes the tile by it; the threads share the tile): a
+ * quarter of the dense volume's size, at least 1 MiB (a 64^2 tile) and at most 64 MiB. Two
+ * tiles build the bricks both their beams cross, so a larger tile builds fewer: 512^2
+ * perspective frame `dir=1,0.7,0.4` of the 256^3 skull at 5% (391 bricks of 32^3 needed):
+ * 128^2 tiles 712 builds, 256^2 561, one 512^2 tile 391. At 256^3 this grants 16 MiB: 256^2
+ * tiles. */
+static size_t walk_bytes(const brick_src *src)
 {
     double dense = 4.0 * (double)src->n[0] * (double)src->n[1] * (double)src->n[2];
-    double b = dense / 4 / src->nthreads, lo = (double)(1u << 20), hi = (double)(64u << 20);
+    double b = dense / 4, lo = (double)(1u << 20), hi = (double)(64u << 20);
     return (size_t)(b < lo ? lo : b > hi ? hi : b);
 }
 
@@ -481,7 +481,7 @@ static wvol_status prepare(wvol__sampler *s, const wvol_tf *tf_world, const wvol
     src->mode = p->mode;
     s->B = src->B;
     for (a = 0; a < 3; a++) s->bn[a] = src->bn[a];
-    s->walk_bytes = walk_bytes_per_thread(src);
+    s->walk_bytes = walk_bytes(src);
     s->tctx = calloc((size_t)src->nthreads, sizeof *s->tctx);
     WVOL_RETURN_IF(!s->tctx, err, WVOL_ERR_NOMEM, "render: out of memory");
     for (int t = 0; t < src->nthreads; t++) {

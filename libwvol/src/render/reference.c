@@ -869,15 +869,17 @@ static int ray_advance_any(const wvol__sampler *s, void *tc, const tf_fast *tfx,
  * the sum over the axes of the distance in bricks from that start strictly grows from one
  * brick to the next. Every brick after b in this order has a key >= b's. */
 typedef struct brick_order {
-    size_t n;
+    size_t n, nkeys;
     uint32_t *key;     /* per brick */
     uint32_t *order;   /* the bricks by increasing key */
+    size_t *start;     /* nkeys + 1: the bricks of key q are order[start[q] .. start[q + 1]) */
 } brick_order;
 
 static void brick_order_free(brick_order *bo)
 {
     free(bo->key);
     free(bo->order);
+    free(bo->start);
 }
 
 static wvol_status brick_order_make(brick_order *bo, const wvol__sampler *s, const wvol__cam *k, wvol_error *err)
@@ -886,6 +888,8 @@ static wvol_status brick_order_make(brick_order *bo, const wvol__sampler *s, con
     size_t *count, kmax = 0, b;
     memset(bo, 0, sizeof *bo);
     bo->n = s->bn[0] * s->bn[1] * s->bn[2];
+    WVOL_RETURN_IF(bo->n > UINT32_MAX, err, WVOL_ERR_NOMEM, "render: %zu bricks (at most 2^32: a larger brick side)",
+                   bo->n);
     for (int a = 0; a < 3; a++) {
         if (k->c.projection == WVOL_PERSPECTIVE) { /* the eye's brick, as ray_enter finds it */
             double c = ((k->c.eye[a] - s->origin[a]) / s->spacing[a] + 0.5) / s->B;
@@ -916,33 +920,82 @@ static wvol_status brick_order_make(brick_order *bo, const wvol__sampler *s, con
         bo->key[b] = key;
         count[key + 1]++;
     }
-    for (b = 1; b <= kmax; b++) count[b] += count[b - 1]; /* counting sort by key */
+    for (b = 1; b <= kmax + 1; b++) count[b] += count[b - 1]; /* counting sort by key */
+    bo->nkeys = kmax + 1;
+    bo->start = malloc((kmax + 2) * sizeof *bo->start);
+    if (!bo->start) {
+        free(count);
+        brick_order_free(bo);
+        return wvol_error_set(err, WVOL_ERR_NOMEM, "render: out of memory for the brick order");
+    }
+    memcpy(bo->start, count, (kmax + 2) * sizeof *count);
     for (b = 0; b < bo->n; b++) bo->order[count[bo->key[b]]++] = (uint32_t)b;
     free(count);
     return WVOL_OK;
 }
 
-/* The rays of one tile (n of them, in rs). A dense source's rays walk one after the other. A
- * bricked source's walk brick by brick in front-to-back order (brick_order): each brick's
- * list holds the rays whose next sample lies in it; the rays of the brick at hand take their
- * runs there (its view fetched once and then a cache hit for each) and move to the list of
- * the brick they enter next, which comes later in the order. So the tile builds each brick
- * its rays need once, and a thread's cache needs to hold one brick. (A ray whose next brick
- * would not come later, which the order rules out, walks on at once: its fetch may then
- * build a brick again, and its image is the same.) Each ray's own samples are taken in its
- * order, so the image is the ray-by-ray walk's.
- * Measured before this (one run per ray per round, least recently used cache of 8 MiB):
- * 733 builds of the 391 bricks the 512^2 perspective frame of the 256^3 skull needs. */
+/* The rays of one tile (n of them, in rs) of a dense source: one after the other. */
 static void render_tile(const wvol__sampler *s, void *tc, const tf_fast *tfx, const wvol_render_params *p, double dt,
-                        ray_state *rs, int n, const brick_order *bo, int32_t *head, int32_t *next)
+                        ray_state *rs, int n)
 {
-    if (!s->fetch) {
-        for (int i = 0; i < n; i++) {
-            while (ray_advance_any(s, tc, tfx, p, dt, &rs[i])) continue;
-            ray_last(s, tc, tfx, p, dt, &rs[i]);
-        }
-        return;
+    for (int i = 0; i < n; i++) {
+        while (ray_advance_any(s, tc, tfx, p, dt, &rs[i])) continue;
+        ray_last(s, tc, tfx, p, dt, &rs[i]);
     }
+}
+
+/* Ray i onto brick b's list (head: per brick, -1 when empty; next: per ray); several threads
+ * may push onto one list at once. */
+static inline void list_push(int32_t *head, int32_t *next, long b, int32_t i)
+{
+    int32_t old = __atomic_load_n(&head[b], __ATOMIC_RELAXED);
+    do {
+        next[i] = old;
+    } while (!__atomic_compare_exchange_n(&head[b], &old, i, 1, __ATOMIC_RELEASE, __ATOMIC_RELAXED));
+}
+
+/* The rays on brick b's list take their runs in it (its view fetched once, then a cache hit
+ * for each) and move to the list of the brick they enter next. */
+static void walk_brick(const wvol__sampler *s, void *tc, const tf_fast *tfx, const wvol_render_params *p, double dt,
+                       ray_state *rs, const brick_order *bo, int32_t *head, int32_t *next, long b)
+{
+    int32_t i = head[b];
+    head[b] = -1;
+    while (i >= 0) {
+        const int32_t after = next[i];
+        ray_state *st = &rs[i];
+        for (;;) {
+            long nb;
+            if (st->k < st->nfull) ray_advance_any(s, tc, tfx, p, dt, st);
+            else ray_last(s, tc, tfx, p, dt, st);
+            nb = ray_next_brick(s, st, dt);
+            if (nb < 0) break;
+            if (nb != b && bo->key[nb] > bo->key[b]) {
+                list_push(head, next, nb, i);
+                break;
+            }
+        }
+        i = after;
+    }
+}
+
+/* The rays of one tile of a bricked source, walked brick by brick in front-to-back order
+ * (brick_order): each brick's list holds the rays whose next sample lies in it; the rays of
+ * the brick at hand take their runs there and move to the list of the brick they enter next,
+ * which comes later in the order. So the tile builds each brick its rays need once, and a
+ * thread's cache needs to hold one brick. (A ray whose next brick would not come later, which
+ * the order rules out, walks on at once: its fetch may then build a brick again, and its image
+ * is the same.) The bricks of one key are independent (a ray leaves a brick for a larger
+ * key), so the threads share them, key by key: a tile is the whole frame's work for all the
+ * threads, and a brick is built by one of them. Each ray's own samples are taken in its order,
+ * so the image is the ray-by-ray walk's, whatever the thread count.
+ * Measured before this (one run per ray per round, least recently used cache of 8 MiB, a
+ * tile per thread): 733 builds of the 391 bricks the 512^2 perspective frame of the 256^3
+ * skull needs. */
+static void render_tile_bricked(const wvol__sampler *s, const tf_fast *tfx, const wvol_render_params *p, double dt,
+                                ray_state *rs, int n, const brick_order *bo, int32_t *head, int32_t *next,
+                                int nthreads)
+{
     for (int i = 0; i < n; i++) {
         long b = ray_next_brick(s, &rs[i], dt);
         if (b >= 0) {
@@ -950,33 +1003,24 @@ static void render_tile(const wvol__sampler *s, void *tc, const tf_fast *tfx, co
             head[b] = i;
         }
     }
-    for (size_t oi = 0; oi < bo->n; oi++) {
-        const long b = bo->order[oi];
-        int i = head[b];
-        head[b] = -1;
-        while (i >= 0) {
-            const int after = next[i];
-            ray_state *st = &rs[i];
-            for (;;) {
-                long nb;
-                if (st->k < st->nfull) ray_advance_any(s, tc, tfx, p, dt, st);
-                else ray_last(s, tc, tfx, p, dt, st);
-                nb = ray_next_brick(s, st, dt);
-                if (nb < 0) break;
-                if (nb != b && bo->key[nb] > bo->key[b]) {
-                    next[i] = head[nb];
-                    head[nb] = i;
-                    break;
-                }
+#pragma omp parallel num_threads(nthreads)
+    {
+        void *tc = s->tctx[omp_get_thread_num()];
+        for (size_t q = 0; q < bo->nkeys; q++) {
+            const long first = (long)bo->start[q], last = (long)bo->start[q + 1];
+            if (first == last) continue; /* the same test in every thread: no barrier is skipped by one */
+#pragma omp for schedule(dynamic, 1)
+            for (long oi = first; oi < last; oi++) {
+                const long b = bo->order[oi];
+                if (head[b] >= 0) walk_brick(s, tc, tfx, p, dt, rs, bo, head, next, b);
             }
-            i = after;
         }
     }
 }
 
 /* The bricked walk's tile side: the largest square whose rays (states and list links) fit
- * the bytes the source grants a thread, evened out so that the image's tiles are alike (a
- * tile's rays build each brick they need once, render_tile: the larger the tile, the fewer
+ * the bytes the source grants, evened out so that the image's tiles are alike (a tile's rays
+ * build each brick they need once, render_tile_bricked: the larger the tile, the fewer
  * bricks two tiles both build); 0 without a grant. */
 static int walk_tile(const wvol__sampler *s, const wvol_image *img)
 {
@@ -989,6 +1033,55 @@ static int walk_tile(const wvol__sampler *s, const wvol_image *img)
     return (big + n - 1) / n;
 }
 
+/* A tile's rays (those that meet the volume) into rs, its pixels cleared; returns their count. */
+static int tile_rays(const wvol__sampler *s, const wvol__cam *k, const wvol_image *img, const double lo[3],
+                     const double hi[3], double dt, int x0, int y0, int tw, int th, ray_state *rs)
+{
+    int n = 0;
+    for (int y = y0; y < y0 + th; y++)
+        for (int x = x0; x < x0 + tw; x++) {
+            double o[3], d[3], t0, t1;
+            float *px = img->rgba + 4 * ((size_t)x + (size_t)img->width * (size_t)y);
+            px[0] = px[1] = px[2] = px[3] = 0.0f;
+            wvol__cam_ray(k, x + 0.5, y + 0.5, o, d);
+            if (!wvol__ray_box(o, d, lo, hi, &t0, &t1)) continue;
+            if (k->c.projection == WVOL_PERSPECTIVE && t0 < 0) t0 = 0;
+            if (!(t1 > t0)) continue;
+            ray_begin(s, o, d, t0, t1, dt, &rs[n]);
+            rs[n++].pixel = (x - x0) + tw * (y - y0);
+        }
+    return n;
+}
+
+/* A walked tile's pixels, and its rays' counts added to c; a failed fetch's status to *failed. */
+static void tile_finish(const wvol_render_params *p, wvol_image *img, int x0, int y0, int tw, const ray_state *rs,
+                        int n, wvol__counts *c, wvol_status *failed)
+{
+    c->rays_hit += (size_t)n;
+    for (int i = 0; i < n; i++) {
+        const ray_state *st = &rs[i];
+        ray_pixel(p, st, img->rgba + 4 * ((size_t)(x0 + st->pixel % tw) + (size_t)img->width * (size_t)(y0 + st->pixel / tw)));
+        c->samples += st->nsamp;
+        c->skipped += st->nskip;
+        c->skipped_tolerance += st->nskip_tol;
+        if (st->skipped > c->skip_bound) c->skip_bound = st->skipped;
+        c->terminated += (size_t)st->done;
+        c->clamped += (size_t)st->r.nclamp;
+        if (st->failed != WVOL_OK) *failed = st->failed;
+    }
+}
+
+static void counts_add(wvol__counts *to, const wvol__counts *c)
+{
+    to->rays_hit += c->rays_hit;
+    to->samples += c->samples;
+    to->skipped += c->skipped;
+    to->skipped_tolerance += c->skipped_tolerance;
+    to->terminated += c->terminated;
+    to->clamped += c->clamped;
+    if (c->skip_bound > to->skip_bound) to->skip_bound = c->skip_bound;
+}
+
 wvol_status wvol__render_sampled(wvol_image *img, wvol__sampler *s, const wvol_camera *cam, const wvol_tf *tf_in,
                           const wvol_render_params *pin, wvol_render_stats *stats, wvol_error *err)
 {
@@ -999,13 +1092,12 @@ wvol_status wvol__render_sampled(wvol_image *img, wvol__sampler *s, const wvol_c
     wvol__cam k;
     double lo[3], hi[3], dt, t_start, c_start;
     int ntiles, tx, a, *order, nthreads;
-    ray_state **states;
-    int32_t **lists;       /* per thread: the bricked walk's list heads (per brick), then links (per ray) */
+    size_t tile_rays_n;
     brick_order bo;
-    size_t rays_hit = 0, samples = 0, skipped = 0, skipped_tol = 0, terminated = 0, clamped = 0;
-    double skip_bound = 0.0;
-    wvol_status failed = WVOL_OK;
+    wvol__counts counts;
+    wvol_status status = WVOL_OK, failed = WVOL_OK;
 
+    memset(&counts, 0, sizeof counts);
     wvol__params(&p, pin);
     WVOL_FORWARD(wvol__render_check(img, cam, tf_in, &p, err));
     WVOL_FORWARD(wvol__check_colors(&p, s->n, 1, err));
@@ -1037,90 +1129,72 @@ wvol_status wvol__render_sampled(wvol_image *img, wvol__sampler *s, const wvol_c
     tx = (img->width + p.tile - 1) / p.tile;
     order = wvol__tile_order(img->width, img->height, p.tile);
     nthreads = wvol__threads(p.threads);
-    /* each thread's tile of ray states, allocated once: allocated per tile, a buffer above
-     * malloc's mmap threshold came back as fresh pages for the kernel to zero each time (8% of
-     * the process's profile for a 512^2 perspective frame) */
-    states = calloc((size_t)nthreads, sizeof *states);
-    lists = calloc((size_t)nthreads, sizeof *lists);
+    tile_rays_n = (size_t)p.tile * (size_t)p.tile;
     memset(&bo, 0, sizeof bo);
-    if (!order || !states || !lists || (s->fetch && brick_order_make(&bo, s, &k, err) != WVOL_OK)) {
-        free(order);
-        free(states);
+    if (s->fetch) {
+        /* the bricked walk: one tile at a time, its bricks shared by the threads */
+        ray_state *rs = malloc(tile_rays_n * sizeof *rs);
+        int32_t *lists = NULL; /* the bricks' list heads, then the rays' links */
+        status = !order || !rs ? wvol_error_set(err, WVOL_ERR_NOMEM, "render: out of memory for a tile's rays")
+                               : brick_order_make(&bo, s, &k, err);
+        if (status == WVOL_OK) {
+            lists = malloc((bo.n + tile_rays_n) * sizeof *lists);
+            if (!lists) status = wvol_error_set(err, WVOL_ERR_NOMEM, "render: out of memory for a tile's rays");
+            else
+                for (size_t b = 0; b < bo.n; b++) lists[b] = -1;
+        }
+        for (int ti = 0; status == WVOL_OK && ti < ntiles; ti++) {
+            int x0 = (order[ti] % tx) * p.tile, y0 = (order[ti] / tx) * p.tile;
+            int tw = img->width - x0 < p.tile ? img->width - x0 : p.tile;
+            int th = img->height - y0 < p.tile ? img->height - y0 : p.tile;
+            int n = tile_rays(s, &k, img, lo, hi, dt, x0, y0, tw, th, rs);
+            render_tile_bricked(s, &tfx, &p, dt, rs, n, &bo, lists, lists + bo.n, nthreads);
+            tile_finish(&p, img, x0, y0, tw, rs, n, &counts, &failed);
+        }
+        /* the walk's own: the tile's rays and lists, the order */
+        counts.bytes = tile_rays_n * (sizeof *rs + sizeof *lists) + bo.n * (sizeof *lists + sizeof *bo.key +
+                                                                           sizeof *bo.order);
+        free(rs);
         free(lists);
-        free(s->rate);
-        s->rate = NULL;
-        return wvol_error_set(err, WVOL_ERR_NOMEM, "render: out of memory for the tiles' rays");
-    }
-#pragma omp parallel for schedule(dynamic, 4) num_threads(nthreads) \
-    reduction(+ : rays_hit, samples, skipped, skipped_tol, terminated, clamped) reduction(max : skip_bound)
-    /* chunks of 4 Z-ordered tiles (2 x 2): a thread keeps neighbouring tiles, and with them
-     * the bricks its cache holds */
-    for (int ti = 0; ti < ntiles; ti++) {
-        int x0 = (order[ti] % tx) * p.tile, y0 = (order[ti] / tx) * p.tile, x, y, n = 0, tw, th;
-        int me = omp_get_thread_num();
-        void *tc = s->tctx ? s->tctx[me] : NULL;
-        ray_state *rs;
-        tw = img->width - x0 < p.tile ? img->width - x0 : p.tile;
-        th = img->height - y0 < p.tile ? img->height - y0 : p.tile;
-        if (!states[me]) states[me] = malloc((size_t)p.tile * (size_t)p.tile * sizeof **states);
-        if (s->fetch && !lists[me] && (lists[me] = malloc((bo.n + (size_t)p.tile * (size_t)p.tile) * sizeof **lists)))
-            for (size_t b = 0; b < bo.n; b++) lists[me][b] = -1;
-        rs = states[me];
-        if (!rs || (s->fetch && !lists[me])) {
-#pragma omp atomic write
-            failed = WVOL_ERR_NOMEM;
-            continue;
-        }
-        for (y = y0; y < y0 + th; y++)
-            for (x = x0; x < x0 + tw; x++) {
-                double o[3], d[3], t0, t1;
-                float *px = img->rgba + 4 * ((size_t)x + (size_t)img->width * (size_t)y);
-                px[0] = px[1] = px[2] = px[3] = 0.0f;
-                wvol__cam_ray(&k, x + 0.5, y + 0.5, o, d);
-                if (!wvol__ray_box(o, d, lo, hi, &t0, &t1)) continue;
-                if (cam->projection == WVOL_PERSPECTIVE && t0 < 0) t0 = 0;
-                if (!(t1 > t0)) continue;
-                ray_begin(s, o, d, t0, t1, dt, &rs[n]);
-                rs[n++].pixel = (x - x0) + tw * (y - y0);
+        brick_order_free(&bo);
+    } else if (!order) {
+        status = wvol_error_set(err, WVOL_ERR_NOMEM, "render: out of memory");
+    } else {
+        /* a dense source: tiles over the threads, in chunks of 4 Z-ordered tiles (2 x 2); each
+         * thread's tile of ray states allocated once (allocated per tile, a buffer above
+         * malloc's mmap threshold came back as fresh pages for the kernel to zero each time: 8%
+         * of the process's profile for a 512^2 perspective frame) */
+#pragma omp parallel num_threads(nthreads)
+        {
+            ray_state *rs = malloc(tile_rays_n * sizeof *rs);
+            void *tc = s->tctx ? s->tctx[omp_get_thread_num()] : NULL;
+            wvol__counts mine;
+            wvol_status my_failed = rs ? WVOL_OK : WVOL_ERR_NOMEM;
+            memset(&mine, 0, sizeof mine);
+#pragma omp for schedule(dynamic, 4)
+            for (int ti = 0; ti < ntiles; ti++) {
+                int x0 = (order[ti] % tx) * p.tile, y0 = (order[ti] / tx) * p.tile, n;
+                int tw = img->width - x0 < p.tile ? img->width - x0 : p.tile;
+                int th = img->height - y0 < p.tile ? img->height - y0 : p.tile;
+                if (!rs) continue;
+                n = tile_rays(s, &k, img, lo, hi, dt, x0, y0, tw, th, rs);
+                render_tile(s, tc, &tfx, &p, dt, rs, n);
+                tile_finish(&p, img, x0, y0, tw, rs, n, &mine, &my_failed);
             }
-        rays_hit += (size_t)n;
-        render_tile(s, tc, &tfx, &p, dt, rs, n, &bo, lists[me], lists[me] ? lists[me] + bo.n : NULL);
-        for (int i = 0; i < n; i++) {
-            ray_state *st = &rs[i];
-            ray_pixel(&p, st, img->rgba + 4 * ((size_t)(x0 + st->pixel % tw) + (size_t)img->width * (size_t)(y0 + st->pixel / tw)));
-            samples += st->nsamp;
-            skipped += st->nskip;
-            skipped_tol += st->nskip_tol;
-            if (st->skipped > skip_bound) skip_bound = st->skipped;
-            terminated += (size_t)st->done;
-            clamped += (size_t)st->r.nclamp;
-            if (st->failed != WVOL_OK) {
-#pragma omp atomic write
-                failed = st->failed;
+#pragma omp critical(wvol_render_counts)
+            {
+                counts_add(&counts, &mine);
+                if (my_failed != WVOL_OK) failed = my_failed;
             }
+            free(rs);
         }
     }
-    for (a = 0; a < nthreads; a++) {
-        free(states[a]);
-        free(lists[a]);
-    }
-    free(states);
-    free(lists);
-    brick_order_free(&bo);
     free(order);
     free(s->rate);
     s->rate = NULL;
+    if (status != WVOL_OK) return status;
     WVOL_RETURN_IF(failed != WVOL_OK, err, failed, "render: out of memory (a brick could not be reconstructed, or a tile's rays)");
-    {
-        wvol__counts c = {.rays_hit = rays_hit, .samples = samples, .skipped = skipped,
-                          .skipped_tolerance = skipped_tol, .terminated = terminated, .clamped = clamped,
-                          .skip_bound = skip_bound};
-        if (s->fetch) /* the bricked walk's own: each thread's tile of rays and lists, the order */
-            c.bytes = (size_t)nthreads * ((size_t)p.tile * (size_t)p.tile * (sizeof(ray_state) + sizeof(int32_t)) +
-                                          bo.n * sizeof(int32_t)) +
-                      bo.n * (sizeof *bo.key + sizeof *bo.order);
-        wvol__stats_fill(stats, img, t_start, c_start, &c);
-    }
+    wvol__stats_fill(stats, img, t_start, c_start, &counts);
     return WVOL_OK;
 }
 

@@ -98,8 +98,9 @@ typedef struct wvol__sampler {
     size_t n[3];
     double spacing[3], origin[3];
     int B;                  /* brick grid: filled by the integrator (dense) or prepare() */
-    size_t walk_bytes;      /* prepare(): bytes per thread for a tile's rays (their states
-                               and lists; the tile is the largest that fits), 0: no preference */
+    size_t walk_bytes;      /* prepare(): bytes for a tile's rays (their states and lists;
+                               the tile is the largest that fits; the threads share it), 0: no
+                               preference */
     size_t bn[3];
     double *rate;           /* dense: each brick's wvol__brick_rate; freed by the integrator */
 } wvol__sampler;
