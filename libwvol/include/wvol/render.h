@@ -145,9 +145,9 @@ typedef struct wvol_render_params {
     int threads;            /* 0: OpenMP's default */
     int tile;               /* tile side in pixels; 0 (default): 16, or for the bricked path
                                the largest tile whose rays fit a quarter of the dense
-                               volume's size over the threads (a tile's rays walk its bricks
-                               together and build each once: 256 for a 512^2 frame of a
-                               256^3 volume with one thread) */
+                               volume's size (a tile's rays walk its bricks together and
+                               build each once; the threads share a tile: 256 for a 512^2
+                               frame of a 256^3 volume) */
     int brick;              /* reference: min/max brick side for empty-space skipping, voxels
                                (default 8; 0 = off) */
     wvol_sample_kind sample;/* reference only */

@@ -18,7 +18,7 @@
  *   is not reconstructed. After reconstruction its actual min/max decide like the dense
  *   path's min/max grid, so skipping at tolerance 0 never changes the image.
  * - Threads take image tiles, whose rays walk the bricks in front-to-back order (reference.c,
- *   render_tile), so a tile builds each brick it needs once; each thread keeps a few built
+ *   render_tile_bricked), so a tile builds each brick it needs once; each thread keeps a few built
  *   bricks (least recently used evicted).
  * Samples, weights and compositing are the reference's, so on the same voxels the image
  * is the reference's image to float rounding (tests/c/test_render_bricks.c). */
@@ -445,7 +445,7 @@ hit:
 }
 
 /* Slots of a thread's brick cache. A tile's rays walk brick by brick in front-to-back order
- * (reference.c, render_tile), so a brick is needed only while its rays take their runs in it:
+ * (reference.c, render_tile_bricked), so a brick is needed only while its rays take their runs in it:
  * one slot would do; a few keep the bricks a ray meets out of that order (which the order
  * rules out for a straight walk) from being rebuilt. */
 #define CACHE_SLOTS 4

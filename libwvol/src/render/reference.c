@@ -639,7 +639,7 @@ static inline __attribute__((always_inline)) int run(const wvol__sampler *s, con
  * to back, in runs of full steps, one run per brick crossed (ray_advance), then the last,
  * shorter step (ray_last). A dense source's view is the whole volume; a bricked source's
  * is fetched (through the thread's context) at the start of each run, so no view is held
- * from one run to the next: other rays' fetches may evict it meanwhile (render_tile). */
+ * from one run to the next: other rays' fetches may evict it meanwhile (render_tile_bricked). */
 typedef struct ray_state {
     double x0[3], e[3];         /* start and direction in index units (world direction: ray_dir) */
     double t0, t1, t_exit;      /* the ray's interval; where it leaves its current brick */

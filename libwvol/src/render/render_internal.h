@@ -42,7 +42,7 @@ wvol_status wvol__check_skip(const wvol_render_params *p, int supported, wvol_er
 
 /* Per-tile parallel loop helpers. The tile side: params->tile, or for its default (0) the
  * source's preferred side when it has one (a bricked source's tile rays walk its bricks
- * together, render_tile in reference.c: as large as the memory bricks.c grants allows),
+ * together, render_tile_bricked in reference.c: as large as the memory bricks.c grants allows),
  * else 16. */
 int wvol__tile_side(const wvol_render_params *p, int preferred);
 int wvol__tiles(int width, int height, int tile);
