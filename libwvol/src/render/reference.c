@@ -903,8 +903,9 @@ static wvol_status brick_order_make(brick_order *bo, const wvol__sampler *s, con
     }
     bo->key = malloc(bo->n * sizeof *bo->key);
     bo->order = malloc(bo->n * sizeof *bo->order);
+    bo->start = malloc((kmax + 2) * sizeof *bo->start);
     count = calloc(kmax + 2, sizeof *count); /* keys are at most kmax - 3 */
-    if (!bo->key || !bo->order || !count) {
+    if (!bo->key || !bo->order || !bo->start || !count) {
         free(count);
         brick_order_free(bo);
         return wvol_error_set(err, WVOL_ERR_NOMEM, "render: out of memory for the brick order");
@@ -922,12 +923,6 @@ static wvol_status brick_order_make(brick_order *bo, const wvol__sampler *s, con
     }
     for (b = 1; b <= kmax + 1; b++) count[b] += count[b - 1]; /* counting sort by key */
     bo->nkeys = kmax + 1;
-    bo->start = malloc((kmax + 2) * sizeof *bo->start);
-    if (!bo->start) {
-        free(count);
-        brick_order_free(bo);
-        return wvol_error_set(err, WVOL_ERR_NOMEM, "render: out of memory for the brick order");
-    }
     memcpy(bo->start, count, (kmax + 2) * sizeof *count);
     for (b = 0; b < bo->n; b++) bo->order[count[bo->key[b]]++] = (uint32_t)b;
     free(count);
