@@ -271,8 +271,6 @@ typedef struct brick_src {
 typedef struct brick_cache {
     const brick_src *src;
     size_t nslots, nused;
-    long last_b;             /* the brick fetched last and its slot: the next ray of the */
-    size_t last_slot;        /* brick's list needs the same one */
     long *id;                /* per slot: brick index or -1 */
     uint64_t *used;          /* per slot: last use */
     float *data;             /* per slot: slot_floats */
@@ -301,7 +299,6 @@ static brick_cache *cache_new(const brick_src *src, size_t slots)
     if (!c) return NULL;
     c->src = src;
     c->nslots = slots;
-    c->last_b = -1;
     c->id = malloc(slots * sizeof *c->id);
     c->used = calloc(slots, sizeof *c->used);
     c->data = malloc(slots * src->slot_floats * sizeof *c->data);
@@ -371,10 +368,6 @@ static wvol_status fetch(void *tctx, size_t b, double allow, wvol__view *view, d
     size_t slot;
     long lo[3], hi[3];
     c->clock++;
-    if (c->last_b == (long)b) {
-        slot = c->last_slot;
-        goto hit;
-    }
     for (slot = 0; slot < c->nused; slot++)
         if (c->id[slot] == (long)b) goto hit;
     brick_box(src, b, lo, hi);
@@ -408,7 +401,6 @@ static wvol_status fetch(void *tctx, size_t b, double allow, wvol__view *view, d
             for (i = 1; i < c->nslots; i++)
                 if (c->used[i] < c->used[slot]) slot = i;
             c->id[slot] = -1;
-            if (c->last_slot == slot) c->last_b = -1;
         }
         d = c->data + slot * src->slot_floats;
         for (int a = 0; a < 3; a++) {
@@ -437,8 +429,6 @@ static wvol_status fetch(void *tctx, size_t b, double allow, wvol__view *view, d
     }
 hit:
     c->used[slot] = c->clock;
-    c->last_b = (long)b;
-    c->last_slot = slot;
     *view = c->view[slot];
     *rate = c->rate[slot];
     return WVOL_OK;

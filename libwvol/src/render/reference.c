@@ -353,25 +353,6 @@ static inline __attribute__((always_inline)) int step(const wvol__sampler *s, co
 #define RUN_BLOCK 8
 
 #if defined(__SSE2__)
-/* Full steps *k .. ke - 1 of a ray strictly inside one view, without shading or colour
- * volume, in blocks of RUN_BLOCK samples computed lane-parallel in SSE2 (every x86-64 has
- * it): the block's positions, voxel offsets and trilinear weights two lanes per double
- * operation; a voxel row's two neighbours along x as one 64-bit load, two shuffles turning
- * four lanes' pairs into the four low and the four high neighbours, so the interpolation
- * runs four lanes per float operation; the transfer function and the exponential two lanes
- * per operation (the table read as two loads); then the compositing, sample by sample (the
- * only dependency from one sample to the next). Sample by sample (step), each sample's
- * chain (about 140 instructions: addresses, eight loads, interpolation, transfer function,
- * exponential, and for a dense volume cache misses) ended before the next could start
- * beyond what the out-of-order window holds; here the block's chains overlap. (Written as
- * plain loops over the lanes, the compiler's vectorisation gathered voxels one float at a
- * time and converted lane by lane, ~190 instructions a sample; GCC's generic 8-lane vector
- * types did no better.) Each operation is step's, lane-wise (IEEE, same order, no fused
- * multiply-add on baseline x86-64), so the image is the same bit for bit, which the tests
- * check against the per-sample path; voxel offsets are computed in double, exact below
- * 2^53, and the view must have fewer than 2^31 voxels (view->blocked_ok). A short last
- * block repeats its last sample in the spare lanes. Returns 1 when the ray terminates, *k
- * then the terminating step. Other targets take the per-sample loop. */
 /* A block's sample positions: per lane its voxel's offset in the view's data and its
  * trilinear weights (two quads of lanes). Exact: t = t0 + ((kk + l) + 0.5) dt and x = x0 + t e
  * in double as step() computes them, lanes past nb repeating the last sample. */
@@ -434,6 +415,28 @@ static inline __attribute__((always_inline)) void block_positions_local(const wv
     _mm_storeu_si128((__m128i *)(void *)(idx + 4), _mm_cvttps_epi32(off[1]));
 }
 
+/* Full steps *k .. ke - 1 of a ray strictly inside one view, without shading or colour
+ * volume, in blocks of RUN_BLOCK samples computed lane-parallel in SSE2 (every x86-64 has
+ * it): the block's positions, voxel offsets and trilinear weights (block_positions, two
+ * lanes per double operation; block_positions_local for a brick, four per float operation);
+ * a voxel row's two neighbours along x as one 64-bit load, two shuffles turning four lanes'
+ * pairs into the four low and the four high neighbours, so the interpolation runs four
+ * lanes per float operation; the transfer function and the exponential two lanes per
+ * operation (the table read as two loads); then the compositing, sample by sample (the only
+ * dependency from one sample to the next), or for a one-colour TF in absorption mode one
+ * exponential for the whole block. Sample by sample (step), each sample's chain (about 140
+ * instructions: addresses, eight loads, interpolation, transfer function, exponential, and
+ * for a dense volume cache misses) ended before the next could start beyond what the
+ * out-of-order window holds; here the block's chains overlap. (Written as plain loops over
+ * the lanes, the compiler's vectorisation gathered voxels one float at a time and converted
+ * lane by lane, ~190 instructions a sample; GCC's generic 8-lane vector types did no
+ * better.) On a dense view each operation is step's, lane-wise (IEEE, same order, no fused
+ * multiply-add on baseline x86-64), so the transmittance is the same bit for bit, and so is
+ * every channel but with the one-colour shortcut (the same integral, rounded differently),
+ * which the tests check against the per-sample path; voxel offsets are computed in double,
+ * exact below 2^53, and the view must have fewer than 2^31 voxels (view->blocked_ok). A
+ * short last block repeats its last sample in the spare lanes. Returns 1 when the ray
+ * terminates, *k then the terminating step. Other targets take the per-sample loop. */
 static inline __attribute__((always_inline)) int run_blocked(const wvol__view *view, const tf_fast *tfx,
                                                              const wvol_render_params *p,
                                                              const wvol_render_mode mode, const double x0[3],
@@ -513,7 +516,7 @@ static inline __attribute__((always_inline)) int run_blocked(const wvol__view *v
                 rgb[0][l] = c[0], rgb[1][l] = c[1], rgb[2][l] = c[2];
             }
         }
-        if (mode == WVOL_MODE_ABSORPTION && grey) {
+        if (grey) {
             /* One colour c: the block's colour sum_l T_l alpha_l c is c (T_0 - T_nb) (T_l+1 =
              * T_l (1 - alpha_l)), and T_nb = T_0 exp(-dt sum_l kappa_l): one exponential for
              * the block instead of one per sample. The same integral (the step-corrected
