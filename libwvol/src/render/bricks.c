@@ -166,36 +166,77 @@ static ptrdiff_t next_block_step(size_t pos, size_t e)
     return (ptrdiff_t)(step < e - pos ? step : e - pos);
 }
 
-/* Whether any block of the region (lo, n) of a band is present: a scan of its directory
- * entries, a few dozen, before the gather writes the region's positions one by one. At 5%
- * most bands have no kept coefficient near a given brick (a 16^3 brick's finest-level region
- * is 11^3 positions in at most 4^3 blocks), and their zeros need not be written at all. */
-static int region_has_blocks(const band_view *bv, const ptrdiff_t lo[3], const ptrdiff_t n[3])
+/* The kept positions of a 4^3 block (bit x + 4 y + 16 z) inside the box [x0, x0 + rx) x
+ * [y0, y0 + ry) x [z0, z0 + rz) of block-local positions (a row's bits repeated over the rows
+ * and planes by a multiplication: the copies never overlap, so nothing carries). */
+static inline uint64_t piece_bits(size_t x0, size_t rx, size_t y0, size_t ry, size_t z0, size_t rz)
 {
-    for (ptrdiff_t k = 0; k < n[2];) {
-        size_t z = wrap(lo[2] + k, bv->e[2]);
-        for (ptrdiff_t j = 0; j < n[1];) {
-            size_t y = wrap(lo[1] + j, bv->e[1]);
-            const uint32_t *drow = bv->dir + bv->nb[0] * ((y >> CB_SHIFT) + bv->nb[1] * (z >> CB_SHIFT));
-            for (ptrdiff_t i = 0; i < n[0];) {
-                size_t x = wrap(lo[0] + i, bv->e[0]);
-                if (drow[x >> CB_SHIFT]) return 1;
-                i += next_block_step(x, bv->e[0]);
-            }
-            j += next_block_step(y, bv->e[1]);
-        }
-        k += next_block_step(z, bv->e[2]);
-    }
-    return 0;
+    const uint64_t row = (((uint64_t)1 << rx) - 1) << x0;
+    const uint64_t rows = ((((uint64_t)1 << (4 * ry)) - 1) / 0xf) << (4 * y0); /* 0x1111.. */
+    const uint64_t planes = ((rz == 4 ? ~(uint64_t)0 : ((uint64_t)1 << (16 * rz)) - 1) / 0xffff) << (16 * z0);
+    return row * rows * planes;
 }
 
-/* wvol__coef_source gather through the view (cloned: its population counts are an
- * instruction on x86-64-v3, a library call on the baseline). */
-WVOL__CLONES static int gather_blocks(const void *ctx, double *dst, int m, int band, const ptrdiff_t lo[3], const ptrdiff_t n[3])
+/* A band's region (lo, n), taken periodically, from the view: the region is cut where a
+ * block or the period ends into pieces that each lie in one block (next_block_step); a
+ * present block's kept positions inside its piece are written, a value's index counted up
+ * over the block's bits in position order. dst is zeroed at the first present block; 0
+ * when there is none (dst untouched: the caller skips the band). The work follows the
+ * directory entries and the kept positions, not the region's positions: at 5% a brick's
+ * finest-level region meets a hundred or so entries, most of them absent. (Row by row, the
+ * zeroing and the lookups of every row took as long as the synthesis.) */
+static int gather_sparse(const coef_blocks *cb, const band_view *bv, float *dst, const ptrdiff_t lo[3],
+                         const ptrdiff_t n[3])
+{
+    const size_t sy = (size_t)n[0], sz = (size_t)(n[0] * n[1]);
+    int any = 0;
+    for (ptrdiff_t k = 0; k < n[2];) {
+        const size_t z = wrap(lo[2] + k, bv->e[2]);
+        const ptrdiff_t rz = next_block_step(z, bv->e[2]) < n[2] - k ? next_block_step(z, bv->e[2]) : n[2] - k;
+        for (ptrdiff_t j = 0; j < n[1];) {
+            const size_t y = wrap(lo[1] + j, bv->e[1]);
+            const ptrdiff_t ry = next_block_step(y, bv->e[1]) < n[1] - j ? next_block_step(y, bv->e[1]) : n[1] - j;
+            const uint32_t *drow = bv->dir + bv->nb[0] * ((y >> CB_SHIFT) + bv->nb[1] * (z >> CB_SHIFT));
+            for (ptrdiff_t i = 0; i < n[0];) {
+                const size_t x = wrap(lo[0] + i, bv->e[0]);
+                const ptrdiff_t rx = next_block_step(x, bv->e[0]) < n[0] - i ? next_block_step(x, bv->e[0]) : n[0] - i;
+                const uint32_t blk = drow[x >> CB_SHIFT];
+                if (blk) {
+                    const cblock *b = &cb->blocks[blk - 1];
+                    const uint64_t in = piece_bits(x & (CB - 1), (size_t)rx, y & (CB - 1), (size_t)ry, z & (CB - 1),
+                                                   (size_t)rz);
+                    /* the piece's first position, and a kept bit's offset from it */
+                    float *base = dst + (size_t)i + sy * (size_t)j + sz * (size_t)k;
+                    const ptrdiff_t bx = (ptrdiff_t)(x & (CB - 1)), by = (ptrdiff_t)(y & (CB - 1)),
+                                    bz = (ptrdiff_t)(z & (CB - 1));
+                    const float *vals = cb->values + b->first;
+                    if (!any) {
+                        memset(dst, 0, (size_t)n[2] * sz * sizeof *dst);
+                        any = 1;
+                    }
+                    for (uint64_t bits = b->mask; bits; bits &= bits - 1, vals++) {
+                        const int bit = __builtin_ctzll(bits);
+                        if ((in >> bit) & 1)
+                            base[((bit & 3) - bx) + (ptrdiff_t)sy * (((bit >> 2) & 3) - by) +
+                                 (ptrdiff_t)sz * ((bit >> 4) - bz)] = *vals;
+                    }
+                }
+                i += rx;
+            }
+            j += ry;
+        }
+        k += rz;
+    }
+    return any;
+}
+
+/* wvol__coef_source gather through the view: the low-pass cube read densely, a detail band
+ * through its blocks (gather_sparse). */
+static int gather_blocks(const void *ctx, float *dst, int m, int band, const ptrdiff_t lo[3],
+                         const ptrdiff_t n[3])
 {
     const coef_blocks *cb = ctx;
     size_t t = 0;
-    int any = 0;
     if (m == cb->M && band == 0) {
         for (ptrdiff_t k = 0; k < n[2]; k++) {
             size_t z = wrap(lo[2] + k, cb->E[2]);
@@ -211,42 +252,7 @@ WVOL__CLONES static int gather_blocks(const void *ctx, double *dst, int m, int b
         return 1;
     }
     const band_view *bv = &cb->bv[m][band];
-    if (!bv->dir || !region_has_blocks(bv, lo, n)) return 0; /* all zero: the caller skips the band */
-    for (ptrdiff_t k = 0; k < n[2]; k++) {
-        size_t z = wrap(lo[2] + k, bv->e[2]);
-        for (ptrdiff_t j = 0; j < n[1]; j++) {
-            size_t y = wrap(lo[1] + j, bv->e[1]);
-            const uint32_t *drow = bv->dir + bv->nb[0] * ((y >> CB_SHIFT) + bv->nb[1] * (z >> CB_SHIFT));
-            size_t inner = CB * ((y & (CB - 1)) + CB * (z & (CB - 1)));
-            size_t x = wrap(lo[0], bv->e[0]);
-            memset(dst + t, 0, (size_t)n[0] * sizeof *dst); /* then the kept positions, few */
-            for (ptrdiff_t i = 0; i < n[0];) {
-                /* a run of positions within one block */
-                size_t run = CB - (x & (CB - 1)), left = (size_t)(n[0] - i);
-                uint32_t blk = drow[x >> CB_SHIFT];
-                if (run > left) run = left;
-                if (run > bv->e[0] - x) run = bv->e[0] - x;
-                if (blk) {
-                    const cblock *b = &cb->blocks[blk - 1];
-                    int bit0 = (int)(inner + (x & (CB - 1)));
-                    /* the run's kept positions: its bits of the mask, lowest first; a value's
-                     * index is the count of kept positions below it in the block (one
-                     * population count: baseline x86-64 has no instruction for it, each is a
-                     * library call; then counted up) */
-                    uint64_t below = b->mask & (((uint64_t)1 << bit0) - 1);
-                    uint64_t bits = (b->mask >> bit0) & (((uint64_t)1 << run) - 1);
-                    const float *vals = cb->values + b->first + __builtin_popcountll(below);
-                    for (; bits; bits &= bits - 1) dst[t + (size_t)__builtin_ctzll(bits)] = *vals++;
-                    any = 1;
-                }
-                t += run;
-                i += (ptrdiff_t)run;
-                x += run;
-                if (x == bv->e[0]) x = 0;
-            }
-        }
-    }
-    return any;
+    return bv->dir ? gather_sparse(cb, bv, dst, lo, n) : 0; /* 0: all zero, the caller skips the band */
 }
 
 /* ---- the source: bounds, per-thread brick caches ------------------------------------------ */

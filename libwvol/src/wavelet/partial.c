@@ -66,7 +66,7 @@ static size_t region_count(const ptrdiff_t n[3]) { return (size_t)(n[0] * n[1] *
 
 /* Dense source: band `band` of level m of a wvol_coeffs on the region (indices taken
  * periodically). Returns 0 when every value is zero. */
-static int gather_dense(const void *ctx, double *dst, int m, int band, const ptrdiff_t lo[3], const ptrdiff_t n[3])
+static int gather_dense(const void *ctx, float *dst, int m, int band, const ptrdiff_t lo[3], const ptrdiff_t n[3])
 {
     const wvol_coeffs *c = ctx;
     size_t pad[3] = {c->px, c->py, c->pz}, e[3], off[3];
@@ -135,18 +135,18 @@ static inline void tap_range(ptrdiff_t gi, ptrdiff_t L, ptrdiff_t k0, ptrdiff_t 
 
 /* A run of outputs along y or z (inner > 1): o[x] = sum_j wh[j] l[j][x] + wg[j] h[j][x]
  * over whole inner rows, in one pass (the general loop adds each tap into o in its own pass). */
-static inline __attribute__((always_inline)) void synth_rows_fixed(double *restrict o, const double *const *l,
-                                                                   const double *const *h, const double *wh,
-                                                                   const double *wg, ptrdiff_t inner, const int NT,
+static inline __attribute__((always_inline)) void synth_rows_fixed(float *restrict o, const float *const *l,
+                                                                   const float *const *h, const float *wh,
+                                                                   const float *wg, ptrdiff_t inner, const int NT,
                                                                    const int WHICH)
 {
-    const double *lr[SYNTH_FIXED_MAX], *hr[SYNTH_FIXED_MAX];
+    const float *lr[SYNTH_FIXED_MAX], *hr[SYNTH_FIXED_MAX];
     for (int j = 0; j < NT; j++) {
         lr[j] = WHICH & 1 ? l[j] : NULL;
         hr[j] = WHICH & 2 ? h[j] : NULL;
     }
     for (ptrdiff_t x = 0; x < inner; x++) {
-        double acc = 0.0;
+        float acc = 0.0;
         for (int j = 0; j < NT; j++) {
             if (WHICH == 3) acc += wh[j] * lr[j][x] + wg[j] * hr[j][x];
             else if (WHICH == 1) acc += wh[j] * lr[j][x];
@@ -160,15 +160,15 @@ static inline __attribute__((always_inline)) void synth_rows_fixed(double *restr
  * interior both read the same NT consecutive inputs from r0[i], with taps that depend only on
  * the parity (eh, eg for the first of a pair, oh, og for the second), so a pair is two sums
  * side by side over shared loads instead of two gathers of their own. */
-static inline __attribute__((always_inline)) void synth_x_pairs(double *restrict o, const double *lu,
-                                                                const double *hu, const ptrdiff_t *r0,
-                                                                const double *eh, const double *eg,
-                                                                const double *oh, const double *og, ptrdiff_t i0,
+static inline __attribute__((always_inline)) void synth_x_pairs(float *restrict o, const float *lu,
+                                                                const float *hu, const ptrdiff_t *r0,
+                                                                const float *eh, const float *eg,
+                                                                const float *oh, const float *og, ptrdiff_t i0,
                                                                 ptrdiff_t i1, const int NT, const int WHICH)
 {
     for (ptrdiff_t i = i0; i + 1 < i1; i += 2) {
-        const double *l = WHICH & 1 ? lu + r0[i] : NULL, *h = WHICH & 2 ? hu + r0[i] : NULL;
-        double e = 0.0, d = 0.0;
+        const float *l = WHICH & 1 ? lu + r0[i] : NULL, *h = WHICH & 2 ? hu + r0[i] : NULL;
+        float e = 0.0, d = 0.0;
         for (int j = 0; j < NT; j++) {
             if (WHICH == 3) {
                 e += eh[j] * l[j] + eg[j] * h[j];
@@ -196,16 +196,16 @@ static inline __attribute__((always_inline)) void synth_x_pairs(double *restrict
     default: return 0;                                                                                       \
     }
 
-static int synth_rows_any(double *o, const double *const *l, const double *const *h, const double *wh,
-                          const double *wg, ptrdiff_t inner, int nt, int which)
+static int synth_rows_any(float *o, const float *const *l, const float *const *h, const float *wh,
+                          const float *wg, ptrdiff_t inner, int nt, int which)
 {
 #define ROWS_CALL(N, W) synth_rows_fixed(o, l, h, wh, wg, inner, N, W)
     SYNTH_CASES(ROWS_CALL)
 #undef ROWS_CALL
 }
 
-static int synth_x_pairs_any(double *o, const double *lu, const double *hu, const ptrdiff_t *r0, const double *eh,
-                             const double *eg, const double *oh, const double *og, ptrdiff_t i0, ptrdiff_t i1,
+static int synth_x_pairs_any(float *o, const float *lu, const float *hu, const ptrdiff_t *r0, const float *eh,
+                             const float *eg, const float *oh, const float *og, ptrdiff_t i0, ptrdiff_t i1,
                              int nt, int which)
 {
 #define PAIRS_CALL(N, W) synth_x_pairs(o, lu, hu, r0, eh, eg, oh, og, i0, i1, N, W)
@@ -223,10 +223,10 @@ static int synth_x_pairs_any(double *o, const double *lu, const double *hu, cons
 
 /* Output i of a planned x row: its taps first[i] .. first[i + 1] - 1 summed in the order of k
  * (which: 1 low band only, 2 high only, 3 both). */
-static inline double planned_sum(const double *lu, const double *hu, const ptrdiff_t *rel, const double *wh,
-                                 const double *wg, const ptrdiff_t *first, ptrdiff_t i, int which)
+static inline float planned_sum(const float *lu, const float *hu, const ptrdiff_t *rel, const float *wh,
+                                 const float *wg, const ptrdiff_t *first, ptrdiff_t i, int which)
 {
-    double acc = 0.0;
+    float acc = 0.0;
     for (ptrdiff_t t = first[i]; t < first[i + 1]; t++) {
         if (which == 3) acc += wh[t] * lu[rel[t]] + wg[t] * hu[rel[t]];
         else if (which == 1) acc += wh[t] * lu[rel[t]];
@@ -235,12 +235,12 @@ static inline double planned_sum(const double *lu, const double *hu, const ptrdi
     return acc;
 }
 
-static void synth_x_planned(double *out, const double *lo, const double *hi, ptrdiff_t kn, ptrdiff_t k0,
+static void synth_x_planned(float *out, const float *lo, const float *hi, ptrdiff_t kn, ptrdiff_t k0,
                             ptrdiff_t o0, ptrdiff_t on, ptrdiff_t outer, int full, const wvol_filter *f)
 {
     ptrdiff_t rel[SYNTH_PLAN_MAX], first[SYNTH_PLAN_MAX + 1], r0[SYNTH_PLAN_MAX], L = f->length, nt = 0;
     ptrdiff_t p0 = (o0 & 1) ? 1 : 0, p1; /* the pairs: outputs p0 .. p1 - 1, the first of each even */
-    double wh[SYNTH_PLAN_MAX], wg[SYNTH_PLAN_MAX];
+    float wh[SYNTH_PLAN_MAX], wg[SYNTH_PLAN_MAX];
     int paired, taps, which = (lo ? 1 : 0) | (hi ? 2 : 0);
     for (ptrdiff_t i = 0; i < on; i++) {
         ptrdiff_t gi = o0 + i, kmin, kmax, r;
@@ -268,8 +268,8 @@ static void synth_x_planned(double *out, const double *lo, const double *hi, ptr
                 paired = 0;
     }
     for (ptrdiff_t u = 0; u < outer; u++) {
-        const double *lu = lo ? lo + u * kn : NULL, *hu = hi ? hi + u * kn : NULL;
-        double *restrict o = out + u * on;
+        const float *lu = lo ? lo + u * kn : NULL, *hu = hi ? hi + u * kn : NULL;
+        float *restrict o = out + u * on;
         if (paired && synth_x_pairs_any(o, lu, hu, r0, wh + first[p0], wg + first[p0], wh + first[p0 + 1],
                                         wg + first[p0 + 1], p0, p1, taps, which)) {
             /* the unpaired first and last outputs */
@@ -291,7 +291,7 @@ static void synth_x_planned(double *out, const double *lo, const double *hi, ptr
  * zero) cover the region (in_lo, in_n) (along the axis [k0, k0+kn)), out covers [o0, o0+on)
  * along the axis and in's extent along the others. out[i] = sum_k h[i-2k] lo[k] + g[i-2k]
  * hi[k], 0 <= i-2k < L. When the input region is a whole period (full), k is taken modulo it. */
-static void synth_axis(double *out, const double *lo, const double *hi, const ptrdiff_t in_lo[3],
+static void synth_axis(float *out, const float *lo, const float *hi, const ptrdiff_t in_lo[3],
                        const ptrdiff_t in_n[3], ptrdiff_t o0, ptrdiff_t on, int axis, int full, const wvol_filter *f)
 {
     /* [outer][axis][inner] view, inner contiguous: the tap loop adds whole inner rows
@@ -304,17 +304,17 @@ static void synth_axis(double *out, const double *lo, const double *hi, const pt
         return;
     }
     for (ptrdiff_t u = 0; u < outer; u++) {
-        const double *lu = lo ? lo + u * kn * inner : NULL, *hu = hi ? hi + u * kn * inner : NULL;
+        const float *lu = lo ? lo + u * kn * inner : NULL, *hu = hi ? hi + u * kn * inner : NULL;
         for (ptrdiff_t i = 0; i < on; i++) {
-            double *restrict o = out + (u * on + i) * inner;
+            float *restrict o = out + (u * on + i) * inner;
             ptrdiff_t gi = o0 + i, kmin, kmax, k, rel; /* rel: stepped without a division per tap */
             tap_range(gi, L, k0, kn, full, &kmin, &kmax, &rel);
             if (inner == 1) {
                 /* the x axis: one output per row position, summed in a register (adding
                  * into o[0] tap by tap made every tap wait for the last one's store) */
-                double acc = 0.0;
+                float acc = 0.0;
                 for (k = kmin; k <= kmax; k++) {
-                    double wh = f->h[gi - 2 * k], wg = f->g[gi - 2 * k];
+                    float wh = f->h[gi - 2 * k], wg = f->g[gi - 2 * k];
                     if (lu && hu) acc += wh * lu[rel] + wg * hu[rel]; /* the order below: same sums */
                     else if (lu) acc += wh * lu[rel];
                     else acc += wg * hu[rel];
@@ -324,8 +324,8 @@ static void synth_axis(double *out, const double *lo, const double *hi, const pt
                 continue;
             }
             if (kmax - kmin < SYNTH_FIXED_MAX) { /* a short filter: its rows in one pass */
-                const double *lr[SYNTH_FIXED_MAX], *hr[SYNTH_FIXED_MAX];
-                double wh[SYNTH_FIXED_MAX], wg[SYNTH_FIXED_MAX];
+                const float *lr[SYNTH_FIXED_MAX], *hr[SYNTH_FIXED_MAX];
+                float wh[SYNTH_FIXED_MAX], wg[SYNTH_FIXED_MAX];
                 int nt = 0;
                 for (k = kmin; k <= kmax; k++, nt++) {
                     wh[nt] = f->h[gi - 2 * k], wg[nt] = f->g[gi - 2 * k];
@@ -338,15 +338,15 @@ static void synth_axis(double *out, const double *lo, const double *hi, const pt
             }
             for (ptrdiff_t x = 0; x < inner; x++) o[x] = 0.0;
             for (k = kmin; k <= kmax; k++) {
-                double wh = f->h[gi - 2 * k], wg = f->g[gi - 2 * k];
+                float wh = f->h[gi - 2 * k], wg = f->g[gi - 2 * k];
                 if (lu && hu) {
-                    const double *restrict l = lu + rel * inner, *restrict hh = hu + rel * inner;
+                    const float *restrict l = lu + rel * inner, *restrict hh = hu + rel * inner;
                     for (ptrdiff_t x = 0; x < inner; x++) o[x] += wh * l[x] + wg * hh[x];
                 } else if (lu) {
-                    const double *restrict l = lu + rel * inner;
+                    const float *restrict l = lu + rel * inner;
                     for (ptrdiff_t x = 0; x < inner; x++) o[x] += wh * l[x];
                 } else {
-                    const double *restrict hh = hu + rel * inner;
+                    const float *restrict hh = hu + rel * inner;
                     for (ptrdiff_t x = 0; x < inner; x++) o[x] += wg * hh[x];
                 }
                 if (++rel == kn) rel = 0;
@@ -356,10 +356,10 @@ static void synth_axis(double *out, const double *lo, const double *hi, const pt
 }
 
 /* Scratch arrays: grown, never shrunk; freed by wvol__brick_scratch_free. */
-static double *scratch_get(wvol__brick_scratch *s, int slot, size_t n)
+static float *scratch_get(wvol__brick_scratch *s, int slot, size_t n)
 {
     if (s->cap[slot] < n) {
-        double *p = realloc(s->buf[slot], n * sizeof *p);
+        float *p = realloc(s->buf[slot], n * sizeof *p);
         if (!p) return NULL;
         s->buf[slot] = p;
         s->cap[slot] = n;
@@ -376,7 +376,7 @@ void wvol__brick_scratch_free(wvol__brick_scratch *s)
 size_t wvol__brick_scratch_bytes(const wvol__brick_scratch *s)
 {
     size_t b = 0;
-    for (int i = 0; i < WVOL__BRICK_SCRATCH; i++) b += s->cap[i] * sizeof(double);
+    for (int i = 0; i < WVOL__BRICK_SCRATCH; i++) b += s->cap[i] * sizeof(float);
     return b;
 }
 
@@ -386,7 +386,7 @@ wvol_status wvol__idwt3_brick_src(float *out, const wvol__coef_source *src, cons
     const size_t *pad = src->pad;
     ptrdiff_t rlo[33][3], rn[33][3];
     /* bands[b] is scratch slot slot[b] or NULL (all zero); slots 0..7 hold bands, 8..15 spare */
-    double *bands[8];
+    float *bands[8];
     int slot[8], free_slots[16], nfree = 0, M = src->levels, a;
     size_t outn = (hi[0] - lo[0]) * (hi[1] - lo[1]) * (hi[2] - lo[2]);
     WVOL_RETURN_IF(M < 0 || M > 32, err, WVOL_ERR_ARG, "brick: %d levels", M);
@@ -453,7 +453,7 @@ wvol_status wvol__idwt3_brick_src(float *out, const wvol__coef_source *src, cons
                 if (b & half) continue;
                 if (!bands[b] && !bands[b | half]) continue; /* both zero: the output is zero */
                 int so = free_slots[--nfree];
-                double *o = scratch_get(scr, so, ncnt);
+                float *o = scratch_get(scr, so, ncnt);
                 if (!o) return wvol_error_set(err, WVOL_ERR_NOMEM, "brick: out of memory");
                 synth_axis(o, bands[b], bands[b | half], cl, cn, rlo[m - 1][ax], rn[m - 1][ax], ax,
                            cn[ax] == (ptrdiff_t)wvol__extent(pad[ax], m), src->filter);

@@ -51,7 +51,7 @@ static inline size_t wvol__extent(size_t p, int m) { return p == 1 ? 1 : p >> m;
  * taken modulo the band's extent, x fastest; it returns 0 when every value there is
  * zero (dst need not be written then), which lets the synthesis skip that band. */
 typedef struct wvol__coef_source {
-    int (*gather)(const void *ctx, double *dst, int m, int band, const ptrdiff_t lo[3], const ptrdiff_t n[3]);
+    int (*gather)(const void *ctx, float *dst, int m, int band, const ptrdiff_t lo[3], const ptrdiff_t n[3]);
     const void *ctx;
     const wvol_filter *filter;
     int levels;
@@ -63,7 +63,7 @@ void wvol__coef_source_of_coeffs(wvol__coef_source *src, const wvol_coeffs *c);
 /* Reusable scratch of one reconstruction (one per thread). Start zeroed. */
 #define WVOL__BRICK_SCRATCH 16
 typedef struct wvol__brick_scratch {
-    double *buf[WVOL__BRICK_SCRATCH];
+    float *buf[WVOL__BRICK_SCRATCH];
     size_t cap[WVOL__BRICK_SCRATCH];
 } wvol__brick_scratch;
 
