@@ -415,6 +415,23 @@ static inline __attribute__((always_inline)) void block_positions_local(const wv
     _mm_storeu_si128((__m128i *)(void *)(idx + 4), _mm_cvttps_epi32(off[1]));
 }
 
+/* run_blocked's one-colour path: the sum of kappa over samples (times dt, the optical depth)
+ * after which T, now T, would fall to the termination threshold, less a relative 1e-9 (the
+ * rounding of log and of the exponential later is far below that); -1 when T is already
+ * below it. */
+static inline double grey_limit(double T, double term, double dt)
+{
+    return T > term ? log(T / term) / dt * (1.0 - 1e-9) : -1.0;
+}
+
+/* ... and T and the colour brought up to date: the samples summed since T was T_base. */
+static inline void grey_flush(const tf_fast *tfx, double dt, double T_base, double od, ray_acc *r)
+{
+    const double Tn = T_base * exp_neg(-(od * dt), tfx->exp2_256);
+    for (int c = 0; c < 3; c++) r->acc[c] += tfx->rgb[c] * (T_base - Tn);
+    r->T = Tn;
+}
+
 /* Full steps *k .. ke - 1 of a ray strictly inside one view, without shading or colour
  * volume, in blocks of RUN_BLOCK samples computed lane-parallel in SSE2 (every x86-64 has
  * it): the block's positions, voxel offsets and trilinear weights (block_positions, two
@@ -423,8 +440,8 @@ static inline __attribute__((always_inline)) void block_positions_local(const wv
  * pairs into the four low and the four high neighbours, so the interpolation runs four
  * lanes per float operation; the transfer function and the exponential two lanes per
  * operation (the table read as two loads); then the compositing, sample by sample (the only
- * dependency from one sample to the next), or for a one-colour TF in absorption mode one
- * exponential for the whole block. Sample by sample (step), each sample's chain (about 140
+ * dependency from one sample to the next), or for a one-colour TF in absorption mode only
+ * the sum of kappa (one exponential per run). Sample by sample (step), each sample's chain (about 140
  * instructions: addresses, eight loads, interpolation, transfer function, exponential, and
  * for a dense volume cache misses) ended before the next could start beyond what the
  * out-of-order window holds; here the block's chains overlap. (Written as plain loops over
@@ -448,7 +465,12 @@ static inline __attribute__((always_inline)) int run_blocked(const wvol__view *v
     const __m128d vdt = _mm_set1_pd(dt), half = _mm_set1_pd(0.5);
     const float *data = view->data;
     const size_t sy = view->sy, sz = view->sz, rows[4] = {0, sy, sz, sz + sy};
+    /* one colour: the run's optical depth / dt summed from T_base on (grey_flush), and the
+     * most it may reach before T could fall below the threshold (a hair short of it, so that
+     * the rounding of log and exp cannot carry T below it unchecked) */
+    double T_base = r->T, od_run = 0.0, od_lim = 0.0;
     long kk;
+    if (grey) od_lim = grey_limit(r->T, term, dt);
     for (kk = *k; kk < ke; kk += RUN_BLOCK) {
         int l, pr, nb = ke - kk < RUN_BLOCK ? (int)(ke - kk) : RUN_BLOCK, seg = r->seg, sg, same;
         double val[RUN_BLOCK], kappa[RUN_BLOCK], alpha[RUN_BLOCK], rgb[3][RUN_BLOCK];
@@ -517,13 +539,14 @@ static inline __attribute__((always_inline)) int run_blocked(const wvol__view *v
             }
         }
         if (grey) {
-            /* One colour c: the block's colour sum_l T_l alpha_l c is c (T_0 - T_nb) (T_l+1 =
-             * T_l (1 - alpha_l)), and T_nb = T_0 exp(-dt sum_l kappa_l): one exponential for
-             * the block instead of one per sample. The same integral (the step-corrected
-             * opacities' product), rounded differently (a few ulp of double). When T_nb falls
-             * below the termination threshold, the block is composited sample by sample
-             * below, to stop at the sample where it falls. */
-            double od = 0.0, Tn;
+            /* One colour c: the colour of samples a .. b, sum_l T_l alpha_l c, is c (T_a - T_b)
+             * (T_l+1 = T_l (1 - alpha_l)), and T_b = T_a exp(-dt sum_l kappa_l): the blocks only
+             * sum kappa, and one exponential per run (grey_flush) gives T and the colour. The
+             * same integral (the step-corrected opacities' product), rounded differently (a
+             * few ulp of double). A block whose sum would pass od_lim is composited sample by
+             * sample below (T first brought up to date), to stop at the sample where T falls
+             * below the threshold. */
+            double od = 0.0;
             if (nb == RUN_BLOCK) { /* a tree of lane sums: a short dependency chain */
                 const __m128d zero = _mm_setzero_pd(); /* max(kappa, 0): kappa <= 0 or NaN adds 0 */
                 __m128d s01 = _mm_add_pd(_mm_max_pd(_mm_loadu_pd(kappa), zero), _mm_max_pd(_mm_loadu_pd(kappa + 2), zero));
@@ -533,13 +556,12 @@ static inline __attribute__((always_inline)) int run_blocked(const wvol__view *v
             } else {
                 for (l = 0; l < nb; l++) od += kappa[l] > 0 ? kappa[l] : 0.0;
             }
-            if (od == 0.0) continue; /* nothing to composite */
-            Tn = r->T * exp_neg(-(od * dt), tfx->exp2_256);
-            if (Tn >= term) {
-                for (int c = 0; c < 3; c++) r->acc[c] += tfx->rgb[c] * (r->T - Tn);
-                r->T = Tn;
+            if (od_run + od <= od_lim) {
+                od_run += od;
                 continue;
             }
+            grey_flush(tfx, dt, T_base, od_run, r);
+            od_run = 0.0;
             for (l = 0; l < RUN_BLOCK; l++) rgb[0][l] = tfx->rgb[0], rgb[1][l] = tfx->rgb[1], rgb[2][l] = tfx->rgb[2];
         }
         if (mode == WVOL_MODE_ABSORPTION) {
@@ -605,8 +627,13 @@ static inline __attribute__((always_inline)) int run_blocked(const wvol__view *v
                 *k = kk + l;
                 return 1;
             }
+            if (grey) { /* on from the sample-by-sample block's T */
+                T_base = r->T;
+                od_lim = grey_limit(r->T, term, dt);
+            }
         }
     }
+    if (grey) grey_flush(tfx, dt, T_base, od_run, r);
     *k = ke;
     return 0;
 }
