@@ -441,8 +441,8 @@ static inline void grey_flush(const tf_fast *tfx, double dt, double T_base, doub
  * lanes per float operation; the transfer function and the exponential two lanes per
  * operation (the table read as two loads); then the compositing, sample by sample (the only
  * dependency from one sample to the next), or for a one-colour TF in absorption mode only
- * the sum of kappa (one exponential per run). Sample by sample (step), each sample's chain (about 140
- * instructions: addresses, eight loads, interpolation, transfer function, exponential, and
+ * the sum of kappa (one exponential per run). Sample by sample (step), each sample's chain
+ * (about 140 instructions: addresses, eight loads, interpolation, transfer function, exponential, and
  * for a dense volume cache misses) ended before the next could start beyond what the
  * out-of-order window holds; here the block's chains overlap. (Written as plain loops over
  * the lanes, the compiler's vectorisation gathered voxels one float at a time and converted
