@@ -305,6 +305,7 @@ static inline int strictly_inside(const wvol__view *w, const double x[3])
 /* The compositing state of one ray. */
 typedef struct ray_acc {
     double T, acc[3], xr;
+    double T_lim, od_lim; /* run_blocked's one-colour limit (grey_limit) and the T it holds for */
     int seg, nclamp;
 } ray_acc;
 
@@ -415,20 +416,31 @@ static inline __attribute__((always_inline)) void block_positions_local(const wv
     _mm_storeu_si128((__m128i *)(void *)(idx + 4), _mm_cvttps_epi32(off[1]));
 }
 
-/* run_blocked's one-colour path: the sum of kappa over samples (times dt, the optical depth)
- * after which T, now T, would fall to the termination threshold, less a relative 1e-9 (the
- * rounding of log and of the exponential later is far below that); -1 when T is already
- * below it. */
-static inline double grey_limit(double T, double term, double dt)
+/* run_blocked's one-colour path: the optical depth ln(T / term) that T, now T, may lose
+ * before it falls to the termination threshold, less a relative 1e-9 (the rounding of log,
+ * of the exponentials and of the subtractions in grey_flush is far below that); -1 when T is
+ * already below it. Kept in the ray's state with the T it holds for, so that a run whose T
+ * only the one-colour path changed takes no logarithm (grey_flush keeps it up to date). */
+static inline __attribute__((always_inline)) double grey_limit(ray_acc *r, double term)
 {
-    return T > term ? log(T / term) / dt * (1.0 - 1e-9) : -1.0;
+    if (r->T != r->T_lim) {
+        r->T_lim = r->T;
+        r->od_lim = r->T > term ? log(r->T / term) * (1.0 - 1e-9) : -1.0;
+    }
+    return r->od_lim;
 }
 
-/* ... and T and the colour brought up to date: the samples summed since T was T_base. */
-static inline void grey_flush(const tf_fast *tfx, double dt, double T_base, double od, ray_acc *r)
+/* ... and T and the colour brought up to date: the samples summed since T was T_base (od:
+ * their optical depth / dt). */
+static inline __attribute__((always_inline)) void grey_flush(const tf_fast *tfx, double dt, double T_base,
+                                                             double od, ray_acc *r)
 {
     const double Tn = T_base * exp_neg(-(od * dt), tfx->exp2_256);
     for (int c = 0; c < 3; c++) r->acc[c] += tfx->rgb[c] * (T_base - Tn);
+    if (r->T_lim == T_base) { /* the limit follows T: less what was spent */
+        r->od_lim -= od * dt;
+        r->T_lim = Tn;
+    }
     r->T = Tn;
 }
 
@@ -470,7 +482,7 @@ static inline __attribute__((always_inline)) int run_blocked(const wvol__view *v
      * the rounding of log and exp cannot carry T below it unchecked) */
     double T_base = r->T, od_run = 0.0, od_lim = 0.0;
     long kk;
-    if (grey) od_lim = grey_limit(r->T, term, dt);
+    if (grey) od_lim = grey_limit(r, term) / dt;
     for (kk = *k; kk < ke; kk += RUN_BLOCK) {
         int l, pr, nb = ke - kk < RUN_BLOCK ? (int)(ke - kk) : RUN_BLOCK, seg = r->seg, sg, same;
         double val[RUN_BLOCK], kappa[RUN_BLOCK], alpha[RUN_BLOCK], rgb[3][RUN_BLOCK];
@@ -629,7 +641,7 @@ static inline __attribute__((always_inline)) int run_blocked(const wvol__view *v
             }
             if (grey) { /* on from the sample-by-sample block's T */
                 T_base = r->T;
-                od_lim = grey_limit(r->T, term, dt);
+                od_lim = grey_limit(r, term) / dt;
             }
         }
     }
@@ -700,7 +712,7 @@ static void ray_begin(const wvol__sampler *s, const double o[3], const double d[
         st->e[a] = d[a] / s->spacing[a];
     }
     st->t0 = t0, st->t1 = t1, st->t_exit = -INFINITY, st->bid = -1;
-    st->r.T = 1.0, st->r.seg = -1;
+    st->r.T = 1.0, st->r.seg = -1, st->r.T_lim = -1.0;
     st->nsteps = (long)ceil((t1 - t0) / dt);
     if (st->nsteps < 1) st->nsteps = 1;
     st->nfull = st->nsteps;
