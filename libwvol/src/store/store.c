@@ -46,7 +46,14 @@ static float up_float(double d)
     return f;
 }
 
-static inline int popc(unsigned x) { return __builtin_popcount(x); }
+/* Bits set in a node's 8-bit band mask, in a few operations (baseline x86-64 has no
+ * population count instruction: __builtin_popcount is a library call there). */
+static inline int popc(unsigned x)
+{
+    x = x - ((x >> 1) & 0x55u);
+    x = (x & 0x33u) + ((x >> 2) & 0x33u);
+    return (int)((x + (x >> 4)) & 0x0fu);
+}
 
 /* ---- per-(level, band) function bounds -------------------------------------------------- */
 
