@@ -368,7 +368,7 @@ static void voxel_range(const float *d, size_t n, double *mn, double *mx)
     *mx = hi;
 }
 
-static wvol_status fetch(void *tctx, size_t b, double allow, wvol__view *view, double *rate)
+static wvol_status fetch(void *tctx, size_t b, double allow, const wvol__view **view, double *rate)
 {
     brick_cache *c = tctx;
     const brick_src *src = c->src;
@@ -436,7 +436,7 @@ static wvol_status fetch(void *tctx, size_t b, double allow, wvol__view *view, d
     }
 hit:
     c->used[slot] = c->clock;
-    *view = c->view[slot];
+    *view = &c->view[slot];
     *rate = c->rate[slot];
     return WVOL_OK;
 }

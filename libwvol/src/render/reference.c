@@ -468,7 +468,9 @@ static inline __attribute__((always_inline)) void grey_flush(const tf_fast *tfx,
  * every channel but with the one-colour shortcut (the same integral, rounded differently),
  * which the tests check against the per-sample path; voxel offsets are computed in double,
  * exact below 2^53, and the view must have fewer than 2^31 voxels (view->blocked_ok). A
- * short last block repeats its last sample in the spare lanes. Returns 1 when the ray
+ * short last block fills its spare lanes with samples of its own (the positions repeat the
+ * last sample; of at most 4 samples only the first quad is interpolated, and the second
+ * repeats it), which are read but never composited. Returns 1 when the ray
  * terminates, *k then the terminating step. Other targets take the per-sample loop. */
 static inline __attribute__((always_inline)) int run_blocked(const wvol__view *view, const tf_fast *tfx,
                                                              const wvol_render_params *p,
@@ -494,7 +496,8 @@ static inline __attribute__((always_inline)) int run_blocked(const wvol__view *v
         __m128 w[3][2], vq[2];
         if (view->local) block_positions_local(view, x0, e, t0, dt, kk, nb, idx, w);
         else block_positions(view, x0, e, t0, dt, kk, nb, idx, w);
-        for (int qd = 0; qd < 2; qd++) {
+        /* a block of at most 4 samples interpolates one quad */
+        for (int qd = 0; qd < (nb > 4 ? 2 : 1); qd++) {
             const float *qa = data + idx[4 * qd], *qb = data + idx[4 * qd + 1], *qc = data + idx[4 * qd + 2],
                         *qe = data + idx[4 * qd + 3];
             __m128 lo[4], c0, c1, v;
@@ -512,6 +515,7 @@ static inline __attribute__((always_inline)) int run_blocked(const wvol__view *v
             c1 = _mm_add_ps(lo[2], _mm_mul_ps(w[1][qd], _mm_sub_ps(lo[3], lo[2])));
             vq[qd] = v = _mm_add_ps(c0, _mm_mul_ps(w[2][qd], _mm_sub_ps(c1, c0)));
         }
+        if (nb <= 4) vq[1] = vq[0];
         if (grey && tfx->n >= 2) {
             /* one colour: only the block's sum of kappa counts; when every sample lies in the
              * current segment (as below), kappa four lanes per float operation (a relative
@@ -786,7 +790,7 @@ static inline void ray_enter(const wvol__sampler *s, ray_state *st, const double
  * the brick's (fetched anew each time, a cache lookup, since another ray may have evicted
  * it; a dense source keeps the whole volume's); -1 when the fetch failed. */
 static inline __attribute__((always_inline)) int ray_skip(const wvol__sampler *s, void *tc, ray_state *st,
-                                                          double tol, double len, wvol__view *view)
+                                                          double tol, double len, const wvol__view **view)
 {
     double rate, allow = tol > st->skipped ? (tol - st->skipped) / len : 0.0;
     if (s->fetch) {
@@ -812,7 +816,7 @@ static inline __attribute__((always_inline)) int ray_advance(const wvol__sampler
                                                              const wvol_render_mode mode, const int shading,
                                                              const int colors, double dt, ray_state *st)
 {
-    wvol__view view = s->whole;
+    const wvol__view *view = &s->whole;
     const double t0 = st->t0, *x0 = st->x0, *e = st->e;
     long k = st->k, nfull = st->nfull, ke = nfull; /* this run: steps k .. ke - 1 */
     int a, bricked = s->rate || s->fetch, done;
@@ -842,24 +846,24 @@ static inline __attribute__((always_inline)) int ray_advance(const wvol__sampler
     st->nsamp += (size_t)(ke - k);
     if (shading) ray_dir(s, st, d);
     if (s->eval) {
-        done = run(s, &view, tfx, p, mode, shading, colors, 0, x0, e, d, t0, dt, &k, ke, &st->r);
+        done = run(s, view, tfx, p, mode, shading, colors, 0, x0, e, d, t0, dt, &k, ke, &st->r);
     } else {
         /* the steps whose samples lie strictly inside the view are an interval (x is
          * linear in t); the few outside it, where the ray enters or leaves the volume
          * through a face's outer half voxel, take the clamping path */
         long kin = k, kout = ke;
-        while (kin < kout && !strictly_inside(&view, x)) {
+        while (kin < kout && !strictly_inside(view, x)) {
             kin++;
             for (a = 0; a < 3; a++) x[a] = x0[a] + T_AT(kin) * e[a];
         }
         for (a = 0; a < 3; a++) xl[a] = x0[a] + T_AT(kout - 1) * e[a];
-        while (kout > kin && !strictly_inside(&view, xl)) {
+        while (kout > kin && !strictly_inside(view, xl)) {
             kout--;
             for (a = 0; a < 3; a++) xl[a] = x0[a] + T_AT(kout - 1) * e[a];
         }
-        done = run(s, &view, tfx, p, mode, shading, colors, 0, x0, e, d, t0, dt, &k, kin, &st->r) ||
-               run(s, &view, tfx, p, mode, shading, colors, 1, x0, e, d, t0, dt, &k, kout, &st->r) ||
-               run(s, &view, tfx, p, mode, shading, colors, 0, x0, e, d, t0, dt, &k, ke, &st->r);
+        done = run(s, view, tfx, p, mode, shading, colors, 0, x0, e, d, t0, dt, &k, kin, &st->r) ||
+               run(s, view, tfx, p, mode, shading, colors, 1, x0, e, d, t0, dt, &k, kout, &st->r) ||
+               run(s, view, tfx, p, mode, shading, colors, 0, x0, e, d, t0, dt, &k, ke, &st->r);
     }
     if (done) st->nsamp -= (size_t)(ke - k - 1); /* the samples not taken */
     st->k = k;
@@ -886,7 +890,7 @@ static void ray_last(const wvol__sampler *s, void *tc, const tf_fast *tfx, const
                      ray_state *st)
 {
     double x[3], t, h;
-    wvol__view view = s->whole;
+    const wvol__view *view = &s->whole;
     int skip = 0;
     if (!ray_last_at(st, dt, x, &t, &h)) return;
     st->nsteps = st->nfull; /* taken */
@@ -898,7 +902,7 @@ static void ray_last(const wvol__sampler *s, void *tc, const tf_fast *tfx, const
         double d[3];
         ray_dir(s, st, d);
         st->nsamp++;
-        st->done = step(s, &view, tfx, p, p->mode, p->shading, p->colors != NULL, 0, x, d, h, &st->r);
+        st->done = step(s, view, tfx, p, p->mode, p->shading, p->colors != NULL, 0, x, d, h, &st->r);
     }
 }
 

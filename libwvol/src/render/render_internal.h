@@ -89,10 +89,11 @@ typedef struct wvol__sampler {
      * (one context per thread, indexed by omp_get_thread_num()); fetch() sets *rate to brick
      * b's contribution rate (wvol__brick_rate on its voxels' range, or on a bound of it) and,
      * unless *rate <= allow (the caller then skips the brick), *view to its voxels
-     * b B - 1 .. (b + 1) B (clipped to the volume). */
+     * b B - 1 .. (b + 1) B (clipped to the volume): the thread's cached view, valid until the
+     * thread's next fetch. */
     wvol_status (*prepare)(struct wvol__sampler *s, const wvol_tf *tf_world, const wvol_render_params *p,
                            wvol_error *err);
-    wvol_status (*fetch)(void *tctx, size_t brick, double allow, wvol__view *view, double *rate);
+    wvol_status (*fetch)(void *tctx, size_t brick, double allow, const wvol__view **view, double *rate);
     void **tctx;
     void *src;              /* the bricked source's own state */
     size_t n[3];
