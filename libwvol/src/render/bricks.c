@@ -430,7 +430,8 @@ static wvol_status fetch(void *tctx, size_t b, double allow, const wvol__view **
             v->sy = (size_t)(hi[0] - lo[0] + 1);
             v->sz = v->sy * (size_t)(hi[1] - lo[1] + 1);
             wvol__view_finish(v);
-            v->local = hi[0] - lo[0] < 128 && hi[1] - lo[1] < 128 && hi[2] - lo[2] < 128;
+            v->local = 1; /* 1 to 127 cells per axis: block_positions_local (reference.c) */
+            for (int a = 0; a < 3; a++) v->local &= hi[a] > lo[a] && hi[a] - lo[a] < 128;
         }
         c->built++;
     }

@@ -385,13 +385,14 @@ static inline __attribute__((always_inline)) void block_positions(const wvol__vi
     }
 }
 
-/* The same for a brick's small view (view->local: extents below 128 voxels), in single
- * precision relative to the view: the block's first position in double, x - off, rounded to
- * float (below 128: within 4e-6 voxel), then x_l = x + l (dt e) four lanes per operation, and
- * the offsets as floats (exact: a brick has far fewer than 2^24 voxels). A third of the
- * exact version's operations. Rounding may put a position a few 1e-6 voxel outside the
- * view's cells; the coordinate is clamped to the last cell (weight then ~1), so no read
- * leaves the brick. */
+/* The same for a brick's small view (view->local: extents of 1 to 127 voxel cells), in
+ * single precision relative to the view: the block's first position in double, x - off,
+ * rounded to float (below 128: within 4e-6 voxel), then x_l = x + l (dt e) four lanes per
+ * operation, and the offsets as floats (exact: a brick has far fewer than 2^24 voxels). A
+ * third of the exact version's operations. Each coordinate is clamped to the view's range,
+ * as the clamping path (trilinear_slow) clamps it: the samples in a face's outer half voxel,
+ * where a ray enters or leaves the volume, are taken here too, and no read leaves the
+ * brick. */
 static inline __attribute__((always_inline)) void block_positions_local(const wvol__view *view, const double x0[3],
                                                                         const double e[3], double t0, double dt,
                                                                         long kk, int nb, int32_t idx[RUN_BLOCK],
@@ -408,9 +409,10 @@ static inline __attribute__((always_inline)) void block_positions_local(const wv
         const __m128 xs = _mm_set1_ps((float)(x0[a] + t * e[a] - (double)view->off[a]));
         const __m128 dx = _mm_set1_ps((float)(dt * e[a]));
         const __m128 cell_max = _mm_set1_ps((float)(view->hi[a] - view->off[a] - 1));
+        const __m128 x_max = _mm_set1_ps((float)(view->hi[a] - view->off[a])), zero = _mm_setzero_ps();
         const __m128 stride = _mm_set1_ps(a == 0 ? 1.0f : (float)(a == 1 ? view->sy : view->sz));
         for (int h = 0; h < 2; h++) {
-            __m128 x = _mm_add_ps(xs, _mm_mul_ps(lane[h], dx));
+            __m128 x = _mm_min_ps(_mm_max_ps(_mm_add_ps(xs, _mm_mul_ps(lane[h], dx)), zero), x_max);
             __m128 fi = _mm_min_ps(_mm_cvtepi32_ps(_mm_cvttps_epi32(x)), cell_max);
             w[a][h] = _mm_sub_ps(x, fi);
             off[h] = _mm_add_ps(off[h], _mm_mul_ps(fi, stride));
@@ -847,6 +849,12 @@ static inline __attribute__((always_inline)) int ray_advance(const wvol__sampler
     if (shading) ray_dir(s, st, d);
     if (s->eval) {
         done = run(s, view, tfx, p, mode, shading, colors, 0, x0, e, d, t0, dt, &k, ke, &st->r);
+#if defined(__SSE2__)
+    } else if (view->local && view->blocked_ok && !shading && !colors) {
+        /* a brick's view: block_positions_local clamps every position to it, so the samples
+         * in a face's outer half voxel need no clamping path of their own */
+        done = run_blocked(view, tfx, p, mode, x0, e, t0, dt, &k, ke, &st->r);
+#endif
     } else {
         /* the steps whose samples lie strictly inside the view are an interval (x is
          * linear in t); the few outside it, where the ray enters or leaves the volume
