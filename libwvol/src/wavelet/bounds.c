@@ -305,10 +305,12 @@ static void low_range(const brick_bounds *b, const band_blocks *q, const band_re
         for (y = 0; y < r->kn[1]; y++) {
             size_t ky = (size_t)wrap(r->k0[1] + y, (long)q->e[1]);
             const float *row = b->low + b->low_sy * ky + b->low_sz * kz;
+            size_t kx = (size_t)wrap(r->k0[0], (long)q->e[0]); /* stepped: no division per position */
             for (x = 0; x < r->kn[0]; x++) {
-                float v = row[wrap(r->k0[0] + x, (long)q->e[0])];
+                float v = row[kx];
                 if (!(v >= *cmin)) *cmin = v;
                 if (!(v <= *cmax)) *cmax = v;
+                if (++kx == q->e[0]) kx = 0;
             }
         }
     }
@@ -344,9 +346,11 @@ static float block_absmax(const band_blocks *q, const long b0[3], const long b1[
         for (y = b0[1]; y <= b1[1]; y++) {
             size_t by = (size_t)(y % (long)q->nb[1]);
             const float *row = q->absmax + q->nb[0] * (by + q->nb[1] * bz);
+            size_t bx = (size_t)(b0[0] % (long)q->nb[0]); /* stepped: no division per block */
             for (x = b0[0]; x <= b1[0]; x++) {
-                float v = row[x % (long)q->nb[0]];
+                float v = row[bx];
                 if (!(v <= amax)) amax = v;
+                if (++bx == q->nb[0]) bx = 0;
             }
         }
     }
