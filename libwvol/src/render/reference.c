@@ -309,9 +309,28 @@ static inline int strictly_inside(const wvol__view *w, const double x[3])
 /* The compositing state of one ray. */
 typedef struct ray_acc {
     double T, acc[3], xr;
+    double od;            /* optical depth the one-colour path summed and T and acc do not yet
+                             hold (acc_settle): one exponential per ray instead of per run */
     double T_lim, od_lim; /* run_blocked's one-colour limit (grey_limit) and the T it holds for */
     int seg, nclamp;
 } ray_acc;
+
+/* T and the colour brought up to date with the optical depth od the one-colour path summed
+ * (run_blocked): the colour of those samples, sum_l T_l alpha_l c, is c (T - T exp(-od))
+ * (T_l+1 = T_l (1 - alpha_l)). Called before anything else reads or changes T. */
+static inline __attribute__((always_inline)) void acc_settle(const tf_fast *tfx, ray_acc *r)
+{
+    if (r->od > 0) {
+        const double Tn = r->T * exp_neg(-r->od, tfx->exp2_256);
+        for (int c = 0; c < 3; c++) r->acc[c] += tfx->rgb[c] * (r->T - Tn);
+        if (r->T_lim == r->T) { /* the limit follows T: less what was spent */
+            r->od_lim -= r->od;
+            r->T_lim = Tn;
+        }
+        r->T = Tn;
+        r->od = 0.0;
+    }
+}
 
 /* One sample at index position x for a step of length h: returns 1 when the ray
  * terminates. `inside`: x is known to be strictly inside the view (no clamping). */
@@ -331,6 +350,7 @@ static inline __attribute__((always_inline)) int step(const wvol__sampler *s, co
     tf_fast_eval(tfx, val, &r->seg, rgb, &kappa);
     if (kappa > 0) {
         double alpha, shade = 1.0;
+        acc_settle(tfx, r);
         int a;
         if (colors) nearest_color(s, p->colors, x, rgb);
         if (mode == WVOL_MODE_ABSORPTION) {
@@ -424,9 +444,9 @@ static inline __attribute__((always_inline)) void block_positions_local(const wv
 
 /* run_blocked's one-colour path: the optical depth ln(T / term) that T, now T, may lose
  * before it falls to the termination threshold, less a relative 1e-9 (the rounding of log,
- * of the exponentials and of the subtractions in grey_flush is far below that); -1 when T is
- * already below it. Kept in the ray's state with the T it holds for, so that a run whose T
- * only the one-colour path changed takes no logarithm (grey_flush keeps it up to date). */
+ * of the exponentials and of the subtractions in acc_settle is far below that); -1 when T is
+ * already below it. Kept in the ray's state with the T it holds for, so that a T only the
+ * one-colour path changed takes no logarithm (acc_settle keeps it up to date). */
 static inline __attribute__((always_inline)) double grey_limit(ray_acc *r, double term)
 {
     if (r->T != r->T_lim) {
@@ -434,20 +454,6 @@ static inline __attribute__((always_inline)) double grey_limit(ray_acc *r, doubl
         r->od_lim = r->T > term ? log(r->T / term) * (1.0 - 1e-9) : -1.0;
     }
     return r->od_lim;
-}
-
-/* ... and T and the colour brought up to date: the samples summed since T was T_base (od:
- * their optical depth / dt). */
-static inline __attribute__((always_inline)) void grey_flush(const tf_fast *tfx, double dt, double T_base,
-                                                             double od, ray_acc *r)
-{
-    const double Tn = T_base * exp_neg(-(od * dt), tfx->exp2_256);
-    for (int c = 0; c < 3; c++) r->acc[c] += tfx->rgb[c] * (T_base - Tn);
-    if (r->T_lim == T_base) { /* the limit follows T: less what was spent */
-        r->od_lim -= od * dt;
-        r->T_lim = Tn;
-    }
-    r->T = Tn;
 }
 
 /* Full steps *k .. ke - 1 of a ray strictly inside one view, without shading or colour
@@ -485,12 +491,12 @@ static inline __attribute__((always_inline)) int run_blocked(const wvol__view *v
     const __m128d vdt = _mm_set1_pd(dt), half = _mm_set1_pd(0.5);
     const float *data = view->data;
     const size_t sy = view->sy, sz = view->sz, rows[4] = {0, sy, sz, sz + sy};
-    /* one colour: the run's optical depth / dt summed from T_base on (grey_flush), and the
+    /* one colour: the run's optical depth / dt (added to r->od when the run ends), and the
      * most it may reach before T could fall below the threshold (a hair short of it, so that
      * the rounding of log and exp cannot carry T below it unchecked) */
-    double T_base = r->T, od_run = 0.0, od_lim = 0.0;
+    double od_run = 0.0, od_lim = 0.0;
     long kk;
-    if (grey) od_lim = grey_limit(r, term) / dt;
+    if (grey) od_lim = (grey_limit(r, term) - r->od) / dt;
     for (kk = *k; kk < ke; kk += RUN_BLOCK) {
         int l, pr, nb = ke - kk < RUN_BLOCK ? (int)(ke - kk) : RUN_BLOCK, seg = r->seg, sg, same;
         double val[RUN_BLOCK], kappa[RUN_BLOCK], alpha[RUN_BLOCK], rgb[3][RUN_BLOCK];
@@ -598,7 +604,7 @@ static inline __attribute__((always_inline)) int run_blocked(const wvol__view *v
         if (grey) {
             /* One colour c: the colour of samples a .. b, sum_l T_l alpha_l c, is c (T_a - T_b)
              * (T_l+1 = T_l (1 - alpha_l)), and T_b = T_a exp(-dt sum_l kappa_l): the blocks only
-             * sum kappa, and one exponential per run (grey_flush) gives T and the colour. The
+             * sum kappa, and one exponential per ray (acc_settle) gives T and the colour. The
              * same integral (the step-corrected opacities' product), rounded differently (a
              * few ulp of double). A block whose sum would pass od_lim is composited sample by
              * sample below (T first brought up to date), to stop at the sample where T falls
@@ -617,7 +623,8 @@ static inline __attribute__((always_inline)) int run_blocked(const wvol__view *v
                 od_run += od;
                 continue;
             }
-            grey_flush(tfx, dt, T_base, od_run, r);
+            r->od += od_run * dt;
+            acc_settle(tfx, r);
             od_run = 0.0;
             for (l = 0; l < RUN_BLOCK; l++) rgb[0][l] = tfx->rgb[0], rgb[1][l] = tfx->rgb[1], rgb[2][l] = tfx->rgb[2];
         }
@@ -684,13 +691,10 @@ static inline __attribute__((always_inline)) int run_blocked(const wvol__view *v
                 *k = kk + l;
                 return 1;
             }
-            if (grey) { /* on from the sample-by-sample block's T */
-                T_base = r->T;
-                od_lim = grey_limit(r, term) / dt;
-            }
+            if (grey) od_lim = grey_limit(r, term) / dt; /* on from the sample-by-sample block's T */
         }
     }
-    if (grey) grey_flush(tfx, dt, T_base, od_run, r);
+    if (grey) r->od += od_run * dt;
     *k = ke;
     return 0;
 }
@@ -1029,6 +1033,7 @@ static void render_tile(const wvol__sampler *s, void *tc, const tf_fast *tfx, co
     for (int i = 0; i < n; i++) {
         while (ray_advance_any(s, tc, tfx, p, dt, &rs[i])) continue;
         ray_last(s, tc, tfx, p, dt, &rs[i]);
+        acc_settle(tfx, &rs[i].r);
     }
 }
 
@@ -1057,7 +1062,10 @@ static void walk_brick(const wvol__sampler *s, void *tc, const tf_fast *tfx, con
             if (st->k < st->nfull) ray_advance_any(s, tc, tfx, p, dt, st);
             else ray_last(s, tc, tfx, p, dt, st);
             nb = ray_next_brick(s, st, dt);
-            if (nb < 0) break;
+            if (nb < 0) { /* the ray is done */
+                acc_settle(tfx, &st->r);
+                break;
+            }
             if (nb != b && bo->key[nb] > bo->key[b]) {
                 list_push(head, next, nb, i);
                 break;
