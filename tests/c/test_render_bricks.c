@@ -201,7 +201,7 @@ static void walk_builds_each_brick_once(void)
         wvol_render_params_default(&p);
         p.mode = WVOL_MODE_ABSORPTION;
         p.brick = 8;
-        p.threads = 2; /* the threads share the tile's bricks, key by key: still one build each */
+        p.threads = 2; /* the threads share the tile's bricks: still one build each */
         p.tile = 64;
         CHECK(wvol_render_bricks(a, s, &cam, &tf, &p, &sa, &err) == WVOL_OK, "%s: %s", cams[c], err.message);
         CHECK(sa.bricks_built > 0 && sa.bricks_built <= nbricks, "%s: one tile built %zu bricks of %zu", cams[c],
