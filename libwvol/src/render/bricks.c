@@ -73,7 +73,8 @@ static void blocks_free(coef_blocks *cb)
 /* Builds the view; when bb is not NULL, also feeds every kept detail coefficient to the
  * brick bounds (one pass over the store serves both). Cloned: a value's rank in its block is
  * a population count, an instruction on x86-64-v3 and a library call on the baseline. */
-WVOL__CLONES static wvol_status blocks_build(coef_blocks *cb, const wvol_store *s, wvol__brick_bounds *bb, wvol_error *err)
+WVOL__CLONES static wvol_status blocks_build(coef_blocks *cb, const wvol_store *s, wvol__brick_bounds *bb,
+                                             wvol_error *err)
 {
     wvol_store_info info;
     wvol_store_iter it;
@@ -193,14 +194,17 @@ static int gather_sparse(const coef_blocks *cb, const band_view *bv, float *dst,
     int any = 0;
     for (ptrdiff_t k = 0; k < n[2];) {
         const size_t z = wrap(lo[2] + k, bv->e[2]);
-        const ptrdiff_t rz = next_block_step(z, bv->e[2]) < n[2] - k ? next_block_step(z, bv->e[2]) : n[2] - k;
+        ptrdiff_t rz = next_block_step(z, bv->e[2]);
+        if (rz > n[2] - k) rz = n[2] - k;
         for (ptrdiff_t j = 0; j < n[1];) {
             const size_t y = wrap(lo[1] + j, bv->e[1]);
-            const ptrdiff_t ry = next_block_step(y, bv->e[1]) < n[1] - j ? next_block_step(y, bv->e[1]) : n[1] - j;
+            ptrdiff_t ry = next_block_step(y, bv->e[1]);
+            if (ry > n[1] - j) ry = n[1] - j;
             const uint32_t *drow = bv->dir + bv->nb[0] * ((y >> CB_SHIFT) + bv->nb[1] * (z >> CB_SHIFT));
             for (ptrdiff_t i = 0; i < n[0];) {
                 const size_t x = wrap(lo[0] + i, bv->e[0]);
-                const ptrdiff_t rx = next_block_step(x, bv->e[0]) < n[0] - i ? next_block_step(x, bv->e[0]) : n[0] - i;
+                ptrdiff_t rx = next_block_step(x, bv->e[0]);
+                if (rx > n[0] - i) rx = n[0] - i;
                 const uint32_t blk = drow[x >> CB_SHIFT];
                 if (blk) {
                     const cblock *b = &cb->blocks[blk - 1];

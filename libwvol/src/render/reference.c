@@ -456,8 +456,8 @@ static inline __attribute__((always_inline)) double grey_limit(ray_acc *r, doubl
     return r->od_lim;
 }
 
-/* Full steps *k .. ke - 1 of a ray strictly inside one view, without shading or colour
- * volume, in blocks of RUN_BLOCK samples computed lane-parallel in SSE2 (every x86-64 has
+/* Full steps *k .. ke - 1 of a ray inside one view (strictly inside it, or anywhere in a
+ * brick's view, whose positions are clamped to it), without shading or colour volume, in blocks of RUN_BLOCK samples computed lane-parallel in SSE2 (every x86-64 has
  * it): the block's positions, voxel offsets and trilinear weights (block_positions, two
  * lanes per double operation; block_positions_local for a brick, four per float operation);
  * a voxel row's two neighbours along x as one 64-bit load, two shuffles turning four lanes'
@@ -465,15 +465,16 @@ static inline __attribute__((always_inline)) double grey_limit(ray_acc *r, doubl
  * lanes per float operation; the transfer function and the exponential two lanes per
  * operation (the table read as two loads); then the compositing, sample by sample (the only
  * dependency from one sample to the next), or for a one-colour TF in absorption mode only
- * the sum of kappa (one exponential per run). Sample by sample (step), each sample's chain
- * (about 140 instructions: addresses, eight loads, interpolation, transfer function, exponential, and
- * for a dense volume cache misses) ended before the next could start beyond what the
- * out-of-order window holds; here the block's chains overlap. (Written as plain loops over
+ * the sum of kappa (one exponential per ray: acc_settle). Sample by sample (step), each
+ * sample's chain (about 140 instructions: addresses, eight loads, interpolation, transfer
+ * function, exponential, and for a dense volume cache misses) ended before the next could
+ * start beyond what the out-of-order window holds; here the block's chains overlap. (Written as plain loops over
  * the lanes, the compiler's vectorisation gathered voxels one float at a time and converted
  * lane by lane, ~190 instructions a sample; GCC's generic 8-lane vector types did no
  * better.) On a dense view each operation is step's, lane-wise (IEEE, same order, no fused
  * multiply-add on baseline x86-64), so the transmittance is the same bit for bit, and so is
- * every channel but with the one-colour shortcut (the same integral, rounded differently),
+ * every channel but with the one-colour shortcut (the same integral, rounded differently, its
+ * kappa in single precision),
  * which the tests check against the per-sample path; voxel offsets are computed in double,
  * exact below 2^53, and the view must have fewer than 2^31 voxels (view->blocked_ok). A
  * short last block fills its spare lanes with samples of its own (the positions repeat the
@@ -964,9 +965,10 @@ static int ray_advance_any(const wvol__sampler *s, void *tc, const tf_fast *tfx,
  * brick coordinate on each axis moves one way only (positions x0 + t e with t increasing,
  * the coordinate computed by monotone operations, ray_enter): away from the eye's brick for
  * a perspective camera (every ray starts at the eye, t >= 0), in the direction's sign for
- * parallel rays; and it moves by at most one brick from one sample to the next, because
- * samples are less than a brick apart (a run skipped ends at the first step past the
- * brick). So a ray leaves a brick only for an *outward neighbour* (outward_step): each
+ * parallel rays; and it moves by at most one brick from one sample to the next when the
+ * step is shorter than a brick (a run skipped ends at the first step past the brick; a
+ * longer step may jump a brick, and walk_brick then walks the ray on at once). So a ray
+ * leaves a brick only for an *outward neighbour* (outward_step): each
  * coordinate the same or one step on. The relation has no cycle (the sum of the distances
  * in bricks from the start grows along it), so the bricks can be taken in an order in which
  * each comes after its *inward* neighbours (those of which it is an outward neighbour): by
