@@ -198,56 +198,72 @@ static inline uint64_t piece_bits(size_t x0, size_t rx, size_t y0, size_t ry, si
 
 /* A band's region (lo, n), taken periodically, from the view: the region is cut where a
  * block or the period ends into pieces that each lie in one block (next_block_step); a
- * present block's kept positions inside its piece are written, a value's index counted up
- * over the block's bits in position order. dst is zeroed at the first present block; 0
- * when there is none (dst untouched: the caller skips the band). The work follows the
- * directory entries and the kept positions, not the region's positions: at 5% a brick's
- * finest-level region meets a hundred or so entries, most of them absent. (Row by row, the
- * zeroing and the lookups of every row took as long as the synthesis.) */
-static int gather_sparse(const coef_blocks *cb, const band_view *bv, float *dst, const ptrdiff_t lo[3],
-                         const ptrdiff_t n[3])
+ * present block's kept positions inside its piece are written. dst is zeroed at the first
+ * present block; 0 when there is none (dst untouched: the caller skips the band). The work
+ * follows the directory entries and the kept positions, not the region's positions: at 5%
+ * a brick's finest-level region meets a hundred or so entries, most of them absent. (Row by
+ * row, the zeroing and the lookups of every row took as long as the synthesis.) The wrapped
+ * positions are stepped, one division per axis. Cloned: a value's rank in its block is a
+ * population count. */
+WVOL__CLONES static int gather_sparse(const coef_blocks *cb, const band_view *bv, float *dst, const ptrdiff_t lo[3],
+                                      const ptrdiff_t n[3])
 {
     const size_t sy = (size_t)n[0], sz = (size_t)(n[0] * n[1]);
+    const size_t x0 = wrap(lo[0], bv->e[0]);
+    size_t z = wrap(lo[2], bv->e[2]);
     int any = 0;
     for (ptrdiff_t k = 0; k < n[2];) {
-        const size_t z = wrap(lo[2] + k, bv->e[2]);
+        const size_t bz = z & (CB - 1);
         ptrdiff_t rz = next_block_step(z, bv->e[2]);
+        size_t y = wrap(lo[1], bv->e[1]);
         if (rz > n[2] - k) rz = n[2] - k;
         for (ptrdiff_t j = 0; j < n[1];) {
-            const size_t y = wrap(lo[1] + j, bv->e[1]);
+            const size_t by = y & (CB - 1);
             ptrdiff_t ry = next_block_step(y, bv->e[1]);
             if (ry > n[1] - j) ry = n[1] - j;
             const uint32_t *drow = bv->dir + bv->nb[0] * ((y >> CB_SHIFT) + bv->nb[1] * (z >> CB_SHIFT));
+            const uint64_t in_yz = piece_bits(0, CB, by, (size_t)ry, bz, (size_t)rz);
+            float *const plane = dst + sy * (size_t)j + sz * (size_t)k;
+            size_t x = x0;
             for (ptrdiff_t i = 0; i < n[0];) {
-                const size_t x = wrap(lo[0] + i, bv->e[0]);
+                const size_t bx = x & (CB - 1);
                 ptrdiff_t rx = next_block_step(x, bv->e[0]);
-                if (rx > n[0] - i) rx = n[0] - i;
                 const uint32_t blk = drow[x >> CB_SHIFT];
+                if (rx > n[0] - i) rx = n[0] - i;
                 if (blk) {
                     const cblock *b = &cb->blocks[blk - 1];
-                    const uint64_t in = piece_bits(x & (CB - 1), (size_t)rx, y & (CB - 1), (size_t)ry, z & (CB - 1),
-                                                   (size_t)rz);
+                    const uint64_t take = b->mask & in_yz & (((((uint64_t)1 << rx) - 1) << bx) * 0x1111111111111111ull);
                     /* the piece's first position, and a kept bit's offset from it */
-                    float *base = dst + (size_t)i + sy * (size_t)j + sz * (size_t)k;
-                    const ptrdiff_t bx = (ptrdiff_t)(x & (CB - 1)), by = (ptrdiff_t)(y & (CB - 1)),
-                                    bz = (ptrdiff_t)(z & (CB - 1));
+                    float *const base = plane + i - (ptrdiff_t)bx - (ptrdiff_t)(sy * by) - (ptrdiff_t)(sz * bz);
                     const float *vals = cb->values + b->first;
-                    if (!any) {
+                    if (take && !any) {
                         memset(dst, 0, (size_t)n[2] * sz * sizeof *dst);
                         any = 1;
                     }
-                    for (uint64_t bits = b->mask; bits; bits &= bits - 1, vals++) {
-                        const int bit = __builtin_ctzll(bits);
-                        if ((in >> bit) & 1)
-                            base[((bit & 3) - bx) + (ptrdiff_t)sy * (((bit >> 2) & 3) - by) +
-                                 (ptrdiff_t)sz * ((bit >> 4) - bz)] = *vals;
+                    if (take == b->mask) { /* every kept position in the piece: the values in order */
+                        for (uint64_t bits = take; bits; bits &= bits - 1, vals++) {
+                            const int bit = __builtin_ctzll(bits);
+                            base[(bit & 3) + sy * ((bit >> 2) & 3) + sz * (bit >> 4)] = *vals;
+                        }
+                    } else { /* each value found by its rank */
+                        for (uint64_t bits = take; bits; bits &= bits - 1) {
+                            const int bit = __builtin_ctzll(bits);
+                            base[(bit & 3) + sy * ((bit >> 2) & 3) + sz * (bit >> 4)] =
+                                vals[__builtin_popcountll(b->mask & (((uint64_t)1 << bit) - 1))];
+                        }
                     }
                 }
                 i += rx;
+                x += (size_t)rx;
+                if (x == bv->e[0]) x = 0;
             }
             j += ry;
+            y += (size_t)ry;
+            if (y == bv->e[1]) y = 0;
         }
         k += rz;
+        z += (size_t)rz;
+        if (z == bv->e[2]) z = 0;
     }
     return any;
 }
