@@ -1079,6 +1079,17 @@ static void render_tile(const wvol__sampler *s, void *tc, const tf_fast *tfx, co
     }
 }
 
+/* The ray of pixel (x, y): its origin, direction and span in the volume; 0 when it misses
+ * the volume. */
+static int pixel_span(const wvol__cam *k, const double lo[3], const double hi[3], int x, int y, double o[3],
+                      double d[3], double *t0, double *t1)
+{
+    wvol__cam_ray(k, x + 0.5, y + 0.5, o, d);
+    if (!wvol__ray_box(o, d, lo, hi, t0, t1)) return 0;
+    if (k->c.projection == WVOL_PERSPECTIVE && *t0 < 0) *t0 = 0;
+    return *t1 > *t0;
+}
+
 /* The ray of pixel (x, y) into *st, its pixel cleared; 0 when it misses the volume. */
 static int pixel_ray(const wvol__sampler *s, const wvol__cam *k, const wvol_image *img, const double lo[3],
                      const double hi[3], double dt, int x, int y, ray_state *st)
@@ -1086,10 +1097,7 @@ static int pixel_ray(const wvol__sampler *s, const wvol__cam *k, const wvol_imag
     double o[3], d[3], t0, t1;
     float *px = img->rgba + 4 * ((size_t)x + (size_t)img->width * (size_t)y);
     px[0] = px[1] = px[2] = px[3] = 0.0f;
-    wvol__cam_ray(k, x + 0.5, y + 0.5, o, d);
-    if (!wvol__ray_box(o, d, lo, hi, &t0, &t1)) return 0;
-    if (k->c.projection == WVOL_PERSPECTIVE && t0 < 0) t0 = 0;
-    if (!(t1 > t0)) return 0;
+    if (!pixel_span(k, lo, hi, x, y, o, d, &t0, &t1)) return 0;
     ray_begin(s, o, d, t0, t1, dt, st);
     return 1;
 }
@@ -1153,8 +1161,8 @@ static void walk_brick(const wvol__sampler *s, void *tc, const tf_fast *tfx, con
  * at the barriers) for the same builds. */
 static void render_tile_bricked(const wvol__sampler *s, const wvol__cam *k, wvol_image *img, const double lo[3],
                                 const double hi[3], int x0, int y0, int tw, int th, const tf_fast *tfx,
-                                const wvol_render_params *p, double dt, ray_state *rs, brick_order *bo, int32_t *head,
-                                int32_t *next, int nthreads)
+                                const wvol_render_params *p, double dt, ray_state *rs, int32_t *row_first,
+                                brick_order *bo, int32_t *head, int32_t *next, int nthreads)
 {
     memcpy(bo->pending, bo->inward, bo->n * sizeof *bo->pending);
     bo->nready = bo->ndone = 0;
@@ -1163,19 +1171,36 @@ static void render_tile_bricked(const wvol__sampler *s, const wvol__cam *k, wvol
 #pragma omp parallel num_threads(nthreads)
     {
         void *tc = s->tctx[omp_get_thread_num()];
-        /* the rays, a state per pixel (pixel -1: a miss), each onto its first brick's list
-         * (set up by the threads: serially, 5% of a two-thread frame's time) */
+        /* the tile's rays that meet the volume, in rs row by row, each onto its first brick's
+         * list: set up by the threads (serially, 5% of a two-thread frame), in two passes so
+         * that they lie packed (a state per pixel would make the pages of the misses resident
+         * too): each row's count, then its rays from the row's first index on */
 #pragma omp for schedule(static)
-        for (int y = y0; y < y0 + th; y++)
+        for (int y = y0; y < y0 + th; y++) {
+            int32_t n = 0;
             for (int x = x0; x < x0 + tw; x++) {
-                const int32_t i = (x - x0) + tw * (y - y0);
+                double o[3], d[3], t0, t1;
+                n += pixel_span(k, lo, hi, x, y, o, d, &t0, &t1);
+            }
+            row_first[y - y0 + 1] = n;
+        }
+#pragma omp single
+        {
+            row_first[0] = 0;
+            for (int j = 0; j < th; j++) row_first[j + 1] += row_first[j];
+        }
+#pragma omp for schedule(static)
+        for (int y = y0; y < y0 + th; y++) {
+            int32_t i = row_first[y - y0];
+            for (int x = x0; x < x0 + tw; x++) {
                 long b;
-                rs[i].pixel = -1;
                 if (!pixel_ray(s, k, img, lo, hi, dt, x, y, &rs[i])) continue;
-                rs[i].pixel = i;
+                rs[i].pixel = (x - x0) + tw * (y - y0);
                 b = ray_next_brick(s, &rs[i], dt);
                 if (b >= 0) list_push(head, next, b, i);
+                i++;
             }
+        }
         for (;;) {
             long b = -1;
             int finished = 0;
@@ -1227,14 +1252,12 @@ static int tile_rays(const wvol__sampler *s, const wvol__cam *k, const wvol_imag
     return n;
 }
 
-/* A walked tile's pixels, and its rays' counts added to c; a failed fetch's status to *failed.
- * Rays whose pixel is negative missed the volume (the bricked walk keeps a state per pixel). */
+/* A walked tile's pixels, and its rays' counts added to c; a failed fetch's status to *failed. */
 static void tile_finish(const wvol_render_params *p, wvol_image *img, int x0, int y0, int tw, const ray_state *rs,
                         int n, wvol__counts *c, wvol_status *failed)
 {
     for (int i = 0; i < n; i++) {
         const ray_state *st = &rs[i];
-        if (st->pixel < 0) continue;
         c->rays_hit++;
         ray_pixel(p, st, img->rgba + 4 * ((size_t)(x0 + st->pixel % tw) + (size_t)img->width * (size_t)(y0 + st->pixel / tw)));
         c->samples += st->nsamp;
@@ -1311,7 +1334,8 @@ wvol_status wvol__render_sampled(wvol_image *img, wvol__sampler *s, const wvol_c
         /* the bricked walk: one tile at a time, its bricks shared by the threads */
         ray_state *rs = malloc(tile_rays_n * sizeof *rs);
         int32_t *lists = NULL; /* the bricks' list heads, then the rays' links */
-        status = !order || !rs ? wvol_error_set(err, WVOL_ERR_NOMEM, "render: out of memory for a tile's rays")
+        int32_t *row_first = malloc(((size_t)p.tile + 1) * sizeof *row_first);
+        status = !order || !rs || !row_first ? wvol_error_set(err, WVOL_ERR_NOMEM, "render: out of memory for a tile's rays")
                                : brick_order_make(&bo, s, &k, err);
         if (status == WVOL_OK) {
             lists = malloc((bo.n + tile_rays_n) * sizeof *lists);
@@ -1323,15 +1347,16 @@ wvol_status wvol__render_sampled(wvol_image *img, wvol__sampler *s, const wvol_c
             int x0 = (order[ti] % tx) * p.tile, y0 = (order[ti] / tx) * p.tile;
             int tw = img->width - x0 < p.tile ? img->width - x0 : p.tile;
             int th = img->height - y0 < p.tile ? img->height - y0 : p.tile;
-            render_tile_bricked(s, &k, img, lo, hi, x0, y0, tw, th, &tfx, &p, dt, rs, &bo, lists, lists + bo.n,
+            render_tile_bricked(s, &k, img, lo, hi, x0, y0, tw, th, &tfx, &p, dt, rs, row_first, &bo, lists, lists + bo.n,
                                 nthreads);
-            tile_finish(&p, img, x0, y0, tw, rs, tw * th, &counts, &failed);
+            tile_finish(&p, img, x0, y0, tw, rs, row_first[th], &counts, &failed);
         }
         /* the walk's own: the tile's rays and lists, the order */
-        counts.bytes = tile_rays_n * (sizeof *rs + sizeof *lists) +
+        counts.bytes = tile_rays_n * (sizeof *rs + sizeof *lists) + ((size_t)p.tile + 1) * sizeof *row_first +
                        bo.n * (sizeof *lists + sizeof *bo.inward + sizeof *bo.pending + sizeof *bo.ready);
         free(rs);
         free(lists);
+        free(row_first);
         brick_order_free(&bo);
     } else if (!order) {
         status = wvol_error_set(err, WVOL_ERR_NOMEM, "render: out of memory");
