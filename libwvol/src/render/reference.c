@@ -497,18 +497,29 @@ static inline __attribute__((always_inline)) int run_blocked(const wvol__view *v
      * the rounding of log and exp cannot carry T below it unchecked) */
     double od_run = 0.0, od_lim = 0.0;
     long kk;
+    /* the positions of block n + 1 are computed while block n's voxels load (pos[cur ^ 1]):
+     * they head each block's chain of dependent operations (positions, offsets, loads,
+     * interpolation, kappa, sum), which is longer than the out-of-order window reaches from
+     * one block into the next */
+    int32_t idx[2][RUN_BLOCK];
+    __m128 w[2][3][2];
+    int cur = 0;
+#define POSITIONS(kb, slot)                                                                                   \
+    do {                                                                                                      \
+        const int nb_ = ke - (kb) < RUN_BLOCK ? (int)(ke - (kb)) : RUN_BLOCK;                                 \
+        if (view->local) block_positions_local(view, x0, e, t0, dt, (kb), nb_, idx[slot], w[slot]);           \
+        else block_positions(view, x0, e, t0, dt, (kb), nb_, idx[slot], w[slot]);                             \
+    } while (0)
     if (grey) od_lim = (grey_limit(r, term) - r->od) / dt;
-    for (kk = *k; kk < ke; kk += RUN_BLOCK) {
+    if (*k < ke) POSITIONS(*k, 0);
+    for (kk = *k; kk < ke; kk += RUN_BLOCK, cur ^= 1) {
         int l, pr, nb = ke - kk < RUN_BLOCK ? (int)(ke - kk) : RUN_BLOCK, seg = r->seg, sg, same;
         double val[RUN_BLOCK], kappa[RUN_BLOCK], alpha[RUN_BLOCK], rgb[3][RUN_BLOCK];
-        int32_t idx[RUN_BLOCK];
-        __m128 w[3][2], vq[2];
-        if (view->local) block_positions_local(view, x0, e, t0, dt, kk, nb, idx, w);
-        else block_positions(view, x0, e, t0, dt, kk, nb, idx, w);
+        __m128 vq[2];
         /* a block of at most 4 samples interpolates one quad */
         for (int qd = 0; qd < (nb > 4 ? 2 : 1); qd++) {
-            const float *qa = data + idx[4 * qd], *qb = data + idx[4 * qd + 1], *qc = data + idx[4 * qd + 2],
-                        *qe = data + idx[4 * qd + 3];
+            const float *qa = data + idx[cur][4 * qd], *qb = data + idx[cur][4 * qd + 1],
+                        *qc = data + idx[cur][4 * qd + 2], *qe = data + idx[cur][4 * qd + 3];
             __m128 lo[4], c0, c1, v;
             for (int row = 0; row < 4; row++) {
                 size_t o = rows[row];
@@ -518,13 +529,14 @@ static inline __attribute__((always_inline)) int run_blocked(const wvol__view *v
                                          (const __m64 *)(const void *)(qe + o));
                 __m128 p0 = _mm_shuffle_ps(ab, ce, _MM_SHUFFLE(2, 0, 2, 0)); /* the voxels at i */
                 __m128 p1 = _mm_shuffle_ps(ab, ce, _MM_SHUFFLE(3, 1, 3, 1)); /* and at i + 1 */
-                lo[row] = _mm_add_ps(p0, _mm_mul_ps(w[0][qd], _mm_sub_ps(p1, p0)));
+                lo[row] = _mm_add_ps(p0, _mm_mul_ps(w[cur][0][qd], _mm_sub_ps(p1, p0)));
             }
-            c0 = _mm_add_ps(lo[0], _mm_mul_ps(w[1][qd], _mm_sub_ps(lo[1], lo[0])));
-            c1 = _mm_add_ps(lo[2], _mm_mul_ps(w[1][qd], _mm_sub_ps(lo[3], lo[2])));
-            vq[qd] = v = _mm_add_ps(c0, _mm_mul_ps(w[2][qd], _mm_sub_ps(c1, c0)));
+            c0 = _mm_add_ps(lo[0], _mm_mul_ps(w[cur][1][qd], _mm_sub_ps(lo[1], lo[0])));
+            c1 = _mm_add_ps(lo[2], _mm_mul_ps(w[cur][1][qd], _mm_sub_ps(lo[3], lo[2])));
+            vq[qd] = v = _mm_add_ps(c0, _mm_mul_ps(w[cur][2][qd], _mm_sub_ps(c1, c0)));
         }
         if (nb <= 4) vq[1] = vq[0];
+        if (kk + RUN_BLOCK < ke) POSITIONS(kk + RUN_BLOCK, cur ^ 1);
         if (grey && tfx->n >= 2) {
             /* one colour: only the block's sum of kappa counts; when every sample lies in the
              * current segment (as below), kappa four lanes per float operation (a relative
@@ -698,6 +710,7 @@ static inline __attribute__((always_inline)) int run_blocked(const wvol__view *v
     if (grey) r->od += od_run * dt;
     *k = ke;
     return 0;
+#undef POSITIONS
 }
 #endif
 
