@@ -390,10 +390,12 @@ static inline __attribute__((always_inline)) void block_positions(const wvol__vi
     const __m128d kd = _mm_set1_pd((double)kk);
     double lanes[RUN_BLOCK];
     for (int l = 0; l < RUN_BLOCK; l++) lanes[l] = l < nb ? l : nb - 1;
+#pragma GCC unroll 4
     for (int pr = 0; pr < RUN_BLOCK / 2; pr++) {
         /* t = t0 + ((kk + l) + 0.5) dt; the voxel's integer coordinates in double */
         __m128d t = _mm_add_pd(vt0, _mm_mul_pd(_mm_add_pd(_mm_add_pd(kd, _mm_loadu_pd(lanes + 2 * pr)), half), vdt));
         __m128d off = _mm_setzero_pd();
+#pragma GCC unroll 3
         for (int a = 0; a < 3; a++) {
             __m128d x = _mm_add_pd(_mm_set1_pd(x0[a]), _mm_mul_pd(t, _mm_set1_pd(e[a])));
             __m128d fi = _mm_cvtepi32_pd(_mm_cvttpd_epi32(x)), rel = _mm_sub_pd(fi, _mm_set1_pd((double)view->off[a]));
@@ -425,12 +427,14 @@ static inline __attribute__((always_inline)) void block_positions_local(const wv
         lane[0] = _mm_min_ps(lane[0], last);
         lane[1] = _mm_min_ps(lane[1], last);
     }
+#pragma GCC unroll 3
     for (int a = 0; a < 3; a++) {
         const __m128 xs = _mm_set1_ps((float)(x0[a] + t * e[a] - (double)view->off[a]));
         const __m128 dx = _mm_set1_ps((float)(dt * e[a]));
         const __m128 cell_max = _mm_set1_ps((float)(view->hi[a] - view->off[a] - 1));
         const __m128 x_max = _mm_set1_ps((float)(view->hi[a] - view->off[a])), zero = _mm_setzero_ps();
         const __m128 stride = _mm_set1_ps(a == 0 ? 1.0f : (float)(a == 1 ? view->sy : view->sz));
+#pragma GCC unroll 2
         for (int h = 0; h < 2; h++) {
             __m128 x = _mm_min_ps(_mm_max_ps(_mm_add_ps(xs, _mm_mul_ps(lane[h], dx)), zero), x_max);
             __m128 fi = _mm_min_ps(_mm_cvtepi32_ps(_mm_cvttps_epi32(x)), cell_max);
@@ -440,6 +444,43 @@ static inline __attribute__((always_inline)) void block_positions_local(const wv
     }
     _mm_storeu_si128((__m128i *)(void *)idx, _mm_cvttps_epi32(off[0]));
     _mm_storeu_si128((__m128i *)(void *)(idx + 4), _mm_cvttps_epi32(off[1]));
+}
+
+/* A block's trilinear samples, four lanes per float operation (two quads; a block of at
+ * most 4 samples interpolates one, and the second repeats it): a voxel row's two neighbours
+ * along x as one 64-bit load, two shuffles turning four lanes' pairs into the four low and
+ * the four high neighbours. rows: the offsets of the rows (j, k), (j + 1, k), (j, k + 1),
+ * (j + 1, k + 1). The loops here and in the positions are unrolled by request: in
+ * ray_advance_any's many inlined copies GCC stopped unrolling them on its own, and the
+ * sums went through memory. */
+static inline __attribute__((always_inline)) void block_values(const float *data, const size_t rows[4],
+                                                               const int32_t idx[RUN_BLOCK], __m128 w[3][2], int nb,
+                                                               __m128 vq[2])
+{
+#pragma GCC unroll 2
+    for (int qd = 0; qd < 2; qd++) {
+        if (qd == 1 && nb <= 4) {
+            vq[1] = vq[0];
+            break;
+        }
+        const float *qa = data + idx[4 * qd], *qb = data + idx[4 * qd + 1], *qc = data + idx[4 * qd + 2],
+                    *qe = data + idx[4 * qd + 3];
+        __m128 lo[4], c0, c1;
+#pragma GCC unroll 4
+        for (int row = 0; row < 4; row++) {
+            size_t o = rows[row];
+            __m128 ab = _mm_loadh_pi(_mm_loadl_pi(_mm_setzero_ps(), (const __m64 *)(const void *)(qa + o)),
+                                     (const __m64 *)(const void *)(qb + o));
+            __m128 ce = _mm_loadh_pi(_mm_loadl_pi(_mm_setzero_ps(), (const __m64 *)(const void *)(qc + o)),
+                                     (const __m64 *)(const void *)(qe + o));
+            __m128 p0 = _mm_shuffle_ps(ab, ce, _MM_SHUFFLE(2, 0, 2, 0)); /* the voxels at i */
+            __m128 p1 = _mm_shuffle_ps(ab, ce, _MM_SHUFFLE(3, 1, 3, 1)); /* and at i + 1 */
+            lo[row] = _mm_add_ps(p0, _mm_mul_ps(w[0][qd], _mm_sub_ps(p1, p0)));
+        }
+        c0 = _mm_add_ps(lo[0], _mm_mul_ps(w[1][qd], _mm_sub_ps(lo[1], lo[0])));
+        c1 = _mm_add_ps(lo[2], _mm_mul_ps(w[1][qd], _mm_sub_ps(lo[3], lo[2])));
+        vq[qd] = _mm_add_ps(c0, _mm_mul_ps(w[2][qd], _mm_sub_ps(c1, c0)));
+    }
 }
 
 /* run_blocked's one-colour path: the optical depth ln(T / term) that T, now T, may lose
@@ -516,26 +557,7 @@ static inline __attribute__((always_inline)) int run_blocked(const wvol__view *v
         int l, pr, nb = ke - kk < RUN_BLOCK ? (int)(ke - kk) : RUN_BLOCK, seg = r->seg, sg, same;
         double val[RUN_BLOCK], kappa[RUN_BLOCK], alpha[RUN_BLOCK], rgb[3][RUN_BLOCK];
         __m128 vq[2];
-        /* a block of at most 4 samples interpolates one quad */
-        for (int qd = 0; qd < (nb > 4 ? 2 : 1); qd++) {
-            const float *qa = data + idx[cur][4 * qd], *qb = data + idx[cur][4 * qd + 1],
-                        *qc = data + idx[cur][4 * qd + 2], *qe = data + idx[cur][4 * qd + 3];
-            __m128 lo[4], c0, c1, v;
-            for (int row = 0; row < 4; row++) {
-                size_t o = rows[row];
-                __m128 ab = _mm_loadh_pi(_mm_loadl_pi(_mm_setzero_ps(), (const __m64 *)(const void *)(qa + o)),
-                                         (const __m64 *)(const void *)(qb + o));
-                __m128 ce = _mm_loadh_pi(_mm_loadl_pi(_mm_setzero_ps(), (const __m64 *)(const void *)(qc + o)),
-                                         (const __m64 *)(const void *)(qe + o));
-                __m128 p0 = _mm_shuffle_ps(ab, ce, _MM_SHUFFLE(2, 0, 2, 0)); /* the voxels at i */
-                __m128 p1 = _mm_shuffle_ps(ab, ce, _MM_SHUFFLE(3, 1, 3, 1)); /* and at i + 1 */
-                lo[row] = _mm_add_ps(p0, _mm_mul_ps(w[cur][0][qd], _mm_sub_ps(p1, p0)));
-            }
-            c0 = _mm_add_ps(lo[0], _mm_mul_ps(w[cur][1][qd], _mm_sub_ps(lo[1], lo[0])));
-            c1 = _mm_add_ps(lo[2], _mm_mul_ps(w[cur][1][qd], _mm_sub_ps(lo[3], lo[2])));
-            vq[qd] = v = _mm_add_ps(c0, _mm_mul_ps(w[cur][2][qd], _mm_sub_ps(c1, c0)));
-        }
-        if (nb <= 4) vq[1] = vq[0];
+        block_values(data, rows, idx[cur], w[cur], nb, vq);
         if (kk + RUN_BLOCK < ke) POSITIONS(kk + RUN_BLOCK, cur ^ 1);
         if (grey && tfx->n >= 2) {
             /* one colour: only the block's sum of kappa counts; when every sample lies in the
