@@ -1,6 +1,9 @@
 /* Partial reconstruction: a coarser volume (stop at level s) and one brick of the finest
  * level from only the coefficients whose support reaches it. */
 #include <math.h>
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
 #include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
@@ -166,7 +169,35 @@ static inline __attribute__((always_inline)) void synth_x_pairs(float *restrict 
                                                                 const float *oh, const float *og, ptrdiff_t i0,
                                                                 ptrdiff_t i1, const int NT, const int WHICH)
 {
-    for (ptrdiff_t i = i0; i + 1 < i1; i += 2) {
+    ptrdiff_t i = i0;
+#if defined(__SSE2__)
+    /* four pairs at once where their inputs start at consecutive positions (the interior):
+     * the same sums in the same order, lane by lane, the pairs' even and odd outputs then
+     * interleaved (eight scalar sums took a third of a brick's build) */
+    const __m128 zero = _mm_setzero_ps();
+    for (; i + 7 < i1 && r0[i + 2] == r0[i] + 1 && r0[i + 4] == r0[i] + 2 && r0[i + 6] == r0[i] + 3; i += 8) {
+        const float *l = WHICH & 1 ? lu + r0[i] : NULL, *h = WHICH & 2 ? hu + r0[i] : NULL;
+        __m128 e = zero, d = zero;
+        for (int j = 0; j < NT; j++) {
+            if (WHICH == 3) {
+                const __m128 lj = _mm_loadu_ps(l + j), hj = _mm_loadu_ps(h + j);
+                e = _mm_add_ps(e, _mm_add_ps(_mm_mul_ps(_mm_set1_ps(eh[j]), lj), _mm_mul_ps(_mm_set1_ps(eg[j]), hj)));
+                d = _mm_add_ps(d, _mm_add_ps(_mm_mul_ps(_mm_set1_ps(oh[j]), lj), _mm_mul_ps(_mm_set1_ps(og[j]), hj)));
+            } else if (WHICH == 1) {
+                const __m128 lj = _mm_loadu_ps(l + j);
+                e = _mm_add_ps(e, _mm_mul_ps(_mm_set1_ps(eh[j]), lj));
+                d = _mm_add_ps(d, _mm_mul_ps(_mm_set1_ps(oh[j]), lj));
+            } else {
+                const __m128 hj = _mm_loadu_ps(h + j);
+                e = _mm_add_ps(e, _mm_mul_ps(_mm_set1_ps(eg[j]), hj));
+                d = _mm_add_ps(d, _mm_mul_ps(_mm_set1_ps(og[j]), hj));
+            }
+        }
+        _mm_storeu_ps(o + i, _mm_unpacklo_ps(e, d));
+        _mm_storeu_ps(o + i + 4, _mm_unpackhi_ps(e, d));
+    }
+#endif
+    for (; i + 1 < i1; i += 2) {
         const float *l = WHICH & 1 ? lu + r0[i] : NULL, *h = WHICH & 2 ? hu + r0[i] : NULL;
         float e = 0.0, d = 0.0;
         for (int j = 0; j < NT; j++) {
@@ -387,7 +418,7 @@ wvol_status wvol__idwt3_brick_src(float *out, const wvol__coef_source *src, cons
     ptrdiff_t rlo[33][3], rn[33][3];
     /* bands[b] is scratch slot slot[b] or NULL (all zero); slots 0..7 hold bands, 8..15 spare */
     float *bands[8];
-    int slot[8], free_slots[16], nfree = 0, M = src->levels, a;
+    int slot[8], free_slots[16], nfree = 0, M = src->levels, a, last_ax = -1;
     size_t outn = (hi[0] - lo[0]) * (hi[1] - lo[1]) * (hi[2] - lo[2]);
     WVOL_RETURN_IF(M < 0 || M > 32, err, WVOL_ERR_ARG, "brick: %d levels", M);
     /* R_m: the level-m coefficients that reach R_{m-1}: 0 <= i - 2k <= L-1 */
@@ -410,6 +441,9 @@ wvol_status wvol__idwt3_brick_src(float *out, const wvol__coef_source *src, cons
             rlo[m][a] = kl, rn[m][a] = kh - kl;
         }
     for (int i = 15; i >= 0; i--) free_slots[nfree++] = i;
+    /* the last synthesis pass (level 1's lowest transformed axis) writes into out itself */
+    for (a = 2; a >= 0; a--)
+        if (pad[a] != 1) last_ax = a;
 #define TAKE(b, n)                                                                                          \
     do {                                                                                                    \
         slot[b] = free_slots[--nfree];                                                                      \
@@ -418,7 +452,7 @@ wvol_status wvol__idwt3_brick_src(float *out, const wvol__coef_source *src, cons
     } while (0)
 #define DROP(b)                                                                                             \
     do {                                                                                                    \
-        if (bands[b]) free_slots[nfree++] = slot[b];                                                        \
+        if (bands[b] && slot[b] >= 0) free_slots[nfree++] = slot[b];                                        \
         bands[b] = NULL;                                                                                    \
     } while (0)
     for (int b = 0; b < 8; b++) bands[b] = NULL;
@@ -452,8 +486,9 @@ wvol_status wvol__idwt3_brick_src(float *out, const wvol__coef_source *src, cons
             for (int b = 0; b < nb; b++) {
                 if (b & half) continue;
                 if (!bands[b] && !bands[b | half]) continue; /* both zero: the output is zero */
-                int so = free_slots[--nfree];
-                float *o = scratch_get(scr, so, ncnt);
+                const int into_out = m == 1 && ax == last_ax; /* then b is 0, the only band left */
+                int so = into_out ? -1 : free_slots[--nfree];
+                float *o = into_out ? out : scratch_get(scr, so, ncnt);
                 if (!o) return wvol_error_set(err, WVOL_ERR_NOMEM, "brick: out of memory");
                 synth_axis(o, bands[b], bands[b | half], cl, cn, rlo[m - 1][ax], rn[m - 1][ax], ax,
                            cn[ax] == (ptrdiff_t)wvol__extent(pad[ax], m), src->filter);
@@ -465,7 +500,9 @@ wvol_status wvol__idwt3_brick_src(float *out, const wvol__coef_source *src, cons
             for (a = 0; a < 3; a++) cl[a] = nl[a], cn[a] = nn[a];
         }
     }
-    if (bands[0]) {
+    if (bands[0] == out) {
+        /* synthesised in place */
+    } else if (bands[0]) {
         for (size_t i = 0; i < outn; i++) out[i] = (float)bands[0][i];
     } else {
         memset(out, 0, outn * sizeof *out);
