@@ -21,7 +21,7 @@ static const cli_opt opts[] = {
     {"size", 0, 1, "image size WxH (default 512x512)"},
     {"tf", 0, 1, "transfer function: gaussian, grey, ct-bone, ct-soft, or a file (default gaussian)"},
     {"mode", 0, 1, "xray | absorption | absorption-linear (default absorption)"},
-    {"method", 0, 1, "auto | reference | reference-fhat | spline | axis | bricks (default auto)"},
+    {"method", 0, 1, "auto | reference | reference-fhat | spline | axis | splat | bricks (default auto)"},
     {"keep", 0, 1, "fraction of coefficients kept, e.g. 5% (default 100%: a .wvc's nonzero ones); with --method reference the dense reconstruction of those is rendered"},
     {"wavelet", 0, 1, "volume input, wavelet methods: family (default db2)"},
     {"levels", 0, 1, "volume input, wavelet methods: levels (default 3, or fewer when the volume is small)"},
@@ -171,8 +171,8 @@ int wvol_cmd_render(int argc, char **argv)
     if (!wvol_path_has_ext(out, ".exr") && !wvol_path_has_ext(out, ".png"))
         return cli_usage(cmd, "output '%s': the extension must be .exr or .png", out);
     if (strcmp(method, "auto") && strcmp(method, "reference") && strcmp(method, "reference-fhat") &&
-        strcmp(method, "spline") && strcmp(method, "axis") && strcmp(method, "bricks"))
-        return cli_usage(cmd, "--method '%s': expected auto, reference, reference-fhat, spline, axis or bricks",
+        strcmp(method, "spline") && strcmp(method, "axis") && strcmp(method, "splat") && strcmp(method, "bricks"))
+        return cli_usage(cmd, "--method '%s': expected auto, reference, reference-fhat, spline, axis, splat or bricks",
                          method);
     is_wvc = wvol_path_has_ext(in, ".wvc");
     rp.step = step;
@@ -291,6 +291,7 @@ int wvol_cmd_render(int argc, char **argv)
             if (s == WVOL_OK) s = wvol_render_reference_fhat(img, c, b, &cam, &tf, &rp, &one, &err);
             wvol_basis_destroy(b);
         } else if (!strcmp(method, "axis")) s = wvol_render_xray_axis(img, st, &cam, &rp, &one, &err);
+        else if (!strcmp(method, "splat")) s = wvol_render_xray_splat(img, st, &cam, &rp, &one, &err);
         else if (!strcmp(method, "spline")) s = wvol_render_spline(img, st, &cam, &tf, &rp, &one, &err);
         else {
             s = WVOL_ERR_UNSUPPORTED;

@@ -1,5 +1,5 @@
-/* The renderers that read a store capsule: the spline-projected integral, the X-ray axis fast
- * path and the bricked reference integrator. */
+/* The renderers that read a store capsule: the spline-projected integral, the X-ray fast
+ * paths (axis, splat) and the bricked reference integrator. */
 #include "pyutil.h"
 #include "methods.h"
 #include "py_render.h"
@@ -7,7 +7,7 @@
 
 #include <string.h>
 
-enum store_method { STORE_SPLINE, STORE_AXIS, STORE_BRICKS };
+enum store_method { STORE_SPLINE, STORE_AXIS, STORE_SPLAT, STORE_BRICKS };
 
 static PyObject *render_store(PyObject *args, enum store_method method)
 {
@@ -39,6 +39,7 @@ static PyObject *render_store(PyObject *args, enum store_method method)
     s = wvol_image_create(&img, cam.width, cam.height, &err);
     if (s == WVOL_OK) {
         if (method == STORE_AXIS) s = wvol_render_xray_axis(img, st, &cam, &rp, &stats, &err);
+        else if (method == STORE_SPLAT) s = wvol_render_xray_splat(img, st, &cam, &rp, &stats, &err);
         else if (method == STORE_BRICKS) s = wvol_render_bricks(img, st, &cam, &tf, &rp, &stats, &err);
         else s = wvol_render_spline(img, st, &cam, &tf, &rp, &stats, &err);
     }
@@ -58,6 +59,12 @@ static PyObject *py_render_axis(PyObject *self, PyObject *args)
     return render_store(args, STORE_AXIS);
 }
 
+static PyObject *py_render_splat(PyObject *self, PyObject *args)
+{
+    (void)self;
+    return render_store(args, STORE_SPLAT);
+}
+
 static PyObject *py_render_bricks(PyObject *self, PyObject *args)
 {
     (void)self;
@@ -67,5 +74,6 @@ static PyObject *py_render_bricks(PyObject *self, PyObject *args)
 PyMethodDef wvolpy_render_store_methods[] = {
     {"render_spline", py_render_spline, METH_VARARGS, "render_spline(store, value_range, opts) -> (image, stats)"},
     {"render_axis", py_render_axis, METH_VARARGS, "render_axis(store, value_range, opts) -> (image, stats)"},
+    {"render_splat", py_render_splat, METH_VARARGS, "render_splat(store, value_range, opts) -> (image, stats)"},
     {"render_bricks", py_render_bricks, METH_VARARGS, "render_bricks(store, value_range, opts) -> (image, stats)"},
     {NULL, NULL, 0, NULL}};

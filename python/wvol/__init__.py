@@ -382,7 +382,9 @@ def render(source, camera="+z", size=(256, 256), *, mode="absorption", tf="gauss
     ``method``: for a volume "reference" (ray marching with trilinear samples, ``step``
     in voxels); for a store "spline" (the spline-projected integral from the kept
     coefficients, exact for the spline model; ``gauss_nodes`` per piece), "axis" (X-ray
-    along an axis from 2D coefficients), "bricks" (the reference's ray marching on bricks
+    along an axis from 2D coefficients), "splat" (X-ray for any orthographic view by
+    footprint splatting: the spline model up to the footprint tables' interpolation error,
+    about 1e-3 relative; docs/render.md), "bricks" (the reference's ray marching on bricks
     reconstructed on demand, never the whole volume: the fast one), "reference-fhat" (ray
     marching over the spline model) or "reference" (on the reconstructed volume). "auto": "reference" for volumes;
     for stores "axis" when it applies (X-ray along an axis), else "spline".
@@ -390,7 +392,7 @@ def render(source, camera="+z", size=(256, 256), *, mode="absorption", tf="gauss
     :func:`segment`'s ``colors``), replacing the transfer function's colour (opacity still
     comes from ``tf``; nearest voxel, so classes keep crisp edges). Absorption modes and the
     sampling methods only ("reference", "reference-fhat", "bricks"; "auto" picks
-    "reference-fhat" for a store); "spline" and "axis" refuse it.
+    "reference-fhat" for a store); "spline", "axis" and "splat" refuse it.
     ``termination``: stop a ray once its transmittance falls below this (0: never).
     ``skip_tolerance``: "reference" and "bricks": the optical depth (X-ray: integral) each ray
     may skip in nearly empty bricks (e.g. a compressed volume's ringing haze); every pixel then
@@ -417,10 +419,10 @@ def render(source, camera="+z", size=(256, 256), *, mode="absorption", tf="gauss
                     return (img, st) if return_stats else img
                 except NotImplementedError:
                     pass
-        if method == "axis" and mode != "xray":
-            raise ValueError(f"method 'axis' renders X-ray only (mode='xray'), not mode '{mode}'")
-        if method in ("spline", "axis"):
-            fn = _wvol.render_spline if method == "spline" else _wvol.render_axis
+        if method in ("axis", "splat") and mode != "xray":
+            raise ValueError(f"method '{method}' renders X-ray only (mode='xray'), not mode '{mode}'")
+        if method in ("spline", "axis", "splat"):
+            fn = {"spline": _wvol.render_spline, "axis": _wvol.render_axis, "splat": _wvol.render_splat}[method]
             img, st = fn(source._c(4 if spline_j is None else spline_j), source.value_range, opts)
         elif method == "bricks":
             img, st = _wvol.render_bricks(source._c(spline_j), source.value_range, opts)
@@ -432,7 +434,7 @@ def render(source, camera="+z", size=(256, 256), *, mode="absorption", tf="gauss
             vol = source.reconstruct()
             img, st = _wvol.render_volume(vol.data, vol.spacing, vol.origin, opts)
         else:
-            raise ValueError(f"method '{method}': expected auto, spline, axis, bricks, reference-fhat or reference")
+            raise ValueError(f"method '{method}': expected auto, spline, axis, splat, bricks, reference-fhat or reference")
     else:
         if method not in ("auto", "reference"):
             raise ValueError(f"method '{method}' needs a Store (wvol.compress); volumes render with 'reference'")

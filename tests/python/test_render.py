@@ -1,4 +1,4 @@
-"""wvol render: images from volumes (reference) and from stores (spline, axis); bad input refused."""
+"""wvol render: images from volumes (reference) and from stores (spline, axis, splat); bad input refused."""
 import array
 import json
 import math
@@ -113,6 +113,26 @@ def test_spline_and_axis_agree_along_an_axis(wvol, vol, tmp_path):
     r3 = wvol("render", *common, "-o", tmp_path / "auto.exr")
     assert json.loads(r3.stdout)["method"] == "axis"
     assert (tmp_path / "s.exr").stat().st_size > 0 and (tmp_path / "a.exr").stat().st_size > 0
+
+
+def test_splat_from_the_cli(wvol, vol, tmp_path):
+    # --method splat: X-ray of an oblique orthographic view, the spline model up to the
+    # footprint tables' interpolation (C tests: 4e-4..4.4e-3 relative RMSE; here allowed 1e-2
+    # of the peak on any pixel); a mode or camera it cannot render is refused with exit 1
+    common = [vol, "--dims", f"{N}x{N}x{N}", "--mode", "xray", "--size", "16x12", "--camera",
+              "ortho dir=1,0.7,0.4", "--wavelet", "db2", "--levels", "2", "--keep", "20%", "--json",
+              "--spline-j", "3"]
+    r1 = wvol("render", *common, "-o", tmp_path / "s.exr", "--method", "spline")
+    r2 = wvol("render", *common, "-o", tmp_path / "p.exr", "--method", "splat")
+    assert r1.returncode == 0 and r2.returncode == 0, r1.stderr + r2.stderr
+    assert json.loads(r2.stdout)["method"] == "splat"
+    a, b = read_exr_rgba(tmp_path / "p.exr"), read_exr_rgba(tmp_path / "s.exr")
+    assert a.size == b.size == 4 * 16 * 12 and abs(a - b).max() < 1e-2 * abs(b).max()
+    bad = [vol, "--dims", f"{N}x{N}x{N}", "--size", "8x8", "--keep", "20%", "--method", "splat"]
+    r = wvol("render", *bad, "-o", tmp_path / "x.exr")
+    assert r.returncode == 1 and "X-ray only" in r.stderr and not (tmp_path / "x.exr").exists()
+    r = wvol("render", *bad, "--mode", "xray", "--camera", "persp dir=1,1,0", "-o", tmp_path / "y.exr")
+    assert r.returncode == 1 and "orthographic" in r.stderr and not (tmp_path / "y.exr").exists()
 
 
 def test_spline_absorption_with_shading(wvol, vol, tmp_path):

@@ -255,6 +255,19 @@ wvol_status wvol_render_xray_axis(wvol_image *img, const wvol_store *s, const wv
                                   const wvol_render_params *params, wvol_render_stats *stats,
                                   wvol_error *err);
 
+/* Fast path: X-ray for any orthographic view by footprint splatting. Every kept function is a
+ * dilate and translate of one of 8 unit functions (band), whose X-ray along the view is a 2D
+ * footprint shared by all levels; per view the footprints are tabulated once (integrals of
+ * the spline model along lines: a fine 2D table, and a coarser 3D one of partial integrals
+ * for the functions the box clips), then each function is splatted (bilinear, or trilinear
+ * where clipped) onto the pixels its support projects to. Its error against wvol_render_spline
+ * is the tables' interpolation error (docs/render.md). Cost O(sum of footprint areas),
+ * independent of the ray length. WVOL_ERR_UNSUPPORTED (with the reason) for other modes,
+ * perspective cameras, an untransformed axis, and filters of more than 10 taps (bl3). */
+wvol_status wvol_render_xray_splat(wvol_image *img, const wvol_store *s, const wvol_camera *cam,
+                                   const wvol_render_params *params, wvol_render_stats *stats,
+                                   wvol_error *err);
+
 /* Image error: RMSE over all pixels and the 4 channels (or only `channel` 0..3 if >= 0) of a
  * against b, relative to the max |b| of those channels when relative is set. Same sizes. */
 double wvol_image_rmse(const wvol_image *a, const wvol_image *b, int channel, int relative);
