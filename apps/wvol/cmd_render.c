@@ -113,7 +113,8 @@ int wvol_cmd_render(int argc, char **argv)
                            "samples of the volume; 'bricks' does the same from a store, reconstructing bricks\n"
                            "on demand (never the whole volume); 'spline' integrates the kept wavelet basis\n"
                            "functions analytically (the exact model, slow); 'axis' is the X-ray fast path for\n"
-                           "views along an axis; 'reference-fhat' samples the wavelet model.\n"
+                           "views along an axis, 'splat' for any orthographic view (footprint splatting, the\n"
+                           "spline model to ~1e-3); 'reference-fhat' samples the wavelet model.\n"
                            "'auto' picks reference for a volume at 100%, else axis when it applies, else bricks.\n"
                            "See docs/render.md for cameras, transfer-function files and errors.",
                            opts);
