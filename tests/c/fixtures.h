@@ -4,7 +4,9 @@
 
 #include <stddef.h>
 #include <stdint.h>
+#include <stdio.h>
 
+#include "wvol/store.h"
 #include "wvol/volume.h"
 #include "wvol/wavelet.h"
 
@@ -38,6 +40,31 @@ static inline wvol_volume *fixture_volume(size_t nx, size_t ny, size_t nz, fixtu
         for (size_t j = 0; j < ny; j++)
             for (size_t i = 0; i < nx; i++) v->data[i + nx * (j + ny * k)] = (float)value(v, i, j, k, ctx);
     return v;
+}
+
+/* A store of v's transform (filter, levels) keeping the largest fraction `keep` of the
+ * coefficients (all when keep >= 1), splines with 2^J knots per unit; NULL on failure (with
+ * the message on stderr). */
+static inline wvol_store *fixture_store(const wvol_volume *v, const char *filter, int levels, double keep, int J)
+{
+    const wvol_filter *f = fixture_filter(filter);
+    wvol_coeffs *c = NULL;
+    wvol_selection *sel = NULL;
+    wvol_store *s = NULL;
+    wvol_select_params sp = wvol_select_params_default();
+    wvol_store_params stp = wvol_store_params_default();
+    wvol_error err;
+    if (!f || wvol_dwt3(&c, v, f, levels, &err) != WVOL_OK) return NULL;
+    if (keep < 1.0) {
+        sp.mode = WVOL_SELECT_FRACTION;
+        sp.fraction = keep;
+        wvol_select(&sel, c, &sp, NULL, NULL, &err);
+    }
+    stp.spline_J = J;
+    if (wvol_store_build(&s, c, sel, &stp, &err) != WVOL_OK) fprintf(stderr, "store: %s\n", err.message);
+    wvol_selection_destroy(sel);
+    wvol_coeffs_destroy(c);
+    return s;
 }
 
 #endif

@@ -41,24 +41,7 @@ static wvol_volume *phantom(const char *kind, size_t n)
 
 static wvol_store *make_store(const wvol_volume *v, const char *filter, int levels, double keep)
 {
-    const wvol_filter *f = fixture_filter(filter);
-    wvol_coeffs *c = NULL;
-    wvol_selection *sel = NULL;
-    wvol_store *s = NULL;
-    wvol_select_params sp = wvol_select_params_default();
-    wvol_store_params stp = wvol_store_params_default();
-    wvol_error err;
-    if (!f || wvol_dwt3(&c, v, f, levels, &err) != WVOL_OK) return NULL;
-    if (keep < 1.0) {
-        sp.mode = WVOL_SELECT_FRACTION;
-        sp.fraction = keep;
-        wvol_select(&sel, c, &sp, NULL, NULL, &err);
-    }
-    stp.spline_J = 4; /* the CLI's default */
-    if (wvol_store_build(&s, c, sel, &stp, &err) != WVOL_OK) fprintf(stderr, "store: %s\n", err.message);
-    wvol_selection_destroy(sel);
-    wvol_coeffs_destroy(c);
-    return s;
+    return fixture_store(v, filter, levels, keep, 4); /* the CLI's default J */
 }
 
 static double f_at(const wvol_store *s, const double o[3], const double d[3], double t)

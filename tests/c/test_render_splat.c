@@ -26,25 +26,11 @@ static double blob_and_noise(const wvol_volume *v, size_t i, size_t j, size_t k,
     return exp(-0.5 * (x * x + y * y + z * z)) + f->noise * (fixture_urand(&f->seed) - 0.5);
 }
 
+/* Both paths use the store's splines; coarse ones (J = 3) keep the exact path quick. */
 static wvol_store *store_of(const wvol_volume *v, const char *family, int levels, double keep)
 {
-    const wvol_filter *f = fixture_filter(family);
-    wvol_coeffs *c = NULL;
-    wvol_selection *sel = NULL;
-    wvol_store *s = NULL;
-    wvol_select_params sp = wvol_select_params_default();
-    wvol_store_params stp = wvol_store_params_default();
-    wvol_error err;
-    if (!f || wvol_dwt3(&c, v, f, levels, &err) != WVOL_OK) {
-        CHECK(0, "transform %s", family);
-        return NULL;
-    }
-    if (keep < 1) sp.mode = WVOL_SELECT_FRACTION, sp.fraction = keep;
-    stp.spline_J = 3; /* both paths use the store's splines; coarse ones keep the exact path quick */
-    CHECK(wvol_select(&sel, c, &sp, v, NULL, &err) == WVOL_OK, "%s", err.message);
-    CHECK(wvol_store_build(&s, c, sel, &stp, &err) == WVOL_OK, "%s", err.message);
-    wvol_selection_destroy(sel);
-    wvol_coeffs_destroy(c);
+    wvol_store *s = fixture_store(v, family, levels, keep, 3);
+    CHECK(s != NULL, "store of %s", family);
     return s;
 }
 
