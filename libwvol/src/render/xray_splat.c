@@ -239,7 +239,7 @@ static wvol_status tables_build(splat_tables *t, const wvol_basis *b, const doub
                 for (i = 0; i < t->n1; i++) {
                     double u1 = t->u1lo + i * t->h2, w[3], tot[8];
                     int on3 = (i % ratio == 0) && (j % ratio == 0);
-                    for (a = 0; a < 3; a++) w[a] = u1 * t->e1[a] + u2 * t->e2[a];
+                    for (int q = 0; q < 3; q++) w[q] = u1 * t->e1[q] + u2 * t->e2[q];
                     line_integrals(t, b, w, tot, on3 ? cum : NULL, brk, cap);
                     for (band = 0; band < 8; band++) t->T[band * n2d + (size_t)j * t->n1 + i] = (float)tot[band];
                     if (on3) {
@@ -475,13 +475,13 @@ wvol_status wvol_render_xray_splat(wvol_image *img, const wvol_store *s, const w
             double step = ldexp(1.0, m), sup = b->support * step, norm = pow(2.0, -1.5 * m), lo[3];
             long jlo[3], jhi[3], E[3], pos[3] = {(long)c->p, (long)c->q, (long)c->r}, j0, j1, j2;
             /* the periodic images j = pos + k E whose support [j 2^m - s, j 2^m - s + sup] meets the box */
-            for (a = 0; a < 3; a++) {
-                E[a] = (long)(P[a] >> m);
-                jlo[a] = (long)ceil((v.box_lo[a] + sft - sup) / step);
-                jhi[a] = (long)floor((v.box_hi[a] + sft) / step);
+            for (int q = 0; q < 3; q++) {
+                E[q] = (long)(P[q] >> m);
+                jlo[q] = (long)ceil((v.box_lo[q] + sft - sup) / step);
+                jhi[q] = (long)floor((v.box_hi[q] + sft) / step);
                 /* first j >= jlo with j = pos mod E */
-                long r = ((jlo[a] - pos[a]) % E[a] + E[a]) % E[a];
-                jlo[a] += r ? E[a] - r : 0;
+                long r = ((jlo[q] - pos[q]) % E[q] + E[q]) % E[q];
+                jlo[q] += r ? E[q] - r : 0;
             }
             for (j2 = jlo[2]; j2 <= jhi[2]; j2 += E[2])
                 for (j1 = jlo[1]; j1 <= jhi[1]; j1 += E[1])
