@@ -221,11 +221,10 @@ int cli_parse_size(const char *cmd, const char *opt, const char *s, long *w, lon
 
 int cli_load_tf(const char *cmd, const char *name, double vmin, double vmax, struct wvol_tf *tf)
 {
-    struct stat st;
     wvol_error err;
-    if (stat(name, &st) == 0 && S_ISREG(st.st_mode))
-        return wvol_tf_load(tf, name, &err) == WVOL_OK ? CLI_OK : cli_fail_err(cmd, &err);
-    return wvol_tf_preset(tf, name, vmin, vmax, &err) == WVOL_OK ? CLI_OK : cli_usage(cmd, "--tf: %s", err.message);
+    wvol_status s = wvol_tf_resolve(tf, name, vmin, vmax, &err);
+    if (s == WVOL_OK) return CLI_OK;
+    return s == WVOL_ERR_ARG ? cli_usage(cmd, "--tf: %s", err.message) : cli_fail_err(cmd, &err);
 }
 
 int cli_load_option(const char *cmd, const cli_opt *o, const char *val, wvol_load_options *lo)

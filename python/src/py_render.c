@@ -172,7 +172,7 @@ int wvolpy_render_setup(PyObject *opts, const wvol_geometry *g, double vmin, dou
     if (opt_double(opts, "step", &rp->step) < 0 || opt_double(opts, "termination", &rp->termination) < 0 ||
         opt_double(opts, "skip_tolerance", &rp->skip_tolerance) < 0 ||
         opt_double(opts, "ambient", &rp->ambient) < 0 || opt_int(opts, "shading", &rp->shading) < 0 ||
-        opt_int(opts, "gauss_nodes", &rp->gauss_nodes) < 0 || opt_int(opts, "threads", &rp->threads) < 0)
+        opt_int(opts, "gauss_nodes", &rp->spline.gauss_nodes) < 0 || opt_int(opts, "threads", &rp->threads) < 0)
         return -1;
     if (rp->threads < 0 || rp->threads > WVOLPY_MAX_THREADS) {
         PyErr_Format(PyExc_ValueError, "threads must be in 0..%d (0: default)", WVOLPY_MAX_THREADS);

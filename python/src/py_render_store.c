@@ -33,7 +33,6 @@ static PyObject *render_store(PyObject *args, enum store_method method)
     memcpy(g.spacing, in.spacing, sizeof g.spacing);
     memcpy(g.origin, in.origin, sizeof g.origin);
     if (wvolpy_render_setup(opts, &g, vmin, vmax, &cam, &tf, &rp, &colors) < 0) return NULL;
-    if (method == STORE_BRICKS) rp.brick = 0; /* the library chooses the brick side */
     memset(&stats, 0, sizeof stats);
     Py_BEGIN_ALLOW_THREADS
     s = wvol_image_create(&img, cam.width, cam.height, &err);

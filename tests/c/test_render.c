@@ -195,10 +195,10 @@ static void empty_space_skipping_changes_nothing(void)
     wvol_image_create(&b, 48, 40, NULL);
     wvol_tf_preset(&tf, "gaussian", 0, 1, NULL);
     wvol_render_params_default(&p);
-    p.brick = 4;
+    p.reference.brick = 4;
     CHECK(wvol_render_reference(a, v, &cam, &tf, &p, &st, &err) == WVOL_OK, "%s", err.message);
     CHECK(st.skipped > 0, "some bricks skipped (%zu)", st.skipped);
-    p.brick = 0;
+    p.reference.brick = 0;
     CHECK(wvol_render_reference(b, v, &cam, &tf, &p, NULL, &err) == WVOL_OK, "%s", err.message);
     CHECK(wvol_image_rmse(a, b, -1, 0) < 1e-7, "skipping: rmse %g", wvol_image_rmse(a, b, -1, 0));
     wvol_image_destroy(a);
@@ -351,7 +351,7 @@ static void blocked_loop_equals_per_sample_path(void)
                         CHECK(wvol_camera_parse(&cam, specs[s], &g, 41, 33, &err) == WVOL_OK, "%s", err.message);
                         wvol_render_params_default(&p);
                         p.mode = (wvol_render_mode)m;
-                        p.brick = brick;
+                        p.reference.brick = brick;
                         p.step = 0.37;
                         CHECK(wvol_render_reference(a, v, &cam, &tf, &p, &sa, &err) == WVOL_OK, "%s", err.message);
                         p.colors = white;

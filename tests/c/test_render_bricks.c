@@ -87,7 +87,7 @@ static size_t one_case(const wvol_store *s, const wvol_volume *recon, const char
           err.message);
     if (!a || !b) return 0;
     CHECK(wvol_render_reference(a, recon, &cam, &tf, &p, NULL, &err) == WVOL_OK, "%s", err.message);
-    p.brick = brick;
+    p.bricks.brick = brick;
     CHECK(wvol_render_bricks(b, s, &cam, &tf, &p, &st, &err) == WVOL_OK, "%s: %s", what, err.message);
     /* Same samples, weights and compositing on two reconstructions of the same coefficients
      * that differ by float rounding (whole-volume and per-brick float synthesis, summed in
@@ -200,7 +200,7 @@ static void walk_builds_each_brick_once(void)
         if (!a || !b) break;
         wvol_render_params_default(&p);
         p.mode = WVOL_MODE_ABSORPTION;
-        p.brick = 8;
+        p.bricks.brick = 8;
         p.threads = 2; /* the threads share the tile's bricks: still one build each */
         p.tile = 64;
         CHECK(wvol_render_bricks(a, s, &cam, &tf, &p, &sa, &err) == WVOL_OK, "%s: %s", cams[c], err.message);
@@ -298,7 +298,8 @@ static void skip_tolerance_bounds_the_change(void)
                 double worst = 0, peak = 0;
                 wvol_render_params_default(&p);
                 p.mode = modes[m];
-                p.brick = bricked ? 8 : 4;
+                if (bricked) p.bricks.brick = 8;
+                else p.reference.brick = 4;
                 if (bricked) sa = wvol_render_bricks(a, s, &cam, &tf, &p, NULL, &err);
                 else sa = wvol_render_reference(a, recon, &cam, &tf, &p, NULL, &err);
                 CHECK(sa == WVOL_OK, "%s", err.message);
@@ -332,11 +333,11 @@ static void skip_tolerance_bounds_the_change(void)
         wvol_render_params_default(&p);
         p.skip_tolerance = 1e-3;
         CHECK(wvol_render_spline(a, s, &cam, &tf, &p, NULL, &err) == WVOL_ERR_UNSUPPORTED, "spline accepted a skip tolerance");
-        p.brick = 0;
+        p.reference.brick = 0;
         CHECK(wvol_render_reference(a, recon, &cam, &tf, &p, NULL, &err) == WVOL_ERR_UNSUPPORTED,
               "reference without bricks accepted a skip tolerance");
         CHECK(strstr(err.message, "skip tolerance") != NULL, "message: %s", err.message);
-        p.brick = 8;
+        p.reference.brick = 8;
         p.skip_tolerance = -1e-3;
         CHECK(wvol_render_bricks(a, s, &cam, &tf, &p, NULL, &err) == WVOL_ERR_ARG, "negative skip tolerance accepted");
         p.skip_tolerance = NAN;
@@ -377,7 +378,7 @@ static void skip_bookkeeping_is_exact_on_a_constant(void)
           err.message);
     wvol_render_params_default(&p);
     p.mode = WVOL_MODE_XRAY;
-    p.brick = 8;
+    p.reference.brick = 8;
     if (a && b) {
         CHECK(wvol_render_reference(a, v, &cam, NULL, &p, NULL, &err) == WVOL_OK, "%s", err.message);
         p.skip_tolerance = 0.2; /* about two bricks' worth (0.01 x 8 voxels each) */

@@ -192,7 +192,7 @@ static void spline_matches_the_converged_reference_of_the_model(void)
         wvol_render_params_default(&p);
         p.mode = m ? WVOL_MODE_ABSORPTION : WVOL_MODE_XRAY;
         p.shading = m == 2; /* the analytic gradient (eq 47) against wvol_fhat_eval's */
-        p.gauss_nodes = 8;
+        p.spline.gauss_nodes = 8;
         p.termination = 0;
         CHECK(wvol_render_spline(a, s, &cam, &tf, &p, NULL, &err) == WVOL_OK, "%s", err.message);
         p.step = 0.02;

@@ -40,7 +40,10 @@ void wvol_geometry_bounds(const wvol_geometry *g, double lo[3], double hi[3]);
 
 /* ---- cameras ---------------------------------------------------------------------------- */
 
-typedef enum wvol_projection { WVOL_ORTHOGRAPHIC = 0, WVOL_PERSPECTIVE = 1 } wvol_projection;
+typedef enum wvol_projection {
+    WVOL_PROJECTION_ORTHOGRAPHIC = 0,
+    WVOL_PROJECTION_PERSPECTIVE = 1
+} wvol_projection;
 
 /* A look-at camera in world units. Pixel (x, y), row 0 at the top, has its centre at image
  * coordinates u = (x + 1/2)/width * 2 - 1 (right), v = 1 - (y + 1/2)/height * 2 (up).
@@ -119,6 +122,10 @@ wvol_status wvol_tf_preset(wvol_tf *tf, const char *name, double vmin, double vm
 wvol_status wvol_tf_parse(wvol_tf *tf, const char *text, const char *what, wvol_error *err);
 /* Reads a file in either form (JSON when its first non-blank character is '{'). */
 wvol_status wvol_tf_load(wvol_tf *tf, const char *path, wvol_error *err);
+/* A transfer function from what a user types: the path of an existing regular file is loaded
+ * (wvol_tf_load; its errors keep their status), anything else is a preset name
+ * (wvol_tf_preset with vmin, vmax; an unknown name is WVOL_ERR_ARG). */
+wvol_status wvol_tf_resolve(wvol_tf *tf, const char *spec, double vmin, double vmax, wvol_error *err);
 
 /* Colour and kappa (in the TF's own units) at value v. Either output may be NULL. */
 void wvol_tf_eval(const wvol_tf *tf, double v, double rgb[3], double *kappa);
@@ -126,18 +133,55 @@ void wvol_tf_eval(const wvol_tf *tf, double v, double rgb[3], double *kappa);
 /* ---- rendering ------------------------------------------------------------------------------ */
 
 typedef enum wvol_render_mode {
-    WVOL_MODE_XRAY = 0,              /* I = integral of f dt (grey; R = G = B) */
-    WVOL_MODE_ABSORPTION = 1,        /* emission-absorption, exact exponential */
-    WVOL_MODE_ABSORPTION_LINEAR = 2  /* the paper's linearised exponential (eqs 33, 45) */
+    WVOL_RENDER_MODE_XRAY = 0,              /* I = integral of f dt (grey; R = G = B) */
+    WVOL_RENDER_MODE_ABSORPTION = 1,        /* emission-absorption, exact exponential */
+    WVOL_RENDER_MODE_ABSORPTION_LINEAR = 2  /* the paper's linearised exponential (eqs 33, 45) */
 } wvol_render_mode;
 
-typedef enum wvol_sample_kind {
-    WVOL_SAMPLE_TRILINEAR = 0,       /* reference: trilinear interpolation of the voxels */
-    WVOL_SAMPLE_FHAT = 1             /* reference: f^ through the spline tables */
-} wvol_sample_kind;
+/* What wvol_render runs. AUTO is resolved by the library: a dense volume renders with
+ * REFERENCE; a store with AXIS where that path is exact (X-ray, orthographic along an axis
+ * whose extent is a multiple of 2^levels, no colour volume), else with BRICKS. SPLINE (exact
+ * for the wavelet model, minutes per large frame), SPLAT and REFERENCE_FHAT run only when
+ * asked. A store rendered with REFERENCE or REFERENCE_FHAT is first reconstructed whole
+ * (dense volume, or dense coefficients): the reference's price of a store. */
+typedef enum wvol_render_method {
+    WVOL_RENDER_METHOD_AUTO = 0,
+    WVOL_RENDER_METHOD_REFERENCE = 1,       /* eq 33 on trilinear samples of a dense volume */
+    WVOL_RENDER_METHOD_REFERENCE_FHAT = 2,  /* eq 33 on samples of f^ (store only) */
+    WVOL_RENDER_METHOD_BRICKS = 3,          /* eq 33 on bricks reconstructed on demand (store only) */
+    WVOL_RENDER_METHOD_SPLINE = 4,          /* analytic integration of the kept functions (store only) */
+    WVOL_RENDER_METHOD_AXIS = 5,            /* X-ray along an axis from 2D coefficients (store only) */
+    WVOL_RENDER_METHOD_SPLAT = 6            /* X-ray of an orthographic view by splatting (store only) */
+} wvol_render_method;
+
+/* Names as the CLI and Python spell them ("auto", "reference", "reference-fhat", "bricks",
+ * "spline", "axis", "splat"; "xray", "absorption", "absorption-linear"). parse refuses an
+ * unknown name with WVOL_ERR_ARG and a message listing the valid ones. */
+const char *wvol_render_method_name(wvol_render_method m);
+wvol_status wvol_render_method_parse(wvol_render_method *m, const char *name, wvol_error *err);
+const char *wvol_render_mode_name(wvol_render_mode m);
+wvol_status wvol_render_mode_parse(wvol_render_mode *m, const char *name, wvol_error *err);
+
+/* Settings read by one method only. Defaults (wvol_render_params_default) are the library's
+ * and are defined there once. */
+typedef struct wvol_render_reference_params {
+    int brick;              /* min/max brick side for empty-space skipping, voxels (default 8;
+                               0 = off) */
+} wvol_render_reference_params;
+
+typedef struct wvol_render_bricks_params {
+    int brick;              /* side of the reconstructed bricks in voxel cells (default 32;
+                               2..4096; 0 reads as the default) */
+} wvol_render_bricks_params;
+
+typedef struct wvol_render_spline_params {
+    int gauss_nodes;        /* Gauss-Legendre nodes per polynomial piece for the exponential
+                               (default 5; 1..10) */
+} wvol_render_spline_params;
 
 typedef struct wvol_render_params {
     wvol_render_mode mode;
+    wvol_render_method method; /* wvol_render only (default AUTO); the per-method calls ignore it */
     double step;            /* reference: step in voxels of the smallest spacing (default 0.5) */
     double termination;     /* stop a ray once transmittance < this (default 1e-6; 0 = never) */
     int shading;            /* 1: headlight diffuse shading from the gradient (eq 47); default 0 */
@@ -148,11 +192,6 @@ typedef struct wvol_render_params {
                                volume's size (a tile's rays walk its bricks together and
                                build each once; the threads share a tile: 256 for a 512^2
                                frame of a 256^3 volume) */
-    int brick;              /* reference: min/max brick side for empty-space skipping, voxels
-                               (default 8; 0 = off) */
-    wvol_sample_kind sample;/* reference only */
-    int gauss_nodes;        /* spline: Gauss-Legendre nodes per polynomial piece for the
-                               exponential (default 5; 1..10) */
     const float *colors;    /* optional colour volume (the segmentation's, DESIGN.md section 10):
                                linear RGB per voxel, 3 floats, x fastest, same grid as the
                                volume; replaces the TF's colour (kappa still comes from the TF).
@@ -167,14 +206,22 @@ typedef struct wvol_render_params {
                                that much, a colour channel by at most that times the largest
                                colour. For stores whose ringing leaves near-transparent
                                haze where the original was empty. Needs the brick grid
-                               (brick > 0 for a dense volume); the spline methods refuse it. */
+                               (reference.brick > 0 for a dense volume); the spline methods
+                               refuse it. */
+    wvol_render_reference_params reference;
+    wvol_render_bricks_params bricks;
+    wvol_render_spline_params spline;
 } wvol_render_params;
 
 void wvol_render_params_default(wvol_render_params *p);
 
 typedef struct wvol_render_stats {
+    wvol_render_method method; /* the method that ran (AUTO resolved) */
     double seconds;         /* wall clock */
     double cpu_seconds;     /* CPU time of the process during the render (all threads) */
+    double reconstruct_cpu_seconds; /* wvol_render, REFERENCE(_FHAT) from a store: the part of
+                               cpu_seconds spent reconstructing the dense volume (or
+                               coefficients) before the integrator ran; else 0 */
     size_t rays, rays_hit;
     size_t samples;         /* reference: field samples taken; spline: quadrature nodes */
     size_t pieces;          /* spline: polynomial pieces integrated */
@@ -191,11 +238,36 @@ typedef struct wvol_render_stats {
     double skip_bound;      /* reference, bricks: the largest optical depth (X-ray: integral
                                bound) skipped on any pixel, <= skip_tolerance: the image's
                                bound on what skipping changed */
-    int brick;              /* bricks: the brick side used (params->brick, or the one chosen) */
+    int brick;              /* bricks: the brick side used (params->bricks.brick, or the default) */
     size_t bytes;           /* bricks: memory the call allocated (coefficient blocks, bounds,
                                brick caches and scratch, the tiles' rays; the image and the
                                store excluded) */
 } wvol_render_stats;
+
+/* What wvol_render renders: a dense volume or a store (wvol_render_source_volume / _store). */
+typedef enum wvol_render_source_kind {
+    WVOL_RENDER_SOURCE_VOLUME = 1,
+    WVOL_RENDER_SOURCE_STORE = 2
+} wvol_render_source_kind;
+
+typedef struct wvol_render_source {
+    wvol_render_source_kind kind;
+    const wvol_volume *volume;  /* VOLUME */
+    const wvol_store *store;    /* STORE */
+} wvol_render_source;
+
+wvol_render_source wvol_render_source_volume(const wvol_volume *v);
+wvol_render_source wvol_render_source_store(const wvol_store *s);
+
+/* The rendering entry point: params->method on the source (AUTO resolved as described at
+ * wvol_render_method; stats->method says what ran). img must exist with the camera's size;
+ * tf may be NULL in X-ray mode; params and stats may be NULL. A method the source cannot
+ * serve (a store method on a dense volume, axis off an axis, splat in perspective) is
+ * WVOL_ERR_UNSUPPORTED with the reason. The per-method functions below do the work; they
+ * stay public for callers that want one method and nothing else. */
+wvol_status wvol_render(wvol_image *img, const wvol_render_source *source, const wvol_camera *cam,
+                        const wvol_tf *tf, const wvol_render_params *params, wvol_render_stats *stats,
+                        wvol_error *err);
 
 /* Reference integrator (eq 33) on a dense volume. img must exist with the camera's size.
  * Trilinear samples clamp to the edge voxels within the box. params/stats may be NULL. */
@@ -236,7 +308,7 @@ wvol_status wvol_render_spline_until(wvol_image *img, const wvol_store *s, const
 
 /* The reference integrator (same samples, weights, compositing, termination) on the
  * trilinear interpolation of the store's reconstruction, which is never formed whole:
- * bricks of params->brick^3 voxel cells (0: 32) are reconstructed on demand by local
+ * bricks of params->bricks.brick^3 voxel cells are reconstructed on demand by local
  * inverse transforms from a block-sparse view of the kept coefficients; a tile's rays walk
  * the bricks in front-to-back order, so each brick they need is reconstructed once per tile
  * into a small cache per thread; a brick whose coefficient bound shows kappa = 0 throughout
@@ -271,6 +343,13 @@ wvol_status wvol_render_xray_splat(wvol_image *img, const wvol_store *s, const w
 /* Image error: RMSE over all pixels and the 4 channels (or only `channel` 0..3 if >= 0) of a
  * against b, relative to the max |b| of those channels when relative is set. Same sizes. */
 double wvol_image_rmse(const wvol_image *a, const wvol_image *b, int channel, int relative);
+
+/* Deprecated names (one release; docs/conventions.md). */
+#define WVOL_ORTHOGRAPHIC WVOL_PROJECTION_ORTHOGRAPHIC
+#define WVOL_PERSPECTIVE WVOL_PROJECTION_PERSPECTIVE
+#define WVOL_MODE_XRAY WVOL_RENDER_MODE_XRAY
+#define WVOL_MODE_ABSORPTION WVOL_RENDER_MODE_ABSORPTION
+#define WVOL_MODE_ABSORPTION_LINEAR WVOL_RENDER_MODE_ABSORPTION_LINEAR
 
 #ifdef __cplusplus
 }

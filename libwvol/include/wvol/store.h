@@ -152,7 +152,9 @@ double wvol_lod_weight(const wvol_select_params *prm, const double world[3]);
 typedef struct wvol_store wvol_store;
 
 typedef struct wvol_store_params {
-    int spline_J;          /* knots per unit 2^J of the basis splines; 0 = default (8) */
+    int spline_J;          /* knots per unit 2^J of the basis splines; 0 = default (4: the
+                              speed/accuracy trade-off of docs/basis.md; the CLI and Python
+                              use it too) */
 } wvol_store_params;
 
 wvol_store_params wvol_store_params_default(void);

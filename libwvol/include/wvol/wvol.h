@@ -11,5 +11,7 @@
 #include "wvol/iso.h"
 #include "wvol/store.h"
 #include "wvol/wvc.h"
+#include "wvol/compress.h"
+#include "wvol/render.h"
 #include "wvol/analysis.h"
 #endif

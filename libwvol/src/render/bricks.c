@@ -498,16 +498,6 @@ static size_t walk_bytes(const brick_src *src)
     return (size_t)(b < lo ? lo : b > hi ? hi : b);
 }
 
-/* The brick side when the caller leaves it to us (params->brick 0). Larger bricks cost less
- * per voxel to reconstruct (the apron and the filters' reach are a smaller share: 34^3 voxels
- * for 32^3 cells against 18^3 for 16^3) and halve a ray's runs, but skip empty space more
- * coarsely. 512^2 frames of the 256^3 phantoms from a 5% store, CPU s for 16 -> 32: one
- * thread, skull perspective 1.80 -> 1.34 (step 0.5), Gaussian perspective 1.75 -> 1.47, +z
- * 3.17 -> 2.81 (Gaussian), 2.66 -> 2.41 (skull); 24 about as fast as 32, 40 and 48 slower
- * (more samples, partial bricks); two threads (walked brick by brick), skull perspective
- * 1.38 -> 1.32, Gaussian 1.61 -> 1.18. */
-#define DEFAULT_BRICK 32
-
 static wvol_status prepare(wvol__sampler *s, const wvol_tf *tf_world, const wvol_render_params *p, wvol_error *err)
 {
     brick_src *src = s->src;
@@ -540,14 +530,12 @@ wvol_status wvol_render_bricks(wvol_image *img, const wvol_store *st, const wvol
     WVOL_RETURN_IF(!st, err, WVOL_ERR_ARG, "render: no store");
     wvol__params(&p, params);
     WVOL_FORWARD(wvol__render_check(img, cam, tf, &p, err));
-    WVOL_RETURN_IF(p.brick == 1, err, WVOL_ERR_ARG, "render: brick %d (bricks: 2..4096, or 0 for the default)",
-                   p.brick);
     wvol_store_get_info(st, &info);
     memset(&s, 0, sizeof s);
     memset(&src, 0, sizeof src);
     src.n[0] = info.nx, src.n[1] = info.ny, src.n[2] = info.nz;
     src.nthreads = wvol__threads(p.threads);
-    src.B = p.brick > 0 ? p.brick : DEFAULT_BRICK;
+    src.B = p.bricks.brick > 0 ? p.bricks.brick : WVOL__BRICKS_BRICK_DEFAULT;
     pad[0] = info.px, pad[1] = info.py, pad[2] = info.pz;
     for (a = 0; a < 3; a++) {
         src.bn[a] = (src.n[a] + (size_t)src.B - 1) / (size_t)src.B;

@@ -11,16 +11,18 @@
 
 void wvol_render_params_default(wvol_render_params *p)
 {
-    p->mode = WVOL_MODE_ABSORPTION;
+    memset(p, 0, sizeof *p);
+    p->mode = WVOL_RENDER_MODE_ABSORPTION;
+    p->method = WVOL_RENDER_METHOD_AUTO;
     p->step = 0.5;
     p->termination = 1e-6;
     p->shading = 0;
     p->ambient = 0.3;
     p->threads = 0;
     p->tile = 0;
-    p->brick = 8;
-    p->sample = WVOL_SAMPLE_TRILINEAR;
-    p->gauss_nodes = 5;
+    p->reference.brick = 8;
+    p->bricks.brick = WVOL__BRICKS_BRICK_DEFAULT;
+    p->spline.gauss_nodes = 5;
     p->colors = NULL;
     p->colors_count = 0;
     p->skip_tolerance = 0.0;
@@ -52,12 +54,15 @@ wvol_status wvol__render_check(const wvol_image *img, const wvol_camera *cam, co
                    p->ambient);
     WVOL_RETURN_IF(p->tile < 0 || p->tile > 4096, err, WVOL_ERR_ARG, "render: tile %d (0 for the default, or 1..4096)",
                    p->tile);
-    WVOL_RETURN_IF(p->brick < 0 || p->brick > 4096, err, WVOL_ERR_ARG, "render: brick %d (0..4096)", p->brick);
+    WVOL_RETURN_IF(p->reference.brick < 0 || p->reference.brick > 4096, err, WVOL_ERR_ARG,
+                   "render: reference brick %d (0..4096)", p->reference.brick);
+    WVOL_RETURN_IF(p->bricks.brick == 1 || p->bricks.brick < 0 || p->bricks.brick > 4096, err, WVOL_ERR_ARG,
+                   "render: brick %d (bricks: 2..4096, or 0 for the default)", p->bricks.brick);
     WVOL_RETURN_IF(p->threads < 0, err, WVOL_ERR_ARG, "render: threads %d (>= 0)", p->threads);
     WVOL_RETURN_IF(!(p->skip_tolerance >= 0) || !isfinite(p->skip_tolerance), err, WVOL_ERR_ARG,
                    "render: skip tolerance %g (must be finite and >= 0)", p->skip_tolerance);
-    WVOL_RETURN_IF(p->gauss_nodes < 1 || p->gauss_nodes > 10, err, WVOL_ERR_ARG, "render: gauss_nodes %d (1..10)",
-                   p->gauss_nodes);
+    WVOL_RETURN_IF(p->spline.gauss_nodes < 1 || p->spline.gauss_nodes > 10, err, WVOL_ERR_ARG,
+                   "render: gauss_nodes %d (1..10)", p->spline.gauss_nodes);
     return WVOL_OK;
 }
 

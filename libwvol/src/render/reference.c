@@ -1335,7 +1335,7 @@ wvol_status wvol__render_sampled(wvol_image *img, wvol__sampler *s, const wvol_c
     wvol__params(&p, pin);
     WVOL_FORWARD(wvol__render_check(img, cam, tf_in, &p, err));
     WVOL_FORWARD(wvol__check_colors(&p, s->n, 1, err));
-    WVOL_FORWARD(wvol__check_skip(&p, (s->v && p.brick > 0) || s->prepare, err));
+    WVOL_FORWARD(wvol__check_skip(&p, (s->v && p.reference.brick > 0) || s->prepare, err));
     for (a = 0; a < 3; a++) {
         g.dims[a] = s->n[a];
         g.spacing[a] = s->spacing[a];
@@ -1351,8 +1351,8 @@ wvol_status wvol__render_sampled(wvol_image *img, wvol__sampler *s, const wvol_c
     t_start = wvol__now();
     c_start = wvol__cpu_now();
     s->rate = NULL;
-    if (s->v && p.brick > 0) {
-        s->B = p.brick;
+    if (s->v && p.reference.brick > 0) {
+        s->B = p.reference.brick;
         WVOL_FORWARD(build_bricks(s, &tf, p.mode, err));
     } else if (s->prepare) {
         WVOL_FORWARD(s->prepare(s, &tf, &p, err));

@@ -623,7 +623,7 @@ wvol_status wvol_render_spline_until(wvol_image *img, const wvol_store *s, const
     }
     if (c.p.mode != WVOL_MODE_XRAY) wvol__tf_world(&c.tf, tf_in, &g);
     c.stop = stop;
-    c.gl_n = c.p.gauss_nodes;
+    c.gl_n = c.p.spline.gauss_nodes;
     gauss_legendre(c.gl_n, c.gl_x, c.gl_w);
     wvol_geometry_bounds(&g, lo, hi);
     wvol__cam_init(&k, cam);

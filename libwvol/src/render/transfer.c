@@ -8,6 +8,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
 
 wvol_status wvol_tf_check(const wvol_tf *tf, wvol_error *err)
 {
@@ -268,4 +269,12 @@ wvol_status wvol_tf_load(wvol_tf *tf, const char *path, wvol_error *err)
     s = wvol_tf_parse(tf, text, path, err);
     free(text);
     return s;
+}
+
+wvol_status wvol_tf_resolve(wvol_tf *tf, const char *spec, double vmin, double vmax, wvol_error *err)
+{
+    struct stat st;
+    WVOL_RETURN_IF(!tf || !spec, err, WVOL_ERR_ARG, "transfer function: none given");
+    if (stat(spec, &st) == 0 && S_ISREG(st.st_mode)) return wvol_tf_load(tf, spec, err);
+    return wvol_tf_preset(tf, spec, vmin, vmax, err);
 }

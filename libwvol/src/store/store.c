@@ -9,7 +9,7 @@
 
 #include "store/store_internal.h"
 
-#define DEFAULT_J 8
+#define DEFAULT_J 4
 
 wvol_store_params wvol_store_params_default(void)
 {

@@ -1,0 +1,98 @@
+/* SPDX-License-Identifier: MIT */
+/* One compression pipeline (DESIGN.md sections 4-6): volume -> forward transform ->
+ * selection (fraction, count, energy, PSNR target, region-of-interest weights, dropped
+ * levels) -> store, and for a .wvc file the quantiser's error-target rule and the coder.
+ * Every command and the Python package build their stores and files through these calls,
+ * so that defaults (family, levels, spline knots, quantiser share) are defined once, here
+ * and in wvol_compress_params_default. docs/store.md describes the choices.
+ *
+ * Threading: the calls use OpenMP threads inside; a wvol_compressed is not shared between
+ * threads while it is being filled or freed. */
+#ifndef WVOL_COMPRESS_H
+#define WVOL_COMPRESS_H
+
+#include <stddef.h>
+#include "wvol/status.h"
+#include "wvol/store.h"
+#include "wvol/volume.h"
+#include "wvol/wavelet.h"
+#include "wvol/wvc.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/* Levels when params.levels is 0, capped at what the volume allows (wvol_dwt_max_levels).
+ * A store to render or mesh keeps 3: the bricked paths reconstruct a brick from a reach that
+ * grows with the levels. A file keeps 5: each level shrinks the dense low-pass cube, the part
+ * the coder does worst, by 8. */
+#define WVOL_COMPRESS_LEVELS_STORE 3
+#define WVOL_COMPRESS_LEVELS_FILE 5
+
+/* How a .wvc file's quantiser step is chosen (wvol_compress_encode). */
+typedef struct wvol_compress_quant {
+    double psnr;          /* > 0: PSNR target of the whole file in dB (peak = data range): the
+                             step makes selection error + quantisation error meet it. 0 (default):
+                             the share rule below */
+    double share;         /* quantisation error = share x the energy the selection dropped, never
+                             below what 120 dB PSNR allows (default 0.02: RMSE +1%); in (0, 1] */
+    double step;          /* > 0: this step, neither rule (default 0) */
+    double rounding;      /* dead-zone rounding offset in [0, 0.5]; < 0 (default): the codec's */
+    wvol_wvc_coder coder; /* default AUTO */
+} wvol_compress_quant;
+
+typedef struct wvol_compress_params {
+    const char *wavelet;        /* family name for wvol_filter_get (default "db2") */
+    int levels;                 /* 0 (default): WVOL_COMPRESS_LEVELS_STORE, or _FILE when for_file */
+    int for_file;               /* 1: the result will be coded into a .wvc (only the default levels
+                                   depend on it); default 0 */
+    wvol_select_params select;  /* what to keep (default: everything) */
+    int build_store;            /* 1 (default): fill result->store */
+    wvol_store_params store;    /* the store's spline tables */
+    wvol_compress_quant quant;  /* wvol_compress_encode only */
+} wvol_compress_params;
+
+void wvol_compress_params_default(wvol_compress_params *p);
+
+/* What wvol_compress made; free with wvol_compressed_free. */
+typedef struct wvol_compressed {
+    wvol_coeffs *coeffs;        /* the coefficients with the dropped ones zeroed */
+    wvol_selection *selection;  /* the kept set */
+    wvol_store *store;          /* the store of the kept set (NULL unless build_store); when the
+                                   selection keeps everything, of the nonzero coefficients only */
+    wvol_select_report report;  /* predicted (and with select.measure, measured) error */
+    int levels;                 /* levels used */
+    double value_min, value_max;/* range of the volume's samples */
+    double seconds_transform, seconds_select, seconds_store;
+} wvol_compressed;
+
+/* Transform, select, (store). On failure nothing is left allocated in *out. Refuses bad
+ * parameters with WVOL_ERR_ARG naming them (unknown family, levels beyond what the volume
+ * allows, drop_levels >= levels, and what wvol_select refuses). */
+wvol_status wvol_compress(wvol_compressed *out, const wvol_volume *v, const wvol_compress_params *p,
+                          wvol_error *err);
+
+/* The pipeline from coefficients (a decoded .wvc): selection and store, no transform. Takes
+ * ownership of *c (set to NULL, freed on failure too). Without an original volume the PSNR
+ * peak comes from a full reconstruction and value_min/max stay 0. */
+wvol_status wvol_compress_coeffs(wvol_compressed *out, wvol_coeffs **c, const wvol_compress_params *p,
+                                 wvol_error *err);
+
+void wvol_compressed_free(wvol_compressed *c); /* NULL is fine; leaves *c zeroed */
+
+/* The wvc parameters of the pipeline's quantiser rule for coefficients whose selection
+ * dropped `dropped` energy, over `voxels` samples of range [vmin, vmax]: the PSNR target (the
+ * step meets budget - dropped; refused with WVOL_ERR_ARG when the volume is constant, or
+ * when dropping alone already loses more than the target allows) or the share rule, or the
+ * given step. Fills *wp completely (wvol_wvc_params_default first). */
+wvol_status wvol_compress_wvc_params(wvol_wvc_params *wp, const wvol_compress_quant *q, double dropped,
+                                     double voxels, double vmin, double vmax, wvol_error *err);
+
+/* Quantises and codes c->coeffs into a heap buffer (free with free()) with the rule above. */
+wvol_status wvol_compress_encode(void **buf, size_t *size, const wvol_compressed *c, const wvol_compress_params *p,
+                                 wvol_wvc_report *report, wvol_error *err);
+
+#ifdef __cplusplus
+}
+#endif
+#endif

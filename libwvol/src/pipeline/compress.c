@@ -1,0 +1,165 @@
+/* SPDX-License-Identifier: MIT */
+/* The compression pipeline (wvol/compress.h): transform -> selection -> store, and the
+ * quantiser's error-target rule for .wvc files. */
+#include "wvol/compress.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+
+
+static double now_seconds(void)
+{
+    struct timespec ts;
+    timespec_get(&ts, TIME_UTC);
+    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
+
+void wvol_compress_params_default(wvol_compress_params *p)
+{
+    memset(p, 0, sizeof *p);
+    p->wavelet = "db2";
+    p->levels = 0;
+    p->for_file = 0;
+    p->select = wvol_select_params_default();
+    p->build_store = 1;
+    p->store = wvol_store_params_default();
+    p->quant.psnr = 0;
+    p->quant.share = 0.02;
+    p->quant.step = 0;
+    p->quant.rounding = -1;
+    p->quant.coder = WVOL_WVC_CODER_AUTO;
+}
+
+void wvol_compressed_free(wvol_compressed *c)
+{
+    if (!c) return;
+    wvol_store_destroy(c->store);
+    wvol_selection_destroy(c->selection);
+    wvol_coeffs_destroy(c->coeffs);
+    memset(c, 0, sizeof *c);
+}
+
+/* Selection (zeroing what it drops) and the store. A selection that keeps everything stores
+ * the nonzero coefficients only: a decoded file's quantised zeros are most of it. */
+static wvol_status select_and_store(wvol_compressed *out, const wvol_volume *v, const wvol_compress_params *p,
+                                    wvol_error *err)
+{
+    double t0 = now_seconds();
+    wvol_status s = wvol_select(&out->selection, out->coeffs, &p->select, v, &out->report, err);
+    if (s == WVOL_OK) s = wvol_selection_apply(out->selection, out->coeffs, err);
+    out->seconds_select = now_seconds() - t0;
+    t0 = now_seconds();
+    if (s == WVOL_OK && p->build_store) {
+        const wvol_selection *sel = out->report.kept < out->report.total ? out->selection : NULL;
+        s = wvol_store_build(&out->store, out->coeffs, sel, &p->store, err);
+    }
+    out->seconds_store = now_seconds() - t0;
+    return s;
+}
+
+wvol_status wvol_compress(wvol_compressed *out, const wvol_volume *v, const wvol_compress_params *params,
+                          wvol_error *err)
+{
+    wvol_compress_params p;
+    const wvol_filter *f = NULL;
+    wvol_status s;
+    int maxl;
+    double t0;
+    WVOL_RETURN_IF(!out, err, WVOL_ERR_ARG, "compress: no output");
+    memset(out, 0, sizeof *out);
+    WVOL_RETURN_IF(!v || !v->data, err, WVOL_ERR_ARG, "compress: no volume");
+    if (params) p = *params;
+    else wvol_compress_params_default(&p);
+    WVOL_FORWARD(wvol_filter_get(&f, p.wavelet && p.wavelet[0] ? p.wavelet : "db2", err));
+    maxl = wvol_dwt_max_levels(v->nx, v->ny, v->nz);
+    WVOL_RETURN_IF(maxl < 1, err, WVOL_ERR_DIMS, "compress: a %zux%zux%zu volume cannot be transformed", v->nx,
+                   v->ny, v->nz);
+    if (p.levels == 0) {
+        int want = p.for_file ? WVOL_COMPRESS_LEVELS_FILE : WVOL_COMPRESS_LEVELS_STORE;
+        p.levels = maxl < want ? maxl : want;
+    }
+    WVOL_RETURN_IF(p.levels < 1 || p.levels > maxl, err, WVOL_ERR_ARG,
+                   "compress: levels %d: a %zux%zux%zu volume allows 1..%d", p.levels, v->nx, v->ny, v->nz, maxl);
+    WVOL_RETURN_IF(p.select.drop_levels < 0 || p.select.drop_levels >= p.levels, err, WVOL_ERR_ARG,
+                   "compress: drop_levels %d: must be below the levels (%d)", p.select.drop_levels, p.levels);
+    wvol_volume_range(v, &out->value_min, &out->value_max, NULL);
+    out->levels = p.levels;
+
+    t0 = now_seconds();
+    s = wvol_dwt3(&out->coeffs, v, f, p.levels, err);
+    out->seconds_transform = now_seconds() - t0;
+    if (s == WVOL_OK) s = select_and_store(out, v, &p, err);
+    if (s != WVOL_OK) wvol_compressed_free(out);
+    return s;
+}
+
+wvol_status wvol_compress_coeffs(wvol_compressed *out, wvol_coeffs **c, const wvol_compress_params *params,
+                                 wvol_error *err)
+{
+    wvol_compress_params p;
+    wvol_status s;
+    WVOL_RETURN_IF(!out, err, WVOL_ERR_ARG, "compress: no output");
+    memset(out, 0, sizeof *out);
+    WVOL_RETURN_IF(!c || !*c, err, WVOL_ERR_ARG, "compress: no coefficients");
+    out->coeffs = *c;
+    *c = NULL;
+    if (params) p = *params;
+    else wvol_compress_params_default(&p);
+    out->levels = out->coeffs->levels;
+    s = select_and_store(out, NULL, &p, err);
+    if (s != WVOL_OK) wvol_compressed_free(out);
+    return s;
+}
+
+wvol_status wvol_compress_wvc_params(wvol_wvc_params *wp, const wvol_compress_quant *q, double dropped,
+                                     double voxels, double vmin, double vmax, wvol_error *err)
+{
+    WVOL_RETURN_IF(!wp || !q, err, WVOL_ERR_ARG, "compress: no parameters");
+    WVOL_RETURN_IF(!(q->step >= 0) || !isfinite(q->step), err, WVOL_ERR_ARG,
+                   "compress: quantiser step %g (must be finite and >= 0)", q->step);
+    WVOL_RETURN_IF(q->rounding > 0.5 || isnan(q->rounding), err, WVOL_ERR_ARG,
+                   "compress: rounding %g (must be in [0, 0.5], or < 0 for the default)", q->rounding);
+    wvol_wvc_params_default(wp);
+    wp->value_min = vmin;
+    wp->value_max = vmax;
+    wp->dropped_energy = dropped;
+    wp->coder = q->coder;
+    if (q->rounding >= 0) wp->rounding = q->rounding;
+    wp->step = q->step;
+    if (q->step > 0) return WVOL_OK;
+    if (q->psnr > 0) {
+        double budget = wvol_wvc_sse_for_psnr(q->psnr, voxels, vmin, vmax);
+        WVOL_RETURN_IF(!(vmax > vmin), err, WVOL_ERR_ARG,
+                       "compress: the volume is constant; PSNR (peak = range) is undefined: give a quantiser step");
+        WVOL_RETURN_IF(dropped >= budget, err, WVOL_ERR_ARG,
+                       "compress: the dropped levels alone lose more than PSNR %g allows (%.2f dB)", q->psnr,
+                       wvol_wvc_psnr(dropped, voxels, vmin, vmax));
+        wp->target_sse = budget - dropped;
+    } else {
+        /* a share of the dropped energy; never below what 120 dB would allow */
+        double floor_sse = wvol_wvc_sse_for_psnr(120, voxels, vmin, vmax);
+        WVOL_RETURN_IF(!(q->share > 0 && q->share <= 1), err, WVOL_ERR_ARG,
+                       "compress: quantiser share %g (must be in (0, 1])", q->share);
+        wp->target_sse = q->share * dropped;
+        if (!(wp->target_sse > floor_sse)) wp->target_sse = floor_sse;
+        if (!(wp->target_sse > 1e-12)) wp->target_sse = 1e-12;
+    }
+    return WVOL_OK;
+}
+
+wvol_status wvol_compress_encode(void **buf, size_t *size, const wvol_compressed *c, const wvol_compress_params *params,
+                                 wvol_wvc_report *report, wvol_error *err)
+{
+    wvol_compress_params p;
+    wvol_wvc_params wp;
+    double voxels;
+    WVOL_RETURN_IF(!buf || !size || !c || !c->coeffs, err, WVOL_ERR_ARG, "compress: nothing to encode");
+    if (params) p = *params;
+    else wvol_compress_params_default(&p);
+    voxels = (double)c->coeffs->nx * (double)c->coeffs->ny * (double)c->coeffs->nz;
+    WVOL_FORWARD(wvol_compress_wvc_params(&wp, &p.quant, c->report.energy_dropped, voxels, c->value_min,
+                                          c->value_max, err));
+    return wvol_wvc_encode(buf, size, c->coeffs, &wp, report, err);
+}
