@@ -7,6 +7,7 @@
 #include <string.h>
 
 #include "cli.h"
+#include "wvol/compress.h"
 #include "wvol/io.h"
 #include "wvol/store.h"
 #include "wvol/wavelet.h"
@@ -66,7 +67,7 @@ int wvol_cmd_compress(int argc, char **argv)
 {
     cli_parser p;
     const cli_opt *o;
-    const char *val, *in = NULL, *outp = NULL, *wname = "db2";
+    const char *val, *in = NULL, *outp = NULL;
     int r, json = 0, mode = MODE_NONE, modes = 0, max, rc = CLI_FAILED;
     long levels = 0, drop = 0, kcount = 0;
     double psnr = 0, frac = 0, energy = 0, step = 0, quant_share = 0.02, roi_floor = 0.1, rounding = -1;
@@ -74,11 +75,10 @@ int wvol_cmd_compress(int argc, char **argv)
     wvol_load_options lo;
     wvol_error err;
     wvol_volume *v = NULL, *rec = NULL;
-    wvol_coeffs *c = NULL, *dec = NULL;
-    wvol_selection *sel = NULL;
-    wvol_select_params sp = wvol_select_params_default();
-    wvol_select_report srep;
-    wvol_wvc_params wp;
+    wvol_coeffs *dec = NULL;
+    wvol_compress_params cp;
+    wvol_compressed cc;
+    wvol_select_params *sp = &cp.select;
     wvol_wvc_report wrep;
     const wvol_filter *f;
     void *buf = NULL;
@@ -87,7 +87,8 @@ int wvol_cmd_compress(int argc, char **argv)
     double sse_pred, sse_meas = 0, maxerr = 0;
     int use_select;
 
-    memset(&srep, 0, sizeof srep);
+    memset(&cc, 0, sizeof cc);
+    wvol_compress_params_default(&cp);
     wvol_load_options_default(&lo);
     cli_parser_init(&p, "compress", argc, argv, opts);
     while ((r = cli_next(&p, &o, &val)) >= 0) {
@@ -108,7 +109,7 @@ int wvol_cmd_compress(int argc, char **argv)
         } else if (!strcmp(o->name, "output")) {
             outp = val;
         } else if (!strcmp(o->name, "wavelet")) {
-            wname = val;
+            cp.wavelet = val;
         } else if (!strcmp(o->name, "levels")) {
             if (!cli_parse_long("compress", "levels", val, 1, 30, &levels)) return CLI_USAGE;
         } else if (!strcmp(o->name, "psnr")) {
@@ -128,10 +129,10 @@ int wvol_cmd_compress(int argc, char **argv)
             if (!cli_parse_double("compress", "step", val, &step)) return CLI_USAGE;
             if (!(step > 0)) return cli_usage("compress", "--step %s: must be > 0", val);
         } else if (!strcmp(o->name, "roi")) {
-            if (sp.n_ellipsoids >= WVOL_LOD_MAX_ELLIPSOIDS)
+            if (sp->n_ellipsoids >= WVOL_LOD_MAX_ELLIPSOIDS)
                 return cli_usage("compress", "--roi: at most %d regions", WVOL_LOD_MAX_ELLIPSOIDS);
-            if (!parse_roi(val, &sp.ellipsoids[sp.n_ellipsoids])) return CLI_USAGE;
-            sp.n_ellipsoids++;
+            if (!parse_roi(val, &sp->ellipsoids[sp->n_ellipsoids])) return CLI_USAGE;
+            sp->n_ellipsoids++;
         } else if (!strcmp(o->name, "roi-floor")) {
             if (!cli_parse_double("compress", "roi-floor", val, &roi_floor)) return CLI_USAGE;
             if (!(roi_floor >= 0 && roi_floor <= 1)) return cli_usage("compress", "--roi-floor %s: expected 0..1", val);
@@ -164,10 +165,10 @@ int wvol_cmd_compress(int argc, char **argv)
     if (!wvol_path_has_ext(outp, ".wvc")) return cli_usage("compress", "-o %s: the output must end in .wvc", outp);
     if (modes > 1) return cli_usage("compress", "choose one of --psnr, --keep, --keep-count, --energy");
     if (mode == MODE_NONE) mode = MODE_PSNR, psnr = 50;
-    if (sp.n_ellipsoids && mode == MODE_PSNR)
+    if (sp->n_ellipsoids && mode == MODE_PSNR)
         return cli_usage("compress", "--roi ranks coefficients: use it with --keep, --keep-count or --energy");
     wvol_error_clear(&err);
-    if (wvol_filter_get(&f, wname, &err) != WVOL_OK) return cli_usage("compress", "--wavelet: %s", err.message);
+    if (wvol_filter_get(&f, cp.wavelet, &err) != WVOL_OK) return cli_usage("compress", "--wavelet: %s", err.message);
 
     t0 = cli_now();
     if (wvol_volume_load(&v, in, &lo, &err) != WVOL_OK) return cli_fail_err("compress", &err);
@@ -178,75 +179,52 @@ int wvol_cmd_compress(int argc, char **argv)
         rc = cli_fail("compress", "%s: a %zux%zux%zu volume cannot be transformed", in, v->nx, v->ny, v->nz);
         goto done;
     }
-    if (levels == 0) levels = max < 5 ? max : 5;
     if (levels > max) {
         rc = cli_usage("compress", "--levels %ld: a %zux%zux%zu volume allows 1..%d", levels, v->nx, v->ny, v->nz, max);
         goto done;
     }
+    cp.levels = (int)levels;
+    cp.for_file = 1;
+    cp.build_store = 0;
+    levels = wvol_compress_levels(v, &cp);
     if (drop >= levels) {
         rc = cli_usage("compress", "--drop-levels %ld: must be below --levels %ld", drop, levels);
         goto done;
     }
-    wvol_volume_range(v, &vmin, &vmax, NULL);
-
-    t0 = cli_now();
-    if (wvol_dwt3(&c, v, f, (int)levels, &err) != WVOL_OK) {
+    /* selection: ranks by energy (with LOD weights) and zeroes what it drops; with --psnr
+     * alone it keeps everything and the quantiser step meets the target */
+    use_select = mode != MODE_PSNR || drop > 0;
+    cp.select.mode = mode == MODE_KEEP ? WVOL_SELECT_FRACTION
+                     : mode == MODE_COUNT ? WVOL_SELECT_COUNT
+                     : mode == MODE_ENERGY ? WVOL_SELECT_ENERGY
+                                           : WVOL_SELECT_ALL;
+    cp.select.fraction = frac;
+    cp.select.count = (size_t)kcount;
+    cp.select.energy = energy;
+    cp.select.drop_levels = (int)drop;
+    cp.select.lod_floor = roi_floor;
+    cp.quant.psnr = mode == MODE_PSNR ? psnr : 0;
+    cp.quant.share = quant_share;
+    cp.quant.step = step;
+    cp.quant.rounding = rounding;
+    cp.quant.coder = coder;
+    if (wvol_compress(&cc, v, &cp, &err) != WVOL_OK) {
         rc = cli_fail_err("compress", &err);
         goto done;
     }
-    t_dwt = cli_now() - t0;
-
-    /* selection: the store ranks by energy (with LOD weights) and zeroes what it drops */
-    use_select = mode != MODE_PSNR || drop > 0;
-    if (use_select) {
-        sp.mode = mode == MODE_KEEP ? WVOL_SELECT_FRACTION
-                  : mode == MODE_COUNT ? WVOL_SELECT_COUNT
-                  : mode == MODE_ENERGY ? WVOL_SELECT_ENERGY
-                                        : WVOL_SELECT_ALL;
-        sp.fraction = frac;
-        sp.count = (size_t)kcount;
-        sp.energy = energy;
-        sp.drop_levels = (int)drop;
-        sp.lod_floor = roi_floor;
-        sp.peak = vmax - vmin;
-        t0 = cli_now();
-        if (wvol_select(&sel, c, &sp, v, &srep, &err) != WVOL_OK ||
-            wvol_selection_apply(sel, c, &err) != WVOL_OK) {
-            rc = cli_fail_err("compress", &err);
-            goto done;
-        }
-        t_sel = cli_now() - t0;
-        dropped = srep.energy_dropped;
-    }
-
-    wvol_wvc_params_default(&wp);
-    wp.value_min = vmin;
-    wp.value_max = vmax;
-    wp.dropped_energy = dropped;
-    wp.coder = coder;
-    if (rounding >= 0) wp.rounding = rounding;
-    wp.step = step;
-    if (mode == MODE_PSNR) {
-        double budget = wvol_wvc_sse_for_psnr(psnr, (double)nvox, vmin, vmax);
-        if (!(vmax > vmin) && step == 0) {
-            rc = cli_fail("compress", "%s: the volume is constant; PSNR (peak = range) is undefined: use --step", in);
-            goto done;
-        }
-        if (dropped >= budget && step == 0) {
-            rc = cli_fail("compress", "--drop-levels %ld alone loses more than --psnr %g allows (%.2f dB)", drop, psnr,
-                          wvol_wvc_psnr(dropped, (double)nvox, vmin, vmax));
-            goto done;
-        }
-        wp.target_sse = budget - dropped;
-    } else {
-        /* a small share of the dropped energy; never below what PSNR 120 dB would allow */
-        double floor_sse = wvol_wvc_sse_for_psnr(120, (double)nvox, vmin, vmax);
-        wp.target_sse = quant_share * dropped;
-        if (!(wp.target_sse > floor_sse)) wp.target_sse = floor_sse > 0 ? floor_sse : 1e-12;
-    }
+    vmin = cc.value_min, vmax = cc.value_max;
+    t_dwt = cc.seconds_transform;
+    t_sel = use_select ? cc.seconds_select : 0;
+    dropped = cc.report.energy_dropped;
     t0 = cli_now();
-    if (wvol_wvc_encode(&buf, &nbytes, c, &wp, &wrep, &err) != WVOL_OK) {
-        rc = cli_fail_err("compress", &err);
+    if (wvol_compress_encode(&buf, &nbytes, &cc, &cp, &wrep, &err) != WVOL_OK) {
+        /* the error target cannot be met (a constant volume, or levels dropped beyond it) */
+        if (mode == MODE_PSNR && drop > 0)
+            rc = cli_fail("compress", "--drop-levels %ld with --psnr %g: %s", drop, psnr, err.message);
+        else if (mode == MODE_PSNR)
+            rc = cli_fail("compress", "%s with --psnr %g: %s", in, psnr, err.message);
+        else
+            rc = cli_fail_err("compress", &err);
         goto done;
     }
     t_enc = cli_now() - t0;
@@ -304,7 +282,7 @@ int wvol_cmd_compress(int argc, char **argv)
             cli_json_int("step_iterations", wrep.step_iterations);
             cli_json_int("coefficients", (long long)wrep.coefficients);
             cli_json_int("nonzero", (long long)wrep.nonzero);
-            if (use_select) cli_json_int("kept_by_selection", (long long)srep.kept);
+            if (use_select) cli_json_int("kept_by_selection", (long long)cc.report.kept);
             cli_json_num("value_min", vmin);
             cli_json_num("value_max", vmax);
             cli_json_open("predicted", '{');
@@ -341,7 +319,7 @@ int wvol_cmd_compress(int argc, char **argv)
                    raw_bytes, nbytes, ratio, bpv, wrep.bytes_cabac, wrep.bytes_zstd);
             printf("quantiser  step %.6g, %llu of %llu coefficients non-zero", wrep.step,
                    (unsigned long long)wrep.nonzero, (unsigned long long)wrep.coefficients);
-            if (use_select) printf(" (%zu kept by the selection)", srep.kept);
+            if (use_select) printf(" (%zu kept by the selection)", cc.report.kept);
             printf("\n");
             printf("predicted  RMSE %.6g, PSNR %.3f dB (dropped energy %.6g + quantisation %.6g)\n", p_rmse, p_psnr,
                    dropped, wrep.sse_quant);
@@ -360,8 +338,7 @@ done:
     free(buf);
     wvol_volume_destroy(rec);
     wvol_coeffs_destroy(dec);
-    wvol_selection_destroy(sel);
-    wvol_coeffs_destroy(c);
+    wvol_compressed_free(&cc);
     wvol_volume_destroy(v);
     return rc;
 }

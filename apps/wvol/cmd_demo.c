@@ -1,7 +1,8 @@
+/* SPDX-License-Identifier: MIT */
 /* wvol demo: the main job, run as a sequence of stages. Each stage is one
  * function that reads and fills the shared demo state, prints what it did (text
  * mode) and records its JSON fields; later issues add their stages to the table
- * (transform, select, render, iso, ...). */
+ * (select, render, compress, mesh, ...). */
 #define _POSIX_C_SOURCE 200809L
 #include <errno.h>
 #include <math.h>
@@ -12,6 +13,7 @@
 
 #include "cli.h"
 #include "volume_out.h"
+#include "wvol/compress.h"
 #include "wvol/image.h"
 #include "wvol/io.h"
 #include "wvol/iso.h"
@@ -44,9 +46,7 @@ typedef struct demo {
     const char *wavelet;
     int levels;
     double keep;                 /* fraction of coefficients kept */
-    wvol_coeffs *coeffs;
-    wvol_selection *selection;
-    wvol_select_report report;
+    wvol_compressed kept;         /* transform, selection and store of the kept coefficients */
     char image_path[4096], xray_path[4096];
     wvol_render_stats render_stats, xray_stats;
     char wvc_path[4096];         /* the kept coefficients, quantised and coded */
@@ -120,42 +120,24 @@ static void json_write(const demo *d)
     cli_json_int("bytes", (long long)d->phantom_file.bytes);
 }
 
-/* ---- stage: transform -------------------------------------------------------- */
-
-static int stage_transform(demo *d)
-{
-    const wvol_filter *f;
-    wvol_error err;
-    wvol_error_clear(&err);
-    if (wvol_filter_get(&f, d->wavelet, &err) != WVOL_OK ||
-        wvol_dwt3(&d->coeffs, d->phantom, f, d->levels, &err) != WVOL_OK)
-        return cli_fail_err("demo", &err);
-    if (!d->json)
-        printf("transform %s, %d levels: %zu x %zu x %zu coefficients (Mallat layout)\n", f->name, d->levels,
-               d->coeffs->px, d->coeffs->py, d->coeffs->pz);
-    return CLI_OK;
-}
-
-static void json_transform(const demo *d)
-{
-    cli_json_str("wavelet", d->coeffs->filter->name);
-    cli_json_int("levels", d->coeffs->levels);
-}
-
-/* ---- stage: select -------------------------------------------------------------- */
+/* ---- stage: select (the library's pipeline: transform, selection, store) -------- */
 
 static int stage_select(demo *d)
 {
-    wvol_select_params prm = wvol_select_params_default();
+    wvol_compress_params prm;
     wvol_error err;
-    const wvol_select_report *r = &d->report;
-    prm.mode = WVOL_SELECT_FRACTION;
-    prm.fraction = d->keep;
-    prm.measure = 1;
+    const wvol_select_report *r = &d->kept.report;
+    wvol_compress_params_default(&prm);
+    prm.wavelet = d->wavelet;
+    prm.levels = d->levels;
+    prm.select.mode = WVOL_SELECT_FRACTION;
+    prm.select.fraction = d->keep;
+    prm.select.measure = 1;
     wvol_error_clear(&err);
-    if (wvol_select(&d->selection, d->coeffs, &prm, d->phantom, &d->report, &err) != WVOL_OK)
-        return cli_fail_err("demo", &err);
+    if (wvol_compress(&d->kept, d->phantom, &prm, &err) != WVOL_OK) return cli_fail_err("demo", &err);
     if (!d->json) {
+        printf("transform %s, %d levels: %zu x %zu x %zu coefficients (Mallat layout)\n", d->kept.coeffs->filter->name,
+               d->kept.levels, d->kept.coeffs->px, d->kept.coeffs->py, d->kept.coeffs->pz);
         printf("select   kept %zu of %zu coefficients (%.2f%%), energy kept %.6f%%\n", r->kept, r->total,
                100.0 * (double)r->kept / (double)r->total, 100.0 * r->energy_kept / r->energy_total);
         printf("error    predicted (Parseval): RMSE %.4g HU, PSNR %.2f dB\n", r->predicted_rmse, r->predicted_psnr);
@@ -167,7 +149,9 @@ static int stage_select(demo *d)
 
 static void json_select(const demo *d)
 {
-    const wvol_select_report *r = &d->report;
+    const wvol_select_report *r = &d->kept.report;
+    cli_json_str("wavelet", d->kept.coeffs->filter->name);
+    cli_json_int("levels", d->kept.levels);
     cli_json_num("keep", d->keep);
     cli_json_int("kept", (long long)r->kept);
     cli_json_int("total", (long long)r->total);
@@ -187,6 +171,7 @@ static int stage_render(demo *d)
     wvol_tf tf;
     wvol_image *img = NULL;
     wvol_render_params p;
+    wvol_render_source src;
     wvol_error err;
     wvol_status s;
     wvol_error_clear(&err);
@@ -196,10 +181,11 @@ static int stage_render(demo *d)
     wvol_render_params_default(&p);
     p.shading = 1;
     p.step = 0.25; /* thin bone at high opacity: a finer step keeps sampling rings faint */
+    src = wvol_render_source_volume(d->phantom);
     s = wvol_camera_parse(&cam, "persp dir=0.35,1,-0.3 fov=30 zoom=1.5", &g, 512, 512, &err);
     if (s == WVOL_OK) s = wvol_tf_preset(&tf, "ct-bone", 0, 0, &err);
     if (s == WVOL_OK) s = wvol_image_create(&img, 512, 512, &err);
-    if (s == WVOL_OK) s = wvol_render_reference(img, d->phantom, &cam, &tf, &p, &d->render_stats, &err);
+    if (s == WVOL_OK) s = wvol_render(img, &src, &cam, &tf, &p, &d->render_stats, &err);
     if (s == WVOL_OK) s = wvol_image_write_png(img, d->image_path, NULL, 1.0, &err);
     wvol_image_destroy(img);
     img = NULL;
@@ -207,37 +193,31 @@ static int stage_render(demo *d)
     if (!d->json)
         printf("render   %s (512 x 512, ct-bone, reference caster, %.2f s)\n", d->image_path, d->render_stats.seconds);
 
-    /* an X-ray from the kept coefficients alone: the store and the axis fast path */
+    /* an X-ray from the kept coefficients alone: the store (the library picks the axis fast
+     * path where it applies) */
     if ((size_t)snprintf(d->xray_path, sizeof d->xray_path, "%s/skull_xray.png", d->out_dir) >= sizeof d->xray_path)
         return cli_fail("demo", "--out %s: path too long", d->out_dir);
-    {
-        wvol_store *st = NULL;
-        wvol_store_params sp = wvol_store_params_default();
-        sp.spline_J = 4;
-        wvol_render_params_default(&p);
-        p.mode = WVOL_MODE_XRAY;
-        s = wvol_store_build(&st, d->coeffs, d->selection, &sp, &err);
-        if (s == WVOL_OK) s = wvol_camera_parse(&cam, "-y", &g, 512, 512, &err);
-        if (s == WVOL_OK) s = wvol_image_create(&img, 512, 512, &err);
-        if (s == WVOL_OK) s = wvol_render_xray_axis(img, st, &cam, &p, &d->xray_stats, &err);
-        if (s == WVOL_ERR_UNSUPPORTED) s = wvol_render_spline(img, st, &cam, NULL, &p, &d->xray_stats, &err);
-        if (s == WVOL_OK) {
-            size_t i, n = (size_t)512 * 512;
-            double lo = INFINITY, hi = -INFINITY;
-            /* window the projection to its own range: air is negative in HU */
-            for (i = 0; i < n; i++) lo = fmin(lo, img->rgba[4 * i]), hi = fmax(hi, img->rgba[4 * i]);
-            for (i = 0; i < n; i++)
-                for (int c = 0; c < 3; c++)
-                    img->rgba[4 * i + c] = hi > lo ? (float)((img->rgba[4 * i + c] - lo) / (hi - lo)) : 0.0f;
-            s = wvol_image_write_png(img, d->xray_path, NULL, 1.0, &err);
-        }
-        wvol_image_destroy(img);
-        wvol_store_destroy(st);
-        if (s != WVOL_OK) return cli_fail_err("demo", &err);
+    wvol_render_params_default(&p);
+    p.mode = WVOL_RENDER_MODE_XRAY;
+    src = wvol_render_source_store(d->kept.store);
+    s = wvol_camera_parse(&cam, "-y", &g, 512, 512, &err);
+    if (s == WVOL_OK) s = wvol_image_create(&img, 512, 512, &err);
+    if (s == WVOL_OK) s = wvol_render(img, &src, &cam, NULL, &p, &d->xray_stats, &err);
+    if (s == WVOL_OK) {
+        size_t i, n = (size_t)512 * 512;
+        double lo = INFINITY, hi = -INFINITY;
+        /* window the projection to its own range: air is negative in HU */
+        for (i = 0; i < n; i++) lo = fmin(lo, img->rgba[4 * i]), hi = fmax(hi, img->rgba[4 * i]);
+        for (i = 0; i < n; i++)
+            for (int c = 0; c < 3; c++)
+                img->rgba[4 * i + c] = hi > lo ? (float)((img->rgba[4 * i + c] - lo) / (hi - lo)) : 0.0f;
+        s = wvol_image_write_png(img, d->xray_path, NULL, 1.0, &err);
     }
+    wvol_image_destroy(img);
+    if (s != WVOL_OK) return cli_fail_err("demo", &err);
     if (!d->json)
-        printf("render   %s (512 x 512, X-ray from the %.0f%% store alone, 2D fast path, %.3f s)\n", d->xray_path,
-               100.0 * d->keep, d->xray_stats.seconds);
+        printf("render   %s (512 x 512, X-ray from the %.0f%% store alone, %s, %.3f s)\n", d->xray_path,
+               100.0 * d->keep, wvol_render_method_name(d->xray_stats.method), d->xray_stats.seconds);
     return CLI_OK;
 }
 
@@ -247,7 +227,7 @@ static void json_render(const demo *d)
     cli_json_str("method", "reference");
     cli_json_num("render_seconds", d->render_stats.seconds);
     cli_json_str("xray_image", d->xray_path);
-    cli_json_str("xray_method", "axis (from the store)");
+    cli_json_str("xray_method", wvol_render_method_name(d->xray_stats.method));
     cli_json_num("xray_seconds", d->xray_stats.seconds);
 }
 
@@ -255,28 +235,23 @@ static void json_render(const demo *d)
 
 static int stage_compress(demo *d)
 {
-    wvol_coeffs *kept = NULL, *back = NULL;
+    wvol_coeffs *back = NULL;
     wvol_volume *rec = NULL;
-    wvol_wvc_params wp;
+    wvol_compress_params prm;
     wvol_wvc_report wr;
     wvol_error err;
     void *buf = NULL;
     size_t n = 0, nvox = wvol_volume_count(d->phantom);
-    double sse = 0, floor_sse, t0;
+    double sse = 0, t0;
     int code = CLI_OK;
     wvol_error_clear(&err);
     if ((size_t)snprintf(d->wvc_path, sizeof d->wvc_path, "%s/skull.wvc", d->out_dir) >= sizeof d->wvc_path)
         return cli_fail("demo", "--out %s: path too long", d->out_dir);
-    /* quantisation adds 2% of the energy the selection dropped (RMSE +1%) */
-    wvol_wvc_params_default(&wp);
-    wp.value_min = d->range[0];
-    wp.value_max = d->range[1];
-    wp.dropped_energy = d->report.energy_dropped;
-    floor_sse = wvol_wvc_sse_for_psnr(120, (double)nvox, d->range[0], d->range[1]);
-    wp.target_sse = 0.02 * d->report.energy_dropped > floor_sse ? 0.02 * d->report.energy_dropped : floor_sse;
+    /* the library's quantiser rule: 2% of the energy the selection dropped (RMSE +1%) */
+    wvol_compress_params_default(&prm);
     t0 = cli_now();
-    if (wvol_coeffs_clone(&kept, d->coeffs, &err) != WVOL_OK || wvol_selection_apply(d->selection, kept, &err) != WVOL_OK ||
-        wvol_wvc_encode(&buf, &n, kept, &wp, &wr, &err) != WVOL_OK || wvol_wvc_save(d->wvc_path, buf, n, &err) != WVOL_OK) {
+    if (wvol_compress_encode(&buf, &n, &d->kept, &prm, &wr, &err) != WVOL_OK ||
+        wvol_wvc_save(d->wvc_path, buf, n, &err) != WVOL_OK) {
         code = cli_fail_err("demo", &err);
         goto done;
     }
@@ -290,7 +265,8 @@ static int stage_compress(demo *d)
     d->wvc_decode_s = cli_now() - t0;
     d->wvc_bytes = n;
     d->wvc_step = wr.step;
-    d->wvc_pred_psnr = wvol_wvc_psnr(wp.dropped_energy + wr.sse_quant, (double)nvox, d->range[0], d->range[1]);
+    d->wvc_pred_psnr =
+        wvol_wvc_psnr(d->kept.report.energy_dropped + wr.sse_quant, (double)nvox, d->range[0], d->range[1]);
     d->wvc_rmse = sqrt(sse / (double)nvox);
     d->wvc_psnr = wvol_wvc_psnr(sse, (double)nvox, d->range[0], d->range[1]);
     if (!d->json) {
@@ -304,7 +280,6 @@ done:
     free(buf);
     wvol_volume_destroy(rec);
     wvol_coeffs_destroy(back);
-    wvol_coeffs_destroy(kept);
     return code;
 }
 
@@ -328,7 +303,6 @@ static void json_compress(const demo *d)
 
 static int stage_mesh(demo *d)
 {
-    wvol_coeffs *kept = NULL;
     wvol_mesh *mesh = NULL;
     wvol_iso_params prm;
     wvol_iso_stats st;
@@ -340,9 +314,7 @@ static int stage_mesh(demo *d)
     wvol_iso_params_default(&prm);
     /* marching cubes brick by brick on the 5% reconstruction: only bricks whose
      * coefficient bound straddles the iso-value are reconstructed */
-    if (wvol_coeffs_clone(&kept, d->coeffs, &err) != WVOL_OK ||
-        wvol_selection_apply(d->selection, kept, &err) != WVOL_OK ||
-        wvol_iso_extract_coeffs(&mesh, kept, d->bone_iso, &prm, &st, &err) != WVOL_OK ||
+    if (wvol_iso_extract_coeffs(&mesh, d->kept.coeffs, d->bone_iso, &prm, &st, &err) != WVOL_OK ||
         wvol_mesh_save(mesh, d->mesh_path, &err) != WVOL_OK) {
         d->mesh_path[0] = '\0';
         code = cli_fail_err("demo", &err);
@@ -357,7 +329,6 @@ static int stage_mesh(demo *d)
                    d->bone_iso, mesh->ntris, d->mesh_area, st.bricks_skipped, st.bricks_total, d->mesh_path);
     }
     wvol_mesh_destroy(mesh);
-    wvol_coeffs_destroy(kept);
     return code;
 }
 
@@ -376,7 +347,6 @@ static void json_mesh(const demo *d)
 static const demo_stage stages[] = {
     {"phantom", stage_phantom, json_phantom},
     {"write", stage_write, json_write},
-    {"transform", stage_transform, json_transform},
     {"select", stage_select, json_select},
     {"render", stage_render, json_render},
     {"compress", stage_compress, json_compress},
@@ -386,8 +356,7 @@ enum { STAGE_COUNT = sizeof stages / sizeof stages[0] };
 
 static void demo_free(demo *d)
 {
-    wvol_selection_destroy(d->selection);
-    wvol_coeffs_destroy(d->coeffs);
+    wvol_compressed_free(&d->kept);
     wvol_volume_destroy(d->phantom);
 }
 

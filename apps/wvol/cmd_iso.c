@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* wvol iso: isosurface of a volume as a mesh (marching cubes on the samples or,
  * with --wavelet, brick by brick from kept wavelet coefficients) or as an image
  * (guaranteed ray tracing of the wavelet model f^ = iso). */
@@ -7,6 +8,7 @@
 #include <string.h>
 
 #include "cli.h"
+#include "wvol/compress.h"
 #include "wvol/image.h"
 #include "wvol/io.h"
 #include "wvol/iso.h"
@@ -53,7 +55,7 @@ typedef struct iso_args {
     wvol_load_options lo;
 } iso_args;
 
-static void report(const iso_args *a, const wvol_mesh *m, const wvol_iso_stats *st, double best,
+static void report(const iso_args *a, int levels, const wvol_mesh *m, const wvol_iso_stats *st, double best,
                    double t_load, double t_save)
 {
     wvol_mesh_topo topo;
@@ -66,7 +68,7 @@ static void report(const iso_args *a, const wvol_mesh *m, const wvol_iso_stats *
         cli_json_str("method", a->wavelet ? "mc-bricks" : "mc");
         if (a->wavelet) {
             cli_json_str("wavelet", a->wavelet);
-            cli_json_int("levels", a->levels);
+            cli_json_int("levels", levels);
             cli_json_num("keep", a->keep);
             cli_json_int("brick", a->brick);
             cli_json_int("bricks_meshed", (long long)st->bricks_meshed);
@@ -119,28 +121,28 @@ static void report(const iso_args *a, const wvol_mesh *m, const wvol_iso_stats *
     }
 }
 
-/* Forward transform and selection for --wavelet; *c receives the coefficients with
- * the dropped ones zeroed. */
-static int prepare_coeffs(const iso_args *a, const wvol_volume *v, wvol_coeffs **c, wvol_error *err)
+/* The library's pipeline for --wavelet (and the tracer's store): transform, selection of
+ * --keep, and the store when asked. --levels beyond what the volume allows is refused for
+ * meshes and capped for images (a store needs only some levels). */
+static int prepare_kept(const iso_args *a, const wvol_volume *v, int build_store, wvol_compressed *out,
+                        wvol_error *err)
 {
-    const wvol_filter *f = NULL;
-    wvol_selection *sel = NULL;
-    wvol_select_params sp = wvol_select_params_default();
+    wvol_compress_params cp;
     int maxl = wvol_dwt_max_levels(v->nx, v->ny, v->nz);
-    if (wvol_filter_get(&f, a->wavelet, err) != WVOL_OK) return cli_usage("iso", "%s", err->message);
-    if (a->levels < 1 || a->levels > maxl)
-        return cli_usage("iso", "--levels %d: this volume allows 1..%d", a->levels, maxl);
-    if (wvol_dwt3(c, v, f, a->levels, err) != WVOL_OK) return cli_fail_err("iso", err);
-    if (a->keep < 1.0) {
-        sp.mode = WVOL_SELECT_FRACTION;
-        sp.fraction = a->keep;
-        if (wvol_select(&sel, *c, &sp, NULL, NULL, err) != WVOL_OK ||
-            wvol_selection_apply(sel, *c, err) != WVOL_OK) {
-            wvol_selection_destroy(sel);
-            return cli_fail_err("iso", err);
-        }
-        wvol_selection_destroy(sel);
+    wvol_compress_params_default(&cp);
+    if (a->wavelet) cp.wavelet = a->wavelet;
+    cp.levels = a->levels;
+    if (a->levels > maxl) {
+        if (!build_store) return cli_usage("iso", "--levels %d: this volume allows 1..%d", a->levels, maxl);
+        cp.levels = maxl;
     }
+    if (a->spline_j) cp.store.spline_J = a->spline_j;
+    cp.build_store = build_store;
+    if (a->keep < 1.0) {
+        cp.select.mode = WVOL_SELECT_FRACTION;
+        cp.select.fraction = a->keep;
+    }
+    if (wvol_compress(out, v, &cp, err) != WVOL_OK) return cli_fail_err("iso", err);
     return CLI_OK;
 }
 
@@ -148,7 +150,8 @@ static int run_mc(const iso_args *a)
 {
     wvol_error err;
     wvol_volume *v = NULL;
-    wvol_coeffs *c = NULL;
+    wvol_compressed kept;
+    const wvol_coeffs *c = NULL;
     wvol_mesh *m = NULL;
     wvol_iso_params p;
     wvol_iso_stats st, best_st;
@@ -164,9 +167,11 @@ static int run_mc(const iso_args *a)
     p.normals = a->normals;
     p.brick = a->brick > 0 ? a->brick : 32;
     memset(&best_st, 0, sizeof best_st);
+    memset(&kept, 0, sizeof kept);
     if (a->wavelet) {
-        rc = prepare_coeffs(a, v, &c, &err);
+        rc = prepare_kept(a, v, 0, &kept, &err);
         if (rc != CLI_OK) goto done;
+        c = kept.coeffs;
     }
     for (r = 0; r < a->repeat; r++) {
         double t1 = cli_now(), dt;
@@ -201,10 +206,10 @@ static int run_mc(const iso_args *a)
         t_save = cli_now() - t1;
     }
     if (best_st.empty && !a->json) fprintf(stderr, "wvol iso: %s\n", best_st.message);
-    report(a, m, &best_st, best, t_load, t_save);
+    report(a, kept.levels, m, &best_st, best, t_load, t_save);
 done:
     wvol_mesh_destroy(m);
-    wvol_coeffs_destroy(c);
+    wvol_compressed_free(&kept);
     wvol_volume_destroy(v);
     return rc;
 }
@@ -215,8 +220,8 @@ static int run_image(const iso_args *a)
 {
     wvol_error err;
     wvol_volume *v = NULL;
-    wvol_coeffs *c = NULL;
-    wvol_store *st = NULL;
+    wvol_compressed kept;
+    const wvol_store *st = NULL;
     wvol_image *img = NULL;
     float *depth = NULL;
     wvol_camera cam;
@@ -225,14 +230,12 @@ static int run_image(const iso_args *a)
     wvol_iso_trace_params tp;
     wvol_iso_trace_stats ts;
     wvol_render_stats rs;
-    wvol_store_params stp = wvol_store_params_default();
     double t0 = cli_now(), t_prep, vmin = 0, vmax = 1;
     int hybrid = !strcmp(a->method, "hybrid"), rc = CLI_FAILED;
-    iso_args b = *a;
 
     wvol_error_clear(&err);
     memset(&rs, 0, sizeof rs);
-    if (!b.wavelet) b.wavelet = "db2";
+    memset(&kept, 0, sizeof kept);
     if (wvol_volume_load(&v, a->in, &a->lo, &err) != WVOL_OK) return cli_fail_err("iso", &err);
     wvol_volume_range(v, &vmin, &vmax, NULL);
     wvol_geometry_of_volume(&g, v);
@@ -242,13 +245,11 @@ static int run_image(const iso_args *a)
     }
     if (hybrid && (rc = cli_load_tf("iso", a->tf, vmin, vmax, &tf)) != CLI_OK) goto done;
     rc = CLI_FAILED;
-    if (b.levels > wvol_dwt_max_levels(v->nx, v->ny, v->nz)) b.levels = wvol_dwt_max_levels(v->nx, v->ny, v->nz);
-    if ((rc = prepare_coeffs(&b, v, &c, &err)) != CLI_OK) goto done;
+    if ((rc = prepare_kept(a, v, 1, &kept, &err)) != CLI_OK) goto done;
     rc = CLI_FAILED;
-    stp.spline_J = a->spline_j;
-    if (wvol_store_build(&st, c, NULL, &stp, &err) != WVOL_OK) goto fail;
-    wvol_coeffs_destroy(c);
-    c = NULL;
+    st = kept.store;
+    wvol_coeffs_destroy(kept.coeffs);
+    kept.coeffs = NULL;
     wvol_volume_destroy(v); /* the tracer never touches the dense volume */
     v = NULL;
     if (wvol_image_create(&img, (int)a->width, (int)a->height, &err) != WVOL_OK) goto fail;
@@ -281,10 +282,10 @@ static int run_image(const iso_args *a)
         cli_json_str("input", a->in);
         if (a->out) cli_json_str("output", a->out);
         cli_json_str("method", a->method);
-        cli_json_str("wavelet", b.wavelet);
-        cli_json_int("levels", b.levels);
+        cli_json_str("wavelet", wvol_store_basis(st)->filter->name);
+        cli_json_int("levels", kept.levels);
         cli_json_num("keep", a->keep);
-        cli_json_int("spline_j", a->spline_j);
+        cli_json_int("spline_j", a->spline_j ? a->spline_j : wvol_store_basis(st)->J);
         cli_json_num("iso", a->iso);
         cli_json_int("width", a->width);
         cli_json_int("height", a->height);
@@ -323,8 +324,7 @@ fail:
 done:
     free(depth);
     wvol_image_destroy(img);
-    wvol_store_destroy(st);
-    wvol_coeffs_destroy(c);
+    wvol_compressed_free(&kept);
     wvol_volume_destroy(v);
     return rc;
 }
@@ -342,10 +342,8 @@ int wvol_cmd_iso(int argc, char **argv)
     a.method = "mc";
     a.normals = WVOL_NORMALS_GRADIENT;
     a.repeat = 1;
-    a.levels = 3;
     a.keep = 1.0;
     a.brick = 32;
-    a.spline_j = 4;
     a.width = a.height = 512;
     a.tolerance = 1e-3;
     a.camera = "+z";

@@ -66,6 +66,10 @@ typedef struct wvol_compressed {
     double seconds_transform, seconds_select, seconds_store;
 } wvol_compressed;
 
+/* The levels wvol_compress would use for v with p (the default resolved, capped at what the
+ * volume allows); 0 when v cannot be transformed. For messages that name a caller's options. */
+int wvol_compress_levels(const wvol_volume *v, const wvol_compress_params *p);
+
 /* Transform, select, (store). On failure nothing is left allocated in *out. Refuses bad
  * parameters with WVOL_ERR_ARG naming them (unknown family, levels beyond what the volume
  * allows, drop_levels >= levels, and what wvol_select refuses). */

@@ -41,6 +41,16 @@ void wvol_compressed_free(wvol_compressed *c)
     memset(c, 0, sizeof *c);
 }
 
+int wvol_compress_levels(const wvol_volume *v, const wvol_compress_params *p)
+{
+    int maxl, want;
+    if (!v) return 0;
+    maxl = wvol_dwt_max_levels(v->nx, v->ny, v->nz);
+    if (maxl < 1) return 0;
+    want = p && p->levels ? p->levels : p && p->for_file ? WVOL_COMPRESS_LEVELS_FILE : WVOL_COMPRESS_LEVELS_STORE;
+    return maxl < want ? maxl : want;
+}
+
 /* Selection (zeroing what it drops) and the store. A selection that keeps everything stores
  * the nonzero coefficients only: a decoded file's quantised zeros are most of it. */
 static wvol_status select_and_store(wvol_compressed *out, const wvol_volume *v, const wvol_compress_params *p,
@@ -76,10 +86,7 @@ wvol_status wvol_compress(wvol_compressed *out, const wvol_volume *v, const wvol
     maxl = wvol_dwt_max_levels(v->nx, v->ny, v->nz);
     WVOL_RETURN_IF(maxl < 1, err, WVOL_ERR_DIMS, "compress: a %zux%zux%zu volume cannot be transformed", v->nx,
                    v->ny, v->nz);
-    if (p.levels == 0) {
-        int want = p.for_file ? WVOL_COMPRESS_LEVELS_FILE : WVOL_COMPRESS_LEVELS_STORE;
-        p.levels = maxl < want ? maxl : want;
-    }
+    if (p.levels == 0) p.levels = wvol_compress_levels(v, &p);
     WVOL_RETURN_IF(p.levels < 1 || p.levels > maxl, err, WVOL_ERR_ARG,
                    "compress: levels %d: a %zux%zux%zu volume allows 1..%d", p.levels, v->nx, v->ny, v->nz, maxl);
     WVOL_RETURN_IF(p.select.drop_levels < 0 || p.select.drop_levels >= p.levels, err, WVOL_ERR_ARG,
