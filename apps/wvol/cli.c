@@ -1,3 +1,5 @@
+/* SPDX-License-Identifier: MIT */
+/* Shared helpers of the wvol sub-commands (cli.h): option parsing, messages, JSON, progress. */
 #define _POSIX_C_SOURCE 200809L
 #include "cli.h"
 

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Shared helpers of the wvol sub-commands: option parsing, messages, JSON, progress.
  * Exit codes: 0 ok, 1 failed, 2 bad usage. Every error is one line on stderr. */
 #ifndef WVOL_CLI_H

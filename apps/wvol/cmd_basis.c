@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* wvol basis: the basis-function tables per family and J (cubic splines through
  * the cascade values) and their checks: integrals, orthonormality, spline error. */
 #include <stdio.h>

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* wvol convert: any readable volume format to any writable one (by extension). */
 #include <stdio.h>
 #include <string.h>

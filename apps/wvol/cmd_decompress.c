@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* wvol decompress: .wvc -> volume (.raw, .nrrd, or any format the build writes),
  * optionally stopping after a coarser level. */
 #include <stdio.h>

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* wvol filters: the QMF filters of every family (taps, support, vanishing moments,
  * orthonormality defect, centre). */
 #include <stdio.h>

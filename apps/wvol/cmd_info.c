@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* wvol info: what a volume file (any supported format) or a .wvc store holds. */
 #include <math.h>
 #include <stdio.h>

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* wvol inverse: reconstruct a volume (whole, coarser, or one brick) from a coefficient
  * file written by `wvol transform`. */
 #include <stdio.h>

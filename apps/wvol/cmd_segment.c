@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* wvol segment: wavelet features -> PCA -> 3D Kohonen map -> labels and colours. */
 #include <math.h>
 #include <stdio.h>

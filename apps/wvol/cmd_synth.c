@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* wvol synth: writes a synthetic volume (datasets-synth) in the format its
  * extension names, optionally with its label map. */
 #define _POSIX_C_SOURCE 200809L

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* wvol transform: forward 3D wavelet transform of a volume into a coefficient file. */
 #include <stdio.h>
 #include <stdlib.h>

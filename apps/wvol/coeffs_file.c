@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Coefficient files of `wvol transform` / `wvol inverse`: raw float32 + JSON sidecar. */
 #include "coeffs_file.h"
 

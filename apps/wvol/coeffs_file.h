@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* The command line's coefficient files: OUT.raw holds the Mallat-layout pyramid as
  * float32 little-endian (px*py*pz values, x fastest) and OUT.json beside it says what
  * it is (docs/wavelets.md, "Coefficient files"). */

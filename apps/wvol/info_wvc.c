@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* wvol info FILE.wvc: header, sizes, ratio, predicted error, per-level counts and energies. */
 #include <math.h>
 #include <stdio.h>

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* wvol: the command-line program. Sub-commands live in cmd_<name>.c; CMake
  * generates the table below from those file names. */
 #include <stdio.h>

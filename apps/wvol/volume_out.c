@@ -1,3 +1,5 @@
+/* SPDX-License-Identifier: MIT */
+/* Volume output of the sub-commands (volume_out.h): every file written is remembered for cleanup. */
 #define _POSIX_C_SOURCE 200809L
 #include "volume_out.h"
 

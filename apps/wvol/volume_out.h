@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Writing a volume from a sub-command: remembers every file written (a detached
  * .nhdr header has a data file beside it) so a later failure can remove them all. */
 #ifndef WVOL_APP_VOLUME_OUT_H

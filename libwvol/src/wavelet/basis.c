@@ -1,6 +1,8 @@
+/* SPDX-License-Identifier: MIT */
 /* Basis-function tables per family and J: phi and psi as cubic splines (periodic
- * end conditions on the support, see spline.c) through the cascade values, their derivatives and primitives, the checks of
- * DESIGN.md section 7 and the bounds the store and the iso tracer need. */
+ * end conditions on the support, see spline.c) through the cascade values, their
+ * derivatives and primitives, the checks of DESIGN.md section 7 and the bounds the
+ * store and the iso tracer need. */
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>

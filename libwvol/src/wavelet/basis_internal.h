@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Shared internals of the basis-function tables (cascade.c, spline.c, basis.c,
  * fhat.c). Not installed. */
 #ifndef WVOL_BASIS_INTERNAL_H

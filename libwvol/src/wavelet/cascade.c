@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Cascade algorithm: phi and psi of an orthonormal QMF filter at dyadic points.
  * Integer values from the eigenvector of the two-scale matrix, then the two-scale
  * relation level by level, so every dyadic value is exact up to rounding.

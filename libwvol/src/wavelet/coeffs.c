@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Coefficient pyramids: forward/inverse transforms of volumes (padding and cropping),
  * the Mallat-layout accessor, create/clone/destroy. */
 #include <math.h>

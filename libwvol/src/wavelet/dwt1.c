@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* 1D periodic single-level analysis and synthesis in double: the reference form of
  * DESIGN.md section 4 (a[k] = sum_n h[n] x[(2k+n) mod N]; synthesis is the transpose). */
 #include <string.h>

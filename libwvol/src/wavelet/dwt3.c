@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Separable periodic 3D wavelet transform in place (non-standard / Mallat decomposition,
  * DESIGN.md section 4), float32 and float64, multi-threaded with OpenMP.
  * Based on: Mallat 1989 (pyramid algorithm); the kernels are in dwt3_impl.h. */

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Template body of the separable periodic 3D transform, included by dwt3.c once per
  * sample type with T (float or double) and SUF (f32 or f64) defined.
  *

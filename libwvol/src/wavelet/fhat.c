@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* f^ and its gradient at any point from a dense pyramid of coefficients, through
  * the spline tables: per level, each axis contributes the L-1 basis functions
  * (phi and psi) whose support holds the point, and each band sums the separable

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Published Daubechies (db1..db10) and Coiflet (coif1..coif5) low-pass filters,
  * h = the reconstruction low-pass of the two-scale relation (PyWavelets' rec_lo order),
  * 17 significant digits. Values: Daubechies, "Ten Lectures on Wavelets" (1992), tables 6.1 and 8.1,

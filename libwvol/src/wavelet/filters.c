@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* The filter catalogue: Haar, Daubechies db1..db10, Coiflets coif1..coif5 (published
  * values, filter_tables.h) and Battle-Lemarie bl3 (computed from its Fourier form).
  * Everything derived (g, defect, centre, BL taps) is computed once, under pthread_once,

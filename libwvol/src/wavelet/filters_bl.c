@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Battle-Lemarie (orthonormalised B-spline) filters from their Fourier form.
  * Based on: Battle 1987, Lemarie 1988; Daubechies, "Ten Lectures" section 5.4;
  * the cubic case as in DESIGN.md section 3 (seed paper eqs 27-30). */

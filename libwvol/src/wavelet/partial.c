@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Partial reconstruction: a coarser volume (stop at level s) and one brick of the finest
  * level from only the coefficients whose support reaches it. */
 #include <math.h>
@@ -173,7 +174,7 @@ static inline __attribute__((always_inline)) void synth_x_pairs(float *restrict 
 #if defined(__SSE2__)
     /* four pairs at once where their inputs start at consecutive positions (the interior):
      * the same sums in the same order, lane by lane, the pairs' even and odd outputs then
-     * interleaved (eight scalar sums took a third of a brick's build) */
+     * interleaved (as eight scalar sums this pass would be a third of a brick's build) */
     const __m128 zero = _mm_setzero_ps();
     for (; i + 7 < i1 && r0[i + 2] == r0[i] + 1 && r0[i + 4] == r0[i] + 2 && r0[i + 6] == r0[i] + 3; i += 8) {
         const float *l = WHICH & 1 ? lu + r0[i] : NULL, *h = WHICH & 2 ? hu + r0[i] : NULL;

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Cubic splines on a uniform grid in monomial form, with their derivative and
  * primitive pieces, exact products and bounds. The spline of phi (psi) on its
  * support [0, L-1] has periodic end conditions: S'(0) = S'(L-1), S''(0) = S''(L-1).

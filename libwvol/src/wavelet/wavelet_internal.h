@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Internal declarations shared by the wavelet sources (not installed). */
 #ifndef WVOL_WAVELET_INTERNAL_H
 #define WVOL_WAVELET_INTERNAL_H
@@ -10,8 +11,8 @@
 
 /* Battle-Lemarie filter of spline order `order` (3 = cubic) from its Fourier form,
  * centred (h[K] is the centre tap), truncated where |h| < tol and renormalised to
- * sum sqrt(2), then one zero tap appended (the length must be even for the QMF pair). Writes *len <= cap taps; returns 0 on success, -1 if unsupported or
- * longer than cap. */
+ * sum sqrt(2), then one zero tap appended (the length must be even for the QMF pair).
+ * Writes *len <= cap taps; returns 0 on success, -1 if unsupported or longer than cap. */
 int wvol__bl_compute(int order, double tol, double *h, int cap, int *len);
 
 /* Defect max_k |sum_n h[n] h[n+2k] - delta_k| of a low-pass filter. */
