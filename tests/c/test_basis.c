@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Basis functions: cascade, spline tables and their checks (DESIGN.md section 7),
  * and f^ evaluation from coefficients. Every tolerance below is a measured value
  * times a margin, with the measurement in the comment. */

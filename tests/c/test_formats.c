@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* The OpenVDB and VTK adapters through the load/save dispatch (also run under ASan):
  * round trips keep every sample and the geometry, bad files give an error naming the
  * file, the mesh writer checks its input. `test_formats --mesh PATH` only writes the

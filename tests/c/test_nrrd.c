@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* NRRD reader and writer: round trips, every sample type, both byte orders, gzip,
  * ascii, detached headers, header variants, a table of malformed files (each
  * refused with a message), and a deterministic mutation run for the sanitizers. */

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Energy selection (libwvol/src/store/select.c, lod.c): every mode against a
  * brute-force sort, Parseval's predicted error against the measured one, the
  * PSNR target, local level of detail and its region property, bad parameters. */
@@ -372,7 +373,7 @@ static void psnr_target_is_met(void)
     wvol_volume_destroy(v);
 }
 
-/* The issue's LOD statement: inside a region R the reconstruction differs from
+/* Local level of detail (docs/store.md): inside a region R the reconstruction differs from
  * the full one by at most sqrt(sum of c^2 over dropped coefficients whose
  * support reaches into R); and the ellipsoid makes R's error much smaller than
  * the error elsewhere at the same budget. */

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Volume type, status messages, raw I/O and atomic writes. */
 #include <stdint.h>
 #include <stdlib.h>

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Wavelet engine: filters, 1D and 3D periodic transforms, partial reconstruction. */
 #include <float.h>
 #include <math.h>

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* .wvc files: round trips in every coder and step mode, the error target met,
  * early stop at each level, and refusal of damaged files (truncation at every
  * byte, a flipped bit anywhere, crafted headers with valid checksums). */

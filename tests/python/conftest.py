@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 """Shared fixtures: where the built `wvol` program is, and a scratch directory."""
 import os
 import pathlib

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 """Mesh measures for the Python tests (NumPy only): area, enclosed volume, closedness."""
 import numpy as np
 

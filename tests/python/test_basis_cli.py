@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 """wvol basis: the spline tables' checks per family and J, JSON and CSV output."""
 import csv
 import json

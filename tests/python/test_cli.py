@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 """The wvol program's contract: exit codes 0/1/2 and one clear line on stderr."""
 import json
 

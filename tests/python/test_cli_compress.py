@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 """wvol compress / decompress / info on .wvc files: modes, targets met, coarser levels,
 bad input refused with one clear line and no partial file left behind."""
 import json

@@ -1,4 +1,5 @@
-"""`wvol synth` and `wvol demo`: outputs, determinism, and the issue's bad-input list.
+# SPDX-License-Identifier: MIT
+"""`wvol synth` and `wvol demo`: outputs, determinism, and the bad inputs of docs/cli.md.
 
 Every bad input must give exactly one line on stderr naming the problem, exit 2
 for bad usage or 1 for a failure, and leave no file behind (not even a partial or

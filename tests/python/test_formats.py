@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 """Volume formats through the OpenVDB and VTK adapters: round trips, files written by
 OpenVDB's and VTK's own tools, and bad input (clear error naming the file, exit 1).
 

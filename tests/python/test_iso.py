@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 """wvol iso against VTK's vtkFlyingEdges3D and OpenVDB's volumeToMesh on the same
 grid: area and enclosed volume agree to 0.5%, the symmetric Hausdorff distance
 is under one voxel; plus the CLI's contract (empty mesh for an iso-value outside

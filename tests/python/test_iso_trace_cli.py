@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 """wvol iso --method raytrace | hybrid: images of f^ = theta from a store (EXR with a Z depth
 channel, PNG), an empty image with a note for an iso-value outside the range, bad output refused."""
 import json

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 """Our NRRD files as VTK (and so ParaView) reads them: vtkNrrdReader must see the
 same dimensions, spacing, origin and samples as the raw float32 file of the same
 volume. (vtkNrrdReader reads a fastest axis of 9 or fewer samples as vector

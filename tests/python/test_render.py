@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 """wvol render: images from volumes (reference) and from stores (spline, axis, splat); bad input refused."""
 import array
 import json

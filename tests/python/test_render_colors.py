@@ -1,4 +1,5 @@
-"""wvol render --colors: the segmentation's colour volume replaces the TF colour (issue 9)."""
+# SPDX-License-Identifier: MIT
+"""wvol render --colors: the segmentation's colour volume replaces the TF colour."""
 import numpy as np
 import pytest
 from PIL import Image

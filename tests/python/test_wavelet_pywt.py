@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 """The wavelet engine against PyWavelets: filter values (through `wvol filters --json`)."""
 import json
 
