@@ -1,8 +1,7 @@
 /* SPDX-License-Identifier: MIT */
 /* wvol demo: the main job, run as a sequence of stages. Each stage is one
  * function that reads and fills the shared demo state, prints what it did (text
- * mode) and records its JSON fields; later issues add their stages to the table
- * (select, render, compress, mesh, ...). */
+ * mode) and records its JSON fields; a new stage is one more row of the table. */
 #define _POSIX_C_SOURCE 200809L
 #include <errno.h>
 #include <math.h>
