@@ -1,7 +1,9 @@
-/* Private helpers shared by the render sources (not installed). */
+/* SPDX-License-Identifier: MIT
+ * Private helpers shared by the render sources (not installed). */
 #ifndef WVOL_RENDER_INTERNAL_H
 #define WVOL_RENDER_INTERNAL_H
 
+#include "core/clock.h"
 #include "wvol/render.h"
 
 /* A camera with its frame precomputed for ray generation. */
@@ -115,10 +117,5 @@ double wvol__brick_rate(const wvol_tf *tf, wvol_render_mode mode, double mn, dou
 
 wvol_status wvol__render_sampled(wvol_image *img, wvol__sampler *s, const wvol_camera *cam, const wvol_tf *tf,
                                  const wvol_render_params *params, wvol_render_stats *stats, wvol_error *err);
-
-/* Monotonic seconds; OpenMP thread count for a requested count (0 = default). */
-double wvol__now(void);
-double wvol__cpu_now(void);
-int wvol__threads(int requested);
 
 #endif
