@@ -16,7 +16,7 @@
 #include "check.h"
 #include "fixtures.h"
 #include "iso/iso_internal.h"
-#include "render/spline_ray.h"
+#include "store/store_ray.h"
 #include "wvol/iso.h"
 #include "wvol/render.h"
 #include "wvol/store.h"

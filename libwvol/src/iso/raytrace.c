@@ -51,7 +51,7 @@
 #endif
 
 #include "render/render_internal.h"
-#include "render/spline_ray.h"
+#include "store/store_ray.h"
 #include "iso_internal.h"
 #include "wvol/iso.h"
 
