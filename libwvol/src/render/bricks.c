@@ -1,6 +1,6 @@
 /* SPDX-License-Identifier: MIT
  * The bricked renderer: the reference integrator (trilinear samples, front-to-back, early
- * termination; reference.c) reading its samples from bricks reconstructed on demand from a
+ * termination; ref_tiles.c) reading its samples from bricks reconstructed on demand from a
  * store, never from the dense volume.
  *
  * - The store's block-sparse view of its kept coefficients (store/store_blocks.h).
@@ -12,8 +12,8 @@
  *   the bound (kappa 0 over it, or within the ray's skip tolerance) lets the ray skip it, it
  *   is not reconstructed. After reconstruction its actual min/max decide like the dense
  *   path's min/max grid, so skipping at tolerance 0 never changes the image.
- * - Threads take image tiles, whose rays walk the bricks in front-to-back order (reference.c,
- *   render_tile_bricked), so a tile builds each brick it needs once; each thread keeps a few built
+ * - Threads share image tiles, whose rays walk the bricks in front-to-back order
+ *   (ref_bricks.c), so a tile builds each brick it needs once; each thread keeps a few built
  *   bricks (least recently used evicted).
  * Samples, weights and compositing are the reference's, so on the same voxels the image
  * is the reference's image to float rounding (tests/c/test_render_bricks.c). */
@@ -47,8 +47,7 @@ typedef struct brick_src {
 } brick_src;
 
 /* A thread's brick cache: a few slots (CACHE_SLOTS), found by a scan of their brick numbers,
- * the least recently used evicted. (While tiles' rays walked one run each per round it was a
- * cache of hundreds of slots with a hashed index.) */
+ * the least recently used evicted. */
 typedef struct brick_cache {
     const brick_src *src;
     size_t nslots, nused;
@@ -142,12 +141,14 @@ static void voxel_range(const float *d, size_t n, double *mn, double *mx)
     *mx = hi;
 }
 
-static wvol_status fetch(void *tctx, size_t b, double allow, const wvol__view **view, double *rate)
+static wvol_status fetch(const wvol__source *s, void *tctx, size_t b, double allow, const wvol__view **view,
+                         double *rate)
 {
     brick_cache *c = tctx;
     const brick_src *src = c->src;
     size_t slot;
     long lo[3], hi[3];
+    (void)s; /* the thread's cache knows its source */
     c->clock++;
     for (slot = 0; slot < c->nused; slot++)
         if (c->id[slot] == (long)b) goto hit;
@@ -204,7 +205,7 @@ static wvol_status fetch(void *tctx, size_t b, double allow, const wvol__view **
             v->sy = (size_t)(hi[0] - lo[0] + 1);
             v->sz = v->sy * (size_t)(hi[1] - lo[1] + 1);
             wvol__view_finish(v);
-            v->local = 1; /* 1 to 127 cells per axis: block_positions_local (reference.c) */
+            v->local = 1; /* 1 to 127 cells per axis: block_positions_local (ref_samples.h) */
             for (int a = 0; a < 3; a++) v->local &= hi[a] > lo[a] && hi[a] - lo[a] < 128;
         }
         c->built++;
@@ -217,17 +218,15 @@ hit:
 }
 
 /* Slots of a thread's brick cache. A tile's rays walk brick by brick in front-to-back order
- * (reference.c, render_tile_bricked), so a brick is needed only while its rays take their runs in it:
- * one slot would do; a few keep the bricks a ray meets out of that order (which the order
+ * (ref_bricks.c), so a brick is needed only while its rays take their runs in it: one slot
+ * would do; a few keep the bricks a ray meets out of that order (which the order
  * rules out for a straight walk) from being rebuilt. */
 #define CACHE_SLOTS 4
 
-/* Bytes for a tile's rays (reference.c sizes the tile by it; the threads share the tile): a
+/* Bytes for a tile's rays (ref_tiles.c sizes the tile by it; the threads share the tile): a
  * quarter of the dense volume's size, at least 1 MiB (a 64^2 tile) and at most 64 MiB. Two
- * tiles build the bricks both their beams cross, so a larger tile builds fewer: 512^2
- * perspective frame `dir=1,0.7,0.4` of the 256^3 skull at 5% (391 bricks of 32^3 needed):
- * 128^2 tiles 712 builds, 256^2 561, one 512^2 tile 391. At 256^3 this grants 16 MiB: 256^2
- * tiles. */
+ * tiles build the bricks both their beams cross, so a larger tile builds fewer
+ * (bench/results/render-tuning.md). */
 static size_t walk_bytes(const brick_src *src)
 {
     double dense = 4.0 * (double)src->n[0] * (double)src->n[1] * (double)src->n[2];
@@ -238,16 +237,12 @@ static size_t walk_bytes(const brick_src *src)
 /* The brick side when the caller leaves it to us (params->brick 0). Larger bricks cost less
  * per voxel to reconstruct (the apron and the filters' reach are a smaller share: 34^3 voxels
  * for 32^3 cells against 18^3 for 16^3) and halve a ray's runs, but skip empty space more
- * coarsely. 512^2 frames of the 256^3 phantoms from a 5% store, CPU s for 16 -> 32: one
- * thread, skull perspective 1.80 -> 1.34 (step 0.5), Gaussian perspective 1.75 -> 1.47, +z
- * 3.17 -> 2.81 (Gaussian), 2.66 -> 2.41 (skull); 24 about as fast as 32, 40 and 48 slower
- * (more samples, partial bricks); two threads (walked brick by brick), skull perspective
- * 1.38 -> 1.32, Gaussian 1.61 -> 1.18. */
+ * coarsely; 32 was the fastest measured (bench/results/render-tuning.md). */
 #define DEFAULT_BRICK 32
 
-static wvol_status prepare(wvol__sampler *s, const wvol_tf *tf_world, const wvol_render_params *p, wvol_error *err)
+static wvol_status prepare(wvol__source *s, const wvol_tf *tf_world, const wvol_render_params *p, wvol_error *err)
 {
-    brick_src *src = s->src;
+    brick_src *src = s->ctx;
     int a;
     src->tf = tf_world;
     src->mode = p->mode;
@@ -263,12 +258,27 @@ static wvol_status prepare(wvol__sampler *s, const wvol_tf *tf_world, const wvol
     return WVOL_OK;
 }
 
+static int has_grid(const wvol__source *s, const wvol_render_params *p)
+{
+    (void)s, (void)p;
+    return 1;
+}
+
+/* Bricks built on demand into the threads' caches, walked tile by tile. */
+static const wvol__source_ops bricks_ops = {
+    .has_grid = has_grid,
+    .prepare = prepare,
+    .fetch = fetch,
+    .eval = NULL,
+    .walk_bricks = 1,
+};
+
 wvol_status wvol_render_bricks(wvol_image *img, const wvol_store *st, const wvol_camera *cam, const wvol_tf *tf,
                                const wvol_render_params *params, wvol_render_stats *stats, wvol_error *err)
 {
     wvol_render_params p;
     wvol_store_info info;
-    wvol__sampler s;
+    wvol__source s;
     brick_src src;
     wvol_status status;
     size_t bytes = 0, built = 0, bound_skipped = 0;
@@ -304,9 +314,8 @@ wvol_status wvol_render_bricks(wvol_image *img, const wvol_store *st, const wvol
         for (size_t i = 0; i < nb; i++) src.bound_rate[i] = -1.0;
     }
     wvol__store_blocks_source(&src.cs, src.blocks);
-    s.src = &src;
-    s.prepare = prepare;
-    s.fetch = fetch;
+    s.ops = &bricks_ops;
+    s.ctx = &src;
     status = wvol__render_sampled(img, &s, cam, tf, &p, stats, err);
     bytes = wvol__store_blocks_bytes(src.blocks) + wvol__bounds_bytes(src.bounds) + (size_t)src.nthreads * sizeof(void *) +
             (src.bound_rate ? src.bn[0] * src.bn[1] * src.bn[2] * sizeof *src.bound_rate : 0);
