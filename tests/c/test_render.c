@@ -1,4 +1,5 @@
-/* Tests of the renderer (libwvol/src/render) and the image files (libwvol/src/io/image_*.c). */
+/* SPDX-License-Identifier: MIT
+ * Tests of the renderer (libwvol/src/render) and the image files (libwvol/src/io/image_*.c). */
 #define _POSIX_C_SOURCE 200809L
 #include <math.h>
 #include <stdio.h>

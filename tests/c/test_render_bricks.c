@@ -1,4 +1,5 @@
-/* Tests of the bricked renderer (libwvol/src/render/bricks.c): from a store it must give the
+/* SPDX-License-Identifier: MIT
+ * Tests of the bricked renderer (libwvol/src/render/bricks.c): from a store it must give the
  * reference integrator's image of the store's dense reconstruction, for every mode, camera,
  * brick size and kept fraction, and skip bricks on their coefficient bound. */
 #include <math.h>

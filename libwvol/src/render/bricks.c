@@ -246,7 +246,6 @@ static wvol_status prepare(wvol__source *s, const wvol_tf *tf_world, const wvol_
     int a;
     src->tf = tf_world;
     src->mode = p->mode;
-    s->B = src->B;
     for (a = 0; a < 3; a++) s->bn[a] = src->bn[a];
     s->walk_bytes = walk_bytes(src);
     s->tctx = calloc((size_t)src->nthreads, sizeof *s->tctx);
@@ -258,20 +257,8 @@ static wvol_status prepare(wvol__source *s, const wvol_tf *tf_world, const wvol_
     return WVOL_OK;
 }
 
-static int has_grid(const wvol__source *s, const wvol_render_params *p)
-{
-    (void)s, (void)p;
-    return 1;
-}
-
 /* Bricks built on demand into the threads' caches, walked tile by tile. */
-static const wvol__source_ops bricks_ops = {
-    .has_grid = has_grid,
-    .prepare = prepare,
-    .fetch = fetch,
-    .eval = NULL,
-    .walk_bricks = 1,
-};
+static const wvol__source_ops bricks_ops = {.prepare = prepare, .fetch = fetch, .walk_bricks = 1};
 
 wvol_status wvol_render_bricks(wvol_image *img, const wvol_store *st, const wvol_camera *cam, const wvol_tf *tf,
                                const wvol_render_params *params, wvol_render_stats *stats, wvol_error *err)
@@ -316,6 +303,7 @@ wvol_status wvol_render_bricks(wvol_image *img, const wvol_store *st, const wvol
     wvol__store_blocks_source(&src.cs, src.blocks);
     s.ops = &bricks_ops;
     s.ctx = &src;
+    s.B = src.B;
     status = wvol__render_sampled(img, &s, cam, tf, &p, stats, err);
     bytes = wvol__store_blocks_bytes(src.blocks) + wvol__bounds_bytes(src.bounds) + (size_t)src.nthreads * sizeof(void *) +
             (src.bound_rate ? src.bn[0] * src.bn[1] * src.bn[2] * sizeof *src.bound_rate : 0);

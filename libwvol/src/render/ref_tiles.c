@@ -102,7 +102,7 @@ wvol_status wvol__render_sampled(wvol_image *img, wvol__source *s, const wvol_ca
     wvol__params(&p, pin);
     WVOL_FORWARD(wvol__render_check(img, cam, tf_in, &p, err));
     WVOL_FORWARD(wvol__check_colors(&p, s->n, 1, err));
-    WVOL_FORWARD(wvol__check_skip(&p, s->ops->has_grid(s, &p), err));
+    WVOL_FORWARD(wvol__check_skip(&p, s->B > 0, err));
     for (a = 0; a < 3; a++) {
         g.dims[a] = s->n[a];
         g.spacing[a] = s->spacing[a];
@@ -117,7 +117,6 @@ wvol_status wvol__render_sampled(wvol_image *img, wvol__source *s, const wvol_ca
     dt = p.step * fmin(s->spacing[0], fmin(s->spacing[1], s->spacing[2]));
     t_start = wvol__now();
     c_start = wvol__cpu_now();
-    s->B = 0;
     if (s->ops->prepare) WVOL_FORWARD(s->ops->prepare(s, &tf, &p, err));
     wvol__cam_init(&k, cam);
     p.tile = wvol__tile_side(&p, walk_tile(s, img));

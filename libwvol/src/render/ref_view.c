@@ -62,7 +62,8 @@ void wvol__view_finish(wvol__view *w)
  * Each brick covers the voxel cells [b*B - 1/2, (b+1)*B - 1/2) and its min/max is taken
  * over voxels b*B-1 .. (b+1)*B, every voxel a trilinear sample inside the brick can touch. */
 /* noinline: alone, its loops keep their bounds in registers */
-static __attribute__((noinline)) wvol_status build_bricks(wvol__source *s, const wvol_tf *tf, wvol_render_mode mode, wvol_error *err)
+static __attribute__((noinline)) wvol_status build_bricks(wvol__source *s, const wvol_tf *tf, wvol_render_mode mode,
+                                                          wvol_error *err)
 {
     wvol__dense_src *ds = s->ctx;
     const wvol_volume *v = ds->v;
@@ -96,19 +97,11 @@ static __attribute__((noinline)) wvol_status build_bricks(wvol__source *s, const
     return WVOL_OK;
 }
 
-static int dense_has_grid(const wvol__source *s, const wvol_render_params *p)
-{
-    (void)s;
-    return p->brick > 0;
-}
-
-/* The brick grid of params->brick (0: none). */
+/* The min/max grid of bricks of side s->B (params->brick; 0: none). */
 static wvol_status dense_prepare(wvol__source *s, const wvol_tf *tf_world, const wvol_render_params *p,
                                  wvol_error *err)
 {
-    if (p->brick <= 0) return WVOL_OK;
-    s->B = p->brick;
-    return build_bricks(s, tf_world, p->mode, err);
+    return s->B > 0 ? build_bricks(s, tf_world, p->mode, err) : WVOL_OK;
 }
 
 /* Every brick's view is the whole volume's; its rate is the table's. */
@@ -122,25 +115,22 @@ static wvol_status dense_fetch(const wvol__source *s, void *tctx, size_t brick, 
     return WVOL_OK;
 }
 
-const wvol__source_ops wvol__dense_ops = {
-    .has_grid = dense_has_grid,
-    .prepare = dense_prepare,
-    .fetch = dense_fetch,
-    .eval = NULL,
-    .walk_bricks = 0,
-};
+const wvol__source_ops wvol__dense_ops = {.prepare = dense_prepare, .fetch = dense_fetch};
 
 wvol_status wvol_render_reference(wvol_image *img, const wvol_volume *v, const wvol_camera *cam, const wvol_tf *tf,
                                   const wvol_render_params *params, wvol_render_stats *stats, wvol_error *err)
 {
     wvol__source s;
     wvol__dense_src ds = {v, NULL};
+    wvol_render_params p;
     wvol_status st;
     int a;
     WVOL_RETURN_IF(!v || !v->data, err, WVOL_ERR_ARG, "render: no volume");
+    wvol__params(&p, params);
     memset(&s, 0, sizeof s);
     s.ops = &wvol__dense_ops;
     s.ctx = &ds;
+    s.B = p.brick > 0 ? p.brick : 0;
     s.n[0] = v->nx;
     s.n[1] = v->ny;
     s.n[2] = v->nz;

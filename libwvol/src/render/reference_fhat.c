@@ -16,20 +16,8 @@ static double eval_fhat(const void *ctx, const double x[3], double grad[3])
     return wvol_fhat_eval(f->c, f->b, x, grad);
 }
 
-static int fhat_has_grid(const wvol__source *s, const wvol_render_params *p)
-{
-    (void)s, (void)p;
-    return 0;
-}
-
 /* No voxels, no brick grid: every sample evaluates f^. */
-static const wvol__source_ops fhat_ops = {
-    .has_grid = fhat_has_grid,
-    .prepare = NULL,
-    .fetch = NULL,
-    .eval = eval_fhat,
-    .walk_bricks = 0,
-};
+static const wvol__source_ops fhat_ops = {.eval = eval_fhat};
 
 wvol_status wvol_render_reference_fhat(wvol_image *img, const wvol_coeffs *c, const wvol_basis *b,
                                        const wvol_camera *cam, const wvol_tf *tf, const wvol_render_params *params,

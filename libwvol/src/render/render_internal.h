@@ -91,10 +91,8 @@ void wvol__view_finish(wvol__view *w);
 typedef struct wvol__source wvol__source;
 
 typedef struct wvol__source_ops {
-    /* Whether the source has a brick grid under p (skip_tolerance needs one). */
-    int (*has_grid)(const wvol__source *s, const wvol_render_params *p);
-    /* Called once the TF is in world units (tf_world): sets the brick grid (s->B, s->bn) where
-     * the source has one, the per-thread contexts (s->tctx, indexed by
+    /* Called once the TF is in world units (tf_world): sets up the brick grid of side s->B
+     * (s->bn, and what fetch reads) where the source has one, the per-thread contexts (s->tctx, indexed by
      * omp_get_thread_num()) and s->walk_bytes. What it allocates, the kind's entry point
      * frees after the render. NULL: nothing to prepare. */
     wvol_status (*prepare)(wvol__source *s, const wvol_tf *tf_world, const wvol_render_params *p,
@@ -121,7 +119,8 @@ struct wvol__source {
     double spacing[3], origin[3];
     wvol__view whole;       /* a voxel source's view where no fetch gives one (a dense
                                volume: all of it) */
-    int B;                  /* brick side in voxel cells (prepare); 0: no grid */
+    int B;                  /* brick side in voxel cells, set by the kind's entry point; 0: no
+                               grid (skip_tolerance needs one) */
     size_t bn[3];           /* bricks per axis (prepare) */
     void **tctx;            /* per-thread contexts (prepare), or NULL */
     size_t walk_bytes;      /* prepare(): bytes for a tile's rays (their states and lists;

@@ -36,8 +36,7 @@ struct wvol__store_blocks {
     const float *low;  /* the store's low-pass cube, E0 E1 E2 */
     size_t E[3];
     size_t bytes;
-    const wvol_filter *filter;
-    size_t dims[3], pad[3];
+    wvol__coef_source cs;  /* a reconstruction's source reading through the view */
 };
 typedef struct wvol__store_blocks coef_blocks;
 
@@ -79,9 +78,6 @@ WVOL__CLONES static wvol_status blocks_build(coef_blocks *cb, const wvol_store *
     cb->low = wvol_store_lowpass(s);
     for (a = 0; a < 3; a++) cb->E[a] = info.lowpass[a];
     pad[0] = info.px, pad[1] = info.py, pad[2] = info.pz;
-    cb->filter = info.filter;
-    cb->dims[0] = info.nx, cb->dims[1] = info.ny, cb->dims[2] = info.nz;
-    for (a = 0; a < 3; a++) cb->pad[a] = pad[a];
     for (m = 1; m <= cb->M; m++)
         for (l = 1; l < 8; l++) {
             band_view *bv = &cb->bv[m][l];
@@ -297,6 +293,8 @@ wvol_status wvol__store_blocks_create(wvol__store_blocks **out, wvol__brick_boun
         return st;
     }
     if (bb) wvol__bounds_finish(bb);
+    cb->cs = (wvol__coef_source){.gather = gather_blocks, .ctx = cb, .filter = info.filter, .levels = info.levels,
+                                 .dims = {info.nx, info.ny, info.nz}, .pad = {info.px, info.py, info.pz}};
     if (bounds) *bounds = bb;
     *out = cb;
     return WVOL_OK;
@@ -304,14 +302,7 @@ wvol_status wvol__store_blocks_create(wvol__store_blocks **out, wvol__brick_boun
 
 void wvol__store_blocks_source(wvol__coef_source *src, const wvol__store_blocks *b)
 {
-    src->gather = gather_blocks;
-    src->ctx = b;
-    src->filter = b->filter;
-    src->levels = b->M;
-    for (int a = 0; a < 3; a++) {
-        src->dims[a] = b->dims[a];
-        src->pad[a] = b->pad[a];
-    }
+    *src = b->cs;
 }
 
 size_t wvol__store_blocks_bytes(const wvol__store_blocks *b)
