@@ -22,6 +22,7 @@
 #include <stddef.h>
 #include <stdint.h>
 
+#include "wvol/rng.h" /* the generators' PRNG and hash (wvol_rng, wvol_hash64) */
 #include "wvol/volume.h"
 
 #ifdef __cplusplus
@@ -106,21 +107,6 @@ int wvol_synth_kind_find(const char *name);
 int wvol_synth_kind_has_labels(int i);
 /* The kind's default size (used when the caller has none). */
 void wvol_synth_kind_default_dims(int i, size_t dims[3]);
-
-/* ---- the small PRNG the generators use (exposed for tests and benchmarks) ---- */
-
-/* xoshiro256** seeded through splitmix64. */
-typedef struct wvol_rng {
-    uint64_t s[4];
-} wvol_rng;
-
-void wvol_rng_seed(wvol_rng *r, uint64_t seed);
-uint64_t wvol_rng_next(wvol_rng *r);
-double wvol_rng_uniform(wvol_rng *r);  /* [0, 1) with 53 random bits */
-double wvol_rng_normal(wvol_rng *r);   /* standard normal (Box-Muller) */
-
-/* splitmix64 finaliser: a good 64-bit mixing hash. */
-uint64_t wvol_hash64(uint64_t x);
 
 #ifdef __cplusplus
 }

@@ -313,7 +313,7 @@ static int stage_mesh(demo *d)
     wvol_iso_params_default(&prm);
     /* marching cubes brick by brick on the 5% reconstruction: only bricks whose
      * coefficient bound straddles the iso-value are reconstructed */
-    if (wvol_iso_extract_coeffs(&mesh, d->kept.coeffs, d->bone_iso, &prm, &st, &err) != WVOL_OK ||
+    if (wvol_iso_extract_store(&mesh, d->kept.store, d->bone_iso, &prm, &st, &err) != WVOL_OK ||
         wvol_mesh_save(mesh, d->mesh_path, &err) != WVOL_OK) {
         d->mesh_path[0] = '\0';
         code = cli_fail_err("demo", &err);

@@ -121,10 +121,10 @@ static void report(const iso_args *a, int levels, const wvol_mesh *m, const wvol
     }
 }
 
-/* The library's pipeline for --wavelet (and the tracer's store): transform, selection of
- * --keep, and the store when asked. --levels beyond what the volume allows is refused for
- * meshes and capped for images (a store needs only some levels). */
-static int prepare_kept(const iso_args *a, const wvol_volume *v, int build_store, wvol_compressed *out,
+/* The library's pipeline for --wavelet and the tracer: transform, selection of --keep, and
+ * the store. --levels beyond what the volume allows is refused for meshes and capped for
+ * images. */
+static int prepare_kept(const iso_args *a, const wvol_volume *v, int for_image, wvol_compressed *out,
                         wvol_error *err)
 {
     wvol_compress_params cp;
@@ -133,11 +133,10 @@ static int prepare_kept(const iso_args *a, const wvol_volume *v, int build_store
     if (a->wavelet) cp.wavelet = a->wavelet;
     cp.levels = a->levels;
     if (a->levels > maxl) {
-        if (!build_store) return cli_usage("iso", "--levels %d: this volume allows 1..%d", a->levels, maxl);
+        if (!for_image) return cli_usage("iso", "--levels %d: this volume allows 1..%d", a->levels, maxl);
         cp.levels = maxl;
     }
     if (a->spline_j) cp.store.spline_J = a->spline_j;
-    cp.build_store = build_store;
     if (a->keep < 1.0) {
         cp.select.mode = WVOL_SELECT_FRACTION;
         cp.select.fraction = a->keep;
@@ -151,7 +150,6 @@ static int run_mc(const iso_args *a)
     wvol_error err;
     wvol_volume *v = NULL;
     wvol_compressed kept;
-    const wvol_coeffs *c = NULL;
     wvol_mesh *m = NULL;
     wvol_iso_params p;
     wvol_iso_stats st, best_st;
@@ -171,21 +169,20 @@ static int run_mc(const iso_args *a)
     if (a->wavelet) {
         rc = prepare_kept(a, v, 0, &kept, &err);
         if (rc != CLI_OK) goto done;
-        c = kept.coeffs;
     }
     for (r = 0; r < a->repeat; r++) {
         double t1 = cli_now(), dt;
         wvol_status s;
         wvol_mesh_destroy(m);
         m = NULL;
-        if (c && a->brick == 0) { /* the peer of the brick path: whole inverse, then dense MC */
+        if (kept.store && a->brick == 0) { /* the peer of the brick path: whole inverse, then dense MC */
             wvol_volume *rec = NULL;
-            s = wvol_idwt3(&rec, c, &err);
+            s = wvol_idwt3(&rec, kept.coeffs, &err);
             if (s == WVOL_OK) s = wvol_iso_extract(&m, rec, a->iso, &p, &st, &err);
             wvol_volume_destroy(rec);
         } else {
-            s = c ? wvol_iso_extract_coeffs(&m, c, a->iso, &p, &st, &err)
-                  : wvol_iso_extract(&m, v, a->iso, &p, &st, &err);
+            s = kept.store ? wvol_iso_extract_store(&m, kept.store, a->iso, &p, &st, &err)
+                           : wvol_iso_extract(&m, v, a->iso, &p, &st, &err);
         }
         if (s != WVOL_OK) {
             rc = cli_fail_err("iso", &err);

@@ -1,4 +1,5 @@
-/* Tests of the implicit-surface ray tracer (libwvol/src/iso/raytrace.c):
+/* SPDX-License-Identifier: MIT
+ * Tests of the implicit-surface ray tracer (libwvol/src/iso/raytrace.c, trace_*.c):
  *  - no missed hit: on random rays through the phantoms (Gaussian, skull, blobs; 1% to 100%
  *    kept; db2, coif1, Haar), wherever dense sampling of f^ at 1/8 voxel finds a crossing
  *    the tracer finds the first one, at the same depth within the tolerance;
@@ -16,7 +17,7 @@
 #include "check.h"
 #include "fixtures.h"
 #include "iso/iso_internal.h"
-#include "render/spline_ray.h"
+#include "store/store_ray.h"
 #include "wvol/iso.h"
 #include "wvol/render.h"
 #include "wvol/store.h"

@@ -1,4 +1,5 @@
-/* Tests of the renderer (libwvol/src/render) and the image files (libwvol/src/io/image_*.c). */
+/* SPDX-License-Identifier: MIT
+ * Tests of the renderer (libwvol/src/render) and the image files (libwvol/src/io/image_*.c). */
 #define _POSIX_C_SOURCE 200809L
 #include <math.h>
 #include <stdio.h>
@@ -289,7 +290,7 @@ static double noise_at(const wvol_volume *v, size_t i, size_t j, size_t k, const
     return -0.2 + 1.4 * fixture_urand((uint64_t *)ctx);
 }
 
-/* The blocked inner loop (runs of samples strictly inside a brick, 8 at a time, reference.c)
+/* The blocked inner loop (runs of samples strictly inside a brick, 8 at a time, render/ref_samples.h)
  * against the sample-by-sample path, which a colour volume forces (its nearest-voxel lookup
  * is per sample). Odd sizes, oblique and perspective rays (runs of every length, blocks cut
  * short), transfer functions of several segments (the per-block segment test and its

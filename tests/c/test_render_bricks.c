@@ -1,4 +1,5 @@
-/* Tests of the bricked renderer (libwvol/src/render/bricks.c): from a store it must give the
+/* SPDX-License-Identifier: MIT
+ * Tests of the bricked renderer (libwvol/src/render/bricks.c): from a store it must give the
  * reference integrator's image of the store's dense reconstruction, for every mode, camera,
  * brick size and kept fraction, and skip bricks on their coefficient bound. */
 #include <math.h>
@@ -170,7 +171,7 @@ static void bricks_equal_reference_on_the_reconstruction(void)
     free(colors);
 }
 
-/* A tile's rays walk the bricks front to back (reference.c, render_tile_bricked), so one tile
+/* A tile's rays walk the bricks front to back (render/ref_bricks.c), so one tile
  * holding the whole image builds each brick at most once, whatever the view and with two
  * threads sharing the tile: rays that enter the volume from every side, parallel rays with
  * negative direction components, rays starting inside it. A walk out of order would rebuild

@@ -1,4 +1,5 @@
-/* Isosurfaces: marching cubes on dense volumes (flying-edges passes), triangle
+/* SPDX-License-Identifier: MIT
+ * Isosurfaces: marching cubes on dense volumes (flying-edges passes), triangle
  * meshes (measures, topology checks, PLY/OBJ/STL/VTP output), and guaranteed ray
  * tracing of the implicit surface f^ = iso of a coefficient store (DESIGN.md section 9).
  *
@@ -131,6 +132,15 @@ wvol_status wvol_iso_extract(wvol_mesh **out, const wvol_volume *v, double iso,
  * the float rounding of the two reconstructions. stats report bricks skipped. */
 wvol_status wvol_iso_extract_coeffs(wvol_mesh **out, const wvol_coeffs *c, double iso,
                                     const wvol_iso_params *p, wvol_iso_stats *stats, wvol_error *err);
+
+/* wvol_iso_extract_coeffs from a store: the bricks whose bound (from the kept coefficients
+ * alone) straddles iso are reconstructed from the store's kept coefficients, as the bricked
+ * renderer reconstructs its bricks (the dense coefficients are never formed), meshed and
+ * stitched. The mesh is wvol_iso_extract_coeffs's on wvol_store_densify(s), exactly: the
+ * same vertices, normals and triangles in the same order. Where the bound does not apply
+ * (a store without transformed levels) every brick is reconstructed. */
+wvol_status wvol_iso_extract_store(wvol_mesh **out, const wvol_store *s, double iso,
+                                   const wvol_iso_params *p, wvol_iso_stats *stats, wvol_error *err);
 
 /* ---- ray tracing the implicit surface f^ = iso of a store (Kalra-Barr) ---------- */
 

@@ -1,12 +1,13 @@
+/* SPDX-License-Identifier: MIT */
 /* 3D Kohonen self-organising map (paper section 4.2, eq 31): neurons on an
  * a x b x c lattice, each with an RGB colour from its lattice position; for each
  * presented feature vector g the winner is the neuron nearest in feature space and
  * every neuron j within the shrinking neighbourhood moves by
  *   dw_j = eta(t) h(j, winner, t) (g - w_j),
  * with eta decaying exponentially eta0 -> eta1 and h a Gaussian of lattice distance
- * whose radius decays sigma0 -> sigma1 (cut at 3 sigma). Deterministic per seed (wvol_rng, the generators' xoshiro256**). */
+ * whose radius decays sigma0 -> sigma1 (cut at 3 sigma). Deterministic per seed (wvol_rng). */
 #include "wvol/analysis.h"
-#include "wvol_synth.h" /* wvol_rng: the project's one PRNG */
+#include "wvol/rng.h"
 
 #include <float.h>
 #include <math.h>

@@ -1,15 +1,19 @@
-/* SPDX-License-Identifier: MIT */
-/* Marching cubes from wavelet coefficients, brick by brick. The grid's cells are
- * cut into bricks of B^3 cells. For each brick a rigorous bound of the
+/* SPDX-License-Identifier: MIT
+ * Marching cubes from wavelet coefficients, brick by brick: from dense coefficients
+ * (wvol_iso_extract_coeffs) or from a store (wvol_iso_extract_store, through the store's
+ * block-sparse view, store/store_blocks.h, as the bricked renderer reads it). The grid's
+ * cells are cut into bricks of B^3 cells. For each brick a rigorous bound of the
  * reconstructed samples (its (B+1)^3 samples: owned cells plus the shared layer)
  * is computed from the coefficients alone; a brick whose bound does not straddle
  * the iso-value cannot hold a vertex and is skipped without reconstruction. The
- * others are reconstructed with wvol_idwt3_brick (plus a one-sample halo for
- * central-difference normals identical to the dense path), meshed by the
- * flying-edges kernel, and stitched: every vertex carries its global edge key,
+ * others are reconstructed by the local inverse transform (wvol__idwt3_brick_src, plus a
+ * one-sample halo for central-difference normals identical to the dense path), meshed by
+ * the flying-edges kernel, and stitched: every vertex carries its global edge key,
  * the brick that owns an edge's lower sample writes its vertex, and the other
  * bricks' triangles find it by binary search among the owner's sorted keys, so
- * the stitched mesh has no duplicates and no cracks.
+ * the stitched mesh has no duplicates and no cracks. Both sources give the same samples
+ * bit for bit (the synthesis sums from +0, so a band read as absent and a band of zeros
+ * add alike), hence the same mesh.
  *
  * The bound is wavelet/bounds.c (shared with the bricked renderer).
  * Based on: DESIGN.md section 9; Lorensen & Cline 1987. */
@@ -22,6 +26,7 @@
 #endif
 
 #include "iso/iso_internal.h"
+#include "store/store_blocks.h"
 #include "wvol/wavelet.h"
 #include "wavelet/wavelet_internal.h"
 
@@ -72,6 +77,8 @@ typedef struct brick_out {
 typedef struct brick_grid {
     size_t n[3], nb[3];
     int B;
+    wvol__coef_source cs;           /* what the bricks are reconstructed from */
+    double origin[3], spacing[3];
 } brick_grid;
 
 static size_t owner_axis(const brick_grid *g, int a, uint64_t p)
@@ -90,11 +97,12 @@ static void decode_key(const size_t gdims[3], uint64_t key, uint64_t p[3], int *
     p[2] = key / gdims[1];
 }
 
-static void mesh_brick(brick_out *o, const wvol_coeffs *c, const brick_grid *g, const size_t bidx[3], double iso,
-                       wvol_iso_normals normals)
+/* scr: the thread's reconstruction scratch. */
+static void mesh_brick(brick_out *o, const brick_grid *g, const size_t bidx[3], double iso, wvol_iso_normals normals,
+                       wvol__brick_scratch *scr)
 {
     size_t lo[3], hi[3], c0[3], c1[3];
-    wvol_volume *v = NULL;
+    float *v;
     wvol__mc_job jb;
     size_t i;
     int a;
@@ -105,25 +113,33 @@ static void mesh_brick(brick_out *o, const wvol_coeffs *c, const brick_grid *g, 
         lo[a] = c0[a] > 0 ? c0[a] - 1 : 0;                  /* halo for normals */
         hi[a] = c1[a] + 2 <= g->n[a] ? c1[a] + 2 : g->n[a];  /* exclusive */
     }
-    o->status = wvol_idwt3_brick(&v, c, lo, hi, &o->err);
-    if (o->status != WVOL_OK) return;
+    v = malloc((hi[0] - lo[0]) * (hi[1] - lo[1]) * (hi[2] - lo[2]) * sizeof *v);
+    if (!v) {
+        o->status = wvol_error_set(&o->err, WVOL_ERR_NOMEM, "brick: out of memory");
+        return;
+    }
+    o->status = wvol__idwt3_brick_src(v, &g->cs, lo, hi, scr, &o->err);
+    if (o->status != WVOL_OK) {
+        free(v);
+        return;
+    }
     memset(&jb, 0, sizeof jb);
-    jb.data = v->data;
+    jb.data = v;
     for (a = 0; a < 3; a++) {
         jb.adims[a] = hi[a] - lo[a];
         jb.lo[a] = c0[a] - lo[a];
         jb.n[a] = c1[a] - c0[a] + 1;
         jb.gofs[a] = (long long)lo[a];
         jb.gdims[a] = g->n[a];
-        jb.origin[a] = c->origin[a];
-        jb.spacing[a] = c->spacing[a];
+        jb.origin[a] = g->origin[a];
+        jb.spacing[a] = g->spacing[a];
     }
     jb.iso = iso;
     jb.threads = 1;
     jb.normals = normals;
     jb.keys = &o->keys;
     o->status = wvol__mc_run(&o->mesh, &jb, NULL, &o->err);
-    wvol_volume_destroy(v);
+    free(v);
     if (o->status != WVOL_OK) return;
     o->owned = malloc(o->mesh->nverts + 1);
     o->owned_keys = malloc((o->mesh->nverts + 1) * sizeof *o->owned_keys);
@@ -153,12 +169,14 @@ static long find_key(const uint64_t *keys, size_t n, uint64_t key)
     return lo < n && keys[lo] == key ? (long)lo : -1;
 }
 
-wvol_status wvol_iso_extract_coeffs(wvol_mesh **out, const wvol_coeffs *c, double iso, const wvol_iso_params *p,
-                                    wvol_iso_stats *st, wvol_error *err)
+/* The mesh of the reconstruction of coefficients c, or of store sto (the other NULL). */
+static wvol_status extract_bricks(wvol_mesh **out, const wvol_coeffs *c, const wvol_store *sto, double iso,
+                                  const wvol_iso_params *p, wvol_iso_stats *st, wvol_error *err)
 {
     wvol_iso_params def;
     wvol_iso_stats local;
-    wvol__brick_bounds *bb = NULL;
+    wvol__brick_bounds *bb = NULL;  /* NULL (a store without the bound): every brick meshed */
+    wvol__store_blocks *blocks = NULL;
     brick_grid g;
     size_t nbricks, nneed = 0, i, *need = NULL, *slot = NULL, nv = 0, nt = 0, misses = 0;
     brick_out *res = NULL;
@@ -167,9 +185,6 @@ wvol_status wvol_iso_extract_coeffs(wvol_mesh **out, const wvol_coeffs *c, doubl
     double t0 = now_s(), t1, t2, gmin = INFINITY, gmax = -INFINITY;
     int nth, a;
 
-    WVOL_RETURN_IF(!out, err, WVOL_ERR_ARG, "iso: output pointer is NULL");
-    *out = NULL;
-    WVOL_RETURN_IF(!c || !c->data || !c->filter, err, WVOL_ERR_ARG, "iso: coefficients are NULL");
     if (!p) {
         wvol_iso_params_default(&def);
         p = &def;
@@ -182,7 +197,15 @@ wvol_status wvol_iso_extract_coeffs(wvol_mesh **out, const wvol_coeffs *c, doubl
                    p->brick);
     WVOL_RETURN_IF(p->normals == WVOL_NORMALS_ANALYTIC && !p->gradient, err, WVOL_ERR_ARG,
                    "iso: analytic normals requested without a gradient function");
-    g.n[0] = c->nx, g.n[1] = c->ny, g.n[2] = c->nz;
+    if (c) {
+        g.n[0] = c->nx, g.n[1] = c->ny, g.n[2] = c->nz;
+        for (a = 0; a < 3; a++) g.origin[a] = c->origin[a], g.spacing[a] = c->spacing[a];
+    } else {
+        wvol_store_info info;
+        wvol_store_get_info(sto, &info);
+        g.n[0] = info.nx, g.n[1] = info.ny, g.n[2] = info.nz;
+        for (a = 0; a < 3; a++) g.origin[a] = info.origin[a], g.spacing[a] = info.spacing[a];
+    }
     g.B = p->brick;
     if (g.n[0] < 2 || g.n[1] < 2 || g.n[2] < 2) {
         WVOL_FORWARD(wvol_mesh_create(out, 0, 0, 0, err));
@@ -198,8 +221,14 @@ wvol_status wvol_iso_extract_coeffs(wvol_mesh **out, const wvol_coeffs *c, doubl
 #else
     nth = 1;
 #endif
-    s = bounds_from_coeffs(&bb, c, err);
-    if (s != WVOL_OK) return s;
+    if (c) {
+        WVOL_FORWARD(wvol__coeffs_check(c, err));
+        WVOL_FORWARD(bounds_from_coeffs(&bb, c, err));
+        wvol__coef_source_of_coeffs(&g.cs, c);
+    } else {
+        WVOL_FORWARD(wvol__store_blocks_create(&blocks, &bb, sto, err));
+        wvol__store_blocks_source(&g.cs, blocks);
+    }
     need = malloc(nbricks * sizeof *need);
     slot = malloc(nbricks * sizeof *slot);
     if (!need || !slot) {
@@ -215,7 +244,12 @@ wvol_status wvol_iso_extract_coeffs(wvol_mesh **out, const wvol_coeffs *c, doubl
             s0[a] = (long)(bidx[a] * (size_t)g.B);
             s1[a] = s0[a] + g.B < (long)g.n[a] - 1 ? s0[a] + g.B : (long)g.n[a] - 1;
         }
-        wvol__bounds_box(bb, s0, s1, &lo, &hi);
+        if (bb) {
+            wvol__bounds_box(bb, s0, s1, &lo, &hi);
+        } else {
+            lo = -INFINITY;
+            hi = INFINITY;
+        }
         if (lo < gmin) gmin = lo;
         if (hi > gmax) gmax = hi;
         slot[i] = (size_t)-1;
@@ -235,17 +269,23 @@ wvol_status wvol_iso_extract_coeffs(wvol_mesh **out, const wvol_coeffs *c, doubl
         s = wvol_error_set(err, WVOL_ERR_NOMEM, "iso: out of memory for %zu bricks", nneed);
         goto done;
     }
-    {
-        long q;
 #ifdef _OPENMP
-#pragma omp parallel for schedule(dynamic, 1) num_threads(nth) if (nth > 1)
+#pragma omp parallel num_threads(nth) if (nth > 1)
+#endif
+    {
+        wvol__brick_scratch scr; /* the thread's, reused from brick to brick */
+        long q;
+        memset(&scr, 0, sizeof scr);
+#ifdef _OPENMP
+#pragma omp for schedule(dynamic, 1)
 #endif
         for (q = 0; q < (long)nneed; q++) {
             size_t bi = need[q];
             size_t bidx[3] = {bi % g.nb[0], (bi / g.nb[0]) % g.nb[1], bi / (g.nb[0] * g.nb[1])};
-            mesh_brick(&res[q], c, &g, bidx, iso, p->normals == WVOL_NORMALS_NONE ? WVOL_NORMALS_NONE
-                                                                                  : WVOL_NORMALS_GRADIENT);
+            mesh_brick(&res[q], &g, bidx, iso,
+                       p->normals == WVOL_NORMALS_NONE ? WVOL_NORMALS_NONE : WVOL_NORMALS_GRADIENT, &scr);
         }
+        wvol__brick_scratch_free(&scr);
     }
     t2 = now_s();
     st->seconds_reconstruct = t2 - t1;
@@ -363,5 +403,24 @@ done:
     free(need);
     free(slot);
     wvol__bounds_free(bb);
+    wvol__store_blocks_destroy(blocks);
     return s;
+}
+
+wvol_status wvol_iso_extract_coeffs(wvol_mesh **out, const wvol_coeffs *c, double iso, const wvol_iso_params *p,
+                                    wvol_iso_stats *st, wvol_error *err)
+{
+    WVOL_RETURN_IF(!out, err, WVOL_ERR_ARG, "iso: output pointer is NULL");
+    *out = NULL;
+    WVOL_RETURN_IF(!c || !c->data || !c->filter, err, WVOL_ERR_ARG, "iso: coefficients are NULL");
+    return extract_bricks(out, c, NULL, iso, p, st, err);
+}
+
+wvol_status wvol_iso_extract_store(wvol_mesh **out, const wvol_store *s, double iso, const wvol_iso_params *p,
+                                   wvol_iso_stats *st, wvol_error *err)
+{
+    WVOL_RETURN_IF(!out, err, WVOL_ERR_ARG, "iso: output pointer is NULL");
+    *out = NULL;
+    WVOL_RETURN_IF(!s, err, WVOL_ERR_ARG, "iso: store is NULL");
+    return extract_bricks(out, NULL, s, iso, p, st, err);
 }

@@ -1,4 +1,5 @@
-/* Internal interface of the iso module: the flying-edges kernel on a region of a
+/* SPDX-License-Identifier: MIT
+ * Internal interface of the iso module: the flying-edges kernel on a region of a
  * dense array, shared by wvol_iso_extract (whole volume) and the brick path
  * (one reconstructed brick with a halo). Not installed. */
 #ifndef WVOL_ISO_INTERNAL_H
@@ -41,8 +42,10 @@ wvol_status wvol__mc_run(wvol_mesh **out, const wvol__mc_job *job, wvol_iso_stat
 wvol_status wvol__iso_box_bound(const wvol_coeffs *c, const long s0[3], const long s1[3], double *vmin,
                                 double *vmax, wvol_error *err);
 
-/* ---- the ray tracer's cell bounds (raytrace.c) ---- */
+/* ---- the implicit-surface ray tracer: the API (raytrace.c), one ray (trace_ray.c), the
+ * bounds of boxes and the cell grid (trace_cells.c) ---- */
 
+#include "store/store_ray.h"
 #include "wvol/store.h"
 
 /* Per-store constants of wvol__iso_box_range. */
@@ -68,5 +71,38 @@ void wvol__iso_boxk_init(wvol__iso_boxk *k, const wvol_store *s);
  * air, the smooth flanks of a Gaussian) costs nothing, unlike |c| max|w| per function. */
 wvol_status wvol__iso_box_range(const wvol__iso_boxk *k, const wvol_store *s, wvol_store_hits *hl, const double lo[3],
                                 const double hi[3], double *vmin, double *vmax, wvol_error *err);
+
+/* What every ray of a trace shares (read only while rays are traced). */
+typedef struct wvol__tracer {
+    wvol__spline_geom g;
+    double iso, tol, chunk;
+    wvol__iso_boxk k;   /* function bounds for the cells and the small functions' envelope */
+    /* cell grid (images only): cells of `cell` voxels, class 1 (f^ >= iso on the whole closed
+     * cell), 0 (f^ < iso) or -1 (undecided), from the store's rigorous box bounds */
+    double cell;
+    size_t nc[3];
+    signed char *cls;
+} wvol__tracer;
+
+/* A thread's scratch, reused across rays; start zeroed. */
+typedef struct wvol__trace_ws {
+    wvol__spline_ws s;
+    double *env;        /* per level-1 piece: sum of |c| max|w| of the small functions covering it */
+    size_t capE;
+    double *cut;        /* cell boundaries along the ray */
+    size_t capC;
+} wvol__trace_ws;
+
+void wvol__trace_ws_free(wvol__trace_ws *w);
+
+/* Classifies the cell grid of tr (tr->cls, malloc'ed: the caller frees it, also on failure)
+ * by wvol__iso_box_range, with nth threads. */
+wvol_status wvol__trace_cells(wvol__tracer *tr, int nth, wvol_error *err);
+
+/* The first crossing of f^ = iso along o + t d, t >= tmin (world; d a unit direction) into
+ * *h (zeroed first; h->t +inf on a miss). With tr->cls, cells whose bounds exclude iso are
+ * stepped over. */
+wvol_status wvol__trace(const wvol__tracer *tr, wvol__trace_ws *w, const double o[3], const double d[3], double tmin,
+                        wvol_iso_hit *h, wvol_error *err);
 
 #endif

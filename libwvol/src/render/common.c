@@ -1,13 +1,10 @@
 /* SPDX-License-Identifier: MIT
  * Shared render plumbing: parameter defaults, argument checks, shading, image error. */
-#define _POSIX_C_SOURCE 200809L
 #include "render_internal.h"
 
 #include <math.h>
 #include <string.h>
 #include <stdlib.h>
-#include <omp.h>
-#include <time.h>
 
 void wvol_render_params_default(wvol_render_params *p)
 {
@@ -171,23 +168,4 @@ double wvol_image_rmse(const wvol_image *a, const wvol_image *b, int channel, in
         }
     s = sqrt(s / (double)(cnt ? cnt : 1));
     return relative ? (mx > 0 ? s / mx : s) : s;
-}
-
-double wvol__now(void)
-{
-    struct timespec ts;
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
-}
-
-double wvol__cpu_now(void)
-{
-    struct timespec ts;
-    clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
-    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
-}
-
-int wvol__threads(int requested)
-{
-    return requested > 0 ? requested : omp_get_max_threads();
 }

@@ -16,11 +16,14 @@ static double eval_fhat(const void *ctx, const double x[3], double grad[3])
     return wvol_fhat_eval(f->c, f->b, x, grad);
 }
 
+/* No voxels, no brick grid: every sample evaluates f^. */
+static const wvol__source_ops fhat_ops = {.eval = eval_fhat};
+
 wvol_status wvol_render_reference_fhat(wvol_image *img, const wvol_coeffs *c, const wvol_basis *b,
                                        const wvol_camera *cam, const wvol_tf *tf, const wvol_render_params *params,
                                        wvol_render_stats *stats, wvol_error *err)
 {
-    wvol__sampler s;
+    wvol__source s;
     fhat_ctx f;
     int a;
     WVOL_RETURN_IF(!c || !c->data || !b, err, WVOL_ERR_ARG, "render: no coefficients or basis tables");
@@ -29,7 +32,7 @@ wvol_status wvol_render_reference_fhat(wvol_image *img, const wvol_coeffs *c, co
     memset(&s, 0, sizeof s);
     f.c = c;
     f.b = b;
-    s.eval = eval_fhat;
+    s.ops = &fhat_ops;
     s.ctx = &f;
     s.n[0] = c->nx;
     s.n[1] = c->ny;

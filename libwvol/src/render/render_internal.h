@@ -1,7 +1,9 @@
-/* Private helpers shared by the render sources (not installed). */
+/* SPDX-License-Identifier: MIT
+ * Private helpers shared by the render sources (not installed). */
 #ifndef WVOL_RENDER_INTERNAL_H
 #define WVOL_RENDER_INTERNAL_H
 
+#include "core/clock.h"
 #include "wvol/render.h"
 
 /* The bricked path's brick side by default (wvol_render_params_default, and a 0 the caller
@@ -49,7 +51,7 @@ wvol_status wvol__check_skip(const wvol_render_params *p, int supported, wvol_er
 
 /* Per-tile parallel loop helpers. The tile side: params->tile, or for its default (0) the
  * source's preferred side when it has one (a bricked source's tile rays walk its bricks
- * together, render_tile_bricked in reference.c: as large as the memory bricks.c grants allows),
+ * together, ref_bricks.c: as large as the memory bricks.c grants allows),
  * else 16. */
 int wvol__tile_side(const wvol_render_params *p, int preferred);
 int wvol__tiles(int width, int height, int tile);
@@ -76,42 +78,62 @@ typedef struct wvol__view {
     double flo[3], fhi[3];  /* lo, hi as doubles (wvol__view_finish) */
     int blocked_ok;         /* offsets and coordinates fit 32 bits (wvol__view_finish) */
     int local;              /* a brick's small view: the blocked loop's positions in single
-                               precision relative to it (reference.c, block_positions_local) */
+                               precision relative to it (ref_samples.h, block_positions_local) */
     size_t sy, sz;
 } wvol__view;
 
 void wvol__view_finish(wvol__view *w);
 
-/* What the reference integrator samples: trilinear interpolation of voxels, from a dense
- * volume (v, whole) or a bricked source (fetch), or a callback (eval). Bricks are cubes of
- * B^3 voxel cells: brick b covers index coordinates [b B - 1/2, (b + 1) B - 1/2) per axis,
- * and its trilinear samples (and the +-1/2 voxel differences of shading) touch voxels
- * b B - 1 .. (b + 1) B only. */
-typedef struct wvol__sampler {
-    const wvol_volume *v;                                             /* dense, or NULL */
-    wvol__view whole;                                                 /* dense: all of v */
-    double (*eval)(const void *ctx, const double x[3], double grad[3]); /* index coords; grad in index units */
-    const void *ctx;
-    /* bricked source: prepare() (called once the TF is in world units) sets B, bn and tctx
-     * (one context per thread, indexed by omp_get_thread_num()); fetch() sets *rate to brick
-     * b's contribution rate (wvol__brick_rate on its voxels' range, or on a bound of it) and,
-     * unless *rate <= allow (the caller then skips the brick), *view to its voxels
-     * b B - 1 .. (b + 1) B (clipped to the volume): the thread's cached view, valid until the
-     * thread's next fetch. */
-    wvol_status (*prepare)(struct wvol__sampler *s, const wvol_tf *tf_world, const wvol_render_params *p,
+/* ---- what the reference integrator samples (ref_*.c) ------------------------------------ */
+
+/* A source of samples: a table of operations, one per kind of source (a dense volume:
+ * ref_view.c; f^ through the spline tables: reference_fhat.c; bricks reconstructed from a
+ * store: bricks.c), and the kind's context. Samples are trilinear interpolation of voxels,
+ * read from views that the integrator's inlined loops take apart, or (a source without
+ * voxels) the kind's eval. Function pointers are called per render (prepare), per run of
+ * samples in one brick (fetch), or per sample only where the sample itself is a function
+ * evaluation (eval). Bricks are cubes of B^3 voxel cells: brick b covers index coordinates
+ * [b B - 1/2, (b + 1) B - 1/2) per axis, and its trilinear samples (and the +-1/2 voxel
+ * differences of shading) touch voxels b B - 1 .. (b + 1) B only. */
+typedef struct wvol__source wvol__source;
+
+typedef struct wvol__source_ops {
+    /* Called once the TF is in world units (tf_world): sets up the brick grid of side s->B
+     * (s->bn, and what fetch reads) where the source has one, the per-thread contexts (s->tctx, indexed by
+     * omp_get_thread_num()) and s->walk_bytes. What it allocates, the kind's entry point
+     * frees after the render. NULL: nothing to prepare. */
+    wvol_status (*prepare)(wvol__source *s, const wvol_tf *tf_world, const wvol_render_params *p,
                            wvol_error *err);
-    wvol_status (*fetch)(void *tctx, size_t brick, double allow, const wvol__view **view, double *rate);
-    void **tctx;
-    void *src;              /* the bricked source's own state */
+    /* Brick b of the grid: *rate, its contribution rate (wvol__brick_rate on its voxels'
+     * range, or on a bound of it), and, unless *rate <= allow (the caller then skips the
+     * brick), *view, its voxels b B - 1 .. (b + 1) B (clipped to the volume), valid until the
+     * thread's next fetch. tctx: the calling thread's context. */
+    wvol_status (*fetch)(const wvol__source *s, void *tctx, size_t brick, double allow, const wvol__view **view,
+                         double *rate);
+    /* A source without voxels: the value at index position x and, when grad is not NULL,
+     * the gradient in index units. NULL: trilinear samples of the views. */
+    double (*eval)(const void *ctx, const double x[3], double grad[3]);
+    /* 1: a tile's rays walk its bricks together, front to back, the threads sharing the tile
+     * (bricks built on demand, each once per tile: ref_bricks.c); 0: the threads take tiles,
+     * each ray walked on its own. */
+    int walk_bricks;
+} wvol__source_ops;
+
+struct wvol__source {
+    const wvol__source_ops *ops;
+    void *ctx;              /* the kind's own state */
     size_t n[3];
     double spacing[3], origin[3];
-    int B;                  /* brick grid: filled by the integrator (dense) or prepare() */
+    wvol__view whole;       /* a voxel source's view where no fetch gives one (a dense
+                               volume: all of it) */
+    int B;                  /* brick side in voxel cells, set by the kind's entry point; 0: no
+                               grid (skip_tolerance needs one) */
+    size_t bn[3];           /* bricks per axis (prepare) */
+    void **tctx;            /* per-thread contexts (prepare), or NULL */
     size_t walk_bytes;      /* prepare(): bytes for a tile's rays (their states and lists;
                                the tile is the largest that fits; the threads share it), 0: no
                                preference */
-    size_t bn[3];
-    double *rate;           /* dense: each brick's wvol__brick_rate; freed by the integrator */
-} wvol__sampler;
+};
 
 /* The contribution rate of a brick whose samples lie in [mn, mx]: the largest kappa of the
  * TF (world units) over that range, or (X-ray) the largest |sample|. 0: the brick adds
@@ -120,12 +142,8 @@ typedef struct wvol__sampler {
  * at most rate len (wvol_render_params.skip_tolerance). */
 double wvol__brick_rate(const wvol_tf *tf, wvol_render_mode mode, double mn, double mx);
 
-wvol_status wvol__render_sampled(wvol_image *img, wvol__sampler *s, const wvol_camera *cam, const wvol_tf *tf,
+/* The reference integrator (ref_tiles.c) on a source. */
+wvol_status wvol__render_sampled(wvol_image *img, wvol__source *s, const wvol_camera *cam, const wvol_tf *tf,
                                  const wvol_render_params *params, wvol_render_stats *stats, wvol_error *err);
-
-/* Monotonic seconds; OpenMP thread count for a requested count (0 = default). */
-double wvol__now(void);
-double wvol__cpu_now(void);
-int wvol__threads(int requested);
 
 #endif

@@ -1,6 +1,7 @@
-/* Private: f^ along one ray as exact piecewise polynomials, built from a store's kept
- * basis functions. Shared by the spline integrator (spline.c) and the implicit-surface
- * ray tracer (iso/raytrace.c). Not installed.
+/* SPDX-License-Identifier: MIT
+ * The store's internal interface for f^ along one ray as exact piecewise polynomials, built
+ * from its kept basis functions (ray_pieces.c). Used by the spline integrator
+ * (render/spline.c) and the implicit-surface ray tracer (iso/). Not installed.
  *
  * Along x(t) = o + t d (voxel coordinates, t the world ray parameter) a level-m basis
  * function is a product of three cubic spline pieces in t between the knots of its level's
@@ -9,8 +10,8 @@
  * every function's product of composed cubics to the pieces it covers; with `merge` it sums
  * all levels onto level 1's (the finest) lattice in ws->macc. Each piece's polynomial is in
  * its normalised variable u in [0, 1] (t = T[e] + u (T[e+1] - T[e])), degree <= 9. */
-#ifndef WVOL_SPLINE_RAY_H
-#define WVOL_SPLINE_RAY_H
+#ifndef WVOL_STORE_RAY_H
+#define WVOL_STORE_RAY_H
 
 #include "wvol/store.h"
 
@@ -71,8 +72,15 @@ void wvol__spline_add_finest(const wvol__spline_geom *g, wvol__spline_ws *ws, co
 
 void wvol__spline_ws_free(wvol__spline_ws *ws);
 
-/* Horner evaluation of a degree-9 polynomial (WVOL__NC coefficients, increasing degree). */
-double wvol__poly_eval(const double *a, double u);
+/* Horner evaluation of a degree-9 polynomial (WVOL__NC coefficients, increasing degree);
+ * inline: the integrator and the tracer evaluate it in their inner loops. */
+static inline double wvol__poly_eval(const double *a, double u)
+{
+    double r = a[WVOL__NC - 1];
+    int k;
+    for (k = WVOL__NC - 2; k >= 0; k--) r = r * u + a[k];
+    return r;
+}
 
 /* Bernstein coefficients on [0, 1] of the monomial polynomial a; the end ones are the end
  * values and the polynomial lies in their convex hull. Returns max over j of the summed

@@ -1,0 +1,219 @@
+/* SPDX-License-Identifier: MIT
+ * The reference integrator's brick schedule for a bricked source (wvol__source_ops
+ * walk_bricks): a tile's rays walk its bricks together, front to back, each brick taken once
+ * every brick a ray could come from is walked (brick_order), so the tile builds each brick
+ * it needs once and the threads share the tile. */
+#include "reference_internal.h"
+
+#include <omp.h>
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
+#include <stdlib.h>
+#include <string.h>
+
+/* Whether d (-1 or +1) is an outward step from brick coordinate c along axis a: away from the
+ * eye's brick (either way from it), or the direction's sign for parallel rays. */
+static inline int outward_ok(const brick_order *bo, int a, long c, long d)
+{
+    if (bo->dir[a] == 2) return c == bo->eye[a] ? (d == 1 || d == -1) : d == (c > bo->eye[a] ? 1 : -1);
+    return bo->dir[a] != 0 && d == bo->dir[a];
+}
+
+/* Whether brick `to` is an outward neighbour of brick `from` (coordinates): every axis the
+ * same or one outward step, not all the same. */
+static inline int outward_step(const brick_order *bo, const long from[3], const int32_t to[3])
+{
+    int moved = 0;
+    for (int a = 0; a < 3; a++) {
+        long d = (long)to[a] - from[a];
+        if (!d) continue;
+        if ((d != 1 && d != -1) || !outward_ok(bo, a, from[a], d)) return 0;
+        moved = 1;
+    }
+    return moved;
+}
+
+static void brick_coords(const brick_order *bo, long b, long c[3])
+{
+    c[0] = b % bo->bn[0];
+    c[1] = (b / bo->bn[0]) % bo->bn[1];
+    c[2] = b / (bo->bn[0] * bo->bn[1]);
+}
+
+/* Runs BODY with nb set to each outward neighbour of brick b in the grid. */
+#define FOR_OUTWARD(bo, b, BODY)                                                                           \
+    do {                                                                                                   \
+        long c_[3], n_[3];                                                                                 \
+        brick_coords(bo, b, c_);                                                                           \
+        for (long dz_ = -1; dz_ <= 1; dz_++)                                                               \
+            for (long dy_ = -1; dy_ <= 1; dy_++)                                                           \
+                for (long dx_ = -1; dx_ <= 1; dx_++) {                                                     \
+                    const long d_[3] = {dx_, dy_, dz_};                                                    \
+                    int ok_ = dx_ || dy_ || dz_;                                                           \
+                    for (int a_ = 0; ok_ && a_ < 3; a_++) {                                                \
+                        n_[a_] = c_[a_] + d_[a_];                                                          \
+                        ok_ = n_[a_] >= 0 && n_[a_] < bo->bn[a_];                                          \
+                        if (ok_ && d_[a_]) ok_ = outward_ok(bo, a_, c_[a_], d_[a_]);                       \
+                    }                                                                                      \
+                    if (ok_) {                                                                             \
+                        const long nb = n_[0] + bo->bn[0] * (n_[1] + bo->bn[1] * n_[2]);                   \
+                        BODY;                                                                              \
+                    }                                                                                      \
+                }                                                                                          \
+    } while (0)
+
+void wvol__brick_order_free(brick_order *bo)
+{
+    free(bo->inward);
+    free(bo->pending);
+    free(bo->ready);
+}
+
+wvol_status wvol__brick_order_make(brick_order *bo, const wvol__source *s, const wvol__cam *k, wvol_error *err)
+{
+    memset(bo, 0, sizeof *bo);
+    bo->n = s->bn[0] * s->bn[1] * s->bn[2];
+    WVOL_RETURN_IF(bo->n > UINT32_MAX, err, WVOL_ERR_NOMEM, "render: %zu bricks (at most 2^32: a larger brick side)",
+                   bo->n);
+    for (int a = 0; a < 3; a++) {
+        bo->bn[a] = (long)s->bn[a];
+        if (k->c.projection == WVOL_PERSPECTIVE) { /* the eye's brick, as ray_enter finds it */
+            double c = ((k->c.eye[a] - s->origin[a]) / s->spacing[a] + 0.5) / s->B;
+            bo->eye[a] = c > 0 ? (c < (double)s->bn[a] ? (long)c : (long)s->bn[a] - 1) : 0;
+            bo->dir[a] = 2;
+        } else { /* every ray's index-space direction has the sign of fwd / spacing */
+            bo->dir[a] = k->fwd[a] > 0 ? 1 : k->fwd[a] < 0 ? -1 : 0;
+        }
+    }
+    bo->inward = calloc(bo->n, sizeof *bo->inward);
+    bo->pending = malloc(bo->n * sizeof *bo->pending);
+    bo->ready = malloc(bo->n * sizeof *bo->ready);
+    if (!bo->inward || !bo->pending || !bo->ready) {
+        wvol__brick_order_free(bo);
+        return wvol_error_set(err, WVOL_ERR_NOMEM, "render: out of memory for the brick order");
+    }
+    for (long b = 0; b < (long)bo->n; b++) FOR_OUTWARD(bo, b, bo->inward[nb]++);
+    return WVOL_OK;
+}
+
+/* Ray i onto brick b's list (head: per brick, -1 when empty; next: per ray); several threads
+ * may push onto one list at once. */
+static inline void list_push(int32_t *head, int32_t *next, long b, int32_t i)
+{
+    int32_t old = __atomic_load_n(&head[b], __ATOMIC_RELAXED);
+    do {
+        next[i] = old;
+    } while (!__atomic_compare_exchange_n(&head[b], &old, i, 1, __ATOMIC_RELEASE, __ATOMIC_RELAXED));
+}
+
+/* The rays on brick b's list take their runs in it (its view fetched once, then a cache hit
+ * for each) and move to the list of the brick they enter next, an outward neighbour, which is
+ * walked after b (render_tile_bricked). A ray whose next brick is not one (which the geometry
+ * rules out: brick_order) walks on at once: its fetch may build a brick again, and its image
+ * is the same. */
+static void walk_brick(const wvol__source *s, void *tc, const tf_fast *tfx, const wvol_render_params *p, double dt,
+                       ray_state *rs, const brick_order *bo, int32_t *head, int32_t *next, long b)
+{
+    int32_t i = head[b];
+    long bc[3];
+    brick_coords(bo, b, bc);
+    head[b] = -1;
+    while (i >= 0) {
+        const int32_t after = next[i];
+        ray_state *st = &rs[i];
+        for (;;) {
+            long nb;
+            if (st->k < st->nfull) wvol__ray_advance_any(s, tc, tfx, p, dt, st);
+            else wvol__ray_last(s, tc, tfx, p, dt, st);
+            nb = wvol__ray_next_brick(s, st, dt);
+            if (nb < 0) { /* the ray is done */
+                acc_settle(tfx, &st->r);
+                break;
+            }
+            if (outward_step(bo, bc, st->bc)) {
+                list_push(head, next, nb, i);
+                break;
+            }
+        }
+        i = after;
+    }
+}
+
+/* The rays of one tile of a bricked source, walked brick by brick front to back
+ * (brick_order): each brick's list holds the rays whose next sample lies in it; the rays of
+ * the brick at hand take their runs there and move to the list of the brick they enter next.
+ * A brick is taken once its inward neighbours are walked (a count per brick; the bricks whose
+ * count reaches 0 wait on a stack, taken and released under one lock, twice per brick), so
+ * no ray can join its list afterwards: the tile builds each brick its rays need once, and a
+ * thread's cache needs to hold one brick. The threads share the tile's bricks: a brick is
+ * walked, and built, by whichever thread takes it. Each ray's own samples are taken in its
+ * order, so the image is the ray-by-ray walk's, whatever the thread count. (A cache per
+ * thread walked in rounds, or rounds of bricks with barriers, built more or waited more:
+ * bench/results/render-tuning.md.) */
+void wvol__render_tile_bricked(const wvol__source *s, const wvol__cam *k, wvol_image *img, const double lo[3],
+                               const double hi[3], int x0, int y0, int tw, int th, const tf_fast *tfx,
+                               const wvol_render_params *p, double dt, ray_state *rs, int32_t *row_first,
+                               brick_order *bo, int32_t *head, int32_t *next, int nthreads)
+{
+    memcpy(bo->pending, bo->inward, bo->n * sizeof *bo->pending);
+    bo->nready = bo->ndone = 0;
+    for (size_t b = bo->n; b-- > 0;)
+        if (!bo->inward[b]) bo->ready[bo->nready++] = (uint32_t)b;
+#pragma omp parallel num_threads(nthreads)
+    {
+        void *tc = s->tctx[omp_get_thread_num()];
+        /* the tile's rays that meet the volume, in rs row by row, each onto its first brick's
+         * list: set up by the threads, in two passes so
+         * that they lie packed (a state per pixel would make the pages of the misses resident
+         * too): each row's count, then its rays from the row's first index on */
+#pragma omp for schedule(static)
+        for (int y = y0; y < y0 + th; y++) {
+            int32_t n = 0;
+            for (int x = x0; x < x0 + tw; x++) {
+                double o[3], d[3], t0, t1;
+                n += pixel_span(k, lo, hi, x, y, o, d, &t0, &t1);
+            }
+            row_first[y - y0 + 1] = n;
+        }
+#pragma omp single
+        {
+            row_first[0] = 0;
+            for (int j = 0; j < th; j++) row_first[j + 1] += row_first[j];
+        }
+#pragma omp for schedule(static)
+        for (int y = y0; y < y0 + th; y++) {
+            int32_t i = row_first[y - y0];
+            for (int x = x0; x < x0 + tw; x++) {
+                long b;
+                if (!pixel_ray(s, k, img, lo, hi, dt, x, y, &rs[i])) continue;
+                rs[i].pixel = (x - x0) + tw * (y - y0);
+                b = wvol__ray_next_brick(s, &rs[i], dt);
+                if (b >= 0) list_push(head, next, b, i);
+                i++;
+            }
+        }
+        for (;;) {
+            long b = -1;
+            int finished = 0;
+#pragma omp critical(wvol_walk_ready)
+            {
+                if (bo->nready) b = (long)bo->ready[--bo->nready];
+                else finished = bo->ndone == bo->n;
+            }
+            if (finished) break;
+            if (b < 0) { /* the other threads hold the bricks that would free some */
+#if defined(__SSE2__)
+                _mm_pause();
+#endif
+                continue;
+            }
+            if (head[b] >= 0) walk_brick(s, tc, tfx, p, dt, rs, bo, head, next, b);
+#pragma omp critical(wvol_walk_ready)
+            {
+                FOR_OUTWARD(bo, b, if (!--bo->pending[nb]) bo->ready[bo->nready++] = (uint32_t)nb);
+                bo->ndone++;
+            }
+        }
+    }
+}

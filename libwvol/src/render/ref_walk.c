@@ -1,0 +1,223 @@
+/* SPDX-License-Identifier: MIT
+ * The reference integrator's ray walk: one ray's samples at the midpoints of steps of dt,
+ * front to back, in runs of full steps, one run per brick crossed (skipped where the
+ * brick's contribution rate allows: ray_skip), then the last, shorter step. The runs' sample
+ * loops (ref_samples.h) are inlined into a few copies of the run, one per common case
+ * (ray_advance_any). */
+#include "ref_samples.h"
+
+#include <string.h>
+
+/* The ray's world direction, for shading (a tile's rays are held for the whole walk, so
+ * their states are kept small): e times the spacing, the direction to an ulp. */
+static inline void ray_dir(const wvol__source *s, const ray_state *st, double d[3])
+{
+    for (int a = 0; a < 3; a++) d[a] = st->e[a] * s->spacing[a];
+}
+
+void wvol__ray_begin(const wvol__source *s, const double o[3], const double d[3], double t0, double t1, double dt,
+                     ray_state *st)
+{
+    memset(st, 0, sizeof *st);
+    for (int a = 0; a < 3; a++) {
+        st->x0[a] = (o[a] - s->origin[a]) / s->spacing[a];
+        st->e[a] = d[a] / s->spacing[a];
+    }
+    st->t0 = t0, st->t1 = t1, st->t_exit = -INFINITY, st->bid = -1;
+    st->r.T = 1.0, st->r.seg = -1, st->r.T_lim = -1.0;
+    st->nsteps = (long)ceil((t1 - t0) / dt);
+    if (st->nsteps < 1) st->nsteps = 1;
+    st->nfull = st->nsteps;
+    while (st->nfull > 0 && t0 + (double)st->nfull * dt > t1) st->nfull--; /* steps ending by t1 */
+}
+
+/* Enters the brick holding x (sample parameter t; clamped to the grid) when t is at or past
+ * the current one's exit, and finds where the ray leaves it: per axis the face it moves
+ * towards. */
+static inline void ray_enter(const wvol__source *s, ray_state *st, const double x[3], double t)
+{
+    double te = INFINITY;
+    long b[3];
+    if (t < st->t_exit) return;
+    for (int a = 0; a < 3; a++) {
+        double c = (x[a] + 0.5) / s->B, lo, ta;
+        b[a] = c > 0 ? (long)c : 0;
+        if (b[a] > (long)s->bn[a] - 1) b[a] = (long)s->bn[a] - 1;
+        lo = (double)b[a] * s->B - 0.5;
+        if (st->e[a] > 0) ta = (lo + s->B - x[a]) / st->e[a];
+        else if (st->e[a] < 0) ta = (lo - x[a]) / st->e[a];
+        else continue;
+        if (ta < te) te = ta;
+    }
+    st->bid = b[0] + (long)s->bn[0] * (b[1] + (long)s->bn[1] * b[2]);
+    for (int a = 0; a < 3; a++) st->bc[a] = (int32_t)b[a];
+    st->t_exit = t + te;
+}
+
+/* Whether the ray's next `len` world units, in its current brick, are skipped: the brick's
+ * contribution rate (wvol__brick_rate) is 0, or times len it fits in what is left of the
+ * ray's skip tolerance, which it then spends (st->skipped). Otherwise returns 0 with *view
+ * the brick's (fetched anew each time, a cache lookup, since another ray may have evicted
+ * it; a dense source keeps the whole volume's); -1 when the fetch failed. */
+static inline __attribute__((always_inline)) int ray_skip(const wvol__source *s, void *tc, ray_state *st,
+                                                          double tol, double len, const wvol__view **view)
+{
+    double rate, allow = tol > st->skipped ? (tol - st->skipped) / len : 0.0;
+    if (s->ops == &wvol__dense_ops) { /* its fetch inline (wvol__dense_src): a table read */
+        rate = ((const wvol__dense_src *)s->ctx)->rate[st->bid];
+    } else {
+        st->failed = s->ops->fetch(s, tc, (size_t)st->bid, allow, view, &rate);
+        if (st->failed != WVOL_OK) return -1;
+    }
+    if (rate > allow) return 0;
+    if (rate > 0) {
+        st->skipped += rate * len;
+        st->nskip_tol++;
+    }
+    st->nskip++;
+    return 1;
+}
+
+/* One run: the full steps of the ray in its next brick (all of them for an unbricked
+ * source). Returns 1 while full steps remain. When a run's first and last sample lie
+ * strictly inside the view its samples are taken without clamping tests (run_blocked). */
+static inline __attribute__((always_inline)) int ray_advance(const wvol__source *s, void *tc, const tf_fast *tfx,
+                                                             const wvol_render_params *p,
+                                                             const wvol_render_mode mode, const int shading,
+                                                             const int colors, double dt, ray_state *st)
+{
+    const wvol__view *view = &s->whole;
+    const double t0 = st->t0, *x0 = st->x0, *e = st->e;
+    long k = st->k, nfull = st->nfull, ke = nfull; /* this run: steps k .. ke - 1 */
+    int a, bricked = s->B > 0, done;
+    double x[3], xl[3], d[3] = {0, 0, 0}, t;
+#define T_AT(kk) (t0 + ((double)(kk) + 0.5) * dt)
+    if (k >= nfull || st->done || st->failed != WVOL_OK) return 0;
+    t = T_AT(k);
+    for (a = 0; a < 3; a++) x[a] = x0[a] + t * e[a];
+    if (bricked) {
+        int skip;
+        ray_enter(s, st, x, t);
+        /* the first step whose sample is at or past the exit */
+        if (st->t_exit < T_AT(nfull)) {
+            double q = (st->t_exit - t0) / dt - 0.5;
+            ke = q > (double)k ? (long)q : k;
+            while (ke < nfull && T_AT(ke) < st->t_exit) ke++;
+            while (ke > k + 1 && !(T_AT(ke - 1) < st->t_exit)) ke--;
+            if (ke <= k) ke = k + 1;
+        }
+        skip = ray_skip(s, tc, st, p->skip_tolerance, (double)(ke - k) * dt, &view);
+        if (skip < 0) return 0;
+        if (skip) {
+            st->k = ke;
+            return ke < nfull;
+        }
+    }
+    st->nsamp += (size_t)(ke - k);
+    if (shading) ray_dir(s, st, d);
+    if (s->ops->eval) {
+        done = run(s, view, tfx, p, mode, shading, colors, 0, x0, e, d, t0, dt, &k, ke, &st->r);
+#if defined(__SSE2__)
+    } else if (view->local && view->blocked_ok && !shading && !colors) {
+        /* a brick's view: block_positions_local clamps every position to it, so the samples
+         * in a face's outer half voxel need no clamping path of their own */
+        done = run_blocked(view, tfx, p, mode, x0, e, t0, dt, &k, ke, &st->r);
+#endif
+    } else {
+        /* the steps whose samples lie strictly inside the view are an interval (x is
+         * linear in t); the few outside it, where the ray enters or leaves the volume
+         * through a face's outer half voxel, take the clamping path */
+        long kin = k, kout = ke;
+        while (kin < kout && !strictly_inside(view, x)) {
+            kin++;
+            for (a = 0; a < 3; a++) x[a] = x0[a] + T_AT(kin) * e[a];
+        }
+        for (a = 0; a < 3; a++) xl[a] = x0[a] + T_AT(kout - 1) * e[a];
+        while (kout > kin && !strictly_inside(view, xl)) {
+            kout--;
+            for (a = 0; a < 3; a++) xl[a] = x0[a] + T_AT(kout - 1) * e[a];
+        }
+        done = run(s, view, tfx, p, mode, shading, colors, 0, x0, e, d, t0, dt, &k, kin, &st->r) ||
+               run(s, view, tfx, p, mode, shading, colors, 1, x0, e, d, t0, dt, &k, kout, &st->r) ||
+               run(s, view, tfx, p, mode, shading, colors, 0, x0, e, d, t0, dt, &k, ke, &st->r);
+    }
+    if (done) st->nsamp -= (size_t)(ke - k - 1); /* the samples not taken */
+    st->k = k;
+    st->done = done;
+#undef T_AT
+    return !done && k < nfull;
+}
+
+/* Where the ray's last step (shorter than dt, ending at t1) samples: 1 with its position,
+ * parameter and length while the ray still has it to take. */
+static int ray_last_at(const ray_state *st, double dt, double x[3], double *t, double *h)
+{
+    double ta;
+    if (st->done || st->failed != WVOL_OK || st->nfull >= st->nsteps) return 0;
+    ta = st->t0 + (double)st->nfull * dt;
+    *h = st->t1 - ta;
+    *t = 0.5 * (ta + st->t1);
+    for (int a = 0; a < 3; a++) x[a] = st->x0[a] + *t * st->e[a];
+    return *h > 0;
+}
+
+/* The last step, once; its counters stay in st. */
+void wvol__ray_last(const wvol__source *s, void *tc, const tf_fast *tfx, const wvol_render_params *p, double dt,
+                    ray_state *st)
+{
+    double x[3], t, h;
+    const wvol__view *view = &s->whole;
+    int skip = 0;
+    if (!ray_last_at(st, dt, x, &t, &h)) return;
+    st->nsteps = st->nfull; /* taken */
+    if (s->B > 0) {
+        ray_enter(s, st, x, t);
+        skip = ray_skip(s, tc, st, p->skip_tolerance, h, &view);
+    }
+    if (!skip) {
+        double d[3];
+        ray_dir(s, st, d);
+        st->nsamp++;
+        st->done = step(s, view, tfx, p, p->mode, p->shading, p->colors != NULL, 0, x, d, h, &st->r);
+    }
+}
+
+/* The ray's pixel. */
+void wvol__ray_pixel(const wvol_render_params *p, const ray_state *st, float px[4])
+{
+    if (p->mode == WVOL_MODE_XRAY) {
+        px[0] = px[1] = px[2] = (float)st->r.xr;
+        px[3] = 1.0f;
+    } else {
+        for (int a = 0; a < 3; a++) px[a] = (float)st->r.acc[a];
+        px[3] = (float)(1.0 - st->r.T);
+    }
+}
+
+/* The brick holding the ray's next sample (its next full step's, else its last step's),
+ * entered (ray_enter); -1 when it has none left. */
+long wvol__ray_next_brick(const wvol__source *s, ray_state *st, double dt)
+{
+    double x[3], t, h;
+    if (st->done || st->failed != WVOL_OK) return -1;
+    if (st->k < st->nfull) {
+        t = st->t0 + ((double)st->k + 0.5) * dt;
+        for (int a = 0; a < 3; a++) x[a] = st->x0[a] + t * st->e[a];
+    } else if (!ray_last_at(st, dt, x, &t, &h)) {
+        return -1;
+    }
+    ray_enter(s, st, x, t);
+    return st->bid;
+}
+
+/* ray_advance with the common cases' own copies of the loop, the mode, shading and colour
+ * tests compiled away (and with them every call in the inner loop: the compositing state
+ * stays in registers). */
+int wvol__ray_advance_any(const wvol__source *s, void *tc, const tf_fast *tfx, const wvol_render_params *p,
+                          double dt, ray_state *st)
+{
+    if (p->mode == WVOL_MODE_ABSORPTION && !p->shading && !p->colors)
+        return ray_advance(s, tc, tfx, p, WVOL_MODE_ABSORPTION, 0, 0, dt, st);
+    if (p->mode == WVOL_MODE_XRAY && !p->shading) return ray_advance(s, tc, tfx, p, WVOL_MODE_XRAY, 0, 0, dt, st);
+    return ray_advance(s, tc, tfx, p, p->mode, p->shading, p->colors != NULL, dt, st);
+}

@@ -1,0 +1,318 @@
+/* SPDX-License-Identifier: MIT
+ * A block-sparse view of a store's kept coefficients (store/store_blocks.h): per (level,
+ * band) a directory of blocks of 4^3 coefficient positions, a block present only where a
+ * kept coefficient lies: a 64-bit mask of its kept positions and the offset of its values,
+ * stored compactly (rank of a position = popcount of the mask below it). Built in two passes
+ * over the store's nodes: 4 bytes per kept coefficient, 12 per present block, 4 per
+ * directory entry (1/64 of the bands' size). The low-pass cube is read from the store. */
+#include "store/store_blocks.h"
+#include "core/clones.h"
+#include "store/store_internal.h"
+
+#include <stdint.h>
+#include <stdlib.h>
+#include <string.h>
+
+#define CB_SHIFT 2 /* blocks of 4^3 = 64 coefficient positions: one 64-bit mask */
+#define CB (1 << CB_SHIFT)
+
+typedef struct cblock {
+    uint64_t mask;     /* bit x + 4 y + 16 z: position kept */
+    uint32_t first;    /* index of its first value in the values array */
+} cblock;
+
+typedef struct band_view {
+    size_t e[3];       /* band extent */
+    size_t nb[3];      /* blocks per axis */
+    uint32_t *dir;     /* nb0 nb1 nb2: 1 + block number in the pool, 0 = no kept coefficient */
+} band_view;
+
+struct wvol__store_blocks {
+    int M;
+    band_view bv[WVOL_SELECT_MAX_LEVELS + 1][8];
+    cblock *blocks;    /* nblocks; directory entries index it + 1 */
+    float *values;     /* nvalues, block by block, position order within a block */
+    size_t nblocks, nvalues;
+    const float *low;  /* the store's low-pass cube, E0 E1 E2 */
+    size_t E[3];
+    size_t bytes;
+    wvol__coef_source cs;  /* a reconstruction's source reading through the view */
+};
+typedef struct wvol__store_blocks coef_blocks;
+
+static void blocks_free(coef_blocks *cb)
+{
+    for (int m = 0; m <= WVOL_SELECT_MAX_LEVELS; m++)
+        for (int l = 0; l < 8; l++) free(cb->bv[m][l].dir);
+    free(cb->blocks);
+    free(cb->values);
+}
+
+/* The store's nodes hold a position and the bands kept there (store_internal.h): a node's
+ * block and bit, the same in each of its level's bands (whose extents agree), are found once
+ * for its up to 7 coefficients (wvol_store_next would decode the key again for each one;
+ * bench/results/render-tuning.md). */
+static inline size_t node_block(const coef_blocks *cb, const wvol__node *nd, int *m, int *bit)
+{
+    size_t pos[3];
+    const band_view *bv;
+    *m = wvol__key_level(nd->key);
+    wvol__key_pos(nd->key, pos);
+    bv = &cb->bv[*m][nd->band_mask ? __builtin_ctz(nd->band_mask) + 1 : 1];
+    *bit = (int)((pos[0] & (CB - 1)) + CB * ((pos[1] & (CB - 1)) + CB * (pos[2] & (CB - 1))));
+    return (pos[0] >> CB_SHIFT) + bv->nb[0] * ((pos[1] >> CB_SHIFT) + bv->nb[1] * (pos[2] >> CB_SHIFT));
+}
+
+/* Builds the view; when bb is not NULL, also feeds every kept detail coefficient to the
+ * brick bounds (one pass over the store serves both). Cloned: a value's rank in its block is
+ * a population count, an instruction on x86-64-v3 and a library call on the baseline. */
+WVOL__CLONES static wvol_status blocks_build(coef_blocks *cb, const wvol_store *s, wvol__brick_bounds *bb,
+                                             wvol_error *err)
+{
+    wvol_store_info info;
+    size_t pad[3];
+    int a, m, l;
+    wvol_store_get_info(s, &info);
+    memset(cb, 0, sizeof *cb);
+    cb->M = info.levels;
+    cb->low = wvol_store_lowpass(s);
+    for (a = 0; a < 3; a++) cb->E[a] = info.lowpass[a];
+    pad[0] = info.px, pad[1] = info.py, pad[2] = info.pz;
+    for (m = 1; m <= cb->M; m++)
+        for (l = 1; l < 8; l++) {
+            band_view *bv = &cb->bv[m][l];
+            size_t n = 1;
+            for (a = 0; a < 3; a++) {
+                bv->e[a] = wvol__extent(pad[a], m);
+                bv->nb[a] = (bv->e[a] + CB - 1) >> CB_SHIFT;
+                n *= bv->nb[a];
+                if (((l >> a) & 1) && pad[a] == 1) n = 0; /* no high-pass on an untransformed axis */
+            }
+            if (!n) continue;
+            bv->dir = calloc(n, sizeof *bv->dir);
+            WVOL_RETURN_IF(!bv->dir, err, WVOL_ERR_NOMEM, "store: out of memory for the coefficient blocks");
+            cb->bytes += n * sizeof *bv->dir;
+        }
+    /* pass 1: the blocks and their masks; the blocks grow by doubling */
+    {
+        size_t cap = 0;
+        for (size_t k = 0; k < s->nnodes; k++) {
+            const wvol__node *nd = &s->nodes[k];
+            int bit;
+            size_t i = node_block(cb, nd, &m, &bit);
+            for (unsigned bands = nd->band_mask; bands; bands &= bands - 1) {
+                band_view *bv = &cb->bv[m][__builtin_ctz(bands) + 1];
+                if (!bv->dir[i]) {
+                    if (cb->nblocks == cap) {
+                        size_t nc = cap ? 2 * cap : 1024;
+                        cblock *nb = realloc(cb->blocks, nc * sizeof *nb);
+                        WVOL_RETURN_IF(!nb || nc >= UINT32_MAX, err, WVOL_ERR_NOMEM,
+                                       "store: out of memory for the coefficient blocks");
+                        cb->blocks = nb;
+                        cap = nc;
+                    }
+                    cb->blocks[cb->nblocks].mask = 0;
+                    bv->dir[i] = (uint32_t)++cb->nblocks;
+                }
+                cb->blocks[bv->dir[i] - 1].mask |= (uint64_t)1 << bit;
+            }
+        }
+        cb->bytes += cap * sizeof *cb->blocks;
+    }
+    for (size_t i = 0; i < cb->nblocks; i++) {
+        cb->blocks[i].first = (uint32_t)cb->nvalues;
+        cb->nvalues += (size_t)__builtin_popcountll(cb->blocks[i].mask);
+    }
+    cb->values = malloc((cb->nvalues + 1) * sizeof *cb->values);
+    WVOL_RETURN_IF(!cb->values, err, WVOL_ERR_NOMEM, "store: out of memory for %zu coefficients", cb->nvalues);
+    cb->bytes += cb->nvalues * sizeof *cb->values;
+    /* pass 2: the values, each at its rank within its block; the bounds */
+    for (size_t k = 0; k < s->nnodes; k++) {
+        const wvol__node *nd = &s->nodes[k];
+        const float *v = s->values + nd->coef_first;
+        int bit;
+        size_t i = node_block(cb, nd, &m, &bit);
+        const uint64_t below = ((uint64_t)1 << bit) - 1;
+        for (unsigned bands = nd->band_mask; bands; bands &= bands - 1, v++) {
+            const int band = __builtin_ctz(bands) + 1;
+            const cblock *b = &cb->blocks[cb->bv[m][band].dir[i] - 1];
+            cb->values[b->first + (size_t)__builtin_popcountll(b->mask & below)] = *v;
+            if (bb) {
+                size_t pos[3];
+                wvol__key_pos(nd->key, pos);
+                wvol__bounds_add(bb, m, band, pos[0], pos[1], pos[2], *v);
+            }
+        }
+    }
+    return WVOL_OK;
+}
+
+static inline size_t wrap(ptrdiff_t k, size_t e)
+{
+    ptrdiff_t r = k % (ptrdiff_t)e;
+    return (size_t)(r < 0 ? r + (ptrdiff_t)e : r);
+}
+
+/* From position pos (wrapped into the extent e) the step to the next block: to the end of
+ * pos's block, or to the wrap if that comes first. */
+static ptrdiff_t next_block_step(size_t pos, size_t e)
+{
+    size_t step = CB - (pos & (CB - 1));
+    return (ptrdiff_t)(step < e - pos ? step : e - pos);
+}
+
+/* The kept positions of a 4^3 block (bit x + 4 y + 16 z) inside the box [x0, x0 + rx) x
+ * [y0, y0 + ry) x [z0, z0 + rz) of block-local positions (a row's bits repeated over the rows
+ * and planes by a multiplication: the copies never overlap, so nothing carries). */
+static inline uint64_t piece_bits(size_t x0, size_t rx, size_t y0, size_t ry, size_t z0, size_t rz)
+{
+    const uint64_t row = (((uint64_t)1 << rx) - 1) << x0;
+    const uint64_t rows = ((((uint64_t)1 << (4 * ry)) - 1) / 0xf) << (4 * y0); /* 0x1111.. */
+    const uint64_t planes = ((rz == 4 ? ~(uint64_t)0 : ((uint64_t)1 << (16 * rz)) - 1) / 0xffff) << (16 * z0);
+    return row * rows * planes;
+}
+
+/* A band's region (lo, n), taken periodically, from the view: the region is cut where a
+ * block or the period ends into pieces that each lie in one block (next_block_step); a
+ * present block's kept positions inside its piece are written. dst is zeroed at the first
+ * present block; 0 when there is none (dst untouched: the caller skips the band). The work
+ * follows the directory entries and the kept positions, not the region's positions: at 5%
+ * a brick's finest-level region meets a hundred or so entries, most of them absent. The
+ * wrapped positions are stepped, one division per axis. Cloned: a value's rank in its block is a
+ * population count. */
+WVOL__CLONES static int gather_sparse(const coef_blocks *cb, const band_view *bv, float *dst, const ptrdiff_t lo[3],
+                                      const ptrdiff_t n[3])
+{
+    const size_t sy = (size_t)n[0], sz = (size_t)(n[0] * n[1]);
+    const size_t x0 = wrap(lo[0], bv->e[0]);
+    size_t z = wrap(lo[2], bv->e[2]);
+    int any = 0;
+    for (ptrdiff_t k = 0; k < n[2];) {
+        const size_t bz = z & (CB - 1);
+        ptrdiff_t rz = next_block_step(z, bv->e[2]);
+        size_t y = wrap(lo[1], bv->e[1]);
+        if (rz > n[2] - k) rz = n[2] - k;
+        for (ptrdiff_t j = 0; j < n[1];) {
+            const size_t by = y & (CB - 1);
+            ptrdiff_t ry = next_block_step(y, bv->e[1]);
+            if (ry > n[1] - j) ry = n[1] - j;
+            const uint32_t *drow = bv->dir + bv->nb[0] * ((y >> CB_SHIFT) + bv->nb[1] * (z >> CB_SHIFT));
+            const uint64_t in_yz = piece_bits(0, CB, by, (size_t)ry, bz, (size_t)rz);
+            float *const plane = dst + sy * (size_t)j + sz * (size_t)k;
+            size_t x = x0;
+            for (ptrdiff_t i = 0; i < n[0];) {
+                const size_t bx = x & (CB - 1);
+                ptrdiff_t rx = next_block_step(x, bv->e[0]);
+                const uint32_t blk = drow[x >> CB_SHIFT];
+                if (rx > n[0] - i) rx = n[0] - i;
+                if (blk) {
+                    const cblock *b = &cb->blocks[blk - 1];
+                    const uint64_t take = b->mask & in_yz & (((((uint64_t)1 << rx) - 1) << bx) * 0x1111111111111111ull);
+                    /* the piece's first position, and a kept bit's offset from it */
+                    float *const base = plane + i - (ptrdiff_t)bx - (ptrdiff_t)(sy * by) - (ptrdiff_t)(sz * bz);
+                    const float *vals = cb->values + b->first;
+                    if (take && !any) {
+                        memset(dst, 0, (size_t)n[2] * sz * sizeof *dst);
+                        any = 1;
+                    }
+                    if (take == b->mask) { /* every kept position in the piece: the values in order */
+                        for (uint64_t bits = take; bits; bits &= bits - 1, vals++) {
+                            const int bit = __builtin_ctzll(bits);
+                            base[(bit & 3) + sy * ((bit >> 2) & 3) + sz * (bit >> 4)] = *vals;
+                        }
+                    } else { /* each value found by its rank */
+                        for (uint64_t bits = take; bits; bits &= bits - 1) {
+                            const int bit = __builtin_ctzll(bits);
+                            base[(bit & 3) + sy * ((bit >> 2) & 3) + sz * (bit >> 4)] =
+                                vals[__builtin_popcountll(b->mask & (((uint64_t)1 << bit) - 1))];
+                        }
+                    }
+                }
+                i += rx;
+                x += (size_t)rx;
+                if (x == bv->e[0]) x = 0;
+            }
+            j += ry;
+            y += (size_t)ry;
+            if (y == bv->e[1]) y = 0;
+        }
+        k += rz;
+        z += (size_t)rz;
+        if (z == bv->e[2]) z = 0;
+    }
+    return any;
+}
+
+/* wvol__coef_source gather through the view: the low-pass cube read densely, a detail band
+ * through its blocks (gather_sparse). */
+static int gather_blocks(const void *ctx, float *dst, int m, int band, const ptrdiff_t lo[3],
+                         const ptrdiff_t n[3])
+{
+    const coef_blocks *cb = ctx;
+    size_t t = 0;
+    if (m == cb->M && band == 0) {
+        for (ptrdiff_t k = 0; k < n[2]; k++) {
+            size_t z = wrap(lo[2] + k, cb->E[2]);
+            for (ptrdiff_t j = 0; j < n[1]; j++) {
+                const float *row = cb->low + cb->E[0] * (wrap(lo[1] + j, cb->E[1]) + cb->E[1] * z);
+                size_t x = wrap(lo[0], cb->E[0]);
+                for (ptrdiff_t i = 0; i < n[0]; i++) {
+                    dst[t++] = row[x];
+                    if (++x == cb->E[0]) x = 0;
+                }
+            }
+        }
+        return 1;
+    }
+    const band_view *bv = &cb->bv[m][band];
+    return bv->dir ? gather_sparse(cb, bv, dst, lo, n) : 0; /* 0: all zero, the caller skips the band */
+}
+
+wvol_status wvol__store_blocks_create(wvol__store_blocks **out, wvol__brick_bounds **bounds, const wvol_store *s,
+                                      wvol_error *err)
+{
+    wvol_store_info info;
+    wvol__brick_bounds *bb = NULL;
+    wvol__store_blocks *cb;
+    wvol_status st;
+    *out = NULL;
+    if (bounds) *bounds = NULL;
+    wvol_store_get_info(s, &info);
+    /* the bound needs every axis transformed; without it every brick is reconstructed */
+    if (bounds && info.px > 1 && info.py > 1 && info.pz > 1 && info.levels >= 1) {
+        const size_t pad[3] = {info.px, info.py, info.pz};
+        WVOL_FORWARD(wvol__bounds_create(&bb, info.filter, info.levels, pad, wvol_store_lowpass(s), info.lowpass[0],
+                                         info.lowpass[0] * info.lowpass[1], err));
+    }
+    cb = malloc(sizeof *cb);
+    st = cb ? blocks_build(cb, s, bb, err)
+            : wvol_error_set(err, WVOL_ERR_NOMEM, "store: out of memory for the coefficient blocks");
+    if (st != WVOL_OK) {
+        wvol__store_blocks_destroy(cb);
+        wvol__bounds_free(bb);
+        return st;
+    }
+    if (bb) wvol__bounds_finish(bb);
+    cb->cs = (wvol__coef_source){.gather = gather_blocks, .ctx = cb, .filter = info.filter, .levels = info.levels,
+                                 .dims = {info.nx, info.ny, info.nz}, .pad = {info.px, info.py, info.pz}};
+    if (bounds) *bounds = bb;
+    *out = cb;
+    return WVOL_OK;
+}
+
+void wvol__store_blocks_source(wvol__coef_source *src, const wvol__store_blocks *b)
+{
+    *src = b->cs;
+}
+
+size_t wvol__store_blocks_bytes(const wvol__store_blocks *b)
+{
+    return b ? b->bytes : 0;
+}
+
+void wvol__store_blocks_destroy(wvol__store_blocks *b)
+{
+    if (!b) return;
+    blocks_free(b);
+    free(b);
+}

@@ -1,0 +1,36 @@
+/* SPDX-License-Identifier: MIT
+ * The store's internal interface for a block-sparse view of its kept coefficients
+ * (blocks.c): what a brick reconstruction (wvol__idwt3_brick_src) reads instead of a dense
+ * pyramid, so that a brick costs what its coefficients cost, never the whole volume. Used by
+ * the bricked renderer (render/bricks.c) and marching cubes from a store (iso/bricks.c).
+ * Not installed. */
+#ifndef WVOL_STORE_BLOCKS_H
+#define WVOL_STORE_BLOCKS_H
+
+#include <stddef.h>
+
+#include "wavelet/wavelet_internal.h"
+#include "wvol/store.h"
+
+typedef struct wvol__store_blocks wvol__store_blocks;
+
+/* Builds the view of s's kept coefficients. When bounds is not NULL, *bounds receives the
+ * rigorous bounds of the reconstruction's boxes (wavelet/bounds.c), fed by the same pass
+ * over the store and finished; it is NULL when the bound does not apply (an untransformed
+ * axis, no levels: every brick must then be reconstructed). Free it with
+ * wvol__bounds_free; it reads the store's low-pass cube, so the store must outlive it. */
+wvol_status wvol__store_blocks_create(wvol__store_blocks **out, wvol__brick_bounds **bounds, const wvol_store *s,
+                                      wvol_error *err);
+
+/* A coefficient source reading through the view (the view and the store must outlive it):
+ * the low-pass cube densely, a detail band through its blocks; a band with no kept position
+ * in the region reads as absent, so the synthesis skips it. Safe to use from several
+ * threads at once. */
+void wvol__store_blocks_source(wvol__coef_source *src, const wvol__store_blocks *b);
+
+/* Bytes the view allocated: its directories, blocks and values. */
+size_t wvol__store_blocks_bytes(const wvol__store_blocks *b);
+
+void wvol__store_blocks_destroy(wvol__store_blocks *b); /* NULL is fine */
+
+#endif
