@@ -3,9 +3,6 @@
 
 #include <stdlib.h>
 #include <string.h>
-#ifdef __linux__
-#include <sys/mman.h>
-#endif
 
 static void free_capsule(PyObject *cap)
 {
@@ -40,8 +37,8 @@ PyObject *wvolpy_array_take_type(void *data, int nd, const npy_intp *dims, int t
 
 /* ---- result buffers ---- */
 
-#define BUFFER_BIG ((size_t)4 << 20)    /* from here on: huge-page aligned, recycled */
-#define BUFFER_ALIGN ((size_t)2 << 20)  /* a transparent huge page */
+#define BUFFER_BIG ((size_t)4 << 20)   /* from here on recycled */
+#define BUFFER_ROUND ((size_t)1 << 20) /* big capacities in MiB: near sizes share buffers */
 #define BUFFER_CACHE_BYTES ((size_t)512 << 20)
 #define BUFFER_CAPSULE "wvol.result_buffer"
 
@@ -52,14 +49,12 @@ int wvolpy_buffer_alloc(wvolpy_buffer *b, size_t count)
     size_t bytes = count * sizeof(float);
     b->data = NULL;
     b->bytes = 0;
-    if (count > SIZE_MAX / sizeof(float) - BUFFER_ALIGN) {
+    if (count > (SIZE_MAX - BUFFER_ROUND) / sizeof(float)) {
         PyErr_NoMemory();
         return -1;
     }
-    if (bytes < BUFFER_BIG) {
-        b->data = malloc(bytes ? bytes : 1);
-    } else {
-        bytes = (bytes + BUFFER_ALIGN - 1) / BUFFER_ALIGN * BUFFER_ALIGN;
+    if (bytes >= BUFFER_BIG) {
+        bytes = (bytes + BUFFER_ROUND - 1) / BUFFER_ROUND * BUFFER_ROUND;
         for (int i = 0; i < 2; i++)
             if (buffer_cache[i].data && buffer_cache[i].bytes == bytes) {
                 *b = buffer_cache[i];
@@ -68,11 +63,8 @@ int wvolpy_buffer_alloc(wvolpy_buffer *b, size_t count)
                 buffer_cache[1].bytes = 0;
                 return 0;
             }
-        b->data = aligned_alloc(BUFFER_ALIGN, bytes);
-#if defined(__linux__) && defined(MADV_HUGEPAGE)
-        if (b->data) (void)madvise(b->data, bytes, MADV_HUGEPAGE); /* advice only: 4 KiB pages if refused */
-#endif
     }
+    b->data = malloc(bytes ? bytes : 1);
     if (!b->data) {
         PyErr_NoMemory();
         return -1;

@@ -57,12 +57,12 @@ PyObject *wvolpy_volume_take(wvol_volume *v, int squeeze2d);
 int wvolpy_as_coeffs(PyObject *arr, const char *wavelet, int levels, PyObject *shape, PyObject *spacing,
                      PyObject *origin, wvol_coeffs *c, PyArrayObject **holder, int check_finite);
 
-/* Result buffers: the transforms' outputs, handed to NumPy without a copy. A fresh buffer
- * costs a page fault per 4 KiB page when first written, about a copy's time for a large
- * transform: so buffers of 4 MiB and more are aligned for transparent huge pages (and advised
- * so where the system has them), and the last two freed ones (512 MiB at most) are kept for the
- * next request of the same size, as NumPy's allocator keeps small blocks. Call these with the
- * GIL held (it guards the cache). */
+/* Result buffers: the transforms' outputs, handed to NumPy without a copy. A fresh large
+ * buffer costs a page fault per 4 KiB page when first written, about as much as a copy of it
+ * (more than a third of a 256^3 transform's time): so the last two freed buffers of 4 MiB and
+ * more (512 MiB in all at most) are kept for the next request of the same size, as NumPy's
+ * allocator keeps small blocks; a loop of transforms then reuses its memory. Call these with
+ * the GIL held (it guards the cache). */
 typedef struct wvolpy_buffer {
     float *data;
     size_t bytes;   /* capacity */
