@@ -45,7 +45,9 @@ fail:
 static uint32_t copy_absmax(float *restrict dst, const float *restrict src, size_t n)
 {
     int32_t m = 0; /* |x|'s bits as a signed integer (sign cleared): vectorises */
-    for (size_t i = 0; i < n; i++) {
+    long long count = (long long)n;
+#pragma omp parallel for simd reduction(max : m) schedule(static) if (count > (1 << 20))
+    for (long long i = 0; i < count; i++) {
         int32_t u;
         dst[i] = src[i];
         memcpy(&u, &src[i], sizeof u);
