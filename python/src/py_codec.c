@@ -27,7 +27,7 @@ static PyObject *info_dict(const wvol_wvc_info *in)
 static PyObject *py_store_open(PyObject *self, PyObject *args, PyObject *kw)
 {
     static char *kwlist[] = {"path", "stop_level", NULL};
-    PyObject *path_obj, *bytes = NULL, *h, *d;
+    PyObject *path_obj, *bytes = NULL, *d;
     int stop = 0;
     wvol_wvc_read_options opt;
     wvol_wvc_info *info;
@@ -62,15 +62,7 @@ static PyObject *py_store_open(PyObject *self, PyObject *args, PyObject *kw)
     out.report.energy_dropped = info->sse + info->dropped_energy;
     d = info_dict(info);
     PyMem_Free(info);
-    if (!d) {
-        wvol_compressed_free(&out);
-        return NULL;
-    }
-    if (!(h = wvolpy_store_wrap(&out))) {
-        Py_DECREF(d);
-        return NULL;
-    }
-    return Py_BuildValue("NN", h, d);
+    return wvolpy_store_with(&out, d);
 }
 
 /* wvc_info(path) -> info dict (header and table only; checksums verified) */

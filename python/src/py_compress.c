@@ -85,7 +85,6 @@ static PyObject *py_compress(PyObject *self, PyObject *args, PyObject *kw)
     static char *kwlist[] = {"array", "wavelet", "levels", "mode", "value", "drop_levels", "roi", "roi_floor",
                              "spacing", "origin", "measure", "value_range", NULL};
     PyObject *arr_obj, *roi = Py_None, *sp = Py_None, *org = Py_None, *lev_obj = Py_None, *range = Py_None;
-    PyObject *handle, *rep_obj;
     const char *name = NULL, *mode = "all";
     int drop = 0, measure = 0;
     double value = 0, floor_ = 0, vr[2] = {0, 0};
@@ -143,15 +142,7 @@ static PyObject *py_compress(PyObject *self, PyObject *args, PyObject *kw)
         out.value_min = vr[0];
         out.value_max = vr[1];
     }
-    if (!(rep_obj = report_dict(&out.report))) {
-        wvol_compressed_free(&out);
-        return NULL;
-    }
-    if (!(handle = wvolpy_store_wrap(&out))) {
-        Py_DECREF(rep_obj);
-        return NULL;
-    }
-    return Py_BuildValue("NN", handle, rep_obj);
+    return wvolpy_store_with(&out, report_dict(&out.report));
 }
 
 PyMethodDef wvolpy_compress_methods[] = {

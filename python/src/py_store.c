@@ -34,6 +34,20 @@ PyObject *wvolpy_store_wrap(wvol_compressed *c)
     return (PyObject *)h;
 }
 
+PyObject *wvolpy_store_with(wvol_compressed *c, PyObject *d)
+{
+    PyObject *h;
+    if (!d) {
+        wvol_compressed_free(c);
+        return NULL;
+    }
+    if (!(h = wvolpy_store_wrap(c))) {
+        Py_DECREF(d);
+        return NULL;
+    }
+    return Py_BuildValue("NN", h, d);
+}
+
 const wvol_store *wvolpy_store_at(wvolpy_store *h, int J)
 {
     wvol_compress_params p;

@@ -21,6 +21,8 @@ extern PyTypeObject wvolpy_store_type;
 
 /* A new handle owning *c (emptied); on failure *c is freed and NULL returned. */
 PyObject *wvolpy_store_wrap(wvol_compressed *c);
+/* (handle over *c, d): takes *c and the reference d; d NULL (its making failed) frees *c. */
+PyObject *wvolpy_store_with(wvol_compressed *c, PyObject *d);
 /* The handle's C store with 2^J spline knots per unit (J = 0: the one the pipeline built);
  * another J builds (once) a store of the same kept coefficients. NULL with an exception. */
 const wvol_store *wvolpy_store_at(wvolpy_store *h, int J);
