@@ -12,7 +12,10 @@ against the copy bound:
     bound = t_copy(whole array) * 2 * 3 * sum_m 8^-(m-1)  (t_copy reads + writes the array once)
 
 Prints the ratios (the Python API against the C driver and against PyWavelets; goals with one
-thread: within 1.2x of the driver, >= 10x PyWavelets) and writes bench/results/dwt.json.
+thread: within 1.2x of the driver, >= 10x PyWavelets) and writes bench/results/dwt.json. The
+driver transforms in place and refills its buffer outside the timing; a call that leaves its
+input intact copies it once per direction, so the Python API is also set against the driver's
+time plus two copies ("py / C+2cp").
 Usage: /usr/bin/python3 bench/bench_dwt.py [--n 256] [--levels 3] [--reps 5] [--build build]
 """
 import argparse
@@ -127,7 +130,8 @@ def main():
     print(f"DWT benchmark: {n}^3 float32, {levels} levels, forward + inverse; {cpu_model()}, "
           f"{os.cpu_count()} CPUs")
     print(f"{'wavelet':8} {'thr':>3} {'wvol s':>9} {'pywt s':>9} {'vs pywt':>8} {'bound s':>9} "
-          f"{'/ bound':>8} {'max err':>9} | {'python s':>9} {'py / C':>7} {'vs pywt':>8} {'1st call':>9}")
+          f"{'/ bound':>8} {'max err':>9} | {'python s':>9} {'py / C':>7} {'py / C+2cp':>10} {'vs pywt':>8} "
+          f"{'1st call':>9}")
     for name in args.wavelets.split(","):
         pf, pi, perr = time_pywt(vol, name, levels, args.pywt_reps)
         for r in ours["runs"]:
@@ -144,11 +148,13 @@ def main():
                    "wvol_max_roundtrip_error": r["max_error"], "pywt_max_roundtrip_error": perr,
                    "python_forward_s": p["forward"], "python_inverse_s": p["inverse"], "python_s": tp,
                    "python_first_call_s": p["first_call"], "python_over_c": tp / t,
+                   "python_over_c_plus_two_copies": tp / (t + 2 * copy[r["threads"]]),
                    "python_speedup_vs_pywt": (pf + pi) / tp, "python_max_roundtrip_error": p["max_error"]}
             results.append(row)
             print(f"{name:8} {r['threads']:3d} {t:9.4f} {pf + pi:9.4f} {row['speedup_vs_pywt']:7.1f}x "
                   f"{bound:9.4f} {row['ratio_to_copy_bound']:7.2f}x {r['max_error']:9.2e} | {tp:9.4f} "
-                  f"{row['python_over_c']:6.2f}x {row['python_speedup_vs_pywt']:7.1f}x {p['first_call']:9.4f}")
+                  f"{row['python_over_c']:6.2f}x {row['python_over_c_plus_two_copies']:9.2f}x "
+                  f"{row['python_speedup_vs_pywt']:7.1f}x {p['first_call']:9.4f}")
     one = [r for r in results if r["threads"] == 1]
     summary = {
         "goal_10x_pywt_one_thread": all(r["speedup_vs_pywt"] >= 10 for r in one),
