@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Method tables of the extension, one per area (py_<area>.c). Add new ones here. */
 #ifndef WVOL_PY_METHODS_H
 #define WVOL_PY_METHODS_H
@@ -9,14 +10,13 @@ extern PyMethodDef wvolpy_wavelet_methods[];
 extern PyMethodDef wvolpy_compress_methods[];
 extern PyMethodDef wvolpy_synth_methods[];
 extern PyMethodDef wvolpy_analysis_methods[];
-extern PyMethodDef wvolpy_store_methods[];
 extern PyMethodDef wvolpy_codec_methods[];
 extern PyMethodDef wvolpy_iso_methods[];
 extern PyMethodDef wvolpy_render_methods[];
-extern PyMethodDef wvolpy_render_store_methods[];
+/* The StoreHandle type (py_store.c), added to the module at import: 0 or -1. */
+int wvolpy_store_ready(PyObject *module);
 
 #define WVOLPY_METHOD_TABLES                                                                             \
     wvolpy_io_methods, wvolpy_wavelet_methods, wvolpy_compress_methods, wvolpy_synth_methods,             \
-    wvolpy_analysis_methods, wvolpy_store_methods,                                                        \
-    wvolpy_codec_methods, wvolpy_iso_methods, wvolpy_render_methods, wvolpy_render_store_methods
+    wvolpy_analysis_methods, wvolpy_codec_methods, wvolpy_iso_methods, wvolpy_render_methods
 #endif

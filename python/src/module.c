@@ -1,5 +1,6 @@
-/* wvol._wvol: the extension module. Each py_<area>.c contributes a method table,
- * joined here. */
+/* SPDX-License-Identifier: MIT */
+/* wvol._wvol: the extension module. Each py_<area>.c contributes a method table, joined
+ * here; py_store.c the StoreHandle type. */
 #define PY_SSIZE_T_CLEAN
 #include <Python.h>
 #define PY_ARRAY_UNIQUE_SYMBOL wvol_ARRAY_API
@@ -24,6 +25,10 @@ PyMODINIT_FUNC PyInit__wvol(void)
             Py_DECREF(m);
             return NULL;
         }
+    if (wvolpy_store_ready(m) < 0) {
+        Py_DECREF(m);
+        return NULL;
+    }
     PyModule_AddStringConstant(m, "version", WVOL_VERSION_STRING);
     return m;
 }

@@ -1,6 +1,9 @@
-/* compress: forward transform + coefficient selection (wvol/store.h) in one call. */
+/* SPDX-License-Identifier: MIT */
+/* compress: the library's compression pipeline (wvol/compress.h: transform, selection, store)
+ * in one call, its result held by a StoreHandle (py_store.h). */
 #include "pyutil.h"
 #include "methods.h"
+#include "py_store.h"
 
 #include <math.h>
 #include <string.h>
@@ -71,78 +74,79 @@ fail:
     return NULL;
 }
 
+/* compress(array, wavelet=None, levels=None, mode='all', value=0, drop_levels=0, roi=None,
+ *          roi_floor=0, spacing=None, origin=None, measure=False, value_range=None)
+ * -> (StoreHandle, report): one wvol_compress (transform, selection, store); None leaves the
+ * library's default (wavelet db2; levels WVOL_COMPRESS_LEVELS_STORE, fewer for a small volume).
+ * value_range (min, max) replaces the range of the float32 samples (the caller's data range
+ * when it converted another dtype). */
 static PyObject *py_compress(PyObject *self, PyObject *args, PyObject *kw)
 {
     static char *kwlist[] = {"array", "wavelet", "levels", "mode", "value", "drop_levels", "roi", "roi_floor",
-                             "spacing", "origin", "measure", NULL};
-    PyObject *arr_obj, *roi = Py_None, *sp = Py_None, *org = Py_None, *out = NULL, *rep_obj;
-    const char *name = "db2", *mode = "all";
-    int levels = 3, drop = 0, measure = 0;
-    double value = 0, floor_ = 0;
+                             "spacing", "origin", "measure", "value_range", NULL};
+    PyObject *arr_obj, *roi = Py_None, *sp = Py_None, *org = Py_None, *lev_obj = Py_None, *range = Py_None;
+    const char *name = NULL, *mode = "all";
+    int drop = 0, measure = 0;
+    double value = 0, floor_ = 0, vr[2] = {0, 0};
     PyArrayObject *holder;
     wvol_volume v;
-    const wvol_filter *f;
-    wvol_coeffs *c = NULL;
-    wvol_selection *sel = NULL;
-    wvol_select_params prm = wvol_select_params_default();
-    wvol_select_report rep;
+    wvol_compress_params p;
+    wvol_select_params *prm = &p.select;
+    wvol_compressed out;
     wvol_error err;
     wvol_status s;
     size_t i;
     (void)self;
-    if (!PyArg_ParseTupleAndKeywords(args, kw, "O|sisdiOdOOp", kwlist, &arr_obj, &name, &levels, &mode, &value,
-                                     &drop, &roi, &floor_, &sp, &org, &measure))
+    if (!PyArg_ParseTupleAndKeywords(args, kw, "O|zOsdiOdOOpO", kwlist, &arr_obj, &name, &lev_obj, &mode, &value,
+                                     &drop, &roi, &floor_, &sp, &org, &measure, &range))
         return NULL;
+    wvol_compress_params_default(&p);
+    if (name) p.wavelet = name;
+    if (lev_obj != Py_None) {
+        long l = PyLong_AsLong(lev_obj);
+        if (l == -1 && PyErr_Occurred()) return NULL;
+        if (l < 1 || l > 30) return PyErr_Format(PyExc_ValueError, "levels must be in 1..30 (None: default), got %ld", l);
+        p.levels = (int)l;
+    }
+    if (range != Py_None && !PyArg_ParseTuple(range, "dd;value_range must be (min, max)", &vr[0], &vr[1])) return NULL;
     for (i = 0; i < sizeof select_modes / sizeof select_modes[0]; i++)
         if (strcmp(mode, select_modes[i].name) == 0) break;
     if (i == sizeof select_modes / sizeof select_modes[0])
         return PyErr_Format(PyExc_ValueError,
                             "unknown selection mode '%s' (all, count, fraction, energy, threshold, psnr)", mode);
-    prm.mode = select_modes[i].mode;
+    prm->mode = select_modes[i].mode;
     if (!isfinite(value)) return PyErr_Format(PyExc_ValueError, "selection value must be finite");
-    switch (prm.mode) {
+    switch (prm->mode) {
     case WVOL_SELECT_COUNT:
         if (value < 0 || value > 1.8e19) return PyErr_Format(PyExc_ValueError, "keep_count must be >= 0");
-        prm.count = (size_t)value;
+        prm->count = (size_t)value;
         break;
-    case WVOL_SELECT_FRACTION: prm.fraction = value; break;
-    case WVOL_SELECT_ENERGY: prm.energy = value; break;
-    case WVOL_SELECT_THRESHOLD: prm.threshold = value; break;
-    case WVOL_SELECT_PSNR: prm.psnr = value; break;
+    case WVOL_SELECT_FRACTION: prm->fraction = value; break;
+    case WVOL_SELECT_ENERGY: prm->energy = value; break;
+    case WVOL_SELECT_THRESHOLD: prm->threshold = value; break;
+    case WVOL_SELECT_PSNR: prm->psnr = value; break;
     default: break;
     }
-    prm.drop_levels = drop;
-    prm.lod_floor = floor_;
-    prm.measure = measure;
-    if (parse_roi(roi, &prm) < 0) return NULL;
-    if (wvol_filter_get(&f, name, &err) != WVOL_OK) return wvolpy_raise(&err);
+    prm->drop_levels = drop;
+    prm->lod_floor = floor_;
+    prm->measure = measure;
+    if (parse_roi(roi, prm) < 0) return NULL;
     if (wvolpy_as_placed_volume(arr_obj, sp, org, &v, &holder, 0) < 0) return NULL;
     Py_BEGIN_ALLOW_THREADS
     s = wvol_volume_set_geometry(&v, v.spacing, v.origin, &err);
-    if (s == WVOL_OK) s = wvol_dwt3(&c, &v, f, levels, &err);
-    if (s == WVOL_OK) s = wvol_select(&sel, c, &prm, &v, &rep, &err);
-    if (s == WVOL_OK) s = wvol_selection_apply(sel, c, &err);
+    if (s == WVOL_OK) s = wvol_compress(&out, &v, &p, &err);
     Py_END_ALLOW_THREADS
     Py_DECREF(holder);
-    wvol_selection_destroy(sel);
-    if (s != WVOL_OK) {
-        wvol_coeffs_destroy(c);
-        return wvolpy_raise(&err);
+    if (s != WVOL_OK) return wvolpy_raise(&err);
+    if (range != Py_None) {
+        out.value_min = vr[0];
+        out.value_max = vr[1];
     }
-    rep_obj = report_dict(&rep);
-    if (rep_obj) {
-        npy_intp dims[3] = {(npy_intp)c->pz, (npy_intp)c->py, (npy_intp)c->px};
-        PyObject *a = wvolpy_array_take(c->data, 3, dims);
-        c->data = NULL;
-        out = a ? Py_BuildValue("NN", a, rep_obj) : NULL;
-        if (!a) Py_DECREF(rep_obj);
-    }
-    wvol_coeffs_destroy(c);
-    return out;
+    return wvolpy_store_with(&out, report_dict(&out.report));
 }
 
 PyMethodDef wvolpy_compress_methods[] = {
     {"compress", (PyCFunction)(void (*)(void))py_compress, METH_VARARGS | METH_KEYWORDS,
-     "compress(array, wavelet='db2', levels=3, mode='all', value=0, drop_levels=0, roi=None, roi_floor=0,\n"
-     "         spacing=None, origin=None, measure=False) -> (kept coefficients with the rest zeroed, report)"},
+     "compress(array, wavelet=None, levels=None, mode='all', value=0, drop_levels=0, roi=None, roi_floor=0,\n"
+     "         spacing=None, origin=None, measure=False, value_range=None) -> (StoreHandle, report)"},
     {NULL, NULL, 0, NULL}};

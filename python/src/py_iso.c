@@ -1,7 +1,9 @@
+/* SPDX-License-Identifier: MIT */
 /* Isosurfaces (wvol/iso.h): marching cubes on a dense volume or brick by brick on the
- * reconstruction of wavelet coefficients. Returns NumPy arrays over the mesh's memory. */
+ * reconstruction of a store's coefficients. Returns NumPy arrays over the mesh's memory. */
 #include "pyutil.h"
 #include "methods.h"
+#include "py_store.h"
 #include "wvol/iso.h"
 
 #include <math.h>
@@ -49,7 +51,7 @@ static PyObject *mesh_take(wvol_mesh *m, const wvol_iso_stats *st)
     return Py_BuildValue("NNNN", v, t, n, d);
 }
 
-/* Checks the arguments both extraction paths share and fills *p; 0, or -1 with an exception. */
+/* Checks the arguments and fills *p; 0, or -1 with an exception. */
 static int iso_setup(double iso, int threads, int brick, const char *normals, wvol_iso_params *p)
 {
     if (!isfinite(iso)) {
@@ -80,15 +82,19 @@ static PyObject *iso_finish(wvol_mesh *m, wvol_status s, const wvol_iso_stats *s
     return mesh_take(m, st);
 }
 
-/* isosurface_volume(array, iso, spacing=None, origin=None, normals='gradient', threads=0) */
-static PyObject *py_iso_volume(PyObject *self, PyObject *args, PyObject *kw)
+/* isosurface(source, iso, spacing=None, origin=None, normals='gradient', threads=0, brick=None)
+ * -> (vertices, faces, normals, stats). source: a StoreHandle (marching cubes brick by brick
+ * from its coefficients, bricks of `brick` cells, None: the library's default; spacing/origin
+ * are the store's) or an array (a dense volume placed by spacing/origin; no brick). */
+static PyObject *py_isosurface(PyObject *self, PyObject *args, PyObject *kw)
 {
-    static char *kwlist[] = {"array", "iso", "spacing", "origin", "normals", "threads", NULL};
-    PyObject *arr_obj, *sp = Py_None, *org = Py_None;
+    static char *kwlist[] = {"source", "iso", "spacing", "origin", "normals", "threads", "brick", NULL};
+    PyObject *src, *sp = Py_None, *org = Py_None, *brick_obj = Py_None;
     const char *normals = "gradient";
     double iso;
-    int threads = 0;
-    PyArrayObject *holder;
+    int threads = 0, brick = 0;
+    PyArrayObject *holder = NULL;
+    const wvol_coeffs *c = NULL;
     wvol_volume v;
     wvol_iso_params p;
     wvol_iso_stats st;
@@ -96,46 +102,32 @@ static PyObject *py_iso_volume(PyObject *self, PyObject *args, PyObject *kw)
     wvol_error err;
     wvol_status s;
     (void)self;
-    if (!PyArg_ParseTupleAndKeywords(args, kw, "Od|OOsi", kwlist, &arr_obj, &iso, &sp, &org, &normals, &threads))
+    if (!PyArg_ParseTupleAndKeywords(args, kw, "Od|OOsiO", kwlist, &src, &iso, &sp, &org, &normals, &threads,
+                                     &brick_obj))
         return NULL;
-    if (iso_setup(iso, threads, 0, normals, &p) < 0) return NULL;
-    if (wvolpy_as_placed_volume(arr_obj, sp, org, &v, &holder, 1) < 0) return NULL;
-    memset(&st, 0, sizeof st);
-    Py_BEGIN_ALLOW_THREADS
-    s = wvol_volume_set_geometry(&v, v.spacing, v.origin, &err);
-    if (s == WVOL_OK) s = wvol_iso_extract(&m, &v, iso, &p, &st, &err);
-    Py_END_ALLOW_THREADS
-    Py_DECREF(holder);
-    return iso_finish(m, s, &st, &err);
-}
-
-/* isosurface_coeffs(coeffs, wavelet, levels, shape, iso, spacing, origin, normals, threads, brick) */
-static PyObject *py_iso_coeffs(PyObject *self, PyObject *args, PyObject *kw)
-{
-    static char *kwlist[] = {"coeffs", "wavelet", "levels", "shape", "iso", "spacing", "origin", "normals",
-                             "threads", "brick", NULL};
-    PyObject *arr_obj, *shape, *sp = Py_None, *org = Py_None;
-    const char *name, *normals = "gradient";
-    int levels, threads = 0, brick = 0;
-    double iso;
-    PyArrayObject *holder;
-    wvol_coeffs c;
-    wvol_iso_params p;
-    wvol_iso_stats st;
-    wvol_mesh *m = NULL;
-    wvol_error err;
-    wvol_status s;
-    (void)self;
-    if (!PyArg_ParseTupleAndKeywords(args, kw, "OsiOd|OOsii", kwlist, &arr_obj, &name, &levels, &shape, &iso, &sp,
-                                     &org, &normals, &threads, &brick))
-        return NULL;
+    if (brick_obj != Py_None) {
+        long b = PyLong_AsLong(brick_obj);
+        if (b == -1 && PyErr_Occurred()) return NULL;
+        brick = b < -1 ? -1 : b > 65536 ? 65536 : (int)b; /* iso_setup refuses < 0, the library the too large */
+    }
     if (iso_setup(iso, threads, brick, normals, &p) < 0) return NULL;
-    if (wvolpy_as_coeffs(arr_obj, name, levels, shape, sp, org, &c, &holder) < 0) return NULL;
+    if (WVOLPY_IS_STORE(src)) {
+        c = ((wvolpy_store *)src)->c.coeffs;
+    } else {
+        if (brick_obj != Py_None)
+            return PyErr_Format(PyExc_ValueError, "brick applies to a Store (coefficient path), not to a dense volume");
+        if (wvolpy_as_placed_volume(src, sp, org, &v, &holder, 1) < 0) return NULL;
+    }
     memset(&st, 0, sizeof st);
     Py_BEGIN_ALLOW_THREADS
-    s = wvol_iso_extract_coeffs(&m, &c, iso, &p, &st, &err);
+    if (c) {
+        s = wvol_iso_extract_coeffs(&m, c, iso, &p, &st, &err);
+    } else {
+        s = wvol_volume_set_geometry(&v, v.spacing, v.origin, &err);
+        if (s == WVOL_OK) s = wvol_iso_extract(&m, &v, iso, &p, &st, &err);
+    }
     Py_END_ALLOW_THREADS
-    Py_DECREF(holder);
+    Py_XDECREF(holder);
     return iso_finish(m, s, &st, &err);
 }
 
@@ -218,10 +210,7 @@ done:
 PyMethodDef wvolpy_iso_methods[] = {
     {"save_mesh", (PyCFunction)(void (*)(void))py_save_mesh, METH_VARARGS | METH_KEYWORDS,
      "save_mesh(path, vertices, faces, normals=None): .ply .obj .stl .vtp by extension"},
-    {"isosurface_volume", (PyCFunction)(void (*)(void))py_iso_volume, METH_VARARGS | METH_KEYWORDS,
-     "isosurface_volume(array, iso, spacing=None, origin=None, normals='gradient', threads=0)\n"
-     "-> (vertices, faces, normals, stats)"},
-    {"isosurface_coeffs", (PyCFunction)(void (*)(void))py_iso_coeffs, METH_VARARGS | METH_KEYWORDS,
-     "isosurface_coeffs(coeffs, wavelet, levels, shape, iso, spacing=None, origin=None, normals='gradient',\n"
-     "                  threads=0, brick=0) -> (vertices, faces, normals, stats)"},
+    {"isosurface", (PyCFunction)(void (*)(void))py_isosurface, METH_VARARGS | METH_KEYWORDS,
+     "isosurface(source, iso, spacing=None, origin=None, normals='gradient', threads=0, brick=None)\n"
+     "-> (vertices, faces, normals, stats); source: a StoreHandle or an array"},
     {NULL, NULL, 0, NULL}};

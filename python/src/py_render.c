@@ -1,14 +1,15 @@
-/* Volume rendering (wvol/render.h): the reference integrator on a dense volume, the
- * f^-sampling reference from coefficients, and (py_render_store.c) the spline-projected
- * integrator from a store. Options arrive as one dict built by the Python layer. */
+/* SPDX-License-Identifier: MIT */
+/* Volume rendering: one call, the library's entry point wvol_render, for dense volumes and
+ * stores alike. Method and mode names, transfer-function names and files, the choice of
+ * method for "auto" and every default are the library's: the options dict built by the
+ * Python layer carries only what the caller gave. */
 #include "pyutil.h"
 #include "methods.h"
-#include "py_render.h"
+#include "py_store.h"
 #include "wvol/render.h"
 
 #include <math.h>
 #include <string.h>
-#include <sys/stat.h>
 
 static int opt_double(PyObject *opts, const char *key, double *out)
 {
@@ -49,7 +50,8 @@ static const char *opt_str(PyObject *opts, const char *key, const char *dflt)
     return PyUnicode_AsUTF8(o);
 }
 
-/* tf: a preset name or file path (str), or a sequence of (value, r, g, b, opacity). */
+/* tf: a preset name or file path (str, wvol_tf_resolve), or a sequence of (value, r, g, b,
+ * opacity) points in tf_units. */
 static int parse_tf(PyObject *opts, wvol_tf *tf, double vmin, double vmax)
 {
     PyObject *o = PyDict_GetItemString(opts, "tf");
@@ -58,17 +60,12 @@ static int parse_tf(PyObject *opts, wvol_tf *tf, double vmin, double vmax)
     if (!units) return -1;
     memset(tf, 0, sizeof *tf);
     if (!o || o == Py_None || PyUnicode_Check(o)) {
-        const char *name = (!o || o == Py_None) ? "gaussian" : PyUnicode_AsUTF8(o);
-        struct stat st;
+        const char *spec = (!o || o == Py_None) ? "gaussian" : PyUnicode_AsUTF8(o);
         wvol_status s;
-        if (!name) return -1;
-        if (stat(name, &st) == 0 && S_ISREG(st.st_mode)) {
-            Py_BEGIN_ALLOW_THREADS
-            s = wvol_tf_load(tf, name, &err);
-            Py_END_ALLOW_THREADS
-        } else {
-            s = wvol_tf_preset(tf, name, vmin, vmax, &err);
-        }
+        if (!spec) return -1;
+        Py_BEGIN_ALLOW_THREADS
+        s = wvol_tf_resolve(tf, spec, vmin, vmax, &err);
+        Py_END_ALLOW_THREADS
         if (s != WVOL_OK) {
             wvolpy_raise(&err);
             return -1;
@@ -143,46 +140,6 @@ static int parse_colors(PyObject *opts, const wvol_geometry *g, wvol_render_para
     return 0;
 }
 
-int wvolpy_render_setup(PyObject *opts, const wvol_geometry *g, double vmin, double vmax, wvol_camera *cam,
-                        wvol_tf *tf, wvol_render_params *rp, PyArrayObject **colors)
-{
-    *colors = NULL;
-    const char *camspec, *mode;
-    int width = 256, height = 256;
-    wvol_error err;
-    if (!PyDict_Check(opts)) {
-        PyErr_SetString(PyExc_TypeError, "render options must be a dict");
-        return -1;
-    }
-    wvol_render_params_default(rp);
-    if (opt_int(opts, "width", &width) < 0 || opt_int(opts, "height", &height) < 0) return -1;
-    if (!(camspec = opt_str(opts, "camera", "+z"))) return -1;
-    if (wvol_camera_parse(cam, camspec, g, width, height, &err) != WVOL_OK) {
-        wvolpy_raise(&err);
-        return -1;
-    }
-    if (!(mode = opt_str(opts, "mode", "absorption"))) return -1;
-    if (!strcmp(mode, "xray")) rp->mode = WVOL_MODE_XRAY;
-    else if (!strcmp(mode, "absorption")) rp->mode = WVOL_MODE_ABSORPTION;
-    else if (!strcmp(mode, "absorption-linear")) rp->mode = WVOL_MODE_ABSORPTION_LINEAR;
-    else {
-        PyErr_Format(PyExc_ValueError, "mode '%s': expected xray, absorption or absorption-linear", mode);
-        return -1;
-    }
-    if (opt_double(opts, "step", &rp->step) < 0 || opt_double(opts, "termination", &rp->termination) < 0 ||
-        opt_double(opts, "skip_tolerance", &rp->skip_tolerance) < 0 ||
-        opt_double(opts, "ambient", &rp->ambient) < 0 || opt_int(opts, "shading", &rp->shading) < 0 ||
-        opt_int(opts, "gauss_nodes", &rp->spline.gauss_nodes) < 0 || opt_int(opts, "threads", &rp->threads) < 0)
-        return -1;
-    if (rp->threads < 0 || rp->threads > WVOLPY_MAX_THREADS) {
-        PyErr_Format(PyExc_ValueError, "threads must be in 0..%d (0: default)", WVOLPY_MAX_THREADS);
-        return -1;
-    }
-    memset(tf, 0, sizeof *tf);
-    if (rp->mode != WVOL_MODE_XRAY && parse_tf(opts, tf, vmin, vmax) < 0) return -1;
-    return parse_colors(opts, g, rp, colors);
-}
-
 static PyObject *image_take(wvol_image *img)
 {
     npy_intp dims[3] = {img->height, img->width, 4};
@@ -194,7 +151,8 @@ static PyObject *image_take(wvol_image *img)
 
 static PyObject *stats_dict(const wvol_render_stats *st)
 {
-    return Py_BuildValue("{s:d,s:n,s:n,s:n,s:n,s:n,s:n,s:n,s:n,s:n,s:d,s:n,s:i,s:n}", "seconds", st->seconds, "rays",
+    return Py_BuildValue("{s:s,s:d,s:n,s:n,s:n,s:n,s:n,s:n,s:n,s:n,s:n,s:d,s:n,s:i,s:n}", "method",
+                         wvol_render_method_name(st->method), "seconds", st->seconds, "rays",
                          (Py_ssize_t)st->rays, "rays_hit", (Py_ssize_t)st->rays_hit, "samples",
                          (Py_ssize_t)st->samples, "pieces", (Py_ssize_t)st->pieces, "functions",
                          (Py_ssize_t)st->functions, "skipped", (Py_ssize_t)st->skipped, "terminated",
@@ -203,31 +161,66 @@ static PyObject *stats_dict(const wvol_render_stats *st)
                          (Py_ssize_t)st->bricks_built, "brick", st->brick, "bytes", (Py_ssize_t)st->bytes);
 }
 
-PyObject *wvolpy_render_finish(wvol_image *img, wvol_status s, const wvol_render_stats *st, const wvol_error *err,
-                               PyArrayObject *colors)
+/* The render parameters from opts: only the keys given (not None) change the library's
+ * defaults. *J: the spline_j asked for (0: the store's). */
+static int parse_params(PyObject *opts, wvol_render_params *rp, int *J)
 {
-    PyObject *a, *d;
-    Py_XDECREF(colors);
-    if (s != WVOL_OK) {
-        wvol_image_destroy(img);
-        return wvolpy_raise(err);
+    const char *name;
+    int brick = 0;
+    wvol_error err;
+    wvol_render_params_default(rp);
+    if (!(name = opt_str(opts, "mode", NULL)) && PyErr_Occurred()) return -1;
+    if (name && wvol_render_mode_parse(&rp->mode, name, &err) != WVOL_OK) goto raise;
+    if (!(name = opt_str(opts, "method", NULL)) && PyErr_Occurred()) return -1;
+    if (name && wvol_render_method_parse(&rp->method, name, &err) != WVOL_OK) goto raise;
+    if (opt_double(opts, "step", &rp->step) < 0 || opt_double(opts, "termination", &rp->termination) < 0 ||
+        opt_double(opts, "skip_tolerance", &rp->skip_tolerance) < 0 ||
+        opt_double(opts, "ambient", &rp->ambient) < 0 || opt_int(opts, "shading", &rp->shading) < 0 ||
+        opt_int(opts, "gauss_nodes", &rp->spline.gauss_nodes) < 0 || opt_int(opts, "threads", &rp->threads) < 0 ||
+        opt_int(opts, "brick", &brick) < 0 || opt_int(opts, "spline_j", J) < 0)
+        return -1;
+    if (brick) rp->reference.brick = rp->bricks.brick = brick; /* as wvol render --brick */
+    if (rp->threads < 0 || rp->threads > WVOLPY_MAX_THREADS) {
+        PyErr_Format(PyExc_ValueError, "threads must be in 0..%d (0: default)", WVOLPY_MAX_THREADS);
+        return -1;
     }
-    a = image_take(img);
-    if (!a) return NULL;
-    d = stats_dict(st);
-    if (!d) {
-        Py_DECREF(a);
-        return NULL;
-    }
-    return Py_BuildValue("NN", a, d);
+    return 0;
+raise:
+    wvolpy_raise(&err);
+    return -1;
 }
 
-/* render_volume(array, spacing, origin, opts) -> (image, stats) */
-static PyObject *py_render_volume(PyObject *self, PyObject *args)
+/* What the library would refuse as unsupported but the Python API documents as a bad
+ * argument (ValueError): a store's method on a dense volume, an X-ray-only method in an
+ * absorption mode. */
+static int check_method(const wvol_render_params *rp, int is_store)
 {
-    PyObject *arr_obj, *sp, *org, *opts;
-    PyArrayObject *holder, *colors;
+    wvol_render_method m = rp->method;
+    if (!is_store && m != WVOL_RENDER_METHOD_AUTO && m != WVOL_RENDER_METHOD_REFERENCE) {
+        PyErr_Format(PyExc_ValueError, "method '%s' needs a Store (wvol.compress); volumes render with 'reference'",
+                     wvol_render_method_name(m));
+        return -1;
+    }
+    if ((m == WVOL_RENDER_METHOD_AXIS || m == WVOL_RENDER_METHOD_SPLAT) && rp->mode != WVOL_RENDER_MODE_XRAY) {
+        PyErr_Format(PyExc_ValueError, "method '%s' renders X-ray only (mode='xray'), not mode '%s'",
+                     wvol_render_method_name(m), wvol_render_mode_name(rp->mode));
+        return -1;
+    }
+    return 0;
+}
+
+/* render(source, spacing, origin, opts) -> (image (h, w, 4) float32 over the image's pixels,
+ * stats). source: a StoreHandle, or an array (a dense volume placed by spacing/origin, which
+ * a store ignores). opts: camera, width, height, mode, method, tf, tf_units, step, termination,
+ * skip_tolerance, ambient, shading, gauss_nodes, spline_j, brick, threads, colors. */
+static PyObject *py_render(PyObject *self, PyObject *args)
+{
+    PyObject *src_obj, *sp, *org, *opts;
+    PyArrayObject *holder = NULL, *colors = NULL;
+    const char *camspec;
+    int width = 256, height = 256, J = 0, is_store;
     wvol_volume v;
+    wvol_render_source src;
     wvol_geometry g;
     wvol_camera cam;
     wvol_tf tf;
@@ -238,67 +231,64 @@ static PyObject *py_render_volume(PyObject *self, PyObject *args)
     wvol_status s;
     double vmin, vmax;
     (void)self;
-    if (!PyArg_ParseTuple(args, "OOOO", &arr_obj, &sp, &org, &opts)) return NULL;
-    if (wvolpy_as_placed_volume(arr_obj, sp, org, &v, &holder, 1) < 0) return NULL;
-    if (wvol_volume_set_geometry(&v, v.spacing, v.origin, &err) != WVOL_OK) {
-        wvolpy_raise(&err);
-        goto fail;
+    if (!PyArg_ParseTuple(args, "OOOO!", &src_obj, &sp, &org, &PyDict_Type, &opts)) return NULL;
+    if (parse_params(opts, &rp, &J) < 0) return NULL;
+    is_store = WVOLPY_IS_STORE(src_obj);
+    if (check_method(&rp, is_store) < 0) return NULL;
+    if (is_store) {
+        wvolpy_store *h = (wvolpy_store *)src_obj;
+        const wvol_store *store = wvolpy_store_at(h, J);
+        if (!store) return NULL;
+        src = wvol_render_source_store(store);
+        wvol_geometry_of_coeffs(&g, h->c.coeffs);
+        vmin = h->c.value_min;
+        vmax = h->c.value_max;
+    } else {
+        if (wvolpy_as_placed_volume(src_obj, sp, org, &v, &holder, 1) < 0) return NULL;
+        if (wvol_volume_set_geometry(&v, v.spacing, v.origin, &err) != WVOL_OK) {
+            wvolpy_raise(&err);
+            goto done;
+        }
+        src = wvol_render_source_volume(&v);
+        wvol_volume_range(&v, &vmin, &vmax, NULL);
+        wvol_geometry_of_volume(&g, &v);
     }
-    wvol_volume_range(&v, &vmin, &vmax, NULL);
-    wvol_geometry_of_volume(&g, &v);
-    if (wvolpy_render_setup(opts, &g, vmin, vmax, &cam, &tf, &rp, &colors) < 0) goto fail;
+    if (opt_int(opts, "width", &width) < 0 || opt_int(opts, "height", &height) < 0) goto done;
+    if (!(camspec = opt_str(opts, "camera", "+z"))) goto done;
+    if (wvol_camera_parse(&cam, camspec, &g, width, height, &err) != WVOL_OK) {
+        wvolpy_raise(&err);
+        goto done;
+    }
+    memset(&tf, 0, sizeof tf);
+    if (rp.mode != WVOL_RENDER_MODE_XRAY && parse_tf(opts, &tf, vmin, vmax) < 0) goto done;
+    if (parse_colors(opts, &g, &rp, &colors) < 0) goto done;
     memset(&st, 0, sizeof st);
     Py_BEGIN_ALLOW_THREADS
     s = wvol_image_create(&img, cam.width, cam.height, &err);
-    if (s == WVOL_OK) s = wvol_render_reference(img, &v, &cam, &tf, &rp, &st, &err);
+    if (s == WVOL_OK) s = wvol_render(img, &src, &cam, &tf, &rp, &st, &err);
     Py_END_ALLOW_THREADS
-    Py_DECREF(holder);
-    return wvolpy_render_finish(img, s, &st, &err, colors);
-fail:
-    Py_DECREF(holder);
+    Py_XDECREF(holder);
+    Py_XDECREF(colors);
+    if (s != WVOL_OK) {
+        wvol_image_destroy(img);
+        return wvolpy_raise(&err);
+    }
+    {
+        PyObject *a = image_take(img), *d;
+        if (!a) return NULL;
+        if (!(d = stats_dict(&st))) {
+            Py_DECREF(a);
+            return NULL;
+        }
+        return Py_BuildValue("NN", a, d);
+    }
+done:
+    Py_XDECREF(holder);
+    Py_XDECREF(colors);
     return NULL;
 }
 
-/* render_fhat(coeffs, wavelet, levels, shape, spacing, origin, value_range, spline_j, opts) -> (image, stats) */
-static PyObject *py_render_fhat(PyObject *self, PyObject *args)
-{
-    PyObject *arr_obj, *shape, *sp, *org, *opts;
-    const char *name;
-    int levels, J;
-    double vmin, vmax;
-    PyArrayObject *holder, *colors;
-    wvol_coeffs c;
-    wvol_geometry g;
-    wvol_camera cam;
-    wvol_tf tf;
-    wvol_render_params rp;
-    wvol_render_stats st;
-    wvol_image *img = NULL;
-    wvol_basis *b = NULL;
-    wvol_error err;
-    wvol_status s;
-    (void)self;
-    if (!PyArg_ParseTuple(args, "OsiOOO(dd)iO", &arr_obj, &name, &levels, &shape, &sp, &org, &vmin, &vmax, &J, &opts))
-        return NULL;
-    if (wvolpy_as_coeffs(arr_obj, name, levels, shape, sp, org, &c, &holder) < 0) return NULL;
-    wvol_geometry_of_coeffs(&g, &c);
-    if (wvolpy_render_setup(opts, &g, vmin, vmax, &cam, &tf, &rp, &colors) < 0) {
-        Py_DECREF(holder);
-        return NULL;
-    }
-    memset(&st, 0, sizeof st);
-    Py_BEGIN_ALLOW_THREADS
-    s = wvol_basis_create(&b, c.filter, J, &err);
-    if (s == WVOL_OK) s = wvol_image_create(&img, cam.width, cam.height, &err);
-    if (s == WVOL_OK) s = wvol_render_reference_fhat(img, &c, b, &cam, &tf, &rp, &st, &err);
-    Py_END_ALLOW_THREADS
-    wvol_basis_destroy(b);
-    Py_DECREF(holder);
-    return wvolpy_render_finish(img, s, &st, &err, colors);
-}
-
 PyMethodDef wvolpy_render_methods[] = {
-    {"render_volume", py_render_volume, METH_VARARGS, "render_volume(array, spacing, origin, opts) -> (image, stats)"},
-    {"render_fhat", py_render_fhat, METH_VARARGS,
-     "render_fhat(coeffs, wavelet, levels, shape, spacing, origin, value_range, spline_j, opts) -> (image, stats)"},
+    {"render", py_render, METH_VARARGS,
+     "render(source, spacing, origin, opts) -> (image, stats); source: a StoreHandle or an array"},
     {NULL, NULL, 0, NULL}};

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 #include "pyutil.h"
 
 #include <stdlib.h>
@@ -34,6 +35,94 @@ PyObject *wvolpy_array_take_type(void *data, int nd, const npy_intp *dims, int t
     return a;
 }
 
+/* ---- result buffers ---- */
+
+#define BUFFER_BIG ((size_t)4 << 20)   /* from here on recycled */
+#define BUFFER_ROUND ((size_t)1 << 20) /* big capacities in MiB: near sizes share buffers */
+#define BUFFER_CACHE_BYTES ((size_t)512 << 20)
+#define BUFFER_CAPSULE "wvol.result_buffer"
+
+static wvolpy_buffer buffer_cache[2]; /* freed big buffers, oldest first; guarded by the GIL */
+
+int wvolpy_buffer_alloc(wvolpy_buffer *b, size_t count)
+{
+    size_t bytes = count * sizeof(float);
+    b->data = NULL;
+    b->bytes = 0;
+    if (count > (SIZE_MAX - BUFFER_ROUND) / sizeof(float)) {
+        PyErr_NoMemory();
+        return -1;
+    }
+    if (bytes >= BUFFER_BIG) {
+        bytes = (bytes + BUFFER_ROUND - 1) / BUFFER_ROUND * BUFFER_ROUND;
+        for (int i = 0; i < 2; i++)
+            if (buffer_cache[i].data && buffer_cache[i].bytes == bytes) {
+                *b = buffer_cache[i];
+                if (i == 0) buffer_cache[0] = buffer_cache[1]; /* slot 1 is taken only when 0 is */
+                buffer_cache[1].data = NULL;
+                buffer_cache[1].bytes = 0;
+                return 0;
+            }
+    }
+    b->data = malloc(bytes ? bytes : 1);
+    if (!b->data) {
+        PyErr_NoMemory();
+        return -1;
+    }
+    b->bytes = bytes;
+    return 0;
+}
+
+void wvolpy_buffer_free(wvolpy_buffer *b)
+{
+    wvolpy_buffer keep = *b;
+    b->data = NULL;
+    b->bytes = 0;
+    if (!keep.data) return;
+    if (keep.bytes >= BUFFER_BIG && keep.bytes <= BUFFER_CACHE_BYTES / 2) {
+        /* newest last: the oldest goes when both slots are taken */
+        if (buffer_cache[0].data && buffer_cache[1].data) {
+            free(buffer_cache[0].data);
+            buffer_cache[0] = buffer_cache[1];
+            buffer_cache[1].data = NULL;
+        }
+        buffer_cache[buffer_cache[0].data ? 1 : 0] = keep;
+        return;
+    }
+    free(keep.data);
+}
+
+static void buffer_capsule_free(PyObject *cap)
+{
+    wvolpy_buffer b;
+    b.data = PyCapsule_GetPointer(cap, BUFFER_CAPSULE);
+    b.bytes = (size_t)(uintptr_t)PyCapsule_GetContext(cap);
+    wvolpy_buffer_free(&b);
+}
+
+PyObject *wvolpy_buffer_array(wvolpy_buffer *b, int nd, const npy_intp *dims)
+{
+    PyObject *a, *cap = PyCapsule_New(b->data, BUFFER_CAPSULE, buffer_capsule_free);
+    float *data = b->data;
+    if (!cap) {
+        wvolpy_buffer_free(b);
+        return NULL;
+    }
+    (void)PyCapsule_SetContext(cap, (void *)(uintptr_t)b->bytes); /* cannot fail on a new capsule */
+    b->data = NULL;
+    b->bytes = 0;
+    a = PyArray_SimpleNewFromData(nd, (npy_intp *)dims, NPY_FLOAT32, data);
+    if (!a) {
+        Py_DECREF(cap);
+        return NULL;
+    }
+    if (PyArray_SetBaseObject((PyArrayObject *)a, cap) < 0) { /* steals cap, which frees the buffer */
+        Py_DECREF(a);
+        return NULL;
+    }
+    return a;
+}
+
 PyObject *wvolpy_volume_take(wvol_volume *v, int squeeze2d)
 {
     PyObject *a;
@@ -54,7 +143,7 @@ PyObject *wvolpy_volume_take(wvol_volume *v, int squeeze2d)
 }
 
 int wvolpy_as_coeffs(PyObject *arr, const char *wavelet, int levels, PyObject *shape, PyObject *spacing,
-                     PyObject *origin, wvol_coeffs *c, PyArrayObject **holder)
+                     PyObject *origin, wvol_coeffs *c, PyArrayObject **holder, int check_finite)
 {
     wvol_volume v;
     wvol_error err;
@@ -77,7 +166,7 @@ int wvolpy_as_coeffs(PyObject *arr, const char *wavelet, int levels, PyObject *s
     c->spacing[0] = c->spacing[1] = c->spacing[2] = 1.0;
     if (wvolpy_triple(spacing, c->spacing, "spacing") < 0 || wvolpy_triple(origin, c->origin, "origin") < 0)
         return -1;
-    if (wvolpy_as_volume(arr, &v, holder, 1) < 0) return -1;
+    if (wvolpy_as_volume(arr, &v, holder, check_finite) < 0) return -1;
     c->levels = levels;
     c->nx = (size_t)sx;
     c->ny = (size_t)sy;

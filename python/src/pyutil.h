@@ -1,4 +1,5 @@
-/* Shared helpers of the extension: errors as exceptions, arrays as volumes. */
+/* SPDX-License-Identifier: MIT */
+/* Shared helpers of the extension: errors as exceptions, arrays as volumes, result buffers. */
 #ifndef WVOL_PY_UTIL_H
 #define WVOL_PY_UTIL_H
 
@@ -7,6 +8,8 @@
 #define NO_IMPORT_ARRAY
 #define PY_ARRAY_UNIQUE_SYMBOL wvol_ARRAY_API
 #include <numpy/arrayobject.h>
+
+#include <stdint.h>
 
 #include "wvol/wvol.h"
 
@@ -52,7 +55,24 @@ PyObject *wvolpy_volume_take(wvol_volume *v, int squeeze2d);
  * shape is the padded size of `shape` for `levels` and refuses NaN/Inf. *holder owns
  * the memory (DECREF after use). Returns 0, or -1 with an exception set. */
 int wvolpy_as_coeffs(PyObject *arr, const char *wavelet, int levels, PyObject *shape, PyObject *spacing,
-                     PyObject *origin, wvol_coeffs *c, PyArrayObject **holder);
+                     PyObject *origin, wvol_coeffs *c, PyArrayObject **holder, int check_finite);
+
+/* Result buffers: the transforms' outputs, handed to NumPy without a copy. A fresh large
+ * buffer costs a page fault per 4 KiB page when first written, about as much as a copy of it
+ * (more than a third of a 256^3 transform's time): so the last two freed buffers of 4 MiB and
+ * more (512 MiB in all at most) are kept for the next request of the same size, as NumPy's
+ * allocator keeps small blocks; a loop of transforms then reuses its memory. Call these with
+ * the GIL held (it guards the cache). */
+typedef struct wvolpy_buffer {
+    float *data;
+    size_t bytes;   /* capacity */
+} wvolpy_buffer;
+/* count floats; 0, or -1 with MemoryError. */
+int wvolpy_buffer_alloc(wvolpy_buffer *b, size_t count);
+/* An nd-dim float32 array over b, which it owns from now on (b is emptied; on failure b is
+ * released and NULL returned). */
+PyObject *wvolpy_buffer_array(wvolpy_buffer *b, int nd, const npy_intp *dims);
+void wvolpy_buffer_free(wvolpy_buffer *b); /* an empty b is fine */
 
 /* Most OpenMP threads a call may ask for (as the command line): libgomp aborts the
  * process when it cannot create the threads asked for, so absurd counts are refused. */

@@ -138,33 +138,46 @@ def _box_bounds(box, shape):
 class Store:
     """Compressed wavelet representation of a volume: the kept coefficients of a
     ``levels``-level transform (the others are zero), made by :func:`compress` or read by
-    :func:`open`.
+    :func:`open`. It holds the library's own objects (a ``_wvol.StoreHandle``: the
+    coefficients, the kept set and the C store, built once by the compression pipeline), so
+    renders, meshes, reconstructions and files read them in place.
 
-    Attributes: ``coeffs`` (padded Mallat array, (z, y, x), dropped coefficients zero),
-    ``wavelet``, ``levels``, ``shape`` (original (z, y, x)), ``spacing`` / ``origin``
-    ((x, y, z) world units), ``kept`` and ``total`` (coefficient counts, the low-pass cube
-    included in ``kept``), ``value_range`` (min, max of the original samples), ``report``
-    (the selection's numbers, a dict).
+    Attributes: ``coeffs`` (padded Mallat array, (z, y, x), dropped coefficients zero; a
+    read-only view of the library's array), ``wavelet``, ``levels``, ``shape`` (original
+    (z, y, x)), ``spacing`` / ``origin`` ((x, y, z) world units), ``kept`` and ``total``
+    (coefficient counts, the low-pass cube included in ``kept``), ``value_range`` (min, max of
+    the original samples), ``report`` (the selection's numbers, a dict).
     """
 
-    def __init__(self, coeffs, wavelet, levels, shape, spacing, origin, report, value_range,
-                 original=None, file_info=None):
-        self.coeffs = coeffs
-        self.wavelet = wavelet
-        self.levels = int(levels)
-        self.shape = tuple(int(v) for v in shape)
-        self.spacing = tuple(spacing)
-        self.origin = tuple(origin)
+    def __init__(self, handle, report, original=None, file_info=None):
+        self._handle = handle
+        meta = handle.meta
+        self.wavelet = meta["wavelet"]
+        self.levels = int(meta["levels"])
+        self.shape = tuple(int(v) for v in meta["shape"])
+        self.spacing = tuple(meta["spacing"])
+        self.origin = tuple(meta["origin"])
+        self.value_range = tuple(meta["value_range"])
         self.report = report
-        self.value_range = tuple(value_range)
         self.file_info = file_info
         self._original = original
-        self._cstore = None
 
     def __repr__(self):
         e = self.predicted_error
         return (f"<wvol.Store {self.wavelet} levels={self.levels} shape={self.shape} kept={self.kept}/"
                 f"{self.total} predicted PSNR {e.psnr:.2f} dB>")
+
+    @property
+    def coeffs(self):
+        """The coefficients: padded Mallat array (z, y, x), dropped ones zero. A read-only view
+        of the library's array (no copy); assign a new array to replace them."""
+        return self._handle.coeffs
+
+    @coeffs.setter
+    def coeffs(self, array):
+        # a new handle over a copy (checked: the padded grid's size, finite values); the
+        # store, reconstructions and files then follow the new coefficients
+        self._handle = self._handle.replace_coeffs(array)
 
     @property
     def kept(self):
@@ -211,20 +224,11 @@ class Store:
         return ErrorEstimate(l2, l2 / math.sqrt(self.voxels), _psnr(l2, self.voxels, peak),
                              float(np.abs(diff).max()))
 
-    def _c(self, spline_j=None):
-        """The C store over the kept coefficients (built once per spline resolution)."""
-        j = 0 if spline_j is None else int(spline_j)
-        if self._cstore is None or self._cstore[0] != j:
-            cap = _wvol.store_build(self.coeffs, self.wavelet, self.levels, self.shape, spacing=self.spacing,
-                                    origin=self.origin, spline_j=j)
-            self._cstore = (j, cap)
-        return self._cstore[1]
-
     def info(self):
         """Numbers of the C store (sparse octree of the kept coefficients): ``kept``,
         ``nodes``, ``bytes`` (memory it holds), ``bytes_per_coeff``, ``basis_bytes``
         (spline tables), ``spline_j``..."""
-        return _wvol.store_info(self._c())
+        return self._handle.info()
 
     @property
     def bytes_per_coeff(self):
@@ -235,7 +239,7 @@ class Store:
         """The continuous model f^ (sum of the kept coefficients' spline basis functions) at
         world positions ``points`` ((n, 3), (x, y, z) order); returns ``(values (n,),
         gradients (n, 3))`` in world units."""
-        return _wvol.store_eval(self._c(), np.atleast_2d(np.asarray(points, dtype=np.float64)))
+        return self._handle.evaluate(np.atleast_2d(np.asarray(points, dtype=np.float64)))
 
     def reconstruct(self, level=None, box=None):
         """Reconstructs a :class:`Volume` from the kept coefficients.
@@ -249,27 +253,37 @@ class Store:
         """
         if box is not None and level not in (None, 0):
             raise ValueError("reconstruct: give level or box, not both")
-        args = (self.coeffs, self.wavelet, self.levels, self.shape)
         if box is not None:
             lo, hi = _box_bounds(box, self.shape)
-            data, origin = _wvol.idwt3_brick(*args, lo, hi, spacing=self.spacing, origin=self.origin)
+            data, origin = self._handle.reconstruct_box(lo, hi)
             return Volume(data, self.spacing, origin)
         if level in (None, 0):
-            return Volume(_wvol.idwt3(*args), self.spacing, self.origin)
+            return Volume(self._handle.reconstruct()[0], self.spacing, self.origin)
         if not isinstance(level, (int, np.integer)):
             raise TypeError(f"level must be an integer, got {type(level).__name__}")
-        data, spacing, origin = _wvol.idwt3_level(*args, int(level), spacing=self.spacing, origin=self.origin)
+        data, spacing, origin = self._handle.reconstruct(int(level))
         return Volume(data, spacing, origin)
+
+    def save(self, path, quant_share=None, step=None):
+        """Writes the kept coefficients to a .wvc file (quantised with a dead-zone step and
+        entropy-coded per sub-band; docs/wvc-format.md) with the library's quantiser rule
+        (wvol_compress_encode, as ``wvol compress``): the step makes quantisation add
+        ``quant_share`` (in (0, 1]; None: the library's 0.02) of the squared error the
+        selection dropped, never less than what 120 dB PSNR allows, unless ``step`` is given.
+        Atomic: no partial file. Returns the encoder's report (step, sse_quant, nonzero, bytes)."""
+        return self._handle.save(os.fspath(path), quant_share=quant_share, step=step)
 
 
 _MODES = ("keep", "keep_count", "energy", "psnr", "threshold")
 
 
-def compress(vol, wavelet="db2", levels=3, *, keep=None, keep_count=None, energy=None, psnr=None,
+def compress(vol, wavelet="db2", levels=None, *, keep=None, keep_count=None, energy=None, psnr=None,
              threshold=None, roi=None, roi_floor=0.1, drop_levels=0, spacing=None, origin=None):
     """Transforms a volume and keeps its most important coefficients; returns a :class:`Store`.
+    One call of the library's compression pipeline (wvol_compress: transform, selection, store).
 
     ``vol``: a (z, y, x) array or a :class:`Volume` (float32 C-order arrays are read in place).
+    ``levels``: None for the library's default (3, fewer when the volume is too small for 3).
     At most one criterion (none: keep every coefficient):
 
     - ``keep=0.05``: the largest 5% of all coefficients;
@@ -301,14 +315,16 @@ def compress(vol, wavelet="db2", levels=3, *, keep=None, keep_count=None, energy
     arr = _data(vol)
     if roi is not None and not isinstance(roi, (list, tuple)):
         raise TypeError("roi must be a list of (center, radii[, power]) tuples")
-    coeffs, report = _wvol.compress(arr, wavelet=wavelet, levels=levels, mode=mode, value=value,
-                                    drop_levels=drop_levels, roi=roi, roi_floor=roi_floor,
-                                    spacing=spacing, origin=origin)
+    # the data range of what the caller gave: the float32 samples' (the library's) unless
+    # another dtype was converted
     a = np.asarray(arr)
-    value_range = (float(a.min()), float(a.max()))
-    name = wavelet.lower() if isinstance(wavelet, str) else wavelet
-    shape = a.shape if a.ndim == 3 else (1,) + a.shape
-    return Store(coeffs, name, levels, shape, spacing, origin, report, value_range, original=arr)
+    value_range = None
+    if a.dtype != np.float32 and a.dtype.kind in "iuf" and a.size:
+        value_range = (float(a.min()), float(a.max()))
+    handle, report = _wvol.compress(arr, wavelet=wavelet, levels=levels, mode=mode, value=value,
+                                    drop_levels=drop_levels, roi=roi, roi_floor=roi_floor, spacing=spacing,
+                                    origin=origin, value_range=value_range)
+    return Store(handle, report, original=arr)
 
 
 
@@ -364,12 +380,13 @@ def features(vol, wavelet="db2", levels=3, *, smooth=1, include_lowpass=True, pc
 # ---- rendering ------------------------------------------------------------------------------
 
 def render(source, camera="+z", size=(256, 256), *, mode="absorption", tf="gaussian", tf_units="world",
-           method="auto", step=0.5, shading=False, ambient=0.3, gauss_nodes=5, spline_j=None, termination=1e-6,
-           threads=0, colors=None, skip_tolerance=0.0, return_stats=False):
+           method="auto", step=None, shading=False, ambient=None, gauss_nodes=None, spline_j=None, brick=None,
+           termination=None, threads=0, colors=None, skip_tolerance=None, return_stats=False):
     """Renders a volume (array or :class:`Volume`) or a :class:`Store`; returns the image as
     an (height, width, 4) float32 array of linear, premultiplied RGBA, row 0 at the top
     (X-ray: R = G = B = the integral of f along the ray in value x world length, A = 1 where
-    the ray meets the volume).
+    the ray meets the volume). One call of the library's rendering entry point (wvol_render),
+    as ``wvol render`` makes: the same method for "auto", the same defaults, the same image.
 
     ``camera``: the library's camera text (docs/render.md): "+z", "-x", "ortho dir=1,1,0.5",
     "persp fov=40 from=-y zoom=1.5", "persp eye=X,Y,Z center=X,Y,Z up=0,0,1 fov=35", ...
@@ -379,67 +396,46 @@ def render(source, camera="+z", size=(256, 256), *, mode="absorption", tf="gauss
     "grey" over the data range, "ct-bone", "ct-soft"), a transfer-function file, or a list
     of (value, r, g, b, opacity) points (opacity = extinction per world unit, or per box
     diagonal with ``tf_units="diagonal"``).
-    ``method``: for a volume "reference" (ray marching with trilinear samples, ``step``
-    in voxels); for a store "spline" (the spline-projected integral from the kept
-    coefficients, exact for the spline model; ``gauss_nodes`` per piece), "axis" (X-ray
-    along an axis from 2D coefficients), "splat" (X-ray for any orthographic view by
-    footprint splatting: the spline model up to the footprint tables' interpolation error,
-    about 1e-3 relative; docs/render.md), "bricks" (the reference's ray marching on bricks
-    reconstructed on demand, never the whole volume: the fast one), "reference-fhat" (ray
-    marching over the spline model) or "reference" (on the reconstructed volume). "auto": "reference" for volumes;
-    for stores "axis" when it applies (X-ray along an axis), else "spline".
+    ``method``: "auto" (the library's choice: "reference" for a volume; for a store "axis"
+    where it applies (X-ray along an axis), else "bricks"), "reference" (ray marching with
+    trilinear samples, ``step`` in voxels; a store is reconstructed first), "bricks" (the
+    reference's ray marching on bricks reconstructed on demand from a store, never the whole
+    volume, ``brick`` voxels a side), "spline" (the spline-projected integral from a store's
+    kept coefficients, exact for the spline model and slow; ``gauss_nodes`` per piece),
+    "axis" (X-ray along an axis from 2D coefficients), "splat" (X-ray for any orthographic
+    view by footprint splatting: the spline model up to the footprint tables' interpolation
+    error, about 1e-3 relative; docs/render.md) or "reference-fhat" (ray marching over the
+    spline model). ``spline_j``: 2^J spline knots per unit for a store's basis functions.
     ``colors``: a colour volume, (z, y, x, 3) linear RGB per voxel on the volume's grid (e.g.
     :func:`segment`'s ``colors``), replacing the transfer function's colour (opacity still
     comes from ``tf``; nearest voxel, so classes keep crisp edges). Absorption modes and the
-    sampling methods only ("reference", "reference-fhat", "bricks"; "auto" picks
-    "reference-fhat" for a store); "spline", "axis" and "splat" refuse it.
+    sampling methods only ("reference", "reference-fhat", "bricks"); "spline", "axis" and
+    "splat" refuse it.
     ``termination``: stop a ray once its transmittance falls below this (0: never).
     ``skip_tolerance``: "reference" and "bricks": the optical depth (X-ray: integral) each ray
     may skip in nearly empty bricks (e.g. a compressed volume's ringing haze); every pixel then
     changes by at most that much in alpha (a colour channel: times the largest colour), and
-    ``stats["skip_bound"]`` is the largest depth actually skipped. 0 (default): skip only
-    what adds nothing.
+    ``stats["skip_bound"]`` is the largest depth actually skipped. 0: skip only what adds
+    nothing.
     ``threads``: OpenMP threads (0: the default).
-    ``return_stats=True`` returns ``(image, stats)`` (rays, samples, seconds...).
+    Options left None take the library's defaults (docs/render.md: step 0.5, brick 8 for the
+    reference's empty-space skipping and 32 for "bricks", gauss_nodes 5, spline_j the store's
+    (4), termination 1e-6, ambient 0.3, skip_tolerance 0).
+    ``return_stats=True`` returns ``(image, stats)``: "method" (the one that ran), rays,
+    samples, seconds...
     """
     w, h = (int(v) for v in size)
-    opts = dict(camera=camera, width=w, height=h, mode=mode, tf=tf, tf_units=tf_units, step=step,
-                shading=int(bool(shading)), ambient=ambient, gauss_nodes=gauss_nodes, termination=termination,
-                threads=threads, colors=colors, skip_tolerance=skip_tolerance)
+    opts = dict(camera=camera, width=w, height=h, mode=mode, method=method, tf=tf, tf_units=tf_units, step=step,
+                shading=int(bool(shading)), ambient=ambient, gauss_nodes=gauss_nodes, spline_j=spline_j,
+                brick=brick, termination=termination, threads=threads, colors=colors,
+                skip_tolerance=skip_tolerance)
     if isinstance(tf, os.PathLike):
         opts["tf"] = os.fspath(tf)
     if isinstance(source, Store):
-        if method == "auto" and colors is not None:
-            method = "reference-fhat"          # the spline paths have no voxels to colour
-        if method == "auto":
-            method = "spline"
-            if mode == "xray":
-                try:
-                    img, st = _wvol.render_axis(source._c(4 if spline_j is None else spline_j), source.value_range, opts)
-                    return (img, st) if return_stats else img
-                except NotImplementedError:
-                    pass
-        if method in ("axis", "splat") and mode != "xray":
-            raise ValueError(f"method '{method}' renders X-ray only (mode='xray'), not mode '{mode}'")
-        if method in ("spline", "axis", "splat"):
-            fn = {"spline": _wvol.render_spline, "axis": _wvol.render_axis, "splat": _wvol.render_splat}[method]
-            img, st = fn(source._c(4 if spline_j is None else spline_j), source.value_range, opts)
-        elif method == "bricks":
-            img, st = _wvol.render_bricks(source._c(spline_j), source.value_range, opts)
-        elif method == "reference-fhat":
-            img, st = _wvol.render_fhat(source.coeffs, source.wavelet, source.levels, source.shape, source.spacing,
-                                        source.origin, source.value_range, 4 if spline_j is None else int(spline_j),
-                                        opts)
-        elif method == "reference":
-            vol = source.reconstruct()
-            img, st = _wvol.render_volume(vol.data, vol.spacing, vol.origin, opts)
-        else:
-            raise ValueError(f"method '{method}': expected auto, spline, axis, splat, bricks, reference-fhat or reference")
+        img, st = _wvol.render(source._handle, None, None, opts)
     else:
-        if method not in ("auto", "reference"):
-            raise ValueError(f"method '{method}' needs a Store (wvol.compress); volumes render with 'reference'")
         spacing, origin = _geometry(source, None, None)
-        img, st = _wvol.render_volume(_data(source), spacing, origin, opts)
+        img, st = _wvol.render(_data(source), spacing, origin, opts)
     return (img, st) if return_stats else img
 
 
@@ -458,15 +454,11 @@ def isosurface(source, iso, *, normals="gradient", brick=None, threads=0, return
     (``return_stats=True`` also returns the stats, whose "message" says why).
     """
     if isinstance(source, Store):
-        v, f, n, st = _wvol.isosurface_coeffs(source.coeffs, source.wavelet, source.levels, source.shape, iso,
-                                              spacing=source.spacing, origin=source.origin, normals=normals,
-                                              threads=threads, brick=0 if brick is None else brick)
+        v, f, n, st = _wvol.isosurface(source._handle, iso, normals=normals, threads=threads, brick=brick)
     else:
-        if brick is not None:
-            raise ValueError("brick applies to a Store (coefficient path), not to a dense volume")
         spacing, origin = _geometry(source, None, None)
-        v, f, n, st = _wvol.isosurface_volume(_data(source), iso, spacing=spacing, origin=origin, normals=normals,
-                                              threads=threads)
+        v, f, n, st = _wvol.isosurface(_data(source), iso, spacing=spacing, origin=origin, normals=normals,
+                                       threads=threads, brick=brick)
     return (v, f, n, st) if return_stats else (v, f, n)
 
 
@@ -481,40 +473,17 @@ def save_mesh(path, vertices, faces, normals=None):
 
 # ---- .wvc files -----------------------------------------------------------------------------
 
-def _store_save(self, path, quant_share=0.02, step=None):
-    """Writes the kept coefficients to a .wvc file (quantised with a dead-zone step and
-    entropy-coded per sub-band; docs/wvc-format.md). The step is chosen so that the
-    quantisation adds ``quant_share`` of the squared error already dropped by the selection
-    (never less than what 120 dB PSNR allows), unless ``step`` is given. Atomic: no partial
-    file. Returns the encoder's report (step, sse_quant, nonzero, bytes)."""
-    n = self.voxels
-    dropped = float(self.report["energy_dropped"])
-    if step is None:
-        if not quant_share > 0:
-            raise ValueError("quant_share must be > 0")
-        floor = n * (self.peak * 10 ** (-120 / 20)) ** 2 if self.peak > 0 else 0.0
-        target = max(quant_share * dropped, floor, 1e-12)
-        step = 0.0
-    else:
-        target = 0.0
-    return _wvol.wvc_save(self.coeffs, self.wavelet, self.levels, self.shape, os.fspath(path), self.spacing,
-                          self.origin, self.value_range, dropped, target_sse=target, step=float(step))
-
-
-Store.save = _store_save
-
-
 def open(path, level=None):  # noqa: A001  (wvol.open mirrors the built-in for .wvc files)
-    """Reads a .wvc file into a :class:`Store`. ``level=m`` decodes only the levels coarser
-    than m (the finer ones stay zero): ``store.reconstruct(level=m)`` is then the coarser
-    volume at a fraction of the decoding cost. The store's ``predicted_error`` is the
-    header's record: selection + quantisation error of the whole file."""
-    coeffs, info = _wvol.wvc_open(os.fspath(path), stop_level=0 if level is None else int(level))
-    report = {"kept": int(info["nonzero"]), "total": int(coeffs.size), "energy_dropped": float(info["sse"]),
-              "energy_total": float(info["energy"]), "file_bytes": int(info["file_bytes"]),
-              "step": float(info["step"])}
-    return Store(coeffs, info["wavelet"], info["levels"], info["shape"], info["spacing"], info["origin"], report,
-                 info["value_range"], file_info=info)
+    """Reads a .wvc file into a :class:`Store` (through the library's pipeline, as ``wvol
+    render FILE.wvc`` does: every nonzero coefficient kept). ``level=m`` decodes only the
+    levels coarser than m (the finer ones stay zero): ``store.reconstruct(level=m)`` is then
+    the coarser volume at a fraction of the decoding cost. The store's ``predicted_error`` is
+    the header's record: selection + quantisation error of the whole file."""
+    handle, info = _wvol.store_open(os.fspath(path), stop_level=0 if level is None else int(level))
+    report = {"kept": int(info["nonzero"]), "total": int(np.prod(info["padded"])),
+              "energy_dropped": float(info["sse"]), "energy_total": float(info["energy"]),
+              "file_bytes": int(info["file_bytes"]), "step": float(info["step"])}
+    return Store(handle, report, file_info=info)
 
 
 def wvc_info(path):

@@ -43,7 +43,7 @@ def test_store_methods_agree(gauss):
     ref = wvol.render(s, size=(16, 16), mode="xray", method="reference")
     # f^ vs trilinear samples of the reconstruction: same integral to a few percent
     np.testing.assert_allclose(spline[..., 0], ref[..., 0], atol=0.05 * ref.max())
-    img, st = wvol.render(s, size=(16, 16), camera="persp dir=1,1,0.5", return_stats=True)
+    img, st = wvol.render(s, size=(16, 16), camera="persp dir=1,1,0.5", method="spline", return_stats=True)
     assert st["rays"] == 256 and img.shape == (16, 16, 4)
 
 
@@ -95,7 +95,7 @@ def test_store_reference_methods_and_options(gauss, tmp_path):
     spline = wvol.render(s, size=(12, 12), mode="xray", method="spline")
     # ray marching over f^ (step 0.5 voxel) converges to the exact spline integral: 1% of the peak
     np.testing.assert_allclose(fhat[..., 0], spline[..., 0], atol=0.01 * spline.max())
-    # auto on a store in X-ray along an axis is the axis fast path; off-axis it is the spline path
+    # auto on a store in X-ray along an axis is the axis fast path (off-axis: bricks)
     np.testing.assert_allclose(wvol.render(s, size=(12, 12), mode="xray"), spline, atol=1e-5 * spline.max())
     # a transfer-function file, the per-diagonal units and shading (Lambert from the gradient)
     (tmp_path / "tf.txt").write_text("units diagonal\n0 0 1 0 0\n1 0 1 0 8\n")
@@ -149,7 +149,7 @@ def test_uniform_colour_volume_gives_colour_times_alpha(gauss):
     # exactly up to float32 accumulation (1e-5 of A)
     assert np.array_equal(img[..., 3], plain[..., 3]) and img[..., 3].max() > 0.3
     np.testing.assert_allclose(img[..., :3], c * img[..., 3:], rtol=0, atol=1e-5)
-    # a store: auto picks reference-fhat (the spline paths have no voxels to colour)
+    # a store: auto picks bricks (the spline paths have no voxels to colour)
     s = wvol.compress(gauss, "db2", 2, keep=0.2)
     simg = wvol.render(s, size=(12, 12), colors=colors)
     np.testing.assert_allclose(simg[..., :3], c * simg[..., 3:], rtol=0, atol=1e-5)

@@ -49,7 +49,7 @@ def test_synth_compress_save_open_reconstruct_render_isosurface(tmp_path):
     assert abs(a.sum() - b.sum()) < 0.01 * b.sum()
     assert np.abs(a - b).mean() < 0.01 * b.max()
     # emission-absorption from the store (spline integrator; tiny image, it is the slow one)
-    colour = wvol.render(opened, camera="persp dir=1,1,0.5", size=(9, 9))
+    colour = wvol.render(opened, camera="persp dir=1,1,0.5", size=(9, 9), method="spline")
     assert np.isfinite(colour).all() and 0 <= colour[..., 3].min() and colour[..., 3].max() <= 1
     assert colour[4, 4, 3] > 0.5 and colour[0, 0, 3] < colour[4, 4, 3]
 
