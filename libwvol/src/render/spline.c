@@ -16,6 +16,7 @@
  * (ray splitting at TF control points). */
 #include "render_internal.h"
 #include "store/store_ray.h"
+#include "core/quadrature.h"
 
 #include <float.h>
 #include <math.h>
@@ -42,29 +43,6 @@ typedef struct ray_res {
     size_t pieces, functions, samples, skipped, clamped;
     int terminated;
 } ray_res;
-
-/* Gauss-Legendre nodes and weights on [0, 1] (Golub-Welsch by Newton on P_n). */
-static void gauss_legendre(int n, double *x, double *w)
-{
-    int i, it, k;
-    for (i = 0; i < n; i++) {
-        double z = cos(3.14159265358979323846 * (i + 0.75) / (n + 0.5)), pp = 1;
-        for (it = 0; it < 100; it++) {
-            double p0 = 1, p1 = 0, dz;
-            for (k = 1; k <= n; k++) {
-                double p2 = p1;
-                p1 = p0;
-                p0 = ((2.0 * k - 1) * z * p1 - (k - 1.0) * p2) / k;
-            }
-            pp = n * (z * p0 - p1) / (z * z - 1);
-            dz = p0 / pp;
-            z -= dz;
-            if (fabs(dz) < 1e-16) break;
-        }
-        x[i] = 0.5 * (1 - z);
-        w[i] = 1.0 / ((1 - z * z) * pp * pp);
-    }
-}
 
 /* Integral of the polynomial from 0 to u. */
 static double pint(const double *a, double u)
@@ -252,7 +230,7 @@ wvol_status wvol_render_spline_until(wvol_image *img, const wvol_store *s, const
     if (c.p.mode != WVOL_MODE_XRAY) wvol__tf_world(&c.tf, tf_in, &g);
     c.stop = stop;
     c.gl_n = c.p.spline.gauss_nodes;
-    gauss_legendre(c.gl_n, c.gl_x, c.gl_w);
+    wvol__gauss_legendre(c.gl_n, c.gl_x, c.gl_w);
     wvol_geometry_bounds(&g, lo, hi);
     wvol__cam_init(&k, cam);
     c.p.tile = wvol__tile_side(&c.p, 0);
