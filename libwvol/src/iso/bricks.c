@@ -25,19 +25,11 @@
 #include <omp.h>
 #endif
 
+#include "core/clock.h"
 #include "iso/iso_internal.h"
 #include "store/store_blocks.h"
 #include "wvol/wavelet.h"
 #include "wavelet/wavelet_internal.h"
-
-static double now_s(void)
-{
-#ifdef _OPENMP
-    return omp_get_wtime();
-#else
-    return 0.0;
-#endif
-}
 
 /* ---- bounds (wavelet/bounds.c) ------------------------------------------------------- */
 
@@ -182,7 +174,7 @@ static wvol_status extract_bricks(wvol_mesh **out, const wvol_coeffs *c, const w
     brick_out *res = NULL;
     wvol_mesh *m = NULL;
     wvol_status s = WVOL_OK;
-    double t0 = now_s(), t1, t2, gmin = INFINITY, gmax = -INFINITY;
+    double t0 = wvol__now(), t1, t2, gmin = INFINITY, gmax = -INFINITY;
     int nth, a;
 
     if (!p) {
@@ -259,7 +251,7 @@ static wvol_status extract_bricks(wvol_mesh **out, const wvol_coeffs *c, const w
             need[nneed++] = i;
         }
     }
-    t1 = now_s();
+    t1 = wvol__now();
     st->bricks_total = nbricks;
     st->bricks_meshed = nneed;
     st->bricks_skipped = nbricks - nneed;
@@ -287,7 +279,7 @@ static wvol_status extract_bricks(wvol_mesh **out, const wvol_coeffs *c, const w
         }
         wvol__brick_scratch_free(&scr);
     }
-    t2 = now_s();
+    t2 = wvol__now();
     st->seconds_reconstruct = t2 - t1;
     for (i = 0; i < nneed; i++)
         if (res[i].status != WVOL_OK) {
@@ -370,7 +362,7 @@ static wvol_status extract_bricks(wvol_mesh **out, const wvol_coeffs *c, const w
             goto done;
         }
     st->seconds[2] = t2 - t1;
-    st->seconds[3] = now_s() - t0;
+    st->seconds[3] = wvol__now() - t0;
     if (nt == 0) {
         st->empty = 1;
         st->data_min = gmin;

@@ -27,17 +27,9 @@
 #include <emmintrin.h>
 #endif
 
+#include "core/clock.h"
 #include "iso/iso_internal.h"
 #include "iso/mc_tables.h"
-
-static double now_s(void)
-{
-#ifdef _OPENMP
-    return omp_get_wtime();
-#else
-    return 0.0;
-#endif
-}
 
 static inline int popc(uint64_t x) { return __builtin_popcountll(x); }
 
@@ -379,7 +371,7 @@ wvol_status wvol__mc_run(wvol_mesh **out, const wvol__mc_job *jb, wvol_iso_stats
     uint64_t *bits = NULL, nv = 0, nt = 0, active = 0;
     wvol_status s = WVOL_OK;
     int nth = jb->threads > 0 ? jb->threads : 1;
-    double t0 = now_s(), t1, t2, t3;
+    double t0 = wvol__now(), t1, t2, t3;
     wvol_mesh *m = NULL;
 
     *out = NULL;
@@ -425,7 +417,7 @@ wvol_status wvol__mc_run(wvol_mesh **out, const wvol__mc_job *jb, wvol_iso_stats
             jb->data + jb->lo[0] + jb->adims[0] * ((jb->lo[1] + j) + jb->adims[1] * (jb->lo[2] + k));
         classify_row(bits + r * nw, row, c.nx, c.isof);
     }
-    t1 = now_s();
+    t1 = wvol__now();
 
     /* pass 2 */
 #ifdef _OPENMP
@@ -441,7 +433,7 @@ wvol_status wvol__mc_run(wvol_mesh **out, const wvol__mc_job *jb, wvol_iso_stats
     }
     c.vbase[rows] = nv;
     c.tbase[rows] = nt;
-    t2 = now_s();
+    t2 = wvol__now();
     if (nv > UINT32_MAX) {
         s = wvol_error_set(err, WVOL_ERR_DIMS,
                            "marching cubes: %llu vertices exceed 32-bit indices; mesh a smaller region",
@@ -471,7 +463,7 @@ wvol_status wvol__mc_run(wvol_mesh **out, const wvol__mc_job *jb, wvol_iso_stats
             if (j + 1 < c.ny && k + 1 < c.nz && c.cnt[5 * r + 3]) triangles_row(&c, r);
         }
     }
-    t3 = now_s();
+    t3 = wvol__now();
     if (c.bad) {
         s = wvol_error_set(err, WVOL_ERR_NONFINITE,
                            "marching cubes: non-finite sample next to the surface near voxel (%zu, %zu, %zu)",
