@@ -53,6 +53,9 @@ step("pkg-config" ${PKG_CONFIG_EXECUTABLE} --cflags --libs --static wvol)
 string(STRIP "${step_output}" flags)
 separate_arguments(flags UNIX_COMMAND "${flags}")
 step("compile with pkg-config" ${CMAKE_C_COMPILER} -std=c11 ${CMAKE_CURRENT_LIST_DIR}/main.c
-     -o ${WVOL_WORK_DIR}/wvol_consumer_pc ${flags})
+     -o ${WVOL_WORK_DIR}/wvol_consumer_pc ${flags} -lm)
+step("pkg-config libdir" ${PKG_CONFIG_EXECUTABLE} --variable=libdir wvol)
+string(STRIP "${step_output}" libdir)
+set(ENV{LD_LIBRARY_PATH} "${libdir}:$ENV{LD_LIBRARY_PATH}") # a shared libwvol, without an rpath
 step("run (pkg-config build)" ${WVOL_WORK_DIR}/wvol_consumer_pc)
 message(STATUS "${step_output}")

@@ -7,6 +7,7 @@
  * with what the sizes need before anything large is allocated, and samples are
  * converted chunk by chunk from bounded buffers. */
 #define _POSIX_C_SOURCE 200809L
+#include "core/status_internal.h"
 #include "wvol/io.h"
 
 #include <ctype.h>

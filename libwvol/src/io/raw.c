@@ -1,5 +1,6 @@
 /* Headerless raw volumes: dimensions and sample type come from the caller. */
 #define _POSIX_C_SOURCE 200809L
+#include "core/status_internal.h"
 #include "wvol/io.h"
 
 #include <errno.h>

@@ -1,5 +1,6 @@
 /* Load/save dispatch by extension (see wvol/io.h for the table). */
 #define _POSIX_C_SOURCE 200809L
+#include "core/status_internal.h"
 #include "wvol/io.h"
 #include "io/adapters.h"
 

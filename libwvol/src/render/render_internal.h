@@ -3,6 +3,7 @@
 #define WVOL_RENDER_INTERNAL_H
 
 #include "wvol/render.h"
+#include "core/status_internal.h"
 
 /* A camera with its frame precomputed for ray generation. */
 typedef struct wvol__cam {
