@@ -76,7 +76,8 @@ int wvol_cmd_compress(int argc, char **argv)
     wvol_volume *v = NULL, *rec = NULL;
     wvol_coeffs *c = NULL, *dec = NULL;
     wvol_selection *sel = NULL;
-    wvol_select_params sp = wvol_select_params_default();
+    wvol_select_params sp;
+    wvol_select_params_default(&sp);
     wvol_select_report srep;
     wvol_wvc_params wp;
     wvol_wvc_report wrep;

@@ -146,7 +146,8 @@ static void json_transform(const demo *d)
 
 static int stage_select(demo *d)
 {
-    wvol_select_params prm = wvol_select_params_default();
+    wvol_select_params prm;
+    wvol_select_params_default(&prm);
     wvol_error err;
     const wvol_select_report *r = &d->report;
     prm.mode = WVOL_SELECT_FRACTION;
@@ -212,7 +213,8 @@ static int stage_render(demo *d)
         return cli_fail("demo", "--out %s: path too long", d->out_dir);
     {
         wvol_store *st = NULL;
-        wvol_store_params sp = wvol_store_params_default();
+        wvol_store_params sp;
+        wvol_store_params_default(&sp);
         sp.spline_J = 4;
         wvol_render_params_default(&p);
         p.mode = WVOL_MODE_XRAY;

@@ -125,7 +125,8 @@ static int prepare_coeffs(const iso_args *a, const wvol_volume *v, wvol_coeffs *
 {
     const wvol_filter *f = NULL;
     wvol_selection *sel = NULL;
-    wvol_select_params sp = wvol_select_params_default();
+    wvol_select_params sp;
+    wvol_select_params_default(&sp);
     int maxl = wvol_dwt_max_levels(v->nx, v->ny, v->nz);
     if (wvol_filter_get(&f, a->wavelet, err) != WVOL_OK) return cli_usage("iso", "%s", err->message);
     if (a->levels < 1 || a->levels > maxl)
@@ -225,7 +226,8 @@ static int run_image(const iso_args *a)
     wvol_iso_trace_params tp;
     wvol_iso_trace_stats ts;
     wvol_render_stats rs;
-    wvol_store_params stp = wvol_store_params_default();
+    wvol_store_params stp;
+    wvol_store_params_default(&stp);
     double t0 = cli_now(), t_prep, vmin = 0, vmax = 1;
     int hybrid = !strcmp(a->method, "hybrid"), rc = CLI_FAILED;
     iso_args b = *a;

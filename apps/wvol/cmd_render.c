@@ -228,8 +228,10 @@ int wvol_cmd_render(int argc, char **argv)
     /* a store is built for the store methods, for a .wvc, and for the reference with --keep
      * below 100% (which renders the dense reconstruction of the kept coefficients) */
     if (strcmp(method, "reference") || is_wvc || keep < 1.0) {
-        wvol_select_params sp = wvol_select_params_default();
-        wvol_store_params stp = wvol_store_params_default();
+        wvol_select_params sp;
+        wvol_select_params_default(&sp);
+        wvol_store_params stp;
+        wvol_store_params_default(&stp);
         if (!is_wvc) {
             int maxl = wvol_dwt_max_levels(v->nx, v->ny, v->nz);
             int lev = levels ? (int)levels : (maxl < 3 ? maxl : 3);

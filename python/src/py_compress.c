@@ -84,7 +84,8 @@ static PyObject *py_compress(PyObject *self, PyObject *args, PyObject *kw)
     const wvol_filter *f;
     wvol_coeffs *c = NULL;
     wvol_selection *sel = NULL;
-    wvol_select_params prm = wvol_select_params_default();
+    wvol_select_params prm;
+    wvol_select_params_default(&prm);
     wvol_select_report rep;
     wvol_error err;
     wvol_status s;

@@ -29,7 +29,8 @@ static PyObject *py_store_build(PyObject *self, PyObject *args, PyObject *kw)
     int levels, J = 0;
     PyArrayObject *holder;
     wvol_coeffs c;
-    wvol_store_params prm = wvol_store_params_default();
+    wvol_store_params prm;
+    wvol_store_params_default(&prm);
     wvol_store *st = NULL;
     wvol_error err;
     wvol_status s;

@@ -80,7 +80,7 @@ typedef struct wvol_select_params {
 } wvol_select_params;
 
 /* Everything zero except mode = WVOL_SELECT_ALL (and power 1 in each ellipsoid). */
-WVOL_API wvol_select_params wvol_select_params_default(void);
+WVOL_API void wvol_select_params_default(wvol_select_params *p);
 
 typedef struct wvol_select_report {
     size_t total;            /* N: all coefficients of the padded grid */
@@ -155,7 +155,7 @@ typedef struct wvol_store_params {
     int spline_J;          /* knots per unit 2^J of the basis splines; 0 = default (8) */
 } wvol_store_params;
 
-WVOL_API wvol_store_params wvol_store_params_default(void);
+WVOL_API void wvol_store_params_default(wvol_store_params *p);
 
 /* Builds the store of the coefficients of c kept by sel (NULL: every nonzero
  * coefficient, plus the whole low-pass cube). c is copied from; it need not
