@@ -27,6 +27,10 @@ int main(void)
         fprintf(stderr, "wvol_consumer: %s\n", err.message);
         return 1;
     }
+    /* names with their type's prefix, and the deprecated aliases kept for 0.1 */
+    EXPECT(f->family == WVOL_FAMILY_DAUBECHIES && WVOL_DAUBECHIES == WVOL_FAMILY_DAUBECHIES, "db2 family");
+    EXPECT(wvol_sample_type_size(WVOL_SAMPLE_TYPE_F64) == 8 && WVOL_F64 == WVOL_SAMPLE_TYPE_F64, "float64 size");
+    EXPECT(WVOL_NORMALS_GRADIENT == WVOL_ISO_NORMALS_GRADIENT && WVOL_PSI == WVOL_BASIS_PSI, "aliases");
     n = wvol_volume_count(v);
     for (i = 0; i < n; i++) v->data[i] = (float)sin(0.1 * (double)i) + (float)(i % 5);
     if (wvol_dwt3(&c, v, f, 2, &err) || wvol_idwt3(&back, c, &err)) {

@@ -15,8 +15,18 @@ extern "C" {
 #endif
 
 typedef enum wvol_sample_type {
-    WVOL_F32 = 0, WVOL_F64, WVOL_U8, WVOL_I8, WVOL_U16, WVOL_I16, WVOL_U32, WVOL_I32
+    WVOL_SAMPLE_TYPE_F32 = 0, WVOL_SAMPLE_TYPE_F64, WVOL_SAMPLE_TYPE_U8, WVOL_SAMPLE_TYPE_I8,
+    WVOL_SAMPLE_TYPE_U16, WVOL_SAMPLE_TYPE_I16, WVOL_SAMPLE_TYPE_U32, WVOL_SAMPLE_TYPE_I32
 } wvol_sample_type;
+/* Deprecated names, removed after 0.1 (docs/conventions.md). */
+#define WVOL_F32 WVOL_SAMPLE_TYPE_F32
+#define WVOL_F64 WVOL_SAMPLE_TYPE_F64
+#define WVOL_U8 WVOL_SAMPLE_TYPE_U8
+#define WVOL_I8 WVOL_SAMPLE_TYPE_I8
+#define WVOL_U16 WVOL_SAMPLE_TYPE_U16
+#define WVOL_I16 WVOL_SAMPLE_TYPE_I16
+#define WVOL_U32 WVOL_SAMPLE_TYPE_U32
+#define WVOL_I32 WVOL_SAMPLE_TYPE_I32
 
 /* Parses "float32", "f32", "uint8", "int16", ...; returns -1 if unknown. */
 WVOL_API int wvol_sample_type_parse(const char *name);

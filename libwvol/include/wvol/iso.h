@@ -81,16 +81,20 @@ WVOL_API wvol_status wvol_mesh_read_ply(wvol_mesh **out, const char *path, wvol_
 /* ---- extraction -------------------------------------------------------------- */
 
 typedef enum wvol_iso_normals {
-    WVOL_NORMALS_NONE = 0,      /* no vertex normals */
-    WVOL_NORMALS_GRADIENT = 1,  /* -grad f by central differences on the grid (one-sided at
-                                   borders), interpolated along the edge like the position */
-    WVOL_NORMALS_ANALYTIC = 2   /* -grad from params.gradient at the vertex's world position */
+    WVOL_ISO_NORMALS_NONE = 0,      /* no vertex normals */
+    WVOL_ISO_NORMALS_GRADIENT = 1,  /* -grad f by central differences on the grid (one-sided at
+                                       borders), interpolated along the edge like the position */
+    WVOL_ISO_NORMALS_ANALYTIC = 2   /* -grad from params.gradient at the vertex's world position */
 } wvol_iso_normals;
+/* Deprecated names, removed after 0.1 (docs/conventions.md). */
+#define WVOL_NORMALS_NONE WVOL_ISO_NORMALS_NONE
+#define WVOL_NORMALS_GRADIENT WVOL_ISO_NORMALS_GRADIENT
+#define WVOL_NORMALS_ANALYTIC WVOL_ISO_NORMALS_ANALYTIC
 
 typedef struct wvol_iso_params {
     int threads;                /* 0: OpenMP's default; otherwise at most this many */
-    wvol_iso_normals normals;   /* default WVOL_NORMALS_GRADIENT */
-    /* For WVOL_NORMALS_ANALYTIC: gradient of the field at a world position.
+    wvol_iso_normals normals;   /* default WVOL_ISO_NORMALS_GRADIENT */
+    /* For WVOL_ISO_NORMALS_ANALYTIC: gradient of the field at a world position.
      * Called concurrently from several threads. */
     void (*gradient)(void *user, const double xyz[3], double grad[3]);
     void *gradient_user;

@@ -11,7 +11,14 @@
 extern "C" {
 #endif
 
-typedef enum wvol_family { WVOL_HAAR = 0, WVOL_DAUBECHIES, WVOL_COIFLET, WVOL_BATTLE_LEMARIE } wvol_family;
+typedef enum wvol_family {
+    WVOL_FAMILY_HAAR = 0, WVOL_FAMILY_DAUBECHIES, WVOL_FAMILY_COIFLET, WVOL_FAMILY_BATTLE_LEMARIE
+} wvol_family;
+/* Deprecated names, removed after 0.1 (docs/conventions.md). */
+#define WVOL_HAAR WVOL_FAMILY_HAAR
+#define WVOL_DAUBECHIES WVOL_FAMILY_DAUBECHIES
+#define WVOL_COIFLET WVOL_FAMILY_COIFLET
+#define WVOL_BATTLE_LEMARIE WVOL_FAMILY_BATTLE_LEMARIE
 
 /* An orthonormal QMF pair. h is the low-pass "reconstruction" filter of the
  * two-scale relation phi(t) = sqrt(2) sum_n h[n] phi(2t - n) (PyWavelets' rec_lo),
@@ -149,7 +156,10 @@ WVOL_API void wvol_idwt1(double *out, const double *ad, size_t n, const wvol_fil
  * size on the stack (no allocation in eval paths). */
 #define WVOL_BASIS_MAX_LENGTH 256
 
-enum { WVOL_PHI = 0, WVOL_PSI = 1 };   /* `which` */
+enum { WVOL_BASIS_PHI = 0, WVOL_BASIS_PSI = 1 };   /* `which` */
+/* Deprecated names, removed after 0.1 (docs/conventions.md). */
+#define WVOL_PHI WVOL_BASIS_PHI
+#define WVOL_PSI WVOL_BASIS_PSI
 /* `kind` of table: the spline, its derivative, its primitive (integral from 0) */
 typedef enum wvol_basis_kind { WVOL_BASIS_VALUE = 0, WVOL_BASIS_DERIV = 1, WVOL_BASIS_PRIMITIVE = 2 } wvol_basis_kind;
 
@@ -191,7 +201,7 @@ typedef struct wvol_basis {
     double ortho_error_psi; /* max_k of |<psi(.-k), psi> - delta_k| and |<phi(.-k), psi>| */
     /* bounds of the spline model (rigorous, for the store's and the iso tracer's
      * value and Lipschitz bounds): max |value| and max |derivative| over x */
-    double vmax[2], dmax[2];    /* [WVOL_PHI], [WVOL_PSI] */
+    double vmax[2], dmax[2];    /* [WVOL_BASIS_PHI], [WVOL_BASIS_PSI] */
     double abs_integral[2];     /* integral of |spline|: bounds |integral over any interval| */
     double end_slope[2];        /* |S'(0)| = |S'(L-1)|: the slope jump at the support ends */
 } wvol_basis;
@@ -201,7 +211,7 @@ typedef struct wvol_basis {
 WVOL_API wvol_status wvol_basis_create(wvol_basis **out, const wvol_filter *f, int J, wvol_error *err);
 WVOL_API void wvol_basis_destroy(wvol_basis *b);   /* NULL is fine */
 
-/* Evaluate the spline model: which is WVOL_PHI or WVOL_PSI. O(1), no allocation.
+/* Evaluate the spline model: which is WVOL_BASIS_PHI or WVOL_BASIS_PSI. O(1), no allocation.
  * value/deriv are 0 outside [0, support); primitive is the integral from 0 to x. */
 WVOL_API double wvol_basis_value(const wvol_basis *b, int which, double x);
 WVOL_API double wvol_basis_deriv(const wvol_basis *b, int which, double x);

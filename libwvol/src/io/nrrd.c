@@ -69,19 +69,25 @@ static const struct {
     const char *name;
     int type;
 } type_names[] = {
-    {"signed char", WVOL_I8}, {"int8", WVOL_I8}, {"int8_t", WVOL_I8},
-    {"uchar", WVOL_U8}, {"unsigned char", WVOL_U8}, {"uint8", WVOL_U8}, {"uint8_t", WVOL_U8},
-    {"short", WVOL_I16}, {"short int", WVOL_I16}, {"signed short", WVOL_I16},
-    {"signed short int", WVOL_I16}, {"int16", WVOL_I16}, {"int16_t", WVOL_I16},
-    {"ushort", WVOL_U16}, {"unsigned short", WVOL_U16}, {"unsigned short int", WVOL_U16},
-    {"uint16", WVOL_U16}, {"uint16_t", WVOL_U16},
-    {"int", WVOL_I32}, {"signed int", WVOL_I32}, {"int32", WVOL_I32}, {"int32_t", WVOL_I32},
-    {"uint", WVOL_U32}, {"unsigned int", WVOL_U32}, {"uint32", WVOL_U32}, {"uint32_t", WVOL_U32},
+    {"signed char", WVOL_SAMPLE_TYPE_I8}, {"int8", WVOL_SAMPLE_TYPE_I8}, {"int8_t", WVOL_SAMPLE_TYPE_I8},
+    {"uchar", WVOL_SAMPLE_TYPE_U8}, {"unsigned char", WVOL_SAMPLE_TYPE_U8}, {"uint8", WVOL_SAMPLE_TYPE_U8},
+    {"uint8_t", WVOL_SAMPLE_TYPE_U8},
+    {"short", WVOL_SAMPLE_TYPE_I16}, {"short int", WVOL_SAMPLE_TYPE_I16},
+    {"signed short", WVOL_SAMPLE_TYPE_I16}, {"signed short int", WVOL_SAMPLE_TYPE_I16},
+    {"int16", WVOL_SAMPLE_TYPE_I16}, {"int16_t", WVOL_SAMPLE_TYPE_I16},
+    {"ushort", WVOL_SAMPLE_TYPE_U16}, {"unsigned short", WVOL_SAMPLE_TYPE_U16},
+    {"unsigned short int", WVOL_SAMPLE_TYPE_U16}, {"uint16", WVOL_SAMPLE_TYPE_U16},
+    {"uint16_t", WVOL_SAMPLE_TYPE_U16},
+    {"int", WVOL_SAMPLE_TYPE_I32}, {"signed int", WVOL_SAMPLE_TYPE_I32}, {"int32", WVOL_SAMPLE_TYPE_I32},
+    {"int32_t", WVOL_SAMPLE_TYPE_I32},
+    {"uint", WVOL_SAMPLE_TYPE_U32}, {"unsigned int", WVOL_SAMPLE_TYPE_U32}, {"uint32", WVOL_SAMPLE_TYPE_U32},
+    {"uint32_t", WVOL_SAMPLE_TYPE_U32},
     {"longlong", T_I64}, {"long long", T_I64}, {"long long int", T_I64}, {"signed long long", T_I64},
     {"signed long long int", T_I64}, {"int64", T_I64}, {"int64_t", T_I64},
-    {"ulonglong", T_U64}, {"unsigned long long", T_U64}, {"unsigned long long int", T_U64},
-    {"uint64", T_U64}, {"uint64_t", T_U64},
-    {"float", WVOL_F32}, {"double", WVOL_F64},
+    {"ulonglong", T_U64}, {"unsigned long long", T_U64}, {"unsigned long long int", T_U64}, {"uint64", T_U64},
+    {"uint64_t", T_U64},
+    {"float", WVOL_SAMPLE_TYPE_F32},
+    {"double", WVOL_SAMPLE_TYPE_F64},
 };
 
 /* Kinds of axes that hold samples of one scalar volume. */
