@@ -62,7 +62,8 @@ int main(int argc, char **argv)
     wvol_selection *keep5 = NULL;
     printf(" \"select\": [\n");
     for (int mode = 0; mode < 6; mode++) {
-        wvol_select_params prm = wvol_select_params_default();
+        wvol_select_params prm;
+        wvol_select_params_default(&prm);
         wvol_select_report rep;
         wvol_selection *sel = NULL;
         switch (mode) {

@@ -7,6 +7,7 @@
 #include <math.h>
 
 #include "wvol_synth.h"
+#include "core/status_internal.h"
 
 typedef struct synth_grid {
     size_t nx, ny, nz;

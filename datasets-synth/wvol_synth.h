@@ -50,23 +50,23 @@ typedef struct wvol_synth_params {
 } wvol_synth_params;
 
 /* dims 64^3, spacing 0 (default), seed 1, no noise, defaults for the rest. */
-void wvol_synth_params_default(wvol_synth_params *p);
+WVOL_API void wvol_synth_params_default(wvol_synth_params *p);
 
 /* Centred isotropic Gaussian, the density of the paper's Fig. 15:
  * f(u) = exp(-|u|^2 / (2 sigma^2)), peak 1, u normalised (sigma 0.25 by default,
  * so the f = 0.5 isosurface is a sphere of radius 0.294 E/2). */
-wvol_status wvol_synth_gaussian(wvol_volume **out, const wvol_synth_params *p, wvol_error *err);
+WVOL_API wvol_status wvol_synth_gaussian(wvol_volume **out, const wvol_synth_params *p, wvol_error *err);
 
 /* Sum of `count` anisotropic, rotated Gaussians with different amplitudes
  * (0.3..1), widths (0.06..0.22) and centres (|u| <= 0.45 per axis), all drawn
  * from the seed: not symmetric. */
-wvol_status wvol_synth_blobs(wvol_volume **out, const wvol_synth_params *p, wvol_error *err);
+WVOL_API wvol_status wvol_synth_blobs(wvol_volume **out, const wvol_synth_params *p, wvol_error *err);
 
 /* Skull-like CT phantom in Hounsfield-like units (air -1000, soft tissue 0..80,
  * CSF 8, brain 30..40, bone 700..1800). labels (may be NULL): tissue classes as
  * float, WVOL_SKULL_* below. */
-wvol_status wvol_synth_skull(wvol_volume **out, wvol_volume **labels, const wvol_synth_params *p,
-                             wvol_error *err);
+WVOL_API wvol_status wvol_synth_skull(wvol_volume **out, wvol_volume **labels, const wvol_synth_params *p,
+                                      wvol_error *err);
 
 enum {
     WVOL_SKULL_AIR = 0,   /* outside the head, and the air cavities inside it */
@@ -81,32 +81,32 @@ enum {
  * Voronoi partition drawn from the seed), each filled with its own texture,
  * values in [0, 1]. labels (may be NULL): region index 0..count-1 as float.
  * Grating periods and dot sizes are in voxels (index space). */
-wvol_status wvol_synth_textures(wvol_volume **out, wvol_volume **labels, const wvol_synth_params *p,
-                                wvol_error *err);
+WVOL_API wvol_status wvol_synth_textures(wvol_volume **out, wvol_volume **labels, const wvol_synth_params *p,
+                                         wvol_error *err);
 
 /* 3D Shepp-Logan phantom: Kak & Slaney's ellipsoid table (Principles of
  * Computerized Tomographic Imaging, 1988, Table 3.2, with the published errata),
  * point-sampled at voxel centres. variant "kak-slaney": the book's densities
  * (2.0, -0.98, ...; brain 1.0..1.04); "yu-ye-wang": the higher-contrast densities
  * of Yu, Ye & Wang 2004 (1.0, -0.8, ...). */
-wvol_status wvol_synth_shepp_logan(wvol_volume **out, const wvol_synth_params *p, wvol_error *err);
+WVOL_API wvol_status wvol_synth_shepp_logan(wvol_volume **out, const wvol_synth_params *p, wvol_error *err);
 
 /* ---- by name: "gaussian", "blobs", "skull", "textures", "shepp-logan" ---- */
 
 /* Runs the generator called `kind`. labels may be NULL; when it is not, *labels is
  * set to the label map, or NULL for kinds without one. */
-wvol_status wvol_synth_make(wvol_volume **out, wvol_volume **labels, const char *kind,
-                            const wvol_synth_params *p, wvol_error *err);
+WVOL_API wvol_status wvol_synth_make(wvol_volume **out, wvol_volume **labels, const char *kind,
+                                     const wvol_synth_params *p, wvol_error *err);
 
-int wvol_synth_kind_count(void);
-const char *wvol_synth_kind_name(int i);     /* NULL when out of range */
-const char *wvol_synth_kind_about(int i);    /* one line */
+WVOL_API int wvol_synth_kind_count(void);
+WVOL_API const char *wvol_synth_kind_name(int i);     /* NULL when out of range */
+WVOL_API const char *wvol_synth_kind_about(int i);    /* one line */
 /* Index of a kind by name, -1 if unknown. */
-int wvol_synth_kind_find(const char *name);
+WVOL_API int wvol_synth_kind_find(const char *name);
 /* 1 if the kind makes a label map. */
-int wvol_synth_kind_has_labels(int i);
+WVOL_API int wvol_synth_kind_has_labels(int i);
 /* The kind's default size (used when the caller has none). */
-void wvol_synth_kind_default_dims(int i, size_t dims[3]);
+WVOL_API void wvol_synth_kind_default_dims(int i, size_t dims[3]);
 
 #ifdef __cplusplus
 }

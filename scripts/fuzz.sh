@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
-# Builds the libFuzzer target of the .wvc reader with clang in build-fuzz/ and runs
-# it for a bounded time on the corpus kept in tests/fuzz/corpus (new inputs it
-# finds go to a scratch folder, not into the tree). FUZZ_SECONDS (default 45).
+# Builds the libFuzzer targets with clang in build-fuzz/ and runs each for a bounded
+# time on its corpus (new inputs they find go to a scratch folder, not into the tree):
+# the .wvc reader on tests/fuzz/corpus for FUZZ_SECONDS (default 45), the DICOM file
+# parser on tests/fuzz/corpus_dicom for FUZZ_DICOM_SECONDS (default 15).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 command -v clang >/dev/null || { echo "fuzz.sh: clang not found (scripts/setup.sh installs it)"; exit 1; }
@@ -9,10 +10,15 @@ cmake -S . -B build-fuzz -DCMAKE_C_COMPILER=clang -DCMAKE_CXX_COMPILER=clang++ -
       -DWVOL_BUILD_FUZZ=ON -DWVOL_BUILD_TESTS=OFF -DWVOL_BUILD_PYTHON=OFF \
       -DWVOL_WITH_OPENVDB=OFF -DWVOL_WITH_VTK=OFF > build-fuzz.configure.log 2>&1 \
   || { cat build-fuzz.configure.log; exit 1; }
-cmake --build build-fuzz -j "$(nproc)" --target fuzz_wvc
+cmake --build build-fuzz -j "$(nproc)" --target fuzz_wvc fuzz_dicom
 scratch=$(mktemp -d)
 trap 'rm -rf "$scratch"' EXIT
-OMP_NUM_THREADS=1 ASAN_OPTIONS=detect_leaks=1 UBSAN_OPTIONS=print_stacktrace=1 \
-  build-fuzz/tests/fuzz/fuzz_wvc -max_total_time="${FUZZ_SECONDS:-45}" -max_len=4096 -timeout=10 \
-  -rss_limit_mb=2048 -artifact_prefix=build-fuzz/ -print_final_stats=1 "$scratch" tests/fuzz/corpus 2>&1 | tail -n 25
-echo "fuzz.sh: no crash in ${FUZZ_SECONDS:-45} s"
+run() { # target seconds corpus
+  mkdir -p "$scratch/$1"
+  OMP_NUM_THREADS=1 ASAN_OPTIONS=detect_leaks=1 UBSAN_OPTIONS=print_stacktrace=1 \
+    build-fuzz/tests/fuzz/"$1" -max_total_time="$2" -max_len=4096 -timeout=10 \
+    -rss_limit_mb=2048 -artifact_prefix=build-fuzz/ -print_final_stats=1 "$scratch/$1" "$3" 2>&1 | tail -n 25
+  echo "fuzz.sh: $1: no crash in $2 s"
+}
+run fuzz_wvc "${FUZZ_SECONDS:-45}" tests/fuzz/corpus
+run fuzz_dicom "${FUZZ_DICOM_SECONDS:-15}" tests/fuzz/corpus_dicom

@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # The whole test suite: setup + build (warnings are errors), C tests under ctest,
 # Python tests under pytest, the C tests again under AddressSanitizer and
-# UndefinedBehaviorSanitizer, and a bounded libFuzzer run of the .wvc reader.
+# UndefinedBehaviorSanitizer, the library built without its optional dependencies
+# (scripts/test_minimal.sh), and a bounded libFuzzer run of the .wvc reader.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -20,6 +21,9 @@ cmake -S . -B build-asan -DCMAKE_BUILD_TYPE=Debug -DWVOL_SANITIZE=ON -DWVOL_WERR
 cmake --build build-asan -j "$(nproc)"
 ASAN_OPTIONS=detect_leaks=1 UBSAN_OPTIONS=print_stacktrace=1 \
   ctest --test-dir build-asan --output-on-failure -j 2
+
+echo "== the library without its optional dependencies"
+bash scripts/test_minimal.sh
 
 if [ -x scripts/fuzz.sh ]; then
   echo "== fuzzing"

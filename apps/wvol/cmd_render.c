@@ -259,7 +259,8 @@ static wvol_status render_repeat(wvol_image *img, const wvol_render_source *src,
     for (long i = 0; i < a->repeat; i++) {
         wvol_render_stats one;
         memset(&one, 0, sizeof one);
-        WVOL_FORWARD(wvol_render(img, src, cam, tf, rp, &one, err));
+        wvol_status s = wvol_render(img, src, cam, tf, rp, &one, err);
+        if (s != WVOL_OK) return s;
         if (i == 0 && rss[0] >= 0) rss[1] = rss_mib("VmHWM");
         if (i == 0 || one.cpu_seconds > *cpu_max) *cpu_max = one.cpu_seconds;
         if (i == 0 || one.seconds < wall_min) wall_min = one.seconds;

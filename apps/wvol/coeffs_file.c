@@ -43,7 +43,7 @@ wvol_status coeffs_file_write(const wvol_coeffs *c, const char *raw_path, const 
     wvol_atomic_file rf, jf;
     size_t n = c->px * c->py * c->pz;
     char *json_path = coeffs_sidecar_path(raw_path);
-    WVOL_RETURN_IF(!json_path, err, WVOL_ERR_NOMEM, "out of memory");
+    if (!json_path) return wvol_error_set(err, WVOL_ERR_NOMEM, "out of memory");
     wvol_status st = wvol_atomic_open(&rf, raw_path, err);
     if (st != WVOL_OK) {
         free(json_path);
@@ -152,7 +152,7 @@ wvol_status coeffs_file_read(wvol_coeffs **out, const char *raw_path, wvol_error
     wvol_coeffs *c = NULL;
     wvol_status st = WVOL_OK;
     *out = NULL;
-    WVOL_RETURN_IF(!json_path, err, WVOL_ERR_NOMEM, "out of memory");
+    if (!json_path) return wvol_error_set(err, WVOL_ERR_NOMEM, "out of memory");
     fp = fopen(json_path, "rb");
     if (!fp) {
         st = wvol_error_set(err, WVOL_ERR_IO, "%s: cannot open the sidecar of %s: %s", json_path, raw_path,

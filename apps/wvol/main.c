@@ -6,6 +6,7 @@
 
 #include "cli.h"
 #include "commands.h"
+#include "wvol/version.h"
 
 typedef struct command {
     const char *name;
@@ -21,6 +22,7 @@ static void usage(FILE *out)
     fprintf(out, "usage: wvol <command> [options]   (wvol <command> --help for details)\n\ncommands:\n");
     for (i = 0; i < sizeof commands / sizeof commands[0]; i++)
         fprintf(out, "  %-12s %s\n", commands[i].name, commands[i].summary);
+    fprintf(out, "\nwvol %s\n", wvol_version_string());
 }
 
 int main(int argc, char **argv)
@@ -32,6 +34,10 @@ int main(int argc, char **argv)
     }
     if (!strcmp(argv[1], "--help") || !strcmp(argv[1], "-h") || !strcmp(argv[1], "help")) {
         usage(stdout);
+        return CLI_OK;
+    }
+    if (!strcmp(argv[1], "--version")) {
+        printf("wvol %s\n", wvol_version_string());
         return CLI_OK;
     }
     for (i = 0; i < sizeof commands / sizeof commands[0]; i++)

@@ -51,8 +51,10 @@ static inline wvol_store *fixture_store(const wvol_volume *v, const char *filter
     wvol_coeffs *c = NULL;
     wvol_selection *sel = NULL;
     wvol_store *s = NULL;
-    wvol_select_params sp = wvol_select_params_default();
-    wvol_store_params stp = wvol_store_params_default();
+    wvol_select_params sp;
+    wvol_select_params_default(&sp);
+    wvol_store_params stp;
+    wvol_store_params_default(&stp);
     wvol_error err;
     if (!f || wvol_dwt3(&c, v, f, levels, &err) != WVOL_OK) return NULL;
     if (keep < 1.0) {

@@ -440,7 +440,8 @@ static void mesh_files(void)
 /* Keeps the `fraction` largest coefficients of c (zeroes the rest). */
 static int keep_fraction(wvol_coeffs *c, double fraction)
 {
-    wvol_select_params sp = wvol_select_params_default();
+    wvol_select_params sp;
+    wvol_select_params_default(&sp);
     wvol_selection *sel = NULL;
     int ok;
     sp.mode = WVOL_SELECT_FRACTION;

@@ -35,7 +35,8 @@ static wvol_store *store_and_recon(const wvol_volume *v, double keep, wvol_volum
     wvol_coeffs *c = NULL;
     wvol_selection *sel = NULL;
     wvol_store *s = NULL;
-    wvol_select_params sp = wvol_select_params_default();
+    wvol_select_params sp;
+    wvol_select_params_default(&sp);
     wvol_error err;
     *recon = NULL;
     CHECK(wvol_filter_get(&f, "db2", &err) == WVOL_OK, "%s", err.message);

@@ -120,8 +120,10 @@ static void bad_colour_volumes_are_refused(void)
     wvol_selection *sel = NULL;
     wvol_store *st = NULL;
     const wvol_filter *f = NULL;
-    wvol_select_params sp = wvol_select_params_default();
-    wvol_store_params stp = wvol_store_params_default();
+    wvol_select_params sp;
+    wvol_select_params_default(&sp);
+    wvol_store_params stp;
+    wvol_store_params_default(&stp);
     size_t i;
     if (!v || !rgb) return;
     for (i = 0; i < 3 * 512; i++) rgb[i] = 0.5f;

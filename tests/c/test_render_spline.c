@@ -34,8 +34,10 @@ static wvol_store *make_store(const wvol_volume *v, const char *family, int leve
     wvol_coeffs *c = NULL;
     wvol_selection *sel = NULL;
     wvol_store *s = NULL;
-    wvol_select_params sp = wvol_select_params_default();
-    wvol_store_params stp = wvol_store_params_default();
+    wvol_select_params sp;
+    wvol_select_params_default(&sp);
+    wvol_store_params stp;
+    wvol_store_params_default(&stp);
     wvol_select_report rep;
     wvol_error err;
     if (wvol_filter_get(&f, family, &err) != WVOL_OK || wvol_dwt3(&c, v, f, levels, &err) != WVOL_OK) {

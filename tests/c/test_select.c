@@ -189,7 +189,8 @@ static void check_mode(const char *what, const wvol_coeffs *c, const wvol_select
 static void check_mode_value(const char *name, wvol_select_mode mode, double value, int variant,
                              const wvol_coeffs *c, double peak)
 {
-    wvol_select_params prm = wvol_select_params_default();
+    wvol_select_params prm;
+    wvol_select_params_default(&prm);
     char what[128];
     prm.mode = mode;
     if (mode == WVOL_SELECT_FRACTION) prm.fraction = value;
@@ -208,12 +209,13 @@ static void selection_modes_match_brute_force(void)
         wvol_coeffs *c = variant & 1 ? random_coeffs("db2", 2, 16, 12, 8, quant, 0.2)
                                      : random_coeffs("haar", 3, 24, 16, 16, quant, 0.1);
         size_t N = c->px * c->py * c->pz;
-        wvol_select_params prm = wvol_select_params_default();
+        wvol_select_params prm;
+        wvol_select_params_default(&prm);
         char what[128];
         double peak = 7.5;
         check_mode("all", c, &prm, peak);
         for (size_t K = 0; K <= N + 10; K += N / 7 + 1) {
-            prm = wvol_select_params_default();
+            wvol_select_params_default(&prm);
             prm.mode = WVOL_SELECT_COUNT, prm.count = K;
             snprintf(what, sizeof what, "count %zu (variant %d)", K, variant);
             check_mode(what, c, &prm, peak);
@@ -233,7 +235,7 @@ static void selection_modes_match_brute_force(void)
             for (int e = 0; e < 4; e++) check_mode_value("psnr", WVOL_SELECT_PSNR, ps[e], variant, c, peak);
         }
         /* a global level cut and an ellipsoid weight */
-        prm = wvol_select_params_default();
+        wvol_select_params_default(&prm);
         prm.mode = WVOL_SELECT_COUNT, prm.count = N / 5, prm.drop_levels = 1;
         check_mode("count with drop_levels 1", c, &prm, peak);
         prm.n_ellipsoids = 2, prm.lod_floor = 0.1;
@@ -257,7 +259,8 @@ static void energy_mode_is_smallest_set(void)
     wvol_coeffs *c = random_coeffs("db3", 2, 20, 20, 12, 0.0, 0.0);
     double shares[] = {0.3, 0.8, 0.95, 0.9999};
     for (int e = 0; e < 4; e++) {
-        wvol_select_params prm = wvol_select_params_default();
+        wvol_select_params prm;
+        wvol_select_params_default(&prm);
         wvol_select_report rep;
         wvol_selection *sel = NULL;
         prm.mode = WVOL_SELECT_ENERGY, prm.energy = shares[e];
@@ -309,7 +312,8 @@ static void predicted_error_matches_measured(void)
             CHECK(wvol_dwt3_ex(&c, v, fixture_filter(fams[fi]), levels, WVOL_PAD_EDGE, 1, &err) == WVOL_OK, "%s", err.message);
             double fr[] = {0.01, 0.05, 0.3, 1.0};
             for (int t = 0; t < 4; t++) {
-                wvol_select_params prm = wvol_select_params_default();
+                wvol_select_params prm;
+                wvol_select_params_default(&prm);
                 wvol_select_report rep, rep2;
                 wvol_selection *sel = NULL;
                 prm.mode = WVOL_SELECT_FRACTION, prm.fraction = fr[t], prm.measure = 1;
@@ -352,7 +356,8 @@ static void psnr_target_is_met(void)
     double targets[] = {25.0, 35.0, 45.0, 60.0};
     size_t last = 0;
     for (int t = 0; t < 4; t++) {
-        wvol_select_params prm = wvol_select_params_default();
+        wvol_select_params prm;
+        wvol_select_params_default(&prm);
         wvol_select_report rep;
         wvol_selection *sel = NULL;
         prm.mode = WVOL_SELECT_PSNR, prm.psnr = targets[t], prm.measure = 1;
@@ -388,7 +393,8 @@ static void lod_region_keeps_detail(void)
     double s = f->center, S = L - 1;
     wvol_dwt3_ex(&c, v, f, M, WVOL_PAD_EDGE, 1, NULL);
     for (int a = 0; a < 3; a++) c->spacing[a] = 0.5, c->origin[a] = 10.0;
-    wvol_select_params prm = wvol_select_params_default();
+    wvol_select_params prm;
+    wvol_select_params_default(&prm);
     prm.mode = WVOL_SELECT_FRACTION, prm.fraction = 0.1;
     prm.n_ellipsoids = 1, prm.lod_floor = 0.0;
     /* centre at voxel (24, 20, 28), radius 10 voxels, flat top: it holds the centres of
@@ -447,7 +453,8 @@ static void lod_region_keeps_detail(void)
 
 static void lod_weight_shape(void)
 {
-    wvol_select_params prm = wvol_select_params_default();
+    wvol_select_params prm;
+    wvol_select_params_default(&prm);
     double x[3] = {1, 2, 3};
     CHECK(wvol_lod_weight(&prm, x) == 1.0, "no ellipsoid: 1");
     prm.n_ellipsoids = 1, prm.lod_floor = 0.25;
@@ -470,7 +477,7 @@ static void bad_params_are_refused(void)
     wvol_select_params prm;
 #define REFUSE(setup, code, what)                                                                   \
     do {                                                                                            \
-        prm = wvol_select_params_default();                                                         \
+        wvol_select_params_default(&prm);                                                           \
         setup;                                                                                      \
         wvol_status st_ = wvol_select(&sel, c, &prm, NULL, NULL, &err);                             \
         CHECK(st_ == (code) && sel == NULL, "%s: status %d", what, (int)st_);                       \
@@ -491,7 +498,7 @@ static void bad_params_are_refused(void)
     REFUSE(prm.n_ellipsoids = 1; prm.ellipsoids[0].radii[0] = prm.ellipsoids[0].radii[1] =
                prm.ellipsoids[0].radii[2] = 1;
            prm.ellipsoids[0].power = 0.5, WVOL_ERR_ARG, "power 0.5");
-    prm = wvol_select_params_default();
+    wvol_select_params_default(&prm);
     CHECK(wvol_select(&sel, NULL, &prm, NULL, NULL, &err) == WVOL_ERR_ARG && sel == NULL, "NULL coeffs");
     CHECK(wvol_select(&sel, c, NULL, NULL, NULL, &err) == WVOL_ERR_ARG, "NULL params");
     CHECK(wvol_select(NULL, c, &prm, NULL, NULL, &err) == WVOL_ERR_ARG, "NULL out");
@@ -510,7 +517,8 @@ static void edge_cases(void)
 {
     wvol_coeffs *c = random_coeffs("db2", 2, 16, 16, 16, 0, 0.3);
     size_t N = c->px * c->py * c->pz, nlow = 4 * 4 * 4;
-    wvol_select_params prm = wvol_select_params_default();
+    wvol_select_params prm;
+    wvol_select_params_default(&prm);
     wvol_select_report rep;
     wvol_selection *sel = NULL, *b = NULL;
     prm.mode = WVOL_SELECT_COUNT, prm.count = 0;
@@ -559,7 +567,8 @@ static void edge_cases(void)
 static void planar_volumes(void)
 {
     wvol_coeffs *c = random_coeffs("db2", 3, 32, 24, 1, 2.0, 0.1);
-    wvol_select_params prm = wvol_select_params_default();
+    wvol_select_params prm;
+    wvol_select_params_default(&prm);
     prm.mode = WVOL_SELECT_COUNT, prm.count = 100;
     check_mode("2D count", c, &prm, 1.0);
     prm.n_ellipsoids = 1, prm.lod_floor = 0.2;

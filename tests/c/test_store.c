@@ -37,7 +37,8 @@ static wvol_coeffs *make_coeffs(const char *fname, int levels, size_t nx, size_t
 
 static wvol_selection *keep_fraction(const wvol_coeffs *c, double fraction)
 {
-    wvol_select_params prm = wvol_select_params_default();
+    wvol_select_params prm;
+    wvol_select_params_default(&prm);
     wvol_selection *s = NULL;
     prm.mode = WVOL_SELECT_FRACTION, prm.fraction = fraction;
     wvol_select(&s, c, &prm, NULL, NULL, NULL);
@@ -570,7 +571,8 @@ static void subtree_bounds_are_consistent(void)
 static void empty_selection_and_bad_input(void)
 {
     wvol_coeffs *c = make_coeffs("db2", 2, 16, 16, 16);
-    wvol_select_params prm = wvol_select_params_default();
+    wvol_select_params prm;
+    wvol_select_params_default(&prm);
     wvol_selection *sel = NULL;
     wvol_store *st = NULL;
     wvol_store_hits hits = {0};
@@ -601,7 +603,8 @@ static void empty_selection_and_bad_input(void)
     CHECK(wvol_store_build(&st2, NULL, NULL, NULL, &err) == WVOL_ERR_ARG && st2 == NULL, "NULL coefficients");
     wvol_coeffs *other = make_coeffs("db2", 2, 16, 16, 8);
     CHECK(wvol_store_build(&st2, other, sel, NULL, &err) == WVOL_ERR_DIMS, "selection of another layout refused");
-    wvol_store_params sp = wvol_store_params_default();
+    wvol_store_params sp;
+    wvol_store_params_default(&sp);
     sp.spline_J = 40;
     CHECK(wvol_store_build(&st2, c, sel, &sp, &err) != WVOL_OK && st2 == NULL, "spline J 40 refused");
     wvol_store_destroy(NULL);

@@ -28,18 +28,18 @@ typedef struct wvol_feature_params {
     int include_lowpass; /* add each level's low-pass value (the paper does; default 1) */
 } wvol_feature_params;
 
-void wvol_feature_params_default(wvol_feature_params *p);
+WVOL_API void wvol_feature_params_default(wvol_feature_params *p);
 
-wvol_status wvol_features_compute(wvol_features **out, const wvol_volume *v, const wvol_filter *f,
-                                  const wvol_feature_params *p, wvol_error *err);
-void wvol_features_destroy(wvol_features *f);
+WVOL_API wvol_status wvol_features_compute(wvol_features **out, const wvol_volume *v, const wvol_filter *f,
+                                           const wvol_feature_params *p, wvol_error *err);
+WVOL_API void wvol_features_destroy(wvol_features *f);
 
 /* PCA over the feature planes (covariance in float64, eigenproblem by LAPACK's
  * dsyev), projection onto the components in decreasing variance, then min-max
  * normalisation of each component to [0, 1]. Keeps the fewest components that
  * explain `variance` of the total (1.0 keeps all). eigenvalues (may be NULL) gets
  * the kept variances, at most f->count values. */
-wvol_status wvol_features_pca(wvol_features *f, double variance, double *eigenvalues, wvol_error *err);
+WVOL_API wvol_status wvol_features_pca(wvol_features *f, double variance, double *eigenvalues, wvol_error *err);
 
 /* 3D Kohonen map. */
 typedef struct wvol_som_params {
@@ -50,7 +50,7 @@ typedef struct wvol_som_params {
     uint64_t seed;
 } wvol_som_params;
 
-void wvol_som_params_default(wvol_som_params *p);
+WVOL_API void wvol_som_params_default(wvol_som_params *p);
 
 typedef struct wvol_som {
     int dims[3];
@@ -62,24 +62,24 @@ typedef struct wvol_som {
 } wvol_som;
 
 /* Trains on the feature vectors (deterministic for a given seed). */
-wvol_status wvol_som_train(wvol_som **out, const wvol_features *f, const wvol_som_params *p,
-                           wvol_error *err);
-void wvol_som_destroy(wvol_som *s);
+WVOL_API wvol_status wvol_som_train(wvol_som **out, const wvol_features *f, const wvol_som_params *p,
+                                    wvol_error *err);
+WVOL_API void wvol_som_destroy(wvol_som *s);
 
 /* Winner neuron of every voxel (labels: n int32) and its colour (rgb: 3n floats,
  * interleaved; may be NULL). */
-wvol_status wvol_som_classify(int32_t *labels, float *rgb, const wvol_som *s, const wvol_features *f,
-                              wvol_error *err);
+WVOL_API wvol_status wvol_som_classify(int32_t *labels, float *rgb, const wvol_som *s, const wvol_features *f,
+                                       wvol_error *err);
 
 /* Supervised step: gives each neuron the majority ground-truth class among the
  * voxels of the training mask (mask may be NULL = all voxels) it wins;
  * truth holds class ids >= 0. Neurons that win no training voxel take the class of
  * the nearest labelled neuron in feature space. */
-wvol_status wvol_som_label(wvol_som *s, const wvol_features *f, const int32_t *truth,
-                           const uint8_t *mask, wvol_error *err);
+WVOL_API wvol_status wvol_som_label(wvol_som *s, const wvol_features *f, const int32_t *truth,
+                                    const uint8_t *mask, wvol_error *err);
 
 /* Maps winner labels to classes through s->neuron_class (after wvol_som_label). */
-void wvol_som_apply_classes(int32_t *classes, const int32_t *winners, size_t n, const wvol_som *s);
+WVOL_API void wvol_som_apply_classes(int32_t *classes, const int32_t *winners, size_t n, const wvol_som *s);
 
 /* Evaluation: maps each predicted cluster to the ground-truth class it overlaps most
  * (majority), then counts misclassified voxels, overall and away from boundaries
@@ -90,9 +90,9 @@ typedef struct wvol_seg_score {
     size_t interior;         /* voxels counted as away from boundaries */
 } wvol_seg_score;
 
-wvol_status wvol_segmentation_score(wvol_seg_score *score, const int32_t *pred, const int32_t *truth,
-                                    size_t nx, size_t ny, size_t nz, int boundary_radius,
-                                    wvol_error *err);
+WVOL_API wvol_status wvol_segmentation_score(wvol_seg_score *score, const int32_t *pred, const int32_t *truth,
+                                             size_t nx, size_t ny, size_t nz, int boundary_radius,
+                                             wvol_error *err);
 
 #ifdef __cplusplus
 }

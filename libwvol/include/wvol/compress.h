@@ -11,6 +11,7 @@
 #ifndef WVOL_COMPRESS_H
 #define WVOL_COMPRESS_H
 
+#include "wvol/export.h"
 #include <stddef.h>
 #include "wvol/status.h"
 #include "wvol/store.h"
@@ -52,7 +53,7 @@ typedef struct wvol_compress_params {
     wvol_compress_quant quant;  /* wvol_compress_encode only */
 } wvol_compress_params;
 
-void wvol_compress_params_default(wvol_compress_params *p);
+WVOL_API void wvol_compress_params_default(wvol_compress_params *p);
 
 /* What wvol_compress made; free with wvol_compressed_free. */
 typedef struct wvol_compressed {
@@ -68,32 +69,32 @@ typedef struct wvol_compressed {
 
 /* The levels wvol_compress would use for v with p (the default resolved, capped at what the
  * volume allows); 0 when v cannot be transformed. For messages that name a caller's options. */
-int wvol_compress_levels(const wvol_volume *v, const wvol_compress_params *p);
+WVOL_API int wvol_compress_levels(const wvol_volume *v, const wvol_compress_params *p);
 
 /* Transform, select, (store). On failure nothing is left allocated in *out. Refuses bad
  * parameters with WVOL_ERR_ARG naming them (unknown family, levels beyond what the volume
  * allows, drop_levels >= levels, and what wvol_select refuses). */
-wvol_status wvol_compress(wvol_compressed *out, const wvol_volume *v, const wvol_compress_params *p,
+WVOL_API wvol_status wvol_compress(wvol_compressed *out, const wvol_volume *v, const wvol_compress_params *p,
                           wvol_error *err);
 
 /* The pipeline from coefficients (a decoded .wvc): selection and store, no transform. Takes
  * ownership of *c (set to NULL, freed on failure too). Without an original volume the PSNR
  * peak comes from a full reconstruction and value_min/max stay 0. */
-wvol_status wvol_compress_coeffs(wvol_compressed *out, wvol_coeffs **c, const wvol_compress_params *p,
+WVOL_API wvol_status wvol_compress_coeffs(wvol_compressed *out, wvol_coeffs **c, const wvol_compress_params *p,
                                  wvol_error *err);
 
-void wvol_compressed_free(wvol_compressed *c); /* NULL is fine; leaves *c zeroed */
+WVOL_API void wvol_compressed_free(wvol_compressed *c); /* NULL is fine; leaves *c zeroed */
 
 /* The wvc parameters of the pipeline's quantiser rule for coefficients whose selection
  * dropped `dropped` energy, over `voxels` samples of range [vmin, vmax]: the PSNR target (the
  * step meets budget - dropped; refused with WVOL_ERR_ARG when the volume is constant, or
  * when dropping alone already loses more than the target allows) or the share rule, or the
  * given step. Fills *wp completely (wvol_wvc_params_default first). */
-wvol_status wvol_compress_wvc_params(wvol_wvc_params *wp, const wvol_compress_quant *q, double dropped,
+WVOL_API wvol_status wvol_compress_wvc_params(wvol_wvc_params *wp, const wvol_compress_quant *q, double dropped,
                                      double voxels, double vmin, double vmax, wvol_error *err);
 
 /* Quantises and codes c->coeffs into a heap buffer (free with free()) with the rule above. */
-wvol_status wvol_compress_encode(void **buf, size_t *size, const wvol_compressed *c, const wvol_compress_params *p,
+WVOL_API wvol_status wvol_compress_encode(void **buf, size_t *size, const wvol_compressed *c, const wvol_compress_params *p,
                                  wvol_wvc_report *report, wvol_error *err);
 
 #ifdef __cplusplus

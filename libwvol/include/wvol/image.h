@@ -23,8 +23,8 @@ typedef struct wvol_image {
 } wvol_image;
 
 /* Allocates a zero-filled frame (1 <= width, height <= 65536). */
-wvol_status wvol_image_create(wvol_image **out, int width, int height, wvol_error *err);
-void wvol_image_destroy(wvol_image *img); /* NULL is fine */
+WVOL_API wvol_status wvol_image_create(wvol_image **out, int width, int height, wvol_error *err);
+WVOL_API void wvol_image_destroy(wvol_image *img); /* NULL is fine */
 
 /* One float channel of an EXR file: value of pixel (x, y) at data[(x + width*y) * stride]. */
 typedef struct wvol_exr_channel {
@@ -34,30 +34,30 @@ typedef struct wvol_exr_channel {
 } wvol_exr_channel;
 
 /* Writes a scanline EXR (float32, ZIP) with the given channels (1..64, unique names). */
-wvol_status wvol_exr_write(const char *path, int width, int height, const wvol_exr_channel *channels,
-                           int nchannels, wvol_error *err);
+WVOL_API wvol_status wvol_exr_write(const char *path, int width, int height, const wvol_exr_channel *channels,
+                                    int nchannels, wvol_error *err);
 
 /* Writes the frame as R, G, B, A; depth (width*height floats, may be NULL) becomes "Z". */
-wvol_status wvol_image_write_exr(const wvol_image *img, const char *path, const float *depth,
-                                 wvol_error *err);
+WVOL_API wvol_status wvol_image_write_exr(const wvol_image *img, const char *path, const float *depth,
+                                          wvol_error *err);
 
 /* Reads one float channel of a scanline EXR (any pixel type, converted to float). *out
  * gets width*height floats (free() it); *width and *height the data window's size. */
-wvol_status wvol_exr_read_channel(float **out, int *width, int *height, const char *path,
-                                  const char *name, wvol_error *err);
+WVOL_API wvol_status wvol_exr_read_channel(float **out, int *width, int *height, const char *path,
+                                           const char *name, wvol_error *err);
 
 /* Writes 8-bit PNG from interleaved linear floats with `channels` = 1 (grey), 3 (RGB) or
  * 4 (RGBA, alpha not premultiplied): colour channels are clamped to [0, 1] and sRGB-encoded. */
-wvol_status wvol_png_write(const char *path, int width, int height, int channels, const float *data,
-                           wvol_error *err);
+WVOL_API wvol_status wvol_png_write(const char *path, int width, int height, int channels, const float *data,
+                                    wvol_error *err);
 
 /* Writes the frame as an RGB PNG composited over a background colour (linear; NULL = black),
  * each colour channel scaled by `exposure` first (1 = as is). */
-wvol_status wvol_image_write_png(const wvol_image *img, const char *path, const float background[3],
-                                 double exposure, wvol_error *err);
+WVOL_API wvol_status wvol_image_write_png(const wvol_image *img, const char *path, const float background[3],
+                                          double exposure, wvol_error *err);
 
 /* Linear -> sRGB-encoded value in [0, 1] (the PNG writer's transfer). */
-double wvol_linear_to_srgb(double v);
+WVOL_API double wvol_linear_to_srgb(double v);
 
 #ifdef __cplusplus
 }

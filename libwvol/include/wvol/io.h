@@ -15,13 +15,23 @@ extern "C" {
 #endif
 
 typedef enum wvol_sample_type {
-    WVOL_F32 = 0, WVOL_F64, WVOL_U8, WVOL_I8, WVOL_U16, WVOL_I16, WVOL_U32, WVOL_I32
+    WVOL_SAMPLE_TYPE_F32 = 0, WVOL_SAMPLE_TYPE_F64, WVOL_SAMPLE_TYPE_U8, WVOL_SAMPLE_TYPE_I8,
+    WVOL_SAMPLE_TYPE_U16, WVOL_SAMPLE_TYPE_I16, WVOL_SAMPLE_TYPE_U32, WVOL_SAMPLE_TYPE_I32
 } wvol_sample_type;
+/* Deprecated names, removed after 0.1 (docs/conventions.md). */
+#define WVOL_F32 WVOL_SAMPLE_TYPE_F32
+#define WVOL_F64 WVOL_SAMPLE_TYPE_F64
+#define WVOL_U8 WVOL_SAMPLE_TYPE_U8
+#define WVOL_I8 WVOL_SAMPLE_TYPE_I8
+#define WVOL_U16 WVOL_SAMPLE_TYPE_U16
+#define WVOL_I16 WVOL_SAMPLE_TYPE_I16
+#define WVOL_U32 WVOL_SAMPLE_TYPE_U32
+#define WVOL_I32 WVOL_SAMPLE_TYPE_I32
 
 /* Parses "float32", "f32", "uint8", "int16", ...; returns -1 if unknown. */
-int wvol_sample_type_parse(const char *name);
-const char *wvol_sample_type_name(wvol_sample_type t);
-size_t wvol_sample_type_size(wvol_sample_type t);
+WVOL_API int wvol_sample_type_parse(const char *name);
+WVOL_API const char *wvol_sample_type_name(wvol_sample_type t);
+WVOL_API size_t wvol_sample_type_size(wvol_sample_type t);
 
 typedef struct wvol_load_options {
     size_t dims[3];            /* raw only: required */
@@ -32,20 +42,20 @@ typedef struct wvol_load_options {
     const char *grid_name;     /* .vdb only: NULL = first float grid */
 } wvol_load_options;
 
-void wvol_load_options_default(wvol_load_options *opt);
+WVOL_API void wvol_load_options_default(wvol_load_options *opt);
 
 /* Loads any supported format (by extension; a directory is read as a DICOM series).
  * Integer samples become float32 without loss; NaN/Inf are refused. opt may be NULL. */
-wvol_status wvol_volume_load(wvol_volume **out, const char *path, const wvol_load_options *opt,
-                             wvol_error *err);
+WVOL_API wvol_status wvol_volume_load(wvol_volume **out, const char *path, const wvol_load_options *opt,
+                                      wvol_error *err);
 
 /* Saves to any supported format, by extension. */
-wvol_status wvol_volume_save(const wvol_volume *v, const char *path, wvol_error *err);
+WVOL_API wvol_status wvol_volume_save(const wvol_volume *v, const char *path, wvol_error *err);
 
 /* The formats behind the dispatch. */
-wvol_status wvol_raw_read(wvol_volume **out, const char *path, const wvol_load_options *opt,
-                          wvol_error *err);
-wvol_status wvol_raw_write(const wvol_volume *v, const char *path, wvol_error *err);
+WVOL_API wvol_status wvol_raw_read(wvol_volume **out, const char *path, const wvol_load_options *opt,
+                                   wvol_error *err);
+WVOL_API wvol_status wvol_raw_write(const wvol_volume *v, const char *path, wvol_error *err);
 /* NRRD (NRRD0001-0005): attached (.nrrd) or detached (.nhdr + the file its
  * "data file" names, relative to the header's folder); encodings raw, gzip and
  * ascii; types int8 .. int64, uint8 .. uint64, float, double, either endianness;
@@ -56,27 +66,27 @@ wvol_status wvol_raw_write(const wvol_volume *v, const char *path, wvol_error *e
  * (missing or repeated fields, bad numbers, sizes that overflow, data shorter or
  * longer than the sizes say, truncated or corrupt gzip) is refused with a message
  * naming the file, the line and the problem. docs/datasets.md has the details. */
-wvol_status wvol_nrrd_read(wvol_volume **out, const char *path, wvol_error *err);
+WVOL_API wvol_status wvol_nrrd_read(wvol_volume **out, const char *path, wvol_error *err);
 /* Writes float32 samples in raw encoding (same as wvol_nrrd_write_gzip(v, path, 0, err)). */
-wvol_status wvol_nrrd_write(const wvol_volume *v, const char *path, wvol_error *err);
+WVOL_API wvol_status wvol_nrrd_write(const wvol_volume *v, const char *path, wvol_error *err);
 /* Writes "NRRD0004", type float, dimension 3, space left-posterior-superior,
  * space directions diag(spacing), space origin, host endianness.
  * gzip_level 0: raw encoding; 1..9: gzip at that zlib level. For a path ending in
  * .nhdr the samples go to a detached data file beside it (wvol_nrrd_data_path);
  * both files are written to temporary names first, and neither is left behind
  * on failure. */
-wvol_status wvol_nrrd_write_gzip(const wvol_volume *v, const char *path, int gzip_level,
-                                 wvol_error *err);
+WVOL_API wvol_status wvol_nrrd_write_gzip(const wvol_volume *v, const char *path, int gzip_level,
+                                          wvol_error *err);
 /* The data file a detached header gets: "<path minus .nhdr>.raw" (".raw.gz" with
  * gzip). Writes it into buf; returns 0 if it does not fit in cap bytes. */
-int wvol_nrrd_data_path(char *buf, size_t cap, const char *nhdr_path, int gzip);
+WVOL_API int wvol_nrrd_data_path(char *buf, size_t cap, const char *nhdr_path, int gzip);
 
 /* 1 if the format of this path can be read / written with this build. */
-int wvol_format_supported(const char *path, int for_writing);
+WVOL_API int wvol_format_supported(const char *path, int for_writing);
 
 /* Converts n samples of type t (byte order as given) to float32; reports values
  * that float32 cannot hold exactly only through the return of non-finite checks. */
-void wvol_samples_to_float(float *dst, const void *src, size_t n, wvol_sample_type t, int big_endian);
+WVOL_API void wvol_samples_to_float(float *dst, const void *src, size_t n, wvol_sample_type t, int big_endian);
 
 /* Atomic output file: write to "<path>.tmp-XXXXXX" beside the target, then rename.
  * wvol_atomic_abort removes the temporary file. */
@@ -86,12 +96,12 @@ typedef struct wvol_atomic_file {
     char *final_path;
 } wvol_atomic_file;
 
-wvol_status wvol_atomic_open(wvol_atomic_file *f, const char *path, wvol_error *err);
-wvol_status wvol_atomic_commit(wvol_atomic_file *f, wvol_error *err);
-void wvol_atomic_abort(wvol_atomic_file *f);
+WVOL_API wvol_status wvol_atomic_open(wvol_atomic_file *f, const char *path, wvol_error *err);
+WVOL_API wvol_status wvol_atomic_commit(wvol_atomic_file *f, wvol_error *err);
+WVOL_API void wvol_atomic_abort(wvol_atomic_file *f);
 
 /* 1 if path ends with ext (case-insensitive). */
-int wvol_path_has_ext(const char *path, const char *ext);
+WVOL_API int wvol_path_has_ext(const char *path, const char *ext);
 
 #ifdef __cplusplus
 }

@@ -15,6 +15,7 @@
 #ifndef WVOL_ISO_H
 #define WVOL_ISO_H
 
+#include "wvol/export.h"
 #include <stddef.h>
 #include <stdint.h>
 #include "wvol/image.h"
@@ -37,18 +38,18 @@ typedef struct wvol_mesh {
 } wvol_mesh;
 
 /* Allocates a mesh with room for exactly nverts / ntris (normals if with_normals). */
-wvol_status wvol_mesh_create(wvol_mesh **out, size_t nverts, size_t ntris, int with_normals,
-                             wvol_error *err);
-void wvol_mesh_destroy(wvol_mesh *m); /* NULL is fine */
+WVOL_API wvol_status wvol_mesh_create(wvol_mesh **out, size_t nverts, size_t ntris, int with_normals,
+                                      wvol_error *err);
+WVOL_API void wvol_mesh_destroy(wvol_mesh *m); /* NULL is fine */
 
 /* Surface area (float64 accumulation). */
-double wvol_mesh_area(const wvol_mesh *m);
+WVOL_API double wvol_mesh_area(const wvol_mesh *m);
 /* Signed enclosed volume by the divergence theorem: positive when the mesh is
  * closed and wound as above around a region of f >= iso. Meaningful only for a
  * closed mesh (see wvol_mesh_topology). */
-double wvol_mesh_volume(const wvol_mesh *m);
+WVOL_API double wvol_mesh_volume(const wvol_mesh *m);
 /* Axis-aligned bounds of the vertices; lo/hi untouched for an empty mesh. */
-void wvol_mesh_bounds(const wvol_mesh *m, double lo[3], double hi[3]);
+WVOL_API void wvol_mesh_bounds(const wvol_mesh *m, double lo[3], double hi[3]);
 
 /* Combinatorial checks on the index structure (positions are not compared). */
 typedef struct wvol_mesh_topo {
@@ -64,41 +65,45 @@ typedef struct wvol_mesh_topo {
     int watertight;            /* 1: no boundary, non-manifold or misoriented edge, no bad vertex */
 } wvol_mesh_topo;
 
-wvol_status wvol_mesh_topology(const wvol_mesh *m, wvol_mesh_topo *out, wvol_error *err);
+WVOL_API wvol_status wvol_mesh_topology(const wvol_mesh *m, wvol_mesh_topo *out, wvol_error *err);
 
 /* Writes a mesh; the format follows the extension: .ply (binary little-endian,
  * with normals when present), .obj (text), .stl (binary, facet normals from the
  * triangles), .vtp (VTK XML PolyData, through the VTK adapter when built; else
  * WVOL_ERR_UNSUPPORTED). The file is written to a temporary name and renamed. */
-wvol_status wvol_mesh_save(const wvol_mesh *m, const char *path, wvol_error *err);
-wvol_status wvol_mesh_write_ply(const wvol_mesh *m, const char *path, wvol_error *err);
-wvol_status wvol_mesh_write_obj(const wvol_mesh *m, const char *path, wvol_error *err);
-wvol_status wvol_mesh_write_stl(const wvol_mesh *m, const char *path, wvol_error *err);
-wvol_status wvol_mesh_write_vtp(const wvol_mesh *m, const char *path, wvol_error *err);
+WVOL_API wvol_status wvol_mesh_save(const wvol_mesh *m, const char *path, wvol_error *err);
+WVOL_API wvol_status wvol_mesh_write_ply(const wvol_mesh *m, const char *path, wvol_error *err);
+WVOL_API wvol_status wvol_mesh_write_obj(const wvol_mesh *m, const char *path, wvol_error *err);
+WVOL_API wvol_status wvol_mesh_write_stl(const wvol_mesh *m, const char *path, wvol_error *err);
+WVOL_API wvol_status wvol_mesh_write_vtp(const wvol_mesh *m, const char *path, wvol_error *err);
 /* Reads a binary little-endian PLY as written by wvol_mesh_write_ply (vertices
  * x y z [nx ny nz] float, faces as uchar count + int/uint indices). */
-wvol_status wvol_mesh_read_ply(wvol_mesh **out, const char *path, wvol_error *err);
+WVOL_API wvol_status wvol_mesh_read_ply(wvol_mesh **out, const char *path, wvol_error *err);
 
 /* ---- extraction -------------------------------------------------------------- */
 
 typedef enum wvol_iso_normals {
-    WVOL_NORMALS_NONE = 0,      /* no vertex normals */
-    WVOL_NORMALS_GRADIENT = 1,  /* -grad f by central differences on the grid (one-sided at
-                                   borders), interpolated along the edge like the position */
-    WVOL_NORMALS_ANALYTIC = 2   /* -grad from params.gradient at the vertex's world position */
+    WVOL_ISO_NORMALS_NONE = 0,      /* no vertex normals */
+    WVOL_ISO_NORMALS_GRADIENT = 1,  /* -grad f by central differences on the grid (one-sided at
+                                       borders), interpolated along the edge like the position */
+    WVOL_ISO_NORMALS_ANALYTIC = 2   /* -grad from params.gradient at the vertex's world position */
 } wvol_iso_normals;
+/* Deprecated names, removed after 0.1 (docs/conventions.md). */
+#define WVOL_NORMALS_NONE WVOL_ISO_NORMALS_NONE
+#define WVOL_NORMALS_GRADIENT WVOL_ISO_NORMALS_GRADIENT
+#define WVOL_NORMALS_ANALYTIC WVOL_ISO_NORMALS_ANALYTIC
 
 typedef struct wvol_iso_params {
     int threads;                /* 0: OpenMP's default; otherwise at most this many */
-    wvol_iso_normals normals;   /* default WVOL_NORMALS_GRADIENT */
-    /* For WVOL_NORMALS_ANALYTIC: gradient of the field at a world position.
+    wvol_iso_normals normals;   /* default WVOL_ISO_NORMALS_GRADIENT */
+    /* For WVOL_ISO_NORMALS_ANALYTIC: gradient of the field at a world position.
      * Called concurrently from several threads. */
     void (*gradient)(void *user, const double xyz[3], double grad[3]);
     void *gradient_user;
     int brick;                  /* coefficient path: cells per brick edge (default 32) */
 } wvol_iso_params;
 
-void wvol_iso_params_default(wvol_iso_params *p);
+WVOL_API void wvol_iso_params_default(wvol_iso_params *p);
 
 typedef struct wvol_iso_stats {
     int empty;                  /* 1 when the mesh is empty; message says why */
@@ -120,8 +125,8 @@ typedef struct wvol_iso_stats {
  * (iso <= min or iso > max) gives an empty mesh, status OK, stats->empty = 1 and
  * a message. NaN/Inf next to the surface gives WVOL_ERR_NONFINITE. p and stats
  * may be NULL. */
-wvol_status wvol_iso_extract(wvol_mesh **out, const wvol_volume *v, double iso,
-                             const wvol_iso_params *p, wvol_iso_stats *stats, wvol_error *err);
+WVOL_API wvol_status wvol_iso_extract(wvol_mesh **out, const wvol_volume *v, double iso,
+                                      const wvol_iso_params *p, wvol_iso_stats *stats, wvol_error *err);
 
 /* Marching cubes on the reconstruction of wavelet coefficients c (dropped
  * coefficients zeroed, e.g. by wvol_selection_apply), brick by brick: bricks of
@@ -130,8 +135,8 @@ wvol_status wvol_iso_extract(wvol_mesh **out, const wvol_volume *v, double iso,
  * with wvol_idwt3_brick, meshed, and stitched by global edge ids (no duplicate
  * vertices, no cracks). The mesh equals wvol_iso_extract on wvol_idwt3(c) up to
  * the float rounding of the two reconstructions. stats report bricks skipped. */
-wvol_status wvol_iso_extract_coeffs(wvol_mesh **out, const wvol_coeffs *c, double iso,
-                                    const wvol_iso_params *p, wvol_iso_stats *stats, wvol_error *err);
+WVOL_API wvol_status wvol_iso_extract_coeffs(wvol_mesh **out, const wvol_coeffs *c, double iso,
+                                             const wvol_iso_params *p, wvol_iso_stats *stats, wvol_error *err);
 
 /* wvol_iso_extract_coeffs from a store: the bricks whose bound (from the kept coefficients
  * alone) straddles iso are reconstructed from the store's kept coefficients, as the bricked
@@ -139,7 +144,7 @@ wvol_status wvol_iso_extract_coeffs(wvol_mesh **out, const wvol_coeffs *c, doubl
  * stitched. The mesh is wvol_iso_extract_coeffs's on wvol_store_densify(s), exactly: the
  * same vertices, normals and triangles in the same order. Where the bound does not apply
  * (a store without transformed levels) every brick is reconstructed. */
-wvol_status wvol_iso_extract_store(wvol_mesh **out, const wvol_store *s, double iso,
+WVOL_API wvol_status wvol_iso_extract_store(wvol_mesh **out, const wvol_store *s, double iso,
                                    const wvol_iso_params *p, wvol_iso_stats *stats, wvol_error *err);
 
 /* ---- ray tracing the implicit surface f^ = iso of a store (Kalra-Barr) ---------- */
@@ -164,7 +169,7 @@ typedef struct wvol_iso_trace_params {
     float ambient;      /* in [0, 1] */
 } wvol_iso_trace_params;
 
-void wvol_iso_trace_params_default(wvol_iso_trace_params *p);
+WVOL_API void wvol_iso_trace_params_default(wvol_iso_trace_params *p);
 
 typedef struct wvol_iso_hit {
     int hit;            /* 1 when the ray meets f^ = iso inside the extent */
@@ -182,8 +187,8 @@ typedef struct wvol_iso_hit {
 
 /* The first crossing of f^ = iso along o + t d, t >= 0 (world; d need not be unit; t is then
  * in world units along the unit direction). */
-wvol_status wvol_iso_trace_ray(const wvol_store *s, double iso, const double o[3], const double d[3],
-                               const wvol_iso_trace_params *p, wvol_iso_hit *hit, wvol_error *err);
+WVOL_API wvol_status wvol_iso_trace_ray(const wvol_store *s, double iso, const double o[3], const double d[3],
+                                        const wvol_iso_trace_params *p, wvol_iso_hit *hit, wvol_error *err);
 
 typedef struct wvol_iso_trace_stats {
     size_t rays, hits, functions, pieces, refined, intervals, evals, grazes;
@@ -197,19 +202,19 @@ typedef struct wvol_iso_trace_stats {
  * Lambert-shaded albedo (two-sided) with alpha 1 on a hit, 0 elsewhere; depth (w*h floats,
  * +inf on a miss) the ray parameter t of the hit; normals (w*h*3) the unit normals. depth and
  * normals may be NULL. Nothing hit is not an error: stats->message says why. */
-wvol_status wvol_iso_raytrace(wvol_image *img, float *depth, float *normals, const wvol_store *s,
-                              const wvol_camera *cam, double iso, const wvol_iso_trace_params *p,
-                              wvol_iso_trace_stats *stats, wvol_error *err);
+WVOL_API wvol_status wvol_iso_raytrace(wvol_image *img, float *depth, float *normals, const wvol_store *s,
+                                       const wvol_camera *cam, double iso, const wvol_iso_trace_params *p,
+                                       wvol_iso_trace_stats *stats, wvol_error *err);
 
 /* The paper's Fig. 15: the opaque surface f^ = iso composited behind the translucent volume in
  * front of it. Per pixel the surface is traced (wvol_iso_raytrace), the spline integrator runs
  * from the box's entry to the surface's depth (wvol_render_spline_until) with tf and rp, and
  * the shaded surface is added with the remaining transmittance. depth (may be NULL) receives
  * the surface depth. */
-wvol_status wvol_iso_render_hybrid(wvol_image *img, float *depth, const wvol_store *s, const wvol_camera *cam,
-                                   const wvol_tf *tf, double iso, const wvol_render_params *rp,
-                                   const wvol_iso_trace_params *tp, wvol_iso_trace_stats *tstats,
-                                   wvol_render_stats *rstats, wvol_error *err);
+WVOL_API wvol_status wvol_iso_render_hybrid(wvol_image *img, float *depth, const wvol_store *s, const wvol_camera *cam,
+                                            const wvol_tf *tf, double iso, const wvol_render_params *rp,
+                                            const wvol_iso_trace_params *tp, wvol_iso_trace_stats *tstats,
+                                            wvol_render_stats *rstats, wvol_error *err);
 
 #ifdef __cplusplus
 }

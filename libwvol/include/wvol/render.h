@@ -16,6 +16,7 @@
 #ifndef WVOL_RENDER_H
 #define WVOL_RENDER_H
 
+#include "wvol/export.h"
 #include <stddef.h>
 #include "wvol/image.h"
 #include "wvol/volume.h"
@@ -33,10 +34,10 @@ typedef struct wvol_geometry {
     double origin[3];
 } wvol_geometry;
 
-void wvol_geometry_of_volume(wvol_geometry *g, const wvol_volume *v);
-void wvol_geometry_of_coeffs(wvol_geometry *g, const wvol_coeffs *c);
+WVOL_API void wvol_geometry_of_volume(wvol_geometry *g, const wvol_volume *v);
+WVOL_API void wvol_geometry_of_coeffs(wvol_geometry *g, const wvol_coeffs *c);
 /* World box of the rendered domain: lo = origin - spacing/2, hi = origin + (n - 1/2) spacing. */
-void wvol_geometry_bounds(const wvol_geometry *g, double lo[3], double hi[3]);
+WVOL_API void wvol_geometry_bounds(const wvol_geometry *g, double lo[3], double hi[3]);
 
 /* ---- cameras ---------------------------------------------------------------------------- */
 
@@ -64,14 +65,14 @@ typedef struct wvol_camera {
 } wvol_camera;
 
 /* Refuses non-finite values, eye == center, up parallel to the view, bad sizes. */
-wvol_status wvol_camera_check(const wvol_camera *cam, wvol_error *err);
+WVOL_API wvol_status wvol_camera_check(const wvol_camera *cam, wvol_error *err);
 
 /* A camera looking along `view_dir` (from the camera towards the volume; need not be unit)
  * at the centre of the volume's box, framing the box exactly (orthographic: the projected
  * box fits the image; perspective: its bounding sphere fits the field of view fov_y, default
  * 30 degrees when fov_y <= 0). Up is +z, or +y when the view is along z. For a view along an
  * axis with width x height = the two other dimensions, pixel centres fall on voxel centres. */
-wvol_status wvol_camera_frame(wvol_camera *cam, const wvol_geometry *g, const double view_dir[3],
+WVOL_API wvol_status wvol_camera_frame(wvol_camera *cam, const wvol_geometry *g, const double view_dir[3],
                               wvol_projection projection, int width, int height, double fov_y,
                               wvol_error *err);
 
@@ -82,12 +83,12 @@ wvol_status wvol_camera_frame(wvol_camera *cam, const wvol_geometry *g, const do
  * dir=X,Y,Z (view direction), eye= center= up= (world), fov= (degrees), height= (ortho world
  * height), zoom= (> 1 magnifies the framed view). Unknown words and malformed values are refused
  * with a message naming them. */
-wvol_status wvol_camera_parse(wvol_camera *cam, const char *spec, const wvol_geometry *g, int width,
+WVOL_API wvol_status wvol_camera_parse(wvol_camera *cam, const char *spec, const wvol_geometry *g, int width,
                               int height, wvol_error *err);
 
 /* World ray of pixel position (px, py) in pixel units (px = x + 0.5 is pixel x's centre):
  * origin and unit direction. The camera must have passed wvol_camera_check. */
-void wvol_camera_ray(const wvol_camera *cam, double px, double py, double origin[3], double dir[3]);
+WVOL_API void wvol_camera_ray(const wvol_camera *cam, double px, double py, double origin[3], double dir[3]);
 
 /* ---- transfer functions ------------------------------------------------------------------- */
 
@@ -108,27 +109,27 @@ typedef struct wvol_tf {
     wvol_tf_point points[WVOL_TF_MAX_POINTS];
 } wvol_tf;
 
-wvol_status wvol_tf_check(const wvol_tf *tf, wvol_error *err);
+WVOL_API wvol_status wvol_tf_check(const wvol_tf *tf, wvol_error *err);
 
 /* Presets: "gaussian" (linear ramp over [vmin, vmax], the data range: blue to warm white,
  * kappa from 0 to 16 per diagonal), "ct-bone" and "ct-soft" (Hounsfield units; vmin/vmax
  * unused), "grey" (white, kappa linear 0..8 per diagonal over [vmin, vmax]). */
-wvol_status wvol_tf_preset(wvol_tf *tf, const char *name, double vmin, double vmax, wvol_error *err);
+WVOL_API wvol_status wvol_tf_preset(wvol_tf *tf, const char *name, double vmin, double vmax, wvol_error *err);
 
 /* Parses the text form: one point per line "value r g b opacity", '#' comments, and optional
  * lines "units world" (default) or "units diagonal"; or the JSON form
  *   {"units": "world"|"diagonal", "points": [[value, r, g, b, opacity], ...]}.
  * `what` names the source in messages (a file name). */
-wvol_status wvol_tf_parse(wvol_tf *tf, const char *text, const char *what, wvol_error *err);
+WVOL_API wvol_status wvol_tf_parse(wvol_tf *tf, const char *text, const char *what, wvol_error *err);
 /* Reads a file in either form (JSON when its first non-blank character is '{'). */
-wvol_status wvol_tf_load(wvol_tf *tf, const char *path, wvol_error *err);
+WVOL_API wvol_status wvol_tf_load(wvol_tf *tf, const char *path, wvol_error *err);
 /* A transfer function from what a user types: the path of an existing regular file is loaded
  * (wvol_tf_load; its errors keep their status), anything else is a preset name
  * (wvol_tf_preset with vmin, vmax; an unknown name is WVOL_ERR_ARG). */
-wvol_status wvol_tf_resolve(wvol_tf *tf, const char *spec, double vmin, double vmax, wvol_error *err);
+WVOL_API wvol_status wvol_tf_resolve(wvol_tf *tf, const char *spec, double vmin, double vmax, wvol_error *err);
 
 /* Colour and kappa (in the TF's own units) at value v. Either output may be NULL. */
-void wvol_tf_eval(const wvol_tf *tf, double v, double rgb[3], double *kappa);
+WVOL_API void wvol_tf_eval(const wvol_tf *tf, double v, double rgb[3], double *kappa);
 
 /* ---- rendering ------------------------------------------------------------------------------ */
 
@@ -157,10 +158,10 @@ typedef enum wvol_render_method {
 /* Names as the CLI and Python spell them ("auto", "reference", "reference-fhat", "bricks",
  * "spline", "axis", "splat"; "xray", "absorption", "absorption-linear"). parse refuses an
  * unknown name with WVOL_ERR_ARG and a message listing the valid ones. */
-const char *wvol_render_method_name(wvol_render_method m);
-wvol_status wvol_render_method_parse(wvol_render_method *m, const char *name, wvol_error *err);
-const char *wvol_render_mode_name(wvol_render_mode m);
-wvol_status wvol_render_mode_parse(wvol_render_mode *m, const char *name, wvol_error *err);
+WVOL_API const char *wvol_render_method_name(wvol_render_method m);
+WVOL_API wvol_status wvol_render_method_parse(wvol_render_method *m, const char *name, wvol_error *err);
+WVOL_API const char *wvol_render_mode_name(wvol_render_mode m);
+WVOL_API wvol_status wvol_render_mode_parse(wvol_render_mode *m, const char *name, wvol_error *err);
 
 /* Settings read by one method only. Defaults (wvol_render_params_default) are the library's
  * and are defined there once. */
@@ -213,7 +214,7 @@ typedef struct wvol_render_params {
     wvol_render_spline_params spline;
 } wvol_render_params;
 
-void wvol_render_params_default(wvol_render_params *p);
+WVOL_API void wvol_render_params_default(wvol_render_params *p);
 
 typedef struct wvol_render_stats {
     wvol_render_method method; /* the method that ran (AUTO resolved) */
@@ -256,8 +257,8 @@ typedef struct wvol_render_source {
     const wvol_store *store;    /* STORE */
 } wvol_render_source;
 
-wvol_render_source wvol_render_source_volume(const wvol_volume *v);
-wvol_render_source wvol_render_source_store(const wvol_store *s);
+WVOL_API wvol_render_source wvol_render_source_volume(const wvol_volume *v);
+WVOL_API wvol_render_source wvol_render_source_store(const wvol_store *s);
 
 /* The rendering entry point: params->method on the source (AUTO resolved as described at
  * wvol_render_method; stats->method says what ran). img must exist with the camera's size;
@@ -265,19 +266,19 @@ wvol_render_source wvol_render_source_store(const wvol_store *s);
  * serve (a store method on a dense volume, axis off an axis, splat in perspective) is
  * WVOL_ERR_UNSUPPORTED with the reason. The per-method functions below do the work; they
  * stay public for callers that want one method and nothing else. */
-wvol_status wvol_render(wvol_image *img, const wvol_render_source *source, const wvol_camera *cam,
+WVOL_API wvol_status wvol_render(wvol_image *img, const wvol_render_source *source, const wvol_camera *cam,
                         const wvol_tf *tf, const wvol_render_params *params, wvol_render_stats *stats,
                         wvol_error *err);
 
 /* Reference integrator (eq 33) on a dense volume. img must exist with the camera's size.
  * Trilinear samples clamp to the edge voxels within the box. params/stats may be NULL. */
-wvol_status wvol_render_reference(wvol_image *img, const wvol_volume *v, const wvol_camera *cam,
+WVOL_API wvol_status wvol_render_reference(wvol_image *img, const wvol_volume *v, const wvol_camera *cam,
                                   const wvol_tf *tf, const wvol_render_params *params,
                                   wvol_render_stats *stats, wvol_error *err);
 
 /* Reference integrator sampling f^ (all coefficients of c, zeros count as dropped) through
  * the spline tables b: the converged reference of the spline model (DESIGN.md section 8). */
-wvol_status wvol_render_reference_fhat(wvol_image *img, const wvol_coeffs *c, const wvol_basis *b,
+WVOL_API wvol_status wvol_render_reference_fhat(wvol_image *img, const wvol_coeffs *c, const wvol_basis *b,
                                        const wvol_camera *cam, const wvol_tf *tf,
                                        const wvol_render_params *params, wvol_render_stats *stats,
                                        wvol_error *err);
@@ -293,7 +294,7 @@ wvol_status wvol_render_reference_fhat(wvol_image *img, const wvol_coeffs *c, co
  * with gauss_nodes Gauss-Legendre nodes per sub-piece; absorption-linear replaces exp(-dtau)
  * by max(0, 1 - dtau) per sub-piece (eq 45) and counts the clamps. Shading uses the analytic
  * gradient (eq 47), accumulated the same way from the derivative splines. */
-wvol_status wvol_render_spline(wvol_image *img, const wvol_store *s, const wvol_camera *cam,
+WVOL_API wvol_status wvol_render_spline(wvol_image *img, const wvol_store *s, const wvol_camera *cam,
                                const wvol_tf *tf, const wvol_render_params *params,
                                wvol_render_stats *stats, wvol_error *err);
 
@@ -302,7 +303,7 @@ wvol_status wvol_render_spline(wvol_image *img, const wvol_store *s, const wvol_
  * depth past the box) integrates the whole ray, a depth before the box's entry gives nothing.
  * With the depth of an opaque surface this is the volume in front of it (the hybrid picture,
  * wvol_iso_render_hybrid). stop may be NULL. */
-wvol_status wvol_render_spline_until(wvol_image *img, const wvol_store *s, const wvol_camera *cam,
+WVOL_API wvol_status wvol_render_spline_until(wvol_image *img, const wvol_store *s, const wvol_camera *cam,
                                      const wvol_tf *tf, const wvol_render_params *params, const float *stop,
                                      wvol_render_stats *stats, wvol_error *err);
 
@@ -314,7 +315,7 @@ wvol_status wvol_render_spline_until(wvol_image *img, const wvol_store *s, const
  * into a small cache per thread; a brick whose coefficient bound shows kappa = 0 throughout
  * (or within the skip tolerance) is skipped unreconstructed. Equals wvol_render_reference on wvol_idwt3 of the same coefficients to
  * float rounding. stats->bytes reports what the call allocated. */
-wvol_status wvol_render_bricks(wvol_image *img, const wvol_store *s, const wvol_camera *cam, const wvol_tf *tf,
+WVOL_API wvol_status wvol_render_bricks(wvol_image *img, const wvol_store *s, const wvol_camera *cam, const wvol_tf *tf,
                                const wvol_render_params *params, wvol_render_stats *stats, wvol_error *err);
 
 /* Fast path: X-ray along a coordinate axis (orthographic camera looking along an axis whose
@@ -323,7 +324,7 @@ wvol_status wvol_render_bricks(wvol_image *img, const wvol_store *s, const wvol_
  * integral of phi or psi (the spline's own, ~1 and ~0), leaving a 2D pyramid whose multi-level
  * expansion is evaluated at the pixel centres (O(kept + pixels * levels * 4 (L-1)^2)). Equals wvol_render_spline in X-ray mode to rounding. WVOL_ERR_UNSUPPORTED (with
  * the reason) for other cameras. */
-wvol_status wvol_render_xray_axis(wvol_image *img, const wvol_store *s, const wvol_camera *cam,
+WVOL_API wvol_status wvol_render_xray_axis(wvol_image *img, const wvol_store *s, const wvol_camera *cam,
                                   const wvol_render_params *params, wvol_render_stats *stats,
                                   wvol_error *err);
 
@@ -336,13 +337,13 @@ wvol_status wvol_render_xray_axis(wvol_image *img, const wvol_store *s, const wv
  * is the tables' interpolation error (docs/render.md). Cost O(sum of footprint areas),
  * independent of the ray length. WVOL_ERR_UNSUPPORTED (with the reason) for other modes,
  * perspective cameras, an untransformed axis, and filters of more than 10 taps (bl3). */
-wvol_status wvol_render_xray_splat(wvol_image *img, const wvol_store *s, const wvol_camera *cam,
+WVOL_API wvol_status wvol_render_xray_splat(wvol_image *img, const wvol_store *s, const wvol_camera *cam,
                                    const wvol_render_params *params, wvol_render_stats *stats,
                                    wvol_error *err);
 
 /* Image error: RMSE over all pixels and the 4 channels (or only `channel` 0..3 if >= 0) of a
  * against b, relative to the max |b| of those channels when relative is set. Same sizes. */
-double wvol_image_rmse(const wvol_image *a, const wvol_image *b, int channel, int relative);
+WVOL_API double wvol_image_rmse(const wvol_image *a, const wvol_image *b, int channel, int relative);
 
 /* Deprecated names (one release; docs/conventions.md). */
 #define WVOL_ORTHOGRAPHIC WVOL_PROJECTION_ORTHOGRAPHIC

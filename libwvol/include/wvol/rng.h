@@ -6,6 +6,7 @@
 #ifndef WVOL_RNG_H
 #define WVOL_RNG_H
 
+#include "wvol/export.h"
 #include <stdint.h>
 
 #ifdef __cplusplus
@@ -16,13 +17,13 @@ typedef struct wvol_rng {
     uint64_t s[4];
 } wvol_rng;
 
-void wvol_rng_seed(wvol_rng *r, uint64_t seed);
-uint64_t wvol_rng_next(wvol_rng *r);
-double wvol_rng_uniform(wvol_rng *r);  /* [0, 1) with 53 random bits */
-double wvol_rng_normal(wvol_rng *r);   /* standard normal (Box-Muller) */
+WVOL_API void wvol_rng_seed(wvol_rng *r, uint64_t seed);
+WVOL_API uint64_t wvol_rng_next(wvol_rng *r);
+WVOL_API double wvol_rng_uniform(wvol_rng *r);  /* [0, 1) with 53 random bits */
+WVOL_API double wvol_rng_normal(wvol_rng *r);   /* standard normal (Box-Muller) */
 
 /* splitmix64 finaliser: a good 64-bit mixing hash (the seeding's, and counter-based noise). */
-uint64_t wvol_hash64(uint64_t x);
+WVOL_API uint64_t wvol_hash64(uint64_t x);
 
 #ifdef __cplusplus
 }

@@ -5,6 +5,8 @@
 #ifndef WVOL_STATUS_H
 #define WVOL_STATUS_H
 
+#include "wvol/export.h"
+
 #ifdef __cplusplus
 extern "C" {
 #endif
@@ -30,37 +32,24 @@ typedef struct wvol_error {
 } wvol_error;
 
 /* Short fixed description of a status code ("bad argument", ...). */
-const char *wvol_status_string(wvol_status s);
+WVOL_API const char *wvol_status_string(wvol_status s);
 
 /* Fills err (if not NULL) with status and a printf-style message; returns status. */
-wvol_status wvol_error_set(wvol_error *err, wvol_status status, const char *fmt, ...)
+WVOL_API wvol_status wvol_error_set(wvol_error *err, wvol_status status, const char *fmt, ...)
 #if defined(__GNUC__)
     __attribute__((format(printf, 3, 4)))
 #endif
     ;
 
 /* Resets err to OK with an empty message. */
-void wvol_error_clear(wvol_error *err);
+WVOL_API void wvol_error_clear(wvol_error *err);
 
 /* Prefixes the existing message with context ("reading x.nrrd: ..."). */
-void wvol_error_prefix(wvol_error *err, const char *fmt, ...)
+WVOL_API void wvol_error_prefix(wvol_error *err, const char *fmt, ...)
 #if defined(__GNUC__)
     __attribute__((format(printf, 2, 3)))
 #endif
     ;
-
-/* Internal convenience: return with an error when cond holds. */
-#define WVOL_RETURN_IF(cond, err, status, ...)                     \
-    do {                                                           \
-        if (cond) return wvol_error_set((err), (status), __VA_ARGS__); \
-    } while (0)
-
-/* Internal convenience: propagate a non-OK status. */
-#define WVOL_FORWARD(expr)               \
-    do {                                 \
-        wvol_status wvol__s_ = (expr);   \
-        if (wvol__s_ != WVOL_OK) return wvol__s_; \
-    } while (0)
 
 #ifdef __cplusplus
 }

@@ -80,7 +80,7 @@ typedef struct wvol_select_params {
 } wvol_select_params;
 
 /* Everything zero except mode = WVOL_SELECT_ALL (and power 1 in each ellipsoid). */
-wvol_select_params wvol_select_params_default(void);
+WVOL_API void wvol_select_params_default(wvol_select_params *p);
 
 typedef struct wvol_select_report {
     size_t total;            /* N: all coefficients of the padded grid */
@@ -119,33 +119,33 @@ typedef struct wvol_selection wvol_selection;
  * rep (may be NULL) receives the report. Bad params (NaN, fraction/energy out
  * of [0,1], negative threshold, drop_levels >= levels, bad ellipsoid) are refused
  * with WVOL_ERR_ARG. A count larger than N keeps everything. */
-wvol_status wvol_select(wvol_selection **out, const wvol_coeffs *c, const wvol_select_params *prm,
-                        const wvol_volume *original, wvol_select_report *rep, wvol_error *err);
+WVOL_API wvol_status wvol_select(wvol_selection **out, const wvol_coeffs *c, const wvol_select_params *prm,
+                                 const wvol_volume *original, wvol_select_report *rep, wvol_error *err);
 
 /* Selection from an explicit kept bitmap (bit i of word i/64 = coefficient i),
  * e.g. after decoding a file. The low-pass cube is added. rep may be NULL. */
-wvol_status wvol_selection_from_bitmap(wvol_selection **out, const wvol_coeffs *c, const uint64_t *bits,
-                                       wvol_select_report *rep, wvol_error *err);
+WVOL_API wvol_status wvol_selection_from_bitmap(wvol_selection **out, const wvol_coeffs *c, const uint64_t *bits,
+                                                wvol_select_report *rep, wvol_error *err);
 
-void wvol_selection_destroy(wvol_selection *s); /* NULL is fine */
+WVOL_API void wvol_selection_destroy(wvol_selection *s); /* NULL is fine */
 
-size_t wvol_selection_total(const wvol_selection *s);  /* N */
-size_t wvol_selection_kept(const wvol_selection *s);
-int wvol_selection_is_kept(const wvol_selection *s, size_t index); /* index into c->data */
+WVOL_API size_t wvol_selection_total(const wvol_selection *s);  /* N */
+WVOL_API size_t wvol_selection_kept(const wvol_selection *s);
+WVOL_API int wvol_selection_is_kept(const wvol_selection *s, size_t index); /* index into c->data */
 /* The bitmap, (N + 63) / 64 words; valid while s lives. */
-const uint64_t *wvol_selection_bits(const wvol_selection *s);
+WVOL_API const uint64_t *wvol_selection_bits(const wvol_selection *s);
 
 /* Zeroes the dropped coefficients of c in place (c must have the selection's layout). */
-wvol_status wvol_selection_apply(const wvol_selection *s, wvol_coeffs *c, wvol_error *err);
+WVOL_API wvol_status wvol_selection_apply(const wvol_selection *s, wvol_coeffs *c, wvol_error *err);
 
 /* Reconstructs the kept part and fills the measured_* fields of rep (and peak
  * when rep->peak <= 0). original may be NULL (then the full reconstruction of c
  * is the reference). */
-wvol_status wvol_selection_measure(const wvol_selection *s, const wvol_coeffs *c, const wvol_volume *original,
-                                   wvol_select_report *rep, wvol_error *err);
+WVOL_API wvol_status wvol_selection_measure(const wvol_selection *s, const wvol_coeffs *c, const wvol_volume *original,
+                                            wvol_select_report *rep, wvol_error *err);
 
 /* The LOD weight w(x) of prm at a world position (1 without ellipsoids). */
-double wvol_lod_weight(const wvol_select_params *prm, const double world[3]);
+WVOL_API double wvol_lod_weight(const wvol_select_params *prm, const double world[3]);
 
 /* ---- the store (DESIGN.md section 6) --------------------------------------- */
 
@@ -157,15 +157,15 @@ typedef struct wvol_store_params {
                               use it too) */
 } wvol_store_params;
 
-wvol_store_params wvol_store_params_default(void);
+WVOL_API void wvol_store_params_default(wvol_store_params *p);
 
 /* Builds the store of the coefficients of c kept by sel (NULL: every nonzero
  * coefficient, plus the whole low-pass cube). c is copied from; it need not
  * outlive the store. prm may be NULL (defaults). */
-wvol_status wvol_store_build(wvol_store **out, const wvol_coeffs *c, const wvol_selection *sel,
-                             const wvol_store_params *prm, wvol_error *err);
+WVOL_API wvol_status wvol_store_build(wvol_store **out, const wvol_coeffs *c, const wvol_selection *sel,
+                                      const wvol_store_params *prm, wvol_error *err);
 
-void wvol_store_destroy(wvol_store *s); /* NULL is fine */
+WVOL_API void wvol_store_destroy(wvol_store *s); /* NULL is fine */
 
 typedef struct wvol_store_info {
     const wvol_filter *filter;
@@ -185,14 +185,14 @@ typedef struct wvol_store_info {
     size_t basis_bytes;       /* the basis tables and their range tables */
 } wvol_store_info;
 
-void wvol_store_get_info(const wvol_store *s, wvol_store_info *info);
+WVOL_API void wvol_store_get_info(const wvol_store *s, wvol_store_info *info);
 
 /* The basis tables the store evaluates with (owned by the store). */
-const wvol_basis *wvol_store_basis(const wvol_store *s);
+WVOL_API const wvol_basis *wvol_store_basis(const wvol_store *s);
 
 /* Coefficient value by index. Returns 1 and sets *value when kept, 0 otherwise
  * (also for out-of-range indices). band 0 only at level M. value may be NULL. */
-int wvol_store_lookup(const wvol_store *s, int level, int band, size_t p, size_t q, size_t r, float *value);
+WVOL_API int wvol_store_lookup(const wvol_store *s, int level, int band, size_t p, size_t q, size_t r, float *value);
 
 typedef struct wvol_store_coeff {
     float value;
@@ -207,7 +207,7 @@ typedef struct wvol_store_coeff {
 typedef struct wvol_store_iter {
     size_t node, k;
 } wvol_store_iter;
-int wvol_store_next(const wvol_store *s, wvol_store_iter *it, wvol_store_coeff *c);
+WVOL_API int wvol_store_next(const wvol_store *s, wvol_store_iter *it, wvol_store_coeff *c);
 
 /* One basis function (one periodic image of it) that a query touches. */
 typedef struct wvol_store_hit {
@@ -227,19 +227,19 @@ typedef struct wvol_store_hits {
     size_t count, capacity;
 } wvol_store_hits;
 
-void wvol_store_hits_free(wvol_store_hits *h);
+WVOL_API void wvol_store_hits_free(wvol_store_hits *h);
 
 /* Every kept basis function (with each periodic image) whose closed support box
  * meets the closed box [lo, hi] (voxel coords), found by descending the octree
  * and skipping subtrees whose support misses the box. */
-wvol_status wvol_store_query_box(const wvol_store *s, const double lo[3], const double hi[3],
-                                 wvol_store_hits *out, wvol_error *err);
+WVOL_API wvol_status wvol_store_query_box(const wvol_store *s, const double lo[3], const double hi[3],
+                                          wvol_store_hits *out, wvol_error *err);
 
 /* Every kept basis function image whose support box the segment o + t d,
  * t in [tmin, tmax], crosses (voxel coords; d need not be unit length; a zero d
  * is a point). hit.t0 <= hit.t1 give the part of the segment inside the box. */
-wvol_status wvol_store_query_ray(const wvol_store *s, const double o[3], const double d[3], double tmin,
-                                 double tmax, wvol_store_hits *out, wvol_error *err);
+WVOL_API wvol_status wvol_store_query_ray(const wvol_store *s, const double o[3], const double d[3], double tmin,
+                                          double tmax, wvol_store_hits *out, wvol_error *err);
 
 /* Rigorous bounds of the spline model f^ and its gradient on a closed box
  * (voxel coords): for every x in the box, vmin <= f^(x) <= vmax, |f^(x)| <= vabs,
@@ -256,18 +256,18 @@ typedef struct wvol_store_bounds {
     size_t touching;      /* basis function images meeting the box */
 } wvol_store_bounds;
 
-wvol_status wvol_store_box_bounds(const wvol_store *s, const double lo[3], const double hi[3],
-                                  wvol_store_bounds *out, wvol_error *err);
+WVOL_API wvol_status wvol_store_box_bounds(const wvol_store *s, const double lo[3], const double hi[3],
+                                           wvol_store_bounds *out, wvol_error *err);
 
 /* f^ at x (voxel coords) from the kept coefficients through the basis splines;
  * grad (may be NULL) receives the gradient in voxel units. Periodic. */
-double wvol_store_eval(const wvol_store *s, const double x[3], double grad[3]);
+WVOL_API double wvol_store_eval(const wvol_store *s, const double x[3], double grad[3]);
 
 /* Bounds of a single basis function of (level, band) over all space, periodic
  * copies included: |w| <= *vmax, |dw/dx_a| <= gmax[a], for the spline model and,
  * with the spline's measured error added, for the cascade's phi and psi too (the
  * node bounds are sums of these). Either output may be NULL. */
-void wvol_store_function_bounds(const wvol_store *s, int level, int band, double *vmax, double gmax[3]);
+WVOL_API void wvol_store_function_bounds(const wvol_store *s, int level, int band, double *vmax, double gmax[3]);
 
 /* Read-only view of the octree for custom traversals. Nodes 0..roots-1 are the
  * level-M nodes; the present children of a node are contiguous from child_first
@@ -284,21 +284,21 @@ typedef struct wvol_store_node {
     double gbound[3];         /* sum over the subtree of |c| max|dw/dx_a| */
 } wvol_store_node;
 
-size_t wvol_store_node_count(const wvol_store *s);
-void wvol_store_node_get(const wvol_store *s, size_t i, wvol_store_node *out);
+WVOL_API size_t wvol_store_node_count(const wvol_store *s);
+WVOL_API void wvol_store_node_get(const wvol_store *s, size_t i, wvol_store_node *out);
 
 /* The dense low-pass cube (dims in info.lowpass, x fastest). */
-const float *wvol_store_lowpass(const wvol_store *s);
+WVOL_API const float *wvol_store_lowpass(const wvol_store *s);
 
 /* Dense coefficients with zeros for what the store does not hold (for
  * wvol_idwt3 and friends). */
-wvol_status wvol_store_densify(const wvol_store *s, wvol_coeffs **out, wvol_error *err);
+WVOL_API wvol_status wvol_store_densify(const wvol_store *s, wvol_coeffs **out, wvol_error *err);
 
 /* World <-> voxel coordinates of the store's grid. */
-void wvol_store_world_to_voxel(const wvol_store *s, const double world[3], double voxel[3]);
-void wvol_store_voxel_to_world(const wvol_store *s, const double voxel[3], double world[3]);
+WVOL_API void wvol_store_world_to_voxel(const wvol_store *s, const double world[3], double voxel[3]);
+WVOL_API void wvol_store_voxel_to_world(const wvol_store *s, const double voxel[3], double world[3]);
 /* A direction: d_voxel[a] = d_world[a] / spacing[a] (keeps the ray parameter). */
-void wvol_store_dir_to_voxel(const wvol_store *s, const double dworld[3], double dvoxel[3]);
+WVOL_API void wvol_store_dir_to_voxel(const wvol_store *s, const double dworld[3], double dvoxel[3]);
 
 #ifdef __cplusplus
 }

@@ -21,33 +21,33 @@ typedef struct wvol_volume {
 } wvol_volume;
 
 /* Multiplies a*b*c (and element size) with overflow checks; returns 0 on overflow. */
-int wvol_size_mul3(size_t a, size_t b, size_t c, size_t elem, size_t *out);
+WVOL_API int wvol_size_mul3(size_t a, size_t b, size_t c, size_t elem, size_t *out);
 
 /* Allocates a zero-filled volume, spacing 1, origin 0. Dimensions must be >= 1
  * and their product (in bytes) must fit size_t. */
-wvol_status wvol_volume_create(wvol_volume **out, size_t nx, size_t ny, size_t nz, wvol_error *err);
+WVOL_API wvol_status wvol_volume_create(wvol_volume **out, size_t nx, size_t ny, size_t nz, wvol_error *err);
 
 /* Wraps caller memory without copying (owns = 0). */
-wvol_status wvol_volume_wrap(wvol_volume **out, float *data, size_t nx, size_t ny, size_t nz,
-                             wvol_error *err);
+WVOL_API wvol_status wvol_volume_wrap(wvol_volume **out, float *data, size_t nx, size_t ny, size_t nz,
+                                      wvol_error *err);
 
 /* Deep copy. */
-wvol_status wvol_volume_clone(wvol_volume **out, const wvol_volume *v, wvol_error *err);
+WVOL_API wvol_status wvol_volume_clone(wvol_volume **out, const wvol_volume *v, wvol_error *err);
 
-void wvol_volume_destroy(wvol_volume *v); /* NULL is fine */
+WVOL_API void wvol_volume_destroy(wvol_volume *v); /* NULL is fine */
 
-size_t wvol_volume_count(const wvol_volume *v);
+WVOL_API size_t wvol_volume_count(const wvol_volume *v);
 
 /* Checks spacing > 0 and finite, origin finite. */
-wvol_status wvol_volume_set_geometry(wvol_volume *v, const double spacing[3], const double origin[3],
-                                     wvol_error *err);
+WVOL_API wvol_status wvol_volume_set_geometry(wvol_volume *v, const double spacing[3], const double origin[3],
+                                              wvol_error *err);
 
 /* Refuses NaN/Inf, naming the first one's (i, j, k). `what` names the input in the message. */
-wvol_status wvol_check_finite(const float *data, size_t nx, size_t ny, size_t nz, const char *what,
-                              wvol_error *err);
+WVOL_API wvol_status wvol_check_finite(const float *data, size_t nx, size_t ny, size_t nz, const char *what,
+                                       wvol_error *err);
 
 /* Min, max, mean (float64 accumulation) of the samples. Any output may be NULL. */
-void wvol_volume_range(const wvol_volume *v, double *vmin, double *vmax, double *mean);
+WVOL_API void wvol_volume_range(const wvol_volume *v, double *vmin, double *vmax, double *mean);
 
 #ifdef __cplusplus
 }

@@ -11,7 +11,14 @@
 extern "C" {
 #endif
 
-typedef enum wvol_family { WVOL_HAAR = 0, WVOL_DAUBECHIES, WVOL_COIFLET, WVOL_BATTLE_LEMARIE } wvol_family;
+typedef enum wvol_family {
+    WVOL_FAMILY_HAAR = 0, WVOL_FAMILY_DAUBECHIES, WVOL_FAMILY_COIFLET, WVOL_FAMILY_BATTLE_LEMARIE
+} wvol_family;
+/* Deprecated names, removed after 0.1 (docs/conventions.md). */
+#define WVOL_HAAR WVOL_FAMILY_HAAR
+#define WVOL_DAUBECHIES WVOL_FAMILY_DAUBECHIES
+#define WVOL_COIFLET WVOL_FAMILY_COIFLET
+#define WVOL_BATTLE_LEMARIE WVOL_FAMILY_BATTLE_LEMARIE
 
 /* An orthonormal QMF pair. h is the low-pass "reconstruction" filter of the
  * two-scale relation phi(t) = sqrt(2) sum_n h[n] phi(2t - n) (PyWavelets' rec_lo),
@@ -32,17 +39,17 @@ typedef struct wvol_filter {
 /* Looks a filter up by name ("haar", "db1".."db10", "coif1".."coif5", "bl3").
  * The returned filter is static and never freed; lookup is thread-safe (everything
  * derived is computed once, at first use). docs/wavelets.md has the conventions. */
-wvol_status wvol_filter_get(const wvol_filter **out, const char *name, wvol_error *err);
+WVOL_API wvol_status wvol_filter_get(const wvol_filter **out, const char *name, wvol_error *err);
 /* "haar", "daubechies", "coiflet", "battle-lemarie" ("?" for anything else). */
-const char *wvol_family_name(wvol_family f);
+WVOL_API const char *wvol_family_name(wvol_family f);
 /* All filters, for listing: index 0..count-1. */
-int wvol_filter_count(void);
-const wvol_filter *wvol_filter_at(int i);
+WVOL_API int wvol_filter_count(void);
+WVOL_API const wvol_filter *wvol_filter_at(int i);
 
 /* Most levels M such that the padded size of each dimension (>= 2^M) still
  * leaves a low-pass cube of at least one sample; for a 1-voxel axis that axis is
  * not transformed (its extent stays 1). */
-int wvol_dwt_max_levels(size_t nx, size_t ny, size_t nz);
+WVOL_API int wvol_dwt_max_levels(size_t nx, size_t ny, size_t nz);
 
 /* Coefficients of a multi-level transform, Mallat layout on the padded grid
  * px x py x pz (each a multiple of 2^levels, or 1 for an untransformed axis).
@@ -62,27 +69,27 @@ typedef enum wvol_pad_mode { WVOL_PAD_EDGE = 0, WVOL_PAD_ZERO, WVOL_PAD_PERIODIC
 /* Forward transform of a volume (padded as needed, edge-replicate by default).
  * Refuses NaN/Inf naming the first voxel, and inputs so large that a coefficient
  * overflows float32 (WVOL_ERR_NONFINITE). levels in 1..wvol_dwt_max_levels. */
-wvol_status wvol_dwt3(wvol_coeffs **out, const wvol_volume *v, const wvol_filter *f, int levels,
-                      wvol_error *err);
-wvol_status wvol_dwt3_pad(wvol_coeffs **out, const wvol_volume *v, const wvol_filter *f, int levels,
-                          wvol_pad_mode pad, wvol_error *err);
+WVOL_API wvol_status wvol_dwt3(wvol_coeffs **out, const wvol_volume *v, const wvol_filter *f, int levels,
+                               wvol_error *err);
+WVOL_API wvol_status wvol_dwt3_pad(wvol_coeffs **out, const wvol_volume *v, const wvol_filter *f, int levels,
+                                   wvol_pad_mode pad, wvol_error *err);
 /* Same with the arithmetic in float64 (use_f64 = 1) before rounding the coefficients
  * to float32; wvol_dwt3 and wvol_dwt3_pad compute in float32. */
-wvol_status wvol_dwt3_ex(wvol_coeffs **out, const wvol_volume *v, const wvol_filter *f, int levels,
-                         wvol_pad_mode pad, int use_f64, wvol_error *err);
+WVOL_API wvol_status wvol_dwt3_ex(wvol_coeffs **out, const wvol_volume *v, const wvol_filter *f, int levels,
+                                  wvol_pad_mode pad, int use_f64, wvol_error *err);
 
 /* Zero coefficients for an nx x ny x nz volume (padded as wvol_dwt3 pads it): for
  * readers that fill c->data themselves (the CLI's raw coefficient files, the store). */
-wvol_status wvol_coeffs_create(wvol_coeffs **out, const wvol_filter *f, int levels, size_t nx, size_t ny,
-                               size_t nz, wvol_error *err);
+WVOL_API wvol_status wvol_coeffs_create(wvol_coeffs **out, const wvol_filter *f, int levels, size_t nx, size_t ny,
+                                        size_t nz, wvol_error *err);
 /* Padded size of an axis of n samples for `levels` levels: 1 stays 1, else n rounded up
  * to a multiple of 2^levels. */
-size_t wvol_dwt_padded_size(size_t n, int levels);
+WVOL_API size_t wvol_dwt_padded_size(size_t n, int levels);
 
 /* Full inverse, cropped back to nx x ny x nz. */
-wvol_status wvol_idwt3(wvol_volume **out, const wvol_coeffs *c, wvol_error *err);
+WVOL_API wvol_status wvol_idwt3(wvol_volume **out, const wvol_coeffs *c, wvol_error *err);
 /* Same with float64 arithmetic (use_f64 = 1). */
-wvol_status wvol_idwt3_ex(wvol_volume **out, const wvol_coeffs *c, int use_f64, wvol_error *err);
+WVOL_API wvol_status wvol_idwt3_ex(wvol_volume **out, const wvol_coeffs *c, int use_f64, wvol_error *err);
 
 /* Coarser volume: undo levels..stop_level+1 only, giving the low-pass cube of
  * level stop_level s, cropped to the cells that touch the original grid: size
@@ -90,43 +97,43 @@ wvol_status wvol_idwt3_ex(wvol_volume **out, const wvol_coeffs *c, int use_f64, 
  * by 2^{-s/2} per transformed axis (2^{-3s/2} for a full 3D volume) so they are
  * comparable with the samples, and origin moved to the scaling functions' centres:
  * origin + spacing * (2^s - 1) * filter->center. stop_level 0 = wvol_idwt3. */
-wvol_status wvol_idwt3_level(wvol_volume **out, const wvol_coeffs *c, int stop_level, wvol_error *err);
+WVOL_API wvol_status wvol_idwt3_level(wvol_volume **out, const wvol_coeffs *c, int stop_level, wvol_error *err);
 
 /* Reconstruct only the finest-level samples in the box [lo, hi) (voxel indices of
  * the original grid) without reconstructing the rest. Result is (hi-lo) sized,
  * origin set to the box's world position. */
-wvol_status wvol_idwt3_brick(wvol_volume **out, const wvol_coeffs *c, const size_t lo[3],
-                             const size_t hi[3], wvol_error *err);
+WVOL_API wvol_status wvol_idwt3_brick(wvol_volume **out, const wvol_coeffs *c, const size_t lo[3],
+                                      const size_t hi[3], wvol_error *err);
 
-void wvol_coeffs_destroy(wvol_coeffs *c);
-wvol_status wvol_coeffs_clone(wvol_coeffs **out, const wvol_coeffs *c, wvol_error *err);
+WVOL_API void wvol_coeffs_destroy(wvol_coeffs *c);
+WVOL_API wvol_status wvol_coeffs_clone(wvol_coeffs **out, const wvol_coeffs *c, wvol_error *err);
 
 /* Index into c->data of coefficient (level, band, p, q, r); positions are within
  * the band's extent (px >> level, ...; 1 along an untransformed axis). Returns
  * (size_t)-1 for an invalid request: level outside 1..levels, band 0 below the
  * coarsest level, a band that is high-pass along an untransformed (1-voxel) axis,
  * or a position outside the band. */
-size_t wvol_coeffs_index(const wvol_coeffs *c, int level, int band, size_t p, size_t q, size_t r);
+WVOL_API size_t wvol_coeffs_index(const wvol_coeffs *c, int level, int band, size_t p, size_t q, size_t r);
 /* Inverse of wvol_coeffs_index (index < px*py*pz; otherwise level is set to 0). */
-void wvol_coeffs_locate(const wvol_coeffs *c, size_t index, int *level, int *band, size_t *p,
-                        size_t *q, size_t *r);
+WVOL_API void wvol_coeffs_locate(const wvol_coeffs *c, size_t index, int *level, int *band, size_t *p,
+                                 size_t *q, size_t *r);
 
 /* In-place transforms on raw arrays (the engine under wvol_dwt3; n? must be
  * multiples of 2^levels or 1). Float64 variants for accumulation-sensitive use. */
-wvol_status wvol_dwt3_inplace_f32(float *data, size_t nx, size_t ny, size_t nz, const wvol_filter *f,
-                                  int levels, wvol_error *err);
-wvol_status wvol_idwt3_inplace_f32(float *data, size_t nx, size_t ny, size_t nz, const wvol_filter *f,
-                                   int levels, wvol_error *err);
-wvol_status wvol_dwt3_inplace_f64(double *data, size_t nx, size_t ny, size_t nz, const wvol_filter *f,
-                                  int levels, wvol_error *err);
-wvol_status wvol_idwt3_inplace_f64(double *data, size_t nx, size_t ny, size_t nz, const wvol_filter *f,
-                                   int levels, wvol_error *err);
+WVOL_API wvol_status wvol_dwt3_inplace_f32(float *data, size_t nx, size_t ny, size_t nz, const wvol_filter *f,
+                                           int levels, wvol_error *err);
+WVOL_API wvol_status wvol_idwt3_inplace_f32(float *data, size_t nx, size_t ny, size_t nz, const wvol_filter *f,
+                                            int levels, wvol_error *err);
+WVOL_API wvol_status wvol_dwt3_inplace_f64(double *data, size_t nx, size_t ny, size_t nz, const wvol_filter *f,
+                                           int levels, wvol_error *err);
+WVOL_API wvol_status wvol_idwt3_inplace_f64(double *data, size_t nx, size_t ny, size_t nz, const wvol_filter *f,
+                                            int levels, wvol_error *err);
 
 /* 1D periodic single level (the plain reference form, double): n even; out has n
  * values: a[0..n/2) then d[0..n/2); out must not alias the input. Does nothing when
  * an argument is NULL or n is odd or < 2. */
-void wvol_dwt1(double *out, const double *x, size_t n, const wvol_filter *f);
-void wvol_idwt1(double *out, const double *ad, size_t n, const wvol_filter *f);
+WVOL_API void wvol_dwt1(double *out, const double *x, size_t n, const wvol_filter *f);
+WVOL_API void wvol_idwt1(double *out, const double *ad, size_t n, const wvol_filter *f);
 
 /* ---- basis functions as cubic splines (DESIGN.md section 7) ---------------- */
 
@@ -149,7 +156,10 @@ void wvol_idwt1(double *out, const double *ad, size_t n, const wvol_filter *f);
  * size on the stack (no allocation in eval paths). */
 #define WVOL_BASIS_MAX_LENGTH 256
 
-enum { WVOL_PHI = 0, WVOL_PSI = 1 };   /* `which` */
+enum { WVOL_BASIS_PHI = 0, WVOL_BASIS_PSI = 1 };   /* `which` */
+/* Deprecated names, removed after 0.1 (docs/conventions.md). */
+#define WVOL_PHI WVOL_BASIS_PHI
+#define WVOL_PSI WVOL_BASIS_PSI
 /* `kind` of table: the spline, its derivative, its primitive (integral from 0) */
 typedef enum wvol_basis_kind { WVOL_BASIS_VALUE = 0, WVOL_BASIS_DERIV = 1, WVOL_BASIS_PRIMITIVE = 2 } wvol_basis_kind;
 
@@ -191,21 +201,21 @@ typedef struct wvol_basis {
     double ortho_error_psi; /* max_k of |<psi(.-k), psi> - delta_k| and |<phi(.-k), psi>| */
     /* bounds of the spline model (rigorous, for the store's and the iso tracer's
      * value and Lipschitz bounds): max |value| and max |derivative| over x */
-    double vmax[2], dmax[2];    /* [WVOL_PHI], [WVOL_PSI] */
+    double vmax[2], dmax[2];    /* [WVOL_BASIS_PHI], [WVOL_BASIS_PSI] */
     double abs_integral[2];     /* integral of |spline|: bounds |integral over any interval| */
     double end_slope[2];        /* |S'(0)| = |S'(L-1)|: the slope jump at the support ends */
 } wvol_basis;
 
 /* Builds the tables for filter f with 2^J knots per unit (J in 1..12; Haar and
  * db1 ignore J and are exact). Cost O(L^2 2^J); a few ms for db2 at J = 8. */
-wvol_status wvol_basis_create(wvol_basis **out, const wvol_filter *f, int J, wvol_error *err);
-void wvol_basis_destroy(wvol_basis *b);   /* NULL is fine */
+WVOL_API wvol_status wvol_basis_create(wvol_basis **out, const wvol_filter *f, int J, wvol_error *err);
+WVOL_API void wvol_basis_destroy(wvol_basis *b);   /* NULL is fine */
 
-/* Evaluate the spline model: which is WVOL_PHI or WVOL_PSI. O(1), no allocation.
+/* Evaluate the spline model: which is WVOL_BASIS_PHI or WVOL_BASIS_PSI. O(1), no allocation.
  * value/deriv are 0 outside [0, support); primitive is the integral from 0 to x. */
-double wvol_basis_value(const wvol_basis *b, int which, double x);
-double wvol_basis_deriv(const wvol_basis *b, int which, double x);
-double wvol_basis_primitive(const wvol_basis *b, int which, double x);
+WVOL_API double wvol_basis_value(const wvol_basis *b, int which, double x);
+WVOL_API double wvol_basis_deriv(const wvol_basis *b, int which, double x);
+WVOL_API double wvol_basis_primitive(const wvol_basis *b, int which, double x);
 
 /* Per-piece access for analytic integration (a ray crosses the pieces of three
  * 1D factors). Index of the piece holding x: floor(x 2^J), or -1 when x is
@@ -231,7 +241,7 @@ static inline const double *wvol_basis_coeffs(const wvol_basis *b, int which, wv
  * cubic in t: out(t) = c(a t + d). (A ray x(t) = alpha t + beta puts the level-m
  * factor 2^{-m/2} phi(2^{-m} (x + s) - p) on piece i with a = 2^{-m} alpha and
  * d = 2^{-m} (beta + s) - p - i h.) out may alias c. */
-void wvol_poly3_affine(double out[4], const double c[4], double a, double d);
+WVOL_API void wvol_poly3_affine(double out[4], const double c[4], double a, double d);
 
 /* Cascade algorithm: values of phi (which 0) or psi (which 1) at x = n/2^J,
  * n = 0 .. (length-1)*2^J, into out (caller provides (length-1)*2^J + 1 values).
@@ -241,7 +251,7 @@ void wvol_poly3_affine(double out[4], const double c[4], double a, double d);
  * fills in level after level; psi(x) = sqrt(2) sum_n g[n] phi(2x-n). The values
  * are exact up to rounding at every dyadic point (no iteration to converge).
  * Haar/db1: the box and the Haar wavelet (right-continuous). J in 0..20. */
-wvol_status wvol_cascade(double *out, const wvol_filter *f, int which, int J, wvol_error *err);
+WVOL_API wvol_status wvol_cascade(double *out, const wvol_filter *f, int which, int J, wvol_error *err);
 
 /* f^ and its gradient at a point in voxel coordinates of the original grid
  * (x = i means sample i): f^(x) = sum over the pyramid of c * prod_axes
@@ -253,7 +263,7 @@ wvol_status wvol_cascade(double *out, const wvol_filter *f, int which, int J, wv
  * d f^/dx in voxel units (divide by the spacing for world units). b must have
  * been built for c's filter (same taps); otherwise NaN is returned. Thread-safe,
  * no allocation. */
-double wvol_fhat_eval(const wvol_coeffs *c, const wvol_basis *b, const double x[3], double grad[3]);
+WVOL_API double wvol_fhat_eval(const wvol_coeffs *c, const wvol_basis *b, const double x[3], double grad[3]);
 
 #ifdef __cplusplus
 }

@@ -47,7 +47,7 @@ typedef struct wvol_wvc_params {
     double dropped_energy;       /* energy the caller zeroed before encoding (header; reports) */
 } wvol_wvc_params;
 
-void wvol_wvc_params_default(wvol_wvc_params *p);
+WVOL_API void wvol_wvc_params_default(wvol_wvc_params *p);
 
 /* One section of a file (the low-pass cube is level == levels, band 0). */
 typedef struct wvol_wvc_section {
@@ -96,8 +96,8 @@ typedef struct wvol_wvc_report {
 
 /* Encodes coefficients (zero the ones a selection dropped before calling) into a
  * heap buffer *out of *out_size bytes (free with free()). report may be NULL. */
-wvol_status wvol_wvc_encode(void **out, size_t *out_size, const wvol_coeffs *c,
-                            const wvol_wvc_params *p, wvol_wvc_report *report, wvol_error *err);
+WVOL_API wvol_status wvol_wvc_encode(void **out, size_t *out_size, const wvol_coeffs *c,
+                                     const wvol_wvc_params *p, wvol_wvc_report *report, wvol_error *err);
 
 typedef struct wvol_wvc_read_options {
     int stop_level;          /* 0: everything; m: decode the levels above m only (then
@@ -105,35 +105,35 @@ typedef struct wvol_wvc_read_options {
     uint64_t max_voxels;     /* refuse larger padded grids (0: 2^34) */
 } wvol_wvc_read_options;
 
-void wvol_wvc_read_options_default(wvol_wvc_read_options *o);
+WVOL_API void wvol_wvc_read_options_default(wvol_wvc_read_options *o);
 
 /* Parses and checks the header and section table of a buffer (the whole file,
  * or at least its first info->header_bytes). */
-wvol_status wvol_wvc_parse_info(wvol_wvc_info *info, const void *buf, size_t size, wvol_error *err);
+WVOL_API wvol_status wvol_wvc_parse_info(wvol_wvc_info *info, const void *buf, size_t size, wvol_error *err);
 
 /* Decodes a whole file held in memory. The coefficients of levels <= stop_level
  * are zero. info may be NULL. Free the result with wvol_coeffs_destroy. */
-wvol_status wvol_wvc_decode(wvol_coeffs **out, const void *buf, size_t size,
-                            const wvol_wvc_read_options *opt, wvol_wvc_info *info, wvol_error *err);
+WVOL_API wvol_status wvol_wvc_decode(wvol_coeffs **out, const void *buf, size_t size,
+                                     const wvol_wvc_read_options *opt, wvol_wvc_info *info, wvol_error *err);
 
 /* Files. save is atomic (temporary name, then rename). read reads the header, the
  * table and only the sections it needs; a file whose size differs from what its
  * header declares is refused. read_info parses the header and the table and checks
  * every section's checksum, without decoding. */
-wvol_status wvol_wvc_save(const char *path, const void *buf, size_t size, wvol_error *err);
-wvol_status wvol_wvc_read_info(wvol_wvc_info *info, const char *path, wvol_error *err);
-wvol_status wvol_wvc_read(wvol_coeffs **out, const char *path, const wvol_wvc_read_options *opt,
-                          wvol_wvc_info *info, wvol_error *err);
+WVOL_API wvol_status wvol_wvc_save(const char *path, const void *buf, size_t size, wvol_error *err);
+WVOL_API wvol_status wvol_wvc_read_info(wvol_wvc_info *info, const char *path, wvol_error *err);
+WVOL_API wvol_status wvol_wvc_read(wvol_coeffs **out, const char *path, const wvol_wvc_read_options *opt,
+                                   wvol_wvc_info *info, wvol_error *err);
 
 /* Predicted and measured error. sse is a sum of squared errors over n samples;
  * PSNR uses peak = value range (infinite for sse 0). */
-double wvol_wvc_psnr(double sse, double n, double vmin, double vmax);
+WVOL_API double wvol_wvc_psnr(double sse, double n, double vmin, double vmax);
 /* The sum of squared errors that gives this PSNR over n samples. */
-double wvol_wvc_sse_for_psnr(double psnr, double n, double vmin, double vmax);
+WVOL_API double wvol_wvc_sse_for_psnr(double psnr, double n, double vmin, double vmax);
 
 /* Compares two volumes of equal size: sum of squared differences and max |a-b|. */
-wvol_status wvol_wvc_compare(double *sse, double *maxabs, const wvol_volume *a,
-                             const wvol_volume *b, wvol_error *err);
+WVOL_API wvol_status wvol_wvc_compare(double *sse, double *maxabs, const wvol_volume *a,
+                                      const wvol_volume *b, wvol_error *err);
 
 #ifdef __cplusplus
 }

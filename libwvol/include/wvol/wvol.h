@@ -1,4 +1,5 @@
-/* libwvol umbrella header: includes only.
+/* SPDX-License-Identifier: MIT
+ * libwvol umbrella header: includes only.
  * Threading: handles are not shared between threads while one of them mutates;
  * read-only functions on const handles are safe to run concurrently. */
 #ifndef WVOL_WVOL_H
@@ -7,11 +8,13 @@
 #include "wvol/status.h"
 #include "wvol/volume.h"
 #include "wvol/io.h"
+#include "wvol/image.h"
 #include "wvol/wavelet.h"
-#include "wvol/iso.h"
 #include "wvol/store.h"
 #include "wvol/wvc.h"
 #include "wvol/compress.h"
 #include "wvol/render.h"
+#include "wvol/iso.h"
 #include "wvol/analysis.h"
+#include "wvol/rng.h"
 #endif

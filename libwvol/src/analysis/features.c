@@ -3,6 +3,7 @@
  * split once; each detail band present gives a magnitude plane |d| and the new
  * low-pass cube gives a value plane, both on the level's coarse grid. Each plane is
  * then interpolated (trilinear; bilinear in 2D) back to every voxel. */
+#include "core/status_internal.h"
 #include "wvol/analysis.h"
 
 #include <math.h>

@@ -1,5 +1,6 @@
 /* Segmentation quality: majority mapping of clusters to classes, then the
  * misclassification rate overall and away from class boundaries. */
+#include "core/status_internal.h"
 #include "wvol/analysis.h"
 
 #include <stdlib.h>

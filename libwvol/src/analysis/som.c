@@ -6,6 +6,7 @@
  *   dw_j = eta(t) h(j, winner, t) (g - w_j),
  * with eta decaying exponentially eta0 -> eta1 and h a Gaussian of lattice distance
  * whose radius decays sigma0 -> sigma1 (cut at 3 sigma). Deterministic per seed (wvol_rng). */
+#include "core/status_internal.h"
 #include "wvol/analysis.h"
 #include "wvol/rng.h"
 

@@ -9,6 +9,7 @@
 #include <string.h>
 
 #include "core/clones.h"
+#include "core/status_internal.h"
 #include "wvol/wvc.h"
 
 /* One section = one sub-band (or the low-pass cube) in the padded grid. */

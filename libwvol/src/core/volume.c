@@ -1,3 +1,4 @@
+#include "core/status_internal.h"
 #include "wvol/volume.h"
 
 #include <math.h>

@@ -1,4 +1,5 @@
 #define _POSIX_C_SOURCE 200809L
+#include "core/status_internal.h"
 #include "wvol/io.h"
 
 #include <errno.h>

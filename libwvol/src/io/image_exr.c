@@ -4,6 +4,7 @@
  * failure never leaves a partial file; OpenEXR's error handler is redirected into the
  * wvol_error so the library prints nothing. */
 #define _POSIX_C_SOURCE 200809L
+#include "core/status_internal.h"
 #include "wvol/image.h"
 #include "wvol/io.h"
 

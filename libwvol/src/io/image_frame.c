@@ -1,5 +1,6 @@
 /* SPDX-License-Identifier: MIT
  * Float RGBA frames: allocation and the linear -> sRGB transfer shared by the writers. */
+#include "core/status_internal.h"
 #include "wvol/image.h"
 
 #include <math.h>

@@ -1,5 +1,6 @@
 /* SPDX-License-Identifier: MIT
  * 8-bit PNG through libpng: linear floats, sRGB-encoded, written atomically. */
+#include "core/status_internal.h"
 #include "wvol/image.h"
 #include "wvol/io.h"
 

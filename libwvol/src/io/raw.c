@@ -1,5 +1,6 @@
 /* Headerless raw volumes: dimensions and sample type come from the caller. */
 #define _POSIX_C_SOURCE 200809L
+#include "core/status_internal.h"
 #include "wvol/io.h"
 
 #include <errno.h>
@@ -10,7 +11,7 @@
 void wvol_load_options_default(wvol_load_options *opt)
 {
     memset(opt, 0, sizeof *opt);
-    opt->raw_type = WVOL_F32;
+    opt->raw_type = WVOL_SAMPLE_TYPE_F32;
     opt->spacing[0] = opt->spacing[1] = opt->spacing[2] = 1.0;
 }
 

@@ -8,14 +8,14 @@ static const struct {
     const char *names[4];
     size_t size;
 } sample_types[] = {
-    [WVOL_F32] = {{"float32", "f32", "float", NULL}, 4},
-    [WVOL_F64] = {{"float64", "f64", "double", NULL}, 8},
-    [WVOL_U8] = {{"uint8", "u8", "uchar", NULL}, 1},
-    [WVOL_I8] = {{"int8", "i8", "char", NULL}, 1},
-    [WVOL_U16] = {{"uint16", "u16", "ushort", NULL}, 2},
-    [WVOL_I16] = {{"int16", "i16", "short", NULL}, 2},
-    [WVOL_U32] = {{"uint32", "u32", "uint", NULL}, 4},
-    [WVOL_I32] = {{"int32", "i32", "int", NULL}, 4},
+    [WVOL_SAMPLE_TYPE_F32] = {{"float32", "f32", "float", NULL}, 4},
+    [WVOL_SAMPLE_TYPE_F64] = {{"float64", "f64", "double", NULL}, 8},
+    [WVOL_SAMPLE_TYPE_U8] = {{"uint8", "u8", "uchar", NULL}, 1},
+    [WVOL_SAMPLE_TYPE_I8] = {{"int8", "i8", "char", NULL}, 1},
+    [WVOL_SAMPLE_TYPE_U16] = {{"uint16", "u16", "ushort", NULL}, 2},
+    [WVOL_SAMPLE_TYPE_I16] = {{"int16", "i16", "short", NULL}, 2},
+    [WVOL_SAMPLE_TYPE_U32] = {{"uint32", "u32", "uint", NULL}, 4},
+    [WVOL_SAMPLE_TYPE_I32] = {{"int32", "i32", "int", NULL}, 4},
 };
 
 int wvol_sample_type_parse(const char *name)
@@ -30,12 +30,12 @@ int wvol_sample_type_parse(const char *name)
 
 const char *wvol_sample_type_name(wvol_sample_type t)
 {
-    return (unsigned)t <= WVOL_I32 ? sample_types[t].names[0] : "unknown";
+    return (unsigned)t <= WVOL_SAMPLE_TYPE_I32 ? sample_types[t].names[0] : "unknown";
 }
 
 size_t wvol_sample_type_size(wvol_sample_type t)
 {
-    return (unsigned)t <= WVOL_I32 ? sample_types[t].size : 0;
+    return (unsigned)t <= WVOL_SAMPLE_TYPE_I32 ? sample_types[t].size : 0;
 }
 
 static void load_bytes(unsigned char *dst, const unsigned char *src, size_t size, int swap)
@@ -63,14 +63,14 @@ void wvol_samples_to_float(float *dst, const void *src, size_t n, wvol_sample_ty
     for (i = 0; i < n; i++, s += size) {
         load_bytes(tmp, s, size, swap);
         switch (t) {
-        case WVOL_F32: { float x; memcpy(&x, tmp, 4); dst[i] = x; } break;
-        case WVOL_F64: { double x; memcpy(&x, tmp, 8); dst[i] = (float)x; } break;
-        case WVOL_U8: dst[i] = (float)tmp[0]; break;
-        case WVOL_I8: dst[i] = (float)(int8_t)tmp[0]; break;
-        case WVOL_U16: { uint16_t x; memcpy(&x, tmp, 2); dst[i] = (float)x; } break;
-        case WVOL_I16: { int16_t x; memcpy(&x, tmp, 2); dst[i] = (float)x; } break;
-        case WVOL_U32: { uint32_t x; memcpy(&x, tmp, 4); dst[i] = (float)x; } break;
-        case WVOL_I32: { int32_t x; memcpy(&x, tmp, 4); dst[i] = (float)x; } break;
+        case WVOL_SAMPLE_TYPE_F32: { float x; memcpy(&x, tmp, 4); dst[i] = x; } break;
+        case WVOL_SAMPLE_TYPE_F64: { double x; memcpy(&x, tmp, 8); dst[i] = (float)x; } break;
+        case WVOL_SAMPLE_TYPE_U8: dst[i] = (float)tmp[0]; break;
+        case WVOL_SAMPLE_TYPE_I8: dst[i] = (float)(int8_t)tmp[0]; break;
+        case WVOL_SAMPLE_TYPE_U16: { uint16_t x; memcpy(&x, tmp, 2); dst[i] = (float)x; } break;
+        case WVOL_SAMPLE_TYPE_I16: { int16_t x; memcpy(&x, tmp, 2); dst[i] = (float)x; } break;
+        case WVOL_SAMPLE_TYPE_U32: { uint32_t x; memcpy(&x, tmp, 4); dst[i] = (float)x; } break;
+        case WVOL_SAMPLE_TYPE_I32: { int32_t x; memcpy(&x, tmp, 4); dst[i] = (float)x; } break;
         }
     }
 }

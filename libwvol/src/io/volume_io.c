@@ -1,7 +1,9 @@
 /* Load/save dispatch by extension (see wvol/io.h for the table). */
 #define _POSIX_C_SOURCE 200809L
+#include "core/status_internal.h"
 #include "wvol/io.h"
 #include "io/adapters.h"
+#include "io/io_internal.h"
 
 #include <errno.h>
 #include <string.h>
@@ -30,13 +32,13 @@ int wvol_format_supported(const char *path, int for_writing)
     switch (format_of(path)) {
     case FMT_RAW:
     case FMT_NRRD: return 1;
+    case FMT_DICOM: return !for_writing; /* io/dicom.c */
 #ifdef WVOL_HAVE_OPENVDB
     case FMT_VDB: return 1;
 #endif
 #ifdef WVOL_HAVE_VTK
     case FMT_VTI: return 1;
     case FMT_VTK: return !for_writing || !wvol_path_has_ext(path, ".mhd"); /* .mhd: header + data pair */
-    case FMT_DICOM: return !for_writing;
 #endif
     default: return 0;
     }
@@ -59,8 +61,8 @@ wvol_status wvol_volume_load(wvol_volume **out, const char *path, const wvol_loa
     case FMT_NRRD: return wvol_nrrd_read(out, path, err);
     case FMT_VDB: return wvol__vdb_read(out, path, opt->grid_name, err);
     case FMT_VTI:
-    case FMT_VTK:
-    case FMT_DICOM: return wvol__vtk_read(out, path, err);
+    case FMT_VTK: return wvol__vtk_read(out, path, err);
+    case FMT_DICOM: return wvol__dicom_read(out, path, err);
     default:
         return wvol_error_set(err, WVOL_ERR_UNSUPPORTED,
                               "%s: unknown volume format (known: .raw .nrrd .nhdr .vdb .vti .vtk .mha "

@@ -7,6 +7,7 @@
 
 #include <stdint.h>
 #include "core/clones.h"
+#include "core/status_internal.h"
 #include "wvol/iso.h"
 
 

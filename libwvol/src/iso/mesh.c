@@ -6,6 +6,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "core/status_internal.h"
 #include "wvol/iso.h"
 
 wvol_status wvol_mesh_create(wvol_mesh **out, size_t nverts, size_t ntris, int with_normals, wvol_error *err)

@@ -8,6 +8,7 @@
 #include <string.h>
 
 #include "io/adapters.h"
+#include "core/status_internal.h"
 #include "wvol/io.h"
 #include "wvol/iso.h"
 

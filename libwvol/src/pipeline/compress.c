@@ -3,6 +3,8 @@
  * quantiser's error-target rule for .wvc files. */
 #include "wvol/compress.h"
 
+#include "core/status_internal.h"
+
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -22,9 +24,9 @@ void wvol_compress_params_default(wvol_compress_params *p)
     p->wavelet = "db2";
     p->levels = 0;
     p->for_file = 0;
-    p->select = wvol_select_params_default();
+    wvol_select_params_default(&p->select);
     p->build_store = 1;
-    p->store = wvol_store_params_default();
+    wvol_store_params_default(&p->store);
     p->quant.psnr = 0;
     p->quant.share = 0.02;
     p->quant.step = 0;

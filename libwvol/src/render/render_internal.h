@@ -5,6 +5,7 @@
 
 #include "core/clock.h"
 #include "wvol/render.h"
+#include "core/status_internal.h"
 
 /* The bricked path's brick side by default (wvol_render_params_default, and a 0 the caller
  * leaves). Larger bricks cost less per voxel to reconstruct (the apron and the filters' reach

@@ -5,6 +5,7 @@
  * Shared by the spline integrator (render/spline.c) and the implicit-surface ray tracer
  * (iso/). Based on: Gross, Lippert et al. (paper, section 5, eqs 34-40). */
 #include "store/store_ray.h"
+#include "core/status_internal.h"
 
 #include <math.h>
 #include <stdlib.h>

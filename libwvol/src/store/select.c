@@ -11,13 +11,11 @@
 
 #define NBIN 65536
 
-wvol_select_params wvol_select_params_default(void)
+void wvol_select_params_default(wvol_select_params *p)
 {
-    wvol_select_params p;
-    memset(&p, 0, sizeof p);
-    p.mode = WVOL_SELECT_ALL;
-    for (int e = 0; e < WVOL_LOD_MAX_ELLIPSOIDS; e++) p.ellipsoids[e].power = 1.0;
-    return p;
+    memset(p, 0, sizeof *p);
+    p->mode = WVOL_SELECT_ALL;
+    for (int e = 0; e < WVOL_LOD_MAX_ELLIPSOIDS; e++) p->ellipsoids[e].power = 1.0;
 }
 
 /* ---- streaming over the array in index order ---------------------------------- */

@@ -11,12 +11,10 @@
 
 #define DEFAULT_J 4
 
-wvol_store_params wvol_store_params_default(void)
+void wvol_store_params_default(wvol_store_params *p)
 {
-    wvol_store_params p;
-    memset(&p, 0, sizeof p);
-    p.spline_J = DEFAULT_J;
-    return p;
+    memset(p, 0, sizeof *p);
+    p->spline_J = DEFAULT_J;
 }
 
 static inline uint64_t hash64(uint64_t k)

@@ -8,6 +8,7 @@
 #include <math.h>
 
 #include "wvol/store.h"
+#include "core/status_internal.h"
 
 /* ---- Mallat layout of a coefficient pyramid -------------------------------- */
 

@@ -7,6 +7,7 @@
 #include <stddef.h>
 
 #include "wvol/wavelet.h"
+#include "core/status_internal.h"
 
 #ifndef M_SQRT1_2
 #define M_SQRT1_2 0.70710678118654752440

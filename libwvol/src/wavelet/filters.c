@@ -24,15 +24,15 @@ typedef struct filter_src {
 
 static const double h_haar[2] = {0.70710678118654757, 0.70710678118654757};
 
-#define DB(n) {"db" #n, WVOL_DAUBECHIES, n, wvol__h_db##n, 2 * n, n}
-#define COIF(n) {"coif" #n, WVOL_COIFLET, n, wvol__h_coif##n, 6 * n, 2 * n}
+#define DB(n) {"db" #n, WVOL_FAMILY_DAUBECHIES, n, wvol__h_db##n, 2 * n, n}
+#define COIF(n) {"coif" #n, WVOL_FAMILY_COIFLET, n, wvol__h_coif##n, 6 * n, 2 * n}
 static const filter_src sources[NFILTERS] = {
-    {"haar", WVOL_HAAR, 1, h_haar, 2, 1},
+    {"haar", WVOL_FAMILY_HAAR, 1, h_haar, 2, 1},
     DB(1), DB(2), DB(3), DB(4), DB(5), DB(6), DB(7), DB(8), DB(9), DB(10),
     COIF(1), COIF(2), COIF(3), COIF(4), COIF(5),
     /* bl3: the cubic spline space reproduces cubics, so psi has 4 vanishing moments
      * (approximately, after truncation). h is filled in at init. */
-    {"bl3", WVOL_BATTLE_LEMARIE, 3, NULL, 0, 4},
+    {"bl3", WVOL_FAMILY_BATTLE_LEMARIE, 3, NULL, 0, 4},
 };
 
 static wvol_filter filters[NFILTERS];
@@ -62,7 +62,7 @@ static void init_filters(void)
         const double *h = s->h;
         int len = s->length;
         double m1 = 0.0;
-        if (s->family == WVOL_BATTLE_LEMARIE) {
+        if (s->family == WVOL_FAMILY_BATTLE_LEMARIE) {
             if (wvol__bl_compute(s->order, 1e-10, blbuf, WVOL__MAX_TAPS, &len) != 0) continue;
             h = blbuf;
         }
@@ -89,10 +89,10 @@ static void init_filters(void)
 const char *wvol_family_name(wvol_family f)
 {
     switch (f) {
-    case WVOL_HAAR: return "haar";
-    case WVOL_DAUBECHIES: return "daubechies";
-    case WVOL_COIFLET: return "coiflet";
-    case WVOL_BATTLE_LEMARIE: return "battle-lemarie";
+    case WVOL_FAMILY_HAAR: return "haar";
+    case WVOL_FAMILY_DAUBECHIES: return "daubechies";
+    case WVOL_FAMILY_COIFLET: return "coiflet";
+    case WVOL_FAMILY_BATTLE_LEMARIE: return "battle-lemarie";
     }
     return "?";
 }

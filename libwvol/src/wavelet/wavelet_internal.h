@@ -5,6 +5,7 @@
 
 #include <stddef.h>
 #include "wvol/wavelet.h"
+#include "core/status_internal.h"
 
 /* Longest filter the engine handles (bl3 truncated at 1e-10 is well under this). */
 #define WVOL__MAX_TAPS 256

@@ -1,0 +1,321 @@
+/* SPDX-License-Identifier: MIT
+ * .wvc quantiser statistics and the choice of the step: per-section sums of the
+ * dead-zone quantiser's error for a step (one parallel pass, explicit vectors), and
+ * the search for the largest step that meets an error target.
+ * Based on: Sullivan 1996 (dead-zone uniform quantiser with centroid
+ * reconstruction for Laplacian sources); Parseval for orthonormal transforms
+ * (the coefficient error is the volume error, DESIGN.md section 5). */
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "wvc_quant.h"
+
+static double sec_rounding(const wvc_band *b, double f) { return b->band == 0 ? 0.5 : f; }
+
+/* Sums over slices [z0, z1) of one band (serial; the caller spreads work items over
+ * threads). Q (may be NULL) receives the quantised values; with `sparse` Q is known
+ * to be all zero and only groups with a non-zero are written (the pages of an
+ * all-zero stretch are never touched: fresh pages cost more to write than to read).
+ *
+ * Most coefficients quantise to zero: a group of eight whose |c| all lie below the
+ * dead zone (float test, with a margin far above rounding) only adds c^2 to the
+ * zeroed energy; the others get the full arithmetic, in double. Explicit vectors
+ * (AVX2 in the x86-64-v3 clone; GCC will not reorder a double reduction itself),
+ * branch-free selects; counts are summed as doubles within a row (exact below
+ * 2^53); the scalar tail does the same arithmetic. */
+typedef double wvc_v4d __attribute__((vector_size(32)));
+typedef int64_t wvc_v4l __attribute__((vector_size(32)));
+typedef int32_t wvc_v4i __attribute__((vector_size(16)));
+typedef float wvc_v4f __attribute__((vector_size(16)));
+typedef float wvc_v8f __attribute__((vector_size(32)));
+typedef int32_t wvc_v8i __attribute__((vector_size(32)));
+#define SEL(v, m) ((wvc_v4d)((wvc_v4l)(v) & (m))) /* v where the mask is set, else 0 */
+
+typedef struct row_acc {
+    wvc_v4d rz, re, r1, rr1, r2, rr2, c1, c2;
+} row_acc;
+
+/* The full arithmetic on four coefficients; writes their q when qrow is given. */
+static inline __attribute__((always_inline)) void quad_stats(row_acc *A, wvc_v4f cf, double inv, double f,
+                                                               int32_t *qrow, int sparse)
+{
+    const wvc_v4d vinv = {inv, inv, inv, inv}, vf = {f, f, f, f};
+    const wvc_v4d vq = {WVC_QMAX, WVC_QMAX, WVC_QMAX, WVC_QMAX}, one = {1, 1, 1, 1}, two = {2, 2, 2, 2};
+    const wvc_v4l absmask = {INT64_MAX, INT64_MAX, INT64_MAX, INT64_MAX};
+    wvc_v4d c = __builtin_convertvector(cf, wvc_v4d), ac = (wvc_v4d)((wvc_v4l)c & absmask);
+    wvc_v4d a = ac * vinv, tt = a + vf;
+    wvc_v4l big = tt >= vq;
+    /* truncation, not floor(): t >= 0; the step's lower bound keeps t < 2^30 anyway */
+    tt = (wvc_v4d)(((wvc_v4l)tt & ~big) | ((wvc_v4l)vq & big));
+    wvc_v4i qi = __builtin_convertvector(tt, wvc_v4i);
+    wvc_v4d q = __builtin_convertvector(qi, wvc_v4d), r = a - q, cc = c * c;
+    wvc_v4l is0 = q < one, is1 = q == one, is2 = q >= two;
+    A->re += cc;
+    A->rz += SEL(cc, is0);
+    A->c1 += SEL(one, is1);
+    A->r1 += SEL(r, is1);
+    A->rr1 += SEL(r * r, is1);
+    A->c2 += SEL(one, is2);
+    A->r2 += SEL(r, is2);
+    A->rr2 += SEL(r * r, is2);
+    if (qrow && (!sparse || (qi[0] | qi[1] | qi[2] | qi[3]))) {
+        wvc_v4i neg = cf < (wvc_v4f){0, 0, 0, 0};
+        qi = (qi ^ neg) - neg;
+        memcpy(qrow, &qi, sizeof qi);
+    }
+}
+
+WVOL__CLONES static void rows_stats(sec_stats *st, const float *C, int32_t *Q, const size_t p[3], const wvc_band *b,
+                               double step, double f, size_t z0, size_t z1, int sparse)
+{
+    const double inv = 1.0 / step, qmax = WVC_QMAX;
+    /* below this |c| / step + f < 1 for sure: the relative margin 1e-6 dwarfs float rounding */
+    const float thr = (float)((1.0 - f) * step * (1.0 - 1e-6));
+    const wvc_v8f vthr = {thr, thr, thr, thr, thr, thr, thr, thr};
+    const wvc_v8i absmask = {INT32_MAX, INT32_MAX, INT32_MAX, INT32_MAX, INT32_MAX, INT32_MAX, INT32_MAX, INT32_MAX};
+    double zero_sse = 0, energy = 0, s1 = 0, ss1 = 0, s2 = 0, ss2 = 0;
+    uint64_t n1 = 0, n2 = 0;
+    size_t x, y, z, ex = b->ext[0];
+    for (z = z0; z < z1; z++)
+        for (y = 0; y < b->ext[1]; y++) {
+            size_t base = wvc_index(p, b, 0, y, z);
+            const float *restrict row = C + base;
+            int32_t *restrict qrow = Q ? Q + base : NULL;
+            row_acc A;
+            wvc_v4d zq = {0, 0, 0, 0};
+            double t[8];
+            memset(&A, 0, sizeof A);
+            for (x = 0; x + 8 <= ex; x += 8) {
+                wvc_v8f cf;
+                wvc_v8i hit;
+                wvc_v4l h4;
+                memcpy(&cf, row + x, sizeof cf);
+                hit = (wvc_v8f)((wvc_v8i)cf & absmask) >= vthr;
+                h4 = (wvc_v4l)hit;
+                if (!(h4[0] | h4[1] | h4[2] | h4[3])) {
+                    /* all zero: only their energy */
+                    wvc_v4f lo = {cf[0], cf[1], cf[2], cf[3]}, hi = {cf[4], cf[5], cf[6], cf[7]};
+                    wvc_v4d dl = __builtin_convertvector(lo, wvc_v4d), dh = __builtin_convertvector(hi, wvc_v4d);
+                    zq += dl * dl + dh * dh;
+                    if (qrow && !sparse) memset(qrow + x, 0, 8 * sizeof *qrow);
+                    continue;
+                }
+                {
+                    wvc_v4f lo = {cf[0], cf[1], cf[2], cf[3]}, hi = {cf[4], cf[5], cf[6], cf[7]};
+                    quad_stats(&A, lo, inv, f, qrow ? qrow + x : NULL, sparse);
+                    quad_stats(&A, hi, inv, f, qrow ? qrow + x + 4 : NULL, sparse);
+                }
+            }
+            memset(t, 0, sizeof t);
+            for (int k = 0; k < 4; k++) {
+                t[0] += A.rz[k] + zq[k], t[1] += A.re[k] + zq[k], t[2] += A.r1[k], t[3] += A.rr1[k];
+                t[4] += A.r2[k], t[5] += A.rr2[k], t[6] += A.c1[k], t[7] += A.c2[k];
+            }
+            for (; x < ex; x++) {
+                double c = row[x], ac = fabs(c), a = ac * inv, tt = a + f;
+                double q = (double)(int32_t)(tt < qmax ? tt : qmax), r = a - q, cc = c * c;
+                t[1] += cc;
+                if (q == 0) t[0] += cc;
+                else if (q == 1) t[2] += r, t[3] += r * r, t[6] += 1;
+                else t[4] += r, t[5] += r * r, t[7] += 1;
+                if (qrow && (!sparse || q != 0)) qrow[x] = c < 0 ? -(int32_t)q : (int32_t)q;
+            }
+            zero_sse += t[0];
+            energy += t[1];
+            s1 += t[2];
+            ss1 += t[3];
+            s2 += t[4];
+            ss2 += t[5];
+            n1 += (uint64_t)t[6];
+            n2 += (uint64_t)t[7];
+        }
+    memset(st, 0, sizeof *st);
+    st->zero_sse = zero_sse;
+    st->energy = energy;
+    st->s1 = s1;
+    st->ss1 = ss1;
+    st->s2 = s2;
+    st->ss2 = ss2;
+    st->n1 = n1;
+    st->n2 = n2;
+}
+#undef SEL
+work_item *wvol__wvc_work_items(const wvc_layout *L, int *count)
+{
+    int s, n = 0;
+    work_item *w;
+    size_t total = 0;
+    for (s = 0; s < L->nsec; s++) {
+        const wvc_band *b = &L->sec[s];
+        size_t slab = b->ext[0] * b->ext[1], per = slab ? (65536 + slab - 1) / slab : 1;
+        if (b->count) total += (b->ext[2] + per - 1) / per;
+    }
+    w = malloc((total ? total : 1) * sizeof *w);
+    if (!w) return NULL;
+    for (s = 0; s < L->nsec; s++) {
+        const wvc_band *b = &L->sec[s];
+        size_t slab = b->ext[0] * b->ext[1], per = slab ? (65536 + slab - 1) / slab : 1, z;
+        if (!b->count) continue;
+        for (z = 0; z < b->ext[2]; z += per) {
+            w[n].sec = s;
+            w[n].z0 = z;
+            w[n].z1 = z + per < b->ext[2] ? z + per : b->ext[2];
+            n++;
+        }
+    }
+    *count = n;
+    return w;
+}
+
+/* Per-section sums over the whole pyramid in one parallel pass; Q as in rows_stats
+ * (*qzero: Q is all zero, cleared once written). */
+int wvol__wvc_all_stats(sec_stats *st, const wvc_layout *L, const float *C, int32_t *Q, double step, double f,
+                        int *qzero)
+{
+    int n = 0, i, sparse = Q && *qzero;
+    work_item *w = wvol__wvc_work_items(L, &n);
+    sec_stats *part;
+    if (!w) return -1;
+    part = malloc((n ? n : 1) * sizeof *part);
+    if (!part) {
+        free(w);
+        return -1;
+    }
+#pragma omp parallel for schedule(dynamic, 1) if (n > 2)
+    for (i = 0; i < n; i++)
+        rows_stats(&part[i], C, Q, L->p, &L->sec[w[i].sec], step, sec_rounding(&L->sec[w[i].sec], f), w[i].z0,
+                   w[i].z1, sparse);
+    if (Q) *qzero = 0;
+    memset(st, 0, (size_t)L->nsec * sizeof *st);
+    for (i = 0; i < n; i++) {
+        sec_stats *d = &st[w[i].sec], *a = &part[i];
+        d->zero_sse += a->zero_sse;
+        d->energy += a->energy;
+        d->s1 += a->s1;
+        d->ss1 += a->ss1;
+        d->s2 += a->s2;
+        d->ss2 += a->ss2;
+        d->n1 += a->n1;
+        d->n2 += a->n2;
+    }
+    free(part);
+    free(w);
+    return 0;
+}
+
+/* The offsets as stored (float32) and the section's exact squared error with them. */
+double wvol__wvc_sec_error(const sec_stats *st, double step, float *d1, float *d2)
+{
+    double e = st->zero_sse;
+    float a = st->n1 ? (float)(st->s1 / (double)st->n1) : 0.0f;
+    float b = st->n2 ? (float)(st->s2 / (double)st->n2) : 0.0f;
+    e += step * step * (st->ss1 - 2.0 * a * st->s1 + (double)st->n1 * a * a);
+    e += step * step * (st->ss2 - 2.0 * b * st->s2 + (double)st->n2 * b * b);
+    if (d1) *d1 = a;
+    if (d2) *d2 = b;
+    return e < 0 ? 0 : e;
+}
+
+static double total_error(const wvc_layout *L, const float *C, double step, double f, sec_stats *st, int32_t *Q,
+                          int *qzero)
+{
+    double e = 0;
+    int s;
+    if (wvol__wvc_all_stats(st, L, C, Q, step, f, qzero)) return NAN;
+    for (s = 0; s < L->nsec; s++) e += wvol__wvc_sec_error(&st[s], step, NULL, NULL);
+    return e;
+}
+
+/* Finds the largest step (to within ~0.2%) whose error lies in [accept, 1] x target:
+ * secant iterations on log(error) against log(step) from d0, each an exact pass
+ * that also quantises into Q. *last: the step of the last pass (what Q holds). */
+static double search_step(const wvc_layout *L, const float *C, double target, double f, double maxabs,
+                          double min_step, sec_stats *st, int *iters, double d0, double accept, int32_t *Q,
+                          int *qzero, double *last)
+{
+    double e0, d1, e1, best_ok = 0, best_bad = INFINITY, slope = 2.0;
+    int it;
+    if (d0 < min_step) d0 = min_step;
+    if (maxabs > 0 && d0 > 4 * maxabs) d0 = 4 * maxabs;
+    e0 = total_error(L, C, d0, f, st, Q, qzero);
+    if (!isfinite(e0)) return NAN;
+    *last = d0;
+    (*iters)++;
+    if (e0 <= target) best_ok = d0; else best_bad = d0;
+    d1 = d0;
+    e1 = e0;
+    for (it = 0; it < 14; it++) {
+        double ratio, next, aim = 0.5 * (1 + accept) * target;
+        if (e1 <= target && e1 >= accept * target) break;
+        if (e1 <= 0) {
+            next = d1 * 4;
+        } else {
+            ratio = pow(aim / e1, 1.0 / slope);
+            if (ratio > 8) ratio = 8;
+            if (ratio < 0.125) ratio = 0.125;
+            next = d1 * ratio;
+        }
+        /* stay inside the bracket; bisect (geometrically) when the secant leaves it */
+        if (best_ok > 0 && isfinite(best_bad) && (next <= best_ok || next >= best_bad))
+            next = sqrt(best_ok * best_bad);
+        if (next < min_step) next = min_step;
+        if (next > 4 * maxabs && maxabs > 0) next = 4 * maxabs;
+        /* the error is a staircase in the step: changes below 0.05% are noise */
+        if (fabs(next / d1 - 1) < 5e-4) {
+            if (e1 <= target) break;
+            next = d1 * 0.995;
+        }
+        d0 = d1;
+        e0 = e1;
+        d1 = next;
+        e1 = total_error(L, C, d1, f, st, Q, qzero);
+        if (!isfinite(e1)) return NAN;
+        *last = d1;
+        (*iters)++;
+        if (e1 <= target) {
+            if (d1 > best_ok) best_ok = d1;
+        } else if (d1 < best_bad) {
+            best_bad = d1;
+        }
+        if (e0 > 0 && e1 > 0 && fabs(log(d1 / d0)) > 1e-9) {
+            slope = log(e1 / e0) / log(d1 / d0);
+            if (!(slope >= 0.3)) slope = 0.3;
+            if (slope > 3) slope = 3;
+        }
+        if (isfinite(best_bad) && best_ok > 0 && best_bad / best_ok < 1.002) break;
+    }
+    if (best_ok > 0) return best_ok;
+    /* not reached even at the smallest step the quantiser allows */
+    return min_step;
+}
+/* The largest step whose error stays within [0.985, 1] x target (PSNR at most
+ * 0.066 dB above the target): the step the histograms predict for 0.9925 x target
+ * (no pass over the data); an exact pass that also quantises into Q; if that misses,
+ * the prediction again, scaled by what the pass measured against what was
+ * predicted at that step, then secant iterations on exact passes (rarely needed).
+ * On return Q and st hold the quantisation with the returned step. */
+double wvol__wvc_choose_step(const wvc_layout *L, const float *C, const uint64_t *H, double target, double f,
+                             double maxabs, double min_step, sec_stats *st, int *iters, int32_t *Q, int *qzero)
+{
+    const double aim = 0.9925, accept = 0.985;
+    double d, e, last = 0;
+    wvc_hist_est *est = wvol__wvc_hist_prepare(H, L);
+    if (!est) return NAN;
+    *iters = 1;
+    d = wvol__wvc_hist_step(est, L, aim * target, f, min_step, 4 * maxabs);
+    e = total_error(L, C, d, f, st, Q, qzero);
+    last = d;
+    if (isfinite(e) && !(e <= target && e >= accept * target)) {
+        double predicted = wvol__wvc_hist_error(est, L, d, f), k = predicted > 0 && e > 0 ? e / predicted : 1;
+        d = wvol__wvc_hist_step(est, L, aim * target / k, f, min_step, 4 * maxabs);
+        d = search_step(L, C, target, f, maxabs, min_step, st, iters, d, accept, Q, qzero, &last);
+    }
+    wvol__wvc_hist_free(est);
+    if (!isfinite(e)) return NAN;
+    if (isfinite(d) && last != d) {
+        (*iters)++;
+        if (!isfinite(total_error(L, C, d, f, st, Q, qzero))) return NAN;
+    }
+    return d;
+}

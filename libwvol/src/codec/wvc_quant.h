@@ -1,0 +1,44 @@
+/* SPDX-License-Identifier: MIT
+ * The .wvc encoder's quantiser, shared by its files (not installed): per-section
+ * statistics for a step (wvc_quant.c), the choice of the step from an error target
+ * (wvc_quant.c) and the spending of the budget the step leaves (wvc_slack.c). */
+#ifndef WVOL_CODEC_WVC_QUANT_H
+#define WVOL_CODEC_WVC_QUANT_H
+
+#include <stdint.h>
+
+#include "wvc_internal.h"
+
+/* Per-section sums for one step: the zeroed coefficients' energy, and for
+ * |q| = 1 and |q| >= 2 the count, sum and sum of squares of r = |c|/step - |q|. */
+typedef struct sec_stats {
+    double zero_sse, energy;
+    double s1, ss1, s2, ss2;
+    uint64_t n1, n2;
+} sec_stats;
+
+/* Work items: slabs of about 64K coefficients of one section each. */
+typedef struct work_item {
+    int sec;
+    size_t z0, z1;
+} work_item;
+
+/* The work items covering every non-empty section (malloc'ed; NULL: out of memory). */
+work_item *wvol__wvc_work_items(const wvc_layout *L, int *count);
+/* Per-section sums over the whole pyramid for one step, in one parallel pass; Q (may
+ * be NULL) receives the quantised values (*qzero: Q is all zero, cleared once
+ * written). Returns 0, or -1 when out of memory. */
+int wvol__wvc_all_stats(sec_stats *st, const wvc_layout *L, const float *C, int32_t *Q, double step, double f,
+                        int *qzero);
+/* The offsets as stored (float32) and the section's exact squared error with them. */
+double wvol__wvc_sec_error(const sec_stats *st, double step, float *d1, float *d2);
+/* The largest step whose error stays within [0.985, 1] x target; on return Q and st
+ * hold the quantisation with it. NAN when out of memory. */
+double wvol__wvc_choose_step(const wvc_layout *L, const float *C, const uint64_t *H, double target, double f,
+                             double maxabs, double min_step, sec_stats *st, int *iters, int32_t *Q, int *qzero);
+/* Zeroes the cheapest |q| = 1 coefficients within `slack` and updates the sums in st
+ * to match; returns how many. */
+uint64_t wvol__wvc_spend_slack(const wvc_layout *L, const float *C, int32_t *Q, double step, double f,
+                               const float *d1, double slack, sec_stats *st);
+
+#endif

@@ -1,0 +1,108 @@
+/* SPDX-License-Identifier: MIT
+ * Helpers the image readers share (io_internal.h): the axis-flipping geometry and
+ * the number syntax of text headers. */
+#include "io/io_internal.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+static void reverse_floats(float *a, float *b) /* [a, b) */
+{
+    while (a < --b) {
+        float t = *a;
+        *a++ = *b;
+        *b = t;
+    }
+}
+
+static void swap_floats(float *a, float *b, size_t n)
+{
+    for (size_t i = 0; i < n; i++) {
+        float t = a[i];
+        a[i] = b[i];
+        b[i] = t;
+    }
+}
+
+static void flip_axis(wvol_volume *v, int axis)
+{
+    const size_t nx = v->nx, ny = v->ny, nz = v->nz;
+    float *d = v->data;
+    if (axis == 0) {
+        for (size_t r = 0; r < ny * nz; r++) reverse_floats(d + r * nx, d + (r + 1) * nx);
+    } else if (axis == 1) {
+        for (size_t k = 0; k < nz; k++)
+            for (size_t j = 0; j < ny / 2; j++) swap_floats(d + (k * ny + j) * nx, d + (k * ny + ny - 1 - j) * nx, nx);
+    } else {
+        for (size_t k = 0; k < nz / 2; k++) swap_floats(d + k * nx * ny, d + (nz - 1 - k) * nx * ny, nx * ny);
+    }
+}
+
+wvol_status wvol__io_apply_geometry(wvol_volume *v, const double origin_in[3], const double spacing_in[3],
+                                    const double dir[3][3], wvol_error *err)
+{
+    const size_t n[3] = {v->nx, v->ny, v->nz};
+    int diagonal = 1;
+    double spacing[3], origin[3];
+    for (int r = 0; r < 3; r++)
+        for (int c = 0; c < 3; c++)
+            if (r != c && fabs(dir[r][c]) > 1e-6) diagonal = 0;
+    for (int a = 0; a < 3; a++) {
+        double step = spacing_in[a] * (diagonal ? (dir[a][a] < 0 ? -1.0 : 1.0) : 1.0);
+        origin[a] = origin_in[a];
+        spacing[a] = fabs(step);
+        if (step < 0) {
+            flip_axis(v, a);
+            origin[a] = origin_in[a] + (double)(n[a] - 1) * step;
+        }
+    }
+    return wvol_volume_set_geometry(v, spacing, origin, err);
+}
+
+static int is_space(char c)
+{
+    return c == ' ' || c == '\t' || c == '\n' || c == '\v' || c == '\f' || c == '\r';
+}
+
+/* One number the way libstdc++'s num_get reads a double in the C locale: the longest
+ * run of [+-] digits [.] digits [e [+-] digits] (an exponent only after a digit),
+ * converted by strtod, which must use all of it; +-inf (overflow) fails. */
+size_t wvol__io_parse_numbers(const char *s, double *out, size_t cap)
+{
+    size_t count = 0, len = strlen(s);
+    char *tok = malloc(len + 2);
+    const char *p = s;
+    if (!tok) return 0;
+    for (;;) {
+        size_t k = 0;
+        int mantissa = 0, dec = 0, sci = 0;
+        char *end;
+        double x;
+        while (is_space(*p)) p++;
+        if (*p == '+' || *p == '-') tok[k++] = *p++;
+        for (; *p; p++) {
+            if (*p >= '0' && *p <= '9') {
+                tok[k++] = *p;
+                mantissa = 1;
+            } else if (*p == '.' && !dec && !sci) {
+                tok[k++] = '.';
+                dec = 1;
+            } else if ((*p == 'e' || *p == 'E') && !sci && mantissa) {
+                tok[k++] = 'e';
+                sci = 1;
+                if (p[1] == '+' || p[1] == '-') tok[k++] = *++p;
+            } else {
+                break;
+            }
+        }
+        tok[k] = '\0';
+        if (k == 0) break;
+        x = strtod(tok, &end);
+        if (end == tok || *end != '\0' || isinf(x)) break;
+        if (count < cap) out[count] = x;
+        count++;
+    }
+    free(tok);
+    return count;
+}

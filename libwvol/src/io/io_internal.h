@@ -1,0 +1,58 @@
+/* SPDX-License-Identifier: MIT
+ * What the io module's files share with each other and with the C++ adapters (not
+ * installed): the axis-flipping geometry every image reader applies, the number
+ * syntax of text headers, the DICOM series reader and the MetaImage header check. */
+#ifndef WVOL_IO_INTERNAL_H
+#define WVOL_IO_INTERNAL_H
+
+#include <stddef.h>
+
+#include "wvol/io.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/* Sets v's spacing and origin from an image's geometry: origin = world position of
+ * the first sample as stored, spacing per axis (may be negative: the axis runs
+ * backwards), dir the direction matrix (rows: world axes). Axes whose direction is
+ * -1 (or whose spacing is negative) are reversed in place so that the spacing is
+ * positive; any other rotation is dropped. Fails as wvol_volume_set_geometry does. */
+wvol_status wvol__io_apply_geometry(wvol_volume *v, const double origin[3], const double spacing[3],
+                                    const double dir[3][3], wvol_error *err);
+
+/* Numbers of a text header, as C++'s `istream >> double` reads them one after the
+ * other: whitespace, then [+-]digits[.digits][e[+-]digits]; stops at the first text
+ * that is not such a number, or that overflows. Stores at most cap values in out;
+ * returns how many numbers were read (possibly more than cap). */
+size_t wvol__io_parse_numbers(const char *s, double *out, size_t cap);
+
+/* A folder holding one DICOM series (uncompressed little-endian grayscale Part 10
+ * files, one slice each): stacked along the slice normal, RescaleSlope/Intercept
+ * applied. Other files in the folder are ignored. */
+wvol_status wvol__dicom_read(wvol_volume **out, const char *dir, wvol_error *err);
+
+/* The fields of a MetaImage header (.mha/.mhd) the VTK adapter checks or takes at
+ * full precision (VTK's MetaIO keeps spacing as float). Counts are of the numbers
+ * given; at most WVOL__META_MAX_NUMBERS are kept. */
+#define WVOL__META_MAX_NUMBERS 16
+typedef struct wvol__meta_header {
+    int ndims;
+    int channels;
+    size_t nspacing, norigin, nmatrix;
+    double spacing[WVOL__META_MAX_NUMBERS], origin[WVOL__META_MAX_NUMBERS], matrix[WVOL__META_MAX_NUMBERS];
+} wvol__meta_header;
+
+/* Reads and checks the header (first 200 lines, up to ElementDataFile): refuses what
+ * is not a 'Key = Value' header, lacks NDims, DimSize or ElementDataFile, has more
+ * than 3 dimensions or more than one channel. */
+wvol_status wvol__meta_read_header(wvol__meta_header *h, const char *path, wvol_error *err);
+
+/* VTK's value (float precision) of header number i, or the header's own text of it
+ * when that is the same number more precisely. */
+double wvol__meta_precise(double vtk_value, const double *hdr, size_t n, size_t i);
+
+#ifdef __cplusplus
+}
+#endif
+#endif
