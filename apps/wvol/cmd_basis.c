@@ -54,14 +54,14 @@ static void json_basis(const wvol_basis *b, double seconds)
     cli_json_num("spline_error", b->spline_error);
     cli_json_num("spline_error_phi", b->spline_error_phi);
     cli_json_num("spline_error_psi", b->spline_error_psi);
-    cli_json_num("phi_max", b->vmax[WVOL_PHI]);
-    cli_json_num("psi_max", b->vmax[WVOL_PSI]);
-    cli_json_num("dphi_max", b->dmax[WVOL_PHI]);
-    cli_json_num("dpsi_max", b->dmax[WVOL_PSI]);
-    cli_json_num("phi_abs_integral", b->abs_integral[WVOL_PHI]);
-    cli_json_num("psi_abs_integral", b->abs_integral[WVOL_PSI]);
-    cli_json_num("phi_end_slope", b->end_slope[WVOL_PHI]);
-    cli_json_num("psi_end_slope", b->end_slope[WVOL_PSI]);
+    cli_json_num("phi_max", b->vmax[WVOL_BASIS_PHI]);
+    cli_json_num("psi_max", b->vmax[WVOL_BASIS_PSI]);
+    cli_json_num("dphi_max", b->dmax[WVOL_BASIS_PHI]);
+    cli_json_num("dpsi_max", b->dmax[WVOL_BASIS_PSI]);
+    cli_json_num("phi_abs_integral", b->abs_integral[WVOL_BASIS_PHI]);
+    cli_json_num("psi_abs_integral", b->abs_integral[WVOL_BASIS_PSI]);
+    cli_json_num("phi_end_slope", b->end_slope[WVOL_BASIS_PHI]);
+    cli_json_num("psi_end_slope", b->end_slope[WVOL_BASIS_PSI]);
     cli_json_num("build_seconds", seconds);
     cli_json_close('}');
 }
@@ -80,9 +80,9 @@ static int write_csv(const char *path, const wvol_basis *b, wvol_error *err)
         int which;
         wvol_basis_kind kind;
         int n;
-    } groups[] = {{WVOL_PHI, WVOL_BASIS_VALUE, 4},     {WVOL_PSI, WVOL_BASIS_VALUE, 4},
-                  {WVOL_PHI, WVOL_BASIS_DERIV, 3},     {WVOL_PSI, WVOL_BASIS_DERIV, 3},
-                  {WVOL_PHI, WVOL_BASIS_PRIMITIVE, 5}, {WVOL_PSI, WVOL_BASIS_PRIMITIVE, 5}};
+    } groups[] = {{WVOL_BASIS_PHI, WVOL_BASIS_VALUE, 4},     {WVOL_BASIS_PSI, WVOL_BASIS_VALUE, 4},
+                  {WVOL_BASIS_PHI, WVOL_BASIS_DERIV, 3},     {WVOL_BASIS_PSI, WVOL_BASIS_DERIV, 3},
+                  {WVOL_BASIS_PHI, WVOL_BASIS_PRIMITIVE, 5}, {WVOL_BASIS_PSI, WVOL_BASIS_PRIMITIVE, 5}};
     wvol_atomic_file af;
     int i, k;
     if (wvol_atomic_open(&af, path, err) != WVOL_OK) return 0;

@@ -337,7 +337,7 @@ int wvol_cmd_iso(int argc, char **argv)
 
     memset(&a, 0, sizeof a);
     a.method = "mc";
-    a.normals = WVOL_NORMALS_GRADIENT;
+    a.normals = WVOL_ISO_NORMALS_GRADIENT;
     a.repeat = 1;
     a.keep = 1.0;
     a.brick = 32;
@@ -391,8 +391,8 @@ int wvol_cmd_iso(int argc, char **argv)
             if (lv == 1) return cli_usage("iso", "--brick 1: bricks need at least 2 cells per edge");
             a.brick = (int)lv;
         } else if (!strcmp(o->name, "normals")) {
-            if (!strcmp(val, "none")) a.normals = WVOL_NORMALS_NONE;
-            else if (!strcmp(val, "gradient")) a.normals = WVOL_NORMALS_GRADIENT;
+            if (!strcmp(val, "none")) a.normals = WVOL_ISO_NORMALS_NONE;
+            else if (!strcmp(val, "gradient")) a.normals = WVOL_ISO_NORMALS_GRADIENT;
             else return cli_usage("iso", "--normals '%s': expected gradient or none", val);
         } else if (!strcmp(o->name, "json")) {
             a.json = 1;

@@ -238,7 +238,7 @@ static int load_colors(const render_args *a, render_input *in, wvol_render_param
         return cli_usage("render", "--colors %s: expected interleaved RGB float32 .raw", a->colors_path);
     wvol_load_options_default(&co);
     co.dims[0] = 3 * in->geometry.dims[0], co.dims[1] = in->geometry.dims[1], co.dims[2] = in->geometry.dims[2];
-    co.raw_type = WVOL_F32;
+    co.raw_type = WVOL_SAMPLE_TYPE_F32;
     if (wvol_volume_load(&in->colors, a->colors_path, &co, err) != WVOL_OK) return cli_fail_err("render", err);
     rp->colors = in->colors->data;
     rp->colors_count = wvol_volume_count(in->colors);

@@ -11,8 +11,8 @@
 
 static int parse_normals(const char *name, wvol_iso_normals *out)
 {
-    if (!strcmp(name, "gradient")) *out = WVOL_NORMALS_GRADIENT;
-    else if (!strcmp(name, "none")) *out = WVOL_NORMALS_NONE;
+    if (!strcmp(name, "gradient")) *out = WVOL_ISO_NORMALS_GRADIENT;
+    else if (!strcmp(name, "none")) *out = WVOL_ISO_NORMALS_NONE;
     else {
         PyErr_Format(PyExc_ValueError, "normals '%s': expected 'gradient' or 'none'", name);
         return -1;

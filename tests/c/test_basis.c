@@ -64,7 +64,7 @@ static void cascade_is_refinable_and_a_partition_of_unity(void)
     int i, J = 5, count = wvol_filter_count();
     for (i = 0; i < count; i++) {
         const wvol_filter *f = wvol_filter_at(i);
-        int L = f->length, per = 1 << J, n, k, bl = f->family == WVOL_BATTLE_LEMARIE;
+        int L = f->length, per = 1 << J, n, k, bl = f->family == WVOL_FAMILY_BATTLE_LEMARIE;
         size_t N = (size_t)(L - 1) << J, N2 = (size_t)(L - 1) << (J - 1);
         double *phi = malloc((N + 1) * sizeof *phi), *psi = malloc((N + 1) * sizeof *psi);
         double *phic = malloc((N2 + 1) * sizeof *phic), worst_pu = 0.0, worst_ref = 0.0, worst_sub = 0.0;
@@ -110,17 +110,17 @@ static void haar_is_exact(void)
         CHECK(b->spline_error == 0.0 && b->ortho_error == 0.0 && b->ortho_error_psi == 0.0, "%s checks are 0",
               names[i]);
         CHECK(b->phi_integral == 1.0 && b->psi_integral == 0.0, "%s integrals", names[i]);
-        CHECK(wvol_basis_value(b, WVOL_PHI, 0.0) == 1.0 && wvol_basis_value(b, WVOL_PHI, 0.999) == 1.0 &&
-                  wvol_basis_value(b, WVOL_PHI, 1.0) == 0.0 && wvol_basis_value(b, WVOL_PHI, -1e-300) == 0.0,
+        CHECK(wvol_basis_value(b, WVOL_BASIS_PHI, 0.0) == 1.0 && wvol_basis_value(b, WVOL_BASIS_PHI, 0.999) == 1.0 &&
+                  wvol_basis_value(b, WVOL_BASIS_PHI, 1.0) == 0.0 && wvol_basis_value(b, WVOL_BASIS_PHI, -1e-300) == 0.0,
               "%s box [0,1)", names[i]);
-        CHECK(wvol_basis_value(b, WVOL_PSI, 0.25) == 1.0 && wvol_basis_value(b, WVOL_PSI, 0.5) == -1.0 &&
-                  wvol_basis_value(b, WVOL_PSI, 0.75) == -1.0,
+        CHECK(wvol_basis_value(b, WVOL_BASIS_PSI, 0.25) == 1.0 && wvol_basis_value(b, WVOL_BASIS_PSI, 0.5) == -1.0 &&
+                  wvol_basis_value(b, WVOL_BASIS_PSI, 0.75) == -1.0,
               "%s psi +1 / -1", names[i]);
-        CHECK(wvol_basis_deriv(b, WVOL_PHI, 0.3) == 0.0 && wvol_basis_deriv(b, WVOL_PSI, 0.7) == 0.0,
+        CHECK(wvol_basis_deriv(b, WVOL_BASIS_PHI, 0.3) == 0.0 && wvol_basis_deriv(b, WVOL_BASIS_PSI, 0.7) == 0.0,
               "%s derivative 0", names[i]);
-        CHECK_NEAR(wvol_basis_primitive(b, WVOL_PHI, 0.3), 0.3, 1e-16, "haar primitive phi");
-        CHECK_NEAR(wvol_basis_primitive(b, WVOL_PSI, 0.75), 0.25, 1e-16, "haar primitive psi");
-        CHECK(wvol_basis_primitive(b, WVOL_PSI, 7.0) == 0.0 && wvol_basis_primitive(b, WVOL_PHI, 7.0) == 1.0,
+        CHECK_NEAR(wvol_basis_primitive(b, WVOL_BASIS_PHI, 0.3), 0.3, 1e-16, "haar primitive phi");
+        CHECK_NEAR(wvol_basis_primitive(b, WVOL_BASIS_PSI, 0.75), 0.25, 1e-16, "haar primitive psi");
+        CHECK(wvol_basis_primitive(b, WVOL_BASIS_PSI, 7.0) == 0.0 && wvol_basis_primitive(b, WVOL_BASIS_PHI, 7.0) == 1.0,
               "haar primitive past the support");
         CHECK(b->vmax[0] >= 1.0 && b->vmax[0] < 1.0 + 1e-9 && b->dmax[0] < 1e-200, "haar bounds");
         CHECK_NEAR(b->center, 0.5, 0.0, "haar centre");
@@ -162,7 +162,7 @@ static void spline_checks_hold_for_every_family(void)
         wvol_basis *b = make(measured_j6[i].name, 6);
         int bl;
         if (!b) continue;
-        bl = b->filter->family == WVOL_BATTLE_LEMARIE;
+        bl = b->filter->family == WVOL_FAMILY_BATTLE_LEMARIE;
         CHECK(b->J == 6 && b->per_unit == 64 && b->pieces == (b->length - 1) * 64, "%s layout", b->filter->name);
         CHECK_NEAR(b->phi_integral, 1.0, bl ? 1e-9 : 4e-15, b->filter->name);
         CHECK_NEAR(b->psi_integral, 0.0, bl ? 1e-9 : 4e-15, b->filter->name);

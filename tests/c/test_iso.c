@@ -328,7 +328,7 @@ static void rejects_bad_input(void)
           "message names the voxel: %s", err.message);
     v->data[7 + 16 * (7 + 16 * 7)] = 1.0f;
     CHECK(wvol_iso_extract(&m, v, NAN, NULL, NULL, &err) == WVOL_ERR_ARG, "NaN iso refused");
-    p.normals = WVOL_NORMALS_ANALYTIC;
+    p.normals = WVOL_ISO_NORMALS_ANALYTIC;
     CHECK(wvol_iso_extract(&m, v, 0.5, &p, NULL, &err) == WVOL_ERR_ARG, "analytic normals need a function");
     CHECK(wvol_iso_extract(&m, NULL, 0.5, NULL, NULL, &err) == WVOL_ERR_ARG, "NULL volume refused");
     wvol_volume_destroy(v);

@@ -403,7 +403,7 @@ static void small_image(const wvol_store *s, double iso, const char *what)
     float *depth = malloc(24 * 24 * sizeof(float));
     double dir[3] = {-0.5, 1, 0.3};
     geometry_of_store(s, &g);
-    wvol_camera_frame(&cam, &g, dir, WVOL_PERSPECTIVE, 24, 24, 0, NULL);
+    wvol_camera_frame(&cam, &g, dir, WVOL_PROJECTION_PERSPECTIVE, 24, 24, 0, NULL);
     wvol_image_create(&img, 24, 24, NULL);
     CHECK(wvol_iso_raytrace(img, depth, NULL, s, &cam, iso, NULL, NULL, NULL) == WVOL_OK, "%s: image", what);
     image_matches_rays(s, &cam, depth, iso, what);
@@ -424,7 +424,7 @@ static void image_and_empty(const wvol_store *s, double iso, const char *what)
     int a, nan = 0, i;
     wvol_store_get_info(s, &info);
     geometry_of_store(s, &g);
-    CHECK(wvol_camera_frame(&cam, &g, dir, WVOL_ORTHOGRAPHIC, W, W, 0, NULL) == WVOL_OK, "%s: camera", what);
+    CHECK(wvol_camera_frame(&cam, &g, dir, WVOL_PROJECTION_ORTHOGRAPHIC, W, W, 0, NULL) == WVOL_OK, "%s: camera", what);
     cam.view_height /= 2.5; /* the iso sphere's radius is 0.29 of the half box */
     CHECK(wvol_image_create(&img, W, W, NULL) == WVOL_OK, "%s: image", what);
     CHECK(wvol_iso_raytrace(img, depth, NULL, s, &cam, iso, NULL, &st, NULL) == WVOL_OK, "%s: image", what);
@@ -439,7 +439,7 @@ static void image_and_empty(const wvol_store *s, double iso, const char *what)
     /* perspective camera from inside the volume: rays start at the eye */
     {
         wvol_camera in = cam;
-        in.projection = WVOL_PERSPECTIVE;
+        in.projection = WVOL_PROJECTION_PERSPECTIVE;
         in.fov_y = 60;
         for (a = 0; a < 3; a++) in.eye[a] = cam.center[a], in.center[a] = cam.center[a] + dir[a];
         CHECK(wvol_iso_raytrace(img, depth, NULL, s, &in, iso, NULL, &st, NULL) == WVOL_OK, "%s: inside", what);
@@ -478,7 +478,7 @@ static void hybrid(const wvol_store *s, double iso, const char *what)
     int a, i, covered = 0;
     wvol_store_get_info(s, &info);
     geometry_of_store(s, &g);
-    wvol_camera_frame(&cam, &g, dir, WVOL_PERSPECTIVE, 24, 24, 0, NULL);
+    wvol_camera_frame(&cam, &g, dir, WVOL_PROJECTION_PERSPECTIVE, 24, 24, 0, NULL);
     cam.fov_y /= 2.5;
     wvol_tf_preset(&tf, "gaussian", 0, 1, NULL);
     wvol_image_create(&hy, 24, 24, NULL);

@@ -43,7 +43,7 @@ static void camera_description_is_parsed_and_checked(void)
     wvol_error err;
     double o[3], d[3];
     CHECK(wvol_camera_parse(&cam, "+z", &g, 32, 32, &err) == WVOL_OK, "%s", err.message);
-    CHECK(cam.projection == WVOL_ORTHOGRAPHIC, "ortho by default");
+    CHECK(cam.projection == WVOL_PROJECTION_ORTHOGRAPHIC, "ortho by default");
     /* from +z: looking along -z, right = +x, up = +y; the box is 32 x 32 world units */
     CHECK_NEAR(cam.view_height, 32.0, 1e-12, "framed height");
     wvol_camera_ray(&cam, 0.5, 0.5, o, d);
@@ -51,7 +51,7 @@ static void camera_description_is_parsed_and_checked(void)
     CHECK_NEAR(o[0], 10.0, 1e-9, "first pixel centre on voxel 0 (x)");
     CHECK_NEAR(o[1], 20.0 + 15.5 * 2.0 - 0.5, 1e-9, "first pixel centre half a pixel below the top (y)");
     CHECK(wvol_camera_parse(&cam, "persp fov=40 dir=1,1,0.5 zoom=2", &g, 64, 48, &err) == WVOL_OK, "%s", err.message);
-    CHECK(cam.projection == WVOL_PERSPECTIVE && cam.fov_y < 40, "perspective, zoomed");
+    CHECK(cam.projection == WVOL_PROJECTION_PERSPECTIVE && cam.fov_y < 40, "perspective, zoomed");
     CHECK(wvol_camera_parse(&cam, "persp eye=100,100,100 center=26,35,32 up=0,0,1", &g, 64, 48, &err) == WVOL_OK,
           "%s", err.message);
     CHECK(wvol_camera_parse(&cam, "+w", &g, 8, 8, &err) == WVOL_ERR_ARG && strstr(err.message, "+w"), "%s",
@@ -158,10 +158,10 @@ static void reference_xray_along_axis_sums_voxels(void)
     if (!v) return;
     wvol_volume_set_geometry(v, sp, org, NULL);
     wvol_geometry_of_volume(&g, v);
-    CHECK(wvol_camera_frame(&cam, &g, dir, WVOL_ORTHOGRAPHIC, 12, 10, 0, &err) == WVOL_OK, "%s", err.message);
+    CHECK(wvol_camera_frame(&cam, &g, dir, WVOL_PROJECTION_ORTHOGRAPHIC, 12, 10, 0, &err) == WVOL_OK, "%s", err.message);
     wvol_image_create(&img, 12, 10, NULL);
     wvol_render_params_default(&p);
-    p.mode = WVOL_MODE_XRAY;
+    p.mode = WVOL_RENDER_MODE_XRAY;
     p.step = 0.5 / 0.5 * 1.3 / 2; /* step in smallest spacing: half a voxel along z */
     CHECK(wvol_render_reference(img, v, &cam, NULL, &p, NULL, &err) == WVOL_OK, "%s", err.message);
     for (j = 0; j < 10; j++)
@@ -343,12 +343,12 @@ static void blocked_loop_equals_per_sample_path(void)
                          0.5 * opacity[o], 0.1 * opacity[o], opacity[o]);
             CHECK(wvol_tf_parse(&tf, text, "test", &err) == WVOL_OK, "%s", err.message);
             for (s = 0; s < 3; s++)
-                for (m = WVOL_MODE_ABSORPTION; m <= WVOL_MODE_ABSORPTION_LINEAR; m++)
+                for (m = WVOL_RENDER_MODE_ABSORPTION; m <= WVOL_RENDER_MODE_ABSORPTION_LINEAR; m++)
                     for (brick = 3; brick <= 8; brick += 5) {
                         wvol_render_stats sa, sb;
                         size_t diff = 0;
                         double worst = 0;
-                        int exact = coloured || m == WVOL_MODE_ABSORPTION_LINEAR;
+                        int exact = coloured || m == WVOL_RENDER_MODE_ABSORPTION_LINEAR;
                         CHECK(wvol_camera_parse(&cam, specs[s], &g, 41, 33, &err) == WVOL_OK, "%s", err.message);
                         wvol_render_params_default(&p);
                         p.mode = (wvol_render_mode)m;

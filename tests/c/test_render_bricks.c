@@ -131,13 +131,13 @@ static void bricks_equal_reference_on_the_reconstruction(void)
         char what[96];
         if (!s || !recon) break;
         snprintf(what, sizeof what, "keep %g persp absorption B=16", keeps[i]);
-        one_case(s, recon, "persp dir=1,0.7,0.4", WVOL_MODE_ABSORPTION, 0, 16, 2, NULL, what);
+        one_case(s, recon, "persp dir=1,0.7,0.4", WVOL_RENDER_MODE_ABSORPTION, 0, 16, 2, NULL, what);
         /* one colour: the blocked loop's shortcut, whose optical depth stays pending in the
          * ray's state until the ray ends; past the phantom the rays' last samples are
          * transparent, so nothing but the walk's end brings T and the colour up to date */
         TF = "units diagonal\n0 1 1 1 0\n0.2 1 1 1 0\n1 1 1 1 30\n";
         snprintf(what, sizeof what, "keep %g persp absorption one colour B=16", keeps[i]);
-        one_case(s, recon, "persp dir=1,0.7,0.4", WVOL_MODE_ABSORPTION, 0, 16, 2, NULL, what);
+        one_case(s, recon, "persp dir=1,0.7,0.4", WVOL_RENDER_MODE_ABSORPTION, 0, 16, 2, NULL, what);
         TF = TF_COLOURED;
         if (i == 1) {
             /* bricks of 2: 33 x 30 x 26 = 25 740 of them, far more than a thread's cache slots
@@ -146,22 +146,22 @@ static void bricks_equal_reference_on_the_reconstruction(void)
             size_t built;
             snprintf(what, sizeof what, "keep %g oblique xray B=2 (evictions)", keeps[i]);
             W = 132, H = 120;
-            built = one_case(s, recon, "ortho dir=0.2,0.1,-1 zoom=0.9", WVOL_MODE_XRAY, 0, 2, 2, NULL, what);
+            built = one_case(s, recon, "ortho dir=0.2,0.1,-1 zoom=0.9", WVOL_RENDER_MODE_XRAY, 0, 2, 2, NULL, what);
             W = 40, H = 32;
             CHECK(built > 8192, "%s: %zu bricks built, no eviction exercised", what, built);
         }
         /* 0: the library chooses (32) */
         snprintf(what, sizeof what, "keep %g persp xray B=0 (chosen)", keeps[i]);
-        one_case(s, recon, "persp dir=1,0.7,0.4", WVOL_MODE_XRAY, 0, 0, 1, NULL, what);
+        one_case(s, recon, "persp dir=1,0.7,0.4", WVOL_RENDER_MODE_XRAY, 0, 0, 1, NULL, what);
         snprintf(what, sizeof what, "keep %g ortho +z absorption-linear B=8", keeps[i]);
-        one_case(s, recon, "+z", WVOL_MODE_ABSORPTION_LINEAR, 0, 8, 1, NULL, what);
+        one_case(s, recon, "+z", WVOL_RENDER_MODE_ABSORPTION_LINEAR, 0, 8, 1, NULL, what);
         snprintf(what, sizeof what, "keep %g ortho oblique xray B=5", keeps[i]);
-        one_case(s, recon, "ortho dir=-0.3,1,-0.6", WVOL_MODE_XRAY, 0, 5, 2, NULL, what);
+        one_case(s, recon, "ortho dir=-0.3,1,-0.6", WVOL_RENDER_MODE_XRAY, 0, 5, 2, NULL, what);
         snprintf(what, sizeof what, "keep %g persp inside, shaded B=16", keeps[i]);
-        one_case(s, recon, "persp eye=30,28,25 center=60,40,40 fov=70", WVOL_MODE_ABSORPTION, 1, 16, 1, NULL, what);
+        one_case(s, recon, "persp eye=30,28,25 center=60,40,40 fov=70", WVOL_RENDER_MODE_ABSORPTION, 1, 16, 1, NULL, what);
         if (colors) {
             snprintf(what, sizeof what, "keep %g persp, colour volume B=16", keeps[i]);
-            one_case(s, recon, "persp dir=-1,0.5,0.8", WVOL_MODE_ABSORPTION, 0, 16, 2, colors, what);
+            one_case(s, recon, "persp dir=-1,0.5,0.8", WVOL_RENDER_MODE_ABSORPTION, 0, 16, 2, colors, what);
         }
         wvol_store_destroy(s);
         wvol_volume_destroy(recon);
@@ -201,7 +201,7 @@ static void walk_builds_each_brick_once(void)
               err.message);
         if (!a || !b) break;
         wvol_render_params_default(&p);
-        p.mode = WVOL_MODE_ABSORPTION;
+        p.mode = WVOL_RENDER_MODE_ABSORPTION;
         p.bricks.brick = 8;
         p.threads = 2; /* the threads share the tile's bricks: still one build each */
         p.tile = 64;
@@ -248,7 +248,7 @@ static void single_coefficient_store(void)
     wvol_geometry_of_volume(&g, recon);
     CHECK(wvol_camera_parse(&cam, "ortho dir=1,0.2,0.1", &g, 24, 24, &err) == WVOL_OK, "%s", err.message);
     wvol_render_params_default(&p);
-    p.mode = WVOL_MODE_XRAY;
+    p.mode = WVOL_RENDER_MODE_XRAY;
     p.threads = 1;
     CHECK(wvol_image_create(&a, 24, 24, &err) == WVOL_OK && wvol_image_create(&b, 24, 24, &err) == WVOL_OK, "%s",
           err.message);
@@ -277,7 +277,7 @@ static void skip_tolerance_bounds_the_change(void)
 {
     wvol_volume *v = phantom(66, 60, 52), *recon = NULL;
     wvol_store *s = store_and_recon(v, 0.1, &recon);
-    const wvol_render_mode modes[3] = {WVOL_MODE_ABSORPTION, WVOL_MODE_ABSORPTION_LINEAR, WVOL_MODE_XRAY};
+    const wvol_render_mode modes[3] = {WVOL_RENDER_MODE_ABSORPTION, WVOL_RENDER_MODE_ABSORPTION_LINEAR, WVOL_RENDER_MODE_XRAY};
     const double tols[2] = {1e-3, 2e-2};
     wvol_geometry g;
     wvol_camera cam;
@@ -379,7 +379,7 @@ static void skip_bookkeeping_is_exact_on_a_constant(void)
     CHECK(wvol_image_create(&a, 24, 24, &err) == WVOL_OK && wvol_image_create(&b, 24, 24, &err) == WVOL_OK, "%s",
           err.message);
     wvol_render_params_default(&p);
-    p.mode = WVOL_MODE_XRAY;
+    p.mode = WVOL_RENDER_MODE_XRAY;
     p.reference.brick = 8;
     if (a && b) {
         CHECK(wvol_render_reference(a, v, &cam, NULL, &p, NULL, &err) == WVOL_OK, "%s", err.message);

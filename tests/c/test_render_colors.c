@@ -143,14 +143,14 @@ static void bad_colour_volumes_are_refused(void)
     rgb[700] = -1.0f;
     CHECK(wvol_render_reference(img, v, &cam, &tf, &p, NULL, &err) == WVOL_ERR_ARG, "%s", err.message);
     rgb[700] = 0.5f;
-    p.mode = WVOL_MODE_XRAY;
+    p.mode = WVOL_RENDER_MODE_XRAY;
     CHECK(wvol_render_reference(img, v, &cam, NULL, &p, NULL, &err) == WVOL_ERR_ARG && strstr(err.message, "X-ray"),
           "%s", err.message);
     CHECK(wvol_filter_get(&f, "haar", &err) == WVOL_OK && wvol_dwt3(&c, v, f, 2, &err) == WVOL_OK &&
               wvol_select(&sel, c, &sp, v, NULL, &err) == WVOL_OK && wvol_store_build(&st, c, sel, &stp, &err) == WVOL_OK,
           "%s", err.message);
     CHECK(wvol_render_xray_axis(img, st, &cam, &p, NULL, &err) == WVOL_ERR_UNSUPPORTED, "%s", err.message);
-    p.mode = WVOL_MODE_ABSORPTION;
+    p.mode = WVOL_RENDER_MODE_ABSORPTION;
     CHECK(wvol_render_spline(img, st, &cam, &tf, &p, NULL, &err) == WVOL_ERR_UNSUPPORTED &&
               strstr(err.message, "colour volume"),
           "%s", err.message);

@@ -52,7 +52,7 @@ static void compare(const wvol_store *s, const wvol_volume *v, const char *camsp
     wvol_image_create(&a, w, h, NULL);
     wvol_image_create(&b, w, h, NULL);
     wvol_render_params_default(&p);
-    p.mode = WVOL_MODE_XRAY;
+    p.mode = WVOL_RENDER_MODE_XRAY;
     CHECK(wvol_render_spline(a, s, &cam, NULL, &p, NULL, &err) == WVOL_OK, "%s", err.message);
     CHECK(wvol_render_xray_splat(b, s, &cam, &p, &st, &err) == WVOL_OK, "%s", err.message);
     for (i = 0; i < (size_t)w * h; i++) {
@@ -136,10 +136,10 @@ static void splat_refuses_what_it_cannot_do(void)
     wvol_camera_parse(&persp, "persp dir=1,0.7,0.4", &g, 16, 16, NULL);
     wvol_image_create(&img, 16, 16, NULL);
     wvol_render_params_default(&p);
-    p.mode = WVOL_MODE_ABSORPTION;
+    p.mode = WVOL_RENDER_MODE_ABSORPTION;
     CHECK(wvol_render_xray_splat(img, s, &ortho, &p, NULL, &err) == WVOL_ERR_UNSUPPORTED && strstr(err.message, "X-ray"),
           "absorption accepted: %s", err.message);
-    p.mode = WVOL_MODE_XRAY;
+    p.mode = WVOL_RENDER_MODE_XRAY;
     CHECK(wvol_render_xray_splat(img, s, &persp, &p, NULL, &err) == WVOL_ERR_UNSUPPORTED &&
               strstr(err.message, "orthographic"),
           "perspective accepted: %s", err.message);

@@ -91,7 +91,7 @@ static void haar_xray_along_axis_is_the_voxel_sum(void)
     wvol_image_create(&a, 16, 16, NULL);
     wvol_image_create(&b, 16, 16, NULL);
     wvol_render_params_default(&p);
-    p.mode = WVOL_MODE_XRAY;
+    p.mode = WVOL_RENDER_MODE_XRAY;
     CHECK(wvol_render_spline(a, s, &cam, NULL, &p, NULL, &err) == WVOL_OK, "%s", err.message);
     CHECK(wvol_render_xray_axis(b, s, &cam, &p, NULL, &err) == WVOL_OK, "%s", err.message);
     for (j = 0; j < 16; j++)
@@ -136,7 +136,7 @@ static void db2_xray_along_axis_equals_the_2d_fast_path(void)
             wvol_image_create(&a, 21, 19, NULL);
             wvol_image_create(&b, 21, 19, NULL);
             wvol_render_params_default(&p);
-            p.mode = WVOL_MODE_XRAY;
+            p.mode = WVOL_RENDER_MODE_XRAY;
             CHECK(wvol_render_spline(a, s[ki], &cam, NULL, &p, &sa, &err) == WVOL_OK, "%s", err.message);
             CHECK(wvol_render_xray_axis(b, s[ki], &cam, &p, &sb, &err) == WVOL_OK, "%s", err.message);
             rel = wvol_image_rmse(a, b, 0, 1);
@@ -154,7 +154,7 @@ static void db2_xray_along_axis_equals_the_2d_fast_path(void)
         wvol_error err;
         wvol_render_params p;
         wvol_render_params_default(&p);
-        p.mode = WVOL_MODE_XRAY;
+        p.mode = WVOL_RENDER_MODE_XRAY;
         wvol_camera_parse(&cam, "dir=1,1,0", &g, 8, 8, NULL);
         wvol_image_create(&a, 8, 8, NULL);
         CHECK(s[0] && wvol_render_xray_axis(a, s[0], &cam, &p, NULL, &err) == WVOL_ERR_UNSUPPORTED &&
@@ -192,7 +192,7 @@ static void spline_matches_the_converged_reference_of_the_model(void)
         wvol_image_create(&a, 16, 16, NULL);
         wvol_image_create(&r, 16, 16, NULL);
         wvol_render_params_default(&p);
-        p.mode = m ? WVOL_MODE_ABSORPTION : WVOL_MODE_XRAY;
+        p.mode = m ? WVOL_RENDER_MODE_ABSORPTION : WVOL_RENDER_MODE_XRAY;
         p.shading = m == 2; /* the analytic gradient (eq 47) against wvol_fhat_eval's */
         p.spline.gauss_nodes = 8;
         p.termination = 0;
@@ -238,7 +238,7 @@ static void error_grows_as_fewer_coefficients_are_kept(void)
             if (!s) continue;
             wvol_image_create(&img, 24, 24, NULL);
             wvol_render_params_default(&p);
-            p.mode = m ? WVOL_MODE_ABSORPTION : WVOL_MODE_XRAY;
+            p.mode = m ? WVOL_RENDER_MODE_ABSORPTION : WVOL_RENDER_MODE_XRAY;
             CHECK(wvol_render_spline(img, s, &cam, &tf, &p, NULL, &err) == WVOL_OK, "%s", err.message);
             if (ki == 0) {
                 full = img;

@@ -70,13 +70,13 @@ static void test_sample_types(void)
     const int16_t i16[2] = {-32768, 32767};
     const uint8_t be16[2] = {0x01, 0x02}; /* big-endian 258 */
     float out[3];
-    wvol_samples_to_float(out, u8, 3, WVOL_U8, 0);
+    wvol_samples_to_float(out, u8, 3, WVOL_SAMPLE_TYPE_U8, 0);
     CHECK(out[0] == 0 && out[1] == 128 && out[2] == 255, "u8");
-    wvol_samples_to_float(out, i16, 2, WVOL_I16, 0);
+    wvol_samples_to_float(out, i16, 2, WVOL_SAMPLE_TYPE_I16, 0);
     CHECK(out[0] == -32768 && out[1] == 32767, "i16");
-    wvol_samples_to_float(out, be16, 1, WVOL_U16, 1);
+    wvol_samples_to_float(out, be16, 1, WVOL_SAMPLE_TYPE_U16, 1);
     CHECK(out[0] == 258, "big-endian u16: %g", out[0]);
-    CHECK(wvol_sample_type_parse("int16") == WVOL_I16 && wvol_sample_type_parse("bogus") < 0, "parse");
+    CHECK(wvol_sample_type_parse("int16") == WVOL_SAMPLE_TYPE_I16 && wvol_sample_type_parse("bogus") < 0, "parse");
 }
 
 int main(void)

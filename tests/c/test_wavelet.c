@@ -43,7 +43,7 @@ static void filters_are_orthonormal_qmf(void)
     for (int i = 0; i < count; i++) {
         const wvol_filter *f = wvol_filter_at(i), *g = NULL;
         double sum = 0.0, m1 = 0.0;
-        int bl = f->family == WVOL_BATTLE_LEMARIE;
+        int bl = f->family == WVOL_FAMILY_BATTLE_LEMARIE;
         for (int n = 0; n < f->length; n++) sum += f->h[n], m1 += n * f->h[n];
         CHECK_NEAR(sum, sqrt(2.0), 1e-14, f->name);
         CHECK(f->defect < (bl ? 1e-8 : 1e-12), "%s defect %g", f->name, f->defect);

@@ -187,7 +187,7 @@ static wvol_status extract_bricks(wvol_mesh **out, const wvol_coeffs *c, const w
                    "iso-value %g is not a finite float", iso);
     WVOL_RETURN_IF(p->brick < 2 || p->brick > 4096, err, WVOL_ERR_ARG, "iso: brick size %d outside 2..4096",
                    p->brick);
-    WVOL_RETURN_IF(p->normals == WVOL_NORMALS_ANALYTIC && !p->gradient, err, WVOL_ERR_ARG,
+    WVOL_RETURN_IF(p->normals == WVOL_ISO_NORMALS_ANALYTIC && !p->gradient, err, WVOL_ERR_ARG,
                    "iso: analytic normals requested without a gradient function");
     if (c) {
         g.n[0] = c->nx, g.n[1] = c->ny, g.n[2] = c->nz;
@@ -275,7 +275,7 @@ static wvol_status extract_bricks(wvol_mesh **out, const wvol_coeffs *c, const w
             size_t bi = need[q];
             size_t bidx[3] = {bi % g.nb[0], (bi / g.nb[0]) % g.nb[1], bi / (g.nb[0] * g.nb[1])};
             mesh_brick(&res[q], &g, bidx, iso,
-                       p->normals == WVOL_NORMALS_NONE ? WVOL_NORMALS_NONE : WVOL_NORMALS_GRADIENT, &scr);
+                       p->normals == WVOL_ISO_NORMALS_NONE ? WVOL_ISO_NORMALS_NONE : WVOL_ISO_NORMALS_GRADIENT, &scr);
         }
         wvol__brick_scratch_free(&scr);
     }
@@ -297,7 +297,7 @@ static wvol_status extract_bricks(wvol_mesh **out, const wvol_coeffs *c, const w
         s = wvol_error_set(err, WVOL_ERR_DIMS, "iso: %zu vertices exceed 32-bit indices", nv);
         goto done;
     }
-    s = wvol_mesh_create(&m, nv, nt, p->normals != WVOL_NORMALS_NONE, err);
+    s = wvol_mesh_create(&m, nv, nt, p->normals != WVOL_ISO_NORMALS_NONE, err);
     if (s != WVOL_OK) goto done;
     memset(m->tris, 0xff, 3 * nt * sizeof *m->tris);
     {

@@ -208,7 +208,7 @@ static void put_vertex(mc_ctx *c, uint64_t id, size_t i, size_t j, size_t k, int
     if (c->mesh->normals) {
         double g[3], g0[3], g1[3], len;
         float *np = c->mesh->normals + 3 * id;
-        if (jb->normals == WVOL_NORMALS_ANALYTIC) {
+        if (jb->normals == WVOL_ISO_NORMALS_ANALYTIC) {
             jb->gradient(jb->gradient_user, pos, g);
         } else {
             grad_at(c, i, j, k, g0);
@@ -440,7 +440,7 @@ wvol_status wvol__mc_run(wvol_mesh **out, const wvol__mc_job *jb, wvol_iso_stats
                            (unsigned long long)nv);
         goto done;
     }
-    s = wvol_mesh_create(&m, (size_t)nv, (size_t)nt, jb->normals != WVOL_NORMALS_NONE, err);
+    s = wvol_mesh_create(&m, (size_t)nv, (size_t)nt, jb->normals != WVOL_ISO_NORMALS_NONE, err);
     if (s != WVOL_OK) goto done;
     if (jb->keys && nv) {
         c.keys = malloc(nv * sizeof *c.keys);
@@ -499,7 +499,7 @@ void wvol_iso_params_default(wvol_iso_params *p)
 {
     memset(p, 0, sizeof *p);
     p->threads = 0;
-    p->normals = WVOL_NORMALS_GRADIENT;
+    p->normals = WVOL_ISO_NORMALS_GRADIENT;
     p->brick = 32;
 }
 
@@ -516,7 +516,7 @@ wvol_status wvol_iso_extract(wvol_mesh **out, const wvol_volume *v, double iso, 
         wvol_iso_params_default(&def);
         p = &def;
     }
-    WVOL_RETURN_IF(p->normals == WVOL_NORMALS_ANALYTIC && !p->gradient, err, WVOL_ERR_ARG,
+    WVOL_RETURN_IF(p->normals == WVOL_ISO_NORMALS_ANALYTIC && !p->gradient, err, WVOL_ERR_ARG,
                    "iso: analytic normals requested without a gradient function");
     WVOL_RETURN_IF(p->threads < 0, err, WVOL_ERR_ARG, "iso: threads = %d must be >= 0", p->threads);
     if (st) memset(st, 0, sizeof *st);

@@ -164,7 +164,7 @@ wvol_status wvol_iso_raytrace(wvol_image *img, float *depth, float *normals, con
     }
     t_cells = wvol__now() - t_start;
     /* an orthographic ray is the whole line (as in the renderer); a perspective one starts at the eye */
-    tmin = cam->projection == WVOL_PERSPECTIVE ? 0.0 : -INFINITY;
+    tmin = cam->projection == WVOL_PROJECTION_PERSPECTIVE ? 0.0 : -INFINITY;
     wvol_error_clear(&first_err);
 #pragma omp parallel num_threads(nth) reduction(+ : hits, functions, pieces, refined, intervals, evals, grazes)
     {

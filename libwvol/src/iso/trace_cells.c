@@ -45,7 +45,7 @@ static void phi_sums_range(const wvol_basis *b, double s[2], double m[2])
     for (j = 0; j < b->per_unit && j < b->pieces; j++) {
         double c[4] = {0, 0, 0, 0}, c4[5] = {0, 0, 0, 0, 0}, hk = 1;
         for (q = j; q < b->pieces; q += b->per_unit) {
-            const double *pc = wvol_basis_coeffs(b, WVOL_PHI, WVOL_BASIS_VALUE, q);
+            const double *pc = wvol_basis_coeffs(b, WVOL_BASIS_PHI, WVOL_BASIS_VALUE, q);
             double v0 = q * b->h; /* y - p = v0 + u on this piece */
             for (k = 0; k < 4; k++) {
                 c[k] += pc[k];

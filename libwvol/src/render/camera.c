@@ -65,7 +65,7 @@ wvol_status wvol_camera_check(const wvol_camera *cam, wvol_error *err)
     WVOL_RETURN_IF(!cam, err, WVOL_ERR_ARG, "camera: none given");
     WVOL_RETURN_IF(cam->width < 1 || cam->height < 1 || cam->width > 65536 || cam->height > 65536, err,
                    WVOL_ERR_ARG, "camera: image size %dx%d (each side 1..65536)", cam->width, cam->height);
-    WVOL_RETURN_IF(cam->projection != WVOL_ORTHOGRAPHIC && cam->projection != WVOL_PERSPECTIVE, err, WVOL_ERR_ARG,
+    WVOL_RETURN_IF(cam->projection != WVOL_PROJECTION_ORTHOGRAPHIC && cam->projection != WVOL_PROJECTION_PERSPECTIVE, err, WVOL_ERR_ARG,
                    "camera: unknown projection %d", (int)cam->projection);
     WVOL_RETURN_IF(!finite3(cam->eye) || !finite3(cam->center) || !finite3(cam->up), err, WVOL_ERR_ARG,
                    "camera: eye, center and up must be finite");
@@ -81,7 +81,7 @@ wvol_status wvol_camera_check(const wvol_camera *cam, wvol_error *err)
     cross3(r, f, u);
     WVOL_RETURN_IF(!(sqrt(dot3(r, r)) > 1e-9), err, WVOL_ERR_ARG,
                    "camera: up (%g, %g, %g) is parallel to the view direction", cam->up[0], cam->up[1], cam->up[2]);
-    if (cam->projection == WVOL_PERSPECTIVE)
+    if (cam->projection == WVOL_PROJECTION_PERSPECTIVE)
         WVOL_RETURN_IF(!(cam->fov_y > 0 && cam->fov_y < 180), err, WVOL_ERR_ARG,
                        "camera: field of view %g degrees (must be in (0, 180))", cam->fov_y);
     else
@@ -100,7 +100,7 @@ void wvol__cam_init(wvol__cam *k, const wvol_camera *cam)
     cross3(k->right, k->fwd, cam->up);
     norm3(k->right);
     cross3(k->up, k->right, k->fwd);
-    if (cam->projection == WVOL_ORTHOGRAPHIC) {
+    if (cam->projection == WVOL_PROJECTION_ORTHOGRAPHIC) {
         k->half_h = 0.5 * cam->view_height;
         k->half_w = k->half_h * aspect;
     } else {
@@ -113,7 +113,7 @@ void wvol__cam_ray(const wvol__cam *k, double px, double py, double o[3], double
 {
     double u = px / k->c.width * 2.0 - 1.0, v = 1.0 - py / k->c.height * 2.0;
     int a;
-    if (k->c.projection == WVOL_ORTHOGRAPHIC) {
+    if (k->c.projection == WVOL_PROJECTION_ORTHOGRAPHIC) {
         for (a = 0; a < 3; a++) {
             o[a] = k->c.eye[a] + u * k->half_w * k->right[a] + v * k->half_h * k->up[a];
             d[a] = k->fwd[a];
@@ -195,7 +195,7 @@ wvol_status wvol_camera_frame(wvol_camera *cam, const wvol_geometry *g, const do
         cam->center[a] = c[a];
         cam->up[a] = up[a];
     }
-    if (projection == WVOL_ORTHOGRAPHIC) {
+    if (projection == WVOL_PROJECTION_ORTHOGRAPHIC) {
         /* the projected box is symmetric about the centre: frame its larger relative extent */
         double hu = fmax(fabs(ulo), fabs(uhi)), hv = fmax(fabs(vlo), fabs(vhi));
         cam->view_height = 2.0 * fmax(hv, hu / aspect);
@@ -249,7 +249,7 @@ wvol_status wvol_camera_parse(wvol_camera *cam, const char *spec, const wvol_geo
     char buf[512], *tok, *save = NULL;
     double dir[3] = {0, 0, -1}, eye[3], center[3], up[3], fov = 0, height_w = 0, zoom = 1;
     int have_eye = 0, have_center = 0, have_up = 0, a;
-    wvol_projection proj = WVOL_ORTHOGRAPHIC;
+    wvol_projection proj = WVOL_PROJECTION_ORTHOGRAPHIC;
     wvol_status s;
 
     WVOL_RETURN_IF(!spec, err, WVOL_ERR_ARG, "camera: no description");
@@ -259,8 +259,8 @@ wvol_status wvol_camera_parse(wvol_camera *cam, const char *spec, const wvol_geo
         char *eq = strchr(tok, '=');
         const char *val = eq ? eq + 1 : NULL;
         if (eq) *eq = 0;
-        if (!eq && (!strcmp(tok, "ortho") || !strcmp(tok, "orthographic"))) proj = WVOL_ORTHOGRAPHIC;
-        else if (!eq && (!strcmp(tok, "persp") || !strcmp(tok, "perspective"))) proj = WVOL_PERSPECTIVE;
+        if (!eq && (!strcmp(tok, "ortho") || !strcmp(tok, "orthographic"))) proj = WVOL_PROJECTION_ORTHOGRAPHIC;
+        else if (!eq && (!strcmp(tok, "persp") || !strcmp(tok, "perspective"))) proj = WVOL_PROJECTION_PERSPECTIVE;
         else if (!eq && parse_axis(tok, dir)) continue;
         else if (eq && !strcmp(tok, "from")) {
             WVOL_RETURN_IF(!parse_axis(val, dir), err, WVOL_ERR_ARG,
@@ -310,7 +310,7 @@ wvol_status wvol_camera_parse(wvol_camera *cam, const char *spec, const wvol_geo
             cam->eye[a] = eye[a];
             cam->center[a] = center[a];
         }
-        if (proj == WVOL_ORTHOGRAPHIC && !height_w) {
+        if (proj == WVOL_PROJECTION_ORTHOGRAPHIC && !height_w) {
             /* keep the framed height */
         }
     }
@@ -318,7 +318,7 @@ wvol_status wvol_camera_parse(wvol_camera *cam, const char *spec, const wvol_geo
         for (a = 0; a < 3; a++) cam->up[a] = up[a];
     if (height_w > 0) cam->view_height = height_w;
     if (zoom != 1) {
-        if (proj == WVOL_ORTHOGRAPHIC) {
+        if (proj == WVOL_PROJECTION_ORTHOGRAPHIC) {
             cam->view_height /= zoom;
         } else {
             double t = tan(0.5 * cam->fov_y * PI / 180.0) / zoom;

@@ -38,9 +38,9 @@ wvol_status wvol__render_check(const wvol_image *img, const wvol_camera *cam, co
     WVOL_FORWARD(wvol_camera_check(cam, err));
     WVOL_RETURN_IF(img->width != cam->width || img->height != cam->height, err, WVOL_ERR_ARG,
                    "render: image is %dx%d but the camera is %dx%d", img->width, img->height, cam->width, cam->height);
-    WVOL_RETURN_IF(p->mode != WVOL_MODE_XRAY && p->mode != WVOL_MODE_ABSORPTION && p->mode != WVOL_MODE_ABSORPTION_LINEAR,
+    WVOL_RETURN_IF(p->mode != WVOL_RENDER_MODE_XRAY && p->mode != WVOL_RENDER_MODE_ABSORPTION && p->mode != WVOL_RENDER_MODE_ABSORPTION_LINEAR,
                    err, WVOL_ERR_ARG, "render: unknown mode %d", (int)p->mode);
-    if (p->mode != WVOL_MODE_XRAY) {
+    if (p->mode != WVOL_RENDER_MODE_XRAY) {
         WVOL_RETURN_IF(!tf, err, WVOL_ERR_ARG, "render: absorption modes need a transfer function");
         WVOL_FORWARD(wvol_tf_check(tf, err));
     }
@@ -98,7 +98,7 @@ wvol_status wvol__check_colors(const wvol_render_params *p, const size_t n[3], i
     WVOL_RETURN_IF(!supported, err, WVOL_ERR_UNSUPPORTED,
                    "render: a colour volume needs method reference or reference-fhat (this method has no voxels to "
                    "look colours up in)");
-    WVOL_RETURN_IF(p->mode == WVOL_MODE_XRAY, err, WVOL_ERR_ARG,
+    WVOL_RETURN_IF(p->mode == WVOL_RENDER_MODE_XRAY, err, WVOL_ERR_ARG,
                    "render: a colour volume needs an absorption mode (X-ray has no colour)");
     want = n[0] * n[1];
     WVOL_RETURN_IF(n[0] && want / n[0] != n[1], err, WVOL_ERR_ARG, "render: volume too large for a colour volume");

@@ -78,7 +78,7 @@ wvol_status wvol__brick_order_make(brick_order *bo, const wvol__source *s, const
                    bo->n);
     for (int a = 0; a < 3; a++) {
         bo->bn[a] = (long)s->bn[a];
-        if (k->c.projection == WVOL_PERSPECTIVE) { /* the eye's brick, as ray_enter finds it */
+        if (k->c.projection == WVOL_PROJECTION_PERSPECTIVE) { /* the eye's brick, as ray_enter finds it */
             double c = ((k->c.eye[a] - s->origin[a]) / s->spacing[a] + 0.5) / s->B;
             bo->eye[a] = c > 0 ? (c < (double)s->bn[a] ? (long)c : (long)s->bn[a] - 1) : 0;
             bo->dir[a] = 2;

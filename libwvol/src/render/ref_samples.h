@@ -63,7 +63,7 @@ static inline __attribute__((always_inline)) int step(const wvol__source *s, con
 {
     double val, grad[3], rgb[3], kappa;
     val = inside ? trilinear_in(view, x) : sample_at(s, view, x, NULL);
-    if (mode == WVOL_MODE_XRAY) {
+    if (mode == WVOL_RENDER_MODE_XRAY) {
         r->xr += val * h;
         return 0;
     }
@@ -73,7 +73,7 @@ static inline __attribute__((always_inline)) int step(const wvol__source *s, con
         acc_settle(tfx, r);
         int a;
         if (colors) nearest_color(s, p->colors, x, rgb);
-        if (mode == WVOL_MODE_ABSORPTION) {
+        if (mode == WVOL_RENDER_MODE_ABSORPTION) {
             alpha = 1.0 - exp_neg(-kappa * h, tfx->exp2_256); /* not expm1: the difference is far below the
                                                   step's own error */
         } else {
@@ -248,7 +248,7 @@ static inline __attribute__((always_inline)) int run_blocked(const wvol__view *v
                                                              long ke, ray_acc *r)
 {
     const double term = p->termination;
-    const int grey = tfx->grey && mode == WVOL_MODE_ABSORPTION;
+    const int grey = tfx->grey && mode == WVOL_RENDER_MODE_ABSORPTION;
     const __m128d vdt = _mm_set1_pd(dt), half = _mm_set1_pd(0.5);
     const float *data = view->data;
     const size_t sy = view->sy, sz = view->sz, rows[4] = {0, sy, sz, sz + sy};
@@ -315,7 +315,7 @@ static inline __attribute__((always_inline)) int run_blocked(const wvol__view *v
             _mm_storeu_pd(val + 4 * qd, _mm_cvtps_pd(vq[qd]));
             _mm_storeu_pd(val + 4 * qd + 2, _mm_cvtps_pd(_mm_movehl_ps(vq[qd], vq[qd])));
         }
-        if (mode == WVOL_MODE_XRAY) {
+        if (mode == WVOL_RENDER_MODE_XRAY) {
             for (l = 0; l < nb; l++) r->xr += val[l] * dt;
             continue;
         }
@@ -382,7 +382,7 @@ static inline __attribute__((always_inline)) int run_blocked(const wvol__view *v
             od_run = 0.0;
             for (l = 0; l < RUN_BLOCK; l++) rgb[0][l] = tfx->rgb[0], rgb[1][l] = tfx->rgb[1], rgb[2][l] = tfx->rgb[2];
         }
-        if (mode == WVOL_MODE_ABSORPTION) {
+        if (mode == WVOL_RENDER_MODE_ABSORPTION) {
             /* alpha = 1 - exp_neg(-kappa dt), exp_neg's operations two lanes at a time */
             const __m128d kexp = _mm_set1_pd(EXP_K), shifter = _mm_set1_pd(EXP_SHIFTER);
             const __m128d c_hi = _mm_set1_pd(EXP_C_HI), c_lo = _mm_set1_pd(EXP_C_LO);
@@ -422,7 +422,7 @@ static inline __attribute__((always_inline)) int run_blocked(const wvol__view *v
             unsigned clamps = 0; /* bit l: sample l clamped */
             for (pr = 0; pr < RUN_BLOCK / 2; pr++) {
                 __m128d al = _mm_loadu_pd(alpha + 2 * pr), live = _mm_cmpgt_pd(_mm_loadu_pd(kappa + 2 * pr), zero);
-                if (mode != WVOL_MODE_ABSORPTION) {
+                if (mode != WVOL_RENDER_MODE_ABSORPTION) {
                     __m128d over = _mm_and_pd(_mm_cmpgt_pd(al, one), live);
                     clamps |= (unsigned)_mm_movemask_pd(over) << (2 * pr);
                     al = _mm_or_pd(_mm_andnot_pd(over, al), _mm_and_pd(over, one));

@@ -19,7 +19,7 @@ static double tf_max_kappa(const wvol_tf *tf, double lo, double hi)
 
 double wvol__brick_rate(const wvol_tf *tf, wvol_render_mode mode, double mn, double mx)
 {
-    if (mode == WVOL_MODE_XRAY) return fmax(fabs(mn), fabs(mx));
+    if (mode == WVOL_RENDER_MODE_XRAY) return fmax(fabs(mn), fabs(mx));
     return fmax(tf_max_kappa(tf, mn, mx), 0.0);
 }
 

@@ -110,7 +110,7 @@ wvol_status wvol__render_sampled(wvol_image *img, wvol__source *s, const wvol_ca
         WVOL_RETURN_IF(!(s->spacing[a] > 0) || !isfinite(s->spacing[a]) || !isfinite(s->origin[a]), err, WVOL_ERR_ARG,
                        "render: spacing and origin must be finite, spacing > 0");
     }
-    if (p.mode != WVOL_MODE_XRAY) wvol__tf_world(&tf, tf_in, &g);
+    if (p.mode != WVOL_RENDER_MODE_XRAY) wvol__tf_world(&tf, tf_in, &g);
     else memset(&tf, 0, sizeof tf);
     wvol__tf_fast_init(&tfx, &tf);
     wvol_geometry_bounds(&g, lo, hi);

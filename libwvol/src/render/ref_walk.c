@@ -185,7 +185,7 @@ void wvol__ray_last(const wvol__source *s, void *tc, const tf_fast *tfx, const w
 /* The ray's pixel. */
 void wvol__ray_pixel(const wvol_render_params *p, const ray_state *st, float px[4])
 {
-    if (p->mode == WVOL_MODE_XRAY) {
+    if (p->mode == WVOL_RENDER_MODE_XRAY) {
         px[0] = px[1] = px[2] = (float)st->r.xr;
         px[3] = 1.0f;
     } else {
@@ -216,8 +216,8 @@ long wvol__ray_next_brick(const wvol__source *s, ray_state *st, double dt)
 int wvol__ray_advance_any(const wvol__source *s, void *tc, const tf_fast *tfx, const wvol_render_params *p,
                           double dt, ray_state *st)
 {
-    if (p->mode == WVOL_MODE_ABSORPTION && !p->shading && !p->colors)
-        return ray_advance(s, tc, tfx, p, WVOL_MODE_ABSORPTION, 0, 0, dt, st);
-    if (p->mode == WVOL_MODE_XRAY && !p->shading) return ray_advance(s, tc, tfx, p, WVOL_MODE_XRAY, 0, 0, dt, st);
+    if (p->mode == WVOL_RENDER_MODE_ABSORPTION && !p->shading && !p->colors)
+        return ray_advance(s, tc, tfx, p, WVOL_RENDER_MODE_ABSORPTION, 0, 0, dt, st);
+    if (p->mode == WVOL_RENDER_MODE_XRAY && !p->shading) return ray_advance(s, tc, tfx, p, WVOL_RENDER_MODE_XRAY, 0, 0, dt, st);
     return ray_advance(s, tc, tfx, p, p->mode, p->shading, p->colors != NULL, dt, st);
 }

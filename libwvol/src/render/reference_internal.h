@@ -218,7 +218,7 @@ static inline int pixel_span(const wvol__cam *k, const double lo[3], const doubl
 {
     wvol__cam_ray(k, x + 0.5, y + 0.5, o, d);
     if (!wvol__ray_box(o, d, lo, hi, t0, t1)) return 0;
-    if (k->c.projection == WVOL_PERSPECTIVE && *t0 < 0) *t0 = 0;
+    if (k->c.projection == WVOL_PROJECTION_PERSPECTIVE && *t0 < 0) *t0 = 0;
     return *t1 > *t0;
 }
 

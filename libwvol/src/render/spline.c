@@ -118,7 +118,7 @@ static void integrate(const spline_ctx *c, ray_ws *ws, const double d_world[3], 
     size_t e, E = ws->lev[1].E;
     const double *Tb = ws->lev[1].T;
     int ch, q, m;
-    if (p->mode == WVOL_MODE_XRAY) {
+    if (p->mode == WVOL_RENDER_MODE_XRAY) {
         /* no merge needed: the integral is a sum over every level's own pieces */
         for (m = 1; m <= c->g.info.levels; m++) {
             level_ws *L = &ws->lev[m];
@@ -156,7 +156,7 @@ static void integrate(const spline_ctx *c, ray_ws *ws, const double d_world[3], 
                 double s = s0 + h * c->gl_x[q], f = wvol__poly_eval(a, s), kap = k0 + k1 * f, dtau, Tq, shade = 1.0;
                 if (kap <= 0) continue;
                 dtau = len * (k0 * (s - s0) + k1 * (pint(a, s) - P0));
-                Tq = p->mode == WVOL_MODE_ABSORPTION ? T * exp(-dtau) : T * fmax(0.0, 1.0 - dtau);
+                Tq = p->mode == WVOL_RENDER_MODE_ABSORPTION ? T * exp(-dtau) : T * fmax(0.0, 1.0 - dtau);
                 if (p->shading) {
                     double grad[3];
                     for (ch = 0; ch < 3; ch++)
@@ -167,7 +167,7 @@ static void integrate(const spline_ctx *c, ray_ws *ws, const double d_world[3], 
             }
             r->samples += (size_t)c->gl_n;
             dtau1 = len * (k0 * h + k1 * (pint(a, s1) - P0));
-            if (p->mode == WVOL_MODE_ABSORPTION) {
+            if (p->mode == WVOL_RENDER_MODE_ABSORPTION) {
                 T *= exp(-dtau1);
             } else {
                 if (dtau1 > 1) r->clamped++;
@@ -190,7 +190,7 @@ static wvol_status trace(const spline_ctx *c, ray_ws *ws, const double ow[3], co
     wvol__spline_count cnt = {0, 0};
     wvol_store_world_to_voxel(c->g.s, ow, o);
     wvol_store_dir_to_voxel(c->g.s, dw, d);
-    WVOL_FORWARD(wvol__spline_ray(&c->g, ws, o, d, ta, tb, c->p.shading, c->p.mode != WVOL_MODE_XRAY, &cnt, err));
+    WVOL_FORWARD(wvol__spline_ray(&c->g, ws, o, d, ta, tb, c->p.shading, c->p.mode != WVOL_RENDER_MODE_XRAY, &cnt, err));
     r->pieces += cnt.pieces;
     r->functions += cnt.functions;
     integrate(c, ws, dw, r);
@@ -227,7 +227,7 @@ wvol_status wvol_render_spline_until(wvol_image *img, const wvol_store *s, const
         g.spacing[a] = c.g.info.spacing[a];
         g.origin[a] = c.g.info.origin[a];
     }
-    if (c.p.mode != WVOL_MODE_XRAY) wvol__tf_world(&c.tf, tf_in, &g);
+    if (c.p.mode != WVOL_RENDER_MODE_XRAY) wvol__tf_world(&c.tf, tf_in, &g);
     c.stop = stop;
     c.gl_n = c.p.spline.gauss_nodes;
     wvol__gauss_legendre(c.gl_n, c.gl_x, c.gl_w);
@@ -254,7 +254,7 @@ wvol_status wvol_render_spline_until(wvol_image *img, const wvol_store *s, const
                     memset(&r, 0, sizeof r);
                     wvol__cam_ray(&k, x + 0.5, y + 0.5, o, d);
                     if (!failed && wvol__ray_box(o, d, lo, hi, &t0, &t1)) {
-                        if (cam->projection == WVOL_PERSPECTIVE && t0 < 0) t0 = 0;
+                        if (cam->projection == WVOL_PROJECTION_PERSPECTIVE && t0 < 0) t0 = 0;
                         if (c.stop) { /* NaN or +inf: the whole ray */
                             float st = c.stop[(size_t)x + (size_t)img->width * (size_t)y];
                             if (st < t1) t1 = st;

@@ -31,8 +31,8 @@ wvol_status wvol_render_xray_axis(wvol_image *img, const wvol_store *s, const wv
     WVOL_FORWARD(wvol__render_check(img, cam, NULL, &p, err));
     WVOL_FORWARD(wvol__check_colors(&p, NULL, 0, err));
     WVOL_FORWARD(wvol__check_skip(&p, 0, err));
-    WVOL_RETURN_IF(p.mode != WVOL_MODE_XRAY, err, WVOL_ERR_UNSUPPORTED, "render: the axis fast path is X-ray only");
-    WVOL_RETURN_IF(cam->projection != WVOL_ORTHOGRAPHIC, err, WVOL_ERR_UNSUPPORTED,
+    WVOL_RETURN_IF(p.mode != WVOL_RENDER_MODE_XRAY, err, WVOL_ERR_UNSUPPORTED, "render: the axis fast path is X-ray only");
+    WVOL_RETURN_IF(cam->projection != WVOL_PROJECTION_ORTHOGRAPHIC, err, WVOL_ERR_UNSUPPORTED,
                    "render: the axis fast path needs an orthographic camera");
     wvol__cam_init(&k, cam);
     for (ax = 0; ax < 3; ax++)
@@ -115,12 +115,12 @@ wvol_status wvol_render_xray_axis(wvol_image *img, const wvol_store *s, const wv
                          iv0 = (long)floor(zv) - L1 + 1;
                     int ku, kv, bd;
                     for (ku = 0; ku < L1; ku++) {
-                        wu[0][ku] = wvol_basis_value(b, WVOL_PHI, zu - (double)(iu0 + ku));
-                        wu[1][ku] = wvol_basis_value(b, WVOL_PSI, zu - (double)(iu0 + ku));
+                        wu[0][ku] = wvol_basis_value(b, WVOL_BASIS_PHI, zu - (double)(iu0 + ku));
+                        wu[1][ku] = wvol_basis_value(b, WVOL_BASIS_PSI, zu - (double)(iu0 + ku));
                     }
                     for (kv = 0; kv < L1; kv++) {
-                        wv[0][kv] = wvol_basis_value(b, WVOL_PHI, zv - (double)(iv0 + kv));
-                        wv[1][kv] = wvol_basis_value(b, WVOL_PSI, zv - (double)(iv0 + kv));
+                        wv[0][kv] = wvol_basis_value(b, WVOL_BASIS_PHI, zv - (double)(iv0 + kv));
+                        wv[1][kv] = wvol_basis_value(b, WVOL_BASIS_PSI, zv - (double)(iv0 + kv));
                     }
                     for (bd = 0; bd < 4; bd++) {
                         const double *A = acc[4 * lev + bd];

@@ -82,8 +82,8 @@ static void unit_values(const splat_tables *t, const wvol_basis *b, const double
     int a, band;
     for (a = 0; a < 3; a++) {
         double x = w[a] + s * t->e[a];
-        f[a][0] = wvol_basis_value(b, WVOL_PHI, x);
-        f[a][1] = wvol_basis_value(b, WVOL_PSI, x);
+        f[a][0] = wvol_basis_value(b, WVOL_BASIS_PHI, x);
+        f[a][1] = wvol_basis_value(b, WVOL_BASIS_PSI, x);
     }
     for (band = 0; band < 8; band++) out[band] = f[0][band & 1] * f[1][(band >> 1) & 1] * f[2][(band >> 2) & 1];
 }
@@ -400,12 +400,12 @@ wvol_status wvol_render_xray_splat(wvol_image *img, const wvol_store *s, const w
 
     wvol__params(&p, params);
     WVOL_RETURN_IF(!s, err, WVOL_ERR_ARG, "render: no store");
-    WVOL_RETURN_IF(p.mode != WVOL_MODE_XRAY, err, WVOL_ERR_UNSUPPORTED,
+    WVOL_RETURN_IF(p.mode != WVOL_RENDER_MODE_XRAY, err, WVOL_ERR_UNSUPPORTED,
                    "render: the splat fast path is X-ray only (absorption is not linear in the coefficients)");
     WVOL_FORWARD(wvol__render_check(img, cam, NULL, &p, err));
     WVOL_FORWARD(wvol__check_colors(&p, NULL, 0, err));
     WVOL_FORWARD(wvol__check_skip(&p, 0, err));
-    WVOL_RETURN_IF(cam->projection != WVOL_ORTHOGRAPHIC, err, WVOL_ERR_UNSUPPORTED,
+    WVOL_RETURN_IF(cam->projection != WVOL_PROJECTION_ORTHOGRAPHIC, err, WVOL_ERR_UNSUPPORTED,
                    "render: the splat fast path needs an orthographic camera (a perspective view has no shared "
                    "footprint)");
     wvol_store_get_info(s, &info);
