@@ -29,7 +29,7 @@
 #include "iso/iso_internal.h"
 #include "store/store_blocks.h"
 #include "wvol/wavelet.h"
-#include "wavelet/wavelet_internal.h"
+#include "wavelet/wavelet_bricks.h"
 
 /* ---- bounds (wavelet/bounds.c) ------------------------------------------------------- */
 

@@ -19,7 +19,7 @@
  * is the reference's image to float rounding (tests/c/test_render_bricks.c). */
 #include "render_internal.h"
 #include "store/store_blocks.h"
-#include "wavelet/wavelet_internal.h"
+#include "wavelet/wavelet_bricks.h"
 
 #include <math.h>
 #include <omp.h>

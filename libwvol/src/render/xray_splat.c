@@ -29,7 +29,6 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "wavelet/basis_internal.h"
 
 /* Grid steps in units of the unit function, for supports up to 3 (db2); longer supports scale
  * them so that the tables keep their size (~21 MB). The footprint plane's step of the 2D table

@@ -9,7 +9,7 @@
 
 #include <stddef.h>
 
-#include "wavelet/wavelet_internal.h"
+#include "wavelet/wavelet_bricks.h"
 #include "wvol/store.h"
 
 typedef struct wvol__store_blocks wvol__store_blocks;

@@ -1,0 +1,70 @@
+/* SPDX-License-Identifier: MIT */
+/* The wavelet module's declared internal interface for the other modules (not installed):
+ * local reconstruction of a box from any source of coefficients, and rigorous bounds of the
+ * reconstructed samples of a box. The store's block view, the bricked renderer and the
+ * bricked marching cubes use it; the wavelet module's own private declarations stay in
+ * wavelet_internal.h. */
+#ifndef WVOL_WAVELET_BRICKS_H
+#define WVOL_WAVELET_BRICKS_H
+
+#include <stddef.h>
+#include "wvol/wavelet.h"
+
+/* Validates a coefficient pyramid (sizes consistent with its levels). */
+wvol_status wvol__coeffs_check(const wvol_coeffs *c, wvol_error *err);
+
+/* Extent of axis a at level m (0 = the padded grid): 1 stays 1. */
+static inline size_t wvol__extent(size_t p, int m) { return p == 1 ? 1 : p >> m; }
+
+/* ---- local reconstruction (partial.c) ---------------------------------------------- */
+
+/* Where a brick reconstruction reads coefficients: gather() fills dst with band `band`
+ * of level m (band 0 of level `levels` is the low-pass cube; level 0 band 0: the
+ * samples themselves, for levels == 0) on the region lo .. lo + n - 1 per axis, indices
+ * taken modulo the band's extent, x fastest; it returns 0 when every value there is
+ * zero (dst need not be written then), which lets the synthesis skip that band. */
+typedef struct wvol__coef_source {
+    int (*gather)(const void *ctx, float *dst, int m, int band, const ptrdiff_t lo[3], const ptrdiff_t n[3]);
+    const void *ctx;
+    const wvol_filter *filter;
+    int levels;
+    size_t dims[3], pad[3];
+} wvol__coef_source;
+
+void wvol__coef_source_of_coeffs(wvol__coef_source *src, const wvol_coeffs *c);
+
+/* Reusable scratch of one reconstruction (one per thread). Start zeroed. */
+#define WVOL__BRICK_SCRATCH 16
+typedef struct wvol__brick_scratch {
+    float *buf[WVOL__BRICK_SCRATCH];
+    size_t cap[WVOL__BRICK_SCRATCH];
+} wvol__brick_scratch;
+
+void wvol__brick_scratch_free(wvol__brick_scratch *s);
+size_t wvol__brick_scratch_bytes(const wvol__brick_scratch *s);
+
+/* The finest-level samples of the box [lo, hi) (lo < hi <= dims, unchecked) into out,
+ * (hi - lo) sized, x fastest, synthesising only the coefficients whose support reaches
+ * the box (wvol_idwt3_brick is this on a dense wvol_coeffs). */
+wvol_status wvol__idwt3_brick_src(float *out, const wvol__coef_source *src, const size_t lo[3], const size_t hi[3],
+                                  wvol__brick_scratch *scr, wvol_error *err);
+
+/* ---- brick bounds (bounds.c) --------------------------------------------------------- */
+
+/* Rigorous [vmin, vmax] of the reconstructed samples of a box, from per-(level, band)
+ * block maxima of the detail coefficients and the low-pass cube. Every axis must be
+ * transformed (pad >= 2). Create, fill the maxima (from dense coefficients, or with
+ * _add per kept coefficient), finish, then query (concurrently). low: the low-pass
+ * cube, value (x, y, z) at low[x + low_sy y + low_sz z]; it must outlive the bounds. */
+typedef struct wvol__brick_bounds wvol__brick_bounds;
+wvol_status wvol__bounds_create(wvol__brick_bounds **out, const wvol_filter *f, int levels, const size_t pad[3],
+                                const float *low, size_t low_sy, size_t low_sz, wvol_error *err);
+void wvol__bounds_fill_coeffs(wvol__brick_bounds *b, const wvol_coeffs *c);
+void wvol__bounds_add(wvol__brick_bounds *b, int m, int band, size_t p, size_t q, size_t r, float value);
+void wvol__bounds_finish(wvol__brick_bounds *b);
+/* Bound of the samples in the box [s0, s1] (inclusive voxel indices). */
+void wvol__bounds_box(const wvol__brick_bounds *b, const long s0[3], const long s1[3], double *vmin, double *vmax);
+size_t wvol__bounds_bytes(const wvol__brick_bounds *b);
+void wvol__bounds_free(wvol__brick_bounds *b);
+
+#endif
