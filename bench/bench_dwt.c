@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* DWT benchmark driver: forward + inverse multi-level float32 transforms of one volume
  * with several wavelets and thread counts, and a plain copy of the same array for the
  * memory-bandwidth bound. Prints one JSON object; bench/bench_dwt.py runs it beside

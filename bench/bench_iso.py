@@ -1,4 +1,5 @@
 #!/usr/bin/env python3
+# SPDX-License-Identifier: MIT
 """Isosurface benchmark: marching cubes on one float32 volume (default 256^3: the
 paper's Gaussian and a skull-like CT phantom) by libwvol, VTK's vtkFlyingEdges3D
 and vtkMarchingCubes, scikit-image's marching_cubes and OpenVDB's volumeToMesh,

@@ -1,4 +1,5 @@
 #!/usr/bin/env python3
+# SPDX-License-Identifier: MIT
 """Rate-distortion benchmark of .wvc against ZFP and plain wavelet thresholding.
 
 For each test volume (gaussian, skull, shepp-logan at 128^3 and 256^3, made with

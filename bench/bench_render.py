@@ -1,4 +1,5 @@
 #!/usr/bin/env python3
+# SPDX-License-Identifier: MIT
 """Run time against image error for every render method and mode (issue 5).
 
 Volumes: the Gaussian and a skull-like phantom at --size^3; images --image^2; kept fractions

@@ -1,4 +1,5 @@
 #!/usr/bin/python3
+# SPDX-License-Identifier: MIT
 """Segmentation benchmark (issue 9): wavelet features + 3D Kohonen map against plain
 intensity and against k-means (scikit-learn) on the same wavelet features, on the
 texture mosaics of datasets-synth. Error = misclassification after mapping each cluster

@@ -1,4 +1,5 @@
 #!/usr/bin/env python3
+# SPDX-License-Identifier: MIT
 """Run time against error of X-ray images of oblique orthographic views: footprint splatting.
 
 Volumes: the Gaussian and the skull phantom at --size^3 (db2, 3 levels, kept fractions --keep);

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Store benchmark: selection and octree build times on an n^3 volume (default
  * 256), ray and box query and point evaluation rates, bytes per kept coefficient.
  * Usage: bench_store [n] [family] [levels]. Prints one JSON object. */

@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# SPDX-License-Identifier: MIT
 # Builds the libFuzzer targets with clang in build-fuzz/ and runs each for a bounded
 # time on its corpus (new inputs they find go to a scratch folder, not into the tree):
 # the .wvc reader on tests/fuzz/corpus for FUZZ_SECONDS (default 45), the DICOM file

@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# SPDX-License-Identifier: MIT
 # Installs every dependency from Debian's packages (as root, or through sudo), then
 # configures and builds libwvol into build/. Idempotent: fast when all is there.
 set -euo pipefail

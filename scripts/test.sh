@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# SPDX-License-Identifier: MIT
 # The whole test suite: setup + build (warnings are errors), C tests under ctest,
 # Python tests under pytest, the C tests again under AddressSanitizer and
 # UndefinedBehaviorSanitizer, the library built without its optional dependencies

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* wvol compress: volume -> wavelet transform -> selection -> quantiser + coder -> .wvc,
  * then decodes the file it wrote and reports the measured error beside the predicted one. */
 #include <math.h>

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* The segmentation pipeline of wvol/analysis.h: wavelet features -> PCA -> 3D Kohonen map
  * -> labels and colours (optionally mapped to ground-truth classes and scored). */
 #include "pyutil.h"

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* load / save of volume files. */
 #include "pyutil.h"
 #include "methods.h"

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* synth: the deterministic synthetic volumes of datasets-synth/wvol_synth.h. */
 #include "pyutil.h"
 #include "methods.h"

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 """wvol: volume rendering and isosurfaces in wavelet space (Python interface to libwvol).
 
 Arrays are NumPy float32 in C order indexed (z, y, x): ``a[k, j, i]`` is voxel (i, j, k)

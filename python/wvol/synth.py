@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 """Deterministic synthetic volumes (the C generators of datasets-synth; docs/datasets.md).
 
 Every function takes ``shape=(nz, ny, nx)`` (None: the generator's default size; nz = 1

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Minimal test harness: CHECK records a failure and goes on; the test's main
  * returns check_summary(), which prints "N passed, N failed" and the exit code. */
 #ifndef WVOL_TEST_CHECK_H

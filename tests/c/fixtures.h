@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Small helpers several C tests share. */
 #ifndef WVOL_TEST_FIXTURES_H
 #define WVOL_TEST_FIXTURES_H

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Analysis in wavelet space: features, PCA, Kohonen map, scoring. */
 #include <stdlib.h>
 #include <string.h>

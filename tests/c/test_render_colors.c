@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* The renderer's colour volume (wvol_render_params.colors): the segmentation's per-voxel colours
  * replace the transfer function's colour while kappa still comes from the TF (DESIGN.md
  * section 10, the paper's Fig. 7). */

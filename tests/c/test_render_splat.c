@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Tests of the X-ray splat fast path (libwvol/src/render/xray_splat.c) against the exact
  * spline-projected integrator on the same store: oblique orthographic views, every band and
  * level (random volumes), functions the box clips and periodic images (odd sizes, padded

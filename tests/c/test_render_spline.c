@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Tests of the spline-projected integrator and the axis X-ray fast path (libwvol/src/render)
  * against exact sums, against each other, and against the converged reference of the same
  * spline model (f^ sampled through the spline tables at a very small step). */

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* The coefficient store (libwvol/src/store/store.c, query.c, ranges.c): lookup
  * and iteration give exactly the kept set, box and ray queries give exactly the
  * brute-force set of function images, value and gradient bounds are never

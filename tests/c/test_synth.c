@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* datasets-synth: determinism, value ranges, labels, geometry, known values. */
 #include <math.h>
 #include <stdint.h>

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* libFuzzer target for the .wvc reader. Each input is decoded twice: as it is
  * (the checksums must catch damage), and "resealed", with the header and every
  * section checksum recomputed, so that the fuzzer reaches the field checks and

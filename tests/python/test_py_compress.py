@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 """wvol.compress and the Store: selection criteria, predicted vs measured error, coarser
 levels and bricks, bad input."""
 import math

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 """The Python package: load/save, filters, dwt3/idwt3, errors as exceptions."""
 import numpy as np
 import pytest

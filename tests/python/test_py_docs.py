@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 """The README / docs/python.md example runs as written (so the docs cannot rot)."""
 import pathlib
 import re

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 """wvol.isosurface from volumes and from stores."""
 import numpy as np
 import pytest

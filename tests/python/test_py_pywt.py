@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 """wvol.dwt3 / wvol.idwt3 against PyWavelets through the Python API (the CLI does the same
 in test_wavelet_pywt.py): pywt.wavedecn(mode='periodization') equals our transform up to
 the index shift documented in docs/wavelets.md."""

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 """wvol.render from volumes and stores."""
 import numpy as np
 import pytest

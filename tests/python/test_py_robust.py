@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 """Robustness of the extension: every entry point refuses bad arrays with an exception
 (never a crash), releases the GIL safely (concurrent calls agree with serial ones), and
 hands buffers over without leaking or aliasing."""

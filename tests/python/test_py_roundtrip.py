@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 """The Python-level round trip of issue 8: synth -> compress -> save -> open -> reconstruct ->
 render -> isosurface, with each stage checked against the one before."""
 import numpy as np

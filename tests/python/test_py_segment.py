@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 """wvol.segment / wvol.features: the wavelet-feature Kohonen pipeline from Python."""
 import numpy as np
 import pytest

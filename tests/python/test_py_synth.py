@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 """wvol.synth.*: shapes, geometry, labels, determinism, bad arguments."""
 import numpy as np
 import pytest

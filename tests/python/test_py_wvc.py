@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: MIT
 """Store.save / wvol.open / wvol.wvc_info: .wvc round trips from Python."""
 import numpy as np
 import pytest

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Analysis in wavelet space (DESIGN.md section 10; paper sections 3-4):
  * per-voxel wavelet feature vectors -> PCA -> min-max normalisation -> 3D
  * Kohonen map -> labels and colours that the renderer can use. */

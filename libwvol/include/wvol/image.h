@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Images: float RGBA frames and their files.
  *   OpenEXR   float32 channels through OpenEXR's C API (OpenEXRCore): R G B A plus any
  *             extra named float channels (a "Z" depth channel, ...); ZIP compressed.

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Volume files. The format follows the extension:
  *   .raw        headerless samples; dimensions and sample type from wvol_load_options
  *   .nrrd .nhdr NRRD, attached or detached header, raw or gzip encoding (built in)

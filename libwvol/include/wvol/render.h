@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Volume rendering of the low-albedo integral (DESIGN.md section 8; paper eqs 32-47).
  *
  *   I = integral over [t1, t2] of C(t) exp(-integral over [t1, t] of kappa(s) ds) dt

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Status codes and error messages. Every fallible call returns a wvol_status
  * (0 = OK; published values never change) and, when the caller passes a
  * wvol_error, fills it with a message that names the problem and its context.

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Coefficient store: energy selection with Parseval error bounds, local level of
  * detail, and the sparse octree of kept coefficients with per-subtree bounds
  * (DESIGN.md sections 5 and 6; docs/store.md explains layout and bounds).

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Dense scalar volumes. Index (i, j, k), x fastest: data[i + nx*(j + ny*k)].
  * World position = origin + index * spacing (DESIGN.md section 2).
  * wvol_volume is a plain descriptor (like zfp_field) so NumPy arrays and other

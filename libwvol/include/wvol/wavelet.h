@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Wavelet engine: QMF filters of four families, the separable 3D periodic
  * transform in Mallat (pyramid) layout, partial reconstruction, and the
  * families' basis functions as cubic-spline tables (DESIGN.md sections 2-4, 7). */

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* .wvc files: wavelet coefficients quantised and entropy-coded, coarse to fine,
  * behind a versioned header, with a CRC-32 per section (DESIGN.md sections 5-6;
  * the byte layout is in docs/wvc-format.md).

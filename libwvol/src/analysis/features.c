@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Per-voxel wavelet features (paper section 4.1, DESIGN.md section 10).
  * One global transform, level by level: at level m the previous low-pass cube is
  * split once; each detail band present gives a magnitude plane |d| and the new

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* PCA decorrelation of the feature planes, then min-max normalisation to [0, 1]
  * (paper section 4.2: the amplitude distribution is unknown, so each component
  * is scaled straightforwardly by its minimum and maximum). */

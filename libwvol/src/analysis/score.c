@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Segmentation quality: majority mapping of clusters to classes, then the
  * misclassification rate overall and away from class boundaries. */
 #include "core/status_internal.h"

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 #include "wvol/status.h"
 
 #include <stdarg.h>

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 #include "core/status_internal.h"
 #include "wvol/volume.h"
 

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* What the C++ adapters (vdb_adapter.cpp, vtk_adapter.cpp) share: leaving with a
  * status and message from deep inside, and turning every exception into a wvol_error
  * at the C boundary. */

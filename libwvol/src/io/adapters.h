@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* C interface of the C++ adapters (vdb_adapter.cpp, vtk_adapter.cpp).
  * When an adapter is not built, adapters_missing.c supplies versions that
  * return WVOL_ERR_UNSUPPORTED with a message saying which library is missing. */

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Fallbacks for adapters this build does not include (see adapters.h). */
 #include "io/adapters.h"
 

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Headerless raw volumes: dimensions and sample type come from the caller. */
 #define _POSIX_C_SOURCE 200809L
 #include "core/status_internal.h"

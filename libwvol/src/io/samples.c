@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 #include "wvol/io.h"
 
 #include <stdint.h>

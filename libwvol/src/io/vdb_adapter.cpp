@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 // OpenVDB adapter: the only OpenVDB code in libwvol (C interface in io/adapters.h).
 //
 // Reading: a FloatGrid or DoubleGrid (by name, or the first one in the file) is

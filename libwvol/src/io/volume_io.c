@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Load/save dispatch by extension (see wvol/io.h for the table). */
 #define _POSIX_C_SOURCE 200809L
 #include "core/status_internal.h"

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 // VTK adapter: the only VTK code in libwvol (C interface in io/adapters.h).
 //
 // Reads .vti, legacy .vtk structured points, .mha/.mhd and .nii/.nii.gz through VTK's

@@ -1,4 +1,5 @@
 #!/usr/bin/env python3
+# SPDX-License-Identifier: MIT
 """Generates mc_tables.c: the 256-case marching-cubes table of libwvol.
 
 Derived, not copied: for each case the intersection points (one per cube edge

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Geometry of the Mallat (pyramid) layout as the store sees it: band extents,
  * indices, and the row segments that let the selection passes stream over the
  * coefficient array in index order. */

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Local level of detail: a weight w(x) in [0, 1] from Gaussian ellipsoids of
  * interest, evaluated at the support centre of every coefficient position.
  * Based on: Gross, Lippert, Dreger, Koch (wavelet-space volume analysis), Fig. 20. */

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Queries on the store's octree: kept basis functions touching a box or a ray
  * segment, rigorous bounds of f^ and its gradient on a box, point evaluation.
  *

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Rigorous value ranges of the basis splines (phi, psi and their derivatives)
  * over any interval, for the store's value and gradient bounds.
  *

@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Energy selection in O(N): the cut is found with two radix-histogram passes
  * over the float bits of the ranking keys (bits of non-negative floats order
  * like the floats), then a third pass marks the kept bitmap. No sort.

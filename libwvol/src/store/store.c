@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* The sparse octree of kept coefficients: building it from a selection, the
  * hash of nodes, lookup, iteration, per-subtree bounds, densify.
  * Based on: Lewis & Fournier, wavelet radiative transfer, section 7.2.2 (the

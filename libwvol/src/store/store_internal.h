@@ -1,3 +1,4 @@
+/* SPDX-License-Identifier: MIT */
 /* Internals shared by the store sources (selection, LOD weights, basis ranges,
  * octree). Not installed. */
 #ifndef WVOL_STORE_INTERNAL_H
