@@ -145,9 +145,8 @@ WVOL_API void wvol_idwt1(double *out, const double *ad, size_t n, const wvol_fil
  * start there, so sum_p S(x - p) = 1 exactly (a constant volume gives a constant
  * f^, a constant transfer function integrates exactly) and int S = 1 exactly. The
  * zero extension is continuous everywhere and C^2 inside the support; at the
- * support ends the slope jumps by end_slope (db2 5.0, db3 0.43, db4 0.03, below
- * 1e-4 from db6 and for every Coiflet: measured at J = 6, end_slope in JSON). Haar (and db1, the same
- * filter) is exact: phi is the box [0,1), psi is +1 on [0,1/2) and -1 on
+ * support ends the slope jumps by end_slope (per family in docs/basis.md and
+ * `wvol basis --json`). Haar (and db1, the same filter) is exact: phi is the box [0,1), psi is +1 on [0,1/2) and -1 on
  * [1/2,1), stored as constant pieces with J = 1. docs/basis.md has the measured
  * errors per family and J. */
 
@@ -208,7 +207,7 @@ typedef struct wvol_basis {
 } wvol_basis;
 
 /* Builds the tables for filter f with 2^J knots per unit (J in 1..12; Haar and
- * db1 ignore J and are exact). Cost O(L^2 2^J); a few ms for db2 at J = 8. */
+ * db1 ignore J and are exact). Cost O(L^2 2^J). */
 WVOL_API wvol_status wvol_basis_create(wvol_basis **out, const wvol_filter *f, int J, wvol_error *err);
 WVOL_API void wvol_basis_destroy(wvol_basis *b);   /* NULL is fine */
 
