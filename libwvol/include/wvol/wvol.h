@@ -14,4 +14,5 @@
 #include "wvol/compress.h"
 #include "wvol/render.h"
 #include "wvol/analysis.h"
+#include "wvol/radiosity.h"
 #endif
