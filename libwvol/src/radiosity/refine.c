@@ -61,13 +61,16 @@ static wvol_status project_kernel(struct wvol_radiosity *r, size_t pn, size_t qn
     for (int c = 0; c < 3; c++) rho = fmax(rho, pp->q.reflectance[c]);
     leafp = p.level >= r->par.max_level;
     leafq = q.level >= r->par.max_level;
-    if (r->par.full_matrix) {
+    if (rho <= 0) {
+        /* a black receiver reflects nothing: one link at the level reached carries the light it absorbs
+         * (for the energy account) and no solution depends on it, in both modes */
+        smooth = 1;
+    } else if (r->par.full_matrix) {
         smooth = leafp && leafq;
     } else {
-        /* AskOracle: a black receiver reflects nothing, so any link carries its (absorbed) light exactly
-         * enough; otherwise the fit error, in power per unit source radiosity, or weighted by the
-         * reflected brightness (the paper's second oracle) */
-        weight = r->par.brightness ? rho * mean_brightness(r, qn, q.h) : (rho > 0);
+        /* AskOracle: the fit error, in power per unit source radiosity, or weighted by the reflected
+         * brightness (the paper's second oracle) */
+        weight = r->par.brightness ? rho * mean_brightness(r, qn, q.h) : 1;
         est = wvol__rad_oracle(b, &p, &q, r->samples) *
               wvol__rad_jacobian(pp, p.u0 + 0.5 * p.h, p.v0 + 0.5 * p.h);
         smooth = weight * est <= r->par.epsilon || (leafp && leafq);
