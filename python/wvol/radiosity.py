@@ -13,7 +13,7 @@ import numpy as np
 
 from . import _wvol
 
-__all__ = ["BASES", "Scene", "Solution", "scene", "solve", "point_form_factor"]
+__all__ = ["BASES", "Scene", "Solution", "scene", "solve", "point_form_factor", "gauss_grid", "patch_points"]
 
 BASES = ("haar", "m2", "m3", "m4", "f2", "f3")
 
@@ -76,3 +76,22 @@ def point_form_factor(s, patch: int, points, normal) -> np.ndarray:
     return _wvol.radiosity_point_form_factor(_scene_arg(s), int(patch),
                                              np.ascontiguousarray(points, dtype=np.float64),
                                              tuple(float(v) for v in normal))
+
+
+def gauss_grid(cells: int = 64, n: int = 4):
+    """Composite n-point Gauss-Legendre rule on a cells x cells grid of the unit parameter square:
+    points (m, 2) as (u, v) and weights (m,) summing to 1 (for L1 errors on a patch)."""
+    x, w = np.polynomial.legendre.leggauss(n)
+    x, w = (x + 1) / 2, w / 2
+    t = ((np.arange(cells)[:, None] + x[None, :]) / cells).ravel()
+    wt = np.tile(w, cells) / cells
+    u, v = np.meshgrid(t, t, indexing="ij")
+    return np.column_stack([u.ravel(), v.ravel()]), np.outer(wt, wt).ravel()
+
+
+def patch_points(quad, uv) -> np.ndarray:
+    """World points (m, 3) of parameter points uv (m, 2) on a quad (4, 3) (the bilinear map)."""
+    q = np.asarray(quad, dtype=np.float64)
+    uv = np.asarray(uv, dtype=np.float64)
+    u, v = uv[:, :1], uv[:, 1:]
+    return q[0] + u * (q[1] - q[0]) + v * (q[3] - q[0]) + u * v * (q[0] - q[1] + q[2] - q[3])

@@ -17,23 +17,11 @@ def run(*args):
     return subprocess.run([WVOL_BIN, "radiosity", *args], capture_output=True, text=True)
 
 
-def gauss_grid(cells=32, n=4):
-    """Composite n-point Gauss-Legendre points (m, 2) and weights on the unit square."""
-    x, w = np.polynomial.legendre.leggauss(n)
-    x, w = (x + 1) / 2, w / 2
-    t = ((np.arange(cells)[:, None] + x[None, :]) / cells).ravel()
-    wt = np.tile(w, cells) / cells
-    u, v = np.meshgrid(t, t, indexing="ij")
-    return np.column_stack([u.ravel(), v.ravel()]), np.outer(wt, wt).ravel()
-
-
 def receiver_error(basis, level, eps, name="parallel"):
     """Relative L1 error of the receiver (patch 1, reflectance 1) against the point-to-emitter form factor."""
     sc = wvol.radiosity.scene(name)
-    uv, w = gauss_grid()
-    q = sc.quads[1]
-    x = (q[0] + uv[:, :1] * (q[1] - q[0]) + uv[:, 1:] * (q[3] - q[0])
-         + (uv[:, :1] * uv[:, 1:]) * (q[0] - q[1] + q[2] - q[3]))
+    uv, w = wvol.radiosity.gauss_grid(32)
+    x = wvol.radiosity.patch_points(sc.quads[1], uv)
     exact = wvol.radiosity.point_form_factor(name, 0, x, sc.normal[1])
     sol = wvol.radiosity.solve(name, basis=basis, max_level=level, epsilon=eps, uv=uv)
     got = sol.values[1, :, 0]
