@@ -123,21 +123,22 @@ double wvol__rad_oracle(const rad_basis *b, const rad_cell *p, const rad_cell *q
     int nq = b->nq, n4 = nq * nq * nq * nq, axis, i, j;
     double r[RAD_MAXNQ * RAD_MAXNQ * RAD_MAXNQ * RAD_MAXNQ], tmp[RAD_MAXNQ * RAD_MAXNQ * RAD_MAXNQ * RAD_MAXNQ], est = 0;
     memcpy(r, k, sizeof(double) * n4);
-    /* apply the 1D residual operator along each of the four sample axes (u_p, v_p, u_q, v_q) */
+    /* the projection onto tensor polynomials of degree < M: the 1D projector I - resid along each of
+     * the four sample axes (u_p, v_p, u_q, v_q); the residual is then k minus it */
     for (axis = 0; axis < 4; axis++) {
         int stride = 1;
         for (i = axis + 1; i < 4; i++) stride *= nq;
         for (i = 0; i < n4; i++) {
             int ci = (i / stride) % nq, base = i - ci * stride;
             double sum = 0;
-            for (j = 0; j < nq; j++) sum += b->resid[ci][j] * r[base + j * stride];
+            for (j = 0; j < nq; j++) sum += ((ci == j) - b->resid[ci][j]) * r[base + j * stride];
             tmp[i] = sum;
         }
         memcpy(r, tmp, sizeof(double) * n4);
     }
     for (i = 0; i < n4; i++) {
         int iup = i / (nq * nq * nq), ivp = (i / (nq * nq)) % nq, iuq = (i / nq) % nq, ivq = i % nq;
-        est += b->qw[iup] * b->qw[ivp] * b->qw[iuq] * b->qw[ivq] * fabs(r[i]);
+        est += b->qw[iup] * b->qw[ivp] * b->qw[iuq] * b->qw[ivq] * fabs(k[i] - r[i]);
     }
     /* the samples hold k J_q; the receiver's area element is about constant over the cell */
     return est * p->h * p->h * q->h * q->h;
