@@ -282,6 +282,21 @@ static int write_file(const char *path, const char *text)
     return fclose(fp) == 0;
 }
 
+/* An OBJ file with `text` is refused with a message holding a (and b when not NULL). */
+static void obj_refused(const char *path, const char *text, const char *a, const char *b)
+{
+    wvol_radiosity_scene *s = NULL;
+    wvol_error err;
+    wvol_status st;
+    write_file(path, text);
+    st = wvol_radiosity_scene_load_obj(&s, path, &err);
+    CHECK(st != WVOL_OK && !s, "obj accepted: %s", text);
+    if (st != WVOL_OK)
+        CHECK(strstr(err.message, a) && (!b || strstr(err.message, b)), "message '%s' lacks '%s'/'%s'", err.message, a,
+              b ? b : "");
+    wvol_radiosity_scene_destroy(s);
+}
+
 static void bad_scenes_are_refused(void)
 {
     wvol_radiosity_quad good = square(0, 1, 1, 0, 0.5), q[2];
@@ -323,23 +338,14 @@ static void bad_scenes_are_refused(void)
         CHECK(wvol_radiosity_scene_quad(s, 0)->reflectance[1] == 0.7, "Kd");
     }
     wvol_radiosity_scene_destroy(s);
-    write_file(path, "mtllib missing.mtl\nv 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nusemtl white\nf 1 2 3 4\n");
-    CHECK(wvol_radiosity_scene_load_obj(&s, path, &err) != WVOL_OK && strstr(err.message, "missing.mtl"),
-          "missing mtl: %s", err.message);
-    write_file(path, "mtllib s.mtl\nv 0 0 0\nv 1 0 0\nv 1 1 0\nusemtl white\nf 1 2 3\n");
-    CHECK(wvol_radiosity_scene_load_obj(&s, path, &err) != WVOL_OK && strstr(err.message, "face 1") &&
-              strstr(err.message, "3 vertices"),
-          "triangle: %s", err.message);
-    write_file(path, "mtllib s.mtl\nv 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 3 4\n");
-    CHECK(wvol_radiosity_scene_load_obj(&s, path, &err) != WVOL_OK && strstr(err.message, "no material"),
-          "no material: %s", err.message);
-    write_file(path, "mtllib s.mtl\nv 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nusemtl white\nf 1 2 3 4\nusemtl bad\nf 4 3 2 1\n");
-    CHECK(wvol_radiosity_scene_load_obj(&s, path, &err) != WVOL_OK && strstr(err.message, "face 2") &&
-              strstr(err.message, "reflectance[1]"),
-          "Kd > 1: %s", err.message);
-    write_file(path, "mtllib s.mtl\n");
-    CHECK(wvol_radiosity_scene_load_obj(&s, path, &err) != WVOL_OK && strstr(err.message, "empty"), "empty obj: %s",
-          err.message);
+    obj_refused(path, "mtllib missing.mtl\nv 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nusemtl white\nf 1 2 3 4\n",
+                "missing.mtl", NULL);
+    obj_refused(path, "mtllib s.mtl\nv 0 0 0\nv 1 0 0\nv 1 1 0\nusemtl white\nf 1 2 3\n", "face 1", "3 vertices");
+    obj_refused(path, "mtllib s.mtl\nv 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 3 4\n", "face 1", "no material");
+    obj_refused(path,
+                "mtllib s.mtl\nv 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nusemtl white\nf 1 2 3 4\nusemtl bad\nf 4 3 2 1\n",
+                "face 2", "reflectance[1]");
+    obj_refused(path, "mtllib s.mtl\n", "empty", NULL);
     unlink(path);
     unlink(mtl);
     rmdir(dir);
