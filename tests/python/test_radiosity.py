@@ -144,3 +144,17 @@ def test_obj_scene_matches_builtin(tmp_path):
     a = wvol.radiosity.solve(str(tmp_path / "p.obj"), max_level=3, res=4)
     b = wvol.radiosity.solve("parallel", max_level=3, res=4)
     assert np.array_equal(a.samples, b.samples)
+
+
+def test_brightness_oracle_scales_with_the_light():
+    # Fig. 8's second oracle weights the estimated error by the transferred brightness: a 100x dimmer
+    # emitter needs fewer links for the same epsilon, while the plain oracle links the same either way
+    sc = wvol.radiosity.scene("parallel")
+    links = {}
+    for e in (1.0, 0.01):
+        arrays = (sc.quads, sc.emission * e, sc.reflectance)
+        for bright in (False, True):
+            links[e, bright] = wvol.radiosity.solve(arrays, max_level=5, epsilon=1e-4,
+                                                    brightness=bright).stats["interactions"]
+    assert links[1.0, False] == links[0.01, False]
+    assert links[0.01, True] < links[1.0, True] / 2, links
