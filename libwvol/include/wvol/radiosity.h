@@ -46,6 +46,7 @@ size_t wvol_radiosity_scene_count(const wvol_radiosity_scene *s);
 const wvol_radiosity_quad *wvol_radiosity_scene_quad(const wvol_radiosity_scene *s, size_t i);
 /* Area and unit front normal of quad i (either pointer may be NULL). */
 void wvol_radiosity_scene_quad_geometry(const wvol_radiosity_scene *s, size_t i, double *area, double normal[3]);
+/* Axis-aligned bounds of all corners (untouched for a NULL scene). */
 void wvol_radiosity_scene_bounds(const wvol_radiosity_scene *s, double lo[3], double hi[3]);
 
 /* Closed-form (Lambert) differential-area-to-quad form factor from point x with unit normal n to

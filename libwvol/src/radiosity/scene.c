@@ -163,6 +163,7 @@ void wvol_radiosity_scene_quad_geometry(const wvol_radiosity_scene *s, size_t i,
 
 void wvol_radiosity_scene_bounds(const wvol_radiosity_scene *s, double lo[3], double hi[3])
 {
+    if (!s) return;
     memcpy(lo, s->lo, sizeof s->lo);
     memcpy(hi, s->hi, sizeof s->hi);
 }
@@ -391,6 +392,7 @@ void wvol_radiosity_geometry(const wvol_radiosity_scene *s, wvol_geometry *g)
 {
     double ext = 0;
     int k;
+    if (!s || !g) return;
     for (k = 0; k < 3; k++) ext = fmax(ext, s->hi[k] - s->lo[k]);
     for (k = 0; k < 3; k++) {
         g->dims[k] = 1;
