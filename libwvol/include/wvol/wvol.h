@@ -17,4 +17,5 @@
 #include "wvol/iso.h"
 #include "wvol/analysis.h"
 #include "wvol/rng.h"
+#include "wvol/radiosity.h"
 #endif
