@@ -190,6 +190,19 @@ void wvol_transport_scene_default(wvol_transport_scene *s);
 wvol_status wvol_transport_scene_source(wvol_transport_tree **out, const wvol_transport_scene *s,
                                         const wvol_transport_window *w, int levels, wvol_error *err);
 
+/* The whole computation of §7.3: the window's radiance tree, its transport to the floor (incident
+ * radiance), the floor's reflection (checkerboard of s->diffuse and s->glossy tiles). The trees
+ * belong to the result: wvol_transport_scene_result_free releases them (a zeroed result is fine). */
+typedef struct wvol_transport_scene_result {
+    wvol_transport_tree *source, *incident, *reflected;
+    wvol_transport_stats transport;
+    double seconds_source, seconds_reflect;
+} wvol_transport_scene_result;
+
+wvol_status wvol_transport_scene_run(wvol_transport_scene_result *r, const wvol_transport_scene *s,
+                                     const wvol_transport_window *w, const wvol_transport_params *p, wvol_error *err);
+void wvol_transport_scene_result_free(wvol_transport_scene_result *r);
+
 /* Views (paper Figs. 14-16). grid: one tile of 2^L x 2^L position cells (cell_px pixels each) per
  * direction cell, tiles in a 2^L x 2^L matrix (k right, l down), 1-pixel gaps; img is created.
  * exposure (> 0) scales the radiance. */
