@@ -492,3 +492,4 @@ def wvc_info(path):
 
 
 from . import synth  # noqa: E402  (wvol.synth.*: needs Volume defined above)
+from . import transport  # noqa: E402  (wvol.transport.*: radiative transfer in Nusselt coordinates)
