@@ -95,6 +95,35 @@ static void haar_round_trip_is_exact_on_piecewise_constant_fields(void)
     free(b);
 }
 
+static int emitter_fn(void *user, const double q[4], float rgb[3])
+{
+    /* piecewise constant on the level-2 cells: 1 + the cell's parity in k, times (1, 2, 3) */
+    int odd = ((int)(q[2] * 4) + (int)(q[0] * 4)) & 1;
+    (void)user;
+    for (int c = 0; c < 3; c++) rgb[c] = (float)((1 + odd) * (c + 1));
+    return 0;
+}
+
+static void projection_of_an_emitter_is_exact(void)
+{
+    wvol_transport_tree *t = NULL;
+    size_t nc = wvol_transport_cells_count(2);
+    float *cells = malloc(3 * nc * sizeof *cells);
+    double p[3], worst = 0;
+    CHECK(wvol_transport_project(&t, 2, emitter_fn, NULL, 2, 0, NULL) == WVOL_OK, "project");
+    wvol_transport_tree_to_cells(cells, 3 * nc, t, NULL);
+    for (size_t i = 0; i < nc; i++) {
+        int m0 = (int)(i % 4), m2 = (int)(i / 16 % 4);
+        for (int c = 0; c < 3; c++) worst = fmax(worst, fabs(cells[3 * i + c] - (1 + ((m0 + m2) & 1)) * (c + 1)));
+    }
+    CHECK(worst <= 1e-5, "projected cells off by %g", worst);
+    wvol_transport_tree_power(p, t, &floor_sq, NULL);
+    /* mean radiance 1.5 (c + 1) over [0,1]^4, 4 A b0 */
+    CHECK_NEAR(p[2], 4 * 1.5 * 3, 1e-5, "power of the projected emitter");
+    wvol_transport_tree_destroy(t);
+    free(cells);
+}
+
 static double root_power(const wvol_transport_tree *t, const wvol_transport_quad *q)
 {
     double p[3];
@@ -419,6 +448,7 @@ static void bad_input_is_refused(void)
 int main(void)
 {
     haar_round_trip_is_exact_on_piecewise_constant_fields();
+    projection_of_an_emitter_is_exact();
     constant_radiance_gives_the_form_factor();
     reduction_matches_4d_monte_carlo();
     oracle_is_conservative();
