@@ -182,7 +182,7 @@ int wvol_cmd_transport(int argc, char **argv)
             write_image(&out, img, stem, 1))
             goto fail;
     }
-    wvol_transport_tree_power(pw_src, res.source, &sc.window, NULL);
+    wvol_transport_tree_power_emitted(pw_src, res.source, &sc.window, NULL);
     wvol_transport_tree_power(pw_in, res.incident, &sc.floor, NULL);
     wvol_transport_tree_power(pw_out, res.reflected, &sc.floor, NULL);
     if (json) {

@@ -202,7 +202,7 @@ static PyObject *py_scene(PyObject *self, PyObject *args, PyObject *kw)
     Py_END_ALLOW_THREADS
     wvol_transport_window_free(&w);
     if (s != WVOL_OK) return wvolpy_raise(&err);
-    wvol_transport_tree_power(ps, r.source, &sc.window, NULL);
+    wvol_transport_tree_power_emitted(ps, r.source, &sc.window, NULL);
     wvol_transport_tree_power(pi, r.incident, &sc.floor, NULL);
     wvol_transport_tree_power(po, r.reflected, &sc.floor, NULL);
     if ((a = tree_cells(r.source)) && (b = tree_cells(r.incident)) && (c = tree_cells(r.reflected))) {

@@ -99,9 +99,14 @@ wvol_status wvol_transport_tree_eval(const wvol_transport_tree *t, const double 
 /* Keeps the `keep` fraction (0, 1] of the largest-magnitude wavelet coefficients (the root's
  * smoothing coefficient always stays); *kept (may be NULL) gets how many scalars remain. */
 wvol_status wvol_transport_tree_compress(wvol_transport_tree *t, double keep, size_t *kept, wvol_error *err);
-/* Power through the quad (paper eq. 14, Haar): 4 * area * b_0, per channel. */
+/* Power through the quad (paper eq. 14, Haar): 4 * area * b_0, per channel. Exact for radiance
+ * that vanishes outside the unit disc (every transported or reflected tree). */
 wvol_status wvol_transport_tree_power(double power[3], const wvol_transport_tree *t, const wvol_transport_quad *q,
                                       wvol_error *err);
+/* Power of an emitter whose projection extends its radiance outside the unit disc (the window, a
+ * constant emitter): 4 * area * sum over finest cells of mean * volume * the cell's disc share. */
+wvol_status wvol_transport_tree_power_emitted(double power[3], const wvol_transport_tree *t,
+                                              const wvol_transport_quad *q, wvol_error *err);
 
 /* Radiance as a function for projection: rgb at q = (u, v, k, l); values at directions outside
  * the unit disc are never transported (a constant emitter may keep its constant there). Return

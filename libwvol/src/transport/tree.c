@@ -332,3 +332,45 @@ wvol_status wvol_transport_tree_power(double power[3], const wvol_transport_tree
     for (int c = 0; c < 3; c++) power[c] = 4.0 * f.area * t->nodes[0].c[0][c];
     return WVOL_OK;
 }
+
+/* share of the direction square [k0, k0 + h] x [l0, l0 + h] inside the unit disc: the exact
+ * vertical extent at 256 midpoints across (the kinks where the rim meets the edges cost O(1e-5)) */
+static double disc_share(double k0, double l0, double h)
+{
+    enum { NX = 256 };
+    double a = 2 * k0 - 1, c = 2 * l0 - 1, d = c + 2 * h, s = 0;
+    for (int i = 0; i < NX; i++) {
+        double x = a + 2 * h * (i + 0.5) / NX, r = 1 - x * x, y;
+        if (r <= 0) continue;
+        y = sqrt(r);
+        s += fmax(0, fmin(d, y) - fmax(c, -y));
+    }
+    return s / NX / (2 * h);
+}
+
+wvol_status wvol_transport_tree_power_emitted(double power[3], const wvol_transport_tree *t,
+                                              const wvol_transport_quad *q, wvol_error *err)
+{
+    wvol__tframe f;
+    size_t nc;
+    int n;
+    float *cells;
+    wvol_status s;
+    WVOL_RETURN_IF(!power || !t, err, WVOL_ERR_ARG, "transport power: NULL argument");
+    WVOL_FORWARD(wvol_transport_quad_check(q, err));
+    wvol__tframe_init(&f, q);
+    nc = wvol_transport_cells_count(t->levels);
+    n = 1 << t->levels;
+    cells = malloc(3 * nc * sizeof *cells);
+    WVOL_RETURN_IF(!cells, err, WVOL_ERR_NOMEM, "transport power: out of memory");
+    s = wvol_transport_tree_to_cells(cells, 3 * nc, t, err);
+    power[0] = power[1] = power[2] = 0;
+    for (int D = 0; D < n * n && s == WVOL_OK; D++) {
+        double share = disc_share((D % n) / (double)n, (D / n) / (double)n, 1.0 / n), acc[3] = {0, 0, 0};
+        for (size_t P = 0; P < (size_t)n * n; P++)
+            for (int c = 0; c < 3; c++) acc[c] += cells[3 * (P + (size_t)n * n * D) + c];
+        for (int c = 0; c < 3; c++) power[c] += 4.0 * f.area * acc[c] * share / (double)nc;
+    }
+    free(cells);
+    return s;
+}
