@@ -49,7 +49,8 @@ def window(path=None):
 
 
 def power(cells, quad):
-    """Power through a quad (paper eq. 14): 4 * area * the mean of the cells, per channel."""
+    """Power through a quad (paper eq. 14): 4 * area * the mean of the cells, per channel (exact for
+    radiance that vanishes outside the unit disc: transported and reflected cells)."""
     q = np.asarray(quad, float)
     area = np.linalg.norm(np.cross(q[1] - q[0], q[3] - q[0]))
     return 4.0 * area * np.asarray(cells, np.float64).reshape(-1, 3).mean(axis=0)
