@@ -375,6 +375,30 @@ static void energy_is_conserved(void)
     wvol_transport_window_free(&w);
 }
 
+/* light from one direction cell: a Phong lobe peaks at the mirror cell (k, l) -> (1 - k, 1 - l) */
+static void phong_peaks_at_the_mirror_direction(void)
+{
+    enum { L = 3, N = 8 };
+    size_t nc = wvol_transport_cells_count(L);
+    float *cells = calloc(3 * nc, sizeof *cells), *out = malloc(3 * nc * sizeof *out);
+    wvol_transport_tree *inc = NULL, *refl = NULL;
+    wvol_transport_brdf ph = {WVOL_TRANSPORT_BRDF_PHONG, {0, 0, 0}, {1, 1, 1}, 60};
+    int S = 2 + N * 5, best = -1; /* (mk, ml) = (2, 5): inside the disc */
+    float bv = -1;
+    for (int P = 0; P < N * N; P++)
+        for (int c = 0; c < 3; c++) cells[3 * ((size_t)P + (size_t)N * N * S) + c] = 1;
+    CHECK(wvol_transport_tree_from_cells(&inc, cells, L, 0, NULL) == WVOL_OK, "incident");
+    CHECK(wvol_transport_reflect(&refl, inc, &ph, NULL, NULL, 0, NULL) == WVOL_OK, "reflect");
+    wvol_transport_tree_to_cells(out, 3 * nc, refl, NULL);
+    for (int R = 0; R < N * N; R++)
+        if (out[3 * ((size_t)N * N * R) + 1] > bv) bv = out[3 * ((size_t)N * N * R) + 1], best = R;
+    CHECK(best == (N - 1 - 2) + N * (N - 1 - 5), "peak at cell %d, mirror is %d", best, (N - 1 - 2) + N * (N - 1 - 5));
+    wvol_transport_tree_destroy(inc);
+    wvol_transport_tree_destroy(refl);
+    free(cells);
+    free(out);
+}
+
 static int mentions(const wvol_error *e, const char *word) { return strstr(e->message, word) != NULL; }
 
 static void bad_input_is_refused(void)
@@ -444,6 +468,7 @@ int main(void)
     red_falls_as_samples_grow();
     grazing_and_coplanar_geometry_stays_finite();
     energy_is_conserved();
+    phong_peaks_at_the_mirror_direction();
     bad_input_is_refused();
     return check_summary("test_transport");
 }
