@@ -375,6 +375,45 @@ static void energy_is_conserved(void)
     wvol_transport_window_free(&w);
 }
 
+/* threads split the source's subtrees: the same count gives the same bits, another count the
+ * same values up to float32 sums */
+static void threads_change_only_rounding(void)
+{
+    wvol_transport_scene sc;
+    wvol_transport_window w = {0};
+    wvol_transport_tree *src = NULL, *a = NULL, *b = NULL, *c = NULL;
+    wvol_transport_params p;
+    size_t nc = wvol_transport_cells_count(2);
+    float *ca = malloc(3 * nc * sizeof *ca), *cb = malloc(3 * nc * sizeof *cb), *cc = malloc(3 * nc * sizeof *cc);
+    double worst = 0, top = 0;
+    wvol_transport_scene_default(&sc);
+    wvol_transport_params_default(&p);
+    p.levels = 2;
+    wvol_transport_window_synthetic(&w, 16, NULL);
+    wvol_transport_scene_source(&src, &sc, &w, 2, NULL);
+    p.threads = 1;
+    CHECK(wvol_transport_run(&a, src, &sc.window, &sc.floor, &p, NULL, NULL) == WVOL_OK, "1 thread");
+    p.threads = 2;
+    CHECK(wvol_transport_run(&b, src, &sc.window, &sc.floor, &p, NULL, NULL) == WVOL_OK, "2 threads");
+    CHECK(wvol_transport_run(&c, src, &sc.window, &sc.floor, &p, NULL, NULL) == WVOL_OK, "2 threads again");
+    if (a && b && c) {
+        wvol_transport_tree_to_cells(ca, 3 * nc, a, NULL);
+        wvol_transport_tree_to_cells(cb, 3 * nc, b, NULL);
+        wvol_transport_tree_to_cells(cc, 3 * nc, c, NULL);
+        for (size_t i = 0; i < 3 * nc; i++) worst = fmax(worst, fabs(ca[i] - cb[i])), top = fmax(top, fabs(ca[i]));
+        CHECK(worst <= 1e-5 * top, "1 vs 2 threads differ by %g of %g", worst, top);
+        CHECK(!memcmp(cb, cc, 3 * nc * sizeof *cb), "2 threads twice: the same bits");
+    }
+    wvol_transport_tree_destroy(src);
+    wvol_transport_tree_destroy(a);
+    wvol_transport_tree_destroy(b);
+    wvol_transport_tree_destroy(c);
+    wvol_transport_window_free(&w);
+    free(ca);
+    free(cb);
+    free(cc);
+}
+
 /* light from one direction cell: a Phong lobe peaks at the mirror cell (k, l) -> (1 - k, 1 - l) */
 static void phong_peaks_at_the_mirror_direction(void)
 {
@@ -469,6 +508,7 @@ int main(void)
     grazing_and_coplanar_geometry_stays_finite();
     energy_is_conserved();
     phong_peaks_at_the_mirror_direction();
+    threads_change_only_rounding();
     bad_input_is_refused();
     return check_summary("test_transport");
 }

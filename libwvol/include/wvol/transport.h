@@ -62,6 +62,8 @@ typedef struct wvol_transport_params {
     int samples;                            /* integrand evaluations per T_jk, 1..2^24 (16) */
     uint64_t seed;                          /* Monte Carlo streams (1) */
     int use_oracle;                         /* interval-arithmetic oracle on (1) */
+    int threads;                            /* wvol_transport_run's threads, 0 = OpenMP's default (0);
+                                             * results depend on the count only through float sums */
 } wvol_transport_params;
 
 void wvol_transport_params_default(wvol_transport_params *p);
