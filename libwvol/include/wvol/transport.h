@@ -193,7 +193,8 @@ typedef struct wvol_transport_scene {
 
 void wvol_transport_scene_default(wvol_transport_scene *s);
 
-/* The window's outgoing radiance as a tree: image (box-averaged per position cell) times lobe. */
+/* The window's outgoing radiance as a tree: image (mean of 8 x 8 nearest-pixel
+ * samples per position cell) times the lobe (mean of 8 x 8 Gauss points per direction cell). */
 wvol_status wvol_transport_scene_source(wvol_transport_tree **out, const wvol_transport_scene *s,
                                         const wvol_transport_window *w, int levels, wvol_error *err);
 
