@@ -386,3 +386,20 @@ void cli_progress_done(void)
     progress_shown = 0;
     progress_start = -1;
 }
+
+int cli_make_dirs(const char *dir)
+{
+    char buf[4096];
+    size_t n = strlen(dir), i;
+    struct stat st;
+    if (n == 0 || n >= sizeof buf) return ENAMETOOLONG;
+    memcpy(buf, dir, n + 1);
+    for (i = 1; i <= n; i++) {
+        if (buf[i] != '/' && buf[i] != '\0') continue;
+        buf[i] = '\0';
+        if (mkdir(buf, 0777) != 0 && errno != EEXIST) return errno;
+        buf[i] = i < n ? '/' : '\0';
+    }
+    if (stat(dir, &st) != 0) return errno;
+    return S_ISDIR(st.st_mode) ? 0 : ENOTDIR;
+}

@@ -93,6 +93,9 @@ void cli_json_num3(const char *key, const double v[3]);
 void cli_progress(const char *label, double fraction);
 void cli_progress_done(void);
 
+/* mkdir -p: 0, or the errno of the step that failed (ENOTDIR when the path is a file). */
+int cli_make_dirs(const char *dir);
+
 /* Seconds from a monotonic clock. */
 double cli_now(void);
 

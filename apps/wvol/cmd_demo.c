@@ -359,24 +359,6 @@ static void demo_free(demo *d)
     wvol_volume_destroy(d->phantom);
 }
 
-/* mkdir -p; returns 0 or an errno. */
-static int make_dirs(const char *dir)
-{
-    char buf[4096];
-    size_t n = strlen(dir), i;
-    struct stat st;
-    if (n == 0 || n >= sizeof buf) return ENAMETOOLONG;
-    memcpy(buf, dir, n + 1);
-    for (i = 1; i <= n; i++) {
-        if (buf[i] != '/' && buf[i] != '\0') continue;
-        buf[i] = '\0';
-        if (mkdir(buf, 0777) != 0 && errno != EEXIST) return errno;
-        buf[i] = i < n ? '/' : '\0';
-    }
-    if (stat(dir, &st) != 0) return errno;
-    return S_ISDIR(st.st_mode) ? 0 : ENOTDIR;
-}
-
 int wvol_cmd_demo(int argc, char **argv)
 {
     cli_parser p;
@@ -420,7 +402,7 @@ int wvol_cmd_demo(int argc, char **argv)
             if (!parse_seed("demo", val, &d.seed)) return CLI_USAGE;
         }
     }
-    if ((e = make_dirs(d.out_dir)) != 0) return cli_fail("demo", "cannot create output folder %s: %s", d.out_dir, strerror(e));
+    if ((e = cli_make_dirs(d.out_dir)) != 0) return cli_fail("demo", "cannot create output folder %s: %s", d.out_dir, strerror(e));
 
     t_start = cli_now();
     for (s = 0; s < STAGE_COUNT && code == CLI_OK; s++) {

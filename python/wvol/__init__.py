@@ -494,3 +494,4 @@ def wvc_info(path):
 
 from . import synth  # noqa: E402  (wvol.synth.*: needs Volume defined above)
 from . import radiosity  # noqa: E402  (wvol.radiosity.solve: wavelet radiosity of quads)
+from . import transport  # noqa: E402  (wvol.transport.*: radiative transfer in Nusselt coordinates)

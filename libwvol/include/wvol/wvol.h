@@ -18,4 +18,5 @@
 #include "wvol/analysis.h"
 #include "wvol/rng.h"
 #include "wvol/radiosity.h"
+#include "wvol/transport.h"
 #endif
