@@ -31,7 +31,7 @@ install(FILES ${PROJECT_SOURCE_DIR}/datasets-synth/wvol_synth.h DESTINATION ${CM
 # A static libwvol carries its dependencies' link lines ($<LINK_ONLY:...>), so the
 # package finds them again; the config file records what this build included.
 set(WVOL_PACKAGE_FEATURES "")
-foreach(dep PNG OPENEXR LAPACKE VTK OPENVDB)
+foreach(dep PNG OPENEXR LAPACKE VTK OPENVDB TINYOBJLOADER)
   if(WVOL_HAVE_${dep})
     list(APPEND WVOL_PACKAGE_FEATURES ${dep})
   endif()

@@ -37,7 +37,8 @@ typedef enum wvol_feature {
     WVOL_FEATURE_OPENEXR = 2, /* EXR images (OpenEXR): wvol_exr_write, wvol_exr_read_channel, ... */
     WVOL_FEATURE_LAPACKE = 3, /* PCA (LAPACKE): wvol_features_pca */
     WVOL_FEATURE_VTK = 4,     /* VTK formats (.vti .vtk .mha .mhd .nii .nii.gz, DICOM, .vtp meshes) */
-    WVOL_FEATURE_OPENVDB = 5  /* OpenVDB grids (.vdb) */
+    WVOL_FEATURE_OPENVDB = 5, /* OpenVDB grids (.vdb) */
+    WVOL_FEATURE_TINYOBJLOADER = 6 /* Wavefront OBJ scenes (tinyobjloader): wvol_radiosity_scene_load_obj */
 } wvol_feature;
 
 /* 1 if this build includes the feature, 0 if not (or if f is unknown). */

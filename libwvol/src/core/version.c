@@ -33,6 +33,9 @@ int wvol_has_feature(wvol_feature f)
 #ifdef WVOL_HAVE_OPENVDB
     case WVOL_FEATURE_OPENVDB: return 1;
 #endif
+#ifdef WVOL_HAVE_TINYOBJLOADER
+    case WVOL_FEATURE_TINYOBJLOADER: return 1;
+#endif
     default: return 0;
     }
 }

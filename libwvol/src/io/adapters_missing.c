@@ -2,6 +2,8 @@
 /* Fallbacks for adapters this build does not include (see adapters.h). */
 #include "io/adapters.h"
 
+#include <string.h>
+
 #ifndef WVOL_HAVE_OPENVDB
 wvol_status wvol__vdb_read(wvol_volume **out, const char *path, const char *grid_name, wvol_error *err)
 {
@@ -32,5 +34,17 @@ wvol_status wvol__vtk_write_mesh(const char *path, const float *xyz, size_t nver
 {
     (void)xyz, (void)nverts, (void)tris, (void)ntris, (void)normals;
     return wvol_error_set(err, WVOL_ERR_UNSUPPORTED, "%s: this build has no VTK support", path);
+}
+#endif
+
+#ifndef WVOL_HAVE_TINYOBJLOADER
+wvol_status wvol__obj_read(wvol__obj *out, const char *path, wvol_error *err)
+{
+    if (out) memset(out, 0, sizeof *out);
+    return wvol_error_set(err, WVOL_ERR_UNSUPPORTED, "%s: this build has no OBJ support (tinyobjloader)", path);
+}
+void wvol__obj_free(wvol__obj *o)
+{
+    (void)o;
 }
 #endif
