@@ -7,6 +7,7 @@
 #include <stdint.h>
 #include <stdio.h>
 
+#include "wvol/compress.h"
 #include "wvol/store.h"
 #include "wvol/volume.h"
 #include "wvol/wavelet.h"
@@ -43,30 +44,37 @@ static inline wvol_volume *fixture_volume(size_t nx, size_t ny, size_t nz, fixtu
     return v;
 }
 
-/* A store of v's transform (filter, levels) keeping the largest fraction `keep` of the
- * coefficients (all when keep >= 1), splines with 2^J knots per unit; NULL on failure (with
- * the message on stderr). */
+/* The library's pipeline (wvol_compress) on v: filter, levels, the largest fraction `keep` of
+ * the coefficients (all when keep >= 1), splines with 2^J knots per unit (0: the default), the
+ * store when `store` is set. 0 on success; on failure the message goes to stderr. */
+static inline int fixture_compress(wvol_compressed *out, const wvol_volume *v, const char *filter, int levels,
+                                   double keep, int J, int store)
+{
+    wvol_compress_params p;
+    wvol_error err;
+    wvol_compress_params_default(&p);
+    p.wavelet = filter;
+    p.levels = levels;
+    p.store.spline_J = J;
+    p.build_store = store;
+    if (keep < 1.0) {
+        p.select.mode = WVOL_SELECT_FRACTION;
+        p.select.fraction = keep;
+    }
+    if (wvol_compress(out, v, &p, &err) == WVOL_OK) return 0;
+    fprintf(stderr, "compress: %s\n", err.message);
+    return -1;
+}
+
+/* The store alone of fixture_compress (the caller destroys it); NULL on failure. */
 static inline wvol_store *fixture_store(const wvol_volume *v, const char *filter, int levels, double keep, int J)
 {
-    const wvol_filter *f = fixture_filter(filter);
-    wvol_coeffs *c = NULL;
-    wvol_selection *sel = NULL;
-    wvol_store *s = NULL;
-    wvol_select_params sp;
-    wvol_select_params_default(&sp);
-    wvol_store_params stp;
-    wvol_store_params_default(&stp);
-    wvol_error err;
-    if (!f || wvol_dwt3(&c, v, f, levels, &err) != WVOL_OK) return NULL;
-    if (keep < 1.0) {
-        sp.mode = WVOL_SELECT_FRACTION;
-        sp.fraction = keep;
-        wvol_select(&sel, c, &sp, NULL, NULL, &err);
-    }
-    stp.spline_J = J;
-    if (wvol_store_build(&s, c, sel, &stp, &err) != WVOL_OK) fprintf(stderr, "store: %s\n", err.message);
-    wvol_selection_destroy(sel);
-    wvol_coeffs_destroy(c);
+    wvol_compressed c;
+    wvol_store *s;
+    if (fixture_compress(&c, v, filter, levels, keep, J, 1) != 0) return NULL;
+    s = c.store;
+    c.store = NULL;
+    wvol_compressed_free(&c);
     return s;
 }
 

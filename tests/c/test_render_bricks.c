@@ -28,30 +28,20 @@ static double phantom_voxel(const wvol_volume *v, size_t i, size_t j, size_t k, 
 
 static wvol_volume *phantom(size_t nx, size_t ny, size_t nz) { return fixture_volume(nx, ny, nz, phantom_voxel, NULL); }
 
-/* Store of the kept coefficients and the dense reconstruction of the same coefficients. */
+/* Store of the kept coefficients (db2, 2 levels) and the dense reconstruction of the same
+ * coefficients. */
 static wvol_store *store_and_recon(const wvol_volume *v, double keep, wvol_volume **recon)
 {
-    const wvol_filter *f = NULL;
-    wvol_coeffs *c = NULL;
-    wvol_selection *sel = NULL;
-    wvol_store *s = NULL;
-    wvol_select_params sp;
-    wvol_select_params_default(&sp);
+    wvol_compressed c;
+    wvol_store *s;
     wvol_error err;
     *recon = NULL;
-    CHECK(wvol_filter_get(&f, "db2", &err) == WVOL_OK, "%s", err.message);
-    CHECK(wvol_dwt3(&c, v, f, 2, &err) == WVOL_OK, "%s", err.message);
-    if (!c) return NULL;
-    if (keep < 1) {
-        sp.mode = WVOL_SELECT_FRACTION;
-        sp.fraction = keep;
-    }
-    CHECK(wvol_select(&sel, c, &sp, v, NULL, &err) == WVOL_OK, "%s", err.message);
-    CHECK(wvol_store_build(&s, c, sel, NULL, &err) == WVOL_OK, "%s", err.message);
-    CHECK(wvol_selection_apply(sel, c, &err) == WVOL_OK, "%s", err.message);
-    CHECK(wvol_idwt3(recon, c, &err) == WVOL_OK, "%s", err.message);
-    wvol_selection_destroy(sel);
-    wvol_coeffs_destroy(c);
+    CHECK(fixture_compress(&c, v, "db2", 2, keep, 0, 1) == 0, "keep %g", keep);
+    if (!c.store) return NULL;
+    CHECK(wvol_idwt3(recon, c.coeffs, &err) == WVOL_OK, "%s", err.message);
+    s = c.store;
+    c.store = NULL;
+    wvol_compressed_free(&c);
     return s;
 }
 

@@ -8,6 +8,7 @@
 #include <string.h>
 
 #include "check.h"
+#include "fixtures.h"
 #include "wvol/render.h"
 #include "wvol/store.h"
 #include "wvol/wavelet.h"
@@ -117,14 +118,7 @@ static void bad_colour_volumes_are_refused(void)
     wvol_render_params p;
     wvol_tf tf;
     wvol_error err;
-    wvol_coeffs *c = NULL;
-    wvol_selection *sel = NULL;
     wvol_store *st = NULL;
-    const wvol_filter *f = NULL;
-    wvol_select_params sp;
-    wvol_select_params_default(&sp);
-    wvol_store_params stp;
-    wvol_store_params_default(&stp);
     size_t i;
     if (!v || !rgb) return;
     for (i = 0; i < 3 * 512; i++) rgb[i] = 0.5f;
@@ -147,17 +141,14 @@ static void bad_colour_volumes_are_refused(void)
     p.mode = WVOL_RENDER_MODE_XRAY;
     CHECK(wvol_render_reference(img, v, &cam, NULL, &p, NULL, &err) == WVOL_ERR_ARG && strstr(err.message, "X-ray"),
           "%s", err.message);
-    CHECK(wvol_filter_get(&f, "haar", &err) == WVOL_OK && wvol_dwt3(&c, v, f, 2, &err) == WVOL_OK &&
-              wvol_select(&sel, c, &sp, v, NULL, &err) == WVOL_OK && wvol_store_build(&st, c, sel, &stp, &err) == WVOL_OK,
-          "%s", err.message);
+    st = fixture_store(v, "haar", 2, 1.0, 0);
+    CHECK(st != NULL, "haar store of the constant volume");
     CHECK(wvol_render_xray_axis(img, st, &cam, &p, NULL, &err) == WVOL_ERR_UNSUPPORTED, "%s", err.message);
     p.mode = WVOL_RENDER_MODE_ABSORPTION;
     CHECK(wvol_render_spline(img, st, &cam, &tf, &p, NULL, &err) == WVOL_ERR_UNSUPPORTED &&
               strstr(err.message, "colour volume"),
           "%s", err.message);
     wvol_store_destroy(st);
-    wvol_selection_destroy(sel);
-    wvol_coeffs_destroy(c);
     wvol_image_destroy(img);
     wvol_volume_destroy(v);
     free(rgb);

@@ -8,6 +8,7 @@
 #include <string.h>
 
 #include "check.h"
+#include "fixtures.h"
 #include "wvol/render.h"
 #include "wvol/store.h"
 #include "wvol/wavelet.h"
@@ -27,39 +28,23 @@ static wvol_volume *gaussian(size_t n)
     return v;
 }
 
-/* Transform, keep a fraction (1 = all), build the store. */
+/* Transform, keep a fraction (1 = all), build the store (fixture_compress); the kept
+ * coefficients (dropped ones zeroed) and the predicted RMSE on request. */
 static wvol_store *make_store(const wvol_volume *v, const char *family, int levels, double keep, int J,
                               wvol_coeffs **coeffs_out, double *pred_rmse)
 {
-    const wvol_filter *f = NULL;
-    wvol_coeffs *c = NULL;
-    wvol_selection *sel = NULL;
-    wvol_store *s = NULL;
-    wvol_select_params sp;
-    wvol_select_params_default(&sp);
-    wvol_store_params stp;
-    wvol_store_params_default(&stp);
-    wvol_select_report rep;
-    wvol_error err;
-    if (wvol_filter_get(&f, family, &err) != WVOL_OK || wvol_dwt3(&c, v, f, levels, &err) != WVOL_OK) {
-        CHECK(0, "%s", err.message);
-        return NULL;
-    }
-    if (keep < 1) {
-        sp.mode = WVOL_SELECT_FRACTION;
-        sp.fraction = keep;
-    }
-    stp.spline_J = J;
-    CHECK(wvol_select(&sel, c, &sp, v, &rep, &err) == WVOL_OK, "%s", err.message);
-    CHECK(wvol_store_build(&s, c, sel, &stp, &err) == WVOL_OK, "%s", err.message);
-    if (pred_rmse) *pred_rmse = rep.predicted_rmse;
+    wvol_compressed c;
+    wvol_store *s;
+    CHECK(fixture_compress(&c, v, family, levels, keep, J, 1) == 0, "%s levels %d keep %g", family, levels, keep);
+    if (!c.store) return NULL;
+    if (pred_rmse) *pred_rmse = c.report.predicted_rmse;
     if (coeffs_out) {
-        wvol_selection_apply(sel, c, NULL);
-        *coeffs_out = c;
-    } else {
-        wvol_coeffs_destroy(c);
+        *coeffs_out = c.coeffs;
+        c.coeffs = NULL;
     }
-    wvol_selection_destroy(sel);
+    s = c.store;
+    c.store = NULL;
+    wvol_compressed_free(&c);
     return s;
 }
 
