@@ -153,7 +153,12 @@ wvol_status wvol_compress_wvc_params(wvol_wvc_params *wp, const wvol_compress_qu
                        "compress: quantiser share %g (must be in (0, 1])", q->share);
         wp->target_sse = q->share * dropped;
         if (!(wp->target_sse > floor_sse)) wp->target_sse = floor_sse;
-        if (!(wp->target_sse > 1e-12)) wp->target_sse = 1e-12;
+        /* a (near-)constant volume: 1e-12 of the peak's square, never above 1e-12 (an
+         * absolute floor alone would zero every coefficient of a volume of values ~1e-10) */
+        {
+            double peak = fmax(fabs(vmin), fabs(vmax)), tiny = peak > 0 && peak < 1 ? 1e-12 * peak * peak : 1e-12;
+            if (!(wp->target_sse > tiny)) wp->target_sse = tiny;
+        }
     }
     return WVOL_OK;
 }
