@@ -165,11 +165,11 @@ static int run_transform(result *r, const wvol_volume *v, const char *family, in
  * and the measured PSNR do not change; the decoded volume scales. */
 static int run_compress(result *r, const wvol_volume *v, const char *family, int mode)
 {
+    void *buf = NULL;
+    wvol_coeffs *dec = NULL; /* the reader's, and its inverse transform: */
+    wvol_volume *rec = NULL;
     wvol_compress_params p;
     wvol_compressed cc;
-    wvol_coeffs *dec = NULL;
-    wvol_volume *rec = NULL;
-    void *buf = NULL;
     size_t nbytes = 0;
     double sse = 0, vmin, vmax;
     wvol_error err;
@@ -217,6 +217,18 @@ static int run_psnr(result *r, const wvol_volume *v, const char *f, int e) { (vo
 static int run_keep(result *r, const wvol_volume *v, const char *f, int e) { (void)e; return run_compress(r, v, f, 1); }
 static int run_energy(result *r, const wvol_volume *v, const char *f, int e) { (void)e; return run_compress(r, v, f, 2); }
 
+/* The store of v (all coefficients kept), or NULL with r refused: the transform's message
+ * went to stderr (fixture_store). */
+static wvol_store *store_or_refuse(result *r, const wvol_volume *v, const char *family)
+{
+    wvol_store *s = fixture_store(v, family, LEVELS, 1.0, 4);
+    if (!s) {
+        r->st = WVOL_ERR_NONFINITE;
+        snprintf(r->msg, sizeof r->msg, "store: the transform refused");
+    }
+    return s;
+}
+
 /* Renders 6x6 pixels (+z, orthographic, the whole box) by `method` in `mode`; the TF is the
  * "gaussian" preset over the scaled data range, so absorption images must not change. */
 static int run_render(result *r, const wvol_volume *v, const char *family, wvol_render_method method,
@@ -241,12 +253,7 @@ static int run_render(result *r, const wvol_volume *v, const char *family, wvol_
     p.method = method;
     p.threads = 1;
     if (method != WVOL_RENDER_METHOD_REFERENCE) {
-        s = fixture_store(v, family, LEVELS, 1.0, 4);
-        if (!s) {
-            r->st = WVOL_ERR_NONFINITE; /* the transform refused (its message went to stderr) */
-            snprintf(r->msg, sizeof r->msg, "store: the transform refused");
-            return 0;
-        }
+        if (!(s = store_or_refuse(r, v, family))) return 0;
         src = wvol_render_source_store(s);
     } else {
         src = wvol_render_source_volume(v);
@@ -286,13 +293,12 @@ static int run_iso_mc(result *r, const wvol_volume *v, const char *family, int e
     wvol_error err;
     (void)family;
     if ((r->st = wvol_iso_extract(&m, v, ldexp(0.4, e), NULL, NULL, &err)) != WVOL_OK) return res_fail(r, r->st, &err);
+    double sum = 0, tol = 1e-5 * (double)(3 * m->nverts + 1) * 7;
+    /* the positions, as one number: a moved vertex changes it */
+    for (size_t i = 0; i < 3 * m->nverts; i++) sum += (double)m->verts[i] * (double)(i % 7 + 1);
     push_iv(r, (double)m->nverts, 0, 0);
     push_iv(r, (double)m->ntris, 0, 0);
-    {
-        double sum = 0; /* the positions, as one number: a moved vertex changes it */
-        for (size_t i = 0; i < 3 * m->nverts; i++) sum += (double)m->verts[i] * (double)(i % 7 + 1);
-        push_iv(r, sum, 1e-5 * (double)(3 * m->nverts + 1) * 7, 1e-5 * (double)(3 * m->nverts + 1) * 7);
-    }
+    push_iv(r, sum, tol, tol);
     wvol_mesh_destroy(m);
     return 1;
 }
@@ -305,12 +311,8 @@ static int run_iso_ray(result *r, const wvol_volume *v, const char *family, int 
     wvol_image *img = NULL;
     float depth[36];
     wvol_error err;
-    wvol_store *s = fixture_store(v, family, LEVELS, 1.0, 4);
-    if (!s) {
-        r->st = WVOL_ERR_NONFINITE;
-        snprintf(r->msg, sizeof r->msg, "store: the transform refused");
-        return 0;
-    }
+    wvol_store *s = store_or_refuse(r, v, family);
+    if (!s) return 0;
     wvol_geometry_of_volume(&g, v);
     wvol_camera_parse(&cam, "ortho dir=1,0.5,2", &g, 6, 6, NULL);
     wvol_image_create(&img, 6, 6, NULL);
