@@ -369,7 +369,15 @@ static const entry entries[] = {
  * the smallest normal float, the rest subnormal), -116, -100, -66, 0, 66, 100, 110 (peaks
  * ~1e33, the issue's 1e30 case), 120 and 126 (near the top: the transform's low-pass gain
  * 2^(1.5 levels) leaves float32 there, refused). */
+#if defined(__SANITIZE_ADDRESS__)
+/* under AddressSanitizer (scripts/test.sh's Debug build, ~20x slower) the run checks memory,
+ * not numbers: every entry and volume at the ends and in between, db2 only */
+static const int scales[] = {-136, 66, 126};
+#define FAMILIES 1
+#else
 static const int scales[] = {-136, -126, -116, -100, -66, 0, 66, 100, 110, 120, 126};
+#define FAMILIES 3
+#endif
 #define NSCALES (int)(sizeof scales / sizeof scales[0])
 
 static void compare(const entry *en, const result *a, const result *b, int e, const char *cell)
@@ -467,20 +475,20 @@ static void decoder_refuses_overflow(const wvol_volume *v)
 
 int main(void)
 {
-    static const char *const families[] = {"haar", "db2", "coif1"};
+    static const char *const families[] = {"db2", "haar", "coif1"};
     int vk, fi, ei, si;
     for (vk = 0; vk < V_COUNT; vk++) {
         wvol_volume *v1 = make_volume(vk);
         CHECK(v1 != NULL, "volume %s", vol_names[vk]);
         if (!v1) continue;
         if (vk == V_SKULL) decoder_refuses_overflow(v1);
-        for (fi = 0; fi < 3; fi++)
+        for (fi = 0; fi < FAMILIES; fi++)
             for (ei = 0; ei < NENTRIES; ei++) {
                 result base;
                 memset(&base, 0, sizeof base);
                 /* the splat's tables and the spline integrator are the slow ones: db2 only */
                 if ((entries[ei].run == run_xray_splat || entries[ei].run == run_xray_spline ||
-                     entries[ei].run == run_lin_spline) && fi != 1)
+                     entries[ei].run == run_lin_spline) && fi != 0)
                     continue;
                 double t0 = clock() / (double)CLOCKS_PER_SEC;
                 entries[ei].run(&base, v1, families[fi], 0);
