@@ -84,7 +84,14 @@ wvol_status wvol_features_pca(wvol_features *f, double variance, double *eigenva
             hi = pc[i] > hi ? pc[i] : hi;
         }
         float inv = hi > lo ? 1.0f / (hi - lo) : 0.0f;
-        for (size_t i = 0; i < n; i++) pc[i] = (pc[i] - lo) * inv;
+        if (isfinite(inv) && isfinite(hi - lo)) {
+            for (size_t i = 0; i < n; i++) pc[i] = (pc[i] - lo) * inv;
+        } else {
+            /* a range below 1/FLT_MAX (a volume ~1e-35: 1/range overflows, 0 * Inf is NaN) or
+             * beyond FLT_MAX: the same map in double */
+            double dinv = 1.0 / ((double)hi - (double)lo);
+            for (size_t i = 0; i < n; i++) pc[i] = (float)(((double)pc[i] - (double)lo) * dinv);
+        }
     }
     free(f->data);
     f->data = out;

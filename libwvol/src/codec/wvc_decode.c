@@ -5,6 +5,7 @@
  * read (docs/wvc-format.md lists the checks). */
 #define _POSIX_C_SOURCE 200809L
 #include <errno.h>
+#include <float.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -248,11 +249,11 @@ static wvol_status decode(wvol_coeffs **out, const uint8_t *buf, size_t avail, c
         const wvol_wvc_section *S = &I->sections[s];
         /* in double, rounded once: the only error left beyond the quantiser's is half an ulp */
         const double step = I->step, o1 = (1.0 + (double)S->delta1) * step, d2 = S->delta2;
-        uint64_t nz = 0;
+        uint64_t nz = 0, over = 0;
         long z;
         if (s > 0 && b->level <= stop_level) break;
         if (S->coder == WVOL_WVC_CODER_EMPTY) continue;
-#pragma omp parallel for schedule(static) reduction(+ : nz) if (b->count > 65536)
+#pragma omp parallel for schedule(static) reduction(+ : nz, over) if (b->count > 65536)
         for (z = 0; z < (long)b->ext[2]; z++) {
             size_t x, y;
             for (y = 0; y < b->ext[1]; y++) {
@@ -271,13 +272,24 @@ static wvol_status decode(wvol_coeffs **out, const uint8_t *buf, size_t avail, c
                     memcpy(&v, o + x, sizeof v); /* the int32 the coder stored there */
                     if (v == 0) continue;
                     nz++;
-                    a = (float)((v == 1 || v == -1) ? o1 : ((double)(v < 0 ? -v : v) + d2) * step);
+                    {
+                        double d = (v == 1 || v == -1) ? o1 : ((double)(v < 0 ? -v : v) + d2) * step;
+                        /* a crafted file's step can reach beyond float32: counted, never converted */
+                        if (!(fabs(d) <= FLT_MAX)) {
+                            over++;
+                            d = 0;
+                        }
+                        a = (float)d;
+                    }
                     a = v < 0 ? -a : a;
                     memcpy(o + x, &a, sizeof a);
                 }
             }
         }
-        if (nz != S->nonzero) {
+        if (over) {
+            bad_sec = s;
+            why = "dequantised values exceed float32's range (3.4e38)";
+        } else if (nz != S->nonzero) {
             bad_sec = s;
             why = "decoded coefficient count does not match the section table";
         }

@@ -187,8 +187,8 @@ wvol_status wvol_wvc_encode(void **out, size_t *out_size, const wvol_coeffs *c,
     }
     {
         /* |q| stays below WVC_QMAX/2 so that the quantiser never clips */
-        double min_step = maxabs > 0 ? maxabs / (double)(WVC_QMAX / 2) : 1e-30;
-        if (min_step < 1e-30) min_step = 1e-30;
+        double min_step = maxabs > 0 ? maxabs / (double)(WVC_QMAX / 2) : WVC_MIN_STEP;
+        if (min_step < WVC_MIN_STEP) min_step = WVC_MIN_STEP;
         if (p->step > 0) {
             step = p->step;
             if (step > WVC_MAX_STEP) {
@@ -213,6 +213,15 @@ wvol_status wvol_wvc_encode(void **out, size_t *out_size, const wvol_coeffs *c,
             if (step > WVC_MAX_STEP) step = WVC_MAX_STEP, searched = 0;
             else searched = 1;
         }
+    }
+    /* the largest value the decoder can make, (|q| + offset) step with |offset| <= 1, must be a
+     * float32 (only coefficients within a few steps of FLT_MAX can fail this) */
+    if ((floor(maxabs / step + 0.5) + 1.0) * step > WVC_MAX_STEP) {
+        status = wvol_error_set(err, WVOL_ERR_NONFINITE,
+                                "wvc encode: coefficients reach %g: with step %g a dequantised value could exceed "
+                                "float32's 3.4e38; scale the volume down (or give a smaller step)",
+                                maxabs, step);
+        goto done;
     }
     t1 = now();
     rep.seconds_step = t1 - t0;
@@ -298,6 +307,17 @@ wvol_status wvol_wvc_encode(void **out, size_t *out_size, const wvol_coeffs *c,
         for (s = 0; s < L->nsec; s++) {
             if (bytes[s]) memcpy(file + off, pay[s], (size_t)bytes[s]);
             off += (size_t)bytes[s];
+        }
+    }
+    {
+        /* what the reader would refuse is never handed out (its header checks, no decoding) */
+        wvol_wvc_info chk;
+        wvol_error perr;
+        if (wvol_wvc_parse_info(&chk, file, total, &perr) != WVOL_OK) {
+            status = wvol_error_set(err, WVOL_ERR_INTERNAL, "wvc encode: the file it wrote is refused by the reader: %s",
+                                    perr.message);
+            free(file);
+            goto done;
         }
     }
     rep.seconds_code = now() - t2;

@@ -8,9 +8,14 @@
 #define WVC_HEADER_SIZE 208
 #define WVC_SECTION_SIZE 48
 #define WVC_DEFAULT_ROUNDING 0.38
-/* Largest step a file may carry: (2^30 + 1) * step stays far inside float range. */
-#define WVC_MAX_STEP 1e25
-#define WVC_MIN_STEP 1e-30
+/* The step's range, scale-free (docs/conventions.md, "Supported magnitudes"): any step
+ * a float32 coefficient can need. Largest: FLT_MAX (a larger one zeroes every float32 value);
+ * the decoder refuses a dequantised value beyond FLT_MAX, and the encoder never writes one.
+ * Smallest: far below 2^-29 of the smallest subnormal float (1.4e-45), so that no float32
+ * coefficient is out of reach. Readers before this change took 1e-30 .. 1e25: they refuse
+ * files of volumes beyond about 1e-27 .. 1e27. */
+#define WVC_MAX_STEP 3.4028234663852886e38
+#define WVC_MIN_STEP 1e-60
 #define WVC_DEFAULT_MAX_VOXELS ((uint64_t)1 << 34)
 
 #endif

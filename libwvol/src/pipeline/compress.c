@@ -122,6 +122,12 @@ wvol_status wvol_compress_coeffs(wvol_compressed *out, wvol_coeffs **c, const wv
     return s;
 }
 
+/* The smallest RMSE a .wvc error target may ask for: 64 spacings of float32's subnormal
+ * grid (2^-149). Near it the decoded volume's own float32 rounding (the dequantised values and
+ * the inverse transform's sums, each rounded to that grid) is no longer small against the
+ * target: at 21 spacings (50 dB over a range of 1e-38) the measured PSNR missed by 0.02 dB. */
+#define FLOAT_RMSE (64.0 * 1.401298464324817e-45)
+
 wvol_status wvol_compress_wvc_params(wvol_wvc_params *wp, const wvol_compress_quant *q, double dropped,
                                      double voxels, double vmin, double vmax, wvol_error *err)
 {
@@ -146,6 +152,10 @@ wvol_status wvol_compress_wvc_params(wvol_wvc_params *wp, const wvol_compress_qu
                        "compress: the dropped levels alone lose more than PSNR %g allows (%.2f dB)", q->psnr,
                        wvol_wvc_psnr(dropped, voxels, vmin, vmax));
         wp->target_sse = budget - dropped;
+        WVOL_RETURN_IF(!(wp->target_sse >= voxels * FLOAT_RMSE * FLOAT_RMSE), err, WVOL_ERR_ARG,
+                       "compress: PSNR %g over the range %g asks for an RMSE of %.3g, below what float32 can hold "
+                       "(%.3g: 64 subnormal spacings of 1.4e-45); give a lower PSNR or scale the volume up",
+                       q->psnr, vmax - vmin, sqrt(wp->target_sse / voxels), FLOAT_RMSE);
     } else {
         /* a share of the dropped energy; never below what 120 dB would allow */
         double floor_sse = wvol_wvc_sse_for_psnr(120, voxels, vmin, vmax);
@@ -153,7 +163,14 @@ wvol_status wvol_compress_wvc_params(wvol_wvc_params *wp, const wvol_compress_qu
                        "compress: quantiser share %g (must be in (0, 1])", q->share);
         wp->target_sse = q->share * dropped;
         if (!(wp->target_sse > floor_sse)) wp->target_sse = floor_sse;
-        if (!(wp->target_sse > 1e-12)) wp->target_sse = 1e-12;
+        /* a (near-)constant volume: 1e-12 of the peak's square (an absolute floor would zero
+         * every coefficient of a volume of values ~1e-10, and keep noise at 1e10), and never
+         * below what float32 can hold (FLOAT_RMSE) */
+        {
+            double peak = fmax(fabs(vmin), fabs(vmax)), tiny = peak > 0 ? 1e-12 * peak * peak : 1e-12;
+            if (!(wp->target_sse > tiny)) wp->target_sse = tiny;
+            if (!(wp->target_sse > voxels * FLOAT_RMSE * FLOAT_RMSE)) wp->target_sse = voxels * FLOAT_RMSE * FLOAT_RMSE;
+        }
     }
     return WVOL_OK;
 }

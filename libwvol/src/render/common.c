@@ -83,6 +83,19 @@ void wvol__stats_fill(wvol_render_stats *stats, const wvol_image *img, double t_
     stats->bytes = c->bytes;
 }
 
+wvol_status wvol__image_check_range(const wvol_image *img, wvol_error *err)
+{
+    size_t i, n = (size_t)img->width * (size_t)img->height * 4;
+    for (i = 0; i < n && isfinite(img->rgba[i]); i++) {}
+    if (i == n) return WVOL_OK;
+    return wvol_error_set(err, WVOL_ERR_NONFINITE,
+                          "render: pixel (%zu, %zu) is %s: the result leaves float32's range (|x| <= 3.4e38): "
+                          "an X-ray integral beyond it, or values near +-3.4e38 whose differences overflow; "
+                          "scale the volume down",
+                          (i / 4) % (size_t)img->width, (i / 4) / (size_t)img->width,
+                          isnan(img->rgba[i]) ? "NaN" : "Inf");
+}
+
 wvol_status wvol__check_skip(const wvol_render_params *p, int supported, wvol_error *err)
 {
     WVOL_RETURN_IF(p->skip_tolerance > 0 && !supported, err, WVOL_ERR_UNSUPPORTED,
@@ -145,7 +158,7 @@ int *wvol__tile_order(int width, int height, int tile)
 double wvol__shade(const double grad[3], const double dir[3], double ambient)
 {
     double n = sqrt(grad[0] * grad[0] + grad[1] * grad[1] + grad[2] * grad[2]), d;
-    if (!(n > 1e-30)) return 1.0; /* no gradient: unshaded */
+    if (!(n > 0)) return 1.0; /* no gradient: unshaded (any magnitude: the direction is what counts) */
     d = fabs(grad[0] * dir[0] + grad[1] * dir[1] + grad[2] * dir[2]) / n;
     return ambient + (1.0 - ambient) * d;
 }

@@ -189,5 +189,5 @@ wvol_status wvol__render_sampled(wvol_image *img, wvol__source *s, const wvol_ca
     if (status != WVOL_OK) return status;
     WVOL_RETURN_IF(failed != WVOL_OK, err, failed, "render: out of memory (a brick could not be reconstructed, or a tile's rays)");
     wvol__stats_fill(stats, img, t_start, c_start, &counts);
-    return WVOL_OK;
+    return wvol__image_check_range(img, err);
 }

@@ -47,6 +47,12 @@ typedef struct wvol__counts {
 void wvol__stats_fill(wvol_render_stats *stats, const wvol_image *img, double t_start, double c_start,
                       const wvol__counts *c);
 
+/* Refuses an image with a NaN or Inf pixel, naming the first: a result that leaves float32's
+ * range (an X-ray integral beyond 3.4e38, or differences of values near +-FLT_MAX in the
+ * float32 interpolation). One pass over the pixels after the render: nothing in the sample
+ * loops. Every integrator ends with it (docs/conventions.md, "Supported magnitudes"). */
+wvol_status wvol__image_check_range(const wvol_image *img, wvol_error *err);
+
 /* Refuses a skip tolerance > 0 where it is not `supported` (no brick grid to skip by). */
 wvol_status wvol__check_skip(const wvol_render_params *p, int supported, wvol_error *err);
 

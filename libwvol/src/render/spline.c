@@ -291,5 +291,5 @@ wvol_status wvol_render_spline_until(wvol_image *img, const wvol_store *s, const
                           .skipped = skipped, .terminated = terminated, .clamped = clamped};
         wvol__stats_fill(stats, img, t_start, c_start, &c);
     }
-    return WVOL_OK;
+    return wvol__image_check_range(img, err);
 }

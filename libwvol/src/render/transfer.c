@@ -52,6 +52,7 @@ wvol_status wvol_tf_preset(wvol_tf *tf, const char *name, double vmin, double vm
         WVOL_RETURN_IF(!isfinite(vmin) || !isfinite(vmax), err, WVOL_ERR_ARG,
                        "transfer function '%s': the data range is not finite", name);
         if (!(vmax > vmin)) vmax = vmin + 1.0; /* constant or empty volume: any ramp will do */
+        if (!(vmax > vmin)) vmax = vmin + fabs(vmin); /* |vmin| >= 2^53: 1 is below its rounding */
         tf->count = 2;
         if (name[0] == 'g' && name[1] == 'a') {
             set_pt(&tf->points[0], vmin, 0.10, 0.25, 0.90, 0.0);

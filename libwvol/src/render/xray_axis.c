@@ -147,6 +147,7 @@ wvol_status wvol_render_xray_axis(wvol_image *img, const wvol_store *s, const wv
         wvol__counts c = {.rays_hit = rays_hit, .functions = info.kept};
         wvol__stats_fill(stats, img, t_start, c_start, &c);
     }
+    st = wvol__image_check_range(img, err);
     goto done;
 nomem:
     st = wvol_error_set(err, WVOL_ERR_NOMEM, "render: out of memory for the projected %zux%zu pyramid", Pu, Pv);

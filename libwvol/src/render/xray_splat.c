@@ -509,6 +509,7 @@ wvol_status wvol_render_xray_splat(wvol_image *img, const wvol_store *s, const w
                                    cap * sizeof *cf};
         wvol__stats_fill(stats, img, t_start, c_start, &c);
     }
+    st = wvol__image_check_range(img, err);
     goto done;
 nomem:
     st = wvol_error_set(err, WVOL_ERR_NOMEM, "render: out of memory for the splat (%zu pixels, %zu coefficients)", npx,
