@@ -29,7 +29,6 @@ import argparse
 import json
 import os
 import pathlib
-import platform
 import subprocess
 import sys
 import tempfile
@@ -37,6 +36,8 @@ import tempfile
 import numpy as np
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "bench"))
+from benchutil import cpu_model  # noqa: E402
 
 PEER = r'''
 import sys, time, json
@@ -77,14 +78,6 @@ print(json.dumps({"seconds": best, "triangles": int(len(tri)), "area": area(np.a
 '''
 
 
-def cpu_model():
-    try:
-        for line in open("/proc/cpuinfo"):
-            if line.startswith("model name"):
-                return line.split(":", 1)[1].strip()
-    except OSError:
-        pass
-    return platform.processor() or "unknown"
 
 
 def cpus(threads):
