@@ -42,6 +42,11 @@ int cli_next(cli_parser *p, const cli_opt **opt, const char **value);
     {"type", 0, 1, "raw input: sample type (float32, uint8, int16, ...)"}, \
     {"grid", 0, 1, ".vdb input: grid name (default: first float grid)"}
 
+/* Where a raw input sits in the world (also read by cli_load_option). */
+#define CLI_PLACE_OPTS                                                                   \
+    {"spacing", 0, 1, "raw input: voxel spacing X,Y,Z or one number (default 1)"},        \
+    {"origin", 0, 1, "raw input: world position of voxel (0,0,0), X,Y,Z (default 0)"}
+
 /* Applies o to lo when o is one of the loading options (--dims, --type, --big-endian,
  * --spacing, --origin, --grid): returns CLI_OK, or CLI_USAGE after printing an error
  * for a bad value; returns -1 when o is none of them. Only for commands whose options

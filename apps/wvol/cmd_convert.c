@@ -9,12 +9,9 @@
 const char wvol_cmd_convert_summary[] = "convert a volume between formats (raw, nrrd, vdb, vti, mha, nii, ...)";
 
 static const cli_opt opts[] = {
-    {"dims", 0, 1, "raw input: NXxNYxNZ"},
-    {"type", 0, 1, "raw input: sample type (float32, uint8, int16, ...; default float32)"},
+    CLI_LOAD_OPTS,
     {"big-endian", 0, 0, "raw input: samples are big-endian"},
-    {"spacing", 0, 1, "raw input: voxel spacing X,Y,Z or one number (default 1)"},
-    {"origin", 0, 1, "raw input: world position of voxel (0,0,0), X,Y,Z (default 0)"},
-    {"grid", 0, 1, ".vdb input: grid name (default: first float grid)"},
+    CLI_PLACE_OPTS,
     CLI_HELP_OPT,
     {NULL, 0, 0, NULL}};
 

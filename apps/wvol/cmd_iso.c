@@ -35,11 +35,8 @@ static const cli_opt opts[] = {
     {"levels", 0, 1, "wavelet levels (default 3)"},
     {"keep", 0, 1, "kept fraction of the coefficients, e.g. 5% (default 100%)"},
     {"brick", 0, 1, "cells per brick edge for --wavelet (default 32; 0: full inverse, then dense MC)"},
-    {"dims", 0, 1, "raw input: NXxNYxNZ"},
-    {"type", 0, 1, "raw input: sample type (float32, uint8, int16, ...)"},
-    {"spacing", 0, 1, "raw input: voxel size X,Y,Z (default 1)"},
-    {"origin", 0, 1, "raw input: world position of voxel (0,0,0) (default 0)"},
-    {"grid", 0, 1, ".vdb input: grid name"},
+    CLI_LOAD_OPTS,
+    CLI_PLACE_OPTS,
     CLI_JSON_OPT,
     CLI_HELP_OPT,
     {NULL, 0, 0, NULL}};
@@ -396,18 +393,6 @@ int wvol_cmd_iso(int argc, char **argv)
             else return cli_usage("iso", "--normals '%s': expected gradient or none", val);
         } else if (!strcmp(o->name, "json")) {
             a.json = 1;
-        } else if (!strcmp(o->name, "dims")) {
-            if (!cli_parse_dims("iso", "dims", val, a.lo.dims)) return CLI_USAGE;
-        } else if (!strcmp(o->name, "type")) {
-            int t = wvol_sample_type_parse(val);
-            if (t < 0) return cli_usage("iso", "--type '%s': unknown sample type", val);
-            a.lo.raw_type = (wvol_sample_type)t;
-        } else if (!strcmp(o->name, "spacing")) {
-            if (!cli_parse_double3("iso", "spacing", val, a.lo.spacing)) return CLI_USAGE;
-            if (!(a.lo.spacing[0] > 0 && a.lo.spacing[1] > 0 && a.lo.spacing[2] > 0))
-                return cli_usage("iso", "--spacing '%s': must be positive", val);
-        } else if (!strcmp(o->name, "origin")) {
-            if (!cli_parse_double3("iso", "origin", val, a.lo.origin)) return CLI_USAGE;
         } else if (!strcmp(o->name, "camera")) {
             a.camera = val;
         } else if (!strcmp(o->name, "size")) {
@@ -423,8 +408,8 @@ int wvol_cmd_iso(int argc, char **argv)
         } else if (!strcmp(o->name, "spline-j")) {
             if (!cli_parse_long("iso", "spline-j", val, 1, 12, &lv)) return CLI_USAGE;
             a.spline_j = (int)lv;
-        } else if (!strcmp(o->name, "grid")) {
-            a.lo.grid_name = val;
+        } else if ((r = cli_load_option("iso", o, val, &a.lo)) != -1) {
+            if (r != CLI_OK) return r;
         }
     }
     if (!a.in) return cli_usage("iso", "missing input volume (see 'wvol iso --help')");

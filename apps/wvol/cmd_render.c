@@ -38,8 +38,7 @@ static const cli_opt opts[] = {
     {"threads", 0, 1, "threads (default: all)"},
     {"repeat", 0, 1, "render N times (1..100), report the fastest call's times (benchmarks; default 1)"},
     {"exposure", 0, 1, "PNG: scale before sRGB encoding (default 1; X-ray: 1/max)"},
-    {"dims", 0, 1, "raw input: NXxNYxNZ"},
-    {"type", 0, 1, "raw input: sample type"},
+    CLI_LOAD_OPTS,
     CLI_JSON_OPT,
     CLI_HELP_OPT,
     {NULL, 0, 0, NULL}};

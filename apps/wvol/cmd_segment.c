@@ -25,8 +25,7 @@ static const cli_opt opts[] = {
     {"truth", 0, 1, "ground-truth label volume: report misclassification (majority mapping)"},
     {"train-box", 0, 1, "supervised: label neurons from truth inside x0,y0,z0,x1,y1,z1 (voxels, half-open)"},
     {"boundary", 0, 1, "radius (voxels) defining 'away from boundaries' in the score (default 2^levels)"},
-    {"dims", 0, 1, "raw input: NXxNYxNZ"},
-    {"type", 0, 1, "raw input: sample type"},
+    CLI_LOAD_OPTS,
     CLI_JSON_OPT,
     CLI_HELP_OPT,
     {NULL, 0, 0, NULL}};
