@@ -3,20 +3,13 @@
  * quantiser's error-target rule for .wvc files. */
 #include "wvol/compress.h"
 
+#include "core/clock.h"
 #include "core/status_internal.h"
 
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
-#include <time.h>
 
-
-static double now_seconds(void)
-{
-    struct timespec ts;
-    timespec_get(&ts, TIME_UTC);
-    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
-}
 
 void wvol_compress_params_default(wvol_compress_params *p)
 {
@@ -58,16 +51,16 @@ int wvol_compress_levels(const wvol_volume *v, const wvol_compress_params *p)
 static wvol_status select_and_store(wvol_compressed *out, const wvol_volume *v, const wvol_compress_params *p,
                                     wvol_error *err)
 {
-    double t0 = now_seconds();
+    double t0 = wvol__now();
     wvol_status s = wvol_select(&out->selection, out->coeffs, &p->select, v, &out->report, err);
     if (s == WVOL_OK) s = wvol_selection_apply(out->selection, out->coeffs, err);
-    out->seconds_select = now_seconds() - t0;
-    t0 = now_seconds();
+    out->seconds_select = wvol__now() - t0;
+    t0 = wvol__now();
     if (s == WVOL_OK && p->build_store) {
         const wvol_selection *sel = out->report.kept < out->report.total ? out->selection : NULL;
         s = wvol_store_build(&out->store, out->coeffs, sel, &p->store, err);
     }
-    out->seconds_store = now_seconds() - t0;
+    out->seconds_store = wvol__now() - t0;
     return s;
 }
 
@@ -96,9 +89,9 @@ wvol_status wvol_compress(wvol_compressed *out, const wvol_volume *v, const wvol
     wvol_volume_range(v, &out->value_min, &out->value_max, NULL);
     out->levels = p.levels;
 
-    t0 = now_seconds();
+    t0 = wvol__now();
     s = wvol_dwt3(&out->coeffs, v, f, p.levels, err);
-    out->seconds_transform = now_seconds() - t0;
+    out->seconds_transform = wvol__now() - t0;
     if (s == WVOL_OK) s = select_and_store(out, v, &p, err);
     if (s != WVOL_OK) wvol_compressed_free(out);
     return s;
