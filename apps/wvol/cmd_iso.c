@@ -166,6 +166,10 @@ static int run_mc(const iso_args *a)
     if (a->wavelet) {
         rc = prepare_kept(a, v, 0, &kept, &err);
         if (rc != CLI_OK) goto done;
+        if (a->brick != 0) { /* the brick path reads the store; only --brick 0 needs the dense coefficients */
+            wvol_coeffs_destroy(kept.coeffs);
+            kept.coeffs = NULL;
+        }
     }
     for (r = 0; r < a->repeat; r++) {
         double t1 = cli_now(), dt;

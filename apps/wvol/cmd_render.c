@@ -290,6 +290,8 @@ static void report(const render_args *a, const render_input *in, const wvol_rend
 {
     const char *method = wvol_render_method_name(st->method), *mode = wvol_render_mode_name(a->rp.mode);
     const wvol_store *store = in->store.store;
+    wvol_store_info si;
+    if (store) wvol_store_get_info(store, &si);
     if (!a->json) {
         printf("wrote %s (%ldx%ld, %s, %s) in %.3f s render + %.3f s preparation\n", a->out, a->width, a->height,
                method, mode, st->seconds, t_prep);
@@ -306,8 +308,6 @@ static void report(const render_args *a, const render_input *in, const wvol_rend
     cli_json_int("width", a->width);
     cli_json_int("height", a->height);
     if (store) {
-        wvol_store_info si;
-        wvol_store_get_info(store, &si);
         cli_json_str("wavelet", si.filter->name);
         cli_json_num("keep", a->keep);
         cli_json_int("kept", (long long)in->store.report.kept);
@@ -341,11 +341,7 @@ static void report(const render_args *a, const render_input *in, const wvol_rend
         cli_json_int("bricks_bound_skipped", (long long)st->bricks_bound_skipped);
         cli_json_int("render_bytes", (long long)st->bytes);
     }
-    if (store) {
-        wvol_store_info si;
-        wvol_store_get_info(store, &si);
-        cli_json_int("store_bytes", (long long)si.bytes);
-    }
+    if (store) cli_json_int("store_bytes", (long long)si.bytes);
     cli_json_num("rss_before_render_mib", rss[0]);
     cli_json_num("rss_peak_render_mib", rss[1]);
     cli_json_end();

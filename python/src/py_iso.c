@@ -94,8 +94,7 @@ static PyObject *py_isosurface(PyObject *self, PyObject *args, PyObject *kw)
     double iso;
     int threads = 0, brick = 0;
     PyArrayObject *holder = NULL;
-    const wvol_coeffs *c = NULL;
-    const wvol_store *store = NULL;
+    const wvol_store *store = NULL; /* a Store's (every handle holds one), else NULL */
     wvol_volume v;
     wvol_iso_params p;
     wvol_iso_stats st;
@@ -114,7 +113,6 @@ static PyObject *py_isosurface(PyObject *self, PyObject *args, PyObject *kw)
     if (iso_setup(iso, threads, brick, normals, &p) < 0) return NULL;
     if (WVOLPY_IS_STORE(src)) {
         store = ((wvolpy_store *)src)->c.store;
-        c = ((wvolpy_store *)src)->c.coeffs;
     } else {
         if (brick_obj != Py_None)
             return PyErr_Format(PyExc_ValueError, "brick applies to a Store (coefficient path), not to a dense volume");
@@ -124,8 +122,6 @@ static PyObject *py_isosurface(PyObject *self, PyObject *args, PyObject *kw)
     Py_BEGIN_ALLOW_THREADS
     if (store) { /* the bricks whose bound straddles iso, from the kept coefficients */
         s = wvol_iso_extract_store(&m, store, iso, &p, &st, &err);
-    } else if (c) {
-        s = wvol_iso_extract_coeffs(&m, c, iso, &p, &st, &err);
     } else {
         s = wvol_volume_set_geometry(&v, v.spacing, v.origin, &err);
         if (s == WVOL_OK) s = wvol_iso_extract(&m, &v, iso, &p, &st, &err);
