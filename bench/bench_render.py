@@ -14,7 +14,8 @@ child's maximum resident set (/usr/bin/time -v, the whole process: loading and t
 volume included) and, for wvol, the peak resident size during the render call alone
 (rss_peak_render_mib, the peak counter reset just before it) and the library's own count of what
 the render allocated (render_bytes) beside the store's size (store_bytes).
-Writes bench/results/render.json, render.md and render.png.
+Writes bench/results/render.json, render.md and render.png; `--suite ct` runs the realistic suite instead
+(bench/render_ct.py: noisy anisotropic CT heads, CT ramps, VTK framed alike; render_ct.*).
 
 Defaults are small enough for a smoke test; the issue's run is
   bench/bench_render.py --size 256 --image 512 --keep 1,5,20,100
@@ -300,12 +301,31 @@ def main():
     ap.add_argument("--no-vdb", action="store_true", help="leave vdb_render out (it can take many minutes)")
     ap.add_argument("--out", default=str(ROOT / "bench" / "results"))
     ap.add_argument("--resume", help="a previous run's stdout: its rows are kept and their runs skipped")
+    ap.add_argument("--suite", default="phantoms", choices=["phantoms", "ct"],
+                    help="phantoms: the tables above (render.*); ct: the realistic suite, noisy anisotropic CT "
+                         "heads with CT ramps against VTK (bench/render_ct.py, render_ct.*)")
+    ap.add_argument("--ct-volumes", default="ct,skull-noisy", help="ct suite: volumes (ct, skull-noisy)")
+    ap.add_argument("--ct-tfs", default="ct-bone,ct-soft", help="ct suite: transfer-function presets")
+    ap.add_argument("--ct-cameras", default="+z;+y;persp dir=1,0.7,0.4", help="ct suite: ';'-separated cameras")
+    ap.add_argument("--ct-steps", default="0.5,1,2", help="ct suite: steps (voxels of the smallest spacing); VTK "
+                    "runs at the first")
+    ap.add_argument("--ct-ref-step", type=float, default=0.05, help="ct suite: converged reference step")
+    ap.add_argument("--ct-extra", default="", help="ct suite: ';'-separated extra option sets of more bricks rows")
+    ap.add_argument("--ct-scale", type=float, default=1, help="ct suite: divide the sizes by this (smoke tests)")
+    ap.add_argument("--no-vtk", action="store_true", help="ct suite: leave VTK out")
     a = ap.parse_args()
     outdir = pathlib.Path(a.out); outdir.mkdir(parents=True, exist_ok=True)
     tmp = pathlib.Path(tempfile.mkdtemp(prefix="bench_render_"))
     n, img, thr = a.size, a.image, str(a.threads)
     keeps = [float(k) for k in a.keep.split(",")]
     rsteps = [float(x) for x in a.ref_steps.split(",")]
+    if a.suite == "ct":
+        from render_ct import ct_suite
+        try:
+            ct_suite(a, WVOL, timed, rgba, tmp, outdir, {"cpus": os.cpu_count(), "uname": " ".join(os.uname())})
+        finally:
+            shutil.rmtree(tmp, ignore_errors=True)
+        return 0
     rows = []
     if a.resume:
         for line in pathlib.Path(a.resume).read_text().splitlines():

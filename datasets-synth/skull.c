@@ -58,6 +58,7 @@ typedef struct skull_ctx {
     double mm_per_u; /* head-frame millimetres per normalised unit */
     double h;        /* anti-aliasing width: largest voxel edge in mm */
     uint64_t seed;   /* bone texture */
+    int table;       /* variant "ct": the scanner's patient table under the head (table_sd) */
     seg mandible[MANDIBLE_SEGS];
 } skull_ctx;
 
@@ -228,8 +229,20 @@ static inline double skull_base_z(double x, double y)
     return zb - 4.0 * synth_smoothstep(10.0, 40.0, fabs(x)) * (1.0 - synth_smoothstep(5.0, 30.0, y));
 }
 
-/* Paints one point; returns the head's signed distance (mm) so the caller can
- * skip ahead through air. */
+/* Variant "ct": the patient table, a thin curved shell outside the head (a carbon-fibre
+ * cradle: 2.4 mm thick, 250 HU), an arc of a cylinder along z behind the head (+y,
+ * posterior: the patient lies supine), concave towards it, 8 mm clear of the occiput at
+ * its deepest point. Signed distance in mm. */
+#define TABLE_HU 250.0
+static inline double table_sd(double x, double y)
+{
+    const double R = 300.0, yc = 110.0 - R, half = 1.2;
+    double r = sqrt(x * x + (y - yc) * (y - yc));
+    return dmax(fabs(r - R) - half, fabs(x) - 115.0);
+}
+
+/* Paints one point; returns the distance (mm) to the nearest thing that is not air (the
+ * head, and the table for variant "ct") so the caller can skip ahead through air. */
 static double skull_point(const skull_ctx *c, const double p[3], float *out_v, float *out_l)
 {
     const double x = p[0], y = p[1], z = p[2], ax = fabs(x), sx = x < 0 ? -1.0 : 1.0, h = c->h;
@@ -253,6 +266,15 @@ static double skull_point(const skull_ctx *c, const double p[3], float *out_v, f
         d_head = smin(d_head, sd_ellipsoid(x, y + 92.0, z + 28.0, 13.0, 16.0, 24.0), 6.0);
     if (ax > 60 && z < 30 && z > -45)
         d_head = smin(d_head, sd_ellipsoid(ax - 76.0, y - 8.0, z + 8.0, 7.0, 17.0, 27.0), 4.0);
+    if (c->table) { /* outside the head only: paint it, and let the skip ahead stop at it */
+        double dt = table_sd(x, y);
+        if (d_head > h) {
+            layer(&s, dt, TABLE_HU, WVOL_SKULL_AIR); /* not anatomy */
+            *out_v = (float)s.v;
+            if (out_l) *out_l = (float)s.label;
+            return dmin(d_head, dt);
+        }
+    }
     if (d_head > h) {
         *out_v = (float)AIR_HU;
         if (out_l) *out_l = WVOL_SKULL_AIR;
@@ -428,6 +450,8 @@ wvol_status wvol_synth_skull(wvol_volume **out, wvol_volume **labels, const wvol
     skull_ctx c;
     double def[3], nmax;
     WVOL_RETURN_IF(!p, err, WVOL_ERR_ARG, "synth skull: NULL parameters");
+    WVOL_RETURN_IF(p->variant && *p->variant && strcmp(p->variant, "head") && strcmp(p->variant, "ct"), err,
+                   WVOL_ERR_ARG, "synth skull: unknown variant '%s' (known: head, ct)", p->variant);
     nmax = (double)(p->dims[0] > p->dims[1] ? p->dims[0] : p->dims[1]);
     if ((double)p->dims[2] > nmax) nmax = (double)p->dims[2];
     def[0] = def[1] = def[2] = nmax > 0 ? 240.0 / nmax : 1.0;
@@ -436,6 +460,7 @@ wvol_status wvol_synth_skull(wvol_volume **out, wvol_volume **labels, const wvol
     c.mm_per_u = 120.0;
     c.h = g.voxel_u * 120.0;
     c.seed = wvol_hash64(p->seed ^ 0x5C011ull);
+    c.table = p->variant && !strcmp(p->variant, "ct");
     wvol__synth_run_rows(&g, *out, labels ? *labels : NULL, skull_row, &c, p);
     return WVOL_OK;
 }

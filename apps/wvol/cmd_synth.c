@@ -23,7 +23,7 @@ static const cli_opt opts[] = {
     {"noise", 0, 1, "sigma of added Gaussian noise, in the volume's units (default 0)"},
     {"sigma", 0, 1, "gaussian: width in normalised units (default 0.25)"},
     {"count", 0, 1, "blobs: number of Gaussians (default 5); textures: regions (default 4)"},
-    {"variant", 0, 1, "textures: gratings|frequencies|dots|mixed; shepp-logan: kak-slaney|yu-ye-wang"},
+    {"variant", 0, 1, "textures: gratings|frequencies|dots|mixed; shepp-logan: kak-slaney|yu-ye-wang; skull: head|ct (with a patient table)"},
     {"labels", 0, 1, "also write the label map (skull, textures) to this file"},
     {"gzip", 0, 0, "NRRD output: gzip encoding instead of raw"},
     {"list", 0, 0, "list the generators and exit"},
