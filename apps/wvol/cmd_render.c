@@ -34,6 +34,7 @@ static const cli_opt opts[] = {
     {"skip-tolerance", 0, 1, "reference, bricks: optical depth (X-ray: integral) each ray may skip in nearly empty bricks; bounds each pixel's change (default 0: skip only what adds nothing)"},
     {"gauss", 0, 1, "spline method: Gauss-Legendre nodes per piece for the exponential (default 5)"},
     {"shading", 0, 0, "diffuse headlight shading from the gradient"},
+    {"preintegrate", 0, 0, "absorption, sampling methods: pre-integrated TF (value linear between samples, exact per segment)"},
     {"colors", 0, 1, "colour volume replacing the TF colour: interleaved RGB float32 .raw, e.g. from 'wvol segment --colors'"},
     {"threads", 0, 1, "threads (default: all)"},
     {"repeat", 0, 1, "render N times (1..100), report the fastest call's times (benchmarks; default 1)"},
@@ -134,6 +135,7 @@ static int parse_args(render_args *a, int argc, char **argv)
         else if (!strcmp(o->name, "tf")) a->tfname = val;
         else if (!strcmp(o->name, "wavelet")) a->cp.wavelet = val;
         else if (!strcmp(o->name, "shading")) a->rp.shading = 1;
+        else if (!strcmp(o->name, "preintegrate")) a->rp.preintegrate = 1;
         else if (!strcmp(o->name, "colors")) a->colors_path = val;
         else if (!strcmp(o->name, "size")) {
             if (!cli_parse_size(cmd, "size", val, &a->width, &a->height)) return CLI_USAGE;

@@ -382,7 +382,7 @@ def features(vol, wavelet="db2", levels=3, *, smooth=1, include_lowpass=True, pc
 
 def render(source, camera="+z", size=(256, 256), *, mode="absorption", tf="gaussian", tf_units="world",
            method="auto", step=None, shading=False, ambient=None, gauss_nodes=None, spline_j=None, brick=None,
-           termination=None, threads=0, colors=None, skip_tolerance=None, return_stats=False):
+           termination=None, threads=0, colors=None, skip_tolerance=None, preintegrate=False, return_stats=False):
     """Renders a volume (array or :class:`Volume`) or a :class:`Store`; returns the image as
     an (height, width, 4) float32 array of linear, premultiplied RGBA, row 0 at the top
     (X-ray: R = G = B = the integral of f along the ray in value x world length, A = 1 where
@@ -422,6 +422,9 @@ def render(source, camera="+z", size=(256, 256), *, mode="absorption", tf="gauss
     Options left None take the library's defaults (docs/render.md: step 0.5, brick 8 for the
     reference's empty-space skipping and 32 for "bricks", gauss_nodes 5, spline_j the store's
     (4), termination 1e-6, ambient 0.3, skip_tolerance 0).
+    ``preintegrate``: pre-integrated transfer function (absorption mode, sampling methods): the
+    value linear between samples, each segment's integral exact for the piecewise-linear TF, so
+    a steep TF is not under-sampled at a large step (docs/render.md, "Pre-integration").
     ``return_stats=True`` returns ``(image, stats)``: "method" (the one that ran), rays,
     samples, seconds...
     """
@@ -429,7 +432,7 @@ def render(source, camera="+z", size=(256, 256), *, mode="absorption", tf="gauss
     opts = dict(camera=camera, width=w, height=h, mode=mode, method=method, tf=tf, tf_units=tf_units, step=step,
                 shading=int(bool(shading)), ambient=ambient, gauss_nodes=gauss_nodes, spline_j=spline_j,
                 brick=brick, termination=termination, threads=threads, colors=colors,
-                skip_tolerance=skip_tolerance)
+                skip_tolerance=skip_tolerance, preintegrate=int(bool(preintegrate)))
     if isinstance(tf, os.PathLike):
         opts["tf"] = os.fspath(tf)
     if isinstance(source, Store):

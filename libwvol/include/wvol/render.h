@@ -210,6 +210,13 @@ typedef struct wvol_render_params {
                                haze where the original was empty. Needs the brick grid
                                (reference.brick > 0 for a dense volume); the spline methods
                                refuse it. */
+    int preintegrate;       /* 1: pre-integrated transfer function (Engel, Kraus, Ertl 2001): the
+                               scalar linear between consecutive samples, each segment's
+                               emission-absorption integral exact for the piecewise-linear TF
+                               (split at the knots it crosses), so a steep TF is not
+                               under-sampled at a large step. Mode absorption, the sampling
+                               methods (reference, reference-fhat, bricks), no colour volume;
+                               default 0 (docs/render.md, "Pre-integration") */
     wvol_render_reference_params reference;
     wvol_render_bricks_params bricks;
     wvol_render_spline_params spline;

@@ -58,6 +58,13 @@ wvol_status wvol__render_check(const wvol_image *img, const wvol_camera *cam, co
     WVOL_RETURN_IF(p->threads < 0, err, WVOL_ERR_ARG, "render: threads %d (>= 0)", p->threads);
     WVOL_RETURN_IF(!(p->skip_tolerance >= 0) || !isfinite(p->skip_tolerance), err, WVOL_ERR_ARG,
                    "render: skip tolerance %g (must be finite and >= 0)", p->skip_tolerance);
+    WVOL_RETURN_IF(p->preintegrate != 0 && p->preintegrate != 1, err, WVOL_ERR_ARG,
+                   "render: preintegrate %d (0 or 1)", p->preintegrate);
+    WVOL_RETURN_IF(p->preintegrate && p->mode != WVOL_RENDER_MODE_ABSORPTION, err, WVOL_ERR_ARG,
+                   "render: pre-integration needs mode absorption (X-ray is linear in the value already; "
+                   "absorption-linear is the paper's per-step linearisation)");
+    WVOL_RETURN_IF(p->preintegrate && p->colors, err, WVOL_ERR_UNSUPPORTED,
+                   "render: pre-integration takes its colour from the transfer function, not a colour volume");
     WVOL_RETURN_IF(p->spline.gauss_nodes < 1 || p->spline.gauss_nodes > 10, err, WVOL_ERR_ARG,
                    "render: gauss_nodes %d (1..10)", p->spline.gauss_nodes);
     return WVOL_OK;

@@ -67,6 +67,16 @@ static inline __attribute__((always_inline)) int step(const wvol__source *s, con
         r->xr += val * h;
         return 0;
     }
+    if (mode == WVOL_RENDER_MODE_ABSORPTION && p->preintegrate) { /* checked: absorption, no colour volume */
+        double shade = 1.0;
+        if (shading) {
+            sample_at(s, view, x, grad);
+            shade = wvol__shade(grad, d, p->ambient);
+        }
+        acc_settle(tfx, r);
+        preint_sample(tfx, val, h, shade, r);
+        return r->T < p->termination;
+    }
     tf_fast_eval(tfx, val, &r->seg, rgb, &kappa);
     if (kappa > 0) {
         double alpha, shade = 1.0;
@@ -466,7 +476,7 @@ static inline __attribute__((always_inline)) int run(const wvol__source *s, cons
 {
     long kk;
 #if defined(__SSE2__)
-    if (inside && !shading && !colors && view->blocked_ok && run_blocked(view, tfx, p, mode, x0, e, t0, dt, k, ke, r))
+    if (inside && !shading && !colors && !p->preintegrate && view->blocked_ok && run_blocked(view, tfx, p, mode, x0, e, t0, dt, k, ke, r))
         return 1;
 #endif
     for (kk = *k; kk < ke; kk++) {

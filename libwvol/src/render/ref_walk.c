@@ -109,6 +109,7 @@ static inline __attribute__((always_inline)) int ray_advance(const wvol__source 
         skip = ray_skip(s, tc, st, p->skip_tolerance, (double)(ke - k) * dt, &view);
         if (skip < 0) return 0;
         if (skip) {
+            if (p->preintegrate) preint_close(tfx, &st->r);
             st->k = ke;
             return ke < nfull;
         }
@@ -118,7 +119,7 @@ static inline __attribute__((always_inline)) int ray_advance(const wvol__source 
     if (s->ops->eval) {
         done = run(s, view, tfx, p, mode, shading, colors, 0, x0, e, d, t0, dt, &k, ke, &st->r);
 #if defined(__SSE2__)
-    } else if (view->local && view->blocked_ok && !shading && !colors) {
+    } else if (view->local && view->blocked_ok && !shading && !colors && !p->preintegrate) {
         /* a brick's view: block_positions_local clamps every position to it, so the samples
          * in a face's outer half voxel need no clamping path of their own */
         done = run_blocked(view, tfx, p, mode, x0, e, t0, dt, &k, ke, &st->r);
@@ -168,7 +169,10 @@ void wvol__ray_last(const wvol__source *s, void *tc, const tf_fast *tfx, const w
     double x[3], t, h;
     const wvol__view *view = &s->whole;
     int skip = 0;
-    if (!ray_last_at(st, dt, x, &t, &h)) return;
+    if (!ray_last_at(st, dt, x, &t, &h)) {
+        if (p->preintegrate && !st->done && st->failed == WVOL_OK) preint_close(tfx, &st->r); /* the ray's end */
+        return;
+    }
     st->nsteps = st->nfull; /* taken */
     if (s->B > 0) {
         ray_enter(s, st, x, t);
@@ -180,6 +184,7 @@ void wvol__ray_last(const wvol__source *s, void *tc, const tf_fast *tfx, const w
         st->nsamp++;
         st->done = step(s, view, tfx, p, p->mode, p->shading, p->colors != NULL, 0, x, d, h, &st->r);
     }
+    if (p->preintegrate && !st->done && st->failed == WVOL_OK) preint_close(tfx, &st->r); /* the ray's end */
 }
 
 /* The ray's pixel. */

@@ -155,7 +155,10 @@ typedef struct ray_acc {
     double od;            /* optical depth the one-colour path summed and T and acc do not yet
                              hold (acc_settle): one exponential per ray instead of per run */
     double T_lim, od_lim; /* run_blocked's one-colour limit (grey_limit) and the T it holds for */
+    double vprev, hprev, sprev; /* pre-integration: the last sample's value, step and shade */
     int seg, nclamp;
+    int have_prev;        /* pre-integration: vprev holds a sample whose segment to the next
+                             sample is not yet composited */
 } ray_acc;
 
 /* T and the colour brought up to date with the optical depth od the one-colour path summed
@@ -173,6 +176,34 @@ static inline __attribute__((always_inline)) void acc_settle(const tf_fast *tfx,
         r->T = Tn;
         r->od = 0.0;
     }
+}
+
+/* ---- pre-integration (preint.c) ------------------------------------------------------------ */
+
+/* Composites, front to back into r, the segment of length len (world units) along which the
+ * scalar goes linearly from a to b, its emission times shade: the exact emission-absorption
+ * integral of the piecewise-linear TF, split at every TF knot crossed (optical depth exact,
+ * emission up to a quadrature of relative ~1e-9). NaN-free for len >= 0 and any kappa. */
+void wvol__preint_segment(const tf_fast *f, double a, double b, double len, double shade, ray_acc *r);
+
+/* Pre-integrated sampling (wvol_render_params.preintegrate): sample k (value v, step h)
+ * composites the segment from the previous sample, of length (h_prev + h) / 2, or, with no
+ * previous sample (the ray's first, or the first after a skipped run), the constant v over
+ * the front half of its step; preint_close composites the back half of the last sample's
+ * step as a constant (the ray's end, or before a skipped run). So each step is covered once,
+ * and a ray with no skipped run is the integral of the piecewise-linear interpolant of its
+ * samples (constant over the first and last half steps). */
+static inline void preint_sample(const tf_fast *f, double v, double h, double shade, ray_acc *r)
+{
+    if (r->have_prev) wvol__preint_segment(f, r->vprev, v, 0.5 * (r->hprev + h), shade, r);
+    else wvol__preint_segment(f, v, v, 0.5 * h, shade, r);
+    r->vprev = v, r->hprev = h, r->sprev = shade, r->have_prev = 1;
+}
+
+static inline void preint_close(const tf_fast *f, ray_acc *r)
+{
+    if (r->have_prev) wvol__preint_segment(f, r->vprev, r->vprev, 0.5 * r->hprev, r->sprev, r);
+    r->have_prev = 0;
 }
 
 /* One ray's walk, resumable: samples at the midpoints of steps of dt over [t0, t1], front

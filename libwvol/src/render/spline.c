@@ -221,6 +221,9 @@ wvol_status wvol_render_spline_until(wvol_image *img, const wvol_store *s, const
     WVOL_FORWARD(wvol__render_check(img, cam, tf_in, &c.p, err));
     WVOL_FORWARD(wvol__check_colors(&c.p, NULL, 0, err));
     WVOL_FORWARD(wvol__check_skip(&c.p, 0, err));
+    WVOL_RETURN_IF(c.p.preintegrate, err, WVOL_ERR_UNSUPPORTED,
+                   "render: pre-integration is for the sampling methods (reference, reference-fhat, bricks); spline "
+                   "integrates the model exactly already");
     WVOL_FORWARD(wvol__spline_geom_init(&c.g, s, err));
     for (a = 0; a < 3; a++) {
         g.dims[a] = a == 0 ? c.g.info.nx : a == 1 ? c.g.info.ny : c.g.info.nz;
