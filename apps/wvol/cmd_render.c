@@ -31,6 +31,7 @@ static const cli_opt opts[] = {
     {"spline-j", 0, 1, "basis splines: 2^J knots per unit (default 4)"},
     {"step", 0, 1, "reference methods: step in voxels (default 0.5)"},
     {"brick", 0, 1, "bricks: brick side in voxels (default 32); reference: empty-space brick side (default 8)"},
+    {"termination", 0, 1, "sampling methods: end a ray once its transmittance is below this (default 1e-6; VTK's fixed-point mapper: 0xff/0x7fff = 7.8e-3)"},
     {"skip-tolerance", 0, 1, "reference, bricks: optical depth (X-ray: integral) each ray may skip in nearly empty bricks; bounds each pixel's change (default 0: skip only what adds nothing)"},
     {"gauss", 0, 1, "spline method: Gauss-Legendre nodes per piece for the exponential (default 5)"},
     {"shading", 0, 0, "diffuse headlight shading from the gradient"},
@@ -167,6 +168,10 @@ static int parse_args(render_args *a, int argc, char **argv)
         } else if (!strcmp(o->name, "step")) {
             if (!cli_parse_double(cmd, "step", val, &a->rp.step)) return CLI_USAGE;
             if (!(a->rp.step > 0)) return cli_usage(cmd, "--step %g: must be > 0", a->rp.step);
+        } else if (!strcmp(o->name, "termination")) {
+            if (!cli_parse_double(cmd, "termination", val, &a->rp.termination)) return CLI_USAGE;
+            if (!(a->rp.termination >= 0 && a->rp.termination < 1))
+                return cli_usage(cmd, "--termination %g: must be in [0, 1)", a->rp.termination);
         } else if (!strcmp(o->name, "skip-tolerance")) {
             if (!cli_parse_double(cmd, "skip-tolerance", val, &a->rp.skip_tolerance)) return CLI_USAGE;
             if (!(a->rp.skip_tolerance >= 0))

@@ -141,6 +141,51 @@ static void voxel_range(const float *d, size_t n, double *mn, double *mx)
     *mx = hi;
 }
 
+/* The brick's sub-cells whose kappa is 0 over their voxels' range (wvol__view.sub_zero): the
+ * brick's cells cut into 4 per axis (sub_S = ceil(B / 4)), each sub-cell's voxels from one
+ * before its first cell to its last cell's upper neighbour, clipped to the brick's voxels. One
+ * pass over each sub-cell's voxels, 1.5 to 2 times the brick's: cheap beside its synthesis.
+ * Bricks of fewer than 8 cells per side have none (their own rate decides at that grain). */
+static void sub_cells(const brick_src *src, size_t b, wvol__view *v)
+{
+    const int S = (src->B + 3) / 4;
+    size_t bi[3] = {b % src->bn[0], (b / src->bn[0]) % src->bn[1], b / (src->bn[0] * src->bn[1])};
+    long m[3];
+    v->sub_zero = 0;
+    v->sub_S = 0;
+    if (src->B < 8) return;
+    for (int a = 0; a < 3; a++) {
+        long cells = (long)src->n[a] - (long)bi[a] * src->B;
+        if (cells > src->B) cells = src->B;
+        v->sub_org[a] = (long)bi[a] * src->B;
+        m[a] = (cells + S - 1) / S;
+    }
+    for (long c2 = 0; c2 < m[2]; c2++)
+        for (long c1 = 0; c1 < m[1]; c1++)
+            for (long c0 = 0; c0 < m[0]; c0++) {
+                long c[3] = {c0, c1, c2}, lo[3], hi[3];
+                float mn = INFINITY, mx = -INFINITY;
+                for (int a = 0; a < 3; a++) {
+                    lo[a] = v->sub_org[a] + c[a] * S - 1;
+                    hi[a] = v->sub_org[a] + (c[a] + 1) * S;
+                    if (lo[a] < v->lo[a]) lo[a] = v->lo[a];
+                    if (hi[a] > v->hi[a]) hi[a] = v->hi[a];
+                }
+                for (long k = lo[2]; k <= hi[2]; k++)
+                    for (long j = lo[1]; j <= hi[1]; j++) {
+                        const float *row = v->data + (size_t)(lo[0] - v->off[0]) + v->sy * (size_t)(j - v->off[1]) +
+                                           v->sz * (size_t)(k - v->off[2]);
+                        for (long i = 0; i <= hi[0] - lo[0]; i++) {
+                            mn = row[i] < mn ? row[i] : mn;
+                            mx = row[i] > mx ? row[i] : mx;
+                        }
+                    }
+                if (wvol__brick_rate(src->tf, src->mode, mn, mx) == 0)
+                    v->sub_zero |= (uint64_t)1 << (c0 + 4 * c1 + 16 * c2);
+            }
+    v->sub_S = S;
+}
+
 static wvol_status fetch(const wvol__source *s, void *tctx, size_t b, double allow, const wvol__view **view,
                          double *rate)
 {
@@ -207,6 +252,7 @@ static wvol_status fetch(const wvol__source *s, void *tctx, size_t b, double all
             wvol__view_finish(v);
             v->local = 1; /* 1 to 127 cells per axis: block_positions_local (ref_samples.h) */
             for (int a = 0; a < 3; a++) v->local &= hi[a] > lo[a] && hi[a] - lo[a] < 128;
+            if (c->rate[slot] > 0) sub_cells(src, b, v); /* a brick of rate 0 is skipped whole */
         }
         c->built++;
     }

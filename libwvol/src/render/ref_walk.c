@@ -78,6 +78,79 @@ static inline __attribute__((always_inline)) int ray_skip(const wvol__source *s,
     return 1;
 }
 
+/* The samples of steps *kp .. ke - 1 in one view, front to back. When a run's first and last
+ * sample lie strictly inside the view its samples are taken without clamping tests
+ * (run_blocked). Returns 1 when the ray terminates (*kp: the step it ended at), else 0 with
+ * *kp = ke. */
+static inline __attribute__((always_inline)) int take_steps(const wvol__source *s, const wvol__view *view,
+                                                            const tf_fast *tfx, const wvol_render_params *p,
+                                                            const wvol_render_mode mode, const int shading,
+                                                            const int colors, const double *x0, const double *e,
+                                                            const double d[3], double t0, double dt, long *kp,
+                                                            long ke, ray_acc *r)
+{
+    if (s->ops->eval) return run(s, view, tfx, p, mode, shading, colors, 0, x0, e, d, t0, dt, kp, ke, r);
+#if defined(__SSE2__)
+    if (view->local && view->blocked_ok && !shading && !colors && !p->preintegrate)
+        /* a brick's view: block_positions_local clamps every position to it, so the samples
+         * in a face's outer half voxel need no clamping path of their own */
+        return run_blocked(view, tfx, p, mode, x0, e, t0, dt, kp, ke, r);
+#endif
+    {
+        /* the steps whose samples lie strictly inside the view are an interval (x is
+         * linear in t); the few outside it, where the ray enters or leaves the volume
+         * through a face's outer half voxel, take the clamping path */
+        long kin = *kp, kout = ke;
+        double x[3], xl[3];
+        int a;
+        for (a = 0; a < 3; a++) x[a] = x0[a] + (t0 + ((double)kin + 0.5) * dt) * e[a];
+        while (kin < kout && !strictly_inside(view, x)) {
+            kin++;
+            for (a = 0; a < 3; a++) x[a] = x0[a] + (t0 + ((double)kin + 0.5) * dt) * e[a];
+        }
+        for (a = 0; a < 3; a++) xl[a] = x0[a] + (t0 + ((double)(kout - 1) + 0.5) * dt) * e[a];
+        while (kout > kin && !strictly_inside(view, xl)) {
+            kout--;
+            for (a = 0; a < 3; a++) xl[a] = x0[a] + (t0 + ((double)(kout - 1) + 0.5) * dt) * e[a];
+        }
+        return run(s, view, tfx, p, mode, shading, colors, 0, x0, e, d, t0, dt, kp, kin, r) ||
+               run(s, view, tfx, p, mode, shading, colors, 1, x0, e, d, t0, dt, kp, kout, r) ||
+               run(s, view, tfx, p, mode, shading, colors, 0, x0, e, d, t0, dt, kp, ke, r);
+    }
+}
+
+/* The sub-cell (wvol__view.sub_zero) holding the sample of step k, and *kn, the first step
+ * after k whose sample is at or past where the ray leaves it (at most ke); returns 1 when
+ * the sub-cell's kappa is 0. Positions in the brick's outer half voxel at the volume's faces
+ * clamp to the edge sub-cell, as their samples clamp to its voxels. */
+static inline int sub_cell_run(const wvol__view *v, const ray_state *st, double dt, long k, long ke, long *kn)
+{
+    const double t = st->t0 + ((double)k + 0.5) * dt, S = v->sub_S;
+    double te = INFINITY, q;
+    int bit = 0;
+    long kk;
+    for (int a = 0; a < 3; a++) {
+        const double x = st->x0[a] + t * st->e[a], o = (double)v->sub_org[a] - 0.5;
+        double c = floor((x - o) / S), lo, ta;
+        if (c < 0) c = 0;
+        if (c > 3) c = 3;
+        lo = o + c * S;
+        bit += (int)c << (2 * a);
+        if (st->e[a] > 0) ta = (lo + S - x) / st->e[a];
+        else if (st->e[a] < 0) ta = (lo - x) / st->e[a];
+        else continue;
+        if (ta < te) te = ta;
+    }
+    te += t;
+    /* the first step whose sample is at or past te, found as the brick's run end is */
+    q = (te - st->t0) / dt - 0.5;
+    kk = q > (double)k ? (q < (double)ke ? (long)q : ke) : k;
+    while (kk < ke && st->t0 + ((double)kk + 0.5) * dt < te) kk++;
+    while (kk > k + 1 && !(st->t0 + ((double)(kk - 1) + 0.5) * dt < te)) kk--;
+    *kn = kk > k ? kk : k + 1;
+    return (int)((v->sub_zero >> bit) & 1);
+}
+
 /* One run: the full steps of the ray in its next brick (all of them for an unbricked
  * source). Returns 1 while full steps remain. When a run's first and last sample lie
  * strictly inside the view its samples are taken without clamping tests (run_blocked). */
@@ -90,7 +163,7 @@ static inline __attribute__((always_inline)) int ray_advance(const wvol__source 
     const double t0 = st->t0, *x0 = st->x0, *e = st->e;
     long k = st->k, nfull = st->nfull, ke = nfull; /* this run: steps k .. ke - 1 */
     int a, bricked = s->B > 0, done;
-    double x[3], xl[3], d[3] = {0, 0, 0}, t;
+    double x[3], d[3] = {0, 0, 0}, t;
 #define T_AT(kk) (t0 + ((double)(kk) + 0.5) * dt)
     if (k >= nfull || st->done || st->failed != WVOL_OK) return 0;
     t = T_AT(k);
@@ -114,35 +187,30 @@ static inline __attribute__((always_inline)) int ray_advance(const wvol__source 
             return ke < nfull;
         }
     }
-    st->nsamp += (size_t)(ke - k);
     if (shading) ray_dir(s, st, d);
-    if (s->ops->eval) {
-        done = run(s, view, tfx, p, mode, shading, colors, 0, x0, e, d, t0, dt, &k, ke, &st->r);
-#if defined(__SSE2__)
-    } else if (view->local && view->blocked_ok && !shading && !colors && !p->preintegrate) {
-        /* a brick's view: block_positions_local clamps every position to it, so the samples
-         * in a face's outer half voxel need no clamping path of their own */
-        done = run_blocked(view, tfx, p, mode, x0, e, t0, dt, &k, ke, &st->r);
-#endif
+    if (view->sub_zero && !p->preintegrate) { /* the run cut where it crosses sub-cells of kappa 0 */
+        done = 0;
+        while (!done && k < ke) {
+            long kz = k, kn;
+            int zero = sub_cell_run(view, st, dt, k, ke, &kn);
+            if (zero) { /* samples k .. kn - 1 add nothing */
+                st->nskip++;
+                k = kn;
+                continue;
+            }
+            while (kn < ke) { /* the next sub-cells while they are not zero */
+                long kq;
+                if (sub_cell_run(view, st, dt, kn, ke, &kq)) break;
+                kn = kq;
+            }
+            done = take_steps(s, view, tfx, p, mode, shading, colors, x0, e, d, t0, dt, &k, kn, &st->r);
+            st->nsamp += (size_t)(done ? k - kz + 1 : kn - kz);
+        }
     } else {
-        /* the steps whose samples lie strictly inside the view are an interval (x is
-         * linear in t); the few outside it, where the ray enters or leaves the volume
-         * through a face's outer half voxel, take the clamping path */
-        long kin = k, kout = ke;
-        while (kin < kout && !strictly_inside(view, x)) {
-            kin++;
-            for (a = 0; a < 3; a++) x[a] = x0[a] + T_AT(kin) * e[a];
-        }
-        for (a = 0; a < 3; a++) xl[a] = x0[a] + T_AT(kout - 1) * e[a];
-        while (kout > kin && !strictly_inside(view, xl)) {
-            kout--;
-            for (a = 0; a < 3; a++) xl[a] = x0[a] + T_AT(kout - 1) * e[a];
-        }
-        done = run(s, view, tfx, p, mode, shading, colors, 0, x0, e, d, t0, dt, &k, kin, &st->r) ||
-               run(s, view, tfx, p, mode, shading, colors, 1, x0, e, d, t0, dt, &k, kout, &st->r) ||
-               run(s, view, tfx, p, mode, shading, colors, 0, x0, e, d, t0, dt, &k, ke, &st->r);
+        long kz = k;
+        done = take_steps(s, view, tfx, p, mode, shading, colors, x0, e, d, t0, dt, &k, ke, &st->r);
+        st->nsamp += (size_t)(done ? k - kz + 1 : ke - kz);
     }
-    if (done) st->nsamp -= (size_t)(ke - k - 1); /* the samples not taken */
     st->k = k;
     st->done = done;
 #undef T_AT

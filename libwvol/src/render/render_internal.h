@@ -87,6 +87,15 @@ typedef struct wvol__view {
     int local;              /* a brick's small view: the blocked loop's positions in single
                                precision relative to it (ref_samples.h, block_positions_local) */
     size_t sy, sz;
+    /* A brick's sub-cells (bricks.c; 0 elsewhere): the brick's voxel cells cut into at most
+     * 4 per axis of sub_S cells each, sub-cell c per axis covering index coordinates
+     * [sub_org + c sub_S - 1/2, sub_org + (c + 1) sub_S - 1/2); bit c0 + 4 c1 + 16 c2 of
+     * sub_zero set when the TF's kappa (X-ray: the value) is 0 over the range of the voxels
+     * its samples touch (sub_org + c sub_S - 1 .. sub_org + (c + 1) sub_S). The walk skips the
+     * samples that lie in such sub-cells (ref_walk.c): they add exactly nothing. */
+    uint64_t sub_zero;
+    int sub_S;
+    long sub_org[3];
 } wvol__view;
 
 void wvol__view_finish(wvol__view *w);
