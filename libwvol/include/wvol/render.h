@@ -174,6 +174,10 @@ typedef struct wvol_render_reference_params {
 typedef struct wvol_render_bricks_params {
     int brick;              /* side of the reconstructed bricks in voxel cells (default 32;
                                2..4096; 0 reads as the default) */
+    int skip_inside;        /* 1 (default): inside a brick of at least 16 cells, skip the
+                               samples in its sub-cells (8 per axis) where kappa (X-ray: the
+                               value) is 0, exactly as whole bricks are skipped; 0: whole
+                               bricks only (the images are the same; docs/render.md) */
 } wvol_render_bricks_params;
 
 typedef struct wvol_render_spline_params {

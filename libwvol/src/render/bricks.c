@@ -42,6 +42,7 @@ typedef struct brick_src {
     int B;
     size_t slot_floats;
     int nthreads;
+    int skip_inside;              /* wvol_render_params.bricks.skip_inside */
     double *bound_rate;           /* per brick: wvol__brick_rate of its coefficient bound, < 0 not
                                      yet computed */
 } brick_src;
@@ -142,18 +143,19 @@ static void voxel_range(const float *d, size_t n, double *mn, double *mx)
 }
 
 /* The brick's sub-cells whose kappa is 0 over their voxels' range (wvol__view.sub_zero): the
- * brick's cells cut into 4 per axis (sub_S = ceil(B / 4)), each sub-cell's voxels from one
+ * brick's cells cut into WVOL__SUB_N per axis (sub_S = ceil(B / N)), each sub-cell's voxels from one
  * before its first cell to its last cell's upper neighbour, clipped to the brick's voxels. One
  * pass over each sub-cell's voxels, 1.5 to 2 times the brick's: cheap beside its synthesis.
- * Bricks of fewer than 8 cells per side have none (their own rate decides at that grain). */
+ * Bricks of fewer than 2N cells per side have none (their own rate decides at that grain). */
 static void sub_cells(const brick_src *src, size_t b, wvol__view *v)
 {
-    const int S = (src->B + 3) / 4;
+    const int N = WVOL__SUB_N, S = (src->B + N - 1) / N;
     size_t bi[3] = {b % src->bn[0], (b / src->bn[0]) % src->bn[1], b / (src->bn[0] * src->bn[1])};
     long m[3];
-    v->sub_zero = 0;
+    memset(v->sub_zero, 0, sizeof v->sub_zero);
+    v->sub_any = 0;
     v->sub_S = 0;
-    if (src->B < 8) return;
+    if (src->B < 2 * N) return;
     for (int a = 0; a < 3; a++) {
         long cells = (long)src->n[a] - (long)bi[a] * src->B;
         if (cells > src->B) cells = src->B;
@@ -180,8 +182,11 @@ static void sub_cells(const brick_src *src, size_t b, wvol__view *v)
                             mx = row[i] > mx ? row[i] : mx;
                         }
                     }
-                if (wvol__brick_rate(src->tf, src->mode, mn, mx) == 0)
-                    v->sub_zero |= (uint64_t)1 << (c0 + 4 * c1 + 16 * c2);
+                if (wvol__brick_rate(src->tf, src->mode, mn, mx) == 0) {
+                    const long bit = c0 + N * (c1 + N * c2);
+                    v->sub_zero[bit >> 6] |= (uint64_t)1 << (bit & 63);
+                    v->sub_any = 1;
+                }
             }
     v->sub_S = S;
 }
@@ -252,7 +257,7 @@ static wvol_status fetch(const wvol__source *s, void *tctx, size_t b, double all
             wvol__view_finish(v);
             v->local = 1; /* 1 to 127 cells per axis: block_positions_local (ref_samples.h) */
             for (int a = 0; a < 3; a++) v->local &= hi[a] > lo[a] && hi[a] - lo[a] < 128;
-            if (c->rate[slot] > 0) sub_cells(src, b, v); /* a brick of rate 0 is skipped whole */
+            if (c->rate[slot] > 0 && src->skip_inside) sub_cells(src, b, v); /* rate 0: skipped whole */
         }
         c->built++;
     }
@@ -320,6 +325,7 @@ wvol_status wvol_render_bricks(wvol_image *img, const wvol_store *st, const wvol
     src.n[0] = info.nx, src.n[1] = info.ny, src.n[2] = info.nz;
     src.nthreads = wvol__threads(p.threads);
     src.B = p.bricks.brick > 0 ? p.bricks.brick : WVOL__BRICKS_BRICK_DEFAULT;
+    src.skip_inside = p.bricks.skip_inside;
     for (a = 0; a < 3; a++) {
         src.bn[a] = (src.n[a] + (size_t)src.B - 1) / (size_t)src.B;
         s.n[a] = src.n[a];

@@ -19,6 +19,7 @@ void wvol_render_params_default(wvol_render_params *p)
     p->tile = 0;
     p->reference.brick = 8;
     p->bricks.brick = WVOL__BRICKS_BRICK_DEFAULT;
+    p->bricks.skip_inside = 1;
     p->spline.gauss_nodes = 5;
     p->colors = NULL;
     p->colors_count = 0;
@@ -55,6 +56,8 @@ wvol_status wvol__render_check(const wvol_image *img, const wvol_camera *cam, co
                    "render: reference brick %d (0..4096)", p->reference.brick);
     WVOL_RETURN_IF(p->bricks.brick == 1 || p->bricks.brick < 0 || p->bricks.brick > 4096, err, WVOL_ERR_ARG,
                    "render: brick %d (bricks: 2..4096, or 0 for the default)", p->bricks.brick);
+    WVOL_RETURN_IF(p->bricks.skip_inside != 0 && p->bricks.skip_inside != 1, err, WVOL_ERR_ARG,
+                   "render: bricks.skip_inside %d (0 or 1)", p->bricks.skip_inside);
     WVOL_RETURN_IF(p->threads < 0, err, WVOL_ERR_ARG, "render: threads %d (>= 0)", p->threads);
     WVOL_RETURN_IF(!(p->skip_tolerance >= 0) || !isfinite(p->skip_tolerance), err, WVOL_ERR_ARG,
                    "render: skip tolerance %g (must be finite and >= 0)", p->skip_tolerance);

@@ -54,7 +54,7 @@ void wvol__view_finish(wvol__view *w)
     w->blocked_ok = (double)w->sz * (double)(w->hi[2] - w->off[2] + 1) < 2147483647.0 && w->hi[0] < INT32_MAX &&
                     w->hi[1] < INT32_MAX && w->hi[2] < INT32_MAX;
     w->local = 0;
-    w->sub_zero = 0;
+    w->sub_any = 0;
     w->sub_S = 0;
 }
 

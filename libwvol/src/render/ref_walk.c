@@ -119,36 +119,64 @@ static inline __attribute__((always_inline)) int take_steps(const wvol__source *
     }
 }
 
-/* The sub-cell (wvol__view.sub_zero) holding the sample of step k, and *kn, the first step
- * after k whose sample is at or past where the ray leaves it (at most ke); returns 1 when
- * the sub-cell's kappa is 0. Positions in the brick's outer half voxel at the volume's faces
- * clamp to the edge sub-cell, as their samples clamp to its voxels. */
-static inline int sub_cell_run(const wvol__view *v, const ray_state *st, double dt, long k, long ke, long *kn)
+/* A walk through a brick's sub-cells (wvol__view.sub_zero) along the ray, a 3D DDA: the
+ * sub-cell c, per axis the parameter t where the ray leaves it (tmax) and the parameter a
+ * sub-cell spans (tdelta). Its t are the ray's, rounded within ~1e-13 relative, and each
+ * sub-cell's voxel range reaches half a voxel beyond its cells on every side, so a sample
+ * that the walk places in a sub-cell touches only that sub-cell's voxels. */
+typedef struct sub_dda {
+    long c[3], step[3];
+    double tmax[3], tdelta[3];
+} sub_dda;
+
+static inline void sub_dda_init(sub_dda *dd, const wvol__view *v, const ray_state *st, double t)
 {
-    const double t = st->t0 + ((double)k + 0.5) * dt, S = v->sub_S;
-    double te = INFINITY, q;
-    int bit = 0;
-    long kk;
+    const double S = v->sub_S;
     for (int a = 0; a < 3; a++) {
-        const double x = st->x0[a] + t * st->e[a], o = (double)v->sub_org[a] - 0.5;
-        double c = floor((x - o) / S), lo, ta;
-        if (c < 0) c = 0;
-        if (c > 3) c = 3;
-        lo = o + c * S;
-        bit += (int)c << (2 * a);
-        if (st->e[a] > 0) ta = (lo + S - x) / st->e[a];
-        else if (st->e[a] < 0) ta = (lo - x) / st->e[a];
-        else continue;
-        if (ta < te) te = ta;
+        const double x = st->x0[a] + t * st->e[a], o = (double)v->sub_org[a] - 0.5, c = floor((x - o) / S);
+        dd->c[a] = (long)c;
+        if (st->e[a] > 0) {
+            dd->step[a] = 1;
+            dd->tmax[a] = t + (o + (c + 1) * S - x) / st->e[a];
+            dd->tdelta[a] = S / st->e[a];
+        } else if (st->e[a] < 0) {
+            dd->step[a] = -1;
+            dd->tmax[a] = t + (o + c * S - x) / st->e[a];
+            dd->tdelta[a] = -S / st->e[a];
+        } else {
+            dd->step[a] = 0;
+            dd->tmax[a] = INFINITY;
+            dd->tdelta[a] = INFINITY;
+        }
     }
-    te += t;
-    /* the first step whose sample is at or past te, found as the brick's run end is */
-    q = (te - st->t0) / dt - 0.5;
-    kk = q > (double)k ? (q < (double)ke ? (long)q : ke) : k;
-    while (kk < ke && st->t0 + ((double)kk + 0.5) * dt < te) kk++;
-    while (kk > k + 1 && !(st->t0 + ((double)(kk - 1) + 0.5) * dt < te)) kk--;
-    *kn = kk > k ? kk : k + 1;
-    return (int)((v->sub_zero >> bit) & 1);
+}
+
+/* The axis whose sub-cell face the ray meets first. */
+static inline int sub_dda_axis(const sub_dda *dd)
+{
+    return dd->tmax[0] <= dd->tmax[1] ? (dd->tmax[0] <= dd->tmax[2] ? 0 : 2) : (dd->tmax[1] <= dd->tmax[2] ? 1 : 2);
+}
+
+/* 1 when the DDA's sub-cell has kappa 0 (outside the brick's sub-cells: 0, conservative). */
+static inline int sub_dda_zero(const wvol__view *v, const sub_dda *dd)
+{
+    const long N = WVOL__SUB_N;
+    long bit;
+    if ((unsigned long)dd->c[0] >= (unsigned long)N || (unsigned long)dd->c[1] >= (unsigned long)N ||
+        (unsigned long)dd->c[2] >= (unsigned long)N)
+        return 0;
+    bit = dd->c[0] + N * (dd->c[1] + N * dd->c[2]);
+    return (int)((v->sub_zero[bit >> 6] >> (bit & 63)) & 1);
+}
+
+/* The first step from k on (at most ke) whose sample is at or past parameter te. */
+static inline long first_step_at(double t0, double dt, long k, long ke, double te)
+{
+    double q = (te - t0) / dt - 0.5;
+    long kk = q > (double)k ? (q < (double)ke ? (long)q : ke) : k;
+    while (kk < ke && t0 + ((double)kk + 0.5) * dt < te) kk++;
+    while (kk > k && !(t0 + ((double)(kk - 1) + 0.5) * dt < te)) kk--;
+    return kk;
 }
 
 /* One run: the full steps of the ray in its next brick (all of them for an unbricked
@@ -188,23 +216,46 @@ static inline __attribute__((always_inline)) int ray_advance(const wvol__source 
         }
     }
     if (shading) ray_dir(s, st, d);
-    if (view->sub_zero && !p->preintegrate) { /* the run cut where it crosses sub-cells of kappa 0 */
+    if (view->sub_any && !p->preintegrate) {
+        /* the run cut where it enters or leaves sub-cells of kappa 0, whose samples add
+         * nothing; the DDA stops only where that changes */
+        sub_dda dd;
         done = 0;
+        sub_dda_init(&dd, view, st, T_AT(k));
         while (!done && k < ke) {
-            long kz = k, kn;
-            int zero = sub_cell_run(view, st, dt, k, ke, &kn);
+            const double tk = T_AT(k);
+            int zero, ax;
+            long kn;
+            double te;
+            /* the sub-cell holding sample k (the ray may cross thin ones between samples) */
+            while (dd.tmax[ax = sub_dda_axis(&dd)] <= tk) {
+                dd.c[ax] += dd.step[ax];
+                dd.tmax[ax] += dd.tdelta[ax];
+            }
+            zero = sub_dda_zero(view, &dd);
+            for (;;) { /* on through the sub-cells of the same kind, up to the run's end */
+                ax = sub_dda_axis(&dd);
+                te = dd.tmax[ax];
+                if (!(te < T_AT(ke - 1))) {
+                    te = INFINITY;
+                    break;
+                }
+                dd.c[ax] += dd.step[ax];
+                dd.tmax[ax] += dd.tdelta[ax];
+                if (sub_dda_zero(view, &dd) != zero) break;
+            }
+            kn = te == INFINITY ? ke : first_step_at(t0, dt, k, ke, te);
+            if (kn <= k) kn = k + 1;
             if (zero) { /* samples k .. kn - 1 add nothing */
                 st->nskip++;
                 k = kn;
                 continue;
             }
-            while (kn < ke) { /* the next sub-cells while they are not zero */
-                long kq;
-                if (sub_cell_run(view, st, dt, kn, ke, &kq)) break;
-                kn = kq;
+            {
+                long kz = k;
+                done = take_steps(s, view, tfx, p, mode, shading, colors, x0, e, d, t0, dt, &k, kn, &st->r);
+                st->nsamp += (size_t)(done ? k - kz + 1 : kn - kz);
             }
-            done = take_steps(s, view, tfx, p, mode, shading, colors, x0, e, d, t0, dt, &k, kn, &st->r);
-            st->nsamp += (size_t)(done ? k - kz + 1 : kn - kz);
         }
     } else {
         long kz = k;

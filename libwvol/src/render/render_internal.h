@@ -76,6 +76,10 @@ void wvol__params(wvol_render_params *out, const wvol_render_params *in);
 wvol_status wvol__render_check(const wvol_image *img, const wvol_camera *cam, const wvol_tf *tf,
                                const wvol_render_params *p, wvol_error *err);
 
+/* Sub-cells per axis of a brick (wvol__view.sub_zero): 4-voxel sub-cells in the default
+ * 32-voxel bricks, the grain of VTK's fixed-point mapper's min/max volume. */
+#define WVOL__SUB_N 8
+
 /* Voxels lo..hi (inclusive, global indices per axis) of a volume or of one brick:
  * voxel (i, j, k) at data[(i - off[0]) + sy (j - off[1]) + sz (k - off[2])]. Trilinear
  * samples clamp to that range. */
@@ -87,14 +91,14 @@ typedef struct wvol__view {
     int local;              /* a brick's small view: the blocked loop's positions in single
                                precision relative to it (ref_samples.h, block_positions_local) */
     size_t sy, sz;
-    /* A brick's sub-cells (bricks.c; 0 elsewhere): the brick's voxel cells cut into at most
-     * 4 per axis of sub_S cells each, sub-cell c per axis covering index coordinates
-     * [sub_org + c sub_S - 1/2, sub_org + (c + 1) sub_S - 1/2); bit c0 + 4 c1 + 16 c2 of
-     * sub_zero set when the TF's kappa (X-ray: the value) is 0 over the range of the voxels
+    /* A brick's sub-cells (bricks.c; sub_any 0 elsewhere): the brick's voxel cells cut into at
+     * most WVOL__SUB_N per axis of sub_S cells each, sub-cell c per axis covering index
+     * coordinates [sub_org + c sub_S - 1/2, sub_org + (c + 1) sub_S - 1/2); bit
+     * c0 + N c1 + N^2 c2 of sub_zero set when the TF's kappa (X-ray: the value) is 0 over the range of the voxels
      * its samples touch (sub_org + c sub_S - 1 .. sub_org + (c + 1) sub_S). The walk skips the
      * samples that lie in such sub-cells (ref_walk.c): they add exactly nothing. */
-    uint64_t sub_zero;
-    int sub_S;
+    uint64_t sub_zero[WVOL__SUB_N * WVOL__SUB_N * WVOL__SUB_N / 64];
+    int sub_any, sub_S;     /* sub_any: some bit of sub_zero is set */
     long sub_org[3];
 } wvol__view;
 
