@@ -3,14 +3,17 @@
  * walk_bricks): a tile's rays walk its bricks together, front to back, each brick taken once
  * every brick a ray could come from is walked (brick_order), so the tile builds each brick
  * it needs once and the threads share the tile. */
+#define _POSIX_C_SOURCE 200809L /* nanosleep, sched_yield (idle_wait) */
 #include "reference_internal.h"
 
 #include <omp.h>
+#include <sched.h>
 #if defined(__SSE2__)
 #include <emmintrin.h>
 #endif
 #include <stdlib.h>
 #include <string.h>
+#include <time.h>
 
 /* Whether d (-1 or +1) is an outward step from brick coordinate c along axis a: away from the
  * eye's brick (either way from it), or the direction's sign for parallel rays. */
@@ -140,6 +143,26 @@ static void walk_brick(const wvol__source *s, void *tc, const tf_fast *tfx, cons
     }
 }
 
+/* A thread with no brick to take waits for another thread to finish one: a few pauses (a
+ * brick's walk often ends within them), then it gives its core away, first by yielding and
+ * then by sleeping 20 us at a time. On a machine with more threads than free cores the
+ * thread it waits for may not be running: spinning then burns the core that thread needs
+ * (the CPU time of a two-thread frame doubled under load), while a sleep of 20 us is short
+ * beside a brick's walk (~1 ms on the benchmark). */
+static void idle_wait(unsigned n)
+{
+    if (n < 64) {
+#if defined(__SSE2__)
+        _mm_pause();
+#endif
+    } else if (n < 96) {
+        sched_yield();
+    } else {
+        const struct timespec ts = {0, 20000};
+        nanosleep(&ts, NULL);
+    }
+}
+
 /* The rays of one tile of a bricked source, walked brick by brick front to back
  * (brick_order): each brick's list holds the rays whose next sample lies in it; the rays of
  * the brick at hand take their runs there and move to the list of the brick they enter next.
@@ -151,24 +174,37 @@ static void walk_brick(const wvol__source *s, void *tc, const tf_fast *tfx, cons
  * order, so the image is the ray-by-ray walk's, whatever the thread count. (A cache per
  * thread walked in rounds, or rounds of bricks with barriers, built more or waited more:
  * bench/results/render-tuning.md.) */
+void wvol__walk_sync_wait(walk_sync *w)
+{
+    const int round = __atomic_load_n(&w->round, __ATOMIC_ACQUIRE);
+    if (__atomic_add_fetch(&w->count, 1, __ATOMIC_ACQ_REL) == w->n) {
+        __atomic_store_n(&w->count, 0, __ATOMIC_RELAXED);
+        __atomic_store_n(&w->round, round + 1, __ATOMIC_RELEASE);
+    } else {
+        unsigned idle = 0;
+        while (__atomic_load_n(&w->round, __ATOMIC_ACQUIRE) == round) idle_wait(idle++);
+    }
+}
+
 void wvol__render_tile_bricked(const wvol__source *s, const wvol__cam *k, wvol_image *img, const double lo[3],
                                const double hi[3], int x0, int y0, int tw, int th, const tf_fast *tfx,
                                const wvol_render_params *p, double dt, ray_state *rs, int32_t *row_first,
-                               brick_order *bo, int32_t *head, int32_t *next, int nthreads)
+                               brick_order *bo, int32_t *head, int32_t *next, int tid, int nt, walk_sync *w)
 {
-    memcpy(bo->pending, bo->inward, bo->n * sizeof *bo->pending);
-    bo->nready = bo->ndone = 0;
-    for (size_t b = bo->n; b-- > 0;)
-        if (!bo->inward[b]) bo->ready[bo->nready++] = (uint32_t)b;
-#pragma omp parallel num_threads(nthreads)
+    void *tc = s->tctx[tid];
+    const int ya = y0 + (int)((long)th * tid / nt), yb = y0 + (int)((long)th * (tid + 1) / nt); /* my rows */
+    if (tid == 0) {
+        memcpy(bo->pending, bo->inward, bo->n * sizeof *bo->pending);
+        bo->nready = bo->ndone = 0;
+        for (size_t b = bo->n; b-- > 0;)
+            if (!bo->inward[b]) bo->ready[bo->nready++] = (uint32_t)b;
+    }
     {
-        void *tc = s->tctx[omp_get_thread_num()];
         /* the tile's rays that meet the volume, in rs row by row, each onto its first brick's
          * list: set up by the threads, in two passes so
          * that they lie packed (a state per pixel would make the pages of the misses resident
          * too): each row's count, then its rays from the row's first index on */
-#pragma omp for schedule(static)
-        for (int y = y0; y < y0 + th; y++) {
+        for (int y = ya; y < yb; y++) {
             int32_t n = 0;
             for (int x = x0; x < x0 + tw; x++) {
                 double o[3], d[3], t0, t1;
@@ -176,13 +212,13 @@ void wvol__render_tile_bricked(const wvol__source *s, const wvol__cam *k, wvol_i
             }
             row_first[y - y0 + 1] = n;
         }
-#pragma omp single
-        {
+        wvol__walk_sync_wait(w);
+        if (tid == 0) {
             row_first[0] = 0;
             for (int j = 0; j < th; j++) row_first[j + 1] += row_first[j];
         }
-#pragma omp for schedule(static)
-        for (int y = y0; y < y0 + th; y++) {
+        wvol__walk_sync_wait(w);
+        for (int y = ya; y < yb; y++) {
             int32_t i = row_first[y - y0];
             for (int x = x0; x < x0 + tw; x++) {
                 long b;
@@ -193,6 +229,8 @@ void wvol__render_tile_bricked(const wvol__source *s, const wvol__cam *k, wvol_i
                 i++;
             }
         }
+        wvol__walk_sync_wait(w);
+        unsigned idle = 0; /* consecutive waits for a ready brick */
         for (;;) {
             long b = -1;
             int finished = 0;
@@ -203,11 +241,10 @@ void wvol__render_tile_bricked(const wvol__source *s, const wvol__cam *k, wvol_i
             }
             if (finished) break;
             if (b < 0) { /* the other threads hold the bricks that would free some */
-#if defined(__SSE2__)
-                _mm_pause();
-#endif
+                idle_wait(idle++);
                 continue;
             }
+            idle = 0;
             if (head[b] >= 0) walk_brick(s, tc, tfx, p, dt, rs, bo, head, next, b);
 #pragma omp critical(wvol_walk_ready)
             {
@@ -216,4 +253,7 @@ void wvol__render_tile_bricked(const wvol__source *s, const wvol__cam *k, wvol_i
             }
         }
     }
+    /* every brick walked, so every ray done: the caller may read rs, and reset the order for
+     * the next tile once no thread still looks at it */
+    wvol__walk_sync_wait(w);
 }

@@ -139,13 +139,25 @@ wvol_status wvol__render_sampled(wvol_image *img, wvol__source *s, const wvol_ca
             else
                 for (size_t b = 0; b < bo.n; b++) lists[b] = -1;
         }
-        for (int ti = 0; status == WVOL_OK && ti < ntiles; ti++) {
-            int x0 = (order[ti] % tx) * p.tile, y0 = (order[ti] / tx) * p.tile;
-            int tw = img->width - x0 < p.tile ? img->width - x0 : p.tile;
-            int th = img->height - y0 < p.tile ? img->height - y0 : p.tile;
-            wvol__render_tile_bricked(s, &k, img, lo, hi, x0, y0, tw, th, &tfx, &p, dt, rs, row_first, &bo, lists,
-                                      lists + bo.n, nthreads);
-            tile_finish(&p, img, x0, y0, tw, rs, row_first[th], &counts, &failed);
+        if (status == WVOL_OK) {
+            /* one parallel region for all tiles, the threads kept in step by walk_sync, which
+             * sleeps where OpenMP's barriers would spin */
+            walk_sync w = {0, 0, 0};
+#pragma omp parallel num_threads(nthreads)
+            {
+                const int tid = omp_get_thread_num(), nt = omp_get_num_threads();
+#pragma omp single
+                w.n = nt; /* the barrier at its end publishes it */
+                for (int ti = 0; ti < ntiles; ti++) {
+                    int x0 = (order[ti] % tx) * p.tile, y0 = (order[ti] / tx) * p.tile;
+                    int tw = img->width - x0 < p.tile ? img->width - x0 : p.tile;
+                    int th = img->height - y0 < p.tile ? img->height - y0 : p.tile;
+                    wvol__render_tile_bricked(s, &k, img, lo, hi, x0, y0, tw, th, &tfx, &p, dt, rs, row_first, &bo,
+                                              lists, lists + bo.n, tid, nt, &w);
+                    if (tid == 0) tile_finish(&p, img, x0, y0, tw, rs, row_first[th], &counts, &failed);
+                    wvol__walk_sync_wait(&w); /* rs and row_first read before the next tile's rays */
+                }
+            }
         }
         /* the walk's own: the tile's rays and lists, the order */
         counts.bytes = tile_rays_n * (sizeof *rs + sizeof *lists) + ((size_t)p.tile + 1) * sizeof *row_first +
