@@ -35,6 +35,7 @@ static const cli_opt opts[] = {
     {"skip-tolerance", 0, 1, "reference, bricks: optical depth (X-ray: integral) each ray may skip in nearly empty bricks; bounds each pixel's change (default 0: skip only what adds nothing)"},
     {"gauss", 0, 1, "spline method: Gauss-Legendre nodes per piece for the exponential (default 5)"},
     {"shading", 0, 0, "diffuse headlight shading from the gradient"},
+    {"gradient-levels", 0, 1, "bricks with --shading: gradient of the low-pass model, the L finest levels' details dropped (default 0: the samples' own)"},
     {"preintegrate", 0, 0, "absorption, sampling methods: pre-integrated TF (value linear between samples, exact per segment)"},
     {"colors", 0, 1, "colour volume replacing the TF colour: interleaved RGB float32 .raw, e.g. from 'wvol segment --colors'"},
     {"threads", 0, 1, "threads (default: all)"},
@@ -168,6 +169,9 @@ static int parse_args(render_args *a, int argc, char **argv)
         } else if (!strcmp(o->name, "step")) {
             if (!cli_parse_double(cmd, "step", val, &a->rp.step)) return CLI_USAGE;
             if (!(a->rp.step > 0)) return cli_usage(cmd, "--step %g: must be > 0", a->rp.step);
+        } else if (!strcmp(o->name, "gradient-levels")) {
+            if (!cli_parse_long(cmd, "gradient-levels", val, 0, 32, &v)) return CLI_USAGE;
+            a->rp.gradient_levels = (int)v;
         } else if (!strcmp(o->name, "termination")) {
             if (!cli_parse_double(cmd, "termination", val, &a->rp.termination)) return CLI_USAGE;
             if (!(a->rp.termination >= 0 && a->rp.termination < 1))

@@ -177,6 +177,7 @@ static int parse_params(PyObject *opts, wvol_render_params *rp, int *J)
         opt_double(opts, "skip_tolerance", &rp->skip_tolerance) < 0 ||
         opt_double(opts, "ambient", &rp->ambient) < 0 || opt_int(opts, "shading", &rp->shading) < 0 ||
         opt_int(opts, "preintegrate", &rp->preintegrate) < 0 ||
+        opt_int(opts, "gradient_levels", &rp->gradient_levels) < 0 ||
         opt_int(opts, "gauss_nodes", &rp->spline.gauss_nodes) < 0 || opt_int(opts, "threads", &rp->threads) < 0 ||
         opt_int(opts, "brick", &brick) < 0 || opt_int(opts, "spline_j", J) < 0)
         return -1;

@@ -382,7 +382,7 @@ def features(vol, wavelet="db2", levels=3, *, smooth=1, include_lowpass=True, pc
 
 def render(source, camera="+z", size=(256, 256), *, mode="absorption", tf="gaussian", tf_units="world",
            method="auto", step=None, shading=False, ambient=None, gauss_nodes=None, spline_j=None, brick=None,
-           termination=None, threads=0, colors=None, skip_tolerance=None, preintegrate=False, return_stats=False):
+           termination=None, threads=0, colors=None, skip_tolerance=None, preintegrate=False, gradient_levels=0, return_stats=False):
     """Renders a volume (array or :class:`Volume`) or a :class:`Store`; returns the image as
     an (height, width, 4) float32 array of linear, premultiplied RGBA, row 0 at the top
     (X-ray: R = G = B = the integral of f along the ray in value x world length, A = 1 where
@@ -425,6 +425,9 @@ def render(source, camera="+z", size=(256, 256), *, mode="absorption", tf="gauss
     ``preintegrate``: pre-integrated transfer function (absorption mode, sampling methods): the
     value linear between samples, each segment's integral exact for the piecewise-linear TF, so
     a steep TF is not under-sampled at a large step (docs/render.md, "Pre-integration").
+    ``gradient_levels``: "bricks" with ``shading``: shade with the gradient of the wavelet model's
+    low-pass approximation, the details of that many finest levels dropped (noise and voxel
+    terracing smoothed; the samples themselves unchanged).
     ``return_stats=True`` returns ``(image, stats)``: "method" (the one that ran), rays,
     samples, seconds...
     """
@@ -432,7 +435,7 @@ def render(source, camera="+z", size=(256, 256), *, mode="absorption", tf="gauss
     opts = dict(camera=camera, width=w, height=h, mode=mode, method=method, tf=tf, tf_units=tf_units, step=step,
                 shading=int(bool(shading)), ambient=ambient, gauss_nodes=gauss_nodes, spline_j=spline_j,
                 brick=brick, termination=termination, threads=threads, colors=colors,
-                skip_tolerance=skip_tolerance, preintegrate=int(bool(preintegrate)))
+                skip_tolerance=skip_tolerance, preintegrate=int(bool(preintegrate)), gradient_levels=int(gradient_levels))
     if isinstance(tf, os.PathLike):
         opts["tf"] = os.fspath(tf)
     if isinstance(source, Store):

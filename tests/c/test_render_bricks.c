@@ -432,6 +432,62 @@ done:
     wvol_volume_destroy(v);
 }
 
+/* Shading from the low-pass model (gradient_levels) changes the shading only: the samples,
+ * so alpha, are the same bit for bit, the colour changes (the noisy phantom's gradient is
+ * smoothed), and is within the colour the unshaded image bounds (shade <= 1). Refused where
+ * the store has fewer levels, by the dense reference and by the spline method. */
+static void lowpass_gradient_changes_only_the_shading(void)
+{
+    wvol_volume *v = noisy_phantom(48, 44, 30), *recon = NULL;
+    wvol_store *s = v ? store_and_recon(v, 0.2, &recon) : NULL;
+    wvol_geometry g;
+    wvol_camera cam;
+    wvol_tf tf;
+    wvol_error err;
+    wvol_image *a = NULL, *b = NULL, *u = NULL;
+    wvol_render_params p;
+    double dcol = 0, dalpha = 0, over = 0;
+    if (!s || !recon) goto done;
+    wvol_geometry_of_volume(&g, recon);
+    CHECK(wvol_camera_parse(&cam, "persp dir=1,0.7,0.4", &g, 40, 32, &err) == WVOL_OK, "%s", err.message);
+    CHECK(wvol_tf_parse(&tf, TF_COLOURED, "tf", &err) == WVOL_OK, "%s", err.message);
+    CHECK(wvol_image_create(&a, 40, 32, &err) == WVOL_OK && wvol_image_create(&b, 40, 32, &err) == WVOL_OK &&
+              wvol_image_create(&u, 40, 32, &err) == WVOL_OK,
+          "%s", err.message);
+    if (!a || !b || !u) goto done;
+    wvol_render_params_default(&p);
+    p.bricks.brick = 16;
+    CHECK(wvol_render_bricks(u, s, &cam, &tf, &p, NULL, &err) == WVOL_OK, "%s", err.message);
+    p.shading = 1;
+    CHECK(wvol_render_bricks(a, s, &cam, &tf, &p, NULL, &err) == WVOL_OK, "%s", err.message);
+    p.gradient_levels = 2;
+    CHECK(wvol_render_bricks(b, s, &cam, &tf, &p, NULL, &err) == WVOL_OK, "%s", err.message);
+    for (size_t i = 0; i < 4 * 40 * 32; i++) {
+        double d = fabs((double)a->rgba[i] - b->rgba[i]);
+        if (i % 4 == 3) dalpha = fmax(dalpha, d);
+        else {
+            dcol = fmax(dcol, d);
+            over = fmax(over, b->rgba[i] - u->rgba[i]);
+        }
+    }
+    CHECK(dalpha == 0, "gradient_levels changed alpha by %.3g", dalpha);
+    CHECK(dcol > 1e-3, "gradient_levels changed no colour (%.3g): the low-pass gradient was not used", dcol);
+    CHECK(over <= 1e-6, "a shaded colour exceeds the unshaded one by %.3g", over);
+    p.gradient_levels = 3; /* the store has 2 levels */
+    CHECK(wvol_render_bricks(b, s, &cam, &tf, &p, NULL, &err) == WVOL_ERR_ARG, "gradient_levels 3 of 2 accepted");
+    p.gradient_levels = 1;
+    CHECK(wvol_render_reference(b, recon, &cam, &tf, &p, NULL, &err) == WVOL_ERR_UNSUPPORTED,
+          "the dense reference accepted gradient_levels");
+    CHECK(wvol_render_spline(b, s, &cam, &tf, &p, NULL, &err) == WVOL_ERR_UNSUPPORTED, "spline accepted gradient_levels");
+done:
+    wvol_image_destroy(a);
+    wvol_image_destroy(b);
+    wvol_image_destroy(u);
+    wvol_store_destroy(s);
+    wvol_volume_destroy(recon);
+    wvol_volume_destroy(v);
+}
+
 /* On a constant volume the X-ray skip bound is tight: a skipped run of length len in a
  * brick of value c takes exactly c len off the integral, the rate times the length the
  * bookkeeping charges. So the largest change over the image equals stats->skip_bound (to
@@ -485,6 +541,7 @@ int main(void)
     walk_builds_each_brick_once();
     skip_tolerance_bounds_the_change();
     skipping_inside_bricks_changes_nothing();
+    lowpass_gradient_changes_only_the_shading();
     skip_bookkeeping_is_exact_on_a_constant();
     return check_summary("test_render_bricks");
 }

@@ -221,6 +221,13 @@ typedef struct wvol_render_params {
                                under-sampled at a large step. Mode absorption, the sampling
                                methods (reference, reference-fhat, bricks), no colour volume;
                                default 0 (docs/render.md, "Pre-integration") */
+    int gradient_levels;    /* shading from a store (bricks): the gradient of the wavelet
+                               model's low-pass approximation with the details of the
+                               gradient_levels finest levels dropped (1..the store's levels),
+                               which smooths the noise and the voxel terracing a gradient of
+                               the samples shows; the samples themselves are unchanged. 0
+                               (default): the gradient of the sampled field. Other methods
+                               refuse it (they have no wavelet model at hand) */
     wvol_render_reference_params reference;
     wvol_render_bricks_params bricks;
     wvol_render_spline_params spline;

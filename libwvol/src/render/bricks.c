@@ -43,6 +43,8 @@ typedef struct brick_src {
     size_t slot_floats;
     int nthreads;
     int skip_inside;              /* wvol_render_params.bricks.skip_inside */
+    int grad_drop;                /* wvol_render_params.gradient_levels when shading, else 0 */
+    wvol__coef_source low;        /* cs without the details of levels 1..grad_drop */
     double *bound_rate;           /* per brick: wvol__brick_rate of its coefficient bound, < 0 not
                                      yet computed */
 } brick_src;
@@ -55,6 +57,8 @@ typedef struct brick_cache {
     long *id;                /* per slot: brick index or -1 */
     uint64_t *used;          /* per slot: last use */
     float *data;             /* per slot: slot_floats */
+    float *gdata;            /* per slot: slot_floats of the low-pass field (grad_drop), or NULL */
+    wvol__view *gview;       /* per slot: its view */
     double *rate;            /* per slot: wvol__brick_rate of its voxels' min/max */
     wvol__view *view;        /* per slot: the brick's view (its voxels' box, finished) */
     uint64_t clock;
@@ -68,6 +72,8 @@ static void cache_free(brick_cache *c)
     free(c->id);
     free(c->used);
     free(c->data);
+    free(c->gdata);
+    free(c->gview);
     free(c->rate);
     free(c->view);
     wvol__brick_scratch_free(&c->scr);
@@ -85,7 +91,11 @@ static brick_cache *cache_new(const brick_src *src, size_t slots)
     c->data = malloc(slots * src->slot_floats * sizeof *c->data);
     c->rate = malloc(slots * sizeof *c->rate);
     c->view = malloc(slots * sizeof *c->view);
-    if (!c->id || !c->used || !c->data || !c->rate || !c->view) {
+    if (src->grad_drop) {
+        c->gdata = malloc(slots * src->slot_floats * sizeof *c->gdata);
+        c->gview = malloc(slots * sizeof *c->gview);
+    }
+    if (!c->id || !c->used || !c->data || !c->rate || !c->view || (src->grad_drop && (!c->gdata || !c->gview))) {
         cache_free(c);
         return NULL;
     }
@@ -96,8 +106,8 @@ static brick_cache *cache_new(const brick_src *src, size_t slots)
 static size_t cache_bytes(const brick_cache *c)
 {
     size_t slots = c->nslots;
-    return sizeof *c + slots * (c->src->slot_floats * sizeof(float) + sizeof(long) + sizeof(uint64_t) +
-                                sizeof(double) + sizeof(wvol__view)) +
+    return sizeof *c + slots * ((c->src->grad_drop ? 2 : 1) * (c->src->slot_floats * sizeof(float) + sizeof(wvol__view)) +
+                                sizeof(long) + sizeof(uint64_t) + sizeof(double)) +
            wvol__brick_scratch_bytes(&c->scr);
 }
 
@@ -191,6 +201,15 @@ static void sub_cells(const brick_src *src, size_t b, wvol__view *v)
     v->sub_S = S;
 }
 
+/* The brick source's coefficients without the details of levels 1 .. grad_drop: the
+ * low-pass approximation the shading's gradient is taken from (gradient_levels). */
+static int gather_low(const void *ctx, float *dst, int m, int band, const ptrdiff_t lo[3], const ptrdiff_t n[3])
+{
+    const brick_src *src = ctx;
+    if (band != 0 && m <= src->grad_drop) return 0; /* zero there: the synthesis skips the band */
+    return src->cs.gather(src->cs.ctx, dst, m, band, lo, n);
+}
+
 static wvol_status fetch(const wvol__source *s, void *tctx, size_t b, double allow, const wvol__view **view,
                          double *rate)
 {
@@ -258,6 +277,18 @@ static wvol_status fetch(const wvol__source *s, void *tctx, size_t b, double all
             v->local = 1; /* 1 to 127 cells per axis: block_positions_local (ref_samples.h) */
             for (int a = 0; a < 3; a++) v->local &= hi[a] > lo[a] && hi[a] - lo[a] < 128;
             if (c->rate[slot] > 0 && src->skip_inside) sub_cells(src, b, v); /* rate 0: skipped whole */
+            if (src->grad_drop && c->rate[slot] > 0) { /* the shading's smoother field, same voxels */
+                wvol__view *gv = &c->gview[slot];
+                st = wvol__idwt3_brick_src(c->gdata + slot * src->slot_floats, &src->low, blo, bhi, &c->scr, NULL);
+                if (st != WVOL_OK) {
+                    c->id[slot] = -1;
+                    return st;
+                }
+                *gv = *v;
+                gv->data = c->gdata + slot * src->slot_floats;
+                gv->grad = NULL;
+                v->grad = gv;
+            }
         }
         c->built++;
     }
@@ -303,7 +334,7 @@ static wvol_status prepare(wvol__source *s, const wvol_tf *tf_world, const wvol_
 }
 
 /* Bricks built on demand into the threads' caches, walked tile by tile. */
-static const wvol__source_ops bricks_ops = {.prepare = prepare, .fetch = fetch, .walk_bricks = 1};
+static const wvol__source_ops bricks_ops = {.prepare = prepare, .fetch = fetch, .walk_bricks = 1, .lowpass_gradient = 1};
 
 wvol_status wvol_render_bricks(wvol_image *img, const wvol_store *st, const wvol_camera *cam, const wvol_tf *tf,
                                const wvol_render_params *params, wvol_render_stats *stats, wvol_error *err)
@@ -345,6 +376,17 @@ wvol_status wvol_render_bricks(wvol_image *img, const wvol_store *st, const wvol
         for (size_t i = 0; i < nb; i++) src.bound_rate[i] = -1.0;
     }
     wvol__store_blocks_source(&src.cs, src.blocks);
+    if (p.shading && p.gradient_levels > 0) {
+        if (p.gradient_levels > src.cs.levels) {
+            status = wvol_error_set(err, WVOL_ERR_ARG, "render: gradient_levels %d, but the store has %d levels",
+                                    p.gradient_levels, src.cs.levels);
+            goto done;
+        }
+        src.grad_drop = p.gradient_levels;
+        src.low = src.cs;
+        src.low.gather = gather_low;
+        src.low.ctx = &src;
+    }
     s.ops = &bricks_ops;
     s.ctx = &src;
     s.B = src.B;

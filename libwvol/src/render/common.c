@@ -68,6 +68,8 @@ wvol_status wvol__render_check(const wvol_image *img, const wvol_camera *cam, co
                    "absorption-linear is the paper's per-step linearisation)");
     WVOL_RETURN_IF(p->preintegrate && p->colors, err, WVOL_ERR_UNSUPPORTED,
                    "render: pre-integration takes its colour from the transfer function, not a colour volume");
+    WVOL_RETURN_IF(p->gradient_levels < 0 || p->gradient_levels > 32, err, WVOL_ERR_ARG,
+                   "render: gradient_levels %d (0: the samples' gradient; 1..the store's levels)", p->gradient_levels);
     WVOL_RETURN_IF(p->spline.gauss_nodes < 1 || p->spline.gauss_nodes > 10, err, WVOL_ERR_ARG,
                    "render: gauss_nodes %d (1..10)", p->spline.gauss_nodes);
     return WVOL_OK;

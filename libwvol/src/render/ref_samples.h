@@ -70,7 +70,7 @@ static inline __attribute__((always_inline)) int step(const wvol__source *s, con
     if (mode == WVOL_RENDER_MODE_ABSORPTION && p->preintegrate) { /* checked: absorption, no colour volume */
         double shade = 1.0;
         if (shading) {
-            sample_at(s, view, x, grad);
+            sample_at(s, view->grad ? view->grad : view, x, grad);
             shade = wvol__shade(grad, d, p->ambient);
         }
         acc_settle(tfx, r);
@@ -94,7 +94,7 @@ static inline __attribute__((always_inline)) int step(const wvol__source *s, con
             }
         }
         if (shading) {
-            sample_at(s, view, x, grad);
+            sample_at(s, view->grad ? view->grad : view, x, grad);
             shade = wvol__shade(grad, d, p->ambient);
         }
         for (a = 0; a < 3; a++) r->acc[a] += r->T * alpha * rgb[a] * shade;

@@ -103,6 +103,8 @@ wvol_status wvol__render_sampled(wvol_image *img, wvol__source *s, const wvol_ca
     WVOL_FORWARD(wvol__render_check(img, cam, tf_in, &p, err));
     WVOL_FORWARD(wvol__check_colors(&p, s->n, 1, err));
     WVOL_FORWARD(wvol__check_skip(&p, s->B > 0, err));
+    WVOL_RETURN_IF(p.gradient_levels > 0 && !s->ops->lowpass_gradient, err, WVOL_ERR_UNSUPPORTED,
+                   "render: gradient_levels needs the wavelet model of a store (method bricks)");
     for (a = 0; a < 3; a++) {
         g.dims[a] = s->n[a];
         g.spacing[a] = s->spacing[a];

@@ -56,6 +56,7 @@ void wvol__view_finish(wvol__view *w)
     w->local = 0;
     w->sub_any = 0;
     w->sub_S = 0;
+    w->grad = NULL;
 }
 
 /* ---- the dense source --------------------------------------------------------------------- */

@@ -83,7 +83,8 @@ wvol_status wvol__render_check(const wvol_image *img, const wvol_camera *cam, co
 /* Voxels lo..hi (inclusive, global indices per axis) of a volume or of one brick:
  * voxel (i, j, k) at data[(i - off[0]) + sy (j - off[1]) + sz (k - off[2])]. Trilinear
  * samples clamp to that range. */
-typedef struct wvol__view {
+typedef struct wvol__view wvol__view;
+struct wvol__view {
     const float *data;
     long off[3], lo[3], hi[3];
     double flo[3], fhi[3];  /* lo, hi as doubles (wvol__view_finish) */
@@ -98,9 +99,12 @@ typedef struct wvol__view {
      * its samples touch (sub_org + c sub_S - 1 .. sub_org + (c + 1) sub_S). The walk skips the
      * samples that lie in such sub-cells (ref_walk.c): they add exactly nothing. */
     uint64_t sub_zero[WVOL__SUB_N * WVOL__SUB_N * WVOL__SUB_N / 64];
+    /* the view shading takes its gradient from (the same voxels of a smoother field:
+     * wvol_render_params.gradient_levels), NULL: this one */
+    const struct wvol__view *grad;
     int sub_any, sub_S;     /* sub_any: some bit of sub_zero is set */
     long sub_org[3];
-} wvol__view;
+};
 
 void wvol__view_finish(wvol__view *w);
 
@@ -137,6 +141,9 @@ typedef struct wvol__source_ops {
      * (bricks built on demand, each once per tile: ref_bricks.c); 0: the threads take tiles,
      * each ray walked on its own. */
     int walk_bricks;
+    /* 1: the source honours wvol_render_params.gradient_levels (views with a low-pass
+     * gradient field, wvol__view.grad); others refuse it */
+    int lowpass_gradient;
 } wvol__source_ops;
 
 struct wvol__source {

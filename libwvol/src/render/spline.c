@@ -221,6 +221,8 @@ wvol_status wvol_render_spline_until(wvol_image *img, const wvol_store *s, const
     WVOL_FORWARD(wvol__render_check(img, cam, tf_in, &c.p, err));
     WVOL_FORWARD(wvol__check_colors(&c.p, NULL, 0, err));
     WVOL_FORWARD(wvol__check_skip(&c.p, 0, err));
+    WVOL_RETURN_IF(c.p.gradient_levels > 0, err, WVOL_ERR_UNSUPPORTED,
+                   "render: gradient_levels is for method bricks (spline shades with the model's exact gradient)");
     WVOL_RETURN_IF(c.p.preintegrate, err, WVOL_ERR_UNSUPPORTED,
                    "render: pre-integration is for the sampling methods (reference, reference-fhat, bricks); spline "
                    "integrates the model exactly already");
