@@ -307,10 +307,12 @@ def main():
     ap.add_argument("--ct-volumes", default="ct,skull-noisy", help="ct suite: volumes (ct, skull-noisy)")
     ap.add_argument("--ct-tfs", default="ct-bone,ct-soft", help="ct suite: transfer-function presets")
     ap.add_argument("--ct-cameras", default="+z;+y;persp dir=1,0.7,0.4", help="ct suite: ';'-separated cameras")
-    ap.add_argument("--ct-steps", default="0.5,1,2", help="ct suite: steps (voxels of the smallest spacing); VTK "
+    ap.add_argument("--ct-steps", default="0.5,1,2,4", help="ct suite: steps (voxels of the smallest spacing); VTK "
                     "runs at the first")
     ap.add_argument("--ct-ref-step", type=float, default=0.05, help="ct suite: converged reference step")
-    ap.add_argument("--ct-extra", default="", help="ct suite: ';'-separated extra option sets of more bricks rows")
+    ap.add_argument("--ct-extra", default="--termination 0.0078;--preintegrate",
+                    help="ct suite: ';'-separated extra option sets of more bricks rows (default: VTK's termination "
+                         "threshold 0xff/0x7fff; pre-integration)")
     ap.add_argument("--ct-scale", type=float, default=1, help="ct suite: divide the sizes by this (smoke tests)")
     ap.add_argument("--no-vtk", action="store_true", help="ct suite: leave VTK out")
     a = ap.parse_args()

@@ -141,8 +141,11 @@ def ct_suite(a, wvol, timed, rgba, tmp, outdir, machine):
 
                 for thr in [int(t) for t in a.peer_threads.split(",")]:
                     runs = []
-                    for st in steps:
+                    # the error-against-time curves at one thread; two threads at VTK's step
+                    for st in (steps if thr == 1 else steps[:1]):
                         runs.append((f"reference step={st}", ["--method", "reference", "--step", str(st)], st))
+                        runs.append((f"reference step={st} --preintegrate",
+                                     ["--method", "reference", "--step", str(st), "--preintegrate"], st))
                         runs.append((f"bricks 5% step={st}", ["--method", "bricks", "--keep", "5%", "--step", str(st)],
                                      st))
                         for extra in [e for e in a.ct_extra.split(";") if e]:
@@ -176,8 +179,97 @@ def ct_suite(a, wvol, timed, rgba, tmp, outdir, machine):
                             cpu, wall = map(float, so.strip().splitlines()[-1].split())
                             row(f"VTK fixed-point step={st}", thr, step=st, cpu_s=cpu, wall_s=wall,
                                 rel_rmse=err(np.load(out)), note="set-up frame excluded; 8-bit read-back")
+    shading_images(a, wvol, tmp, outdir, img)
     write_results(rows, a, outdir, machine, img)
     return rows
+
+
+def shading_images(a, wvol, tmp, outdir, img):
+    """The ct volume from its 5% store, shaded, with the gradient of the samples and of the
+    wavelet model's low-pass approximation (--gradient-levels 1 and 2), db2 and bl3: one
+    figure, render_ct_shading.png."""
+    if "ct" not in a.ct_volumes.split(","):
+        return
+    try:
+        import matplotlib
+        matplotlib.use("Agg")
+        import matplotlib.image as mi
+        import matplotlib.pyplot as plt
+    except Exception as ex:
+        print("shading images skipped:", ex)
+        return
+    nrrd = tmp / "ct.nrrd"
+    tfp = tmp / "ct-soft.txt"
+    tf_file("ct-soft", tfp)
+    panels = []
+    for wv in ["db2", "bl3"]:
+        for gl in [0, 1, 2]:
+            out = tmp / f"shade_{wv}_{gl}.png"
+            r = subprocess.run([wvol, "render", str(nrrd), "-o", str(out), "--method", "bricks", "--keep", "5%",
+                                "--wavelet", wv, "--shading", "--gradient-levels", str(gl), "--tf", str(tfp),
+                                "--camera", "persp dir=0.35,1,-0.3 fov=30 zoom=1.5", "--size", f"{img}x{img}"],
+                               capture_output=True, text=True)
+            if r.returncode == 0:
+                panels.append((f"{wv}, gradient of " + ("the samples" if gl == 0 else f"low-pass (-{gl} levels)"),
+                               mi.imread(out)))
+    if not panels:
+        return
+    fig, axes = plt.subplots(2, 3, figsize=(12, 8))
+    for ax, (title, im) in zip(axes.ravel(), panels):
+        ax.imshow(im)
+        ax.set_title(title, fontsize=9)
+        ax.axis("off")
+    fig.tight_layout()
+    fig.savefig(outdir / "render_ct_shading.png", dpi=80)
+
+
+def summary(rows):
+    """Per volume, TF and camera (one thread): the goals read off the rows. Bricks against VTK
+    at VTK's step; at equal error, the cheapest bricks row against the cheapest reference row
+    of the original whose error is no larger; pre-integration: the largest step whose error is
+    at most the classic step 0.5's."""
+    out = ["", "## Summary per case (1 thread unless stated)\n",
+           "| volume | TF | camera | bricks / VTK (step 0.5; 1 thr, 2 thr) | bricks, VTK's termination / VTK (1, 2 thr) "
+           "| at equal error: reference / bricks CPU | classic step 0.5 error | largest pre-integrated step at <= that "
+           "error (reference; bricks) |", "|---|---|---|---|---|---|---|---|"]
+    keys = sorted({(r["volume"], r["tf"], r["camera"]) for r in rows})
+    for key in keys:
+        sel = [r for r in rows if (r["volume"], r["tf"], r["camera"]) == key and r.get("cpu_s") and "rel_rmse" in r]
+
+        def one(method, thr):
+            q = [r for r in sel if r["method"] == method and r["threads"] == thr]
+            return q[0] if q else None
+
+        def ratio(method, thr):
+            r, v = one(method, thr), one("VTK fixed-point step=0.5", thr)
+            return f"{r['cpu_s'] / v['cpu_s']:.2f}" if r and v else "-"
+
+        one_thr = [r for r in sel if r["threads"] == 1]
+        refs = [r for r in one_thr if r["method"].startswith("reference") and "preint" not in r["method"]]
+        bricks = [r for r in one_thr if r["method"].startswith("bricks")]
+        eq = "-"
+        best = None
+        for b in bricks:
+            ok = [q for q in refs if q["rel_rmse"] <= b["rel_rmse"]]
+            if ok:
+                rr = min(ok, key=lambda q: q["cpu_s"])["cpu_s"] / b["cpu_s"]
+                if best is None or rr > best[0]:
+                    best = (rr, b["method"])
+        if best:
+            eq = f"{best[0]:.2f} ({best[1]})"
+        classic = one("reference step=0.5", 1)
+        pre = "-"
+        if classic:
+            def largest(prefix):
+                ok = [r for r in one_thr if r["method"].startswith(prefix) and "--preintegrate" in r["method"]
+                      and r["rel_rmse"] <= classic["rel_rmse"]]
+                return f"{max(r['step'] for r in ok):g}" if ok else "none"
+            pre = f"{largest('reference')}; {largest('bricks')}"
+        out.append(f"| {key[0]} | {key[1]} | {key[2]} | {ratio('bricks 5% step=0.5', 1)}, {ratio('bricks 5% step=0.5', 2)} | "
+                   f"{ratio('bricks 5% step=0.5 --termination 0.0078', 1)}, "
+                   f"{ratio('bricks 5% step=0.5 --termination 0.0078', 2)} | {eq} | "
+                   f"{classic['rel_rmse']:.3g} | {pre} |" if classic else f"| {key[0]} | {key[1]} | {key[2]} | - | - | {eq} | - | {pre} |")
+    return out
 
 
 def write_results(rows, a, outdir, machine, img):
@@ -204,6 +296,7 @@ def write_results(rows, a, outdir, machine, img):
                      f"{r.get('cpu_s', nan):.3f} | {ratio:.2f} | "
                      + (f"{r['rel_rmse']:.3g}" if "rel_rmse" in r else r.get("error", "")) +
                      f" | {r.get('samples', '')} |")
+    lines += summary(rows)
     (outdir / "render_ct.md").write_text("\n".join(lines) + "\n")
     try:
         import matplotlib

@@ -216,7 +216,7 @@ static inline __attribute__((always_inline)) int ray_advance(const wvol__source 
         }
     }
     if (shading) ray_dir(s, st, d);
-    if (view->sub_any && !p->preintegrate) {
+    if (view->sub_any) {
         /* the run cut where it enters or leaves sub-cells of kappa 0, whose samples add
          * nothing; the DDA stops only where that changes */
         sub_dda dd;
@@ -247,6 +247,7 @@ static inline __attribute__((always_inline)) int ray_advance(const wvol__source 
             kn = te == INFINITY ? ke : first_step_at(t0, dt, k, ke, te);
             if (kn <= k) kn = k + 1;
             if (zero) { /* samples k .. kn - 1 add nothing */
+                if (p->preintegrate) preint_close(tfx, &st->r);
                 st->nskip++;
                 k = kn;
                 continue;
