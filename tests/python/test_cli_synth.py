@@ -65,6 +65,26 @@ def test_synth_is_deterministic(wvol, tmp_path):
     assert a != c
 
 
+def test_skull_ct_variant_adds_only_the_table(wvol, tmp_path):
+    # variant ct is the head voxel for voxel plus the patient table: a thin (2.4 mm) shell of
+    # 250 HU outside the head, behind it (+y), curved (its depth changes with x)
+    a, b = tmp_path / "h.raw", tmp_path / "c.raw"
+    args = ["--size", "64x64x24", "--spacing", "3.75,3.75,6"]
+    assert wvol("synth", "skull", "-o", a, *args).returncode == 0
+    assert wvol("synth", "skull", "-o", b, "--variant", "ct", *args).returncode == 0
+    h = np.fromfile(a, "<f4").reshape(24, 64, 64)
+    c = np.fromfile(b, "<f4").reshape(24, 64, 64)
+    diff = np.argwhere(h != c)
+    assert len(diff) > 0 and np.all(h[h != c] == -1000)          # only air changed
+    assert -500 < c[h != c].max() <= 250  # the table (250 HU) thinner than a 3.75 mm voxel: partial volume
+    ys = diff[:, 1]
+    assert ys.min() > 40                                           # behind the head (+y)
+    # curved: the table's depth in y differs between its middle and its ends in x
+    mid = diff[np.abs(diff[:, 2] - 32) < 3][:, 1].mean()
+    end = diff[np.abs(diff[:, 2] - 32) > 20][:, 1].mean()
+    assert mid > end + 1
+
+
 def test_synth_nrrd_gzip_round_trips_through_info(wvol, tmp_path):
     raw, gz = tmp_path / "v.raw", tmp_path / "v.nrrd"
     assert wvol("synth", "skull", "-o", raw, "--size", "32x30x28").returncode == 0
@@ -118,6 +138,7 @@ USAGE_CASES = [
     (["synth", "blobs", "-o", "x.raw", "--count", "0"], "--count"),
     (["synth", "gaussian", "-o", "x.raw", "--sigma", "0"], "--sigma"),
     (["synth", "textures", "-o", "x.raw", "--variant", "plaid"], "plaid"),
+    (["synth", "skull", "-o", "x.raw", "--variant", "mri"], "mri"),
     (["synth", "gaussian", "-o", "x.raw", "--labels", "l.raw"], "no label map"),
     (["synth", "skull", "-o", "x.raw", "--labels", "x.raw"], "same file"),
     (["synth", "skull", "-o", "x.xyz"], "cannot write this format"),
