@@ -278,7 +278,7 @@ def write_results(rows, a, outdir, machine, img):
     lines = [f"# Render benchmark, realistic suite: noisy CT heads, CT ramps, {img}x{img} images\n",
              "`bench/bench_render.py --suite ct` (bench/render_ct.py). Volumes: `ct` = `wvol synth skull --variant "
              "ct --noise 20` at 256x256x108, 0.96 x 0.96 x 1.5 mm (a table arc outside the head, noisy air); "
-             "`skull-noisy` = the 256^3 skull with the same noise. TFs: the `ct-bone` and `ct-soft` presets. "
+             "`skull-noisy` = the 256^3 skull with the same noise (in the suite, `--ct-volumes`; a run may leave it out). TFs: the `ct-bone` and `ct-soft` presets. "
              "The camera is framed like VTK's: VTK's camera is placed where wvol frames its view, so both show "
              "the same visible extent (orthographic: the projected box fits the image; perspective: the box's "
              "bounding sphere fits a 30 degree field of view). Steps in voxels of the smallest spacing; VTK's "
