@@ -68,6 +68,58 @@ void wvol_iso_trace_params_default(wvol_iso_trace_params *p)
     p->ambient = 0.15f;
 }
 
+void wvol__iso_shade(float rgba[4], const wvol_iso_hit *h, const double d[3], const double light[3],
+                     const float color[3], float ambient)
+{
+    double l[3], ll = 0.0, lam = 0.0;
+    int a, head = !(light[0] || light[1] || light[2]);
+    if (!h->hit) {
+        rgba[0] = rgba[1] = rgba[2] = rgba[3] = 0.0f;
+        return;
+    }
+    for (a = 0; a < 3; a++) {
+        l[a] = head ? -d[a] : light[a];
+        ll += l[a] * l[a];
+    }
+    ll = sqrt(ll);
+    for (a = 0; a < 3; a++) lam += h->normal[a] * l[a] / ll;
+    lam = fabs(lam); /* two-sided */
+    for (a = 0; a < 3; a++) rgba[a] = (float)(color[a] * (ambient + (1.0 - ambient) * lam));
+    rgba[3] = 1.0f;
+}
+
+void wvol__iso_model_extent(const wvol_store *s, double lo[3], double hi[3])
+{
+    const wvol_basis *b = wvol_store_basis(s);
+    wvol_store_info info;
+    size_t n[3], P[3];
+    double r0 = 0.0, r1 = 0.0, vmax = 0.0, *pm;
+    int i, a, k, deg1;
+    wvol_store_get_info(s, &info);
+    n[0] = info.nx, n[1] = info.ny, n[2] = info.nz;
+    P[0] = info.px, P[1] = info.py, P[2] = info.pz;
+    for (a = 0; a < 3; a++) lo[a] = 0.0, hi[a] = (double)n[a] - 1.0;
+    if (!b) return;
+    r1 = b->support;
+    deg1 = b->exact ? 1 : 4;
+    pm = malloc((size_t)b->pieces * sizeof *pm);
+    if (pm && !b->exact) { /* per piece a bound of |phi|: the sum of its |coefficients| */
+        for (i = 0; i < b->pieces; i++) {
+            pm[i] = 0;
+            for (k = 0; k < deg1; k++) pm[i] += fabs(b->phi[deg1 * i + k]);
+            if (pm[i] > vmax) vmax = pm[i];
+        }
+        for (i = 0; i < b->pieces && pm[i] <= 1e-3 * vmax; i++) r0 = (i + 1) * b->h;
+        for (i = b->pieces - 1; i >= 0 && pm[i] <= 1e-3 * vmax; i--) r1 = i * b->h;
+    }
+    free(pm);
+    for (a = 0; a < 3; a++) {
+        if (!info.transformed[a]) continue;
+        lo[a] = fmax(0.0, r1 - 1.0 - b->center);
+        hi[a] = fmin((double)n[a] - 1.0, (double)P[a] + r0 - b->center);
+    }
+}
+
 static wvol_status make_tracer(tracer *tr, const wvol_store *s, double iso, const wvol_iso_trace_params *p,
                                wvol_error *err)
 {
@@ -83,6 +135,7 @@ static wvol_status make_tracer(tracer *tr, const wvol_store *s, double iso, cons
     tr->tol = p && p->tolerance > 0 ? p->tolerance : 1e-3 * smin;
     tr->chunk = p && p->chunk > 0 ? p->chunk : 16.0;
     wvol__iso_boxk_init(&tr->k, s);
+    wvol__iso_model_extent(s, tr->lo, tr->hi);
     return WVOL_OK;
 }
 
@@ -173,7 +226,7 @@ wvol_status wvol_iso_raytrace(wvol_image *img, float *depth, float *normals, con
 #pragma omp for schedule(dynamic, 1)
         for (int row = 0; row < img->height; row++) {
             for (int x = 0; x < img->width; x++) {
-                double o[3], d[3], l[3], ll = 0.0, lam = 0.0;
+                double o[3], d[3];
                 wvol_iso_hit h;
                 size_t px = (size_t)row * (size_t)img->width + (size_t)x;
                 float *c = img->rgba + 4 * px;
@@ -197,20 +250,8 @@ wvol_status wvol_iso_raytrace(wvol_image *img, float *depth, float *normals, con
                 if (depth) depth[px] = h.hit ? (float)h.t : INFINITY;
                 if (normals)
                     for (a = 0; a < 3; a++) normals[3 * px + a] = h.hit ? (float)h.normal[a] : 0.0f;
-                if (!h.hit) {
-                    c[0] = c[1] = c[2] = c[3] = 0.0f;
-                    continue;
-                }
-                hits++;
-                for (a = 0; a < 3; a++) {
-                    l[a] = (p->light[0] || p->light[1] || p->light[2]) ? p->light[a] : -d[a];
-                    ll += l[a] * l[a];
-                }
-                ll = sqrt(ll);
-                for (a = 0; a < 3; a++) lam += h.normal[a] * l[a] / ll;
-                lam = fabs(lam); /* two-sided */
-                for (a = 0; a < 3; a++) c[a] = (float)(p->color[a] * (p->ambient + (1.0 - p->ambient) * lam));
-                c[3] = 1.0f;
+                hits += (size_t)h.hit;
+                wvol__iso_shade(c, &h, d, p->light, p->color, p->ambient);
             }
         }
         wvol__trace_ws_free(&ws);
