@@ -159,6 +159,12 @@ WVOL_API wvol_status wvol_iso_extract_store(wvol_mesh **out, const wvol_store *s
  * tolerance/2, except that two crossings closer together than tolerance/8 may be skipped
  * (a "graze", counted); see docs/iso.md. Haar's f^ jumps at voxel faces: a jump across iso
  * is a crossing at the face. */
+/* Which surface wvol_iso_render_hybrid draws behind the volume. */
+typedef enum wvol_iso_surface {
+    WVOL_ISO_SURFACE_EXACT = 0, /* f^ = iso, the exact tracer (default) */
+    WVOL_ISO_SURFACE_CAST = 1   /* the trilinear interpolant of the store's reconstruction (wvol_iso_cast) */
+} wvol_iso_surface;
+
 typedef struct wvol_iso_trace_params {
     double tolerance;   /* depth accuracy in world units; <= 0: 1e-3 of the smallest spacing */
     double chunk;       /* ray segment built at a time, voxels (default 16): a ray stops building
@@ -167,6 +173,7 @@ typedef struct wvol_iso_trace_params {
     double light[3];    /* direction towards the light (world); all 0: a headlight */
     float color[3];     /* albedo */
     float ambient;      /* in [0, 1] */
+    wvol_iso_surface surface; /* wvol_iso_render_hybrid only (default EXACT) */
 } wvol_iso_trace_params;
 
 WVOL_API void wvol_iso_trace_params_default(wvol_iso_trace_params *p);
@@ -210,7 +217,9 @@ WVOL_API wvol_status wvol_iso_raytrace(wvol_image *img, float *depth, float *nor
  * front of it. Per pixel the surface is traced (wvol_iso_raytrace), the spline integrator runs
  * from the box's entry to the surface's depth (wvol_render_spline_until) with tf and rp, and
  * the shaded surface is added with the remaining transmittance. depth (may be NULL) receives
- * the surface depth. */
+ * the surface depth. With tp->surface == WVOL_ISO_SURFACE_CAST the surface comes from
+ * wvol_iso_cast on the store (tp's threads, light, colour and ambient; its default tolerance
+ * and bricks); tstats then reports rays, hits, seconds and cpu_seconds. */
 WVOL_API wvol_status wvol_iso_render_hybrid(wvol_image *img, float *depth, const wvol_store *s, const wvol_camera *cam,
                                             const wvol_tf *tf, double iso, const wvol_render_params *rp,
                                             const wvol_iso_trace_params *tp, wvol_iso_trace_stats *tstats,

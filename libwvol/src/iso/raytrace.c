@@ -298,7 +298,27 @@ wvol_status wvol_iso_render_hybrid(wvol_image *img, float *depth, const wvol_sto
         wvol_image_destroy(surf);
         return wvol_error_set(err, WVOL_ERR_NOMEM, "iso hybrid: out of memory for the depth buffer");
     }
-    stt = wvol_iso_raytrace(surf, z, NULL, s, cam, iso, tp, tstats, err);
+    if (tp && tp->surface == WVOL_ISO_SURFACE_CAST) {
+        wvol_iso_cast_params cp;
+        wvol_iso_cast_stats cs;
+        wvol_render_source src = wvol_render_source_store(s);
+        wvol_iso_cast_params_default(&cp);
+        cp.threads = tp->threads;
+        memcpy(cp.light, tp->light, sizeof cp.light);
+        memcpy(cp.color, tp->color, sizeof cp.color);
+        cp.ambient = tp->ambient;
+        stt = wvol_iso_cast(surf, z, NULL, &src, cam, iso, &cp, &cs, err);
+        if (stt == WVOL_OK && tstats) {
+            memset(tstats, 0, sizeof *tstats);
+            tstats->rays = cs.rays;
+            tstats->hits = cs.hits;
+            tstats->seconds = cs.seconds;
+            tstats->cpu_seconds = cs.cpu_seconds;
+            memcpy(tstats->message, cs.message, sizeof tstats->message);
+        }
+    } else {
+        stt = wvol_iso_raytrace(surf, z, NULL, s, cam, iso, tp, tstats, err);
+    }
     /* the volume in front of the surface (the whole ray where there is none) */
     if (stt == WVOL_OK) stt = wvol_render_spline_until(img, s, cam, tf, rp, z, rstats, err);
     if (stt == WVOL_OK)
