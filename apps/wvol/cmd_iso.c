@@ -300,6 +300,7 @@ static int run_cast(const iso_args *a)
         cli_json_num("prepare_seconds", t_prep);
         cli_json_num("seconds", cs.seconds);
         cli_json_num("seconds_bounds", cs.seconds_bounds);
+        cli_json_num("thread_seconds_build", cs.seconds_build);
         cli_json_num("cpu_seconds", cs.cpu_seconds);
         cli_json_num("rays_per_second", cs.seconds > 0 ? (double)cs.rays / cs.seconds : 0);
         cli_json_int("empty", cs.hits == 0);

@@ -262,6 +262,8 @@ typedef struct wvol_iso_cast_stats {
     size_t bytes;               /* bricks and tables allocated */
     double seconds;             /* the whole call: bounds, bricks and rays */
     double seconds_bounds;      /* of seconds: the store's block view and bounds */
+    double seconds_build;       /* thread-seconds spent building bricks (summed over threads) */
+    int threads;                /* threads used */
     double cpu_seconds;
     char message[256];          /* set when nothing is hit */
 } wvol_iso_cast_stats;

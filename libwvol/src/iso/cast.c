@@ -145,7 +145,9 @@ static const float *brick_get(wvol__caster *c, wvol__cast_ws *w, size_t b, wvol_
 #endif
     d = __atomic_load_n(&c->bdata[b], __ATOMIC_ACQUIRE);
     if (!d) {
+        double t0 = wvol__now();
         d = brick_build(c, w, b, err);
+        w->seconds_build += wvol__now() - t0;
         if (d) {
             __atomic_fetch_add(&c->built, 1, __ATOMIC_RELAXED);
             __atomic_store_n(&c->bdata[b], d, __ATOMIC_RELEASE);
@@ -597,6 +599,7 @@ wvol_status wvol_iso_cast(wvol_image *img, float *depth, float *normals, const w
     wvol__caster *c = NULL;
     double t_start = wvol__now(), c_start = wvol__cpu_now(), t_bounds, tmin;
     size_t hits = 0, cells = 0;
+    double build = 0.0;
     int nth, failed = 0;
     wvol_error first_err;
     WVOL_RETURN_IF(!img || !img->rgba, err, WVOL_ERR_ARG, "iso cast: no image");
@@ -614,7 +617,7 @@ wvol_status wvol_iso_cast(wvol_image *img, float *depth, float *normals, const w
     nth = wvol__threads(p->threads);
     tmin = cam->projection == WVOL_PROJECTION_PERSPECTIVE ? 0.0 : -INFINITY;
     wvol_error_clear(&first_err);
-#pragma omp parallel num_threads(nth) reduction(+ : hits, cells)
+#pragma omp parallel num_threads(nth) reduction(+ : hits, cells, build)
     {
         wvol__cast_ws w;
         memset(&w, 0, sizeof w);
@@ -643,6 +646,7 @@ wvol_status wvol_iso_cast(wvol_image *img, float *depth, float *normals, const w
             }
         }
         cells += w.cells;
+        build += w.seconds_build;
         wvol__cast_ws_free(&w);
     }
     if (failed) {
@@ -658,6 +662,8 @@ wvol_status wvol_iso_cast(wvol_image *img, float *depth, float *normals, const w
         st->cells_tested = cells;
         wvol__caster_counts(c, &st->bricks_total, &st->bricks_bound, &st->bricks_built, &st->bytes);
         st->seconds_bounds = t_bounds;
+        st->seconds_build = build;
+        st->threads = nth;
         st->cpu_seconds = wvol__cpu_now() - c_start;
         if (hits == 0) {
             for (b = 0; b < c->nbricks; b++) cnt[c->bcls[b] + 1]++;

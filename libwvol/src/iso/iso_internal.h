@@ -144,6 +144,7 @@ typedef struct wvol__caster wvol__caster;
 typedef struct wvol__cast_ws {
     wvol__brick_scratch scr;
     size_t cells;
+    double seconds_build;   /* this thread's wall time spent building bricks */
 } wvol__cast_ws;
 void wvol__cast_ws_free(wvol__cast_ws *w);
 
