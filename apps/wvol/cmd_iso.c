@@ -22,6 +22,7 @@ static const cli_opt opts[] = {
     {"iso", 0, 1, "iso-value theta (required)"},
     {"method", 0, 1, "mc (default), cast (image of the trilinear interpolant's surface, bricked),\n"
                      "raytrace (image of f^ = theta, exact model) or hybrid (surface behind the volume)"},
+    {"model-bound", 0, 0, "cast from a store: also bound |f^ - interp| per brick (reported)"},
     {"surface", 0, 1, "hybrid: the surface from exact (f^, default) or cast (the interpolant)"},
     {"camera", 0, 1, "raytrace/hybrid: camera, as for wvol render (default +z)"},
     {"size", 0, 1, "raytrace/hybrid: image size WxH (default 512x512)"},
@@ -47,7 +48,7 @@ static const cli_opt opts[] = {
 typedef struct iso_args {
     const char *in, *out;
     double iso;
-    int have_iso, json, threads, repeat, levels, brick, spline_j, have_keep, have_tol, surface_cast;
+    int have_iso, json, threads, repeat, levels, brick, spline_j, have_keep, have_tol, surface_cast, model_bound;
     long width, height;
     double keep, tolerance, chunk;
     const char *method, *wavelet, *camera, *tf;
@@ -269,6 +270,7 @@ static int run_cast(const iso_args *a)
     cp.threads = a->threads;
     cp.brick = a->brick > 0 ? a->brick : 32;
     if (a->have_tol) cp.tolerance = a->tolerance;
+    cp.model_bound = a->model_bound;
     t_prep = cli_now() - t0;
     if (wvol_iso_cast(img, depth, NULL, &src, &cam, a->iso, &cp, &cs, &err) != WVOL_OK) goto fail;
     if (save_image(a->out, img, depth, &err) != WVOL_OK) goto fail;
@@ -297,6 +299,12 @@ static int run_cast(const iso_args *a)
         cli_json_int("bricks_built", (long long)cs.bricks_built);
         cli_json_int("cells_tested", (long long)cs.cells_tested);
         cli_json_int("bytes", (long long)cs.bytes);
+        if (a->model_bound) {
+            cli_json_num("fhat_bound_max", cs.fhat_bound_max);
+            cli_json_num("fhat_bound_mean", cs.fhat_bound_mean);
+            cli_json_int("fhat_bound_bricks", (long long)cs.fhat_bound_bricks);
+            cli_json_int("fhat_bound_faces", (long long)cs.fhat_bound_faces);
+        }
         cli_json_num("prepare_seconds", t_prep);
         cli_json_num("seconds", cs.seconds);
         cli_json_num("seconds_bounds", cs.seconds_bounds);
@@ -310,6 +318,9 @@ static int run_cast(const iso_args *a)
         printf("hits       %zu of %zu rays\n", cs.hits, cs.rays);
         printf("bricks     %zu of %zu built on demand, %zu decided by their bound (%d^3 cells each)\n",
                cs.bricks_built, cs.bricks_total, cs.bricks_bound, cp.brick);
+        if (a->model_bound && cs.fhat_bound_bricks)
+            printf("model      |f^ - interp| <= %.6g (mean %.6g) over %zu bricks; %zu at faces unbounded\n",
+                   cs.fhat_bound_max, cs.fhat_bound_mean, cs.fhat_bound_bricks, cs.fhat_bound_faces);
         printf("time       %.3f s (bounds %.3f s; %.0f rays/s), preparation %.3f s\n", cs.seconds, cs.seconds_bounds,
                cs.seconds > 0 ? (double)cs.rays / cs.seconds : 0.0, t_prep);
         if (a->out) printf("wrote      %s\n", a->out);
@@ -488,6 +499,8 @@ int wvol_cmd_iso(int argc, char **argv)
             if (strcmp(val, "mc") && strcmp(val, "cast") && strcmp(val, "raytrace") && strcmp(val, "hybrid"))
                 return cli_usage("iso", "--method '%s': expected mc, cast, raytrace or hybrid", val);
             a.method = val;
+        } else if (!strcmp(o->name, "model-bound")) {
+            a.model_bound = 1;
         } else if (!strcmp(o->name, "surface")) {
             if (strcmp(val, "exact") && strcmp(val, "cast"))
                 return cli_usage("iso", "--surface '%s': expected exact or cast", val);

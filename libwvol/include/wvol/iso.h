@@ -249,6 +249,8 @@ typedef struct wvol_iso_cast_params {
     double light[3];    /* direction towards the light (world); all 0: a headlight */
     float color[3];     /* albedo */
     float ambient;      /* in [0, 1] */
+    int model_bound;    /* 1: from a store, also bound |f^ - interp| per built brick (stats; costs a
+                           query of the functions touching each brick and a halo of samples) */
 } wvol_iso_cast_params;
 
 WVOL_API void wvol_iso_cast_params_default(wvol_iso_cast_params *p);
@@ -264,6 +266,12 @@ typedef struct wvol_iso_cast_stats {
     double seconds_bounds;      /* of seconds: the store's block view and bounds */
     double seconds_build;       /* thread-seconds spent building bricks (summed over threads) */
     int threads;                /* threads used */
+    /* from a store: the bound of |f^ - interp| per built brick (f^ the wavelet model, interp the
+     * trilinear interpolant of the reconstruction; docs/iso.md): its max and mean over the bricks
+     * where it applies, their count, and the bricks whose sample window a face clips (the model
+     * reaches across the periodic wrap there: no bound) */
+    double fhat_bound_max, fhat_bound_mean;
+    size_t fhat_bound_bricks, fhat_bound_faces;
     double cpu_seconds;
     char message[256];          /* set when nothing is hit */
 } wvol_iso_cast_stats;

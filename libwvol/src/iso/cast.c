@@ -51,6 +51,11 @@ struct wvol__caster {
     double iso, tol;
     signed char *bcls;               /* per brick: the bound's class, -1 undecided */
     float **bdata;                   /* per brick: NULL until built */
+    double *fbound;                  /* per built brick of a store: the bound of |f^ - interp| (+inf:
+                                        the model reaches across the wrap there), NaN until built */
+    const wvol_store *store;
+    wvol__fhat_link link;            /* constants of that bound */
+    size_t halo[2];                  /* samples kept below and above a brick's own */
     size_t nbound, built, bytes;
 #ifdef _OPENMP
     omp_lock_t *locks;
@@ -66,72 +71,106 @@ void wvol_iso_cast_params_default(wvol_iso_cast_params *p)
     p->ambient = 0.15f;
 }
 
-/* Cells of brick b along each axis and its first sample. */
-static void brick_box(const wvol__caster *c, size_t b, size_t c0[3], size_t cells[3])
-{
-    size_t idx[3] = {b % c->nb[0], (b / c->nb[0]) % c->nb[1], b / (c->nb[0] * c->nb[1])};
-    int a;
-    for (a = 0; a < 3; a++) {
-        c0[a] = idx[a] * (size_t)c->B;
-        cells[a] = c->n[a] - 1 - c0[a] < (size_t)c->B ? c->n[a] - 1 - c0[a] : (size_t)c->B;
-    }
-}
+/* Where brick b's samples are: its own cells' corners c0 .. c0 + cells, and the stored box
+ * lo .. lo + md - 1 around them (the halo the model bound needs, clipped to the volume). */
+typedef struct bgeom {
+    size_t c0[3], cells[3], lo[3], md[3], g[3], ns, ng, core;
+    int whole; /* the halo is complete (no face clipped it) */
+} bgeom;
 
-/* Layout of a built brick: [bmin, bmax], samples (cells + 1 per axis, x fastest), then the
- * groups' min and max. */
+/* Groups of GROUP cells along an axis of `cells` cells. */
 static size_t groups(size_t cells)
 {
     return (cells + GROUP - 1) / GROUP;
 }
 
+static void brick_geom(const wvol__caster *c, size_t b, bgeom *q)
+{
+    size_t idx[3] = {b % c->nb[0], (b / c->nb[0]) % c->nb[1], b / (c->nb[0] * c->nb[1])};
+    int a;
+    q->whole = 1;
+    for (a = 0; a < 3; a++) {
+        size_t hi;
+        q->c0[a] = idx[a] * (size_t)c->B;
+        q->cells[a] = c->n[a] - 1 - q->c0[a] < (size_t)c->B ? c->n[a] - 1 - q->c0[a] : (size_t)c->B;
+        q->lo[a] = q->c0[a] >= c->halo[0] ? q->c0[a] - c->halo[0] : 0;
+        hi = q->c0[a] + q->cells[a] + c->halo[1] <= c->n[a] - 1 ? q->c0[a] + q->cells[a] + c->halo[1] : c->n[a] - 1;
+        if (q->c0[a] - q->lo[a] < c->halo[0] || hi - q->c0[a] - q->cells[a] < c->halo[1]) q->whole = 0;
+        q->md[a] = hi - q->lo[a] + 1;
+        q->g[a] = groups(q->cells[a]);
+    }
+    q->ns = q->md[0] * q->md[1] * q->md[2];
+    q->ng = q->g[0] * q->g[1] * q->g[2];
+    q->core = (q->c0[0] - q->lo[0]) + q->md[0] * ((q->c0[1] - q->lo[1]) + q->md[1] * (q->c0[2] - q->lo[2]));
+}
+
+/* Layout of a built brick: [bmin, bmax] of its own samples, the stored samples (x fastest),
+ * then the groups' min and max. */
 static float *brick_build(wvol__caster *c, wvol__cast_ws *w, size_t b, wvol_error *err)
 {
-    size_t c0[3], cells[3], m[3], g[3], ns, ng, i, j, k, hi[3];
-    float *d, *s, *gmin, *gmax, lo = INFINITY, up = -INFINITY;
+    bgeom q;
+    size_t i, j, k, hi[3];
+    float *d, *s, *core, *gmin, *gmax, lo = INFINITY, up = -INFINITY;
+    const size_t *m;
     int a;
-    brick_box(c, b, c0, cells);
-    for (a = 0; a < 3; a++) m[a] = cells[a] + 1, g[a] = groups(cells[a]), hi[a] = c0[a] + m[a];
-    ns = m[0] * m[1] * m[2];
-    ng = g[0] * g[1] * g[2];
-    d = malloc((2 + ns + 2 * ng) * sizeof *d);
+    brick_geom(c, b, &q);
+    for (a = 0; a < 3; a++) hi[a] = q.lo[a] + q.md[a];
+    d = malloc((2 + q.ns + 2 * q.ng) * sizeof *d);
     if (!d) {
         wvol_error_set(err, WVOL_ERR_NOMEM, "iso cast: out of memory for a brick");
         return NULL;
     }
     s = d + 2;
     if (c->vol) {
-        for (k = 0; k < m[2]; k++)
-            for (j = 0; j < m[1]; j++)
-                memcpy(s + m[0] * (j + m[1] * k), c->vol->data + c0[0] + c->n[0] * (c0[1] + j + c->n[1] * (c0[2] + k)),
-                       m[0] * sizeof *s);
-    } else if (wvol__idwt3_brick_src(s, &c->cs, c0, hi, &w->scr, err) != WVOL_OK) {
+        for (k = 0; k < q.md[2]; k++)
+            for (j = 0; j < q.md[1]; j++)
+                memcpy(s + q.md[0] * (j + q.md[1] * k),
+                       c->vol->data + q.lo[0] + c->n[0] * (q.lo[1] + j + c->n[1] * (q.lo[2] + k)), q.md[0] * sizeof *s);
+    } else if (wvol__idwt3_brick_src(s, &c->cs, q.lo, hi, &w->scr, err) != WVOL_OK) {
         free(d);
         return NULL;
     }
-    gmin = s + ns;
-    gmax = gmin + ng;
-    for (i = 0; i < ng; i++) gmin[i] = INFINITY, gmax[i] = -INFINITY;
+    core = s + q.core;
+    m = q.md;
+    gmin = s + q.ns;
+    gmax = gmin + q.ng;
+    for (i = 0; i < q.ng; i++) gmin[i] = INFINITY, gmax[i] = -INFINITY;
     /* a sample belongs to every group whose cells it is a corner of */
-    for (k = 0; k < m[2]; k++)
-        for (j = 0; j < m[1]; j++)
-            for (i = 0; i < m[0]; i++) {
-                float v = s[i + m[0] * (j + m[1] * k)];
-                size_t gk0 = k ? (k - 1) / GROUP : 0, gk1 = k / GROUP < g[2] ? k / GROUP : g[2] - 1;
-                size_t gj0 = j ? (j - 1) / GROUP : 0, gj1 = j / GROUP < g[1] ? j / GROUP : g[1] - 1;
-                size_t gi0 = i ? (i - 1) / GROUP : 0, gi1 = i / GROUP < g[0] ? i / GROUP : g[0] - 1;
+    for (k = 0; k <= q.cells[2]; k++)
+        for (j = 0; j <= q.cells[1]; j++)
+            for (i = 0; i <= q.cells[0]; i++) {
+                float v = core[i + m[0] * (j + m[1] * k)];
+                size_t gk0 = k ? (k - 1) / GROUP : 0, gk1 = k / GROUP < q.g[2] ? k / GROUP : q.g[2] - 1;
+                size_t gj0 = j ? (j - 1) / GROUP : 0, gj1 = j / GROUP < q.g[1] ? j / GROUP : q.g[1] - 1;
+                size_t gi0 = i ? (i - 1) / GROUP : 0, gi1 = i / GROUP < q.g[0] ? i / GROUP : q.g[0] - 1;
                 size_t x, y, z;
                 if (v < lo) lo = v;
                 if (v > up) up = v;
                 for (z = gk0; z <= gk1; z++)
                     for (y = gj0; y <= gj1; y++)
                         for (x = gi0; x <= gi1; x++) {
-                            size_t q = x + g[0] * (y + g[1] * z);
-                            if (v < gmin[q]) gmin[q] = v;
-                            if (v > gmax[q]) gmax[q] = v;
+                            size_t g = x + q.g[0] * (y + q.g[1] * z);
+                            if (v < gmin[g]) gmin[g] = v;
+                            if (v > gmax[g]) gmax[g] = v;
                         }
             }
     d[0] = lo;
     d[1] = up;
+    if (c->fbound) { /* the model bound over the brick: its samples' window and the functions touching it */
+        double e = INFINITY;
+        if (q.whole && c->link.ok) {
+            double blo[3], bhi[3];
+            for (a = 0; a < 3; a++) blo[a] = (double)q.c0[a], bhi[a] = (double)(q.c0[a] + q.cells[a]);
+            if (wvol_store_query_box(c->store, blo, bhi, &w->hits, err) != WVOL_OK) {
+                free(d);
+                return NULL;
+            }
+            size_t core[3];
+            for (a = 0; a < 3; a++) core[a] = q.c0[a] - q.lo[a];
+            e = wvol__fhat_link_bound(&c->link, s, q.md, core, q.cells, GROUP, w->hits.hits, w->hits.count);
+        }
+        c->fbound[b] = e;
+    }
     return d;
 }
 
@@ -203,6 +242,11 @@ wvol_status wvol__caster_create(wvol__caster **out, const wvol_render_source *sr
             return st;
         }
         wvol__store_blocks_source(&c->cs, c->blocks);
+        if (p->model_bound) {
+            c->store = src->store;
+            wvol__fhat_link_init(&c->link, src->store);
+            if (c->link.ok) c->halo[0] = (size_t)c->link.below, c->halo[1] = (size_t)c->link.above;
+        }
         c->bytes += wvol__store_blocks_bytes(c->blocks) + (c->bb ? wvol__bounds_bytes(c->bb) : 0);
     }
     for (a = 0; a < 3; a++) {
@@ -229,10 +273,20 @@ wvol_status wvol__caster_create(wvol__caster **out, const wvol_render_source *sr
         return wvol_error_set(err, WVOL_ERR_NOMEM, "iso cast: out of memory for %zu bricks", c->nbricks);
     }
     c->bytes += c->nbricks * (1 + sizeof *c->bdata);
+    if (c->store) {
+        c->fbound = malloc((c->nbricks + 1) * sizeof *c->fbound);
+        if (!c->fbound) {
+            wvol__caster_destroy(c);
+            return wvol_error_set(err, WVOL_ERR_NOMEM, "iso cast: out of memory for %zu bricks", c->nbricks);
+        }
+        for (b = 0; b < c->nbricks; b++) c->fbound[b] = NAN;
+        c->bytes += c->nbricks * sizeof *c->fbound;
+    }
     for (b = 0; b < c->nbricks; b++) { /* the bound's class of every brick's samples */
-        size_t c0[3], cells[3];
+        bgeom q;
+        const size_t *c0 = q.c0, *cells = q.cells;
         double lo = -INFINITY, hi = INFINITY;
-        brick_box(c, b, c0, cells);
+        brick_geom(c, b, &q);
         if (c->vol) {
             size_t i, j, k;
             lo = INFINITY, hi = -INFINITY;
@@ -275,6 +329,7 @@ void wvol__caster_destroy(wvol__caster *c)
 #endif
     free(c->bdata);
     free(c->bcls);
+    free(c->fbound);
     wvol__bounds_free(c->bb);
     wvol__store_blocks_destroy(c->blocks);
     free(c);
@@ -288,18 +343,33 @@ void wvol__caster_counts(const wvol__caster *c, size_t *total, size_t *bound, si
     *built = c->built;
     for (b = 0; b < c->nbricks; b++)
         if (c->bdata[b]) {
-            size_t c0[3], cells[3];
-            brick_box(c, b, c0, cells);
-            nb += (2 + (cells[0] + 1) * (cells[1] + 1) * (cells[2] + 1) +
-                   2 * groups(cells[0]) * groups(cells[1]) * groups(cells[2])) *
-                  sizeof(float);
+            bgeom q;
+            brick_geom(c, b, &q);
+            nb += (2 + q.ns + 2 * q.ng) * sizeof(float);
         }
     *bytes = c->bytes + nb;
+}
+
+double wvol__caster_fhat_bound(wvol__caster *c, wvol__cast_ws *w, const double x[3], wvol_error *err)
+{
+    size_t b = 0, stride = 1;
+    int a;
+    if (!c->fbound) return INFINITY;
+    for (a = 0; a < 3; a++) {
+        long ci = (long)floor(x[a]);
+        if (ci < 0) ci = 0;
+        if (ci > (long)c->n[a] - 2) ci = (long)c->n[a] - 2;
+        b += (size_t)(ci / c->B) * stride;
+        stride *= c->nb[a];
+    }
+    if (!brick_get(c, w, b, err)) return NAN;
+    return c->fbound[b];
 }
 
 void wvol__cast_ws_free(wvol__cast_ws *w)
 {
     wvol__brick_scratch_free(&w->scr);
+    wvol_store_hits_free(&w->hits);
     memset(w, 0, sizeof *w);
 }
 
@@ -368,7 +438,8 @@ typedef struct ray {
     int prev;       /* class at the end of what is done; -1 before the entry */
 } ray;
 
-/* The eight corners of global cell ci (brick data d of brick with first sample c0, m samples). */
+/* The eight corners of the cell at l (relative to s, a brick's own first sample; m the stored
+ * box's dimensions). */
 static void corners(const float *s, const size_t m[3], const long l[3], double c8[8])
 {
     size_t sx = 1, sy = m[0], sz = m[0] * m[1];
@@ -404,10 +475,11 @@ static void set_hit(const wvol__caster *c, const ray *r, const double c8[8], con
 static wvol_status hit_at(wvol__caster *c, wvol__cast_ws *w, const ray *r, double t, wvol_iso_hit *h,
                           wvol_error *err)
 {
-    size_t b = 0, stride = 1, c0[3], cells[3], m[3];
+    size_t b = 0, stride = 1;
     long l[3], bi[3];
     double c8[8], cell[3];
     const float *d;
+    bgeom q;
     int a;
     for (a = 0; a < 3; a++) {
         double x = r->ov[a] + t * r->dv[a];
@@ -422,9 +494,8 @@ static wvol_status hit_at(wvol__caster *c, wvol__cast_ws *w, const ray *r, doubl
     }
     d = brick_get(c, w, b, err);
     if (!d) return err ? err->status : WVOL_ERR_NOMEM;
-    brick_box(c, b, c0, cells);
-    for (a = 0; a < 3; a++) m[a] = cells[a] + 1;
-    corners(d + 2, m, l, c8);
+    brick_geom(c, b, &q);
+    corners(d + 2 + q.core, q.md, l, c8);
     set_hit(c, r, c8, cell, t, h);
     return WVOL_OK;
 }
@@ -443,14 +514,15 @@ static int decided(wvol__caster *c, wvol__cast_ws *w, ray *r, int cls, double t,
 
 /* The cells of group (gi) of a built brick over [ta, tb]: 1 on a hit (or an error in *st). */
 static int cast_cells(wvol__caster *c, wvol__cast_ws *w, ray *r, const float *s, const size_t c0[3],
-                      const size_t m[3], const long gi[3], double ta, double tb, wvol_iso_hit *h)
+                      const size_t cells[3], const size_t m[3], const long gi[3], double ta, double tb,
+                      wvol_iso_hit *h)
 {
     walk wk;
     long n[3], idx[3];
     double base[3], t0, t1, tol = c->tol / r->speed;
     int a;
     for (a = 0; a < 3; a++) {
-        long first = gi[a] * GROUP, left = (long)m[a] - 1 - first;
+        long first = gi[a] * GROUP, left = (long)cells[a] - first;
         base[a] = (double)c0[a] + (double)first;
         n[a] = left < GROUP ? left : GROUP;
     }
@@ -486,29 +558,27 @@ static int cast_cells(wvol__caster *c, wvol__cast_ws *w, ray *r, const float *s,
 static int cast_brick(wvol__caster *c, wvol__cast_ws *w, ray *r, size_t b, const float *d, double ta, double tb,
                       wvol_iso_hit *h, wvol_status *st, wvol_error *err)
 {
-    size_t c0[3], cells[3], m[3], g[3];
+    bgeom q;
     const float *s = d + 2, *gmin, *gmax;
     walk wk;
     long n[3], idx[3];
     double base[3], t0, t1;
     int a;
-    brick_box(c, b, c0, cells);
+    brick_geom(c, b, &q);
     for (a = 0; a < 3; a++) {
-        m[a] = cells[a] + 1;
-        g[a] = groups(cells[a]);
-        n[a] = (long)g[a];
-        base[a] = (double)c0[a];
+        n[a] = (long)q.g[a];
+        base[a] = (double)q.c0[a];
     }
-    gmin = s + m[0] * m[1] * m[2];
-    gmax = gmin + g[0] * g[1] * g[2];
+    gmin = s + q.ns;
+    gmax = gmin + q.ng;
     walk_init(&wk, r->ov, r->dv, ta, tb, base, (double)GROUP, n);
     while (walk_next(&wk, idx, &t0, &t1)) {
-        size_t q = (size_t)idx[0] + g[0] * ((size_t)idx[1] + g[1] * (size_t)idx[2]);
-        if (gmin[q] >= c->iso || gmax[q] < c->iso) {
-            if (decided(c, w, r, gmin[q] >= c->iso, t0, h, st, err)) return 1;
+        size_t g = (size_t)idx[0] + q.g[0] * ((size_t)idx[1] + q.g[1] * (size_t)idx[2]);
+        if (gmin[g] >= c->iso || gmax[g] < c->iso) {
+            if (decided(c, w, r, gmin[g] >= c->iso, t0, h, st, err)) return 1;
             continue;
         }
-        if (cast_cells(c, w, r, s, c0, m, idx, t0, t1, h)) return 1;
+        if (cast_cells(c, w, r, s + q.core, q.c0, q.cells, q.md, idx, t0, t1, h)) return 1;
     }
     return 0;
 }
@@ -664,6 +734,23 @@ wvol_status wvol_iso_cast(wvol_image *img, float *depth, float *normals, const w
         st->seconds_bounds = t_bounds;
         st->seconds_build = build;
         st->threads = nth;
+        if (c->fbound) { /* the model bound over the bricks built */
+            size_t nfin = 0;
+            double sum = 0.0;
+            for (b = 0; b < c->nbricks; b++) {
+                double e = c->fbound[b];
+                if (isnan(e)) continue;
+                if (isinf(e)) {
+                    st->fhat_bound_faces++;
+                    continue;
+                }
+                nfin++;
+                sum += e;
+                if (e > st->fhat_bound_max) st->fhat_bound_max = e;
+            }
+            st->fhat_bound_bricks = nfin;
+            st->fhat_bound_mean = nfin ? sum / (double)nfin : 0.0;
+        }
         st->cpu_seconds = wvol__cpu_now() - c_start;
         if (hits == 0) {
             for (b = 0; b < c->nbricks; b++) cnt[c->bcls[b] + 1]++;

@@ -138,6 +138,23 @@ void wvol__iso_shade(float rgba[4], const wvol_iso_hit *h, const double d[3], co
 /* interp at q (cell-local) and its gradient (per unit of q) */
 double wvol__cell_eval(const double c[8], const double q[3], double grad[3]);
 
+/* Constants of the bound of |f^ - interp| over a brick (cast_bound.c says how). */
+typedef struct wvol__fhat_link {
+    int ok;             /* 0: no bound (an untransformed axis, no levels) */
+    int below, above;   /* the window: samples c0 - below .. c1 + above reach the brick [c0, c1] */
+    double D, A, K;     /* 1D sums over p of |phi_s - hat| and |phi_s|; K = D (A^2 + A + 1) */
+    double smax;        /* max |S - 1|, S the 3D partition of unity of the spline phi */
+    double lin;         /* max P * max |s S - m|: the spline's error on a linear function */
+    double e0;          /* (A + (L-1) e_phi)^3 - A^3 */
+    double F[8];        /* per band: prod (V + e) - prod V */
+} wvol__fhat_link;
+void wvol__fhat_link_init(wvol__fhat_link *k, const wvol_store *s);
+/* The bound over a brick from its stored samples s (box dimensions md, the brick's first own
+ * sample at index core, `cells` cells) per group of `group`^3 cells, and the functions touching
+ * the brick; +inf when a group's window is not stored (a face clipped it). */
+double wvol__fhat_link_bound(const wvol__fhat_link *k, const float *s, const size_t md[3], const size_t core[3],
+                             const size_t cells[3], int group, const wvol_store_hit *hits, size_t nh);
+
 typedef struct wvol__caster wvol__caster;
 
 /* A thread's scratch; start zeroed, free with wvol__cast_ws_free. */
@@ -145,6 +162,7 @@ typedef struct wvol__cast_ws {
     wvol__brick_scratch scr;
     size_t cells;
     double seconds_build;   /* this thread's wall time spent building bricks */
+    wvol_store_hits hits;   /* the functions touching a brick (the model bound) */
 } wvol__cast_ws;
 void wvol__cast_ws_free(wvol__cast_ws *w);
 
@@ -156,6 +174,10 @@ void wvol__caster_destroy(wvol__caster *c);
  * (safe from several threads). */
 wvol_status wvol__cast(wvol__caster *c, wvol__cast_ws *w, const double o[3], const double d[3], double tmin,
                        wvol_iso_hit *h, wvol_error *err);
+/* The model bound |f^ - interp| over the brick holding voxel position x (built if needed):
+ * +inf where the bound does not apply (a volume, a brick whose sample window a face clips), NaN
+ * on an error (in err). */
+double wvol__caster_fhat_bound(wvol__caster *c, wvol__cast_ws *w, const double x[3], wvol_error *err);
 /* Counters: bricks total, skipped by bound (so far), built (so far); bytes held. */
 void wvol__caster_counts(const wvol__caster *c, size_t *total, size_t *bound, size_t *built, size_t *bytes);
 
