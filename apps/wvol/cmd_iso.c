@@ -216,6 +216,51 @@ done:
     return rc;
 }
 
+/* What the image methods share: the volume (or, once a store is made, nothing of it), the
+ * store, the camera and the image with its depth. */
+typedef struct image_job {
+    wvol_volume *v;
+    wvol_compressed kept;
+    wvol_geometry g;
+    wvol_camera cam;
+    wvol_image *img;
+    float *depth;
+    double vmin, vmax;
+} image_job;
+
+/* Loads the input, places the camera, makes the store when `store` (then frees the dense
+ * coefficients and the volume: the image methods read the store) and the image. CLI_OK, or the
+ * exit code after the message. */
+static int image_open(const iso_args *a, int store, image_job *j, wvol_error *err)
+{
+    int rc;
+    memset(j, 0, sizeof *j);
+    if (wvol_volume_load(&j->v, a->in, &a->lo, err) != WVOL_OK) return cli_fail_err("iso", err);
+    wvol_volume_range(j->v, &j->vmin, &j->vmax, NULL);
+    wvol_geometry_of_volume(&j->g, j->v);
+    if (wvol_camera_parse(&j->cam, a->camera, &j->g, (int)a->width, (int)a->height, err) != WVOL_OK)
+        return cli_usage("iso", "--camera: %s", err->message);
+    if (store) {
+        if ((rc = prepare_kept(a, j->v, 1, &j->kept, err)) != CLI_OK) return rc;
+        wvol_coeffs_destroy(j->kept.coeffs);
+        j->kept.coeffs = NULL;
+        wvol_volume_destroy(j->v);
+        j->v = NULL;
+    }
+    if (wvol_image_create(&j->img, (int)a->width, (int)a->height, err) != WVOL_OK) return cli_fail_err("iso", err);
+    j->depth = malloc((size_t)a->width * (size_t)a->height * sizeof *j->depth);
+    if (!j->depth) return cli_fail("iso", "out of memory for the depth buffer");
+    return CLI_OK;
+}
+
+static void image_close(image_job *j)
+{
+    free(j->depth);
+    wvol_image_destroy(j->img);
+    wvol_compressed_free(&j->kept);
+    wvol_volume_destroy(j->v);
+}
+
 /* The image and its depth to -o (.exr with Z, or .png). */
 static wvol_status save_image(const char *out, const wvol_image *img, const float *depth, wvol_error *err)
 {
@@ -229,51 +274,28 @@ static wvol_status save_image(const char *out, const wvol_image *img, const floa
 static int run_cast(const iso_args *a)
 {
     wvol_error err;
-    wvol_volume *v = NULL;
-    wvol_compressed kept;
-    wvol_image *img = NULL;
-    float *depth = NULL;
-    wvol_camera cam;
-    wvol_geometry g;
+    image_job j;
     wvol_render_source src;
     wvol_iso_cast_params cp;
     wvol_iso_cast_stats cs;
     double t0 = cli_now(), t_prep;
-    int from_store = a->wavelet || a->have_keep, rc = CLI_FAILED;
+    int from_store = a->wavelet || a->have_keep, rc;
 
     wvol_error_clear(&err);
-    memset(&kept, 0, sizeof kept);
-    if (wvol_volume_load(&v, a->in, &a->lo, &err) != WVOL_OK) return cli_fail_err("iso", &err);
-    wvol_geometry_of_volume(&g, v);
-    if (wvol_camera_parse(&cam, a->camera, &g, (int)a->width, (int)a->height, &err) != WVOL_OK) {
-        rc = cli_usage("iso", "--camera: %s", err.message);
-        goto done;
-    }
-    if (from_store) {
-        if ((rc = prepare_kept(a, v, 1, &kept, &err)) != CLI_OK) goto done;
-        rc = CLI_FAILED;
-        wvol_coeffs_destroy(kept.coeffs);
-        kept.coeffs = NULL;
-        wvol_volume_destroy(v); /* the caster reads the store's bricks */
-        v = NULL;
-        src = wvol_render_source_store(kept.store);
-    } else {
-        src = wvol_render_source_volume(v);
-    }
-    if (wvol_image_create(&img, (int)a->width, (int)a->height, &err) != WVOL_OK) goto fail;
-    depth = malloc((size_t)a->width * (size_t)a->height * sizeof *depth);
-    if (!depth) {
-        rc = cli_fail("iso", "out of memory for the depth buffer");
-        goto done;
-    }
+    if ((rc = image_open(a, from_store, &j, &err)) != CLI_OK) goto done;
+    rc = CLI_FAILED;
+    src = from_store ? wvol_render_source_store(j.kept.store) : wvol_render_source_volume(j.v);
     wvol_iso_cast_params_default(&cp);
     cp.threads = a->threads;
     cp.brick = a->brick > 0 ? a->brick : 32;
     if (a->have_tol) cp.tolerance = a->tolerance;
     cp.model_bound = a->model_bound;
     t_prep = cli_now() - t0;
-    if (wvol_iso_cast(img, depth, NULL, &src, &cam, a->iso, &cp, &cs, &err) != WVOL_OK) goto fail;
-    if (save_image(a->out, img, depth, &err) != WVOL_OK) goto fail;
+    if (wvol_iso_cast(j.img, j.depth, NULL, &src, &j.cam, a->iso, &cp, &cs, &err) != WVOL_OK ||
+        save_image(a->out, j.img, j.depth, &err) != WVOL_OK) {
+        rc = cli_fail_err("iso", &err);
+        goto done;
+    }
     if (cs.message[0] && !a->json) fprintf(stderr, "wvol iso: note: %s\n", cs.message);
     if (a->json) {
         cli_json_begin();
@@ -282,8 +304,8 @@ static int run_cast(const iso_args *a)
         cli_json_str("method", "cast");
         cli_json_str("source", from_store ? "store" : "volume");
         if (from_store) {
-            cli_json_str("wavelet", wvol_store_basis(kept.store)->filter->name);
-            cli_json_int("levels", kept.levels);
+            cli_json_str("wavelet", wvol_store_basis(j.kept.store)->filter->name);
+            cli_json_int("levels", j.kept.levels);
             cli_json_num("keep", a->keep);
         }
         cli_json_num("iso", a->iso);
@@ -326,14 +348,8 @@ static int run_cast(const iso_args *a)
         if (a->out) printf("wrote      %s\n", a->out);
     }
     rc = CLI_OK;
-    goto done;
-fail:
-    rc = cli_fail_err("iso", &err);
 done:
-    free(depth);
-    wvol_image_destroy(img);
-    wvol_compressed_free(&kept);
-    wvol_volume_destroy(v);
+    image_close(&j);
     return rc;
 }
 
@@ -342,48 +358,24 @@ done:
 static int run_image(const iso_args *a)
 {
     wvol_error err;
-    wvol_volume *v = NULL;
-    wvol_compressed kept;
-    const wvol_store *st = NULL;
-    wvol_image *img = NULL;
-    float *depth = NULL;
-    wvol_camera cam;
-    wvol_geometry g;
+    image_job j;
+    const wvol_store *st;
     wvol_tf tf;
     wvol_iso_trace_params tp;
     wvol_iso_trace_stats ts;
     wvol_render_stats rs;
-    double t0 = cli_now(), t_prep, vmin = 0, vmax = 1;
-    int hybrid = !strcmp(a->method, "hybrid"), rc = CLI_FAILED;
+    double t0 = cli_now(), t_prep;
+    int hybrid = !strcmp(a->method, "hybrid"), rc;
 
     wvol_error_clear(&err);
     memset(&rs, 0, sizeof rs);
-    memset(&kept, 0, sizeof kept);
-    if (wvol_volume_load(&v, a->in, &a->lo, &err) != WVOL_OK) return cli_fail_err("iso", &err);
-    wvol_volume_range(v, &vmin, &vmax, NULL);
-    wvol_geometry_of_volume(&g, v);
-    if (wvol_camera_parse(&cam, a->camera, &g, (int)a->width, (int)a->height, &err) != WVOL_OK) {
-        rc = cli_usage("iso", "--camera: %s", err.message);
-        goto done;
-    }
-    if (hybrid && (rc = cli_load_tf("iso", a->tf, vmin, vmax, &tf)) != CLI_OK) goto done;
+    if ((rc = image_open(a, 1, &j, &err)) != CLI_OK) goto done;
+    if (hybrid && (rc = cli_load_tf("iso", a->tf, j.vmin, j.vmax, &tf)) != CLI_OK) goto done;
     rc = CLI_FAILED;
-    if ((rc = prepare_kept(a, v, 1, &kept, &err)) != CLI_OK) goto done;
-    rc = CLI_FAILED;
-    st = kept.store;
-    wvol_coeffs_destroy(kept.coeffs);
-    kept.coeffs = NULL;
-    wvol_volume_destroy(v); /* the tracer never touches the dense volume */
-    v = NULL;
-    if (wvol_image_create(&img, (int)a->width, (int)a->height, &err) != WVOL_OK) goto fail;
-    depth = malloc((size_t)a->width * (size_t)a->height * sizeof *depth);
-    if (!depth) {
-        rc = cli_fail("iso", "out of memory for the depth buffer");
-        goto done;
-    }
+    st = j.kept.store;
     wvol_iso_trace_params_default(&tp);
     tp.threads = a->threads;
-    tp.tolerance = a->tolerance * fmin(g.spacing[0], fmin(g.spacing[1], g.spacing[2]));
+    tp.tolerance = a->tolerance * fmin(j.g.spacing[0], fmin(j.g.spacing[1], j.g.spacing[2]));
     if (a->chunk > 0) tp.chunk = a->chunk;
     tp.surface = a->surface_cast ? WVOL_ISO_SURFACE_CAST : WVOL_ISO_SURFACE_EXACT;
     t_prep = cli_now() - t0;
@@ -391,11 +383,11 @@ static int run_image(const iso_args *a)
         wvol_render_params rp;
         wvol_render_params_default(&rp);
         rp.threads = a->threads;
-        if (wvol_iso_render_hybrid(img, depth, st, &cam, &tf, a->iso, &rp, &tp, &ts, &rs, &err) != WVOL_OK) goto fail;
-    } else if (wvol_iso_raytrace(img, depth, NULL, st, &cam, a->iso, &tp, &ts, &err) != WVOL_OK) {
+        if (wvol_iso_render_hybrid(j.img, j.depth, st, &j.cam, &tf, a->iso, &rp, &tp, &ts, &rs, &err) != WVOL_OK) goto fail;
+    } else if (wvol_iso_raytrace(j.img, j.depth, NULL, st, &j.cam, a->iso, &tp, &ts, &err) != WVOL_OK) {
         goto fail;
     }
-    if (save_image(a->out, img, depth, &err) != WVOL_OK) goto fail;
+    if (save_image(a->out, j.img, j.depth, &err) != WVOL_OK) goto fail;
     if (ts.message[0] && !a->json) fprintf(stderr, "wvol iso: note: %s\n", ts.message);
     if (a->json) {
         cli_json_begin();
@@ -403,7 +395,7 @@ static int run_image(const iso_args *a)
         if (a->out) cli_json_str("output", a->out);
         cli_json_str("method", a->method);
         cli_json_str("wavelet", wvol_store_basis(st)->filter->name);
-        cli_json_int("levels", kept.levels);
+        cli_json_int("levels", j.kept.levels);
         cli_json_num("keep", a->keep);
         cli_json_int("spline_j", a->spline_j ? a->spline_j : wvol_store_basis(st)->J);
         cli_json_num("iso", a->iso);
@@ -442,10 +434,7 @@ static int run_image(const iso_args *a)
 fail:
     rc = cli_fail_err("iso", &err);
 done:
-    free(depth);
-    wvol_image_destroy(img);
-    wvol_compressed_free(&kept);
-    wvol_volume_destroy(v);
+    image_close(&j);
     return rc;
 }
 

@@ -140,11 +140,11 @@ static PyObject *py_isosurface(PyObject *self, PyObject *args, PyObject *kw)
 static PyObject *py_isoimage(PyObject *self, PyObject *args, PyObject *kw)
 {
     static char *kwlist[] = {"source", "iso", "camera", "width", "height", "method", "threads", "brick",
-                             "tolerance", "spacing", "origin", NULL};
+                             "tolerance", "spacing", "origin", "model_bound", NULL};
     PyObject *src_obj, *sp = Py_None, *org = Py_None;
     const char *camspec = "+z", *method = "cast";
     double iso, tol = 0.0;
-    int width = 256, height = 256, threads = 0, brick = 0, exact;
+    int width = 256, height = 256, threads = 0, brick = 0, exact, model_bound = 0;
     PyArrayObject *holder = NULL;
     const wvol_store *store = NULL;
     wvol_volume v;
@@ -157,8 +157,8 @@ static PyObject *py_isoimage(PyObject *self, PyObject *args, PyObject *kw)
     PyObject *a, *z, *d;
     npy_intp zd[2];
     (void)self;
-    if (!PyArg_ParseTupleAndKeywords(args, kw, "Od|siisiidOO", kwlist, &src_obj, &iso, &camspec, &width, &height,
-                                     &method, &threads, &brick, &tol, &sp, &org))
+    if (!PyArg_ParseTupleAndKeywords(args, kw, "Od|siisiidOOp", kwlist, &src_obj, &iso, &camspec, &width, &height,
+                                     &method, &threads, &brick, &tol, &sp, &org, &model_bound))
         return NULL;
     if (!isfinite(iso)) return PyErr_Format(PyExc_ValueError, "iso-value must be finite");
     if (strcmp(method, "cast") && strcmp(method, "exact"))
@@ -214,19 +214,23 @@ static PyObject *py_isoimage(PyObject *self, PyObject *args, PyObject *kw)
         cp.threads = threads;
         if (brick > 0) cp.brick = brick;
         if (tol > 0) cp.tolerance = tol;
+        cp.model_bound = model_bound;
         memset(&cs, 0, sizeof cs);
         Py_BEGIN_ALLOW_THREADS
         s = wvol_image_create(&img, width, height, &err);
         if (s == WVOL_OK) s = wvol_iso_cast(img, depth, NULL, &src, &cam, iso, &cp, &cs, &err);
         Py_END_ALLOW_THREADS
         d = s != WVOL_OK ? NULL
-                         : Py_BuildValue("{s:s,s:n,s:n,s:n,s:n,s:n,s:n,s:n,s:d,s:d,s:d,s:s}", "method", "cast",
-                                         "rays", (Py_ssize_t)cs.rays, "hits", (Py_ssize_t)cs.hits, "bricks_total",
-                                         (Py_ssize_t)cs.bricks_total, "bricks_bound", (Py_ssize_t)cs.bricks_bound,
-                                         "bricks_built", (Py_ssize_t)cs.bricks_built, "cells_tested",
-                                         (Py_ssize_t)cs.cells_tested, "bytes", (Py_ssize_t)cs.bytes, "seconds",
-                                         cs.seconds, "seconds_bounds", cs.seconds_bounds, "cpu_seconds",
-                                         cs.cpu_seconds, "message", cs.message);
+                         : Py_BuildValue("{s:s,s:n,s:n,s:n,s:n,s:n,s:n,s:n,s:d,s:d,s:d,s:d,s:d,s:d,s:n,s:n,s:s}",
+                                         "method", "cast", "rays", (Py_ssize_t)cs.rays, "hits", (Py_ssize_t)cs.hits,
+                                         "bricks_total", (Py_ssize_t)cs.bricks_total, "bricks_bound",
+                                         (Py_ssize_t)cs.bricks_bound, "bricks_built", (Py_ssize_t)cs.bricks_built,
+                                         "cells_tested", (Py_ssize_t)cs.cells_tested, "bytes", (Py_ssize_t)cs.bytes,
+                                         "seconds", cs.seconds, "seconds_bounds", cs.seconds_bounds,
+                                         "thread_seconds_build", cs.seconds_build, "cpu_seconds", cs.cpu_seconds,
+                                         "fhat_bound_max", cs.fhat_bound_max, "fhat_bound_mean", cs.fhat_bound_mean,
+                                         "fhat_bound_bricks", (Py_ssize_t)cs.fhat_bound_bricks, "fhat_bound_faces",
+                                         (Py_ssize_t)cs.fhat_bound_faces, "message", cs.message);
     }
     Py_XDECREF(holder);
     holder = NULL;
@@ -345,5 +349,5 @@ PyMethodDef wvolpy_iso_methods[] = {
      "-> (vertices, faces, normals, stats); source: a StoreHandle or an array"},
     {"isoimage", (PyCFunction)(void (*)(void))py_isoimage, METH_VARARGS | METH_KEYWORDS,
      "isoimage(source, iso, camera='+z', width=256, height=256, method='cast', threads=0, brick=0,\n"
-     "tolerance=0, spacing=None, origin=None) -> (rgba, depth, stats)"},
+     "tolerance=0, spacing=None, origin=None, model_bound=False) -> (rgba, depth, stats)"},
     {NULL, NULL, 0, NULL}};

@@ -464,7 +464,7 @@ def isosurface(source, iso, *, normals="gradient", brick=None, threads=0, return
 
 
 def isoimage(source, iso, camera="+z", size=(256, 256), *, method="cast", brick=None, tolerance=None, threads=0,
-             return_stats=False):
+             model_bound=False, return_stats=False):
     """An image of the isosurface at ``iso``, seen by ``camera`` (the words of :func:`render`).
 
     ``method="cast"``: the surface of the trilinear interpolant of a volume's samples (array or
@@ -473,13 +473,16 @@ def isoimage(source, iso, camera="+z", size=(256, 256), *, method="cast", brick=
     voxels, default 1e-5). ``method="exact"``: the surface f^ = iso of the wavelet model of a
     :class:`Store` (the guaranteed tracer; tolerance default 1e-3 voxels).
 
+    ``model_bound=True`` (cast from a Store): the stats also bound |f^ - interp| per built brick
+    (``fhat_bound_max``, ``fhat_bound_mean``; docs/iso.md).
+
     Returns ``(rgba, depth)``: rgba (h, w, 4) float32 Lambert-shaded with alpha 1 on the
     surface, depth (h, w) float32 the ray parameter of the hit (world units, +inf on a miss).
     A ray entering the box inside the surface reports where it leaves it (docs/iso.md).
     """
     w, h = size
     kw = dict(camera=camera, width=int(w), height=int(h), method=method, threads=threads, brick=brick or 0,
-              tolerance=tolerance or 0.0)
+              tolerance=tolerance or 0.0, model_bound=bool(model_bound))
     if isinstance(source, Store):
         rgba, depth, st = _wvol.isoimage(source._handle, iso, **kw)
     else:

@@ -45,6 +45,16 @@ def test_store_cast_matches_reconstruction_and_exact_is_close(gauss):
     assert np.abs(z_store[both] - z_exact[both]).max() < 0.5 * 2  # a voxel is 0.5 world units; 2 voxels
 
 
+def test_model_bound_in_stats(gauss):
+    s = wvol.compress(gauss, "db4", 3, keep=1.0)
+    _, _, st = wvol.isoimage(s, 0.5, "persp dir=1,0.6,-0.3", (16, 16), brick=8, model_bound=True, return_stats=True)
+    assert st["fhat_bound_bricks"] + st["fhat_bound_faces"] == st["bricks_built"] > 0
+    if st["fhat_bound_bricks"]:
+        assert 0 < st["fhat_bound_mean"] <= st["fhat_bound_max"] < float("inf")
+    _, _, st = wvol.isoimage(s, 0.5, "persp dir=1,0.6,-0.3", (16, 16), brick=8, return_stats=True)
+    assert st["fhat_bound_bricks"] == 0 and st["fhat_bound_max"] == 0
+
+
 def test_refusals(gauss):
     with pytest.raises(ValueError, match="Store"):
         wvol.isoimage(gauss, 0.5, method="exact")

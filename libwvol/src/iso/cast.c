@@ -672,12 +672,7 @@ wvol_status wvol_iso_cast(wvol_image *img, float *depth, float *normals, const w
     double build = 0.0;
     int nth, failed = 0;
     wvol_error first_err;
-    WVOL_RETURN_IF(!img || !img->rgba, err, WVOL_ERR_ARG, "iso cast: no image");
-    WVOL_RETURN_IF(!cam, err, WVOL_ERR_ARG, "iso cast: no camera");
-    WVOL_FORWARD(wvol_camera_check(cam, err));
-    WVOL_RETURN_IF(cam->width != img->width || cam->height != img->height, err, WVOL_ERR_ARG,
-                   "iso cast: image %dx%d does not match the camera's %dx%d", img->width, img->height, cam->width,
-                   cam->height);
+    WVOL_FORWARD(wvol__iso_image_check(img, cam, "iso cast", err));
     if (!p) {
         wvol_iso_cast_params_default(&def);
         p = &def;

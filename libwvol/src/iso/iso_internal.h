@@ -131,6 +131,10 @@ wvol_status wvol__trace(const wvol__tracer *tr, wvol__trace_ws *w, const double 
 int wvol__cell_crossing(const double c[8], const double q0[3], const double dq[3], double len, double iso, int *cls,
                         double tol, double *tau);
 
+/* Refuses a missing image or camera, a bad camera, or an image of another size (what: the
+ * caller's name for messages). */
+wvol_status wvol__iso_image_check(const wvol_image *img, const wvol_camera *cam, const char *what, wvol_error *err);
+
 /* Shades a hit into rgba (Lambert, two-sided, albedo color, ambient; light all 0: a headlight
  * along -d); a miss is transparent black. */
 void wvol__iso_shade(float rgba[4], const wvol_iso_hit *h, const double d[3], const double light[3],

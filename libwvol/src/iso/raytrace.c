@@ -68,6 +68,17 @@ void wvol_iso_trace_params_default(wvol_iso_trace_params *p)
     p->ambient = 0.15f;
 }
 
+wvol_status wvol__iso_image_check(const wvol_image *img, const wvol_camera *cam, const char *what, wvol_error *err)
+{
+    WVOL_RETURN_IF(!img || !img->rgba, err, WVOL_ERR_ARG, "%s: no image", what);
+    WVOL_RETURN_IF(!cam, err, WVOL_ERR_ARG, "%s: no camera", what);
+    WVOL_FORWARD(wvol_camera_check(cam, err));
+    WVOL_RETURN_IF(cam->width != img->width || cam->height != img->height, err, WVOL_ERR_ARG,
+                   "%s: image %dx%d does not match the camera's %dx%d", what, img->width, img->height, cam->width,
+                   cam->height);
+    return WVOL_OK;
+}
+
 void wvol__iso_shade(float rgba[4], const wvol_iso_hit *h, const double d[3], const double light[3],
                      const float color[3], float ambient)
 {
@@ -199,12 +210,7 @@ wvol_status wvol_iso_raytrace(wvol_image *img, float *depth, float *normals, con
     size_t hits = 0, functions = 0, pieces = 0, refined = 0, intervals = 0, evals = 0, grazes = 0;
     double t_start = wvol__now(), c_start = wvol__cpu_now(), tmin, t_cells;
     wvol_error first_err;
-    WVOL_RETURN_IF(!img || !img->rgba, err, WVOL_ERR_ARG, "iso trace: no image");
-    WVOL_RETURN_IF(!cam, err, WVOL_ERR_ARG, "iso trace: no camera");
-    WVOL_FORWARD(wvol_camera_check(cam, err));
-    WVOL_RETURN_IF(cam->width != img->width || cam->height != img->height, err, WVOL_ERR_ARG,
-                   "iso trace: image %dx%d does not match the camera's %dx%d", img->width, img->height, cam->width,
-                   cam->height);
+    WVOL_FORWARD(wvol__iso_image_check(img, cam, "iso trace", err));
     if (!p) {
         wvol_iso_trace_params_default(&def);
         p = &def;
