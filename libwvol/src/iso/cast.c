@@ -249,6 +249,9 @@ wvol_status wvol__caster_create(wvol__caster **out, const wvol_render_source *sr
         }
         c->bytes += wvol__store_blocks_bytes(c->blocks) + (c->bb ? wvol__bounds_bytes(c->bb) : 0);
     }
+    /* at least one sample around each brick: central differences for the normals */
+    if (c->halo[0] < 1) c->halo[0] = 1;
+    if (c->halo[1] < 1) c->halo[1] = 1;
     for (a = 0; a < 3; a++) {
         if (!(c->spacing[a] > 0) || !isfinite(c->spacing[a])) {
             wvol__caster_destroy(c);
@@ -448,19 +451,50 @@ static void corners(const float *s, const size_t m[3], const long l[3], double c
     c8[4] = p[sz], c8[5] = p[sz + sx], c8[6] = p[sz + sy], c8[7] = p[sz + sy + sx];
 }
 
-/* Records the hit at t inside the cell with corners c8 whose lower corner is at cell[] (voxels). */
-static void set_hit(const wvol__caster *c, const ray *r, const double c8[8], const double cell[3], double t,
+/* Where a cell's samples are: s the brick's first own sample, md the stored box's dimensions,
+ * coff the brick's first own sample within the stored box, l the cell within the brick. */
+typedef struct cellref {
+    const float *s;
+    const size_t *md, *coff;
+    const long *l;
+} cellref;
+
+/* The gradient (per voxel) at q in the cell: central differences of the samples at its eight
+ * corners (one-sided where the stored box ends: the volume's faces), interpolated trilinearly
+ * like the values, so that normals vary smoothly across cells as a mesh's vertex normals do. */
+static void smooth_gradient(const cellref *cr, const double q[3], double g[3])
+{
+    size_t sy = cr->md[0], sz = cr->md[0] * cr->md[1], st[3] = {1, cr->md[0], cr->md[0] * cr->md[1]};
+    int k, a;
+    g[0] = g[1] = g[2] = 0;
+    for (k = 0; k < 8; k++) {
+        long o[3] = {k & 1, (k >> 1) & 1, (k >> 2) & 1};
+        const float *p = cr->s + (size_t)(cr->l[0] + o[0]) + sy * (size_t)(cr->l[1] + o[1]) + sz * (size_t)(cr->l[2] + o[2]);
+        double w = (o[0] ? q[0] : 1 - q[0]) * (o[1] ? q[1] : 1 - q[1]) * (o[2] ? q[2] : 1 - q[2]);
+        for (a = 0; a < 3; a++) {
+            size_t x = cr->coff[a] + (size_t)(cr->l[a] + o[a]); /* the corner within the stored box */
+            int lo = x > 0, hi = x + 1 < cr->md[a];
+            double dv = (hi ? p[st[a]] : p[0]) - (lo ? p[-(ptrdiff_t)st[a]] : p[0]);
+            g[a] += w * (lo && hi ? 0.5 * dv : dv);
+        }
+    }
+}
+
+/* Records the hit at t inside the cell cr whose lower corner is at cell[] (voxels). */
+static void set_hit(const wvol__caster *c, const ray *r, const cellref *cr, const double cell[3], double t,
                     wvol_iso_hit *h)
 {
-    double q[3], g[3], len = 0;
+    double q[3], g[3], c8[8], len = 0;
     int a;
     for (a = 0; a < 3; a++) {
         q[a] = r->ov[a] + t * r->dv[a] - cell[a];
         q[a] = q[a] < 0 ? 0 : q[a] > 1 ? 1 : q[a];
     }
+    corners(cr->s, cr->md, cr->l, c8);
     h->hit = 1;
     h->t = t;
     h->value = wvol__cell_eval(c8, q, g);
+    smooth_gradient(cr, q, g);
     for (a = 0; a < 3; a++) {
         h->pos[a] = r->o[a] + t * r->d[a];
         g[a] /= c->spacing[a];
@@ -477,7 +511,7 @@ static wvol_status hit_at(wvol__caster *c, wvol__cast_ws *w, const ray *r, doubl
 {
     size_t b = 0, stride = 1;
     long l[3], bi[3];
-    double c8[8], cell[3];
+    double cell[3];
     const float *d;
     bgeom q;
     int a;
@@ -495,8 +529,11 @@ static wvol_status hit_at(wvol__caster *c, wvol__cast_ws *w, const ray *r, doubl
     d = brick_get(c, w, b, err);
     if (!d) return err ? err->status : WVOL_ERR_NOMEM;
     brick_geom(c, b, &q);
-    corners(d + 2 + q.core, q.md, l, c8);
-    set_hit(c, r, c8, cell, t, h);
+    {
+        size_t coff[3] = {q.c0[0] - q.lo[0], q.c0[1] - q.lo[1], q.c0[2] - q.lo[2]};
+        cellref cr = {d + 2 + q.core, q.md, coff, l};
+        set_hit(c, r, &cr, cell, t, h);
+    }
     return WVOL_OK;
 }
 
@@ -514,8 +551,8 @@ static int decided(wvol__caster *c, wvol__cast_ws *w, ray *r, int cls, double t,
 
 /* The cells of group (gi) of a built brick over [ta, tb]: 1 on a hit (or an error in *st). */
 static int cast_cells(wvol__caster *c, wvol__cast_ws *w, ray *r, const float *s, const size_t c0[3],
-                      const size_t cells[3], const size_t m[3], const long gi[3], double ta, double tb,
-                      wvol_iso_hit *h)
+                      const size_t cells[3], const size_t m[3], const size_t coff[3], const long gi[3], double ta,
+                      double tb, wvol_iso_hit *h)
 {
     walk wk;
     long n[3], idx[3];
@@ -538,7 +575,8 @@ static int cast_cells(wvol__caster *c, wvol__cast_ws *w, ray *r, const float *s,
         if (lo >= c->iso || hi < c->iso) {
             int cls = lo >= c->iso;
             if (r->prev >= 0 && r->prev != cls) {
-                set_hit(c, r, c8, cell, t0, h);
+                cellref cr = {s, m, coff, l};
+                set_hit(c, r, &cr, cell, t0, h);
                 return 1;
             }
             r->prev = cls;
@@ -547,7 +585,8 @@ static int cast_cells(wvol__caster *c, wvol__cast_ws *w, ray *r, const float *s,
         w->cells++;
         for (a = 0; a < 3; a++) q0[a] = r->ov[a] + t0 * r->dv[a] - cell[a];
         if (wvol__cell_crossing(c8, q0, r->dv, t1 - t0, c->iso, &r->prev, tol, &tau)) {
-            set_hit(c, r, c8, cell, t0 + tau, h);
+            cellref cr = {s, m, coff, l};
+            set_hit(c, r, &cr, cell, t0 + tau, h);
             return 1;
         }
     }
@@ -578,7 +617,8 @@ static int cast_brick(wvol__caster *c, wvol__cast_ws *w, ray *r, size_t b, const
             if (decided(c, w, r, gmin[g] >= c->iso, t0, h, st, err)) return 1;
             continue;
         }
-        if (cast_cells(c, w, r, s + q.core, q.c0, q.cells, q.md, idx, t0, t1, h)) return 1;
+        size_t coff[3] = {q.c0[0] - q.lo[0], q.c0[1] - q.lo[1], q.c0[2] - q.lo[2]};
+        if (cast_cells(c, w, r, s + q.core, q.c0, q.cells, q.md, coff, idx, t0, t1, h)) return 1;
     }
     return 0;
 }
