@@ -22,7 +22,12 @@ runs just these rows and merges them into an existing iso.json / iso.md.
 
 Goal (issue 6): wvol at least as fast as vtkFlyingEdges3D at the same thread count.
 Writes bench/results/iso.json and bench/results/iso.md.
+Image routes (`--cast`, bench/iso_cast.py): the bricked caster (wvol iso --method cast) against
+marching cubes + Embree, VTK's first offscreen frame of the same mesh, OpenVDB's level set +
+vdb_render and the exact f^ tracer, same camera and iso-value; bench/results/iso_cast.{json,md,png}.
+
 Usage: /usr/bin/python3 bench/bench_iso.py [--n 256] [--reps 5] [--build build] [--quick]
+       /usr/bin/python3 bench/bench_iso.py --cast [--quick]
        /usr/bin/python3 bench/bench_iso.py --raytrace-only [--rt-size 512x512] [--rt-keep 1%,5%,100%]
 """
 import argparse
@@ -249,7 +254,27 @@ def main():
                     help="per-row sizes, e.g. 'skull:100%%=128x128,gaussian:100%%=256x256' (labelled in the table)")
     ap.add_argument("--rt-keep", default="1%,5%,100%")
     ap.add_argument("--rt-threads", type=int, default=2)
+    ap.add_argument("--cast", action="store_true",
+                    help="only the image routes (bench/iso_cast.py): the bricked caster against marching cubes + "
+                         "Embree, VTK, OpenVDB and the exact tracer; --quick: 96^3, 128^2, one thread")
+    ap.add_argument("--tmp", default="", help="--cast: working directory for volumes and images")
     args = ap.parse_args()
+    if args.cast:
+        import datetime
+        import iso_cast
+        if args.n == 256 and args.quick:
+            args.n = 0  # iso_cast's quick default
+        elif args.n == 256:
+            args.n = 0
+        rows, images = iso_cast.main(args, pathlib.Path(args.build), pathlib.Path(args.out))
+        meta = {"cpu": cpu_model(), "cores": os.cpu_count(), "when": datetime.datetime.utcnow().isoformat(" ", "minutes"),
+                "n": rows[0]["n"], "size": rows[0]["size"], "quick": args.quick,
+                "load_avg_end": os.getloadavg()[0]}
+        out = pathlib.Path(args.out)
+        if args.quick:
+            out = out / "iso_cast_quick"
+        iso_cast.write_report(rows, images, out, meta)
+        return
     if args.quick:
         args.n, args.reps = 48, 1
     n = args.n

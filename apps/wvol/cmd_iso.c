@@ -20,11 +20,14 @@ const char wvol_cmd_iso_summary[] = "isosurface: marching cubes mesh (.ply .obj 
 static const cli_opt opts[] = {
     {"output", 'o', 1, "mesh file (.ply .obj .stl .vtp); raytrace and hybrid: image (.exr with Z depth, .png)"},
     {"iso", 0, 1, "iso-value theta (required)"},
-    {"method", 0, 1, "mc (default), raytrace (image of f^ = theta) or hybrid (surface behind the volume)"},
+    {"method", 0, 1, "mc (default), cast (image of the trilinear interpolant's surface, bricked),\n"
+                     "raytrace (image of f^ = theta, exact model) or hybrid (surface behind the volume)"},
+    {"model-bound", 0, 0, "cast from a store: also bound |f^ - interp| per brick (reported)"},
+    {"surface", 0, 1, "hybrid: the surface from exact (f^, default) or cast (the interpolant)"},
     {"camera", 0, 1, "raytrace/hybrid: camera, as for wvol render (default +z)"},
     {"size", 0, 1, "raytrace/hybrid: image size WxH (default 512x512)"},
     {"tf", 0, 1, "hybrid: transfer function of the volume in front (default gaussian)"},
-    {"tolerance", 0, 1, "raytrace/hybrid: depth tolerance in voxels (default 0.001)"},
+    {"tolerance", 0, 1, "image methods: depth tolerance in voxels (default 0.001; cast 0.00001)"},
     {"spline-j", 0, 1, "raytrace/hybrid: basis splines with 2^J knots per unit (default 4)"},
     {"chunk", 0, 1, "raytrace/hybrid: ray segment built at a time, voxels (default 16)"},
     {"threads", 0, 1, "threads (default: all)"},
@@ -34,7 +37,8 @@ static const cli_opt opts[] = {
                       "raytrace/hybrid: the store's wavelet (default db2)"},
     {"levels", 0, 1, "wavelet levels (default 3)"},
     {"keep", 0, 1, "kept fraction of the coefficients, e.g. 5% (default 100%)"},
-    {"brick", 0, 1, "cells per brick edge for --wavelet (default 32; 0: full inverse, then dense MC)"},
+    {"brick", 0, 1, "cells per brick edge for --wavelet and cast (default 32; mc: 0 is a full inverse,\n"
+                    "then dense MC)"},
     CLI_LOAD_OPTS,
     CLI_PLACE_OPTS,
     CLI_JSON_OPT,
@@ -44,7 +48,7 @@ static const cli_opt opts[] = {
 typedef struct iso_args {
     const char *in, *out;
     double iso;
-    int have_iso, json, threads, repeat, levels, brick, spline_j;
+    int have_iso, json, threads, repeat, levels, brick, spline_j, have_keep, have_tol, surface_cast, model_bound;
     long width, height;
     double keep, tolerance, chunk;
     const char *method, *wavelet, *camera, *tf;
@@ -212,68 +216,178 @@ done:
     return rc;
 }
 
+/* What the image methods share: the volume (or, once a store is made, nothing of it), the
+ * store, the camera and the image with its depth. */
+typedef struct image_job {
+    wvol_volume *v;
+    wvol_compressed kept;
+    wvol_geometry g;
+    wvol_camera cam;
+    wvol_image *img;
+    float *depth;
+    double vmin, vmax;
+} image_job;
+
+/* Loads the input, places the camera, makes the store when `store` (then frees the dense
+ * coefficients and the volume: the image methods read the store) and the image. CLI_OK, or the
+ * exit code after the message. */
+static int image_open(const iso_args *a, int store, image_job *j, wvol_error *err)
+{
+    int rc;
+    memset(j, 0, sizeof *j);
+    if (wvol_volume_load(&j->v, a->in, &a->lo, err) != WVOL_OK) return cli_fail_err("iso", err);
+    wvol_volume_range(j->v, &j->vmin, &j->vmax, NULL);
+    wvol_geometry_of_volume(&j->g, j->v);
+    if (wvol_camera_parse(&j->cam, a->camera, &j->g, (int)a->width, (int)a->height, err) != WVOL_OK)
+        return cli_usage("iso", "--camera: %s", err->message);
+    if (store) {
+        if ((rc = prepare_kept(a, j->v, 1, &j->kept, err)) != CLI_OK) return rc;
+        wvol_coeffs_destroy(j->kept.coeffs);
+        j->kept.coeffs = NULL;
+        wvol_volume_destroy(j->v);
+        j->v = NULL;
+    }
+    if (wvol_image_create(&j->img, (int)a->width, (int)a->height, err) != WVOL_OK) return cli_fail_err("iso", err);
+    j->depth = malloc((size_t)a->width * (size_t)a->height * sizeof *j->depth);
+    if (!j->depth) return cli_fail("iso", "out of memory for the depth buffer");
+    return CLI_OK;
+}
+
+static void image_close(image_job *j)
+{
+    free(j->depth);
+    wvol_image_destroy(j->img);
+    wvol_compressed_free(&j->kept);
+    wvol_volume_destroy(j->v);
+}
+
+/* The image and its depth to -o (.exr with Z, or .png). */
+static wvol_status save_image(const char *out, const wvol_image *img, const float *depth, wvol_error *err)
+{
+    if (!out) return WVOL_OK;
+    return wvol_path_has_ext(out, ".exr") ? wvol_image_write_exr(img, out, depth, err)
+                                          : wvol_image_write_png(img, out, NULL, 1.0, err);
+}
+
+/* --method cast: the surface of the trilinear interpolant, cast brick by brick from the
+ * volume, or from a store of its kept coefficients when --wavelet or --keep is given. */
+static int run_cast(const iso_args *a)
+{
+    wvol_error err;
+    image_job j;
+    wvol_render_source src;
+    wvol_iso_cast_params cp;
+    wvol_iso_cast_stats cs;
+    double t0 = cli_now(), t_prep;
+    int from_store = a->wavelet || a->have_keep, rc;
+
+    wvol_error_clear(&err);
+    if ((rc = image_open(a, from_store, &j, &err)) != CLI_OK) goto done;
+    rc = CLI_FAILED;
+    src = from_store ? wvol_render_source_store(j.kept.store) : wvol_render_source_volume(j.v);
+    wvol_iso_cast_params_default(&cp);
+    cp.threads = a->threads;
+    cp.brick = a->brick > 0 ? a->brick : 32;
+    if (a->have_tol) cp.tolerance = a->tolerance;
+    cp.model_bound = a->model_bound;
+    t_prep = cli_now() - t0;
+    if (wvol_iso_cast(j.img, j.depth, NULL, &src, &j.cam, a->iso, &cp, &cs, &err) != WVOL_OK ||
+        save_image(a->out, j.img, j.depth, &err) != WVOL_OK) {
+        rc = cli_fail_err("iso", &err);
+        goto done;
+    }
+    if (cs.message[0] && !a->json) fprintf(stderr, "wvol iso: note: %s\n", cs.message);
+    if (a->json) {
+        cli_json_begin();
+        cli_json_str("input", a->in);
+        if (a->out) cli_json_str("output", a->out);
+        cli_json_str("method", "cast");
+        cli_json_str("source", from_store ? "store" : "volume");
+        if (from_store) {
+            cli_json_str("wavelet", wvol_store_basis(j.kept.store)->filter->name);
+            cli_json_int("levels", j.kept.levels);
+            cli_json_num("keep", a->keep);
+        }
+        cli_json_num("iso", a->iso);
+        cli_json_int("width", a->width);
+        cli_json_int("height", a->height);
+        cli_json_int("threads", a->threads);
+        cli_json_int("brick", cp.brick);
+        cli_json_num("tolerance_voxels", cp.tolerance);
+        cli_json_int("rays", (long long)cs.rays);
+        cli_json_int("hits", (long long)cs.hits);
+        cli_json_int("bricks_total", (long long)cs.bricks_total);
+        cli_json_int("bricks_bound", (long long)cs.bricks_bound);
+        cli_json_int("bricks_built", (long long)cs.bricks_built);
+        cli_json_int("cells_tested", (long long)cs.cells_tested);
+        cli_json_int("bytes", (long long)cs.bytes);
+        if (a->model_bound) {
+            cli_json_num("fhat_bound_max", cs.fhat_bound_max);
+            cli_json_num("fhat_bound_mean", cs.fhat_bound_mean);
+            cli_json_int("fhat_bound_bricks", (long long)cs.fhat_bound_bricks);
+            cli_json_int("fhat_bound_faces", (long long)cs.fhat_bound_faces);
+        }
+        cli_json_num("prepare_seconds", t_prep);
+        cli_json_num("seconds", cs.seconds);
+        cli_json_num("seconds_bounds", cs.seconds_bounds);
+        cli_json_num("thread_seconds_build", cs.seconds_build);
+        cli_json_num("cpu_seconds", cs.cpu_seconds);
+        cli_json_num("rays_per_second", cs.seconds > 0 ? (double)cs.rays / cs.seconds : 0);
+        cli_json_int("empty", cs.hits == 0);
+        if (cs.message[0]) cli_json_str("message", cs.message);
+        cli_json_end();
+    } else {
+        printf("hits       %zu of %zu rays\n", cs.hits, cs.rays);
+        printf("bricks     %zu of %zu built on demand, %zu decided by their bound (%d^3 cells each)\n",
+               cs.bricks_built, cs.bricks_total, cs.bricks_bound, cp.brick);
+        if (a->model_bound && cs.fhat_bound_bricks)
+            printf("model      |f^ - interp| <= %.6g (mean %.6g) over %zu bricks; %zu at faces unbounded\n",
+                   cs.fhat_bound_max, cs.fhat_bound_mean, cs.fhat_bound_bricks, cs.fhat_bound_faces);
+        printf("time       %.3f s (bounds %.3f s; %.0f rays/s), preparation %.3f s\n", cs.seconds, cs.seconds_bounds,
+               cs.seconds > 0 ? (double)cs.rays / cs.seconds : 0.0, t_prep);
+        if (a->out) printf("wrote      %s\n", a->out);
+    }
+    rc = CLI_OK;
+done:
+    image_close(&j);
+    return rc;
+}
+
 /* --method raytrace | hybrid: an image of f^ = theta traced from a store of the kept
  * coefficients (never reconstructing the volume), alone or behind the volume in front. */
 static int run_image(const iso_args *a)
 {
     wvol_error err;
-    wvol_volume *v = NULL;
-    wvol_compressed kept;
-    const wvol_store *st = NULL;
-    wvol_image *img = NULL;
-    float *depth = NULL;
-    wvol_camera cam;
-    wvol_geometry g;
+    image_job j;
+    const wvol_store *st;
     wvol_tf tf;
     wvol_iso_trace_params tp;
     wvol_iso_trace_stats ts;
     wvol_render_stats rs;
-    double t0 = cli_now(), t_prep, vmin = 0, vmax = 1;
-    int hybrid = !strcmp(a->method, "hybrid"), rc = CLI_FAILED;
+    double t0 = cli_now(), t_prep;
+    int hybrid = !strcmp(a->method, "hybrid"), rc;
 
     wvol_error_clear(&err);
     memset(&rs, 0, sizeof rs);
-    memset(&kept, 0, sizeof kept);
-    if (wvol_volume_load(&v, a->in, &a->lo, &err) != WVOL_OK) return cli_fail_err("iso", &err);
-    wvol_volume_range(v, &vmin, &vmax, NULL);
-    wvol_geometry_of_volume(&g, v);
-    if (wvol_camera_parse(&cam, a->camera, &g, (int)a->width, (int)a->height, &err) != WVOL_OK) {
-        rc = cli_usage("iso", "--camera: %s", err.message);
-        goto done;
-    }
-    if (hybrid && (rc = cli_load_tf("iso", a->tf, vmin, vmax, &tf)) != CLI_OK) goto done;
+    if ((rc = image_open(a, 1, &j, &err)) != CLI_OK) goto done;
+    if (hybrid && (rc = cli_load_tf("iso", a->tf, j.vmin, j.vmax, &tf)) != CLI_OK) goto done;
     rc = CLI_FAILED;
-    if ((rc = prepare_kept(a, v, 1, &kept, &err)) != CLI_OK) goto done;
-    rc = CLI_FAILED;
-    st = kept.store;
-    wvol_coeffs_destroy(kept.coeffs);
-    kept.coeffs = NULL;
-    wvol_volume_destroy(v); /* the tracer never touches the dense volume */
-    v = NULL;
-    if (wvol_image_create(&img, (int)a->width, (int)a->height, &err) != WVOL_OK) goto fail;
-    depth = malloc((size_t)a->width * (size_t)a->height * sizeof *depth);
-    if (!depth) {
-        rc = cli_fail("iso", "out of memory for the depth buffer");
-        goto done;
-    }
+    st = j.kept.store;
     wvol_iso_trace_params_default(&tp);
     tp.threads = a->threads;
-    tp.tolerance = a->tolerance * fmin(g.spacing[0], fmin(g.spacing[1], g.spacing[2]));
+    tp.tolerance = a->tolerance * fmin(j.g.spacing[0], fmin(j.g.spacing[1], j.g.spacing[2]));
     if (a->chunk > 0) tp.chunk = a->chunk;
+    tp.surface = a->surface_cast ? WVOL_ISO_SURFACE_CAST : WVOL_ISO_SURFACE_EXACT;
     t_prep = cli_now() - t0;
     if (hybrid) {
         wvol_render_params rp;
         wvol_render_params_default(&rp);
         rp.threads = a->threads;
-        if (wvol_iso_render_hybrid(img, depth, st, &cam, &tf, a->iso, &rp, &tp, &ts, &rs, &err) != WVOL_OK) goto fail;
-    } else if (wvol_iso_raytrace(img, depth, NULL, st, &cam, a->iso, &tp, &ts, &err) != WVOL_OK) {
+        if (wvol_iso_render_hybrid(j.img, j.depth, st, &j.cam, &tf, a->iso, &rp, &tp, &ts, &rs, &err) != WVOL_OK) goto fail;
+    } else if (wvol_iso_raytrace(j.img, j.depth, NULL, st, &j.cam, a->iso, &tp, &ts, &err) != WVOL_OK) {
         goto fail;
     }
-    if (a->out) {
-        wvol_status s = wvol_path_has_ext(a->out, ".exr") ? wvol_image_write_exr(img, a->out, depth, &err)
-                                                          : wvol_image_write_png(img, a->out, NULL, 1.0, &err);
-        if (s != WVOL_OK) goto fail;
-    }
+    if (save_image(a->out, j.img, j.depth, &err) != WVOL_OK) goto fail;
     if (ts.message[0] && !a->json) fprintf(stderr, "wvol iso: note: %s\n", ts.message);
     if (a->json) {
         cli_json_begin();
@@ -281,7 +395,7 @@ static int run_image(const iso_args *a)
         if (a->out) cli_json_str("output", a->out);
         cli_json_str("method", a->method);
         cli_json_str("wavelet", wvol_store_basis(st)->filter->name);
-        cli_json_int("levels", kept.levels);
+        cli_json_int("levels", j.kept.levels);
         cli_json_num("keep", a->keep);
         cli_json_int("spline_j", a->spline_j ? a->spline_j : wvol_store_basis(st)->J);
         cli_json_num("iso", a->iso);
@@ -320,10 +434,7 @@ static int run_image(const iso_args *a)
 fail:
     rc = cli_fail_err("iso", &err);
 done:
-    free(depth);
-    wvol_image_destroy(img);
-    wvol_compressed_free(&kept);
-    wvol_volume_destroy(v);
+    image_close(&j);
     return rc;
 }
 
@@ -354,11 +465,14 @@ int wvol_cmd_iso(int argc, char **argv)
             if (a.in) return cli_usage("iso", "one input expected, got '%s' too", val);
             a.in = val;
         } else if (o->short_name == 'h') {
-            cli_print_help("iso", "IN -o OUT.(ply|obj|stl|vtp|exr|png) --iso THETA [--method mc|raytrace|hybrid] [--json]",
+            cli_print_help("iso", "IN -o OUT.(ply|obj|stl|vtp|exr|png) --iso THETA [--method mc|cast|raytrace|hybrid] [--json]",
                            "Extracts the isosurface f = THETA. Marching cubes writes a mesh in world\n"
                            "coordinates with normals from the gradient; it prints triangle and vertex\n"
                            "counts, area, enclosed volume, topology and timings. An iso-value outside\n"
                            "the data range gives an empty mesh and a note, not an error.\n"
+                           "cast draws the surface of the trilinear interpolant of the samples (or of\n"
+                           "the store's reconstruction with --wavelet/--keep, bricks rebuilt on demand),\n"
+                           "exact first crossing per cell; writes colour, alpha and depth (EXR Z).\n"
                            "raytrace traces f^ = THETA of the wavelet model from a store of the kept\n"
                            "coefficients (--wavelet, --levels, --keep) with no missed hit and writes\n"
                            "colour, alpha and depth (EXR channel Z); hybrid puts the surface behind the\n"
@@ -371,9 +485,15 @@ int wvol_cmd_iso(int argc, char **argv)
             if (!cli_parse_double("iso", "iso", val, &a.iso)) return CLI_USAGE;
             a.have_iso = 1;
         } else if (!strcmp(o->name, "method")) {
-            if (strcmp(val, "mc") && strcmp(val, "raytrace") && strcmp(val, "hybrid"))
-                return cli_usage("iso", "--method '%s': expected mc, raytrace or hybrid", val);
+            if (strcmp(val, "mc") && strcmp(val, "cast") && strcmp(val, "raytrace") && strcmp(val, "hybrid"))
+                return cli_usage("iso", "--method '%s': expected mc, cast, raytrace or hybrid", val);
             a.method = val;
+        } else if (!strcmp(o->name, "model-bound")) {
+            a.model_bound = 1;
+        } else if (!strcmp(o->name, "surface")) {
+            if (strcmp(val, "exact") && strcmp(val, "cast"))
+                return cli_usage("iso", "--surface '%s': expected exact or cast", val);
+            a.surface_cast = !strcmp(val, "cast");
         } else if (!strcmp(o->name, "threads")) {
             if (!cli_parse_long("iso", "threads", val, 1, 4096, &lv)) return CLI_USAGE;
             a.threads = (int)lv;
@@ -387,6 +507,7 @@ int wvol_cmd_iso(int argc, char **argv)
             a.levels = (int)lv;
         } else if (!strcmp(o->name, "keep")) {
             if (!cli_parse_fraction("iso", "keep", val, &a.keep)) return CLI_USAGE;
+            a.have_keep = 1;
         } else if (!strcmp(o->name, "brick")) {
             if (!cli_parse_long("iso", "brick", val, 0, 4096, &lv)) return CLI_USAGE;
             if (lv == 1) return cli_usage("iso", "--brick 1: bricks need at least 2 cells per edge");
@@ -406,6 +527,7 @@ int wvol_cmd_iso(int argc, char **argv)
         } else if (!strcmp(o->name, "tolerance")) {
             if (!cli_parse_double("iso", "tolerance", val, &a.tolerance)) return CLI_USAGE;
             if (!(a.tolerance > 0)) return cli_usage("iso", "--tolerance %g: must be > 0", a.tolerance);
+            a.have_tol = 1;
         } else if (!strcmp(o->name, "chunk")) {
             if (!cli_parse_double("iso", "chunk", val, &a.chunk)) return CLI_USAGE;
             if (!(a.chunk > 0)) return cli_usage("iso", "--chunk %g: must be > 0", a.chunk);
@@ -422,7 +544,9 @@ int wvol_cmd_iso(int argc, char **argv)
         if (a.out && !wvol_path_has_ext(a.out, ".exr") && !wvol_path_has_ext(a.out, ".png"))
             return cli_usage("iso", "-o '%s': --method %s writes an image: .exr (with Z depth) or .png", a.out,
                              a.method);
-        return run_image(&a);
+        if (a.surface_cast && strcmp(a.method, "hybrid"))
+            return cli_usage("iso", "--surface applies to --method hybrid");
+        return !strcmp(a.method, "cast") ? run_cast(&a) : run_image(&a);
     }
     if (a.out && !wvol_path_has_ext(a.out, ".ply") && !wvol_path_has_ext(a.out, ".obj") &&
         !wvol_path_has_ext(a.out, ".stl") && !wvol_path_has_ext(a.out, ".vtp"))

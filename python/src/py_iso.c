@@ -5,6 +5,8 @@
 #include "methods.h"
 #include "py_store.h"
 #include "wvol/iso.h"
+#include "wvol/render.h"
+#include <stdlib.h>
 
 #include <math.h>
 #include <string.h>
@@ -131,6 +133,138 @@ static PyObject *py_isosurface(PyObject *self, PyObject *args, PyObject *kw)
     return iso_finish(m, s, &st, &err);
 }
 
+/* isoimage(source, iso, camera, width, height, method, threads, brick, tolerance, spacing, origin)
+ * -> (rgba (h, w, 4) float32, depth (h, w) float32, stats). method "cast": the bricked caster of
+ * the trilinear interpolant (a volume, or a store's reconstruction; brick, tolerance in voxels);
+ * "exact": the f^ tracer (a store only; tolerance in voxels, brick ignored). */
+static PyObject *py_isoimage(PyObject *self, PyObject *args, PyObject *kw)
+{
+    static char *kwlist[] = {"source", "iso", "camera", "width", "height", "method", "threads", "brick",
+                             "tolerance", "spacing", "origin", "model_bound", NULL};
+    PyObject *src_obj, *sp = Py_None, *org = Py_None;
+    const char *camspec = "+z", *method = "cast";
+    double iso, tol = 0.0;
+    int width = 256, height = 256, threads = 0, brick = 0, exact, model_bound = 0;
+    PyArrayObject *holder = NULL;
+    const wvol_store *store = NULL;
+    wvol_volume v;
+    wvol_geometry g;
+    wvol_camera cam;
+    wvol_image *img = NULL;
+    float *depth = NULL;
+    wvol_error err;
+    wvol_status s;
+    PyObject *a, *z, *d;
+    npy_intp zd[2];
+    (void)self;
+    if (!PyArg_ParseTupleAndKeywords(args, kw, "Od|siisiidOOp", kwlist, &src_obj, &iso, &camspec, &width, &height,
+                                     &method, &threads, &brick, &tol, &sp, &org, &model_bound))
+        return NULL;
+    if (!isfinite(iso)) return PyErr_Format(PyExc_ValueError, "iso-value must be finite");
+    if (strcmp(method, "cast") && strcmp(method, "exact"))
+        return PyErr_Format(PyExc_ValueError, "method '%s': expected 'cast' or 'exact'", method);
+    exact = !strcmp(method, "exact");
+    if (threads < 0 || threads > WVOLPY_MAX_THREADS)
+        return PyErr_Format(PyExc_ValueError, "threads must be in 0..%d (0: default)", WVOLPY_MAX_THREADS);
+    if (!(tol >= 0) || !isfinite(tol)) return PyErr_Format(PyExc_ValueError, "tolerance must be >= 0 (0: default)");
+    if (brick < 0) return PyErr_Format(PyExc_ValueError, "brick must be >= 0 (0: default)");
+    if (WVOLPY_IS_STORE(src_obj)) {
+        wvol_store_info info;
+        int k;
+        if (!(store = wvolpy_store_at((wvolpy_store *)src_obj, 0))) return NULL;
+        wvol_store_get_info(store, &info);
+        g.dims[0] = info.nx, g.dims[1] = info.ny, g.dims[2] = info.nz;
+        for (k = 0; k < 3; k++) g.spacing[k] = info.spacing[k], g.origin[k] = info.origin[k];
+    } else {
+        if (exact)
+            return PyErr_Format(PyExc_ValueError, "method 'exact' traces f^ of a Store (wvol.compress), not a volume");
+        if (wvolpy_as_placed_volume(src_obj, sp, org, &v, &holder, 1) < 0) return NULL;
+        if (wvol_volume_set_geometry(&v, v.spacing, v.origin, &err) != WVOL_OK) goto raise;
+        wvol_geometry_of_volume(&g, &v);
+    }
+    if (wvol_camera_parse(&cam, camspec, &g, width, height, &err) != WVOL_OK) goto raise;
+    depth = malloc((size_t)width * (size_t)height * sizeof *depth + 1);
+    if (!depth) {
+        Py_XDECREF(holder);
+        return PyErr_NoMemory();
+    }
+    if (exact) {
+        wvol_iso_trace_params tp;
+        wvol_iso_trace_stats ts;
+        double smin = fmin(g.spacing[0], fmin(g.spacing[1], g.spacing[2]));
+        wvol_iso_trace_params_default(&tp);
+        tp.threads = threads;
+        if (tol > 0) tp.tolerance = tol * smin;
+        memset(&ts, 0, sizeof ts);
+        Py_BEGIN_ALLOW_THREADS
+        s = wvol_image_create(&img, width, height, &err);
+        if (s == WVOL_OK) s = wvol_iso_raytrace(img, depth, NULL, store, &cam, iso, &tp, &ts, &err);
+        Py_END_ALLOW_THREADS
+        d = s != WVOL_OK ? NULL
+                         : Py_BuildValue("{s:s,s:n,s:n,s:n,s:n,s:n,s:d,s:d,s:d,s:s}", "method", "exact", "rays",
+                                         (Py_ssize_t)ts.rays, "hits", (Py_ssize_t)ts.hits, "functions",
+                                         (Py_ssize_t)ts.functions, "pieces", (Py_ssize_t)ts.pieces, "grazes",
+                                         (Py_ssize_t)ts.grazes, "seconds", ts.seconds, "cpu_seconds", ts.cpu_seconds,
+                                         "seconds_cells", ts.seconds_cells, "message", ts.message);
+    } else {
+        wvol_iso_cast_params cp;
+        wvol_iso_cast_stats cs;
+        wvol_render_source src = store ? wvol_render_source_store(store) : wvol_render_source_volume(&v);
+        wvol_iso_cast_params_default(&cp);
+        cp.threads = threads;
+        if (brick > 0) cp.brick = brick;
+        if (tol > 0) cp.tolerance = tol;
+        cp.model_bound = model_bound;
+        memset(&cs, 0, sizeof cs);
+        Py_BEGIN_ALLOW_THREADS
+        s = wvol_image_create(&img, width, height, &err);
+        if (s == WVOL_OK) s = wvol_iso_cast(img, depth, NULL, &src, &cam, iso, &cp, &cs, &err);
+        Py_END_ALLOW_THREADS
+        d = s != WVOL_OK ? NULL
+                         : Py_BuildValue("{s:s,s:n,s:n,s:n,s:n,s:n,s:n,s:n,s:d,s:d,s:d,s:d,s:d,s:d,s:n,s:n,s:s}",
+                                         "method", "cast", "rays", (Py_ssize_t)cs.rays, "hits", (Py_ssize_t)cs.hits,
+                                         "bricks_total", (Py_ssize_t)cs.bricks_total, "bricks_bound",
+                                         (Py_ssize_t)cs.bricks_bound, "bricks_built", (Py_ssize_t)cs.bricks_built,
+                                         "cells_tested", (Py_ssize_t)cs.cells_tested, "bytes", (Py_ssize_t)cs.bytes,
+                                         "seconds", cs.seconds, "seconds_bounds", cs.seconds_bounds,
+                                         "thread_seconds_build", cs.seconds_build, "cpu_seconds", cs.cpu_seconds,
+                                         "fhat_bound_max", cs.fhat_bound_max, "fhat_bound_mean", cs.fhat_bound_mean,
+                                         "fhat_bound_bricks", (Py_ssize_t)cs.fhat_bound_bricks, "fhat_bound_faces",
+                                         (Py_ssize_t)cs.fhat_bound_faces, "message", cs.message);
+    }
+    Py_XDECREF(holder);
+    holder = NULL;
+    if (s != WVOL_OK) {
+        free(depth);
+        wvol_image_destroy(img);
+        return wvolpy_raise(&err);
+    }
+    if (!d) {
+        free(depth);
+        wvol_image_destroy(img);
+        return NULL;
+    }
+    {
+        npy_intp dims[3] = {height, width, 4};
+        float *rgba = img->rgba;
+        img->rgba = NULL;
+        wvol_image_destroy(img);
+        a = wvolpy_array_take(rgba, 3, dims);
+    }
+    zd[0] = height, zd[1] = width;
+    z = wvolpy_array_take(depth, 2, zd);
+    if (!a || !z) {
+        Py_XDECREF(a);
+        Py_XDECREF(z);
+        Py_DECREF(d);
+        return NULL;
+    }
+    return Py_BuildValue("NNN", a, z, d);
+raise:
+    Py_XDECREF(holder);
+    return wvolpy_raise(&err);
+}
+
 /* save_mesh(path, vertices (n, 3), faces (m, 3), normals (n, 3) or None): .ply .obj .stl .vtp */
 static PyObject *py_save_mesh(PyObject *self, PyObject *args, PyObject *kw)
 {
@@ -213,4 +347,7 @@ PyMethodDef wvolpy_iso_methods[] = {
     {"isosurface", (PyCFunction)(void (*)(void))py_isosurface, METH_VARARGS | METH_KEYWORDS,
      "isosurface(source, iso, spacing=None, origin=None, normals='gradient', threads=0, brick=None)\n"
      "-> (vertices, faces, normals, stats); source: a StoreHandle or an array"},
+    {"isoimage", (PyCFunction)(void (*)(void))py_isoimage, METH_VARARGS | METH_KEYWORDS,
+     "isoimage(source, iso, camera='+z', width=256, height=256, method='cast', threads=0, brick=0,\n"
+     "tolerance=0, spacing=None, origin=None, model_bound=False) -> (rgba, depth, stats)"},
     {NULL, NULL, 0, NULL}};

@@ -18,7 +18,7 @@ from . import _wvol
 __version__ = _wvol.version
 
 __all__ = ["Volume", "load", "save", "filters", "dwt3", "idwt3", "Coeffs", "compress", "Store", "ErrorEstimate",
-           "synth", "segment", "Segmentation", "features", "open", "wvc_info", "render", "isosurface",
+           "synth", "segment", "Segmentation", "features", "open", "wvc_info", "render", "isosurface", "isoimage",
            "save_mesh"]
 
 
@@ -467,6 +467,34 @@ def isosurface(source, iso, *, normals="gradient", brick=None, threads=0, return
         v, f, n, st = _wvol.isosurface(_data(source), iso, spacing=spacing, origin=origin, normals=normals,
                                        threads=threads, brick=brick)
     return (v, f, n, st) if return_stats else (v, f, n)
+
+
+def isoimage(source, iso, camera="+z", size=(256, 256), *, method="cast", brick=None, tolerance=None, threads=0,
+             model_bound=False, return_stats=False):
+    """An image of the isosurface at ``iso``, seen by ``camera`` (the words of :func:`render`).
+
+    ``method="cast"``: the surface of the trilinear interpolant of a volume's samples (array or
+    :class:`Volume`) or of a :class:`Store`'s reconstruction, cast brick by brick (bricks of
+    ``brick`` cells rebuilt on demand, exact first crossing per cell, depth within ``tolerance``
+    voxels, default 1e-5). ``method="exact"``: the surface f^ = iso of the wavelet model of a
+    :class:`Store` (the guaranteed tracer; tolerance default 1e-3 voxels).
+
+    ``model_bound=True`` (cast from a Store): the stats also bound |f^ - interp| per built brick
+    (``fhat_bound_max``, ``fhat_bound_mean``; docs/iso.md).
+
+    Returns ``(rgba, depth)``: rgba (h, w, 4) float32 Lambert-shaded with alpha 1 on the
+    surface, depth (h, w) float32 the ray parameter of the hit (world units, +inf on a miss).
+    A ray entering the box inside the surface reports where it leaves it (docs/iso.md).
+    """
+    w, h = size
+    kw = dict(camera=camera, width=int(w), height=int(h), method=method, threads=threads, brick=brick or 0,
+              tolerance=tolerance or 0.0, model_bound=bool(model_bound))
+    if isinstance(source, Store):
+        rgba, depth, st = _wvol.isoimage(source._handle, iso, **kw)
+    else:
+        spacing, origin = _geometry(source, None, None)
+        rgba, depth, st = _wvol.isoimage(_data(source), iso, spacing=spacing, origin=origin, **kw)
+    return (rgba, depth, st) if return_stats else (rgba, depth)
 
 
 def save_mesh(path, vertices, faces, normals=None):

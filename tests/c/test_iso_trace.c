@@ -52,25 +52,25 @@ static double f_at(const wvol_store *s, const double o[3], const double d[3], do
     return wvol_store_eval(s, x, NULL);
 }
 
-/* The ray's part inside the sample extent [0, n-1], t >= 0 (as the tracer clips). */
+/* The ray's part inside the traced extent (the sample extent less the wrap bands,
+ * wvol__iso_model_extent), t >= 0 (as the tracer clips). */
 static int extent(const wvol_store *s, const double o[3], const double d[3], double *t0, double *t1, double *speed)
 {
     wvol_store_info info;
-    double ov[3], dv[3], a0 = 0, a1 = INFINITY;
-    size_t n[3];
+    double ov[3], dv[3], a0 = 0, a1 = INFINITY, lo[3], hi[3];
     int a;
     wvol_store_get_info(s, &info);
-    n[0] = info.nx, n[1] = info.ny, n[2] = info.nz;
+    wvol__iso_model_extent(s, lo, hi);
     wvol_store_world_to_voxel(s, o, ov);
     wvol_store_dir_to_voxel(s, d, dv);
     for (a = 0; a < 3; a++) {
         double ta, tb;
         if (dv[a] == 0) {
-            if (ov[a] < 0 || ov[a] > (double)n[a] - 1) return 0;
+            if (ov[a] < lo[a] || ov[a] > hi[a]) return 0;
             continue;
         }
-        ta = (0 - ov[a]) / dv[a];
-        tb = ((double)n[a] - 1 - ov[a]) / dv[a];
+        ta = (lo[a] - ov[a]) / dv[a];
+        tb = (hi[a] - ov[a]) / dv[a];
         if (ta > tb) {
             double x = ta;
             ta = tb, tb = x;

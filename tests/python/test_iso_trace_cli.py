@@ -71,4 +71,35 @@ def test_image_methods_refuse_mesh_outputs(wvol, vol, tmp_path):
     r = wvol("iso", vol, "--dims", f"{N}x{N}x{N}", "--iso", "0.5", "--method", "raytrace", "-o", tmp_path / "m.ply")
     assert r.returncode == 2 and ".exr" in r.stderr
     r = wvol("iso", vol, "--dims", f"{N}x{N}x{N}", "--iso", "0.5", "--method", "nope")
-    assert r.returncode == 2 and "mc, raytrace or hybrid" in r.stderr
+    assert r.returncode == 2 and "mc, cast, raytrace or hybrid" in r.stderr
+    r = wvol("iso", vol, "--dims", f"{N}x{N}x{N}", "--iso", "0.5", "--method", "raytrace", "--surface", "cast")
+    assert r.returncode == 2 and "--surface applies to --method hybrid" in r.stderr
+    r = wvol("iso", vol, "--dims", f"{N}x{N}x{N}", "--iso", "0.5", "--method", "hybrid", "--surface", "mesh")
+    assert r.returncode == 2 and "expected exact or cast" in r.stderr
+
+
+@pytest.mark.parametrize("store", [False, True])
+def test_cast_exr_has_depth(wvol, vol, tmp_path, store):
+    out = tmp_path / "c.exr"
+    extra = ["--keep", "20%"] if store else []
+    r = wvol("iso", vol, "--dims", f"{N}x{N}x{N}", "--iso", "0.5", "--method", "cast", *extra,
+             "--size", "24x20", "--camera", "persp dir=1,0.5,0.3", "--brick", "8", "-o", out, "--json")
+    assert r.returncode == 0, r.stderr
+    info = json.loads(r.stdout)
+    assert info["method"] == "cast" and info["source"] == ("store" if store else "volume")
+    assert info["rays"] == 24 * 20 and 0 < info["hits"] < 24 * 20 and info["empty"] == 0
+    assert 0 < info["bricks_built"] <= info["bricks_total"] and info["brick"] == 8
+    assert sorted(exr_channels(out)) == ["A", "B", "G", "R", "Z"]
+
+
+def test_cast_empty_and_hybrid_cast(wvol, vol, tmp_path):
+    r = wvol("iso", vol, "--dims", f"{N}x{N}x{N}", "--iso", "7", "--method", "cast", "--size", "8x8",
+             "-o", tmp_path / "e.png", "--json")
+    assert r.returncode == 0, r.stderr
+    info = json.loads(r.stdout)
+    assert info["hits"] == 0 and info["empty"] == 1 and "above every sample" in info["message"]
+    out = tmp_path / "h.png"
+    r = wvol("iso", vol, "--dims", f"{N}x{N}x{N}", "--iso", "0.6", "--method", "hybrid", "--surface", "cast",
+             "--tf", "gaussian", "--size", "16x16", "-o", out, "--json")
+    assert r.returncode == 0, r.stderr
+    assert json.loads(r.stdout)["hits"] > 0 and png_size(out) == (16, 16)

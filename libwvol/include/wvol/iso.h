@@ -159,6 +159,12 @@ WVOL_API wvol_status wvol_iso_extract_store(wvol_mesh **out, const wvol_store *s
  * tolerance/2, except that two crossings closer together than tolerance/8 may be skipped
  * (a "graze", counted); see docs/iso.md. Haar's f^ jumps at voxel faces: a jump across iso
  * is a crossing at the face. */
+/* Which surface wvol_iso_render_hybrid draws behind the volume. */
+typedef enum wvol_iso_surface {
+    WVOL_ISO_SURFACE_EXACT = 0, /* f^ = iso, the exact tracer (default) */
+    WVOL_ISO_SURFACE_CAST = 1   /* the trilinear interpolant of the store's reconstruction (wvol_iso_cast) */
+} wvol_iso_surface;
+
 typedef struct wvol_iso_trace_params {
     double tolerance;   /* depth accuracy in world units; <= 0: 1e-3 of the smallest spacing */
     double chunk;       /* ray segment built at a time, voxels (default 16): a ray stops building
@@ -167,6 +173,7 @@ typedef struct wvol_iso_trace_params {
     double light[3];    /* direction towards the light (world); all 0: a headlight */
     float color[3];     /* albedo */
     float ambient;      /* in [0, 1] */
+    wvol_iso_surface surface; /* wvol_iso_render_hybrid only (default EXACT) */
 } wvol_iso_trace_params;
 
 WVOL_API void wvol_iso_trace_params_default(wvol_iso_trace_params *p);
@@ -210,11 +217,79 @@ WVOL_API wvol_status wvol_iso_raytrace(wvol_image *img, float *depth, float *nor
  * front of it. Per pixel the surface is traced (wvol_iso_raytrace), the spline integrator runs
  * from the box's entry to the surface's depth (wvol_render_spline_until) with tf and rp, and
  * the shaded surface is added with the remaining transmittance. depth (may be NULL) receives
- * the surface depth. */
+ * the surface depth. With tp->surface == WVOL_ISO_SURFACE_CAST the surface comes from
+ * wvol_iso_cast on the store (tp's threads, light, colour and ambient; its default tolerance
+ * and bricks); tstats then reports rays, hits, seconds and cpu_seconds. */
 WVOL_API wvol_status wvol_iso_render_hybrid(wvol_image *img, float *depth, const wvol_store *s, const wvol_camera *cam,
                                             const wvol_tf *tf, double iso, const wvol_render_params *rp,
                                             const wvol_iso_trace_params *tp, wvol_iso_trace_stats *tstats,
                                             wvol_render_stats *rstats, wvol_error *err);
+
+
+/* ---- casting the trilinear interpolant, brick by brick (Parker et al. 1998, Marmitt et al. 2004) */
+
+/* The surface interp(x) = iso of the trilinear interpolant of a volume's samples, or of the
+ * samples a store reconstructs (never formed whole: bricks of `brick`^3 cells are rebuilt on
+ * demand from the store's kept coefficients, as marching cubes from a store does, the first
+ * time a ray reaches one whose rigorous coefficient bound straddles iso). Rays walk the bricks,
+ * then groups of 4^3 cells, then cells, front to back, skipping every brick, group and cell
+ * whose samples' min/max exclude iso (a trilinear cell lies between its corners' min and max),
+ * and find in each remaining cell the exact first crossing of its cubic along the ray: the
+ * roots of its derivative split the cell's interval into monotone parts, the first part whose
+ * end changes class holds the crossing, which bisection refines to `tolerance`.
+ * Guarantee (docs/iso.md): the hit is the first change of the class interp >= iso along the ray
+ * inside the sample extent [0, n-1] after the ray's entry (a ray entering inside the surface,
+ * where a face cuts it, reports where it leaves it: the mesh's back face), at depth within
+ * `tolerance`, up to float64 rounding of the cubic (|interp - iso| below ~1e-12 of the corner
+ * magnitudes). Perspective rays start at the eye, orthographic ones are whole lines. */
+typedef struct wvol_iso_cast_params {
+    int threads;        /* 0: OpenMP's default */
+    int brick;          /* cells per brick edge, 4..1024 (default 32) */
+    double tolerance;   /* depth accuracy in voxels (default 1e-5) */
+    double light[3];    /* direction towards the light (world); all 0: a headlight */
+    float color[3];     /* albedo */
+    float ambient;      /* in [0, 1] */
+    int model_bound;    /* 1: from a store, also bound |f^ - interp| per built brick (stats; costs a
+                           query of the functions touching each brick and a halo of samples) */
+} wvol_iso_cast_params;
+
+WVOL_API void wvol_iso_cast_params_default(wvol_iso_cast_params *p);
+
+typedef struct wvol_iso_cast_stats {
+    size_t rays, hits;
+    size_t bricks_total;        /* bricks of the grid */
+    size_t bricks_bound;        /* skipped by the coefficient bound alone, never reconstructed */
+    size_t bricks_built;        /* reconstructed (or copied from the volume) on demand */
+    size_t cells_tested;        /* cells whose cubic was examined */
+    size_t bytes;               /* bricks and tables allocated */
+    double seconds;             /* the whole call: bounds, bricks and rays */
+    double seconds_bounds;      /* of seconds: the store's block view and bounds */
+    double seconds_build;       /* thread-seconds spent building bricks (summed over threads) */
+    int threads;                /* threads used */
+    /* from a store: the bound of |f^ - interp| per built brick (f^ the wavelet model, interp the
+     * trilinear interpolant of the reconstruction; docs/iso.md): its max and mean over the bricks
+     * where it applies, their count, and the bricks whose sample window a face clips (the model
+     * reaches across the periodic wrap there: no bound) */
+    double fhat_bound_max, fhat_bound_mean;
+    size_t fhat_bound_bricks, fhat_bound_faces;
+    double cpu_seconds;
+    char message[256];          /* set when nothing is hit */
+} wvol_iso_cast_stats;
+
+/* Casts one ray per pixel of cam (wvol_camera_ray) against the surface of source (a volume or
+ * a store). img receives the Lambert-shaded albedo (two-sided, normal -grad interp) with alpha
+ * 1 on a hit; depth (w*h floats, may be NULL) the ray parameter t of the hit (world, +inf on a
+ * miss); normals (w*h*3, may be NULL) the unit normals. p and st may be NULL. */
+WVOL_API wvol_status wvol_iso_cast(wvol_image *img, float *depth, float *normals, const wvol_render_source *source,
+                                   const wvol_camera *cam, double iso, const wvol_iso_cast_params *p,
+                                   wvol_iso_cast_stats *st, wvol_error *err);
+
+/* One ray o + t d, t >= 0 (world; d need not be unit; t in world units along the unit
+ * direction): hit->hit, t, pos, normal, value filled (the counters left 0). Sets up the
+ * source's bricks for this call alone: for many rays use wvol_iso_cast. */
+WVOL_API wvol_status wvol_iso_cast_ray(const wvol_render_source *source, double iso, const double o[3],
+                                       const double d[3], const wvol_iso_cast_params *p, wvol_iso_hit *hit,
+                                       wvol_error *err);
 
 #ifdef __cplusplus
 }

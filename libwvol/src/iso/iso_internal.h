@@ -83,7 +83,17 @@ typedef struct wvol__tracer {
     double cell;
     size_t nc[3];
     signed char *cls;
+    double lo[3], hi[3]; /* the traced extent per axis (voxels): wvol__iso_model_extent */
 } wvol__tracer;
+
+/* The part [lo_a, hi_a] of the sample extent [0, n_a - 1] where f^ does not reach across the
+ * model's periodic wrap: there the finest-level functions phi(x - p + s) that are not
+ * negligible (|phi| above 1e-3 of its maximum on (r0, r1) within the support) all sit on
+ * samples 0 <= p <= P_a - 1 of the volume and its end padding, so lo_a = max(0, r1 - 1 - s)
+ * and hi_a = min(n_a - 1, P_a + r0 - s). Outside it f^ mixes the far face into the near one
+ * (a jump from soft tissue to air across the wrap makes db2's f^ overshoot by hundreds of HU
+ * within a voxel of the face: a false surface). Untransformed axes keep [0, n_a - 1]. */
+void wvol__iso_model_extent(const wvol_store *s, double lo[3], double hi[3]);
 
 /* A thread's scratch, reused across rays; start zeroed. */
 typedef struct wvol__trace_ws {
@@ -105,5 +115,74 @@ wvol_status wvol__trace_cells(wvol__tracer *tr, int nth, wvol_error *err);
  * stepped over. */
 wvol_status wvol__trace(const wvol__tracer *tr, wvol__trace_ws *w, const double o[3], const double d[3], double tmin,
                         wvol_iso_hit *h, wvol_error *err);
+
+/* ---- the bricked caster of the trilinear interpolant (cast.c, cast_cell.c) ---- */
+
+#include "wavelet/wavelet_bricks.h"
+
+/* The first crossing of the trilinear interpolant of one cell (corners c[i + 2j + 4k] at
+ * (i, j, k)) along q0 + tau dq (cell-local coordinates), tau in [0, len]: the cubic
+ * g(tau) = interp - iso is cut at the roots of g' into monotone parts; the first part whose
+ * far end is not of class s0 (class: g >= 0) holds the first point where the class differs
+ * from s0 = *cls (the class before the segment; < 0: that of g(0), stored back into *cls),
+ * found by bisection to a bracket <= tol. Returns 1 with *tau (the bracket's far end,
+ * the first point found of the other class; 0 when g(0) is already of the other class) or 0
+ * when the class stays s0 on [0, len]. */
+int wvol__cell_crossing(const double c[8], const double q0[3], const double dq[3], double len, double iso, int *cls,
+                        double tol, double *tau);
+
+/* Refuses a missing image or camera, a bad camera, or an image of another size (what: the
+ * caller's name for messages). */
+wvol_status wvol__iso_image_check(const wvol_image *img, const wvol_camera *cam, const char *what, wvol_error *err);
+
+/* Shades a hit into rgba (Lambert, two-sided, albedo color, ambient; light all 0: a headlight
+ * along -d); a miss is transparent black. */
+void wvol__iso_shade(float rgba[4], const wvol_iso_hit *h, const double d[3], const double light[3],
+                     const float color[3], float ambient);
+/* interp at q (cell-local) and its gradient (per unit of q) */
+double wvol__cell_eval(const double c[8], const double q[3], double grad[3]);
+
+/* Constants of the bound of |f^ - interp| over a brick (cast_bound.c says how). */
+typedef struct wvol__fhat_link {
+    int ok;             /* 0: no bound (an untransformed axis, no levels) */
+    int below, above;   /* the window: samples c0 - below .. c1 + above reach the brick [c0, c1] */
+    double D, A, K;     /* 1D sums over p of |phi_s - hat| and |phi_s|; K = D (A^2 + A + 1) */
+    double smax;        /* max |S - 1|, S the 3D partition of unity of the spline phi */
+    double lin;         /* max P * max |s S - m|: the spline's error on a linear function */
+    double e0;          /* (A + (L-1) e_phi)^3 - A^3 */
+    double F[8];        /* per band: prod (V + e) - prod V */
+} wvol__fhat_link;
+void wvol__fhat_link_init(wvol__fhat_link *k, const wvol_store *s);
+/* The bound over a brick from its stored samples s (box dimensions md, the brick's first own
+ * sample at index core, `cells` cells) per group of `group`^3 cells, and the functions touching
+ * the brick; +inf when a group's window is not stored (a face clipped it). */
+double wvol__fhat_link_bound(const wvol__fhat_link *k, const float *s, const size_t md[3], const size_t core[3],
+                             const size_t cells[3], int group, const wvol_store_hit *hits, size_t nh);
+
+typedef struct wvol__caster wvol__caster;
+
+/* A thread's scratch; start zeroed, free with wvol__cast_ws_free. */
+typedef struct wvol__cast_ws {
+    wvol__brick_scratch scr;
+    size_t cells;
+    double seconds_build;   /* this thread's wall time spent building bricks */
+    wvol_store_hits hits;   /* the functions touching a brick (the model bound) */
+} wvol__cast_ws;
+void wvol__cast_ws_free(wvol__cast_ws *w);
+
+/* Sets up the bricks of source (bounds and the block view for a store; nothing is built). */
+wvol_status wvol__caster_create(wvol__caster **out, const wvol_render_source *src, double iso,
+                                const wvol_iso_cast_params *p, wvol_error *err);
+void wvol__caster_destroy(wvol__caster *c);
+/* The first crossing along o + t d (world, d unit), t >= tmin; bricks built on demand
+ * (safe from several threads). */
+wvol_status wvol__cast(wvol__caster *c, wvol__cast_ws *w, const double o[3], const double d[3], double tmin,
+                       wvol_iso_hit *h, wvol_error *err);
+/* The model bound |f^ - interp| over the brick holding voxel position x (built if needed):
+ * +inf where the bound does not apply (a volume, a brick whose sample window a face clips), NaN
+ * on an error (in err). */
+double wvol__caster_fhat_bound(wvol__caster *c, wvol__cast_ws *w, const double x[3], wvol_error *err);
+/* Counters: bricks total, skipped by bound (so far), built (so far); bytes held. */
+void wvol__caster_counts(const wvol__caster *c, size_t *total, size_t *bound, size_t *built, size_t *bytes);
 
 #endif

@@ -68,6 +68,69 @@ void wvol_iso_trace_params_default(wvol_iso_trace_params *p)
     p->ambient = 0.15f;
 }
 
+wvol_status wvol__iso_image_check(const wvol_image *img, const wvol_camera *cam, const char *what, wvol_error *err)
+{
+    WVOL_RETURN_IF(!img || !img->rgba, err, WVOL_ERR_ARG, "%s: no image", what);
+    WVOL_RETURN_IF(!cam, err, WVOL_ERR_ARG, "%s: no camera", what);
+    WVOL_FORWARD(wvol_camera_check(cam, err));
+    WVOL_RETURN_IF(cam->width != img->width || cam->height != img->height, err, WVOL_ERR_ARG,
+                   "%s: image %dx%d does not match the camera's %dx%d", what, img->width, img->height, cam->width,
+                   cam->height);
+    return WVOL_OK;
+}
+
+void wvol__iso_shade(float rgba[4], const wvol_iso_hit *h, const double d[3], const double light[3],
+                     const float color[3], float ambient)
+{
+    double l[3], ll = 0.0, lam = 0.0;
+    int a, head = !(light[0] || light[1] || light[2]);
+    if (!h->hit) {
+        rgba[0] = rgba[1] = rgba[2] = rgba[3] = 0.0f;
+        return;
+    }
+    for (a = 0; a < 3; a++) {
+        l[a] = head ? -d[a] : light[a];
+        ll += l[a] * l[a];
+    }
+    ll = sqrt(ll);
+    for (a = 0; a < 3; a++) lam += h->normal[a] * l[a] / ll;
+    lam = fabs(lam); /* two-sided */
+    for (a = 0; a < 3; a++) rgba[a] = (float)(color[a] * (ambient + (1.0 - ambient) * lam));
+    rgba[3] = 1.0f;
+}
+
+void wvol__iso_model_extent(const wvol_store *s, double lo[3], double hi[3])
+{
+    const wvol_basis *b = wvol_store_basis(s);
+    wvol_store_info info;
+    size_t n[3], P[3];
+    double r0 = 0.0, r1 = 0.0, vmax = 0.0, *pm;
+    int i, a, k, deg1;
+    wvol_store_get_info(s, &info);
+    n[0] = info.nx, n[1] = info.ny, n[2] = info.nz;
+    P[0] = info.px, P[1] = info.py, P[2] = info.pz;
+    for (a = 0; a < 3; a++) lo[a] = 0.0, hi[a] = (double)n[a] - 1.0;
+    if (!b) return;
+    r1 = b->support;
+    deg1 = b->exact ? 1 : 4;
+    pm = malloc((size_t)b->pieces * sizeof *pm);
+    if (pm && !b->exact) { /* per piece a bound of |phi|: the sum of its |coefficients| */
+        for (i = 0; i < b->pieces; i++) {
+            pm[i] = 0;
+            for (k = 0; k < deg1; k++) pm[i] += fabs(b->phi[deg1 * i + k]);
+            if (pm[i] > vmax) vmax = pm[i];
+        }
+        for (i = 0; i < b->pieces && pm[i] <= 1e-3 * vmax; i++) r0 = (i + 1) * b->h;
+        for (i = b->pieces - 1; i >= 0 && pm[i] <= 1e-3 * vmax; i--) r1 = i * b->h;
+    }
+    free(pm);
+    for (a = 0; a < 3; a++) {
+        if (!info.transformed[a]) continue;
+        lo[a] = fmax(0.0, r1 - 1.0 - b->center);
+        hi[a] = fmin((double)n[a] - 1.0, (double)P[a] + r0 - b->center);
+    }
+}
+
 static wvol_status make_tracer(tracer *tr, const wvol_store *s, double iso, const wvol_iso_trace_params *p,
                                wvol_error *err)
 {
@@ -83,6 +146,7 @@ static wvol_status make_tracer(tracer *tr, const wvol_store *s, double iso, cons
     tr->tol = p && p->tolerance > 0 ? p->tolerance : 1e-3 * smin;
     tr->chunk = p && p->chunk > 0 ? p->chunk : 16.0;
     wvol__iso_boxk_init(&tr->k, s);
+    wvol__iso_model_extent(s, tr->lo, tr->hi);
     return WVOL_OK;
 }
 
@@ -146,12 +210,7 @@ wvol_status wvol_iso_raytrace(wvol_image *img, float *depth, float *normals, con
     size_t hits = 0, functions = 0, pieces = 0, refined = 0, intervals = 0, evals = 0, grazes = 0;
     double t_start = wvol__now(), c_start = wvol__cpu_now(), tmin, t_cells;
     wvol_error first_err;
-    WVOL_RETURN_IF(!img || !img->rgba, err, WVOL_ERR_ARG, "iso trace: no image");
-    WVOL_RETURN_IF(!cam, err, WVOL_ERR_ARG, "iso trace: no camera");
-    WVOL_FORWARD(wvol_camera_check(cam, err));
-    WVOL_RETURN_IF(cam->width != img->width || cam->height != img->height, err, WVOL_ERR_ARG,
-                   "iso trace: image %dx%d does not match the camera's %dx%d", img->width, img->height, cam->width,
-                   cam->height);
+    WVOL_FORWARD(wvol__iso_image_check(img, cam, "iso trace", err));
     if (!p) {
         wvol_iso_trace_params_default(&def);
         p = &def;
@@ -173,7 +232,7 @@ wvol_status wvol_iso_raytrace(wvol_image *img, float *depth, float *normals, con
 #pragma omp for schedule(dynamic, 1)
         for (int row = 0; row < img->height; row++) {
             for (int x = 0; x < img->width; x++) {
-                double o[3], d[3], l[3], ll = 0.0, lam = 0.0;
+                double o[3], d[3];
                 wvol_iso_hit h;
                 size_t px = (size_t)row * (size_t)img->width + (size_t)x;
                 float *c = img->rgba + 4 * px;
@@ -197,20 +256,8 @@ wvol_status wvol_iso_raytrace(wvol_image *img, float *depth, float *normals, con
                 if (depth) depth[px] = h.hit ? (float)h.t : INFINITY;
                 if (normals)
                     for (a = 0; a < 3; a++) normals[3 * px + a] = h.hit ? (float)h.normal[a] : 0.0f;
-                if (!h.hit) {
-                    c[0] = c[1] = c[2] = c[3] = 0.0f;
-                    continue;
-                }
-                hits++;
-                for (a = 0; a < 3; a++) {
-                    l[a] = (p->light[0] || p->light[1] || p->light[2]) ? p->light[a] : -d[a];
-                    ll += l[a] * l[a];
-                }
-                ll = sqrt(ll);
-                for (a = 0; a < 3; a++) lam += h.normal[a] * l[a] / ll;
-                lam = fabs(lam); /* two-sided */
-                for (a = 0; a < 3; a++) c[a] = (float)(p->color[a] * (p->ambient + (1.0 - p->ambient) * lam));
-                c[3] = 1.0f;
+                hits += (size_t)h.hit;
+                wvol__iso_shade(c, &h, d, p->light, p->color, p->ambient);
             }
         }
         wvol__trace_ws_free(&ws);
@@ -257,7 +304,27 @@ wvol_status wvol_iso_render_hybrid(wvol_image *img, float *depth, const wvol_sto
         wvol_image_destroy(surf);
         return wvol_error_set(err, WVOL_ERR_NOMEM, "iso hybrid: out of memory for the depth buffer");
     }
-    stt = wvol_iso_raytrace(surf, z, NULL, s, cam, iso, tp, tstats, err);
+    if (tp && tp->surface == WVOL_ISO_SURFACE_CAST) {
+        wvol_iso_cast_params cp;
+        wvol_iso_cast_stats cs;
+        wvol_render_source src = wvol_render_source_store(s);
+        wvol_iso_cast_params_default(&cp);
+        cp.threads = tp->threads;
+        memcpy(cp.light, tp->light, sizeof cp.light);
+        memcpy(cp.color, tp->color, sizeof cp.color);
+        cp.ambient = tp->ambient;
+        stt = wvol_iso_cast(surf, z, NULL, &src, cam, iso, &cp, &cs, err);
+        if (stt == WVOL_OK && tstats) {
+            memset(tstats, 0, sizeof *tstats);
+            tstats->rays = cs.rays;
+            tstats->hits = cs.hits;
+            tstats->seconds = cs.seconds;
+            tstats->cpu_seconds = cs.cpu_seconds;
+            memcpy(tstats->message, cs.message, sizeof tstats->message);
+        }
+    } else {
+        stt = wvol_iso_raytrace(surf, z, NULL, s, cam, iso, tp, tstats, err);
+    }
     /* the volume in front of the surface (the whole ray where there is none) */
     if (stt == WVOL_OK) stt = wvol_render_spline_until(img, s, cam, tf, rp, z, rstats, err);
     if (stt == WVOL_OK)

@@ -144,16 +144,17 @@ static void set_hit(const tracer *tr, const double o[3], const double d[3], cons
     for (a = 0; a < 3; a++) h->normal[a] = len > 0 ? -gw[a] / len : 0.0;
 }
 
-/* Clips o + t d (voxel space), t >= tmin, to the sample extent [0, n-1] of the transformed
- * axes: 1 and [*t0, *t1] when something is left. */
+/* Clips o + t d (voxel space), t >= tmin, to the traced extent [tr->lo, tr->hi] (the sample
+ * extent less the bands where f^ reaches across the periodic wrap; wvol__iso_model_extent):
+ * 1 and [*t0, *t1] when something is left. */
 static int clip(const tracer *tr, const double ov[3], const double dv[3], double tmin, double *t0, double *t1)
 {
-    size_t n[3] = {tr->g.info.nx, tr->g.info.ny, tr->g.info.nz};
     double a0 = tmin, a1 = INFINITY;
     int a;
     for (a = 0; a < 3; a++) {
-        double lo = 0.0, hi = (double)n[a] - 1.0, ta, tb;
+        double lo = tr->lo[a], hi = tr->hi[a], ta, tb;
         if (!tr->g.info.transformed[a]) continue;
+        if (!(lo <= hi)) return 0;
         if (dv[a] == 0.0) {
             if (!(ov[a] >= lo && ov[a] <= hi)) return 0;
             continue;
