@@ -38,6 +38,7 @@ static const cli_opt opts[] = {
     {"threads", 0, 1, "threads (default: all)"},
     {"repeat", 0, 1, "render N times (1..100), report the fastest call's times (benchmarks; default 1)"},
     {"exposure", 0, 1, "PNG: scale before sRGB encoding (default 1; X-ray: 1/max)"},
+    {"bound", 0, 1, "also write a per-pixel bound on |image of all coefficients - this image| to this .exr (docs/render.md, \"Error bounds\"); xray or absorption, no shading"},
     CLI_LOAD_OPTS,
     CLI_JSON_OPT,
     CLI_HELP_OPT,
@@ -55,7 +56,7 @@ static const char about[] =
     "See docs/render.md for cameras, transfer-function files and errors.";
 
 typedef struct render_args {
-    const char *in, *out, *camspec, *tfname, *colors_path;
+    const char *in, *out, *camspec, *tfname, *colors_path, *bound_path;
     long width, height, repeat;
     double keep, exposure;
     int json, keep_given, exposure_given;
@@ -72,6 +73,7 @@ typedef struct render_input {
     wvol_volume *colors;
     wvol_geometry geometry;
     double vmin, vmax;
+    double coeff_error;         /* a .wvc's largest quantiser error per coefficient */
 } render_input;
 
 /* Resident memory in MiB from /proc/self/status ("VmRSS" now, "VmHWM" peak), -1 if unknown. */
@@ -135,6 +137,7 @@ static int parse_args(render_args *a, int argc, char **argv)
         else if (!strcmp(o->name, "wavelet")) a->cp.wavelet = val;
         else if (!strcmp(o->name, "shading")) a->rp.shading = 1;
         else if (!strcmp(o->name, "colors")) a->colors_path = val;
+        else if (!strcmp(o->name, "bound")) a->bound_path = val;
         else if (!strcmp(o->name, "size")) {
             if (!cli_parse_size(cmd, "size", val, &a->width, &a->height)) return CLI_USAGE;
         } else if (!strcmp(o->name, "method")) {
@@ -187,6 +190,15 @@ static int parse_args(render_args *a, int argc, char **argv)
         a->rp.method != WVOL_RENDER_METHOD_REFERENCE_FHAT && a->rp.method != WVOL_RENDER_METHOD_BRICKS)
         return cli_usage(cmd, "--colors needs --method reference, reference-fhat or bricks (got %s)",
                          wvol_render_method_name(a->rp.method));
+    if (a->bound_path) {
+        if (!wvol_path_has_ext(a->bound_path, ".exr"))
+            return cli_usage(cmd, "--bound %s: the bound image is float data, the extension must be .exr", a->bound_path);
+        if (a->rp.mode == WVOL_RENDER_MODE_ABSORPTION_LINEAR)
+            return cli_usage(cmd, "--bound needs --mode xray or absorption (absorption-linear has no bound)");
+        if (a->rp.shading) return cli_usage(cmd, "--bound does not cover --shading: render the bound without it");
+        if (a->colors_path) return cli_usage(cmd, "--bound does not cover --colors");
+        a->cp.build_residual = 1;
+    }
     if (a->keep < 1.0) {
         a->cp.select.mode = WVOL_SELECT_FRACTION;
         a->cp.select.fraction = a->keep;
@@ -209,6 +221,14 @@ static int load_input(const render_args *a, render_input *in, wvol_error *err)
         wvol_wvc_info wi;
         wvol_coeffs *c = NULL;
         if (wvol_wvc_read(&c, a->in, NULL, &wi, err) != WVOL_OK) return cli_fail_err("render", err);
+        if (a->bound_path && wi.dropped_energy > 0) {
+            wvol_coeffs_destroy(c);
+            return cli_usage("render",
+                             "--bound: %s dropped coefficients before coding (energy %g); their values are not in "
+                             "the file, so no per-pixel bound. Compress with --keep 100%% to have one",
+                             a->in, wi.dropped_energy);
+        }
+        in->coeff_error = wvol_wvc_max_coeff_error(&wi);
         in->vmin = wi.value_min;
         in->vmax = wi.value_max;
         wvol_geometry_of_coeffs(&in->geometry, c);
@@ -285,8 +305,27 @@ static wvol_status write_image(const wvol_image *img, const render_args *a, wvol
     return wvol_image_write_png(img, a->out, NULL, exposure, err);
 }
 
+/* --bound: the per-pixel bound from what the store dropped (and a .wvc's quantiser); a dense
+ * source dropped nothing, so its bound is 0. */
+static wvol_status write_bound(const render_args *a, const render_input *in, const wvol_camera *cam,
+                               const wvol_tf *tf, wvol_render_bound_stats *bs, wvol_error *err)
+{
+    wvol_image *b = NULL;
+    wvol_status s;
+    memset(bs, 0, sizeof *bs);
+    if (!a->bound_path) return WVOL_OK;
+    s = wvol_image_create(&b, (int)a->width, (int)a->height, err);
+    if (s != WVOL_OK) return s;
+    s = in->store.residual
+            ? wvol_render_bound(b, in->store.residual, in->coeff_error, cam, tf, &a->rp, bs, err)
+            : WVOL_OK;
+    if (s == WVOL_OK) s = wvol_image_write_exr(b, a->bound_path, NULL, err);
+    wvol_image_destroy(b);
+    return s;
+}
+
 static void report(const render_args *a, const render_input *in, const wvol_render_stats *st, double t_prep,
-                   double cpu_max, const double rss[2])
+                   double cpu_max, const double rss[2], const wvol_render_bound_stats *bs)
 {
     const char *method = wvol_render_method_name(st->method), *mode = wvol_render_mode_name(a->rp.mode);
     const wvol_store *store = in->store.store;
@@ -298,6 +337,9 @@ static void report(const render_args *a, const render_input *in, const wvol_rend
         if (a->rp.skip_tolerance > 0)
             printf("skipped %zu nearly empty brick runs: each pixel within %.3g of the unskipped image (tolerance %g)\n",
                    st->skipped_tolerance, st->skip_bound, a->rp.skip_tolerance);
+        if (a->bound_path)
+            printf("wrote %s: per-pixel bound on the dropped coefficients' effect, max %.4g, mean %.4g (%.3f s)\n",
+                   a->bound_path, bs->max, bs->mean, bs->seconds);
         return;
     }
     cli_json_begin();
@@ -342,6 +384,13 @@ static void report(const render_args *a, const render_input *in, const wvol_rend
         cli_json_int("render_bytes", (long long)st->bytes);
     }
     if (store) cli_json_int("store_bytes", (long long)si.bytes);
+    if (a->bound_path) {
+        cli_json_str("bound", a->bound_path);
+        cli_json_num("bound_max", bs->max);
+        cli_json_num("bound_mean", bs->mean);
+        cli_json_num("bound_coeff_error", in->coeff_error);
+        cli_json_num("bound_seconds", bs->seconds);
+    }
     cli_json_num("rss_before_render_mib", rss[0]);
     cli_json_num("rss_peak_render_mib", rss[1]);
     cli_json_end();
@@ -353,6 +402,7 @@ int wvol_cmd_render(int argc, char **argv)
     render_input in;
     wvol_render_source src;
     wvol_render_stats stats;
+    wvol_render_bound_stats bstats;
     wvol_image *img = NULL;
     wvol_camera cam;
     wvol_tf tf;
@@ -379,7 +429,8 @@ int wvol_cmd_render(int argc, char **argv)
     t_prep = cli_now() - t0;
     if (render_repeat(img, &src, &cam, &tf, &a, &a.rp, &stats, &cpu_max, rss, &err) != WVOL_OK) goto fail;
     if (write_image(img, &a, &err) != WVOL_OK) goto fail;
-    report(&a, &in, &stats, t_prep, cpu_max, rss);
+    if (write_bound(&a, &in, &cam, &tf, &bstats, &err) != WVOL_OK) goto fail;
+    report(&a, &in, &stats, t_prep, cpu_max, rss, &bstats);
     rc = CLI_OK;
     goto done;
 fail:
