@@ -161,6 +161,14 @@ static PyObject *stats_dict(const wvol_render_stats *st)
                          (Py_ssize_t)st->bricks_built, "brick", st->brick, "bytes", (Py_ssize_t)st->bytes);
 }
 
+static int dict_set_num(PyObject *d, const char *key, double v)
+{
+    PyObject *o = PyFloat_FromDouble(v);
+    int r = o ? PyDict_SetItemString(d, key, o) : -1;
+    Py_XDECREF(o);
+    return r;
+}
+
 /* The render parameters from opts: only the keys given (not None) change the library's
  * defaults. *J: the spline_j asked for (0: the store's). */
 static int parse_params(PyObject *opts, wvol_render_params *rp, int *J)
@@ -210,7 +218,7 @@ static int check_method(const wvol_render_params *rp, int is_store)
 }
 
 /* render(source, spacing, origin, opts) -> (image (h, w, 4) float32 over the image's pixels,
- * stats). source: a StoreHandle, or an array (a dense volume placed by spacing/origin, which
+ * stats, bound image or None (opts "bound": wvol_render_bound from the store's residual)). source: a StoreHandle, or an array (a dense volume placed by spacing/origin, which
  * a store ignores). opts: camera, width, height, mode, method, tf, tf_units, step, termination,
  * skip_tolerance, ambient, shading, gauss_nodes, spline_j, brick, threads, colors. */
 static PyObject *py_render(PyObject *self, PyObject *args)
@@ -226,19 +234,32 @@ static PyObject *py_render(PyObject *self, PyObject *args)
     wvol_tf tf;
     wvol_render_params rp;
     wvol_render_stats st;
-    wvol_image *img = NULL;
+    wvol_render_bound_stats bs;
+    wvol_image *img = NULL, *bimg = NULL;
+    const wvol_store *residual = NULL;
     wvol_error err;
     wvol_status s;
     double vmin, vmax;
+    int want_bound = 0;
     (void)self;
     if (!PyArg_ParseTuple(args, "OOOO!", &src_obj, &sp, &org, &PyDict_Type, &opts)) return NULL;
     if (parse_params(opts, &rp, &J) < 0) return NULL;
     is_store = WVOLPY_IS_STORE(src_obj);
     if (check_method(&rp, is_store) < 0) return NULL;
+    if (opt_int(opts, "bound", &want_bound) < 0) return NULL;
     if (is_store) {
         wvolpy_store *h = (wvolpy_store *)src_obj;
         const wvol_store *store = wvolpy_store_at(h, J);
         if (!store) return NULL;
+        if (want_bound) {
+            residual = h->c.residual;
+            if (!residual)
+                return PyErr_Format(PyExc_ValueError, "bound=True needs a Store made with "
+                                                      "wvol.compress(..., residual=True)");
+            if (wvol_store_basis(residual)->J != wvol_store_basis(store)->J)
+                return PyErr_Format(PyExc_ValueError, "bound=True: spline_j must be the store's (%d)",
+                                    wvol_store_basis(residual)->J);
+        }
         src = wvol_render_source_store(store);
         wvol_geometry_of_coeffs(&g, h->c.coeffs);
         vmin = h->c.value_min;
@@ -263,24 +284,40 @@ static PyObject *py_render(PyObject *self, PyObject *args)
     if (rp.mode != WVOL_RENDER_MODE_XRAY && parse_tf(opts, &tf, vmin, vmax) < 0) goto done;
     if (parse_colors(opts, &g, &rp, &colors) < 0) goto done;
     memset(&st, 0, sizeof st);
+    memset(&bs, 0, sizeof bs);
     Py_BEGIN_ALLOW_THREADS
     s = wvol_image_create(&img, cam.width, cam.height, &err);
     if (s == WVOL_OK) s = wvol_render(img, &src, &cam, &tf, &rp, &st, &err);
+    /* a dense volume dropped nothing: its bound image stays 0 */
+    if (s == WVOL_OK && want_bound) s = wvol_image_create(&bimg, cam.width, cam.height, &err);
+    if (s == WVOL_OK && residual) s = wvol_render_bound(bimg, residual, 0.0, &cam, &tf, &rp, &bs, &err);
     Py_END_ALLOW_THREADS
     Py_XDECREF(holder);
     Py_XDECREF(colors);
     if (s != WVOL_OK) {
         wvol_image_destroy(img);
+        wvol_image_destroy(bimg);
         return wvolpy_raise(&err);
     }
     {
-        PyObject *a = image_take(img), *d;
-        if (!a) return NULL;
-        if (!(d = stats_dict(&st))) {
+        PyObject *a = image_take(img), *d, *b = Py_None;
+        if (!a) {
+            wvol_image_destroy(bimg);
+            return NULL;
+        }
+        if (bimg && !(b = image_take(bimg))) {
             Py_DECREF(a);
             return NULL;
         }
-        return Py_BuildValue("NN", a, d);
+        if (!(d = stats_dict(&st)) ||
+            (bimg && (dict_set_num(d, "bound_max", bs.max) < 0 || dict_set_num(d, "bound_mean", bs.mean) < 0))) {
+            Py_XDECREF(d);
+            Py_DECREF(a);
+            if (bimg) Py_DECREF(b);
+            return NULL;
+        }
+        if (!bimg) Py_INCREF(Py_None);
+        return Py_BuildValue("NNN", a, d, b);
     }
 done:
     Py_XDECREF(holder);
@@ -290,5 +327,5 @@ done:
 
 PyMethodDef wvolpy_render_methods[] = {
     {"render", py_render, METH_VARARGS,
-     "render(source, spacing, origin, opts) -> (image, stats); source: a StoreHandle or an array"},
+     "render(source, spacing, origin, opts) -> (image, stats, bound or None); source: a StoreHandle or an array"},
     {NULL, NULL, 0, NULL}};

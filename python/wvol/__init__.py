@@ -279,7 +279,7 @@ _MODES = ("keep", "keep_count", "energy", "psnr", "threshold")
 
 
 def compress(vol, wavelet="db2", levels=None, *, keep=None, keep_count=None, energy=None, psnr=None,
-             threshold=None, roi=None, roi_floor=0.1, drop_levels=0, spacing=None, origin=None):
+             threshold=None, roi=None, roi_floor=0.1, drop_levels=0, spacing=None, origin=None, residual=False):
     """Transforms a volume and keeps its most important coefficients; returns a :class:`Store`.
     One call of the library's compression pipeline (wvol_compress: transform, selection, store).
 
@@ -298,6 +298,8 @@ def compress(vol, wavelet="db2", levels=None, *, keep=None, keep_count=None, ene
     ``|c| * w`` with ``w = roi_floor + (1 - roi_floor) * max G(x)`` over the Gaussian
     ellipsoids G (super-Gaussian for power > 1). ``drop_levels``: the finest levels dropped
     entirely. Ranking is by magnitude; the low-pass cube is always kept.
+    ``residual=True`` also keeps what the selection dropped (as |c| on the majorants of the
+    basis functions), so that :func:`render` can return a per-pixel error bound (``bound=True``).
     """
     given = [(n, v) for n, v in zip(_MODES, (keep, keep_count, energy, psnr, threshold)) if v is not None]
     if len(given) > 1:
@@ -324,7 +326,7 @@ def compress(vol, wavelet="db2", levels=None, *, keep=None, keep_count=None, ene
         value_range = (float(a.min()), float(a.max()))
     handle, report = _wvol.compress(arr, wavelet=wavelet, levels=levels, mode=mode, value=value,
                                     drop_levels=drop_levels, roi=roi, roi_floor=roi_floor, spacing=spacing,
-                                    origin=origin, value_range=value_range)
+                                    origin=origin, value_range=value_range, residual=bool(residual))
     return Store(handle, report, original=arr)
 
 
@@ -382,7 +384,7 @@ def features(vol, wavelet="db2", levels=3, *, smooth=1, include_lowpass=True, pc
 
 def render(source, camera="+z", size=(256, 256), *, mode="absorption", tf="gaussian", tf_units="world",
            method="auto", step=None, shading=False, ambient=None, gauss_nodes=None, spline_j=None, brick=None,
-           termination=None, threads=0, colors=None, skip_tolerance=None, return_stats=False):
+           termination=None, threads=0, colors=None, skip_tolerance=None, bound=False, return_stats=False):
     """Renders a volume (array or :class:`Volume`) or a :class:`Store`; returns the image as
     an (height, width, 4) float32 array of linear, premultiplied RGBA, row 0 at the top
     (X-ray: R = G = B = the integral of f along the ray in value x world length, A = 1 where
@@ -422,21 +424,29 @@ def render(source, camera="+z", size=(256, 256), *, mode="absorption", tf="gauss
     Options left None take the library's defaults (docs/render.md: step 0.5, brick 8 for the
     reference's empty-space skipping and 32 for "bricks", gauss_nodes 5, spline_j the store's
     (4), termination 1e-6, ambient 0.3, skip_tolerance 0).
-    ``return_stats=True`` returns ``(image, stats)``: "method" (the one that ran), rays,
-    samples, seconds...
+    ``bound=True``: also return a per-pixel bound on how far this image can be from the image of
+    all the coefficients (docs/render.md, "Error bounds"): ``(image, bound)``, the bound an
+    array like the image (X-ray: R = G = B, A = 0; absorption: per channel and alpha). Needs a
+    Store made with ``compress(..., residual=True)`` (a volume dropped nothing: its bound is 0);
+    modes "xray" and "absorption", no shading or colours; ``stats["bound_max"]`` and
+    ``["bound_mean"]``.
+    ``return_stats=True`` returns ``(image, stats)`` (``(image, bound, stats)`` with a bound):
+    "method" (the one that ran), rays, samples, seconds...
     """
     w, h = (int(v) for v in size)
     opts = dict(camera=camera, width=w, height=h, mode=mode, method=method, tf=tf, tf_units=tf_units, step=step,
                 shading=int(bool(shading)), ambient=ambient, gauss_nodes=gauss_nodes, spline_j=spline_j,
                 brick=brick, termination=termination, threads=threads, colors=colors,
-                skip_tolerance=skip_tolerance)
+                skip_tolerance=skip_tolerance, bound=int(bool(bound)))
     if isinstance(tf, os.PathLike):
         opts["tf"] = os.fspath(tf)
     if isinstance(source, Store):
-        img, st = _wvol.render(source._handle, None, None, opts)
+        img, st, bd = _wvol.render(source._handle, None, None, opts)
     else:
         spacing, origin = _geometry(source, None, None)
-        img, st = _wvol.render(_data(source), spacing, origin, opts)
+        img, st, bd = _wvol.render(_data(source), spacing, origin, opts)
+    if bound:
+        return (img, bd, st) if return_stats else (img, bd)
     return (img, st) if return_stats else img
 
 

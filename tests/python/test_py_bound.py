@@ -1,0 +1,62 @@
+# SPDX-License-Identifier: MIT
+"""Per-pixel error bounds (wvol.render(..., bound=True), wvol render --bound): on every pixel the
+image of the kept coefficients is within the bound of the image of all of them (both from the
+exact X-ray paths), the CLI writes the same bound as Python, and bad requests are refused."""
+import json
+
+import numpy as np
+import pytest
+
+import wvol
+from conftest import run_wvol
+from test_render import read_exr_rgba
+
+SIZE = (24, 20)
+
+
+@pytest.fixture(scope="module")
+def blobs():
+    return wvol.synth.blobs(shape=(16, 16, 16), seed=3)
+
+
+@pytest.mark.parametrize("camera", ["+z", "-x", "ortho dir=1,0.6,0.3"])
+def test_bound_holds_on_every_pixel(blobs, camera):
+    full = wvol.compress(blobs)
+    kept = wvol.compress(blobs, keep=0.1, residual=True)
+    # both by the exact paths (axis along an axis, else spline): the bound compares the models
+    method = "auto" if camera in ("+z", "-x") else "spline"
+    ia = wvol.render(full, camera, SIZE, mode="xray", method=method)
+    ik, bd, st = wvol.render(kept, camera, SIZE, mode="xray", method=method, bound=True, return_stats=True)
+    diff = np.abs(ia[..., :3].astype(np.float64) - ik[..., :3])
+    # float32 images: half an ulp of each pixel allowed
+    allow = (np.abs(ia[..., :3]) + np.abs(ik[..., :3])) * 2.0 ** -24
+    assert np.all(diff <= bd[..., :3] + allow)
+    assert np.all(np.isfinite(bd)) and np.all(bd >= 0)
+    assert st["bound_max"] == pytest.approx(float(bd[..., :3].max()), rel=1e-6)
+    assert diff.max() > 0.05 * st["bound_max"]  # the images do differ: the check is not vacuous
+
+
+def test_cli_bound_matches_python(tmp_path, blobs):
+    src = tmp_path / "blobs.nrrd"
+    wvol.save(blobs, src)
+    r = run_wvol("render", src, "-o", tmp_path / "x.exr", "--keep", "10%", "--mode", "xray", "--size",
+                 f"{SIZE[0]}x{SIZE[1]}", "--bound", tmp_path / "b.exr", "--json")
+    assert r.returncode == 0, r.stderr
+    info = json.loads(r.stdout)
+    b = read_exr_rgba(tmp_path / "b.exr").reshape(SIZE[1], 4, SIZE[0])   # per row: A, B, G, R
+    _, bd = wvol.render(wvol.compress(blobs, keep=0.1, residual=True), "+z", SIZE, mode="xray", bound=True)
+    assert np.array_equal(b[:, 3, :], bd[..., 0])
+    assert info["bound_max"] == pytest.approx(float(bd[..., 0].max()), rel=1e-6)
+
+
+def test_bound_refusals(tmp_path, blobs):
+    with pytest.raises(ValueError, match="residual=True"):
+        wvol.render(wvol.compress(blobs, keep=0.1), "+z", SIZE, mode="xray", bound=True)
+    src = tmp_path / "blobs.nrrd"
+    wvol.save(blobs, src)
+    for extra, msg in ((["--bound", tmp_path / "b.png"], ".exr"),
+                       (["--bound", tmp_path / "b.exr", "--mode", "absorption-linear"], "absorption-linear"),
+                       (["--bound", tmp_path / "b.exr", "--shading"], "shading")):
+        r = run_wvol("render", src, "-o", tmp_path / "x.exr", "--keep", "10%", *extra)
+        assert r.returncode != 0 and msg in r.stderr, r.stderr
+        assert not (tmp_path / "b.exr").exists()
