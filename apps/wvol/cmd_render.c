@@ -12,6 +12,7 @@
 #include "wvol/compress.h"
 #include "wvol/image.h"
 #include "wvol/io.h"
+#include "wvol/progressive.h"
 #include "wvol/render.h"
 #include "wvol/store.h"
 #include "wvol/wvc.h"
@@ -38,6 +39,10 @@ static const cli_opt opts[] = {
     {"threads", 0, 1, "threads (default: all)"},
     {"repeat", 0, 1, "render N times (1..100), report the fastest call's times (benchmarks; default 1)"},
     {"exposure", 0, 1, "PNG: scale before sRGB encoding (default 1; X-ray: 1/max)"},
+    {"progressive", 0, 0, "progressive passes from a volume: the low-pass cube, then --growth times more of the largest coefficients each pass, each written as OUT's name + .passN, the last also as OUT"},
+    {"max-error", 0, 1, "progressive: stop at the first pass whose bound is <= this (pixel units of the image)"},
+    {"budget", 0, 1, "progressive: wall-clock seconds; stop before a pass that would end beyond them"},
+    {"growth", 0, 1, "progressive: kept coefficients multiplied by this per pass (default 4)"},
     {"bound", 0, 1, "also write a per-pixel bound on |image of all coefficients - this image| to this .exr (docs/render.md, \"Error bounds\"); xray or absorption, no shading"},
     CLI_LOAD_OPTS,
     CLI_JSON_OPT,
@@ -59,7 +64,8 @@ typedef struct render_args {
     const char *in, *out, *camspec, *tfname, *colors_path, *bound_path;
     long width, height, repeat;
     double keep, exposure;
-    int json, keep_given, exposure_given;
+    int json, keep_given, exposure_given, progressive;
+    wvol_progressive_params pp;
     wvol_render_params rp;
     wvol_compress_params cp;
     wvol_load_options lo;
@@ -120,6 +126,7 @@ static int parse_args(render_args *a, int argc, char **argv)
     wvol_render_params_default(&a->rp);
     wvol_compress_params_default(&a->cp);
     wvol_load_options_default(&a->lo);
+    wvol_progressive_params_default(&a->pp);
     cli_parser_init(&ps, cmd, argc, argv, opts);
     while ((r = cli_next(&ps, &o, &val)) >= 0) {
         if (r == CLI_USAGE) return CLI_USAGE;
@@ -138,6 +145,18 @@ static int parse_args(render_args *a, int argc, char **argv)
         else if (!strcmp(o->name, "shading")) a->rp.shading = 1;
         else if (!strcmp(o->name, "colors")) a->colors_path = val;
         else if (!strcmp(o->name, "bound")) a->bound_path = val;
+        else if (!strcmp(o->name, "progressive")) a->progressive = 1;
+        else if (!strcmp(o->name, "max-error")) {
+            if (!cli_parse_double(cmd, "max-error", val, &a->pp.max_error)) return CLI_USAGE;
+            if (!(a->pp.max_error > 0)) return cli_usage(cmd, "--max-error %g: must be > 0", a->pp.max_error);
+        } else if (!strcmp(o->name, "budget")) {
+            if (!cli_parse_double(cmd, "budget", val, &a->pp.seconds)) return CLI_USAGE;
+            if (!(a->pp.seconds > 0)) return cli_usage(cmd, "--budget %g: must be > 0 seconds", a->pp.seconds);
+        } else if (!strcmp(o->name, "growth")) {
+            if (!cli_parse_double(cmd, "growth", val, &a->pp.growth)) return CLI_USAGE;
+            if (!(a->pp.growth > 1) || !isfinite(a->pp.growth))
+                return cli_usage(cmd, "--growth %g: must be > 1", a->pp.growth);
+        }
         else if (!strcmp(o->name, "size")) {
             if (!cli_parse_size(cmd, "size", val, &a->width, &a->height)) return CLI_USAGE;
         } else if (!strcmp(o->name, "method")) {
@@ -190,6 +209,19 @@ static int parse_args(render_args *a, int argc, char **argv)
         a->rp.method != WVOL_RENDER_METHOD_REFERENCE_FHAT && a->rp.method != WVOL_RENDER_METHOD_BRICKS)
         return cli_usage(cmd, "--colors needs --method reference, reference-fhat or bricks (got %s)",
                          wvol_render_method_name(a->rp.method));
+    if ((a->pp.max_error > 0 || a->pp.seconds > 0) && !a->progressive)
+        return cli_usage(cmd, "--max-error and --budget stop progressive passes: add --progressive");
+    if (a->progressive) {
+        if (wvol_path_has_ext(a->in, ".wvc"))
+            return cli_usage(cmd, "--progressive starts from a volume (it ranks all the coefficients); %s is a .wvc",
+                             a->in);
+        if (a->keep_given) return cli_usage(cmd, "--progressive chooses the kept coefficients itself: drop --keep");
+        if (a->colors_path) return cli_usage(cmd, "--progressive does not take --colors");
+        a->pp.bound = a->bound_path != NULL || a->pp.max_error > 0;
+        if (a->pp.bound && (a->rp.mode == WVOL_RENDER_MODE_ABSORPTION_LINEAR || a->rp.shading))
+            return cli_usage(cmd, "--progressive with a bound (--bound, --max-error) needs --mode xray or absorption, "
+                                  "no --shading");
+    }
     if (a->bound_path) {
         if (!wvol_path_has_ext(a->bound_path, ".exr"))
             return cli_usage(cmd, "--bound %s: the bound image is float data, the extension must be .exr", a->bound_path);
@@ -289,10 +321,10 @@ static wvol_status render_repeat(wvol_image *img, const wvol_render_source *src,
     return WVOL_OK;
 }
 
-static wvol_status write_image(const wvol_image *img, const render_args *a, wvol_error *err)
+static wvol_status write_image_to(const wvol_image *img, const render_args *a, const char *path, wvol_error *err)
 {
     double exposure = a->exposure;
-    if (wvol_path_has_ext(a->out, ".exr")) return wvol_image_write_exr(img, a->out, NULL, err);
+    if (wvol_path_has_ext(path, ".exr")) return wvol_image_write_exr(img, path, NULL, err);
     if (!a->exposure_given) {
         exposure = 1.0;
         if (a->rp.mode == WVOL_RENDER_MODE_XRAY) {
@@ -302,7 +334,12 @@ static wvol_status write_image(const wvol_image *img, const render_args *a, wvol
             exposure = mx > 0 ? 1.0 / mx : 1.0;
         }
     }
-    return wvol_image_write_png(img, a->out, NULL, exposure, err);
+    return wvol_image_write_png(img, path, NULL, exposure, err);
+}
+
+static wvol_status write_image(const wvol_image *img, const render_args *a, wvol_error *err)
+{
+    return write_image_to(img, a, a->out, err);
 }
 
 /* --bound: the per-pixel bound from what the store dropped (and a .wvc's quantiser); a dense
@@ -396,6 +433,122 @@ static void report(const render_args *a, const render_input *in, const wvol_rend
     cli_json_end();
 }
 
+/* PATH with ".passN" before its extension. 0 when it does not fit. */
+static int pass_name(char *buf, size_t n, const char *path, int index)
+{
+    const char *dot = strrchr(path, '.'), *slash = strrchr(path, '/');
+    int w;
+    if (!dot || (slash && dot < slash)) dot = path + strlen(path);
+    w = snprintf(buf, n, "%.*s.pass%d%s", (int)(dot - path), path, index, dot);
+    return w > 0 && (size_t)w < n;
+}
+
+/* One pass's files: OUT.passN (and BOUND.passN), and for the last OUT (and BOUND) too. */
+static wvol_status write_pass(const render_args *a, const wvol_image *img, const wvol_image *bimg,
+                              const wvol_progressive_pass *pass, wvol_error *err)
+{
+    char name[4096];
+    if (!pass_name(name, sizeof name, a->out, pass->index))
+        return wvol_error_set(err, WVOL_ERR_ARG, "output name %s too long", a->out);
+    if (write_image_to(img, a, name, err) != WVOL_OK) return err->status;
+    if (pass->last && write_image_to(img, a, a->out, err) != WVOL_OK) return err->status;
+    if (!bimg) return WVOL_OK;
+    if (!pass_name(name, sizeof name, a->bound_path, pass->index))
+        return wvol_error_set(err, WVOL_ERR_ARG, "bound name %s too long", a->bound_path);
+    if (wvol_image_write_exr(bimg, name, NULL, err) != WVOL_OK) return err->status;
+    return pass->last ? wvol_image_write_exr(bimg, a->bound_path, NULL, err) : WVOL_OK;
+}
+
+static void report_passes(const render_args *a, const wvol_progressive_pass *ps, int n)
+{
+    int i;
+    if (!a->json) {
+        for (i = 0; i < n; i++)
+            printf("pass %d: %zu of %zu coefficients, %s, %.3f s (%.3f s in all)%s%.4g%s\n", ps[i].index,
+                   ps[i].kept, ps[i].total, wvol_render_method_name(ps[i].method), ps[i].seconds, ps[i].elapsed,
+                   a->pp.bound ? ", bound max " : "", a->pp.bound ? ps[i].bound_max : 0.0, "");
+        if (n) printf("wrote %s (the last pass; stop: %s)\n", a->out, ps[n - 1].stop);
+        return;
+    }
+    cli_json_begin();
+    cli_json_str("input", a->in);
+    cli_json_str("output", a->out);
+    cli_json_str("mode", wvol_render_mode_name(a->rp.mode));
+    if (n) cli_json_str("stop", ps[n - 1].stop);
+    cli_json_open("passes", '[');
+    for (i = 0; i < n; i++) {
+        cli_json_open(NULL, '{');
+        cli_json_int("index", ps[i].index);
+        cli_json_int("kept", (long long)ps[i].kept);
+        cli_json_int("total", (long long)ps[i].total);
+        cli_json_str("method", wvol_render_method_name(ps[i].method));
+        cli_json_num("seconds", ps[i].seconds);
+        cli_json_num("elapsed", ps[i].elapsed);
+        if (a->pp.bound) {
+            cli_json_num("bound_max", ps[i].bound_max);
+            cli_json_num("bound_mean", ps[i].bound_mean);
+        }
+        cli_json_close('}');
+    }
+    cli_json_close(']');
+    cli_json_end();
+}
+
+/* --progressive: passes from the volume until the target, the budget or everything kept. */
+static int render_progressive(render_args *a)
+{
+    wvol_volume *v = NULL;
+    wvol_progressive *pr = NULL;
+    wvol_progressive_pass *ps = NULL;
+    wvol_image *img = NULL, *bimg = NULL;
+    wvol_geometry g;
+    wvol_camera cam;
+    wvol_tf tf;
+    wvol_error err;
+    double vmin, vmax;
+    int rc = CLI_OK, n = 0, cap = 0;
+    memset(&tf, 0, sizeof tf);
+    if (wvol_volume_load(&v, a->in, &a->lo, &err) != WVOL_OK) return cli_fail_err("render", &err);
+    wvol_volume_range(v, &vmin, &vmax, NULL);
+    wvol_geometry_of_volume(&g, v);
+    if (wvol_camera_parse(&cam, a->camspec, &g, (int)a->width, (int)a->height, &err) != WVOL_OK) {
+        rc = cli_usage("render", "--camera: %s", err.message);
+        goto done;
+    }
+    if (a->rp.mode != WVOL_RENDER_MODE_XRAY && (rc = cli_load_tf("render", a->tfname, vmin, vmax, &tf)) != CLI_OK)
+        goto done;
+    if (wvol_image_create(&img, (int)a->width, (int)a->height, &err) != WVOL_OK) goto fail;
+    if (a->pp.bound && wvol_image_create(&bimg, (int)a->width, (int)a->height, &err) != WVOL_OK) goto fail;
+    if (wvol_progressive_begin(&pr, v, &a->cp, &a->pp, &err) != WVOL_OK) goto fail;
+    wvol_volume_destroy(v); /* the passes read the coefficients */
+    v = NULL;
+    for (;;) {
+        if (n == cap) {
+            int nc = cap ? 2 * cap : 16;
+            wvol_progressive_pass *q = realloc(ps, (size_t)nc * sizeof *q);
+            if (!q) {
+                wvol_error_set(&err, WVOL_ERR_NOMEM, "out of memory");
+                goto fail;
+            }
+            ps = q, cap = nc;
+        }
+        if (wvol_progressive_next(pr, img, bimg, &cam, &tf, &a->rp, &ps[n], &err) != WVOL_OK) goto fail;
+        if (write_pass(a, img, bimg, &ps[n], &err) != WVOL_OK) goto fail;
+        if (ps[n++].last) break;
+    }
+    report_passes(a, ps, n);
+    goto done;
+fail:
+    rc = cli_fail_err("render", &err);
+done:
+    free(ps);
+    wvol_progressive_end(pr);
+    wvol_image_destroy(img);
+    wvol_image_destroy(bimg);
+    wvol_volume_destroy(v);
+    return rc;
+}
+
 int wvol_cmd_render(int argc, char **argv)
 {
     render_args a;
@@ -410,6 +563,7 @@ int wvol_cmd_render(int argc, char **argv)
     double t0, t_prep, cpu_max = 0, rss[2] = {-1, -1};
     int rc = parse_args(&a, argc, argv);
     if (rc != CLI_OK) return rc < 0 ? CLI_OK : rc;
+    if (a.progressive) return render_progressive(&a);
     memset(&in, 0, sizeof in);
     memset(&tf, 0, sizeof tf);
     memset(&stats, 0, sizeof stats);

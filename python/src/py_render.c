@@ -7,6 +7,7 @@
 #include "methods.h"
 #include "py_store.h"
 #include "wvol/render.h"
+#include "wvol/progressive.h"
 
 #include <math.h>
 #include <string.h>
@@ -325,7 +326,138 @@ done:
     return NULL;
 }
 
+/* ---- progressive passes (wvol/progressive.h) ---- */
+
+typedef struct prog_state {
+    wvol_progressive *pr;
+    wvol_geometry g;
+    double vmin, vmax;
+    int bound;
+} prog_state;
+
+#define PROG_CAPSULE "wvol.progressive"
+
+static void prog_free(PyObject *cap)
+{
+    prog_state *ps = PyCapsule_GetPointer(cap, PROG_CAPSULE);
+    if (!ps) return;
+    wvol_progressive_end(ps->pr);
+    free(ps);
+}
+
+/* progressive_begin(array, spacing, origin, wavelet, levels, max_error, seconds, growth, bound)
+ * -> capsule: the volume transformed once (wvol_progressive_begin). */
+static PyObject *py_progressive_begin(PyObject *self, PyObject *args)
+{
+    PyObject *arr, *sp, *org, *lev_obj;
+    PyArrayObject *holder = NULL;
+    const char *wavelet;
+    wvol_volume v;
+    wvol_compress_params cp;
+    wvol_progressive_params pp;
+    prog_state *ps;
+    wvol_error err;
+    wvol_status s;
+    PyObject *cap;
+    (void)self;
+    wvol_progressive_params_default(&pp);
+    if (!PyArg_ParseTuple(args, "OOOzOdddp", &arr, &sp, &org, &wavelet, &lev_obj, &pp.max_error, &pp.seconds,
+                          &pp.growth, &pp.bound))
+        return NULL;
+    wvol_compress_params_default(&cp);
+    if (wavelet) cp.wavelet = wavelet;
+    if (lev_obj != Py_None) {
+        long l = PyLong_AsLong(lev_obj);
+        if (l == -1 && PyErr_Occurred()) return NULL;
+        if (l < 1 || l > 30) return PyErr_Format(PyExc_ValueError, "levels must be in 1..30 (None: default), got %ld", l);
+        cp.levels = (int)l;
+    }
+    if (!(ps = calloc(1, sizeof *ps))) return PyErr_NoMemory();
+    if (wvolpy_as_placed_volume(arr, sp, org, &v, &holder, 1) < 0) {
+        free(ps);
+        return NULL;
+    }
+    Py_BEGIN_ALLOW_THREADS
+    s = wvol_volume_set_geometry(&v, v.spacing, v.origin, &err);
+    if (s == WVOL_OK) s = wvol_progressive_begin(&ps->pr, &v, &cp, &pp, &err);
+    Py_END_ALLOW_THREADS
+    if (s == WVOL_OK) {
+        wvol_volume_range(&v, &ps->vmin, &ps->vmax, NULL);
+        wvol_geometry_of_volume(&ps->g, &v);
+        ps->bound = pp.bound;
+    }
+    Py_DECREF(holder);
+    if (s != WVOL_OK) {
+        free(ps);
+        return wvolpy_raise(&err);
+    }
+    if (!(cap = PyCapsule_New(ps, PROG_CAPSULE, prog_free))) {
+        wvol_progressive_end(ps->pr);
+        free(ps);
+    }
+    return cap;
+}
+
+/* progressive_next(capsule, opts) -> (image, bound or None, pass dict); opts as render's. */
+static PyObject *py_progressive_next(PyObject *self, PyObject *args)
+{
+    PyObject *cap, *opts, *a, *b = Py_None, *d;
+    prog_state *ps;
+    const char *camspec;
+    int width = 256, height = 256, J = 0;
+    wvol_camera cam;
+    wvol_tf tf;
+    wvol_render_params rp;
+    wvol_progressive_pass pass;
+    wvol_image *img = NULL, *bimg = NULL;
+    wvol_error err;
+    wvol_status s;
+    (void)self;
+    if (!PyArg_ParseTuple(args, "OO!", &cap, &PyDict_Type, &opts)) return NULL;
+    if (!(ps = PyCapsule_GetPointer(cap, PROG_CAPSULE))) return NULL;
+    if (parse_params(opts, &rp, &J) < 0) return NULL;
+    if (opt_int(opts, "width", &width) < 0 || opt_int(opts, "height", &height) < 0) return NULL;
+    if (!(camspec = opt_str(opts, "camera", "+z"))) return NULL;
+    if (wvol_camera_parse(&cam, camspec, &ps->g, width, height, &err) != WVOL_OK) return wvolpy_raise(&err);
+    memset(&tf, 0, sizeof tf);
+    if (rp.mode != WVOL_RENDER_MODE_XRAY && parse_tf(opts, &tf, ps->vmin, ps->vmax) < 0) return NULL;
+    Py_BEGIN_ALLOW_THREADS
+    s = wvol_image_create(&img, cam.width, cam.height, &err);
+    if (s == WVOL_OK && ps->bound) s = wvol_image_create(&bimg, cam.width, cam.height, &err);
+    if (s == WVOL_OK) s = wvol_progressive_next(ps->pr, img, bimg, &cam, &tf, &rp, &pass, &err);
+    Py_END_ALLOW_THREADS
+    if (s != WVOL_OK) {
+        wvol_image_destroy(img);
+        wvol_image_destroy(bimg);
+        return wvolpy_raise(&err);
+    }
+    if (!(a = image_take(img))) {
+        wvol_image_destroy(bimg);
+        return NULL;
+    }
+    if (bimg && !(b = image_take(bimg))) {
+        Py_DECREF(a);
+        return NULL;
+    }
+    if (!bimg) Py_INCREF(Py_None);
+    d = Py_BuildValue("{s:i,s:n,s:n,s:d,s:d,s:d,s:d,s:s,s:O,s:s}", "index", pass.index, "kept",
+                      (Py_ssize_t)pass.kept, "total", (Py_ssize_t)pass.total, "bound_max", pass.bound_max,
+                      "bound_mean", pass.bound_mean, "seconds", pass.seconds, "elapsed", pass.elapsed, "method",
+                      wvol_render_method_name(pass.method), "last", pass.last ? Py_True : Py_False, "stop",
+                      pass.stop);
+    if (!d) {
+        Py_DECREF(a);
+        Py_DECREF(b);
+        return NULL;
+    }
+    return Py_BuildValue("NNN", a, b, d);
+}
+
 PyMethodDef wvolpy_render_methods[] = {
     {"render", py_render, METH_VARARGS,
      "render(source, spacing, origin, opts) -> (image, stats, bound or None); source: a StoreHandle or an array"},
+    {"progressive_begin", py_progressive_begin, METH_VARARGS,
+     "progressive_begin(array, spacing, origin, wavelet, levels, max_error, seconds, growth, bound) -> state"},
+    {"progressive_next", py_progressive_next, METH_VARARGS,
+     "progressive_next(state, opts) -> (image, bound or None, pass)"},
     {NULL, NULL, 0, NULL}};

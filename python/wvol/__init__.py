@@ -18,7 +18,8 @@ from . import _wvol
 __version__ = _wvol.version
 
 __all__ = ["Volume", "load", "save", "filters", "dwt3", "idwt3", "Coeffs", "compress", "Store", "ErrorEstimate",
-           "synth", "segment", "Segmentation", "features", "open", "wvc_info", "render", "isosurface",
+           "synth", "segment", "Segmentation", "features", "open", "wvc_info", "render", "render_progressive",
+           "isosurface",
            "save_mesh"]
 
 
@@ -448,6 +449,35 @@ def render(source, camera="+z", size=(256, 256), *, mode="absorption", tf="gauss
     if bound:
         return (img, bd, st) if return_stats else (img, bd)
     return (img, st) if return_stats else img
+
+
+def render_progressive(vol, camera="+z", size=(256, 256), *, mode="absorption", tf="gaussian", tf_units="world",
+                       wavelet="db2", levels=None, max_error=None, seconds=None, growth=4.0, bound=True,
+                       step=None, termination=None, threads=0):
+    """Progressive rendering of a volume (array or :class:`Volume`): a generator of
+    ``(image, bound, info)``, one per pass (docs/render.md, "Progressive rendering"). The volume
+    is transformed once; pass k renders from the largest coefficients, the low-pass cube alone
+    first and ``growth`` times more each pass, and returns with the image the per-pixel bound on
+    how far it can be from the image of all the coefficients (``bound=False``: None, and faster).
+    Passes stop after the first whose largest bound is <= ``max_error``, before one that would
+    end beyond ``seconds`` (wall clock since the call), or when everything is kept;
+    ``info["last"]`` marks the last and ``info["stop"]`` says why. ``info`` also has index,
+    kept, total, bound_max, bound_mean, seconds, elapsed and method. Camera, size, mode, tf and
+    the sampling options are those of :func:`render` (a bound needs mode "xray" or
+    "absorption", no shading). Each pass is computed when the generator is advanced.
+    """
+    w, h = (int(v) for v in size)
+    spacing, origin = _geometry(vol, None, None)
+    state = _wvol.progressive_begin(_data(vol), spacing, origin, wavelet, levels,
+                                    0.0 if max_error is None else float(max_error),
+                                    0.0 if seconds is None else float(seconds), float(growth), bool(bound))
+    opts = dict(camera=camera, width=w, height=h, mode=mode, tf=os.fspath(tf) if isinstance(tf, os.PathLike) else tf,
+                tf_units=tf_units, step=step, termination=termination, threads=threads)
+    while True:
+        img, bd, info = _wvol.progressive_next(state, opts)
+        yield img, bd, info
+        if info["last"]:
+            return
 
 
 # ---- isosurfaces ----------------------------------------------------------------------------

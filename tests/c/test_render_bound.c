@@ -11,6 +11,7 @@
 
 #include "check.h"
 #include "fixtures.h"
+#include "wvol/progressive.h"
 #include "wvol/render.h"
 #include "wvol/store.h"
 #include "wvol/wavelet.h"
@@ -319,11 +320,62 @@ static void bad_calls_are_refused(void)
     wvol_volume_destroy(v);
 }
 
+/* The iterator's refusals: bad parameters, a wrong bound image, a pass after the last. */
+static void progressive_refusals(void)
+{
+    uint64_t st = 9;
+    wvol_volume *v = fixture_volume(8, 8, 8, noise_blob, &st);
+    wvol_progressive *pr = NULL;
+    wvol_progressive_params pp;
+    wvol_progressive_pass pass;
+    wvol_image *img = NULL, *small = NULL;
+    wvol_camera cam;
+    wvol_render_params rp;
+    wvol_error err;
+    wvol_store *s = fixture_store(v, "haar", 2, 1.0, 0);
+    const double dir[3] = {0, 0, 1};
+    int n = 0;
+    CHECK(s != NULL, "store");
+    camera(&cam, s, dir, WVOL_PROJECTION_ORTHOGRAPHIC, 8, 8);
+    wvol_render_params_default(&rp);
+    rp.mode = WVOL_RENDER_MODE_XRAY;
+    wvol_progressive_params_default(&pp);
+    pp.growth = 1.0;
+    CHECK(wvol_progressive_begin(&pr, v, NULL, &pp, &err) == WVOL_ERR_ARG && !pr, "growth 1");
+    wvol_progressive_params_default(&pp);
+    pp.max_error = -1;
+    CHECK(wvol_progressive_begin(&pr, v, NULL, &pp, &err) == WVOL_ERR_ARG && !pr, "negative target");
+    pp.max_error = 1;
+    pp.bound = 0;
+    CHECK(wvol_progressive_begin(&pr, v, NULL, &pp, &err) == WVOL_ERR_ARG && !pr, "target without bound");
+    wvol_progressive_params_default(&pp);
+    pp.growth = 64;
+    CHECK(wvol_progressive_begin(&pr, v, NULL, &pp, &err) == WVOL_OK, "begin: %s", err.message);
+    CHECK(wvol_image_create(&img, 8, 8, NULL) == WVOL_OK && wvol_image_create(&small, 4, 4, NULL) == WVOL_OK, "images");
+    CHECK(wvol_progressive_next(pr, img, small, &cam, NULL, &rp, &pass, &err) == WVOL_ERR_ARG, "bound size");
+    wvol_image_destroy(small);
+    small = NULL;
+    CHECK(wvol_image_create(&small, 8, 8, NULL) == WVOL_OK, "bound image");
+    do {
+        CHECK(wvol_progressive_next(pr, img, small, &cam, NULL, &rp, &pass, &err) == WVOL_OK, "pass: %s", err.message);
+        n++;
+    } while (!pass.last && n < 10);
+    CHECK(pass.last && strcmp(pass.stop, "complete") == 0 && pass.bound_max == 0, "the last pass keeps all");
+    CHECK(wvol_progressive_next(pr, img, small, &cam, NULL, &rp, &pass, &err) == WVOL_ERR_ARG, "after the last");
+    CHECK(n >= 2, "%d passes", n);
+    wvol_progressive_end(pr);
+    wvol_image_destroy(img);
+    wvol_image_destroy(small);
+    wvol_store_destroy(s);
+    wvol_volume_destroy(v);
+}
+
 int main(void)
 {
     bound_holds_on_every_pixel();
     bound_is_tight_for_one_signed_functions();
     coefficient_error_bound_holds();
     bad_calls_are_refused();
+    progressive_refusals();
     return check_summary("test_render_bound");
 }

@@ -60,3 +60,47 @@ def test_bound_refusals(tmp_path, blobs):
         r = run_wvol("render", src, "-o", tmp_path / "x.exr", "--keep", "10%", *extra)
         assert r.returncode != 0 and msg in r.stderr, r.stderr
         assert not (tmp_path / "b.exr").exists()
+
+
+def test_progressive_passes(blobs):
+    full = wvol.render(wvol.compress(blobs), "+z", SIZE, mode="xray")
+    passes = list(wvol.render_progressive(blobs, "+z", SIZE, mode="xray"))
+    assert passes[-1][2]["last"] and passes[-1][2]["stop"] == "complete"
+    assert not any(info["last"] for _, _, info in passes[:-1])
+    kept = [info["kept"] for _, _, info in passes]
+    assert kept[0] == (16 >> 3) ** 3 and kept == sorted(kept)   # the low-pass cube (3 levels) first
+    prev = None
+    for img, bd, info in passes:
+        diff = np.abs(full[..., :3].astype(np.float64) - img[..., :3])
+        allow = (np.abs(full[..., :3]) + np.abs(img[..., :3])) * 2.0 ** -24
+        assert np.all(diff <= bd[..., :3] + allow), info
+        if prev is not None:   # the residual only shrinks: so does every pixel's bound
+            assert np.all(bd <= prev)
+        prev = bd
+    assert passes[-1][2]["bound_max"] == 0
+
+
+def test_progressive_stops_at_the_target(blobs):
+    passes = list(wvol.render_progressive(blobs, "+z", SIZE, mode="xray"))
+    target = passes[1][2]["bound_max"] * 1.001
+    got = list(wvol.render_progressive(blobs, "+z", SIZE, mode="xray", max_error=target))
+    assert len(got) == 2 and got[-1][2]["stop"] == "max-error"
+    with pytest.raises(ValueError, match="growth"):
+        next(wvol.render_progressive(blobs, growth=1.0))
+
+
+def test_cli_progressive(tmp_path, blobs):
+    src = tmp_path / "blobs.nrrd"
+    wvol.save(blobs, src)
+    r = run_wvol("render", src, "-o", tmp_path / "p.exr", "--mode", "xray", "--size", f"{SIZE[0]}x{SIZE[1]}",
+                 "--progressive", "--bound", tmp_path / "b.exr", "--json")
+    assert r.returncode == 0, r.stderr
+    info = json.loads(r.stdout)
+    n = len(info["passes"])
+    assert info["stop"] == "complete" and n >= 2
+    for k in range(n):
+        assert (tmp_path / f"p.pass{k}.exr").exists() and (tmp_path / f"b.pass{k}.exr").exists()
+    last = read_exr_rgba(tmp_path / "p.exr")
+    assert np.array_equal(last, read_exr_rgba(tmp_path / f"p.pass{n - 1}.exr"))
+    r = run_wvol("render", src, "-o", tmp_path / "q.exr", "--max-error", "1")
+    assert r.returncode != 0 and "--progressive" in r.stderr
