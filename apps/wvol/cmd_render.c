@@ -39,6 +39,7 @@ static const cli_opt opts[] = {
     {"threads", 0, 1, "threads (default: all)"},
     {"repeat", 0, 1, "render N times (1..100), report the fastest call's times (benchmarks; default 1)"},
     {"exposure", 0, 1, "PNG: scale before sRGB encoding (default 1; X-ray: 1/max)"},
+    {"bound-method", 0, 1, "exact (default: the exact X-ray paths on the dropped coefficients; axis views in milliseconds, others ray by ray) | coarse (each band's largest dropped coefficient; O(1) a pixel, looser)"},
     {"progressive", 0, 0, "progressive passes from a volume: the low-pass cube, then --growth times more of the largest coefficients each pass, each written as OUT's name + .passN, the last also as OUT"},
     {"max-error", 0, 1, "progressive: stop at the first pass whose bound is <= this (pixel units of the image)"},
     {"budget", 0, 1, "progressive: wall-clock seconds; stop before a pass that would end beyond them"},
@@ -65,6 +66,7 @@ typedef struct render_args {
     long width, height, repeat;
     double keep, exposure;
     int json, keep_given, exposure_given, progressive;
+    wvol_bound_method bound_method;
     wvol_progressive_params pp;
     wvol_render_params rp;
     wvol_compress_params cp;
@@ -127,6 +129,7 @@ static int parse_args(render_args *a, int argc, char **argv)
     wvol_compress_params_default(&a->cp);
     wvol_load_options_default(&a->lo);
     wvol_progressive_params_default(&a->pp);
+    a->bound_method = WVOL_BOUND_EXACT;
     cli_parser_init(&ps, cmd, argc, argv, opts);
     while ((r = cli_next(&ps, &o, &val)) >= 0) {
         if (r == CLI_USAGE) return CLI_USAGE;
@@ -146,6 +149,11 @@ static int parse_args(render_args *a, int argc, char **argv)
         else if (!strcmp(o->name, "colors")) a->colors_path = val;
         else if (!strcmp(o->name, "bound")) a->bound_path = val;
         else if (!strcmp(o->name, "progressive")) a->progressive = 1;
+        else if (!strcmp(o->name, "bound-method")) {
+            if (!strcmp(val, "exact")) a->bound_method = WVOL_BOUND_EXACT;
+            else if (!strcmp(val, "coarse")) a->bound_method = WVOL_BOUND_COARSE;
+            else return cli_usage(cmd, "--bound-method '%s': exact or coarse", val);
+        }
         else if (!strcmp(o->name, "max-error")) {
             if (!cli_parse_double(cmd, "max-error", val, &a->pp.max_error)) return CLI_USAGE;
             if (!(a->pp.max_error > 0)) return cli_usage(cmd, "--max-error %g: must be > 0", a->pp.max_error);
@@ -217,7 +225,7 @@ static int parse_args(render_args *a, int argc, char **argv)
                              a->in);
         if (a->keep_given) return cli_usage(cmd, "--progressive chooses the kept coefficients itself: drop --keep");
         if (a->colors_path) return cli_usage(cmd, "--progressive does not take --colors");
-        a->pp.bound = a->bound_path != NULL || a->pp.max_error > 0;
+        a->pp.bound = a->bound_path != NULL || a->pp.max_error > 0 ? a->bound_method : WVOL_BOUND_NONE;
         if (a->pp.bound && (a->rp.mode == WVOL_RENDER_MODE_ABSORPTION_LINEAR || a->rp.shading))
             return cli_usage(cmd, "--progressive with a bound (--bound, --max-error) needs --mode xray or absorption, "
                                   "no --shading");
@@ -353,9 +361,9 @@ static wvol_status write_bound(const render_args *a, const render_input *in, con
     if (!a->bound_path) return WVOL_OK;
     s = wvol_image_create(&b, (int)a->width, (int)a->height, err);
     if (s != WVOL_OK) return s;
-    s = in->store.residual
-            ? wvol_render_bound(b, in->store.residual, in->coeff_error, cam, tf, &a->rp, bs, err)
-            : WVOL_OK;
+    if (in->store.residual)
+        s = (a->bound_method == WVOL_BOUND_COARSE ? wvol_render_bound_coarse : wvol_render_bound)(
+            b, in->store.residual, in->coeff_error, cam, tf, &a->rp, bs, err);
     if (s == WVOL_OK) s = wvol_image_write_exr(b, a->bound_path, NULL, err);
     wvol_image_destroy(b);
     return s;

@@ -102,12 +102,7 @@ static PyObject *py_compress(PyObject *self, PyObject *args, PyObject *kw)
         return NULL;
     wvol_compress_params_default(&p);
     if (name) p.wavelet = name;
-    if (lev_obj != Py_None) {
-        long l = PyLong_AsLong(lev_obj);
-        if (l == -1 && PyErr_Occurred()) return NULL;
-        if (l < 1 || l > 30) return PyErr_Format(PyExc_ValueError, "levels must be in 1..30 (None: default), got %ld", l);
-        p.levels = (int)l;
-    }
+    if (wvolpy_parse_levels(lev_obj, &p.levels) < 0) return NULL;
     if (range != Py_None && !PyArg_ParseTuple(range, "dd;value_range must be (min, max)", &vr[0], &vr[1])) return NULL;
     for (i = 0; i < sizeof select_modes / sizeof select_modes[0]; i++)
         if (strcmp(mode, select_modes[i].name) == 0) break;

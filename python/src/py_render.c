@@ -248,6 +248,8 @@ static PyObject *py_render(PyObject *self, PyObject *args)
     is_store = WVOLPY_IS_STORE(src_obj);
     if (check_method(&rp, is_store) < 0) return NULL;
     if (opt_int(opts, "bound", &want_bound) < 0) return NULL;
+    if (want_bound < WVOL_BOUND_NONE || want_bound > WVOL_BOUND_COARSE)
+        return PyErr_Format(PyExc_ValueError, "bound: unknown method %d", want_bound);
     if (is_store) {
         wvolpy_store *h = (wvolpy_store *)src_obj;
         const wvol_store *store = wvolpy_store_at(h, J);
@@ -291,7 +293,9 @@ static PyObject *py_render(PyObject *self, PyObject *args)
     if (s == WVOL_OK) s = wvol_render(img, &src, &cam, &tf, &rp, &st, &err);
     /* a dense volume dropped nothing: its bound image stays 0 */
     if (s == WVOL_OK && want_bound) s = wvol_image_create(&bimg, cam.width, cam.height, &err);
-    if (s == WVOL_OK && residual) s = wvol_render_bound(bimg, residual, 0.0, &cam, &tf, &rp, &bs, &err);
+    if (s == WVOL_OK && residual)
+        s = (want_bound == WVOL_BOUND_COARSE ? wvol_render_bound_coarse : wvol_render_bound)(bimg, residual, 0.0, &cam,
+                                                                                          &tf, &rp, &bs, &err);
     Py_END_ALLOW_THREADS
     Py_XDECREF(holder);
     Py_XDECREF(colors);
@@ -361,17 +365,14 @@ static PyObject *py_progressive_begin(PyObject *self, PyObject *args)
     PyObject *cap;
     (void)self;
     wvol_progressive_params_default(&pp);
-    if (!PyArg_ParseTuple(args, "OOOzOdddp", &arr, &sp, &org, &wavelet, &lev_obj, &pp.max_error, &pp.seconds,
-                          &pp.growth, &pp.bound))
+    int bound = 1;
+    if (!PyArg_ParseTuple(args, "OOOzOdddi", &arr, &sp, &org, &wavelet, &lev_obj, &pp.max_error, &pp.seconds,
+                          &pp.growth, &bound))
         return NULL;
+    pp.bound = (wvol_bound_method)bound;
     wvol_compress_params_default(&cp);
     if (wavelet) cp.wavelet = wavelet;
-    if (lev_obj != Py_None) {
-        long l = PyLong_AsLong(lev_obj);
-        if (l == -1 && PyErr_Occurred()) return NULL;
-        if (l < 1 || l > 30) return PyErr_Format(PyExc_ValueError, "levels must be in 1..30 (None: default), got %ld", l);
-        cp.levels = (int)l;
-    }
+    if (wvolpy_parse_levels(lev_obj, &cp.levels) < 0) return NULL;
     if (!(ps = calloc(1, sizeof *ps))) return PyErr_NoMemory();
     if (wvolpy_as_placed_volume(arr, sp, org, &v, &holder, 1) < 0) {
         free(ps);

@@ -383,6 +383,17 @@ def features(vol, wavelet="db2", levels=3, *, smooth=1, include_lowpass=True, pc
 
 # ---- rendering ------------------------------------------------------------------------------
 
+def _bound_method(bound):
+    """bound= of render and render_progressive: False, True (= "exact"), "exact" or "coarse"."""
+    if bound is False or bound is None:
+        return 0
+    if bound is True or bound == "exact":
+        return 1
+    if bound == "coarse":
+        return 2
+    raise ValueError(f"bound must be False, True, 'exact' or 'coarse', not {bound!r}")
+
+
 def render(source, camera="+z", size=(256, 256), *, mode="absorption", tf="gaussian", tf_units="world",
            method="auto", step=None, shading=False, ambient=None, gauss_nodes=None, spline_j=None, brick=None,
            termination=None, threads=0, colors=None, skip_tolerance=None, bound=False, return_stats=False):
@@ -425,8 +436,9 @@ def render(source, camera="+z", size=(256, 256), *, mode="absorption", tf="gauss
     Options left None take the library's defaults (docs/render.md: step 0.5, brick 8 for the
     reference's empty-space skipping and 32 for "bricks", gauss_nodes 5, spline_j the store's
     (4), termination 1e-6, ambient 0.3, skip_tolerance 0).
-    ``bound=True``: also return a per-pixel bound on how far this image can be from the image of
-    all the coefficients (docs/render.md, "Error bounds"): ``(image, bound)``, the bound an
+    ``bound=True`` (or "exact"; "coarse": each band's largest dropped coefficient, O(1) a pixel
+    for any camera, looser): also return a per-pixel bound on how far this image can be from the
+    image of all the coefficients (docs/render.md, "Error bounds"): ``(image, bound)``, the bound an
     array like the image (X-ray: R = G = B, A = 0; absorption: per channel and alpha). Needs a
     Store made with ``compress(..., residual=True)`` (a volume dropped nothing: its bound is 0);
     modes "xray" and "absorption", no shading or colours; ``stats["bound_max"]`` and
@@ -438,7 +450,7 @@ def render(source, camera="+z", size=(256, 256), *, mode="absorption", tf="gauss
     opts = dict(camera=camera, width=w, height=h, mode=mode, method=method, tf=tf, tf_units=tf_units, step=step,
                 shading=int(bool(shading)), ambient=ambient, gauss_nodes=gauss_nodes, spline_j=spline_j,
                 brick=brick, termination=termination, threads=threads, colors=colors,
-                skip_tolerance=skip_tolerance, bound=int(bool(bound)))
+                skip_tolerance=skip_tolerance, bound=_bound_method(bound))
     if isinstance(tf, os.PathLike):
         opts["tf"] = os.fspath(tf)
     if isinstance(source, Store):
@@ -458,7 +470,8 @@ def render_progressive(vol, camera="+z", size=(256, 256), *, mode="absorption", 
     ``(image, bound, info)``, one per pass (docs/render.md, "Progressive rendering"). The volume
     is transformed once; pass k renders from the largest coefficients, the low-pass cube alone
     first and ``growth`` times more each pass, and returns with the image the per-pixel bound on
-    how far it can be from the image of all the coefficients (``bound=False``: None, and faster).
+    how far it can be from the image of all the coefficients (``bound=False``: None, and faster;
+    ``"coarse"``: the cheap bound of :func:`render`).
     Passes stop after the first whose largest bound is <= ``max_error``, before one that would
     end beyond ``seconds`` (wall clock since the call), or when everything is kept;
     ``info["last"]`` marks the last and ``info["stop"]`` says why. ``info`` also has index,
@@ -470,7 +483,8 @@ def render_progressive(vol, camera="+z", size=(256, 256), *, mode="absorption", 
     spacing, origin = _geometry(vol, None, None)
     state = _wvol.progressive_begin(_data(vol), spacing, origin, wavelet, levels,
                                     0.0 if max_error is None else float(max_error),
-                                    0.0 if seconds is None else float(seconds), float(growth), bool(bound))
+                                    0.0 if seconds is None else float(seconds), float(growth),
+                                    _bound_method(bound))
     opts = dict(camera=camera, width=w, height=h, mode=mode, tf=os.fspath(tf) if isinstance(tf, os.PathLike) else tf,
                 tf_units=tf_units, step=step, termination=termination, threads=threads)
     while True:

@@ -104,3 +104,20 @@ def test_cli_progressive(tmp_path, blobs):
     assert np.array_equal(last, read_exr_rgba(tmp_path / f"p.pass{n - 1}.exr"))
     r = run_wvol("render", src, "-o", tmp_path / "q.exr", "--max-error", "1")
     assert r.returncode != 0 and "--progressive" in r.stderr
+
+
+def test_coarse_bound_above_the_exact(tmp_path, blobs):
+    kept = wvol.compress(blobs, keep=0.1, residual=True)
+    cam = "persp dir=1,0.6,0.3"
+    _, exact = wvol.render(kept, cam, SIZE, mode="xray", bound="exact")
+    _, coarse = wvol.render(kept, cam, SIZE, mode="xray", bound="coarse")
+    assert np.all(coarse[..., :3] >= exact[..., :3] * (1 - 1e-5))
+    with pytest.raises(ValueError, match="coarse"):
+        wvol.render(kept, cam, SIZE, mode="xray", bound="tight")
+    src = tmp_path / "blobs.nrrd"
+    wvol.save(blobs, src)
+    r = run_wvol("render", src, "-o", tmp_path / "x.exr", "--keep", "10%", "--mode", "xray", "--camera", cam,
+                 "--size", f"{SIZE[0]}x{SIZE[1]}", "--bound", tmp_path / "b.exr", "--bound-method", "coarse", "--json")
+    assert r.returncode == 0, r.stderr
+    b = read_exr_rgba(tmp_path / "b.exr").reshape(SIZE[1], 4, SIZE[0])
+    assert np.array_equal(b[:, 3, :], coarse[..., 0])

@@ -29,7 +29,8 @@ typedef struct wvol_progressive_params {
                            when the next one (predicted: this one's time times growth) would
                            end beyond it; 0 (default): none */
     double growth;      /* kept coefficients multiplied by this each pass, > 1 (default 4) */
-    int bound;          /* 1 (default): compute each pass's bound; required by max_error */
+    wvol_bound_method bound; /* each pass's bound: WVOL_BOUND_EXACT (default), _COARSE (any camera
+                           at O(1) a pixel) or _NONE; max_error needs one */
 } wvol_progressive_params;
 
 WVOL_API void wvol_progressive_params_default(wvol_progressive_params *p);

@@ -344,12 +344,20 @@ WVOL_API wvol_status wvol_render_xray_splat(wvol_image *img, const wvol_store *s
 
 /* ---- per-pixel error bounds (docs/render.md, "Error bounds") ---------------- */
 
+/* Which per-pixel bound (wvol_render_bound or wvol_render_bound_coarse). */
+typedef enum wvol_bound_method {
+    WVOL_BOUND_NONE = 0,
+    WVOL_BOUND_EXACT = 1,   /* wvol_render_bound */
+    WVOL_BOUND_COARSE = 2   /* wvol_render_bound_coarse */
+} wvol_bound_method;
+
 typedef struct wvol_render_bound_stats {
     double max;             /* largest bound of any pixel (colour channels) */
     double mean;            /* mean over all pixels of the largest colour channel's bound */
     size_t functions;       /* spline path: dropped function / ray pairs integrated */
     size_t rays_hit;
-    wvol_render_method method; /* the exact X-ray path that ran: AXIS or SPLINE */
+    wvol_render_method method; /* the exact X-ray path that ran: AXIS or SPLINE; AUTO for the
+                                  coarse bound */
     double coeff_error_density; /* coeff_error x the bound of sum_j |B_j| (per unit of ray) */
     double seconds;
 } wvol_render_bound_stats;
@@ -368,6 +376,15 @@ typedef struct wvol_render_bound_stats {
 WVOL_API wvol_status wvol_render_bound(wvol_image *bound, const wvol_store *residual, double coeff_error,
                                        const wvol_camera *cam, const wvol_tf *tf, const wvol_render_params *params,
                                        wvol_render_bound_stats *stats, wvol_error *err);
+
+/* A coarser bound at the cost of one pass over the residual and O(1) per pixel, for any camera
+ * (where the exact one would need the spline path: oblique and perspective views): each pixel's
+ * chord times the sum over levels and bands of the band's largest dropped |c| times the bound
+ * of sum |B| of that band (docs/render.md, "Error bounds"). Same inputs, output and refusals. */
+WVOL_API wvol_status wvol_render_bound_coarse(wvol_image *bound, const wvol_store *residual, double coeff_error,
+                                              const wvol_camera *cam, const wvol_tf *tf,
+                                              const wvol_render_params *params, wvol_render_bound_stats *stats,
+                                              wvol_error *err);
 
 /* Image error: RMSE over all pixels and the 4 channels (or only `channel` 0..3 if >= 0) of a
  * against b, relative to the max |b| of those channels when relative is set. Same sizes. */

@@ -24,7 +24,7 @@ void wvol_progressive_params_default(wvol_progressive_params *p)
 {
     memset(p, 0, sizeof *p);
     p->growth = 4.0;
-    p->bound = 1;
+    p->bound = WVOL_BOUND_EXACT;
 }
 
 wvol_status wvol_progressive_begin(wvol_progressive **out, const wvol_volume *v, const wvol_compress_params *cp,
@@ -50,8 +50,12 @@ wvol_status wvol_progressive_begin(wvol_progressive **out, const wvol_volume *v,
                                               "finite and >= 0", pr->pp.max_error, pr->pp.seconds);
         goto fail;
     }
-    if (pr->pp.max_error > 0 && !pr->pp.bound) {
-        s = wvol_error_set(err, WVOL_ERR_ARG, "progressive: an error target needs the bound (params.bound = 1)");
+    if (pr->pp.bound != WVOL_BOUND_NONE && pr->pp.bound != WVOL_BOUND_EXACT && pr->pp.bound != WVOL_BOUND_COARSE) {
+        s = wvol_error_set(err, WVOL_ERR_ARG, "progressive: unknown bound method %d", (int)pr->pp.bound);
+        goto fail;
+    }
+    if (pr->pp.max_error > 0 && pr->pp.bound == WVOL_BOUND_NONE) {
+        s = wvol_error_set(err, WVOL_ERR_ARG, "progressive: an error target needs a bound (params.bound)");
         goto fail;
     }
     if (cp) p = *cp;
@@ -85,14 +89,15 @@ static wvol_status one_pass(wvol_progressive *pr, wvol_compressed *c, wvol_image
     p.select.mode = WVOL_SELECT_COUNT;
     p.select.count = pr->next_count;
     p.build_store = 1;
-    p.build_residual = pr->pp.bound;
+    p.build_residual = pr->pp.bound != WVOL_BOUND_NONE;
     WVOL_FORWARD(wvol_compress_coeffs(c, &copy, &p, err));
     src = wvol_render_source_store(c->store);
     WVOL_FORWARD(wvol_render(img, &src, cam, tf, rp, &st, err));
     pass->method = st.method;
     pass->kept = c->report.kept;
-    if (pr->pp.bound) {
-        WVOL_FORWARD(wvol_render_bound(bound, c->residual, 0.0, cam, tf, rp, &bs, err));
+    if (pr->pp.bound != WVOL_BOUND_NONE) {
+        WVOL_FORWARD((pr->pp.bound == WVOL_BOUND_COARSE ? wvol_render_bound_coarse : wvol_render_bound)(
+            bound, c->residual, 0.0, cam, tf, rp, &bs, err));
         pass->bound_max = bs.max;
         pass->bound_mean = bs.mean;
     }
@@ -108,7 +113,7 @@ wvol_status wvol_progressive_next(wvol_progressive *pr, wvol_image *img, wvol_im
     double t0 = wvol__now(), next;
     WVOL_RETURN_IF(!pr || !img || !pass, err, WVOL_ERR_ARG, "progressive: NULL argument");
     WVOL_RETURN_IF(pr->done, err, WVOL_ERR_ARG, "progressive: the last pass has been rendered");
-    WVOL_RETURN_IF(pr->pp.bound && (!bound || bound->width != img->width || bound->height != img->height), err,
+    WVOL_RETURN_IF(pr->pp.bound != WVOL_BOUND_NONE && (!bound || bound->width != img->width || bound->height != img->height), err,
                    WVOL_ERR_ARG, "progressive: the bound image must have the image's size");
     memset(pass, 0, sizeof *pass);
     pass->index = pr->index;

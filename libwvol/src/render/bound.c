@@ -13,6 +13,11 @@
  * over levels and bands of norm_m prod_a S_a, S = sup_u sum_k theta+(u - k) (the periodised
  * majorant), bounded from the majorants' Bernstein coefficients.
  *
+ * The coarse bound (wvol_render_bound_coarse) uses the same sum with, per level and band, the
+ * largest |c| the residual holds in place of e: chord x sum_{m,band} max|c| norm_m prod_a S_a.
+ * One pass over the residual and O(1) per pixel, for any camera; looser, since every dropped
+ * function of a band is taken at its band's largest magnitude.
+ *
  * Absorption (the emission-absorption integral I = int E(f) T dt, E = c(f) kappa(f),
  * T = exp(-int kappa)): along the path f_s = f^ + s (f - f^), s in [0, 1],
  *   |dI/ds| <= int |E'| |f - f^| dt + int E T (int_0^t |kappa'| |f - f^|) dt
@@ -55,8 +60,9 @@ static double periodised_sup(const wvol_basis *b, int which)
     return best * (1.0 + BOUND_ROUNDING);
 }
 
-/* Sum over levels and bands of norm_m prod_a S_a: bounds sum_j |B_j(x)| at every x. */
-static double coeff_error_density(const wvol_store *s)
+/* Sum over levels and bands of w[m][band] norm_m prod_a S_a (w NULL: 1): with w the largest
+ * |c| of each band, it bounds sum_j |c_j| |B_j(x)| at every x. */
+static double band_density(const wvol_store *s, double w[][8])
 {
     const wvol_basis *b = wvol_store_basis(s);
     wvol_store_info info;
@@ -66,7 +72,7 @@ static double coeff_error_density(const wvol_store *s)
     ntr = info.transformed[0] + info.transformed[1] + info.transformed[2];
     for (m = 1; m <= info.levels; m++)
         for (band = (m == info.levels ? 0 : 1); band < 8; band++) {
-            double prod = pow(2.0, -0.5 * m * ntr);
+            double prod = pow(2.0, -0.5 * m * ntr) * (w ? w[m][band] : 1.0);
             int ok = 1;
             for (a = 0; a < 3; a++) {
                 int bit = (band >> a) & 1;
@@ -76,6 +82,15 @@ static double coeff_error_density(const wvol_store *s)
             if (ok) total += prod;
         }
     return total;
+}
+
+/* The largest |c| the residual holds per level and band. */
+static void band_max(const wvol_store *s, double w[][8])
+{
+    wvol_store_iter it = {0, 0};
+    wvol_store_coeff c;
+    memset(w, 0, (WVOL_SELECT_MAX_LEVELS + 1) * sizeof *w);
+    while (wvol_store_next(s, &it, &c)) w[c.level][c.band] = fmax(w[c.level][c.band], fabs((double)c.value));
 }
 
 /* Largest |kappa'| and, per channel, |(c kappa)'| and c over the TF (kappa per world unit). */
@@ -112,9 +127,9 @@ static wvol_status residual_xray(wvol_image *img, const wvol_store *res, const w
     return s;
 }
 
-wvol_status wvol_render_bound(wvol_image *bound, const wvol_store *residual, double coeff_error,
-                              const wvol_camera *cam, const wvol_tf *tf_in, const wvol_render_params *params,
-                              wvol_render_bound_stats *stats, wvol_error *err)
+static wvol_status bound_image(wvol_image *bound, const wvol_store *residual, double coeff_error, int coarse,
+                               const wvol_camera *cam, const wvol_tf *tf_in, const wvol_render_params *params,
+                               wvol_render_bound_stats *stats, wvol_error *err)
 {
     wvol_render_params p;
     wvol_render_stats xs;
@@ -142,8 +157,17 @@ wvol_status wvol_render_bound(wvol_image *bound, const wvol_store *residual, dou
                    "render bound: shading multiplies emission by a function of the gradient, which the bound "
                    "does not cover; render the bound without shading");
     WVOL_FORWARD(wvol__check_colors(&p, NULL, 0, err));
-    WVOL_FORWARD(residual_xray(bound, residual, cam, &p, &xs, err));
-    if (coeff_error > 0) density = coeff_error * coeff_error_density(residual);
+    memset(&xs, 0, sizeof xs);
+    if (coarse) {
+        double w[WVOL_SELECT_MAX_LEVELS + 1][8];
+        band_max(residual, w);
+        density = band_density(residual, w);
+        memset(bound->rgba, 0, 4 * sizeof(float) * (size_t)bound->width * (size_t)bound->height);
+        xs.method = WVOL_RENDER_METHOD_AUTO;
+    } else {
+        WVOL_FORWARD(residual_xray(bound, residual, cam, &p, &xs, err));
+    }
+    if (coeff_error > 0) density += coeff_error * band_density(residual, NULL);
     wvol_store_get_info(residual, &info);
     for (a = 0; a < 3; a++) {
         g.dims[a] = a == 0 ? info.nx : a == 1 ? info.ny : info.nz;
@@ -194,4 +218,18 @@ wvol_status wvol_render_bound(wvol_image *bound, const wvol_store *residual, dou
         stats->seconds = wvol__now() - t_start;
     }
     return wvol__image_check_range(bound, err);
+}
+
+wvol_status wvol_render_bound(wvol_image *bound, const wvol_store *residual, double coeff_error,
+                              const wvol_camera *cam, const wvol_tf *tf, const wvol_render_params *params,
+                              wvol_render_bound_stats *stats, wvol_error *err)
+{
+    return bound_image(bound, residual, coeff_error, 0, cam, tf, params, stats, err);
+}
+
+wvol_status wvol_render_bound_coarse(wvol_image *bound, const wvol_store *residual, double coeff_error,
+                                     const wvol_camera *cam, const wvol_tf *tf, const wvol_render_params *params,
+                                     wvol_render_bound_stats *stats, wvol_error *err)
+{
+    return bound_image(bound, residual, coeff_error, 1, cam, tf, params, stats, err);
 }
