@@ -136,7 +136,11 @@ static void bound_holds_on_every_pixel(void)
     wvol_tf tf;
     size_t fi, ki, di, bad = 0;
     CHECK(v != NULL, "volume");
+    wvol_tf ramp;
     CHECK(wvol_tf_preset(&tf, "gaussian", 0.0, 1.3, NULL) == WVOL_OK, "tf");
+    /* a CT-like ramp: transparent below 0.5, steep and coloured above */
+    CHECK(wvol_tf_parse(&ramp, "0.5 0.2 0.1 0.05 0\n0.7 1 0.8 0.6 30\n1.3 1 1 1 40\n", "ramp", NULL) == WVOL_OK,
+          "ramp tf");
     for (fi = 0; fi < 3; fi++) {
         ki = fi; /* one fraction per family keeps the test short */
         {
@@ -162,9 +166,10 @@ static void bound_holds_on_every_pixel(void)
                     double ex;
                     camera(&cam, all.store, dirs[di], pr ? WVOL_PROJECTION_PERSPECTIVE : WVOL_PROJECTION_ORTHOGRAPHIC,
                            16, 14);
-                    ia = render(all.store, &cam, &tf, mode);
-                    ik = render(part.store, &cam, &tf, mode);
-                    ib = bound_of(part.residual, 0, &cam, &tf, mode, &bs);
+                    const wvol_tf *t = fi % 2 ? &ramp : &tf;
+                    ia = render(all.store, &cam, t, mode);
+                    ik = render(part.store, &cam, t, mode);
+                    ib = bound_of(part.residual, 0, &cam, t, mode, &bs);
                     CHECK(ia && ik && ib, "images");
                     if (!ia || !ik || !ib) continue;
                     /* absorption: the integrator's quadrature of the exponential, measured
@@ -176,7 +181,7 @@ static void bound_holds_on_every_pixel(void)
                     CHECK(bs.max > 0 && bs.mean > 0 && bs.mean <= bs.max, "stats %g %g", bs.mean, bs.max);
                     {
                         /* the coarse bound sits above the exact one on every pixel */
-                        wvol_image *ic = bound_any(part.residual, 0, 1, &cam, &tf, mode, NULL);
+                        wvol_image *ic = bound_any(part.residual, 0, 1, &cam, t, mode, NULL);
                         CHECK(ic && coarse_below_exact(ib, ic) == 0, "%s dir %zu: coarse bound below the exact",
                               families[fi], di);
                         wvol_image_destroy(ic);
