@@ -12,6 +12,7 @@
 #include "wvol/compress.h"
 #include "wvol/image.h"
 #include "wvol/io.h"
+#include "wvol/progressive.h"
 #include "wvol/render.h"
 #include "wvol/store.h"
 #include "wvol/wvc.h"
@@ -41,6 +42,12 @@ static const cli_opt opts[] = {
     {"threads", 0, 1, "threads (default: all)"},
     {"repeat", 0, 1, "render N times (1..100), report the fastest call's times (benchmarks; default 1)"},
     {"exposure", 0, 1, "PNG: scale before sRGB encoding (default 1; X-ray: 1/max)"},
+    {"bound-method", 0, 1, "exact (default: the exact X-ray paths on the dropped coefficients; axis views in milliseconds, others ray by ray) | coarse (each band's largest dropped coefficient; O(1) a pixel, looser)"},
+    {"progressive", 0, 0, "progressive passes from a volume: the low-pass cube, then --growth times more of the largest coefficients each pass, each written as OUT's name + .passN, the last also as OUT"},
+    {"max-error", 0, 1, "progressive: stop at the first pass whose bound is <= this (pixel units of the image)"},
+    {"budget", 0, 1, "progressive: wall-clock seconds; stop before a pass that would end beyond them"},
+    {"growth", 0, 1, "progressive: kept coefficients multiplied by this per pass (default 4)"},
+    {"bound", 0, 1, "also write a per-pixel bound on |image of all coefficients - this image| to this .exr (docs/render.md, \"Error bounds\"); xray or absorption, no shading"},
     CLI_LOAD_OPTS,
     CLI_JSON_OPT,
     CLI_HELP_OPT,
@@ -58,10 +65,12 @@ static const char about[] =
     "See docs/render.md for cameras, transfer-function files and errors.";
 
 typedef struct render_args {
-    const char *in, *out, *camspec, *tfname, *colors_path;
+    const char *in, *out, *camspec, *tfname, *colors_path, *bound_path;
     long width, height, repeat;
     double keep, exposure;
-    int json, keep_given, exposure_given;
+    int json, keep_given, exposure_given, progressive;
+    wvol_bound_method bound_method;
+    wvol_progressive_params pp;
     wvol_render_params rp;
     wvol_compress_params cp;
     wvol_load_options lo;
@@ -75,6 +84,7 @@ typedef struct render_input {
     wvol_volume *colors;
     wvol_geometry geometry;
     double vmin, vmax;
+    double coeff_error;         /* a .wvc's largest quantiser error per coefficient */
 } render_input;
 
 /* Resident memory in MiB from /proc/self/status ("VmRSS" now, "VmHWM" peak), -1 if unknown. */
@@ -121,6 +131,8 @@ static int parse_args(render_args *a, int argc, char **argv)
     wvol_render_params_default(&a->rp);
     wvol_compress_params_default(&a->cp);
     wvol_load_options_default(&a->lo);
+    wvol_progressive_params_default(&a->pp);
+    a->bound_method = WVOL_BOUND_EXACT;
     cli_parser_init(&ps, cmd, argc, argv, opts);
     while ((r = cli_next(&ps, &o, &val)) >= 0) {
         if (r == CLI_USAGE) return CLI_USAGE;
@@ -139,6 +151,24 @@ static int parse_args(render_args *a, int argc, char **argv)
         else if (!strcmp(o->name, "shading")) a->rp.shading = 1;
         else if (!strcmp(o->name, "preintegrate")) a->rp.preintegrate = 1;
         else if (!strcmp(o->name, "colors")) a->colors_path = val;
+        else if (!strcmp(o->name, "bound")) a->bound_path = val;
+        else if (!strcmp(o->name, "progressive")) a->progressive = 1;
+        else if (!strcmp(o->name, "bound-method")) {
+            if (!strcmp(val, "exact")) a->bound_method = WVOL_BOUND_EXACT;
+            else if (!strcmp(val, "coarse")) a->bound_method = WVOL_BOUND_COARSE;
+            else return cli_usage(cmd, "--bound-method '%s': exact or coarse", val);
+        }
+        else if (!strcmp(o->name, "max-error")) {
+            if (!cli_parse_double(cmd, "max-error", val, &a->pp.max_error)) return CLI_USAGE;
+            if (!(a->pp.max_error > 0)) return cli_usage(cmd, "--max-error %g: must be > 0", a->pp.max_error);
+        } else if (!strcmp(o->name, "budget")) {
+            if (!cli_parse_double(cmd, "budget", val, &a->pp.seconds)) return CLI_USAGE;
+            if (!(a->pp.seconds > 0)) return cli_usage(cmd, "--budget %g: must be > 0 seconds", a->pp.seconds);
+        } else if (!strcmp(o->name, "growth")) {
+            if (!cli_parse_double(cmd, "growth", val, &a->pp.growth)) return CLI_USAGE;
+            if (!(a->pp.growth > 1) || !isfinite(a->pp.growth))
+                return cli_usage(cmd, "--growth %g: must be > 1", a->pp.growth);
+        }
         else if (!strcmp(o->name, "size")) {
             if (!cli_parse_size(cmd, "size", val, &a->width, &a->height)) return CLI_USAGE;
         } else if (!strcmp(o->name, "method")) {
@@ -198,6 +228,28 @@ static int parse_args(render_args *a, int argc, char **argv)
         a->rp.method != WVOL_RENDER_METHOD_REFERENCE_FHAT && a->rp.method != WVOL_RENDER_METHOD_BRICKS)
         return cli_usage(cmd, "--colors needs --method reference, reference-fhat or bricks (got %s)",
                          wvol_render_method_name(a->rp.method));
+    if ((a->pp.max_error > 0 || a->pp.seconds > 0) && !a->progressive)
+        return cli_usage(cmd, "--max-error and --budget stop progressive passes: add --progressive");
+    if (a->progressive) {
+        if (wvol_path_has_ext(a->in, ".wvc"))
+            return cli_usage(cmd, "--progressive starts from a volume (it ranks all the coefficients); %s is a .wvc",
+                             a->in);
+        if (a->keep_given) return cli_usage(cmd, "--progressive chooses the kept coefficients itself: drop --keep");
+        if (a->colors_path) return cli_usage(cmd, "--progressive does not take --colors");
+        a->pp.bound = a->bound_path != NULL || a->pp.max_error > 0 ? a->bound_method : WVOL_BOUND_NONE;
+        if (a->pp.bound && (a->rp.mode == WVOL_RENDER_MODE_ABSORPTION_LINEAR || a->rp.shading))
+            return cli_usage(cmd, "--progressive with a bound (--bound, --max-error) needs --mode xray or absorption, "
+                                  "no --shading");
+    }
+    if (a->bound_path) {
+        if (!wvol_path_has_ext(a->bound_path, ".exr"))
+            return cli_usage(cmd, "--bound %s: the bound image is float data, the extension must be .exr", a->bound_path);
+        if (a->rp.mode == WVOL_RENDER_MODE_ABSORPTION_LINEAR)
+            return cli_usage(cmd, "--bound needs --mode xray or absorption (absorption-linear has no bound)");
+        if (a->rp.shading) return cli_usage(cmd, "--bound does not cover --shading: render the bound without it");
+        if (a->colors_path) return cli_usage(cmd, "--bound does not cover --colors");
+        a->cp.build_residual = 1;
+    }
     if (a->keep < 1.0) {
         a->cp.select.mode = WVOL_SELECT_FRACTION;
         a->cp.select.fraction = a->keep;
@@ -220,6 +272,14 @@ static int load_input(const render_args *a, render_input *in, wvol_error *err)
         wvol_wvc_info wi;
         wvol_coeffs *c = NULL;
         if (wvol_wvc_read(&c, a->in, NULL, &wi, err) != WVOL_OK) return cli_fail_err("render", err);
+        if (a->bound_path && wi.dropped_energy > 0) {
+            wvol_coeffs_destroy(c);
+            return cli_usage("render",
+                             "--bound: %s dropped coefficients before coding (energy %g); their values are not in "
+                             "the file, so no per-pixel bound. Compress with --keep 100%% to have one",
+                             a->in, wi.dropped_energy);
+        }
+        in->coeff_error = wvol_wvc_max_coeff_error(&wi);
         in->vmin = wi.value_min;
         in->vmax = wi.value_max;
         wvol_geometry_of_coeffs(&in->geometry, c);
@@ -280,10 +340,10 @@ static wvol_status render_repeat(wvol_image *img, const wvol_render_source *src,
     return WVOL_OK;
 }
 
-static wvol_status write_image(const wvol_image *img, const render_args *a, wvol_error *err)
+static wvol_status write_image_to(const wvol_image *img, const render_args *a, const char *path, wvol_error *err)
 {
     double exposure = a->exposure;
-    if (wvol_path_has_ext(a->out, ".exr")) return wvol_image_write_exr(img, a->out, NULL, err);
+    if (wvol_path_has_ext(path, ".exr")) return wvol_image_write_exr(img, path, NULL, err);
     if (!a->exposure_given) {
         exposure = 1.0;
         if (a->rp.mode == WVOL_RENDER_MODE_XRAY) {
@@ -293,11 +353,35 @@ static wvol_status write_image(const wvol_image *img, const render_args *a, wvol
             exposure = mx > 0 ? 1.0 / mx : 1.0;
         }
     }
-    return wvol_image_write_png(img, a->out, NULL, exposure, err);
+    return wvol_image_write_png(img, path, NULL, exposure, err);
+}
+
+static wvol_status write_image(const wvol_image *img, const render_args *a, wvol_error *err)
+{
+    return write_image_to(img, a, a->out, err);
+}
+
+/* --bound: the per-pixel bound from what the store dropped (and a .wvc's quantiser); a dense
+ * source dropped nothing, so its bound is 0. */
+static wvol_status write_bound(const render_args *a, const render_input *in, const wvol_camera *cam,
+                               const wvol_tf *tf, wvol_render_bound_stats *bs, wvol_error *err)
+{
+    wvol_image *b = NULL;
+    wvol_status s;
+    memset(bs, 0, sizeof *bs);
+    if (!a->bound_path) return WVOL_OK;
+    s = wvol_image_create(&b, (int)a->width, (int)a->height, err);
+    if (s != WVOL_OK) return s;
+    if (in->store.residual)
+        s = (a->bound_method == WVOL_BOUND_COARSE ? wvol_render_bound_coarse : wvol_render_bound)(
+            b, in->store.residual, in->coeff_error, cam, tf, &a->rp, bs, err);
+    if (s == WVOL_OK) s = wvol_image_write_exr(b, a->bound_path, NULL, err);
+    wvol_image_destroy(b);
+    return s;
 }
 
 static void report(const render_args *a, const render_input *in, const wvol_render_stats *st, double t_prep,
-                   double cpu_max, const double rss[2])
+                   double cpu_max, const double rss[2], const wvol_render_bound_stats *bs)
 {
     const char *method = wvol_render_method_name(st->method), *mode = wvol_render_mode_name(a->rp.mode);
     const wvol_store *store = in->store.store;
@@ -309,6 +393,9 @@ static void report(const render_args *a, const render_input *in, const wvol_rend
         if (a->rp.skip_tolerance > 0)
             printf("skipped %zu nearly empty brick runs: each pixel within %.3g of the unskipped image (tolerance %g)\n",
                    st->skipped_tolerance, st->skip_bound, a->rp.skip_tolerance);
+        if (a->bound_path)
+            printf("wrote %s: per-pixel bound on the dropped coefficients' effect, max %.4g, mean %.4g (%.3f s)\n",
+                   a->bound_path, bs->max, bs->mean, bs->seconds);
         return;
     }
     cli_json_begin();
@@ -353,9 +440,132 @@ static void report(const render_args *a, const render_input *in, const wvol_rend
         cli_json_int("render_bytes", (long long)st->bytes);
     }
     if (store) cli_json_int("store_bytes", (long long)si.bytes);
+    if (a->bound_path) {
+        cli_json_str("bound", a->bound_path);
+        cli_json_num("bound_max", bs->max);
+        cli_json_num("bound_mean", bs->mean);
+        cli_json_num("bound_coeff_error", in->coeff_error);
+        cli_json_num("bound_seconds", bs->seconds);
+    }
     cli_json_num("rss_before_render_mib", rss[0]);
     cli_json_num("rss_peak_render_mib", rss[1]);
     cli_json_end();
+}
+
+/* PATH with ".passN" before its extension. 0 when it does not fit. */
+static int pass_name(char *buf, size_t n, const char *path, int index)
+{
+    const char *dot = strrchr(path, '.'), *slash = strrchr(path, '/');
+    int w;
+    if (!dot || (slash && dot < slash)) dot = path + strlen(path);
+    w = snprintf(buf, n, "%.*s.pass%d%s", (int)(dot - path), path, index, dot);
+    return w > 0 && (size_t)w < n;
+}
+
+/* One pass's files: OUT.passN (and BOUND.passN), and for the last OUT (and BOUND) too. */
+static wvol_status write_pass(const render_args *a, const wvol_image *img, const wvol_image *bimg,
+                              const wvol_progressive_pass *pass, wvol_error *err)
+{
+    char name[4096];
+    if (!pass_name(name, sizeof name, a->out, pass->index))
+        return wvol_error_set(err, WVOL_ERR_ARG, "output name %s too long", a->out);
+    if (write_image_to(img, a, name, err) != WVOL_OK) return err->status;
+    if (pass->last && write_image_to(img, a, a->out, err) != WVOL_OK) return err->status;
+    if (!bimg) return WVOL_OK;
+    if (!pass_name(name, sizeof name, a->bound_path, pass->index))
+        return wvol_error_set(err, WVOL_ERR_ARG, "bound name %s too long", a->bound_path);
+    if (wvol_image_write_exr(bimg, name, NULL, err) != WVOL_OK) return err->status;
+    return pass->last ? wvol_image_write_exr(bimg, a->bound_path, NULL, err) : WVOL_OK;
+}
+
+static void report_passes(const render_args *a, const wvol_progressive_pass *ps, int n)
+{
+    int i;
+    if (!a->json) {
+        for (i = 0; i < n; i++)
+            printf("pass %d: %zu of %zu coefficients, %s, %.3f s (%.3f s in all)%s%.4g%s\n", ps[i].index,
+                   ps[i].kept, ps[i].total, wvol_render_method_name(ps[i].method), ps[i].seconds, ps[i].elapsed,
+                   a->pp.bound ? ", bound max " : "", a->pp.bound ? ps[i].bound_max : 0.0, "");
+        if (n) printf("wrote %s (the last pass; stop: %s)\n", a->out, ps[n - 1].stop);
+        return;
+    }
+    cli_json_begin();
+    cli_json_str("input", a->in);
+    cli_json_str("output", a->out);
+    cli_json_str("mode", wvol_render_mode_name(a->rp.mode));
+    if (n) cli_json_str("stop", ps[n - 1].stop);
+    cli_json_open("passes", '[');
+    for (i = 0; i < n; i++) {
+        cli_json_open(NULL, '{');
+        cli_json_int("index", ps[i].index);
+        cli_json_int("kept", (long long)ps[i].kept);
+        cli_json_int("total", (long long)ps[i].total);
+        cli_json_str("method", wvol_render_method_name(ps[i].method));
+        cli_json_num("seconds", ps[i].seconds);
+        cli_json_num("elapsed", ps[i].elapsed);
+        if (a->pp.bound) {
+            cli_json_num("bound_max", ps[i].bound_max);
+            cli_json_num("bound_mean", ps[i].bound_mean);
+        }
+        cli_json_close('}');
+    }
+    cli_json_close(']');
+    cli_json_end();
+}
+
+/* --progressive: passes from the volume until the target, the budget or everything kept. */
+static int render_progressive(render_args *a)
+{
+    wvol_volume *v = NULL;
+    wvol_progressive *pr = NULL;
+    wvol_progressive_pass *ps = NULL;
+    wvol_image *img = NULL, *bimg = NULL;
+    wvol_geometry g;
+    wvol_camera cam;
+    wvol_tf tf;
+    wvol_error err;
+    double vmin, vmax;
+    int rc = CLI_OK, n = 0, cap = 0;
+    memset(&tf, 0, sizeof tf);
+    if (wvol_volume_load(&v, a->in, &a->lo, &err) != WVOL_OK) return cli_fail_err("render", &err);
+    wvol_volume_range(v, &vmin, &vmax, NULL);
+    wvol_geometry_of_volume(&g, v);
+    if (wvol_camera_parse(&cam, a->camspec, &g, (int)a->width, (int)a->height, &err) != WVOL_OK) {
+        rc = cli_usage("render", "--camera: %s", err.message);
+        goto done;
+    }
+    if (a->rp.mode != WVOL_RENDER_MODE_XRAY && (rc = cli_load_tf("render", a->tfname, vmin, vmax, &tf)) != CLI_OK)
+        goto done;
+    if (wvol_image_create(&img, (int)a->width, (int)a->height, &err) != WVOL_OK) goto fail;
+    if (a->pp.bound && wvol_image_create(&bimg, (int)a->width, (int)a->height, &err) != WVOL_OK) goto fail;
+    if (wvol_progressive_begin(&pr, v, &a->cp, &a->pp, &err) != WVOL_OK) goto fail;
+    wvol_volume_destroy(v); /* the passes read the coefficients */
+    v = NULL;
+    for (;;) {
+        if (n == cap) {
+            int nc = cap ? 2 * cap : 16;
+            wvol_progressive_pass *q = realloc(ps, (size_t)nc * sizeof *q);
+            if (!q) {
+                wvol_error_set(&err, WVOL_ERR_NOMEM, "out of memory");
+                goto fail;
+            }
+            ps = q, cap = nc;
+        }
+        if (wvol_progressive_next(pr, img, bimg, &cam, &tf, &a->rp, &ps[n], &err) != WVOL_OK) goto fail;
+        if (write_pass(a, img, bimg, &ps[n], &err) != WVOL_OK) goto fail;
+        if (ps[n++].last) break;
+    }
+    report_passes(a, ps, n);
+    goto done;
+fail:
+    rc = cli_fail_err("render", &err);
+done:
+    free(ps);
+    wvol_progressive_end(pr);
+    wvol_image_destroy(img);
+    wvol_image_destroy(bimg);
+    wvol_volume_destroy(v);
+    return rc;
 }
 
 int wvol_cmd_render(int argc, char **argv)
@@ -364,6 +574,7 @@ int wvol_cmd_render(int argc, char **argv)
     render_input in;
     wvol_render_source src;
     wvol_render_stats stats;
+    wvol_render_bound_stats bstats;
     wvol_image *img = NULL;
     wvol_camera cam;
     wvol_tf tf;
@@ -371,6 +582,7 @@ int wvol_cmd_render(int argc, char **argv)
     double t0, t_prep, cpu_max = 0, rss[2] = {-1, -1};
     int rc = parse_args(&a, argc, argv);
     if (rc != CLI_OK) return rc < 0 ? CLI_OK : rc;
+    if (a.progressive) return render_progressive(&a);
     memset(&in, 0, sizeof in);
     memset(&tf, 0, sizeof tf);
     memset(&stats, 0, sizeof stats);
@@ -390,7 +602,8 @@ int wvol_cmd_render(int argc, char **argv)
     t_prep = cli_now() - t0;
     if (render_repeat(img, &src, &cam, &tf, &a, &a.rp, &stats, &cpu_max, rss, &err) != WVOL_OK) goto fail;
     if (write_image(img, &a, &err) != WVOL_OK) goto fail;
-    report(&a, &in, &stats, t_prep, cpu_max, rss);
+    if (write_bound(&a, &in, &cam, &tf, &bstats, &err) != WVOL_OK) goto fail;
+    report(&a, &in, &stats, t_prep, cpu_max, rss, &bstats);
     rc = CLI_OK;
     goto done;
 fail:

@@ -83,10 +83,10 @@ fail:
 static PyObject *py_compress(PyObject *self, PyObject *args, PyObject *kw)
 {
     static char *kwlist[] = {"array", "wavelet", "levels", "mode", "value", "drop_levels", "roi", "roi_floor",
-                             "spacing", "origin", "measure", "value_range", NULL};
+                             "spacing", "origin", "measure", "value_range", "residual", NULL};
     PyObject *arr_obj, *roi = Py_None, *sp = Py_None, *org = Py_None, *lev_obj = Py_None, *range = Py_None;
     const char *name = NULL, *mode = "all";
-    int drop = 0, measure = 0;
+    int drop = 0, measure = 0, residual = 0;
     double value = 0, floor_ = 0, vr[2] = {0, 0};
     PyArrayObject *holder;
     wvol_volume v;
@@ -97,17 +97,12 @@ static PyObject *py_compress(PyObject *self, PyObject *args, PyObject *kw)
     wvol_status s;
     size_t i;
     (void)self;
-    if (!PyArg_ParseTupleAndKeywords(args, kw, "O|zOsdiOdOOpO", kwlist, &arr_obj, &name, &lev_obj, &mode, &value,
-                                     &drop, &roi, &floor_, &sp, &org, &measure, &range))
+    if (!PyArg_ParseTupleAndKeywords(args, kw, "O|zOsdiOdOOpOp", kwlist, &arr_obj, &name, &lev_obj, &mode, &value,
+                                     &drop, &roi, &floor_, &sp, &org, &measure, &range, &residual))
         return NULL;
     wvol_compress_params_default(&p);
     if (name) p.wavelet = name;
-    if (lev_obj != Py_None) {
-        long l = PyLong_AsLong(lev_obj);
-        if (l == -1 && PyErr_Occurred()) return NULL;
-        if (l < 1 || l > 30) return PyErr_Format(PyExc_ValueError, "levels must be in 1..30 (None: default), got %ld", l);
-        p.levels = (int)l;
-    }
+    if (wvolpy_parse_levels(lev_obj, &p.levels) < 0) return NULL;
     if (range != Py_None && !PyArg_ParseTuple(range, "dd;value_range must be (min, max)", &vr[0], &vr[1])) return NULL;
     for (i = 0; i < sizeof select_modes / sizeof select_modes[0]; i++)
         if (strcmp(mode, select_modes[i].name) == 0) break;
@@ -128,6 +123,7 @@ static PyObject *py_compress(PyObject *self, PyObject *args, PyObject *kw)
     default: break;
     }
     prm->drop_levels = drop;
+    p.build_residual = residual;
     prm->lod_floor = floor_;
     prm->measure = measure;
     if (parse_roi(roi, prm) < 0) return NULL;
@@ -148,5 +144,5 @@ static PyObject *py_compress(PyObject *self, PyObject *args, PyObject *kw)
 PyMethodDef wvolpy_compress_methods[] = {
     {"compress", (PyCFunction)(void (*)(void))py_compress, METH_VARARGS | METH_KEYWORDS,
      "compress(array, wavelet=None, levels=None, mode='all', value=0, drop_levels=0, roi=None, roi_floor=0,\n"
-     "         spacing=None, origin=None, measure=False, value_range=None) -> (StoreHandle, report)"},
+     "         spacing=None, origin=None, measure=False, value_range=None, residual=False) -> (StoreHandle, report)"},
     {NULL, NULL, 0, NULL}};

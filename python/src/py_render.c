@@ -7,6 +7,7 @@
 #include "methods.h"
 #include "py_store.h"
 #include "wvol/render.h"
+#include "wvol/progressive.h"
 
 #include <math.h>
 #include <string.h>
@@ -161,6 +162,14 @@ static PyObject *stats_dict(const wvol_render_stats *st)
                          (Py_ssize_t)st->bricks_built, "brick", st->brick, "bytes", (Py_ssize_t)st->bytes);
 }
 
+static int dict_set_num(PyObject *d, const char *key, double v)
+{
+    PyObject *o = PyFloat_FromDouble(v);
+    int r = o ? PyDict_SetItemString(d, key, o) : -1;
+    Py_XDECREF(o);
+    return r;
+}
+
 /* The render parameters from opts: only the keys given (not None) change the library's
  * defaults. *J: the spline_j asked for (0: the store's). */
 static int parse_params(PyObject *opts, wvol_render_params *rp, int *J)
@@ -212,7 +221,7 @@ static int check_method(const wvol_render_params *rp, int is_store)
 }
 
 /* render(source, spacing, origin, opts) -> (image (h, w, 4) float32 over the image's pixels,
- * stats). source: a StoreHandle, or an array (a dense volume placed by spacing/origin, which
+ * stats, bound image or None (opts "bound": wvol_render_bound from the store's residual)). source: a StoreHandle, or an array (a dense volume placed by spacing/origin, which
  * a store ignores). opts: camera, width, height, mode, method, tf, tf_units, step, termination,
  * skip_tolerance, ambient, shading, gauss_nodes, spline_j, brick, threads, colors. */
 static PyObject *py_render(PyObject *self, PyObject *args)
@@ -228,19 +237,34 @@ static PyObject *py_render(PyObject *self, PyObject *args)
     wvol_tf tf;
     wvol_render_params rp;
     wvol_render_stats st;
-    wvol_image *img = NULL;
+    wvol_render_bound_stats bs;
+    wvol_image *img = NULL, *bimg = NULL;
+    const wvol_store *residual = NULL;
     wvol_error err;
     wvol_status s;
     double vmin, vmax;
+    int want_bound = 0;
     (void)self;
     if (!PyArg_ParseTuple(args, "OOOO!", &src_obj, &sp, &org, &PyDict_Type, &opts)) return NULL;
     if (parse_params(opts, &rp, &J) < 0) return NULL;
     is_store = WVOLPY_IS_STORE(src_obj);
     if (check_method(&rp, is_store) < 0) return NULL;
+    if (opt_int(opts, "bound", &want_bound) < 0) return NULL;
+    if (want_bound < WVOL_BOUND_NONE || want_bound > WVOL_BOUND_COARSE)
+        return PyErr_Format(PyExc_ValueError, "bound: unknown method %d", want_bound);
     if (is_store) {
         wvolpy_store *h = (wvolpy_store *)src_obj;
         const wvol_store *store = wvolpy_store_at(h, J);
         if (!store) return NULL;
+        if (want_bound) {
+            residual = h->c.residual;
+            if (!residual)
+                return PyErr_Format(PyExc_ValueError, "bound=True needs a Store made with "
+                                                      "wvol.compress(..., residual=True)");
+            if (wvol_store_basis(residual)->J != wvol_store_basis(store)->J)
+                return PyErr_Format(PyExc_ValueError, "bound=True: spline_j must be the store's (%d)",
+                                    wvol_store_basis(residual)->J);
+        }
         src = wvol_render_source_store(store);
         wvol_geometry_of_coeffs(&g, h->c.coeffs);
         vmin = h->c.value_min;
@@ -265,24 +289,42 @@ static PyObject *py_render(PyObject *self, PyObject *args)
     if (rp.mode != WVOL_RENDER_MODE_XRAY && parse_tf(opts, &tf, vmin, vmax) < 0) goto done;
     if (parse_colors(opts, &g, &rp, &colors) < 0) goto done;
     memset(&st, 0, sizeof st);
+    memset(&bs, 0, sizeof bs);
     Py_BEGIN_ALLOW_THREADS
     s = wvol_image_create(&img, cam.width, cam.height, &err);
     if (s == WVOL_OK) s = wvol_render(img, &src, &cam, &tf, &rp, &st, &err);
+    /* a dense volume dropped nothing: its bound image stays 0 */
+    if (s == WVOL_OK && want_bound) s = wvol_image_create(&bimg, cam.width, cam.height, &err);
+    if (s == WVOL_OK && residual)
+        s = (want_bound == WVOL_BOUND_COARSE ? wvol_render_bound_coarse : wvol_render_bound)(bimg, residual, 0.0, &cam,
+                                                                                          &tf, &rp, &bs, &err);
     Py_END_ALLOW_THREADS
     Py_XDECREF(holder);
     Py_XDECREF(colors);
     if (s != WVOL_OK) {
         wvol_image_destroy(img);
+        wvol_image_destroy(bimg);
         return wvolpy_raise(&err);
     }
     {
-        PyObject *a = image_take(img), *d;
-        if (!a) return NULL;
-        if (!(d = stats_dict(&st))) {
+        PyObject *a = image_take(img), *d, *b = Py_None;
+        if (!a) {
+            wvol_image_destroy(bimg);
+            return NULL;
+        }
+        if (bimg && !(b = image_take(bimg))) {
             Py_DECREF(a);
             return NULL;
         }
-        return Py_BuildValue("NN", a, d);
+        if (!(d = stats_dict(&st)) ||
+            (bimg && (dict_set_num(d, "bound_max", bs.max) < 0 || dict_set_num(d, "bound_mean", bs.mean) < 0))) {
+            Py_XDECREF(d);
+            Py_DECREF(a);
+            if (bimg) Py_DECREF(b);
+            return NULL;
+        }
+        if (!bimg) Py_INCREF(Py_None);
+        return Py_BuildValue("NNN", a, d, b);
     }
 done:
     Py_XDECREF(holder);
@@ -290,7 +332,135 @@ done:
     return NULL;
 }
 
+/* ---- progressive passes (wvol/progressive.h) ---- */
+
+typedef struct prog_state {
+    wvol_progressive *pr;
+    wvol_geometry g;
+    double vmin, vmax;
+    int bound;
+} prog_state;
+
+#define PROG_CAPSULE "wvol.progressive"
+
+static void prog_free(PyObject *cap)
+{
+    prog_state *ps = PyCapsule_GetPointer(cap, PROG_CAPSULE);
+    if (!ps) return;
+    wvol_progressive_end(ps->pr);
+    free(ps);
+}
+
+/* progressive_begin(array, spacing, origin, wavelet, levels, max_error, seconds, growth, bound)
+ * -> capsule: the volume transformed once (wvol_progressive_begin). */
+static PyObject *py_progressive_begin(PyObject *self, PyObject *args)
+{
+    PyObject *arr, *sp, *org, *lev_obj;
+    PyArrayObject *holder = NULL;
+    const char *wavelet;
+    wvol_volume v;
+    wvol_compress_params cp;
+    wvol_progressive_params pp;
+    prog_state *ps;
+    wvol_error err;
+    wvol_status s;
+    PyObject *cap;
+    (void)self;
+    wvol_progressive_params_default(&pp);
+    int bound = 1;
+    if (!PyArg_ParseTuple(args, "OOOzOdddi", &arr, &sp, &org, &wavelet, &lev_obj, &pp.max_error, &pp.seconds,
+                          &pp.growth, &bound))
+        return NULL;
+    pp.bound = (wvol_bound_method)bound;
+    wvol_compress_params_default(&cp);
+    if (wavelet) cp.wavelet = wavelet;
+    if (wvolpy_parse_levels(lev_obj, &cp.levels) < 0) return NULL;
+    if (!(ps = calloc(1, sizeof *ps))) return PyErr_NoMemory();
+    if (wvolpy_as_placed_volume(arr, sp, org, &v, &holder, 1) < 0) {
+        free(ps);
+        return NULL;
+    }
+    Py_BEGIN_ALLOW_THREADS
+    s = wvol_volume_set_geometry(&v, v.spacing, v.origin, &err);
+    if (s == WVOL_OK) s = wvol_progressive_begin(&ps->pr, &v, &cp, &pp, &err);
+    Py_END_ALLOW_THREADS
+    if (s == WVOL_OK) {
+        wvol_volume_range(&v, &ps->vmin, &ps->vmax, NULL);
+        wvol_geometry_of_volume(&ps->g, &v);
+        ps->bound = pp.bound;
+    }
+    Py_DECREF(holder);
+    if (s != WVOL_OK) {
+        free(ps);
+        return wvolpy_raise(&err);
+    }
+    if (!(cap = PyCapsule_New(ps, PROG_CAPSULE, prog_free))) {
+        wvol_progressive_end(ps->pr);
+        free(ps);
+    }
+    return cap;
+}
+
+/* progressive_next(capsule, opts) -> (image, bound or None, pass dict); opts as render's. */
+static PyObject *py_progressive_next(PyObject *self, PyObject *args)
+{
+    PyObject *cap, *opts, *a, *b = Py_None, *d;
+    prog_state *ps;
+    const char *camspec;
+    int width = 256, height = 256, J = 0;
+    wvol_camera cam;
+    wvol_tf tf;
+    wvol_render_params rp;
+    wvol_progressive_pass pass;
+    wvol_image *img = NULL, *bimg = NULL;
+    wvol_error err;
+    wvol_status s;
+    (void)self;
+    if (!PyArg_ParseTuple(args, "OO!", &cap, &PyDict_Type, &opts)) return NULL;
+    if (!(ps = PyCapsule_GetPointer(cap, PROG_CAPSULE))) return NULL;
+    if (parse_params(opts, &rp, &J) < 0) return NULL;
+    if (opt_int(opts, "width", &width) < 0 || opt_int(opts, "height", &height) < 0) return NULL;
+    if (!(camspec = opt_str(opts, "camera", "+z"))) return NULL;
+    if (wvol_camera_parse(&cam, camspec, &ps->g, width, height, &err) != WVOL_OK) return wvolpy_raise(&err);
+    memset(&tf, 0, sizeof tf);
+    if (rp.mode != WVOL_RENDER_MODE_XRAY && parse_tf(opts, &tf, ps->vmin, ps->vmax) < 0) return NULL;
+    Py_BEGIN_ALLOW_THREADS
+    s = wvol_image_create(&img, cam.width, cam.height, &err);
+    if (s == WVOL_OK && ps->bound) s = wvol_image_create(&bimg, cam.width, cam.height, &err);
+    if (s == WVOL_OK) s = wvol_progressive_next(ps->pr, img, bimg, &cam, &tf, &rp, &pass, &err);
+    Py_END_ALLOW_THREADS
+    if (s != WVOL_OK) {
+        wvol_image_destroy(img);
+        wvol_image_destroy(bimg);
+        return wvolpy_raise(&err);
+    }
+    if (!(a = image_take(img))) {
+        wvol_image_destroy(bimg);
+        return NULL;
+    }
+    if (bimg && !(b = image_take(bimg))) {
+        Py_DECREF(a);
+        return NULL;
+    }
+    if (!bimg) Py_INCREF(Py_None);
+    d = Py_BuildValue("{s:i,s:n,s:n,s:d,s:d,s:d,s:d,s:s,s:O,s:s}", "index", pass.index, "kept",
+                      (Py_ssize_t)pass.kept, "total", (Py_ssize_t)pass.total, "bound_max", pass.bound_max,
+                      "bound_mean", pass.bound_mean, "seconds", pass.seconds, "elapsed", pass.elapsed, "method",
+                      wvol_render_method_name(pass.method), "last", pass.last ? Py_True : Py_False, "stop",
+                      pass.stop);
+    if (!d) {
+        Py_DECREF(a);
+        Py_DECREF(b);
+        return NULL;
+    }
+    return Py_BuildValue("NNN", a, b, d);
+}
+
 PyMethodDef wvolpy_render_methods[] = {
     {"render", py_render, METH_VARARGS,
-     "render(source, spacing, origin, opts) -> (image, stats); source: a StoreHandle or an array"},
+     "render(source, spacing, origin, opts) -> (image, stats, bound or None); source: a StoreHandle or an array"},
+    {"progressive_begin", py_progressive_begin, METH_VARARGS,
+     "progressive_begin(array, spacing, origin, wavelet, levels, max_error, seconds, growth, bound) -> state"},
+    {"progressive_next", py_progressive_next, METH_VARARGS,
+     "progressive_next(state, opts) -> (image, bound or None, pass)"},
     {NULL, NULL, 0, NULL}};

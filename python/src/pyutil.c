@@ -310,3 +310,17 @@ int wvolpy_triple(PyObject *obj, double out[3], const char *what)
     Py_DECREF(seq);
     return 0;
 }
+
+int wvolpy_parse_levels(PyObject *obj, int *levels)
+{
+    long l;
+    if (obj == Py_None) return 0;
+    l = PyLong_AsLong(obj);
+    if (l == -1 && PyErr_Occurred()) return -1;
+    if (l < 1 || l > 30) {
+        PyErr_Format(PyExc_ValueError, "levels must be in 1..30 (None: default), got %ld", l);
+        return -1;
+    }
+    *levels = (int)l;
+    return 0;
+}

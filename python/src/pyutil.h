@@ -36,6 +36,10 @@ int wvolpy_as_volume(PyObject *obj, wvol_volume *out, PyArrayObject **holder, in
 int wvolpy_as_placed_volume(PyObject *obj, PyObject *spacing, PyObject *origin, wvol_volume *out,
                             PyArrayObject **holder, int check_finite);
 
+/* A levels argument: None keeps *levels (the library's default, 0), else an int in 1..30.
+ * 0 on success, -1 with ValueError/TypeError set. */
+int wvolpy_parse_levels(PyObject *obj, int *levels);
+
 /* New float32 array (nz, ny, nx) copying v's samples (2D (ny, nx) when squeeze2d and nz == 1). */
 PyObject *wvolpy_volume_to_array(const wvol_volume *v, int squeeze2d);
 

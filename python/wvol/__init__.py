@@ -18,7 +18,8 @@ from . import _wvol
 __version__ = _wvol.version
 
 __all__ = ["Volume", "load", "save", "filters", "dwt3", "idwt3", "Coeffs", "compress", "Store", "ErrorEstimate",
-           "synth", "segment", "Segmentation", "features", "open", "wvc_info", "render", "isosurface", "isoimage",
+           "synth", "segment", "Segmentation", "features", "open", "wvc_info", "render", "render_progressive",
+           "isosurface", "isoimage",
            "save_mesh"]
 
 
@@ -279,7 +280,7 @@ _MODES = ("keep", "keep_count", "energy", "psnr", "threshold")
 
 
 def compress(vol, wavelet="db2", levels=None, *, keep=None, keep_count=None, energy=None, psnr=None,
-             threshold=None, roi=None, roi_floor=0.1, drop_levels=0, spacing=None, origin=None):
+             threshold=None, roi=None, roi_floor=0.1, drop_levels=0, spacing=None, origin=None, residual=False):
     """Transforms a volume and keeps its most important coefficients; returns a :class:`Store`.
     One call of the library's compression pipeline (wvol_compress: transform, selection, store).
 
@@ -298,6 +299,8 @@ def compress(vol, wavelet="db2", levels=None, *, keep=None, keep_count=None, ene
     ``|c| * w`` with ``w = roi_floor + (1 - roi_floor) * max G(x)`` over the Gaussian
     ellipsoids G (super-Gaussian for power > 1). ``drop_levels``: the finest levels dropped
     entirely. Ranking is by magnitude; the low-pass cube is always kept.
+    ``residual=True`` also keeps what the selection dropped (as |c| on the majorants of the
+    basis functions), so that :func:`render` can return a per-pixel error bound (``bound=True``).
     """
     given = [(n, v) for n, v in zip(_MODES, (keep, keep_count, energy, psnr, threshold)) if v is not None]
     if len(given) > 1:
@@ -324,7 +327,7 @@ def compress(vol, wavelet="db2", levels=None, *, keep=None, keep_count=None, ene
         value_range = (float(a.min()), float(a.max()))
     handle, report = _wvol.compress(arr, wavelet=wavelet, levels=levels, mode=mode, value=value,
                                     drop_levels=drop_levels, roi=roi, roi_floor=roi_floor, spacing=spacing,
-                                    origin=origin, value_range=value_range)
+                                    origin=origin, value_range=value_range, residual=bool(residual))
     return Store(handle, report, original=arr)
 
 
@@ -380,9 +383,21 @@ def features(vol, wavelet="db2", levels=3, *, smooth=1, include_lowpass=True, pc
 
 # ---- rendering ------------------------------------------------------------------------------
 
+def _bound_method(bound):
+    """bound= of render and render_progressive: False, True (= "exact"), "exact" or "coarse"."""
+    if bound is False or bound is None:
+        return 0
+    if bound is True or bound == "exact":
+        return 1
+    if bound == "coarse":
+        return 2
+    raise ValueError(f"bound must be False, True, 'exact' or 'coarse', not {bound!r}")
+
+
 def render(source, camera="+z", size=(256, 256), *, mode="absorption", tf="gaussian", tf_units="world",
            method="auto", step=None, shading=False, ambient=None, gauss_nodes=None, spline_j=None, brick=None,
-           termination=None, threads=0, colors=None, skip_tolerance=None, preintegrate=False, gradient_levels=0, return_stats=False):
+           termination=None, threads=0, colors=None, skip_tolerance=None, preintegrate=False, gradient_levels=0,
+           bound=False, return_stats=False):
     """Renders a volume (array or :class:`Volume`) or a :class:`Store`; returns the image as
     an (height, width, 4) float32 array of linear, premultiplied RGBA, row 0 at the top
     (X-ray: R = G = B = the integral of f along the ray in value x world length, A = 1 where
@@ -428,22 +443,63 @@ def render(source, camera="+z", size=(256, 256), *, mode="absorption", tf="gauss
     ``gradient_levels``: "bricks" with ``shading``: shade with the gradient of the wavelet model's
     low-pass approximation, the details of that many finest levels dropped (noise and voxel
     terracing smoothed; the samples themselves unchanged).
-    ``return_stats=True`` returns ``(image, stats)``: "method" (the one that ran), rays,
-    samples, seconds...
+    ``bound=True`` (or "exact"; "coarse": each band's largest dropped coefficient, O(1) a pixel
+    for any camera, looser): also return a per-pixel bound on how far this image can be from the
+    image of all the coefficients (docs/render.md, "Error bounds"): ``(image, bound)``, the bound an
+    array like the image (X-ray: R = G = B, A = 0; absorption: per channel and alpha). Needs a
+    Store made with ``compress(..., residual=True)`` (a volume dropped nothing: its bound is 0);
+    modes "xray" and "absorption", no shading or colours; ``stats["bound_max"]`` and
+    ``["bound_mean"]``.
+    ``return_stats=True`` returns ``(image, stats)`` (``(image, bound, stats)`` with a bound):
+    "method" (the one that ran), rays, samples, seconds...
     """
     w, h = (int(v) for v in size)
     opts = dict(camera=camera, width=w, height=h, mode=mode, method=method, tf=tf, tf_units=tf_units, step=step,
                 shading=int(bool(shading)), ambient=ambient, gauss_nodes=gauss_nodes, spline_j=spline_j,
                 brick=brick, termination=termination, threads=threads, colors=colors,
-                skip_tolerance=skip_tolerance, preintegrate=int(bool(preintegrate)), gradient_levels=int(gradient_levels))
+                skip_tolerance=skip_tolerance, preintegrate=int(bool(preintegrate)), gradient_levels=int(gradient_levels),
+                bound=_bound_method(bound))
     if isinstance(tf, os.PathLike):
         opts["tf"] = os.fspath(tf)
     if isinstance(source, Store):
-        img, st = _wvol.render(source._handle, None, None, opts)
+        img, st, bd = _wvol.render(source._handle, None, None, opts)
     else:
         spacing, origin = _geometry(source, None, None)
-        img, st = _wvol.render(_data(source), spacing, origin, opts)
+        img, st, bd = _wvol.render(_data(source), spacing, origin, opts)
+    if bound:
+        return (img, bd, st) if return_stats else (img, bd)
     return (img, st) if return_stats else img
+
+
+def render_progressive(vol, camera="+z", size=(256, 256), *, mode="absorption", tf="gaussian", tf_units="world",
+                       wavelet="db2", levels=None, max_error=None, seconds=None, growth=4.0, bound=True,
+                       step=None, termination=None, threads=0):
+    """Progressive rendering of a volume (array or :class:`Volume`): a generator of
+    ``(image, bound, info)``, one per pass (docs/render.md, "Progressive rendering"). The volume
+    is transformed once; pass k renders from the largest coefficients, the low-pass cube alone
+    first and ``growth`` times more each pass, and returns with the image the per-pixel bound on
+    how far it can be from the image of all the coefficients (``bound=False``: None, and faster;
+    ``"coarse"``: the cheap bound of :func:`render`).
+    Passes stop after the first whose largest bound is <= ``max_error``, before one that would
+    end beyond ``seconds`` (wall clock since the call), or when everything is kept;
+    ``info["last"]`` marks the last and ``info["stop"]`` says why. ``info`` also has index,
+    kept, total, bound_max, bound_mean, seconds, elapsed and method. Camera, size, mode, tf and
+    the sampling options are those of :func:`render` (a bound needs mode "xray" or
+    "absorption", no shading). Each pass is computed when the generator is advanced.
+    """
+    w, h = (int(v) for v in size)
+    spacing, origin = _geometry(vol, None, None)
+    state = _wvol.progressive_begin(_data(vol), spacing, origin, wavelet, levels,
+                                    0.0 if max_error is None else float(max_error),
+                                    0.0 if seconds is None else float(seconds), float(growth),
+                                    _bound_method(bound))
+    opts = dict(camera=camera, width=w, height=h, mode=mode, tf=os.fspath(tf) if isinstance(tf, os.PathLike) else tf,
+                tf_units=tf_units, step=step, termination=termination, threads=threads)
+    while True:
+        img, bd, info = _wvol.progressive_next(state, opts)
+        yield img, bd, info
+        if info["last"]:
+            return
 
 
 # ---- isosurfaces ----------------------------------------------------------------------------

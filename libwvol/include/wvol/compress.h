@@ -49,6 +49,8 @@ typedef struct wvol_compress_params {
                                    depend on it); default 0 */
     wvol_select_params select;  /* what to keep (default: everything) */
     int build_store;            /* 1 (default): fill result->store */
+    int build_residual;         /* 1: also fill result->residual, the store of the dropped
+                                   coefficients (per-pixel error bounds); default 0 */
     wvol_store_params store;    /* the store's spline tables */
     wvol_compress_quant quant;  /* wvol_compress_encode only */
 } wvol_compress_params;
@@ -61,6 +63,9 @@ typedef struct wvol_compressed {
     wvol_selection *selection;  /* the kept set */
     wvol_store *store;          /* the store of the kept set (NULL unless build_store); when the
                                    selection keeps everything, of the nonzero coefficients only */
+    wvol_store *residual;       /* what the selection dropped, as a majorant store (|c| on the
+                                   majorants of |B|, wvol_store_params.majorant; NULL unless
+                                   build_residual): wvol_render_bound's input */
     wvol_select_report report;  /* predicted (and with select.measure, measured) error */
     int levels;                 /* levels used */
     double value_min, value_max;/* range of the volume's samples */

@@ -360,6 +360,50 @@ WVOL_API wvol_status wvol_render_xray_splat(wvol_image *img, const wvol_store *s
                                    const wvol_render_params *params, wvol_render_stats *stats,
                                    wvol_error *err);
 
+/* ---- per-pixel error bounds (docs/render.md, "Error bounds") ---------------- */
+
+/* Which per-pixel bound (wvol_render_bound or wvol_render_bound_coarse). */
+typedef enum wvol_bound_method {
+    WVOL_BOUND_NONE = 0,
+    WVOL_BOUND_EXACT = 1,   /* wvol_render_bound */
+    WVOL_BOUND_COARSE = 2   /* wvol_render_bound_coarse */
+} wvol_bound_method;
+
+typedef struct wvol_render_bound_stats {
+    double max;             /* largest bound of any pixel (colour channels) */
+    double mean;            /* mean over all pixels of the largest colour channel's bound */
+    size_t functions;       /* spline path: dropped function / ray pairs integrated */
+    size_t rays_hit;
+    wvol_render_method method; /* the exact X-ray path that ran: AXIS or SPLINE; AUTO for the
+                                  coarse bound */
+    double coeff_error_density; /* coeff_error x the bound of sum_j |B_j| (per unit of ray) */
+    double seconds;
+} wvol_render_bound_stats;
+
+/* A bound, per pixel, on how far the image of the kept coefficients can be from the image of
+ * all of them: `residual` is the majorant store of the dropped coefficients (wvol_compress
+ * with build_residual), `coeff_error` >= 0 a further error of every coefficient (a .wvc
+ * quantiser's largest, wvol_wvc_max_coeff_error; 0 for none). X-ray: R = G = B >= sum over
+ * dropped functions of |c| int |B| along the ray (+ coeff_error times the bound of sum |B|),
+ * computed by the exact X-ray paths on the residual (axis where it applies, else spline: its
+ * cost is that of a spline render of the residual), A = 0. Absorption:
+ * per channel (L_E + c_max L_kappa) times that, A: L_kappa times it, each clipped to the
+ * channel's range. It bounds the models' exact integrals (the spline integrator's), not the
+ * sampling error of the sampled paths. Absorption-linear, shading and colour volumes are
+ * refused (WVOL_ERR_UNSUPPORTED). Never NaN or negative; rounded up to float. */
+WVOL_API wvol_status wvol_render_bound(wvol_image *bound, const wvol_store *residual, double coeff_error,
+                                       const wvol_camera *cam, const wvol_tf *tf, const wvol_render_params *params,
+                                       wvol_render_bound_stats *stats, wvol_error *err);
+
+/* A coarser bound at the cost of one pass over the residual and O(1) per pixel, for any camera
+ * (where the exact one would need the spline path: oblique and perspective views): each pixel's
+ * chord times the sum over levels and bands of the band's largest dropped |c| times the bound
+ * of sum |B| of that band (docs/render.md, "Error bounds"). Same inputs, output and refusals. */
+WVOL_API wvol_status wvol_render_bound_coarse(wvol_image *bound, const wvol_store *residual, double coeff_error,
+                                              const wvol_camera *cam, const wvol_tf *tf,
+                                              const wvol_render_params *params, wvol_render_bound_stats *stats,
+                                              wvol_error *err);
+
 /* Image error: RMSE over all pixels and the 4 channels (or only `channel` 0..3 if >= 0) of a
  * against b, relative to the max |b| of those channels when relative is set. Same sizes. */
 WVOL_API double wvol_image_rmse(const wvol_image *a, const wvol_image *b, int channel, int relative);

@@ -156,6 +156,10 @@ typedef struct wvol_store_params {
     int spline_J;          /* knots per unit 2^J of the basis splines; 0 = default (4: the
                               speed/accuracy trade-off of docs/basis.md; the CLI and Python
                               use it too) */
+    int majorant;          /* 1: the basis tables are the majorants of |phi|, |psi|
+                              (wvol_basis_create_majorant) and the coefficients are stored as
+                              |c|: its X-ray bounds sum |c| int |B| on every ray (a residual
+                              store for wvol_render_bound). Default 0 */
 } wvol_store_params;
 
 WVOL_API void wvol_store_params_default(wvol_store_params *p);

@@ -204,12 +204,23 @@ typedef struct wvol_basis {
     double vmax[2], dmax[2];    /* [WVOL_BASIS_PHI], [WVOL_BASIS_PSI] */
     double abs_integral[2];     /* integral of |spline|: bounds |integral over any interval| */
     double end_slope[2];        /* |S'(0)| = |S'(L-1)|: the slope jump at the support ends */
+    int majorant;               /* 1: the tables are the majorants of |phi|, |psi|
+                                   (wvol_basis_create_majorant); the checks above are then
+                                   those of the plain splines, the bounds of the majorants */
 } wvol_basis;
 
 /* Builds the tables for filter f with 2^J knots per unit (J in 1..12; Haar and
  * db1 ignore J and are exact). Cost O(L^2 2^J). */
 WVOL_API wvol_status wvol_basis_create(wvol_basis **out, const wvol_filter *f, int J, wvol_error *err);
 WVOL_API void wvol_basis_destroy(wvol_basis *b);   /* NULL is fine */
+
+/* The same tables with phi and psi replaced, piece by piece, by majorants of |phi| and |psi|:
+ * the cubic whose Bernstein coefficients on the piece are the absolute values of the
+ * spline's. Nonnegative, >= |spline| everywhere, equal to it on every piece where the spline
+ * keeps one sign (Haar: exactly |phi|, |psi|), continuous; derivatives, primitives and bounds
+ * follow. A store built on them with |c| (wvol_store_params.majorant) has an X-ray that bounds
+ * sum |c| int |B| along every ray: the per-pixel error bound (wvol_render_bound). */
+WVOL_API wvol_status wvol_basis_create_majorant(wvol_basis **out, const wvol_filter *f, int J, wvol_error *err);
 
 /* Evaluate the spline model: which is WVOL_BASIS_PHI or WVOL_BASIS_PSI. O(1), no allocation.
  * value/deriv are 0 outside [0, support); primitive is the integral from 0 to x. */

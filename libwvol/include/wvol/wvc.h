@@ -95,6 +95,12 @@ typedef struct wvol_wvc_report {
     double seconds_step, seconds_quantise, seconds_code;
 } wvol_wvc_report;
 
+/* The largest |c - c_hat| the file's quantiser can leave on any coefficient, from its
+ * step, rounding and reconstruction offsets (0 when the info has no step). Coefficients a
+ * selection dropped before coding (info->dropped_energy > 0) are not covered: their values
+ * are not in the file. The per-pixel error bound (wvol_render_bound) takes it. */
+WVOL_API double wvol_wvc_max_coeff_error(const wvol_wvc_info *info);
+
 /* Encodes coefficients (zero the ones a selection dropped before calling) into a
  * heap buffer *out of *out_size bytes (free with free()). report may be NULL. */
 WVOL_API wvol_status wvol_wvc_encode(void **out, size_t *out_size, const wvol_coeffs *c,

@@ -14,6 +14,7 @@
 #include "wvol/wvc.h"
 #include "wvol/compress.h"
 #include "wvol/render.h"
+#include "wvol/progressive.h"
 #include "wvol/iso.h"
 #include "wvol/analysis.h"
 #include "wvol/rng.h"

@@ -31,6 +31,7 @@ void wvol_compressed_free(wvol_compressed *c)
 {
     if (!c) return;
     wvol_store_destroy(c->store);
+    wvol_store_destroy(c->residual);
     wvol_selection_destroy(c->selection);
     wvol_coeffs_destroy(c->coeffs);
     memset(c, 0, sizeof *c);
@@ -52,7 +53,9 @@ static wvol_status select_and_store(wvol_compressed *out, const wvol_volume *v, 
                                     wvol_error *err)
 {
     double t0 = wvol__now();
+    wvol_coeffs *dropped = NULL;
     wvol_status s = wvol_select(&out->selection, out->coeffs, &p->select, v, &out->report, err);
+    if (s == WVOL_OK && p->build_residual) s = wvol_coeffs_clone(&dropped, out->coeffs, err);
     if (s == WVOL_OK) s = wvol_selection_apply(out->selection, out->coeffs, err);
     out->seconds_select = wvol__now() - t0;
     t0 = wvol__now();
@@ -60,6 +63,18 @@ static wvol_status select_and_store(wvol_compressed *out, const wvol_volume *v, 
         const wvol_selection *sel = out->report.kept < out->report.total ? out->selection : NULL;
         s = wvol_store_build(&out->store, out->coeffs, sel, &p->store, err);
     }
+    if (s == WVOL_OK && dropped) {
+        /* what the selection zeroed: the original minus the kept (exact: each entry is either
+         * the original value or 0); its nonzero entries, as |c| on the majorants of |B|, are
+         * the residual store whose X-ray is the per-pixel error bound */
+        size_t i, n = dropped->px * dropped->py * dropped->pz;
+        for (i = 0; i < n; i++)
+            if (out->coeffs->data[i] != 0.0f) dropped->data[i] = 0.0f;
+        wvol_store_params rp = p->store;
+        rp.majorant = 1;
+        s = wvol_store_build(&out->residual, dropped, NULL, &rp, err);
+    }
+    wvol_coeffs_destroy(dropped);
     out->seconds_store = wvol__now() - t0;
     return s;
 }

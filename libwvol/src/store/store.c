@@ -147,6 +147,9 @@ static void mark_level(const wvol__layout *ly, const uint64_t *sel, int m, bitse
     }
 }
 
+/* The value a store keeps for a coefficient: |c| in a majorant store. */
+static inline float stored(const wvol_store_params *prm, float c) { return prm && prm->majorant ? fabsf(c) : c; }
+
 wvol_status wvol_store_build(wvol_store **out, const wvol_coeffs *c, const wvol_selection *sel,
                              const wvol_store_params *prm, wvol_error *err)
 {
@@ -192,7 +195,9 @@ wvol_status wvol_store_build(wvol_store **out, const wvol_coeffs *c, const wvol_
     for (int a = 0; a < 3; a++) s->E[a] = wvol__ext(&ly, a, M);
     for (int m = 0; m <= WVOL_SELECT_MAX_LEVELS; m++) s->pow2[m] = ldexp(1.0, m), s->ipow2[m] = ldexp(1.0, -m);
 
-    if ((st = wvol_basis_create(&s->basis, c->filter, J, err)) != WVOL_OK) goto fail;
+    if ((st = (prm && prm->majorant ? wvol_basis_create_majorant : wvol_basis_create)(&s->basis, c->filter, J, err)) !=
+        WVOL_OK)
+        goto fail;
     if ((st = wvol__ranges_build(&s->rg, s->basis, err)) != WVOL_OK) goto fail;
     function_bounds(s);
 
@@ -204,7 +209,7 @@ wvol_status wvol_store_build(wvol_store **out, const wvol_coeffs *c, const wvol_
     for (size_t r = 0; r < s->E[2]; r++)
         for (size_t q = 0; q < s->E[1]; q++)
             for (size_t p = 0; p < s->E[0]; p++)
-                s->lowpass[p + s->E[0] * (q + s->E[1] * r)] = c->data[wvol__index(&ly, M, 0, p, q, r)];
+                s->lowpass[p + s->E[0] * (q + s->E[1] * r)] = stored(prm, c->data[wvol__index(&ly, M, 0, p, q, r)]);
 
     /* node presence per level: own kept coefficients, then propagated to ancestors */
     for (int m = 1; m <= M; m++) {
@@ -285,7 +290,7 @@ wvol_status wvol_store_build(wvol_store **out, const wvol_coeffs *c, const wvol_
                     goto fail;
                 }
                 nd->band_mask |= (uint8_t)(1u << (l - 1));
-                s->values[nv++] = c->data[idx];
+                s->values[nv++] = stored(prm, c->data[idx]);
             }
         }
         if (nv != s->nvalues) {

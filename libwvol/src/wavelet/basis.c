@@ -72,6 +72,27 @@ static double gram_error(const wvol_basis *b, const double *at, const double *ct
     return worst;
 }
 
+/* The tables' rigorous bounds (vmax, dmax, abs_integral, end_slope). */
+static void compute_bounds(wvol_basis *b)
+{
+    int w, i, P = b->pieces;
+    for (w = 0; w < 2; w++) {
+        const double *tab = w ? b->psi : b->phi, *der = w ? b->dpsi : b->dphi;
+        double vm = 0.0, dm = 0.0, ai = 0.0, t;
+        for (i = 0; i < P; i++) {
+            t = wvol__cubic_absmax(tab + 4 * (size_t)i, b->h);
+            if (t > vm) vm = t;
+            t = wvol__cubic_absmax(der + 4 * (size_t)i, b->h);
+            if (t > dm) dm = t;
+            ai += wvol__cubic_absint(tab + 4 * (size_t)i, b->h);
+        }
+        b->vmax[w] = BOUND_SLACK(vm);
+        b->dmax[w] = BOUND_SLACK(dm);
+        b->abs_integral[w] = BOUND_SLACK(ai);
+        b->end_slope[w] = fabs(tab[1]);
+    }
+}
+
 /* scaled: scratch of 16 doubles per piece */
 static void compute_checks(wvol_basis *b, const double *phic, const double *psic, int Jc, double *scaled)
 {
@@ -121,22 +142,7 @@ static void compute_checks(wvol_basis *b, const double *phic, const double *psic
         e2 = gram_error(b, pt, sq, -(L - 2), L - 2, 0);
         b->ortho_error_psi = e1 > e2 ? e1 : e2;
     }
-    /* bounds */
-    for (w = 0; w < 2; w++) {
-        const double *tab = w ? b->psi : b->phi, *der = w ? b->dpsi : b->dphi;
-        double vm = 0.0, dm = 0.0, ai = 0.0, t;
-        for (i = 0; i < P; i++) {
-            t = wvol__cubic_absmax(tab + 4 * (size_t)i, b->h);
-            if (t > vm) vm = t;
-            t = wvol__cubic_absmax(der + 4 * (size_t)i, b->h);
-            if (t > dm) dm = t;
-            ai += wvol__cubic_absint(tab + 4 * (size_t)i, b->h);
-        }
-        b->vmax[w] = BOUND_SLACK(vm);
-        b->dmax[w] = BOUND_SLACK(dm);
-        b->abs_integral[w] = BOUND_SLACK(ai);
-        b->end_slope[w] = fabs(tab[1]);
-    }
+    compute_bounds(b);
 }
 
 wvol_status wvol_basis_create(wvol_basis **out, const wvol_filter *f, int J, wvol_error *err)
@@ -236,6 +242,49 @@ fail:
     free(block);
     free(b);
     return s;
+}
+
+/* Piece by piece, the cubic whose Bernstein coefficients on the piece are the absolute values
+ * of the spline's: it is >= |spline| on the piece (|p| <= sum |b_i| B_i, the B_i >= 0), equal
+ * to |spline| where the piece keeps one sign, and continuous (the end coefficients are the end
+ * values). */
+static void majorant_pieces(double *c, int P, double h)
+{
+    int i;
+    for (i = 0; i < P; i++) {
+        double *q = c + 4 * (size_t)i, a[4], bz[4], hp = 1.0;
+        int k;
+        for (k = 0; k < 4; k++, hp *= h) a[k] = q[k] * hp; /* in t = u / h on [0, 1] */
+        bz[0] = a[0];
+        bz[1] = a[0] + a[1] / 3.0;
+        bz[2] = a[0] + (2.0 * a[1] + a[2]) / 3.0;
+        bz[3] = a[0] + a[1] + a[2] + a[3];
+        for (k = 0; k < 4; k++) bz[k] = fabs(bz[k]);
+        a[0] = bz[0];
+        a[1] = 3.0 * (bz[1] - bz[0]);
+        a[2] = 3.0 * (bz[2] - 2.0 * bz[1] + bz[0]);
+        a[3] = bz[3] - 3.0 * bz[2] + 3.0 * bz[1] - bz[0];
+        hp = 1.0;
+        for (k = 0; k < 4; k++, hp *= h) q[k] = a[k] / hp;
+    }
+}
+
+wvol_status wvol_basis_create_majorant(wvol_basis **out, const wvol_filter *f, int J, wvol_error *err)
+{
+    wvol_basis *b;
+    size_t N;
+    WVOL_FORWARD(wvol_basis_create(out, f, J, err));
+    b = *out;
+    N = (size_t)b->pieces;
+    majorant_pieces(b->phi, b->pieces, b->h);
+    majorant_pieces(b->psi, b->pieces, b->h);
+    wvol__spline_deriv(b->dphi, b->phi, N);
+    wvol__spline_deriv(b->dpsi, b->psi, N);
+    b->phi_integral = wvol__spline_primitive(b->phi_int, b->phi, N, b->h);
+    b->psi_integral = wvol__spline_primitive(b->psi_int, b->psi, N, b->h);
+    compute_bounds(b);
+    b->majorant = 1;
+    return WVOL_OK;
 }
 
 void wvol_basis_destroy(wvol_basis *b)

@@ -1,0 +1,123 @@
+# SPDX-License-Identifier: MIT
+"""Per-pixel error bounds (wvol.render(..., bound=True), wvol render --bound): on every pixel the
+image of the kept coefficients is within the bound of the image of all of them (both from the
+exact X-ray paths), the CLI writes the same bound as Python, and bad requests are refused."""
+import json
+
+import numpy as np
+import pytest
+
+import wvol
+from conftest import run_wvol
+from test_render import read_exr_rgba
+
+SIZE = (24, 20)
+
+
+@pytest.fixture(scope="module")
+def blobs():
+    return wvol.synth.blobs(shape=(16, 16, 16), seed=3)
+
+
+@pytest.mark.parametrize("camera", ["+z", "-x", "ortho dir=1,0.6,0.3"])
+def test_bound_holds_on_every_pixel(blobs, camera):
+    full = wvol.compress(blobs)
+    kept = wvol.compress(blobs, keep=0.1, residual=True)
+    # both by the exact paths (axis along an axis, else spline): the bound compares the models
+    method = "auto" if camera in ("+z", "-x") else "spline"
+    ia = wvol.render(full, camera, SIZE, mode="xray", method=method)
+    ik, bd, st = wvol.render(kept, camera, SIZE, mode="xray", method=method, bound=True, return_stats=True)
+    diff = np.abs(ia[..., :3].astype(np.float64) - ik[..., :3])
+    # float32 images: half an ulp of each pixel allowed
+    allow = (np.abs(ia[..., :3]) + np.abs(ik[..., :3])) * 2.0 ** -24
+    assert np.all(diff <= bd[..., :3] + allow)
+    assert np.all(np.isfinite(bd)) and np.all(bd >= 0)
+    assert st["bound_max"] == pytest.approx(float(bd[..., :3].max()), rel=1e-6)
+    assert diff.max() > 0.05 * st["bound_max"]  # the images do differ: the check is not vacuous
+
+
+def test_cli_bound_matches_python(tmp_path, blobs):
+    src = tmp_path / "blobs.nrrd"
+    wvol.save(blobs, src)
+    r = run_wvol("render", src, "-o", tmp_path / "x.exr", "--keep", "10%", "--mode", "xray", "--size",
+                 f"{SIZE[0]}x{SIZE[1]}", "--bound", tmp_path / "b.exr", "--json")
+    assert r.returncode == 0, r.stderr
+    info = json.loads(r.stdout)
+    b = read_exr_rgba(tmp_path / "b.exr").reshape(SIZE[1], 4, SIZE[0])   # per row: A, B, G, R
+    _, bd = wvol.render(wvol.compress(blobs, keep=0.1, residual=True), "+z", SIZE, mode="xray", bound=True)
+    assert np.array_equal(b[:, 3, :], bd[..., 0])
+    assert info["bound_max"] == pytest.approx(float(bd[..., 0].max()), rel=1e-6)
+
+
+def test_bound_refusals(tmp_path, blobs):
+    with pytest.raises(ValueError, match="residual=True"):
+        wvol.render(wvol.compress(blobs, keep=0.1), "+z", SIZE, mode="xray", bound=True)
+    src = tmp_path / "blobs.nrrd"
+    wvol.save(blobs, src)
+    for extra, msg in ((["--bound", tmp_path / "b.png"], ".exr"),
+                       (["--bound", tmp_path / "b.exr", "--mode", "absorption-linear"], "absorption-linear"),
+                       (["--bound", tmp_path / "b.exr", "--shading"], "shading")):
+        r = run_wvol("render", src, "-o", tmp_path / "x.exr", "--keep", "10%", *extra)
+        assert r.returncode != 0 and msg in r.stderr, r.stderr
+        assert not (tmp_path / "b.exr").exists()
+
+
+def test_progressive_passes(blobs):
+    full = wvol.render(wvol.compress(blobs), "+z", SIZE, mode="xray")
+    passes = list(wvol.render_progressive(blobs, "+z", SIZE, mode="xray"))
+    assert passes[-1][2]["last"] and passes[-1][2]["stop"] == "complete"
+    assert not any(info["last"] for _, _, info in passes[:-1])
+    kept = [info["kept"] for _, _, info in passes]
+    assert kept[0] == (16 >> 3) ** 3 and kept == sorted(kept)   # the low-pass cube (3 levels) first
+    prev = None
+    for img, bd, info in passes:
+        diff = np.abs(full[..., :3].astype(np.float64) - img[..., :3])
+        allow = (np.abs(full[..., :3]) + np.abs(img[..., :3])) * 2.0 ** -24
+        assert np.all(diff <= bd[..., :3] + allow), info
+        if prev is not None:   # the residual only shrinks: so does every pixel's bound
+            assert np.all(bd <= prev)
+        prev = bd
+    assert passes[-1][2]["bound_max"] == 0
+
+
+def test_progressive_stops_at_the_target(blobs):
+    passes = list(wvol.render_progressive(blobs, "+z", SIZE, mode="xray"))
+    target = passes[1][2]["bound_max"] * 1.001
+    got = list(wvol.render_progressive(blobs, "+z", SIZE, mode="xray", max_error=target))
+    assert len(got) == 2 and got[-1][2]["stop"] == "max-error"
+    with pytest.raises(ValueError, match="growth"):
+        next(wvol.render_progressive(blobs, growth=1.0))
+
+
+def test_cli_progressive(tmp_path, blobs):
+    src = tmp_path / "blobs.nrrd"
+    wvol.save(blobs, src)
+    r = run_wvol("render", src, "-o", tmp_path / "p.exr", "--mode", "xray", "--size", f"{SIZE[0]}x{SIZE[1]}",
+                 "--progressive", "--bound", tmp_path / "b.exr", "--json")
+    assert r.returncode == 0, r.stderr
+    info = json.loads(r.stdout)
+    n = len(info["passes"])
+    assert info["stop"] == "complete" and n >= 2
+    for k in range(n):
+        assert (tmp_path / f"p.pass{k}.exr").exists() and (tmp_path / f"b.pass{k}.exr").exists()
+    last = read_exr_rgba(tmp_path / "p.exr")
+    assert np.array_equal(last, read_exr_rgba(tmp_path / f"p.pass{n - 1}.exr"))
+    r = run_wvol("render", src, "-o", tmp_path / "q.exr", "--max-error", "1")
+    assert r.returncode != 0 and "--progressive" in r.stderr
+
+
+def test_coarse_bound_above_the_exact(tmp_path, blobs):
+    kept = wvol.compress(blobs, keep=0.1, residual=True)
+    cam = "persp dir=1,0.6,0.3"
+    _, exact = wvol.render(kept, cam, SIZE, mode="xray", bound="exact")
+    _, coarse = wvol.render(kept, cam, SIZE, mode="xray", bound="coarse")
+    assert np.all(coarse[..., :3] >= exact[..., :3] * (1 - 1e-5))
+    with pytest.raises(ValueError, match="coarse"):
+        wvol.render(kept, cam, SIZE, mode="xray", bound="tight")
+    src = tmp_path / "blobs.nrrd"
+    wvol.save(blobs, src)
+    r = run_wvol("render", src, "-o", tmp_path / "x.exr", "--keep", "10%", "--mode", "xray", "--camera", cam,
+                 "--size", f"{SIZE[0]}x{SIZE[1]}", "--bound", tmp_path / "b.exr", "--bound-method", "coarse", "--json")
+    assert r.returncode == 0, r.stderr
+    b = read_exr_rgba(tmp_path / "b.exr").reshape(SIZE[1], 4, SIZE[0])
+    assert np.array_equal(b[:, 3, :], coarse[..., 0])
