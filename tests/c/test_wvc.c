@@ -60,6 +60,9 @@ static void fixture_free(fixture *F)
     wvol_volume_destroy(F->v);
 }
 
+/* The format version encode() writes (0: the default, version 2). */
+static int g_version;
+
 static int encode(void **buf, size_t *n, const fixture *F, double psnr, double step, wvol_wvc_coder coder,
                   wvol_wvc_report *rep)
 {
@@ -71,6 +74,7 @@ static int encode(void **buf, size_t *n, const fixture *F, double psnr, double s
     p.value_max = F->vmax;
     p.coder = coder;
     p.step = step;
+    p.version = g_version;
     if (step == 0) p.target_sse = wvol_wvc_sse_for_psnr(psnr, (double)nv, F->vmin, F->vmax);
     if (wvol_wvc_encode(buf, n, F->c, &p, rep, &err) != WVOL_OK) {
         fprintf(stderr, "encode: %s\n", err.message);
@@ -242,6 +246,13 @@ static void wvc_odd_sizes_and_flat_axes_round_trip(void)
     wvc_round_trip_meets_psnr_target("coif1", 9, 1, 1, 3);  /* a line */
 }
 
+/* Every byte of the file is covered: a refusal must name what is damaged. */
+static int names_the_damage(const char *msg)
+{
+    return strstr(msg, "chunk") || strstr(msg, "index") || strstr(msg, "header") || strstr(msg, "magic") ||
+           strstr(msg, "truncated") || strstr(msg, "version") || strstr(msg, "short") || strstr(msg, "section");
+}
+
 static int refused(const void *buf, size_t n, wvol_status want_any_error, const char *what, size_t pos)
 {
     wvol_coeffs *d = NULL;
@@ -258,14 +269,14 @@ static int refused(const void *buf, size_t n, wvol_status want_any_error, const 
         fprintf(stderr, "%s at %zu: status %d (%s)\n", what, pos, (int)s, err.message);
         return 0;
     }
-    if (!err.message[0]) {
-        fprintf(stderr, "%s at %zu: no message\n", what, pos);
+    if (!err.message[0] || !names_the_damage(err.message)) {
+        fprintf(stderr, "%s at %zu: message '%s' does not name the damaged part\n", what, pos, err.message);
         return 0;
     }
     return 1;
 }
 
-static void wvc_refuses_truncation_and_bit_flips_everywhere(void)
+static void wvc_refuses_truncation_and_bit_flips_everywhere(int version)
 {
     fixture F;
     void *buf = NULL;
@@ -274,7 +285,9 @@ static void wvc_refuses_truncation_and_bit_flips_everywhere(void)
     int bit;
     CHECK(fixture_make(&F, 16, 16, 16, "db2", 2), "fixture");
     if (!F.c) return;
+    g_version = version;
     CHECK(encode(&buf, &n, &F, 40, 0, WVOL_WVC_CODER_AUTO, NULL), "encode");
+    g_version = 0;
     if (!buf) return;
     copy = malloc(n);
     {
@@ -339,6 +352,7 @@ static void wvc_refuses_crafted_headers(void)
     wvol_coeffs *d = NULL;
     CHECK(fixture_make(&F, 16, 16, 16, "haar", 2), "fixture");
     if (!F.c) return;
+    g_version = 1; /* the version-1 layout; version 2's own fields are crafted below */
     CHECK(encode(&buf, &n, &F, 40, 0, WVOL_WVC_CODER_CABAC, NULL), "encode");
     if (!buf) return;
     t = malloc(n);
@@ -355,7 +369,7 @@ static void wvc_refuses_crafted_headers(void)
     } while (0)
 
     TRY("magic", t[1] = 'X', WVOL_ERR_FORMAT, "magic");
-    TRY("newer version", (t[8] = 2, reseal(t)), WVOL_ERR_UNSUPPORTED, "newer");
+    TRY("newer version", (t[8] = 3, reseal(t)), WVOL_ERR_UNSUPPORTED, "newer");
     TRY("version 0", (t[8] = 0, reseal(t)), WVOL_ERR_FORMAT, "version");
     TRY("header checksum", t[40] ^= 1, WVOL_ERR_FORMAT, "checksum");
     TRY("flags", (t[10] = 1, reseal(t)), WVOL_ERR_UNSUPPORTED, "flags");
@@ -397,6 +411,93 @@ static void wvc_refuses_crafted_headers(void)
         free(b4);
         fixture_free(&G);
     }
+    g_version = 0;
+    free(t);
+    free(buf);
+    fixture_free(&F);
+}
+
+/* Version 2: the header, band table and chunk index share one CRC; reseal recomputes it. */
+static size_t v2_prefix(const uint8_t *b)
+{
+    uint32_t nsec = b[12] | (b[13] << 8) | (b[14] << 16) | ((uint32_t)b[15] << 24);
+    uint64_t nchunks = 0;
+    for (int i = 7; i >= 0; i--) nchunks = (nchunks << 8) | b[208 + i];
+    return 224 + (size_t)nsec * 48 + (size_t)nchunks * 32;
+}
+
+static void reseal2(uint8_t *b)
+{
+    size_t h = v2_prefix(b);
+    uint32_t c = (uint32_t)crc32(0L, b, (uInt)h);
+    for (int i = 0; i < 4; i++) b[h + i] = (uint8_t)(c >> (8 * i));
+}
+
+static void wvc2_refuses_crafted_headers_and_indexes(void)
+{
+    fixture F;
+    void *buf = NULL;
+    uint8_t *t;
+    size_t n, idx, first_coded = 0;
+    wvol_error err;
+    wvol_coeffs *d = NULL;
+    wvol_wvc_info info;
+    CHECK(fixture_make(&F, 24, 20, 16, "db2", 2), "fixture");
+    if (!F.c) return;
+    CHECK(encode(&buf, &n, &F, 50, 0, WVOL_WVC_CODER_AUTO, NULL), "encode");
+    if (!buf) return;
+    CHECK(wvol_wvc_parse_info(&info, buf, n, &err) == WVOL_OK && info.version == 2 && info.chunks > 1,
+          "a version-2 file with several chunks: %s", err.message);
+    t = malloc(n);
+    idx = 224 + (size_t)info.nsections * 48;
+    /* the first chunk with a payload */
+    for (size_t k = 0; k < info.chunks; k++) {
+        const uint8_t *e = (const uint8_t *)buf + idx + 32 * k;
+        if (e[8] | e[9] | e[10] | e[11]) {
+            first_coded = k;
+            break;
+        }
+    }
+#define TRY2(label, mutate, want, needle)                                                    \
+    do {                                                                                     \
+        memcpy(t, buf, n);                                                                   \
+        mutate;                                                                              \
+        memset(&err, 0, sizeof err);                                                         \
+        CHECK(wvol_wvc_decode(&d, t, n, NULL, NULL, &err) == (want), "%s: %s", label, err.message); \
+        CHECK(strstr(err.message, needle) != NULL, "%s: message '%s' lacks '%s'", label, err.message, needle); \
+        wvol_coeffs_destroy(d);                                                              \
+        d = NULL;                                                                            \
+    } while (0)
+    TRY2("index checksum", t[idx + 17] ^= 4, WVOL_ERR_FORMAT, "index checksum");
+    TRY2("tile too small", (t[33] = 2, reseal2(t)), WVOL_ERR_FORMAT, "tile");
+    TRY2("tile depth too large", (t[34] = 9, reseal2(t)), WVOL_ERR_FORMAT, "tile");
+    TRY2("tile changed", (t[33] = 3, reseal2(t)), WVOL_ERR_FORMAT, "chunks");
+    TRY2("reserved", (t[35] = 1, reseal2(t)), WVOL_ERR_FORMAT, "reserved");
+    TRY2("chunk offset", (t[idx + 32 * first_coded] += 1, reseal2(t)), WVOL_ERR_FORMAT, "index: chunk");
+    TRY2("chunk size", (t[idx + 32 * first_coded + 8] += 1, reseal2(t)), WVOL_ERR_FORMAT, "");
+    TRY2("chunk non-zeros", (t[idx + 32 * first_coded + 20] += 1, reseal2(t)), WVOL_ERR_FORMAT, "non-zero");
+    TRY2("chunk max is NaN", (t[idx + 32 * first_coded + 19] = 0x7f, t[idx + 32 * first_coded + 18] = 0xc0, reseal2(t)),
+         WVOL_ERR_FORMAT, "index: chunk");
+    TRY2("band table level", (t[224 + 48 + 0] = 7, reseal2(t)), WVOL_ERR_FORMAT, "band table");
+    TRY2("band offset", (t[224 + 48 + 19] = 0x7f, reseal2(t)), WVOL_ERR_FORMAT, "band table");
+    {
+        /* a chunk's payload with a valid CRC but an unknown mode: named by the chunk */
+        const uint8_t *e = (const uint8_t *)buf + idx + 32 * first_coded;
+        uint64_t off = 0;
+        uint32_t len = e[8] | (e[9] << 8) | (e[10] << 16) | ((uint32_t)e[11] << 24), c;
+        for (int i = 7; i >= 0; i--) off = (off << 8) | e[i];
+        memcpy(t, buf, n);
+        t[off] = 9;
+        c = (uint32_t)crc32(0L, t + off, len);
+        for (int i = 0; i < 4; i++) t[idx + 32 * first_coded + 12 + i] = (uint8_t)(c >> (8 * i));
+        reseal2(t);
+        CHECK(wvol_wvc_decode(&d, t, n, NULL, NULL, &err) == WVOL_ERR_FORMAT && strstr(err.message, "chunk") &&
+                  strstr(err.message, "mode"),
+              "unknown chunk mode: %s", err.message);
+        wvol_coeffs_destroy(d);
+        d = NULL;
+    }
+#undef TRY2
     free(t);
     free(buf);
     fixture_free(&F);
@@ -591,10 +692,17 @@ int main(void)
     for (int i = 0; i < 4; i++) wvc_round_trip_meets_psnr_target(fam[i], 16, 16, 16, 2);
     wvc_round_trip_meets_psnr_target("db4", 32, 32, 32, 3);
     wvc_odd_sizes_and_flat_axes_round_trip();
+    /* version 1 is still written on request and read */
+    g_version = 1;
+    wvc_round_trip_meets_psnr_target("db2", 16, 16, 16, 2);
+    wvc_odd_sizes_and_flat_axes_round_trip();
+    g_version = 0;
     wvc_coders_decode_to_the_same_coefficients();
     wvc_early_stop_gives_the_coarser_volume();
-    wvc_refuses_truncation_and_bit_flips_everywhere();
+    wvc_refuses_truncation_and_bit_flips_everywhere(2);
+    wvc_refuses_truncation_and_bit_flips_everywhere(1);
     wvc_refuses_crafted_headers();
+    wvc2_refuses_crafted_headers_and_indexes();
     wvc_survives_garbage_payloads_with_valid_checksums();
     wvc_files_are_atomic_and_checked();
     wvc_refuses_bad_parameters();

@@ -47,7 +47,9 @@ typedef struct wvol_wvc_params {
     double value_min, value_max; /* range of the original samples (header; PSNR peak) */
     double dropped_energy;       /* energy the caller zeroed before encoding (header; reports) */
     int version;         /* file format: 0 = WVOL_WVC_FORMAT_VERSION (2, chunked, random access), 1 */
-    int tile;            /* version 2: chunk edge in coefficients, a power of two in 8..256 (0: 32) */
+    int tile;            /* version 2: chunk edge along x and y in coefficients, a power of two
+                            in 8..256 (0: 64) */
+    int tile_z;          /* version 2: chunk depth along z, the same range (0: 32) */
 } wvol_wvc_params;
 
 WVOL_API void wvol_wvc_params_default(wvol_wvc_params *p);
@@ -83,7 +85,7 @@ typedef struct wvol_wvc_info {
     uint64_t nonzero;
     uint64_t file_bytes;     /* header + table + payloads */
     uint64_t header_bytes;   /* version 2: header, band table and chunk index */
-    int tile;                /* version 2: chunk edge in coefficients (0 in version 1) */
+    int tile, tile_z;        /* version 2: chunk edge along x and y, depth along z (0 in version 1) */
     uint64_t chunks;         /* version 2: chunks in the index (0 in version 1) */
     int nsections;
     wvol_wvc_section sections[WVOL_WVC_MAX_SECTIONS];
