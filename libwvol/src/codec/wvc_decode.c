@@ -177,6 +177,12 @@ static wvol_status parse(wvol_wvc_info *I, const uint8_t *h, size_t avail, uint6
     return WVOL_OK;
 }
 
+wvol_status wvol__wvc_parse_prefix(wvol_wvc_info *I, const uint8_t *h, size_t avail, uint64_t file_size,
+                                   wvol_error *err)
+{
+    return parse(I, h, avail, file_size, 0, err);
+}
+
 wvol_status wvol_wvc_parse_info(wvol_wvc_info *info, const void *buf, size_t size, wvol_error *err)
 {
     WVOL_RETURN_IF(!info || (!buf && size), err, WVOL_ERR_ARG, "wvc: missing argument");
