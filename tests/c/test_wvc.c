@@ -786,6 +786,176 @@ static void wvc2_streamed_rows_give_the_same_bytes(const char *wavelet, size_t n
     fixture_free(&F);
 }
 
+
+/* Region reads: random boxes (edges included, where the periodic basis wraps) at every
+ * level equal the same box of the whole decoded file's level volume. Tolerance: both
+ * sum the same float coefficients through the synthesis in a different order (a local
+ * brick against the whole pyramid), so they differ by float rounding: 1e-5 of the
+ * volume's peak magnitude is ~100 ulps of it. */
+static void wvc2_regions_equal_the_full_decode(const char *wavelet, size_t nx, size_t ny, size_t nz, int levels,
+                                               int tile, int tile_z)
+{
+    fixture F;
+    void *buf = NULL;
+    size_t n;
+    wvol_error err;
+    wvol_wvc_params p;
+    wvol_wvc_file *wf = NULL;
+    wvol_coeffs *dec = NULL;
+    const char *path = "test_wvc_region.wvc";
+    uint64_t rng = 99;
+    int bad = 0, tried = 0;
+    CHECK(fixture_make(&F, nx, ny, nz, wavelet, levels), "fixture");
+    if (!F.c) return;
+    wvol_wvc_params_default(&p);
+    p.value_min = F.vmin, p.value_max = F.vmax;
+    p.target_sse = wvol_wvc_sse_for_psnr(50, (double)(nx * ny * nz), F.vmin, F.vmax);
+    p.tile = tile, p.tile_z = tile_z;
+    CHECK(wvol_wvc_encode(&buf, &n, F.c, &p, NULL, &err) == WVOL_OK, "encode: %s", err.message);
+    CHECK(wvol_wvc_save(path, buf, n, &err) == WVOL_OK, "save: %s", err.message);
+    CHECK(wvol_wvc_decode(&dec, buf, n, NULL, NULL, &err) == WVOL_OK, "decode: %s", err.message);
+    CHECK(wvol_wvc_open(&wf, path, 0, &err) == WVOL_OK, "open: %s", err.message);
+    for (int level = 0; wf && dec && level <= levels; level++) {
+        wvol_volume *full = NULL;
+        double peak = 0;
+        CHECK(wvol_idwt3_level(&full, dec, level, &err) == WVOL_OK, "level %d: %s", level, err.message);
+        if (!full) break;
+        for (size_t i = 0; i < full->nx * full->ny * full->nz; i++)
+            if (fabs(full->data[i]) > peak) peak = fabs(full->data[i]);
+        for (int trial = 0; trial < 12; trial++) {
+            size_t lo[3], hi[3], dims[3] = {full->nx, full->ny, full->nz};
+            wvol_volume *r = NULL;
+            for (int a = 0; a < 3; a++) {
+                rng = rng * 6364136223846793005ull + 1442695040888963407ull;
+                lo[a] = (size_t)(rng >> 33) % dims[a];
+                rng = rng * 6364136223846793005ull + 1442695040888963407ull;
+                hi[a] = lo[a] + 1 + (size_t)(rng >> 33) % (dims[a] - lo[a]);
+                if (trial == 0) lo[a] = 0, hi[a] = dims[a] < 3 ? dims[a] : 3;           /* a corner */
+                if (trial == 1) lo[a] = dims[a] - 1, hi[a] = dims[a];                      /* the far edge */
+            }
+            tried++;
+            if (wvol_wvc_read_region(&r, wf, lo, hi, level, &err) != WVOL_OK) {
+                CHECK(0, "region at level %d: %s", level, err.message);
+                bad++;
+                continue;
+            }
+            for (size_t k = 0; k < r->nz; k++)
+                for (size_t j = 0; j < r->ny; j++)
+                    for (size_t i = 0; i < r->nx; i++) {
+                        float a = r->data[i + r->nx * (j + r->ny * k)];
+                        float b = full->data[(lo[0] + i) + full->nx * ((lo[1] + j) + full->ny * (lo[2] + k))];
+                        if (!(fabs((double)a - (double)b) <= 1e-5 * peak)) {
+                            if (bad++ < 3)
+                                fprintf(stderr, "level %d voxel %zu,%zu,%zu: region %g full %g\n", level, lo[0] + i,
+                                        lo[1] + j, lo[2] + k, a, b);
+                        }
+                    }
+            CHECK(fabs(r->spacing[0] - full->spacing[0]) < 1e-12 &&
+                      fabs(r->origin[0] - (full->origin[0] + full->spacing[0] * (double)lo[0])) < 1e-9,
+                  "region geometry at level %d", level);
+            wvol_volume_destroy(r);
+        }
+        wvol_volume_destroy(full);
+    }
+    CHECK(bad == 0 && tried > 0, "%s %zux%zux%zu: %d region voxels differ from the full decode", wavelet, nx, ny, nz,
+          bad);
+    wvol_wvc_close(wf);
+    wvol_coeffs_destroy(dec);
+    remove(path);
+    free(buf);
+    fixture_free(&F);
+}
+
+/* A budget is respected: with a tiny budget the cache's peak stays within it (measured by
+ * the cache, the only thing that grows with the file) and the region is still right; a
+ * budget below one chain of chunks is refused; a damaged chunk fails only the regions
+ * that need it, naming it. */
+static void wvc2_budget_and_damage(void)
+{
+    fixture F;
+    void *buf = NULL;
+    uint8_t *b;
+    size_t n, lo[3] = {0, 0, 0}, hi[3] = {8, 8, 8}, far_lo[3] = {40, 40, 40}, far_hi[3] = {48, 48, 48};
+    wvol_error err;
+    wvol_wvc_params p;
+    wvol_wvc_file *wf = NULL;
+    wvol_wvc_cache_stats cs;
+    wvol_wvc_info info;
+    wvol_volume *r = NULL, *r2 = NULL;
+    const char *path = "test_wvc_budget.wvc";
+    size_t budget;
+    CHECK(fixture_make(&F, 64, 64, 64, "haar", 2), "fixture");
+    if (!F.c) return;
+    wvol_wvc_params_default(&p);
+    p.value_min = F.vmin, p.value_max = F.vmax;
+    p.target_sse = wvol_wvc_sse_for_psnr(50, 64.0 * 64 * 64, F.vmin, F.vmax);
+    p.tile = 8, p.tile_z = 8;
+    CHECK(wvol_wvc_encode(&buf, &n, F.c, &p, NULL, &err) == WVOL_OK, "encode: %s", err.message);
+    if (!buf) return;
+    CHECK(wvol_wvc_save(path, buf, n, &err) == WVOL_OK, "save");
+    CHECK(wvol_wvc_open(&wf, path, 100, &err) == WVOL_ERR_NOMEM && strstr(err.message, "budget"),
+          "a budget below one chain is refused: %s", err.message);
+    /* a chunk of this file is 7 (or 8) x 8^3 int32 = 14-16 KiB: 24 of them */
+    budget = 24 * 17000;
+    CHECK(wvol_wvc_open(&wf, path, budget, &err) == WVOL_OK, "open: %s", err.message);
+    if (wf) {
+        wvol_volume *full = NULL;
+        size_t all_lo[3] = {0, 0, 0}, all_hi[3] = {64, 64, 64};
+        CHECK(wvol_wvc_read_region(&full, wf, all_lo, all_hi, 0, &err) == WVOL_OK, "whole volume within %zu bytes: %s",
+              budget, err.message);
+        wvol_wvc_file_stats(wf, &cs);
+        CHECK(cs.peak <= budget && cs.peak > 0, "cache peak %zu within the budget %zu", cs.peak, budget);
+        CHECK(cs.decoded > wvol_wvc_file_info(wf)->chunks / 2, "chunks were decoded (%llu)",
+              (unsigned long long)cs.decoded);
+        if (full) {
+            wvol_coeffs *dec = NULL;
+            wvol_volume *ref = NULL;
+            double sse = 0, mx = 0;
+            if (wvol_wvc_decode(&dec, buf, n, NULL, NULL, &err) == WVOL_OK && wvol_idwt3(&ref, dec, &err) == WVOL_OK)
+                wvol_wvc_compare(&sse, &mx, full, ref, &err);
+            CHECK(ref && mx <= 1e-5 * F.vmax, "budgeted whole read equals the decode (max %g)", mx);
+            wvol_volume_destroy(ref);
+            wvol_coeffs_destroy(dec);
+        }
+        wvol_volume_destroy(full);
+        wvol_wvc_close(wf);
+        wf = NULL;
+    }
+    /* damage one level-1 chunk near the origin: regions far from it still decode */
+    CHECK(wvol_wvc_parse_info(&info, buf, n, &err) == WVOL_OK, "info");
+    b = buf;
+    {
+        size_t idx = 224 + (size_t)info.nsections * 48, k, first1 = 0;
+        /* level-1 chunks are the last ones; the first of them covers the origin */
+        k = (size_t)info.chunks - 4 * 4 * 4;
+        first1 = k;
+        {
+            const uint8_t *e = b + idx + 32 * first1;
+            uint64_t off = 0;
+            for (int i = 7; i >= 0; i--) off = (off << 8) | e[i];
+            CHECK(off > 0, "the chunk at the origin holds data");
+            if (off) b[off + 2] ^= 0x10;
+        }
+    }
+    CHECK(wvol_wvc_save(path, buf, n, &err) == WVOL_OK, "save damaged");
+    CHECK(wvol_wvc_open(&wf, path, 0, &err) == WVOL_OK, "the index is intact: %s", err.message);
+    if (wf) {
+        CHECK(wvol_wvc_read_region(&r, wf, lo, hi, 0, &err) == WVOL_ERR_FORMAT && strstr(err.message, "chunk") &&
+                  strstr(err.message, "level 1"),
+              "the damaged chunk is named: %s", err.message);
+        CHECK(wvol_wvc_read_region(&r2, wf, far_lo, far_hi, 0, &err) == WVOL_OK, "a region elsewhere decodes: %s",
+              err.message);
+        CHECK(wvol_wvc_read_region(&r, wf, lo, hi, 1, &err) == WVOL_OK, "the coarser level there decodes: %s",
+              err.message);
+        wvol_wvc_close(wf);
+    }
+    wvol_volume_destroy(r);
+    wvol_volume_destroy(r2);
+    remove(path);
+    free(buf);
+    fixture_free(&F);
+}
+
 int main(void)
 {
     const char *fam[] = {"haar", "db2", "coif1", "bl3"};
@@ -802,6 +972,11 @@ int main(void)
     wvc2_streamed_rows_give_the_same_bytes("haar", 33, 17, 70, 3, 8, 16);
     wvc2_streamed_rows_give_the_same_bytes("bl3", 32, 32, 32, 2, 16, 8);
     wvc2_streamed_rows_give_the_same_bytes("db2", 24, 20, 1, 2, 8, 8);
+    wvc2_regions_equal_the_full_decode("db2", 40, 36, 44, 2, 8, 8);
+    wvc2_regions_equal_the_full_decode("haar", 33, 17, 70, 3, 8, 16);
+    wvc2_regions_equal_the_full_decode("bl3", 32, 32, 32, 2, 16, 8);
+    wvc2_regions_equal_the_full_decode("coif1", 24, 20, 1, 2, 8, 8);
+    wvc2_budget_and_damage();
     wvc_early_stop_gives_the_coarser_volume();
     wvc_refuses_truncation_and_bit_flips_everywhere(2);
     wvc_refuses_truncation_and_bit_flips_everywhere(1);
