@@ -666,7 +666,10 @@ static void wvc_corpus_files_decode_or_are_refused(void)
     const char *root = getenv("WVOL_SOURCE_DIR");
     const char *names[] = {"valid_haar_8_cabac.wvc", "valid_db2_8x8x4_zstd.wvc", "valid_coif1_4x4x1_auto.wvc",
                            "valid_db2_8x6x5_padded.wvc", "valid_bl3_8_3levels.wvc", "damaged_truncated.wvc",
-                           "damaged_bitflip_payload.wvc", "damaged_magic.wvc", "damaged_version.wvc"};
+                           "damaged_bitflip_payload.wvc", "damaged_magic.wvc", "damaged_version.wvc",
+                           "valid_v2_db2_8.wvc", "valid_v2_haar_12x10x9_tiles.wvc",
+                           "valid_v2_coif1_16x16x1_zstd.wvc", "damaged_v2_bitflip_chunk.wvc",
+                           "damaged_v2_bitflip_index.wvc"};
     char path[1024];
     size_t i;
     if (!root) {
