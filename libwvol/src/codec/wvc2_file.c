@@ -245,6 +245,8 @@ wvol_status wvol_wvc_open(wvol_wvc_file **out, const char *path, size_t budget, 
     return WVOL_OK;
 }
 
+const char *wvol__wvc_file_path(const wvol_wvc_file *f) { return f->path; }
+
 const wvol_wvc_info *wvol_wvc_file_info(const wvol_wvc_file *f) { return f ? &f->info : NULL; }
 
 void wvol_wvc_file_stats(const wvol_wvc_file *f, wvol_wvc_cache_stats *st)
