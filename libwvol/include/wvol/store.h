@@ -180,6 +180,9 @@ WVOL_API void wvol_store_destroy(wvol_store *s); /* NULL is fine */
  * a lock: concurrent readers are still safe). */
 WVOL_API wvol_status wvol_store_open(wvol_store **out, const char *path, size_t budget,
                                      const wvol_store_params *prm, wvol_error *err);
+/* The file's header, band table and index summary (a store made by wvol_store_open;
+ * NULL otherwise). */
+WVOL_API const wvol_wvc_info *wvol_store_file_info(const wvol_store *s);
 /* 1 for a store made by wvol_store_open. */
 WVOL_API int wvol_store_is_file(const wvol_store *s);
 /* The file's cache counters (a store made by wvol_store_open only), and the first

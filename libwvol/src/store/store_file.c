@@ -60,6 +60,8 @@ wvol_status wvol_store_open(wvol_store **out, const char *path, size_t budget, c
 
 int wvol_store_is_file(const wvol_store *s) { return s && s->file; }
 
+const wvol_wvc_info *wvol_store_file_info(const wvol_store *s) { return s && s->file ? wvol_wvc_file_info(s->file) : NULL; }
+
 wvol_status wvol_store_file_stats(const wvol_store *s, wvol_wvc_cache_stats *st, wvol_error *err)
 {
     WVOL_RETURN_IF(!s || !st, err, WVOL_ERR_ARG, "wvol_store_file_stats: missing argument");
