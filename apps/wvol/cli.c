@@ -221,6 +221,18 @@ int cli_open_wvc_store(const char *cmd, const char *path, size_t budget, wvol_co
     return CLI_OK;
 }
 
+void cli_json_wvc_cache(const char *key, const wvol_wvc_cache_stats *cs, uint64_t file_chunks)
+{
+    cli_json_open(key, '{');
+    cli_json_int("decoded", (long long)cs->decoded);
+    cli_json_int("cache_hits", (long long)cs->hits);
+    cli_json_int("bytes_read", (long long)cs->bytes_read);
+    cli_json_int("cache_peak_bytes", (long long)cs->peak);
+    cli_json_int("budget_bytes", (long long)cs->budget);
+    cli_json_int("file_chunks", (long long)file_chunks);
+    cli_json_close('}');
+}
+
 int cli_check_wvc_store(const char *cmd, const wvol_compressed *c, int json)
 {
     wvol_wvc_cache_stats cs;
@@ -229,13 +241,7 @@ int cli_check_wvc_store(const char *cmd, const wvol_compressed *c, int json)
     wvol_error_clear(&err);
     if (wvol_store_file_stats(c->store, &cs, &err) != WVOL_OK) return cli_fail_err(cmd, &err);
     if (json) {
-        cli_json_open("wvc_cache", '{');
-        cli_json_int("budget_bytes", (long long)cs.budget);
-        cli_json_int("peak_bytes", (long long)cs.peak);
-        cli_json_int("chunks_decoded", (long long)cs.decoded);
-        cli_json_int("cache_hits", (long long)cs.hits);
-        cli_json_int("bytes_read", (long long)cs.bytes_read);
-        cli_json_close('}');
+        cli_json_wvc_cache("chunks", &cs, wvol_store_file_info(c->store)->chunks);
     } else {
         fprintf(stderr, "wvol %s: .wvc chunks: %llu decoded (%llu bytes read), cache peak %zu of %zu bytes\n", cmd,
                 (unsigned long long)cs.decoded, (unsigned long long)cs.bytes_read, cs.peak, cs.budget);

@@ -5,6 +5,7 @@
 #define WVOL_CLI_H
 
 #include <stddef.h>
+#include <stdint.h>
 #include "wvol/io.h"
 #include "wvol/status.h"
 
@@ -83,6 +84,9 @@ int cli_open_wvc_store(const char *cmd, const char *path, size_t budget, struct 
 /* After a file-backed store was used: CLI_OK, or CLI_FAILED (printed) when a chunk could
  * not be decoded or the budget did not hold; JSON fields when json is set. */
 int cli_check_wvc_store(const char *cmd, const struct wvol_compressed *c, int json);
+/* The chunk cache's counters as a JSON object under key. */
+struct wvol_wvc_cache_stats;
+void cli_json_wvc_cache(const char *key, const struct wvol_wvc_cache_stats *cs, uint64_t file_chunks);
 int cli_parse_fraction(const char *cmd, const char *opt, const char *s, double *out);
 /* "WxH", sides 1..65536. */
 int cli_parse_size(const char *cmd, const char *opt, const char *s, long *w, long *h);

@@ -149,16 +149,7 @@ int wvol_cmd_decompress(int argc, char **argv)
         cli_json_num("inverse_transform", t_inv);
         cli_json_num("write", t_write);
         cli_json_close('}');
-        if (wf) {
-            cli_json_open("chunks", '{');
-            cli_json_int("decoded", (long long)cs.decoded);
-            cli_json_int("cache_hits", (long long)cs.hits);
-            cli_json_int("bytes_read", (long long)cs.bytes_read);
-            cli_json_int("cache_peak_bytes", (long long)cs.peak);
-            cli_json_int("budget_bytes", (long long)cs.budget);
-            cli_json_int("file_chunks", (long long)wvol_wvc_file_info(wf)->chunks);
-            cli_json_close('}');
-        }
+        if (wf) cli_json_wvc_cache("chunks", &cs, wvol_wvc_file_info(wf)->chunks);
         cli_json_end();
     } else {
         if (wf)

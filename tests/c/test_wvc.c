@@ -326,6 +326,19 @@ static void wvc_refuses_truncation_and_bit_flips_everywhere(int version)
     fixture_free(&F);
 }
 
+/* Decodes t (n bytes) after `mutate`; the status must be want and the message name needle.
+ * Uses t, buf, n, d and err of the calling test. */
+#define TRY(label, mutate, want, needle)                                                     \
+    do {                                                                                     \
+        memcpy(t, buf, n);                                                                   \
+        mutate;                                                                              \
+        memset(&err, 0, sizeof err);                                                         \
+        CHECK(wvol_wvc_decode(&d, t, n, NULL, NULL, &err) == (want), "%s: %s", label, err.message); \
+        CHECK(strstr(err.message, needle) != NULL, "%s: message '%s' lacks '%s'", label, err.message, needle); \
+        wvol_coeffs_destroy(d);                                                              \
+        d = NULL;                                                                            \
+    } while (0)
+
 /* Rewrites the header checksum so that only the field checks can refuse. */
 static void reseal(uint8_t *b)
 {
@@ -358,16 +371,6 @@ static void wvc_refuses_crafted_headers(void)
     if (!buf) return;
     t = malloc(n);
 
-#define TRY(label, mutate, want, needle)                                                     \
-    do {                                                                                     \
-        memcpy(t, buf, n);                                                                   \
-        mutate;                                                                              \
-        memset(&err, 0, sizeof err);                                                         \
-        CHECK(wvol_wvc_decode(&d, t, n, NULL, NULL, &err) == (want), "%s: %s", label, err.message); \
-        CHECK(strstr(err.message, needle) != NULL, "%s: message '%s' lacks '%s'", label, err.message, needle); \
-        wvol_coeffs_destroy(d);                                                              \
-        d = NULL;                                                                            \
-    } while (0)
 
     TRY("magic", t[1] = 'X', WVOL_ERR_FORMAT, "magic");
     TRY("newer version", (t[8] = 3, reseal(t)), WVOL_ERR_UNSUPPORTED, "newer");
@@ -391,7 +394,6 @@ static void wvc_refuses_crafted_headers(void)
     TRY("section order", (t[WVC_HEADER_SIZE + WVC_SECTION_SIZE + 1] = 5, reseal(t)), WVOL_ERR_FORMAT, "expected");
     TRY("section length", (t[WVC_HEADER_SIZE + 8] += 1, reseal(t)), WVOL_ERR_FORMAT, "");
     TRY("unknown coder", (t[WVC_HEADER_SIZE + 2] = 9, reseal(t)), WVOL_ERR_UNSUPPORTED, "coder");
-#undef TRY
     {
         /* levels beyond what the size allows, with a consistent section count and table:
          * a 16^3 file of 4 levels relabelled as 9^3 (still padded to 16, but 2^4 > 9) */
@@ -459,28 +461,18 @@ static void wvc2_refuses_crafted_headers_and_indexes(void)
             break;
         }
     }
-#define TRY2(label, mutate, want, needle)                                                    \
-    do {                                                                                     \
-        memcpy(t, buf, n);                                                                   \
-        mutate;                                                                              \
-        memset(&err, 0, sizeof err);                                                         \
-        CHECK(wvol_wvc_decode(&d, t, n, NULL, NULL, &err) == (want), "%s: %s", label, err.message); \
-        CHECK(strstr(err.message, needle) != NULL, "%s: message '%s' lacks '%s'", label, err.message, needle); \
-        wvol_coeffs_destroy(d);                                                              \
-        d = NULL;                                                                            \
-    } while (0)
-    TRY2("index checksum", t[idx + 17] ^= 4, WVOL_ERR_FORMAT, "index checksum");
-    TRY2("tile too small", (t[33] = 2, reseal2(t)), WVOL_ERR_FORMAT, "tile");
-    TRY2("tile depth too large", (t[34] = 9, reseal2(t)), WVOL_ERR_FORMAT, "tile");
-    TRY2("tile changed", (t[33] = 3, reseal2(t)), WVOL_ERR_FORMAT, "chunks");
-    TRY2("reserved", (t[35] = 1, reseal2(t)), WVOL_ERR_FORMAT, "reserved");
-    TRY2("chunk offset", (t[idx + 32 * first_coded] += 1, reseal2(t)), WVOL_ERR_FORMAT, "index: chunk");
-    TRY2("chunk size", (t[idx + 32 * first_coded + 8] += 1, reseal2(t)), WVOL_ERR_FORMAT, "");
-    TRY2("chunk non-zeros", (t[idx + 32 * first_coded + 20] += 1, reseal2(t)), WVOL_ERR_FORMAT, "non-zero");
-    TRY2("chunk max is NaN", (t[idx + 32 * first_coded + 19] = 0x7f, t[idx + 32 * first_coded + 18] = 0xc0, reseal2(t)),
+    TRY("index checksum", t[idx + 17] ^= 4, WVOL_ERR_FORMAT, "index checksum");
+    TRY("tile too small", (t[33] = 2, reseal2(t)), WVOL_ERR_FORMAT, "tile");
+    TRY("tile depth too large", (t[34] = 9, reseal2(t)), WVOL_ERR_FORMAT, "tile");
+    TRY("tile changed", (t[33] = 3, reseal2(t)), WVOL_ERR_FORMAT, "chunks");
+    TRY("reserved", (t[35] = 1, reseal2(t)), WVOL_ERR_FORMAT, "reserved");
+    TRY("chunk offset", (t[idx + 32 * first_coded] += 1, reseal2(t)), WVOL_ERR_FORMAT, "index: chunk");
+    TRY("chunk size", (t[idx + 32 * first_coded + 8] += 1, reseal2(t)), WVOL_ERR_FORMAT, "");
+    TRY("chunk non-zeros", (t[idx + 32 * first_coded + 20] += 1, reseal2(t)), WVOL_ERR_FORMAT, "non-zero");
+    TRY("chunk max is NaN", (t[idx + 32 * first_coded + 19] = 0x7f, t[idx + 32 * first_coded + 18] = 0xc0, reseal2(t)),
          WVOL_ERR_FORMAT, "index: chunk");
-    TRY2("band table level", (t[224 + 48 + 0] = 7, reseal2(t)), WVOL_ERR_FORMAT, "band table");
-    TRY2("band offset", (t[224 + 48 + 19] = 0x7f, reseal2(t)), WVOL_ERR_FORMAT, "band table");
+    TRY("band table level", (t[224 + 48 + 0] = 7, reseal2(t)), WVOL_ERR_FORMAT, "band table");
+    TRY("band offset", (t[224 + 48 + 19] = 0x7f, reseal2(t)), WVOL_ERR_FORMAT, "band table");
     {
         /* a chunk's payload with a valid CRC but an unknown mode: named by the chunk */
         const uint8_t *e = (const uint8_t *)buf + idx + 32 * first_coded;
@@ -498,7 +490,6 @@ static void wvc2_refuses_crafted_headers_and_indexes(void)
         wvol_coeffs_destroy(d);
         d = NULL;
     }
-#undef TRY2
     free(t);
     free(buf);
     fixture_free(&F);
