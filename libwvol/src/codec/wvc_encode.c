@@ -11,6 +11,7 @@
 #include <time.h>
 #include <zlib.h>
 
+#include "wvc2_internal.h"
 #include "wvc_format.h"
 #include "wvc_quant.h"
 
@@ -71,6 +72,32 @@ void wvol__wvc_layout(wvc_layout *L, size_t px, size_t py, size_t pz, int levels
     }
 }
 
+void wvol__wvc_header_put(uint8_t *h, const wvc_header_fields *f)
+{
+    size_t n = strlen(f->filter);
+    memcpy(h, WVC_MAGIC, 8);
+    wvc_put_u16(h + 8, (uint16_t)f->version);
+    wvc_put_u16(h + 10, 0);
+    wvc_put_u32(h + 12, f->nsec);
+    memcpy(h + 16, f->filter, n < 15 ? n : 15);
+    h[32] = (uint8_t)f->levels;
+    for (int a = 0; a < 3; a++) {
+        wvc_put_u64(h + 40 + 8 * a, f->n[a]);
+        wvc_put_u64(h + 64 + 8 * a, f->p[a]);
+        wvc_put_f64(h + 88 + 8 * a, f->spacing[a]);
+        wvc_put_f64(h + 112 + 8 * a, f->origin[a]);
+    }
+    wvc_put_f64(h + 136, f->value_min);
+    wvc_put_f64(h + 144, f->value_max);
+    wvc_put_f64(h + 152, f->step);
+    wvc_put_f64(h + 160, f->rounding);
+    wvc_put_f64(h + 168, f->sse);
+    wvc_put_f64(h + 176, f->energy);
+    wvc_put_f64(h + 184, f->dropped_energy);
+    wvc_put_u64(h + 192, f->nonzero);
+    wvc_put_u64(h + 200, f->payload);
+}
+
 static void header_write(uint8_t *h, const wvol_coeffs *c, const wvol_wvc_params *p, double step,
                          double sse, double energy, uint64_t nonzero, uint64_t payload,
                          const wvc_layout *L, const uint8_t coder[], const uint64_t bytes[],
@@ -79,33 +106,13 @@ static void header_write(uint8_t *h, const wvol_coeffs *c, const wvol_wvc_params
 {
     int s;
     size_t n;
+    wvc_header_fields hf = {1, (uint32_t)L->nsec, c->filter->name, c->levels, {c->nx, c->ny, c->nz},
+                            {c->px, c->py, c->pz}, {0}, {0}, p->value_min, p->value_max, step, p->rounding, sse,
+                            energy, p->dropped_energy, nonzero, payload};
+    memcpy(hf.spacing, c->spacing, sizeof hf.spacing);
+    memcpy(hf.origin, c->origin, sizeof hf.origin);
     memset(h, 0, WVC_HEADER_SIZE + (size_t)L->nsec * WVC_SECTION_SIZE + 4);
-    memcpy(h, WVC_MAGIC, 8);
-    wvc_put_u16(h + 8, WVOL_WVC_FORMAT_VERSION);
-    wvc_put_u16(h + 10, 0);
-    wvc_put_u32(h + 12, (uint32_t)L->nsec);
-    n = strlen(c->filter->name);
-    memcpy(h + 16, c->filter->name, n < 15 ? n : 15);
-    h[32] = (uint8_t)c->levels;
-    wvc_put_u64(h + 40, c->nx);
-    wvc_put_u64(h + 48, c->ny);
-    wvc_put_u64(h + 56, c->nz);
-    wvc_put_u64(h + 64, c->px);
-    wvc_put_u64(h + 72, c->py);
-    wvc_put_u64(h + 80, c->pz);
-    for (s = 0; s < 3; s++) {
-        wvc_put_f64(h + 88 + 8 * s, c->spacing[s]);
-        wvc_put_f64(h + 112 + 8 * s, c->origin[s]);
-    }
-    wvc_put_f64(h + 136, p->value_min);
-    wvc_put_f64(h + 144, p->value_max);
-    wvc_put_f64(h + 152, step);
-    wvc_put_f64(h + 160, p->rounding);
-    wvc_put_f64(h + 168, sse);
-    wvc_put_f64(h + 176, energy);
-    wvc_put_f64(h + 184, p->dropped_energy);
-    wvc_put_u64(h + 192, nonzero);
-    wvc_put_u64(h + 200, payload);
+    wvol__wvc_header_put(h, &hf);
     for (s = 0; s < L->nsec; s++) {
         uint8_t *e = h + WVC_HEADER_SIZE + (size_t)s * WVC_SECTION_SIZE;
         e[0] = (uint8_t)L->sec[s].level;
@@ -123,6 +130,32 @@ static void header_write(uint8_t *h, const wvol_coeffs *c, const wvol_wvc_params
     wvc_put_u32(h + n, (uint32_t)crc32(0L, h, (uInt)n));
 }
 
+/* Per detail section that the slack spending touched, the smallest |c| / step of the
+ * |q| = 1 coefficients it left: the writer zeroes everything below (docs/wvc-format.md). */
+static void zero_edges(double *edge, const wvc_layout *L, const float *C, const int32_t *Q, double step, double f,
+                       const sec_stats *before, const sec_stats *after)
+{
+    const double inv = 1.0 / step;
+    for (int s = 1; s < L->nsec; s++) {
+        const wvc_band *b = &L->sec[s];
+        double mn = INFINITY;
+        long z;
+        edge[s] = 0;
+        if (!b->count || after[s].n1 >= before[s].n1) continue;
+#pragma omp parallel for reduction(min : mn) schedule(static)
+        for (z = 0; z < (long)b->ext[2]; z++)
+            for (size_t y = 0; y < b->ext[1]; y++) {
+                size_t base = wvc_index(L->p, b, 0, y, (size_t)z);
+                for (size_t x = 0; x < b->ext[0]; x++) {
+                    double a = fabs((double)C[base + x]) * inv;
+                    if (Q[base + x] != 0 && a + f < 2.0 && a < mn) mn = a;
+                }
+            }
+        /* every |q| = 1 coefficient went: zero the whole |q| = 1 cell */
+        edge[s] = isfinite(mn) ? mn : 2.0 - f;
+    }
+}
+
 wvol_status wvol_wvc_encode(void **out, size_t *out_size, const wvol_coeffs *c,
                             const wvol_wvc_params *p, wvol_wvc_report *report, wvol_error *err)
 {
@@ -135,6 +168,7 @@ wvol_status wvol_wvc_encode(void **out, size_t *out_size, const wvol_coeffs *c,
     size_t alt_cabac[WVOL_WVC_MAX_SECTIONS] = {0}, alt_zstd[WVOL_WVC_MAX_SECTIONS] = {0};
     float d1[WVOL_WVC_MAX_SECTIONS], d2[WVOL_WVC_MAX_SECTIONS];
     double serr[WVOL_WVC_MAX_SECTIONS];
+    sec_stats n1_before[WVOL_WVC_MAX_SECTIONS];
     size_t n, hsize, total;
     double step, maxabs = 0, energy = 0, sse = 0, t0, t1, t2;
     uint64_t nonzero = 0, payload = 0;
@@ -235,6 +269,7 @@ wvol_status wvol_wvc_encode(void **out, size_t *out_size, const wvol_coeffs *c,
         serr[s] = wvol__wvc_sec_error(&st[s], step, &d1[s], &d2[s]);
         sse += serr[s];
     }
+    if (p->version != 1) memcpy(n1_before, st, (size_t)L->nsec * sizeof *st);
     if (p->step == 0 && sse < 0.99 * p->target_sse) {
         /* spend what the staircase left of the budget, then the exact sums again */
         if (wvol__wvc_spend_slack(L, c->data, Q, step, p->rounding, d1, p->target_sse - sse, st) > 0) {
@@ -250,6 +285,26 @@ wvol_status wvol_wvc_encode(void **out, size_t *out_size, const wvol_coeffs *c,
     }
     t2 = now();
     rep.seconds_quantise = t2 - t1;
+    if (p->version != 1) {
+        /* version 2: the slab writer quantises again, with each section's dead zone widened
+         * to what the slack spending zeroed (whole bins: its partial bin stays) */
+        double edge[WVOL_WVC_MAX_SECTIONS] = {0};
+        wvol_wvc_report r2;
+        zero_edges(edge, L, c->data, Q, step, p->rounding, n1_before, st);
+        status = wvol__wvc2_encode_dense(out, out_size, c, p, step, edge, &r2, err);
+        if (status != WVOL_OK) goto done;
+        rep.seconds_code = now() - t2;
+        rep.step = step;
+        rep.step_iterations = iters;
+        rep.sse_quant = r2.sse_quant;
+        rep.nonzero = r2.nonzero;
+        rep.coefficients = n;
+        rep.bytes = r2.bytes;
+        rep.bytes_cabac = r2.bytes_cabac;
+        rep.bytes_zstd = r2.bytes_zstd;
+        if (report) *report = rep;
+        goto done;
+    }
 
     /* code the sections (independent given Q), largest first */
 #pragma omp parallel for schedule(dynamic, 1) reduction(| : failed) if (n > 65536)

@@ -1,0 +1,351 @@
+/* SPDX-License-Identifier: MIT
+ * The .wvc version-2 chunk coder: one level's bands over one spatial tile, each band
+ * coded by the version-1 band coders (wvc_cabac.c, wvc_zstd.c) on a small local grid
+ * that holds the tile and its parent region, so that a chunk depends on nothing but
+ * its parent chunk (the coarser level's tile whose half-size region holds its parents,
+ * which every read of the chunk's region needs anyway). Neighbours outside the tile
+ * count as zero, as at a band's edge in version 1. */
+#include <stdlib.h>
+#include <string.h>
+#include <zlib.h>
+
+#include "wvc2_internal.h"
+
+int wvol__wvc2_geom(wvc2_geom *g, const size_t p[3], int levels, int tile_xy, int tile_z)
+{
+    size_t first = 0;
+    memset(g, 0, sizeof *g);
+    g->levels = levels;
+    g->tile[0] = g->tile[1] = tile_xy;
+    g->tile[2] = tile_z;
+    for (int a = 0; a < 3; a++) {
+        g->p[a] = p[a];
+        g->tr[a] = p[a] > 1;
+    }
+    for (int m = levels; m >= 1; m--) {
+        wvc2_level *L = &g->lv[m];
+        size_t n = 1;
+        for (int a = 0; a < 3; a++) {
+            L->e[a] = g->tr[a] ? p[a] >> m : 1;
+            L->nt[a] = (L->e[a] + (size_t)g->tile[a] - 1) / (size_t)g->tile[a];
+            if (L->nt[a] && n > SIZE_MAX / L->nt[a]) return -1;
+            n *= L->nt[a];
+        }
+        L->first = first;
+        L->count = n;
+        if (first > SIZE_MAX - n) return -1;
+        first += n;
+        L->nb = 0;
+        for (int b = m == levels ? 0 : 1; b < 8; b++) {
+            int ok = 1;
+            for (int a = 0; a < 3; a++)
+                if (((b >> a) & 1) && !g->tr[a]) ok = 0;
+            if (ok) L->bands[L->nb++] = b;
+        }
+    }
+    g->nchunks = first;
+    return 0;
+}
+
+int wvol__wvc2_chunk_coords(const wvc2_geom *g, size_t id, size_t t[3])
+{
+    for (int m = g->levels; m >= 1; m--) {
+        const wvc2_level *L = &g->lv[m];
+        if (id >= L->first && id < L->first + L->count) {
+            size_t k = id - L->first;
+            t[0] = k % L->nt[0];
+            k /= L->nt[0];
+            t[1] = k % L->nt[1];
+            t[2] = k / L->nt[1];
+            return m;
+        }
+    }
+    return 0;
+}
+
+/* The local grid of one band: the tile at (0, 0, 0), its parent region beside it
+ * along x at (ext0, 0, 0); dims (ext0 + pext0) x ext1 x ext2 (pext <= ext). */
+typedef struct local_grid {
+    int32_t *q;
+    size_t p[3];
+    wvc_band b;
+} local_grid;
+
+static int local_make(local_grid *lg, const wvc2_geom *g, int m, int band, const size_t ext[3])
+{
+    size_t off0[3] = {0, 0, 0}, poff[3], pext[3], n;
+    int has_parent = m < g->levels && band != 0;
+    wvc2_parent_box(g, off0, ext, poff, pext);
+    memset(lg, 0, sizeof *lg);
+    lg->p[0] = ext[0] + (has_parent ? pext[0] : 0);
+    lg->p[1] = ext[1];
+    lg->p[2] = ext[2];
+    lg->b.level = m;
+    lg->b.band = band;
+    lg->b.has_parent = has_parent;
+    for (int a = 0; a < 3; a++) {
+        lg->b.ext[a] = ext[a];
+        lg->b.pext[a] = has_parent ? pext[a] : 0;
+    }
+    lg->b.poff[0] = has_parent ? ext[0] : 0;
+    lg->b.count = (uint64_t)ext[0] * ext[1] * ext[2];
+    n = lg->p[0] * lg->p[1] * lg->p[2];
+    lg->q = calloc(n ? n : 1, sizeof *lg->q);
+    return lg->q ? 0 : -1;
+}
+
+static void box_copy_in(local_grid *lg, size_t x0, const wvc2_qbox *src, const size_t ext[3])
+{
+    for (size_t z = 0; z < ext[2]; z++)
+        for (size_t y = 0; y < ext[1]; y++)
+            memcpy(lg->q + x0 + lg->p[0] * (y + lg->p[1] * z), src->q + y * src->sy + z * src->sz,
+                   ext[0] * sizeof(int32_t));
+}
+
+static void parent_in(local_grid *lg, const wvc2_qbox *parent)
+{
+    if (lg->b.has_parent) box_copy_in(lg, lg->b.ext[0], parent, lg->b.pext);
+}
+
+/* Payload modes: one CABAC stream whose model adapts across the chunk's bands, or one
+ * stream per band (each CABAC or zstd). */
+enum { MODE_BANDS = 0, MODE_SHARED = 1 };
+
+int wvol__wvc2_chunk_encode(wvc2_coded *out, const wvc2_geom *g, int m, const size_t ext[3],
+                            const wvc2_qbox child[8], const wvc2_qbox parent[8], int coder, int zstd_level)
+{
+    const wvc2_level *L = &g->lv[m];
+    local_grid lg[8];
+    uint64_t nzb[8] = {0};
+    uint8_t *shared = NULL, *pay[8] = {0}, mask = 0;
+    size_t shared_len = 0, len[8] = {0}, zsum = 0;
+    int i, failed = 0, nused = 0;
+    memset(out, 0, sizeof *out);
+    memset(lg, 0, sizeof lg);
+    for (i = 0; i < L->nb && !failed; i++) {
+        for (size_t zz = 0; zz < ext[2]; zz++)
+            for (size_t y = 0; y < ext[1]; y++) {
+                const int32_t *r = child[i].q + y * child[i].sy + zz * child[i].sz;
+                for (size_t x = 0; x < ext[0]; x++) nzb[i] += r[x] != 0;
+            }
+        if (nzb[i] == 0) continue;
+        out->nonzero += nzb[i];
+        mask |= (uint8_t)(1u << i);
+        if (local_make(&lg[i], g, m, L->bands[i], ext)) {
+            failed = 1;
+            break;
+        }
+        box_copy_in(&lg[i], 0, &child[i], ext);
+        parent_in(&lg[i], &parent[i]);
+        nused++;
+    }
+    if (!failed && nused && coder != WVOL_WVC_CODER_ZSTD) {
+        int32_t *Q[8];
+        const size_t *P[8];
+        const wvc_band *B[8];
+        int k = 0;
+        for (i = 0; i < L->nb; i++)
+            if (mask >> i & 1) Q[k] = lg[i].q, P[k] = lg[i].p, B[k] = &lg[i].b, k++;
+        if (wvol__wvc_cabac_encode_multi(&shared, &shared_len, k, Q, P, B)) failed = 1;
+        out->alt_cabac = shared_len;
+    }
+    /* auto: all zstd when that is smaller (its matches win on small and regular bands) */
+    if (!failed && nused && coder != WVOL_WVC_CODER_CABAC) {
+        for (i = 0; i < L->nb && !failed; i++)
+            if (mask >> i & 1) {
+                if (wvol__wvc_zstd_encode(&pay[i], &len[i], lg[i].q, lg[i].p, &lg[i].b, zstd_level)) failed = 1;
+                zsum += len[i];
+            }
+        out->alt_zstd = zsum;
+    }
+    for (i = 0; i < 8; i++) free(lg[i].q);
+    if (!failed && nused) {
+        uint8_t hdr[1 + 8 + 8 * 10], *p;
+        size_t head = 0, total;
+        int use_shared = shared && (!out->alt_zstd || shared_len + 2 <= zsum + 1 + (size_t)L->nb + 2 * (size_t)nused);
+        hdr[head++] = (uint8_t)(use_shared ? MODE_SHARED : MODE_BANDS);
+        if (use_shared) {
+            hdr[head++] = mask;
+            total = head + shared_len;
+        } else {
+            for (i = 0; i < L->nb; i++) hdr[head++] = (mask >> i & 1) ? WVOL_WVC_CODER_ZSTD : WVOL_WVC_CODER_EMPTY;
+            for (i = 0; i < L->nb; i++)
+                if (mask >> i & 1) head += wvc2_put_varint(hdr + head, len[i]);
+            total = head + zsum;
+        }
+        p = malloc(total);
+        if (!p) {
+            failed = 1;
+        } else {
+            memcpy(p, hdr, head);
+            if (use_shared) {
+                memcpy(p + head, shared, shared_len);
+                /* per-band shares of one stream are not separable: split by non-zero counts */
+                for (i = 0; i < L->nb; i++)
+                    out->band_bytes[i] = (size_t)((double)shared_len * (double)nzb[i] / (double)out->nonzero);
+            } else {
+                size_t o = head;
+                for (i = 0; i < L->nb; i++)
+                    if (len[i]) memcpy(p + o, pay[i], len[i]), o += len[i], out->band_bytes[i] = len[i];
+            }
+            out->payload = p;
+            out->bytes = total;
+            out->crc = (uint32_t)crc32(0L, p, (uInt)total);
+        }
+    }
+    free(shared);
+    for (i = 0; i < 8; i++) free(pay[i]);
+    if (failed) {
+        free(out->payload);
+        memset(out, 0, sizeof *out);
+        return -1;
+    }
+    return 0;
+}
+
+static void box_zero(const wvc2_qbox *b, const size_t ext[3])
+{
+    for (size_t z = 0; z < ext[2]; z++)
+        for (size_t y = 0; y < ext[1]; y++) memset(b->q + y * b->sy + z * b->sz, 0, ext[0] * sizeof(int32_t));
+}
+
+/* band i of a direct decode: the coder's view on the pyramid itself */
+static void direct_view(local_grid *lg, const wvc2_geom *g, int m, int band, const size_t ext[3],
+                        const wvc2_direct *d, int i)
+{
+    size_t zero[3] = {0, 0, 0}, poff[3], pext[3];
+    int has_parent = m < g->levels && band != 0;
+    wvc2_parent_box(g, zero, ext, poff, pext);
+    memset(lg, 0, sizeof *lg);
+    lg->q = d->Q;
+    memcpy(lg->p, d->p, sizeof lg->p);
+    lg->b.level = m;
+    lg->b.band = band;
+    lg->b.has_parent = has_parent;
+    for (int a = 0; a < 3; a++) {
+        lg->b.off[a] = d->off[i][a];
+        lg->b.ext[a] = ext[a];
+        lg->b.poff[a] = has_parent ? d->poff[i][a] : 0;
+        lg->b.pext[a] = has_parent ? pext[a] : 0;
+    }
+    lg->b.count = (uint64_t)ext[0] * ext[1] * ext[2];
+}
+
+int wvol__wvc2_chunk_decode(const wvc2_geom *g, int m, const size_t ext[3], const wvc2_qbox child[8],
+                            const wvc2_qbox parent[8], const wvc2_direct *direct, const uint8_t *payload,
+                            size_t bytes, uint64_t *nonzero, const char **why)
+{
+    const wvc2_level *L = &g->lv[m];
+    local_grid lg[8];
+    size_t len[8] = {0}, pos, sum = 0;
+    uint8_t used = 0;
+    int i, r = 0, mode;
+    *nonzero = 0;
+    if (!direct)
+        for (i = 0; i < L->nb; i++) box_zero(&child[i], ext);
+    if (bytes == 0) return 0;
+    mode = payload[0];
+    pos = 1;
+    if (mode == MODE_SHARED) {
+        if (bytes < 3) {
+            *why = "chunk header truncated";
+            return -1;
+        }
+        used = payload[pos++];
+        if (!used || (used >> L->nb)) {
+            *why = "chunk band mask is not valid";
+            return -1;
+        }
+    } else if (mode == MODE_BANDS) {
+        if (bytes < 1 + (size_t)L->nb) {
+            *why = "chunk header truncated";
+            return -1;
+        }
+        for (i = 0; i < L->nb; i++) {
+            uint8_t k = payload[pos + (size_t)i];
+            if (k > WVOL_WVC_CODER_ZSTD) {
+                *why = "unknown band coder";
+                return -1;
+            }
+            if (k) used |= (uint8_t)(1u << i);
+        }
+        pos += (size_t)L->nb;
+        for (i = 0; i < L->nb; i++) {
+            uint64_t v = 0;
+            int shift = 0;
+            if (!(used >> i & 1)) continue;
+            for (;;) {
+                uint8_t c;
+                if (pos >= bytes || shift > 56) {
+                    *why = "malformed band length";
+                    return -1;
+                }
+                c = payload[pos++];
+                v |= (uint64_t)(c & 0x7F) << shift;
+                shift += 7;
+                if (!(c & 0x80)) break;
+            }
+            if (v == 0 || v > bytes) {
+                *why = "band length out of range";
+                return -1;
+            }
+            len[i] = (size_t)v;
+            sum += len[i];
+        }
+        if (sum != bytes - pos) {
+            *why = "band lengths do not add up to the chunk";
+            return -1;
+        }
+    } else {
+        *why = "unknown chunk mode";
+        return -1;
+    }
+    memset(lg, 0, sizeof lg);
+    for (i = 0; i < L->nb && !r; i++)
+        if (used >> i & 1) {
+            if (direct) {
+                direct_view(&lg[i], g, m, L->bands[i], ext, direct, i);
+            } else if (local_make(&lg[i], g, m, L->bands[i], ext)) {
+                *why = "out of memory";
+                r = -1;
+            } else {
+                parent_in(&lg[i], &parent[i]);
+            }
+        }
+    if (!r && mode == MODE_SHARED) {
+        int32_t *Q[8];
+        const size_t *P[8];
+        const wvc_band *B[8];
+        int k = 0;
+        for (i = 0; i < L->nb; i++)
+            if (used >> i & 1) Q[k] = lg[i].q, P[k] = lg[i].p, B[k] = &lg[i].b, k++;
+        r = wvol__wvc_cabac_decode_multi(k, Q, P, B, payload + pos, bytes - pos, why);
+    } else if (!r) {
+        for (i = 0; i < L->nb && !r; i++) {
+            if (!(used >> i & 1)) continue;
+            if (payload[1 + i] == WVOL_WVC_CODER_CABAC)
+                r = wvol__wvc_cabac_decode(lg[i].q, lg[i].p, &lg[i].b, payload + pos, len[i], why);
+            else
+                r = wvol__wvc_zstd_decode(lg[i].q, lg[i].p, &lg[i].b, payload + pos, len[i], why);
+            pos += len[i];
+        }
+    }
+    for (i = 0; i < L->nb; i++) {
+        if (!r && (used >> i & 1) && direct) {
+            for (size_t z = 0; z < ext[2]; z++)
+                for (size_t y = 0; y < ext[1]; y++) {
+                    const int32_t *s = lg[i].q + wvc_index(lg[i].p, &lg[i].b, 0, y, z);
+                    for (size_t x = 0; x < ext[0]; x++) *nonzero += s[x] != 0;
+                }
+        } else if (!r && (used >> i & 1)) {
+            for (size_t z = 0; z < ext[2]; z++)
+                for (size_t y = 0; y < ext[1]; y++) {
+                    const int32_t *s = lg[i].q + lg[i].p[0] * (y + lg[i].p[1] * z);
+                    int32_t *d = child[i].q + y * child[i].sy + z * child[i].sz;
+                    for (size_t x = 0; x < ext[0]; x++) *nonzero += (d[x] = s[x]) != 0;
+                }
+        }
+        if (!direct) free(lg[i].q);
+    }
+    return r;
+}
