@@ -24,6 +24,13 @@ Part 2, progressive rendering: wvol.render_progressive (X-ray along +z, growth -
 same volumes at --size^3; per pass the elapsed time, the bound (max, mean) and the actual error
 (max, mean) against the image of all coefficients.
 
+Part 3, a .wvc file's quantiser term: each volume at --size^3 compressed to --psnr dB with
+`wvol compress` (every coefficient kept, so the bound is the quantiser's alone), then
+`wvol render FILE.wvc --mode xray --camera +z --bound` (its JSON's bound_max) against the actual
+largest pixel error of the file's image (wvol.open) to the image of all the unquantised
+coefficients (same family and levels). --only-wvc runs this part alone and adds it to an existing
+bound.json.
+
 Writes bench/results/bound.json, bound.md and bound.png. Smoke run: bench/bench_bound.py --size 32
 --small 16; the real one: bench/bench_bound.py (defaults).
 """
@@ -168,9 +175,39 @@ def part2(args):
     return out
 
 
-def write(args, rows, prog):
+def part3(args):
+    import subprocess
+    import tempfile
+    wv = os.environ.get("WVOL_BIN", os.path.join(os.path.dirname(RESULTS), "..", "build", "wvol"))
+    out = []
+    with tempfile.TemporaryDirectory() as tmp:
+        for name, v in volumes(args.size, args.noise).items():
+            src = os.path.join(tmp, name + ".nrrd")
+            wvol.save(v, src)
+            for psnr in [float(x) for x in args.psnr.split(",")]:
+                f = os.path.join(tmp, f"{name}_{psnr:.0f}.wvc")
+                subprocess.run([wv, "compress", src, "-o", f, "--psnr", str(psnr)], check=True, capture_output=True)
+                r = subprocess.run([wv, "render", f, "-o", os.path.join(tmp, "x.exr"), "--mode", "xray", "--camera",
+                                    "+z", "--size", f"{args.size}x{args.size}", "--bound", os.path.join(tmp, "b.exr"),
+                                    "--json"], check=True, capture_output=True, text=True)
+                info = json.loads(r.stdout)
+                st = wvol.open(f)
+                levels = wvol.wvc_info(f)["levels"]
+                full = wvol.render(wvol.compress(v, levels=levels), "+z", (args.size, args.size), mode="xray")
+                img = wvol.render(st, "+z", (args.size, args.size), mode="xray")
+                act = float(np.abs(full[..., 0].astype(np.float64) - img[..., 0]).max())
+                out.append({"volume": name, "n": args.size, "psnr": psnr, "coeff_error": info["bound_coeff_error"],
+                            "bound_max": info["bound_max"], "actual_max": act,
+                            "ratio_max": info["bound_max"] / act if act > 0 else None})
+                print(f"wvc {name:12s} {psnr:.0f} dB: coefficient error {info['bound_coeff_error']:.4g}, bound max "
+                      f"{info['bound_max']:.4g}, actual max {act:.4g}", flush=True)
+    return out
+
+
+def write(args, rows, prog, wvc=()):
     os.makedirs(RESULTS, exist_ok=True)
-    doc = {"machine": benchutil.cpu_model(), "args": vars(args), "bound_vs_actual": rows, "progressive": prog}
+    doc = {"machine": benchutil.cpu_model(), "args": vars(args), "bound_vs_actual": rows, "progressive": prog,
+           "wvc_quantiser": list(wvc)}
     with open(os.path.join(RESULTS, "bound.json"), "w") as f:
         json.dump(doc, f, indent=1)
     lines = ["# Per-pixel error bounds: bound against actual error, and progressive rendering", "",
@@ -198,6 +235,12 @@ def write(args, rows, prog):
         for q in p["passes"]:
             lines.append(f"| {p['volume']} | {q['index']} | {q['kept']} | {q['elapsed']:.3f} | {q['bound_max']:.4g} | "
                          f"{q['actual_max']:.4g} | {q['bound_mean']:.4g} | {q['actual_mean']:.4g} | {q['holds']} |")
+    lines += ["", "## A .wvc file's quantiser term (every coefficient kept; X-ray along +z)", "",
+              "| volume | n | PSNR dB | coefficient error | bound max | actual max | bound max / actual max |",
+              "|---|---|---|---|---|---|---|"]
+    for q in wvc:
+        lines.append(f"| {q['volume']} | {q['n']} | {q['psnr']:.0f} | {q['coeff_error']:.4g} | {q['bound_max']:.4g} | "
+                     f"{q['actual_max']:.4g} | {q['ratio_max'] or float('nan'):.0f} |")
     with open(os.path.join(RESULTS, "bound.md"), "w") as f:
         f.write("\n".join(lines) + "\n")
     try:
@@ -243,10 +286,17 @@ def main():
     ap.add_argument("--keep", default="2,10,30")
     ap.add_argument("--noise", type=float, default=20.0)
     ap.add_argument("--growth", type=float, default=4.0)
+    ap.add_argument("--psnr", default="40,60")
+    ap.add_argument("--only-wvc", action="store_true")
     args = ap.parse_args()
+    if args.only_wvc:
+        with open(os.path.join(RESULTS, "bound.json")) as f:
+            old = json.load(f)
+        write(args, old["bound_vs_actual"], old["progressive"], part3(args))
+        return
     rows = part1(args)
     prog = part2(args)
-    write(args, rows, prog)
+    write(args, rows, prog, part3(args))
 
 
 if __name__ == "__main__":
