@@ -4,7 +4,7 @@ against the same volume as a .vti read by ParaView's own XML reader: time to fir
 volume rendering saved by pvbatch) and peak resident memory per rank, at 1 and 2 MPI ranks.
 
 Both runs render the same noisy skull with the same camera and transfer function
-(tests/python/paraview/pv_render.py). The .vti holds the original samples (zlib-compressed
+(tests/python/pvscripts/pv_render.py). The .vti holds the original samples (zlib-compressed
 appended data, as wvol writes it); the .wvc the compressed coefficients (--psnr). Peak memory
 is each rank's maximum resident set (the kernel's accounting of that process, via wait4 in
 bench/peak_rss.py); time to first image is the wall time of the whole pvbatch run (MPI and
@@ -29,13 +29,16 @@ import time
 
 from benchutil import cpu_model
 
+sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1] / "tests" / "python" / "pvscripts"))
+import headless  # noqa: E402  (tests/python/pvscripts/headless.py: an Xvfb display)
+
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 BUILD = pathlib.Path(os.environ.get("WVOL_BUILD_DIR", ROOT / "build"))
 PV_BUILD = pathlib.Path(os.environ.get("WVOL_PARAVIEW_BUILD_DIR", ROOT / "build-paraview"))
 WVOL = BUILD / "wvol"
 PVBATCH = PV_BUILD / "pvbatch"
 PLUGIN = PV_BUILD / "paraview-plugins" / "wvol_wvc_plugin.py"
-RENDER = ROOT / "tests" / "python" / "paraview" / "pv_render.py"
+RENDER = ROOT / "tests" / "python" / "pvscripts" / "pv_render.py"
 PEAK = ROOT / "bench" / "peak_rss.py"
 
 
@@ -46,19 +49,20 @@ def sh(cmd, **kw):
     return r
 
 
-def run_pvbatch(path, ranks, outdir, vmin, vmax, iso):
+def run_pvbatch(path, ranks, outdir, vmin, vmax, iso, budget):
     """One pvbatch run of the volume rendering: (wall seconds, in-script seconds, peak RSS per
     rank in bytes, chunk log lines)."""
     outdir.mkdir(parents=True, exist_ok=True)
     log = outdir / "chunks.jsonl"
     rss = outdir / "rss"
     cmd = [sys.executable, PEAK, rss, PVBATCH, RENDER, PLUGIN, path, outdir, log, vmin, vmax, iso,
-           "--array", "density", "--only", "volume"]
+           "--array", "density", "--budget", budget, "--only", "volume"]
     if ranks > 1:
         cmd = [shutil.which("mpiexec"), "-n", ranks, "--allow-run-as-root", "--oversubscribe", *cmd]
-    t0 = time.perf_counter()
-    r = sh(["xvfb-run", "-a", "-s", "-screen 0 800x600x24", *cmd], timeout=3600)
-    wall = time.perf_counter() - t0
+    with headless.display() as disp:
+        t0 = time.perf_counter()
+        r = sh(cmd, timeout=3600, env={**os.environ, "DISPLAY": disp})
+        wall = time.perf_counter() - t0
     m = re.search(r"first image after ([0-9.]+) s", r.stdout + r.stderr)
     peaks = sorted(int(p.read_text()) for p in outdir.glob("rss.*"))
     chunks = [json.loads(x) for x in log.read_text().splitlines()] if log.exists() else []
@@ -69,6 +73,8 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--size", type=int, default=512, help="edge of the cubic volume (default 512)")
     ap.add_argument("--psnr", type=float, default=45.0)
+    ap.add_argument("--budget", type=int, default=128,
+                    help="the reader's chunk cache per rank, MiB (default 128: a one-shot read needs no more)")
     ap.add_argument("--quick", action="store_true", help="128^3, for a check that it runs")
     ap.add_argument("--keep", help="folder for the data and images (default: a temporary one)")
     a = ap.parse_args()
@@ -82,7 +88,7 @@ def main():
     t = time.perf_counter()
     sh([WVOL, "synth", "skull", "--size", n, "--noise", "20", "-o", raw])
     sh([WVOL, "compress", raw, "-o", wvc, "--psnr", a.psnr])
-    sh([WVOL, "convert", raw, "-o", vti])
+    sh([WVOL, "convert", raw, vti])
     prep = time.perf_counter() - t
     info = json.loads(sh([WVOL, "info", wvc, "--json"]).stdout)
     vmin, vmax, iso = -1000.0, 2000.0, 300.0  # Hounsfield-like units of the skull phantom
@@ -90,7 +96,7 @@ def main():
     rows = []
     for ranks in (1, 2):
         for name, path in (("wvc", wvc), ("vti", vti)):
-            wall, first, peaks, chunks = run_pvbatch(path, ranks, work / f"{name}{ranks}", vmin, vmax, iso)
+            wall, first, peaks, chunks = run_pvbatch(path, ranks, work / f"{name}{ranks}", vmin, vmax, iso, a.budget)
             row = {"reader": name, "ranks": ranks, "wall_s": wall, "first_image_s": first,
                    "peak_rss_bytes_per_rank": peaks, "max_peak_rss_bytes": max(peaks)}
             if chunks:
@@ -108,6 +114,7 @@ def main():
     ratios["wvc_peak_rss_1_over_2_ranks"] = by[("wvc", 1)]["max_peak_rss_bytes"] / by[("wvc", 2)]["max_peak_rss_bytes"]
     ratios["vti_peak_rss_1_over_2_ranks"] = by[("vti", 1)]["max_peak_rss_bytes"] / by[("vti", 2)]["max_peak_rss_bytes"]
     result = {"machine": {"cpu": cpu_model(), "cores": os.cpu_count()}, "size": [n, n, n], "psnr": a.psnr,
+              "reader_budget_mib": a.budget,
               "bytes": {"wvc": wvc.stat().st_size, "vti": vti.stat().st_size, "float32": 4 * n ** 3},
               "prepare_s": prep, "runs": rows, "ratios": ratios, "wvc_info": info,
               "note": "pvbatch 5.11 (Debian) under Xvfb, software OpenGL; wall_s includes MPI and ParaView start-up"}
@@ -117,7 +124,7 @@ def main():
     lines = [f"# ParaView: .wvc reader plugin vs .vti ({n}^3 noisy skull, --psnr {a.psnr:g})", "",
              f"Machine: {cpu_model()}, {os.cpu_count()} cores (shared). Files: .wvc "
              f"{result['bytes']['wvc'] / mib:.1f} MiB, .vti {result['bytes']['vti'] / mib:.1f} MiB, float32 "
-             f"{result['bytes']['float32'] / mib:.0f} MiB. Made by `python3 bench/bench_paraview.py"
+             f"{result['bytes']['float32'] / mib:.0f} MiB; the .wvc reader's chunk cache {a.budget} MiB per rank. Made by `python3 bench/bench_paraview.py"
              f"{' --quick' if a.quick else f' --size {n}'}`.", "",
              "| reader | ranks | time to first image (s, in script) | pvbatch wall (s) | peak RSS per rank (MiB) |"
              " chunks decoded per rank |", "|---|---|---|---|---|---|"]

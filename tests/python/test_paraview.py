@@ -8,7 +8,7 @@ docs/paraview.md).
 - pvpython (ParaView's own VTK, the wvol build without VTK from scripts/setup.sh): the reader's
   array equals `wvol decompress` at full resolution and at a dropped level; bad files give a
   ParaView error message, and the session goes on.
-- pvbatch alone and under `mpiexec -n 2`: each rank decodes about half of the chunks, their
+- pvbatch alone and under `mpiexec -n 2` (on an Xvfb display): each rank decodes about half of the chunks, their
   union is every chunk, and the volume rendering and Contour screenshots equal the one-process
   ones within compositing rounding.
 
@@ -24,10 +24,11 @@ import numpy as np
 import pytest
 
 from conftest import ROOT, WVOL_BIN
+from pvscripts import headless  # tests/python/pvscripts/headless.py
 
 PV_BUILD = pathlib.Path(os.environ.get("WVOL_PARAVIEW_BUILD_DIR", ROOT / "build-paraview"))
 PLUGIN = PV_BUILD / "paraview-plugins" / "wvol_wvc_plugin.py"
-SCRIPTS = pathlib.Path(__file__).resolve().parent / "paraview"
+SCRIPTS = pathlib.Path(__file__).resolve().parent / "pvscripts"
 SHAPE = (128, 64, 80)  # (z, y, x): unequal axes catch an axis-order mistake; z, the longest, is split
 ISO = 100.0
 
@@ -229,8 +230,8 @@ def pvbatch_render(wvc, outdir, ranks):
            float(full.max()), ISO]
     if ranks > 1:
         cmd = [shutil.which("mpiexec"), "-n", ranks, "--allow-run-as-root", "--oversubscribe", *cmd]
-    r = run(["xvfb-run", "-a", "-s", "-screen 0 800x600x24", *cmd], timeout=600,
-            env={"OMPI_MCA_rmaps_base_oversubscribe": "1"})
+    with headless.display() as disp:
+        r = run(cmd, timeout=600, env={"DISPLAY": disp})
     assert r.returncode == 0, r.stdout + r.stderr
     return chunk_lines(log)
 
