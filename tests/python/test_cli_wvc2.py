@@ -119,3 +119,14 @@ def test_damage_is_named_and_confined(wvc):
     r = subprocess.run([WVOL_BIN, "decompress", str(f), "-o", str(d / "z.raw"), "--roi", "0,0,0,8,8,8",
                         "--memory", "1K"], capture_output=True, text=True)
     assert r.returncode == 1 and "budget" in r.stderr, r.stderr
+
+
+def test_python_region_equals_the_whole_decode(wvc):
+    wvol = pytest.importorskip("wvol")
+    d, f, full = wvc
+    arr, stats = wvol.wvc_region(f, (5, 60, 30), (40, 96, 77), level=0, memory=4 << 20)
+    assert arr.shape == (47, 36, 35)
+    assert np.max(np.abs(arr - full[30:77, 60:96, 5:40])) <= 1e-5 * np.max(np.abs(full))
+    assert 0 < stats["chunks_decoded"] and stats["cache_peak_bytes"] <= 4 << 20
+    with pytest.raises(Exception, match="outside"):
+        wvol.wvc_region(f, (0, 0, 0), (97, 4, 4))

@@ -373,7 +373,7 @@ static centry *decode_chunk(wvol_wvc_file *f, size_t id)
     if (read_at(f->fd, pay, c->bytes, c->offset)) {
         why = "cannot read the chunk (file shorter than its index says?)";
     } else if (wvol__wvc2_chunk_check(f->x, id, pay, &why) == 0 &&
-               wvol__wvc2_chunk_decode(g, m, ext, child, parent, pay, c->bytes, &nz, &why) == 0 && nz != c->nonzero) {
+               wvol__wvc2_chunk_decode(g, m, ext, child, parent, NULL, pay, c->bytes, &nz, &why) == 0 && nz != c->nonzero) {
         why = "decoded non-zero count does not match the index";
     }
     free(pay);
