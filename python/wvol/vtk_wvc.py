@@ -146,7 +146,11 @@ class WVCReader(VTKPythonAlgorithmBase):
 
     # ---- pipeline -------------------------------------------------------------------
     def _fail(self, message):
-        vtkOutputWindow.GetInstance().DisplayErrorText(f"ERROR: WVCReader: {message}\n")
+        """Reports message (prefixed with the file name unless the library's message has it) on
+        VTK's error output and fails the request."""
+        name = self._filename or "(no file)"
+        text = message if name in message else f"{name}: {message}"
+        vtkOutputWindow.GetInstance().DisplayErrorText(f"ERROR: WVCReader: {text}\n")
         return 0
 
     def _open(self):
@@ -185,7 +189,7 @@ class WVCReader(VTKPythonAlgorithmBase):
             self._extent = self._level_extent()
         except (OSError, ValueError, MemoryError) as e:
             self._extent = None
-            return self._fail(f"{self._filename}: {e}")
+            return self._fail(str(e))
         info, s = self._info, self._level
         out = outInfoVec.GetInformationObject(0)
         padded = info["padded"][::-1]
@@ -200,7 +204,7 @@ class WVCReader(VTKPythonAlgorithmBase):
 
     def RequestData(self, request, inInfoVec, outInfoVec):
         if self._file is None or self._extent is None:
-            return self._fail(f"{self._filename}: no file information (RequestInformation failed)")
+            return self._fail("no file information (RequestInformation failed)")
         out_info = outInfoVec.GetInformationObject(0)
         ue = list(out_info.Get(SDDP.UPDATE_EXTENT()) or self._extent)
         piece = out_info.Get(SDDP.UPDATE_PIECE_NUMBER()) if out_info.Has(SDDP.UPDATE_PIECE_NUMBER()) else 0
@@ -223,7 +227,7 @@ class WVCReader(VTKPythonAlgorithmBase):
             try:
                 data, spacing, _ = _wvol.wvc_file_region(self._file, lo, hi, self._level)
             except (OSError, ValueError, MemoryError) as e:
-                return self._fail(f"{self._filename}: {e}")
+                return self._fail(str(e))
             output.SetExtent(ue)
             output.SetSpacing(spacing)
             output.SetOrigin(info["level_origins"][self._level])
