@@ -73,8 +73,8 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--size", type=int, default=512, help="edge of the cubic volume (default 512)")
     ap.add_argument("--psnr", type=float, default=45.0)
-    ap.add_argument("--budget", type=int, default=128,
-                    help="the reader's chunk cache per rank, MiB (default 128: a one-shot read needs no more)")
+    ap.add_argument("--budget", type=int, default=256,
+                    help="the reader's chunk cache per rank, MiB (default 256: about two layers of chunks of a 512^2 slab)")
     ap.add_argument("--quick", action="store_true", help="128^3, for a check that it runs")
     ap.add_argument("--keep", help="folder for the data and images (default: a temporary one)")
     a = ap.parse_args()

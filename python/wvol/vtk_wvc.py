@@ -37,13 +37,16 @@ import os
 import numpy as np
 from vtkmodules.util.vtkAlgorithm import VTKPythonAlgorithmBase
 from vtkmodules.util import numpy_support
-from vtkmodules.vtkCommonCore import vtkDoubleArray, vtkOutputWindow, vtkTypeInt64Array
+from vtkmodules.vtkCommonCore import VTK_FLOAT, vtkDoubleArray, vtkOutputWindow, vtkTypeInt64Array
 from vtkmodules.vtkCommonDataModel import vtkDataObject, vtkImageData
 from vtkmodules.vtkCommonExecutionModel import vtkAlgorithm, vtkStreamingDemandDrivenPipeline
 
 from . import _psnr, _wvol
 
 SDDP = vtkStreamingDemandDrivenPipeline
+# Samples reconstructed per region read (64 MiB of float32): bounds the working memory of a
+# piece's reconstruction beyond its output array (see WVCReader._read_slabs).
+SLAB_SAMPLES = 1 << 24
 
 
 def _rank():
@@ -198,9 +201,27 @@ class WVCReader(VTKPythonAlgorithmBase):
         out.Set(vtkDataObject.SPACING(), spacing, 3)
         out.Set(vtkDataObject.ORIGIN(), info["level_origins"][s], 3)
         out.Set(vtkAlgorithm.CAN_PRODUCE_SUB_EXTENT(), 1)
-        vtkImageData.SetScalarType(10, out)  # VTK_FLOAT
+        vtkImageData.SetScalarType(VTK_FLOAT, out)
         vtkImageData.SetNumberOfScalarComponents(1, out)
         return 1
+
+    def _read_slabs(self, ue):
+        """The samples of extent ue as a (z, y, x) array, reconstructed slab by slab along z
+        (SLAB_SAMPLES at most each) into one output array: a region read's working memory
+        (the box's coefficients and reconstruction buffers) is then bounded by a slab, not
+        the piece, and the chunks of consecutive slabs are mostly shared, so the cache (least
+        recently used first out) serves them without decoding twice."""
+        nx, ny, nz = ue[1] - ue[0] + 1, ue[3] - ue[2] + 1, ue[5] - ue[4] + 1
+        planes = max(1, min(nz, SLAB_SAMPLES // (nx * ny)))
+        out = np.empty((nz, ny, nx), dtype=np.float32)
+        spacing = None
+        for z0 in range(0, nz, planes):
+            z1 = min(nz, z0 + planes)
+            slab, spacing, _ = _wvol.wvc_file_region(self._file, [ue[0], ue[2], ue[4] + z0],
+                                                     [ue[1] + 1, ue[3] + 1, ue[4] + z1], self._level)
+            out[z0:z1] = slab
+            del slab
+        return out, spacing
 
     def RequestData(self, request, inInfoVec, outInfoVec):
         if self._file is None or self._extent is None:
@@ -222,10 +243,8 @@ class WVCReader(VTKPythonAlgorithmBase):
         if empty:
             output.SetExtent(0, -1, 0, -1, 0, -1)
         else:
-            lo = [ue[0], ue[2], ue[4]]
-            hi = [ue[1] + 1, ue[3] + 1, ue[5] + 1]
             try:
-                data, spacing, _ = _wvol.wvc_file_region(self._file, lo, hi, self._level)
+                data, spacing = self._read_slabs(ue)
             except (OSError, ValueError, MemoryError) as e:
                 return self._fail(str(e))
             output.SetExtent(ue)

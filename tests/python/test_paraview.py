@@ -141,6 +141,24 @@ def test_vtk_reader_region_and_pieces(wvc, vtk_reader):
     assert field(p.GetOutputDataObject(0), "ChunksDecodedTotal") == all_chunks
 
 
+def test_vtk_reader_slabs_equal_one_read(wvc, vtk_reader, monkeypatch):
+    """A piece is reconstructed in z slabs of SLAB_SAMPLES (bounding the working memory): with
+    slabs of 7 planes (not dividing 128) the samples are the same, and with the cache holding
+    everything no chunk is decoded twice."""
+    import wvol.vtk_wvc as vw
+    d, f, full, _ = wvc
+    whole = vtk_reader()
+    whole.SetFileName(str(f))
+    whole.Update()
+    monkeypatch.setattr(vw, "SLAB_SAMPLES", SHAPE[1] * SHAPE[2] * 7)
+    r = vtk_reader()
+    r.SetFileName(str(f))
+    r.Update()
+    img = r.GetOutputDataObject(0)
+    close(image_array(img), full)
+    assert field(img, "ChunksDecoded") == field(whole.GetOutputDataObject(0), "ChunksDecoded")
+
+
 @pytest.mark.parametrize("damage", ["missing", "garbage", "truncated", "region", "level"])
 def test_vtk_reader_refuses_bad_input(wvc, vtk_reader, tmp_path, damage):
     from vtkmodules.vtkCommonCore import vtkOutputWindow, vtkStringOutputWindow
