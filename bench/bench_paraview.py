@@ -52,11 +52,12 @@ def sh(cmd, **kw):
 def run_pvbatch(path, ranks, outdir, vmin, vmax, iso, budget):
     """One pvbatch run of the volume rendering: (wall seconds, in-script seconds, peak RSS per
     rank in bytes, chunk log lines)."""
-    outdir.mkdir(parents=True, exist_ok=True)
+    shutil.rmtree(outdir, ignore_errors=True)  # no log lines or peaks of an earlier run
+    outdir.mkdir(parents=True)
     log = outdir / "chunks.jsonl"
     rss = outdir / "rss"
     cmd = [sys.executable, PEAK, rss, PVBATCH, RENDER, PLUGIN, path, outdir, log, vmin, vmax, iso,
-           "--array", "density", "--budget", budget, "--only", "volume"]
+           "--array", "density", "--budget", budget, "--release", "--only", "volume"]
     if ranks > 1:
         cmd = [shutil.which("mpiexec"), "-n", ranks, "--allow-run-as-root", "--oversubscribe", *cmd]
     with headless.display() as disp:

@@ -57,6 +57,12 @@ class WVCParaViewReader(WVCReader):
         """Decoded chunks kept per rank, in MiB (0: the library's default, 1 GiB)."""
         WVCReader.SetMemoryBudget(self, mib)
 
+    @smproperty.intvector(name="ReleaseCache", default_values=0)
+    @smdomain.xml("<BooleanDomain name='bool'/>")
+    def SetReleaseCache(self, release):
+        """Close the file after each execution, freeing the decoded chunks (default: keep them)."""
+        WVCReader.SetReleaseCache(self, release)
+
     @smproperty.stringvector(name="ArrayName", default_values="values")
     def SetArrayName(self, name):
         WVCReader.SetArrayName(self, name)

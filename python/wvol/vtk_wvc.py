@@ -83,6 +83,7 @@ class WVCReader(VTKPythonAlgorithmBase):
         self._budget_mib = 0
         self._array_name = "values"
         self._chunk_log = ""
+        self._release = False
         self._file = None       # open handle (capsule) of self._opened
         self._opened = None     # (path, budget) the handle was opened with
         self._info = None
@@ -138,6 +139,12 @@ class WVCReader(VTKPythonAlgorithmBase):
         if path != self._chunk_log:
             self._chunk_log = path
             self.Modified()
+
+    def SetReleaseCache(self, release):
+        """True: close the file after each execution, freeing its decoded chunks (the memory
+        then holds the output only; a later execution, such as a ghost-layer request, decodes
+        its chunks again). False (default): keep them for the next request."""
+        self._release = bool(release)
 
     def GetFileInfo(self):
         """The open file's header (dict), or None before the first update."""
@@ -224,8 +231,13 @@ class WVCReader(VTKPythonAlgorithmBase):
         return out, spacing
 
     def RequestData(self, request, inInfoVec, outInfoVec):
-        if self._file is None or self._extent is None:
+        if self._extent is None:
             return self._fail("no file information (RequestInformation failed)")
+        if self._file is None:  # released after the previous execution
+            try:
+                self._open()
+            except (OSError, ValueError, MemoryError) as e:
+                return self._fail(str(e))
         out_info = outInfoVec.GetInformationObject(0)
         ue = list(out_info.Get(SDDP.UPDATE_EXTENT()) or self._extent)
         piece = out_info.Get(SDDP.UPDATE_PIECE_NUMBER()) if out_info.Has(SDDP.UPDATE_PIECE_NUMBER()) else 0
@@ -276,5 +288,7 @@ class WVCReader(VTKPythonAlgorithmBase):
                                "cache_peak_bytes": stats["peak"]})
             with open(self._chunk_log, "a") as f:  # one short write per line: O_APPEND keeps lines whole
                 f.write(line + "\n")
+        if self._release:
+            self._file = self._opened = None
         return 1
 

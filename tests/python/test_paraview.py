@@ -159,6 +159,24 @@ def test_vtk_reader_slabs_equal_one_read(wvc, vtk_reader, monkeypatch):
     assert field(img, "ChunksDecoded") == field(whole.GetOutputDataObject(0), "ChunksDecoded")
 
 
+def test_vtk_reader_release_cache(wvc, vtk_reader):
+    """ReleaseCache closes the file after each execution (its chunks freed): a later execution
+    reopens it, decodes its chunks again and gives the same samples."""
+    d, f, full, _ = wvc
+    r = vtk_reader()
+    r.SetFileName(str(f))
+    r.SetReleaseCache(True)
+    counts = []
+    for piece in (0, 1, 0):
+        r.UpdatePiece(piece, 2, 0)
+        img = r.GetOutputDataObject(0)
+        assert r.GetChunkStats() is None
+        e = img.GetExtent()
+        close(image_array(img), full[e[4]:e[5] + 1, e[2]:e[3] + 1, e[0]:e[1] + 1])
+        counts.append(field(img, "ChunksDecoded"))
+    assert counts[0] == counts[2] > 0  # piece 0 again: decoded again, as many chunks
+
+
 @pytest.mark.parametrize("damage", ["missing", "garbage", "truncated", "region", "level"])
 def test_vtk_reader_refuses_bad_input(wvc, vtk_reader, tmp_path, damage):
     from vtkmodules.vtkCommonCore import vtkOutputWindow, vtkStringOutputWindow

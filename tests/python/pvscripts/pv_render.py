@@ -6,7 +6,7 @@ saves a volume rendering and a Contour of it as PNG screenshots with a fixed cam
 function (no data-dependent choices, so runs with different rank counts are comparable), and
 prints the seconds from the script's start to the first image. Usage:
     pvbatch pv_render.py PLUGIN FILE OUTDIR CHUNKLOG VMIN VMAX ISO
-            [--level S] [--array NAME] [--budget MIB] [--only volume|contour]"""
+            [--level S] [--array NAME] [--budget MIB] [--release] [--only volume|contour]"""
 import argparse
 import time
 
@@ -22,6 +22,7 @@ for name in ("vmin", "vmax", "iso"):
 ap.add_argument("--level", type=int, default=0)
 ap.add_argument("--array", default="values")
 ap.add_argument("--budget", type=int, default=0, help="the reader's MemoryBudget (MiB of decoded chunks)")
+ap.add_argument("--release", action="store_true", help="the reader's ReleaseCache (free chunks after reading)")
 ap.add_argument("--only", choices=("volume", "contour"))
 a = ap.parse_args()
 vmin, vmax, iso, only = a.vmin, a.vmax, a.iso, a.only
@@ -30,7 +31,8 @@ if a.path.endswith(".vti"):
 else:
     LoadPlugin(a.plugin, ns=globals())
     reader = WVCReader(FileName=a.path, LevelOfDetail=a.level, ChunkLog=a.log,  # noqa: F821 (from the plugin)
-                       ArrayName=a.array, MemoryBudget=a.budget)
+                       ArrayName=a.array, MemoryBudget=a.budget,
+                       ReleaseCache=int(a.release))
 
 
 def view_of(size=(480, 400)):
