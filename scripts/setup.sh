@@ -39,7 +39,9 @@ if [ ! -f "$PVPY/usr/lib/python3/dist-packages/paraview/__init__.py" ]; then
   pv_tmp=$(mktemp -d)
   chmod 755 "$pv_tmp"  # apt's download sandbox user must be able to write there
   chown _apt "$pv_tmp" 2>/dev/null || true
-  (cd "$pv_tmp" && apt-get download -qq "python3-paraview=$pv_version")
+  (cd "$pv_tmp" && { apt-get download -qq "python3-paraview=$pv_version" 2>/dev/null \
+     || { SUDO=""; [ "$(id -u)" -eq 0 ] || SUDO="sudo"; $SUDO apt-get update -qq \
+          && apt-get download -qq "python3-paraview=$pv_version"; }; })
   rm -rf "$PVPY.tmp"
   dpkg-deb -x "$pv_tmp"/python3-paraview_*.deb "$PVPY.tmp"
   rm -rf "$pv_tmp" "$PVPY"

@@ -19,6 +19,7 @@ extern PyMethodDef wvolpy_wvc_region_methods[];
 /* The StoreHandle type (py_store.c), added to the module at import: 0 or -1. */
 int wvolpy_store_ready(PyObject *module);
 /* A .wvc header as a dict (py_codec.c; also the open file's info in py_wvc_region.c). */
+struct wvol_wvc_info;
 PyObject *wvolpy_wvc_info_dict(const struct wvol_wvc_info *in);
 
 #define WVOLPY_METHOD_TABLES                                                                             \

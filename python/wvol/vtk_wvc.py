@@ -90,20 +90,21 @@ class WVCReader(VTKPythonAlgorithmBase):
         self._extent = None     # whole extent of the current level and region
 
     # ---- properties -----------------------------------------------------------------
-    def SetFileName(self, name):
-        name = os.fspath(name) if name else None
-        if name != self._filename:
-            self._filename = name
+    def _set(self, attr, value):
+        """Sets a property; a change marks the reader modified (the pipeline re-executes)."""
+        if getattr(self, attr) != value:
+            setattr(self, attr, value)
             self.Modified()
+
+    def SetFileName(self, name):
+        self._set("_filename", os.fspath(name) if name else None)
 
     def GetFileName(self):
         return self._filename
 
     def SetLevelOfDetail(self, level):
         """0: full resolution; s: the grid 2^s coarser (the finest s levels not decoded)."""
-        if int(level) != self._level:
-            self._level = int(level)
-            self.Modified()
+        self._set("_level", int(level))
 
     def GetLevelOfDetail(self):
         return self._level
@@ -115,30 +116,21 @@ class WVCReader(VTKPythonAlgorithmBase):
         ext = tuple(int(v) for v in (ext[0] if len(ext) == 1 else ext))
         if len(ext) != 6:
             raise ValueError(f"Region takes 6 integers (x0, x1, y0, y1, z0, z1), got {len(ext)}")
-        if ext != self._region:
-            self._region = ext
-            self.Modified()
+        self._set("_region", ext)
 
     def GetRegion(self):
         return self._region
 
     def SetMemoryBudget(self, mib):
         """Decoded chunks kept per process, in MiB (0: the library's default, 1 GiB)."""
-        if int(mib) != self._budget_mib:
-            self._budget_mib = int(mib)
-            self.Modified()
+        self._set("_budget_mib", int(mib))
 
     def SetArrayName(self, name):
-        if str(name) != self._array_name:
-            self._array_name = str(name)
-            self.Modified()
+        self._set("_array_name", str(name))
 
     def SetChunkLog(self, path):
         """A file that gets one JSON line per execution (piece, rank, extent, chunks); "" for none."""
-        path = os.fspath(path) if path else ""
-        if path != self._chunk_log:
-            self._chunk_log = path
-            self.Modified()
+        self._set("_chunk_log", os.fspath(path) if path else "")
 
     def SetReleaseCache(self, release):
         """True: close the file after each execution, freeing its decoded chunks (the memory
