@@ -22,3 +22,43 @@ cmake -S . -B "$BUILD" -DCMAKE_BUILD_TYPE=Release -DWVOL_WITH_OPENVDB=ON -DWVOL_
       -DWVOL_WERROR="${WVOL_WERROR:-OFF}" ${WVOL_CMAKE_ARGS:-} > "$BUILD.configure.log" 2>&1 \
   || { cat "$BUILD.configure.log"; exit 1; }
 cmake --build "$BUILD" -j "$(nproc)"
+
+# ParaView (docs/paraview.md). The reader plugin imports the wvol Python module, which must
+# not link Debian's VTK 9.1 (ParaView carries its own VTK; two in one process clash), so a
+# second copy is built without the VTK and OpenVDB adapters into $PV_BUILD. Debian's
+# python3-paraview conflicts with python3-vtk9 (both ship the `vtkmodules` package), which the
+# VTK adapter's tests need: its files are unpacked into $PV_BUILD/paraview-python instead of
+# installed, and the wrappers $PV_BUILD/pvpython and $PV_BUILD/pvbatch put them (and the
+# wvol build without VTK) on PYTHONPATH, with python/paraview/site/sitecustomize.py, which
+# keeps pvpython off Debian's VTK Python package.
+PV_BUILD=${WVOL_PARAVIEW_BUILD_DIR:-$BUILD-paraview}
+PV_BUILD=$(mkdir -p "$PV_BUILD" && cd "$PV_BUILD" && pwd)
+PVPY="$PV_BUILD/paraview-python"
+if [ ! -f "$PVPY/usr/lib/python3/dist-packages/paraview/__init__.py" ]; then
+  pv_version=$(dpkg-query -W -f='${Version}' paraview)
+  pv_tmp=$(mktemp -d)
+  chmod 755 "$pv_tmp"  # apt's download sandbox user must be able to write there
+  chown _apt "$pv_tmp" 2>/dev/null || true
+  (cd "$pv_tmp" && { apt-get download -qq "python3-paraview=$pv_version" 2>/dev/null \
+     || { SUDO=""; [ "$(id -u)" -eq 0 ] || SUDO="sudo"; $SUDO apt-get update -qq \
+          && apt-get download -qq "python3-paraview=$pv_version"; }; })
+  rm -rf "$PVPY.tmp"
+  dpkg-deb -x "$pv_tmp"/python3-paraview_*.deb "$PVPY.tmp"
+  rm -rf "$pv_tmp" "$PVPY"
+  mv "$PVPY.tmp" "$PVPY"
+fi
+for tool in pvpython pvbatch; do
+  exe=/usr/bin/pvbatch
+  [ "$tool" = pvbatch ] || exe=$(ls "$PVPY"/usr/bin/pvpython3.*)
+  cat > "$PV_BUILD/$tool" <<WRAP
+#!/bin/sh
+# $tool with ParaView's Python modules and the wvol package built without VTK (scripts/setup.sh)
+PYTHONPATH="$PVPY/usr/lib/python3/dist-packages:$PV_BUILD/python:$PWD/python/paraview/site\${PYTHONPATH:+:\$PYTHONPATH}" exec "$exe" "\$@"
+WRAP
+  chmod +x "$PV_BUILD/$tool"
+done
+cmake -S . -B "$PV_BUILD" -DCMAKE_BUILD_TYPE=Release -DWVOL_WITH_OPENVDB=OFF -DWVOL_WITH_VTK=OFF \
+      -DWVOL_BUILD_APPS=OFF -DWVOL_BUILD_TESTS=OFF -DWVOL_BUILD_BENCH=OFF \
+      -DWVOL_WERROR="${WVOL_WERROR:-OFF}" > "$PV_BUILD.configure.log" 2>&1 \
+  || { cat "$PV_BUILD.configure.log"; exit 1; }
+cmake --build "$PV_BUILD" -j "$(nproc)" --target wvol_paraview_plugin

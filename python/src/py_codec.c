@@ -6,7 +6,7 @@
 #include "py_store.h"
 #include "wvol/wvc.h"
 
-static PyObject *info_dict(const wvol_wvc_info *in)
+PyObject *wvolpy_wvc_info_dict(const wvol_wvc_info *in)
 {
     return Py_BuildValue("{s:i,s:s,s:i,s:(nnn),s:(nnn),s:(ddd),s:(ddd),s:(dd),s:d,s:d,s:d,s:d,s:d,s:d,s:K,s:K,s:i}",
                          "version", in->version, "wavelet", in->filter, "levels", in->levels, "shape",
@@ -60,7 +60,7 @@ static PyObject *py_store_open(PyObject *self, PyObject *args, PyObject *kw)
     out.value_min = info->value_min;
     out.value_max = info->value_max;
     out.report.energy_dropped = info->sse + info->dropped_energy;
-    d = info_dict(info);
+    d = wvolpy_wvc_info_dict(info);
     PyMem_Free(info);
     return wvolpy_store_with(&out, d);
 }
@@ -83,7 +83,7 @@ static PyObject *py_wvc_info(PyObject *self, PyObject *path_obj)
     s = wvol_wvc_read_info(info, PyBytes_AS_STRING(bytes), &err);
     Py_END_ALLOW_THREADS
     Py_DECREF(bytes);
-    d = s == WVOL_OK ? info_dict(info) : wvolpy_raise(&err);
+    d = s == WVOL_OK ? wvolpy_wvc_info_dict(info) : wvolpy_raise(&err);
     PyMem_Free(info);
     return d;
 }

@@ -1,0 +1,181 @@
+/* SPDX-License-Identifier: MIT */
+/* Random access to a .wvc file (wvol/wvc.h: wvol_wvc_open, wvol_wvc_read_region): an open
+ * file as a capsule, its header, region reads at a level of detail, the chunk cache's
+ * counters. The ParaView / VTK reader (python/wvol/vtk_wvc.py) is built on these: each
+ * pipeline piece reads its own box and decodes only the chunks that box needs. */
+#include "pyutil.h"
+#include "methods.h"
+#include "wvol/wvc.h"
+
+#include <math.h>
+
+#define CAPSULE_NAME "wvol.WvcFile"
+
+static void capsule_close(PyObject *cap)
+{
+    wvol_wvc_close((wvol_wvc_file *)PyCapsule_GetPointer(cap, CAPSULE_NAME));
+}
+
+static wvol_wvc_file *file_of(PyObject *cap)
+{
+    return (wvol_wvc_file *)PyCapsule_GetPointer(cap, CAPSULE_NAME); /* NULL + TypeError/ValueError */
+}
+
+/* wvc_file_open(path, budget=0) -> capsule (closed when it dies). budget in bytes of
+ * decoded chunks, 0 = the library's default. */
+static PyObject *py_wvc_file_open(PyObject *self, PyObject *args, PyObject *kw)
+{
+    static char *kwlist[] = {"path", "budget", NULL};
+    PyObject *bytes = NULL, *cap;
+    unsigned long long budget = 0;
+    wvol_wvc_file *f = NULL;
+    wvol_error err;
+    wvol_status s;
+    (void)self;
+    if (!PyArg_ParseTupleAndKeywords(args, kw, "O&|K", kwlist, PyUnicode_FSConverter, &bytes, &budget)) return NULL;
+    Py_BEGIN_ALLOW_THREADS
+    s = wvol_wvc_open(&f, PyBytes_AS_STRING(bytes), (size_t)budget, &err);
+    Py_END_ALLOW_THREADS
+    Py_DECREF(bytes);
+    if (s != WVOL_OK) return wvolpy_raise(&err);
+    cap = PyCapsule_New(f, CAPSULE_NAME, capsule_close);
+    if (!cap) wvol_wvc_close(f);
+    return cap;
+}
+
+/* wvc_file_info(file) -> the header's dict (as wvc_info) plus "chunks", "tile" (x/y, z),
+ * "level_shapes": the (z, y, x) grid of every level 0..levels (ceil(n / 2^s) along each
+ * transformed axis, n along an axis the transform leaves alone) and "level_origins": the
+ * (x, y, z) position of each level grid's first sample (origin + spacing (2^s - 1) c along a
+ * transformed axis, c the filter's centre: wvol_idwt3_level's convention, which
+ * wvol_wvc_read_region follows). A reader can describe every level without decoding. */
+static PyObject *py_wvc_file_info(PyObject *self, PyObject *cap)
+{
+    wvol_wvc_file *f = file_of(cap);
+    const wvol_wvc_info *in;
+    const wvol_filter *flt;
+    wvol_error err;
+    PyObject *d, *shapes = NULL, *origins = NULL, *v = NULL;
+    (void)self;
+    if (!f) return NULL;
+    in = wvol_wvc_file_info(f);
+    if (wvol_filter_get(&flt, in->filter, &err) != WVOL_OK) return wvolpy_raise(&err);
+    if (!(d = wvolpy_wvc_info_dict(in))) return NULL;
+    shapes = PyList_New(in->levels + 1);
+    origins = PyList_New(in->levels + 1);
+    if (!shapes || !origins) goto fail;
+    for (int s = 0; s <= in->levels; s++) {
+        const size_t n[3] = {in->nx, in->ny, in->nz}, p[3] = {in->px, in->py, in->pz};
+        size_t g[3];
+        double o[3];
+        for (int a = 0; a < 3; a++) {
+            g[a] = p[a] > 1 ? (n[a] + ((size_t)1 << s) - 1) >> s : n[a];
+            o[a] = in->origin[a] + (p[a] > 1 ? in->spacing[a] * (ldexp(1.0, s) - 1.0) * flt->center : 0.0);
+        }
+        PyList_SET_ITEM(shapes, s, Py_BuildValue("(nnn)", (Py_ssize_t)g[2], (Py_ssize_t)g[1], (Py_ssize_t)g[0]));
+        PyList_SET_ITEM(origins, s, Py_BuildValue("(ddd)", o[0], o[1], o[2]));
+    }
+    if (PyDict_SetItemString(d, "level_shapes", shapes) < 0 || PyDict_SetItemString(d, "level_origins", origins) < 0)
+        goto fail;
+    if (!(v = Py_BuildValue("K", (unsigned long long)in->chunks)) || PyDict_SetItemString(d, "chunks", v) < 0) goto fail;
+    Py_CLEAR(v);
+    if (!(v = Py_BuildValue("(ii)", in->tile, in->tile_z)) || PyDict_SetItemString(d, "tile", v) < 0) goto fail;
+    Py_DECREF(v);
+    Py_DECREF(shapes);
+    Py_DECREF(origins);
+    return d;
+fail:
+    Py_XDECREF(v);
+    Py_XDECREF(shapes);
+    Py_XDECREF(origins);
+    Py_DECREF(d);
+    return NULL;
+}
+
+static int size3(PyObject *o, size_t out[3], const char *what)
+{
+    PyObject *seq = PySequence_Fast(o, what);
+    if (!seq) return -1;
+    if (PySequence_Fast_GET_SIZE(seq) != 3) {
+        PyErr_Format(PyExc_ValueError, "%s must have 3 entries (x, y, z)", what);
+        Py_DECREF(seq);
+        return -1;
+    }
+    for (int a = 0; a < 3; a++) {
+        long long v = PyLong_AsLongLong(PySequence_Fast_GET_ITEM(seq, a));
+        if (v == -1 && PyErr_Occurred()) {
+            Py_DECREF(seq);
+            return -1;
+        }
+        if (v < 0) {
+            PyErr_Format(PyExc_ValueError, "%s: negative index %lld", what, v);
+            Py_DECREF(seq);
+            return -1;
+        }
+        out[a] = (size_t)v;
+    }
+    Py_DECREF(seq);
+    return 0;
+}
+
+/* wvc_file_region(file, lo, hi, level=0) -> (array (z, y, x), spacing, origin): the samples
+ * [lo, hi) (x, y, z order, in level `level`'s grid), decoding only the chunks they need. */
+static PyObject *py_wvc_file_region(PyObject *self, PyObject *args, PyObject *kw)
+{
+    static char *kwlist[] = {"file", "lo", "hi", "level", NULL};
+    PyObject *cap, *lo_o, *hi_o, *arr;
+    int level = 0;
+    size_t lo[3], hi[3];
+    double sp[3], org[3];
+    wvol_wvc_file *f;
+    wvol_volume *v = NULL;
+    wvol_error err;
+    wvol_status s;
+    (void)self;
+    if (!PyArg_ParseTupleAndKeywords(args, kw, "OOO|i", kwlist, &cap, &lo_o, &hi_o, &level)) return NULL;
+    if (!(f = file_of(cap)) || size3(lo_o, lo, "lo") < 0 || size3(hi_o, hi, "hi") < 0) return NULL;
+    Py_BEGIN_ALLOW_THREADS
+    s = wvol_wvc_read_region(&v, f, lo, hi, level, &err);
+    Py_END_ALLOW_THREADS
+    if (s != WVOL_OK) return wvolpy_raise(&err);
+    for (int a = 0; a < 3; a++) {
+        sp[a] = v->spacing[a];
+        org[a] = v->origin[a];
+    }
+    arr = wvolpy_volume_take(v, 0);
+    if (!arr) return NULL;
+    return Py_BuildValue("(N(ddd)(ddd))", arr, sp[0], sp[1], sp[2], org[0], org[1], org[2]);
+}
+
+/* wvc_file_stats(file) -> the chunk cache's counters (wvol_wvc_cache_stats). */
+static PyObject *py_wvc_file_stats(PyObject *self, PyObject *cap)
+{
+    wvol_wvc_file *f = file_of(cap);
+    wvol_wvc_cache_stats st;
+    (void)self;
+    if (!f) return NULL;
+    wvol_wvc_file_stats(f, &st);
+    return Py_BuildValue("{s:K,s:K,s:K,s:K,s:K,s:K,s:K}", "budget", (unsigned long long)st.budget, "held",
+                         (unsigned long long)st.held, "peak", (unsigned long long)st.peak, "chunk_bytes",
+                         (unsigned long long)st.chunk_bytes, "decoded", (unsigned long long)st.decoded, "hits",
+                         (unsigned long long)st.hits, "bytes_read", (unsigned long long)st.bytes_read);
+}
+
+/* built_with_vtk() -> True when this build links VTK (the VTK adapter): such a module must not
+ * be imported into ParaView, which carries a VTK of its own (docs/paraview.md). */
+static PyObject *py_built_with_vtk(PyObject *self, PyObject *unused)
+{
+    (void)self;
+    (void)unused;
+    return PyBool_FromLong(wvol_has_feature(WVOL_FEATURE_VTK));
+}
+
+PyMethodDef wvolpy_wvc_region_methods[] = {
+    {"built_with_vtk", py_built_with_vtk, METH_NOARGS, "built_with_vtk() -> bool"},
+    {"wvc_file_open", (PyCFunction)(void (*)(void))py_wvc_file_open, METH_VARARGS | METH_KEYWORDS,
+     "wvc_file_open(path, budget=0) -> file"},
+    {"wvc_file_info", py_wvc_file_info, METH_O, "wvc_file_info(file) -> info"},
+    {"wvc_file_region", (PyCFunction)(void (*)(void))py_wvc_file_region, METH_VARARGS | METH_KEYWORDS,
+     "wvc_file_region(file, lo, hi, level=0) -> (array, spacing, origin)"},
+    {"wvc_file_stats", py_wvc_file_stats, METH_O, "wvc_file_stats(file) -> counters"},
+    {NULL, NULL, 0, NULL}};

@@ -1,0 +1,286 @@
+# SPDX-License-Identifier: MIT
+"""A VTK reader of .wvc files that decodes only the piece the pipeline asks for.
+
+:class:`WVCReader` is a ``VTKPythonAlgorithmBase`` (a source with one ``vtkImageData``
+output). It serves plain VTK scripts (Debian's ``python3-vtk9``) and, subclassed with
+ParaView's proxy decorators in ``python/paraview/wvol_wvc_plugin.py``, ParaView (pvpython,
+pvbatch, pvserver under MPI). The VTK modules are whichever ``vtkmodules`` the running
+Python has: ParaView's inside ParaView, Debian's VTK elsewhere.
+
+Pipeline contract:
+
+- ``RequestInformation`` reads the header and chunk index only (nothing decoded): the whole
+  extent is the region in the grid of the chosen level of detail (level ``s`` is
+  ``wvol_idwt3_level``'s grid: 2^s coarser, spacing 2^s times larger, its first sample shifted
+  by the filter's centre), with ``CAN_PRODUCE_SUB_EXTENT`` set, so a parallel pipeline gives
+  each piece its own sub-extent.
+- ``RequestData`` reconstructs exactly the ``UPDATE_EXTENT`` through
+  ``wvol_wvc_read_region``, which decodes only the chunks whose basis functions' supports
+  meet that box: N pieces decode about 1/N of the chunks each (plus the chunks near the
+  cuts and the coarse levels that several pieces need).
+- The output carries one point array (``ArrayName``, default ``"values"``) and field data:
+  the file's error report (``PredictedRMSE``, ``PredictedPSNR`` from the header's recorded
+  quantisation + dropped energy, ``KeptCoefficients`` of ``Coefficients``) and this
+  execution's chunk work (``ChunksDecoded``, ``ChunksDecodedTotal`` over the open file,
+  ``Piece``, ``NumberOfPieces``, ``LevelOfDetail``).
+- With ``ChunkLog`` set to a path, every execution also appends one JSON line there
+  (piece, rank, extent, chunks decoded): how the MPI tests and the benchmark see each
+  rank's share.
+- Errors (a missing, damaged or refused file, a region outside the volume, a level out of
+  range) are reported through VTK's error output with the library's message, and the
+  request fails: the pipeline stops, the process does not.
+"""
+import json
+import math
+import os
+
+import numpy as np
+from vtkmodules.util.vtkAlgorithm import VTKPythonAlgorithmBase
+from vtkmodules.util import numpy_support
+from vtkmodules.vtkCommonCore import VTK_FLOAT, vtkDoubleArray, vtkOutputWindow, vtkTypeInt64Array
+from vtkmodules.vtkCommonDataModel import vtkDataObject, vtkImageData
+from vtkmodules.vtkCommonExecutionModel import vtkAlgorithm, vtkStreamingDemandDrivenPipeline
+
+from . import _psnr, _wvol
+
+SDDP = vtkStreamingDemandDrivenPipeline
+# Samples reconstructed per region read (64 MiB of float32): bounds the working memory of a
+# piece's reconstruction beyond its output array (see WVCReader._read_slabs).
+SLAB_SAMPLES = 1 << 24
+
+
+def _rank():
+    """This process's rank in the global MPI controller (0 without one)."""
+    try:
+        from vtkmodules.vtkParallelCore import vtkMultiProcessController
+    except ImportError:
+        return 0
+    c = vtkMultiProcessController.GetGlobalController()
+    return c.GetLocalProcessId() if c is not None else 0
+
+
+def error_report(info):
+    """The file's predicted error and kept coefficients, from its header (nothing decoded):
+    ``rmse``/``psnr`` over the voxels of the original grid from the recorded quantisation +
+    dropped energy (Parseval: the transform is orthonormal), ``kept`` non-zero quantised
+    coefficients of ``coefficients`` (the padded grid)."""
+    voxels = int(np.prod(info["shape"]))
+    l2 = math.sqrt(max(float(info["sse"]), 0.0))
+    peak = float(info["value_range"][1] - info["value_range"][0])
+    return {"rmse": l2 / math.sqrt(voxels), "psnr": _psnr(l2, voxels, peak), "kept": int(info["nonzero"]),
+            "coefficients": int(np.prod(info["padded"]))}
+
+
+class WVCReader(VTKPythonAlgorithmBase):
+    """Reads a .wvc file into ``vtkImageData``, decoding only the requested extent (see the
+    module's docstring for the pipeline contract)."""
+
+    def __init__(self):
+        VTKPythonAlgorithmBase.__init__(self, nInputPorts=0, nOutputPorts=1, outputType="vtkImageData")
+        self._filename = None
+        self._level = 0
+        self._region = (0, -1, 0, -1, 0, -1)
+        self._budget_mib = 0
+        self._array_name = "values"
+        self._chunk_log = ""
+        self._release = False
+        self._file = None       # open handle (capsule) of self._opened
+        self._opened = None     # (path, budget) the handle was opened with
+        self._info = None
+        self._extent = None     # whole extent of the current level and region
+
+    # ---- properties -----------------------------------------------------------------
+    def _set(self, attr, value):
+        """Sets a property; a change marks the reader modified (the pipeline re-executes)."""
+        if getattr(self, attr) != value:
+            setattr(self, attr, value)
+            self.Modified()
+
+    def SetFileName(self, name):
+        self._set("_filename", os.fspath(name) if name else None)
+
+    def GetFileName(self):
+        return self._filename
+
+    def SetLevelOfDetail(self, level):
+        """0: full resolution; s: the grid 2^s coarser (the finest s levels not decoded)."""
+        self._set("_level", int(level))
+
+    def GetLevelOfDetail(self):
+        return self._level
+
+    def SetRegion(self, *ext):
+        """Voxels (x0, x1, y0, y1, z0, z1) of the original grid, bounds included, like a VTK
+        extent; an upper bound below 0 means the last voxel. The default is the whole volume.
+        At a coarser level the region covers the coarse samples whose cells meet it."""
+        ext = tuple(int(v) for v in (ext[0] if len(ext) == 1 else ext))
+        if len(ext) != 6:
+            raise ValueError(f"Region takes 6 integers (x0, x1, y0, y1, z0, z1), got {len(ext)}")
+        self._set("_region", ext)
+
+    def GetRegion(self):
+        return self._region
+
+    def SetMemoryBudget(self, mib):
+        """Decoded chunks kept per process, in MiB (0: the library's default, 1 GiB)."""
+        self._set("_budget_mib", int(mib))
+
+    def SetArrayName(self, name):
+        self._set("_array_name", str(name))
+
+    def SetChunkLog(self, path):
+        """A file that gets one JSON line per execution (piece, rank, extent, chunks); "" for none."""
+        self._set("_chunk_log", os.fspath(path) if path else "")
+
+    def SetReleaseCache(self, release):
+        """True: close the file after each execution, freeing its decoded chunks (the memory
+        then holds the output only; a later execution, such as a ghost-layer request, decodes
+        its chunks again). False (default): keep them for the next request."""
+        self._release = bool(release)
+
+    def GetFileInfo(self):
+        """The open file's header (dict), or None before the first update."""
+        return self._info
+
+    def GetChunkStats(self):
+        """The chunk cache's counters of the open file (dict), or None."""
+        return _wvol.wvc_file_stats(self._file) if self._file is not None else None
+
+    # ---- pipeline -------------------------------------------------------------------
+    def _fail(self, message):
+        """Reports message (prefixed with the file name unless the library's message has it) on
+        VTK's error output and fails the request."""
+        name = self._filename or "(no file)"
+        text = message if name in message else f"{name}: {message}"
+        vtkOutputWindow.GetInstance().DisplayErrorText(f"ERROR: WVCReader: {text}\n")
+        return 0
+
+    def _open(self):
+        if not self._filename:
+            raise ValueError("no file name set")
+        key = (self._filename, self._budget_mib)
+        if self._opened != key:
+            self._file = self._info = self._opened = None
+            self._file = _wvol.wvc_file_open(self._filename, budget=self._budget_mib << 20)
+            self._info = _wvol.wvc_file_info(self._file)
+            self._opened = key
+
+    def _level_extent(self):
+        """The whole extent (x0, x1, y0, y1, z0, z1) in the grid of the chosen level."""
+        info, s = self._info, self._level
+        if not 0 <= s <= info["levels"]:
+            raise ValueError(f"level of detail {s} outside 0..{info['levels']}")
+        shape0 = info["shape"][::-1]            # (x, y, z)
+        shape = info["level_shapes"][s][::-1]
+        padded = info["padded"][::-1]
+        ext = []
+        for a in range(3):
+            lo, hi = self._region[2 * a], self._region[2 * a + 1]
+            if hi < 0:
+                hi = shape0[a] - 1
+            if lo < 0 or lo > hi or hi >= shape0[a]:
+                raise ValueError(f"region {self._region[2 * a]}..{self._region[2 * a + 1]} along axis {'xyz'[a]} "
+                                 f"is empty or outside 0..{shape0[a] - 1}")
+            f = 1 << s if padded[a] > 1 else 1
+            ext += [lo // f, min(-(-(hi + 1) // f), shape[a]) - 1]
+        return tuple(ext)
+
+    def RequestInformation(self, request, inInfoVec, outInfoVec):
+        try:
+            self._open()
+            self._extent = self._level_extent()
+        except (OSError, ValueError, MemoryError) as e:
+            self._extent = None
+            return self._fail(str(e))
+        info, s = self._info, self._level
+        out = outInfoVec.GetInformationObject(0)
+        padded = info["padded"][::-1]
+        spacing = [info["spacing"][a] * (2 ** s if padded[a] > 1 else 1) for a in range(3)]
+        out.Set(SDDP.WHOLE_EXTENT(), self._extent, 6)
+        out.Set(vtkDataObject.SPACING(), spacing, 3)
+        out.Set(vtkDataObject.ORIGIN(), info["level_origins"][s], 3)
+        out.Set(vtkAlgorithm.CAN_PRODUCE_SUB_EXTENT(), 1)
+        vtkImageData.SetScalarType(VTK_FLOAT, out)
+        vtkImageData.SetNumberOfScalarComponents(1, out)
+        return 1
+
+    def _read_slabs(self, ue):
+        """The samples of extent ue as a (z, y, x) array, reconstructed slab by slab along z
+        (SLAB_SAMPLES at most each) into one output array: a region read's working memory
+        (the box's coefficients and reconstruction buffers) is then bounded by a slab, not
+        the piece, and the chunks of consecutive slabs are mostly shared, so the cache (least
+        recently used first out) serves them without decoding twice."""
+        nx, ny, nz = ue[1] - ue[0] + 1, ue[3] - ue[2] + 1, ue[5] - ue[4] + 1
+        planes = max(1, min(nz, SLAB_SAMPLES // (nx * ny)))
+        out = np.empty((nz, ny, nx), dtype=np.float32)
+        spacing = None
+        for z0 in range(0, nz, planes):
+            z1 = min(nz, z0 + planes)
+            slab, spacing, _ = _wvol.wvc_file_region(self._file, [ue[0], ue[2], ue[4] + z0],
+                                                     [ue[1] + 1, ue[3] + 1, ue[4] + z1], self._level)
+            out[z0:z1] = slab
+            del slab
+        return out, spacing
+
+    def RequestData(self, request, inInfoVec, outInfoVec):
+        if self._extent is None:
+            return self._fail("no file information (RequestInformation failed)")
+        if self._file is None:  # released after the previous execution
+            try:
+                self._open()
+            except (OSError, ValueError, MemoryError) as e:
+                return self._fail(str(e))
+        out_info = outInfoVec.GetInformationObject(0)
+        ue = list(out_info.Get(SDDP.UPDATE_EXTENT()) or self._extent)
+        piece = out_info.Get(SDDP.UPDATE_PIECE_NUMBER()) if out_info.Has(SDDP.UPDATE_PIECE_NUMBER()) else 0
+        pieces = (out_info.Get(SDDP.UPDATE_NUMBER_OF_PIECES())
+                  if out_info.Has(SDDP.UPDATE_NUMBER_OF_PIECES()) else 1)
+        # Clip to the whole extent: an executive may pad a request with ghost layers.
+        for a in range(3):
+            ue[2 * a] = max(ue[2 * a], self._extent[2 * a])
+            ue[2 * a + 1] = min(ue[2 * a + 1], self._extent[2 * a + 1])
+        output = vtkImageData.GetData(outInfoVec, 0)
+        info = self._info
+        spacing = out_info.Get(vtkDataObject.SPACING())
+        before = _wvol.wvc_file_stats(self._file)["decoded"]
+        empty = any(ue[2 * a] > ue[2 * a + 1] for a in range(3))
+        if empty:
+            output.SetExtent(0, -1, 0, -1, 0, -1)
+        else:
+            try:
+                data, spacing = self._read_slabs(ue)
+            except (OSError, ValueError, MemoryError) as e:
+                return self._fail(str(e))
+            output.SetExtent(ue)
+            output.SetSpacing(spacing)
+            output.SetOrigin(info["level_origins"][self._level])
+            arr = numpy_support.numpy_to_vtk(data.reshape(-1), deep=0)  # keeps a reference to data
+            arr.SetName(self._array_name)
+            output.GetPointData().SetScalars(arr)
+        stats = _wvol.wvc_file_stats(self._file)
+        decoded = stats["decoded"] - before
+        rep = error_report(info)
+        fd = output.GetFieldData()
+        for name, value in (("PredictedRMSE", rep["rmse"]), ("PredictedPSNR", rep["psnr"])):
+            a = vtkDoubleArray()
+            a.SetName(name)
+            a.InsertNextValue(value)
+            fd.AddArray(a)
+        for name, value in (("KeptCoefficients", rep["kept"]), ("Coefficients", rep["coefficients"]),
+                            ("ChunksDecoded", decoded), ("ChunksDecodedTotal", stats["decoded"]),
+                            ("Piece", piece), ("NumberOfPieces", pieces), ("LevelOfDetail", self._level)):
+            a = vtkTypeInt64Array()
+            a.SetName(name)
+            a.InsertNextValue(int(value))
+            fd.AddArray(a)
+        if self._chunk_log:
+            line = json.dumps({"rank": _rank(), "pid": os.getpid(), "piece": piece, "pieces": pieces,
+                               "level": self._level, "extent": None if empty else ue, "decoded": decoded,
+                               "decoded_total": stats["decoded"], "chunks": info["chunks"],
+                               "cache_peak_bytes": stats["peak"]})
+            with open(self._chunk_log, "a") as f:  # one short write per line: O_APPEND keeps lines whole
+                f.write(line + "\n")
+        if self._release:
+            self._file = self._opened = None
+        return 1
+

@@ -1,0 +1,31 @@
+# SPDX-License-Identifier: MIT
+"""Run by pvpython (tests/python/test_paraview.py): loads the .wvc reader plugin, reads a file at a
+level of detail (and optionally a region), saves the point array as .npy and prints the
+geometry and field data as one JSON line. Usage:
+    pvpython pv_read.py PLUGIN FILE LEVEL OUT.npy [x0 x1 y0 y1 z0 z1]"""
+import json
+import sys
+
+import numpy as np
+from paraview import servermanager
+from paraview.simple import LoadPlugin
+from vtkmodules.util.numpy_support import vtk_to_numpy
+
+plugin, path, level, out = sys.argv[1:5]
+LoadPlugin(plugin, ns=globals())
+reader = WVCReader(FileName=path, LevelOfDetail=int(level))  # noqa: F821 (defined by the plugin)
+if len(sys.argv) > 5:
+    reader.Region = [int(v) for v in sys.argv[5:11]]
+reader.UpdatePipeline()
+data = servermanager.Fetch(reader)
+ext = data.GetExtent()
+shape = (ext[5] - ext[4] + 1, ext[3] - ext[2] + 1, ext[1] - ext[0] + 1)
+arr = data.GetPointData().GetArray("values")
+if arr is None:
+    print(json.dumps({"points": data.GetNumberOfPoints()}))
+    sys.exit(3)
+np.save(out, vtk_to_numpy(arr).reshape(shape))
+fd = data.GetFieldData()
+field = {fd.GetArrayName(i): fd.GetArray(i).GetTuple1(0) for i in range(fd.GetNumberOfArrays())}
+print(json.dumps({"extent": list(ext), "spacing": list(data.GetSpacing()), "origin": list(data.GetOrigin()),
+                  "field": field}))

@@ -1,0 +1,320 @@
+# SPDX-License-Identifier: MIT
+"""The .wvc reader for VTK and ParaView (python/wvol/vtk_wvc.py, python/paraview/wvol_wvc_plugin.py,
+docs/paraview.md).
+
+- Plain VTK (Debian's VTK, in this process): the whole extent, a level of detail, a region and
+  a piece equal the same samples of `wvol decompress`; a piece decodes only part of the chunks,
+  two pieces' chunks together are the whole read's; bad files are refused with a message.
+- pvpython (ParaView's own VTK, the wvol build without VTK from scripts/setup.sh): the reader's
+  array equals `wvol decompress` at full resolution and at a dropped level; bad files give a
+  ParaView error message, and the session goes on.
+- pvbatch alone and under `mpiexec -n 2` (on an Xvfb display): each rank decodes about half of the chunks, their
+  union is every chunk, and the volume rendering and Contour screenshots equal the one-process
+  ones within compositing rounding.
+
+ParaView is part of the setup (scripts/setup.sh builds build-paraview/): these tests fail,
+rather than skip, when it is missing."""
+import json
+import os
+import pathlib
+import shutil
+import subprocess
+
+import numpy as np
+import pytest
+
+from conftest import ROOT, WVOL_BIN
+from pvscripts import headless  # tests/python/pvscripts/headless.py
+
+PV_BUILD = pathlib.Path(os.environ.get("WVOL_PARAVIEW_BUILD_DIR", ROOT / "build-paraview"))
+PLUGIN = PV_BUILD / "paraview-plugins" / "wvol_wvc_plugin.py"
+SCRIPTS = pathlib.Path(__file__).resolve().parent / "pvscripts"
+SHAPE = (128, 64, 80)  # (z, y, x): unequal axes catch an axis-order mistake; z, the longest, is split
+ISO = 100.0
+
+
+def run(cmd, timeout=300, env=None):
+    return subprocess.run([str(c) for c in cmd], capture_output=True, text=True, timeout=timeout,
+                          env=None if env is None else {**os.environ, **env})
+
+
+@pytest.fixture(scope="module")
+def wvc(tmp_path_factory):
+    """A noisy skull, 80x64x128, as a format-2 .wvc with small tiles (many chunks), with its whole
+    decode and its level-1 decode by the command line."""
+    d = tmp_path_factory.mktemp("pv")
+    vol, f = d / "s.nrrd", d / "s.wvc"
+    nz, ny, nx = SHAPE
+    for cmd in (["synth", "skull", "--size", f"{nx}x{ny}x{nz}", "--noise", "20", "--spacing", "0.5,0.75,1.25",
+                 "-o", vol],
+                ["compress", vol, "-o", f, "--psnr", "45", "--levels", "3", "--tile", "8,8"],
+                ["decompress", f, "-o", d / "full.raw"],
+                ["decompress", f, "-o", d / "level1.raw", "--level", "1"]):
+        r = run([WVOL_BIN, *cmd])
+        assert r.returncode == 0, r.stderr
+    full = np.fromfile(d / "full.raw", dtype="<f4").reshape(SHAPE)
+    l1 = np.fromfile(d / "level1.raw", dtype="<f4").reshape(tuple(-(-n // 2) for n in SHAPE))
+    return d, f, full, l1
+
+
+def close(got, want):
+    """Two summation orders of the same coefficients (a brick reconstruction against the whole
+    inverse transform): float rounding, 1e-5 of the peak."""
+    assert got.shape == want.shape
+    assert np.max(np.abs(got.astype(np.float64) - want)) <= 1e-5 * np.max(np.abs(want))
+
+
+# ---- plain VTK ------------------------------------------------------------------------------
+
+@pytest.fixture(scope="module")
+def vtk_reader():
+    pytest.importorskip("vtkmodules", reason="python3-vtk9 (scripts/packages.txt) is part of the setup")
+    from wvol.vtk_wvc import WVCReader
+    return WVCReader
+
+
+def image_array(img):
+    from vtkmodules.util.numpy_support import vtk_to_numpy
+    e = img.GetExtent()
+    return vtk_to_numpy(img.GetPointData().GetScalars()).reshape(e[5] - e[4] + 1, e[3] - e[2] + 1, e[1] - e[0] + 1)
+
+
+def field(img, name):
+    return img.GetFieldData().GetArray(name).GetTuple1(0)
+
+
+def test_vtk_reader_whole_and_dropped_level(wvc, vtk_reader):
+    import wvol
+    d, f, full, l1 = wvc
+    info = wvol.wvc_info(f)
+    r = vtk_reader()
+    r.SetFileName(str(f))
+    r.Update()
+    img = r.GetOutputDataObject(0)
+    close(image_array(img), full)
+    assert img.GetSpacing() == pytest.approx((0.5, 0.75, 1.25))
+    assert img.GetOrigin() == pytest.approx(info["origin"])
+    # the error report is the header's (wvc_info reads it independently)
+    n = float(np.prod(SHAPE))
+    assert field(img, "PredictedRMSE") == pytest.approx(np.sqrt(info["sse"] / n), rel=1e-12)
+    assert field(img, "KeptCoefficients") == info["nonzero"]
+    assert 0 < field(img, "ChunksDecoded") <= r.GetFileInfo()["chunks"]
+    # level 1: the CLI's coarse decode, spacing doubled, the first sample moved by the filter's centre
+    r.SetLevelOfDetail(1)
+    r.Update()
+    img = r.GetOutputDataObject(0)
+    close(image_array(img), l1)
+    assert img.GetSpacing() == pytest.approx((1.0, 1.5, 2.5))
+    assert img.GetOrigin() == pytest.approx(r.GetFileInfo()["level_origins"][1])
+    assert field(img, "LevelOfDetail") == 1
+
+
+def test_vtk_reader_region_and_pieces(wvc, vtk_reader):
+    d, f, full, _ = wvc
+    whole = vtk_reader()
+    whole.SetFileName(str(f))
+    whole.Update()
+    all_chunks = field(whole.GetOutputDataObject(0), "ChunksDecoded")
+    # a region: its voxels, and fewer chunks than the whole
+    r = vtk_reader()
+    r.SetFileName(str(f))
+    r.SetRegion(5, 40, 0, -1, 30, 47)
+    r.Update()
+    img = r.GetOutputDataObject(0)
+    assert img.GetExtent() == (5, 40, 0, 63, 30, 47)
+    close(image_array(img), full[30:48, :, 5:41])
+    assert 0 < field(img, "ChunksDecoded") < all_chunks
+    # two pieces, one after the other on one reader (as two ranks would): each decodes part of
+    # the chunks, both together exactly the whole read's chunks (the cache holds them all)
+    p = vtk_reader()
+    p.SetFileName(str(f))
+    got = []
+    for piece in range(2):
+        p.UpdatePiece(piece, 2, 0)
+        img = p.GetOutputDataObject(0)
+        e = img.GetExtent()
+        close(image_array(img), full[e[4]:e[5] + 1, e[2]:e[3] + 1, e[0]:e[1] + 1])
+        got.append(field(img, "ChunksDecoded"))
+    # about half each: a chunk is decoded with its parent chain and the supports of db2 reach
+    # across the cut, so both pieces share the coarse levels and the chunks near the cut
+    assert all(0.25 * all_chunks <= g <= 0.75 * all_chunks for g in got), (got, all_chunks)
+    assert field(p.GetOutputDataObject(0), "ChunksDecodedTotal") == all_chunks
+
+
+def test_vtk_reader_slabs_equal_one_read(wvc, vtk_reader, monkeypatch):
+    """A piece is reconstructed in z slabs of SLAB_SAMPLES (bounding the working memory): with
+    slabs of 7 planes (not dividing 128) the samples are the same, and with the cache holding
+    everything no chunk is decoded twice."""
+    import wvol.vtk_wvc as vw
+    d, f, full, _ = wvc
+    whole = vtk_reader()
+    whole.SetFileName(str(f))
+    whole.Update()
+    monkeypatch.setattr(vw, "SLAB_SAMPLES", SHAPE[1] * SHAPE[2] * 7)
+    r = vtk_reader()
+    r.SetFileName(str(f))
+    r.Update()
+    img = r.GetOutputDataObject(0)
+    close(image_array(img), full)
+    assert field(img, "ChunksDecoded") == field(whole.GetOutputDataObject(0), "ChunksDecoded")
+
+
+def test_vtk_reader_release_cache(wvc, vtk_reader):
+    """ReleaseCache closes the file after each execution (its chunks freed): a later execution
+    reopens it, decodes its chunks again and gives the same samples."""
+    d, f, full, _ = wvc
+    r = vtk_reader()
+    r.SetFileName(str(f))
+    r.SetReleaseCache(True)
+    counts = []
+    for piece in (0, 1, 0):
+        r.UpdatePiece(piece, 2, 0)
+        img = r.GetOutputDataObject(0)
+        assert r.GetChunkStats() is None
+        e = img.GetExtent()
+        close(image_array(img), full[e[4]:e[5] + 1, e[2]:e[3] + 1, e[0]:e[1] + 1])
+        counts.append(field(img, "ChunksDecoded"))
+    assert counts[0] == counts[2] > 0  # piece 0 again: decoded again, as many chunks
+
+
+@pytest.mark.parametrize("damage", ["missing", "garbage", "truncated", "region", "level"])
+def test_vtk_reader_refuses_bad_input(wvc, vtk_reader, tmp_path, damage):
+    from vtkmodules.vtkCommonCore import vtkOutputWindow, vtkStringOutputWindow
+    d, f, _, _ = wvc
+    path = tmp_path / "bad.wvc"
+    if damage == "garbage":
+        path.write_bytes(b"not a wvc file at all" * 50)
+    elif damage == "truncated":
+        path.write_bytes(f.read_bytes()[:1000])
+    elif damage in ("region", "level"):
+        path = f
+    sink = vtkStringOutputWindow()
+    previous = vtkOutputWindow.GetInstance()
+    vtkOutputWindow.SetInstance(sink)
+    try:
+        r = vtk_reader()
+        r.SetFileName(str(path))
+        if damage == "region":
+            r.SetRegion(70, 90, 0, 10, 0, 10)
+        if damage == "level":
+            r.SetLevelOfDetail(7)
+        r.Update()
+    finally:
+        vtkOutputWindow.SetInstance(previous)
+    out = sink.GetOutput()
+    assert "WVCReader" in out and str(path) in out, out
+    words = {"missing": "bad.wvc", "garbage": "wvc", "truncated": "wvc", "region": "axis x",
+             "level": "level of detail 7"}[damage]
+    assert words in out, out
+    assert r.GetOutputDataObject(0).GetNumberOfPoints() == 0
+
+
+# ---- ParaView -------------------------------------------------------------------------------
+
+def pv_tool(name):
+    exe = PV_BUILD / name
+    assert exe.exists() and PLUGIN.exists(), (
+        f"{exe} or {PLUGIN} is missing: scripts/setup.sh installs ParaView and builds {PV_BUILD}")
+    return exe
+
+
+@pytest.mark.parametrize("level", [0, 1])
+def test_pvpython_reader_equals_decompress(wvc, tmp_path, level):
+    d, f, full, l1 = wvc
+    out = tmp_path / "a.npy"
+    r = run([pv_tool("pvpython"), SCRIPTS / "pv_read.py", PLUGIN, f, level, out])
+    assert r.returncode == 0, r.stdout + r.stderr
+    meta = json.loads(r.stdout.strip().splitlines()[-1])
+    close(np.load(out), full if level == 0 else l1)
+    assert meta["spacing"] == pytest.approx([s * 2 ** level for s in (0.5, 0.75, 1.25)])
+    assert meta["field"]["LevelOfDetail"] == level
+    assert meta["field"]["ChunksDecoded"] > 0
+    assert np.isfinite(meta["field"]["PredictedPSNR"]) and meta["field"]["PredictedPSNR"] > 30
+
+
+def test_pvpython_region(wvc, tmp_path):
+    d, f, full, _ = wvc
+    out = tmp_path / "a.npy"
+    r = run([pv_tool("pvpython"), SCRIPTS / "pv_read.py", PLUGIN, f, 0, out, 10, 20, 3, 50, 0, 12])
+    assert r.returncode == 0, r.stdout + r.stderr
+    close(np.load(out), full[0:13, 3:51, 10:21])
+
+
+@pytest.mark.parametrize("damage", ["garbage", "truncated", "missing"])
+def test_pvpython_bad_file_is_an_error_not_a_crash(wvc, tmp_path, damage):
+    d, f, _, _ = wvc
+    path = tmp_path / "bad.wvc"
+    if damage == "garbage":
+        path.write_bytes(b"\x00\x01garbage" * 300)
+    elif damage == "truncated":
+        path.write_bytes(f.read_bytes()[: f.stat().st_size // 2])
+    r = run([pv_tool("pvpython"), SCRIPTS / "pv_bad.py", PLUGIN, path])
+    assert r.returncode == 0, r.stdout + r.stderr
+    assert "SURVIVED points=0" in r.stdout, r.stdout + r.stderr
+    assert "WVCReader" in r.stderr and str(path) in r.stderr, r.stderr
+
+
+def chunk_lines(log):
+    return [json.loads(line) for line in pathlib.Path(log).read_text().splitlines()]
+
+
+def pvbatch_render(wvc, outdir, ranks):
+    d, f, full, _ = wvc
+    outdir.mkdir()
+    log = outdir / "chunks.jsonl"
+    cmd = [pv_tool("pvbatch"), SCRIPTS / "pv_render.py", PLUGIN, f, outdir, log, float(full.min()),
+           float(full.max()), ISO]
+    if ranks > 1:
+        cmd = [shutil.which("mpiexec"), "-n", ranks, "--allow-run-as-root", "--oversubscribe", *cmd]
+    with headless.display() as disp:
+        r = run(cmd, timeout=600, env={"DISPLAY": disp})
+    assert r.returncode == 0, r.stdout + r.stderr
+    return chunk_lines(log)
+
+
+def png(path):
+    from PIL import Image
+    return np.asarray(Image.open(path).convert("RGB")).astype(np.int32)
+
+
+def test_mpi_two_ranks_split_the_chunks_and_match_one_rank(wvc, tmp_path):
+    import wvol
+    d, f, full, _ = wvc
+    one = pvbatch_render(wvc, tmp_path / "one", 1)
+    two = pvbatch_render(wvc, tmp_path / "two", 2)
+    # the chunks a whole read decodes (one handle, nothing evicted)
+    h = wvol._wvol.wvc_file_open(str(f))
+    wvol._wvol.wvc_file_region(h, [0, 0, 0], [SHAPE[2], SHAPE[1], SHAPE[0]], 0)
+    all_chunks = wvol._wvol.wvc_file_stats(h)["decoded"]
+    assert sum(e["decoded"] for e in one if e["pieces"] == 1) == all_chunks
+    # two ranks, each its own piece (the first execution of each rank)
+    first = {}
+    for e in two:
+        first.setdefault(e["rank"], e)
+    assert sorted(first) == [0, 1], two
+    assert sorted(e["piece"] for e in first.values()) == [0, 1]
+    assert all(e["pieces"] == 2 for e in first.values())
+    for e in first.values():
+        # about half each (as test_vtk_reader_region_and_pieces: the coarse levels and the chunks
+        # whose supports reach across the cut are decoded by both)
+        assert 0.25 * all_chunks <= e["decoded"] <= 0.75 * all_chunks, (e, all_chunks)
+    # their union is every chunk: one handle reading both ranks' extents decodes the whole set
+    u = wvol._wvol.wvc_file_open(str(f))
+    for e in first.values():
+        x = e["extent"]
+        wvol._wvol.wvc_file_region(u, [x[0], x[2], x[4]], [x[1] + 1, x[3] + 1, x[5] + 1], 0)
+    assert wvol._wvol.wvc_file_stats(u)["decoded"] == all_chunks
+    # screenshots: equal within compositing rounding (IceT blends the ranks' 8-bit images, the
+    # volume's rays restart at the cut): a few grey levels on a few pixels, no structure moved
+    for name in ("volume.png", "contour.png"):
+        a, b = png(tmp_path / "one" / name), png(tmp_path / "two" / name)
+        assert a.shape == b.shape
+        assert a.max() > 40, f"{name}: the one-rank image is empty"
+        diff = np.abs(a - b)
+        assert np.mean(diff) <= 1.0, (name, float(np.mean(diff)))
+        assert np.mean(diff > 8) <= 0.01, (name, float(np.mean(diff > 8)))
+    docs = os.environ.get("WVOL_DOC_IMAGES")
+    if docs:  # docs/paraview.md's screenshots come from this test (WVOL_DOC_IMAGES=docs/img)
+        pathlib.Path(docs).mkdir(parents=True, exist_ok=True)
+        for name in ("volume.png", "contour.png"):
+            shutil.copy(tmp_path / "two" / name, pathlib.Path(docs) / f"paraview-mpi2-{name}")
