@@ -56,6 +56,12 @@ typedef struct nrrd_header {
 wvol_status wvol__nrrd_read_header(nrrd_header *h, FILE *fp, wvol_error *err);
 void wvol__nrrd_header_free(nrrd_header *h);
 
+/* n samples of the header's type and byte order to float32. */
+void wvol__nrrd_convert(float *dst, const unsigned char *src, size_t n, const nrrd_header *h);
+/* The detached data file's path: absolute, or relative to the header's folder (malloc'ed;
+ * NULL when out of memory). */
+char *wvol__nrrd_data_path_of(const char *header_path, const char *data_file);
+
 /* Fails with "<path>: <message>". */
 wvol_status wvol__nrrd_header_fail(const nrrd_header *h, wvol_error *err, wvol_status status, const char *fmt, ...)
     __attribute__((format(printf, 4, 5)));

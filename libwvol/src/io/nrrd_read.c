@@ -19,7 +19,7 @@
 
 /* ---- reading the data --------------------------------------------------------- */
 
-static void convert(float *dst, const unsigned char *src, size_t n, const nrrd_header *h)
+void wvol__nrrd_convert(float *dst, const unsigned char *src, size_t n, const nrrd_header *h)
 {
     size_t i;
     int b;
@@ -96,7 +96,7 @@ static wvol_status read_raw(const nrrd_header *h, FILE *fp, const char *name, wv
             free(buf);
             return HFAIL(h, WVOL_ERR_IO, "read error in %s at sample %zu", name, done);
         }
-        convert(out + done, buf, want, h);
+        wvol__nrrd_convert(out + done, buf, want, h);
         done += want;
     }
     free(buf);
@@ -174,7 +174,7 @@ static wvol_status read_gzip(const nrrd_header *h, FILE *fp, const char *name, w
             goto done;
         }
         if (filled == chunk_bytes || (filled > 0 && total == want_total)) {
-            convert(out + done, chunk, filled / h->elem, h);
+            wvol__nrrd_convert(out + done, chunk, filled / h->elem, h);
             done += filled / h->elem;
             filled = 0;
         }
@@ -262,7 +262,7 @@ static wvol_status read_ascii(const nrrd_header *h, FILE *fp, const char *name, 
 }
 
 /* The detached data file's path: absolute, or relative to the header's folder. */
-static char *data_path_of(const char *header_path, const char *data_file)
+char *wvol__nrrd_data_path_of(const char *header_path, const char *data_file)
 {
     const char *slash = strrchr(header_path, '/');
     size_t dir = slash ? (size_t)(slash - header_path) + 1 : 0, n = strlen(data_file);
@@ -294,7 +294,7 @@ wvol_status wvol_nrrd_read(wvol_volume **out, const char *path, wvol_error *err)
     if (s) goto done;
 
     if (h.value[F_DATA_FILE]) {
-        dpath = data_path_of(path, h.value[F_DATA_FILE]);
+        dpath = wvol__nrrd_data_path_of(path, h.value[F_DATA_FILE]);
         if (!dpath) {
             s = HFAIL(&h, WVOL_ERR_NOMEM, "out of memory");
             goto done;
