@@ -40,6 +40,8 @@ typedef struct wvol_compress_quant {
     double step;          /* > 0: this step, neither rule (default 0) */
     double rounding;      /* dead-zone rounding offset in [0, 0.5]; < 0 (default): the codec's */
     wvol_wvc_coder coder; /* default AUTO */
+    int format_version;   /* .wvc format: 0 (default) = WVOL_WVC_FORMAT_VERSION (2), or 1 */
+    int tile;             /* version 2: chunk edge in coefficients (0: the codec's default, 32) */
 } wvol_compress_quant;
 
 typedef struct wvol_compress_params {

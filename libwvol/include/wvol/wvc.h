@@ -27,7 +27,7 @@
 extern "C" {
 #endif
 
-#define WVOL_WVC_FORMAT_VERSION 1
+#define WVOL_WVC_FORMAT_VERSION 2
 #define WVOL_WVC_MAX_LEVELS 30
 #define WVOL_WVC_MAX_SECTIONS (1 + 7 * WVOL_WVC_MAX_LEVELS)
 
@@ -46,11 +46,15 @@ typedef struct wvol_wvc_params {
     int zstd_level;      /* default 3 */
     double value_min, value_max; /* range of the original samples (header; PSNR peak) */
     double dropped_energy;       /* energy the caller zeroed before encoding (header; reports) */
+    int version;         /* file format: 0 = WVOL_WVC_FORMAT_VERSION (2, chunked, random access), 1 */
+    int tile;            /* version 2: chunk edge in coefficients, a power of two in 8..256 (0: 32) */
 } wvol_wvc_params;
 
 WVOL_API void wvol_wvc_params_default(wvol_wvc_params *p);
 
-/* One section of a file (the low-pass cube is level == levels, band 0). */
+/* One section of a file (the low-pass cube is level == levels, band 0). In a
+ * version-2 file a band is spread over the chunks: offset and crc are 0, coder is
+ * CABAC for a band with non-zeros (each chunk picks per band), bytes its share. */
 typedef struct wvol_wvc_section {
     int level, band;
     int coder;               /* wvol_wvc_coder */
@@ -78,7 +82,9 @@ typedef struct wvol_wvc_info {
     double dropped_energy;
     uint64_t nonzero;
     uint64_t file_bytes;     /* header + table + payloads */
-    uint64_t header_bytes;
+    uint64_t header_bytes;   /* version 2: header, band table and chunk index */
+    int tile;                /* version 2: chunk edge in coefficients (0 in version 1) */
+    uint64_t chunks;         /* version 2: chunks in the index (0 in version 1) */
     int nsections;
     wvol_wvc_section sections[WVOL_WVC_MAX_SECTIONS];
 } wvol_wvc_info;

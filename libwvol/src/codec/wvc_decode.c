@@ -13,6 +13,7 @@
 #include <sys/stat.h>
 #include <zlib.h>
 
+#include "wvc2_read.h"
 #include "wvc_format.h"
 #include "wvc_internal.h"
 #include "wvol/io.h"
@@ -43,19 +44,27 @@ static wvol_status parse(wvol_wvc_info *I, const uint8_t *h, size_t avail, uint6
     WVOL_RETURN_IF(I->version > WVOL_WVC_FORMAT_VERSION, err, WVOL_ERR_UNSUPPORTED,
                    ".wvc format version %d is newer than this reader (version %d): update libwvol",
                    I->version, WVOL_WVC_FORMAT_VERSION);
-    WVOL_RETURN_IF(I->version != WVOL_WVC_FORMAT_VERSION, err, WVOL_ERR_FORMAT,
-                   ".wvc format version %d is not valid", I->version);
+    WVOL_RETURN_IF(I->version < 1, err, WVOL_ERR_FORMAT, ".wvc format version %d is not valid", I->version);
     WVOL_RETURN_IF(wvc_get_u16(h + 10) != 0, err, WVOL_ERR_UNSUPPORTED,
                    ".wvc header flags 0x%x are not known to this reader", wvc_get_u16(h + 10));
     nsec = wvc_get_u32(h + 12);
     WVOL_RETURN_IF(nsec > WVOL_WVC_MAX_SECTIONS, err, WVOL_ERR_FORMAT,
                    ".wvc header: %u sections is more than %d levels allow", nsec, WVOL_WVC_MAX_LEVELS);
-    hbytes = WVC_HEADER_SIZE + (uint64_t)nsec * WVC_SECTION_SIZE + 4;
+    if (I->version == 1) {
+        hbytes = WVC_HEADER_SIZE + (uint64_t)nsec * WVC_SECTION_SIZE + 4;
+    } else {
+        WVOL_RETURN_IF(avail < WVC2_HEADER_SIZE || file_size < WVC2_HEADER_SIZE, err, WVOL_ERR_FORMAT,
+                       ".wvc file truncated: %llu bytes is too short for a version-2 header",
+                       (unsigned long long)(file_size < avail ? file_size : avail));
+        hbytes = wvol__wvc2_prefix_bytes(h, avail);
+        WVOL_RETURN_IF(hbytes == 0, err, WVOL_ERR_FORMAT, ".wvc header: section or chunk count is not valid");
+    }
     WVOL_RETURN_IF(file_size < hbytes || avail < hbytes, err, WVOL_ERR_FORMAT,
                    ".wvc file truncated: %llu bytes, the header alone needs %llu",
                    (unsigned long long)(file_size < avail ? file_size : avail), (unsigned long long)hbytes);
     WVOL_RETURN_IF(wvc_get_u32(h + hbytes - 4) != (uint32_t)crc32(0L, h, (uInt)(hbytes - 4)), err,
-                   WVOL_ERR_FORMAT, ".wvc header checksum mismatch: the file is corrupt");
+                   WVOL_ERR_FORMAT, I->version == 1 ? ".wvc header checksum mismatch: the file is corrupt"
+                                                    : ".wvc header or index checksum mismatch: the file is corrupt");
     /* from here on the header is what a writer wrote, but still check every field:
      * a crafted file can carry a valid checksum */
     WVOL_RETURN_IF(memchr(h + 16, 0, 16) == NULL, err, WVOL_ERR_FORMAT, ".wvc header: filter name unterminated");
@@ -66,7 +75,7 @@ static wvol_status parse(wvol_wvc_info *I, const uint8_t *h, size_t avail, uint6
                        ".wvc header: unknown wavelet '%s'", I->filter);
     }
     levels = h[32];
-    WVOL_RETURN_IF(h[33] || h[34] || h[35] || wvc_get_u32(h + 36), err, WVOL_ERR_FORMAT,
+    WVOL_RETURN_IF((I->version == 1 && h[33]) || h[34] || h[35] || wvc_get_u32(h + 36), err, WVOL_ERR_FORMAT,
                    ".wvc header: reserved bytes are not zero");
     WVOL_RETURN_IF(levels < 1 || levels > WVOL_WVC_MAX_LEVELS, err, WVOL_ERR_FORMAT,
                    ".wvc header: %d levels outside 1..%d", levels, WVOL_WVC_MAX_LEVELS);
@@ -122,6 +131,7 @@ static wvol_status parse(wvol_wvc_info *I, const uint8_t *h, size_t avail, uint6
     WVOL_RETURN_IF(!(I->rounding >= 0 && I->rounding <= 0.5) || !finite_nonneg(I->sse) ||
                        !finite_nonneg(I->energy) || !finite_nonneg(I->dropped_energy),
                    err, WVOL_ERR_FORMAT, ".wvc header: quantiser or error fields are not valid");
+    if (I->version == 2) return wvol__wvc2_parse(I, NULL, h, avail, file_size, err);
     WVOL_RETURN_IF(payload > file_size || hbytes + payload != file_size, err, WVOL_ERR_FORMAT,
                    ".wvc file is %llu bytes but its header declares %llu: truncated or extended",
                    (unsigned long long)file_size, (unsigned long long)(hbytes + payload));
@@ -212,8 +222,20 @@ static wvol_status decode(wvol_coeffs **out, const uint8_t *buf, size_t avail, c
     }
     Q = (int32_t *)(void *)c->data;
     wvol__wvc_layout(L, I->px, I->py, I->pz, I->levels);
+    if (I->version == 2) {
+        wvc2_index *x = NULL;
+        wvol_wvc_info tmp = *I;
+        st = wvol__wvc2_parse(&tmp, &x, buf, avail, I->file_bytes, err);
+        if (st == WVOL_OK) st = wvol__wvc2_decode_dense(Q, L->p, x, buf, avail, stop_level, err);
+        wvol__wvc2_index_free(x);
+        if (st != WVOL_OK) {
+            free(L);
+            wvol_coeffs_destroy(c);
+            return st;
+        }
+    }
     /* low-pass cube, then one level at a time; the bands of a level in parallel */
-    for (first = 0; first < L->nsec && bad_sec < 0; first = last) {
+    for (first = 0; first < L->nsec && bad_sec < 0 && I->version == 1; first = last) {
         int lev = L->sec[first].level;
         if (first > 0 && lev <= stop_level) break;
         last = first + (first == 0 ? 1 : 7);
@@ -378,8 +400,47 @@ static wvol_status read_file(wvol_coeffs **out, wvol_wvc_info *info, const char 
     want = WVC_HEADER_SIZE + (size_t)WVOL_WVC_MAX_SECTIONS * WVC_SECTION_SIZE + 4;
     if (want > fsize) want = (size_t)fsize;
     st = read_prefix(&buf, &got, fp, want, path, err);
+    if (st == WVOL_OK && got >= 10 && wvc_get_u16(buf + 8) == 2) {
+        /* version 2: the band table and the chunk index follow the fixed header */
+        uint64_t pre = wvol__wvc2_prefix_bytes(buf, got);
+        if (pre > got && pre <= fsize && pre <= SIZE_MAX) {
+            free(buf);
+            buf = NULL;
+            if (fseek(fp, 0, SEEK_SET) != 0) st = wvol_error_set(err, WVOL_ERR_IO, "cannot seek");
+            else st = read_prefix(&buf, &got, fp, (size_t)pre, path, err);
+        }
+    }
     if (st == WVOL_OK) st = parse(I, buf, got, fsize, opt ? opt->max_voxels : 0, err);
-    if (st == WVOL_OK && !out) {
+    if (st == WVOL_OK && !out && I->version == 2) {
+        /* info only: every chunk's checksum, one chunk in memory at a time */
+        wvc2_index *x = NULL;
+        wvol_wvc_info tmp = *I;
+        uint8_t *cb = NULL;
+        size_t cap = 0;
+        st = wvol__wvc2_parse(&tmp, &x, buf, got, fsize, err);
+        for (uint64_t id = 0; st == WVOL_OK && id < I->chunks; id++) {
+            const wvc2_chunk *ck = &x->chunks[id];
+            const char *why = NULL;
+            if (!ck->bytes) continue;
+            if (ck->bytes > cap) {
+                uint8_t *nb = realloc(cb, ck->bytes);
+                if (!nb) {
+                    st = wvol_error_set(err, WVOL_ERR_NOMEM, "out of memory");
+                    break;
+                }
+                cb = nb, cap = ck->bytes;
+            }
+            if (fseeko(fp, (off_t)ck->offset, SEEK_SET) != 0 || fread(cb, 1, ck->bytes, fp) != ck->bytes) {
+                st = wvol_error_set(err, WVOL_ERR_IO, "read error");
+            } else if (wvol__wvc2_chunk_check(x, (size_t)id, cb, &why)) {
+                char d[96];
+                wvol__wvc2_describe(d, sizeof d, x, (size_t)id);
+                st = wvol_error_set(err, WVOL_ERR_FORMAT, ".wvc %s: %s", d, why);
+            }
+        }
+        free(cb);
+        wvol__wvc2_index_free(x);
+    } else if (st == WVOL_OK && !out) {
         /* info only: check every section's checksum as well (CRC-32 runs at GB/s) */
         free(buf);
         buf = NULL;
@@ -401,11 +462,25 @@ static wvol_status read_file(wvol_coeffs **out, wvol_wvc_info *info, const char 
     if (st == WVOL_OK && out) {
         /* sections are stored coarse to fine: what a stop level needs is a prefix */
         uint64_t end = I->header_bytes;
-        for (s = 0; s < I->nsections; s++)
-            if (s == 0 || I->sections[s].level > stop) end = I->sections[s].offset + I->sections[s].bytes;
+        if (I->version == 1) {
+            for (s = 0; s < I->nsections; s++)
+                if (s == 0 || I->sections[s].level > stop) end = I->sections[s].offset + I->sections[s].bytes;
+        } else {
+            /* chunks are stored coarsest level first too */
+            wvc2_index *x = NULL;
+            wvol_wvc_info tmp = *I;
+            st = wvol__wvc2_parse(&tmp, &x, buf, got, fsize, err);
+            for (uint64_t id = 0; st == WVOL_OK && id < I->chunks; id++) {
+                size_t t[3];
+                if (wvol__wvc2_chunk_coords(&x->g, (size_t)id, t) > stop && x->chunks[id].bytes)
+                    end = x->chunks[id].offset + x->chunks[id].bytes;
+            }
+            wvol__wvc2_index_free(x);
+        }
         free(buf);
         buf = NULL;
-        if (stop < 0 || stop > I->levels) {
+        if (st != WVOL_OK) {
+        } else if (stop < 0 || stop > I->levels) {
             st = wvol_error_set(err, WVOL_ERR_ARG, "level %d outside 0..%d", stop, I->levels);
         } else if (fseek(fp, 0, SEEK_SET) != 0) {
             st = wvol_error_set(err, WVOL_ERR_IO, "cannot seek");

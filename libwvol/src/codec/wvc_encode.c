@@ -11,6 +11,7 @@
 #include <time.h>
 #include <zlib.h>
 
+#include "wvc2_internal.h"
 #include "wvc_format.h"
 #include "wvc_quant.h"
 
@@ -81,7 +82,7 @@ static void header_write(uint8_t *h, const wvol_coeffs *c, const wvol_wvc_params
     size_t n;
     memset(h, 0, WVC_HEADER_SIZE + (size_t)L->nsec * WVC_SECTION_SIZE + 4);
     memcpy(h, WVC_MAGIC, 8);
-    wvc_put_u16(h + 8, WVOL_WVC_FORMAT_VERSION);
+    wvc_put_u16(h + 8, 1);
     wvc_put_u16(h + 10, 0);
     wvc_put_u32(h + 12, (uint32_t)L->nsec);
     n = strlen(c->filter->name);
@@ -123,6 +124,32 @@ static void header_write(uint8_t *h, const wvol_coeffs *c, const wvol_wvc_params
     wvc_put_u32(h + n, (uint32_t)crc32(0L, h, (uInt)n));
 }
 
+/* Per detail section that the slack spending touched, the smallest |c| / step of the
+ * |q| = 1 coefficients it left: the writer zeroes everything below (docs/wvc-format.md). */
+static void zero_edges(double *edge, const wvc_layout *L, const float *C, const int32_t *Q, double step, double f,
+                       const sec_stats *before, const sec_stats *after)
+{
+    const double inv = 1.0 / step;
+    for (int s = 1; s < L->nsec; s++) {
+        const wvc_band *b = &L->sec[s];
+        double mn = INFINITY;
+        long z;
+        edge[s] = 0;
+        if (!b->count || after[s].n1 >= before[s].n1) continue;
+#pragma omp parallel for reduction(min : mn) schedule(static)
+        for (z = 0; z < (long)b->ext[2]; z++)
+            for (size_t y = 0; y < b->ext[1]; y++) {
+                size_t base = wvc_index(L->p, b, 0, y, (size_t)z);
+                for (size_t x = 0; x < b->ext[0]; x++) {
+                    double a = fabs((double)C[base + x]) * inv;
+                    if (Q[base + x] != 0 && a + f < 2.0 && a < mn) mn = a;
+                }
+            }
+        /* every |q| = 1 coefficient went: zero the whole |q| = 1 cell */
+        edge[s] = isfinite(mn) ? mn : 2.0 - f;
+    }
+}
+
 wvol_status wvol_wvc_encode(void **out, size_t *out_size, const wvol_coeffs *c,
                             const wvol_wvc_params *p, wvol_wvc_report *report, wvol_error *err)
 {
@@ -135,6 +162,7 @@ wvol_status wvol_wvc_encode(void **out, size_t *out_size, const wvol_coeffs *c,
     size_t alt_cabac[WVOL_WVC_MAX_SECTIONS] = {0}, alt_zstd[WVOL_WVC_MAX_SECTIONS] = {0};
     float d1[WVOL_WVC_MAX_SECTIONS], d2[WVOL_WVC_MAX_SECTIONS];
     double serr[WVOL_WVC_MAX_SECTIONS];
+    sec_stats n1_before[WVOL_WVC_MAX_SECTIONS];
     size_t n, hsize, total;
     double step, maxabs = 0, energy = 0, sse = 0, t0, t1, t2;
     uint64_t nonzero = 0, payload = 0;
@@ -235,6 +263,7 @@ wvol_status wvol_wvc_encode(void **out, size_t *out_size, const wvol_coeffs *c,
         serr[s] = wvol__wvc_sec_error(&st[s], step, &d1[s], &d2[s]);
         sse += serr[s];
     }
+    if (p->version != 1) memcpy(n1_before, st, (size_t)L->nsec * sizeof *st);
     if (p->step == 0 && sse < 0.99 * p->target_sse) {
         /* spend what the staircase left of the budget, then the exact sums again */
         if (wvol__wvc_spend_slack(L, c->data, Q, step, p->rounding, d1, p->target_sse - sse, st) > 0) {
@@ -250,6 +279,26 @@ wvol_status wvol_wvc_encode(void **out, size_t *out_size, const wvol_coeffs *c,
     }
     t2 = now();
     rep.seconds_quantise = t2 - t1;
+    if (p->version != 1) {
+        /* version 2: the slab writer quantises again, with each section's dead zone widened
+         * to what the slack spending zeroed (whole bins: its partial bin stays) */
+        double edge[WVOL_WVC_MAX_SECTIONS] = {0};
+        wvol_wvc_report r2;
+        zero_edges(edge, L, c->data, Q, step, p->rounding, n1_before, st);
+        status = wvol__wvc2_encode_dense(out, out_size, c, p, step, edge, &r2, err);
+        if (status != WVOL_OK) goto done;
+        rep.seconds_code = now() - t2;
+        rep.step = step;
+        rep.step_iterations = iters;
+        rep.sse_quant = r2.sse_quant;
+        rep.nonzero = r2.nonzero;
+        rep.coefficients = n;
+        rep.bytes = r2.bytes;
+        rep.bytes_cabac = r2.bytes_cabac;
+        rep.bytes_zstd = r2.bytes_zstd;
+        if (report) *report = rep;
+        goto done;
+    }
 
     /* code the sections (independent given Q), largest first */
 #pragma omp parallel for schedule(dynamic, 1) reduction(| : failed) if (n > 65536)

@@ -66,61 +66,74 @@ static inline __attribute__((always_inline)) void quad_stats(row_acc *A, wvc_v4f
     }
 }
 
-WVOL__CLONES static void rows_stats(sec_stats *st, const float *C, int32_t *Q, const size_t p[3], const wvc_band *b,
-                               double step, double f, size_t z0, size_t z1, int sparse)
+/* Sums of one row of n coefficients into t[8] (zeroed energy, energy, r and r^2 for
+ * |q| = 1, r and r^2 for |q| >= 2, counts of |q| = 1 and |q| >= 2); qrow as in rows_stats. */
+static inline __attribute__((always_inline)) void row_kernel(double t[8], const float *restrict row,
+                                                              int32_t *restrict qrow, size_t ex, double step,
+                                                              double f, int sparse)
 {
     const double inv = 1.0 / step, qmax = WVC_QMAX;
     /* below this |c| / step + f < 1 for sure: the relative margin 1e-6 dwarfs float rounding */
     const float thr = (float)((1.0 - f) * step * (1.0 - 1e-6));
     const wvc_v8f vthr = {thr, thr, thr, thr, thr, thr, thr, thr};
     const wvc_v8i absmask = {INT32_MAX, INT32_MAX, INT32_MAX, INT32_MAX, INT32_MAX, INT32_MAX, INT32_MAX, INT32_MAX};
+    size_t x;
+    row_acc A;
+    wvc_v4d zq = {0, 0, 0, 0};
+    memset(&A, 0, sizeof A);
+    memset(t, 0, 8 * sizeof *t);
+    for (x = 0; x + 8 <= ex; x += 8) {
+        wvc_v8f cf;
+        wvc_v8i hit;
+        wvc_v4l h4;
+        memcpy(&cf, row + x, sizeof cf);
+        hit = (wvc_v8f)((wvc_v8i)cf & absmask) >= vthr;
+        h4 = (wvc_v4l)hit;
+        if (!(h4[0] | h4[1] | h4[2] | h4[3])) {
+            /* all zero: only their energy */
+            wvc_v4f lo = {cf[0], cf[1], cf[2], cf[3]}, hi = {cf[4], cf[5], cf[6], cf[7]};
+            wvc_v4d dl = __builtin_convertvector(lo, wvc_v4d), dh = __builtin_convertvector(hi, wvc_v4d);
+            zq += dl * dl + dh * dh;
+            if (qrow && !sparse) memset(qrow + x, 0, 8 * sizeof *qrow);
+            continue;
+        }
+        {
+            wvc_v4f lo = {cf[0], cf[1], cf[2], cf[3]}, hi = {cf[4], cf[5], cf[6], cf[7]};
+            quad_stats(&A, lo, inv, f, qrow ? qrow + x : NULL, sparse);
+            quad_stats(&A, hi, inv, f, qrow ? qrow + x + 4 : NULL, sparse);
+        }
+    }
+    for (int k = 0; k < 4; k++) {
+        t[0] += A.rz[k] + zq[k], t[1] += A.re[k] + zq[k], t[2] += A.r1[k], t[3] += A.rr1[k];
+        t[4] += A.r2[k], t[5] += A.rr2[k], t[6] += A.c1[k], t[7] += A.c2[k];
+    }
+    for (; x < ex; x++) {
+        double c = row[x], ac = fabs(c), a = ac * inv, tt = a + f;
+        double q = (double)(int32_t)(tt < qmax ? tt : qmax), r = a - q, cc = c * c;
+        t[1] += cc;
+        if (q == 0) t[0] += cc;
+        else if (q == 1) t[2] += r, t[3] += r * r, t[6] += 1;
+        else t[4] += r, t[5] += r * r, t[7] += 1;
+        if (qrow && (!sparse || q != 0)) qrow[x] = c < 0 ? -(int32_t)q : (int32_t)q;
+    }
+}
+
+WVOL__CLONES void wvol__wvc_row_stats(double t[8], const float *row, int32_t *qrow, size_t n, double step, double f)
+{
+    row_kernel(t, row, qrow, n, step, f, 0);
+}
+
+WVOL__CLONES static void rows_stats(sec_stats *st, const float *C, int32_t *Q, const size_t p[3], const wvc_band *b,
+                               double step, double f, size_t z0, size_t z1, int sparse)
+{
     double zero_sse = 0, energy = 0, s1 = 0, ss1 = 0, s2 = 0, ss2 = 0;
     uint64_t n1 = 0, n2 = 0;
-    size_t x, y, z, ex = b->ext[0];
+    size_t y, z;
     for (z = z0; z < z1; z++)
         for (y = 0; y < b->ext[1]; y++) {
             size_t base = wvc_index(p, b, 0, y, z);
-            const float *restrict row = C + base;
-            int32_t *restrict qrow = Q ? Q + base : NULL;
-            row_acc A;
-            wvc_v4d zq = {0, 0, 0, 0};
             double t[8];
-            memset(&A, 0, sizeof A);
-            for (x = 0; x + 8 <= ex; x += 8) {
-                wvc_v8f cf;
-                wvc_v8i hit;
-                wvc_v4l h4;
-                memcpy(&cf, row + x, sizeof cf);
-                hit = (wvc_v8f)((wvc_v8i)cf & absmask) >= vthr;
-                h4 = (wvc_v4l)hit;
-                if (!(h4[0] | h4[1] | h4[2] | h4[3])) {
-                    /* all zero: only their energy */
-                    wvc_v4f lo = {cf[0], cf[1], cf[2], cf[3]}, hi = {cf[4], cf[5], cf[6], cf[7]};
-                    wvc_v4d dl = __builtin_convertvector(lo, wvc_v4d), dh = __builtin_convertvector(hi, wvc_v4d);
-                    zq += dl * dl + dh * dh;
-                    if (qrow && !sparse) memset(qrow + x, 0, 8 * sizeof *qrow);
-                    continue;
-                }
-                {
-                    wvc_v4f lo = {cf[0], cf[1], cf[2], cf[3]}, hi = {cf[4], cf[5], cf[6], cf[7]};
-                    quad_stats(&A, lo, inv, f, qrow ? qrow + x : NULL, sparse);
-                    quad_stats(&A, hi, inv, f, qrow ? qrow + x + 4 : NULL, sparse);
-                }
-            }
-            memset(t, 0, sizeof t);
-            for (int k = 0; k < 4; k++) {
-                t[0] += A.rz[k] + zq[k], t[1] += A.re[k] + zq[k], t[2] += A.r1[k], t[3] += A.rr1[k];
-                t[4] += A.r2[k], t[5] += A.rr2[k], t[6] += A.c1[k], t[7] += A.c2[k];
-            }
-            for (; x < ex; x++) {
-                double c = row[x], ac = fabs(c), a = ac * inv, tt = a + f;
-                double q = (double)(int32_t)(tt < qmax ? tt : qmax), r = a - q, cc = c * c;
-                t[1] += cc;
-                if (q == 0) t[0] += cc;
-                else if (q == 1) t[2] += r, t[3] += r * r, t[6] += 1;
-                else t[4] += r, t[5] += r * r, t[7] += 1;
-                if (qrow && (!sparse || q != 0)) qrow[x] = c < 0 ? -(int32_t)q : (int32_t)q;
-            }
+            row_kernel(t, C + base, Q ? Q + base : NULL, b->ext[0], step, f, sparse);
             zero_sse += t[0];
             energy += t[1];
             s1 += t[2];

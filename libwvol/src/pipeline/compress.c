@@ -134,6 +134,8 @@ wvol_status wvol_compress_wvc_params(wvol_wvc_params *wp, const wvol_compress_qu
     wp->value_max = vmax;
     wp->dropped_energy = dropped;
     wp->coder = q->coder;
+    wp->version = q->format_version;
+    wp->tile = q->tile;
     if (q->rounding >= 0) wp->rounding = q->rounding;
     wp->step = q->step;
     if (q->step > 0) return WVOL_OK;

@@ -1,0 +1,126 @@
+/* SPDX-License-Identifier: MIT
+ * Shared by the .wvc version-2 writer and reader (not installed): the byte layout's
+ * constants, the chunk geometry (levels x spatial tiles of coefficients) and the
+ * chunk coder (wvc2_chunk.c) over the band coders of version 1. docs/wvc-format.md
+ * describes the bytes. */
+#ifndef WVOL_CODEC_WVC2_INTERNAL_H
+#define WVOL_CODEC_WVC2_INTERNAL_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#include "wvc_internal.h"
+
+#define WVC2_VERSION 2
+#define WVC2_HEADER_SIZE 224
+#define WVC2_BAND_SIZE 48
+#define WVC2_CHUNK_SIZE 32
+
+/* Chunks: per level m (levels .. 1, coarsest first) a grid of tiles of `tile`
+ * coefficients per axis over the level's band extent e (px >> m, 1 on an untransformed
+ * axis); tile t covers [t tile, min(e, (t + 1) tile)). A chunk holds that box of every
+ * band of the level (the low-pass cube too at m == levels). Chunk ids: level `levels`
+ * first, then finer; within a level x fastest. */
+typedef struct wvc2_level {
+    size_t e[3];         /* band extent */
+    size_t nt[3];        /* tiles per axis */
+    size_t first, count; /* chunk ids first .. first + count - 1 */
+    int nb;              /* bands present, increasing */
+    int bands[8];
+} wvc2_level;
+
+typedef struct wvc2_geom {
+    int levels, tile;
+    size_t p[3];
+    int tr[3];           /* axis transformed (p > 1) */
+    size_t nchunks;
+    wvc2_level lv[WVOL_WVC_MAX_LEVELS + 1]; /* [1 .. levels] */
+} wvc2_geom;
+
+/* Fills g; returns -1 when the chunk count overflows. */
+int wvol__wvc2_geom(wvc2_geom *g, const size_t p[3], int levels, int tile);
+
+/* The section (v1 file order: low-pass cube, then level = levels..1, bands 1..7) of a band. */
+static inline int wvc2_section(int levels, int level, int band)
+{
+    return band == 0 ? 0 : 1 + 7 * (levels - level) + (band - 1);
+}
+
+/* Tile box of chunk coordinate t along axis a at level m. */
+static inline void wvc2_tile_box(const wvc2_geom *g, int m, const size_t t[3], size_t off[3], size_t ext[3])
+{
+    for (int a = 0; a < 3; a++) {
+        size_t o = t[a] * (size_t)g->tile, e = g->lv[m].e[a];
+        off[a] = o;
+        ext[a] = e - o < (size_t)g->tile ? e - o : (size_t)g->tile;
+    }
+}
+
+/* The chunk coordinates of id (which must be < g->nchunks) and its level. */
+int wvol__wvc2_chunk_coords(const wvc2_geom *g, size_t id, size_t t[3]);
+
+static inline size_t wvc2_chunk_id(const wvc2_geom *g, int m, const size_t t[3])
+{
+    const wvc2_level *L = &g->lv[m];
+    return L->first + t[0] + L->nt[0] * (t[1] + L->nt[1] * t[2]);
+}
+
+/* Parent region of a tile box: along a transformed axis [off/2, (off + ext)/2), else
+ * the same single row. The parent chunk is the tile containing it (tile coordinate t/2). */
+static inline void wvc2_parent_box(const wvc2_geom *g, const size_t off[3], const size_t ext[3], size_t poff[3],
+                                   size_t pext[3])
+{
+    for (int a = 0; a < 3; a++) {
+        poff[a] = g->tr[a] ? off[a] / 2 : 0;
+        pext[a] = g->tr[a] ? (ext[a] + 1) / 2 : 1;
+    }
+}
+
+/* A strided int32 box: element (x, y, z) at q[x + y sy + z sz]. */
+typedef struct wvc2_qbox {
+    int32_t *q;
+    size_t sy, sz;
+} wvc2_qbox;
+
+/* Results of coding one chunk. */
+typedef struct wvc2_coded {
+    uint8_t *payload;    /* malloc'ed, NULL when every band is zero */
+    size_t bytes;
+    uint32_t crc;
+    uint64_t nonzero;
+    size_t alt_cabac, alt_zstd; /* what all-CABAC / all-zstd would have taken */
+    size_t band_bytes[8];       /* per band (index into the level's band list) */
+} wvc2_coded;
+
+/* Codes the bands of one chunk: child[i] is band g->lv[m].bands[i]'s box of extent
+ * ext, parent[i] its parent region (extent from wvc2_parent_box; ignored at m ==
+ * levels). coder: AUTO, CABAC or ZSTD. Returns 0 or -1 (memory). */
+int wvol__wvc2_chunk_encode(wvc2_coded *out, const wvc2_geom *g, int m, const size_t ext[3],
+                            const wvc2_qbox child[8], const wvc2_qbox parent[8], int coder, int zstd_level);
+
+/* Decodes a chunk's payload (already checked against its CRC) into child[i] (the
+ * boxes are written entirely, zeros included), with the parents' values as
+ * context. *nonzero receives the non-zero count. Returns 0, or -1 with *why. */
+int wvol__wvc2_chunk_decode(const wvc2_geom *g, int m, const size_t ext[3], const wvc2_qbox child[8],
+                            const wvc2_qbox parent[8], const uint8_t *payload, size_t bytes, uint64_t *nonzero,
+                            const char **why);
+
+/* wvol_wvc_encode's version-2 path: the pyramid c through the slab writer, coarse to
+ * fine, with the step chosen and the dead zones widened (zero_edge, may be NULL) as the
+ * caller decided; fills the writer's part of rep. */
+wvol_status wvol__wvc2_encode_dense(void **out, size_t *out_size, const wvol_coeffs *c, const wvol_wvc_params *p,
+                                    double step, const double *zero_edge, wvol_wvc_report *rep, wvol_error *err);
+
+/* LEB128 helpers. */
+static inline size_t wvc2_put_varint(uint8_t *d, uint64_t v)
+{
+    size_t n = 0;
+    while (v >= 0x80) {
+        d[n++] = (uint8_t)(v | 0x80);
+        v >>= 7;
+    }
+    d[n++] = (uint8_t)v;
+    return n;
+}
+
+#endif

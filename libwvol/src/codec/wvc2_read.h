@@ -1,0 +1,51 @@
+/* SPDX-License-Identifier: MIT
+ * Reading .wvc version 2 (not installed): the parsed chunk index, the checks, whole
+ * levels into a dense quantised pyramid (wvc2_read.c). The file-backed chunk cache
+ * (wvc2_file.c) reads single chunks through the same checks. */
+#ifndef WVOL_CODEC_WVC2_READ_H
+#define WVOL_CODEC_WVC2_READ_H
+
+#include <stdio.h>
+
+#include "wvc2_internal.h"
+
+typedef struct wvc2_chunk {
+    uint64_t offset;     /* in the file; 0 for an all-zero chunk */
+    uint32_t bytes, crc, nonzero;
+    float maxabs;        /* max |c| of the coefficients given to the encoder */
+    double energy;       /* sum c^2 of the same */
+} wvc2_chunk;
+
+typedef struct wvc2_index {
+    wvc2_geom g;
+    wvc2_chunk *chunks;
+    uint64_t hbytes;     /* header + band table + index + CRC */
+    double step;
+    float d1[WVOL_WVC_MAX_SECTIONS], d2[WVOL_WVC_MAX_SECTIONS];
+} wvc2_index;
+
+/* Bytes of header + band table + index + CRC that the fixed header at h declares
+ * (0 when h is shorter than the fixed header or the counts are absurd). */
+uint64_t wvol__wvc2_prefix_bytes(const uint8_t *h, size_t avail);
+
+/* Checks the version-2 part of a header whose common fields (magic, version, filter,
+ * levels, sizes, spacing, origin, range, step, rounding, totals) were parsed into I,
+ * then the band table and the chunk index; fills I's sections (offset 0, coder
+ * CABAC for a non-empty band, bytes = its share of the chunks' payloads), tile and
+ * chunks. out (may be NULL) receives the index. */
+wvol_status wvol__wvc2_parse(wvol_wvc_info *I, wvc2_index **out, const uint8_t *h, size_t avail, uint64_t file_size,
+                             wvol_error *err);
+void wvol__wvc2_index_free(wvc2_index *x);
+
+/* 0 when the chunk's payload matches its CRC-32, else -1 with *why. */
+int wvol__wvc2_chunk_check(const wvc2_index *x, size_t id, const uint8_t *payload, const char **why);
+
+/* "chunk N (level m, tile x,y,z)" for error messages. */
+void wvol__wvc2_describe(char *buf, size_t n, const wvc2_index *x, size_t id);
+
+/* Decodes the levels above stop_level into the dense quantised pyramid Q (padded
+ * grid p, zeroed by the caller) from buf, the file's first avail bytes. */
+wvol_status wvol__wvc2_decode_dense(int32_t *Q, const size_t p[3], const wvc2_index *x, const uint8_t *buf,
+                                    size_t avail, int stop_level, wvol_error *err);
+
+#endif

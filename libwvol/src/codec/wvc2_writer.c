@@ -1,0 +1,692 @@
+/* SPDX-License-Identifier: MIT
+ * The .wvc version-2 slab writer (contract in wvc2_writer.h): rows of each level are
+ * quantised on arrival into per-level row buffers, with per-(chunk, band) sums taken
+ * in a fixed order (z, then y, then x within a tile) so that the result depends on
+ * neither the arrival order nor the thread count; a tile row of chunks is coded once
+ * its rows and its parent rows are in, and the rows nobody needs any more are dropped.
+ * Payloads go to a spill (an unlinked temporary file beside the output, or memory)
+ * in coding order and are copied in chunk order (coarsest level first) by close().
+ * Based on: Sullivan 1996 (centroid reconstruction offsets, as in version 1). */
+#define _POSIX_C_SOURCE 200809L
+#include <errno.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+#include <zlib.h>
+
+#ifdef _OPENMP
+#include <omp.h>
+#endif
+
+#include "core/clock.h"
+#include "wvc2_internal.h"
+#include "wvc2_writer.h"
+#include "wvc_format.h"
+#include "wvc_quant.h"
+#include "wvol/io.h"
+
+typedef struct chunk_rec {
+    uint64_t spill;      /* offset in the spill */
+    uint32_t bytes, crc, nonzero;
+    float maxabs;
+    double energy;
+} chunk_rec;
+
+typedef struct wlevel {
+    size_t plane;        /* e0 e1 */
+    size_t z_base, z_next, cap_rows;
+    int32_t *q[8];       /* per band of the level's list: rows [z_base, z_next) */
+    size_t tz_next;      /* next tile row to code */
+    sec_stats *acc;      /* per chunk of the level x band */
+    float *maxabs;       /* per chunk */
+} wlevel;
+
+struct wvc2_writer {
+    wvc2_header h;
+    double *zero_edge;   /* copy of h.zero_edge (or NULL) */
+    char filter[16];
+    wvc2_geom g;
+    wlevel lv[WVOL_WVC_MAX_LEVELS + 1];
+    chunk_rec *chunks;
+    uint64_t band_bytes[WVOL_WVC_MAX_SECTIONS];
+    /* output */
+    int to_mem;
+    wvol_atomic_file out;
+    FILE *spill;
+    uint8_t *mem;
+    size_t mem_size, mem_cap;
+    uint64_t spill_size;
+    size_t alt_cabac, alt_zstd;
+    double seconds_code;
+};
+
+static int nthreads(const wvc2_writer *w)
+{
+#ifdef _OPENMP
+    return w->h.threads > 0 ? w->h.threads : omp_get_max_threads();
+#else
+    (void)w;
+    return 1;
+#endif
+}
+
+void wvol__wvc2_header_default(wvc2_header *h)
+{
+    memset(h, 0, sizeof *h);
+    h->rounding = WVC_DEFAULT_ROUNDING;
+    h->tile = WVC2_TILE_DEFAULT;
+    h->coder = WVOL_WVC_CODER_AUTO;
+    h->zstd_level = 3;
+}
+
+static wvol_status check_header(const wvc2_header *h, wvol_error *err)
+{
+    const wvol_filter *f;
+    size_t n[3] = {h->nx, h->ny, h->nz}, p[3] = {h->px, h->py, h->pz}, bytes;
+    int a, tile = h->tile ? h->tile : WVC2_TILE_DEFAULT;
+    WVOL_RETURN_IF(!memchr(h->filter, 0, sizeof h->filter), err, WVOL_ERR_ARG, "wvc2 writer: filter name unterminated");
+    WVOL_FORWARD(wvol_filter_get(&f, h->filter, err));
+    WVOL_RETURN_IF(h->levels < 1 || h->levels > WVOL_WVC_MAX_LEVELS, err, WVOL_ERR_ARG,
+                   "wvc2 writer: levels %d outside 1..%d", h->levels, WVOL_WVC_MAX_LEVELS);
+    for (a = 0; a < 3; a++) {
+        WVOL_RETURN_IF(n[a] < 1 || n[a] > ((size_t)1 << 40) || p[a] < n[a] || (n[a] == 1) != (p[a] == 1) ||
+                           (p[a] > 1 && (p[a] & (((size_t)1 << h->levels) - 1))) ||
+                           p[a] > n[a] + ((size_t)1 << h->levels),
+                       err, WVOL_ERR_DIMS, "wvc2 writer: size %zu padded to %zu is not valid for %d levels", n[a],
+                       p[a], h->levels);
+        WVOL_RETURN_IF(!(isfinite(h->spacing[a]) && h->spacing[a] > 0) || !isfinite(h->origin[a]), err,
+                       WVOL_ERR_ARG, "wvc2 writer: spacing must be > 0 and origin finite");
+    }
+    WVOL_RETURN_IF(!wvol_size_mul3(p[0], p[1], p[2], sizeof(float), &bytes), err, WVOL_ERR_DIMS,
+                   "wvc2 writer: padded size overflows");
+    WVOL_RETURN_IF(h->levels > wvol_dwt_max_levels(n[0], n[1], n[2]), err, WVOL_ERR_DIMS,
+                   "wvc2 writer: %d levels is more than %zux%zux%zu allows", h->levels, n[0], n[1], n[2]);
+    WVOL_RETURN_IF(!(h->step >= WVC_MIN_STEP && h->step <= WVC_MAX_STEP), err, WVOL_ERR_ARG,
+                   "wvc2 writer: step %g outside [%g, %g]", h->step, WVC_MIN_STEP, WVC_MAX_STEP);
+    WVOL_RETURN_IF(!(h->rounding >= 0 && h->rounding <= 0.5), err, WVOL_ERR_ARG,
+                   "wvc2 writer: rounding %g outside [0, 0.5]", h->rounding);
+    WVOL_RETURN_IF(!isfinite(h->value_min) || !isfinite(h->value_max) || h->value_min > h->value_max ||
+                       !(h->dropped_energy >= 0) || !isfinite(h->dropped_energy),
+                   err, WVOL_ERR_ARG, "wvc2 writer: bad value range or dropped energy");
+    WVOL_RETURN_IF(tile < WVC2_TILE_MIN || tile > WVC2_TILE_MAX || (tile & (tile - 1)), err, WVOL_ERR_ARG,
+                   "wvc2 writer: tile %d is not a power of two in [%d, %d]", tile, WVC2_TILE_MIN, WVC2_TILE_MAX);
+    WVOL_RETURN_IF(h->coder < WVOL_WVC_CODER_AUTO || h->coder > WVOL_WVC_CODER_ZSTD, err, WVOL_ERR_ARG,
+                   "wvc2 writer: unknown coder %d", (int)h->coder);
+    if (h->zero_edge)
+        for (a = 0; a < 1 + 7 * h->levels; a++)
+            WVOL_RETURN_IF(!(h->zero_edge[a] >= 0) || !isfinite(h->zero_edge[a]), err, WVOL_ERR_ARG,
+                           "wvc2 writer: zero edge of section %d is not valid", a);
+    return WVOL_OK;
+}
+
+static wvol_status writer_new(wvc2_writer **out, const wvc2_header *h, wvol_error *err)
+{
+    wvc2_writer *w;
+    size_t p[3];
+    int m;
+    *out = NULL;
+    WVOL_RETURN_IF(!h, err, WVOL_ERR_ARG, "wvc2 writer: missing header");
+    WVOL_FORWARD(check_header(h, err));
+    w = calloc(1, sizeof *w);
+    WVOL_RETURN_IF(!w, err, WVOL_ERR_NOMEM, "wvc2 writer: out of memory");
+    w->h = *h;
+    if (!w->h.tile) w->h.tile = WVC2_TILE_DEFAULT;
+    if (!w->h.zstd_level) w->h.zstd_level = 3;
+    memcpy(w->filter, h->filter, sizeof w->filter);
+    p[0] = h->px, p[1] = h->py, p[2] = h->pz;
+    if (h->zero_edge) {
+        size_t n = (size_t)(1 + 7 * h->levels);
+        w->zero_edge = malloc(n * sizeof *w->zero_edge);
+        if (w->zero_edge) memcpy(w->zero_edge, h->zero_edge, n * sizeof *w->zero_edge);
+    }
+    w->h.zero_edge = NULL;
+    if ((h->zero_edge && !w->zero_edge) || wvol__wvc2_geom(&w->g, p, h->levels, w->h.tile)) {
+        wvol__wvc2_writer_abort(w);
+        return wvol_error_set(err, WVOL_ERR_NOMEM, "wvc2 writer: out of memory");
+    }
+    w->chunks = calloc(w->g.nchunks ? w->g.nchunks : 1, sizeof *w->chunks);
+    if (!w->chunks) {
+        wvol__wvc2_writer_abort(w);
+        return wvol_error_set(err, WVOL_ERR_NOMEM, "wvc2 writer: out of memory");
+    }
+    for (m = 1; m <= h->levels; m++) {
+        wlevel *L = &w->lv[m];
+        const wvc2_level *G = &w->g.lv[m];
+        L->plane = G->e[0] * G->e[1];
+        L->acc = calloc(G->count * (size_t)G->nb + 1, sizeof *L->acc);
+        L->maxabs = calloc(G->count + 1, sizeof *L->maxabs);
+        if (!L->acc || !L->maxabs) {
+            wvol__wvc2_writer_abort(w);
+            return wvol_error_set(err, WVOL_ERR_NOMEM, "wvc2 writer: out of memory");
+        }
+    }
+    *out = w;
+    return WVOL_OK;
+}
+
+wvol_status wvol__wvc2_writer_open_mem(wvc2_writer **w, const wvc2_header *h, wvol_error *err)
+{
+    WVOL_RETURN_IF(!w, err, WVOL_ERR_ARG, "wvc2 writer: missing argument");
+    WVOL_FORWARD(writer_new(w, h, err));
+    (*w)->to_mem = 1;
+    return WVOL_OK;
+}
+
+wvol_status wvol__wvc2_writer_open(wvc2_writer **w, const char *path, const wvc2_header *h, wvol_error *err)
+{
+    wvc2_writer *x;
+    char *spill_path;
+    size_t n;
+    int fd;
+    WVOL_RETURN_IF(!w || !path, err, WVOL_ERR_ARG, "wvc2 writer: missing argument");
+    WVOL_FORWARD(writer_new(&x, h, err));
+    if (wvol_atomic_open(&x->out, path, err) != WVOL_OK) {
+        wvol__wvc2_writer_abort(x);
+        return err ? err->status : WVOL_ERR_IO;
+    }
+    /* the spill lives beside the output (same file system, same space), unlinked at once */
+    n = strlen(path);
+    spill_path = malloc(n + 20);
+    if (!spill_path) {
+        wvol__wvc2_writer_abort(x);
+        return wvol_error_set(err, WVOL_ERR_NOMEM, "wvc2 writer: out of memory");
+    }
+    memcpy(spill_path, path, n);
+    memcpy(spill_path + n, ".spill-XXXXXX", 14);
+    fd = mkstemp(spill_path);
+    if (fd >= 0) unlink(spill_path);
+    free(spill_path);
+    if (fd < 0 || !(x->spill = fdopen(fd, "w+b"))) {
+        int e = errno;
+        if (fd >= 0) close(fd);
+        wvol__wvc2_writer_abort(x);
+        return wvol_error_set(err, WVOL_ERR_IO, "%s: cannot create the writer's spill file: %s", path, strerror(e));
+    }
+    *w = x;
+    return WVOL_OK;
+}
+
+void wvol__wvc2_writer_abort(wvc2_writer *w)
+{
+    if (!w) return;
+    for (int m = 1; m <= WVOL_WVC_MAX_LEVELS; m++) {
+        for (int i = 0; i < 8; i++) free(w->lv[m].q[i]);
+        free(w->lv[m].acc);
+        free(w->lv[m].maxabs);
+    }
+    if (w->out.fp || w->out.tmp_path) wvol_atomic_abort(&w->out);
+    if (w->spill) fclose(w->spill);
+    free(w->mem);
+    free(w->chunks);
+    free(w->zero_edge);
+    free(w);
+}
+
+static int spill_write(wvc2_writer *w, const uint8_t *d, size_t n, uint64_t *off)
+{
+    *off = w->spill_size;
+    if (!n) return 0;
+    if (w->to_mem) {
+        if (w->mem_size + n > w->mem_cap) {
+            size_t cap = w->mem_cap ? w->mem_cap : 65536;
+            uint8_t *m;
+            while (cap < w->mem_size + n) cap *= 2;
+            m = realloc(w->mem, cap);
+            if (!m) return -1;
+            w->mem = m;
+            w->mem_cap = cap;
+        }
+        memcpy(w->mem + w->mem_size, d, n);
+        w->mem_size += n;
+    } else if (fwrite(d, 1, n, w->spill) != n) {
+        return -1;
+    }
+    w->spill_size += n;
+    return 0;
+}
+
+/* ---- rows ------------------------------------------------------------------------ */
+
+static int band_index(const wvc2_level *G, int band)
+{
+    for (int i = 0; i < G->nb; i++)
+        if (G->bands[i] == band) return i;
+    return -1;
+}
+
+static int reserve_rows(wlevel *L, const wvc2_level *G, size_t rows)
+{
+    if (rows <= L->cap_rows) return 0;
+    size_t cap = L->cap_rows ? L->cap_rows : 8;
+    while (cap < rows) cap *= 2;
+    if (cap > G->e[2]) cap = G->e[2];
+    for (int i = 0; i < G->nb; i++) {
+        int32_t *q = realloc(L->q[i], cap * L->plane * sizeof *q);
+        if (!q) return -1;
+        L->q[i] = q;
+    }
+    L->cap_rows = cap;
+    return 0;
+}
+
+/* Quantises one row segment with a widened dead zone (|c| < edge step gives 0); the
+ * same sums as wvol__wvc_row_stats. */
+static void row_stats_edge(double t[8], const float *row, int32_t *qrow, size_t n, double step, double f, double edge)
+{
+    const double inv = 1.0 / step;
+    memset(t, 0, 8 * sizeof *t);
+    for (size_t x = 0; x < n; x++) {
+        double c = row[x], a = fabs(c) * inv, tt = a + f, cc = c * c;
+        double q = a < edge ? 0.0 : (double)(int32_t)(tt < WVC_QMAX ? tt : WVC_QMAX), r = a - q;
+        t[1] += cc;
+        if (q == 0) t[0] += cc;
+        else if (q == 1) t[2] += r, t[3] += r * r, t[6] += 1;
+        else t[4] += r, t[5] += r * r, t[7] += 1;
+        qrow[x] = c < 0 ? -(int32_t)q : (int32_t)q;
+    }
+}
+
+static void acc_add(sec_stats *s, const double t[8])
+{
+    s->zero_sse += t[0];
+    s->energy += t[1];
+    s->s1 += t[2];
+    s->ss1 += t[3];
+    s->s2 += t[4];
+    s->ss2 += t[5];
+    s->n1 += (uint64_t)t[6];
+    s->n2 += (uint64_t)t[7];
+}
+
+/* ---- coding ---------------------------------------------------------------------- */
+
+static wvc2_qbox box_of(const wlevel *L, const wvc2_level *G, int i, const size_t off[3])
+{
+    wvc2_qbox b;
+    b.q = L->q[i] + (off[2] - L->z_base) * L->plane + off[1] * G->e[0] + off[0];
+    b.sy = G->e[0];
+    b.sz = L->plane;
+    return b;
+}
+
+static int tile_row_ready(const wvc2_writer *w, int m, size_t k)
+{
+    const wvc2_level *G = &w->g.lv[m];
+    size_t end = (k + 1) * (size_t)w->g.tile;
+    if (end > G->e[2]) end = G->e[2];
+    if (w->lv[m].z_next < end) return 0;
+    if (m < w->g.levels) {
+        size_t pend = w->g.tr[2] ? (end + 1) / 2 : 1;
+        if (w->lv[m + 1].z_next < pend) return 0;
+    }
+    return 1;
+}
+
+static wvol_status code_tile_row(wvc2_writer *w, int m, size_t k, wvol_error *err)
+{
+    const wvc2_level *G = &w->g.lv[m];
+    wlevel *L = &w->lv[m];
+    const size_t ntile = G->nt[0] * G->nt[1];
+    wvc2_coded *coded = calloc(ntile ? ntile : 1, sizeof *coded);
+    long t;
+    int failed = 0;
+    double t0 = wvol__now();
+    int nth = nthreads(w);
+    (void)nth;
+    WVOL_RETURN_IF(!coded, err, WVOL_ERR_NOMEM, "wvc2 writer: out of memory");
+#pragma omp parallel for schedule(dynamic, 1) reduction(| : failed) if (ntile > 1) \
+    num_threads(nth)
+    for (t = 0; t < (long)ntile; t++) {
+        size_t tc[3] = {(size_t)t % G->nt[0], (size_t)t / G->nt[0], k}, off[3], ext[3], poff[3], pext[3];
+        wvc2_qbox child[8], parent[8];
+        wvc2_tile_box(&w->g, m, tc, off, ext);
+        wvc2_parent_box(&w->g, off, ext, poff, pext);
+        memset(parent, 0, sizeof parent);
+        for (int i = 0; i < G->nb; i++) {
+            child[i] = box_of(L, G, i, off);
+            if (m < w->g.levels) {
+                const wvc2_level *PG = &w->g.lv[m + 1];
+                parent[i] = box_of(&w->lv[m + 1], PG, band_index(PG, G->bands[i]), poff);
+            }
+        }
+        if (wvol__wvc2_chunk_encode(&coded[t], &w->g, m, ext, child, parent, (int)w->h.coder, w->h.zstd_level))
+            failed = 1;
+    }
+    for (t = 0; t < (long)ntile && !failed; t++) {
+        size_t tc[3] = {(size_t)t % G->nt[0], (size_t)t / G->nt[0], k}, id = wvc2_chunk_id(&w->g, m, tc);
+        chunk_rec *c = &w->chunks[id];
+        if (spill_write(w, coded[t].payload, coded[t].bytes, &c->spill)) {
+            failed = 2;
+            break;
+        }
+        c->bytes = (uint32_t)coded[t].bytes;
+        c->crc = coded[t].crc;
+        c->nonzero = (uint32_t)coded[t].nonzero;
+        w->alt_cabac += coded[t].alt_cabac;
+        w->alt_zstd += coded[t].alt_zstd;
+        for (int i = 0; i < G->nb; i++)
+            w->band_bytes[wvc2_section(w->g.levels, m, G->bands[i])] += coded[t].band_bytes[i];
+    }
+    for (t = 0; t < (long)ntile; t++) free(coded[t].payload);
+    free(coded);
+    w->seconds_code += wvol__now() - t0;
+    WVOL_RETURN_IF(failed == 2, err, WVOL_ERR_IO, "wvc2 writer: cannot write the spill: %s", strerror(errno));
+    WVOL_RETURN_IF(failed, err, WVOL_ERR_NOMEM, "wvc2 writer: out of memory while coding");
+    return WVOL_OK;
+}
+
+/* Drops the rows of level m that neither its own next tile row nor its children's need. */
+static void release_rows(wvc2_writer *w, int m)
+{
+    wlevel *L = &w->lv[m];
+    const wvc2_level *G = &w->g.lv[m];
+    size_t keep = L->tz_next * (size_t)w->g.tile, nb, i;
+    if (!w->g.tr[2]) return; /* one row per level */
+    if (m > 1) {
+        size_t child = w->lv[m - 1].tz_next * (size_t)w->g.tile / 2;
+        if (child < keep) keep = child;
+    }
+    if (keep > L->z_next) keep = L->z_next;
+    if (keep <= L->z_base) return;
+    nb = keep - L->z_base;
+    for (i = 0; i < (size_t)G->nb; i++)
+        memmove(L->q[i], L->q[i] + nb * L->plane, (L->z_next - keep) * L->plane * sizeof(int32_t));
+    L->z_base = keep;
+}
+
+static wvol_status code_ready(wvc2_writer *w, wvol_error *err)
+{
+    int progress = 1;
+    while (progress) {
+        progress = 0;
+        for (int m = w->g.levels; m >= 1; m--) {
+            wlevel *L = &w->lv[m];
+            while (L->tz_next < w->g.lv[m].nt[2] && tile_row_ready(w, m, L->tz_next)) {
+                WVOL_FORWARD(code_tile_row(w, m, L->tz_next, err));
+                L->tz_next++;
+                progress = 1;
+            }
+        }
+    }
+    for (int m = 1; m <= w->g.levels; m++) release_rows(w, m);
+    return WVOL_OK;
+}
+
+wvol_status wvol__wvc2_writer_put(wvc2_writer *w, int level, size_t z0, size_t nz, const wvc2_planes *pl,
+                                  wvol_error *err)
+{
+    const wvc2_level *G;
+    wlevel *L;
+    long task, ntask;
+    int bad = 0, nth;
+    WVOL_RETURN_IF(!w || !pl, err, WVOL_ERR_ARG, "wvc2 writer: missing argument");
+    WVOL_RETURN_IF(level < 1 || level > w->g.levels, err, WVOL_ERR_ARG, "wvc2 writer: level %d outside 1..%d",
+                   level, w->g.levels);
+    G = &w->g.lv[level];
+    L = &w->lv[level];
+    WVOL_RETURN_IF(z0 != L->z_next || nz > G->e[2] - z0, err, WVOL_ERR_ARG,
+                   "wvc2 writer: level %d rows %zu..%zu: expected the next rows from %zu (of %zu)", level, z0,
+                   z0 + nz, L->z_next, G->e[2]);
+    for (int i = 0; i < G->nb; i++)
+        WVOL_RETURN_IF(!pl->band[G->bands[i]], err, WVOL_ERR_ARG, "wvc2 writer: level %d band %d missing", level,
+                       G->bands[i]);
+    if (!nz) return WVOL_OK;
+    nth = nthreads(w);
+    (void)nth;
+    WVOL_RETURN_IF(reserve_rows(L, G, z0 + nz - L->z_base), err, WVOL_ERR_NOMEM,
+                   "wvc2 writer: out of memory for level %d rows", level);
+    /* one task per (band, tile column): each (chunk, band) sum is taken by one thread, in z, y, x order */
+    ntask = (long)G->nb * (long)(G->nt[0] * G->nt[1]);
+#pragma omp parallel for schedule(dynamic, 1) reduction(| : bad) if (ntask > 1 && G->e[0] * G->e[1] * nz > 32768) \
+    num_threads(nth)
+    for (task = 0; task < ntask; task++) {
+        int i = (int)(task % G->nb), band = G->bands[i], s = wvc2_section(w->g.levels, level, band);
+        size_t tt = (size_t)task / (size_t)G->nb, tx = tt % G->nt[0], ty = tt / G->nt[0];
+        size_t x0 = tx * (size_t)w->g.tile, y0 = ty * (size_t)w->g.tile;
+        size_t x1 = x0 + (size_t)w->g.tile < G->e[0] ? x0 + (size_t)w->g.tile : G->e[0];
+        size_t y1 = y0 + (size_t)w->g.tile < G->e[1] ? y0 + (size_t)w->g.tile : G->e[1];
+        double f = band == 0 ? 0.5 : w->h.rounding;
+        double edge = (w->zero_edge && band != 0) ? w->zero_edge[s] : 0.0;
+        int use_edge = edge > 1.0 - f;
+        for (size_t z = z0; z < z0 + nz; z++) {
+            size_t tc[3] = {tx, ty, z / (size_t)w->g.tile};
+            size_t id = wvc2_chunk_id(&w->g, level, tc) - G->first;
+            sec_stats *acc = &L->acc[id * (size_t)G->nb + (size_t)i];
+            float mx = L->maxabs[id];
+            for (size_t y = y0; y < y1; y++) {
+                const float *row = pl->band[band] + (y * pl->sy[band] + (z - z0) * pl->sz[band]) + x0;
+                int32_t *qrow = L->q[i] + (z - L->z_base) * L->plane + y * G->e[0] + x0;
+                double t[8];
+                if (use_edge)
+                    row_stats_edge(t, row, qrow, x1 - x0, w->h.step, f, edge);
+                else
+                    wvol__wvc_row_stats(t, row, qrow, x1 - x0, w->h.step, f);
+                if (!isfinite(t[1])) bad = 1;
+                acc_add(acc, t);
+                for (size_t x = 0; x < x1 - x0; x++) {
+                    float a = fabsf(row[x]);
+                    mx = a > mx ? a : mx;
+                }
+            }
+            L->maxabs[id] = mx;
+        }
+    }
+    WVOL_RETURN_IF(bad, err, WVOL_ERR_NONFINITE, "wvc2 writer: level %d rows %zu..%zu hold NaN or Inf (or overflow)",
+                   level, z0, z0 + nz);
+    {
+        /* the largest value the decoder can make, (|q| + 1) step, must be a float32 */
+        double lim = WVC_MAX_STEP / w->h.step - 2.0;
+        for (size_t id = 0; id < G->count; id++)
+            WVOL_RETURN_IF((double)L->maxabs[id] / w->h.step + 0.5 > lim || L->maxabs[id] / w->h.step >= WVC_QMAX / 2,
+                           err, WVOL_ERR_ARG,
+                           "wvc2 writer: coefficients reach %g: too large for step %g", (double)L->maxabs[id],
+                           w->h.step);
+    }
+    L->z_next = z0 + nz;
+    return code_ready(w, err);
+}
+
+/* ---- close --------------------------------------------------------------------------- */
+
+size_t wvol__wvc2_writer_memory(const wvc2_header *h, size_t lag_rows)
+{
+    size_t total = 0, p[3] = {h->px, h->py, h->pz};
+    wvc2_geom g;
+    int tile = h->tile ? h->tile : WVC2_TILE_DEFAULT;
+    if (h->levels < 1 || h->levels > WVOL_WVC_MAX_LEVELS || wvol__wvc2_geom(&g, p, h->levels, tile)) return 0;
+    for (int m = 1; m <= h->levels; m++) {
+        const wvc2_level *G = &g.lv[m];
+        size_t rows = 2 * (size_t)tile + lag_rows;
+        if (rows > G->e[2]) rows = G->e[2];
+        total += rows * G->e[0] * G->e[1] * (size_t)G->nb * sizeof(int32_t);
+        total += G->count * ((size_t)G->nb * sizeof(sec_stats) + sizeof(float) + sizeof(chunk_rec));
+    }
+    return total;
+}
+
+static void header_fill(uint8_t *h, const wvc2_writer *w, double sse, double energy, uint64_t nonzero,
+                        uint64_t payload, const sec_stats *st, const float *d1, const float *d2, const double *serr)
+{
+    const wvc2_header *H = &w->h;
+    const int nsec = 1 + 7 * H->levels;
+    size_t n = strlen(w->filter), a;
+    int s, tl = 0;
+    while ((1 << tl) < H->tile) tl++;
+    memcpy(h, WVC_MAGIC, 8);
+    wvc_put_u16(h + 8, WVC2_VERSION);
+    wvc_put_u16(h + 10, 0);
+    wvc_put_u32(h + 12, (uint32_t)nsec);
+    memcpy(h + 16, w->filter, n < 15 ? n : 15);
+    h[32] = (uint8_t)H->levels;
+    h[33] = (uint8_t)tl;
+    wvc_put_u64(h + 40, H->nx);
+    wvc_put_u64(h + 48, H->ny);
+    wvc_put_u64(h + 56, H->nz);
+    wvc_put_u64(h + 64, H->px);
+    wvc_put_u64(h + 72, H->py);
+    wvc_put_u64(h + 80, H->pz);
+    for (a = 0; a < 3; a++) {
+        wvc_put_f64(h + 88 + 8 * a, H->spacing[a]);
+        wvc_put_f64(h + 112 + 8 * a, H->origin[a]);
+    }
+    wvc_put_f64(h + 136, H->value_min);
+    wvc_put_f64(h + 144, H->value_max);
+    wvc_put_f64(h + 152, H->step);
+    wvc_put_f64(h + 160, H->rounding);
+    wvc_put_f64(h + 168, sse);
+    wvc_put_f64(h + 176, energy);
+    wvc_put_f64(h + 184, H->dropped_energy);
+    wvc_put_u64(h + 192, nonzero);
+    wvc_put_u64(h + 200, payload);
+    wvc_put_u64(h + 208, w->g.nchunks);
+    for (s = 0; s < nsec; s++) {
+        uint8_t *e = h + WVC2_HEADER_SIZE + (size_t)s * WVC2_BAND_SIZE;
+        int level = s == 0 ? H->levels : H->levels - (s - 1) / 7, band = s == 0 ? 0 : 1 + (s - 1) % 7;
+        e[0] = (uint8_t)level;
+        e[1] = (uint8_t)band;
+        wvc_put_u64(e + 8, st[s].n1 + st[s].n2);
+        wvc_put_f32(e + 16, d1[s]);
+        wvc_put_f32(e + 20, d2[s]);
+        wvc_put_f64(e + 24, st[s].energy);
+        wvc_put_f64(e + 32, serr[s]);
+        wvc_put_u64(e + 40, w->band_bytes[s]);
+    }
+}
+
+wvol_status wvol__wvc2_writer_close(wvc2_writer *w, void **out, size_t *out_size, wvol_wvc_report *report,
+                                    wvol_error *err)
+{
+    const int nsec = w ? 1 + 7 * w->g.levels : 0;
+    sec_stats st[WVOL_WVC_MAX_SECTIONS];
+    float d1[WVOL_WVC_MAX_SECTIONS], d2[WVOL_WVC_MAX_SECTIONS];
+    double serr[WVOL_WVC_MAX_SECTIONS], sse = 0, energy = 0;
+    uint64_t nonzero = 0, payload = 0, off;
+    size_t hbytes, id, count = 0;
+    uint8_t *h = NULL;
+    wvol_status status = WVOL_OK;
+    int m, s;
+    if (out) *out = NULL;
+    if (out_size) *out_size = 0;
+    WVOL_RETURN_IF(!w, err, WVOL_ERR_ARG, "wvc2 writer: missing writer");
+    if (w->to_mem ? (!out || !out_size) : (out || out_size)) {
+        wvol__wvc2_writer_abort(w);
+        return wvol_error_set(err, WVOL_ERR_ARG, "wvc2 writer: close's outputs do not match how it was opened");
+    }
+    for (m = 1; m <= w->g.levels; m++)
+        if (w->lv[m].z_next != w->g.lv[m].e[2] || w->lv[m].tz_next != w->g.lv[m].nt[2]) {
+            status = wvol_error_set(err, WVOL_ERR_ARG, "wvc2 writer: level %d has %zu of its %zu rows", m,
+                                    w->lv[m].z_next, w->g.lv[m].e[2]);
+            goto fail;
+        }
+    /* per-section sums in chunk order (fixed, so the offsets do not depend on threads) */
+    memset(st, 0, sizeof st);
+    for (m = w->g.levels; m >= 1; m--) {
+        const wvc2_level *G = &w->g.lv[m];
+        for (id = 0; id < G->count; id++) {
+            chunk_rec *c = &w->chunks[G->first + id];
+            c->maxabs = w->lv[m].maxabs[id];
+            c->energy = 0;
+            for (int i = 0; i < G->nb; i++) {
+                const sec_stats *a = &w->lv[m].acc[id * (size_t)G->nb + (size_t)i];
+                double t[8] = {a->zero_sse, a->energy, a->s1, a->ss1, a->s2, a->ss2, (double)a->n1, (double)a->n2};
+                acc_add(&st[wvc2_section(w->g.levels, m, G->bands[i])], t);
+                c->energy += a->energy;
+            }
+        }
+    }
+    for (s = 0; s < nsec; s++) {
+        serr[s] = wvol__wvc_sec_error(&st[s], w->h.step, &d1[s], &d2[s]);
+        sse += serr[s];
+        energy += st[s].energy;
+        nonzero += st[s].n1 + st[s].n2;
+    }
+    hbytes = WVC2_HEADER_SIZE + (size_t)nsec * WVC2_BAND_SIZE + w->g.nchunks * WVC2_CHUNK_SIZE + 4;
+    for (id = 0; id < w->g.nchunks; id++) payload += w->chunks[id].bytes;
+    h = calloc(hbytes, 1);
+    if (!h) {
+        status = wvol_error_set(err, WVOL_ERR_NOMEM, "wvc2 writer: out of memory");
+        goto fail;
+    }
+    header_fill(h, w, sse, energy, nonzero, payload, st, d1, d2, serr);
+    off = hbytes;
+    for (id = 0; id < w->g.nchunks; id++) {
+        const chunk_rec *c = &w->chunks[id];
+        uint8_t *e = h + WVC2_HEADER_SIZE + (size_t)nsec * WVC2_BAND_SIZE + id * WVC2_CHUNK_SIZE;
+        wvc_put_u64(e, c->bytes ? off : 0);
+        wvc_put_u32(e + 8, c->bytes);
+        wvc_put_u32(e + 12, c->crc);
+        wvc_put_f32(e + 16, c->maxabs);
+        wvc_put_u32(e + 20, c->nonzero);
+        wvc_put_f64(e + 24, c->energy);
+        off += c->bytes;
+        count += c->bytes > 0;
+    }
+    wvc_put_u32(h + hbytes - 4, (uint32_t)crc32(0L, h, (uInt)(hbytes - 4)));
+    if (w->to_mem) {
+        uint8_t *file = malloc(hbytes + (size_t)payload);
+        if (!file) {
+            status = wvol_error_set(err, WVOL_ERR_NOMEM, "wvc2 writer: out of memory");
+            goto fail;
+        }
+        memcpy(file, h, hbytes);
+        off = hbytes;
+        for (id = 0; id < w->g.nchunks; id++) {
+            const chunk_rec *c = &w->chunks[id];
+            if (c->bytes) memcpy(file + off, w->mem + c->spill, c->bytes);
+            off += c->bytes;
+        }
+        *out = file;
+        *out_size = hbytes + (size_t)payload;
+    } else {
+        uint8_t *buf = NULL;
+        size_t cap = 0;
+        if (fwrite(h, 1, hbytes, w->out.fp) != hbytes) goto io_fail;
+        fflush(w->spill);
+        for (id = 0; id < w->g.nchunks; id++) {
+            const chunk_rec *c = &w->chunks[id];
+            if (!c->bytes) continue;
+            if (c->bytes > cap) {
+                uint8_t *nb = realloc(buf, c->bytes);
+                if (!nb) {
+                    free(buf);
+                    status = wvol_error_set(err, WVOL_ERR_NOMEM, "wvc2 writer: out of memory");
+                    goto fail;
+                }
+                buf = nb, cap = c->bytes;
+            }
+            if (fseeko(w->spill, (off_t)c->spill, SEEK_SET) != 0 || fread(buf, 1, c->bytes, w->spill) != c->bytes ||
+                fwrite(buf, 1, c->bytes, w->out.fp) != c->bytes) {
+                free(buf);
+                goto io_fail;
+            }
+        }
+        free(buf);
+        status = wvol_atomic_commit(&w->out, err);
+        memset(&w->out, 0, sizeof w->out);
+        if (status != WVOL_OK) goto fail;
+    }
+    if (report) {
+        memset(report, 0, sizeof *report);
+        report->step = w->h.step;
+        report->sse_quant = sse;
+        report->nonzero = nonzero;
+        report->coefficients = (uint64_t)w->h.px * w->h.py * w->h.pz;
+        report->bytes = hbytes + (size_t)payload;
+        report->bytes_cabac = w->h.coder == WVOL_WVC_CODER_ZSTD ? 0 : w->alt_cabac;
+        report->bytes_zstd = w->h.coder == WVOL_WVC_CODER_CABAC ? 0 : w->alt_zstd;
+        report->seconds_code = w->seconds_code;
+    }
+    (void)count;
+    free(h);
+    wvol__wvc2_writer_abort(w);
+    return WVOL_OK;
+io_fail:
+    status = wvol_error_set(err, WVOL_ERR_IO, "%s: write failed: %s", w->out.final_path ? w->out.final_path : "",
+                            strerror(errno));
+fail:
+    free(h);
+    wvol__wvc2_writer_abort(w);
+    return status;
+}
