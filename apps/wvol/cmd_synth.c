@@ -69,7 +69,7 @@ static wvol_status synth_stream(wvol_volume *v, wvol_volume *lab, volume_out fil
     slice = dims[0] * dims[1];
     buf = malloc(S * slice * sizeof *buf);
     if (lab) lbuf = malloc(S * slice * sizeof *lbuf);
-    s = !buf || (lab && !lbuf) ? wvol_error_set(err, WVOL_ERR_NOMEM, "synth: no memory for a slab of %zu slices", S)
+    s = !buf || (lab && !lbuf) ? wvol_error_set(err, WVOL_ERR_NOMEM, "out of memory for a slab of %zu slices of %zu x %zu", S, dims[0], dims[1])
                                : WVOL_OK;
     for (int f = 0; f < (lab ? 2 : 1) && !s; f++) {
         memset(&files[f], 0, sizeof files[f]);

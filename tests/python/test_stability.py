@@ -115,7 +115,7 @@ def compress(tmp, wv, kind, s, family, crit):
     src = tmp / "v.raw"
     scaled(kind, s).tofile(src)
     r = cli(wv, "compress", src, "--dims", f"{N}x{N}x{N}", "-o", tmp / "v.wvc", "--wavelet", family,
-            "--levels", "3", "--json", *crit)
+            "--levels", "3", "--json", "--verify", *crit)
     rep = json.loads(r.stdout)
     psnr = rep["measured"]["psnr"]
     if "--psnr" in crit:

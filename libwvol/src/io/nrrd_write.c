@@ -113,8 +113,9 @@ static wvol_status open_writer(wvol_slab_writer **out, const char *path, int nrr
         }
         base = strrchr(dpath, '/');
         base = base ? base + 1 : dpath;
-        s = wvol_atomic_open(&w->data, dpath, err);
-        if (!s) s = wvol_atomic_open(&w->header, path, err);
+        /* the header first: an unwritable place is named by the file the caller gave */
+        s = wvol_atomic_open(&w->header, path, err);
+        if (!s) s = wvol_atomic_open(&w->data, dpath, err);
         if (!s && write_header(w->header.fp, dims, spacing, origin, gzip_level > 0, base) != 0)
             s = wvol_error_set(err, WVOL_ERR_IO, "%s: write failed", path);
     } else {
