@@ -183,6 +183,26 @@ int cli_parse_long(const char *cmd, const char *opt, const char *s, long lo, lon
     return 1;
 }
 
+int cli_parse_bytes(const char *cmd, const char *opt, const char *s, size_t *out)
+{
+    char *end;
+    double v, mul = 1;
+    errno = 0;
+    v = strtod(s, &end);
+    if (*end == 'K' || *end == 'k') mul = 1024.0, end++;
+    else if (*end == 'M' || *end == 'm') mul = 1048576.0, end++;
+    else if (*end == 'G' || *end == 'g') mul = 1073741824.0, end++;
+    else if (*end == 'T' || *end == 't') mul = 1099511627776.0, end++;
+    if (*end == 'B' || *end == 'b') end++;
+    v *= mul;
+    if (!*s || *end || errno || !(v >= 1 && v < 1.8e19)) {
+        cli_usage(cmd, "--%s '%s': expected a size in bytes, e.g. 512M or 2G", opt, s);
+        return 0;
+    }
+    *out = (size_t)v;
+    return 1;
+}
+
 int cli_parse_fraction(const char *cmd, const char *opt, const char *s, double *out)
 {
     char *end;

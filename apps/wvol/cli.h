@@ -71,6 +71,8 @@ int cli_parse_double(const char *cmd, const char *opt, const char *s, double *ou
 int cli_parse_double3(const char *cmd, const char *opt, const char *s, double out[3]);
 int cli_parse_long(const char *cmd, const char *opt, const char *s, long lo, long hi, long *out);
 /* "5%" -> 0.05, "0.05" -> 0.05; must be in (0, 1]. */
+/* A byte count: digits with an optional K, M, G or T (powers of 1024); > 0. */
+int cli_parse_bytes(const char *cmd, const char *opt, const char *s, size_t *out);
 int cli_parse_fraction(const char *cmd, const char *opt, const char *s, double *out);
 /* "WxH", sides 1..65536. */
 int cli_parse_size(const char *cmd, const char *opt, const char *s, long *w, long *h);

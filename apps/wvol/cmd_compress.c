@@ -33,7 +33,7 @@ static const cli_opt opts[] = {
     {"coder", 0, 1, "auto (default: per section the smaller), cabac or zstd"},
     {"rounding", 0, 1, "dead-zone rounding offset in [0, 0.5] (default 0.38)"},
     {"format", 0, 1, ".wvc format version: 2 (default: chunks, random access) or 1"},
-    {"tile", 0, 1, "format 2: chunk edge in coefficients, 8..256, a power of two (default 32)"},
+    {"tile", 0, 1, "format 2: chunk size in coefficients, XY or XY,Z, powers of two in 8..256 (default 64,32)"},
     CLI_LOAD_OPTS,
     {"threads", 0, 1, "threads for the transforms and the coder (default: all, or OMP_NUM_THREADS)"},
     {"verify", 0, 0, "decode the file written and measure its error (the encoder's own error is exact)"},
@@ -204,7 +204,7 @@ int wvol_cmd_compress(int argc, char **argv)
     long levels = 0, drop = 0, kcount = 0;
     double psnr = 0, frac = 0, energy = 0, step = 0, quant_share = 0.02, roi_floor = 0.1, rounding = -1;
     wvol_wvc_coder coder = WVOL_WVC_CODER_AUTO;
-    long format = 0, tile = 0;
+    long format = 0, tile = 0, tile_z = 0;
     wvol_load_options lo;
     wvol_error err;
     wvol_volume *v = NULL, *rec = NULL;
@@ -283,8 +283,12 @@ int wvol_cmd_compress(int argc, char **argv)
         } else if (!strcmp(o->name, "format")) {
             if (!cli_parse_long("compress", "format", val, 1, 2, &format)) return CLI_USAGE;
         } else if (!strcmp(o->name, "tile")) {
-            if (!cli_parse_long("compress", "tile", val, 8, 256, &tile)) return CLI_USAGE;
-            if (tile & (tile - 1)) return cli_usage("compress", "--tile %s: expected a power of two", val);
+            char *end;
+            tile = strtol(val, &end, 10);
+            tile_z = *end == ',' ? strtol(end + 1, &end, 10) : tile;
+            if (*end || tile < 8 || tile > 256 || tile_z < 8 || tile_z > 256 || (tile & (tile - 1)) ||
+                (tile_z & (tile_z - 1)))
+                return cli_usage("compress", "--tile %s: expected XY or XY,Z, powers of two in 8..256", val);
         } else if (!strcmp(o->name, "rounding")) {
             if (!cli_parse_double("compress", "rounding", val, &rounding)) return CLI_USAGE;
             if (!(rounding >= 0 && rounding <= 0.5)) return cli_usage("compress", "--rounding %s: expected 0..0.5", val);
@@ -373,6 +377,7 @@ int wvol_cmd_compress(int argc, char **argv)
     cp.quant.coder = coder;
     cp.quant.format_version = (int)format;
     cp.quant.tile = (int)tile;
+    cp.quant.tile_z = (int)tile_z;
     if (wvol_compress(&cc, v, &cp, &err) != WVOL_OK) {
         rc = cli_fail_err("compress", &err);
         goto done;

@@ -15,6 +15,8 @@ const char wvol_cmd_decompress_summary[] = "decode a .wvc file into a volume (op
 static const cli_opt opts[] = {
     {"output", 'o', 1, "output volume OUT.raw, OUT.nrrd (or another format this build writes)"},
     {"level", 0, 1, "stop after this level: 0 = full resolution (default), m = the level-m low-pass volume"},
+    {"roi", 0, 1, "only the box x0,y0,z0,x1,y1,z1 (voxels of the original grid, x1 exclusive): decodes only the chunks it needs"},
+    {"memory", 0, 1, "with --roi: budget for decoded chunks, bytes or with K/M/G (default 1G)"},
     CLI_JSON_OPT,
     CLI_HELP_OPT,
     {NULL, 0, 0, NULL}};
@@ -32,6 +34,10 @@ int wvol_cmd_decompress(int argc, char **argv)
     wvol_coeffs *c = NULL;
     wvol_volume *v = NULL;
     double t0, t_read, t_inv, t_write;
+    int roi = 0;
+    size_t box[6], budget = 0;
+    wvol_wvc_file *wf = NULL;
+    wvol_wvc_cache_stats cs;
 
     cli_parser_init(&p, "decompress", argc, argv, opts);
     while ((r = cli_next(&p, &o, &val)) >= 0) {
@@ -39,16 +45,33 @@ int wvol_cmd_decompress(int argc, char **argv)
         if (!o) {
             if (cli_one_input("decompress", &in, val)) return CLI_USAGE;
         } else if (o->short_name == 'h') {
-            cli_print_help("decompress", "IN.wvc -o OUT.(raw|nrrd) [--level m] [--json]",
+            cli_print_help("decompress", "IN.wvc -o OUT.(raw|nrrd) [--level m] [--roi x0,y0,z0,x1,y1,z1] [--memory 1G] [--json]",
                            "Decodes a .wvc file and reconstructs the volume. With --level m only the levels\n"
                            "coarser than m are read (the file is read up to there) and the result is the\n"
-                           "level-m low-pass volume: 2^m times coarser, spacing 2^m times larger.",
+                           "level-m low-pass volume: 2^m times coarser, spacing 2^m times larger. With --roi\n"
+                           "only the box is reconstructed (at the level's resolution), from the chunks of a\n"
+                           "version-2 file whose basis functions reach it, within --memory.",
                            opts);
             return CLI_OK;
         } else if (!strcmp(o->name, "output")) {
             outp = val;
         } else if (!strcmp(o->name, "level")) {
             if (!cli_parse_long("decompress", "level", val, 0, 30, &level)) return CLI_USAGE;
+        } else if (!strcmp(o->name, "roi")) {
+            double b[6];
+            char *end;
+            const char *q = val;
+            for (int i = 0; i < 6; i++) {
+                b[i] = strtod(q, &end);
+                if (end == q || (i < 5 && *end != ',') || (i == 5 && *end) || !(b[i] >= 0 && b[i] < 1e15) ||
+                    b[i] != (double)(size_t)b[i])
+                    return cli_usage("decompress", "--roi %s: expected x0,y0,z0,x1,y1,z1 (voxel indices)", val);
+                box[i] = (size_t)b[i];
+                q = end + 1;
+            }
+            roi = 1;
+        } else if (!strcmp(o->name, "memory")) {
+            if (!cli_parse_bytes("decompress", "memory", val, &budget)) return CLI_USAGE;
         } else if (!strcmp(o->name, "json")) {
             json = 1;
         }
@@ -68,6 +91,30 @@ int wvol_cmd_decompress(int argc, char **argv)
         rc = cli_usage("decompress", "--level %ld: %s has levels 0..%d", level, in, info->levels);
         goto done;
     }
+    if (roi) {
+        /* the box at the level: the level's samples that cover the voxels asked for */
+        size_t lo[3], hi[3], n[3] = {info->nx, info->ny, info->nz};
+        for (int a = 0; a < 3; a++) {
+            size_t dl = n[a] > 1 ? (n[a] + ((size_t)1 << level) - 1) >> level : 1;
+            if (box[a] >= box[a + 3] || box[a + 3] > n[a]) {
+                rc = cli_usage("decompress", "--roi: %zu..%zu along axis %d is empty or outside 0..%zu", box[a],
+                               box[a + 3], a, n[a]);
+                goto done;
+            }
+            lo[a] = n[a] > 1 ? box[a] >> level : 0;
+            hi[a] = n[a] > 1 ? (box[a + 3] + ((size_t)1 << level) - 1) >> level : 1;
+            if (hi[a] > dl) hi[a] = dl;
+        }
+        t0 = cli_now();
+        if (wvol_wvc_open(&wf, in, budget, &err) != WVOL_OK ||
+            wvol_wvc_read_region(&v, wf, lo, hi, (int)level, &err) != WVOL_OK) {
+            rc = cli_fail_err("decompress", &err);
+            goto done;
+        }
+        t_read = cli_now() - t0;
+        t_inv = 0;
+        wvol_wvc_file_stats(wf, &cs);
+    } else {
     wvol_wvc_read_options_default(&ro);
     ro.stop_level = (int)level;
     t0 = cli_now();
@@ -82,6 +129,7 @@ int wvol_cmd_decompress(int argc, char **argv)
         goto done;
     }
     t_inv = cli_now() - t0;
+    }
     t0 = cli_now();
     if (wvol_volume_save(v, outp, &err) != WVOL_OK) {
         rc = cli_fail_err("decompress", &err);
@@ -100,13 +148,31 @@ int wvol_cmd_decompress(int argc, char **argv)
         cli_json_num("inverse_transform", t_inv);
         cli_json_num("write", t_write);
         cli_json_close('}');
+        if (wf) {
+            cli_json_open("chunks", '{');
+            cli_json_int("decoded", (long long)cs.decoded);
+            cli_json_int("cache_hits", (long long)cs.hits);
+            cli_json_int("bytes_read", (long long)cs.bytes_read);
+            cli_json_int("cache_peak_bytes", (long long)cs.peak);
+            cli_json_int("budget_bytes", (long long)cs.budget);
+            cli_json_int("file_chunks", (long long)wvol_wvc_file_info(wf)->chunks);
+            cli_json_close('}');
+        }
         cli_json_end();
     } else {
-        printf("%s -> %s: %zu x %zu x %zu%s (decode %.3f s, inverse %.3f s, write %.3f s)\n", in, outp, v->nx,
-               v->ny, v->nz, level ? " (coarser level)" : "", t_read, t_inv, t_write);
+        if (wf)
+            printf("%s -> %s: %zu x %zu x %zu region%s (%llu of %llu chunks decoded, %llu bytes read, cache peak %zu "
+                   "bytes; read+reconstruct %.3f s, write %.3f s)\n",
+                   in, outp, v->nx, v->ny, v->nz, level ? " of a coarser level" : "", (unsigned long long)cs.decoded,
+                   (unsigned long long)wvol_wvc_file_info(wf)->chunks, (unsigned long long)cs.bytes_read, cs.peak,
+                   t_read, t_write);
+        else
+            printf("%s -> %s: %zu x %zu x %zu%s (decode %.3f s, inverse %.3f s, write %.3f s)\n", in, outp, v->nx,
+                   v->ny, v->nz, level ? " (coarser level)" : "", t_read, t_inv, t_write);
     }
     rc = CLI_OK;
 done:
+    wvol_wvc_close(wf);
     free(info);
     wvol_volume_destroy(v);
     wvol_coeffs_destroy(c);

@@ -1,7 +1,7 @@
 /* SPDX-License-Identifier: MIT */
-/* libFuzzer target for the .wvc reader. Each input is decoded twice: as it is
- * (the checksums must catch damage), and "resealed", with the header and every
- * section checksum recomputed, so that the fuzzer reaches the field checks and
+/* libFuzzer target for the .wvc reader (versions 1 and 2). Each input is decoded twice:
+ * as it is (the checksums must catch damage), and "resealed", with the header (and
+ * index) checksum and every section's or chunk's checksum recomputed, so that the fuzzer reaches the field checks and
  * the entropy decoders behind them (a crafted file can carry valid checksums).
  * Build and run: scripts/fuzz.sh. */
 #include <stdint.h>
@@ -38,12 +38,37 @@ static void decode(const uint8_t *data, size_t size)
     if (wvol_wvc_decode(&c, data, size, &o, NULL, NULL) == WVOL_OK) wvol_coeffs_destroy(c);
 }
 
+/* Version 2: header 224 bytes, band table 48 x S, chunk index 32 x C, one CRC. */
+static void reseal_v2(uint8_t *t, size_t size)
+{
+    uint32_t nsec = get32(t + 12);
+    uint64_t nchunks = get64(t + 208), h;
+    if (nsec > WVOL_WVC_MAX_SECTIONS || nchunks > ((uint64_t)1 << 20)) return;
+    h = 224 + (uint64_t)nsec * 48 + nchunks * 32;
+    if (h + 4 > size) return;
+    for (uint64_t k = 0; k < nchunks; k++) {
+        uint8_t *e = t + 224 + (size_t)nsec * 48 + (size_t)k * 32;
+        uint64_t off = get64(e), n = get32(e + 8);
+        if (n && off <= size && n <= size - off) put32(e + 12, (uint32_t)crc32(0L, t + off, (uInt)n));
+    }
+    put32(t + h, (uint32_t)crc32(0L, t, (uInt)h));
+}
+
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
 {
     uint8_t *t;
     uint32_t nsec;
     size_t h, s, off;
     decode(data, size);
+    if (size >= 10 && data[8] == 2 && data[9] == 0) {
+        t = malloc(size);
+        if (!t) return 0;
+        memcpy(t, data, size);
+        reseal_v2(t, size);
+        decode(t, size);
+        free(t);
+        return 0;
+    }
     if (size < HDR + 4) return 0;
     nsec = get32(data + 12);
     if (nsec > WVOL_WVC_MAX_SECTIONS) return 0;

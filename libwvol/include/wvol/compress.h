@@ -42,7 +42,8 @@ typedef struct wvol_compress_quant {
     double rounding;      /* dead-zone rounding offset in [0, 0.5]; < 0 (default): the codec's */
     wvol_wvc_coder coder; /* default AUTO */
     int format_version;   /* .wvc format: 0 (default) = WVOL_WVC_FORMAT_VERSION (2), or 1 */
-    int tile;             /* version 2: chunk edge in coefficients (0: the codec's default, 32) */
+    int tile, tile_z;     /* version 2: chunk edge along x and y, depth along z, in coefficients
+                             (0: the codec's defaults, 64 and 32) */
 } wvol_compress_quant;
 
 typedef struct wvol_compress_params {

@@ -47,7 +47,9 @@ typedef struct wvol_wvc_params {
     double value_min, value_max; /* range of the original samples (header; PSNR peak) */
     double dropped_energy;       /* energy the caller zeroed before encoding (header; reports) */
     int version;         /* file format: 0 = WVOL_WVC_FORMAT_VERSION (2, chunked, random access), 1 */
-    int tile;            /* version 2: chunk edge in coefficients, a power of two in 8..256 (0: 32) */
+    int tile;            /* version 2: chunk edge along x and y in coefficients, a power of two
+                            in 8..256 (0: 64) */
+    int tile_z;          /* version 2: chunk depth along z, the same range (0: 32) */
 } wvol_wvc_params;
 
 WVOL_API void wvol_wvc_params_default(wvol_wvc_params *p);
@@ -83,7 +85,7 @@ typedef struct wvol_wvc_info {
     uint64_t nonzero;
     uint64_t file_bytes;     /* header + table + payloads */
     uint64_t header_bytes;   /* version 2: header, band table and chunk index */
-    int tile;                /* version 2: chunk edge in coefficients (0 in version 1) */
+    int tile, tile_z;        /* version 2: chunk edge along x and y, depth along z (0 in version 1) */
     uint64_t chunks;         /* version 2: chunks in the index (0 in version 1) */
     int nsections;
     wvol_wvc_section sections[WVOL_WVC_MAX_SECTIONS];
@@ -131,6 +133,42 @@ WVOL_API wvol_status wvol_wvc_save(const char *path, const void *buf, size_t siz
 WVOL_API wvol_status wvol_wvc_read_info(wvol_wvc_info *info, const char *path, wvol_error *err);
 WVOL_API wvol_status wvol_wvc_read(wvol_coeffs **out, const char *path, const wvol_wvc_read_options *opt,
                                    wvol_wvc_info *info, wvol_error *err);
+
+/* ---- random access (version 2) --------------------------------------------------- */
+
+/* An open .wvc file whose chunks are decoded on demand into a cache of at most
+ * `budget` bytes of decoded chunks (least recently used first out). A version-1
+ * file has no index: it is decoded whole at open, refused when that exceeds the
+ * budget. One handle may serve several threads (the cache has a lock). */
+typedef struct wvol_wvc_file wvol_wvc_file;
+
+#define WVOL_WVC_DEFAULT_BUDGET ((size_t)1 << 30) /* 1 GiB */
+
+typedef struct wvol_wvc_cache_stats {
+    size_t budget;           /* bytes */
+    size_t held, peak;       /* decoded chunk bytes held now, and at most so far */
+    size_t chunk_bytes;      /* decoded size of the largest chunk */
+    uint64_t decoded;        /* chunk decodes (a chunk evicted and needed again counts twice) */
+    uint64_t hits;           /* requests served from the cache */
+    uint64_t bytes_read;     /* payload bytes read from the file */
+} wvol_wvc_cache_stats;
+
+/* Opens path, reads and checks the header and the chunk index (no payload). budget
+ * 0 means WVOL_WVC_DEFAULT_BUDGET; a budget below what one chain of chunks (one per
+ * level, the parents a chunk is decoded with) needs is refused with a message. */
+WVOL_API wvol_status wvol_wvc_open(wvol_wvc_file **out, const char *path, size_t budget, wvol_error *err);
+WVOL_API void wvol_wvc_close(wvol_wvc_file *f); /* NULL is fine */
+/* What the header, band table and index say (the file's info). */
+WVOL_API const wvol_wvc_info *wvol_wvc_file_info(const wvol_wvc_file *f);
+WVOL_API void wvol_wvc_file_stats(const wvol_wvc_file *f, wvol_wvc_cache_stats *st);
+
+/* The samples of the box [lo, hi) of level `level`'s grid (0: the original voxels;
+ * s: the grid of wvol_idwt3_level(c, s), ceil(n / 2^s) per transformed axis), with
+ * its values, spacing and origin (the box's first sample), decoding only the chunks
+ * whose basis functions' supports meet the box, then reconstructing locally. Equal
+ * to the same box of wvol_idwt3_level on the whole decoded file up to float rounding. */
+WVOL_API wvol_status wvol_wvc_read_region(wvol_volume **out, wvol_wvc_file *f, const size_t lo[3],
+                                          const size_t hi[3], int level, wvol_error *err);
 
 /* Predicted and measured error. sse is a sum of squared errors over n samples;
  * PSNR uses peak = value range (infinite for sse 0). */

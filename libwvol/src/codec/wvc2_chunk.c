@@ -11,12 +11,13 @@
 
 #include "wvc2_internal.h"
 
-int wvol__wvc2_geom(wvc2_geom *g, const size_t p[3], int levels, int tile)
+int wvol__wvc2_geom(wvc2_geom *g, const size_t p[3], int levels, int tile_xy, int tile_z)
 {
     size_t first = 0;
     memset(g, 0, sizeof *g);
     g->levels = levels;
-    g->tile = tile;
+    g->tile[0] = g->tile[1] = tile_xy;
+    g->tile[2] = tile_z;
     for (int a = 0; a < 3; a++) {
         g->p[a] = p[a];
         g->tr[a] = p[a] > 1;
@@ -26,7 +27,7 @@ int wvol__wvc2_geom(wvc2_geom *g, const size_t p[3], int levels, int tile)
         size_t n = 1;
         for (int a = 0; a < 3; a++) {
             L->e[a] = g->tr[a] ? p[a] >> m : 1;
-            L->nt[a] = (L->e[a] + (size_t)tile - 1) / (size_t)tile;
+            L->nt[a] = (L->e[a] + (size_t)g->tile[a] - 1) / (size_t)g->tile[a];
             if (L->nt[a] && n > SIZE_MAX / L->nt[a]) return -1;
             n *= L->nt[a];
         }
@@ -106,72 +107,93 @@ static void parent_in(local_grid *lg, const wvc2_qbox *parent)
     if (lg->b.has_parent) box_copy_in(lg, lg->b.ext[0], parent, lg->b.pext);
 }
 
+/* Payload modes: one CABAC stream whose model adapts across the chunk's bands, or one
+ * stream per band (each CABAC or zstd). */
+enum { MODE_BANDS = 0, MODE_SHARED = 1 };
+
 int wvol__wvc2_chunk_encode(wvc2_coded *out, const wvc2_geom *g, int m, const size_t ext[3],
                             const wvc2_qbox child[8], const wvc2_qbox parent[8], int coder, int zstd_level)
 {
     const wvc2_level *L = &g->lv[m];
-    uint8_t *pay[8] = {0}, kind[8] = {0};
-    size_t len[8] = {0}, head = 0, total;
-    int i, failed = 0;
+    local_grid lg[8];
+    uint64_t nzb[8] = {0};
+    uint8_t *shared = NULL, *pay[8] = {0}, mask = 0;
+    size_t shared_len = 0, len[8] = {0}, zsum = 0;
+    int i, failed = 0, nused = 0;
     memset(out, 0, sizeof *out);
+    memset(lg, 0, sizeof lg);
     for (i = 0; i < L->nb && !failed; i++) {
-        local_grid lg;
-        uint64_t nz = 0;
-        uint8_t *a = NULL, *z = NULL;
-        size_t na = 0, nzs = 0;
         for (size_t zz = 0; zz < ext[2]; zz++)
             for (size_t y = 0; y < ext[1]; y++) {
                 const int32_t *r = child[i].q + y * child[i].sy + zz * child[i].sz;
-                for (size_t x = 0; x < ext[0]; x++) nz += r[x] != 0;
+                for (size_t x = 0; x < ext[0]; x++) nzb[i] += r[x] != 0;
             }
-        if (nz == 0) continue;
-        out->nonzero += nz;
-        if (local_make(&lg, g, m, L->bands[i], ext)) {
+        if (nzb[i] == 0) continue;
+        out->nonzero += nzb[i];
+        mask |= (uint8_t)(1u << i);
+        if (local_make(&lg[i], g, m, L->bands[i], ext)) {
             failed = 1;
             break;
         }
-        box_copy_in(&lg, 0, &child[i], ext);
-        parent_in(&lg, &parent[i]);
-        if (coder != WVOL_WVC_CODER_ZSTD) {
-            if (wvol__wvc_cabac_encode(&a, &na, lg.q, lg.p, &lg.b)) failed = 1;
-            out->alt_cabac += na;
-        }
-        if (coder != WVOL_WVC_CODER_CABAC && !failed) {
-            if (wvol__wvc_zstd_encode(&z, &nzs, lg.q, lg.p, &lg.b, zstd_level)) failed = 1;
-            out->alt_zstd += nzs;
-        }
-        free(lg.q);
-        if (a && (!z || na <= nzs)) {
-            pay[i] = a, len[i] = na, kind[i] = WVOL_WVC_CODER_CABAC;
-            free(z);
-        } else {
-            pay[i] = z, len[i] = nzs, kind[i] = WVOL_WVC_CODER_ZSTD;
-            free(a);
-        }
-        if (!pay[i] || !len[i]) failed = 1;
+        box_copy_in(&lg[i], 0, &child[i], ext);
+        parent_in(&lg[i], &parent[i]);
+        nused++;
     }
-    if (!failed && out->nonzero) {
-        uint8_t *p, hdr[8 + 8 * 10];
-        head = (size_t)L->nb;
-        for (i = 0; i < L->nb; i++) hdr[i] = kind[i];
+    if (!failed && nused && coder != WVOL_WVC_CODER_ZSTD) {
+        int32_t *Q[8];
+        const size_t *P[8];
+        const wvc_band *B[8];
+        int k = 0;
         for (i = 0; i < L->nb; i++)
-            if (kind[i]) head += wvc2_put_varint(hdr + head, len[i]);
-        total = head;
-        for (i = 0; i < L->nb; i++) total += len[i];
+            if (mask >> i & 1) Q[k] = lg[i].q, P[k] = lg[i].p, B[k] = &lg[i].b, k++;
+        if (wvol__wvc_cabac_encode_multi(&shared, &shared_len, k, Q, P, B)) failed = 1;
+        out->alt_cabac = shared_len;
+    }
+    /* auto: all zstd when that is smaller (its matches win on small and regular bands) */
+    if (!failed && nused && coder != WVOL_WVC_CODER_CABAC) {
+        for (i = 0; i < L->nb && !failed; i++)
+            if (mask >> i & 1) {
+                if (wvol__wvc_zstd_encode(&pay[i], &len[i], lg[i].q, lg[i].p, &lg[i].b, zstd_level)) failed = 1;
+                zsum += len[i];
+            }
+        out->alt_zstd = zsum;
+    }
+    for (i = 0; i < 8; i++) free(lg[i].q);
+    if (!failed && nused) {
+        uint8_t hdr[1 + 8 + 8 * 10], *p;
+        size_t head = 0, total;
+        int use_shared = shared && (!out->alt_zstd || shared_len + 2 <= zsum + 1 + (size_t)L->nb + 2 * (size_t)nused);
+        hdr[head++] = (uint8_t)(use_shared ? MODE_SHARED : MODE_BANDS);
+        if (use_shared) {
+            hdr[head++] = mask;
+            total = head + shared_len;
+        } else {
+            for (i = 0; i < L->nb; i++) hdr[head++] = (mask >> i & 1) ? WVOL_WVC_CODER_ZSTD : WVOL_WVC_CODER_EMPTY;
+            for (i = 0; i < L->nb; i++)
+                if (mask >> i & 1) head += wvc2_put_varint(hdr + head, len[i]);
+            total = head + zsum;
+        }
         p = malloc(total);
         if (!p) {
             failed = 1;
         } else {
             memcpy(p, hdr, head);
-            total = head;
-            for (i = 0; i < L->nb; i++)
-                if (len[i]) memcpy(p + total, pay[i], len[i]), total += len[i];
+            if (use_shared) {
+                memcpy(p + head, shared, shared_len);
+                /* per-band shares of one stream are not separable: split by non-zero counts */
+                for (i = 0; i < L->nb; i++)
+                    out->band_bytes[i] = (size_t)((double)shared_len * (double)nzb[i] / (double)out->nonzero);
+            } else {
+                size_t o = head;
+                for (i = 0; i < L->nb; i++)
+                    if (len[i]) memcpy(p + o, pay[i], len[i]), o += len[i], out->band_bytes[i] = len[i];
+            }
             out->payload = p;
             out->bytes = total;
             out->crc = (uint32_t)crc32(0L, p, (uInt)total);
-            for (i = 0; i < L->nb; i++) out->band_bytes[i] = len[i];
         }
     }
+    free(shared);
     for (i = 0; i < 8; i++) free(pay[i]);
     if (failed) {
         free(out->payload);
@@ -192,74 +214,106 @@ int wvol__wvc2_chunk_decode(const wvc2_geom *g, int m, const size_t ext[3], cons
                             const char **why)
 {
     const wvc2_level *L = &g->lv[m];
+    local_grid lg[8];
     size_t len[8] = {0}, pos, sum = 0;
-    int i;
+    uint8_t used = 0;
+    int i, r = 0, mode;
     *nonzero = 0;
     for (i = 0; i < L->nb; i++) box_zero(&child[i], ext);
     if (bytes == 0) return 0;
-    if (bytes < (size_t)L->nb) {
-        *why = "chunk header truncated";
-        return -1;
-    }
-    pos = (size_t)L->nb;
-    for (i = 0; i < L->nb; i++) {
-        uint64_t v = 0;
-        int shift = 0;
-        if (payload[i] > WVOL_WVC_CODER_ZSTD) {
-            *why = "unknown band coder";
+    mode = payload[0];
+    pos = 1;
+    if (mode == MODE_SHARED) {
+        if (bytes < 3) {
+            *why = "chunk header truncated";
             return -1;
         }
-        if (!payload[i]) continue;
-        for (;;) {
-            uint8_t c;
-            if (pos >= bytes || shift > 56) {
-                *why = "malformed band length";
+        used = payload[pos++];
+        if (!used || (used >> L->nb)) {
+            *why = "chunk band mask is not valid";
+            return -1;
+        }
+    } else if (mode == MODE_BANDS) {
+        if (bytes < 1 + (size_t)L->nb) {
+            *why = "chunk header truncated";
+            return -1;
+        }
+        for (i = 0; i < L->nb; i++) {
+            uint8_t k = payload[pos + (size_t)i];
+            if (k > WVOL_WVC_CODER_ZSTD) {
+                *why = "unknown band coder";
                 return -1;
             }
-            c = payload[pos++];
-            v |= (uint64_t)(c & 0x7F) << shift;
-            shift += 7;
-            if (!(c & 0x80)) break;
+            if (k) used |= (uint8_t)(1u << i);
         }
-        if (v == 0 || v > bytes) {
-            *why = "band length out of range";
+        pos += (size_t)L->nb;
+        for (i = 0; i < L->nb; i++) {
+            uint64_t v = 0;
+            int shift = 0;
+            if (!(used >> i & 1)) continue;
+            for (;;) {
+                uint8_t c;
+                if (pos >= bytes || shift > 56) {
+                    *why = "malformed band length";
+                    return -1;
+                }
+                c = payload[pos++];
+                v |= (uint64_t)(c & 0x7F) << shift;
+                shift += 7;
+                if (!(c & 0x80)) break;
+            }
+            if (v == 0 || v > bytes) {
+                *why = "band length out of range";
+                return -1;
+            }
+            len[i] = (size_t)v;
+            sum += len[i];
+        }
+        if (sum != bytes - pos) {
+            *why = "band lengths do not add up to the chunk";
             return -1;
         }
-        len[i] = (size_t)v;
-        sum += len[i];
-    }
-    if (sum != bytes - pos) {
-        *why = "band lengths do not add up to the chunk";
+    } else {
+        *why = "unknown chunk mode";
         return -1;
     }
-    for (i = 0; i < L->nb; i++) {
-        local_grid lg;
-        int r;
-        if (!payload[i]) {
-            pos += 0;
-            continue;
-        }
-        if (local_make(&lg, g, m, L->bands[i], ext)) {
-            *why = "out of memory";
-            return -1;
-        }
-        parent_in(&lg, &parent[i]);
-        if (payload[i] == WVOL_WVC_CODER_CABAC)
-            r = wvol__wvc_cabac_decode(lg.q, lg.p, &lg.b, payload + pos, len[i], why);
-        else
-            r = wvol__wvc_zstd_decode(lg.q, lg.p, &lg.b, payload + pos, len[i], why);
-        if (r) {
-            free(lg.q);
-            return -1;
-        }
-        pos += len[i];
-        for (size_t z = 0; z < ext[2]; z++)
-            for (size_t y = 0; y < ext[1]; y++) {
-                const int32_t *s = lg.q + lg.p[0] * (y + lg.p[1] * z);
-                int32_t *d = child[i].q + y * child[i].sy + z * child[i].sz;
-                for (size_t x = 0; x < ext[0]; x++) *nonzero += (d[x] = s[x]) != 0;
+    memset(lg, 0, sizeof lg);
+    for (i = 0; i < L->nb && !r; i++)
+        if (used >> i & 1) {
+            if (local_make(&lg[i], g, m, L->bands[i], ext)) {
+                *why = "out of memory";
+                r = -1;
+            } else {
+                parent_in(&lg[i], &parent[i]);
             }
-        free(lg.q);
+        }
+    if (!r && mode == MODE_SHARED) {
+        int32_t *Q[8];
+        const size_t *P[8];
+        const wvc_band *B[8];
+        int k = 0;
+        for (i = 0; i < L->nb; i++)
+            if (used >> i & 1) Q[k] = lg[i].q, P[k] = lg[i].p, B[k] = &lg[i].b, k++;
+        r = wvol__wvc_cabac_decode_multi(k, Q, P, B, payload + pos, bytes - pos, why);
+    } else if (!r) {
+        for (i = 0; i < L->nb && !r; i++) {
+            if (!(used >> i & 1)) continue;
+            if (payload[1 + i] == WVOL_WVC_CODER_CABAC)
+                r = wvol__wvc_cabac_decode(lg[i].q, lg[i].p, &lg[i].b, payload + pos, len[i], why);
+            else
+                r = wvol__wvc_zstd_decode(lg[i].q, lg[i].p, &lg[i].b, payload + pos, len[i], why);
+            pos += len[i];
+        }
     }
-    return 0;
+    for (i = 0; i < L->nb; i++) {
+        if (!r && (used >> i & 1))
+            for (size_t z = 0; z < ext[2]; z++)
+                for (size_t y = 0; y < ext[1]; y++) {
+                    const int32_t *s = lg[i].q + lg[i].p[0] * (y + lg[i].p[1] * z);
+                    int32_t *d = child[i].q + y * child[i].sy + z * child[i].sz;
+                    for (size_t x = 0; x < ext[0]; x++) *nonzero += (d[x] = s[x]) != 0;
+                }
+        free(lg[i].q);
+    }
+    return r;
 }

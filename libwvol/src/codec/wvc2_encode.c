@@ -28,6 +28,7 @@ wvol_status wvol__wvc2_encode_dense(void **out, size_t *out_size, const wvol_coe
     h.zero_edge = zero_edge;
     h.dropped_energy = p->dropped_energy;
     h.tile = p->tile;
+    h.tile_z = p->tile_z;
     h.coder = p->coder;
     h.zstd_level = p->zstd_level;
     WVOL_FORWARD(wvol__wvc2_writer_open_mem(&w, &h, err));

@@ -16,9 +16,9 @@
 #define WVC2_BAND_SIZE 48
 #define WVC2_CHUNK_SIZE 32
 
-/* Chunks: per level m (levels .. 1, coarsest first) a grid of tiles of `tile`
- * coefficients per axis over the level's band extent e (px >> m, 1 on an untransformed
- * axis); tile t covers [t tile, min(e, (t + 1) tile)). A chunk holds that box of every
+/* Chunks: per level m (levels .. 1, coarsest first) a grid of tiles of tile[a]
+ * coefficients along axis a over the level's band extent e (px >> m, 1 on an untransformed
+ * axis); tile t covers [t T, min(e, (t + 1) T)). A chunk holds that box of every
  * band of the level (the low-pass cube too at m == levels). Chunk ids: level `levels`
  * first, then finer; within a level x fastest. */
 typedef struct wvc2_level {
@@ -30,7 +30,8 @@ typedef struct wvc2_level {
 } wvc2_level;
 
 typedef struct wvc2_geom {
-    int levels, tile;
+    int levels;
+    int tile[3];         /* tile edge per axis (x and y equal) */
     size_t p[3];
     int tr[3];           /* axis transformed (p > 1) */
     size_t nchunks;
@@ -38,7 +39,7 @@ typedef struct wvc2_geom {
 } wvc2_geom;
 
 /* Fills g; returns -1 when the chunk count overflows. */
-int wvol__wvc2_geom(wvc2_geom *g, const size_t p[3], int levels, int tile);
+int wvol__wvc2_geom(wvc2_geom *g, const size_t p[3], int levels, int tile_xy, int tile_z);
 
 /* The section (v1 file order: low-pass cube, then level = levels..1, bands 1..7) of a band. */
 static inline int wvc2_section(int levels, int level, int band)
@@ -50,9 +51,9 @@ static inline int wvc2_section(int levels, int level, int band)
 static inline void wvc2_tile_box(const wvc2_geom *g, int m, const size_t t[3], size_t off[3], size_t ext[3])
 {
     for (int a = 0; a < 3; a++) {
-        size_t o = t[a] * (size_t)g->tile, e = g->lv[m].e[a];
+        size_t T = (size_t)g->tile[a], o = t[a] * T, e = g->lv[m].e[a];
         off[a] = o;
-        ext[a] = e - o < (size_t)g->tile ? e - o : (size_t)g->tile;
+        ext[a] = e - o < T ? e - o : T;
     }
 }
 

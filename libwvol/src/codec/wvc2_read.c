@@ -37,13 +37,14 @@ wvol_status wvol__wvc2_parse(wvol_wvc_info *I, wvc2_index **out, const uint8_t *
     uint64_t lev_nz[WVOL_WVC_MAX_LEVELS + 1] = {0}, band_nz[WVOL_WVC_MAX_LEVELS + 1] = {0};
     wvc2_index *x;
     size_t p[3] = {I->px, I->py, I->pz};
-    int tl, s;
+    int tl, tlz, s;
     if (out) *out = NULL;
     WVOL_RETURN_IF(avail < WVC2_HEADER_SIZE || file_size < WVC2_HEADER_SIZE, err, WVOL_ERR_FORMAT,
                    ".wvc file truncated: %llu bytes, the version-2 header alone needs %d",
                    (unsigned long long)(file_size < avail ? file_size : avail), WVC2_HEADER_SIZE);
     nchunks = wvc_get_u64(h + 208);
     tl = h[33];
+    tlz = h[34];
     WVOL_RETURN_IF(nchunks > ((uint64_t)1 << 40), err, WVOL_ERR_FORMAT, ".wvc index: %llu chunks is not valid",
                    (unsigned long long)nchunks);
     hbytes = WVC2_HEADER_SIZE + nsec * WVC2_BAND_SIZE + nchunks * WVC2_CHUNK_SIZE + 4;
@@ -52,12 +53,13 @@ wvol_status wvol__wvc2_parse(wvol_wvc_info *I, wvc2_index **out, const uint8_t *
                    (unsigned long long)(file_size < avail ? file_size : avail), (unsigned long long)hbytes);
     WVOL_RETURN_IF(wvc_get_u32(h + hbytes - 4) != (uint32_t)crc32(0L, h, (uInt)(hbytes - 4)), err,
                    WVOL_ERR_FORMAT, ".wvc header or index checksum mismatch: the file is corrupt");
-    WVOL_RETURN_IF(h[34] || h[35] || wvc_get_u32(h + 36) || wvc_get_u64(h + 216), err, WVOL_ERR_FORMAT,
+    WVOL_RETURN_IF(h[35] || wvc_get_u32(h + 36) || wvc_get_u64(h + 216), err, WVOL_ERR_FORMAT,
                    ".wvc header: reserved bytes are not zero");
-    WVOL_RETURN_IF(tl < 3 || tl > 8, err, WVOL_ERR_FORMAT, ".wvc header: tile 2^%d outside 8..256", tl);
+    WVOL_RETURN_IF(tl < 3 || tl > 8 || tlz < 3 || tlz > 8, err, WVOL_ERR_FORMAT,
+                   ".wvc header: tile 2^%d x 2^%d outside 8..256", tl, tlz);
     x = calloc(1, sizeof *x);
     WVOL_RETURN_IF(!x, err, WVOL_ERR_NOMEM, "wvc: out of memory");
-    if (wvol__wvc2_geom(&x->g, p, I->levels, 1 << tl) || x->g.nchunks != nchunks) {
+    if (wvol__wvc2_geom(&x->g, p, I->levels, 1 << tl, 1 << tlz) || x->g.nchunks != nchunks) {
         size_t have = x->g.nchunks;
         wvol__wvc2_index_free(x);
         return wvol_error_set(err, WVOL_ERR_FORMAT, ".wvc index: %llu chunks, the grid has %zu",
@@ -72,6 +74,7 @@ wvol_status wvol__wvc2_parse(wvol_wvc_info *I, wvc2_index **out, const uint8_t *
     x->hbytes = hbytes;
     I->nsections = (int)nsec;
     I->tile = 1 << tl;
+    I->tile_z = 1 << tlz;
     I->chunks = nchunks;
     payload = wvc_get_u64(h + 200);
     for (s = 0; s < (int)nsec; s++) {
@@ -185,7 +188,9 @@ wvol_status wvol__wvc2_decode_dense(int32_t *Q, const size_t p[3], const wvc2_in
                                     size_t avail, int stop_level, wvol_error *err)
 {
     const wvc2_geom *g = &x->g;
-    for (int m = g->levels; m > stop_level && m >= 1; m--) {
+    /* the low-pass cube shares its chunks with the coarsest details: decoded even for
+     * stop_level == levels, the details then cleared */
+    for (int m = g->levels; m >= 1 && (m > stop_level || m == g->levels); m--) {
         const wvc2_level *G = &g->lv[m];
         long i;
         size_t bad = SIZE_MAX;
@@ -229,6 +234,17 @@ wvol_status wvol__wvc2_decode_dense(int32_t *Q, const size_t p[3], const wvc2_in
             char d[96];
             wvol__wvc2_describe(d, sizeof d, x, bad);
             return wvol_error_set(err, WVOL_ERR_FORMAT, ".wvc %s: %s", d, why ? why : "malformed");
+        }
+    }
+    if (stop_level >= g->levels) {
+        const wvc2_level *G = &g->lv[g->levels];
+        const size_t zero[3] = {0, 0, 0};
+        for (int k = 0; k < G->nb; k++) {
+            wvc2_qbox b;
+            if (G->bands[k] == 0) continue;
+            b = dense_box(Q, p, g, g->levels, G->bands[k], zero);
+            for (size_t z = 0; z < G->e[2]; z++)
+                for (size_t y = 0; y < G->e[1]; y++) memset(b.q + y * b.sy + z * b.sz, 0, G->e[0] * sizeof(int32_t));
         }
     }
     return WVOL_OK;

@@ -28,6 +28,11 @@ typedef struct wvc2_index {
  * (0 when h is shorter than the fixed header or the counts are absurd). */
 uint64_t wvol__wvc2_prefix_bytes(const uint8_t *h, size_t avail);
 
+/* The whole header check of wvc_decode.c (any version) on the file's first avail bytes
+ * (for version 2 at least the header, table and index), for a file of file_size bytes. */
+wvol_status wvol__wvc_parse_prefix(wvol_wvc_info *I, const uint8_t *h, size_t avail, uint64_t file_size,
+                                   wvol_error *err);
+
 /* Checks the version-2 part of a header whose common fields (magic, version, filter,
  * levels, sizes, spacing, origin, range, step, rounding, totals) were parsed into I,
  * then the band table and the chunk index; fills I's sections (offset 0, coder

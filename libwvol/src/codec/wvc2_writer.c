@@ -77,6 +77,7 @@ void wvol__wvc2_header_default(wvc2_header *h)
     memset(h, 0, sizeof *h);
     h->rounding = WVC_DEFAULT_ROUNDING;
     h->tile = WVC2_TILE_DEFAULT;
+    h->tile_z = WVC2_TILE_Z_DEFAULT;
     h->coder = WVOL_WVC_CODER_AUTO;
     h->zstd_level = 3;
 }
@@ -85,7 +86,7 @@ static wvol_status check_header(const wvc2_header *h, wvol_error *err)
 {
     const wvol_filter *f;
     size_t n[3] = {h->nx, h->ny, h->nz}, p[3] = {h->px, h->py, h->pz}, bytes;
-    int a, tile = h->tile ? h->tile : WVC2_TILE_DEFAULT;
+    int a, tile = h->tile ? h->tile : WVC2_TILE_DEFAULT, tz = h->tile_z ? h->tile_z : WVC2_TILE_Z_DEFAULT;
     WVOL_RETURN_IF(!memchr(h->filter, 0, sizeof h->filter), err, WVOL_ERR_ARG, "wvc2 writer: filter name unterminated");
     WVOL_FORWARD(wvol_filter_get(&f, h->filter, err));
     WVOL_RETURN_IF(h->levels < 1 || h->levels > WVOL_WVC_MAX_LEVELS, err, WVOL_ERR_ARG,
@@ -112,6 +113,8 @@ static wvol_status check_header(const wvc2_header *h, wvol_error *err)
                    err, WVOL_ERR_ARG, "wvc2 writer: bad value range or dropped energy");
     WVOL_RETURN_IF(tile < WVC2_TILE_MIN || tile > WVC2_TILE_MAX || (tile & (tile - 1)), err, WVOL_ERR_ARG,
                    "wvc2 writer: tile %d is not a power of two in [%d, %d]", tile, WVC2_TILE_MIN, WVC2_TILE_MAX);
+    WVOL_RETURN_IF(tz < WVC2_TILE_MIN || tz > WVC2_TILE_MAX || (tz & (tz - 1)), err, WVOL_ERR_ARG,
+                   "wvc2 writer: tile depth %d is not a power of two in [%d, %d]", tz, WVC2_TILE_MIN, WVC2_TILE_MAX);
     WVOL_RETURN_IF(h->coder < WVOL_WVC_CODER_AUTO || h->coder > WVOL_WVC_CODER_ZSTD, err, WVOL_ERR_ARG,
                    "wvc2 writer: unknown coder %d", (int)h->coder);
     if (h->zero_edge)
@@ -133,6 +136,7 @@ static wvol_status writer_new(wvc2_writer **out, const wvc2_header *h, wvol_erro
     WVOL_RETURN_IF(!w, err, WVOL_ERR_NOMEM, "wvc2 writer: out of memory");
     w->h = *h;
     if (!w->h.tile) w->h.tile = WVC2_TILE_DEFAULT;
+    if (!w->h.tile_z) w->h.tile_z = WVC2_TILE_Z_DEFAULT;
     if (!w->h.zstd_level) w->h.zstd_level = 3;
     memcpy(w->filter, h->filter, sizeof w->filter);
     p[0] = h->px, p[1] = h->py, p[2] = h->pz;
@@ -142,7 +146,7 @@ static wvol_status writer_new(wvc2_writer **out, const wvc2_header *h, wvol_erro
         if (w->zero_edge) memcpy(w->zero_edge, h->zero_edge, n * sizeof *w->zero_edge);
     }
     w->h.zero_edge = NULL;
-    if ((h->zero_edge && !w->zero_edge) || wvol__wvc2_geom(&w->g, p, h->levels, w->h.tile)) {
+    if ((h->zero_edge && !w->zero_edge) || wvol__wvc2_geom(&w->g, p, h->levels, w->h.tile, w->h.tile_z)) {
         wvol__wvc2_writer_abort(w);
         return wvol_error_set(err, WVOL_ERR_NOMEM, "wvc2 writer: out of memory");
     }
@@ -314,7 +318,7 @@ static wvc2_qbox box_of(const wlevel *L, const wvc2_level *G, int i, const size_
 static int tile_row_ready(const wvc2_writer *w, int m, size_t k)
 {
     const wvc2_level *G = &w->g.lv[m];
-    size_t end = (k + 1) * (size_t)w->g.tile;
+    size_t end = (k + 1) * (size_t)w->g.tile[2];
     if (end > G->e[2]) end = G->e[2];
     if (w->lv[m].z_next < end) return 0;
     if (m < w->g.levels) {
@@ -382,10 +386,10 @@ static void release_rows(wvc2_writer *w, int m)
 {
     wlevel *L = &w->lv[m];
     const wvc2_level *G = &w->g.lv[m];
-    size_t keep = L->tz_next * (size_t)w->g.tile, nb, i;
+    size_t keep = L->tz_next * (size_t)w->g.tile[2], nb, i;
     if (!w->g.tr[2]) return; /* one row per level */
     if (m > 1) {
-        size_t child = w->lv[m - 1].tz_next * (size_t)w->g.tile / 2;
+        size_t child = w->lv[m - 1].tz_next * (size_t)w->g.tile[2] / 2;
         if (child < keep) keep = child;
     }
     if (keep > L->z_next) keep = L->z_next;
@@ -444,14 +448,15 @@ wvol_status wvol__wvc2_writer_put(wvc2_writer *w, int level, size_t z0, size_t n
     for (task = 0; task < ntask; task++) {
         int i = (int)(task % G->nb), band = G->bands[i], s = wvc2_section(w->g.levels, level, band);
         size_t tt = (size_t)task / (size_t)G->nb, tx = tt % G->nt[0], ty = tt / G->nt[0];
-        size_t x0 = tx * (size_t)w->g.tile, y0 = ty * (size_t)w->g.tile;
-        size_t x1 = x0 + (size_t)w->g.tile < G->e[0] ? x0 + (size_t)w->g.tile : G->e[0];
-        size_t y1 = y0 + (size_t)w->g.tile < G->e[1] ? y0 + (size_t)w->g.tile : G->e[1];
+        const size_t T = (size_t)w->g.tile[0];
+        size_t x0 = tx * T, y0 = ty * T;
+        size_t x1 = x0 + T < G->e[0] ? x0 + T : G->e[0];
+        size_t y1 = y0 + T < G->e[1] ? y0 + T : G->e[1];
         double f = band == 0 ? 0.5 : w->h.rounding;
         double edge = (w->zero_edge && band != 0) ? w->zero_edge[s] : 0.0;
         int use_edge = edge > 1.0 - f;
         for (size_t z = z0; z < z0 + nz; z++) {
-            size_t tc[3] = {tx, ty, z / (size_t)w->g.tile};
+            size_t tc[3] = {tx, ty, z / (size_t)w->g.tile[2]};
             size_t id = wvc2_chunk_id(&w->g, level, tc) - G->first;
             sec_stats *acc = &L->acc[id * (size_t)G->nb + (size_t)i];
             float mx = L->maxabs[id];
@@ -494,11 +499,11 @@ size_t wvol__wvc2_writer_memory(const wvc2_header *h, size_t lag_rows)
 {
     size_t total = 0, p[3] = {h->px, h->py, h->pz};
     wvc2_geom g;
-    int tile = h->tile ? h->tile : WVC2_TILE_DEFAULT;
-    if (h->levels < 1 || h->levels > WVOL_WVC_MAX_LEVELS || wvol__wvc2_geom(&g, p, h->levels, tile)) return 0;
+    int tile = h->tile ? h->tile : WVC2_TILE_DEFAULT, tz = h->tile_z ? h->tile_z : WVC2_TILE_Z_DEFAULT;
+    if (h->levels < 1 || h->levels > WVOL_WVC_MAX_LEVELS || wvol__wvc2_geom(&g, p, h->levels, tile, tz)) return 0;
     for (int m = 1; m <= h->levels; m++) {
         const wvc2_level *G = &g.lv[m];
-        size_t rows = 2 * (size_t)tile + lag_rows;
+        size_t rows = 2 * (size_t)tz + lag_rows;
         if (rows > G->e[2]) rows = G->e[2];
         total += rows * G->e[0] * G->e[1] * (size_t)G->nb * sizeof(int32_t);
         total += G->count * ((size_t)G->nb * sizeof(sec_stats) + sizeof(float) + sizeof(chunk_rec));
@@ -512,8 +517,9 @@ static void header_fill(uint8_t *h, const wvc2_writer *w, double sse, double ene
     const wvc2_header *H = &w->h;
     const int nsec = 1 + 7 * H->levels;
     size_t n = strlen(w->filter), a;
-    int s, tl = 0;
+    int s, tl = 0, tlz = 0;
     while ((1 << tl) < H->tile) tl++;
+    while ((1 << tlz) < H->tile_z) tlz++;
     memcpy(h, WVC_MAGIC, 8);
     wvc_put_u16(h + 8, WVC2_VERSION);
     wvc_put_u16(h + 10, 0);
@@ -521,6 +527,7 @@ static void header_fill(uint8_t *h, const wvc2_writer *w, double sse, double ene
     memcpy(h + 16, w->filter, n < 15 ? n : 15);
     h[32] = (uint8_t)H->levels;
     h[33] = (uint8_t)tl;
+    h[34] = (uint8_t)tlz;
     wvc_put_u64(h + 40, H->nx);
     wvc_put_u64(h + 48, H->ny);
     wvc_put_u64(h + 56, H->nz);

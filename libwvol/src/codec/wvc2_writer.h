@@ -49,9 +49,11 @@
 #include "wvol/status.h"
 #include "wvol/wvc.h"
 
-/* Tile edge in coefficients (per level, per axis): a power of two in
- * [WVC2_TILE_MIN, WVC2_TILE_MAX]. */
-#define WVC2_TILE_DEFAULT 32
+/* Tile edge in coefficients (per level; x and y, and z apart): a power of two in
+ * [WVC2_TILE_MIN, WVC2_TILE_MAX]. The depth along z sets how many rows a streamed
+ * writer holds; the rest the cost of the chunk's contexts starting afresh. */
+#define WVC2_TILE_DEFAULT 64
+#define WVC2_TILE_Z_DEFAULT 32
 #define WVC2_TILE_MIN 8
 #define WVC2_TILE_MAX 256
 
@@ -73,13 +75,14 @@ typedef struct wvc2_header {
                                    zone; values below 1 - rounding change nothing). How the
                                    encoder spends an unused error budget. */
     double dropped_energy;      /* energy the caller removed before encoding (header, reports) */
-    int tile;                   /* 0: WVC2_TILE_DEFAULT */
+    int tile;                   /* chunk edge along x and y; 0: WVC2_TILE_DEFAULT */
+    int tile_z;                 /* chunk depth along z; 0: WVC2_TILE_Z_DEFAULT */
     wvol_wvc_coder coder;       /* AUTO (per band of a chunk, the smaller), CABAC or ZSTD */
     int zstd_level;             /* 0: 3 */
     int threads;                /* 0: OpenMP's default */
 } wvc2_header;
 
-/* header with the defaults: rounding 0.38, tile 32, coder AUTO, zstd level 3; the
+/* header with the defaults: rounding 0.38, tile 64 x 64 x 32, coder AUTO, zstd level 3; the
  * rest zero (the caller fills grid, family, step). */
 void wvol__wvc2_header_default(wvc2_header *h);
 

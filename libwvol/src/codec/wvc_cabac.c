@@ -393,3 +393,75 @@ int wvol__wvc_cabac_decode(int32_t *Q, const size_t p[3], const wvc_band *b, con
     }
     return 0;
 }
+
+/* Several bands in one stream with one model that keeps adapting from band to band: a
+ * version-2 chunk's bands are small, and one model learns once instead of per band
+ * (a fixed prior for the flags instead of 1/2 did not help). */
+int wvol__wvc_cabac_encode_multi(uint8_t **buf, size_t *size, int n, int32_t *const Q[], const size_t *const p[],
+                                 const wvc_band *const b[])
+{
+    rc_enc e;
+    coder cd = {&e, NULL};
+    band_model m;
+    const uint8_t *data;
+    size_t len;
+    int failed = 0;
+    *buf = NULL;
+    *size = 0;
+    model_init(&m);
+    rc_enc_init(&e);
+    for (int i = 0; i < n && !failed; i++) {
+        void *scratch;
+        if (band_scratch(b[i], &scratch)) {
+            failed = 1;
+            break;
+        }
+        if (b[i]->band == 0)
+            lowpass_band(0, &cd, Q[i], p[i], b[i], &m, scratch);
+        else
+            detail_band(0, &cd, Q[i], p[i], b[i], &m, scratch);
+        free(scratch);
+    }
+    rc_enc_finish(&e);
+    if (e.oom || failed) {
+        rc_enc_free(&e);
+        return -1;
+    }
+    data = rc_enc_data(&e, &len);
+    memmove(e.buf, data, len);
+    *buf = e.buf;
+    *size = len;
+    return 0;
+}
+
+int wvol__wvc_cabac_decode_multi(int n, int32_t *const Q[], const size_t *const p[], const wvc_band *const b[],
+                                 const uint8_t *buf, size_t size, const char **why)
+{
+    rc_dec d;
+    coder cd = {NULL, &d};
+    band_model m;
+    int r = 0;
+    model_init(&m);
+    rc_dec_init(&d, buf, size);
+    for (int i = 0; i < n && !r; i++) {
+        void *scratch;
+        if (band_scratch(b[i], &scratch)) {
+            *why = "out of memory";
+            return -1;
+        }
+        if (b[i]->band == 0)
+            r = lowpass_band(1, &cd, Q[i], p[i], b[i], &m, scratch);
+        else
+            r = detail_band(1, &cd, Q[i], p[i], b[i], &m, scratch);
+        free(scratch);
+    }
+    if (r) {
+        *why = "malformed coefficient code";
+        return -1;
+    }
+    if (d.overrun) {
+        *why = "coded data ends early";
+        return -1;
+    }
+    return 0;
+}

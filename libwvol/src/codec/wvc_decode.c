@@ -75,7 +75,7 @@ static wvol_status parse(wvol_wvc_info *I, const uint8_t *h, size_t avail, uint6
                        ".wvc header: unknown wavelet '%s'", I->filter);
     }
     levels = h[32];
-    WVOL_RETURN_IF((I->version == 1 && h[33]) || h[34] || h[35] || wvc_get_u32(h + 36), err, WVOL_ERR_FORMAT,
+    WVOL_RETURN_IF((I->version == 1 && (h[33] || h[34])) || h[35] || wvc_get_u32(h + 36), err, WVOL_ERR_FORMAT,
                    ".wvc header: reserved bytes are not zero");
     WVOL_RETURN_IF(levels < 1 || levels > WVOL_WVC_MAX_LEVELS, err, WVOL_ERR_FORMAT,
                    ".wvc header: %d levels outside 1..%d", levels, WVOL_WVC_MAX_LEVELS);
@@ -175,6 +175,12 @@ static wvol_status parse(wvol_wvc_info *I, const uint8_t *h, size_t avail, uint6
     I->file_bytes = file_size;
     I->header_bytes = hbytes;
     return WVOL_OK;
+}
+
+wvol_status wvol__wvc_parse_prefix(wvol_wvc_info *I, const uint8_t *h, size_t avail, uint64_t file_size,
+                                   wvol_error *err)
+{
+    return parse(I, h, avail, file_size, 0, err);
 }
 
 wvol_status wvol_wvc_parse_info(wvol_wvc_info *info, const void *buf, size_t size, wvol_error *err)
@@ -472,7 +478,8 @@ static wvol_status read_file(wvol_coeffs **out, wvol_wvc_info *info, const char 
             st = wvol__wvc2_parse(&tmp, &x, buf, got, fsize, err);
             for (uint64_t id = 0; st == WVOL_OK && id < I->chunks; id++) {
                 size_t t[3];
-                if (wvol__wvc2_chunk_coords(&x->g, (size_t)id, t) > stop && x->chunks[id].bytes)
+                int m = wvol__wvc2_chunk_coords(&x->g, (size_t)id, t);
+                if ((m > stop || m == I->levels) && x->chunks[id].bytes)
                     end = x->chunks[id].offset + x->chunks[id].bytes;
             }
             wvol__wvc2_index_free(x);

@@ -62,6 +62,11 @@ int wvol__wvc_cabac_encode(uint8_t **buf, size_t *size, const int32_t *Q, const 
                            const wvc_band *b);
 int wvol__wvc_cabac_decode(int32_t *Q, const size_t p[3], const wvc_band *b, const uint8_t *buf,
                            size_t size, const char **why);
+/* n bands in one CABAC stream with one model (version-2 chunks). */
+int wvol__wvc_cabac_encode_multi(uint8_t **buf, size_t *size, int n, int32_t *const Q[], const size_t *const p[],
+                                 const wvc_band *const b[]);
+int wvol__wvc_cabac_decode_multi(int n, int32_t *const Q[], const size_t *const p[], const wvc_band *const b[],
+                                 const uint8_t *buf, size_t size, const char **why);
 int wvol__wvc_zstd_encode(uint8_t **buf, size_t *size, const int32_t *Q, const size_t p[3],
                           const wvc_band *b, int level);
 int wvol__wvc_zstd_decode(int32_t *Q, const size_t p[3], const wvc_band *b, const uint8_t *buf,

@@ -136,6 +136,7 @@ wvol_status wvol_compress_wvc_params(wvol_wvc_params *wp, const wvol_compress_qu
     wp->coder = q->coder;
     wp->version = q->format_version;
     wp->tile = q->tile;
+    wp->tile_z = q->tile_z;
     if (q->rounding >= 0) wp->rounding = q->rounding;
     wp->step = q->step;
     if (q->step > 0) return WVOL_OK;

@@ -1,0 +1,638 @@
+/* SPDX-License-Identifier: MIT
+ * An open .wvc file with a chunk cache bounded by a memory budget: chunks are read
+ * (pread) and decoded on demand, each with its parent chunk (pinned while it is
+ * decoded: the coder's context), kept as quantised int32 and dequantised as they are
+ * gathered; least recently used chunks go first when the budget is reached. A
+ * version-1 file (no index) is decoded whole at open. Region reads reconstruct
+ * locally from the chunks their box needs (wavelet/wavelet_bricks.h). */
+#define _POSIX_C_SOURCE 200809L
+#include <errno.h>
+#include <fcntl.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <unistd.h>
+#ifdef _OPENMP
+#include <omp.h>
+#endif
+
+#include "wvc2_read.h"
+#include "wvc_format.h"
+#include "wvc_source.h"
+
+typedef struct centry {
+    size_t id;
+    int ref;
+    struct centry *prev, *next; /* LRU list, most recent first */
+    size_t bytes;
+    size_t ext[3];
+    int32_t *q[8];              /* per band of the level's list, ext[0] ext[1] ext[2] each */
+} centry;
+
+typedef struct skip_ctx {
+    wvol_wvc_file *f;
+    int skip;
+} skip_ctx;
+
+struct wvol_wvc_file {
+    char *path;
+    int fd;
+    wvol_wvc_info info;
+    wvc2_index *x;              /* version 2 */
+    wvol_coeffs *dense;         /* version 1: decoded whole */
+    wvol__coef_source dense_src;
+    skip_ctx skips[WVOL_WVC_MAX_LEVELS + 1];
+    double o1[WVOL_WVC_MAX_SECTIONS], d2[WVOL_WVC_MAX_SECTIONS];
+    int32_t *zeros;             /* a parent region of an all-zero chunk */
+    /* cache, under the lock */
+    centry **slot;
+    centry *mru, *lru;
+    size_t budget, held, peak, chunk_max;
+    uint64_t decoded, hits, bytes_read;
+    wvol_status first_status;
+    char first_message[sizeof(((wvol_error *)0)->message)];
+#ifdef _OPENMP
+    omp_lock_t lock;
+#endif
+};
+
+static void lock(wvol_wvc_file *f)
+{
+#ifdef _OPENMP
+    omp_set_lock(&f->lock);
+#else
+    (void)f;
+#endif
+}
+
+static void unlock(wvol_wvc_file *f)
+{
+#ifdef _OPENMP
+    omp_unset_lock(&f->lock);
+#else
+    (void)f;
+#endif
+}
+
+/* The first error of a gather is kept for the caller (gathers cannot return one). */
+static void record(wvol_wvc_file *f, wvol_status s, const char *fmt, const char *a, const char *b)
+{
+    lock(f);
+    if (f->first_status == WVOL_OK) {
+        f->first_status = s;
+        snprintf(f->first_message, sizeof f->first_message, fmt, a, b);
+    }
+    unlock(f);
+}
+
+wvol_status wvol__wvc_file_error(wvol_wvc_file *f, wvol_error *err)
+{
+    wvol_status s;
+    lock(f);
+    s = f->first_status;
+    if (s != WVOL_OK) wvol_error_set(err, s, "%s: %s", f->path, f->first_message);
+    f->first_status = WVOL_OK;
+    unlock(f);
+    return s;
+}
+
+static size_t chunk_decoded_bytes(const wvc2_geom *g, int m, const size_t t[3])
+{
+    size_t off[3], ext[3];
+    wvc2_tile_box(g, m, t, off, ext);
+    return sizeof(centry) + ext[0] * ext[1] * ext[2] * (size_t)g->lv[m].nb * sizeof(int32_t);
+}
+
+void wvol_wvc_close(wvol_wvc_file *f)
+{
+    if (!f) return;
+    if (f->slot && f->x)
+        for (size_t i = 0; i < f->x->g.nchunks; i++)
+            if (f->slot[i]) {
+                free(f->slot[i]->q[0]);
+                free(f->slot[i]);
+            }
+    free(f->slot);
+    wvol__wvc2_index_free(f->x);
+    wvol_coeffs_destroy(f->dense);
+    free(f->zeros);
+    if (f->fd >= 0) close(f->fd);
+#ifdef _OPENMP
+    omp_destroy_lock(&f->lock);
+#endif
+    free(f->path);
+    free(f);
+}
+
+static int read_at(int fd, void *buf, size_t n, uint64_t off)
+{
+    uint8_t *p = buf;
+    while (n) {
+        ssize_t r = pread(fd, p, n, (off_t)off);
+        if (r < 0 && errno == EINTR) continue;
+        if (r <= 0) return -1;
+        p += r, n -= (size_t)r, off += (uint64_t)r;
+    }
+    return 0;
+}
+
+wvol_status wvol_wvc_open(wvol_wvc_file **out, const char *path, size_t budget, wvol_error *err)
+{
+    wvol_wvc_file *f;
+    struct stat sb;
+    uint8_t *h = NULL;
+    size_t want;
+    wvol_status st;
+    WVOL_RETURN_IF(!out || !path, err, WVOL_ERR_ARG, "wvc open: missing argument");
+    *out = NULL;
+    f = calloc(1, sizeof *f);
+    WVOL_RETURN_IF(!f, err, WVOL_ERR_NOMEM, "wvc open: out of memory");
+#ifdef _OPENMP
+    omp_init_lock(&f->lock);
+#endif
+    f->fd = open(path, O_RDONLY);
+    f->path = strdup(path);
+    f->budget = budget ? budget : WVOL_WVC_DEFAULT_BUDGET;
+    if (f->fd < 0 || !f->path) {
+        int e = errno;
+        wvol_wvc_close(f);
+        return wvol_error_set(err, WVOL_ERR_IO, "%s: cannot open: %s", path, strerror(e));
+    }
+    if (fstat(f->fd, &sb) != 0 || !S_ISREG(sb.st_mode)) {
+        wvol_wvc_close(f);
+        return wvol_error_set(err, WVOL_ERR_IO, "%s: not a regular file", path);
+    }
+    /* the fixed header says how long the table and the index are */
+    want = WVC2_HEADER_SIZE;
+    h = malloc(want);
+    if (!h || (uint64_t)sb.st_size < 16 || read_at(f->fd, h, (uint64_t)sb.st_size < want ? (size_t)sb.st_size : want, 0)) {
+        free(h);
+        wvol_wvc_close(f);
+        return wvol_error_set(err, WVOL_ERR_FORMAT, "%s: not a .wvc file (too short or unreadable)", path);
+    }
+    if ((uint64_t)sb.st_size >= WVC2_HEADER_SIZE && h[8] == 2 && h[9] == 0) {
+        uint64_t pre = wvol__wvc2_prefix_bytes(h, WVC2_HEADER_SIZE);
+        if (pre > WVC2_HEADER_SIZE && pre <= (uint64_t)sb.st_size && pre <= SIZE_MAX) {
+            uint8_t *nh = realloc(h, (size_t)pre);
+            if (!nh || read_at(f->fd, nh, (size_t)pre, 0)) {
+                free(nh ? nh : h);
+                wvol_wvc_close(f);
+                return wvol_error_set(err, WVOL_ERR_IO, "%s: cannot read the chunk index", path);
+            }
+            h = nh;
+            want = (size_t)pre;
+        }
+        /* the common header fields and the index, against the real file size */
+        st = wvol__wvc_parse_prefix(&f->info, h, want, (uint64_t)sb.st_size, err);
+        if (st == WVOL_OK) st = wvol__wvc2_parse(&f->info, &f->x, h, want, (uint64_t)sb.st_size, err);
+        free(h);
+        if (st != WVOL_OK) {
+            wvol_error_prefix(err, "%s", path);
+            wvol_wvc_close(f);
+            return st;
+        }
+    } else {
+        /* version 1 (or not a .wvc at all): no index, decoded whole if it fits */
+        free(h);
+        st = wvol_wvc_read(&f->dense, path, NULL, &f->info, err);
+        if (st != WVOL_OK) {
+            wvol_wvc_close(f);
+            return st;
+        }
+        if (f->dense->px * f->dense->py * f->dense->pz * sizeof(float) > f->budget) {
+            size_t need = f->dense->px * f->dense->py * f->dense->pz * sizeof(float);
+            wvol_wvc_close(f);
+            return wvol_error_set(err, WVOL_ERR_NOMEM,
+                                  "%s: a version-1 file is decoded whole (%zu bytes), more than the memory budget "
+                                  "of %zu bytes; recompress it (format 2) for reads within a budget",
+                                  path, need, budget ? budget : WVOL_WVC_DEFAULT_BUDGET);
+        }
+        f->held = f->peak = f->dense->px * f->dense->py * f->dense->pz * sizeof(float);
+        wvol__coef_source_of_coeffs(&f->dense_src, f->dense);
+        *out = f;
+        return WVOL_OK;
+    }
+    {
+        const wvc2_geom *g = &f->x->g;
+        size_t chain = 0, zero_n = (size_t)g->tile[0] * (size_t)g->tile[1] * (size_t)g->tile[2];
+        for (int m = g->levels; m >= 1; m--) {
+            size_t t0[3] = {0, 0, 0}, b = chunk_decoded_bytes(g, m, t0);
+            chain += b;
+            if (b > f->chunk_max) f->chunk_max = b;
+        }
+        f->slot = calloc(g->nchunks ? g->nchunks : 1, sizeof *f->slot);
+        f->zeros = calloc(zero_n, sizeof *f->zeros);
+        if (!f->slot || !f->zeros) {
+            wvol_wvc_close(f);
+            return wvol_error_set(err, WVOL_ERR_NOMEM, "wvc open: out of memory");
+        }
+        if (chain > f->budget) {
+            size_t b = f->budget;
+            wvol_wvc_close(f);
+            return wvol_error_set(err, WVOL_ERR_NOMEM,
+                                  "%s: memory budget of %zu bytes is below the %zu bytes one chain of decoded chunks "
+                                  "(one per level) needs",
+                                  path, b, chain);
+        }
+    }
+    for (int s = 0; s < f->info.nsections; s++) {
+        f->o1[s] = (1.0 + (double)f->x->d1[s]) * f->info.step;
+        f->d2[s] = f->x->d2[s];
+    }
+    *out = f;
+    return WVOL_OK;
+}
+
+const wvol_wvc_info *wvol_wvc_file_info(const wvol_wvc_file *f) { return f ? &f->info : NULL; }
+
+void wvol_wvc_file_stats(const wvol_wvc_file *f, wvol_wvc_cache_stats *st)
+{
+    memset(st, 0, sizeof *st);
+    if (!f) return;
+    lock((wvol_wvc_file *)f);
+    st->budget = f->budget;
+    st->held = f->held;
+    st->peak = f->peak;
+    st->chunk_bytes = f->chunk_max;
+    st->decoded = f->decoded;
+    st->hits = f->hits;
+    st->bytes_read = f->bytes_read;
+    unlock((wvol_wvc_file *)f);
+}
+
+/* ---- the cache ------------------------------------------------------------------- */
+
+static void lru_unlink(wvol_wvc_file *f, centry *e)
+{
+    if (e->prev) e->prev->next = e->next;
+    else f->mru = e->next;
+    if (e->next) e->next->prev = e->prev;
+    else f->lru = e->prev;
+    e->prev = e->next = NULL;
+}
+
+static void lru_front(wvol_wvc_file *f, centry *e)
+{
+    e->next = f->mru;
+    e->prev = NULL;
+    if (f->mru) f->mru->prev = e;
+    f->mru = e;
+    if (!f->lru) f->lru = e;
+}
+
+static void release(wvol_wvc_file *f, centry *e)
+{
+    if (!e) return;
+    lock(f);
+    e->ref--;
+    unlock(f);
+}
+
+/* Under the lock: drops unpinned chunks, least recent first, until the budget holds. */
+static void evict(wvol_wvc_file *f)
+{
+    centry *e = f->lru;
+    while (f->held > f->budget && e) {
+        centry *prev = e->prev;
+        if (e->ref == 0) {
+            lru_unlink(f, e);
+            f->slot[e->id] = NULL;
+            f->held -= e->bytes;
+            free(e->q[0]);
+            free(e);
+        }
+        e = prev;
+    }
+}
+
+static centry *get_chunk(wvol_wvc_file *f, size_t id);
+
+/* Reads and decodes chunk id (not all zero) into a new entry. */
+static centry *decode_chunk(wvol_wvc_file *f, size_t id)
+{
+    const wvc2_geom *g = &f->x->g;
+    const wvc2_chunk *c = &f->x->chunks[id];
+    size_t t[3], off[3], ext[3], poff[3], pext[3], n;
+    int m = wvol__wvc2_chunk_coords(g, id, t), nb = g->lv[m].nb;
+    centry *e = NULL, *P = NULL;
+    wvc2_qbox child[8], parent[8];
+    uint8_t *pay = NULL;
+    uint64_t nz = 0;
+    const char *why = NULL;
+    char d[96];
+    wvc2_tile_box(g, m, t, off, ext);
+    wvc2_parent_box(g, off, ext, poff, pext);
+    memset(parent, 0, sizeof parent);
+    if (m < g->levels) {
+        size_t pt[3], pid, po[3], pe[3];
+        const wvc2_level *PG = &g->lv[m + 1];
+        for (int a = 0; a < 3; a++) pt[a] = poff[a] / (size_t)g->tile[a];
+        pid = wvc2_chunk_id(g, m + 1, pt);
+        wvc2_tile_box(g, m + 1, pt, po, pe);
+        if (f->x->chunks[pid].bytes) {
+            P = get_chunk(f, pid);
+            if (!P) return NULL;
+        }
+        for (int k = 0; k < nb; k++) {
+            int pk = 0;
+            while (PG->bands[pk] != g->lv[m].bands[k]) pk++;
+            if (P) {
+                parent[k].q = P->q[pk] + (poff[0] - po[0]) + pe[0] * ((poff[1] - po[1]) + pe[1] * (poff[2] - po[2]));
+                parent[k].sy = pe[0];
+                parent[k].sz = pe[0] * pe[1];
+            } else {
+                parent[k].q = f->zeros;
+                parent[k].sy = pext[0];
+                parent[k].sz = pext[0] * pext[1];
+            }
+        }
+    }
+    n = ext[0] * ext[1] * ext[2];
+    e = calloc(1, sizeof *e);
+    pay = malloc(c->bytes);
+    if (e) e->q[0] = malloc(n * (size_t)nb * sizeof(int32_t));
+    if (!e || !pay || !e->q[0]) {
+        if (e) free(e->q[0]);
+        free(e);
+        free(pay);
+        release(f, P);
+        record(f, WVOL_ERR_NOMEM, "out of memory decoding a chunk%s%s", "", "");
+        return NULL;
+    }
+    for (int k = 0; k < nb; k++) {
+        e->q[k] = e->q[0] + (size_t)k * n;
+        child[k].q = e->q[k];
+        child[k].sy = ext[0];
+        child[k].sz = ext[0] * ext[1];
+    }
+    wvol__wvc2_describe(d, sizeof d, f->x, id);
+    if (read_at(f->fd, pay, c->bytes, c->offset)) {
+        why = "cannot read the chunk (file shorter than its index says?)";
+    } else if (wvol__wvc2_chunk_check(f->x, id, pay, &why) == 0 &&
+               wvol__wvc2_chunk_decode(g, m, ext, child, parent, pay, c->bytes, &nz, &why) == 0 && nz != c->nonzero) {
+        why = "decoded non-zero count does not match the index";
+    }
+    free(pay);
+    release(f, P);
+    if (why) {
+        record(f, WVOL_ERR_FORMAT, ".wvc %s: %s", d, why);
+        free(e->q[0]);
+        free(e);
+        return NULL;
+    }
+    e->id = id;
+    memcpy(e->ext, ext, sizeof ext);
+    e->bytes = sizeof *e + n * (size_t)nb * sizeof(int32_t);
+    return e;
+}
+
+/* The decoded chunk id, pinned (release it), or NULL after recording an error. The
+ * chunk must not be all zero (index bytes 0). */
+static centry *get_chunk(wvol_wvc_file *f, size_t id)
+{
+    centry *e, *mine;
+    lock(f);
+    e = f->slot[id];
+    if (e) {
+        e->ref++;
+        f->hits++;
+        lru_unlink(f, e);
+        lru_front(f, e);
+        unlock(f);
+        return e;
+    }
+    unlock(f);
+    mine = decode_chunk(f, id);
+    if (!mine) return NULL;
+    lock(f);
+    f->decoded++;
+    f->bytes_read += f->x->chunks[id].bytes;
+    e = f->slot[id];
+    if (e) {
+        /* another thread decoded it meanwhile: keep theirs */
+        e->ref++;
+        lru_unlink(f, e);
+        lru_front(f, e);
+        unlock(f);
+        free(mine->q[0]);
+        free(mine);
+        return e;
+    }
+    mine->ref = 1;
+    f->slot[id] = mine;
+    lru_front(f, mine);
+    f->held += mine->bytes;
+    evict(f);
+    if (f->held > f->peak) f->peak = f->held;
+    unlock(f);
+    if (f->held > f->budget) {
+        char b[64];
+        snprintf(b, sizeof b, "%zu", f->budget);
+        record(f, WVOL_ERR_NOMEM,
+               "memory budget of %s bytes exceeded by the chunks one request holds at once%s (raise --memory)", b,
+               "");
+    }
+    return e ? e : mine;
+}
+
+/* ---- gathering ------------------------------------------------------------------- */
+
+/* Pins of one gather: a few recent chunks stay pinned while a region is copied. */
+#define PINS 8
+typedef struct pins {
+    centry *e[PINS];
+    size_t n, next;
+} pins;
+
+static centry *pin(wvol_wvc_file *f, pins *p, size_t id)
+{
+    for (size_t i = 0; i < p->n; i++)
+        if (p->e[i]->id == id) return p->e[i];
+    centry *e = get_chunk(f, id);
+    if (!e) return NULL;
+    if (p->n < PINS) {
+        p->e[p->n++] = e;
+    } else {
+        release(f, p->e[p->next]);
+        p->e[p->next] = e;
+        p->next = (p->next + 1) % PINS;
+    }
+    return e;
+}
+
+static void unpin_all(wvol_wvc_file *f, pins *p)
+{
+    for (size_t i = 0; i < p->n; i++) release(f, p->e[i]);
+    p->n = 0;
+}
+
+static ptrdiff_t pmod(ptrdiff_t a, ptrdiff_t n)
+{
+    ptrdiff_t r = a % n;
+    return r < 0 ? r + n : r;
+}
+
+static int gather_chunks(const void *ctx, float *dst, int mm, int band, const ptrdiff_t lo[3], const ptrdiff_t n[3])
+{
+    const skip_ctx *sc = ctx;
+    wvol_wvc_file *f = sc->f;
+    const wvc2_geom *g = &f->x->g;
+    int m = mm + sc->skip, any = 0, k = -1;
+    const wvc2_level *G;
+    size_t t = 0, total = (size_t)(n[0] * n[1] * n[2]);
+    double o1, d2, step = f->info.step;
+    pins P;
+    if (mm == 0) m = g->levels, band = 0; /* a pyramid of no levels: the low-pass cube */
+    G = &g->lv[m];
+    for (int i = 0; i < G->nb; i++)
+        if (G->bands[i] == band) k = i;
+    if (k < 0) return 0;
+    {
+        int s = wvc2_section(g->levels, m, band);
+        o1 = f->o1[s];
+        d2 = f->d2[s];
+    }
+    memset(&P, 0, sizeof P);
+    for (ptrdiff_t zk = 0; zk < n[2]; zk++) {
+        size_t z = (size_t)pmod(lo[2] + zk, (ptrdiff_t)G->e[2]);
+        for (ptrdiff_t yj = 0; yj < n[1]; yj++) {
+            size_t y = (size_t)pmod(lo[1] + yj, (ptrdiff_t)G->e[1]);
+            ptrdiff_t left = n[0];
+            size_t x = (size_t)pmod(lo[0], (ptrdiff_t)G->e[0]);
+            while (left > 0) {
+                size_t tc[3] = {x / (size_t)g->tile[0], y / (size_t)g->tile[1], z / (size_t)g->tile[2]};
+                size_t id = wvc2_chunk_id(g, m, tc), tx0 = tc[0] * (size_t)g->tile[0];
+                size_t run = (size_t)g->tile[0] - (x - tx0);
+                if (x + run > G->e[0]) run = G->e[0] - x;
+                if ((ptrdiff_t)run > left) run = (size_t)left;
+                if (!f->x->chunks[id].bytes) {
+                    memset(dst + t, 0, run * sizeof *dst);
+                } else {
+                    centry *e = pin(f, &P, id);
+                    if (!e) {
+                        memset(dst + t, 0, run * sizeof *dst);
+                    } else {
+                        const int32_t *q = e->q[k] + (x - tx0) +
+                                           e->ext[0] * ((y - tc[1] * (size_t)g->tile[1]) +
+                                                        e->ext[1] * (z - tc[2] * (size_t)g->tile[2]));
+                        for (size_t i = 0; i < run; i++) {
+                            int32_t v = q[i];
+                            float a;
+                            if (!v) {
+                                dst[t + i] = 0.0f;
+                                continue;
+                            }
+                            /* the full decoder's arithmetic, so values are bit-equal to it */
+                            a = (float)((v == 1 || v == -1) ? o1 : ((double)(v < 0 ? -v : v) + d2) * step);
+                            dst[t + i] = v < 0 ? -a : a;
+                            any = 1;
+                        }
+                    }
+                }
+                t += run;
+                left -= (ptrdiff_t)run;
+                x += run;
+                if (x == G->e[0]) x = 0;
+            }
+        }
+    }
+    unpin_all(f, &P);
+    (void)total;
+    return any;
+}
+
+static int gather_dense_skip(const void *ctx, float *dst, int mm, int band, const ptrdiff_t lo[3],
+                             const ptrdiff_t n[3])
+{
+    const skip_ctx *sc = ctx;
+    int m = mm == 0 ? sc->f->dense->levels : mm + sc->skip;
+    return sc->f->dense_src.gather(sc->f->dense_src.ctx, dst, m, mm == 0 ? 0 : band, lo, n);
+}
+
+void wvol__wvc_file_source(wvol__coef_source *src, wvol_wvc_file *f, int skip)
+{
+    const wvol_filter *flt = NULL;
+    size_t n[3] = {f->info.nx, f->info.ny, f->info.nz}, p[3] = {f->info.px, f->info.py, f->info.pz};
+    memset(src, 0, sizeof *src);
+    wvol_filter_get(&flt, f->info.filter, NULL);
+    f->skips[skip].f = f;
+    f->skips[skip].skip = skip;
+    src->gather = f->dense ? gather_dense_skip : gather_chunks;
+    src->ctx = &f->skips[skip];
+    src->filter = flt;
+    src->levels = f->info.levels - skip;
+    for (int a = 0; a < 3; a++) {
+        src->dims[a] = p[a] > 1 ? (n[a] + ((size_t)1 << skip) - 1) >> skip : 1;
+        src->pad[a] = p[a] > 1 ? p[a] >> skip : 1;
+    }
+}
+
+wvol_status wvol__wvc_file_lowpass(wvol_wvc_file *f, float *dst, wvol_error *err)
+{
+    wvol__coef_source src;
+    ptrdiff_t lo[3] = {0, 0, 0}, n[3];
+    wvol__wvc_file_source(&src, f, 0);
+    for (int a = 0; a < 3; a++) n[a] = (ptrdiff_t)(src.pad[a] > 1 ? src.pad[a] >> f->info.levels : 1);
+    if (!src.gather(src.ctx, dst, f->info.levels, 0, lo, n))
+        memset(dst, 0, (size_t)(n[0] * n[1] * n[2]) * sizeof *dst);
+    return wvol__wvc_file_error(f, err);
+}
+
+void wvol__wvc_file_level_max(const wvol_wvc_file *f, int m, float *max, size_t nt[3], size_t tile[3])
+{
+    const wvc2_geom *g = &f->x->g;
+    for (int a = 0; a < 3; a++) {
+        nt[a] = g->lv[m].nt[a];
+        tile[a] = (size_t)g->tile[a];
+    }
+    if (max)
+        for (size_t i = 0; i < g->lv[m].count; i++) max[i] = f->x->chunks[g->lv[m].first + i].maxabs;
+}
+
+wvol_status wvol_wvc_read_region(wvol_volume **out, wvol_wvc_file *f, const size_t lo[3], const size_t hi[3],
+                                 int level, wvol_error *err)
+{
+    wvol__coef_source src;
+    wvol__brick_scratch scr;
+    wvol_volume *v = NULL;
+    wvol_status st;
+    double scale = 1.0;
+    const wvol_filter *flt;
+    WVOL_RETURN_IF(!out || !f || !lo || !hi, err, WVOL_ERR_ARG, "wvc region: missing argument");
+    *out = NULL;
+    WVOL_RETURN_IF(level < 0 || level > f->info.levels, err, WVOL_ERR_ARG, "wvc region: level %d outside 0..%d",
+                   level, f->info.levels);
+    wvol__wvc_file_source(&src, f, level);
+    for (int a = 0; a < 3; a++)
+        WVOL_RETURN_IF(lo[a] >= hi[a] || hi[a] > src.dims[a], err, WVOL_ERR_ARG,
+                       "wvc region: box %zu..%zu along axis %d is empty or outside 0..%zu (level %d)", lo[a], hi[a],
+                       a, src.dims[a], level);
+    WVOL_FORWARD(wvol_filter_get(&flt, f->info.filter, err));
+    WVOL_FORWARD(wvol_volume_create(&v, hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2], err));
+    (void)wvol__wvc_file_error(f, NULL);
+    memset(&scr, 0, sizeof scr);
+    st = wvol__idwt3_brick_src(v->data, &src, lo, hi, &scr, err);
+    wvol__brick_scratch_free(&scr);
+    if (st == WVOL_OK) st = wvol__wvc_file_error(f, err);
+    if (st != WVOL_OK) {
+        wvol_volume_destroy(v);
+        return st;
+    }
+    for (int a = 0; a < 3; a++) {
+        size_t p = a == 0 ? f->info.px : a == 1 ? f->info.py : f->info.pz;
+        double sp = f->info.spacing[a] * ldexp(1.0, p > 1 ? level : 0);
+        if (p > 1) scale *= pow(2.0, -0.5 * level);
+        v->spacing[a] = sp;
+        v->origin[a] = f->info.origin[a] + (p > 1 ? f->info.spacing[a] * (ldexp(1.0, level) - 1.0) * flt->center : 0) +
+                       sp * (double)lo[a];
+    }
+    /* 2^{-s/2} per transformed axis, as wvol_idwt3_level */
+    if (scale != 1.0) {
+        size_t nv = v->nx * v->ny * v->nz;
+        for (size_t i = 0; i < nv; i++) v->data[i] = (float)(v->data[i] * scale);
+    }
+    *out = v;
+    return WVOL_OK;
+}
