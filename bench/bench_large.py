@@ -119,17 +119,29 @@ def zfp_at_targets(path, n):
         hi = float(s.max()) if hi is None else max(hi, float(s.max()))
     zfp_pass.range = hi - lo
     rng = hi - lo
-    every = 4 if n >= 256 else 1
-    sweep = {k: zfp_pass(v, rng * 2.0 ** (-k * 0.75), every) for k in range(-4, 22)}
+    # the bracketing sweep on every 4th slab from 1024^3 (16 slabs: 4 spread through the volume)
+    every = 4 if n >= 1024 else 1
+    tol = lambda k: rng * 2.0 ** (-k * 0.75)  # noqa: E731
+    sweep = {k: zfp_pass(v, tol(k), every) for k in range(-4, 22)}
     full = {}
     result = {}
     ks = sorted(sweep)
     for target in TARGETS:
         # the two sweep tolerances whose PSNRs bracket the target, measured again on every slab
+        # (moved outwards while the whole volume's PSNRs do not bracket it)
         pick = next(([a, b] for a, b in zip(ks, ks[1:]) if sweep[a]["psnr"] <= target <= sweep[b]["psnr"]), [])
-        for k in pick:
-            if k not in full:
-                full[k] = zfp_pass(v, rng * 2.0 ** (-k * 0.75))
+        for _ in range(8):
+            for k in pick:
+                if k not in full:
+                    full[k] = zfp_pass(v, tol(k))
+            if len(pick) < 2:
+                break
+            if full[pick[0]]["psnr"] > target:
+                pick = [pick[0] - 1, pick[0]]
+            elif full[pick[1]]["psnr"] < target:
+                pick = [pick[1], pick[1] + 1]
+            else:
+                break
         pts = [full[k] for k in pick]
         result[str(target)] = {"bpv": bpv_at(pts, target) if len(pts) == 2 else None, "points": pts,
                                "compress_mbs": min(p["compress_mbs"] for p in pts) if pts else None}

@@ -195,6 +195,7 @@ static void slab_writer_writes_what_the_volume_writers_write(void)
     if (!v) return;
     for (int k = 0; k < 4; k++) {
         unsigned long long bytes = 0;
+        remove(paths[k]); /* from an earlier run */
         CHECK(wvol_slab_writer_open(&w, paths[k], dims, v->spacing, v->origin, k == 3 ? 4 : 0, &err) == WVOL_OK, "%s",
               err.message);
         CHECK(!exists(paths[k]), "%s: nothing under the name before commit", paths[k]);

@@ -6,6 +6,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "core/source_volume.h"
 #include "core/status_internal.h"
 #include "wvol/source.h"
 
@@ -112,7 +113,7 @@ wvol_status wvol_source_read_volume(wvol_source *s, wvol_volume **out, wvol_erro
 
 /* ---- a volume in memory ---------------------------------------------------------- */
 
-static wvol_status volume_read(void *ctx, float *dst, size_t z0, size_t nz, wvol_error *err)
+wvol_status wvol__source_volume_read(void *ctx, float *dst, size_t z0, size_t nz, wvol_error *err)
 {
     const wvol_volume *v = ctx;
     (void)err;
@@ -122,7 +123,7 @@ static wvol_status volume_read(void *ctx, float *dst, size_t z0, size_t nz, wvol
 
 wvol_status wvol_source_of_volume(wvol_source **out, const wvol_volume *v, wvol_error *err)
 {
-    static const wvol_source_ops ops = {volume_read, NULL};
+    static const wvol_source_ops ops = {wvol__source_volume_read, NULL};
     size_t dims[3];
     WVOL_RETURN_IF(!out, err, WVOL_ERR_ARG, "volume source: NULL argument");
     *out = NULL;

@@ -15,6 +15,7 @@
 #include <unistd.h>
 #include <zlib.h>
 
+#include "core/source_volume.h"
 #include "io/nrrd_internal.h"
 #include "wvol/source.h"
 
@@ -165,23 +166,9 @@ static wvol_status open_nrrd(wvol_source **out, const char *path, int *whole, wv
         goto done;
     }
     dims[0] = h.sizes[0], dims[1] = h.dim > 1 ? h.sizes[1] : 1, dims[2] = h.dim > 2 ? h.sizes[2] : 1;
-    if (h.value[F_DATA_FILE]) {
-        dpath = wvol__nrrd_data_path_of(path, h.value[F_DATA_FILE]);
-        if (!dpath) {
-            s = HFAIL(&h, WVOL_ERR_NOMEM, "out of memory");
-            goto done;
-        }
-        dfp = fopen(dpath, "rb");
-        if (!dfp) {
-            s = HFAIL(&h, WVOL_ERR_IO, "data file %s: %s", dpath, strerror(errno));
-            goto done;
-        }
-        dname = dpath;
-        pos = 0;
-    } else {
-        dfp = fp;
-        pos = h.data_offset;
-    }
+    s = wvol__nrrd_open_data(&h, fp, &dfp, &dpath, &dname, err);
+    if (s) goto done;
+    pos = ftell(dfp);
     if (fstat(fileno(dfp), &st) != 0 || !S_ISREG(st.st_mode)) {
         s = HFAIL(&h, WVOL_ERR_IO, "data file %s is not a regular file", dname);
         goto done;
@@ -190,25 +177,8 @@ static wvol_status open_nrrd(wvol_source **out, const char *path, int *whole, wv
     s = new_file_src(&f, dname, h.type, h.elem, h.big_endian, dims, err);
     if (s) goto done;
     if (h.encoding == ENC_RAW) {
-        if (h.byte_skip == -1) {
-            if ((long long)h.bytes > size - pos) {
-                s = HFAIL(&h, WVOL_ERR_FORMAT, "data file %s has %lld bytes after the header, the sizes need %zu",
-                          dname, size - pos, h.bytes);
-                goto done;
-            }
-            pos = size - (long long)h.bytes;
-        } else {
-            if (h.byte_skip > size - pos) {
-                s = HFAIL(&h, WVOL_ERR_FORMAT, "byte skip %lld goes past the end of %s", h.byte_skip, dname);
-                goto done;
-            }
-            pos += h.byte_skip;
-        }
-        if (size - pos != (long long)h.bytes) {
-            s = HFAIL(&h, WVOL_ERR_FORMAT, "data file %s holds %lld data bytes but the sizes need %zu (%s)", dname,
-                      size - pos, h.bytes, size - pos < (long long)h.bytes ? "truncated" : "too long");
-            goto done;
-        }
+        s = wvol__nrrd_raw_start(&h, dfp, dname, &pos, err);
+        if (s) goto done;
         f->start = (unsigned long long)pos;
         f->fp = dfp;
         if (dfp == fp) fp = NULL;
@@ -244,19 +214,11 @@ done:
 
 /* ---- whole volumes ------------------------------------------------------------- */
 
-static wvol_status whole_read(void *ctx, float *dst, size_t z0, size_t nz, wvol_error *err)
-{
-    const wvol_volume *v = ctx;
-    (void)err;
-    memcpy(dst, v->data + v->nx * v->ny * z0, v->nx * v->ny * nz * sizeof(float));
-    return WVOL_OK;
-}
-
 static void whole_close(void *ctx) { wvol_volume_destroy(ctx); }
 
 static wvol_status open_whole(wvol_source **out, const char *path, const wvol_load_options *opt, wvol_error *err)
 {
-    static const wvol_source_ops ops = {whole_read, whole_close};
+    static const wvol_source_ops ops = {wvol__source_volume_read, whole_close};
     wvol_volume *v;
     size_t dims[3];
     WVOL_FORWARD(wvol_volume_load(&v, path, opt, err));
