@@ -119,42 +119,50 @@ def zfp_at_targets(path, n):
         hi = float(s.max()) if hi is None else max(hi, float(s.max()))
     zfp_pass.range = hi - lo
     rng = hi - lo
-    # the bracketing sweep on every 4th slab from 1024^3 (16 slabs: 4 spread through the volume)
-    every = 4 if n >= 1024 else 1
+    # the tolerances bracketing each target: searched on every 4th slab from 512^3 (a
+    # quarter of the volume, spread through it), then measured again on every slab (and moved
+    # outwards while the whole volume's PSNRs do not bracket the target)
+    every = 4 if n >= 512 else 1
     tol = lambda k: rng * 2.0 ** (-k * 0.75)  # noqa: E731
-    sweep = {k: zfp_pass(v, tol(k), every) for k in range(-4, 22)}
-    full = {}
-    result = {}
-    ks = sorted(sweep)
-    for target in TARGETS:
-        # the two sweep tolerances whose PSNRs bracket the target, measured again on every slab
-        # (moved outwards while the whole volume's PSNRs do not bracket it)
-        pick = next(([a, b] for a, b in zip(ks, ks[1:]) if sweep[a]["psnr"] <= target <= sweep[b]["psnr"]), [])
-        for _ in range(8):
-            for k in pick:
-                if k not in full:
-                    full[k] = zfp_pass(v, tol(k))
-            if len(pick) < 2:
-                break
-            if full[pick[0]]["psnr"] > target:
-                pick = [pick[0] - 1, pick[0]]
-            elif full[pick[1]]["psnr"] < target:
-                pick = [pick[1], pick[1] + 1]
+    sub, full, result = {}, {}, {}
+
+    def bracket(points, k, target, measure):
+        for _ in range(30):
+            for j in (k, k + 1):
+                if j not in points:
+                    points[j] = measure(j)
+            if points[k]["psnr"] > target:
+                k -= 1
+            elif points[k + 1]["psnr"] < target:
+                k += 1
             else:
-                break
-        pts = [full[k] for k in pick]
-        result[str(target)] = {"bpv": bpv_at(pts, target) if len(pts) == 2 else None, "points": pts,
+                return k
+        return None
+
+    k = 6
+    for target in TARGETS:
+        k0 = bracket(sub, k, target, lambda j: zfp_pass(v, tol(j), every))
+        k1 = bracket(full, k0, target, lambda j: zfp_pass(v, tol(j))) if k0 is not None else None
+        pts = [full[k1], full[k1 + 1]] if k1 is not None else []
+        result[str(target)] = {"bpv": bpv_at(pts, target) if pts else None, "points": pts,
                                "compress_mbs": min(p["compress_mbs"] for p in pts) if pts else None}
+        k = k1 if k1 is not None else k
     del v
     return result
 
 
 # ---------------------------------------------------------------- the run
-def bench_size(kind, n, workdir, big):
+def bench_size(kind, n, workdir, depth):
     row = {"kind": kind, "n": n, "voxels": n**3}
     if n > 1024:
-        # streamed from the generator only: the volume is never written
-        row["compress"] = [compress(synth_spec(kind, n), n, 40, workdir)]
+        # streamed from the generator only, never written: n x n x depth slices (the memory
+        # does not depend on the depth, test_wavelet_stream; depth = n is the whole cube)
+        row["depth"] = depth
+        row["voxels"] = n * n * depth
+        spec = synth_spec(kind, n).replace(f"size={n}", f"size={n}x{n}x{depth}")
+        row["compress"] = [compress(spec, n, 40, workdir)]
+        c = row["compress"][0]
+        c["mbs"] = 4 * n * n * depth / 1e6 / c["seconds"]
         return row
     raw = workdir / f"{kind}{n}.raw"
     _, wall, rss = run_rss([WVOL, "synth", kind, "--size", str(n), "-o", raw, *KINDS[kind]])
@@ -183,8 +191,9 @@ def write_md(res, path):
         for c in r["compress"]:
             zb = r.get("zfp", {}).get(str(c["target"]), {}).get("bpv")
             zcol = f"{zb:.4f} | {c['bpv'] / zb:.2f}" if zb else "- | -"
-            L.append(f"| {r['kind']} | {n}^3 | {4 * n**3 / 2**30:.2f} | {synth} | {c['target']} | {c['seconds']:.1f} | "
-                     f"{c['mbs']:.1f} | {1e9 * c['seconds'] / n**3:.1f} | {c['peak_rss'] / 2**20:.0f} | "
+            size = f"{n}^2 x {r['depth']}" if "depth" in r else f"{n}^3"
+            L.append(f"| {r['kind']} | {size} | {4 * r['voxels'] / 2**30:.2f} | {synth} | {c['target']} | {c['seconds']:.1f} | "
+                     f"{c['mbs']:.1f} | {1e9 * c['seconds'] / r['voxels']:.1f} | {c['peak_rss'] / 2**20:.0f} | "
                      f"{c['passes']} | {c['bpv']:.4f} | {zcol} |")
     L += ["", "In-memory pipeline (`--in-memory`) and streamed from the generator (`synth:`), 40 dB, same run:", "",
           "| volume | size | in-memory s | in-memory peak RSS MiB | streamed-from-file peak RSS MiB | "
@@ -245,7 +254,8 @@ def plot(res, path):
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--quick", action="store_true", help="64^3 and 128^3 only")
-    ap.add_argument("--big", action="store_true", help="also 2048^3, streamed from the generator")
+    ap.add_argument("--big", action="store_true", help="also 2048^2 slices, streamed from the generator")
+    ap.add_argument("--depth", type=int, default=2048, help="slices of the 2048^2 runs (default 2048: the cube)")
     ap.add_argument("--sizes", help="comma-separated edges (overrides the defaults)")
     ap.add_argument("--kinds", default=",".join(KINDS), help="skull,turbulence")
     ap.add_argument("--out", default="large", help="results name in bench/results/")
@@ -263,7 +273,7 @@ def main():
         for n in sizes:
             for kind in a.kinds.split(","):
                 t0 = time.perf_counter()
-                row = bench_size(kind, n, work, a.big)
+                row = bench_size(kind, n, work, a.depth)
                 row["bench_seconds"] = time.perf_counter() - t0
                 res["rows"].append(row)
                 c = row["compress"][0]
