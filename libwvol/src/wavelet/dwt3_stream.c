@@ -31,7 +31,7 @@ typedef struct level_state {
 
 struct wvol_dwt3_stream {
     const wvol_filter *f;
-    int levels, L, threads;
+    int levels, L, threads; /* threads: scratch slots, and the most the parallel loops use */
     size_t n[3], p[3];
     float h[WVOL__MAX_TAPS], g[WVOL__MAX_TAPS];
     level_state lv[31];
@@ -165,7 +165,7 @@ static wvol_status emit(wvol_dwt3_stream *s, int m, size_t k, wvol_error *err)
         const float *rows[WVOL__MAX_TAPS];
         long long ny = (long long)l->cy, chunk = 8;
         for (int t = 0; t < s->L; t++) rows[t] = slot(l, (2 * k + (size_t)t) % l->cz);
-#pragma omp parallel for schedule(dynamic, 1) if (l->plane > 32768)
+#pragma omp parallel for schedule(dynamic, 1) num_threads(s->threads) if (l->plane > 32768)
         for (long long y = 0; y < ny; y += chunk)
             wvol__dwt_zrows_f32(l->lo, l->hi, rows, l->cx, (size_t)y, (size_t)(y + chunk < ny ? y + chunk : ny),
                                 l->cz, s->h, s->g, s->L, s->scratch + (size_t)omp_get_thread_num() * s->scratch_per);
@@ -205,7 +205,7 @@ static wvol_status take(wvol_dwt3_stream *s, const float *slices, size_t z0, siz
     level_state *l = &s->lv[1];
     size_t nx = s->n[0], ny = s->n[1];
     long long c = (long long)cnt;
-#pragma omp parallel for schedule(dynamic, 1) if (cnt > 1)
+#pragma omp parallel for schedule(dynamic, 1) num_threads(s->threads) if (cnt > 1)
     for (long long t = 0; t < c; t++) {
         size_t z = z0 + (size_t)t;
         const float *src = slices ? slices + (size_t)t * nx * ny : s->last;
