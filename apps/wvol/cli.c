@@ -2,6 +2,8 @@
 /* Shared helpers of the wvol sub-commands (cli.h): option parsing, messages, JSON, progress. */
 #define _POSIX_C_SOURCE 200809L
 #include "cli.h"
+#include "wvol/compress.h"
+#include "wvol/store.h"
 
 #include <errno.h>
 #include <math.h>
@@ -201,6 +203,50 @@ int cli_parse_bytes(const char *cmd, const char *opt, const char *s, size_t *out
     }
     *out = (size_t)v;
     return 1;
+}
+
+int cli_open_wvc_store(const char *cmd, const char *path, size_t budget, wvol_compressed *out)
+{
+    wvol_error err;
+    wvol_store_info si;
+    const wvol_wvc_info *wi;
+    memset(out, 0, sizeof *out);
+    wvol_error_clear(&err);
+    if (wvol_store_open(&out->store, path, budget, NULL, &err) != WVOL_OK) return cli_fail_err(cmd, &err);
+    wvol_store_get_info(out->store, &si);
+    out->levels = si.levels;
+    wi = wvol_store_file_info(out->store);
+    out->value_min = wi->value_min;
+    out->value_max = wi->value_max;
+    return CLI_OK;
+}
+
+void cli_json_wvc_cache(const char *key, const wvol_wvc_cache_stats *cs, uint64_t file_chunks)
+{
+    cli_json_open(key, '{');
+    cli_json_int("decoded", (long long)cs->decoded);
+    cli_json_int("cache_hits", (long long)cs->hits);
+    cli_json_int("bytes_read", (long long)cs->bytes_read);
+    cli_json_int("cache_peak_bytes", (long long)cs->peak);
+    cli_json_int("budget_bytes", (long long)cs->budget);
+    cli_json_int("file_chunks", (long long)file_chunks);
+    cli_json_close('}');
+}
+
+int cli_check_wvc_store(const char *cmd, const wvol_compressed *c, int json)
+{
+    wvol_wvc_cache_stats cs;
+    wvol_error err;
+    if (!c->store || !wvol_store_is_file(c->store)) return CLI_OK;
+    wvol_error_clear(&err);
+    if (wvol_store_file_stats(c->store, &cs, &err) != WVOL_OK) return cli_fail_err(cmd, &err);
+    if (json) {
+        cli_json_wvc_cache("chunks", &cs, wvol_store_file_info(c->store)->chunks);
+    } else {
+        fprintf(stderr, "wvol %s: .wvc chunks: %llu decoded (%llu bytes read), cache peak %zu of %zu bytes\n", cmd,
+                (unsigned long long)cs.decoded, (unsigned long long)cs.bytes_read, cs.peak, cs.budget);
+    }
+    return CLI_OK;
 }
 
 int cli_parse_fraction(const char *cmd, const char *opt, const char *s, double *out)

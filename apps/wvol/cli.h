@@ -5,6 +5,7 @@
 #define WVOL_CLI_H
 
 #include <stddef.h>
+#include <stdint.h>
 #include "wvol/io.h"
 #include "wvol/status.h"
 
@@ -35,6 +36,8 @@ int cli_next(cli_parser *p, const cli_opt **opt, const char **value);
 
 #define CLI_HELP_OPT {"help", 'h', 0, "show this help"}
 #define CLI_JSON_OPT {"json", 0, 0, "machine-readable JSON on stdout"}
+/* A .wvc input read within a memory budget (decoded chunks held at once). */
+#define CLI_MEMORY_OPT {"memory", 0, 1, ".wvc input: budget for decoded chunks, e.g. 512M or 2G (default 1G)"}
 
 /* The raw and .vdb input options of the commands that load a volume. */
 #define CLI_LOAD_OPTS                                                    \
@@ -73,6 +76,17 @@ int cli_parse_long(const char *cmd, const char *opt, const char *s, long lo, lon
 /* "5%" -> 0.05, "0.05" -> 0.05; must be in (0, 1]. */
 /* A byte count: digits with an optional K, M, G or T (powers of 1024); > 0. */
 int cli_parse_bytes(const char *cmd, const char *opt, const char *s, size_t *out);
+/* A .wvc input opened as a file-backed store (wvol_store_open) within budget (0: the
+ * default), in the shape of the pipeline's result: out->store, levels and value range
+ * set, the rest zero. Prints the error and returns CLI_FAILED on failure. */
+struct wvol_compressed;
+int cli_open_wvc_store(const char *cmd, const char *path, size_t budget, struct wvol_compressed *out);
+/* After a file-backed store was used: CLI_OK, or CLI_FAILED (printed) when a chunk could
+ * not be decoded or the budget did not hold; JSON fields when json is set. */
+int cli_check_wvc_store(const char *cmd, const struct wvol_compressed *c, int json);
+/* The chunk cache's counters as a JSON object under key. */
+struct wvol_wvc_cache_stats;
+void cli_json_wvc_cache(const char *key, const struct wvol_wvc_cache_stats *cs, uint64_t file_chunks);
 int cli_parse_fraction(const char *cmd, const char *opt, const char *s, double *out);
 /* "WxH", sides 1..65536. */
 int cli_parse_size(const char *cmd, const char *opt, const char *s, long *w, long *h);

@@ -83,10 +83,12 @@ int wvol_cmd_decompress(int argc, char **argv)
     wvol_error_clear(&err);
     info = malloc(sizeof *info);
     if (!info) return cli_fail("decompress", "out of memory");
-    if (wvol_wvc_read_info(info, in, &err) != WVOL_OK) {
+    /* a region reads the header and index only (read_info would check every chunk) */
+    if (roi ? wvol_wvc_open(&wf, in, budget, &err) : wvol_wvc_read_info(info, in, &err)) {
         rc = cli_fail_err("decompress", &err);
         goto done;
     }
+    if (roi) *info = *wvol_wvc_file_info(wf);
     if (level > info->levels) {
         rc = cli_usage("decompress", "--level %ld: %s has levels 0..%d", level, in, info->levels);
         goto done;
@@ -106,8 +108,7 @@ int wvol_cmd_decompress(int argc, char **argv)
             if (hi[a] > dl) hi[a] = dl;
         }
         t0 = cli_now();
-        if (wvol_wvc_open(&wf, in, budget, &err) != WVOL_OK ||
-            wvol_wvc_read_region(&v, wf, lo, hi, (int)level, &err) != WVOL_OK) {
+        if (wvol_wvc_read_region(&v, wf, lo, hi, (int)level, &err) != WVOL_OK) {
             rc = cli_fail_err("decompress", &err);
             goto done;
         }
@@ -148,16 +149,7 @@ int wvol_cmd_decompress(int argc, char **argv)
         cli_json_num("inverse_transform", t_inv);
         cli_json_num("write", t_write);
         cli_json_close('}');
-        if (wf) {
-            cli_json_open("chunks", '{');
-            cli_json_int("decoded", (long long)cs.decoded);
-            cli_json_int("cache_hits", (long long)cs.hits);
-            cli_json_int("bytes_read", (long long)cs.bytes_read);
-            cli_json_int("cache_peak_bytes", (long long)cs.peak);
-            cli_json_int("budget_bytes", (long long)cs.budget);
-            cli_json_int("file_chunks", (long long)wvol_wvc_file_info(wf)->chunks);
-            cli_json_close('}');
-        }
+        if (wf) cli_json_wvc_cache("chunks", &cs, wvol_wvc_file_info(wf)->chunks);
         cli_json_end();
     } else {
         if (wf)

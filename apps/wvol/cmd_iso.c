@@ -35,6 +35,7 @@ static const cli_opt opts[] = {
     {"levels", 0, 1, "wavelet levels (default 3)"},
     {"keep", 0, 1, "kept fraction of the coefficients, e.g. 5% (default 100%)"},
     {"brick", 0, 1, "cells per brick edge for --wavelet (default 32; 0: full inverse, then dense MC)"},
+    CLI_MEMORY_OPT,
     CLI_LOAD_OPTS,
     CLI_PLACE_OPTS,
     CLI_JSON_OPT,
@@ -50,6 +51,7 @@ typedef struct iso_args {
     const char *method, *wavelet, *camera, *tf;
     wvol_iso_normals normals;
     wvol_load_options lo;
+    size_t memory;  /* .wvc input: budget of the file-backed store (0: default) */
 } iso_args;
 
 static void report(const iso_args *a, int levels, const wvol_mesh *m, const wvol_iso_stats *st, double best,
@@ -155,15 +157,20 @@ static int run_mc(const iso_args *a)
 
     wvol_error_clear(&err);
     t0 = cli_now();
-    if (wvol_volume_load(&v, a->in, &a->lo, &err) != WVOL_OK) return cli_fail_err("iso", &err);
+    memset(&kept, 0, sizeof kept);
+    if (wvol_path_has_ext(a->in, ".wvc") && a->brick != 0 && a->keep >= 1.0) {
+        /* a .wvc file: brick by brick from the file-backed store, within --memory */
+        if (cli_open_wvc_store("iso", a->in, a->memory, &kept) != CLI_OK) return CLI_FAILED;
+    } else if (wvol_volume_load(&v, a->in, &a->lo, &err) != WVOL_OK) {
+        return cli_fail_err("iso", &err);
+    }
     t_load = cli_now() - t0;
     wvol_iso_params_default(&p);
     p.threads = a->threads;
     p.normals = a->normals;
     p.brick = a->brick > 0 ? a->brick : 32;
     memset(&best_st, 0, sizeof best_st);
-    memset(&kept, 0, sizeof kept);
-    if (a->wavelet) {
+    if (a->wavelet && v) {
         rc = prepare_kept(a, v, 0, &kept, &err);
         if (rc != CLI_OK) goto done;
         if (a->brick != 0) { /* the brick path reads the store; only --brick 0 needs the dense coefficients */
@@ -204,6 +211,7 @@ static int run_mc(const iso_args *a)
         t_save = cli_now() - t1;
     }
     if (best_st.empty && !a->json) fprintf(stderr, "wvol iso: %s\n", best_st.message);
+    if (!v && (rc = cli_check_wvc_store("iso", &kept, 0)) != CLI_OK) goto done;
     report(a, kept.levels, m, &best_st, best, t_load, t_save);
 done:
     wvol_mesh_destroy(m);
@@ -409,6 +417,8 @@ int wvol_cmd_iso(int argc, char **argv)
         } else if (!strcmp(o->name, "chunk")) {
             if (!cli_parse_double("iso", "chunk", val, &a.chunk)) return CLI_USAGE;
             if (!(a.chunk > 0)) return cli_usage("iso", "--chunk %g: must be > 0", a.chunk);
+        } else if (!strcmp(o->name, "memory")) {
+            if (!cli_parse_bytes("iso", "memory", val, &a.memory)) return CLI_USAGE;
         } else if (!strcmp(o->name, "spline-j")) {
             if (!cli_parse_long("iso", "spline-j", val, 1, 12, &lv)) return CLI_USAGE;
             a.spline_j = (int)lv;

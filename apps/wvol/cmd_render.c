@@ -38,6 +38,7 @@ static const cli_opt opts[] = {
     {"threads", 0, 1, "threads (default: all)"},
     {"repeat", 0, 1, "render N times (1..100), report the fastest call's times (benchmarks; default 1)"},
     {"exposure", 0, 1, "PNG: scale before sRGB encoding (default 1; X-ray: 1/max)"},
+    CLI_MEMORY_OPT,
     CLI_LOAD_OPTS,
     CLI_JSON_OPT,
     CLI_HELP_OPT,
@@ -62,6 +63,7 @@ typedef struct render_args {
     wvol_render_params rp;
     wvol_compress_params cp;
     wvol_load_options lo;
+    size_t memory;              /* .wvc input: budget of the file-backed store (0: default) */
 } render_args;
 
 /* What the render reads, and what made it. */
@@ -142,6 +144,8 @@ static int parse_args(render_args *a, int argc, char **argv)
                 return cli_usage(cmd, "--%s", err.message);
         } else if (!strcmp(o->name, "mode")) {
             if (wvol_render_mode_parse(&a->rp.mode, val, &err) != WVOL_OK) return cli_usage(cmd, "--%s", err.message);
+        } else if (!strcmp(o->name, "memory")) {
+            if (!cli_parse_bytes(cmd, "memory", val, &a->memory)) return CLI_USAGE;
         } else if (!strcmp(o->name, "keep")) {
             if (!cli_parse_fraction(cmd, "keep", val, &a->keep)) return CLI_USAGE;
             a->keep_given = 1;
@@ -205,6 +209,20 @@ static int load_input(const render_args *a, render_input *in, wvol_error *err)
     in->is_wvc = wvol_path_has_ext(a->in, ".wvc");
     dense = !in->is_wvc && a->keep >= 1.0 &&
             (a->rp.method == WVOL_RENDER_METHOD_AUTO || a->rp.method == WVOL_RENDER_METHOD_REFERENCE);
+    if (in->is_wvc && a->keep >= 1.0 &&
+        (a->rp.method == WVOL_RENDER_METHOD_AUTO || a->rp.method == WVOL_RENDER_METHOD_BRICKS)) {
+        /* the bricked renderer reads the file chunk by chunk within --memory (main() makes AUTO
+         * bricks for it) */
+        const wvol_wvc_info *wi;
+        if (cli_open_wvc_store("render", a->in, a->memory, &in->store) != CLI_OK) return CLI_FAILED;
+        wi = wvol_store_file_info(in->store.store);
+        in->vmin = wi->value_min;
+        in->vmax = wi->value_max;
+        in->geometry.dims[0] = wi->nx, in->geometry.dims[1] = wi->ny, in->geometry.dims[2] = wi->nz;
+        memcpy(in->geometry.spacing, wi->spacing, sizeof wi->spacing);
+        memcpy(in->geometry.origin, wi->origin, sizeof wi->origin);
+        return CLI_OK;
+    }
     if (in->is_wvc) {
         wvol_wvc_info wi;
         wvol_coeffs *c = NULL;
@@ -375,10 +393,12 @@ int wvol_cmd_render(int argc, char **argv)
     if (a.rp.mode != WVOL_RENDER_MODE_XRAY && (rc = cli_load_tf("render", a.tfname, in.vmin, in.vmax, &tf)) != CLI_OK)
         goto done;
     src = in.volume ? wvol_render_source_volume(in.volume) : wvol_render_source_store(in.store.store);
+    if (wvol_store_is_file(in.store.store)) a.rp.method = WVOL_RENDER_METHOD_BRICKS;
     if (wvol_image_create(&img, (int)a.width, (int)a.height, &err) != WVOL_OK) goto fail;
     t_prep = cli_now() - t0;
     if (render_repeat(img, &src, &cam, &tf, &a, &a.rp, &stats, &cpu_max, rss, &err) != WVOL_OK) goto fail;
     if (write_image(img, &a, &err) != WVOL_OK) goto fail;
+    if ((rc = cli_check_wvc_store("render", &in.store, 0)) != CLI_OK) goto done;
     report(&a, &in, &stats, t_prep, cpu_max, rss);
     rc = CLI_OK;
     goto done;

@@ -71,6 +71,10 @@ int wvol_cli_info_wvc(const char *path, int json)
         cli_json_num("value_max", I->value_max);
         cli_json_int("bytes", (long long)I->file_bytes);
         cli_json_int("header_bytes", (long long)I->header_bytes);
+        if (I->version >= 2) {
+            cli_json_int("chunks", (long long)I->chunks);
+            cli_json_size3("tile", (size_t)I->tile, (size_t)I->tile, (size_t)I->tile_z);
+        }
         cli_json_int("raw_bytes", (long long)raw);
         cli_json_num("ratio", ratio);
         cli_json_num("bits_per_voxel", bpv);
@@ -122,6 +126,10 @@ int wvol_cli_info_wvc(const char *path, int json)
         printf("range      %g .. %g\n", I->value_min, I->value_max);
         printf("size       %llu bytes (header %llu), ratio %.1f against float32, %.4f bits/voxel\n",
                (unsigned long long)I->file_bytes, (unsigned long long)I->header_bytes, ratio, bpv);
+        if (I->version >= 2)
+            printf("chunks     %llu of %d x %d x %d coefficients per level, index at byte %d (header %s)\n",
+                   (unsigned long long)I->chunks, I->tile, I->tile, I->tile_z, 224 + 48 * I->nsections,
+                   "+ band table + index");
         printf("quantiser  step %.6g, rounding %.3g, %llu of %llu coefficients non-zero\n", I->step, I->rounding,
                (unsigned long long)I->nonzero, (unsigned long long)count);
         printf("predicted  RMSE %.6g, PSNR %.3f dB (dropped energy %.6g + quantisation %.6g)\n", rmse, psnr,

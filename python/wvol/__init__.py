@@ -18,7 +18,7 @@ from . import _wvol
 __version__ = _wvol.version
 
 __all__ = ["Volume", "load", "save", "filters", "dwt3", "idwt3", "Coeffs", "compress", "Store", "ErrorEstimate",
-           "synth", "segment", "Segmentation", "features", "open", "wvc_info", "render", "isosurface",
+           "synth", "segment", "Segmentation", "features", "open", "wvc_info", "wvc_region", "render", "isosurface",
            "save_mesh"]
 
 
@@ -485,6 +485,16 @@ def open(path, level=None):  # noqa: A001  (wvol.open mirrors the built-in for .
               "energy_dropped": float(info["sse"]), "energy_total": float(info["energy"]),
               "file_bytes": int(info["file_bytes"]), "step": float(info["step"])}
     return Store(handle, report, file_info=info)
+
+
+def wvc_region(path, lo, hi, level=0, memory=0):
+    """The box ``[lo, hi)`` (``(x, y, z)`` indices of level ``level``'s grid: 0 the voxels,
+    m the grid ``2**m`` coarser, as ``open(path, level=m)`` reconstructs it) of a .wvc file,
+    decoding only the chunks of a format-2 file whose basis functions reach the box, within
+    ``memory`` bytes of decoded chunks (0: 1 GiB). Returns ``(array, stats)``: a float32
+    array indexed ``[z, y, x]`` and the chunk cache's counters."""
+    return _wvol.wvc_region(os.fspath(path), tuple(int(v) for v in lo), tuple(int(v) for v in hi),
+                            int(level), int(memory))
 
 
 def wvc_info(path):

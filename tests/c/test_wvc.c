@@ -61,8 +61,8 @@ static void fixture_free(fixture *F)
     wvol_volume_destroy(F->v);
 }
 
-/* The format version encode() writes (0: the default, version 2). */
-static int g_version;
+/* The format version encode() writes (0: the default, version 2), and its tile (0: default). */
+static int g_version, p_tile;
 
 static int encode(void **buf, size_t *n, const fixture *F, double psnr, double step, wvol_wvc_coder coder,
                   wvol_wvc_report *rep)
@@ -76,6 +76,7 @@ static int encode(void **buf, size_t *n, const fixture *F, double psnr, double s
     p.coder = coder;
     p.step = step;
     p.version = g_version;
+    p.tile = p.tile_z = p_tile;
     if (step == 0) p.target_sse = wvol_wvc_sse_for_psnr(psnr, (double)nv, F->vmin, F->vmax);
     if (wvol_wvc_encode(buf, n, F->c, &p, rep, &err) != WVOL_OK) {
         fprintf(stderr, "encode: %s\n", err.message);
@@ -326,6 +327,19 @@ static void wvc_refuses_truncation_and_bit_flips_everywhere(int version)
     fixture_free(&F);
 }
 
+/* Decodes t (n bytes) after `mutate`; the status must be want and the message name needle.
+ * Uses t, buf, n, d and err of the calling test. */
+#define TRY(label, mutate, want, needle)                                                     \
+    do {                                                                                     \
+        memcpy(t, buf, n);                                                                   \
+        mutate;                                                                              \
+        memset(&err, 0, sizeof err);                                                         \
+        CHECK(wvol_wvc_decode(&d, t, n, NULL, NULL, &err) == (want), "%s: %s", label, err.message); \
+        CHECK(strstr(err.message, needle) != NULL, "%s: message '%s' lacks '%s'", label, err.message, needle); \
+        wvol_coeffs_destroy(d);                                                              \
+        d = NULL;                                                                            \
+    } while (0)
+
 /* Rewrites the header checksum so that only the field checks can refuse. */
 static void reseal(uint8_t *b)
 {
@@ -358,16 +372,6 @@ static void wvc_refuses_crafted_headers(void)
     if (!buf) return;
     t = malloc(n);
 
-#define TRY(label, mutate, want, needle)                                                     \
-    do {                                                                                     \
-        memcpy(t, buf, n);                                                                   \
-        mutate;                                                                              \
-        memset(&err, 0, sizeof err);                                                         \
-        CHECK(wvol_wvc_decode(&d, t, n, NULL, NULL, &err) == (want), "%s: %s", label, err.message); \
-        CHECK(strstr(err.message, needle) != NULL, "%s: message '%s' lacks '%s'", label, err.message, needle); \
-        wvol_coeffs_destroy(d);                                                              \
-        d = NULL;                                                                            \
-    } while (0)
 
     TRY("magic", t[1] = 'X', WVOL_ERR_FORMAT, "magic");
     TRY("newer version", (t[8] = 3, reseal(t)), WVOL_ERR_UNSUPPORTED, "newer");
@@ -391,7 +395,6 @@ static void wvc_refuses_crafted_headers(void)
     TRY("section order", (t[WVC_HEADER_SIZE + WVC_SECTION_SIZE + 1] = 5, reseal(t)), WVOL_ERR_FORMAT, "expected");
     TRY("section length", (t[WVC_HEADER_SIZE + 8] += 1, reseal(t)), WVOL_ERR_FORMAT, "");
     TRY("unknown coder", (t[WVC_HEADER_SIZE + 2] = 9, reseal(t)), WVOL_ERR_UNSUPPORTED, "coder");
-#undef TRY
     {
         /* levels beyond what the size allows, with a consistent section count and table:
          * a 16^3 file of 4 levels relabelled as 9^3 (still padded to 16, but 2^4 > 9) */
@@ -459,28 +462,18 @@ static void wvc2_refuses_crafted_headers_and_indexes(void)
             break;
         }
     }
-#define TRY2(label, mutate, want, needle)                                                    \
-    do {                                                                                     \
-        memcpy(t, buf, n);                                                                   \
-        mutate;                                                                              \
-        memset(&err, 0, sizeof err);                                                         \
-        CHECK(wvol_wvc_decode(&d, t, n, NULL, NULL, &err) == (want), "%s: %s", label, err.message); \
-        CHECK(strstr(err.message, needle) != NULL, "%s: message '%s' lacks '%s'", label, err.message, needle); \
-        wvol_coeffs_destroy(d);                                                              \
-        d = NULL;                                                                            \
-    } while (0)
-    TRY2("index checksum", t[idx + 17] ^= 4, WVOL_ERR_FORMAT, "index checksum");
-    TRY2("tile too small", (t[33] = 2, reseal2(t)), WVOL_ERR_FORMAT, "tile");
-    TRY2("tile depth too large", (t[34] = 9, reseal2(t)), WVOL_ERR_FORMAT, "tile");
-    TRY2("tile changed", (t[33] = 3, reseal2(t)), WVOL_ERR_FORMAT, "chunks");
-    TRY2("reserved", (t[35] = 1, reseal2(t)), WVOL_ERR_FORMAT, "reserved");
-    TRY2("chunk offset", (t[idx + 32 * first_coded] += 1, reseal2(t)), WVOL_ERR_FORMAT, "index: chunk");
-    TRY2("chunk size", (t[idx + 32 * first_coded + 8] += 1, reseal2(t)), WVOL_ERR_FORMAT, "");
-    TRY2("chunk non-zeros", (t[idx + 32 * first_coded + 20] += 1, reseal2(t)), WVOL_ERR_FORMAT, "non-zero");
-    TRY2("chunk max is NaN", (t[idx + 32 * first_coded + 19] = 0x7f, t[idx + 32 * first_coded + 18] = 0xc0, reseal2(t)),
+    TRY("index checksum", t[idx + 17] ^= 4, WVOL_ERR_FORMAT, "index checksum");
+    TRY("tile too small", (t[33] = 2, reseal2(t)), WVOL_ERR_FORMAT, "tile");
+    TRY("tile depth too large", (t[34] = 9, reseal2(t)), WVOL_ERR_FORMAT, "tile");
+    TRY("tile changed", (t[33] = 3, reseal2(t)), WVOL_ERR_FORMAT, "chunks");
+    TRY("reserved", (t[35] = 1, reseal2(t)), WVOL_ERR_FORMAT, "reserved");
+    TRY("chunk offset", (t[idx + 32 * first_coded] += 1, reseal2(t)), WVOL_ERR_FORMAT, "index: chunk");
+    TRY("chunk size", (t[idx + 32 * first_coded + 8] += 1, reseal2(t)), WVOL_ERR_FORMAT, "");
+    TRY("chunk non-zeros", (t[idx + 32 * first_coded + 20] += 1, reseal2(t)), WVOL_ERR_FORMAT, "non-zero");
+    TRY("chunk max is NaN", (t[idx + 32 * first_coded + 19] = 0x7f, t[idx + 32 * first_coded + 18] = 0xc0, reseal2(t)),
          WVOL_ERR_FORMAT, "index: chunk");
-    TRY2("band table level", (t[224 + 48 + 0] = 7, reseal2(t)), WVOL_ERR_FORMAT, "band table");
-    TRY2("band offset", (t[224 + 48 + 19] = 0x7f, reseal2(t)), WVOL_ERR_FORMAT, "band table");
+    TRY("band table level", (t[224 + 48 + 0] = 7, reseal2(t)), WVOL_ERR_FORMAT, "band table");
+    TRY("band offset", (t[224 + 48 + 19] = 0x7f, reseal2(t)), WVOL_ERR_FORMAT, "band table");
     {
         /* a chunk's payload with a valid CRC but an unknown mode: named by the chunk */
         const uint8_t *e = (const uint8_t *)buf + idx + 32 * first_coded;
@@ -498,7 +491,6 @@ static void wvc2_refuses_crafted_headers_and_indexes(void)
         wvol_coeffs_destroy(d);
         d = NULL;
     }
-#undef TRY2
     free(t);
     free(buf);
     fixture_free(&F);
@@ -506,7 +498,7 @@ static void wvc2_refuses_crafted_headers_and_indexes(void)
 
 /* Payload bytes replaced with noise and the section checksums recomputed: the
  * coders themselves must refuse or decode something, never read out of bounds. */
-static void wvc_survives_garbage_payloads_with_valid_checksums(void)
+static void wvc_survives_garbage_payloads_with_valid_checksums(int version)
 {
     fixture F;
     void *buf = NULL;
@@ -517,14 +509,35 @@ static void wvc_survives_garbage_payloads_with_valid_checksums(void)
     uint32_t seed = 12345;
     CHECK(fixture_make(&F, 16, 16, 16, "db2", 2), "fixture");
     if (!F.c) return;
+    g_version = version;
+    p_tile = 8; /* version 2: several chunks */
     CHECK(encode(&buf, &n, &F, 50, 0, WVOL_WVC_CODER_AUTO, NULL), "encode");
+    g_version = 0;
+    p_tile = 0;
     if (!buf || wvol_wvc_parse_info(&info, buf, n, NULL) != WVOL_OK) return;
     t = malloc(n);
     for (trial = 0; trial < 400; trial++) {
         int s;
         wvol_coeffs *d = NULL;
         memcpy(t, buf, n);
-        for (s = 0; s < info.nsections; s++) {
+        if (version == 2) {
+            /* every chunk's payload: noise, then its CRC recomputed in the index */
+            size_t idx = 224 + (size_t)info.nsections * 48;
+            for (uint64_t k = 0; k < info.chunks; k++) {
+                uint8_t *e = t + idx + 32 * k;
+                uint64_t off = 0;
+                uint32_t len = e[8] | (e[9] << 8) | (e[10] << 16) | ((uint32_t)e[11] << 24), c;
+                for (int i = 7; i >= 0; i--) off = (off << 8) | e[i];
+                for (uint32_t q = 0; q < len; q++) {
+                    seed = seed * 1664525u + 1013904223u;
+                    if ((seed >> 24) < (uint32_t)(trial % 64) || trial % 3 == 0) t[off + q] = (uint8_t)(seed >> 16);
+                }
+                c = (uint32_t)crc32(0L, t + off, len);
+                for (int i = 0; i < 4; i++) e[12 + i] = (uint8_t)(c >> (8 * i));
+            }
+            reseal2(t);
+        }
+        for (s = 0; s < info.nsections && version == 1; s++) {
             wvol_wvc_section *S = &info.sections[s];
             uint64_t k;
             uint32_t c;
@@ -536,7 +549,7 @@ static void wvc_survives_garbage_payloads_with_valid_checksums(void)
             c = (uint32_t)crc32(0L, t + S->offset, (uInt)S->bytes);
             for (int i = 0; i < 4; i++) e[4 + i] = (uint8_t)(c >> (8 * i));
         }
-        reseal(t);
+        if (version == 1) reseal(t);
         if (wvol_wvc_decode(&d, t, n, NULL, NULL, NULL) == WVOL_OK) {
             ok++;
             for (size_t i = 0; i < d->px * d->py * d->pz; i++)
@@ -985,7 +998,8 @@ int main(void)
     wvc_refuses_truncation_and_bit_flips_everywhere(1);
     wvc_refuses_crafted_headers();
     wvc2_refuses_crafted_headers_and_indexes();
-    wvc_survives_garbage_payloads_with_valid_checksums();
+    wvc_survives_garbage_payloads_with_valid_checksums(1);
+    wvc_survives_garbage_payloads_with_valid_checksums(2);
     wvc_files_are_atomic_and_checked();
     wvc_refuses_bad_parameters();
     wvc_corpus_files_decode_or_are_refused();

@@ -41,8 +41,11 @@ static void decode(const uint8_t *data, size_t size)
 /* Version 2: header 224 bytes, band table 48 x S, chunk index 32 x C, one CRC. */
 static void reseal_v2(uint8_t *t, size_t size)
 {
-    uint32_t nsec = get32(t + 12);
-    uint64_t nchunks = get64(t + 208), h;
+    uint32_t nsec;
+    uint64_t nchunks, h;
+    if (size < 224) return;
+    nsec = get32(t + 12);
+    nchunks = get64(t + 208);
     if (nsec > WVOL_WVC_MAX_SECTIONS || nchunks > ((uint64_t)1 << 20)) return;
     h = 224 + (uint64_t)nsec * 48 + nchunks * 32;
     if (h + 4 > size) return;

@@ -45,7 +45,8 @@ typedef struct wvol_load_options {
 
 WVOL_API void wvol_load_options_default(wvol_load_options *opt);
 
-/* Loads any supported format (by extension; a directory is read as a DICOM series).
+/* Loads any supported format (by extension; a directory is read as a DICOM series; a
+ * .wvc file is decoded whole and reconstructed).
  * Integer samples become float32 without loss; NaN/Inf are refused. opt may be NULL. */
 WVOL_API wvol_status wvol_volume_load(wvol_volume **out, const char *path, const wvol_load_options *opt,
                                       wvol_error *err);

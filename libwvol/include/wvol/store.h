@@ -30,6 +30,7 @@
 #include "wvol/status.h"
 #include "wvol/volume.h"
 #include "wvol/wavelet.h"
+#include "wvol/wvc.h"
 
 #ifdef __cplusplus
 extern "C" {
@@ -167,6 +168,27 @@ WVOL_API wvol_status wvol_store_build(wvol_store **out, const wvol_coeffs *c, co
                                       const wvol_store_params *prm, wvol_error *err);
 
 WVOL_API void wvol_store_destroy(wvol_store *s); /* NULL is fine */
+
+/* A store on a .wvc file (version 2, random access), holding the low-pass cube and the
+ * chunk index; its detail coefficients are decoded on demand, chunk by chunk, into a
+ * cache of at most `budget` bytes (0: WVOL_WVC_DEFAULT_BUDGET, 1 GiB; a budget below
+ * one chain of chunks is refused). Brick reconstructions read it (the bricked renderer,
+ * marching cubes brick by brick, wvol_store_densify); the octree queries (query_box,
+ * query_ray, box_bounds) refuse it with WVOL_ERR_UNSUPPORTED, and lookup, eval, next
+ * and node_get see only the low-pass cube. A version-1 file is decoded whole (refused
+ * above the budget). Unlike a built store, its cache changes under const calls (it has
+ * a lock: concurrent readers are still safe). */
+WVOL_API wvol_status wvol_store_open(wvol_store **out, const char *path, size_t budget,
+                                     const wvol_store_params *prm, wvol_error *err);
+/* The file's header, band table and index summary (a store made by wvol_store_open;
+ * NULL otherwise). */
+WVOL_API const wvol_wvc_info *wvol_store_file_info(const wvol_store *s);
+/* 1 for a store made by wvol_store_open. */
+WVOL_API int wvol_store_is_file(const wvol_store *s);
+/* The file's cache counters (a store made by wvol_store_open only), and the first
+ * decoding error met since the last call (a damaged chunk, the budget exceeded): reads
+ * that met it gave zeros, so check after every use. */
+WVOL_API wvol_status wvol_store_file_stats(const wvol_store *s, wvol_wvc_cache_stats *st, wvol_error *err);
 
 typedef struct wvol_store_info {
     const wvol_filter *filter;

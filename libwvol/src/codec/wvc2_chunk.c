@@ -209,9 +209,31 @@ static void box_zero(const wvc2_qbox *b, const size_t ext[3])
         for (size_t y = 0; y < ext[1]; y++) memset(b->q + y * b->sy + z * b->sz, 0, ext[0] * sizeof(int32_t));
 }
 
+/* band i of a direct decode: the coder's view on the pyramid itself */
+static void direct_view(local_grid *lg, const wvc2_geom *g, int m, int band, const size_t ext[3],
+                        const wvc2_direct *d, int i)
+{
+    size_t zero[3] = {0, 0, 0}, poff[3], pext[3];
+    int has_parent = m < g->levels && band != 0;
+    wvc2_parent_box(g, zero, ext, poff, pext);
+    memset(lg, 0, sizeof *lg);
+    lg->q = d->Q;
+    memcpy(lg->p, d->p, sizeof lg->p);
+    lg->b.level = m;
+    lg->b.band = band;
+    lg->b.has_parent = has_parent;
+    for (int a = 0; a < 3; a++) {
+        lg->b.off[a] = d->off[i][a];
+        lg->b.ext[a] = ext[a];
+        lg->b.poff[a] = has_parent ? d->poff[i][a] : 0;
+        lg->b.pext[a] = has_parent ? pext[a] : 0;
+    }
+    lg->b.count = (uint64_t)ext[0] * ext[1] * ext[2];
+}
+
 int wvol__wvc2_chunk_decode(const wvc2_geom *g, int m, const size_t ext[3], const wvc2_qbox child[8],
-                            const wvc2_qbox parent[8], const uint8_t *payload, size_t bytes, uint64_t *nonzero,
-                            const char **why)
+                            const wvc2_qbox parent[8], const wvc2_direct *direct, const uint8_t *payload,
+                            size_t bytes, uint64_t *nonzero, const char **why)
 {
     const wvc2_level *L = &g->lv[m];
     local_grid lg[8];
@@ -219,7 +241,8 @@ int wvol__wvc2_chunk_decode(const wvc2_geom *g, int m, const size_t ext[3], cons
     uint8_t used = 0;
     int i, r = 0, mode;
     *nonzero = 0;
-    for (i = 0; i < L->nb; i++) box_zero(&child[i], ext);
+    if (!direct)
+        for (i = 0; i < L->nb; i++) box_zero(&child[i], ext);
     if (bytes == 0) return 0;
     mode = payload[0];
     pos = 1;
@@ -280,7 +303,9 @@ int wvol__wvc2_chunk_decode(const wvc2_geom *g, int m, const size_t ext[3], cons
     memset(lg, 0, sizeof lg);
     for (i = 0; i < L->nb && !r; i++)
         if (used >> i & 1) {
-            if (local_make(&lg[i], g, m, L->bands[i], ext)) {
+            if (direct) {
+                direct_view(&lg[i], g, m, L->bands[i], ext, direct, i);
+            } else if (local_make(&lg[i], g, m, L->bands[i], ext)) {
                 *why = "out of memory";
                 r = -1;
             } else {
@@ -306,14 +331,21 @@ int wvol__wvc2_chunk_decode(const wvc2_geom *g, int m, const size_t ext[3], cons
         }
     }
     for (i = 0; i < L->nb; i++) {
-        if (!r && (used >> i & 1))
+        if (!r && (used >> i & 1) && direct) {
+            for (size_t z = 0; z < ext[2]; z++)
+                for (size_t y = 0; y < ext[1]; y++) {
+                    const int32_t *s = lg[i].q + wvc_index(lg[i].p, &lg[i].b, 0, y, z);
+                    for (size_t x = 0; x < ext[0]; x++) *nonzero += s[x] != 0;
+                }
+        } else if (!r && (used >> i & 1)) {
             for (size_t z = 0; z < ext[2]; z++)
                 for (size_t y = 0; y < ext[1]; y++) {
                     const int32_t *s = lg[i].q + lg[i].p[0] * (y + lg[i].p[1] * z);
                     int32_t *d = child[i].q + y * child[i].sy + z * child[i].sz;
                     for (size_t x = 0; x < ext[0]; x++) *nonzero += (d[x] = s[x]) != 0;
                 }
-        free(lg[i].q);
+        }
+        if (!direct) free(lg[i].q);
     }
     return r;
 }

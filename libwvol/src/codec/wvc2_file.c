@@ -245,6 +245,8 @@ wvol_status wvol_wvc_open(wvol_wvc_file **out, const char *path, size_t budget, 
     return WVOL_OK;
 }
 
+const char *wvol__wvc_file_path(const wvol_wvc_file *f) { return f->path; }
+
 const wvol_wvc_info *wvol_wvc_file_info(const wvol_wvc_file *f) { return f ? &f->info : NULL; }
 
 void wvol_wvc_file_stats(const wvol_wvc_file *f, wvol_wvc_cache_stats *st)
@@ -371,7 +373,7 @@ static centry *decode_chunk(wvol_wvc_file *f, size_t id)
     if (read_at(f->fd, pay, c->bytes, c->offset)) {
         why = "cannot read the chunk (file shorter than its index says?)";
     } else if (wvol__wvc2_chunk_check(f->x, id, pay, &why) == 0 &&
-               wvol__wvc2_chunk_decode(g, m, ext, child, parent, pay, c->bytes, &nz, &why) == 0 && nz != c->nonzero) {
+               wvol__wvc2_chunk_decode(g, m, ext, child, parent, NULL, pay, c->bytes, &nz, &why) == 0 && nz != c->nonzero) {
         why = "decoded non-zero count does not match the index";
     }
     free(pay);
@@ -582,7 +584,28 @@ wvol_status wvol__wvc_file_lowpass(wvol_wvc_file *f, float *dst, wvol_error *err
 
 void wvol__wvc_file_level_max(const wvol_wvc_file *f, int m, float *max, size_t nt[3], size_t tile[3])
 {
-    const wvc2_geom *g = &f->x->g;
+    const wvc2_geom *g;
+    if (f->dense) {
+        /* version 1: one "tile" per level, the maximum over its detail bands */
+        const wvol_coeffs *c = f->dense;
+        size_t p[3] = {c->px, c->py, c->pz};
+        float mx = 0;
+        for (int a = 0; a < 3; a++) {
+            nt[a] = 1;
+            tile[a] = p[a] > 1 ? p[a] >> m : 1;
+        }
+        if (!max) return;
+        for (int band = 1; band < 8; band++)
+            for (size_t z = 0; z < tile[2]; z++)
+                for (size_t y = 0; y < tile[1]; y++)
+                    for (size_t x = 0; x < tile[0]; x++) {
+                        size_t idx = wvol_coeffs_index(c, m, band, x, y, z);
+                        if (idx != (size_t)-1 && fabsf(c->data[idx]) > mx) mx = fabsf(c->data[idx]);
+                    }
+        max[0] = mx;
+        return;
+    }
+    g = &f->x->g;
     for (int a = 0; a < 3; a++) {
         nt[a] = g->lv[m].nt[a];
         tile[a] = (size_t)g->tile[a];

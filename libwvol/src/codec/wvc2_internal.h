@@ -99,12 +99,22 @@ typedef struct wvc2_coded {
 int wvol__wvc2_chunk_encode(wvc2_coded *out, const wvc2_geom *g, int m, const size_t ext[3],
                             const wvc2_qbox child[8], const wvc2_qbox parent[8], int coder, int zstd_level);
 
+/* A chunk decoded in place in a dense quantised pyramid Q (padded grid p, x fastest):
+ * band i's tile at off[i], its parent region at poff[i] (both in Q's coordinates).
+ * The tile boxes must hold zeros; the coder then needs no copy. */
+typedef struct wvc2_direct {
+    int32_t *Q;
+    size_t p[3];
+    size_t off[8][3], poff[8][3];
+} wvc2_direct;
+
 /* Decodes a chunk's payload (already checked against its CRC) into child[i] (the
  * boxes are written entirely, zeros included), with the parents' values as
- * context. *nonzero receives the non-zero count. Returns 0, or -1 with *why. */
+ * context, or into direct (not NULL: child and parent are ignored). *nonzero
+ * receives the non-zero count. Returns 0, or -1 with *why. */
 int wvol__wvc2_chunk_decode(const wvc2_geom *g, int m, const size_t ext[3], const wvc2_qbox child[8],
-                            const wvc2_qbox parent[8], const uint8_t *payload, size_t bytes, uint64_t *nonzero,
-                            const char **why);
+                            const wvc2_qbox parent[8], const wvc2_direct *direct, const uint8_t *payload,
+                            size_t bytes, uint64_t *nonzero, const char **why);
 
 /* wvol_wvc_encode's version-2 path: the pyramid c through the slab writer, coarse to
  * fine, with the step chosen and the dead zones widened (zero_edge, may be NULL) as the

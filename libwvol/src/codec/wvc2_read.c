@@ -165,6 +165,13 @@ int wvol__wvc2_chunk_check(const wvc2_index *x, size_t id, const uint8_t *payloa
     return 0;
 }
 
+/* Where a box at off of band `band` of level m starts in the dense pyramid (padded grid p). */
+static void band_origin(size_t o[3], const size_t p[3], const wvc2_geom *g, int m, int band, const size_t off[3])
+{
+    (void)p;
+    for (int a = 0; a < 3; a++) o[a] = off[a] + ((((band >> a) & 1) && g->tr[a]) ? g->lv[m].e[a] : 0);
+}
+
 /* The box of band `band` of chunk t at level m inside a dense pyramid Q (padded grid p). */
 static wvc2_qbox dense_box(int32_t *Q, const size_t p[3], const wvc2_geom *g, int m, int band, const size_t off[3])
 {
@@ -199,24 +206,27 @@ wvol_status wvol__wvc2_decode_dense(int32_t *Q, const size_t p[3], const wvc2_in
         for (i = 0; i < (long)G->count; i++) {
             size_t id = G->first + (size_t)i, t[3], off[3], ext[3], poff[3], pext[3];
             const wvc2_chunk *c = &x->chunks[id];
-            wvc2_qbox child[8], parent[8];
+            wvc2_direct dv;
             uint64_t nz;
             const char *w = NULL;
             int r = 0;
             wvol__wvc2_chunk_coords(g, id, t);
             wvc2_tile_box(g, m, t, off, ext);
             wvc2_parent_box(g, off, ext, poff, pext);
-            memset(parent, 0, sizeof parent);
+            /* in place: the pyramid holds the tile and its parent region with one set of strides */
+            dv.Q = Q;
+            memcpy(dv.p, p, sizeof dv.p);
+            memset(dv.poff, 0, sizeof dv.poff);
             for (int k = 0; k < G->nb; k++) {
-                child[k] = dense_box(Q, p, g, m, G->bands[k], off);
-                if (m < g->levels) parent[k] = dense_box(Q, p, g, m + 1, G->bands[k], poff);
+                band_origin(dv.off[k], p, g, m, G->bands[k], off);
+                if (m < g->levels) band_origin(dv.poff[k], p, g, m + 1, G->bands[k], poff);
             }
             if (c->bytes && c->offset + c->bytes > avail) {
                 w = "chunk lies past the end of the data read";
                 r = -1;
             } else if (wvol__wvc2_chunk_check(x, id, buf + c->offset, &w)) {
                 r = -1;
-            } else if (wvol__wvc2_chunk_decode(g, m, ext, child, parent, buf + c->offset, c->bytes, &nz, &w)) {
+            } else if (wvol__wvc2_chunk_decode(g, m, ext, NULL, NULL, &dv, buf + c->offset, c->bytes, &nz, &w)) {
                 r = -1;
             } else if (nz != c->nonzero) {
                 w = "decoded non-zero count does not match the index";

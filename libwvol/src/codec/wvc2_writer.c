@@ -516,37 +516,17 @@ static void header_fill(uint8_t *h, const wvc2_writer *w, double sse, double ene
 {
     const wvc2_header *H = &w->h;
     const int nsec = 1 + 7 * H->levels;
-    size_t n = strlen(w->filter), a;
     int s, tl = 0, tlz = 0;
+    wvc_header_fields hf = {WVC2_VERSION, (uint32_t)nsec, w->filter, H->levels, {H->nx, H->ny, H->nz},
+                            {H->px, H->py, H->pz}, {0}, {0}, H->value_min, H->value_max, H->step, H->rounding, sse,
+                            energy, H->dropped_energy, nonzero, payload};
+    memcpy(hf.spacing, H->spacing, sizeof hf.spacing);
+    memcpy(hf.origin, H->origin, sizeof hf.origin);
     while ((1 << tl) < H->tile) tl++;
     while ((1 << tlz) < H->tile_z) tlz++;
-    memcpy(h, WVC_MAGIC, 8);
-    wvc_put_u16(h + 8, WVC2_VERSION);
-    wvc_put_u16(h + 10, 0);
-    wvc_put_u32(h + 12, (uint32_t)nsec);
-    memcpy(h + 16, w->filter, n < 15 ? n : 15);
-    h[32] = (uint8_t)H->levels;
+    wvol__wvc_header_put(h, &hf);
     h[33] = (uint8_t)tl;
     h[34] = (uint8_t)tlz;
-    wvc_put_u64(h + 40, H->nx);
-    wvc_put_u64(h + 48, H->ny);
-    wvc_put_u64(h + 56, H->nz);
-    wvc_put_u64(h + 64, H->px);
-    wvc_put_u64(h + 72, H->py);
-    wvc_put_u64(h + 80, H->pz);
-    for (a = 0; a < 3; a++) {
-        wvc_put_f64(h + 88 + 8 * a, H->spacing[a]);
-        wvc_put_f64(h + 112 + 8 * a, H->origin[a]);
-    }
-    wvc_put_f64(h + 136, H->value_min);
-    wvc_put_f64(h + 144, H->value_max);
-    wvc_put_f64(h + 152, H->step);
-    wvc_put_f64(h + 160, H->rounding);
-    wvc_put_f64(h + 168, sse);
-    wvc_put_f64(h + 176, energy);
-    wvc_put_f64(h + 184, H->dropped_energy);
-    wvc_put_u64(h + 192, nonzero);
-    wvc_put_u64(h + 200, payload);
     wvc_put_u64(h + 208, w->g.nchunks);
     for (s = 0; s < nsec; s++) {
         uint8_t *e = h + WVC2_HEADER_SIZE + (size_t)s * WVC2_BAND_SIZE;

@@ -7,7 +7,7 @@
  * Contract
  * - open() takes everything the header needs up front: the grid, the family, the
  *   quantiser's step and dead zone (chosen beforehand, e.g. from the magnitude
- *   histograms of a first pass, wvc_internal.h), the tile edge. Nothing is written
+ *   histograms of a first pass, wvc_internal.h), the tile sizes. Nothing is written
  *   under the final name before close(): the file goes to a temporary name and is
  *   renamed by close(); abort() (or any failed call) removes it.
  * - put(level, z0, nz, planes) hands over rows z0 .. z0+nz-1 (along z) of every
@@ -21,11 +21,11 @@
  *   are read during the call only (the caller may reuse them at once).
  * - The writer quantises each row as it arrives (q = sign(c) floor(|c|/step + f);
  *   NaN/Inf refused), keeps the quantised rows of the current tile row, and codes
- *   a chunk (one level x one tile of tile^3 coefficients in every band of that
+ *   a chunk (one level x one tile of tile x tile x tile_z coefficients in every band of that
  *   level) as soon as all its rows and the rows of its parent region (the same
  *   tile's half-size region in the next coarser level, whose quantised values are
  *   the coder's context) have arrived. Memory held: per level about
- *   (tile + the coarser level's lag) rows of int32 quantised values, plus the
+ *   (tile_z + the coarser level's lag) rows of int32 quantised values, plus the
  *   parent tile row until both of its child tile rows are coded; with coarse-to-
  *   fine arrival the whole quantised pyramid (what wvol_wvc_encode holds anyway).
  *   Coded chunk payloads are spilled to a temporary file (or kept in memory for

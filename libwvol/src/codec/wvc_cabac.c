@@ -336,62 +336,16 @@ static int band_scratch(const wvc_band *b, void **scratch)
 int wvol__wvc_cabac_encode(uint8_t **buf, size_t *size, const int32_t *Q, const size_t p[3],
                            const wvc_band *b)
 {
-    rc_enc e;
-    coder cd = {&e, NULL};
-    band_model m;
-    void *scratch;
-    const uint8_t *data;
-    size_t n;
-    *buf = NULL;
-    *size = 0;
-    if (band_scratch(b, &scratch)) return -1;
-    model_init(&m);
-    rc_enc_init(&e);
-    if (b->band == 0)
-        lowpass_band(0, &cd, (int32_t *)Q, p, b, &m, scratch);
-    else
-        detail_band(0, &cd, (int32_t *)Q, p, b, &m, scratch);
-    rc_enc_finish(&e);
-    free(scratch);
-    if (e.oom) {
-        rc_enc_free(&e);
-        return -1;
-    }
-    data = rc_enc_data(&e, &n);
-    memmove(e.buf, data, n);
-    *buf = e.buf;
-    *size = n;
-    return 0;
+    int32_t *q = (int32_t *)Q; /* the encoder only reads it */
+    const size_t *pp = p;
+    return wvol__wvc_cabac_encode_multi(buf, size, 1, &q, &pp, &b);
 }
 
 int wvol__wvc_cabac_decode(int32_t *Q, const size_t p[3], const wvc_band *b, const uint8_t *buf,
                            size_t size, const char **why)
 {
-    rc_dec d;
-    coder cd = {NULL, &d};
-    band_model m;
-    void *scratch;
-    int r;
-    if (band_scratch(b, &scratch)) {
-        *why = "out of memory";
-        return -1;
-    }
-    model_init(&m);
-    rc_dec_init(&d, buf, size);
-    if (b->band == 0)
-        r = lowpass_band(1, &cd, Q, p, b, &m, scratch);
-    else
-        r = detail_band(1, &cd, Q, p, b, &m, scratch);
-    free(scratch);
-    if (r) {
-        *why = "malformed coefficient code";
-        return -1;
-    }
-    if (d.overrun) {
-        *why = "coded data ends early";
-        return -1;
-    }
-    return 0;
+    const size_t *pp = p;
+    return wvol__wvc_cabac_decode_multi(1, &Q, &pp, &b, buf, size, why);
 }
 
 /* Several bands in one stream with one model that keeps adapting from band to band: a

@@ -72,6 +72,32 @@ void wvol__wvc_layout(wvc_layout *L, size_t px, size_t py, size_t pz, int levels
     }
 }
 
+void wvol__wvc_header_put(uint8_t *h, const wvc_header_fields *f)
+{
+    size_t n = strlen(f->filter);
+    memcpy(h, WVC_MAGIC, 8);
+    wvc_put_u16(h + 8, (uint16_t)f->version);
+    wvc_put_u16(h + 10, 0);
+    wvc_put_u32(h + 12, f->nsec);
+    memcpy(h + 16, f->filter, n < 15 ? n : 15);
+    h[32] = (uint8_t)f->levels;
+    for (int a = 0; a < 3; a++) {
+        wvc_put_u64(h + 40 + 8 * a, f->n[a]);
+        wvc_put_u64(h + 64 + 8 * a, f->p[a]);
+        wvc_put_f64(h + 88 + 8 * a, f->spacing[a]);
+        wvc_put_f64(h + 112 + 8 * a, f->origin[a]);
+    }
+    wvc_put_f64(h + 136, f->value_min);
+    wvc_put_f64(h + 144, f->value_max);
+    wvc_put_f64(h + 152, f->step);
+    wvc_put_f64(h + 160, f->rounding);
+    wvc_put_f64(h + 168, f->sse);
+    wvc_put_f64(h + 176, f->energy);
+    wvc_put_f64(h + 184, f->dropped_energy);
+    wvc_put_u64(h + 192, f->nonzero);
+    wvc_put_u64(h + 200, f->payload);
+}
+
 static void header_write(uint8_t *h, const wvol_coeffs *c, const wvol_wvc_params *p, double step,
                          double sse, double energy, uint64_t nonzero, uint64_t payload,
                          const wvc_layout *L, const uint8_t coder[], const uint64_t bytes[],
@@ -80,33 +106,13 @@ static void header_write(uint8_t *h, const wvol_coeffs *c, const wvol_wvc_params
 {
     int s;
     size_t n;
+    wvc_header_fields hf = {1, (uint32_t)L->nsec, c->filter->name, c->levels, {c->nx, c->ny, c->nz},
+                            {c->px, c->py, c->pz}, {0}, {0}, p->value_min, p->value_max, step, p->rounding, sse,
+                            energy, p->dropped_energy, nonzero, payload};
+    memcpy(hf.spacing, c->spacing, sizeof hf.spacing);
+    memcpy(hf.origin, c->origin, sizeof hf.origin);
     memset(h, 0, WVC_HEADER_SIZE + (size_t)L->nsec * WVC_SECTION_SIZE + 4);
-    memcpy(h, WVC_MAGIC, 8);
-    wvc_put_u16(h + 8, 1);
-    wvc_put_u16(h + 10, 0);
-    wvc_put_u32(h + 12, (uint32_t)L->nsec);
-    n = strlen(c->filter->name);
-    memcpy(h + 16, c->filter->name, n < 15 ? n : 15);
-    h[32] = (uint8_t)c->levels;
-    wvc_put_u64(h + 40, c->nx);
-    wvc_put_u64(h + 48, c->ny);
-    wvc_put_u64(h + 56, c->nz);
-    wvc_put_u64(h + 64, c->px);
-    wvc_put_u64(h + 72, c->py);
-    wvc_put_u64(h + 80, c->pz);
-    for (s = 0; s < 3; s++) {
-        wvc_put_f64(h + 88 + 8 * s, c->spacing[s]);
-        wvc_put_f64(h + 112 + 8 * s, c->origin[s]);
-    }
-    wvc_put_f64(h + 136, p->value_min);
-    wvc_put_f64(h + 144, p->value_max);
-    wvc_put_f64(h + 152, step);
-    wvc_put_f64(h + 160, p->rounding);
-    wvc_put_f64(h + 168, sse);
-    wvc_put_f64(h + 176, energy);
-    wvc_put_f64(h + 184, p->dropped_energy);
-    wvc_put_u64(h + 192, nonzero);
-    wvc_put_u64(h + 200, payload);
+    wvol__wvc_header_put(h, &hf);
     for (s = 0; s < L->nsec; s++) {
         uint8_t *e = h + WVC_HEADER_SIZE + (size_t)s * WVC_SECTION_SIZE;
         e[0] = (uint8_t)L->sec[s].level;

@@ -34,6 +34,20 @@ typedef struct wvc_layout {
 void wvol__wvc_layout(wvc_layout *L, size_t px, size_t py, size_t pz, int levels);
 
 
+/* The fixed header's fields both versions share (offsets 0..207, docs/wvc-format.md);
+ * wvol__wvc_header_put writes them (version 2 adds its own after). */
+typedef struct wvc_header_fields {
+    int version;
+    uint32_t nsec;
+    const char *filter;
+    int levels;
+    size_t n[3], p[3];
+    double spacing[3], origin[3];
+    double value_min, value_max, step, rounding, sse, energy, dropped_energy;
+    uint64_t nonzero, payload;
+} wvc_header_fields;
+void wvol__wvc_header_put(uint8_t *h, const wvc_header_fields *f);
+
 /* Largest |q| the coders accept, so that sums and reconstructions stay finite. */
 #define WVC_QMAX (1 << 30)
 

@@ -17,6 +17,9 @@
  * fills zeros and leaves an error that wvol__wvc_file_error returns. */
 void wvol__wvc_file_source(wvol__coef_source *src, wvol_wvc_file *f, int skip);
 
+/* The path the file was opened from. */
+const char *wvol__wvc_file_path(const wvol_wvc_file *f);
+
 /* The first error a gather met since the last call (WVOL_OK if none), copied to err,
  * and cleared. */
 wvol_status wvol__wvc_file_error(wvol_wvc_file *f, wvol_error *err);

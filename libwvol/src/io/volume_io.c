@@ -5,12 +5,13 @@
 #include "wvol/io.h"
 #include "io/adapters.h"
 #include "io/io_internal.h"
+#include "wvol/wvc.h"
 
 #include <errno.h>
 #include <string.h>
 #include <sys/stat.h>
 
-typedef enum { FMT_UNKNOWN, FMT_RAW, FMT_NRRD, FMT_VDB, FMT_VTK, FMT_VTI, FMT_DICOM } fmt_kind;
+typedef enum { FMT_UNKNOWN, FMT_RAW, FMT_NRRD, FMT_VDB, FMT_VTK, FMT_VTI, FMT_DICOM, FMT_WVC } fmt_kind;
 
 static fmt_kind format_of(const char *path)
 {
@@ -20,6 +21,7 @@ static fmt_kind format_of(const char *path)
     if (wvol_path_has_ext(path, ".raw") || wvol_path_has_ext(path, ".bin")) return FMT_RAW;
     if (wvol_path_has_ext(path, ".nrrd") || wvol_path_has_ext(path, ".nhdr")) return FMT_NRRD;
     if (wvol_path_has_ext(path, ".vdb")) return FMT_VDB;
+    if (wvol_path_has_ext(path, ".wvc")) return FMT_WVC;
     if (wvol_path_has_ext(path, ".vti")) return FMT_VTI;
     for (i = 0; i < sizeof vtk_ext / sizeof vtk_ext[0]; i++)
         if (wvol_path_has_ext(path, vtk_ext[i])) return FMT_VTK;
@@ -34,6 +36,7 @@ int wvol_format_supported(const char *path, int for_writing)
     case FMT_RAW:
     case FMT_NRRD: return 1;
     case FMT_DICOM: return !for_writing; /* io/dicom.c */
+    case FMT_WVC: return !for_writing;   /* decoded whole; wvol compress writes one */
 #ifdef WVOL_HAVE_OPENVDB
     case FMT_VDB: return 1;
 #endif
@@ -43,6 +46,17 @@ int wvol_format_supported(const char *path, int for_writing)
 #endif
     default: return 0;
     }
+}
+
+/* A .wvc file as a volume: decoded whole and reconstructed (a command that can work
+ * within a memory budget opens it as a store instead, wvol_store_open). */
+static wvol_status load_wvc(wvol_volume **out, const char *path, wvol_error *err)
+{
+    wvol_coeffs *c = NULL;
+    wvol_status st = wvol_wvc_read(&c, path, NULL, NULL, err);
+    if (st == WVOL_OK) st = wvol_idwt3(out, c, err);
+    wvol_coeffs_destroy(c);
+    return st;
 }
 
 wvol_status wvol_volume_load(wvol_volume **out, const char *path, const wvol_load_options *opt,
@@ -64,10 +78,11 @@ wvol_status wvol_volume_load(wvol_volume **out, const char *path, const wvol_loa
     case FMT_VTI:
     case FMT_VTK: return wvol__vtk_read(out, path, err);
     case FMT_DICOM: return wvol__dicom_read(out, path, err);
+    case FMT_WVC: return load_wvc(out, path, err);
     default:
         return wvol_error_set(err, WVOL_ERR_UNSUPPORTED,
                               "%s: unknown volume format (known: .raw .nrrd .nhdr .vdb .vti .vtk .mha "
-                              ".mhd .nii .nii.gz, or a DICOM folder)", path);
+                              ".mhd .nii .nii.gz .wvc, or a DICOM folder)", path);
     }
 }
 

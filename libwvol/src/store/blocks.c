@@ -8,6 +8,7 @@
 #include "store/store_blocks.h"
 #include "core/clones.h"
 #include "store/store_internal.h"
+#include "codec/wvc_source.h"
 
 #include <stdint.h>
 #include <stdlib.h>
@@ -268,6 +269,31 @@ static int gather_blocks(const void *ctx, float *dst, int m, int band, const ptr
     return bv->dir ? gather_sparse(cb, bv, dst, lo, n) : 0; /* 0: all zero, the caller skips the band */
 }
 
+/* A store opened on a file: the bound of a chunk's coefficients is its maximum from the
+ * index, spread over every bound block the chunk covers (nothing is decoded). */
+static wvol_status file_bounds(wvol__brick_bounds *bb, wvol_wvc_file *f, int levels, wvol_error *err)
+{
+    for (int m = 1; m <= levels; m++) {
+        size_t nt[3], tile[3];
+        float *mx;
+        wvol__wvc_file_level_max(f, m, NULL, nt, tile);
+        mx = malloc(nt[0] * nt[1] * nt[2] * sizeof *mx + 1);
+        WVOL_RETURN_IF(!mx, err, WVOL_ERR_NOMEM, "store: out of memory for the file's bounds");
+        wvol__wvc_file_level_max(f, m, mx, nt, tile);
+        for (size_t k = 0; k < nt[2]; k++)
+            for (size_t j = 0; j < nt[1]; j++)
+                for (size_t i = 0; i < nt[0]; i++) {
+                    const size_t lo[3] = {i * tile[0], j * tile[1], k * tile[2]};
+                    const size_t hi[3] = {lo[0] + tile[0], lo[1] + tile[1], lo[2] + tile[2]};
+                    float v = mx[i + nt[0] * (j + nt[1] * k)];
+                    if (v == 0) continue;
+                    for (int band = 1; band < 8; band++) wvol__bounds_add_box(bb, m, band, lo, hi, v);
+                }
+        free(mx);
+    }
+    return WVOL_OK;
+}
+
 wvol_status wvol__store_blocks_create(wvol__store_blocks **out, wvol__brick_bounds **bounds, const wvol_store *s,
                                       wvol_error *err)
 {
@@ -292,9 +318,16 @@ wvol_status wvol__store_blocks_create(wvol__store_blocks **out, wvol__brick_boun
         wvol__bounds_free(bb);
         return st;
     }
+    if (s->file && bb && (st = file_bounds(bb, s->file, info.levels, err)) != WVOL_OK) {
+        wvol__store_blocks_destroy(cb);
+        wvol__bounds_free(bb);
+        return st;
+    }
     if (bb) wvol__bounds_finish(bb);
     cb->cs = (wvol__coef_source){.gather = gather_blocks, .ctx = cb, .filter = info.filter, .levels = info.levels,
                                  .dims = {info.nx, info.ny, info.nz}, .pad = {info.px, info.py, info.pz}};
+    /* a store opened on a file: the detail bands come from its chunks, decoded on demand */
+    if (s->file) wvol__wvc_file_source(&cb->cs, s->file, 0);
     if (bounds) *bounds = bb;
     *out = cb;
     return WVOL_OK;

@@ -9,22 +9,29 @@
 
 wvol_status wvol__layout_init(wvol__layout *ly, const wvol_coeffs *c, wvol_error *err)
 {
-    size_t n;
     WVOL_RETURN_IF(!c || !c->data || !c->filter, err, WVOL_ERR_ARG, "coefficients are NULL or have no filter");
-    WVOL_RETURN_IF(c->levels < 1 || c->levels > WVOL_SELECT_MAX_LEVELS, err, WVOL_ERR_ARG,
-                   "coefficients: levels = %d (1..%d)", c->levels, WVOL_SELECT_MAX_LEVELS);
-    WVOL_RETURN_IF(c->filter->length < 2, err, WVOL_ERR_ARG, "coefficients: filter '%s' has %d taps",
-                   c->filter->name, c->filter->length);
+    return wvol__layout_init_dims(ly, c->filter, c->levels, c->px, c->py, c->pz, err);
+}
+
+wvol_status wvol__layout_init_dims(wvol__layout *ly, const wvol_filter *filter, int levels, size_t px, size_t py,
+                                   size_t pz, wvol_error *err)
+{
+    size_t n;
+    WVOL_RETURN_IF(!filter, err, WVOL_ERR_ARG, "coefficients have no filter");
+    WVOL_RETURN_IF(levels < 1 || levels > WVOL_SELECT_MAX_LEVELS, err, WVOL_ERR_ARG,
+                   "coefficients: levels = %d (1..%d)", levels, WVOL_SELECT_MAX_LEVELS);
+    WVOL_RETURN_IF(filter->length < 2, err, WVOL_ERR_ARG, "coefficients: filter '%s' has %d taps", filter->name,
+                   filter->length);
     memset(ly, 0, sizeof *ly);
-    ly->levels = c->levels;
-    ly->L = c->filter->length;
-    ly->s = c->filter->center;
-    ly->P[0] = c->px, ly->P[1] = c->py, ly->P[2] = c->pz;
+    ly->levels = levels;
+    ly->L = filter->length;
+    ly->s = filter->center;
+    ly->P[0] = px, ly->P[1] = py, ly->P[2] = pz;
     for (int a = 0; a < 3; a++) {
         size_t P = ly->P[a];
         ly->tr[a] = P > 1;
-        WVOL_RETURN_IF(P == 0 || (P > 1 && (P % ((size_t)1 << c->levels)) != 0), err, WVOL_ERR_DIMS,
-                       "coefficients: padded size %zu on axis %d is not a multiple of 2^%d", P, a, c->levels);
+        WVOL_RETURN_IF(P == 0 || (P > 1 && (P % ((size_t)1 << levels)) != 0), err, WVOL_ERR_DIMS,
+                       "coefficients: padded size %zu on axis %d is not a multiple of 2^%d", P, a, levels);
     }
     WVOL_RETURN_IF(!ly->tr[0] && !ly->tr[1] && !ly->tr[2], err, WVOL_ERR_DIMS,
                    "coefficients: no transformed axis (1 x 1 x 1)");

@@ -235,6 +235,9 @@ wvol_status wvol_store_query_box(const wvol_store *s, const double lo[3], const 
     trav tv;
     collect cl = {out, 0};
     WVOL_RETURN_IF(!s || !lo || !hi || !out, err, WVOL_ERR_ARG, "wvol_store_query_box: NULL argument");
+    WVOL_RETURN_IF(s->file, err, WVOL_ERR_UNSUPPORTED,
+                   "%s: a store opened on a .wvc file is read through brick reconstructions only (bricked render, "
+                   "marching cubes); build a store in memory for this", "wvol_store_query_box");
     out->count = 0;
     WVOL_FORWARD(check_extent(s, lo, hi, err));
     memset(&tv, 0, sizeof tv);
@@ -254,6 +257,9 @@ wvol_status wvol_store_query_ray(const wvol_store *s, const double o[3], const d
     trav tv;
     collect cl = {out, 0};
     WVOL_RETURN_IF(!s || !o || !d || !out, err, WVOL_ERR_ARG, "wvol_store_query_ray: NULL argument");
+    WVOL_RETURN_IF(s->file, err, WVOL_ERR_UNSUPPORTED,
+                   "%s: a store opened on a .wvc file is read through brick reconstructions only (bricked render, "
+                   "marching cubes); build a store in memory for this", "wvol_store_query_ray");
     out->count = 0;
     WVOL_RETURN_IF(!isfinite(tmin) || !isfinite(tmax) || tmin > tmax, err, WVOL_ERR_ARG,
                    "wvol_store_query_ray: bad parameter interval [%g, %g]", tmin, tmax);
@@ -377,6 +383,9 @@ wvol_status wvol_store_box_bounds(const wvol_store *s, const double lo[3], const
     bacc ac;
     double margin;
     WVOL_RETURN_IF(!s || !lo || !hi || !out, err, WVOL_ERR_ARG, "wvol_store_box_bounds: NULL argument");
+    WVOL_RETURN_IF(s->file, err, WVOL_ERR_UNSUPPORTED,
+                   "%s: a store opened on a .wvc file is read through brick reconstructions only (bricked render, "
+                   "marching cubes); build a store in memory for this", "wvol_store_box_bounds");
     memset(out, 0, sizeof *out);
     WVOL_FORWARD(check_extent(s, lo, hi, err));
     memset(&tv, 0, sizeof tv);

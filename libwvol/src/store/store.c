@@ -9,6 +9,7 @@
 #include <string.h>
 
 #include "store/store_internal.h"
+#include "codec/wvc_source.h"
 
 #define DEFAULT_J 4
 
@@ -110,6 +111,28 @@ static void store_free_parts(wvol_store *s)
     wvol_basis_destroy(s->basis);
     wvol__ranges_free(&s->rg);
     free(s->lowpass), free(s->root_of), free(s->nodes), free(s->values), free(s->hash);
+    wvol_wvc_close(s->file);
+}
+
+wvol_status wvol__store_shell(wvol_store *s, const wvol__layout *ly, const wvol_filter *filter, const size_t n[3],
+                              const double spacing[3], const double origin[3], int J, wvol_error *err)
+{
+    size_t nlow;
+    s->ly = *ly;
+    s->filter = filter;
+    s->nx = n[0], s->ny = n[1], s->nz = n[2];
+    memcpy(s->spacing, spacing, sizeof s->spacing);
+    memcpy(s->origin, origin, sizeof s->origin);
+    for (int a = 0; a < 3; a++) s->E[a] = wvol__ext(ly, a, ly->levels);
+    for (int m = 0; m <= WVOL_SELECT_MAX_LEVELS; m++) s->pow2[m] = ldexp(1.0, m), s->ipow2[m] = ldexp(1.0, -m);
+    WVOL_FORWARD(wvol_basis_create(&s->basis, filter, J, err));
+    WVOL_FORWARD(wvol__ranges_build(&s->rg, s->basis, err));
+    function_bounds(s);
+    nlow = s->E[0] * s->E[1] * s->E[2];
+    s->lowpass = malloc(nlow * sizeof *s->lowpass);
+    s->root_of = malloc(nlow * sizeof *s->root_of);
+    WVOL_RETURN_IF(!s->lowpass || !s->root_of, err, WVOL_ERR_NOMEM, "store: out of memory");
+    return WVOL_OK;
 }
 
 void wvol_store_destroy(wvol_store *s)
@@ -184,23 +207,13 @@ wvol_status wvol_store_build(wvol_store **out, const wvol_coeffs *c, const wvol_
         return wvol_error_set(err, WVOL_ERR_NOMEM, "store: out of memory");
     }
     memset(pres, 0, sizeof pres);
-    s->ly = ly;
-    s->filter = c->filter;
-    s->nx = c->nx, s->ny = c->ny, s->nz = c->nz;
-    memcpy(s->spacing, c->spacing, sizeof s->spacing);
-    memcpy(s->origin, c->origin, sizeof s->origin);
-    for (int a = 0; a < 3; a++) s->E[a] = wvol__ext(&ly, a, M);
-    for (int m = 0; m <= WVOL_SELECT_MAX_LEVELS; m++) s->pow2[m] = ldexp(1.0, m), s->ipow2[m] = ldexp(1.0, -m);
-
-    if ((st = wvol_basis_create(&s->basis, c->filter, J, err)) != WVOL_OK) goto fail;
-    if ((st = wvol__ranges_build(&s->rg, s->basis, err)) != WVOL_OK) goto fail;
-    function_bounds(s);
+    {
+        const size_t n[3] = {c->nx, c->ny, c->nz};
+        if ((st = wvol__store_shell(s, &ly, c->filter, n, c->spacing, c->origin, J, err)) != WVOL_OK) goto fail;
+    }
 
     /* the dense low-pass cube */
     nlow = s->E[0] * s->E[1] * s->E[2];
-    s->lowpass = malloc(nlow * sizeof *s->lowpass);
-    s->root_of = malloc(nlow * sizeof *s->root_of);
-    if (!s->lowpass || !s->root_of) goto nomem;
     for (size_t r = 0; r < s->E[2]; r++)
         for (size_t q = 0; q < s->E[1]; q++)
             for (size_t p = 0; p < s->E[0]; p++)
@@ -476,6 +489,13 @@ wvol_status wvol_store_densify(const wvol_store *s, wvol_coeffs **out, wvol_erro
     wvol_store_coeff e;
     WVOL_RETURN_IF(!out, err, WVOL_ERR_ARG, "wvol_store_densify: out is NULL");
     *out = NULL;
+    if (s && s->file) {
+        /* every chunk, decoded whole (what densify means; the budget bounds only the cache) */
+        wvol_coeffs *d = NULL;
+        WVOL_FORWARD(wvol_wvc_read(&d, wvol__wvc_file_path(s->file), NULL, NULL, err));
+        *out = d;
+        return WVOL_OK;
+    }
     WVOL_RETURN_IF(!s, err, WVOL_ERR_ARG, "wvol_store_densify: store is NULL");
     WVOL_FORWARD(wvol_coeffs_create(&c, s->filter, s->ly.levels, s->nx, s->ny, s->nz, err));
     if (c->px != s->ly.P[0] || c->py != s->ly.P[1] || c->pz != s->ly.P[2]) {

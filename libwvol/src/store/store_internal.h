@@ -23,6 +23,9 @@ typedef struct wvol__layout {
 } wvol__layout;
 
 wvol_status wvol__layout_init(wvol__layout *ly, const wvol_coeffs *c, wvol_error *err);
+/* The same from the sizes alone (a file-backed store has no dense pyramid). */
+wvol_status wvol__layout_init_dims(wvol__layout *ly, const wvol_filter *filter, int levels, size_t px, size_t py,
+                                   size_t pz, wvol_error *err);
 
 /* Extent of a band of level m along axis a (1 on an untransformed axis). */
 static inline size_t wvol__ext(const wvol__layout *ly, int a, int m)
@@ -159,6 +162,9 @@ static inline void wvol__key_pos(uint64_t k, size_t pos[3])
 
 struct wvol_store {
     wvol__layout ly;
+    struct wvol_wvc_file *file; /* a store opened on a .wvc file (store_file.c): no nodes; its
+                                   detail coefficients are read through the file's chunk cache
+                                   by the block view (blocks.c); NULL for a built store */
     const wvol_filter *filter;
     size_t nx, ny, nz;
     double spacing[3], origin[3];
@@ -179,5 +185,15 @@ struct wvol_store {
     double norm[WVOL_SELECT_MAX_LEVELS + 1];  /* 2^{-m d / 2} */
     double pow2[WVOL_SELECT_MAX_LEVELS + 1], ipow2[WVOL_SELECT_MAX_LEVELS + 1];  /* 2^m, 2^-m */
 };
+
+/* A file-backed store's first decoding error since the last call (gathers cannot
+ * return one): WVOL_OK for a built store. */
+wvol_status wvol__store_file_error(const wvol_store *s, wvol_error *err);
+
+/* What wvol_store_build and wvol_store_open share: layout, grid, basis tables and their
+ * ranges, per-(level, band) function bounds, and the low-pass cube and root table
+ * allocated (E0 E1 E2 each, not filled). s is zeroed; on failure the caller destroys it. */
+wvol_status wvol__store_shell(wvol_store *s, const wvol__layout *ly, const wvol_filter *filter, const size_t n[3],
+                              const double spacing[3], const double origin[3], int J, wvol_error *err);
 
 #endif

@@ -212,6 +212,25 @@ void wvol__bounds_add(brick_bounds *b, int m, int band, size_t p, size_t q, size
     if (!(av <= *slot)) *slot = isnan(av) ? INFINITY : av;
 }
 
+void wvol__bounds_add_box(brick_bounds *b, int m, int band, const size_t lo[3], const size_t hi[3], float value)
+{
+    band_blocks *bq = band_of(b, m, band);
+    float av = fabsf(value);
+    size_t b0[3], b1[3];
+    if (!bq) return;
+    for (int a = 0; a < 3; a++) {
+        if (lo[a] >= hi[a] || lo[a] >= bq->e[a]) return;
+        b0[a] = lo[a] >> bq->bshift[a];
+        b1[a] = ((hi[a] < bq->e[a] ? hi[a] : bq->e[a]) - 1) >> bq->bshift[a];
+    }
+    for (size_t z = b0[2]; z <= b1[2]; z++)
+        for (size_t y = b0[1]; y <= b1[1]; y++)
+            for (size_t x = b0[0]; x <= b1[0]; x++) {
+                float *slot = &bq->absmax[x + bq->nb[0] * (y + bq->nb[1] * z)];
+                if (!(av <= *slot)) *slot = isnan(av) ? INFINITY : av;
+            }
+}
+
 void wvol__bounds_fill_coeffs(brick_bounds *b, const wvol_coeffs *c)
 {
     /* one pass over the coefficients; a thread owns whole z-slabs of blocks */

@@ -61,6 +61,9 @@ wvol_status wvol__bounds_create(wvol__brick_bounds **out, const wvol_filter *f, 
                                 const float *low, size_t low_sy, size_t low_sz, wvol_error *err);
 void wvol__bounds_fill_coeffs(wvol__brick_bounds *b, const wvol_coeffs *c);
 void wvol__bounds_add(wvol__brick_bounds *b, int m, int band, size_t p, size_t q, size_t r, float value);
+/* The same for every position of the box [lo, hi) of a band at once (a bound of the box's
+ * coefficients, e.g. a file chunk's maximum). */
+void wvol__bounds_add_box(wvol__brick_bounds *b, int m, int band, const size_t lo[3], const size_t hi[3], float value);
 void wvol__bounds_finish(wvol__brick_bounds *b);
 /* Bound of the samples in the box [s0, s1] (inclusive voxel indices). */
 void wvol__bounds_box(const wvol__brick_bounds *b, const long s0[3], const long s1[3], double *vmin, double *vmax);

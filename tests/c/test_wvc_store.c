@@ -1,0 +1,157 @@
+/* SPDX-License-Identifier: MIT
+ * A store opened on a .wvc file (wvol_store_open, libwvol/src/store/store_file.c) gives the
+ * same bricked render and the same marching-cubes mesh as a store built in memory from the
+ * file's decoded coefficients, within a small memory budget that the chunk cache keeps;
+ * octree queries refuse it; a budget below one chunk chain is refused. */
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "check.h"
+#include "fixtures.h"
+#include "wvol/iso.h"
+#include "wvol/render.h"
+#include "wvol/store.h"
+#include "wvol/wvc.h"
+
+/* A thick shell and a blob (as in test_render_bricks.c): bricks far from both are empty. */
+static double phantom_voxel(const wvol_volume *v, size_t i, size_t j, size_t k, const void *ctx)
+{
+    double x = (i - (v->nx - 1) / 2.0) / (v->nx / 2.0), y = (j - (v->ny - 1) / 2.0) / (v->ny / 2.0),
+           z = (k - (v->nz - 1) / 2.0) / (v->nz / 2.0), r = sqrt(x * x + y * y + z * z);
+    double shell = 0.5 * (tanh((r - 0.35) / 0.05) - tanh((r - 0.6) / 0.05));
+    (void)ctx;
+    return shell + 0.3 * exp(-((x - 0.1) * (x - 0.1) + y * y + z * z) / 0.02);
+}
+
+static const char *PATH = "test_wvc_store.wvc";
+
+/* Writes the phantom's .wvc (db2, 3 levels, 50 dB, small chunks: many of them) and builds
+ * the in-memory store of the same decoded coefficients. */
+static wvol_store *file_and_memory_store(size_t n, double *vmin, double *vmax)
+{
+    wvol_volume *v = fixture_volume(n, n - 6, n + 4, phantom_voxel, NULL);
+    wvol_coeffs *c = NULL, *d = NULL;
+    wvol_store *ms = NULL;
+    wvol_wvc_params p;
+    wvol_error err;
+    void *buf = NULL;
+    size_t nb = 0;
+    if (!v) return NULL;
+    wvol_volume_range(v, vmin, vmax, NULL);
+    CHECK(wvol_dwt3(&c, v, fixture_filter("db2"), 3, &err) == WVOL_OK, "dwt: %s", err.message);
+    wvol_wvc_params_default(&p);
+    p.value_min = *vmin, p.value_max = *vmax;
+    p.target_sse = wvol_wvc_sse_for_psnr(50, (double)wvol_volume_count(v), *vmin, *vmax);
+    p.tile = 8, p.tile_z = 8;
+    CHECK(c && wvol_wvc_encode(&buf, &nb, c, &p, NULL, &err) == WVOL_OK, "encode: %s", err.message);
+    CHECK(buf && wvol_wvc_save(PATH, buf, nb, &err) == WVOL_OK, "save: %s", err.message);
+    CHECK(buf && wvol_wvc_decode(&d, buf, nb, NULL, NULL, &err) == WVOL_OK, "decode: %s", err.message);
+    CHECK(d && wvol_store_build(&ms, d, NULL, NULL, &err) == WVOL_OK, "store: %s", err.message);
+    free(buf);
+    wvol_coeffs_destroy(c);
+    wvol_coeffs_destroy(d);
+    wvol_volume_destroy(v);
+    return ms;
+}
+
+static void file_store_meshes_and_renders_like_the_memory_store(void)
+{
+    double vmin, vmax;
+    const size_t n = 56;
+    wvol_store *ms = file_and_memory_store(n, &vmin, &vmax), *fs = NULL;
+    wvol_error err;
+    wvol_wvc_cache_stats cs;
+    /* a chunk here is at most 8 bands x 8^3 int32 = 16 KiB: the budget holds 40 of them, a
+     * small part of the file's ~200 decoded chunks */
+    const size_t budget = 40 * 16500;
+    if (!ms) return;
+    CHECK(wvol_store_open(&fs, PATH, 1000, NULL, &err) == WVOL_ERR_NOMEM && strstr(err.message, "budget"),
+          "a budget below one chunk chain is refused: %s", err.message);
+    CHECK(wvol_store_open(&fs, PATH, budget, NULL, &err) == WVOL_OK, "open: %s", err.message);
+    if (!fs) {
+        wvol_store_destroy(ms);
+        return;
+    }
+    CHECK(wvol_store_is_file(fs) && !wvol_store_is_file(ms), "file stores are told apart");
+    {
+        /* octree queries refuse a file store instead of answering from the low-pass alone */
+        wvol_store_hits h = {0};
+        const double lo[3] = {0, 0, 0}, hi[3] = {4, 4, 4};
+        CHECK(wvol_store_query_box(fs, lo, hi, &h, &err) == WVOL_ERR_UNSUPPORTED, "query_box refused");
+        wvol_store_hits_free(&h);
+    }
+    {
+        /* marching cubes brick by brick: the same mesh from both stores (same coefficients, the
+         * same bricks reconstructed from them: the file's looser chunk bounds may only make it
+         * reconstruct more bricks, which hold no surface) */
+        wvol_mesh *a = NULL, *b = NULL;
+        wvol_iso_params ip;
+        wvol_iso_stats sa, sb;
+        double iso = 0.5 * (vmin + vmax), maxd = 0;
+        wvol_iso_params_default(&ip);
+        ip.brick = 16;
+        CHECK(wvol_iso_extract_store(&a, ms, iso, &ip, &sa, &err) == WVOL_OK, "mc memory: %s", err.message);
+        CHECK(wvol_iso_extract_store(&b, fs, iso, &ip, &sb, &err) == WVOL_OK, "mc file: %s", err.message);
+        if (a && b) {
+            CHECK(a->ntris == b->ntris && a->nverts == b->nverts && a->ntris > 100,
+                  "meshes: %zu / %zu triangles, %zu / %zu vertices", a->ntris, b->ntris, a->nverts, b->nverts);
+            /* vertices: the same brick reconstructions up to float rounding of the sums */
+            if (a->nverts == b->nverts)
+                for (size_t i = 0; i < 3 * a->nverts; i++)
+                    if (fabs((double)a->verts[i] - (double)b->verts[i]) > maxd)
+                        maxd = fabs((double)a->verts[i] - (double)b->verts[i]);
+            CHECK(maxd < 1e-4, "vertices differ by %g voxels", maxd);
+        }
+        wvol_mesh_destroy(a);
+        wvol_mesh_destroy(b);
+        CHECK(wvol_store_file_stats(fs, &cs, &err) == WVOL_OK, "no decoding error: %s", err.message);
+        CHECK(cs.peak <= budget && cs.decoded > 0, "mc: cache peak %zu within %zu, %llu chunks decoded", cs.peak,
+              budget, (unsigned long long)cs.decoded);
+    }
+    {
+        /* a bricked render: the same image */
+        wvol_geometry g;
+        wvol_camera cam;
+        wvol_tf tf;
+        wvol_render_params rp;
+        wvol_image *ia = NULL, *ib = NULL;
+        wvol_render_source sa = wvol_render_source_store(ms), sb = wvol_render_source_store(fs);
+        wvol_coeffs *d = NULL;
+        char tfs[160];
+        double e;
+        CHECK(wvol_store_densify(fs, &d, &err) == WVOL_OK, "densify reads the file: %s", err.message);
+        if (d) wvol_geometry_of_coeffs(&g, d);
+        wvol_coeffs_destroy(d);
+        snprintf(tfs, sizeof tfs, "0 0.2 0.3 0.9 0\n%g 0.2 0.3 0.9 0\n%g 1 0.8 0.5 0.5\n", vmin + 0.2 * (vmax - vmin),
+                 vmax);
+        CHECK(wvol_camera_parse(&cam, "persp dir=1,0.7,0.4", &g, 40, 32, &err) == WVOL_OK, "%s", err.message);
+        CHECK(wvol_tf_parse(&tf, tfs, "tf", &err) == WVOL_OK, "%s", err.message);
+        wvol_render_params_default(&rp);
+        rp.method = WVOL_RENDER_METHOD_BRICKS;
+        rp.mode = WVOL_RENDER_MODE_ABSORPTION;
+        rp.step = 0.5;
+        rp.bricks.brick = 16;
+        CHECK(wvol_image_create(&ia, 40, 32, &err) == WVOL_OK && wvol_image_create(&ib, 40, 32, &err) == WVOL_OK,
+              "images");
+        CHECK(wvol_render(ia, &sa, &cam, &tf, &rp, NULL, &err) == WVOL_OK, "render memory: %s", err.message);
+        CHECK(wvol_render(ib, &sb, &cam, &tf, &rp, NULL, &err) == WVOL_OK, "render file: %s", err.message);
+        /* the same samples of bricks equal to float rounding (see test_render_bricks.c) */
+        e = wvol_image_rmse(ib, ia, -1, 1);
+        CHECK(e < 2e-5, "bricked render from the file against the memory store: rel. RMSE %.3g", e);
+        CHECK(wvol_store_file_stats(fs, &cs, &err) == WVOL_OK, "no decoding error: %s", err.message);
+        CHECK(cs.peak <= budget, "render: cache peak %zu within %zu", cs.peak, budget);
+        wvol_image_destroy(ia);
+        wvol_image_destroy(ib);
+    }
+    wvol_store_destroy(fs);
+    wvol_store_destroy(ms);
+    remove(PATH);
+}
+
+int main(void)
+{
+    file_store_meshes_and_renders_like_the_memory_store();
+    return check_summary("test_wvc_store");
+}

@@ -1,0 +1,132 @@
+# SPDX-License-Identifier: MIT
+"""The random-access .wvc (format 2) from the command line: regions and levels read from the
+file equal the same part of a whole decode; reads stay within --memory, with the resident
+peak of the process measured; every command that takes a volume takes a .wvc; a damaged
+chunk fails only the regions that need it, naming it; a budget too small is refused."""
+import json
+import os
+import subprocess
+
+import numpy as np
+import pytest
+
+from conftest import WVOL_BIN
+
+N = 96
+
+
+@pytest.fixture(scope="module")
+def wvc(tmp_path_factory):
+    """A 96^3 noisy skull as format 2 with small tiles (many chunks), and its whole decode."""
+    d = tmp_path_factory.mktemp("wvc2")
+    vol, f, full = d / "s.nrrd", d / "s.wvc", d / "full.raw"
+    for cmd in (["synth", "skull", "--size", str(N), "--noise", "20", "-o", vol],
+                ["compress", vol, "-o", f, "--psnr", "50", "--levels", "3", "--tile", "16,16"],
+                ["decompress", f, "-o", full]):
+        r = subprocess.run([WVOL_BIN, *map(str, cmd)], capture_output=True, text=True)
+        assert r.returncode == 0, r.stderr
+    return d, f, np.fromfile(full, dtype="<f4").reshape(N, N, N)
+
+
+def peak_rss(*args):
+    """Peak resident memory (bytes) of one wvol run, from the kernel's accounting of the child."""
+    p = subprocess.Popen([WVOL_BIN, *map(str, args)], stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    _, status, ru = os.wait4(p.pid, 0)
+    out, err = p.stdout.read(), p.stderr.read()
+    assert os.waitstatus_to_exitcode(status) == 0, err.decode()
+    return ru.ru_maxrss * 1024, out.decode()
+
+
+@pytest.mark.parametrize("level", [0, 1, 2])
+def test_region_equals_the_whole_decode(wvc, level):
+    d, f, full = wvc
+    # boxes at the corner, at the far edges (the periodic basis wraps there) and inside
+    for box in ([0, 0, 0, 20, 9, 33], [70, 80, 90, 96, 96, 96], [17, 40, 5, 61, 59, 77]):
+        out = d / f"r{level}.raw"
+        r = subprocess.run([WVOL_BIN, "decompress", str(f), "-o", str(out), "--roi", ",".join(map(str, box)),
+                            "--level", str(level), "--json"], capture_output=True, text=True)
+        assert r.returncode == 0, r.stderr
+        info = json.loads(r.stdout)
+        lo = [b >> level for b in box[:3]]
+        hi = [-(-b // 2 ** level) for b in box[3:]]
+        got = np.fromfile(out, dtype="<f4").reshape(hi[2] - lo[2], hi[1] - lo[1], hi[0] - lo[0])
+        ref = full if level == 0 else None
+        if ref is None:
+            lv = d / f"level{level}.raw"
+            assert subprocess.run([WVOL_BIN, "decompress", str(f), "-o", str(lv), "--level", str(level)],
+                                  capture_output=True).returncode == 0
+            n = -(-N // 2 ** level)
+            ref = np.fromfile(lv, dtype="<f4").reshape(n, n, n)
+        want = ref[lo[2]:hi[2], lo[1]:hi[1], lo[0]:hi[0]]
+        # float rounding of two summation orders of the same coefficients: 1e-5 of the peak
+        assert np.max(np.abs(got - want)) <= 1e-5 * np.max(np.abs(ref)), box
+        ch = info["chunks"]
+        assert 0 < ch["decoded"] <= ch["file_chunks"]
+
+
+def test_reads_stay_within_the_memory_budget(wvc):
+    d, f, _ = wvc
+    budget = 3 << 20
+    # the process with nothing decoded: the program, its libraries, the index
+    base, _ = peak_rss("info", f)
+    whole, _ = peak_rss("decompress", f, "-o", d / "w.raw")
+    rss, out = peak_rss("decompress", f, "-o", d / "r.raw", "--roi", "0,0,0,96,96,96", "--memory", "3M", "--json")
+    ch = json.loads(out)["chunks"]
+    assert ch["cache_peak_bytes"] <= budget
+    # resident peak: the base, the budget, the output volume (3.4 MiB) and the brick
+    # reconstruction's scratch and image (a few MiB): 16 MiB of slack
+    assert rss <= base + budget + 4 * N**3 + (16 << 20), (rss, base)
+    # and marching cubes from the file within the same budget
+    rss_mc, _ = peak_rss("iso", f, "-o", d / "m.ply", "--iso", "300", "--memory", "3M")
+    assert rss_mc <= base + budget + (48 << 20), (rss_mc, base, whole)
+
+
+def test_every_command_takes_a_wvc(wvc):
+    d, f, _ = wvc
+    for cmd in (["render", f, "-o", d / "img.png", "--size", "48x48", "--memory", "8M"],
+                ["iso", f, "-o", d / "m.ply", "--iso", "300"],
+                ["convert", f, d / "c.nrrd"]):
+        r = subprocess.run([WVOL_BIN, *map(str, cmd)], capture_output=True, text=True)
+        assert r.returncode == 0, (cmd, r.stderr)
+    r = subprocess.run([WVOL_BIN, "info", str(f), "--json"], capture_output=True, text=True)
+    info = json.loads(r.stdout)
+    assert info["version"] == 2 and info["chunks"] > 1
+
+
+def test_damage_is_named_and_confined(wvc):
+    d, f, _ = wvc
+    data = bytearray(f.read_bytes())
+    info = json.loads(subprocess.run([WVOL_BIN, "info", str(f), "--json"], capture_output=True,
+                                     text=True).stdout)
+    nsec, nchunks = 1 + 7 * info["levels"], info["chunks"]
+    idx = 224 + 48 * nsec
+    # the first level-1 chunk (level 1 comes last in the index) covers the origin
+    first1 = nchunks - (N // 2 // 16) ** 3
+    off = int.from_bytes(data[idx + 32 * first1: idx + 32 * first1 + 8], "little")
+    assert off > 0
+    data[off + 3] ^= 0x40
+    bad = d / "bad.wvc"
+    bad.write_bytes(bytes(data))
+    r = subprocess.run([WVOL_BIN, "decompress", str(bad), "-o", str(d / "x.raw"), "--roi", "0,0,0,8,8,8"],
+                       capture_output=True, text=True)
+    assert r.returncode == 1 and "chunk" in r.stderr and "level 1" in r.stderr, r.stderr
+    assert not (d / "x.raw").exists()
+    r = subprocess.run([WVOL_BIN, "decompress", str(bad), "-o", str(d / "y.raw"), "--roi", "60,60,60,90,90,90"],
+                       capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    r = subprocess.run([WVOL_BIN, "info", str(bad)], capture_output=True, text=True)
+    assert r.returncode == 1 and "chunk" in r.stderr
+    r = subprocess.run([WVOL_BIN, "decompress", str(f), "-o", str(d / "z.raw"), "--roi", "0,0,0,8,8,8",
+                        "--memory", "1K"], capture_output=True, text=True)
+    assert r.returncode == 1 and "budget" in r.stderr, r.stderr
+
+
+def test_python_region_equals_the_whole_decode(wvc):
+    wvol = pytest.importorskip("wvol")
+    d, f, full = wvc
+    arr, stats = wvol.wvc_region(f, (5, 60, 30), (40, 96, 77), level=0, memory=4 << 20)
+    assert arr.shape == (47, 36, 35)
+    assert np.max(np.abs(arr - full[30:77, 60:96, 5:40])) <= 1e-5 * np.max(np.abs(full))
+    assert 0 < stats["chunks_decoded"] and stats["cache_peak_bytes"] <= 4 << 20
+    with pytest.raises(Exception, match="outside"):
+        wvol.wvc_region(f, (0, 0, 0), (97, 4, 4))
