@@ -113,6 +113,17 @@ static int compress_streamed(const char *in, const char *outp, const wvol_load_o
         if (wvol_source_read_volume(src, &v, &err) != WVOL_OK || wvol_wvc_compare(&sse_meas, &maxerr, v, rec, &err))
             goto fail;
         m_psnr = wvol_wvc_psnr(sse_meas, nvox, rep.value_min, rep.value_max);
+        if (psnr > 0 && m_psnr < psnr - 0.01) {
+            /* as in memory: the encoder's error is exact in double, so a miss is the float32
+             * decoding's own rounding (subnormal values); no file is left */
+            remove(outp);
+            rc = cli_fail("compress",
+                          "%s with --psnr %g: the decoded volume measures %.3f dB (predicted %.3f dB): float32 "
+                          "cannot hold the reconstruction that precisely at magnitudes ~%.3g (subnormal below "
+                          "1.18e-38); no file written",
+                          in, psnr, m_psnr, p_psnr, fmax(fabs(rep.value_min), fabs(rep.value_max)));
+            goto done;
+        }
     }
     raw_bytes = nvox * sizeof(float);
     bpv = 8.0 * (double)rep.bytes / nvox;
@@ -326,6 +337,7 @@ int wvol_cmd_compress(int argc, char **argv)
         cp.quant.rounding = rounding;
         cp.quant.coder = coder;
         cp.quant.tile = (int)tile;
+        cp.quant.tile_z = (int)tile_z;
         return compress_streamed(in, outp, &lo, &cp, step > 0 ? 0 : psnr, verify, json);
     }
     t0 = cli_now();

@@ -157,6 +157,7 @@ wvol_status wvol_compress_stream(const char *path, wvol_source *src, const wvol_
     h.value_min = out.value_min, h.value_max = out.value_max;
     h.rounding = wp.rounding;
     h.tile = wp.tile;
+    h.tile_z = wp.tile_z;
     h.coder = wp.coder;
     h.zstd_level = wp.zstd_level;
     out.writer_bytes = wvol__wvc2_writer_memory(&h, (size_t)f->length + 8);
