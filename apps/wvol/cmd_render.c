@@ -210,9 +210,10 @@ static int load_input(const render_args *a, render_input *in, wvol_error *err)
     dense = !in->is_wvc && a->keep >= 1.0 &&
             (a->rp.method == WVOL_RENDER_METHOD_AUTO || a->rp.method == WVOL_RENDER_METHOD_REFERENCE);
     if (in->is_wvc && a->keep >= 1.0 &&
-        (a->rp.method == WVOL_RENDER_METHOD_AUTO || a->rp.method == WVOL_RENDER_METHOD_BRICKS)) {
+        (a->rp.method == WVOL_RENDER_METHOD_BRICKS ||
+         (a->rp.method == WVOL_RENDER_METHOD_AUTO && a->rp.mode != WVOL_RENDER_MODE_XRAY))) {
         /* the bricked renderer reads the file chunk by chunk within --memory (main() makes AUTO
-         * bricks for it) */
+         * bricks for it; an X-ray's AUTO may pick a fast path that needs the octree: built below) */
         const wvol_wvc_info *wi;
         if (cli_open_wvc_store("render", a->in, a->memory, &in->store) != CLI_OK) return CLI_FAILED;
         wi = wvol_store_file_info(in->store.store);

@@ -464,6 +464,11 @@ static void decoder_refuses_overflow(const wvol_volume *v)
     h = buf;
     memcpy(&nsec, h + 12, 4); /* little-endian hosts (the format's order) */
     hn = 208 + (size_t)nsec * 48;
+    if (h[8] == 2) { /* version 2: a longer header, the band table and the chunk index under the CRC */
+        uint64_t nchunks;
+        memcpy(&nchunks, h + 208, 8);
+        hn = 224 + (size_t)nsec * 48 + (size_t)nchunks * 32;
+    }
     memcpy(h + 152, &step, 8);
     {
         uint32_t crc = (uint32_t)crc32(0L, h, (uInt)hn);

@@ -480,14 +480,17 @@ wvol_status wvol__wvc2_writer_put(wvc2_writer *w, int level, size_t z0, size_t n
     }
     WVOL_RETURN_IF(bad, err, WVOL_ERR_NONFINITE, "wvc2 writer: level %d rows %zu..%zu hold NaN or Inf (or overflow)",
                    level, z0, z0 + nz);
-    {
-        /* the largest value the decoder can make, (|q| + 1) step, must be a float32 */
-        double lim = WVC_MAX_STEP / w->h.step - 2.0;
-        for (size_t id = 0; id < G->count; id++)
-            WVOL_RETURN_IF((double)L->maxabs[id] / w->h.step + 0.5 > lim || L->maxabs[id] / w->h.step >= WVC_QMAX / 2,
-                           err, WVOL_ERR_ARG,
-                           "wvc2 writer: coefficients reach %g: too large for step %g", (double)L->maxabs[id],
-                           w->h.step);
+    for (size_t id = 0; id < G->count; id++) {
+        /* as the whole-pyramid encoder: |q| stays below WVC_QMAX / 2, and the largest value
+         * the decoder can make, (|q| + offset) step with |offset| <= 1, is a float32 */
+        double mx = L->maxabs[id];
+        WVOL_RETURN_IF(mx / w->h.step > (double)(WVC_QMAX / 2), err, WVOL_ERR_ARG,
+                       "wvc2 writer: step %g is below %g, the smallest coefficients of %g allow", w->h.step,
+                       mx / (double)(WVC_QMAX / 2), mx);
+        WVOL_RETURN_IF((floor(mx / w->h.step + 0.5) + 1.0) * w->h.step > WVC_MAX_STEP, err, WVOL_ERR_NONFINITE,
+                       "wvc2 writer: coefficients reach %g: with step %g a dequantised value could exceed "
+                       "float32's 3.4e38; scale the volume down (or give a smaller step)",
+                       mx, w->h.step);
     }
     L->z_next = z0 + nz;
     return code_ready(w, err);
