@@ -100,7 +100,8 @@ def run_wvol(path, n, family, levels, target, workdir, repeat=1, coder="auto", t
     out = workdir / "tmp.wvc"
     env = dict(os.environ, OMP_NUM_THREADS=str(threads))
     cmd = [WVOL, "compress", str(path), "--dims", f"{n}x{n}x{n}", "-o", str(out), "--wavelet", family,
-           "--levels", str(levels), "--psnr", str(target), "--coder", coder, "--threads", str(threads), "--json"]
+           "--levels", str(levels), "--psnr", str(target), "--coder", coder, "--threads", str(threads), "--json",
+           "--in-memory", "--verify"]
     enc = dec = math.inf
     for _ in range(repeat):
         r = subprocess.run(cmd, capture_output=True, text=True, env=env)

@@ -26,19 +26,24 @@ static void gauss_row(const void *vctx, const synth_grid *g, size_t j, size_t k,
     }
 }
 
-wvol_status wvol_synth_gaussian(wvol_volume **out, const wvol_synth_params *p, wvol_error *err)
+wvol_status wvol__synth_plan_gaussian(synth_plan *pl, const wvol_synth_params *p, wvol_error *err)
 {
-    synth_grid g;
-    gauss_ctx c;
+    gauss_ctx *c;
     double sigma;
     WVOL_RETURN_IF(!p, err, WVOL_ERR_ARG, "synth gaussian: NULL parameters");
     sigma = p->sigma == 0 ? 0.25 : p->sigma;
     WVOL_RETURN_IF(!(sigma > 0) || !isfinite(sigma), err, WVOL_ERR_ARG,
                    "synth gaussian: sigma %g must be finite and positive", p->sigma);
-    WVOL_FORWARD(wvol__synth_setup(out, NULL, &g, p, NULL, "gaussian", err));
-    c.inv2s2 = 1.0 / (2.0 * sigma * sigma);
-    wvol__synth_run_rows(&g, *out, NULL, gauss_row, &c, p);
+    WVOL_FORWARD(wvol__synth_geometry(&pl->g, p, NULL, "gaussian", err));
+    WVOL_RETURN_IF(!(c = wvol__synth_plan_ctx(pl, sizeof *c, gauss_row)), err, WVOL_ERR_NOMEM,
+                   "synth gaussian: out of memory");
+    c->inv2s2 = 1.0 / (2.0 * sigma * sigma);
     return WVOL_OK;
+}
+
+wvol_status wvol_synth_gaussian(wvol_volume **out, const wvol_synth_params *p, wvol_error *err)
+{
+    return wvol__synth_whole(out, NULL, wvol__synth_plan_gaussian, p, "gaussian", err);
 }
 
 /* ---- blobs --------------------------------------------------------------- */
@@ -97,20 +102,22 @@ static void random_rotation(wvol_rng *r, double R[3][3])
     R[2][2] = 1 - 2 * (x * x + y * y);
 }
 
-wvol_status wvol_synth_blobs(wvol_volume **out, const wvol_synth_params *p, wvol_error *err)
+wvol_status wvol__synth_plan_blobs(synth_plan *pl, const wvol_synth_params *p, wvol_error *err)
 {
-    synth_grid g;
-    blobs_ctx c;
+    blobs_ctx *c;
     wvol_rng rng;
-    int n, a, b2, m;
+    int n, a, b2, m, count;
     WVOL_RETURN_IF(!p, err, WVOL_ERR_ARG, "synth blobs: NULL parameters");
-    c.n = p->count == 0 ? 5 : p->count;
-    WVOL_RETURN_IF(c.n < 1 || c.n > MAX_BLOBS, err, WVOL_ERR_ARG,
+    count = p->count == 0 ? 5 : p->count;
+    WVOL_RETURN_IF(count < 1 || count > MAX_BLOBS, err, WVOL_ERR_ARG,
                    "synth blobs: count %d must be from 1 to %d", p->count, MAX_BLOBS);
-    WVOL_FORWARD(wvol__synth_setup(out, NULL, &g, p, NULL, "blobs", err));
+    WVOL_FORWARD(wvol__synth_geometry(&pl->g, p, NULL, "blobs", err));
+    WVOL_RETURN_IF(!(c = wvol__synth_plan_ctx(pl, sizeof *c, blobs_row)), err, WVOL_ERR_NOMEM,
+                   "synth blobs: out of memory");
+    c->n = count;
     wvol_rng_seed(&rng, p->seed ^ 0xB10B5ull);
-    for (n = 0; n < c.n; n++) {
-        blob *b = &c.b[n];
+    for (n = 0; n < c->n; n++) {
+        blob *b = &c->b[n];
         double R[3][3], s[3], smax = 0;
         for (a = 0; a < 3; a++) b->c[a] = -0.45 + 0.9 * wvol_rng_uniform(&rng);
         b->amp = 0.3 + 0.7 * wvol_rng_uniform(&rng);
@@ -129,6 +136,10 @@ wvol_status wvol_synth_blobs(wvol_volume **out, const wvol_synth_params *p, wvol
         /* exp(-r^2 / (2 smax^2)) < 1e-9 beyond r^2 = 2 smax^2 * 20.7 */
         b->reach2 = 2.0 * smax * smax * 20.8;
     }
-    wvol__synth_run_rows(&g, *out, NULL, blobs_row, &c, p);
     return WVOL_OK;
+}
+
+wvol_status wvol_synth_blobs(wvol_volume **out, const wvol_synth_params *p, wvol_error *err)
+{
+    return wvol__synth_whole(out, NULL, wvol__synth_plan_blobs, p, "blobs", err);
 }

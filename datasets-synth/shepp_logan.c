@@ -58,10 +58,9 @@ static void sl_row(const void *vctx, const synth_grid *g, size_t j, size_t k, fl
     }
 }
 
-wvol_status wvol_synth_shepp_logan(wvol_volume **out, const wvol_synth_params *p, wvol_error *err)
+wvol_status wvol__synth_plan_shepp_logan(synth_plan *pl, const wvol_synth_params *p, wvol_error *err)
 {
-    synth_grid g;
-    sl_ctx c;
+    sl_ctx *c;
     const double *rho = sl_density_ks;
     int e, a;
     WVOL_RETURN_IF(!p, err, WVOL_ERR_ARG, "synth shepp-logan: NULL parameters");
@@ -71,17 +70,23 @@ wvol_status wvol_synth_shepp_logan(wvol_volume **out, const wvol_synth_params *p
                        p->variant);
         rho = sl_density_yyw;
     }
-    WVOL_FORWARD(wvol__synth_setup(out, NULL, &g, p, NULL, "shepp-logan", err));
+    WVOL_FORWARD(wvol__synth_geometry(&pl->g, p, NULL, "shepp-logan", err));
+    WVOL_RETURN_IF(!(c = wvol__synth_plan_ctx(pl, sizeof *c, sl_row)), err, WVOL_ERR_NOMEM,
+                   "synth shepp-logan: out of memory");
     for (e = 0; e < SL_N; e++) {
         double phi = sl_table[e][6] * 3.14159265358979323846 / 180.0;
         for (a = 0; a < 3; a++) {
-            c.c[e][a] = sl_table[e][a];
-            c.inv_a2[e][a] = 1.0 / (sl_table[e][3 + a] * sl_table[e][3 + a]);
+            c->c[e][a] = sl_table[e][a];
+            c->inv_a2[e][a] = 1.0 / (sl_table[e][3 + a] * sl_table[e][3 + a]);
         }
-        c.cs[e][0] = cos(phi);
-        c.cs[e][1] = sin(phi);
-        c.rho[e] = rho[e];
+        c->cs[e][0] = cos(phi);
+        c->cs[e][1] = sin(phi);
+        c->rho[e] = rho[e];
     }
-    wvol__synth_run_rows(&g, *out, NULL, sl_row, &c, p);
     return WVOL_OK;
+}
+
+wvol_status wvol_synth_shepp_logan(wvol_volume **out, const wvol_synth_params *p, wvol_error *err)
+{
+    return wvol__synth_whole(out, NULL, wvol__synth_plan_shepp_logan, p, "shepp-logan", err);
 }

@@ -443,11 +443,9 @@ static void skull_row(const void *vctx, const synth_grid *g, size_t j, size_t k,
     }
 }
 
-wvol_status wvol_synth_skull(wvol_volume **out, wvol_volume **labels, const wvol_synth_params *p,
-                             wvol_error *err)
+wvol_status wvol__synth_plan_skull(synth_plan *pl, const wvol_synth_params *p, wvol_error *err)
 {
-    synth_grid g;
-    skull_ctx c;
+    skull_ctx *cp;
     double def[3], nmax;
     WVOL_RETURN_IF(!p, err, WVOL_ERR_ARG, "synth skull: NULL parameters");
     WVOL_RETURN_IF(p->variant && *p->variant && strcmp(p->variant, "head") && strcmp(p->variant, "ct"), err,
@@ -455,12 +453,20 @@ wvol_status wvol_synth_skull(wvol_volume **out, wvol_volume **labels, const wvol
     nmax = (double)(p->dims[0] > p->dims[1] ? p->dims[0] : p->dims[1]);
     if ((double)p->dims[2] > nmax) nmax = (double)p->dims[2];
     def[0] = def[1] = def[2] = nmax > 0 ? 240.0 / nmax : 1.0;
-    WVOL_FORWARD(wvol__synth_setup(out, labels, &g, p, def, "skull", err));
-    mandible_init(&c);
-    c.mm_per_u = 120.0;
-    c.h = g.voxel_u * 120.0;
-    c.seed = wvol_hash64(p->seed ^ 0x5C011ull);
-    c.table = p->variant && !strcmp(p->variant, "ct");
-    wvol__synth_run_rows(&g, *out, labels ? *labels : NULL, skull_row, &c, p);
+    WVOL_FORWARD(wvol__synth_geometry(&pl->g, p, def, "skull", err));
+    WVOL_RETURN_IF(!(cp = wvol__synth_plan_ctx(pl, sizeof *cp, skull_row)), err, WVOL_ERR_NOMEM,
+                   "synth skull: out of memory");
+    pl->has_labels = 1;
+    mandible_init(cp);
+    cp->mm_per_u = 120.0;
+    cp->h = pl->g.voxel_u * 120.0;
+    cp->seed = wvol_hash64(p->seed ^ 0x5C011ull);
+    cp->table = p->variant && !strcmp(p->variant, "ct");
     return WVOL_OK;
+}
+
+wvol_status wvol_synth_skull(wvol_volume **out, wvol_volume **labels, const wvol_synth_params *p,
+                             wvol_error *err)
+{
+    return wvol__synth_whole(out, labels, wvol__synth_plan_skull, p, "skull", err);
 }

@@ -2,8 +2,10 @@
  * Generator plumbing: parameter checks, geometry, the parallel row loop, the table of
  * generators (the PRNG is the library's, core/rng.c). */
 #include <math.h>
+#include <stdio.h>
 #include <stdint.h>
 #include <string.h>
+#include <stdlib.h>
 #include <strings.h>
 
 #include "synth_internal.h"
@@ -18,16 +20,12 @@ void wvol_synth_params_default(wvol_synth_params *p)
     p->seed = 1;
 }
 
-wvol_status wvol__synth_setup(wvol_volume **out, wvol_volume **labels, synth_grid *g,
-                              const wvol_synth_params *p, const double default_spacing[3],
-                              const char *kind, wvol_error *err)
+wvol_status wvol__synth_geometry(synth_grid *g, const wvol_synth_params *p, const double default_spacing[3],
+                                 const char *kind, wvol_error *err)
 {
     int a, given = 0;
     double extent = 0;
-    wvol_status s;
-    WVOL_RETURN_IF(!out || !p, err, WVOL_ERR_ARG, "synth %s: NULL argument", kind);
-    *out = NULL;
-    if (labels) *labels = NULL;
+    WVOL_RETURN_IF(!g || !p, err, WVOL_ERR_ARG, "synth %s: NULL argument", kind);
     WVOL_RETURN_IF(!(p->noise >= 0) || !isfinite(p->noise), err, WVOL_ERR_ARG,
                    "synth %s: noise sigma %g must be finite and >= 0", kind, p->noise);
     for (a = 0; a < 3; a++) {
@@ -53,26 +51,21 @@ wvol_status wvol__synth_setup(wvol_volume **out, wvol_volume **labels, synth_gri
     g->scale = 2.0 / extent;
     for (a = 0; a < 3; a++)
         if (g->spacing[a] * g->scale > g->voxel_u) g->voxel_u = g->spacing[a] * g->scale;
-
-    s = wvol_volume_create(out, g->nx, g->ny, g->nz, err);
-    if (s) {
-        wvol_error_prefix(err, "synth %s", kind);
-        return s;
-    }
-    (*out)->spacing[0] = g->spacing[0];
-    (*out)->spacing[1] = g->spacing[1];
-    (*out)->spacing[2] = g->spacing[2];
-    memcpy((*out)->origin, g->origin, sizeof g->origin);
-    if (labels) {
-        s = wvol_volume_clone(labels, *out, err);
-        if (s) {
-            wvol_volume_destroy(*out);
-            *out = NULL;
-            wvol_error_prefix(err, "synth %s labels", kind);
-            return s;
-        }
-    }
     return WVOL_OK;
+}
+
+void *wvol__synth_plan_ctx(synth_plan *pl, size_t bytes, synth_row_fn fn)
+{
+    pl->ctx = calloc(1, bytes ? bytes : 1);
+    pl->fn = fn;
+    return pl->ctx;
+}
+
+void wvol__synth_plan_free(synth_plan *pl)
+{
+    if (!pl) return;
+    free(pl->ctx);
+    pl->ctx = NULL;
 }
 
 /* A standard normal from a hash of (seed, index): same value for the same voxel
@@ -86,23 +79,25 @@ static inline double hashed_normal(uint64_t seed, uint64_t idx)
     return sqrt(-2.0 * log(u1)) * cos(6.283185307179586 * u2);
 }
 
-void wvol__synth_run_rows(const synth_grid *g, wvol_volume *v, wvol_volume *labels, synth_row_fn fn,
-                          const void *ctx, const wvol_synth_params *p)
+void wvol__synth_rows(const synth_plan *pl, float *values, float *labels, size_t k0, size_t nz,
+                      wvol_synth_progress_fn progress, void *progress_user)
 {
-    long long rows = (long long)(g->ny * g->nz), r;
+    const synth_grid *g = &pl->g;
+    long long rows = (long long)(g->ny * nz), r;
     long long done = 0, reported = 0, step = rows / 100 > 0 ? rows / 100 : 1;
-    uint64_t noise_seed = wvol_hash64(p->seed ^ 0xC0FFEE0DDF00Dull);
-    double sigma = p->noise;
+    uint64_t noise_seed = wvol_hash64(pl->seed ^ 0xC0FFEE0DDF00Dull);
+    double sigma = pl->noise;
 
 #pragma omp parallel for schedule(dynamic, 4)
     for (r = 0; r < rows; r++) {
-        size_t j = (size_t)r % g->ny, k = (size_t)r / g->ny, i, base = (size_t)r * g->nx;
-        float *row = v->data + base;
-        fn(ctx, g, j, k, row, labels ? labels->data + base : NULL);
+        size_t j = (size_t)r % g->ny, k = k0 + (size_t)r / g->ny, i, local = (size_t)r * g->nx;
+        size_t base = (j + g->ny * k) * g->nx; /* the voxel's index in the whole volume */
+        float *row = values + local;
+        pl->fn(pl->ctx, g, j, k, row, labels ? labels + local : NULL);
         if (sigma > 0)
             for (i = 0; i < g->nx; i++)
                 row[i] = (float)(row[i] + sigma * hashed_normal(noise_seed, base + i));
-        if (p->progress) {
+        if (progress) {
             long long d;
 #pragma omp atomic capture
             d = ++done;
@@ -110,54 +105,84 @@ void wvol__synth_run_rows(const synth_grid *g, wvol_volume *v, wvol_volume *labe
 #pragma omp critical(wvol_synth_progress)
                 if (d > reported) {
                     reported = d;
-                    p->progress(p->progress_user, (double)d / (double)rows);
+                    progress(progress_user, (double)d / (double)rows);
                 }
             }
         }
     }
-    if (p->progress) p->progress(p->progress_user, 1.0);
+    if (progress) progress(progress_user, 1.0);
+}
+
+/* Runs a planner; the plan holds the noise and seed the rows need. Nothing is left
+ * allocated on failure. */
+static wvol_status make_plan(synth_plan *pl, synth_plan_fn plan, const wvol_synth_params *p, wvol_error *err)
+{
+    wvol_status s;
+    memset(pl, 0, sizeof *pl);
+    s = plan(pl, p, err);
+    if (s) {
+        wvol__synth_plan_free(pl);
+        return s;
+    }
+    pl->noise = p->noise;
+    pl->seed = p->seed;
+    return WVOL_OK;
+}
+
+wvol_status wvol__synth_whole(wvol_volume **out, wvol_volume **labels, synth_plan_fn plan,
+                              const wvol_synth_params *p, const char *kind, wvol_error *err)
+{
+    synth_plan pl;
+    wvol_status s;
+    WVOL_RETURN_IF(!out || !p, err, WVOL_ERR_ARG, "synth %s: NULL argument", kind);
+    *out = NULL;
+    if (labels) *labels = NULL;
+    WVOL_FORWARD(make_plan(&pl, plan, p, err));
+    s = wvol_volume_create(out, pl.g.nx, pl.g.ny, pl.g.nz, err);
+    if (!s) {
+        (*out)->spacing[0] = pl.g.spacing[0];
+        (*out)->spacing[1] = pl.g.spacing[1];
+        (*out)->spacing[2] = pl.g.spacing[2];
+        memcpy((*out)->origin, pl.g.origin, sizeof pl.g.origin);
+        if (labels && pl.has_labels) s = wvol_volume_clone(labels, *out, err);
+    }
+    if (s) {
+        wvol_volume_destroy(*out);
+        *out = NULL;
+        wvol__synth_plan_free(&pl);
+        wvol_error_prefix(err, "synth %s", kind);
+        return s;
+    }
+    wvol__synth_rows(&pl, (*out)->data, labels && *labels ? (*labels)->data : NULL, 0, pl.g.nz, p->progress,
+                     p->progress_user);
+    wvol__synth_plan_free(&pl);
+    return WVOL_OK;
 }
 
 /* ---- the table of generators --------------------------------------------- */
-
-static wvol_status make_gaussian(wvol_volume **o, wvol_volume **l, const wvol_synth_params *p,
-                                 wvol_error *e)
-{
-    (void)l;
-    return wvol_synth_gaussian(o, p, e);
-}
-static wvol_status make_blobs(wvol_volume **o, wvol_volume **l, const wvol_synth_params *p,
-                              wvol_error *e)
-{
-    (void)l;
-    return wvol_synth_blobs(o, p, e);
-}
-static wvol_status make_shepp(wvol_volume **o, wvol_volume **l, const wvol_synth_params *p,
-                              wvol_error *e)
-{
-    (void)l;
-    return wvol_synth_shepp_logan(o, p, e);
-}
 
 static const struct {
     const char *name;
     const char *about;
     size_t dims[3];
     int has_labels;
-    wvol_status (*make)(wvol_volume **, wvol_volume **, const wvol_synth_params *, wvol_error *);
+    synth_plan_fn plan;
 } kinds[] = {
     {"gaussian", "centred isotropic Gaussian density (the paper's Fig. 15), peak 1", {32, 32, 32}, 0,
-     make_gaussian},
+     wvol__synth_plan_gaussian},
     {"blobs", "sum of seeded anisotropic Gaussians with different amplitudes", {64, 64, 64}, 0,
-     make_blobs},
+     wvol__synth_plan_blobs},
     {"skull", "skull-like CT phantom in Hounsfield-like units, tissue labels", {128, 128, 128}, 1,
-     wvol_synth_skull},
+     wvol__synth_plan_skull},
     {"textures", "texture regions with curved boundaries, region labels (nz = 1: 2D)", {256, 256, 1},
-     1, wvol_synth_textures},
+     1, wvol__synth_plan_textures},
     {"shepp-logan", "3D Shepp-Logan phantom (Kak & Slaney ellipsoids)", {128, 128, 128}, 0,
-     make_shepp},
+     wvol__synth_plan_shepp_logan},
+    {"turbulence", "turbulence-like field: random-phase Fourier modes, k^(-5/3) spectrum, unit variance",
+     {128, 128, 128}, 0, wvol__synth_plan_turbulence},
 };
 enum { KIND_COUNT = sizeof kinds / sizeof kinds[0] };
+#define KNOWN_KINDS "gaussian, blobs, skull, textures, shepp-logan, turbulence"
 
 int wvol_synth_kind_count(void)
 {
@@ -196,15 +221,99 @@ void wvol_synth_kind_default_dims(int i, size_t dims[3])
     for (a = 0; a < 3; a++) dims[a] = i >= 0 && i < KIND_COUNT ? kinds[i].dims[a] : 64;
 }
 
+static wvol_status find_kind(int *i, const char *kind, wvol_error *err)
+{
+    *i = wvol_synth_kind_find(kind);
+    WVOL_RETURN_IF(*i < 0, err, WVOL_ERR_ARG, "unknown generator '%s' (known: " KNOWN_KINDS ")",
+                   kind ? kind : "(null)");
+    return WVOL_OK;
+}
+
 wvol_status wvol_synth_make(wvol_volume **out, wvol_volume **labels, const char *kind,
                             const wvol_synth_params *p, wvol_error *err)
 {
-    int i = wvol_synth_kind_find(kind);
+    int i;
     if (labels) *labels = NULL;
     WVOL_RETURN_IF(!out, err, WVOL_ERR_ARG, "synth: output pointer is NULL");
     *out = NULL;
-    WVOL_RETURN_IF(i < 0, err, WVOL_ERR_ARG,
-                   "unknown generator '%s' (known: gaussian, blobs, skull, textures, shepp-logan)",
-                   kind ? kind : "(null)");
-    return kinds[i].make(out, kinds[i].has_labels ? labels : NULL, p, err);
+    WVOL_FORWARD(find_kind(&i, kind, err));
+    return wvol__synth_whole(out, kinds[i].has_labels ? labels : NULL, kinds[i].plan, p, kinds[i].name, err);
+}
+
+/* ---- slabs ------------------------------------------------------------------ */
+
+struct wvol_synth_gen {
+    synth_plan plan;
+};
+
+wvol_status wvol_synth_gen_open(wvol_synth_gen **out, const char *kind, const wvol_synth_params *p, wvol_error *err)
+{
+    int i;
+    wvol_synth_gen *g;
+    wvol_status s;
+    WVOL_RETURN_IF(!out || !p, err, WVOL_ERR_ARG, "synth: NULL argument");
+    *out = NULL;
+    WVOL_FORWARD(find_kind(&i, kind, err));
+    g = calloc(1, sizeof *g);
+    WVOL_RETURN_IF(!g, err, WVOL_ERR_NOMEM, "synth %s: out of memory", kinds[i].name);
+    s = make_plan(&g->plan, kinds[i].plan, p, err);
+    if (s) {
+        free(g);
+        return s;
+    }
+    *out = g;
+    return WVOL_OK;
+}
+
+void wvol_synth_gen_geometry(const wvol_synth_gen *g, size_t dims[3], double spacing[3], double origin[3])
+{
+    if (!g) return;
+    if (dims) dims[0] = g->plan.g.nx, dims[1] = g->plan.g.ny, dims[2] = g->plan.g.nz;
+    if (spacing) memcpy(spacing, g->plan.g.spacing, sizeof g->plan.g.spacing);
+    if (origin) memcpy(origin, g->plan.g.origin, sizeof g->plan.g.origin);
+}
+
+int wvol_synth_gen_has_labels(const wvol_synth_gen *g)
+{
+    return g ? g->plan.has_labels : 0;
+}
+
+wvol_status wvol_synth_gen_slab(const wvol_synth_gen *g, float *values, float *labels, size_t z0, size_t nz,
+                                wvol_error *err)
+{
+    WVOL_RETURN_IF(!g || !values, err, WVOL_ERR_ARG, "synth slab: NULL argument");
+    WVOL_RETURN_IF(nz == 0 || z0 > g->plan.g.nz || nz > g->plan.g.nz - z0, err, WVOL_ERR_ARG,
+                   "synth slab: slices %zu .. %zu outside 0 .. %zu", z0, z0 + nz, g->plan.g.nz);
+    WVOL_RETURN_IF(labels && !g->plan.has_labels, err, WVOL_ERR_ARG, "synth slab: this generator makes no labels");
+    wvol__synth_rows(&g->plan, values, labels, z0, nz, NULL, NULL);
+    return WVOL_OK;
+}
+
+void wvol_synth_gen_close(wvol_synth_gen *g)
+{
+    if (!g) return;
+    wvol__synth_plan_free(&g->plan);
+    free(g);
+}
+
+static wvol_status gen_read(void *ctx, float *dst, size_t z0, size_t nz, wvol_error *err)
+{
+    return wvol_synth_gen_slab(ctx, dst, NULL, z0, nz, err);
+}
+
+static void gen_close(void *ctx) { wvol_synth_gen_close(ctx); }
+
+wvol_status wvol_synth_source(wvol_source **out, const char *kind, const wvol_synth_params *p, wvol_error *err)
+{
+    static const wvol_source_ops ops = {gen_read, gen_close};
+    wvol_synth_gen *g;
+    size_t dims[3];
+    double spacing[3], origin[3];
+    char name[64];
+    WVOL_RETURN_IF(!out, err, WVOL_ERR_ARG, "synth: NULL argument");
+    *out = NULL;
+    WVOL_FORWARD(wvol_synth_gen_open(&g, kind, p, err));
+    wvol_synth_gen_geometry(g, dims, spacing, origin);
+    snprintf(name, sizeof name, "synth %s", kind);
+    return wvol_source_create(out, dims, spacing, origin, name, 1, &ops, g, err);
 }

@@ -128,12 +128,10 @@ static void spread_direction(int idx, int n, int dim, double jitter, double d[3]
     }
 }
 
-wvol_status wvol_synth_textures(wvol_volume **out, wvol_volume **labels, const wvol_synth_params *p,
-                                wvol_error *err)
+wvol_status wvol__synth_plan_textures(synth_plan *pl, const wvol_synth_params *p, wvol_error *err)
 {
     static const double periods[8] = {4.0, 11.0, 6.0, 17.0, 5.0, 8.0, 13.0, 24.0};
-    synth_grid g;
-    tex_ctx c;
+    tex_ctx *c;
     wvol_rng rng;
     const char *variant;
     int n, a, b, mode; /* 0 gratings, 1 frequencies, 2 dots, 3 mixed */
@@ -149,24 +147,28 @@ wvol_status wvol_synth_textures(wvol_volume **out, wvol_volume **labels, const w
         return wvol_error_set(err, WVOL_ERR_ARG,
                               "synth textures: unknown variant '%s' (known: gratings, frequencies, "
                               "dots, mixed)", variant);
-    c.n = p->count == 0 ? 4 : p->count;
-    WVOL_RETURN_IF(c.n < 2 || c.n > MAX_REGIONS, err, WVOL_ERR_ARG,
+    n = p->count == 0 ? 4 : p->count;
+    WVOL_RETURN_IF(n < 2 || n > MAX_REGIONS, err, WVOL_ERR_ARG,
                    "synth textures: count %d must be from 2 to %d regions", p->count, MAX_REGIONS);
-    WVOL_FORWARD(wvol__synth_setup(out, labels, &g, p, NULL, "textures", err));
-    c.dim = g.nz > 1 ? 3 : 2;
+    WVOL_FORWARD(wvol__synth_geometry(&pl->g, p, NULL, "textures", err));
+    WVOL_RETURN_IF(!(c = wvol__synth_plan_ctx(pl, sizeof *c, tex_row)), err, WVOL_ERR_NOMEM,
+                   "synth textures: out of memory");
+    pl->has_labels = 1;
+    c->n = n;
+    c->dim = pl->g.nz > 1 ? 3 : 2;
     wvol_rng_seed(&rng, p->seed ^ 0x7E47u);
 
     /* Sites: rejection sampling with a minimum distance that relaxes if crowded. */
-    rmin = 0.9 * pow(pow(1.7, c.dim) / c.n, 1.0 / c.dim);
-    for (n = 0; n < c.n; n++) {
+    rmin = 0.9 * pow(pow(1.7, c->dim) / c->n, 1.0 / c->dim);
+    for (n = 0; n < c->n; n++) {
         int tries = 0;
         for (;;) {
             int ok = 1, m;
-            for (a = 0; a < 3; a++) c.r[n].site[a] = a < c.dim ? -0.85 + 1.7 * wvol_rng_uniform(&rng) : 0;
+            for (a = 0; a < 3; a++) c->r[n].site[a] = a < c->dim ? -0.85 + 1.7 * wvol_rng_uniform(&rng) : 0;
             for (m = 0; m < n && ok; m++) {
                 double d2 = 0;
-                for (a = 0; a < c.dim; a++)
-                    d2 += (c.r[n].site[a] - c.r[m].site[a]) * (c.r[n].site[a] - c.r[m].site[a]);
+                for (a = 0; a < c->dim; a++)
+                    d2 += (c->r[n].site[a] - c->r[m].site[a]) * (c->r[n].site[a] - c->r[m].site[a]);
                 ok = d2 >= rmin * rmin;
             }
             if (ok) break;
@@ -174,24 +176,24 @@ wvol_status wvol_synth_textures(wvol_volume **out, wvol_volume **labels, const w
         }
     }
     /* Warp: amplitude x frequency < 1 keeps it one-to-one, so no region vanishes. */
-    c.warp_amp = 0.15;
+    c->warp_amp = 0.15;
     for (a = 0; a < 3; a++) {
         double th = 6.283185307179586 * wvol_rng_uniform(&rng), f = 3.0 + 2.0 * wvol_rng_uniform(&rng);
         double d[3];
         spread_direction(a, 3, 3, wvol_rng_uniform(&rng), d);
-        for (b = 0; b < 3; b++) c.warp_w[a][b] = f * (b < c.dim ? d[b] : 0);
-        c.warp_phase[a] = th;
+        for (b = 0; b < 3; b++) c->warp_w[a][b] = f * (b < c->dim ? d[b] : 0);
+        c->warp_phase[a] = th;
     }
-    spread_direction(0, 1, c.dim, 2.0 * wvol_rng_uniform(&rng) - 1.0, common_dir);
+    spread_direction(0, 1, c->dim, 2.0 * wvol_rng_uniform(&rng) - 1.0, common_dir);
 
-    for (n = 0; n < c.n; n++) {
-        region *r = &c.r[n];
+    for (n = 0; n < c->n; n++) {
+        region *r = &c->r[n];
         int dots = mode == 2 || (mode == 3 && n % 2 == 1);
-        int idx = mode == 3 ? n / 2 : n, cnt = mode == 3 ? (c.n + 1) / 2 : c.n;
+        int idx = mode == 3 ? n / 2 : n, cnt = mode == 3 ? (c->n + 1) / 2 : c->n;
         r->seed = wvol_hash64(p->seed + 0x51DEull * (uint64_t)(n + 1));
         r->phase = 6.283185307179586 * wvol_rng_uniform(&rng);
         if (dots) {
-            int nd = mode == 3 ? c.n / 2 : c.n;
+            int nd = mode == 3 ? c->n / 2 : c->n;
             double t = nd > 1 ? (double)idx / (double)(nd - 1) : 0.0;
             r->kind = TEX_DOTS;
             r->radius = 1.0 + 3.0 * t;
@@ -201,13 +203,18 @@ wvol_status wvol_synth_textures(wvol_volume **out, wvol_volume **labels, const w
             r->kind = TEX_GRATING;
             if (mode == 1) {
                 memcpy(r->dir, common_dir, sizeof r->dir);
-                r->period = 3.0 * pow(32.0 / 3.0, (double)n / (double)(c.n - 1));
+                r->period = 3.0 * pow(32.0 / 3.0, (double)n / (double)(c->n - 1));
             } else {
-                spread_direction(idx, cnt, c.dim, 0.1 * (wvol_rng_uniform(&rng) - 0.5), r->dir);
+                spread_direction(idx, cnt, c->dim, 0.1 * (wvol_rng_uniform(&rng) - 0.5), r->dir);
                 r->period = periods[idx % 8] * (1.0 + 0.05 * (double)(idx / 8));
             }
         }
     }
-    wvol__synth_run_rows(&g, *out, labels ? *labels : NULL, tex_row, &c, p);
     return WVOL_OK;
+}
+
+wvol_status wvol_synth_textures(wvol_volume **out, wvol_volume **labels, const wvol_synth_params *p,
+                                wvol_error *err)
+{
+    return wvol__synth_whole(out, labels, wvol__synth_plan_textures, p, "textures", err);
 }

@@ -23,6 +23,7 @@
 #include <stdint.h>
 
 #include "wvol/rng.h" /* the generators' PRNG and hash (wvol_rng, wvol_hash64) */
+#include "wvol/source.h"
 #include "wvol/volume.h"
 
 #ifdef __cplusplus
@@ -91,7 +92,11 @@ WVOL_API wvol_status wvol_synth_textures(wvol_volume **out, wvol_volume **labels
  * of Yu, Ye & Wang 2004 (1.0, -0.8, ...). */
 WVOL_API wvol_status wvol_synth_shepp_logan(wvol_volume **out, const wvol_synth_params *p, wvol_error *err);
 
-/* ---- by name: "gaussian", "blobs", "skull", "textures", "shepp-logan" ---- */
+/* Turbulence-like field: a sum of random-phase Fourier modes (random directions, log-
+ * spaced wavenumber shells jittered by the seed) whose energy spectrum is k^(-5/3) from the
+ * box scale down to a period of 4 voxels, scaled to unit variance (docs/datasets.md). */
+WVOL_API wvol_status wvol_synth_turbulence(wvol_volume **out, const wvol_synth_params *p, wvol_error *err);
+/* ---- by name: "gaussian", "blobs", "skull", "textures", "shepp-logan", "turbulence" ---- */
 
 /* Runs the generator called `kind`. labels may be NULL; when it is not, *labels is
  * set to the label map, or NULL for kinds without one. */
@@ -108,6 +113,28 @@ WVOL_API int wvol_synth_kind_has_labels(int i);
 /* The kind's default size (used when the caller has none). */
 WVOL_API void wvol_synth_kind_default_dims(int i, size_t dims[3]);
 
+/* ---- slab by slab -------------------------------------------------------------
+ * A generator made ready once (its tables and context), then asked for any slab of
+ * slices z0 .. z0 + nz - 1: the slab holds the same bytes as those slices of the whole
+ * volume (each voxel depends only on its index, the parameters and the seed), so a
+ * volume of any size is made with memory for one slab. The progress callback of the
+ * parameters is not called. A wvol_synth_gen may be read from several threads at once
+ * (wvol_synth_gen_slab only reads it). */
+typedef struct wvol_synth_gen wvol_synth_gen;
+WVOL_API wvol_status wvol_synth_gen_open(wvol_synth_gen **out, const char *kind, const wvol_synth_params *p,
+                                         wvol_error *err);
+/* dims, spacing, origin (each may be NULL) of the whole volume. */
+WVOL_API void wvol_synth_gen_geometry(const wvol_synth_gen *g, size_t dims[3], double spacing[3],
+                                      double origin[3]);
+WVOL_API int wvol_synth_gen_has_labels(const wvol_synth_gen *g);
+/* values (and labels, NULL or only for a kind with labels): nx * ny * nz floats each. */
+WVOL_API wvol_status wvol_synth_gen_slab(const wvol_synth_gen *g, float *values, float *labels, size_t z0,
+                                         size_t nz, wvol_error *err);
+WVOL_API void wvol_synth_gen_close(wvol_synth_gen *g); /* NULL is fine */
+/* The generator as a volume source (wvol/source.h) of its values, for the streamed
+ * transform and compression: each read makes the slab asked for. */
+WVOL_API wvol_status wvol_synth_source(wvol_source **out, const char *kind, const wvol_synth_params *p,
+                                       wvol_error *err);
 #ifdef __cplusplus
 }
 #endif

@@ -3,6 +3,7 @@
  * extension names, optionally with its label map. */
 #define _POSIX_C_SOURCE 200809L
 #include <errno.h>
+#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -13,11 +14,11 @@
 #include "wvol/io.h"
 #include "wvol_synth.h"
 
-const char wvol_cmd_synth_summary[] = "make a synthetic volume (gaussian, blobs, skull, textures, shepp-logan)";
+const char wvol_cmd_synth_summary[] = "make a synthetic volume (gaussian, blobs, skull, textures, shepp-logan, turbulence)";
 
 static const cli_opt opts[] = {
     {"output", 'o', 1, "output file; the extension picks the format (.raw .nrrd .nhdr ...)"},
-    {"size", 0, 1, "N or NXxNYxNZ (default: 32 gaussian, 64 blobs, 128 skull and shepp-logan, 256x256x1 textures)"},
+    {"size", 0, 1, "N or NXxNYxNZ (default: 32 gaussian, 64 blobs, 128 skull, shepp-logan and turbulence, 256x256x1 textures)"},
     {"spacing", 0, 1, "voxel size X,Y,Z or one number (default 1; skull: 240 mm / largest size)"},
     {"seed", 0, 1, "seed, 0 to 18446744073709551615 (default 1)"},
     {"noise", 0, 1, "sigma of added Gaussian noise, in the volume's units (default 0)"},
@@ -37,6 +38,88 @@ static void progress(void *user, double f)
     cli_progress("synth", f);
 }
 
+/* Slices per slab: about 64 MiB of samples, at least one slice. */
+static size_t slab_slices(const size_t dims[3])
+{
+    size_t slice = dims[0] * dims[1] * sizeof(float), k = ((size_t)64 << 20) / (slice ? slice : 1);
+    return k < 1 ? 1 : k > dims[2] ? dims[2] : k;
+}
+
+/* Generates slab by slab into the output files (and the label file), with the range and
+ * mean of the values; v and lab (may be NULL) get the geometry only (data NULL). */
+static wvol_status synth_stream(wvol_volume *v, wvol_volume *lab, volume_out files[2], const wvol_synth_params *sp,
+                                const char *kind, const char *out, const char *labels_out, int gzip, double *vmin,
+                                double *vmax, double *mean, double *lab_max, double *t_gen, wvol_error *err)
+{
+    wvol_synth_gen *g = NULL;
+    wvol_slab_writer *w[2] = {NULL, NULL};
+    float *buf = NULL, *lbuf = NULL;
+    size_t dims[3], S, slice;
+    double lo = INFINITY, hi = -INFINITY, sum = 0, lmax = 0, gen = 0;
+    unsigned long long bytes[2] = {0, 0};
+    wvol_status s;
+    const char *paths[2] = {out, labels_out};
+
+    if ((s = wvol_synth_gen_open(&g, kind, sp, err)) != WVOL_OK) return s;
+    memset(v, 0, sizeof *v);
+    wvol_synth_gen_geometry(g, dims, v->spacing, v->origin);
+    v->nx = dims[0], v->ny = dims[1], v->nz = dims[2];
+    if (lab) *lab = *v;
+    S = slab_slices(dims);
+    slice = dims[0] * dims[1];
+    buf = malloc(S * slice * sizeof *buf);
+    if (lab) lbuf = malloc(S * slice * sizeof *lbuf);
+    s = !buf || (lab && !lbuf) ? wvol_error_set(err, WVOL_ERR_NOMEM, "out of memory for a slab of %zu slices of %zu x %zu", S, dims[0], dims[1])
+                               : WVOL_OK;
+    for (int f = 0; f < (lab ? 2 : 1) && !s; f++) {
+        memset(&files[f], 0, sizeof files[f]);
+        snprintf(files[f].path, sizeof files[f].path, "%s", paths[f]);
+        int nrrd = wvol_path_has_ext(paths[f], ".nrrd") || wvol_path_has_ext(paths[f], ".nhdr");
+        if (wvol_path_has_ext(paths[f], ".nhdr"))
+            wvol_nrrd_data_path(files[f].data_path, sizeof files[f].data_path, paths[f], gzip);
+        s = wvol_slab_writer_open(&w[f], paths[f], dims, v->spacing, v->origin, gzip && nrrd ? 6 : 0, err);
+    }
+    for (size_t z0 = 0; z0 < dims[2] && !s; z0 += S) {
+        size_t nz = dims[2] - z0 < S ? dims[2] - z0 : S, n = nz * slice;
+        double t = cli_now();
+        s = wvol_synth_gen_slab(g, buf, lbuf, z0, nz, err);
+        gen += cli_now() - t;
+        if (s) break;
+        for (size_t i = 0; i < n; i++) {
+            double x = buf[i];
+            lo = x < lo ? x : lo;
+            hi = x > hi ? x : hi;
+            sum += x;
+        }
+        if (lbuf)
+            for (size_t i = 0; i < n; i++) lmax = lbuf[i] > lmax ? lbuf[i] : lmax;
+        s = wvol_slab_writer_put(w[0], buf, nz, err);
+        if (!s && w[1]) s = wvol_slab_writer_put(w[1], lbuf, nz, err);
+        cli_progress("synth", (double)(z0 + nz) / (double)dims[2]);
+    }
+    cli_progress_done();
+    if (!s) {
+        s = wvol_slab_writer_commit(w[0], &bytes[0], err);
+        w[0] = NULL;
+        if (!s && w[1]) {
+            s = wvol_slab_writer_commit(w[1], &bytes[1], err);
+            w[1] = NULL;
+            if (s) volume_out_remove(&files[0]); /* no half-made result */
+        }
+    }
+    wvol_slab_writer_abort(w[0]);
+    wvol_slab_writer_abort(w[1]);
+    free(buf);
+    free(lbuf);
+    wvol_synth_gen_close(g);
+    files[0].bytes = bytes[0];
+    files[1].bytes = bytes[1];
+    *vmin = lo, *vmax = hi, *mean = sum / ((double)slice * (double)dims[2]);
+    *lab_max = lmax;
+    *t_gen = gen;
+    return s;
+}
+
 int wvol_cmd_synth(int argc, char **argv)
 {
     cli_parser p;
@@ -49,7 +132,9 @@ int wvol_cmd_synth(int argc, char **argv)
     wvol_volume *v = NULL, *lab = NULL;
     wvol_error err;
     volume_out files[2];
-    double t0, t1, vmin, vmax, mean;
+    double t0, t1, vmin, vmax, mean, lab_max = 0;
+    wvol_volume vhead, lhead; /* the streamed volume's geometry (no samples held) */
+    int streamed;
 
     wvol_synth_params_default(&sp);
     cli_parser_init(&p, "synth", argc, argv, opts);
@@ -63,7 +148,8 @@ int wvol_cmd_synth(int argc, char **argv)
                                     "       [--labels OUT] [--variant NAME] [--gzip] [--json]",
                            "Makes a deterministic synthetic volume (same parameters and seed, same bytes)\n"
                            "and writes it in the format its extension names. Generators (--list):\n"
-                           "gaussian, blobs, skull, textures, shepp-logan. docs/datasets.md describes them.",
+                           "gaussian, blobs, skull, textures, shepp-logan, turbulence. docs/datasets.md describes them.\n"
+                           "Raw and NRRD outputs are written slab by slab: the volume is never held whole.",
                            opts);
             return CLI_OK;
         } else if (!strcmp(o->name, "list")) {
@@ -101,10 +187,10 @@ int wvol_cmd_synth(int argc, char **argv)
             sp.variant = val;
         }
     }
-    if (!kind_name) return cli_usage("synth", "missing generator (one of: gaussian, blobs, skull, textures, shepp-logan)");
+    if (!kind_name) return cli_usage("synth", "missing generator (one of: gaussian, blobs, skull, textures, shepp-logan, turbulence)");
     kind = wvol_synth_kind_find(kind_name);
     if (kind < 0)
-        return cli_usage("synth", "unknown generator '%s' (known: gaussian, blobs, skull, textures, shepp-logan)",
+        return cli_usage("synth", "unknown generator '%s' (known: gaussian, blobs, skull, textures, shepp-logan, turbulence)",
                          kind_name);
     if (!out) return cli_usage("synth", "missing output file (-o OUT.raw, OUT.nrrd or OUT.nhdr)");
     if (!wvol_format_supported(out, 1))
@@ -124,25 +210,39 @@ int wvol_cmd_synth(int argc, char **argv)
         return cli_usage("synth", "--size %zux%zux%zu: the voxel count overflows the address space", sp.dims[0],
                          sp.dims[1], sp.dims[2]);
     sp.progress = progress;
+    /* raw and NRRD are written slab by slab: the volume is never held */
+    streamed = (wvol_path_has_ext(out, ".raw") || wvol_path_has_ext(out, ".nrrd") || wvol_path_has_ext(out, ".nhdr")) &&
+               (!labels_out || wvol_path_has_ext(labels_out, ".raw") || wvol_path_has_ext(labels_out, ".nrrd") ||
+                wvol_path_has_ext(labels_out, ".nhdr"));
 
     wvol_error_clear(&err);
     t0 = cli_now();
-    if (wvol_synth_make(&v, labels_out ? &lab : NULL, wvol_synth_kind_name(kind), &sp, &err) != WVOL_OK)
-        return cli_fail_err("synth", &err);
-    cli_progress_done();
-    t1 = cli_now();
-    if (volume_out_save(&files[0], v, out, gzip, &err) != WVOL_OK) {
-        wvol_volume_destroy(v);
-        wvol_volume_destroy(lab);
-        return cli_fail_err("synth", &err);
+    if (streamed) {
+        if (synth_stream(&vhead, labels_out ? &lhead : NULL, files, &sp, wvol_synth_kind_name(kind), out,
+                         labels_out, gzip, &vmin, &vmax, &mean, &lab_max, &t1, &err) != WVOL_OK)
+            return cli_fail_err("synth", &err);
+        t1 += t0; /* generation time, from the start */
+        v = &vhead;
+        lab = labels_out ? &lhead : NULL;
+    } else {
+        if (wvol_synth_make(&v, labels_out ? &lab : NULL, wvol_synth_kind_name(kind), &sp, &err) != WVOL_OK)
+            return cli_fail_err("synth", &err);
+        cli_progress_done();
+        t1 = cli_now();
+        if (volume_out_save(&files[0], v, out, gzip, &err) != WVOL_OK) {
+            wvol_volume_destroy(v);
+            wvol_volume_destroy(lab);
+            return cli_fail_err("synth", &err);
+        }
+        if (lab && volume_out_save(&files[1], lab, labels_out, gzip, &err) != WVOL_OK) {
+            volume_out_remove(&files[0]); /* no half-made result */
+            wvol_volume_destroy(v);
+            wvol_volume_destroy(lab);
+            return cli_fail_err("synth", &err);
+        }
+        wvol_volume_range(v, &vmin, &vmax, &mean);
+        if (lab) wvol_volume_range(lab, NULL, &lab_max, NULL);
     }
-    if (lab && volume_out_save(&files[1], lab, labels_out, gzip, &err) != WVOL_OK) {
-        volume_out_remove(&files[0]); /* no half-made result */
-        wvol_volume_destroy(v);
-        wvol_volume_destroy(lab);
-        return cli_fail_err("synth", &err);
-    }
-    wvol_volume_range(v, &vmin, &vmax, &mean);
     if (json) {
         cli_json_begin();
         cli_json_str("command", "synth");
@@ -158,8 +258,7 @@ int wvol_cmd_synth(int argc, char **argv)
         cli_json_num("seconds_generate", t1 - t0);
         cli_json_num("seconds", cli_now() - t0);
         if (lab) {
-            double lmax;
-            wvol_volume_range(lab, NULL, &lmax, NULL);
+            double lmax = lab_max;
             cli_json_open("labels", '{');
             cli_json_str("file", files[1].path);
             cli_json_int("bytes", (long long)files[1].bytes);
@@ -178,13 +277,14 @@ int wvol_cmd_synth(int argc, char **argv)
                (unsigned long long)files[0].bytes, files[0].data_path[0] ? ", with its data file" : "",
                cli_now() - t0, t1 - t0);
         if (lab) {
-            double lmax;
-            wvol_volume_range(lab, NULL, &lmax, NULL);
+            double lmax = lab_max;
             printf("labels   %s (%llu bytes), classes 0..%d\n", files[1].path, (unsigned long long)files[1].bytes,
                    (int)lmax);
         }
     }
-    wvol_volume_destroy(v);
-    wvol_volume_destroy(lab);
+    if (!streamed) {
+        wvol_volume_destroy(v);
+        wvol_volume_destroy(lab);
+    }
     return CLI_OK;
 }

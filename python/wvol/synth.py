@@ -11,7 +11,7 @@ import numpy as np
 from . import _wvol
 from . import Volume
 
-__all__ = ["gaussian", "blobs", "skull", "textures", "shepp_logan", "kinds", "make"]
+__all__ = ["gaussian", "blobs", "skull", "textures", "shepp_logan", "turbulence", "kinds", "make"]
 
 
 def _make(kind, shape, spacing, seed, noise, sigma=0.0, count=0, variant=None):
@@ -49,6 +49,12 @@ def shepp_logan(shape=None, spacing=None, seed=1, noise=0.0, variant="kak-slaney
     """3D Shepp-Logan phantom (Kak & Slaney's ellipsoids); ``variant`` "kak-slaney" or
     "yu-ye-wang" (higher contrast)."""
     return _make("shepp-logan", shape, spacing, seed, noise, variant=variant)
+
+
+def turbulence(shape=None, spacing=None, seed=1, noise=0.0):
+    """Turbulence-like field: random-phase Fourier modes with a k^(-5/3) energy spectrum from
+    the box scale down to 4 voxels, unit variance (docs/datasets.md)."""
+    return _make("turbulence", shape, spacing, seed, noise)
 
 
 def kinds():

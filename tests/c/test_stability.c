@@ -456,6 +456,7 @@ static void decoder_refuses_overflow(const wvol_volume *v)
     p.levels = LEVELS;
     p.for_file = 1;
     p.build_store = 0;
+    p.quant.format_version = 1; /* the header crafted below is version 1's layout */
     CHECK(wvol_compress(&cc, v, &p, &err) == WVOL_OK && wvol_compress_encode(&buf, &n, &cc, &p, NULL, &err) == WVOL_OK,
           "crafted: %s", err.message);
     wvol_compressed_free(&cc);

@@ -9,10 +9,11 @@
 #endif
 
 #include "check.h"
+#include "wvol/source.h"
 #include "wvol_synth.h"
 
-static const char *kinds[] = {"gaussian", "blobs", "skull", "textures", "shepp-logan"};
-enum { NKINDS = 5 };
+static const char *kinds[] = {"gaussian", "blobs", "skull", "textures", "shepp-logan", "turbulence"};
+enum { NKINDS = 6 };
 
 static wvol_volume *make(const char *kind, size_t nx, size_t ny, size_t nz, uint64_t seed, double noise,
                          wvol_volume **labels)
@@ -462,8 +463,92 @@ static void progress_is_reported(void)
     wvol_volume_destroy(v);
 }
 
+/* Any slab of a generator holds the same bytes as those slices of the whole volume, labels
+ * and noise included, whatever the slab sizes. */
+static void slabs_equal_the_whole_volume(void)
+{
+    for (int k = 0; k < NKINDS; k++) {
+        wvol_volume *lab = NULL, *v = make(kinds[k], 23, 17, 29, 5, 2.0, &lab);
+        wvol_synth_params p;
+        wvol_synth_gen *g = NULL;
+        wvol_source *src = NULL;
+        wvol_error err;
+        size_t slice = 23 * 17, dims[3] = {0, 0, 0}, z0 = 0, step = 1;
+        float *buf = malloc(29 * slice * sizeof *buf), *lbuf = malloc(29 * slice * sizeof *lbuf);
+        wvol_synth_params_default(&p);
+        p.dims[0] = 23, p.dims[1] = 17, p.dims[2] = 29;
+        p.seed = 5;
+        p.noise = 2.0;
+        CHECK(wvol_synth_gen_open(&g, kinds[k], &p, &err) == WVOL_OK, "%s: %s", kinds[k], err.message);
+        if (!v || !g || !buf || !lbuf) goto next;
+        wvol_synth_gen_geometry(g, dims, NULL, NULL);
+        CHECK(dims[0] == 23 && dims[1] == 17 && dims[2] == 29, "%s: dims", kinds[k]);
+        CHECK(wvol_synth_gen_has_labels(g) == (lab != NULL), "%s: labels", kinds[k]);
+        for (; z0 < 29; z0 += step, step = step * 2 + 1) {
+            size_t nz = z0 + step <= 29 ? step : 29 - z0;
+            CHECK(wvol_synth_gen_slab(g, buf, lab ? lbuf : NULL, z0, nz, &err) == WVOL_OK, "%s", err.message);
+            CHECK(memcmp(buf, v->data + z0 * slice, nz * slice * sizeof *buf) == 0, "%s: slab %zu+%zu differs",
+                  kinds[k], z0, nz);
+            if (lab)
+                CHECK(memcmp(lbuf, lab->data + z0 * slice, nz * slice * sizeof *buf) == 0,
+                      "%s: label slab %zu+%zu differs", kinds[k], z0, nz);
+        }
+        CHECK(wvol_synth_gen_slab(g, buf, NULL, 28, 2, &err) == WVOL_ERR_ARG, "%s: past the end refused", kinds[k]);
+        /* and as a volume source, backwards */
+        CHECK(wvol_synth_source(&src, kinds[k], &p, &err) == WVOL_OK, "%s", err.message);
+        CHECK(src && wvol_source_streams(src) && wvol_source_read(src, buf, 20, 9, &err) == WVOL_OK &&
+                  memcmp(buf, v->data + 20 * slice, 9 * slice * sizeof *buf) == 0,
+              "%s: source slab differs", kinds[k]);
+    next:
+        wvol_source_destroy(src);
+        wvol_synth_gen_close(g);
+        free(buf);
+        free(lbuf);
+        wvol_volume_destroy(v);
+        wvol_volume_destroy(lab);
+    }
+}
+
+/* The turbulence field: unit variance (the modes' sum; a seed's few box-scale modes move
+ * it by up to about 20%, so each seed is held to [0.6, 1.4]), mean near 0, and Kolmogorov's
+ * second-order structure function S2(r) ~ r^(2/3) in the inertial range: S2(16) / S2(8) along
+ * x at 128^3, averaged over 4 seeds, within 0.3 of 2^(2/3) = 1.587 (seeds scatter by about
+ * +-0.2: few modes per shell). A smooth field would give 4, white noise 1. Below the finest
+ * mode (a period of 4 voxels) it is smooth: S2(2) / S2(1) > 3. */
+static void turbulence_follows_kolmogorov(void)
+{
+    double ratio = 0;
+    for (int seed = 1; seed <= 4; seed++) {
+        wvol_volume *v = make("turbulence", 128, 128, 128, (uint64_t)seed, 0, NULL);
+        double m = 0, var = 0, S[5] = {0};
+        size_t n = (size_t)128 * 128 * 128;
+        if (!v) continue;
+        for (size_t i = 0; i < n; i++) m += v->data[i];
+        m /= (double)n;
+        for (size_t i = 0; i < n; i++) var += (v->data[i] - m) * (v->data[i] - m);
+        var /= (double)n;
+        CHECK(fabs(m) < 0.2 && var > 0.6 && var < 1.4, "seed %d: mean %g, variance %g", seed, m, var);
+        for (int q = 0; q < 5; q++) {
+            size_t r = (size_t)1 << q, c = 0;
+            double a = 0;
+            for (size_t row = 0; row < 128 * 128; row += 7)
+                for (size_t i = 0; i + r < 128; i++) {
+                    double d = v->data[row * 128 + i + r] - v->data[row * 128 + i];
+                    a += d * d, c++;
+                }
+            S[q] = a / (double)c;
+        }
+        CHECK(S[1] / S[0] > 3, "seed %d: S2(2)/S2(1) = %g: smooth below the finest mode", seed, S[1] / S[0]);
+        ratio += S[4] / S[3] / 4;
+        wvol_volume_destroy(v);
+    }
+    CHECK(fabs(ratio - pow(2.0, 2.0 / 3.0)) < 0.3, "S2(16)/S2(8) = %g, Kolmogorov 2^(2/3) = 1.587", ratio);
+}
+
 int main(void)
 {
+    slabs_equal_the_whole_volume();
+    turbulence_follows_kolmogorov();
     rng_matches_reference();
     same_seed_same_bytes_any_threads();
     different_seed_differs();

@@ -27,7 +27,7 @@ def one_line_error(r, code, *needles):
 
 
 @pytest.mark.parametrize("kind,size", [("gaussian", "32"), ("blobs", "20x18x16"), ("skull", "40"),
-                                       ("textures", "64x48x1"), ("shepp-logan", "24")])
+                                       ("textures", "64x48x1"), ("shepp-logan", "24"), ("turbulence", "20x24x12")])
 def test_synth_writes_raw_of_the_right_size(wvol, tmp_path, kind, size):
     out = tmp_path / f"{kind}.raw"
     r = wvol("synth", kind, "-o", out, "--size", size)
@@ -108,7 +108,7 @@ def test_synth_labels_match_the_volume(wvol, tmp_path):
 def test_synth_list_and_help(wvol):
     r = wvol("synth", "--list")
     assert r.returncode == 0
-    for k in ("gaussian", "blobs", "skull", "textures", "shepp-logan"):
+    for k in ("gaussian", "blobs", "skull", "textures", "shepp-logan", "turbulence"):
         assert k in r.stdout
     r = wvol("synth", "--help")
     assert r.returncode == 0 and "--labels" in r.stdout and "--seed" in r.stdout

@@ -8,7 +8,7 @@ import wvol
 
 def test_kinds_list_every_generator():
     names = {k[0] for k in wvol.synth.kinds()}
-    assert names == {"gaussian", "blobs", "skull", "textures", "shepp-logan"}
+    assert names == {"gaussian", "blobs", "skull", "textures", "shepp-logan", "turbulence"}
     with_labels = {k[0] for k in wvol.synth.kinds() if k[2]}
     assert with_labels == {"skull", "textures"}
 

@@ -115,7 +115,7 @@ def compress(tmp, wv, kind, s, family, crit):
     src = tmp / "v.raw"
     scaled(kind, s).tofile(src)
     r = cli(wv, "compress", src, "--dims", f"{N}x{N}x{N}", "-o", tmp / "v.wvc", "--wavelet", family,
-            "--levels", "3", "--json", *crit)
+            "--levels", "3", "--json", "--verify", *crit)
     rep = json.loads(r.stdout)
     psnr = rep["measured"]["psnr"]
     if "--psnr" in crit:
@@ -291,13 +291,15 @@ def test_issue_cases_are_met_or_refused(wvol, tmp_path):
     for s in (1e30, 1e-35):
         src = tmp_path / "s.raw"
         (skull * s).astype(np.float32).tofile(src)
-        r = wvol("compress", src, "--dims", "32x32x32", "-o", tmp_path / "s.wvc", "--psnr", "50", "--json")
+        r = wvol("compress", src, "--dims", "32x32x32", "-o", tmp_path / "s.wvc", "--psnr", "50", "--json",
+                 "--verify")
         assert r.returncode == 0, r.stderr
         assert abs(json.loads(r.stdout)["measured"]["psnr"] - 50) < 0.1
         assert wvol("decompress", tmp_path / "s.wvc", "-o", tmp_path / "d.raw").returncode == 0
     noise = (np.random.default_rng(1).standard_normal((32, 32, 32)) * 1e-41).astype(np.float32)
     noise.tofile(tmp_path / "n.raw")
-    r = wvol("compress", tmp_path / "n.raw", "--dims", "32x32x32", "-o", tmp_path / "n.wvc", "--psnr", "50", "--json")
+    r = wvol("compress", tmp_path / "n.raw", "--dims", "32x32x32", "-o", tmp_path / "n.wvc", "--psnr", "50", "--json",
+             "--verify")
     if r.returncode == 0:
         assert json.loads(r.stdout)["measured"]["psnr"] >= 49.99
     else:

@@ -14,6 +14,7 @@
 #include "wvol/export.h"
 #include <stddef.h>
 #include "wvol/status.h"
+#include "wvol/source.h"
 #include "wvol/store.h"
 #include "wvol/volume.h"
 #include "wvol/wavelet.h"
@@ -105,6 +106,43 @@ WVOL_API wvol_status wvol_compress_wvc_params(wvol_wvc_params *wp, const wvol_co
 WVOL_API wvol_status wvol_compress_encode(void **buf, size_t *size, const wvol_compressed *c, const wvol_compress_params *p,
                                  wvol_wvc_report *report, wvol_error *err);
 
+/* ---- streamed compression: volumes larger than memory ------------------------------
+ * A volume source (wvol/source.h: raw, NRRD, a generator) into a .wvc version-2 file with
+ * memory for the transform's window (about 2 L + 8 slices per level, L taps) and the
+ * writer's rows, whatever the number of slices. Two passes over the source (no spill):
+ * the streamed transform into the quantiser's magnitude histograms, which give the step
+ * (the in-memory encoder's first guess, from the same histograms), then the transform
+ * again into the chunk writer, which reports the exact quantisation error. Should that
+ * miss the error target, another pass writes with a smaller step (so a target is met, as
+ * in memory). With a given step (quant.step) the file holds the same bytes as
+ * wvol_compress + wvol_compress_encode of the same volume; with an error target the
+ * in-memory encoder may refine the step and spend the unused budget with exact passes
+ * over the whole pyramid, so the files can differ while both meet the target
+ * (docs/store.md). Only what needs no ranking streams: select.mode ALL, no dropped
+ * levels, no regions of interest, format version 2 (wvol_compress_streams). */
+typedef struct wvol_compress_stream_report {
+    int levels;
+    double value_min, value_max; /* of the source's samples */
+    double step;                 /* the step written */
+    double target_sse;           /* the quantiser's error target (0 with a given step) */
+    double sse_quant;            /* exact sum (c - c_hat)^2 over the padded grid (Parseval: the
+                                    volume's squared error, the padding's included, so an upper
+                                    bound of the error over the original voxels) */
+    size_t bytes;                /* the file */
+    int passes;                  /* transforms of the source: 2, more when the error missed */
+    size_t window_bytes;         /* the transform's window and slab buffer */
+    size_t writer_bytes;         /* the writer's bound for its rows (wvc2_writer_memory) */
+    double seconds_stats, seconds_write;
+    wvol_wvc_report wvc;         /* the writer's report of the last pass */
+} wvol_compress_stream_report;
+/* 1 if p can be compressed streamed (see above); NULL: the defaults, 1. */
+WVOL_API int wvol_compress_streams(const wvol_compress_params *p);
+/* Compresses src into the .wvc file at path (atomic: no file on failure). p: levels (0:
+ * WVOL_COMPRESS_LEVELS_FILE capped by the size), wavelet, quant (psnr / share / step,
+ * rounding, coder, tile); NULL: the defaults. rep may be NULL. Refuses with
+ * WVOL_ERR_UNSUPPORTED what wvol_compress_streams refuses. */
+WVOL_API wvol_status wvol_compress_stream(const char *path, wvol_source *src, const wvol_compress_params *p,
+                                          wvol_compress_stream_report *rep, wvol_error *err);
 #ifdef __cplusplus
 }
 #endif

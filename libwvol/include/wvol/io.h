@@ -83,6 +83,18 @@ WVOL_API wvol_status wvol_nrrd_write_gzip(const wvol_volume *v, const char *path
  * gzip). Writes it into buf; returns 0 if it does not fit in cap bytes. */
 WVOL_API int wvol_nrrd_data_path(char *buf, size_t cap, const char *nhdr_path, int gzip);
 
+/* Writing a volume slab by slab (slices in order, x fastest), so a volume larger than
+ * memory can be written: .raw (samples only), .nrrd or .nhdr (the header NRRD writers
+ * write, raw or gzip_level 1..9 encoding). Nothing appears under path until commit,
+ * which refuses a volume with slices missing; abort (or any failure) leaves no file.
+ * commit and abort free the writer; bytes (may be NULL) gets the bytes written. */
+typedef struct wvol_slab_writer wvol_slab_writer;
+WVOL_API wvol_status wvol_slab_writer_open(wvol_slab_writer **out, const char *path, const size_t dims[3],
+                                           const double spacing[3], const double origin[3], int gzip_level,
+                                           wvol_error *err);
+WVOL_API wvol_status wvol_slab_writer_put(wvol_slab_writer *w, const float *slab, size_t nz, wvol_error *err);
+WVOL_API wvol_status wvol_slab_writer_commit(wvol_slab_writer *w, unsigned long long *bytes, wvol_error *err);
+WVOL_API void wvol_slab_writer_abort(wvol_slab_writer *w); /* NULL is fine */
 /* 1 if the format of this path can be read / written with this build. */
 WVOL_API int wvol_format_supported(const char *path, int for_writing);
 

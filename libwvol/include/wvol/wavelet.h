@@ -130,6 +130,45 @@ WVOL_API wvol_status wvol_dwt3_inplace_f64(double *data, size_t nx, size_t ny, s
 WVOL_API wvol_status wvol_idwt3_inplace_f64(double *data, size_t nx, size_t ny, size_t nz, const wvol_filter *f,
                                             int levels, wvol_error *err);
 
+/* ---- the forward transform streamed along z ---------------------------------
+ * Slices go in in order (wvol_dwt3_stream_push, any number at a time), and each level's
+ * coefficients come out row by row in increasing z through a callback, with memory for
+ * a window of about 2 L + 8 slices per level (L taps; wvol_dwt3_stream_bytes), whatever
+ * the depth. The coefficients are bit-identical to wvol_dwt3's (edge padding, float32
+ * arithmetic, the same kernels in the same order). Callback rows: at level m, the cube
+ * being transformed is cx x cy x cz = (px, py, pz) >> (m - 1) (an axis of extent 1
+ * stays 1); row r (0 <= r < cz / 2, or r = 0 when cz == 1) gives two planes of cx x cy
+ * (x fastest): `low` is what wvol_dwt3 holds at z = r of the pyramid (x < cx, y < cy),
+ * `high` what it holds at z = cz / 2 + r (NULL when the z axis is not transformed).
+ * Below the coarsest level the x < cx / 2, y < cy / 2 quadrant of `low` is the next
+ * level's input, not a coefficient (wvol_coeffs_put_rows skips it). The planes are valid
+ * during the call only; a non-OK return stops the transform with that status. Levels
+ * are interleaved (level m + 1's row k follows level m's rows 2k + 1 .. ), each in
+ * increasing r. Not thread-safe on one stream; the kernels use OpenMP threads. */
+typedef struct wvol_source wvol_source;
+typedef wvol_status (*wvol_dwt3_rows_fn)(void *user, int level, size_t r, const float *low, const float *high,
+                                         wvol_error *err);
+typedef struct wvol_dwt3_stream wvol_dwt3_stream;
+/* nx x ny x nz original size (padded as wvol_dwt3 pads it); levels as wvol_dwt3. */
+WVOL_API wvol_status wvol_dwt3_stream_create(wvol_dwt3_stream **out, const wvol_filter *f, int levels, size_t nx,
+                                             size_t ny, size_t nz, wvol_dwt3_rows_fn fn, void *user,
+                                             wvol_error *err);
+/* count slices of nx * ny samples (finite: the caller checks, as wvol_source_read does). */
+WVOL_API wvol_status wvol_dwt3_stream_push(wvol_dwt3_stream *s, const float *slices, size_t count,
+                                           wvol_error *err);
+/* After the last slice: pads along z and emits the last rows of every level. */
+WVOL_API wvol_status wvol_dwt3_stream_finish(wvol_dwt3_stream *s, wvol_error *err);
+WVOL_API size_t wvol_dwt3_stream_bytes(const wvol_dwt3_stream *s);
+WVOL_API void wvol_dwt3_stream_destroy(wvol_dwt3_stream *s); /* NULL is fine */
+/* The whole streamed transform of a source (wvol/source.h), read in slabs of about
+ * 16 MiB; bytes (may be NULL): the memory it held (window and slab). */
+WVOL_API wvol_status wvol_dwt3_source(wvol_source *src, const wvol_filter *f, int levels, wvol_dwt3_rows_fn fn,
+                                      void *user, size_t *bytes, wvol_error *err);
+/* Copies a callback's rows into their places in c (created for the same size, filter
+ * and levels, e.g. by wvol_coeffs_create): after every row of every level, c holds what
+ * wvol_dwt3 makes. */
+WVOL_API void wvol_coeffs_put_rows(wvol_coeffs *c, int level, size_t r, const float *low, const float *high);
+
 /* 1D periodic single level (the plain reference form, double): n even; out has n
  * values: a[0..n/2) then d[0..n/2); out must not alias the input. Does nothing when
  * an argument is NULL or n is odd or < 2. */

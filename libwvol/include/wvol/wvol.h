@@ -8,6 +8,7 @@
 #include "wvol/status.h"
 #include "wvol/volume.h"
 #include "wvol/io.h"
+#include "wvol/source.h"
 #include "wvol/image.h"
 #include "wvol/wavelet.h"
 #include "wvol/store.h"

@@ -34,7 +34,7 @@ static inline double bin_edge(uint32_t k)
     return v;
 }
 
-WVOL__CLONES static void slice_hist(uint64_t *restrict H, const float *restrict row0, size_t ex, size_t ey, size_t sy,
+WVOL__CLONES void wvol__wvc_slice_hist(uint64_t *restrict H, const float *restrict row0, size_t ex, size_t ey, size_t sy,
                                uint32_t *maxbits)
 {
     uint32_t mx = *maxbits;
@@ -82,7 +82,7 @@ int wvol__wvc_hist(uint64_t *H, const wvc_layout *L, const float *C, double *max
 #pragma omp for schedule(dynamic, 8)
         for (i = 0; i < (long)ntask; i++) {
             const wvc_band *b = &L->sec[task[i].sec];
-            slice_hist(mine + (size_t)task[i].sec * nb, C + wvc_index(L->p, b, 0, 0, task[i].z), b->ext[0],
+            wvol__wvc_slice_hist(mine + (size_t)task[i].sec * nb, C + wvc_index(L->p, b, 0, 0, task[i].z), b->ext[0],
                        b->ext[1], L->p[0], &mb);
         }
         maxbits = mb > maxbits ? mb : maxbits;

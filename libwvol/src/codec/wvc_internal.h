@@ -60,6 +60,9 @@ void wvol__wvc_header_put(uint8_t *h, const wvc_header_fields *f);
 #define WVC_HBINS 8192
 typedef struct wvc_hist_est wvc_hist_est;
 int wvol__wvc_hist(uint64_t *H, const wvc_layout *L, const float *C, double *maxabs, int *nonfinite);
+/* One section's counts (H: WVC_HBINS) of ex x ey values at rows of stride sy; *maxbits:
+ * the running max of |c|'s float32 bits (>= 0x7F800000: NaN or Inf seen). */
+void wvol__wvc_slice_hist(uint64_t *H, const float *row0, size_t ex, size_t ey, size_t sy, uint32_t *maxbits);
 wvc_hist_est *wvol__wvc_hist_prepare(const uint64_t *H, const wvc_layout *L);
 double wvol__wvc_hist_error(const wvc_hist_est *e, const wvc_layout *L, double step, double f);
 double wvol__wvc_hist_step(const wvc_hist_est *e, const wvc_layout *L, double target, double f, double lo,

@@ -56,6 +56,22 @@ typedef struct nrrd_header {
 wvol_status wvol__nrrd_read_header(nrrd_header *h, FILE *fp, wvol_error *err);
 void wvol__nrrd_header_free(nrrd_header *h);
 
+/* n samples of the header's type and byte order to float32. */
+void wvol__nrrd_convert(float *dst, const unsigned char *src, size_t n, const nrrd_header *h);
+/* The detached data file's path: absolute, or relative to the header's folder (malloc'ed;
+ * NULL when out of memory). */
+char *wvol__nrrd_data_path_of(const char *header_path, const char *data_file);
+
+/* Opens the samples: the detached data file (*dpath: its malloc'ed path) or fp itself
+ * positioned at the first data byte; *dname names it in messages. The caller closes *dfp
+ * when it is not fp and frees *dpath, whatever the outcome. */
+wvol_status wvol__nrrd_open_data(const nrrd_header *h, FILE *fp, FILE **dfp, char **dpath, const char **dname,
+                                 wvol_error *err);
+/* Offset of the first raw sample in fp (positioned after the header and any line skip),
+ * with the data length checked against the sizes ("byte skip", -1 included). */
+wvol_status wvol__nrrd_raw_start(const nrrd_header *h, FILE *fp, const char *name, long long *start,
+                                 wvol_error *err);
+
 /* Fails with "<path>: <message>". */
 wvol_status wvol__nrrd_header_fail(const nrrd_header *h, wvol_error *err, wvol_status status, const char *fmt, ...)
     __attribute__((format(printf, 4, 5)));

@@ -19,7 +19,7 @@
 
 /* ---- reading the data --------------------------------------------------------- */
 
-static void convert(float *dst, const unsigned char *src, size_t n, const nrrd_header *h)
+void wvol__nrrd_convert(float *dst, const unsigned char *src, size_t n, const nrrd_header *h)
 {
     size_t i;
     int b;
@@ -62,12 +62,10 @@ static wvol_status new_volume(const nrrd_header *h, wvol_volume **v, wvol_error 
     return wvol_volume_create(v, h->sizes[0], h->dim > 1 ? h->sizes[1] : 1, h->dim > 2 ? h->sizes[2] : 1, err);
 }
 
-static wvol_status read_raw(const nrrd_header *h, FILE *fp, const char *name, wvol_volume **v, wvol_error *err)
+wvol_status wvol__nrrd_raw_start(const nrrd_header *h, FILE *fp, const char *name, long long *start,
+                                 wvol_error *err)
 {
-    float *out;
     long long size = 0, pos, left;
-    size_t done = 0;
-    unsigned char *buf;
     WVOL_FORWARD(file_size(h, fp, name, &size, err));
     pos = ftell(fp);
     if (h->byte_skip == -1) {
@@ -85,6 +83,17 @@ static wvol_status read_raw(const nrrd_header *h, FILE *fp, const char *name, wv
         return HFAIL(h, WVOL_ERR_FORMAT, "data file %s holds %lld data bytes but %zux%zux%zu %zu-byte samples need %zu (%s)",
                      name, left, h->sizes[0], h->dim > 1 ? h->sizes[1] : 1, h->dim > 2 ? h->sizes[2] : 1,
                      h->elem, h->bytes, left < (long long)h->bytes ? "truncated" : "too long");
+    *start = pos;
+    return WVOL_OK;
+}
+
+static wvol_status read_raw(const nrrd_header *h, FILE *fp, const char *name, wvol_volume **v, wvol_error *err)
+{
+    float *out;
+    long long pos;
+    size_t done = 0;
+    unsigned char *buf;
+    WVOL_FORWARD(wvol__nrrd_raw_start(h, fp, name, &pos, err));
     if (fseek(fp, (long)pos, SEEK_SET) != 0) return HFAIL(h, WVOL_ERR_IO, "cannot seek in %s", name);
     WVOL_FORWARD(new_volume(h, v, err));
     out = (*v)->data;
@@ -96,7 +105,7 @@ static wvol_status read_raw(const nrrd_header *h, FILE *fp, const char *name, wv
             free(buf);
             return HFAIL(h, WVOL_ERR_IO, "read error in %s at sample %zu", name, done);
         }
-        convert(out + done, buf, want, h);
+        wvol__nrrd_convert(out + done, buf, want, h);
         done += want;
     }
     free(buf);
@@ -174,7 +183,7 @@ static wvol_status read_gzip(const nrrd_header *h, FILE *fp, const char *name, w
             goto done;
         }
         if (filled == chunk_bytes || (filled > 0 && total == want_total)) {
-            convert(out + done, chunk, filled / h->elem, h);
+            wvol__nrrd_convert(out + done, chunk, filled / h->elem, h);
             done += filled / h->elem;
             filled = 0;
         }
@@ -262,7 +271,7 @@ static wvol_status read_ascii(const nrrd_header *h, FILE *fp, const char *name, 
 }
 
 /* The detached data file's path: absolute, or relative to the header's folder. */
-static char *data_path_of(const char *header_path, const char *data_file)
+char *wvol__nrrd_data_path_of(const char *header_path, const char *data_file)
 {
     const char *slash = strrchr(header_path, '/');
     size_t dir = slash ? (size_t)(slash - header_path) + 1 : 0, n = strlen(data_file);
@@ -273,6 +282,23 @@ static char *data_path_of(const char *header_path, const char *data_file)
     memcpy(p, header_path, dir);
     memcpy(p + dir, data_file, n + 1);
     return p;
+}
+
+wvol_status wvol__nrrd_open_data(const nrrd_header *h, FILE *fp, FILE **dfp, char **dpath, const char **dname,
+                                 wvol_error *err)
+{
+    *dfp = NULL, *dpath = NULL, *dname = h->path;
+    if (h->value[F_DATA_FILE]) {
+        *dpath = wvol__nrrd_data_path_of(h->path, h->value[F_DATA_FILE]);
+        if (!*dpath) return HFAIL(h, WVOL_ERR_NOMEM, "out of memory");
+        *dfp = fopen(*dpath, "rb");
+        if (!*dfp) return HFAIL(h, WVOL_ERR_IO, "data file %s: %s", *dpath, strerror(errno));
+        *dname = *dpath;
+        return WVOL_OK;
+    }
+    *dfp = fp;
+    if (fseek(fp, h->data_offset, SEEK_SET) != 0) return HFAIL(h, WVOL_ERR_IO, "cannot seek to the data");
+    return WVOL_OK;
 }
 
 wvol_status wvol_nrrd_read(wvol_volume **out, const char *path, wvol_error *err)
@@ -293,26 +319,8 @@ wvol_status wvol_nrrd_read(wvol_volume **out, const char *path, wvol_error *err)
     s = wvol__nrrd_read_header(&h, fp, err);
     if (s) goto done;
 
-    if (h.value[F_DATA_FILE]) {
-        dpath = data_path_of(path, h.value[F_DATA_FILE]);
-        if (!dpath) {
-            s = HFAIL(&h, WVOL_ERR_NOMEM, "out of memory");
-            goto done;
-        }
-        dfp = fopen(dpath, "rb");
-        if (!dfp) {
-            s = HFAIL(&h, WVOL_ERR_IO, "data file %s: %s", dpath, strerror(errno));
-            goto done;
-        }
-        dname = dpath;
-    } else {
-        dfp = fp;
-        dname = path;
-        if (fseek(fp, h.data_offset, SEEK_SET) != 0) {
-            s = HFAIL(&h, WVOL_ERR_IO, "cannot seek to the data");
-            goto done;
-        }
-    }
+    s = wvol__nrrd_open_data(&h, fp, &dfp, &dpath, &dname, err);
+    if (s) goto done;
     s = skip_lines(&h, dfp, err);
     if (s) goto done;
     if (h.encoding == ENC_RAW) s = read_raw(&h, dfp, dname, &v, err);

@@ -109,3 +109,20 @@ wvol_status wvol__idwt3_partial_f32(float *data, size_t nx, size_t ny, size_t nz
     if (stop == levels) return WVOL_OK;
     return transform_f32(data, nx, ny, nz, f, levels, 1, stop, err);
 }
+
+/* ---- kernels of the streamed transform (dwt3_stream.c), float32 --------------------- */
+
+void wvol__dwt_slice_xy_f32(float *slice, size_t cx, size_t cy, const float *h, const float *g, int L,
+                            float *scratch)
+{
+    dwt_plan pl;
+    memset(&pl, 0, sizeof pl);
+    pl.L = L;
+    slice_xy_f32(slice, cx, cy, cx, &pl, h, g, scratch, 0);
+}
+
+void wvol__dwt_zrows_f32(float *a, float *d, const float *const *rows, size_t cx, size_t y0, size_t y1, size_t cz,
+                         const float *h, const float *g, int L, float *tmp)
+{
+    zrows_f32(a, d, rows, cx, y0, y1, wvol__block_width(cx, cz, L, sizeof(float)), h, g, L, tmp);
+}

@@ -1,0 +1,294 @@
+#!/usr/bin/env python3
+# SPDX-License-Identifier: MIT
+"""Volumes larger than memory: streamed compression's time, throughput and peak resident
+memory against the volume's size, and its bits/voxel at 40 and 60 dB against ZFP.
+
+Volumes: the skull phantom with noise (sigma 20 HU) and the turbulence field, at 256^3,
+512^3, 1024^3 (and 2048^3 with --big: streamed from the generator, never written).
+For each size up to 1024^3, in the same run:
+  * `wvol synth` writes the volume to a raw file slab by slab (its time and peak RSS);
+  * `wvol compress FILE --psnr T` for T = 40 and 60 dB: streamed (two passes over the
+    file, the volume never held): wall time, MB/s of float32 input, peak RSS of the
+    process (/usr/bin/time's %M), bits/voxel, passes, the encoder's exact PSNR;
+  * at 256^3 and 512^3 also `--in-memory` (the whole-volume pipeline) at 40 dB, and at
+    256^3 the streamed compression straight from the generator (`synth:KIND,...`);
+  * ZFP (python3-zfpy, fixed accuracy, one thread) on the same file, compressed slab by
+    slab (64 slices, a multiple of ZFP's 4^3 blocks: in fixed-accuracy mode each block is
+    coded on its own, so the bits are the whole array's plus one small header per slab),
+    memory-mapped: a tolerance sweep on every 4th slab brackets each target, then full
+    passes at the bracketing tolerances; bits/voxel at exactly 40 / 60 dB interpolated
+    (log bits against PSNR) between them, as bench_rd.py does.
+PSNR: 20 log10(range / RMSE), range = max - min of the volume, RMSE over all voxels.
+Writes bench/results/large.json, large.md and large.png.
+
+  python3 bench/bench_large.py            # 256^3 .. 1024^3 (about half an hour on 2 cores)
+  python3 bench/bench_large.py --big      # and 2048^3 from the generator (long)
+  python3 bench/bench_large.py --quick    # 64^3 and 128^3: a smoke test
+"""
+import argparse
+import json
+import math
+import os
+import pathlib
+import platform
+import subprocess
+import sys
+import tempfile
+import time
+
+import numpy as np
+
+sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
+from bench_rd import bpv_at  # noqa: E402
+from benchutil import cpu_model  # noqa: E402
+
+ROOT = pathlib.Path(__file__).resolve().parents[1]
+WVOL = os.environ.get("WVOL_BIN", str(ROOT / "build" / "wvol"))
+RESULTS = ROOT / "bench" / "results"
+KINDS = {"skull": ["--noise", "20"], "turbulence": []}
+TARGETS = [40, 60]
+SLAB = 64
+
+
+def run_rss(cmd, env=None):
+    """Runs a command under /usr/bin/time and returns (stdout, wall seconds, peak RSS in bytes
+    of that process). (os.wait4's ru_maxrss of a child forked from this Python would count the
+    parent's pages the child held before exec: a Python holding ZFP's arrays inflated it.)"""
+    with tempfile.NamedTemporaryFile(mode="w+", suffix=".time") as tf:
+        full = ["/usr/bin/time", "-f", "%M", "-o", tf.name] + [str(c) for c in cmd]
+        t0 = time.perf_counter()
+        r = subprocess.run(full, capture_output=True, text=True, env=env)
+        wall = time.perf_counter() - t0
+        if r.returncode != 0:
+            raise RuntimeError(f"{' '.join(map(str, cmd))}: {r.stderr.strip()}")
+        kb = int(open(tf.name).read().strip().splitlines()[-1])
+    return r.stdout, wall, kb * 1024
+
+
+def synth_spec(kind, n):
+    extra = ",noise=20" if kind == "skull" else ""
+    return f"synth:{kind},size={n}{extra}"
+
+
+def compress(src, n, target, workdir, extra=()):
+    out = workdir / "v.wvc"
+    cmd = [WVOL, "compress", src, "-o", out, "--psnr", str(target), "--json", *extra]
+    if not str(src).startswith("synth:"):
+        cmd[3:3] = ["--dims", f"{n}x{n}x{n}"]
+    stdout, wall, rss = run_rss(cmd)
+    rep = json.loads(stdout)
+    os.remove(out)
+    return {"target": target, "seconds": wall, "mbs": 4 * n**3 / 1e6 / wall, "peak_rss": rss,
+            "bpv": rep["bits_per_voxel"], "psnr": rep["predicted"]["psnr"], "passes": rep.get("passes", 1),
+            "streamed": bool(rep.get("streamed")), "window_bytes": rep.get("window_bytes"),
+            "writer_bytes": rep.get("writer_bytes"), "step": rep["step"], "stage_seconds": rep["seconds"]}
+
+
+# ---------------------------------------------------------------- ZFP by slabs
+def zfp_pass(v, tol, every=1):
+    """Bits/voxel, PSNR and compress MB/s of ZFP fixed-accuracy over slabs of v (every
+    `every`-th slab only for a quick bracket)."""
+    import zfpy
+    n = v.shape[0]
+    rng = float(zfp_pass.range)
+    nbytes = 0
+    sse = 0.0
+    count = 0
+    t = 0.0
+    for z0 in range(0, n, SLAB * every):
+        s = np.ascontiguousarray(v[z0:z0 + SLAB])
+        t0 = time.perf_counter()
+        c = zfpy.compress_numpy(s, tolerance=tol)
+        t += time.perf_counter() - t0
+        d = zfpy.decompress_numpy(c)
+        nbytes += len(c)
+        sse += float(np.sum((d.astype(np.float64) - s) ** 2))
+        count += s.size
+    mse = sse / count
+    return {"param": tol, "bpv": 8 * nbytes / count, "psnr": math.inf if mse == 0 else 20 * math.log10(rng / math.sqrt(mse)),
+            "compress_mbs": 4 * count / 1e6 / t}
+
+
+def zfp_at_targets(path, n):
+    v = np.memmap(path, dtype="<f4", mode="r", shape=(n, n, n))
+    lo = hi = None
+    for z0 in range(0, n, SLAB):
+        s = np.asarray(v[z0:z0 + SLAB])
+        lo = float(s.min()) if lo is None else min(lo, float(s.min()))
+        hi = float(s.max()) if hi is None else max(hi, float(s.max()))
+    zfp_pass.range = hi - lo
+    rng = hi - lo
+    # the tolerances bracketing each target: searched on every 4th slab from 512^3 (a
+    # quarter of the volume, spread through it), then measured again on every slab (and moved
+    # outwards while the whole volume's PSNRs do not bracket the target)
+    every = 4 if n >= 512 else 1
+    tol = lambda k: rng * 2.0 ** (-k * 0.75)  # noqa: E731
+    sub, full, result = {}, {}, {}
+
+    def bracket(points, k, target, measure):
+        for _ in range(30):
+            for j in (k, k + 1):
+                if j not in points:
+                    points[j] = measure(j)
+            if points[k]["psnr"] > target:
+                k -= 1
+            elif points[k + 1]["psnr"] < target:
+                k += 1
+            else:
+                return k
+        return None
+
+    k = 6
+    for target in TARGETS:
+        k0 = bracket(sub, k, target, lambda j: zfp_pass(v, tol(j), every))
+        k1 = bracket(full, k0, target, lambda j: zfp_pass(v, tol(j))) if k0 is not None else None
+        pts = [full[k1], full[k1 + 1]] if k1 is not None else []
+        result[str(target)] = {"bpv": bpv_at(pts, target) if pts else None, "points": pts,
+                               "compress_mbs": min(p["compress_mbs"] for p in pts) if pts else None}
+        k = k1 if k1 is not None else k
+    del v
+    return result
+
+
+# ---------------------------------------------------------------- the run
+def bench_size(kind, n, workdir, depth):
+    row = {"kind": kind, "n": n, "voxels": n**3}
+    if n > 1024:
+        # streamed from the generator only, never written: n x n x depth slices (the memory
+        # does not depend on the depth, test_wavelet_stream; depth = n is the whole cube)
+        row["depth"] = depth
+        row["voxels"] = n * n * depth
+        spec = synth_spec(kind, n).replace(f"size={n}", f"size={n}x{n}x{depth}")
+        row["compress"] = [compress(spec, n, 40, workdir)]
+        c = row["compress"][0]
+        c["mbs"] = 4 * n * n * depth / 1e6 / c["seconds"]
+        return row
+    raw = workdir / f"{kind}{n}.raw"
+    _, wall, rss = run_rss([WVOL, "synth", kind, "--size", str(n), "-o", raw, *KINDS[kind]])
+    row["synth"] = {"seconds": wall, "peak_rss": rss}
+    row["compress"] = [compress(raw, n, t, workdir) for t in TARGETS]
+    if n <= 512:
+        row["in_memory"] = compress(raw, n, 40, workdir, ("--in-memory",))
+    if n <= 256:
+        row["from_generator"] = compress(synth_spec(kind, n), n, 40, workdir)
+    row["zfp"] = zfp_at_targets(raw, n)
+    os.remove(raw)
+    return row
+
+
+def write_md(res, path):
+    L = ["# Streamed compression of volumes larger than memory", "",
+         f"Machine: {res['machine']}; wvol threads: {res['threads']}; ZFP: python3-zfpy, one thread, by slabs of "
+         f"{SLAB} slices. Date: {res['date']}.", "",
+         "Peak RSS is the process's (/usr/bin/time %M); MB/s of float32 input. Streamed = two passes over the "
+         "raw file (statistics, then writing); the volume is never held.", "",
+         "| volume | size | dense GiB | synth s | target dB | wvol s | MB/s | ns/voxel | peak RSS MiB | passes | "
+         "wvol bits/voxel | ZFP bits/voxel | wvol / ZFP |",
+         "|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
+    for r in res["rows"]:
+        n = r["n"]
+        synth = f"{r['synth']['seconds']:.1f}" if "synth" in r else "(generator)"
+        for c in r["compress"]:
+            zb = r.get("zfp", {}).get(str(c["target"]), {}).get("bpv")
+            zcol = f"{zb:.4f} | {c['bpv'] / zb:.2f}" if zb else "- | -"
+            size = f"{n}^2 x {r['depth']}" if "depth" in r else f"{n}^3"
+            L.append(f"| {r['kind']} | {size} | {4 * r['voxels'] / 2**30:.2f} | {synth} | {c['target']} | {c['seconds']:.1f} | "
+                     f"{c['mbs']:.1f} | {1e9 * c['seconds'] / r['voxels']:.1f} | {c['peak_rss'] / 2**20:.0f} | "
+                     f"{c['passes']} | {c['bpv']:.4f} | {zcol} |")
+    L += ["", "In-memory pipeline (`--in-memory`) and streamed from the generator (`synth:`), 40 dB, same run:", "",
+          "| volume | size | in-memory s | in-memory peak RSS MiB | streamed-from-file peak RSS MiB | "
+          "from generator s | from generator peak RSS MiB |", "|---|---|---|---|---|---|---|"]
+    for r in res["rows"]:
+        if "in_memory" in r:
+            m, g, s = r["in_memory"], r.get("from_generator"), r["compress"][0]
+            gen = f"{g['seconds']:.1f} | {g['peak_rss'] / 2**20:.0f}" if g else "- | -"
+            L.append(f"| {r['kind']} | {r['n']}^3 | {m['seconds']:.1f} | {m['peak_rss'] / 2**20:.0f} | "
+                     f"{s['peak_rss'] / 2**20:.0f} | {gen} |")
+    L += ["", "Time against voxels (streamed from the file, 40 dB): ns/voxel relative to the smallest size:", ""]
+    for kind in KINDS:
+        rows = [r for r in res["rows"] if r["kind"] == kind and "synth" in r]
+        if rows:
+            base = rows[0]["compress"][0]["seconds"] / rows[0]["voxels"]
+            L.append(f"- {kind}: " + ", ".join(f"{r['n']}^3 {r['compress'][0]['seconds'] / r['voxels'] / base:.2f}"
+                                              for r in rows))
+    path.write_text("\n".join(L) + "\n")
+
+
+def plot(res, path):
+    try:
+        import matplotlib
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+    except ImportError:
+        return
+    fig, ax = plt.subplots(1, 3, figsize=(15, 4.5))
+    for kind, mk in zip(KINDS, "os"):
+        rows = [r for r in res["rows"] if r["kind"] == kind]
+        n = [r["n"] for r in rows]
+        ax[0].plot(n, [1e9 * r["compress"][0]["seconds"] / r["voxels"] for r in rows], mk + "-", label=f"{kind} streamed")
+        ax[1].plot(n, [r["compress"][0]["peak_rss"] / 2**30 for r in rows], mk + "-", label=f"{kind} streamed")
+        im = [r for r in rows if "in_memory" in r]
+        if im:
+            ax[1].plot([r["n"] for r in im], [r["in_memory"]["peak_rss"] / 2**30 for r in im], mk + "--",
+                       label=f"{kind} in memory")
+        for t, ls in zip(TARGETS, ("-", ":")):
+            zr = [r for r in rows if r.get("zfp", {}).get(str(t), {}).get("bpv")]
+            ax[2].plot([r["n"] for r in rows if len(r["compress"]) > 1 or t == 40],
+                       [c["bpv"] for r in rows for c in r["compress"] if c["target"] == t], mk + ls,
+                       label=f"{kind} wvol {t} dB")
+            ax[2].plot([r["n"] for r in zr], [r["zfp"][str(t)]["bpv"] for r in zr], mk + ls, alpha=0.4,
+                       label=f"{kind} ZFP {t} dB")
+    ax[1].axhline(2, color="grey", lw=0.8)
+    ax[1].plot([256, 512, 1024, 2048], [4 * m**3 / 2**30 for m in (256, 512, 1024, 2048)], "k:", lw=0.8,
+               label="dense volume")
+    for a, t in zip(ax, ("ns per voxel (40 dB)", "peak RSS GiB", "bits/voxel")):
+        a.set_xscale("log", base=2)
+        a.set_title(t)
+        a.set_xlabel("edge (voxels)")
+        a.legend(fontsize=7)
+    ax[1].set_yscale("log")
+    ax[2].set_yscale("log")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--quick", action="store_true", help="64^3 and 128^3 only")
+    ap.add_argument("--big", action="store_true", help="also 2048^2 slices, streamed from the generator")
+    ap.add_argument("--depth", type=int, default=2048, help="slices of the 2048^2 runs (default 2048: the cube)")
+    ap.add_argument("--sizes", help="comma-separated edges (overrides the defaults)")
+    ap.add_argument("--kinds", default=",".join(KINDS), help="skull,turbulence")
+    ap.add_argument("--out", default="large", help="results name in bench/results/")
+    ap.add_argument("--workdir", help="folder for the raw files (default: a temporary one)")
+    a = ap.parse_args()
+    sizes = [64, 128] if a.quick else [256, 512, 1024] + ([2048] if a.big else [])
+    if a.sizes:
+        sizes = [int(s) for s in a.sizes.split(",")]
+    res = {"machine": f"{cpu_model()}, {os.cpu_count()} cores, {platform.system()}",
+           "threads": os.environ.get("OMP_NUM_THREADS", str(os.cpu_count())),
+           "date": time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime()), "rows": []}
+    t_all = time.perf_counter()
+    with tempfile.TemporaryDirectory(dir=a.workdir) as tmp:
+        work = pathlib.Path(tmp)
+        for n in sizes:
+            for kind in a.kinds.split(","):
+                t0 = time.perf_counter()
+                row = bench_size(kind, n, work, a.depth)
+                row["bench_seconds"] = time.perf_counter() - t0
+                res["rows"].append(row)
+                c = row["compress"][0]
+                print(f"{kind:10s} {n:5d}^3: {c['seconds']:8.1f} s, {c['mbs']:7.1f} MB/s, peak RSS "
+                      f"{c['peak_rss'] / 2**20:7.0f} MiB, {c['bpv']:.4f} bits/voxel at 40 dB"
+                      + (f", ZFP {row['zfp']['40']['bpv']:.4f}" if row.get("zfp", {}).get("40", {}).get("bpv") else "")
+                      + f" ({row['bench_seconds']:.0f} s)", flush=True)
+    res["seconds"] = time.perf_counter() - t_all
+    RESULTS.mkdir(parents=True, exist_ok=True)
+    (RESULTS / f"{a.out}.json").write_text(json.dumps(res, indent=1))
+    write_md(res, RESULTS / f"{a.out}.md")
+    plot(res, RESULTS / f"{a.out}.png")
+    print(f"wrote bench/results/{a.out}.json, .md, .png ({res['seconds']:.0f} s)")
+
+
+if __name__ == "__main__":
+    main()

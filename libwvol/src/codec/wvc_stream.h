@@ -1,0 +1,35 @@
+/* SPDX-License-Identifier: MIT
+ * Declared internal interface of the codec for a streamed encoder (not installed): the
+ * statistics of a first pass over the coefficient rows (the magnitude histograms the
+ * in-memory encoder takes of the whole pyramid, wvc_hist.c) and the quantiser step they
+ * give. pipeline/compress_stream.c feeds it the rows of a streamed transform, then the
+ * same rows again to the v2 slab writer (wvc2_writer.h) with that step. */
+#ifndef WVOL_CODEC_WVC_STREAM_H
+#define WVOL_CODEC_WVC_STREAM_H
+
+#include <stddef.h>
+
+#include "codec/wvc2_writer.h"
+#include "wvol/status.h"
+#include "wvol/wvc.h"
+
+typedef struct wvc_stream_stats wvc_stream_stats;
+
+/* For the pyramid of a px x py x pz padded grid with `levels` levels. */
+wvol_status wvol__wvc_stream_stats_create(wvc_stream_stats **out, size_t px, size_t py, size_t pz, int levels,
+                                          wvol_error *err);
+/* Counts nz rows of every band of `level` (the writer's put() arguments; band 0 only at
+ * level == levels). Rows may come in any order; each row once. */
+void wvol__wvc_stream_stats_add(wvc_stream_stats *s, int level, size_t nz, const wvc2_planes *planes);
+/* The step for params p, as wvol_wvc_encode chooses it before its exact passes: p->step
+ * when given (checked against the coefficients' range), else the largest step whose
+ * error the histograms predict within target_scale x p->target_sse (the encoder's first
+ * guess is 0.9925). Refuses NaN/Inf coefficients and a step whose dequantised values
+ * would overflow float32, with the encoder's messages. *maxabs (may be NULL): max |c|. */
+wvol_status wvol__wvc_stream_step(const wvc_stream_stats *s, const wvol_wvc_params *p, double target_scale,
+                                  double *step, double *maxabs, wvol_error *err);
+/* The error the histograms predict for a step (sum over the pyramid). */
+double wvol__wvc_stream_predict(const wvc_stream_stats *s, double step, double rounding);
+void wvol__wvc_stream_stats_free(wvc_stream_stats *s); /* NULL is fine */
+
+#endif

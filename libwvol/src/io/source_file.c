@@ -1,0 +1,246 @@
+/* SPDX-License-Identifier: MIT */
+/* File volume sources (wvol/source.h): raw files and NRRD raw data are read slab by slab
+ * with a seek; NRRD gzip data through zlib's gzread/gzseek (a forward seek inflates and
+ * discards, a backward one restarts the stream); every other format is loaded whole on
+ * open. The checks are those of the whole-file readers (raw.c, nrrd_read.c): the data
+ * length against the sizes before anything is read, and for gzip the end of the stream
+ * at the last slab (too long or truncated data are refused there). */
+#define _FILE_OFFSET_BITS 64
+#define _POSIX_C_SOURCE 200809L
+#include <errno.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <unistd.h>
+#include <zlib.h>
+
+#include "core/source_volume.h"
+#include "io/nrrd_internal.h"
+#include "wvol/source.h"
+
+enum { CHUNK_BYTES = 1 << 20 };
+
+typedef struct file_src {
+    char *path;               /* the data file, for messages */
+    FILE *fp;                 /* raw data */
+    gzFile gz;                /* gzip data */
+    unsigned long long start; /* raw: file offset of the first sample; gzip: bytes to skip after inflating */
+    unsigned long long pos;   /* gzip: inflated bytes consumed so far */
+    unsigned long long total; /* data bytes the sizes need */
+    size_t slice_bytes;
+    nrrd_header conv;         /* type, elem and byte order of the samples (only those fields) */
+    unsigned char *buf;
+} file_src;
+
+static void file_close(void *ctx)
+{
+    file_src *f = ctx;
+    if (!f) return;
+    if (f->fp) fclose(f->fp);
+    if (f->gz) gzclose(f->gz);
+    free(f->buf);
+    free(f->path);
+    free(f);
+}
+
+static wvol_status file_read(void *ctx, float *dst, size_t z0, size_t nz, wvol_error *err)
+{
+    file_src *f = ctx;
+    size_t elem = f->conv.elem, n = f->slice_bytes * nz, done = 0;
+    unsigned long long at = (unsigned long long)z0 * f->slice_bytes;
+    if (f->fp) {
+        WVOL_RETURN_IF(fseeko(f->fp, (off_t)(f->start + at), SEEK_SET) != 0, err, WVOL_ERR_IO, "%s: cannot seek: %s",
+                       f->path, strerror(errno));
+    } else {
+        unsigned long long want = f->start + at;
+        if (want != f->pos) {
+            WVOL_RETURN_IF(gzseek(f->gz, (z_off_t)want, SEEK_SET) < 0, err, WVOL_ERR_FORMAT,
+                           "%s: cannot reach slice %zu of the gzip data (truncated or corrupt)", f->path, z0);
+            f->pos = want;
+        }
+    }
+    while (done < n) {
+        size_t want = n - done < CHUNK_BYTES ? n - done : CHUNK_BYTES, got;
+        if (f->fp) {
+            got = fread(f->buf, 1, want, f->fp);
+            WVOL_RETURN_IF(got != want, err, WVOL_ERR_IO, "%s: short read at byte %llu", f->path,
+                           f->start + at + done + got);
+        } else {
+            int r = gzread(f->gz, f->buf, (unsigned)want), code = Z_OK;
+            if (r < 0) {
+                const char *msg = gzerror(f->gz, &code);
+                return wvol_error_set(err, WVOL_ERR_FORMAT, "corrupt gzip data in %s: %s", f->path,
+                                      msg ? msg : "inflate failed");
+            }
+            f->pos += (unsigned)r;
+            WVOL_RETURN_IF((size_t)r != want, err, WVOL_ERR_FORMAT,
+                           "gzip data in %s end early after %llu of %llu bytes (truncated)", f->path,
+                           f->pos - f->start, f->total);
+            got = want;
+        }
+        wvol__nrrd_convert(dst + done / elem, f->buf, got / elem, &f->conv);
+        done += got;
+    }
+    if (f->gz && at + n == f->total) {
+        /* the last slab: the stream must end here */
+        unsigned char extra;
+        int r = gzread(f->gz, &extra, 1);
+        WVOL_RETURN_IF(r != 0, err, WVOL_ERR_FORMAT, "gzip data in %s hold more than the %llu bytes the sizes need%s",
+                       f->path, f->total, r < 0 ? " or are corrupt" : " (too long)");
+    }
+    return WVOL_OK;
+}
+
+static const wvol_source_ops file_ops = {file_read, file_close};
+
+static wvol_status new_file_src(file_src **out, const char *path, int type, size_t elem, int big_endian,
+                                const size_t dims[3], wvol_error *err)
+{
+    file_src *f = calloc(1, sizeof *f);
+    WVOL_RETURN_IF(!f, err, WVOL_ERR_NOMEM, "%s: out of memory", path);
+    f->path = strdup(path);
+    f->buf = malloc(CHUNK_BYTES + 8);
+    if (!f->path || !f->buf) {
+        file_close(f);
+        return wvol_error_set(err, WVOL_ERR_NOMEM, "%s: out of memory", path);
+    }
+    f->conv.type = type;
+    f->conv.elem = elem;
+    f->conv.big_endian = big_endian;
+    f->slice_bytes = dims[0] * dims[1] * elem;
+    f->total = (unsigned long long)f->slice_bytes * dims[2];
+    *out = f;
+    return WVOL_OK;
+}
+
+static wvol_status open_raw(wvol_source **out, const char *path, const wvol_load_options *opt, wvol_error *err)
+{
+    size_t elem, bytes;
+    struct stat st;
+    file_src *f;
+    WVOL_RETURN_IF(!opt || !opt->dims[0] || !opt->dims[1] || !opt->dims[2], err, WVOL_ERR_ARG,
+                   "%s: a raw file needs its dimensions (--dims NXxNYxNZ)", path);
+    elem = wvol_sample_type_size(opt->raw_type);
+    WVOL_RETURN_IF(!elem, err, WVOL_ERR_ARG, "%s: unknown raw sample type", path);
+    WVOL_RETURN_IF(!wvol_size_mul3(opt->dims[0], opt->dims[1], opt->dims[2], elem, &bytes), err, WVOL_ERR_DIMS,
+                   "%s: dimensions %zux%zux%zu overflow", path, opt->dims[0], opt->dims[1], opt->dims[2]);
+    WVOL_RETURN_IF(stat(path, &st) != 0, err, WVOL_ERR_IO, "%s: %s", path, strerror(errno));
+    WVOL_RETURN_IF(!S_ISREG(st.st_mode), err, WVOL_ERR_IO, "%s: not a regular file", path);
+    WVOL_RETURN_IF((unsigned long long)st.st_size != (unsigned long long)bytes, err, WVOL_ERR_FORMAT,
+                   "%s: file has %lld bytes but %zux%zux%zu %s samples need %zu", path, (long long)st.st_size,
+                   opt->dims[0], opt->dims[1], opt->dims[2], wvol_sample_type_name(opt->raw_type), bytes);
+    WVOL_FORWARD(new_file_src(&f, path, (int)opt->raw_type, elem, opt->big_endian, opt->dims, err));
+    f->fp = fopen(path, "rb");
+    if (!f->fp) {
+        wvol_status s = wvol_error_set(err, WVOL_ERR_IO, "%s: %s", path, strerror(errno));
+        file_close(f);
+        return s;
+    }
+    return wvol_source_create(out, opt->dims, opt->spacing, opt->origin, path, 1, &file_ops, f, err);
+}
+
+/* NRRD with raw or gzip data and no "line skip": slab by slab. *whole = 1 (nothing
+ * opened) for what only the whole-volume reader handles (ascii data, line skips). */
+static wvol_status open_nrrd(wvol_source **out, const char *path, int *whole, wvol_error *err)
+{
+    nrrd_header h;
+    FILE *fp, *dfp = NULL;
+    char *dpath = NULL;
+    const char *dname = path;
+    file_src *f = NULL;
+    size_t dims[3];
+    long long size = 0, pos;
+    struct stat st;
+    wvol_status s;
+
+    *whole = 0;
+    memset(&h, 0, sizeof h);
+    h.path = path;
+    fp = fopen(path, "rb");
+    if (!fp) return wvol_error_set(err, WVOL_ERR_IO, "%s: %s", path, strerror(errno));
+    s = wvol__nrrd_read_header(&h, fp, err);
+    if (s) goto done;
+    if (h.encoding == ENC_ASCII || h.line_skip > 0) {
+        *whole = 1;
+        goto done;
+    }
+    dims[0] = h.sizes[0], dims[1] = h.dim > 1 ? h.sizes[1] : 1, dims[2] = h.dim > 2 ? h.sizes[2] : 1;
+    s = wvol__nrrd_open_data(&h, fp, &dfp, &dpath, &dname, err);
+    if (s) goto done;
+    pos = ftell(dfp);
+    if (fstat(fileno(dfp), &st) != 0 || !S_ISREG(st.st_mode)) {
+        s = HFAIL(&h, WVOL_ERR_IO, "data file %s is not a regular file", dname);
+        goto done;
+    }
+    size = (long long)st.st_size;
+    s = new_file_src(&f, dname, h.type, h.elem, h.big_endian, dims, err);
+    if (s) goto done;
+    if (h.encoding == ENC_RAW) {
+        s = wvol__nrrd_raw_start(&h, dfp, dname, &pos, err);
+        if (s) goto done;
+        f->start = (unsigned long long)pos;
+        f->fp = dfp;
+        if (dfp == fp) fp = NULL;
+        dfp = NULL;
+    } else {
+        int fd;
+        if (h.byte_skip < 0 || (unsigned long long)h.bytes / 1032ull > (unsigned long long)(size - pos) + 64ull) {
+            s = HFAIL(&h, WVOL_ERR_FORMAT, h.byte_skip < 0 ? "byte skip -1 is not allowed with gzip data in %s"
+                                                           : "gzip data in %s cannot hold the bytes the sizes need",
+                      dname);
+            goto done;
+        }
+        fd = dup(fileno(dfp));
+        if (fd < 0 || lseek(fd, (off_t)pos, SEEK_SET) < 0 || !(f->gz = gzdopen(fd, "rb"))) {
+            if (fd >= 0) close(fd);
+            s = HFAIL(&h, WVOL_ERR_NOMEM, "cannot start zlib on %s", dname);
+            goto done;
+        }
+        gzbuffer(f->gz, 1 << 18);
+        f->start = (unsigned long long)h.byte_skip;
+        f->pos = 0;
+    }
+    s = wvol_source_create(out, dims, h.spacing, h.origin, path, 1, &file_ops, f, err);
+    f = NULL; /* the source owns it now, or has closed it */
+done:
+    file_close(f);
+    if (dfp && dfp != fp) fclose(dfp);
+    if (fp) fclose(fp);
+    free(dpath);
+    wvol__nrrd_header_free(&h);
+    return s;
+}
+
+/* ---- whole volumes ------------------------------------------------------------- */
+
+static void whole_close(void *ctx) { wvol_volume_destroy(ctx); }
+
+static wvol_status open_whole(wvol_source **out, const char *path, const wvol_load_options *opt, wvol_error *err)
+{
+    static const wvol_source_ops ops = {wvol__source_volume_read, whole_close};
+    wvol_volume *v;
+    size_t dims[3];
+    WVOL_FORWARD(wvol_volume_load(&v, path, opt, err));
+    dims[0] = v->nx, dims[1] = v->ny, dims[2] = v->nz;
+    return wvol_source_create(out, dims, v->spacing, v->origin, path, 0, &ops, v, err);
+}
+
+int wvol_source_format_streams(const char *path)
+{
+    return path && (wvol_path_has_ext(path, ".raw") || wvol_path_has_ext(path, ".nrrd") ||
+                    wvol_path_has_ext(path, ".nhdr"));
+}
+
+wvol_status wvol_source_open(wvol_source **out, const char *path, const wvol_load_options *opt, wvol_error *err)
+{
+    WVOL_RETURN_IF(!out || !path, err, WVOL_ERR_ARG, "volume source: NULL argument");
+    *out = NULL;
+    if (wvol_path_has_ext(path, ".raw")) return open_raw(out, path, opt, err);
+    if (wvol_path_has_ext(path, ".nrrd") || wvol_path_has_ext(path, ".nhdr")) {
+        int whole = 0;
+        WVOL_FORWARD(open_nrrd(out, path, &whole, err));
+        if (!whole) return WVOL_OK;
+    }
+    return open_whole(out, path, opt, err);
+}

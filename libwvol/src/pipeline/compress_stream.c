@@ -1,0 +1,195 @@
+/* SPDX-License-Identifier: MIT */
+/* Streamed compression (wvol_compress_stream, wvol/compress.h): a volume source into a
+ * .wvc version-2 file with memory that does not grow with the number of slices.
+ *
+ * Two passes, no spill: selection and the quantiser's step need statistics of every
+ * coefficient, so pass 1 runs the streamed transform (wavelet/dwt3_stream.c) into the
+ * magnitude histograms the in-memory encoder takes of the whole pyramid (codec's
+ * wvc_stream.h), and the step comes from them exactly as the in-memory encoder's first
+ * guess does; pass 2 runs the transform again into the v2 slab writer
+ * (codec/wvc2_writer.h), which quantises and codes chunks as their rows arrive and
+ * reports the exact quantisation error. When that error misses an error target (the
+ * histograms predict it to within about 1%), a further pass writes with a step scaled
+ * down by the miss. A spill of the coefficients to a temporary file would cost the
+ * volume's size on disk and its read-back; a second transform costs less than reading
+ * 4 bytes per voxel back on the machines we measure (docs/store.md). */
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "codec/wvc2_writer.h"
+#include "codec/wvc_stream.h"
+#include "core/clock.h"
+#include "core/status_internal.h"
+#include "wvol/compress.h"
+#include "wvol/source.h"
+
+/* ---- the rows of a level as the writer's planes ----------------------------------- */
+
+typedef struct pass_ctx {
+    int levels;
+    size_t p[3];
+    wvc_stream_stats *stats; /* pass 1 */
+    wvc2_writer *writer;     /* pass 2 */
+} pass_ctx;
+
+static void planes_of(wvc2_planes *pl, const pass_ctx *c, int m, const float *low, const float *high)
+{
+    size_t cx = c->p[0] == 1 ? 1 : c->p[0] >> (m - 1), cy = c->p[1] == 1 ? 1 : c->p[1] >> (m - 1);
+    size_t hx = cx > 1 ? cx / 2 : 0, hy = cy > 1 ? cy / 2 : 0;
+    memset(pl, 0, sizeof *pl);
+    for (int b = 0; b < 8; b++) {
+        const float *src = b & 4 ? high : low;
+        if (!src || (b == 0 && m < c->levels)) continue;
+        /* a band with a high-pass along an untransformed axis is empty: its pointer is ignored */
+        pl->band[b] = src + (b & 1 ? hx : 0) + (b & 2 ? hy * cx : 0);
+        pl->sy[b] = cx;
+        pl->sz[b] = cx * cy;
+    }
+}
+
+static wvol_status on_rows(void *user, int level, size_t r, const float *low, const float *high, wvol_error *err)
+{
+    pass_ctx *c = user;
+    wvc2_planes pl;
+    planes_of(&pl, c, level, low, high);
+    if (c->stats) {
+        wvol__wvc_stream_stats_add(c->stats, level, 1, &pl);
+        return WVOL_OK;
+    }
+    return wvol__wvc2_writer_put(c->writer, level, r, 1, &pl, err);
+}
+
+/* ---- a source that keeps the range of what it reads ------------------------------- */
+
+typedef struct range_src {
+    wvol_source *inner;
+    double lo, hi;
+} range_src;
+
+static wvol_status range_read(void *ctx, float *dst, size_t z0, size_t nz, wvol_error *err)
+{
+    range_src *r = ctx;
+    size_t dims[3], n;
+    double lo = r->lo, hi = r->hi;
+    WVOL_FORWARD(wvol_source_read(r->inner, dst, z0, nz, err));
+    wvol_source_geometry(r->inner, dims, NULL, NULL);
+    n = dims[0] * dims[1] * nz;
+    for (size_t i = 0; i < n; i++) {
+        double x = dst[i];
+        lo = x < lo ? x : lo;
+        hi = x > hi ? x : hi;
+    }
+    r->lo = lo, r->hi = hi;
+    return WVOL_OK;
+}
+
+/* ---- the pipeline ------------------------------------------------------------------ */
+
+int wvol_compress_streams(const wvol_compress_params *p)
+{
+    if (!p) return 1;
+    return p->select.mode == WVOL_SELECT_ALL && p->select.drop_levels == 0 && p->select.n_ellipsoids == 0 &&
+           p->quant.format_version != 1;
+}
+
+wvol_status wvol_compress_stream(const char *path, wvol_source *src, const wvol_compress_params *params,
+                                 wvol_compress_stream_report *rep, wvol_error *err)
+{
+    static const wvol_source_ops range_ops = {range_read, NULL};
+    wvol_compress_params p;
+    wvol_compress_stream_report out;
+    const wvol_filter *f = NULL;
+    wvol_source *rs = NULL;
+    range_src rctx;
+    pass_ctx pc;
+    wvol_wvc_params wp;
+    wvc2_header h;
+    size_t dims[3], bytes = 0;
+    double spacing[3], origin[3], voxels, t0, scale = 0.9925;
+    int maxl;
+    wvol_status s;
+
+    WVOL_RETURN_IF(!path || !src, err, WVOL_ERR_ARG, "compress: no output path or no source");
+    if (params) p = *params;
+    else wvol_compress_params_default(&p), p.for_file = 1;
+    memset(&out, 0, sizeof out);
+    WVOL_RETURN_IF(!wvol_compress_streams(&p), err, WVOL_ERR_UNSUPPORTED,
+                   "compress: the streamed path keeps every coefficient and writes .wvc version 2 (a selection, "
+                   "dropped levels or version 1 need the volume in memory: wvol_compress)");
+    WVOL_FORWARD(wvol_filter_get(&f, p.wavelet && p.wavelet[0] ? p.wavelet : "db2", err));
+    wvol_source_geometry(src, dims, spacing, origin);
+    maxl = wvol_dwt_max_levels(dims[0], dims[1], dims[2]);
+    WVOL_RETURN_IF(maxl < 1, err, WVOL_ERR_DIMS, "compress: a %zux%zux%zu volume cannot be transformed", dims[0],
+                   dims[1], dims[2]);
+    if (p.levels == 0) p.levels = maxl < WVOL_COMPRESS_LEVELS_FILE ? maxl : WVOL_COMPRESS_LEVELS_FILE;
+    WVOL_RETURN_IF(p.levels < 1 || p.levels > maxl, err, WVOL_ERR_ARG,
+                   "compress: levels %d: a %zux%zux%zu volume allows 1..%d", p.levels, dims[0], dims[1], dims[2], maxl);
+    out.levels = p.levels;
+    memset(&pc, 0, sizeof pc);
+    pc.levels = p.levels;
+    for (int a = 0; a < 3; a++) pc.p[a] = wvol_dwt_padded_size(dims[a], p.levels);
+
+    /* pass 1: statistics (and the volume's range) */
+    t0 = wvol__now();
+    rctx.inner = src, rctx.lo = INFINITY, rctx.hi = -INFINITY;
+    WVOL_FORWARD(wvol_source_create(&rs, dims, spacing, origin, wvol_source_name(src), 1, &range_ops, &rctx, err));
+    s = wvol__wvc_stream_stats_create(&pc.stats, pc.p[0], pc.p[1], pc.p[2], p.levels, err);
+    if (!s) s = wvol_dwt3_source(rs, f, p.levels, on_rows, &pc, &bytes, err);
+    wvol_source_destroy(rs);
+    out.window_bytes = bytes;
+    out.value_min = rctx.lo, out.value_max = rctx.hi;
+    voxels = (double)dims[0] * (double)dims[1] * (double)dims[2];
+    if (!s) s = wvol_compress_wvc_params(&wp, &p.quant, 0.0, voxels, out.value_min, out.value_max, err);
+    if (!s) s = wvol__wvc_stream_step(pc.stats, &wp, scale, &out.step, NULL, err);
+    out.seconds_stats = wvol__now() - t0;
+    out.target_sse = wp.step > 0 ? 0 : wp.target_sse;
+
+    /* pass 2 (and more if the exact error misses the target) */
+    wvol__wvc2_header_default(&h);
+    snprintf(h.filter, sizeof h.filter, "%s", f->name);
+    h.levels = p.levels;
+    h.nx = dims[0], h.ny = dims[1], h.nz = dims[2];
+    h.px = pc.p[0], h.py = pc.p[1], h.pz = pc.p[2];
+    memcpy(h.spacing, spacing, sizeof h.spacing);
+    memcpy(h.origin, origin, sizeof h.origin);
+    h.value_min = out.value_min, h.value_max = out.value_max;
+    h.rounding = wp.rounding;
+    h.tile = wp.tile;
+    h.tile_z = wp.tile_z;
+    h.coder = wp.coder;
+    h.zstd_level = wp.zstd_level;
+    out.writer_bytes = wvol__wvc2_writer_memory(&h, (size_t)f->length + 8);
+    wvol__wvc_stream_stats_free(pc.stats);
+    pc.stats = NULL;
+    for (int attempt = 0; !s; attempt++) {
+        wvol_wvc_report wr;
+        t0 = wvol__now();
+        h.step = out.step;
+        s = wvol__wvc2_writer_open(&pc.writer, path, &h, err);
+        if (!s) s = wvol_dwt3_source(src, f, p.levels, on_rows, &pc, NULL, err);
+        if (!s) s = wvol__wvc2_writer_close(pc.writer, NULL, NULL, &wr, err);
+        else wvol__wvc2_writer_abort(pc.writer);
+        pc.writer = NULL;
+        out.passes = attempt + 2;
+        out.seconds_write += wvol__now() - t0;
+        if (s) break;
+        out.wvc = wr;
+        out.sse_quant = wr.sse_quant;
+        out.bytes = wr.bytes;
+        if (wp.step > 0 || wr.sse_quant <= wp.target_sse || !(wr.sse_quant > 0)) break;
+        if (attempt == 3) {
+            remove(path);
+            s = wvol_error_set(err, WVOL_ERR_ARG,
+                               "compress: the error target (%g) is still missed after %d passes (%g): give a step",
+                               wp.target_sse, out.passes, wr.sse_quant);
+            break;
+        }
+        /* the error grows about as step^2 near the target: aim a little below it */
+        out.step *= 0.995 * sqrt(wp.target_sse / wr.sse_quant);
+    }
+    out.wvc.step = out.step;
+    if (rep) *rep = out;
+    return s;
+}

@@ -1,0 +1,318 @@
+/* SPDX-License-Identifier: MIT */
+/* The forward transform streamed along z (wvol_dwt3_stream_*): slices go in in order,
+ * each level's coefficient rows come out in increasing z, with memory that does not
+ * depend on the number of slices.
+ *
+ * Per level, a window of xy-transformed slices: the first L - 2 (the periodic wrap rows
+ * the last outputs need, kept from the start) and a ring of the latest L + BATCH. The
+ * z output k needs input rows 2k .. 2k + L - 1 (mod the level's depth): it is made as
+ * soon as row 2k + L - 1 has arrived (the last ones when the last row has), by the same
+ * kernels, blocks and tap order as the in-memory transform (dwt3_impl.h), so the
+ * coefficients are bit-identical to wvol_dwt3's. The z-low row's low-low quadrant is
+ * the next level's input row k. A level shallower than 2L keeps all its rows. */
+#include <omp.h>
+#include <stdint.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "wavelet/wavelet_internal.h"
+#include "wvol/source.h"
+
+/* slices transformed in x and y together (in parallel) before the z outputs they allow */
+enum { BATCH = 8 };
+
+typedef struct level_state {
+    size_t cx, cy, cz, plane; /* this level's input cube (cz rows of cx x cy) */
+    size_t head, ring, slots; /* wrap rows kept, ring rows; all rows when head == cz */
+    float *rows;              /* slots x plane */
+    size_t got, next;         /* input rows received, next output row */
+    float *lo, *hi;           /* the output rows (plane each) */
+} level_state;
+
+struct wvol_dwt3_stream {
+    const wvol_filter *f;
+    int levels, L, threads; /* threads: scratch slots, and the most the parallel loops use */
+    size_t n[3], p[3];
+    float h[WVOL__MAX_TAPS], g[WVOL__MAX_TAPS];
+    level_state lv[31];
+    float *scratch;
+    size_t scratch_per;
+    float *last;              /* the last original slice (z padding repeats it) */
+    size_t pushed;            /* original slices received */
+    int finished, failed;
+    size_t bytes;
+    wvol_dwt3_rows_fn fn;
+    void *user;
+};
+
+static float *slot(const level_state *s, size_t i)
+{
+    size_t k = i < s->head || s->head == s->cz ? i : s->head + (i - s->head) % s->ring;
+    return s->rows + k * s->plane;
+}
+
+void wvol_dwt3_stream_destroy(wvol_dwt3_stream *s)
+{
+    if (!s) return;
+    for (int m = 0; m < 31; m++) {
+        free(s->lv[m].rows);
+        free(s->lv[m].lo);
+    }
+    free(s->scratch);
+    free(s->last);
+    free(s);
+}
+
+size_t wvol_dwt3_stream_bytes(const wvol_dwt3_stream *s) { return s ? s->bytes : 0; }
+
+wvol_status wvol_dwt3_stream_create(wvol_dwt3_stream **out, const wvol_filter *f, int levels, size_t nx, size_t ny,
+                                    size_t nz, wvol_dwt3_rows_fn fn, void *user, wvol_error *err)
+{
+    wvol_dwt3_stream *s;
+    dwt_plan pl;
+    int maxl;
+    WVOL_RETURN_IF(!out, err, WVOL_ERR_ARG, "streamed transform: out is NULL");
+    *out = NULL;
+    WVOL_RETURN_IF(!f || !f->h || !fn, err, WVOL_ERR_ARG, "streamed transform: no filter or no callback");
+    WVOL_RETURN_IF(nx == 0 || ny == 0 || nz == 0, err, WVOL_ERR_DIMS,
+                   "streamed transform: empty volume %zu x %zu x %zu", nx, ny, nz);
+    maxl = wvol_dwt_max_levels(nx, ny, nz);
+    WVOL_RETURN_IF(maxl == 0, err, WVOL_ERR_DIMS, "streamed transform: a 1 x 1 x 1 volume has no levels");
+    WVOL_RETURN_IF(levels < 1 || levels > maxl, err, WVOL_ERR_ARG,
+                   "streamed transform: levels = %d for a %zu x %zu x %zu volume (1..%d)", levels, nx, ny, nz, maxl);
+    s = calloc(1, sizeof *s);
+    WVOL_RETURN_IF(!s, err, WVOL_ERR_NOMEM, "streamed transform: out of memory");
+    s->f = f;
+    s->levels = levels;
+    s->L = f->length;
+    s->fn = fn;
+    s->user = user;
+    s->n[0] = nx, s->n[1] = ny, s->n[2] = nz;
+    for (int a = 0; a < 3; a++) s->p[a] = wvol_dwt_padded_size(s->n[a], levels);
+    for (int i = 0; i < f->length; i++) s->h[i] = (float)f->h[i], s->g[i] = (float)f->g[i];
+    /* scratch per thread: the in-memory plan's for the x rows and y column blocks, and
+     * L rows of a z column block (not the plan's whole z column: that grows with the depth) */
+    {
+        size_t need = 0, L = (size_t)s->L;
+        wvol_status st = wvol__dwt_plan(&pl, s, s->p, f, levels, sizeof(float), err);
+        if (st) {
+            wvol_dwt3_stream_destroy(s);
+            return st;
+        }
+        for (int m = 0; m < levels; m++) {
+            size_t cx = wvol__extent(s->p[0], m), cy = wvol__extent(s->p[1], m), cz = wvol__extent(s->p[2], m);
+            size_t x = 4 * (cx / 2 + L), y = cy > 1 ? (cy + L) * wvol__block_width(cx, cy, s->L, sizeof(float)) : 0;
+            size_t z = L * wvol__block_width(cx, cz, s->L, sizeof(float));
+            need = x > need ? x : need;
+            need = y > need ? y : need;
+            need = z > need ? z : need;
+        }
+        s->threads = pl.threads;
+        s->scratch_per = (need + 15) & ~(size_t)15;
+    }
+    s->scratch = malloc(s->scratch_per * (size_t)s->threads * sizeof(float));
+    s->bytes = s->scratch_per * (size_t)s->threads * sizeof(float);
+    s->last = malloc(nx * ny * sizeof(float));
+    s->bytes += nx * ny * sizeof(float);
+    if (!s->scratch || !s->last) goto nomem;
+    for (int m = 1; m <= levels; m++) {
+        level_state *l = &s->lv[m];
+        size_t L = (size_t)s->L;
+        l->cx = wvol__extent(s->p[0], m - 1);
+        l->cy = wvol__extent(s->p[1], m - 1);
+        l->cz = wvol__extent(s->p[2], m - 1);
+        l->plane = l->cx * l->cy;
+        if (l->cz < 2 * L + BATCH) {
+            l->head = l->cz, l->ring = 0, l->slots = l->cz;
+        } else {
+            l->head = L - 2, l->ring = L + BATCH, l->slots = l->head + l->ring;
+        }
+        l->rows = malloc(l->slots * l->plane * sizeof(float));
+        l->lo = malloc(2 * l->plane * sizeof(float));
+        if (!l->rows || !l->lo) goto nomem;
+        l->hi = l->lo + l->plane;
+        s->bytes += (l->slots + 2) * l->plane * sizeof(float);
+    }
+    *out = s;
+    return WVOL_OK;
+nomem:
+    {
+        size_t need = s->bytes;
+        wvol_dwt3_stream_destroy(s);
+        return wvol_error_set(err, WVOL_ERR_NOMEM, "streamed transform: no memory for its window (%zu bytes)", need);
+    }
+}
+
+/* Every value finite: the low-pass gains 2^1.5 per level, inputs near FLT_MAX overflow. */
+static wvol_status check_plane(const float *p, size_t n, int level, wvol_error *err)
+{
+    int bad = 0;
+    for (size_t i = 0; i < n; i++) bad |= !(p[i] - p[i] == 0);
+    WVOL_RETURN_IF(bad, err, WVOL_ERR_NONFINITE,
+                   "streamed transform: coefficients of level %d overflow float32 (the low-pass grows by 2^1.5 per "
+                   "level; input magnitudes must stay below about FLT_MAX / 2^(1.5 * levels))", level);
+    return WVOL_OK;
+}
+
+static wvol_status arrive(wvol_dwt3_stream *s, int m, size_t i, wvol_error *err);
+
+/* Output row k of level m: the callback, then the next level's input row k. */
+static wvol_status emit(wvol_dwt3_stream *s, int m, size_t k, wvol_error *err)
+{
+    level_state *l = &s->lv[m];
+    const float *low, *high = NULL;
+    if (l->cz > 1) {
+        const float *rows[WVOL__MAX_TAPS];
+        long long ny = (long long)l->cy, chunk = 8;
+        for (int t = 0; t < s->L; t++) rows[t] = slot(l, (2 * k + (size_t)t) % l->cz);
+#pragma omp parallel for schedule(dynamic, 1) num_threads(s->threads) if (l->plane > 32768)
+        for (long long y = 0; y < ny; y += chunk)
+            wvol__dwt_zrows_f32(l->lo, l->hi, rows, l->cx, (size_t)y, (size_t)(y + chunk < ny ? y + chunk : ny),
+                                l->cz, s->h, s->g, s->L, s->scratch + (size_t)omp_get_thread_num() * s->scratch_per);
+        low = l->lo, high = l->hi;
+        WVOL_FORWARD(check_plane(l->hi, l->plane, m, err));
+    } else {
+        low = slot(l, 0); /* an untransformed z axis: the xy-transformed slice itself */
+    }
+    WVOL_FORWARD(check_plane(low, l->plane, m, err));
+    WVOL_FORWARD(s->fn(s->user, m, k, low, high, err));
+    if (m < s->levels) {
+        level_state *n = &s->lv[m + 1];
+        float *dst = slot(n, k);
+        for (size_t y = 0; y < n->cy; y++) memcpy(dst + y * n->cx, low + y * l->cx, n->cx * sizeof(float));
+        wvol__dwt_slice_xy_f32(dst, n->cx, n->cy, s->h, s->g, s->L, s->scratch);
+        WVOL_FORWARD(arrive(s, m + 1, k, err));
+    }
+    return WVOL_OK;
+}
+
+/* Row i of level m is in its slot, xy-transformed: make the outputs it completes. */
+static wvol_status arrive(wvol_dwt3_stream *s, int m, size_t i, wvol_error *err)
+{
+    level_state *l = &s->lv[m];
+    size_t half = l->cz > 1 ? l->cz / 2 : 1, L = (size_t)s->L;
+    l->got = i + 1;
+    while (l->next < half && (l->cz == 1 ? 1 : 2 * l->next + L - 1 <= i || i + 1 == l->cz)) {
+        WVOL_FORWARD(emit(s, m, l->next, err));
+        l->next++;
+    }
+    return WVOL_OK;
+}
+
+/* Padded slices z0 .. z0 + cnt - 1 of level 1 (their source rows given by src(z)). */
+static wvol_status take(wvol_dwt3_stream *s, const float *slices, size_t z0, size_t cnt, wvol_error *err)
+{
+    level_state *l = &s->lv[1];
+    size_t nx = s->n[0], ny = s->n[1];
+    long long c = (long long)cnt;
+#pragma omp parallel for schedule(dynamic, 1) num_threads(s->threads) if (cnt > 1)
+    for (long long t = 0; t < c; t++) {
+        size_t z = z0 + (size_t)t;
+        const float *src = slices ? slices + (size_t)t * nx * ny : s->last;
+        float *dst = slot(l, z);
+        for (size_t j = 0; j < l->cy; j++) {
+            const float *row = src + nx * (j < ny ? j : ny - 1); /* edge padding, as wvol_dwt3 */
+            float *o = dst + j * l->cx;
+            memcpy(o, row, nx * sizeof(float));
+            for (size_t i = nx; i < l->cx; i++) o[i] = row[nx - 1];
+        }
+        wvol__dwt_slice_xy_f32(dst, l->cx, l->cy, s->h, s->g, s->L,
+                               s->scratch + (size_t)omp_get_thread_num() * s->scratch_per);
+    }
+    for (size_t t = 0; t < cnt; t++) WVOL_FORWARD(arrive(s, 1, z0 + t, err));
+    return WVOL_OK;
+}
+
+wvol_status wvol_dwt3_stream_push(wvol_dwt3_stream *s, const float *slices, size_t count, wvol_error *err)
+{
+    size_t slice;
+    WVOL_RETURN_IF(!s || (!slices && count), err, WVOL_ERR_ARG, "streamed transform: NULL argument");
+    WVOL_RETURN_IF(s->failed, err, WVOL_ERR_ARG, "streamed transform: an earlier step failed");
+    WVOL_RETURN_IF(count > s->n[2] - s->pushed, err, WVOL_ERR_ARG,
+                   "streamed transform: %zu slices past the volume's %zu", s->pushed + count, s->n[2]);
+    slice = s->n[0] * s->n[1];
+    for (size_t done = 0; done < count;) {
+        size_t b = count - done < BATCH ? count - done : BATCH;
+        wvol_status st = take(s, slices + done * slice, s->pushed, b, err);
+        if (st) {
+            s->failed = 1;
+            return st;
+        }
+        s->pushed += b;
+        done += b;
+    }
+    if (count) memcpy(s->last, slices + (count - 1) * slice, slice * sizeof(float));
+    return WVOL_OK;
+}
+
+wvol_status wvol_dwt3_stream_finish(wvol_dwt3_stream *s, wvol_error *err)
+{
+    WVOL_RETURN_IF(!s, err, WVOL_ERR_ARG, "streamed transform: NULL argument");
+    WVOL_RETURN_IF(s->failed, err, WVOL_ERR_ARG, "streamed transform: an earlier step failed");
+    WVOL_RETURN_IF(s->pushed != s->n[2], err, WVOL_ERR_ARG, "streamed transform: %zu of %zu slices given",
+                   s->pushed, s->n[2]);
+    WVOL_RETURN_IF(s->finished, err, WVOL_ERR_ARG, "streamed transform: finished twice");
+    for (size_t z = s->n[2]; z < s->p[2]; z++) {
+        wvol_status st = take(s, NULL, z, 1, err); /* edge padding along z: the last slice again */
+        if (st) {
+            s->failed = 1;
+            return st;
+        }
+    }
+    s->finished = 1;
+    return WVOL_OK;
+}
+
+wvol_status wvol_dwt3_source(wvol_source *src, const wvol_filter *f, int levels, wvol_dwt3_rows_fn fn, void *user,
+                             size_t *bytes, wvol_error *err)
+{
+    wvol_dwt3_stream *s;
+    size_t dims[3], S, slice;
+    float *buf;
+    wvol_status st = WVOL_OK;
+    WVOL_RETURN_IF(!src, err, WVOL_ERR_ARG, "streamed transform: no source");
+    wvol_source_geometry(src, dims, NULL, NULL);
+    WVOL_FORWARD(wvol_dwt3_stream_create(&s, f, levels, dims[0], dims[1], dims[2], fn, user, err));
+    slice = dims[0] * dims[1];
+    /* slabs of about 16 MiB (at least BATCH slices when a slice is smaller) */
+    S = ((size_t)16 << 20) / (slice * sizeof(float));
+    S = S < BATCH ? BATCH : S > dims[2] ? dims[2] : S;
+    if (S > dims[2]) S = dims[2];
+    buf = malloc(S * slice * sizeof(float));
+    if (!buf) {
+        wvol_dwt3_stream_destroy(s);
+        return wvol_error_set(err, WVOL_ERR_NOMEM, "streamed transform: no memory for a slab of %zu slices", S);
+    }
+    for (size_t z0 = 0; z0 < dims[2] && !st; z0 += S) {
+        size_t nz = dims[2] - z0 < S ? dims[2] - z0 : S;
+        st = wvol_source_read(src, buf, z0, nz, err);
+        if (!st) st = wvol_dwt3_stream_push(s, buf, nz, err);
+    }
+    if (!st) st = wvol_dwt3_stream_finish(s, err);
+    if (bytes) *bytes = wvol_dwt3_stream_bytes(s) + S * slice * sizeof(float);
+    free(buf);
+    wvol_dwt3_stream_destroy(s);
+    return st;
+}
+
+void wvol_coeffs_put_rows(wvol_coeffs *c, int level, size_t r, const float *low, const float *high)
+{
+    size_t cx, cy, cz, hx, hy, px, py;
+    if (!c || !c->data || level < 1 || level > c->levels || !low) return;
+    px = c->px, py = c->py;
+    cx = wvol__extent(px, level - 1), cy = wvol__extent(py, level - 1), cz = wvol__extent(c->pz, level - 1);
+    hx = cx > 1 ? cx / 2 : 1, hy = cy > 1 ? cy / 2 : 1;
+    for (int half = 0; half < 2; half++) {
+        const float *src = half ? high : low;
+        size_t z = half ? cz / 2 + r : r;
+        if (!src) continue;
+        for (size_t y = 0; y < cy; y++) {
+            float *dst = c->data + px * (y + py * z);
+            const float *row = src + y * cx;
+            /* the low-low quadrant of a z-low row below the coarsest level is the next
+             * level's input, not a coefficient */
+            size_t x0 = !half && level < c->levels && y < hy ? hx : 0;
+            memcpy(dst + x0, row + x0, (cx - x0) * sizeof(float));
+        }
+    }
+}

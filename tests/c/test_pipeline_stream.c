@@ -1,0 +1,262 @@
+/* SPDX-License-Identifier: MIT */
+/* Streamed compression (pipeline/compress_stream.c): with a given step the file is the
+ * in-memory pipeline's byte for byte; with a PSNR target the step is the in-memory
+ * encoder's first guess and the target is met, the file decoding to the same
+ * coefficients as the in-memory file made with that step; sources from files and
+ * generators; refusals and no partial files. */
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+
+#include "check.h"
+#include "wvol/compress.h"
+#include "wvol/io.h"
+#include "wvol/source.h"
+#include "wvol/wvc.h"
+#include "wvol_synth.h"
+
+#define DIR_ "test_pipeline_stream.d"
+
+static void *read_all(const char *path, size_t *n)
+{
+    FILE *fp = fopen(path, "rb");
+    void *b = NULL;
+    long sz;
+    *n = 0;
+    if (!fp) return NULL;
+    fseek(fp, 0, SEEK_END);
+    sz = ftell(fp);
+    fseek(fp, 0, SEEK_SET);
+    b = malloc(sz > 0 ? (size_t)sz : 1);
+    if (b && fread(b, 1, (size_t)sz, fp) == (size_t)sz) *n = (size_t)sz;
+    fclose(fp);
+    return b;
+}
+
+/* The in-memory pipeline's file for v with params cp. */
+static void *in_memory(const wvol_volume *v, const wvol_compress_params *cp, size_t *n, wvol_wvc_report *wr)
+{
+    wvol_compressed cc;
+    wvol_error err;
+    void *buf = NULL;
+    *n = 0;
+    CHECK(wvol_compress(&cc, v, cp, &err) == WVOL_OK, "%s", err.message);
+    CHECK(wvol_compress_encode(&buf, n, &cc, cp, wr, &err) == WVOL_OK, "%s", err.message);
+    wvol_compressed_free(&cc);
+    return buf;
+}
+
+static void params(wvol_compress_params *cp, const char *wavelet, int levels)
+{
+    wvol_compress_params_default(cp);
+    cp->wavelet = wavelet;
+    cp->levels = levels;
+    cp->for_file = 1;
+    cp->build_store = 0;
+}
+
+static void same_file_as_in_memory_with_a_step(void)
+{
+    static const struct {
+        const char *kind, *wavelet;
+        size_t dims[3];
+        int levels, tile;
+        double step;
+    } cases[] = {
+        {"skull", "db2", {48, 40, 37}, 3, 0, 20.0},
+        {"turbulence", "coif1", {33, 32, 70}, 4, 8, 0.05},
+        {"skull", "haar", {40, 40, 40}, 5, 16, 4.0},
+        {"turbulence", "db4", {36, 30, 1}, 3, 0, 0.02},
+    };
+    for (size_t c = 0; c < sizeof cases / sizeof cases[0]; c++) {
+        wvol_synth_params sp;
+        wvol_volume *v = NULL;
+        wvol_source *src = NULL;
+        wvol_compress_params cp;
+        wvol_compress_stream_report rep;
+        wvol_error err;
+        size_t n_mem = 0, n_str = 0;
+        void *mem, *str;
+        char path[256];
+        wvol_synth_params_default(&sp);
+        memcpy(sp.dims, cases[c].dims, sizeof sp.dims);
+        sp.noise = !strcmp(cases[c].kind, "skull") ? 20 : 0;
+        CHECK(wvol_synth_make(&v, NULL, cases[c].kind, &sp, &err) == WVOL_OK, "%s", err.message);
+        CHECK(wvol_synth_source(&src, cases[c].kind, &sp, &err) == WVOL_OK, "%s", err.message);
+        params(&cp, cases[c].wavelet, cases[c].levels);
+        cp.quant.step = cases[c].step;
+        cp.quant.tile = cases[c].tile;
+        mem = v ? in_memory(v, &cp, &n_mem, NULL) : NULL;
+        snprintf(path, sizeof path, DIR_ "/step%zu.wvc", c);
+        CHECK(src && wvol_compress_stream(path, src, &cp, &rep, &err) == WVOL_OK, "%s", err.message);
+        str = read_all(path, &n_str);
+        CHECK(mem && str && n_mem == n_str && memcmp(mem, str, n_mem) == 0,
+              "case %zu (%s %s): streamed %zu bytes, in memory %zu: not the same bytes", c, cases[c].kind,
+              cases[c].wavelet, n_str, n_mem);
+        CHECK(rep.passes == 2 && rep.bytes == n_str, "case %zu: %d passes, %zu bytes reported", c, rep.passes,
+              rep.bytes);
+        free(mem);
+        free(str);
+        wvol_source_destroy(src);
+        wvol_volume_destroy(v);
+    }
+}
+
+/* With --psnr: the first guess of the in-memory encoder (same histograms), the target met
+ * exactly by the encoder's own error, and the file the in-memory pipeline writes with that
+ * step: the same coefficients. */
+static void psnr_target_is_met_and_equals_in_memory_at_its_step(void)
+{
+    const char *kinds[] = {"skull", "turbulence"};
+    const double psnrs[] = {40, 60};
+    for (int k = 0; k < 2; k++)
+        for (int q = 0; q < 2; q++) {
+            wvol_synth_params sp;
+            wvol_volume *v = NULL, *rec = NULL;
+            wvol_source *src = NULL;
+            wvol_compress_params cp;
+            wvol_compress_stream_report rep;
+            wvol_wvc_report wr;
+            wvol_coeffs *dec = NULL;
+            wvol_error err;
+            size_t n_mem = 0, n_str = 0;
+            void *mem = NULL, *str;
+            double vmin, vmax, sse = 0, maxe, target, psnr;
+            char path[256];
+            wvol_synth_params_default(&sp);
+            sp.dims[0] = 45, sp.dims[1] = 40, sp.dims[2] = 52;
+            sp.noise = k == 0 ? 20 : 0.01;
+            CHECK(wvol_synth_make(&v, NULL, kinds[k], &sp, &err) == WVOL_OK, "%s", err.message);
+            CHECK(wvol_synth_source(&src, kinds[k], &sp, &err) == WVOL_OK, "%s", err.message);
+            if (!v || !src) goto next;
+            params(&cp, "db2", 3);
+            cp.quant.psnr = psnrs[q];
+            snprintf(path, sizeof path, DIR_ "/psnr%d%d.wvc", k, q);
+            CHECK(wvol_compress_stream(path, src, &cp, &rep, &err) == WVOL_OK, "%s", err.message);
+            wvol_volume_range(v, &vmin, &vmax, NULL);
+            CHECK(rep.value_min == vmin && rep.value_max == vmax, "range %g..%g, volume %g..%g", rep.value_min,
+                  rep.value_max, vmin, vmax);
+            /* the target, as the in-memory pipeline sets it, is met by the exact error */
+            target = wvol_wvc_sse_for_psnr(psnrs[q], 45.0 * 40 * 52, vmin, vmax);
+            CHECK(rep.sse_quant <= target && rep.sse_quant > 0.9 * target,
+                  "%s %g dB: quantisation error %g, target %g", kinds[k], psnrs[q], rep.sse_quant, target);
+            /* the decoded volume measures at least the target (the padding's error is counted in the
+             * encoder's sum, so the voxels' error is at most that) */
+            CHECK(wvol_wvc_read(&dec, path, NULL, NULL, &err) == WVOL_OK, "%s", err.message);
+            CHECK(dec && wvol_idwt3(&rec, dec, &err) == WVOL_OK, "%s", err.message);
+            if (rec) wvol_wvc_compare(&sse, &maxe, v, rec, &err);
+            psnr = wvol_wvc_psnr(sse, 45.0 * 40 * 52, vmin, vmax);
+            CHECK(rec && psnr >= psnrs[q] - 1e-6 && sse <= rep.sse_quant * (1 + 1e-6) + 1e-30,
+                  "%s: measured %.4f dB (sse %g, encoder %g), target %g", kinds[k], psnr, sse, rep.sse_quant,
+                  psnrs[q]);
+            /* the in-memory encoder starts from the same step */
+            mem = in_memory(v, &cp, &n_mem, &wr);
+            free(mem);
+            if (rep.passes == 2 && wr.step_iterations == 1)
+                CHECK(wr.step == rep.step, "%s %g dB: first guess %.17g streamed, %.17g in memory", kinds[k], psnrs[q],
+                      rep.step, wr.step);
+            /* and with the streamed step given, writes the same file */
+            cp.quant.psnr = 0;
+            cp.quant.step = rep.step;
+            mem = in_memory(v, &cp, &n_mem, NULL);
+            str = read_all(path, &n_str);
+            CHECK(mem && str && n_mem == n_str && memcmp(mem, str, n_mem) == 0,
+                  "%s %g dB: the in-memory file at step %g differs (%zu vs %zu bytes)", kinds[k], psnrs[q], rep.step,
+                  n_mem, n_str);
+            free(mem);
+            free(str);
+        next:
+            wvol_coeffs_destroy(dec);
+            wvol_volume_destroy(rec);
+            wvol_source_destroy(src);
+            wvol_volume_destroy(v);
+        }
+}
+
+/* A raw file and a gzip NRRD stream the same as the generator that wrote them. */
+static void file_sources_compress_like_the_generator(void)
+{
+    wvol_synth_params sp;
+    wvol_volume *v = NULL;
+    wvol_source *a = NULL, *b = NULL;
+    wvol_compress_params cp;
+    wvol_load_options lo;
+    wvol_error err;
+    size_t na = 0, nb = 0;
+    void *fa, *fb;
+    wvol_synth_params_default(&sp);
+    sp.dims[0] = 30, sp.dims[1] = 28, sp.dims[2] = 41;
+    sp.noise = 5;
+    CHECK(wvol_synth_make(&v, NULL, "skull", &sp, &err) == WVOL_OK, "%s", err.message);
+    CHECK(v && wvol_nrrd_write_gzip(v, DIR_ "/v.nrrd", 3, &err) == WVOL_OK, "%s", err.message);
+    CHECK(v && wvol_raw_write(v, DIR_ "/v.raw", &err) == WVOL_OK, "%s", err.message);
+    wvol_load_options_default(&lo);
+    lo.dims[0] = 30, lo.dims[1] = 28, lo.dims[2] = 41;
+    memcpy(lo.spacing, v ? v->spacing : lo.spacing, sizeof lo.spacing);
+    memcpy(lo.origin, v ? v->origin : lo.origin, sizeof lo.origin);
+    CHECK(wvol_source_open(&a, DIR_ "/v.nrrd", NULL, &err) == WVOL_OK, "%s", err.message);
+    CHECK(wvol_source_open(&b, DIR_ "/v.raw", &lo, &err) == WVOL_OK, "%s", err.message);
+    CHECK(a && b && wvol_source_streams(a) && wvol_source_streams(b), "raw and NRRD stream");
+    params(&cp, "db3", 2);
+    cp.quant.psnr = 45;
+    CHECK(a && wvol_compress_stream(DIR_ "/a.wvc", a, &cp, NULL, &err) == WVOL_OK, "%s", err.message);
+    CHECK(b && wvol_compress_stream(DIR_ "/b.wvc", b, &cp, NULL, &err) == WVOL_OK, "%s", err.message);
+    fa = read_all(DIR_ "/a.wvc", &na);
+    fb = read_all(DIR_ "/b.wvc", &nb);
+    CHECK(fa && fb && na == nb && memcmp(fa, fb, na) == 0, "gzip NRRD and raw sources give the same file");
+    free(fa);
+    free(fb);
+    wvol_source_destroy(a);
+    wvol_source_destroy(b);
+    wvol_volume_destroy(v);
+}
+
+static void refusals_leave_no_file(void)
+{
+    wvol_synth_params sp;
+    wvol_source *src = NULL;
+    wvol_compress_params cp;
+    wvol_error err;
+    struct stat st;
+    wvol_synth_params_default(&sp);
+    sp.dims[0] = sp.dims[1] = sp.dims[2] = 16;
+    CHECK(wvol_synth_source(&src, "gaussian", &sp, &err) == WVOL_OK, "%s", err.message);
+    params(&cp, "db2", 2);
+    cp.select.mode = WVOL_SELECT_FRACTION;
+    cp.select.fraction = 0.1;
+    CHECK(wvol_compress_stream(DIR_ "/no.wvc", src, &cp, NULL, &err) == WVOL_ERR_UNSUPPORTED,
+          "a selection needs the volume in memory");
+    params(&cp, "db2", 9);
+    CHECK(wvol_compress_stream(DIR_ "/no.wvc", src, &cp, NULL, &err) == WVOL_ERR_ARG, "9 levels of 16^3 refused");
+    params(&cp, "nope", 2);
+    CHECK(wvol_compress_stream(DIR_ "/no.wvc", src, &cp, NULL, &err) != WVOL_OK, "unknown wavelet refused");
+    params(&cp, "db2", 2);
+    CHECK(wvol_compress_stream(DIR_ "/missing/no.wvc", src, &cp, NULL, &err) != WVOL_OK, "unwritable path refused");
+    CHECK(stat(DIR_ "/no.wvc", &st) != 0, "no file left behind");
+    wvol_source_destroy(src);
+    /* NaN in the source: refused naming the voxel, no file */
+    {
+        wvol_volume *v = NULL;
+        wvol_source *vs = NULL;
+        CHECK(wvol_volume_create(&v, 8, 8, 8, &err) == WVOL_OK, "%s", err.message);
+        if (v) v->data[3 + 8 * (2 + 8 * 5)] = NAN;
+        CHECK(v && wvol_source_of_volume(&vs, v, &err) == WVOL_OK, "%s", err.message);
+        CHECK(vs && wvol_compress_stream(DIR_ "/nan.wvc", vs, &cp, NULL, &err) == WVOL_ERR_NONFINITE &&
+                  strstr(err.message, "i=3, j=2, k=5"),
+              "NaN refused: %s", err.message);
+        CHECK(stat(DIR_ "/nan.wvc", &st) != 0, "no file left behind");
+        wvol_source_destroy(vs);
+        wvol_volume_destroy(v);
+    }
+}
+
+int main(void)
+{
+    mkdir(DIR_, 0755);
+    same_file_as_in_memory_with_a_step();
+    psnr_target_is_met_and_equals_in_memory_at_its_step();
+    file_sources_compress_like_the_generator();
+    refusals_leave_no_file();
+    return check_summary("test_pipeline_stream");
+}

@@ -1,0 +1,245 @@
+/* SPDX-License-Identifier: MIT */
+/* Volume sources (core/source.c, io/source_file.c) and the slab writer (io/nrrd_write.c):
+ * slabs read from raw and NRRD (raw, gzip, detached) files equal the same slices of the
+ * whole-file readers in any order; other formats are read whole; damaged files, NaN and
+ * bad ranges are refused with a message; the slab writer's files equal the whole-volume
+ * writers' and nothing is left when a write is abandoned. */
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include "check.h"
+#include "wvol/io.h"
+#include "wvol/source.h"
+#include "wvol_synth.h"
+
+#define DIR_ "test_source.d"
+
+static wvol_volume *skull(size_t nx, size_t ny, size_t nz)
+{
+    wvol_synth_params p;
+    wvol_volume *v = NULL;
+    wvol_error err;
+    wvol_synth_params_default(&p);
+    p.dims[0] = nx, p.dims[1] = ny, p.dims[2] = nz;
+    p.noise = 10;
+    CHECK(wvol_synth_make(&v, NULL, "skull", &p, &err) == WVOL_OK, "%s", err.message);
+    return v;
+}
+
+/* Reads every slab of a source in the given order of (z0, nz) and compares with v. */
+static void slabs_match(wvol_source *s, const wvol_volume *v, const char *what)
+{
+    /* forward, then backward, then overlapping: gzip restarts for the backward reads */
+    static const size_t plan[][2] = {{0, 3}, {3, 5}, {8, 1}, {20, 3}, {2, 7}, {0, 1}, {11, 12}, {22, 1}};
+    size_t slice = v->nx * v->ny;
+    float *buf = malloc(12 * slice * sizeof *buf);
+    wvol_error err;
+    for (size_t i = 0; buf && i < sizeof plan / sizeof plan[0]; i++) {
+        size_t z0 = plan[i][0], nz = plan[i][1];
+        if (z0 + nz > v->nz) continue;
+        CHECK(wvol_source_read(s, buf, z0, nz, &err) == WVOL_OK, "%s: slab %zu+%zu: %s", what, z0, nz, err.message);
+        CHECK(memcmp(buf, v->data + z0 * slice, nz * slice * sizeof *buf) == 0, "%s: slab %zu+%zu differs", what, z0,
+              nz);
+    }
+    CHECK(wvol_source_read(s, buf, v->nz - 1, 2, &err) == WVOL_ERR_ARG, "%s: a slab past the end refused", what);
+    free(buf);
+}
+
+static void file_sources_equal_whole_reads(void)
+{
+    wvol_volume *v = skull(21, 17, 23), *back = NULL;
+    wvol_source *s = NULL;
+    wvol_load_options lo;
+    wvol_error err;
+    const char *nrrds[] = {DIR_ "/a.nrrd", DIR_ "/b.nhdr"};
+    size_t dims[3];
+    double sp[3], org[3];
+    if (!v) return;
+    for (int gz = 0; gz < 2; gz++)
+        for (int k = 0; k < 2; k++) {
+            char what[64];
+            snprintf(what, sizeof what, "%s %s", nrrds[k], gz ? "gzip" : "raw");
+            CHECK(wvol_nrrd_write_gzip(v, nrrds[k], gz ? 6 : 0, &err) == WVOL_OK, "%s", err.message);
+            CHECK(wvol_source_open(&s, nrrds[k], NULL, &err) == WVOL_OK, "%s: %s", what, err.message);
+            if (!s) continue;
+            CHECK(wvol_source_streams(s), "%s streams", what);
+            wvol_source_geometry(s, dims, sp, org);
+            CHECK(dims[0] == 21 && dims[1] == 17 && dims[2] == 23 && sp[0] == v->spacing[0] &&
+                      org[2] == v->origin[2],
+                  "%s: geometry", what);
+            slabs_match(s, v, what);
+            wvol_source_destroy(s);
+            s = NULL;
+        }
+    CHECK(wvol_raw_write(v, DIR_ "/c.raw", &err) == WVOL_OK, "%s", err.message);
+    wvol_load_options_default(&lo);
+    lo.dims[0] = 21, lo.dims[1] = 17, lo.dims[2] = 23;
+    CHECK(wvol_source_open(&s, DIR_ "/c.raw", &lo, &err) == WVOL_OK, "%s", err.message);
+    if (s) slabs_match(s, v, "raw");
+    wvol_source_destroy(s);
+    s = NULL;
+    /* a raw file of another sample type converts as the whole reader does */
+    {
+        unsigned short u[4 * 3 * 2];
+        FILE *fp = fopen(DIR_ "/u.raw", "wb");
+        for (int i = 0; i < 24; i++) u[i] = (unsigned short)(1000 * i + 7);
+        if (fp) fwrite(u, sizeof u, 1, fp), fclose(fp);
+        wvol_load_options_default(&lo);
+        lo.dims[0] = 4, lo.dims[1] = 3, lo.dims[2] = 2;
+        lo.raw_type = WVOL_SAMPLE_TYPE_U16;
+        CHECK(wvol_raw_read(&back, DIR_ "/u.raw", &lo, &err) == WVOL_OK, "%s", err.message);
+        CHECK(wvol_source_open(&s, DIR_ "/u.raw", &lo, &err) == WVOL_OK, "%s", err.message);
+        if (s && back) slabs_match(s, back, "uint16 raw");
+        wvol_source_destroy(s);
+        wvol_volume_destroy(back);
+        s = NULL, back = NULL;
+    }
+    /* a format without slab reads is read whole (a .vti when VTK is built, else refused) */
+    if (wvol_format_supported(DIR_ "/d.vti", 1) && wvol_volume_save(v, DIR_ "/d.vti", &err) == WVOL_OK) {
+        CHECK(wvol_source_open(&s, DIR_ "/d.vti", NULL, &err) == WVOL_OK, "%s", err.message);
+        CHECK(s && !wvol_source_streams(s), ".vti is read whole");
+        if (s) slabs_match(s, v, "vti");
+        wvol_source_destroy(s);
+        s = NULL;
+    }
+    /* the whole volume through the source */
+    CHECK(wvol_source_open(&s, DIR_ "/a.nrrd", NULL, &err) == WVOL_OK, "%s", err.message);
+    CHECK(s && wvol_source_read_volume(s, &back, &err) == WVOL_OK, "%s", err.message);
+    CHECK(back && memcmp(back->data, v->data, wvol_volume_count(v) * sizeof(float)) == 0, "read_volume");
+    wvol_source_destroy(s);
+    wvol_volume_destroy(back);
+    wvol_volume_destroy(v);
+}
+
+static void copy_truncated(const char *from, const char *to, long cut)
+{
+    FILE *a = fopen(from, "rb"), *b = fopen(to, "wb");
+    long n;
+    char *buf;
+    if (!a || !b) {
+        if (a) fclose(a);
+        if (b) fclose(b);
+        return;
+    }
+    fseek(a, 0, SEEK_END);
+    n = ftell(a);
+    fseek(a, 0, SEEK_SET);
+    buf = malloc((size_t)n);
+    if (buf && fread(buf, 1, (size_t)n, a) == (size_t)n) fwrite(buf, 1, (size_t)(n - cut), b);
+    free(buf);
+    fclose(a);
+    fclose(b);
+}
+
+static void damaged_files_are_refused(void)
+{
+    wvol_volume *v = skull(16, 12, 10);
+    wvol_source *s = NULL;
+    wvol_load_options lo;
+    wvol_error err;
+    float *buf = malloc(16 * 12 * 10 * sizeof *buf);
+    if (!v || !buf) goto out;
+    /* raw: wrong size */
+    CHECK(wvol_raw_write(v, DIR_ "/t.raw", &err) == WVOL_OK, "%s", err.message);
+    wvol_load_options_default(&lo);
+    lo.dims[0] = 16, lo.dims[1] = 12, lo.dims[2] = 11;
+    CHECK(wvol_source_open(&s, DIR_ "/t.raw", &lo, &err) == WVOL_ERR_FORMAT && strstr(err.message, "bytes"),
+          "raw of the wrong size: %s", err.message);
+    /* NRRD raw: truncated data refused at open */
+    CHECK(wvol_nrrd_write(v, DIR_ "/t.nrrd", &err) == WVOL_OK, "%s", err.message);
+    copy_truncated(DIR_ "/t.nrrd", DIR_ "/tt.nrrd", 100);
+    CHECK(wvol_source_open(&s, DIR_ "/tt.nrrd", NULL, &err) == WVOL_ERR_FORMAT && strstr(err.message, "truncated"),
+          "truncated NRRD: %s", err.message);
+    /* gzip: truncated data refused at the slab that runs out */
+    CHECK(wvol_nrrd_write_gzip(v, DIR_ "/g.nrrd", 6, &err) == WVOL_OK, "%s", err.message);
+    copy_truncated(DIR_ "/g.nrrd", DIR_ "/gt.nrrd", 200);
+    CHECK(wvol_source_open(&s, DIR_ "/gt.nrrd", NULL, &err) == WVOL_OK, "%s", err.message);
+    if (s) {
+        wvol_status st = wvol_source_read(s, buf, 0, 10, &err);
+        CHECK(st == WVOL_ERR_FORMAT && (strstr(err.message, "truncated") || strstr(err.message, "corrupt")),
+              "truncated gzip: %d %s", (int)st, err.message);
+    }
+    wvol_source_destroy(s);
+    s = NULL;
+    /* NaN: refused naming the voxel in the whole volume's indices */
+    v->data[5 + 16 * (7 + 12 * 8)] = NAN;
+    CHECK(wvol_nrrd_write(v, DIR_ "/n.nrrd", &err) == WVOL_OK, "%s", err.message);
+    CHECK(wvol_source_open(&s, DIR_ "/n.nrrd", NULL, &err) == WVOL_OK, "%s", err.message);
+    CHECK(s && wvol_source_read(s, buf, 0, 8, &err) == WVOL_OK, "slices before the NaN read");
+    CHECK(s && wvol_source_read(s, buf, 6, 4, &err) == WVOL_ERR_NONFINITE && strstr(err.message, "i=5, j=7, k=8"),
+          "NaN named: %s", err.message);
+    wvol_source_destroy(s);
+    s = NULL;
+    CHECK(wvol_source_open(&s, DIR_ "/none.nrrd", NULL, &err) == WVOL_ERR_IO, "missing file refused");
+out:
+    free(buf);
+    wvol_volume_destroy(v);
+}
+
+static int exists(const char *p)
+{
+    struct stat st;
+    return stat(p, &st) == 0;
+}
+
+static void slab_writer_writes_what_the_volume_writers_write(void)
+{
+    wvol_volume *v = skull(19, 13, 11), *back = NULL;
+    wvol_slab_writer *w = NULL;
+    wvol_error err;
+    size_t dims[3] = {19, 13, 11}, slice = 19 * 13;
+    const char *paths[] = {DIR_ "/w.raw", DIR_ "/w.nrrd", DIR_ "/w.nhdr", DIR_ "/wg.nrrd"};
+    if (!v) return;
+    for (int k = 0; k < 4; k++) {
+        unsigned long long bytes = 0;
+        remove(paths[k]); /* from an earlier run */
+        CHECK(wvol_slab_writer_open(&w, paths[k], dims, v->spacing, v->origin, k == 3 ? 4 : 0, &err) == WVOL_OK, "%s",
+              err.message);
+        CHECK(!exists(paths[k]), "%s: nothing under the name before commit", paths[k]);
+        for (size_t z = 0; w && z < 11; z += 4)
+            CHECK(wvol_slab_writer_put(w, v->data + z * slice, z + 4 <= 11 ? 4 : 11 - z, &err) == WVOL_OK, "%s",
+                  err.message);
+        CHECK(w && wvol_slab_writer_commit(w, &bytes, &err) == WVOL_OK, "%s", err.message);
+        w = NULL;
+        if (k == 0) {
+            wvol_load_options lo;
+            wvol_load_options_default(&lo);
+            memcpy(lo.dims, dims, sizeof dims);
+            CHECK(wvol_raw_read(&back, paths[k], &lo, &err) == WVOL_OK, "%s", err.message);
+            CHECK(bytes == 19 * 13 * 11 * 4, "raw bytes %llu", bytes);
+        } else {
+            CHECK(wvol_nrrd_read(&back, paths[k], &err) == WVOL_OK, "%s", err.message);
+            CHECK(back && back->spacing[1] == v->spacing[1] && back->origin[0] == v->origin[0], "%s: geometry",
+                  paths[k]);
+        }
+        CHECK(back && memcmp(back->data, v->data, wvol_volume_count(v) * sizeof(float)) == 0, "%s: samples", paths[k]);
+        wvol_volume_destroy(back);
+        back = NULL;
+    }
+    /* missing slices: refused at commit, no file; abort: no file */
+    CHECK(wvol_slab_writer_open(&w, DIR_ "/x.nhdr", dims, NULL, NULL, 0, &err) == WVOL_OK, "%s", err.message);
+    CHECK(w && wvol_slab_writer_put(w, v->data, 10, &err) == WVOL_OK, "%s", err.message);
+    CHECK(w && wvol_slab_writer_put(w, v->data, 2, &err) == WVOL_ERR_ARG, "slices past the end refused");
+    CHECK(w && wvol_slab_writer_commit(w, NULL, &err) == WVOL_ERR_ARG && strstr(err.message, "10 of 11"),
+          "incomplete volume refused: %s", err.message);
+    CHECK(!exists(DIR_ "/x.nhdr") && !exists(DIR_ "/x.raw"), "nothing left of an incomplete volume");
+    CHECK(wvol_slab_writer_open(&w, DIR_ "/y.nrrd", dims, NULL, NULL, 3, &err) == WVOL_OK, "%s", err.message);
+    wvol_slab_writer_abort(w);
+    CHECK(!exists(DIR_ "/y.nrrd"), "nothing left after abort");
+    CHECK(wvol_slab_writer_open(&w, DIR_ "/y.vti", dims, NULL, NULL, 0, &err) == WVOL_ERR_UNSUPPORTED,
+          "slab writes only raw and NRRD");
+    CHECK(wvol_slab_writer_open(&w, DIR_ "/y.raw", dims, NULL, NULL, 3, &err) == WVOL_ERR_ARG, "no gzip raw");
+    wvol_volume_destroy(v);
+}
+
+int main(void)
+{
+    mkdir(DIR_, 0755);
+    file_sources_equal_whole_reads();
+    damaged_files_are_refused();
+    slab_writer_writes_what_the_volume_writers_write();
+    return check_summary("test_source");
+}
