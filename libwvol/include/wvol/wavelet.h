@@ -261,6 +261,12 @@ WVOL_API void wvol_basis_destroy(wvol_basis *b);   /* NULL is fine */
  * sum |c| int |B| along every ray: the per-pixel error bound (wvol_render_bound). */
 WVOL_API wvol_status wvol_basis_create_majorant(wvol_basis **out, const wvol_filter *f, int J, wvol_error *err);
 
+/* An upper bound of sup_u sum_k |theta(u - k)| (theta = phi for which 0, psi for 1): for each
+ * position within a unit interval, the pieces of every integer shift, each bounded by its
+ * largest Bernstein coefficient. It bounds the sum of |B_j(x)| over one level and band of
+ * basis functions (used by the per-pixel error bound's coefficient-error term). */
+WVOL_API double wvol_basis_periodised_sup(const wvol_basis *b, int which);
+
 /* Evaluate the spline model: which is WVOL_BASIS_PHI or WVOL_BASIS_PSI. O(1), no allocation.
  * value/deriv are 0 outside [0, support); primitive is the integral from 0 to x. */
 WVOL_API double wvol_basis_value(const wvol_basis *b, int which, double x);

@@ -36,28 +36,10 @@
  * the scaling below: far above either, far below any use of the bound. */
 #define BOUND_ROUNDING 1e-6
 
-/* sup_u sum_k theta+(u - k): for each piece position inside a unit interval, the pieces of
- * every integer shift, each bounded by its largest Bernstein coefficient on the piece. */
+/* sup_u sum_k theta+(u - k), padded for the rounding of its sums. */
 static double periodised_sup(const wvol_basis *b, int which)
 {
-    int per = b->per_unit, i, k, j;
-    double best = 0;
-    for (i = 0; i < per; i++) {
-        double sum = 0;
-        for (k = i; k < b->pieces; k += per) {
-            const double *c = wvol_basis_coeffs(b, which, WVOL_BASIS_VALUE, k);
-            double a[4], hp = 1, bz[4], mx = 0;
-            for (j = 0; j < 4; j++, hp *= b->h) a[j] = c[j] * hp;
-            bz[0] = a[0];
-            bz[1] = a[0] + a[1] / 3.0;
-            bz[2] = a[0] + (2.0 * a[1] + a[2]) / 3.0;
-            bz[3] = a[0] + a[1] + a[2] + a[3];
-            for (j = 0; j < 4; j++) mx = fmax(mx, fabs(bz[j]));
-            sum += mx;
-        }
-        best = fmax(best, sum);
-    }
-    return best * (1.0 + BOUND_ROUNDING);
+    return wvol_basis_periodised_sup(b, which) * (1.0 + BOUND_ROUNDING);
 }
 
 /* Sum over levels and bands of w[m][band] norm_m prod_a S_a (w NULL: 1): with w the largest

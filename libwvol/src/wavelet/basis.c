@@ -248,25 +248,49 @@ fail:
  * of the spline's: it is >= |spline| on the piece (|p| <= sum |b_i| B_i, the B_i >= 0), equal
  * to |spline| where the piece keeps one sign, and continuous (the end coefficients are the end
  * values). */
+/* Bernstein coefficients on [0, 1] of a value piece c (local variable u in [0, h]) in t = u / h. */
+static void piece_bernstein(const double *c, double h, double bz[4])
+{
+    double a[4], hp = 1.0;
+    int k;
+    for (k = 0; k < 4; k++, hp *= h) a[k] = c[k] * hp;
+    bz[0] = a[0];
+    bz[1] = a[0] + a[1] / 3.0;
+    bz[2] = a[0] + (2.0 * a[1] + a[2]) / 3.0;
+    bz[3] = a[0] + a[1] + a[2] + a[3];
+}
+
 static void majorant_pieces(double *c, int P, double h)
 {
     int i;
     for (i = 0; i < P; i++) {
         double *q = c + 4 * (size_t)i, a[4], bz[4], hp = 1.0;
         int k;
-        for (k = 0; k < 4; k++, hp *= h) a[k] = q[k] * hp; /* in t = u / h on [0, 1] */
-        bz[0] = a[0];
-        bz[1] = a[0] + a[1] / 3.0;
-        bz[2] = a[0] + (2.0 * a[1] + a[2]) / 3.0;
-        bz[3] = a[0] + a[1] + a[2] + a[3];
+        piece_bernstein(q, h, bz);
         for (k = 0; k < 4; k++) bz[k] = fabs(bz[k]);
         a[0] = bz[0];
         a[1] = 3.0 * (bz[1] - bz[0]);
         a[2] = 3.0 * (bz[2] - 2.0 * bz[1] + bz[0]);
         a[3] = bz[3] - 3.0 * bz[2] + 3.0 * bz[1] - bz[0];
-        hp = 1.0;
         for (k = 0; k < 4; k++, hp *= h) q[k] = a[k] / hp;
     }
+}
+
+double wvol_basis_periodised_sup(const wvol_basis *b, int which)
+{
+    int per = b->per_unit, i, k, j;
+    double best = 0;
+    for (i = 0; i < per; i++) {
+        double sum = 0;
+        for (k = i; k < b->pieces; k += per) {
+            double bz[4], mx = 0;
+            piece_bernstein(wvol_basis_coeffs(b, which, WVOL_BASIS_VALUE, k), b->h, bz);
+            for (j = 0; j < 4; j++) mx = fmax(mx, fabs(bz[j]));
+            sum += mx;
+        }
+        best = fmax(best, sum);
+    }
+    return best;
 }
 
 wvol_status wvol_basis_create_majorant(wvol_basis **out, const wvol_filter *f, int J, wvol_error *err)
