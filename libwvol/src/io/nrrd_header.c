@@ -526,3 +526,12 @@ wvol_status wvol__nrrd_read_header(nrrd_header *h, FILE *fp, wvol_error *err)
     if (!s) s = interpret(h, err);
     return s;
 }
+
+wvol_status wvol__nrrd_open_header(nrrd_header *h, const char *path, FILE **fp, wvol_error *err)
+{
+    memset(h, 0, sizeof *h);
+    h->path = path;
+    *fp = fopen(path, "rb");
+    if (!*fp) return wvol_error_set(err, WVOL_ERR_IO, "%s: %s", path, strerror(errno));
+    return wvol__nrrd_read_header(h, *fp, err);
+}

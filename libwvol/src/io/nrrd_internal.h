@@ -54,6 +54,10 @@ typedef struct nrrd_header {
  * numbers, checking everything. h->path must be set; free with wvol__nrrd_header_free
  * whatever the outcome. */
 wvol_status wvol__nrrd_read_header(nrrd_header *h, FILE *fp, wvol_error *err);
+/* Zeroes *h, opens path and reads its header (wvol__nrrd_read_header). *fp is NULL when the
+ * file could not be opened (the status says why; nothing to free); otherwise the caller
+ * closes *fp and frees *h whatever the status. */
+wvol_status wvol__nrrd_open_header(nrrd_header *h, const char *path, FILE **fp, wvol_error *err);
 void wvol__nrrd_header_free(nrrd_header *h);
 
 /* n samples of the header's type and byte order to float32. */

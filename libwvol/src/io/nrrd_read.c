@@ -312,11 +312,8 @@ wvol_status wvol_nrrd_read(wvol_volume **out, const char *path, wvol_error *err)
 
     WVOL_RETURN_IF(!out || !path, err, WVOL_ERR_ARG, "nrrd read: NULL argument");
     *out = NULL;
-    memset(&h, 0, sizeof h);
-    h.path = path;
-    fp = fopen(path, "rb");
-    if (!fp) return wvol_error_set(err, WVOL_ERR_IO, "%s: %s", path, strerror(errno));
-    s = wvol__nrrd_read_header(&h, fp, err);
+    s = wvol__nrrd_open_header(&h, path, &fp, err);
+    if (!fp) return s;
     if (s) goto done;
 
     s = wvol__nrrd_open_data(&h, fp, &dfp, &dpath, &dname, err);

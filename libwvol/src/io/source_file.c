@@ -155,11 +155,8 @@ static wvol_status open_nrrd(wvol_source **out, const char *path, int *whole, wv
     wvol_status s;
 
     *whole = 0;
-    memset(&h, 0, sizeof h);
-    h.path = path;
-    fp = fopen(path, "rb");
-    if (!fp) return wvol_error_set(err, WVOL_ERR_IO, "%s: %s", path, strerror(errno));
-    s = wvol__nrrd_read_header(&h, fp, err);
+    s = wvol__nrrd_open_header(&h, path, &fp, err);
+    if (!fp) return s;
     if (s) goto done;
     if (h.encoding == ENC_ASCII || h.line_skip > 0) {
         *whole = 1;
