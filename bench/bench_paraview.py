@@ -102,6 +102,7 @@ def main():
                    "peak_rss_bytes_per_rank": peaks, "max_peak_rss_bytes": max(peaks)}
             if chunks:
                 row["chunks_decoded_per_rank"] = [c["decoded"] for c in chunks]
+                row["read_s_per_rank"] = [c.get("seconds") for c in chunks]
                 row["chunks_in_file"] = chunks[0]["chunks"]
             rows.append(row)
             print(json.dumps(row), flush=True)
@@ -128,12 +129,13 @@ def main():
              f"{result['bytes']['float32'] / mib:.0f} MiB; the .wvc reader's chunk cache {a.budget} MiB per rank. Made by `python3 bench/bench_paraview.py"
              f"{' --quick' if a.quick else f' --size {n}'}`.", "",
              "| reader | ranks | time to first image (s, in script) | pvbatch wall (s) | peak RSS per rank (MiB) |"
-             " chunks decoded per rank |", "|---|---|---|---|---|---|"]
+             " chunks decoded per rank | reader's own s per rank |", "|---|---|---|---|---|---|---|"]
     for r in rows:
         lines.append(f"| {r['reader']} | {r['ranks']} | {r['first_image_s']:.2f} | {r['wall_s']:.2f} | "
                      f"{', '.join(f'{p / mib:.0f}' for p in r['peak_rss_bytes_per_rank'])} | "
                      f"{', '.join(map(str, r.get('chunks_decoded_per_rank', []))) or '-'}"
-                     f"{' of ' + str(r['chunks_in_file']) if 'chunks_in_file' in r else ''} |")
+                     f"{' of ' + str(r['chunks_in_file']) if 'chunks_in_file' in r else ''} | "
+                     f"{', '.join(f'{t:.2f}' for t in r.get('read_s_per_rank', []) if t is not None) or '-'} |")
     lines += ["", "Ratios: " + ", ".join(f"{k} {v:.2f}" for k, v in ratios.items()), ""]
     out.with_suffix(".md").write_text("\n".join(lines))
     print("\n".join(lines))

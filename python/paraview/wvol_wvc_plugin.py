@@ -71,3 +71,9 @@ class WVCParaViewReader(WVCReader):
     def SetChunkLog(self, path):
         """A file that gets one JSON line per execution and rank (chunks decoded)."""
         WVCReader.SetChunkLog(self, path)
+
+    @smproperty.intvector(name="Threads", default_values=0)
+    @smdomain.intrange(min=0, max=256)
+    def SetThreads(self, threads):
+        """Threads reconstructing a rank's piece (0: this node's cores shared among its ranks)."""
+        WVCReader.SetThreads(self, threads)

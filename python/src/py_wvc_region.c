@@ -118,13 +118,16 @@ static int size3(PyObject *o, size_t out[3], const char *what)
     return 0;
 }
 
-/* wvc_file_region(file, lo, hi, level=0) -> (array (z, y, x), spacing, origin): the samples
- * [lo, hi) (x, y, z order, in level `level`'s grid), decoding only the chunks they need. */
+/* wvc_file_region(file, lo, hi, level=0, out=None, threads=1) -> (array (z, y, x), spacing,
+ * origin): the samples [lo, hi) (x, y, z order, in level `level`'s grid), decoding only the
+ * chunks they need. With `out` (a writable C-contiguous float32 array of shape (z, y, x) of
+ * the box) the samples are reconstructed in place and `out` is returned: a reader fills its
+ * output slab by slab without a copy. `threads` reconstruct slices along z at once (0: all). */
 static PyObject *py_wvc_file_region(PyObject *self, PyObject *args, PyObject *kw)
 {
-    static char *kwlist[] = {"file", "lo", "hi", "level", NULL};
-    PyObject *cap, *lo_o, *hi_o, *arr;
-    int level = 0;
+    static char *kwlist[] = {"file", "lo", "hi", "level", "out", "threads", NULL};
+    PyObject *cap, *lo_o, *hi_o, *out_o = Py_None, *arr;
+    int level = 0, threads = 1;
     size_t lo[3], hi[3];
     double sp[3], org[3];
     wvol_wvc_file *f;
@@ -132,15 +135,49 @@ static PyObject *py_wvc_file_region(PyObject *self, PyObject *args, PyObject *kw
     wvol_error err;
     wvol_status s;
     (void)self;
-    if (!PyArg_ParseTupleAndKeywords(args, kw, "OOO|i", kwlist, &cap, &lo_o, &hi_o, &level)) return NULL;
+    if (!PyArg_ParseTupleAndKeywords(args, kw, "OOO|iOi", kwlist, &cap, &lo_o, &hi_o, &level, &out_o, &threads))
+        return NULL;
     if (!(f = file_of(cap)) || size3(lo_o, lo, "lo") < 0 || size3(hi_o, hi, "hi") < 0) return NULL;
+    if (threads < 0) {
+        PyErr_Format(PyExc_ValueError, "threads must be >= 0 (0: all), got %d", threads);
+        return NULL;
+    }
+    if (out_o != Py_None) {
+        PyArrayObject *o;
+        npy_intp want[3];
+        for (int a = 0; a < 3; a++) want[2 - a] = hi[a] > lo[a] ? (npy_intp)(hi[a] - lo[a]) : 0;
+        if (!PyArray_Check(out_o)) {
+            PyErr_SetString(PyExc_TypeError, "out must be a numpy array");
+            return NULL;
+        }
+        o = (PyArrayObject *)out_o;
+        if (PyArray_TYPE(o) != NPY_FLOAT32 || PyArray_NDIM(o) != 3 || !PyArray_IS_C_CONTIGUOUS(o) ||
+            !PyArray_ISWRITEABLE(o) || PyArray_DIM(o, 0) != want[0] || PyArray_DIM(o, 1) != want[1] ||
+            PyArray_DIM(o, 2) != want[2]) {
+            PyErr_Format(PyExc_ValueError,
+                         "out must be a writable C-contiguous float32 array of shape (%ld, %ld, %ld) (z, y, x)",
+                         (long)want[0], (long)want[1], (long)want[2]);
+            return NULL;
+        }
+        Py_BEGIN_ALLOW_THREADS
+        s = wvol_wvc_read_region_into((float *)PyArray_DATA(o), f, lo, hi, level, threads, sp, org, &err);
+        Py_END_ALLOW_THREADS
+        if (s != WVOL_OK) return wvolpy_raise(&err);
+        Py_INCREF(out_o);
+        return Py_BuildValue("(N(ddd)(ddd))", out_o, sp[0], sp[1], sp[2], org[0], org[1], org[2]);
+    }
     Py_BEGIN_ALLOW_THREADS
-    s = wvol_wvc_read_region(&v, f, lo, hi, level, &err);
+    s = wvol_volume_create(&v, hi[0] > lo[0] ? hi[0] - lo[0] : 1, hi[1] > lo[1] ? hi[1] - lo[1] : 1,
+                           hi[2] > lo[2] ? hi[2] - lo[2] : 1, &err);
+    if (s == WVOL_OK) s = wvol_wvc_read_region_into(v->data, f, lo, hi, level, threads, sp, org, &err);
     Py_END_ALLOW_THREADS
-    if (s != WVOL_OK) return wvolpy_raise(&err);
+    if (s != WVOL_OK) {
+        wvol_volume_destroy(v);
+        return wvolpy_raise(&err);
+    }
     for (int a = 0; a < 3; a++) {
-        sp[a] = v->spacing[a];
-        org[a] = v->origin[a];
+        v->spacing[a] = sp[a];
+        v->origin[a] = org[a];
     }
     arr = wvolpy_volume_take(v, 0);
     if (!arr) return NULL;
@@ -176,6 +213,6 @@ PyMethodDef wvolpy_wvc_region_methods[] = {
      "wvc_file_open(path, budget=0) -> file"},
     {"wvc_file_info", py_wvc_file_info, METH_O, "wvc_file_info(file) -> info"},
     {"wvc_file_region", (PyCFunction)(void (*)(void))py_wvc_file_region, METH_VARARGS | METH_KEYWORDS,
-     "wvc_file_region(file, lo, hi, level=0) -> (array, spacing, origin)"},
+     "wvc_file_region(file, lo, hi, level=0, out=None, threads=1) -> (array, spacing, origin)"},
     {"wvc_file_stats", py_wvc_file_stats, METH_O, "wvc_file_stats(file) -> counters"},
     {NULL, NULL, 0, NULL}};

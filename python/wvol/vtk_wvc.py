@@ -24,8 +24,8 @@ Pipeline contract:
   execution's chunk work (``ChunksDecoded``, ``ChunksDecodedTotal`` over the open file,
   ``Piece``, ``NumberOfPieces``, ``LevelOfDetail``).
 - With ``ChunkLog`` set to a path, every execution also appends one JSON line there
-  (piece, rank, extent, chunks decoded): how the MPI tests and the benchmark see each
-  rank's share.
+  (piece, rank, extent, chunks decoded, threads, seconds): how the MPI tests and the
+  benchmark see each rank's share.
 - Errors (a missing, damaged or refused file, a region outside the volume, a level out of
   range) are reported through VTK's error output with the library's message, and the
   request fails: the pipeline stops, the process does not.
@@ -33,6 +33,7 @@ Pipeline contract:
 import json
 import math
 import os
+import time
 
 import numpy as np
 from vtkmodules.util.vtkAlgorithm import VTKPythonAlgorithmBase
@@ -44,9 +45,21 @@ from vtkmodules.vtkCommonExecutionModel import vtkAlgorithm, vtkStreamingDemandD
 from . import _psnr, _wvol
 
 SDDP = vtkStreamingDemandDrivenPipeline
-# Samples reconstructed per region read (64 MiB of float32): bounds the working memory of a
+# Samples reconstructed per region read (32 MiB of float32): bounds the working memory of a
 # piece's reconstruction beyond its output array (see WVCReader._read_slabs).
-SLAB_SAMPLES = 1 << 24
+SLAB_SAMPLES = 1 << 23
+
+
+def _return_freed_memory():
+    """Hands the pages glibc's malloc keeps after a read (the decoded chunks and the
+    reconstruction buffers, freed but left in the heap) back to the system, so that the
+    pipeline's next stage does not stack its own allocations on top of them. A no-op where
+    the C library is not glibc."""
+    try:
+        import ctypes
+        ctypes.CDLL("libc.so.6").malloc_trim(0)
+    except (OSError, AttributeError):
+        pass
 
 
 def _rank():
@@ -84,6 +97,7 @@ class WVCReader(VTKPythonAlgorithmBase):
         self._array_name = "values"
         self._chunk_log = ""
         self._release = False
+        self._threads = 0
         self._file = None       # open handle (capsule) of self._opened
         self._opened = None     # (path, budget) the handle was opened with
         self._info = None
@@ -137,6 +151,17 @@ class WVCReader(VTKPythonAlgorithmBase):
         then holds the output only; a later execution, such as a ghost-layer request, decodes
         its chunks again). False (default): keep them for the next request."""
         self._release = bool(release)
+
+    def SetThreads(self, threads):
+        """Threads that reconstruct a piece (slices along z at once); 0 (default): the cores
+        this process may use, shared among the MPI ranks of this node."""
+        threads = int(threads)
+        if threads < 0:
+            raise ValueError(f"Threads must be >= 0 (0: automatic), got {threads}")
+        self._set("_threads", threads)
+
+    def GetThreads(self):
+        return self._threads
 
     def GetFileInfo(self):
         """The open file's header (dict), or None before the first update."""
@@ -204,22 +229,38 @@ class WVCReader(VTKPythonAlgorithmBase):
         vtkImageData.SetNumberOfScalarComponents(1, out)
         return 1
 
+    def _thread_count(self):
+        """Threads for one piece: the Threads property, or the cores this process may run on
+        divided among the ranks Open MPI or MPICH started on this node."""
+        if self._threads > 0:
+            return self._threads
+        try:
+            cores = len(os.sched_getaffinity(0))
+        except (AttributeError, OSError):
+            cores = os.cpu_count() or 1
+        local = 1
+        for var in ("OMPI_COMM_WORLD_LOCAL_SIZE", "MPI_LOCALNRANKS", "MV2_COMM_WORLD_LOCAL_SIZE"):
+            if os.environ.get(var, "").isdigit():
+                local = max(1, int(os.environ[var]))
+                break
+        return max(1, cores // local)
+
     def _read_slabs(self, ue):
-        """The samples of extent ue as a (z, y, x) array, reconstructed slab by slab along z
-        (SLAB_SAMPLES at most each) into one output array: a region read's working memory
-        (the box's coefficients and reconstruction buffers) is then bounded by a slab, not
-        the piece, and the chunks of consecutive slabs are mostly shared, so the cache (least
-        recently used first out) serves them without decoding twice."""
+        """The samples of extent ue as a (z, y, x) array, reconstructed in place slab by slab
+        along z (SLAB_SAMPLES at most each): a region read's working memory (the box's
+        coefficients and reconstruction buffers) is then bounded by a slab, not the piece,
+        and the chunks of consecutive slabs are mostly shared, so the cache (least recently
+        used first out) serves them without decoding twice."""
         nx, ny, nz = ue[1] - ue[0] + 1, ue[3] - ue[2] + 1, ue[5] - ue[4] + 1
         planes = max(1, min(nz, SLAB_SAMPLES // (nx * ny)))
         out = np.empty((nz, ny, nx), dtype=np.float32)
         spacing = None
+        threads = self._thread_count()
         for z0 in range(0, nz, planes):
             z1 = min(nz, z0 + planes)
-            slab, spacing, _ = _wvol.wvc_file_region(self._file, [ue[0], ue[2], ue[4] + z0],
-                                                     [ue[1] + 1, ue[3] + 1, ue[4] + z1], self._level)
-            out[z0:z1] = slab
-            del slab
+            _, spacing, _ = _wvol.wvc_file_region(self._file, [ue[0], ue[2], ue[4] + z0],
+                                                  [ue[1] + 1, ue[3] + 1, ue[4] + z1], self._level,
+                                                  out=out[z0:z1], threads=threads)
         return out, spacing
 
     def RequestData(self, request, inInfoVec, outInfoVec):
@@ -241,6 +282,7 @@ class WVCReader(VTKPythonAlgorithmBase):
             ue[2 * a + 1] = min(ue[2 * a + 1], self._extent[2 * a + 1])
         output = vtkImageData.GetData(outInfoVec, 0)
         info = self._info
+        started = time.perf_counter()
         spacing = out_info.Get(vtkDataObject.SPACING())
         before = _wvol.wvc_file_stats(self._file)["decoded"]
         empty = any(ue[2 * a] > ue[2 * a + 1] for a in range(3))
@@ -277,10 +319,12 @@ class WVCReader(VTKPythonAlgorithmBase):
             line = json.dumps({"rank": _rank(), "pid": os.getpid(), "piece": piece, "pieces": pieces,
                                "level": self._level, "extent": None if empty else ue, "decoded": decoded,
                                "decoded_total": stats["decoded"], "chunks": info["chunks"],
-                               "cache_peak_bytes": stats["peak"]})
+                               "cache_peak_bytes": stats["peak"], "threads": self._thread_count(),
+                               "seconds": time.perf_counter() - started})
             with open(self._chunk_log, "a") as f:  # one short write per line: O_APPEND keeps lines whole
                 f.write(line + "\n")
         if self._release:
             self._file = self._opened = None
+        _return_freed_memory()
         return 1
 

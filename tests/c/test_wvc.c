@@ -869,6 +869,19 @@ static void wvc2_regions_equal_the_full_decode(const char *wavelet, size_t nx, s
             CHECK(fabs(r->spacing[0] - full->spacing[0]) < 1e-12 &&
                       fabs(r->origin[0] - (full->origin[0] + full->spacing[0] * (double)lo[0])) < 1e-9,
                   "region geometry at level %d", level);
+            {
+                /* in place, in parts along y on 3 threads: the same samples bit for bit
+                 * (each sample is synthesised from the same coefficients in the same order) */
+                size_t nv = r->nx * r->ny * r->nz;
+                float *into = malloc(nv * sizeof *into);
+                double sp[3], org[3];
+                CHECK(into && wvol_wvc_read_region_into(into, wf, lo, hi, level, 3, sp, org, &err) == WVOL_OK,
+                      "region into at level %d: %s", level, err.message);
+                CHECK(into && memcmp(into, r->data, nv * sizeof *into) == 0 && sp[1] == r->spacing[1] &&
+                          org[2] == r->origin[2],
+                      "threaded in-place region equals the region at level %d", level);
+                free(into);
+            }
             wvol_volume_destroy(r);
         }
         wvol_volume_destroy(full);
@@ -930,6 +943,22 @@ static void wvc2_budget_and_damage(void)
             if (wvol_wvc_decode(&dec, buf, n, NULL, NULL, &err) == WVOL_OK && wvol_idwt3(&ref, dec, &err) == WVOL_OK)
                 wvol_wvc_compare(&sse, &mx, full, ref, &err);
             CHECK(ref && mx <= 1e-5 * F.vmax, "budgeted whole read equals the decode (max %g)", mx);
+            {
+                /* in place on 2 threads (parts along y sharing the cache) within the same budget */
+                float *into = malloc(64 * 64 * 64 * sizeof *into);
+                CHECK(into && wvol_wvc_read_region_into(into, wf, all_lo, all_hi, 0, 2, NULL, NULL, &err) == WVOL_OK,
+                      "threaded whole read within %zu bytes: %s", budget, err.message);
+                CHECK(into && memcmp(into, full->data, 64 * 64 * 64 * sizeof *into) == 0,
+                      "threaded whole read equals the one-thread read");
+                wvol_wvc_file_stats(wf, &cs);
+                CHECK(cs.peak <= budget, "threaded: cache peak %zu within the budget %zu", cs.peak, budget);
+                CHECK(wvol_wvc_read_region_into(NULL, wf, all_lo, all_hi, 0, 2, NULL, NULL, &err) == WVOL_ERR_ARG,
+                      "no destination is refused: %s", err.message);
+                CHECK(into && wvol_wvc_read_region_into(into, wf, all_lo, all_hi, -1, 2, NULL, NULL, &err) ==
+                              WVOL_ERR_ARG && strstr(err.message, "level"),
+                      "a negative level is refused: %s", err.message);
+                free(into);
+            }
             wvol_volume_destroy(ref);
             wvol_coeffs_destroy(dec);
         }
@@ -959,6 +988,15 @@ static void wvc2_budget_and_damage(void)
         CHECK(wvol_wvc_read_region(&r, wf, lo, hi, 0, &err) == WVOL_ERR_FORMAT && strstr(err.message, "chunk") &&
                   strstr(err.message, "level 1"),
               "the damaged chunk is named: %s", err.message);
+        {
+            /* the same through two threads: the error of the part that met the chunk is the call's */
+            size_t big_lo[3] = {0, 0, 0}, big_hi[3] = {32, 32, 16};
+            float *into = malloc(32 * 32 * 16 * sizeof *into);
+            CHECK(into && wvol_wvc_read_region_into(into, wf, big_lo, big_hi, 0, 2, NULL, NULL, &err) ==
+                              WVOL_ERR_FORMAT && strstr(err.message, "level 1"),
+                  "threaded: the damaged chunk is named: %s", err.message);
+            free(into);
+        }
         CHECK(wvol_wvc_read_region(&r2, wf, far_lo, far_hi, 0, &err) == WVOL_OK, "a region elsewhere decodes: %s",
               err.message);
         CHECK(wvol_wvc_read_region(&r, wf, lo, hi, 1, &err) == WVOL_OK, "the coarser level there decodes: %s",

@@ -159,6 +159,51 @@ def test_vtk_reader_slabs_equal_one_read(wvc, vtk_reader, monkeypatch):
     assert field(img, "ChunksDecoded") == field(whole.GetOutputDataObject(0), "ChunksDecoded")
 
 
+def test_vtk_reader_threads_give_the_same_samples(wvc, vtk_reader):
+    """Threads reconstruct parts of each slab at once, sharing the cache: the samples are the
+    one-thread read's bit for bit, and each chunk is still decoded once (a thread needing a
+    chunk another is decoding waits for it)."""
+    d, f, full, _ = wvc
+    out = {}
+    for threads in (1, 3):
+        r = vtk_reader()
+        r.SetFileName(str(f))
+        r.SetThreads(threads)
+        r.Update()
+        img = r.GetOutputDataObject(0)
+        out[threads] = (image_array(img).copy(), field(img, "ChunksDecoded"))
+    assert np.array_equal(out[1][0], out[3][0])
+    assert out[1][1] == out[3][1] > 0
+    close(out[3][0], full)
+    with pytest.raises(ValueError, match="Threads"):
+        vtk_reader().SetThreads(-1)
+
+
+def test_region_into_an_array(wvc):
+    """wvc_file_region(out=...) reconstructs into the caller's array (how the reader fills its
+    output slab by slab) with the same samples as a fresh array, on any thread count; an array
+    of the wrong shape, type or layout is refused with a message naming what it must be."""
+    import wvol
+    d, f, full, _ = wvc
+    h = wvol._wvol.wvc_file_open(str(f))
+    lo, hi = [3, 5, 17], [70, 60, 113]
+    ref, sp, org = wvol._wvol.wvc_file_region(h, lo, hi, 0)
+    for threads in (0, 1, 2):
+        out = np.full((hi[2] - lo[2], hi[1] - lo[1], hi[0] - lo[0]), np.nan, dtype=np.float32)
+        got, sp2, org2 = wvol._wvol.wvc_file_region(h, lo, hi, 0, out=out, threads=threads)
+        assert got is out and np.array_equal(out, ref) and sp2 == sp and org2 == org
+    close(ref, full[17:113, 5:60, 3:70])
+    good = (hi[2] - lo[2], hi[1] - lo[1], hi[0] - lo[0])
+    for bad in (np.zeros(good, np.float64), np.zeros(good[::-1], np.float32),
+                np.zeros((good[0], good[1], 2 * good[2]), np.float32)[:, :, ::2]):
+        with pytest.raises(ValueError, match="C-contiguous float32"):
+            wvol._wvol.wvc_file_region(h, lo, hi, 0, out=bad)
+    with pytest.raises(TypeError, match="numpy"):
+        wvol._wvol.wvc_file_region(h, lo, hi, 0, out=[0.0])
+    with pytest.raises(ValueError, match="threads"):
+        wvol._wvol.wvc_file_region(h, lo, hi, 0, threads=-2)
+
+
 def test_vtk_reader_release_cache(wvc, vtk_reader):
     """ReleaseCache closes the file after each execution (its chunks freed): a later execution
     reopens it, decodes its chunks again and gives the same samples."""

@@ -175,6 +175,15 @@ WVOL_API void wvol_wvc_file_stats(const wvol_wvc_file *f, wvol_wvc_cache_stats *
  * to the same box of wvol_idwt3_level on the whole decoded file up to float rounding. */
 WVOL_API wvol_status wvol_wvc_read_region(wvol_volume **out, wvol_wvc_file *f, const size_t lo[3],
                                           const size_t hi[3], int level, wvol_error *err);
+/* The same box into the caller's array dst ((hi - lo) samples, x fastest), with `threads`
+ * threads reconstructing parts of it along y (0: OpenMP's default; 1 in a build without
+ * OpenMP; each part holds a copy of its samples while it is made), so that a reader can fill its output in place, slab by slab. spacing and
+ * origin (either may be NULL) receive the box's. The values equal wvol_wvc_read_region's
+ * bit for bit whatever the thread count: every sample is synthesised from the same
+ * coefficients in the same order. */
+WVOL_API wvol_status wvol_wvc_read_region_into(float *dst, wvol_wvc_file *f, const size_t lo[3],
+                                               const size_t hi[3], int level, int threads, double spacing[3],
+                                               double origin[3], wvol_error *err);
 
 /* Predicted and measured error. sse is a sum of squared errors over n samples;
  * PSNR uses peak = value range (infinite for sse 0). */

@@ -13,6 +13,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
+#include <sched.h>
 #include <unistd.h>
 #ifdef _OPENMP
 #include <omp.h>
@@ -22,6 +23,8 @@
 #include "wvc_format.h"
 #include "wvc_source.h"
 
+#define SPARE_SCRATCH 8
+
 typedef struct centry {
     size_t id;
     int ref;
@@ -30,6 +33,12 @@ typedef struct centry {
     size_t ext[3];
     int32_t *q[8];              /* per band of the level's list, ext[0] ext[1] ext[2] each */
 } centry;
+
+/* Marks a slot whose chunk one thread is decoding: the others wait for it rather than
+ * decode the same chunk again (threads reconstructing parts of one region need the same
+ * chunks at about the same time). */
+static centry decoding_marker;
+#define DECODING (&decoding_marker)
 
 typedef struct skip_ctx {
     wvol_wvc_file *f;
@@ -53,6 +62,11 @@ struct wvol_wvc_file {
     uint64_t decoded, hits, bytes_read;
     wvol_status first_status;
     char first_message[sizeof(((wvol_error *)0)->message)];
+    /* reconstruction scratch kept between region reads (under the lock): a reader that
+     * fills its output slab by slab reuses the same buffers instead of faulting in fresh
+     * pages for every slab */
+    wvol__brick_scratch spare[SPARE_SCRATCH];
+    int spares;
 #ifdef _OPENMP
     omp_lock_t lock;
 #endif
@@ -110,11 +124,12 @@ void wvol_wvc_close(wvol_wvc_file *f)
     if (!f) return;
     if (f->slot && f->x)
         for (size_t i = 0; i < f->x->g.nchunks; i++)
-            if (f->slot[i]) {
+            if (f->slot[i] && f->slot[i] != DECODING) {
                 free(f->slot[i]->q[0]);
                 free(f->slot[i]);
             }
     free(f->slot);
+    for (int i = 0; i < f->spares; i++) wvol__brick_scratch_free(&f->spare[i]);
     wvol__wvc2_index_free(f->x);
     wvol_coeffs_destroy(f->dense);
     free(f->zeros);
@@ -396,7 +411,11 @@ static centry *get_chunk(wvol_wvc_file *f, size_t id)
 {
     centry *e, *mine;
     lock(f);
-    e = f->slot[id];
+    while ((e = f->slot[id]) == DECODING) {
+        unlock(f);
+        sched_yield();
+        lock(f);
+    }
     if (e) {
         e->ref++;
         f->hits++;
@@ -405,23 +424,17 @@ static centry *get_chunk(wvol_wvc_file *f, size_t id)
         unlock(f);
         return e;
     }
+    f->slot[id] = DECODING;
     unlock(f);
     mine = decode_chunk(f, id);
-    if (!mine) return NULL;
     lock(f);
+    if (!mine) {
+        f->slot[id] = NULL;
+        unlock(f);
+        return NULL;
+    }
     f->decoded++;
     f->bytes_read += f->x->chunks[id].bytes;
-    e = f->slot[id];
-    if (e) {
-        /* another thread decoded it meanwhile: keep theirs */
-        e->ref++;
-        lru_unlink(f, e);
-        lru_front(f, e);
-        unlock(f);
-        free(mine->q[0]);
-        free(mine);
-        return e;
-    }
     mine->ref = 1;
     f->slot[id] = mine;
     lru_front(f, mine);
@@ -436,7 +449,7 @@ static centry *get_chunk(wvol_wvc_file *f, size_t id)
                "memory budget of %s bytes exceeded by the chunks one request holds at once%s (raise --memory)", b,
                "");
     }
-    return e ? e : mine;
+    return mine;
 }
 
 /* ---- gathering ------------------------------------------------------------------- */
@@ -614,17 +627,104 @@ void wvol__wvc_file_level_max(const wvol_wvc_file *f, int m, float *max, size_t 
         for (size_t i = 0; i < g->lv[m].count; i++) max[i] = f->x->chunks[g->lv[m].first + i].maxabs;
 }
 
-wvol_status wvol_wvc_read_region(wvol_volume **out, wvol_wvc_file *f, const size_t lo[3], const size_t hi[3],
-                                 int level, wvol_error *err)
+/* Spacing and origin of the box starting at lo in level `level`'s grid, and the factor
+ * 2^{-s/2} per transformed axis that wvol_idwt3_level applies to that level's low-pass. */
+static void region_geometry(const wvol_wvc_file *f, const wvol_filter *flt, int level, const size_t lo[3],
+                            double spacing[3], double origin[3], double *scale)
+{
+    *scale = 1.0;
+    for (int a = 0; a < 3; a++) {
+        size_t p = a == 0 ? f->info.px : a == 1 ? f->info.py : f->info.pz;
+        double sp = f->info.spacing[a] * ldexp(1.0, p > 1 ? level : 0);
+        if (p > 1) *scale *= pow(2.0, -0.5 * level);
+        spacing[a] = sp;
+        origin[a] = f->info.origin[a] + (p > 1 ? f->info.spacing[a] * (ldexp(1.0, level) - 1.0) * flt->center : 0) +
+                    sp * (double)lo[a];
+    }
+}
+
+static void scratch_take(wvol_wvc_file *f, wvol__brick_scratch *scr)
+{
+    lock(f);
+    if (f->spares > 0) *scr = f->spare[--f->spares];
+    else memset(scr, 0, sizeof *scr);
+    unlock(f);
+}
+
+static void scratch_give(wvol_wvc_file *f, wvol__brick_scratch *scr)
+{
+    lock(f);
+    if (f->spares < SPARE_SCRATCH) {
+        f->spare[f->spares++] = *scr;
+        scr = NULL;
+    }
+    unlock(f);
+    if (scr) wvol__brick_scratch_free(scr);
+}
+
+/* Reconstructs the box [lo, hi) of source src into dst with `threads` threads, each a
+ * part of the box along y (its own scratch and buffer, copied into dst's rows): the parts
+ * share their z range, so they need the same rows of chunks at the same time and the
+ * shared cache (under its lock) decodes each chunk once. */
+static wvol_status reconstruct_parts(wvol_wvc_file *f, float *dst, const wvol__coef_source *src,
+                                     const size_t lo[3], const size_t hi[3], int threads, wvol_error *err)
+{
+    size_t nx = hi[0] - lo[0], ny = hi[1] - lo[1], nz = hi[2] - lo[2];
+    wvol_status st = WVOL_OK;
+    int nt = threads;
+#ifdef _OPENMP
+    if (nt <= 0) nt = omp_get_max_threads();
+#else
+    nt = 1;
+#endif
+    if (nt < 1) nt = 1;
+    /* a part thinner than a few rows would repeat the filters' margins for little work */
+    if ((size_t)nt > ny / 8) nt = ny / 8 > 0 ? (int)(ny / 8) : 1;
+    if (nt == 1) {
+        wvol__brick_scratch scr;
+        scratch_take(f, &scr);
+        st = wvol__idwt3_brick_src(dst, src, lo, hi, &scr, err);
+        scratch_give(f, &scr);
+        return st;
+    }
+#ifdef _OPENMP
+#pragma omp parallel num_threads(nt)
+    {
+        int t = omp_get_thread_num();
+        size_t y0 = lo[1] + ny * (size_t)t / (size_t)nt, y1 = lo[1] + ny * (size_t)(t + 1) / (size_t)nt;
+        size_t l[3] = {lo[0], y0, lo[2]}, h[3] = {hi[0], y1, hi[2]}, rows = y1 - y0;
+        float *part = malloc(nx * rows * nz * sizeof *part);
+        wvol__brick_scratch scr;
+        wvol_error e;
+        wvol_status s = WVOL_ERR_NOMEM;
+        scratch_take(f, &scr);
+        if (part) s = wvol__idwt3_brick_src(part, src, l, h, &scr, &e);
+        else wvol_error_set(&e, s, "wvc region: out of memory for a part of %zu samples", nx * rows * nz);
+        scratch_give(f, &scr);
+        if (s == WVOL_OK)
+            for (size_t z = 0; z < nz; z++)
+                memcpy(dst + (z * ny + (y0 - lo[1])) * nx, part + z * rows * nx, rows * nx * sizeof *part);
+        free(part);
+        if (s != WVOL_OK) {
+#pragma omp critical(wvol_wvc_region)
+            if (st == WVOL_OK) {
+                st = s;
+                if (err) *err = e;
+            }
+        }
+    }
+#endif
+    return st;
+}
+
+wvol_status wvol_wvc_read_region_into(float *dst, wvol_wvc_file *f, const size_t lo[3], const size_t hi[3],
+                                      int level, int threads, double spacing[3], double origin[3], wvol_error *err)
 {
     wvol__coef_source src;
-    wvol__brick_scratch scr;
-    wvol_volume *v = NULL;
     wvol_status st;
-    double scale = 1.0;
+    double scale, sp[3], org[3];
     const wvol_filter *flt;
-    WVOL_RETURN_IF(!out || !f || !lo || !hi, err, WVOL_ERR_ARG, "wvc region: missing argument");
-    *out = NULL;
+    WVOL_RETURN_IF(!dst || !f || !lo || !hi, err, WVOL_ERR_ARG, "wvc region: missing argument");
     WVOL_RETURN_IF(level < 0 || level > f->info.levels, err, WVOL_ERR_ARG, "wvc region: level %d outside 0..%d",
                    level, f->info.levels);
     wvol__wvc_file_source(&src, f, level);
@@ -633,28 +733,39 @@ wvol_status wvol_wvc_read_region(wvol_volume **out, wvol_wvc_file *f, const size
                        "wvc region: box %zu..%zu along axis %d is empty or outside 0..%zu (level %d)", lo[a], hi[a],
                        a, src.dims[a], level);
     WVOL_FORWARD(wvol_filter_get(&flt, f->info.filter, err));
-    WVOL_FORWARD(wvol_volume_create(&v, hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2], err));
     (void)wvol__wvc_file_error(f, NULL);
-    memset(&scr, 0, sizeof scr);
-    st = wvol__idwt3_brick_src(v->data, &src, lo, hi, &scr, err);
-    wvol__brick_scratch_free(&scr);
+    st = reconstruct_parts(f, dst, &src, lo, hi, threads, err);
     if (st == WVOL_OK) st = wvol__wvc_file_error(f, err);
+    if (st != WVOL_OK) return st;
+    region_geometry(f, flt, level, lo, sp, org, &scale);
+    for (int a = 0; a < 3; a++) {
+        if (spacing) spacing[a] = sp[a];
+        if (origin) origin[a] = org[a];
+    }
+    if (scale != 1.0) {
+        size_t nv = (hi[0] - lo[0]) * (hi[1] - lo[1]) * (hi[2] - lo[2]);
+        for (size_t i = 0; i < nv; i++) dst[i] = (float)(dst[i] * scale);
+    }
+    return WVOL_OK;
+}
+
+wvol_status wvol_wvc_read_region(wvol_volume **out, wvol_wvc_file *f, const size_t lo[3], const size_t hi[3],
+                                 int level, wvol_error *err)
+{
+    wvol_volume *v = NULL;
+    wvol_status st;
+    WVOL_RETURN_IF(!out || !f || !lo || !hi, err, WVOL_ERR_ARG, "wvc region: missing argument");
+    *out = NULL;
+    WVOL_RETURN_IF(level < 0 || level > f->info.levels, err, WVOL_ERR_ARG, "wvc region: level %d outside 0..%d",
+                   level, f->info.levels);
+    for (int a = 0; a < 3; a++)
+        WVOL_RETURN_IF(lo[a] >= hi[a], err, WVOL_ERR_ARG, "wvc region: box %zu..%zu along axis %d is empty", lo[a],
+                       hi[a], a);
+    WVOL_FORWARD(wvol_volume_create(&v, hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2], err));
+    st = wvol_wvc_read_region_into(v->data, f, lo, hi, level, 1, v->spacing, v->origin, err);
     if (st != WVOL_OK) {
         wvol_volume_destroy(v);
         return st;
-    }
-    for (int a = 0; a < 3; a++) {
-        size_t p = a == 0 ? f->info.px : a == 1 ? f->info.py : f->info.pz;
-        double sp = f->info.spacing[a] * ldexp(1.0, p > 1 ? level : 0);
-        if (p > 1) scale *= pow(2.0, -0.5 * level);
-        v->spacing[a] = sp;
-        v->origin[a] = f->info.origin[a] + (p > 1 ? f->info.spacing[a] * (ldexp(1.0, level) - 1.0) * flt->center : 0) +
-                       sp * (double)lo[a];
-    }
-    /* 2^{-s/2} per transformed axis, as wvol_idwt3_level */
-    if (scale != 1.0) {
-        size_t nv = v->nx * v->ny * v->nz;
-        for (size_t i = 0; i < nv; i++) v->data[i] = (float)(v->data[i] * scale);
     }
     *out = v;
     return WVOL_OK;
