@@ -18,16 +18,6 @@
 #include "wvol/store.h"
 #include "wvol/wvc.h"
 
-/* A shell and a blob: structure at every scale the levels cover. */
-static double phantom_voxel(const wvol_volume *v, size_t i, size_t j, size_t k, const void *ctx)
-{
-    double x = (i - (v->nx - 1) / 2.0) / (v->nx / 2.0), y = (j - (v->ny - 1) / 2.0) / (v->ny / 2.0),
-           z = (k - (v->nz - 1) / 2.0) / (v->nz / 2.0), r = sqrt(x * x + y * y + z * z);
-    double shell = 0.5 * (tanh((r - 0.35) / 0.05) - tanh((r - 0.6) / 0.05));
-    (void)ctx;
-    return shell + 0.3 * exp(-((x - 0.1) * (x - 0.1) + y * y + z * z) / 0.02);
-}
-
 static wvol_geometry cube_geometry(size_t n, double spacing)
 {
     wvol_geometry g;
@@ -125,7 +115,7 @@ static int fixture_make(fixture *f, size_t n, int levels)
 {
     wvol_error err;
     memset(f, 0, sizeof *f);
-    f->v = fixture_volume(n, n - 6, n + 4, phantom_voxel, NULL);
+    f->v = fixture_volume(n, n - 6, n + 4, fixture_shell_blob, NULL);
     if (!f->v) return 0;
     wvol_volume_range(f->v, &f->vmin, &f->vmax, NULL);
     CHECK(wvol_dwt3(&f->c, f->v, fixture_filter("db2"), levels, &err) == WVOL_OK, "dwt: %s", err.message);
