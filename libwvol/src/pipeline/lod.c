@@ -151,10 +151,19 @@ wvol_status wvol_render_lod(wvol_image *img, const wvol_render_source *source, c
     } else if (L == 0) {
         s = wvol_render(img, source, cam, tf, &p, stats, err);
     } else {
+        wvol_error cerr;
         t0 = wvol__now();
-        s = coarse_volume(&coarse, &ls.energy, source, &lp, L, err);
+        wvol_error_clear(&cerr);
+        s = coarse_volume(&coarse, &ls.energy, source, &lp, L, &cerr);
         ls.seconds = wvol__now() - t0;
-        if (s == WVOL_OK) {
+        if (s == WVOL_ERR_NONFINITE && source->kind == WVOL_RENDER_SOURCE_VOLUME) {
+            /* values the transform cannot hold in float32: the full grid, whose renderer says
+             * what it makes of them (the level of detail is a saving, never a new failure) */
+            L = 0, ls.energy = 0.0;
+            s = wvol_render(img, source, cam, tf, &p, stats, err);
+        } else if (s != WVOL_OK) {
+            if (err) *err = cerr;
+        } else {
             csrc = wvol_render_source_volume(coarse);
             p.method = WVOL_RENDER_METHOD_REFERENCE;
             s = wvol_render(img, &csrc, cam, tf, &p, stats, err);
