@@ -103,24 +103,51 @@ static wvol_status built_level(wvol_volume **out, const wvol_store *s, int level
     return WVOL_OK;
 }
 
+/* A file-backed store's level: the level's grid read slab by slab along z (each slab's chunks
+ * decoded on demand through the file's cache, within its budget), so that the reconstruction's
+ * scratch follows a slab, not the whole grid: the peak is the output, the cache and one slab's
+ * work. */
+#define LEVEL_SLAB_VOXELS ((size_t)1 << 24)
+
+static wvol_status file_level(wvol_volume **out, const wvol_store *s, int level, wvol_error *err)
+{
+    const wvol_wvc_info *I = wvol_wvc_file_info(s->file);
+    size_t hi[3], n[3] = {I->nx, I->ny, I->nz}, plane, depth;
+    wvol_volume *v = NULL;
+    wvol_status st = WVOL_OK;
+    for (int a = 0; a < 3; a++) hi[a] = n[a] > 1 ? (n[a] + ((size_t)1 << level) - 1) >> level : 1;
+    plane = hi[0] * hi[1];
+    depth = plane < LEVEL_SLAB_VOXELS ? LEVEL_SLAB_VOXELS / plane : 1;
+    WVOL_FORWARD(wvol_volume_create(&v, hi[0], hi[1], hi[2], err));
+    for (size_t z0 = 0; z0 < hi[2] && st == WVOL_OK; z0 += depth) {
+        size_t lo3[3] = {0, 0, z0}, hi3[3] = {hi[0], hi[1], z0 + depth < hi[2] ? z0 + depth : hi[2]};
+        wvol_volume *slab = NULL;
+        /* the file's cache is meant to change under const use (it has its own lock) */
+        st = wvol_wvc_read_region(&slab, (wvol_wvc_file *)s->file, lo3, hi3, level, err);
+        if (st == WVOL_OK) st = wvol__store_file_error(s, err);
+        if (st == WVOL_OK) {
+            memcpy(v->data + plane * z0, slab->data, plane * (hi3[2] - z0) * sizeof *v->data);
+            if (z0 == 0) {
+                /* the first slab starts at the grid's first sample: its geometry is the grid's */
+                memcpy(v->spacing, slab->spacing, sizeof v->spacing);
+                memcpy(v->origin, slab->origin, sizeof v->origin);
+            }
+        }
+        wvol_volume_destroy(slab);
+    }
+    if (st != WVOL_OK) {
+        wvol_volume_destroy(v);
+        return st;
+    }
+    *out = v;
+    return WVOL_OK;
+}
+
 wvol_status wvol_store_level_volume(wvol_volume **out, const wvol_store *s, int level, wvol_error *err)
 {
     WVOL_RETURN_IF(!out, err, WVOL_ERR_ARG, "store level: out is NULL");
     *out = NULL;
     WVOL_FORWARD(check_level(s, level, err));
-    if (s->file) {
-        const wvol_wvc_info *I = wvol_wvc_file_info(s->file);
-        size_t lo[3] = {0, 0, 0}, hi[3], n[3] = {I->nx, I->ny, I->nz};
-        wvol_status st;
-        for (int a = 0; a < 3; a++) hi[a] = n[a] > 1 ? (n[a] + ((size_t)1 << level) - 1) >> level : 1;
-        /* the file's cache is meant to change under const use (it has its own lock) */
-        st = wvol_wvc_read_region(out, (wvol_wvc_file *)s->file, lo, hi, level, err);
-        if (st == WVOL_OK) st = wvol__store_file_error(s, err);
-        if (st != WVOL_OK) {
-            wvol_volume_destroy(*out);
-            *out = NULL;
-        }
-        return st;
-    }
+    if (s->file) return file_level(out, s, level, err);
     return built_level(out, s, level, err);
 }
