@@ -60,10 +60,12 @@ typedef struct wvol_lod_stats {
  * level of 0, render exactly as wvol_render does (bit for bit). At a level L > 0 the frame is
  * wvol_render_reference of the level-L volume (a store: wvol_store_level_volume, which from a
  * file decodes only the chunks of the levels above L; a dense volume: wvol_volume_level with
- * lod->filter), the same samples, step (in voxels of the coarser grid) and compositing, and
- * stats->method says REFERENCE and stats->seconds includes forming the level's volume. lod NULL: wvol_lod_params_default. lod_stats may be NULL.
- * A dense volume whose transform would overflow float32 renders the full grid (level 0). A
- * level outside 0..the source's levels is refused (WVOL_ERR_ARG). */
+ * lod->filter), the same samples, step (in voxels of the coarser grid) and compositing;
+ * stats->method says REFERENCE and stats->seconds includes forming the level's volume. lod
+ * NULL: wvol_lod_params_default; lod_stats may be NULL. A dense volume whose transform would
+ * overflow float32 renders the full grid (level 0). A level outside 0..the source's levels is
+ * refused (WVOL_ERR_ARG). The level's volume is held for the frame: a file's level-L grid
+ * costs its samples (n / 2^L per axis, float32) besides the file's chunk cache. */
 WVOL_API wvol_status wvol_render_lod(wvol_image *img, const wvol_render_source *source, const wvol_camera *cam,
                                      const wvol_tf *tf, const wvol_render_params *params,
                                      const wvol_lod_params *lod, wvol_render_stats *stats,
