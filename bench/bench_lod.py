@@ -119,6 +119,39 @@ def frame_rows(tmp, n, size, wvc):
             "rss_ratio": rows["lod"]["peak_rss_mib"] / rows["full"]["peak_rss_mib"]}
 
 
+def file_rows(path, size, iso, mesh_level, full_timeout):
+    """Rows for an existing large .wvc (the 2048^3 turbulence file of bench_large.py): the LOD
+    frame (tf "gaussian" over the file's range), the full-resolution frame unless it runs past
+    full_timeout seconds (then its absence is said), and marching cubes of the level-`mesh_level`
+    grid; wall time and peak RSS of each process, the file store's default budget (1 GiB)."""
+    rows = {"file": str(path), "size": size, "camera": CAMERA, "budget_mib": 1024}
+    with tempfile.TemporaryDirectory(prefix="bench_lod_file_", dir=os.environ.get("BENCH_TMP")) as td:
+        tmp = pathlib.Path(td)
+        wall, rss, out = run(wvol("render", path, "-o", tmp / "lod.exr", "--size", f"{size}x{size}", "--camera",
+                                  CAMERA, "--json"))
+        r = json.loads(out)
+        rows["lod"] = {"wall_seconds": wall, "peak_rss_mib": rss, "lod": r["lod"], "method": r["method"]}
+        print(f"file frame lod: {wall:.1f} s, {rss:.0f} MiB, level {r['lod']['level']}", flush=True)
+        try:
+            wall, rss, out = run(["timeout", str(full_timeout)] + wvol("render", path, "-o", tmp / "full.exr", "--size",
+                                                                       f"{size}x{size}", "--camera", CAMERA,
+                                                                       "--json", "--full-resolution"))
+            rows["full"] = {"wall_seconds": wall, "peak_rss_mib": rss}
+            a, b = read_exr_rgba(tmp / "lod.exr"), read_exr_rgba(tmp / "full.exr")
+            peak = float(np.abs(b).max())
+            rows["image_rmse_rel"] = float(np.sqrt(np.mean((a - b) ** 2))) / peak
+            rows["image_max_rel"] = float(np.abs(a - b).max()) / peak
+        except SystemExit as e:
+            rows["full"] = {"not_done": f"stopped after {full_timeout} s ({str(e).splitlines()[0][:80]})"}
+        print(f"file frame full: {rows['full']}", flush=True)
+        wall, rss, out = run(wvol("iso", path, "--iso", iso, "--level", mesh_level, "--json", "-o", tmp / "m.ply"))
+        r = json.loads(out)
+        rows["mesh"] = {"wall_seconds": wall, "peak_rss_mib": rss, "level": mesh_level, "iso": iso,
+                        "dims": r["level_dims"], "triangles": r["triangles"], "level_seconds": r["level_seconds"]}
+        print(f"file mesh: {rows['mesh']}", flush=True)
+    return rows
+
+
 def write_md(res, path):
     L = ["# Level of detail and marching cubes from a store (bench/bench_lod.py)", "",
          f"Machine: {res['machine']}, {res['cores']} cores shared with other jobs; wvol {res['wvol']}.", "",
@@ -148,6 +181,19 @@ def write_md(res, path):
           "A 512^2 perspective frame framing the volume sees a 512^3 volume at about one voxel a pixel at its "
           "nearest point, so level 0 is chosen there: the LOD row is then the full frame.",
           res.get("note", "")]
+    for f in res.get("files", []):
+        full = f["full"]
+        fs = (f"{full['wall_seconds']:.1f} s, {full['peak_rss_mib']:.0f} MiB; image RMSE / max (rel.) "
+              f"{f['image_rmse_rel']:.2e} / {f['image_max_rel']:.2e}" if "wall_seconds" in full else full["not_done"])
+        m, lod = f["mesh"], f["lod"]["lod"]
+        L += ["", f"From `{f['file']}` (file store, budget {f['budget_mib']} MiB), {f['size']}^2 frame, camera "
+              f"`{f['camera']}`, tf gaussian:", "",
+              f"- LOD frame: level {lod['level']} of {lod['levels']} ({lod['dims'][0]}^3 grid), "
+              f"{f['lod']['wall_seconds']:.1f} s, peak RSS {f['lod']['peak_rss_mib']:.0f} MiB, reported RMSE "
+              f"{lod['rmse']:.3g} (PSNR {lod['psnr']:.1f} dB)",
+              f"- full-resolution frame: {fs}",
+              f"- marching cubes at level {m['level']} ({m['dims'][0]}^3 grid, iso {m['iso']}): {m['triangles']} "
+              f"triangles, {m['wall_seconds']:.1f} s, peak RSS {m['peak_rss_mib']:.0f} MiB"]
     path.write_text("\n".join(L) + "\n")
 
 
@@ -185,7 +231,18 @@ def main():
     ap.add_argument("--rounds", type=int, default=3)
     ap.add_argument("--out", default=str(ROOT / "bench" / "results"))
     ap.add_argument("--replot", action="store_true", help="rewrite the .md and .png from the .json only")
+    ap.add_argument("--wvc", help="add rows for this existing .wvc to the .json (frames and a level mesh)")
+    ap.add_argument("--iso", type=float, default=1.0, help="--wvc: the mesh's iso-value")
+    ap.add_argument("--mesh-level", type=int, default=3, help="--wvc: the mesh's level")
+    ap.add_argument("--full-timeout", type=int, default=900, help="--wvc: stop the full-resolution frame after this")
     args = ap.parse_args()
+    if args.wvc:
+        out, name = pathlib.Path(args.out), "lod_quick" if args.quick else "lod"
+        res = json.loads((out / f"{name}.json").read_text())
+        res.setdefault("files", []).append(file_rows(pathlib.Path(args.wvc), args.image, args.iso, args.mesh_level,
+                                                     args.full_timeout))
+        (out / f"{name}.json").write_text(json.dumps(res, indent=1) + "\n")
+        args.replot = True
     if args.replot:
         out, name = pathlib.Path(args.out), "lod_quick" if args.quick else "lod"
         res = json.loads((out / f"{name}.json").read_text())
