@@ -193,7 +193,7 @@ def write_md(res, path):
               f"{lod['rmse']:.3g} (PSNR {lod['psnr']:.1f} dB)",
               f"- full-resolution frame: {fs}",
               f"- marching cubes at level {m['level']} ({m['dims'][0]}^3 grid, iso {m['iso']}): {m['triangles']} "
-              f"triangles, {m['wall_seconds']:.1f} s, peak RSS {m['peak_rss_mib']:.0f} MiB"]
+              f"triangles, {m['wall_seconds']:.1f} s, peak RSS {m['peak_rss_mib']:.0f} MiB", f.get("note", "")]
     path.write_text("\n".join(L) + "\n")
 
 
