@@ -193,7 +193,14 @@ def write_md(res, path):
               f"{lod['rmse']:.3g} (PSNR {lod['psnr']:.1f} dB)",
               f"- full-resolution frame: {fs}",
               f"- marching cubes at level {m['level']} ({m['dims'][0]}^3 grid, iso {m['iso']}): {m['triangles']} "
-              f"triangles, {m['wall_seconds']:.1f} s, peak RSS {m['peak_rss_mib']:.0f} MiB", f.get("note", "")]
+              f"triangles, {m['wall_seconds']:.1f} s, peak RSS {m['peak_rss_mib']:.0f} MiB"]
+        g = f.get("region_mesh")
+        if g:
+            L.append(f"- a full-resolution 256^3 region {g['roi']} ({g['how']}): {g['chunks_decoded']} of "
+                     f"{g['file_chunks']} chunks decoded in {g['decode_seconds']:.1f} s, peak RSS "
+                     f"{g['decode_peak_rss_mib']:.0f} MiB; marching cubes {g['triangles']} triangles in "
+                     f"{g['mc_seconds']:.1f} s, {g['mc_peak_rss_mib']:.0f} MiB (wall times of the processes)")
+        L.append(f.get("note", ""))
     path.write_text("\n".join(L) + "\n")
 
 
