@@ -37,6 +37,8 @@ static const cli_opt opts[] = {
                       "raytrace/hybrid: the store's wavelet (default db2)"},
     {"levels", 0, 1, "wavelet levels (default 3)"},
     {"keep", 0, 1, "kept fraction of the coefficients, e.g. 5% (default 100%)"},
+    {"level", 0, 1, "mc: mesh the coarser grid of wavelet level L (0 = full resolution, default): from a .wvc\n"
+                    "only the levels above L are decoded; a volume is transformed with --wavelet (db2)"},
     {"brick", 0, 1, "cells per brick edge for --wavelet and cast (default 32; mc: 0 is a full inverse,\n"
                     "then dense MC)"},
     CLI_MEMORY_OPT,
@@ -50,6 +52,7 @@ typedef struct iso_args {
     const char *in, *out;
     double iso;
     int have_iso, json, threads, repeat, levels, brick, spline_j, have_keep, have_tol, surface_cast, model_bound;
+    int level;      /* mc --level: the coarser grid of this wavelet level (0: full resolution) */
     long width, height;
     double keep, tolerance, chunk;
     const char *method, *wavelet, *camera, *tf;
@@ -59,7 +62,7 @@ typedef struct iso_args {
 } iso_args;
 
 static void report(const iso_args *a, int levels, const wvol_mesh *m, const wvol_iso_stats *st, double best,
-                   double t_load, double t_save)
+                   double t_load, double t_save, const wvol_volume *coarse, double level_energy, double t_level)
 {
     wvol_mesh_topo topo;
     double area = wvol_mesh_area(m), vol = wvol_mesh_volume(m);
@@ -79,6 +82,14 @@ static void report(const iso_args *a, int levels, const wvol_mesh *m, const wvol
             cli_json_num("seconds_reconstruct_mesh", st->seconds_reconstruct);
         }
         cli_json_num("iso", a->iso);
+        if (coarse) {
+            cli_json_int("level", a->level);
+            cli_json_size3("level_dims", coarse->nx, coarse->ny, coarse->nz);
+            cli_json_num3("level_spacing", coarse->spacing);
+            cli_json_num3("level_origin", coarse->origin);
+            cli_json_num("level_energy", level_energy);
+            cli_json_num("level_seconds", t_level);
+        }
         cli_json_int("vertices", (long long)m->nverts);
         cli_json_int("triangles", (long long)m->ntris);
         cli_json_num("area", area);
@@ -108,6 +119,10 @@ static void report(const iso_args *a, int levels, const wvol_mesh *m, const wvol
         cli_json_end();
     } else {
         if (st->empty) printf("note: %s\n", st->message);
+        if (coarse)
+            printf("level      %d: %zu x %zu x %zu grid, spacing %.4g %.4g %.4g (dropped detail energy %.6g; %.3f s)\n",
+                   a->level, coarse->nx, coarse->ny, coarse->nz, coarse->spacing[0], coarse->spacing[1],
+                   coarse->spacing[2], level_energy, t_level);
         printf("triangles  %zu\nvertices   %zu\n", m->ntris, m->nverts);
         printf("area       %.9g\nvolume     %.9g (enclosed, %s)\n", area, fabs(vol),
                have_topo && topo.watertight ? "closed surface" : "surface is open: volume is approximate");
@@ -151,9 +166,10 @@ static int prepare_kept(const iso_args *a, const wvol_volume *v, int for_image, 
 static int run_mc(const iso_args *a)
 {
     wvol_error err;
-    wvol_volume *v = NULL;
+    wvol_volume *v = NULL, *coarse = NULL;
     wvol_compressed kept;
     wvol_mesh *m = NULL;
+    double level_energy = 0.0, t_level = 0.0;
     wvol_iso_params p;
     wvol_iso_stats st, best_st;
     double t0, t_load, best = INFINITY, t_save = 0.0;
@@ -162,7 +178,7 @@ static int run_mc(const iso_args *a)
     wvol_error_clear(&err);
     t0 = cli_now();
     memset(&kept, 0, sizeof kept);
-    if (wvol_path_has_ext(a->in, ".wvc") && a->brick != 0 && a->keep >= 1.0) {
+    if (wvol_path_has_ext(a->in, ".wvc") && ((a->brick != 0 && a->keep >= 1.0) || a->level > 0)) {
         /* a .wvc file: brick by brick from the file-backed store, within --memory */
         if (cli_open_wvc_store("iso", a->in, a->memory, &kept) != CLI_OK) return CLI_FAILED;
     } else if (wvol_volume_load(&v, a->in, &a->lo, &err) != WVOL_OK) {
@@ -182,12 +198,33 @@ static int run_mc(const iso_args *a)
             kept.coeffs = NULL;
         }
     }
+    if (a->level > 0) {
+        /* the coarser grid once (the level's volume, as `wvol decompress --level` writes it),
+         * then marching cubes on it */
+        wvol_status s;
+        double t1 = cli_now();
+        if (kept.store) {
+            s = wvol_store_level_volume(&coarse, kept.store, a->level, &err);
+            if (s == WVOL_OK) s = wvol_store_level_energy(kept.store, a->level, &level_energy, &err);
+        } else {
+            const wvol_filter *f = NULL;
+            s = wvol_filter_get(&f, a->wavelet ? a->wavelet : "db2", &err);
+            if (s == WVOL_OK) s = wvol_volume_level(&coarse, v, f, a->level, &level_energy, &err);
+        }
+        if (s != WVOL_OK) {
+            rc = cli_fail_err("iso", &err);
+            goto done;
+        }
+        t_level = cli_now() - t1;
+    }
     for (r = 0; r < a->repeat; r++) {
         double t1 = cli_now(), dt;
         wvol_status s;
         wvol_mesh_destroy(m);
         m = NULL;
-        if (kept.store && a->brick == 0) { /* the peer of the brick path: whole inverse, then dense MC */
+        if (coarse) {
+            s = wvol_iso_extract(&m, coarse, a->iso, &p, &st, &err);
+        } else if (kept.store && a->brick == 0) { /* the peer of the brick path: whole inverse, then dense MC */
             wvol_volume *rec = NULL;
             s = wvol_idwt3(&rec, kept.coeffs, &err);
             if (s == WVOL_OK) s = wvol_iso_extract(&m, rec, a->iso, &p, &st, &err);
@@ -216,8 +253,9 @@ static int run_mc(const iso_args *a)
     }
     if (best_st.empty && !a->json) fprintf(stderr, "wvol iso: %s\n", best_st.message);
     if (!v && (rc = cli_check_wvc_store("iso", &kept, 0)) != CLI_OK) goto done;
-    report(a, kept.levels, m, &best_st, best, t_load, t_save);
+    report(a, kept.levels, m, &best_st, best, t_load, t_save, coarse, level_energy, t_level);
 done:
+    wvol_volume_destroy(coarse);
     wvol_mesh_destroy(m);
     wvol_compressed_free(&kept);
     wvol_volume_destroy(v);
@@ -516,6 +554,9 @@ int wvol_cmd_iso(int argc, char **argv)
         } else if (!strcmp(o->name, "keep")) {
             if (!cli_parse_fraction("iso", "keep", val, &a.keep)) return CLI_USAGE;
             a.have_keep = 1;
+        } else if (!strcmp(o->name, "level")) {
+            if (!cli_parse_long("iso", "level", val, 0, 30, &lv)) return CLI_USAGE;
+            a.level = (int)lv;
         } else if (!strcmp(o->name, "brick")) {
             if (!cli_parse_long("iso", "brick", val, 0, 4096, &lv)) return CLI_USAGE;
             if (lv == 1) return cli_usage("iso", "--brick 1: bricks need at least 2 cells per edge");
@@ -554,6 +595,7 @@ int wvol_cmd_iso(int argc, char **argv)
         if (a.out && !wvol_path_has_ext(a.out, ".exr") && !wvol_path_has_ext(a.out, ".png"))
             return cli_usage("iso", "-o '%s': --method %s writes an image: .exr (with Z depth) or .png", a.out,
                              a.method);
+        if (a.level) return cli_usage("iso", "--level applies to --method mc (a mesh of the coarser grid)");
         if (a.surface_cast && strcmp(a.method, "hybrid"))
             return cli_usage("iso", "--surface applies to --method hybrid");
         return !strcmp(a.method, "cast") ? run_cast(&a) : run_image(&a);

@@ -12,6 +12,7 @@
 #include "wvol/compress.h"
 #include "wvol/image.h"
 #include "wvol/io.h"
+#include "wvol/lod.h"
 #include "wvol/progressive.h"
 #include "wvol/render.h"
 #include "wvol/store.h"
@@ -47,6 +48,7 @@ static const cli_opt opts[] = {
     {"max-error", 0, 1, "progressive: stop at the first pass whose bound is <= this (pixel units of the image)"},
     {"budget", 0, 1, "progressive: wall-clock seconds; stop before a pass that would end beyond them"},
     {"growth", 0, 1, "progressive: kept coefficients multiplied by this per pass (default 4)"},
+    {"full-resolution", 0, 0, "render the volume's own grid even when the image's pixels are much larger than its voxels (default: the wavelet level whose voxel matches the pixel footprint; docs/render.md, \"Level of detail\")"},
     {"bound", 0, 1, "also write a per-pixel bound on |image of all coefficients - this image| to this .exr (docs/render.md, \"Error bounds\"); xray or absorption, no shading"},
     CLI_MEMORY_OPT,
     CLI_LOAD_OPTS,
@@ -63,13 +65,18 @@ static const char about[] =
     "views along an axis, 'splat' for any orthographic view (footprint splatting, the\n"
     "spline model to ~1e-3); 'reference-fhat' samples the wavelet model.\n"
     "'auto' picks reference for a volume at 100%, else axis when it applies, else bricks.\n"
+    "Level of detail: when the image's pixels are larger than the volume's voxels, the\n"
+    "sampling methods render the wavelet level whose voxel matches the pixel footprint\n"
+    "(orthographic: the pixel; perspective: at the volume's point nearest the eye),\n"
+    "reporting the extra error (the dropped levels' energy as RMSE and PSNR); a .wvc\n"
+    "decodes only the levels kept. --full-resolution turns it off.\n"
     "See docs/render.md for cameras, transfer-function files and errors.";
 
 typedef struct render_args {
     const char *in, *out, *camspec, *tfname, *colors_path, *bound_path;
     long width, height, repeat;
     double keep, exposure;
-    int json, keep_given, exposure_given, progressive;
+    int json, keep_given, exposure_given, progressive, full_resolution;
     wvol_bound_method bound_method;
     wvol_progressive_params pp;
     wvol_render_params rp;
@@ -155,6 +162,7 @@ static int parse_args(render_args *a, int argc, char **argv)
         else if (!strcmp(o->name, "colors")) a->colors_path = val;
         else if (!strcmp(o->name, "bound")) a->bound_path = val;
         else if (!strcmp(o->name, "progressive")) a->progressive = 1;
+        else if (!strcmp(o->name, "full-resolution")) a->full_resolution = 1;
         else if (!strcmp(o->name, "bound-method")) {
             if (!strcmp(val, "exact")) a->bound_method = WVOL_BOUND_EXACT;
             else if (!strcmp(val, "coarse")) a->bound_method = WVOL_BOUND_COARSE;
@@ -341,7 +349,8 @@ static int load_colors(const render_args *a, render_input *in, wvol_render_param
  * raise the process's peak a little. */
 static wvol_status render_repeat(wvol_image *img, const wvol_render_source *src, const wvol_camera *cam,
                                  const wvol_tf *tf, const render_args *a, const wvol_render_params *rp,
-                                 wvol_render_stats *best, double *cpu_max, double rss[2], wvol_error *err)
+                                 const wvol_lod_params *lp, wvol_render_stats *best, wvol_lod_stats *lod,
+                                 double *cpu_max, double rss[2], wvol_error *err)
 {
     double wall_min = 0;
     rss[0] = rss[1] = -1;
@@ -349,12 +358,13 @@ static wvol_status render_repeat(wvol_image *img, const wvol_render_source *src,
     for (long i = 0; i < a->repeat; i++) {
         wvol_render_stats one;
         memset(&one, 0, sizeof one);
-        wvol_status s = wvol_render(img, src, cam, tf, rp, &one, err);
+        wvol_lod_stats lone;
+        wvol_status s = wvol_render_lod(img, src, cam, tf, rp, lp, &one, &lone, err);
         if (s != WVOL_OK) return s;
         if (i == 0 && rss[0] >= 0) rss[1] = rss_mib("VmHWM");
         if (i == 0 || one.cpu_seconds > *cpu_max) *cpu_max = one.cpu_seconds;
         if (i == 0 || one.seconds < wall_min) wall_min = one.seconds;
-        if (i == 0 || one.cpu_seconds < best->cpu_seconds) *best = one;
+        if (i == 0 || one.cpu_seconds < best->cpu_seconds) *best = one, *lod = lone;
     }
     best->seconds = wall_min;
     return WVOL_OK;
@@ -400,9 +410,12 @@ static wvol_status write_bound(const render_args *a, const render_input *in, con
     return s;
 }
 
-static void report(const render_args *a, const render_input *in, const wvol_render_stats *st, double t_prep,
-                   double cpu_max, const double rss[2], const wvol_render_bound_stats *bs)
+static void report(const render_args *a, const render_input *in, const wvol_render_stats *st,
+                   const wvol_lod_stats *lod, double t_prep, double cpu_max, const double rss[2],
+                   const wvol_render_bound_stats *bs)
 {
+    double n = (double)in->geometry.dims[0] * (double)in->geometry.dims[1] * (double)in->geometry.dims[2];
+    double lod_psnr = wvol_wvc_psnr(lod->energy, n, in->vmin, in->vmax);
     const char *method = wvol_render_method_name(st->method), *mode = wvol_render_mode_name(a->rp.mode);
     const wvol_store *store = in->store.store;
     wvol_store_info si;
@@ -410,7 +423,11 @@ static void report(const render_args *a, const render_input *in, const wvol_rend
     if (!a->json) {
         printf("wrote %s (%ldx%ld, %s, %s) in %.3f s render + %.3f s preparation\n", a->out, a->width, a->height,
                method, mode, st->seconds, t_prep);
-        if (a->rp.skip_tolerance > 0)
+        if (lod->level > 0)
+            printf("level of detail: level %d of %d (%zu x %zu x %zu, voxel %.4g <= pixel footprint %.4g), extra "
+                   "error RMSE %.4g (PSNR %.2f dB); --full-resolution renders the full grid\n",
+                   lod->level, lod->levels, lod->dims[0], lod->dims[1], lod->dims[2], lod->voxel, lod->footprint,
+                   lod->rmse, lod_psnr);        if (a->rp.skip_tolerance > 0)
             printf("skipped %zu nearly empty brick runs: each pixel within %.3g of the unskipped image (tolerance %g)\n",
                    st->skipped_tolerance, st->skip_bound, a->rp.skip_tolerance);
         if (a->bound_path)
@@ -432,6 +449,18 @@ static void report(const render_args *a, const render_input *in, const wvol_rend
         cli_json_num("predicted_rmse", in->store.report.predicted_rmse);
         cli_json_int("spline_j", a->cp.store.spline_J);
     }
+    cli_json_open("lod", '{');
+    cli_json_int("enabled", !a->full_resolution);
+    cli_json_int("level", lod->level);
+    cli_json_int("levels", lod->levels);
+    cli_json_num("footprint", lod->footprint);
+    cli_json_num("voxel", lod->voxel);
+    cli_json_size3("dims", lod->dims[0], lod->dims[1], lod->dims[2]);
+    cli_json_num("energy", lod->energy);
+    cli_json_num("rmse", lod->rmse);
+    cli_json_num("psnr", lod_psnr);
+    cli_json_num("coarse_seconds", lod->seconds);
+    cli_json_close('}');
     cli_json_num("prepare_seconds", t_prep);
     if (st->method == WVOL_RENDER_METHOD_REFERENCE && store)
         cli_json_num("reconstruct_cpu_seconds", st->reconstruct_cpu_seconds);
@@ -595,6 +624,8 @@ int wvol_cmd_render(int argc, char **argv)
     wvol_render_source src;
     wvol_render_stats stats;
     wvol_render_bound_stats bstats;
+    wvol_lod_stats lstats;
+    wvol_lod_params lp;
     wvol_image *img = NULL;
     wvol_camera cam;
     wvol_tf tf;
@@ -621,11 +652,16 @@ int wvol_cmd_render(int argc, char **argv)
     if (wvol_store_is_file(in.store.store)) a.rp.method = WVOL_RENDER_METHOD_BRICKS;
     if (wvol_image_create(&img, (int)a.width, (int)a.height, &err) != WVOL_OK) goto fail;
     t_prep = cli_now() - t0;
-    if (render_repeat(img, &src, &cam, &tf, &a, &a.rp, &stats, &cpu_max, rss, &err) != WVOL_OK) goto fail;
+    wvol_lod_params_default(&lp);
+    lp.enabled = !a.full_resolution && !a.bound_path; /* the bound is the full grid's */
+    if (in.volume && wvol_filter_get(&lp.filter, a.cp.wavelet, &err) != WVOL_OK) goto fail;
+    memset(&lstats, 0, sizeof lstats);
+    if (render_repeat(img, &src, &cam, &tf, &a, &a.rp, &lp, &stats, &lstats, &cpu_max, rss, &err) != WVOL_OK)
+        goto fail;
     if (write_image(img, &a, &err) != WVOL_OK) goto fail;
     if (write_bound(&a, &in, &cam, &tf, &bstats, &err) != WVOL_OK) goto fail;
     if ((rc = cli_check_wvc_store("render", &in.store, 0)) != CLI_OK) goto done;
-    report(&a, &in, &stats, t_prep, cpu_max, rss, &bstats);
+    report(&a, &in, &stats, &lstats, t_prep, cpu_max, rss, &bstats);
     rc = CLI_OK;
     goto done;
 fail:

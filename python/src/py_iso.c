@@ -90,11 +90,14 @@ static PyObject *iso_finish(wvol_mesh *m, wvol_status s, const wvol_iso_stats *s
  * are the store's) or an array (a dense volume placed by spacing/origin; no brick). */
 static PyObject *py_isosurface(PyObject *self, PyObject *args, PyObject *kw)
 {
-    static char *kwlist[] = {"source", "iso", "spacing", "origin", "normals", "threads", "brick", NULL};
+    static char *kwlist[] = {"source", "iso", "spacing", "origin", "normals", "threads", "brick", "level", "wavelet",
+                             NULL};
     PyObject *src, *sp = Py_None, *org = Py_None, *brick_obj = Py_None;
-    const char *normals = "gradient";
-    double iso;
-    int threads = 0, brick = 0;
+    const char *normals = "gradient", *wavelet = "db2";
+    const wvol_filter *filter = NULL;
+    wvol_volume *coarse = NULL;
+    double iso, level_energy = 0.0;
+    int threads = 0, brick = 0, level = 0;
     PyArrayObject *holder = NULL;
     const wvol_store *store = NULL; /* a Store's (every handle holds one), else NULL */
     wvol_volume v;
@@ -104,9 +107,11 @@ static PyObject *py_isosurface(PyObject *self, PyObject *args, PyObject *kw)
     wvol_error err;
     wvol_status s;
     (void)self;
-    if (!PyArg_ParseTupleAndKeywords(args, kw, "Od|OOsiO", kwlist, &src, &iso, &sp, &org, &normals, &threads,
-                                     &brick_obj))
+    if (!PyArg_ParseTupleAndKeywords(args, kw, "Od|OOsiOis", kwlist, &src, &iso, &sp, &org, &normals, &threads,
+                                     &brick_obj, &level, &wavelet))
         return NULL;
+    if (level < 0) return PyErr_Format(PyExc_ValueError, "level %d: must be >= 0 (0: full resolution)", level);
+    if (wvol_filter_get(&filter, wavelet, &err) != WVOL_OK) return wvolpy_raise(&err);
     if (brick_obj != Py_None) {
         long b = PyLong_AsLong(brick_obj);
         if (b == -1 && PyErr_Occurred()) return NULL;
@@ -122,15 +127,40 @@ static PyObject *py_isosurface(PyObject *self, PyObject *args, PyObject *kw)
     }
     memset(&st, 0, sizeof st);
     Py_BEGIN_ALLOW_THREADS
-    if (store) { /* the bricks whose bound straddles iso, from the kept coefficients */
+    s = WVOL_OK;
+    if (!store) s = wvol_volume_set_geometry(&v, v.spacing, v.origin, &err);
+    if (s == WVOL_OK && level > 0) { /* the level's coarser grid (wvol_idwt3_level's), then dense MC */
+        s = store ? wvol_store_level_volume(&coarse, store, level, &err)
+                  : wvol_volume_level(&coarse, &v, filter, level, &level_energy, &err);
+        if (s == WVOL_OK && store) s = wvol_store_level_energy(store, level, &level_energy, &err);
+        if (s == WVOL_OK) s = wvol_iso_extract(&m, coarse, iso, &p, &st, &err);
+    } else if (s == WVOL_OK && store) { /* the bricks whose bound straddles iso, from the kept coefficients */
         s = wvol_iso_extract_store(&m, store, iso, &p, &st, &err);
-    } else {
-        s = wvol_volume_set_geometry(&v, v.spacing, v.origin, &err);
-        if (s == WVOL_OK) s = wvol_iso_extract(&m, &v, iso, &p, &st, &err);
+    } else if (s == WVOL_OK) {
+        s = wvol_iso_extract(&m, &v, iso, &p, &st, &err);
     }
     Py_END_ALLOW_THREADS
     Py_XDECREF(holder);
-    return iso_finish(m, s, &st, &err);
+    {
+        PyObject *r = iso_finish(m, s, &st, &err);
+        if (r && coarse) {
+            /* the stats dict is the last item: add the level's grid and dropped energy */
+            PyObject *d = PyTuple_GET_ITEM(r, PyTuple_GET_SIZE(r) - 1), *o;
+            o = Py_BuildValue("{s:i,s:(nnn),s:(ddd),s:(ddd),s:d}", "level", level, "dims", (Py_ssize_t)coarse->nz,
+                              (Py_ssize_t)coarse->ny, (Py_ssize_t)coarse->nx, "spacing", coarse->spacing[2],
+                              coarse->spacing[1], coarse->spacing[0], "origin", coarse->origin[2], coarse->origin[1],
+                              coarse->origin[0], "energy", level_energy);
+            if (!o || !PyDict_Check(d) || PyDict_SetItemString(d, "level", o) < 0) {
+                Py_XDECREF(o);
+                Py_DECREF(r);
+                wvol_volume_destroy(coarse);
+                return NULL;
+            }
+            Py_DECREF(o);
+        }
+        wvol_volume_destroy(coarse);
+        return r;
+    }
 }
 
 /* isoimage(source, iso, camera, width, height, method, threads, brick, tolerance, spacing, origin)
@@ -345,7 +375,8 @@ PyMethodDef wvolpy_iso_methods[] = {
     {"save_mesh", (PyCFunction)(void (*)(void))py_save_mesh, METH_VARARGS | METH_KEYWORDS,
      "save_mesh(path, vertices, faces, normals=None): .ply .obj .stl .vtp by extension"},
     {"isosurface", (PyCFunction)(void (*)(void))py_isosurface, METH_VARARGS | METH_KEYWORDS,
-     "isosurface(source, iso, spacing=None, origin=None, normals='gradient', threads=0, brick=None)\n"
+     "isosurface(source, iso, spacing=None, origin=None, normals='gradient', threads=0, brick=None, level=0,\n"
+     "wavelet='db2')\n"
      "-> (vertices, faces, normals, stats); source: a StoreHandle or an array"},
     {"isoimage", (PyCFunction)(void (*)(void))py_isoimage, METH_VARARGS | METH_KEYWORDS,
      "isoimage(source, iso, camera='+z', width=256, height=256, method='cast', threads=0, brick=0,\n"

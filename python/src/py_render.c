@@ -8,6 +8,7 @@
 #include "py_store.h"
 #include "wvol/render.h"
 #include "wvol/progressive.h"
+#include "wvol/lod.h"
 
 #include <math.h>
 #include <string.h>
@@ -170,6 +171,31 @@ static int dict_set_num(PyObject *d, const char *key, double v)
     return r;
 }
 
+/* The level-of-detail figures into the stats dict: lod_level, lod_levels, lod_footprint,
+ * lod_voxel, lod_energy, lod_rmse, lod_psnr (peak = the data range), lod_dims, lod_seconds. */
+static int lod_stats(PyObject *d, const wvol_lod_stats *ls, const wvol_geometry *g, double vmin, double vmax)
+{
+    double n = (double)g->dims[0] * (double)g->dims[1] * (double)g->dims[2];
+    PyObject *o = Py_BuildValue("(nnn)", (Py_ssize_t)ls->dims[2], (Py_ssize_t)ls->dims[1], (Py_ssize_t)ls->dims[0]);
+    int r = o ? PyDict_SetItemString(d, "lod_dims", o) : -1;
+    Py_XDECREF(o);
+    if (r < 0) return -1;
+    o = PyLong_FromLong(ls->level);
+    r = o ? PyDict_SetItemString(d, "lod_level", o) : -1;
+    Py_XDECREF(o);
+    if (r < 0) return -1;
+    o = PyLong_FromLong(ls->levels);
+    r = o ? PyDict_SetItemString(d, "lod_levels", o) : -1;
+    Py_XDECREF(o);
+    if (r < 0) return -1;
+    return dict_set_num(d, "lod_footprint", ls->footprint) < 0 || dict_set_num(d, "lod_voxel", ls->voxel) < 0 ||
+                   dict_set_num(d, "lod_energy", ls->energy) < 0 || dict_set_num(d, "lod_rmse", ls->rmse) < 0 ||
+                   dict_set_num(d, "lod_psnr", wvol_wvc_psnr(ls->energy, n, vmin, vmax)) < 0 ||
+                   dict_set_num(d, "lod_seconds", ls->seconds) < 0
+               ? -1
+               : 0;
+}
+
 /* The render parameters from opts: only the keys given (not None) change the library's
  * defaults. *J: the spline_j asked for (0: the store's). */
 static int parse_params(PyObject *opts, wvol_render_params *rp, int *J)
@@ -238,6 +264,9 @@ static PyObject *py_render(PyObject *self, PyObject *args)
     wvol_render_params rp;
     wvol_render_stats st;
     wvol_render_bound_stats bs;
+    wvol_lod_params lp;
+    wvol_lod_stats ls;
+    const char *lod_wavelet;
     wvol_image *img = NULL, *bimg = NULL;
     const wvol_store *residual = NULL;
     wvol_error err;
@@ -252,6 +281,12 @@ static PyObject *py_render(PyObject *self, PyObject *args)
     if (opt_int(opts, "bound", &want_bound) < 0) return NULL;
     if (want_bound < WVOL_BOUND_NONE || want_bound > WVOL_BOUND_COARSE)
         return PyErr_Format(PyExc_ValueError, "bound: unknown method %d", want_bound);
+    /* level of detail (wvol/lod.h): on unless opts "lod" is 0; a bound is the full grid's */
+    wvol_lod_params_default(&lp);
+    if (opt_int(opts, "lod", &lp.enabled) < 0 || opt_int(opts, "lod_level", &lp.level) < 0) return NULL;
+    if (want_bound) lp.enabled = 0;
+    if (!(lod_wavelet = opt_str(opts, "lod_wavelet", NULL)) && PyErr_Occurred()) return NULL;
+    if (lod_wavelet && wvol_filter_get(&lp.filter, lod_wavelet, &err) != WVOL_OK) return wvolpy_raise(&err);
     if (is_store) {
         wvolpy_store *h = (wvolpy_store *)src_obj;
         const wvol_store *store = wvolpy_store_at(h, J);
@@ -292,7 +327,7 @@ static PyObject *py_render(PyObject *self, PyObject *args)
     memset(&bs, 0, sizeof bs);
     Py_BEGIN_ALLOW_THREADS
     s = wvol_image_create(&img, cam.width, cam.height, &err);
-    if (s == WVOL_OK) s = wvol_render(img, &src, &cam, &tf, &rp, &st, &err);
+    if (s == WVOL_OK) s = wvol_render_lod(img, &src, &cam, &tf, &rp, &lp, &st, &ls, &err);
     /* a dense volume dropped nothing: its bound image stays 0 */
     if (s == WVOL_OK && want_bound) s = wvol_image_create(&bimg, cam.width, cam.height, &err);
     if (s == WVOL_OK && residual)
@@ -316,7 +351,7 @@ static PyObject *py_render(PyObject *self, PyObject *args)
             Py_DECREF(a);
             return NULL;
         }
-        if (!(d = stats_dict(&st)) ||
+        if (!(d = stats_dict(&st)) || lod_stats(d, &ls, &g, vmin, vmax) < 0 ||
             (bimg && (dict_set_num(d, "bound_max", bs.max) < 0 || dict_set_num(d, "bound_mean", bs.mean) < 0))) {
             Py_XDECREF(d);
             Py_DECREF(a);

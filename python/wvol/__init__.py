@@ -397,7 +397,7 @@ def _bound_method(bound):
 def render(source, camera="+z", size=(256, 256), *, mode="absorption", tf="gaussian", tf_units="world",
            method="auto", step=None, shading=False, ambient=None, gauss_nodes=None, spline_j=None, brick=None,
            termination=None, threads=0, colors=None, skip_tolerance=None, preintegrate=False, gradient_levels=0,
-           bound=False, return_stats=False):
+           bound=False, lod=True, lod_level=None, lod_wavelet="db2", return_stats=False):
     """Renders a volume (array or :class:`Volume`) or a :class:`Store`; returns the image as
     an (height, width, 4) float32 array of linear, premultiplied RGBA, row 0 at the top
     (X-ray: R = G = B = the integral of f along the ray in value x world length, A = 1 where
@@ -450,6 +450,16 @@ def render(source, camera="+z", size=(256, 256), *, mode="absorption", tf="gauss
     Store made with ``compress(..., residual=True)`` (a volume dropped nothing: its bound is 0);
     modes "xray" and "absorption", no shading or colours; ``stats["bound_max"]`` and
     ``["bound_mean"]``.
+    ``lod=True`` (the default, as ``wvol render``): level of detail by screen size
+    (docs/render.md, "Level of detail"): when the image's pixels are larger than the voxels,
+    the sampling methods ("auto", "reference" on a volume, "bricks" on a store) render the
+    wavelet level whose voxel matches the pixel footprint (orthographic: the pixel; perspective:
+    at the volume's point nearest the eye), the grid ``wvol decompress --level`` gives (a
+    volume's levels through ``lod_wavelet``); ``lod=False`` renders the full grid (the same
+    image as before level of detail existed, bit for bit). ``lod_level=L`` forces level L (0:
+    full resolution). The stats report "lod_level", "lod_footprint", "lod_voxel", "lod_dims"
+    (z, y, x), and the extra error: "lod_energy" (the dropped levels' sum c^2), "lod_rmse" and
+    "lod_psnr" (peak = the data range). A bound turns level of detail off.
     ``return_stats=True`` returns ``(image, stats)`` (``(image, bound, stats)`` with a bound):
     "method" (the one that ran), rays, samples, seconds...
     """
@@ -458,7 +468,8 @@ def render(source, camera="+z", size=(256, 256), *, mode="absorption", tf="gauss
                 shading=int(bool(shading)), ambient=ambient, gauss_nodes=gauss_nodes, spline_j=spline_j,
                 brick=brick, termination=termination, threads=threads, colors=colors,
                 skip_tolerance=skip_tolerance, preintegrate=int(bool(preintegrate)), gradient_levels=int(gradient_levels),
-                bound=_bound_method(bound))
+                bound=_bound_method(bound), lod=int(bool(lod)),
+                lod_level=-1 if lod_level is None else int(lod_level), lod_wavelet=lod_wavelet)
     if isinstance(tf, os.PathLike):
         opts["tf"] = os.fspath(tf)
     if isinstance(source, Store):
@@ -504,7 +515,8 @@ def render_progressive(vol, camera="+z", size=(256, 256), *, mode="absorption", 
 
 # ---- isosurfaces ----------------------------------------------------------------------------
 
-def isosurface(source, iso, *, normals="gradient", brick=None, threads=0, return_stats=False):
+def isosurface(source, iso, *, normals="gradient", brick=None, threads=0, level=0, wavelet="db2",
+               return_stats=False):
     """Marching cubes at ``iso`` on a volume (array or :class:`Volume`) or on the
     reconstruction of a :class:`Store` (brick by brick: bricks whose bound from the
     coefficients does not straddle ``iso`` are skipped without reconstruction; ``brick`` =
@@ -515,13 +527,20 @@ def isosurface(source, iso, *, normals="gradient", brick=None, threads=0, return
     f < iso (outward for a bright blob), normals (n, 3) float32 unit vectors along -grad f
     (None with ``normals="none"``). An iso-value the data never crosses gives empty arrays
     (``return_stats=True`` also returns the stats, whose "message" says why).
+
+    ``level=L`` (> 0) meshes the coarser grid of wavelet level L, the one ``wvol decompress
+    --level`` writes (2^L times coarser, spacing 2^L times larger, origin on the level's
+    scaling-function centres): a Store's from its levels above L only, a volume's through
+    ``wavelet``; stats["level"] gives its level, dims (z, y, x), spacing, origin and the dropped
+    levels' energy. A level above the levels available raises.
     """
     if isinstance(source, Store):
-        v, f, n, st = _wvol.isosurface(source._handle, iso, normals=normals, threads=threads, brick=brick)
+        v, f, n, st = _wvol.isosurface(source._handle, iso, normals=normals, threads=threads, brick=brick,
+                                       level=int(level), wavelet=wavelet)
     else:
         spacing, origin = _geometry(source, None, None)
         v, f, n, st = _wvol.isosurface(_data(source), iso, spacing=spacing, origin=origin, normals=normals,
-                                       threads=threads, brick=brick)
+                                       threads=threads, brick=brick, level=int(level), wavelet=wavelet)
     return (v, f, n, st) if return_stats else (v, f, n)
 
 

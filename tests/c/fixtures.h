@@ -3,6 +3,7 @@
 #ifndef WVOL_TEST_FIXTURES_H
 #define WVOL_TEST_FIXTURES_H
 
+#include <math.h>
 #include <stddef.h>
 #include <stdint.h>
 #include <stdio.h>
@@ -42,6 +43,17 @@ static inline wvol_volume *fixture_volume(size_t nx, size_t ny, size_t nz, fixtu
         for (size_t j = 0; j < ny; j++)
             for (size_t i = 0; i < nx; i++) v->data[i + nx * (j + ny * k)] = (float)value(v, i, j, k, ctx);
     return v;
+}
+
+/* A thick shell (radius 0.35..0.6 of the half size, smooth edges) and a blob: structure at
+ * every scale a few levels cover, and bricks far from both are empty (fixture_volume's value). */
+static inline double fixture_shell_blob(const wvol_volume *v, size_t i, size_t j, size_t k, const void *ctx)
+{
+    double x = (i - (v->nx - 1) / 2.0) / (v->nx / 2.0), y = (j - (v->ny - 1) / 2.0) / (v->ny / 2.0),
+           z = (k - (v->nz - 1) / 2.0) / (v->nz / 2.0), r = sqrt(x * x + y * y + z * z);
+    double shell = 0.5 * (tanh((r - 0.35) / 0.05) - tanh((r - 0.6) / 0.05));
+    (void)ctx;
+    return shell + 0.3 * exp(-((x - 0.1) * (x - 0.1) + y * y + z * z) / 0.02);
 }
 
 /* The library's pipeline (wvol_compress) on v: filter, levels, the largest fraction `keep` of

@@ -15,23 +15,13 @@
 #include "wvol/store.h"
 #include "wvol/wvc.h"
 
-/* A thick shell and a blob (as in test_render_bricks.c): bricks far from both are empty. */
-static double phantom_voxel(const wvol_volume *v, size_t i, size_t j, size_t k, const void *ctx)
-{
-    double x = (i - (v->nx - 1) / 2.0) / (v->nx / 2.0), y = (j - (v->ny - 1) / 2.0) / (v->ny / 2.0),
-           z = (k - (v->nz - 1) / 2.0) / (v->nz / 2.0), r = sqrt(x * x + y * y + z * z);
-    double shell = 0.5 * (tanh((r - 0.35) / 0.05) - tanh((r - 0.6) / 0.05));
-    (void)ctx;
-    return shell + 0.3 * exp(-((x - 0.1) * (x - 0.1) + y * y + z * z) / 0.02);
-}
-
 static const char *PATH = "test_wvc_store.wvc";
 
 /* Writes the phantom's .wvc (db2, 3 levels, 50 dB, small chunks: many of them) and builds
  * the in-memory store of the same decoded coefficients. */
 static wvol_store *file_and_memory_store(size_t n, double *vmin, double *vmax)
 {
-    wvol_volume *v = fixture_volume(n, n - 6, n + 4, phantom_voxel, NULL);
+    wvol_volume *v = fixture_volume(n, n - 6, n + 4, fixture_shell_blob, NULL);
     wvol_coeffs *c = NULL, *d = NULL;
     wvol_store *ms = NULL;
     wvol_wvc_params p;

@@ -243,7 +243,8 @@ def test_bricks_from_a_store_is_the_reference_on_its_reconstruction():
     u = ((v - v.min()) / (v.max() - v.min())).astype(np.float32)
     s = wvol.compress(u, "db2", 2, keep=0.05)
     tf = [(0.0, 1, 0.9, 0.8, 0.0), (1.0, 1, 0.9, 0.8, 8.0)]
-    kw = dict(size=(24, 20), camera="persp dir=1,0.7,0.4", tf=tf, tf_units="diagonal", return_stats=True)
+    kw = dict(size=(24, 20), camera="persp dir=1,0.7,0.4", tf=tf, tf_units="diagonal", return_stats=True,
+              lod=False)
     b, sb = wvol.render(s, method="bricks", **kw)
     r, _ = wvol.render(s.reconstruct(), method="reference", **kw)
     assert sb["bricks_built"] > 0 and sb["brick"] in (16, 32)

@@ -181,7 +181,8 @@ def test_bricks_from_a_store_and_from_a_wvc(wvol, tmp_path):
     n = 24
     vol = gaussian_raw(tmp_path / "g24.raw", n)
     dims = f"{n}x{n}x{n}"
-    cam = ["--size", "20x16", "--camera", "persp dir=1,0.6,0.3"]
+    # the full grid: the methods compared here, not the level of detail (test_lod_cli.py)
+    cam = ["--size", "20x16", "--camera", "persp dir=1,0.6,0.3", "--full-resolution"]
     r = wvol("render", vol, "--dims", dims, "-o", tmp_path / "b.exr", "--keep", "20%", "--json", *cam)
     assert r.returncode == 0, r.stderr
     info = json.loads(r.stdout)
@@ -207,7 +208,7 @@ def test_repeat_renders_the_same_image_and_reports_the_fastest(wvol, tmp_path):
     n = 24
     vol = gaussian_raw(tmp_path / "g24.raw", n)
     base = ["render", vol, "--dims", f"{n}x{n}x{n}", "--keep", "20%", "--json", "--size", "20x16",
-            "--camera", "persp dir=1,0.6,0.3"]
+            "--camera", "persp dir=1,0.6,0.3", "--full-resolution"]
     r1 = wvol(*base, "-o", tmp_path / "one.exr")
     r3 = wvol(*base, "-o", tmp_path / "three.exr", "--repeat", "3")
     assert r1.returncode == 0 and r3.returncode == 0, r1.stderr + r3.stderr
@@ -228,7 +229,8 @@ def test_reference_with_keep_renders_the_kept_reconstruction(wvol, tmp_path):
     rounding (1e-5 of the largest channel, as above), and visibly not the original's image."""
     n = 24
     vol = gaussian_raw(tmp_path / "g24.raw", n)
-    common = ["--dims", f"{n}x{n}x{n}", "--size", "20x16", "--camera", "persp dir=1,0.6,0.3", "--json"]
+    common = ["--dims", f"{n}x{n}x{n}", "--size", "20x16", "--camera", "persp dir=1,0.6,0.3", "--json",
+              "--full-resolution"]
     out = {}
     for name, extra in (("ref5", ["--method", "reference", "--keep", "1%"]),
                         ("bricks5", ["--method", "bricks", "--keep", "1%"]),

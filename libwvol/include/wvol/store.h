@@ -321,6 +321,18 @@ WVOL_API const float *wvol_store_lowpass(const wvol_store *s);
  * wvol_idwt3 and friends). */
 WVOL_API wvol_status wvol_store_densify(const wvol_store *s, wvol_coeffs **out, wvol_error *err);
 
+/* The store's level-`level` low-pass volume: what wvol_idwt3_level(densify(s), level) gives
+ * (ceil(n / 2^level) samples per transformed axis, spacing 2^level times, values scaled by
+ * 2^{-level/2} per transformed axis, origin on the level's scaling-function centres), built
+ * from the coefficients of the levels above `level` only. A file-backed store decodes only
+ * those levels' chunks (wvol_wvc_read_region on the level's whole grid), within its budget.
+ * level 0 is the full reconstruction; level outside 0..levels is refused (WVOL_ERR_ARG). */
+WVOL_API wvol_status wvol_store_level_volume(wvol_volume **out, const wvol_store *s, int level, wvol_error *err);
+/* Energy (sum c^2) of the store's detail coefficients of levels 1..level: by Parseval the
+ * squared L2 distance between the full model and the level's (the drop_levels figure). A
+ * file-backed store sums its band table's energies (the encoder's, before quantisation). */
+WVOL_API wvol_status wvol_store_level_energy(const wvol_store *s, int level, double *energy, wvol_error *err);
+
 /* World <-> voxel coordinates of the store's grid. */
 WVOL_API void wvol_store_world_to_voxel(const wvol_store *s, const double world[3], double voxel[3]);
 WVOL_API void wvol_store_voxel_to_world(const wvol_store *s, const double voxel[3], double world[3]);

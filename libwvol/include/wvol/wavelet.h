@@ -100,6 +100,14 @@ WVOL_API wvol_status wvol_idwt3_ex(wvol_volume **out, const wvol_coeffs *c, int 
  * origin + spacing * (2^s - 1) * filter->center. stop_level 0 = wvol_idwt3. */
 WVOL_API wvol_status wvol_idwt3_level(wvol_volume **out, const wvol_coeffs *c, int stop_level, wvol_error *err);
 
+/* A dense volume's level-`level` low-pass volume through family f: wvol_idwt3_level of
+ * wvol_dwt3(v, f, level) (the same grid, values, spacing and origin), and in *energy (may be
+ * NULL) the sum c^2 of the detail coefficients dropped to reach it (levels 1..level: the
+ * squared L2 distance of the padded volume to its level-`level` approximation). level 0 is a
+ * copy (energy 0); level outside 0..wvol_dwt_max_levels is refused (WVOL_ERR_ARG). */
+WVOL_API wvol_status wvol_volume_level(wvol_volume **out, const wvol_volume *v, const wvol_filter *f, int level,
+                                       double *energy, wvol_error *err);
+
 /* Reconstruct only the finest-level samples in the box [lo, hi) (voxel indices of
  * the original grid) without reconstructing the rest. Result is (hi-lo) sized,
  * origin set to the box's world position. */

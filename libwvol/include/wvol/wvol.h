@@ -16,6 +16,7 @@
 #include "wvol/compress.h"
 #include "wvol/render.h"
 #include "wvol/progressive.h"
+#include "wvol/lod.h"
 #include "wvol/iso.h"
 #include "wvol/analysis.h"
 #include "wvol/rng.h"

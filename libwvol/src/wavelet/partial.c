@@ -62,6 +62,37 @@ wvol_status wvol_idwt3_level(wvol_volume **out, const wvol_coeffs *c, int stop_l
     return WVOL_OK;
 }
 
+wvol_status wvol_volume_level(wvol_volume **out, const wvol_volume *v, const wvol_filter *f, int level,
+                              double *energy, wvol_error *err)
+{
+    wvol_coeffs *c = NULL;
+    wvol_status st;
+    double total = 0.0, low = 0.0;
+    size_t n, e[3];
+    WVOL_RETURN_IF(!out, err, WVOL_ERR_ARG, "wvol_volume_level: out is NULL");
+    *out = NULL;
+    if (energy) *energy = 0.0;
+    WVOL_RETURN_IF(!v || !f, err, WVOL_ERR_ARG, "wvol_volume_level: volume or filter is NULL");
+    WVOL_RETURN_IF(level < 0 || level > wvol_dwt_max_levels(v->nx, v->ny, v->nz), err, WVOL_ERR_ARG,
+                   "wvol_volume_level: level %d outside 0..%d for a %zu x %zu x %zu volume", level,
+                   wvol_dwt_max_levels(v->nx, v->ny, v->nz), v->nx, v->ny, v->nz);
+    if (level == 0) return wvol_volume_clone(out, v, err);
+    WVOL_FORWARD(wvol_dwt3(&c, v, f, level, err));
+    n = c->px * c->py * c->pz;
+    e[0] = wvol__extent(c->px, level), e[1] = wvol__extent(c->py, level), e[2] = wvol__extent(c->pz, level);
+    for (size_t i = 0; i < n; i++) total += (double)c->data[i] * c->data[i];
+    for (size_t k = 0; k < e[2]; k++)
+        for (size_t j = 0; j < e[1]; j++)
+            for (size_t i = 0; i < e[0]; i++) {
+                double x = c->data[i + c->px * (j + c->py * k)];
+                low += x * x;
+            }
+    st = wvol_idwt3_level(out, c, level, err);
+    wvol_coeffs_destroy(c);
+    if (st == WVOL_OK && energy) *energy = total > low ? total - low : 0.0;
+    return st;
+}
+
 /* ---- bricks -------------------------------------------------------------------- */
 
 static ptrdiff_t floor_div2(ptrdiff_t a) { return a >= 0 ? a / 2 : -((-a + 1) / 2); }
