@@ -40,7 +40,7 @@ static inline void ray_enter(const wvol__source *s, ray_state *st, const double 
     long b[3];
     if (t < st->t_exit) return;
     for (int a = 0; a < 3; a++) {
-        double c = (x[a] + 0.5) / s->B, lo, ta;
+        double c = s->B_inv > 0 ? (x[a] + 0.5) * s->B_inv : (x[a] + 0.5) / s->B, lo, ta;
         b[a] = c > 0 ? (long)c : 0;
         if (b[a] > (long)s->bn[a] - 1) b[a] = (long)s->bn[a] - 1;
         lo = (double)b[a] * s->B - 0.5;
