@@ -291,6 +291,14 @@ static inline __attribute__((always_inline)) int run_blocked(const wvol__view *v
         __m128 vq[2];
         block_values(data, rows, idx[cur], w[cur], nb, vq);
         if (kk + RUN_BLOCK < ke) POSITIONS(kk + RUN_BLOCK, cur ^ 1);
+        if (mode != WVOL_RENDER_MODE_XRAY &&
+            _mm_movemask_ps(_mm_and_ps(_mm_cmple_ps(vq[0], _mm_set1_ps(tfx->v_clear)),
+                                       _mm_cmple_ps(vq[1], _mm_set1_ps(tfx->v_clear)))) == 15)
+            /* every sample at or below the first TF point, where kappa is 0 (the lanes past
+             * nb repeat the last sample): each would composite with alpha 0, leaving T and
+             * the colour exactly as they are, so the block is a no-op (the samples of a
+             * sub-cell that its few voxels above the threshold keep from being skipped) */
+            continue;
         if (grey && tfx->n >= 2) {
             /* one colour: only the block's sum of kappa counts; when every sample lies in the
              * current segment (as below), kappa four lanes per float operation (a relative
