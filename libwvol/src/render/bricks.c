@@ -154,14 +154,21 @@ static void voxel_range(const float *d, size_t n, double *mn, double *mx)
 
 /* The brick's sub-cells whose kappa is 0 over their voxels' range (wvol__view.sub_zero): the
  * brick's cells cut into WVOL__SUB_N per axis (sub_S = ceil(B / N)), each sub-cell's voxels from one
- * before its first cell to its last cell's upper neighbour, clipped to the brick's voxels. One
- * pass over each sub-cell's voxels, 1.5 to 2 times the brick's: cheap beside its synthesis.
- * Bricks of fewer than 2N cells per side have none (their own rate decides at that grain). */
+ * before its first cell to its last cell's upper neighbour, clipped to the brick's voxels. A
+ * sub-cell's voxels are a box, the product of one interval per axis, so its range is taken
+ * axis by axis: per z slice, each row's range over each sub-cell's x interval (windows of
+ * sub_S + 2 voxels: short, independent chains of comparisons, where one chain per sub-cell
+ * over its (sub_S + 2)^3 voxels serialised them), then over each sub-cell's y interval of
+ * rows, then the slice folded into the sub-cells whose z interval holds it. The same min and
+ * max, so the same bits. Bricks of fewer than 2N cells per side have none (their own rate
+ * decides at that grain). */
 static void sub_cells(const brick_src *src, size_t b, wvol__view *v)
 {
-    const int N = WVOL__SUB_N, S = (src->B + N - 1) / N;
+    enum { N = WVOL__SUB_N };
+    const int S = (src->B + N - 1) / N;
     size_t bi[3] = {b % src->bn[0], (b / src->bn[0]) % src->bn[1], b / (src->bn[0] * src->bn[1])};
-    long m[3];
+    long m[3], wlo[3][N], whi[3][N];
+    float mn3[N][N][N], mx3[N][N][N];
     memset(v->sub_zero, 0, sizeof v->sub_zero);
     v->sub_any = 0;
     v->sub_S = 0;
@@ -171,33 +178,59 @@ static void sub_cells(const brick_src *src, size_t b, wvol__view *v)
         if (cells > src->B) cells = src->B;
         v->sub_org[a] = (long)bi[a] * src->B;
         m[a] = (cells + S - 1) / S;
+        if (m[a] < 1 || m[a] > N) return; /* no cells (not a brick of the grid) */
+        for (long c = 0; c < m[a]; c++) { /* sub-cell c's voxels on this axis, relative to the view */
+            long lo = v->sub_org[a] + c * S - 1, hi = v->sub_org[a] + (c + 1) * S;
+            if (lo < v->lo[a]) lo = v->lo[a];
+            if (hi > v->hi[a]) hi = v->hi[a];
+            wlo[a][c] = lo - v->off[a];
+            whi[a][c] = hi - v->off[a];
+        }
     }
     for (long c2 = 0; c2 < m[2]; c2++)
         for (long c1 = 0; c1 < m[1]; c1++)
+            for (long c0 = 0; c0 < m[0]; c0++) mn3[c2][c1][c0] = INFINITY, mx3[c2][c1][c0] = -INFINITY;
+    for (long k = wlo[2][0]; k <= whi[2][m[2] - 1]; k++) {
+        float smn[N][N], smx[N][N]; /* the slice's range per c1, per c0 */
+        for (long c1 = 0; c1 < m[1]; c1++)
+            for (long c0 = 0; c0 < m[0]; c0++) smn[c1][c0] = INFINITY, smx[c1][c0] = -INFINITY;
+        for (long j = wlo[1][0]; j <= whi[1][m[1] - 1]; j++) {
+            const float *row = v->data + v->sy * (size_t)j + v->sz * (size_t)k;
+            float rmn[N], rmx[N];
             for (long c0 = 0; c0 < m[0]; c0++) {
-                long c[3] = {c0, c1, c2}, lo[3], hi[3];
-                float mn = INFINITY, mx = -INFINITY;
-                for (int a = 0; a < 3; a++) {
-                    lo[a] = v->sub_org[a] + c[a] * S - 1;
-                    hi[a] = v->sub_org[a] + (c[a] + 1) * S;
-                    if (lo[a] < v->lo[a]) lo[a] = v->lo[a];
-                    if (hi[a] > v->hi[a]) hi[a] = v->hi[a];
+                float lo = row[wlo[0][c0]], hi = lo;
+                for (long i = wlo[0][c0] + 1; i <= whi[0][c0]; i++) {
+                    lo = row[i] < lo ? row[i] : lo;
+                    hi = row[i] > hi ? row[i] : hi;
                 }
-                for (long k = lo[2]; k <= hi[2]; k++)
-                    for (long j = lo[1]; j <= hi[1]; j++) {
-                        const float *row = v->data + (size_t)(lo[0] - v->off[0]) + v->sy * (size_t)(j - v->off[1]) +
-                                           v->sz * (size_t)(k - v->off[2]);
-                        for (long i = 0; i <= hi[0] - lo[0]; i++) {
-                            mn = row[i] < mn ? row[i] : mn;
-                            mx = row[i] > mx ? row[i] : mx;
-                        }
-                    }
-                if (wvol__brick_rate(src->tf, src->mode, mn, mx) == 0) {
+                rmn[c0] = lo;
+                rmx[c0] = hi;
+            }
+            for (long c1 = 0; c1 < m[1]; c1++) { /* the row is in one or two sub-cells' y intervals */
+                if (j < wlo[1][c1] || j > whi[1][c1]) continue;
+                for (long c0 = 0; c0 < m[0]; c0++) {
+                    smn[c1][c0] = rmn[c0] < smn[c1][c0] ? rmn[c0] : smn[c1][c0];
+                    smx[c1][c0] = rmx[c0] > smx[c1][c0] ? rmx[c0] : smx[c1][c0];
+                }
+            }
+        }
+        for (long c2 = 0; c2 < m[2]; c2++) {
+            if (k < wlo[2][c2] || k > whi[2][c2]) continue;
+            for (long c1 = 0; c1 < m[1]; c1++)
+                for (long c0 = 0; c0 < m[0]; c0++) {
+                    mn3[c2][c1][c0] = smn[c1][c0] < mn3[c2][c1][c0] ? smn[c1][c0] : mn3[c2][c1][c0];
+                    mx3[c2][c1][c0] = smx[c1][c0] > mx3[c2][c1][c0] ? smx[c1][c0] : mx3[c2][c1][c0];
+                }
+        }
+    }
+    for (long c2 = 0; c2 < m[2]; c2++)
+        for (long c1 = 0; c1 < m[1]; c1++)
+            for (long c0 = 0; c0 < m[0]; c0++)
+                if (wvol__brick_rate(src->tf, src->mode, mn3[c2][c1][c0], mx3[c2][c1][c0]) == 0) {
                     const long bit = c0 + N * (c1 + N * c2);
                     v->sub_zero[bit >> 6] |= (uint64_t)1 << (bit & 63);
                     v->sub_any = 1;
                 }
-            }
     v->sub_S = S;
 }
 

@@ -125,6 +125,12 @@ static void walk_brick(const wvol__source *s, void *tc, const tf_fast *tfx, cons
     while (i >= 0) {
         const int32_t after = next[i];
         ray_state *st = &rs[i];
+        if (after >= 0) { /* the list's next ray, from memory while this one walks: a tile's rays
+                           * outgrow the caches, and a list visits them in no memory order */
+            const char *q = (const char *)&rs[after];
+            for (size_t o = 0; o < sizeof *st; o += 64) __builtin_prefetch(q + o, 1);
+            __builtin_prefetch(&next[after]);
+        }
         for (;;) {
             long nb;
             if (st->k < st->nfull) wvol__ray_advance_any(s, tc, tfx, p, dt, st);

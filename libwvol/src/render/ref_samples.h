@@ -106,6 +106,9 @@ static inline __attribute__((always_inline)) int step(const wvol__source *s, con
 
 /* Samples per block of the blocked loop (run_blocked). */
 #define RUN_BLOCK 8
+/* Transfer functions of at most this many points take run_blocked's branch-free segment count
+ * (one comparison per point and lane pair); longer ones the search lane by lane. */
+#define TF_COUNTED 16
 
 #if defined(__SSE2__)
 /* A block's sample positions: per lane its voxel's offset in the view's data and its
@@ -288,6 +291,14 @@ static inline __attribute__((always_inline)) int run_blocked(const wvol__view *v
         __m128 vq[2];
         block_values(data, rows, idx[cur], w[cur], nb, vq);
         if (kk + RUN_BLOCK < ke) POSITIONS(kk + RUN_BLOCK, cur ^ 1);
+        if (mode != WVOL_RENDER_MODE_XRAY &&
+            _mm_movemask_ps(_mm_and_ps(_mm_cmple_ps(vq[0], _mm_set1_ps(tfx->v_clear)),
+                                       _mm_cmple_ps(vq[1], _mm_set1_ps(tfx->v_clear)))) == 15)
+            /* every sample at or below the first TF point, where kappa is 0 (the lanes past
+             * nb repeat the last sample): each would composite with alpha 0, leaving T and
+             * the colour exactly as they are, so the block is a no-op (the samples of a
+             * sub-cell that its few voxels above the threshold keep from being skipped) */
+            continue;
         if (grey && tfx->n >= 2) {
             /* one colour: only the block's sum of kappa counts; when every sample lies in the
              * current segment (as below), kappa four lanes per float operation (a relative
@@ -358,6 +369,39 @@ static inline __attribute__((always_inline)) int run_blocked(const wvol__view *v
                 _mm_storeu_pd(rgb[1] + 2 * pr, _mm_add_pd(c0g, _mm_mul_pd(w, dcg)));
                 _mm_storeu_pd(rgb[2] + 2 * pr, _mm_add_pd(c0b, _mm_mul_pd(w, dcb)));
             }
+        } else if (tfx->n >= 2 && tfx->n <= TF_COUNTED) {
+            /* the block's samples in several segments (noisy data around a knot): each lane's
+             * segment without a branch, the count of the points 1 .. n - 1 at or below its
+             * value (the largest i with v_i <= value, what tf_fast_eval's search finds;
+             * NaN and values below the first point count 0, values from the last point on
+             * n - 1, whose slopes are 0), then tf_fast_eval's c0 + w dc with w = max(value
+             * - v_i, 0), exactly its numbers. The search lane by lane mispredicted its
+             * branches there. */
+            __m128i cnt[RUN_BLOCK / 2];
+            for (pr = 0; pr < RUN_BLOCK / 2; pr++) cnt[pr] = _mm_setzero_si128();
+            for (int j = 1; j < tfx->n; j++) {
+                const __m128d vj = _mm_set1_pd(tfx->v[j]);
+                for (pr = 0; pr < RUN_BLOCK / 2; pr++) /* a true lane is all ones: -1 */
+                    cnt[pr] = _mm_sub_epi64(cnt[pr], _mm_castpd_si128(_mm_cmpge_pd(_mm_loadu_pd(val + 2 * pr), vj)));
+            }
+            for (pr = 0; pr < RUN_BLOCK / 2; pr++) {
+                const int s0 = _mm_cvtsi128_si32(cnt[pr]), s1 = _mm_cvtsi128_si32(_mm_srli_si128(cnt[pr], 8));
+                const __m128d zero = _mm_setzero_pd();
+                const __m128d w0 = _mm_max_sd(_mm_set_sd(val[2 * pr] - tfx->v[s0]), zero);
+                const __m128d w1 = _mm_max_sd(_mm_set_sd(val[2 * pr + 1] - tfx->v[s1]), zero);
+                const __m128d ww0 = _mm_unpacklo_pd(w0, w0), ww1 = _mm_unpacklo_pd(w1, w1);
+                __m128d rg0 = _mm_add_pd(_mm_loadu_pd(tfx->c0[s0]), _mm_mul_pd(ww0, _mm_loadu_pd(tfx->dc[s0])));
+                __m128d bk0 = _mm_add_pd(_mm_loadu_pd(tfx->c0[s0] + 2), _mm_mul_pd(ww0, _mm_loadu_pd(tfx->dc[s0] + 2)));
+                __m128d rg1 = _mm_add_pd(_mm_loadu_pd(tfx->c0[s1]), _mm_mul_pd(ww1, _mm_loadu_pd(tfx->dc[s1])));
+                __m128d bk1 = _mm_add_pd(_mm_loadu_pd(tfx->c0[s1] + 2), _mm_mul_pd(ww1, _mm_loadu_pd(tfx->dc[s1] + 2)));
+                _mm_storeu_pd(rgb[0] + 2 * pr, _mm_unpacklo_pd(rg0, rg1));
+                _mm_storeu_pd(rgb[1] + 2 * pr, _mm_unpackhi_pd(rg0, rg1));
+                _mm_storeu_pd(rgb[2] + 2 * pr, _mm_unpacklo_pd(bk0, bk1));
+                _mm_storeu_pd(kappa + 2 * pr, _mm_unpackhi_pd(bk0, bk1));
+                if (pr == (nb - 1) / 2) /* the last sample's segment, as the next block's guess */
+                    r->seg = (nb - 1) & 1 ? s1 : s0;
+            }
+            if (r->seg > tfx->n - 2) r->seg = tfx->n - 2; /* a segment's index: at most n - 2 */
         } else {
             for (l = 0; l < RUN_BLOCK; l++) { /* the spare lanes too: every lane is read below */
                 double c[3];

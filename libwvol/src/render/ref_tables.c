@@ -44,4 +44,9 @@ void wvol__tf_fast_init(tf_fast *f, const wvol_tf *tf)
         f->kf0[i] = (float)f->c0[i][3];
         f->kfd[i] = (float)f->dc[i][3];
     }
+    f->v_clear = -INFINITY;
+    if (tf->count > 0 && f->c0[0][3] == 0.0 && isfinite(f->v[0])) {
+        f->v_clear = (float)f->v[0];
+        if ((double)f->v_clear > f->v[0]) f->v_clear = nextafterf(f->v_clear, -INFINITY);
+    }
 }

@@ -115,6 +115,7 @@ wvol_status wvol__render_sampled(wvol_image *img, wvol__source *s, const wvol_ca
     if (p.mode != WVOL_RENDER_MODE_XRAY) wvol__tf_world(&tf, tf_in, &g);
     else memset(&tf, 0, sizeof tf);
     wvol__tf_fast_init(&tfx, &tf);
+    s->B_inv = s->B > 0 && !(s->B & (s->B - 1)) ? 1.0 / s->B : 0.0;
     wvol_geometry_bounds(&g, lo, hi);
     dt = p.step * fmin(s->spacing[0], fmin(s->spacing[1], s->spacing[2]));
     t_start = wvol__now();

@@ -40,7 +40,7 @@ static inline void ray_enter(const wvol__source *s, ray_state *st, const double 
     long b[3];
     if (t < st->t_exit) return;
     for (int a = 0; a < 3; a++) {
-        double c = (x[a] + 0.5) / s->B, lo, ta;
+        double c = s->B_inv > 0 ? (x[a] + 0.5) * s->B_inv : (x[a] + 0.5) / s->B, lo, ta;
         b[a] = c > 0 ? (long)c : 0;
         if (b[a] > (long)s->bn[a] - 1) b[a] = (long)s->bn[a] - 1;
         lo = (double)b[a] * s->B - 0.5;
@@ -169,6 +169,50 @@ static inline int sub_dda_zero(const wvol__view *v, const sub_dda *dd)
     return (int)((v->sub_zero[bit >> 6] >> (bit & 63)) & 1);
 }
 
+/* On through the sub-cells of the same kind as the DDA's (zero: its sub_dda_zero) while the
+ * ray's parameter stays below t_end: returns the parameter where it enters one of the other
+ * kind (the DDA then in it), or INFINITY when none comes before t_end (the DDA then in the
+ * last sub-cell entered before it). The walk of sub_dda_axis and sub_dda_zero, its state in
+ * registers: out of line, since in the walk's large inlined copies it went through memory. */
+static __attribute__((noinline)) double sub_dda_same_until(const wvol__view *v, sub_dda *dd, int zero, double t_end)
+{
+    const long N = WVOL__SUB_N;
+    long c0 = dd->c[0], c1 = dd->c[1], c2 = dd->c[2];
+    const long s0 = dd->step[0], s1 = dd->step[1], s2 = dd->step[2];
+    double m0 = dd->tmax[0], m1 = dd->tmax[1], m2 = dd->tmax[2];
+    const double d0 = dd->tdelta[0], d1 = dd->tdelta[1], d2 = dd->tdelta[2];
+    double te;
+    for (;;) {
+        int z;
+        if (m0 <= m1 ? m0 <= m2 : 0) { /* sub_dda_axis: 0 */
+            if (!((te = m0) < t_end)) break;
+            c0 += s0;
+            m0 += d0;
+        } else if (m0 <= m1 || !(m1 <= m2)) { /* 2 */
+            if (!((te = m2) < t_end)) break;
+            c2 += s2;
+            m2 += d2;
+        } else { /* 1 */
+            if (!((te = m1) < t_end)) break;
+            c1 += s1;
+            m1 += d1;
+        }
+        if ((unsigned long)c0 >= (unsigned long)N || (unsigned long)c1 >= (unsigned long)N ||
+            (unsigned long)c2 >= (unsigned long)N) {
+            z = 0;
+        } else {
+            const long bit = c0 + N * (c1 + N * c2);
+            z = (int)((v->sub_zero[bit >> 6] >> (bit & 63)) & 1);
+        }
+        if (z != zero) goto out;
+    }
+    te = INFINITY;
+out:
+    dd->c[0] = c0, dd->c[1] = c1, dd->c[2] = c2;
+    dd->tmax[0] = m0, dd->tmax[1] = m1, dd->tmax[2] = m2;
+    return te;
+}
+
 /* The first step from k on (at most ke) whose sample is at or past parameter te. */
 static inline long first_step_at(double t0, double dt, long k, long ke, double te)
 {
@@ -233,17 +277,7 @@ static inline __attribute__((always_inline)) int ray_advance(const wvol__source 
                 dd.tmax[ax] += dd.tdelta[ax];
             }
             zero = sub_dda_zero(view, &dd);
-            for (;;) { /* on through the sub-cells of the same kind, up to the run's end */
-                ax = sub_dda_axis(&dd);
-                te = dd.tmax[ax];
-                if (!(te < T_AT(ke - 1))) {
-                    te = INFINITY;
-                    break;
-                }
-                dd.c[ax] += dd.step[ax];
-                dd.tmax[ax] += dd.tdelta[ax];
-                if (sub_dda_zero(view, &dd) != zero) break;
-            }
+            te = sub_dda_same_until(view, &dd, zero, T_AT(ke - 1));
             kn = te == INFINITY ? ke : first_step_at(t0, dt, k, ke, te);
             if (kn <= k) kn = k + 1;
             if (zero) { /* samples k .. kn - 1 add nothing */

@@ -76,6 +76,9 @@ typedef struct tf_fast {
     double v[WVOL_TF_MAX_POINTS];
     double c0[WVOL_TF_MAX_POINTS][4], dc[WVOL_TF_MAX_POINTS][4]; /* r, g, b, kappa */
     float vf[WVOL_TF_MAX_POINTS], kf0[WVOL_TF_MAX_POINTS], kfd[WVOL_TF_MAX_POINTS]; /* v, kappa's c0, dc */
+    /* the largest float at or below the first point's value when kappa is 0 there (so 0 for
+     * every value up to it), else -INFINITY: a float sample at or below it has kappa 0 */
+    float v_clear;
     double exp2_256[256];                                          /* 2^(j/256), for exp_neg */
 } tf_fast;
 

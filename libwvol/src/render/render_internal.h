@@ -155,6 +155,9 @@ struct wvol__source {
                                volume: all of it) */
     int B;                  /* brick side in voxel cells, set by the kind's entry point; 0: no
                                grid (skip_tolerance needs one) */
+    double B_inv;           /* 1 / B when B is a power of two (x B_inv is then exactly x / B,
+                               a multiplication where the walk divided per axis and run), else
+                               0 (set by wvol__render_sampled) */
     size_t bn[3];           /* bricks per axis (prepare) */
     void **tctx;            /* per-thread contexts (prepare), or NULL */
     size_t walk_bytes;      /* prepare(): bytes for a tile's rays (their states and lists;
