@@ -267,6 +267,7 @@ static void cell_bounds_hold(const wvol_store *s, const char *what)
         }
     }
     wvol_store_hits_free(&hl);
+    wvol__iso_boxk_free(&k);
     printf("  %s: cell bounds on 40 random boxes: mean width %.3g, never exceeded (margin %.3g)\n", what, width / 40,
            -worst);
     CHECK(worst <= 0, "%s: f^ leaves its cell bound by %g", what, worst);

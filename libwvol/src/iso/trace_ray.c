@@ -178,6 +178,7 @@ void wvol__trace_ws_free(tws *w)
     wvol__spline_ws_free(&w->s);
     free(w->env);
     free(w->cut);
+    wvol_store_hits_free(&w->cellq);
     memset(w, 0, sizeof *w);
 }
 
@@ -366,21 +367,6 @@ static size_t cell_cuts(const tracer *tr, tws *w, const double ov[3], const doub
     return n;
 }
 
-/* The class of f^ in the cell holding x (voxel coords): 1, 0 or -1 (undecided). */
-static int cell_class(const tracer *tr, const double x[3])
-{
-    size_t idx = 0, stride = 1;
-    int a;
-    for (a = 0; a < 3; a++) {
-        double c = floor(x[a] / tr->cell);
-        size_t ci = c < 0 ? 0 : (size_t)c;
-        if (ci >= tr->nc[a]) ci = tr->nc[a] - 1;
-        idx += ci * stride;
-        stride *= tr->nc[a];
-    }
-    return tr->cls[idx];
-}
-
 /* Runs of the cells the grid leaves undecided are traced exactly (trace_span). */
 wvol_status wvol__trace(const tracer *tr, tws *w, const double o[3], const double d[3], double tmin, wvol_iso_hit *h,
                         wvol_error *err)
@@ -394,7 +380,7 @@ wvol_status wvol__trace(const tracer *tr, tws *w, const double o[3], const doubl
     wvol_store_dir_to_voxel(tr->g.s, d, dv);
     speed = sqrt(dv[0] * dv[0] + dv[1] * dv[1] + dv[2] * dv[2]);
     if (!(speed > 0) || !clip(tr, ov, dv, tmin, &t0, &t1)) return WVOL_OK;
-    if (!tr->cls) return trace_span(tr, w, o, d, ov, dv, t0, t1, speed, &prev, h, err);
+    if (!tr->cls[0]) return trace_span(tr, w, o, d, ov, dv, t0, t1, speed, &prev, h, err);
     n = cell_cuts(tr, w, ov, dv, t0, t1);
     WVOL_RETURN_IF(n < 2, err, WVOL_ERR_NOMEM, "iso trace: out of memory");
     for (i = 0; i + 1 < n;) {
@@ -402,7 +388,7 @@ wvol_status wvol__trace(const tracer *tr, tws *w, const double o[3], const doubl
         size_t j;
         int a, cls;
         for (a = 0; a < 3; a++) x[a] = ov[a] + tm * dv[a];
-        cls = cell_class(tr, x);
+        cls = wvol__trace_cell_class(tr, &w->cellq, x, &w->cells, &w->cell_seconds);
         if (cls >= 0) {
             if (prev >= 0 && prev != cls) { /* a jump across iso on the cell face */
                 set_hit(tr, o, d, ov, dv, w->cut[i], h);
@@ -415,7 +401,7 @@ wvol_status wvol__trace(const tracer *tr, tws *w, const double o[3], const doubl
         for (j = i + 1; j + 1 < n; j++) { /* the run of undecided cells */
             double tj = 0.5 * (w->cut[j] + w->cut[j + 1]);
             for (a = 0; a < 3; a++) x[a] = ov[a] + tj * dv[a];
-            if (cell_class(tr, x) >= 0) break;
+            if (wvol__trace_cell_class(tr, &w->cellq, x, &w->cells, &w->cell_seconds) >= 0) break;
         }
         WVOL_FORWARD(trace_span(tr, w, o, d, ov, dv, w->cut[i], w->cut[j], speed, &prev, h, err));
         if (h->hit) return WVOL_OK;
