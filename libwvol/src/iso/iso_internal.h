@@ -85,7 +85,7 @@ void wvol__iso_boxk_free(wvol__iso_boxk *k);
 wvol_status wvol__iso_box_range(const wvol__iso_boxk *k, const wvol_store *s, wvol_store_hits *hl, const double lo[3],
                                 const double hi[3], double *vmin, double *vmax, wvol_error *err);
 
-#define WVOL__CELL_LEVELS 5
+#define WVOL__CELL_LEVELS 4
 
 /* What every ray of a trace shares (read only while rays are traced, but for the cell grid's
  * lazily filled classes). */

@@ -15,6 +15,10 @@
 
 #define CELL_FINE 2.0      /* the finest cells' side, voxels; level L has 2^(LEVELS - 1 - L) times it */
 #define CELL_UNKNOWN (-2)  /* not classified yet */
+#define CELL_FINAL (-3)    /* undecided, and its children would be too (box_class): not refined */
+#ifndef REFINE_GAIN
+#define REFINE_GAIN 8.0
+#endif
 
 typedef wvol__tracer tracer;
 
@@ -257,9 +261,16 @@ wvol_status wvol__iso_box_range(const wvol__iso_boxk *k, const wvol_store *s, wv
  * undecided (also when the store's query fails: tracing the cell exactly is always right). */
 static int box_class(const tracer *tr, wvol_store_hits *hl, const double lo[3], const double hi[3])
 {
-    double blo, bhi;
-    if (wvol__iso_box_range(&tr->k, tr->g.s, hl, lo, hi, &blo, &bhi, NULL) != WVOL_OK) return -1;
-    return blo > tr->iso ? 1 : bhi < tr->iso ? 0 : -1;
+    double blo, bhi, hw, gap;
+    if (wvol__iso_box_range(&tr->k, tr->g.s, hl, lo, hi, &blo, &bhi, NULL) != WVOL_OK) return CELL_FINAL;
+    if (blo > tr->iso) return 1;
+    if (bhi < tr->iso) return 0;
+    /* would halving the cell help? Only if the children's bounds could exclude iso, which
+     * needs them REFINE_GAIN times narrower than this one, or more: then they are not worth
+     * their queries, and the rays trace this cell exactly */
+    hw = 0.5 * (bhi - blo);
+    gap = fabs(0.5 * (bhi + blo) - tr->iso);
+    return hw > REFINE_GAIN * gap ? CELL_FINAL : -1;
 }
 
 wvol_status wvol__trace_cells(tracer *tr, wvol_error *err)
@@ -326,6 +337,7 @@ int wvol__trace_cell_class(const tracer *tr, wvol_store_hits *hl, const double x
             if (seconds) *seconds += wvol__now() - t0;
         }
         if (c >= 0) return c;
+        if (c == CELL_FINAL) return -1;
     }
     return c;
 }
@@ -347,14 +359,18 @@ void wvol__trace_cells_top(const tracer *tr, wvol_store_hits *hl, size_t cnt[3])
         c = __atomic_load_n(tr->cls[0] + i, __ATOMIC_RELAXED);
         if (c == CELL_UNKNOWN) c = (signed char)box_class(tr, hl, lo, hi);
         tr->cls[0][i] = c;
+        if (c == CELL_FINAL) c = -1;
         cnt[c + 1]++;
     }
 }
 
 size_t wvol__trace_cells_undecided(const tracer *tr)
 {
-    const int L = WVOL__CELL_LEVELS - 1;
-    size_t i, total = tr->ncl[L][0] * tr->ncl[L][1] * tr->ncl[L][2], u = 0;
-    for (i = 0; i < total; i++) u += tr->cls[L][i] == -1;
+    size_t i, u = 0;
+    int L;
+    for (L = 0; L < WVOL__CELL_LEVELS; L++) {
+        size_t total = tr->ncl[L][0] * tr->ncl[L][1] * tr->ncl[L][2];
+        for (i = 0; i < total; i++) u += tr->cls[L][i] == CELL_FINAL || (L == WVOL__CELL_LEVELS - 1 && tr->cls[L][i] == -1);
+    }
     return u;
 }
