@@ -16,6 +16,9 @@
 #define CELL_FINE 2.0      /* the finest cells' side, voxels; level L has 2^(LEVELS - 1 - L) times it */
 #define CELL_UNKNOWN (-2)  /* not classified yet */
 #define CELL_FINAL (-3)    /* undecided, and its children would be too (box_class): not refined */
+#ifndef STOP_SIDE
+#define STOP_SIDE 8.0
+#endif
 #ifndef REFINE_GAIN
 #define REFINE_GAIN 8.0
 #endif
@@ -143,7 +146,7 @@ static inline void factor_range(const wvol__iso_boxk *k, int which, double u0, d
 {
     double a0 = u0 * k->per_unit, a1 = u1 * k->per_unit, pu = k->pieces;
     long i0, i1;
-    int r = 0;
+    int r;
     const double *x, *y;
     /* a knot's rounding could put a point in either neighbour: take both */
     a0 -= 1e-9 * (1 + (a0 < 0 ? -a0 : a0));
@@ -154,7 +157,7 @@ static inline void factor_range(const wvol__iso_boxk *k, int which, double u0, d
     }
     i0 = a0 <= 0 ? 0 : (long)a0;
     i1 = a1 >= pu ? (long)pu - 1 : (long)a1;
-    while ((2L << r) <= i1 - i0 + 1) r++;
+    r = 63 - __builtin_clzll((unsigned long long)(i1 - i0 + 1)); /* 2^r <= run < 2^(r+1) */
     x = k->prange + 4 * ((size_t)r * (size_t)k->pieces + (size_t)i0) + 2 * which;
     y = k->prange + 4 * ((size_t)r * (size_t)k->pieces + (size_t)(i1 - (1L << r) + 1)) + 2 * which;
     *lo = dmin(x[0], y[0]);
@@ -224,6 +227,12 @@ wvol_status wvol__iso_box_range(const wvol__iso_boxk *k, const wvol_store *s, wv
             if (!k->transformed[a]) continue;
             sc = k->inv_size[h->level];
             factor_range(k, (h->band >> a) & 1, (lo[a] - h->lo[a]) * sc, (hi[a] - h->lo[a]) * sc, &flo, &fhi);
+            if (plo >= 0.0) { /* the first factor's norm, or a nonnegative product so far */
+                p0 = flo >= 0.0 ? plo * flo : phi * flo;
+                p1 = fhi >= 0.0 ? phi * fhi : plo * fhi;
+                plo = p0, phi = p1;
+                continue;
+            }
             p0 = plo * flo, p1 = plo * fhi, p2 = phi * flo, p3 = phi * fhi;
             plo = dmin(dmin(p0, p1), dmin(p2, p3));
             phi = dmax(dmax(p0, p1), dmax(p2, p3));
@@ -259,7 +268,7 @@ wvol_status wvol__iso_box_range(const wvol__iso_boxk *k, const wvol_store *s, wv
 
 /* Class of the closed box [lo, hi]: 1 when f^ > iso on all of it, 0 when f^ < iso, -1
  * undecided (also when the store's query fails: tracing the cell exactly is always right). */
-static int box_class(const tracer *tr, wvol_store_hits *hl, const double lo[3], const double hi[3])
+static int box_class(const tracer *tr, wvol_store_hits *hl, const double lo[3], const double hi[3], int may_stop)
 {
     double blo, bhi, hw, gap;
     if (wvol__iso_box_range(&tr->k, tr->g.s, hl, lo, hi, &blo, &bhi, NULL) != WVOL_OK) return CELL_FINAL;
@@ -270,7 +279,7 @@ static int box_class(const tracer *tr, wvol_store_hits *hl, const double lo[3], 
      * their queries, and the rays trace this cell exactly */
     hw = 0.5 * (bhi - blo);
     gap = fabs(0.5 * (bhi + blo) - tr->iso);
-    return hw > REFINE_GAIN * gap ? CELL_FINAL : -1;
+    return may_stop && hw > REFINE_GAIN * gap ? CELL_FINAL : -1;
 }
 
 wvol_status wvol__trace_cells(tracer *tr, wvol_error *err)
@@ -331,7 +340,7 @@ int wvol__trace_cell_class(const tracer *tr, wvol_store_hits *hl, const double x
         if (c == CELL_UNKNOWN) {
             /* a pure function of the box: threads racing here store the same value */
             double t0 = seconds ? wvol__now() : 0.0;
-            c = box_class(tr, hl, lo, hi);
+            c = box_class(tr, hl, lo, hi, side <= STOP_SIDE);
             __atomic_store_n(slot, (signed char)c, __ATOMIC_RELAXED);
             if (evaluated) (*evaluated)++;
             if (seconds) *seconds += wvol__now() - t0;
@@ -357,7 +366,7 @@ void wvol__trace_cells_top(const tracer *tr, wvol_store_hits *hl, size_t cnt[3])
         }
         cell_index(tr, 0, x, side, lo, hi);
         c = __atomic_load_n(tr->cls[0] + i, __ATOMIC_RELAXED);
-        if (c == CELL_UNKNOWN) c = (signed char)box_class(tr, hl, lo, hi);
+        if (c == CELL_UNKNOWN) c = (signed char)box_class(tr, hl, lo, hi, side <= STOP_SIDE);
         tr->cls[0][i] = c;
         if (c == CELL_FINAL) c = -1;
         cnt[c + 1]++;
