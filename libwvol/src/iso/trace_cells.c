@@ -6,22 +6,15 @@
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
-#ifdef _OPENMP
-#include <omp.h>
-#endif
-
 #include "core/clock.h"
 #include "iso_internal.h"
 
 #define CELL_FINE 2.0      /* the finest cells' side, voxels; level L has 2^(LEVELS - 1 - L) times it */
 #define CELL_UNKNOWN (-2)  /* not classified yet */
 #define CELL_FINAL (-3)    /* undecided, and its children would be too (box_class): not refined */
-#ifndef STOP_SIDE
-#define STOP_SIDE 8.0
-#endif
-#ifndef REFINE_GAIN
-#define REFINE_GAIN 8.0
-#endif
+#define STOP_SIDE 8.0      /* cells of this side or less may be left unrefined (box_class); larger
+                              ones always are refined: their bounds include far functions */
+#define REFINE_GAIN 8.0    /* ... when their bound would need to shrink more than this */
 
 typedef wvol__tracer tracer;
 
@@ -267,7 +260,9 @@ wvol_status wvol__iso_box_range(const wvol__iso_boxk *k, const wvol_store *s, wv
 }
 
 /* Class of the closed box [lo, hi]: 1 when f^ > iso on all of it, 0 when f^ < iso, -1
- * undecided (also when the store's query fails: tracing the cell exactly is always right). */
+ * undecided (its children will be looked at) or CELL_FINAL (undecided, and not refined; also
+ * when the store's query fails: tracing a cell exactly is always right). may_stop: the box is
+ * small enough to be left unrefined. */
 static int box_class(const tracer *tr, wvol_store_hits *hl, const double lo[3], const double hi[3], int may_stop)
 {
     double blo, bhi, hw, gap;

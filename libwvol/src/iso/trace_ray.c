@@ -19,12 +19,6 @@
 typedef wvol__tracer tracer;
 typedef wvol__trace_ws tws;
 
-static int cmp_double(const void *a, const void *b)
-{
-    double x = *(const double *)a, y = *(const double *)b;
-    return x < y ? -1 : x > y;
-}
-
 typedef struct sub {
     double u0, u1, B[NC];
 } sub;
@@ -335,36 +329,50 @@ static wvol_status trace_span(const tracer *tr, tws *w, const double o[3], const
     return WVOL_OK;
 }
 
-/* Crossings of the cell planes x_a = C k inside (t0, t1), merged with t0 and t1 into w->cut. */
+/* Crossings of the cell planes x_a = C k inside (t0, t1), merged with t0 and t1 into w->cut in
+ * increasing order: each axis's crossings are generated in increasing t (k runs the way the ray
+ * goes), then the three runs are merged. */
 static size_t cell_cuts(const tracer *tr, tws *w, const double ov[3], const double dv[3], double t0, double t1)
 {
-    size_t n = 0, cap = 8;
+    size_t n = 0, cap = 8, run[4] = {0, 0, 0, 0}, pos[3], m = 0;
+    double *in, *out;
     int a;
     for (a = 0; a < 3; a++)
         if (dv[a] != 0.0 && tr->g.info.transformed[a])
             cap += (size_t)(fabs((t1 - t0) * dv[a]) / tr->cell) + 2;
-    if (cap > w->capC) {
-        double *q = realloc(w->cut, cap * sizeof *q);
+    if (2 * cap > w->capC) {
+        double *q = realloc(w->cut, 2 * cap * sizeof *q);
         if (!q) return 0;
         w->cut = q;
-        w->capC = cap;
+        w->capC = 2 * cap;
     }
-    w->cut[n++] = t0;
+    in = w->cut + cap; /* the three runs */
+    out = w->cut;
     for (a = 0; a < 3; a++) {
         double x0, x1, k0, k1, k;
+        run[a] = n;
         if (dv[a] == 0.0 || !tr->g.info.transformed[a]) continue;
         x0 = ov[a] + t0 * dv[a];
         x1 = ov[a] + t1 * dv[a];
         k0 = floor(fmin(x0, x1) / tr->cell) + 1;
         k1 = ceil(fmax(x0, x1) / tr->cell) - 1;
-        for (k = k0; k <= k1 && n < w->capC - 1; k++) {
+        for (k = dv[a] > 0 ? k0 : k1; k >= k0 && k <= k1 && n < cap - 2; k += dv[a] > 0 ? 1 : -1) {
             double t = (k * tr->cell - ov[a]) / dv[a];
-            if (t > t0 && t < t1) w->cut[n++] = t;
+            if (t > t0 && t < t1) in[n++] = t;
         }
     }
-    w->cut[n++] = t1;
-    qsort(w->cut + 1, n - 2, sizeof *w->cut, cmp_double);
-    return n;
+    run[3] = n;
+    for (a = 0; a < 3; a++) pos[a] = run[a];
+    out[m++] = t0;
+    for (;;) {
+        int best = -1;
+        for (a = 0; a < 3; a++)
+            if (pos[a] < run[a + 1] && (best < 0 || in[pos[a]] < in[pos[best]])) best = a;
+        if (best < 0) break;
+        out[m++] = in[pos[best]++];
+    }
+    out[m++] = t1;
+    return m;
 }
 
 /* Runs of the cells the grid leaves undecided are traced exactly (trace_span). */
