@@ -222,7 +222,7 @@ def write_md(res, out, name, tools):
                       f"including the cell grid; the no-missed-hit guarantee is docs/iso.md's, tested in "
                       f"tests/c/test_iso_trace.c:", "",
                   *([res["raytrace_note"], ""] if res.get("raytrace_note") else []),
-                  "| phantom | keep | image | trace s | cell grid s | us per ray | hits | functions per ray | "
+                  "| phantom | keep | image | trace s | cells thread-s | us per ray | hits | functions per ray | "
                   "pieces per ray | refined per ray | root intervals | grazes |",
                   "|---|---|---|---|---|---|---|---|---|---|---|---|"]
         for r in rt:

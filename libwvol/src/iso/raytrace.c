@@ -27,10 +27,11 @@
  *     are not expanded but bounded per piece (sum of |c| max|w| of those covering it); a
  *     piece whose hull widened by that envelope excludes iso is decided, and only runs of
  *     undecided pieces get the small functions added exactly;
- *   - images first classify a grid of cells (8 voxels, undecided ones split to 4) by
- *     wvol__iso_box_range (low-pass coefficients fitted by a plane through the spline's
- *     partition of unity and first moment, the rest as |c| max|w|): rays step over cells
- *     whose bound excludes iso and trace runs of the others.
+ *   - images walk a hierarchy of cells (16 down to 2 voxels), each classified the first time
+ *     a ray reaches it by wvol__iso_box_range (low-pass coefficients fitted by a plane through
+ *     the spline's partition of unity and first moment, every other term the interval of its
+ *     function's range on the cell): rays step over cells whose range excludes iso and trace
+ *     runs of the others; an undecided cell's children are classified only where that can pay.
  *
  * The guarantee. "Crossing" means f^ - iso changes sign in the classification f^ >= iso.
  * For the computed piece polynomials, the reported hit is the first crossing along the ray

@@ -1,15 +1,18 @@
 /* SPDX-License-Identifier: MIT
  * Rigorous bounds of f^ on boxes for the implicit-surface ray tracer: per-store constants
  * (wvol__iso_boxk), the range of f^ on a box from the functions touching it
- * (wvol__iso_box_range), and the cell grid an image's rays step over where f^ cannot
- * reach iso (wvol__trace_cells). Based on: DESIGN.md section 9; docs/iso.md. */
+ * (wvol__iso_box_range), and the lazily classified cell hierarchy an image's rays step over
+ * where f^ cannot reach iso (wvol__trace_cells, wvol__trace_cell_class).
+ * Based on: DESIGN.md section 9; docs/iso.md; Moore 1966 (interval arithmetic). */
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
 #include "core/clock.h"
 #include "iso_internal.h"
 
-#define CELL_FINE 2.0      /* the finest cells' side, voxels; level L has 2^(LEVELS - 1 - L) times it */
+#define CELL_FINE 2.0      /* the finest cells' side, voxels (doubled for large volumes: MAX_FINE_CELLS);
+                              level L has 2^(LEVELS - 1 - L) times it */
+#define MAX_FINE_CELLS 33554432.0 /* 32 MiB of finest classes at most */
 #define CELL_UNKNOWN (-2)  /* not classified yet */
 #define CELL_FINAL (-3)    /* undecided, and its children would be too (box_class): not refined */
 #define STOP_SIDE 8.0      /* cells of this side or less may be left unrefined (box_class); larger
@@ -95,23 +98,8 @@ void wvol__iso_boxk_init(wvol__iso_boxk *k, const wvol_store *s)
     k->prange = malloc((size_t)k->runs * (size_t)b->pieces * 4 * sizeof *k->prange);
     if (k->prange) { /* no table: every factor falls back to its global max (fb), as correct */
         for (int i = 0; i < b->pieces; i++)
-            for (int w = 0; w < 2; w++) {
-                const double *c = wvol_basis_coeffs(b, w, WVOL_BASIS_VALUE, i);
-                double a[4], hp = 1.0, bz[4], lo = INFINITY, hi = -INFINITY, mag = 0;
-                int j;
-                for (j = 0; j < 4; j++, hp *= b->h) a[j] = (b->exact && j > 0) ? 0.0 : c[j] * hp;
-                bz[0] = a[0];
-                bz[1] = a[0] + a[1] / 3.0;
-                bz[2] = a[0] + (2.0 * a[1] + a[2]) / 3.0;
-                bz[3] = a[0] + a[1] + a[2] + a[3];
-                for (j = 0; j < 4; j++) {
-                    lo = fmin(lo, bz[j]);
-                    hi = fmax(hi, bz[j]);
-                    mag += fabs(a[j]);
-                }
-                k->prange[4 * (size_t)i + 2 * w] = lo - 1e-12 * mag;
-                k->prange[4 * (size_t)i + 2 * w + 1] = hi + 1e-12 * mag;
-            }
+            for (int w = 0; w < 2; w++)
+                wvol_basis_piece_range(b, w, i, &k->prange[4 * (size_t)i + 2 * w], &k->prange[4 * (size_t)i + 2 * w + 1]);
         for (int r = 1; r < k->runs; r++)
             for (int i = 0; i + (1 << r) <= b->pieces; i++) {
                 double *q = k->prange + 4 * ((size_t)r * b->pieces + i);
@@ -281,9 +269,17 @@ wvol_status wvol__trace_cells(tracer *tr, wvol_error *err)
 {
     size_t n[3] = {tr->g.info.nx, tr->g.info.ny, tr->g.info.nz};
     int L, a;
+    /* the finest side: CELL_FINE, doubled while the finest level would hold more than
+     * MAX_FINE_CELLS (one byte each: large volumes keep a bounded grid) */
     tr->cell = CELL_FINE;
+    for (;;) {
+        double c = 1;
+        for (a = 0; a < 3; a++) c *= n[a] > 1 ? ceil(((double)n[a] - 1) / tr->cell) : 1;
+        if (c <= MAX_FINE_CELLS) break;
+        tr->cell *= 2;
+    }
     for (L = 0; L < WVOL__CELL_LEVELS; L++) {
-        double side = CELL_FINE * (double)(1 << (WVOL__CELL_LEVELS - 1 - L));
+        double side = tr->cell * (double)(1 << (WVOL__CELL_LEVELS - 1 - L));
         size_t total = 1;
         for (a = 0; a < 3; a++) {
             tr->ncl[L][a] = n[a] > 1 ? (size_t)ceil(((double)n[a] - 1) / side) : 1;
