@@ -222,7 +222,7 @@ def write_md(res, out, name, tools):
                       f"including the cell grid; the no-missed-hit guarantee is docs/iso.md's, tested in "
                       f"tests/c/test_iso_trace.c:", "",
                   *([res["raytrace_note"], ""] if res.get("raytrace_note") else []),
-                  "| phantom | keep | image | trace s | cell grid s | us per ray | hits | functions per ray | "
+                  "| phantom | keep | image | trace s | cells thread-s | us per ray | hits | functions per ray | "
                   "pieces per ray | refined per ray | root intervals | grazes |",
                   "|---|---|---|---|---|---|---|---|---|---|---|---|"]
         for r in rt:
@@ -258,6 +258,10 @@ def main():
                     help="only the image routes (bench/iso_cast.py): the bricked caster against marching cubes + "
                          "Embree, VTK, OpenVDB and the exact tracer; --quick: 96^3, 128^2, one thread")
     ap.add_argument("--tmp", default="", help="--cast: working directory for volumes and images")
+    ap.add_argument("--exact-only", action="store_true",
+                    help="--cast: rerun only the exact f^ tracer's rows and merge them into iso_cast.json/.md")
+    ap.add_argument("--baseline", default="", help="--exact-only: another build's wvol program to time as 'before'")
+    ap.add_argument("--exact-large", default="256", help="--exact-only: the larger image size of the 5%% rows")
     args = ap.parse_args()
     if args.cast:
         import datetime
@@ -266,6 +270,11 @@ def main():
             args.n = 0  # iso_cast's quick default
         elif args.n == 256:
             args.n = 0
+        if args.exact_only:
+            out = pathlib.Path(args.out)
+            rows, meta = iso_cast.exact_only(args, pathlib.Path(args.build), out)
+            iso_cast.write_report(rows, {}, out, meta)
+            return
         rows, images = iso_cast.main(args, pathlib.Path(args.build), pathlib.Path(args.out))
         meta = {"cpu": cpu_model(), "cores": os.cpu_count(), "when": datetime.datetime.utcnow().isoformat(" ", "minutes"),
                 "n": rows[0]["n"], "size": rows[0]["size"], "quick": args.quick,

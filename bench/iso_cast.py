@@ -288,6 +288,70 @@ def main(args, build, out_dir):
     return rows, images
 
 
+def exact_run(wv, vol, iso, keep, cam, size, T, out):
+    """One exact-tracer image: its JSON report and depth map."""
+    o, _ = run([wv, "iso", vol, "--method", "raytrace", "--iso", iso, "--keep", keep, "--camera", cam,
+                "--size", f"{size}x{size}", "--threads", T, "-o", out, "--json"], threads=T)
+    x = json.loads(o)
+    return x, read_exr_z(out)[0]
+
+
+def exact_only(args, build, out_dir):
+    """--exact-only: reruns the exact f^ tracer's rows of iso_cast.json (perspective, 5% and 100%
+    stores, 1 and 2 threads) at the small size of the full run, and the 5% rows at a larger one,
+    with this build and (--baseline WVOL, another build's program, e.g. main's) the code before,
+    interleaved in the same run; rows are replaced in iso_cast.json and the report rewritten."""
+    wv = build / "wvol"
+    base = pathlib.Path(args.baseline) if args.baseline else None
+    tmp = pathlib.Path(args.tmp) if args.tmp else pathlib.Path(os.environ.get("TMPDIR", "/tmp")) / "wvol_iso_cast"
+    tmp.mkdir(parents=True, exist_ok=True)
+    res = json.loads((out_dir / "iso_cast.json").read_text())
+    rows, meta = res["rows"], res["meta"]
+    n, small, large = meta["n"], 64, int(args.exact_large)
+    cam = "persp dir=1,0.6,-0.3"
+    volumes = {"skull": (["skull", "--noise", "20"], 400.0), "gaussian": (["gaussian"], 0.5)}
+    load0 = os.getloadavg()[0]
+    for vname, (synth, iso) in volumes.items():
+        vol = tmp / f"{vname}_{n}.nrrd"
+        run([wv, "synth", *synth, "--size", n, "-o", vol])
+        for size in sorted({small, large}):
+            ref = tmp / f"refx_{vname}_{size}.exr"
+            run([wv, "iso", vol, "--method", "cast", "--iso", iso, "--camera", cam, "--size", f"{size}x{size}",
+                 "--threads", "2", "-o", ref])
+            zr = read_exr_z(ref)[0]
+            for r in rows:
+                if r["volume"] != vname or r["camera"] != "persp" or (size != small and r["keep"] != "5%"):
+                    continue
+                keep, T = r["keep"], r["threads"]
+                key = f"{vname}_{keep.rstrip('%')}_{T}_{size}"
+                x, zx = exact_run(wv, vol, iso, keep, cam, size, T, tmp / f"exact_{key}.exr")
+                o, _ = run([wv, "iso", vol, "--method", "cast", "--iso", iso, "--keep", keep, "--camera", cam,
+                            "--size", f"{size}x{size}", "--threads", T, "-o", tmp / f"casts_{key}.exr"], threads=T)
+                zc = read_exr_z(tmp / f"casts_{key}.exr")[0]
+                e = {"size": size, "seconds": x["trace_seconds"], "cpu_seconds": x["trace_cpu_seconds"],
+                     "rays_per_s_per_thread": x["rays"] / (x["trace_seconds"] * T),
+                     "rays_per_cpu_s": x["rays"] / x["trace_cpu_seconds"], "grazes": x["grazes"],
+                     "hits": x["hits"], "functions": x["functions"], "cells": x.get("cells", 0),
+                     "cells_undecided": x.get("cells_undecided", 0), "cells_thread_seconds": x["cells_seconds"],
+                     "vs_reference": depth_stats(zx, zr), "cast_vs_exact": depth_stats(zc, zx)}
+                if base:
+                    xb, zb = exact_run(base, vol, iso, keep, cam, size, T, tmp / f"exactb_{key}.exr")
+                    e["baseline"] = {"seconds": xb["trace_seconds"], "cpu_seconds": xb["trace_cpu_seconds"],
+                                     "rays_per_s_per_thread": xb["rays"] / (xb["trace_seconds"] * T),
+                                     "rays_per_cpu_s": xb["rays"] / xb["trace_cpu_seconds"], "hits": xb["hits"],
+                                     "functions": xb["functions"], "vs_new": depth_stats(zb, zx)}
+                r["exact" if size == small else "exact_large"] = e
+                b = e.get("baseline")
+                print(f"exact {vname} {keep} T={T} {size}^2: {e['rays_per_s_per_thread']:.3g} rays/s/thread"
+                      + (f" (before {b['rays_per_s_per_thread']:.3g}: {b['seconds'] / e['seconds']:.1f}x; "
+                         f"hits {b['hits']} / {e['hits']}, mask diff {b['vs_new']['mask_diff']}, "
+                         f"depth max {b['vs_new']['depth_max']:.2g})" if b else ""), flush=True)
+    meta["exact_when"] = __import__("datetime").datetime.utcnow().isoformat(" ", "minutes")
+    meta["exact_load_avg"] = [load0, os.getloadavg()[0]]
+    meta["exact_baseline"] = str(base) if base else None
+    return rows, meta
+
+
 def summary_line(r):
     def g(k, f="first_image_seconds"):
         return f"{r[k][f]:.3f}" if k in r and f in r[k] else "-"
@@ -341,17 +405,36 @@ def write_report(rows, images, out_dir, meta):
         vv = (f"{r['vdb']['mask_vs_cast']}, {r['vdb']['mask_vs_cast_off_silhouette']}"
               if "vdb" in r and "mask_vs_cast" in r["vdb"] else "-")
         L.append(f"| {r['volume']} | {r['keep']} | {r['camera']} | {e('cast')} | {e('embree')} | {ev} | {vv} |")
-    ex = [r for r in rows if "exact" in r]
+    ex = [(r, r[k]) for k in ("exact", "exact_large") for r in rows if k in r]
     if ex:
-        L += ["", f"The exact f^ tracer (perspective, {ex[0]['exact']['size']}^2: it costs ms per ray): its speed, and the "
-              "caster against it at the same size (f^ is db2's smoothed model, not the interpolant: the difference is "
-              "the model's, not an error of either).", "",
-              "| volume | keep | threads | exact rays/s/thread | grazes | exact vs dense ref: median / p99, mask "
-              "| cast vs exact: median / p99, mask |", "|---|---|---|---|---|---|---|"]
-        for r in ex:
-            x = r["exact"]
+        withb = any("baseline" in x for _, x in ex)
+        L += ["", "The exact f^ tracer (perspective; rays/s per thread = rays / (wall seconds x threads), the "
+              "whole call: its cells are classified by the rays that reach them): its speed, and the caster "
+              "against it at the same size (f^ is db2's smoothed model, not the interpolant: the difference is the "
+              "model's, not an error of either)."
+              + (f" \"before\" is `{meta.get('exact_baseline')}` (the tracer without the box ranges and the lazy "
+                 "cell hierarchy) on the same rays, interleaved in the same run "
+                 f"({meta.get('exact_when', '')}, load average {meta.get('exact_load_avg', ['?'])[0]:.1f} at start: a "
+                 "shared machine, so the rays per CPU-second are given too); its images have the same hits "
+                 "(\"mask\": pixels differing) and depths within the tolerance (\"depth\": the largest difference, "
+                 "world units)." if withb else ""), "",
+              "| volume | keep | threads | size | exact rays/s/thread | rays/CPU-s | "
+              + ("before rays/s/thread | before rays/CPU-s | speed-up (wall) | speed-up (CPU) | before vs after: mask, depth | "
+                 if withb else "")
+              + "cells classified / undecided | grazes | exact vs dense ref: median / p99, mask "
+              "| cast vs exact: median / p99, mask |",
+              "|---|---|---|---|---|---|" + ("---|---|---|---|---|" if withb else "") + "---|---|---|---|"]
+        for r, x in ex:
             a, b = x["vs_reference"], x["cast_vs_exact"]
-            L.append(f"| {r['volume']} | {r['keep']} | {r['threads']} | {x['rays_per_s_per_thread']:.3g} | {x['grazes']} | "
+            bl = x.get("baseline")
+            bcols = ""
+            if withb:
+                bcols = (f"{bl['rays_per_s_per_thread']:.3g} | {bl['rays_per_cpu_s']:.3g} | "
+                         f"{bl['seconds'] / x['seconds']:.1f}x | {bl['cpu_seconds'] / x['cpu_seconds']:.1f}x | "
+                         f"{bl['vs_new']['mask_diff']}, {bl['vs_new']['depth_max']:.2g} | " if bl else "- | - | - | - | - | ")
+            L.append(f"| {r['volume']} | {r['keep']} | {r['threads']} | {x['size']}^2 | {x['rays_per_s_per_thread']:.3g} | "
+                     f"{x.get('rays_per_cpu_s', float('nan')):.3g} | " + bcols
+                     + f"{x.get('cells', '-')} / {x.get('cells_undecided', '-')} | {x['grazes']} | "
                      f"{a['depth_median']:.3g} / {a['depth_p99']:.3g}, {a['mask_diff']} | "
                      f"{b['depth_median']:.3g} / {b['depth_p99']:.3g}, {b['mask_diff']} |")
     mbr = [r for r in rows if "model_bound" in r["cast"]]

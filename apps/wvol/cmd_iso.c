@@ -460,6 +460,8 @@ static int run_image(const iso_args *a)
         cli_json_num("trace_seconds", ts.seconds);
         cli_json_num("trace_cpu_seconds", ts.cpu_seconds);
         cli_json_num("cells_seconds", ts.seconds_cells);
+        cli_json_int("cells", (long long)ts.cells);
+        cli_json_int("cells_undecided", (long long)ts.cells_undecided);
         cli_json_num("us_per_ray", ts.rays ? 1e6 * ts.seconds / (double)ts.rays : 0);
         if (hybrid) cli_json_num("volume_seconds", rs.seconds);
         cli_json_int("empty", ts.hits == 0);

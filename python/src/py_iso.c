@@ -231,11 +231,12 @@ static PyObject *py_isoimage(PyObject *self, PyObject *args, PyObject *kw)
         if (s == WVOL_OK) s = wvol_iso_raytrace(img, depth, NULL, store, &cam, iso, &tp, &ts, &err);
         Py_END_ALLOW_THREADS
         d = s != WVOL_OK ? NULL
-                         : Py_BuildValue("{s:s,s:n,s:n,s:n,s:n,s:n,s:d,s:d,s:d,s:s}", "method", "exact", "rays",
-                                         (Py_ssize_t)ts.rays, "hits", (Py_ssize_t)ts.hits, "functions",
+                         : Py_BuildValue("{s:s,s:n,s:n,s:n,s:n,s:n,s:n,s:n,s:d,s:d,s:d,s:s}", "method", "exact",
+                                         "rays", (Py_ssize_t)ts.rays, "hits", (Py_ssize_t)ts.hits, "functions",
                                          (Py_ssize_t)ts.functions, "pieces", (Py_ssize_t)ts.pieces, "grazes",
-                                         (Py_ssize_t)ts.grazes, "seconds", ts.seconds, "cpu_seconds", ts.cpu_seconds,
-                                         "seconds_cells", ts.seconds_cells, "message", ts.message);
+                                         (Py_ssize_t)ts.grazes, "cells", (Py_ssize_t)ts.cells, "cells_undecided",
+                                         (Py_ssize_t)ts.cells_undecided, "seconds", ts.seconds, "cpu_seconds",
+                                         ts.cpu_seconds, "seconds_cells", ts.seconds_cells, "message", ts.message);
     } else {
         wvol_iso_cast_params cp;
         wvol_iso_cast_stats cs;

@@ -267,6 +267,7 @@ static void cell_bounds_hold(const wvol_store *s, const char *what)
         }
     }
     wvol_store_hits_free(&hl);
+    wvol__iso_boxk_free(&k);
     printf("  %s: cell bounds on 40 random boxes: mean width %.3g, never exceeded (margin %.3g)\n", what, width / 40,
            -worst);
     CHECK(worst <= 0, "%s: f^ leaves its cell bound by %g", what, worst);
@@ -407,6 +408,24 @@ static void small_image(const wvol_store *s, double iso, const char *what)
     wvol_image_create(&img, 24, 24, NULL);
     CHECK(wvol_iso_raytrace(img, depth, NULL, s, &cam, iso, NULL, NULL, NULL) == WVOL_OK, "%s: image", what);
     image_matches_rays(s, &cam, depth, iso, what);
+    {
+        /* the cell grid is classified by whichever ray reaches a cell first; a class is a pure
+         * function of the cell, so 1 and 2 threads give the same image bit for bit */
+        float *d1 = malloc(24 * 24 * sizeof(float)), *d2 = malloc(24 * 24 * sizeof(float));
+        wvol_iso_trace_params p;
+        wvol_iso_trace_stats st1, st2;
+        wvol_iso_trace_params_default(&p);
+        p.threads = 1;
+        CHECK(wvol_iso_raytrace(img, d1, NULL, s, &cam, iso, &p, &st1, NULL) == WVOL_OK, "%s: 1 thread", what);
+        p.threads = 2;
+        CHECK(wvol_iso_raytrace(img, d2, NULL, s, &cam, iso, &p, &st2, NULL) == WVOL_OK, "%s: 2 threads", what);
+        CHECK(memcmp(d1, d2, 24 * 24 * sizeof(float)) == 0 && memcmp(d1, depth, 24 * 24 * sizeof(float)) == 0,
+              "%s: the image depends on the thread count", what);
+        CHECK(st1.cells > 0 && st1.cells_undecided <= st1.cells && st1.hits == st2.hits, "%s: cell counts %zu / %zu",
+              what, st1.cells, st1.cells_undecided);
+        free(d1);
+        free(d2);
+    }
     wvol_image_destroy(img);
     free(depth);
 }

@@ -200,7 +200,9 @@ WVOL_API wvol_status wvol_iso_trace_ray(const wvol_store *s, double iso, const d
 typedef struct wvol_iso_trace_stats {
     size_t rays, hits, functions, pieces, refined, intervals, evals, grazes;
     double seconds, cpu_seconds;
-    double seconds_cells;   /* of seconds: classifying the cell grid */
+    double seconds_cells;   /* thread seconds spent classifying cells of the grid (lazily, by the
+                               rays that reach them: part of the rays' time) */
+    size_t cells, cells_undecided; /* cells classified (all levels); finest cells left undecided */
     char message[256];  /* set when nothing is hit (e.g. iso outside the range of f^) */
 } wvol_iso_trace_stats;
 

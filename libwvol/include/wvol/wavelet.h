@@ -275,6 +275,11 @@ WVOL_API wvol_status wvol_basis_create_majorant(wvol_basis **out, const wvol_fil
  * basis functions (used by the per-pixel error bound's coefficient-error term). */
 WVOL_API double wvol_basis_periodised_sup(const wvol_basis *b, int which);
 
+/* The range of value piece i (0 <= i < pieces) of phi (which 0) or psi (1): the hull
+ * [*lo, *hi] of its Bernstein coefficients, which contains the piece's cubic on the piece,
+ * padded by 1e-12 of their magnitudes for rounding (the iso tracer's box ranges). */
+WVOL_API void wvol_basis_piece_range(const wvol_basis *b, int which, int i, double *lo, double *hi);
+
 /* Evaluate the spline model: which is WVOL_BASIS_PHI or WVOL_BASIS_PSI. O(1), no allocation.
  * value/deriv are 0 outside [0, support); primitive is the integral from 0 to x. */
 WVOL_API double wvol_basis_value(const wvol_basis *b, int which, double x);

@@ -82,6 +82,7 @@ void wvol__fhat_link_init(wvol__fhat_link *k, const wvol_store *s)
     k->lin = fmax(bk.s1[0] * bk.s1[0], bk.s1[1] * bk.s1[1]) *
              fmax(fmax(fabs(b->center * bk.s1[0] - bk.m1[1]), fabs(b->center * bk.s1[0] - bk.m1[0])),
                   fmax(fabs(b->center * bk.s1[1] - bk.m1[1]), fabs(b->center * bk.s1[1] - bk.m1[0])));
+    wvol__iso_boxk_free(&bk);
     k->K = k->D * (k->A * k->A + k->A + 1.0);
     {
         double sig = (L - 1) * e[0];

@@ -58,9 +58,17 @@ typedef struct wvol__iso_boxk {
     int transformed[3];
     double s1[2];       /* range of s(y) = sum_p phi(y - p), the partition of unity */
     double m1[2];       /* range of m(y) = sum_p (y - p) phi(y - p), its first moment */
+    /* ranges of runs of spline pieces of phi (0) and psi (1), a sparse table: entry
+     * 4 (r pieces + i) + 2 which + {0, 1} is [min, max] over pieces i .. i + 2^r - 1 (each
+     * piece's Bernstein hull, padded); NULL: every factor uses its global max (fb) */
+    double *prange;
+    int pieces, per_unit, runs;
+    double inv_size[WVOL_SELECT_MAX_LEVELS + 1]; /* 2^-m: a level-m factor's variable per voxel */
+    double support;
 } wvol__iso_boxk;
 
 void wvol__iso_boxk_init(wvol__iso_boxk *k, const wvol_store *s);
+void wvol__iso_boxk_free(wvol__iso_boxk *k);
 
 /* Rigorous range [*vmin, *vmax] of f^ on the closed box [lo, hi] (voxel coords), from the
  * functions touching it (queried into hl). The low-pass coefficients are fitted by a plane,
@@ -69,20 +77,31 @@ void wvol__iso_boxk_init(wvol__iso_boxk *k, const wvol_store *s);
  *             + sum r_p w_p,
  * y = (x + s) / 2^M, with the ranges of s and m from the spline's pieces and |sum r w| <=
  * sum |r| max|w|; details |sum c w| <= sum |c| max|w|. A constant or linear background (CT
- * air, the smooth flanks of a Gaussian) costs nothing, unlike |c| max|w| per function. */
+ * air, the smooth flanks of a Gaussian) costs nothing, unlike |c| max|w| per function.
+ * Each function's max|w| is in fact its range on the box: w is a product of three 1D spline
+ * factors, each within the hull of the pieces its part of the box covers, so c w lies in
+ * c norm [product of the three ranges] and the terms are summed as intervals (a function the
+ * box sees only at its tail, or one nearly constant over the box, adds a narrow interval). */
 wvol_status wvol__iso_box_range(const wvol__iso_boxk *k, const wvol_store *s, wvol_store_hits *hl, const double lo[3],
                                 const double hi[3], double *vmin, double *vmax, wvol_error *err);
 
-/* What every ray of a trace shares (read only while rays are traced). */
+#define WVOL__CELL_LEVELS 4
+
+/* What every ray of a trace shares (read only while rays are traced, but for the cell grid's
+ * lazily filled classes). */
 typedef struct wvol__tracer {
     wvol__spline_geom g;
     double iso, tol, chunk;
     wvol__iso_boxk k;   /* function bounds for the cells and the small functions' envelope */
-    /* cell grid (images only): cells of `cell` voxels, class 1 (f^ >= iso on the whole closed
-     * cell), 0 (f^ < iso) or -1 (undecided), from the store's rigorous box bounds */
+    /* cell grid (images only): a hierarchy of cells, level 0 the coarsest (32 voxels), each
+     * level halving the side down to `cell` (4 voxels); a cell's class is 1 (f^ >= iso on the
+     * whole closed cell), 0 (f^ < iso), -1 (undecided: its children are looked at) or -2 (not
+     * classified yet), computed from the store's rigorous box bounds the first time a ray
+     * reaches it (a pure function of the box, so threads may race on it) */
     double cell;
     size_t nc[3];
-    signed char *cls;
+    size_t ncl[WVOL__CELL_LEVELS][3];
+    signed char *cls[WVOL__CELL_LEVELS];
     double lo[3], hi[3]; /* the traced extent per axis (voxels): wvol__iso_model_extent */
 } wvol__tracer;
 
@@ -102,13 +121,27 @@ typedef struct wvol__trace_ws {
     size_t capE;
     double *cut;        /* cell boundaries along the ray */
     size_t capC;
+    wvol_store_hits cellq; /* the cell grid's box queries */
+    size_t cells;       /* cells this thread classified */
+    double cell_seconds; /* and its time doing so */
 } wvol__trace_ws;
 
 void wvol__trace_ws_free(wvol__trace_ws *w);
 
-/* Classifies the cell grid of tr (tr->cls, malloc'ed: the caller frees it, also on failure)
- * by wvol__iso_box_range, with nth threads. */
-wvol_status wvol__trace_cells(wvol__tracer *tr, int nth, wvol_error *err);
+/* Allocates the cell grid of tr, every class unknown (free with wvol__trace_cells_free, also
+ * on failure). */
+wvol_status wvol__trace_cells(wvol__tracer *tr, wvol_error *err);
+void wvol__trace_cells_free(wvol__tracer *tr);
+/* The class of f^ in the finest cell holding x (voxel coords): 1, 0 or -1 (undecided), going
+ * down the hierarchy from the coarsest cell and classifying the cells met for the first time
+ * (hl: the caller's query scratch; *evaluated counts them and *seconds adds their time; both
+ * may be NULL). */
+int wvol__trace_cell_class(const wvol__tracer *tr, wvol_store_hits *hl, const double x[3], size_t *evaluated,
+                           double *seconds);
+/* Classifies every coarsest cell; cnt[0..2] count the undecided, below and above ones. */
+void wvol__trace_cells_top(const wvol__tracer *tr, wvol_store_hits *hl, size_t cnt[3]);
+/* Finest cells classified undecided so far. */
+size_t wvol__trace_cells_undecided(const wvol__tracer *tr);
 
 /* The first crossing of f^ = iso along o + t d, t >= tmin (world; d a unit direction) into
  * *h (zeroed first; h->t +inf on a miss). With tr->cls, cells whose bounds exclude iso are

@@ -27,10 +27,11 @@
  *     are not expanded but bounded per piece (sum of |c| max|w| of those covering it); a
  *     piece whose hull widened by that envelope excludes iso is decided, and only runs of
  *     undecided pieces get the small functions added exactly;
- *   - images first classify a grid of cells (8 voxels, undecided ones split to 4) by
- *     wvol__iso_box_range (low-pass coefficients fitted by a plane through the spline's
- *     partition of unity and first moment, the rest as |c| max|w|): rays step over cells
- *     whose bound excludes iso and trace runs of the others.
+ *   - images walk a hierarchy of cells (16 down to 2 voxels), each classified the first time
+ *     a ray reaches it by wvol__iso_box_range (low-pass coefficients fitted by a plane through
+ *     the spline's partition of unity and first moment, every other term the interval of its
+ *     function's range on the cell): rays step over cells whose range excludes iso and trace
+ *     runs of the others; an undecided cell's children are classified only where that can pay.
  *
  * The guarantee. "Crossing" means f^ - iso changes sign in the classification f^ >= iso.
  * For the computed piece polynomials, the reported hit is the first crossing along the ray
@@ -162,11 +163,15 @@ wvol_status wvol_iso_trace_ray(const wvol_store *s, double iso, const double o[3
                    "iso trace: ray origin is not finite");
     WVOL_FORWARD(make_tracer(&tr, s, iso, p, err));
     len = sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
-    WVOL_RETURN_IF(!(len > 0) || !isfinite(len), err, WVOL_ERR_ARG, "iso trace: direction has no length");
+    if (!(len > 0) || !isfinite(len)) {
+        wvol__iso_boxk_free(&tr.k);
+        return wvol_error_set(err, WVOL_ERR_ARG, "iso trace: direction has no length");
+    }
     dn[0] = d[0] / len, dn[1] = d[1] / len, dn[2] = d[2] / len;
     memset(&ws, 0, sizeof ws);
     st = wvol__trace(&tr, &ws, o, dn, 0.0, hit, err);
     wvol__trace_ws_free(&ws);
+    wvol__iso_boxk_free(&tr.k);
     return st;
 }
 
@@ -175,11 +180,15 @@ wvol_status wvol_iso_trace_ray(const wvol_store *s, double iso, const double o[3
  * tell whether iso is outside the data's range. */
 static void empty_message(const tracer *tr, double iso, char *msg, size_t cap)
 {
-    size_t i, total = tr->nc[0] * tr->nc[1] * tr->nc[2], cnt[3] = {0, 0, 0};
+    size_t cnt[3] = {0, 0, 0}, total;
     wvol_coeffs *c = NULL;
     wvol_volume *v = NULL;
+    wvol_store_hits hl;
     double vmin = 0, vmax = 0;
-    for (i = 0; i < total; i++) cnt[tr->cls[i] + 1]++;
+    memset(&hl, 0, sizeof hl);
+    wvol__trace_cells_top(tr, &hl, cnt);
+    wvol_store_hits_free(&hl);
+    total = cnt[0] + cnt[1] + cnt[2];
     if (cnt[1] == total || cnt[2] == total) {
         snprintf(msg, cap, "iso-value %.9g is %s f^ everywhere (rigorous bounds): empty image", iso,
                  cnt[1] == total ? "above" : "below");
@@ -207,8 +216,8 @@ wvol_status wvol_iso_raytrace(wvol_image *img, float *depth, float *normals, con
     tracer tr;
     wvol_iso_trace_params def;
     int nth, failed = 0;
-    size_t hits = 0, functions = 0, pieces = 0, refined = 0, intervals = 0, evals = 0, grazes = 0;
-    double t_start = wvol__now(), c_start = wvol__cpu_now(), tmin, t_cells;
+    size_t hits = 0, functions = 0, pieces = 0, refined = 0, intervals = 0, evals = 0, grazes = 0, cells = 0;
+    double t_start = wvol__now(), c_start = wvol__cpu_now(), tmin, t_cells = 0;
     wvol_error first_err;
     WVOL_FORWARD(wvol__iso_image_check(img, cam, "iso trace", err));
     if (!p) {
@@ -217,15 +226,15 @@ wvol_status wvol_iso_raytrace(wvol_image *img, float *depth, float *normals, con
     }
     WVOL_FORWARD(make_tracer(&tr, s, iso, p, err));
     nth = wvol__threads(p->threads);
-    if (wvol__trace_cells(&tr, nth, err) != WVOL_OK) {
-        free(tr.cls);
+    if (wvol__trace_cells(&tr, err) != WVOL_OK) {
+        wvol__trace_cells_free(&tr);
+        wvol__iso_boxk_free(&tr.k);
         return err ? err->status : WVOL_ERR_INTERNAL;
     }
-    t_cells = wvol__now() - t_start;
     /* an orthographic ray is the whole line (as in the renderer); a perspective one starts at the eye */
     tmin = cam->projection == WVOL_PROJECTION_PERSPECTIVE ? 0.0 : -INFINITY;
     wvol_error_clear(&first_err);
-#pragma omp parallel num_threads(nth) reduction(+ : hits, functions, pieces, refined, intervals, evals, grazes)
+#pragma omp parallel num_threads(nth) reduction(+ : hits, functions, pieces, refined, intervals, evals, grazes, cells, t_cells)
     {
         tws ws;
         memset(&ws, 0, sizeof ws);
@@ -260,10 +269,13 @@ wvol_status wvol_iso_raytrace(wvol_image *img, float *depth, float *normals, con
                 wvol__iso_shade(c, &h, d, p->light, p->color, p->ambient);
             }
         }
+        cells += ws.cells;
+        t_cells += ws.cell_seconds;
         wvol__trace_ws_free(&ws);
     }
     if (failed) {
-        free(tr.cls);
+        wvol__trace_cells_free(&tr);
+        wvol__iso_boxk_free(&tr.k);
         if (err) *err = first_err;
         return first_err.status ? first_err.status : WVOL_ERR_INTERNAL;
     }
@@ -280,10 +292,13 @@ wvol_status wvol_iso_raytrace(wvol_image *img, float *depth, float *normals, con
         st->seconds = wvol__now() - t_start;
         st->cpu_seconds = wvol__cpu_now() - c_start;
         st->seconds_cells = t_cells;
+        st->cells = cells;
+        st->cells_undecided = wvol__trace_cells_undecided(&tr);
         if (hits == 0) empty_message(&tr, iso, st->message, sizeof st->message);
         st->seconds = wvol__now() - t_start;
     }
-    free(tr.cls);
+    wvol__trace_cells_free(&tr);
+    wvol__iso_boxk_free(&tr.k);
     return WVOL_OK;
 }
 

@@ -1,18 +1,23 @@
 /* SPDX-License-Identifier: MIT
  * Rigorous bounds of f^ on boxes for the implicit-surface ray tracer: per-store constants
  * (wvol__iso_boxk), the range of f^ on a box from the functions touching it
- * (wvol__iso_box_range), and the cell grid an image's rays step over where f^ cannot
- * reach iso (wvol__trace_cells). Based on: DESIGN.md section 9; docs/iso.md. */
+ * (wvol__iso_box_range), and the lazily classified cell hierarchy an image's rays step over
+ * where f^ cannot reach iso (wvol__trace_cells, wvol__trace_cell_class).
+ * Based on: DESIGN.md section 9; docs/iso.md; Moore 1966 (interval arithmetic). */
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
-#ifdef _OPENMP
-#include <omp.h>
-#endif
-
+#include "core/clock.h"
 #include "iso_internal.h"
 
-#define CELL 8.0           /* cell grid side, voxels */
+#define CELL_FINE 2.0      /* the finest cells' side, voxels (doubled for large volumes: MAX_FINE_CELLS);
+                              level L has 2^(LEVELS - 1 - L) times it */
+#define MAX_FINE_CELLS 33554432.0 /* 32 MiB of finest classes at most */
+#define CELL_UNKNOWN (-2)  /* not classified yet */
+#define CELL_FINAL (-3)    /* undecided, and its children would be too (box_class): not refined */
+#define STOP_SIDE 8.0      /* cells of this side or less may be left unrefined (box_class); larger
+                              ones always are refined: their bounds include far functions */
+#define REFINE_GAIN 8.0    /* ... when their bound would need to shrink more than this */
 
 typedef wvol__tracer tracer;
 
@@ -85,6 +90,63 @@ void wvol__iso_boxk_init(wvol__iso_boxk *k, const wvol_store *s)
     k->norm = pow(2.0, -0.5 * info.levels * (info.transformed[0] + info.transformed[1] + info.transformed[2]));
     k->scale = ldexp(1.0, info.levels);
     k->shift = b->center;
+    for (m = 0; m <= WVOL_SELECT_MAX_LEVELS; m++) k->inv_size[m] = ldexp(1.0, -m);
+    k->pieces = b->pieces;
+    k->per_unit = b->per_unit;
+    k->support = b->support;
+    for (k->runs = 1; (1L << k->runs) <= b->pieces; k->runs++) {}
+    k->prange = malloc((size_t)k->runs * (size_t)b->pieces * 4 * sizeof *k->prange);
+    if (k->prange) { /* no table: every factor falls back to its global max (fb), as correct */
+        for (int i = 0; i < b->pieces; i++)
+            for (int w = 0; w < 2; w++)
+                wvol_basis_piece_range(b, w, i, &k->prange[4 * (size_t)i + 2 * w], &k->prange[4 * (size_t)i + 2 * w + 1]);
+        for (int r = 1; r < k->runs; r++)
+            for (int i = 0; i + (1 << r) <= b->pieces; i++) {
+                double *q = k->prange + 4 * ((size_t)r * b->pieces + i);
+                const double *x = k->prange + 4 * ((size_t)(r - 1) * b->pieces + i),
+                             *y = k->prange + 4 * ((size_t)(r - 1) * b->pieces + i + (1 << (r - 1)));
+                for (int j = 0; j < 4; j++) q[j] = (j & 1) ? fmax(x[j], y[j]) : fmin(x[j], y[j]);
+            }
+    }
+}
+
+void wvol__iso_boxk_free(wvol__iso_boxk *k)
+{
+    if (!k) return;
+    free(k->prange);
+    k->prange = NULL;
+}
+
+static inline double dmin(double a, double b) { return a < b ? a : b; }
+static inline double dmax(double a, double b) { return a > b ? a : b; }
+
+/* The range of the 1D factor `which` (phi 0, psi 1) over its variable's interval [u0, u1]
+ * (0 outside the support [0, support]): the hull of the pieces the interval covers, from two
+ * overlapping runs of the sparse table. */
+static inline void factor_range(const wvol__iso_boxk *k, int which, double u0, double u1, double *lo, double *hi)
+{
+    double a0 = u0 * k->per_unit, a1 = u1 * k->per_unit, pu = k->pieces;
+    long i0, i1;
+    int r;
+    const double *x, *y;
+    /* a knot's rounding could put a point in either neighbour: take both */
+    a0 -= 1e-9 * (1 + (a0 < 0 ? -a0 : a0));
+    a1 += 1e-9 * (1 + (a1 < 0 ? -a1 : a1));
+    if (a1 < 0 || a0 >= pu) { /* misses the support */
+        *lo = *hi = 0.0;
+        return;
+    }
+    i0 = a0 <= 0 ? 0 : (long)a0;
+    i1 = a1 >= pu ? (long)pu - 1 : (long)a1;
+    r = 63 - __builtin_clzll((unsigned long long)(i1 - i0 + 1)); /* 2^r <= run < 2^(r+1) */
+    x = k->prange + 4 * ((size_t)r * (size_t)k->pieces + (size_t)i0) + 2 * which;
+    y = k->prange + 4 * ((size_t)r * (size_t)k->pieces + (size_t)(i1 - (1L << r) + 1)) + 2 * which;
+    *lo = dmin(x[0], y[0]);
+    *hi = dmax(x[1], y[1]);
+    if (u0 < 0.0 || u1 > k->support) { /* the box reaches outside the support, where w = 0 */
+        *lo = dmin(*lo, 0.0);
+        *hi = dmax(*hi, 0.0);
+    }
 }
 
 /* The product of s over the transformed axes other than `skip` (-1: all). */
@@ -100,7 +162,8 @@ wvol_status wvol__iso_box_range(const wvol__iso_boxk *k, const wvol_store *s, wv
                                 const double hi[3], double *vmin, double *vmax, wvol_error *err)
 {
     size_t i, nlow = 0;
-    double a0 = 0, pbar[3] = {0, 0, 0}, g[3] = {0, 0, 0}, sxx[3] = {0, 0, 0}, dev = 0, mag = 0, blo, bhi, t0, t1;
+    double a0 = 0, pbar[3] = {0, 0, 0}, g[3] = {0, 0, 0}, sxx[3] = {0, 0, 0}, dev = 0, mid = 0, mag = 0, blo, bhi, t0,
+           t1;
     int a;
     WVOL_FORWARD(wvol_store_query_box(s, lo, hi, hl, err));
     /* low-pass coefficients ~ a0 + g . (p - pbar), least squares over the touching ones
@@ -130,12 +193,33 @@ wvol_status wvol__iso_box_range(const wvol__iso_boxk *k, const wvol_store *s, wv
     }
     for (i = 0; i < hl->count; i++) {
         const wvol_store_hit *h = &hl->hits[i];
-        double c = h->value;
+        double c = h->value, plo = h->norm, phi = h->norm;
         if (h->band == 0)
             for (a = 0, c -= a0; a < 3; a++)
                 if (k->transformed[a]) c -= g[a] * ((h->lo[a] + k->shift) / k->scale - pbar[a]);
-        dev += fabs(c) * k->fb[h->level][h->band];
         mag += fabs((double)h->value) * k->fb[h->level][h->band];
+        if (!k->prange) {
+            dev += fabs(c) * k->fb[h->level][h->band];
+            continue;
+        }
+        /* c w on the box lies in c [plo, phi]: the product of the factors' ranges there */
+        for (a = 0; a < 3; a++) {
+            double sc, flo, fhi, p0, p1, p2, p3;
+            if (!k->transformed[a]) continue;
+            sc = k->inv_size[h->level];
+            factor_range(k, (h->band >> a) & 1, (lo[a] - h->lo[a]) * sc, (hi[a] - h->lo[a]) * sc, &flo, &fhi);
+            if (plo >= 0.0) { /* the first factor's norm, or a nonnegative product so far */
+                p0 = flo >= 0.0 ? plo * flo : phi * flo;
+                p1 = fhi >= 0.0 ? phi * fhi : plo * fhi;
+                plo = p0, phi = p1;
+                continue;
+            }
+            p0 = plo * flo, p1 = plo * fhi, p2 = phi * flo, p3 = phi * fhi;
+            plo = dmin(dmin(p0, p1), dmin(p2, p3));
+            phi = dmax(dmax(p0, p1), dmax(p2, p3));
+        }
+        mid += c * 0.5 * (plo + phi);
+        dev += fabs(c) * 0.5 * (phi - plo);
     }
     /* a0 sum_p w_p = a0 norm S(x) */
     s_product(k, -1, &t0, &t1);
@@ -155,70 +239,138 @@ wvol_status wvol__iso_box_range(const wvol__iso_boxk *k, const wvol_store *s, wv
         blo += l0;
         bhi += l1;
     }
+    blo += mid;
+    bhi += mid;
     dev += 1e-9 * (mag + fabs(blo) + fabs(bhi)); /* rounding of the sums */
     *vmin = blo - dev;
     *vmax = bhi + dev;
     return WVOL_OK;
 }
 
-/* Class of the closed box of cell idx (side `side` voxels): 1 when f^ > iso on all of it,
- * 0 when f^ < iso, -1 undecided. */
-static int box_class(const tracer *tr, wvol_store_hits *hl, double side, const size_t idx[3], int *bad)
+/* Class of the closed box [lo, hi]: 1 when f^ > iso on all of it, 0 when f^ < iso, -1
+ * undecided (its children will be looked at) or CELL_FINAL (undecided, and not refined; also
+ * when the store's query fails: tracing a cell exactly is always right). may_stop: the box is
+ * small enough to be left unrefined. */
+static int box_class(const tracer *tr, wvol_store_hits *hl, const double lo[3], const double hi[3], int may_stop)
 {
-    size_t n[3] = {tr->g.info.nx, tr->g.info.ny, tr->g.info.nz};
-    double lo[3], hi[3], blo, bhi;
-    int k;
-    for (k = 0; k < 3; k++) {
-        lo[k] = (double)idx[k] * side;
-        hi[k] = fmin(lo[k] + side, n[k] > 1 ? (double)n[k] - 1 : 0.0);
-    }
-    if (wvol__iso_box_range(&tr->k, tr->g.s, hl, lo, hi, &blo, &bhi, NULL) != WVOL_OK) {
-        (*bad)++;
-        return -1;
-    }
-    return blo > tr->iso ? 1 : bhi < tr->iso ? 0 : -1;
+    double blo, bhi, hw, gap;
+    if (wvol__iso_box_range(&tr->k, tr->g.s, hl, lo, hi, &blo, &bhi, NULL) != WVOL_OK) return CELL_FINAL;
+    if (blo > tr->iso) return 1;
+    if (bhi < tr->iso) return 0;
+    /* would halving the cell help? Only if the children's bounds could exclude iso, which
+     * needs them REFINE_GAIN times narrower than this one, or more: then they are not worth
+     * their queries, and the rays trace this cell exactly */
+    hw = 0.5 * (bhi - blo);
+    gap = fabs(0.5 * (bhi + blo) - tr->iso);
+    return may_stop && hw > REFINE_GAIN * gap ? CELL_FINAL : -1;
 }
 
-/* Classifies cells of CELL voxels by wvol__iso_box_range, then halves the undecided ones
- * (cells of CELL/2; the decided ones pass their class on). Threads over cells. */
-wvol_status wvol__trace_cells(tracer *tr, int nth, wvol_error *err)
+wvol_status wvol__trace_cells(tracer *tr, wvol_error *err)
 {
-    size_t n[3] = {tr->g.info.nx, tr->g.info.ny, tr->g.info.nz}, nc[3], total = 1, ftotal = 1;
-    signed char *coarse;
-    int a, bad = 0;
-    for (a = 0; a < 3; a++) {
-        nc[a] = n[a] > 1 ? (size_t)ceil(((double)n[a] - 1) / CELL) : 1;
-        tr->nc[a] = n[a] > 1 ? (size_t)ceil(((double)n[a] - 1) / (0.5 * CELL)) : 1;
-        total *= nc[a];
-        ftotal *= tr->nc[a];
+    size_t n[3] = {tr->g.info.nx, tr->g.info.ny, tr->g.info.nz};
+    int L, a;
+    /* the finest side: CELL_FINE, doubled while the finest level would hold more than
+     * MAX_FINE_CELLS (one byte each: large volumes keep a bounded grid) */
+    tr->cell = CELL_FINE;
+    for (;;) {
+        double c = 1;
+        for (a = 0; a < 3; a++) c *= n[a] > 1 ? ceil(((double)n[a] - 1) / tr->cell) : 1;
+        if (c <= MAX_FINE_CELLS) break;
+        tr->cell *= 2;
     }
-    tr->cell = 0.5 * CELL;
-    coarse = malloc(total);
-    tr->cls = malloc(ftotal);
-    if (!coarse || !tr->cls) {
-        free(coarse);
-        return wvol_error_set(err, WVOL_ERR_NOMEM, "iso trace: out of memory for %zu cells", ftotal);
-    }
-#pragma omp parallel num_threads(nth) reduction(+ : bad)
-    {
-        wvol_store_hits hl;
-        memset(&hl, 0, sizeof hl);
-#pragma omp for schedule(dynamic, 16)
-        for (long c = 0; c < (long)total; c++) {
-            size_t idx[3] = {(size_t)c % nc[0], ((size_t)c / nc[0]) % nc[1], (size_t)c / (nc[0] * nc[1])};
-            coarse[c] = (signed char)box_class(tr, &hl, CELL, idx, &bad);
+    for (L = 0; L < WVOL__CELL_LEVELS; L++) {
+        double side = tr->cell * (double)(1 << (WVOL__CELL_LEVELS - 1 - L));
+        size_t total = 1;
+        for (a = 0; a < 3; a++) {
+            tr->ncl[L][a] = n[a] > 1 ? (size_t)ceil(((double)n[a] - 1) / side) : 1;
+            total *= tr->ncl[L][a];
         }
-#pragma omp for schedule(dynamic, 64)
-        for (long c = 0; c < (long)ftotal; c++) {
-            size_t idx[3] = {(size_t)c % tr->nc[0], ((size_t)c / tr->nc[0]) % tr->nc[1],
-                             (size_t)c / (tr->nc[0] * tr->nc[1])};
-            size_t p = idx[0] / 2 + nc[0] * (idx[1] / 2 + nc[1] * (idx[2] / 2));
-            tr->cls[c] =
-                coarse[p] >= 0 ? coarse[p] : (signed char)box_class(tr, &hl, 0.5 * CELL, idx, &bad);
-        }
-        wvol_store_hits_free(&hl);
+        tr->cls[L] = malloc(total);
+        if (!tr->cls[L]) return wvol_error_set(err, WVOL_ERR_NOMEM, "iso trace: out of memory for %zu cells", total);
+        memset(tr->cls[L], CELL_UNKNOWN, total);
     }
-    free(coarse);
-    WVOL_RETURN_IF(bad, err, WVOL_ERR_INTERNAL, "iso trace: store bounds failed on %d cells", bad);
+    for (a = 0; a < 3; a++) tr->nc[a] = tr->ncl[WVOL__CELL_LEVELS - 1][a];
     return WVOL_OK;
+}
+
+void wvol__trace_cells_free(tracer *tr)
+{
+    int L;
+    for (L = 0; L < WVOL__CELL_LEVELS; L++) {
+        free(tr->cls[L]);
+        tr->cls[L] = NULL;
+    }
+}
+
+/* Index of the level-L cell holding x (voxel coords), clamped to the grid. */
+static size_t cell_index(const tracer *tr, int L, const double x[3], double side, double lo[3], double hi[3])
+{
+    size_t n[3] = {tr->g.info.nx, tr->g.info.ny, tr->g.info.nz}, idx = 0, stride = 1;
+    int a;
+    for (a = 0; a < 3; a++) {
+        double c = floor(x[a] / side);
+        size_t ci = c < 0 ? 0 : (size_t)c;
+        if (ci >= tr->ncl[L][a]) ci = tr->ncl[L][a] - 1;
+        idx += ci * stride;
+        stride *= tr->ncl[L][a];
+        lo[a] = (double)ci * side;
+        hi[a] = fmin(lo[a] + side, n[a] > 1 ? (double)n[a] - 1 : 0.0);
+    }
+    return idx;
+}
+
+int wvol__trace_cell_class(const tracer *tr, wvol_store_hits *hl, const double x[3], size_t *evaluated,
+                           double *seconds)
+{
+    int L, c = -1;
+    for (L = 0; L < WVOL__CELL_LEVELS; L++) {
+        double side = tr->cell * (double)(1 << (WVOL__CELL_LEVELS - 1 - L)), lo[3], hi[3];
+        size_t idx = cell_index(tr, L, x, side, lo, hi);
+        signed char *slot = tr->cls[L] + idx;
+        c = __atomic_load_n(slot, __ATOMIC_RELAXED);
+        if (c == CELL_UNKNOWN) {
+            /* a pure function of the box: threads racing here store the same value */
+            double t0 = seconds ? wvol__now() : 0.0;
+            c = box_class(tr, hl, lo, hi, side <= STOP_SIDE);
+            __atomic_store_n(slot, (signed char)c, __ATOMIC_RELAXED);
+            if (evaluated) (*evaluated)++;
+            if (seconds) *seconds += wvol__now() - t0;
+        }
+        if (c >= 0) return c;
+        if (c == CELL_FINAL) return -1;
+    }
+    return c;
+}
+
+void wvol__trace_cells_top(const tracer *tr, wvol_store_hits *hl, size_t cnt[3])
+{
+    size_t i, total = tr->ncl[0][0] * tr->ncl[0][1] * tr->ncl[0][2];
+    double side = tr->cell * (double)(1 << (WVOL__CELL_LEVELS - 1));
+    cnt[0] = cnt[1] = cnt[2] = 0;
+    for (i = 0; i < total; i++) {
+        double x[3], lo[3], hi[3];
+        size_t j = i, a;
+        signed char c;
+        for (a = 0; a < 3; a++) {
+            x[a] = ((double)(j % tr->ncl[0][a]) + 0.5) * side;
+            j /= tr->ncl[0][a];
+        }
+        cell_index(tr, 0, x, side, lo, hi);
+        c = __atomic_load_n(tr->cls[0] + i, __ATOMIC_RELAXED);
+        if (c == CELL_UNKNOWN) c = (signed char)box_class(tr, hl, lo, hi, side <= STOP_SIDE);
+        tr->cls[0][i] = c;
+        if (c == CELL_FINAL) c = -1;
+        cnt[c + 1]++;
+    }
+}
+
+size_t wvol__trace_cells_undecided(const tracer *tr)
+{
+    size_t i, u = 0;
+    int L;
+    for (L = 0; L < WVOL__CELL_LEVELS; L++) {
+        size_t total = tr->ncl[L][0] * tr->ncl[L][1] * tr->ncl[L][2];
+        for (i = 0; i < total; i++) u += tr->cls[L][i] == CELL_FINAL || (L == WVOL__CELL_LEVELS - 1 && tr->cls[L][i] == -1);
+    }
+    return u;
 }

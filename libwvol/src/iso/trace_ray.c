@@ -19,12 +19,6 @@
 typedef wvol__tracer tracer;
 typedef wvol__trace_ws tws;
 
-static int cmp_double(const void *a, const void *b)
-{
-    double x = *(const double *)a, y = *(const double *)b;
-    return x < y ? -1 : x > y;
-}
-
 typedef struct sub {
     double u0, u1, B[NC];
 } sub;
@@ -178,6 +172,7 @@ void wvol__trace_ws_free(tws *w)
     wvol__spline_ws_free(&w->s);
     free(w->env);
     free(w->cut);
+    wvol_store_hits_free(&w->cellq);
     memset(w, 0, sizeof *w);
 }
 
@@ -334,51 +329,50 @@ static wvol_status trace_span(const tracer *tr, tws *w, const double o[3], const
     return WVOL_OK;
 }
 
-/* Crossings of the cell planes x_a = C k inside (t0, t1), merged with t0 and t1 into w->cut. */
+/* Crossings of the cell planes x_a = C k inside (t0, t1), merged with t0 and t1 into w->cut in
+ * increasing order: each axis's crossings are generated in increasing t (k runs the way the ray
+ * goes), then the three runs are merged. */
 static size_t cell_cuts(const tracer *tr, tws *w, const double ov[3], const double dv[3], double t0, double t1)
 {
-    size_t n = 0, cap = 8;
+    size_t n = 0, cap = 8, run[4] = {0, 0, 0, 0}, pos[3], m = 0;
+    double *in, *out;
     int a;
     for (a = 0; a < 3; a++)
         if (dv[a] != 0.0 && tr->g.info.transformed[a])
             cap += (size_t)(fabs((t1 - t0) * dv[a]) / tr->cell) + 2;
-    if (cap > w->capC) {
-        double *q = realloc(w->cut, cap * sizeof *q);
+    if (2 * cap > w->capC) {
+        double *q = realloc(w->cut, 2 * cap * sizeof *q);
         if (!q) return 0;
         w->cut = q;
-        w->capC = cap;
+        w->capC = 2 * cap;
     }
-    w->cut[n++] = t0;
+    in = w->cut + cap; /* the three runs */
+    out = w->cut;
     for (a = 0; a < 3; a++) {
         double x0, x1, k0, k1, k;
+        run[a] = n;
         if (dv[a] == 0.0 || !tr->g.info.transformed[a]) continue;
         x0 = ov[a] + t0 * dv[a];
         x1 = ov[a] + t1 * dv[a];
         k0 = floor(fmin(x0, x1) / tr->cell) + 1;
         k1 = ceil(fmax(x0, x1) / tr->cell) - 1;
-        for (k = k0; k <= k1 && n < w->capC - 1; k++) {
+        for (k = dv[a] > 0 ? k0 : k1; k >= k0 && k <= k1 && n < cap - 2; k += dv[a] > 0 ? 1 : -1) {
             double t = (k * tr->cell - ov[a]) / dv[a];
-            if (t > t0 && t < t1) w->cut[n++] = t;
+            if (t > t0 && t < t1) in[n++] = t;
         }
     }
-    w->cut[n++] = t1;
-    qsort(w->cut + 1, n - 2, sizeof *w->cut, cmp_double);
-    return n;
-}
-
-/* The class of f^ in the cell holding x (voxel coords): 1, 0 or -1 (undecided). */
-static int cell_class(const tracer *tr, const double x[3])
-{
-    size_t idx = 0, stride = 1;
-    int a;
-    for (a = 0; a < 3; a++) {
-        double c = floor(x[a] / tr->cell);
-        size_t ci = c < 0 ? 0 : (size_t)c;
-        if (ci >= tr->nc[a]) ci = tr->nc[a] - 1;
-        idx += ci * stride;
-        stride *= tr->nc[a];
+    run[3] = n;
+    for (a = 0; a < 3; a++) pos[a] = run[a];
+    out[m++] = t0;
+    for (;;) {
+        int best = -1;
+        for (a = 0; a < 3; a++)
+            if (pos[a] < run[a + 1] && (best < 0 || in[pos[a]] < in[pos[best]])) best = a;
+        if (best < 0) break;
+        out[m++] = in[pos[best]++];
     }
-    return tr->cls[idx];
+    out[m++] = t1;
+    return m;
 }
 
 /* Runs of the cells the grid leaves undecided are traced exactly (trace_span). */
@@ -394,7 +388,7 @@ wvol_status wvol__trace(const tracer *tr, tws *w, const double o[3], const doubl
     wvol_store_dir_to_voxel(tr->g.s, d, dv);
     speed = sqrt(dv[0] * dv[0] + dv[1] * dv[1] + dv[2] * dv[2]);
     if (!(speed > 0) || !clip(tr, ov, dv, tmin, &t0, &t1)) return WVOL_OK;
-    if (!tr->cls) return trace_span(tr, w, o, d, ov, dv, t0, t1, speed, &prev, h, err);
+    if (!tr->cls[0]) return trace_span(tr, w, o, d, ov, dv, t0, t1, speed, &prev, h, err);
     n = cell_cuts(tr, w, ov, dv, t0, t1);
     WVOL_RETURN_IF(n < 2, err, WVOL_ERR_NOMEM, "iso trace: out of memory");
     for (i = 0; i + 1 < n;) {
@@ -402,7 +396,7 @@ wvol_status wvol__trace(const tracer *tr, tws *w, const double o[3], const doubl
         size_t j;
         int a, cls;
         for (a = 0; a < 3; a++) x[a] = ov[a] + tm * dv[a];
-        cls = cell_class(tr, x);
+        cls = wvol__trace_cell_class(tr, &w->cellq, x, &w->cells, &w->cell_seconds);
         if (cls >= 0) {
             if (prev >= 0 && prev != cls) { /* a jump across iso on the cell face */
                 set_hit(tr, o, d, ov, dv, w->cut[i], h);
@@ -415,7 +409,7 @@ wvol_status wvol__trace(const tracer *tr, tws *w, const double o[3], const doubl
         for (j = i + 1; j + 1 < n; j++) { /* the run of undecided cells */
             double tj = 0.5 * (w->cut[j] + w->cut[j + 1]);
             for (a = 0; a < 3; a++) x[a] = ov[a] + tj * dv[a];
-            if (cell_class(tr, x) >= 0) break;
+            if (wvol__trace_cell_class(tr, &w->cellq, x, &w->cells, &w->cell_seconds) >= 0) break;
         }
         WVOL_FORWARD(trace_span(tr, w, o, d, ov, dv, w->cut[i], w->cut[j], speed, &prev, h, err));
         if (h->hit) return WVOL_OK;

@@ -293,6 +293,21 @@ double wvol_basis_periodised_sup(const wvol_basis *b, int which)
     return best;
 }
 
+void wvol_basis_piece_range(const wvol_basis *b, int which, int i, double *lo, double *hi)
+{
+    double bz[4], mag = 0.0;
+    int j;
+    piece_bernstein(wvol_basis_coeffs(b, which, WVOL_BASIS_VALUE, i), b->h, bz);
+    *lo = *hi = bz[0];
+    for (j = 0; j < 4; j++) {
+        *lo = fmin(*lo, bz[j]);
+        *hi = fmax(*hi, bz[j]);
+        mag += fabs(bz[j]);
+    }
+    *lo -= 1e-12 * mag;
+    *hi += 1e-12 * mag;
+}
+
 wvol_status wvol_basis_create_majorant(wvol_basis **out, const wvol_filter *f, int J, wvol_error *err)
 {
     wvol_basis *b;
