@@ -46,23 +46,33 @@ ROOT = pathlib.Path(__file__).resolve().parents[1]
 WVOL = os.environ.get("WVOL_BIN", str(ROOT / "build" / "wvol"))
 RESULTS = ROOT / "bench" / "results"
 KINDS = {"skull": ["--noise", "20"], "turbulence": []}
+SHORT = {"turbulence": "turb"}  # file names of the kept 2048^3 outputs
 TARGETS = [40, 60]
 SLAB = 64
+# wvol's threads (--threads): 1 by default, the single-thread speed the issue's goal is
+# stated in; OpenMP waits passively, so that threads waiting at a barrier give the core
+# back on a machine shared with other jobs (spinning there cost more than the work)
+THREADS = os.environ.get("WVOL_THREADS", "1")
+ENV = dict(os.environ, OMP_WAIT_POLICY=os.environ.get("OMP_WAIT_POLICY", "passive"))
 
 
-def run_rss(cmd, env=None):
+def run_rss(cmd, env=None, cpu=None):
     """Runs a command under /usr/bin/time and returns (stdout, wall seconds, peak RSS in bytes
     of that process). (os.wait4's ru_maxrss of a child forked from this Python would count the
-    parent's pages the child held before exec: a Python holding ZFP's arrays inflated it.)"""
+    parent's pages the child held before exec: a Python holding ZFP's arrays inflated it.)
+    cpu: a dict that receives the process's user + system CPU seconds (on a shared machine
+    the wall time includes the time other jobs held the cores; the CPU time does not)."""
     with tempfile.NamedTemporaryFile(mode="w+", suffix=".time") as tf:
-        full = ["/usr/bin/time", "-f", "%M", "-o", tf.name] + [str(c) for c in cmd]
+        full = ["/usr/bin/time", "-f", "%M %U %S", "-o", tf.name] + [str(c) for c in cmd]
         t0 = time.perf_counter()
         r = subprocess.run(full, capture_output=True, text=True, env=env)
         wall = time.perf_counter() - t0
         if r.returncode != 0:
             raise RuntimeError(f"{' '.join(map(str, cmd))}: {r.stderr.strip()}")
-        kb = int(open(tf.name).read().strip().splitlines()[-1])
-    return r.stdout, wall, kb * 1024
+        kb, user, sys_ = open(tf.name).read().strip().splitlines()[-1].split()
+    if cpu is not None:
+        cpu["cpu_seconds"] = float(user) + float(sys_)
+    return r.stdout, wall, int(kb) * 1024
 
 
 def synth_spec(kind, n):
@@ -70,15 +80,18 @@ def synth_spec(kind, n):
     return f"synth:{kind},size={n}{extra}"
 
 
-def compress(src, n, target, workdir, extra=()):
-    out = workdir / "v.wvc"
-    cmd = [WVOL, "compress", src, "-o", out, "--psnr", str(target), "--json", *extra]
+def compress(src, n, target, workdir, extra=(), keep=None):
+    out = keep or workdir / "v.wvc"
+    cmd = [WVOL, "compress", src, "-o", out, "--psnr", str(target), "--json", "--threads", THREADS, *extra]
     if not str(src).startswith("synth:"):
         cmd[3:3] = ["--dims", f"{n}x{n}x{n}"]
-    stdout, wall, rss = run_rss(cmd)
+    cpu = {}
+    stdout, wall, rss = run_rss(cmd, env=ENV, cpu=cpu)
     rep = json.loads(stdout)
-    os.remove(out)
-    return {"target": target, "seconds": wall, "mbs": 4 * n**3 / 1e6 / wall, "peak_rss": rss,
+    if not keep:
+        os.remove(out)
+    return {"target": target, "seconds": wall, "cpu_seconds": cpu["cpu_seconds"], "mbs": 4 * n**3 / 1e6 / wall,
+            "cpu_mbs": 4 * n**3 / 1e6 / cpu["cpu_seconds"], "peak_rss": rss,
             "bpv": rep["bits_per_voxel"], "psnr": rep["predicted"]["psnr"], "passes": rep.get("passes", 1),
             "streamed": bool(rep.get("streamed")), "window_bytes": rep.get("window_bytes"),
             "writer_bytes": rep.get("writer_bytes"), "step": rep["step"], "stage_seconds": rep["seconds"]}
@@ -151,7 +164,30 @@ def zfp_at_targets(path, n):
 
 
 # ---------------------------------------------------------------- the run
-def bench_size(kind, n, workdir, depth):
+def region_reads(path, n, depth, workdir):
+    """Time, peak RSS and what is read for a 64^3 and a 256^3 region at full resolution (at the
+    centre) and the whole volume at level 2 (as a region: through the file-backed store, within
+    --memory's default 1 GiB), each as its own `wvol decompress` process."""
+    out = []
+    c, cz = n // 2, depth // 2
+
+    def box(h):
+        hz = min(h, cz)
+        return ["--roi", ",".join(map(str, [c - h, c - h, cz - hz, c + h, c + h, cz + hz]))], 4 * h * h * hz
+
+    for name, (extra, voxels) in (("64^3 region", box(32)), ("256^3 region", box(128)),
+                                  ("level 2, whole", (["--level", "2", "--roi", f"0,0,0,{n},{n},{depth}"], (n // 4) ** 2 * (depth // 4)))):
+        dst = workdir / "region.raw"
+        cpu = {}
+        stdout, wall, rss = run_rss([WVOL, "decompress", path, "-o", dst, "--json", *extra], env=ENV, cpu=cpu)
+        rep = json.loads(stdout)
+        os.remove(dst)
+        out.append({"read": name, "voxels_out": voxels, "seconds": wall, "cpu_seconds": cpu["cpu_seconds"],
+                    "peak_rss": rss, "chunks": rep.get("chunks"), "file_bytes": os.path.getsize(path)})
+    return out
+
+
+def bench_size(kind, n, workdir, depth, keep_dir=None, big_targets=(40,)):
     row = {"kind": kind, "n": n, "voxels": n**3}
     if n > 1024:
         # streamed from the generator only, never written: n x n x depth slices (the memory
@@ -159,9 +195,18 @@ def bench_size(kind, n, workdir, depth):
         row["depth"] = depth
         row["voxels"] = n * n * depth
         spec = synth_spec(kind, n).replace(f"size={n}", f"size={n}x{n}x{depth}")
-        row["compress"] = [compress(spec, n, 40, workdir)]
-        c = row["compress"][0]
-        c["mbs"] = 4 * n * n * depth / 1e6 / c["seconds"]
+        row["compress"] = []
+        for t in big_targets:
+            # the first target's file is kept (other tools read it); the others are removed
+            keep = pathlib.Path(keep_dir) / f"{SHORT.get(kind, kind)}_{n}.wvc" if keep_dir and t == big_targets[0] else None
+            c = compress(spec, n, t, workdir, keep=keep)
+            c["mbs"] = 4 * n * n * depth / 1e6 / c["seconds"]
+            c["cpu_mbs"] = 4 * n * n * depth / 1e6 / c["cpu_seconds"]
+            if keep:
+                c["file"] = str(keep)
+                row["regions"] = region_reads(keep, n, depth, workdir)
+            row["compress"].append(c)
+            print(json.dumps(c), flush=True)
         return row
     raw = workdir / f"{kind}{n}.raw"
     _, wall, rss = run_rss([WVOL, "synth", kind, "--size", str(n), "-o", raw, *KINDS[kind]])
@@ -261,12 +306,15 @@ def main():
     ap.add_argument("--kinds", default=",".join(KINDS), help="skull,turbulence")
     ap.add_argument("--out", default="large", help="results name in bench/results/")
     ap.add_argument("--workdir", help="folder for the raw files (default: a temporary one)")
+    ap.add_argument("--keep", help="2048^3: keep the first target's .wvc in this folder (KIND_2048.wvc) and "
+                                   "time region reads from it")
+    ap.add_argument("--big-targets", default="40", help="2048^3: PSNR targets (default 40)")
     a = ap.parse_args()
     sizes = [64, 128] if a.quick else [256, 512, 1024] + ([2048] if a.big else [])
     if a.sizes:
         sizes = [int(s) for s in a.sizes.split(",")]
     res = {"machine": f"{cpu_model()}, {os.cpu_count()} cores, {platform.system()}",
-           "threads": os.environ.get("OMP_NUM_THREADS", str(os.cpu_count())),
+           "threads": THREADS, "omp_wait_policy": ENV["OMP_WAIT_POLICY"],
            "date": time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime()), "rows": []}
     t_all = time.perf_counter()
     with tempfile.TemporaryDirectory(dir=a.workdir) as tmp:
@@ -274,7 +322,7 @@ def main():
         for n in sizes:
             for kind in a.kinds.split(","):
                 t0 = time.perf_counter()
-                row = bench_size(kind, n, work, a.depth)
+                row = bench_size(kind, n, work, a.depth, a.keep, tuple(int(t) for t in a.big_targets.split(",")))
                 row["bench_seconds"] = time.perf_counter() - t0
                 res["rows"].append(row)
                 c = row["compress"][0]
