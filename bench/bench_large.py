@@ -179,7 +179,7 @@ def region_reads(path, n, depth, workdir):
 
     def box(h):
         hz = min(h, cz)
-        return ["--roi", ",".join(map(str, [c - h, c - h, cz - hz, c + h, c + h, cz + hz]))], 4 * h * h * hz
+        return ["--roi", ",".join(map(str, [c - h, c - h, cz - hz, c + h, c + h, cz + hz]))], 8 * h * h * hz
 
     for name, (extra, voxels) in (("64^3 region", box(32)), ("256^3 region", box(128)),
                                   ("level 2, whole", (["--level", "2", "--roi", f"0,0,0,{n},{n},{depth}"], (n // 4) ** 2 * (depth // 4)))):
@@ -311,6 +311,11 @@ def write_md(res, path):
                          f"{g['cpu_seconds']:.2f} | {g['peak_rss'] / 2**20:.0f} | {ch.get('decoded', '-')} / "
                          f"{ch.get('file_chunks', '-')} | {rd / 1e6:.2f} | {g['file_bytes'] / 1e6:.1f} | "
                          f"{rd / g['file_bytes']:.4f} |")
+    for r in res["rows"]:
+        if "depth" in r and r.get("compress"):
+            L += ["", f"{r['kind']} {r['n']}^2 x {r['depth']}: " + "; ".join(
+                f"{c['target']} dB took {c['seconds'] / 60:.1f} min in one run (not split), streamed from the "
+                f"generator (made twice: one pass for the statistics, one for the writer)" for c in r["compress"]) + "."]
     zs = [r for r in res["rows"] if r.get("zfp", {}).get("slab_starts")]
     for r in zs:
         L += ["", f"ZFP at {r['n']}^3 ({r['kind']}): by slabs of {SLAB} slices as a user would, on "
