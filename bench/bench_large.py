@@ -346,7 +346,7 @@ def plot(res, path):
         return
     fig, ax = plt.subplots(1, 3, figsize=(15, 4.5))
     for kind, mk in zip(KINDS, "os"):
-        rows = [r for r in res["rows"] if r["kind"] == kind]
+        rows = [r for r in res["rows"] if r["kind"] == kind and r.get("compress")]
         n = [r["n"] for r in rows]
         ax[0].plot(n, [1e9 * r["compress"][0]["seconds"] / r["voxels"] for r in rows], mk + "-", label=f"{kind} streamed")
         ax[1].plot(n, [r["compress"][0]["peak_rss"] / 2**30 for r in rows], mk + "-", label=f"{kind} streamed")
