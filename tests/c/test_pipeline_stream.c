@@ -255,6 +255,7 @@ static void refusals_leave_no_file(void)
     }
 }
 
+#if !defined(__SANITIZE_ADDRESS__)
 /* Compresses synth turbulence 192 x 192 x depth (streamed, 50 dB) in a child process and
  * returns the child's peak resident bytes from the kernel's accounting (wait4), with the
  * window and writer bytes the report gives; -1 on failure. The child starts as a copy of
@@ -294,6 +295,7 @@ static long long child_peak(size_t depth, size_t held[2])
     if (wait4(pid, &st, 0, &ru) != pid || !WIFEXITED(st) || WEXITSTATUS(st) != 0) return -1;
     return (long long)ru.ru_maxrss * 1024;
 }
+#endif
 
 /* The streamed path holds the transform's window and the writer's rows, not the volume: a
  * 4x deeper volume (144 MiB dense) peaks within a few MiB of the shallow one and within
