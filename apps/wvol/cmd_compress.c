@@ -246,8 +246,9 @@ int wvol_cmd_compress(int argc, char **argv)
                            "Transforms the volume, optionally selects coefficients by energy (with regions of\n"
                            "interest and a level cut), quantises with a dead-zone step chosen from the error\n"
                            "target and entropy-codes each sub-band (docs/wvc-format.md). With --psnr the step\n"
-                           "alone meets the target (default: --psnr 50). It then decodes what it wrote and\n"
-                           "prints sizes, ratio, bits per voxel, predicted and measured error, and timings.",
+                           "alone meets the target (default: --psnr 50). It prints sizes, ratio, bits per\n"
+                           "voxel, the encoder's exact error and timings; with --verify it also decodes what\n"
+                           "it wrote and prints the measured error.",
                            opts);
             return CLI_OK;
         } else if (!strcmp(o->name, "output")) {

@@ -27,6 +27,7 @@ static const cli_opt opts[] = {
     {"variant", 0, 1, "textures: gratings|frequencies|dots|mixed; shepp-logan: kak-slaney|yu-ye-wang; skull: head|ct (with a patient table)"},
     {"labels", 0, 1, "also write the label map (skull, textures) to this file"},
     {"gzip", 0, 0, "NRRD output: gzip encoding instead of raw"},
+    {"slab", 0, 1, "Z0,NZ: write only slices Z0 .. Z0+NZ-1 of the volume (raw or NRRD; origin moved to slice Z0)"},
     {"list", 0, 0, "list the generators and exit"},
     CLI_JSON_OPT,
     CLI_HELP_OPT,
@@ -48,8 +49,9 @@ static size_t slab_slices(const size_t dims[3])
 /* Generates slab by slab into the output files (and the label file), with the range and
  * mean of the values; v and lab (may be NULL) get the geometry only (data NULL). */
 static wvol_status synth_stream(wvol_volume *v, wvol_volume *lab, volume_out files[2], const wvol_synth_params *sp,
-                                const char *kind, const char *out, const char *labels_out, int gzip, double *vmin,
-                                double *vmax, double *mean, double *lab_max, double *t_gen, wvol_error *err)
+                                const char *kind, const char *out, const char *labels_out, int gzip,
+                                const size_t slab[2], double *vmin, double *vmax, double *mean, double *lab_max,
+                                double *t_gen, wvol_error *err)
 {
     wvol_synth_gen *g = NULL;
     wvol_slab_writer *w[2] = {NULL, NULL};
@@ -63,6 +65,16 @@ static wvol_status synth_stream(wvol_volume *v, wvol_volume *lab, volume_out fil
     if ((s = wvol_synth_gen_open(&g, kind, sp, err)) != WVOL_OK) return s;
     memset(v, 0, sizeof *v);
     wvol_synth_gen_geometry(g, dims, v->spacing, v->origin);
+    if (slab[1]) {
+        /* slices slab[0] .. slab[0] + slab[1] - 1 of the whole volume, where they lie in it */
+        if (slab[0] >= dims[2] || slab[1] > dims[2] - slab[0]) {
+            wvol_synth_gen_close(g);
+            return wvol_error_set(err, WVOL_ERR_ARG, "--slab %zu,%zu: the volume has %zu slices", slab[0], slab[1],
+                                  dims[2]);
+        }
+        v->origin[2] += (double)slab[0] * v->spacing[2];
+        dims[2] = slab[1];
+    }
     v->nx = dims[0], v->ny = dims[1], v->nz = dims[2];
     if (lab) *lab = *v;
     S = slab_slices(dims);
@@ -82,7 +94,7 @@ static wvol_status synth_stream(wvol_volume *v, wvol_volume *lab, volume_out fil
     for (size_t z0 = 0; z0 < dims[2] && !s; z0 += S) {
         size_t nz = dims[2] - z0 < S ? dims[2] - z0 : S, n = nz * slice;
         double t = cli_now();
-        s = wvol_synth_gen_slab(g, buf, lbuf, z0, nz, err);
+        s = wvol_synth_gen_slab(g, buf, lbuf, slab[0] + z0, nz, err);
         gen += cli_now() - t;
         if (s) break;
         for (size_t i = 0; i < n; i++) {
@@ -127,12 +139,12 @@ int wvol_cmd_synth(int argc, char **argv)
     const char *val, *kind_name = NULL, *out = NULL, *labels_out = NULL;
     int r, json = 0, gzip = 0, kind, have_size = 0;
     long count;
-    size_t bytes;
+    size_t bytes, slab[2] = {0, 0};
     wvol_synth_params sp;
     wvol_volume *v = NULL, *lab = NULL;
     wvol_error err;
     volume_out files[2];
-    double t0, t1, vmin, vmax, mean, lab_max = 0;
+    double t0, t1 = 0, vmin, vmax, mean, lab_max = 0;
     wvol_volume vhead, lhead; /* the streamed volume's geometry (no samples held) */
     int streamed;
 
@@ -145,7 +157,7 @@ int wvol_cmd_synth(int argc, char **argv)
             kind_name = val;
         } else if (o->short_name == 'h') {
             cli_print_help("synth", "KIND -o OUT [--size N|NXxNYxNZ] [--spacing X,Y,Z] [--seed S] [--noise SIGMA]\n"
-                                    "       [--labels OUT] [--variant NAME] [--gzip] [--json]",
+                                    "       [--labels OUT] [--variant NAME] [--gzip] [--slab Z0,NZ] [--json]",
                            "Makes a deterministic synthetic volume (same parameters and seed, same bytes)\n"
                            "and writes it in the format its extension names. Generators (--list):\n"
                            "gaussian, blobs, skull, textures, shepp-logan, turbulence. docs/datasets.md describes them.\n"
@@ -185,6 +197,13 @@ int wvol_cmd_synth(int argc, char **argv)
             sp.count = (int)count;
         } else if (!strcmp(o->name, "variant")) {
             sp.variant = val;
+        } else if (!strcmp(o->name, "slab")) {
+            unsigned long long a, b;
+            int used = 0;
+            if (sscanf(val, "%llu,%llu%n", &a, &b, &used) != 2 || val[used] || val[0] == '-' || strchr(val, '-') ||
+                b == 0)
+                return cli_usage("synth", "--slab '%s': expected Z0,NZ (first slice and a count >= 1)", val);
+            slab[0] = (size_t)a, slab[1] = (size_t)b;
         }
     }
     if (!kind_name) return cli_usage("synth", "missing generator (one of: gaussian, blobs, skull, textures, shepp-logan, turbulence)");
@@ -215,11 +234,13 @@ int wvol_cmd_synth(int argc, char **argv)
                (!labels_out || wvol_path_has_ext(labels_out, ".raw") || wvol_path_has_ext(labels_out, ".nrrd") ||
                 wvol_path_has_ext(labels_out, ".nhdr"));
 
+    if (slab[1] && !streamed)
+        return cli_usage("synth", "--slab needs raw or NRRD outputs (written slab by slab)");
     wvol_error_clear(&err);
     t0 = cli_now();
     if (streamed) {
         if (synth_stream(&vhead, labels_out ? &lhead : NULL, files, &sp, wvol_synth_kind_name(kind), out,
-                         labels_out, gzip, &vmin, &vmax, &mean, &lab_max, &t1, &err) != WVOL_OK)
+                         labels_out, gzip, slab, &vmin, &vmax, &mean, &lab_max, &t1, &err) != WVOL_OK)
             return cli_fail_err("synth", &err);
         t1 += t0; /* generation time, from the start */
         v = &vhead;

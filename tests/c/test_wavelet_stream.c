@@ -243,6 +243,37 @@ static void refusals(void)
     wvol_dwt3_stream_destroy(s);
 }
 
+/* Slices of 4 MiB and more are transformed in smaller batches (less memory for the ring
+ * and the slab): the coefficients stay the in-memory transform's, and the window of a
+ * 2048^2 stream holds fewer slices than eight per batch would. */
+static void large_slices_equal_the_in_memory_transform(void)
+{
+    const wvol_filter *f = NULL;
+    wvol_dwt3_stream *s = NULL;
+    wvol_error err;
+    wvol_volume *v = NULL;
+    size_t rows = 0;
+    CHECK(wvol_filter_get(&f, "db2", &err) == WVOL_OK, "%s", err.message);
+    CHECK(wvol_volume_create(&v, 1024, 1024, 21, &err) == WVOL_OK, "%s", err.message);
+    if (v && f) {
+        /* no symmetry, every scale: a hashed value plus a ramp */
+        for (size_t i = 0; i < v->nx * v->ny * v->nz; i++)
+            v->data[i] = (float)(wvol_hash64(i) >> 40) * 1e-4f + (float)(i % 1031) * 0.01f;
+        compare(v, f, 2, 5);
+        compare(v, f, 3, 21);
+    }
+    wvol_volume_destroy(v);
+    /* db2 at 2048^2: the level-1 window is the 2 wrap rows, a ring of L + batch and the
+     * two output rows, with the last input slice and level 2's quarter-size window; with a
+     * batch of 8 that is about 21 slices of 16 MiB, with 2 about 14 */
+    CHECK(f && wvol_dwt3_stream_create(&s, f, 2, 2048, 2048, 64, count_rows, &rows, &err) == WVOL_OK, "%s",
+          err.message);
+    if (s)
+        CHECK(wvol_dwt3_stream_bytes(s) < (size_t)16 * 2048 * 2048 * 4, "window of %zu bytes at 2048^2",
+              wvol_dwt3_stream_bytes(s));
+    wvol_dwt3_stream_destroy(s);
+}
+
 int main(void)
 {
     every_family_equals_the_in_memory_transform();
@@ -250,6 +281,7 @@ int main(void)
     thin_and_flat_volumes();
     memory_does_not_grow_with_depth();
     source_transform_equals_in_memory();
+    large_slices_equal_the_in_memory_transform();
     refusals();
     return check_summary("test_wavelet_stream");
 }

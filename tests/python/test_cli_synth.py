@@ -105,6 +105,24 @@ def test_synth_labels_match_the_volume(wvol, tmp_path):
     assert set(np.unique(labels)) == {0, 1, 2, 3, 4}
 
 
+@pytest.mark.parametrize("kind", ["skull", "turbulence"])
+def test_synth_slab_is_those_slices_of_the_whole(wvol, tmp_path, kind):
+    """--slab Z0,NZ writes the same values as slices Z0.. of the whole volume (noise included:
+    it is hashed from the voxel's index in the whole), with the origin at slice Z0."""
+    whole, part = tmp_path / "w.raw", tmp_path / "p.nrrd"
+    assert wvol("synth", kind, "-o", whole, "--size", "24x20x30", "--noise", "5").returncode == 0
+    r = wvol("synth", kind, "-o", part, "--size", "24x20x30", "--noise", "5", "--slab", "11,7", "--json")
+    assert r.returncode == 0, r.stderr
+    rep = json.loads(r.stdout)
+    full = json.loads(wvol("synth", kind, "-o", whole, "--size", "24x20x30", "--noise", "5", "--json").stdout)
+    assert rep["dims"] == [24, 20, 7]
+    assert rep["origin"][2] == pytest.approx(full["origin"][2] + 11 * full["spacing"][2])
+    w = np.fromfile(whole, "<f4").reshape(30, 20, 24)
+    raw = part.read_bytes()
+    p = np.frombuffer(raw[len(raw) - 4 * 24 * 20 * 7:], "<f4").reshape(7, 20, 24)
+    assert np.array_equal(w[11:18], p)
+
+
 def test_synth_list_and_help(wvol):
     r = wvol("synth", "--list")
     assert r.returncode == 0
@@ -143,6 +161,10 @@ USAGE_CASES = [
     (["synth", "skull", "-o", "x.raw", "--labels", "x.raw"], "same file"),
     (["synth", "skull", "-o", "x.xyz"], "cannot write this format"),
     (["synth", "skull", "-o", "x.raw", "--gzip"], "--gzip"),
+    (["synth", "skull", "-o", "x.raw", "--slab", "3,0"], "--slab"),
+    (["synth", "skull", "-o", "x.raw", "--slab", "3"], "--slab"),
+    (["synth", "skull", "-o", "x.raw", "--slab", "-1,2"], "--slab"),
+    (["synth", "skull", "-o", "x.raw", "--size", "16", "--slab", "10,7"], "16 slices"),
     (["synth", "skull", "-o", "x.raw", "--size", "4294967296x4294967296x4294967296"], "overflow"),
     (["synth", "skull", "-o", "x.raw", "--size", "18446744073709551615x2x1"], "overflow"),
     (["demo", "--size", "0"], "--size"),

@@ -260,11 +260,16 @@ static int band_index(const wvc2_level *G, int band)
     return -1;
 }
 
+enum { ROW_SLACK = 4 };
+
 static int reserve_rows(wlevel *L, const wvc2_level *G, size_t rows)
 {
     if (rows <= L->cap_rows) return 0;
-    size_t cap = L->cap_rows ? L->cap_rows : 8;
-    while (cap < rows) cap *= 2;
+    /* grow by a few rows, not by doubling: a streamed arrival needs tile_z plus the lag of
+     * the coarser level's rows (a few), and at 2048^3 a level-1 row of 7 bands is 28 MiB, so
+     * doubling 32 + 3 rows to 64 would hold 0.8 GiB for nothing. Large blocks are mmapped,
+     * and realloc moves their pages without copying; growth stops after the first tile row. */
+    size_t cap = rows + ROW_SLACK;
     if (cap > G->e[2]) cap = G->e[2];
     for (int i = 0; i < G->nb; i++) {
         int32_t *q = realloc(L->q[i], cap * L->plane * sizeof *q);
@@ -506,7 +511,7 @@ size_t wvol__wvc2_writer_memory(const wvc2_header *h, size_t lag_rows)
     if (h->levels < 1 || h->levels > WVOL_WVC_MAX_LEVELS || wvol__wvc2_geom(&g, p, h->levels, tile, tz)) return 0;
     for (int m = 1; m <= h->levels; m++) {
         const wvc2_level *G = &g.lv[m];
-        size_t rows = 2 * (size_t)tz + lag_rows;
+        size_t rows = (size_t)tz + lag_rows + ROW_SLACK;
         if (rows > G->e[2]) rows = G->e[2];
         total += rows * G->e[0] * G->e[1] * (size_t)G->nb * sizeof(int32_t);
         total += G->count * ((size_t)G->nb * sizeof(sec_stats) + sizeof(float) + sizeof(chunk_rec));

@@ -4,7 +4,7 @@
  * depend on the number of slices.
  *
  * Per level, a window of xy-transformed slices: the first L - 2 (the periodic wrap rows
- * the last outputs need, kept from the start) and a ring of the latest L + BATCH. The
+ * the last outputs need, kept from the start) and a ring of the latest L + a batch. The
  * z output k needs input rows 2k .. 2k + L - 1 (mod the level's depth): it is made as
  * soon as row 2k + L - 1 has arrived (the last ones when the last row has), by the same
  * kernels, blocks and tap order as the in-memory transform (dwt3_impl.h), so the
@@ -18,8 +18,12 @@
 #include "wavelet/wavelet_internal.h"
 #include "wvol/source.h"
 
-/* slices transformed in x and y together (in parallel) before the z outputs they allow */
+/* slices transformed in x and y together (in parallel) before the z outputs they allow;
+ * fewer when a slice is large (BATCH_BYTES of them at most, but at least 2): each one in
+ * the batch costs a ring slot per level and a slice of the reader's slab, and at 2048^2
+ * eight slices are 128 MiB twice over while two keep two threads busy */
 enum { BATCH = 8 };
+#define BATCH_BYTES ((size_t)16 << 20)
 
 typedef struct level_state {
     size_t cx, cy, cz, plane; /* this level's input cube (cz rows of cx x cy) */
@@ -32,6 +36,7 @@ typedef struct level_state {
 struct wvol_dwt3_stream {
     const wvol_filter *f;
     int levels, L, threads; /* threads: scratch slots, and the most the parallel loops use */
+    size_t batch;           /* slices per take() (BATCH, fewer for large slices) */
     size_t n[3], p[3];
     float h[WVOL__MAX_TAPS], g[WVOL__MAX_TAPS];
     level_state lv[31];
@@ -90,6 +95,8 @@ wvol_status wvol_dwt3_stream_create(wvol_dwt3_stream **out, const wvol_filter *f
     s->n[0] = nx, s->n[1] = ny, s->n[2] = nz;
     for (int a = 0; a < 3; a++) s->p[a] = wvol_dwt_padded_size(s->n[a], levels);
     for (int i = 0; i < f->length; i++) s->h[i] = (float)f->h[i], s->g[i] = (float)f->g[i];
+    s->batch = BATCH;
+    while (s->batch > 2 && s->batch * s->p[0] * s->p[1] * sizeof(float) > BATCH_BYTES) s->batch /= 2;
     /* scratch per thread: the in-memory plan's for the x rows and y column blocks, and
      * L rows of a z column block (not the plan's whole z column: that grows with the depth) */
     {
@@ -122,10 +129,10 @@ wvol_status wvol_dwt3_stream_create(wvol_dwt3_stream **out, const wvol_filter *f
         l->cy = wvol__extent(s->p[1], m - 1);
         l->cz = wvol__extent(s->p[2], m - 1);
         l->plane = l->cx * l->cy;
-        if (l->cz < 2 * L + BATCH) {
+        if (l->cz < 2 * L + s->batch) {
             l->head = l->cz, l->ring = 0, l->slots = l->cz;
         } else {
-            l->head = L - 2, l->ring = L + BATCH, l->slots = l->head + l->ring;
+            l->head = L - 2, l->ring = L + s->batch, l->slots = l->head + l->ring;
         }
         l->rows = malloc(l->slots * l->plane * sizeof(float));
         l->lo = malloc(2 * l->plane * sizeof(float));
@@ -232,7 +239,7 @@ wvol_status wvol_dwt3_stream_push(wvol_dwt3_stream *s, const float *slices, size
                    "streamed transform: %zu slices past the volume's %zu", s->pushed + count, s->n[2]);
     slice = s->n[0] * s->n[1];
     for (size_t done = 0; done < count;) {
-        size_t b = count - done < BATCH ? count - done : BATCH;
+        size_t b = count - done < s->batch ? count - done : s->batch;
         wvol_status st = take(s, slices + done * slice, s->pushed, b, err);
         if (st) {
             s->failed = 1;
@@ -274,9 +281,9 @@ wvol_status wvol_dwt3_source(wvol_source *src, const wvol_filter *f, int levels,
     wvol_source_geometry(src, dims, NULL, NULL);
     WVOL_FORWARD(wvol_dwt3_stream_create(&s, f, levels, dims[0], dims[1], dims[2], fn, user, err));
     slice = dims[0] * dims[1];
-    /* slabs of about 16 MiB (at least BATCH slices when a slice is smaller) */
+    /* slabs of about 16 MiB (at least a batch of slices when a slice is smaller) */
     S = ((size_t)16 << 20) / (slice * sizeof(float));
-    S = S < BATCH ? BATCH : S > dims[2] ? dims[2] : S;
+    S = S < s->batch ? s->batch : S > dims[2] ? dims[2] : S;
     if (S > dims[2]) S = dims[2];
     buf = malloc(S * slice * sizeof(float));
     if (!buf) {
