@@ -474,6 +474,22 @@ static void bad_input_is_refused(void)
         CHECK(wvol_transport_window_read_png(&w, path, &e) == WVOL_ERR_FORMAT && mentions(&e, "RGB"), "grey PNG: %s",
               e.message);
         unlink(path);
+        {
+            /* an RGB window read back: the writer's sRGB 8-bit encoding decoded again, so each
+             * value is within half an 8-bit step of the written one in sRGB terms */
+            float rgb[5 * 3 * 3];
+            int bad = 0;
+            for (int i = 0; i < 45; i++) rgb[i] = (float)(i % 7) / 6.0f * (float)(i % 3 + 1) / 3.0f;
+            snprintf(path, sizeof path, "%s/rgb.png", dir);
+            CHECK(wvol_png_write(path, 5, 3, 3, rgb, NULL) == WVOL_OK, "write rgb");
+            CHECK(wvol_transport_window_read_png(&w, path, &e) == WVOL_OK && w.width == 5 && w.height == 3,
+                  "RGB window: %s", e.message);
+            for (int i = 0; w.rgb && i < 45; i++)
+                if (fabs(wvol_linear_to_srgb(w.rgb[i]) - wvol_linear_to_srgb(rgb[i])) > 0.5 / 255 + 1e-6) bad++;
+            CHECK(w.rgb && bad == 0, "RGB window values round-trip (%d off)", bad);
+            wvol_transport_window_free(&w);
+            unlink(path);
+        }
         snprintf(path, sizeof path, "%s/junk.png", dir);
         f = fopen(path, "wb");
         if (f) fputs("not a png at all", f), fclose(f);

@@ -52,6 +52,13 @@ WVOL_API wvol_status wvol_exr_read_channel(float **out, int *width, int *height,
 WVOL_API wvol_status wvol_png_write(const char *path, int width, int height, int channels, const float *data,
                                     wvol_error *err);
 
+/* Reads a PNG as linear RGB floats: 8-bit sRGB decoded, palettes expanded, alpha composited
+ * over black, grey copied to the three channels. *out gets width*height*3 floats, x fastest
+ * (free() it); *colour (may be NULL) is 0 for a greyscale file. Sides above 65536 are refused
+ * before the pixels are decoded. */
+WVOL_API wvol_status wvol_png_read_rgb(float **out, int *width, int *height, int *colour, const char *path,
+                                       wvol_error *err);
+
 /* Writes the frame as an RGB PNG composited over a background colour (linear; NULL = black),
  * each colour channel scaled by `exposure` first (1 = as is). */
 WVOL_API wvol_status wvol_image_write_png(const wvol_image *img, const char *path, const float background[3],

@@ -19,6 +19,16 @@ wvol_status wvol_image_write_png(const wvol_image *img, const char *path, const 
     (void)img, (void)background, (void)exposure;
     return wvol_png_write(path, 0, 0, 0, NULL, err);
 }
+
+wvol_status wvol_png_read_rgb(float **out, int *width, int *height, int *colour, const char *path,
+                              wvol_error *err)
+{
+    if (out) *out = NULL;
+    if (width) *width = 0;
+    if (height) *height = 0;
+    if (colour) *colour = 0;
+    return wvol_png_write(path, 0, 0, 0, NULL, err);
+}
 #endif
 
 #ifndef WVOL_HAVE_OPENEXR

@@ -4,6 +4,7 @@
 #include "wvol/image.h"
 #include "wvol/io.h"
 
+#include <math.h>
 #include <png.h>
 #include <setjmp.h>
 #include <stdlib.h>
@@ -108,4 +109,49 @@ wvol_status wvol_image_write_png(const wvol_image *img, const char *path, const 
     s = wvol_png_write(path, img->width, img->height, 3, rgb, err);
     free(rgb);
     return s;
+}
+
+wvol_status wvol_png_read_rgb(float **out, int *width, int *height, int *colour, const char *path,
+                              wvol_error *err)
+{
+    png_image im;
+    unsigned char *buf;
+    size_t n;
+    WVOL_RETURN_IF(!out || !width || !height || !path, err, WVOL_ERR_ARG, "PNG read: NULL argument");
+    *out = NULL;
+    *width = *height = 0;
+    memset(&im, 0, sizeof im);
+    im.version = PNG_IMAGE_VERSION;
+    if (!png_image_begin_read_from_file(&im, path))
+        return wvol_error_set(err, WVOL_ERR_IO, "%s: cannot read as PNG: %s", path, im.message);
+    if (im.width < 1 || im.height < 1 || im.width > 65536 || im.height > 65536) {
+        png_image_free(&im);
+        return wvol_error_set(err, WVOL_ERR_DIMS, "%s: %ux%u outside 1..65536 per side", path, im.width,
+                              im.height);
+    }
+    if (colour) *colour = (im.format & PNG_FORMAT_FLAG_COLOR) != 0;
+    im.format = PNG_FORMAT_RGB; /* 8-bit sRGB; alpha composited away, palettes expanded */
+    buf = malloc(PNG_IMAGE_SIZE(im));
+    if (!buf) {
+        png_image_free(&im);
+        return wvol_error_set(err, WVOL_ERR_NOMEM, "%s: out of memory", path);
+    }
+    if (!png_image_finish_read(&im, NULL, buf, 0, NULL)) { /* frees im on failure */
+        free(buf);
+        return wvol_error_set(err, WVOL_ERR_FORMAT, "%s: PNG decoding failed: %s", path, im.message);
+    }
+    n = (size_t)im.width * im.height * 3;
+    *out = malloc(n * sizeof **out);
+    if (!*out) {
+        free(buf);
+        return wvol_error_set(err, WVOL_ERR_NOMEM, "%s: out of memory", path);
+    }
+    for (size_t i = 0; i < n; i++) {
+        double v = buf[i] / 255.0;
+        (*out)[i] = (float)(v <= 0.04045 ? v / 12.92 : pow((v + 0.055) / 1.055, 2.4));
+    }
+    *width = (int)im.width;
+    *height = (int)im.height;
+    free(buf);
+    return WVOL_OK;
 }

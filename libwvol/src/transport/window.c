@@ -5,11 +5,11 @@
 #include "transport_internal.h"
 
 #include <math.h>
-#include <png.h>
 #include <stdlib.h>
 #include <string.h>
 
 #include "core/quadrature.h"
+#include "wvol/image.h"
 
 void wvol_transport_window_free(wvol_transport_window *w)
 {
@@ -52,45 +52,21 @@ wvol_status wvol_transport_window_synthetic(wvol_transport_window *w, int size, 
 
 wvol_status wvol_transport_window_read_png(wvol_transport_window *w, const char *path, wvol_error *err)
 {
-    png_image im;
-    unsigned char *buf;
+    int width, height, colour;
+    float *rgb = NULL;
     WVOL_RETURN_IF(!w || !path, err, WVOL_ERR_ARG, "window: NULL argument");
     w->rgb = NULL;
     w->width = w->height = 0;
-    memset(&im, 0, sizeof im);
-    im.version = PNG_IMAGE_VERSION;
-    if (!png_image_begin_read_from_file(&im, path))
-        return wvol_error_set(err, WVOL_ERR_IO, "%s: cannot read as PNG: %s", path, im.message);
-    if (!(im.format & PNG_FORMAT_FLAG_COLOR)) {
-        png_image_free(&im);
-        return wvol_error_set(err, WVOL_ERR_FORMAT, "%s: greyscale PNG; the window must be an RGB image", path);
+    WVOL_FORWARD(wvol_png_read_rgb(&rgb, &width, &height, &colour, path, err));
+    if (!colour || width > 8192 || height > 8192) {
+        free(rgb);
+        if (!colour)
+            return wvol_error_set(err, WVOL_ERR_FORMAT, "%s: greyscale PNG; the window must be an RGB image", path);
+        return wvol_error_set(err, WVOL_ERR_DIMS, "%s: %dx%d outside 1..8192 per side", path, width, height);
     }
-    if (im.width < 1 || im.height < 1 || im.width > 8192 || im.height > 8192) {
-        png_image_free(&im);
-        return wvol_error_set(err, WVOL_ERR_DIMS, "%s: %ux%u outside 1..8192 per side", path, im.width, im.height);
-    }
-    im.format = PNG_FORMAT_RGB; /* 8-bit sRGB; alpha composited away, palettes expanded */
-    buf = malloc(PNG_IMAGE_SIZE(im));
-    if (!buf) {
-        png_image_free(&im);
-        return wvol_error_set(err, WVOL_ERR_NOMEM, "%s: out of memory", path);
-    }
-    if (!png_image_finish_read(&im, NULL, buf, 0, NULL)) {
-        free(buf);
-        return wvol_error_set(err, WVOL_ERR_FORMAT, "%s: PNG decoding failed: %s", path, im.message);
-    }
-    w->rgb = malloc((size_t)im.width * im.height * 3 * sizeof *w->rgb);
-    if (!w->rgb) {
-        free(buf);
-        return wvol_error_set(err, WVOL_ERR_NOMEM, "%s: out of memory", path);
-    }
-    for (size_t i = 0; i < (size_t)im.width * im.height * 3; i++) {
-        double s = buf[i] / 255.0;
-        w->rgb[i] = (float)(s <= 0.04045 ? s / 12.92 : pow((s + 0.055) / 1.055, 2.4));
-    }
-    w->width = (int)im.width;
-    w->height = (int)im.height;
-    free(buf);
+    w->rgb = rgb;
+    w->width = width;
+    w->height = height;
     return WVOL_OK;
 }
 
