@@ -43,6 +43,14 @@ static PyObject *py_wvc_file_open(PyObject *self, PyObject *args, PyObject *kw)
     return cap;
 }
 
+/* The (x, y, z) size of level s's grid: ceil(n / 2^s) along each transformed axis, n along
+ * an axis the transform leaves alone. */
+static void level_grid(const wvol_wvc_info *in, int s, size_t g[3])
+{
+    const size_t n[3] = {in->nx, in->ny, in->nz}, p[3] = {in->px, in->py, in->pz};
+    for (int a = 0; a < 3; a++) g[a] = p[a] > 1 ? (n[a] + ((size_t)1 << s) - 1) >> s : n[a];
+}
+
 /* wvc_file_info(file) -> the header's dict (as wvc_info) plus "chunks", "tile" (x/y, z),
  * "level_shapes": the (z, y, x) grid of every level 0..levels (ceil(n / 2^s) along each
  * transformed axis, n along an axis the transform leaves alone) and "level_origins": the
@@ -65,13 +73,12 @@ static PyObject *py_wvc_file_info(PyObject *self, PyObject *cap)
     origins = PyList_New(in->levels + 1);
     if (!shapes || !origins) goto fail;
     for (int s = 0; s <= in->levels; s++) {
-        const size_t n[3] = {in->nx, in->ny, in->nz}, p[3] = {in->px, in->py, in->pz};
+        const size_t p[3] = {in->px, in->py, in->pz};
         size_t g[3];
         double o[3];
-        for (int a = 0; a < 3; a++) {
-            g[a] = p[a] > 1 ? (n[a] + ((size_t)1 << s) - 1) >> s : n[a];
+        level_grid(in, s, g);
+        for (int a = 0; a < 3; a++)
             o[a] = in->origin[a] + (p[a] > 1 ? in->spacing[a] * (ldexp(1.0, s) - 1.0) * flt->center : 0.0);
-        }
         PyList_SET_ITEM(shapes, s, Py_BuildValue("(nnn)", (Py_ssize_t)g[2], (Py_ssize_t)g[1], (Py_ssize_t)g[0]));
         PyList_SET_ITEM(origins, s, Py_BuildValue("(ddd)", o[0], o[1], o[2]));
     }
@@ -122,16 +129,19 @@ static int size3(PyObject *o, size_t out[3], const char *what)
  * origin): the samples [lo, hi) (x, y, z order, in level `level`'s grid), decoding only the
  * chunks they need. With `out` (a writable C-contiguous float32 array of shape (z, y, x) of
  * the box) the samples are reconstructed in place and `out` is returned: a reader fills its
- * output slab by slab without a copy. `threads` reconstruct slices along z at once (0: all). */
+ * output slab by slab without a copy. `threads` reconstruct parts of the box along y at once
+ * (0: all). */
 static PyObject *py_wvc_file_region(PyObject *self, PyObject *args, PyObject *kw)
 {
     static char *kwlist[] = {"file", "lo", "hi", "level", "out", "threads", NULL};
-    PyObject *cap, *lo_o, *hi_o, *out_o = Py_None, *arr;
+    PyObject *cap, *lo_o, *hi_o, *out_o = Py_None;
+    PyArrayObject *o;
     int level = 0, threads = 1;
-    size_t lo[3], hi[3];
+    size_t lo[3], hi[3], g[3];
+    npy_intp want[3];
     double sp[3], org[3];
+    const wvol_wvc_info *in;
     wvol_wvc_file *f;
-    wvol_volume *v = NULL;
     wvol_error err;
     wvol_status s;
     (void)self;
@@ -142,14 +152,25 @@ static PyObject *py_wvc_file_region(PyObject *self, PyObject *args, PyObject *kw
         PyErr_Format(PyExc_ValueError, "threads must be >= 0 (0: all), got %d", threads);
         return NULL;
     }
-    if (out_o != Py_None) {
-        PyArrayObject *o;
-        npy_intp want[3];
-        for (int a = 0; a < 3; a++) want[2 - a] = hi[a] > lo[a] ? (npy_intp)(hi[a] - lo[a]) : 0;
-        if (!PyArray_Check(out_o)) {
-            PyErr_SetString(PyExc_TypeError, "out must be a numpy array");
-            return NULL;
-        }
+    /* the box must lie in the level's grid before an array of its size is made; the
+     * library refuses a level out of range itself, with its message */
+    in = wvol_wvc_file_info(f);
+    if (level >= 0 && level <= in->levels) {
+        level_grid(in, level, g);
+        for (int a = 0; a < 3; a++)
+            if (lo[a] >= hi[a] || hi[a] > g[a]) {
+                PyErr_Format(PyExc_ValueError, "wvc region: box %zu..%zu along axis %d is empty or outside 0..%zu "
+                             "(level %d)", lo[a], hi[a], a, g[a], level);
+                return NULL;
+            }
+    }
+    for (int a = 0; a < 3; a++) want[2 - a] = hi[a] > lo[a] ? (npy_intp)(hi[a] - lo[a]) : 0;
+    if (out_o == Py_None) {
+        if (!(out_o = PyArray_SimpleNew(3, want, NPY_FLOAT32))) return NULL;
+    } else if (!PyArray_Check(out_o)) {
+        PyErr_SetString(PyExc_TypeError, "out must be a numpy array");
+        return NULL;
+    } else {
         o = (PyArrayObject *)out_o;
         if (PyArray_TYPE(o) != NPY_FLOAT32 || PyArray_NDIM(o) != 3 || !PyArray_IS_C_CONTIGUOUS(o) ||
             !PyArray_ISWRITEABLE(o) || PyArray_DIM(o, 0) != want[0] || PyArray_DIM(o, 1) != want[1] ||
@@ -159,29 +180,17 @@ static PyObject *py_wvc_file_region(PyObject *self, PyObject *args, PyObject *kw
                          (long)want[0], (long)want[1], (long)want[2]);
             return NULL;
         }
-        Py_BEGIN_ALLOW_THREADS
-        s = wvol_wvc_read_region_into((float *)PyArray_DATA(o), f, lo, hi, level, threads, sp, org, &err);
-        Py_END_ALLOW_THREADS
-        if (s != WVOL_OK) return wvolpy_raise(&err);
         Py_INCREF(out_o);
-        return Py_BuildValue("(N(ddd)(ddd))", out_o, sp[0], sp[1], sp[2], org[0], org[1], org[2]);
     }
+    o = (PyArrayObject *)out_o;
     Py_BEGIN_ALLOW_THREADS
-    s = wvol_volume_create(&v, hi[0] > lo[0] ? hi[0] - lo[0] : 1, hi[1] > lo[1] ? hi[1] - lo[1] : 1,
-                           hi[2] > lo[2] ? hi[2] - lo[2] : 1, &err);
-    if (s == WVOL_OK) s = wvol_wvc_read_region_into(v->data, f, lo, hi, level, threads, sp, org, &err);
+    s = wvol_wvc_read_region_into((float *)PyArray_DATA(o), f, lo, hi, level, threads, sp, org, &err);
     Py_END_ALLOW_THREADS
     if (s != WVOL_OK) {
-        wvol_volume_destroy(v);
+        Py_DECREF(out_o);
         return wvolpy_raise(&err);
     }
-    for (int a = 0; a < 3; a++) {
-        v->spacing[a] = sp[a];
-        v->origin[a] = org[a];
-    }
-    arr = wvolpy_volume_take(v, 0);
-    if (!arr) return NULL;
-    return Py_BuildValue("(N(ddd)(ddd))", arr, sp[0], sp[1], sp[2], org[0], org[1], org[2]);
+    return Py_BuildValue("(N(ddd)(ddd))", out_o, sp[0], sp[1], sp[2], org[0], org[1], org[2]);
 }
 
 /* wvc_file_stats(file) -> the chunk cache's counters (wvol_wvc_cache_stats). */

@@ -717,6 +717,22 @@ static wvol_status reconstruct_parts(wvol_wvc_file *f, float *dst, const wvol__c
     return st;
 }
 
+/* Checks a region request (the box inside level `level`'s grid) and gives the level's
+ * coefficient source: both region reads validate here, before anything is allocated. */
+static wvol_status region_source(wvol__coef_source *src, wvol_wvc_file *f, const size_t lo[3], const size_t hi[3],
+                                 int level, wvol_error *err)
+{
+    WVOL_RETURN_IF(!f || !lo || !hi, err, WVOL_ERR_ARG, "wvc region: missing argument");
+    WVOL_RETURN_IF(level < 0 || level > f->info.levels, err, WVOL_ERR_ARG, "wvc region: level %d outside 0..%d",
+                   level, f->info.levels);
+    wvol__wvc_file_source(src, f, level);
+    for (int a = 0; a < 3; a++)
+        WVOL_RETURN_IF(lo[a] >= hi[a] || hi[a] > src->dims[a], err, WVOL_ERR_ARG,
+                       "wvc region: box %zu..%zu along axis %d is empty or outside 0..%zu (level %d)", lo[a], hi[a],
+                       a, src->dims[a], level);
+    return WVOL_OK;
+}
+
 wvol_status wvol_wvc_read_region_into(float *dst, wvol_wvc_file *f, const size_t lo[3], const size_t hi[3],
                                       int level, int threads, double spacing[3], double origin[3], wvol_error *err)
 {
@@ -724,14 +740,8 @@ wvol_status wvol_wvc_read_region_into(float *dst, wvol_wvc_file *f, const size_t
     wvol_status st;
     double scale, sp[3], org[3];
     const wvol_filter *flt;
-    WVOL_RETURN_IF(!dst || !f || !lo || !hi, err, WVOL_ERR_ARG, "wvc region: missing argument");
-    WVOL_RETURN_IF(level < 0 || level > f->info.levels, err, WVOL_ERR_ARG, "wvc region: level %d outside 0..%d",
-                   level, f->info.levels);
-    wvol__wvc_file_source(&src, f, level);
-    for (int a = 0; a < 3; a++)
-        WVOL_RETURN_IF(lo[a] >= hi[a] || hi[a] > src.dims[a], err, WVOL_ERR_ARG,
-                       "wvc region: box %zu..%zu along axis %d is empty or outside 0..%zu (level %d)", lo[a], hi[a],
-                       a, src.dims[a], level);
+    WVOL_RETURN_IF(!dst, err, WVOL_ERR_ARG, "wvc region: missing argument");
+    WVOL_FORWARD(region_source(&src, f, lo, hi, level, err));
     WVOL_FORWARD(wvol_filter_get(&flt, f->info.filter, err));
     (void)wvol__wvc_file_error(f, NULL);
     st = reconstruct_parts(f, dst, &src, lo, hi, threads, err);
@@ -752,15 +762,12 @@ wvol_status wvol_wvc_read_region_into(float *dst, wvol_wvc_file *f, const size_t
 wvol_status wvol_wvc_read_region(wvol_volume **out, wvol_wvc_file *f, const size_t lo[3], const size_t hi[3],
                                  int level, wvol_error *err)
 {
+    wvol__coef_source src;
     wvol_volume *v = NULL;
     wvol_status st;
-    WVOL_RETURN_IF(!out || !f || !lo || !hi, err, WVOL_ERR_ARG, "wvc region: missing argument");
+    WVOL_RETURN_IF(!out, err, WVOL_ERR_ARG, "wvc region: missing argument");
     *out = NULL;
-    WVOL_RETURN_IF(level < 0 || level > f->info.levels, err, WVOL_ERR_ARG, "wvc region: level %d outside 0..%d",
-                   level, f->info.levels);
-    for (int a = 0; a < 3; a++)
-        WVOL_RETURN_IF(lo[a] >= hi[a], err, WVOL_ERR_ARG, "wvc region: box %zu..%zu along axis %d is empty", lo[a],
-                       hi[a], a);
+    WVOL_FORWARD(region_source(&src, f, lo, hi, level, err));
     WVOL_FORWARD(wvol_volume_create(&v, hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2], err));
     st = wvol_wvc_read_region_into(v->data, f, lo, hi, level, 1, v->spacing, v->origin, err);
     if (st != WVOL_OK) {

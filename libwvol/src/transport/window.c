@@ -58,10 +58,12 @@ wvol_status wvol_transport_window_read_png(wvol_transport_window *w, const char 
     w->rgb = NULL;
     w->width = w->height = 0;
     WVOL_FORWARD(wvol_png_read_rgb(&rgb, &width, &height, &colour, path, err));
-    if (!colour || width > 8192 || height > 8192) {
+    if (!colour) {
         free(rgb);
-        if (!colour)
-            return wvol_error_set(err, WVOL_ERR_FORMAT, "%s: greyscale PNG; the window must be an RGB image", path);
+        return wvol_error_set(err, WVOL_ERR_FORMAT, "%s: greyscale PNG; the window must be an RGB image", path);
+    }
+    if (width > 8192 || height > 8192) {
+        free(rgb);
         return wvol_error_set(err, WVOL_ERR_DIMS, "%s: %dx%d outside 1..8192 per side", path, width, height);
     }
     w->rgb = rgb;
