@@ -159,6 +159,36 @@ def test_vtk_reader_slabs_equal_one_read(wvc, vtk_reader, monkeypatch):
     assert field(img, "ChunksDecoded") == field(whole.GetOutputDataObject(0), "ChunksDecoded")
 
 
+def test_slab_cache_bytes_is_what_slab_reads_need(wvc, vtk_reader):
+    """slab_cache_bytes: with a cache of that size, reading the volume in slabs of 7 planes
+    decodes each chunk once, but for the first slab's periodic wrap (the last tile layer of each
+    level, needed again at the end); with a quarter of it the slabs evict chunks the next slab
+    decodes again. The reader opens with it when it exceeds the default (MemoryBudget 0)."""
+    from wvol import _wvol
+    from wvol.vtk_wvc import slab_cache_bytes
+    d, f, full, _ = wvc
+    nz, ny, nx = SHAPE
+    info = _wvol.wvc_file_info(_wvol.wvc_file_open(str(f)))
+    need = slab_cache_bytes(info)
+    tile, _ = info["tile"]
+    wrap = sum(-(-(nx >> m) // tile) * -(-(ny >> m) // tile) for m in range(1, info["levels"] + 1))
+
+    def decodes(budget):
+        h = _wvol.wvc_file_open(str(f), budget=budget)
+        out = np.empty(SHAPE, np.float32)
+        for z0 in range(0, nz, 7):
+            _wvol.wvc_file_region(h, [0, 0, z0], [nx, ny, min(nz, z0 + 7)], 0, out=out[z0:z0 + 7])
+        close(out, full)
+        return _wvol.wvc_file_stats(h)["decoded"]
+
+    assert info["chunks"] <= decodes(need) <= info["chunks"] + wrap
+    assert decodes(need // 4) > info["chunks"] + wrap
+    r = vtk_reader()
+    r.SetFileName(str(f))
+    r.UpdateInformation()
+    assert r.GetChunkStats()["budget"] == max(1 << 30, need)
+
+
 def test_vtk_reader_threads_give_the_same_samples(wvc, vtk_reader):
     """Threads reconstruct parts of each slab at once, sharing the cache: the samples are the
     one-thread read's bit for bit, and each chunk is still decoded once (a thread needing a
