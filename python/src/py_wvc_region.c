@@ -207,6 +207,26 @@ static PyObject *py_wvc_file_stats(PyObject *self, PyObject *cap)
                          (unsigned long long)st.hits, "bytes_read", (unsigned long long)st.bytes_read);
 }
 
+/* wvc_file_slab_budget(file, lo, hi, level=0) -> bytes of decoded chunks that reading the box
+ * [lo, hi) (x, y, z, level `level`'s grid) in z slabs needs cached to decode each chunk about
+ * once (wvol_wvc_slab_budget; 0 for a version-1 file). */
+static PyObject *py_wvc_file_slab_budget(PyObject *self, PyObject *args, PyObject *kw)
+{
+    static char *kwlist[] = {"file", "lo", "hi", "level", NULL};
+    PyObject *cap, *lo_o, *hi_o;
+    int level = 0;
+    size_t lo[3], hi[3];
+    wvol_wvc_file *f;
+    (void)self;
+    if (!PyArg_ParseTupleAndKeywords(args, kw, "OOO|i", kwlist, &cap, &lo_o, &hi_o, &level)) return NULL;
+    if (!(f = file_of(cap)) || size3(lo_o, lo, "lo") < 0 || size3(hi_o, hi, "hi") < 0) return NULL;
+    if (level < 0 || level > wvol_wvc_file_info(f)->levels)
+        return PyErr_Format(PyExc_ValueError, "level %d outside 0..%d", level, wvol_wvc_file_info(f)->levels);
+    for (int a = 0; a < 3; a++)
+        if (lo[a] >= hi[a]) return PyErr_Format(PyExc_ValueError, "box %zu..%zu along axis %d is empty", lo[a], hi[a], a);
+    return PyLong_FromSize_t(wvol_wvc_slab_budget(f, level, lo, hi));
+}
+
 /* built_with_vtk() -> True when this build links VTK (the VTK adapter): such a module must not
  * be imported into ParaView, which carries a VTK of its own (docs/paraview.md). */
 static PyObject *py_built_with_vtk(PyObject *self, PyObject *unused)
@@ -224,4 +244,6 @@ PyMethodDef wvolpy_wvc_region_methods[] = {
     {"wvc_file_region", (PyCFunction)(void (*)(void))py_wvc_file_region, METH_VARARGS | METH_KEYWORDS,
      "wvc_file_region(file, lo, hi, level=0, out=None, threads=1) -> (array, spacing, origin)"},
     {"wvc_file_stats", py_wvc_file_stats, METH_O, "wvc_file_stats(file) -> counters"},
+    {"wvc_file_slab_budget", (PyCFunction)(void (*)(void))py_wvc_file_slab_budget, METH_VARARGS | METH_KEYWORDS,
+     "wvc_file_slab_budget(file, lo, hi, level=0) -> bytes"},
     {NULL, NULL, 0, NULL}};

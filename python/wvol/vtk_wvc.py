@@ -50,25 +50,6 @@ SDDP = vtkStreamingDemandDrivenPipeline
 SLAB_SAMPLES = 1 << 23
 
 
-def slab_cache_bytes(info, level=0):
-    """Decoded-chunk bytes that reading the whole grid of `level` slab by slab along z needs
-    cached so that every chunk is decoded about once (the first slab's periodic wrap aside):
-    for each level m whose details the grid uses, the chunks of two consecutive tile layers
-    across the whole x-y plane (a slab and the halo of its filters lie within two layers of
-    every level). A slab that needs more than the cache holds evicts chunks that the next
-    slab decodes again: with slices of 2048^2 that is every chunk once per slab."""
-    tile, tile_z = info["tile"]
-    padded = info["padded"][::-1]  # (x, y, z)
-    total = 0
-    for m in range(level + 1, info["levels"] + 1):
-        e = [max(1, p >> m) if p > 1 else 1 for p in padded]
-        t = [min(tile, e[0]), min(tile, e[1]), min(tile_z, e[2])]
-        bands = 8 if m == info["levels"] else 7
-        count = math.ceil(e[0] / t[0]) * math.ceil(e[1] / t[1]) * min(2, math.ceil(e[2] / t[2]))
-        total += count * t[0] * t[1] * t[2] * bands * 4
-    return total
-
-
 def _return_freed_memory():
     """Hands the pages glibc's malloc keeps after a read (the decoded chunks and the
     reconstruction buffers, freed but left in the heap) back to the system, so that the
@@ -156,7 +137,7 @@ class WVCReader(VTKPythonAlgorithmBase):
 
     def SetMemoryBudget(self, mib):
         """Decoded chunks kept per process, in MiB (0: the library's default, 1 GiB, or what
-        reading slab by slab needs when that is more: slab_cache_bytes). A budget below that
+        reading slab by slab needs when that is more: wvol_wvc_slab_budget). A budget below that
         need still works, but decodes chunks several times (ChunksDecoded shows it)."""
         self._set("_budget_mib", int(mib))
 
@@ -210,7 +191,8 @@ class WVCReader(VTKPythonAlgorithmBase):
             self._file = _wvol.wvc_file_open(self._filename, budget=self._budget_mib << 20)
             self._info = _wvol.wvc_file_info(self._file)
             if self._budget_mib == 0:
-                need = slab_cache_bytes(self._info)
+                shape = self._info["shape"][::-1]  # (x, y, z)
+                need = _wvol.wvc_file_slab_budget(self._file, [0, 0, 0], shape)
                 if need > _wvol.wvc_file_stats(self._file)["budget"]:
                     # the default cannot hold the slabs' chunks (large slices): open with
                     # what they need rather than decode every chunk once per slab

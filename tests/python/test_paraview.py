@@ -159,17 +159,23 @@ def test_vtk_reader_slabs_equal_one_read(wvc, vtk_reader, monkeypatch):
     assert field(img, "ChunksDecoded") == field(whole.GetOutputDataObject(0), "ChunksDecoded")
 
 
-def test_slab_cache_bytes_is_what_slab_reads_need(wvc, vtk_reader):
-    """slab_cache_bytes: with a cache of that size, reading the volume in slabs of 7 planes
+def test_slab_budget_is_what_slab_reads_need(wvc, vtk_reader):
+    """wvol_wvc_slab_budget: with a cache of that size, reading the volume in slabs of 7 planes
     decodes each chunk once, but for the first slab's periodic wrap (the last tile layer of each
     level, needed again at the end); with a quarter of it the slabs evict chunks the next slab
     decodes again. The reader opens with it when it exceeds the default (MemoryBudget 0)."""
     from wvol import _wvol
-    from wvol.vtk_wvc import slab_cache_bytes
     d, f, full, _ = wvc
     nz, ny, nx = SHAPE
-    info = _wvol.wvc_file_info(_wvol.wvc_file_open(str(f)))
-    need = slab_cache_bytes(info)
+    h = _wvol.wvc_file_open(str(f))
+    info = _wvol.wvc_file_info(h)
+    need = _wvol.wvc_file_slab_budget(h, [0, 0, 0], [nx, ny, nz])
+    # a box narrower in x and y needs fewer chunks per layer; a coarser grid fewer levels
+    assert 0 < _wvol.wvc_file_slab_budget(h, [0, 0, 0], [16, 16, nz]) < need
+    assert 0 < _wvol.wvc_file_slab_budget(h, [0, 0, 0], [nx // 2, ny // 2, nz // 2], level=1) < need
+    for bad in (dict(level=4), dict(level=-1), dict(hi=[nx, 0, nz])):
+        with pytest.raises(ValueError):
+            _wvol.wvc_file_slab_budget(h, [0, 0, 0], bad.get("hi", [nx, ny, nz]), level=bad.get("level", 0))
     tile, _ = info["tile"]
     wrap = sum(-(-(nx >> m) // tile) * -(-(ny >> m) // tile) for m in range(1, info["levels"] + 1))
 

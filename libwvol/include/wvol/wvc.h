@@ -185,6 +185,14 @@ WVOL_API wvol_status wvol_wvc_read_region_into(float *dst, wvol_wvc_file *f, con
                                                const size_t hi[3], int level, int threads, double spacing[3],
                                                double origin[3], wvol_error *err);
 
+/* Bytes of decoded chunks the cache must hold for a read of the box [lo, hi) of level
+ * `level`'s grid in z slabs, in order, to decode each chunk about once: for every level
+ * m > level, the chunks over the box's x-y range (widened by the filter's length) in two
+ * consecutive tile layers, which hold a slab and its filters' halo. A cache below it evicts
+ * chunks that the next slab decodes again (with 2048^2 slices, each chunk once per slab).
+ * 0 for a version-1 file (decoded whole at open) or a bad argument. */
+WVOL_API size_t wvol_wvc_slab_budget(const wvol_wvc_file *f, int level, const size_t lo[3], const size_t hi[3]);
+
 /* Predicted and measured error. sse is a sum of squared errors over n samples;
  * PSNR uses peak = value range (infinite for sse 0). */
 WVOL_API double wvol_wvc_psnr(double sse, double n, double vmin, double vmax);

@@ -777,3 +777,33 @@ wvol_status wvol_wvc_read_region(wvol_volume **out, wvol_wvc_file *f, const size
     *out = v;
     return WVOL_OK;
 }
+
+size_t wvol_wvc_slab_budget(const wvol_wvc_file *f, int level, const size_t lo[3], const size_t hi[3])
+{
+    const wvc2_geom *g;
+    const wvol_filter *flt;
+    size_t total = 0;
+    if (!f || !f->x || !lo || !hi || level < 0 || level > f->info.levels ||
+        wvol_filter_get(&flt, f->info.filter, NULL) != WVOL_OK)
+        return 0;
+    g = &f->x->g;
+    for (int m = level + 1; m <= g->levels; m++) {
+        size_t t0[3] = {0, 0, 0}, count = 1;
+        /* a sample at i of the level's grid meets the level-m coefficients near i / 2^(m - level),
+         * within the filter's length (the synthesis chain's reach is shorter; this bounds it) */
+        for (int a = 0; a < 2; a++) {
+            ptrdiff_t T = g->tile[a], c0, c1, t0a, t1a;
+            size_t n;
+            if (!g->tr[a]) continue;
+            c0 = (ptrdiff_t)(lo[a] >> (m - level)) - flt->length;
+            c1 = (ptrdiff_t)((hi[a] - 1) >> (m - level)) + flt->length;
+            t0a = c0 >= 0 ? c0 / T : -((-c0 + T - 1) / T);
+            t1a = c1 / T;
+            n = (size_t)(t1a - t0a + 1);
+            count *= n < g->lv[m].nt[a] ? n : g->lv[m].nt[a];
+        }
+        count *= g->lv[m].nt[2] < 2 ? g->lv[m].nt[2] : 2;
+        total += count * chunk_decoded_bytes(g, m, t0);
+    }
+    return total;
+}
