@@ -81,6 +81,8 @@ def main():
                          "1 GiB or what reading its slabs needs when that is more)")
     ap.add_argument("--quick", action="store_true", help="128^3, for a check that it runs")
     ap.add_argument("--keep", help="folder for the data and images (default: a temporary one)")
+    ap.add_argument("--reuse", action="store_true",
+                    help="with --keep: use the skull.wvc and skull.vti already there (made by an earlier run)")
     ap.add_argument("--out", default="paraview", help="results name in bench/results/ (default paraview)")
     ap.add_argument("--lod", type=int, default=0,
                     help="also run the .wvc at this level of detail (1: half the samples along each axis), "
@@ -94,13 +96,14 @@ def main():
     work.mkdir(parents=True, exist_ok=True)
     raw, wvc, vti = work / "skull.nrrd", work / "skull.wvc", work / "skull.vti"
     t = time.perf_counter()
-    sh([WVOL, "synth", "skull", "--size", n, "--noise", "20", "-o", raw])
-    sh([WVOL, "compress", raw, "-o", wvc, "--psnr", a.psnr])
-    sh([WVOL, "convert", raw, vti])
+    if not (a.reuse and wvc.exists() and vti.exists()):
+        sh([WVOL, "synth", "skull", "--size", n, "--noise", "20", "-o", raw])
+        sh([WVOL, "compress", raw, "-o", wvc, "--psnr", a.psnr])
+        sh([WVOL, "convert", raw, vti])
+        os.remove(raw)
     prep = time.perf_counter() - t
     info = json.loads(sh([WVOL, "info", wvc, "--json"]).stdout)
     vmin, vmax, iso = -1000.0, 2000.0, 300.0  # Hounsfield-like units of the skull phantom
-    os.remove(raw)
     rows = []
     for ranks in (1, 2):
         for name, path in (("wvc", wvc), ("vti", vti)):

@@ -136,9 +136,9 @@ class WVCReader(VTKPythonAlgorithmBase):
         return self._region
 
     def SetMemoryBudget(self, mib):
-        """Decoded chunks kept per process, in MiB (0: the library's default, 1 GiB, or what
-        reading slab by slab needs when that is more: wvol_wvc_slab_budget). A budget below that
-        need still works, but decodes chunks several times (ChunksDecoded shows it)."""
+        """Decoded chunks kept per process, in MiB (0: what reading slab by slab needs,
+        wvol_wvc_slab_budget, for the whole grid). A budget below that need still works, but
+        decodes chunks several times (ChunksDecoded shows it)."""
         self._set("_budget_mib", int(mib))
 
     def SetArrayName(self, name):
@@ -191,11 +191,12 @@ class WVCReader(VTKPythonAlgorithmBase):
             self._file = _wvol.wvc_file_open(self._filename, budget=self._budget_mib << 20)
             self._info = _wvol.wvc_file_info(self._file)
             if self._budget_mib == 0:
+                # what the slabs need: less would decode chunks again slab after slab, more
+                # would only raise the read's peak (the cache is transient: the output array
+                # is what stays)
                 shape = self._info["shape"][::-1]  # (x, y, z)
                 need = _wvol.wvc_file_slab_budget(self._file, [0, 0, 0], shape)
-                if need > _wvol.wvc_file_stats(self._file)["budget"]:
-                    # the default cannot hold the slabs' chunks (large slices): open with
-                    # what they need rather than decode every chunk once per slab
+                if need > 0:
                     self._file = _wvol.wvc_file_open(self._filename, budget=need)
             self._opened = key
 
@@ -261,7 +262,9 @@ class WVCReader(VTKPythonAlgorithmBase):
         and the chunks of consecutive slabs are mostly shared, so the cache (least recently
         used first out) serves them without decoding twice."""
         nx, ny, nz = ue[1] - ue[0] + 1, ue[3] - ue[2] + 1, ue[5] - ue[4] + 1
-        planes = max(1, min(nz, SLAB_SAMPLES // (nx * ny)))
+        # no thicker than a tile layer's depth: a slab and its halo then meet at most two
+        # layers of every level, what the cache is sized for (wvol_wvc_slab_budget)
+        planes = max(1, min(nz, SLAB_SAMPLES // (nx * ny), self._info["tile"][1] or nz))
         out = np.empty((nz, ny, nx), dtype=np.float32)
         spacing = None
         threads = self._thread_count()

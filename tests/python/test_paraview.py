@@ -57,6 +57,15 @@ def wvc(tmp_path_factory):
     return d, f, full, l1
 
 
+def wrap_layer_chunks(info):
+    """Chunks in one z tile layer of every level: what a slab-by-slab read decodes twice at
+    most, the periodic wrap of the first slab (the last layer) being needed again at the end
+    after the cache, sized for two layers (wvol_wvc_slab_budget), has let it go."""
+    nz, ny, nx = info["padded"]
+    tile = info["tile"][0]
+    return sum(-(-(nx >> m) // tile) * -(-(ny >> m) // tile) for m in range(1, info["levels"] + 1))
+
+
 def close(got, want):
     """Two summation orders of the same coefficients (a brick reconstruction against the whole
     inverse transform): float rounding, 1e-5 of the peak."""
@@ -98,7 +107,7 @@ def test_vtk_reader_whole_and_dropped_level(wvc, vtk_reader):
     n = float(np.prod(SHAPE))
     assert field(img, "PredictedRMSE") == pytest.approx(np.sqrt(info["sse"] / n), rel=1e-12)
     assert field(img, "KeptCoefficients") == info["nonzero"]
-    assert 0 < field(img, "ChunksDecoded") <= r.GetFileInfo()["chunks"]
+    assert 0 < field(img, "ChunksDecoded") <= r.GetFileInfo()["chunks"] + wrap_layer_chunks(r.GetFileInfo())
     # level 1: the CLI's coarse decode, spacing doubled, the first sample moved by the filter's centre
     r.SetLevelOfDetail(1)
     r.Update()
@@ -163,7 +172,7 @@ def test_slab_budget_is_what_slab_reads_need(wvc, vtk_reader):
     """wvol_wvc_slab_budget: with a cache of that size, reading the volume in slabs of 7 planes
     decodes each chunk once, but for the first slab's periodic wrap (the last tile layer of each
     level, needed again at the end); with a quarter of it the slabs evict chunks the next slab
-    decodes again. The reader opens with it when it exceeds the default (MemoryBudget 0)."""
+    decodes again. The reader opens with it (MemoryBudget 0)."""
     from wvol import _wvol
     d, f, full, _ = wvc
     nz, ny, nx = SHAPE
@@ -176,8 +185,7 @@ def test_slab_budget_is_what_slab_reads_need(wvc, vtk_reader):
     for bad in (dict(level=4), dict(level=-1), dict(hi=[nx, 0, nz])):
         with pytest.raises(ValueError):
             _wvol.wvc_file_slab_budget(h, [0, 0, 0], bad.get("hi", [nx, ny, nz]), level=bad.get("level", 0))
-    tile, _ = info["tile"]
-    wrap = sum(-(-(nx >> m) // tile) * -(-(ny >> m) // tile) for m in range(1, info["levels"] + 1))
+    wrap = wrap_layer_chunks(info)
 
     def decodes(budget):
         h = _wvol.wvc_file_open(str(f), budget=budget)
@@ -192,7 +200,7 @@ def test_slab_budget_is_what_slab_reads_need(wvc, vtk_reader):
     r = vtk_reader()
     r.SetFileName(str(f))
     r.UpdateInformation()
-    assert r.GetChunkStats()["budget"] == max(1 << 30, need)
+    assert r.GetChunkStats()["budget"] == need
 
 
 def test_vtk_reader_threads_give_the_same_samples(wvc, vtk_reader):
@@ -367,7 +375,9 @@ def test_mpi_two_ranks_split_the_chunks_and_match_one_rank(wvc, tmp_path):
     h = wvol._wvol.wvc_file_open(str(f))
     wvol._wvol.wvc_file_region(h, [0, 0, 0], [SHAPE[2], SHAPE[1], SHAPE[0]], 0)
     all_chunks = wvol._wvol.wvc_file_stats(h)["decoded"]
-    assert sum(e["decoded"] for e in one if e["pieces"] == 1) == all_chunks
+    # one rank reads slab by slab with the cache its slabs need: every chunk, a layer twice at most
+    info = wvol._wvol.wvc_file_info(h)
+    assert all_chunks <= sum(e["decoded"] for e in one if e["pieces"] == 1) <= all_chunks + wrap_layer_chunks(info)
     # two ranks, each its own piece (the first execution of each rank)
     first = {}
     for e in two:

@@ -188,7 +188,8 @@ WVOL_API wvol_status wvol_wvc_read_region_into(float *dst, wvol_wvc_file *f, con
 /* Bytes of decoded chunks the cache must hold for a read of the box [lo, hi) of level
  * `level`'s grid in z slabs, in order, to decode each chunk about once: for every level
  * m > level, the chunks over the box's x-y range (widened by the filter's length) in two
- * consecutive tile layers, which hold a slab and its filters' halo. A cache below it evicts
+ * consecutive tile layers, which hold a slab no thicker than the tile depth (info.tile_z
+ * samples of the grid) and its filters' halo. A cache below it evicts
  * chunks that the next slab decodes again (with 2048^2 slices, each chunk once per slab).
  * 0 for a version-1 file (decoded whole at open) or a bad argument. */
 WVOL_API size_t wvol_wvc_slab_budget(const wvol_wvc_file *f, int level, const size_t lo[3], const size_t hi[3]);
