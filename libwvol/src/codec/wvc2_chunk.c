@@ -319,7 +319,7 @@ int wvol__wvc2_chunk_decode(const wvc2_geom *g, int m, const size_t ext[3], cons
         int k = 0;
         for (i = 0; i < L->nb; i++)
             if (used >> i & 1) Q[k] = lg[i].q, P[k] = lg[i].p, B[k] = &lg[i].b, k++;
-        r = wvol__wvc_cabac_decode_multi(k, Q, P, B, payload + pos, bytes - pos, why);
+        r = wvol__wvc_cabac_decode_multi(k, Q, P, B, payload + pos, bytes - pos, nonzero, why);
     } else if (!r) {
         for (i = 0; i < L->nb && !r; i++) {
             if (!(used >> i & 1)) continue;
@@ -330,21 +330,24 @@ int wvol__wvc2_chunk_decode(const wvc2_geom *g, int m, const size_t ext[3], cons
             pos += len[i];
         }
     }
+    /* the shared stream's coder counted the non-zeros; the per-band coders did not */
     for (i = 0; i < L->nb; i++) {
-        if (!r && (used >> i & 1) && direct) {
+        uint64_t nz = 0;
+        if (!r && (used >> i & 1) && direct && mode != MODE_SHARED) {
             for (size_t z = 0; z < ext[2]; z++)
                 for (size_t y = 0; y < ext[1]; y++) {
                     const int32_t *s = lg[i].q + wvc_index(lg[i].p, &lg[i].b, 0, y, z);
-                    for (size_t x = 0; x < ext[0]; x++) *nonzero += s[x] != 0;
+                    for (size_t x = 0; x < ext[0]; x++) nz += s[x] != 0;
                 }
-        } else if (!r && (used >> i & 1)) {
+        } else if (!r && (used >> i & 1) && !direct) {
             for (size_t z = 0; z < ext[2]; z++)
                 for (size_t y = 0; y < ext[1]; y++) {
                     const int32_t *s = lg[i].q + lg[i].p[0] * (y + lg[i].p[1] * z);
                     int32_t *d = child[i].q + y * child[i].sy + z * child[i].sz;
-                    for (size_t x = 0; x < ext[0]; x++) *nonzero += (d[x] = s[x]) != 0;
+                    for (size_t x = 0; x < ext[0]; x++) nz += (d[x] = s[x]) != 0;
                 }
         }
+        if (mode != MODE_SHARED) *nonzero += nz;
         if (!direct) free(lg[i].q);
     }
     return r;

@@ -39,6 +39,7 @@ typedef struct band_model {
 typedef struct coder {
     rc_enc *e;
     rc_dec *d;
+    uint64_t nz; /* decoder: non-zero values written, so no caller counts them in another pass */
 } coder;
 
 #define FORCE_INLINE static inline __attribute__((always_inline))
@@ -267,6 +268,7 @@ FORCE_INLINE int detail_band(int dec, coder *cd, int32_t *Q, const size_t p[3], 
                 }
                 if (!sig) continue;
                 grow[gi] = 2;
+                if (dec) cd->nz++;
                 STAT_CAT(2);
                 mag = dec ? 0 : *c < 0 ? (uint64_t)(-(int64_t)*c) : (uint64_t)*c;
                 mag = code_mag(dec, cd, m, mag_class(2 * (aW + aN + aU) + dsum + 4 * P), mag, 30);
@@ -307,12 +309,14 @@ FORCE_INLINE int lowpass_band(int dec, coder *cd, int32_t *Q, const size_t p[3],
                         r = neg ? -(int64_t)mag : (int64_t)mag;
                         if (r + pred > WVC_QMAX || r + pred < -(int64_t)WVC_QMAX) return -1;
                         *c = (int32_t)(r + pred);
+                        cd->nz += *c != 0;
                     } else {
                         code_direct(dec, cd, r < 0, 1);
                     }
                 } else if (dec) {
                     if (pred > WVC_QMAX || pred < -(int64_t)WVC_QMAX) return -1;
                     *c = (int32_t)pred;
+                    cd->nz += *c != 0;
                 }
                 R[i] = (uint16_t)(mag > 65535 ? 65535 : mag);
             }
@@ -345,7 +349,7 @@ int wvol__wvc_cabac_decode(int32_t *Q, const size_t p[3], const wvc_band *b, con
                            size_t size, const char **why)
 {
     const size_t *pp = p;
-    return wvol__wvc_cabac_decode_multi(1, &Q, &pp, &b, buf, size, why);
+    return wvol__wvc_cabac_decode_multi(1, &Q, &pp, &b, buf, size, NULL, why);
 }
 
 /* Several bands in one stream with one model that keeps adapting from band to band: a
@@ -355,7 +359,7 @@ int wvol__wvc_cabac_encode_multi(uint8_t **buf, size_t *size, int n, int32_t *co
                                  const wvc_band *const b[])
 {
     rc_enc e;
-    coder cd = {&e, NULL};
+    coder cd = {&e, NULL, 0};
     band_model m;
     const uint8_t *data;
     size_t len;
@@ -389,10 +393,10 @@ int wvol__wvc_cabac_encode_multi(uint8_t **buf, size_t *size, int n, int32_t *co
 }
 
 int wvol__wvc_cabac_decode_multi(int n, int32_t *const Q[], const size_t *const p[], const wvc_band *const b[],
-                                 const uint8_t *buf, size_t size, const char **why)
+                                 const uint8_t *buf, size_t size, uint64_t *nonzero, const char **why)
 {
     rc_dec d;
-    coder cd = {NULL, &d};
+    coder cd = {NULL, &d, 0};
     band_model m;
     int r = 0;
     model_init(&m);
@@ -417,5 +421,6 @@ int wvol__wvc_cabac_decode_multi(int n, int32_t *const Q[], const size_t *const 
         *why = "coded data ends early";
         return -1;
     }
+    if (nonzero) *nonzero = cd.nz;
     return 0;
 }
