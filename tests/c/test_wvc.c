@@ -17,6 +17,7 @@
 #include "codec/wvc_format.h"
 #include "wvol/io.h"
 #include "wvol/wvc.h"
+#include "wvol_synth.h"
 
 /* A small volume with smooth parts, a sharp sphere and a little texture. */
 static double make_volume_at(const wvol_volume *v, size_t i, size_t j, size_t k, const void *ctx)
@@ -682,7 +683,7 @@ static void wvc_corpus_files_decode_or_are_refused(void)
                            "damaged_bitflip_payload.wvc", "damaged_magic.wvc", "damaged_version.wvc",
                            "valid_v2_db2_8.wvc", "valid_v2_haar_12x10x9_tiles.wvc",
                            "valid_v2_coif1_16x16x1_zstd.wvc", "damaged_v2_bitflip_chunk.wvc",
-                           "damaged_v2_bitflip_index.wvc"};
+                           "damaged_v2_bitflip_index.wvc", "valid_v2_mode1_skull32_step600.wvc"};
     char path[1024];
     size_t i;
     if (!root) {
@@ -700,6 +701,152 @@ static void wvc_corpus_files_decode_or_are_refused(void)
         else
             CHECK(st != WVOL_OK && st != WVOL_ERR_IO, "%s: status %d", names[i], (int)st);
         wvol_coeffs_destroy(c);
+    }
+}
+
+/* Chunk payload modes, byte 0 of each non-empty chunk of a version-2 file. */
+static int chunk_modes(const uint8_t *b, size_t n, int count[3])
+{
+    uint32_t nsec;
+    uint64_t nchunks;
+    memset(count, 0, 3 * sizeof *count);
+    if (n < 224) return 0;
+    memcpy(&nsec, b + 12, 4);
+    memcpy(&nchunks, b + 208, 8);
+    for (uint64_t i = 0; i < nchunks; i++) {
+        const uint8_t *e = b + 224 + (size_t)nsec * 48 + i * 32;
+        uint64_t off;
+        uint32_t bytes;
+        memcpy(&off, e, 8);
+        memcpy(&bytes, e + 8, 4);
+        if (!bytes) continue;
+        if (off >= n || b[off] > 2) return 0;
+        count[b[off]]++;
+    }
+    return 1;
+}
+
+/* Files written before the block flags (chunk mode 1) still decode, to the values the
+ * current coder (mode 2) gives for the same quantised coefficients: the corpus file is
+ * `wvol synth skull --size 32 --noise 20` compressed with `--step 600 --tile 8
+ * --levels 2 --coder cabac` by that earlier encoder. */
+static void wvc2_mode1_files_decode_to_the_same_values(void)
+{
+    const char *root = getenv("WVOL_SOURCE_DIR");
+    char path[1024];
+    wvol_synth_params sp;
+    wvol_volume *v = NULL;
+    wvol_coeffs *c = NULL, *d_old = NULL, *d_new = NULL;
+    const wvol_filter *f;
+    wvol_wvc_params p;
+    wvol_error err;
+    void *buf = NULL;
+    size_t n = 0;
+    int modes[3];
+    if (!root) {
+        printf("test_wvc: WVOL_SOURCE_DIR not set, mode-1 file check skipped\n");
+        return;
+    }
+    snprintf(path, sizeof path, "%s/tests/fuzz/corpus/valid_v2_mode1_skull32_step600.wvc", root);
+    {
+        FILE *fp = fopen(path, "rb");
+        uint8_t raw[8192];
+        size_t got = fp ? fread(raw, 1, sizeof raw, fp) : 0;
+        if (fp) fclose(fp);
+        CHECK(got > 0 && got < sizeof raw && chunk_modes(raw, got, modes) && modes[1] > 0 && modes[2] == 0,
+              "the corpus file holds mode-1 chunks only (%zu bytes)", got);
+    }
+    CHECK(wvol_wvc_read(&d_old, path, NULL, NULL, &err) == WVOL_OK, "mode-1 file: %s", err.message);
+    wvol_synth_params_default(&sp);
+    sp.dims[0] = sp.dims[1] = sp.dims[2] = 32;
+    sp.noise = 20;
+    CHECK(wvol_synth_skull(&v, NULL, &sp, &err) == WVOL_OK, "skull");
+    CHECK(wvol_filter_get(&f, "db2", &err) == WVOL_OK && v && wvol_dwt3(&c, v, f, 2, &err) == WVOL_OK, "dwt3");
+    wvol_wvc_params_default(&p);
+    wvol_volume_range(v, &p.value_min, &p.value_max, NULL);
+    p.coder = WVOL_WVC_CODER_CABAC;
+    p.step = 600;
+    p.tile = p.tile_z = 8;
+    CHECK(c && wvol_wvc_encode(&buf, &n, c, &p, NULL, &err) == WVOL_OK, "encode: %s", err.message);
+    CHECK(buf && chunk_modes(buf, n, modes) && modes[2] > 0 && modes[1] == 0, "the encoder writes mode 2");
+    CHECK(buf && wvol_wvc_decode(&d_new, buf, n, NULL, NULL, &err) == WVOL_OK, "decode: %s", err.message);
+    if (d_old && d_new) {
+        size_t count = d_new->px * d_new->py * d_new->pz, nz = 0;
+        CHECK(d_old->px == d_new->px && d_old->py == d_new->py && d_old->pz == d_new->pz, "grids");
+        CHECK(!memcmp(d_old->data, d_new->data, count * sizeof(float)), "mode 1 and mode 2 decode differently");
+        for (size_t i = 0; i < count; i++) nz += d_new->data[i] != 0;
+        CHECK(nz > 100 && nz < count / 2, "a meaningful file: %zu of %zu non-zero", nz, count);
+    }
+    free(buf);
+    wvol_coeffs_destroy(c);
+    wvol_coeffs_destroy(d_old);
+    wvol_coeffs_destroy(d_new);
+    wvol_volume_destroy(v);
+}
+
+/* Nearly empty pyramids: all-zero chunks, a chunk with one non-zero coefficient (at a
+ * block's or a band's far corner too, where the block and group flags are implied), and
+ * two or three in one chunk. Integer multiples of the step round-trip exactly (the
+ * reconstruction offsets are then 0), every other coefficient decodes to 0, and the
+ * index counts what is there. Odd band extents (10 x 9 x 7 at level 1) leave partial
+ * groups and blocks at the far edges. */
+static void wvc2_sparse_chunks_round_trip(void)
+{
+    const wvol_filter *f;
+    wvol_error err;
+    uint64_t rng = 12345;
+    CHECK(wvol_filter_get(&f, "haar", &err) == WVOL_OK, "haar");
+    for (int trial = 0; trial < 60; trial++) {
+        wvol_coeffs *c = NULL, *d = NULL;
+        wvol_wvc_params p;
+        wvol_wvc_info info;
+        void *buf = NULL;
+        size_t n = 0, count, pos[3];
+        int k = 1 + trial % 3;
+        if (wvol_coeffs_create(&c, f, 2, 20, 18, 14, &err) != WVOL_OK) {
+            CHECK(0, "coeffs: %s", err.message);
+            return;
+        }
+        count = c->px * c->py * c->pz;
+        c->data[0] = 64; /* the low-pass cube's corner: a range for the header */
+        for (int j = 0; j < k; j++) {
+            size_t i;
+            if (trial < 8 && j == 0) {
+                /* the far corner of each band of level 1: the last coefficient of a partial block */
+                int band = trial % 8 ? trial % 8 : 7;
+                pos[0] = (band & 1 ? c->px / 2 : 0) + c->px / 2 - 1;
+                pos[1] = (band & 2 ? c->py / 2 : 0) + c->py / 2 - 1;
+                pos[2] = (band & 4 ? c->pz / 2 : 0) + c->pz / 2 - 1;
+            } else {
+                for (int a = 0; a < 3; a++) pos[a] = (size_t)(fixture_urand(&rng) * (a == 0 ? c->px : a == 1 ? c->py : c->pz));
+                if (j > 0) /* near the first: the same chunk, often the same block */
+                    for (int a = 0; a < 3; a++) pos[a] = pos[a] < 2 ? pos[a] + 1 : pos[a] - 1;
+            }
+            i = pos[0] + c->px * (pos[1] + c->py * pos[2]);
+            c->data[i] = (float)((fixture_urand(&rng) < 0.5 ? -1 : 1) * (1 + (int)(fixture_urand(&rng) * 40)) * 8);
+        }
+        wvol_wvc_params_default(&p);
+        p.value_min = -500;
+        p.value_max = 500;
+        p.step = 8;
+        p.coder = trial % 2 ? WVOL_WVC_CODER_CABAC : WVOL_WVC_CODER_AUTO;
+        p.tile = p.tile_z = 8;
+        CHECK(wvol_wvc_encode(&buf, &n, c, &p, NULL, &err) == WVOL_OK, "trial %d encode: %s", trial, err.message);
+        CHECK(buf && wvol_wvc_decode(&d, buf, n, NULL, &info, &err) == WVOL_OK, "trial %d decode: %s", trial,
+              err.message);
+        if (d) {
+            size_t nz = 0, bad = 0;
+            for (size_t i = 0; i < count; i++) {
+                nz += c->data[i] != 0;
+                bad += d->data[i] != c->data[i];
+            }
+            CHECK(bad == 0, "trial %d: %zu coefficients differ", trial, bad);
+            CHECK(info.nonzero == nz, "trial %d: %llu non-zero in the file, %zu given", trial,
+                  (unsigned long long)info.nonzero, nz);
+        }
+        free(buf);
+        wvol_coeffs_destroy(c);
+        wvol_coeffs_destroy(d);
     }
 }
 
@@ -1041,5 +1188,7 @@ int main(void)
     wvc_files_are_atomic_and_checked();
     wvc_refuses_bad_parameters();
     wvc_corpus_files_decode_or_are_refused();
+    wvc2_mode1_files_decode_to_the_same_values();
+    wvc2_sparse_chunks_round_trip();
     return check_summary("test_wvc");
 }
