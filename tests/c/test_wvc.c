@@ -683,7 +683,8 @@ static void wvc_corpus_files_decode_or_are_refused(void)
                            "damaged_bitflip_payload.wvc", "damaged_magic.wvc", "damaged_version.wvc",
                            "valid_v2_db2_8.wvc", "valid_v2_haar_12x10x9_tiles.wvc",
                            "valid_v2_coif1_16x16x1_zstd.wvc", "damaged_v2_bitflip_chunk.wvc",
-                           "damaged_v2_bitflip_index.wvc", "valid_v2_mode1_skull32_step600.wvc"};
+                           "damaged_v2_bitflip_index.wvc", "valid_v2_mode1_skull32_step600.wvc",
+                           "valid_v2_mode2_skull32_step600.wvc"};
     char path[1024];
     size_t i;
     if (!root) {
