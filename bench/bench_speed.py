@@ -15,8 +15,8 @@ time); the load average at the start and the end is recorded.
 
 ZFP (python3-zfpy, serial) runs in the same process on the same array: fixed accuracy, with
 the tolerance bisected (in log scale) to the largest that meets the PSNR target; its
-compress_numpy / decompress_numpy times (in-process, without start-up or file I/O) are the
-best of the rounds.
+compress_numpy / decompress_numpy times (in-process CPU seconds, without start-up or file
+I/O) are the best of the rounds.
 
 main's binary: WVOL_BASE=path (or --base), else it is built from git's `main` into /tmp
 (a worktree, Release, with the optional libraries found, as scripts/setup.sh builds it: its
@@ -94,13 +94,13 @@ def zfp_at(v, target, rounds):
         best = (math.exp(lo), c, psnr(v, zfpy.decompress_numpy(c), rng))
     tol, c, p = best
     tc = td = math.inf
-    for _ in range(rounds):
-        t0 = time.perf_counter()
+    for _ in range(rounds):  # process CPU seconds, as for wvol (zfpy is serial)
+        t0 = time.process_time()
         c = zfpy.compress_numpy(v, tolerance=tol)
-        tc = min(tc, time.perf_counter() - t0)
-        t0 = time.perf_counter()
+        tc = min(tc, time.process_time() - t0)
+        t0 = time.process_time()
         zfpy.decompress_numpy(c)
-        td = min(td, time.perf_counter() - t0)
+        td = min(td, time.process_time() - t0)
     return {"tolerance": tol, "psnr": p, "bpv": 8 * len(c) / v.size, "compress_s": tc, "decompress_s": td}
 
 
@@ -120,7 +120,19 @@ def main():
     ap.add_argument("--wvol", default=os.path.join(ROOT, "build", "wvol"))
     ap.add_argument("--out", default=os.path.join(ROOT, "bench", "results", "speed"))
     ap.add_argument("--no-zfp", action="store_true")
+    ap.add_argument("--from-log", help="rewrite the results from the JSON rows a run printed (a run cut short)")
+    ap.add_argument("--note", default="", help="a line for the results file (e.g. what a cut run left out)")
     a = ap.parse_args()
+    if a.from_log:
+        rows = [json.loads(line) for line in open(a.from_log) if line.startswith("{")]
+        meta = {"machine": f"{cpu_model()}, {os.cpu_count()} cores, shared with other jobs",
+                "load_start": ["?"], "load_end": loadavg(), "base": a.base, "wvol": a.wvol, "rounds": a.rounds,
+                "note": a.note, "commit": subprocess.run(["git", "-C", ROOT, "rev-parse", "--short", "HEAD"],
+                                                         capture_output=True, text=True).stdout.strip()}
+        with open(a.out + ".json", "w") as f:
+            json.dump({"meta": meta, "rows": rows}, f, indent=1)
+        write_md(a.out + ".md", meta, rows)
+        return
     base = a.base or build_main()
     new = a.wvol
     meta = {"machine": f"{cpu_model()}, {os.cpu_count()} cores, shared with other jobs",
@@ -190,7 +202,7 @@ def write_md(path, meta, rows):
          "streams from a raw float32 file in /dev/shm with `--psnr T --threads N`, decompress writes raw to "
          "/dev/shm; OMP_WAIT_POLICY=passive, OMP_NUM_THREADS=N. MB/s = raw float32 MB / CPU seconds. ZFP: "
          "python3-zfpy fixed accuracy at the largest tolerance meeting the target, serial, in-process "
-         "(no start-up, no file I/O), its own timing.", "",
+         "CPU seconds (no start-up, no file I/O).", ""] + ([meta["note"], ""] if meta.get("note") else []) + [
          "| volume | size | dB | threads | bits/voxel main / new / ZFP | compress MB/s main / new (x) | "
          "decompress MB/s main / new (x) | new / ZFP compress, decompress |",
          "|---|---|---|---|---|---|---|---|"]
