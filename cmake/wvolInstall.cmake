@@ -18,6 +18,10 @@ install(TARGETS ${WVOL_INSTALLED_LIB} EXPORT wvolTargets
         ARCHIVE DESTINATION ${CMAKE_INSTALL_LIBDIR}
         LIBRARY DESTINATION ${CMAKE_INSTALL_LIBDIR}
         RUNTIME DESTINATION ${CMAKE_INSTALL_BINDIR})
+# the C++ adapters' module, which the library loads from the library folder (io/adapters_module.c)
+if(TARGET wvol_adapters)
+  install(TARGETS wvol_adapters LIBRARY DESTINATION ${CMAKE_INSTALL_LIBDIR})
+endif()
 if(TARGET wvol_app)
   install(TARGETS wvol_app RUNTIME DESTINATION ${CMAKE_INSTALL_BINDIR})
 endif()
@@ -36,14 +40,6 @@ foreach(dep PNG OPENEXR LAPACKE VTK OPENVDB TINYOBJLOADER)
     list(APPEND WVOL_PACKAGE_FEATURES ${dep})
   endif()
 endforeach()
-set(WVOL_OPENVDB_MODULE_DIR "")
-if(WVOL_HAVE_OPENVDB)
-  foreach(dir ${CMAKE_MODULE_PATH})
-    if(NOT WVOL_OPENVDB_MODULE_DIR AND EXISTS ${dir}/FindOpenVDB.cmake)
-      set(WVOL_OPENVDB_MODULE_DIR ${dir})
-    endif()
-  endforeach()
-endif()
 install(EXPORT wvolTargets NAMESPACE wvol:: DESTINATION ${WVOL_CMAKE_INSTALL_DIR})
 configure_package_config_file(${PROJECT_SOURCE_DIR}/cmake/wvolConfig.cmake.in
                               ${PROJECT_BINARY_DIR}/wvolConfig.cmake

@@ -125,7 +125,7 @@ int wvol_cmd_decompress(int argc, char **argv)
     }
     t_read = cli_now() - t0;
     t0 = cli_now();
-    if ((level ? wvol_idwt3_level(&v, c, (int)level, &err) : wvol_idwt3(&v, c, &err)) != WVOL_OK) {
+    if ((level ? wvol_idwt3_level(&v, c, (int)level, &err) : wvol_idwt3_consume(&v, &c, &err)) != WVOL_OK) {
         rc = cli_fail_err("decompress", &err);
         goto done;
     }

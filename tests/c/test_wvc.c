@@ -682,7 +682,8 @@ static void wvc_corpus_files_decode_or_are_refused(void)
                            "damaged_bitflip_payload.wvc", "damaged_magic.wvc", "damaged_version.wvc",
                            "valid_v2_db2_8.wvc", "valid_v2_haar_12x10x9_tiles.wvc",
                            "valid_v2_coif1_16x16x1_zstd.wvc", "damaged_v2_bitflip_chunk.wvc",
-                           "damaged_v2_bitflip_index.wvc"};
+                           "damaged_v2_bitflip_index.wvc", "valid_v2_mode1_skull32_step600.wvc",
+                           "valid_v2_mode2_skull32_step600.wvc"};
     char path[1024];
     size_t i;
     if (!root) {
@@ -700,6 +701,142 @@ static void wvc_corpus_files_decode_or_are_refused(void)
         else
             CHECK(st != WVOL_OK && st != WVOL_ERR_IO, "%s: status %d", names[i], (int)st);
         wvol_coeffs_destroy(c);
+    }
+}
+
+/* CRC-32 of the float coefficients the mode-1 corpus file decodes to (see below). */
+#define MODE1_DECODED_CRC 0xc9516f29UL
+
+/* Chunk payload modes, byte 0 of each non-empty chunk of a version-2 file. */
+static int chunk_modes(const uint8_t *b, size_t n, int count[3])
+{
+    uint32_t nsec;
+    uint64_t nchunks;
+    memset(count, 0, 3 * sizeof *count);
+    if (n < 224) return 0;
+    memcpy(&nsec, b + 12, 4);
+    memcpy(&nchunks, b + 208, 8);
+    for (uint64_t i = 0; i < nchunks; i++) {
+        const uint8_t *e = b + 224 + (size_t)nsec * 48 + i * 32;
+        uint64_t off;
+        uint32_t bytes;
+        memcpy(&off, e, 8);
+        memcpy(&bytes, e + 8, 4);
+        if (!bytes) continue;
+        if (off >= n || b[off] > 2) return 0;
+        count[b[off]]++;
+    }
+    return 1;
+}
+
+/* Files written before the block flags (chunk mode 1) still decode, to the values the
+ * current coder (mode 2) gives for the same quantised coefficients. The two corpus files
+ * are `wvol synth skull --size 32 --noise 20` compressed with `--step 600 --tile 8
+ * --levels 2 --coder cabac`, by the encoder before mode 2 and by the current one (the
+ * same quantised values: the same transform and step). Decoding involves no transform,
+ * only integers and one double rounding per value, so the values do not depend on the
+ * build: the CRC-32 of the mode-1 file's decoded coefficients is pinned (computed when
+ * the file was made). */
+static void wvc2_mode1_files_decode_to_the_same_values(void)
+{
+    const char *root = getenv("WVOL_SOURCE_DIR");
+    const char *names[2] = {"valid_v2_mode1_skull32_step600.wvc", "valid_v2_mode2_skull32_step600.wvc"};
+    wvol_coeffs *d[2] = {NULL, NULL};
+    wvol_error err;
+    if (!root) {
+        printf("test_wvc: WVOL_SOURCE_DIR not set, mode-1 file check skipped\n");
+        return;
+    }
+    for (int k = 0; k < 2; k++) {
+        char path[1024];
+        uint8_t raw[8192];
+        size_t got;
+        int modes[3];
+        FILE *fp;
+        snprintf(path, sizeof path, "%s/tests/fuzz/corpus/%s", root, names[k]);
+        fp = fopen(path, "rb");
+        got = fp ? fread(raw, 1, sizeof raw, fp) : 0;
+        if (fp) fclose(fp);
+        CHECK(got > 0 && got < sizeof raw && chunk_modes(raw, got, modes) && modes[1 + k] > 0 && modes[2 - k] == 0,
+              "%s holds mode-%d chunks only", names[k], 1 + k);
+        CHECK(wvol_wvc_read(&d[k], path, NULL, NULL, &err) == WVOL_OK, "%s: %s", names[k], err.message);
+    }
+    if (d[0] && d[1]) {
+        size_t count = d[0]->px * d[0]->py * d[0]->pz, nz = 0;
+        uLong crc = crc32(0L, (const Bytef *)d[0]->data, (uInt)(count * sizeof(float)));
+        CHECK(d[1]->px == d[0]->px && d[1]->py == d[0]->py && d[1]->pz == d[0]->pz, "grids");
+        CHECK(!memcmp(d[0]->data, d[1]->data, count * sizeof(float)), "mode 1 and mode 2 decode differently");
+        for (size_t i = 0; i < count; i++) nz += d[0]->data[i] != 0;
+        CHECK(nz > 100 && nz < count / 2, "a meaningful file: %zu of %zu non-zero", nz, count);
+        CHECK(crc == MODE1_DECODED_CRC, "mode-1 file decodes to other values: CRC-32 %08lx", (unsigned long)crc);
+    }
+    wvol_coeffs_destroy(d[0]);
+    wvol_coeffs_destroy(d[1]);
+}
+
+/* Nearly empty pyramids: all-zero chunks, a chunk with one non-zero coefficient (at a
+ * block's or a band's far corner too, where the block and group flags are implied), and
+ * two or three in one chunk. Integer multiples of the step round-trip exactly (the
+ * reconstruction offsets are then 0), every other coefficient decodes to 0, and the
+ * index counts what is there. Odd band extents (10 x 9 x 7 at level 1) leave partial
+ * groups and blocks at the far edges. */
+static void wvc2_sparse_chunks_round_trip(void)
+{
+    const wvol_filter *f;
+    wvol_error err;
+    uint64_t rng = 12345;
+    CHECK(wvol_filter_get(&f, "haar", &err) == WVOL_OK, "haar");
+    for (int trial = 0; trial < 60; trial++) {
+        wvol_coeffs *c = NULL, *d = NULL;
+        wvol_wvc_params p;
+        wvol_wvc_info info;
+        void *buf = NULL;
+        size_t n = 0, count, pos[3];
+        int k = 1 + trial % 3;
+        if (wvol_coeffs_create(&c, f, 2, 20, 18, 14, &err) != WVOL_OK) {
+            CHECK(0, "coeffs: %s", err.message);
+            return;
+        }
+        count = c->px * c->py * c->pz;
+        c->data[0] = 64; /* the low-pass cube's corner: a range for the header */
+        for (int j = 0; j < k; j++) {
+            size_t i;
+            if (trial < 8 && j == 0) {
+                /* the far corner of each band of level 1: the last coefficient of a partial block */
+                int band = trial % 8 ? trial % 8 : 7;
+                pos[0] = (band & 1 ? c->px / 2 : 0) + c->px / 2 - 1;
+                pos[1] = (band & 2 ? c->py / 2 : 0) + c->py / 2 - 1;
+                pos[2] = (band & 4 ? c->pz / 2 : 0) + c->pz / 2 - 1;
+            } else {
+                for (int a = 0; a < 3; a++) pos[a] = (size_t)(fixture_urand(&rng) * (a == 0 ? c->px : a == 1 ? c->py : c->pz));
+                if (j > 0) /* near the first: the same chunk, often the same block */
+                    for (int a = 0; a < 3; a++) pos[a] = pos[a] < 2 ? pos[a] + 1 : pos[a] - 1;
+            }
+            i = pos[0] + c->px * (pos[1] + c->py * pos[2]);
+            c->data[i] = (float)((fixture_urand(&rng) < 0.5 ? -1 : 1) * (1 + (int)(fixture_urand(&rng) * 40)) * 8);
+        }
+        wvol_wvc_params_default(&p);
+        p.value_min = -500;
+        p.value_max = 500;
+        p.step = 8;
+        p.coder = trial % 2 ? WVOL_WVC_CODER_CABAC : WVOL_WVC_CODER_AUTO;
+        p.tile = p.tile_z = 8;
+        CHECK(wvol_wvc_encode(&buf, &n, c, &p, NULL, &err) == WVOL_OK, "trial %d encode: %s", trial, err.message);
+        CHECK(buf && wvol_wvc_decode(&d, buf, n, NULL, &info, &err) == WVOL_OK, "trial %d decode: %s", trial,
+              err.message);
+        if (d) {
+            size_t nz = 0, bad = 0;
+            for (size_t i = 0; i < count; i++) {
+                nz += c->data[i] != 0;
+                bad += d->data[i] != c->data[i];
+            }
+            CHECK(bad == 0, "trial %d: %zu coefficients differ", trial, bad);
+            CHECK(info.nonzero == nz, "trial %d: %llu non-zero in the file, %zu given", trial,
+                  (unsigned long long)info.nonzero, nz);
+        }
+        free(buf);
+        wvol_coeffs_destroy(c);
+        wvol_coeffs_destroy(d);
     }
 }
 
@@ -1041,5 +1178,7 @@ int main(void)
     wvc_files_are_atomic_and_checked();
     wvc_refuses_bad_parameters();
     wvc_corpus_files_decode_or_are_refused();
+    wvc2_mode1_files_decode_to_the_same_values();
+    wvc2_sparse_chunks_round_trip();
     return check_summary("test_wvc");
 }

@@ -3,7 +3,7 @@
 # builds tests/install against it with find_package(wvol) and runs the program, then
 # compiles the same main.c with `pkg-config --cflags --libs --static wvol` and runs it.
 # -D arguments: WVOL_BUILD_DIR, WVOL_WORK_DIR, WVOL_CONFIG (may be empty),
-# CMAKE_C_COMPILER, CMAKE_CXX_COMPILER.
+# CMAKE_C_COMPILER, CMAKE_CXX_COMPILER, WVOL_VTK (the build has the VTK adapter).
 foreach(var WVOL_BUILD_DIR WVOL_WORK_DIR CMAKE_C_COMPILER)
   if(NOT DEFINED ${var})
     message(FATAL_ERROR "run.cmake: -D${var}=... is required")
@@ -30,6 +30,11 @@ if(EXISTS ${prefix}/bin/wvol)
   step("wvol --version" ${prefix}/bin/wvol --version)
   if(NOT step_output MATCHES "^wvol [0-9]+\\.[0-9]+\\.[0-9]+\n$")
     message(FATAL_ERROR "install test: wvol --version printed '${step_output}'")
+  endif()
+  # the installed program loads the VTK adapter module from the installed library folder
+  if(WVOL_VTK)
+    step("wvol synth -o .vti" ${prefix}/bin/wvol synth gaussian --size 8 -o ${WVOL_WORK_DIR}/g.vti)
+    step("wvol info .vti" ${prefix}/bin/wvol info ${WVOL_WORK_DIR}/g.vti)
   endif()
 endif()
 set(compilers -DCMAKE_C_COMPILER=${CMAKE_C_COMPILER})

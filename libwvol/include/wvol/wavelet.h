@@ -91,6 +91,10 @@ WVOL_API size_t wvol_dwt_padded_size(size_t n, int levels);
 WVOL_API wvol_status wvol_idwt3(wvol_volume **out, const wvol_coeffs *c, wvol_error *err);
 /* Same with float64 arithmetic (use_f64 = 1). */
 WVOL_API wvol_status wvol_idwt3_ex(wvol_volume **out, const wvol_coeffs *c, int use_f64, wvol_error *err);
+/* wvol_idwt3 in the coefficients' own buffer, which becomes the volume's: no second
+ * buffer of the volume's size is allocated, filled or copied. *c is consumed whatever
+ * the outcome (destroyed and set to NULL); the result equals wvol_idwt3's bit for bit. */
+WVOL_API wvol_status wvol_idwt3_consume(wvol_volume **out, wvol_coeffs **c, wvol_error *err);
 
 /* Coarser volume: undo levels..stop_level+1 only, giving the low-pass cube of
  * level stop_level s, cropped to the cells that touch the original grid: size

@@ -107,9 +107,10 @@ static void parent_in(local_grid *lg, const wvc2_qbox *parent)
     if (lg->b.has_parent) box_copy_in(lg, lg->b.ext[0], parent, lg->b.pext);
 }
 
-/* Payload modes: one CABAC stream whose model adapts across the chunk's bands, or one
- * stream per band (each CABAC or zstd). */
-enum { MODE_BANDS = 0, MODE_SHARED = 1 };
+/* Payload modes: one stream per band (each CABAC or zstd); one CABAC stream whose model
+ * adapts across the chunk's bands; the same with a flag per 4x4x4 block of a detail
+ * band (wvc_cabac.c's block_row), which the encoder writes. */
+enum { MODE_BANDS = 0, MODE_SHARED = 1, MODE_BLOCKS = 2 };
 
 int wvol__wvc2_chunk_encode(wvc2_coded *out, const wvc2_geom *g, int m, const size_t ext[3],
                             const wvc2_qbox child[8], const wvc2_qbox parent[8], int coder, int zstd_level)
@@ -146,7 +147,7 @@ int wvol__wvc2_chunk_encode(wvc2_coded *out, const wvc2_geom *g, int m, const si
         int k = 0;
         for (i = 0; i < L->nb; i++)
             if (mask >> i & 1) Q[k] = lg[i].q, P[k] = lg[i].p, B[k] = &lg[i].b, k++;
-        if (wvol__wvc_cabac_encode_multi(&shared, &shared_len, k, Q, P, B)) failed = 1;
+        if (wvol__wvc_cabac_encode_multi(&shared, &shared_len, k, Q, P, B, 1)) failed = 1;
         out->alt_cabac = shared_len;
     }
     /* auto: all zstd when that is smaller (its matches win on small and regular bands) */
@@ -163,7 +164,7 @@ int wvol__wvc2_chunk_encode(wvc2_coded *out, const wvc2_geom *g, int m, const si
         uint8_t hdr[1 + 8 + 8 * 10], *p;
         size_t head = 0, total;
         int use_shared = shared && (!out->alt_zstd || shared_len + 2 <= zsum + 1 + (size_t)L->nb + 2 * (size_t)nused);
-        hdr[head++] = (uint8_t)(use_shared ? MODE_SHARED : MODE_BANDS);
+        hdr[head++] = (uint8_t)(use_shared ? MODE_BLOCKS : MODE_BANDS);
         if (use_shared) {
             hdr[head++] = mask;
             total = head + shared_len;
@@ -246,7 +247,7 @@ int wvol__wvc2_chunk_decode(const wvc2_geom *g, int m, const size_t ext[3], cons
     if (bytes == 0) return 0;
     mode = payload[0];
     pos = 1;
-    if (mode == MODE_SHARED) {
+    if (mode == MODE_SHARED || mode == MODE_BLOCKS) {
         if (bytes < 3) {
             *why = "chunk header truncated";
             return -1;
@@ -312,14 +313,14 @@ int wvol__wvc2_chunk_decode(const wvc2_geom *g, int m, const size_t ext[3], cons
                 parent_in(&lg[i], &parent[i]);
             }
         }
-    if (!r && mode == MODE_SHARED) {
+    if (!r && mode != MODE_BANDS) {
         int32_t *Q[8];
         const size_t *P[8];
         const wvc_band *B[8];
         int k = 0;
         for (i = 0; i < L->nb; i++)
             if (used >> i & 1) Q[k] = lg[i].q, P[k] = lg[i].p, B[k] = &lg[i].b, k++;
-        r = wvol__wvc_cabac_decode_multi(k, Q, P, B, payload + pos, bytes - pos, why);
+        r = wvol__wvc_cabac_decode_multi(k, Q, P, B, payload + pos, bytes - pos, mode == MODE_BLOCKS, nonzero, why);
     } else if (!r) {
         for (i = 0; i < L->nb && !r; i++) {
             if (!(used >> i & 1)) continue;
@@ -330,21 +331,24 @@ int wvol__wvc2_chunk_decode(const wvc2_geom *g, int m, const size_t ext[3], cons
             pos += len[i];
         }
     }
+    /* the shared stream's coder counted the non-zeros; the per-band coders did not */
     for (i = 0; i < L->nb; i++) {
-        if (!r && (used >> i & 1) && direct) {
+        uint64_t nz = 0;
+        if (!r && (used >> i & 1) && direct && mode == MODE_BANDS) {
             for (size_t z = 0; z < ext[2]; z++)
                 for (size_t y = 0; y < ext[1]; y++) {
                     const int32_t *s = lg[i].q + wvc_index(lg[i].p, &lg[i].b, 0, y, z);
-                    for (size_t x = 0; x < ext[0]; x++) *nonzero += s[x] != 0;
+                    for (size_t x = 0; x < ext[0]; x++) nz += s[x] != 0;
                 }
-        } else if (!r && (used >> i & 1)) {
+        } else if (!r && (used >> i & 1) && !direct) {
             for (size_t z = 0; z < ext[2]; z++)
                 for (size_t y = 0; y < ext[1]; y++) {
                     const int32_t *s = lg[i].q + lg[i].p[0] * (y + lg[i].p[1] * z);
                     int32_t *d = child[i].q + y * child[i].sy + z * child[i].sz;
-                    for (size_t x = 0; x < ext[0]; x++) *nonzero += (d[x] = s[x]) != 0;
+                    for (size_t x = 0; x < ext[0]; x++) nz += (d[x] = s[x]) != 0;
                 }
         }
+        if (mode == MODE_BANDS) *nonzero += nz;
         if (!direct) free(lg[i].q);
     }
     return r;

@@ -14,7 +14,11 @@
  * one is implied when the others are zero), then |q| >= 2, |q| >= 3 flags and an
  * exp-Golomb remainder with adaptive prefix contexts (context: magnitude of causal
  * neighbours and parent), then a raw sign bit. The low-pass cube codes the residual
- * of the 3D Lorenzo predictor with the same magnitude binarisation.
+ * of the 3D Lorenzo predictor with the same magnitude binarisation. The `blocks`
+ * variant (version-2 chunk mode 2) puts a flag per 4x4x4 block before the group flags
+ * (block_row): zero blocks, most of a fine level at low rates, are then passed over
+ * whole. Based on: Pearlman, Islam, Nagaraj & Said 2004 (SPECK: set partitioning of
+ * the insignificant coefficients).
  *
  * One body serves both directions: `dec` is a compile-time constant at each call,
  * so encoder and decoder share every context decision by construction. */
@@ -27,7 +31,10 @@
 #define NMC 16  /* magnitude classes: bit length of a weighted neighbourhood magnitude */
 #define NLEN 40 /* longest magnitude bit length */
 
+#define NBC 4 /* block parent classes: all 8 parents 0, max |p| = 1, max |p| >= 2, none */
+
 typedef struct band_model {
+    rc_ctx block[NBC * 4];
     rc_ctx group[NPC * 4];
     rc_ctx sig[NPC * 4 * 4];
     rc_ctx len[NMC][NLEN + 1];  /* unary bit length of |q| */
@@ -39,6 +46,7 @@ typedef struct band_model {
 typedef struct coder {
     rc_enc *e;
     rc_dec *d;
+    uint64_t nz; /* decoder: non-zero values written, so no caller counts them in another pass */
 } coder;
 
 #define FORCE_INLINE static inline __attribute__((always_inline))
@@ -115,20 +123,20 @@ static inline uint32_t absq(int32_t v)
     return a > 65535 ? 65535 : a;
 }
 
-/* Parent class (see NPC) and |parent| of every group of the group row (gj, gk),
- * written to pc[0..gx) and P[0..gx). A group's parent is its index clamped to the
- * parent band; rows and columns outside the parent band count as zero (the
- * pointer then aims at the parent row itself and the flag masks it out). */
-static void parent_row(const int32_t *Q, const size_t p[3], const wvc_band *b, size_t gx, size_t gj, size_t gk,
-                       uint8_t *pc, uint32_t *P)
+/* Parent class (see NPC) and |parent| of the groups g0..g1-1 of the group row (gj, gk)
+ * (a row has gx groups), written to pc[g0..g1) and P[g0..g1). A group's parent is its
+ * index clamped to the parent band; rows and columns outside the parent band count as
+ * zero (the pointer then aims at the parent row itself and the flag masks it out). */
+static void parent_row(const int32_t *Q, const size_t p[3], const wvc_band *b, size_t gx, size_t g0, size_t g1,
+                       size_t gj, size_t gk, uint8_t *pc, uint32_t *P)
 {
     const ptrdiff_t sy = (ptrdiff_t)p[0], sz = (ptrdiff_t)(p[0] * p[1]);
     size_t pj, pk, gi, pe = b->pext[0];
     const int32_t *pr, *rN, *rS, *rD, *rU;
     int fN, fS, fD, fU;
     if (!b->has_parent) {
-        memset(pc, 5, gx);
-        memset(P, 0, gx * sizeof *P);
+        memset(pc + g0, 5, g1 - g0);
+        memset(P + g0, 0, (g1 - g0) * sizeof *P);
         return;
     }
     pj = gj < b->pext[1] ? gj : b->pext[1] - 1;
@@ -136,13 +144,14 @@ static void parent_row(const int32_t *Q, const size_t p[3], const wvc_band *b, s
     pr = Q + b->poff[0] + (size_t)sy * (b->poff[1] + pj) + (size_t)sz * (b->poff[2] + pk);
     fN = pj > 0, fS = pj + 1 < b->pext[1], fD = pk > 0, fU = pk + 1 < b->pext[2];
     rN = fN ? pr - sy : pr, rS = fS ? pr + sy : pr, rD = fD ? pr - sz : pr, rU = fU ? pr + sz : pr;
-    for (gi = 0; gi < gx; gi++) {
+    for (gi = g0; gi < g1; gi++) {
         size_t pi = gi < pe ? gi : pe - 1;
         uint32_t v;
         int pn;
         if (pi > 0 && pi + 1 < pe && gi + 1 < gx) {
             /* interior: no bounds to test along x, so the loop runs without branches */
             size_t end = (gx < pe ? gx : pe) - 1;
+            if (end > g1) end = g1;
             for (; gi < end; gi++) {
                 v = absq(pr[gi]);
                 pn = (pr[gi - 1] != 0) + (pr[gi + 1] != 0) + (fN & (rN[gi] != 0)) + (fS & (rS[gi] != 0)) +
@@ -190,26 +199,97 @@ static inline size_t next_group(const uint8_t *grow, size_t g, size_t gx)
     return g;
 }
 
-/* Group states: 0 all zero, 1 non-zero with no non-zero child coded yet, 2 one seen. */
-FORCE_INLINE int detail_band(int dec, coder *cd, int32_t *Q, const size_t p[3], const wvc_band *b,
+/* Block flags (the `blocks` variant of detail_band): one flag per block of 2x2x2 groups
+ * (4x4x4 coefficients, fewer at the band's far edges) says whether any of its
+ * coefficients is non-zero; the flags of a block row (bj, bk) are all coded before its
+ * coefficients. Context: the block's parents (the parents of its groups: all zero,
+ * max |p| = 1, max |p| >= 2, or none at the coarsest level) x its non-zero causal
+ * neighbour blocks (W, N, U). A zero block then costs one decision instead of eight group
+ * flags, and the decoder skips it without computing its parents' classes: at low rates
+ * most of a fine level is such blocks (SPECK's insight: code the many zeros as sets).
+ * The encoder's bany (bx bytes) receives which blocks of the row hold a non-zero. */
+FORCE_INLINE void block_row(int dec, coder *cd, band_model *m, const int32_t *Q, const size_t p[3],
+                            const wvc_band *b, size_t bj, size_t bk, size_t bx, size_t by, uint8_t *bstate,
+                            uint8_t *bany)
+{
+    const size_t ex = b->ext[0], ey = b->ext[1], ez = b->ext[2];
+    const size_t gx = (ex + 1) / 2, gy = (ey + 1) / 2, gz = (ez + 1) / 2;
+    uint8_t *brow = bstate + bx * (bj + by * bk);
+    const uint8_t *bN = bj > 0 ? brow - bx : NULL, *bU = bk > 0 ? brow - bx * by : NULL;
+    size_t bi;
+    if (!dec) {
+        const size_t z1 = 4 * bk + 4 < ez ? 4 * bk + 4 : ez, y1 = 4 * bj + 4 < ey ? 4 * bj + 4 : ey;
+        const size_t full = ex / 4;
+        memset(bany, 0, bx);
+        for (size_t z = 4 * bk; z < z1; z++)
+            for (size_t y = 4 * bj; y < y1; y++) {
+                const int32_t *r = Q + wvc_index(p, b, 0, y, z);
+                for (bi = 0; bi < full; bi++) bany[bi] |= (r[4 * bi] | r[4 * bi + 1] | r[4 * bi + 2] | r[4 * bi + 3]) != 0;
+                for (size_t x = 4 * full; x < ex; x++) bany[full] |= r[x] != 0;
+            }
+    }
+    for (bi = 0; bi < bx; bi++) {
+        int cls = NBC - 1, nb;
+        if (b->has_parent) {
+            const size_t *pe = b->pext;
+            uint32_t mx = 0;
+            for (size_t gk = 2 * bk; gk < 2 * bk + 2 && gk < gz; gk++)
+                for (size_t gj = 2 * bj; gj < 2 * bj + 2 && gj < gy; gj++) {
+                    size_t pj = gj < pe[1] ? gj : pe[1] - 1, pk = gk < pe[2] ? gk : pe[2] - 1;
+                    const int32_t *pr = Q + b->poff[0] + p[0] * ((b->poff[1] + pj) + p[1] * (b->poff[2] + pk));
+                    for (size_t gi = 2 * bi; gi < 2 * bi + 2 && gi < gx; gi++) {
+                        uint32_t v = absq(pr[gi < pe[0] ? gi : pe[0] - 1]);
+                        mx = v > mx ? v : mx;
+                    }
+                }
+            cls = mx == 0 ? 0 : mx == 1 ? 1 : 2;
+        }
+        nb = (bi > 0 && brow[bi - 1]) + (bN && bN[bi]) + (bU && bU[bi]);
+        STAT_CAT(4);
+        brow[bi] = (uint8_t)code_bit(dec, cd, &m->block[cls * 4 + nb], dec ? 0 : bany[bi]);
+    }
+}
+
+/* Group states: 0 all zero, 1 non-zero with no non-zero child coded yet, 2 one seen.
+ * With `blocks`, block states likewise: 0 zero, 1 non-zero with no non-zero group coded
+ * yet (the last group of such a block is non-zero by implication), 2 one seen. */
+FORCE_INLINE int detail_band(int dec, int blocks, coder *cd, int32_t *Q, const size_t p[3], const wvc_band *b,
                              band_model *m, uint8_t *gstate)
 {
     const size_t ex = b->ext[0], ey = b->ext[1], ez = b->ext[2];
-    const size_t gx = (ex + 1) / 2, gy = (ey + 1) / 2;
+    const size_t gx = (ex + 1) / 2, gy = (ey + 1) / 2, gz = (ez + 1) / 2;
+    const size_t bx = (gx + 1) / 2, by = (gy + 1) / 2;
     const ptrdiff_t sy = (ptrdiff_t)p[0], sz = (ptrdiff_t)(p[0] * p[1]);
-    const size_t ngroups = gx * gy * ((ez + 1) / 2);
+    const size_t ngroups = gx * gy * gz;
     /* the parent class and |parent| of the current slab of groups, computed at first touch */
     uint32_t *gP = (uint32_t *)(void *)(gstate + ((ngroups + 7) & ~(size_t)7));
     uint8_t *gpc = (uint8_t *)(gP + gx * gy), *gany = gpc + gx * gy;
+    uint8_t *bstate = gany + gx, *bany = bstate + bx * by * ((gz + 1) / 2);
     size_t x, y, z;
+    /* a group of a zero block is never touched: its state must read zero */
+    if (blocks) memset(gstate, 0, ngroups);
     for (z = 0; z < ez; z++)
         for (y = 0; y < ey; y++) {
             const size_t gk = z >> 1, gj = y >> 1;
             uint8_t *grow = gstate + gx * (gj + gy * gk);
+            uint8_t *brow = blocks ? bstate + bx * ((y >> 2) + by * (z >> 2)) : NULL;
             int32_t *row = Q + wvc_index(p, b, 0, y, z);
             const int hasN = y > 0, hasU = z > 0, first = (y & 1) == 0 && (z & 1) == 0;
+            if (blocks && (y & 3) == 0 && (z & 3) == 0) block_row(dec, cd, m, Q, p, b, y >> 2, z >> 2, bx, by, bstate, bany);
             if (first) {
-                parent_row(Q, p, b, gx, gj, gk, gpc + gx * gj, gP + gx * gj);
+                if (!blocks) {
+                    parent_row(Q, p, b, gx, 0, gx, gj, gk, gpc + gx * gj, gP + gx * gj);
+                } else {
+                    /* only the groups of non-zero blocks are ever coded: their parents alone */
+                    size_t b0 = 0, b1;
+                    while ((b0 = next_group(brow, b0, bx)) < bx) {
+                        for (b1 = b0 + 1; b1 < bx && brow[b1]; b1++) {
+                        }
+                        parent_row(Q, p, b, gx, 2 * b0, 2 * b1 < gx ? 2 * b1 : gx, gj, gk, gpc + gx * gj,
+                                   gP + gx * gj);
+                        b0 = b1;
+                    }
+                }
                 if (!dec) any_row(Q, p, b, y, z, gx, gany);
             }
             for (x = 0; x < ex; x++) {
@@ -220,13 +300,24 @@ FORCE_INLINE int detail_band(int dec, coder *cd, int32_t *Q, const size_t p[3], 
                 uint64_t mag;
                 if (first && (x & 1) == 0) {
                     /* first touch of the group: its flag */
-                    int any = dec ? 0 : gany[gi];
-                    int gn = (gi > 0 && grow[gi - 1]) + (gj > 0 && grow[(ptrdiff_t)gi - (ptrdiff_t)gx]) +
-                             (gk > 0 && grow[(ptrdiff_t)gi - (ptrdiff_t)(gx * gy)]);
+                    int any = dec ? 0 : gany[gi], gn;
+                    if (blocks && !brow[gi >> 1]) {
+                        /* a zero block: on to the next non-zero one (its groups stay zero) */
+                        x = 4 * next_group(brow, (gi >> 1) + 1, bx) - 1;
+                        continue;
+                    }
+                    gn = (gi > 0 && grow[gi - 1]) + (gj > 0 && grow[(ptrdiff_t)gi - (ptrdiff_t)gx]) +
+                         (gk > 0 && grow[(ptrdiff_t)gi - (ptrdiff_t)(gx * gy)]);
                     pc = gpc[gi + gx * gj];
-                    STAT_CAT(0);
-                    any = code_bit(dec, cd, &m->group[pc * 4 + gn], any);
+                    if (blocks && brow[gi >> 1] == 1 && (gi == gx - 1 || (gi & 1)) && (gj == gy - 1 || (gj & 1)) &&
+                        (gk == gz - 1 || (gk & 1))) {
+                        any = 1; /* the last group of a non-zero block whose others are all zero */
+                    } else {
+                        STAT_CAT(0);
+                        any = code_bit(dec, cd, &m->group[pc * 4 + gn], any);
+                    }
                     grow[gi] = (uint8_t)any;
+                    if (blocks && any) brow[gi >> 1] = 2;
                 }
                 if (!grow[gi]) {
                     if (first) {
@@ -267,6 +358,7 @@ FORCE_INLINE int detail_band(int dec, coder *cd, int32_t *Q, const size_t p[3], 
                 }
                 if (!sig) continue;
                 grow[gi] = 2;
+                if (dec) cd->nz++;
                 STAT_CAT(2);
                 mag = dec ? 0 : *c < 0 ? (uint64_t)(-(int64_t)*c) : (uint64_t)*c;
                 mag = code_mag(dec, cd, m, mag_class(2 * (aW + aN + aU) + dsum + 4 * P), mag, 30);
@@ -307,12 +399,14 @@ FORCE_INLINE int lowpass_band(int dec, coder *cd, int32_t *Q, const size_t p[3],
                         r = neg ? -(int64_t)mag : (int64_t)mag;
                         if (r + pred > WVC_QMAX || r + pred < -(int64_t)WVC_QMAX) return -1;
                         *c = (int32_t)(r + pred);
+                        cd->nz += *c != 0;
                     } else {
                         code_direct(dec, cd, r < 0, 1);
                     }
                 } else if (dec) {
                     if (pred > WVC_QMAX || pred < -(int64_t)WVC_QMAX) return -1;
                     *c = (int32_t)pred;
+                    cd->nz += *c != 0;
                 }
                 R[i] = (uint16_t)(mag > 65535 ? 65535 : mag);
             }
@@ -324,11 +418,15 @@ static void model_init(band_model *m)
     rc_ctx_init((rc_ctx *)m, (int)(sizeof *m / sizeof(rc_ctx)));
 }
 
+/* detail_band's scratch: group states, a slab of parent classes and magnitudes, the
+ * encoder's group row flags, block states and the encoder's block row flags */
 static int band_scratch(const wvc_band *b, void **scratch)
 {
-    size_t gxy = ((b->ext[0] + 1) / 2) * ((b->ext[1] + 1) / 2), ng = gxy * ((b->ext[2] + 1) / 2);
+    size_t g[3], bl[3];
+    for (int a = 0; a < 3; a++) g[a] = (b->ext[a] + 1) / 2, bl[a] = (g[a] + 1) / 2;
+    size_t gxy = g[0] * g[1], ng = gxy * g[2];
     size_t n = b->band == 0 ? (size_t)b->count * sizeof(uint16_t)
-                             : ((ng + 7) & ~(size_t)7) + gxy * 5 + (b->ext[0] + 1) / 2;
+                             : ((ng + 7) & ~(size_t)7) + gxy * 5 + g[0] + bl[0] * bl[1] * bl[2] + bl[0];
     *scratch = malloc(n ? n : 1);
     return *scratch ? 0 : -1;
 }
@@ -338,24 +436,24 @@ int wvol__wvc_cabac_encode(uint8_t **buf, size_t *size, const int32_t *Q, const 
 {
     int32_t *q = (int32_t *)Q; /* the encoder only reads it */
     const size_t *pp = p;
-    return wvol__wvc_cabac_encode_multi(buf, size, 1, &q, &pp, &b);
+    return wvol__wvc_cabac_encode_multi(buf, size, 1, &q, &pp, &b, 0);
 }
 
 int wvol__wvc_cabac_decode(int32_t *Q, const size_t p[3], const wvc_band *b, const uint8_t *buf,
                            size_t size, const char **why)
 {
     const size_t *pp = p;
-    return wvol__wvc_cabac_decode_multi(1, &Q, &pp, &b, buf, size, why);
+    return wvol__wvc_cabac_decode_multi(1, &Q, &pp, &b, buf, size, 0, NULL, why);
 }
 
 /* Several bands in one stream with one model that keeps adapting from band to band: a
  * version-2 chunk's bands are small, and one model learns once instead of per band
  * (a fixed prior for the flags instead of 1/2 did not help). */
 int wvol__wvc_cabac_encode_multi(uint8_t **buf, size_t *size, int n, int32_t *const Q[], const size_t *const p[],
-                                 const wvc_band *const b[])
+                                 const wvc_band *const b[], int blocks)
 {
     rc_enc e;
-    coder cd = {&e, NULL};
+    coder cd = {&e, NULL, 0};
     band_model m;
     const uint8_t *data;
     size_t len;
@@ -372,8 +470,10 @@ int wvol__wvc_cabac_encode_multi(uint8_t **buf, size_t *size, int n, int32_t *co
         }
         if (b[i]->band == 0)
             lowpass_band(0, &cd, Q[i], p[i], b[i], &m, scratch);
+        else if (blocks)
+            detail_band(0, 1, &cd, Q[i], p[i], b[i], &m, scratch);
         else
-            detail_band(0, &cd, Q[i], p[i], b[i], &m, scratch);
+            detail_band(0, 0, &cd, Q[i], p[i], b[i], &m, scratch);
         free(scratch);
     }
     rc_enc_finish(&e);
@@ -389,10 +489,10 @@ int wvol__wvc_cabac_encode_multi(uint8_t **buf, size_t *size, int n, int32_t *co
 }
 
 int wvol__wvc_cabac_decode_multi(int n, int32_t *const Q[], const size_t *const p[], const wvc_band *const b[],
-                                 const uint8_t *buf, size_t size, const char **why)
+                                 const uint8_t *buf, size_t size, int blocks, uint64_t *nonzero, const char **why)
 {
     rc_dec d;
-    coder cd = {NULL, &d};
+    coder cd = {NULL, &d, 0};
     band_model m;
     int r = 0;
     model_init(&m);
@@ -405,8 +505,10 @@ int wvol__wvc_cabac_decode_multi(int n, int32_t *const Q[], const size_t *const 
         }
         if (b[i]->band == 0)
             r = lowpass_band(1, &cd, Q[i], p[i], b[i], &m, scratch);
+        else if (blocks)
+            r = detail_band(1, 1, &cd, Q[i], p[i], b[i], &m, scratch);
         else
-            r = detail_band(1, &cd, Q[i], p[i], b[i], &m, scratch);
+            r = detail_band(1, 0, &cd, Q[i], p[i], b[i], &m, scratch);
         free(scratch);
     }
     if (r) {
@@ -417,5 +519,6 @@ int wvol__wvc_cabac_decode_multi(int n, int32_t *const Q[], const size_t *const 
         *why = "coded data ends early";
         return -1;
     }
+    if (nonzero) *nonzero = cd.nz;
     return 0;
 }

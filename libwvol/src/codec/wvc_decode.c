@@ -15,6 +15,7 @@
 
 #include "wvc2_read.h"
 #include "wvc_format.h"
+#include "core/clones.h"
 #include "wvc_internal.h"
 #include "wvol/io.h"
 
@@ -204,6 +205,65 @@ static wvol_status coeffs_new(wvol_coeffs **out, const wvol_wvc_info *I, wvol_er
     return WVOL_OK;
 }
 
+/* Dequantises in place the w <= 8 int32 values the coder stored at o: sign(q) (|q| +
+ * delta) step in double, rounded once to float (|q| = 1 takes o1 = (1 + delta1) step).
+ * Explicit vectors (GCC left the scalar loop scalar), the same operations in the same
+ * order as one value at a time, so the result is bit for bit that of the scalar form.
+ * Returns how many were non-zero and counts in *over the values beyond float32 (a
+ * crafted file's step), which become 0 and fail the decode. */
+typedef int32_t deq_i8 __attribute__((vector_size(32)));
+typedef int64_t deq_l4 __attribute__((vector_size(32)));
+typedef double deq_d4 __attribute__((vector_size(32)));
+typedef float deq_f4 __attribute__((vector_size(16)));
+typedef int32_t deq_i4 __attribute__((vector_size(16)));
+
+static inline __attribute__((always_inline)) deq_i4 dequant4(deq_i4 q, double o1, double d2, double step,
+                                                             deq_i4 *nzc, deq_i4 *ovc)
+{
+    deq_i4 m = q >> 31, a = (q ^ m) - m; /* |q| (bounded by the coder, never INT32_MIN) */
+    deq_d4 ad = __builtin_convertvector(a, deq_d4);
+    deq_d4 d = (ad + d2) * step, o1v = {o1, o1, o1, o1};
+    deq_l4 one = ad == 1.0, zero = ad == 0.0, big;
+    deq_l4 bits = ((deq_l4)d & ~one) | ((deq_l4)o1v & one);
+    deq_f4 f;
+    big = ~((deq_d4)bits <= (double)FLT_MAX); /* NaN too */
+    bits &= ~(big | zero);
+    f = __builtin_convertvector((deq_d4)bits, deq_f4);
+    *nzc -= __builtin_convertvector(~zero, deq_i4);
+    *ovc -= __builtin_convertvector(big & ~zero, deq_i4);
+    return (deq_i4)f | (q & (int32_t)0x80000000); /* f >= 0: the sign of q, -0.0f as the scalar form */
+}
+
+static inline __attribute__((always_inline)) uint64_t dequant8(float *o, size_t w, double o1, double d2, double step,
+                                                               uint64_t *over)
+{
+    deq_i4 q0, q1, nzc = {0, 0, 0, 0}, ovc = {0, 0, 0, 0};
+    int32_t q[8] = {0, 0, 0, 0, 0, 0, 0, 0};
+    memcpy(q, o, w * sizeof(float));
+    memcpy(&q0, q, sizeof q0);
+    memcpy(&q1, q + 4, sizeof q1);
+    q0 = dequant4(q0, o1, d2, step, &nzc, &ovc);
+    q1 = dequant4(q1, o1, d2, step, &nzc, &ovc);
+    memcpy(q, &q0, sizeof q0);
+    memcpy(q + 4, &q1, sizeof q1);
+    memcpy(o, q, w * sizeof(float));
+    *over += (uint64_t)(ovc[0] + ovc[1] + ovc[2] + ovc[3]);
+    return (uint64_t)(nzc[0] + nzc[1] + nzc[2] + nzc[3]);
+}
+
+/* One row of n values: groups of eight zeros (0.0f already) skipped in one test. */
+WVOL__CLONES static uint64_t dequant_row(float *o, size_t n, double o1, double d2, double step, uint64_t *over)
+{
+    uint64_t nz = 0, zero[4] = {0, 0, 0, 0};
+    size_t x;
+    for (x = 0; x + 8 <= n; x += 8) {
+        memcpy(zero, o + x, sizeof zero);
+        if (zero[0] | zero[1] | zero[2] | zero[3]) nz += dequant8(o + x, 8, o1, d2, step, over);
+    }
+    if (x < n) nz += dequant8(o + x, n - x, o1, d2, step, over);
+    return nz;
+}
+
 /* Decodes the sections of levels > stop_level from buf (the file's first avail bytes).
  * The quantised values are decoded into the output's own buffer (as int32, which
  * has the size of a float and whose zero is 0.0f) and dequantised in place. */
@@ -283,35 +343,9 @@ static wvol_status decode(wvol_coeffs **out, const uint8_t *buf, size_t avail, c
         if (S->coder == WVOL_WVC_CODER_EMPTY) continue;
 #pragma omp parallel for schedule(static) reduction(+ : nz, over) if (b->count > 65536)
         for (z = 0; z < (long)b->ext[2]; z++) {
-            size_t x, y;
+            size_t y;
             for (y = 0; y < b->ext[1]; y++) {
-                float *o = c->data + wvc_index(L->p, b, 0, y, (size_t)z);
-                for (x = 0; x < b->ext[0]; x++) {
-                    int32_t v;
-                    float a;
-                    if ((x & 7) == 0 && x + 8 <= b->ext[0]) {
-                        uint64_t w[4]; /* eight int32 zeros are 0.0f already: skip them in one test */
-                        memcpy(w, o + x, sizeof w);
-                        if (!(w[0] | w[1] | w[2] | w[3])) {
-                            x += 7;
-                            continue;
-                        }
-                    }
-                    memcpy(&v, o + x, sizeof v); /* the int32 the coder stored there */
-                    if (v == 0) continue;
-                    nz++;
-                    {
-                        double d = (v == 1 || v == -1) ? o1 : ((double)(v < 0 ? -v : v) + d2) * step;
-                        /* a crafted file's step can reach beyond float32: counted, never converted */
-                        if (!(fabs(d) <= FLT_MAX)) {
-                            over++;
-                            d = 0;
-                        }
-                        a = (float)d;
-                    }
-                    a = v < 0 ? -a : a;
-                    memcpy(o + x, &a, sizeof a);
-                }
+                nz += dequant_row(c->data + wvc_index(L->p, b, 0, y, (size_t)z), b->ext[0], o1, d2, step, &over);
             }
         }
         if (over) {

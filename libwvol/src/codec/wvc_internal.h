@@ -76,11 +76,15 @@ int wvol__wvc_cabac_encode(uint8_t **buf, size_t *size, const int32_t *Q, const 
                            const wvc_band *b);
 int wvol__wvc_cabac_decode(int32_t *Q, const size_t p[3], const wvc_band *b, const uint8_t *buf,
                            size_t size, const char **why);
-/* n bands in one CABAC stream with one model (version-2 chunks). */
+/* n bands in one CABAC stream with one model (version-2 chunks). blocks = 1 adds a
+ * flag per 4x4x4 block of a detail band before its group flags (chunk mode 2; 0: mode 1,
+ * as version 1's band coder). The decoder adds nothing to Q's zeros (Q must be zero over
+ * the bands) and, when nonzero is not NULL, stores there how many non-zero values it
+ * wrote over all n bands. */
 int wvol__wvc_cabac_encode_multi(uint8_t **buf, size_t *size, int n, int32_t *const Q[], const size_t *const p[],
-                                 const wvc_band *const b[]);
+                                 const wvc_band *const b[], int blocks);
 int wvol__wvc_cabac_decode_multi(int n, int32_t *const Q[], const size_t *const p[], const wvc_band *const b[],
-                                 const uint8_t *buf, size_t size, const char **why);
+                                 const uint8_t *buf, size_t size, int blocks, uint64_t *nonzero, const char **why);
 int wvol__wvc_zstd_encode(uint8_t **buf, size_t *size, const int32_t *Q, const size_t p[3],
                           const wvc_band *b, int level);
 int wvol__wvc_zstd_decode(int32_t *Q, const size_t p[3], const wvc_band *b, const uint8_t *buf,

@@ -1,4 +1,5 @@
 /* SPDX-License-Identifier: MIT */
+#include "core/alloc.h"
 #include "core/status_internal.h"
 #include "wvol/volume.h"
 
@@ -45,7 +46,7 @@ wvol_status wvol_volume_create(wvol_volume **out, size_t nx, size_t ny, size_t n
 {
     wvol_volume *v;
     WVOL_FORWARD(volume_new(&v, nx, ny, nz, err));
-    v->data = calloc(nx * ny * nz, sizeof(float));
+    v->data = wvol__calloc_large(nx * ny * nz, sizeof(float));
     if (!v->data) {
         free(v);
         return wvol_error_set(err, WVOL_ERR_NOMEM, "volume %zux%zux%zu: out of memory (%zu bytes)",
@@ -110,11 +111,31 @@ wvol_status wvol_volume_set_geometry(wvol_volume *v, const double spacing[3], co
     return WVOL_OK;
 }
 
+/* Whether data[0..n) is all finite: a float is NaN or Inf exactly when its exponent bits
+ * are all ones. Blocks of 1024 are tested without an early exit, which the compiler
+ * vectorises (the exit-on-first-hit loop stays scalar); only a block that fails is
+ * searched value by value. */
+static size_t first_nonfinite_block(const float *data, size_t n)
+{
+    enum { BLOCK = 1024 };
+    size_t b;
+    for (b = 0; b + BLOCK <= n; b += BLOCK) {
+        uint32_t bad = 0;
+        for (size_t i = 0; i < BLOCK; i++) {
+            uint32_t u;
+            memcpy(&u, data + b + i, sizeof u);
+            bad |= (uint32_t)((u & 0x7F800000u) == 0x7F800000u);
+        }
+        if (bad) return b;
+    }
+    return b;
+}
+
 wvol_status wvol_check_finite(const float *data, size_t nx, size_t ny, size_t nz, const char *what,
                               wvol_error *err)
 {
     size_t n = nx * ny * nz, idx;
-    for (idx = 0; idx < n; idx++) {
+    for (idx = first_nonfinite_block(data, n); idx < n; idx++) {
         if (!isfinite(data[idx])) {
             size_t i = idx % nx, j = (idx / nx) % ny, k = idx / (nx * ny);
             return wvol_error_set(err, WVOL_ERR_NONFINITE,

@@ -54,7 +54,7 @@ static wvol_status load_wvc(wvol_volume **out, const char *path, wvol_error *err
 {
     wvol_coeffs *c = NULL;
     wvol_status st = wvol_wvc_read(&c, path, NULL, NULL, err);
-    if (st == WVOL_OK) st = wvol_idwt3(out, c, err);
+    if (st == WVOL_OK) st = wvol_idwt3_consume(out, &c, err);
     wvol_coeffs_destroy(c);
     return st;
 }

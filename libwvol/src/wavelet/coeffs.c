@@ -6,6 +6,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "core/alloc.h"
 #include "wavelet/wavelet_internal.h"
 
 int wvol_dwt_max_levels(size_t nx, size_t ny, size_t nz)
@@ -59,7 +60,7 @@ wvol_status wvol_coeffs_create(wvol_coeffs **out, const wvol_filter *f, int leve
     c->pz = wvol_dwt_padded_size(nz, levels);
     for (int a = 0; a < 3; a++) c->spacing[a] = 1.0, c->origin[a] = 0.0;
     if (!wvol_size_mul3(c->px, c->py, c->pz, sizeof(float), &count) || c->px < nx || c->py < ny ||
-        c->pz < nz || !(c->data = calloc(count / sizeof(float), sizeof(float)))) {
+        c->pz < nz || !(c->data = wvol__calloc_large(count / sizeof(float), sizeof(float)))) {
         free(c);
         return wvol_error_set(err, WVOL_ERR_NOMEM, "wavelet coefficients for %zu x %zu x %zu: out of memory",
                               nx, ny, nz);
@@ -210,7 +211,7 @@ wvol_status wvol_idwt3_ex(wvol_volume **out, const wvol_coeffs *c, int use_f64, 
             wvol_error_set(err, st, "wvol_idwt3: no memory for %zu doubles", n);
         }
     } else {
-        float *d = (c->px == c->nx && c->py == c->ny && c->pz == c->nz) ? v->data : malloc(n * sizeof *d);
+        float *d = (c->px == c->nx && c->py == c->ny && c->pz == c->nz) ? v->data : wvol__malloc_large(n * sizeof *d);
         st = WVOL_ERR_NOMEM;
         if (d) {
             memcpy(d, c->data, n * sizeof *d);
@@ -227,6 +228,43 @@ wvol_status wvol_idwt3_ex(wvol_volume **out, const wvol_coeffs *c, int use_f64, 
     }
     if (st == WVOL_OK && wvol_check_finite(v->data, v->nx, v->ny, v->nz, "reconstruction", NULL) != WVOL_OK)
         st = wvol_error_set(err, WVOL_ERR_NONFINITE, "wvol_idwt3: the reconstruction overflows float32");
+    if (st != WVOL_OK) {
+        wvol_volume_destroy(v);
+        return st;
+    }
+    *out = v;
+    return WVOL_OK;
+}
+
+wvol_status wvol_idwt3_consume(wvol_volume **out, wvol_coeffs **cp, wvol_error *err)
+{
+    wvol_coeffs *c = cp ? *cp : NULL;
+    wvol_volume *v = NULL;
+    wvol_status st;
+    WVOL_RETURN_IF(!out || !cp, err, WVOL_ERR_ARG, "wvol_idwt3_consume: NULL argument");
+    *out = NULL;
+    *cp = NULL;
+    st = wvol__coeffs_check(c, err);
+    if (st == WVOL_OK)
+        st = wvol_idwt3_inplace_f32(c->data, c->px, c->py, c->pz, c->filter, c->levels, err);
+    if (st == WVOL_OK) {
+        /* crop in place: every row moves to an index at or below its own, so front to back */
+        if (c->px != c->nx || c->py != c->ny || c->pz != c->nz)
+            for (size_t k = 0; k < c->nz; k++)
+                for (size_t j = 0; j < c->ny; j++)
+                    memmove(c->data + c->nx * (j + c->ny * k), c->data + c->px * (j + c->py * k),
+                            c->nx * sizeof(float));
+        st = wvol_volume_wrap(&v, c->data, c->nx, c->ny, c->nz, err);
+    }
+    if (st == WVOL_OK) {
+        v->owns = 1;
+        c->data = NULL;
+        memcpy(v->spacing, c->spacing, sizeof v->spacing);
+        memcpy(v->origin, c->origin, sizeof v->origin);
+        if (wvol_check_finite(v->data, v->nx, v->ny, v->nz, "reconstruction", NULL) != WVOL_OK)
+            st = wvol_error_set(err, WVOL_ERR_NONFINITE, "wvol_idwt3: the reconstruction overflows float32");
+    }
+    wvol_coeffs_destroy(c);
     if (st != WVOL_OK) {
         wvol_volume_destroy(v);
         return st;

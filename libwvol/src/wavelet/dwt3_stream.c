@@ -15,6 +15,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "core/alloc.h"
 #include "wavelet/wavelet_internal.h"
 #include "wvol/source.h"
 
@@ -134,8 +135,8 @@ wvol_status wvol_dwt3_stream_create(wvol_dwt3_stream **out, const wvol_filter *f
         } else {
             l->head = L - 2, l->ring = L + s->batch, l->slots = l->head + l->ring;
         }
-        l->rows = malloc(l->slots * l->plane * sizeof(float));
-        l->lo = malloc(2 * l->plane * sizeof(float));
+        l->rows = wvol__malloc_large(l->slots * l->plane * sizeof(float));
+        l->lo = wvol__malloc_large(2 * l->plane * sizeof(float));
         if (!l->rows || !l->lo) goto nomem;
         l->hi = l->lo + l->plane;
         s->bytes += (l->slots + 2) * l->plane * sizeof(float);
@@ -285,7 +286,7 @@ wvol_status wvol_dwt3_source(wvol_source *src, const wvol_filter *f, int levels,
     S = ((size_t)16 << 20) / (slice * sizeof(float));
     S = S < s->batch ? s->batch : S > dims[2] ? dims[2] : S;
     if (S > dims[2]) S = dims[2];
-    buf = malloc(S * slice * sizeof(float));
+    buf = wvol__malloc_large(S * slice * sizeof(float));
     if (!buf) {
         wvol_dwt3_stream_destroy(s);
         return wvol_error_set(err, WVOL_ERR_NOMEM, "streamed transform: no memory for a slab of %zu slices", S);

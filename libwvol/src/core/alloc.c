@@ -1,0 +1,38 @@
+/* SPDX-License-Identifier: MIT */
+/* Large buffers backed by transparent huge pages (core/alloc.h says why). */
+#define _DEFAULT_SOURCE
+#include "core/alloc.h"
+
+#include <stdint.h>
+#include <stdlib.h>
+#include <sys/mman.h>
+
+enum { HUGE_PAGE = 2u << 20, LARGE = 8u << 20 };
+
+/* Asks for huge pages over the whole 2 MiB pages inside [p, p + bytes). glibc serves
+ * buffers this large from a fresh mapping that it neither reads nor clears, so the
+ * advice comes before the first touch. */
+static void advise_huge(void *p, size_t bytes)
+{
+#ifdef MADV_HUGEPAGE
+    uintptr_t a = ((uintptr_t)p + HUGE_PAGE - 1) & ~(uintptr_t)(HUGE_PAGE - 1);
+    uintptr_t b = ((uintptr_t)p + bytes) & ~(uintptr_t)(HUGE_PAGE - 1);
+    if (p && bytes >= LARGE && b > a) (void)madvise((void *)a, b - a, MADV_HUGEPAGE);
+#else
+    (void)p, (void)bytes;
+#endif
+}
+
+void *wvol__calloc_large(size_t n, size_t size)
+{
+    void *p = calloc(n, size);
+    if (p) advise_huge(p, n * size); /* calloc refused an overflowing n * size */
+    return p;
+}
+
+void *wvol__malloc_large(size_t bytes)
+{
+    void *p = malloc(bytes);
+    advise_huge(p, bytes);
+    return p;
+}
