@@ -13,6 +13,9 @@
 #include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
+#ifdef _OPENMP
+#include <omp.h>
+#endif
 
 #define CB_SHIFT 2 /* blocks of 4^3 = 64 coefficient positions: one 64-bit mask */
 #define CB (1 << CB_SHIFT)
@@ -64,11 +67,9 @@ static inline size_t node_block(const coef_blocks *cb, const wvol__node *nd, int
     return (pos[0] >> CB_SHIFT) + bv->nb[0] * ((pos[1] >> CB_SHIFT) + bv->nb[1] * (pos[2] >> CB_SHIFT));
 }
 
-/* Builds the view; when bb is not NULL, also feeds every kept detail coefficient to the
- * brick bounds (one pass over the store serves both). Cloned: a value's rank in its block is
- * a population count, an instruction on x86-64-v3 and a library call on the baseline. */
-WVOL__CLONES static wvol_status blocks_build(coef_blocks *cb, const wvol_store *s, wvol__brick_bounds *bb,
-                                             wvol_error *err)
+/* Builds the view. Cloned: a value's rank in its block is a population count, an
+ * instruction on x86-64-v3 and a library call on the baseline. */
+WVOL__CLONES static wvol_status blocks_build(coef_blocks *cb, const wvol_store *s, wvol_error *err)
 {
     wvol_store_info info;
     size_t pad[3];
@@ -138,11 +139,6 @@ WVOL__CLONES static wvol_status blocks_build(coef_blocks *cb, const wvol_store *
             const int band = __builtin_ctz(bands) + 1;
             const cblock *b = &cb->blocks[cb->bv[m][band].dir[i] - 1];
             cb->values[b->first + (size_t)__builtin_popcountll(b->mask & below)] = *v;
-            if (bb) {
-                size_t pos[3];
-                wvol__key_pos(nd->key, pos);
-                wvol__bounds_add(bb, m, band, pos[0], pos[1], pos[2], *v);
-            }
         }
     }
     return WVOL_OK;
@@ -269,6 +265,34 @@ static int gather_blocks(const void *ctx, float *dst, int m, int band, const ptr
     return bv->dir ? gather_sparse(cb, bv, dst, lo, n) : 0; /* 0: all zero, the caller skips the band */
 }
 
+/* The bounds' block maxima from the view, block by block: a block's values are scattered
+ * into its 4^3 box and taken as one dense box (vectorised), instead of one call per kept
+ * coefficient. Levels above the bound's own are skipped (its low-pass cube holds them). */
+static void blocks_bounds(const coef_blocks *cb, wvol__brick_bounds *bb)
+{
+    const int L = wvol__bounds_levels(bb);
+    for (int m = 1; m <= cb->M && m <= L; m++)
+        for (int band = 1; band < 8; band++) {
+            const band_view *bv = &cb->bv[m][band];
+            float box[CB * CB * CB];
+            if (!bv->dir) continue;
+            for (size_t z = 0; z < bv->nb[2]; z++)
+                for (size_t y = 0; y < bv->nb[1]; y++)
+                    for (size_t x = 0; x < bv->nb[0]; x++) {
+                        const uint32_t blk = bv->dir[x + bv->nb[0] * (y + bv->nb[1] * z)];
+                        const size_t lo[3] = {x << CB_SHIFT, y << CB_SHIFT, z << CB_SHIFT};
+                        size_t n[3];
+                        if (!blk) continue;
+                        const cblock *b = &cb->blocks[blk - 1];
+                        const float *v = cb->values + b->first;
+                        memset(box, 0, sizeof box);
+                        for (uint64_t bits = b->mask; bits; bits &= bits - 1) box[__builtin_ctzll(bits)] = *v++;
+                        for (int a = 0; a < 3; a++) n[a] = bv->e[a] - lo[a] < CB ? bv->e[a] - lo[a] : CB;
+                        wvol__bounds_add_dense(bb, m, band, lo, n, box, CB, CB * CB);
+                    }
+        }
+}
+
 /* A store opened on a file: the bound of a chunk's coefficients is its maximum from the
  * index, spread over every bound block the chunk covers (nothing is decoded). */
 static wvol_status file_bounds(wvol__brick_bounds *bb, wvol_wvc_file *f, int levels, wvol_error *err)
@@ -294,6 +318,111 @@ static wvol_status file_bounds(wvol__brick_bounds *bb, wvol_wvc_file *f, int lev
     return WVOL_OK;
 }
 
+/* A store opened on a file: the bounds from the decoded coefficients themselves instead of
+ * the index's per-chunk maxima (one maximum over a tile of all seven bands, so loose that a
+ * surface through a few bricks of a tile leaves every brick of it undecided). Every chunk with
+ * a non-zero maximum is decoded (threads over chunks; the shared cache decodes each once and
+ * keeps it for the reconstruction that follows) and its bands' block maxima are taken, when
+ * their decoded size fits in half the file's budget; otherwise the index's maxima stay. */
+wvol_status wvol__store_blocks_refine(wvol__brick_bounds *bb, const wvol_store *s, int threads, int *refined,
+                                      wvol_error *err)
+{
+    wvol_store_info info;
+    wvol_wvc_cache_stats cst;
+    wvol__coef_source cs;
+    size_t nchunks = 0, k, (*list)[4] = NULL, tile[WVOL_SELECT_MAX_LEVELS + 1][3], need = 0;
+    float *mx[WVOL_SELECT_MAX_LEVELS + 1] = {0};
+    size_t nt[WVOL_SELECT_MAX_LEVELS + 1][3];
+    wvol_status st = WVOL_OK;
+    int m, parallel = 1;
+    *refined = 0;
+    if (!s->file || !bb) return WVOL_OK;
+    wvol_store_get_info(s, &info);
+    wvol_wvc_file_stats(s->file, &cst);
+    for (m = 1; m <= wvol__bounds_levels(bb) && st == WVOL_OK; m++) {
+        wvol__wvc_file_level_max(s->file, m, NULL, nt[m], tile[m]);
+        mx[m] = malloc(nt[m][0] * nt[m][1] * nt[m][2] * sizeof *mx[m] + 1);
+        if (!mx[m]) {
+            st = wvol_error_set(err, WVOL_ERR_NOMEM, "store: out of memory for the file's bounds");
+            break;
+        }
+        wvol__wvc_file_level_max(s->file, m, mx[m], nt[m], tile[m]);
+        for (k = 0; k < nt[m][0] * nt[m][1] * nt[m][2]; k++)
+            if (mx[m][k] != 0) nchunks++, need += tile[m][0] * tile[m][1] * tile[m][2] * 7 * sizeof(int32_t);
+        for (int a = 0; a < 3; a++)
+            if (tile[m][a] % 4) parallel = 0; /* tiles could share a bound block */
+    }
+    if (st == WVOL_OK && need <= cst.budget / 2 && nchunks) {
+        list = malloc(nchunks * sizeof *list);
+        if (!list) st = wvol_error_set(err, WVOL_ERR_NOMEM, "store: out of memory for the file's bounds");
+    }
+    if (list) {
+        size_t n = 0;
+        for (m = 1; m <= wvol__bounds_levels(bb); m++)
+            for (k = 0; k < nt[m][0] * nt[m][1] * nt[m][2]; k++)
+                if (mx[m][k] != 0) list[n][0] = (size_t)m, list[n][1] = k % nt[m][0],
+                                   list[n][2] = (k / nt[m][0]) % nt[m][1], list[n++][3] = k / (nt[m][0] * nt[m][1]);
+        wvol__wvc_file_source(&cs, s->file, 0);
+        wvol__bounds_clear(bb);
+        (void)wvol__wvc_file_error(s->file, NULL);
+#ifdef _OPENMP
+#pragma omp parallel num_threads(threads > 0 ? threads : omp_get_max_threads()) if (parallel && threads != 1)
+#endif
+        {
+            float *buf = NULL;
+            size_t cap = 0;
+            int oom = 0;
+            long q;
+#ifdef _OPENMP
+#pragma omp for schedule(dynamic, 1)
+#endif
+            for (q = 0; q < (long)nchunks; q++) {
+                const int lm = (int)list[q][0];
+                const size_t pad[3] = {info.px, info.py, info.pz};
+                size_t lo[3], n[3], vol;
+                ptrdiff_t plo[3], pn[3];
+                for (int a = 0; a < 3; a++) {
+                    size_t e = wvol__extent(pad[a], lm);
+                    lo[a] = list[q][1 + a] * tile[lm][a];
+                    n[a] = lo[a] + tile[lm][a] < e ? tile[lm][a] : e - lo[a];
+                    plo[a] = (ptrdiff_t)lo[a];
+                    pn[a] = (ptrdiff_t)n[a];
+                }
+                vol = n[0] * n[1] * n[2];
+                if (vol > cap) {
+                    free(buf);
+                    buf = malloc(vol * sizeof *buf);
+                    cap = buf ? vol : 0;
+                }
+                if (!buf) { /* this chunk's bound blocks would stay 0: refused below */
+                    oom = 1;
+                    continue;
+                }
+                for (int band = 1; band < 8; band++)
+                    if (cs.gather(cs.ctx, buf, lm, band, plo, pn))
+                        wvol__bounds_add_dense(bb, lm, band, lo, n, buf, n[0], n[0] * n[1]);
+            }
+            if (oom) {
+#ifdef _OPENMP
+#pragma omp critical(wvol_store_refine)
+#endif
+                if (st == WVOL_OK) st = WVOL_ERR_NOMEM;
+            }
+            free(buf);
+        }
+        if (st == WVOL_ERR_NOMEM) {
+            wvol_error_set(err, st, "store: out of memory for a chunk's bounds");
+        } else {
+            st = wvol__wvc_file_error(s->file, err);
+            if (st == WVOL_OK) *refined = 1;
+        }
+        wvol__bounds_finish(bb);
+    }
+    free(list);
+    for (m = 1; m <= info.levels; m++) free(mx[m]);
+    return st;
+}
+
 wvol_status wvol__store_blocks_create(wvol__store_blocks **out, wvol__brick_bounds **bounds, const wvol_store *s,
                                       wvol_error *err)
 {
@@ -304,30 +433,32 @@ wvol_status wvol__store_blocks_create(wvol__store_blocks **out, wvol__brick_boun
     *out = NULL;
     if (bounds) *bounds = NULL;
     wvol_store_get_info(s, &info);
-    /* the bound needs every axis transformed; without it every brick is reconstructed */
-    if (bounds && info.px > 1 && info.py > 1 && info.pz > 1 && info.levels >= 1) {
-        const size_t pad[3] = {info.px, info.py, info.pz};
-        WVOL_FORWARD(wvol__bounds_create(&bb, info.filter, info.levels, pad, wvol_store_lowpass(s), info.lowpass[0],
-                                         info.lowpass[0] * info.lowpass[1], err));
-    }
     cb = malloc(sizeof *cb);
-    st = cb ? blocks_build(cb, s, bb, err)
+    st = cb ? blocks_build(cb, s, err)
             : wvol_error_set(err, WVOL_ERR_NOMEM, "store: out of memory for the coefficient blocks");
     if (st != WVOL_OK) {
         wvol__store_blocks_destroy(cb);
-        wvol__bounds_free(bb);
         return st;
     }
-    if (s->file && bb && (st = file_bounds(bb, s->file, info.levels, err)) != WVOL_OK) {
-        wvol__store_blocks_destroy(cb);
-        wvol__bounds_free(bb);
-        return st;
-    }
-    if (bb) wvol__bounds_finish(bb);
     cb->cs = (wvol__coef_source){.gather = gather_blocks, .ctx = cb, .filter = info.filter, .levels = info.levels,
                                  .dims = {info.nx, info.ny, info.nz}, .pad = {info.px, info.py, info.pz}};
     /* a store opened on a file: the detail bands come from its chunks, decoded on demand */
     if (s->file) wvol__wvc_file_source(&cb->cs, s->file, 0);
+    /* the bound needs every axis transformed; without it every brick is reconstructed */
+    if (bounds && info.px > 1 && info.py > 1 && info.pz > 1 && info.levels >= 1) {
+        st = wvol__bounds_create_src(&bb, &cb->cs, err);
+        if (st == WVOL_OK && s->file) st = wvol__wvc_file_error(s->file, err);
+        if (st == WVOL_OK) {
+            if (s->file) st = file_bounds(bb, s->file, wvol__bounds_levels(bb), err);
+            else blocks_bounds(cb, bb);
+        }
+        if (st != WVOL_OK) {
+            wvol__store_blocks_destroy(cb);
+            wvol__bounds_free(bb);
+            return st;
+        }
+        wvol__bounds_finish(bb);
+    }
     if (bounds) *bounds = bb;
     *out = cb;
     return WVOL_OK;

@@ -124,6 +124,7 @@ struct wvol__brick_bounds {
     size_t low_sy, low_sz;
     int M;
     int nbands;
+    float *own_low;    /* the low-pass cube when the bound reconstructed it (create_src) */
     size_t bytes;      /* tables beyond the struct */
     band_blocks bb[7 * 32 + 1];
 };
@@ -134,6 +135,7 @@ void wvol__bounds_free(brick_bounds *b)
     int i;
     if (!b) return;
     for (i = 0; i < b->nbands; i++) free(b->bb[i].absmax);
+    free(b->own_low);
     free(b);
 }
 
@@ -193,6 +195,43 @@ wvol_status wvol__bounds_create(brick_bounds **out, const wvol_filter *f, int le
     return WVOL_OK;
 }
 
+wvol_status wvol__bounds_create_src(brick_bounds **out, const wvol__coef_source *src, wvol_error *err)
+{
+    const int L = src->levels < WVOL__BOUNDS_LEVELS ? src->levels : WVOL__BOUNDS_LEVELS;
+    size_t e[3], n;
+    const size_t zero[3] = {0, 0, 0};
+    wvol__coef_skip sk;
+    wvol__coef_source coarse;
+    wvol__brick_scratch scr;
+    float *low;
+    wvol_status st;
+    *out = NULL;
+    WVOL_RETURN_IF(L < 1, err, WVOL_ERR_ARG, "brick bounds: %d levels", src->levels);
+    for (int a = 0; a < 3; a++) {
+        WVOL_RETURN_IF(src->pad[a] < 2, err, WVOL_ERR_DIMS, "brick bounds: axis %c is not transformed", "xyz"[a]);
+        e[a] = src->pad[a] >> L;
+    }
+    n = e[0] * e[1] * e[2];
+    low = malloc(n * sizeof *low);
+    WVOL_RETURN_IF(!low, err, WVOL_ERR_NOMEM, "brick bounds: out of memory for a %zu x %zu x %zu low-pass cube", e[0],
+                   e[1], e[2]);
+    /* the pyramid above level L, reconstructed: its samples are the level-L low-pass */
+    wvol__coef_source_skip(&coarse, &sk, src, L);
+    memset(&scr, 0, sizeof scr);
+    st = wvol__idwt3_brick_src(low, &coarse, zero, e, &scr, err);
+    wvol__brick_scratch_free(&scr);
+    if (st == WVOL_OK) st = wvol__bounds_create(out, src->filter, L, src->pad, low, e[0], e[0] * e[1], err);
+    if (st != WVOL_OK) {
+        free(low);
+        return st;
+    }
+    (*out)->own_low = low;
+    (*out)->bytes += n * sizeof *low;
+    return WVOL_OK;
+}
+
+int wvol__bounds_levels(const brick_bounds *b) { return b ? b->M : 0; }
+
 /* The (level, band) entry of the table; NULL for the low-pass cube and out of range. */
 static band_blocks *band_of(brick_bounds *b, int m, int band)
 {
@@ -231,6 +270,33 @@ void wvol__bounds_add_box(brick_bounds *b, int m, int band, const size_t lo[3], 
             }
 }
 
+void wvol__bounds_clear(brick_bounds *b)
+{
+    for (int qi = 0; qi < b->nbands; qi++)
+        if (b->bb[qi].absmax) memset(b->bb[qi].absmax, 0, b->bb[qi].nb[0] * b->bb[qi].nb[1] * b->bb[qi].nb[2] * sizeof(float));
+}
+
+void wvol__bounds_add_dense(brick_bounds *b, int m, int band, const size_t lo[3], const size_t n[3], const float *v,
+                            size_t sy, size_t sz)
+{
+    band_blocks *q = band_of(b, m, band);
+    size_t x, y, z;
+    if (!q) return;
+    for (int a = 0; a < 3; a++)
+        if (lo[a] >= q->e[a] || n[a] > q->e[a] - lo[a]) return; /* outside the band: the caller's error */
+    for (z = 0; z < n[2]; z++)
+        for (y = 0; y < n[1]; y++) {
+            const float *row = v + sy * y + sz * z;
+            float *brow = q->absmax + q->nb[0] * (((lo[1] + y) >> q->bshift[1]) + q->nb[1] * ((lo[2] + z) >> q->bshift[2]));
+            const int sh = q->bshift[0];
+            for (x = 0; x < n[0]; x++) {
+                float av = fabsf(row[x]);
+                size_t bx = (lo[0] + x) >> sh;
+                if (!(av <= brow[bx])) brow[bx] = isnan(av) ? INFINITY : av; /* NaN propagates as +inf */
+            }
+        }
+}
+
 void wvol__bounds_fill_coeffs(brick_bounds *b, const wvol_coeffs *c)
 {
     /* one pass over the coefficients; a thread owns whole z-slabs of blocks */
@@ -245,17 +311,10 @@ void wvol__bounds_fill_coeffs(brick_bounds *b, const wvol_coeffs *c)
 #pragma omp parallel for schedule(dynamic, 1)
 #endif
         for (zb = 0; zb < (long)q->nb[2]; zb++) {
-            size_t z0 = (size_t)zb * q->bs[2], z1 = z0 + q->bs[2] < q->e[2] ? z0 + q->bs[2] : q->e[2], z, y, x;
-            for (z = z0; z < z1; z++)
-                for (y = 0; y < q->e[1]; y++) {
-                    const float *row = c->data + off[0] + c->px * ((off[1] + y) + c->py * (off[2] + z));
-                    float *brow = q->absmax + q->nb[0] * ((y >> q->bshift[1]) + q->nb[1] * (size_t)zb);
-                    const int sh = q->bshift[0];
-                    for (x = 0; x < q->e[0]; x++) {
-                        float av = fabsf(row[x]);
-                        if (!(av <= brow[x >> sh])) brow[x >> sh] = av; /* NaN propagates */
-                    }
-                }
+            size_t z0 = (size_t)zb * q->bs[2], z1 = z0 + q->bs[2] < q->e[2] ? z0 + q->bs[2] : q->e[2];
+            const size_t lo[3] = {0, 0, z0}, n[3] = {q->e[0], q->e[1], z1 - z0};
+            wvol__bounds_add_dense(b, q->m, q->band, lo, n, c->data + off[0] + c->px * (off[1] + c->py * (off[2] + z0)),
+                                   c->px, c->px * c->py);
         }
     }
 }
