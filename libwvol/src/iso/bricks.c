@@ -219,13 +219,11 @@ static wvol_status extract_bricks(wvol_mesh **out, const wvol_coeffs *c, const w
         WVOL_FORWARD(bounds_from_coeffs(&bb, c, err));
         wvol__coef_source_of_coeffs(&g.cs, c);
     } else {
-        int refined;
-        WVOL_FORWARD(wvol__store_blocks_create(&blocks, &bb, sto, err));
+        int exact;
+        /* a file's index bounds a tile of all bands by one maximum: the decoded chunks' own
+         * maxima decide far more bricks, and the chunks are needed for the meshing */
+        WVOL_FORWARD(wvol__store_blocks_create_exact(&blocks, &bb, sto, nth, &exact, err));
         wvol__store_blocks_source(&g.cs, blocks);
-        /* a file's index bounds a tile of all bands by one maximum: the decoded chunks'
-         * own maxima decide far more bricks, and the chunks are needed for the meshing */
-        s = wvol__store_blocks_refine(bb, sto, nth, &refined, err);
-        if (s != WVOL_OK) goto done;
     }
     need = malloc(nbricks * sizeof *need);
     slot = malloc(nbricks * sizeof *slot);

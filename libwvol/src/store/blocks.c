@@ -10,6 +10,7 @@
 #include "store/store_internal.h"
 #include "codec/wvc_source.h"
 
+#include <math.h>
 #include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
@@ -265,32 +266,46 @@ static int gather_blocks(const void *ctx, float *dst, int m, int band, const ptr
     return bv->dir ? gather_sparse(cb, bv, dst, lo, n) : 0; /* 0: all zero, the caller skips the band */
 }
 
-/* The bounds' block maxima from the view, block by block: a block's values are scattered
- * into its 4^3 box and taken as one dense box (vectorised), instead of one call per kept
- * coefficient. Levels above the bound's own are skipped (its low-pass cube holds them). */
+/* The bounds' block maxima from the view, block by block: where the bound's blocks are at
+ * least the view's 4^3 (level 1) a block's values are contiguous and give one maximum; finer
+ * bound blocks take each value at its position. Levels above the bound's own are skipped
+ * (its low-pass cube holds them). */
 static void blocks_bounds(const coef_blocks *cb, wvol__brick_bounds *bb)
 {
     const int L = wvol__bounds_levels(bb);
-    for (int m = 1; m <= cb->M && m <= L; m++)
+    for (int m = 1; m <= cb->M && m <= L; m++) {
+        const int whole = wvol__bounds_block(bb, m) >= CB;
         for (int band = 1; band < 8; band++) {
             const band_view *bv = &cb->bv[m][band];
-            float box[CB * CB * CB];
             if (!bv->dir) continue;
             for (size_t z = 0; z < bv->nb[2]; z++)
                 for (size_t y = 0; y < bv->nb[1]; y++)
                     for (size_t x = 0; x < bv->nb[0]; x++) {
                         const uint32_t blk = bv->dir[x + bv->nb[0] * (y + bv->nb[1] * z)];
-                        const size_t lo[3] = {x << CB_SHIFT, y << CB_SHIFT, z << CB_SHIFT};
-                        size_t n[3];
                         if (!blk) continue;
                         const cblock *b = &cb->blocks[blk - 1];
                         const float *v = cb->values + b->first;
-                        memset(box, 0, sizeof box);
-                        for (uint64_t bits = b->mask; bits; bits &= bits - 1) box[__builtin_ctzll(bits)] = *v++;
-                        for (int a = 0; a < 3; a++) n[a] = bv->e[a] - lo[a] < CB ? bv->e[a] - lo[a] : CB;
-                        wvol__bounds_add_dense(bb, m, band, lo, n, box, CB, CB * CB);
+                        if (whole) {
+                            const size_t lo[3] = {x << CB_SHIFT, y << CB_SHIFT, z << CB_SHIFT};
+                            const size_t hi[3] = {lo[0] + CB, lo[1] + CB, lo[2] + CB};
+                            const int cnt = __builtin_popcountll(b->mask);
+                            float mx = 0.0f;
+                            for (int i = 0; i < cnt; i++) {
+                                float av = fabsf(v[i]);
+                                if (!(av <= mx)) mx = av; /* NaN propagates */
+                            }
+                            wvol__bounds_add_box(bb, m, band, lo, hi, mx);
+                        } else {
+                            for (uint64_t bits = b->mask; bits; bits &= bits - 1, v++) {
+                                const int bit = __builtin_ctzll(bits);
+                                wvol__bounds_add(bb, m, band, (x << CB_SHIFT) + (size_t)(bit & 3),
+                                                 (y << CB_SHIFT) + (size_t)((bit >> 2) & 3),
+                                                 (z << CB_SHIFT) + (size_t)(bit >> 4), *v);
+                            }
+                        }
                     }
         }
+    }
 }
 
 /* A store opened on a file: the bound of a chunk's coefficients is its maximum from the
@@ -318,14 +333,14 @@ static wvol_status file_bounds(wvol__brick_bounds *bb, wvol_wvc_file *f, int lev
     return WVOL_OK;
 }
 
-/* A store opened on a file: the bounds from the decoded coefficients themselves instead of
- * the index's per-chunk maxima (one maximum over a tile of all seven bands, so loose that a
+/* A store opened on a file: the bounds (nothing added yet) from the decoded coefficients
+ * themselves instead of the index's per-chunk maxima (one maximum over a tile of all seven bands, so loose that a
  * surface through a few bricks of a tile leaves every brick of it undecided). Every chunk with
  * a non-zero maximum is decoded (threads over chunks; the shared cache decodes each once and
  * keeps it for the reconstruction that follows) and its bands' block maxima are taken, when
  * their decoded size fits in half the file's budget; otherwise the index's maxima stay. */
-wvol_status wvol__store_blocks_refine(wvol__brick_bounds *bb, const wvol_store *s, int threads, int *refined,
-                                      wvol_error *err)
+static wvol_status decoded_bounds(wvol__brick_bounds *bb, const wvol_store *s, int threads, int *refined,
+                                 wvol_error *err)
 {
     wvol_store_info info;
     wvol_wvc_cache_stats cst;
@@ -363,7 +378,6 @@ wvol_status wvol__store_blocks_refine(wvol__brick_bounds *bb, const wvol_store *
                 if (mx[m][k] != 0) list[n][0] = (size_t)m, list[n][1] = k % nt[m][0],
                                    list[n][2] = (k / nt[m][0]) % nt[m][1], list[n++][3] = k / (nt[m][0] * nt[m][1]);
         wvol__wvc_file_source(&cs, s->file, 0);
-        wvol__bounds_clear(bb);
         (void)wvol__wvc_file_error(s->file, NULL);
 #ifdef _OPENMP
 #pragma omp parallel num_threads(threads > 0 ? threads : omp_get_max_threads()) if (parallel && threads != 1)
@@ -416,15 +430,16 @@ wvol_status wvol__store_blocks_refine(wvol__brick_bounds *bb, const wvol_store *
             st = wvol__wvc_file_error(s->file, err);
             if (st == WVOL_OK) *refined = 1;
         }
-        wvol__bounds_finish(bb);
     }
     free(list);
     for (m = 1; m <= info.levels; m++) free(mx[m]);
     return st;
 }
 
-wvol_status wvol__store_blocks_create(wvol__store_blocks **out, wvol__brick_bounds **bounds, const wvol_store *s,
-                                      wvol_error *err)
+/* exact_threads < 0: a file store's bounds from its index; else from its decoded chunks when
+ * they fit (decoded_bounds, that many threads), *exact saying whether they did. */
+static wvol_status create(wvol__store_blocks **out, wvol__brick_bounds **bounds, const wvol_store *s,
+                          int exact_threads, int *exact, wvol_error *err)
 {
     wvol_store_info info;
     wvol__brick_bounds *bb = NULL;
@@ -449,8 +464,11 @@ wvol_status wvol__store_blocks_create(wvol__store_blocks **out, wvol__brick_boun
         st = wvol__bounds_create_src(&bb, &cb->cs, err);
         if (st == WVOL_OK && s->file) st = wvol__wvc_file_error(s->file, err);
         if (st == WVOL_OK) {
-            if (s->file) st = file_bounds(bb, s->file, wvol__bounds_levels(bb), err);
-            else blocks_bounds(cb, bb);
+            int done = 0;
+            if (s->file && exact_threads >= 0) st = decoded_bounds(bb, s, exact_threads, &done, err);
+            if (exact) *exact = done;
+            if (st == WVOL_OK && s->file && !done) st = file_bounds(bb, s->file, wvol__bounds_levels(bb), err);
+            else if (!s->file) blocks_bounds(cb, bb);
         }
         if (st != WVOL_OK) {
             wvol__store_blocks_destroy(cb);
@@ -462,6 +480,19 @@ wvol_status wvol__store_blocks_create(wvol__store_blocks **out, wvol__brick_boun
     if (bounds) *bounds = bb;
     *out = cb;
     return WVOL_OK;
+}
+
+wvol_status wvol__store_blocks_create(wvol__store_blocks **out, wvol__brick_bounds **bounds, const wvol_store *s,
+                                      wvol_error *err)
+{
+    return create(out, bounds, s, -1, NULL, err);
+}
+
+wvol_status wvol__store_blocks_create_exact(wvol__store_blocks **out, wvol__brick_bounds **bounds,
+                                            const wvol_store *s, int threads, int *exact, wvol_error *err)
+{
+    if (exact) *exact = 0;
+    return create(out, bounds, s, threads > 0 ? threads : 0, exact, err);
 }
 
 void wvol__store_blocks_source(wvol__coef_source *src, const wvol__store_blocks *b)

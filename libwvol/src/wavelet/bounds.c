@@ -195,6 +195,8 @@ wvol_status wvol__bounds_create(brick_bounds **out, const wvol_filter *f, int le
     return WVOL_OK;
 }
 
+static band_blocks *band_of(brick_bounds *b, int m, int band);
+
 wvol_status wvol__bounds_create_src(brick_bounds **out, const wvol__coef_source *src, wvol_error *err)
 {
     const int L = src->levels < WVOL__BOUNDS_LEVELS ? src->levels : WVOL__BOUNDS_LEVELS;
@@ -232,6 +234,12 @@ wvol_status wvol__bounds_create_src(brick_bounds **out, const wvol__coef_source 
 
 int wvol__bounds_levels(const brick_bounds *b) { return b ? b->M : 0; }
 
+size_t wvol__bounds_block(const brick_bounds *b, int m)
+{
+    const band_blocks *q = band_of((brick_bounds *)b, m, 1);
+    return q ? q->bs[0] : 0;
+}
+
 /* The (level, band) entry of the table; NULL for the low-pass cube and out of range. */
 static band_blocks *band_of(brick_bounds *b, int m, int band)
 {
@@ -268,12 +276,6 @@ void wvol__bounds_add_box(brick_bounds *b, int m, int band, const size_t lo[3], 
                 float *slot = &bq->absmax[x + bq->nb[0] * (y + bq->nb[1] * z)];
                 if (!(av <= *slot)) *slot = isnan(av) ? INFINITY : av;
             }
-}
-
-void wvol__bounds_clear(brick_bounds *b)
-{
-    for (int qi = 0; qi < b->nbands; qi++)
-        if (b->bb[qi].absmax) memset(b->bb[qi].absmax, 0, b->bb[qi].nb[0] * b->bb[qi].nb[1] * b->bb[qi].nb[2] * sizeof(float));
 }
 
 void wvol__bounds_add_dense(brick_bounds *b, int m, int band, const size_t lo[3], const size_t n[3], const float *v,

@@ -79,6 +79,9 @@ wvol_status wvol__bounds_create_src(wvol__brick_bounds **out, const wvol__coef_s
 /* The number of levels the bound works on (detail maxima of levels above it are folded into
  * its low-pass cube). */
 int wvol__bounds_levels(const wvol__brick_bounds *b);
+/* The edge of the maxima's blocks at level m (coefficient positions, every axis); 0 outside
+ * the bound's levels. A maximum added over an aligned box of this edge or more loses nothing. */
+size_t wvol__bounds_block(const wvol__brick_bounds *b, int m);
 void wvol__bounds_fill_coeffs(wvol__brick_bounds *b, const wvol_coeffs *c);
 void wvol__bounds_add(wvol__brick_bounds *b, int m, int band, size_t p, size_t q, size_t r, float value);
 /* The same for every position of the box [lo, hi) of a band at once (a bound of the box's
@@ -89,8 +92,6 @@ void wvol__bounds_add_box(wvol__brick_bounds *b, int m, int band, const size_t l
  * block may run concurrently (boxes whose corners are multiples of 4 share none). */
 void wvol__bounds_add_dense(wvol__brick_bounds *b, int m, int band, const size_t lo[3], const size_t n[3],
                             const float *v, size_t sy, size_t sz);
-/* Forgets every detail maximum added so far (to refill from better information). */
-void wvol__bounds_clear(wvol__brick_bounds *b);
 /* (Re)computes the bands' global maxima from the block maxima: after filling, before queries. */
 void wvol__bounds_finish(wvol__brick_bounds *b);
 /* Bound of the samples in the box [s0, s1] (inclusive voxel indices). */
