@@ -14,6 +14,7 @@
 #include "wvol/render.h"
 #include "wvol/store.h"
 #include "wvol/wvc.h"
+#include "store/store_blocks.h"
 
 static const char *PATH = "test_wvc_store.wvc";
 
@@ -115,6 +116,26 @@ static void file_store_meshes_and_renders_like_the_memory_store(void)
                   "bricks skipped: %zu from the decoded chunks' bounds, %zu from the memory store's, %zu from the "
                   "index's (of %zu)",
                   s8b.bricks_skipped, s8m.bricks_skipped, s8f.bricks_skipped, s8m.bricks_total);
+            {
+                /* the tables' granularity: per chunk (tile 8) for the index's maxima, which hold one
+                 * value per chunk (at 2048^3 the small blocks would repeat each over a gigabyte),
+                 * the small default blocks for the decoded ones; the memory taken follows */
+                wvol__store_blocks *vb = NULL, *vf = NULL;
+                wvol__brick_bounds *bbb = NULL, *bbf = NULL;
+                int exact_b = 0, exact_f = 1;
+                CHECK(wvol__store_blocks_create_exact(&vb, &bbb, big, 1, &exact_b, &err) == WVOL_OK &&
+                          wvol__store_blocks_create_exact(&vf, &bbf, fs, 1, &exact_f, &err) == WVOL_OK,
+                      "views: %s", err.message);
+                CHECK(exact_b && !exact_f && wvol__bounds_block(bbb, 1) == 4 && wvol__bounds_block(bbf, 1) == 8 &&
+                          wvol__bounds_block(bbf, 3) == 8 && wvol__bounds_bytes(bbf) < wvol__bounds_bytes(bbb),
+                      "bound blocks: decoded %d (edge %zu, %zu bytes), index %d (edges %zu %zu, %zu bytes)", exact_b,
+                      wvol__bounds_block(bbb, 1), wvol__bounds_bytes(bbb), exact_f, wvol__bounds_block(bbf, 1),
+                      wvol__bounds_block(bbf, 3), wvol__bounds_bytes(bbf));
+                wvol__bounds_free(bbb);
+                wvol__bounds_free(bbf);
+                wvol__store_blocks_destroy(vb);
+                wvol__store_blocks_destroy(vf);
+            }
             wvol_mesh_destroy(mm);
             wvol_mesh_destroy(mf);
             wvol_mesh_destroy(mb);

@@ -37,7 +37,7 @@ static wvol_status bounds_from_coeffs(wvol__brick_bounds **out, const wvol_coeff
 {
     wvol__coef_source src;
     wvol__coef_source_of_coeffs(&src, c);
-    WVOL_FORWARD(wvol__bounds_create_src(out, &src, err));
+    WVOL_FORWARD(wvol__bounds_create_src(out, &src, NULL, err));
     wvol__bounds_fill_coeffs(*out, c);
     wvol__bounds_finish(*out);
     return WVOL_OK;

@@ -91,7 +91,7 @@ WVOL__CLONES static wvol_status blocks_build(coef_blocks *cb, const wvol_store *
                 n *= bv->nb[a];
                 if (((l >> a) & 1) && pad[a] == 1) n = 0; /* no high-pass on an untransformed axis */
             }
-            if (!n) continue;
+            if (!n || s->file) continue; /* a file store's details come from its chunks */
             bv->dir = calloc(n, sizeof *bv->dir);
             WVOL_RETURN_IF(!bv->dir, err, WVOL_ERR_NOMEM, "store: out of memory for the coefficient blocks");
             cb->bytes += n * sizeof *bv->dir;
@@ -308,136 +308,142 @@ static void blocks_bounds(const coef_blocks *cb, wvol__brick_bounds *bb)
     }
 }
 
-/* A store opened on a file: the bound of a chunk's coefficients is its maximum from the
- * index, spread over every bound block the chunk covers (nothing is decoded). */
-static wvol_status file_bounds(wvol__brick_bounds *bb, wvol_wvc_file *f, int levels, wvol_error *err)
+/* A file's chunk maxima of the levels 1..L from its index (nothing decoded). */
+typedef struct file_tiles {
+    int L;
+    size_t nt[WVOL_SELECT_MAX_LEVELS + 1][3], tile[WVOL_SELECT_MAX_LEVELS + 1][3];
+    float *mx[WVOL_SELECT_MAX_LEVELS + 1]; /* per level, chunk order */
+    size_t nonzero;                        /* chunks with a non-zero maximum */
+    size_t need;                           /* their decoded size, all bands */
+    size_t least[3];                       /* per axis the smallest tile */
+} file_tiles;
+
+static void tiles_free(file_tiles *ft)
 {
-    for (int m = 1; m <= levels; m++) {
-        size_t nt[3], tile[3];
-        float *mx;
-        wvol__wvc_file_level_max(f, m, NULL, nt, tile);
-        mx = malloc(nt[0] * nt[1] * nt[2] * sizeof *mx + 1);
-        WVOL_RETURN_IF(!mx, err, WVOL_ERR_NOMEM, "store: out of memory for the file's bounds");
-        wvol__wvc_file_level_max(f, m, mx, nt, tile);
-        for (size_t k = 0; k < nt[2]; k++)
-            for (size_t j = 0; j < nt[1]; j++)
-                for (size_t i = 0; i < nt[0]; i++) {
-                    const size_t lo[3] = {i * tile[0], j * tile[1], k * tile[2]};
-                    const size_t hi[3] = {lo[0] + tile[0], lo[1] + tile[1], lo[2] + tile[2]};
-                    float v = mx[i + nt[0] * (j + nt[1] * k)];
-                    if (v == 0) continue;
-                    for (int band = 1; band < 8; band++) wvol__bounds_add_box(bb, m, band, lo, hi, v);
-                }
-        free(mx);
+    for (int m = 1; m <= ft->L; m++) free(ft->mx[m]);
+}
+
+static wvol_status tiles_load(file_tiles *ft, wvol_wvc_file *f, int L, wvol_error *err)
+{
+    memset(ft, 0, sizeof *ft);
+    ft->L = L;
+    for (int m = 1; m <= L; m++) {
+        size_t n;
+        wvol__wvc_file_level_max(f, m, NULL, ft->nt[m], ft->tile[m]);
+        n = ft->nt[m][0] * ft->nt[m][1] * ft->nt[m][2];
+        ft->mx[m] = malloc(n * sizeof *ft->mx[m] + 1);
+        WVOL_RETURN_IF(!ft->mx[m], err, WVOL_ERR_NOMEM, "store: out of memory for the file's bounds");
+        wvol__wvc_file_level_max(f, m, ft->mx[m], ft->nt[m], ft->tile[m]);
+        for (size_t k = 0; k < n; k++)
+            if (ft->mx[m][k] != 0)
+                ft->nonzero++, ft->need += ft->tile[m][0] * ft->tile[m][1] * ft->tile[m][2] * 7 * sizeof(int32_t);
+        for (int a = 0; a < 3; a++)
+            if (!ft->least[a] || ft->tile[m][a] < ft->least[a]) ft->least[a] = ft->tile[m][a];
     }
     return WVOL_OK;
 }
 
-/* A store opened on a file: the bounds (nothing added yet) from the decoded coefficients
- * themselves instead of the index's per-chunk maxima (one maximum over a tile of all seven bands, so loose that a
- * surface through a few bricks of a tile leaves every brick of it undecided). Every chunk with
- * a non-zero maximum is decoded (threads over chunks; the shared cache decodes each once and
- * keeps it for the reconstruction that follows) and its bands' block maxima are taken, when
- * their decoded size fits in half the file's budget; otherwise the index's maxima stay. */
-static wvol_status decoded_bounds(wvol__brick_bounds *bb, const wvol_store *s, int threads, int *refined,
-                                 wvol_error *err)
+/* The bound of a chunk's coefficients is its maximum from the index, spread over every
+ * bound block the chunk covers (nothing is decoded). */
+static void file_bounds(wvol__brick_bounds *bb, const file_tiles *ft)
+{
+    for (int m = 1; m <= ft->L; m++)
+        for (size_t k = 0; k < ft->nt[m][2]; k++)
+            for (size_t j = 0; j < ft->nt[m][1]; j++)
+                for (size_t i = 0; i < ft->nt[m][0]; i++) {
+                    const size_t *tile = ft->tile[m];
+                    const size_t lo[3] = {i * tile[0], j * tile[1], k * tile[2]};
+                    const size_t hi[3] = {lo[0] + tile[0], lo[1] + tile[1], lo[2] + tile[2]};
+                    float v = ft->mx[m][i + ft->nt[m][0] * (j + ft->nt[m][1] * k)];
+                    if (v == 0) continue;
+                    for (int band = 1; band < 8; band++) wvol__bounds_add_box(bb, m, band, lo, hi, v);
+                }
+}
+
+/* The bounds from the decoded coefficients themselves instead of the index's per-chunk
+ * maxima (one maximum over a tile of all seven bands, so loose that a surface through a few
+ * bricks of a tile leaves every brick of it undecided): every chunk with a non-zero maximum
+ * is decoded (threads over chunks; the shared cache decodes each once and keeps it for the
+ * reconstruction that follows) and its bands' block maxima are taken. */
+static wvol_status decoded_bounds(wvol__brick_bounds *bb, const wvol_store *s, const file_tiles *ft, int threads,
+                                  wvol_error *err)
 {
     wvol_store_info info;
-    wvol_wvc_cache_stats cst;
     wvol__coef_source cs;
-    size_t nchunks = 0, k, (*list)[4] = NULL, tile[WVOL_SELECT_MAX_LEVELS + 1][3], need = 0;
-    float *mx[WVOL_SELECT_MAX_LEVELS + 1] = {0};
-    size_t nt[WVOL_SELECT_MAX_LEVELS + 1][3];
+    size_t k, (*list)[4], n = 0;
     wvol_status st = WVOL_OK;
     int m, parallel = 1;
-    *refined = 0;
-    if (!s->file || !bb) return WVOL_OK;
     wvol_store_get_info(s, &info);
-    wvol_wvc_file_stats(s->file, &cst);
-    for (m = 1; m <= wvol__bounds_levels(bb) && st == WVOL_OK; m++) {
-        wvol__wvc_file_level_max(s->file, m, NULL, nt[m], tile[m]);
-        mx[m] = malloc(nt[m][0] * nt[m][1] * nt[m][2] * sizeof *mx[m] + 1);
-        if (!mx[m]) {
-            st = wvol_error_set(err, WVOL_ERR_NOMEM, "store: out of memory for the file's bounds");
-            break;
-        }
-        wvol__wvc_file_level_max(s->file, m, mx[m], nt[m], tile[m]);
-        for (k = 0; k < nt[m][0] * nt[m][1] * nt[m][2]; k++)
-            if (mx[m][k] != 0) nchunks++, need += tile[m][0] * tile[m][1] * tile[m][2] * 7 * sizeof(int32_t);
+    list = malloc((ft->nonzero + 1) * sizeof *list);
+    WVOL_RETURN_IF(!list, err, WVOL_ERR_NOMEM, "store: out of memory for the file's bounds");
+    for (m = 1; m <= ft->L; m++) {
         for (int a = 0; a < 3; a++)
-            if (tile[m][a] % 4) parallel = 0; /* tiles could share a bound block */
+            if (ft->tile[m][a] % 4) parallel = 0; /* tiles could share a bound block */
+        for (k = 0; k < ft->nt[m][0] * ft->nt[m][1] * ft->nt[m][2]; k++)
+            if (ft->mx[m][k] != 0) {
+                list[n][0] = (size_t)m;
+                list[n][1] = k % ft->nt[m][0];
+                list[n][2] = (k / ft->nt[m][0]) % ft->nt[m][1];
+                list[n++][3] = k / (ft->nt[m][0] * ft->nt[m][1]);
+            }
     }
-    if (st == WVOL_OK && need <= cst.budget / 2 && nchunks) {
-        list = malloc(nchunks * sizeof *list);
-        if (!list) st = wvol_error_set(err, WVOL_ERR_NOMEM, "store: out of memory for the file's bounds");
-    }
-    if (list) {
-        size_t n = 0;
-        for (m = 1; m <= wvol__bounds_levels(bb); m++)
-            for (k = 0; k < nt[m][0] * nt[m][1] * nt[m][2]; k++)
-                if (mx[m][k] != 0) list[n][0] = (size_t)m, list[n][1] = k % nt[m][0],
-                                   list[n][2] = (k / nt[m][0]) % nt[m][1], list[n++][3] = k / (nt[m][0] * nt[m][1]);
-        wvol__wvc_file_source(&cs, s->file, 0);
-        (void)wvol__wvc_file_error(s->file, NULL);
+    wvol__wvc_file_source(&cs, s->file, 0);
+    (void)wvol__wvc_file_error(s->file, NULL);
 #ifdef _OPENMP
 #pragma omp parallel num_threads(threads > 0 ? threads : omp_get_max_threads()) if (parallel && threads != 1)
 #endif
-        {
-            float *buf = NULL;
-            size_t cap = 0;
-            int oom = 0;
-            long q;
+    {
+        float *buf = NULL;
+        size_t cap = 0;
+        int oom = 0;
+        long q;
 #ifdef _OPENMP
 #pragma omp for schedule(dynamic, 1)
 #endif
-            for (q = 0; q < (long)nchunks; q++) {
-                const int lm = (int)list[q][0];
-                const size_t pad[3] = {info.px, info.py, info.pz};
-                size_t lo[3], n[3], vol;
-                ptrdiff_t plo[3], pn[3];
-                for (int a = 0; a < 3; a++) {
-                    size_t e = wvol__extent(pad[a], lm);
-                    lo[a] = list[q][1 + a] * tile[lm][a];
-                    n[a] = lo[a] + tile[lm][a] < e ? tile[lm][a] : e - lo[a];
-                    plo[a] = (ptrdiff_t)lo[a];
-                    pn[a] = (ptrdiff_t)n[a];
-                }
-                vol = n[0] * n[1] * n[2];
-                if (vol > cap) {
-                    free(buf);
-                    buf = malloc(vol * sizeof *buf);
-                    cap = buf ? vol : 0;
-                }
-                if (!buf) { /* this chunk's bound blocks would stay 0: refused below */
-                    oom = 1;
-                    continue;
-                }
-                for (int band = 1; band < 8; band++)
-                    if (cs.gather(cs.ctx, buf, lm, band, plo, pn))
-                        wvol__bounds_add_dense(bb, lm, band, lo, n, buf, n[0], n[0] * n[1]);
+        for (q = 0; q < (long)n; q++) {
+            const int lm = (int)list[q][0];
+            const size_t pad[3] = {info.px, info.py, info.pz};
+            size_t lo[3], cnt[3], vol;
+            ptrdiff_t plo[3], pn[3];
+            for (int a = 0; a < 3; a++) {
+                size_t e = wvol__extent(pad[a], lm);
+                lo[a] = list[q][1 + a] * ft->tile[lm][a];
+                cnt[a] = lo[a] + ft->tile[lm][a] < e ? ft->tile[lm][a] : e - lo[a];
+                plo[a] = (ptrdiff_t)lo[a];
+                pn[a] = (ptrdiff_t)cnt[a];
             }
-            if (oom) {
+            vol = cnt[0] * cnt[1] * cnt[2];
+            if (vol > cap) {
+                free(buf);
+                buf = malloc(vol * sizeof *buf);
+                cap = buf ? vol : 0;
+            }
+            if (!buf) { /* this chunk's bound blocks would stay 0: refused below */
+                oom = 1;
+                continue;
+            }
+            for (int band = 1; band < 8; band++)
+                if (cs.gather(cs.ctx, buf, lm, band, plo, pn))
+                    wvol__bounds_add_dense(bb, lm, band, lo, cnt, buf, cnt[0], cnt[0] * cnt[1]);
+        }
+        if (oom) {
 #ifdef _OPENMP
-#pragma omp critical(wvol_store_refine)
+#pragma omp critical(wvol_store_decoded_bounds)
 #endif
-                if (st == WVOL_OK) st = WVOL_ERR_NOMEM;
-            }
-            free(buf);
+            st = WVOL_ERR_NOMEM;
         }
-        if (st == WVOL_ERR_NOMEM) {
-            wvol_error_set(err, st, "store: out of memory for a chunk's bounds");
-        } else {
-            st = wvol__wvc_file_error(s->file, err);
-            if (st == WVOL_OK) *refined = 1;
-        }
+        free(buf);
     }
     free(list);
-    for (m = 1; m <= info.levels; m++) free(mx[m]);
-    return st;
+    if (st != WVOL_OK) return wvol_error_set(err, st, "store: out of memory for a chunk's bounds");
+    return wvol__wvc_file_error(s->file, err);
 }
 
 /* exact_threads < 0: a file store's bounds from its index; else from its decoded chunks when
- * they fit (decoded_bounds, that many threads), *exact saying whether they did. */
+ * their decoded size fits in half the file's budget (decoded_bounds, that many threads),
+ * *exact saying whether they did. Bounds from the index keep their maxima per tile-sized
+ * block (one value per chunk and band: at 2048^3 the default small blocks would take over a
+ * gigabyte to repeat them). */
 static wvol_status create(wvol__store_blocks **out, wvol__brick_bounds **bounds, const wvol_store *s,
                           int exact_threads, int *exact, wvol_error *err)
 {
@@ -447,6 +453,7 @@ static wvol_status create(wvol__store_blocks **out, wvol__brick_bounds **bounds,
     wvol_status st;
     *out = NULL;
     if (bounds) *bounds = NULL;
+    if (exact) *exact = 0;
     wvol_store_get_info(s, &info);
     cb = malloc(sizeof *cb);
     st = cb ? blocks_build(cb, s, err)
@@ -461,20 +468,29 @@ static wvol_status create(wvol__store_blocks **out, wvol__brick_bounds **bounds,
     if (s->file) wvol__wvc_file_source(&cb->cs, s->file, 0);
     /* the bound needs every axis transformed; without it every brick is reconstructed */
     if (bounds && info.px > 1 && info.py > 1 && info.pz > 1 && info.levels >= 1) {
-        st = wvol__bounds_create_src(&bb, &cb->cs, err);
+        file_tiles ft;
+        int decoded = 0;
+        memset(&ft, 0, sizeof ft);
+        if (s->file) {
+            wvol_wvc_cache_stats cst;
+            wvol_wvc_file_stats(s->file, &cst);
+            st = tiles_load(&ft, s->file, info.levels < WVOL__BOUNDS_LEVELS ? info.levels : WVOL__BOUNDS_LEVELS, err);
+            decoded = exact_threads >= 0 && ft.nonzero > 0 && ft.need <= cst.budget / 2;
+        }
+        if (st == WVOL_OK) st = wvol__bounds_create_src(&bb, &cb->cs, s->file && !decoded ? ft.least : NULL, err);
         if (st == WVOL_OK && s->file) st = wvol__wvc_file_error(s->file, err);
         if (st == WVOL_OK) {
-            int done = 0;
-            if (s->file && exact_threads >= 0) st = decoded_bounds(bb, s, exact_threads, &done, err);
-            if (exact) *exact = done;
-            if (st == WVOL_OK && s->file && !done) st = file_bounds(bb, s->file, wvol__bounds_levels(bb), err);
-            else if (!s->file) blocks_bounds(cb, bb);
+            if (decoded) st = decoded_bounds(bb, s, &ft, exact_threads, err);
+            else if (s->file) file_bounds(bb, &ft);
+            else blocks_bounds(cb, bb);
         }
+        tiles_free(&ft);
         if (st != WVOL_OK) {
             wvol__store_blocks_destroy(cb);
             wvol__bounds_free(bb);
             return st;
         }
+        if (exact) *exact = decoded;
         wvol__bounds_finish(bb);
     }
     if (bounds) *bounds = bb;

@@ -139,8 +139,10 @@ void wvol__bounds_free(brick_bounds *b)
     free(b);
 }
 
-wvol_status wvol__bounds_create(brick_bounds **out, const wvol_filter *f, int levels, const size_t pad[3],
-                                const float *low, size_t low_sy, size_t low_sz, wvol_error *err)
+/* block: NULL, or per axis a least block edge (positions; rounded down to a power of two). */
+static wvol_status bounds_create(brick_bounds **out, const wvol_filter *f, int levels, const size_t pad[3],
+                                 const float *low, size_t low_sy, size_t low_sz, const size_t block[3],
+                                 wvol_error *err)
 {
     brick_bounds *b;
     resp1 lp[33], hp[33];
@@ -170,6 +172,8 @@ wvol_status wvol__bounds_create(brick_bounds **out, const wvol_filter *f, int le
                 q->e[a] = pad[a] >> m;
                 /* blocks of 4, 2, 1 positions at levels 1, 2, >= 3: about 8 samples wide */
                 q->bshift[a] = m >= 3 ? 0 : 3 - m;
+                if (block)
+                    while (((size_t)2 << q->bshift[a]) <= block[a] && q->bshift[a] < 30) q->bshift[a]++;
                 q->bs[a] = (size_t)1 << q->bshift[a];
                 q->nb[a] = (q->e[a] + q->bs[a] - 1) / q->bs[a];
                 q->leb *= r->leb;
@@ -197,7 +201,8 @@ wvol_status wvol__bounds_create(brick_bounds **out, const wvol_filter *f, int le
 
 static band_blocks *band_of(brick_bounds *b, int m, int band);
 
-wvol_status wvol__bounds_create_src(brick_bounds **out, const wvol__coef_source *src, wvol_error *err)
+wvol_status wvol__bounds_create_src(brick_bounds **out, const wvol__coef_source *src, const size_t block[3],
+                                    wvol_error *err)
 {
     const int L = src->levels < WVOL__BOUNDS_LEVELS ? src->levels : WVOL__BOUNDS_LEVELS;
     size_t e[3], n;
@@ -222,7 +227,7 @@ wvol_status wvol__bounds_create_src(brick_bounds **out, const wvol__coef_source 
     memset(&scr, 0, sizeof scr);
     st = wvol__idwt3_brick_src(low, &coarse, zero, e, &scr, err);
     wvol__brick_scratch_free(&scr);
-    if (st == WVOL_OK) st = wvol__bounds_create(out, src->filter, L, src->pad, low, e[0], e[0] * e[1], err);
+    if (st == WVOL_OK) st = bounds_create(out, src->filter, L, src->pad, low, e[0], e[0] * e[1], block, err);
     if (st != WVOL_OK) {
         free(low);
         return st;
@@ -237,7 +242,10 @@ int wvol__bounds_levels(const brick_bounds *b) { return b ? b->M : 0; }
 size_t wvol__bounds_block(const brick_bounds *b, int m)
 {
     const band_blocks *q = band_of((brick_bounds *)b, m, 1);
-    return q ? q->bs[0] : 0;
+    size_t e = 0;
+    for (int a = 0; q && a < 3; a++)
+        if (!e || q->bs[a] < e) e = q->bs[a];
+    return e;
 }
 
 /* The (level, band) entry of the table; NULL for the low-pass cube and out of range. */
