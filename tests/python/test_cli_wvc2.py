@@ -79,6 +79,12 @@ def test_reads_stay_within_the_memory_budget(wvc):
     # and marching cubes from the file within the same budget
     rss_mc, _ = peak_rss("iso", f, "-o", d / "m.ply", "--iso", "300", "--memory", "3M")
     assert rss_mc <= base + budget + (48 << 20), (rss_mc, base, whole)
+    # and a full-resolution frame: the chunk cache, the bricks' bounds (per chunk from the
+    # index), the threads' brick caches and the image
+    rss_r, out = peak_rss("render", f, "-o", d / "f.png", "--size", "64x64", "--full-resolution", "--memory", "3M",
+                          "--json")
+    assert json.loads(out)["method"] == "bricks"
+    assert rss_r <= base + budget + (48 << 20), (rss_r, base, whole)
 
 
 def test_region_output_is_streamed_in_slabs(tmp_path):
