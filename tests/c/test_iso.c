@@ -554,8 +554,8 @@ static void brick_bounds_hold(void)
         wvol_filter_get(&f, filters[fi], NULL);
         wvol_volume_create(&v, n, n - 3, n - 7, NULL);
         for (i = 0; i < wvol_volume_count(v); i++) v->data[i] = (float)(rnd() * rnd() * 10.0 - 2.0);
-        /* 5 levels for the short filters: the bound works on the finest WVOL__BOUNDS_LEVELS and
-         * reconstructs the coarser ones into its low-pass cube */
+        /* 5 levels for the short filters: the bound works on the finest WVOL__BOUNDS_LEVELS (2)
+         * and reconstructs the coarser ones into its low-pass cube */
         if (wvol_dwt3(&c, v, f, fi < 2 ? 5 : 3, NULL) != WVOL_OK) {
             CHECK(0, "%s: dwt", filters[fi]);
             wvol_volume_destroy(v);

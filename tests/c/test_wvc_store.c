@@ -127,10 +127,10 @@ static void file_store_meshes_and_renders_like_the_memory_store(void)
                           wvol__store_blocks_create_exact(&vf, &bbf, fs, 1, &exact_f, &err) == WVOL_OK,
                       "views: %s", err.message);
                 CHECK(exact_b && !exact_f && wvol__bounds_block(bbb, 1) == 4 && wvol__bounds_block(bbf, 1) == 8 &&
-                          wvol__bounds_block(bbf, 3) == 8 && wvol__bounds_bytes(bbf) < wvol__bounds_bytes(bbb),
+                          wvol__bounds_block(bbf, 2) == 8 && wvol__bounds_bytes(bbf) < wvol__bounds_bytes(bbb),
                       "bound blocks: decoded %d (edge %zu, %zu bytes), index %d (edges %zu %zu, %zu bytes)", exact_b,
                       wvol__bounds_block(bbb, 1), wvol__bounds_bytes(bbb), exact_f, wvol__bounds_block(bbf, 1),
-                      wvol__bounds_block(bbf, 3), wvol__bounds_bytes(bbf));
+                      wvol__bounds_block(bbf, 2), wvol__bounds_bytes(bbf));
                 wvol__bounds_free(bbb);
                 wvol__bounds_free(bbf);
                 wvol__store_blocks_destroy(vb);

@@ -474,7 +474,8 @@ static wvol_status create(wvol__store_blocks **out, wvol__brick_bounds **bounds,
         if (s->file) {
             wvol_wvc_cache_stats cst;
             wvol_wvc_file_stats(s->file, &cst);
-            st = tiles_load(&ft, s->file, info.levels < WVOL__BOUNDS_LEVELS ? info.levels : WVOL__BOUNDS_LEVELS, err);
+            const size_t pad[3] = {info.px, info.py, info.pz};
+            st = tiles_load(&ft, s->file, wvol__bounds_levels_for(pad, info.levels), err);
             decoded = exact_threads >= 0 && ft.nonzero > 0 && ft.need <= cst.budget / 2;
         }
         if (st == WVOL_OK) st = wvol__bounds_create_src(&bb, &cb->cs, s->file && !decoded ? ft.least : NULL, err);

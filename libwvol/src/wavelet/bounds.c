@@ -201,10 +201,18 @@ static wvol_status bounds_create(brick_bounds **out, const wvol_filter *f, int l
 
 static band_blocks *band_of(brick_bounds *b, int m, int band);
 
+int wvol__bounds_levels_for(const size_t pad[3], int levels)
+{
+    int L = levels < WVOL__BOUNDS_LEVELS ? levels : WVOL__BOUNDS_LEVELS;
+    /* a finer low-pass cube bounds a brick from the values near it, a coarser one holds less */
+    while (L < levels && (pad[0] >> L) * (pad[1] >> L) * (pad[2] >> L) * sizeof(float) > WVOL__BOUNDS_LOW_BYTES) L++;
+    return L;
+}
+
 wvol_status wvol__bounds_create_src(brick_bounds **out, const wvol__coef_source *src, const size_t block[3],
                                     wvol_error *err)
 {
-    const int L = src->levels < WVOL__BOUNDS_LEVELS ? src->levels : WVOL__BOUNDS_LEVELS;
+    const int L = wvol__bounds_levels_for(src->pad, src->levels);
     size_t e[3], n;
     const size_t zero[3] = {0, 0, 0};
     wvol__coef_skip sk;
@@ -214,10 +222,9 @@ wvol_status wvol__bounds_create_src(brick_bounds **out, const wvol__coef_source 
     wvol_status st;
     *out = NULL;
     WVOL_RETURN_IF(L < 1, err, WVOL_ERR_ARG, "brick bounds: %d levels", src->levels);
-    for (int a = 0; a < 3; a++) {
+    for (int a = 0; a < 3; a++)
         WVOL_RETURN_IF(src->pad[a] < 2, err, WVOL_ERR_DIMS, "brick bounds: axis %c is not transformed", "xyz"[a]);
-        e[a] = src->pad[a] >> L;
-    }
+    for (int a = 0; a < 3; a++) e[a] = src->pad[a] >> L;
     n = e[0] * e[1] * e[2];
     low = malloc(n * sizeof *low);
     WVOL_RETURN_IF(!low, err, WVOL_ERR_NOMEM, "brick bounds: out of memory for a %zu x %zu x %zu low-pass cube", e[0],

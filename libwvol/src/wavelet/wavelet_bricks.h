@@ -64,22 +64,25 @@ wvol_status wvol__idwt3_brick_src(float *out, const wvol__coef_source *src, cons
 /* Rigorous [vmin, vmax] of the reconstructed samples of a box, from per-(level, band)
  * block maxima of the detail coefficients and a low-pass cube. Every axis must be
  * transformed (pad >= 2). Create from the coefficients' source: the bound works on the
- * pyramid of its finest min(levels, WVOL__BOUNDS_LEVELS) levels, whose low-pass cube (the
+ * pyramid of its finest WVOL__BOUNDS_LEVELS levels (fewer if the source has fewer; more while
+ * that pyramid's low-pass cube would exceed WVOL__BOUNDS_LOW_BYTES), whose low-pass cube (the
  * coarser levels' exact synthesis, so their few large coefficients count at their real size
- * rather than each at its band's maximum times the filter's Lebesgue constant) it
- * reconstructs and owns; detail maxima added at coarser levels are ignored. Then fill the
- * maxima (from dense coefficients, or with the _add calls), finish, then query
- * (concurrently). The maxima are kept per block of 4, 2, 1 positions at levels 1, 2, >= 3
- * (about 8 samples wide); block (NULL for that) asks for blocks of at least block[a]
- * positions along axis a (rounded down to a power of two), for maxima known only per larger
- * box (a file's chunks), whose tables would otherwise repeat one value per small block. */
+ * rather than each at its band's maximum times the filter's Lebesgue constant) it reconstructs
+ * and owns; detail maxima added at coarser levels are ignored. Then fill the maxima (from
+ * dense coefficients, or with the _add calls), finish, then query (concurrently). The maxima
+ * are kept per block of 4, 2, 1 positions at levels 1, 2, >= 3 (about 8 samples wide); block
+ * (NULL for that) asks for blocks of at least block[a] positions along axis a (rounded down
+ * to a power of two), for maxima known only per larger box (a file's chunks), whose tables
+ * would otherwise repeat one value per small block. */
 typedef struct wvol__brick_bounds wvol__brick_bounds;
-#define WVOL__BOUNDS_LEVELS 3
+#define WVOL__BOUNDS_LEVELS 2
+#define WVOL__BOUNDS_LOW_BYTES ((size_t)64 << 20)
 wvol_status wvol__bounds_create_src(wvol__brick_bounds **out, const wvol__coef_source *src, const size_t block[3],
                                     wvol_error *err);
 /* The number of levels the bound works on (detail maxima of levels above it are folded into
- * its low-pass cube). */
+ * its low-pass cube); _for: the number a source of these padded sizes and levels gets. */
 int wvol__bounds_levels(const wvol__brick_bounds *b);
+int wvol__bounds_levels_for(const size_t pad[3], int levels);
 /* The least edge over the axes of the maxima's blocks at level m (coefficient positions); 0
  * outside the bound's levels. A maximum added over an aligned box at least this wide along
  * every axis loses nothing. */
