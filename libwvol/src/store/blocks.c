@@ -266,15 +266,29 @@ static int gather_blocks(const void *ctx, float *dst, int m, int band, const ptr
     return bv->dir ? gather_sparse(cb, bv, dst, lo, n) : 0; /* 0: all zero, the caller skips the band */
 }
 
+/* max |v| over n values, NaN as +inf; written so that it vectorises */
+static inline float absmax(const float *v, int n)
+{
+    float mx = 0.0f;
+    int nan = 0;
+    for (int i = 0; i < n; i++) {
+        const float av = fabsf(v[i]);
+        mx = av > mx ? av : mx;
+        nan |= av != av;
+    }
+    return nan ? INFINITY : mx;
+}
+
 /* The bounds' block maxima from the view, block by block: where the bound's blocks are at
- * least the view's 4^3 (level 1) a block's values are contiguous and give one maximum; finer
- * bound blocks take each value at its position. Levels above the bound's own are skipped
- * (its low-pass cube holds them). */
+ * least the view's 4^3 (level 1) a block's values are contiguous and give one maximum; bound
+ * blocks of 2^3 (level 2) get the maxima of the view block's eight octants; finer ones take
+ * each value at its position. Levels above the bound's own are skipped (its low-pass cube
+ * holds them). */
 static void blocks_bounds(const coef_blocks *cb, wvol__brick_bounds *bb)
 {
     const int L = wvol__bounds_levels(bb);
     for (int m = 1; m <= cb->M && m <= L; m++) {
-        const int whole = wvol__bounds_block(bb, m) >= CB;
+        const size_t edge = wvol__bounds_block(bb, m);
         for (int band = 1; band < 8; band++) {
             const band_view *bv = &cb->bv[m][band];
             if (!bv->dir) continue;
@@ -285,22 +299,29 @@ static void blocks_bounds(const coef_blocks *cb, wvol__brick_bounds *bb)
                         if (!blk) continue;
                         const cblock *b = &cb->blocks[blk - 1];
                         const float *v = cb->values + b->first;
-                        if (whole) {
-                            const size_t lo[3] = {x << CB_SHIFT, y << CB_SHIFT, z << CB_SHIFT};
+                        const size_t lo[3] = {x << CB_SHIFT, y << CB_SHIFT, z << CB_SHIFT};
+                        if (edge >= CB) {
                             const size_t hi[3] = {lo[0] + CB, lo[1] + CB, lo[2] + CB};
-                            const int cnt = __builtin_popcountll(b->mask);
-                            float mx = 0.0f;
-                            for (int i = 0; i < cnt; i++) {
-                                float av = fabsf(v[i]);
-                                if (!(av <= mx)) mx = av; /* NaN propagates */
+                            wvol__bounds_add_box(bb, m, band, lo, hi, absmax(v, __builtin_popcountll(b->mask)));
+                        } else if (edge == 2) {
+                            float oct[8] = {0};
+                            for (uint64_t bits = b->mask; bits; bits &= bits - 1, v++) {
+                                const int bit = __builtin_ctzll(bits);
+                                const int o = ((bit >> 1) & 1) | ((bit >> 2) & 2) | ((bit >> 3) & 4);
+                                const float av = fabsf(*v);
+                                if (!(av <= oct[o])) oct[o] = av != av ? INFINITY : av;
                             }
-                            wvol__bounds_add_box(bb, m, band, lo, hi, mx);
+                            for (int o = 0; o < 8; o++) {
+                                const size_t l[3] = {lo[0] + 2 * (size_t)(o & 1), lo[1] + (size_t)(o & 2),
+                                                     lo[2] + (size_t)((o >> 1) & 2)};
+                                const size_t h[3] = {l[0] + 2, l[1] + 2, l[2] + 2};
+                                if (oct[o] != 0) wvol__bounds_add_box(bb, m, band, l, h, oct[o]);
+                            }
                         } else {
                             for (uint64_t bits = b->mask; bits; bits &= bits - 1, v++) {
                                 const int bit = __builtin_ctzll(bits);
-                                wvol__bounds_add(bb, m, band, (x << CB_SHIFT) + (size_t)(bit & 3),
-                                                 (y << CB_SHIFT) + (size_t)((bit >> 2) & 3),
-                                                 (z << CB_SHIFT) + (size_t)(bit >> 4), *v);
+                                wvol__bounds_add(bb, m, band, lo[0] + (size_t)(bit & 3), lo[1] + (size_t)((bit >> 2) & 3),
+                                                 lo[2] + (size_t)(bit >> 4), *v);
                             }
                         }
                     }
