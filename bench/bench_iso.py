@@ -20,6 +20,13 @@ that surface) on both phantoms for kept fractions 1%, 5% and 100%, an image of
 time per ray (wall clock / rays), hits, basis functions and polynomial pieces per ray. `--raytrace-only`
 runs just these rows and merges them into an existing iso.json / iso.md.
 
+Brick rows alone (`--bricks-only 256,512`): at each size, per phantom, the brick path from a
+store (haar 5%, db2 5%, db2 100%, 3 levels) against wvol's dense marching cubes on the original
+volume and against the full inverse transform + dense MC, the three commands alternated over
+--rounds processes (each the fastest of --reps extractions in one process: every extraction
+builds the store's block view and bounds again), with the ratio to dense MC (goal <= 2x);
+merged into the existing iso.json / iso.md.
+
 Goal (issue 6): wvol at least as fast as vtkFlyingEdges3D at the same thread count.
 Writes bench/results/iso.json and bench/results/iso.md.
 Image routes (`--cast`, bench/iso_cast.py): the bricked caster (wvol iso --method cast) against
@@ -29,6 +36,7 @@ vdb_render and the exact f^ tracer, same camera and iso-value; bench/results/iso
 Usage: /usr/bin/python3 bench/bench_iso.py [--n 256] [--reps 5] [--build build] [--quick]
        /usr/bin/python3 bench/bench_iso.py --cast [--quick]
        /usr/bin/python3 bench/bench_iso.py --raytrace-only [--rt-size 512x512] [--rt-keep 1%,5%,100%]
+       /usr/bin/python3 bench/bench_iso.py --bricks-only 256,512 --threads 1 [--reps 3] [--rounds 2]
 """
 import argparse
 import json
@@ -189,6 +197,37 @@ def raytrace_rows(args, phantoms, tmp):
     return rows
 
 
+def brick_rows(args, raw, name, n, iso, t):
+    """The brick path's rows for one volume: per (wavelet, keep) the brick path from a store,
+    dense MC on the original and the full inverse + MC, alternated over args.rounds processes
+    (each the fastest of args.reps extractions), the fastest of each kept."""
+    cases = [("haar", "5%"), ("db2", "5%"), ("db2", "100%")]
+    cmds = [("dense", [])] + [(f"bricks {w} {k}", ["--wavelet", w, "--levels", "3", "--keep", k]) for w, k in cases]
+    cmds += [(f"full {w} {k}", ["--wavelet", w, "--levels", "3", "--keep", k, "--brick", "0"]) for w, k in cases]
+    best = {}
+    for _ in range(args.rounds):
+        for key, extra in cmds:
+            r = run_wvol(args.build, raw, n, iso, t, args.reps, extra)
+            if key not in best or ("seconds" in r and r["seconds"] < best[key].get("seconds", float("inf"))):
+                best[key] = r
+    rows = []
+    for w, k in cases:
+        b, full, dense = best[f"bricks {w} {k}"], best[f"full {w} {k}"], best["dense"]
+        e = {"phantom": name, "n": n, "wavelet": w, "keep": k, "threads": t,
+             "dense_seconds": dense.get("seconds"), "dense_triangles": dense.get("triangles"),
+             "one_brick_seconds": full.get("seconds")}
+        for key in ("seconds", "triangles", "area", "bricks_total", "bricks_skipped", "seconds_bounds",
+                    "seconds_reconstruct_mesh", "error"):
+            if key in b:
+                e[key] = b[key]
+        rows.append(e)
+        print(f"{name:8s} {n}^3 bricks {w} {k}: {e.get('seconds', float('nan')) * 1e3:.1f} ms vs dense MC "
+              f"{(e['dense_seconds'] or float('nan')) * 1e3:.1f} ms, {e.get('bricks_skipped')} of "
+              f"{e.get('bricks_total')} skipped; full inverse + MC {(e['one_brick_seconds'] or float('nan')) * 1e3:.1f} ms",
+              flush=True)
+    return rows
+
+
 def write_md(res, out, name, tools):
     n = res["n"]
     lines = [f"# Isosurface benchmark ({n}^3, fastest of {res['reps']}, {res['machine']['cpu']}, "
@@ -203,14 +242,25 @@ def write_md(res, out, name, tools):
             sp = (r["seconds"] / row["wvol"]["seconds"]) if row["wvol"].get("seconds") else float("nan")
             lines.append(f"| {row['phantom']} | {row['threads']} | {tool} | {r['seconds'] * 1e3:.2f} | "
                          f"{r['triangles']} | {r['area']:.1f} | {sp:.2f}x |")
-    lines += ["", "Brick path (marching cubes from kept coefficients, 3 levels, 32^3-cell bricks):", "",
-              "| phantom | wavelet | keep | ms | bricks skipped | bounds ms | reconstruct+mesh ms | full inverse + MC ms |",
-              "|---|---|---|---|---|---|---|---|"]
+    bl = res.get("bricks_run", {})
+    lines += ["", "Brick path (marching cubes from kept coefficients, 3 levels, 32^3-cell bricks"
+              + (f"; {bl['threads']} thread(s), fastest of {bl['reps']} in each of {bl['rounds']} alternated "
+                 f"processes, load average {bl['load_avg_start']:.1f} at start, {bl['load_avg_end']:.1f} at end"
+                 if bl else "") + "). Dense MC = wvol's marching cubes on the original volume in memory, same run "
+              "and threads; ratio = brick path / dense MC (the goal: <= 2x). Bounds = the store's block view and "
+              "the bricks' bounds; full inverse + MC = the whole inverse transform then dense MC:", "",
+              "| phantom | size | wavelet | keep | ms | dense MC ms | ratio | bricks skipped | bounds ms | "
+              "reconstruct+mesh ms | full inverse + MC ms |",
+              "|---|---|---|---|---|---|---|---|---|---|---|"]
     for e in res["bricks"]:
         if "error" in e:
-            lines.append(f"| {e['phantom']} | {e['wavelet']} | {e['keep']} | error: {e['error']} | | | | |")
+            lines.append(f"| {e['phantom']} | {e.get('n', n)}^3 | {e['wavelet']} | {e['keep']} | error: {e['error']} "
+                         "| | | | | | |")
             continue
-        lines.append(f"| {e['phantom']} | {e['wavelet']} | {e['keep']} | {e['seconds'] * 1e3:.1f} | "
+        dense = e.get("dense_seconds")
+        lines.append(f"| {e['phantom']} | {e.get('n', n)}^3 | {e['wavelet']} | {e['keep']} | {e['seconds'] * 1e3:.1f} | "
+                     f"{dense * 1e3 if dense else float('nan'):.1f} | "
+                     f"{e['seconds'] / dense if dense else float('nan'):.2f}x | "
                      f"{e['bricks_skipped']}/{e['bricks_total']} | {e['seconds_bounds'] * 1e3:.1f} | "
                      f"{e['seconds_reconstruct_mesh'] * 1e3:.1f} | "
                      f"{(e['one_brick_seconds'] or float('nan')) * 1e3:.1f} |")
@@ -249,6 +299,10 @@ def main():
     ap.add_argument("--raytrace-only", action="store_true",
                     help="run only the ray tracer rows and merge them into the existing results")
     ap.add_argument("--no-raytrace", action="store_true", help="skip the ray tracer rows")
+    ap.add_argument("--bricks-only", default="",
+                    help="only the brick path's rows at these sizes (e.g. 256,512), each against dense MC on the "
+                         "original in the same run, merged into the existing results")
+    ap.add_argument("--rounds", type=int, default=2, help="--bricks-only: alternated processes per command")
     ap.add_argument("--rt-size", default="512x512", help="ray tracer image size (default 512x512)")
     ap.add_argument("--rt-size-override", default="",
                     help="per-row sizes, e.g. 'skull:100%%=128x128,gaussian:100%%=256x256' (labelled in the table)")
@@ -293,6 +347,23 @@ def main():
     tools = ["vtkFlyingEdges3D", "vtkMarchingCubes", "skimage", "openvdb"]
     out = pathlib.Path(args.out)
     rname = "iso_quick" if args.quick else "iso"
+    if args.bricks_only:
+        res = json.loads((out / f"{rname}.json").read_text())
+        t = max(threads)
+        res["bricks_run"] = {"threads": t, "reps": args.reps, "rounds": args.rounds,
+                             "load_avg_start": os.getloadavg()[0]}
+        res["bricks"] = []
+        for size in (int(x) for x in args.bricks_only.split(",")):
+            with tempfile.TemporaryDirectory() as tmp:
+                for name, gen, iso in (("gaussian", gaussian, 0.5), ("skull", skull, 400.0)):
+                    raw = pathlib.Path(tmp) / f"{name}.raw"
+                    write_raw(raw, gen(size))
+                    res["bricks"] += brick_rows(args, raw, name, size, iso, t)
+                    raw.unlink()
+        res["bricks_run"]["load_avg_end"] = os.getloadavg()[0]
+        (out / f"{rname}.json").write_text(json.dumps(res, indent=1) + "\n")
+        write_md(res, out, rname, tools)
+        return
     if args.raytrace_only:
         res = json.loads((out / f"{rname}.json").read_text())
         if res["n"] != n:

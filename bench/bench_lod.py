@@ -23,6 +23,7 @@ Writes bench/results/lod.json, lod.md and lod.png.
   python3 bench/bench_lod.py                       # MC at 256^3 and 512^3, frames of 512^3
   python3 bench/bench_lod.py --frame-sizes 512,1024
   python3 bench/bench_lod.py --quick               # 64^3 / 128^3: a smoke test
+  python3 bench/bench_lod.py --mc-only             # the marching-cubes rows alone, into lod.json
 """
 import argparse
 import json
@@ -156,7 +157,9 @@ def write_md(res, path):
     L = ["# Level of detail and marching cubes from a store (bench/bench_lod.py)", "",
          f"Machine: {res['machine']}, {res['cores']} cores shared with other jobs; wvol {res['wvol']}.", "",
          f"Marching cubes, {res['threads']} thread(s), fastest of {res['rounds']} alternated rounds "
-         "(extract time as `wvol iso --json` reports it; the .wvc rows include decoding the chunks):", "",
+         "(extract time as `wvol iso --json` reports it; the .wvc rows include decoding the chunks)"
+         + (f", load average {res['mc_load_at_start']:.1f} at start and {res['mc_load_at_end']:.1f} at end"
+            if "mc_load_at_start" in res else "") + ":", "",
          "| phantom | size | source | ms | peer | peer ms | ratio | decode whole + MC ms (ratio) | triangles (peer) | bricks skipped | bounds ms |",
          "|---|---|---|---|---|---|---|---|---|---|---|"]
     for r in res["mc"]:
@@ -238,6 +241,8 @@ def main():
     ap.add_argument("--rounds", type=int, default=3)
     ap.add_argument("--out", default=str(ROOT / "bench" / "results"))
     ap.add_argument("--replot", action="store_true", help="rewrite the .md and .png from the .json only")
+    ap.add_argument("--mc-only", action="store_true",
+                    help="only the marching-cubes rows (--mc-sizes), replacing those of the existing .json")
     ap.add_argument("--wvc", help="add rows for this existing .wvc to the .json (frames and a level mesh)")
     ap.add_argument("--iso", type=float, default=1.0, help="--wvc: the mesh's iso-value")
     ap.add_argument("--mesh-level", type=int, default=3, help="--wvc: the mesh's level")
@@ -253,6 +258,22 @@ def main():
     if args.replot:
         out, name = pathlib.Path(args.out), "lod_quick" if args.quick else "lod"
         res = json.loads((out / f"{name}.json").read_text())
+        write_md(res, out / f"{name}.md")
+        plot(res, out / f"{name}.png")
+        return
+    if args.mc_only:
+        out, name = pathlib.Path(args.out), "lod_quick" if args.quick else "lod"
+        res = json.loads((out / f"{name}.json").read_text())
+        res.update({"threads": args.threads, "rounds": args.rounds, "mc_load_at_start": os.getloadavg()[0],
+                    "wvol": run(wvol("--version"))[2].strip(), "mc": []})
+        with tempfile.TemporaryDirectory(prefix="bench_lod_", dir=os.environ.get("BENCH_TMP")) as td:
+            for n in [64] if args.quick else [int(x) for x in args.mc_sizes.split(",") if x]:
+                for kind in ("gaussian", "skull"):
+                    rows, wvc = mc_rows(pathlib.Path(td), kind, n, args.threads, args.rounds)
+                    res["mc"] += rows
+                    wvc.unlink()
+        res["mc_load_at_end"] = os.getloadavg()[0]
+        (out / f"{name}.json").write_text(json.dumps(res, indent=1) + "\n")
         write_md(res, out / f"{name}.md")
         plot(res, out / f"{name}.png")
         return

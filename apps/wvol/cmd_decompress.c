@@ -16,10 +16,62 @@ static const cli_opt opts[] = {
     {"output", 'o', 1, "output volume OUT.raw, OUT.nrrd (or another format this build writes)"},
     {"level", 0, 1, "stop after this level: 0 = full resolution (default), m = the level-m low-pass volume"},
     {"roi", 0, 1, "only the box x0,y0,z0,x1,y1,z1 (voxels of the original grid, x1 exclusive): decodes only the chunks it needs"},
-    {"memory", 0, 1, "with --roi: budget for decoded chunks, bytes or with K/M/G (default 1G)"},
+    {"memory", 0, 1, "with --roi: budget for decoded chunks, bytes or with K/M/G (default 1G); a .raw/.nrrd/.nhdr output is written slab by slab within it"},
     CLI_JSON_OPT,
     CLI_HELP_OPT,
     {NULL, 0, 0, NULL}};
+
+/* Formats the slab writer writes (wvol_slab_writer_open). */
+static int slab_format(const char *path)
+{
+    return wvol_path_has_ext(path, ".raw") || wvol_path_has_ext(path, ".nrrd") || wvol_path_has_ext(path, ".nhdr");
+}
+
+/* The box [lo, hi) of level `level` into the file at path, slabs of whole slices in order:
+ * a slab is about 1/16 of the chunk budget (at least 8 slices), so the process holds the
+ * decoded chunks (within the budget), one slab and the threads' parts of it. */
+static wvol_status read_region_slabs(wvol_wvc_file *f, const size_t lo[3], const size_t hi[3], int level,
+                                     size_t budget, const char *path, double spacing[3], double *t_write,
+                                     wvol_error *err)
+{
+    const size_t nx = hi[0] - lo[0], ny = hi[1] - lo[1], nz = hi[2] - lo[2], slice = nx * ny * sizeof(float);
+    const size_t dims[3] = {nx, ny, nz};
+    size_t per = (budget ? budget : WVOL_WVC_DEFAULT_BUDGET) / 16 / slice;
+    double origin[3];
+    float *slab;
+    wvol_slab_writer *w = NULL;
+    wvol_status s;
+    *t_write = 0;
+    if (per < 8) per = 8;
+    if (per > nz) per = nz;
+    slab = malloc(per * slice);
+    if (!slab) return wvol_error_set(err, WVOL_ERR_NOMEM, "decompress: out of memory for a slab of %zu slices", per);
+    for (size_t z = lo[2]; z < hi[2]; z += per) {
+        const size_t l[3] = {lo[0], lo[1], z}, h[3] = {hi[0], hi[1], z + per < hi[2] ? z + per : hi[2]};
+        double sp[3], org[3], t0;
+        s = wvol_wvc_read_region_into(slab, f, l, h, level, 0, sp, org, err);
+        if (s != WVOL_OK) break;
+        t0 = cli_now();
+        if (!w) {
+            memcpy(spacing, sp, sizeof sp);
+            memcpy(origin, org, sizeof org);
+            s = wvol_slab_writer_open(&w, path, dims, spacing, origin, 0, err);
+            if (s != WVOL_OK) break;
+        }
+        s = wvol_slab_writer_put(w, slab, h[2] - z, err);
+        *t_write += cli_now() - t0;
+        if (s != WVOL_OK) break;
+    }
+    free(slab);
+    if (s == WVOL_OK) {
+        double t0 = cli_now();
+        s = wvol_slab_writer_commit(w, NULL, err);
+        *t_write += cli_now() - t0;
+    } else {
+        wvol_slab_writer_abort(w);
+    }
+    return s;
+}
 
 int wvol_cmd_decompress(int argc, char **argv)
 {
@@ -38,6 +90,9 @@ int wvol_cmd_decompress(int argc, char **argv)
     size_t box[6], budget = 0;
     wvol_wvc_file *wf = NULL;
     wvol_wvc_cache_stats cs;
+    size_t dims[3] = {0, 0, 0};
+    double spacing[3] = {0, 0, 0};
+    int streamed = 0;
 
     cli_parser_init(&p, "decompress", argc, argv, opts);
     while ((r = cli_next(&p, &o, &val)) >= 0) {
@@ -108,11 +163,23 @@ int wvol_cmd_decompress(int argc, char **argv)
             if (hi[a] > dl) hi[a] = dl;
         }
         t0 = cli_now();
-        if (wvol_wvc_read_region(&v, wf, lo, hi, (int)level, &err) != WVOL_OK) {
-            rc = cli_fail_err("decompress", &err);
-            goto done;
+        for (int a = 0; a < 3; a++) dims[a] = hi[a] - lo[a];
+        if (slab_format(outp)) {
+            /* slab by slab into the file: the output is never held whole, so the process
+             * stays within the chunk budget plus one slab */
+            if (read_region_slabs(wf, lo, hi, (int)level, budget, outp, spacing, &t_write, &err) != WVOL_OK) {
+                rc = cli_fail_err("decompress", &err);
+                goto done;
+            }
+            t_read = cli_now() - t0 - t_write;
+            streamed = 1;
+        } else {
+            if (wvol_wvc_read_region(&v, wf, lo, hi, (int)level, &err) != WVOL_OK) {
+                rc = cli_fail_err("decompress", &err);
+                goto done;
+            }
+            t_read = cli_now() - t0;
         }
-        t_read = cli_now() - t0;
         t_inv = 0;
         wvol_wvc_file_stats(wf, &cs);
     } else {
@@ -131,31 +198,36 @@ int wvol_cmd_decompress(int argc, char **argv)
     }
     t_inv = cli_now() - t0;
     }
-    t0 = cli_now();
-    if (wvol_volume_save(v, outp, &err) != WVOL_OK) {
-        rc = cli_fail_err("decompress", &err);
-        goto done;
+    if (!streamed) {
+        t0 = cli_now();
+        if (wvol_volume_save(v, outp, &err) != WVOL_OK) {
+            rc = cli_fail_err("decompress", &err);
+            goto done;
+        }
+        t_write = cli_now() - t0;
+        dims[0] = v->nx, dims[1] = v->ny, dims[2] = v->nz;
+        memcpy(spacing, v->spacing, sizeof spacing);
     }
-    t_write = cli_now() - t0;
     if (json) {
         cli_json_begin();
         cli_json_str("input", in);
         cli_json_str("output", outp);
         cli_json_int("level", level);
-        cli_json_size3("dims", v->nx, v->ny, v->nz);
-        cli_json_num3("spacing", v->spacing);
+        cli_json_size3("dims", dims[0], dims[1], dims[2]);
+        cli_json_num3("spacing", spacing);
         cli_json_open("seconds", '{');
         cli_json_num("read_decode", t_read);
         cli_json_num("inverse_transform", t_inv);
         cli_json_num("write", t_write);
         cli_json_close('}');
+        if (wf) cli_json_int("slabs", streamed);
         if (wf) cli_json_wvc_cache("chunks", &cs, wvol_wvc_file_info(wf)->chunks);
         cli_json_end();
     } else {
         if (wf)
             printf("%s -> %s: %zu x %zu x %zu region%s (%llu of %llu chunks decoded, %llu bytes read, cache peak %zu "
                    "bytes; read+reconstruct %.3f s, write %.3f s)\n",
-                   in, outp, v->nx, v->ny, v->nz, level ? " of a coarser level" : "", (unsigned long long)cs.decoded,
+                   in, outp, dims[0], dims[1], dims[2], level ? " of a coarser level" : "", (unsigned long long)cs.decoded,
                    (unsigned long long)wvol_wvc_file_info(wf)->chunks, (unsigned long long)cs.bytes_read, cs.peak,
                    t_read, t_write);
         else

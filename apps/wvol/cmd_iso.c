@@ -76,6 +76,8 @@ static void report(const iso_args *a, int levels, const wvol_mesh *m, const wvol
             cli_json_str("wavelet", a->wavelet);
             cli_json_int("levels", levels);
             cli_json_num("keep", a->keep);
+        }
+        if (st->bricks_total) { /* the brick path: from a store, or from a .wvc's file store */
             cli_json_int("brick", a->brick);
             cli_json_int("bricks_meshed", (long long)st->bricks_meshed);
             cli_json_num("seconds_bounds", st->seconds_bounds);

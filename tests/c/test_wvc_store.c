@@ -14,6 +14,7 @@
 #include "wvol/render.h"
 #include "wvol/store.h"
 #include "wvol/wvc.h"
+#include "store/store_blocks.h"
 
 static const char *PATH = "test_wvc_store.wvc";
 
@@ -93,6 +94,52 @@ static void file_store_meshes_and_renders_like_the_memory_store(void)
                     if (fabs((double)a->verts[i] - (double)b->verts[i]) > maxd)
                         maxd = fabs((double)a->verts[i] - (double)b->verts[i]);
             CHECK(maxd < 1e-4, "vertices differ by %g voxels", maxd);
+        }
+        {
+            /* bricks of 8 (some of them away from the shell): with a budget that holds every
+             * chunk, the bounds come from the decoded chunks, the same block maxima as the
+             * memory store's, so the same bricks are skipped, and the same mesh; with the small
+             * budget (fs) they stay the index's per-chunk maxima, which skip fewer */
+            wvol_store *big = NULL;
+            wvol_mesh *mm = NULL, *mf = NULL, *mb = NULL;
+            wvol_iso_stats s8m, s8f, s8b;
+            wvol_iso_params ip8 = ip;
+            ip8.brick = 8;
+            CHECK(wvol_store_open(&big, PATH, 0, NULL, &err) == WVOL_OK, "open: %s", err.message);
+            CHECK(wvol_iso_extract_store(&mm, ms, iso, &ip8, &s8m, &err) == WVOL_OK, "mc memory: %s", err.message);
+            CHECK(wvol_iso_extract_store(&mf, fs, iso, &ip8, &s8f, &err) == WVOL_OK, "mc file: %s", err.message);
+            CHECK(big && wvol_iso_extract_store(&mb, big, iso, &ip8, &s8b, &err) == WVOL_OK, "mc file: %s",
+                  err.message);
+            CHECK(mm && mb && mf && mb->ntris == mm->ntris && mb->nverts == mm->nverts && mf->ntris == mm->ntris,
+                  "bricks of 8: the same mesh from the three stores");
+            CHECK(s8b.bricks_skipped == s8m.bricks_skipped && s8f.bricks_skipped < s8b.bricks_skipped,
+                  "bricks skipped: %zu from the decoded chunks' bounds, %zu from the memory store's, %zu from the "
+                  "index's (of %zu)",
+                  s8b.bricks_skipped, s8m.bricks_skipped, s8f.bricks_skipped, s8m.bricks_total);
+            {
+                /* the tables' granularity: per chunk (tile 8) for the index's maxima, which hold one
+                 * value per chunk (at 2048^3 the small blocks would repeat each over a gigabyte),
+                 * the small default blocks for the decoded ones; the memory taken follows */
+                wvol__store_blocks *vb = NULL, *vf = NULL;
+                wvol__brick_bounds *bbb = NULL, *bbf = NULL;
+                int exact_b = 0, exact_f = 1;
+                CHECK(wvol__store_blocks_create_exact(&vb, &bbb, big, 1, &exact_b, &err) == WVOL_OK &&
+                          wvol__store_blocks_create_exact(&vf, &bbf, fs, 1, &exact_f, &err) == WVOL_OK,
+                      "views: %s", err.message);
+                CHECK(exact_b && !exact_f && wvol__bounds_block(bbb, 1) == 4 && wvol__bounds_block(bbf, 1) == 8 &&
+                          wvol__bounds_block(bbf, 2) == 8 && wvol__bounds_bytes(bbf) < wvol__bounds_bytes(bbb),
+                      "bound blocks: decoded %d (edge %zu, %zu bytes), index %d (edges %zu %zu, %zu bytes)", exact_b,
+                      wvol__bounds_block(bbb, 1), wvol__bounds_bytes(bbb), exact_f, wvol__bounds_block(bbf, 1),
+                      wvol__bounds_block(bbf, 2), wvol__bounds_bytes(bbf));
+                wvol__bounds_free(bbb);
+                wvol__bounds_free(bbf);
+                wvol__store_blocks_destroy(vb);
+                wvol__store_blocks_destroy(vf);
+            }
+            wvol_mesh_destroy(mm);
+            wvol_mesh_destroy(mf);
+            wvol_mesh_destroy(mb);
+            wvol_store_destroy(big);
         }
         wvol_mesh_destroy(a);
         wvol_mesh_destroy(b);

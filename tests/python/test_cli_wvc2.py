@@ -79,6 +79,35 @@ def test_reads_stay_within_the_memory_budget(wvc):
     # and marching cubes from the file within the same budget
     rss_mc, _ = peak_rss("iso", f, "-o", d / "m.ply", "--iso", "300", "--memory", "3M")
     assert rss_mc <= base + budget + (48 << 20), (rss_mc, base, whole)
+    # and a full-resolution frame: the chunk cache, the bricks' bounds (per chunk from the
+    # index), the threads' brick caches and the image
+    rss_r, out = peak_rss("render", f, "-o", d / "f.png", "--size", "64x64", "--full-resolution", "--memory", "3M",
+                          "--json")
+    assert json.loads(out)["method"] == "bricks"
+    assert rss_r <= base + budget + (48 << 20), (rss_r, base, whole)
+
+
+def test_region_output_is_streamed_in_slabs(tmp_path):
+    """A whole-volume region read written slab by slab: the process never holds the output
+    (192^3 floats, 27 MiB), only the chunk budget (8 MiB) and a slab, and the file equals the
+    whole decode."""
+    n = 192
+    vol, f, full, out = tmp_path / "s.nrrd", tmp_path / "s.wvc", tmp_path / "full.raw", tmp_path / "r.nrrd"
+    for cmd in (["synth", "skull", "--size", n, "--noise", "20", "-o", vol],
+                ["compress", vol, "-o", f, "--psnr", "45", "--levels", "3", "--tile", "16,16"],
+                ["decompress", f, "-o", full]):
+        r = subprocess.run([WVOL_BIN, *map(str, cmd)], capture_output=True, text=True)
+        assert r.returncode == 0, r.stderr
+    base, _ = peak_rss("info", f)
+    rss, o = peak_rss("decompress", f, "-o", out, "--roi", f"0,0,0,{n},{n},{n}", "--memory", "8M", "--json")
+    info = json.loads(o)
+    assert info["slabs"] == 1 and info["chunks"]["cache_peak_bytes"] <= 8 << 20
+    # the budget, a slab and its parts (8 slices: 1.2 MiB each) and the reconstruction's scratch:
+    # 12 MiB of slack, less than the 27 MiB the output would add if it were held
+    assert rss <= base + (8 << 20) + (12 << 20) < base + 4 * n**3, (rss, base)
+    ref = np.fromfile(full, dtype="<f4")
+    got = np.fromfile(out, dtype="<f4")[-n**3:]  # after the NRRD header
+    assert np.max(np.abs(got - ref)) <= 1e-5 * np.max(np.abs(ref))
 
 
 def test_every_command_takes_a_wvc(wvc):

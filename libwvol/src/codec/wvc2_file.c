@@ -32,6 +32,7 @@ typedef struct centry {
     size_t bytes;
     size_t ext[3];
     int32_t *q[8];              /* per band of the level's list, ext[0] ext[1] ext[2] each */
+    unsigned char nz[8];        /* per band: any non-zero value */
 } centry;
 
 /* Marks a slot whose chunk one thread is decoding: the others wait for it rather than
@@ -399,6 +400,11 @@ static centry *decode_chunk(wvol_wvc_file *f, size_t id)
         free(e);
         return NULL;
     }
+    for (int k = 0; k < nb; k++) {
+        int32_t any = 0;
+        for (size_t i = 0; i < n; i++) any |= e->q[k][i];
+        e->nz[k] = any != 0;
+    }
     e->id = id;
     memcpy(e->ext, ext, sizeof ext);
     e->bytes = sizeof *e + n * (size_t)nb * sizeof(int32_t);
@@ -489,6 +495,45 @@ static ptrdiff_t pmod(ptrdiff_t a, ptrdiff_t n)
     return r < 0 ? r + n : r;
 }
 
+/* Whether band k of level m may have a non-zero value in the region (lo, n), taken
+ * periodically: some chunk there is non-empty and has a non-zero value in the band (its
+ * chunks decoded and pinned for the copy that follows). Regions meeting more tiles than
+ * fit the table answer yes without looking. */
+#define MAX_TILE_RUN 64
+static int band_may_be_nonzero(wvol_wvc_file *f, pins *P, int m, int k, const ptrdiff_t lo[3], const ptrdiff_t n[3])
+{
+    const wvc2_geom *g = &f->x->g;
+    const wvc2_level *G = &g->lv[m];
+    size_t tl[3][MAX_TILE_RUN], nt[3];
+    for (int a = 0; a < 3; a++) {
+        /* the tiles the positions lo .. lo + n - 1 (wrapped) meet, in order, each once */
+        const ptrdiff_t e = (ptrdiff_t)G->e[a], T = (ptrdiff_t)g->tile[a];
+        ptrdiff_t left = n[a], x = pmod(lo[a], e);
+        nt[a] = 0;
+        if (n[a] >= e) left = e, x = 0; /* the whole period */
+        while (left > 0) {
+            ptrdiff_t run = T - x % T;
+            if (x + run > e) run = e - x;
+            if (nt[a] == MAX_TILE_RUN) return 1;
+            tl[a][nt[a]++] = (size_t)(x / T);
+            left -= run;
+            x += run;
+            if (x == e) x = 0;
+        }
+    }
+    for (size_t z = 0; z < nt[2]; z++)
+        for (size_t y = 0; y < nt[1]; y++)
+            for (size_t x = 0; x < nt[0]; x++) {
+                const size_t tc[3] = {tl[0][x], tl[1][y], tl[2][z]};
+                const size_t id = wvc2_chunk_id(g, m, tc);
+                const centry *e;
+                if (!f->x->chunks[id].bytes) continue;
+                e = pin(f, P, id);
+                if (!e || e->nz[k]) return 1; /* a chunk that does not decode: the copy records it */
+            }
+    return 0;
+}
+
 static int gather_chunks(const void *ctx, float *dst, int mm, int band, const ptrdiff_t lo[3], const ptrdiff_t n[3])
 {
     const skip_ctx *sc = ctx;
@@ -510,6 +555,10 @@ static int gather_chunks(const void *ctx, float *dst, int mm, int band, const pt
         d2 = f->d2[s];
     }
     memset(&P, 0, sizeof P);
+    if (!band_may_be_nonzero(f, &P, m, k, lo, n)) {
+        unpin_all(f, &P);
+        return 0; /* every chunk there is empty or has this band all zero: the caller skips it */
+    }
     for (ptrdiff_t zk = 0; zk < n[2]; zk++) {
         size_t z = (size_t)pmod(lo[2] + zk, (ptrdiff_t)G->e[2]);
         for (ptrdiff_t yj = 0; yj < n[1]; yj++) {

@@ -35,8 +35,9 @@
 
 static wvol_status bounds_from_coeffs(wvol__brick_bounds **out, const wvol_coeffs *c, wvol_error *err)
 {
-    size_t pad[3] = {c->px, c->py, c->pz};
-    WVOL_FORWARD(wvol__bounds_create(out, c->filter, c->levels, pad, c->data, c->px, c->px * c->py, err));
+    wvol__coef_source src;
+    wvol__coef_source_of_coeffs(&src, c);
+    WVOL_FORWARD(wvol__bounds_create_src(out, &src, NULL, err));
     wvol__bounds_fill_coeffs(*out, c);
     wvol__bounds_finish(*out);
     return WVOL_OK;
@@ -218,7 +219,10 @@ static wvol_status extract_bricks(wvol_mesh **out, const wvol_coeffs *c, const w
         WVOL_FORWARD(bounds_from_coeffs(&bb, c, err));
         wvol__coef_source_of_coeffs(&g.cs, c);
     } else {
-        WVOL_FORWARD(wvol__store_blocks_create(&blocks, &bb, sto, err));
+        int exact;
+        /* a file's index bounds a tile of all bands by one maximum: the decoded chunks' own
+         * maxima decide far more bricks, and the chunks are needed for the meshing */
+        WVOL_FORWARD(wvol__store_blocks_create_exact(&blocks, &bb, sto, nth, &exact, err));
         wvol__store_blocks_source(&g.cs, blocks);
     }
     need = malloc(nbricks * sizeof *need);

@@ -10,9 +10,13 @@
 #include "store/store_internal.h"
 #include "codec/wvc_source.h"
 
+#include <math.h>
 #include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
+#ifdef _OPENMP
+#include <omp.h>
+#endif
 
 #define CB_SHIFT 2 /* blocks of 4^3 = 64 coefficient positions: one 64-bit mask */
 #define CB (1 << CB_SHIFT)
@@ -64,11 +68,9 @@ static inline size_t node_block(const coef_blocks *cb, const wvol__node *nd, int
     return (pos[0] >> CB_SHIFT) + bv->nb[0] * ((pos[1] >> CB_SHIFT) + bv->nb[1] * (pos[2] >> CB_SHIFT));
 }
 
-/* Builds the view; when bb is not NULL, also feeds every kept detail coefficient to the
- * brick bounds (one pass over the store serves both). Cloned: a value's rank in its block is
- * a population count, an instruction on x86-64-v3 and a library call on the baseline. */
-WVOL__CLONES static wvol_status blocks_build(coef_blocks *cb, const wvol_store *s, wvol__brick_bounds *bb,
-                                             wvol_error *err)
+/* Builds the view. Cloned: a value's rank in its block is a population count, an
+ * instruction on x86-64-v3 and a library call on the baseline. */
+WVOL__CLONES static wvol_status blocks_build(coef_blocks *cb, const wvol_store *s, wvol_error *err)
 {
     wvol_store_info info;
     size_t pad[3];
@@ -89,7 +91,7 @@ WVOL__CLONES static wvol_status blocks_build(coef_blocks *cb, const wvol_store *
                 n *= bv->nb[a];
                 if (((l >> a) & 1) && pad[a] == 1) n = 0; /* no high-pass on an untransformed axis */
             }
-            if (!n) continue;
+            if (!n || s->file) continue; /* a file store's details come from its chunks */
             bv->dir = calloc(n, sizeof *bv->dir);
             WVOL_RETURN_IF(!bv->dir, err, WVOL_ERR_NOMEM, "store: out of memory for the coefficient blocks");
             cb->bytes += n * sizeof *bv->dir;
@@ -138,11 +140,6 @@ WVOL__CLONES static wvol_status blocks_build(coef_blocks *cb, const wvol_store *
             const int band = __builtin_ctz(bands) + 1;
             const cblock *b = &cb->blocks[cb->bv[m][band].dir[i] - 1];
             cb->values[b->first + (size_t)__builtin_popcountll(b->mask & below)] = *v;
-            if (bb) {
-                size_t pos[3];
-                wvol__key_pos(nd->key, pos);
-                wvol__bounds_add(bb, m, band, pos[0], pos[1], pos[2], *v);
-            }
         }
     }
     return WVOL_OK;
@@ -269,33 +266,207 @@ static int gather_blocks(const void *ctx, float *dst, int m, int band, const ptr
     return bv->dir ? gather_sparse(cb, bv, dst, lo, n) : 0; /* 0: all zero, the caller skips the band */
 }
 
-/* A store opened on a file: the bound of a chunk's coefficients is its maximum from the
- * index, spread over every bound block the chunk covers (nothing is decoded). */
-static wvol_status file_bounds(wvol__brick_bounds *bb, wvol_wvc_file *f, int levels, wvol_error *err)
+/* max |v| over n values, NaN as +inf; written so that it vectorises */
+static inline float absmax(const float *v, int n)
 {
-    for (int m = 1; m <= levels; m++) {
-        size_t nt[3], tile[3];
-        float *mx;
-        wvol__wvc_file_level_max(f, m, NULL, nt, tile);
-        mx = malloc(nt[0] * nt[1] * nt[2] * sizeof *mx + 1);
-        WVOL_RETURN_IF(!mx, err, WVOL_ERR_NOMEM, "store: out of memory for the file's bounds");
-        wvol__wvc_file_level_max(f, m, mx, nt, tile);
-        for (size_t k = 0; k < nt[2]; k++)
-            for (size_t j = 0; j < nt[1]; j++)
-                for (size_t i = 0; i < nt[0]; i++) {
-                    const size_t lo[3] = {i * tile[0], j * tile[1], k * tile[2]};
-                    const size_t hi[3] = {lo[0] + tile[0], lo[1] + tile[1], lo[2] + tile[2]};
-                    float v = mx[i + nt[0] * (j + nt[1] * k)];
-                    if (v == 0) continue;
-                    for (int band = 1; band < 8; band++) wvol__bounds_add_box(bb, m, band, lo, hi, v);
-                }
-        free(mx);
+    float mx = 0.0f;
+    int nan = 0;
+    for (int i = 0; i < n; i++) {
+        const float av = fabsf(v[i]);
+        mx = av > mx ? av : mx;
+        nan |= av != av;
+    }
+    return nan ? INFINITY : mx;
+}
+
+/* The bounds' block maxima from the view, block by block: where the bound's blocks are at
+ * least the view's 4^3 (level 1) a block's values are contiguous and give one maximum; bound
+ * blocks of 2^3 (level 2) get the maxima of the view block's eight octants; finer ones take
+ * each value at its position. Levels above the bound's own are skipped (its low-pass cube
+ * holds them). */
+static void blocks_bounds(const coef_blocks *cb, wvol__brick_bounds *bb)
+{
+    const int L = wvol__bounds_levels(bb);
+    for (int m = 1; m <= cb->M && m <= L; m++) {
+        const size_t edge = wvol__bounds_block(bb, m);
+        for (int band = 1; band < 8; band++) {
+            const band_view *bv = &cb->bv[m][band];
+            if (!bv->dir) continue;
+            for (size_t z = 0; z < bv->nb[2]; z++)
+                for (size_t y = 0; y < bv->nb[1]; y++)
+                    for (size_t x = 0; x < bv->nb[0]; x++) {
+                        const uint32_t blk = bv->dir[x + bv->nb[0] * (y + bv->nb[1] * z)];
+                        if (!blk) continue;
+                        const cblock *b = &cb->blocks[blk - 1];
+                        const float *v = cb->values + b->first;
+                        const size_t lo[3] = {x << CB_SHIFT, y << CB_SHIFT, z << CB_SHIFT};
+                        if (edge >= CB) {
+                            const size_t hi[3] = {lo[0] + CB, lo[1] + CB, lo[2] + CB};
+                            wvol__bounds_add_box(bb, m, band, lo, hi, absmax(v, __builtin_popcountll(b->mask)));
+                        } else if (edge == 2) {
+                            float oct[8] = {0};
+                            for (uint64_t bits = b->mask; bits; bits &= bits - 1, v++) {
+                                const int bit = __builtin_ctzll(bits);
+                                const int o = ((bit >> 1) & 1) | ((bit >> 2) & 2) | ((bit >> 3) & 4);
+                                const float av = fabsf(*v);
+                                if (!(av <= oct[o])) oct[o] = av != av ? INFINITY : av;
+                            }
+                            for (int o = 0; o < 8; o++) {
+                                const size_t l[3] = {lo[0] + 2 * (size_t)(o & 1), lo[1] + (size_t)(o & 2),
+                                                     lo[2] + (size_t)((o >> 1) & 2)};
+                                const size_t h[3] = {l[0] + 2, l[1] + 2, l[2] + 2};
+                                if (oct[o] != 0) wvol__bounds_add_box(bb, m, band, l, h, oct[o]);
+                            }
+                        } else {
+                            for (uint64_t bits = b->mask; bits; bits &= bits - 1, v++) {
+                                const int bit = __builtin_ctzll(bits);
+                                wvol__bounds_add(bb, m, band, lo[0] + (size_t)(bit & 3), lo[1] + (size_t)((bit >> 2) & 3),
+                                                 lo[2] + (size_t)(bit >> 4), *v);
+                            }
+                        }
+                    }
+        }
+    }
+}
+
+/* A file's chunk maxima of the levels 1..L from its index (nothing decoded). */
+typedef struct file_tiles {
+    int L;
+    size_t nt[WVOL_SELECT_MAX_LEVELS + 1][3], tile[WVOL_SELECT_MAX_LEVELS + 1][3];
+    float *mx[WVOL_SELECT_MAX_LEVELS + 1]; /* per level, chunk order */
+    size_t nonzero;                        /* chunks with a non-zero maximum */
+    size_t need;                           /* their decoded size, all bands */
+    size_t least[3];                       /* per axis the smallest tile */
+} file_tiles;
+
+static void tiles_free(file_tiles *ft)
+{
+    for (int m = 1; m <= ft->L; m++) free(ft->mx[m]);
+}
+
+static wvol_status tiles_load(file_tiles *ft, wvol_wvc_file *f, int L, wvol_error *err)
+{
+    memset(ft, 0, sizeof *ft);
+    ft->L = L;
+    for (int m = 1; m <= L; m++) {
+        size_t n;
+        wvol__wvc_file_level_max(f, m, NULL, ft->nt[m], ft->tile[m]);
+        n = ft->nt[m][0] * ft->nt[m][1] * ft->nt[m][2];
+        ft->mx[m] = malloc(n * sizeof *ft->mx[m] + 1);
+        WVOL_RETURN_IF(!ft->mx[m], err, WVOL_ERR_NOMEM, "store: out of memory for the file's bounds");
+        wvol__wvc_file_level_max(f, m, ft->mx[m], ft->nt[m], ft->tile[m]);
+        for (size_t k = 0; k < n; k++)
+            if (ft->mx[m][k] != 0)
+                ft->nonzero++, ft->need += ft->tile[m][0] * ft->tile[m][1] * ft->tile[m][2] * 7 * sizeof(int32_t);
+        for (int a = 0; a < 3; a++)
+            if (!ft->least[a] || ft->tile[m][a] < ft->least[a]) ft->least[a] = ft->tile[m][a];
     }
     return WVOL_OK;
 }
 
-wvol_status wvol__store_blocks_create(wvol__store_blocks **out, wvol__brick_bounds **bounds, const wvol_store *s,
-                                      wvol_error *err)
+/* The bound of a chunk's coefficients is its maximum from the index, spread over every
+ * bound block the chunk covers (nothing is decoded). */
+static void file_bounds(wvol__brick_bounds *bb, const file_tiles *ft)
+{
+    for (int m = 1; m <= ft->L; m++)
+        for (size_t k = 0; k < ft->nt[m][2]; k++)
+            for (size_t j = 0; j < ft->nt[m][1]; j++)
+                for (size_t i = 0; i < ft->nt[m][0]; i++) {
+                    const size_t *tile = ft->tile[m];
+                    const size_t lo[3] = {i * tile[0], j * tile[1], k * tile[2]};
+                    const size_t hi[3] = {lo[0] + tile[0], lo[1] + tile[1], lo[2] + tile[2]};
+                    float v = ft->mx[m][i + ft->nt[m][0] * (j + ft->nt[m][1] * k)];
+                    if (v == 0) continue;
+                    for (int band = 1; band < 8; band++) wvol__bounds_add_box(bb, m, band, lo, hi, v);
+                }
+}
+
+/* The bounds from the decoded coefficients themselves instead of the index's per-chunk
+ * maxima (one maximum over a tile of all seven bands, so loose that a surface through a few
+ * bricks of a tile leaves every brick of it undecided): every chunk with a non-zero maximum
+ * is decoded (threads over chunks; the shared cache decodes each once and keeps it for the
+ * reconstruction that follows) and its bands' block maxima are taken. */
+static wvol_status decoded_bounds(wvol__brick_bounds *bb, const wvol_store *s, const file_tiles *ft, int threads,
+                                  wvol_error *err)
+{
+    wvol_store_info info;
+    wvol__coef_source cs;
+    size_t k, (*list)[4], n = 0;
+    wvol_status st = WVOL_OK;
+    int m, parallel = 1;
+    wvol_store_get_info(s, &info);
+    list = malloc((ft->nonzero + 1) * sizeof *list);
+    WVOL_RETURN_IF(!list, err, WVOL_ERR_NOMEM, "store: out of memory for the file's bounds");
+    for (m = 1; m <= ft->L; m++) {
+        for (int a = 0; a < 3; a++)
+            if (ft->tile[m][a] % 4) parallel = 0; /* tiles could share a bound block */
+        for (k = 0; k < ft->nt[m][0] * ft->nt[m][1] * ft->nt[m][2]; k++)
+            if (ft->mx[m][k] != 0) {
+                list[n][0] = (size_t)m;
+                list[n][1] = k % ft->nt[m][0];
+                list[n][2] = (k / ft->nt[m][0]) % ft->nt[m][1];
+                list[n++][3] = k / (ft->nt[m][0] * ft->nt[m][1]);
+            }
+    }
+    wvol__wvc_file_source(&cs, s->file, 0);
+    (void)wvol__wvc_file_error(s->file, NULL);
+#ifdef _OPENMP
+#pragma omp parallel num_threads(threads > 0 ? threads : omp_get_max_threads()) if (parallel && threads != 1)
+#endif
+    {
+        float *buf = NULL;
+        size_t cap = 0;
+        int oom = 0;
+        long q;
+#ifdef _OPENMP
+#pragma omp for schedule(dynamic, 1)
+#endif
+        for (q = 0; q < (long)n; q++) {
+            const int lm = (int)list[q][0];
+            const size_t pad[3] = {info.px, info.py, info.pz};
+            size_t lo[3], cnt[3], vol;
+            ptrdiff_t plo[3], pn[3];
+            for (int a = 0; a < 3; a++) {
+                size_t e = wvol__extent(pad[a], lm);
+                lo[a] = list[q][1 + a] * ft->tile[lm][a];
+                cnt[a] = lo[a] + ft->tile[lm][a] < e ? ft->tile[lm][a] : e - lo[a];
+                plo[a] = (ptrdiff_t)lo[a];
+                pn[a] = (ptrdiff_t)cnt[a];
+            }
+            vol = cnt[0] * cnt[1] * cnt[2];
+            if (vol > cap) {
+                free(buf);
+                buf = malloc(vol * sizeof *buf);
+                cap = buf ? vol : 0;
+            }
+            if (!buf) { /* this chunk's bound blocks would stay 0: refused below */
+                oom = 1;
+                continue;
+            }
+            for (int band = 1; band < 8; band++)
+                if (cs.gather(cs.ctx, buf, lm, band, plo, pn))
+                    wvol__bounds_add_dense(bb, lm, band, lo, cnt, buf, cnt[0], cnt[0] * cnt[1]);
+        }
+        if (oom) {
+#ifdef _OPENMP
+#pragma omp critical(wvol_store_decoded_bounds)
+#endif
+            st = WVOL_ERR_NOMEM;
+        }
+        free(buf);
+    }
+    free(list);
+    if (st != WVOL_OK) return wvol_error_set(err, st, "store: out of memory for a chunk's bounds");
+    return wvol__wvc_file_error(s->file, err);
+}
+
+/* exact_threads < 0: a file store's bounds from its index; else from its decoded chunks when
+ * their decoded size fits in half the file's budget (decoded_bounds, that many threads),
+ * *exact saying whether they did. Bounds from the index keep their maxima per tile-sized
+ * block (one value per chunk and band: at 2048^3 the default small blocks would take over a
+ * gigabyte to repeat them). */
+static wvol_status create(wvol__store_blocks **out, wvol__brick_bounds **bounds, const wvol_store *s,
+                          int exact_threads, int *exact, wvol_error *err)
 {
     wvol_store_info info;
     wvol__brick_bounds *bb = NULL;
@@ -303,34 +474,63 @@ wvol_status wvol__store_blocks_create(wvol__store_blocks **out, wvol__brick_boun
     wvol_status st;
     *out = NULL;
     if (bounds) *bounds = NULL;
+    if (exact) *exact = 0;
     wvol_store_get_info(s, &info);
-    /* the bound needs every axis transformed; without it every brick is reconstructed */
-    if (bounds && info.px > 1 && info.py > 1 && info.pz > 1 && info.levels >= 1) {
-        const size_t pad[3] = {info.px, info.py, info.pz};
-        WVOL_FORWARD(wvol__bounds_create(&bb, info.filter, info.levels, pad, wvol_store_lowpass(s), info.lowpass[0],
-                                         info.lowpass[0] * info.lowpass[1], err));
-    }
     cb = malloc(sizeof *cb);
-    st = cb ? blocks_build(cb, s, bb, err)
+    st = cb ? blocks_build(cb, s, err)
             : wvol_error_set(err, WVOL_ERR_NOMEM, "store: out of memory for the coefficient blocks");
     if (st != WVOL_OK) {
         wvol__store_blocks_destroy(cb);
-        wvol__bounds_free(bb);
         return st;
     }
-    if (s->file && bb && (st = file_bounds(bb, s->file, info.levels, err)) != WVOL_OK) {
-        wvol__store_blocks_destroy(cb);
-        wvol__bounds_free(bb);
-        return st;
-    }
-    if (bb) wvol__bounds_finish(bb);
     cb->cs = (wvol__coef_source){.gather = gather_blocks, .ctx = cb, .filter = info.filter, .levels = info.levels,
                                  .dims = {info.nx, info.ny, info.nz}, .pad = {info.px, info.py, info.pz}};
     /* a store opened on a file: the detail bands come from its chunks, decoded on demand */
     if (s->file) wvol__wvc_file_source(&cb->cs, s->file, 0);
+    /* the bound needs every axis transformed; without it every brick is reconstructed */
+    if (bounds && info.px > 1 && info.py > 1 && info.pz > 1 && info.levels >= 1) {
+        file_tiles ft;
+        int decoded = 0;
+        memset(&ft, 0, sizeof ft);
+        if (s->file) {
+            wvol_wvc_cache_stats cst;
+            wvol_wvc_file_stats(s->file, &cst);
+            const size_t pad[3] = {info.px, info.py, info.pz};
+            st = tiles_load(&ft, s->file, wvol__bounds_levels_for(pad, info.levels), err);
+            decoded = exact_threads >= 0 && ft.nonzero > 0 && ft.need <= cst.budget / 2;
+        }
+        if (st == WVOL_OK) st = wvol__bounds_create_src(&bb, &cb->cs, s->file && !decoded ? ft.least : NULL, err);
+        if (st == WVOL_OK && s->file) st = wvol__wvc_file_error(s->file, err);
+        if (st == WVOL_OK) {
+            if (decoded) st = decoded_bounds(bb, s, &ft, exact_threads, err);
+            else if (s->file) file_bounds(bb, &ft);
+            else blocks_bounds(cb, bb);
+        }
+        tiles_free(&ft);
+        if (st != WVOL_OK) {
+            wvol__store_blocks_destroy(cb);
+            wvol__bounds_free(bb);
+            return st;
+        }
+        if (exact) *exact = decoded;
+        wvol__bounds_finish(bb);
+    }
     if (bounds) *bounds = bb;
     *out = cb;
     return WVOL_OK;
+}
+
+wvol_status wvol__store_blocks_create(wvol__store_blocks **out, wvol__brick_bounds **bounds, const wvol_store *s,
+                                      wvol_error *err)
+{
+    return create(out, bounds, s, -1, NULL, err);
+}
+
+wvol_status wvol__store_blocks_create_exact(wvol__store_blocks **out, wvol__brick_bounds **bounds,
+                                            const wvol_store *s, int threads, int *exact, wvol_error *err)
+{
+    if (exact) *exact = 0;
+    return create(out, bounds, s, threads > 0 ? threads : 0, exact, err);
 }
 
 void wvol__store_blocks_source(wvol__coef_source *src, const wvol__store_blocks *b)

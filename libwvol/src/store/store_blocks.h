@@ -22,6 +22,15 @@ typedef struct wvol__store_blocks wvol__store_blocks;
 wvol_status wvol__store_blocks_create(wvol__store_blocks **out, wvol__brick_bounds **bounds, const wvol_store *s,
                                       wvol_error *err);
 
+/* The same, for a reader that will need most chunks anyway (marching cubes): a store opened
+ * on a file gets its bounds from the decoded coefficients instead of the index's per-chunk
+ * maxima, decoding every non-empty chunk (threads over chunks; 0 = OpenMP's default) into
+ * the file's cache, when their decoded size fits in half the file's memory budget; *exact
+ * says whether it did (else the index's bounds, as wvol__store_blocks_create). A chunk that
+ * does not decode is an error naming it. */
+wvol_status wvol__store_blocks_create_exact(wvol__store_blocks **out, wvol__brick_bounds **bounds,
+                                            const wvol_store *s, int threads, int *exact, wvol_error *err);
+
 /* A coefficient source reading through the view (the view and the store must outlive it):
  * the low-pass cube densely, a detail band through its blocks; a band with no kept position
  * in the region reads as absent, so the synthesis skips it. Safe to use from several

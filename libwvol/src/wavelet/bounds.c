@@ -124,6 +124,7 @@ struct wvol__brick_bounds {
     size_t low_sy, low_sz;
     int M;
     int nbands;
+    float *own_low;    /* the low-pass cube when the bound reconstructed it (create_src) */
     size_t bytes;      /* tables beyond the struct */
     band_blocks bb[7 * 32 + 1];
 };
@@ -134,11 +135,14 @@ void wvol__bounds_free(brick_bounds *b)
     int i;
     if (!b) return;
     for (i = 0; i < b->nbands; i++) free(b->bb[i].absmax);
+    free(b->own_low);
     free(b);
 }
 
-wvol_status wvol__bounds_create(brick_bounds **out, const wvol_filter *f, int levels, const size_t pad[3],
-                                const float *low, size_t low_sy, size_t low_sz, wvol_error *err)
+/* block: NULL, or per axis a least block edge (positions; rounded down to a power of two). */
+static wvol_status bounds_create(brick_bounds **out, const wvol_filter *f, int levels, const size_t pad[3],
+                                 const float *low, size_t low_sy, size_t low_sz, const size_t block[3],
+                                 wvol_error *err)
 {
     brick_bounds *b;
     resp1 lp[33], hp[33];
@@ -168,6 +172,8 @@ wvol_status wvol__bounds_create(brick_bounds **out, const wvol_filter *f, int le
                 q->e[a] = pad[a] >> m;
                 /* blocks of 4, 2, 1 positions at levels 1, 2, >= 3: about 8 samples wide */
                 q->bshift[a] = m >= 3 ? 0 : 3 - m;
+                if (block)
+                    while (((size_t)2 << q->bshift[a]) <= block[a] && q->bshift[a] < 30) q->bshift[a]++;
                 q->bs[a] = (size_t)1 << q->bshift[a];
                 q->nb[a] = (q->e[a] + q->bs[a] - 1) / q->bs[a];
                 q->leb *= r->leb;
@@ -191,6 +197,62 @@ wvol_status wvol__bounds_create(brick_bounds **out, const wvol_filter *f, int le
         }
     *out = b;
     return WVOL_OK;
+}
+
+static band_blocks *band_of(brick_bounds *b, int m, int band);
+
+int wvol__bounds_levels_for(const size_t pad[3], int levels)
+{
+    int L = levels < WVOL__BOUNDS_LEVELS ? levels : WVOL__BOUNDS_LEVELS;
+    /* a finer low-pass cube bounds a brick from the values near it, a coarser one holds less */
+    while (L < levels && (pad[0] >> L) * (pad[1] >> L) * (pad[2] >> L) * sizeof(float) > WVOL__BOUNDS_LOW_BYTES) L++;
+    return L;
+}
+
+wvol_status wvol__bounds_create_src(brick_bounds **out, const wvol__coef_source *src, const size_t block[3],
+                                    wvol_error *err)
+{
+    const int L = wvol__bounds_levels_for(src->pad, src->levels);
+    size_t e[3], n;
+    const size_t zero[3] = {0, 0, 0};
+    wvol__coef_skip sk;
+    wvol__coef_source coarse;
+    wvol__brick_scratch scr;
+    float *low;
+    wvol_status st;
+    *out = NULL;
+    WVOL_RETURN_IF(L < 1, err, WVOL_ERR_ARG, "brick bounds: %d levels", src->levels);
+    for (int a = 0; a < 3; a++)
+        WVOL_RETURN_IF(src->pad[a] < 2, err, WVOL_ERR_DIMS, "brick bounds: axis %c is not transformed", "xyz"[a]);
+    for (int a = 0; a < 3; a++) e[a] = src->pad[a] >> L;
+    n = e[0] * e[1] * e[2];
+    low = malloc(n * sizeof *low);
+    WVOL_RETURN_IF(!low, err, WVOL_ERR_NOMEM, "brick bounds: out of memory for a %zu x %zu x %zu low-pass cube", e[0],
+                   e[1], e[2]);
+    /* the pyramid above level L, reconstructed: its samples are the level-L low-pass */
+    wvol__coef_source_skip(&coarse, &sk, src, L);
+    memset(&scr, 0, sizeof scr);
+    st = wvol__idwt3_brick_src(low, &coarse, zero, e, &scr, err);
+    wvol__brick_scratch_free(&scr);
+    if (st == WVOL_OK) st = bounds_create(out, src->filter, L, src->pad, low, e[0], e[0] * e[1], block, err);
+    if (st != WVOL_OK) {
+        free(low);
+        return st;
+    }
+    (*out)->own_low = low;
+    (*out)->bytes += n * sizeof *low;
+    return WVOL_OK;
+}
+
+int wvol__bounds_levels(const brick_bounds *b) { return b ? b->M : 0; }
+
+size_t wvol__bounds_block(const brick_bounds *b, int m)
+{
+    const band_blocks *q = band_of((brick_bounds *)b, m, 1);
+    size_t e = 0;
+    for (int a = 0; q && a < 3; a++)
+        if (!e || q->bs[a] < e) e = q->bs[a];
+    return e;
 }
 
 /* The (level, band) entry of the table; NULL for the low-pass cube and out of range. */
@@ -231,6 +293,27 @@ void wvol__bounds_add_box(brick_bounds *b, int m, int band, const size_t lo[3], 
             }
 }
 
+void wvol__bounds_add_dense(brick_bounds *b, int m, int band, const size_t lo[3], const size_t n[3], const float *v,
+                            size_t sy, size_t sz)
+{
+    band_blocks *q = band_of(b, m, band);
+    size_t x, y, z;
+    if (!q) return;
+    for (int a = 0; a < 3; a++)
+        if (lo[a] >= q->e[a] || n[a] > q->e[a] - lo[a]) return; /* outside the band: the caller's error */
+    for (z = 0; z < n[2]; z++)
+        for (y = 0; y < n[1]; y++) {
+            const float *row = v + sy * y + sz * z;
+            float *brow = q->absmax + q->nb[0] * (((lo[1] + y) >> q->bshift[1]) + q->nb[1] * ((lo[2] + z) >> q->bshift[2]));
+            const int sh = q->bshift[0];
+            for (x = 0; x < n[0]; x++) {
+                float av = fabsf(row[x]);
+                size_t bx = (lo[0] + x) >> sh;
+                if (!(av <= brow[bx])) brow[bx] = isnan(av) ? INFINITY : av; /* NaN propagates as +inf */
+            }
+        }
+}
+
 void wvol__bounds_fill_coeffs(brick_bounds *b, const wvol_coeffs *c)
 {
     /* one pass over the coefficients; a thread owns whole z-slabs of blocks */
@@ -245,17 +328,10 @@ void wvol__bounds_fill_coeffs(brick_bounds *b, const wvol_coeffs *c)
 #pragma omp parallel for schedule(dynamic, 1)
 #endif
         for (zb = 0; zb < (long)q->nb[2]; zb++) {
-            size_t z0 = (size_t)zb * q->bs[2], z1 = z0 + q->bs[2] < q->e[2] ? z0 + q->bs[2] : q->e[2], z, y, x;
-            for (z = z0; z < z1; z++)
-                for (y = 0; y < q->e[1]; y++) {
-                    const float *row = c->data + off[0] + c->px * ((off[1] + y) + c->py * (off[2] + z));
-                    float *brow = q->absmax + q->nb[0] * ((y >> q->bshift[1]) + q->nb[1] * (size_t)zb);
-                    const int sh = q->bshift[0];
-                    for (x = 0; x < q->e[0]; x++) {
-                        float av = fabsf(row[x]);
-                        if (!(av <= brow[x >> sh])) brow[x >> sh] = av; /* NaN propagates */
-                    }
-                }
+            size_t z0 = (size_t)zb * q->bs[2], z1 = z0 + q->bs[2] < q->e[2] ? z0 + q->bs[2] : q->e[2];
+            const size_t lo[3] = {0, 0, z0}, n[3] = {q->e[0], q->e[1], z1 - z0};
+            wvol__bounds_add_dense(b, q->m, q->band, lo, n, c->data + off[0] + c->px * (off[1] + c->py * (off[2] + z0)),
+                                   c->px, c->px * c->py);
         }
     }
 }

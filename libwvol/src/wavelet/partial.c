@@ -140,6 +140,29 @@ void wvol__coef_source_of_coeffs(wvol__coef_source *src, const wvol_coeffs *c)
     src->pad[0] = c->px, src->pad[1] = c->py, src->pad[2] = c->pz;
 }
 
+/* The coarser pyramid of a source: levels m + skip seen as m, the low-pass cube as is. */
+static int gather_skip(const void *ctx, float *dst, int m, int band, const ptrdiff_t lo[3], const ptrdiff_t n[3])
+{
+    const wvol__coef_skip *k = ctx;
+    if (m == 0) m = k->inner.levels, band = 0; /* a pyramid of no levels: the samples are the low-pass cube */
+    else m += k->skip;
+    return k->inner.gather(k->inner.ctx, dst, m, band, lo, n);
+}
+
+void wvol__coef_source_skip(wvol__coef_source *dst, wvol__coef_skip *ctx, const wvol__coef_source *src, int skip)
+{
+    ctx->inner = *src;
+    ctx->skip = skip;
+    *dst = *src;
+    dst->gather = gather_skip;
+    dst->ctx = ctx;
+    dst->levels = src->levels - skip;
+    for (int a = 0; a < 3; a++) {
+        dst->dims[a] = src->pad[a] > 1 ? (src->dims[a] + ((size_t)1 << skip) - 1) >> skip : 1;
+        dst->pad[a] = src->pad[a] > 1 ? src->pad[a] >> skip : 1;
+    }
+}
+
 /* The taps of output gi: k in [*kmin, *kmax] with 0 <= gi - 2k <= L - 1, clipped to the
  * input region [k0, k0 + kn) unless it is a whole period (full); *rel = (kmin - k0) mod kn,
  * the input position of the first (a division only in the periodic case: clipped, kmin - k0

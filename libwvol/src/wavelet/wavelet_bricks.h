@@ -33,6 +33,16 @@ typedef struct wvol__coef_source {
 
 void wvol__coef_source_of_coeffs(wvol__coef_source *src, const wvol_coeffs *c);
 
+/* The pyramid of src above level `skip` (0 <= skip <= src->levels) as a source of its own:
+ * levels - skip levels on the grid pad >> skip, whose samples are src's level-skip low-pass
+ * coefficients (the scaling coefficients, not scaled to sample values). ctx holds the
+ * mapping and must outlive dst; src's context must too. */
+typedef struct wvol__coef_skip {
+    wvol__coef_source inner;
+    int skip;
+} wvol__coef_skip;
+void wvol__coef_source_skip(wvol__coef_source *dst, wvol__coef_skip *ctx, const wvol__coef_source *src, int skip);
+
 /* Reusable scratch of one reconstruction (one per thread). Start zeroed. */
 #define WVOL__BRICK_SCRATCH 16
 typedef struct wvol__brick_scratch {
@@ -52,18 +62,42 @@ wvol_status wvol__idwt3_brick_src(float *out, const wvol__coef_source *src, cons
 /* ---- brick bounds (bounds.c) --------------------------------------------------------- */
 
 /* Rigorous [vmin, vmax] of the reconstructed samples of a box, from per-(level, band)
- * block maxima of the detail coefficients and the low-pass cube. Every axis must be
- * transformed (pad >= 2). Create, fill the maxima (from dense coefficients, or with
- * _add per kept coefficient), finish, then query (concurrently). low: the low-pass
- * cube, value (x, y, z) at low[x + low_sy y + low_sz z]; it must outlive the bounds. */
+ * block maxima of the detail coefficients and a low-pass cube. Every axis must be
+ * transformed (pad >= 2). Create from the coefficients' source: the bound works on the
+ * pyramid of its finest WVOL__BOUNDS_LEVELS levels (fewer if the source has fewer; more while
+ * that pyramid's low-pass cube would exceed WVOL__BOUNDS_LOW_BYTES), whose low-pass cube (the
+ * coarser levels' exact synthesis, so their few large coefficients count at their real size
+ * rather than each at its band's maximum times the filter's Lebesgue constant) it reconstructs
+ * and owns; detail maxima added at coarser levels are ignored. Then fill the maxima (from
+ * dense coefficients, or with the _add calls), finish, then query (concurrently). The maxima
+ * are kept per block of 4, 2, 1 positions at levels 1, 2, >= 3 (about 8 samples wide); block
+ * (NULL for that) asks for blocks of at least block[a] positions along axis a (rounded down
+ * to a power of two), for maxima known only per larger box (a file's chunks), whose tables
+ * would otherwise repeat one value per small block. */
 typedef struct wvol__brick_bounds wvol__brick_bounds;
-wvol_status wvol__bounds_create(wvol__brick_bounds **out, const wvol_filter *f, int levels, const size_t pad[3],
-                                const float *low, size_t low_sy, size_t low_sz, wvol_error *err);
+#define WVOL__BOUNDS_LEVELS 2
+#define WVOL__BOUNDS_LOW_BYTES ((size_t)64 << 20)
+wvol_status wvol__bounds_create_src(wvol__brick_bounds **out, const wvol__coef_source *src, const size_t block[3],
+                                    wvol_error *err);
+/* The number of levels the bound works on (detail maxima of levels above it are folded into
+ * its low-pass cube); _for: the number a source of these padded sizes and levels gets. */
+int wvol__bounds_levels(const wvol__brick_bounds *b);
+int wvol__bounds_levels_for(const size_t pad[3], int levels);
+/* The least edge over the axes of the maxima's blocks at level m (coefficient positions); 0
+ * outside the bound's levels. A maximum added over an aligned box at least this wide along
+ * every axis loses nothing. */
+size_t wvol__bounds_block(const wvol__brick_bounds *b, int m);
 void wvol__bounds_fill_coeffs(wvol__brick_bounds *b, const wvol_coeffs *c);
 void wvol__bounds_add(wvol__brick_bounds *b, int m, int band, size_t p, size_t q, size_t r, float value);
 /* The same for every position of the box [lo, hi) of a band at once (a bound of the box's
  * coefficients, e.g. a file chunk's maximum). */
 void wvol__bounds_add_box(wvol__brick_bounds *b, int m, int band, const size_t lo[3], const size_t hi[3], float value);
+/* The same for a dense box of one band: positions lo .. lo + n - 1 (inside the band's
+ * extent, unwrapped), value (x, y, z) at v[x + sy y + sz z]. Calls on boxes that share no
+ * block may run concurrently (boxes whose corners are multiples of 4 share none). */
+void wvol__bounds_add_dense(wvol__brick_bounds *b, int m, int band, const size_t lo[3], const size_t n[3],
+                            const float *v, size_t sy, size_t sz);
+/* (Re)computes the bands' global maxima from the block maxima: after filling, before queries. */
 void wvol__bounds_finish(wvol__brick_bounds *b);
 /* Bound of the samples in the box [s0, s1] (inclusive voxel indices). */
 void wvol__bounds_box(const wvol__brick_bounds *b, const long s0[3], const long s1[3], double *vmin, double *vmax);
