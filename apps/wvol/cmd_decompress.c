@@ -43,6 +43,10 @@ static wvol_status read_region_slabs(wvol_wvc_file *f, const size_t lo[3], const
     wvol_status s;
     *t_write = 0;
     if (per < 8) per = 8;
+    /* no thicker than a tile layer: a slab and its halo then meet two layers of every level,
+     * what wvol_wvc_slab_budget sizes the cache for */
+    if (wvol_wvc_file_info(f)->tile_z > 0 && per > (size_t)wvol_wvc_file_info(f)->tile_z)
+        per = (size_t)wvol_wvc_file_info(f)->tile_z;
     if (per > nz) per = nz;
     slab = malloc(per * slice);
     if (!slab) return wvol_error_set(err, WVOL_ERR_NOMEM, "decompress: out of memory for a slab of %zu slices", per);
@@ -166,7 +170,22 @@ int wvol_cmd_decompress(int argc, char **argv)
         for (int a = 0; a < 3; a++) dims[a] = hi[a] - lo[a];
         if (slab_format(outp)) {
             /* slab by slab into the file: the output is never held whole, so the process
-             * stays within the chunk budget plus one slab */
+             * stays within the chunk budget plus one slab. A cache smaller than the slabs'
+             * chunks would decode them again slab after slab (with 2048^2 slices, every chunk
+             * once per slab): without --memory the default grows to that need; a --memory
+             * below it is kept, with a note. */
+            size_t need = wvol_wvc_slab_budget(wf, (int)level, lo, hi);
+            if (!budget && need > WVOL_WVC_DEFAULT_BUDGET) {
+                wvol_wvc_close(wf);
+                wf = NULL;
+                if (wvol_wvc_open(&wf, in, need, &err) != WVOL_OK) {
+                    rc = cli_fail_err("decompress", &err);
+                    goto done;
+                }
+            } else if (budget && need > budget) {
+                fprintf(stderr, "decompress: note: --memory %zu bytes is below the %zu bytes of chunks a slab of this box "
+                        "needs; chunks evicted between slabs will be decoded again\n", budget, need);
+            }
             if (read_region_slabs(wf, lo, hi, (int)level, budget, outp, spacing, &t_write, &err) != WVOL_OK) {
                 rc = cli_fail_err("decompress", &err);
                 goto done;
