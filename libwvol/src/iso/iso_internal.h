@@ -175,22 +175,28 @@ void wvol__iso_shade(float rgba[4], const wvol_iso_hit *h, const double d[3], co
 /* interp at q (cell-local) and its gradient (per unit of q) */
 double wvol__cell_eval(const double c[8], const double q[3], double grad[3]);
 
-/* Constants of the bound of |f^ - interp| over a brick (cast_bound.c says how). */
+/* Constants of the bound of |f^ - interp| per group of a brick's cells (cast_bound.c says how). */
 typedef struct wvol__fhat_link {
     int ok;             /* 0: no bound (an untransformed axis, no levels) */
-    int below, above;   /* the window: samples c0 - below .. c1 + above reach the brick [c0, c1] */
+    int M, L;           /* levels, filter taps */
+    int below, above;   /* the window: samples c0 - below .. c1 + above reach the box [c0, c1] */
+    double shift, scale, norm; /* s, 2^M, 2^{-3M/2} */
+    /* g_s - interp (level 0): */
     double D, A, K;     /* 1D sums over p of |phi_s - hat| and |phi_s|; K = D (A^2 + A + 1) */
     double smax;        /* max |S - 1|, S the 3D partition of unity of the spline phi */
     double lin;         /* max P * max |s S - m|: the spline's error on a linear function */
-    double e0;          /* (A + (L-1) e_phi)^3 - A^3 */
-    double F[8];        /* per band: prod (V + e) - prod V */
+    /* f^ - g_s (the spline functions against their two-scale expansions): */
+    double F[WVOL_SELECT_MAX_LEVELS + 1][8]; /* details: sup |prod A - prod B| per level and band */
+    double c_u, c_m, c_res;                  /* the low-pass plane fit's constants (normalised) */
 } wvol__fhat_link;
 void wvol__fhat_link_init(wvol__fhat_link *k, const wvol_store *s);
-/* The bound over a brick from its stored samples s (box dimensions md, the brick's first own
- * sample at index core, `cells` cells) per group of `group`^3 cells, and the functions touching
- * the brick; +inf when a group's window is not stored (a face clipped it). */
+/* The bound over each group of `group`^3 cells of a brick into out (groups x fastest), from its
+ * stored samples s (box dimensions md, its first own sample at index core, its cells [c0, c0 +
+ * cells] in voxel indices) and the kept functions touching it; returns the largest, +inf when no
+ * bound applies (a face clipped the samples' window; out untouched) or memory runs out. */
 double wvol__fhat_link_bound(const wvol__fhat_link *k, const float *s, const size_t md[3], const size_t core[3],
-                             const size_t cells[3], int group, const wvol_store_hit *hits, size_t nh);
+                             const size_t c0[3], const size_t cells[3], int group, const wvol_store_hit *hits,
+                             size_t nh, double *out);
 
 typedef struct wvol__caster wvol__caster;
 
