@@ -185,14 +185,53 @@ static void lowpass_consts(wvol__fhat_link *k, const factor *f)
     k->c_m = fmax(fabs(mh - bl), fabs(ml - bh));
 }
 
+/* Ranges, over x, of the level-0 spline phi's sums S = sum_p phi_s(x - p + s), M1 = sum_p (x - p)
+ * phi_s(..), M2 = sum_p (x - p)^2 phi_s(..) (period 1), and of Q = M2 - tau, tau = frac(x)(1 - frac(x))
+ * the hats' second moment; on a fine grid plus each term's Lipschitz margin. */
+static int level0_sums(wvol__fhat_link *k, const wvol_basis *b)
+{
+    int L = b->length;
+    double n = fmax(4096.0, fmin(65536.0, 65536.0 * 8.0 / L)), h = 1.0 / n, dm = b->exact ? 0.0 : b->dmax[WVOL_BASIS_PHI],
+           vm = b->vmax[WVOL_BASIS_PHI], r[4][2], lip[4];
+    long i;
+    int q, p, np = 0;
+    for (q = 0; q < 4; q++) r[q][0] = INFINITY, r[q][1] = -INFINITY;
+    for (i = 0; i < (long)n; i++) {
+        double x = (i + 0.5) * h, v[4] = {0, 0, 0, 0};
+        int cnt = 0;
+        for (p = -L - 2; p <= L + 2; p++) {
+            double ph = wvol_basis_value(b, WVOL_BASIS_PHI, x - p + b->center), w = x - p;
+            if (ph == 0.0) continue;
+            v[0] += ph, v[1] += w * ph, v[2] += w * w * ph;
+            cnt++;
+        }
+        v[3] = v[2] - x * (1.0 - x);
+        if (cnt > np) np = cnt;
+        for (q = 0; q < 4; q++) r[q][0] = fmin(r[q][0], v[q]), r[q][1] = fmax(r[q][1], v[q]);
+    }
+    /* per term: phi_s moves by dm, (x - p) phi_s by L dm + vm, (x - p)^2 phi_s by L^2 dm + 2 L vm
+     * (|x - p| <= L where phi_s is not 0); tau by 1. Haar's boxes jump on the grid's midpoints'
+     * complement: between grid points they are constant */
+    lip[0] = np * dm, lip[1] = np * (L * dm + vm), lip[2] = np * (L * L * dm + 2.0 * L * vm), lip[3] = lip[2] + 1.0;
+    for (q = 0; q < 4; q++) r[q][0] -= 0.5 * h * lip[q], r[q][1] += 0.5 * h * lip[q];
+    k->S[0] = r[0][0], k->S[1] = r[0][1];
+    k->m1 = fmax(fabs(r[1][0]), fabs(r[1][1]));
+    k->m2 = fmax(fabs(r[2][0]), fabs(r[2][1]));
+    k->qmax = fmax(fabs(r[3][0]), fabs(r[3][1]));
+    k->smax = fmax(fabs(k->S[1] * k->S[1] * k->S[1] - 1.0), fabs(k->S[0] * k->S[0] * k->S[0] - 1.0));
+    k->pmax = fmax(k->S[1] * k->S[1], k->S[0] * k->S[0]);
+    k->p1 = fmax(fabs(k->S[1] * k->S[1] - 1.0), fabs(k->S[0] * k->S[0] - 1.0));
+    if (!(k->S[0] > 0)) k->smax = INFINITY;
+    return 1;
+}
+
 void wvol__fhat_link_init(wvol__fhat_link *k, const wvol_store *s)
 {
     const wvol_basis *b = wvol_store_basis(s);
     wvol_store_info info;
-    wvol__iso_boxk bk;
     factor fac[WVOL_SELECT_MAX_LEVELS + 1][2];
     double d[WVOL_SELECT_MAX_LEVELS + 1][2], va[WVOL_SELECT_MAX_LEVELS + 1][2], vb[WVOL_SELECT_MAX_LEVELS + 1][2];
-    double h = 1.0 / SAMPLES_PER_UNIT, margin, s3lo, s3hi;
+    double h = 1.0 / SAMPLES_PER_UNIT, margin;
     int m, w, band, M, ok = 1, i, p, L;
     memset(k, 0, sizeof *k);
     memset(fac, 0, sizeof fac);
@@ -227,14 +266,7 @@ void wvol__fhat_link_init(wvol__fhat_link *k, const wvol_store *s)
         k->D = fmax(k->D, sd + np * margin);
         k->A = fmax(k->A, sa + np * margin);
     }
-    wvol__iso_boxk_init(&bk, s);
-    s3lo = bk.s1[0] * bk.s1[0] * bk.s1[0];
-    s3hi = bk.s1[1] * bk.s1[1] * bk.s1[1];
-    k->smax = bk.s1[0] > 0 ? fmax(fabs(s3lo - 1.0), fabs(s3hi - 1.0)) : INFINITY;
-    k->lin = fmax(bk.s1[0] * bk.s1[0], bk.s1[1] * bk.s1[1]) *
-             fmax(fmax(fabs(b->center * bk.s1[0] - bk.m1[1]), fabs(b->center * bk.s1[0] - bk.m1[0])),
-                  fmax(fabs(b->center * bk.s1[1] - bk.m1[1]), fabs(b->center * bk.s1[1] - bk.m1[0])));
-    wvol__iso_boxk_free(&bk);
+    ok = level0_sums(k, b);
     k->K = k->D * (k->A * k->A + k->A + 1.0);
     /* f^ - g_s: per level and factor, the spline function against its two-scale expansion */
     for (m = 1; m <= M && ok; m++)
@@ -253,45 +285,78 @@ void wvol__fhat_link_init(wvol__fhat_link *k, const wvol_store *s)
     }
     for (m = 1; m <= M; m++)
         for (w = 0; w < 2; w++) free((void *)fac[m][w].r);
-    k->ok = ok && isfinite(k->smax) && isfinite(k->K) && isfinite(k->c_res) && isfinite(k->c_u) && isfinite(k->c_m);
+    k->ok = ok && isfinite(k->smax) && isfinite(k->K) && isfinite(k->qmax) && isfinite(k->c_res) && isfinite(k->c_u) && isfinite(k->c_m);
 }
 
-/* The plane-fit part of g_s - interp over one group's window [w0, w1] (stored-box indices) for x
- * in the group's box [x0, x1] (the same indices). */
+/* g_s - interp over one group's window [w0, w1] (stored-box indices) for x in the group's box
+ * [x0, x1] (the same indices): the samples fitted by a quadric, c0[p] = a0 + g . u + sum_a q_a u_a^2
+ * + sum_{a<b} h_ab u_a u_b + r[p], u = p - pbar (least squares; on the window's box the centred
+ * monomials 1, u_a, u_a^2 - mean, u_a u_b are orthogonal, so each coefficient is one projection).
+ * With v = x - pbar and per axis S, M1, M2 the spline's sums and tau the hats' second moment
+ * (P the other two axes' S product):
+ *   sum_p u_a (Phi_s - Lambda)     = v_a (S_a P - 1) - M1_a P
+ *   sum_p u_a^2 (Phi_s - Lambda)   = v_a^2 (S_a P - 1) - 2 v_a M1_a P + (M2_a P - tau_a)
+ *   sum_p u_a u_b (Phi_s - Lambda) = (v_a S_a - M1_a)(v_b S_b - M1_b) S_c - v_a v_b
+ * and the residual adds at most max|r| D (A^2 + A + 1). M2 - tau is the one part that does not
+ * vanish for a good spline: the trilinear interpolant's own error on a curved field. */
 static double sample_part(const wvol__fhat_link *k, const float *s, const size_t md[3], const long w0[3],
                           const long w1[3], const long x0[3], const long x1[3], double *mag)
 {
-    double pbar[3], den[3], g[3] = {0, 0, 0}, a0 = 0, r = 0, e;
-    long i, j, l, cnt = 1;
+    double pbar[3], cm[3], n1[3], n2[3], g[3] = {0, 0, 0}, q[3] = {0, 0, 0}, hx[3] = {0, 0, 0}, a0 = 0, r = 0, e,
+           V[3], cnt = 1;
+    long i[3], n;
     int a;
     *mag = 0.0;
     for (a = 0; a < 3; a++) {
-        long n = w1[a] - w0[a] + 1;
+        n = w1[a] - w0[a] + 1;
         pbar[a] = 0.5 * (double)(w0[a] + w1[a]);
-        den[a] = (double)(n * n - 1) * (double)n / 12.0; /* sum of (p - pbar)^2 along the axis */
-        cnt *= n;
+        n1[a] = (double)(n * n - 1) * (double)n / 12.0; /* sum of u^2 along the axis */
+        cm[a] = n1[a] / (double)n;                      /* mean of u^2 */
+        n2[a] = 0.0;                                    /* sum of (u^2 - cm)^2 */
+        for (i[0] = w0[a]; i[0] <= w1[a]; i[0]++) {
+            double u = (double)i[0] - pbar[a];
+            n2[a] += (u * u - cm[a]) * (u * u - cm[a]);
+        }
+        cnt *= (double)n;
+        V[a] = fmax(fabs((double)x0[a] - pbar[a]), fabs((double)x1[a] - pbar[a]));
     }
-    for (l = w0[2]; l <= w1[2]; l++)
-        for (j = w0[1]; j <= w1[1]; j++)
-            for (i = w0[0]; i <= w1[0]; i++) {
-                double v = s[(size_t)i + md[0] * ((size_t)j + md[1] * (size_t)l)];
+    for (i[2] = w0[2]; i[2] <= w1[2]; i[2]++)
+        for (i[1] = w0[1]; i[1] <= w1[1]; i[1]++)
+            for (i[0] = w0[0]; i[0] <= w1[0]; i[0]++) {
+                double v = s[(size_t)i[0] + md[0] * ((size_t)i[1] + md[1] * (size_t)i[2])], u[3];
+                for (a = 0; a < 3; a++) u[a] = (double)i[a] - pbar[a];
                 a0 += v;
-                g[0] += (i - pbar[0]) * v, g[1] += (j - pbar[1]) * v, g[2] += (l - pbar[2]) * v;
+                for (a = 0; a < 3; a++) g[a] += u[a] * v, q[a] += (u[a] * u[a] - cm[a]) * v;
+                hx[0] += u[1] * u[2] * v, hx[1] += u[0] * u[2] * v, hx[2] += u[0] * u[1] * v;
                 if (fabs(v) > *mag) *mag = fabs(v);
             }
-    a0 /= (double)cnt;
-    for (a = 0; a < 3; a++) g[a] = den[a] > 0 ? g[a] / (den[a] * (double)cnt / (double)(w1[a] - w0[a] + 1)) : 0.0;
-    for (l = w0[2]; l <= w1[2]; l++)
-        for (j = w0[1]; j <= w1[1]; j++)
-            for (i = w0[0]; i <= w1[0]; i++) {
-                double v = s[(size_t)i + md[0] * ((size_t)j + md[1] * (size_t)l)];
-                double q = v - a0 - g[0] * (i - pbar[0]) - g[1] * (j - pbar[1]) - g[2] * (l - pbar[2]);
-                if (fabs(q) > r) r = fabs(q);
+    a0 /= cnt;
+    for (a = 0; a < 3; a++) {
+        double other = cnt / (double)(w1[a] - w0[a] + 1); /* points per value of u_a */
+        g[a] = n1[a] > 0 ? g[a] / (n1[a] * other) : 0.0;
+        q[a] = n2[a] > 0 ? q[a] / (n2[a] * other) : 0.0;
+    }
+    for (a = 0; a < 3; a++) { /* u_b u_c, b, c the other two axes */
+        int b = (a + 1) % 3, c = (a + 2) % 3;
+        double den = n1[b] * n1[c] * (double)(w1[a] - w0[a] + 1);
+        hx[a] = den > 0 ? hx[a] / den : 0.0;
+    }
+    for (a = 0; a < 3; a++) a0 -= q[a] * cm[a]; /* back to the plain monomials */
+    for (i[2] = w0[2]; i[2] <= w1[2]; i[2]++)
+        for (i[1] = w0[1]; i[1] <= w1[1]; i[1]++)
+            for (i[0] = w0[0]; i[0] <= w1[0]; i[0]++) {
+                double v = s[(size_t)i[0] + md[0] * ((size_t)i[1] + md[1] * (size_t)i[2])], u[3];
+                for (a = 0; a < 3; a++) u[a] = (double)i[a] - pbar[a];
+                v -= a0 + hx[0] * u[1] * u[2] + hx[1] * u[0] * u[2] + hx[2] * u[0] * u[1];
+                for (a = 0; a < 3; a++) v -= g[a] * u[a] + q[a] * u[a] * u[a];
+                if (fabs(v) > r) r = fabs(v);
             }
     e = r * k->K + fabs(a0) * k->smax;
     for (a = 0; a < 3; a++) {
-        double u = fmax(fabs((double)x0[a] - pbar[a]), fabs((double)x1[a] - pbar[a]));
-        e += fabs(g[a]) * (u * k->smax + k->lin);
+        int b = (a + 1) % 3, c = (a + 2) % 3;
+        e += fabs(g[a]) * (V[a] * k->smax + k->m1 * k->pmax);
+        e += fabs(q[a]) * (V[a] * V[a] * k->smax + 2.0 * V[a] * k->m1 * k->pmax + k->qmax + k->m2 * k->p1);
+        e += fabs(hx[a]) * (V[b] * V[c] * k->smax + (V[b] + V[c]) * k->m1 * k->pmax + k->m1 * k->m1 * k->S[1]);
     }
     return e;
 }
@@ -394,7 +459,7 @@ double wvol__fhat_link_bound(const wvol__fhat_link *k, const float *s, const siz
                     e += fabs(g[a]) * (u * k->c_u + k->c_m);
                 }
                 /* + the details, + g_s - interp from the samples */
-                e = k->norm * e + out[gidx] + sample_part(k, s, md, sw0, sw1, sx0, sx1, &mag);
+                            e = k->norm * e + out[gidx] + sample_part(k, s, md, sw0, sw1, sx0, sx1, &mag);
                 /* the float64 sums (relative) and the float32 samples (of their magnitude) */
                 e = e * (1.0 + 1e-9) + 1e-5 * mag * (1.0 + k->K);
                 out[gidx] = e;

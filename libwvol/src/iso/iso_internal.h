@@ -183,8 +183,9 @@ typedef struct wvol__fhat_link {
     double shift, scale, norm; /* s, 2^M, 2^{-3M/2} */
     /* g_s - interp (level 0): */
     double D, A, K;     /* 1D sums over p of |phi_s - hat| and |phi_s|; K = D (A^2 + A + 1) */
-    double smax;        /* max |S - 1|, S the 3D partition of unity of the spline phi */
-    double lin;         /* max P * max |s S - m|: the spline's error on a linear function */
+    double S[2];        /* range of S(x) = sum_p phi_s(x - p + s), the spline phi's partition of unity */
+    double smax, pmax, p1; /* max |S^3 - 1|, max S^2, max |S^2 - 1| */
+    double m1, m2, qmax;   /* max |M1|, max |M2|, max |M2 - tau| (cast_bound.c, sample_part) */
     /* f^ - g_s (the spline functions against their two-scale expansions): */
     double F[WVOL_SELECT_MAX_LEVELS + 1][8]; /* details: sup |prod A - prod B| per level and band */
     double c_u, c_m, c_res;                  /* the low-pass plane fit's constants (normalised) */
