@@ -110,10 +110,10 @@ static int factor_init(factor *f, const wvol_basis *b, int m, int which)
     return 1;
 }
 
-/* Points per voxel for the 1D sups: fine, but bounded in total work for long filters. */
-static double grid_step(const wvol_basis *b, int m)
+/* Points per voxel for the 1D sups: fine (spv), but bounded in total work for long filters. */
+static double grid_step(const wvol_basis *b, int m, double spv)
 {
-    double spv = 4096.0, work = ldexp(1.0, m) * b->length * (double)b->length;
+    double work = ldexp(1.0, m) * b->length * (double)b->length;
     if (spv * work > 3e7) spv = fmax(64.0, 3e7 / work);
     return 1.0 / spv;
 }
@@ -122,7 +122,7 @@ static double grid_step(const wvol_basis *b, int m)
  * moves by at most lip h / 2) */
 static void factor_sups(const factor *f, double *d, double *va, double *vb)
 {
-    double h = grid_step(f->b, f->m), x1 = ldexp((double)f->b->support, f->m), margin;
+    double h = grid_step(f->b, f->m, 4096.0), x1 = ldexp((double)f->b->support, f->m), margin;
     long i, n = (long)ceil(x1 / h);
     *d = *va = *vb = 0.0;
     for (i = 0; i < n; i++) {
@@ -141,7 +141,7 @@ static void factor_sups(const factor *f, double *d, double *va, double *vb)
 static void lowpass_consts(wvol__fhat_link *k, const factor *f)
 {
     const wvol_basis *b = f->b;
-    double P = k->scale, h = grid_step(b, k->M), sup = ldexp((double)b->support, k->M), nrm = sqrt(P);
+    double P = k->scale, h = grid_step(b, k->M, 65536.0), sup = ldexp((double)b->support, k->M), nrm = sqrt(P);
     double sa[2] = {INFINITY, -INFINITY}, sb[2] = {INFINITY, -INFINITY}, ma[2] = {INFINITY, -INFINITY},
            mb[2] = {INFINITY, -INFINITY}, ds = 0, as = 0, bs = 0, marg, mmarg, la, lb, ml, mh, bl, bh;
     long i, n = (long)ceil(P / h), kk, nk = 0;
