@@ -218,9 +218,9 @@ void wvol__caster_destroy(wvol__caster *c);
  * (safe from several threads). */
 wvol_status wvol__cast(wvol__caster *c, wvol__cast_ws *w, const double o[3], const double d[3], double tmin,
                        wvol_iso_hit *h, wvol_error *err);
-/* The model bound |f^ - interp| over the brick holding voxel position x (built if needed):
- * +inf where the bound does not apply (a volume, a brick whose sample window a face clips), NaN
- * on an error (in err). */
+/* The model bound |f^ - interp| over the group of cells holding voxel position x (its brick
+ * built if needed): +inf where the bound does not apply (a volume, a brick whose sample window a
+ * face clips), NaN on an error (in err). */
 double wvol__caster_fhat_bound(wvol__caster *c, wvol__cast_ws *w, const double x[3], wvol_error *err);
 /* Counters: bricks total, skipped by bound (so far), built (so far); bytes held. */
 void wvol__caster_counts(const wvol__caster *c, size_t *total, size_t *bound, size_t *built, size_t *bytes);
