@@ -264,6 +264,7 @@ def main():
                     help="--cast: rerun only the model bound's rows (with --baseline, before and after) and merge them")
     ap.add_argument("--baseline", default="",
                     help="--exact-only / --bound-only: another build's wvol program to time as 'before'")
+    ap.add_argument("--baseline-note", default="", help="--exact-only: what the baseline is, for the report")
     ap.add_argument("--exact-large", default="256", help="--exact-only: the larger image size of the 5%% rows")
     args = ap.parse_args()
     if args.cast:

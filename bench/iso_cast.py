@@ -288,6 +288,19 @@ def main(args, build, out_dir):
     return rows, images
 
 
+RERUN_VOLUMES = {"skull": (["skull", "--noise", "20"], 400.0), "gaussian": (["gaussian"], 0.5)}
+
+
+def rerun_setup(args, build, out_dir):
+    """What a partial rerun (--exact-only, --bound-only) starts from: this build's program, the
+    baseline's (or None), the working directory, and the rows and meta of iso_cast.json."""
+    base = pathlib.Path(args.baseline) if args.baseline else None
+    tmp = pathlib.Path(args.tmp) if args.tmp else pathlib.Path(os.environ.get("TMPDIR", "/tmp")) / "wvol_iso_cast"
+    tmp.mkdir(parents=True, exist_ok=True)
+    res = json.loads((out_dir / "iso_cast.json").read_text())
+    return build / "wvol", base, tmp, res["rows"], res["meta"]
+
+
 def exact_run(wv, vol, iso, keep, cam, size, T, out):
     """One exact-tracer image: its JSON report and depth map."""
     o, _ = run([wv, "iso", vol, "--method", "raytrace", "--iso", iso, "--keep", keep, "--camera", cam,
@@ -301,15 +314,10 @@ def exact_only(args, build, out_dir):
     stores, 1 and 2 threads) at the small size of the full run, and the 5% rows at a larger one,
     with this build and (--baseline WVOL, another build's program, e.g. main's) the code before,
     interleaved in the same run; rows are replaced in iso_cast.json and the report rewritten."""
-    wv = build / "wvol"
-    base = pathlib.Path(args.baseline) if args.baseline else None
-    tmp = pathlib.Path(args.tmp) if args.tmp else pathlib.Path(os.environ.get("TMPDIR", "/tmp")) / "wvol_iso_cast"
-    tmp.mkdir(parents=True, exist_ok=True)
-    res = json.loads((out_dir / "iso_cast.json").read_text())
-    rows, meta = res["rows"], res["meta"]
+    wv, base, tmp, rows, meta = rerun_setup(args, build, out_dir)
     n, small, large = meta["n"], 64, int(args.exact_large)
     cam = "persp dir=1,0.6,-0.3"
-    volumes = {"skull": (["skull", "--noise", "20"], 400.0), "gaussian": (["gaussian"], 0.5)}
+    volumes = RERUN_VOLUMES
     load0 = os.getloadavg()[0]
     for vname, (synth, iso) in volumes.items():
         vol = tmp / f"{vname}_{n}.nrrd"
@@ -349,6 +357,7 @@ def exact_only(args, build, out_dir):
     meta["exact_when"] = __import__("datetime").datetime.utcnow().isoformat(" ", "minutes")
     meta["exact_load_avg"] = [load0, os.getloadavg()[0]]
     meta["exact_baseline"] = str(base) if base else None
+    meta["exact_baseline_note"] = args.baseline_note
     return rows, meta
 
 
@@ -358,17 +367,12 @@ def bound_only(args, build, out_dir):
     the largest |f^ - interp| found by sampling f^ (Store.evaluate) and the trilinear interpolant of
     the reconstruction at random points of the bricks no face touches (db2 J4: the Python binding
     builds stores at J = 4 only); replaces meta["model_bound"] in iso_cast.json."""
-    wv = build / "wvol"
-    base = pathlib.Path(args.baseline) if args.baseline else None
-    tmp = pathlib.Path(args.tmp) if args.tmp else pathlib.Path(os.environ.get("TMPDIR", "/tmp")) / "wvol_iso_cast"
-    tmp.mkdir(parents=True, exist_ok=True)
-    res = json.loads((out_dir / "iso_cast.json").read_text())
-    rows, meta = res["rows"], res["meta"]
+    wv, base, tmp, rows, meta = rerun_setup(args, build, out_dir)
     n, size, cam = meta["n"], 512, "persp dir=1,0.6,-0.3"
     sys.path.insert(0, str(build / "python"))
     import wvol
     rng = np.random.default_rng(1)
-    volumes = {"skull": (["skull", "--noise", "20"], 400.0), "gaussian": (["gaussian"], 0.5)}
+    volumes = RERUN_VOLUMES
     out_rows = []
     for vname, (synth, iso) in volumes.items():
         vol = tmp / f"{vname}_{n}.nrrd"
@@ -474,8 +478,9 @@ def write_report(rows, images, out_dir, meta):
               "whole call: its cells are classified by the rays that reach them): its speed, and the caster "
               "against it at the same size (f^ is db2's smoothed model, not the interpolant: the difference is the "
               "model's, not an error of either)."
-              + (f" \"before\" is `{meta.get('exact_baseline')}` (the tracer without the box ranges and the lazy "
-                 "cell hierarchy) on the same rays, interleaved in the same run "
+              + (f" \"before\" is `{meta.get('exact_baseline')}`"
+                 + (f" ({meta['exact_baseline_note']})" if meta.get("exact_baseline_note") else "")
+                 + " on the same rays, interleaved in the same run "
                  f"({meta.get('exact_when', '')}, load average {meta.get('exact_load_avg', ['?'])[0]:.1f} at start: a "
                  "shared machine, so the rays per CPU-second are given too); its images have the same hits "
                  "(\"mask\": pixels differing) and depths within the tolerance (\"depth\": the largest difference, "
