@@ -314,7 +314,11 @@ def main():
     ap.add_argument("--tmp", default="", help="--cast: working directory for volumes and images")
     ap.add_argument("--exact-only", action="store_true",
                     help="--cast: rerun only the exact f^ tracer's rows and merge them into iso_cast.json/.md")
-    ap.add_argument("--baseline", default="", help="--exact-only: another build's wvol program to time as 'before'")
+    ap.add_argument("--bound-only", action="store_true",
+                    help="--cast: rerun only the model bound's rows (with --baseline, before and after) and merge them")
+    ap.add_argument("--baseline", default="",
+                    help="--exact-only / --bound-only: another build's wvol program to time as 'before'")
+    ap.add_argument("--baseline-note", default="", help="--exact-only: what the baseline is, for the report")
     ap.add_argument("--exact-large", default="256", help="--exact-only: the larger image size of the 5%% rows")
     args = ap.parse_args()
     if args.cast:
@@ -324,6 +328,11 @@ def main():
             args.n = 0  # iso_cast's quick default
         elif args.n == 256:
             args.n = 0
+        if args.bound_only:
+            out = pathlib.Path(args.out)
+            rows, meta = iso_cast.bound_only(args, pathlib.Path(args.build), out)
+            iso_cast.write_report(rows, {}, out, meta)
+            return
         if args.exact_only:
             out = pathlib.Path(args.out)
             rows, meta = iso_cast.exact_only(args, pathlib.Path(args.build), out)

@@ -288,6 +288,19 @@ def main(args, build, out_dir):
     return rows, images
 
 
+RERUN_VOLUMES = {"skull": (["skull", "--noise", "20"], 400.0), "gaussian": (["gaussian"], 0.5)}
+
+
+def rerun_setup(args, build, out_dir):
+    """What a partial rerun (--exact-only, --bound-only) starts from: this build's program, the
+    baseline's (or None), the working directory, and the rows and meta of iso_cast.json."""
+    base = pathlib.Path(args.baseline) if args.baseline else None
+    tmp = pathlib.Path(args.tmp) if args.tmp else pathlib.Path(os.environ.get("TMPDIR", "/tmp")) / "wvol_iso_cast"
+    tmp.mkdir(parents=True, exist_ok=True)
+    res = json.loads((out_dir / "iso_cast.json").read_text())
+    return build / "wvol", base, tmp, res["rows"], res["meta"]
+
+
 def exact_run(wv, vol, iso, keep, cam, size, T, out):
     """One exact-tracer image: its JSON report and depth map."""
     o, _ = run([wv, "iso", vol, "--method", "raytrace", "--iso", iso, "--keep", keep, "--camera", cam,
@@ -301,15 +314,10 @@ def exact_only(args, build, out_dir):
     stores, 1 and 2 threads) at the small size of the full run, and the 5% rows at a larger one,
     with this build and (--baseline WVOL, another build's program, e.g. main's) the code before,
     interleaved in the same run; rows are replaced in iso_cast.json and the report rewritten."""
-    wv = build / "wvol"
-    base = pathlib.Path(args.baseline) if args.baseline else None
-    tmp = pathlib.Path(args.tmp) if args.tmp else pathlib.Path(os.environ.get("TMPDIR", "/tmp")) / "wvol_iso_cast"
-    tmp.mkdir(parents=True, exist_ok=True)
-    res = json.loads((out_dir / "iso_cast.json").read_text())
-    rows, meta = res["rows"], res["meta"]
+    wv, base, tmp, rows, meta = rerun_setup(args, build, out_dir)
     n, small, large = meta["n"], 64, int(args.exact_large)
     cam = "persp dir=1,0.6,-0.3"
-    volumes = {"skull": (["skull", "--noise", "20"], 400.0), "gaussian": (["gaussian"], 0.5)}
+    volumes = RERUN_VOLUMES
     load0 = os.getloadavg()[0]
     for vname, (synth, iso) in volumes.items():
         vol = tmp / f"{vname}_{n}.nrrd"
@@ -349,6 +357,64 @@ def exact_only(args, build, out_dir):
     meta["exact_when"] = __import__("datetime").datetime.utcnow().isoformat(" ", "minutes")
     meta["exact_load_avg"] = [load0, os.getloadavg()[0]]
     meta["exact_baseline"] = str(base) if base else None
+    meta["exact_baseline_note"] = args.baseline_note
+    return rows, meta
+
+
+def bound_only(args, build, out_dir):
+    """--bound-only: the model bound's rows (`--model-bound`, 512^2 perspective, one thread, db2 J4 and
+    db4 J6 stores at 5% and 100%) with this build and (--baseline) the code before, interleaved, and
+    the largest |f^ - interp| found by sampling f^ (Store.evaluate) and the trilinear interpolant of
+    the reconstruction at random points of the bricks no face touches (db2 J4: the Python binding
+    builds stores at J = 4 only); replaces meta["model_bound"] in iso_cast.json."""
+    wv, base, tmp, rows, meta = rerun_setup(args, build, out_dir)
+    n, size, cam = meta["n"], 512, "persp dir=1,0.6,-0.3"
+    sys.path.insert(0, str(build / "python"))
+    import wvol
+    rng = np.random.default_rng(1)
+    volumes = RERUN_VOLUMES
+    out_rows = []
+    for vname, (synth, iso) in volumes.items():
+        vol = tmp / f"{vname}_{n}.nrrd"
+        run([wv, "synth", *synth, "--size", n, "-o", vol])
+        for keep in ("5%", "100%"):
+            for lab, extra in (("db2 J4", []), ("db4 J6", ["--wavelet", "db4", "--spline-j", "6"])):
+                r = {"volume": vname, "keep": keep, "store": lab}
+                for who, prog in (("after", wv), ("before", base)):
+                    if prog is None:
+                        continue
+                    o, _ = run([prog, "iso", vol, "--method", "cast", "--iso", iso, "--keep", keep, "--camera", cam,
+                                *extra, "--size", f"{size}x{size}", "--threads", 1, "--model-bound", "--json",
+                                "-o", tmp / "bound.exr"], threads=1)
+                    mb = json.loads(o)
+                    r[who] = {k: mb[k] for k in ("fhat_bound_max", "fhat_bound_mean", "fhat_bound_bricks",
+                                                 "fhat_bound_faces", "seconds", "cpu_seconds")}
+                if lab == "db2 J4":
+                    v = wvol.load(str(vol))
+                    st = wvol.compress(v, "db2", 3, keep=float(keep.rstrip("%")) / 100)
+                    rec = np.asarray(st.reconstruct().data, dtype=np.float64)  # (z, y, x)
+                    lo, hi = 32.0, n - 33.0  # bricks of 32 cells: those no face touches
+                    x = rng.uniform(lo, hi, size=(20000, 3))
+                    i0 = np.floor(x).astype(int)
+                    f = x - i0
+                    interp = np.zeros(len(x))
+                    for dz in (0, 1):
+                        for dy in (0, 1):
+                            for dx in (0, 1):
+                                w = (f[:, 0] if dx else 1 - f[:, 0]) * (f[:, 1] if dy else 1 - f[:, 1]) * \
+                                    (f[:, 2] if dz else 1 - f[:, 2])
+                                interp += w * rec[i0[:, 2] + dz, i0[:, 1] + dy, i0[:, 0] + dx]
+                    world = np.asarray(v.origin) + x * np.asarray(v.spacing)
+                    fh = st.evaluate(world)[0]
+                    r["sampled_max"] = float(np.max(np.abs(fh - interp)))
+                    r["sampled_points"] = len(x)
+                out_rows.append(r)
+                a, b = r["after"], r.get("before")
+                print(f"bound {vname} {keep} {lab}: max {a['fhat_bound_max']:.4g} (before "
+                      f"{b['fhat_bound_max'] if b else float('nan'):.4g}), mean {a['fhat_bound_mean']:.4g}, sampled max "
+                      f"{r.get('sampled_max', float('nan')):.4g}", flush=True)
+    meta["model_bound"] = {"rows": out_rows, "when": __import__("datetime").datetime.utcnow().isoformat(" ", "minutes"),
+                           "baseline": str(base) if base else None, "load_avg": os.getloadavg()[0]}
     return rows, meta
 
 
@@ -412,8 +478,9 @@ def write_report(rows, images, out_dir, meta):
               "whole call: its cells are classified by the rays that reach them): its speed, and the caster "
               "against it at the same size (f^ is db2's smoothed model, not the interpolant: the difference is the "
               "model's, not an error of either)."
-              + (f" \"before\" is `{meta.get('exact_baseline')}` (the tracer without the box ranges and the lazy "
-                 "cell hierarchy) on the same rays, interleaved in the same run "
+              + (f" \"before\" is `{meta.get('exact_baseline')}`"
+                 + (f" ({meta['exact_baseline_note']})" if meta.get("exact_baseline_note") else "")
+                 + " on the same rays, interleaved in the same run "
                  f"({meta.get('exact_when', '')}, load average {meta.get('exact_load_avg', ['?'])[0]:.1f} at start: a "
                  "shared machine, so the rays per CPU-second are given too); its images have the same hits "
                  "(\"mask\": pixels differing) and depths within the tolerance (\"depth\": the largest difference, "
@@ -437,8 +504,9 @@ def write_report(rows, images, out_dir, meta):
                      + f"{x.get('cells', '-')} / {x.get('cells_undecided', '-')} | {x['grazes']} | "
                      f"{a['depth_median']:.3g} / {a['depth_p99']:.3g}, {a['mask_diff']} | "
                      f"{b['depth_median']:.3g} / {b['depth_p99']:.3g}, {b['mask_diff']} |")
-    mbr = [r for r in rows if "model_bound" in r["cast"]]
-    if mbr:
+    mb = meta.get("model_bound")
+    mbr = [r for r in rows if "model_bound" in r.get("cast", {})]
+    if mbr and not mb:  # a full run's rows (--bound-only replaces them by its own table)
         L += ["", "The model bound (`--model-bound`): per built brick, a bound of |f^ - interp| (f^ the store's spline "
               "model, interp the trilinear interpolant of its reconstruction; docs/iso.md), max and mean over the bricks "
               "whose sample window no face clips, and the call's time with it.", "",
@@ -450,6 +518,28 @@ def write_report(rows, images, out_dir, meta):
                 L.append(f"| {r['volume']} | {r['keep']} | {lab} | {m['fhat_bound_max']:.4g} | {m['fhat_bound_mean']:.4g} | "
                          f"{m['fhat_bound_bricks']} / {m['fhat_bound_faces']} | {m['seconds']:.3f} | "
                          f"{r['cast']['first_image_seconds']:.3f} |")
+    if mb:
+        withb = any("before" in r for r in mb["rows"])
+        L += ["", "The model bound (`--model-bound`, `bench/bench_iso.py --cast --bound-only`, " + mb["when"] + "): per "
+              "built brick, per group of 4^3 cells, a bound of |f^ - interp| (f^ the store's spline model, interp the "
+              "trilinear interpolant of its reconstruction; docs/iso.md); max and mean over the bricks whose sample "
+              "window no face clips, 512^2 perspective, one thread"
+              + (f"; 'before' is {mb['baseline']} (the bound per brick), interleaved in the same run" if withb else "")
+              + ". 'sampled' is the largest |f^ - interp| found at 20000 random points of the bricks no face touches "
+              "(Store.evaluate against the trilinear interpolant of the reconstruction; db2 J4 only: the Python binding "
+              "builds J = 4 stores), and 'bound / sampled' the largest bound over it.", "",
+              "| volume | keep | store | bound max | bound mean | " + ("before: max | before: mean | tighter (max) | " if withb else "")
+              + "sampled max | bound / sampled | bricks bounded / at faces | CPU s with the bound" + (" (before)" if withb else "")
+              + " |", "|---|---|---|---|---|" + ("---|---|---|" if withb else "") + "---|---|---|---|"]
+        for r in mb["rows"]:
+            a, b = r["after"], r.get("before")
+            sm = r.get("sampled_max")
+            L.append(f"| {r['volume']} | {r['keep']} | {r['store']} | {a['fhat_bound_max']:.4g} | {a['fhat_bound_mean']:.4g} | "
+                     + (f"{b['fhat_bound_max']:.4g} | {b['fhat_bound_mean']:.4g} | "
+                        f"{b['fhat_bound_max'] / a['fhat_bound_max']:.3g}x | " if b else ("- | - | - | " if withb else ""))
+                     + (f"{sm:.4g} | {a['fhat_bound_max'] / sm:.3g} | " if sm else "- | - | ")
+                     + f"{a['fhat_bound_bricks']} / {a['fhat_bound_faces']} | {a['cpu_seconds']:.3f}"
+                     + (f" ({b['cpu_seconds']:.3f})" if b else "") + " |")
     (out_dir / "iso_cast.md").write_text("\n".join(L) + "\n")
     try:
         import matplotlib

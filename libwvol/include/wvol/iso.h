@@ -269,7 +269,8 @@ typedef struct wvol_iso_cast_stats {
     double seconds_build;       /* thread-seconds spent building bricks (summed over threads) */
     int threads;                /* threads used */
     /* from a store: the bound of |f^ - interp| per built brick (f^ the wavelet model, interp the
-     * trilinear interpolant of the reconstruction; docs/iso.md): its max and mean over the bricks
+     * trilinear interpolant of the reconstruction; the largest of its groups of 4^3 cells'
+     * bounds; docs/iso.md): its max and mean over the bricks
      * where it applies, their count, and the bricks whose sample window a face clips (the model
      * reaches across the periodic wrap there: no bound) */
     double fhat_bound_max, fhat_bound_mean;

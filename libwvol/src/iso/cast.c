@@ -51,8 +51,9 @@ struct wvol__caster {
     double iso, tol;
     signed char *bcls;               /* per brick: the bound's class, -1 undecided */
     float **bdata;                   /* per brick: NULL until built */
-    double *fbound;                  /* per built brick of a store: the bound of |f^ - interp| (+inf:
-                                        the model reaches across the wrap there), NaN until built */
+    double *fbound;                  /* per built brick of a store: the bound of |f^ - interp| over it
+                                        (+inf: none applies), NaN until built */
+    double **gbound;                 /* ... and per group of its cells (NULL: none) */
     const wvol_store *store;
     wvol__fhat_link link;            /* constants of that bound */
     size_t halo[2];                  /* samples kept below and above a brick's own */
@@ -156,19 +157,24 @@ static float *brick_build(wvol__caster *c, wvol__cast_ws *w, size_t b, wvol_erro
             }
     d[0] = lo;
     d[1] = up;
-    if (c->fbound) { /* the model bound over the brick: its samples' window and the functions touching it */
-        double e = INFINITY;
-        if (q.whole && c->link.ok) {
+    if (c->fbound) { /* the model bound per group: its samples' window and the functions touching it */
+        double e = INFINITY, *ge = q.whole && c->link.ok ? malloc(q.ng * sizeof *ge) : NULL;
+        if (ge) {
             double blo[3], bhi[3];
-            for (a = 0; a < 3; a++) blo[a] = (double)q.c0[a], bhi[a] = (double)(q.c0[a] + q.cells[a]);
+            size_t core[3];
+            for (a = 0; a < 3; a++) {
+                blo[a] = (double)q.c0[a], bhi[a] = (double)(q.c0[a] + q.cells[a]);
+                core[a] = q.c0[a] - q.lo[a];
+            }
             if (wvol_store_query_box(c->store, blo, bhi, &w->hits, err) != WVOL_OK) {
+                free(ge);
                 free(d);
                 return NULL;
             }
-            size_t core[3];
-            for (a = 0; a < 3; a++) core[a] = q.c0[a] - q.lo[a];
-            e = wvol__fhat_link_bound(&c->link, s, q.md, core, q.cells, GROUP, w->hits.hits, w->hits.count);
+            e = wvol__fhat_link_bound(&c->link, s, q.md, core, q.c0, q.cells, GROUP, w->hits.hits, w->hits.count, ge);
+            if (!isfinite(e)) free(ge), ge = NULL;
         }
+        c->gbound[b] = ge;
         c->fbound[b] = e;
     }
     return d;
@@ -278,12 +284,13 @@ wvol_status wvol__caster_create(wvol__caster **out, const wvol_render_source *sr
     c->bytes += c->nbricks * (1 + sizeof *c->bdata);
     if (c->store) {
         c->fbound = malloc((c->nbricks + 1) * sizeof *c->fbound);
-        if (!c->fbound) {
+        c->gbound = calloc(c->nbricks + 1, sizeof *c->gbound);
+        if (!c->fbound || !c->gbound) {
             wvol__caster_destroy(c);
             return wvol_error_set(err, WVOL_ERR_NOMEM, "iso cast: out of memory for %zu bricks", c->nbricks);
         }
         for (b = 0; b < c->nbricks; b++) c->fbound[b] = NAN;
-        c->bytes += c->nbricks * sizeof *c->fbound;
+        c->bytes += c->nbricks * (sizeof *c->fbound + sizeof *c->gbound);
     }
     for (b = 0; b < c->nbricks; b++) { /* the bound's class of every brick's samples */
         bgeom q;
@@ -325,6 +332,8 @@ void wvol__caster_destroy(wvol__caster *c)
     if (!c) return;
     if (c->bdata)
         for (b = 0; b < c->nbricks; b++) free(c->bdata[b]);
+    if (c->gbound)
+        for (b = 0; b < c->nbricks; b++) free(c->gbound[b]);
 #ifdef _OPENMP
     if (c->locks)
         for (b = 0; b < c->nbricks; b++) omp_destroy_lock(&c->locks[b]);
@@ -333,6 +342,7 @@ void wvol__caster_destroy(wvol__caster *c)
     free(c->bdata);
     free(c->bcls);
     free(c->fbound);
+    free(c->gbound);
     wvol__bounds_free(c->bb);
     wvol__store_blocks_destroy(c->blocks);
     free(c);
@@ -349,24 +359,33 @@ void wvol__caster_counts(const wvol__caster *c, size_t *total, size_t *bound, si
             bgeom q;
             brick_geom(c, b, &q);
             nb += (2 + q.ns + 2 * q.ng) * sizeof(float);
+            if (c->gbound && c->gbound[b]) nb += q.ng * sizeof(double);
         }
     *bytes = c->bytes + nb;
 }
 
 double wvol__caster_fhat_bound(wvol__caster *c, wvol__cast_ws *w, const double x[3], wvol_error *err)
 {
-    size_t b = 0, stride = 1;
+    size_t b = 0, stride = 1, g = 0, gs = 1, ci[3];
+    bgeom q;
     int a;
     if (!c->fbound) return INFINITY;
     for (a = 0; a < 3; a++) {
-        long ci = (long)floor(x[a]);
-        if (ci < 0) ci = 0;
-        if (ci > (long)c->n[a] - 2) ci = (long)c->n[a] - 2;
-        b += (size_t)(ci / c->B) * stride;
+        long i = (long)floor(x[a]);
+        if (i < 0) i = 0;
+        if (i > (long)c->n[a] - 2) i = (long)c->n[a] - 2;
+        ci[a] = (size_t)i;
+        b += (size_t)i / (size_t)c->B * stride;
         stride *= c->nb[a];
     }
     if (!brick_get(c, w, b, err)) return NAN;
-    return c->fbound[b];
+    if (!c->gbound[b]) return c->fbound[b];
+    brick_geom(c, b, &q);
+    for (a = 0; a < 3; a++) { /* the group holding the cell of x (its closed box holds x) */
+        g += (ci[a] - q.c0[a]) / GROUP * gs;
+        gs *= q.g[a];
+    }
+    return c->gbound[b][g];
 }
 
 void wvol__cast_ws_free(wvol__cast_ws *w)

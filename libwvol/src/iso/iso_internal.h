@@ -175,22 +175,29 @@ void wvol__iso_shade(float rgba[4], const wvol_iso_hit *h, const double d[3], co
 /* interp at q (cell-local) and its gradient (per unit of q) */
 double wvol__cell_eval(const double c[8], const double q[3], double grad[3]);
 
-/* Constants of the bound of |f^ - interp| over a brick (cast_bound.c says how). */
+/* Constants of the bound of |f^ - interp| per group of a brick's cells (cast_bound.c says how). */
 typedef struct wvol__fhat_link {
     int ok;             /* 0: no bound (an untransformed axis, no levels) */
-    int below, above;   /* the window: samples c0 - below .. c1 + above reach the brick [c0, c1] */
+    int M, L;           /* levels, filter taps */
+    int below, above;   /* the window: samples c0 - below .. c1 + above reach the box [c0, c1] */
+    double shift, scale, norm; /* s, 2^M, 2^{-3M/2} */
+    /* g_s - interp (level 0): */
     double D, A, K;     /* 1D sums over p of |phi_s - hat| and |phi_s|; K = D (A^2 + A + 1) */
-    double smax;        /* max |S - 1|, S the 3D partition of unity of the spline phi */
-    double lin;         /* max P * max |s S - m|: the spline's error on a linear function */
-    double e0;          /* (A + (L-1) e_phi)^3 - A^3 */
-    double F[8];        /* per band: prod (V + e) - prod V */
+    double S[2];        /* range of S(x) = sum_p phi_s(x - p + s), the spline phi's partition of unity */
+    double smax, pmax, p1; /* max |S^3 - 1|, max S^2, max |S^2 - 1| */
+    double m1, m2, qmax;   /* max |M1|, max |M2|, max |M2 - tau| (cast_bound.c, sample_part) */
+    /* f^ - g_s (the spline functions against their two-scale expansions): */
+    double F[WVOL_SELECT_MAX_LEVELS + 1][8]; /* details: sup |prod A - prod B| per level and band */
+    double c_u, c_m, c_res;                  /* the low-pass plane fit's constants (normalised) */
 } wvol__fhat_link;
 void wvol__fhat_link_init(wvol__fhat_link *k, const wvol_store *s);
-/* The bound over a brick from its stored samples s (box dimensions md, the brick's first own
- * sample at index core, `cells` cells) per group of `group`^3 cells, and the functions touching
- * the brick; +inf when a group's window is not stored (a face clipped it). */
+/* The bound over each group of `group`^3 cells of a brick into out (groups x fastest), from its
+ * stored samples s (box dimensions md, its first own sample at index core, its cells [c0, c0 +
+ * cells] in voxel indices) and the kept functions touching it; returns the largest, +inf when no
+ * bound applies (a face clipped the samples' window; out untouched) or memory runs out. */
 double wvol__fhat_link_bound(const wvol__fhat_link *k, const float *s, const size_t md[3], const size_t core[3],
-                             const size_t cells[3], int group, const wvol_store_hit *hits, size_t nh);
+                             const size_t c0[3], const size_t cells[3], int group, const wvol_store_hit *hits,
+                             size_t nh, double *out);
 
 typedef struct wvol__caster wvol__caster;
 
@@ -211,9 +218,9 @@ void wvol__caster_destroy(wvol__caster *c);
  * (safe from several threads). */
 wvol_status wvol__cast(wvol__caster *c, wvol__cast_ws *w, const double o[3], const double d[3], double tmin,
                        wvol_iso_hit *h, wvol_error *err);
-/* The model bound |f^ - interp| over the brick holding voxel position x (built if needed):
- * +inf where the bound does not apply (a volume, a brick whose sample window a face clips), NaN
- * on an error (in err). */
+/* The model bound |f^ - interp| over the group of cells holding voxel position x (its brick
+ * built if needed): +inf where the bound does not apply (a volume, a brick whose sample window a
+ * face clips), NaN on an error (in err). */
 double wvol__caster_fhat_bound(wvol__caster *c, wvol__cast_ws *w, const double x[3], wvol_error *err);
 /* Counters: bricks total, skipped by bound (so far), built (so far); bytes held. */
 void wvol__caster_counts(const wvol__caster *c, size_t *total, size_t *bound, size_t *built, size_t *bytes);

@@ -5,6 +5,7 @@
  * Shared by the spline integrator (render/spline.c) and the implicit-surface ray tracer
  * (iso/). Based on: Gross, Lippert et al. (paper, section 5, eqs 34-40). */
 #include "store/store_ray.h"
+#include "core/clones.h"
 #include "core/status_internal.h"
 
 #include <math.h>
@@ -123,7 +124,7 @@ static inline void compose3(double out[4], const double *c, double a, double d)
 /* Adds one basis function (hit) to its level's piece polynomials. Factors along axes the ray
  * does not move on (or untransformed axes) are constants of the hit, so an axis-aligned ray
  * costs one cubic per piece. */
-static void add_hit(const wvol__spline_geom *c, const level_ws *L, double *accbase, size_t elo, size_t ehi,
+WVOL__CLONES static void add_hit(const wvol__spline_geom *c, const level_ws *L, double *accbase, size_t elo, size_t ehi,
                     const double o[3], const double d[3], const wvol_store_hit *h, int shading,
                     wvol__spline_count *r)
 {
@@ -184,6 +185,15 @@ static void add_hit(const wvol__spline_geom *c, const level_ws *L, double *accba
         }
         if (skip) continue;
         r->pieces++;
+        if (nvar == 3 && !shading) {
+            /* the general ray without shading: the weight folded into the last factor, the
+             * product added straight into the piece */
+            double f01[7], g2[4], wc = w * cval;
+            mul33(f01, f[0], f[1]);
+            for (j = 0; j < 4; j++) g2[j] = wc * f[2][j];
+            addmul63(accbase + e * NC, 1.0, f01, g2);
+            continue;
+        }
         /* the product of the varying factors, times the constant ones */
         for (j = 0; j < NC; j++) prod[j] = 0;
         if (nvar == 0) {
