@@ -110,11 +110,21 @@ static inline void list_push(int32_t *head, int32_t *next, long b, int32_t i)
     } while (!__atomic_compare_exchange_n(&head[b], &old, i, 1, __ATOMIC_RELEASE, __ATOMIC_RELAXED));
 }
 
+/* Whether every ray skips brick b whole (its rate known to be 0 without building it). */
+static inline int known_empty(const wvol__source *s, long b)
+{
+    return s->ops->known_rate && s->ops->known_rate(s, (size_t)b) == 0;
+}
+
 /* The rays on brick b's list take their runs in it (its view fetched once, then a cache hit
  * for each) and move to the list of the brick they enter next, an outward neighbour, which is
- * walked after b (render_tile_bricked). A ray whose next brick is not one (which the geometry
- * rules out: brick_order) walks on at once: its fetch may build a brick again, and its image
- * is the same. */
+ * walked after b (render_tile_bricked). A ray whose next brick is known to be empty passes
+ * through it at once (its run skipped, as its turn there would skip it) rather than wait on
+ * its list: from a brick not yet walked, an outward neighbour is not yet walked either (it
+ * counts the other among its pending inward neighbours), so the brick the ray is queued on
+ * in the end is one still to come. A ray whose next brick is not an outward neighbour (which
+ * the geometry rules out: brick_order) walks on at once: its fetch may build a brick again,
+ * and its image is the same. */
 static void walk_brick(const wvol__source *s, void *tc, const tf_fast *tfx, const wvol_render_params *p, double dt,
                        ray_state *rs, const brick_order *bo, int32_t *head, int32_t *next, long b)
 {
@@ -125,6 +135,7 @@ static void walk_brick(const wvol__source *s, void *tc, const tf_fast *tfx, cons
     while (i >= 0) {
         const int32_t after = next[i];
         ray_state *st = &rs[i];
+        long from[3] = {bc[0], bc[1], bc[2]}; /* the last brick of the ray's known not yet walked */
         if (after >= 0) { /* the list's next ray, from memory while this one walks: a tile's rays
                            * outgrow the caches, and a list visits them in no memory order */
             const char *q = (const char *)&rs[after];
@@ -140,7 +151,11 @@ static void walk_brick(const wvol__source *s, void *tc, const tf_fast *tfx, cons
                 acc_settle(tfx, &st->r);
                 break;
             }
-            if (outward_step(bo, bc, st->bc)) {
+            if (outward_step(bo, from, st->bc)) {
+                if (known_empty(s, nb)) { /* through it at once */
+                    for (int a = 0; a < 3; a++) from[a] = st->bc[a];
+                    continue;
+                }
                 list_push(head, next, nb, i);
                 break;
             }
@@ -231,7 +246,13 @@ void wvol__render_tile_bricked(const wvol__source *s, const wvol__cam *k, wvol_i
                 if (!pixel_ray(s, k, img, lo, hi, dt, x, y, &rs[i])) continue;
                 rs[i].pixel = (x - x0) + tw * (y - y0);
                 b = wvol__ray_next_brick(s, &rs[i], dt);
+                while (b >= 0 && known_empty(s, b)) { /* no brick is walked yet: any may take it */
+                    if (rs[i].k < rs[i].nfull) wvol__ray_advance_any(s, tc, tfx, p, dt, &rs[i]);
+                    else wvol__ray_last(s, tc, tfx, p, dt, &rs[i]);
+                    b = wvol__ray_next_brick(s, &rs[i], dt);
+                }
                 if (b >= 0) list_push(head, next, b, i);
+                else acc_settle(tfx, &rs[i].r);
                 i++;
             }
         }

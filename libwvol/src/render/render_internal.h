@@ -134,6 +134,10 @@ typedef struct wvol__source_ops {
      * thread's next fetch. tctx: the calling thread's context. */
     wvol_status (*fetch)(const wvol__source *s, void *tctx, size_t brick, double allow, const wvol__view **view,
                          double *rate);
+    /* The smallest contribution rate of the brick known without building it (thread-safe), or
+     * -1 when none is; 0 promises that fetch skips it (a rate of 0 whatever allow). NULL: never
+     * known. The walk passes rays through such bricks without queueing them there. */
+    double (*known_rate)(const wvol__source *s, size_t brick);
     /* A source without voxels: the value at index position x and, when grad is not NULL,
      * the gradient in index units. NULL: trilinear samples of the views. */
     double (*eval)(const void *ctx, const double x[3], double grad[3]);
