@@ -210,7 +210,8 @@ void wvol__walk_sync_wait(walk_sync *w)
 void wvol__render_tile_bricked(const wvol__source *s, const wvol__cam *k, wvol_image *img, const double lo[3],
                                const double hi[3], int x0, int y0, int tw, int th, const tf_fast *tfx,
                                const wvol_render_params *p, double dt, ray_state *rs, int32_t *row_first,
-                               brick_order *bo, int32_t *head, int32_t *next, int tid, int nt, walk_sync *w)
+                               double *span, brick_order *bo, int32_t *head, int32_t *next, int tid, int nt,
+                               walk_sync *w)
 {
     void *tc = s->tctx[tid];
     const int ya = y0 + (int)((long)th * tid / nt), yb = y0 + (int)((long)th * (tid + 1) / nt); /* my rows */
@@ -224,12 +225,15 @@ void wvol__render_tile_bricked(const wvol__source *s, const wvol__cam *k, wvol_i
         /* the tile's rays that meet the volume, in rs row by row, each onto its first brick's
          * list: set up by the threads, in two passes so
          * that they lie packed (a state per pixel would make the pages of the misses resident
-         * too): each row's count, then its rays from the row's first index on */
+         * too): each row's count and each pixel's span, then its rays from the row's first index
+         * on (the spans kept, so the second pass takes only the hits' directions again) */
         for (int y = ya; y < yb; y++) {
             int32_t n = 0;
-            for (int x = x0; x < x0 + tw; x++) {
-                double o[3], d[3], t0, t1;
-                n += pixel_span(k, lo, hi, x, y, o, d, &t0, &t1);
+            double *sp = span + 2 * (size_t)tw * (size_t)(y - y0);
+            for (int x = x0; x < x0 + tw; x++, sp += 2) {
+                double o[3], d[3];
+                if (pixel_span(k, lo, hi, x, y, o, d, &sp[0], &sp[1])) n++;
+                else sp[0] = sp[1] = 0.0; /* a miss: no span */
             }
             row_first[y - y0 + 1] = n;
         }
@@ -241,9 +245,15 @@ void wvol__render_tile_bricked(const wvol__source *s, const wvol__cam *k, wvol_i
         wvol__walk_sync_wait(w);
         for (int y = ya; y < yb; y++) {
             int32_t i = row_first[y - y0];
-            for (int x = x0; x < x0 + tw; x++) {
+            const double *sp = span + 2 * (size_t)tw * (size_t)(y - y0);
+            for (int x = x0; x < x0 + tw; x++, sp += 2) {
+                float *px = img->rgba + 4 * ((size_t)x + (size_t)img->width * (size_t)y);
+                double o[3], d[3];
                 long b;
-                if (!pixel_ray(s, k, img, lo, hi, dt, x, y, &rs[i])) continue;
+                px[0] = px[1] = px[2] = px[3] = 0.0f;
+                if (!(sp[1] > sp[0])) continue;
+                wvol__cam_ray(k, x + 0.5, y + 0.5, o, d); /* pixel_span's ray, its span kept */
+                wvol__ray_begin(s, o, d, sp[0], sp[1], dt, &rs[i]);
                 rs[i].pixel = (x - x0) + tw * (y - y0);
                 b = wvol__ray_next_brick(s, &rs[i], dt);
                 while (b >= 0 && known_empty(s, b)) { /* no brick is walked yet: any may take it */
