@@ -254,6 +254,7 @@ static void sub_cells(const brick_src *src, size_t b, wvol__view *v, float *plan
         }
     }
     v->sub_S = S;
+    v->sub_S_inv = (S & (S - 1)) == 0 ? 1.0 / S : 0.0;
 }
 
 /* The brick source's coefficients without the details of levels 1 .. grad_drop: the

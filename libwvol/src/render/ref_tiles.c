@@ -118,6 +118,7 @@ wvol_status wvol__render_sampled(wvol_image *img, wvol__source *s, const wvol_ca
     s->B_inv = s->B > 0 && !(s->B & (s->B - 1)) ? 1.0 / s->B : 0.0;
     wvol_geometry_bounds(&g, lo, hi);
     dt = p.step * fmin(s->spacing[0], fmin(s->spacing[1], s->spacing[2]));
+    s->dt_inv = 1.0 / dt;
     t_start = wvol__now();
     c_start = wvol__cpu_now();
     if (s->ops->prepare) WVOL_FORWARD(s->ops->prepare(s, &tf, &p, err));

@@ -103,6 +103,8 @@ struct wvol__view {
      * wvol_render_params.gradient_levels), NULL: this one */
     const struct wvol__view *grad;
     int sub_any, sub_S;     /* sub_any: some bit of sub_zero is set */
+    double sub_S_inv;       /* 1 / sub_S when sub_S is a power of two (x sub_S_inv is then exactly
+                               x / sub_S), else 0 */
     long sub_org[3];
 };
 
@@ -162,6 +164,8 @@ struct wvol__source {
     double B_inv;           /* 1 / B when B is a power of two (x B_inv is then exactly x / B,
                                a multiplication where the walk divided per axis and run), else
                                0 (set by wvol__render_sampled) */
+    double dt_inv;          /* 1 / the step in world units (set by wvol__render_sampled): the
+                               walk's first guesses of a step index, which it then corrects */
     size_t bn[3];           /* bricks per axis (prepare) */
     void **tctx;            /* per-thread contexts (prepare), or NULL */
     size_t walk_bytes;      /* prepare(): bytes for a tile's rays (their states and lists;
