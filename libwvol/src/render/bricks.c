@@ -424,6 +424,16 @@ static wvol_status prepare(wvol__source *s, const wvol_tf *tf_world, const wvol_
 static const wvol__source_ops bricks_ops = {
     .prepare = prepare, .fetch = fetch, .known_rate = known_rate, .walk_bricks = 1, .lowpass_gradient = 1};
 
+/* A rate per brick of the grid bn, each -1 (not yet known); NULL when out of memory. */
+static double *rates_unknown(const size_t bn[3])
+{
+    const size_t nb = bn[0] * bn[1] * bn[2];
+    double *r = malloc(nb * sizeof *r);
+    if (r)
+        for (size_t i = 0; i < nb; i++) r[i] = -1.0;
+    return r;
+}
+
 wvol_status wvol_render_bricks(wvol_image *img, const wvol_store *st, const wvol_camera *cam, const wvol_tf *tf,
                                const wvol_render_params *params, wvol_render_stats *stats, wvol_error *err)
 {
@@ -454,23 +464,11 @@ wvol_status wvol_render_bricks(wvol_image *img, const wvol_store *st, const wvol
     src.slot_floats = (size_t)(src.B + 2) * (size_t)(src.B + 2) * (size_t)(src.B + 2);
     status = wvol__store_blocks_create(&src.blocks, &src.bounds, st, err);
     if (status != WVOL_OK) goto done;
-    if (src.bounds) {
-        size_t nb = src.bn[0] * src.bn[1] * src.bn[2];
-        src.bound_rate = malloc(nb * sizeof *src.bound_rate);
-        if (!src.bound_rate) {
-            status = wvol_error_set(err, WVOL_ERR_NOMEM, "render: out of memory for the brick bounds");
-            goto done;
-        }
-        for (size_t i = 0; i < nb; i++) src.bound_rate[i] = -1.0;
-    }
-    {
-        size_t nb = src.bn[0] * src.bn[1] * src.bn[2];
-        src.voxel_rate = malloc(nb * sizeof *src.voxel_rate);
-        if (!src.voxel_rate) {
-            status = wvol_error_set(err, WVOL_ERR_NOMEM, "render: out of memory for the brick rates");
-            goto done;
-        }
-        for (size_t i = 0; i < nb; i++) src.voxel_rate[i] = -1.0;
+    src.voxel_rate = rates_unknown(src.bn);
+    if (src.bounds) src.bound_rate = rates_unknown(src.bn);
+    if (!src.voxel_rate || (src.bounds && !src.bound_rate)) {
+        status = wvol_error_set(err, WVOL_ERR_NOMEM, "render: out of memory for the brick rates");
+        goto done;
     }
     wvol__store_blocks_source(&src.cs, src.blocks);
     if (p.shading && p.gradient_levels > 0) {
