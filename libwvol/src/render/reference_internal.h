@@ -220,9 +220,9 @@ typedef struct ray_state {
     long k, nsteps, nfull;      /* next step; steps; full steps (ending by t1) */
     long bid;                   /* the current brick (bricked sources), -1 before the first */
     int32_t bc[3];              /* its coordinates in the brick grid */
-    int pixel;                  /* index of its pixel in the tile (here, in the padding before r:
-                                   the state is then 256 bytes, four cache lines in an array
-                                   aligned to 64, ref_tiles.c, where it took five) */
+    int pixel;                  /* index of its pixel in the tile (here, in the padding before r,
+                                   so that the state is 256 bytes: four cache lines in the tile's
+                                   array, aligned to 64 by ref_tiles.c) */
     ray_acc r;
     size_t nsamp;
     uint32_t nskip, nskip_tol;  /* runs skipped: at most the bricks the ray crosses */
