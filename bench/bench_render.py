@@ -315,6 +315,9 @@ def main():
                          "threshold 0xff/0x7fff; pre-integration)")
     ap.add_argument("--ct-scale", type=float, default=1, help="ct suite: divide the sizes by this (smoke tests)")
     ap.add_argument("--no-vtk", action="store_true", help="ct suite: leave VTK out")
+    ap.add_argument("--ct-baseline", default="",
+                    help="ct suite: another wvol program (e.g. main's build) whose bricks rows at VTK's step, at the "
+                         "default termination and at VTK's, run in the same run, labelled '(baseline)'")
     a = ap.parse_args()
     outdir = pathlib.Path(a.out); outdir.mkdir(parents=True, exist_ok=True)
     tmp = pathlib.Path(tempfile.mkdtemp(prefix="bench_render_"))

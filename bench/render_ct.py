@@ -18,6 +18,7 @@ Writes bench/results/render_ct.{json,md,png}.
 """
 import json
 import math
+import os
 import pathlib
 import shutil
 import subprocess
@@ -95,6 +96,18 @@ def tf_file(name, path):
     path.write_text("units diagonal\n" + "".join(f"{v} {r} {g} {b} {k}\n" for (v, r, g, b, k) in PRESETS[name]))
 
 
+# Both renderers run with OpenMP's passive wait policy: an idle OpenMP thread sleeps instead of
+# spinning (libgomp's active wait counts as CPU time). VTK's fixed-point mapper runs its threads
+# through vtkMultiThreader, not OpenMP, so the setting changes nothing there; it is set for both
+# so that both run under the same environment.
+RUN_ENV = dict(os.environ, OMP_WAIT_POLICY="passive")
+
+# VTK's fixed-point mapper ends a ray once its remaining opacity, in 15-bit fixed point, falls
+# below 0xff (VTKKWRCHelper_CompositeColorAndCheckEarlyTermination: 0xff / 0x7fff = 0.0078): the
+# comparison at equal termination gives wvol the same threshold.
+VTK_TERMINATION = "--termination 0.0078"
+
+
 def ct_suite(a, wvol, timed, rgba, tmp, outdir, machine):
     rows = []
     img = a.image
@@ -151,11 +164,17 @@ def ct_suite(a, wvol, timed, rgba, tmp, outdir, machine):
                         for extra in [e for e in a.ct_extra.split(";") if e]:
                             runs.append((f"bricks 5% step={st} {extra}",
                                          ["--method", "bricks", "--keep", "5%", "--step", str(st), *extra.split()], st))
+                    if a.ct_baseline:  # the other build's bricks rows at VTK's step
+                        st = steps[0]
+                        for extra in ["", VTK_TERMINATION]:
+                            runs.append((f"bricks 5% step={st}{' ' + extra if extra else ''} (baseline)",
+                                         ["--method", "bricks", "--keep", "5%", "--step", str(st), *extra.split()], st))
                     for name, args, st in runs:
                         out = tmp / "o.exr"
-                        cmd = [wvol, "render", str(nrrd), "-o", str(out), "--json", "--threads", str(thr),
+                        prog = a.ct_baseline if name.endswith("(baseline)") else wvol
+                        cmd = [prog, "render", str(nrrd), "-o", str(out), "--json", "--threads", str(thr),
                                "--repeat", str(a.peer_repeat), *base, *args]
-                        dt, mem, so, se, rc = timed(cmd)
+                        dt, mem, so, se, rc = timed(cmd, env=RUN_ENV)
                         if rc:
                             row(name, thr, error=se.strip().splitlines()[-1] if se.strip() else "failed")
                             continue
@@ -172,7 +191,7 @@ def ct_suite(a, wvol, timed, rgba, tmp, outdir, machine):
                             (tmp / "vtk.json").write_text(json.dumps(cfg))
                             (tmp / "vtk_ct.py").write_text(VTK_CT)
                             dt, mem, so, se, rc = timed(["xvfb-run", "-a", "/usr/bin/python3", tmp / "vtk_ct.py",
-                                                         tmp / "vtk.json"])
+                                                         tmp / "vtk.json"], env=RUN_ENV)
                             if rc:
                                 row(f"VTK fixed-point step={st}", thr, error=se.strip().splitlines()[-1])
                                 continue
@@ -228,10 +247,17 @@ def summary(rows):
     at VTK's step; at equal error, the cheapest bricks row against the cheapest reference row
     of the original whose error is no larger; pre-integration: the largest step whose error is
     at most the classic step 0.5's."""
+    base = any(r["method"].endswith("(baseline)") for r in rows)
     out = ["", "## Summary per case (1 thread unless stated)\n",
-           "| volume | TF | camera | bricks / VTK (step 0.5; 1 thr, 2 thr) | bricks, VTK's termination / VTK (1, 2 thr) "
-           "| at equal error: reference / bricks CPU | classic step 0.5 error | largest pre-integrated step at <= that "
-           "error (reference; bricks) |", "|---|---|---|---|---|---|---|---|"]
+           "Step 0.5 (VTK's). The stated comparison is at equal termination: VTK ends a ray at a remaining "
+           "opacity of 0xff/0x7fff = 0.0078, the column 'at VTK's termination' gives wvol the same threshold; "
+           "wvol's default (1e-6) beside it." + (" '(baseline)': the other build given by --ct-baseline, in the "
+                                                 "same run." if base else "") + "\n",
+           "| volume | TF | camera | bricks at VTK's termination / VTK (1 thr, 2 thr) | bricks, termination 1e-6 / VTK "
+           "(1, 2 thr) |" + (" baseline at VTK's termination / VTK (1, 2 thr) | baseline, 1e-6 / VTK (1, 2 thr) |"
+                             if base else "") +
+           " at equal error: reference / bricks CPU | classic step 0.5 error | largest pre-integrated step at <= that "
+           "error (reference; bricks) |", "|---|---|---|---|---|" + ("---|---|" if base else "") + "---|---|---|"]
     keys = sorted({(r["volume"], r["tf"], r["camera"]) for r in rows})
     for key in keys:
         sel = [r for r in rows if (r["volume"], r["tf"], r["camera"]) == key and r.get("cpu_s") and "rel_rmse" in r]
@@ -244,7 +270,7 @@ def summary(rows):
             r, v = one(method, thr), one("VTK fixed-point step=0.5", thr)
             return f"{r['cpu_s'] / v['cpu_s']:.2f}" if r and v else "-"
 
-        one_thr = [r for r in sel if r["threads"] == 1]
+        one_thr = [r for r in sel if r["threads"] == 1 and not r["method"].endswith("(baseline)")]
         refs = [r for r in one_thr if r["method"].startswith("reference") and "preint" not in r["method"]]
         bricks = [r for r in one_thr if r["method"].startswith("bricks")]
         eq = "-"
@@ -265,10 +291,14 @@ def summary(rows):
                       and r["rel_rmse"] <= classic["rel_rmse"]]
                 return f"{max(r['step'] for r in ok):g}" if ok else "none"
             pre = f"{largest('reference')}; {largest('bricks')}"
-        out.append(f"| {key[0]} | {key[1]} | {key[2]} | {ratio('bricks 5% step=0.5', 1)}, {ratio('bricks 5% step=0.5', 2)} | "
-                   f"{ratio('bricks 5% step=0.5 --termination 0.0078', 1)}, "
-                   f"{ratio('bricks 5% step=0.5 --termination 0.0078', 2)} | {eq} | "
-                   f"{classic['rel_rmse']:.3g} | {pre} |" if classic else f"| {key[0]} | {key[1]} | {key[2]} | - | - | {eq} | - | {pre} |")
+        def pair(method):
+            return f"{ratio(method, 1)}, {ratio(method, 2)}"
+
+        cols = [pair("bricks 5% step=0.5 --termination 0.0078"), pair("bricks 5% step=0.5")]
+        if base:
+            cols += [pair("bricks 5% step=0.5 --termination 0.0078 (baseline)"), pair("bricks 5% step=0.5 (baseline)")]
+        cols += [eq, f"{classic['rel_rmse']:.3g}" if classic else "-", pre]
+        out.append(f"| {key[0]} | {key[1]} | {key[2]} | " + " | ".join(cols) + " |")
     return out
 
 
@@ -285,7 +315,8 @@ def write_results(rows, a, outdir, machine, img):
              "sample distance is the same length in mm. rel. RMSE: RGB against wvol's converged reference "
              f"(step {a.ct_ref_step}) on the original volume. CPU s: the fastest of {a.peer_repeat} frames in one "
              "process (VTK after its set-up frame). '/ VTK': CPU time over VTK's at the same view, TF and "
-             "threads in this run.\n",
+             "threads in this run. Both run with OMP_WAIT_POLICY=passive (an idle OpenMP thread sleeps rather than "
+             "spins; VTK's mapper threads through vtkMultiThreader, which it does not affect).\n",
              "| volume | TF | camera | threads | method | CPU s | / VTK | rel. RMSE | samples |",
              "|---|---|---|---|---|---|---|---|---|"]
     for r in rows:

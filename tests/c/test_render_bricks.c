@@ -432,6 +432,92 @@ done:
     wvol_volume_destroy(v);
 }
 
+/* Bricks known to be empty without a build (on their coefficient bound, or on their voxels
+ * once any tile built them) are passed through by the rays at once, at set-up and during the
+ * walk, instead of waiting on the brick's list; later tiles skip them unbuilt. Neither may
+ * change a pixel, nor lose a ray: on the noisy anisotropic phantom in bricks of 8 (many of
+ * them empty: a TF whose threshold the noise reaches only here and there), with tiles of 8
+ * pixels (many tiles, each learning from the earlier ones' builds) against one tile holding
+ * the whole image, one and two threads, the images are the same bit for bit and take the same
+ * samples, and both equal the reference on the reconstruction (the tolerance of one_case: a
+ * brick wrongly passed through, or a ray pushed onto a brick already walked and so never
+ * finished, changes pixels by 1e-3 or more). Cameras: along the long axis, oblique,
+ * perspective from outside, and perspective from the plane of the volume's top face, whose
+ * rays graze that face and its bricks' edges. Then a TF whose threshold lies just above the
+ * reconstruction's largest value: every brick whose loose bound reaches the threshold is
+ * built and found empty, so each may be built once in all (tiles of 8 built it once per tile
+ * before its rate was kept), and the image is empty. */
+static void known_empty_bricks_change_nothing(void)
+{
+    wvol_volume *v = noisy_phantom(70, 64, 40), *recon = NULL;
+    wvol_store *s = v ? store_and_recon(v, 0.05, &recon) : NULL;
+    const char *cams[4] = {"+z", "ortho dir=-0.3,1,-0.6", "persp dir=1,0.7,0.4",
+                           "persp eye=-80,31.5,90.85 center=34.5,31.5,90.85 fov=50"};
+    const size_t nbricks = 9 * 8 * 5; /* 70 x 64 x 40 voxels in bricks of 8 */
+    wvol_geometry g;
+    wvol_error err;
+    double vmin, vmax;
+    char tfs[2][160];
+    if (!s || !recon) goto done;
+    wvol_geometry_of_volume(&g, recon);
+    wvol_volume_range(recon, &vmin, &vmax, NULL);
+    snprintf(tfs[0], sizeof tfs[0], "units diagonal\n0.3 1 0.8 0.6 0\n1 1 1 1 20\n");
+    snprintf(tfs[1], sizeof tfs[1], "units diagonal\n%.17g 1 1 1 0\n%.17g 1 1 1 20\n", vmax + 1e-3 * (vmax - vmin),
+             vmax + 1.0);
+    for (int t = 0; t < 2; t++)
+        for (int c = 0; c < 4; c++) {
+            wvol_camera cam;
+            wvol_tf tf;
+            wvol_image *a = NULL, *b = NULL, *r = NULL;
+            wvol_render_params p;
+            wvol_render_stats sa, sb;
+            CHECK(wvol_camera_parse(&cam, cams[c], &g, 48, 40, &err) == WVOL_OK, "%s", err.message);
+            CHECK(wvol_tf_parse(&tf, tfs[t], "tf", &err) == WVOL_OK, "%s", err.message);
+            CHECK(wvol_image_create(&a, 48, 40, &err) == WVOL_OK && wvol_image_create(&b, 48, 40, &err) == WVOL_OK &&
+                      wvol_image_create(&r, 48, 40, &err) == WVOL_OK,
+                  "%s", err.message);
+            if (!a || !b || !r) break;
+            wvol_render_params_default(&p);
+            p.mode = WVOL_RENDER_MODE_ABSORPTION;
+            p.step = 0.45;
+            CHECK(wvol_render_reference(r, recon, &cam, &tf, &p, NULL, &err) == WVOL_OK, "%s", err.message);
+            p.bricks.brick = 8;
+            p.tile = 48;
+            p.threads = 2;
+            CHECK(wvol_render_bricks(a, s, &cam, &tf, &p, &sa, &err) == WVOL_OK, "%s: %s", cams[c], err.message);
+            p.tile = 8;
+            p.threads = t ? 2 : 1;
+            CHECK(wvol_render_bricks(b, s, &cam, &tf, &p, &sb, &err) == WVOL_OK, "%s: %s", cams[c], err.message);
+            CHECK(memcmp(a->rgba, b->rgba, 4 * sizeof(float) * 48 * 40) == 0, "%s tf %d: tiles of 48 and of 8 differ",
+                  cams[c], t);
+            CHECK(sb.samples == sa.samples, "%s tf %d: %zu samples against %zu", cams[c], t, sb.samples, sa.samples);
+            CHECK(wvol_image_rmse(b, r, -1, 1) < 2e-5, "%s tf %d: bricks against reference on the reconstruction: "
+                  "rel. RMSE %.3g", cams[c], t, wvol_image_rmse(b, r, -1, 1));
+            if (t == 0) {
+                double alpha = 0;
+                for (size_t i = 3; i < 4 * 48 * 40; i += 4) alpha += a->rgba[i];
+                CHECK(alpha > 1, "%s: the image is empty (alpha sum %.3g): nothing tested", cams[c], alpha);
+            } else {
+                for (size_t i = 0; i < 4 * 48 * 40; i++)
+                    if (b->rgba[i] != 0.0f) {
+                        CHECK(0, "%s: a pixel above the data's largest value: %g", cams[c], b->rgba[i]);
+                        break;
+                    }
+                CHECK(sb.bricks_built > 0, "%s: no brick built: the bound proves every brick empty, nothing tested",
+                      cams[c]);
+                CHECK(sb.bricks_built <= nbricks, "%s: %zu builds of %zu bricks, all empty: one rebuilt", cams[c],
+                      sb.bricks_built, nbricks);
+            }
+            wvol_image_destroy(a);
+            wvol_image_destroy(b);
+            wvol_image_destroy(r);
+        }
+done:
+    wvol_store_destroy(s);
+    wvol_volume_destroy(recon);
+    wvol_volume_destroy(v);
+}
+
 /* Shading from the low-pass model (gradient_levels) changes the shading only: the samples,
  * so alpha, are the same bit for bit, the colour changes (the noisy phantom's gradient is
  * smoothed), and is within the colour the unshaded image bounds (shade <= 1). Refused where
@@ -541,6 +627,7 @@ int main(void)
     walk_builds_each_brick_once();
     skip_tolerance_bounds_the_change();
     skipping_inside_bricks_changes_nothing();
+    known_empty_bricks_change_nothing();
     lowpass_gradient_changes_only_the_shading();
     skip_bookkeeping_is_exact_on_a_constant();
     return check_summary("test_render_bricks");

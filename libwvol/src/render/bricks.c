@@ -47,6 +47,8 @@ typedef struct brick_src {
     wvol__coef_source low;        /* cs without the details of levels 1..grad_drop */
     double *bound_rate;           /* per brick: wvol__brick_rate of its coefficient bound, < 0 not
                                      yet computed */
+    double *voxel_rate;           /* per brick: wvol__brick_rate of its voxels' min/max once any
+                                     thread built it in this render, < 0 not yet */
 } brick_src;
 
 /* A thread's brick cache: a few slots (CACHE_SLOTS), found by a scan of their brick numbers,
@@ -61,10 +63,19 @@ typedef struct brick_cache {
     wvol__view *gview;       /* per slot: its view */
     double *rate;            /* per slot: wvol__brick_rate of its voxels' min/max */
     wvol__view *view;        /* per slot: the brick's view (its voxels' box, finished) */
+    float *plane;            /* sub_cells' scratch: plane_floats */
     uint64_t clock;
     wvol__brick_scratch scr;
     size_t built;
 } brick_cache;
+
+/* sub_cells' scratch: two planes of a brick's voxels (its range over a z interval of
+ * slices) and two rows. */
+static size_t plane_floats(const brick_src *src)
+{
+    const size_t side = (size_t)src->B + 2;
+    return 2 * side * side + 2 * side;
+}
 
 static void cache_free(brick_cache *c)
 {
@@ -76,6 +87,7 @@ static void cache_free(brick_cache *c)
     free(c->gview);
     free(c->rate);
     free(c->view);
+    free(c->plane);
     wvol__brick_scratch_free(&c->scr);
     free(c);
 }
@@ -91,11 +103,13 @@ static brick_cache *cache_new(const brick_src *src, size_t slots)
     c->data = malloc(slots * src->slot_floats * sizeof *c->data);
     c->rate = malloc(slots * sizeof *c->rate);
     c->view = malloc(slots * sizeof *c->view);
+    c->plane = malloc(plane_floats(src) * sizeof *c->plane);
     if (src->grad_drop) {
         c->gdata = malloc(slots * src->slot_floats * sizeof *c->gdata);
         c->gview = malloc(slots * sizeof *c->gview);
     }
-    if (!c->id || !c->used || !c->data || !c->rate || !c->view || (src->grad_drop && (!c->gdata || !c->gview))) {
+    if (!c->id || !c->used || !c->data || !c->rate || !c->view || !c->plane ||
+        (src->grad_drop && (!c->gdata || !c->gview))) {
         cache_free(c);
         return NULL;
     }
@@ -108,7 +122,7 @@ static size_t cache_bytes(const brick_cache *c)
     size_t slots = c->nslots;
     return sizeof *c + slots * ((c->src->grad_drop ? 2 : 1) * (c->src->slot_floats * sizeof(float) + sizeof(wvol__view)) +
                                 sizeof(long) + sizeof(uint64_t) + sizeof(double)) +
-           wvol__brick_scratch_bytes(&c->scr);
+           plane_floats(c->src) * sizeof(float) + wvol__brick_scratch_bytes(&c->scr);
 }
 
 static void brick_box(const brick_src *src, size_t b, long lo[3], long hi[3])
@@ -152,23 +166,40 @@ static void voxel_range(const float *d, size_t n, double *mn, double *mx)
     *mx = hi;
 }
 
+/* Elementwise min and max of n floats of src into lo and hi (plain loops the compiler
+ * vectorises: min and max are exact, so any order gives the same values). */
+static void fold_minmax(float *restrict lo, float *restrict hi, const float *restrict src, size_t n)
+{
+    for (size_t i = 0; i < n; i++) {
+        lo[i] = src[i] < lo[i] ? src[i] : lo[i];
+        hi[i] = src[i] > hi[i] ? src[i] : hi[i];
+    }
+}
+
+/* lo and hi set to src and its copy. */
+static void init_minmax(float *restrict lo, float *restrict hi, const float *restrict src, size_t n)
+{
+    memcpy(lo, src, n * sizeof *lo);
+    memcpy(hi, src, n * sizeof *hi);
+}
+
 /* The brick's sub-cells whose kappa is 0 over their voxels' range (wvol__view.sub_zero): the
  * brick's cells cut into WVOL__SUB_N per axis (sub_S = ceil(B / N)), each sub-cell's voxels from one
  * before its first cell to its last cell's upper neighbour, clipped to the brick's voxels. A
  * sub-cell's voxels are a box, the product of one interval per axis, so its range is taken
- * axis by axis: per z slice, each row's range over each sub-cell's x interval (windows of
- * sub_S + 2 voxels: short, independent chains of comparisons, where one chain per sub-cell
- * over its (sub_S + 2)^3 voxels serialised them), then over each sub-cell's y interval of
- * rows, then the slice folded into the sub-cells whose z interval holds it. The same min and
- * max, so the same bits. Bricks of fewer than 2N cells per side have none (their own rate
- * decides at that grain). */
-static void sub_cells(const brick_src *src, size_t b, wvol__view *v)
+ * axis by axis: per z interval, the elementwise range of its slices (a plane, whole slices at
+ * a time), then per y interval of that plane the elementwise range of its rows, then per x
+ * interval of each such row its range. The passes over slices and rows are long runs of
+ * independent lanes (vectorised), and each voxel is read about (S + 2) / S times rather than
+ * once per window of every axis. Min and max are exact, so the bits are those of the range
+ * over each sub-cell's voxels taken in any order. Bricks of fewer than 2N cells per side have
+ * none (their own rate decides at that grain). */
+static void sub_cells(const brick_src *src, size_t b, wvol__view *v, float *plane)
 {
     enum { N = WVOL__SUB_N };
     const int S = (src->B + N - 1) / N;
     size_t bi[3] = {b % src->bn[0], (b / src->bn[0]) % src->bn[1], b / (src->bn[0] * src->bn[1])};
     long m[3], wlo[3][N], whi[3][N];
-    float mn3[N][N][N], mx3[N][N][N];
     memset(v->sub_zero, 0, sizeof v->sub_zero);
     v->sub_any = 0;
     v->sub_S = 0;
@@ -187,51 +218,43 @@ static void sub_cells(const brick_src *src, size_t b, wvol__view *v)
             whi[a][c] = hi - v->off[a];
         }
     }
-    for (long c2 = 0; c2 < m[2]; c2++)
-        for (long c1 = 0; c1 < m[1]; c1++)
-            for (long c0 = 0; c0 < m[0]; c0++) mn3[c2][c1][c0] = INFINITY, mx3[c2][c1][c0] = -INFINITY;
-    for (long k = wlo[2][0]; k <= whi[2][m[2] - 1]; k++) {
-        float smn[N][N], smx[N][N]; /* the slice's range per c1, per c0 */
-        for (long c1 = 0; c1 < m[1]; c1++)
-            for (long c0 = 0; c0 < m[0]; c0++) smn[c1][c0] = INFINITY, smx[c1][c0] = -INFINITY;
-        for (long j = wlo[1][0]; j <= whi[1][m[1] - 1]; j++) {
-            const float *row = v->data + v->sy * (size_t)j + v->sz * (size_t)k;
-            float rmn[N], rmx[N];
-            for (long c0 = 0; c0 < m[0]; c0++) {
-                float lo = row[wlo[0][c0]], hi = lo;
-                for (long i = wlo[0][c0] + 1; i <= whi[0][c0]; i++) {
-                    lo = row[i] < lo ? row[i] : lo;
-                    hi = row[i] > hi ? row[i] : hi;
-                }
-                rmn[c0] = lo;
-                rmx[c0] = hi;
-            }
-            for (long c1 = 0; c1 < m[1]; c1++) { /* the row is in one or two sub-cells' y intervals */
-                if (j < wlo[1][c1] || j > whi[1][c1]) continue;
-                for (long c0 = 0; c0 < m[0]; c0++) {
-                    smn[c1][c0] = rmn[c0] < smn[c1][c0] ? rmn[c0] : smn[c1][c0];
-                    smx[c1][c0] = rmx[c0] > smx[c1][c0] ? rmx[c0] : smx[c1][c0];
-                }
-            }
-        }
+    {
+        /* the planes hold the rows wlo[1][0] .. whi[1][last] of a slice, whole rows */
+        const size_t sy = v->sy, j0 = (size_t)wlo[1][0], rows = (size_t)(whi[1][m[1] - 1] - wlo[1][0] + 1);
+        const size_t np = rows * sy;
+        float *pmn = plane, *pmx = plane + np, *rmn = plane + 2 * np, *rmx = rmn + sy;
         for (long c2 = 0; c2 < m[2]; c2++) {
-            if (k < wlo[2][c2] || k > whi[2][c2]) continue;
-            for (long c1 = 0; c1 < m[1]; c1++)
-                for (long c0 = 0; c0 < m[0]; c0++) {
-                    mn3[c2][c1][c0] = smn[c1][c0] < mn3[c2][c1][c0] ? smn[c1][c0] : mn3[c2][c1][c0];
-                    mx3[c2][c1][c0] = smx[c1][c0] > mx3[c2][c1][c0] ? smx[c1][c0] : mx3[c2][c1][c0];
+            const float *s0 = v->data + v->sz * (size_t)wlo[2][c2] + sy * j0;
+            init_minmax(pmn, pmx, s0, np);
+            for (long k = wlo[2][c2] + 1; k <= whi[2][c2]; k++) fold_minmax(pmn, pmx, v->data + v->sz * (size_t)k + sy * j0, np);
+            for (long c1 = 0; c1 < m[1]; c1++) {
+                const size_t r0 = (size_t)wlo[1][c1] - j0;
+                memcpy(rmn, pmn + sy * r0, sy * sizeof *rmn);
+                memcpy(rmx, pmx + sy * r0, sy * sizeof *rmx);
+                for (size_t r = r0 + 1; r <= (size_t)whi[1][c1] - j0; r++) {
+                    const float *qn = pmn + sy * r, *qx = pmx + sy * r;
+                    for (size_t i = 0; i < sy; i++) {
+                        rmn[i] = qn[i] < rmn[i] ? qn[i] : rmn[i];
+                        rmx[i] = qx[i] > rmx[i] ? qx[i] : rmx[i];
+                    }
                 }
+                for (long c0 = 0; c0 < m[0]; c0++) {
+                    float lo = rmn[wlo[0][c0]], hi = rmx[wlo[0][c0]];
+                    for (long i = wlo[0][c0] + 1; i <= whi[0][c0]; i++) {
+                        lo = rmn[i] < lo ? rmn[i] : lo;
+                        hi = rmx[i] > hi ? rmx[i] : hi;
+                    }
+                    if (wvol__brick_rate(src->tf, src->mode, lo, hi) == 0) {
+                        const long bit = c0 + N * (c1 + N * c2);
+                        v->sub_zero[bit >> 6] |= (uint64_t)1 << (bit & 63);
+                        v->sub_any = 1;
+                    }
+                }
+            }
         }
     }
-    for (long c2 = 0; c2 < m[2]; c2++)
-        for (long c1 = 0; c1 < m[1]; c1++)
-            for (long c0 = 0; c0 < m[0]; c0++)
-                if (wvol__brick_rate(src->tf, src->mode, mn3[c2][c1][c0], mx3[c2][c1][c0]) == 0) {
-                    const long bit = c0 + N * (c1 + N * c2);
-                    v->sub_zero[bit >> 6] |= (uint64_t)1 << (bit & 63);
-                    v->sub_any = 1;
-                }
     v->sub_S = S;
+    v->sub_S_inv = (S & (S - 1)) == 0 ? 1.0 / S : 0.0;
 }
 
 /* The brick source's coefficients without the details of levels 1 .. grad_drop: the
@@ -243,6 +266,39 @@ static int gather_low(const void *ctx, float *dst, int m, int band, const ptrdif
     return src->cs.gather(src->cs.ctx, dst, m, band, lo, n);
 }
 
+/* Brick b's rate on its coefficient bound, computed once per brick (by whichever thread meets
+ * it first; two threads may both compute it, with the same result); < 0 without bounds. */
+static double bound_rate(const brick_src *src, size_t b)
+{
+    double known;
+    if (!src->bounds) return -1.0;
+#pragma omp atomic read
+    known = src->bound_rate[b];
+    if (known < 0) {
+        long lo[3], hi[3];
+        double bl, bh;
+        brick_box(src, b, lo, hi);
+        wvol__bounds_box(src->bounds, lo, hi, &bl, &bh);
+        known = wvol__brick_rate(src->tf, src->mode, bl, bh);
+#pragma omp atomic write
+        src->bound_rate[b] = known;
+    }
+    return known;
+}
+
+/* The smallest rate of brick b known without building it: on its voxels once some thread
+ * built it, else on its coefficient bound; -1 when neither is known. 0: fetch skips the
+ * brick for every ray. */
+static double known_rate(const wvol__source *s, size_t b)
+{
+    const brick_src *src = s->ctx;
+    double r;
+#pragma omp atomic read
+    r = src->voxel_rate[b];
+    if (r >= 0) return r;
+    return bound_rate(src, b);
+}
+
 static wvol_status fetch(const wvol__source *s, void *tctx, size_t b, double allow, const wvol__view **view,
                          double *rate)
 {
@@ -251,28 +307,24 @@ static wvol_status fetch(const wvol__source *s, void *tctx, size_t b, double all
     size_t slot;
     long lo[3], hi[3];
     (void)s; /* the thread's cache knows its source */
-    c->clock++;
-    for (slot = 0; slot < c->nused; slot++)
-        if (c->id[slot] == (long)b) goto hit;
-    brick_box(src, b, lo, hi);
-    if (src->bounds) {
-        /* the bound is computed once per brick (by whichever thread meets it first; two
-         * threads may both compute it, with the same result) */
-        double known;
+    {
+        /* skipped on the bound alone, else on the voxels' range once some thread built the
+         * brick (in this tile or an earlier one): no view needed. The decision depends on
+         * the brick and allow only, not on what the caches hold. */
+        double known = bound_rate(src, b);
+        if (known < 0 || known > allow) {
 #pragma omp atomic read
-        known = src->bound_rate[b];
-        if (known < 0) {
-            double bl, bh;
-            wvol__bounds_box(src->bounds, lo, hi, &bl, &bh);
-            known = wvol__brick_rate(src->tf, src->mode, bl, bh);
-#pragma omp atomic write
-            src->bound_rate[b] = known;
+            known = src->voxel_rate[b];
         }
-        if (known <= allow) { /* skipped on the bound alone: no view needed */
+        if (known >= 0 && known <= allow) {
             *rate = known;
             return WVOL_OK;
         }
     }
+    c->clock++;
+    for (slot = 0; slot < c->nused; slot++)
+        if (c->id[slot] == (long)b) goto hit;
+    brick_box(src, b, lo, hi);
     {
         size_t blo[3], bhi[3], cnt, i;
         float *d;
@@ -297,6 +349,8 @@ static wvol_status fetch(const wvol__source *s, void *tctx, size_t b, double all
         voxel_range(d, cnt, &mn, &mx);
         c->id[slot] = (long)b;
         c->rate[slot] = wvol__brick_rate(src->tf, src->mode, mn, mx); /* once per build */
+#pragma omp atomic write
+        src->voxel_rate[b] = c->rate[slot];
         {
             wvol__view *v = &c->view[slot];
             v->data = d;
@@ -309,7 +363,7 @@ static wvol_status fetch(const wvol__source *s, void *tctx, size_t b, double all
             wvol__view_finish(v);
             v->local = 1; /* 1 to 127 cells per axis: block_positions_local (ref_samples.h) */
             for (int a = 0; a < 3; a++) v->local &= hi[a] > lo[a] && hi[a] - lo[a] < 128;
-            if (c->rate[slot] > 0 && src->skip_inside) sub_cells(src, b, v); /* rate 0: skipped whole */
+            if (c->rate[slot] > 0 && src->skip_inside) sub_cells(src, b, v, c->plane); /* rate 0: skipped whole */
             if (src->grad_drop && c->rate[slot] > 0) { /* the shading's smoother field, same voxels */
                 wvol__view *gv = &c->gview[slot];
                 st = wvol__idwt3_brick_src(c->gdata + slot * src->slot_floats, &src->low, blo, bhi, &c->scr, NULL);
@@ -367,7 +421,18 @@ static wvol_status prepare(wvol__source *s, const wvol_tf *tf_world, const wvol_
 }
 
 /* Bricks built on demand into the threads' caches, walked tile by tile. */
-static const wvol__source_ops bricks_ops = {.prepare = prepare, .fetch = fetch, .walk_bricks = 1, .lowpass_gradient = 1};
+static const wvol__source_ops bricks_ops = {
+    .prepare = prepare, .fetch = fetch, .known_rate = known_rate, .walk_bricks = 1, .lowpass_gradient = 1};
+
+/* A rate per brick of the grid bn, each -1 (not yet known); NULL when out of memory. */
+static double *rates_unknown(const size_t bn[3])
+{
+    const size_t nb = bn[0] * bn[1] * bn[2];
+    double *r = malloc(nb * sizeof *r);
+    if (r)
+        for (size_t i = 0; i < nb; i++) r[i] = -1.0;
+    return r;
+}
 
 wvol_status wvol_render_bricks(wvol_image *img, const wvol_store *st, const wvol_camera *cam, const wvol_tf *tf,
                                const wvol_render_params *params, wvol_render_stats *stats, wvol_error *err)
@@ -399,14 +464,11 @@ wvol_status wvol_render_bricks(wvol_image *img, const wvol_store *st, const wvol
     src.slot_floats = (size_t)(src.B + 2) * (size_t)(src.B + 2) * (size_t)(src.B + 2);
     status = wvol__store_blocks_create(&src.blocks, &src.bounds, st, err);
     if (status != WVOL_OK) goto done;
-    if (src.bounds) {
-        size_t nb = src.bn[0] * src.bn[1] * src.bn[2];
-        src.bound_rate = malloc(nb * sizeof *src.bound_rate);
-        if (!src.bound_rate) {
-            status = wvol_error_set(err, WVOL_ERR_NOMEM, "render: out of memory for the brick bounds");
-            goto done;
-        }
-        for (size_t i = 0; i < nb; i++) src.bound_rate[i] = -1.0;
+    src.voxel_rate = rates_unknown(src.bn);
+    if (src.bounds) src.bound_rate = rates_unknown(src.bn);
+    if (!src.voxel_rate || (src.bounds && !src.bound_rate)) {
+        status = wvol_error_set(err, WVOL_ERR_NOMEM, "render: out of memory for the brick rates");
+        goto done;
     }
     wvol__store_blocks_source(&src.cs, src.blocks);
     if (p.shading && p.gradient_levels > 0) {
@@ -425,7 +487,8 @@ wvol_status wvol_render_bricks(wvol_image *img, const wvol_store *st, const wvol
     s.B = src.B;
     status = wvol__render_sampled(img, &s, cam, tf, &p, stats, err);
     bytes = wvol__store_blocks_bytes(src.blocks) + wvol__bounds_bytes(src.bounds) + (size_t)src.nthreads * sizeof(void *) +
-            (src.bound_rate ? src.bn[0] * src.bn[1] * src.bn[2] * sizeof *src.bound_rate : 0);
+            (src.bound_rate ? src.bn[0] * src.bn[1] * src.bn[2] * sizeof *src.bound_rate : 0) +
+            src.bn[0] * src.bn[1] * src.bn[2] * sizeof *src.voxel_rate;
     if (src.bound_rate)
         for (size_t i = 0; i < src.bn[0] * src.bn[1] * src.bn[2]; i++) bound_skipped += src.bound_rate[i] == 0;
     if (s.tctx)
@@ -452,5 +515,6 @@ done:
     wvol__store_blocks_destroy(src.blocks);
     wvol__bounds_free(src.bounds);
     free(src.bound_rate);
+    free(src.voxel_rate);
     return status;
 }

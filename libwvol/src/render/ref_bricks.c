@@ -110,11 +110,21 @@ static inline void list_push(int32_t *head, int32_t *next, long b, int32_t i)
     } while (!__atomic_compare_exchange_n(&head[b], &old, i, 1, __ATOMIC_RELEASE, __ATOMIC_RELAXED));
 }
 
+/* Whether every ray skips brick b whole (its rate known to be 0 without building it). */
+static inline int known_empty(const wvol__source *s, long b)
+{
+    return s->ops->known_rate && s->ops->known_rate(s, (size_t)b) == 0;
+}
+
 /* The rays on brick b's list take their runs in it (its view fetched once, then a cache hit
  * for each) and move to the list of the brick they enter next, an outward neighbour, which is
- * walked after b (render_tile_bricked). A ray whose next brick is not one (which the geometry
- * rules out: brick_order) walks on at once: its fetch may build a brick again, and its image
- * is the same. */
+ * walked after b (render_tile_bricked). A ray whose next brick is known to be empty passes
+ * through it at once (its run skipped, as its turn there would skip it) rather than wait on
+ * its list: from a brick not yet walked, an outward neighbour is not yet walked either (it
+ * counts the other among its pending inward neighbours), so the brick the ray is queued on
+ * in the end is one still to come. A ray whose next brick is not an outward neighbour (which
+ * the geometry rules out: brick_order) walks on at once: its fetch may build a brick again,
+ * and its image is the same. */
 static void walk_brick(const wvol__source *s, void *tc, const tf_fast *tfx, const wvol_render_params *p, double dt,
                        ray_state *rs, const brick_order *bo, int32_t *head, int32_t *next, long b)
 {
@@ -125,6 +135,7 @@ static void walk_brick(const wvol__source *s, void *tc, const tf_fast *tfx, cons
     while (i >= 0) {
         const int32_t after = next[i];
         ray_state *st = &rs[i];
+        long from[3] = {bc[0], bc[1], bc[2]}; /* the last brick of the ray's known not yet walked */
         if (after >= 0) { /* the list's next ray, from memory while this one walks: a tile's rays
                            * outgrow the caches, and a list visits them in no memory order */
             const char *q = (const char *)&rs[after];
@@ -140,7 +151,11 @@ static void walk_brick(const wvol__source *s, void *tc, const tf_fast *tfx, cons
                 acc_settle(tfx, &st->r);
                 break;
             }
-            if (outward_step(bo, bc, st->bc)) {
+            if (outward_step(bo, from, st->bc)) {
+                if (known_empty(s, nb)) { /* through it at once */
+                    for (int a = 0; a < 3; a++) from[a] = st->bc[a];
+                    continue;
+                }
                 list_push(head, next, nb, i);
                 break;
             }
@@ -195,7 +210,8 @@ void wvol__walk_sync_wait(walk_sync *w)
 void wvol__render_tile_bricked(const wvol__source *s, const wvol__cam *k, wvol_image *img, const double lo[3],
                                const double hi[3], int x0, int y0, int tw, int th, const tf_fast *tfx,
                                const wvol_render_params *p, double dt, ray_state *rs, int32_t *row_first,
-                               brick_order *bo, int32_t *head, int32_t *next, int tid, int nt, walk_sync *w)
+                               double *span, brick_order *bo, int32_t *head, int32_t *next, int tid, int nt,
+                               walk_sync *w)
 {
     void *tc = s->tctx[tid];
     const int ya = y0 + (int)((long)th * tid / nt), yb = y0 + (int)((long)th * (tid + 1) / nt); /* my rows */
@@ -209,12 +225,15 @@ void wvol__render_tile_bricked(const wvol__source *s, const wvol__cam *k, wvol_i
         /* the tile's rays that meet the volume, in rs row by row, each onto its first brick's
          * list: set up by the threads, in two passes so
          * that they lie packed (a state per pixel would make the pages of the misses resident
-         * too): each row's count, then its rays from the row's first index on */
+         * too): each row's count and each pixel's span, then its rays from the row's first index
+         * on (the spans kept, so the second pass takes only the hits' directions again) */
         for (int y = ya; y < yb; y++) {
             int32_t n = 0;
-            for (int x = x0; x < x0 + tw; x++) {
-                double o[3], d[3], t0, t1;
-                n += pixel_span(k, lo, hi, x, y, o, d, &t0, &t1);
+            double *sp = span + 2 * (size_t)tw * (size_t)(y - y0);
+            for (int x = x0; x < x0 + tw; x++, sp += 2) {
+                double o[3], d[3];
+                if (pixel_span(k, lo, hi, x, y, o, d, &sp[0], &sp[1])) n++;
+                else sp[0] = sp[1] = 0.0; /* a miss: no span */
             }
             row_first[y - y0 + 1] = n;
         }
@@ -226,12 +245,24 @@ void wvol__render_tile_bricked(const wvol__source *s, const wvol__cam *k, wvol_i
         wvol__walk_sync_wait(w);
         for (int y = ya; y < yb; y++) {
             int32_t i = row_first[y - y0];
-            for (int x = x0; x < x0 + tw; x++) {
+            const double *sp = span + 2 * (size_t)tw * (size_t)(y - y0);
+            for (int x = x0; x < x0 + tw; x++, sp += 2) {
+                float *px = img->rgba + 4 * ((size_t)x + (size_t)img->width * (size_t)y);
+                double o[3], d[3];
                 long b;
-                if (!pixel_ray(s, k, img, lo, hi, dt, x, y, &rs[i])) continue;
+                px[0] = px[1] = px[2] = px[3] = 0.0f;
+                if (!(sp[1] > sp[0])) continue;
+                wvol__cam_ray(k, x + 0.5, y + 0.5, o, d); /* pixel_span's ray, its span kept */
+                wvol__ray_begin(s, o, d, sp[0], sp[1], dt, &rs[i]);
                 rs[i].pixel = (x - x0) + tw * (y - y0);
                 b = wvol__ray_next_brick(s, &rs[i], dt);
+                while (b >= 0 && known_empty(s, b)) { /* no brick is walked yet: any may take it */
+                    if (rs[i].k < rs[i].nfull) wvol__ray_advance_any(s, tc, tfx, p, dt, &rs[i]);
+                    else wvol__ray_last(s, tc, tfx, p, dt, &rs[i]);
+                    b = wvol__ray_next_brick(s, &rs[i], dt);
+                }
                 if (b >= 0) list_push(head, next, b, i);
+                else acc_settle(tfx, &rs[i].r);
                 i++;
             }
         }

@@ -28,7 +28,7 @@ static void render_tile(const wvol__source *s, void *tc, const tf_fast *tfx, con
     }
 }
 
-/* The bricked walk's tile side: the largest square whose rays (states and list links) fit
+/* The bricked walk's tile side: the largest square whose rays (states, list links, spans) fit
  * the bytes the source grants, evened out so that the image's tiles are alike (a tile's rays
  * build each brick they need once, ref_bricks.c: the larger the tile, the fewer
  * bricks two tiles both build); 0 without a grant. */
@@ -36,7 +36,7 @@ static int walk_tile(const wvol__source *s, const wvol_image *img)
 {
     int side, n, big = img->width > img->height ? img->width : img->height;
     if (!s->walk_bytes) return 0;
-    side = (int)sqrt((double)s->walk_bytes / (double)(sizeof(ray_state) + sizeof(int32_t)));
+    side = (int)sqrt((double)s->walk_bytes / (double)(sizeof(ray_state) + sizeof(int32_t) + 2 * sizeof(double)));
     if (side < 16) side = 16;
     if (side >= big) return big;
     n = (big + side - 1) / side;
@@ -118,6 +118,7 @@ wvol_status wvol__render_sampled(wvol_image *img, wvol__source *s, const wvol_ca
     s->B_inv = s->B > 0 && !(s->B & (s->B - 1)) ? 1.0 / s->B : 0.0;
     wvol_geometry_bounds(&g, lo, hi);
     dt = p.step * fmin(s->spacing[0], fmin(s->spacing[1], s->spacing[2]));
+    s->dt_inv = 1.0 / dt;
     t_start = wvol__now();
     c_start = wvol__cpu_now();
     if (s->ops->prepare) WVOL_FORWARD(s->ops->prepare(s, &tf, &p, err));
@@ -131,10 +132,13 @@ wvol_status wvol__render_sampled(wvol_image *img, wvol__source *s, const wvol_ca
     memset(&bo, 0, sizeof bo);
     if (s->ops->walk_bricks) {
         /* the bricked walk: one tile at a time, its bricks shared by the threads */
-        ray_state *rs = malloc(tile_rays_n * sizeof *rs);
+        /* on cache lines: a ray's state is taken from memory each time it enters a brick */
+        ray_state *rs = aligned_alloc(64, (tile_rays_n * sizeof *rs + 63) / 64 * 64);
         int32_t *lists = NULL; /* the bricks' list heads, then the rays' links */
         int32_t *row_first = malloc(((size_t)p.tile + 1) * sizeof *row_first);
-        status = !order || !rs || !row_first ? wvol_error_set(err, WVOL_ERR_NOMEM, "render: out of memory for a tile's rays")
+        double *span = malloc(2 * tile_rays_n * sizeof *span);
+        status = !order || !rs || !row_first || !span
+                     ? wvol_error_set(err, WVOL_ERR_NOMEM, "render: out of memory for a tile's rays")
                                : wvol__brick_order_make(&bo, s, &k, err);
         if (status == WVOL_OK) {
             lists = malloc((bo.n + tile_rays_n) * sizeof *lists);
@@ -155,19 +159,20 @@ wvol_status wvol__render_sampled(wvol_image *img, wvol__source *s, const wvol_ca
                     int x0 = (order[ti] % tx) * p.tile, y0 = (order[ti] / tx) * p.tile;
                     int tw = img->width - x0 < p.tile ? img->width - x0 : p.tile;
                     int th = img->height - y0 < p.tile ? img->height - y0 : p.tile;
-                    wvol__render_tile_bricked(s, &k, img, lo, hi, x0, y0, tw, th, &tfx, &p, dt, rs, row_first, &bo,
-                                              lists, lists + bo.n, tid, nt, &w);
+                    wvol__render_tile_bricked(s, &k, img, lo, hi, x0, y0, tw, th, &tfx, &p, dt, rs, row_first, span,
+                                              &bo, lists, lists + bo.n, tid, nt, &w);
                     if (tid == 0) tile_finish(&p, img, x0, y0, tw, rs, row_first[th], &counts, &failed);
                     wvol__walk_sync_wait(&w); /* rs and row_first read before the next tile's rays */
                 }
             }
         }
         /* the walk's own: the tile's rays and lists, the order */
-        counts.bytes = tile_rays_n * (sizeof *rs + sizeof *lists) + ((size_t)p.tile + 1) * sizeof *row_first +
+        counts.bytes = tile_rays_n * (sizeof *rs + sizeof *lists + 2 * sizeof *span) + ((size_t)p.tile + 1) * sizeof *row_first +
                        bo.n * (sizeof *lists + sizeof *bo.inward + sizeof *bo.pending + sizeof *bo.ready);
         free(rs);
         free(lists);
         free(row_first);
+        free(span);
         wvol__brick_order_free(&bo);
     } else if (!order) {
         status = wvol_error_set(err, WVOL_ERR_NOMEM, "render: out of memory");

@@ -133,7 +133,8 @@ static inline void sub_dda_init(sub_dda *dd, const wvol__view *v, const ray_stat
 {
     const double S = v->sub_S;
     for (int a = 0; a < 3; a++) {
-        const double x = st->x0[a] + t * st->e[a], o = (double)v->sub_org[a] - 0.5, c = floor((x - o) / S);
+        const double x = st->x0[a] + t * st->e[a], o = (double)v->sub_org[a] - 0.5;
+        const double c = floor(v->sub_S_inv > 0 ? (x - o) * v->sub_S_inv : (x - o) / S);
         dd->c[a] = (long)c;
         if (st->e[a] > 0) {
             dd->step[a] = 1;
@@ -213,10 +214,12 @@ out:
     return te;
 }
 
-/* The first step from k on (at most ke) whose sample is at or past parameter te. */
-static inline long first_step_at(double t0, double dt, long k, long ke, double te)
+/* The first step from k on (at most ke) whose sample is at or past parameter te: a guess
+ * from dt_inv = 1 / dt, then corrected by the exact test, so the guess's rounding does not
+ * matter. */
+static inline long first_step_at(double t0, double dt, double dt_inv, long k, long ke, double te)
 {
-    double q = (te - t0) / dt - 0.5;
+    double q = (te - t0) * dt_inv - 0.5;
     long kk = q > (double)k ? (q < (double)ke ? (long)q : ke) : k;
     while (kk < ke && t0 + ((double)kk + 0.5) * dt < te) kk++;
     while (kk > k && !(t0 + ((double)(kk - 1) + 0.5) * dt < te)) kk--;
@@ -243,9 +246,9 @@ static inline __attribute__((always_inline)) int ray_advance(const wvol__source 
     if (bricked) {
         int skip;
         ray_enter(s, st, x, t);
-        /* the first step whose sample is at or past the exit */
+        /* the first step whose sample is at or past the exit (a guess, then the exact test) */
         if (st->t_exit < T_AT(nfull)) {
-            double q = (st->t_exit - t0) / dt - 0.5;
+            double q = (st->t_exit - t0) * s->dt_inv - 0.5;
             ke = q > (double)k ? (long)q : k;
             while (ke < nfull && T_AT(ke) < st->t_exit) ke++;
             while (ke > k + 1 && !(T_AT(ke - 1) < st->t_exit)) ke--;
@@ -278,7 +281,7 @@ static inline __attribute__((always_inline)) int ray_advance(const wvol__source 
             }
             zero = sub_dda_zero(view, &dd);
             te = sub_dda_same_until(view, &dd, zero, T_AT(ke - 1));
-            kn = te == INFINITY ? ke : first_step_at(t0, dt, k, ke, te);
+            kn = te == INFINITY ? ke : first_step_at(t0, dt, s->dt_inv, k, ke, te);
             if (kn <= k) kn = k + 1;
             if (zero) { /* samples k .. kn - 1 add nothing */
                 if (p->preintegrate) preint_close(tfx, &st->r);

@@ -220,13 +220,15 @@ typedef struct ray_state {
     long k, nsteps, nfull;      /* next step; steps; full steps (ending by t1) */
     long bid;                   /* the current brick (bricked sources), -1 before the first */
     int32_t bc[3];              /* its coordinates in the brick grid */
+    int pixel;                  /* index of its pixel in the tile (here, in the padding before r,
+                                   so that the state is 256 bytes: four cache lines in the tile's
+                                   array, aligned to 64 by ref_tiles.c) */
     ray_acc r;
     size_t nsamp;
     uint32_t nskip, nskip_tol;  /* runs skipped: at most the bricks the ray crosses */
     double skipped;             /* optical depth (X-ray: integral) skipped so far, bounded */
     int done;                   /* ray terminated */
     wvol_status failed;         /* a bricked source's fetch failed */
-    int pixel;                  /* index of its pixel in the tile */
 } ray_state;
 
 void wvol__ray_begin(const wvol__source *s, const double o[3], const double d[3], double t0, double t1, double dt,
@@ -309,10 +311,12 @@ void wvol__walk_sync_wait(walk_sync *w);
 /* The rays of the tile (x0, y0, tw, th) walked brick by brick front to back by the calling
  * thread, number tid of the nt threads of the enclosing parallel region, every one of which
  * calls it for the same tile (it synchronises them through w); rs receives the tile's rays
- * that meet the volume (row_first[th] of them), complete when it returns. */
+ * that meet the volume (row_first[th] of them), complete when it returns; span: scratch of
+ * 2 tw th doubles (each pixel's ray span). */
 void wvol__render_tile_bricked(const wvol__source *s, const wvol__cam *k, wvol_image *img, const double lo[3],
                                const double hi[3], int x0, int y0, int tw, int th, const tf_fast *tfx,
                                const wvol_render_params *p, double dt, ray_state *rs, int32_t *row_first,
-                               brick_order *bo, int32_t *head, int32_t *next, int tid, int nt, walk_sync *w);
+                               double *span, brick_order *bo, int32_t *head, int32_t *next, int tid, int nt,
+                               walk_sync *w);
 
 #endif

@@ -103,6 +103,8 @@ struct wvol__view {
      * wvol_render_params.gradient_levels), NULL: this one */
     const struct wvol__view *grad;
     int sub_any, sub_S;     /* sub_any: some bit of sub_zero is set */
+    double sub_S_inv;       /* 1 / sub_S when sub_S is a power of two (x sub_S_inv is then exactly
+                               x / sub_S), else 0 */
     long sub_org[3];
 };
 
@@ -134,6 +136,10 @@ typedef struct wvol__source_ops {
      * thread's next fetch. tctx: the calling thread's context. */
     wvol_status (*fetch)(const wvol__source *s, void *tctx, size_t brick, double allow, const wvol__view **view,
                          double *rate);
+    /* The smallest contribution rate of the brick known without building it (thread-safe), or
+     * -1 when none is; 0 promises that fetch skips it (a rate of 0 whatever allow). NULL: never
+     * known. The walk passes rays through such bricks without queueing them there. */
+    double (*known_rate)(const wvol__source *s, size_t brick);
     /* A source without voxels: the value at index position x and, when grad is not NULL,
      * the gradient in index units. NULL: trilinear samples of the views. */
     double (*eval)(const void *ctx, const double x[3], double grad[3]);
@@ -158,6 +164,8 @@ struct wvol__source {
     double B_inv;           /* 1 / B when B is a power of two (x B_inv is then exactly x / B,
                                a multiplication where the walk divided per axis and run), else
                                0 (set by wvol__render_sampled) */
+    double dt_inv;          /* 1 / the step in world units (set by wvol__render_sampled): the
+                               walk's first guesses of a step index, which it then corrects */
     size_t bn[3];           /* bricks per axis (prepare) */
     void **tctx;            /* per-thread contexts (prepare), or NULL */
     size_t walk_bytes;      /* prepare(): bytes for a tile's rays (their states and lists;
