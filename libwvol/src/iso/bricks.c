@@ -54,6 +54,9 @@ wvol_status wvol__iso_box_bound(const wvol_coeffs *c, const long s0[3], const lo
     return WVOL_OK;
 }
 
+/* The most bricks reconstructed as one box (a run along x). */
+#define RUN_MAX 8
+
 /* ---- per-brick meshing --------------------------------------------------------- */
 
 typedef struct brick_out {
@@ -72,50 +75,67 @@ typedef struct brick_grid {
     int B;
     wvol__coef_source cs;           /* what the bricks are reconstructed from */
     double origin[3], spacing[3];
+    double inv_n[2], inv_b;         /* 1 / n[0], 1 / n[1], 1 / B: quotients without a division */
 } brick_grid;
+
+/* a / d for a < 2^52, from a's product with inv = 1 / d (off by at most one, corrected): the
+ * edge keys of every vertex are decoded, and a hardware division per axis dominated that */
+static inline uint64_t quot(uint64_t a, uint64_t d, double inv)
+{
+    uint64_t q = (uint64_t)((double)a * inv);
+    if (q * d > a) q--;
+    else if ((q + 1) * d <= a) q++;
+    return q;
+}
 
 static size_t owner_axis(const brick_grid *g, int a, uint64_t p)
 {
-    size_t b = (size_t)(p / (uint64_t)g->B);
+    size_t b = (size_t)quot(p, (uint64_t)g->B, g->inv_b);
     return b < g->nb[a] ? b : g->nb[a] - 1;
 }
 
-static void decode_key(const size_t gdims[3], uint64_t key, uint64_t p[3], int *axis)
+static void decode_key(const brick_grid *g, uint64_t key, uint64_t p[3], int *axis)
 {
-    p[0] = key % gdims[0];
-    key /= gdims[0];
-    *axis = (int)(key % 3);
-    key /= 3;
-    p[1] = key % gdims[1];
-    p[2] = key / gdims[1];
+    uint64_t q = quot(key, g->n[0], g->inv_n[0]), r;
+    p[0] = key - q * g->n[0];
+    r = q / 3;
+    *axis = (int)(q - 3 * r);
+    p[2] = quot(r, g->n[1], g->inv_n[1]);
+    p[1] = r - p[2] * g->n[1];
 }
 
-/* scr: the thread's reconstruction scratch. */
-static void mesh_brick(brick_out *o, const brick_grid *g, const size_t bidx[3], double iso, wvol_iso_normals normals,
-                       wvol__brick_scratch *scr)
+/* The cells [c0, c1) of brick bidx along each axis (c1: its last sample, shared with the next). */
+static void brick_cells(const brick_grid *g, const size_t bidx[3], size_t c0[3], size_t c1[3])
 {
-    size_t lo[3], hi[3], c0[3], c1[3];
-    float *v;
+    for (int a = 0; a < 3; a++) {
+        c0[a] = bidx[a] * (size_t)g->B;
+        c1[a] = c0[a] + (size_t)g->B < g->n[a] - 1 ? c0[a] + (size_t)g->B : g->n[a] - 1;
+    }
+}
+
+/* The samples a brick's mesh reads: its cells' samples and a one-sample halo for the
+ * central-difference normals, [lo, hi) per axis (clipped to the grid). */
+static void brick_box(const brick_grid *g, const size_t bidx[3], size_t lo[3], size_t hi[3])
+{
+    size_t c0[3], c1[3];
+    brick_cells(g, bidx, c0, c1);
+    for (int a = 0; a < 3; a++) {
+        lo[a] = c0[a] > 0 ? c0[a] - 1 : 0;
+        hi[a] = c1[a] + 2 <= g->n[a] ? c1[a] + 2 : g->n[a];
+    }
+}
+
+/* Meshes brick bidx from v, the reconstructed samples of the box [lo, hi) that holds the
+ * brick's box (brick_box): a run of bricks along x shares one reconstruction. */
+static void mesh_brick(brick_out *o, const brick_grid *g, const size_t bidx[3], const float *v, const size_t lo[3],
+                       const size_t hi[3], double iso, wvol_iso_normals normals)
+{
+    size_t c0[3], c1[3];
     wvol__mc_job jb;
     size_t i;
     int a;
     wvol_error_clear(&o->err);
-    for (a = 0; a < 3; a++) {
-        c0[a] = bidx[a] * (size_t)g->B;
-        c1[a] = c0[a] + (size_t)g->B < g->n[a] - 1 ? c0[a] + (size_t)g->B : g->n[a] - 1;
-        lo[a] = c0[a] > 0 ? c0[a] - 1 : 0;                  /* halo for normals */
-        hi[a] = c1[a] + 2 <= g->n[a] ? c1[a] + 2 : g->n[a];  /* exclusive */
-    }
-    v = malloc((hi[0] - lo[0]) * (hi[1] - lo[1]) * (hi[2] - lo[2]) * sizeof *v);
-    if (!v) {
-        o->status = wvol_error_set(&o->err, WVOL_ERR_NOMEM, "brick: out of memory");
-        return;
-    }
-    o->status = wvol__idwt3_brick_src(v, &g->cs, lo, hi, scr, &o->err);
-    if (o->status != WVOL_OK) {
-        free(v);
-        return;
-    }
+    brick_cells(g, bidx, c0, c1);
     memset(&jb, 0, sizeof jb);
     jb.data = v;
     for (a = 0; a < 3; a++) {
@@ -132,7 +152,6 @@ static void mesh_brick(brick_out *o, const brick_grid *g, const size_t bidx[3], 
     jb.normals = normals;
     jb.keys = &o->keys;
     o->status = wvol__mc_run(&o->mesh, &jb, NULL, &o->err);
-    free(v);
     if (o->status != WVOL_OK) return;
     o->owned = malloc(o->mesh->nverts + 1);
     o->owned_keys = malloc((o->mesh->nverts + 1) * sizeof *o->owned_keys);
@@ -143,9 +162,11 @@ static void mesh_brick(brick_out *o, const brick_grid *g, const size_t bidx[3], 
     for (i = 0; i < o->mesh->nverts; i++) {
         uint64_t p[3];
         int axis, own = 1;
-        decode_key(g->n, o->keys[i], p, &axis);
+        decode_key(g, o->keys[i], p, &axis);
+        /* the edge's lower sample lies in [c0, c1]: another brick owns it only on this
+         * brick's upper face, where the next brick starts */
         for (a = 0; a < 3; a++)
-            if (owner_axis(g, a, p[a]) != bidx[a]) own = 0;
+            if (p[a] == c1[a] && bidx[a] + 1 < g->nb[a]) own = 0;
         o->owned[i] = (unsigned char)own;
         if (own) o->owned_keys[o->nowned++] = o->keys[i];
     }
@@ -171,7 +192,7 @@ static wvol_status extract_bricks(wvol_mesh **out, const wvol_coeffs *c, const w
     wvol__brick_bounds *bb = NULL;  /* NULL (a store without the bound): every brick meshed */
     wvol__store_blocks *blocks = NULL;
     brick_grid g;
-    size_t nbricks, nneed = 0, i, *need = NULL, *slot = NULL, nv = 0, nt = 0, misses = 0;
+    size_t nbricks, nneed = 0, nrun = 0, i, *need = NULL, *slot = NULL, *run = NULL, nv = 0, nt = 0, misses = 0;
     brick_out *res = NULL;
     wvol_mesh *m = NULL;
     wvol_status s = WVOL_OK;
@@ -208,6 +229,9 @@ static wvol_status extract_bricks(wvol_mesh **out, const wvol_coeffs *c, const w
         return WVOL_OK;
     }
     for (a = 0; a < 3; a++) g.nb[a] = (g.n[a] - 1 + (size_t)g.B - 1) / (size_t)g.B;
+    g.inv_n[0] = 1.0 / (double)g.n[0];
+    g.inv_n[1] = 1.0 / (double)g.n[1];
+    g.inv_b = 1.0 / (double)g.B;
     nbricks = g.nb[0] * g.nb[1] * g.nb[2];
 #ifdef _OPENMP
     nth = p->threads > 0 ? p->threads : omp_get_max_threads();
@@ -227,7 +251,8 @@ static wvol_status extract_bricks(wvol_mesh **out, const wvol_coeffs *c, const w
     }
     need = malloc(nbricks * sizeof *need);
     slot = malloc(nbricks * sizeof *slot);
-    if (!need || !slot) {
+    run = malloc((nbricks + 1) * sizeof *run);
+    if (!need || !slot || !run) {
         s = wvol_error_set(err, WVOL_ERR_NOMEM, "iso: out of memory for %zu bricks", nbricks);
         goto done;
     }
@@ -265,22 +290,54 @@ static wvol_status extract_bricks(wvol_mesh **out, const wvol_coeffs *c, const w
         s = wvol_error_set(err, WVOL_ERR_NOMEM, "iso: out of memory for %zu bricks", nneed);
         goto done;
     }
+    /* runs of consecutive needed bricks along x (need[] is in brick order, x fastest), each
+     * reconstructed once as one box: neighbours share their apron, and the synthesis works
+     * on longer rows; a run is capped so that the threads' work items stay small */
+    for (i = 0; i < nneed; i++)
+        if (i == 0 || need[i] != need[i - 1] + 1 || need[i] % g.nb[0] == 0 || i - run[nrun - 1] == RUN_MAX)
+            run[nrun++] = i;
+    run[nrun] = nneed;
 #ifdef _OPENMP
 #pragma omp parallel num_threads(nth) if (nth > 1)
 #endif
     {
-        wvol__brick_scratch scr; /* the thread's, reused from brick to brick */
-        long q;
+        wvol__brick_scratch scr; /* the thread's, reused from run to run */
+        float *v = NULL;
+        size_t vcap = 0;
+        long r;
         memset(&scr, 0, sizeof scr);
 #ifdef _OPENMP
 #pragma omp for schedule(dynamic, 1)
 #endif
-        for (q = 0; q < (long)nneed; q++) {
-            size_t bi = need[q];
-            size_t bidx[3] = {bi % g.nb[0], (bi / g.nb[0]) % g.nb[1], bi / (g.nb[0] * g.nb[1])};
-            mesh_brick(&res[q], &g, bidx, iso,
-                       p->normals == WVOL_ISO_NORMALS_NONE ? WVOL_ISO_NORMALS_NONE : WVOL_ISO_NORMALS_GRADIENT, &scr);
+        for (r = 0; r < (long)nrun; r++) {
+            size_t q0 = run[r], q1 = run[r + 1], lo[3], hi[3], blo[3], bhi[3], q, cnt;
+            size_t b0 = need[q0], b1 = need[q1 - 1];
+            size_t first[3] = {b0 % g.nb[0], (b0 / g.nb[0]) % g.nb[1], b0 / (g.nb[0] * g.nb[1])};
+            size_t last[3] = {b1 % g.nb[0], first[1], first[2]};
+            wvol_status rs;
+            brick_box(&g, first, lo, hi);
+            brick_box(&g, last, blo, bhi);
+            hi[0] = bhi[0];
+            cnt = (hi[0] - lo[0]) * (hi[1] - lo[1]) * (hi[2] - lo[2]);
+            if (cnt > vcap) {
+                free(v);
+                v = malloc(cnt * sizeof *v);
+                vcap = v ? cnt : 0;
+            }
+            rs = v ? wvol__idwt3_brick_src(v, &g.cs, lo, hi, &scr, &res[q0].err)
+                   : wvol_error_set(&res[q0].err, WVOL_ERR_NOMEM, "brick: out of memory");
+            if (rs != WVOL_OK) {
+                res[q0].status = rs;
+                continue;
+            }
+            for (q = q0; q < q1; q++) {
+                size_t bi = need[q];
+                size_t bidx[3] = {bi % g.nb[0], first[1], first[2]};
+                mesh_brick(&res[q], &g, bidx, v, lo, hi, iso,
+                           p->normals == WVOL_ISO_NORMALS_NONE ? WVOL_ISO_NORMALS_NONE : WVOL_ISO_NORMALS_GRADIENT);
+            }
         }
+        free(v);
         wvol__brick_scratch_free(&scr);
     }
     t2 = wvol__now();
@@ -336,7 +393,7 @@ static wvol_status extract_bricks(wvol_mesh **out, const wvol_coeffs *c, const w
                     int axis;
                     size_t ob, os;
                     long at = -1;
-                    decode_key(g.n, o->keys[k], pt, &axis);
+                    decode_key(&g, o->keys[k], pt, &axis);
                     ob = owner_axis(&g, 0, pt[0]) +
                          g.nb[0] * (owner_axis(&g, 1, pt[1]) + g.nb[1] * owner_axis(&g, 2, pt[2]));
                     os = slot[ob];
@@ -398,6 +455,7 @@ done:
     wvol_mesh_destroy(m);
     free(need);
     free(slot);
+    free(run);
     wvol__bounds_free(bb);
     wvol__store_blocks_destroy(blocks);
     return s;

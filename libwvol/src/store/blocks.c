@@ -42,6 +42,7 @@ struct wvol__store_blocks {
     size_t E[3];
     size_t bytes;
     wvol__coef_source cs;  /* a reconstruction's source reading through the view */
+    int cached;            /* the store's own (wvol_store.view): destroy leaves it */
 };
 typedef struct wvol__store_blocks coef_blocks;
 
@@ -465,8 +466,8 @@ static wvol_status decoded_bounds(wvol__brick_bounds *bb, const wvol_store *s, c
  * *exact saying whether they did. Bounds from the index keep their maxima per tile-sized
  * block (one value per chunk and band: at 2048^3 the default small blocks would take over a
  * gigabyte to repeat them). */
-static wvol_status create(wvol__store_blocks **out, wvol__brick_bounds **bounds, const wvol_store *s,
-                          int exact_threads, int *exact, wvol_error *err)
+static wvol_status build_view(wvol__store_blocks **out, wvol__brick_bounds **bounds, const wvol_store *s,
+                              int exact_threads, int *exact, wvol_error *err)
 {
     wvol_store_info info;
     wvol__brick_bounds *bb = NULL;
@@ -520,6 +521,44 @@ static wvol_status create(wvol__store_blocks **out, wvol__brick_bounds **bounds,
     return WVOL_OK;
 }
 
+/* A built store's view and bounds depend on the store alone: made once, on first use, and
+ * kept by the store (wvol_store is immutable, so they never go stale); the caller gets the
+ * shared view (its destroy is then a no-op) and its own copy of the bounds. A store opened
+ * on a file builds them each time: its bounds depend on what its chunk cache can hold. */
+static wvol_status create(wvol__store_blocks **out, wvol__brick_bounds **bounds, const wvol_store *s,
+                          int exact_threads, int *exact, wvol_error *err)
+{
+    wvol_store *w = (wvol_store *)s; /* the lazily made view: guarded by its lock */
+    wvol_status st = WVOL_OK;
+    if (s->file || !s->view_lock_ok) return build_view(out, bounds, s, exact_threads, exact, err);
+    *out = NULL;
+    if (bounds) *bounds = NULL;
+    if (exact) *exact = 0;
+    pthread_mutex_lock(&w->view_lock);
+    if (!w->view || (bounds && !w->view_bounds_done)) {
+        wvol__store_blocks *v = NULL;
+        wvol__brick_bounds *b = NULL;
+        st = build_view(&v, bounds ? &b : NULL, s, -1, NULL, err);
+        if (st == WVOL_OK) {
+            if (!w->view) {
+                v->cached = 1;
+                v->cs.ctx = v;
+                w->view = v;
+            } else {
+                wvol__store_blocks_destroy(v);
+            }
+            if (bounds) {
+                w->view_bounds = b;
+                w->view_bounds_done = 1;
+            }
+        }
+    }
+    if (st == WVOL_OK && bounds && w->view_bounds) st = wvol__bounds_clone(bounds, w->view_bounds, err);
+    if (st == WVOL_OK) *out = w->view;
+    pthread_mutex_unlock(&w->view_lock);
+    return st;
+}
+
 wvol_status wvol__store_blocks_create(wvol__store_blocks **out, wvol__brick_bounds **bounds, const wvol_store *s,
                                       wvol_error *err)
 {
@@ -543,9 +582,23 @@ size_t wvol__store_blocks_bytes(const wvol__store_blocks *b)
     return b ? b->bytes : 0;
 }
 
-void wvol__store_blocks_destroy(wvol__store_blocks *b)
+static void blocks_destroy(wvol__store_blocks *b)
 {
     if (!b) return;
     blocks_free(b);
     free(b);
+}
+
+void wvol__store_blocks_destroy(wvol__store_blocks *b)
+{
+    if (b && !b->cached) blocks_destroy(b);
+}
+
+void wvol__store_view_free(wvol_store *s)
+{
+    blocks_destroy(s->view);
+    wvol__bounds_free(s->view_bounds);
+    s->view = NULL;
+    s->view_bounds = NULL;
+    s->view_bounds_done = 0;
 }

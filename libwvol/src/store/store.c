@@ -108,6 +108,8 @@ static inline int bs_get(const bitset *b, size_t i) { return (int)((b->w[i >> 6]
 
 static void store_free_parts(wvol_store *s)
 {
+    wvol__store_view_free(s);
+    if (s->view_lock_ok) pthread_mutex_destroy(&s->view_lock);
     wvol_basis_destroy(s->basis);
     wvol__ranges_free(&s->rg);
     free(s->lowpass), free(s->root_of), free(s->nodes), free(s->values), free(s->hash);
@@ -119,6 +121,8 @@ wvol_status wvol__store_shell(wvol_store *s, const wvol__layout *ly, const wvol_
                               wvol_error *err)
 {
     size_t nlow;
+    WVOL_RETURN_IF(pthread_mutex_init(&s->view_lock, NULL) != 0, err, WVOL_ERR_NOMEM, "store: no lock for its view");
+    s->view_lock_ok = 1;
     s->ly = *ly;
     s->filter = filter;
     s->nx = n[0], s->ny = n[1], s->nz = n[2];

@@ -4,6 +4,7 @@
 #ifndef WVOL_STORE_INTERNAL_H
 #define WVOL_STORE_INTERNAL_H
 
+#include <pthread.h>
 #include <stddef.h>
 #include <stdint.h>
 #include <math.h>
@@ -184,7 +185,18 @@ struct wvol_store {
     double fgmax[WVOL_SELECT_MAX_LEVELS + 1][8][3];
     double norm[WVOL_SELECT_MAX_LEVELS + 1];  /* 2^{-m d / 2} */
     double pow2[WVOL_SELECT_MAX_LEVELS + 1], ipow2[WVOL_SELECT_MAX_LEVELS + 1];  /* 2^m, 2^-m */
+    /* A built store's block-sparse view and its brick bounds (blocks.c), made on first use
+     * under view_lock and kept until the store is destroyed: every brick reader (renderer
+     * frames, marching cubes at several iso-values, the caster) shares them. */
+    pthread_mutex_t view_lock;
+    int view_lock_ok;
+    struct wvol__store_blocks *view;
+    struct wvol__brick_bounds *view_bounds;
+    int view_bounds_done;     /* view_bounds made (it stays NULL where the bound does not apply) */
 };
+
+/* Frees the cached view and bounds (blocks.c). */
+void wvol__store_view_free(wvol_store *s);
 
 /* A file-backed store's first decoding error since the last call (gathers cannot
  * return one): WVOL_OK for a built store. */

@@ -102,6 +102,8 @@ void wvol__bounds_finish(wvol__brick_bounds *b);
 /* Bound of the samples in the box [s0, s1] (inclusive voxel indices). */
 void wvol__bounds_box(const wvol__brick_bounds *b, const long s0[3], const long s1[3], double *vmin, double *vmax);
 size_t wvol__bounds_bytes(const wvol__brick_bounds *b);
+/* A copy of a finished bound, its own tables (the low-pass cube too when b reconstructed it). */
+wvol_status wvol__bounds_clone(wvol__brick_bounds **out, const wvol__brick_bounds *b, wvol_error *err);
 void wvol__bounds_free(wvol__brick_bounds *b);
 
 #endif
