@@ -661,6 +661,68 @@ static void store_matches_coeffs(void)
     }
 }
 
+static int same_mesh(const wvol_mesh *a, const wvol_mesh *b)
+{
+    return a && b && a->nverts == b->nverts && a->ntris == b->ntris &&
+           memcmp(a->verts, b->verts, 3 * a->nverts * sizeof *a->verts) == 0 &&
+           memcmp(a->tris, b->tris, 3 * a->ntris * sizeof *a->tris) == 0 &&
+           (!a->normals) == (!b->normals) &&
+           (!a->normals || memcmp(a->normals, b->normals, 3 * a->nverts * sizeof *a->normals) == 0);
+}
+
+/* A built store makes its block view and brick bounds on first use and keeps them: two
+ * threads extracting at once from a store that has none yet, and later extractions, all give
+ * the mesh of a fresh store's first extraction, bit for bit, at every iso-value. */
+static void store_view_is_kept(void)
+{
+    const size_t n = 56;
+    double prm[4] = {0.45 * (double)n, 0.5 * (double)n, 0.55 * (double)n, 0.15 * (double)n};
+    const double isos[3] = {0.3, 0.5, 0.7};
+    wvol_volume *v = make_field(n, 1.0, 0.0, gaussian, prm);
+    wvol_store *fresh[3] = {NULL, NULL, NULL}, *s = NULL;
+    wvol_mesh *ref[3] = {NULL, NULL, NULL};
+    wvol_iso_params p;
+    wvol_error err;
+    int k;
+    wvol_iso_params_default(&p);
+    p.brick = 8;
+    p.threads = 1;
+    for (k = 0; k < 3; k++) {
+        fresh[k] = v ? fixture_store(v, "db2", 3, 0.1, 4) : NULL;
+        CHECK(fresh[k] && wvol_iso_extract_store(&ref[k], fresh[k], isos[k], &p, NULL, &err) == WVOL_OK,
+              "fresh store, iso %g", isos[k]);
+    }
+    s = v ? fixture_store(v, "db2", 3, 0.1, 4) : NULL;
+    CHECK(s != NULL, "store");
+    if (s) {
+        wvol_mesh *m[2] = {NULL, NULL};
+        int st[2] = {-1, -1};
+#ifdef _OPENMP
+#pragma omp parallel for num_threads(2)
+#endif
+        for (k = 0; k < 2; k++) {
+            wvol_error e;
+            st[k] = wvol_iso_extract_store(&m[k], s, isos[k], &p, NULL, &e);
+        }
+        for (k = 0; k < 2; k++) {
+            CHECK(st[k] == WVOL_OK && same_mesh(m[k], ref[k]), "concurrent first use, iso %g", isos[k]);
+            wvol_mesh_destroy(m[k]);
+        }
+        for (k = 0; k < 3; k++) {
+            wvol_mesh *again = NULL;
+            CHECK(wvol_iso_extract_store(&again, s, isos[k], &p, NULL, &err) == WVOL_OK && same_mesh(again, ref[k]),
+                  "kept view, iso %g", isos[k]);
+            wvol_mesh_destroy(again);
+        }
+    }
+    for (k = 0; k < 3; k++) {
+        wvol_mesh_destroy(ref[k]);
+        wvol_store_destroy(fresh[k]);
+    }
+    wvol_store_destroy(s);
+    wvol_volume_destroy(v);
+}
+
 int main(void)
 {
     table_is_consistent();
@@ -675,6 +737,7 @@ int main(void)
     mesh_files();
     bricks_match_dense();
     store_matches_coeffs();
+    store_view_is_kept();
     brick_bounds_hold();
     return check_summary("test_iso");
 }
