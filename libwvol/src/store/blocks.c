@@ -523,7 +523,7 @@ static wvol_status build_view(wvol__store_blocks **out, wvol__brick_bounds **bou
 
 /* A built store's view and bounds depend on the store alone: made once, on first use, and
  * kept by the store (wvol_store is immutable, so they never go stale); the caller gets the
- * shared view (its destroy is then a no-op) and its own copy of the bounds. A store opened
+ * shared view and bounds (destroying or freeing them is then a no-op). A store opened
  * on a file builds them each time: its bounds depend on what its chunk cache can hold. */
 static wvol_status create(wvol__store_blocks **out, wvol__brick_bounds **bounds, const wvol_store *s,
                           int exact_threads, int *exact, wvol_error *err)
@@ -548,13 +548,16 @@ static wvol_status create(wvol__store_blocks **out, wvol__brick_bounds **bounds,
                 wvol__store_blocks_destroy(v);
             }
             if (bounds) {
+                wvol__bounds_keep(b, 1);
                 w->view_bounds = b;
                 w->view_bounds_done = 1;
             }
         }
     }
-    if (st == WVOL_OK && bounds && w->view_bounds) st = wvol__bounds_clone(bounds, w->view_bounds, err);
-    if (st == WVOL_OK) *out = w->view;
+    if (st == WVOL_OK) {
+        *out = w->view;
+        if (bounds) *bounds = w->view_bounds;
+    }
     pthread_mutex_unlock(&w->view_lock);
     return st;
 }
@@ -597,6 +600,7 @@ void wvol__store_blocks_destroy(wvol__store_blocks *b)
 void wvol__store_view_free(wvol_store *s)
 {
     blocks_destroy(s->view);
+    wvol__bounds_keep(s->view_bounds, 0);
     wvol__bounds_free(s->view_bounds);
     s->view = NULL;
     s->view_bounds = NULL;

@@ -126,51 +126,23 @@ struct wvol__brick_bounds {
     int nbands;
     float *own_low;    /* the low-pass cube when the bound reconstructed it (create_src) */
     size_t bytes;      /* tables beyond the struct */
+    int kept;          /* held by its maker (wvol__bounds_keep): wvol__bounds_free leaves it */
     band_blocks bb[7 * 32 + 1];
 };
 typedef struct wvol__brick_bounds brick_bounds;
 
+void wvol__bounds_keep(brick_bounds *b, int kept)
+{
+    if (b) b->kept = kept;
+}
+
 void wvol__bounds_free(brick_bounds *b)
 {
     int i;
-    if (!b) return;
+    if (!b || b->kept) return;
     for (i = 0; i < b->nbands; i++) free(b->bb[i].absmax);
     free(b->own_low);
     free(b);
-}
-
-wvol_status wvol__bounds_clone(brick_bounds **out, const brick_bounds *b, wvol_error *err)
-{
-    brick_bounds *c;
-    *out = NULL;
-    c = malloc(sizeof *c);
-    WVOL_RETURN_IF(!c, err, WVOL_ERR_NOMEM, "brick bounds: out of memory");
-    *c = *b;
-    c->own_low = NULL;
-    for (int i = 0; i < c->nbands; i++) c->bb[i].absmax = NULL;
-    for (int i = 0; i < b->nbands; i++) {
-        const band_blocks *q = &b->bb[i];
-        size_t n = q->nb[0] * q->nb[1] * q->nb[2];
-        if (q->m == b->M && q->band == 0 && b->own_low) {
-            /* the reconstructed low-pass cube: e0 e1 e2 at the bound's coarsest level */
-            size_t nl = q->e[0] * q->e[1] * q->e[2];
-            c->own_low = malloc(nl * sizeof *c->own_low);
-            if (c->own_low) memcpy(c->own_low, b->own_low, nl * sizeof *c->own_low);
-            if (b->low == b->own_low) c->low = c->own_low;
-            if (!c->own_low) break;
-        }
-        if (!q->absmax) continue;
-        c->bb[i].absmax = malloc(n * sizeof *q->absmax);
-        if (!c->bb[i].absmax) break;
-        memcpy(c->bb[i].absmax, q->absmax, n * sizeof *q->absmax);
-    }
-    for (int i = 0; i < b->nbands; i++)
-        if ((b->bb[i].absmax && !c->bb[i].absmax) || (b->own_low && !c->own_low)) {
-            wvol__bounds_free(c);
-            return wvol_error_set(err, WVOL_ERR_NOMEM, "brick bounds: out of memory");
-        }
-    *out = c;
-    return WVOL_OK;
 }
 
 /* block: NULL, or per axis a least block edge (positions; rounded down to a power of two). */

@@ -9,6 +9,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "core/clones.h"
 #include "wavelet/wavelet_internal.h"
 
 wvol_status wvol_idwt3_level(wvol_volume **out, const wvol_coeffs *c, int stop_level, wvol_error *err)
@@ -191,6 +192,12 @@ static inline void tap_range(ptrdiff_t gi, ptrdiff_t L, ptrdiff_t k0, ptrdiff_t 
  * same operations in the same order, so the same results bit for bit. */
 #define SYNTH_FIXED_MAX 4
 
+/* The synthesis passes are multi-versioned (core/clones.h: AVX2 rows where the CPU has them)
+ * with contraction off, so that no clone fuses a multiply and an add into an FMA: every
+ * clone rounds each product and each sum as the baseline does, the same samples bit for bit
+ * on every CPU. */
+#define WVOL__SYNTH WVOL__CLONES __attribute__((optimize("fp-contract=off")))
+
 /* A run of outputs along y or z (inner > 1): o[x] = sum_j wh[j] l[j][x] + wg[j] h[j][x]
  * over whole inner rows, in one pass (the general loop adds each tap into o in its own pass). */
 static inline __attribute__((always_inline)) void synth_rows_fixed(float *restrict o, const float *const *l,
@@ -282,7 +289,7 @@ static inline __attribute__((always_inline)) void synth_x_pairs(float *restrict 
     default: return 0;                                                                                       \
     }
 
-static int synth_rows_any(float *o, const float *const *l, const float *const *h, const float *wh,
+WVOL__SYNTH static int synth_rows_any(float *o, const float *const *l, const float *const *h, const float *wh,
                           const float *wg, ptrdiff_t inner, int nt, int which)
 {
 #define ROWS_CALL(N, W) synth_rows_fixed(o, l, h, wh, wg, inner, N, W)
@@ -290,7 +297,7 @@ static int synth_rows_any(float *o, const float *const *l, const float *const *h
 #undef ROWS_CALL
 }
 
-static int synth_x_pairs_any(float *o, const float *lu, const float *hu, const ptrdiff_t *r0, const float *eh,
+WVOL__SYNTH static int synth_x_pairs_any(float *o, const float *lu, const float *hu, const ptrdiff_t *r0, const float *eh,
                              const float *eg, const float *oh, const float *og, ptrdiff_t i0, ptrdiff_t i1,
                              int nt, int which)
 {
@@ -321,7 +328,7 @@ static inline float planned_sum(const float *lu, const float *hu, const ptrdiff_
     return acc;
 }
 
-static void synth_x_planned(float *out, const float *lo, const float *hi, ptrdiff_t kn, ptrdiff_t k0,
+WVOL__SYNTH static void synth_x_planned(float *out, const float *lo, const float *hi, ptrdiff_t kn, ptrdiff_t k0,
                             ptrdiff_t o0, ptrdiff_t on, ptrdiff_t outer, int full, const wvol_filter *f)
 {
     ptrdiff_t rel[SYNTH_PLAN_MAX], first[SYNTH_PLAN_MAX + 1], r0[SYNTH_PLAN_MAX], L = f->length, nt = 0;
@@ -377,7 +384,7 @@ static void synth_x_planned(float *out, const float *lo, const float *hi, ptrdif
  * zero) cover the region (in_lo, in_n) (along the axis [k0, k0+kn)), out covers [o0, o0+on)
  * along the axis and in's extent along the others. out[i] = sum_k h[i-2k] lo[k] + g[i-2k]
  * hi[k], 0 <= i-2k < L. When the input region is a whole period (full), k is taken modulo it. */
-static void synth_axis(float *out, const float *lo, const float *hi, const ptrdiff_t in_lo[3],
+WVOL__SYNTH static void synth_axis(float *out, const float *lo, const float *hi, const ptrdiff_t in_lo[3],
                        const ptrdiff_t in_n[3], ptrdiff_t o0, ptrdiff_t on, int axis, int full, const wvol_filter *f)
 {
     /* [outer][axis][inner] view, inner contiguous: the tap loop adds whole inner rows

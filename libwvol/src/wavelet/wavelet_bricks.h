@@ -102,8 +102,9 @@ void wvol__bounds_finish(wvol__brick_bounds *b);
 /* Bound of the samples in the box [s0, s1] (inclusive voxel indices). */
 void wvol__bounds_box(const wvol__brick_bounds *b, const long s0[3], const long s1[3], double *vmin, double *vmax);
 size_t wvol__bounds_bytes(const wvol__brick_bounds *b);
-/* A copy of a finished bound, its own tables (the low-pass cube too when b reconstructed it). */
-wvol_status wvol__bounds_clone(wvol__brick_bounds **out, const wvol__brick_bounds *b, wvol_error *err);
+/* kept = 1: b is shared by its maker (a store's cached bounds, read-only once finished), and
+ * wvol__bounds_free leaves it; the maker sets 0 again before freeing it. */
+void wvol__bounds_keep(wvol__brick_bounds *b, int kept);
 void wvol__bounds_free(wvol__brick_bounds *b);
 
 #endif
