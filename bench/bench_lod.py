@@ -30,8 +30,11 @@ import json
 import os
 import pathlib
 import platform
+import resource
+import subprocess
 import sys
 import tempfile
+import time
 
 import numpy as np
 
@@ -153,6 +156,37 @@ def file_rows(path, size, iso, mesh_level, full_timeout):
     return rows
 
 
+def lod_vs_rows(path, peer, size, tf, rounds):
+    """The issue's yardstick for a LOD frame of a large file: the same frame (camera, size,
+    TF, one thread) of the same volume made at the grid the LOD picks (its own default,
+    level 0 there), alternated `rounds` times, the fastest of each kept. CPU seconds are the
+    children's rusage difference around each process (the machine is shared: the wall time
+    counts other jobs)."""
+    rows = {}
+    with tempfile.TemporaryDirectory(prefix="bench_lod_vs_", dir=os.environ.get("BENCH_TMP")) as td:
+        for _ in range(rounds):
+            for name, f in (("file", path), ("peer", peer)):
+                before = resource.getrusage(resource.RUSAGE_CHILDREN)
+                t0 = time.perf_counter()
+                p = subprocess.run(wvol("render", f, "-o", pathlib.Path(td) / f"{name}.exr", "--size",
+                                        f"{size}x{size}", "--camera", CAMERA, "--tf", tf, "--threads", 1, "--json"),
+                                   capture_output=True, text=True, env=dict(os.environ, OMP_NUM_THREADS="1"))
+                wall = time.perf_counter() - t0
+                after = resource.getrusage(resource.RUSAGE_CHILDREN)
+                if p.returncode != 0:
+                    sys.exit(f"bench_lod: render {f} failed:\n{p.stderr}")
+                r = json.loads(p.stdout)
+                cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
+                e = {"file": str(f), "wall_seconds": wall, "cpu_seconds": cpu, "peak_rss_mib": after.ru_maxrss / 1024.0,
+                     "lod": r["lod"], "method": r["method"], "render_seconds": r["render_seconds"]}
+                if name not in rows or cpu < rows[name]["cpu_seconds"]:
+                    rows[name] = e
+                print(f"{name}: {f}: {wall:.1f} s wall, {cpu:.2f} s CPU, level {r['lod']['level']}", flush=True)
+    return {"size": size, "camera": CAMERA, "tf": tf, "rounds": rounds, "file": rows["file"], "peer": rows["peer"],
+            "cpu_ratio": rows["file"]["cpu_seconds"] / rows["peer"]["cpu_seconds"],
+            "load_at_end": os.getloadavg()[0]}
+
+
 def write_md(res, path):
     L = ["# Level of detail and marching cubes from a store (bench/bench_lod.py)", "",
          f"Machine: {res['machine']}, {res['cores']} cores shared with other jobs; wvol {res['wvol']}.", "",
@@ -204,6 +238,18 @@ def write_md(res, path):
                      f"{g['decode_peak_rss_mib']:.0f} MiB; marching cubes {g['triangles']} triangles in "
                      f"{g['mc_seconds']:.1f} s, {g['mc_peak_rss_mib']:.0f} MiB (wall times of the processes)")
         L.append(f.get("note", ""))
+    for v in res.get("lod_vs", []):
+        a, b = v["file"], v["peer"]
+        L += ["", f"LOD frame of `{a['file']}` against the same frame of `{b['file']}` (the same volume made at "
+              f"{b['lod']['dims'][0]}^3, its own default level {b['lod']['level']}): {v['size']}^2, camera "
+              f"`{v['camera']}`, tf {v['tf']}, one thread, {v['rounds']} alternated rounds, the fastest of each by CPU "
+              "seconds (the processes' user + system time; the machine is shared, load average "
+              f"{v['load_at_end']:.1f} at the end):", "",
+              "| file | level | grid | method | CPU s | wall s | peak RSS MiB |", "|---|---|---|---|---|---|---|"]
+        for e in (a, b):
+            L.append(f"| `{pathlib.Path(e['file']).name}` | {e['lod']['level']} | {e['lod']['dims'][0]}^3 | "
+                     f"{e['method']} | {e['cpu_seconds']:.2f} | {e['wall_seconds']:.1f} | {e['peak_rss_mib']:.0f} |")
+        L += ["", f"CPU time ratio (LOD frame / same-grid frame): {v['cpu_ratio']:.2f} (the issue's goal: <= 2)."]
     path.write_text("\n".join(L) + "\n")
 
 
@@ -244,10 +290,20 @@ def main():
     ap.add_argument("--mc-only", action="store_true",
                     help="only the marching-cubes rows (--mc-sizes), replacing those of the existing .json")
     ap.add_argument("--wvc", help="add rows for this existing .wvc to the .json (frames and a level mesh)")
+    ap.add_argument("--lod-vs", nargs=2, metavar=("LARGE.wvc", "SAME_VOLUME_512.wvc"),
+                    help="add the LOD frame of LARGE against the same frame of the volume made at the LOD's grid")
+    ap.add_argument("--tf", default="ct-bone", help="--lod-vs: the transfer function")
     ap.add_argument("--iso", type=float, default=1.0, help="--wvc: the mesh's iso-value")
     ap.add_argument("--mesh-level", type=int, default=3, help="--wvc: the mesh's level")
     ap.add_argument("--full-timeout", type=int, default=900, help="--wvc: stop the full-resolution frame after this")
     args = ap.parse_args()
+    if args.lod_vs:
+        out, name = pathlib.Path(args.out), "lod_quick" if args.quick else "lod"
+        res = json.loads((out / f"{name}.json").read_text())
+        res.setdefault("lod_vs", []).append(lod_vs_rows(pathlib.Path(args.lod_vs[0]), pathlib.Path(args.lod_vs[1]),
+                                                        args.image, args.tf, args.rounds))
+        (out / f"{name}.json").write_text(json.dumps(res, indent=1) + "\n")
+        args.replot = True
     if args.wvc:
         out, name = pathlib.Path(args.out), "lod_quick" if args.quick else "lod"
         res = json.loads((out / f"{name}.json").read_text())
