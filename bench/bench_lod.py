@@ -30,7 +30,6 @@ import json
 import os
 import pathlib
 import platform
-import resource
 import subprocess
 import sys
 import tempfile
@@ -159,25 +158,27 @@ def file_rows(path, size, iso, mesh_level, full_timeout):
 def lod_vs_rows(path, peer, size, tf, rounds):
     """The issue's yardstick for a LOD frame of a large file: the same frame (camera, size,
     TF, one thread) of the same volume made at the grid the LOD picks (its own default,
-    level 0 there), alternated `rounds` times, the fastest of each kept. CPU seconds are the
-    children's rusage difference around each process (the machine is shared: the wall time
-    counts other jobs)."""
+    level 0 there), alternated `rounds` times, the fastest of each kept. CPU seconds and peak RSS
+    are each process's own rusage (the machine is shared: the wall time counts other jobs)."""
     rows = {}
     with tempfile.TemporaryDirectory(prefix="bench_lod_vs_", dir=os.environ.get("BENCH_TMP")) as td:
         for _ in range(rounds):
             for name, f in (("file", path), ("peer", peer)):
-                before = resource.getrusage(resource.RUSAGE_CHILDREN)
                 t0 = time.perf_counter()
-                p = subprocess.run(wvol("render", f, "-o", pathlib.Path(td) / f"{name}.exr", "--size",
-                                        f"{size}x{size}", "--camera", CAMERA, "--tf", tf, "--threads", 1, "--json"),
-                                   capture_output=True, text=True, env=dict(os.environ, OMP_NUM_THREADS="1"))
-                wall = time.perf_counter() - t0
-                after = resource.getrusage(resource.RUSAGE_CHILDREN)
-                if p.returncode != 0:
-                    sys.exit(f"bench_lod: render {f} failed:\n{p.stderr}")
-                r = json.loads(p.stdout)
-                cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
-                e = {"file": str(f), "wall_seconds": wall, "cpu_seconds": cpu, "peak_rss_mib": after.ru_maxrss / 1024.0,
+                with tempfile.TemporaryFile(mode="w+") as errf:
+                    p = subprocess.Popen(wvol("render", f, "-o", pathlib.Path(td) / f"{name}.exr", "--size",
+                                              f"{size}x{size}", "--camera", CAMERA, "--tf", tf, "--threads", 1,
+                                              "--json"), stdout=subprocess.PIPE, stderr=errf, text=True,
+                                         env=dict(os.environ, OMP_NUM_THREADS="1"))
+                    stdout = p.stdout.read()
+                    _, status, ru = os.wait4(p.pid, 0)  # this child's own CPU time and peak RSS
+                    wall = time.perf_counter() - t0
+                    if os.waitstatus_to_exitcode(status) != 0:
+                        errf.seek(0)
+                        sys.exit(f"bench_lod: render {f} failed:\n{errf.read()}")
+                r = json.loads(stdout)
+                cpu = ru.ru_utime + ru.ru_stime
+                e = {"file": str(f), "wall_seconds": wall, "cpu_seconds": cpu, "peak_rss_mib": ru.ru_maxrss / 1024.0,
                      "lod": r["lod"], "method": r["method"], "render_seconds": r["render_seconds"]}
                 if name not in rows or cpu < rows[name]["cpu_seconds"]:
                     rows[name] = e
