@@ -175,9 +175,7 @@ int wvol_cmd_decompress(int argc, char **argv)
              * below it is kept, with a note. */
             size_t need = wvol_wvc_slab_budget(wf, (int)level, lo, hi);
             if (!budget && need > WVOL_WVC_DEFAULT_BUDGET) {
-                wvol_wvc_close(wf);
-                wf = NULL;
-                if (wvol_wvc_open(&wf, in, need, &err) != WVOL_OK) {
+                if (wvol_wvc_set_budget(wf, need, &err) != WVOL_OK) {
                     rc = cli_fail_err("decompress", &err);
                     goto done;
                 }

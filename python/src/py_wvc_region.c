@@ -227,6 +227,22 @@ static PyObject *py_wvc_file_slab_budget(PyObject *self, PyObject *args, PyObjec
     return PyLong_FromSize_t(wvol_wvc_slab_budget(f, level, lo, hi));
 }
 
+/* wvc_file_set_budget(file, budget) -> None: the open file's chunk cache budget in bytes (0: the
+ * default), refused below one chain of decoded chunks (wvol_wvc_set_budget). */
+static PyObject *py_wvc_file_set_budget(PyObject *self, PyObject *args)
+{
+    PyObject *cap;
+    long long budget;
+    wvol_wvc_file *f;
+    wvol_error err;
+    (void)self;
+    if (!PyArg_ParseTuple(args, "OL", &cap, &budget)) return NULL;
+    if (!(f = file_of(cap))) return NULL;
+    if (budget < 0) return PyErr_Format(PyExc_ValueError, "budget %lld is negative", budget);
+    if (wvol_wvc_set_budget(f, (size_t)budget, &err) != WVOL_OK) return wvolpy_raise(&err);
+    Py_RETURN_NONE;
+}
+
 /* built_with_vtk() -> True when this build links VTK (the VTK adapter): such a module must not
  * be imported into ParaView, which carries a VTK of its own (docs/paraview.md). */
 static PyObject *py_built_with_vtk(PyObject *self, PyObject *unused)
@@ -246,4 +262,5 @@ PyMethodDef wvolpy_wvc_region_methods[] = {
     {"wvc_file_stats", py_wvc_file_stats, METH_O, "wvc_file_stats(file) -> counters"},
     {"wvc_file_slab_budget", (PyCFunction)(void (*)(void))py_wvc_file_slab_budget, METH_VARARGS | METH_KEYWORDS,
      "wvc_file_slab_budget(file, lo, hi, level=0) -> bytes"},
+    {"wvc_file_set_budget", py_wvc_file_set_budget, METH_VARARGS, "wvc_file_set_budget(file, budget) -> None"},
     {NULL, NULL, 0, NULL}};

@@ -197,7 +197,7 @@ class WVCReader(VTKPythonAlgorithmBase):
                 shape = self._info["shape"][::-1]  # (x, y, z)
                 need = _wvol.wvc_file_slab_budget(self._file, [0, 0, 0], shape)
                 if need > 0:
-                    self._file = _wvol.wvc_file_open(self._filename, budget=need)
+                    _wvol.wvc_file_set_budget(self._file, need)
             self._opened = key
 
     def _level_extent(self):

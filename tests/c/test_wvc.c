@@ -1100,6 +1100,26 @@ static void wvc2_budget_and_damage(void)
             wvol_coeffs_destroy(dec);
         }
         wvol_volume_destroy(full);
+        /* the budget of the open file: below one chain refused and unchanged; lowered, the
+         * cache evicts down to it at once; raised, a later read holds more */
+        CHECK(wvol_wvc_set_budget(wf, 100, &err) == WVOL_ERR_NOMEM && strstr(err.message, "chain"),
+              "set_budget below one chain is refused: %s", err.message);
+        wvol_wvc_file_stats(wf, &cs);
+        CHECK(cs.budget == budget, "a refused budget leaves it at %zu (%zu)", budget, cs.budget);
+        CHECK(wvol_wvc_set_budget(wf, budget / 3, &err) == WVOL_OK, "lower budget: %s", err.message);
+        wvol_wvc_file_stats(wf, &cs);
+        CHECK(cs.budget == budget / 3 && cs.held <= budget / 3, "lowered: %zu held within %zu", cs.held, cs.budget);
+        CHECK(wvol_wvc_set_budget(wf, 0, &err) == WVOL_OK, "the default budget: %s", err.message);
+        {
+            wvol_volume *again = NULL;
+            size_t all_lo[3] = {0, 0, 0}, all_hi[3] = {64, 64, 64};
+            CHECK(wvol_wvc_read_region(&again, wf, all_lo, all_hi, 0, &err) == WVOL_OK, "read: %s", err.message);
+            wvol_wvc_file_stats(wf, &cs);
+            CHECK(cs.budget == WVOL_WVC_DEFAULT_BUDGET && cs.held > budget,
+                  "raised to the default: %zu held (more than the old %zu)", cs.held, budget);
+            wvol_volume_destroy(again);
+        }
+        CHECK(wvol_wvc_set_budget(NULL, 0, &err) == WVOL_ERR_ARG, "a NULL file is refused");
         wvol_wvc_close(wf);
         wf = NULL;
     }

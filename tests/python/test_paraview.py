@@ -197,6 +197,14 @@ def test_slab_budget_is_what_slab_reads_need(wvc, vtk_reader):
 
     assert info["chunks"] <= decodes(need) <= info["chunks"] + wrap
     assert decodes(need // 4) > info["chunks"] + wrap
+    # the open file's budget set to the need (what the reader does) reads like a file opened with it
+    h = _wvol.wvc_file_open(str(f))
+    _wvol.wvc_file_set_budget(h, need)
+    assert _wvol.wvc_file_stats(h)["budget"] == need
+    for bad in (-1, 1):
+        with pytest.raises((ValueError, MemoryError)):
+            _wvol.wvc_file_set_budget(h, bad)
+    assert _wvol.wvc_file_stats(h)["budget"] == need
     r = vtk_reader()
     r.SetFileName(str(f))
     r.UpdateInformation()

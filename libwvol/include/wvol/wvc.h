@@ -194,6 +194,13 @@ WVOL_API wvol_status wvol_wvc_read_region_into(float *dst, wvol_wvc_file *f, con
  * 0 for a version-1 file (decoded whole at open) or a bad argument. */
 WVOL_API size_t wvol_wvc_slab_budget(const wvol_wvc_file *f, int level, const size_t lo[3], const size_t hi[3]);
 
+/* Sets an open file's chunk cache budget (0: WVOL_WVC_DEFAULT_BUDGET), e.g. to what
+ * wvol_wvc_slab_budget says a read needs, without opening the file again. A budget below one
+ * chain of decoded chunks (one per level; a version-1 file: its whole decode) is refused as at
+ * open, and the budget is unchanged. A lower budget evicts unpinned chunks at once. Not while
+ * a read on f is in progress in another thread. */
+WVOL_API wvol_status wvol_wvc_set_budget(wvol_wvc_file *f, size_t budget, wvol_error *err);
+
 /* Predicted and measured error. sse is a sum of squared errors over n samples;
  * PSNR uses peak = value range (infinite for sse 0). */
 WVOL_API double wvol_wvc_psnr(double sse, double n, double vmin, double vmax);

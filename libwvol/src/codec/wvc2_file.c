@@ -60,6 +60,7 @@ struct wvol_wvc_file {
     centry **slot;
     centry *mru, *lru;
     size_t budget, held, peak, chunk_max;
+    size_t chain;               /* one decoded chunk per level: the least budget (format 2) */
     uint64_t decoded, hits, bytes_read;
     wvol_status first_status;
     char first_message[sizeof(((wvol_error *)0)->message)];
@@ -244,6 +245,7 @@ wvol_status wvol_wvc_open(wvol_wvc_file **out, const char *path, size_t budget, 
             wvol_wvc_close(f);
             return wvol_error_set(err, WVOL_ERR_NOMEM, "wvc open: out of memory");
         }
+        f->chain = chain;
         if (chain > f->budget) {
             size_t b = f->budget;
             wvol_wvc_close(f);
@@ -824,6 +826,28 @@ wvol_status wvol_wvc_read_region(wvol_volume **out, wvol_wvc_file *f, const size
         return st;
     }
     *out = v;
+    return WVOL_OK;
+}
+
+wvol_status wvol_wvc_set_budget(wvol_wvc_file *f, size_t budget, wvol_error *err)
+{
+    size_t b = budget ? budget : WVOL_WVC_DEFAULT_BUDGET;
+    WVOL_RETURN_IF(!f, err, WVOL_ERR_ARG, "wvc set budget: file is NULL");
+    if (f->dense) {
+        size_t need = f->dense->px * f->dense->py * f->dense->pz * sizeof(float);
+        WVOL_RETURN_IF(need > b, err, WVOL_ERR_NOMEM,
+                       "a version-1 file is decoded whole (%zu bytes), more than the memory budget of %zu bytes", need,
+                       b);
+    } else {
+        WVOL_RETURN_IF(f->chain > b, err, WVOL_ERR_NOMEM,
+                       "memory budget of %zu bytes is below the %zu bytes one chain of decoded chunks (one per level) "
+                       "needs",
+                       b, f->chain);
+    }
+    lock(f);
+    f->budget = b;
+    if (!f->dense) evict(f); /* a lower budget: unpinned chunks go, least recent first */
+    unlock(f);
     return WVOL_OK;
 }
 
