@@ -199,7 +199,8 @@ def ct_suite(a, wvol, timed, rgba, tmp, outdir, machine):
                             kw.update(first_cpu_s=info["first_cpu_seconds"], cpu_s=info["later_cpu_seconds"],
                                       wall_s=info["later_seconds"], bricks_reused=info.get("bricks_reused"),
                                       cache_bytes=info.get("cache_bytes"), context_bytes=info.get("context_bytes"))
-                            if st == steps[0] and name.startswith("bricks") and "preint" not in name:
+                            if (st == steps[0] and name.startswith("bricks") and "preint" not in name
+                                    and "--context-cache" not in name):
                                 # the same frame as separate calls, each building everything
                                 one = [wvol, "render", str(nrrd), "-o", str(tmp / "p.exr"), "--json", "--threads",
                                        str(thr), "--repeat", str(a.peer_repeat), "--one-shot", *base, *args]
@@ -288,6 +289,9 @@ def summary(rows):
     base = any(r["method"].endswith("(baseline)") for r in rows)
     preint = any("--preintegrate" in r["method"] for r in rows)
     T = "bricks 5% step=0.5 --termination 0.0078"
+    # rows with a larger context cache at VTK's termination (--ct-extra "--termination 0.0078
+    # --context-cache SIZE"): their own column
+    big = sorted({r["method"] for r in rows if r["method"].startswith(T + " --context-cache")})
     out = ["", "## Summary per case (1 thread unless stated)\n",
            "Step 0.5 (VTK's). The stated comparison is at equal termination: VTK ends a ray at a remaining "
            "opacity of 0xff/0x7fff = 0.0078, 'at VTK's termination' gives wvol the same threshold; wvol's default "
@@ -295,12 +299,14 @@ def summary(rows):
            "the first frame, set-up included, over VTK's first; 'one-shot': each frame a separate call over VTK's "
            "later frames." + (" '(baseline)': the other build given by --ct-baseline, one-shot, in the same run."
                               if base else "") + "\n",
-           "| volume | TF | camera | at VTK's termination, later / VTK (1 thr, 2 thr) | first / VTK (1, 2 thr) | "
-           "one-shot / VTK (1, 2 thr) |" + (" baseline one-shot / VTK (1, 2 thr) |" if base else "") +
+           "| volume | TF | camera | at VTK's termination, later / VTK (1 thr, 2 thr) |" +
+           "".join(f" {m.split('--termination 0.0078 ')[1]}, later / VTK (1, 2 thr) |" for m in big) +
+           " first / VTK (1, 2 thr) | one-shot / VTK (1, 2 thr) |" + (" baseline one-shot / VTK (1, 2 thr) |" if base else "") +
            " termination 1e-6, later / VTK (1, 2 thr) | at equal error: reference / bricks CPU (later frames) | "
            "classic step 0.5 error |" + (" largest pre-integrated step at <= that error (reference; bricks) |"
                                          if preint else ""),
-           "|---|---|---|---|---|---|" + ("---|" if base else "") + "---|---|---|" + ("---|" if preint else "")]
+           "|---|---|---|---|" + "---|" * len(big) + "---|---|" + ("---|" if base else "") + "---|---|---|" +
+           ("---|" if preint else "")]
     keys = sorted({(r["volume"], r["tf"], r["camera"]) for r in rows})
     for key in keys:
         sel = [r for r in rows if (r["volume"], r["tf"], r["camera"]) == key and "rel_rmse" in r]
@@ -330,7 +336,8 @@ def summary(rows):
         if best:
             eq = f"{best[0]:.2f} ({best[1]})"
         classic = one("reference step=0.5", 1)
-        cols = [pair(T, "cpu_s"), pair(T, "first_cpu_s", "first_cpu_s"), pair(T, "one_shot_cpu_s")]
+        cols = [pair(T, "cpu_s")] + [pair(m, "cpu_s") for m in big] + [pair(T, "first_cpu_s", "first_cpu_s"),
+                                                                       pair(T, "one_shot_cpu_s")]
         if base:
             cols += [pair(T + " (baseline)", "one_shot_cpu_s")]
         cols += [pair("bricks 5% step=0.5", "cpu_s"), eq, f"{classic['rel_rmse']:.3g}" if classic else "-"]
