@@ -11,7 +11,8 @@
 struct wvol_render_context {
     wvol_render_source source;
     wvol_render_params params;
-    size_t cache_bytes;     /* the brick cache's budget (resolved from 0 at create) */
+    size_t cache_given;     /* the budget asked for at create (0: the default) */
+    size_t cache_bytes;     /* the brick cache's budget for the current source */
     wvol__bricks *bricks;   /* NULL until a bricked frame */
 };
 
@@ -51,6 +52,7 @@ wvol_status wvol_render_context_create(wvol_render_context **out, const wvol_ren
     WVOL_RETURN_IF(!c, err, WVOL_ERR_NOMEM, "render context: out of memory");
     c->source = *source;
     wvol__params(&c->params, params);
+    c->cache_given = cache_bytes;
     c->cache_bytes = cache_bytes ? cache_bytes : default_cache(source);
     *out = c;
     return WVOL_OK;
@@ -86,6 +88,7 @@ wvol_status wvol_render_context_set_source(wvol_render_context *ctx, const wvol_
     wvol__bricks_destroy(ctx->bricks);
     ctx->bricks = NULL;
     ctx->source = *source;
+    ctx->cache_bytes = ctx->cache_given ? ctx->cache_given : default_cache(source); /* the default is the source's */
     return WVOL_OK;
 }
 
