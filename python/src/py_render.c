@@ -276,8 +276,9 @@ static PyObject *py_render_context_new(PyObject *self, PyObject *args)
 {
     long long cache = 0;
     py_context *pc;
-    wvol_render_source none = wvol_render_source_volume(NULL);
-    wvol_volume dummy;
+    /* a placeholder source, never rendered: each frame sets its own (context_for) */
+    static wvol_volume placeholder;
+    wvol_render_source none = wvol_render_source_volume(&placeholder);
     wvol_error err;
     PyObject *cap;
     (void)self;
@@ -285,8 +286,6 @@ static PyObject *py_render_context_new(PyObject *self, PyObject *args)
     if (cache < 0) return PyErr_Format(PyExc_ValueError, "cache_bytes must be >= 0 (0: the default)");
     pc = calloc(1, sizeof *pc);
     if (!pc) return PyErr_NoMemory();
-    memset(&dummy, 0, sizeof dummy);
-    none.volume = &dummy; /* replaced by each frame's source */
     if (wvol_render_context_create(&pc->ctx, &none, NULL, (size_t)cache, &err) != WVOL_OK) {
         free(pc);
         return wvolpy_raise(&err);
