@@ -315,6 +315,14 @@ def main():
                          "threshold 0xff/0x7fff; pre-integration)")
     ap.add_argument("--ct-scale", type=float, default=1, help="ct suite: divide the sizes by this (smoke tests)")
     ap.add_argument("--no-vtk", action="store_true", help="ct suite: leave VTK out")
+    ap.add_argument("--ct-no-shading", action="store_true",
+                    help="ct suite: leave the shading figure (render_ct_shading.png) as it is")
+    ap.add_argument("--ct-frames", type=int, default=4,
+                    help="ct suite: frames per run through one render context (wvol) or one window (VTK): the first "
+                         "(set-up included) and the later ones, the camera turned by --ct-orbit between frames")
+    ap.add_argument("--ct-orbit", type=float, default=1.0,
+                    help="ct suite: degrees the camera turns between frames about its up axis (the last frame is the "
+                         "camera's own view)")
     ap.add_argument("--ct-baseline", default="",
                     help="ct suite: another wvol program (e.g. main's build) whose bricks rows at VTK's step, at the "
                          "default termination and at VTK's, run in the same run, labelled '(baseline)'")
@@ -477,8 +485,9 @@ def main():
                         if have(vname, "opacity-only", f"{name}{cam_note} [{pt} thr]", keep):
                             continue
                         out = tmp / "o.exr"
-                        info, dt, mem, e = wvol_render(uraw, n, out, pc + args + ["--repeat", str(a.peer_repeat)],
-                                                       str(pt))
+                        # each frame a separate call (--one-shot), as this table has always timed
+                        info, dt, mem, e = wvol_render(uraw, n, out, pc + args + ["--repeat", str(a.peer_repeat),
+                                                                                  "--one-shot"], str(pt))
                         if e:
                             peer_row(name, pt, keep, error=e)
                             continue

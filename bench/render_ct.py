@@ -76,15 +76,21 @@ else:  # "+z", "+y", "+x": camera on that side looking back, wvol's up (+y for z
     dist = 2 * ext.max()
     cam.SetFocalPoint(*c); cam.SetPosition(*(c + d * dist)); cam.SetViewUp(*up)
     cam.ParallelProjectionOn(); cam.SetParallelScale(h / 2); cam.SetClippingRange(0.1, 4 * dist)
-win.Render()
+# frames as wvol's --repeat N --orbit D: frame i turned by (N-1-i) D degrees about the view's up
+# axis through the focal point, the last at the requested view; the first frame (VTK builds its
+# tables there) timed apart from the later ones
+N, D = cfg["frames"], cfg["orbit"]
 cpu, wall = [], []
-for _ in range(cfg["repeat"]):
+cam.Azimuth((N - 1) * D); cam.OrthogonalizeViewUp()
+for i in range(N):
+    if i:
+        cam.Azimuth(-D); cam.OrthogonalizeViewUp()
     t0 = time.process_time(); w0 = time.perf_counter(); win.Render(); t1 = time.process_time(); w1 = time.perf_counter()
     cpu.append(t1 - t0); wall.append(w1 - w0)
 w2i = vtk.vtkWindowToImageFilter(); w2i.SetInput(win); w2i.SetInputBufferTypeToRGB(); w2i.ReadFrontBufferOff(); w2i.Update()
 a = numpy_support.vtk_to_numpy(w2i.GetOutput().GetPointData().GetScalars()).reshape(img, img, -1)[::-1, :, :3]
 np.save(cfg["out"], a.astype(np.float32) / 255.0)
-print(min(cpu), min(wall))
+print(cpu[0], wall[0], min(cpu[1:]), min(wall[1:]))
 """
 
 
@@ -157,8 +163,9 @@ def ct_suite(a, wvol, timed, rgba, tmp, outdir, machine):
                     # the error-against-time curves at one thread; two threads at VTK's step
                     for st in (steps if thr == 1 else steps[:1]):
                         runs.append((f"reference step={st}", ["--method", "reference", "--step", str(st)], st))
-                        runs.append((f"reference step={st} --preintegrate",
-                                     ["--method", "reference", "--step", str(st), "--preintegrate"], st))
+                        if "--preintegrate" in a.ct_extra:
+                            runs.append((f"reference step={st} --preintegrate",
+                                         ["--method", "reference", "--step", str(st), "--preintegrate"], st))
                         runs.append((f"bricks 5% step={st}", ["--method", "bricks", "--keep", "5%", "--step", str(st)],
                                      st))
                         for extra in [e for e in a.ct_extra.split(";") if e]:
@@ -171,23 +178,43 @@ def ct_suite(a, wvol, timed, rgba, tmp, outdir, machine):
                                          ["--method", "bricks", "--keep", "5%", "--step", str(st), *extra.split()], st))
                     for name, args, st in runs:
                         out = tmp / "o.exr"
-                        prog = a.ct_baseline if name.endswith("(baseline)") else wvol
+                        baseline = name.endswith("(baseline)")
+                        prog = a.ct_baseline if baseline else wvol
+                        # this build: the frames through one render context, the camera turned
+                        # between them; the baseline (main's build, no context): separate calls
+                        frames = (["--repeat", str(a.peer_repeat)] if baseline else
+                                  ["--repeat", str(a.ct_frames), "--orbit", str(a.ct_orbit)])
                         cmd = [prog, "render", str(nrrd), "-o", str(out), "--json", "--threads", str(thr),
-                               "--repeat", str(a.peer_repeat), *base, *args]
+                               *frames, *base, *args]
                         dt, mem, so, se, rc = timed(cmd, env=RUN_ENV)
                         if rc:
                             row(name, thr, error=se.strip().splitlines()[-1] if se.strip() else "failed")
                             continue
                         info = json.loads(so)
-                        row(name, thr, step=st, cpu_s=info["render_cpu_seconds"], wall_s=info["render_seconds"],
-                            samples=info.get("samples"), bricks_built=info.get("bricks_built"),
-                            rel_rmse=err(rgba(out)[..., :3]))
+                        kw = dict(step=st, samples=info.get("samples"), bricks_built=info.get("bricks_built"),
+                                  rel_rmse=err(rgba(out)[..., :3]))
+                        if baseline:
+                            kw.update(one_shot_cpu_s=info["render_cpu_seconds"], wall_s=info["render_seconds"])
+                        else:
+                            kw.update(first_cpu_s=info["first_cpu_seconds"], cpu_s=info["later_cpu_seconds"],
+                                      wall_s=info["later_seconds"], bricks_reused=info.get("bricks_reused"),
+                                      cache_bytes=info.get("cache_bytes"), context_bytes=info.get("context_bytes"))
+                            if (st == steps[0] and name.startswith("bricks") and "preint" not in name
+                                    and "--context-cache" not in name):
+                                # the same frame as separate calls, each building everything
+                                one = [wvol, "render", str(nrrd), "-o", str(tmp / "p.exr"), "--json", "--threads",
+                                       str(thr), "--repeat", str(a.peer_repeat), "--one-shot", *base, *args]
+                                _, _, so1, _, rc1 = timed(one, env=RUN_ENV)
+                                if rc1 == 0:
+                                    kw["one_shot_cpu_s"] = json.loads(so1)["render_cpu_seconds"]
+                                    kw["one_shot_same_image"] = (tmp / "p.exr").read_bytes() == out.read_bytes()
+                        row(name, thr, **kw)
                     if shutil.which("xvfb-run") and not a.no_vtk:
                         for st in steps[:1]:
                             out = tmp / "vtk.npy"
                             cfg = {"raw": str(raw), "dims": dims, "spacing": sp, "image": img, "threads": thr,
-                                   "tf": tf_world(tfname, diag), "camera": cam, "repeat": a.peer_repeat,
-                                   "sample_distance": st * min(sp), "out": str(out)}
+                                   "tf": tf_world(tfname, diag), "camera": cam, "frames": a.ct_frames,
+                                   "orbit": a.ct_orbit, "sample_distance": st * min(sp), "out": str(out)}
                             (tmp / "vtk.json").write_text(json.dumps(cfg))
                             (tmp / "vtk_ct.py").write_text(VTK_CT)
                             dt, mem, so, se, rc = timed(["xvfb-run", "-a", "/usr/bin/python3", tmp / "vtk_ct.py",
@@ -195,9 +222,9 @@ def ct_suite(a, wvol, timed, rgba, tmp, outdir, machine):
                             if rc:
                                 row(f"VTK fixed-point step={st}", thr, error=se.strip().splitlines()[-1])
                                 continue
-                            cpu, wall = map(float, so.strip().splitlines()[-1].split())
-                            row(f"VTK fixed-point step={st}", thr, step=st, cpu_s=cpu, wall_s=wall,
-                                rel_rmse=err(np.load(out)), note="set-up frame excluded; 8-bit read-back")
+                            fcpu, fwall, cpu, wall = map(float, so.strip().splitlines()[-1].split())
+                            row(f"VTK fixed-point step={st}", thr, step=st, first_cpu_s=fcpu, cpu_s=cpu, wall_s=wall,
+                                rel_rmse=err(np.load(out)), note="first frame: VTK's set-up; 8-bit read-back")
     shading_images(a, wvol, tmp, outdir, img)
     write_results(rows, a, outdir, machine, img)
     return rows
@@ -207,7 +234,7 @@ def shading_images(a, wvol, tmp, outdir, img):
     """The ct volume from its 5% store, shaded, with the gradient of the samples and of the
     wavelet model's low-pass approximation (--gradient-levels 1 and 2), db2 and bl3: one
     figure, render_ct_shading.png."""
-    if "ct" not in a.ct_volumes.split(","):
+    if "ct" not in a.ct_volumes.split(",") or a.ct_no_shading:
         return
     try:
         import matplotlib
@@ -242,35 +269,60 @@ def shading_images(a, wvol, tmp, outdir, img):
     fig.savefig(outdir / "render_ct_shading.png", dpi=80)
 
 
+VTK_ROW = "VTK fixed-point step=0.5"
+
+
+def vtk_of(rows, r):
+    """The VTK row of r's volume, TF, camera and threads, or None."""
+    vt = [q for q in rows if q["volume"] == r["volume"] and q["tf"] == r["tf"] and q["camera"] == r["camera"]
+          and q["threads"] == r["threads"] and q["method"].startswith("VTK") and q.get("cpu_s")]
+    return vt[0] if vt else None
+
+
 def summary(rows):
-    """Per volume, TF and camera (one thread): the goals read off the rows. Bricks against VTK
-    at VTK's step; at equal error, the cheapest bricks row against the cheapest reference row
-    of the original whose error is no larger; pre-integration: the largest step whose error is
-    at most the classic step 0.5's."""
+    """Per volume, TF and camera (one thread unless stated): the goals read off the rows. Bricks
+    against VTK at VTK's step: later frames against VTK's later frames, first frames (set-up
+    included) against VTK's first, one-shot calls against VTK's later frames; at equal error,
+    the cheapest bricks row against the cheapest reference row of the original whose error is
+    no larger (later frames, both through the context); pre-integration (when its rows ran): the
+    largest step whose error is at most the classic step 0.5's."""
     base = any(r["method"].endswith("(baseline)") for r in rows)
+    preint = any("--preintegrate" in r["method"] for r in rows)
+    T = "bricks 5% step=0.5 --termination 0.0078"
+    # rows with a larger context cache at VTK's termination (--ct-extra "--termination 0.0078
+    # --context-cache SIZE"): their own column
+    big = sorted({r["method"] for r in rows if r["method"].startswith(T + " --context-cache")})
     out = ["", "## Summary per case (1 thread unless stated)\n",
            "Step 0.5 (VTK's). The stated comparison is at equal termination: VTK ends a ray at a remaining "
-           "opacity of 0xff/0x7fff = 0.0078, the column 'at VTK's termination' gives wvol the same threshold; "
-           "wvol's default (1e-6) beside it." + (" '(baseline)': the other build given by --ct-baseline, in the "
-                                                 "same run." if base else "") + "\n",
-           "| volume | TF | camera | bricks at VTK's termination / VTK (1 thr, 2 thr) | bricks, termination 1e-6 / VTK "
-           "(1, 2 thr) |" + (" baseline at VTK's termination / VTK (1, 2 thr) | baseline, 1e-6 / VTK (1, 2 thr) |"
-                             if base else "") +
-           " at equal error: reference / bricks CPU | classic step 0.5 error | largest pre-integrated step at <= that "
-           "error (reference; bricks) |", "|---|---|---|---|---|" + ("---|---|" if base else "") + "---|---|---|"]
+           "opacity of 0xff/0x7fff = 0.0078, 'at VTK's termination' gives wvol the same threshold; wvol's default "
+           "(1e-6) beside it. 'later': the fastest later frame (camera turned between frames) over VTK's; 'first': "
+           "the first frame, set-up included, over VTK's first; 'one-shot': each frame a separate call over VTK's "
+           "later frames." + (" '(baseline)': the other build given by --ct-baseline, one-shot, in the same run."
+                              if base else "") + "\n",
+           "| volume | TF | camera | at VTK's termination, later / VTK (1 thr, 2 thr) |" +
+           "".join(f" {m.split('--termination 0.0078 ')[1]}, later / VTK (1, 2 thr) |" for m in big) +
+           " first / VTK (1, 2 thr) | one-shot / VTK (1, 2 thr) |" + (" baseline one-shot / VTK (1, 2 thr) |" if base else "") +
+           " termination 1e-6, later / VTK (1, 2 thr) | at equal error: reference / bricks CPU (later frames) | "
+           "classic step 0.5 error |" + (" largest pre-integrated step at <= that error (reference; bricks) |"
+                                         if preint else ""),
+           "|---|---|---|---|" + "---|" * len(big) + "---|---|" + ("---|" if base else "") + "---|---|---|" +
+           ("---|" if preint else "")]
     keys = sorted({(r["volume"], r["tf"], r["camera"]) for r in rows})
     for key in keys:
-        sel = [r for r in rows if (r["volume"], r["tf"], r["camera"]) == key and r.get("cpu_s") and "rel_rmse" in r]
+        sel = [r for r in rows if (r["volume"], r["tf"], r["camera"]) == key and "rel_rmse" in r]
 
         def one(method, thr):
             q = [r for r in sel if r["method"] == method and r["threads"] == thr]
             return q[0] if q else None
 
-        def ratio(method, thr):
-            r, v = one(method, thr), one("VTK fixed-point step=0.5", thr)
-            return f"{r['cpu_s'] / v['cpu_s']:.2f}" if r and v else "-"
+        def ratio(method, thr, field, vfield="cpu_s"):
+            r, v = one(method, thr), one(VTK_ROW, thr)
+            return f"{r[field] / v[vfield]:.2f}" if r and v and r.get(field) and v.get(vfield) else "-"
 
-        one_thr = [r for r in sel if r["threads"] == 1 and not r["method"].endswith("(baseline)")]
+        def pair(method, field, vfield="cpu_s"):
+            return f"{ratio(method, 1, field, vfield)}, {ratio(method, 2, field, vfield)}"
+
+        one_thr = [r for r in sel if r["threads"] == 1 and not r["method"].endswith("(baseline)") and r.get("cpu_s")]
         refs = [r for r in one_thr if r["method"].startswith("reference") and "preint" not in r["method"]]
         bricks = [r for r in one_thr if r["method"].startswith("bricks")]
         eq = "-"
@@ -284,20 +336,20 @@ def summary(rows):
         if best:
             eq = f"{best[0]:.2f} ({best[1]})"
         classic = one("reference step=0.5", 1)
-        pre = "-"
-        if classic:
-            def largest(prefix):
-                ok = [r for r in one_thr if r["method"].startswith(prefix) and "--preintegrate" in r["method"]
-                      and r["rel_rmse"] <= classic["rel_rmse"]]
-                return f"{max(r['step'] for r in ok):g}" if ok else "none"
-            pre = f"{largest('reference')}; {largest('bricks')}"
-        def pair(method):
-            return f"{ratio(method, 1)}, {ratio(method, 2)}"
-
-        cols = [pair("bricks 5% step=0.5 --termination 0.0078"), pair("bricks 5% step=0.5")]
+        cols = [pair(T, "cpu_s")] + [pair(m, "cpu_s") for m in big] + [pair(T, "first_cpu_s", "first_cpu_s"),
+                                                                       pair(T, "one_shot_cpu_s")]
         if base:
-            cols += [pair("bricks 5% step=0.5 --termination 0.0078 (baseline)"), pair("bricks 5% step=0.5 (baseline)")]
-        cols += [eq, f"{classic['rel_rmse']:.3g}" if classic else "-", pre]
+            cols += [pair(T + " (baseline)", "one_shot_cpu_s")]
+        cols += [pair("bricks 5% step=0.5", "cpu_s"), eq, f"{classic['rel_rmse']:.3g}" if classic else "-"]
+        if preint:
+            pre = "-"
+            if classic:
+                def largest(prefix):
+                    ok = [r for r in one_thr if r["method"].startswith(prefix) and "--preintegrate" in r["method"]
+                          and r["rel_rmse"] <= classic["rel_rmse"]]
+                    return f"{max(r['step'] for r in ok):g}" if ok else "none"
+                pre = f"{largest('reference')}; {largest('bricks')}"
+            cols.append(pre)
         out.append(f"| {key[0]} | {key[1]} | {key[2]} | " + " | ".join(cols) + " |")
     return out
 
@@ -313,20 +365,36 @@ def write_results(rows, a, outdir, machine, img):
              "the same visible extent (orthographic: the projected box fits the image; perspective: the box's "
              "bounding sphere fits a 30 degree field of view). Steps in voxels of the smallest spacing; VTK's "
              "sample distance is the same length in mm. rel. RMSE: RGB against wvol's converged reference "
-             f"(step {a.ct_ref_step}) on the original volume. CPU s: the fastest of {a.peer_repeat} frames in one "
-             "process (VTK after its set-up frame). '/ VTK': CPU time over VTK's at the same view, TF and "
-             "threads in this run. Both run with OMP_WAIT_POLICY=passive (an idle OpenMP thread sleeps rather than "
-             "spins; VTK's mapper threads through vtkMultiThreader, which it does not affect).\n",
-             "| volume | TF | camera | threads | method | CPU s | / VTK | rel. RMSE | samples |",
-             "|---|---|---|---|---|---|---|---|---|"]
+             f"(step {a.ct_ref_step}) on the original volume. What is timed (CPU seconds of the process): "
+             f"{a.ct_frames} frames in one process, the camera turned by {a.ct_orbit:g} degrees about its up axis "
+             "between frames (frame i at (N-1-i) times that, the last at the named view: the image compared), "
+             "wvol's through one render context (`wvol render --repeat N --orbit D`: the block view, the bounds, "
+             "the brick rates and a cache of built bricks, half the dense volume by default, kept from frame to "
+             "frame), VTK's through one window and mapper; 'first': the first frame (wvol's set-up, VTK's "
+             "tables built in its first Render) against VTK's first; 'later' (the CPU s and / VTK columns): the "
+             "fastest later frame against VTK's fastest later frame; 'one-shot': wvol's bricks rows at step 0.5 "
+             f"again as separate calls (`--repeat {a.peer_repeat} --one-shot`: each frame builds everything), the "
+             "fastest, against VTK's later frames. Both run with OMP_WAIT_POLICY=passive (an idle OpenMP "
+             "thread sleeps rather than spins; VTK's mapper threads through vtkMultiThreader, which it does not "
+             "affect).\n",
+             "| volume | TF | camera | threads | method | first frame CPU s | / VTK first | later CPU s | / VTK later "
+             "| one-shot CPU s | / VTK later | rel. RMSE | samples |",
+             "|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
+
+    def f3(x):
+        return f"{x:.3f}" if x is not None else ""
+
+    def rat(x, y):
+        return f"{x / y:.2f}" if x and y else ""
+
     for r in rows:
-        vt = [q for q in rows if q["volume"] == r["volume"] and q["tf"] == r["tf"] and q["camera"] == r["camera"]
-              and q["threads"] == r["threads"] and q["method"].startswith("VTK") and q.get("cpu_s")]
-        ratio = r["cpu_s"] / vt[0]["cpu_s"] if vt and r.get("cpu_s") else nan
+        vt = vtk_of(rows, r)
         lines.append(f"| {r['volume']} | {r['tf']} | {r['camera']} | {r['threads']} | {r['method']} | "
-                     f"{r.get('cpu_s', nan):.3f} | {ratio:.2f} | "
+                     f"{f3(r.get('first_cpu_s'))} | {rat(r.get('first_cpu_s'), vt and vt.get('first_cpu_s'))} | "
+                     f"{f3(r.get('cpu_s'))} | {rat(r.get('cpu_s'), vt and vt['cpu_s'])} | "
+                     f"{f3(r.get('one_shot_cpu_s'))} | {rat(r.get('one_shot_cpu_s'), vt and vt['cpu_s'])} | "
                      + (f"{r['rel_rmse']:.3g}" if "rel_rmse" in r else r.get("error", "")) +
-                     f" | {r.get('samples', '')} |")
+                     f" | {r.get('samples', '') or ''} |")
     lines += summary(rows)
     (outdir / "render_ct.md").write_text("\n".join(lines) + "\n")
     try:
@@ -346,7 +414,7 @@ def write_results(rows, a, outdir, machine, img):
                 x, y = zip(*sorted(pts))
                 ax.loglog(x, np.maximum(y, 1e-9), "o-", label=label)
             ax.set_title(" ".join(key), fontsize=8)
-            ax.set_xlabel("CPU s (1 thread)")
+            ax.set_xlabel("CPU s (1 thread, later frames)")
             ax.set_ylabel("rel. RMSE (RGB)")
             ax.legend(fontsize=6)
         fig.tight_layout()

@@ -41,7 +41,10 @@ static const cli_opt opts[] = {
     {"preintegrate", 0, 0, "absorption, sampling methods: pre-integrated TF (value linear between samples, exact per segment)"},
     {"colors", 0, 1, "colour volume replacing the TF colour: interleaved RGB float32 .raw, e.g. from 'wvol segment --colors'"},
     {"threads", 0, 1, "threads (default: all)"},
-    {"repeat", 0, 1, "render N times (1..100), report the fastest call's times (benchmarks; default 1)"},
+    {"repeat", 0, 1, "render N frames (1..100) through one render context (its set-up kept), report the first frame's and the later frames' fastest times (benchmarks; default 1)"},
+    {"orbit", 0, 1, "with --repeat N: frame i's camera turned by (N-1-i) x DEG degrees about the view's up axis through its centre, so every frame differs and the last, the one written, is --camera's (default 0)"},
+    {"context-cache", 0, 1, "with --repeat: the render context's brick cache budget, bytes (K/M/G suffixes; default half the dense volume, at least 8 MiB)"},
+    {"one-shot", 0, 0, "with --repeat: each frame a separate wvol_render call that builds everything again (no context)"},
     {"exposure", 0, 1, "PNG: scale before sRGB encoding (default 1; X-ray: 1/max)"},
     {"bound-method", 0, 1, "exact (default: the exact X-ray paths on the dropped coefficients; axis views in milliseconds, others ray by ray) | coarse (each band's largest dropped coefficient; O(1) a pixel, looser)"},
     {"progressive", 0, 0, "progressive passes from a volume: the low-pass cube, then --growth times more of the largest coefficients each pass, each written as OUT's name + .passN, the last also as OUT"},
@@ -75,14 +78,15 @@ static const char about[] =
 typedef struct render_args {
     const char *in, *out, *camspec, *tfname, *colors_path, *bound_path;
     long width, height, repeat;
-    double keep, exposure;
-    int json, keep_given, exposure_given, progressive, full_resolution;
+    double keep, exposure, orbit;
+    int json, keep_given, exposure_given, progressive, full_resolution, one_shot;
     wvol_bound_method bound_method;
     wvol_progressive_params pp;
     wvol_render_params rp;
     wvol_compress_params cp;
     wvol_load_options lo;
     size_t memory;              /* .wvc input: budget of the file-backed store (0: default) */
+    size_t context_cache;       /* --context-cache (0: the library's default) */
 } render_args;
 
 /* What the render reads, and what made it. */
@@ -205,6 +209,13 @@ static int parse_args(render_args *a, int argc, char **argv)
             a->rp.spline.gauss_nodes = (int)v;
         } else if (!strcmp(o->name, "repeat")) {
             if (!cli_parse_long(cmd, "repeat", val, 1, 100, &a->repeat)) return CLI_USAGE;
+        } else if (!strcmp(o->name, "orbit")) {
+            if (!cli_parse_double(cmd, "orbit", val, &a->orbit)) return CLI_USAGE;
+            if (!(fabs(a->orbit) <= 360)) return cli_usage(cmd, "--orbit %g: expected degrees in -360..360", a->orbit);
+        } else if (!strcmp(o->name, "context-cache")) {
+            if (!cli_parse_bytes(cmd, "context-cache", val, &a->context_cache)) return CLI_USAGE;
+        } else if (!strcmp(o->name, "one-shot")) {
+            a->one_shot = 1;
         } else if (!strcmp(o->name, "threads")) {
             if (!cli_parse_long(cmd, "threads", val, 0, 4096, &v)) return CLI_USAGE;
             a->rp.threads = (int)v;
@@ -343,31 +354,78 @@ static int load_colors(const render_args *a, render_input *in, wvol_render_param
     return CLI_OK;
 }
 
-/* --repeat: the same call N times (each builds all it needs again), the fastest kept: the
- * benchmarks read the best of N beside the peers' best of N. The resident peak is the first
- * call's: later calls allocate the same, but malloc's reuse of what earlier ones freed can
- * raise the process's peak a little. */
+/* cam turned by deg degrees about its true up axis through its centre (--orbit): the eye
+ * moves on the circle around the look-at point, the up vector stays. */
+static wvol_camera orbit_camera(const wvol_camera *cam, double deg)
+{
+    wvol_camera c = *cam;
+    double f[3], u[3], r[3], fn = 0, un = 0, dot = 0, v[3], k = deg * 3.14159265358979323846 / 180.0;
+    if (deg == 0) return c; /* the camera as given, bit for bit */
+    for (int q = 0; q < 3; q++) f[q] = cam->center[q] - cam->eye[q];
+    for (int q = 0; q < 3; q++) dot += cam->up[q] * f[q], fn += f[q] * f[q];
+    for (int q = 0; q < 3; q++) u[q] = cam->up[q] - dot / fn * f[q]; /* up made normal to the view */
+    for (int q = 0; q < 3; q++) un += u[q] * u[q];
+    un = sqrt(un);
+    for (int q = 0; q < 3; q++) u[q] /= un;
+    /* v = eye - centre = -f, turned about u: v cos k + (u x v) sin k (v is normal to u) */
+    for (int q = 0; q < 3; q++) v[q] = -f[q];
+    r[0] = u[1] * v[2] - u[2] * v[1];
+    r[1] = u[2] * v[0] - u[0] * v[2];
+    r[2] = u[0] * v[1] - u[1] * v[0];
+    for (int q = 0; q < 3; q++) c.eye[q] = cam->center[q] + v[q] * cos(k) + r[q] * sin(k);
+    return c;
+}
+
+/* What --repeat measured: the first frame (a context's set-up included) and the fastest later
+ * frame, CPU and wall seconds. */
+typedef struct repeat_times {
+    double first_cpu, first_wall, later_cpu, later_wall;
+    int context;            /* the frames went through one render context */
+    size_t context_bytes;   /* what the context held after the last frame */
+    wvol_render_stats last; /* the last frame's stats */
+} repeat_times;
+
+/* --repeat: N frames through one render context, its set-up kept from frame to frame (a user
+ * turning the view: --orbit turns the camera between frames), or with --one-shot N separate
+ * calls, each building all it needs again. *best is the fastest frame (the benchmarks read the
+ * best of N beside the peers' best of N), rt the first frame's and the later frames' times. The
+ * resident peak is the first frame's: later frames hold what the first built, and malloc's
+ * reuse of what they freed can raise the process's peak a little. */
 static wvol_status render_repeat(wvol_image *img, const wvol_render_source *src, const wvol_camera *cam,
                                  const wvol_tf *tf, const render_args *a, const wvol_render_params *rp,
                                  const wvol_lod_params *lp, wvol_render_stats *best, wvol_lod_stats *lod,
-                                 double *cpu_max, double rss[2], wvol_error *err)
+                                 double *cpu_max, double rss[2], repeat_times *rt, wvol_error *err)
 {
     double wall_min = 0;
+    wvol_render_context *ctx = NULL;
+    wvol_status s = WVOL_OK;
+    memset(rt, 0, sizeof *rt);
     rss[0] = rss[1] = -1;
+    /* one frame: nothing to keep for a next one */
+    if (!a->one_shot && a->repeat > 1 && (s = wvol_render_context_create(&ctx, src, rp, a->context_cache, err)) != WVOL_OK) return s;
+    rt->context = ctx != NULL;
     if (rss_reset_peak() == 0) rss[0] = rss_mib("VmRSS");
     for (long i = 0; i < a->repeat; i++) {
         wvol_render_stats one;
-        memset(&one, 0, sizeof one);
         wvol_lod_stats lone;
-        wvol_status s = wvol_render_lod(img, src, cam, tf, rp, lp, &one, &lone, err);
-        if (s != WVOL_OK) return s;
+        const wvol_camera c = orbit_camera(cam, a->orbit * (double)(a->repeat - 1 - i));
+        memset(&one, 0, sizeof one);
+        s = ctx ? wvol_render_lod_context(ctx, img, &c, tf, rp, lp, &one, &lone, err)
+                : wvol_render_lod(img, src, &c, tf, rp, lp, &one, &lone, err);
+        if (s != WVOL_OK) break;
         if (i == 0 && rss[0] >= 0) rss[1] = rss_mib("VmHWM");
+        if (i == 0) rt->first_cpu = one.cpu_seconds, rt->first_wall = one.seconds;
+        else if (i == 1 || one.cpu_seconds < rt->later_cpu) rt->later_cpu = one.cpu_seconds;
+        if (i == 1 || (i > 1 && one.seconds < rt->later_wall)) rt->later_wall = one.seconds;
         if (i == 0 || one.cpu_seconds > *cpu_max) *cpu_max = one.cpu_seconds;
         if (i == 0 || one.seconds < wall_min) wall_min = one.seconds;
         if (i == 0 || one.cpu_seconds < best->cpu_seconds) *best = one, *lod = lone;
+        rt->last = one;
     }
-    best->seconds = wall_min;
-    return WVOL_OK;
+    if (s == WVOL_OK) best->seconds = wall_min;
+    rt->context_bytes = wvol_render_context_bytes(ctx);
+    wvol_render_context_destroy(ctx);
+    return s;
 }
 
 static wvol_status write_image_to(const wvol_image *img, const render_args *a, const char *path, wvol_error *err)
@@ -412,7 +470,7 @@ static wvol_status write_bound(const render_args *a, const render_input *in, con
 
 static void report(const render_args *a, const render_input *in, const wvol_render_stats *st,
                    const wvol_lod_stats *lod, double t_prep, double cpu_max, const double rss[2],
-                   const wvol_render_bound_stats *bs)
+                   const wvol_render_bound_stats *bs, const repeat_times *rt)
 {
     double n = (double)in->geometry.dims[0] * (double)in->geometry.dims[1] * (double)in->geometry.dims[2];
     double lod_psnr = wvol_wvc_psnr(lod->energy, n, in->vmin, in->vmax);
@@ -469,6 +527,21 @@ static void report(const render_args *a, const render_input *in, const wvol_rend
     if (a->repeat > 1) {
         cli_json_int("repeat", a->repeat);
         cli_json_num("render_cpu_seconds_max", cpu_max);
+        cli_json_int("context", rt->context);
+        cli_json_num("orbit", a->orbit);
+        cli_json_num("first_cpu_seconds", rt->first_cpu);
+        cli_json_num("first_seconds", rt->first_wall);
+        cli_json_num("later_cpu_seconds", rt->later_cpu);
+        cli_json_num("later_seconds", rt->later_wall);
+        if (rt->context) {
+            /* the last frame's reuse */
+            cli_json_int("context_frame", rt->last.context_frame);
+            cli_json_int("rates_reused", rt->last.rates_reused);
+            cli_json_int("bricks_reused", (long long)rt->last.bricks_reused);
+            cli_json_int("bricks_built_last", (long long)rt->last.bricks_built);
+            cli_json_int("cache_bytes", (long long)rt->last.cache_bytes);
+            cli_json_int("context_bytes", (long long)rt->context_bytes);
+        }
     }
     cli_json_int("rays_hit", (long long)st->rays_hit);
     cli_json_int("samples", (long long)st->samples);
@@ -626,6 +699,7 @@ int wvol_cmd_render(int argc, char **argv)
     wvol_render_bound_stats bstats;
     wvol_lod_stats lstats;
     wvol_lod_params lp;
+    repeat_times rt;
     wvol_image *img = NULL;
     wvol_camera cam;
     wvol_tf tf;
@@ -656,12 +730,12 @@ int wvol_cmd_render(int argc, char **argv)
     lp.enabled = !a.full_resolution && !a.bound_path; /* the bound is the full grid's */
     if (in.volume && wvol_filter_get(&lp.filter, a.cp.wavelet, &err) != WVOL_OK) goto fail;
     memset(&lstats, 0, sizeof lstats);
-    if (render_repeat(img, &src, &cam, &tf, &a, &a.rp, &lp, &stats, &lstats, &cpu_max, rss, &err) != WVOL_OK)
+    if (render_repeat(img, &src, &cam, &tf, &a, &a.rp, &lp, &stats, &lstats, &cpu_max, rss, &rt, &err) != WVOL_OK)
         goto fail;
     if (write_image(img, &a, &err) != WVOL_OK) goto fail;
     if (write_bound(&a, &in, &cam, &tf, &bstats, &err) != WVOL_OK) goto fail;
     if ((rc = cli_check_wvc_store("render", &in.store, 0)) != CLI_OK) goto done;
-    report(&a, &in, &stats, &lstats, t_prep, cpu_max, rss, &bstats);
+    report(&a, &in, &stats, &lstats, t_prep, cpu_max, rss, &bstats, &rt);
     rc = CLI_OK;
     goto done;
 fail:

@@ -153,14 +153,17 @@ static PyObject *image_take(wvol_image *img)
 
 static PyObject *stats_dict(const wvol_render_stats *st)
 {
-    return Py_BuildValue("{s:s,s:d,s:n,s:n,s:n,s:n,s:n,s:n,s:n,s:n,s:n,s:d,s:n,s:i,s:n}", "method",
+    return Py_BuildValue("{s:s,s:d,s:n,s:n,s:n,s:n,s:n,s:n,s:n,s:n,s:n,s:d,s:n,s:i,s:n,s:i,s:i,s:n,s:n,s:d}", "method",
                          wvol_render_method_name(st->method), "seconds", st->seconds, "rays",
                          (Py_ssize_t)st->rays, "rays_hit", (Py_ssize_t)st->rays_hit, "samples",
                          (Py_ssize_t)st->samples, "pieces", (Py_ssize_t)st->pieces, "functions",
                          (Py_ssize_t)st->functions, "skipped", (Py_ssize_t)st->skipped, "terminated",
                          (Py_ssize_t)st->terminated, "clamped", (Py_ssize_t)st->clamped, "skipped_tolerance",
                          (Py_ssize_t)st->skipped_tolerance, "skip_bound", st->skip_bound, "bricks_built",
-                         (Py_ssize_t)st->bricks_built, "brick", st->brick, "bytes", (Py_ssize_t)st->bytes);
+                         (Py_ssize_t)st->bricks_built, "brick", st->brick, "bytes", (Py_ssize_t)st->bytes,
+                         "context_frame", st->context_frame, "rates_reused", st->rates_reused, "bricks_reused",
+                         (Py_ssize_t)st->bricks_reused, "cache_bytes", (Py_ssize_t)st->cache_bytes, "cpu_seconds",
+                         st->cpu_seconds);
 }
 
 static int dict_set_num(PyObject *d, const char *key, double v)
@@ -246,6 +249,88 @@ static int check_method(const wvol_render_params *rp, int is_store)
     return 0;
 }
 
+/* ---- render contexts (wvol_render_context) ---- */
+
+/* A context and the Python object of the store it keeps state for (held so that the store
+ * outlives it); busy while a frame renders without the GIL (a second thread is refused). */
+typedef struct py_context {
+    wvol_render_context *ctx;
+    PyObject *store_obj;
+    const wvol_store *store;
+    int busy;
+} py_context;
+
+#define CONTEXT_CAPSULE "wvol.render_context"
+
+static void context_free(PyObject *cap)
+{
+    py_context *pc = PyCapsule_GetPointer(cap, CONTEXT_CAPSULE);
+    if (!pc) return;
+    wvol_render_context_destroy(pc->ctx);
+    Py_XDECREF(pc->store_obj);
+    free(pc);
+}
+
+/* render_context_new(cache_bytes) -> capsule: a context with no source yet. */
+static PyObject *py_render_context_new(PyObject *self, PyObject *args)
+{
+    long long cache = 0;
+    py_context *pc;
+    /* a placeholder source, never rendered: each frame sets its own (context_for) */
+    static wvol_volume placeholder;
+    wvol_render_source none = wvol_render_source_volume(&placeholder);
+    wvol_error err;
+    PyObject *cap;
+    (void)self;
+    if (!PyArg_ParseTuple(args, "L", &cache)) return NULL;
+    if (cache < 0) return PyErr_Format(PyExc_ValueError, "cache_bytes must be >= 0 (0: the default)");
+    pc = calloc(1, sizeof *pc);
+    if (!pc) return PyErr_NoMemory();
+    if (wvol_render_context_create(&pc->ctx, &none, NULL, (size_t)cache, &err) != WVOL_OK) {
+        free(pc);
+        return wvolpy_raise(&err);
+    }
+    cap = PyCapsule_New(pc, CONTEXT_CAPSULE, context_free);
+    if (!cap) {
+        wvol_render_context_destroy(pc->ctx);
+        free(pc);
+    }
+    return cap;
+}
+
+/* The context of opts "context" (a capsule) set to render src: a store other than the one it
+ * holds state for replaces it (everything kept dropped), a dense volume is set each frame (its
+ * array is this call's; nothing is kept for it). NULL without a context; -1 on error. */
+static int context_for(PyObject *opts, PyObject *src_obj, const wvol_render_source *src, py_context **out)
+{
+    PyObject *cap = PyDict_GetItemString(opts, "context");
+    py_context *pc;
+    wvol_error err;
+    *out = NULL;
+    if (!cap || cap == Py_None) return 0;
+    if (!(pc = PyCapsule_GetPointer(cap, CONTEXT_CAPSULE))) return -1;
+    if (pc->busy) {
+        PyErr_SetString(PyExc_RuntimeError, "render context: in use by another thread");
+        return -1;
+    }
+    if (src->kind == WVOL_RENDER_SOURCE_VOLUME || src->store != pc->store) {
+        if (wvol_render_context_set_source(pc->ctx, src, &err) != WVOL_OK) {
+            wvolpy_raise(&err);
+            return -1;
+        }
+        Py_XDECREF(pc->store_obj);
+        pc->store_obj = NULL;
+        pc->store = NULL;
+        if (src->kind == WVOL_RENDER_SOURCE_STORE) {
+            Py_INCREF(src_obj);
+            pc->store_obj = src_obj;
+            pc->store = src->store;
+        }
+    }
+    *out = pc;
+    return 0;
+}
+
 /* render(source, spacing, origin, opts) -> (image (h, w, 4) float32 over the image's pixels,
  * stats, bound image or None (opts "bound": wvol_render_bound from the store's residual)). source: a StoreHandle, or an array (a dense volume placed by spacing/origin, which
  * a store ignores). opts: camera, width, height, mode, method, tf, tf_units, step, termination,
@@ -273,6 +358,7 @@ static PyObject *py_render(PyObject *self, PyObject *args)
     wvol_status s;
     double vmin, vmax;
     int want_bound = 0;
+    py_context *pc = NULL;
     (void)self;
     if (!PyArg_ParseTuple(args, "OOOO!", &src_obj, &sp, &org, &PyDict_Type, &opts)) return NULL;
     if (parse_params(opts, &rp, &J) < 0) return NULL;
@@ -325,15 +411,20 @@ static PyObject *py_render(PyObject *self, PyObject *args)
     if (parse_colors(opts, &g, &rp, &colors) < 0) goto done;
     memset(&st, 0, sizeof st);
     memset(&bs, 0, sizeof bs);
+    if (context_for(opts, src_obj, &src, &pc) < 0) goto done;
+    if (pc) pc->busy = 1;
     Py_BEGIN_ALLOW_THREADS
     s = wvol_image_create(&img, cam.width, cam.height, &err);
-    if (s == WVOL_OK) s = wvol_render_lod(img, &src, &cam, &tf, &rp, &lp, &st, &ls, &err);
+    if (s == WVOL_OK)
+        s = pc ? wvol_render_lod_context(pc->ctx, img, &cam, &tf, &rp, &lp, &st, &ls, &err)
+               : wvol_render_lod(img, &src, &cam, &tf, &rp, &lp, &st, &ls, &err);
     /* a dense volume dropped nothing: its bound image stays 0 */
     if (s == WVOL_OK && want_bound) s = wvol_image_create(&bimg, cam.width, cam.height, &err);
     if (s == WVOL_OK && residual)
         s = (want_bound == WVOL_BOUND_COARSE ? wvol_render_bound_coarse : wvol_render_bound)(bimg, residual, 0.0, &cam,
                                                                                           &tf, &rp, &bs, &err);
     Py_END_ALLOW_THREADS
+    if (pc) pc->busy = 0;
     Py_XDECREF(holder);
     Py_XDECREF(colors);
     if (s != WVOL_OK) {
@@ -494,6 +585,8 @@ static PyObject *py_progressive_next(PyObject *self, PyObject *args)
 PyMethodDef wvolpy_render_methods[] = {
     {"render", py_render, METH_VARARGS,
      "render(source, spacing, origin, opts) -> (image, stats, bound or None); source: a StoreHandle or an array"},
+    {"render_context_new", py_render_context_new, METH_VARARGS,
+     "render_context_new(cache_bytes) -> context (opts['context'] of render: its set-up kept across frames)"},
     {"progressive_begin", py_progressive_begin, METH_VARARGS,
      "progressive_begin(array, spacing, origin, wavelet, levels, max_error, seconds, growth, bound) -> state"},
     {"progressive_next", py_progressive_next, METH_VARARGS,

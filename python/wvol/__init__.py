@@ -18,7 +18,7 @@ from . import _wvol
 __version__ = _wvol.version
 
 __all__ = ["Volume", "load", "save", "filters", "dwt3", "idwt3", "Coeffs", "compress", "Store", "ErrorEstimate",
-           "synth", "segment", "Segmentation", "features", "open", "wvc_info", "wvc_region", "render",
+           "synth", "segment", "Segmentation", "features", "open", "wvc_info", "wvc_region", "render", "RenderContext",
            "render_progressive", "isosurface", "isoimage",
            "save_mesh"]
 
@@ -394,10 +394,23 @@ def _bound_method(bound):
     raise ValueError(f"bound must be False, True, 'exact' or 'coarse', not {bound!r}")
 
 
+class RenderContext:
+    """Set-up kept across frames of :func:`render` (``render(..., context=ctx)``), for a user
+    turning the view of one Store: the bricked path's block view of the kept coefficients, the
+    coefficient bounds, the per-brick rates (while the transfer function's opacities stay the
+    same) and a cache of reconstructed bricks shared by the threads, at most ``cache_bytes`` of
+    voxels (0: the library's default, half the dense volume's float32 size, at least 8 MiB). Each
+    frame's image is what :func:`render` gives without it, bit for bit. Another Store drops what
+    was kept; a volume (array) renders as without a context. Not for two threads at once."""
+
+    def __init__(self, cache_bytes=0):
+        self._handle = _wvol.render_context_new(int(cache_bytes))
+
+
 def render(source, camera="+z", size=(256, 256), *, mode="absorption", tf="gaussian", tf_units="world",
            method="auto", step=None, shading=False, ambient=None, gauss_nodes=None, spline_j=None, brick=None,
            termination=None, threads=0, colors=None, skip_tolerance=None, preintegrate=False, gradient_levels=0,
-           bound=False, lod=True, lod_level=None, lod_wavelet="db2", return_stats=False):
+           bound=False, lod=True, lod_level=None, lod_wavelet="db2", return_stats=False, context=None):
     """Renders a volume (array or :class:`Volume`) or a :class:`Store`; returns the image as
     an (height, width, 4) float32 array of linear, premultiplied RGBA, row 0 at the top
     (X-ray: R = G = B = the integral of f along the ray in value x world length, A = 1 where
@@ -460,8 +473,12 @@ def render(source, camera="+z", size=(256, 256), *, mode="absorption", tf="gauss
     full resolution). The stats report "lod_level", "lod_footprint", "lod_voxel", "lod_dims"
     (z, y, x), and the extra error: "lod_energy" (the dropped levels' sum c^2), "lod_rmse" and
     "lod_psnr" (peak = the data range). A bound turns level of detail off.
+    ``context``: a :class:`RenderContext`: the frame goes through it (wvol_render_context_frame),
+    which keeps the bricked path's set-up (block view, bounds, per-brick rates, built bricks) from
+    frame to frame for the same Store; the image is the same bit for bit.
     ``return_stats=True`` returns ``(image, stats)`` (``(image, bound, stats)`` with a bound):
-    "method" (the one that ran), rays, samples, seconds...
+    "method" (the one that ran), rays, samples, seconds, cpu_seconds...; through a context also
+    "context_frame", "rates_reused", "bricks_reused" and "cache_bytes" (docs/render.md).
     """
     w, h = (int(v) for v in size)
     opts = dict(camera=camera, width=w, height=h, mode=mode, method=method, tf=tf, tf_units=tf_units, step=step,
@@ -470,6 +487,10 @@ def render(source, camera="+z", size=(256, 256), *, mode="absorption", tf="gauss
                 skip_tolerance=skip_tolerance, preintegrate=int(bool(preintegrate)), gradient_levels=int(gradient_levels),
                 bound=_bound_method(bound), lod=int(bool(lod)),
                 lod_level=-1 if lod_level is None else int(lod_level), lod_wavelet=lod_wavelet)
+    if context is not None:
+        if not isinstance(context, RenderContext):
+            raise TypeError("context must be a wvol.RenderContext")
+        opts["context"] = context._handle
     if isinstance(tf, os.PathLike):
         opts["tf"] = os.fspath(tf)
     if isinstance(source, Store):

@@ -45,6 +45,17 @@ static inline wvol_volume *fixture_volume(size_t nx, size_t ny, size_t nz, fixtu
     return v;
 }
 
+/* v with voxel spacing sp (origin 0), or NULL (v destroyed) when it cannot be set. */
+static inline wvol_volume *fixture_with_spacing(wvol_volume *v, const double sp[3])
+{
+    const double org[3] = {0, 0, 0};
+    if (v && wvol_volume_set_geometry(v, sp, org, NULL) != WVOL_OK) {
+        wvol_volume_destroy(v);
+        return NULL;
+    }
+    return v;
+}
+
 /* A thick shell (radius 0.35..0.6 of the half size, smooth edges) and a blob: structure at
  * every scale a few levels cover, and bricks far from both are empty (fixture_volume's value). */
 static inline double fixture_shell_blob(const wvol_volume *v, size_t i, size_t j, size_t k, const void *ctx)

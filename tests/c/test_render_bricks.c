@@ -45,13 +45,8 @@ static double noisy_voxel(const wvol_volume *v, size_t i, size_t j, size_t k, co
 
 static wvol_volume *noisy_phantom(size_t nx, size_t ny, size_t nz)
 {
-    wvol_volume *v = fixture_volume(nx, ny, nz, noisy_voxel, NULL);
-    const double sp[3] = {1.0, 1.0, 2.3}, org[3] = {0, 0, 0};
-    if (v && wvol_volume_set_geometry(v, sp, org, NULL) != WVOL_OK) {
-        wvol_volume_destroy(v);
-        return NULL;
-    }
-    return v;
+    const double sp[3] = {1.0, 1.0, 2.3};
+    return fixture_with_spacing(fixture_volume(nx, ny, nz, noisy_voxel, NULL), sp);
 }
 
 /* Store of the kept coefficients (db2, 2 levels) and the dense reconstruction of the same

@@ -255,3 +255,34 @@ def test_bricks_from_a_store_is_the_reference_on_its_reconstruction():
     colors[..., 1] = 1.0
     g, _ = wvol.render(s, method="bricks", colors=colors, **kw)
     assert np.allclose(g[..., 0], 0) and np.allclose(g[..., 1], b[..., 3], atol=1e-6)
+
+
+def test_render_context_keeps_the_set_up_and_the_image():
+    """render(..., context=ctx): frames of one Store through a RenderContext equal the frames
+    without it bit for bit, later frames take bricks built in earlier ones, a TF with other
+    opacities drops the rates, another Store drops everything, and a volume renders as usual."""
+    v = wvol.synth.skull(shape=(40, 44, 36))
+    s = wvol.compress(v, "db2", 2, keep=0.05)
+    s2 = wvol.compress(v, "db2", 2, keep=0.2)
+    ctx = wvol.RenderContext()
+    kw = dict(size=(40, 32), method="bricks", brick=8, lod=False, tf="grey", return_stats=True)
+    for f, cam in enumerate(["persp dir=1,0.7,0.4", "persp dir=1,0.75,0.4", "persp dir=1,0.7,0.4"]):
+        a, sa = wvol.render(s, cam, context=ctx, **kw)
+        b, sb = wvol.render(s, cam, **kw)
+        assert np.array_equal(a, b) and a[..., 3].max() > 0.1
+        assert sa["context_frame"] == f + 1 and sb["context_frame"] == 0 and sa["samples"] == sb["samples"]
+        assert sa["rates_reused"] == (f > 0)
+        if f:
+            assert sa["bricks_reused"] > 0 and 0 < sa["cache_bytes"] <= sa["bytes"]
+    tf = [(0.3, 1, 1, 1, 0.0), (1.0, 1, 0.5, 0.2, 40.0)]
+    kw2 = dict(kw, tf=tf)
+    a, sa = wvol.render(s, "+y", context=ctx, **kw2)
+    assert np.array_equal(a, wvol.render(s, "+y", **kw2)[0]) and sa["rates_reused"] == 0
+    a, sa = wvol.render(s2, "+y", context=ctx, **kw2)
+    assert np.array_equal(a, wvol.render(s2, "+y", **kw2)[0]) and sa["context_frame"] == 1
+    a, sa = wvol.render(v, "+y", context=ctx, size=(40, 32), return_stats=True)
+    assert np.array_equal(a, wvol.render(v, "+y", size=(40, 32))) and sa["method"] == "reference"
+    with pytest.raises(TypeError):
+        wvol.render(s, "+y", context="not a context")
+    with pytest.raises(ValueError):
+        wvol.RenderContext(cache_bytes=-1)

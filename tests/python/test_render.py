@@ -210,17 +210,56 @@ def test_repeat_renders_the_same_image_and_reports_the_fastest(wvol, tmp_path):
     base = ["render", vol, "--dims", f"{n}x{n}x{n}", "--keep", "20%", "--json", "--size", "20x16",
             "--camera", "persp dir=1,0.6,0.3", "--full-resolution"]
     r1 = wvol(*base, "-o", tmp_path / "one.exr")
-    r3 = wvol(*base, "-o", tmp_path / "three.exr", "--repeat", "3")
+    r3 = wvol(*base, "-o", tmp_path / "three.exr", "--repeat", "3", "--one-shot")
     assert r1.returncode == 0 and r3.returncode == 0, r1.stderr + r3.stderr
     one, three = json.loads(r1.stdout), json.loads(r3.stdout)
-    assert "repeat" not in one and three["repeat"] == 3
-    # the fastest of three calls: its CPU time at most the slowest's; each call builds the same
-    # bricks and takes the same samples, so the counts are one call's, and the image is the same
-    # bit for bit (the calls share nothing)
+    assert "repeat" not in one and three["repeat"] == 3 and three["context"] == 0
+    # --one-shot: the fastest of three calls: its CPU time at most the slowest's; each call
+    # builds the same bricks and takes the same samples, so the counts are one call's, and the
+    # image is the same bit for bit (the calls share nothing)
     assert 0 <= three["render_cpu_seconds"] <= three["render_cpu_seconds_max"]
     for k in ("samples", "bricks_built", "rays_hit", "render_bytes"):
         assert three[k] == one[k], k
     assert (tmp_path / "one.exr").read_bytes() == (tmp_path / "three.exr").read_bytes()
+
+
+def test_repeat_through_a_context_keeps_the_set_up_and_the_image(wvol, tmp_path):
+    """--repeat renders its frames through one render context: the same samples and image as one
+    call, the later frames taking bricks from the context's cache instead of building them;
+    --orbit turns the camera between frames, the last (written) frame at --camera's view."""
+    n = 24
+    vol = gaussian_raw(tmp_path / "g24.raw", n)
+    base = ["render", vol, "--dims", f"{n}x{n}x{n}", "--keep", "20%", "--json", "--size", "20x16",
+            "--camera", "persp dir=1,0.6,0.3", "--full-resolution", "--brick", "8"]
+    r1 = wvol(*base, "-o", tmp_path / "one.exr")
+    r4 = wvol(*base, "-o", tmp_path / "four.exr", "--repeat", "4")
+    ro = wvol(*base, "-o", tmp_path / "orbit.exr", "--repeat", "4", "--orbit", "10")
+    rt = wvol(*base, "-o", tmp_path / "turned.exr", "--repeat", "4", "--orbit", "10", "--context-cache", "1")
+    assert all(r.returncode == 0 for r in (r1, r4, ro, rt)), r1.stderr + r4.stderr + ro.stderr + rt.stderr
+    one, four, orbit, tiny = (json.loads(r.stdout) for r in (r1, r4, ro, rt))
+    assert four["context"] == 1 and four["context_frame"] == 4 and four["rates_reused"] == 1
+    for k in ("samples", "rays_hit"):
+        assert four[k] == one[k], k
+    # the same camera again with every brick cached: nothing built after the first frame
+    assert one["bricks_built"] > 0 and four["bricks_built_last"] == 0
+    assert four["bricks_reused"] > 0 and 0 < four["cache_bytes"] <= four["context_bytes"]
+    assert 0 < four["later_cpu_seconds"] and 0 < four["first_cpu_seconds"]
+    # turned frames: the last is --camera's, bit for bit the one-shot image
+    assert orbit["orbit"] == 10 and orbit["bricks_reused"] > 0
+    for name in ("four", "orbit", "turned"):
+        assert (tmp_path / "one.exr").read_bytes() == (tmp_path / f"{name}.exr").read_bytes(), name
+    # a budget below one brick: nothing cached, the same image
+    assert tiny["cache_bytes"] == 0 and tiny["bricks_reused"] == 0
+
+
+@pytest.mark.parametrize("args,words", [
+    (["--orbit", "400"], "--orbit"),
+    (["--orbit", "x"], "orbit"),
+    (["--context-cache", "lots"], "context-cache"),
+])
+def test_bad_repeat_options_refused(wvol, vol, tmp_path, args, words):
+    r = wvol("render", vol, "--dims", f"{N}x{N}x{N}", "-o", tmp_path / "x.png", "--repeat", "2", *args)
+    assert r.returncode == 2 and words in r.stderr
 
 
 def test_reference_with_keep_renders_the_kept_reconstruction(wvol, tmp_path):

@@ -71,6 +71,14 @@ WVOL_API wvol_status wvol_render_lod(wvol_image *img, const wvol_render_source *
                                      const wvol_lod_params *lod, wvol_render_stats *stats,
                                      wvol_lod_stats *lod_stats, wvol_error *err);
 
+/* wvol_render_lod with the context's source (and params when params is NULL): a frame at full
+ * resolution goes through the context (wvol_render_context_frame: its set-up kept), a coarser
+ * level renders as wvol_render_lod does. */
+WVOL_API wvol_status wvol_render_lod_context(wvol_render_context *ctx, wvol_image *img, const wvol_camera *cam,
+                                             const wvol_tf *tf, const wvol_render_params *params,
+                                             const wvol_lod_params *lod, wvol_render_stats *stats,
+                                             wvol_lod_stats *lod_stats, wvol_error *err);
+
 #ifdef __cplusplus
 }
 #endif

@@ -261,7 +261,18 @@ typedef struct wvol_render_stats {
     int brick;              /* bricks: the brick side used (params->bricks.brick, or the default) */
     size_t bytes;           /* bricks: memory the call allocated (coefficient blocks, bounds,
                                brick caches and scratch, the tiles' rays; the image and the
-                               store excluded) */
+                               store excluded); through a render context, what the context
+                               holds (its brick cache included) and the frame's walk */
+    /* Through a render context (wvol_render_context_frame); 0 from the one-shot calls. */
+    int context_frame;      /* the context's frame number, 1 for the first (which builds the
+                               block view and the bounds: its times include them); later frames
+                               reuse them */
+    int rates_reused;       /* bricks: 1 when the per-brick rates of earlier frames were kept
+                               (the same kappa and mode); 0 after a TF change or in frame 1 */
+    size_t bricks_reused;   /* bricks: bricks taken from the context's cache (built in an
+                               earlier frame, or by another tile of this one) */
+    size_t cache_bytes;     /* bricks: bytes of voxels the context's brick cache holds after
+                               the frame (<= its budget) */
 } wvol_render_stats;
 
 /* What wvol_render renders: a dense volume or a store (wvol_render_source_volume / _store). */
@@ -288,6 +299,49 @@ WVOL_API wvol_render_source wvol_render_source_store(const wvol_store *s);
 WVOL_API wvol_status wvol_render(wvol_image *img, const wvol_render_source *source, const wvol_camera *cam,
                         const wvol_tf *tf, const wvol_render_params *params, wvol_render_stats *stats,
                         wvol_error *err);
+
+/* ---- a render context: set-up kept across frames ------------------------------------------ */
+
+/* A source and settings rendered frame after frame (a user rotating the view): what does not
+ * depend on the camera is built once and kept. For the bricked path (a store rendered by
+ * `bricks`, or by AUTO where it picks bricks): the store's block view and coefficient bounds,
+ * the per-brick rates (while the TF's kappa and the mode stay the same), and a cache of
+ * reconstructed bricks shared by the threads, at most cache_bytes of voxels (0: the default,
+ * WVOL_RENDER_CONTEXT_CACHE_DEFAULT of the dense volume's float32 size, at least 8 MiB), a brick
+ * built in one frame taken again in the next. Other methods and a dense volume render as
+ * wvol_render does (nothing kept). Every frame's image is wvol_render's for the same source,
+ * camera, TF and params, bit for bit: what the context holds changes what is built, never
+ * what is sampled. The source (and its store or volume) must outlive the context; a store is
+ * not modified while a context uses it (wvol_render_context_set_source for another). Not for
+ * two threads at once (a frame uses params->threads itself). */
+typedef struct wvol_render_context wvol_render_context;
+
+/* The default cache budget as a fraction of the dense volume's float32 bytes. */
+#define WVOL_RENDER_CONTEXT_CACHE_DEFAULT 0.5
+
+/* params NULL: defaults (the frame's params replace them: wvol_render_context_frame). Nothing is
+ * built before the first frame, whose time includes the set-up. */
+WVOL_API wvol_status wvol_render_context_create(wvol_render_context **out, const wvol_render_source *source,
+                                                const wvol_render_params *params, size_t cache_bytes,
+                                                wvol_error *err);
+/* One frame: wvol_render(img, source, cam, tf, params) with the context's source. params NULL:
+ * the context's (from create or the last frame). A change of the settings the kept state
+ * depends on (threads, bricks.brick, bricks.skip_inside, shading with gradient_levels) builds
+ * it again; a TF whose kappa or a mode that differs recomputes the rates (the cached bricks'
+ * voxels stay). stats->context_frame, rates_reused, bricks_reused and cache_bytes say what was
+ * reused. */
+WVOL_API wvol_status wvol_render_context_frame(wvol_render_context *ctx, wvol_image *img, const wvol_camera *cam,
+                                               const wvol_tf *tf, const wvol_render_params *params,
+                                               wvol_render_stats *stats, wvol_error *err);
+/* Another source (or the same store after it changed): everything kept is dropped. */
+WVOL_API wvol_status wvol_render_context_set_source(wvol_render_context *ctx, const wvol_render_source *source,
+                                                    wvol_error *err);
+/* The context's source and params (for wvol_render_lod_context). */
+WVOL_API const wvol_render_source *wvol_render_context_source(const wvol_render_context *ctx);
+WVOL_API const wvol_render_params *wvol_render_context_params(const wvol_render_context *ctx);
+/* Bytes the context holds (block view, bounds, rates, brick caches); 0 before a bricked frame. */
+WVOL_API size_t wvol_render_context_bytes(const wvol_render_context *ctx);
+WVOL_API void wvol_render_context_destroy(wvol_render_context *ctx); /* NULL is fine */
 
 /* Reference integrator (eq 33) on a dense volume. img must exist with the camera's size.
  * Trilinear samples clamp to the edge voxels within the box. params/stats may be NULL. */

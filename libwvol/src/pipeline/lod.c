@@ -98,9 +98,11 @@ static wvol_status coarse_volume(wvol_volume **out, double *energy, const wvol_r
     return wvol_volume_level(out, src->volume, f, L, energy, err);
 }
 
-wvol_status wvol_render_lod(wvol_image *img, const wvol_render_source *source, const wvol_camera *cam,
-                            const wvol_tf *tf, const wvol_render_params *params, const wvol_lod_params *lod,
-                            wvol_render_stats *stats, wvol_lod_stats *lod_stats, wvol_error *err)
+/* wvol_render_lod, its full-resolution frames through ctx when not NULL. */
+static wvol_status render_lod(wvol_image *img, const wvol_render_source *source, const wvol_camera *cam,
+                              const wvol_tf *tf, const wvol_render_params *params, const wvol_lod_params *lod,
+                              wvol_render_stats *stats, wvol_lod_stats *lod_stats, wvol_render_context *ctx,
+                              wvol_error *err)
 {
     wvol_lod_params lp;
     wvol_render_params p;
@@ -149,7 +151,8 @@ wvol_status wvol_render_lod(wvol_image *img, const wvol_render_source *source, c
         ls.level = 0;
         s = WVOL_OK;
     } else if (L == 0) {
-        s = wvol_render(img, source, cam, tf, &p, stats, err);
+        s = ctx ? wvol_render_context_frame(ctx, img, cam, tf, &p, stats, err)
+                : wvol_render(img, source, cam, tf, &p, stats, err);
     } else {
         wvol_error cerr;
         t0 = wvol__now();
@@ -183,4 +186,20 @@ wvol_status wvol_render_lod(wvol_image *img, const wvol_render_source *source, c
     }
     wvol_volume_destroy(coarse);
     return s;
+}
+
+wvol_status wvol_render_lod(wvol_image *img, const wvol_render_source *source, const wvol_camera *cam,
+                            const wvol_tf *tf, const wvol_render_params *params, const wvol_lod_params *lod,
+                            wvol_render_stats *stats, wvol_lod_stats *lod_stats, wvol_error *err)
+{
+    return render_lod(img, source, cam, tf, params, lod, stats, lod_stats, NULL, err);
+}
+
+wvol_status wvol_render_lod_context(wvol_render_context *ctx, wvol_image *img, const wvol_camera *cam,
+                                    const wvol_tf *tf, const wvol_render_params *params, const wvol_lod_params *lod,
+                                    wvol_render_stats *stats, wvol_lod_stats *lod_stats, wvol_error *err)
+{
+    WVOL_RETURN_IF(!ctx, err, WVOL_ERR_ARG, "render: no context");
+    return render_lod(img, wvol_render_context_source(ctx), cam, tf, params ? params : wvol_render_context_params(ctx),
+                      lod, stats, lod_stats, ctx, err);
 }

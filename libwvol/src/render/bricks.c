@@ -15,6 +15,11 @@
  * - Threads share image tiles, whose rays walk the bricks in front-to-back order
  *   (ref_bricks.c), so a tile builds each brick it needs once; each thread keeps a few built
  *   bricks (least recently used evicted).
+ * - A render context (wvol_render_context, context.c) keeps this file's state across frames
+ *   (wvol__bricks): the block view and the bounds, the per-brick rates while the TF's kappa
+ *   stays the same, and a cache of built bricks shared by the threads within a byte budget.
+ *   Every decision (skip, build) depends on the brick, the TF and the ray only, never on what
+ *   a cache holds, so a frame's image is the one-shot render's bit for bit.
  * Samples, weights and compositing are the reference's, so on the same voxels the image
  * is the reference's image to float rounding (tests/c/test_render_bricks.c). */
 #include "render_internal.h"
@@ -32,6 +37,8 @@
 
 /* ---- the source: bounds, per-thread brick caches ------------------------------------------ */
 
+typedef struct brick_shared brick_shared;
+
 typedef struct brick_src {
     wvol__coef_source cs;
     wvol__store_blocks *blocks;
@@ -48,8 +55,39 @@ typedef struct brick_src {
     double *bound_rate;           /* per brick: wvol__brick_rate of its coefficient bound, < 0 not
                                      yet computed */
     double *voxel_rate;           /* per brick: wvol__brick_rate of its voxels' min/max once any
-                                     thread built it in this render, < 0 not yet */
+                                     thread built it (in this frame, or an earlier one of the
+                                     context with the same kappa), < 0 not yet */
+    float *vmin, *vmax;           /* per brick: its voxels' range once built (NaN: not yet); kept
+                                     across TF changes, which recompute voxel_rate from them */
+    wvol_tf tf_copy;              /* the TF (world units) the rates are for */
+    int tf_known;                 /* tf_copy and mode hold a frame's TF */
+    uint64_t tfgen;               /* bumped when the TF's kappa or the mode changes */
+    brick_shared *shared;         /* the context's brick cache, or NULL (one-shot) */
+    void **tctx;                  /* per thread: its brick_cache, kept across frames */
 } brick_src;
+
+/* A built brick kept by a render context across frames, shared by the threads. */
+typedef struct shared_entry {
+    long id;                      /* brick, or -1 */
+    uint64_t frame;               /* the last frame it was taken or put in: a thread's slot refers
+                                     only to entries of the current frame, which are not evicted */
+    uint64_t tfgen;               /* the TF its rate and sub-cells are for */
+    float *data, *gdata;          /* slot_floats each (gdata: grad_drop only) */
+    wvol__view view, gview;
+    double rate;
+} shared_entry;
+
+/* The context's cache: at most cap entries (the byte budget over a brick's bytes). A built
+ * brick takes a free entry, else the least recently used one not taken in this frame; when every entry was taken in this frame it stays in the thread's own slot only, so
+ * that a frame larger than the cache keeps the part it cached rather than cycling through it
+ * (least-recently-used on a repeated sweep would evict each brick before its next use). */
+struct brick_shared {
+    omp_lock_t lock;
+    size_t cap, used;
+    shared_entry *ent;
+    long *where;                  /* per brick: its entry, or -1 */
+    uint64_t frame;
+};
 
 /* A thread's brick cache: a few slots (CACHE_SLOTS), found by a scan of their brick numbers,
  * the least recently used evicted. */
@@ -58,11 +96,15 @@ typedef struct brick_cache {
     size_t nslots, nused;
     long *id;                /* per slot: brick index or -1 */
     uint64_t *used;          /* per slot: last use */
-    float *data;             /* per slot: slot_floats */
-    float *gdata;            /* per slot: slot_floats of the low-pass field (grad_drop), or NULL */
+    float **data;            /* per slot: slot_floats (NULL: given to the shared cache, allocated
+                                again at the slot's next build) */
+    float **gdata;           /* per slot: slot_floats of the low-pass field (grad_drop), or NULL */
     wvol__view *gview;       /* per slot: its view */
     double *rate;            /* per slot: wvol__brick_rate of its voxels' min/max */
     wvol__view *view;        /* per slot: the brick's view (its voxels' box, finished) */
+    long *entry;             /* per slot: the shared entry it refers to, or -1 */
+    const wvol__view **vp;   /* per slot: the view fetch gives (its own, or its entry's) */
+    size_t reused;           /* bricks taken from the shared cache */
     float *plane;            /* sub_cells' scratch: plane_floats */
     uint64_t clock;
     wvol__brick_scratch scr;
@@ -80,8 +122,12 @@ static size_t plane_floats(const brick_src *src)
 static void cache_free(brick_cache *c)
 {
     if (!c) return;
+    for (size_t i = 0; c->data && i < c->nslots; i++) free(c->data[i]);
+    for (size_t i = 0; c->gdata && i < c->nslots; i++) free(c->gdata[i]);
     free(c->id);
     free(c->used);
+    free(c->entry);
+    free(c->vp);
     free(c->data);
     free(c->gdata);
     free(c->gview);
@@ -100,20 +146,22 @@ static brick_cache *cache_new(const brick_src *src, size_t slots)
     c->nslots = slots;
     c->id = malloc(slots * sizeof *c->id);
     c->used = calloc(slots, sizeof *c->used);
-    c->data = malloc(slots * src->slot_floats * sizeof *c->data);
+    c->entry = malloc(slots * sizeof *c->entry);
+    c->vp = calloc(slots, sizeof *c->vp);
+    c->data = calloc(slots, sizeof *c->data);
     c->rate = malloc(slots * sizeof *c->rate);
     c->view = malloc(slots * sizeof *c->view);
     c->plane = malloc(plane_floats(src) * sizeof *c->plane);
     if (src->grad_drop) {
-        c->gdata = malloc(slots * src->slot_floats * sizeof *c->gdata);
+        c->gdata = calloc(slots, sizeof *c->gdata);
         c->gview = malloc(slots * sizeof *c->gview);
     }
-    if (!c->id || !c->used || !c->data || !c->rate || !c->view || !c->plane ||
+    if (!c->id || !c->used || !c->entry || !c->vp || !c->data || !c->rate || !c->view || !c->plane ||
         (src->grad_drop && (!c->gdata || !c->gview))) {
         cache_free(c);
         return NULL;
     }
-    for (size_t i = 0; i < slots; i++) c->id[i] = -1;
+    for (size_t i = 0; i < slots; i++) c->id[i] = c->entry[i] = -1;
     return c;
 }
 
@@ -299,6 +347,95 @@ static double known_rate(const wvol__source *s, size_t b)
     return bound_rate(src, b);
 }
 
+/* Slot `slot` of c emptied (its entry, if any, stays in the shared cache). */
+static void slot_release(brick_cache *c, size_t slot)
+{
+    c->entry[slot] = -1;
+    c->id[slot] = -1;
+}
+
+/* Brick b's sub-cells and rate from its voxels' range for the current TF, on view v. */
+static double brick_tf_view(const brick_src *src, size_t b, wvol__view *v, float *plane)
+{
+    const double rate = wvol__brick_rate(src->tf, src->mode, src->vmin[b], src->vmax[b]);
+    memset(v->sub_zero, 0, sizeof v->sub_zero);
+    v->sub_any = 0;
+    if (rate > 0 && src->skip_inside) sub_cells(src, b, v, plane); /* rate 0: skipped whole */
+    return rate;
+}
+
+/* Brick b from the shared cache into slot `slot`: 1, or 0 when not cached. An
+ * entry built for another TF gets its rate and sub-cells again (its voxels are the same). */
+static int shared_take(brick_cache *c, size_t slot, size_t b)
+{
+    const brick_src *src = c->src;
+    brick_shared *sh = src->shared;
+    shared_entry *e;
+    long ei;
+    omp_set_lock(&sh->lock);
+    ei = sh->where[b];
+    if (ei < 0) {
+        omp_unset_lock(&sh->lock);
+        return 0;
+    }
+    e = &sh->ent[ei];
+    e->frame = sh->frame;
+    if (e->tfgen != src->tfgen) { /* the first taker in this frame: no other thread reads it yet */
+        e->rate = brick_tf_view(src, b, &e->view, c->plane);
+        e->tfgen = src->tfgen;
+    }
+    c->entry[slot] = ei;
+    c->id[slot] = (long)b;
+    c->rate[slot] = e->rate;
+    c->vp[slot] = &e->view;
+    c->reused++;
+    omp_unset_lock(&sh->lock);
+    return 1;
+}
+
+/* Brick b, just built into slot `slot`, offered to the shared cache: the slot's buffers go to
+ * a free entry or to the least recently used one not taken in this frame (whose buffers the
+ * slot takes for its next build), and the slot refers to the entry. Else it stays the slot's. */
+static void shared_put(brick_cache *c, size_t slot, size_t b)
+{
+    const brick_src *src = c->src;
+    brick_shared *sh = src->shared;
+    shared_entry *e = NULL;
+    float *t;
+    omp_set_lock(&sh->lock);
+    if (sh->where[b] < 0) {
+        if (sh->used < sh->cap) {
+            e = &sh->ent[sh->used++];
+        } else {
+            for (size_t i = 0; i < sh->cap; i++) {
+                shared_entry *q = &sh->ent[i];
+                if (q->frame < sh->frame && (!e || q->frame < e->frame)) e = q;
+            }
+            if (e && e->id >= 0) sh->where[e->id] = -1;
+        }
+    }
+    if (e) {
+        t = e->data, e->data = c->data[slot], c->data[slot] = t;
+        e->view = c->view[slot];
+        e->view.data = e->data;
+        e->view.grad = NULL;
+        if (src->grad_drop) {
+            t = e->gdata, e->gdata = c->gdata[slot], c->gdata[slot] = t;
+            e->gview = c->gview[slot];
+            e->gview.data = e->gdata;
+            e->view.grad = &e->gview;
+        }
+        e->id = (long)b;
+        e->frame = sh->frame;
+        e->tfgen = src->tfgen;
+        e->rate = c->rate[slot];
+        sh->where[b] = (long)(e - sh->ent);
+        c->entry[slot] = sh->where[b];
+        c->vp[slot] = &e->view;
+    }
+    omp_unset_lock(&sh->lock);
+}
+
 static wvol_status fetch(const wvol__source *s, void *tctx, size_t b, double allow, const wvol__view **view,
                          double *rate)
 {
@@ -309,8 +446,9 @@ static wvol_status fetch(const wvol__source *s, void *tctx, size_t b, double all
     (void)s; /* the thread's cache knows its source */
     {
         /* skipped on the bound alone, else on the voxels' range once some thread built the
-         * brick (in this tile or an earlier one): no view needed. The decision depends on
-         * the brick and allow only, not on what the caches hold. */
+         * brick (in this tile, an earlier one, or an earlier frame of the context): no view
+         * needed. The decision depends on the brick, the TF and allow only, not on what the
+         * caches hold. */
         double known = bound_rate(src, b);
         if (known < 0 || known > allow) {
 #pragma omp atomic read
@@ -324,21 +462,25 @@ static wvol_status fetch(const wvol__source *s, void *tctx, size_t b, double all
     c->clock++;
     for (slot = 0; slot < c->nused; slot++)
         if (c->id[slot] == (long)b) goto hit;
+    if (c->nused < c->nslots) {
+        slot = c->nused++;
+    } else { /* the least recently used slot */
+        slot = 0;
+        for (size_t i = 1; i < c->nslots; i++)
+            if (c->used[i] < c->used[slot]) slot = i;
+        slot_release(c, slot);
+    }
+    if (src->shared && shared_take(c, slot, b)) goto hit;
     brick_box(src, b, lo, hi);
     {
-        size_t blo[3], bhi[3], cnt, i;
+        size_t blo[3], bhi[3], cnt;
         float *d;
         double mn = INFINITY, mx = -INFINITY;
         wvol_status st;
-        if (c->nused < c->nslots) {
-            slot = c->nused++;
-        } else { /* the least recently used slot */
-            slot = 0;
-            for (i = 1; i < c->nslots; i++)
-                if (c->used[i] < c->used[slot]) slot = i;
-            c->id[slot] = -1;
-        }
-        d = c->data + slot * src->slot_floats;
+        if (!c->data[slot] && !(c->data[slot] = malloc(src->slot_floats * sizeof(float)))) return WVOL_ERR_NOMEM;
+        if (src->grad_drop && !c->gdata[slot] && !(c->gdata[slot] = malloc(src->slot_floats * sizeof(float))))
+            return WVOL_ERR_NOMEM;
+        d = c->data[slot];
         for (int a = 0; a < 3; a++) {
             blo[a] = (size_t)lo[a];
             bhi[a] = (size_t)hi[a] + 1;
@@ -347,13 +489,14 @@ static wvol_status fetch(const wvol__source *s, void *tctx, size_t b, double all
         if (st != WVOL_OK) return st;
         cnt = (bhi[0] - blo[0]) * (bhi[1] - blo[1]) * (bhi[2] - blo[2]);
         voxel_range(d, cnt, &mn, &mx);
-        c->id[slot] = (long)b;
-        c->rate[slot] = wvol__brick_rate(src->tf, src->mode, mn, mx); /* once per build */
 #pragma omp atomic write
-        src->voxel_rate[b] = c->rate[slot];
+        src->vmin[b] = (float)mn;
+#pragma omp atomic write
+        src->vmax[b] = (float)mx;
         {
             wvol__view *v = &c->view[slot];
             v->data = d;
+            v->grad = NULL;
             for (int a = 0; a < 3; a++) {
                 v->off[a] = v->lo[a] = lo[a];
                 v->hi[a] = hi[a];
@@ -363,25 +506,29 @@ static wvol_status fetch(const wvol__source *s, void *tctx, size_t b, double all
             wvol__view_finish(v);
             v->local = 1; /* 1 to 127 cells per axis: block_positions_local (ref_samples.h) */
             for (int a = 0; a < 3; a++) v->local &= hi[a] > lo[a] && hi[a] - lo[a] < 128;
-            if (c->rate[slot] > 0 && src->skip_inside) sub_cells(src, b, v, c->plane); /* rate 0: skipped whole */
+            /* voxels min and max are floats: their rate is the one on (float)mn, (float)mx */
+            c->rate[slot] = brick_tf_view(src, b, v, c->plane); /* once per build */
+#pragma omp atomic write
+            src->voxel_rate[b] = c->rate[slot];
             if (src->grad_drop && c->rate[slot] > 0) { /* the shading's smoother field, same voxels */
                 wvol__view *gv = &c->gview[slot];
-                st = wvol__idwt3_brick_src(c->gdata + slot * src->slot_floats, &src->low, blo, bhi, &c->scr, NULL);
-                if (st != WVOL_OK) {
-                    c->id[slot] = -1;
-                    return st;
-                }
+                st = wvol__idwt3_brick_src(c->gdata[slot], &src->low, blo, bhi, &c->scr, NULL);
+                if (st != WVOL_OK) return st;
                 *gv = *v;
-                gv->data = c->gdata + slot * src->slot_floats;
+                gv->data = c->gdata[slot];
                 gv->grad = NULL;
                 v->grad = gv;
             }
         }
+        c->id[slot] = (long)b;
+        c->vp[slot] = &c->view[slot];
         c->built++;
+        /* a brick with rate 0 is never fetched again under this TF (voxel_rate skips it) */
+        if (src->shared && c->rate[slot] > 0) shared_put(c, slot, b);
     }
 hit:
     c->used[slot] = c->clock;
-    *view = &c->view[slot];
+    *view = c->vp[slot];
     *rate = c->rate[slot];
     return WVOL_OK;
 }
@@ -403,26 +550,90 @@ static size_t walk_bytes(const brick_src *src)
     return (size_t)(b < lo ? lo : b > hi ? hi : b);
 }
 
+/* Whether two TFs (world units) give every brick the same rate: the same values and kappas. */
+static int same_kappa(const wvol_tf *a, const wvol_tf *b)
+{
+    if (a->count != b->count) return 0;
+    for (int i = 0; i < a->count; i++)
+        if (memcmp(&a->points[i].value, &b->points[i].value, sizeof(double)) ||
+            memcmp(&a->points[i].opacity, &b->points[i].opacity, sizeof(double)))
+            return 0;
+    return 1;
+}
+
 static wvol_status prepare(wvol__source *s, const wvol_tf *tf_world, const wvol_render_params *p, wvol_error *err)
 {
     brick_src *src = s->ctx;
-    int a;
-    src->tf = tf_world;
-    src->mode = p->mode;
-    for (a = 0; a < 3; a++) s->bn[a] = src->bn[a];
-    s->walk_bytes = walk_bytes(src);
-    s->tctx = calloc((size_t)src->nthreads, sizeof *s->tctx);
-    WVOL_RETURN_IF(!s->tctx, err, WVOL_ERR_NOMEM, "render: out of memory");
-    for (int t = 0; t < src->nthreads; t++) {
-        s->tctx[t] = cache_new(src, CACHE_SLOTS);
-        WVOL_RETURN_IF(!s->tctx[t], err, WVOL_ERR_NOMEM, "render: out of memory for the brick caches");
+    const size_t nb = src->bn[0] * src->bn[1] * src->bn[2];
+    (void)err;
+    if (!src->tf_known || src->mode != p->mode || !same_kappa(&src->tf_copy, tf_world)) {
+        /* the rates are the TF's: the bound's again on demand, the voxels' from their kept range */
+        src->tf_copy = *tf_world;
+        src->mode = p->mode;
+        src->tf_known = 1;
+        src->tfgen++;
+        for (size_t b = 0; b < nb; b++) {
+            if (src->bound_rate) src->bound_rate[b] = -1.0;
+            src->voxel_rate[b] = isnan(src->vmin[b]) ? -1.0 : wvol__brick_rate(&src->tf_copy, src->mode, src->vmin[b], src->vmax[b]);
+        }
+    } else {
+        src->tf_copy = *tf_world; /* colours may differ: the samples read the frame's TF */
     }
+    src->tf = &src->tf_copy;
+    for (int a = 0; a < 3; a++) s->bn[a] = src->bn[a];
+    s->walk_bytes = walk_bytes(src);
+    s->tctx = src->tctx;
     return WVOL_OK;
 }
 
 /* Bricks built on demand into the threads' caches, walked tile by tile. */
 static const wvol__source_ops bricks_ops = {
     .prepare = prepare, .fetch = fetch, .known_rate = known_rate, .walk_bricks = 1, .lowpass_gradient = 1};
+
+/* ---- the state kept across frames (wvol__bricks) ----------------------------------------- */
+
+struct wvol__bricks {
+    const wvol_store *store;
+    brick_src src;
+    int threads, brick, skip_inside, grad_drop; /* the settings it was made for */
+    uint64_t frames;
+    double pending_wall, pending_cpu;           /* the set-up's time, added to the next frame's */
+};
+
+static size_t brick_count(const brick_src *src)
+{
+    return src->bn[0] * src->bn[1] * src->bn[2];
+}
+
+static void shared_free(brick_shared *sh)
+{
+    if (!sh) return;
+    for (size_t i = 0; i < sh->cap; i++) {
+        free(sh->ent[i].data);
+        free(sh->ent[i].gdata);
+    }
+    free(sh->ent);
+    free(sh->where);
+    omp_destroy_lock(&sh->lock);
+    free(sh);
+}
+
+void wvol__bricks_destroy(wvol__bricks *b)
+{
+    if (!b) return;
+    if (b->src.tctx) {
+        for (int t = 0; t < b->src.nthreads; t++) cache_free(b->src.tctx[t]);
+        free(b->src.tctx);
+    }
+    shared_free(b->src.shared);
+    wvol__store_blocks_destroy(b->src.blocks);
+    wvol__bounds_free(b->src.bounds);
+    free(b->src.bound_rate);
+    free(b->src.voxel_rate);
+    free(b->src.vmin);
+    free(b->src.vmax);
+    free(b);
+}
 
 /* A rate per brick of the grid bn, each -1 (not yet known); NULL when out of memory. */
 static double *rates_unknown(const size_t bn[3])
@@ -434,87 +645,208 @@ static double *rates_unknown(const size_t bn[3])
     return r;
 }
 
-wvol_status wvol_render_bricks(wvol_image *img, const wvol_store *st, const wvol_camera *cam, const wvol_tf *tf,
+/* Bytes of one shared entry: the brick's voxels (and its low-pass field's). */
+static size_t entry_bytes(const brick_src *src)
+{
+    return (src->grad_drop ? 2 : 1) * src->slot_floats * sizeof(float);
+}
+
+static int grad_drop_of(const wvol_render_params *p)
+{
+    return p->shading && p->gradient_levels > 0 ? p->gradient_levels : 0;
+}
+
+static int brick_side_of(const wvol_render_params *p)
+{
+    return p->bricks.brick > 0 ? p->bricks.brick : WVOL__BRICKS_BRICK_DEFAULT;
+}
+
+wvol_status wvol__bricks_create(wvol__bricks **out, const wvol_store *st, const wvol_render_params *params,
+                                size_t cache_bytes, wvol_error *err)
+{
+    wvol_render_params p;
+    wvol_store_info info;
+    wvol__bricks *b;
+    brick_src *src;
+    wvol_status status;
+    double t0 = wvol__now(), c0 = wvol__cpu_now();
+    *out = NULL;
+    WVOL_RETURN_IF(!st, err, WVOL_ERR_ARG, "render: no store");
+    wvol__params(&p, params);
+    b = calloc(1, sizeof *b);
+    WVOL_RETURN_IF(!b, err, WVOL_ERR_NOMEM, "render: out of memory");
+    src = &b->src;
+    wvol_store_get_info(st, &info);
+    b->store = st;
+    src->n[0] = info.nx, src->n[1] = info.ny, src->n[2] = info.nz;
+    b->threads = p.threads;
+    src->nthreads = wvol__threads(p.threads);
+    b->brick = src->B = brick_side_of(&p);
+    b->skip_inside = src->skip_inside = p.bricks.skip_inside;
+    for (int a = 0; a < 3; a++) src->bn[a] = (src->n[a] + (size_t)src->B - 1) / (size_t)src->B;
+    src->slot_floats = (size_t)(src->B + 2) * (size_t)(src->B + 2) * (size_t)(src->B + 2);
+    status = wvol__store_blocks_create(&src->blocks, &src->bounds, st, err);
+    if (status != WVOL_OK) goto fail;
+    wvol__store_blocks_source(&src->cs, src->blocks);
+    b->grad_drop = grad_drop_of(&p);
+    if (b->grad_drop) {
+        if (b->grad_drop > src->cs.levels) {
+            status = wvol_error_set(err, WVOL_ERR_ARG, "render: gradient_levels %d, but the store has %d levels",
+                                    p.gradient_levels, src->cs.levels);
+            goto fail;
+        }
+        src->grad_drop = b->grad_drop;
+        src->low = src->cs;
+        src->low.gather = gather_low;
+        src->low.ctx = src;
+    }
+    {
+        const size_t nb = brick_count(src);
+        src->voxel_rate = rates_unknown(src->bn);
+        if (src->bounds) src->bound_rate = rates_unknown(src->bn);
+        src->vmin = malloc(nb * sizeof *src->vmin);
+        src->vmax = malloc(nb * sizeof *src->vmax);
+        src->tctx = calloc((size_t)src->nthreads, sizeof *src->tctx);
+        if (!src->voxel_rate || (src->bounds && !src->bound_rate) || !src->vmin || !src->vmax || !src->tctx) {
+            status = wvol_error_set(err, WVOL_ERR_NOMEM, "render: out of memory for the brick rates");
+            goto fail;
+        }
+        for (size_t i = 0; i < nb; i++) src->vmin[i] = src->vmax[i] = NAN;
+    }
+    for (int t = 0; t < src->nthreads; t++) {
+        src->tctx[t] = cache_new(src, CACHE_SLOTS);
+        if (!src->tctx[t]) {
+            status = wvol_error_set(err, WVOL_ERR_NOMEM, "render: out of memory for the brick caches");
+            goto fail;
+        }
+    }
+    if (cache_bytes / entry_bytes(src) > 0) {
+        const size_t nb = brick_count(src);
+        brick_shared *sh = calloc(1, sizeof *sh);
+        if (sh) {
+            omp_init_lock(&sh->lock);
+            sh->cap = cache_bytes / entry_bytes(src);
+            if (sh->cap > nb) sh->cap = nb;
+            sh->ent = calloc(sh->cap, sizeof *sh->ent);
+            sh->where = malloc(nb * sizeof *sh->where);
+            src->shared = sh; /* freed with b from here on */
+        }
+        if (!sh || !sh->ent || !sh->where) {
+            status = wvol_error_set(err, WVOL_ERR_NOMEM, "render: out of memory for the context's brick cache");
+            goto fail;
+        }
+        for (size_t i = 0; i < sh->cap; i++) sh->ent[i].id = -1;
+        for (size_t i = 0; i < nb; i++) sh->where[i] = -1;
+    }
+    b->pending_wall = wvol__now() - t0;
+    b->pending_cpu = wvol__cpu_now() - c0;
+    *out = b;
+    return WVOL_OK;
+fail:
+    wvol__bricks_destroy(b);
+    return status;
+}
+
+int wvol__bricks_fits(const wvol__bricks *b, const wvol_store *st, const wvol_render_params *params)
+{
+    wvol_render_params p;
+    wvol__params(&p, params);
+    return b && b->store == st && b->threads == p.threads && b->brick == brick_side_of(&p) &&
+           b->skip_inside == p.bricks.skip_inside && b->grad_drop == grad_drop_of(&p);
+}
+
+size_t wvol__bricks_bytes(const wvol__bricks *b)
+{
+    const brick_src *src = &b->src;
+    const size_t nb = brick_count(src);
+    size_t bytes = wvol__store_blocks_bytes(src->blocks) + wvol__bounds_bytes(src->bounds) +
+                   (size_t)src->nthreads * sizeof(void *) + (src->bound_rate ? nb * sizeof *src->bound_rate : 0) +
+                   nb * (sizeof *src->voxel_rate + sizeof *src->vmin + sizeof *src->vmax);
+    for (int t = 0; t < src->nthreads; t++) bytes += cache_bytes(src->tctx[t]);
+    if (src->shared)
+        bytes += sizeof *src->shared + src->shared->cap * sizeof *src->shared->ent + nb * sizeof *src->shared->where +
+                 src->shared->used * entry_bytes(src);
+    return bytes;
+}
+
+size_t wvol__bricks_cache_bytes(const wvol__bricks *b)
+{
+    return b->src.shared ? b->src.shared->used * entry_bytes(&b->src) : 0;
+}
+
+wvol_status wvol__bricks_frame(wvol__bricks *b, wvol_image *img, const wvol_camera *cam, const wvol_tf *tf,
                                const wvol_render_params *params, wvol_render_stats *stats, wvol_error *err)
 {
     wvol_render_params p;
     wvol_store_info info;
     wvol__source s;
-    brick_src src;
+    brick_src *src = &b->src;
     wvol_status status;
-    size_t bytes = 0, built = 0, bound_skipped = 0;
+    size_t built = 0, reused = 0, bound_skipped = 0;
+    const uint64_t tfgen = src->tfgen;
     double t0 = wvol__now(), c0 = wvol__cpu_now();
-    int a;
-    WVOL_RETURN_IF(!st, err, WVOL_ERR_ARG, "render: no store");
     wvol__params(&p, params);
     WVOL_FORWARD(wvol__render_check(img, cam, tf, &p, err));
-    wvol_store_get_info(st, &info);
+    WVOL_RETURN_IF(!wvol__bricks_fits(b, b->store, &p), err, WVOL_ERR_ARG,
+                   "render: the bricked state was made for other settings (threads, brick, shading's levels)");
+    wvol_store_get_info(b->store, &info);
     memset(&s, 0, sizeof s);
-    memset(&src, 0, sizeof src);
-    src.n[0] = info.nx, src.n[1] = info.ny, src.n[2] = info.nz;
-    src.nthreads = wvol__threads(p.threads);
-    src.B = p.bricks.brick > 0 ? p.bricks.brick : WVOL__BRICKS_BRICK_DEFAULT;
-    src.skip_inside = p.bricks.skip_inside;
-    for (a = 0; a < 3; a++) {
-        src.bn[a] = (src.n[a] + (size_t)src.B - 1) / (size_t)src.B;
-        s.n[a] = src.n[a];
+    for (int a = 0; a < 3; a++) {
+        s.n[a] = src->n[a];
         s.spacing[a] = info.spacing[a];
         s.origin[a] = info.origin[a];
     }
-    src.slot_floats = (size_t)(src.B + 2) * (size_t)(src.B + 2) * (size_t)(src.B + 2);
-    status = wvol__store_blocks_create(&src.blocks, &src.bounds, st, err);
-    if (status != WVOL_OK) goto done;
-    src.voxel_rate = rates_unknown(src.bn);
-    if (src.bounds) src.bound_rate = rates_unknown(src.bn);
-    if (!src.voxel_rate || (src.bounds && !src.bound_rate)) {
-        status = wvol_error_set(err, WVOL_ERR_NOMEM, "render: out of memory for the brick rates");
-        goto done;
-    }
-    wvol__store_blocks_source(&src.cs, src.blocks);
-    if (p.shading && p.gradient_levels > 0) {
-        if (p.gradient_levels > src.cs.levels) {
-            status = wvol_error_set(err, WVOL_ERR_ARG, "render: gradient_levels %d, but the store has %d levels",
-                                    p.gradient_levels, src.cs.levels);
-            goto done;
-        }
-        src.grad_drop = p.gradient_levels;
-        src.low = src.cs;
-        src.low.gather = gather_low;
-        src.low.ctx = &src;
-    }
     s.ops = &bricks_ops;
-    s.ctx = &src;
-    s.B = src.B;
+    s.ctx = src;
+    s.B = src->B;
+    b->frames++;
+    if (src->shared) src->shared->frame = b->frames;
+    for (int t = 0; t < src->nthreads; t++) {
+        brick_cache *c = src->tctx[t];
+        c->built = c->reused = 0;
+    }
     status = wvol__render_sampled(img, &s, cam, tf, &p, stats, err);
-    bytes = wvol__store_blocks_bytes(src.blocks) + wvol__bounds_bytes(src.bounds) + (size_t)src.nthreads * sizeof(void *) +
-            (src.bound_rate ? src.bn[0] * src.bn[1] * src.bn[2] * sizeof *src.bound_rate : 0) +
-            src.bn[0] * src.bn[1] * src.bn[2] * sizeof *src.voxel_rate;
-    if (src.bound_rate)
-        for (size_t i = 0; i < src.bn[0] * src.bn[1] * src.bn[2]; i++) bound_skipped += src.bound_rate[i] == 0;
-    if (s.tctx)
-        for (int t = 0; t < src.nthreads; t++)
-            if (s.tctx[t]) {
-                brick_cache *c = s.tctx[t];
-                bytes += cache_bytes(c);
-                built += c->built;
-            }
+    for (int t = 0; t < src->nthreads; t++) {
+        /* the slots' views carry this TF's sub-cells, and their entries may be evicted in the
+         * next frame: emptied (a next frame takes them from the shared cache again, which
+         * refreshes what a TF change made stale) */
+        brick_cache *c = src->tctx[t];
+        for (size_t i = 0; i < c->nused; i++) slot_release(c, i);
+        c->nused = 0;
+        built += c->built;
+        reused += c->reused;
+    }
+    if (src->bound_rate)
+        for (size_t i = 0; i < brick_count(src); i++) bound_skipped += src->bound_rate[i] == 0;
     if (status == WVOL_OK && stats) {
-        /* the whole call: building the view and the bounds included */
-        stats->brick = src.B;
-        stats->seconds = wvol__now() - t0;
-        stats->cpu_seconds = wvol__cpu_now() - c0;
+        /* the whole frame: a first frame's set-up (the view and the bounds) included */
+        stats->brick = src->B;
+        stats->seconds = wvol__now() - t0 + b->pending_wall;
+        stats->cpu_seconds = wvol__cpu_now() - c0 + b->pending_cpu;
         stats->bricks_built = built;
+        stats->bricks_reused = reused;
         stats->bricks_bound_skipped = bound_skipped;
-        stats->bytes += bytes; /* beside the walk's own */
+        stats->context_frame = (int)b->frames;
+        stats->rates_reused = b->frames > 1 && src->tfgen == tfgen;
+        stats->cache_bytes = wvol__bricks_cache_bytes(b);
+        stats->bytes += wvol__bricks_bytes(b); /* beside the walk's own */
     }
-done:
-    if (s.tctx) {
-        for (int t = 0; t < src.nthreads; t++) cache_free(s.tctx[t]);
-        free(s.tctx);
-    }
-    wvol__store_blocks_destroy(src.blocks);
-    wvol__bounds_free(src.bounds);
-    free(src.bound_rate);
-    free(src.voxel_rate);
+    b->pending_wall = b->pending_cpu = 0;
+    return status;
+}
+
+wvol_status wvol_render_bricks(wvol_image *img, const wvol_store *st, const wvol_camera *cam, const wvol_tf *tf,
+                               const wvol_render_params *params, wvol_render_stats *stats, wvol_error *err)
+{
+    wvol__bricks *b = NULL;
+    wvol_render_params p;
+    wvol_status status;
+    WVOL_RETURN_IF(!st, err, WVOL_ERR_ARG, "render: no store");
+    wvol__params(&p, params);
+    WVOL_FORWARD(wvol__render_check(img, cam, tf, &p, err));
+    WVOL_FORWARD(wvol__bricks_create(&b, st, &p, 0, err));
+    status = wvol__bricks_frame(b, img, cam, tf, &p, stats, err);
+    if (status == WVOL_OK && stats) stats->context_frame = 0; /* one-shot */
+    wvol__bricks_destroy(b);
     return status;
 }

@@ -78,9 +78,18 @@ static wvol_status render_store_dense(wvol_image *img, const wvol_store *st, wvo
     return s;
 }
 
-wvol_status wvol_render(wvol_image *img, const wvol_render_source *source, const wvol_camera *cam,
-                        const wvol_tf *tf, const wvol_render_params *params, wvol_render_stats *stats,
-                        wvol_error *err)
+/* The bricked method from a store: through the context's kept state when there is one. */
+static wvol_status render_bricks(wvol_render_context *ctx, wvol_image *img, const wvol_store *st,
+                                 const wvol_camera *cam, const wvol_tf *tf, const wvol_render_params *p,
+                                 wvol_render_stats *stats, wvol_error *err)
+{
+    return ctx ? wvol__context_bricks(ctx, img, st, cam, tf, p, stats, err)
+               : wvol_render_bricks(img, st, cam, tf, p, stats, err);
+}
+
+wvol_status wvol__render_dispatch(wvol_image *img, const wvol_render_source *source, const wvol_camera *cam,
+                                  const wvol_tf *tf, const wvol_render_params *params, wvol_render_stats *stats,
+                                  wvol_render_context *ctx, wvol_error *err)
 {
     wvol_render_params p;
     wvol_render_method m;
@@ -115,14 +124,14 @@ wvol_status wvol_render(wvol_image *img, const wvol_render_source *source, const
                     return s;
                 }
             }
-            if (s == WVOL_ERR_UNSUPPORTED) s = wvol_render_bricks(img, st, cam, tf, &p, stats, err);
+            if (s == WVOL_ERR_UNSUPPORTED) s = render_bricks(ctx, img, st, cam, tf, &p, stats, err);
         } else {
             switch (m) {
             case WVOL_RENDER_METHOD_REFERENCE:
             case WVOL_RENDER_METHOD_REFERENCE_FHAT:
                 s = render_store_dense(img, st, m, cam, tf, &p, stats, &recon_cpu, err);
                 break;
-            case WVOL_RENDER_METHOD_BRICKS: s = wvol_render_bricks(img, st, cam, tf, &p, stats, err); break;
+            case WVOL_RENDER_METHOD_BRICKS: s = render_bricks(ctx, img, st, cam, tf, &p, stats, err); break;
             case WVOL_RENDER_METHOD_SPLINE: s = wvol_render_spline(img, st, cam, tf, &p, stats, err); break;
             case WVOL_RENDER_METHOD_AXIS: s = wvol_render_xray_axis(img, st, cam, &p, stats, err); break;
             case WVOL_RENDER_METHOD_SPLAT: s = wvol_render_xray_splat(img, st, cam, &p, stats, err); break;
@@ -138,4 +147,11 @@ wvol_status wvol_render(wvol_image *img, const wvol_render_source *source, const
         stats->cpu_seconds += recon_cpu;
     }
     return s;
+}
+
+wvol_status wvol_render(wvol_image *img, const wvol_render_source *source, const wvol_camera *cam,
+                        const wvol_tf *tf, const wvol_render_params *params, wvol_render_stats *stats,
+                        wvol_error *err)
+{
+    return wvol__render_dispatch(img, source, cam, tf, params, stats, NULL, err);
 }

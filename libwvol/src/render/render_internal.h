@@ -180,6 +180,37 @@ struct wvol__source {
  * at most rate len (wvol_render_params.skip_tolerance). */
 double wvol__brick_rate(const wvol_tf *tf, wvol_render_mode mode, double mn, double mx);
 
+/* The bricked path's state (bricks.c): the store's block view and bounds, the per-brick rates
+ * (kept while the TF's kappa and the mode stay the same), the threads' brick caches and, with
+ * cache_bytes > 0, a cache of built bricks shared by the threads and kept across frames
+ * (at most cache_bytes of voxels). wvol_render_bricks makes one per call (cache_bytes 0); a
+ * render context keeps one (context.c). The store must outlive it. A frame's image does not
+ * depend on what the state holds: it is the one-shot frame's bit for bit. */
+typedef struct wvol__bricks wvol__bricks;
+wvol_status wvol__bricks_create(wvol__bricks **out, const wvol_store *st, const wvol_render_params *p,
+                                size_t cache_bytes, wvol_error *err);
+/* 1 when the state serves frames of st with p: the same store, threads, brick side, sub-cell
+ * skipping and low-pass gradient levels (the rest of p may change from frame to frame). */
+int wvol__bricks_fits(const wvol__bricks *b, const wvol_store *st, const wvol_render_params *p);
+/* One frame (wvol_render_bricks' contract); stats->cpu_seconds includes the set-up once, in
+ * the first frame after create. */
+wvol_status wvol__bricks_frame(wvol__bricks *b, wvol_image *img, const wvol_camera *cam, const wvol_tf *tf,
+                               const wvol_render_params *p, wvol_render_stats *stats, wvol_error *err);
+size_t wvol__bricks_bytes(const wvol__bricks *b);       /* all it holds */
+size_t wvol__bricks_cache_bytes(const wvol__bricks *b); /* the shared cache's bricks */
+void wvol__bricks_destroy(wvol__bricks *b);             /* NULL is fine */
+
+/* wvol_render with a context (NULL: none): the same method chosen, the bricked method through
+ * the context's kept state (render.c). */
+wvol_status wvol__render_dispatch(wvol_image *img, const wvol_render_source *source, const wvol_camera *cam,
+                                  const wvol_tf *tf, const wvol_render_params *params, wvol_render_stats *stats,
+                                  wvol_render_context *ctx, wvol_error *err);
+/* The bricked method through the context's state, made (again) when missing or made for other
+ * settings (context.c). */
+wvol_status wvol__context_bricks(wvol_render_context *ctx, wvol_image *img, const wvol_store *st,
+                                 const wvol_camera *cam, const wvol_tf *tf, const wvol_render_params *p,
+                                 wvol_render_stats *stats, wvol_error *err);
+
 /* The reference integrator (ref_tiles.c) on a source. */
 wvol_status wvol__render_sampled(wvol_image *img, wvol__source *s, const wvol_camera *cam, const wvol_tf *tf,
                                  const wvol_render_params *params, wvol_render_stats *stats, wvol_error *err);
