@@ -245,6 +245,221 @@ WVOL__CLONES static void add_hit(const wvol__spline_geom *c, const level_ws *L, 
     }
 }
 
+/* The factorised build. On a piece of a lattice at least as fine as its level's, a level-m
+ * function is w X(t) Y(t) Z(t), one composed cubic per axis, and the functions with the same
+ * translate and band on an axis share that axis's cubic. So each (axis, translate, band)
+ * cubic is composed once per piece (exactly as add_hit composes it), and the level's sum is
+ * formed factorised, sum_x X (sum_y Y (sum_z w Z)): 4 multiply-adds per function and piece,
+ * the products once per piece and (x) or (x, y) group. Only the order of the sums differs
+ * from add_hit's: equal to rounding. Keys: 2 (j - jmin) + band bit, j the image's translate
+ * on the axis (lo = j 2^m - s); an axis the transform leaves alone has the one key 0. */
+
+/* First e in [lo, hi) with T[e] >= t, else hi. */
+static size_t first_ge(const double *T, size_t lo, size_t hi, double t)
+{
+    while (lo < hi) {
+        size_t m = (lo + hi) / 2;
+        if (T[m] >= t) hi = m;
+        else lo = m + 1;
+    }
+    return lo;
+}
+
+/* Fills key k's composed cubics on pieces [lo, hi) of T: the factor B((x_a - ref) / 2^m) of
+ * band bit `which` along the ray; zero where the ray is outside the factor's support or the
+ * piece is empty (add_hit skips those pieces). */
+static void axis_cubics(const wvol__spline_geom *c, const double *T, int a, int which, double ref, double inv2m,
+                        const double o[3], const double d[3], size_t lo, size_t hi, double *out)
+{
+    const wvol_basis *b = c->b;
+    double base = (o[a] - ref) * inv2m, slope = d[a] * inv2m, cst = 1.0;
+    size_t e;
+    int constant = !c->info.transformed[a] || d[a] == 0.0;
+    if (c->info.transformed[a] && d[a] == 0.0) {
+        int i = wvol_basis_piece(b, base);
+        double u = base - i * b->h;
+        const double *k = i < 0 ? NULL : wvol_basis_coeffs(b, which, WVOL_BASIS_VALUE, i);
+        cst = k ? k[0] + u * (k[1] + u * (k[2] + u * k[3])) : 0.0;
+    }
+    for (e = lo; e < hi; e++, out += 4) {
+        double t0 = T[e], len = T[e + 1] - t0, a0, am;
+        int i;
+        out[0] = out[1] = out[2] = out[3] = 0.0;
+        if (!(len > 0)) continue;
+        if (constant) {
+            out[0] = cst;
+            continue;
+        }
+        a0 = base + t0 * slope;
+        am = a0 + 0.5 * len * slope;
+        i = wvol_basis_piece(b, am);
+        if (i >= 0) compose3(out, wvol_basis_coeffs(b, which, WVOL_BASIS_VALUE, i), len * slope, a0 - i * b->h);
+    }
+}
+
+/* acc += a * b, a degree 6, b cubic (no weight). */
+static inline void mac63(double *acc, const double a[7], const double b[4])
+{
+    int i, j;
+    for (i = 0; i < 7; i++)
+        for (j = 0; j < 4; j++) acc[i + j] += a[i] * b[j];
+}
+
+/* acc += a * b for cubics a, b (degree 6). */
+static inline void mac33(double acc[7], const double a[4], const double b[4])
+{
+    int i, j;
+    for (i = 0; i < 4; i++)
+        for (j = 0; j < 4; j++) acc[i + j] += a[i] * b[j];
+}
+
+/* Adds the level-m functions among hits[0..n) to accbase's pieces [elo, ehi) of the lattice
+ * T (E pieces). 0 when out of memory. */
+WVOL__CLONES static int add_level(const wvol__spline_geom *c, wvol__fact_ws *f, const double *T, size_t E, double *accbase,
+                                  size_t elo, size_t ehi, const double o[3], const double d[3], const wvol_store_hit *hits,
+                                  size_t n, int m, wvol__spline_count *r)
+{
+    double inv2m = ldexp(1.0, -m);
+    int64_t jmin[3] = {INT64_MAX, INT64_MAX, INT64_MAX}, jmax[3] = {INT64_MIN, INT64_MIN, INT64_MIN};
+    size_t K[3], nm = 0, i, q, Eend = E < ehi ? E : ehi, tot;
+    int a, key_axis[3];
+    if (elo >= Eend) return 1;
+    for (a = 0; a < 3; a++) key_axis[a] = c->info.transformed[a];
+    for (i = 0; i < n; i++) {
+        if (hits[i].level != m) continue;
+        nm++;
+        for (a = 0; a < 3; a++)
+            if (key_axis[a]) {
+                int64_t j = llround((hits[i].lo[a] + c->shift) * inv2m);
+                if (j < jmin[a]) jmin[a] = j;
+                if (j > jmax[a]) jmax[a] = j;
+            }
+    }
+    if (!nm) return 1;
+    if (!grow((void **)&f->h, &f->capH, nm, sizeof *f->h) || !grow((void **)&f->s, &f->capS, nm, sizeof *f->s)) return 0;
+    for (a = 0; a < 3; a++) {
+        wvol__fact_axis *X = &f->ax[a];
+        K[a] = key_axis[a] ? 2 * (size_t)(jmax[a] - jmin[a] + 1) : 1;
+        {
+            /* the four per-key arrays grow together: from the same capacity to the same one */
+            size_t c0 = X->capK, c1 = c0, c2 = c0, c3 = c0;
+            if (!grow((void **)&X->lo, &c0, K[a], sizeof *X->lo) || !grow((void **)&X->hi, &c1, K[a], sizeof *X->hi) ||
+                !grow((void **)&X->off, &c2, K[a], sizeof *X->off) || !grow((void **)&X->ref, &c3, K[a], sizeof *X->ref))
+                return 0;
+            X->capK = c0;
+        }
+        for (q = 0; q < K[a]; q++) X->lo[q] = UINT32_MAX, X->hi[q] = 0;
+    }
+    /* per function: weight, piece range (as add_hit walks it), keys; per key: the union */
+    for (i = 0, q = 0; i < n; i++) {
+        const wvol_store_hit *h = &hits[i];
+        wvol__fact_hit *p;
+        size_t lo = 0, hi = E, e1;
+        if (h->level != m) continue;
+        p = &f->h[q];
+        while (hi - lo > 1) {
+            size_t mid = (lo + hi) / 2;
+            if (T[mid] <= h->t0) lo = mid;
+            else hi = mid;
+        }
+        if (lo < elo) lo = elo;
+        e1 = lo < Eend ? first_ge(T, lo, Eend, h->t1) : lo;
+        if (lo >= e1) continue;
+        p->w = (double)h->value * c->norm[m];
+        p->e0 = (uint32_t)lo;
+        p->e1 = (uint32_t)e1;
+        for (a = 0; a < 3; a++) {
+            wvol__fact_axis *X = &f->ax[a];
+            uint32_t k = 0;
+            if (key_axis[a]) k = (uint32_t)(2 * (llround((h->lo[a] + c->shift) * inv2m) - jmin[a]) + ((h->band >> a) & 1));
+            p->k[a] = k;
+            if (X->lo[k] == UINT32_MAX) X->ref[k] = h->lo[a];
+            if (p->e0 < X->lo[k]) X->lo[k] = p->e0;
+            if (p->e1 > X->hi[k]) X->hi[k] = p->e1;
+        }
+        r->pieces += e1 - lo;
+        r->functions++;
+        q++;
+    }
+    nm = q;
+    if (!nm) return 1;
+    /* every used key's cubics on its pieces */
+    for (a = 0; a < 3; a++) {
+        wvol__fact_axis *X = &f->ax[a];
+        for (tot = 0, q = 0; q < K[a]; q++) {
+            X->off[q] = tot;
+            if (X->lo[q] < X->hi[q]) tot += 4 * (size_t)(X->hi[q] - X->lo[q]);
+        }
+        if (!grow((void **)&X->cub, &X->capC, tot, sizeof(double))) return 0;
+        for (q = 0; q < K[a]; q++)
+            if (X->lo[q] < X->hi[q])
+                axis_cubics(c, T, a, key_axis[a] ? (int)(q & 1) : 0, X->ref[q], inv2m, o, d, X->lo[q], X->hi[q],
+                            X->cub + X->off[q]);
+    }
+    /* sorted by (key x, key y): counting sort on y, then a stable one on x */
+    {
+        size_t nk = (K[0] > K[1] ? K[0] : K[1]) + 1, pass;
+        if (!grow((void **)&f->count, &f->capN, nk, sizeof *f->count)) return 0;
+        for (pass = 0; pass < 2; pass++) {
+            int ax = pass == 0 ? 1 : 0;
+            const wvol__fact_hit *src = pass == 0 ? f->h : f->s;
+            wvol__fact_hit *dst = pass == 0 ? f->s : f->h;
+            size_t sum = 0;
+            memset(f->count, 0, nk * sizeof *f->count);
+            for (q = 0; q < nm; q++) f->count[src[q].k[ax]]++;
+            for (q = 0; q < K[ax]; q++) {
+                size_t cq = f->count[q];
+                f->count[q] = (uint32_t)sum;
+                sum += cq;
+            }
+            for (q = 0; q < nm; q++) dst[f->count[src[q].k[ax]]++] = src[q];
+        }
+    }
+    if (!grow((void **)&f->zs, &f->capZ, 4 * Eend, sizeof(double)) || !grow((void **)&f->yz, &f->capY, 7 * Eend, sizeof(double)))
+        return 0;
+    {
+        const wvol__fact_hit *s = f->h;
+        const wvol__fact_axis *AX = &f->ax[0], *AY = &f->ax[1], *AZ = &f->ax[2];
+        double *zs = f->zs, *yz = f->yz;
+        size_t ix = 0, e;
+        while (ix < nm) {
+            uint32_t kx = s[ix].k[0], xlo = AX->lo[kx], xhi = AX->hi[kx];
+            size_t jx = ix, iy;
+            const double *Xc = AX->cub + AX->off[kx];
+            while (jx < nm && s[jx].k[0] == kx) jx++;
+            memset(yz + 7 * (size_t)xlo, 0, 7 * (size_t)(xhi - xlo) * sizeof(double));
+            for (iy = ix; iy < jx;) {
+                uint32_t ky = s[iy].k[1], ylo = UINT32_MAX, yhi = 0;
+                size_t jy = iy, p;
+                const double *Yc = AY->cub + AY->off[ky];
+                while (jy < jx && s[jy].k[1] == ky) {
+                    if (s[jy].e0 < ylo) ylo = s[jy].e0;
+                    if (s[jy].e1 > yhi) yhi = s[jy].e1;
+                    jy++;
+                }
+                memset(zs + 4 * (size_t)ylo, 0, 4 * (size_t)(yhi - ylo) * sizeof(double));
+                for (p = iy; p < jy; p++) {
+                    const wvol__fact_hit *h = &s[p];
+                    const double *Zc = AZ->cub + AZ->off[h->k[2]] + 4 * (size_t)(h->e0 - AZ->lo[h->k[2]]);
+                    double w = h->w, *z = zs + 4 * (size_t)h->e0;
+                    for (e = h->e0; e < h->e1; e++, z += 4, Zc += 4) {
+                        z[0] += w * Zc[0];
+                        z[1] += w * Zc[1];
+                        z[2] += w * Zc[2];
+                        z[3] += w * Zc[3];
+                    }
+                }
+                for (e = ylo; e < yhi; e++)
+                    mac33(yz + 7 * e, Yc + 4 * (e - AY->lo[ky]), zs + 4 * e);
+                iy = jy;
+            }
+            for (e = xlo; e < xhi; e++) mac63(accbase + e * NC, yz + 7 * e, Xc + 4 * (e - xlo));
+            ix = jx;
+        }
+    }
+    return 1;
+}
+
 /* q(v) = p(alpha + beta v), degree 9 (Taylor shift by synthetic division, then scaling). */
 static void reexpand(double *q, const double *p, double alpha, double beta)
 {
@@ -324,11 +539,20 @@ wvol_status wvol__spline_ray(const wvol__spline_geom *g, wvol__spline_ws *ws, co
     return wvol__spline_build(g, ws, o, d, ta, tb, ws->hits.hits, ws->hits.count, shading, merge, cnt, err);
 }
 
-void wvol__spline_add_finest(const wvol__spline_geom *g, wvol__spline_ws *ws, const double o[3], const double d[3],
-                             const wvol_store_hit *h, size_t elo, size_t ehi, wvol__spline_count *cnt)
+int wvol__spline_add_finest_list(const wvol__spline_geom *g, wvol__spline_ws *ws, const double o[3], const double d[3],
+                                 const wvol_store_hit *hits, size_t n, size_t elo, size_t ehi, wvol__spline_count *cnt)
 {
     /* every level's knots lie on level 1's lattice: one polynomial per finest piece */
-    add_hit(g, &ws->lev[1], ws->macc, elo, ehi, o, d, h, 0, cnt);
+    const level_ws *F = &ws->lev[1];
+    size_t i;
+    int m;
+    if (ws->per_function) {
+        for (i = 0; i < n; i++) add_hit(g, F, ws->macc, elo, ehi, o, d, &hits[i], 0, cnt);
+        return 1;
+    }
+    for (m = 1; m <= g->info.levels; m++)
+        if (!add_level(g, &ws->f, F->T, F->E, ws->macc, elo, ehi, o, d, hits, n, m, cnt)) return 0;
+    return 1;
 }
 
 wvol_status wvol__spline_build(const wvol__spline_geom *g, wvol__spline_ws *ws, const double o[3], const double d[3],
@@ -350,10 +574,18 @@ wvol_status wvol__spline_build(const wvol__spline_geom *g, wvol__spline_ws *ws, 
         memset(L->acc, 0, L->E * NC * per * sizeof(double));
         L->used = 0;
     }
-    for (i = 0; i < n; i++) {
-        level_ws *L = &ws->lev[hits[i].level];
-        L->used = 1;
-        add_hit(g, L, L->acc, 0, L->E, o, d, &hits[i], shading, cnt);
+    for (i = 0; i < n; i++) ws->lev[hits[i].level].used = 1;
+    if (shading || ws->per_function) {
+        for (i = 0; i < n; i++) {
+            level_ws *L = &ws->lev[hits[i].level];
+            add_hit(g, L, L->acc, 0, L->E, o, d, &hits[i], shading, cnt);
+        }
+    } else {
+        for (m = 1; m <= M; m++)
+            if (ws->lev[m].used == 1)
+                WVOL_RETURN_IF(!add_level(g, &ws->f, ws->lev[m].T, ws->lev[m].E, ws->lev[m].acc, 0, ws->lev[m].E, o, d,
+                                          hits, n, m, cnt),
+                               err, WVOL_ERR_NOMEM, "render: out of memory for the ray's pieces");
     }
     if (merge) WVOL_RETURN_IF(!merge_levels(g, ws, shading), err, WVOL_ERR_NOMEM, "render: out of memory");
     return WVOL_OK;
@@ -366,7 +598,12 @@ void wvol__spline_ws_free(wvol__spline_ws *ws)
         free(ws->lev[l].T);
         free(ws->lev[l].acc);
     }
-    for (l = 0; l < 3; l++) free(ws->ax[l]);
+    for (l = 0; l < 3; l++) {
+        wvol__fact_axis *X = &ws->f.ax[l];
+        free(ws->ax[l]);
+        free(X->lo), free(X->hi), free(X->off), free(X->ref), free(X->cub);
+    }
+    free(ws->f.h), free(ws->f.s), free(ws->f.count), free(ws->f.zs), free(ws->f.yz);
     free(ws->macc);
     wvol_store_hits_free(&ws->hits);
     memset(ws, 0, sizeof *ws);
