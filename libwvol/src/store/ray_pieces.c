@@ -297,20 +297,61 @@ static void axis_cubics(const wvol__spline_geom *c, const double *T, int a, int 
     }
 }
 
-/* acc += a * b, a degree 6, b cubic (no weight). */
-static inline void mac63(double *acc, const double a[7], const double b[4])
+/* acc += a * b, a degree 6, b cubic (no weight); in locals, then stored once. */
+static inline void mac63(double *restrict acc, const double *restrict a, const double *restrict b)
 {
+    double r[NC];
     int i, j;
+    for (i = 0; i < NC; i++) r[i] = acc[i];
     for (i = 0; i < 7; i++)
-        for (j = 0; j < 4; j++) acc[i + j] += a[i] * b[j];
+        for (j = 0; j < 4; j++) r[i + j] += a[i] * b[j];
+    for (i = 0; i < NC; i++) acc[i] = r[i];
 }
 
 /* acc += a * b for cubics a, b (degree 6). */
-static inline void mac33(double acc[7], const double a[4], const double b[4])
+static inline void mac33(double *restrict acc, const double *restrict a, const double *restrict b)
 {
+    double r[7];
     int i, j;
+    for (i = 0; i < 7; i++) r[i] = acc[i];
     for (i = 0; i < 4; i++)
-        for (j = 0; j < 4; j++) acc[i + j] += a[i] * b[j];
+        for (j = 0; j < 4; j++) r[i + j] += a[i] * b[j];
+    for (i = 0; i < 7; i++) acc[i] = r[i];
+}
+
+/* Last e in [0, E) with T[e] <= t (0 when none): add_hit's first piece of a function. */
+static size_t last_le(const double *T, size_t E, double t)
+{
+    size_t lo = 0, hi = E;
+    while (hi - lo > 1) {
+        size_t mid = (lo + hi) / 2;
+        if (T[mid] <= t) lo = mid;
+        else hi = mid;
+    }
+    return lo;
+}
+
+/* The pieces [s0, s1) of [elo, eend) the ray may be inside key q's support on: found as add_hit
+ * finds a function's, from the slab's entry and exit. A piece just outside may come in through
+ * rounding: its cubic is zero (axis_cubics). */
+static void key_slab(const wvol__spline_geom *c, const double *T, size_t E, size_t elo, size_t eend, int a,
+                     const double o[3], const double d[3], wvol__fact_key *q)
+{
+    double tin, tout;
+    size_t e0;
+    q->s0 = (uint32_t)elo;
+    q->s1 = (uint32_t)eend;
+    if (!c->info.transformed[a] || d[a] == 0.0) return;
+    tin = (q->lo - o[a]) / d[a];
+    tout = (q->hi - o[a]) / d[a];
+    if (tin > tout) {
+        double t = tin;
+        tin = tout, tout = t;
+    }
+    e0 = last_le(T, E, tin);
+    if (e0 < elo) e0 = elo;
+    q->s0 = (uint32_t)(e0 < eend ? e0 : eend);
+    q->s1 = (uint32_t)(e0 < eend ? first_ge(T, e0, eend, tout) : eend);
 }
 
 /* Adds the level-m functions among hits[0..n) to accbase's pieces [elo, ehi) of the lattice
@@ -321,16 +362,16 @@ WVOL__CLONES static int add_level(const wvol__spline_geom *c, wvol__fact_ws *f, 
 {
     double inv2m = ldexp(1.0, -m);
     int64_t jmin[3] = {INT64_MAX, INT64_MAX, INT64_MAX}, jmax[3] = {INT64_MIN, INT64_MIN, INT64_MIN};
-    size_t K[3], nm = 0, i, q, Eend = E < ehi ? E : ehi, tot;
+    size_t K[3], nm = 0, i, q, eend = E < ehi ? E : ehi, tot;
     int a, key_axis[3];
-    if (elo >= Eend) return 1;
+    if (elo >= eend) return 1;
     for (a = 0; a < 3; a++) key_axis[a] = c->info.transformed[a];
     for (i = 0; i < n; i++) {
         if (hits[i].level != m) continue;
         nm++;
         for (a = 0; a < 3; a++)
             if (key_axis[a]) {
-                int64_t j = llround((hits[i].lo[a] + c->shift) * inv2m);
+                int64_t j = (int64_t)floor((hits[i].lo[a] + c->shift) * inv2m + 0.5);
                 if (j < jmin[a]) jmin[a] = j;
                 if (j > jmax[a]) jmax[a] = j;
             }
@@ -340,61 +381,63 @@ WVOL__CLONES static int add_level(const wvol__spline_geom *c, wvol__fact_ws *f, 
     for (a = 0; a < 3; a++) {
         wvol__fact_axis *X = &f->ax[a];
         K[a] = key_axis[a] ? 2 * (size_t)(jmax[a] - jmin[a] + 1) : 1;
-        {
-            /* the four per-key arrays grow together: from the same capacity to the same one */
-            size_t c0 = X->capK, c1 = c0, c2 = c0, c3 = c0;
-            if (!grow((void **)&X->lo, &c0, K[a], sizeof *X->lo) || !grow((void **)&X->hi, &c1, K[a], sizeof *X->hi) ||
-                !grow((void **)&X->off, &c2, K[a], sizeof *X->off) || !grow((void **)&X->ref, &c3, K[a], sizeof *X->ref))
-                return 0;
-            X->capK = c0;
-        }
-        for (q = 0; q < K[a]; q++) X->lo[q] = UINT32_MAX, X->hi[q] = 0;
+        if (!grow((void **)&X->key, &X->capK, K[a], sizeof *X->key)) return 0;
+        for (q = 0; q < K[a]; q++) X->key[q].seen = 0;
     }
-    /* per function: weight, piece range (as add_hit walks it), keys; per key: the union */
+    /* per function: weight, keys, piece range (the intersection of its keys' slabs) */
     for (i = 0, q = 0; i < n; i++) {
         const wvol_store_hit *h = &hits[i];
         wvol__fact_hit *p;
-        size_t lo = 0, hi = E, e1;
+        uint32_t e0 = (uint32_t)elo, e1 = (uint32_t)eend;
         if (h->level != m) continue;
         p = &f->h[q];
-        while (hi - lo > 1) {
-            size_t mid = (lo + hi) / 2;
-            if (T[mid] <= h->t0) lo = mid;
-            else hi = mid;
-        }
-        if (lo < elo) lo = elo;
-        e1 = lo < Eend ? first_ge(T, lo, Eend, h->t1) : lo;
-        if (lo >= e1) continue;
-        p->w = (double)h->value * c->norm[m];
-        p->e0 = (uint32_t)lo;
-        p->e1 = (uint32_t)e1;
         for (a = 0; a < 3; a++) {
-            wvol__fact_axis *X = &f->ax[a];
+            wvol__fact_key *kq;
             uint32_t k = 0;
-            if (key_axis[a]) k = (uint32_t)(2 * (llround((h->lo[a] + c->shift) * inv2m) - jmin[a]) + ((h->band >> a) & 1));
+            if (key_axis[a])
+                k = (uint32_t)(2 * ((int64_t)floor((h->lo[a] + c->shift) * inv2m + 0.5) - jmin[a]) + ((h->band >> a) & 1));
             p->k[a] = k;
-            if (X->lo[k] == UINT32_MAX) X->ref[k] = h->lo[a];
-            if (p->e0 < X->lo[k]) X->lo[k] = p->e0;
-            if (p->e1 > X->hi[k]) X->hi[k] = p->e1;
+            kq = &f->ax[a].key[k];
+            if (!kq->seen) {
+                kq->seen = 1;
+                kq->lo = h->lo[a];
+                kq->hi = h->hi[a];
+                kq->e0 = UINT32_MAX;
+                kq->e1 = 0;
+                key_slab(c, T, E, elo, eend, a, o, d, kq);
+            }
+            if (kq->s0 > e0) e0 = kq->s0;
+            if (kq->s1 < e1) e1 = kq->s1;
         }
-        r->pieces += e1 - lo;
+        if (e0 >= e1) continue;
+        p->w = (double)h->value * c->norm[m];
+        p->e0 = e0;
+        p->e1 = e1;
+        for (a = 0; a < 3; a++) {
+            wvol__fact_key *kq = &f->ax[a].key[p->k[a]];
+            if (e0 < kq->e0) kq->e0 = e0;
+            if (e1 > kq->e1) kq->e1 = e1;
+        }
+        r->pieces += e1 - e0;
         r->functions++;
         q++;
     }
     nm = q;
     if (!nm) return 1;
-    /* every used key's cubics on its pieces */
+    /* every used key's cubics on its functions' pieces */
     for (a = 0; a < 3; a++) {
         wvol__fact_axis *X = &f->ax[a];
         for (tot = 0, q = 0; q < K[a]; q++) {
-            X->off[q] = tot;
-            if (X->lo[q] < X->hi[q]) tot += 4 * (size_t)(X->hi[q] - X->lo[q]);
+            wvol__fact_key *kq = &X->key[q];
+            kq->off = tot;
+            if (kq->seen && kq->e0 < kq->e1) tot += 4 * (size_t)(kq->e1 - kq->e0);
         }
         if (!grow((void **)&X->cub, &X->capC, tot, sizeof(double))) return 0;
-        for (q = 0; q < K[a]; q++)
-            if (X->lo[q] < X->hi[q])
-                axis_cubics(c, T, a, key_axis[a] ? (int)(q & 1) : 0, X->ref[q], inv2m, o, d, X->lo[q], X->hi[q],
-                            X->cub + X->off[q]);
+        for (q = 0; q < K[a]; q++) {
+            const wvol__fact_key *kq = &X->key[q];
+            if (kq->seen && kq->e0 < kq->e1)
+                axis_cubics(c, T, a, key_axis[a] ? (int)(q & 1) : 0, kq->lo, inv2m, o, d, kq->e0, kq->e1, X->cub + kq->off);
+        }
     }
     /* sorted by (key x, key y): counting sort on y, then a stable one on x */
     {
@@ -415,23 +458,23 @@ WVOL__CLONES static int add_level(const wvol__spline_geom *c, wvol__fact_ws *f, 
             for (q = 0; q < nm; q++) dst[f->count[src[q].k[ax]]++] = src[q];
         }
     }
-    if (!grow((void **)&f->zs, &f->capZ, 4 * Eend, sizeof(double)) || !grow((void **)&f->yz, &f->capY, 7 * Eend, sizeof(double)))
+    if (!grow((void **)&f->zs, &f->capZ, 4 * eend, sizeof(double)) || !grow((void **)&f->yz, &f->capY, 7 * eend, sizeof(double)))
         return 0;
     {
         const wvol__fact_hit *s = f->h;
-        const wvol__fact_axis *AX = &f->ax[0], *AY = &f->ax[1], *AZ = &f->ax[2];
+        const wvol__fact_key *KX = f->ax[0].key, *KY = f->ax[1].key, *KZ = f->ax[2].key;
         double *zs = f->zs, *yz = f->yz;
         size_t ix = 0, e;
         while (ix < nm) {
-            uint32_t kx = s[ix].k[0], xlo = AX->lo[kx], xhi = AX->hi[kx];
+            uint32_t kx = s[ix].k[0], xlo = KX[kx].e0, xhi = KX[kx].e1;
             size_t jx = ix, iy;
-            const double *Xc = AX->cub + AX->off[kx];
+            const double *Xc = f->ax[0].cub + KX[kx].off;
             while (jx < nm && s[jx].k[0] == kx) jx++;
             memset(yz + 7 * (size_t)xlo, 0, 7 * (size_t)(xhi - xlo) * sizeof(double));
             for (iy = ix; iy < jx;) {
                 uint32_t ky = s[iy].k[1], ylo = UINT32_MAX, yhi = 0;
                 size_t jy = iy, p;
-                const double *Yc = AY->cub + AY->off[ky];
+                const double *Yc = f->ax[1].cub + KY[ky].off;
                 while (jy < jx && s[jy].k[1] == ky) {
                     if (s[jy].e0 < ylo) ylo = s[jy].e0;
                     if (s[jy].e1 > yhi) yhi = s[jy].e1;
@@ -440,7 +483,8 @@ WVOL__CLONES static int add_level(const wvol__spline_geom *c, wvol__fact_ws *f, 
                 memset(zs + 4 * (size_t)ylo, 0, 4 * (size_t)(yhi - ylo) * sizeof(double));
                 for (p = iy; p < jy; p++) {
                     const wvol__fact_hit *h = &s[p];
-                    const double *Zc = AZ->cub + AZ->off[h->k[2]] + 4 * (size_t)(h->e0 - AZ->lo[h->k[2]]);
+                    const wvol__fact_key *kz = &KZ[h->k[2]];
+                    const double *Zc = f->ax[2].cub + kz->off + 4 * (size_t)(h->e0 - kz->e0);
                     double w = h->w, *z = zs + 4 * (size_t)h->e0;
                     for (e = h->e0; e < h->e1; e++, z += 4, Zc += 4) {
                         z[0] += w * Zc[0];
@@ -449,8 +493,7 @@ WVOL__CLONES static int add_level(const wvol__spline_geom *c, wvol__fact_ws *f, 
                         z[3] += w * Zc[3];
                     }
                 }
-                for (e = ylo; e < yhi; e++)
-                    mac33(yz + 7 * e, Yc + 4 * (e - AY->lo[ky]), zs + 4 * e);
+                for (e = ylo; e < yhi; e++) mac33(yz + 7 * e, Yc + 4 * (e - KY[ky].e0), zs + 4 * e);
                 iy = jy;
             }
             for (e = xlo; e < xhi; e++) mac63(accbase + e * NC, yz + 7 * e, Xc + 4 * (e - xlo));
@@ -601,7 +644,7 @@ void wvol__spline_ws_free(wvol__spline_ws *ws)
     for (l = 0; l < 3; l++) {
         wvol__fact_axis *X = &ws->f.ax[l];
         free(ws->ax[l]);
-        free(X->lo), free(X->hi), free(X->off), free(X->ref), free(X->cub);
+        free(X->key), free(X->cub);
     }
     free(ws->f.h), free(ws->f.s), free(ws->f.count), free(ws->f.zs), free(ws->f.yz);
     free(ws->macc);

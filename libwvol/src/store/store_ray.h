@@ -34,10 +34,16 @@ typedef struct wvol__fact_hit {
     uint32_t e0, e1, k[3];
 } wvol__fact_hit;
 
+typedef struct wvol__fact_key {
+    double lo, hi;      /* the support's extent on this axis */
+    uint32_t s0, s1;    /* pieces the ray may be inside it on (its slab) */
+    uint32_t e0, e1;    /* pieces its functions are used on (the union of theirs) */
+    size_t off;         /* offset of its cubics in cub (4 per piece from e0) */
+    int seen;
+} wvol__fact_key;
+
 typedef struct wvol__fact_axis {
-    uint32_t *lo, *hi;  /* per key: pieces [lo, hi) it is used on */
-    size_t *off;        /* per key: offset of its cubics in cub (4 per piece from lo) */
-    double *ref;        /* per key: the support's low corner on this axis */
+    wvol__fact_key *key;
     size_t capK;
     double *cub;
     size_t capC;
