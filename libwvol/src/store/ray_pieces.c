@@ -1,9 +1,12 @@
 /* SPDX-License-Identifier: MIT
  * f^ along a ray as exact piecewise polynomials (store/store_ray.h): the store's kept basis
  * functions whose support the ray crosses, each a product of three cubic spline pieces
- * composed with the ray, multiplied out and added to the pieces of its level's lattice.
- * Shared by the spline integrator (render/spline.c) and the implicit-surface ray tracer
- * (iso/). Based on: Gross, Lippert et al. (paper, section 5, eqs 34-40). */
+ * composed with the ray, multiplied out and added to the pieces of its level's lattice:
+ * factorised for the values (add_level: each (axis, translate, band) cubic composed once per
+ * piece, the sum grouped by the x and then the y factor), function by function for the
+ * gradient and the reference (add_hit). Shared by the spline integrator (render/spline.c) and
+ * the implicit-surface ray tracer (iso/). Based on: Gross, Lippert et al. (paper, section 5,
+ * eqs 34-40). */
 #include "store/store_ray.h"
 #include "core/clones.h"
 #include "core/status_internal.h"
@@ -267,9 +270,11 @@ static size_t first_ge(const double *T, size_t lo, size_t hi, double t)
 
 /* Fills key k's composed cubics on pieces [lo, hi) of T: the factor B((x_a - ref) / 2^m) of
  * band bit `which` along the ray; zero where the ray is outside the factor's support or the
- * piece is empty (add_hit skips those pieces). */
-static void axis_cubics(const wvol__spline_geom *c, const double *T, int a, int which, double ref, double inv2m,
-                        const double o[3], const double d[3], size_t lo, size_t hi, double *out)
+ * piece is empty (add_hit skips those pieces). Inlined into add_level, so that it is compiled
+ * with add_level's clones. */
+static inline __attribute__((always_inline)) void axis_cubics(const wvol__spline_geom *c, const double *T, int a,
+                                                              int which, double ref, double inv2m, const double o[3],
+                                                              const double d[3], size_t lo, size_t hi, double *out)
 {
     const wvol_basis *b = c->b;
     double base = (o[a] - ref) * inv2m, slope = d[a] * inv2m, cst = 1.0;

@@ -9,7 +9,11 @@
  * functions whose support meets [ta, tb], lays out each used level's lattice pieces and adds
  * every function's product of composed cubics to the pieces it covers; with `merge` it sums
  * all levels onto level 1's (the finest) lattice in ws->macc. Each piece's polynomial is in
- * its normalised variable u in [0, 1] (t = T[e] + u (T[e+1] - T[e])), degree <= 9. */
+ * its normalised variable u in [0, 1] (t = T[e] + u (T[e+1] - T[e])), degree <= 9.
+ * The values are built factorised (functions sharing a translate and band on an axis share
+ * that axis's composed cubic on a piece: sum_x X sum_y Y sum_z c Z, ray_pieces.c); the
+ * gradient, and the values with ws->per_function set (the reference the tests compare with),
+ * function by function. The two agree to rounding (tests/c/test_ray_factor.c). */
 #ifndef WVOL_STORE_RAY_H
 #define WVOL_STORE_RAY_H
 
