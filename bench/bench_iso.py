@@ -160,8 +160,9 @@ def full_reconstruction_seconds(raw, n, wavelet, levels, keep, iso, threads, bui
                     ["--wavelet", wavelet, "--levels", str(levels), "--keep", keep, "--brick", "0"])
 
 
-def run_raytrace(build, raw, n, iso, keep, size, threads, out_image):
-    cmd = ["taskset", "-c", cpus(threads), str(pathlib.Path(build) / "wvol"), "iso", str(raw), "--dims", str(n),
+def run_raytrace(build, raw, n, iso, keep, size, threads, out_image, program=None):
+    prog = program or str(pathlib.Path(build) / "wvol")
+    cmd = ["taskset", "-c", cpus(threads), prog, "iso", str(raw), "--dims", str(n),
            "--iso", str(iso), "--method", "raytrace", "--keep", keep, "--size", size, "--threads", str(threads),
            "--camera", RT_CAMERA, "-o", str(out_image), "--json"]
     p = subprocess.run(cmd, capture_output=True, text=True, timeout=7200)
@@ -171,11 +172,24 @@ def run_raytrace(build, raw, n, iso, keep, size, threads, out_image):
 
 
 RT_CAMERA = "persp dir=1,0.6,-0.3"
-RT_KEYS = ("trace_seconds", "cells_seconds", "us_per_ray", "prepare_seconds", "rays", "hits", "functions", "pieces",
-           "refined", "intervals", "evals", "grazes", "message", "error")
+RT_KEYS = ("trace_seconds", "trace_cpu_seconds", "cells_seconds", "us_per_ray", "prepare_seconds", "rays", "hits",
+           "functions", "pieces", "refined", "intervals", "evals", "grazes", "message", "error")
+
+
+def same_image(a_path, b_path):
+    """Hit masks and depths (EXR Z) of two tracer images: pixels hit by one only, and the
+    largest depth difference where both hit."""
+    from bench_render import read_exr
+    za, zb = read_exr(a_path)["Z"], read_exr(b_path)["Z"]
+    ha, hb = np.isfinite(za) & (za < 1e30), np.isfinite(zb) & (zb < 1e30)
+    both = ha & hb
+    d = np.abs(za[both] - zb[both])
+    return {"mask_diff": int((ha != hb).sum()), "depth_max_diff": float(d.max()) if d.size else 0.0}
 
 
 def raytrace_rows(args, phantoms, tmp):
+    """The tracer's rows; with --rt-baseline, that program traces the same image first in the
+    same run (its time, the ratio, and whether the images agree)."""
     rows = []
     for name, (f, iso) in phantoms.items():
         raw = pathlib.Path(tmp) / f"{name}.raw"
@@ -186,15 +200,29 @@ def raytrace_rows(args, phantoms, tmp):
             for entry in args.rt_size_override.split(","):
                 if entry and entry.split("=")[0] == f"{name}:{keep}":
                     size = entry.split("=")[1]
-            r = run_raytrace(args.build, raw, args.n, iso, keep, size, args.rt_threads,
-                             pathlib.Path(tmp) / f"{name}_{keep.rstrip('%')}.exr")
+            base = None
+            if args.rt_baseline:
+                base_img = pathlib.Path(tmp) / f"{name}_{keep.rstrip('%')}_base.exr"
+                base = run_raytrace(args.build, raw, args.n, iso, keep, size, args.rt_threads, base_img,
+                                    program=args.rt_baseline)
+            img = pathlib.Path(tmp) / f"{name}_{keep.rstrip('%')}.exr"
+            r = run_raytrace(args.build, raw, args.n, iso, keep, size, args.rt_threads, img)
             row = {"phantom": name, "iso": iso, "keep": keep, "size": size, "threads": args.rt_threads,
                    "camera": RT_CAMERA}
             row.update({k: r[k] for k in RT_KEYS if k in r})
+            if base is not None:
+                row["baseline"] = {k: base[k] for k in RT_KEYS if k in base}
+                if "error" not in base and "error" not in r:
+                    row["ratio"] = base["trace_seconds"] / r["trace_seconds"]
+                    row["cpu_ratio"] = base["trace_cpu_seconds"] / r["trace_cpu_seconds"]
+                    row["vs_baseline"] = same_image(img, base_img)
             rows.append(row)
             print(f"{name:8s} raytrace keep {keep:5s} {size}: {r.get('trace_seconds', float('nan')):.2f} s, "
                   f"{r.get('us_per_ray', float('nan')):.1f} us/ray, {r.get('hits')} hits, "
-                  f"{(r.get('functions') or 0) / max(1, r.get('rays') or 1):.0f} functions/ray", flush=True)
+                  f"{(r.get('functions') or 0) / max(1, r.get('rays') or 1):.0f} functions/ray"
+                  + (f"; baseline {base.get('trace_seconds', float('nan')):.2f} s, ratio {row.get('ratio', float('nan')):.2f}x"
+                     f" (CPU {row.get('cpu_ratio', float('nan')):.2f}x), {row.get('vs_baseline')}" if base else ""),
+                  flush=True)
     return rows
 
 
@@ -280,18 +308,30 @@ def write_md(res, out, name, tools):
                       f"including the cell grid; the no-missed-hit guarantee is docs/iso.md's, tested in "
                       f"tests/c/test_iso_trace.c:", "",
                   *([res["raytrace_note"], ""] if res.get("raytrace_note") else []),
-                  "| phantom | keep | image | trace s | cells thread-s | us per ray | hits | functions per ray | "
-                  "pieces per ray | refined per ray | root intervals | grazes |",
-                  "|---|---|---|---|---|---|---|---|---|---|---|---|"]
+                  "| phantom | keep | image | trace s | trace CPU s | cells thread-s | us per ray | hits | "
+                  "functions per ray | pieces per ray | refined per ray | root intervals | grazes | baseline trace s "
+                  "(CPU s) | ratio (CPU) | same image |",
+                  "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
         for r in rt:
             if "error" in r:
-                lines.append(f"| {r['phantom']} | {r['keep']} | {r['size']} | error: {r['error']} |" + " |" * 8)
+                lines.append(f"| {r['phantom']} | {r['keep']} | {r['size']} | error: {r['error']} |" + " |" * 12)
                 continue
             rays = max(1, r["rays"])
+            b, v = r.get("baseline") or {}, r.get("vs_baseline")
+            base = (f"{b['trace_seconds']:.2f} ({b['trace_cpu_seconds']:.2f}) | {r['ratio']:.2f}x "
+                    f"({r['cpu_ratio']:.2f}x) | {'yes' if v and v['mask_diff'] == 0 else 'no'}: "
+                    f"{v['mask_diff']} pixels differ in hit, depth max diff {v['depth_max_diff']:.2g}"
+                    if "ratio" in r else ("earlier run |  | " if r.get("earlier_run") else " |  | "))
+            cpu = r.get("trace_cpu_seconds")
             lines.append(f"| {r['phantom']} | {r['keep']} | {r['size']} | {r['trace_seconds']:.2f} | "
+                         f"{cpu if cpu is None else f'{cpu:.2f}'} | "
                          f"{r['cells_seconds']:.2f} | {r['us_per_ray']:.1f} | {r['hits']} | "
                          f"{r['functions'] / rays:.0f} | {r['pieces'] / rays:.0f} | {r['refined'] / rays:.1f} | "
-                         f"{r['intervals']} | {r['grazes']} |")
+                         f"{r['intervals']} | {r['grazes']} | {base} |")
+        if res.get("raytrace_baseline"):
+            lines += ["", f"Baseline: {res['raytrace_baseline']}, traced first on the same image in the same run; "
+                          "ratio = baseline time / this time (wall clock; CPU: process CPU seconds of the trace). "
+                          "Rows marked 'earlier run' were not rerun."]
     (out / f"{name}.md").write_text("\n".join(lines) + "\n")
     print("\n".join(lines))
 
@@ -316,6 +356,10 @@ def main():
                     help="per-row sizes, e.g. 'skull:100%%=128x128,gaussian:100%%=256x256' (labelled in the table)")
     ap.add_argument("--rt-keep", default="1%,5%,100%")
     ap.add_argument("--rt-threads", type=int, default=2)
+    ap.add_argument("--rt-baseline", default="",
+                    help="ray tracer rows: another wvol program (e.g. main's build) traced on the same image first, "
+                         "in the same run: its time, the ratio and the images compared")
+    ap.add_argument("--rt-baseline-note", default="", help="what --rt-baseline is, for the report")
     ap.add_argument("--cast", action="store_true",
                     help="only the image routes (bench/iso_cast.py): the bricked caster against marching cubes + "
                          "Embree, VTK, OpenVDB and the exact tracer; --quick: 96^3, 128^2, one thread")
@@ -387,7 +431,12 @@ def main():
             sys.exit(f"--raytrace-only: {rname}.json is for n = {res['n']}, not {n}")
         res["raytrace_load_avg"] = os.getloadavg()[0]
         with tempfile.TemporaryDirectory() as tmp:
-            res["raytrace"] = raytrace_rows(args, phantoms, tmp)
+            new_rows = raytrace_rows(args, phantoms, tmp)
+        # rows of this run replace those of the same phantom and keep; the others stay, marked
+        done = {(r["phantom"], r["keep"]) for r in new_rows}
+        kept = [dict(r, earlier_run=True) for r in res.get("raytrace", []) if (r["phantom"], r["keep"]) not in done]
+        res["raytrace"] = sorted(new_rows + kept, key=lambda r: (r["phantom"], float(r["keep"].rstrip("%"))))
+        res["raytrace_baseline"] = args.rt_baseline_note or args.rt_baseline or None
         res.pop("raytrace_note", None)  # a note describes one run: add it by hand after
         (out / f"{rname}.json").write_text(json.dumps(res, indent=1) + "\n")
         write_md(res, out, rname, tools)

@@ -22,7 +22,8 @@
  * Crossings at piece boundaries (f^ jumps there for Haar, whose pieces are constants) are
  * detected by comparing the last value of a piece with the first of the next.
  *
- * Cost. Building a function's polynomials is the expense; two rigorous shortcuts avoid most:
+ * Cost. Building the polynomials (factorised per piece: store/store_ray.h) and the store's
+ * queries are the expense; two rigorous shortcuts avoid most:
  *   - small functions (the smallest |c| max|w|, summing to <= 1/16 of the chunk's largest)
  *     are not expanded but bounded per piece (sum of |c| max|w| of those covering it); a
  *     piece whose hull widened by that envelope excludes iso is decided, and only runs of

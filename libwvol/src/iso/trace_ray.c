@@ -297,9 +297,8 @@ static wvol_status trace_span(const tracer *tr, tws *w, const double o[3], const
             }
             for (e2 = e + 1; e2 < E && e2 - e < RUN_MAX && decide(tr, w->s.macc + e2 * NC, w->env[e2]) < 0;)
                 e2++;
-            for (i = nb; i < n; i++)
-                if (hits[i].t1 >= F->T[e] && hits[i].t0 <= F->T[e2])
-                    wvol__spline_add_finest(&tr->g, &w->s, ov, dv, &hits[i], e, e2, &cnt);
+            WVOL_RETURN_IF(!wvol__spline_add_finest_list(&tr->g, &w->s, ov, dv, hits + nb, n - nb, e, e2, &cnt), err,
+                           WVOL_ERR_NOMEM, "iso trace: out of memory");
             h->refined += e2 - e;
             for (q = e; q < e2; q++) {
                 const double *a = w->s.macc + q * NC;

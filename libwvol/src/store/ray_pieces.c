@@ -1,9 +1,12 @@
 /* SPDX-License-Identifier: MIT
  * f^ along a ray as exact piecewise polynomials (store/store_ray.h): the store's kept basis
  * functions whose support the ray crosses, each a product of three cubic spline pieces
- * composed with the ray, multiplied out and added to the pieces of its level's lattice.
- * Shared by the spline integrator (render/spline.c) and the implicit-surface ray tracer
- * (iso/). Based on: Gross, Lippert et al. (paper, section 5, eqs 34-40). */
+ * composed with the ray, multiplied out and added to the pieces of its level's lattice:
+ * factorised for the values (add_level: each (axis, translate, band) cubic composed once per
+ * piece, the sum grouped by the x and then the y factor), function by function for the
+ * gradient and the reference (add_hit). Shared by the spline integrator (render/spline.c) and
+ * the implicit-surface ray tracer (iso/). Based on: Gross, Lippert et al. (paper, section 5,
+ * eqs 34-40). */
 #include "store/store_ray.h"
 #include "core/clones.h"
 #include "core/status_internal.h"
@@ -245,6 +248,266 @@ WVOL__CLONES static void add_hit(const wvol__spline_geom *c, const level_ws *L, 
     }
 }
 
+/* The factorised build. On a piece of a lattice at least as fine as its level's, a level-m
+ * function is w X(t) Y(t) Z(t), one composed cubic per axis, and the functions with the same
+ * translate and band on an axis share that axis's cubic. So each (axis, translate, band)
+ * cubic is composed once per piece (exactly as add_hit composes it), and the level's sum is
+ * formed factorised, sum_x X (sum_y Y (sum_z w Z)): 4 multiply-adds per function and piece,
+ * the products once per piece and (x) or (x, y) group. Only the order of the sums differs
+ * from add_hit's: equal to rounding. Keys: 2 (j - jmin) + band bit, j the image's translate
+ * on the axis (lo = j 2^m - s); an axis the transform leaves alone has the one key 0. */
+
+/* First e in [lo, hi) with T[e] >= t, else hi. */
+static size_t first_ge(const double *T, size_t lo, size_t hi, double t)
+{
+    while (lo < hi) {
+        size_t m = (lo + hi) / 2;
+        if (T[m] >= t) hi = m;
+        else lo = m + 1;
+    }
+    return lo;
+}
+
+/* Fills key k's composed cubics on pieces [lo, hi) of T: the factor B((x_a - ref) / 2^m) of
+ * band bit `which` along the ray; zero where the ray is outside the factor's support or the
+ * piece is empty (add_hit skips those pieces). Inlined into add_level, so that it is compiled
+ * with add_level's clones. */
+static inline __attribute__((always_inline)) void axis_cubics(const wvol__spline_geom *c, const double *T, int a,
+                                                              int which, double ref, double inv2m, const double o[3],
+                                                              const double d[3], size_t lo, size_t hi, double *out)
+{
+    const wvol_basis *b = c->b;
+    double base = (o[a] - ref) * inv2m, slope = d[a] * inv2m, cst = 1.0;
+    size_t e;
+    int constant = !c->info.transformed[a] || d[a] == 0.0;
+    if (c->info.transformed[a] && d[a] == 0.0) {
+        int i = wvol_basis_piece(b, base);
+        double u = base - i * b->h;
+        const double *k = i < 0 ? NULL : wvol_basis_coeffs(b, which, WVOL_BASIS_VALUE, i);
+        cst = k ? k[0] + u * (k[1] + u * (k[2] + u * k[3])) : 0.0;
+    }
+    for (e = lo; e < hi; e++, out += 4) {
+        double t0 = T[e], len = T[e + 1] - t0, a0, am;
+        int i;
+        out[0] = out[1] = out[2] = out[3] = 0.0;
+        if (!(len > 0)) continue;
+        if (constant) {
+            out[0] = cst;
+            continue;
+        }
+        a0 = base + t0 * slope;
+        am = a0 + 0.5 * len * slope;
+        i = wvol_basis_piece(b, am);
+        if (i >= 0) compose3(out, wvol_basis_coeffs(b, which, WVOL_BASIS_VALUE, i), len * slope, a0 - i * b->h);
+    }
+}
+
+/* acc += a * b, a degree 6, b cubic (no weight); in locals, then stored once. */
+static inline void mac63(double *restrict acc, const double *restrict a, const double *restrict b)
+{
+    double r[NC];
+    int i, j;
+    for (i = 0; i < NC; i++) r[i] = acc[i];
+    for (i = 0; i < 7; i++)
+        for (j = 0; j < 4; j++) r[i + j] += a[i] * b[j];
+    for (i = 0; i < NC; i++) acc[i] = r[i];
+}
+
+/* acc += a * b for cubics a, b (degree 6). */
+static inline void mac33(double *restrict acc, const double *restrict a, const double *restrict b)
+{
+    double r[7];
+    int i, j;
+    for (i = 0; i < 7; i++) r[i] = acc[i];
+    for (i = 0; i < 4; i++)
+        for (j = 0; j < 4; j++) r[i + j] += a[i] * b[j];
+    for (i = 0; i < 7; i++) acc[i] = r[i];
+}
+
+/* Last e in [0, E) with T[e] <= t (0 when none): add_hit's first piece of a function. */
+static size_t last_le(const double *T, size_t E, double t)
+{
+    size_t lo = 0, hi = E;
+    while (hi - lo > 1) {
+        size_t mid = (lo + hi) / 2;
+        if (T[mid] <= t) lo = mid;
+        else hi = mid;
+    }
+    return lo;
+}
+
+/* The pieces [s0, s1) of [elo, eend) the ray may be inside key q's support on: found as add_hit
+ * finds a function's, from the slab's entry and exit. A piece just outside may come in through
+ * rounding: its cubic is zero (axis_cubics). */
+static void key_slab(const wvol__spline_geom *c, const double *T, size_t E, size_t elo, size_t eend, int a,
+                     const double o[3], const double d[3], wvol__fact_key *q)
+{
+    double tin, tout;
+    size_t e0;
+    q->s0 = (uint32_t)elo;
+    q->s1 = (uint32_t)eend;
+    if (!c->info.transformed[a] || d[a] == 0.0) return;
+    tin = (q->lo - o[a]) / d[a];
+    tout = (q->hi - o[a]) / d[a];
+    if (tin > tout) {
+        double t = tin;
+        tin = tout, tout = t;
+    }
+    e0 = last_le(T, E, tin);
+    if (e0 < elo) e0 = elo;
+    q->s0 = (uint32_t)(e0 < eend ? e0 : eend);
+    q->s1 = (uint32_t)(e0 < eend ? first_ge(T, e0, eend, tout) : eend);
+}
+
+/* Adds the level-m functions among hits[0..n) to accbase's pieces [elo, ehi) of the lattice
+ * T (E pieces). 0 when out of memory. */
+WVOL__CLONES static int add_level(const wvol__spline_geom *c, wvol__fact_ws *f, const double *T, size_t E, double *accbase,
+                                  size_t elo, size_t ehi, const double o[3], const double d[3], const wvol_store_hit *hits,
+                                  size_t n, int m, wvol__spline_count *r)
+{
+    double inv2m = ldexp(1.0, -m);
+    int64_t jmin[3] = {INT64_MAX, INT64_MAX, INT64_MAX}, jmax[3] = {INT64_MIN, INT64_MIN, INT64_MIN};
+    size_t K[3], nm = 0, i, q, eend = E < ehi ? E : ehi, tot;
+    int a, key_axis[3];
+    if (elo >= eend) return 1;
+    for (a = 0; a < 3; a++) key_axis[a] = c->info.transformed[a];
+    for (i = 0; i < n; i++) {
+        if (hits[i].level != m) continue;
+        nm++;
+        for (a = 0; a < 3; a++)
+            if (key_axis[a]) {
+                int64_t j = (int64_t)floor((hits[i].lo[a] + c->shift) * inv2m + 0.5);
+                if (j < jmin[a]) jmin[a] = j;
+                if (j > jmax[a]) jmax[a] = j;
+            }
+    }
+    if (!nm) return 1;
+    if (!grow((void **)&f->h, &f->capH, nm, sizeof *f->h) || !grow((void **)&f->s, &f->capS, nm, sizeof *f->s)) return 0;
+    for (a = 0; a < 3; a++) {
+        wvol__fact_axis *X = &f->ax[a];
+        K[a] = key_axis[a] ? 2 * (size_t)(jmax[a] - jmin[a] + 1) : 1;
+        if (!grow((void **)&X->key, &X->capK, K[a], sizeof *X->key)) return 0;
+        for (q = 0; q < K[a]; q++) X->key[q].seen = 0;
+    }
+    /* per function: weight, keys, piece range (the intersection of its keys' slabs) */
+    for (i = 0, q = 0; i < n; i++) {
+        const wvol_store_hit *h = &hits[i];
+        wvol__fact_hit *p;
+        uint32_t e0 = (uint32_t)elo, e1 = (uint32_t)eend;
+        if (h->level != m) continue;
+        p = &f->h[q];
+        for (a = 0; a < 3; a++) {
+            wvol__fact_key *kq;
+            uint32_t k = 0;
+            if (key_axis[a])
+                k = (uint32_t)(2 * ((int64_t)floor((h->lo[a] + c->shift) * inv2m + 0.5) - jmin[a]) + ((h->band >> a) & 1));
+            p->k[a] = k;
+            kq = &f->ax[a].key[k];
+            if (!kq->seen) {
+                kq->seen = 1;
+                kq->lo = h->lo[a];
+                kq->hi = h->hi[a];
+                kq->e0 = UINT32_MAX;
+                kq->e1 = 0;
+                key_slab(c, T, E, elo, eend, a, o, d, kq);
+            }
+            if (kq->s0 > e0) e0 = kq->s0;
+            if (kq->s1 < e1) e1 = kq->s1;
+        }
+        if (e0 >= e1) continue;
+        p->w = (double)h->value * c->norm[m];
+        p->e0 = e0;
+        p->e1 = e1;
+        for (a = 0; a < 3; a++) {
+            wvol__fact_key *kq = &f->ax[a].key[p->k[a]];
+            if (e0 < kq->e0) kq->e0 = e0;
+            if (e1 > kq->e1) kq->e1 = e1;
+        }
+        r->pieces += e1 - e0;
+        r->functions++;
+        q++;
+    }
+    nm = q;
+    if (!nm) return 1;
+    /* every used key's cubics on its functions' pieces */
+    for (a = 0; a < 3; a++) {
+        wvol__fact_axis *X = &f->ax[a];
+        for (tot = 0, q = 0; q < K[a]; q++) {
+            wvol__fact_key *kq = &X->key[q];
+            kq->off = tot;
+            if (kq->seen && kq->e0 < kq->e1) tot += 4 * (size_t)(kq->e1 - kq->e0);
+        }
+        if (!grow((void **)&X->cub, &X->capC, tot, sizeof(double))) return 0;
+        for (q = 0; q < K[a]; q++) {
+            const wvol__fact_key *kq = &X->key[q];
+            if (kq->seen && kq->e0 < kq->e1)
+                axis_cubics(c, T, a, key_axis[a] ? (int)(q & 1) : 0, kq->lo, inv2m, o, d, kq->e0, kq->e1, X->cub + kq->off);
+        }
+    }
+    /* sorted by (key x, key y): counting sort on y, then a stable one on x */
+    {
+        size_t nk = (K[0] > K[1] ? K[0] : K[1]) + 1, pass;
+        if (!grow((void **)&f->count, &f->capN, nk, sizeof *f->count)) return 0;
+        for (pass = 0; pass < 2; pass++) {
+            int ax = pass == 0 ? 1 : 0;
+            const wvol__fact_hit *src = pass == 0 ? f->h : f->s;
+            wvol__fact_hit *dst = pass == 0 ? f->s : f->h;
+            size_t sum = 0;
+            memset(f->count, 0, nk * sizeof *f->count);
+            for (q = 0; q < nm; q++) f->count[src[q].k[ax]]++;
+            for (q = 0; q < K[ax]; q++) {
+                size_t cq = f->count[q];
+                f->count[q] = (uint32_t)sum;
+                sum += cq;
+            }
+            for (q = 0; q < nm; q++) dst[f->count[src[q].k[ax]]++] = src[q];
+        }
+    }
+    if (!grow((void **)&f->zs, &f->capZ, 4 * eend, sizeof(double)) || !grow((void **)&f->yz, &f->capY, 7 * eend, sizeof(double)))
+        return 0;
+    {
+        const wvol__fact_hit *s = f->h;
+        const wvol__fact_key *KX = f->ax[0].key, *KY = f->ax[1].key, *KZ = f->ax[2].key;
+        double *zs = f->zs, *yz = f->yz;
+        size_t ix = 0, e;
+        while (ix < nm) {
+            uint32_t kx = s[ix].k[0], xlo = KX[kx].e0, xhi = KX[kx].e1;
+            size_t jx = ix, iy;
+            const double *Xc = f->ax[0].cub + KX[kx].off;
+            while (jx < nm && s[jx].k[0] == kx) jx++;
+            memset(yz + 7 * (size_t)xlo, 0, 7 * (size_t)(xhi - xlo) * sizeof(double));
+            for (iy = ix; iy < jx;) {
+                uint32_t ky = s[iy].k[1], ylo = UINT32_MAX, yhi = 0;
+                size_t jy = iy, p;
+                const double *Yc = f->ax[1].cub + KY[ky].off;
+                while (jy < jx && s[jy].k[1] == ky) {
+                    if (s[jy].e0 < ylo) ylo = s[jy].e0;
+                    if (s[jy].e1 > yhi) yhi = s[jy].e1;
+                    jy++;
+                }
+                memset(zs + 4 * (size_t)ylo, 0, 4 * (size_t)(yhi - ylo) * sizeof(double));
+                for (p = iy; p < jy; p++) {
+                    const wvol__fact_hit *h = &s[p];
+                    const wvol__fact_key *kz = &KZ[h->k[2]];
+                    const double *Zc = f->ax[2].cub + kz->off + 4 * (size_t)(h->e0 - kz->e0);
+                    double w = h->w, *z = zs + 4 * (size_t)h->e0;
+                    for (e = h->e0; e < h->e1; e++, z += 4, Zc += 4) {
+                        z[0] += w * Zc[0];
+                        z[1] += w * Zc[1];
+                        z[2] += w * Zc[2];
+                        z[3] += w * Zc[3];
+                    }
+                }
+                for (e = ylo; e < yhi; e++) mac33(yz + 7 * e, Yc + 4 * (e - KY[ky].e0), zs + 4 * e);
+                iy = jy;
+            }
+            for (e = xlo; e < xhi; e++) mac63(accbase + e * NC, yz + 7 * e, Xc + 4 * (e - xlo));
+            ix = jx;
+        }
+    }
+    return 1;
+}
+
 /* q(v) = p(alpha + beta v), degree 9 (Taylor shift by synthetic division, then scaling). */
 static void reexpand(double *q, const double *p, double alpha, double beta)
 {
@@ -324,11 +587,20 @@ wvol_status wvol__spline_ray(const wvol__spline_geom *g, wvol__spline_ws *ws, co
     return wvol__spline_build(g, ws, o, d, ta, tb, ws->hits.hits, ws->hits.count, shading, merge, cnt, err);
 }
 
-void wvol__spline_add_finest(const wvol__spline_geom *g, wvol__spline_ws *ws, const double o[3], const double d[3],
-                             const wvol_store_hit *h, size_t elo, size_t ehi, wvol__spline_count *cnt)
+int wvol__spline_add_finest_list(const wvol__spline_geom *g, wvol__spline_ws *ws, const double o[3], const double d[3],
+                                 const wvol_store_hit *hits, size_t n, size_t elo, size_t ehi, wvol__spline_count *cnt)
 {
     /* every level's knots lie on level 1's lattice: one polynomial per finest piece */
-    add_hit(g, &ws->lev[1], ws->macc, elo, ehi, o, d, h, 0, cnt);
+    const level_ws *F = &ws->lev[1];
+    size_t i;
+    int m;
+    if (ws->per_function) {
+        for (i = 0; i < n; i++) add_hit(g, F, ws->macc, elo, ehi, o, d, &hits[i], 0, cnt);
+        return 1;
+    }
+    for (m = 1; m <= g->info.levels; m++)
+        if (!add_level(g, &ws->f, F->T, F->E, ws->macc, elo, ehi, o, d, hits, n, m, cnt)) return 0;
+    return 1;
 }
 
 wvol_status wvol__spline_build(const wvol__spline_geom *g, wvol__spline_ws *ws, const double o[3], const double d[3],
@@ -350,10 +622,18 @@ wvol_status wvol__spline_build(const wvol__spline_geom *g, wvol__spline_ws *ws, 
         memset(L->acc, 0, L->E * NC * per * sizeof(double));
         L->used = 0;
     }
-    for (i = 0; i < n; i++) {
-        level_ws *L = &ws->lev[hits[i].level];
-        L->used = 1;
-        add_hit(g, L, L->acc, 0, L->E, o, d, &hits[i], shading, cnt);
+    for (i = 0; i < n; i++) ws->lev[hits[i].level].used = 1;
+    if (shading || ws->per_function) {
+        for (i = 0; i < n; i++) {
+            level_ws *L = &ws->lev[hits[i].level];
+            add_hit(g, L, L->acc, 0, L->E, o, d, &hits[i], shading, cnt);
+        }
+    } else {
+        for (m = 1; m <= M; m++)
+            if (ws->lev[m].used == 1)
+                WVOL_RETURN_IF(!add_level(g, &ws->f, ws->lev[m].T, ws->lev[m].E, ws->lev[m].acc, 0, ws->lev[m].E, o, d,
+                                          hits, n, m, cnt),
+                               err, WVOL_ERR_NOMEM, "render: out of memory for the ray's pieces");
     }
     if (merge) WVOL_RETURN_IF(!merge_levels(g, ws, shading), err, WVOL_ERR_NOMEM, "render: out of memory");
     return WVOL_OK;
@@ -366,7 +646,12 @@ void wvol__spline_ws_free(wvol__spline_ws *ws)
         free(ws->lev[l].T);
         free(ws->lev[l].acc);
     }
-    for (l = 0; l < 3; l++) free(ws->ax[l]);
+    for (l = 0; l < 3; l++) {
+        wvol__fact_axis *X = &ws->f.ax[l];
+        free(ws->ax[l]);
+        free(X->key), free(X->cub);
+    }
+    free(ws->f.h), free(ws->f.s), free(ws->f.count), free(ws->f.zs), free(ws->f.yz);
     free(ws->macc);
     wvol_store_hits_free(&ws->hits);
     memset(ws, 0, sizeof *ws);

@@ -9,9 +9,15 @@
  * functions whose support meets [ta, tb], lays out each used level's lattice pieces and adds
  * every function's product of composed cubics to the pieces it covers; with `merge` it sums
  * all levels onto level 1's (the finest) lattice in ws->macc. Each piece's polynomial is in
- * its normalised variable u in [0, 1] (t = T[e] + u (T[e+1] - T[e])), degree <= 9. */
+ * its normalised variable u in [0, 1] (t = T[e] + u (T[e+1] - T[e])), degree <= 9.
+ * The values are built factorised (functions sharing a translate and band on an axis share
+ * that axis's composed cubic on a piece: sum_x X sum_y Y sum_z c Z, ray_pieces.c); the
+ * gradient, and the values with ws->per_function set (the reference the tests compare with),
+ * function by function. The two agree to rounding (tests/c/test_ray_factor.c). */
 #ifndef WVOL_STORE_RAY_H
 #define WVOL_STORE_RAY_H
+
+#include <stdint.h>
 
 #include "wvol/store.h"
 
@@ -25,8 +31,45 @@ typedef struct wvol__level_ws {
     int used;           /* a function of this level was added */
 } wvol__level_ws;
 
-/* Per-thread scratch, reused across rays; start zeroed, free with wvol__spline_ws_free. */
+/* Scratch of the factorised builder (ray_pieces.c): per function its weight, piece range and
+ * per-axis factor keys; per axis the keys' piece ranges and composed cubics. */
+typedef struct wvol__fact_hit {
+    double w;
+    uint32_t e0, e1, k[3];
+} wvol__fact_hit;
+
+typedef struct wvol__fact_key {
+    double lo, hi;      /* the support's extent on this axis */
+    uint32_t s0, s1;    /* pieces the ray may be inside it on (its slab) */
+    uint32_t e0, e1;    /* pieces its functions are used on (the union of theirs) */
+    size_t off;         /* offset of its cubics in cub (4 per piece from e0) */
+    int seen;
+} wvol__fact_key;
+
+typedef struct wvol__fact_axis {
+    wvol__fact_key *key;
+    size_t capK;
+    double *cub;
+    size_t capC;
+} wvol__fact_axis;
+
+typedef struct wvol__fact_ws {
+    wvol__fact_hit *h, *s;      /* the level's functions; the same sorted by (key x, key y) */
+    size_t capH, capS;
+    uint32_t *count;
+    size_t capN;
+    double *zs, *yz;            /* per piece: sum of c Z (cubic), sum of Y (c Z) (degree 6) */
+    size_t capZ, capY;
+    wvol__fact_axis ax[3];
+} wvol__fact_ws;
+
+/* Per-thread scratch, reused across rays; start zeroed, free with wvol__spline_ws_free.
+ * per_function: build every piece by the per-function product instead of the factorised
+ * sum (the reference the tests compare the factorised builder with; the gradient always
+ * uses it). */
 typedef struct wvol__spline_ws {
+    int per_function;
+    wvol__fact_ws f;
     wvol__level_ws lev[WVOL_SELECT_MAX_LEVELS + 1];
     double *ax[3];      /* per-axis crossings (scratch) */
     size_t capX[3];
@@ -65,10 +108,11 @@ wvol_status wvol__spline_build(const wvol__spline_geom *g, wvol__spline_ws *ws, 
                                double ta, double tb, const wvol_store_hit *hits, size_t n, int shading, int merge,
                                wvol__spline_count *cnt, wvol_error *err);
 
-/* Adds one more function's value to the merged polynomials ws->macc, on level 1's pieces
- * [elo, ehi) only (after a build with merge; no gradient). */
-void wvol__spline_add_finest(const wvol__spline_geom *g, wvol__spline_ws *ws, const double o[3], const double d[3],
-                             const wvol_store_hit *h, size_t elo, size_t ehi, wvol__spline_count *cnt);
+/* Adds more functions' values (any levels) to the merged polynomials ws->macc, on level 1's
+ * pieces [elo, ehi) only (after a build with merge; no gradient), factorised like the build;
+ * 0 when out of memory. */
+int wvol__spline_add_finest_list(const wvol__spline_geom *g, wvol__spline_ws *ws, const double o[3], const double d[3],
+                                 const wvol_store_hit *hits, size_t n, size_t elo, size_t ehi, wvol__spline_count *cnt);
 
 void wvol__spline_ws_free(wvol__spline_ws *ws);
 
