@@ -291,7 +291,8 @@ int wvol_cmd_compress(int argc, char **argv)
             if (!strcmp(val, "auto")) coder = WVOL_WVC_CODER_AUTO;
             else if (!strcmp(val, "cabac")) coder = WVOL_WVC_CODER_CABAC;
             else if (!strcmp(val, "zstd")) coder = WVOL_WVC_CODER_ZSTD;
-            else return cli_usage("compress", "--coder '%s': expected auto, cabac or zstd", val);
+            else if (!strcmp(val, "rans")) coder = WVOL_WVC_CODER_RANS;
+            else return cli_usage("compress", "--coder '%s': expected auto, cabac, zstd or rans", val);
         } else if (!strcmp(o->name, "format")) {
             if (!cli_parse_long("compress", "format", val, 1, 2, &format)) return CLI_USAGE;
         } else if (!strcmp(o->name, "tile")) {

@@ -35,7 +35,9 @@ typedef enum wvol_wvc_coder {
     WVOL_WVC_CODER_AUTO = 0,  /* per section, the smaller of CABAC and zstd (encoder only) */
     WVOL_WVC_CODER_EMPTY = 0, /* in a file: all coefficients of the section are zero */
     WVOL_WVC_CODER_CABAC = 1, /* context-adaptive binary range coder */
-    WVOL_WVC_CODER_ZSTD = 2   /* zigzag varints of the same symbols, zstd */
+    WVOL_WVC_CODER_ZSTD = 2,  /* zigzag varints of the same symbols, zstd */
+    WVOL_WVC_CODER_RANS = 3   /* encoder only, version 2: static-model rANS chunks (mode 3)
+                                 wherever a chunk has no low-pass cube */
 } wvol_wvc_coder;
 
 typedef struct wvol_wvc_params {
