@@ -40,6 +40,7 @@
  *     16-bit words), the raw bits (the last byte holds the last bit).
  * The decoder checks every table and length, that each rANS state ends where the
  * encoder began it with every word read, and that the raw bits end in their last byte. */
+#include <pthread.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -70,12 +71,14 @@ static inline uint8_t r3_sg(int32_t v) { return (uint8_t)(v > 0 ? 1 : v < 0 ? 2 
 
 static inline uint32_t r3_mag_ctx(uint32_t t, uint8_t pc)
 {
-    uint32_t n = t ? 32 - (uint32_t)__builtin_clz(t) : 0;
+    /* the bit length of t < 2^31, without a branch on t == 0 */
+    uint32_t n = 31 - (uint32_t)__builtin_clz(2 * t + 1);
     return (n < R3_NA - 1 ? n : R3_NA - 1) * R3_NP + pc;
 }
 
-/* Per row: A[x], the context sum without W; PC[x] the parent class; SG[x] = 9 sign(U) +
- * sign(N); all from rows decoded before. zrow: ex zeros. */
+/* Per row: A[x], the context sum without W; PC[x] the parent class; SG[x] = 27 (band - 1)
+ * + 9 sign(U) + sign(N), the sign context without W; all from rows decoded before.
+ * zrow: ex zeros. */
 typedef struct r3_row {
     uint32_t *A;
     uint8_t *PC, *SG;
@@ -87,6 +90,7 @@ WVOL__CLONES static void r3_row_prep(const r3_row *w, const int32_t *Q, const si
     const size_t sy = p[0], sz = p[0] * p[1], ex = b->ext[0];
     const int32_t *c = Q + wvc_index(p, b, 0, y, z);
     const int32_t *N = y > 0 ? c - sy : zrow, *U = z > 0 ? c - sz : zrow;
+    const int sbase = 27 * (b->band - 1);
     const int32_t *UN = z > 0 && y > 0 ? c - sz - sy : zrow, *US = z > 0 && y + 1 < b->ext[1] ? c - sz + sy : zrow;
     uint32_t *restrict A = w->A;
     uint8_t *restrict SG = w->SG, *restrict PC = w->PC;
@@ -95,7 +99,8 @@ WVOL__CLONES static void r3_row_prep(const r3_row *w, const int32_t *Q, const si
     for (x = 1; x < ex; x++) A[x] += r3_abs(N[x - 1]) + r3_abs(U[x - 1]);
     for (x = 0; x + 1 < ex; x++) A[x] += r3_abs(N[x + 1]) + r3_abs(U[x + 1]);
     /* comparisons as 0/1, so the loops vectorise */
-    for (x = 0; x < ex; x++) SG[x] = (uint8_t)(9 * ((U[x] > 0) + 2 * (U[x] < 0)) + (N[x] > 0) + 2 * (N[x] < 0));
+    for (x = 0; x < ex; x++)
+        SG[x] = (uint8_t)(sbase + 9 * ((U[x] > 0) + 2 * (U[x] < 0)) + (N[x] > 0) + 2 * (N[x] < 0));
     if (!b->has_parent) {
         memset(PC, 0, ex);
         return;
@@ -151,6 +156,19 @@ static void r3_row_free(r3_row *w, int32_t *zrow)
 /* Raw bits below the first two and the magnitude symbol's base, per symbol. */
 static inline int r3_nraw(int s) { return s < 2 ? 0 : (s >> 1) - 1; }
 static inline uint32_t r3_base(int s) { return s < 2 ? (uint32_t)s : (2u | (uint32_t)(s & 1)) << ((s >> 1) - 1); }
+
+/* The decoder's per-symbol lookups (s < 64): base | mask of the raw bits << 32, and
+ * the number of raw bits. */
+static uint64_t r3_symtab[64];
+static uint8_t r3_symraw[64];
+static void r3_symtab_init(void)
+{
+    for (int s = 0; s < 64; s++) {
+        int k = s < R3_NS ? r3_nraw(s) : 0;
+        r3_symtab[s] = (s < R3_NS ? r3_base(s) : 0) | (uint64_t)((1u << k) - 1) << 32;
+        r3_symraw[s] = (uint8_t)k;
+    }
+}
 
 /* ---- frequency tables ---- */
 
@@ -255,7 +273,6 @@ WVOL__CLONES static void r3_scan_band(r3_enc *e, const int32_t *Q, const size_t 
                                       const r3_row *w, const int32_t *zrow, size_t k)
 {
     const size_t ex = b->ext[0];
-    const uint8_t sbase = (uint8_t)(27 * (b->band - 1));
     size_t i = k;
     e->acc = 0;
     e->nacc = 0;
@@ -271,7 +288,7 @@ WVOL__CLONES static void r3_scan_band(r3_enc *e, const int32_t *Q, const size_t 
                 int s = 0;
                 if (v) {
                     const uint32_t a = v < 0 ? (uint32_t)0 - (uint32_t)v : (uint32_t)v;
-                    const uint8_t sc = (uint8_t)(sbase + 3 * sW + w->SG[x]);
+                    const uint8_t sc = (uint8_t)(3 * sW + w->SG[x]);
                     int n = 31 - __builtin_clz(a);
                     s = n == 0 ? 1 : 2 * n + (int)((a >> (n - 1)) & 1);
                     if (n > 1) r3_put_raw(e, a & ((1u << (n - 1)) - 1), n - 1);
@@ -418,16 +435,28 @@ typedef struct r3_lane {
     uint8_t *raw; /* rawbytes + 8 zero bytes */
     size_t rawbytes;
     uint64_t bitpos, count;
-    uint32_t xm, xs, sbase, over;
+    uint32_t xm, xs, over;
 } r3_lane;
 
+/* Renormalisation, at most one word: shifts and masks, no branch (whether a word is
+ * due is hard to predict). */
 static inline uint32_t r3_renorm(uint32_t x, const uint16_t *w, size_t n, size_t *pos)
 {
-    const int r = x < R3_L;
-    const uint32_t v = (x << 16) | w[*pos < n ? *pos : n];
-    *pos += (size_t)r;
-    return r ? v : x;
+    const uint32_t r = x < R3_L;
+    const uint32_t v = w[*pos < n ? *pos : n];
+    *pos += r;
+    return (x << (r << 4)) | (v & (0u - r));
 }
+
+/* The model: magnitude tables for every context side by side (slot -> symbol |
+ * frequency << R3_FSHIFT | (slot - start) << R3_OSHIFT; an unused context's part is
+ * never written, and its bit in `unused` is set), the frequencies of '+' per sign
+ * context with one more entry, 2^11, for zeros. */
+typedef struct r3_tabs {
+    uint32_t *flat;
+    uint64_t unused;
+    uint32_t SF[R3_NSG + 1];
+} r3_tabs;
 
 /* A lane's running state, kept in registers by the lockstep loop. */
 typedef struct r3_hot {
@@ -438,37 +467,40 @@ typedef struct r3_hot {
 
 /* One coefficient of a lane: *c from the streams; h->aW, h->sW: its left neighbour's |q|
  * (capped) and sign class, updated. Returns 0, or -1 when its context has no table. */
-FORCE_INLINE int r3_step(const r3_lane *L, r3_hot *h, const uint32_t *const *tabs, const uint32_t *SF, int32_t *c,
-                         size_t x)
+FORCE_INLINE int r3_step(const r3_lane *L, r3_hot *h, const r3_tabs *T, int32_t *c, size_t x)
 {
     const uint32_t cx = r3_mag_ctx(L->w.A[x] + 2 * h->aW, L->w.PC[x]);
-    const uint32_t *t = tabs[cx];
-    uint32_t e, s, f0, slot, neg, a, k, bits;
-    uint64_t word, at;
-    if (__builtin_expect(!t, 0)) return -1;
-    e = t[h->xm & (R3_M - 1)];
+    uint32_t e, s, nzm, f0, slot, neg, a, k, bits;
+    uint64_t word, at, st;
+    e = T->flat[cx * R3_M + (h->xm & (R3_M - 1))];
     s = e & 63;
     h->xm = (e >> R3_FSHIFT & (2 * R3_M - 1)) * (h->xm >> R3_PBITS) + (e >> R3_OSHIFT);
     h->xm = r3_renorm(h->xm, L->mw, L->mn, &h->mpos);
-    /* the sign: an identity step (frequency 2^11) for a zero */
-    f0 = s ? SF[L->sbase + 3 * h->sW + L->w.SG[x]] : R3_M;
+    /* the sign: an identity step (entry R3_NSG: frequency 2^11) for a zero; masks, not
+     * branches, as a zero is hard to predict */
+    nzm = 0u - (uint32_t)(s != 0);
+    f0 = T->SF[((3 * h->sW + L->w.SG[x]) & nzm) | (R3_NSG & ~nzm)];
     slot = h->xs & (R3_M - 1);
     neg = slot >= f0;
-    h->xs = (neg ? R3_M - f0 : f0) * (h->xs >> R3_PBITS) + slot - (neg ? f0 : 0);
+    {
+        const uint32_t nm = 0u - neg;
+        h->xs = (f0 ^ ((f0 ^ (R3_M - f0)) & nm)) * (h->xs >> R3_PBITS) + slot - (f0 & nm);
+    }
     h->xs = r3_renorm(h->xs, L->sw, L->sn, &h->spos);
     /* the raw bits: one unaligned load at the clamped byte position */
-    k = (uint32_t)r3_nraw((int)s);
+    st = r3_symtab[s];
+    k = r3_symraw[s];
     at = h->bitpos >> 3 < L->rawbytes ? h->bitpos >> 3 : L->rawbytes;
     memcpy(&word, L->raw + at, 8);
-    bits = (uint32_t)(word >> (h->bitpos & 7)) & ((1u << k) - 1);
+    bits = (uint32_t)(word >> (h->bitpos & 7)) & (uint32_t)(st >> 32);
     h->bitpos += k;
-    a = r3_base((int)s) | bits;
+    a = (uint32_t)st | bits;
     h->over |= a > WVC_QMAX;
-    *c = neg ? -(int32_t)a : (int32_t)a;
+    *c = (int32_t)((a ^ (0u - neg)) + neg);
     h->count += s != 0;
     h->aW = a > 65535 ? 65535 : a;
-    h->sW = s ? 1 + neg : 0;
-    return 0;
+    h->sW = (s != 0) + neg; /* neg is 0 for a zero */
+    return (int)(T->unused >> cx & 1);
 }
 
 static inline void r3_hot_in(r3_hot *h, const r3_lane *L)
@@ -484,7 +516,7 @@ static inline void r3_hot_out(const r3_hot *h, r3_lane *L)
 }
 
 /* K (1 or 2) lanes in lockstep over their bands' rows (same extent). */
-FORCE_INLINE int r3_lanes(int K, r3_lane *L, const uint32_t *const *tabs, const uint32_t *SF, const char **why)
+FORCE_INLINE int r3_lanes(int K, r3_lane *L, const r3_tabs *T, const char **why)
 {
     const wvc_band *b = L[0].b;
     const size_t ex = b->ext[0];
@@ -502,8 +534,8 @@ FORCE_INLINE int r3_lanes(int K, r3_lane *L, const uint32_t *const *tabs, const 
             }
             h0.aW = h0.sW = h1.aW = h1.sW = 0;
             for (size_t x = 0; x < ex; x++) {
-                int bad = r3_step(&L[0], &h0, tabs, SF, c0 + x, x);
-                if (K == 2) bad |= r3_step(&L[1], &h1, tabs, SF, c1 + x, x);
+                int bad = r3_step(&L[0], &h0, T, c0 + x, x);
+                if (K == 2) bad |= r3_step(&L[1], &h1, T, c1 + x, x);
                 if (__builtin_expect(bad, 0)) {
                     *why = "symbol in a context without a table";
                     r = -1;
@@ -521,14 +553,14 @@ FORCE_INLINE int r3_lanes(int K, r3_lane *L, const uint32_t *const *tabs, const 
     return r;
 }
 
-WVOL__CLONES static int r3_lanes2(r3_lane *lanes, const uint32_t *const *tabs, const uint32_t *SF, const char **why)
+WVOL__CLONES static int r3_lanes2(r3_lane *lanes, const r3_tabs *T, const char **why)
 {
-    return r3_lanes(2, lanes, tabs, SF, why);
+    return r3_lanes(2, lanes, T, why);
 }
 
-WVOL__CLONES static int r3_lanes1(r3_lane *lanes, const uint32_t *const *tabs, const uint32_t *SF, const char **why)
+WVOL__CLONES static int r3_lanes1(r3_lane *lanes, const r3_tabs *T, const char **why)
 {
-    return r3_lanes(1, lanes, tabs, SF, why);
+    return r3_lanes(1, lanes, T, why);
 }
 
 /* Copies a band's streams from src (lengths already checked against the payload). */
@@ -553,13 +585,17 @@ int wvol__wvc_rans_decode(int n, int32_t *const Q[], const size_t *const p[], co
                           const uint8_t *buf, size_t size, uint64_t *nonzero, const char **why)
 {
     r3_lane lane[8];
-    const uint32_t *tab[R3_NC] = {0};
-    uint32_t *store = NULL, SF[R3_NSG], len[8][3];
+    r3_tabs T;
+    uint32_t len[8][3];
     uint16_t freq[R3_NC][R3_NS];
     int ns[R3_NC], r = -1, i;
-    size_t pos = 0, used = 0;
+    size_t pos = 0;
+    static pthread_once_t once = PTHREAD_ONCE_INIT;
     *nonzero = 0;
     memset(lane, 0, sizeof lane);
+    T.flat = NULL;
+    T.unused = 0;
+    pthread_once(&once, r3_symtab_init);
     for (int c = 0; c < R3_NC; c++) {
         uint32_t v, sum = 0;
         if (r3_get_varint(buf, size, &pos, &v) || v > R3_NS) {
@@ -579,7 +615,7 @@ int wvol__wvc_rans_decode(int n, int32_t *const Q[], const size_t *const p[], co
             *why = "frequency table does not sum to 2^11";
             return -1;
         }
-        used += ns[c] != 0;
+        if (!ns[c]) T.unused |= (uint64_t)1 << c;
     }
     for (int c = 0; c < R3_NSG; c++) {
         uint32_t v;
@@ -589,8 +625,9 @@ int wvol__wvc_rans_decode(int n, int32_t *const Q[], const size_t *const p[], co
         }
         /* an unused context reads as all '+': a valid stream never decodes a sign there,
          * and a damaged one is caught by the end-of-stream checks */
-        SF[c] = v ? v - 1 : R3_M;
+        T.SF[c] = v ? v - 1 : R3_M;
     }
+    T.SF[R3_NSG] = R3_M;
     {
         size_t rest;
         for (i = 0; i < n; i++)
@@ -613,17 +650,14 @@ int wvol__wvc_rans_decode(int n, int32_t *const Q[], const size_t *const p[], co
             return -1;
         }
     }
-    store = malloc((used ? used : 1) * R3_M * sizeof *store);
-    if (!store) {
+    /* pages of unused contexts are never touched */
+    T.flat = calloc((size_t)R3_NC * R3_M, sizeof *T.flat);
+    if (!T.flat) {
         *why = "out of memory";
         goto done;
     }
-    used = 0;
     for (int c = 0; c < R3_NC; c++) {
-        uint32_t *t, cum = 0;
-        if (!ns[c]) continue;
-        t = store + used++ * R3_M;
-        tab[c] = t;
+        uint32_t *t = T.flat + (size_t)c * R3_M, cum = 0;
         for (int s = 0; s < ns[c]; s++) {
             for (uint32_t k = 0; k < freq[c][s]; k++) t[cum + k] = (uint32_t)s | (uint32_t)freq[c][s] << R3_FSHIFT | k << R3_OSHIFT;
             cum += freq[c][s];
@@ -634,7 +668,6 @@ int wvol__wvc_rans_decode(int n, int32_t *const Q[], const size_t *const p[], co
         L->Q = Q[i];
         L->p = p[i];
         L->b = b[i];
-        L->sbase = 27 * (uint32_t)(b[i]->band - 1);
         if (b[i]->band < 1 || b[i]->band > 7 || (i && b[i]->ext[0] != b[0]->ext[0]) ||
             (i && (b[i]->ext[1] != b[0]->ext[1] || b[i]->ext[2] != b[0]->ext[2]))) {
             *why = "chunk mode 3 needs detail bands of one extent";
@@ -651,8 +684,8 @@ int wvol__wvc_rans_decode(int n, int32_t *const Q[], const size_t *const p[], co
         pos += (size_t)len[i][0] + len[i][1] + len[i][2];
     }
     for (i = 0; i + 1 < n; i += 2)
-        if (r3_lanes2(&lane[i], tab, SF, why)) goto done;
-    if (i < n && r3_lanes1(&lane[i], tab, SF, why)) goto done;
+        if (r3_lanes2(&lane[i], &T, why)) goto done;
+    if (i < n && r3_lanes1(&lane[i], &T, why)) goto done;
     for (i = 0; i < n; i++) {
         const r3_lane *L = &lane[i];
         if (L->xm != R3_L || L->xs != R3_L || L->mpos != L->mn || L->spos != L->sn) {
@@ -669,7 +702,7 @@ int wvol__wvc_rans_decode(int n, int32_t *const Q[], const size_t *const p[], co
     }
     r = 0;
 done:
-    free(store);
+    free(T.flat);
     for (i = 0; i < n; i++) {
         free(lane[i].mw);
         free(lane[i].sw);
