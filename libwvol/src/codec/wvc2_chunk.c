@@ -112,13 +112,13 @@ static void parent_in(local_grid *lg, const wvc2_qbox *parent)
  * band (wvc_cabac.c's block_row), which the encoder writes. */
 enum { MODE_BANDS = 0, MODE_SHARED = 1, MODE_BLOCKS = 2, MODE_RANS = 3 };
 
-/* --coder auto's choice of mode 3 (docs/wvc-format.md, "Chunk mode 3"): a chunk without
- * the low-pass cube whose share of non-zero coefficients is at least this. */
-static double rans_min_density(void)
-{
-    const char *e = getenv("WVC_RANS_DENSITY");
-    return e ? atof(e) : 0.25;
-}
+/* --coder auto's use of mode 3 (docs/wvc-format.md, "Chunk mode 3: the choice"): a chunk
+ * without the low-pass cube with at least a quarter of its coefficients non-zero; from
+ * 65536 non-zeros on mode 3 alone, below it both modes are coded and the smaller kept
+ * (small dense chunks, the coarse levels, are where a static table pays most for itself,
+ * and coding both costs little there). */
+#define RANS_MIN_DENSITY 0.25
+#define RANS_ALONE_NONZERO 65536
 
 int wvol__wvc2_chunk_encode(wvc2_coded *out, const wvc2_geom *g, int m, const size_t ext[3],
                             const wvc2_qbox child[8], const wvc2_qbox parent[8], int coder, int zstd_level)
@@ -128,7 +128,9 @@ int wvol__wvc2_chunk_encode(wvc2_coded *out, const wvc2_geom *g, int m, const si
     uint64_t nzb[8] = {0};
     uint8_t *shared = NULL, *pay[8] = {0}, mask = 0;
     size_t shared_len = 0, len[8] = {0}, zsum = 0;
-    int i, failed = 0, nused = 0, use_rans;
+    int i, failed = 0, nused = 0, use_rans = 0, rans_try, rans_alone;
+    uint8_t *rans = NULL;
+    size_t rans_len = 0;
     memset(out, 0, sizeof *out);
     memset(lg, 0, sizeof lg);
     for (i = 0; i < L->nb && !failed; i++) {
@@ -149,23 +151,23 @@ int wvol__wvc2_chunk_encode(wvc2_coded *out, const wvc2_geom *g, int m, const si
         nused++;
     }
     {
-        uint64_t count = 0;
-        for (i = 0; i < L->nb; i++) count += (uint64_t)ext[0] * ext[1] * ext[2];
-        use_rans = !failed && nused && L->bands[0] != 0 &&
-                   (coder == WVOL_WVC_CODER_RANS ||
-                    (coder == WVOL_WVC_CODER_AUTO && (double)out->nonzero >= rans_min_density() * (double)count));
+        uint64_t count = (uint64_t)L->nb * ext[0] * ext[1] * ext[2];
+        int dense = (double)out->nonzero >= RANS_MIN_DENSITY * (double)count;
+        rans_try = !failed && nused && L->bands[0] != 0 &&
+                   (coder == WVOL_WVC_CODER_RANS || (coder == WVOL_WVC_CODER_AUTO && dense));
+        rans_alone = coder == WVOL_WVC_CODER_RANS || out->nonzero >= RANS_ALONE_NONZERO;
     }
-    if (use_rans) {
+    if (rans_try) {
         int32_t *Q[8];
         const size_t *P[8];
         const wvc_band *B[8];
         int k = 0;
         for (i = 0; i < L->nb; i++)
             if (mask >> i & 1) Q[k] = lg[i].q, P[k] = lg[i].p, B[k] = &lg[i].b, k++;
-        if (wvol__wvc_rans_encode(&shared, &shared_len, k, Q, P, B)) failed = 1;
-        out->alt_cabac = shared_len;
+        if (wvol__wvc_rans_encode(&rans, &rans_len, k, Q, P, B)) failed = 1;
+        out->alt_rans = rans_len;
     }
-    if (!failed && nused && !use_rans && coder != WVOL_WVC_CODER_ZSTD) {
+    if (!failed && nused && !(rans_try && rans_alone) && coder != WVOL_WVC_CODER_ZSTD) {
         int32_t *Q[8];
         const size_t *P[8];
         const wvc_band *B[8];
@@ -175,8 +177,19 @@ int wvol__wvc2_chunk_encode(wvc2_coded *out, const wvc2_geom *g, int m, const si
         if (wvol__wvc_cabac_encode_multi(&shared, &shared_len, k, Q, P, B, 1)) failed = 1;
         out->alt_cabac = shared_len;
     }
+    /* the smaller of the two context coders */
+    if (rans && (!shared || rans_len <= shared_len)) {
+        free(shared);
+        shared = rans;
+        shared_len = rans_len;
+        use_rans = 1;
+    } else {
+        free(rans);
+    }
+    rans = NULL;
     /* auto: all zstd when that is smaller (its matches win on small and regular bands) */
-    if (!failed && nused && coder != WVOL_WVC_CODER_CABAC && coder != WVOL_WVC_CODER_RANS) {
+    if (!failed && nused && !(rans_try && rans_alone) && coder != WVOL_WVC_CODER_CABAC &&
+        coder != WVOL_WVC_CODER_RANS) {
         for (i = 0; i < L->nb && !failed; i++)
             if (mask >> i & 1) {
                 if (wvol__wvc_zstd_encode(&pay[i], &len[i], lg[i].q, lg[i].p, &lg[i].b, zstd_level)) failed = 1;

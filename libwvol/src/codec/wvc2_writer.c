@@ -58,7 +58,7 @@ struct wvc2_writer {
     uint8_t *mem;
     size_t mem_size, mem_cap;
     uint64_t spill_size;
-    size_t alt_cabac, alt_zstd;
+    size_t alt_cabac, alt_zstd, alt_rans;
     double seconds_code;
 };
 
@@ -375,6 +375,7 @@ static wvol_status code_tile_row(wvc2_writer *w, int m, size_t k, wvol_error *er
         c->nonzero = (uint32_t)coded[t].nonzero;
         w->alt_cabac += coded[t].alt_cabac;
         w->alt_zstd += coded[t].alt_zstd;
+        w->alt_rans += coded[t].alt_rans;
         for (int i = 0; i < G->nb; i++)
             w->band_bytes[wvc2_section(w->g.levels, m, G->bands[i])] += coded[t].band_bytes[i];
     }
@@ -671,6 +672,7 @@ wvol_status wvol__wvc2_writer_close(wvc2_writer *w, void **out, size_t *out_size
         report->bytes = hbytes + (size_t)payload;
         report->bytes_cabac = w->h.coder == WVOL_WVC_CODER_ZSTD ? 0 : w->alt_cabac;
         report->bytes_zstd = w->h.coder == WVOL_WVC_CODER_CABAC ? 0 : w->alt_zstd;
+        report->bytes_rans = w->alt_rans;
         report->seconds_code = w->seconds_code;
     }
     (void)count;

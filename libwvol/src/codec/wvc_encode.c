@@ -306,6 +306,7 @@ wvol_status wvol_wvc_encode(void **out, size_t *out_size, const wvol_coeffs *c,
         rep.bytes = r2.bytes;
         rep.bytes_cabac = r2.bytes_cabac;
         rep.bytes_zstd = r2.bytes_zstd;
+        rep.bytes_rans = r2.bytes_rans;
         if (report) *report = rep;
         goto done;
     }
