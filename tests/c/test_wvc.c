@@ -61,8 +61,10 @@ static void fixture_free(fixture *F)
     wvol_volume_destroy(F->v);
 }
 
-/* The format version encode() writes (0: the default, version 2), and its tile (0: default). */
+/* The format version encode() writes (0: the default, version 2), and its tile (0: default);
+ * g_coder, when not AUTO, replaces AUTO in encode() (the tests run again with chunk mode 3). */
 static int g_version, p_tile;
+static wvol_wvc_coder g_coder = WVOL_WVC_CODER_AUTO;
 
 static int encode(void **buf, size_t *n, const fixture *F, double psnr, double step, wvol_wvc_coder coder,
                   wvol_wvc_report *rep)
@@ -73,7 +75,7 @@ static int encode(void **buf, size_t *n, const fixture *F, double psnr, double s
     wvol_wvc_params_default(&p);
     p.value_min = F->vmin;
     p.value_max = F->vmax;
-    p.coder = coder;
+    p.coder = coder == WVOL_WVC_CODER_AUTO ? g_coder : coder;
     p.step = step;
     p.version = g_version;
     p.tile = p.tile_z = p_tile;
@@ -683,7 +685,7 @@ static void wvc_corpus_files_decode_or_are_refused(void)
                            "valid_v2_db2_8.wvc", "valid_v2_haar_12x10x9_tiles.wvc",
                            "valid_v2_coif1_16x16x1_zstd.wvc", "damaged_v2_bitflip_chunk.wvc",
                            "damaged_v2_bitflip_index.wvc", "valid_v2_mode1_skull32_step600.wvc",
-                           "valid_v2_mode2_skull32_step600.wvc"};
+                           "valid_v2_mode2_skull32_step600.wvc", "valid_v2_mode3_skull32_step600.wvc"};
     char path[1024];
     size_t i;
     if (!root) {
@@ -707,12 +709,12 @@ static void wvc_corpus_files_decode_or_are_refused(void)
 /* CRC-32 of the float coefficients the mode-1 corpus file decodes to (see below). */
 #define MODE1_DECODED_CRC 0xc9516f29UL
 
-/* Chunk payload modes, byte 0 of each non-empty chunk of a version-2 file. */
-static int chunk_modes(const uint8_t *b, size_t n, int count[3])
+/* Chunk payload modes, byte 0 of each non-empty chunk of a version-2 file (count[0..3]). */
+static int chunk_modes(const uint8_t *b, size_t n, int count[4])
 {
     uint32_t nsec;
     uint64_t nchunks;
-    memset(count, 0, 3 * sizeof *count);
+    memset(count, 0, 4 * sizeof *count);
     if (n < 224) return 0;
     memcpy(&nsec, b + 12, 4);
     memcpy(&nchunks, b + 208, 8);
@@ -723,7 +725,7 @@ static int chunk_modes(const uint8_t *b, size_t n, int count[3])
         memcpy(&off, e, 8);
         memcpy(&bytes, e + 8, 4);
         if (!bytes) continue;
-        if (off >= n || b[off] > 2) return 0;
+        if (off >= n || b[off] > 3) return 0;
         count[b[off]]++;
     }
     return 1;
@@ -751,7 +753,7 @@ static void wvc2_mode1_files_decode_to_the_same_values(void)
         char path[1024];
         uint8_t raw[8192];
         size_t got;
-        int modes[3];
+        int modes[4];
         FILE *fp;
         snprintf(path, sizeof path, "%s/tests/fuzz/corpus/%s", root, names[k]);
         fp = fopen(path, "rb");
@@ -1175,6 +1177,13 @@ int main(void)
     wvc2_refuses_crafted_headers_and_indexes();
     wvc_survives_garbage_payloads_with_valid_checksums(1);
     wvc_survives_garbage_payloads_with_valid_checksums(2);
+    /* chunk mode 3 (static-model rANS) wherever a chunk has no low-pass cube */
+    g_coder = WVOL_WVC_CODER_RANS;
+    for (int i = 0; i < 4; i++) wvc_round_trip_meets_psnr_target(fam[i], 16, 16, 16, 2);
+    wvc_odd_sizes_and_flat_axes_round_trip();
+    wvc_refuses_truncation_and_bit_flips_everywhere(2);
+    wvc_survives_garbage_payloads_with_valid_checksums(2);
+    g_coder = WVOL_WVC_CODER_AUTO;
     wvc_files_are_atomic_and_checked();
     wvc_refuses_bad_parameters();
     wvc_corpus_files_decode_or_are_refused();
