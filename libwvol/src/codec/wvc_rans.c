@@ -283,20 +283,18 @@ WVOL__CLONES static void r3_scan_band(r3_enc *e, const int32_t *Q, const size_t 
             uint8_t sW = 0;
             r3_row_prep(w, Q, p, b, y, z, zrow);
             for (size_t x = 0; x < ex; x++, i++) {
+                /* without branches on the value (zero or not is hard to predict) */
                 const int32_t v = c[x];
                 const uint32_t cx = r3_mag_ctx(w->A[x] + 2 * aW, w->PC[x]);
-                int s = 0;
-                if (v) {
-                    const uint32_t a = v < 0 ? (uint32_t)0 - (uint32_t)v : (uint32_t)v;
-                    const uint8_t sc = (uint8_t)(3 * sW + w->SG[x]);
-                    int n = 31 - __builtin_clz(a);
-                    s = n == 0 ? 1 : 2 * n + (int)((a >> (n - 1)) & 1);
-                    if (n > 1) r3_put_raw(e, a & ((1u << (n - 1)) - 1), n - 1);
-                    e->sctx[i] = sc;
-                    e->S[sc][v < 0]++;
-                }
+                const uint32_t a = v < 0 ? (uint32_t)0 - (uint32_t)v : (uint32_t)v, neg = v < 0;
+                const uint32_t n = 31 - (uint32_t)__builtin_clz(a | 1), k = n > 1 ? n - 1 : 0;
+                const uint32_t s = a < 2 ? a : 2 * n + ((a >> (n - (n > 0))) & 1);
+                const uint8_t sc = (uint8_t)(3 * sW + w->SG[x]);
+                r3_put_raw(e, a & ((1u << k) - 1), (int)k);
+                e->sctx[i] = sc;
+                e->S[sc][neg] += a != 0;
                 e->ctx[i] = (uint8_t)cx;
-                e->sym[i] = (uint8_t)(s | (v < 0 ? 0x80 : 0));
+                e->sym[i] = (uint8_t)(s | neg << 7);
                 e->H[cx][s]++;
                 aW = r3_abs(v);
                 sW = r3_sg(v);
@@ -309,14 +307,42 @@ WVOL__CLONES static void r3_scan_band(r3_enc *e, const int32_t *Q, const size_t 
     }
 }
 
-/* One rANS step of the encoder (16-bit renormalisation into *ptr, downwards). */
-static inline uint32_t r3_enc_put(uint32_t x, uint32_t f, uint32_t start, uint16_t **ptr)
+/* An encoder symbol: frequency, start, and m = ceil(2^63 / f), with which x / f =
+ * (x m) >> 63 exactly for every x < 2^32 (the error x (m - 2^63/f) / 2^63 < 2^-31 never
+ * reaches the next integer, as x / f's fraction is at most 1 - 1/f and f <= 2^11): a
+ * multiply instead of a division. */
+typedef struct r3_esym {
+    uint64_t m;
+    uint32_t f, start;
+} r3_esym;
+
+static inline r3_esym r3_esym_make(uint32_t f, uint32_t start)
 {
-    if (x >= ((uint64_t)f << (32 - R3_PBITS))) {
-        *--*ptr = (uint16_t)x;
-        x >>= 16;
-    }
-    return ((x / f) << R3_PBITS) + (x % f) + start;
+    r3_esym e;
+    e.f = f;
+    e.start = start;
+    e.m = f ? (((uint64_t)1 << 63) + f - 1) / f : 0;
+    return e;
+}
+
+/* One rANS step of the encoder (16-bit renormalisation into *ptr, downwards). */
+static inline uint32_t r3_enc_put(uint32_t x, const r3_esym *e, uint16_t **ptr)
+{
+    /* the word is written either way (the buffer has room) and kept when due: no branch */
+    const uint32_t r = x >= ((uint64_t)e->f << (32 - R3_PBITS));
+    uint32_t q;
+    (*ptr)[-1] = (uint16_t)x;
+    *ptr -= r;
+    x >>= r << 4;
+    q = (uint32_t)(((unsigned __int128)x * e->m) >> 63);
+    return (q << R3_PBITS) + (x - q * e->f) + e->start;
+}
+
+/* The sign symbol of coefficient j: ES[R3_NSG][0], an identity step (frequency 2^11),
+ * for a zero, so that the encoder does not branch on it either. */
+static inline const r3_esym *r3_sign_sym(const r3_esym (*ES)[2], const r3_enc *e, size_t j)
+{
+    return e->sym[j] & 0x7F ? &ES[e->sctx[j]][e->sym[j] >> 7] : &ES[R3_NSG][0];
 }
 
 int wvol__wvc_rans_encode(uint8_t **buf, size_t *size, int n, int32_t *const Q[], const size_t *const p[],
@@ -325,7 +351,8 @@ int wvol__wvc_rans_encode(uint8_t **buf, size_t *size, int n, int32_t *const Q[]
     r3_enc *e = NULL;
     r3_row w = {0};
     int32_t *zrow = NULL;
-    uint32_t (*F)[R3_NS] = NULL, (*C)[R3_NS] = NULL, SF[R3_NSG];
+    uint32_t (*F)[R3_NS] = NULL, SF[R3_NSG];
+    r3_esym (*E)[R3_NS] = NULL, (*ES)[2] = NULL;
     uint8_t *raw = NULL, *out = NULL;
     uint16_t *ms = NULL, *ss = NULL;
     uint16_t *mp[8], *sp[8];
@@ -338,12 +365,13 @@ int wvol__wvc_rans_encode(uint8_t **buf, size_t *size, int n, int32_t *const Q[]
     first[n] = total;
     e = calloc(1, sizeof *e);
     F = calloc(R3_NC, sizeof *F);
-    C = calloc(R3_NC, sizeof *C);
+    E = calloc(R3_NC, sizeof *E);
+    ES = calloc(R3_NSG + 1, sizeof *ES);
     /* per band: at most 29 raw bits per coefficient; at most one word per symbol and the state */
     raw = malloc(4 * total + 8 * (size_t)n + 8);
     ms = malloc(2 * (total + 4 * (size_t)n));
     ss = malloc(2 * (total + 4 * (size_t)n));
-    if (!e || !F || !C || !raw || !ms || !ss || r3_row_alloc(&w, &zrow, n, b)) goto done;
+    if (!e || !F || !E || !ES || !raw || !ms || !ss || r3_row_alloc(&w, &zrow, n, b)) goto done;
     e->ctx = malloc(3 * (total ? total : 1));
     if (!e->ctx) goto done;
     e->sym = e->ctx + total;
@@ -358,30 +386,45 @@ int wvol__wvc_rans_encode(uint8_t **buf, size_t *size, int n, int32_t *const Q[]
         for (int s = 0; s < R3_NS; s++) any |= e->H[c][s];
         if (!any) continue;
         r3_normalise(e->H[c], R3_NS, F[c]);
-        for (int s = 0; s < R3_NS; s++) C[c][s] = cum, cum += F[c][s];
+        for (int s = 0; s < R3_NS; s++) E[c][s] = r3_esym_make(F[c][s], cum), cum += F[c][s];
     }
-    for (int c = 0; c < R3_NSG; c++) SF[c] = e->S[c][0] | e->S[c][1] ? r3_sign_f(e->S[c][0], e->S[c][1]) : 0;
+    for (int c = 0; c < R3_NSG; c++) {
+        SF[c] = e->S[c][0] | e->S[c][1] ? r3_sign_f(e->S[c][0], e->S[c][1]) : 0;
+        ES[c][0] = r3_esym_make(SF[c], 0);
+        ES[c][1] = r3_esym_make(R3_M - SF[c], SF[c]);
+    }
+    ES[R3_NSG][0] = r3_esym_make(R3_M, 0);
     for (int i = 0; i < n; i++) {
-        /* each band's streams in reverse, so that the decoder reads them forward */
-        uint16_t *mend = ms + first[i + 1] + 4 * (size_t)(i + 1), *ssend = ss + first[i + 1] + 4 * (size_t)(i + 1);
-        uint32_t xm = R3_L, xs = R3_L;
-        mp[i] = mend;
-        sp[i] = ssend;
-        for (size_t j = first[i + 1]; j-- > first[i];) {
-            const int s = e->sym[j] & 0x7F;
-            if (s) {
-                const uint32_t f = SF[e->sctx[j]];
-                xs = e->sym[j] & 0x80 ? r3_enc_put(xs, R3_M - f, f, &sp[i]) : r3_enc_put(xs, f, 0, &sp[i]);
+        mp[i] = ms + first[i + 1] + 4 * (size_t)(i + 1);
+        sp[i] = ss + first[i + 1] + 4 * (size_t)(i + 1);
+    }
+    /* each band's streams in reverse, so that the decoder reads them forward; two bands
+     * in lockstep (a chunk's bands have the same count), so that their chains overlap */
+    for (int i = 0; i < n; i += 2) {
+        const int two = i + 1 < n;
+        const size_t cnt = first[i + 1] - first[i];
+        uint16_t *mend0 = mp[i], *send0 = sp[i], *mend1 = two ? mp[i + 1] : NULL, *send1 = two ? sp[i + 1] : NULL;
+        uint32_t xm0 = R3_L, xs0 = R3_L, xm1 = R3_L, xs1 = R3_L;
+        for (size_t j = cnt; j-- > 0;) {
+            const size_t j0 = first[i] + j;
+            xs0 = r3_enc_put(xs0, r3_sign_sym(ES, e, j0), &sp[i]);
+            xm0 = r3_enc_put(xm0, &E[e->ctx[j0]][e->sym[j0] & 0x7F], &mp[i]);
+            if (two) {
+                const size_t j1 = first[i + 1] + j;
+                xs1 = r3_enc_put(xs1, r3_sign_sym(ES, e, j1), &sp[i + 1]);
+                xm1 = r3_enc_put(xm1, &E[e->ctx[j1]][e->sym[j1] & 0x7F], &mp[i + 1]);
             }
-            xm = r3_enc_put(xm, F[e->ctx[j]][s], C[e->ctx[j]][s], &mp[i]);
         }
-        mp[i] -= 2;
-        memcpy(mp[i], &xm, 4); /* little-endian hosts only, as the rest of the codec */
-        sp[i] -= 2;
-        memcpy(sp[i], &xs, 4);
-        mlen[i] = 2 * (size_t)(mend - mp[i]);
-        slen[i] = 2 * (size_t)(ssend - sp[i]);
-        body += mlen[i] + slen[i] + rlen[i];
+        for (int l = 0; l <= two; l++) {
+            uint32_t xm = l ? xm1 : xm0, xs = l ? xs1 : xs0;
+            mp[i + l] -= 2;
+            memcpy(mp[i + l], &xm, 4); /* little-endian hosts only, as the rest of the codec */
+            sp[i + l] -= 2;
+            memcpy(sp[i + l], &xs, 4);
+            mlen[i + l] = 2 * (size_t)((l ? mend1 : mend0) - mp[i + l]);
+            slen[i + l] = 2 * (size_t)((l ? send1 : send0) - sp[i + l]);
+            body += mlen[i + l] + slen[i + l] + rlen[i + l];
+        }
     }
     out = malloc((size_t)R3_NC * (1 + 2 * R3_NS) + 2 * R3_NSG + 15 * (size_t)n + body);
     if (!out) goto done;
@@ -412,7 +455,8 @@ done:
     if (e) free(e->ctx);
     free(e);
     free(F);
-    free(C);
+    free(E);
+    free(ES);
     free(raw);
     free(ms);
     free(ss);
