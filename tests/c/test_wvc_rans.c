@@ -2,11 +2,11 @@
 /* Chunk mode 3 of .wvc version 2 (codec/wvc_rans.c): the coder's round trips on the cases
  * its tables and streams find hardest (all-zero bands, a single non-zero, magnitudes up to
  * the 2^30 bound, odd extents, one to seven bands, with and without parents), its refusal
- * of every truncated payload and its survival of every flipped bit; and at the file level
- * the corpus file written with mode 3 decoding to the values of the mode-2 file of the same
- * quantised coefficients, and --coder auto choosing mode 3 for dense chunks only.
- * (test_wvc.c runs its round trips, truncation, bit-flip and garbage-payload tests again
- * with --coder rans.) */
+ * of every truncated payload and its survival of every flipped bit; at the file level
+ * --coder auto choosing mode 3 for dense chunks only, and --coder rans refused for version
+ * 1. (test_wvc.c runs its round trips, truncation, bit-flip and garbage-payload tests again
+ * with --coder rans, and decodes the mode-3 corpus file to the mode-1 and mode-2 files'
+ * values.) */
 #define _POSIX_C_SOURCE 200809L
 #include <stdint.h>
 #include <stdio.h>
@@ -16,6 +16,7 @@
 #include "check.h"
 #include "codec/wvc_internal.h"
 #include "fixtures.h"
+#include "wvc_fixtures.h"
 #include "wvol/wvc.h"
 
 /* n bands of extent e (all the same: a chunk's bands share the tile) on one local grid
@@ -230,63 +231,6 @@ static void rans_refuses_truncation_and_survives_bit_flips(void)
     bands_free(&B);
 }
 
-/* Modes of the non-empty chunks of a version-2 file in memory (count[0..3]). */
-static int modes_of(const uint8_t *b, size_t n, int count[4])
-{
-    wvol_wvc_info info;
-    memset(count, 0, 4 * sizeof *count);
-    if (wvol_wvc_parse_info(&info, b, n, NULL) != WVOL_OK || info.version != 2) return 0;
-    for (uint64_t i = 0; i < info.chunks; i++) {
-        const uint8_t *e = b + 224 + (size_t)info.nsections * 48 + i * 32;
-        uint64_t off;
-        uint32_t bytes;
-        memcpy(&off, e, 8);
-        memcpy(&bytes, e + 8, 4);
-        if (!bytes) continue;
-        if (off >= n || b[off] > 3) return 0;
-        count[b[off]]++;
-    }
-    return 1;
-}
-
-/* The corpus file valid_v2_mode3_skull32_step600.wvc is `wvol synth skull --size 32
- * --noise 20` compressed with `--step 600 --tile 8 --levels 2 --coder rans`: the same
- * quantised values as the mode-2 file beside it, so the two decode to the same floats. */
-static void rans_corpus_file_decodes_as_mode2(void)
-{
-    const char *root = getenv("WVOL_SOURCE_DIR");
-    const char *names[2] = {"valid_v2_mode2_skull32_step600.wvc", "valid_v2_mode3_skull32_step600.wvc"};
-    wvol_coeffs *d[2] = {NULL, NULL};
-    wvol_error err;
-    if (!root) {
-        printf("test_wvc_rans: WVOL_SOURCE_DIR not set, corpus check skipped\n");
-        return;
-    }
-    for (int k = 0; k < 2; k++) {
-        char path[1024];
-        uint8_t raw[16384];
-        size_t got;
-        int modes[4];
-        FILE *fp;
-        snprintf(path, sizeof path, "%s/tests/fuzz/corpus/%s", root, names[k]);
-        fp = fopen(path, "rb");
-        got = fp ? fread(raw, 1, sizeof raw, fp) : 0;
-        if (fp) fclose(fp);
-        /* mode 3 codes every chunk but those of the low-pass cube's level (mode 2) */
-        CHECK(got > 0 && got < sizeof raw && modes_of(raw, got, modes) && modes[2 + k] > 0 && modes[1] == 0 &&
-                  (k == 1 || modes[3] == 0),
-              "%s holds mode-%d chunks", names[k], 2 + k);
-        CHECK(wvol_wvc_read(&d[k], path, NULL, NULL, &err) == WVOL_OK, "%s: %s", names[k], err.message);
-    }
-    if (d[0] && d[1]) {
-        size_t count = d[0]->px * d[0]->py * d[0]->pz;
-        CHECK(d[1]->px == d[0]->px && d[1]->py == d[0]->py && d[1]->pz == d[0]->pz, "grids");
-        CHECK(!memcmp(d[0]->data, d[1]->data, count * sizeof(float)), "mode 2 and mode 3 decode differently");
-    }
-    wvol_coeffs_destroy(d[0]);
-    wvol_coeffs_destroy(d[1]);
-}
-
 /* --coder auto: mode 3 for the dense chunks of a fine quantiser, none for a coarse one
  * (its chunks are sparse); both decode to what --coder cabac's file decodes to. The
  * default tiles, so that level 1's dense chunks hold more than 65536 non-zeros (mode 3
@@ -328,7 +272,7 @@ static void rans_auto_choice(void)
         }
         if (buf[1]) {
             int modes[4];
-            CHECK(modes_of(buf[1], n[1], modes), "modes");
+            CHECK(wvc_chunk_modes(buf[1], n[1], modes), "modes");
             CHECK(fine ? modes[3] > 0 : modes[3] == 0, "step %s: %d chunks of mode 3, %d of mode 2",
                   fine ? "fine" : "coarse", modes[3], modes[2]);
         }
@@ -376,7 +320,6 @@ int main(void)
 {
     rans_round_trips_hard_cases();
     rans_refuses_truncation_and_survives_bit_flips();
-    rans_corpus_file_decodes_as_mode2();
     rans_auto_choice();
     rans_needs_version_2();
     return check_summary("test_wvc_rans");

@@ -131,6 +131,10 @@ int wvol__wvc2_chunk_encode(wvc2_coded *out, const wvc2_geom *g, int m, const si
     int i, failed = 0, nused = 0, use_rans = 0, rans_try, rans_alone;
     uint8_t *rans = NULL;
     size_t rans_len = 0;
+    int32_t *Qs[8];
+    const size_t *Ps[8];
+    const wvc_band *Bs[8];
+    int ns = 0;
     memset(out, 0, sizeof *out);
     memset(lg, 0, sizeof lg);
     for (i = 0; i < L->nb && !failed; i++) {
@@ -157,24 +161,15 @@ int wvol__wvc2_chunk_encode(wvc2_coded *out, const wvc2_geom *g, int m, const si
                    (coder == WVOL_WVC_CODER_RANS || (coder == WVOL_WVC_CODER_AUTO && dense));
         rans_alone = coder == WVOL_WVC_CODER_RANS || out->nonzero >= RANS_ALONE_NONZERO;
     }
+    /* the present bands, for the coders of one stream */
+    for (i = 0; i < L->nb; i++)
+        if (mask >> i & 1) Qs[ns] = lg[i].q, Ps[ns] = lg[i].p, Bs[ns] = &lg[i].b, ns++;
     if (rans_try) {
-        int32_t *Q[8];
-        const size_t *P[8];
-        const wvc_band *B[8];
-        int k = 0;
-        for (i = 0; i < L->nb; i++)
-            if (mask >> i & 1) Q[k] = lg[i].q, P[k] = lg[i].p, B[k] = &lg[i].b, k++;
-        if (wvol__wvc_rans_encode(&rans, &rans_len, k, Q, P, B)) failed = 1;
+        if (wvol__wvc_rans_encode(&rans, &rans_len, ns, Qs, Ps, Bs)) failed = 1;
         out->alt_rans = rans_len;
     }
     if (!failed && nused && !(rans_try && rans_alone) && coder != WVOL_WVC_CODER_ZSTD) {
-        int32_t *Q[8];
-        const size_t *P[8];
-        const wvc_band *B[8];
-        int k = 0;
-        for (i = 0; i < L->nb; i++)
-            if (mask >> i & 1) Q[k] = lg[i].q, P[k] = lg[i].p, B[k] = &lg[i].b, k++;
-        if (wvol__wvc_cabac_encode_multi(&shared, &shared_len, k, Q, P, B, 1)) failed = 1;
+        if (wvol__wvc_cabac_encode_multi(&shared, &shared_len, ns, Qs, Ps, Bs, 1)) failed = 1;
         out->alt_cabac = shared_len;
     }
     /* the smaller of the two context coders */

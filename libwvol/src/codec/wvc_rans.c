@@ -44,7 +44,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "wvc_internal.h"
+#include "wvc2_internal.h"
 
 #define R3_NA 13              /* neighbourhood classes: bit length 0..12 */
 #define R3_NP 4               /* parent classes */
@@ -214,17 +214,6 @@ static uint32_t r3_sign_f(uint64_t pos, uint64_t neg)
     if (!pos) return 0;
     f = (pos * R3_M + (pos + neg) / 2) / (pos + neg);
     return (uint32_t)(f < 1 ? 1 : f > R3_M - 1 ? R3_M - 1 : f);
-}
-
-static size_t r3_put_varint(uint8_t *d, uint32_t v)
-{
-    size_t n = 0;
-    while (v >= 0x80) {
-        d[n++] = (uint8_t)(v | 0x80);
-        v >>= 7;
-    }
-    d[n++] = (uint8_t)v;
-    return n;
 }
 
 static int r3_get_varint(const uint8_t *buf, size_t size, size_t *pos, uint32_t *v)
@@ -432,15 +421,15 @@ int wvol__wvc_rans_encode(uint8_t **buf, size_t *size, int n, int32_t *const Q[]
         int ns = 0;
         for (int s = 0; s < R3_NS; s++)
             if (F[c][s]) ns = s + 1;
-        head += r3_put_varint(out + head, (uint32_t)ns);
-        for (int s = 0; s < ns; s++) head += r3_put_varint(out + head, F[c][s]);
+        head += wvc2_put_varint(out + head, (uint32_t)ns);
+        for (int s = 0; s < ns; s++) head += wvc2_put_varint(out + head, F[c][s]);
     }
     for (int c = 0; c < R3_NSG; c++)
-        head += r3_put_varint(out + head, e->S[c][0] | e->S[c][1] ? SF[c] + 1 : 0);
+        head += wvc2_put_varint(out + head, e->S[c][0] | e->S[c][1] ? SF[c] + 1 : 0);
     for (int i = 0; i < n; i++) {
-        head += r3_put_varint(out + head, (uint32_t)mlen[i]);
-        head += r3_put_varint(out + head, (uint32_t)slen[i]);
-        head += r3_put_varint(out + head, (uint32_t)rlen[i]);
+        head += wvc2_put_varint(out + head, (uint32_t)mlen[i]);
+        head += wvc2_put_varint(out + head, (uint32_t)slen[i]);
+        head += wvc2_put_varint(out + head, (uint32_t)rlen[i]);
     }
     for (int i = 0; i < n; i++) {
         memcpy(out + head, mp[i], mlen[i]);
