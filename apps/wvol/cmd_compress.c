@@ -30,7 +30,7 @@ static const cli_opt opts[] = {
     {"roi-floor", 0, 1, "LOD weight far from every region, 0..1 (default 0.1)"},
     {"drop-levels", 0, 1, "drop the n finest levels entirely"},
     {"quant-share", 0, 1, "selection modes: quantisation error as a share of the dropped energy (default 0.02)"},
-    {"coder", 0, 1, "auto (default: per section the smaller), cabac or zstd"},
+    {"coder", 0, 1, "auto (default: per chunk by the rule in docs/wvc-format.md), cabac, zstd or rans"},
     {"rounding", 0, 1, "dead-zone rounding offset in [0, 0.5] (default 0.38)"},
     {"format", 0, 1, ".wvc format version: 2 (default: chunks, random access) or 1"},
     {"tile", 0, 1, "format 2: chunk size in coefficients, XY or XY,Z, powers of two in 8..256 (default 64,32)"},
@@ -144,6 +144,7 @@ static int compress_streamed(const char *in, const char *outp, const wvol_load_o
         cli_json_int("bytes", (long long)rep.bytes);
         cli_json_int("bytes_cabac", (long long)rep.wvc.bytes_cabac);
         cli_json_int("bytes_zstd", (long long)rep.wvc.bytes_zstd);
+        cli_json_int("bytes_rans", (long long)rep.wvc.bytes_rans);
         cli_json_num("ratio", raw_bytes / (double)rep.bytes);
         cli_json_num("bits_per_voxel", bpv);
         cli_json_num("step", rep.step);
@@ -291,7 +292,8 @@ int wvol_cmd_compress(int argc, char **argv)
             if (!strcmp(val, "auto")) coder = WVOL_WVC_CODER_AUTO;
             else if (!strcmp(val, "cabac")) coder = WVOL_WVC_CODER_CABAC;
             else if (!strcmp(val, "zstd")) coder = WVOL_WVC_CODER_ZSTD;
-            else return cli_usage("compress", "--coder '%s': expected auto, cabac or zstd", val);
+            else if (!strcmp(val, "rans")) coder = WVOL_WVC_CODER_RANS;
+            else return cli_usage("compress", "--coder '%s': expected auto, cabac, zstd or rans", val);
         } else if (!strcmp(o->name, "format")) {
             if (!cli_parse_long("compress", "format", val, 1, 2, &format)) return CLI_USAGE;
         } else if (!strcmp(o->name, "tile")) {
@@ -472,6 +474,7 @@ int wvol_cmd_compress(int argc, char **argv)
             cli_json_int("bytes", (long long)nbytes);
             cli_json_int("bytes_cabac", (long long)wrep.bytes_cabac);
             cli_json_int("bytes_zstd", (long long)wrep.bytes_zstd);
+            cli_json_int("bytes_rans", (long long)wrep.bytes_rans);
             cli_json_num("ratio", ratio);
             cli_json_num("bits_per_voxel", bpv);
             cli_json_num("step", wrep.step);

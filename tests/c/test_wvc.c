@@ -13,6 +13,7 @@
 
 #include "check.h"
 #include "fixtures.h"
+#include "wvc_fixtures.h"
 #include "codec/wvc2_writer.h"
 #include "codec/wvc_format.h"
 #include "wvol/io.h"
@@ -61,8 +62,10 @@ static void fixture_free(fixture *F)
     wvol_volume_destroy(F->v);
 }
 
-/* The format version encode() writes (0: the default, version 2), and its tile (0: default). */
+/* The format version encode() writes (0: the default, version 2), and its tile (0: default);
+ * g_coder, when not AUTO, replaces AUTO in encode() (the tests run again with chunk mode 3). */
 static int g_version, p_tile;
+static wvol_wvc_coder g_coder = WVOL_WVC_CODER_AUTO;
 
 static int encode(void **buf, size_t *n, const fixture *F, double psnr, double step, wvol_wvc_coder coder,
                   wvol_wvc_report *rep)
@@ -73,7 +76,7 @@ static int encode(void **buf, size_t *n, const fixture *F, double psnr, double s
     wvol_wvc_params_default(&p);
     p.value_min = F->vmin;
     p.value_max = F->vmax;
-    p.coder = coder;
+    p.coder = coder == WVOL_WVC_CODER_AUTO ? g_coder : coder;
     p.step = step;
     p.version = g_version;
     p.tile = p.tile_z = p_tile;
@@ -683,7 +686,7 @@ static void wvc_corpus_files_decode_or_are_refused(void)
                            "valid_v2_db2_8.wvc", "valid_v2_haar_12x10x9_tiles.wvc",
                            "valid_v2_coif1_16x16x1_zstd.wvc", "damaged_v2_bitflip_chunk.wvc",
                            "damaged_v2_bitflip_index.wvc", "valid_v2_mode1_skull32_step600.wvc",
-                           "valid_v2_mode2_skull32_step600.wvc"};
+                           "valid_v2_mode2_skull32_step600.wvc", "valid_v2_mode3_skull32_step600.wvc"};
     char path[1024];
     size_t i;
     if (!root) {
@@ -707,58 +710,40 @@ static void wvc_corpus_files_decode_or_are_refused(void)
 /* CRC-32 of the float coefficients the mode-1 corpus file decodes to (see below). */
 #define MODE1_DECODED_CRC 0xc9516f29UL
 
-/* Chunk payload modes, byte 0 of each non-empty chunk of a version-2 file. */
-static int chunk_modes(const uint8_t *b, size_t n, int count[3])
-{
-    uint32_t nsec;
-    uint64_t nchunks;
-    memset(count, 0, 3 * sizeof *count);
-    if (n < 224) return 0;
-    memcpy(&nsec, b + 12, 4);
-    memcpy(&nchunks, b + 208, 8);
-    for (uint64_t i = 0; i < nchunks; i++) {
-        const uint8_t *e = b + 224 + (size_t)nsec * 48 + i * 32;
-        uint64_t off;
-        uint32_t bytes;
-        memcpy(&off, e, 8);
-        memcpy(&bytes, e + 8, 4);
-        if (!bytes) continue;
-        if (off >= n || b[off] > 2) return 0;
-        count[b[off]]++;
-    }
-    return 1;
-}
-
 /* Files written before the block flags (chunk mode 1) still decode, to the values the
- * current coder (mode 2) gives for the same quantised coefficients. The two corpus files
+ * current coders (modes 2 and 3) give for the same quantised coefficients. The corpus files
  * are `wvol synth skull --size 32 --noise 20` compressed with `--step 600 --tile 8
- * --levels 2 --coder cabac`, by the encoder before mode 2 and by the current one (the
- * same quantised values: the same transform and step). Decoding involves no transform,
+ * --levels 2 --coder cabac`, by the encoder before mode 2 and by a current one, and with
+ * `--coder rans` (mode 3 but for the low-pass cube's level, mode 2) (the same quantised
+ * values: the same transform and step). Decoding involves no transform,
  * only integers and one double rounding per value, so the values do not depend on the
  * build: the CRC-32 of the mode-1 file's decoded coefficients is pinned (computed when
  * the file was made). */
 static void wvc2_mode1_files_decode_to_the_same_values(void)
 {
     const char *root = getenv("WVOL_SOURCE_DIR");
-    const char *names[2] = {"valid_v2_mode1_skull32_step600.wvc", "valid_v2_mode2_skull32_step600.wvc"};
-    wvol_coeffs *d[2] = {NULL, NULL};
+    const char *names[3] = {"valid_v2_mode1_skull32_step600.wvc", "valid_v2_mode2_skull32_step600.wvc",
+                            "valid_v2_mode3_skull32_step600.wvc"};
+    wvol_coeffs *d[3] = {NULL, NULL, NULL};
     wvol_error err;
     if (!root) {
         printf("test_wvc: WVOL_SOURCE_DIR not set, mode-1 file check skipped\n");
         return;
     }
-    for (int k = 0; k < 2; k++) {
+    for (int k = 0; k < 3; k++) {
         char path[1024];
-        uint8_t raw[8192];
+        uint8_t raw[16384];
         size_t got;
-        int modes[3];
+        int modes[4];
         FILE *fp;
         snprintf(path, sizeof path, "%s/tests/fuzz/corpus/%s", root, names[k]);
         fp = fopen(path, "rb");
         got = fp ? fread(raw, 1, sizeof raw, fp) : 0;
         if (fp) fclose(fp);
-        CHECK(got > 0 && got < sizeof raw && chunk_modes(raw, got, modes) && modes[1 + k] > 0 && modes[2 - k] == 0,
-              "%s holds mode-%d chunks only", names[k], 1 + k);
+        /* mode 1 or 2 alone; mode 3 with mode 2 for the low-pass cube's level, no mode 1 */
+        CHECK(got > 0 && got < sizeof raw && wvc_chunk_modes(raw, got, modes) && modes[1 + k] > 0 &&
+                  modes[k == 0 ? 2 : 1] == 0 && (k == 2 || modes[3] == 0),
+              "%s holds mode-%d chunks", names[k], 1 + k);
         CHECK(wvol_wvc_read(&d[k], path, NULL, NULL, &err) == WVOL_OK, "%s: %s", names[k], err.message);
     }
     if (d[0] && d[1]) {
@@ -766,12 +751,14 @@ static void wvc2_mode1_files_decode_to_the_same_values(void)
         uLong crc = crc32(0L, (const Bytef *)d[0]->data, (uInt)(count * sizeof(float)));
         CHECK(d[1]->px == d[0]->px && d[1]->py == d[0]->py && d[1]->pz == d[0]->pz, "grids");
         CHECK(!memcmp(d[0]->data, d[1]->data, count * sizeof(float)), "mode 1 and mode 2 decode differently");
+        CHECK(d[2] && d[2]->px == d[0]->px && d[2]->py == d[0]->py && d[2]->pz == d[0]->pz &&
+                  !memcmp(d[0]->data, d[2]->data, count * sizeof(float)),
+              "mode 1 and mode 3 decode differently");
         for (size_t i = 0; i < count; i++) nz += d[0]->data[i] != 0;
         CHECK(nz > 100 && nz < count / 2, "a meaningful file: %zu of %zu non-zero", nz, count);
         CHECK(crc == MODE1_DECODED_CRC, "mode-1 file decodes to other values: CRC-32 %08lx", (unsigned long)crc);
     }
-    wvol_coeffs_destroy(d[0]);
-    wvol_coeffs_destroy(d[1]);
+    for (int k = 0; k < 3; k++) wvol_coeffs_destroy(d[k]);
 }
 
 /* Nearly empty pyramids: all-zero chunks, a chunk with one non-zero coefficient (at a
@@ -1195,6 +1182,13 @@ int main(void)
     wvc2_refuses_crafted_headers_and_indexes();
     wvc_survives_garbage_payloads_with_valid_checksums(1);
     wvc_survives_garbage_payloads_with_valid_checksums(2);
+    /* chunk mode 3 (static-model rANS) wherever a chunk has no low-pass cube */
+    g_coder = WVOL_WVC_CODER_RANS;
+    for (int i = 0; i < 4; i++) wvc_round_trip_meets_psnr_target(fam[i], 16, 16, 16, 2);
+    wvc_odd_sizes_and_flat_axes_round_trip();
+    wvc_refuses_truncation_and_bit_flips_everywhere(2);
+    wvc_survives_garbage_payloads_with_valid_checksums(2);
+    g_coder = WVOL_WVC_CODER_AUTO;
     wvc_files_are_atomic_and_checked();
     wvc_refuses_bad_parameters();
     wvc_corpus_files_decode_or_are_refused();

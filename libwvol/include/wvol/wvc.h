@@ -35,14 +35,16 @@ typedef enum wvol_wvc_coder {
     WVOL_WVC_CODER_AUTO = 0,  /* per section, the smaller of CABAC and zstd (encoder only) */
     WVOL_WVC_CODER_EMPTY = 0, /* in a file: all coefficients of the section are zero */
     WVOL_WVC_CODER_CABAC = 1, /* context-adaptive binary range coder */
-    WVOL_WVC_CODER_ZSTD = 2   /* zigzag varints of the same symbols, zstd */
+    WVOL_WVC_CODER_ZSTD = 2,  /* zigzag varints of the same symbols, zstd */
+    WVOL_WVC_CODER_RANS = 3   /* encoder only, version 2: static-model rANS chunks (mode 3)
+                                 wherever a chunk has no low-pass cube */
 } wvol_wvc_coder;
 
 typedef struct wvol_wvc_params {
     double step;         /* > 0: this quantiser step; 0: choose from target_sse */
     double target_sse;   /* wanted sum of squared coefficient errors (quantisation only) */
     double rounding;     /* dead-zone rounding offset in [0, 0.5] (default 0.38) */
-    wvol_wvc_coder coder;/* AUTO (default), CABAC or ZSTD */
+    wvol_wvc_coder coder;/* AUTO (default), CABAC, ZSTD or RANS */
     int zstd_level;      /* default 3 */
     double value_min, value_max; /* range of the original samples (header; PSNR peak) */
     double dropped_energy;       /* energy the caller zeroed before encoding (header; reports) */
@@ -100,6 +102,8 @@ typedef struct wvol_wvc_report {
     size_t bytes;            /* the whole file */
     size_t bytes_cabac;      /* payload bytes if every section used CABAC (0: not tried) */
     size_t bytes_zstd;       /* ... if every section used zstd (0: not tried) */
+    size_t bytes_rans;       /* version 2: the mode-3 payloads of the chunks where mode 3 was
+                                tried (0: none; docs/wvc-format.md, chunk mode 3) */
     double seconds_step, seconds_quantise, seconds_code;
 } wvol_wvc_report;
 

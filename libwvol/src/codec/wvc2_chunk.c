@@ -110,7 +110,15 @@ static void parent_in(local_grid *lg, const wvc2_qbox *parent)
 /* Payload modes: one stream per band (each CABAC or zstd); one CABAC stream whose model
  * adapts across the chunk's bands; the same with a flag per 4x4x4 block of a detail
  * band (wvc_cabac.c's block_row), which the encoder writes. */
-enum { MODE_BANDS = 0, MODE_SHARED = 1, MODE_BLOCKS = 2 };
+enum { MODE_BANDS = 0, MODE_SHARED = 1, MODE_BLOCKS = 2, MODE_RANS = 3 };
+
+/* --coder auto's use of mode 3 (docs/wvc-format.md, "Chunk mode 3: the choice"): a chunk
+ * without the low-pass cube with at least a quarter of its coefficients non-zero; from
+ * 65536 non-zeros on mode 3 alone, below it both modes are coded and the smaller kept
+ * (small dense chunks, the coarse levels, are where a static table pays most for itself,
+ * and coding both costs little there). */
+#define RANS_MIN_DENSITY 0.25
+#define RANS_ALONE_NONZERO 65536
 
 int wvol__wvc2_chunk_encode(wvc2_coded *out, const wvc2_geom *g, int m, const size_t ext[3],
                             const wvc2_qbox child[8], const wvc2_qbox parent[8], int coder, int zstd_level)
@@ -120,7 +128,13 @@ int wvol__wvc2_chunk_encode(wvc2_coded *out, const wvc2_geom *g, int m, const si
     uint64_t nzb[8] = {0};
     uint8_t *shared = NULL, *pay[8] = {0}, mask = 0;
     size_t shared_len = 0, len[8] = {0}, zsum = 0;
-    int i, failed = 0, nused = 0;
+    int i, failed = 0, nused = 0, use_rans = 0, rans_try, rans_alone;
+    uint8_t *rans = NULL;
+    size_t rans_len = 0;
+    int32_t *Qs[8];
+    const size_t *Ps[8];
+    const wvc_band *Bs[8];
+    int ns = 0;
     memset(out, 0, sizeof *out);
     memset(lg, 0, sizeof lg);
     for (i = 0; i < L->nb && !failed; i++) {
@@ -140,18 +154,37 @@ int wvol__wvc2_chunk_encode(wvc2_coded *out, const wvc2_geom *g, int m, const si
         parent_in(&lg[i], &parent[i]);
         nused++;
     }
-    if (!failed && nused && coder != WVOL_WVC_CODER_ZSTD) {
-        int32_t *Q[8];
-        const size_t *P[8];
-        const wvc_band *B[8];
-        int k = 0;
-        for (i = 0; i < L->nb; i++)
-            if (mask >> i & 1) Q[k] = lg[i].q, P[k] = lg[i].p, B[k] = &lg[i].b, k++;
-        if (wvol__wvc_cabac_encode_multi(&shared, &shared_len, k, Q, P, B, 1)) failed = 1;
+    {
+        uint64_t count = (uint64_t)L->nb * ext[0] * ext[1] * ext[2];
+        int dense = (double)out->nonzero >= RANS_MIN_DENSITY * (double)count;
+        rans_try = !failed && nused && L->bands[0] != 0 &&
+                   (coder == WVOL_WVC_CODER_RANS || (coder == WVOL_WVC_CODER_AUTO && dense));
+        rans_alone = coder == WVOL_WVC_CODER_RANS || out->nonzero >= RANS_ALONE_NONZERO;
+    }
+    /* the present bands, for the coders of one stream */
+    for (i = 0; i < L->nb; i++)
+        if (mask >> i & 1) Qs[ns] = lg[i].q, Ps[ns] = lg[i].p, Bs[ns] = &lg[i].b, ns++;
+    if (rans_try) {
+        if (wvol__wvc_rans_encode(&rans, &rans_len, ns, Qs, Ps, Bs)) failed = 1;
+        out->alt_rans = rans_len;
+    }
+    if (!failed && nused && !(rans_try && rans_alone) && coder != WVOL_WVC_CODER_ZSTD) {
+        if (wvol__wvc_cabac_encode_multi(&shared, &shared_len, ns, Qs, Ps, Bs, 1)) failed = 1;
         out->alt_cabac = shared_len;
     }
+    /* the smaller of the two context coders */
+    if (rans && (!shared || rans_len <= shared_len)) {
+        free(shared);
+        shared = rans;
+        shared_len = rans_len;
+        use_rans = 1;
+    } else {
+        free(rans);
+    }
+    rans = NULL;
     /* auto: all zstd when that is smaller (its matches win on small and regular bands) */
-    if (!failed && nused && coder != WVOL_WVC_CODER_CABAC) {
+    if (!failed && nused && !(rans_try && rans_alone) && coder != WVOL_WVC_CODER_CABAC &&
+        coder != WVOL_WVC_CODER_RANS) {
         for (i = 0; i < L->nb && !failed; i++)
             if (mask >> i & 1) {
                 if (wvol__wvc_zstd_encode(&pay[i], &len[i], lg[i].q, lg[i].p, &lg[i].b, zstd_level)) failed = 1;
@@ -164,7 +197,7 @@ int wvol__wvc2_chunk_encode(wvc2_coded *out, const wvc2_geom *g, int m, const si
         uint8_t hdr[1 + 8 + 8 * 10], *p;
         size_t head = 0, total;
         int use_shared = shared && (!out->alt_zstd || shared_len + 2 <= zsum + 1 + (size_t)L->nb + 2 * (size_t)nused);
-        hdr[head++] = (uint8_t)(use_shared ? MODE_BLOCKS : MODE_BANDS);
+        hdr[head++] = (uint8_t)(use_shared ? (use_rans ? MODE_RANS : MODE_BLOCKS) : MODE_BANDS);
         if (use_shared) {
             hdr[head++] = mask;
             total = head + shared_len;
@@ -247,7 +280,7 @@ int wvol__wvc2_chunk_decode(const wvc2_geom *g, int m, const size_t ext[3], cons
     if (bytes == 0) return 0;
     mode = payload[0];
     pos = 1;
-    if (mode == MODE_SHARED || mode == MODE_BLOCKS) {
+    if (mode == MODE_SHARED || mode == MODE_BLOCKS || mode == MODE_RANS) {
         if (bytes < 3) {
             *why = "chunk header truncated";
             return -1;
@@ -255,6 +288,10 @@ int wvol__wvc2_chunk_decode(const wvc2_geom *g, int m, const size_t ext[3], cons
         used = payload[pos++];
         if (!used || (used >> L->nb)) {
             *why = "chunk band mask is not valid";
+            return -1;
+        }
+        if (mode == MODE_RANS && L->bands[0] == 0) {
+            *why = "chunk mode 3 with the low-pass cube";
             return -1;
         }
     } else if (mode == MODE_BANDS) {
@@ -320,7 +357,11 @@ int wvol__wvc2_chunk_decode(const wvc2_geom *g, int m, const size_t ext[3], cons
         int k = 0;
         for (i = 0; i < L->nb; i++)
             if (used >> i & 1) Q[k] = lg[i].q, P[k] = lg[i].p, B[k] = &lg[i].b, k++;
-        r = wvol__wvc_cabac_decode_multi(k, Q, P, B, payload + pos, bytes - pos, mode == MODE_BLOCKS, nonzero, why);
+        if (mode == MODE_RANS)
+            r = wvol__wvc_rans_decode(k, Q, P, B, payload + pos, bytes - pos, nonzero, why);
+        else
+            r = wvol__wvc_cabac_decode_multi(k, Q, P, B, payload + pos, bytes - pos, mode == MODE_BLOCKS, nonzero,
+                                             why);
     } else if (!r) {
         for (i = 0; i < L->nb && !r; i++) {
             if (!(used >> i & 1)) continue;

@@ -90,12 +90,14 @@ typedef struct wvc2_coded {
     uint32_t crc;
     uint64_t nonzero;
     size_t alt_cabac, alt_zstd; /* what all-CABAC / all-zstd would have taken */
+    size_t alt_rans;            /* mode 3's payload when it was tried, else 0 */
     size_t band_bytes[8];       /* per band (index into the level's band list) */
 } wvc2_coded;
 
 /* Codes the bands of one chunk: child[i] is band g->lv[m].bands[i]'s box of extent
  * ext, parent[i] its parent region (extent from wvc2_parent_box; ignored at m ==
- * levels). coder: AUTO, CABAC or ZSTD. Returns 0 or -1 (memory). */
+ * levels). coder: AUTO, CABAC, ZSTD or RANS (mode 3 wherever the chunk has no low-pass
+ * cube, else as CABAC). Returns 0 or -1 (memory). */
 int wvol__wvc2_chunk_encode(wvc2_coded *out, const wvc2_geom *g, int m, const size_t ext[3],
                             const wvc2_qbox child[8], const wvc2_qbox parent[8], int coder, int zstd_level);
 

@@ -58,7 +58,7 @@ struct wvc2_writer {
     uint8_t *mem;
     size_t mem_size, mem_cap;
     uint64_t spill_size;
-    size_t alt_cabac, alt_zstd;
+    size_t alt_cabac, alt_zstd, alt_rans;
     double seconds_code;
 };
 
@@ -115,7 +115,7 @@ static wvol_status check_header(const wvc2_header *h, wvol_error *err)
                    "wvc2 writer: tile %d is not a power of two in [%d, %d]", tile, WVC2_TILE_MIN, WVC2_TILE_MAX);
     WVOL_RETURN_IF(tz < WVC2_TILE_MIN || tz > WVC2_TILE_MAX || (tz & (tz - 1)), err, WVOL_ERR_ARG,
                    "wvc2 writer: tile depth %d is not a power of two in [%d, %d]", tz, WVC2_TILE_MIN, WVC2_TILE_MAX);
-    WVOL_RETURN_IF(h->coder < WVOL_WVC_CODER_AUTO || h->coder > WVOL_WVC_CODER_ZSTD, err, WVOL_ERR_ARG,
+    WVOL_RETURN_IF(h->coder < WVOL_WVC_CODER_AUTO || h->coder > WVOL_WVC_CODER_RANS, err, WVOL_ERR_ARG,
                    "wvc2 writer: unknown coder %d", (int)h->coder);
     if (h->zero_edge)
         for (a = 0; a < 1 + 7 * h->levels; a++)
@@ -375,6 +375,7 @@ static wvol_status code_tile_row(wvc2_writer *w, int m, size_t k, wvol_error *er
         c->nonzero = (uint32_t)coded[t].nonzero;
         w->alt_cabac += coded[t].alt_cabac;
         w->alt_zstd += coded[t].alt_zstd;
+        w->alt_rans += coded[t].alt_rans;
         for (int i = 0; i < G->nb; i++)
             w->band_bytes[wvc2_section(w->g.levels, m, G->bands[i])] += coded[t].band_bytes[i];
     }
@@ -671,6 +672,7 @@ wvol_status wvol__wvc2_writer_close(wvc2_writer *w, void **out, size_t *out_size
         report->bytes = hbytes + (size_t)payload;
         report->bytes_cabac = w->h.coder == WVOL_WVC_CODER_ZSTD ? 0 : w->alt_cabac;
         report->bytes_zstd = w->h.coder == WVOL_WVC_CODER_CABAC ? 0 : w->alt_zstd;
+        report->bytes_rans = w->alt_rans;
         report->seconds_code = w->seconds_code;
     }
     (void)count;

@@ -106,7 +106,7 @@ wvol_status wvol__wvc2_writer_put(wvc2_writer *w, int level, size_t z0, size_t n
 /* Finishes the file and frees the writer (also on failure). report may be NULL:
  * step, sse_quant (exact, with the stored offsets), nonzero, coefficients, bytes,
  * bytes_cabac / bytes_zstd (the payload if every band used that coder; 0 when not
- * tried), seconds_code. For a writer opened with open_mem, *out and *out_size receive
+ * tried), bytes_rans (the mode-3 payloads of the chunks where it was tried), seconds_code. For a writer opened with open_mem, *out and *out_size receive
  * the file; for one opened on a path they must be NULL. */
 wvol_status wvol__wvc2_writer_close(wvc2_writer *w, void **out, size_t *out_size, wvol_wvc_report *report,
                                     wvol_error *err);

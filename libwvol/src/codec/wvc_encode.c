@@ -192,6 +192,10 @@ wvol_status wvol_wvc_encode(void **out, size_t *out_size, const wvol_coeffs *c,
     WVOL_RETURN_IF(!isfinite(p->value_min) || !isfinite(p->value_max) || p->value_min > p->value_max ||
                        !(p->dropped_energy >= 0) || !isfinite(p->dropped_energy),
                    err, WVOL_ERR_ARG, "wvc encode: bad value range or dropped energy");
+    WVOL_RETURN_IF(p->coder < WVOL_WVC_CODER_AUTO || p->coder > WVOL_WVC_CODER_RANS, err, WVOL_ERR_ARG,
+                   "wvc encode: unknown coder %d", (int)p->coder);
+    WVOL_RETURN_IF(p->coder == WVOL_WVC_CODER_RANS && p->version == 1, err, WVOL_ERR_ARG,
+                   "wvc encode: the rANS coder writes chunks of version 2 (not --format 1)");
     for (s = 0; s < 3; s++)
         WVOL_RETURN_IF(!(isfinite(c->spacing[s]) && c->spacing[s] > 0) || !isfinite(c->origin[s]), err,
                        WVOL_ERR_ARG, "wvc encode: spacing must be > 0 and origin finite");
@@ -302,6 +306,7 @@ wvol_status wvol_wvc_encode(void **out, size_t *out_size, const wvol_coeffs *c,
         rep.bytes = r2.bytes;
         rep.bytes_cabac = r2.bytes_cabac;
         rep.bytes_zstd = r2.bytes_zstd;
+        rep.bytes_rans = r2.bytes_rans;
         if (report) *report = rep;
         goto done;
     }

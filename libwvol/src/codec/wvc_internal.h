@@ -85,6 +85,13 @@ int wvol__wvc_cabac_encode_multi(uint8_t **buf, size_t *size, int n, int32_t *co
                                  const wvc_band *const b[], int blocks);
 int wvol__wvc_cabac_decode_multi(int n, int32_t *const Q[], const size_t *const p[], const wvc_band *const b[],
                                  const uint8_t *buf, size_t size, int blocks, uint64_t *nonzero, const char **why);
+/* Chunk mode 3 (wvc_rans.c): n detail bands in one static-model rANS stream and a raw
+ * bit stream; same conventions as the _multi CABAC coder (the decoder writes only
+ * non-zeros into Q, which must be zero over the bands, and counts them). */
+int wvol__wvc_rans_encode(uint8_t **buf, size_t *size, int n, int32_t *const Q[], const size_t *const p[],
+                          const wvc_band *const b[]);
+int wvol__wvc_rans_decode(int n, int32_t *const Q[], const size_t *const p[], const wvc_band *const b[],
+                          const uint8_t *buf, size_t size, uint64_t *nonzero, const char **why);
 int wvol__wvc_zstd_encode(uint8_t **buf, size_t *size, const int32_t *Q, const size_t p[3],
                           const wvc_band *b, int level);
 int wvol__wvc_zstd_decode(int32_t *Q, const size_t p[3], const wvc_band *b, const uint8_t *buf,

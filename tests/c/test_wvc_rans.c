@@ -1,0 +1,326 @@
+/* SPDX-License-Identifier: MIT */
+/* Chunk mode 3 of .wvc version 2 (codec/wvc_rans.c): the coder's round trips on the cases
+ * its tables and streams find hardest (all-zero bands, a single non-zero, magnitudes up to
+ * the 2^30 bound, odd extents, one to seven bands, with and without parents), its refusal
+ * of every truncated payload and its survival of every flipped bit; at the file level
+ * --coder auto choosing mode 3 for dense chunks only, and --coder rans refused for version
+ * 1. (test_wvc.c runs its round trips, truncation, bit-flip and garbage-payload tests again
+ * with --coder rans, and decodes the mode-3 corpus file to the mode-1 and mode-2 files'
+ * values.) */
+#define _POSIX_C_SOURCE 200809L
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "check.h"
+#include "codec/wvc_internal.h"
+#include "fixtures.h"
+#include "wvc_fixtures.h"
+#include "wvol/wvc.h"
+
+/* n bands of extent e (all the same: a chunk's bands share the tile) on one local grid
+ * per band, as the chunk coder lays them out: the tile at x = 0, its parent region beside
+ * it along x. */
+typedef struct bands {
+    int n;
+    int32_t *q[8];
+    size_t p[8][3];
+    wvc_band b[8];
+} bands;
+
+static int bands_make(bands *B, int n, const size_t e[3], int with_parent)
+{
+    memset(B, 0, sizeof *B);
+    B->n = n;
+    for (int i = 0; i < n; i++) {
+        wvc_band *b = &B->b[i];
+        size_t pe[3];
+        for (int a = 0; a < 3; a++) pe[a] = (e[a] + 1) / 2;
+        b->level = 1;
+        b->band = 1 + i;
+        b->has_parent = with_parent;
+        for (int a = 0; a < 3; a++) {
+            b->ext[a] = e[a];
+            b->pext[a] = with_parent ? pe[a] : 0;
+        }
+        b->poff[0] = with_parent ? e[0] : 0;
+        b->count = (uint64_t)e[0] * e[1] * e[2];
+        B->p[i][0] = e[0] + (with_parent ? pe[0] : 0);
+        B->p[i][1] = e[1];
+        B->p[i][2] = e[2];
+        B->q[i] = calloc(B->p[i][0] * e[1] * e[2], sizeof(int32_t));
+        if (!B->q[i]) return 0;
+    }
+    return 1;
+}
+
+static void bands_free(bands *B)
+{
+    for (int i = 0; i < B->n; i++) free(B->q[i]);
+}
+
+static int32_t *at(bands *B, int i, size_t x, size_t y, size_t z)
+{
+    return B->q[i] + x + B->p[i][0] * (y + B->p[i][1] * z);
+}
+
+/* Encodes B, decodes into zeroed copies of its grids (parents kept), compares the tiles.
+ * Returns the payload (caller frees) or NULL after a failed check. */
+static uint8_t *round_trip(bands *B, size_t *size, const char *what)
+{
+    const size_t *P[8];
+    const wvc_band *Bp[8];
+    int32_t *D[8] = {0};
+    uint8_t *buf = NULL;
+    uint64_t nz = 0, want = 0;
+    const char *why = "";
+    int ok = 1;
+    for (int i = 0; i < B->n; i++) P[i] = B->p[i], Bp[i] = &B->b[i];
+    if (wvol__wvc_rans_encode(&buf, size, B->n, B->q, P, Bp)) {
+        CHECK(0, "%s: encode failed", what);
+        return NULL;
+    }
+    for (int i = 0; i < B->n && ok; i++) {
+        size_t cnt = B->p[i][0] * B->p[i][1] * B->p[i][2];
+        D[i] = malloc(cnt * sizeof(int32_t));
+        if (!D[i]) ok = 0;
+        else memcpy(D[i], B->q[i], cnt * sizeof(int32_t));
+        /* the tile zero, the parent region as it was */
+        for (size_t z = 0; ok && z < B->b[i].ext[2]; z++)
+            for (size_t y = 0; y < B->b[i].ext[1]; y++)
+                for (size_t x = 0; x < B->b[i].ext[0]; x++) {
+                    size_t k = x + B->p[i][0] * (y + B->p[i][1] * z);
+                    want += D[i][k] != 0;
+                    D[i][k] = 0;
+                }
+    }
+    CHECK(ok, "%s: memory", what);
+    if (ok) {
+        int r = wvol__wvc_rans_decode(B->n, D, P, Bp, buf, *size, &nz, &why);
+        CHECK(r == 0, "%s: decode refused its own payload: %s", what, why);
+        if (r == 0) {
+            size_t bad = 0;
+            for (int i = 0; i < B->n; i++) {
+                size_t cnt = B->p[i][0] * B->p[i][1] * B->p[i][2];
+                bad += memcmp(D[i], B->q[i], cnt * sizeof(int32_t)) != 0;
+            }
+            CHECK(bad == 0, "%s: %zu bands decode differently", what, bad);
+            CHECK(nz == want, "%s: %llu non-zeros counted, %llu coded", what, (unsigned long long)nz,
+                  (unsigned long long)want);
+        }
+    }
+    for (int i = 0; i < B->n; i++) free(D[i]);
+    return buf;
+}
+
+/* Laplacian-like integers of scale s (|q| = floor of an exponential), random signs. */
+static int32_t draw(uint64_t *rng, double s)
+{
+    double u = fixture_urand(rng);
+    double m = -s * log(1.0 - u);
+    int32_t v = m > 1e9 ? 1000000000 : (int32_t)m;
+    return fixture_urand(rng) < 0.5 ? -v : v;
+}
+
+static void rans_round_trips_hard_cases(void)
+{
+    const size_t shapes[5][3] = {{8, 8, 8}, {5, 3, 7}, {1, 1, 1}, {16, 2, 1}, {9, 9, 4}};
+    uint64_t rng = 777;
+    for (int sh = 0; sh < 5; sh++)
+        for (int n = 1; n <= 7; n += 3)
+            for (int par = 0; par <= 1; par++)
+                for (int kind = 0; kind < 6; kind++) {
+                    bands B;
+                    char what[128];
+                    uint8_t *buf;
+                    size_t size;
+                    const size_t *e = shapes[sh];
+                    snprintf(what, sizeof what, "%zux%zux%zu, %d bands, parent %d, case %d", e[0], e[1], e[2], n, par,
+                             kind);
+                    if (!bands_make(&B, n, e, par)) {
+                        CHECK(0, "%s: memory", what);
+                        bands_free(&B);
+                        continue;
+                    }
+                    for (int i = 0; i < n; i++) {
+                        /* parents: a mix of zeros, ones and larger values */
+                        for (size_t z = 0; par && z < B.b[i].pext[2]; z++)
+                            for (size_t y = 0; y < B.b[i].pext[1]; y++)
+                                for (size_t x = 0; x < B.b[i].pext[0]; x++) *at(&B, i, e[0] + x, y, z) = draw(&rng, 3);
+                        for (size_t z = 0; z < e[2]; z++)
+                            for (size_t y = 0; y < e[1]; y++)
+                                for (size_t x = 0; x < e[0]; x++) {
+                                    int32_t v = 0;
+                                    if (kind == 2) v = draw(&rng, 2);                  /* dense, small */
+                                    if (kind == 3) v = draw(&rng, 5000);               /* dense, wide */
+                                    if (kind == 4) v = fixture_urand(&rng) < 0.05 ? draw(&rng, 50) : 0; /* sparse */
+                                    if (kind == 5) v = (x + y + z) % 3 == 0 ? (1 << 30) : -(1 << 30) + (int32_t)x; /* the bound */
+                                    *at(&B, i, x, y, z) = v;
+                                }
+                        if (kind == 1 && i == n - 1) *at(&B, i, e[0] - 1, e[1] - 1, e[2] - 1) = -(1 << 30); /* one */
+                    }
+                    buf = round_trip(&B, &size, what);
+                    free(buf);
+                    bands_free(&B);
+                }
+}
+
+/* Every truncation of a payload is refused; every flipped bit is decoded or refused
+ * (raw bits carry no redundancy: the file's CRC-32 per chunk is what catches them), and
+ * under ASan/UBSan nothing is read outside the payload. */
+static void rans_refuses_truncation_and_survives_bit_flips(void)
+{
+    const size_t e[3] = {6, 5, 4};
+    bands B;
+    uint8_t *buf;
+    size_t size = 0, bad = 0, refused_flips = 0;
+    uint64_t rng = 99;
+    if (!bands_make(&B, 3, e, 1)) {
+        CHECK(0, "memory");
+        bands_free(&B);
+        return;
+    }
+    for (int i = 0; i < 3; i++)
+        for (size_t z = 0; z < e[2]; z++)
+            for (size_t y = 0; y < e[1]; y++)
+                for (size_t x = 0; x < e[0]; x++) *at(&B, i, x, y, z) = draw(&rng, 6);
+    buf = round_trip(&B, &size, "damage fixture");
+    for (size_t len = 0; buf && len < size; len++) {
+        int32_t *D[8];
+        const size_t *P[8];
+        const wvc_band *Bp[8];
+        uint8_t *t = malloc(len ? len : 1); /* exact size: ASan sees a read past the end */
+        uint64_t nz;
+        const char *why = NULL;
+        memcpy(t, buf, len);
+        for (int i = 0; i < 3; i++) {
+            D[i] = calloc(B.p[i][0] * e[1] * e[2], sizeof(int32_t));
+            P[i] = B.p[i];
+            Bp[i] = &B.b[i];
+        }
+        if (wvol__wvc_rans_decode(3, D, P, Bp, t, len, &nz, &why) == 0 || !why || !why[0]) bad++;
+        for (int i = 0; i < 3; i++) free(D[i]);
+        free(t);
+    }
+    CHECK(bad == 0, "%zu truncations accepted or refused without a reason", bad);
+    for (size_t pos = 0; buf && pos < 8 * size; pos++) {
+        int32_t *D[8];
+        const size_t *P[8];
+        const wvc_band *Bp[8];
+        uint8_t *t = malloc(size);
+        uint64_t nz;
+        const char *why = NULL;
+        memcpy(t, buf, size);
+        t[pos / 8] ^= (uint8_t)(1u << (pos % 8));
+        for (int i = 0; i < 3; i++) {
+            D[i] = calloc(B.p[i][0] * e[1] * e[2], sizeof(int32_t));
+            P[i] = B.p[i];
+            Bp[i] = &B.b[i];
+        }
+        if (wvol__wvc_rans_decode(3, D, P, Bp, t, size, &nz, &why)) {
+            refused_flips++;
+            CHECK(why && why[0], "bit %zu: refused without a reason", pos);
+        }
+        for (int i = 0; i < 3; i++) free(D[i]);
+        free(t);
+    }
+    /* the tables, lengths and states are checked: most flips outside the raw bits are caught */
+    CHECK(refused_flips > 4 * size, "only %zu of %zu bit flips refused", refused_flips, 8 * size);
+    free(buf);
+    bands_free(&B);
+}
+
+/* --coder auto: mode 3 for the dense chunks of a fine quantiser, none for a coarse one
+ * (its chunks are sparse); both decode to what --coder cabac's file decodes to. The
+ * default tiles, so that level 1's dense chunks hold more than 65536 non-zeros (mode 3
+ * alone). */
+static double noisy_blob(const wvol_volume *v, size_t i, size_t j, size_t k, const void *ctx)
+{
+    uint64_t s = 0x9E3779B97F4A7C15ull * (1 + i + 1000 * j + 1000000 * k);
+    (void)ctx;
+    return 100 * fixture_shell_blob(v, i, j, k, NULL) + 4 * (fixture_urand(&s) - 0.5);
+}
+
+static void rans_auto_choice(void)
+{
+    wvol_volume *v = fixture_volume(96, 96, 72, noisy_blob, NULL);
+    wvol_coeffs *c = NULL;
+    const wvol_filter *f = fixture_filter("db2");
+    wvol_error err;
+    double vmin = 0, vmax = 0;
+    if (!v || wvol_dwt3(&c, v, f, 2, &err) != WVOL_OK) {
+        CHECK(0, "fixture");
+        wvol_volume_destroy(v);
+        return;
+    }
+    wvol_volume_range(v, &vmin, &vmax, NULL);
+    for (int fine = 0; fine <= 1; fine++) {
+        void *buf[2] = {NULL, NULL};
+        size_t n[2] = {0, 0};
+        wvol_coeffs *d[2] = {NULL, NULL};
+        for (int k = 0; k < 2; k++) {
+            wvol_wvc_params p;
+            wvol_wvc_params_default(&p);
+            p.value_min = vmin;
+            p.value_max = vmax;
+            p.step = fine ? 0.05 : 40;
+            p.coder = k ? WVOL_WVC_CODER_AUTO : WVOL_WVC_CODER_CABAC;
+            CHECK(wvol_wvc_encode(&buf[k], &n[k], c, &p, NULL, &err) == WVOL_OK, "encode: %s", err.message);
+            CHECK(buf[k] && wvol_wvc_decode(&d[k], buf[k], n[k], NULL, NULL, &err) == WVOL_OK, "decode: %s",
+                  err.message);
+        }
+        if (buf[1]) {
+            int modes[4];
+            CHECK(wvc_chunk_modes(buf[1], n[1], modes), "modes");
+            CHECK(fine ? modes[3] > 0 : modes[3] == 0, "step %s: %d chunks of mode 3, %d of mode 2",
+                  fine ? "fine" : "coarse", modes[3], modes[2]);
+        }
+        if (d[0] && d[1])
+            CHECK(!memcmp(d[0]->data, d[1]->data, d[0]->px * d[0]->py * d[0]->pz * sizeof(float)),
+                  "auto and cabac decode differently");
+        for (int k = 0; k < 2; k++) {
+            free(buf[k]);
+            wvol_coeffs_destroy(d[k]);
+        }
+    }
+    wvol_coeffs_destroy(c);
+    wvol_volume_destroy(v);
+}
+
+/* The rANS coder is version 2's: asking for it with version 1 is refused. */
+static void rans_needs_version_2(void)
+{
+    wvol_volume *v = fixture_volume(8, 8, 8, fixture_shell_blob, NULL);
+    wvol_coeffs *c = NULL;
+    wvol_wvc_params p;
+    wvol_error err;
+    void *buf = NULL;
+    size_t n = 0;
+    if (!v || wvol_dwt3(&c, v, fixture_filter("haar"), 1, &err) != WVOL_OK) {
+        CHECK(0, "fixture");
+        wvol_volume_destroy(v);
+        return;
+    }
+    wvol_wvc_params_default(&p);
+    p.value_min = 0;
+    p.value_max = 1;
+    p.step = 0.01;
+    p.version = 1;
+    p.coder = WVOL_WVC_CODER_RANS;
+    memset(&err, 0, sizeof err);
+    CHECK(wvol_wvc_encode(&buf, &n, c, &p, NULL, &err) == WVOL_ERR_ARG && strstr(err.message, "rANS"),
+          "version 1 with rANS: '%s'", err.message);
+    free(buf);
+    wvol_coeffs_destroy(c);
+    wvol_volume_destroy(v);
+}
+
+int main(void)
+{
+    rans_round_trips_hard_cases();
+    rans_refuses_truncation_and_survives_bit_flips();
+    rans_auto_choice();
+    rans_needs_version_2();
+    return check_summary("test_wvc_rans");
+}
