@@ -369,7 +369,7 @@ def write_results(rows, a, outdir, machine, img):
              f"{a.ct_frames} frames in one process, the camera turned by {a.ct_orbit:g} degrees about its up axis "
              "between frames (frame i at (N-1-i) times that, the last at the named view: the image compared), "
              "wvol's through one render context (`wvol render --repeat N --orbit D`: the block view, the bounds, "
-             "the brick rates and a cache of built bricks, half the dense volume by default, kept from frame to "
+             "the brick rates and a cache of built bricks, the dense volume's size by default, kept from frame to "
              "frame), VTK's through one window and mapper; 'first': the first frame (wvol's set-up, VTK's "
              "tables built in its first Render) against VTK's first; 'later' (the CPU s and / VTK columns): the "
              "fastest later frame against VTK's fastest later frame; 'one-shot': wvol's bricks rows at step 0.5 "

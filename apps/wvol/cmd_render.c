@@ -43,7 +43,7 @@ static const cli_opt opts[] = {
     {"threads", 0, 1, "threads (default: all)"},
     {"repeat", 0, 1, "render N frames (1..100) through one render context (its set-up kept), report the first frame's and the later frames' fastest times (benchmarks; default 1)"},
     {"orbit", 0, 1, "with --repeat N: frame i's camera turned by (N-1-i) x DEG degrees about the view's up axis through its centre, so every frame differs and the last, the one written, is --camera's (default 0)"},
-    {"context-cache", 0, 1, "with --repeat: the render context's brick cache budget, bytes (K/M/G suffixes; default half the dense volume, at least 8 MiB)"},
+    {"context-cache", 0, 1, "with --repeat: the render context's brick cache budget, bytes (K/M/G suffixes; default the dense volume's float32 size, at least 8 MiB)"},
     {"one-shot", 0, 0, "with --repeat: each frame a separate wvol_render call that builds everything again (no context)"},
     {"exposure", 0, 1, "PNG: scale before sRGB encoding (default 1; X-ray: 1/max)"},
     {"bound-method", 0, 1, "exact (default: the exact X-ray paths on the dropped coefficients; axis views in milliseconds, others ray by ray) | coarse (each band's largest dropped coefficient; O(1) a pixel, looser)"},

@@ -399,7 +399,7 @@ class RenderContext:
     turning the view of one Store: the bricked path's block view of the kept coefficients, the
     coefficient bounds, the per-brick rates (while the transfer function's opacities stay the
     same) and a cache of reconstructed bricks shared by the threads, at most ``cache_bytes`` of
-    voxels (0: the library's default, half the dense volume's float32 size, at least 8 MiB). Each
+    voxels (0: the library's default, the dense volume's float32 size, at least 8 MiB). Each
     frame's image is what :func:`render` gives without it, bit for bit. Another Store drops what
     was kept; a volume (array) renders as without a context. Not for two threads at once."""
 

@@ -316,8 +316,11 @@ WVOL_API wvol_status wvol_render(wvol_image *img, const wvol_render_source *sour
  * two threads at once (a frame uses params->threads itself). */
 typedef struct wvol_render_context wvol_render_context;
 
-/* The default cache budget as a fraction of the dense volume's float32 bytes. */
-#define WVOL_RENDER_CONTEXT_CACHE_DEFAULT 0.5
+/* The default cache budget as a fraction of the dense volume's float32 bytes: the whole size,
+ * what a dense renderer holds for the scalars alone (VTK's fixed-point mapper adds its gradient
+ * tables), so that the bricks a turning view needs stay built; a viewer short of memory sets
+ * less (the cache then keeps what it can: frames stay correct, later ones build more). */
+#define WVOL_RENDER_CONTEXT_CACHE_DEFAULT 1.0
 
 /* params NULL: defaults (the frame's params replace them: wvol_render_context_frame). Nothing is
  * built before the first frame, whose time includes the set-up. */
