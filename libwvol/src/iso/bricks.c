@@ -104,6 +104,14 @@ static void decode_key(const brick_grid *g, uint64_t key, uint64_t p[3], int *ax
     p[1] = r - p[2] * g->n[1];
 }
 
+/* The grid coordinates of brick number i (x fastest). */
+static void brick_coords(const brick_grid *g, size_t i, size_t bidx[3])
+{
+    bidx[0] = i % g->nb[0];
+    bidx[1] = (i / g->nb[0]) % g->nb[1];
+    bidx[2] = i / (g->nb[0] * g->nb[1]);
+}
+
 /* The cells [c0, c1) of brick bidx along each axis (c1: its last sample, shared with the next). */
 static void brick_cells(const brick_grid *g, const size_t bidx[3], size_t c0[3], size_t c1[3])
 {
@@ -258,12 +266,14 @@ static wvol_status extract_bricks(wvol_mesh **out, const wvol_coeffs *c, const w
     }
     /* bounds per brick: samples [c0, c1] (owned cells plus the shared layer) */
     for (i = 0; i < nbricks; i++) {
-        size_t bidx[3] = {i % g.nb[0], (i / g.nb[0]) % g.nb[1], i / (g.nb[0] * g.nb[1])};
+        size_t bidx[3], c0[3], c1[3];
         long s0[3], s1[3];
         double lo, hi;
+        brick_coords(&g, i, bidx);
+        brick_cells(&g, bidx, c0, c1);
         for (a = 0; a < 3; a++) {
-            s0[a] = (long)(bidx[a] * (size_t)g.B);
-            s1[a] = s0[a] + g.B < (long)g.n[a] - 1 ? s0[a] + g.B : (long)g.n[a] - 1;
+            s0[a] = (long)c0[a];
+            s1[a] = (long)c1[a];
         }
         if (bb) {
             wvol__bounds_box(bb, s0, s1, &lo, &hi);
@@ -311,10 +321,10 @@ static wvol_status extract_bricks(wvol_mesh **out, const wvol_coeffs *c, const w
 #endif
         for (r = 0; r < (long)nrun; r++) {
             size_t q0 = run[r], q1 = run[r + 1], lo[3], hi[3], blo[3], bhi[3], q, cnt;
-            size_t b0 = need[q0], b1 = need[q1 - 1];
-            size_t first[3] = {b0 % g.nb[0], (b0 / g.nb[0]) % g.nb[1], b0 / (g.nb[0] * g.nb[1])};
-            size_t last[3] = {b1 % g.nb[0], first[1], first[2]};
+            size_t first[3], last[3];
             wvol_status rs;
+            brick_coords(&g, need[q0], first);
+            brick_coords(&g, need[q1 - 1], last); /* the same row: only x differs */
             brick_box(&g, first, lo, hi);
             brick_box(&g, last, blo, bhi);
             hi[0] = bhi[0];
@@ -331,8 +341,8 @@ static wvol_status extract_bricks(wvol_mesh **out, const wvol_coeffs *c, const w
                 continue;
             }
             for (q = q0; q < q1; q++) {
-                size_t bi = need[q];
-                size_t bidx[3] = {bi % g.nb[0], first[1], first[2]};
+                size_t bidx[3];
+                brick_coords(&g, need[q], bidx);
                 mesh_brick(&res[q], &g, bidx, v, lo, hi, iso,
                            p->normals == WVOL_ISO_NORMALS_NONE ? WVOL_ISO_NORMALS_NONE : WVOL_ISO_NORMALS_GRADIENT);
             }
