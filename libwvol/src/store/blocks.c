@@ -521,10 +521,10 @@ static wvol_status build_view(wvol__store_blocks **out, wvol__brick_bounds **bou
     return WVOL_OK;
 }
 
-/* A built store's view and bounds depend on the store alone: made once, on first use, and
- * kept by the store (wvol_store is immutable, so they never go stale); the caller gets the
- * shared view and bounds (destroying or freeing them is then a no-op). A store opened
- * on a file builds them each time: its bounds depend on what its chunk cache can hold. */
+/* A built store's view and bounds depend on the store alone: made together, once, on first
+ * use, and kept by the store (wvol_store is immutable, so they never go stale); the caller gets
+ * the shared view and bounds (destroying or freeing them is then a no-op). A store opened on a
+ * file builds them each time: its bounds depend on what its chunk cache can hold. */
 static wvol_status create(wvol__store_blocks **out, wvol__brick_bounds **bounds, const wvol_store *s,
                           int exact_threads, int *exact, wvol_error *err)
 {
@@ -535,23 +535,15 @@ static wvol_status create(wvol__store_blocks **out, wvol__brick_bounds **bounds,
     if (bounds) *bounds = NULL;
     if (exact) *exact = 0;
     pthread_mutex_lock(&w->view_lock);
-    if (!w->view || (bounds && !w->view_bounds_done)) {
+    if (!w->view) {
         wvol__store_blocks *v = NULL;
-        wvol__brick_bounds *b = NULL;
-        st = build_view(&v, bounds ? &b : NULL, s, -1, NULL, err);
+        wvol__brick_bounds *b = NULL; /* stays NULL where the bound does not apply */
+        st = build_view(&v, &b, s, -1, NULL, err);
         if (st == WVOL_OK) {
-            if (!w->view) {
-                v->cached = 1;
-                v->cs.ctx = v;
-                w->view = v;
-            } else {
-                wvol__store_blocks_destroy(v);
-            }
-            if (bounds) {
-                wvol__bounds_keep(b, 1);
-                w->view_bounds = b;
-                w->view_bounds_done = 1;
-            }
+            v->cached = 1;
+            wvol__bounds_keep(b, 1);
+            w->view = v;
+            w->view_bounds = b;
         }
     }
     if (st == WVOL_OK) {
@@ -604,5 +596,4 @@ void wvol__store_view_free(wvol_store *s)
     wvol__bounds_free(s->view_bounds);
     s->view = NULL;
     s->view_bounds = NULL;
-    s->view_bounds_done = 0;
 }

@@ -191,8 +191,7 @@ struct wvol_store {
     pthread_mutex_t view_lock;
     int view_lock_ok;
     struct wvol__store_blocks *view;
-    struct wvol__brick_bounds *view_bounds;
-    int view_bounds_done;     /* view_bounds made (it stays NULL where the bound does not apply) */
+    struct wvol__brick_bounds *view_bounds; /* NULL where the bound does not apply */
 };
 
 /* Frees the cached view and bounds (blocks.c). */
