@@ -155,6 +155,29 @@ static int read_at(int fd, void *buf, size_t n, uint64_t off)
     return 0;
 }
 
+/* Bytes of a version-1 file's whole decode. */
+static size_t dense_bytes(const wvol_wvc_file *f)
+{
+    return f->dense->px * f->dense->py * f->dense->pz * sizeof(float);
+}
+
+/* Whether budget b holds what the file must hold at least: a version-1 file's whole decode, or
+ * one chain of decoded chunks (one per level); at open and when the budget is set. */
+static wvol_status budget_holds(const wvol_wvc_file *f, size_t b, wvol_error *err)
+{
+    if (f->dense)
+        WVOL_RETURN_IF(dense_bytes(f) > b, err, WVOL_ERR_NOMEM,
+                       "%s: a version-1 file is decoded whole (%zu bytes), more than the memory budget of %zu bytes; "
+                       "recompress it (format 2) for reads within a budget",
+                       f->path, dense_bytes(f), b);
+    else
+        WVOL_RETURN_IF(f->chain > b, err, WVOL_ERR_NOMEM,
+                       "%s: memory budget of %zu bytes is below the %zu bytes one chain of decoded chunks (one per "
+                       "level) needs",
+                       f->path, b, f->chain);
+    return WVOL_OK;
+}
+
 wvol_status wvol_wvc_open(wvol_wvc_file **out, const char *path, size_t budget, wvol_error *err)
 {
     wvol_wvc_file *f;
@@ -218,15 +241,11 @@ wvol_status wvol_wvc_open(wvol_wvc_file **out, const char *path, size_t budget, 
             wvol_wvc_close(f);
             return st;
         }
-        if (f->dense->px * f->dense->py * f->dense->pz * sizeof(float) > f->budget) {
-            size_t need = f->dense->px * f->dense->py * f->dense->pz * sizeof(float);
+        if ((st = budget_holds(f, f->budget, err)) != WVOL_OK) {
             wvol_wvc_close(f);
-            return wvol_error_set(err, WVOL_ERR_NOMEM,
-                                  "%s: a version-1 file is decoded whole (%zu bytes), more than the memory budget "
-                                  "of %zu bytes; recompress it (format 2) for reads within a budget",
-                                  path, need, budget ? budget : WVOL_WVC_DEFAULT_BUDGET);
+            return st;
         }
-        f->held = f->peak = f->dense->px * f->dense->py * f->dense->pz * sizeof(float);
+        f->held = f->peak = dense_bytes(f);
         wvol__coef_source_of_coeffs(&f->dense_src, f->dense);
         *out = f;
         return WVOL_OK;
@@ -246,13 +265,9 @@ wvol_status wvol_wvc_open(wvol_wvc_file **out, const char *path, size_t budget, 
             return wvol_error_set(err, WVOL_ERR_NOMEM, "wvc open: out of memory");
         }
         f->chain = chain;
-        if (chain > f->budget) {
-            size_t b = f->budget;
+        if ((st = budget_holds(f, f->budget, err)) != WVOL_OK) {
             wvol_wvc_close(f);
-            return wvol_error_set(err, WVOL_ERR_NOMEM,
-                                  "%s: memory budget of %zu bytes is below the %zu bytes one chain of decoded chunks "
-                                  "(one per level) needs",
-                                  path, b, chain);
+            return st;
         }
     }
     for (int s = 0; s < f->info.nsections; s++) {
@@ -833,17 +848,7 @@ wvol_status wvol_wvc_set_budget(wvol_wvc_file *f, size_t budget, wvol_error *err
 {
     size_t b = budget ? budget : WVOL_WVC_DEFAULT_BUDGET;
     WVOL_RETURN_IF(!f, err, WVOL_ERR_ARG, "wvc set budget: file is NULL");
-    if (f->dense) {
-        size_t need = f->dense->px * f->dense->py * f->dense->pz * sizeof(float);
-        WVOL_RETURN_IF(need > b, err, WVOL_ERR_NOMEM,
-                       "a version-1 file is decoded whole (%zu bytes), more than the memory budget of %zu bytes", need,
-                       b);
-    } else {
-        WVOL_RETURN_IF(f->chain > b, err, WVOL_ERR_NOMEM,
-                       "memory budget of %zu bytes is below the %zu bytes one chain of decoded chunks (one per level) "
-                       "needs",
-                       b, f->chain);
-    }
+    WVOL_FORWARD(budget_holds(f, b, err));
     lock(f);
     f->budget = b;
     if (!f->dense) evict(f); /* a lower budget: unpinned chunks go, least recent first */
