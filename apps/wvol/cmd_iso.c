@@ -32,7 +32,7 @@ static const cli_opt opts[] = {
     {"chunk", 0, 1, "raytrace/hybrid: ray segment built at a time, voxels (default 16)"},
     {"threads", 0, 1, "threads (default: all)"},
     {"normals", 0, 1, "gradient (default) or none"},
-    {"repeat", 0, 1, "extract N times and report the fastest (benchmarking)"},
+    {"repeat", 0, 1, "extract N times and report the fastest (benchmarking; --json adds the first, extract_first)"},
     {"wavelet", 0, 1, "mesh the reconstruction of kept wavelet coefficients (haar, db2, coif1, bl3, ...);\n"
                       "raytrace/hybrid: the store's wavelet (default db2)"},
     {"levels", 0, 1, "wavelet levels (default 3)"},
