@@ -100,10 +100,17 @@ wvol_status wvol__brick_order_make(brick_order *bo, const wvol__source *s, const
     return WVOL_OK;
 }
 
-/* Ray i onto brick b's list (head: per brick, -1 when empty; next: per ray); several threads
- * may push onto one list at once. */
-static inline void list_push(int32_t *head, int32_t *next, long b, int32_t i)
+/* Ray i onto brick b's list (head: per brick, -1 when empty; next: per ray). shared: several
+ * threads may push onto one list at once (a locked exchange); else the tile is the calling
+ * thread's alone, and plain stores do (a locked instruction per ray and brick is a few
+ * percent of a frame). */
+static inline void list_push(int32_t *head, int32_t *next, long b, int32_t i, int shared)
 {
+    if (!shared) {
+        next[i] = head[b];
+        head[b] = i;
+        return;
+    }
     int32_t old = __atomic_load_n(&head[b], __ATOMIC_RELAXED);
     do {
         next[i] = old;
@@ -126,7 +133,7 @@ static inline int known_empty(const wvol__source *s, long b)
  * the geometry rules out: brick_order) walks on at once: its fetch may build a brick again,
  * and its image is the same. */
 static void walk_brick(const wvol__source *s, void *tc, const tf_fast *tfx, const wvol_render_params *p, double dt,
-                       ray_state *rs, const brick_order *bo, int32_t *head, int32_t *next, long b)
+                       ray_state *rs, const brick_order *bo, int32_t *head, int32_t *next, long b, int shared)
 {
     int32_t i = head[b];
     long bc[3];
@@ -156,7 +163,7 @@ static void walk_brick(const wvol__source *s, void *tc, const tf_fast *tfx, cons
                     for (int a = 0; a < 3; a++) from[a] = st->bc[a];
                     continue;
                 }
-                list_push(head, next, nb, i);
+                list_push(head, next, nb, i, shared);
                 break;
             }
         }
@@ -184,19 +191,10 @@ static void idle_wait(unsigned n)
     }
 }
 
-/* The rays of one tile of a bricked source, walked brick by brick front to back
- * (brick_order): each brick's list holds the rays whose next sample lies in it; the rays of
- * the brick at hand take their runs there and move to the list of the brick they enter next.
- * A brick is taken once its inward neighbours are walked (a count per brick; the bricks whose
- * count reaches 0 wait on a stack, taken and released under one lock, twice per brick), so
- * no ray can join its list afterwards: the tile builds each brick its rays need once, and a
- * thread's cache needs to hold one brick. The threads share the tile's bricks: a brick is
- * walked, and built, by whichever thread takes it. Each ray's own samples are taken in its
- * order, so the image is the ray-by-ray walk's, whatever the thread count. (A cache per
- * thread walked in rounds, or rounds of bricks with barriers, built more or waited more:
- * bench/results/render-tuning.md.) */
+/* A barrier without long spins (reference_internal.h); n == 1 returns at once. */
 void wvol__walk_sync_wait(walk_sync *w)
 {
+    if (w->n == 1) return;
     const int round = __atomic_load_n(&w->round, __ATOMIC_ACQUIRE);
     if (__atomic_add_fetch(&w->count, 1, __ATOMIC_ACQ_REL) == w->n) {
         __atomic_store_n(&w->count, 0, __ATOMIC_RELAXED);
@@ -207,13 +205,78 @@ void wvol__walk_sync_wait(walk_sync *w)
     }
 }
 
-void wvol__render_tile_bricked(const wvol__source *s, const wvol__cam *k, wvol_image *img, const double lo[3],
-                               const double hi[3], int x0, int y0, int tw, int th, const tf_fast *tfx,
-                               const wvol_render_params *p, double dt, ray_state *rs, int32_t *row_first,
-                               double *span, brick_order *bo, int32_t *head, int32_t *next, int tid, int nt,
-                               walk_sync *w)
+wvol_status wvol__brick_order_walker(brick_order *w, const brick_order *bo)
 {
-    void *tc = s->tctx[tid];
+    *w = *bo;
+    w->pending = malloc(bo->n * sizeof *w->pending);
+    w->ready = malloc(bo->n * sizeof *w->ready);
+    if (w->pending && w->ready) return WVOL_OK;
+    wvol__brick_order_walker_free(w);
+    return WVOL_ERR_NOMEM;
+}
+
+void wvol__brick_order_walker_free(brick_order *w)
+{
+    free(w->pending);
+    free(w->ready);
+    w->pending = NULL;
+    w->ready = NULL;
+}
+
+/* The next brick to walk from bo's ready stack into *b (-1: none ready now); 1 once every
+ * brick is walked. shared: under the lock the threads of a shared tile take it by. */
+static inline int take_ready(brick_order *bo, long *b, int shared)
+{
+    int finished = 0;
+    *b = -1;
+    if (shared) {
+#pragma omp critical(wvol_walk_ready)
+        {
+            if (bo->nready) *b = (long)bo->ready[--bo->nready];
+            else finished = bo->ndone == bo->n;
+        }
+    } else {
+        if (bo->nready) *b = (long)bo->ready[--bo->nready];
+        else finished = bo->ndone == bo->n;
+    }
+    return finished;
+}
+
+/* Brick b walked: its outward neighbours one inward neighbour nearer to ready. */
+static inline void release_done(brick_order *bo, long b, int shared)
+{
+    if (shared) {
+#pragma omp critical(wvol_walk_ready)
+        {
+            FOR_OUTWARD(bo, b, if (!--bo->pending[nb]) bo->ready[bo->nready++] = (uint32_t)nb);
+            bo->ndone++;
+        }
+    } else {
+        FOR_OUTWARD(bo, b, if (!--bo->pending[nb]) bo->ready[bo->nready++] = (uint32_t)nb);
+        bo->ndone++;
+    }
+}
+
+/* The rays of one tile of a bricked source, walked brick by brick front to back
+ * (brick_order): each brick's list holds the rays whose next sample lies in it; the rays of
+ * the brick at hand take their runs there and move to the list of the brick they enter next.
+ * A brick is taken once its inward neighbours are walked (a count per brick; the bricks whose
+ * count reaches 0 wait on a stack), so no ray can join its list afterwards: the tile builds
+ * each brick its rays need once, and a thread's cache needs to hold one brick. With nt > 1
+ * threads the tile is shared: a brick is walked, and built, by whichever thread takes it
+ * (the stack taken and released under one lock, twice per brick; the lists pushed onto by
+ * locked exchanges). With nt = 1 the tile is the calling thread's alone (one thread, or the
+ * threads walking tiles of their own: ref_tiles.c), with no lock, wait or exchange. Each
+ * ray's own samples are taken in its order, so the image is the ray-by-ray walk's, whatever
+ * the thread count and the split. (A cache per thread walked in rounds, or rounds of bricks
+ * with barriers, built more or waited more: bench/results/render-tuning.md.) */
+void wvol__render_tile_bricked(const wvol__source *s, void *tc, const wvol__cam *k, wvol_image *img,
+                               const double lo[3], const double hi[3], int x0, int y0, int tw, int th,
+                               const tf_fast *tfx, const wvol_render_params *p, double dt, ray_state *rs,
+                               int32_t *row_first, double *span, brick_order *bo, int32_t *head, int32_t *next,
+                               int tid, int nt, walk_sync *w)
+{
+    const int shared = nt > 1;
     const int ya = y0 + (int)((long)th * tid / nt), yb = y0 + (int)((long)th * (tid + 1) / nt); /* my rows */
     if (tid == 0) {
         memcpy(bo->pending, bo->inward, bo->n * sizeof *bo->pending);
@@ -261,7 +324,7 @@ void wvol__render_tile_bricked(const wvol__source *s, const wvol__cam *k, wvol_i
                     else wvol__ray_last(s, tc, tfx, p, dt, &rs[i]);
                     b = wvol__ray_next_brick(s, &rs[i], dt);
                 }
-                if (b >= 0) list_push(head, next, b, i);
+                if (b >= 0) list_push(head, next, b, i, shared);
                 else acc_settle(tfx, &rs[i].r);
                 i++;
             }
@@ -269,25 +332,16 @@ void wvol__render_tile_bricked(const wvol__source *s, const wvol__cam *k, wvol_i
         wvol__walk_sync_wait(w);
         unsigned idle = 0; /* consecutive waits for a ready brick */
         for (;;) {
-            long b = -1;
-            int finished = 0;
-#pragma omp critical(wvol_walk_ready)
-            {
-                if (bo->nready) b = (long)bo->ready[--bo->nready];
-                else finished = bo->ndone == bo->n;
-            }
-            if (finished) break;
-            if (b < 0) { /* the other threads hold the bricks that would free some */
+            long b;
+            if (take_ready(bo, &b, shared)) break;
+            if (b < 0) { /* the other threads hold the bricks that would free some (shared only:
+                          * alone, a brick not walked always has a chain of ready ones to it) */
                 idle_wait(idle++);
                 continue;
             }
             idle = 0;
-            if (head[b] >= 0) walk_brick(s, tc, tfx, p, dt, rs, bo, head, next, b);
-#pragma omp critical(wvol_walk_ready)
-            {
-                FOR_OUTWARD(bo, b, if (!--bo->pending[nb]) bo->ready[bo->nready++] = (uint32_t)nb);
-                bo->ndone++;
-            }
+            if (head[b] >= 0) walk_brick(s, tc, tfx, p, dt, rs, bo, head, next, b, shared);
+            release_done(bo, b, shared);
         }
     }
     /* every brick walked, so every ray done: the caller may read rs, and reset the order for

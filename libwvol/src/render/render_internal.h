@@ -171,6 +171,9 @@ struct wvol__source {
     size_t walk_bytes;      /* prepare(): bytes for a tile's rays (their states and lists;
                                the tile is the largest that fits; the threads share it), 0: no
                                preference */
+    int walk_own;           /* prepare(): 1 when the threads may walk tiles of their own rather
+                               than share each tile (ref_tiles.c): the bricks the frame needs
+                               are kept built, so a shared tile would share no builds */
 };
 
 /* The contribution rate of a brick whose samples lie in [mn, mx]: the largest kappa of the
