@@ -191,6 +191,28 @@ static void idle_wait(unsigned n)
     }
 }
 
+/* Ray i of a tile (pixel `pixel`, its ray o + t d over [t0, t1]) set up in rs and put on the
+ * list of the first brick it takes samples in: the bricks known to be empty before it are
+ * passed through at once (no brick is walked yet, so any may take it); a ray with no such
+ * brick is done. */
+static inline void ray_enlist(const wvol__source *s, void *tc, const tf_fast *tfx, const wvol_render_params *p,
+                              double dt, const double o[3], const double d[3], double t0, double t1, int pixel,
+                              ray_state *rs, int32_t i, int32_t *head, int32_t *next, int shared)
+{
+    ray_state *st = &rs[i];
+    long b;
+    wvol__ray_begin(s, o, d, t0, t1, dt, st);
+    st->pixel = pixel;
+    b = wvol__ray_next_brick(s, st, dt);
+    while (b >= 0 && known_empty(s, b)) {
+        if (st->k < st->nfull) wvol__ray_advance_any(s, tc, tfx, p, dt, st);
+        else wvol__ray_last(s, tc, tfx, p, dt, st);
+        b = wvol__ray_next_brick(s, st, dt);
+    }
+    if (b >= 0) list_push(head, next, b, i, shared);
+    else acc_settle(tfx, &st->r);
+}
+
 /* A barrier without long spins (reference_internal.h); n == 1 returns at once. */
 void wvol__walk_sync_wait(walk_sync *w)
 {
@@ -284,12 +306,24 @@ void wvol__render_tile_bricked(const wvol__source *s, void *tc, const wvol__cam 
         for (size_t b = bo->n; b-- > 0;)
             if (!bo->inward[b]) bo->ready[bo->nready++] = (uint32_t)b;
     }
-    {
+    if (!shared) {
         /* the tile's rays that meet the volume, in rs row by row, each onto its first brick's
-         * list: set up by the threads, in two passes so
-         * that they lie packed (a state per pixel would make the pages of the misses resident
-         * too): each row's count and each pixel's span, then its rays from the row's first index
-         * on (the spans kept, so the second pass takes only the hits' directions again) */
+         * list: one pass */
+        int32_t i = 0;
+        for (int y = y0; y < y0 + th; y++)
+            for (int x = x0; x < x0 + tw; x++) {
+                float *px = img->rgba + 4 * ((size_t)x + (size_t)img->width * (size_t)y);
+                double o[3], d[3], t0, t1;
+                px[0] = px[1] = px[2] = px[3] = 0.0f;
+                if (!pixel_span(k, lo, hi, x, y, o, d, &t0, &t1)) continue;
+                ray_enlist(s, tc, tfx, p, dt, o, d, t0, t1, (x - x0) + tw * (y - y0), rs, i++, head, next, 0);
+            }
+        row_first[th] = i;
+    } else {
+        /* the same, set up by the threads in two passes so that the rays lie packed (a state
+         * per pixel would make the pages of the misses resident too): each row's count and
+         * each pixel's span, then its rays from the row's first index on (the spans kept, so
+         * the second pass takes only the hits' directions again) */
         for (int y = ya; y < yb; y++) {
             int32_t n = 0;
             double *sp = span + 2 * (size_t)tw * (size_t)(y - y0);
@@ -312,37 +346,25 @@ void wvol__render_tile_bricked(const wvol__source *s, void *tc, const wvol__cam 
             for (int x = x0; x < x0 + tw; x++, sp += 2) {
                 float *px = img->rgba + 4 * ((size_t)x + (size_t)img->width * (size_t)y);
                 double o[3], d[3];
-                long b;
                 px[0] = px[1] = px[2] = px[3] = 0.0f;
                 if (!(sp[1] > sp[0])) continue;
                 wvol__cam_ray(k, x + 0.5, y + 0.5, o, d); /* pixel_span's ray, its span kept */
-                wvol__ray_begin(s, o, d, sp[0], sp[1], dt, &rs[i]);
-                rs[i].pixel = (x - x0) + tw * (y - y0);
-                b = wvol__ray_next_brick(s, &rs[i], dt);
-                while (b >= 0 && known_empty(s, b)) { /* no brick is walked yet: any may take it */
-                    if (rs[i].k < rs[i].nfull) wvol__ray_advance_any(s, tc, tfx, p, dt, &rs[i]);
-                    else wvol__ray_last(s, tc, tfx, p, dt, &rs[i]);
-                    b = wvol__ray_next_brick(s, &rs[i], dt);
-                }
-                if (b >= 0) list_push(head, next, b, i, shared);
-                else acc_settle(tfx, &rs[i].r);
-                i++;
+                ray_enlist(s, tc, tfx, p, dt, o, d, sp[0], sp[1], (x - x0) + tw * (y - y0), rs, i++, head, next, 1);
             }
         }
-        wvol__walk_sync_wait(w);
-        unsigned idle = 0; /* consecutive waits for a ready brick */
-        for (;;) {
-            long b;
-            if (take_ready(bo, &b, shared)) break;
-            if (b < 0) { /* the other threads hold the bricks that would free some (shared only:
-                          * alone, a brick not walked always has a chain of ready ones to it) */
-                idle_wait(idle++);
-                continue;
-            }
-            idle = 0;
-            if (head[b] >= 0) walk_brick(s, tc, tfx, p, dt, rs, bo, head, next, b, shared);
-            release_done(bo, b, shared);
+    }
+    wvol__walk_sync_wait(w);
+    for (unsigned idle = 0;;) { /* idle: consecutive waits for a ready brick */
+        long b;
+        if (take_ready(bo, &b, shared)) break;
+        if (b < 0) { /* the other threads hold the bricks that would free some (shared only:
+                      * alone, a brick not walked always has a chain of ready ones to it) */
+            idle_wait(idle++);
+            continue;
         }
+        idle = 0;
+        if (head[b] >= 0) walk_brick(s, tc, tfx, p, dt, rs, bo, head, next, b, shared);
+        release_done(bo, b, shared);
     }
     /* every brick walked, so every ray done: the caller may read rs, and reset the order for
      * the next tile once no thread still looks at it */

@@ -37,6 +37,7 @@ static int walk_tile(const wvol__source *s, const wvol_image *img, int walkers)
 {
     int side, n, big = img->width > img->height ? img->width : img->height;
     if (!s->walk_bytes) return 0;
+    if (getenv("WVOL_DEV_TILE")) return atoi(getenv(walkers > 1 ? "WVOL_DEV_TILE" : "WVOL_DEV_TILE1") ?: "128"); /* DEV */
     side = (int)sqrt((double)s->walk_bytes / walkers /
                      (double)(sizeof(ray_state) + sizeof(int32_t) + 2 * sizeof(double)));
     if (side < 16) side = 16;
@@ -87,8 +88,8 @@ static void counts_add(wvol__counts *to, const wvol__counts *c)
 
 /* One walker's buffers for tiles of `rays` pixels over a grid of nb bricks: the rays' states
  * (on cache lines: a ray's state is taken from memory each time it enters a brick), the
- * bricks' list heads (all -1 between tiles) then the rays' links, each row's first ray, each
- * pixel's span. */
+ * bricks' list heads (all -1 between tiles) then the rays' links, each row's first ray, and
+ * for threads sharing a tile each pixel's span (NULL for a walker alone). */
 typedef struct tile_bufs {
     ray_state *rs;
     int32_t *lists, *row_first;
@@ -103,13 +104,13 @@ static void tile_bufs_free(tile_bufs *t)
     free(t->span);
 }
 
-static int tile_bufs_alloc(tile_bufs *t, size_t rays, int side, size_t nb)
+static int tile_bufs_alloc(tile_bufs *t, size_t rays, int side, size_t nb, int shared)
 {
     t->rs = aligned_alloc(64, (rays * sizeof *t->rs + 63) / 64 * 64);
     t->lists = malloc((nb + rays) * sizeof *t->lists);
     t->row_first = malloc(((size_t)side + 1) * sizeof *t->row_first);
-    t->span = malloc(2 * rays * sizeof *t->span);
-    if (!t->rs || !t->lists || !t->row_first || !t->span) {
+    t->span = shared ? malloc(2 * rays * sizeof *t->span) : NULL;
+    if (!t->rs || !t->lists || !t->row_first || (shared && !t->span)) {
         tile_bufs_free(t);
         memset(t, 0, sizeof *t);
         return 0;
@@ -118,10 +119,10 @@ static int tile_bufs_alloc(tile_bufs *t, size_t rays, int side, size_t nb)
     return 1;
 }
 
-static size_t tile_bufs_bytes(size_t rays, int side, size_t nb)
+static size_t tile_bufs_bytes(size_t rays, int side, size_t nb, int shared)
 {
-    return rays * (sizeof(ray_state) + sizeof(int32_t) + 2 * sizeof(double)) + ((size_t)side + 1) * sizeof(int32_t) +
-           nb * sizeof(int32_t);
+    return rays * (sizeof(ray_state) + sizeof(int32_t) + (shared ? 2 * sizeof(double) : 0)) +
+           ((size_t)side + 1) * sizeof(int32_t) + nb * sizeof(int32_t);
 }
 
 /* Tile ti's box in the image. */
@@ -196,7 +197,7 @@ wvol_status wvol__render_sampled(wvol_image *img, wvol__source *s, const wvol_ca
                 void *tc = s->tctx[omp_get_thread_num()];
                 wvol__counts c;
                 wvol_status my_failed = WVOL_OK;
-                int ok = tile_bufs_alloc(&t, tile_rays_n, p.tile, bo.n);
+                int ok = tile_bufs_alloc(&t, tile_rays_n, p.tile, bo.n, 0);
                 memset(&c, 0, sizeof c);
                 if (ok && wvol__brick_order_walker(&mine, &bo) != WVOL_OK) {
                     tile_bufs_free(&t);
@@ -223,7 +224,7 @@ wvol_status wvol__render_sampled(wvol_image *img, wvol__source *s, const wvol_ca
                 }
             }
         }
-        counts.bytes = (size_t)nthreads * (tile_bufs_bytes(tile_rays_n, p.tile, bo.n) +
+        counts.bytes = (size_t)nthreads * (tile_bufs_bytes(tile_rays_n, p.tile, bo.n, 0) +
                                            bo.n * (sizeof *bo.pending + sizeof *bo.ready)) +
                        bo.n * sizeof *bo.inward;
         wvol__brick_order_free(&bo);
@@ -233,7 +234,7 @@ wvol_status wvol__render_sampled(wvol_image *img, wvol__source *s, const wvol_ca
         memset(&t, 0, sizeof t);
         status = !order ? wvol_error_set(err, WVOL_ERR_NOMEM, "render: out of memory")
                         : wvol__brick_order_make(&bo, s, &k, err);
-        if (status == WVOL_OK && !tile_bufs_alloc(&t, tile_rays_n, p.tile, bo.n))
+        if (status == WVOL_OK && !tile_bufs_alloc(&t, tile_rays_n, p.tile, bo.n, nthreads > 1))
             status = wvol_error_set(err, WVOL_ERR_NOMEM, "render: out of memory for a tile's rays");
         if (status == WVOL_OK) {
             /* one parallel region for all tiles, the threads kept in step by walk_sync, which
@@ -257,7 +258,7 @@ wvol_status wvol__render_sampled(wvol_image *img, wvol__source *s, const wvol_ca
             tile_bufs_free(&t);
         }
         /* the walk's own: the tile's rays and lists, the order */
-        counts.bytes = tile_bufs_bytes(tile_rays_n, p.tile, bo.n) +
+        counts.bytes = tile_bufs_bytes(tile_rays_n, p.tile, bo.n, nthreads > 1) +
                        bo.n * (sizeof *bo.inward + sizeof *bo.pending + sizeof *bo.ready);
         wvol__brick_order_free(&bo);
     } else if (!order) {

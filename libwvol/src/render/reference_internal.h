@@ -318,7 +318,8 @@ void wvol__walk_sync_wait(walk_sync *w);
  * of which calls it for the same tile (it synchronises them through w, whose n is nt); nt = 1
  * (tid 0): the tile is the caller's alone, bo, head, next and the buffers its own. rs receives
  * the tile's rays that meet the volume (row_first[th] of them), complete when it returns;
- * span: scratch of 2 tw th doubles (each pixel's ray span). */
+ * span: scratch of 2 tw th doubles (each pixel's ray span, for the threads sharing a tile;
+ * NULL with nt = 1). */
 void wvol__render_tile_bricked(const wvol__source *s, void *tc, const wvol__cam *k, wvol_image *img,
                                const double lo[3], const double hi[3], int x0, int y0, int tw, int th,
                                const tf_fast *tfx, const wvol_render_params *p, double dt, ray_state *rs,
