@@ -37,7 +37,6 @@ static int walk_tile(const wvol__source *s, const wvol_image *img, int walkers)
 {
     int side, n, big = img->width > img->height ? img->width : img->height;
     if (!s->walk_bytes) return 0;
-    if (getenv("WVOL_DEV_TILE")) return atoi(getenv(walkers > 1 ? "WVOL_DEV_TILE" : "WVOL_DEV_TILE1") ?: "128"); /* DEV */
     side = (int)sqrt((double)s->walk_bytes / walkers /
                      (double)(sizeof(ray_state) + sizeof(int32_t) + 2 * sizeof(double)));
     if (side < 16) side = 16;

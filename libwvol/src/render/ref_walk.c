@@ -135,15 +135,17 @@ static inline void sub_dda_init(sub_dda *dd, const wvol__view *v, const ray_stat
     for (int a = 0; a < 3; a++) {
         const double x = st->x0[a] + t * st->e[a], o = (double)v->sub_org[a] - 0.5;
         const double c = floor(v->sub_S_inv > 0 ? (x - o) * v->sub_S_inv : (x - o) / S);
+        /* one division per axis: the faces' parameters are rounded anyway (above) */
+        const double inv = 1.0 / st->e[a];
         dd->c[a] = (long)c;
         if (st->e[a] > 0) {
             dd->step[a] = 1;
-            dd->tmax[a] = t + (o + (c + 1) * S - x) / st->e[a];
-            dd->tdelta[a] = S / st->e[a];
+            dd->tmax[a] = t + (o + (c + 1) * S - x) * inv;
+            dd->tdelta[a] = S * inv;
         } else if (st->e[a] < 0) {
             dd->step[a] = -1;
-            dd->tmax[a] = t + (o + c * S - x) / st->e[a];
-            dd->tdelta[a] = -S / st->e[a];
+            dd->tmax[a] = t + (o + c * S - x) * inv;
+            dd->tdelta[a] = -S * inv;
         } else {
             dd->step[a] = 0;
             dd->tmax[a] = INFINITY;
