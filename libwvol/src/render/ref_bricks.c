@@ -191,6 +191,12 @@ static void idle_wait(unsigned n)
     }
 }
 
+/* Whether pixel (x, y) lies in the rectangle r of wvol__cam_box_pixels. */
+static inline int in_box(const int r[4], int x, int y)
+{
+    return x >= r[0] && x < r[2] && y >= r[1] && y < r[3];
+}
+
 /* Ray i of a tile (pixel `pixel`, its ray o + t d over [t0, t1]) set up in rs and put on the
  * list of the first brick it takes samples in: the bricks known to be empty before it are
  * passed through at once (no brick is walked yet, so any may take it); a ray with no such
@@ -300,6 +306,8 @@ void wvol__render_tile_bricked(const wvol__source *s, void *tc, const wvol__cam 
 {
     const int shared = nt > 1;
     const int ya = y0 + (int)((long)th * tid / nt), yb = y0 + (int)((long)th * (tid + 1) / nt); /* my rows */
+    int box[4]; /* the pixels whose rays may meet the volume: the others are misses untested */
+    wvol__cam_box_pixels(k, lo, hi, box);
     if (tid == 0) {
         memcpy(bo->pending, bo->inward, bo->n * sizeof *bo->pending);
         bo->nready = bo->ndone = 0;
@@ -315,7 +323,7 @@ void wvol__render_tile_bricked(const wvol__source *s, void *tc, const wvol__cam 
                 float *px = img->rgba + 4 * ((size_t)x + (size_t)img->width * (size_t)y);
                 double o[3], d[3], t0, t1;
                 px[0] = px[1] = px[2] = px[3] = 0.0f;
-                if (!pixel_span(k, lo, hi, x, y, o, d, &t0, &t1)) continue;
+                if (!in_box(box, x, y) || !pixel_span(k, lo, hi, x, y, o, d, &t0, &t1)) continue;
                 ray_enlist(s, tc, tfx, p, dt, o, d, t0, t1, (x - x0) + tw * (y - y0), rs, i++, head, next, 0);
             }
         row_first[th] = i;
@@ -329,7 +337,7 @@ void wvol__render_tile_bricked(const wvol__source *s, void *tc, const wvol__cam 
             double *sp = span + 2 * (size_t)tw * (size_t)(y - y0);
             for (int x = x0; x < x0 + tw; x++, sp += 2) {
                 double o[3], d[3];
-                if (pixel_span(k, lo, hi, x, y, o, d, &sp[0], &sp[1])) n++;
+                if (in_box(box, x, y) && pixel_span(k, lo, hi, x, y, o, d, &sp[0], &sp[1])) n++;
                 else sp[0] = sp[1] = 0.0; /* a miss: no span */
             }
             row_first[y - y0 + 1] = n;

@@ -23,6 +23,12 @@ typedef struct wvol__cam {
 
 void wvol__cam_init(wvol__cam *k, const wvol_camera *cam);
 void wvol__cam_ray(const wvol__cam *k, double px, double py, double o[3], double d[3]);
+/* The pixels whose rays may meet the box [lo, hi] (index r[0] <= x < r[2], r[1] <= y < r[3]):
+ * a rectangle holding the projection of the box's corners with two pixels to spare, the whole
+ * image when a corner lies at or behind a perspective eye's plane. The rays of the pixels
+ * outside it miss the box (the projection of a box is the hull of its corners'), so a caller
+ * may skip them without changing anything. */
+void wvol__cam_box_pixels(const wvol__cam *k, const double lo[3], const double hi[3], int r[4]);
 
 /* Slab test of the line o + t d against the box [lo, hi]: 1 and [*t0, *t1] (t0 < t1) when
  * the line crosses the box's interior, else 0. Parallel components outside the slab miss. */
