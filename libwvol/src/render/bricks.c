@@ -14,7 +14,8 @@
  *   path's min/max grid, so skipping at tolerance 0 never changes the image.
  * - Threads share image tiles, whose rays walk the bricks in front-to-back order
  *   (ref_bricks.c), so a tile builds each brick it needs once; each thread keeps a few built
- *   bricks (least recently used evicted).
+ *   bricks (least recently used evicted). Where a render context's cache holds the bricks
+ *   (walk_own), each thread walks tiles of its own instead.
  * - A render context (wvol_render_context, context.c) keeps this file's state across frames
  *   (wvol__bricks): the block view and the bounds, the per-brick rates while the TF's kappa
  *   stays the same, and a cache of built bricks shared by the threads within a byte budget.

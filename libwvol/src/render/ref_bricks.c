@@ -2,7 +2,8 @@
  * The reference integrator's brick schedule for a bricked source (wvol__source_ops
  * walk_bricks): a tile's rays walk its bricks together, front to back, each brick taken once
  * every brick a ray could come from is walked (brick_order), so the tile builds each brick
- * it needs once and the threads share the tile. */
+ * it needs once; the threads share the tile, or each walks tiles of its own where the bricks
+ * are kept built (ref_tiles.c, wvol__source.walk_own). */
 #define _POSIX_C_SOURCE 200809L /* nanosleep, sched_yield (idle_wait) */
 #include "reference_internal.h"
 
@@ -102,8 +103,7 @@ wvol_status wvol__brick_order_make(brick_order *bo, const wvol__source *s, const
 
 /* Ray i onto brick b's list (head: per brick, -1 when empty; next: per ray). shared: several
  * threads may push onto one list at once (a locked exchange); else the tile is the calling
- * thread's alone, and plain stores do (a locked instruction per ray and brick is a few
- * percent of a frame). */
+ * thread's alone, and plain stores do (no locked instruction per ray and brick). */
 static inline void list_push(int32_t *head, int32_t *next, long b, int32_t i, int shared)
 {
     if (!shared) {

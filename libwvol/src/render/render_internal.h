@@ -150,8 +150,9 @@ typedef struct wvol__source_ops {
      * the gradient in index units. NULL: trilinear samples of the views. */
     double (*eval)(const void *ctx, const double x[3], double grad[3]);
     /* 1: a tile's rays walk its bricks together, front to back, the threads sharing the tile
-     * (bricks built on demand, each once per tile: ref_bricks.c); 0: the threads take tiles,
-     * each ray walked on its own. */
+     * (bricks built on demand, each once per tile: ref_bricks.c), or each thread walking tiles
+     * of its own where prepare sets walk_own; 0: the threads take tiles, each ray walked on
+     * its own. */
     int walk_bricks;
     /* 1: the source honours wvol_render_params.gradient_levels (views with a low-pass
      * gradient field, wvol__view.grad); others refuse it */
