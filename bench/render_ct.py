@@ -20,8 +20,11 @@ import json
 import math
 import os
 import pathlib
+import shlex
 import shutil
 import subprocess
+import sys
+import time
 
 import numpy as np
 
@@ -114,8 +117,15 @@ RUN_ENV = dict(os.environ, OMP_WAIT_POLICY="passive")
 VTK_TERMINATION = "--termination 0.0078"
 
 
+def run_note():
+    """The clock and the 1-minute load average now (two-thread CPU times are meaningful only on
+    a machine whose other work leaves the cores free)."""
+    return {"utc": time.strftime("%Y-%m-%d %H:%M:%S", time.gmtime()), "load1": round(os.getloadavg()[0], 2)}
+
+
 def ct_suite(a, wvol, timed, rgba, tmp, outdir, machine):
     rows = []
+    machine = dict(machine, command=" ".join(shlex.quote(x) for x in sys.argv), wvol=str(wvol), start=run_note())
     img = a.image
     steps = [float(s) for s in a.ct_steps.split(",")]
     for vname in [x for x in a.ct_volumes.split(",") if x]:
@@ -226,6 +236,7 @@ def ct_suite(a, wvol, timed, rgba, tmp, outdir, machine):
                             row(f"VTK fixed-point step={st}", thr, step=st, first_cpu_s=fcpu, cpu_s=cpu, wall_s=wall,
                                 rel_rmse=err(np.load(out)), note="first frame: VTK's set-up; 8-bit read-back")
     shading_images(a, wvol, tmp, outdir, img)
+    machine["end"] = run_note()
     write_results(rows, a, outdir, machine, img)
     return rows
 
@@ -279,6 +290,20 @@ def vtk_of(rows, r):
     return vt[0] if vt else None
 
 
+def equal_error(one_thr):
+    """Of one case's one-thread rows (later frames), the bricks row most faster than the cheapest
+    reference row of the original whose error is no larger: (that speed-up, its method), or None."""
+    refs = [r for r in one_thr if r["method"].startswith("reference") and "preint" not in r["method"]]
+    best = None
+    for b in [r for r in one_thr if r["method"].startswith("bricks")]:
+        ok = [q for q in refs if q["rel_rmse"] <= b["rel_rmse"]]
+        if ok:
+            x = min(ok, key=lambda q: q["cpu_s"])["cpu_s"] / b["cpu_s"]
+            if best is None or x > best[0]:
+                best = (x, b["method"])
+    return best
+
+
 def summary(rows):
     """Per volume, TF and camera (one thread unless stated): the goals read off the rows. Bricks
     against VTK at VTK's step: later frames against VTK's later frames, first frames (set-up
@@ -323,18 +348,8 @@ def summary(rows):
             return f"{ratio(method, 1, field, vfield)}, {ratio(method, 2, field, vfield)}"
 
         one_thr = [r for r in sel if r["threads"] == 1 and not r["method"].endswith("(baseline)") and r.get("cpu_s")]
-        refs = [r for r in one_thr if r["method"].startswith("reference") and "preint" not in r["method"]]
-        bricks = [r for r in one_thr if r["method"].startswith("bricks")]
-        eq = "-"
-        best = None
-        for b in bricks:
-            ok = [q for q in refs if q["rel_rmse"] <= b["rel_rmse"]]
-            if ok:
-                rr = min(ok, key=lambda q: q["cpu_s"])["cpu_s"] / b["cpu_s"]
-                if best is None or rr > best[0]:
-                    best = (rr, b["method"])
-        if best:
-            eq = f"{best[0]:.2f} ({best[1]})"
+        best = equal_error(one_thr)
+        eq = f"{best[0]:.2f} ({best[1]})" if best else "-"
         classic = one("reference step=0.5", 1)
         cols = [pair(T, "cpu_s")] + [pair(m, "cpu_s") for m in big] + [pair(T, "first_cpu_s", "first_cpu_s"),
                                                                        pair(T, "one_shot_cpu_s")]
@@ -352,6 +367,61 @@ def summary(rows):
             cols.append(pre)
         out.append(f"| {key[0]} | {key[1]} | {key[2]} | " + " | ".join(cols) + " |")
     return out
+
+
+def run_lines(machine):
+    """How this run was made: the command, the clock and the load at its start and end."""
+    st, en = machine.get("start", {}), machine.get("end", {})
+    return [f"This run: `WVOL_BIN={machine.get('wvol', '?')} {machine.get('command', '')}`, {st.get('utc', '?')} to "
+            f"{en.get('utc', '?')} UTC; "
+            f"1-minute load average {st.get('load1', '?')} at the start, {en.get('load1', '?')} at the end "
+            f"({machine.get('cpus')} CPUs; a load above about 1 means other work shared the cores, which makes the "
+            "two-thread rows, and the ratios, less reliable).\n"]
+
+
+def goals(rows):
+    """Issue 23's goals read off the rows, one line each."""
+    T = "bricks 5% step=0.5 --termination 0.0078"
+    keys = sorted({(r["volume"], r["tf"], r["camera"]) for r in rows})
+
+    def ratios(method, thr, field, vfield):
+        out = []
+        for key in keys:
+            b = [r for r in rows if (r["volume"], r["tf"], r["camera"]) == key and r["method"] == method
+                 and r["threads"] == thr and r.get(field)]
+            v = [r for r in rows if (r["volume"], r["tf"], r["camera"]) == key and r["method"] == VTK_ROW
+                 and r["threads"] == thr and r.get(vfield)]
+            if b and v:
+                out.append((b[0][field] / v[0][vfield], key))
+        return out
+
+    def span(rs):
+        return f"{min(x for x, _ in rs):.2f}-{max(x for x, _ in rs):.2f}x" if rs else "no rows"
+
+    lines = ["Goals of issue 23 at equal termination (VTK's 0xff/0x7fff) and VTK's step 0.5, read off the rows "
+             "below:"]
+    for thr in (1, 2):
+        rs = ratios(T, thr, "cpu_s", "cpu_s")
+        met = [r for r in rs if r[0] <= 0.7]
+        worst = max(rs) if rs else None
+        lines.append(f"- <= 0.7x VTK's CPU time on every camera, {thr} thread{'s' if thr > 1 else ''}, later frames: "
+                     f"{span(rs)}; " + ("REACHED" if rs and len(met) == len(rs) else "NOT reached") +
+                     f" ({len(met)} of {len(rs)} cases" + (f"; the worst {worst[1][1]} {worst[1][2]} at {worst[0]:.3f}"
+                                                         if worst else "") + ").")
+    for thr in (1, 2):
+        lines.append(f"- first frames (set-up included) against VTK's first, {thr} thread{'s' if thr > 1 else ''}: "
+                     f"{span(ratios(T, thr, 'first_cpu_s', 'first_cpu_s'))}; one-shot calls against VTK's later "
+                     f"frames: {span(ratios(T, thr, 'one_shot_cpu_s', 'cpu_s'))}.")
+    eq = []
+    for key in keys:
+        best = equal_error([r for r in rows if (r["volume"], r["tf"], r["camera"]) == key and r["threads"] == 1
+                            and r.get("cpu_s") and "rel_rmse" in r and not r["method"].endswith("(baseline)")])
+        if best:
+            eq.append(best[0])
+    lines.append(f"- at equal image error, >= 2x faster than the dense reference on the original (later frames, one "
+                 f"thread): " + (f"{min(eq):.2f}-{max(eq):.2f}x; " + ("REACHED" if min(eq) >= 2 else "NOT reached") +
+                                 f" ({sum(x >= 2 for x in eq)} of {len(eq)} cases)." if eq else "no rows."))
+    return lines + [""]
 
 
 def write_results(rows, a, outdir, machine, img):
@@ -395,6 +465,7 @@ def write_results(rows, a, outdir, machine, img):
                      f"{f3(r.get('one_shot_cpu_s'))} | {rat(r.get('one_shot_cpu_s'), vt and vt['cpu_s'])} | "
                      + (f"{r['rel_rmse']:.3g}" if "rel_rmse" in r else r.get("error", "")) +
                      f" | {r.get('samples', '') or ''} |")
+    lines[2:2] = run_lines(machine) + goals(rows)
     lines += summary(rows)
     (outdir / "render_ct.md").write_text("\n".join(lines) + "\n")
     try:

@@ -539,6 +539,7 @@ static void report(const render_args *a, const render_input *in, const wvol_rend
             cli_json_int("rates_reused", rt->last.rates_reused);
             cli_json_int("bricks_reused", (long long)rt->last.bricks_reused);
             cli_json_int("bricks_built_last", (long long)rt->last.bricks_built);
+            cli_json_int("tiles_own_last", rt->last.tiles_own);
             cli_json_int("cache_bytes", (long long)rt->last.cache_bytes);
             cli_json_int("context_bytes", (long long)rt->context_bytes);
         }

@@ -153,7 +153,7 @@ static PyObject *image_take(wvol_image *img)
 
 static PyObject *stats_dict(const wvol_render_stats *st)
 {
-    return Py_BuildValue("{s:s,s:d,s:n,s:n,s:n,s:n,s:n,s:n,s:n,s:n,s:n,s:d,s:n,s:i,s:n,s:i,s:i,s:n,s:n,s:d}", "method",
+    return Py_BuildValue("{s:s,s:d,s:n,s:n,s:n,s:n,s:n,s:n,s:n,s:n,s:n,s:d,s:n,s:i,s:n,s:i,s:i,s:n,s:n,s:i,s:d}", "method",
                          wvol_render_method_name(st->method), "seconds", st->seconds, "rays",
                          (Py_ssize_t)st->rays, "rays_hit", (Py_ssize_t)st->rays_hit, "samples",
                          (Py_ssize_t)st->samples, "pieces", (Py_ssize_t)st->pieces, "functions",
@@ -162,8 +162,8 @@ static PyObject *stats_dict(const wvol_render_stats *st)
                          (Py_ssize_t)st->skipped_tolerance, "skip_bound", st->skip_bound, "bricks_built",
                          (Py_ssize_t)st->bricks_built, "brick", st->brick, "bytes", (Py_ssize_t)st->bytes,
                          "context_frame", st->context_frame, "rates_reused", st->rates_reused, "bricks_reused",
-                         (Py_ssize_t)st->bricks_reused, "cache_bytes", (Py_ssize_t)st->cache_bytes, "cpu_seconds",
-                         st->cpu_seconds);
+                         (Py_ssize_t)st->bricks_reused, "cache_bytes", (Py_ssize_t)st->cache_bytes, "tiles_own",
+                         st->tiles_own, "cpu_seconds", st->cpu_seconds);
 }
 
 static int dict_set_num(PyObject *d, const char *key, double v)

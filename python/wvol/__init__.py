@@ -478,7 +478,7 @@ def render(source, camera="+z", size=(256, 256), *, mode="absorption", tf="gauss
     frame to frame for the same Store; the image is the same bit for bit.
     ``return_stats=True`` returns ``(image, stats)`` (``(image, bound, stats)`` with a bound):
     "method" (the one that ran), rays, samples, seconds, cpu_seconds...; through a context also
-    "context_frame", "rates_reused", "bricks_reused" and "cache_bytes" (docs/render.md).
+    "context_frame", "rates_reused", "bricks_reused", "cache_bytes" and "tiles_own" (docs/render.md).
     """
     w, h = (int(v) for v in size)
     opts = dict(camera=camera, width=w, height=h, mode=mode, method=method, tf=tf, tf_units=tf_units, step=step,

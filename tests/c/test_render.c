@@ -9,6 +9,7 @@
 
 #include "check.h"
 #include "fixtures.h"
+#include "render/reference_internal.h"
 #include "wvol/image.h"
 #include "wvol/render.h"
 #include "wvol/volume.h"
@@ -408,9 +409,56 @@ static void blocked_loop_equals_per_sample_path(void)
     wvol_volume_destroy(v);
 }
 
+/* wvol__cam_box_pixels: every pixel outside its rectangle misses the volume (the bricked walk
+ * skips those pixels' rays untested), for perspective and orthographic cameras, framed,
+ * zoomed in (the volume beyond the image), grazing, from inside the volume and from beside a
+ * face, on a non-square image; and for a framed perspective view it leaves pixels out. */
+static void camera_box_pixels_hold_every_hit(void)
+{
+    wvol_geometry g = {{40, 30, 20}, {1, 1, 1.5}, {-20, -15, -15}};
+    const char *specs[] = {"persp dir=1,0.7,0.4", "persp dir=1,0.7,0.4 zoom=3", "persp dir=0,0,1",
+                           "ortho dir=0.3,1,-0.5", "ortho dir=0,1,0 zoom=0.5", "persp eye=0,0,0 center=1,0.2,0.1",
+                           "persp eye=-20.6,0,0 center=1,0,0", "persp eye=-21,14.7,0 center=20,14.7,0"};
+    double lo[3], hi[3];
+    size_t left_out_framed = 0;
+    wvol_geometry_bounds(&g, lo, hi);
+    for (size_t c = 0; c < sizeof specs / sizeof *specs; c++) {
+        wvol_camera cam;
+        wvol__cam k;
+        wvol_error err;
+        int r[4];
+        size_t hits = 0, misses_outside = 0, hits_outside = 0;
+        if (wvol_camera_parse(&cam, specs[c], &g, 90, 70, &err) != WVOL_OK) {
+            CHECK(0, "%s: %s", specs[c], err.message);
+            continue;
+        }
+        wvol__cam_init(&k, &cam);
+        wvol__cam_box_pixels(&k, lo, hi, r);
+        CHECK(r[0] >= 0 && r[1] >= 0 && r[2] <= 90 && r[3] <= 70 && r[0] <= r[2] && r[1] <= r[3],
+              "%s: rectangle %d %d %d %d outside the image", specs[c], r[0], r[1], r[2], r[3]);
+        for (int y = 0; y < 70; y++)
+            for (int x = 0; x < 90; x++) {
+                double o[3], d[3], t0, t1;
+                const int hit = pixel_span(&k, lo, hi, x, y, o, d, &t0, &t1);
+                const int in = x >= r[0] && x < r[2] && y >= r[1] && y < r[3];
+                hits += (size_t)hit;
+                if (!in) {
+                    hits_outside += (size_t)hit;
+                    misses_outside += (size_t)!hit;
+                }
+            }
+        CHECK(hits_outside == 0, "%s: %zu pixels outside the rectangle %d %d %d %d meet the volume", specs[c],
+              hits_outside, r[0], r[1], r[2], r[3]);
+        CHECK(hits > 0, "%s: no pixel meets the volume (nothing checked)", specs[c]);
+        if (c == 0) left_out_framed = misses_outside;
+    }
+    CHECK(left_out_framed > 1000, "framed perspective view: only %zu pixels left out", left_out_framed);
+}
+
 int main(void)
 {
     camera_description_is_parsed_and_checked();
+    camera_box_pixels_hold_every_hit();
     transfer_functions_parse_and_refuse_bad_input();
     image_files_round_trip();
     reference_xray_along_axis_sums_voxels();

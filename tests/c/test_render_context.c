@@ -94,19 +94,22 @@ static int frame_equals_one_shot(wvol_render_context *ctx, const wvol_render_sou
 /* A camera turned frame after frame through one context, then frames of the first camera
  * again: bit for bit the one-shot images, with a budget that holds every brick (later frames
  * of an unchanged camera then build nothing), one that holds a few (bricks evicted and built
- * again), and the default; one and two threads. */
+ * again), and the default; one and two threads; a perspective, an oblique orthographic and an
+ * axis-parallel orthographic camera (brick orders with every kind of axis). With two threads
+ * and a cache that holds the bricks, the later frames walk tiles of their own (tiles_own) and
+ * the one-shot frames share each tile: the images must still be equal. */
 static void frames_equal_one_shot(void)
 {
     wvol_volume *v = noisy(70, 64, 40);
     wvol_store *s = v ? fixture_store(v, "db2", 2, 0.05, 0) : NULL;
     wvol_render_source src = wvol_render_source_store(s);
     wvol_geometry g;
-    const char *cams[2] = {"persp dir=1,0.7,0.4", "ortho dir=0.3,1,-0.5"};
+    const char *cams[3] = {"persp dir=1,0.7,0.4", "ortho dir=0.3,1,-0.5", "ortho dir=0,0,1"};
     const size_t brick_bytes = 10 * 10 * 10 * sizeof(float); /* bricks of 8: 10^3 voxels */
     const size_t budgets[3] = {1000 * brick_bytes, 12 * brick_bytes, 0};
     if (!s) goto done;
     wvol_geometry_of_volume(&g, v);
-    for (int c = 0; c < 2; c++)
+    for (int c = 0; c < 3; c++)
         for (int bi = 0; bi < 3; bi++)
             for (int threads = 1; threads <= 2; threads++) {
                 wvol_render_context *ctx = NULL;
@@ -115,6 +118,7 @@ static void frames_equal_one_shot(void)
                 wvol_error err;
                 char what[160];
                 size_t reused = 0;
+                int own = 0;
                 wvol_render_params_default(&p);
                 p.method = WVOL_RENDER_METHOD_BRICKS;
                 p.mode = WVOL_RENDER_MODE_ABSORPTION;
@@ -138,11 +142,19 @@ static void frames_equal_one_shot(void)
                           "%s: context bytes %zu, frame bytes %zu, cache %zu", what, wvol_render_context_bytes(ctx),
                           st.bytes, st.cache_bytes);
                     if (f > 0) reused += st.bricks_reused;
+                    own += st.tiles_own;
+                    if (threads == 1 || f == 0)
+                        CHECK(st.tiles_own == 0, "%s: tiles of its own with %s", what,
+                              threads == 1 ? "one thread" : "nothing cached yet");
+                    else if (bi == 0)
+                        CHECK(st.tiles_own == 1, "%s: shared tiles though the cache holds every brick built", what);
                     if (bi == 0 && f == 6)
                         CHECK(st.bricks_built == 0, "%s: the same camera again with every brick cached built %zu",
                               what, st.bricks_built);
                 }
                 CHECK(reused > 0, "%s: later frames took no brick from the cache", what);
+                if (threads == 2 && budgets[bi] != 12 * brick_bytes)
+                    CHECK(own > 0, "%s: no frame walked tiles of its own (that path then untested)", what);
                 wvol_render_context_destroy(ctx);
             }
 done:
@@ -229,6 +241,48 @@ done:
     wvol_volume_destroy(v);
 }
 
+/* Two threads walking tiles of their own (the cache holds every brick built so far) in a frame
+ * that needs bricks never built: a zoomed view first (the middle of the volume), then the
+ * whole volume, then the whole volume turned. The new bricks are built by the tiles that
+ * need them (a brick two threads need at once may be built twice): the images are the
+ * one-shot's. */
+static void own_tiles_build_new_bricks(void)
+{
+    wvol_volume *v = noisy(70, 64, 40);
+    wvol_store *s = v ? fixture_store(v, "db2", 2, 0.05, 0) : NULL;
+    wvol_render_source src = wvol_render_source_store(s);
+    wvol_render_context *ctx = NULL;
+    wvol_render_params p;
+    wvol_render_stats st;
+    wvol_geometry g;
+    wvol_camera cam;
+    wvol_error err;
+    if (!s) goto done;
+    wvol_geometry_of_volume(&g, v);
+    wvol_render_params_default(&p);
+    p.method = WVOL_RENDER_METHOD_BRICKS;
+    p.bricks.brick = 8;
+    p.step = 0.5;
+    p.threads = 2;
+    p.tile = 8; /* many tiles: the threads' tiles need the same new bricks at about the same time */
+    CHECK(wvol_render_context_create(&ctx, &src, &p, 0, &err) == WVOL_OK, "%s", err.message);
+    if (!ctx) goto done;
+    cam = turned(&g, "ortho dir=0.3,1,-0.5 zoom=4", 0);
+    frame_equals_one_shot(ctx, &src, &cam, TF_A, &p, &st, "zoomed view");
+    CHECK(st.tiles_own == 0 && st.bricks_built > 0, "zoomed view (first frame): tiles_own %d, %zu built",
+          st.tiles_own, st.bricks_built);
+    cam = turned(&g, "ortho dir=0.3,1,-0.5", 0);
+    frame_equals_one_shot(ctx, &src, &cam, TF_A, &p, &st, "whole view after the zoomed one");
+    CHECK(st.tiles_own == 1 && st.bricks_built > 0, "whole view after the zoomed one: tiles_own %d, %zu built",
+          st.tiles_own, st.bricks_built);
+    cam = turned(&g, "ortho dir=0.3,1,-0.5", 20);
+    frame_equals_one_shot(ctx, &src, &cam, TF_B, &p, &st, "turned, another TF");
+done:
+    wvol_render_context_destroy(ctx);
+    wvol_store_destroy(s);
+    wvol_volume_destroy(v);
+}
+
 static void refusals(void)
 {
     wvol_render_context *ctx = (wvol_render_context *)&ctx;
@@ -246,6 +300,7 @@ int main(void)
 {
     frames_equal_one_shot();
     changes_drop_what_depends_on_them();
+    own_tiles_build_new_bricks();
     refusals();
     return check_summary("test_render_context");
 }

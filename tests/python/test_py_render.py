@@ -259,19 +259,21 @@ def test_bricks_from_a_store_is_the_reference_on_its_reconstruction():
 
 def test_render_context_keeps_the_set_up_and_the_image():
     """render(..., context=ctx): frames of one Store through a RenderContext equal the frames
-    without it bit for bit, later frames take bricks built in earlier ones, a TF with other
+    without it bit for bit, later frames take bricks built in earlier ones (and the two threads
+    walk tiles of their own there, the one-shot calls sharing each tile), a TF with other
     opacities drops the rates, another Store drops everything, and a volume renders as usual."""
     v = wvol.synth.skull(shape=(40, 44, 36))
     s = wvol.compress(v, "db2", 2, keep=0.05)
     s2 = wvol.compress(v, "db2", 2, keep=0.2)
     ctx = wvol.RenderContext()
-    kw = dict(size=(40, 32), method="bricks", brick=8, lod=False, tf="grey", return_stats=True)
+    kw = dict(size=(40, 32), method="bricks", brick=8, lod=False, tf="grey", return_stats=True, threads=2)
     for f, cam in enumerate(["persp dir=1,0.7,0.4", "persp dir=1,0.75,0.4", "persp dir=1,0.7,0.4"]):
         a, sa = wvol.render(s, cam, context=ctx, **kw)
         b, sb = wvol.render(s, cam, **kw)
         assert np.array_equal(a, b) and a[..., 3].max() > 0.1
         assert sa["context_frame"] == f + 1 and sb["context_frame"] == 0 and sa["samples"] == sb["samples"]
         assert sa["rates_reused"] == (f > 0)
+        assert sa["tiles_own"] == (f > 0) and sb["tiles_own"] == 0
         if f:
             assert sa["bricks_reused"] > 0 and 0 < sa["cache_bytes"] <= sa["bytes"]
     tf = [(0.3, 1, 1, 1, 0.0), (1.0, 1, 0.5, 0.2, 40.0)]

@@ -273,6 +273,10 @@ typedef struct wvol_render_stats {
                                earlier frame, or by another tile of this one) */
     size_t cache_bytes;     /* bricks: bytes of voxels the context's brick cache holds after
                                the frame (<= its budget) */
+    int tiles_own;          /* bricks, two or more threads: 1 when each thread walked tiles of
+                               its own (the context's cache held the bricks built so far), 0
+                               when the threads shared each tile (docs/render.md, "The bricked
+                               path"); the image is the same either way */
 } wvol_render_stats;
 
 /* What wvol_render renders: a dense volume or a store (wvol_render_source_volume / _store). */

@@ -14,7 +14,8 @@
  *   path's min/max grid, so skipping at tolerance 0 never changes the image.
  * - Threads share image tiles, whose rays walk the bricks in front-to-back order
  *   (ref_bricks.c), so a tile builds each brick it needs once; each thread keeps a few built
- *   bricks (least recently used evicted).
+ *   bricks (least recently used evicted). Where a render context's cache holds the bricks
+ *   (walk_own), each thread walks tiles of its own instead.
  * - A render context (wvol_render_context, context.c) keeps this file's state across frames
  *   (wvol__bricks): the block view and the bounds, the per-brick rates while the TF's kappa
  *   stays the same, and a cache of built bricks shared by the threads within a byte budget.
@@ -550,6 +551,30 @@ static size_t walk_bytes(const brick_src *src)
     return (size_t)(b < lo ? lo : b > hi ? hi : b);
 }
 
+/* Whether the threads walk tiles of their own (wvol__source.walk_own) rather than share each
+ * tile: when the context's cache holds the bricks built so far that this TF does not skip
+ * (all but at most 1/16 of as many as it holds; at least one held). A shared tile exists so
+ * that a brick its rays need is built once, by one thread; with the bricks kept built there
+ * is nothing to share, and the shared tile's cost stays: its rays' states move between the
+ * threads' caches from brick to brick, and the threads wait for each other where the front
+ * of ready bricks is narrow. A brick never built before (a view turned towards new bricks)
+ * is built by the thread whose tile needs it and put in the cache for the others (two
+ * threads needing it at the same moment may both build it). One-shot renders (no cache)
+ * and a context's first frame share tiles. The choice changes no image: each ray's samples
+ * are taken in its order either way. */
+static int walk_own(const brick_src *src)
+{
+    const size_t nb = src->bn[0] * src->bn[1] * src->bn[2];
+    size_t held = 0, missing = 0;
+    if (!src->shared) return 0;
+    for (size_t b = 0; b < nb; b++) {
+        if (!(src->voxel_rate[b] > 0)) continue; /* not built yet, or skipped whole */
+        if (src->shared->where[b] >= 0) held++;
+        else missing++;
+    }
+    return held > 0 && missing * 16 <= held;
+}
+
 /* Whether two TFs (world units) give every brick the same rate: the same values and kappas. */
 static int same_kappa(const wvol_tf *a, const wvol_tf *b)
 {
@@ -582,6 +607,7 @@ static wvol_status prepare(wvol__source *s, const wvol_tf *tf_world, const wvol_
     src->tf = &src->tf_copy;
     for (int a = 0; a < 3; a++) s->bn[a] = src->bn[a];
     s->walk_bytes = walk_bytes(src);
+    s->walk_own = walk_own(src);
     s->tctx = src->tctx;
     return WVOL_OK;
 }

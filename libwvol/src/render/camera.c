@@ -127,6 +127,35 @@ void wvol__cam_ray(const wvol__cam *k, double px, double py, double o[3], double
     }
 }
 
+void wvol__cam_box_pixels(const wvol__cam *k, const double lo[3], const double hi[3], int r[4])
+{
+    const int w = k->c.width, h = k->c.height;
+    double pmin[2] = {INFINITY, INFINITY}, pmax[2] = {-INFINITY, -INFINITY};
+    r[0] = 0, r[1] = 0, r[2] = w, r[3] = h;
+    for (int c = 0; c < 8; c++) {
+        double rel[3], x, y, z, u, v;
+        for (int a = 0; a < 3; a++) rel[a] = ((c >> a) & 1 ? hi[a] : lo[a]) - k->c.eye[a];
+        x = dot3(rel, k->right), y = dot3(rel, k->up), z = dot3(rel, k->fwd);
+        if (k->c.projection == WVOL_PROJECTION_PERSPECTIVE) {
+            if (!(z > 0)) return; /* a corner at or behind the eye's plane: the whole image */
+            x /= z, y /= z;
+        }
+        u = x / k->half_w, v = y / k->half_h;
+        if (!isfinite(u) || !isfinite(v)) return;
+        /* pixel coordinates: cam_ray's u = px / width * 2 - 1, v = 1 - py / height * 2 */
+        x = 0.5 * (u + 1.0) * w, y = 0.5 * (1.0 - v) * h;
+        pmin[0] = fmin(pmin[0], x), pmax[0] = fmax(pmax[0], x);
+        pmin[1] = fmin(pmin[1], y), pmax[1] = fmax(pmax[1], y);
+    }
+    /* pixel i's centre is at i + 1/2: keep every pixel whose centre lies within two pixels of
+     * the corners' box (far beyond the rounding of either computation) */
+    for (int a = 0; a < 2; a++) {
+        const double n = a ? h : w, l = floor(pmin[a] - 2.5), u = ceil(pmax[a] + 2.5);
+        r[a] = l > 0 ? (l < n ? (int)l : (int)n) : 0;
+        r[a + 2] = u < n ? (u > r[a] ? (int)u : r[a]) : (int)n;
+    }
+}
+
 void wvol_camera_ray(const wvol_camera *cam, double px, double py, double origin[3], double dir[3])
 {
     wvol__cam k;

@@ -29,14 +29,16 @@ static void render_tile(const wvol__source *s, void *tc, const tf_fast *tfx, con
 }
 
 /* The bricked walk's tile side: the largest square whose rays (states, list links, spans) fit
- * the bytes the source grants, evened out so that the image's tiles are alike (a tile's rays
- * build each brick they need once, ref_bricks.c: the larger the tile, the fewer
- * bricks two tiles both build); 0 without a grant. */
-static int walk_tile(const wvol__source *s, const wvol_image *img)
+ * the bytes the source grants (split between `walkers` tiles walked at once), evened out so
+ * that the image's tiles are alike (a tile's rays build each brick they need once,
+ * ref_bricks.c: the larger the tile, the fewer bricks two tiles both build); 0 without a
+ * grant. */
+static int walk_tile(const wvol__source *s, const wvol_image *img, int walkers)
 {
     int side, n, big = img->width > img->height ? img->width : img->height;
     if (!s->walk_bytes) return 0;
-    side = (int)sqrt((double)s->walk_bytes / (double)(sizeof(ray_state) + sizeof(int32_t) + 2 * sizeof(double)));
+    side = (int)sqrt((double)s->walk_bytes / walkers /
+                     (double)(sizeof(ray_state) + sizeof(int32_t) + 2 * sizeof(double)));
     if (side < 16) side = 16;
     if (side >= big) return big;
     n = (big + side - 1) / side;
@@ -83,6 +85,54 @@ static void counts_add(wvol__counts *to, const wvol__counts *c)
     if (c->skip_bound > to->skip_bound) to->skip_bound = c->skip_bound;
 }
 
+/* One walker's buffers for tiles of `rays` pixels over a grid of nb bricks: the rays' states
+ * (on cache lines: a ray's state is taken from memory each time it enters a brick), the
+ * bricks' list heads (all -1 between tiles) then the rays' links, each row's first ray, and
+ * for threads sharing a tile each pixel's span (NULL for a walker alone). */
+typedef struct tile_bufs {
+    ray_state *rs;
+    int32_t *lists, *row_first;
+    double *span;
+} tile_bufs;
+
+static void tile_bufs_free(tile_bufs *t)
+{
+    free(t->rs);
+    free(t->lists);
+    free(t->row_first);
+    free(t->span);
+}
+
+static int tile_bufs_alloc(tile_bufs *t, size_t rays, int side, size_t nb, int shared)
+{
+    t->rs = aligned_alloc(64, (rays * sizeof *t->rs + 63) / 64 * 64);
+    t->lists = malloc((nb + rays) * sizeof *t->lists);
+    t->row_first = malloc(((size_t)side + 1) * sizeof *t->row_first);
+    t->span = shared ? malloc(2 * rays * sizeof *t->span) : NULL;
+    if (!t->rs || !t->lists || !t->row_first || (shared && !t->span)) {
+        tile_bufs_free(t);
+        memset(t, 0, sizeof *t);
+        return 0;
+    }
+    for (size_t b = 0; b < nb; b++) t->lists[b] = -1;
+    return 1;
+}
+
+static size_t tile_bufs_bytes(size_t rays, int side, size_t nb, int shared)
+{
+    return rays * (sizeof(ray_state) + sizeof(int32_t) + (shared ? 2 * sizeof(double) : 0)) +
+           ((size_t)side + 1) * sizeof(int32_t) + nb * sizeof(int32_t);
+}
+
+/* Tile ti's box in the image. */
+static void tile_box(const wvol_image *img, const int *order, int tile, int tx, int ti, int *x0, int *y0, int *tw,
+                     int *th)
+{
+    *x0 = (order[ti] % tx) * tile, *y0 = (order[ti] / tx) * tile;
+    *tw = img->width - *x0 < tile ? img->width - *x0 : tile;
+    *th = img->height - *y0 < tile ? img->height - *y0 : tile;
+}
+
 wvol_status wvol__render_sampled(wvol_image *img, wvol__source *s, const wvol_camera *cam, const wvol_tf *tf_in,
                           const wvol_render_params *pin, wvol_render_stats *stats, wvol_error *err)
 {
@@ -92,7 +142,7 @@ wvol_status wvol__render_sampled(wvol_image *img, wvol__source *s, const wvol_ca
     tf_fast tfx;
     wvol__cam k;
     double lo[3], hi[3], dt, t_start, c_start;
-    int ntiles, tx, a, *order, nthreads;
+    int ntiles, tx, a, *order, nthreads, own;
     size_t tile_rays_n;
     brick_order bo;
     wvol__counts counts;
@@ -123,29 +173,68 @@ wvol_status wvol__render_sampled(wvol_image *img, wvol__source *s, const wvol_ca
     c_start = wvol__cpu_now();
     if (s->ops->prepare) WVOL_FORWARD(s->ops->prepare(s, &tf, &p, err));
     wvol__cam_init(&k, cam);
-    p.tile = wvol__tile_side(&p, walk_tile(s, img));
+    nthreads = wvol__threads(p.threads);
+    own = s->ops->walk_bricks && nthreads > 1 && s->walk_own;
+    p.tile = wvol__tile_side(&p, walk_tile(s, img, own ? nthreads : 1));
     ntiles = wvol__tiles(img->width, img->height, p.tile);
     tx = (img->width + p.tile - 1) / p.tile;
     order = wvol__tile_order(img->width, img->height, p.tile);
-    nthreads = wvol__threads(p.threads);
     tile_rays_n = (size_t)p.tile * (size_t)p.tile;
     memset(&bo, 0, sizeof bo);
-    if (s->ops->walk_bricks) {
-        /* the bricked walk: one tile at a time, its bricks shared by the threads */
-        /* on cache lines: a ray's state is taken from memory each time it enters a brick */
-        ray_state *rs = aligned_alloc(64, (tile_rays_n * sizeof *rs + 63) / 64 * 64);
-        int32_t *lists = NULL; /* the bricks' list heads, then the rays' links */
-        int32_t *row_first = malloc(((size_t)p.tile + 1) * sizeof *row_first);
-        double *span = malloc(2 * tile_rays_n * sizeof *span);
-        status = !order || !rs || !row_first || !span
-                     ? wvol_error_set(err, WVOL_ERR_NOMEM, "render: out of memory for a tile's rays")
-                               : wvol__brick_order_make(&bo, s, &k, err);
+    if (s->ops->walk_bricks && own) {
+        /* the bricks are kept built (s->walk_own): each thread walks tiles of its own, alone,
+         * with its own buffers and brick order (no lock, wait or ray crossing cores); tiles
+         * dealt out one at a time, in Z order */
+        status = !order ? wvol_error_set(err, WVOL_ERR_NOMEM, "render: out of memory")
+                        : wvol__brick_order_make(&bo, s, &k, err);
         if (status == WVOL_OK) {
-            lists = malloc((bo.n + tile_rays_n) * sizeof *lists);
-            if (!lists) status = wvol_error_set(err, WVOL_ERR_NOMEM, "render: out of memory for a tile's rays");
-            else
-                for (size_t b = 0; b < bo.n; b++) lists[b] = -1;
+#pragma omp parallel num_threads(nthreads)
+            {
+                tile_bufs t;
+                brick_order mine;
+                walk_sync alone = {1, 0, 0};
+                void *tc = s->tctx[omp_get_thread_num()];
+                wvol__counts c;
+                wvol_status my_failed = WVOL_OK;
+                int ok = tile_bufs_alloc(&t, tile_rays_n, p.tile, bo.n, 0);
+                memset(&c, 0, sizeof c);
+                if (ok && wvol__brick_order_walker(&mine, &bo) != WVOL_OK) {
+                    tile_bufs_free(&t);
+                    ok = 0;
+                }
+#pragma omp for schedule(dynamic, 1)
+                for (int ti = 0; ti < ntiles; ti++) {
+                    int x0, y0, tw, th;
+                    if (!ok) continue;
+                    tile_box(img, order, p.tile, tx, ti, &x0, &y0, &tw, &th);
+                    wvol__render_tile_bricked(s, tc, &k, img, lo, hi, x0, y0, tw, th, &tfx, &p, dt, t.rs,
+                                              t.row_first, t.span, &mine, t.lists, t.lists + bo.n, 0, 1, &alone);
+                    tile_finish(&p, img, x0, y0, tw, t.rs, t.row_first[th], &c, &my_failed);
+                }
+                if (ok) {
+                    tile_bufs_free(&t);
+                    wvol__brick_order_walker_free(&mine);
+                }
+#pragma omp critical(wvol_render_counts)
+                {
+                    counts_add(&counts, &c);
+                    if (!ok) status = wvol_error_set(err, WVOL_ERR_NOMEM, "render: out of memory for a tile's rays");
+                    else if (my_failed != WVOL_OK) failed = my_failed;
+                }
+            }
         }
+        counts.bytes = (size_t)nthreads * (tile_bufs_bytes(tile_rays_n, p.tile, bo.n, 0) +
+                                           bo.n * (sizeof *bo.pending + sizeof *bo.ready)) +
+                       bo.n * sizeof *bo.inward;
+        wvol__brick_order_free(&bo);
+    } else if (s->ops->walk_bricks) {
+        /* the bricked walk: one tile at a time, its bricks shared by the threads */
+        tile_bufs t;
+        memset(&t, 0, sizeof t);
+        status = !order ? wvol_error_set(err, WVOL_ERR_NOMEM, "render: out of memory")
+                        : wvol__brick_order_make(&bo, s, &k, err);
+        if (status == WVOL_OK && !tile_bufs_alloc(&t, tile_rays_n, p.tile, bo.n, nthreads > 1))
+            status = wvol_error_set(err, WVOL_ERR_NOMEM, "render: out of memory for a tile's rays");
         if (status == WVOL_OK) {
             /* one parallel region for all tiles, the threads kept in step by walk_sync, which
              * sleeps where OpenMP's barriers would spin */
@@ -153,26 +242,23 @@ wvol_status wvol__render_sampled(wvol_image *img, wvol__source *s, const wvol_ca
 #pragma omp parallel num_threads(nthreads)
             {
                 const int tid = omp_get_thread_num(), nt = omp_get_num_threads();
+                void *tc = s->tctx[tid];
 #pragma omp single
                 w.n = nt; /* the barrier at its end publishes it */
                 for (int ti = 0; ti < ntiles; ti++) {
-                    int x0 = (order[ti] % tx) * p.tile, y0 = (order[ti] / tx) * p.tile;
-                    int tw = img->width - x0 < p.tile ? img->width - x0 : p.tile;
-                    int th = img->height - y0 < p.tile ? img->height - y0 : p.tile;
-                    wvol__render_tile_bricked(s, &k, img, lo, hi, x0, y0, tw, th, &tfx, &p, dt, rs, row_first, span,
-                                              &bo, lists, lists + bo.n, tid, nt, &w);
-                    if (tid == 0) tile_finish(&p, img, x0, y0, tw, rs, row_first[th], &counts, &failed);
+                    int x0, y0, tw, th;
+                    tile_box(img, order, p.tile, tx, ti, &x0, &y0, &tw, &th);
+                    wvol__render_tile_bricked(s, tc, &k, img, lo, hi, x0, y0, tw, th, &tfx, &p, dt, t.rs, t.row_first,
+                                              t.span, &bo, t.lists, t.lists + bo.n, tid, nt, &w);
+                    if (tid == 0) tile_finish(&p, img, x0, y0, tw, t.rs, t.row_first[th], &counts, &failed);
                     wvol__walk_sync_wait(&w); /* rs and row_first read before the next tile's rays */
                 }
             }
+            tile_bufs_free(&t);
         }
         /* the walk's own: the tile's rays and lists, the order */
-        counts.bytes = tile_rays_n * (sizeof *rs + sizeof *lists + 2 * sizeof *span) + ((size_t)p.tile + 1) * sizeof *row_first +
-                       bo.n * (sizeof *lists + sizeof *bo.inward + sizeof *bo.pending + sizeof *bo.ready);
-        free(rs);
-        free(lists);
-        free(row_first);
-        free(span);
+        counts.bytes = tile_bufs_bytes(tile_rays_n, p.tile, bo.n, nthreads > 1) +
+                       bo.n * (sizeof *bo.inward + sizeof *bo.pending + sizeof *bo.ready);
         wvol__brick_order_free(&bo);
     } else if (!order) {
         status = wvol_error_set(err, WVOL_ERR_NOMEM, "render: out of memory");
@@ -209,5 +295,6 @@ wvol_status wvol__render_sampled(wvol_image *img, wvol__source *s, const wvol_ca
     if (status != WVOL_OK) return status;
     WVOL_RETURN_IF(failed != WVOL_OK, err, failed, "render: out of memory (a brick could not be reconstructed, or a tile's rays)");
     wvol__stats_fill(stats, img, t_start, c_start, &counts);
+    if (stats) stats->tiles_own = own;
     return wvol__image_check_range(img, err);
 }

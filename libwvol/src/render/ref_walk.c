@@ -135,15 +135,17 @@ static inline void sub_dda_init(sub_dda *dd, const wvol__view *v, const ray_stat
     for (int a = 0; a < 3; a++) {
         const double x = st->x0[a] + t * st->e[a], o = (double)v->sub_org[a] - 0.5;
         const double c = floor(v->sub_S_inv > 0 ? (x - o) * v->sub_S_inv : (x - o) / S);
+        /* one division per axis: the faces' parameters are rounded anyway (above) */
+        const double inv = 1.0 / st->e[a];
         dd->c[a] = (long)c;
         if (st->e[a] > 0) {
             dd->step[a] = 1;
-            dd->tmax[a] = t + (o + (c + 1) * S - x) / st->e[a];
-            dd->tdelta[a] = S / st->e[a];
+            dd->tmax[a] = t + (o + (c + 1) * S - x) * inv;
+            dd->tdelta[a] = S * inv;
         } else if (st->e[a] < 0) {
             dd->step[a] = -1;
-            dd->tmax[a] = t + (o + c * S - x) / st->e[a];
-            dd->tdelta[a] = -S / st->e[a];
+            dd->tmax[a] = t + (o + c * S - x) * inv;
+            dd->tdelta[a] = -S * inv;
         } else {
             dd->step[a] = 0;
             dd->tmax[a] = INFINITY;
@@ -216,10 +218,13 @@ out:
 
 /* The first step from k on (at most ke) whose sample is at or past parameter te: a guess
  * from dt_inv = 1 / dt, then corrected by the exact test, so the guess's rounding does not
- * matter. */
+ * matter (the samples' parameters grow with the step, so the answer is unique). The guess
+ * is the smallest integer at or above (te - t0) / dt - 1/2, which is the answer but for
+ * rounding: the two tests that confirm it do not depend on each other, where a guess one
+ * below took a chain of three. */
 static inline long first_step_at(double t0, double dt, double dt_inv, long k, long ke, double te)
 {
-    double q = (te - t0) * dt_inv - 0.5;
+    double q = (te - t0) * dt_inv + 0.5;
     long kk = q > (double)k ? (q < (double)ke ? (long)q : ke) : k;
     while (kk < ke && t0 + ((double)kk + 0.5) * dt < te) kk++;
     while (kk > k && !(t0 + ((double)(kk - 1) + 0.5) * dt < te)) kk--;
@@ -246,14 +251,8 @@ static inline __attribute__((always_inline)) int ray_advance(const wvol__source 
     if (bricked) {
         int skip;
         ray_enter(s, st, x, t);
-        /* the first step whose sample is at or past the exit (a guess, then the exact test) */
-        if (st->t_exit < T_AT(nfull)) {
-            double q = (st->t_exit - t0) * s->dt_inv - 0.5;
-            ke = q > (double)k ? (long)q : k;
-            while (ke < nfull && T_AT(ke) < st->t_exit) ke++;
-            while (ke > k + 1 && !(T_AT(ke - 1) < st->t_exit)) ke--;
-            if (ke <= k) ke = k + 1;
-        }
+        /* the first step after k whose sample is at or past the exit */
+        if (st->t_exit < T_AT(nfull)) ke = first_step_at(t0, dt, s->dt_inv, k + 1, nfull, st->t_exit);
         skip = ray_skip(s, tc, st, p->skip_tolerance, (double)(ke - k) * dt, &view);
         if (skip < 0) return 0;
         if (skip) {

@@ -296,6 +296,11 @@ typedef struct brick_order {
 
 wvol_status wvol__brick_order_make(brick_order *bo, const wvol__source *s, const wvol__cam *k, wvol_error *err);
 void wvol__brick_order_free(brick_order *bo);
+/* A walker of bo's order for a thread walking tiles of its own: its own pending counts and
+ * ready stack, bo's inward counts shared (read only); freed by wvol__brick_order_walker_free
+ * (before bo is freed). WVOL_ERR_NOMEM when out of memory. */
+wvol_status wvol__brick_order_walker(brick_order *w, const brick_order *bo);
+void wvol__brick_order_walker_free(brick_order *w);
 /* A barrier for the threads of one parallel region that waits without spinning for long
  * (ref_bricks.c, idle_wait): OpenMP's own barriers spin (libgomp: GOMP_SPINCOUNT, 300 000
  * by default), which on a machine with fewer free cores than threads burns the core the
@@ -309,14 +314,16 @@ typedef struct walk_sync {
 void wvol__walk_sync_wait(walk_sync *w);
 
 /* The rays of the tile (x0, y0, tw, th) walked brick by brick front to back by the calling
- * thread, number tid of the nt threads of the enclosing parallel region, every one of which
- * calls it for the same tile (it synchronises them through w); rs receives the tile's rays
- * that meet the volume (row_first[th] of them), complete when it returns; span: scratch of
- * 2 tw th doubles (each pixel's ray span). */
-void wvol__render_tile_bricked(const wvol__source *s, const wvol__cam *k, wvol_image *img, const double lo[3],
-                               const double hi[3], int x0, int y0, int tw, int th, const tf_fast *tfx,
-                               const wvol_render_params *p, double dt, ray_state *rs, int32_t *row_first,
-                               double *span, brick_order *bo, int32_t *head, int32_t *next, int tid, int nt,
-                               walk_sync *w);
+ * thread (its source context tc), number tid of the nt threads that share the tile, every one
+ * of which calls it for the same tile (it synchronises them through w, whose n is nt); nt = 1
+ * (tid 0): the tile is the caller's alone, bo, head, next and the buffers its own. rs receives
+ * the tile's rays that meet the volume (row_first[th] of them), complete when it returns;
+ * span: scratch of 2 tw th doubles (each pixel's ray span, for the threads sharing a tile;
+ * NULL with nt = 1). */
+void wvol__render_tile_bricked(const wvol__source *s, void *tc, const wvol__cam *k, wvol_image *img,
+                               const double lo[3], const double hi[3], int x0, int y0, int tw, int th,
+                               const tf_fast *tfx, const wvol_render_params *p, double dt, ray_state *rs,
+                               int32_t *row_first, double *span, brick_order *bo, int32_t *head, int32_t *next,
+                               int tid, int nt, walk_sync *w);
 
 #endif

@@ -23,6 +23,12 @@ typedef struct wvol__cam {
 
 void wvol__cam_init(wvol__cam *k, const wvol_camera *cam);
 void wvol__cam_ray(const wvol__cam *k, double px, double py, double o[3], double d[3]);
+/* The pixels whose rays may meet the box [lo, hi] (index r[0] <= x < r[2], r[1] <= y < r[3]):
+ * a rectangle holding the projection of the box's corners with two pixels to spare, the whole
+ * image when a corner lies at or behind a perspective eye's plane. The rays of the pixels
+ * outside it miss the box (the projection of a box is the hull of its corners'), so a caller
+ * may skip them without changing anything. */
+void wvol__cam_box_pixels(const wvol__cam *k, const double lo[3], const double hi[3], int r[4]);
 
 /* Slab test of the line o + t d against the box [lo, hi]: 1 and [*t0, *t1] (t0 < t1) when
  * the line crosses the box's interior, else 0. Parallel components outside the slab miss. */
@@ -144,8 +150,9 @@ typedef struct wvol__source_ops {
      * the gradient in index units. NULL: trilinear samples of the views. */
     double (*eval)(const void *ctx, const double x[3], double grad[3]);
     /* 1: a tile's rays walk its bricks together, front to back, the threads sharing the tile
-     * (bricks built on demand, each once per tile: ref_bricks.c); 0: the threads take tiles,
-     * each ray walked on its own. */
+     * (bricks built on demand, each once per tile: ref_bricks.c), or each thread walking tiles
+     * of its own where prepare sets walk_own; 0: the threads take tiles, each ray walked on
+     * its own. */
     int walk_bricks;
     /* 1: the source honours wvol_render_params.gradient_levels (views with a low-pass
      * gradient field, wvol__view.grad); others refuse it */
@@ -171,6 +178,9 @@ struct wvol__source {
     size_t walk_bytes;      /* prepare(): bytes for a tile's rays (their states and lists;
                                the tile is the largest that fits; the threads share it), 0: no
                                preference */
+    int walk_own;           /* prepare(): 1 when the threads may walk tiles of their own rather
+                               than share each tile (ref_tiles.c): the bricks the frame needs
+                               are kept built, so a shared tile would share no builds */
 };
 
 /* The contribution rate of a brick whose samples lie in [mn, mx]: the largest kappa of the
