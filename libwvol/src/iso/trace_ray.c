@@ -172,7 +172,7 @@ void wvol__trace_ws_free(tws *w)
     wvol__spline_ws_free(&w->s);
     free(w->env);
     free(w->cut);
-    wvol_store_hits_free(&w->cellq);
+    wvol__cell_ws_free(&w->cellq);
     memset(w, 0, sizeof *w);
 }
 
