@@ -355,20 +355,14 @@ static int same_box(const double a0[3], const double a1[3], const double b0[3], 
 }
 
 /* The functions touching the level-L cell [lo, hi] (its parent [plo, phi]) into w->q[L]: filtered
- * from the parent's list when this thread holds it, or queried for the parent first below the
- * coarsest level (its siblings along this and the next rays then filter it too), else queried.
+ * from the parent's list when this thread holds it (the parent was classified, or its list
+ * filtered, last at its level: consecutive cells along a ray share parents), else queried.
+ * Querying a parent that is not held, only for its children to filter, does not pay.
  * NULL when a query fails. */
 static const wvol_store_hits *cell_hits(const tracer *tr, wvol__cell_ws *w, int L, const double lo[3], const double hi[3],
                                         const double plo[3], const double phi[3])
 {
     int a;
-    if (L > 0 && !(w->have[L - 1] && same_box(w->lo[L - 1], w->hi[L - 1], plo, phi)) && L - 1 > 0) {
-        w->have[L - 1] = 0;
-        if (wvol_store_query_box(tr->g.s, plo, phi, &w->q[L - 1], NULL) == WVOL_OK) {
-            w->have[L - 1] = 1;
-            for (a = 0; a < 3; a++) w->lo[L - 1][a] = plo[a], w->hi[L - 1][a] = phi[a];
-        }
-    }
     w->have[L] = 0;
     if (L > 0 && w->have[L - 1] && same_box(w->lo[L - 1], w->hi[L - 1], plo, phi)) {
         if (!wvol__iso_hits_in_box(&w->q[L - 1], lo, hi, &w->q[L])) return NULL;
