@@ -207,7 +207,7 @@ static inline void factor_cached(fcache *fc, const wvol__iso_boxk *k, const wvol
     factor_range(k, which, (lo[a] - h->lo[a]) * sc, (hi[a] - h->lo[a]) * sc, flo, fhi);
 }
 
-void wvol__iso_box_range_list(const wvol__iso_boxk *k, const wvol_store_hit *hits, size_t n, const double lo[3],
+WVOL__CLONES void wvol__iso_box_range_list(const wvol__iso_boxk *k, const wvol_store_hit *hits, size_t n, const double lo[3],
                               const double hi[3], double *vmin, double *vmax)
 {
     size_t i, nlow = 0;
