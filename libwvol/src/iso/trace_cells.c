@@ -257,12 +257,8 @@ WVOL__CLONES void wvol__iso_box_range_list(const wvol__iso_boxk *k, const wvol_s
             double flo, fhi, p0, p1, p2, p3;
             if (!k->transformed[a]) continue;
             factor_cached(&fc, k, h, a, lo, hi, &flo, &fhi);
-            if (plo >= 0.0) { /* the first factor's norm, or a nonnegative product so far */
-                p0 = flo >= 0.0 ? plo * flo : phi * flo;
-                p1 = fhi >= 0.0 ? phi * fhi : plo * fhi;
-                plo = p0, phi = p1;
-                continue;
-            }
+            /* the four products, no branch on their signs (which are unpredictable): rounding is
+             * monotone, so the extreme rounded product is the rounded extreme one */
             p0 = plo * flo, p1 = plo * fhi, p2 = phi * flo, p3 = phi * fhi;
             plo = dmin(dmin(p0, p1), dmin(p2, p3));
             phi = dmax(dmax(p0, p1), dmax(p2, p3));
