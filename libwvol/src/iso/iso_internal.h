@@ -84,12 +84,13 @@ void wvol__iso_boxk_free(wvol__iso_boxk *k);
  * box sees only at its tail, or one nearly constant over the box, adds a narrow interval). */
 wvol_status wvol__iso_box_range(const wvol__iso_boxk *k, const wvol_store *s, wvol_store_hits *hl, const double lo[3],
                                 const double hi[3], double *vmin, double *vmax, wvol_error *err);
-/* The same from the list of the functions touching the box (a box query's, in its order). */
 /* dst = the hits of src whose support box meets the closed box [lo, hi]: the test the store's
  * box query applies to every function image, so filtering a query over a box that holds
  * [lo, hi] gives the query of [lo, hi] itself, hit for hit and in the same order (0 when out of
  * memory; src and dst distinct). */
 int wvol__iso_hits_in_box(const wvol_store_hits *src, const double lo[3], const double hi[3], wvol_store_hits *dst);
+/* wvol__iso_box_range from the list of the functions touching the box (a box query's, in its
+ * order; the result depends on the order only through rounding). */
 void wvol__iso_box_range_list(const wvol__iso_boxk *k, const wvol_store_hit *hits, size_t n, const double lo[3],
                               const double hi[3], double *vmin, double *vmax);
 
