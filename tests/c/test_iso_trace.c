@@ -273,6 +273,55 @@ static void cell_bounds_hold(const wvol_store *s, const char *what)
     CHECK(worst <= 0, "%s: f^ leaves its cell bound by %g", what, worst);
 }
 
+/* The cell grid filters a parent cell's functions for its children instead of querying the
+ * store again: on random boxes and boxes inside them, the filtered list is the box query's, hit
+ * for hit in the same order, so the children's ranges are bit for bit the same. */
+static void filtered_queries_equal(const wvol_store *s, const char *what)
+{
+    wvol__iso_boxk k;
+    wvol_store_hits big, sub, flt;
+    wvol_store_info info;
+    size_t total = 0;
+    int b, bad = 0;
+    memset(&big, 0, sizeof big), memset(&sub, 0, sizeof sub), memset(&flt, 0, sizeof flt);
+    wvol__iso_boxk_init(&k, s);
+    wvol_store_get_info(s, &info);
+    for (b = 0; b < 60; b++) {
+        double lo[3], hi[3], clo[3], chi[3], r0, r1, f0, f1;
+        int a;
+        for (a = 0; a < 3; a++) {
+            double w = 1.0 + rnd() * 15.0, cw = w * rnd();
+            /* boxes on the grid like the cells (b even), or anywhere */
+            lo[a] = b % 2 ? rnd() * ((double)info.nx - 1 - w) : 2.0 * floor(rnd() * ((double)info.nx - 1 - w) / 2.0);
+            hi[a] = lo[a] + w;
+            clo[a] = b % 3 ? lo[a] + rnd() * (w - cw) : lo[a]; /* sharing the parent's faces, or inside */
+            chi[a] = b % 3 ? clo[a] + cw : hi[a];
+        }
+        CHECK(wvol_store_query_box(s, lo, hi, &big, NULL) == WVOL_OK, "%s: query", what);
+        CHECK(wvol_store_query_box(s, clo, chi, &sub, NULL) == WVOL_OK, "%s: query", what);
+        CHECK(wvol__iso_hits_in_box(&big, clo, chi, &flt), "%s: filter", what);
+        total += sub.count;
+        if (flt.count != sub.count) bad++;
+        for (size_t i = 0; i < sub.count && flt.count == sub.count; i++) {
+            const wvol_store_hit *x = &flt.hits[i], *y = &sub.hits[i];
+            if (memcmp(x->lo, y->lo, sizeof x->lo) || memcmp(x->hi, y->hi, sizeof x->hi) || x->value != y->value ||
+                x->level != y->level || x->band != y->band || x->norm != y->norm || x->p != y->p || x->q != y->q ||
+                x->r != y->r) {
+                bad++;
+                break;
+            }
+        }
+        wvol__iso_box_range_list(&k, sub.hits, sub.count, clo, chi, &r0, &r1);
+        wvol__iso_box_range_list(&k, flt.hits, flt.count, clo, chi, &f0, &f1);
+        if (r0 != f0 || r1 != f1) bad++;
+    }
+    printf("  %s: filtered box queries on 60 boxes (%zu hits): %d differ\n", what, total, bad);
+    CHECK(bad == 0, "%s: %d filtered queries differ from the store's", what, bad);
+    CHECK(total > 0, "%s: the boxes touched no function", what);
+    wvol_store_hits_free(&big), wvol_store_hits_free(&sub), wvol_store_hits_free(&flt);
+    wvol__iso_boxk_free(&k);
+}
+
 static int hit_ok(const wvol_iso_hit *h)
 {
     return h->hit ? isfinite(h->t) && isfinite(h->normal[0]) && isfinite(h->normal[1]) && isfinite(h->normal[2]) &&
@@ -554,6 +603,7 @@ int main(void)
         if (s) {
             bounds_hold(s, v, what);
             cell_bounds_hold(s, what);
+            filtered_queries_equal(s, what);
             /* 100% stores evaluate f^ from ~10x more functions: fewer rays keep the test fast */
             no_missed_hit(s, v, cases[i].iso, cases[i].keep < 1 ? 40 : 24, what);
             degenerate_rays(s, cases[i].iso, !strcmp(cases[i].kind, "gaussian"), what);

@@ -84,6 +84,15 @@ void wvol__iso_boxk_free(wvol__iso_boxk *k);
  * box sees only at its tail, or one nearly constant over the box, adds a narrow interval). */
 wvol_status wvol__iso_box_range(const wvol__iso_boxk *k, const wvol_store *s, wvol_store_hits *hl, const double lo[3],
                                 const double hi[3], double *vmin, double *vmax, wvol_error *err);
+/* dst = the hits of src whose support box meets the closed box [lo, hi]: the test the store's
+ * box query applies to every function image, so filtering a query over a box that holds
+ * [lo, hi] gives the query of [lo, hi] itself, hit for hit and in the same order (0 when out of
+ * memory; src and dst distinct). */
+int wvol__iso_hits_in_box(const wvol_store_hits *src, const double lo[3], const double hi[3], wvol_store_hits *dst);
+/* wvol__iso_box_range from the list of the functions touching the box (a box query's, in its
+ * order; the result depends on the order only through rounding). */
+void wvol__iso_box_range_list(const wvol__iso_boxk *k, const wvol_store_hit *hits, size_t n, const double lo[3],
+                              const double hi[3], double *vmin, double *vmax);
 
 #define WVOL__CELL_LEVELS 4
 
@@ -114,6 +123,16 @@ typedef struct wvol__tracer {
  * within a voxel of the face: a false surface). Untransformed axes keep [0, n_a - 1]. */
 void wvol__iso_model_extent(const wvol_store *s, double lo[3], double hi[3]);
 
+/* A thread's scratch for classifying cells: per level the last cell whose functions it queried
+ * (or filtered from its parent's), so that the next cells below it filter that list instead of
+ * querying the store again; start zeroed. */
+typedef struct wvol__cell_ws {
+    wvol_store_hits q[WVOL__CELL_LEVELS];
+    double lo[WVOL__CELL_LEVELS][3], hi[WVOL__CELL_LEVELS][3];
+    int have[WVOL__CELL_LEVELS];
+} wvol__cell_ws;
+void wvol__cell_ws_free(wvol__cell_ws *w);
+
 /* A thread's scratch, reused across rays; start zeroed. */
 typedef struct wvol__trace_ws {
     wvol__spline_ws s;
@@ -121,7 +140,7 @@ typedef struct wvol__trace_ws {
     size_t capE;
     double *cut;        /* cell boundaries along the ray */
     size_t capC;
-    wvol_store_hits cellq; /* the cell grid's box queries */
+    wvol__cell_ws cellq; /* the cell grid's box queries */
     size_t cells;       /* cells this thread classified */
     double cell_seconds; /* and its time doing so */
 } wvol__trace_ws;
@@ -134,9 +153,9 @@ wvol_status wvol__trace_cells(wvol__tracer *tr, wvol_error *err);
 void wvol__trace_cells_free(wvol__tracer *tr);
 /* The class of f^ in the finest cell holding x (voxel coords): 1, 0 or -1 (undecided), going
  * down the hierarchy from the coarsest cell and classifying the cells met for the first time
- * (hl: the caller's query scratch; *evaluated counts them and *seconds adds their time; both
+ * (w: the caller's query scratch; *evaluated counts them and *seconds adds their time; both
  * may be NULL). */
-int wvol__trace_cell_class(const wvol__tracer *tr, wvol_store_hits *hl, const double x[3], size_t *evaluated,
+int wvol__trace_cell_class(const wvol__tracer *tr, wvol__cell_ws *w, const double x[3], size_t *evaluated,
                            double *seconds);
 /* Classifies every coarsest cell; cnt[0..2] count the undecided, below and above ones. */
 void wvol__trace_cells_top(const wvol__tracer *tr, wvol_store_hits *hl, size_t cnt[3]);

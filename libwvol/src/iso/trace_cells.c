@@ -5,6 +5,7 @@
  * where f^ cannot reach iso (wvol__trace_cells, wvol__trace_cell_class).
  * Based on: DESIGN.md section 9; docs/iso.md; Moore 1966 (interval arithmetic). */
 #include <math.h>
+#include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
 #include "core/clock.h"
@@ -158,18 +159,67 @@ static void s_product(const wvol__iso_boxk *k, int skip, double *lo, double *hi)
         if (a != skip && k->transformed[a]) imul(*lo, *hi, k->s1[0], k->s1[1], lo, hi);
 }
 
-wvol_status wvol__iso_box_range(const wvol__iso_boxk *k, const wvol_store *s, wvol_store_hits *hl, const double lo[3],
-                                const double hi[3], double *vmin, double *vmax, wvol_error *err)
+/* The factors' ranges on one box, shared by the functions with the same (level, axis, image
+ * translate j, band bit): a function's support on axis a is [j 2^m - s, (j + support) 2^m - s]
+ * (every image with the same j has these bounds bit for bit), so the cached range is the one
+ * factor_range computes for each of them. Levels above FC_LEVELS, or translates outside the
+ * span a box can meet, go to factor_range directly. */
+#define FC_SPAN 40
+#define FC_LEVELS 8
+
+typedef struct fcache {
+    int64_t j0[FC_LEVELS + 1][3];
+    int span[FC_LEVELS + 1][3];
+    unsigned char have[FC_LEVELS + 1][3][FC_SPAN][2];
+    double r[FC_LEVELS + 1][3][FC_SPAN][2][2];
+} fcache;
+
+static void fcache_init(fcache *fc, const wvol__iso_boxk *k, const double lo[3], const double hi[3])
+{
+    int m, a;
+    for (m = 1; m <= k->levels && m <= FC_LEVELS; m++)
+        for (a = 0; a < 3; a++) {
+            double sc = k->inv_size[m];
+            int64_t j0 = (int64_t)floor((lo[a] + k->shift) * sc - k->support) - 1;
+            int64_t j1 = (int64_t)floor((hi[a] + k->shift) * sc) + 1;
+            fc->j0[m][a] = j0;
+            fc->span[m][a] = j1 - j0 + 1 <= FC_SPAN ? (int)(j1 - j0 + 1) : 0; /* 0: no cache on this axis */
+            memset(fc->have[m][a], 0, sizeof fc->have[m][a]);
+        }
+}
+
+/* factor_range of function h's factor on axis a over [lo_a, hi_a], through the cache. */
+static inline void factor_cached(fcache *fc, const wvol__iso_boxk *k, const wvol_store_hit *h, int a, const double lo[3],
+                                 const double hi[3], double *flo, double *fhi)
+{
+    int m = h->level, which = (h->band >> a) & 1;
+    double sc = k->inv_size[m];
+    int64_t j = m <= FC_LEVELS ? (int64_t)floor((h->lo[a] + k->shift) * sc + 0.5) - fc->j0[m][a] : -1;
+    if (j >= 0 && j < fc->span[m][a]) {
+        double *r = fc->r[m][a][j][which];
+        if (!fc->have[m][a][j][which]) {
+            factor_range(k, which, (lo[a] - h->lo[a]) * sc, (hi[a] - h->lo[a]) * sc, &r[0], &r[1]);
+            fc->have[m][a][j][which] = 1;
+        }
+        *flo = r[0], *fhi = r[1];
+        return;
+    }
+    factor_range(k, which, (lo[a] - h->lo[a]) * sc, (hi[a] - h->lo[a]) * sc, flo, fhi);
+}
+
+WVOL__CLONES void wvol__iso_box_range_list(const wvol__iso_boxk *k, const wvol_store_hit *hits, size_t n, const double lo[3],
+                              const double hi[3], double *vmin, double *vmax)
 {
     size_t i, nlow = 0;
     double a0 = 0, pbar[3] = {0, 0, 0}, g[3] = {0, 0, 0}, sxx[3] = {0, 0, 0}, dev = 0, mid = 0, mag = 0, blo, bhi, t0,
            t1;
     int a;
-    WVOL_FORWARD(wvol_store_query_box(s, lo, hi, hl, err));
+    fcache fc;
+    if (k->prange) fcache_init(&fc, k, lo, hi);
     /* low-pass coefficients ~ a0 + g . (p - pbar), least squares over the touching ones
      * (p: the function's position on the level-M grid, periodic images included) */
-    for (i = 0; i < hl->count; i++) {
-        const wvol_store_hit *h = &hl->hits[i];
+    for (i = 0; i < n; i++) {
+        const wvol_store_hit *h = &hits[i];
         if (h->band != 0) continue;
         nlow++;
         a0 += h->value;
@@ -179,8 +229,8 @@ wvol_status wvol__iso_box_range(const wvol__iso_boxk *k, const wvol_store *s, wv
     if (nlow) {
         a0 /= (double)nlow;
         for (a = 0; a < 3; a++) pbar[a] /= (double)nlow;
-        for (i = 0; i < hl->count; i++) {
-            const wvol_store_hit *h = &hl->hits[i];
+        for (i = 0; i < n; i++) {
+            const wvol_store_hit *h = &hits[i];
             if (h->band != 0) continue;
             for (a = 0; a < 3; a++)
                 if (k->transformed[a]) {
@@ -191,8 +241,8 @@ wvol_status wvol__iso_box_range(const wvol__iso_boxk *k, const wvol_store *s, wv
         }
         for (a = 0; a < 3; a++) g[a] = sxx[a] > 0 ? g[a] / sxx[a] : 0.0;
     }
-    for (i = 0; i < hl->count; i++) {
-        const wvol_store_hit *h = &hl->hits[i];
+    for (i = 0; i < n; i++) {
+        const wvol_store_hit *h = &hits[i];
         double c = h->value, plo = h->norm, phi = h->norm;
         if (h->band == 0)
             for (a = 0, c -= a0; a < 3; a++)
@@ -204,16 +254,11 @@ wvol_status wvol__iso_box_range(const wvol__iso_boxk *k, const wvol_store *s, wv
         }
         /* c w on the box lies in c [plo, phi]: the product of the factors' ranges there */
         for (a = 0; a < 3; a++) {
-            double sc, flo, fhi, p0, p1, p2, p3;
+            double flo, fhi, p0, p1, p2, p3;
             if (!k->transformed[a]) continue;
-            sc = k->inv_size[h->level];
-            factor_range(k, (h->band >> a) & 1, (lo[a] - h->lo[a]) * sc, (hi[a] - h->lo[a]) * sc, &flo, &fhi);
-            if (plo >= 0.0) { /* the first factor's norm, or a nonnegative product so far */
-                p0 = flo >= 0.0 ? plo * flo : phi * flo;
-                p1 = fhi >= 0.0 ? phi * fhi : plo * fhi;
-                plo = p0, phi = p1;
-                continue;
-            }
+            factor_cached(&fc, k, h, a, lo, hi, &flo, &fhi);
+            /* the four products, no branch on their signs (which are unpredictable): rounding is
+             * monotone, so the extreme rounded product is the rounded extreme one */
             p0 = plo * flo, p1 = plo * fhi, p2 = phi * flo, p3 = phi * fhi;
             plo = dmin(dmin(p0, p1), dmin(p2, p3));
             phi = dmax(dmax(p0, p1), dmax(p2, p3));
@@ -244,17 +289,25 @@ wvol_status wvol__iso_box_range(const wvol__iso_boxk *k, const wvol_store *s, wv
     dev += 1e-9 * (mag + fabs(blo) + fabs(bhi)); /* rounding of the sums */
     *vmin = blo - dev;
     *vmax = bhi + dev;
+}
+
+wvol_status wvol__iso_box_range(const wvol__iso_boxk *k, const wvol_store *s, wvol_store_hits *hl, const double lo[3],
+                                const double hi[3], double *vmin, double *vmax, wvol_error *err)
+{
+    WVOL_FORWARD(wvol_store_query_box(s, lo, hi, hl, err));
+    wvol__iso_box_range_list(k, hl->hits, hl->count, lo, hi, vmin, vmax);
     return WVOL_OK;
 }
 
-/* Class of the closed box [lo, hi]: 1 when f^ > iso on all of it, 0 when f^ < iso, -1
- * undecided (its children will be looked at) or CELL_FINAL (undecided, and not refined; also
- * when the store's query fails: tracing a cell exactly is always right). may_stop: the box is
- * small enough to be left unrefined. */
-static int box_class(const tracer *tr, wvol_store_hits *hl, const double lo[3], const double hi[3], int may_stop)
+/* Class of the closed box [lo, hi] from the functions touching it: 1 when f^ > iso on all of
+ * it, 0 when f^ < iso, -1 undecided (its children will be looked at) or CELL_FINAL (undecided,
+ * and not refined; also when hits is NULL, a failed query: tracing a cell exactly is always
+ * right). may_stop: the box is small enough to be left unrefined. */
+static int box_class(const tracer *tr, const wvol_store_hits *hits, const double lo[3], const double hi[3], int may_stop)
 {
     double blo, bhi, hw, gap;
-    if (wvol__iso_box_range(&tr->k, tr->g.s, hl, lo, hi, &blo, &bhi, NULL) != WVOL_OK) return CELL_FINAL;
+    if (!hits) return CELL_FINAL;
+    wvol__iso_box_range_list(&tr->k, hits->hits, hits->count, lo, hi, &blo, &bhi);
     if (blo > tr->iso) return 1;
     if (bhi < tr->iso) return 0;
     /* would halving the cell help? Only if the children's bounds could exclude iso, which
@@ -263,6 +316,58 @@ static int box_class(const tracer *tr, wvol_store_hits *hl, const double lo[3], 
     hw = 0.5 * (bhi - blo);
     gap = fabs(0.5 * (bhi + blo) - tr->iso);
     return may_stop && hw > REFINE_GAIN * gap ? CELL_FINAL : -1;
+}
+
+void wvol__cell_ws_free(wvol__cell_ws *w)
+{
+    int L;
+    for (L = 0; L < WVOL__CELL_LEVELS; L++) wvol_store_hits_free(&w->q[L]);
+    memset(w, 0, sizeof *w);
+}
+
+int wvol__iso_hits_in_box(const wvol_store_hits *src, const double lo[3], const double hi[3], wvol_store_hits *dst)
+{
+    size_t i, n = 0;
+    if (dst->capacity < src->count) {
+        wvol_store_hit *q = realloc(dst->hits, src->count * sizeof *q);
+        if (!q) return 0;
+        dst->hits = q;
+        dst->capacity = src->count;
+    }
+    for (i = 0; i < src->count; i++) {
+        const wvol_store_hit *h = &src->hits[i];
+        if (h->hi[0] < lo[0] || h->lo[0] > hi[0] || h->hi[1] < lo[1] || h->lo[1] > hi[1] || h->hi[2] < lo[2] ||
+            h->lo[2] > hi[2])
+            continue;
+        dst->hits[n++] = *h;
+    }
+    dst->count = n;
+    return 1;
+}
+
+static int same_box(const double a0[3], const double a1[3], const double b0[3], const double b1[3])
+{
+    return a0[0] == b0[0] && a0[1] == b0[1] && a0[2] == b0[2] && a1[0] == b1[0] && a1[1] == b1[1] && a1[2] == b1[2];
+}
+
+/* The functions touching the level-L cell [lo, hi] (its parent [plo, phi]) into w->q[L]: filtered
+ * from the parent's list when this thread holds it (the parent was classified, or its list
+ * filtered, last at its level: consecutive cells along a ray share parents), else queried.
+ * Querying a parent that is not held, only for its children to filter, does not pay.
+ * NULL when a query fails. */
+static const wvol_store_hits *cell_hits(const tracer *tr, wvol__cell_ws *w, int L, const double lo[3], const double hi[3],
+                                        const double plo[3], const double phi[3])
+{
+    int a;
+    w->have[L] = 0;
+    if (L > 0 && w->have[L - 1] && same_box(w->lo[L - 1], w->hi[L - 1], plo, phi)) {
+        if (!wvol__iso_hits_in_box(&w->q[L - 1], lo, hi, &w->q[L])) return NULL;
+    } else if (wvol_store_query_box(tr->g.s, lo, hi, &w->q[L], NULL) != WVOL_OK) {
+        return NULL;
+    }
+    w->have[L] = 1;
+    for (a = 0; a < 3; a++) w->lo[L][a] = lo[a], w->hi[L][a] = hi[a];
+    return &w->q[L];
 }
 
 wvol_status wvol__trace_cells(tracer *tr, wvol_error *err)
@@ -319,10 +424,10 @@ static size_t cell_index(const tracer *tr, int L, const double x[3], double side
     return idx;
 }
 
-int wvol__trace_cell_class(const tracer *tr, wvol_store_hits *hl, const double x[3], size_t *evaluated,
-                           double *seconds)
+int wvol__trace_cell_class(const tracer *tr, wvol__cell_ws *w, const double x[3], size_t *evaluated, double *seconds)
 {
     int L, c = -1;
+    double plo[3] = {0, 0, 0}, phi[3] = {0, 0, 0};
     for (L = 0; L < WVOL__CELL_LEVELS; L++) {
         double side = tr->cell * (double)(1 << (WVOL__CELL_LEVELS - 1 - L)), lo[3], hi[3];
         size_t idx = cell_index(tr, L, x, side, lo, hi);
@@ -331,13 +436,15 @@ int wvol__trace_cell_class(const tracer *tr, wvol_store_hits *hl, const double x
         if (c == CELL_UNKNOWN) {
             /* a pure function of the box: threads racing here store the same value */
             double t0 = seconds ? wvol__now() : 0.0;
-            c = box_class(tr, hl, lo, hi, side <= STOP_SIDE);
+            c = box_class(tr, cell_hits(tr, w, L, lo, hi, plo, phi), lo, hi, side <= STOP_SIDE);
             __atomic_store_n(slot, (signed char)c, __ATOMIC_RELAXED);
             if (evaluated) (*evaluated)++;
             if (seconds) *seconds += wvol__now() - t0;
         }
         if (c >= 0) return c;
         if (c == CELL_FINAL) return -1;
+        memcpy(plo, lo, sizeof plo);
+        memcpy(phi, hi, sizeof phi);
     }
     return c;
 }
@@ -357,7 +464,9 @@ void wvol__trace_cells_top(const tracer *tr, wvol_store_hits *hl, size_t cnt[3])
         }
         cell_index(tr, 0, x, side, lo, hi);
         c = __atomic_load_n(tr->cls[0] + i, __ATOMIC_RELAXED);
-        if (c == CELL_UNKNOWN) c = (signed char)box_class(tr, hl, lo, hi, side <= STOP_SIDE);
+        if (c == CELL_UNKNOWN)
+            c = (signed char)box_class(
+                tr, wvol_store_query_box(tr->g.s, lo, hi, hl, NULL) == WVOL_OK ? hl : NULL, lo, hi, side <= STOP_SIDE);
         tr->cls[0][i] = c;
         if (c == CELL_FINAL) c = -1;
         cnt[c + 1]++;

@@ -172,7 +172,7 @@ void wvol__trace_ws_free(tws *w)
     wvol__spline_ws_free(&w->s);
     free(w->env);
     free(w->cut);
-    wvol_store_hits_free(&w->cellq);
+    wvol__cell_ws_free(&w->cellq);
     memset(w, 0, sizeof *w);
 }
 
@@ -183,7 +183,10 @@ static int decide(const tracer *tr, const double *a, double env)
     double B[NC], lo = INFINITY, hi = -INFINITY, pad;
     int j;
     pad = PAD_REL * (wvol__bernstein(&tr->g, a, B) + fabs(tr->iso) + env);
-    for (j = 0; j < NC; j++) lo = fmin(lo, B[j]), hi = fmax(hi, B[j]);
+    for (j = 0; j < NC; j++) { /* B is finite: no fmin/fmax (a call each on baseline x86-64) */
+        lo = B[j] < lo ? B[j] : lo;
+        hi = B[j] > hi ? B[j] : hi;
+    }
     if (lo - env - tr->iso > pad) return 1;
     if (hi + env - tr->iso < -pad) return 0;
     return -1;

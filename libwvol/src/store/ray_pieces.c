@@ -529,7 +529,7 @@ static void addv(double *acc, const double *q, int n)
 }
 
 /* Sums every level's piece polynomials onto level 1's (the finest) lattice: ws->macc. */
-static int merge_levels(const wvol__spline_geom *c, ray_ws *ws, int shading)
+WVOL__CLONES static int merge_levels(const wvol__spline_geom *c, ray_ws *ws, int shading)
 {
     level_ws *F = &ws->lev[1];
     size_t E = F->E, e, per = shading ? 4 : 1, ptr[WVOL_SELECT_MAX_LEVELS + 1];
