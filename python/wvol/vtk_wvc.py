@@ -14,10 +14,12 @@ Pipeline contract:
   ``wvol_idwt3_level``'s grid: 2^s coarser, spacing 2^s times larger, its first sample shifted
   by the filter's centre), with ``CAN_PRODUCE_SUB_EXTENT`` set, so a parallel pipeline gives
   each piece its own sub-extent.
-- ``RequestData`` reconstructs exactly the ``UPDATE_EXTENT`` through
-  ``wvol_wvc_read_region``, which decodes only the chunks whose basis functions' supports
-  meet that box: N pieces decode about 1/N of the chunks each (plus the chunks near the
-  cuts and the coarse levels that several pieces need).
+- ``RequestData`` reconstructs exactly the ``UPDATE_EXTENT``, decoding only the chunks whose
+  basis functions' supports meet that box: N pieces decode about 1/N of the chunks each (plus
+  the chunks near the cuts and the coarse levels that several pieces need). A piece spanning
+  the grid along x and y (a z slab, the whole volume) is decoded straight into its own array
+  and inverted in place (``wvol_wvc_read_piece_into``); any other box is reconstructed slab by
+  slab (``wvol_wvc_read_region_into``).
 - The output carries one point array (``ArrayName``, default ``"values"``) and field data:
   the file's error report (``PredictedRMSE``, ``PredictedPSNR`` from the header's recorded
   quantisation + dropped energy, ``KeptCoefficients`` of ``Coefficients``) and this
