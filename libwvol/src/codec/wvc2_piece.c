@@ -31,6 +31,7 @@
 #include "wvc_source.h"
 
 #define ZBLOCK 64 /* columns per z-pass block: 2 n_m rows of them stay in L2 */
+#define MAX_TAPS 256
 
 typedef struct piece_plan {
     int s, M, L;
@@ -59,7 +60,9 @@ static int plan_piece(piece_plan *P, const wvol_wvc_file *f, int s, const size_t
     const wvol_wvc_info *I = wvol_wvc_file_info(f);
     const wvol_filter *flt;
     size_t p[3], dims[3];
-    if (!x || !lo || !hi || s < 0 || s >= I->levels || wvol_filter_get(&flt, I->filter, NULL) != WVOL_OK) return 0;
+    if (!x || !lo || !hi || s < 0 || s >= I->levels || wvol_filter_get(&flt, I->filter, NULL) != WVOL_OK ||
+        flt->length > MAX_TAPS)
+        return 0;
     p[0] = I->px, p[1] = I->py, p[2] = I->pz;
     dims[0] = I->nx, dims[1] = I->ny, dims[2] = I->nz;
     for (int a = 0; a < 3; a++) {
@@ -292,7 +295,7 @@ wvol_status wvol_wvc_read_piece_into(float *work, size_t cap, wvol_wvc_file *f, 
     piece_ctx C;
     const wvol_filter *flt;
     const wvc2_geom *g;
-    float h[64], gg[64];
+    float h[MAX_TAPS], gg[MAX_TAPS];
     size_t need, T;
     wvol_status st = WVOL_OK;
     WVOL_RETURN_IF(!work || !f || !lo || !hi, err, WVOL_ERR_ARG, "wvc piece: missing argument");
@@ -304,7 +307,6 @@ wvol_status wvol_wvc_read_piece_into(float *work, size_t cap, wvol_wvc_file *f, 
                    "wvc piece: work array of %zu samples, the piece needs %zu (wvol_wvc_piece_samples)", cap,
                    P.PX * P.PY * P.planes);
     WVOL_FORWARD(wvol_filter_get(&flt, wvol_wvc_file_info(f)->filter, err));
-    WVOL_RETURN_IF(flt->length > 64, err, WVOL_ERR_ARG, "wvc piece: %d taps", flt->length);
 #ifdef _OPENMP
     if (threads <= 0) threads = omp_get_max_threads();
 #else
