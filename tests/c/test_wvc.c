@@ -1243,6 +1243,20 @@ static void wvc2_budget_and_damage(void)
                   "threaded: the damaged chunk is named: %s", err.message);
             free(into);
         }
+        {
+            /* a piece that needs it fails naming it; a piece far from it (z 40..48 of the
+             * 64-plane volume: its windows stay clear of the first tile layer) decodes */
+            size_t p_lo[3] = {0, 0, 0}, p_hi[3] = {64, 64, 64}, q_lo[3] = {0, 0, 40}, q_hi[3] = {64, 64, 48};
+            size_t cap = wvol_wvc_piece_samples(wf, 0, p_lo, p_hi);
+            float *into = cap ? malloc(cap * sizeof *into) : NULL;
+            CHECK(into && wvol_wvc_read_piece_into(into, cap, wf, p_lo, p_hi, 0, 2, NULL, NULL, &err) ==
+                              WVOL_ERR_FORMAT && strstr(err.message, "level 1"),
+                  "piece: the damaged chunk is named: %s", err.message);
+            CHECK(into && wvol_wvc_piece_samples(wf, 0, q_lo, q_hi) <= cap &&
+                      wvol_wvc_read_piece_into(into, cap, wf, q_lo, q_hi, 0, 2, NULL, NULL, &err) == WVOL_OK,
+                  "a piece elsewhere decodes: %s", err.message);
+            free(into);
+        }
         CHECK(wvol_wvc_read_region(&r2, wf, far_lo, far_hi, 0, &err) == WVOL_OK, "a region elsewhere decodes: %s",
               err.message);
         CHECK(wvol_wvc_read_region(&r, wf, lo, hi, 1, &err) == WVOL_OK, "the coarser level there decodes: %s",
