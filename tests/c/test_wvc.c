@@ -927,6 +927,56 @@ static void wvc2_streamed_rows_give_the_same_bytes(const char *wavelet, size_t n
 }
 
 
+/* A fixture volume coded as a version-2 file at path (PSNR 50, the given tiles), its whole
+ * decode and the file opened (default budget): what the random-access tests read. */
+typedef struct wvc2_file_fixture {
+    fixture F;
+    void *buf;
+    size_t n;
+    wvol_coeffs *dec;
+    wvol_wvc_file *wf;
+} wvc2_file_fixture;
+
+static int wvc2_file_fixture_make(wvc2_file_fixture *X, const char *path, const char *wavelet, size_t nx, size_t ny,
+                                  size_t nz, int levels, int tile, int tile_z)
+{
+    wvol_error err;
+    wvol_wvc_params p;
+    memset(X, 0, sizeof *X);
+    CHECK(fixture_make(&X->F, nx, ny, nz, wavelet, levels), "fixture");
+    if (!X->F.c) return 0;
+    wvol_wvc_params_default(&p);
+    p.value_min = X->F.vmin, p.value_max = X->F.vmax;
+    p.target_sse = wvol_wvc_sse_for_psnr(50, (double)(nx * ny * nz), X->F.vmin, X->F.vmax);
+    p.tile = tile, p.tile_z = tile_z;
+    CHECK(wvol_wvc_encode(&X->buf, &X->n, X->F.c, &p, NULL, &err) == WVOL_OK, "encode: %s", err.message);
+    CHECK(wvol_wvc_save(path, X->buf, X->n, &err) == WVOL_OK, "save: %s", err.message);
+    CHECK(wvol_wvc_decode(&X->dec, X->buf, X->n, NULL, NULL, &err) == WVOL_OK, "decode: %s", err.message);
+    CHECK(wvol_wvc_open(&X->wf, path, 0, &err) == WVOL_OK, "open: %s", err.message);
+    return 1;
+}
+
+/* The whole decode's level volume (wvol_idwt3_level) and its peak magnitude. */
+static wvol_volume *level_volume(const wvol_coeffs *dec, int level, double *peak)
+{
+    wvol_volume *full = NULL;
+    wvol_error err;
+    CHECK(wvol_idwt3_level(&full, dec, level, &err) == WVOL_OK, "level %d: %s", level, err.message);
+    *peak = 0;
+    for (size_t i = 0; full && i < full->nx * full->ny * full->nz; i++)
+        if (fabs(full->data[i]) > *peak) *peak = fabs(full->data[i]);
+    return full;
+}
+
+static void wvc2_file_fixture_free(wvc2_file_fixture *X, const char *path)
+{
+    wvol_wvc_close(X->wf);
+    wvol_coeffs_destroy(X->dec);
+    remove(path);
+    free(X->buf);
+    fixture_free(&X->F);
+}
+
 /* Region reads: random boxes (edges included, where the periodic basis wraps) at every
  * level equal the same box of the whole decoded file's level volume. Tolerance: both
  * sum the same float coefficients through the synthesis in a different order (a local
@@ -935,33 +985,19 @@ static void wvc2_streamed_rows_give_the_same_bytes(const char *wavelet, size_t n
 static void wvc2_regions_equal_the_full_decode(const char *wavelet, size_t nx, size_t ny, size_t nz, int levels,
                                                int tile, int tile_z)
 {
-    fixture F;
-    void *buf = NULL;
-    size_t n;
-    wvol_error err;
-    wvol_wvc_params p;
-    wvol_wvc_file *wf = NULL;
-    wvol_coeffs *dec = NULL;
+    wvc2_file_fixture X;
     const char *path = "test_wvc_region.wvc";
+    wvol_error err;
+    wvol_wvc_file *wf;
+    wvol_coeffs *dec;
     uint64_t rng = 99;
     int bad = 0, tried = 0;
-    CHECK(fixture_make(&F, nx, ny, nz, wavelet, levels), "fixture");
-    if (!F.c) return;
-    wvol_wvc_params_default(&p);
-    p.value_min = F.vmin, p.value_max = F.vmax;
-    p.target_sse = wvol_wvc_sse_for_psnr(50, (double)(nx * ny * nz), F.vmin, F.vmax);
-    p.tile = tile, p.tile_z = tile_z;
-    CHECK(wvol_wvc_encode(&buf, &n, F.c, &p, NULL, &err) == WVOL_OK, "encode: %s", err.message);
-    CHECK(wvol_wvc_save(path, buf, n, &err) == WVOL_OK, "save: %s", err.message);
-    CHECK(wvol_wvc_decode(&dec, buf, n, NULL, NULL, &err) == WVOL_OK, "decode: %s", err.message);
-    CHECK(wvol_wvc_open(&wf, path, 0, &err) == WVOL_OK, "open: %s", err.message);
+    if (!wvc2_file_fixture_make(&X, path, wavelet, nx, ny, nz, levels, tile, tile_z)) return;
+    wf = X.wf, dec = X.dec;
     for (int level = 0; wf && dec && level <= levels; level++) {
-        wvol_volume *full = NULL;
         double peak = 0;
-        CHECK(wvol_idwt3_level(&full, dec, level, &err) == WVOL_OK, "level %d: %s", level, err.message);
+        wvol_volume *full = level_volume(dec, level, &peak);
         if (!full) break;
-        for (size_t i = 0; i < full->nx * full->ny * full->nz; i++)
-            if (fabs(full->data[i]) > peak) peak = fabs(full->data[i]);
         for (int trial = 0; trial < 12; trial++) {
             size_t lo[3], hi[3], dims[3] = {full->nx, full->ny, full->nz};
             wvol_volume *r = NULL;
@@ -1012,11 +1048,7 @@ static void wvc2_regions_equal_the_full_decode(const char *wavelet, size_t nx, s
     }
     CHECK(bad == 0 && tried > 0, "%s %zux%zux%zu: %d region voxels differ from the full decode", wavelet, nx, ny, nz,
           bad);
-    wvol_wvc_close(wf);
-    wvol_coeffs_destroy(dec);
-    remove(path);
-    free(buf);
-    fixture_free(&F);
+    wvc2_file_fixture_free(&X, path);
 }
 
 /* Piece reads (boxes spanning the level's grid along x and y, decoded into the work array and
@@ -1027,33 +1059,19 @@ static void wvc2_regions_equal_the_full_decode(const char *wavelet, size_t nx, s
 static void wvc2_pieces_equal_the_full_decode(const char *wavelet, size_t nx, size_t ny, size_t nz, int levels,
                                               int tile, int tile_z)
 {
-    fixture F;
-    void *buf = NULL;
-    size_t n;
-    wvol_error err;
-    wvol_wvc_params p;
-    wvol_wvc_file *wf = NULL;
-    wvol_coeffs *dec = NULL;
+    wvc2_file_fixture X;
     const char *path = "test_wvc_piece.wvc";
+    wvol_error err;
+    wvol_wvc_file *wf;
+    wvol_coeffs *dec;
     uint64_t rng = 7;
     int bad = 0, tried = 0;
-    CHECK(fixture_make(&F, nx, ny, nz, wavelet, levels), "fixture");
-    if (!F.c) return;
-    wvol_wvc_params_default(&p);
-    p.value_min = F.vmin, p.value_max = F.vmax;
-    p.target_sse = wvol_wvc_sse_for_psnr(50, (double)(nx * ny * nz), F.vmin, F.vmax);
-    p.tile = tile, p.tile_z = tile_z;
-    CHECK(wvol_wvc_encode(&buf, &n, F.c, &p, NULL, &err) == WVOL_OK, "encode: %s", err.message);
-    CHECK(wvol_wvc_save(path, buf, n, &err) == WVOL_OK, "save: %s", err.message);
-    CHECK(wvol_wvc_decode(&dec, buf, n, NULL, NULL, &err) == WVOL_OK, "decode: %s", err.message);
-    CHECK(wvol_wvc_open(&wf, path, 0, &err) == WVOL_OK, "open: %s", err.message);
+    if (!wvc2_file_fixture_make(&X, path, wavelet, nx, ny, nz, levels, tile, tile_z)) return;
+    wf = X.wf, dec = X.dec;
     for (int level = 0; wf && dec && level < levels; level++) {
-        wvol_volume *full = NULL;
         double peak = 0;
-        CHECK(wvol_idwt3_level(&full, dec, level, &err) == WVOL_OK, "level %d: %s", level, err.message);
+        wvol_volume *full = level_volume(dec, level, &peak);
         if (!full) break;
-        for (size_t i = 0; i < full->nx * full->ny * full->nz; i++)
-            if (fabs(full->data[i]) > peak) peak = fabs(full->data[i]);
         for (int trial = 0; trial < 8; trial++) {
             size_t lo[3] = {0, 0, 0}, hi[3] = {full->nx, full->ny, 0}, cap, nv;
             float *got[2] = {NULL, NULL};
@@ -1114,11 +1132,7 @@ static void wvc2_pieces_equal_the_full_decode(const char *wavelet, size_t nx, si
     }
     CHECK(bad == 0 && tried > 0, "%s %zux%zux%zu: %d piece samples differ from the full decode", wavelet, nx, ny, nz,
           bad);
-    wvol_wvc_close(wf);
-    wvol_coeffs_destroy(dec);
-    remove(path);
-    free(buf);
-    fixture_free(&F);
+    wvc2_file_fixture_free(&X, path);
 }
 
 /* A budget is respected: with a tiny budget the cache's peak stays within it (measured by

@@ -243,6 +243,15 @@ WVOL__CLONES static void zpass_block(const piece_plan *P, int m, float *work, si
     }
 }
 
+static size_t thread_id(void)
+{
+#ifdef _OPENMP
+    return (size_t)omp_get_thread_num();
+#else
+    return 0;
+#endif
+}
+
 /* Level m's synthesis: its window's layout in, level m - 1's low-pass window out (planes
  * [0, n_{m-1}) of the 2 e_x x 2 e_y corner). */
 static wvol_status synth_level(const piece_plan *P, int m, float *work, const float *h, const float *g,
@@ -258,21 +267,12 @@ static wvol_status synth_level(const piece_plan *P, int m, float *work, const fl
                    per * (size_t)threads);
 #pragma omp parallel for schedule(static) num_threads(threads) if (threads > 1)
     for (t = 0; t < tasks; t++) {
-        int id = 0;
-#ifdef _OPENMP
-        id = omp_get_thread_num();
-#endif
         size_t y = (size_t)t / nbx, x0 = ((size_t)t % nbx) * ZBLOCK, w = cx - x0 < ZBLOCK ? cx - x0 : ZBLOCK;
-        zpass_block(P, m, work, y, x0, w, h, g, scratch + (size_t)id * per);
+        zpass_block(P, m, work, y, x0, w, h, g, scratch + thread_id() * per);
     }
 #pragma omp parallel for schedule(static) num_threads(threads) if (threads > 1)
-    for (t = 0; t < planes; t++) {
-        int id = 0;
-#ifdef _OPENMP
-        id = omp_get_thread_num();
-#endif
-        wvol__idwt_slice_xy_f32(work + (size_t)t * plane, cx, cy, P->PX, h, g, P->L, scratch + (size_t)id * per);
-    }
+    for (t = 0; t < planes; t++)
+        wvol__idwt_slice_xy_f32(work + (size_t)t * plane, cx, cy, P->PX, h, g, P->L, scratch + thread_id() * per);
     free(scratch);
     return WVOL_OK;
 }
