@@ -193,6 +193,70 @@ static PyObject *py_wvc_file_region(PyObject *self, PyObject *args, PyObject *kw
     return Py_BuildValue("(N(ddd)(ddd))", out_o, sp[0], sp[1], sp[2], org[0], org[1], org[2]);
 }
 
+static void capsule_free_samples(PyObject *cap) { free(PyCapsule_GetPointer(cap, "wvol.samples")); }
+
+/* wvc_file_piece(file, lo, hi, level=0, threads=0) -> (array (z, y, x), spacing, origin), or None
+ * when the box is not a piece wvol_wvc_read_piece_into reads (it must span the level's grid
+ * along x and y): the box decoded into a work array of wvol_wvc_piece_samples floats, which
+ * then shrinks to the box's samples and becomes the array's memory (no copy). */
+static PyObject *py_wvc_file_piece(PyObject *self, PyObject *args, PyObject *kw)
+{
+    static char *kwlist[] = {"file", "lo", "hi", "level", "threads", NULL};
+    PyObject *cap, *lo_o, *hi_o, *arr, *owner;
+    int level = 0, threads = 0;
+    size_t lo[3], hi[3], cap_n, box;
+    npy_intp dims[3];
+    double sp[3], org[3];
+    float *work, *shrunk;
+    wvol_wvc_file *f;
+    wvol_error err;
+    wvol_status s;
+    (void)self;
+    if (!PyArg_ParseTupleAndKeywords(args, kw, "OOO|ii", kwlist, &cap, &lo_o, &hi_o, &level, &threads)) return NULL;
+    if (!(f = file_of(cap)) || size3(lo_o, lo, "lo") < 0 || size3(hi_o, hi, "hi") < 0) return NULL;
+    if (threads < 0) return PyErr_Format(PyExc_ValueError, "threads must be >= 0 (0: all), got %d", threads);
+    if (!(cap_n = wvol_wvc_piece_samples(f, level, lo, hi))) Py_RETURN_NONE;
+    box = (hi[0] - lo[0]) * (hi[1] - lo[1]) * (hi[2] - lo[2]);
+    if (!(work = malloc(cap_n * sizeof *work))) return PyErr_NoMemory();
+    Py_BEGIN_ALLOW_THREADS
+    s = wvol_wvc_read_piece_into(work, cap_n, f, lo, hi, level, threads, sp, org, &err);
+    Py_END_ALLOW_THREADS
+    if (s != WVOL_OK) {
+        free(work);
+        return wvolpy_raise(&err);
+    }
+    /* the margins' planes go back to the system (glibc shrinks a large block in place) */
+    shrunk = realloc(work, box * sizeof *work);
+    if (shrunk) work = shrunk;
+    for (int a = 0; a < 3; a++) dims[2 - a] = (npy_intp)(hi[a] - lo[a]);
+    owner = PyCapsule_New(work, "wvol.samples", capsule_free_samples);
+    if (!owner) {
+        free(work);
+        return NULL;
+    }
+    arr = PyArray_SimpleNewFromData(3, dims, NPY_FLOAT32, work);
+    if (!arr || PyArray_SetBaseObject((PyArrayObject *)arr, owner) < 0) { /* SetBaseObject steals owner */
+        Py_XDECREF(arr);
+        if (!arr) Py_DECREF(owner);
+        return NULL;
+    }
+    return Py_BuildValue("(N(ddd)(ddd))", arr, sp[0], sp[1], sp[2], org[0], org[1], org[2]);
+}
+
+/* wvc_file_piece_budget(file, threads=1) -> bytes of decoded chunks a piece read pins at once
+ * (wvol_wvc_piece_budget; 0 for a version-1 file). */
+static PyObject *py_wvc_file_piece_budget(PyObject *self, PyObject *args, PyObject *kw)
+{
+    static char *kwlist[] = {"file", "threads", NULL};
+    PyObject *cap;
+    int threads = 1;
+    wvol_wvc_file *f;
+    (void)self;
+    if (!PyArg_ParseTupleAndKeywords(args, kw, "O|i", kwlist, &cap, &threads)) return NULL;
+    if (!(f = file_of(cap))) return NULL;
+    return PyLong_FromSize_t(wvol_wvc_piece_budget(f, threads));
+}
+
 /* wvc_file_stats(file) -> the chunk cache's counters (wvol_wvc_cache_stats). */
 static PyObject *py_wvc_file_stats(PyObject *self, PyObject *cap)
 {
@@ -259,6 +323,10 @@ PyMethodDef wvolpy_wvc_region_methods[] = {
     {"wvc_file_info", py_wvc_file_info, METH_O, "wvc_file_info(file) -> info"},
     {"wvc_file_region", (PyCFunction)(void (*)(void))py_wvc_file_region, METH_VARARGS | METH_KEYWORDS,
      "wvc_file_region(file, lo, hi, level=0, out=None, threads=1) -> (array, spacing, origin)"},
+    {"wvc_file_piece", (PyCFunction)(void (*)(void))py_wvc_file_piece, METH_VARARGS | METH_KEYWORDS,
+     "wvc_file_piece(file, lo, hi, level=0, threads=0) -> (array, spacing, origin) or None"},
+    {"wvc_file_piece_budget", (PyCFunction)(void (*)(void))py_wvc_file_piece_budget, METH_VARARGS | METH_KEYWORDS,
+     "wvc_file_piece_budget(file, threads=1) -> bytes"},
     {"wvc_file_stats", py_wvc_file_stats, METH_O, "wvc_file_stats(file) -> counters"},
     {"wvc_file_slab_budget", (PyCFunction)(void (*)(void))py_wvc_file_slab_budget, METH_VARARGS | METH_KEYWORDS,
      "wvc_file_slab_budget(file, lo, hi, level=0) -> bytes"},

@@ -14,10 +14,12 @@ Pipeline contract:
   ``wvol_idwt3_level``'s grid: 2^s coarser, spacing 2^s times larger, its first sample shifted
   by the filter's centre), with ``CAN_PRODUCE_SUB_EXTENT`` set, so a parallel pipeline gives
   each piece its own sub-extent.
-- ``RequestData`` reconstructs exactly the ``UPDATE_EXTENT`` through
-  ``wvol_wvc_read_region``, which decodes only the chunks whose basis functions' supports
-  meet that box: N pieces decode about 1/N of the chunks each (plus the chunks near the
-  cuts and the coarse levels that several pieces need).
+- ``RequestData`` reconstructs exactly the ``UPDATE_EXTENT``, decoding only the chunks whose
+  basis functions' supports meet that box: N pieces decode about 1/N of the chunks each (plus
+  the chunks near the cuts and the coarse levels that several pieces need). A piece spanning
+  the grid along x and y (a z slab, the whole volume) is decoded straight into its own array
+  and inverted in place (``wvol_wvc_read_piece_into``); any other box is reconstructed slab by
+  slab (``wvol_wvc_read_region_into``).
 - The output carries one point array (``ArrayName``, default ``"values"``) and field data:
   the file's error report (``PredictedRMSE``, ``PredictedPSNR`` from the header's recorded
   quantisation + dropped energy, ``KeptCoefficients`` of ``Coefficients``) and this
@@ -48,6 +50,9 @@ SDDP = vtkStreamingDemandDrivenPipeline
 # Samples reconstructed per region read (32 MiB of float32): bounds the working memory of a
 # piece's reconstruction beyond its output array (see WVCReader._read_slabs).
 SLAB_SAMPLES = 1 << 23
+# Pieces that span the grid along x and y are decoded straight into their array (the piece
+# read); False sends every request through the slab-by-slab region read (tests compare both).
+PIECE_READS = True
 
 
 def _return_freed_memory():
@@ -190,14 +195,6 @@ class WVCReader(VTKPythonAlgorithmBase):
             self._file = self._info = self._opened = None
             self._file = _wvol.wvc_file_open(self._filename, budget=self._budget_mib << 20)
             self._info = _wvol.wvc_file_info(self._file)
-            if self._budget_mib == 0:
-                # what the slabs need: less would decode chunks again slab after slab, more
-                # would only raise the read's peak (the cache is transient: the output array
-                # is what stays)
-                shape = self._info["shape"][::-1]  # (x, y, z)
-                need = _wvol.wvc_file_slab_budget(self._file, [0, 0, 0], shape)
-                if need > 0:
-                    _wvol.wvc_file_set_budget(self._file, need)
             self._opened = key
 
     def _level_extent(self):
@@ -255,6 +252,34 @@ class WVCReader(VTKPythonAlgorithmBase):
                 break
         return max(1, cores // local)
 
+    def _read(self, ue):
+        """The samples of extent ue as a (z, y, x) array, its spacing and how it was read.
+
+        A piece that spans the level's grid along x and y (what ParaView's extent translator
+        gives each rank of a cubic volume, or the whole volume) is decoded straight into its
+        own array and inverted in place (``wvc_file_piece``: each chunk decoded once, the
+        cache holding one chain of chunks); any other box is reconstructed slab by slab
+        (:meth:`_read_slabs`). With ``MemoryBudget`` 0 the cache's budget is set to what the
+        chosen read needs (more would only raise the peak: the cache is transient, the
+        output array is what stays)."""
+        lo, hi = [ue[0], ue[2], ue[4]], [ue[1] + 1, ue[3] + 1, ue[5] + 1]
+        threads = self._thread_count()
+        need = _wvol.wvc_file_piece_budget(self._file, threads)
+        if PIECE_READS and need > 0 and (self._budget_mib == 0 or self._budget_mib << 20 >= need):
+            if self._budget_mib == 0:
+                _wvol.wvc_file_set_budget(self._file, need)
+            piece = _wvol.wvc_file_piece(self._file, lo, hi, self._level, threads)
+            if piece is not None:
+                return piece[0], piece[1], "piece"
+        if self._budget_mib == 0:
+            # what the slabs need: less would decode chunks again slab after slab
+            shape = self._info["shape"][::-1]  # (x, y, z)
+            slab = _wvol.wvc_file_slab_budget(self._file, [0, 0, 0], shape)
+            if slab > 0:
+                _wvol.wvc_file_set_budget(self._file, slab)
+        data, spacing = self._read_slabs(ue)
+        return data, spacing, "slabs"
+
     def _read_slabs(self, ue):
         """The samples of extent ue as a (z, y, x) array, reconstructed in place slab by slab
         along z (SLAB_SAMPLES at most each): a region read's working memory (the box's
@@ -298,11 +323,12 @@ class WVCReader(VTKPythonAlgorithmBase):
         spacing = out_info.Get(vtkDataObject.SPACING())
         before = _wvol.wvc_file_stats(self._file)["decoded"]
         empty = any(ue[2 * a] > ue[2 * a + 1] for a in range(3))
+        how = None
         if empty:
             output.SetExtent(0, -1, 0, -1, 0, -1)
         else:
             try:
-                data, spacing = self._read_slabs(ue)
+                data, spacing, how = self._read(ue)
             except (OSError, ValueError, MemoryError) as e:
                 return self._fail(str(e))
             output.SetExtent(ue)
@@ -331,7 +357,7 @@ class WVCReader(VTKPythonAlgorithmBase):
             line = json.dumps({"rank": _rank(), "pid": os.getpid(), "piece": piece, "pieces": pieces,
                                "level": self._level, "extent": None if empty else ue, "decoded": decoded,
                                "decoded_total": stats["decoded"], "chunks": info["chunks"],
-                               "cache_peak_bytes": stats["peak"], "threads": self._thread_count(),
+                               "cache_peak_bytes": stats["peak"], "threads": self._thread_count(), "read": how,
                                "seconds": time.perf_counter() - started})
             with open(self._chunk_log, "a") as f:  # one short write per line: O_APPEND keeps lines whole
                 f.write(line + "\n")

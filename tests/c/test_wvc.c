@@ -927,6 +927,56 @@ static void wvc2_streamed_rows_give_the_same_bytes(const char *wavelet, size_t n
 }
 
 
+/* A fixture volume coded as a version-2 file at path (PSNR 50, the given tiles), its whole
+ * decode and the file opened (default budget): what the random-access tests read. */
+typedef struct wvc2_file_fixture {
+    fixture F;
+    void *buf;
+    size_t n;
+    wvol_coeffs *dec;
+    wvol_wvc_file *wf;
+} wvc2_file_fixture;
+
+static int wvc2_file_fixture_make(wvc2_file_fixture *X, const char *path, const char *wavelet, size_t nx, size_t ny,
+                                  size_t nz, int levels, int tile, int tile_z)
+{
+    wvol_error err;
+    wvol_wvc_params p;
+    memset(X, 0, sizeof *X);
+    CHECK(fixture_make(&X->F, nx, ny, nz, wavelet, levels), "fixture");
+    if (!X->F.c) return 0;
+    wvol_wvc_params_default(&p);
+    p.value_min = X->F.vmin, p.value_max = X->F.vmax;
+    p.target_sse = wvol_wvc_sse_for_psnr(50, (double)(nx * ny * nz), X->F.vmin, X->F.vmax);
+    p.tile = tile, p.tile_z = tile_z;
+    CHECK(wvol_wvc_encode(&X->buf, &X->n, X->F.c, &p, NULL, &err) == WVOL_OK, "encode: %s", err.message);
+    CHECK(wvol_wvc_save(path, X->buf, X->n, &err) == WVOL_OK, "save: %s", err.message);
+    CHECK(wvol_wvc_decode(&X->dec, X->buf, X->n, NULL, NULL, &err) == WVOL_OK, "decode: %s", err.message);
+    CHECK(wvol_wvc_open(&X->wf, path, 0, &err) == WVOL_OK, "open: %s", err.message);
+    return 1;
+}
+
+/* The whole decode's level volume (wvol_idwt3_level) and its peak magnitude. */
+static wvol_volume *level_volume(const wvol_coeffs *dec, int level, double *peak)
+{
+    wvol_volume *full = NULL;
+    wvol_error err;
+    CHECK(wvol_idwt3_level(&full, dec, level, &err) == WVOL_OK, "level %d: %s", level, err.message);
+    *peak = 0;
+    for (size_t i = 0; full && i < full->nx * full->ny * full->nz; i++)
+        if (fabs(full->data[i]) > *peak) *peak = fabs(full->data[i]);
+    return full;
+}
+
+static void wvc2_file_fixture_free(wvc2_file_fixture *X, const char *path)
+{
+    wvol_wvc_close(X->wf);
+    wvol_coeffs_destroy(X->dec);
+    remove(path);
+    free(X->buf);
+    fixture_free(&X->F);
+}
+
 /* Region reads: random boxes (edges included, where the periodic basis wraps) at every
  * level equal the same box of the whole decoded file's level volume. Tolerance: both
  * sum the same float coefficients through the synthesis in a different order (a local
@@ -935,33 +985,19 @@ static void wvc2_streamed_rows_give_the_same_bytes(const char *wavelet, size_t n
 static void wvc2_regions_equal_the_full_decode(const char *wavelet, size_t nx, size_t ny, size_t nz, int levels,
                                                int tile, int tile_z)
 {
-    fixture F;
-    void *buf = NULL;
-    size_t n;
-    wvol_error err;
-    wvol_wvc_params p;
-    wvol_wvc_file *wf = NULL;
-    wvol_coeffs *dec = NULL;
+    wvc2_file_fixture X;
     const char *path = "test_wvc_region.wvc";
+    wvol_error err;
+    wvol_wvc_file *wf;
+    wvol_coeffs *dec;
     uint64_t rng = 99;
     int bad = 0, tried = 0;
-    CHECK(fixture_make(&F, nx, ny, nz, wavelet, levels), "fixture");
-    if (!F.c) return;
-    wvol_wvc_params_default(&p);
-    p.value_min = F.vmin, p.value_max = F.vmax;
-    p.target_sse = wvol_wvc_sse_for_psnr(50, (double)(nx * ny * nz), F.vmin, F.vmax);
-    p.tile = tile, p.tile_z = tile_z;
-    CHECK(wvol_wvc_encode(&buf, &n, F.c, &p, NULL, &err) == WVOL_OK, "encode: %s", err.message);
-    CHECK(wvol_wvc_save(path, buf, n, &err) == WVOL_OK, "save: %s", err.message);
-    CHECK(wvol_wvc_decode(&dec, buf, n, NULL, NULL, &err) == WVOL_OK, "decode: %s", err.message);
-    CHECK(wvol_wvc_open(&wf, path, 0, &err) == WVOL_OK, "open: %s", err.message);
+    if (!wvc2_file_fixture_make(&X, path, wavelet, nx, ny, nz, levels, tile, tile_z)) return;
+    wf = X.wf, dec = X.dec;
     for (int level = 0; wf && dec && level <= levels; level++) {
-        wvol_volume *full = NULL;
         double peak = 0;
-        CHECK(wvol_idwt3_level(&full, dec, level, &err) == WVOL_OK, "level %d: %s", level, err.message);
+        wvol_volume *full = level_volume(dec, level, &peak);
         if (!full) break;
-        for (size_t i = 0; i < full->nx * full->ny * full->nz; i++)
-            if (fabs(full->data[i]) > peak) peak = fabs(full->data[i]);
         for (int trial = 0; trial < 12; trial++) {
             size_t lo[3], hi[3], dims[3] = {full->nx, full->ny, full->nz};
             wvol_volume *r = NULL;
@@ -1012,11 +1048,91 @@ static void wvc2_regions_equal_the_full_decode(const char *wavelet, size_t nx, s
     }
     CHECK(bad == 0 && tried > 0, "%s %zux%zux%zu: %d region voxels differ from the full decode", wavelet, nx, ny, nz,
           bad);
-    wvol_wvc_close(wf);
-    wvol_coeffs_destroy(dec);
-    remove(path);
-    free(buf);
-    fixture_free(&F);
+    wvc2_file_fixture_free(&X, path);
+}
+
+/* Piece reads (boxes spanning the level's grid along x and y, decoded into the work array and
+ * inverted in place): random z ranges and both edges (the periodic wrap) at every level below
+ * the last equal the whole decode's level volume (float rounding, as the region reads: 1e-5 of
+ * the peak), bit for bit on 1 and 3 threads, each chunk decoded once within the budget the read
+ * asks for; a box narrower along x or y, a padded grid or the last level are not pieces. */
+static void wvc2_pieces_equal_the_full_decode(const char *wavelet, size_t nx, size_t ny, size_t nz, int levels,
+                                              int tile, int tile_z)
+{
+    wvc2_file_fixture X;
+    const char *path = "test_wvc_piece.wvc";
+    wvol_error err;
+    wvol_wvc_file *wf;
+    wvol_coeffs *dec;
+    uint64_t rng = 7;
+    int bad = 0, tried = 0;
+    if (!wvc2_file_fixture_make(&X, path, wavelet, nx, ny, nz, levels, tile, tile_z)) return;
+    wf = X.wf, dec = X.dec;
+    for (int level = 0; wf && dec && level < levels; level++) {
+        double peak = 0;
+        wvol_volume *full = level_volume(dec, level, &peak);
+        if (!full) break;
+        for (int trial = 0; trial < 8; trial++) {
+            size_t lo[3] = {0, 0, 0}, hi[3] = {full->nx, full->ny, 0}, cap, nv;
+            float *got[2] = {NULL, NULL};
+            rng = rng * 6364136223846793005ull + 1442695040888963407ull;
+            lo[2] = (size_t)(rng >> 33) % full->nz;
+            rng = rng * 6364136223846793005ull + 1442695040888963407ull;
+            hi[2] = lo[2] + 1 + (size_t)(rng >> 33) % (full->nz - lo[2]);
+            if (trial == 0) lo[2] = 0, hi[2] = full->nz; /* the whole volume: every window the period */
+            if (trial == 1) lo[2] = 0, hi[2] = 1;         /* the first plane: the wrap below it */
+            if (trial == 2) lo[2] = full->nz - 1, hi[2] = full->nz;
+            cap = wvol_wvc_piece_samples(wf, level, lo, hi);
+            nv = full->nx * full->ny * (hi[2] - lo[2]);
+            CHECK(cap >= nv, "level %d z %zu..%zu is a piece (%zu samples of work for %zu)", level, lo[2], hi[2], cap,
+                  nv);
+            if (cap < nv) continue;
+            tried++;
+            for (int t = 0; t < 2; t++) {
+                int threads = t ? 3 : 1;
+                wvol_wvc_file *pf = NULL;
+                wvol_wvc_cache_stats cs;
+                double sp[3], org[3];
+                got[t] = malloc(cap * sizeof(float));
+                CHECK(wvol_wvc_open(&pf, path, 0, &err) == WVOL_OK, "open: %s", err.message);
+                if (!pf || !got[t]) continue;
+                CHECK(wvol_wvc_set_budget(pf, wvol_wvc_piece_budget(pf, threads), &err) == WVOL_OK, "budget: %s",
+                      err.message);
+                CHECK(wvol_wvc_read_piece_into(got[t], cap, pf, lo, hi, level, threads, sp, org, &err) == WVOL_OK,
+                      "piece at level %d z %zu..%zu: %s", level, lo[2], hi[2], err.message);
+                wvol_wvc_file_stats(pf, &cs);
+                CHECK(cs.decoded <= wvol_wvc_file_info(pf)->chunks && cs.peak <= cs.budget,
+                      "each chunk once (%llu of %llu), within the budget", (unsigned long long)cs.decoded,
+                      (unsigned long long)wvol_wvc_file_info(pf)->chunks);
+                CHECK(fabs(sp[2] - full->spacing[2]) < 1e-12 &&
+                          fabs(org[2] - (full->origin[2] + full->spacing[2] * (double)lo[2])) < 1e-9,
+                      "piece geometry at level %d", level);
+                wvol_wvc_close(pf);
+            }
+            for (size_t i = 0; got[0] && i < nv; i++) {
+                float b = full->data[i + full->nx * full->ny * lo[2]];
+                if (!(fabs((double)got[0][i] - (double)b) <= 1e-5 * peak) && bad++ < 3)
+                    fprintf(stderr, "%s level %d z %zu..%zu sample %zu: piece %g full %g\n", wavelet, level, lo[2],
+                            hi[2], i, got[0][i], b);
+            }
+            CHECK(got[0] && got[1] && memcmp(got[0], got[1], nv * sizeof(float)) == 0,
+                  "1 and 3 threads give the same samples (level %d)", level);
+            free(got[0]);
+            free(got[1]);
+        }
+        {
+            size_t lo[3] = {1, 0, 0}, hi[3] = {full->nx, full->ny, 1}, lo2[3] = {0, 0, 0}, hi2[3] = {2, 2, 2};
+            CHECK(wvol_wvc_piece_samples(wf, level, lo, hi) == 0, "a box narrower along x is not a piece");
+            CHECK(wvol_wvc_read_piece_into(full->data, full->nx * full->ny, wf, lo, hi, level, 1, NULL, NULL, &err) ==
+                          WVOL_ERR_ARG && strstr(err.message, "span"),
+                  "reading it as one is refused: %s", err.message);
+            CHECK(wvol_wvc_piece_samples(wf, levels, lo2, hi2) == 0, "the last level is not a piece");
+        }
+        wvol_volume_destroy(full);
+    }
+    CHECK(bad == 0 && tried > 0, "%s %zux%zux%zu: %d piece samples differ from the full decode", wavelet, nx, ny, nz,
+          bad);
+    wvc2_file_fixture_free(&X, path);
 }
 
 /* A budget is respected: with a tiny budget the cache's peak stays within it (measured by
@@ -1141,6 +1257,20 @@ static void wvc2_budget_and_damage(void)
                   "threaded: the damaged chunk is named: %s", err.message);
             free(into);
         }
+        {
+            /* a piece that needs it fails naming it; a piece far from it (z 40..48 of the
+             * 64-plane volume: its windows stay clear of the first tile layer) decodes */
+            size_t p_lo[3] = {0, 0, 0}, p_hi[3] = {64, 64, 64}, q_lo[3] = {0, 0, 40}, q_hi[3] = {64, 64, 48};
+            size_t cap = wvol_wvc_piece_samples(wf, 0, p_lo, p_hi);
+            float *into = cap ? malloc(cap * sizeof *into) : NULL;
+            CHECK(into && wvol_wvc_read_piece_into(into, cap, wf, p_lo, p_hi, 0, 2, NULL, NULL, &err) ==
+                              WVOL_ERR_FORMAT && strstr(err.message, "level 1"),
+                  "piece: the damaged chunk is named: %s", err.message);
+            CHECK(into && wvol_wvc_piece_samples(wf, 0, q_lo, q_hi) <= cap &&
+                      wvol_wvc_read_piece_into(into, cap, wf, q_lo, q_hi, 0, 2, NULL, NULL, &err) == WVOL_OK,
+                  "a piece elsewhere decodes: %s", err.message);
+            free(into);
+        }
         CHECK(wvol_wvc_read_region(&r2, wf, far_lo, far_hi, 0, &err) == WVOL_OK, "a region elsewhere decodes: %s",
               err.message);
         CHECK(wvol_wvc_read_region(&r, wf, lo, hi, 1, &err) == WVOL_OK, "the coarser level there decodes: %s",
@@ -1174,6 +1304,10 @@ int main(void)
     wvc2_regions_equal_the_full_decode("haar", 33, 17, 70, 3, 8, 16);
     wvc2_regions_equal_the_full_decode("bl3", 32, 32, 32, 2, 16, 8);
     wvc2_regions_equal_the_full_decode("coif1", 24, 20, 1, 2, 8, 8);
+    wvc2_pieces_equal_the_full_decode("db2", 40, 36, 44, 2, 8, 8);
+    wvc2_pieces_equal_the_full_decode("haar", 32, 16, 72, 3, 8, 16);
+    wvc2_pieces_equal_the_full_decode("bl3", 32, 32, 32, 2, 16, 8);
+    wvc2_pieces_equal_the_full_decode("coif2", 64, 32, 96, 4, 8, 8);
     wvc2_budget_and_damage();
     wvc_early_stop_gives_the_coarser_volume();
     wvc_refuses_truncation_and_bit_flips_everywhere(2);

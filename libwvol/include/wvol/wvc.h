@@ -189,6 +189,30 @@ WVOL_API wvol_status wvol_wvc_read_region_into(float *dst, wvol_wvc_file *f, con
                                                const size_t hi[3], int level, int threads, double spacing[3],
                                                double origin[3], wvol_error *err);
 
+/* A piece that spans level `level`'s grid along x and y (a z slab, or the whole volume: what
+ * a parallel reader's rank gets) decoded straight into the caller's work array: the chunks
+ * that the slab's synthesis needs are dequantised into the Mallat layout of its coefficient
+ * windows there, and the inverse transform runs in place, level by level. The samples of
+ * the box come out at work[0 .. (hi - lo) samples), x fastest, equal to
+ * wvol_wvc_read_region's up to float rounding. Working memory beyond the box: the work
+ * array's few planes of filter margins (wvol_wvc_piece_samples), the cache's decoded chunks
+ * (a chain of parents and `threads` chunks in flight: wvol_wvc_piece_budget, which the
+ * file's budget must hold) and a z-pass buffer per thread; each chunk is decoded once.
+ * threads: 0 for OpenMP's default. */
+WVOL_API wvol_status wvol_wvc_read_piece_into(float *work, size_t cap, wvol_wvc_file *f, const size_t lo[3],
+                                              const size_t hi[3], int level, int threads, double spacing[3],
+                                              double origin[3], wvol_error *err);
+/* Samples (floats) of the work array wvol_wvc_read_piece_into needs for the box: its planes
+ * (x-y planes of the level's grid) and those the coarser levels' margins add; 0 when the box
+ * is not such a piece (it must span the level's grid along x and y with no padding to crop,
+ * every axis transformed, level < levels, a version-2 file): wvol_wvc_read_region_into
+ * reads any box. */
+WVOL_API size_t wvol_wvc_piece_samples(const wvol_wvc_file *f, int level, const size_t lo[3], const size_t hi[3]);
+/* Bytes of decoded chunks a piece read with `threads` threads pins at once (one chain of
+ * parents, one chunk per level, and `threads` chunks of the largest size); 0 for a
+ * version-1 file. */
+WVOL_API size_t wvol_wvc_piece_budget(const wvol_wvc_file *f, int threads);
+
 /* Bytes of decoded chunks the cache must hold for a read of the box [lo, hi) of level
  * `level`'s grid in z slabs, in order, to decode each chunk about once: for every level
  * m > level, the chunks over the box's x-y range (widened by the filter's length) in two

@@ -475,6 +475,24 @@ static centry *get_chunk(wvol_wvc_file *f, size_t id)
     return mine;
 }
 
+void *wvol__wvc_file_pin(wvol_wvc_file *f, size_t id, int32_t *const **q)
+{
+    centry *e = get_chunk(f, id);
+    if (e && q) *q = e->q;
+    return e;
+}
+
+void wvol__wvc_file_unpin(wvol_wvc_file *f, void *pinned) { release(f, pinned); }
+
+const wvc2_index *wvol__wvc_file_index(const wvol_wvc_file *f) { return f ? f->x : NULL; }
+
+size_t wvol__wvc_file_pin_need(const wvol_wvc_file *f, int pinned)
+{
+    return f->chain + (size_t)(pinned > 0 ? pinned : 0) * f->chunk_max;
+}
+
+size_t wvol__wvc_file_budget(const wvol_wvc_file *f) { return f->budget; }
+
 /* ---- gathering ------------------------------------------------------------------- */
 
 /* Pins of one gather: a few recent chunks stay pinned while a region is copied. */

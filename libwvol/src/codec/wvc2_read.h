@@ -53,4 +53,18 @@ void wvol__wvc2_describe(char *buf, size_t n, const wvc2_index *x, size_t id);
 wvol_status wvol__wvc2_decode_dense(int32_t *Q, const size_t p[3], const wvc2_index *x, const uint8_t *buf,
                                     size_t avail, int stop_level, wvol_error *err);
 
+/* ---- an open file's chunk cache (wvc2_file.c), for the piece reader (wvc2_piece.c) ---- */
+
+/* The index of an open version-2 file; NULL for version 1 (decoded whole at open). */
+const wvc2_index *wvol__wvc_file_index(const wvol_wvc_file *f);
+/* Decoded chunk id (index bytes > 0), pinned in the cache: *q receives its bands'
+ * quantised values (the level's band list order, the tile box x fastest each); NULL after
+ * recording an error (wvol__wvc_file_error). Unpin it with wvol__wvc_file_unpin. */
+void *wvol__wvc_file_pin(wvol_wvc_file *f, size_t id, int32_t *const **q);
+void wvol__wvc_file_unpin(wvol_wvc_file *f, void *pinned);
+/* Bytes of decoded chunks the cache holds while a chain of parents (one per level) and
+ * `pinned` more chunks are pinned at once; the current budget. */
+size_t wvol__wvc_file_pin_need(const wvol_wvc_file *f, int pinned);
+size_t wvol__wvc_file_budget(const wvol_wvc_file *f);
+
 #endif

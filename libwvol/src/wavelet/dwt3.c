@@ -121,6 +121,28 @@ void wvol__dwt_slice_xy_f32(float *slice, size_t cx, size_t cy, const float *h, 
     slice_xy_f32(slice, cx, cy, cx, &pl, h, g, scratch, 0);
 }
 
+/* One level of the inverse along y then x on one z-slice (the in-place transform's own
+ * kernels): the cx x cy corner of a slice of row length NX; scratch holds
+ * wvol__idwt_slice_xy_scratch(cx, cy, L) floats. */
+size_t wvol__idwt_slice_xy_scratch(size_t cx, size_t cy, int L)
+{
+    size_t need = 4 * (cx / 2 + (size_t)L);
+    if (cy > 1) {
+        size_t B = wvol__block_width(cx, cy, L, sizeof(float));
+        if ((cy + (size_t)L) * B > need) need = (cy + (size_t)L) * B;
+    }
+    return (need + 15) & ~(size_t)15;
+}
+
+void wvol__idwt_slice_xy_f32(float *slice, size_t cx, size_t cy, size_t NX, const float *h, const float *g, int L,
+                             float *scratch)
+{
+    dwt_plan pl;
+    memset(&pl, 0, sizeof pl);
+    pl.L = L;
+    slice_xy_f32(slice, cx, cy, NX, &pl, h, g, scratch, 1);
+}
+
 void wvol__dwt_zrows_f32(float *a, float *d, const float *const *rows, size_t cx, size_t y0, size_t y1, size_t cz,
                          const float *h, const float *g, int L, float *tmp)
 {

@@ -59,6 +59,16 @@ size_t wvol__brick_scratch_bytes(const wvol__brick_scratch *s);
 wvol_status wvol__idwt3_brick_src(float *out, const wvol__coef_source *src, const size_t lo[3], const size_t hi[3],
                                   wvol__brick_scratch *scr, wvol_error *err);
 
+/* ---- whole-slice inverse (dwt3.c) --------------------------------------------------- */
+
+/* One level of the periodic inverse along y, then x, on the cx x cy corner (even sizes, or
+ * 1) of one z-slice of row length NX, in place, with the in-place transform's kernels (h, g:
+ * the filter's taps as float, L of them); scratch: wvol__idwt_slice_xy_scratch(cx, cy, L)
+ * floats. For readers that synthesise z themselves (a slab of a file). */
+size_t wvol__idwt_slice_xy_scratch(size_t cx, size_t cy, int L);
+void wvol__idwt_slice_xy_f32(float *slice, size_t cx, size_t cy, size_t NX, const float *h, const float *g, int L,
+                             float *scratch);
+
 /* ---- brick bounds (bounds.c) --------------------------------------------------------- */
 
 /* Rigorous [vmin, vmax] of the reconstructed samples of a box, from per-(level, band)
