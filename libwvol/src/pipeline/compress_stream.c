@@ -61,6 +61,19 @@ static wvol_status on_rows(void *user, int level, size_t r, const float *low, co
     return wvol__wvc2_writer_put(c->writer, level, r, 1, &pl, err);
 }
 
+/* pass 2's producer: the streamed transform into the writer (wvol__wvc2_writer_run) */
+typedef struct write_pass {
+    wvol_source *src;
+    const wvol_filter *f;
+    pass_ctx *pc;
+} write_pass;
+
+static wvol_status write_rows(void *user, wvol_error *err)
+{
+    write_pass *wp = user;
+    return wvol_dwt3_source(wp->src, wp->f, wp->pc->levels, on_rows, wp->pc, NULL, err);
+}
+
 /* ---- a source that keeps the range of what it reads ------------------------------- */
 
 typedef struct range_src {
@@ -168,7 +181,10 @@ wvol_status wvol_compress_stream(const char *path, wvol_source *src, const wvol_
         t0 = wvol__now();
         h.step = out.step;
         s = wvol__wvc2_writer_open(&pc.writer, path, &h, err);
-        if (!s) s = wvol_dwt3_source(src, f, p.levels, on_rows, &pc, NULL, err);
+        if (!s) {
+            write_pass wpass = {src, f, &pc};
+            s = wvol__wvc2_writer_run(pc.writer, write_rows, &wpass, err);
+        }
         if (!s) s = wvol__wvc2_writer_close(pc.writer, NULL, NULL, &wr, err);
         else wvol__wvc2_writer_abort(pc.writer);
         pc.writer = NULL;
