@@ -130,7 +130,7 @@ static int r3_row_alloc(r3_row *w, int32_t **zrow, int n, const wvc_band *const 
     size_t ex = 1;
     for (int i = 0; i < n; i++)
         if (b[i]->ext[0] > ex) ex = b[i]->ext[0];
-    w->A = malloc(ex * sizeof *w->A);
+    w->A = malloc(2 * ex * sizeof *w->A); /* the encoder's first pass uses a second row */
     w->PC = malloc(2 * ex);
     *zrow = calloc(ex, sizeof **zrow);
     if (!w->A || !w->PC || !*zrow) {
@@ -239,61 +239,100 @@ typedef struct r3_enc {
     uint32_t H[R3_NC][R3_NS];
     uint64_t S[R3_NSG][2];
     uint8_t *raw; /* the current band's raw bits */
-    uint64_t acc;
-    int nacc;
 } r3_enc;
 
-static inline void r3_put_raw(r3_enc *e, uint32_t v, int k)
+/* The bit length of t < 2^24 (0 for 0) through float's exponent, so that a loop of it
+ * vectorises (x86-64-v3 has no vector count of leading zeros; it converts signed ints). */
+static inline uint32_t r3_bitlen24(uint32_t t)
 {
-    e->acc |= (uint64_t)v << e->nacc;
-    e->nacc += k;
-    if (e->nacc >= 32) {
-        uint32_t lo = (uint32_t)e->acc;
-        memcpy(e->raw, &lo, 4);
-        e->raw += 4;
-        e->acc >>= 32;
-        e->nacc -= 32;
+    float f = (float)(int32_t)t;
+    uint32_t u;
+    memcpy(&u, &f, 4);
+    return ((u >> 23) - 126) & (0u - (t != 0));
+}
+
+/* One row of the encoder's first pass, in two loops without a chain (the encoder knows W
+ * already; restrict parameters, so no overlap checks) that vectorise: 32-bit lengths
+ * first (T: A[x] in, the bit length of the context sum out; N: |q|'s leading one), then
+ * the bytes. K receives the raw bit count of each coefficient. */
+__attribute__((noinline)) WVOL__CLONES static void r3_scan_row(uint8_t *restrict ctx, uint8_t *restrict sym,
+                                                                uint8_t *restrict sctx, uint32_t *restrict T,
+                                                                uint32_t *restrict N, const uint8_t *restrict PC,
+                                                                const uint8_t *restrict SG,
+                                                                const int32_t *restrict c, size_t ex)
+{
+    /* x = 0 (W = 0) after the loops: peeled before them, it keeps them from vectorising */
+    for (size_t x = 1; x < ex; x++) {
+        const int32_t v = c[x];
+        const uint32_t a = v < 0 ? (uint32_t)0 - (uint32_t)v : (uint32_t)v, big = a >= (1u << 24);
+        /* |q| < 2^31: above 2^24 the length of a >> 8, plus 8 (exact, unlike a float of a) */
+        N[x] = r3_bitlen24(big ? a >> 8 : a | 1) + 8 * big - 1;
+        T[x] = r3_bitlen24(T[x] + 2 * r3_abs(c[x - 1])); /* the sum < 12 * 65535 */
+    }
+    for (size_t x = 1; x < ex; x++) {
+        const int32_t v = c[x], W = c[x - 1];
+        const uint32_t a = v < 0 ? (uint32_t)0 - (uint32_t)v : (uint32_t)v, neg = v < 0, n = N[x];
+        const uint32_t cls = T[x] < R3_NA - 1 ? T[x] : R3_NA - 1;
+        const uint32_t sW = (uint32_t)(W > 0) + 2u * (uint32_t)(W < 0);
+        ctx[x] = (uint8_t)(cls * R3_NP + PC[x]);
+        sym[x] = (uint8_t)((a < 2 ? a : 2 * n + ((a >> (n - (n > 0))) & 1)) | neg << 7);
+        sctx[x] = (uint8_t)(3 * sW + SG[x]);
+        N[x] = n > 1 ? n - 1 : 0;
+    }
+    if (ex) {
+        const int32_t v = c[0];
+        const uint32_t a = v < 0 ? (uint32_t)0 - (uint32_t)v : (uint32_t)v, neg = v < 0;
+        const uint32_t n = 31 - (uint32_t)__builtin_clz(a | 1), na = r3_bitlen24(T[0]);
+        ctx[0] = (uint8_t)((na < R3_NA - 1 ? na : R3_NA - 1) * R3_NP + PC[0]);
+        sym[0] = (uint8_t)((a < 2 ? a : 2 * n + ((a >> (n - (n > 0))) & 1)) | neg << 7);
+        sctx[0] = SG[0];
+        N[0] = n > 1 ? n - 1 : 0;
     }
 }
 
 /* Pass 1 over one band: contexts, symbols (from index k on), counts, raw bits (into
- * e->raw, flushed to a whole byte at the end). */
+ * e->raw, flushed to a whole byte at the end). Per row, a pass without a chain (the
+ * encoder knows W already) gives every coefficient's context, symbol and raw bit count;
+ * then a short serial pass counts them and packs the raw bits. */
 WVOL__CLONES static void r3_scan_band(r3_enc *e, const int32_t *Q, const size_t p[3], const wvc_band *b,
                                       const r3_row *w, const int32_t *zrow, size_t k)
 {
     const size_t ex = b->ext[0];
     size_t i = k;
-    e->acc = 0;
-    e->nacc = 0;
+    uint64_t acc = 0;
+    int nacc = 0;
+    uint8_t *raw = e->raw;
     for (size_t z = 0; z < b->ext[2]; z++)
-        for (size_t y = 0; y < b->ext[1]; y++) {
+        for (size_t y = 0; y < b->ext[1]; y++, i += ex) {
             const int32_t *c = Q + wvc_index(p, b, 0, y, z);
-            uint32_t aW = 0;
-            uint8_t sW = 0;
+            uint8_t *ctx = e->ctx + i, *sym = e->sym + i, *sctx = e->sctx + i;
+            uint32_t *K = w->A + ex; /* the raw bit counts */
             r3_row_prep(w, Q, p, b, y, z, zrow);
-            for (size_t x = 0; x < ex; x++, i++) {
-                /* without branches on the value (zero or not is hard to predict) */
+            r3_scan_row(ctx, sym, sctx, w->A, K, w->PC, w->SG, c, ex);
+            for (size_t x = 0; x < ex; x++) {
                 const int32_t v = c[x];
-                const uint32_t cx = r3_mag_ctx(w->A[x] + 2 * aW, w->PC[x]);
-                const uint32_t a = v < 0 ? (uint32_t)0 - (uint32_t)v : (uint32_t)v, neg = v < 0;
-                const uint32_t n = 31 - (uint32_t)__builtin_clz(a | 1), k = n > 1 ? n - 1 : 0;
-                const uint32_t s = a < 2 ? a : 2 * n + ((a >> (n - (n > 0))) & 1);
-                const uint8_t sc = (uint8_t)(3 * sW + w->SG[x]);
-                r3_put_raw(e, a & ((1u << k) - 1), (int)k);
-                e->sctx[i] = sc;
-                e->S[sc][neg] += a != 0;
-                e->ctx[i] = (uint8_t)cx;
-                e->sym[i] = (uint8_t)(s | neg << 7);
-                e->H[cx][s]++;
-                aW = r3_abs(v);
-                sW = r3_sg(v);
+                const uint32_t a = v < 0 ? (uint32_t)0 - (uint32_t)v : (uint32_t)v, kk = K[x];
+                e->H[ctx[x]][sym[x] & 0x7F]++;
+                e->S[sctx[x]][sym[x] >> 7] += a != 0;
+                /* raw bits: a 32-bit word is stored when due (always written, kept when due) */
+                acc |= (uint64_t)(a & ((1u << kk) - 1)) << nacc;
+                nacc += (int)kk;
+                {
+                    const uint32_t lo = (uint32_t)acc;
+                    const int due = nacc >= 32;
+                    memcpy(raw, &lo, 4);
+                    raw += 4 * due;
+                    acc >>= 32 * due;
+                    nacc -= 32 * due;
+                }
             }
         }
-    while (e->nacc > 0) { /* the last partial word, byte by byte */
-        *e->raw++ = (uint8_t)e->acc;
-        e->acc >>= 8;
-        e->nacc -= 8;
+    while (nacc > 0) { /* the last partial word, byte by byte */
+        *raw++ = (uint8_t)acc;
+        acc >>= 8;
+        nacc -= 8;
     }
+    e->raw = raw;
 }
 
 /* An encoder symbol: frequency, start, and m = ceil(2^63 / f), with which x / f =
