@@ -84,17 +84,19 @@ typedef struct range_src {
 static wvol_status range_read(void *ctx, float *dst, size_t z0, size_t nz, wvol_error *err)
 {
     range_src *r = ctx;
-    size_t dims[3], n;
-    double lo = r->lo, hi = r->hi;
+    size_t dims[3];
+    long i, n;
+    float lo = INFINITY, hi = -INFINITY; /* min and max of floats are exact in float */
     WVOL_FORWARD(wvol_source_read(r->inner, dst, z0, nz, err));
     wvol_source_geometry(r->inner, dims, NULL, NULL);
-    n = dims[0] * dims[1] * nz;
-    for (size_t i = 0; i < n; i++) {
-        double x = dst[i];
-        lo = x < lo ? x : lo;
-        hi = x > hi ? x : hi;
+    n = (long)(dims[0] * dims[1] * nz);
+#pragma omp parallel for schedule(static) reduction(min : lo) reduction(max : hi) if (n >= 262144)
+    for (i = 0; i < n; i++) {
+        lo = dst[i] < lo ? dst[i] : lo;
+        hi = dst[i] > hi ? dst[i] : hi;
     }
-    r->lo = lo, r->hi = hi;
+    r->lo = lo < r->lo ? lo : r->lo;
+    r->hi = hi > r->hi ? hi : r->hi;
     return WVOL_OK;
 }
 
