@@ -63,7 +63,7 @@ struct wvc2_writer {
     /* wvol__wvc2_writer_run: chunks coded as OpenMP tasks while the producer goes on */
     int async;           /* set while the producer runs inside the writer's team */
     int inflight;        /* chunk tasks spawned and not finished (atomic) */
-    int task_failed;     /* 1: memory, 2: the spill (atomic; sticky) */
+    int task_failed;     /* 1: memory, 2: the spill (atomic; a later failure may overwrite) */
 };
 
 static int nthreads(const wvc2_writer *w)
@@ -384,9 +384,12 @@ static void code_job(wvc2_writer *w, wvc2_job *job, size_t id)
     {
         if (!r) r = chunk_store(w, m, id, &cd);
         w->seconds_code += wvol__now() - t0;
-        if (r && !w->task_failed) w->task_failed = r;
     }
     free(cd.payload);
+    if (r) {
+#pragma omp atomic write
+        w->task_failed = r;
+    }
 #pragma omp atomic
     w->inflight--;
 }
@@ -416,7 +419,7 @@ static wvol_status code_tile_row(wvc2_writer *w, int m, size_t k, wvol_error *er
             chunk_boxes(w, m, tc, ext, child, parent);
             if (!job || wvol__wvc2_job_make(job, &w->g, m, ext, child, parent)) {
                 free(job);
-                WVOL_RETURN_IF(1, err, WVOL_ERR_NOMEM, "wvc2 writer: out of memory while coding");
+                return wvol_error_set(err, WVOL_ERR_NOMEM, "wvc2 writer: out of memory while coding");
             }
 #pragma omp atomic read
             busy = w->inflight;
