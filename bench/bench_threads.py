@@ -18,6 +18,7 @@ file to raw.
 
 Writes bench/results/speed_threads.json and .md.
     python3 bench/bench_threads.py --base MAIN_WVOL [--wvol build/wvol] [--sizes 256] [--rounds 3]
+    python3 bench/bench_threads.py --from-json     # the .md again from the .json
 """
 import argparse
 import json
@@ -72,10 +73,18 @@ def main():
     ap.add_argument("--kinds", nargs="+", default=["skull", "turbulence"])
     ap.add_argument("--targets", type=float, nargs="+", default=[40, 50, 60])
     ap.add_argument("--rounds", type=int, default=3)
-    ap.add_argument("--base", required=True)
+    ap.add_argument("--base")
     ap.add_argument("--wvol", default=os.path.join(ROOT, "build", "wvol"))
     ap.add_argument("--out", default=os.path.join(ROOT, "bench", "results", "speed_threads"))
+    ap.add_argument("--from-json", action="store_true", help="rewrite the .md from the .json of a run")
     a = ap.parse_args()
+    if a.from_json:
+        with open(a.out + ".json") as f:
+            d = json.load(f)
+        write_md(a.out + ".md", d["meta"], d["rows"])
+        return
+    if not a.base:
+        ap.error("--base (main's wvol) is needed")
     rows = []
     tmp = tempfile.mkdtemp(dir="/dev/shm" if os.path.isdir("/dev/shm") else None)
     progs = (("main", a.base), ("new", a.wvol))
@@ -120,25 +129,31 @@ def main():
             "wvol": a.wvol, "commit": commit, "rounds": a.rounds}
     with open(a.out + ".json", "w") as f:
         json.dump({"meta": meta, "rows": rows}, f, indent=1)
+    write_md(a.out + ".md", meta, rows)
+
+
+def write_md(path, meta, rows):
     L = ["# Two threads: how evenly the work is shared (main's program and this tree's)", "",
-         f"Machine: {meta['machine']}. This tree {commit} (`{a.wvol}`), main's `{a.base}`. Median of "
-         f"{a.rounds} rounds. `busiest`: the busiest thread's share of the CPU-clock samples of a two-thread "
-         "run (perf; a waiting thread sleeps and takes none); `bound`: one-thread CPU seconds / (busiest x "
-         "two-thread CPU seconds), the wall-clock speed-up two free cores would give at most (reached when "
-         "the busiest thread never waits). bench_speed.py's wall-clock ratios on this shared machine are "
-         "stretched by the other jobs.", "",
-         "| volume | size | dB | op | CPU s 1 thread main / new | CPU s 2 threads main / new | busiest main / new | "
-         "bound main / new |",
-         "|---|---|---|---|---|---|---|---|"]
+         f"Machine: {meta['machine']}. This tree {meta['commit']} (`{meta['wvol']}`), main's `{meta['base']}`. "
+         f"Median of {meta['rounds']} rounds. `busiest`: the busiest thread's share of the CPU-clock samples of a "
+         "two-thread run (perf; a waiting thread sleeps and takes none), which does not depend on the other jobs "
+         "of the machine. `1/busiest`: the wall-clock speed-up of two free cores over one if two threads cost "
+         "the CPU time of one and the busiest thread never waits (an upper bound under that assumption). The CPU "
+         "seconds (one run per round on this loaded machine, so within about 30%) and `bound` = one-thread CPU "
+         "seconds / (busiest x two-thread CPU seconds) are given for completeness; bench_speed.py's wall-clock "
+         "ratios on this shared machine are stretched by the other jobs.", "",
+         "| volume | size | dB | op | busiest main / new | 1/busiest main / new | CPU s 1 thread main / new | "
+         "CPU s 2 threads main / new | bound main / new |",
+         "|---|---|---|---|---|---|---|---|---|"]
     by = {}
     for r in rows:
         by.setdefault((r["kind"], r["n"], r["target"], r["op"]), {})[r["prog"]] = r
     for (k, n, t, op), d in by.items():
         m, w = d["main"], d["new"]
-        L.append(f"| {k} | {n}^3 | {t:g} | {op} | {m['cpu1_s']:.3f} / {w['cpu1_s']:.3f} | {m['cpu2_s']:.3f} / "
-                 f"{w['cpu2_s']:.3f} | {m['busiest']:.2f} / "
-                 f"{w['busiest']:.2f} | {m['bound']:.2f}x / {w['bound']:.2f}x |")
-    with open(a.out + ".md", "w") as f:
+        L.append(f"| {k} | {n}^3 | {t:g} | {op} | {m['busiest']:.2f} / {w['busiest']:.2f} | "
+                 f"{1 / m['busiest']:.2f}x / {1 / w['busiest']:.2f}x | {m['cpu1_s']:.3f} / {w['cpu1_s']:.3f} | "
+                 f"{m['cpu2_s']:.3f} / {w['cpu2_s']:.3f} | {m['bound']:.2f}x / {w['bound']:.2f}x |")
+    with open(path, "w") as f:
         f.write("\n".join(L) + "\n")
 
 
