@@ -29,20 +29,15 @@ import sys
 import tempfile
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from bench_speed import run  # noqa: E402
 from benchutil import cpu_model  # noqa: E402
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
 
 def cpu_run(cmd, threads):
-    env = dict(os.environ, OMP_NUM_THREADS=str(threads), OMP_WAIT_POLICY="passive")
-    p = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, env=env)
-    _, status, ru = os.wait4(p.pid, 0)
-    err = p.stderr.read().decode(errors="replace")
-    p.stderr.close()
-    if status != 0:
-        raise RuntimeError(f"{' '.join(cmd)} failed: {err}")
-    return ru.ru_utime + ru.ru_stime
+    """CPU seconds of one whole process (bench_speed.py's runner)."""
+    return run(cmd, threads)[0]
 
 
 def thread_shares(cmd, tmp):
