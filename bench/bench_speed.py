@@ -204,8 +204,9 @@ def write_md(path, meta, rows):
          "python3-zfpy fixed accuracy at the largest tolerance meeting the target, serial, in-process "
          "CPU seconds (no start-up, no file I/O).", ""] + ([meta["note"], ""] if meta.get("note") else []) + [
          "| volume | size | dB | threads | bits/voxel main / new / ZFP | compress MB/s main / new (x) | "
-         "decompress MB/s main / new (x) | new / ZFP compress, decompress |",
-         "|---|---|---|---|---|---|---|---|"]
+         "decompress MB/s main / new (x) | new / ZFP compress, decompress | CPU s new compress, decompress | "
+         "goal 400 MB/s (1 thread) compress, decompress |",
+         "|---|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
         mb = r["mb"]
         cm, cn = mb / r["compress_main_cpu_s"], mb / r["compress_new_cpu_s"]
@@ -214,9 +215,12 @@ def write_md(path, meta, rows):
         zb = f"{z['bpv']:.3f}" if z else "-"
         zr = (f"{cn / (mb / z['compress_s']):.2f}, {dn / (mb / z['decompress_s']):.2f}" if z and r["threads"] == 1
               else "-")
+        goal = (f"{'met' if cn >= 400 else 'not met'} ({cn / 400:.2f}), {'met' if dn >= 400 else 'not met'} "
+                f"({dn / 400:.2f})" if r["threads"] == 1 else "-")
         L.append(f"| {r['kind']} | {r['n']}^3 | {r['target']:g} | {r['threads']} | {r['bpv']['main']:.4f} / "
                  f"{r['bpv']['new']:.4f} / {zb} | {cm:.0f} / {cn:.0f} ({cn / cm:.2f}x) | {dm:.0f} / {dn:.0f} "
-                 f"({dn / dm:.2f}x) | {zr} |")
+                 f"({dn / dm:.2f}x) | {zr} | {r['compress_new_cpu_s']:.3f}, {r['decompress_new_cpu_s']:.3f} | "
+                 f"{goal} |")
     L += ["", "Bits: new / main per case: " + ", ".join(
         f"{r['kind']} {r['n']} {r['target']:g} dB {r['bpv']['new'] / r['bpv']['main']:.4f}"
         for r in rows if r["threads"] == rows[0]["threads"]), "",

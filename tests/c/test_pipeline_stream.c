@@ -13,6 +13,8 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <omp.h>
+
 #include "check.h"
 #include "wvol/compress.h"
 #include "wvol/io.h"
@@ -326,6 +328,42 @@ static void memory_does_not_grow_with_depth(void)
 #endif
 }
 
+/* With more than one thread the chunks are coded as tasks beside the transform
+ * (wvol__wvc2_writer_run), in an order that depends on the scheduling: the file must not.
+ * 1, 2 and 3 threads (on any machine: OpenMP runs the team even on one core), a PSNR target
+ * (the step from the histograms of pass 1, counted in parallel), small tiles so that every
+ * level has several chunks per tile row and many are queued. */
+static void same_bytes_on_any_thread_count(void)
+{
+    wvol_synth_params sp;
+    wvol_compress_params cp;
+    wvol_error err;
+    void *file[3] = {0};
+    size_t n[3] = {0};
+    int saved = omp_get_max_threads();
+    wvol_synth_params_default(&sp);
+    sp.dims[0] = 96, sp.dims[1] = 80, sp.dims[2] = 70;
+    params(&cp, "db2", 3);
+    cp.quant.psnr = 55;
+    cp.quant.tile = 8;
+    for (int t = 0; t < 3; t++) {
+        wvol_source *src = NULL;
+        char path[256];
+        snprintf(path, sizeof path, DIR_ "/threads%d.wvc", t + 1);
+        omp_set_num_threads(t + 1);
+        CHECK(wvol_synth_source(&src, "turbulence", &sp, &err) == WVOL_OK, "%s", err.message);
+        CHECK(src && wvol_compress_stream(path, src, &cp, NULL, &err) == WVOL_OK, "%d threads: %s", t + 1,
+              err.message);
+        wvol_source_destroy(src);
+        file[t] = read_all(path, &n[t]);
+    }
+    omp_set_num_threads(saved);
+    for (int t = 1; t < 3; t++)
+        CHECK(file[0] && file[t] && n[0] == n[t] && memcmp(file[0], file[t], n[0]) == 0,
+              "%d threads: %zu bytes, one thread %zu: not the same bytes", t + 1, n[t], n[0]);
+    for (int t = 0; t < 3; t++) free(file[t]);
+}
+
 int main(void)
 {
     mkdir(DIR_, 0755);
@@ -334,5 +372,6 @@ int main(void)
     psnr_target_is_met_and_equals_in_memory_at_its_step();
     file_sources_compress_like_the_generator();
     refusals_leave_no_file();
+    same_bytes_on_any_thread_count();
     return check_summary("test_pipeline_stream");
 }

@@ -130,7 +130,7 @@ static void rans_round_trips_hard_cases(void)
     for (int sh = 0; sh < 5; sh++)
         for (int n = 1; n <= 7; n += 3)
             for (int par = 0; par <= 1; par++)
-                for (int kind = 0; kind < 6; kind++) {
+                for (int kind = 0; kind < 7; kind++) {
                     bands B;
                     char what[128];
                     uint8_t *buf;
@@ -156,6 +156,13 @@ static void rans_round_trips_hard_cases(void)
                                     if (kind == 3) v = draw(&rng, 5000);               /* dense, wide */
                                     if (kind == 4) v = fixture_urand(&rng) < 0.05 ? draw(&rng, 50) : 0; /* sparse */
                                     if (kind == 5) v = (x + y + z) % 3 == 0 ? (1 << 30) : -(1 << 30) + (int32_t)x; /* the bound */
+                                    if (kind == 6) { /* every bit length to 2^30, and both sides of 2^24 (the
+                                                      * encoder's lengths go through float's exponent) */
+                                        int len = (int)(fixture_urand(&rng) * 31);
+                                        uint32_t m = len ? (1u << (len - 1)) | ((uint32_t)(fixture_urand(&rng) * 4294967296.0) & ((1u << (len - 1)) - 1)) : 0;
+                                        if ((x + y) % 5 == 1) m = (1u << 24) - 1 + (uint32_t)(z % 3);
+                                        v = fixture_urand(&rng) < 0.5 ? -(int32_t)m : (int32_t)m;
+                                    }
                                     *at(&B, i, x, y, z) = v;
                                 }
                         if (kind == 1 && i == n - 1) *at(&B, i, e[0] - 1, e[1] - 1, e[2] - 1) = -(1 << 30); /* one */

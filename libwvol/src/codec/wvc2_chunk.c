@@ -63,13 +63,7 @@ int wvol__wvc2_chunk_coords(const wvc2_geom *g, size_t id, size_t t[3])
     return 0;
 }
 
-/* The local grid of one band: the tile at (0, 0, 0), its parent region beside it
- * along x at (ext0, 0, 0); dims (ext0 + pext0) x ext1 x ext2 (pext <= ext). */
-typedef struct local_grid {
-    int32_t *q;
-    size_t p[3];
-    wvc_band b;
-} local_grid;
+typedef wvc2_local local_grid;
 
 static int local_make(local_grid *lg, const wvc2_geom *g, int m, int band, const size_t ext[3])
 {
@@ -120,15 +114,52 @@ enum { MODE_BANDS = 0, MODE_SHARED = 1, MODE_BLOCKS = 2, MODE_RANS = 3 };
 #define RANS_MIN_DENSITY 0.25
 #define RANS_ALONE_NONZERO 65536
 
-int wvol__wvc2_chunk_encode(wvc2_coded *out, const wvc2_geom *g, int m, const size_t ext[3],
-                            const wvc2_qbox child[8], const wvc2_qbox parent[8], int coder, int zstd_level)
+void wvol__wvc2_job_free(wvc2_job *job)
+{
+    if (!job) return;
+    for (int i = 0; i < 8; i++) free(job->lg[i].q);
+    memset(job->lg, 0, sizeof job->lg);
+}
+
+int wvol__wvc2_job_make(wvc2_job *job, const wvc2_geom *g, int m, const size_t ext[3], const wvc2_qbox child[8],
+                        const wvc2_qbox parent[8])
 {
     const wvc2_level *L = &g->lv[m];
-    local_grid lg[8];
-    uint64_t nzb[8] = {0};
-    uint8_t *shared = NULL, *pay[8] = {0}, mask = 0;
+    memset(job, 0, sizeof *job);
+    job->m = m;
+    memcpy(job->ext, ext, sizeof job->ext);
+    for (int i = 0; i < L->nb; i++) {
+        for (size_t zz = 0; zz < ext[2]; zz++)
+            for (size_t y = 0; y < ext[1]; y++) {
+                const int32_t *r = child[i].q + y * child[i].sy + zz * child[i].sz;
+                for (size_t x = 0; x < ext[0]; x++) job->nzb[i] += r[x] != 0;
+            }
+        if (job->nzb[i] == 0) continue;
+        job->nonzero += job->nzb[i];
+        job->mask |= (uint8_t)(1u << i);
+        if (local_make(&job->lg[i], g, m, L->bands[i], ext)) {
+            wvol__wvc2_job_free(job);
+            return -1;
+        }
+        box_copy_in(&job->lg[i], 0, &child[i], ext);
+        parent_in(&job->lg[i], &parent[i]);
+        job->nused++;
+    }
+    return 0;
+}
+
+int wvol__wvc2_job_code(wvc2_coded *out, wvc2_job *job, const wvc2_geom *g, int coder, int zstd_level)
+{
+    const int m = job->m;
+    const size_t *ext = job->ext;
+    const wvc2_level *L = &g->lv[m];
+    local_grid *lg = job->lg;
+    const uint64_t *nzb = job->nzb;
+    const uint8_t mask = job->mask;
+    const int nused = job->nused;
+    uint8_t *shared = NULL, *pay[8] = {0};
     size_t shared_len = 0, len[8] = {0}, zsum = 0;
-    int i, failed = 0, nused = 0, use_rans = 0, rans_try, rans_alone;
+    int i, failed = 0, use_rans = 0, rans_try, rans_alone;
     uint8_t *rans = NULL;
     size_t rans_len = 0;
     int32_t *Qs[8];
@@ -136,28 +167,11 @@ int wvol__wvc2_chunk_encode(wvc2_coded *out, const wvc2_geom *g, int m, const si
     const wvc_band *Bs[8];
     int ns = 0;
     memset(out, 0, sizeof *out);
-    memset(lg, 0, sizeof lg);
-    for (i = 0; i < L->nb && !failed; i++) {
-        for (size_t zz = 0; zz < ext[2]; zz++)
-            for (size_t y = 0; y < ext[1]; y++) {
-                const int32_t *r = child[i].q + y * child[i].sy + zz * child[i].sz;
-                for (size_t x = 0; x < ext[0]; x++) nzb[i] += r[x] != 0;
-            }
-        if (nzb[i] == 0) continue;
-        out->nonzero += nzb[i];
-        mask |= (uint8_t)(1u << i);
-        if (local_make(&lg[i], g, m, L->bands[i], ext)) {
-            failed = 1;
-            break;
-        }
-        box_copy_in(&lg[i], 0, &child[i], ext);
-        parent_in(&lg[i], &parent[i]);
-        nused++;
-    }
+    out->nonzero = job->nonzero;
     {
         uint64_t count = (uint64_t)L->nb * ext[0] * ext[1] * ext[2];
         int dense = (double)out->nonzero >= RANS_MIN_DENSITY * (double)count;
-        rans_try = !failed && nused && L->bands[0] != 0 &&
+        rans_try = nused && L->bands[0] != 0 &&
                    (coder == WVOL_WVC_CODER_RANS || (coder == WVOL_WVC_CODER_AUTO && dense));
         rans_alone = coder == WVOL_WVC_CODER_RANS || out->nonzero >= RANS_ALONE_NONZERO;
     }
@@ -192,7 +206,7 @@ int wvol__wvc2_chunk_encode(wvc2_coded *out, const wvc2_geom *g, int m, const si
             }
         out->alt_zstd = zsum;
     }
-    for (i = 0; i < 8; i++) free(lg[i].q);
+    wvol__wvc2_job_free(job);
     if (!failed && nused) {
         uint8_t hdr[1 + 8 + 8 * 10], *p;
         size_t head = 0, total;
@@ -235,6 +249,17 @@ int wvol__wvc2_chunk_encode(wvc2_coded *out, const wvc2_geom *g, int m, const si
         return -1;
     }
     return 0;
+}
+
+int wvol__wvc2_chunk_encode(wvc2_coded *out, const wvc2_geom *g, int m, const size_t ext[3],
+                            const wvc2_qbox child[8], const wvc2_qbox parent[8], int coder, int zstd_level)
+{
+    wvc2_job job;
+    if (wvol__wvc2_job_make(&job, g, m, ext, child, parent)) {
+        memset(out, 0, sizeof *out);
+        return -1;
+    }
+    return wvol__wvc2_job_code(out, &job, g, coder, zstd_level);
 }
 
 static void box_zero(const wvc2_qbox *b, const size_t ext[3])

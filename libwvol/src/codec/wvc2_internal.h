@@ -94,6 +94,34 @@ typedef struct wvc2_coded {
     size_t band_bytes[8];       /* per band (index into the level's band list) */
 } wvc2_coded;
 
+/* The local grid of one band of a chunk being coded: the tile at (0, 0, 0), its parent
+ * region beside it along x at (ext0, 0, 0); dims (ext0 + pext0) x ext1 x ext2. */
+typedef struct wvc2_local {
+    int32_t *q;
+    size_t p[3];
+    wvc_band b;
+} wvc2_local;
+
+/* One chunk's coding job: its non-zero bands copied out of the writer's rows (with their
+ * parent regions), so that it can be coded after those rows have moved on. */
+typedef struct wvc2_job {
+    int m;
+    size_t ext[3];
+    uint8_t mask;          /* bands with a non-zero value (index into the level's list) */
+    int nused;
+    uint64_t nzb[8], nonzero;
+    wvc2_local lg[8];
+} wvc2_job;
+
+/* Fills job from child/parent (as wvol__wvc2_chunk_encode takes them); 0 or -1 (memory,
+ * job left empty). */
+int wvol__wvc2_job_make(wvc2_job *job, const wvc2_geom *g, int m, const size_t ext[3], const wvc2_qbox child[8],
+                        const wvc2_qbox parent[8]);
+/* Codes a job (as wvol__wvc2_chunk_encode) and frees its grids; 0 or -1 (memory). */
+int wvol__wvc2_job_code(wvc2_coded *out, wvc2_job *job, const wvc2_geom *g, int coder, int zstd_level);
+/* Frees a job's grids (NULL or an emptied job does nothing). */
+void wvol__wvc2_job_free(wvc2_job *job);
+
 /* Codes the bands of one chunk: child[i] is band g->lv[m].bands[i]'s box of extent
  * ext, parent[i] its parent region (extent from wvc2_parent_box; ignored at m ==
  * levels). coder: AUTO, CABAC, ZSTD or RANS (mode 3 wherever the chunk has no low-pass

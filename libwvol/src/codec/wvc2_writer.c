@@ -60,6 +60,10 @@ struct wvc2_writer {
     uint64_t spill_size;
     size_t alt_cabac, alt_zstd, alt_rans;
     double seconds_code;
+    /* wvol__wvc2_writer_run: chunks coded as OpenMP tasks while the producer goes on */
+    int async;           /* set while the producer runs inside the writer's team */
+    int inflight;        /* chunk tasks spawned and not finished (atomic) */
+    int task_failed;     /* 1: memory, 2: the spill (atomic; a later failure may overwrite) */
 };
 
 static int nthreads(const wvc2_writer *w)
@@ -333,51 +337,118 @@ static int tile_row_ready(const wvc2_writer *w, int m, size_t k)
     return 1;
 }
 
+/* Files one coded chunk: its payload to the spill, its record, the totals. Integer sums
+ * and per-chunk fields only, so the file does not depend on the order of the calls. */
+static int chunk_store(wvc2_writer *w, int m, size_t id, const wvc2_coded *cd)
+{
+    const wvc2_level *G = &w->g.lv[m];
+    chunk_rec *c = &w->chunks[id];
+    if (spill_write(w, cd->payload, cd->bytes, &c->spill)) return 2;
+    c->bytes = (uint32_t)cd->bytes;
+    c->crc = cd->crc;
+    c->nonzero = (uint32_t)cd->nonzero;
+    w->alt_cabac += cd->alt_cabac;
+    w->alt_zstd += cd->alt_zstd;
+    w->alt_rans += cd->alt_rans;
+    for (int i = 0; i < G->nb; i++) w->band_bytes[wvc2_section(w->g.levels, m, G->bands[i])] += cd->band_bytes[i];
+    return 0;
+}
+
+/* The boxes of chunk (tx, ty, k) of level m in the writer's rows. */
+static void chunk_boxes(const wvc2_writer *w, int m, const size_t tc[3], size_t ext[3], wvc2_qbox child[8],
+                        wvc2_qbox parent[8])
+{
+    const wvc2_level *G = &w->g.lv[m];
+    size_t off[3], poff[3], pext[3];
+    wvc2_tile_box(&w->g, m, tc, off, ext);
+    wvc2_parent_box(&w->g, off, ext, poff, pext);
+    memset(parent, 0, 8 * sizeof *parent);
+    for (int i = 0; i < G->nb; i++) {
+        child[i] = box_of(&w->lv[m], G, i, off);
+        if (m < w->g.levels) {
+            const wvc2_level *PG = &w->g.lv[m + 1];
+            parent[i] = box_of(&w->lv[m + 1], PG, band_index(PG, G->bands[i]), poff);
+        }
+    }
+}
+
+/* A task: codes one job and files it (under a lock: the spill is one stream). */
+static void code_job(wvc2_writer *w, wvc2_job *job, size_t id)
+{
+    wvc2_coded cd;
+    int m = job->m, r;
+    double t0 = wvol__now();
+    r = wvol__wvc2_job_code(&cd, job, &w->g, (int)w->h.coder, w->h.zstd_level) ? 1 : 0;
+    free(job);
+#pragma omp critical(wvc2_writer_spill)
+    {
+        if (!r) r = chunk_store(w, m, id, &cd);
+        w->seconds_code += wvol__now() - t0;
+    }
+    free(cd.payload);
+    if (r) {
+#pragma omp atomic write
+        w->task_failed = r;
+    }
+#pragma omp atomic
+    w->inflight--;
+}
+
+/* Chunks queued per coding thread before the producer codes the next one itself (and so
+ * slows down to the coders' pace): enough that a coder never waits for work while the
+ * producer has some, few enough that the copied jobs stay small (a level-1 chunk of
+ * 64 x 64 x 32 is 3.7 MB). */
+enum { JOBS_PER_THREAD = 2 };
+
 static wvol_status code_tile_row(wvc2_writer *w, int m, size_t k, wvol_error *err)
 {
     const wvc2_level *G = &w->g.lv[m];
-    wlevel *L = &w->lv[m];
     const size_t ntile = G->nt[0] * G->nt[1];
-    wvc2_coded *coded = calloc(ntile ? ntile : 1, sizeof *coded);
+    wvc2_coded *coded;
     long t;
     int failed = 0;
-    double t0 = wvol__now();
+    double t0;
     int nth = nthreads(w);
-    (void)nth;
+    if (w->async) {
+        /* the copies are made here, so the rows can move on; the coding is a task */
+        for (size_t u = 0; u < ntile; u++) {
+            size_t tc[3] = {u % G->nt[0], u / G->nt[0], k}, ext[3], id = wvc2_chunk_id(&w->g, m, tc);
+            wvc2_qbox child[8], parent[8];
+            wvc2_job *job = malloc(sizeof *job);
+            int busy;
+            chunk_boxes(w, m, tc, ext, child, parent);
+            if (!job || wvol__wvc2_job_make(job, &w->g, m, ext, child, parent)) {
+                free(job);
+                return wvol_error_set(err, WVOL_ERR_NOMEM, "wvc2 writer: out of memory while coding");
+            }
+#pragma omp atomic read
+            busy = w->inflight;
+#pragma omp atomic
+            w->inflight++;
+            if (busy >= JOBS_PER_THREAD * (nth - 1)) {
+                code_job(w, job, id); /* the others have enough queued: this one here */
+            } else {
+#pragma omp task default(none) firstprivate(w, job, id)
+                code_job(w, job, id);
+            }
+        }
+        return WVOL_OK;
+    }
+    coded = calloc(ntile ? ntile : 1, sizeof *coded);
     WVOL_RETURN_IF(!coded, err, WVOL_ERR_NOMEM, "wvc2 writer: out of memory");
+    t0 = wvol__now();
 #pragma omp parallel for schedule(dynamic, 1) reduction(| : failed) if (ntile > 1) \
     num_threads(nth)
     for (t = 0; t < (long)ntile; t++) {
-        size_t tc[3] = {(size_t)t % G->nt[0], (size_t)t / G->nt[0], k}, off[3], ext[3], poff[3], pext[3];
+        size_t tc[3] = {(size_t)t % G->nt[0], (size_t)t / G->nt[0], k}, ext[3];
         wvc2_qbox child[8], parent[8];
-        wvc2_tile_box(&w->g, m, tc, off, ext);
-        wvc2_parent_box(&w->g, off, ext, poff, pext);
-        memset(parent, 0, sizeof parent);
-        for (int i = 0; i < G->nb; i++) {
-            child[i] = box_of(L, G, i, off);
-            if (m < w->g.levels) {
-                const wvc2_level *PG = &w->g.lv[m + 1];
-                parent[i] = box_of(&w->lv[m + 1], PG, band_index(PG, G->bands[i]), poff);
-            }
-        }
+        chunk_boxes(w, m, tc, ext, child, parent);
         if (wvol__wvc2_chunk_encode(&coded[t], &w->g, m, ext, child, parent, (int)w->h.coder, w->h.zstd_level))
             failed = 1;
     }
     for (t = 0; t < (long)ntile && !failed; t++) {
-        size_t tc[3] = {(size_t)t % G->nt[0], (size_t)t / G->nt[0], k}, id = wvc2_chunk_id(&w->g, m, tc);
-        chunk_rec *c = &w->chunks[id];
-        if (spill_write(w, coded[t].payload, coded[t].bytes, &c->spill)) {
-            failed = 2;
-            break;
-        }
-        c->bytes = (uint32_t)coded[t].bytes;
-        c->crc = coded[t].crc;
-        c->nonzero = (uint32_t)coded[t].nonzero;
-        w->alt_cabac += coded[t].alt_cabac;
-        w->alt_zstd += coded[t].alt_zstd;
-        w->alt_rans += coded[t].alt_rans;
-        for (int i = 0; i < G->nb; i++)
-            w->band_bytes[wvc2_section(w->g.levels, m, G->bands[i])] += coded[t].band_bytes[i];
+        size_t tc[3] = {(size_t)t % G->nt[0], (size_t)t / G->nt[0], k};
+        failed = chunk_store(w, m, wvc2_chunk_id(&w->g, m, tc), &coded[t]);
     }
     for (t = 0; t < (long)ntile; t++) free(coded[t].payload);
     free(coded);
@@ -385,6 +456,41 @@ static wvol_status code_tile_row(wvc2_writer *w, int m, size_t k, wvol_error *er
     WVOL_RETURN_IF(failed == 2, err, WVOL_ERR_IO, "wvc2 writer: cannot write the spill: %s", strerror(errno));
     WVOL_RETURN_IF(failed, err, WVOL_ERR_NOMEM, "wvc2 writer: out of memory while coding");
     return WVOL_OK;
+}
+
+/* A failed task's error, once the tasks are done. */
+static wvol_status task_status(const wvc2_writer *w, wvol_error *err)
+{
+    int f;
+#pragma omp atomic read
+    f = w->task_failed;
+    WVOL_RETURN_IF(f == 2, err, WVOL_ERR_IO, "wvc2 writer: cannot write the spill");
+    WVOL_RETURN_IF(f, err, WVOL_ERR_NOMEM, "wvc2 writer: out of memory while coding");
+    return WVOL_OK;
+}
+
+wvol_status wvol__wvc2_writer_run(wvc2_writer *w, wvol_status (*produce)(void *user, wvol_error *err), void *user,
+                                  wvol_error *err)
+{
+    wvol_status s = WVOL_OK;
+    int nth;
+    WVOL_RETURN_IF(!w || !produce, err, WVOL_ERR_ARG, "wvc2 writer: missing argument");
+    nth = nthreads(w);
+#ifdef _OPENMP
+    if (nth > 1 && !omp_in_parallel()) {
+#pragma omp parallel num_threads(nth) shared(s)
+#pragma omp single
+        {
+            w->async = 1;
+            s = produce(user, err);
+#pragma omp taskwait
+            w->async = 0;
+        }
+        if (s == WVOL_OK) s = task_status(w, err);
+        return s;
+    }
+#endif
+    return produce(user, err);
 }
 
 /* Drops the rows of level m that neither its own next tile row nor its children's need. */
@@ -443,6 +549,7 @@ wvol_status wvol__wvc2_writer_put(wvc2_writer *w, int level, size_t z0, size_t n
         WVOL_RETURN_IF(!pl->band[G->bands[i]], err, WVOL_ERR_ARG, "wvc2 writer: level %d band %d missing", level,
                        G->bands[i]);
     if (!nz) return WVOL_OK;
+    WVOL_FORWARD(task_status(w, err));
     nth = nthreads(w);
     (void)nth;
     WVOL_RETURN_IF(reserve_rows(L, G, z0 + nz - L->z_base), err, WVOL_ERR_NOMEM,
@@ -510,13 +617,21 @@ size_t wvol__wvc2_writer_memory(const wvc2_header *h, size_t lag_rows)
     wvc2_geom g;
     int tile = h->tile ? h->tile : WVC2_TILE_DEFAULT, tz = h->tile_z ? h->tile_z : WVC2_TILE_Z_DEFAULT;
     if (h->levels < 1 || h->levels > WVOL_WVC_MAX_LEVELS || wvol__wvc2_geom(&g, p, h->levels, tile, tz)) return 0;
+    size_t chunk = 0, nth = (size_t)(h->threads > 0 ? h->threads : omp_get_max_threads());
     for (int m = 1; m <= h->levels; m++) {
         const wvc2_level *G = &g.lv[m];
-        size_t rows = (size_t)tz + lag_rows + ROW_SLACK;
+        size_t rows = (size_t)tz + lag_rows + ROW_SLACK, c = (size_t)G->nb;
         if (rows > G->e[2]) rows = G->e[2];
         total += rows * G->e[0] * G->e[1] * (size_t)G->nb * sizeof(int32_t);
         total += G->count * ((size_t)G->nb * sizeof(sec_stats) + sizeof(float) + sizeof(chunk_rec));
+        for (int a = 0; a < 3; a++) c *= G->e[a] < (size_t)g.tile[a] ? G->e[a] : (size_t)g.tile[a];
+        if (c > chunk) chunk = c;
     }
+    /* chunks being coded: each a copy with its parent region (at most 1.5 x 4 bytes per
+     * coefficient) and the coder's scratch (symbols, contexts, streams: under 16 bytes per
+     * coefficient), one per thread; and the copies queued for the coding threads */
+    if (nth < 1) nth = 1;
+    total += nth * chunk * (6 + 16) + (nth - 1) * JOBS_PER_THREAD * chunk * 6;
     return total;
 }
 

@@ -32,7 +32,8 @@
  *   wvol__wvc2_writer_open_mem) and copied coarsest level first by close().
  * - The output does not depend on the order of arrival, on nz, or on the number
  *   of threads: the same coefficients, step and options give the same bytes.
- * - Chunks of a tile row are coded in parallel (OpenMP, `threads`).
+ * - Chunks of a tile row are coded in parallel (OpenMP, `threads`); run() codes them
+ *   as tasks beside a producer (a streamed transform), so the two overlap.
  * - close() writes the header, the per-band table (reconstruction offsets, energy,
  *   error, non-zero counts), the chunk index and the payloads, then renames. It
  *   refuses (and removes the file) if a level is incomplete. close() and abort()
@@ -103,6 +104,17 @@ wvol_status wvol__wvc2_writer_open_mem(wvc2_writer **w, const wvc2_header *h, wv
 wvol_status wvol__wvc2_writer_put(wvc2_writer *w, int level, size_t z0, size_t nz, const wvc2_planes *planes,
                                   wvol_error *err);
 
+/* Runs produce(user, err), which puts rows into w, with the writer's threads split: the
+ * calling thread runs produce (anything it parallelises with OpenMP runs on it alone, as a
+ * nested region), while the others code the chunks that become ready, as tasks, and the
+ * producer helps when they fall behind (at most a few chunks per thread wait, each a copy
+ * of its rows: the rows themselves move on). With one thread, or called inside a parallel
+ * region, it is produce(user, err) with the tile rows coded in parallel as put() goes. The
+ * bytes are those of put() alone (the spill's order differs, the file's does not). Returns
+ * produce's status, or a chunk's coding failure. */
+wvol_status wvol__wvc2_writer_run(wvc2_writer *w, wvol_status (*produce)(void *user, wvol_error *err), void *user,
+                                  wvol_error *err);
+
 /* Finishes the file and frees the writer (also on failure). report may be NULL:
  * step, sse_quant (exact, with the stored offsets), nonzero, coefficients, bytes,
  * bytes_cabac / bytes_zstd (the payload if every band used that coder; 0 when not
@@ -114,9 +126,10 @@ wvol_status wvol__wvc2_writer_close(wvc2_writer *w, void **out, size_t *out_size
 /* Drops everything (no file is left); NULL does nothing. */
 void wvol__wvc2_writer_abort(wvc2_writer *w);
 
-/* Bytes the writer holds at most for a grid (quantised rows and buffers, not the
- * caller's planes), for a streamed (fine-to-coarse, lag <= lag_rows rows per level)
- * arrival. For callers who plan memory. */
+/* Bytes the writer holds at most for a grid (quantised rows and buffers, the chunks being
+ * coded, not the caller's planes), for a streamed (fine-to-coarse, lag <= lag_rows rows per
+ * level) arrival, with h->threads threads (0: OpenMP's default). For callers who plan
+ * memory. */
 size_t wvol__wvc2_writer_memory(const wvc2_header *h, size_t lag_rows);
 
 #endif

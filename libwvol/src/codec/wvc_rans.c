@@ -130,7 +130,7 @@ static int r3_row_alloc(r3_row *w, int32_t **zrow, int n, const wvc_band *const 
     size_t ex = 1;
     for (int i = 0; i < n; i++)
         if (b[i]->ext[0] > ex) ex = b[i]->ext[0];
-    w->A = malloc(ex * sizeof *w->A);
+    w->A = malloc(2 * ex * sizeof *w->A); /* the encoder's first pass uses a second row */
     w->PC = malloc(2 * ex);
     *zrow = calloc(ex, sizeof **zrow);
     if (!w->A || !w->PC || !*zrow) {
@@ -238,62 +238,108 @@ typedef struct r3_enc {
     uint8_t *ctx, *sym, *sctx; /* per coefficient; sym bit 7: negative */
     uint32_t H[R3_NC][R3_NS];
     uint64_t S[R3_NSG][2];
+    uint16_t *sg; /* per non-zero coefficient, in band order: 2 x sign context + negative */
+    size_t nsg;   /* the current band's count of them */
     uint8_t *raw; /* the current band's raw bits */
-    uint64_t acc;
-    int nacc;
 } r3_enc;
 
-static inline void r3_put_raw(r3_enc *e, uint32_t v, int k)
+/* The bit length of t < 2^24 (0 for 0) through float's exponent, so that a loop of it
+ * vectorises (x86-64-v3 has no vector count of leading zeros; it converts signed ints). */
+static inline uint32_t r3_bitlen24(uint32_t t)
 {
-    e->acc |= (uint64_t)v << e->nacc;
-    e->nacc += k;
-    if (e->nacc >= 32) {
-        uint32_t lo = (uint32_t)e->acc;
-        memcpy(e->raw, &lo, 4);
-        e->raw += 4;
-        e->acc >>= 32;
-        e->nacc -= 32;
+    float f = (float)(int32_t)t;
+    uint32_t u;
+    memcpy(&u, &f, 4);
+    return ((u >> 23) - 126) & (0u - (t != 0));
+}
+
+/* One row of the encoder's first pass, in two loops without a chain (the encoder knows W
+ * already; restrict parameters, so no overlap checks) that vectorise: 32-bit lengths
+ * first (T: A[x] in, the bit length of the context sum out; N: |q|'s leading one), then
+ * the bytes. K receives the raw bit count of each coefficient. */
+__attribute__((noinline)) WVOL__CLONES static void r3_scan_row(uint8_t *restrict ctx, uint8_t *restrict sym,
+                                                                uint8_t *restrict sctx, uint32_t *restrict T,
+                                                                uint32_t *restrict N, const uint8_t *restrict PC,
+                                                                const uint8_t *restrict SG,
+                                                                const int32_t *restrict c, size_t ex)
+{
+    /* x = 0 (W = 0) after the loops: peeled before them, it keeps them from vectorising */
+    for (size_t x = 1; x < ex; x++) {
+        const int32_t v = c[x];
+        const uint32_t a = v < 0 ? (uint32_t)0 - (uint32_t)v : (uint32_t)v, big = a >= (1u << 24);
+        /* |q| < 2^31: above 2^24 the length of a >> 8, plus 8 (exact, unlike a float of a) */
+        N[x] = r3_bitlen24(big ? a >> 8 : a | 1) + 8 * big - 1;
+        T[x] = r3_bitlen24(T[x] + 2 * r3_abs(c[x - 1])); /* the sum < 12 * 65535 */
+    }
+    for (size_t x = 1; x < ex; x++) {
+        const int32_t v = c[x], W = c[x - 1];
+        const uint32_t a = v < 0 ? (uint32_t)0 - (uint32_t)v : (uint32_t)v, neg = v < 0, n = N[x];
+        const uint32_t cls = T[x] < R3_NA - 1 ? T[x] : R3_NA - 1;
+        const uint32_t sW = (uint32_t)(W > 0) + 2u * (uint32_t)(W < 0);
+        ctx[x] = (uint8_t)(cls * R3_NP + PC[x]);
+        sym[x] = (uint8_t)((a < 2 ? a : 2 * n + ((a >> (n - (n > 0))) & 1)) | neg << 7);
+        sctx[x] = (uint8_t)(3 * sW + SG[x]);
+        N[x] = n > 1 ? n - 1 : 0;
+    }
+    if (ex) {
+        const int32_t v = c[0];
+        const uint32_t a = v < 0 ? (uint32_t)0 - (uint32_t)v : (uint32_t)v, neg = v < 0;
+        const uint32_t n = 31 - (uint32_t)__builtin_clz(a | 1), na = r3_bitlen24(T[0]);
+        ctx[0] = (uint8_t)((na < R3_NA - 1 ? na : R3_NA - 1) * R3_NP + PC[0]);
+        sym[0] = (uint8_t)((a < 2 ? a : 2 * n + ((a >> (n - (n > 0))) & 1)) | neg << 7);
+        sctx[0] = SG[0];
+        N[0] = n > 1 ? n - 1 : 0;
     }
 }
 
 /* Pass 1 over one band: contexts, symbols (from index k on), counts, raw bits (into
- * e->raw, flushed to a whole byte at the end). */
+ * e->raw, flushed to a whole byte at the end). Per row, a pass without a chain (the
+ * encoder knows W already) gives every coefficient's context, symbol and raw bit count;
+ * then a short serial pass counts them and packs the raw bits. */
 WVOL__CLONES static void r3_scan_band(r3_enc *e, const int32_t *Q, const size_t p[3], const wvc_band *b,
                                       const r3_row *w, const int32_t *zrow, size_t k)
 {
     const size_t ex = b->ext[0];
     size_t i = k;
-    e->acc = 0;
-    e->nacc = 0;
+    uint64_t acc = 0;
+    int nacc = 0;
+    uint8_t *raw = e->raw;
+    uint16_t *sg = e->sg + k;
+    size_t ns = 0;
     for (size_t z = 0; z < b->ext[2]; z++)
-        for (size_t y = 0; y < b->ext[1]; y++) {
+        for (size_t y = 0; y < b->ext[1]; y++, i += ex) {
             const int32_t *c = Q + wvc_index(p, b, 0, y, z);
-            uint32_t aW = 0;
-            uint8_t sW = 0;
+            uint8_t *ctx = e->ctx + i, *sym = e->sym + i, *sctx = e->sctx + i;
+            uint32_t *K = w->A + ex; /* the raw bit counts */
             r3_row_prep(w, Q, p, b, y, z, zrow);
-            for (size_t x = 0; x < ex; x++, i++) {
-                /* without branches on the value (zero or not is hard to predict) */
+            r3_scan_row(ctx, sym, sctx, w->A, K, w->PC, w->SG, c, ex);
+            for (size_t x = 0; x < ex; x++) {
                 const int32_t v = c[x];
-                const uint32_t cx = r3_mag_ctx(w->A[x] + 2 * aW, w->PC[x]);
-                const uint32_t a = v < 0 ? (uint32_t)0 - (uint32_t)v : (uint32_t)v, neg = v < 0;
-                const uint32_t n = 31 - (uint32_t)__builtin_clz(a | 1), k = n > 1 ? n - 1 : 0;
-                const uint32_t s = a < 2 ? a : 2 * n + ((a >> (n - (n > 0))) & 1);
-                const uint8_t sc = (uint8_t)(3 * sW + w->SG[x]);
-                r3_put_raw(e, a & ((1u << k) - 1), (int)k);
-                e->sctx[i] = sc;
-                e->S[sc][neg] += a != 0;
-                e->ctx[i] = (uint8_t)cx;
-                e->sym[i] = (uint8_t)(s | neg << 7);
-                e->H[cx][s]++;
-                aW = r3_abs(v);
-                sW = r3_sg(v);
+                const uint32_t a = v < 0 ? (uint32_t)0 - (uint32_t)v : (uint32_t)v, kk = K[x];
+                e->H[ctx[x]][sym[x] & 0x7F]++;
+                e->S[sctx[x]][sym[x] >> 7] += a != 0;
+                sg[ns] = (uint16_t)(2 * sctx[x] + (sym[x] >> 7)); /* kept for a non-zero */
+                ns += a != 0;
+                /* raw bits: a 32-bit word is stored when due (always written, kept when due) */
+                acc |= (uint64_t)(a & ((1u << kk) - 1)) << nacc;
+                nacc += (int)kk;
+                {
+                    const uint32_t lo = (uint32_t)acc;
+                    const int due = nacc >= 32;
+                    memcpy(raw, &lo, 4);
+                    raw += 4 * due;
+                    acc >>= 32 * due;
+                    nacc -= 32 * due;
+                }
             }
         }
-    while (e->nacc > 0) { /* the last partial word, byte by byte */
-        *e->raw++ = (uint8_t)e->acc;
-        e->acc >>= 8;
-        e->nacc -= 8;
+    while (nacc > 0) { /* the last partial word, byte by byte */
+        *raw++ = (uint8_t)acc;
+        acc >>= 8;
+        nacc -= 8;
     }
+    e->raw = raw;
+    e->nsg = ns;
 }
 
 /* An encoder symbol: frequency, start, and m = ceil(2^63 / f), with which x / f =
@@ -327,11 +373,37 @@ static inline uint32_t r3_enc_put(uint32_t x, const r3_esym *e, uint16_t **ptr)
     return (q << R3_PBITS) + (x - q * e->f) + e->start;
 }
 
-/* The sign symbol of coefficient j: ES[R3_NSG][0], an identity step (frequency 2^11),
- * for a zero, so that the encoder does not branch on it either. */
-static inline const r3_esym *r3_sign_sym(const r3_esym (*ES)[2], const r3_enc *e, size_t j)
+/* G bands (i .. i + G - 1, the same count of coefficients) in lockstep, so that their
+ * chains overlap: the magnitude streams over every coefficient, then the sign streams over
+ * the non-zero ones (a zero's sign step is the identity, frequency 2^11: it changes
+ * neither state nor stream, and is left out). Each stream in reverse, so that the
+ * decoder reads it forward. ES1: the sign symbols by 2 x context + negative. */
+FORCE_INLINE void r3_enc_group(const int G, const r3_enc *e, const r3_esym (*E)[R3_NS], const r3_esym *ES1,
+                               const size_t *first, const size_t *nsg, int i, uint16_t **mp, uint16_t **sp,
+                               uint32_t *xm_out, uint32_t *xs_out)
 {
-    return e->sym[j] & 0x7F ? &ES[e->sctx[j]][e->sym[j] >> 7] : &ES[R3_NSG][0];
+    const size_t cnt = first[i + 1] - first[i];
+    uint32_t xm[4], xs[4];
+    size_t nmax = 0;
+#pragma GCC unroll 4
+    for (int b = 0; b < G; b++) {
+        xm[b] = xs[b] = R3_L;
+        nmax = nsg[i + b] > nmax ? nsg[i + b] : nmax;
+    }
+    for (size_t j = cnt; j-- > 0;) {
+#pragma GCC unroll 4
+        for (int b = 0; b < G; b++) {
+            const size_t jj = first[i + b] + j;
+            xm[b] = r3_enc_put(xm[b], &E[e->ctx[jj]][e->sym[jj] & 0x7F], &mp[i + b]);
+        }
+    }
+    for (size_t k = nmax; k-- > 0;) {
+#pragma GCC unroll 4
+        for (int b = 0; b < G; b++)
+            if (k < nsg[i + b]) xs[b] = r3_enc_put(xs[b], &ES1[e->sg[first[i + b] + k]], &sp[i + b]);
+    }
+#pragma GCC unroll 4
+    for (int b = 0; b < G; b++) xm_out[b] = xm[b], xs_out[b] = xs[b];
 }
 
 int wvol__wvc_rans_encode(uint8_t **buf, size_t *size, int n, int32_t *const Q[], const size_t *const p[],
@@ -346,7 +418,7 @@ int wvol__wvc_rans_encode(uint8_t **buf, size_t *size, int n, int32_t *const Q[]
     uint16_t *ms = NULL, *ss = NULL;
     uint16_t *mp[8], *sp[8];
     uint8_t *rp[8];
-    size_t total = 0, first[9], mlen[8], slen[8], rlen[8], head = 0, body = 0;
+    size_t total = 0, first[9], mlen[8], slen[8], rlen[8], nsg[8], head = 0, body = 0;
     int ok = 0;
     *buf = NULL;
     *size = 0;
@@ -355,20 +427,22 @@ int wvol__wvc_rans_encode(uint8_t **buf, size_t *size, int n, int32_t *const Q[]
     e = calloc(1, sizeof *e);
     F = calloc(R3_NC, sizeof *F);
     E = calloc(R3_NC, sizeof *E);
-    ES = calloc(R3_NSG + 1, sizeof *ES);
+    ES = calloc(R3_NSG, sizeof *ES);
     /* per band: at most 29 raw bits per coefficient; at most one word per symbol and the state */
     raw = malloc(4 * total + 8 * (size_t)n + 8);
     ms = malloc(2 * (total + 4 * (size_t)n));
     ss = malloc(2 * (total + 4 * (size_t)n));
     if (!e || !F || !E || !ES || !raw || !ms || !ss || r3_row_alloc(&w, &zrow, n, b)) goto done;
     e->ctx = malloc(3 * (total ? total : 1));
-    if (!e->ctx) goto done;
+    e->sg = malloc(sizeof *e->sg * (total ? total : 1));
+    if (!e->ctx || !e->sg) goto done;
     e->sym = e->ctx + total;
     e->sctx = e->sym + total;
     for (int i = 0; i < n; i++) {
         rp[i] = e->raw = raw + 4 * first[i] + 8 * (size_t)i;
         r3_scan_band(e, Q[i], p[i], b[i], &w, zrow, first[i]);
         rlen[i] = (size_t)(e->raw - rp[i]);
+        nsg[i] = e->nsg;
     }
     for (int c = 0; c < R3_NC; c++) {
         uint32_t any = 0, cum = 0;
@@ -382,36 +456,29 @@ int wvol__wvc_rans_encode(uint8_t **buf, size_t *size, int n, int32_t *const Q[]
         ES[c][0] = r3_esym_make(SF[c], 0);
         ES[c][1] = r3_esym_make(R3_M - SF[c], SF[c]);
     }
-    ES[R3_NSG][0] = r3_esym_make(R3_M, 0);
     for (int i = 0; i < n; i++) {
         mp[i] = ms + first[i + 1] + 4 * (size_t)(i + 1);
         sp[i] = ss + first[i + 1] + 4 * (size_t)(i + 1);
     }
-    /* each band's streams in reverse, so that the decoder reads them forward; two bands
-     * in lockstep (a chunk's bands have the same count), so that their chains overlap */
-    for (int i = 0; i < n; i += 2) {
-        const int two = i + 1 < n;
-        const size_t cnt = first[i + 1] - first[i];
-        uint16_t *mend0 = mp[i], *send0 = sp[i], *mend1 = two ? mp[i + 1] : NULL, *send1 = two ? sp[i + 1] : NULL;
-        uint32_t xm0 = R3_L, xs0 = R3_L, xm1 = R3_L, xs1 = R3_L;
-        for (size_t j = cnt; j-- > 0;) {
-            const size_t j0 = first[i] + j;
-            xs0 = r3_enc_put(xs0, r3_sign_sym(ES, e, j0), &sp[i]);
-            xm0 = r3_enc_put(xm0, &E[e->ctx[j0]][e->sym[j0] & 0x7F], &mp[i]);
-            if (two) {
-                const size_t j1 = first[i + 1] + j;
-                xs1 = r3_enc_put(xs1, r3_sign_sym(ES, e, j1), &sp[i + 1]);
-                xm1 = r3_enc_put(xm1, &E[e->ctx[j1]][e->sym[j1] & 0x7F], &mp[i + 1]);
-            }
+    /* four bands at a time (a chunk's bands have the same count) */
+    for (int i = 0; i < n; i += 4) {
+        const int G = n - i < 4 ? n - i : 4;
+        uint16_t *mend[4], *send[4];
+        uint32_t xm[4], xs[4];
+        for (int l = 0; l < G; l++) mend[l] = mp[i + l], send[l] = sp[i + l];
+        switch (G) {
+        case 4: r3_enc_group(4, e, E, &ES[0][0], first, nsg, i, mp, sp, xm, xs); break;
+        case 3: r3_enc_group(3, e, E, &ES[0][0], first, nsg, i, mp, sp, xm, xs); break;
+        case 2: r3_enc_group(2, e, E, &ES[0][0], first, nsg, i, mp, sp, xm, xs); break;
+        default: r3_enc_group(1, e, E, &ES[0][0], first, nsg, i, mp, sp, xm, xs); break;
         }
-        for (int l = 0; l <= two; l++) {
-            uint32_t xm = l ? xm1 : xm0, xs = l ? xs1 : xs0;
+        for (int l = 0; l < G; l++) {
             mp[i + l] -= 2;
-            memcpy(mp[i + l], &xm, 4); /* little-endian hosts only, as the rest of the codec */
+            memcpy(mp[i + l], &xm[l], 4); /* little-endian hosts only, as the rest of the codec */
             sp[i + l] -= 2;
-            memcpy(sp[i + l], &xs, 4);
-            mlen[i + l] = 2 * (size_t)((l ? mend1 : mend0) - mp[i + l]);
-            slen[i + l] = 2 * (size_t)((l ? send1 : send0) - sp[i + l]);
+            memcpy(sp[i + l], &xs[l], 4);
+            mlen[i + l] = 2 * (size_t)(mend[l] - mp[i + l]);
+            slen[i + l] = 2 * (size_t)(send[l] - sp[i + l]);
             body += mlen[i + l] + slen[i + l] + rlen[i + l];
         }
     }
@@ -441,7 +508,7 @@ int wvol__wvc_rans_encode(uint8_t **buf, size_t *size, int n, int32_t *const Q[]
     *size = head;
     ok = 1;
 done:
-    if (e) free(e->ctx);
+    if (e) free(e->ctx), free(e->sg);
     free(e);
     free(F);
     free(E);

@@ -45,13 +45,24 @@ void wvol__wvc_stream_stats_free(wvc_stream_stats *s)
 
 void wvol__wvc_stream_stats_add(wvc_stream_stats *s, int level, size_t nz, const wvc2_planes *pl)
 {
-    for (int i = 0; i < s->L.nsec; i++) {
+    /* the level's bands in parallel: each counts into its own section's histogram, so the
+     * counts do not depend on the threads; a small row is not worth waking them */
+    const int first = level == s->L.levels ? 0 : 1 + 7 * (s->L.levels - level);
+    const int last = first + (level == s->L.levels ? 8 : 7);
+    const size_t plane = s->L.sec[last - 1].ext[0] * s->L.sec[last - 1].ext[1] * nz;
+    uint32_t mb = s->maxbits;
+    int i;
+#pragma omp parallel for schedule(dynamic, 1) reduction(max : mb) if (plane >= 8192)
+    for (i = first; i < last; i++) {
         const wvc_band *b = &s->L.sec[i];
-        if (b->level != level || !b->count || !pl->band[b->band]) continue;
+        uint32_t m = 0;
+        if (!b->count || !pl->band[b->band]) continue;
         for (size_t k = 0; k < nz; k++)
             wvol__wvc_slice_hist(s->H + (size_t)i * WVC_HBINS, pl->band[b->band] + k * pl->sz[b->band], b->ext[0],
-                                 b->ext[1], pl->sy[b->band], &s->maxbits);
+                                 b->ext[1], pl->sy[b->band], &m);
+        mb = m > mb ? m : mb;
     }
+    s->maxbits = mb;
 }
 
 double wvol__wvc_stream_predict(const wvc_stream_stats *s, double step, double rounding)

@@ -61,6 +61,19 @@ static wvol_status on_rows(void *user, int level, size_t r, const float *low, co
     return wvol__wvc2_writer_put(c->writer, level, r, 1, &pl, err);
 }
 
+/* pass 2's producer: the streamed transform into the writer (wvol__wvc2_writer_run) */
+typedef struct write_pass {
+    wvol_source *src;
+    const wvol_filter *f;
+    pass_ctx *pc;
+} write_pass;
+
+static wvol_status write_rows(void *user, wvol_error *err)
+{
+    write_pass *wp = user;
+    return wvol_dwt3_source(wp->src, wp->f, wp->pc->levels, on_rows, wp->pc, NULL, err);
+}
+
 /* ---- a source that keeps the range of what it reads ------------------------------- */
 
 typedef struct range_src {
@@ -71,17 +84,19 @@ typedef struct range_src {
 static wvol_status range_read(void *ctx, float *dst, size_t z0, size_t nz, wvol_error *err)
 {
     range_src *r = ctx;
-    size_t dims[3], n;
-    double lo = r->lo, hi = r->hi;
+    size_t dims[3];
+    long i, n;
+    float lo = INFINITY, hi = -INFINITY; /* min and max of floats are exact in float */
     WVOL_FORWARD(wvol_source_read(r->inner, dst, z0, nz, err));
     wvol_source_geometry(r->inner, dims, NULL, NULL);
-    n = dims[0] * dims[1] * nz;
-    for (size_t i = 0; i < n; i++) {
-        double x = dst[i];
-        lo = x < lo ? x : lo;
-        hi = x > hi ? x : hi;
+    n = (long)(dims[0] * dims[1] * nz);
+#pragma omp parallel for schedule(static) reduction(min : lo) reduction(max : hi) if (n >= 262144)
+    for (i = 0; i < n; i++) {
+        lo = dst[i] < lo ? dst[i] : lo;
+        hi = dst[i] > hi ? dst[i] : hi;
     }
-    r->lo = lo, r->hi = hi;
+    r->lo = lo < r->lo ? lo : r->lo;
+    r->hi = hi > r->hi ? hi : r->hi;
     return WVOL_OK;
 }
 
@@ -168,7 +183,10 @@ wvol_status wvol_compress_stream(const char *path, wvol_source *src, const wvol_
         t0 = wvol__now();
         h.step = out.step;
         s = wvol__wvc2_writer_open(&pc.writer, path, &h, err);
-        if (!s) s = wvol_dwt3_source(src, f, p.levels, on_rows, &pc, NULL, err);
+        if (!s) {
+            write_pass wpass = {src, f, &pc};
+            s = wvol__wvc2_writer_run(pc.writer, write_rows, &wpass, err);
+        }
         if (!s) s = wvol__wvc2_writer_close(pc.writer, NULL, NULL, &wr, err);
         else wvol__wvc2_writer_abort(pc.writer);
         pc.writer = NULL;

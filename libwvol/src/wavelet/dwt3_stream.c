@@ -164,6 +164,16 @@ static wvol_status check_plane(const float *p, size_t n, int level, wvol_error *
 
 static wvol_status arrive(wvol_dwt3_stream *s, int m, size_t i, wvol_error *err);
 
+/* Called from a task of a running team (a streamed compression's producer, whose team's
+ * other threads code chunks: codec/wvc2_writer.h run()): the loops become task loops, so
+ * that idle threads of the team share them (a nested parallel region would run on the
+ * caller alone). Each thread uses its own scratch slot, so the team must not be larger
+ * than the slots. The rows are computed by the same kernels either way: the same bits. */
+static int team_tasks(const wvol_dwt3_stream *s)
+{
+    return omp_in_parallel() && omp_get_num_threads() > 1 && omp_get_num_threads() <= s->threads;
+}
+
 /* Output row k of level m: the callback, then the next level's input row k. */
 static wvol_status emit(wvol_dwt3_stream *s, int m, size_t k, wvol_error *err)
 {
@@ -173,10 +183,17 @@ static wvol_status emit(wvol_dwt3_stream *s, int m, size_t k, wvol_error *err)
         const float *rows[WVOL__MAX_TAPS];
         long long ny = (long long)l->cy, chunk = 8;
         for (int t = 0; t < s->L; t++) rows[t] = slot(l, (2 * k + (size_t)t) % l->cz);
+        if (team_tasks(s)) {
+#pragma omp taskloop grainsize(1) if (l->plane > 32768)
+            for (long long y = 0; y < ny; y += chunk)
+                wvol__dwt_zrows_f32(l->lo, l->hi, rows, l->cx, (size_t)y, (size_t)(y + chunk < ny ? y + chunk : ny),
+                                    l->cz, s->h, s->g, s->L, s->scratch + (size_t)omp_get_thread_num() * s->scratch_per);
+        } else {
 #pragma omp parallel for schedule(dynamic, 1) num_threads(s->threads) if (l->plane > 32768)
-        for (long long y = 0; y < ny; y += chunk)
-            wvol__dwt_zrows_f32(l->lo, l->hi, rows, l->cx, (size_t)y, (size_t)(y + chunk < ny ? y + chunk : ny),
-                                l->cz, s->h, s->g, s->L, s->scratch + (size_t)omp_get_thread_num() * s->scratch_per);
+            for (long long y = 0; y < ny; y += chunk)
+                wvol__dwt_zrows_f32(l->lo, l->hi, rows, l->cx, (size_t)y, (size_t)(y + chunk < ny ? y + chunk : ny),
+                                    l->cz, s->h, s->g, s->L, s->scratch + (size_t)omp_get_thread_num() * s->scratch_per);
+        }
         low = l->lo, high = l->hi;
         WVOL_FORWARD(check_plane(l->hi, l->plane, m, err));
     } else {
@@ -207,25 +224,33 @@ static wvol_status arrive(wvol_dwt3_stream *s, int m, size_t i, wvol_error *err)
     return WVOL_OK;
 }
 
-/* Padded slices z0 .. z0 + cnt - 1 of level 1 (their source rows given by src(z)). */
-static wvol_status take(wvol_dwt3_stream *s, const float *slices, size_t z0, size_t cnt, wvol_error *err)
+/* Slice z0 + t of level 1: copied in (edge padding), xy-transformed. */
+static void take_one(wvol_dwt3_stream *s, const float *slices, size_t z0, size_t t)
 {
     level_state *l = &s->lv[1];
     size_t nx = s->n[0], ny = s->n[1];
+    const float *src = slices ? slices + t * nx * ny : s->last;
+    float *dst = slot(l, z0 + t);
+    for (size_t j = 0; j < l->cy; j++) {
+        const float *row = src + nx * (j < ny ? j : ny - 1); /* edge padding, as wvol_dwt3 */
+        float *o = dst + j * l->cx;
+        memcpy(o, row, nx * sizeof(float));
+        for (size_t i = nx; i < l->cx; i++) o[i] = row[nx - 1];
+    }
+    wvol__dwt_slice_xy_f32(dst, l->cx, l->cy, s->h, s->g, s->L,
+                           s->scratch + (size_t)omp_get_thread_num() * s->scratch_per);
+}
+
+/* Padded slices z0 .. z0 + cnt - 1 of level 1 (their source rows given by src(z)). */
+static wvol_status take(wvol_dwt3_stream *s, const float *slices, size_t z0, size_t cnt, wvol_error *err)
+{
     long long c = (long long)cnt;
+    if (team_tasks(s)) {
+#pragma omp taskloop grainsize(1) if (cnt > 1)
+        for (long long t = 0; t < c; t++) take_one(s, slices, z0, (size_t)t);
+    } else {
 #pragma omp parallel for schedule(dynamic, 1) num_threads(s->threads) if (cnt > 1)
-    for (long long t = 0; t < c; t++) {
-        size_t z = z0 + (size_t)t;
-        const float *src = slices ? slices + (size_t)t * nx * ny : s->last;
-        float *dst = slot(l, z);
-        for (size_t j = 0; j < l->cy; j++) {
-            const float *row = src + nx * (j < ny ? j : ny - 1); /* edge padding, as wvol_dwt3 */
-            float *o = dst + j * l->cx;
-            memcpy(o, row, nx * sizeof(float));
-            for (size_t i = nx; i < l->cx; i++) o[i] = row[nx - 1];
-        }
-        wvol__dwt_slice_xy_f32(dst, l->cx, l->cy, s->h, s->g, s->L,
-                               s->scratch + (size_t)omp_get_thread_num() * s->scratch_per);
+        for (long long t = 0; t < c; t++) take_one(s, slices, z0, (size_t)t);
     }
     for (size_t t = 0; t < cnt; t++) WVOL_FORWARD(arrive(s, 1, z0 + t, err));
     return WVOL_OK;
