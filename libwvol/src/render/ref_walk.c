@@ -5,6 +5,12 @@
  * loops (ref_samples.h) are inlined into a few copies of the run, one per common case
  * (ray_advance_any). */
 #include "ref_samples.h"
+#include "core/clones.h"
+
+/* The walk's two entry points are multi-versioned (core/clones.h: AVX2 where the CPU has it;
+ * the sample loops are inlined into them) with contraction off, so that no clone fuses a
+ * multiply and an add: every clone rounds as the baseline does, the same image bit for bit. */
+#define RAY_CLONES WVOL__CLONES __attribute__((optimize("fp-contract=off")))
 
 #include <string.h>
 
@@ -357,7 +363,7 @@ void wvol__ray_pixel(const wvol_render_params *p, const ray_state *st, float px[
 
 /* The brick holding the ray's next sample (its next full step's, else its last step's),
  * entered (ray_enter); -1 when it has none left. */
-long wvol__ray_next_brick(const wvol__source *s, ray_state *st, double dt)
+RAY_CLONES long wvol__ray_next_brick(const wvol__source *s, ray_state *st, double dt)
 {
     double x[3], t, h;
     if (st->done || st->failed != WVOL_OK) return -1;
@@ -374,7 +380,7 @@ long wvol__ray_next_brick(const wvol__source *s, ray_state *st, double dt)
 /* ray_advance with the common cases' own copies of the loop, the mode, shading and colour
  * tests compiled away (and with them every call in the inner loop: the compositing state
  * stays in registers). */
-int wvol__ray_advance_any(const wvol__source *s, void *tc, const tf_fast *tfx, const wvol_render_params *p,
+RAY_CLONES int wvol__ray_advance_any(const wvol__source *s, void *tc, const tf_fast *tfx, const wvol_render_params *p,
                           double dt, ray_state *st)
 {
     if (p->mode == WVOL_RENDER_MODE_ABSORPTION && !p->shading && !p->colors)
