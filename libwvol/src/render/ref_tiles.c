@@ -275,10 +275,9 @@ wvol_status wvol__render_sampled(wvol_image *img, wvol__source *s, const wvol_ca
             memset(&mine, 0, sizeof mine);
 #pragma omp for schedule(dynamic, 4)
             for (int ti = 0; ti < ntiles; ti++) {
-                int x0 = (order[ti] % tx) * p.tile, y0 = (order[ti] / tx) * p.tile, n;
-                int tw = img->width - x0 < p.tile ? img->width - x0 : p.tile;
-                int th = img->height - y0 < p.tile ? img->height - y0 : p.tile;
+                int x0, y0, tw, th, n;
                 if (!rs) continue;
+                tile_box(img, order, p.tile, tx, ti, &x0, &y0, &tw, &th);
                 n = tile_rays(s, &k, img, lo, hi, dt, x0, y0, tw, th, rs);
                 render_tile(s, tc, &tfx, &p, dt, rs, n);
                 tile_finish(&p, img, x0, y0, tw, rs, n, &mine, &my_failed);
