@@ -19,6 +19,7 @@
 #include <omp.h>
 #endif
 
+#include "core/clock.h"
 #include "wvc2_read.h"
 #include "wvc_format.h"
 #include "wvc_source.h"
@@ -755,13 +756,7 @@ static wvol_status reconstruct_parts(wvol_wvc_file *f, float *dst, const wvol__c
 {
     size_t nx = hi[0] - lo[0], ny = hi[1] - lo[1], nz = hi[2] - lo[2];
     wvol_status st = WVOL_OK;
-    int nt = threads;
-#ifdef _OPENMP
-    if (nt <= 0) nt = omp_get_max_threads();
-#else
-    nt = 1;
-#endif
-    if (nt < 1) nt = 1;
+    int nt = wvol__threads(threads);
     /* a part thinner than a few rows would repeat the filters' margins for little work */
     if ((size_t)nt > ny / 8) nt = ny / 8 > 0 ? (int)(ny / 8) : 1;
     if (nt == 1) {

@@ -26,6 +26,7 @@
 #include <omp.h>
 #endif
 
+#include "core/clock.h"
 #include "core/clones.h"
 #include "wvc2_read.h"
 #include "wvc_source.h"
@@ -307,12 +308,7 @@ wvol_status wvol_wvc_read_piece_into(float *work, size_t cap, wvol_wvc_file *f, 
                    "wvc piece: work array of %zu samples, the piece needs %zu (wvol_wvc_piece_samples)", cap,
                    P.PX * P.PY * P.planes);
     WVOL_FORWARD(wvol_filter_get(&flt, wvol_wvc_file_info(f)->filter, err));
-#ifdef _OPENMP
-    if (threads <= 0) threads = omp_get_max_threads();
-#else
-    threads = 1;
-#endif
-    if (threads < 1) threads = 1;
+    threads = wvol__threads(threads);
     need = wvol_wvc_piece_budget(f, threads);
     WVOL_RETURN_IF(wvol__wvc_file_budget(f) < need, err, WVOL_ERR_NOMEM,
                    "%s: memory budget of %zu bytes is below the %zu bytes a piece read with %d threads pins at once "
