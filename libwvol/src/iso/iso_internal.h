@@ -143,6 +143,9 @@ typedef struct wvol__trace_ws {
     wvol__cell_ws cellq; /* the cell grid's box queries */
     size_t cells;       /* cells this thread classified */
     double cell_seconds; /* and its time doing so */
+    int has_hint;       /* hint holds the depth t of a neighbouring ray's hit (the image's
+                           previous pixel in its row); 0 (as zeroed): none */
+    double hint;
 } wvol__trace_ws;
 
 void wvol__trace_ws_free(wvol__trace_ws *w);

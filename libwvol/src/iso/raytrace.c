@@ -250,6 +250,9 @@ wvol_status wvol_iso_raytrace(wvol_image *img, float *depth, float *normals, con
                 wvol_error e2;
                 wvol_camera_ray(cam, x + 0.5, row + 0.5, o, d);
                 memset(&h, 0, sizeof h);
+                /* the hint: the previous pixel of the row (this thread traced it, so the image
+                 * does not depend on the thread count) */
+                if (x == 0) ws.has_hint = 0;
                 if (!failed && wvol__trace(&tr, &ws, o, d, tmin, &h, &e2) != WVOL_OK) {
 #pragma omp critical(wvol_iso_err)
                     if (!failed) {
@@ -257,6 +260,8 @@ wvol_status wvol_iso_raytrace(wvol_image *img, float *depth, float *normals, con
                         first_err = e2;
                     }
                 }
+                ws.has_hint = h.hit;
+                ws.hint = h.t;
                 functions += h.functions;
                 pieces += h.pieces;
                 refined += h.refined;

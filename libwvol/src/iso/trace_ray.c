@@ -14,6 +14,7 @@
 #define NC WVOL__NC
 #define PAD_REL 1e-10
 #define SMALL_BUDGET (1.0 / 16) /* the small functions' |c| max|w| sum to at most this share of the largest */
+#define HINT_MARGIN 1.0     /* voxels a chunk reaches past the neighbour's hit */
 #define RUN_MAX 32         /* undecided pieces refined at once */
 
 typedef wvol__tracer tracer;
@@ -235,7 +236,13 @@ static double small_cut(const wvol_store_hit *hits, size_t n, const tracer *tr, 
  * with |c| max|w| above TAU_REL of the chunk's largest) are expanded into polynomials, the
  * small ones only bound per piece (their |c| max|w| summed over the pieces they cover). A
  * piece whose polynomial's Bernstein hull, widened by that bound, excludes iso is decided
- * whole; runs of undecided pieces get the small functions added exactly and are searched. */
+ * whole; runs of undecided pieces get the small functions added exactly and are searched.
+ * Chunks are `chunk` voxels long, except with a hint (w->hint, the depth of the image's
+ * previous pixel's hit): the chunk that holds hint + HINT_MARGIN ends there, and past it the
+ * chunks grow geometrically from it (each as long as the distance gone past the hint), so the
+ * pieces built after a hit near the neighbour's are few. Where the chunks end changes only how
+ * the work is cut: every piece before a hit is still built and searched in order (the same
+ * guarantee; the depths agree with unhinted tracing to rounding). */
 static wvol_status trace_span(const tracer *tr, tws *w, const double o[3], const double d[3], const double ov[3],
                               const double dv[3], double t0, double t1, double speed, int *prevp, wvol_iso_hit *h,
                               wvol_error *err)
@@ -248,6 +255,11 @@ static wvol_status trace_span(const tracer *tr, tws *w, const double o[3], const
         wvol__spline_count cnt = {0, 0};
         const wvol__level_ws *F = &w->s.lev[1];
         size_t n, nb = 0, i, e, E;
+        if (w->has_hint) { /* end the chunk near the neighbour's hit (trace_span's comment) */
+            double th = w->hint + HINT_MARGIN / speed;
+            if (th > ta && th < tb) tb = th;
+            else if (th <= ta && ta + (ta - w->hint) < tb) tb = ta + (ta - w->hint);
+        }
         if (tb > t1 || t1 - tb < 1e-9 * (t1 - t0)) tb = t1;
         WVOL_FORWARD(wvol_store_query_ray(tr->g.s, ov, dv, ta, tb, &w->s.hits, err));
         hits = w->s.hits.hits;
