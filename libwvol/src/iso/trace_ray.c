@@ -242,7 +242,7 @@ static double small_cut(const wvol_store_hit *hits, size_t n, const tracer *tr, 
  * chunks grow geometrically from it (each as long as the distance gone past the hint), so the
  * pieces built after a hit near the neighbour's are few. Where the chunks end changes only how
  * the work is cut: every piece before a hit is still built and searched in order (the same
- * guarantee; the depths agree with unhinted tracing to rounding). */
+ * guarantee; a depth moves only within the tolerance, where the bisection's intervals fall). */
 static wvol_status trace_span(const tracer *tr, tws *w, const double o[3], const double d[3], const double ov[3],
                               const double dv[3], double t0, double t1, double speed, int *prevp, wvol_iso_hit *h,
                               wvol_error *err)
