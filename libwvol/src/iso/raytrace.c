@@ -6,7 +6,9 @@
  * consecutive knots of the finest spline lattice (store/store_ray.h: the kept basis
  * functions whose support the ray crosses, from the store's octree, each a product of three
  * composed cubic pieces). The ray is cut into chunks of `chunk` voxels, built one after the
- * other front to back, so a ray that meets the surface early builds little. On each piece:
+ * other front to back, so a ray that meets the surface early builds little; in an image, the
+ * chunk that holds the previous pixel's hit ends just past it (trace_ray.c, trace_span), so
+ * little is built past a hit there either. On each piece:
  *   - the Bernstein coefficients B_j of p(u) - iso on [u0, u1] (u the piece's normalised
  *     variable) bound it: p - iso lies in their convex hull, so when every B_j > pad or
  *     every B_j < -pad the interval holds no crossing and is discarded;
