@@ -415,8 +415,9 @@ static void geometry_of_store(const wvol_store *s, wvol_geometry *g)
     for (int a = 0; a < 3; a++) g->spacing[a] = info.spacing[a], g->origin[a] = info.origin[a];
 }
 
-/* The image path (which steps over cells its bounds decide) against single rays (which do
- * not): the same hits at the same depths (both within tolerance/2 of the root: 1e-3 voxel). */
+/* The image path (which steps over cells its bounds decide, and ends its chunks near the
+ * previous pixel's hit) against single rays (which do neither): the same hits at the same
+ * depths (both within tolerance/2 of the root: 1e-3 voxel). */
 static void image_matches_rays(const wvol_store *s, const wvol_camera *cam, const float *depth, double iso,
                                const char *what)
 {
@@ -472,6 +473,12 @@ static void small_image(const wvol_store *s, double iso, const char *what)
               "%s: the image depends on the thread count", what);
         CHECK(st1.cells > 0 && st1.cells_undecided <= st1.cells && st1.hits == st2.hits, "%s: cell counts %zu / %zu",
               what, st1.cells, st1.cells_undecided);
+        /* chunks of 4 voxels: the neighbour's hint cuts them more often; still the single rays'
+         * image (default chunks, no hint) */
+        p.threads = 1;
+        p.chunk = 4;
+        CHECK(wvol_iso_raytrace(img, d1, NULL, s, &cam, iso, &p, &st1, NULL) == WVOL_OK, "%s: chunk 4", what);
+        image_matches_rays(s, &cam, d1, iso, what);
         free(d1);
         free(d2);
     }
