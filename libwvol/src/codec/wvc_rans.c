@@ -570,7 +570,9 @@ typedef struct r3_hot {
 } r3_hot;
 
 /* One coefficient of a lane: *c from the streams; h->aW, h->sW: its left neighbour's |q|
- * (capped) and sign class, updated. Returns 0, or -1 when its context has no table. */
+ * (capped) and sign class, updated. Returns 0, or -1 when its context has no table. The
+ * non-zeros and the range of the magnitudes are counted and checked per row, afterwards
+ * (r3_row_check), not in the chain. */
 FORCE_INLINE int r3_step(const r3_lane *L, r3_hot *h, const r3_tabs *T, int32_t *c, size_t x)
 {
     const uint32_t cx = r3_mag_ctx(L->w.A[x] + 2 * h->aW, L->w.PC[x]);
@@ -598,12 +600,25 @@ FORCE_INLINE int r3_step(const r3_lane *L, r3_hot *h, const r3_tabs *T, int32_t 
     bits = (uint32_t)(word >> (h->bitpos & 7)) & (uint32_t)(st >> 32);
     h->bitpos += k;
     a = (uint32_t)st | bits;
-    h->over |= a > WVC_QMAX;
-    *c = (int32_t)((a ^ (0u - neg)) + neg);
-    h->count += s != 0;
+    *c = (int32_t)((a ^ (0u - neg)) + neg); /* a < 2^31: |*c| = a */
     h->aW = a > 65535 ? 65535 : a;
     h->sW = (s != 0) + neg; /* neg is 0 for a zero */
     return (int)(T->unused >> cx & 1);
+}
+
+/* A decoded row: its non-zeros added to h->count, h->over set if a magnitude passes
+ * WVC_QMAX (a vectorised pass: the row is in L1). */
+static inline void r3_row_check(r3_hot *h, const int32_t *restrict c, size_t ex)
+{
+    uint64_t nz = 0;
+    uint32_t over = 0;
+    for (size_t x = 0; x < ex; x++) {
+        const uint32_t a = c[x] < 0 ? (uint32_t)0 - (uint32_t)c[x] : (uint32_t)c[x];
+        nz += c[x] != 0;
+        over |= a > WVC_QMAX;
+    }
+    h->count += nz;
+    h->over |= over;
 }
 
 static inline void r3_hot_in(r3_hot *h, const r3_lane *L)
@@ -645,6 +660,8 @@ FORCE_INLINE int r3_lanes(int K, r3_lane *L, const r3_tabs *T, const char **why)
                     break;
                 }
             }
+            r3_row_check(&h0, c0, ex);
+            if (K == 2) r3_row_check(&h1, c1, ex);
             /* past a stream's end: the next row's reads could pass the padding */
             if (!r && (h0.over || h0.bitpos > 8 * (uint64_t)L[0].rawbytes || h0.mpos > L[0].mn ||
                        h0.spos > L[0].sn ||
