@@ -144,7 +144,7 @@ void wvol__idwt_slice_xy_f32(float *slice, size_t cx, size_t cy, size_t NX, cons
 }
 
 void wvol__dwt_zrows_f32(float *a, float *d, const float *const *rows, size_t cx, size_t y0, size_t y1, size_t cz,
-                         const float *h, const float *g, int L, float *tmp)
+                         const float *h, const float *g, int L)
 {
-    zrows_f32(a, d, rows, cx, y0, y1, wvol__block_width(cx, cz, L, sizeof(float)), h, g, L, tmp);
+    zrows_f32(a, d, rows, cx, y0, y1, wvol__block_width(cx, cz, L, sizeof(float)), h, g, L);
 }

@@ -112,19 +112,21 @@ WVOL__KERNEL static void FN(inv_row)(T *restrict row, size_t n, const T *restric
     }
 }
 
-/* One output row pair of the strided forward pass: a = sum_m h[m] t0[m B + x],
- * d = sum_m g[m] t0[m B + x] for x < w. Columns go in chunks of 2*VL with the
- * accumulators in registers across the taps. The in-memory pass (fwd_cols) and the
- * streamed one (zrows) both call this one function, so their coefficients are computed
- * by the same instructions: bit-identical whatever the compiler makes of the loops. */
-WVOL__KERNEL static void FN(cols_row)(T *restrict a, T *restrict d, const T *restrict t0, size_t w, size_t B,
+/* One output row pair of the strided forward pass: a = sum_m h[m] r[m][x],
+ * d = sum_m g[m] r[m][x] for x < w, r[m] the L input rows (of the scratch copy in the
+ * in-memory pass; of the window itself in the streamed one, which needs no copy: its
+ * rows are whole). Columns go in chunks of 2*VL with the accumulators in registers across
+ * the taps. The in-memory pass (fwd_cols) and the streamed one (zrows) both call this one
+ * function on the same column blocks, so their coefficients are computed by the same
+ * instructions: bit-identical whatever the compiler makes of the loops. */
+WVOL__KERNEL static void FN(cols_row)(T *restrict a, T *restrict d, const T *const *r, size_t w,
                                       const T *restrict h, const T *restrict g, int L)
 {
     size_t x, x0;
     for (x0 = 0; x0 + 2 * VL <= w; x0 += 2 * VL) {
         V a0 = VZERO, a1 = VZERO, d0 = VZERO, d1 = VZERO;
         for (int m = 0; m < L; m++) {
-            const T *tm = t0 + (size_t)m * B + x0;
+            const T *tm = r[m] + x0;
             V u0 = VLOAD(tm), u1 = VLOAD(tm + VL);
             T hm = h[m], gm = g[m];
             a0 += hm * u0, a1 += hm * u1;
@@ -136,7 +138,7 @@ WVOL__KERNEL static void FN(cols_row)(T *restrict a, T *restrict d, const T *res
     for (x = x0; x < w; x++) {
         T sa = 0, sd = 0;
         for (int m = 0; m < L; m++) {
-            T v = t0[(size_t)m * B + x];
+            T v = r[m][x];
             sa += h[m] * v;
             sd += g[m] * v;
         }
@@ -150,22 +152,26 @@ WVOL__KERNEL static void FN(fwd_cols)(T *base, size_t n, size_t stride, size_t w
                                       const T *restrict h, const T *restrict g, int L, T *restrict tmp)
 {
     size_t half = n / 2, next = n + (size_t)L - 2, i, k;
+    const T *r[WVOL__MAX_TAPS];
     for (i = 0; i < next; i++) memcpy(tmp + i * B, base + (i < n ? i : i % n) * stride, w * sizeof(T));
-    for (k = 0; k < half; k++)
-        FN(cols_row)(base + k * stride, base + (half + k) * stride, tmp + 2 * k * B, w, B, h, g, L);
+    for (k = 0; k < half; k++) {
+        for (int m = 0; m < L; m++) r[m] = tmp + (2 * k + (size_t)m) * B;
+        FN(cols_row)(base + k * stride, base + (half + k) * stride, r, w, h, g, L);
+    }
 }
 
 /* The streamed z pass (dwt3_stream.c): output rows a, d of planes cx x cy, rows y0 .. y1 - 1,
- * from the L input rows rows[m] (2k + m mod the depth), in the column blocks of width B
- * that fwd_cols uses on the same cube, each block copied to tmp (L x B) first. */
+ * from the L input rows rows[m] (2k + m mod the depth), read in place, in the column blocks
+ * of width B that fwd_cols uses on the same cube. */
 __attribute__((unused)) static void FN(zrows)(T *a, T *d, const T *const *rows, size_t cx, size_t y0, size_t y1,
-                                              size_t B, const T *h, const T *g, int L, T *tmp)
+                                              size_t B, const T *h, const T *g, int L)
 {
+    const T *r[WVOL__MAX_TAPS];
     for (size_t y = y0; y < y1; y++)
         for (size_t xb = 0; xb < cx; xb += B) {
             size_t w = cx - xb < B ? cx - xb : B, off = y * cx + xb;
-            for (int m = 0; m < L; m++) memcpy(tmp + (size_t)m * B, rows[m] + off, w * sizeof(T));
-            FN(cols_row)(a + off, d + off, tmp, w, B, h, g, L);
+            for (int m = 0; m < L; m++) r[m] = rows[m] + off;
+            FN(cols_row)(a + off, d + off, r, w, h, g, L);
         }
 }
 

@@ -98,8 +98,8 @@ wvol_status wvol_dwt3_stream_create(wvol_dwt3_stream **out, const wvol_filter *f
     for (int i = 0; i < f->length; i++) s->h[i] = (float)f->h[i], s->g[i] = (float)f->g[i];
     s->batch = BATCH;
     while (s->batch > 2 && s->batch * s->p[0] * s->p[1] * sizeof(float) > BATCH_BYTES) s->batch /= 2;
-    /* scratch per thread: the in-memory plan's for the x rows and y column blocks, and
-     * L rows of a z column block (not the plan's whole z column: that grows with the depth) */
+    /* scratch per thread: the in-memory plan's for the x rows and y column blocks (the z
+     * pass reads the window's rows in place) */
     {
         size_t need = 0, L = (size_t)s->L;
         wvol_status st = wvol__dwt_plan(&pl, s, s->p, f, levels, sizeof(float), err);
@@ -108,12 +108,10 @@ wvol_status wvol_dwt3_stream_create(wvol_dwt3_stream **out, const wvol_filter *f
             return st;
         }
         for (int m = 0; m < levels; m++) {
-            size_t cx = wvol__extent(s->p[0], m), cy = wvol__extent(s->p[1], m), cz = wvol__extent(s->p[2], m);
+            size_t cx = wvol__extent(s->p[0], m), cy = wvol__extent(s->p[1], m);
             size_t x = 4 * (cx / 2 + L), y = cy > 1 ? (cy + L) * wvol__block_width(cx, cy, s->L, sizeof(float)) : 0;
-            size_t z = L * wvol__block_width(cx, cz, s->L, sizeof(float));
             need = x > need ? x : need;
             need = y > need ? y : need;
-            need = z > need ? z : need;
         }
         s->threads = pl.threads;
         s->scratch_per = (need + 15) & ~(size_t)15;
@@ -187,12 +185,12 @@ static wvol_status emit(wvol_dwt3_stream *s, int m, size_t k, wvol_error *err)
 #pragma omp taskloop grainsize(1) if (l->plane > 32768)
             for (long long y = 0; y < ny; y += chunk)
                 wvol__dwt_zrows_f32(l->lo, l->hi, rows, l->cx, (size_t)y, (size_t)(y + chunk < ny ? y + chunk : ny),
-                                    l->cz, s->h, s->g, s->L, s->scratch + (size_t)omp_get_thread_num() * s->scratch_per);
+                                    l->cz, s->h, s->g, s->L);
         } else {
 #pragma omp parallel for schedule(dynamic, 1) num_threads(s->threads) if (l->plane > 32768)
             for (long long y = 0; y < ny; y += chunk)
                 wvol__dwt_zrows_f32(l->lo, l->hi, rows, l->cx, (size_t)y, (size_t)(y + chunk < ny ? y + chunk : ny),
-                                    l->cz, s->h, s->g, s->L, s->scratch + (size_t)omp_get_thread_num() * s->scratch_per);
+                                    l->cz, s->h, s->g, s->L);
         }
         low = l->lo, high = l->hi;
         WVOL_FORWARD(check_plane(l->hi, l->plane, m, err));
