@@ -121,6 +121,12 @@ void wvol__dwt_slice_xy_f32(float *slice, size_t cx, size_t cy, const float *h, 
     slice_xy_f32(slice, cx, cy, cx, &pl, h, g, scratch, 0);
 }
 
+void wvol__dwt_slice_xy_from_f32(float *dst, const float *src, size_t sstride, size_t ny, size_t cx, size_t cy,
+                                 const float *h, const float *g, int L, float *scratch)
+{
+    slice_xy_from_f32(dst, src, sstride, ny, cx, cy, L, h, g, scratch);
+}
+
 /* One level of the inverse along y then x on one z-slice (the in-place transform's own
  * kernels): the cx x cy corner of a slice of row length NX; scratch holds
  * wvol__idwt_slice_xy_scratch(cx, cy, L) floats. */

@@ -30,10 +30,12 @@ typedef T CAT(vec, SUF) __attribute__((vector_size(32), aligned(sizeof(T)), may_
 #define VLOAD(p) (*(const V *)(const void *)(p))
 #define VSTORE(p, v) (*(V *)(void *)(p) = (v))
 
-/* Forward, along x, one row of even length n: row[0..n/2) = a, row[n/2..n) = d. */
-WVOL__KERNEL static void FN(fwd_row)(T *restrict row, size_t n, const T *restrict h, const T *restrict g,
+/* Forward, along x, one row of even length n: dst[0..n/2) = a, dst[n/2..n) = d, from the
+ * samples src[0..n) (dst itself in place: src is read whole into e and o first). */
+WVOL__KERNEL static void FN(fwd_row)(T *dst, const T *src, size_t n, const T *restrict h, const T *restrict g,
                                      int L, T *restrict e, T *restrict o)
 {
+    const T *row = src;
     size_t half = n / 2, J = (size_t)(L + 1) / 2, next = half + J - 1, i, k, k0;
     for (i = 0; i < half; i++) {
         e[i] = row[2 * i];
@@ -43,7 +45,7 @@ WVOL__KERNEL static void FN(fwd_row)(T *restrict row, size_t n, const T *restric
         e[i] = row[(2 * i) % n];
         o[i] = row[(2 * i + 1) % n];
     }
-    T *restrict a = row, *restrict d = row + half;
+    T *restrict a = dst, *restrict d = dst + half;
     for (k0 = 0; k0 + 2 * VL <= half; k0 += 2 * VL) {
         V a0 = VZERO, a1 = VZERO, d0 = VZERO, d1 = VZERO;
         for (size_t j = 0; j < J; j++) {
@@ -214,6 +216,20 @@ WVOL__KERNEL static void FN(inv_cols)(T *base, size_t n, size_t stride, size_t w
     }
 }
 
+/* The y pass of one z-slice, forward or inverse, in column blocks. */
+static void FN(slice_y)(T *slice, size_t cx, size_t cy, size_t NX, int L, const T *h, const T *g, T *s0,
+                        int inverse)
+{
+    size_t B;
+    if (cy < 2) return;
+    B = wvol__block_width(cx, cy, L, sizeof(T));
+    for (size_t x0 = 0; x0 < cx; x0 += B) {
+        size_t w = cx - x0 < B ? cx - x0 : B;
+        if (!inverse) FN(fwd_cols)(slice + x0, cy, NX, w, B, h, g, L, s0);
+        else FN(inv_cols)(slice + x0, cy, NX, w, B, h, g, L, s0);
+    }
+}
+
 /* x then y (forward) or y then x (inverse) on one z-slice of the cube: the slice
  * (<= 256 KiB at 256^2 floats) stays in L2 between the two passes, so they cost one
  * trip to memory instead of two. */
@@ -221,23 +237,33 @@ static void FN(slice_xy)(T *slice, size_t cx, size_t cy, size_t NX, const dwt_pl
                          T *s0, int inverse)
 {
     int L = pl->L;
-    size_t ext = cx / 2 + (size_t)L, B = cy > 1 ? wvol__block_width(cx, cy, L, sizeof(T)) : 0;
+    size_t ext = cx / 2 + (size_t)L;
     for (int s = 0; s < 2; s++) {
         int axis = inverse ? 1 - s : s;
         if (axis == 0 && cx > 1) {
             for (size_t j = 0; j < cy; j++) {
                 T *row = slice + j * NX;
-                if (!inverse) FN(fwd_row)(row, cx, h, g, L, s0, s0 + ext);
+                if (!inverse) FN(fwd_row)(row, row, cx, h, g, L, s0, s0 + ext);
                 else FN(inv_row)(row, cx, h, g, L, s0, s0 + ext, s0 + 2 * ext, s0 + 3 * ext);
             }
-        } else if (axis == 1 && cy > 1) {
-            for (size_t x0 = 0; x0 < cx; x0 += B) {
-                size_t w = cx - x0 < B ? cx - x0 : B;
-                if (!inverse) FN(fwd_cols)(slice + x0, cy, NX, w, B, h, g, L, s0);
-                else FN(inv_cols)(slice + x0, cy, NX, w, B, h, g, L, s0);
-            }
+        } else if (axis == 1) {
+            FN(slice_y)(slice, cx, cy, NX, L, h, g, s0, inverse);
         }
     }
+}
+
+/* The forward x then y pass of slice_xy into the compact cx x cy slice dst, from rows of
+ * cx samples at src, sstride apart (row j of the slice from src row min(j, ny - 1): the
+ * edge padding along y), without copying them in first: the x pass reads each source row
+ * into its even/odd scratch itself. The same kernels in the same order as slice_xy on the
+ * copy: the same bits. cx >= 2 (an axis of one sample has no x pass). */
+__attribute__((unused)) static void FN(slice_xy_from)(T *dst, const T *src, size_t sstride, size_t ny, size_t cx,
+                                                      size_t cy, int L, const T *h, const T *g, T *s0)
+{
+    size_t ext = cx / 2 + (size_t)L;
+    for (size_t j = 0; j < cy; j++)
+        FN(fwd_row)(dst + j * cx, src + sstride * (j < ny ? j : ny - 1), cx, h, g, L, s0, s0 + ext);
+    FN(slice_y)(dst, cx, cy, cx, L, h, g, s0, 0);
 }
 
 /* One level, forward (inverse = 0) or inverse, on the cube c[3] at the corner of the

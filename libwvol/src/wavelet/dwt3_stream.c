@@ -202,8 +202,12 @@ static wvol_status emit(wvol_dwt3_stream *s, int m, size_t k, wvol_error *err)
     if (m < s->levels) {
         level_state *n = &s->lv[m + 1];
         float *dst = slot(n, k);
-        for (size_t y = 0; y < n->cy; y++) memcpy(dst + y * n->cx, low + y * l->cx, n->cx * sizeof(float));
-        wvol__dwt_slice_xy_f32(dst, n->cx, n->cy, s->h, s->g, s->L, s->scratch);
+        if (n->cx > 1) { /* the x pass reads the low-low quadrant's rows where they are */
+            wvol__dwt_slice_xy_from_f32(dst, low, l->cx, n->cy, n->cx, n->cy, s->h, s->g, s->L, s->scratch);
+        } else {
+            for (size_t y = 0; y < n->cy; y++) memcpy(dst + y * n->cx, low + y * l->cx, n->cx * sizeof(float));
+            wvol__dwt_slice_xy_f32(dst, n->cx, n->cy, s->h, s->g, s->L, s->scratch);
+        }
         WVOL_FORWARD(arrive(s, m + 1, k, err));
     }
     return WVOL_OK;
@@ -222,21 +226,26 @@ static wvol_status arrive(wvol_dwt3_stream *s, int m, size_t i, wvol_error *err)
     return WVOL_OK;
 }
 
-/* Slice z0 + t of level 1: copied in (edge padding), xy-transformed. */
+/* Slice z0 + t of level 1, xy-transformed into its slot: straight from the source rows when
+ * x needs no padding, else copied in first (edge padding). */
 static void take_one(wvol_dwt3_stream *s, const float *slices, size_t z0, size_t t)
 {
     level_state *l = &s->lv[1];
     size_t nx = s->n[0], ny = s->n[1];
     const float *src = slices ? slices + t * nx * ny : s->last;
     float *dst = slot(l, z0 + t);
+    float *scratch = s->scratch + (size_t)omp_get_thread_num() * s->scratch_per;
+    if (nx == l->cx && nx > 1) { /* no padding along x: the x pass reads the source rows */
+        wvol__dwt_slice_xy_from_f32(dst, src, nx, ny, l->cx, l->cy, s->h, s->g, s->L, scratch);
+        return;
+    }
     for (size_t j = 0; j < l->cy; j++) {
         const float *row = src + nx * (j < ny ? j : ny - 1); /* edge padding, as wvol_dwt3 */
         float *o = dst + j * l->cx;
         memcpy(o, row, nx * sizeof(float));
         for (size_t i = nx; i < l->cx; i++) o[i] = row[nx - 1];
     }
-    wvol__dwt_slice_xy_f32(dst, l->cx, l->cy, s->h, s->g, s->L,
-                           s->scratch + (size_t)omp_get_thread_num() * s->scratch_per);
+    wvol__dwt_slice_xy_f32(dst, l->cx, l->cy, s->h, s->g, s->L, scratch);
 }
 
 /* Padded slices z0 .. z0 + cnt - 1 of level 1 (their source rows given by src(z)). */
