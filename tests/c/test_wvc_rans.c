@@ -181,22 +181,26 @@ static void rans_round_trips_hard_cases(void)
  * the largest magnitudes with 25 raw bits) of the second case exercise. min_refused: the
  * share of the flipped bits that must be refused (the small case's tables, lengths and
  * states are most of its payload; the wide case's payload is mostly raw bits). */
-static void rans_damage_case(const size_t e[3], double scale, uint64_t seed, double min_refused)
+static uint8_t *random_payload(bands *B, const size_t e[3], double scale, int32_t add, uint64_t seed, size_t *size,
+                               const char *what)
 {
-    bands B;
-    uint8_t *buf;
-    size_t size = 0, bad = 0, refused_flips = 0;
     uint64_t rng = seed;
-    if (!bands_make(&B, 3, e, 1)) {
-        CHECK(0, "memory");
-        bands_free(&B);
-        return;
+    if (!bands_make(B, 3, e, 1)) {
+        CHECK(0, "%s: memory", what);
+        return NULL;
     }
     for (int i = 0; i < 3; i++)
         for (size_t z = 0; z < e[2]; z++)
             for (size_t y = 0; y < e[1]; y++)
-                for (size_t x = 0; x < e[0]; x++) *at(&B, i, x, y, z) = draw(&rng, scale);
-    buf = round_trip(&B, &size, "damage fixture");
+                for (size_t x = 0; x < e[0]; x++) *at(B, i, x, y, z) = draw(&rng, scale) + add;
+    return round_trip(B, size, what);
+}
+
+static void rans_damage_case(const size_t e[3], double scale, uint64_t seed, double min_refused)
+{
+    bands B;
+    size_t size = 0, bad = 0, refused_flips = 0;
+    uint8_t *buf = random_payload(&B, e, scale, 0, seed, &size, "damage fixture");
     for (size_t len = 0; buf && len < size; len++) {
         int32_t *D[8];
         const size_t *P[8];
@@ -278,18 +282,8 @@ static void rans_short_stream_is_stopped(int which)
     uint8_t *buf, *t;
     size_t size = 0, pos = 0, lenpos, o;
     uint32_t v, len[3][3];
-    uint64_t rng = 5 + (uint64_t)which;
     int ok = 1;
-    if (!bands_make(&B, 3, e, 1)) {
-        CHECK(0, "memory");
-        bands_free(&B);
-        return;
-    }
-    for (int i = 0; i < 3; i++)
-        for (size_t z = 0; z < e[2]; z++)
-            for (size_t y = 0; y < e[1]; y++)
-                for (size_t x = 0; x < e[0]; x++) *at(&B, i, x, y, z) = draw(&rng, 3e6) + 1;
-    buf = round_trip(&B, &size, "short stream fixture");
+    buf = random_payload(&B, e, 3e6, 1, 5 + (uint64_t)which, &size, "short stream fixture");
     /* the tables: 52 magnitude contexts (a count, then that many frequencies), 189 signs */
     for (int c = 0; buf && ok && c < 52; c++) {
         uint32_t ns, f;
