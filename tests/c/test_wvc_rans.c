@@ -175,24 +175,32 @@ static void rans_round_trips_hard_cases(void)
 
 /* Every truncation of a payload is refused; every flipped bit is decoded or refused
  * (raw bits carry no redundancy: the file's CRC-32 per chunk is what catches them), and
- * under ASan/UBSan nothing is read outside the payload. */
-static void rans_refuses_truncation_and_survives_bit_flips(void)
+ * under ASan/UBSan nothing is read outside the payload, nor outside the decoder's padded
+ * copies of the streams: a damaged state runs a stream past its end by up to a row's
+ * worth of reads before the decoder's per-row check stops it, which the wide rows (64,
+ * the largest magnitudes with 25 raw bits) of the second case exercise. min_refused: the
+ * share of the flipped bits that must be refused (the small case's tables, lengths and
+ * states are most of its payload; the wide case's payload is mostly raw bits). */
+static uint8_t *random_payload(bands *B, const size_t e[3], double scale, int32_t add, uint64_t seed, size_t *size,
+                               const char *what)
 {
-    const size_t e[3] = {6, 5, 4};
-    bands B;
-    uint8_t *buf;
-    size_t size = 0, bad = 0, refused_flips = 0;
-    uint64_t rng = 99;
-    if (!bands_make(&B, 3, e, 1)) {
-        CHECK(0, "memory");
-        bands_free(&B);
-        return;
+    uint64_t rng = seed;
+    if (!bands_make(B, 3, e, 1)) {
+        CHECK(0, "%s: memory", what);
+        return NULL;
     }
     for (int i = 0; i < 3; i++)
         for (size_t z = 0; z < e[2]; z++)
             for (size_t y = 0; y < e[1]; y++)
-                for (size_t x = 0; x < e[0]; x++) *at(&B, i, x, y, z) = draw(&rng, 6);
-    buf = round_trip(&B, &size, "damage fixture");
+                for (size_t x = 0; x < e[0]; x++) *at(B, i, x, y, z) = draw(&rng, scale) + add;
+    return round_trip(B, size, what);
+}
+
+static void rans_damage_case(const size_t e[3], double scale, uint64_t seed, double min_refused)
+{
+    bands B;
+    size_t size = 0, bad = 0, refused_flips = 0;
+    uint8_t *buf = random_payload(&B, e, scale, 0, seed, &size, "damage fixture");
     for (size_t len = 0; buf && len < size; len++) {
         int32_t *D[8];
         const size_t *P[8];
@@ -233,9 +241,100 @@ static void rans_refuses_truncation_and_survives_bit_flips(void)
         free(t);
     }
     /* the tables, lengths and states are checked: most flips outside the raw bits are caught */
-    CHECK(refused_flips > 4 * size, "only %zu of %zu bit flips refused", refused_flips, 8 * size);
+    CHECK((double)refused_flips > min_refused * 8.0 * (double)size, "only %zu of %zu bit flips refused (%ux%ux%u)",
+          refused_flips, 8 * size, (unsigned)e[0], (unsigned)e[1], (unsigned)e[2]);
     free(buf);
     bands_free(&B);
+}
+
+/* Reads the LEB128 value at *pos (the payload's own encoding); -1 past the end. */
+static int get_varint(const uint8_t *b, size_t size, size_t *pos, uint32_t *v)
+{
+    *v = 0;
+    for (int sh = 0; sh < 35 && *pos < size; sh += 7) {
+        uint8_t c = b[(*pos)++];
+        *v |= (uint32_t)(c & 0x7F) << sh;
+        if (!(c & 0x80)) return 0;
+    }
+    return -1;
+}
+
+static size_t put_varint(uint8_t *d, uint32_t v)
+{
+    size_t n = 0;
+    do {
+        d[n++] = (uint8_t)((v & 0x7F) | (v >= 0x80 ? 0x80 : 0));
+        v >>= 7;
+    } while (v);
+    return n;
+}
+
+/* Stream lengths that add up but leave band 0's magnitude stream (which = 0) or its raw
+ * bits (which = 1) far too short for its coefficients: the decoder reads zeros past the
+ * stream's end (its copy is padded by one row's worth of reads) and must stop at the end
+ * of the first row, with a reason, not run on through the band (ASan sees a read past the
+ * padding). Rows of 64 with large magnitudes: a row takes 64 words and up to 64 x 25 raw
+ * bits. */
+static void rans_short_stream_is_stopped(int which)
+{
+    const size_t e[3] = {64, 4, 3};
+    bands B;
+    uint8_t *buf, *t;
+    size_t size = 0, pos = 0, lenpos, o;
+    uint32_t v, len[3][3];
+    int ok = 1;
+    buf = random_payload(&B, e, 3e6, 1, 5 + (uint64_t)which, &size, "short stream fixture");
+    /* the tables: 52 magnitude contexts (a count, then that many frequencies), 189 signs */
+    for (int c = 0; buf && ok && c < 52; c++) {
+        uint32_t ns, f;
+        ok = !get_varint(buf, size, &pos, &ns);
+        for (uint32_t k = 0; ok && k < ns; k++) ok = !get_varint(buf, size, &pos, &f);
+    }
+    for (int c = 0; buf && ok && c < 189; c++) ok = !get_varint(buf, size, &pos, &v);
+    lenpos = pos;
+    for (int i = 0; buf && ok && i < 3; i++)
+        for (int k = 0; ok && k < 3; k++) ok = !get_varint(buf, size, &pos, &len[i][k]);
+    CHECK(buf && ok, "short stream fixture: payload header not parsed");
+    t = buf && ok ? malloc(size + 16) : NULL;
+    if (t) {
+        const uint32_t need = which == 0 ? len[0][0] - 4 : len[0][2] & ~1u; /* bytes moved */
+        uint64_t nz;
+        const char *why = NULL;
+        int32_t *D[8];
+        const size_t *P[8];
+        const wvc_band *Bp[8];
+        /* more than the padding (65 words; 240 bytes of raw bits), or the test shows nothing */
+        CHECK(need > (which == 0 ? 4 * 65 : 2 * 240), "short stream fixture: stream %d of band 0 holds only %u bytes",
+              which, need);
+        if (which == 0) len[0][0] = 4, len[0][2] += need; /* no magnitude words; raw bits get them */
+        else len[0][2] -= need, len[0][1] += need;        /* almost no raw bits; the sign stream gets them */
+        memcpy(t, buf, lenpos);
+        o = lenpos;
+        for (int i = 0; i < 3; i++)
+            for (int k = 0; k < 3; k++) o += put_varint(t + o, len[i][k]);
+        memcpy(t + o, buf + pos, size - pos);
+        o += size - pos;
+        for (int i = 0; i < 3; i++) {
+            D[i] = calloc(B.p[i][0] * e[1] * e[2], sizeof(int32_t));
+            P[i] = B.p[i];
+            Bp[i] = &B.b[i];
+        }
+        CHECK(wvol__wvc_rans_decode(3, D, P, Bp, t, o, &nz, &why) != 0 && why && why[0],
+              "stream %d of band 0 cut short: decoded, or refused without a reason", which);
+        for (int i = 0; i < 3; i++) free(D[i]);
+    }
+    free(t);
+    free(buf);
+    bands_free(&B);
+}
+
+static void rans_refuses_truncation_and_survives_bit_flips(void)
+{
+    const size_t small[3] = {6, 5, 4}, wide[3] = {64, 3, 2};
+    rans_damage_case(small, 6, 99, 0.5);
+    rans_damage_case(wide, 5000, 7, 0.05);
+    rans_short_stream_is_stopped(0);
+    rans_short_stream_is_stopped(1);
 }
 
 /* --coder auto: mode 3 for the dense chunks of a fine quantiser, none for a coarse one

@@ -51,6 +51,7 @@
 #define R3_NC (R3_NA * R3_NP) /* magnitude contexts */
 #define R3_NS 62              /* magnitude symbols: 0, 1, 2n + b for n = 1..30 */
 #define R3_NSG (7 * 27)       /* sign contexts */
+#define R3_RAWMAX 29          /* raw bits of a magnitude symbol, at most (symbol 61) */
 #ifndef R3_PBITS
 #define R3_PBITS 11
 #endif
@@ -522,8 +523,11 @@ done:
 
 /* ---- decoder ---- */
 
-/* One band's decoder state: its streams (copied with zero padding, so that reads clamp
- * at the end; the caller checks afterwards that exactly everything was read). */
+/* One band's decoder state: its streams, copied with zero padding of a row's worth of
+ * reads past their ends (a coefficient takes at most one word from each rANS stream and
+ * R3_RAWMAX raw bits), so that the per-coefficient step reads without bounds checks: the
+ * lockstep loop checks after every row that no stream was read past its end (an error),
+ * and the caller afterwards that exactly everything was read. */
 typedef struct r3_lane {
     int32_t *Q;
     const size_t *p;
@@ -532,18 +536,18 @@ typedef struct r3_lane {
     int32_t *zrow;
     uint16_t *mw, *sw; /* words after the state */
     size_t mn, sn, mpos, spos;
-    uint8_t *raw; /* rawbytes + 8 zero bytes */
+    uint8_t *raw; /* rawbytes + the padding */
     size_t rawbytes;
     uint64_t bitpos, count;
     uint32_t xm, xs, over;
 } r3_lane;
 
 /* Renormalisation, at most one word: shifts and masks, no branch (whether a word is
- * due is hard to predict). */
-static inline uint32_t r3_renorm(uint32_t x, const uint16_t *w, size_t n, size_t *pos)
+ * due is hard to predict). w is padded (r3_lane_open). */
+static inline uint32_t r3_renorm(uint32_t x, const uint16_t *w, size_t *pos)
 {
     const uint32_t r = x < R3_L;
-    const uint32_t v = w[*pos < n ? *pos : n];
+    const uint32_t v = w[*pos];
     *pos += r;
     return (x << (r << 4)) | (v & (0u - r));
 }
@@ -566,16 +570,18 @@ typedef struct r3_hot {
 } r3_hot;
 
 /* One coefficient of a lane: *c from the streams; h->aW, h->sW: its left neighbour's |q|
- * (capped) and sign class, updated. Returns 0, or -1 when its context has no table. */
+ * (capped) and sign class, updated. Returns 0, or -1 when its context has no table. The
+ * non-zeros and the range of the magnitudes are counted and checked per row, afterwards
+ * (r3_row_check), not in the chain. */
 FORCE_INLINE int r3_step(const r3_lane *L, r3_hot *h, const r3_tabs *T, int32_t *c, size_t x)
 {
     const uint32_t cx = r3_mag_ctx(L->w.A[x] + 2 * h->aW, L->w.PC[x]);
     uint32_t e, s, nzm, f0, slot, neg, a, k, bits;
-    uint64_t word, at, st;
+    uint64_t word, st;
     e = T->flat[cx * R3_M + (h->xm & (R3_M - 1))];
     s = e & 63;
     h->xm = (e >> R3_FSHIFT & (2 * R3_M - 1)) * (h->xm >> R3_PBITS) + (e >> R3_OSHIFT);
-    h->xm = r3_renorm(h->xm, L->mw, L->mn, &h->mpos);
+    h->xm = r3_renorm(h->xm, L->mw, &h->mpos);
     /* the sign: an identity step (entry R3_NSG: frequency 2^11) for a zero; masks, not
      * branches, as a zero is hard to predict */
     nzm = 0u - (uint32_t)(s != 0);
@@ -586,21 +592,33 @@ FORCE_INLINE int r3_step(const r3_lane *L, r3_hot *h, const r3_tabs *T, int32_t 
         const uint32_t nm = 0u - neg;
         h->xs = (f0 ^ ((f0 ^ (R3_M - f0)) & nm)) * (h->xs >> R3_PBITS) + slot - (f0 & nm);
     }
-    h->xs = r3_renorm(h->xs, L->sw, L->sn, &h->spos);
-    /* the raw bits: one unaligned load at the clamped byte position */
+    h->xs = r3_renorm(h->xs, L->sw, &h->spos);
+    /* the raw bits: one unaligned load (the stream is padded) */
     st = r3_symtab[s];
     k = r3_symraw[s];
-    at = h->bitpos >> 3 < L->rawbytes ? h->bitpos >> 3 : L->rawbytes;
-    memcpy(&word, L->raw + at, 8);
+    memcpy(&word, L->raw + (h->bitpos >> 3), 8);
     bits = (uint32_t)(word >> (h->bitpos & 7)) & (uint32_t)(st >> 32);
     h->bitpos += k;
     a = (uint32_t)st | bits;
-    h->over |= a > WVC_QMAX;
-    *c = (int32_t)((a ^ (0u - neg)) + neg);
-    h->count += s != 0;
+    *c = (int32_t)((a ^ (0u - neg)) + neg); /* a < 2^31: |*c| = a */
     h->aW = a > 65535 ? 65535 : a;
     h->sW = (s != 0) + neg; /* neg is 0 for a zero */
     return (int)(T->unused >> cx & 1);
+}
+
+/* A decoded row: its non-zeros added to h->count, h->over set if a magnitude passes
+ * WVC_QMAX (a vectorised pass: the row is in L1). */
+static inline void r3_row_check(r3_hot *h, const int32_t *restrict c, size_t ex)
+{
+    uint64_t nz = 0;
+    uint32_t over = 0;
+    for (size_t x = 0; x < ex; x++) {
+        const uint32_t a = c[x] < 0 ? (uint32_t)0 - (uint32_t)c[x] : (uint32_t)c[x];
+        nz += c[x] != 0;
+        over |= a > WVC_QMAX;
+    }
+    h->count += nz;
+    h->over |= over;
 }
 
 static inline void r3_hot_in(r3_hot *h, const r3_lane *L)
@@ -642,8 +660,13 @@ FORCE_INLINE int r3_lanes(int K, r3_lane *L, const r3_tabs *T, const char **why)
                     break;
                 }
             }
-            if (!r && (h0.over || h0.bitpos > 8 * (uint64_t)L[0].rawbytes ||
-                       (K == 2 && (h1.over || h1.bitpos > 8 * (uint64_t)L[1].rawbytes)))) {
+            r3_row_check(&h0, c0, ex);
+            if (K == 2) r3_row_check(&h1, c1, ex);
+            /* past a stream's end: the next row's reads could pass the padding */
+            if (!r && (h0.over || h0.bitpos > 8 * (uint64_t)L[0].rawbytes || h0.mpos > L[0].mn ||
+                       h0.spos > L[0].sn ||
+                       (K == 2 && (h1.over || h1.bitpos > 8 * (uint64_t)L[1].rawbytes || h1.mpos > L[1].mn ||
+                                   h1.spos > L[1].sn)))) {
                 *why = h0.over || (K == 2 && h1.over) ? "magnitude out of range" : "coded data ends early";
                 r = -1;
             }
@@ -663,15 +686,16 @@ WVOL__CLONES static int r3_lanes1(r3_lane *lanes, const r3_tabs *T, const char *
     return r3_lanes(1, lanes, T, why);
 }
 
-/* Copies a band's streams from src (lengths already checked against the payload). */
-static int r3_lane_open(r3_lane *L, const uint8_t *src, size_t mlen, size_t slen, size_t rlen)
+/* Copies a band's streams from src (lengths already checked against the payload), each
+ * with zeros after it for the reads of one row of ex coefficients past its end. */
+static int r3_lane_open(r3_lane *L, const uint8_t *src, size_t mlen, size_t slen, size_t rlen, size_t ex)
 {
     L->mn = (mlen - 4) / 2;
     L->sn = (slen - 4) / 2;
     L->rawbytes = rlen;
-    L->mw = calloc(L->mn + 1, sizeof *L->mw);
-    L->sw = calloc(L->sn + 1, sizeof *L->sw);
-    L->raw = calloc(rlen + 8, 1);
+    L->mw = calloc(L->mn + ex + 1, sizeof *L->mw);
+    L->sw = calloc(L->sn + ex + 1, sizeof *L->sw);
+    L->raw = calloc(rlen + (R3_RAWMAX * ex + 7) / 8 + 8, 1);
     if (!L->mw || !L->sw || !L->raw) return -1;
     memcpy(&L->xm, src, 4);
     memcpy(L->mw, src + 4, 2 * L->mn);
@@ -773,7 +797,7 @@ int wvol__wvc_rans_decode(int n, int32_t *const Q[], const size_t *const p[], co
             *why = "chunk mode 3 needs detail bands of one extent";
             goto done;
         }
-        if (r3_row_alloc(&L->w, &L->zrow, 1, &b[i]) || r3_lane_open(L, buf + pos, len[i][0], len[i][1], len[i][2])) {
+        if (r3_row_alloc(&L->w, &L->zrow, 1, &b[i]) || r3_lane_open(L, buf + pos, len[i][0], len[i][1], len[i][2], b[i]->ext[0])) {
             *why = "out of memory";
             goto done;
         }

@@ -121,6 +121,12 @@ void wvol__dwt_slice_xy_f32(float *slice, size_t cx, size_t cy, const float *h, 
     slice_xy_f32(slice, cx, cy, cx, &pl, h, g, scratch, 0);
 }
 
+void wvol__dwt_slice_xy_from_f32(float *dst, const float *src, size_t sstride, size_t ny, size_t cx, size_t cy,
+                                 const float *h, const float *g, int L, float *scratch)
+{
+    slice_xy_from_f32(dst, src, sstride, ny, cx, cy, L, h, g, scratch);
+}
+
 /* One level of the inverse along y then x on one z-slice (the in-place transform's own
  * kernels): the cx x cy corner of a slice of row length NX; scratch holds
  * wvol__idwt_slice_xy_scratch(cx, cy, L) floats. */
@@ -144,7 +150,7 @@ void wvol__idwt_slice_xy_f32(float *slice, size_t cx, size_t cy, size_t NX, cons
 }
 
 void wvol__dwt_zrows_f32(float *a, float *d, const float *const *rows, size_t cx, size_t y0, size_t y1, size_t cz,
-                         const float *h, const float *g, int L, float *tmp)
+                         const float *h, const float *g, int L)
 {
-    zrows_f32(a, d, rows, cx, y0, y1, wvol__block_width(cx, cz, L, sizeof(float)), h, g, L, tmp);
+    zrows_f32(a, d, rows, cx, y0, y1, wvol__block_width(cx, cz, L, sizeof(float)), h, g, L);
 }

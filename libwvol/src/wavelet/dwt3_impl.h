@@ -30,10 +30,12 @@ typedef T CAT(vec, SUF) __attribute__((vector_size(32), aligned(sizeof(T)), may_
 #define VLOAD(p) (*(const V *)(const void *)(p))
 #define VSTORE(p, v) (*(V *)(void *)(p) = (v))
 
-/* Forward, along x, one row of even length n: row[0..n/2) = a, row[n/2..n) = d. */
-WVOL__KERNEL static void FN(fwd_row)(T *restrict row, size_t n, const T *restrict h, const T *restrict g,
+/* Forward, along x, one row of even length n: dst[0..n/2) = a, dst[n/2..n) = d, from the
+ * samples src[0..n) (dst itself in place: src is read whole into e and o first). */
+WVOL__KERNEL static void FN(fwd_row)(T *dst, const T *src, size_t n, const T *restrict h, const T *restrict g,
                                      int L, T *restrict e, T *restrict o)
 {
+    const T *row = src;
     size_t half = n / 2, J = (size_t)(L + 1) / 2, next = half + J - 1, i, k, k0;
     for (i = 0; i < half; i++) {
         e[i] = row[2 * i];
@@ -43,7 +45,7 @@ WVOL__KERNEL static void FN(fwd_row)(T *restrict row, size_t n, const T *restric
         e[i] = row[(2 * i) % n];
         o[i] = row[(2 * i + 1) % n];
     }
-    T *restrict a = row, *restrict d = row + half;
+    T *restrict a = dst, *restrict d = dst + half;
     for (k0 = 0; k0 + 2 * VL <= half; k0 += 2 * VL) {
         V a0 = VZERO, a1 = VZERO, d0 = VZERO, d1 = VZERO;
         for (size_t j = 0; j < J; j++) {
@@ -112,19 +114,21 @@ WVOL__KERNEL static void FN(inv_row)(T *restrict row, size_t n, const T *restric
     }
 }
 
-/* One output row pair of the strided forward pass: a = sum_m h[m] t0[m B + x],
- * d = sum_m g[m] t0[m B + x] for x < w. Columns go in chunks of 2*VL with the
- * accumulators in registers across the taps. The in-memory pass (fwd_cols) and the
- * streamed one (zrows) both call this one function, so their coefficients are computed
- * by the same instructions: bit-identical whatever the compiler makes of the loops. */
-WVOL__KERNEL static void FN(cols_row)(T *restrict a, T *restrict d, const T *restrict t0, size_t w, size_t B,
+/* One output row pair of the strided forward pass: a = sum_m h[m] r[m][x],
+ * d = sum_m g[m] r[m][x] for x < w, r[m] the L input rows (of the scratch copy in the
+ * in-memory pass; of the window itself in the streamed one, which needs no copy: its
+ * rows are whole). Columns go in chunks of 2*VL with the accumulators in registers across
+ * the taps. The in-memory pass (fwd_cols) and the streamed one (zrows) both call this one
+ * function on the same column blocks, so their coefficients are computed by the same
+ * instructions: bit-identical whatever the compiler makes of the loops. */
+WVOL__KERNEL static void FN(cols_row)(T *restrict a, T *restrict d, const T *const *r, size_t w,
                                       const T *restrict h, const T *restrict g, int L)
 {
     size_t x, x0;
     for (x0 = 0; x0 + 2 * VL <= w; x0 += 2 * VL) {
         V a0 = VZERO, a1 = VZERO, d0 = VZERO, d1 = VZERO;
         for (int m = 0; m < L; m++) {
-            const T *tm = t0 + (size_t)m * B + x0;
+            const T *tm = r[m] + x0;
             V u0 = VLOAD(tm), u1 = VLOAD(tm + VL);
             T hm = h[m], gm = g[m];
             a0 += hm * u0, a1 += hm * u1;
@@ -136,7 +140,7 @@ WVOL__KERNEL static void FN(cols_row)(T *restrict a, T *restrict d, const T *res
     for (x = x0; x < w; x++) {
         T sa = 0, sd = 0;
         for (int m = 0; m < L; m++) {
-            T v = t0[(size_t)m * B + x];
+            T v = r[m][x];
             sa += h[m] * v;
             sd += g[m] * v;
         }
@@ -150,22 +154,26 @@ WVOL__KERNEL static void FN(fwd_cols)(T *base, size_t n, size_t stride, size_t w
                                       const T *restrict h, const T *restrict g, int L, T *restrict tmp)
 {
     size_t half = n / 2, next = n + (size_t)L - 2, i, k;
+    const T *r[WVOL__MAX_TAPS];
     for (i = 0; i < next; i++) memcpy(tmp + i * B, base + (i < n ? i : i % n) * stride, w * sizeof(T));
-    for (k = 0; k < half; k++)
-        FN(cols_row)(base + k * stride, base + (half + k) * stride, tmp + 2 * k * B, w, B, h, g, L);
+    for (k = 0; k < half; k++) {
+        for (int m = 0; m < L; m++) r[m] = tmp + (2 * k + (size_t)m) * B;
+        FN(cols_row)(base + k * stride, base + (half + k) * stride, r, w, h, g, L);
+    }
 }
 
 /* The streamed z pass (dwt3_stream.c): output rows a, d of planes cx x cy, rows y0 .. y1 - 1,
- * from the L input rows rows[m] (2k + m mod the depth), in the column blocks of width B
- * that fwd_cols uses on the same cube, each block copied to tmp (L x B) first. */
+ * from the L input rows rows[m] (2k + m mod the depth), read in place, in the column blocks
+ * of width B that fwd_cols uses on the same cube. */
 __attribute__((unused)) static void FN(zrows)(T *a, T *d, const T *const *rows, size_t cx, size_t y0, size_t y1,
-                                              size_t B, const T *h, const T *g, int L, T *tmp)
+                                              size_t B, const T *h, const T *g, int L)
 {
+    const T *r[WVOL__MAX_TAPS];
     for (size_t y = y0; y < y1; y++)
         for (size_t xb = 0; xb < cx; xb += B) {
             size_t w = cx - xb < B ? cx - xb : B, off = y * cx + xb;
-            for (int m = 0; m < L; m++) memcpy(tmp + (size_t)m * B, rows[m] + off, w * sizeof(T));
-            FN(cols_row)(a + off, d + off, tmp, w, B, h, g, L);
+            for (int m = 0; m < L; m++) r[m] = rows[m] + off;
+            FN(cols_row)(a + off, d + off, r, w, h, g, L);
         }
 }
 
@@ -208,6 +216,20 @@ WVOL__KERNEL static void FN(inv_cols)(T *base, size_t n, size_t stride, size_t w
     }
 }
 
+/* The y pass of one z-slice, forward or inverse, in column blocks. */
+static void FN(slice_y)(T *slice, size_t cx, size_t cy, size_t NX, int L, const T *h, const T *g, T *s0,
+                        int inverse)
+{
+    size_t B;
+    if (cy < 2) return;
+    B = wvol__block_width(cx, cy, L, sizeof(T));
+    for (size_t x0 = 0; x0 < cx; x0 += B) {
+        size_t w = cx - x0 < B ? cx - x0 : B;
+        if (!inverse) FN(fwd_cols)(slice + x0, cy, NX, w, B, h, g, L, s0);
+        else FN(inv_cols)(slice + x0, cy, NX, w, B, h, g, L, s0);
+    }
+}
+
 /* x then y (forward) or y then x (inverse) on one z-slice of the cube: the slice
  * (<= 256 KiB at 256^2 floats) stays in L2 between the two passes, so they cost one
  * trip to memory instead of two. */
@@ -215,23 +237,33 @@ static void FN(slice_xy)(T *slice, size_t cx, size_t cy, size_t NX, const dwt_pl
                          T *s0, int inverse)
 {
     int L = pl->L;
-    size_t ext = cx / 2 + (size_t)L, B = cy > 1 ? wvol__block_width(cx, cy, L, sizeof(T)) : 0;
+    size_t ext = cx / 2 + (size_t)L;
     for (int s = 0; s < 2; s++) {
         int axis = inverse ? 1 - s : s;
         if (axis == 0 && cx > 1) {
             for (size_t j = 0; j < cy; j++) {
                 T *row = slice + j * NX;
-                if (!inverse) FN(fwd_row)(row, cx, h, g, L, s0, s0 + ext);
+                if (!inverse) FN(fwd_row)(row, row, cx, h, g, L, s0, s0 + ext);
                 else FN(inv_row)(row, cx, h, g, L, s0, s0 + ext, s0 + 2 * ext, s0 + 3 * ext);
             }
-        } else if (axis == 1 && cy > 1) {
-            for (size_t x0 = 0; x0 < cx; x0 += B) {
-                size_t w = cx - x0 < B ? cx - x0 : B;
-                if (!inverse) FN(fwd_cols)(slice + x0, cy, NX, w, B, h, g, L, s0);
-                else FN(inv_cols)(slice + x0, cy, NX, w, B, h, g, L, s0);
-            }
+        } else if (axis == 1) {
+            FN(slice_y)(slice, cx, cy, NX, L, h, g, s0, inverse);
         }
     }
+}
+
+/* The forward x then y pass of slice_xy into the compact cx x cy slice dst, from rows of
+ * cx samples at src, sstride apart (row j of the slice from src row min(j, ny - 1): the
+ * edge padding along y), without copying them in first: the x pass reads each source row
+ * into its even/odd scratch itself. The same kernels in the same order as slice_xy on the
+ * copy: the same bits. cx >= 2 (an axis of one sample has no x pass). */
+__attribute__((unused)) static void FN(slice_xy_from)(T *dst, const T *src, size_t sstride, size_t ny, size_t cx,
+                                                      size_t cy, int L, const T *h, const T *g, T *s0)
+{
+    size_t ext = cx / 2 + (size_t)L;
+    for (size_t j = 0; j < cy; j++)
+        FN(fwd_row)(dst + j * cx, src + sstride * (j < ny ? j : ny - 1), cx, h, g, L, s0, s0 + ext);
+    FN(slice_y)(dst, cx, cy, cx, L, h, g, s0, 0);
 }
 
 /* One level, forward (inverse = 0) or inverse, on the cube c[3] at the corner of the

@@ -98,8 +98,8 @@ wvol_status wvol_dwt3_stream_create(wvol_dwt3_stream **out, const wvol_filter *f
     for (int i = 0; i < f->length; i++) s->h[i] = (float)f->h[i], s->g[i] = (float)f->g[i];
     s->batch = BATCH;
     while (s->batch > 2 && s->batch * s->p[0] * s->p[1] * sizeof(float) > BATCH_BYTES) s->batch /= 2;
-    /* scratch per thread: the in-memory plan's for the x rows and y column blocks, and
-     * L rows of a z column block (not the plan's whole z column: that grows with the depth) */
+    /* scratch per thread: the in-memory plan's for the x rows and y column blocks (the z
+     * pass reads the window's rows in place) */
     {
         size_t need = 0, L = (size_t)s->L;
         wvol_status st = wvol__dwt_plan(&pl, s, s->p, f, levels, sizeof(float), err);
@@ -108,12 +108,10 @@ wvol_status wvol_dwt3_stream_create(wvol_dwt3_stream **out, const wvol_filter *f
             return st;
         }
         for (int m = 0; m < levels; m++) {
-            size_t cx = wvol__extent(s->p[0], m), cy = wvol__extent(s->p[1], m), cz = wvol__extent(s->p[2], m);
+            size_t cx = wvol__extent(s->p[0], m), cy = wvol__extent(s->p[1], m);
             size_t x = 4 * (cx / 2 + L), y = cy > 1 ? (cy + L) * wvol__block_width(cx, cy, s->L, sizeof(float)) : 0;
-            size_t z = L * wvol__block_width(cx, cz, s->L, sizeof(float));
             need = x > need ? x : need;
             need = y > need ? y : need;
-            need = z > need ? z : need;
         }
         s->threads = pl.threads;
         s->scratch_per = (need + 15) & ~(size_t)15;
@@ -187,12 +185,12 @@ static wvol_status emit(wvol_dwt3_stream *s, int m, size_t k, wvol_error *err)
 #pragma omp taskloop grainsize(1) if (l->plane > 32768)
             for (long long y = 0; y < ny; y += chunk)
                 wvol__dwt_zrows_f32(l->lo, l->hi, rows, l->cx, (size_t)y, (size_t)(y + chunk < ny ? y + chunk : ny),
-                                    l->cz, s->h, s->g, s->L, s->scratch + (size_t)omp_get_thread_num() * s->scratch_per);
+                                    l->cz, s->h, s->g, s->L);
         } else {
 #pragma omp parallel for schedule(dynamic, 1) num_threads(s->threads) if (l->plane > 32768)
             for (long long y = 0; y < ny; y += chunk)
                 wvol__dwt_zrows_f32(l->lo, l->hi, rows, l->cx, (size_t)y, (size_t)(y + chunk < ny ? y + chunk : ny),
-                                    l->cz, s->h, s->g, s->L, s->scratch + (size_t)omp_get_thread_num() * s->scratch_per);
+                                    l->cz, s->h, s->g, s->L);
         }
         low = l->lo, high = l->hi;
         WVOL_FORWARD(check_plane(l->hi, l->plane, m, err));
@@ -204,8 +202,12 @@ static wvol_status emit(wvol_dwt3_stream *s, int m, size_t k, wvol_error *err)
     if (m < s->levels) {
         level_state *n = &s->lv[m + 1];
         float *dst = slot(n, k);
-        for (size_t y = 0; y < n->cy; y++) memcpy(dst + y * n->cx, low + y * l->cx, n->cx * sizeof(float));
-        wvol__dwt_slice_xy_f32(dst, n->cx, n->cy, s->h, s->g, s->L, s->scratch);
+        if (n->cx > 1) { /* the x pass reads the low-low quadrant's rows where they are */
+            wvol__dwt_slice_xy_from_f32(dst, low, l->cx, n->cy, n->cx, n->cy, s->h, s->g, s->L, s->scratch);
+        } else {
+            for (size_t y = 0; y < n->cy; y++) memcpy(dst + y * n->cx, low + y * l->cx, n->cx * sizeof(float));
+            wvol__dwt_slice_xy_f32(dst, n->cx, n->cy, s->h, s->g, s->L, s->scratch);
+        }
         WVOL_FORWARD(arrive(s, m + 1, k, err));
     }
     return WVOL_OK;
@@ -224,21 +226,26 @@ static wvol_status arrive(wvol_dwt3_stream *s, int m, size_t i, wvol_error *err)
     return WVOL_OK;
 }
 
-/* Slice z0 + t of level 1: copied in (edge padding), xy-transformed. */
+/* Slice z0 + t of level 1, xy-transformed into its slot: straight from the source rows when
+ * x needs no padding, else copied in first (edge padding). */
 static void take_one(wvol_dwt3_stream *s, const float *slices, size_t z0, size_t t)
 {
     level_state *l = &s->lv[1];
     size_t nx = s->n[0], ny = s->n[1];
     const float *src = slices ? slices + t * nx * ny : s->last;
     float *dst = slot(l, z0 + t);
+    float *scratch = s->scratch + (size_t)omp_get_thread_num() * s->scratch_per;
+    if (nx == l->cx && nx > 1) { /* no padding along x: the x pass reads the source rows */
+        wvol__dwt_slice_xy_from_f32(dst, src, nx, ny, l->cx, l->cy, s->h, s->g, s->L, scratch);
+        return;
+    }
     for (size_t j = 0; j < l->cy; j++) {
         const float *row = src + nx * (j < ny ? j : ny - 1); /* edge padding, as wvol_dwt3 */
         float *o = dst + j * l->cx;
         memcpy(o, row, nx * sizeof(float));
         for (size_t i = nx; i < l->cx; i++) o[i] = row[nx - 1];
     }
-    wvol__dwt_slice_xy_f32(dst, l->cx, l->cy, s->h, s->g, s->L,
-                           s->scratch + (size_t)omp_get_thread_num() * s->scratch_per);
+    wvol__dwt_slice_xy_f32(dst, l->cx, l->cy, s->h, s->g, s->L, scratch);
 }
 
 /* Padded slices z0 .. z0 + cnt - 1 of level 1 (their source rows given by src(z)). */

@@ -43,11 +43,16 @@ wvol_status wvol__idwt3_partial_f32(float *data, size_t nx, size_t ny, size_t nz
 
 /* The streamed transform's kernels (float32), the same as the in-memory level's: the x
  * then y pass of one compact cx x cy slice (scratch as the plan sizes it), and the z pass
- * of rows y0 .. y1 - 1 of a cube of cz slices from the L rows 2k .. 2k + L - 1 (mod cz)
- * (tmp: L x wvol__block_width(cx, cz, L, 4) floats, within the plan's scratch). */
+ * of rows y0 .. y1 - 1 of a cube of cz slices from the L rows 2k .. 2k + L - 1 (mod cz),
+ * read in place (cz sets the column blocks, those of the in-memory z pass). */
 void wvol__dwt_slice_xy_f32(float *slice, size_t cx, size_t cy, const float *h, const float *g, int L,
                             float *scratch);
+/* The x then y pass of slice_xy_f32 on cx x cy slice dst made from rows of cx samples at
+ * src, sstride apart, row j from src row min(j, ny - 1), without a copy first (cx >= 2;
+ * bit-identical to copying the rows in and calling wvol__dwt_slice_xy_f32). */
+void wvol__dwt_slice_xy_from_f32(float *dst, const float *src, size_t sstride, size_t ny, size_t cx, size_t cy,
+                                 const float *h, const float *g, int L, float *scratch);
 void wvol__dwt_zrows_f32(float *a, float *d, const float *const *rows, size_t cx, size_t y0, size_t y1, size_t cz,
-                         const float *h, const float *g, int L, float *tmp);
+                         const float *h, const float *g, int L);
 
 #endif
