@@ -157,6 +157,8 @@ def run_wvol(build, raw, n, iso, threads, reps, extra=(), program=None):
     r = json.loads(stdout)
     r["cpu"] = ru.ru_utime + ru.ru_stime
     r["seconds_first"] = r["seconds"].get("extract_first", r["seconds"]["extract"])
+    if "extract_cpu" in r["seconds"]:  # this build's CLI; a baseline program may predate it
+        r["cpu_extract"], r["cpu_first"] = r["seconds"]["extract_cpu"], r["seconds"]["extract_first_cpu"]
     r["seconds"] = r["seconds"]["extract"]
     return r
 
@@ -234,19 +236,6 @@ def raytrace_rows(args, phantoms, tmp):
     return rows
 
 
-def run_wvol_cpu(args, raw, n, iso, t, extra, program=None):
-    """A command's extraction in CPU seconds as well as wall clock: a process of 1 extraction and
-    one of 1 + args.reps; their CPU difference over args.reps is the CPU of an extraction after
-    the first (the mean, not the fastest: a process's CPU time is one number), which the other
-    tenants of a shared machine disturb far less than its wall clock. The wall clock fields are
-    the longer process's (fastest and first extraction)."""
-    one = run_wvol(args.build, raw, n, iso, t, 1, extra, program)
-    r = run_wvol(args.build, raw, n, iso, t, 1 + args.reps, extra, program)
-    if "error" not in r and "error" not in one:
-        r["cpu_extract"] = (r["cpu"] - one["cpu"]) / args.reps
-    return r
-
-
 def brick_rows(args, raw, name, n, iso, t):
     """The brick path's rows for one volume: per (wavelet, keep) the brick path from a store,
     dense MC on the original and the full inverse + MC, alternated over args.rounds processes
@@ -258,16 +247,18 @@ def brick_rows(args, raw, name, n, iso, t):
     best = {}
 
     def keep_best(key, r):
-        if key not in best or ("seconds" in r and r["seconds"] < best[key].get("seconds", float("inf"))):
-            best[key] = dict(r, cpu_extract=min(r.get("cpu_extract", float("inf")),
-                                                best.get(key, {}).get("cpu_extract", float("inf"))))
-        elif "cpu_extract" in r:
-            best[key]["cpu_extract"] = min(best[key].get("cpu_extract", float("inf")), r["cpu_extract"])
+        """The fastest process's fields; the CPU seconds, fastest and first, the least over the rounds."""
+        old = best.get(key, {})
+        if key not in best or ("seconds" in r and r["seconds"] < old.get("seconds", float("inf"))):
+            best[key] = dict(r)
+        for k in ("cpu_extract", "cpu_first"):
+            if k in r or k in old:
+                best[key][k] = min(r.get(k, float("inf")), old.get(k, float("inf")))
 
     for _ in range(args.rounds):
         for key, extra in cmds:
             for tag, prog in progs:
-                keep_best(tag + key, run_wvol_cpu(args, raw, n, iso, t, extra, prog))
+                keep_best(tag + key, run_wvol(args.build, raw, n, iso, t, args.reps, extra, prog))
         for w, k in cases:
             keep_best(f"full {w} {k}", run_wvol(args.build, raw, n, iso, t, args.reps,
                                                 ["--wavelet", w, "--levels", "3", "--keep", k, "--brick", "0"]))
@@ -282,14 +273,14 @@ def brick_rows(args, raw, name, n, iso, t):
                     "seconds_bounds", "seconds_reconstruct_mesh", "error"):
             if key in b:
                 e[key] = b[key]
-        e["cpu_seconds"] = b.get("cpu_extract")
+        e["cpu_seconds"], e["cpu_seconds_first"] = b.get("cpu_extract"), b.get("cpu_first")
+        e["dense_cpu_seconds_first"] = dense.get("cpu_first")
         if args.bricks_baseline:
             bb, bd = best[f"base bricks {w} {k}"], best["base dense"]
-            e["baseline"] = {"seconds": bb.get("seconds"), "cpu_seconds": bb.get("cpu_extract"),
-                             "seconds_first": bb.get("seconds_first"), "triangles": bb.get("triangles"),
-                             "bricks_skipped": bb.get("bricks_skipped"), "dense_seconds": bd.get("seconds"),
-                             "dense_cpu_seconds": bd.get("cpu_extract"),
-                             "dense_seconds_first": bd.get("seconds_first"), "error": bb.get("error")}
+            e["baseline"] = {"seconds": bb.get("seconds"), "seconds_first": bb.get("seconds_first"),
+                             "triangles": bb.get("triangles"), "bricks_skipped": bb.get("bricks_skipped"),
+                             "dense_seconds": bd.get("seconds"), "dense_seconds_first": bd.get("seconds_first"),
+                             "error": bb.get("error")}
         rows.append(e)
         print(f"{name:8s} {n}^3 bricks {w} {k}: {e.get('seconds', float('nan')) * 1e3:.1f} ms vs dense MC "
               f"{(e['dense_seconds'] or float('nan')) * 1e3:.1f} ms, {e.get('bricks_skipped')} of "
@@ -315,25 +306,24 @@ def write_md(res, out, name, tools):
     bl = res.get("bricks_run", {})
     base = bl.get("baseline")
     lines += ["", "Brick path (marching cubes from kept coefficients, 3 levels, 32^3-cell bricks"
-              + (f"; {bl['threads']} thread(s), {bl['rounds']} alternated rounds, load average "
+              + (f"; {bl['threads']} thread(s), {bl['rounds']} alternated rounds of processes, load average "
                  f"{bl['load_avg_start']:.1f} at start, {bl['load_avg_end']:.1f} at end" if bl else "")
               + "). Dense MC = wvol's marching cubes on the original volume in memory, same run and threads; "
               "ratio = brick path / dense MC (the goal: <= 2x). ms: the fastest of "
-              f"{bl.get('reps', '?')} extractions after a process's first, wall clock; they read the store's "
-              "block view and brick bounds as the store keeps them after its first brick read. CPU ms: the "
-              "process CPU of those extractions (a process of 1 extraction subtracted from one of "
-              f"1 + {bl.get('reps', '?')}, over their number; the least over the rounds), which the machine's "
-              "other tenants disturb far less than the wall clock. first: the process's first extraction, which "
-              "makes the view and the bounds (wall clock, against dense MC's first). bounds = the view and the "
-              "bricks' bounds in the fastest extraction; full inverse + MC = the whole inverse transform then "
-              "dense MC"
-              + (f"; main = {base}, run alternated with this build in the same rounds (same mesh: its triangle "
-                 "count is checked)" if base else "") + ":", "",
+              f"{bl.get('reps', '?')} extractions in a process, wall clock; after the first they read the store's "
+              "block view and brick bounds as the store keeps them. CPU ms: the least process CPU seconds of an "
+              "extraction (`wvol iso --json`'s extract_cpu), which the machine's other tenants disturb far less "
+              "than the wall clock; both the least over the rounds. first: the process's first extraction, which "
+              "makes the view and the bounds (against dense MC's first). bounds = the view and the bricks' bounds "
+              "in the fastest extraction; full inverse + MC = the whole inverse transform then dense MC"
+              + (f"; main = {base}, run alternated with this build in the same rounds (wall clock only: its CLI "
+                 "does not report CPU seconds; `iso_mc_profile.md` compares the two in thread CPU seconds)"
+                 if base else "") + ":", "",
               "| phantom | size | wavelet | keep | ms | dense MC ms | ratio | CPU ms | dense MC CPU ms | CPU ratio "
-              "| first ms | dense first ms | first ratio | bricks skipped | bounds ms | reconstruct+mesh ms "
-              "| full inverse + MC ms |" + (" main CPU ratio | main ratio | main first ratio | CPU ms vs main |"
-                                           if base else ""),
-              "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|" + ("---|---|---|---|" if base else "")]
+              "| first ms | dense first ms | first ratio | first CPU ratio | bricks skipped | bounds ms "
+              "| reconstruct+mesh ms | full inverse + MC ms |"
+              + (" main ms | main dense MC ms | main ratio | main first ratio | same triangles as main |" if base else ""),
+              "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|" + ("---|" * 5 if base else "")]
 
     def ratio(a, b):
         return f"{a / b:.2f}x" if a and b else "-"
@@ -344,22 +334,22 @@ def write_md(res, out, name, tools):
     for e in res["bricks"]:
         if "error" in e:
             lines.append(f"| {e['phantom']} | {e.get('n', n)}^3 | {e['wavelet']} | {e['keep']} | error: {e['error']} "
-                         "|" + " |" * (12 + (4 if base else 0)))
+                         "|" + " |" * (13 + (5 if base else 0)))
             continue
         dense, dcpu = e.get("dense_seconds"), e.get("dense_cpu_seconds")
         first, dfirst = e.get("seconds_first"), e.get("dense_seconds_first")
         row = (f"| {e['phantom']} | {e.get('n', n)}^3 | {e['wavelet']} | {e['keep']} | {ms(e['seconds'])} | "
                f"{ms(dense)} | {ratio(e['seconds'], dense)} | {ms(e.get('cpu_seconds'))} | {ms(dcpu)} | "
                f"{ratio(e.get('cpu_seconds'), dcpu)} | {ms(first)} | {ms(dfirst)} | {ratio(first, dfirst)} | "
+               f"{ratio(e.get('cpu_seconds_first'), e.get('dense_cpu_seconds_first'))} | "
                f"{e['bricks_skipped']}/{e['bricks_total']} | {ms(e['seconds_bounds'])} | "
                f"{ms(e['seconds_reconstruct_mesh'])} | {ms(e['one_brick_seconds'])} |")
         if base:
             b = e.get("baseline") or {}
-            same = "" if b.get("triangles") == e.get("triangles") else " (triangles differ!)"
-            row += (f" {ratio(b.get('cpu_seconds'), b.get('dense_cpu_seconds'))} | "
+            row += (f" {ms(b.get('seconds'))} | {ms(b.get('dense_seconds'))} | "
                     f"{ratio(b.get('seconds'), b.get('dense_seconds'))} | "
                     f"{ratio(b.get('seconds_first'), b.get('dense_seconds_first'))} | "
-                    f"{ratio(e.get('cpu_seconds'), b.get('cpu_seconds'))}{same} |")
+                    f"{'yes' if b.get('triangles') == e.get('triangles') else 'NO'} |")
         lines.append(row)
     if res.get("raytrace"):
         rt = res["raytrace"]
