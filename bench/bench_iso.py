@@ -22,10 +22,12 @@ runs just these rows and merges them into an existing iso.json / iso.md.
 
 Brick rows alone (`--bricks-only 256,512`): at each size, per phantom, the brick path from a
 store (haar 5%, db2 5%, db2 100%, 3 levels) against wvol's dense marching cubes on the original
-volume and against the full inverse transform + dense MC, the three commands alternated over
---rounds processes (each the fastest of --reps extractions in one process: every extraction
-builds the store's block view and bounds again), with the ratio to dense MC (goal <= 2x);
-merged into the existing iso.json / iso.md.
+volume and against the full inverse transform + dense MC, the commands alternated over --rounds
+processes (each the fastest of --reps extractions in one process, wall clock and process CPU
+seconds; the first builds the store's block view and bounds, which the later ones reuse), with
+the ratio to dense MC (goal <= 2x); `--bricks-baseline PROGRAM` runs another wvol's brick path
+and dense MC (e.g. main's) alternated with this build's; merged into the existing iso.json /
+iso.md (the brick-path section only).
 
 Goal (issue 6): wvol at least as fast as vtkFlyingEdges3D at the same thread count.
 Writes bench/results/iso.json and bench/results/iso.md.
@@ -36,7 +38,8 @@ vdb_render and the exact f^ tracer, same camera and iso-value; bench/results/iso
 Usage: /usr/bin/python3 bench/bench_iso.py [--n 256] [--reps 5] [--build build] [--quick]
        /usr/bin/python3 bench/bench_iso.py --cast [--quick]
        /usr/bin/python3 bench/bench_iso.py --raytrace-only [--rt-size 512x512] [--rt-keep 1%,5%,100%]
-       /usr/bin/python3 bench/bench_iso.py --bricks-only 256,512 --threads 1 [--reps 3] [--rounds 2]
+       /usr/bin/python3 bench/bench_iso.py --bricks-only 256,512 --threads 1 [--reps 5] [--rounds 2]
+                                           [--bricks-baseline /path/to/main/wvol]
 """
 import argparse
 import json
@@ -289,6 +292,24 @@ def brick_rows(args, raw, name, n, iso, t):
     return rows
 
 
+def splice_section(old, new, head):
+    """old with its section starting at the line beginning with head (that line, a blank line and
+    the table after it) replaced by new's; old as it is if either lacks it."""
+    def bounds(lines):
+        s = next((i for i, l in enumerate(lines) if l.startswith(head)), None)
+        if s is None:
+            return None
+        e = s + 2
+        while e < len(lines) and lines[e].startswith("|"):
+            e += 1
+        return s, e
+    ol, nl = old.split("\n"), new.split("\n")
+    ob, nb = bounds(ol), bounds(nl)
+    if not ob or not nb:
+        return old
+    return "\n".join(ol[:ob[0]] + nl[nb[0]:nb[1]] + ol[ob[1]:])
+
+
 def write_md(res, out, name, tools):
     n = res["n"]
     lines = [f"# Isosurface benchmark ({n}^3, fastest of {res['reps']}, {res['machine']['cpu']}, "
@@ -478,7 +499,11 @@ def main():
                     raw.unlink()
         res["bricks_run"]["load_avg_end"] = os.getloadavg()[0]
         (out / f"{rname}.json").write_text(json.dumps(res, indent=1) + "\n")
+        md = out / f"{rname}.md"
+        old = md.read_text() if md.exists() else None
         write_md(res, out, rname, tools)
+        if old:  # only the brick-path section changes: notes written beside the other tables stay
+            md.write_text(splice_section(old, md.read_text(), "Brick path ("))
         return
     if args.raytrace_only:
         res = json.loads((out / f"{rname}.json").read_text())
