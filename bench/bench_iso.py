@@ -22,10 +22,12 @@ runs just these rows and merges them into an existing iso.json / iso.md.
 
 Brick rows alone (`--bricks-only 256,512`): at each size, per phantom, the brick path from a
 store (haar 5%, db2 5%, db2 100%, 3 levels) against wvol's dense marching cubes on the original
-volume and against the full inverse transform + dense MC, the three commands alternated over
---rounds processes (each the fastest of --reps extractions in one process: every extraction
-builds the store's block view and bounds again), with the ratio to dense MC (goal <= 2x);
-merged into the existing iso.json / iso.md.
+volume and against the full inverse transform + dense MC, the commands alternated over --rounds
+processes (each the fastest of --reps extractions in one process, wall clock and process CPU
+seconds; the first builds the store's block view and bounds, which the later ones reuse), with
+the ratio to dense MC (goal <= 2x); `--bricks-baseline PROGRAM` runs another wvol's brick path
+and dense MC (e.g. main's) alternated with this build's; merged into the existing iso.json /
+iso.md (the brick-path section only).
 
 Goal (issue 6): wvol at least as fast as vtkFlyingEdges3D at the same thread count.
 Writes bench/results/iso.json and bench/results/iso.md.
@@ -36,7 +38,8 @@ vdb_render and the exact f^ tracer, same camera and iso-value; bench/results/iso
 Usage: /usr/bin/python3 bench/bench_iso.py [--n 256] [--reps 5] [--build build] [--quick]
        /usr/bin/python3 bench/bench_iso.py --cast [--quick]
        /usr/bin/python3 bench/bench_iso.py --raytrace-only [--rt-size 512x512] [--rt-keep 1%,5%,100%]
-       /usr/bin/python3 bench/bench_iso.py --bricks-only 256,512 --threads 1 [--reps 3] [--rounds 2]
+       /usr/bin/python3 bench/bench_iso.py --bricks-only 256,512 --threads 1 [--reps 5] [--rounds 2]
+                                           [--bricks-baseline /path/to/main/wvol]
 """
 import argparse
 import json
@@ -141,14 +144,24 @@ def run_peer(tool, raw, n, iso, threads, reps):
     return json.loads(p.stdout.strip().splitlines()[-1])
 
 
-def run_wvol(build, raw, n, iso, threads, reps, extra=()):
-    cmd = ["taskset", "-c", cpus(threads), str(pathlib.Path(build) / "wvol"), "iso", str(raw), "--dims", str(n),
-           "--iso", str(iso), "--threads", str(threads), "--repeat", str(reps), "--json", *extra]
-    p = subprocess.run(cmd, capture_output=True, text=True, timeout=3600)
-    if p.returncode != 0:
-        return {"error": p.stderr.strip()}
-    r = json.loads(p.stdout)
+def run_wvol(build, raw, n, iso, threads, reps, extra=(), program=None):
+    """One `wvol iso` process (program, else build/wvol); "cpu": its user + system CPU seconds."""
+    cmd = ["taskset", "-c", cpus(threads), program or str(pathlib.Path(build) / "wvol"), "iso", str(raw), "--dims",
+           str(n), "--iso", str(iso), "--threads", str(threads), "--repeat", str(reps), "--json", *extra]
+    with tempfile.TemporaryFile("w+") as out, tempfile.TemporaryFile("w+") as err:
+        proc = subprocess.Popen(cmd, stdout=out, stderr=err, text=True)
+        _, status, ru = os.wait4(proc.pid, 0)
+        proc.returncode = os.waitstatus_to_exitcode(status)
+        out.seek(0)
+        err.seek(0)
+        stdout, stderr = out.read(), err.read()
+    if proc.returncode != 0:
+        return {"error": stderr.strip()}
+    r = json.loads(stdout)
+    r["cpu"] = ru.ru_utime + ru.ru_stime
     r["seconds_first"] = r["seconds"].get("extract_first", r["seconds"]["extract"])
+    if "extract_cpu" in r["seconds"]:  # this build's CLI; a baseline program may predate it
+        r["cpu_extract"], r["cpu_first"] = r["seconds"]["extract_cpu"], r["seconds"]["extract_first_cpu"]
     r["seconds"] = r["seconds"]["extract"]
     return r
 
@@ -229,33 +242,72 @@ def raytrace_rows(args, phantoms, tmp):
 def brick_rows(args, raw, name, n, iso, t):
     """The brick path's rows for one volume: per (wavelet, keep) the brick path from a store,
     dense MC on the original and the full inverse + MC, alternated over args.rounds processes
-    (each the fastest of args.reps extractions), the fastest of each kept."""
+    (each the fastest of args.reps extractions), the fastest of each kept; with
+    --bricks-baseline, that program's brick path and dense MC too, alternated with ours."""
     cases = [("haar", "5%"), ("db2", "5%"), ("db2", "100%")]
     cmds = [("dense", [])] + [(f"bricks {w} {k}", ["--wavelet", w, "--levels", "3", "--keep", k]) for w, k in cases]
-    cmds += [(f"full {w} {k}", ["--wavelet", w, "--levels", "3", "--keep", k, "--brick", "0"]) for w, k in cases]
+    progs = [("", None)] + ([("base ", args.bricks_baseline)] if args.bricks_baseline else [])
     best = {}
+
+    def keep_best(key, r):
+        """The fastest process's fields; the CPU seconds, fastest and first, the least over the rounds."""
+        old = best.get(key, {})
+        if key not in best or ("seconds" in r and r["seconds"] < old.get("seconds", float("inf"))):
+            best[key] = dict(r)
+        for k in ("cpu_extract", "cpu_first"):
+            if k in r or k in old:
+                best[key][k] = min(r.get(k, float("inf")), old.get(k, float("inf")))
+
     for _ in range(args.rounds):
         for key, extra in cmds:
-            r = run_wvol(args.build, raw, n, iso, t, args.reps, extra)
-            if key not in best or ("seconds" in r and r["seconds"] < best[key].get("seconds", float("inf"))):
-                best[key] = r
+            for tag, prog in progs:
+                keep_best(tag + key, run_wvol(args.build, raw, n, iso, t, args.reps, extra, prog))
+        for w, k in cases:
+            keep_best(f"full {w} {k}", run_wvol(args.build, raw, n, iso, t, args.reps,
+                                                ["--wavelet", w, "--levels", "3", "--keep", k, "--brick", "0"]))
     rows = []
     for w, k in cases:
         b, full, dense = best[f"bricks {w} {k}"], best[f"full {w} {k}"], best["dense"]
         e = {"phantom": name, "n": n, "wavelet": w, "keep": k, "threads": t,
              "dense_seconds": dense.get("seconds"), "dense_triangles": dense.get("triangles"),
-             "dense_seconds_first": dense.get("seconds_first"),
+             "dense_seconds_first": dense.get("seconds_first"), "dense_cpu_seconds": dense.get("cpu_extract"),
              "one_brick_seconds": full.get("seconds")}
         for key in ("seconds", "seconds_first", "triangles", "area", "bricks_total", "bricks_skipped",
                     "seconds_bounds", "seconds_reconstruct_mesh", "error"):
             if key in b:
                 e[key] = b[key]
+        e["cpu_seconds"], e["cpu_seconds_first"] = b.get("cpu_extract"), b.get("cpu_first")
+        e["dense_cpu_seconds_first"] = dense.get("cpu_first")
+        if args.bricks_baseline:
+            bb, bd = best[f"base bricks {w} {k}"], best["base dense"]
+            e["baseline"] = {"seconds": bb.get("seconds"), "seconds_first": bb.get("seconds_first"),
+                             "triangles": bb.get("triangles"), "bricks_skipped": bb.get("bricks_skipped"),
+                             "dense_seconds": bd.get("seconds"), "dense_seconds_first": bd.get("seconds_first"),
+                             "error": bb.get("error")}
         rows.append(e)
         print(f"{name:8s} {n}^3 bricks {w} {k}: {e.get('seconds', float('nan')) * 1e3:.1f} ms vs dense MC "
               f"{(e['dense_seconds'] or float('nan')) * 1e3:.1f} ms, {e.get('bricks_skipped')} of "
               f"{e.get('bricks_total')} skipped; full inverse + MC {(e['one_brick_seconds'] or float('nan')) * 1e3:.1f} ms",
               flush=True)
     return rows
+
+
+def splice_section(old, new, head):
+    """old with its section starting at the line beginning with head (that line, a blank line and
+    the table after it) replaced by new's; old as it is if either lacks it."""
+    def bounds(lines):
+        s = next((i for i, l in enumerate(lines) if l.startswith(head)), None)
+        if s is None:
+            return None
+        e = s + 2
+        while e < len(lines) and lines[e].startswith("|"):
+            e += 1
+        return s, e
+    ol, nl = old.split("\n"), new.split("\n")
+    ob, nb = bounds(ol), bounds(nl)
+    if not ob or not nb:
+        return old
+    return "\n".join(ol[:ob[0]] + nl[nb[0]:nb[1]] + ol[ob[1]:])
 
 
 def write_md(res, out, name, tools):
@@ -273,33 +325,53 @@ def write_md(res, out, name, tools):
             lines.append(f"| {row['phantom']} | {row['threads']} | {tool} | {r['seconds'] * 1e3:.2f} | "
                          f"{r['triangles']} | {r['area']:.1f} | {sp:.2f}x |")
     bl = res.get("bricks_run", {})
+    base = bl.get("baseline")
     lines += ["", "Brick path (marching cubes from kept coefficients, 3 levels, 32^3-cell bricks"
-              + (f"; {bl['threads']} thread(s), fastest of {bl['reps']} in each of {bl['rounds']} alternated "
-                 f"processes, load average {bl['load_avg_start']:.1f} at start, {bl['load_avg_end']:.1f} at end"
-                 if bl else "") + "). Dense MC = wvol's marching cubes on the original volume in memory, same run "
-              "and threads; ratio = brick path / dense MC (the goal: <= 2x). ms: the fastest extraction, which "
-              "reads the store's block view and brick bounds as the store keeps them after its first brick read; "
-              "first: the process's first extraction, which makes them (each against dense MC's first). Bounds = "
-              "the view and the bricks' bounds in the fastest extraction; full inverse + MC = the whole inverse "
-              "transform then dense MC:", "",
-              "| phantom | size | wavelet | keep | ms | dense MC ms | ratio | first ms | dense first ms | first ratio "
-              "| bricks skipped | bounds ms | reconstruct+mesh ms | full inverse + MC ms |",
-              "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
+              + (f"; {bl['threads']} thread(s), {bl['rounds']} alternated rounds of processes, load average "
+                 f"{bl['load_avg_start']:.1f} at start, {bl['load_avg_end']:.1f} at end" if bl else "")
+              + "). Dense MC = wvol's marching cubes on the original volume in memory, same run and threads; "
+              "ratio = brick path / dense MC (the goal: <= 2x). ms: the fastest of "
+              f"{bl.get('reps', '?')} extractions in a process, wall clock; after the first they read the store's "
+              "block view and brick bounds as the store keeps them. CPU ms: the least process CPU seconds of an "
+              "extraction (`wvol iso --json`'s extract_cpu), which the machine's other tenants disturb far less "
+              "than the wall clock; both the least over the rounds. first: the process's first extraction, which "
+              "makes the view and the bounds (against dense MC's first). bounds = the view and the bricks' bounds "
+              "in the fastest extraction; full inverse + MC = the whole inverse transform then dense MC"
+              + (f"; main = {base}, run alternated with this build in the same rounds (wall clock only: its CLI "
+                 "does not report CPU seconds; `iso_mc_profile.md` compares the two in thread CPU seconds)"
+                 if base else "") + ":", "",
+              "| phantom | size | wavelet | keep | ms | dense MC ms | ratio | CPU ms | dense MC CPU ms | CPU ratio "
+              "| first ms | dense first ms | first ratio | first CPU ratio | bricks skipped | bounds ms "
+              "| reconstruct+mesh ms | full inverse + MC ms |"
+              + (" main ms | main dense MC ms | main ratio | main first ratio | same triangles as main |" if base else ""),
+              "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|" + ("---|" * 5 if base else "")]
+
+    def ratio(a, b):
+        return f"{a / b:.2f}x" if a and b else "-"
+
+    def ms(x):
+        return f"{x * 1e3:.1f}" if x else "-"
+
     for e in res["bricks"]:
         if "error" in e:
             lines.append(f"| {e['phantom']} | {e.get('n', n)}^3 | {e['wavelet']} | {e['keep']} | error: {e['error']} "
-                         "|" + " |" * 9)
+                         "|" + " |" * (13 + (5 if base else 0)))
             continue
-        dense = e.get("dense_seconds")
+        dense, dcpu = e.get("dense_seconds"), e.get("dense_cpu_seconds")
         first, dfirst = e.get("seconds_first"), e.get("dense_seconds_first")
-        first_cols = (f"{first * 1e3:.1f} | {dfirst * 1e3:.1f} | {first / dfirst:.2f}x" if first and dfirst
-                      else "- | - | -")
-        lines.append(f"| {e['phantom']} | {e.get('n', n)}^3 | {e['wavelet']} | {e['keep']} | {e['seconds'] * 1e3:.1f} | "
-                     f"{dense * 1e3 if dense else float('nan'):.1f} | "
-                     f"{e['seconds'] / dense if dense else float('nan'):.2f}x | {first_cols} | "
-                     f"{e['bricks_skipped']}/{e['bricks_total']} | {e['seconds_bounds'] * 1e3:.1f} | "
-                     f"{e['seconds_reconstruct_mesh'] * 1e3:.1f} | "
-                     f"{(e['one_brick_seconds'] or float('nan')) * 1e3:.1f} |")
+        row = (f"| {e['phantom']} | {e.get('n', n)}^3 | {e['wavelet']} | {e['keep']} | {ms(e['seconds'])} | "
+               f"{ms(dense)} | {ratio(e['seconds'], dense)} | {ms(e.get('cpu_seconds'))} | {ms(dcpu)} | "
+               f"{ratio(e.get('cpu_seconds'), dcpu)} | {ms(first)} | {ms(dfirst)} | {ratio(first, dfirst)} | "
+               f"{ratio(e.get('cpu_seconds_first'), e.get('dense_cpu_seconds_first'))} | "
+               f"{e['bricks_skipped']}/{e['bricks_total']} | {ms(e['seconds_bounds'])} | "
+               f"{ms(e['seconds_reconstruct_mesh'])} | {ms(e['one_brick_seconds'])} |")
+        if base:
+            b = e.get("baseline") or {}
+            row += (f" {ms(b.get('seconds'))} | {ms(b.get('dense_seconds'))} | "
+                    f"{ratio(b.get('seconds'), b.get('dense_seconds'))} | "
+                    f"{ratio(b.get('seconds_first'), b.get('dense_seconds_first'))} | "
+                    f"{'yes' if b.get('triangles') == e.get('triangles') else 'NO'} |")
+        lines.append(row)
     if res.get("raytrace"):
         rt = res["raytrace"]
         lines += ["", f"Ray tracer (`wvol iso --method raytrace`, f^ = iso of db2 with 3 levels from a store, camera "
@@ -351,6 +423,9 @@ def main():
                     help="only the brick path's rows at these sizes (e.g. 256,512), each against dense MC on the "
                          "original in the same run, merged into the existing results")
     ap.add_argument("--rounds", type=int, default=2, help="--bricks-only: alternated processes per command")
+    ap.add_argument("--bricks-baseline", default="",
+                    help="--bricks-only: another wvol program (e.g. main's) run alternated with this build")
+    ap.add_argument("--bricks-baseline-note", default="", help="--bricks-baseline: what it is, for the report")
     ap.add_argument("--rt-size", default="512x512", help="ray tracer image size (default 512x512)")
     ap.add_argument("--rt-size-override", default="",
                     help="per-row sizes, e.g. 'skull:100%%=128x128,gaussian:100%%=256x256' (labelled in the table)")
@@ -412,7 +487,8 @@ def main():
         res = json.loads((out / f"{rname}.json").read_text())
         t = max(threads)
         res["bricks_run"] = {"threads": t, "reps": args.reps, "rounds": args.rounds,
-                             "load_avg_start": os.getloadavg()[0]}
+                             "load_avg_start": os.getloadavg()[0],
+                             "baseline": args.bricks_baseline_note or args.bricks_baseline or None}
         res["bricks"] = []
         for size in (int(x) for x in args.bricks_only.split(",")):
             with tempfile.TemporaryDirectory() as tmp:
@@ -423,7 +499,11 @@ def main():
                     raw.unlink()
         res["bricks_run"]["load_avg_end"] = os.getloadavg()[0]
         (out / f"{rname}.json").write_text(json.dumps(res, indent=1) + "\n")
+        md = out / f"{rname}.md"
+        old = md.read_text() if md.exists() else None
         write_md(res, out, rname, tools)
+        if old:  # only the brick-path section changes: notes written beside the other tables stay
+            md.write_text(splice_section(old, md.read_text(), "Brick path ("))
         return
     if args.raytrace_only:
         res = json.loads((out / f"{rname}.json").read_text())

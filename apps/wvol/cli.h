@@ -119,5 +119,6 @@ int cli_make_dirs(const char *dir);
 
 /* Seconds from a monotonic clock. */
 double cli_now(void);
+double cli_cpu_now(void); /* the process's CPU seconds, all threads (benchmark timings on a shared machine) */
 
 #endif

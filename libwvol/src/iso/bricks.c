@@ -180,15 +180,19 @@ static void mesh_brick(brick_out *o, const brick_grid *g, const size_t bidx[3], 
     }
 }
 
+/* The index of key in the sorted keys[0 .. n), or -1. Branch-free halving (a conditional
+ * move per step): the keys looked up land anywhere in the owner's array, and the branches
+ * of a plain binary search mispredicted at every step. */
 static long find_key(const uint64_t *keys, size_t n, uint64_t key)
 {
-    size_t lo = 0, hi = n;
-    while (lo < hi) {
-        size_t mid = lo + (hi - lo) / 2;
-        if (keys[mid] < key) lo = mid + 1;
-        else hi = mid;
+    const uint64_t *b = keys;
+    if (n == 0) return -1;
+    while (n > 1) {
+        size_t half = n / 2;
+        b = b[half] <= key ? b + half : b; /* key, if there, stays in [b, b + n - half) */
+        n -= half;
     }
-    return lo < n && keys[lo] == key ? (long)lo : -1;
+    return *b == key ? (long)(b - keys) : -1;
 }
 
 /* The mesh of the reconstruction of coefficients c, or of store sto (the other NULL). */
@@ -201,6 +205,7 @@ static wvol_status extract_bricks(wvol_mesh **out, const wvol_coeffs *c, const w
     wvol__store_blocks *blocks = NULL;
     brick_grid g;
     size_t nbricks, nneed = 0, nrun = 0, i, *need = NULL, *slot = NULL, *run = NULL, nv = 0, nt = 0, misses = 0;
+    size_t nomem = 0;
     brick_out *res = NULL;
     wvol_mesh *m = NULL;
     wvol_status s = WVOL_OK;
@@ -370,7 +375,6 @@ static wvol_status extract_bricks(wvol_mesh **out, const wvol_coeffs *c, const w
     }
     s = wvol_mesh_create(&m, nv, nt, p->normals != WVOL_ISO_NORMALS_NONE, err);
     if (s != WVOL_OK) goto done;
-    memset(m->tris, 0xff, 3 * nt * sizeof *m->tris);
     {
         long q;
         size_t tri_base = 0;
@@ -384,14 +388,17 @@ static wvol_status extract_bricks(wvol_mesh **out, const wvol_coeffs *c, const w
             tri_base += res[i].mesh->ntris;
         }
 #ifdef _OPENMP
-#pragma omp parallel for schedule(dynamic, 4) num_threads(nth) if (nth > 1) reduction(+ : misses)
+#pragma omp parallel for schedule(dynamic, 4) num_threads(nth) if (nth > 1) reduction(+ : misses, nomem)
 #endif
         for (q = 0; q < (long)nneed; q++) {
             brick_out *o = &res[q];
             wvol_mesh *bm = o->mesh;
             uint32_t *map = malloc((bm->nverts + 1) * sizeof *map);
             size_t k, r = 0, t;
-            if (!map) continue; /* reported below through the triangle check */
+            if (!map) {
+                nomem++;
+                continue;
+            }
             for (k = 0; k < bm->nverts; k++) {
                 if (o->owned[k]) {
                     size_t gid = o->base + r++;
@@ -427,11 +434,10 @@ static wvol_status extract_bricks(wvol_mesh **out, const wvol_coeffs *c, const w
                            misses);
         goto done;
     }
-    for (i = 0; i < 3 * nt; i++)
-        if (m->tris[i] >= nv) {
-            s = wvol_error_set(err, WVOL_ERR_NOMEM, "iso: out of memory while stitching bricks");
-            goto done;
-        }
+    if (nomem) {
+        s = wvol_error_set(err, WVOL_ERR_NOMEM, "iso: out of memory while stitching bricks");
+        goto done;
+    }
     st->seconds[2] = t2 - t1;
     st->seconds[3] = wvol__now() - t0;
     if (nt == 0) {

@@ -333,18 +333,40 @@ WVOL__SYNTH static void synth_x_planned(float *out, const float *lo, const float
 {
     ptrdiff_t rel[SYNTH_PLAN_MAX], first[SYNTH_PLAN_MAX + 1], r0[SYNTH_PLAN_MAX], L = f->length, nt = 0;
     ptrdiff_t p0 = (o0 & 1) ? 1 : 0, p1; /* the pairs: outputs p0 .. p1 - 1, the first of each even */
-    float wh[SYNTH_PLAN_MAX], wg[SYNTH_PLAN_MAX];
-    int paired, taps, which = (lo ? 1 : 0) | (hi ? 2 : 0);
+    ptrdiff_t off = 0, span = 0;
+    float wh[SYNTH_PLAN_MAX], wg[SYNTH_PLAN_MAX], ext[2][SYNTH_PLAN_MAX];
+    int paired, taps, which = (lo ? 1 : 0) | (hi ? 2 : 0), unwrap = 0;
+    /* A whole period (full): the taps wrap around the row. Planned on the unwrapped
+     * positions instead, each row copied first into ext with its wrap-around continued
+     * (span positions from -off), the taps become consecutive and the pairs apply: the
+     * same values summed in the same order, without the scalar loop at every output. */
+    if (full) {
+        ptrdiff_t rmin = 0, rmax = 0;
+        for (ptrdiff_t i = 0; i < on; i++) {
+            ptrdiff_t gi = o0 + i, kmin = -floor_div2(L - 1 - gi), kmax = floor_div2(gi);
+            if (i == 0 || kmin - k0 < rmin) rmin = kmin - k0;
+            if (i == 0 || kmax - k0 > rmax) rmax = kmax - k0;
+        }
+        off = -rmin;
+        span = rmax - rmin + 1;
+        unwrap = span <= SYNTH_PLAN_MAX;
+    }
     for (ptrdiff_t i = 0; i < on; i++) {
         ptrdiff_t gi = o0 + i, kmin, kmax, r;
-        tap_range(gi, L, k0, kn, full, &kmin, &kmax, &r);
+        if (unwrap) {
+            kmin = -floor_div2(L - 1 - gi);
+            kmax = floor_div2(gi);
+            r = kmin - k0 + off;
+        } else {
+            tap_range(gi, L, k0, kn, full, &kmin, &kmax, &r);
+        }
         first[i] = nt;
         r0[i] = r;
         for (ptrdiff_t k = kmin; k <= kmax; k++) {
             rel[nt] = r;
             wh[nt] = f->h[gi - 2 * k];
             wg[nt++] = f->g[gi - 2 * k];
-            if (++r == kn) r = 0;
+            if (++r == kn && !unwrap) r = 0;
         }
     }
     first[on] = nt;
@@ -363,6 +385,18 @@ WVOL__SYNTH static void synth_x_planned(float *out, const float *lo, const float
     for (ptrdiff_t u = 0; u < outer; u++) {
         const float *lu = lo ? lo + u * kn : NULL, *hu = hi ? hi + u * kn : NULL;
         float *restrict o = out + u * on;
+        if (unwrap) {
+            /* ext[.][t] = row[(t - off) mod kn] */
+            ptrdiff_t x = (-off) % kn;
+            if (x < 0) x += kn;
+            for (ptrdiff_t t = 0; t < span; t++) {
+                if (lu) ext[0][t] = lu[x];
+                if (hu) ext[1][t] = hu[x];
+                if (++x == kn) x = 0;
+            }
+            lu = lu ? ext[0] : NULL;
+            hu = hu ? ext[1] : NULL;
+        }
         if (paired && synth_x_pairs_any(o, lu, hu, r0, wh + first[p0], wg + first[p0], wh + first[p0 + 1],
                                         wg + first[p0 + 1], p0, p1, taps, which)) {
             /* the unpaired first and last outputs */
