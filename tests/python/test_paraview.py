@@ -27,7 +27,7 @@ from conftest import ROOT, WVOL_BIN
 from pvscripts import headless  # tests/python/pvscripts/headless.py
 
 PV_BUILD = pathlib.Path(os.environ.get("WVOL_PARAVIEW_BUILD_DIR", ROOT / "build-paraview"))
-PLUGIN = PV_BUILD / "paraview-plugins" / "wvol_wvc_plugin.py"
+PLUGIN = PV_BUILD / "paraview-plugins" / "WvolReader" / "WvolReader.so"  # the C++ reader (paraview/)
 SCRIPTS = pathlib.Path(__file__).resolve().parent / "pvscripts"
 SHAPE = (128, 64, 80)  # (z, y, x): unequal axes catch an axis-order mistake; z, the longest, is split
 ISO = 100.0
