@@ -22,6 +22,7 @@ import os
 import pathlib
 import re
 import shutil
+import statistics
 import subprocess
 import sys
 import tempfile
@@ -37,7 +38,7 @@ BUILD = pathlib.Path(os.environ.get("WVOL_BUILD_DIR", ROOT / "build"))
 PV_BUILD = pathlib.Path(os.environ.get("WVOL_PARAVIEW_BUILD_DIR", ROOT / "build-paraview"))
 WVOL = BUILD / "wvol"
 PVBATCH = PV_BUILD / "pvbatch"
-PLUGIN = PV_BUILD / "paraview-plugins" / "wvol_wvc_plugin.py"
+PLUGIN = PV_BUILD / "paraview-plugins" / "WvolReader" / "WvolReader.so"  # vtkWVCReader (paraview/)
 RENDER = ROOT / "tests" / "python" / "pvscripts" / "pv_render.py"
 PEAK = ROOT / "bench" / "peak_rss.py"
 
@@ -50,8 +51,11 @@ def sh(cmd, **kw):
 
 
 def run_pvbatch(path, ranks, outdir, vmin, vmax, iso, budget, level=0):
-    """One pvbatch run of the volume rendering (a .wvc at its level of detail `level`): (wall
-    seconds, in-script seconds, peak RSS per rank in bytes, chunk log lines, read seconds)."""
+    """One pvbatch run of the volume rendering (a .wvc at its level of detail `level`): a dict of
+    the wall seconds, the in-script seconds to the first image, the reading and rendering
+    seconds apart (the reader updated alone, then the image), the peak RSS per rank in bytes,
+    the chunk log's lines (per rank: chunks, the read's seconds, resident memory before and
+    after it) and rank 0's memory at each stage (pv_render.py's "memory" line)."""
     shutil.rmtree(outdir, ignore_errors=True)  # no log lines or peaks of an earlier run
     outdir.mkdir(parents=True)
     log = outdir / "chunks.jsonl"
@@ -65,11 +69,16 @@ def run_pvbatch(path, ranks, outdir, vmin, vmax, iso, budget, level=0):
         t0 = time.perf_counter()
         r = sh(cmd, timeout=3600, env={**os.environ, "DISPLAY": disp})
         wall = time.perf_counter() - t0
-    m = re.search(r"first image after ([0-9.]+) s", r.stdout + r.stderr)
-    reads = [float(x) for x in re.findall(r"data read in ([0-9.]+) s", r.stdout + r.stderr)]
+    text = r.stdout + r.stderr
+    m = re.search(r"first image after ([0-9.]+) s", text)
+    reads = [float(x) for x in re.findall(r"data read in ([0-9.]+) s", text)]
+    renders = [float(x) for x in re.findall(r"rendered in ([0-9.]+) s", text)]
+    mem = [json.loads(x) for x in re.findall(r"^memory (\{.*\})$", text, re.M)]
     peaks = sorted(int(p.read_text()) for p in outdir.glob("rss.*"))
     chunks = [json.loads(x) for x in log.read_text().splitlines()] if log.exists() else []
-    return wall, float(m.group(1)) if m else None, peaks, chunks, reads
+    return {"wall_s": wall, "first_image_s": float(m.group(1)) if m else None, "read_s": reads,
+            "render_s": renders, "peak_rss_bytes_per_rank": peaks, "max_peak_rss_bytes": max(peaks),
+            "stage_memory_rank0": mem[0] if mem else None, "chunk_log": chunks}
 
 
 def main():
@@ -84,6 +93,8 @@ def main():
     ap.add_argument("--reuse", action="store_true",
                     help="with --keep: use the skull.wvc and skull.vti already there (made by an earlier run)")
     ap.add_argument("--out", default="paraview", help="results name in bench/results/ (default paraview)")
+    ap.add_argument("--repeat", type=int, default=1,
+                    help="runs of each 1-rank pair, interleaved (wvc, vti, wvc, vti...); the ratios take the medians")
     ap.add_argument("--lod", type=int, default=0,
                     help="also run the .wvc at this level of detail (1: half the samples along each axis), "
                          "reported beside the full-resolution rows, outside their ratios")
@@ -104,44 +115,60 @@ def main():
     prep = time.perf_counter() - t
     info = json.loads(sh([WVOL, "info", wvc, "--json"]).stdout)
     vmin, vmax, iso = -1000.0, 2000.0, 300.0  # Hounsfield-like units of the skull phantom
+    load_start = os.getloadavg()
     rows = []
-    for ranks in (1, 2):
-        for name, path in (("wvc", wvc), ("vti", vti)):
-            wall, first, peaks, chunks, reads = run_pvbatch(path, ranks, work / f"{name}{ranks}", vmin, vmax, iso, a.budget)
-            row = {"reader": name, "ranks": ranks, "wall_s": wall, "first_image_s": first,
-                   "peak_rss_bytes_per_rank": peaks, "max_peak_rss_bytes": max(peaks), "read_s": reads}
-            if chunks:
-                row["chunks_decoded_per_rank"] = [c["decoded"] for c in chunks]
-                row["read_s_per_rank"] = [c.get("seconds") for c in chunks]
-                row["chunks_in_file"] = chunks[0]["chunks"]
-            rows.append(row)
-            print(json.dumps(row), flush=True)
-    for ranks in ((1, 2) if a.lod else ()):
-        wall, first, peaks, chunks, reads = run_pvbatch(wvc, ranks, work / f"wvc_lod{ranks}", vmin, vmax, iso, a.budget,
-                                                        level=a.lod)
-        row = {"reader": f"wvc level {a.lod}", "level": a.lod, "ranks": ranks, "wall_s": wall,
-               "first_image_s": first, "peak_rss_bytes_per_rank": peaks, "max_peak_rss_bytes": max(peaks),
-               "read_s": reads, "chunks_decoded_per_rank": [c["decoded"] for c in chunks],
-               "read_s_per_rank": [c.get("seconds") for c in chunks], "chunks_in_file": chunks[0]["chunks"]}
+
+    def record(reader, ranks, run, **extra):
+        row = {"reader": reader, "ranks": ranks, **extra, **run}
+        chunks = run["chunk_log"]
+        if chunks:
+            first = {}
+            for c in chunks:  # each rank's first execution: its piece
+                first.setdefault(c["rank"], c)
+            row["chunks_decoded_per_rank"] = [first[k]["decoded"] for k in sorted(first)]
+            row["read_s_per_rank"] = [first[k]["seconds"] for k in sorted(first)]
+            row["executions"] = len(chunks)
+            row["chunks_in_file"] = chunks[0]["chunks"]
+            row["peak_rss_mib_before_read_per_rank"] = [first[k].get("peak_rss_mib_before") for k in sorted(first)]
+            row["peak_rss_mib_after_read_per_rank"] = [first[k].get("peak_rss_mib_after") for k in sorted(first)]
+            row["cache_peak_bytes_per_rank"] = [first[k]["cache_peak_bytes"] for k in sorted(first)]
         rows.append(row)
-        print(json.dumps(row), flush=True)
-    by = {(r["reader"], r["ranks"]): r for r in rows}
-    ratios = {
-        f"vti_over_wvc_first_image_{k}rank": by[("vti", k)]["first_image_s"] / by[("wvc", k)]["first_image_s"]
-        for k in (1, 2)}
-    ratios.update({
-        f"vti_over_wvc_peak_rss_{k}rank": by[("vti", k)]["max_peak_rss_bytes"] / by[("wvc", k)]["max_peak_rss_bytes"]
-        for k in (1, 2)})
-    ratios["wvc_peak_rss_1_over_2_ranks"] = by[("wvc", 1)]["max_peak_rss_bytes"] / by[("wvc", 2)]["max_peak_rss_bytes"]
-    ratios["vti_peak_rss_1_over_2_ranks"] = by[("vti", 1)]["max_peak_rss_bytes"] / by[("vti", 2)]["max_peak_rss_bytes"]
+        print(json.dumps({k: v for k, v in row.items() if k != "chunk_log"}), flush=True)
+
+    for ranks in (1, 2):
+        for rep in range(a.repeat if ranks == 1 else 1):  # interleaved: the load changes slowly
+            for name, path in (("wvc", wvc), ("vti", vti)):
+                record(name, ranks, run_pvbatch(path, ranks, work / f"{name}{ranks}_{rep}", vmin, vmax, iso, a.budget),
+                       repetition=rep)
+    for ranks in ((1, 2) if a.lod else ()):
+        record(f"wvc level {a.lod}", ranks, run_pvbatch(wvc, ranks, work / f"wvc_lod{ranks}", vmin, vmax, iso, a.budget,
+                                                         level=a.lod), level=a.lod)
+    def med(reader, ranks, key):
+        """The median over the runs of (reader, ranks) of a row's value (a list: its largest)."""
+        vals = []
+        for r in rows:
+            if r["reader"] == reader and r["ranks"] == ranks:
+                v = r[key]
+                vals.append(max(v) if isinstance(v, list) else v)
+        return statistics.median(vals)
+
+    ratios = {}
+    for k in (1, 2):
+        for key, name in (("first_image_s", "first_image"), ("read_s", "read"), ("render_s", "render"),
+                          ("max_peak_rss_bytes", "peak_rss")):
+            ratios[f"vti_over_wvc_{name}_{k}rank"] = med("vti", k, key) / med("wvc", k, key)
+    for reader in ("wvc", "vti"):
+        ratios[f"{reader}_peak_rss_1_over_2_ranks"] = (med(reader, 1, "max_peak_rss_bytes")
+                                                       / med(reader, 2, "max_peak_rss_bytes"))
     for k in ((1, 2) if a.lod else ()):
-        lod = by[(f"wvc level {a.lod}", k)]
-        ratios[f"vti_over_wvc_level{a.lod}_first_image_{k}rank"] = by[("vti", k)]["first_image_s"] / lod["first_image_s"]
-        ratios[f"vti_over_wvc_level{a.lod}_peak_rss_{k}rank"] = by[("vti", k)]["max_peak_rss_bytes"] / lod["max_peak_rss_bytes"]
+        lod = f"wvc level {a.lod}"
+        ratios[f"vti_over_wvc_level{a.lod}_first_image_{k}rank"] = med("vti", k, "first_image_s") / med(lod, k, "first_image_s")
+        ratios[f"vti_over_wvc_level{a.lod}_peak_rss_{k}rank"] = (med("vti", k, "max_peak_rss_bytes")
+                                                                / med(lod, k, "max_peak_rss_bytes"))
     result = {"machine": {"cpu": cpu_model(), "cores": os.cpu_count()}, "size": [n, n, n], "psnr": a.psnr,
               "reader_budget_mib": a.budget,
               "bytes": {"wvc": wvc.stat().st_size, "vti": vti.stat().st_size, "float32": 4 * n ** 3},
-              "prepare_s": prep, "runs": rows, "ratios": ratios, "wvc_info": info,
+              "prepare_s": prep, "load_avg_1min": [load_start[0], os.getloadavg()[0]], "runs": rows, "ratios": ratios, "wvc_info": info,
               "note": "pvbatch 5.11 (Debian) under Xvfb, software OpenGL; wall_s includes MPI and ParaView start-up"}
     out = ROOT / "bench" / "results" / ("paraview_quick" if a.quick else a.out)
     out.with_suffix(".json").write_text(json.dumps(result, indent=1) + "\n")
@@ -150,16 +177,30 @@ def main():
              f"Machine: {cpu_model()}, {os.cpu_count()} cores (shared). Files: .wvc "
              f"{result['bytes']['wvc'] / mib:.1f} MiB, .vti {result['bytes']['vti'] / mib:.1f} MiB, float32 "
              f"{result['bytes']['float32'] / mib:.0f} MiB; the .wvc reader's chunk cache {f'{a.budget} MiB' if a.budget else 'its default (MemoryBudget 0)'} per rank. Made by `python3 bench/bench_paraview.py"
-             f"{' --quick' if a.quick else f' --size {n}'}`.", "",
-             "| reader | ranks | time to first image (s, in script) | pvbatch wall (s) | peak RSS per rank (MiB) |"
-             " chunks decoded per rank | reading s (pipeline update; reader's own) |", "|---|---|---|---|---|---|---|"]
+             f"{' --quick' if a.quick else f' --size {n}'}`; load average (1 min) {load_start[0]:.1f} at the start,"
+             f" {result['load_avg_1min'][1]:.1f} at the end.", "",
+             "| reader | ranks | time to first image (s, in script) | reading (s) | rendering (s) | pvbatch wall (s) |"
+             " peak RSS per rank (MiB) | peak RSS before / after reading, per rank (MiB) | chunks decoded per rank |"
+             " reader's own read per rank (s) |", "|---|---|---|---|---|---|---|---|---|---|"]
+
+    def nums(v, fmt):
+        return ", ".join(fmt.format(x) for x in v if x is not None) if v else "-"
+
     for r in rows:
-        lines.append(f"| {r['reader']} | {r['ranks']} | {r['first_image_s']:.2f} | {r['wall_s']:.2f} | "
-                     f"{', '.join(f'{p / mib:.0f}' for p in r['peak_rss_bytes_per_rank'])} | "
-                     f"{', '.join(map(str, r.get('chunks_decoded_per_rank', []))) or '-'}"
-                     f"{' of ' + str(r['chunks_in_file']) if 'chunks_in_file' in r else ''} | "
-                     f"{', '.join(f'{t:.2f}' for t in r['read_s']) or '-'}"
-                     f"{'; ' + ', '.join(f'{t:.2f}' for t in r['read_s_per_rank'] if t is not None) if r.get('read_s_per_rank') else ''} |")
+        mem = "-"
+        if r.get("peak_rss_mib_before_read_per_rank"):
+            mem = ", ".join(f"{b:.0f} / {c:.0f}" for b, c in zip(r["peak_rss_mib_before_read_per_rank"],
+                                                                 r["peak_rss_mib_after_read_per_rank"]))
+        elif r.get("stage_memory_rank0"):
+            st = r["stage_memory_rank0"]
+            mem = f"{st['base']['peak_mib']:.0f} / {st['read']['peak_mib']:.0f} (rank 0)"
+        chunks = nums(r.get("chunks_decoded_per_rank"), "{}")
+        if "chunks_in_file" in r:
+            chunks += f" of {r['chunks_in_file']}"
+        lines.append(f"| {r['reader']} | {r['ranks']} | {r['first_image_s']:.2f} | {nums(r['read_s'], '{:.2f}')} | "
+                     f"{nums(r['render_s'], '{:.2f}')} | {r['wall_s']:.2f} | "
+                     f"{nums([p / mib for p in r['peak_rss_bytes_per_rank']], '{:.0f}')} | {mem} | {chunks} | "
+                     f"{nums(r.get('read_s_per_rank'), '{:.2f}')} |")
     lines += ["", "Ratios: " + ", ".join(f"{k} {v:.2f}" for k, v in ratios.items()), ""]
     if a.lod:
         lines += [f"The `wvc level {a.lod}` rows read the file's level of detail {a.lod} (LevelOfDetail={a.lod}: "

@@ -68,6 +68,30 @@ void ReturnFreedMemory()
 #endif
 }
 
+// This process's resident and peak resident set in MiB (VmRSS, VmHWM of /proc/self/status; -1
+// where there is no such file): the chunk log's record of what a read adds on each rank.
+void ProcessMemory(double& rss, double& peak)
+{
+  rss = peak = -1.0;
+  if (FILE* f = std::fopen("/proc/self/status", "r"))
+  {
+    char line[256];
+    while (std::fgets(line, sizeof line, f))
+    {
+      long kib;
+      if (std::sscanf(line, "VmRSS: %ld kB", &kib) == 1)
+      {
+        rss = kib / 1024.0;
+      }
+      else if (std::sscanf(line, "VmHWM: %ld kB", &kib) == 1)
+      {
+        peak = kib / 1024.0;
+      }
+    }
+    std::fclose(f);
+  }
+}
+
 template <typename A, typename V>
 void AddField(vtkFieldData* fd, const char* name, V value)
 {
@@ -235,6 +259,8 @@ int vtkWVCReader::RequestInformation(vtkInformation*, vtkInformationVector**, vt
 int vtkWVCReader::RequestData(vtkInformation*, vtkInformationVector**, vtkInformationVector* outputVector)
 {
   const auto started = std::chrono::steady_clock::now();
+  double rss_before, peak_before;
+  ProcessMemory(rss_before, peak_before);
   vtkInformation* outInfo = outputVector->GetInformationObject(0);
   vtkImageData* output = vtkImageData::GetData(outInfo);
   if (!output)
@@ -397,6 +423,8 @@ int vtkWVCReader::RequestData(vtkInformation*, vtkInformationVector**, vtkInform
   {
     vtkMultiProcessController* c = vtkMultiProcessController::GetGlobalController();
     const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
+    double rss_after, peak_after;
+    ProcessMemory(rss_after, peak_after);
     std::ostringstream line;
     line.precision(17);
     line << "{\"rank\": " << (c ? c->GetLocalProcessId() : 0) << ", \"pid\": " << getpid() << ", \"piece\": " << piece
@@ -411,7 +439,9 @@ int vtkWVCReader::RequestData(vtkInformation*, vtkInformationVector**, vtkInform
     }
     line << ", \"decoded\": " << decoded << ", \"decoded_total\": " << after.decoded << ", \"chunks\": " << in->chunks
          << ", \"cache_peak_bytes\": " << after.peak << ", \"threads\": " << threads << ", \"read\": \"" << how
-         << "\", \"seconds\": " << seconds << "}\n";
+         << "\", \"seconds\": " << seconds << ", \"rss_mib_before\": " << rss_before
+         << ", \"peak_rss_mib_before\": " << peak_before << ", \"rss_mib_after\": " << rss_after
+         << ", \"peak_rss_mib_after\": " << peak_after << "}\n";
     // one short write in append mode per line: concurrent ranks' lines stay whole
     if (FILE* f = std::fopen(this->ChunkLog, "a"))
     {
