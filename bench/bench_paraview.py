@@ -79,16 +79,19 @@ def run_pvbatch(path, ranks, outdir, vmin, vmax, iso, budget, level=0):
         cmd = [shutil.which("mpiexec"), "-n", ranks, "--allow-run-as-root", "--oversubscribe", *cmd]
     with headless.display() as disp:
         t0 = time.perf_counter()
-        r = sh(cmd, timeout=3600, env={**os.environ, "DISPLAY": disp})
+        # the plugin loaded at start-up, as installed (for both readers): LoadPlugin in the script would
+        # also rebuild paraview.simple's proxy classes on rank 0, a few MiB a built-in reader does not cost
+        r = sh(cmd, timeout=3600, env={**os.environ, "DISPLAY": disp, "PV_PLUGIN_PATH": str(PLUGIN.parent)})
         wall = time.perf_counter() - t0
     text = r.stdout + r.stderr
     m = re.search(r"first image after ([0-9.]+) s", text)
     reads = [float(x) for x in re.findall(r"data read in ([0-9.]+) s", text)]
+    read_cpu = [float(x) for x in re.findall(r"data read in [0-9.]+ s \(([0-9.]+) CPU s\)", text)]
     renders = [float(x) for x in re.findall(r"rendered in ([0-9.]+) s", text)]
     mem = [json.loads(x) for x in re.findall(r"^memory (\{.*\})$", text, re.M)]
     peaks = rank_peaks(outdir)
     chunks = [json.loads(x) for x in log.read_text().splitlines()] if log.exists() else []
-    return {"wall_s": wall, "first_image_s": float(m.group(1)) if m else None, "read_s": reads,
+    return {"wall_s": wall, "first_image_s": float(m.group(1)) if m else None, "read_s": reads, "read_cpu_s": read_cpu,
             "render_s": renders, "peak_rss_bytes_per_rank": peaks, "max_peak_rss_bytes": max(peaks),
             "stage_memory_rank0": mem[0] if mem else None, "chunk_log": chunks}
 
@@ -111,12 +114,25 @@ def report(result, out):
 
     ratios = {}
     for k in (1, 2):
-        for key, name in (("first_image_s", "first_image"), ("read_s", "read"), ("render_s", "render"),
-                          ("max_peak_rss_bytes", "peak_rss")):
-            ratios[f"vti_over_wvc_{name}_{k}rank"] = med("vti", k, key) / med("wvc", k, key)
+        for key, name in (("first_image_s", "first_image"), ("read_s", "read"), ("read_cpu_s", "read_cpu"),
+                          ("render_s", "render"), ("max_peak_rss_bytes", "peak_rss")):
+            if all(r.get(key) for r in rows if r["reader"] in ("wvc", "vti")):
+                ratios[f"vti_over_wvc_{name}_{k}rank"] = med("vti", k, key) / med("wvc", k, key)
     for reader in ("wvc", "vti"):
         ratios[f"{reader}_peak_rss_1_over_2_ranks"] = (med(reader, 1, "max_peak_rss_bytes")
                                                        / med(reader, 2, "max_peak_rss_bytes"))
+    # the data part of the peak (the peak less the rank's ParaView before any data)
+    data = {}
+    for r in rows:
+        log = r.get("chunk_log") or []
+        if r["reader"] == "wvc" and log:
+            first = {}
+            for c in log:
+                first.setdefault(c["rank"], c)
+            data.setdefault(r["ranks"], []).append(
+                max(r["peak_rss_bytes_per_rank"][k] / mib - first[k]["peak_rss_mib_before"] for k in first))
+    if 1 in data and 2 in data:
+        ratios["wvc_data_part_1_over_2_ranks"] = statistics.median(data[1]) / statistics.median(data[2])
     for k in ((1, 2) if lod else ()):
         name = f"wvc level {lod}"
         ratios[f"vti_over_wvc_level{lod}_first_image_{k}rank"] = med("vti", k, "first_image_s") / med(name, k, "first_image_s")
@@ -152,23 +168,29 @@ def report(result, out):
                               "peak_mib": peaks[0] / mib})
     result["memory_breakdown"] = breakdown
 
-    goals = {
-        "less_peak_memory_per_rank_1rank": ratios["vti_over_wvc_peak_rss_1rank"] > 1,
-        "less_peak_memory_per_rank_2rank": ratios["vti_over_wvc_peak_rss_2rank"] > 1,
-        "less_time_to_first_image_1rank": ratios["vti_over_wvc_first_image_1rank"] > 1,
-        "less_time_to_first_image_2rank": ratios["vti_over_wvc_first_image_2rank"] > 1,
-        "reading_faster_1rank": ratios["vti_over_wvc_read_1rank"] > 1,
-        "reading_faster_2rank": ratios["vti_over_wvc_read_2rank"] > 1,
-        # halving: 2 ranks' largest peak at most 55% of 1 rank's
-        "peak_memory_halves_1_to_2_ranks": ratios["wvc_peak_rss_1_over_2_ranks"] >= 1 / 0.55,
-    }
+    def better(ratio, margin=0.01):
+        """'met' when the .wvc is better by more than margin, 'tie' within it, else 'NOT met'."""
+        return "met" if ratio > 1 + margin else ("tie (within 1%)" if ratio >= 1 - margin else "NOT met")
+
+    goals = {f"less peak memory per rank, {k} rank(s)": better(ratios[f"vti_over_wvc_peak_rss_{k}rank"]) for k in (1, 2)}
+    goals.update({f"less time to first image, {k} rank(s)": better(ratios[f"vti_over_wvc_first_image_{k}rank"])
+                  for k in (1, 2)})
+    goals.update({f"reading faster (wall), {k} rank(s)": better(ratios[f"vti_over_wvc_read_{k}rank"]) for k in (1, 2)})
+    goals.update({f"reading in fewer CPU seconds, {k} rank(s)": better(ratios[f"vti_over_wvc_read_cpu_{k}rank"])
+                  for k in (1, 2) if f"vti_over_wvc_read_cpu_{k}rank" in ratios})
+    # halving: 2 ranks' largest peak at most 52.5% of 1 rank's (1.9x)
+    goals["peak memory per rank halves from 1 to 2 ranks (>= 1.9x)"] = (
+        "met" if ratios["wvc_peak_rss_1_over_2_ranks"] >= 1.9 else "NOT met")
+    if "wvc_data_part_1_over_2_ranks" in ratios:
+        goals["the data part (peak - base) halves from 1 to 2 ranks (>= 1.9x)"] = (
+            "met" if ratios["wvc_data_part_1_over_2_ranks"] >= 1.9 else "NOT met")
     result["goals"] = goals
     out.with_suffix(".json").write_text(json.dumps(result, indent=1) + "\n")
 
     budget = result.get("reader_budget_mib", 0)
     load = result.get("load_avg_1min", [float("nan")] * 2)
     lines = [f"# ParaView: the .wvc reader plugin (C++, vtkWVCReader) vs .vti ({n}^3 noisy skull, --psnr {result['psnr']:g})",
-             "",
+             "", *([result["title_note"], ""] if result.get("title_note") else []),
              f"Machine: {result['machine']['cpu']}, {result['machine']['cores']} cores (shared). Files: .wvc "
              f"{result['bytes']['wvc'] / mib:.1f} MiB, .vti {result['bytes']['vti'] / mib:.1f} MiB, float32 "
              f"{result['bytes']['float32'] / mib:.0f} MiB; the .wvc reader's chunk cache "
@@ -177,9 +199,9 @@ def report(result, out):
              f"{f' --lod {lod}' if lod else ''}`; load average (1 min) {load[0]:.1f} at the start, {load[1]:.1f} at "
              "the end. Reading: the reader updated alone (`UpdatePipeline`); rendering: from there to the saved "
              "volume rendering; time to first image: from the script's start (imports and the plugin included).", "",
-             "| reader | ranks | time to first image (s, in script) | reading (s) | rendering (s) | pvbatch wall (s) |"
+             "| reader | ranks | time to first image (s, in script) | reading (s) | reading, CPU s (rank 0) | rendering (s) | pvbatch wall (s) |"
              " peak RSS per rank (MiB) | peak RSS before / after reading, per rank (MiB) | chunks decoded per rank |"
-             " reader's own read per rank (s) |", "|---|---|---|---|---|---|---|---|---|---|"]
+             " reader's own read per rank (s) |", "|---|---|---|---|---|---|---|---|---|---|---|"]
 
     def nums(v, fmt):
         return ", ".join(fmt.format(x) for x in v if x is not None) if v else "-"
@@ -196,6 +218,7 @@ def report(result, out):
         if "chunks_in_file" in r:
             chunks += f" of {r['chunks_in_file']}"
         lines.append(f"| {r['reader']} | {r['ranks']} | {r['first_image_s']:.2f} | {nums(r['read_s'], '{:.2f}')} | "
+                     f"{nums(r.get('read_cpu_s'), '{:.2f}')} | "
                      f"{nums(r['render_s'], '{:.2f}')} | {r['wall_s']:.2f} | "
                      f"{nums([p / mib for p in r['peak_rss_bytes_per_rank']], '{:.0f}')} | {mem} | {chunks} | "
                      f"{nums(r.get('read_s_per_rank'), '{:.2f}')} |")
@@ -216,7 +239,7 @@ def report(result, out):
         lines.append(f"| {b['reader']} | {b['ranks']} | {b['rank']} | {f0(b['base_mib'])} | {f0(adds)} | "
                      f"{f0(b['array_mib'])} | {f0(b['cache_peak_mib'])} | {f0(render)} | {f0(b['peak_mib'])} |")
     lines += ["", "## Goals", ""]
-    lines += [f"- {k.replace('_', ' ')}: {'met' if v else 'NOT met'}" for k, v in goals.items()]
+    lines += [f"- {k}: {v}" for k, v in goals.items()]
     lines += [""]
     if lod:
         lines += [f"The `wvc level {lod}` rows read the file's level of detail {lod} (LevelOfDetail={lod}: "
@@ -285,6 +308,7 @@ def main():
                 first.setdefault(c["rank"], c)
             row["chunks_decoded_per_rank"] = [first[k]["decoded"] for k in sorted(first)]
             row["read_s_per_rank"] = [first[k]["seconds"] for k in sorted(first)]
+            row["read_cpu_s_per_rank"] = [first[k].get("cpu_seconds") for k in sorted(first)]
             row["executions"] = len(chunks)
             row["chunks_in_file"] = chunks[0]["chunks"]
             row["peak_rss_mib_before_read_per_rank"] = [first[k].get("peak_rss_mib_before") for k in sorted(first)]

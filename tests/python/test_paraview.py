@@ -381,11 +381,14 @@ def pv_tool(name):
 
 @pytest.mark.parametrize("level", [0, 1])
 def test_pvpython_reader_equals_decompress(wvc, tmp_path, level):
+    """Level 0 loads the plugin with LoadPlugin, level 1 from PV_PLUGIN_PATH at start-up."""
     d, f, full, l1 = wvc
     out = tmp_path / "a.npy"
-    r = run([pv_tool("pvpython"), SCRIPTS / "pv_read.py", PLUGIN, f, level, out])
+    env = {"PV_PLUGIN_PATH": str(PLUGIN.parent)} if level == 1 else None
+    r = run([pv_tool("pvpython"), SCRIPTS / "pv_read.py", PLUGIN, f, level, out], env=env)
     assert r.returncode == 0, r.stdout + r.stderr
     meta = json.loads(r.stdout.strip().splitlines()[-1])
+    assert meta["autoloaded"] == (level == 1)
     close(np.load(out), full if level == 0 else l1)
     assert meta["spacing"] == pytest.approx([s * 2 ** level for s in (0.5, 0.75, 1.25)])
     assert meta["field"]["LevelOfDetail"] == level

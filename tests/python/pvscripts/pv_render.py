@@ -4,7 +4,8 @@ bench/bench_paraview.py): reads a volume (a .wvc with the reader plugin: each ra
 chunks of its piece and appends a line to the chunk log; a .vti with ParaView's own reader),
 saves a volume rendering and a Contour of it as PNG screenshots with a fixed camera and transfer
 function (no data-dependent choices, so runs with different rank counts are comparable), and
-prints the seconds from the script's start to the first image; with --time-read also the reading
+prints the seconds from the script's start to the first image (the plugin is loaded with LoadPlugin
+unless ParaView loaded it at start-up from PV_PLUGIN_PATH); with --time-read also the reading
 and the rendering apart, and this process's memory at each stage (one "memory" JSON line per
 rank: resident and peak resident MiB after start-up and the plugin, after reading, after the
 first image). Usage:
@@ -14,6 +15,7 @@ import argparse
 import json
 import time
 
+import paraview.simple as pvs
 from paraview.simple import (ColorBy, Contour, CreateView, GetColorTransferFunction, GetOpacityTransferFunction,
                              LoadPlugin, SaveScreenshot, Show, XMLImageDataReader)
 
@@ -35,10 +37,12 @@ vmin, vmax, iso, only = a.vmin, a.vmax, a.iso, a.only
 if a.path.endswith(".vti"):
     reader = XMLImageDataReader(FileName=[a.path])
 else:
-    LoadPlugin(a.plugin, ns=globals())
-    reader = WVCReader(FileName=a.path, LevelOfDetail=a.level, ChunkLog=a.log,  # noqa: F821 (from the plugin)
-                       ArrayName=a.array, MemoryBudget=a.budget,
-                       ReleaseCache=int(a.release))
+    if hasattr(pvs, "WVCReader"):  # loaded at start-up from PV_PLUGIN_PATH
+        WVCReader = pvs.WVCReader
+    else:
+        LoadPlugin(a.plugin, ns=globals())  # defines WVCReader here
+    reader = WVCReader(FileName=a.path, LevelOfDetail=a.level, ChunkLog=a.log,  # noqa: F821
+                       ArrayName=a.array, MemoryBudget=a.budget, ReleaseCache=int(a.release))
 
 
 
@@ -62,11 +66,11 @@ def rank():
 stages = {}
 if a.time_read:
     stages["base"] = memory_mib()  # ParaView, its Python, the plugin: before any data
-    t_read = time.perf_counter()
+    t_read, cpu_read = time.perf_counter(), time.process_time()  # process_time: all this process's threads
     reader.UpdatePipeline()
-    read_s = time.perf_counter() - t_read
+    read_s, read_cpu = time.perf_counter() - t_read, time.process_time() - cpu_read
     stages["read"] = memory_mib()
-    print(f"data read in {read_s:.3f} s", flush=True)
+    print(f"data read in {read_s:.3f} s ({read_cpu:.3f} CPU s)", flush=True)
 t_render = time.perf_counter()
 
 
