@@ -22,6 +22,7 @@ import os
 import pathlib
 import re
 import shutil
+import statistics
 import subprocess
 import sys
 import tempfile
@@ -37,7 +38,7 @@ BUILD = pathlib.Path(os.environ.get("WVOL_BUILD_DIR", ROOT / "build"))
 PV_BUILD = pathlib.Path(os.environ.get("WVOL_PARAVIEW_BUILD_DIR", ROOT / "build-paraview"))
 WVOL = BUILD / "wvol"
 PVBATCH = PV_BUILD / "pvbatch"
-PLUGIN = PV_BUILD / "paraview-plugins" / "wvol_wvc_plugin.py"
+PLUGIN = PV_BUILD / "paraview-plugins" / "WvolReader" / "WvolReader.so"  # vtkWVCReader (paraview/)
 RENDER = ROOT / "tests" / "python" / "pvscripts" / "pv_render.py"
 PEAK = ROOT / "bench" / "peak_rss.py"
 
@@ -49,9 +50,24 @@ def sh(cmd, **kw):
     return r
 
 
+def rank_peaks(outdir):
+    """Each rank's peak RSS in bytes, in rank order (bench/peak_rss.py's files rss.<rank>)."""
+    return [int(p.read_text()) for p in sorted(outdir.glob("rss.*"), key=lambda p: int(p.suffix[1:]))]
+
+
+def run_dir(work, row):
+    """The folder of a run's images, logs and peaks."""
+    if "level" in row:
+        return work / f"wvc_lod{row['ranks']}"
+    return work / f"{row['reader']}{row['ranks']}_{row.get('repetition', 0)}"
+
+
 def run_pvbatch(path, ranks, outdir, vmin, vmax, iso, budget, level=0):
-    """One pvbatch run of the volume rendering (a .wvc at its level of detail `level`): (wall
-    seconds, in-script seconds, peak RSS per rank in bytes, chunk log lines, read seconds)."""
+    """One pvbatch run of the volume rendering (a .wvc at its level of detail `level`): a dict of
+    the wall seconds, the in-script seconds to the first image, the reading and rendering
+    seconds apart (the reader updated alone, then the image), the peak RSS per rank in bytes,
+    the chunk log's lines (per rank: chunks, the read's seconds, resident memory before and
+    after it) and rank 0's memory at each stage (pv_render.py's "memory" line)."""
     shutil.rmtree(outdir, ignore_errors=True)  # no log lines or peaks of an earlier run
     outdir.mkdir(parents=True)
     log = outdir / "chunks.jsonl"
@@ -63,13 +79,175 @@ def run_pvbatch(path, ranks, outdir, vmin, vmax, iso, budget, level=0):
         cmd = [shutil.which("mpiexec"), "-n", ranks, "--allow-run-as-root", "--oversubscribe", *cmd]
     with headless.display() as disp:
         t0 = time.perf_counter()
-        r = sh(cmd, timeout=3600, env={**os.environ, "DISPLAY": disp})
+        # the plugin loaded at start-up, as installed (for both readers): LoadPlugin in the script would
+        # also rebuild paraview.simple's proxy classes on rank 0, a few MiB a built-in reader does not cost
+        r = sh(cmd, timeout=3600, env={**os.environ, "DISPLAY": disp, "PV_PLUGIN_PATH": str(PLUGIN.parent)})
         wall = time.perf_counter() - t0
-    m = re.search(r"first image after ([0-9.]+) s", r.stdout + r.stderr)
-    reads = [float(x) for x in re.findall(r"data read in ([0-9.]+) s", r.stdout + r.stderr)]
-    peaks = sorted(int(p.read_text()) for p in outdir.glob("rss.*"))
+    text = r.stdout + r.stderr
+    m = re.search(r"first image after ([0-9.]+) s", text)
+    reads = [float(x) for x in re.findall(r"data read in ([0-9.]+) s", text)]
+    read_cpu = [float(x) for x in re.findall(r"data read in [0-9.]+ s \(([0-9.]+) CPU s\)", text)]
+    renders = [float(x) for x in re.findall(r"rendered in ([0-9.]+) s", text)]
+    mem = [json.loads(x) for x in re.findall(r"^memory (\{.*\})$", text, re.M)]
+    peaks = rank_peaks(outdir)
     chunks = [json.loads(x) for x in log.read_text().splitlines()] if log.exists() else []
-    return wall, float(m.group(1)) if m else None, peaks, chunks, reads
+    return {"wall_s": wall, "first_image_s": float(m.group(1)) if m else None, "read_s": reads, "read_cpu_s": read_cpu,
+            "render_s": renders, "peak_rss_bytes_per_rank": peaks, "max_peak_rss_bytes": max(peaks),
+            "stage_memory_rank0": mem[0] if mem else None, "chunk_log": chunks}
+
+
+def report(result, out):
+    """Writes result (with its ratios, the memory breakdown and the goals) to out.json and out.md."""
+    rows = result["runs"]
+    n = result["size"][0]
+    lod = result.get("lod") or next((r["level"] for r in rows if "level" in r), 0)
+    mib = 1 << 20
+
+    def med(reader, ranks, key):
+        """The median over the runs of (reader, ranks) of a row's value (a list: its largest)."""
+        vals = []
+        for r in rows:
+            if r["reader"] == reader and r["ranks"] == ranks:
+                v = r[key]
+                vals.append(max(v) if isinstance(v, list) else v)
+        return statistics.median(vals)
+
+    ratios = {}
+    for k in (1, 2):
+        for key, name in (("first_image_s", "first_image"), ("read_s", "read"), ("read_cpu_s", "read_cpu"),
+                          ("render_s", "render"), ("max_peak_rss_bytes", "peak_rss")):
+            if all(r.get(key) for r in rows if r["reader"] in ("wvc", "vti")):
+                ratios[f"vti_over_wvc_{name}_{k}rank"] = med("vti", k, key) / med("wvc", k, key)
+    for reader in ("wvc", "vti"):
+        ratios[f"{reader}_peak_rss_1_over_2_ranks"] = (med(reader, 1, "max_peak_rss_bytes")
+                                                       / med(reader, 2, "max_peak_rss_bytes"))
+    # the data part of the peak (the peak less the rank's ParaView before any data)
+    data = {}
+    for r in rows:
+        log = r.get("chunk_log") or []
+        if r["reader"] == "wvc" and log:
+            first = {}
+            for c in log:
+                first.setdefault(c["rank"], c)
+            data.setdefault(r["ranks"], []).append(
+                max(r["peak_rss_bytes_per_rank"][k] / mib - first[k]["peak_rss_mib_before"] for k in first))
+    if 1 in data and 2 in data:
+        ratios["wvc_data_part_1_over_2_ranks"] = statistics.median(data[1]) / statistics.median(data[2])
+    for k in ((1, 2) if lod else ()):
+        name = f"wvc level {lod}"
+        ratios[f"vti_over_wvc_level{lod}_first_image_{k}rank"] = med("vti", k, "first_image_s") / med(name, k, "first_image_s")
+        ratios[f"vti_over_wvc_level{lod}_peak_rss_{k}rank"] = (med("vti", k, "max_peak_rss_bytes")
+                                                              / med(name, k, "max_peak_rss_bytes"))
+    result["ratios"] = ratios
+
+    # where each rank's peak comes from: ParaView before any data (its peak before the read), what
+    # the read adds (the output array, the margins, the decoded chunks, scratch), what rendering
+    # adds after it (the renderer's copies)
+    breakdown = []
+    for r in rows:
+        log = r.get("chunk_log") or []
+        first = {}
+        for c in log:
+            first.setdefault(c["rank"], c)
+        peaks = r["peak_rss_bytes_per_rank"]
+        if first:
+            for k in sorted(first):
+                c = first[k]
+                e = c["extent"]
+                samples = (e[1] - e[0] + 1) * (e[3] - e[2] + 1) * (e[5] - e[4] + 1) if e else 0
+                breakdown.append({"reader": r["reader"], "ranks": r["ranks"], "rank": k,
+                                  "repetition": r.get("repetition", 0), "base_mib": c.get("peak_rss_mib_before"),
+                                  "after_read_mib": c.get("peak_rss_mib_after"), "array_mib": 4 * samples / mib,
+                                  "cache_peak_mib": c["cache_peak_bytes"] / mib,
+                                  "peak_mib": peaks[k] / mib if k < len(peaks) else None})
+        elif r.get("stage_memory_rank0"):
+            st = r["stage_memory_rank0"]
+            breakdown.append({"reader": r["reader"], "ranks": r["ranks"], "rank": 0,
+                              "repetition": r.get("repetition", 0), "base_mib": st["base"]["peak_mib"],
+                              "after_read_mib": st["read"]["peak_mib"], "array_mib": None, "cache_peak_mib": None,
+                              "peak_mib": peaks[0] / mib})
+    result["memory_breakdown"] = breakdown
+
+    def better(ratio, margin=0.01):
+        """'met' when the .wvc is better by more than margin, 'tie' within it, else 'NOT met'."""
+        return "met" if ratio > 1 + margin else ("tie (within 1%)" if ratio >= 1 - margin else "NOT met")
+
+    goals = {f"less peak memory per rank, {k} rank(s)": better(ratios[f"vti_over_wvc_peak_rss_{k}rank"]) for k in (1, 2)}
+    goals.update({f"less time to first image, {k} rank(s)": better(ratios[f"vti_over_wvc_first_image_{k}rank"])
+                  for k in (1, 2)})
+    goals.update({f"reading faster (wall), {k} rank(s)": better(ratios[f"vti_over_wvc_read_{k}rank"]) for k in (1, 2)})
+    goals.update({f"reading in fewer CPU seconds, {k} rank(s)": better(ratios[f"vti_over_wvc_read_cpu_{k}rank"])
+                  for k in (1, 2) if f"vti_over_wvc_read_cpu_{k}rank" in ratios})
+    # halving: 2 ranks' largest peak at most 52.5% of 1 rank's (1.9x)
+    goals["peak memory per rank halves from 1 to 2 ranks (>= 1.9x)"] = (
+        "met" if ratios["wvc_peak_rss_1_over_2_ranks"] >= 1.9 else "NOT met")
+    if "wvc_data_part_1_over_2_ranks" in ratios:
+        goals["the data part (peak - base) halves from 1 to 2 ranks (>= 1.9x)"] = (
+            "met" if ratios["wvc_data_part_1_over_2_ranks"] >= 1.9 else "NOT met")
+    result["goals"] = goals
+    out.with_suffix(".json").write_text(json.dumps(result, indent=1) + "\n")
+
+    budget = result.get("reader_budget_mib", 0)
+    load = result.get("load_avg_1min", [float("nan")] * 2)
+    lines = [f"# ParaView: the .wvc reader plugin (C++, vtkWVCReader) vs .vti ({n}^3 noisy skull, --psnr {result['psnr']:g})",
+             "", *([result["title_note"], ""] if result.get("title_note") else []),
+             f"Machine: {result['machine']['cpu']}, {result['machine']['cores']} cores (shared). Files: .wvc "
+             f"{result['bytes']['wvc'] / mib:.1f} MiB, .vti {result['bytes']['vti'] / mib:.1f} MiB, float32 "
+             f"{result['bytes']['float32'] / mib:.0f} MiB; the .wvc reader's chunk cache "
+             f"{f'{budget} MiB' if budget else 'its default (MemoryBudget 0)'} per rank. Made by "
+             f"`python3 bench/bench_paraview.py{' --quick' if result.get('quick') else f' --size {n}'}"
+             f"{f' --lod {lod}' if lod else ''}`; load average (1 min) {load[0]:.1f} at the start, {load[1]:.1f} at "
+             "the end. Reading: the reader updated alone (`UpdatePipeline`); rendering: from there to the saved "
+             "volume rendering; time to first image: from the script's start (imports and the plugin included).", "",
+             "| reader | ranks | time to first image (s, in script) | reading (s) | reading, CPU s (rank 0) | rendering (s) | pvbatch wall (s) |"
+             " peak RSS per rank (MiB) | peak RSS before / after reading, per rank (MiB) | chunks decoded per rank |"
+             " reader's own read per rank (s) |", "|---|---|---|---|---|---|---|---|---|---|---|"]
+
+    def nums(v, fmt):
+        return ", ".join(fmt.format(x) for x in v if x is not None) if v else "-"
+
+    for r in rows:
+        mem = "-"
+        if r.get("peak_rss_mib_before_read_per_rank"):
+            mem = ", ".join(f"{b:.0f} / {c:.0f}" for b, c in zip(r["peak_rss_mib_before_read_per_rank"],
+                                                                 r["peak_rss_mib_after_read_per_rank"]))
+        elif r.get("stage_memory_rank0"):
+            st = r["stage_memory_rank0"]
+            mem = f"{st['base']['peak_mib']:.0f} / {st['read']['peak_mib']:.0f} (rank 0)"
+        chunks = nums(r.get("chunks_decoded_per_rank"), "{}")
+        if "chunks_in_file" in r:
+            chunks += f" of {r['chunks_in_file']}"
+        lines.append(f"| {r['reader']} | {r['ranks']} | {r['first_image_s']:.2f} | {nums(r['read_s'], '{:.2f}')} | "
+                     f"{nums(r.get('read_cpu_s'), '{:.2f}')} | "
+                     f"{nums(r['render_s'], '{:.2f}')} | {r['wall_s']:.2f} | "
+                     f"{nums([p / mib for p in r['peak_rss_bytes_per_rank']], '{:.0f}')} | {mem} | {chunks} | "
+                     f"{nums(r.get('read_s_per_rank'), '{:.2f}')} |")
+    lines += ["", "Ratios (medians over the repeats): " + ", ".join(f"{k} {v:.2f}" for k, v in ratios.items()), ""]
+    lines += ["## Where each rank's peak comes from (MiB)", "",
+              "peak = base (ParaView before any data: its libraries, Python on rank 0, the plugin) + what the read "
+              "adds (the output array, for the .wvc also the margins' planes, the decoded chunks and scratch) + what "
+              "rendering adds beyond that (the renderer's copies).", "",
+              "| reader | ranks | rank | base | read adds | output array | decoded chunks (cache peak) | rendering adds | peak |",
+              "|---|---|---|---|---|---|---|---|---|"]
+
+    def f0(v):
+        return "-" if v is None else f"{v:.0f}"
+
+    for b in breakdown:
+        adds = None if b["after_read_mib"] is None or b["base_mib"] is None else b["after_read_mib"] - b["base_mib"]
+        render = None if b["peak_mib"] is None or b["after_read_mib"] is None else b["peak_mib"] - b["after_read_mib"]
+        lines.append(f"| {b['reader']} | {b['ranks']} | {b['rank']} | {f0(b['base_mib'])} | {f0(adds)} | "
+                     f"{f0(b['array_mib'])} | {f0(b['cache_peak_mib'])} | {f0(render)} | {f0(b['peak_mib'])} |")
+    lines += ["", "## Goals", ""]
+    lines += [f"- {k}: {v}" for k, v in goals.items()]
+    lines += [""]
+    if lod:
+        lines += [f"The `wvc level {lod}` rows read the file's level of detail {lod} (LevelOfDetail={lod}: "
+                  f"{n >> lod}^3 samples, the level's predicted error in the field data) and render it with "
+                  "the same camera and transfer function: not the same data as the .vti, so they are outside the "
+                  "full-resolution ratios and the goals, and have their own ratios.", ""]
+    out.with_suffix(".md").write_text("\n".join(lines))
+    print("\n".join(lines))
 
 
 def main():
@@ -84,11 +262,25 @@ def main():
     ap.add_argument("--reuse", action="store_true",
                     help="with --keep: use the skull.wvc and skull.vti already there (made by an earlier run)")
     ap.add_argument("--out", default="paraview", help="results name in bench/results/ (default paraview)")
+    ap.add_argument("--repeat", type=int, default=1,
+                    help="runs of each 1-rank pair, interleaved (wvc, vti, wvc, vti...); the ratios take the medians")
+    ap.add_argument("--report", action="store_true",
+                    help="rewrite the .md from the results' .json (with --keep: each rank's peak from the runs' files)")
     ap.add_argument("--lod", type=int, default=0,
                     help="also run the .wvc at this level of detail (1: half the samples along each axis), "
                          "reported beside the full-resolution rows, outside their ratios")
     a = ap.parse_args()
     n = 128 if a.quick else a.size
+    out = ROOT / "bench" / "results" / ("paraview_quick" if a.quick else a.out)
+    if a.report:  # the tables again from the JSON (and the runs' rank peaks, with --keep)
+        result = json.loads(out.with_suffix(".json").read_text())
+        if a.keep:
+            for row in result["runs"]:
+                peaks = rank_peaks(run_dir(pathlib.Path(a.keep), row))
+                if peaks:
+                    row["peak_rss_bytes_per_rank"] = peaks
+        report(result, out)
+        return
     for need in (WVOL, PVBATCH, PLUGIN):
         if not need.exists():
             sys.exit(f"{need} is missing: run scripts/setup.sh")
@@ -104,70 +296,44 @@ def main():
     prep = time.perf_counter() - t
     info = json.loads(sh([WVOL, "info", wvc, "--json"]).stdout)
     vmin, vmax, iso = -1000.0, 2000.0, 300.0  # Hounsfield-like units of the skull phantom
+    load_start = os.getloadavg()
     rows = []
-    for ranks in (1, 2):
-        for name, path in (("wvc", wvc), ("vti", vti)):
-            wall, first, peaks, chunks, reads = run_pvbatch(path, ranks, work / f"{name}{ranks}", vmin, vmax, iso, a.budget)
-            row = {"reader": name, "ranks": ranks, "wall_s": wall, "first_image_s": first,
-                   "peak_rss_bytes_per_rank": peaks, "max_peak_rss_bytes": max(peaks), "read_s": reads}
-            if chunks:
-                row["chunks_decoded_per_rank"] = [c["decoded"] for c in chunks]
-                row["read_s_per_rank"] = [c.get("seconds") for c in chunks]
-                row["chunks_in_file"] = chunks[0]["chunks"]
-            rows.append(row)
-            print(json.dumps(row), flush=True)
-    for ranks in ((1, 2) if a.lod else ()):
-        wall, first, peaks, chunks, reads = run_pvbatch(wvc, ranks, work / f"wvc_lod{ranks}", vmin, vmax, iso, a.budget,
-                                                        level=a.lod)
-        row = {"reader": f"wvc level {a.lod}", "level": a.lod, "ranks": ranks, "wall_s": wall,
-               "first_image_s": first, "peak_rss_bytes_per_rank": peaks, "max_peak_rss_bytes": max(peaks),
-               "read_s": reads, "chunks_decoded_per_rank": [c["decoded"] for c in chunks],
-               "read_s_per_rank": [c.get("seconds") for c in chunks], "chunks_in_file": chunks[0]["chunks"]}
+
+    def record(reader, ranks, run, **extra):
+        row = {"reader": reader, "ranks": ranks, **extra, **run}
+        chunks = run["chunk_log"]
+        if chunks:
+            first = {}
+            for c in chunks:  # each rank's first execution: its piece
+                first.setdefault(c["rank"], c)
+            row["chunks_decoded_per_rank"] = [first[k]["decoded"] for k in sorted(first)]
+            row["read_s_per_rank"] = [first[k]["seconds"] for k in sorted(first)]
+            row["read_cpu_s_per_rank"] = [first[k].get("cpu_seconds") for k in sorted(first)]
+            row["executions"] = len(chunks)
+            row["chunks_in_file"] = chunks[0]["chunks"]
+            row["peak_rss_mib_before_read_per_rank"] = [first[k].get("peak_rss_mib_before") for k in sorted(first)]
+            row["peak_rss_mib_after_read_per_rank"] = [first[k].get("peak_rss_mib_after") for k in sorted(first)]
+            row["cache_peak_bytes_per_rank"] = [first[k]["cache_peak_bytes"] for k in sorted(first)]
         rows.append(row)
-        print(json.dumps(row), flush=True)
-    by = {(r["reader"], r["ranks"]): r for r in rows}
-    ratios = {
-        f"vti_over_wvc_first_image_{k}rank": by[("vti", k)]["first_image_s"] / by[("wvc", k)]["first_image_s"]
-        for k in (1, 2)}
-    ratios.update({
-        f"vti_over_wvc_peak_rss_{k}rank": by[("vti", k)]["max_peak_rss_bytes"] / by[("wvc", k)]["max_peak_rss_bytes"]
-        for k in (1, 2)})
-    ratios["wvc_peak_rss_1_over_2_ranks"] = by[("wvc", 1)]["max_peak_rss_bytes"] / by[("wvc", 2)]["max_peak_rss_bytes"]
-    ratios["vti_peak_rss_1_over_2_ranks"] = by[("vti", 1)]["max_peak_rss_bytes"] / by[("vti", 2)]["max_peak_rss_bytes"]
-    for k in ((1, 2) if a.lod else ()):
-        lod = by[(f"wvc level {a.lod}", k)]
-        ratios[f"vti_over_wvc_level{a.lod}_first_image_{k}rank"] = by[("vti", k)]["first_image_s"] / lod["first_image_s"]
-        ratios[f"vti_over_wvc_level{a.lod}_peak_rss_{k}rank"] = by[("vti", k)]["max_peak_rss_bytes"] / lod["max_peak_rss_bytes"]
+        print(json.dumps({k: v for k, v in row.items() if k != "chunk_log"}), flush=True)
+
+    for ranks in (1, 2):
+        for rep in range(a.repeat if ranks == 1 else 1):  # interleaved: the load changes slowly
+            for name, path in (("wvc", wvc), ("vti", vti)):
+                record(name, ranks, run_pvbatch(path, ranks, run_dir(work, {"reader": name, "ranks": ranks,
+                                                                            "repetition": rep}),
+                                                 vmin, vmax, iso, a.budget), repetition=rep)
+    for ranks in ((1, 2) if a.lod else ()):
+        record(f"wvc level {a.lod}", ranks, run_pvbatch(wvc, ranks, run_dir(work, {"ranks": ranks, "level": a.lod}),
+                                                         vmin, vmax, iso, a.budget,
+                                                         level=a.lod), level=a.lod)
     result = {"machine": {"cpu": cpu_model(), "cores": os.cpu_count()}, "size": [n, n, n], "psnr": a.psnr,
-              "reader_budget_mib": a.budget,
+              "reader_budget_mib": a.budget, "lod": a.lod, "quick": a.quick,
               "bytes": {"wvc": wvc.stat().st_size, "vti": vti.stat().st_size, "float32": 4 * n ** 3},
-              "prepare_s": prep, "runs": rows, "ratios": ratios, "wvc_info": info,
+              "prepare_s": prep, "load_avg_1min": [load_start[0], os.getloadavg()[0]], "runs": rows,
+              "wvc_info": info,
               "note": "pvbatch 5.11 (Debian) under Xvfb, software OpenGL; wall_s includes MPI and ParaView start-up"}
-    out = ROOT / "bench" / "results" / ("paraview_quick" if a.quick else a.out)
-    out.with_suffix(".json").write_text(json.dumps(result, indent=1) + "\n")
-    mib = 1 << 20
-    lines = [f"# ParaView: .wvc reader plugin vs .vti ({n}^3 noisy skull, --psnr {a.psnr:g})", "",
-             f"Machine: {cpu_model()}, {os.cpu_count()} cores (shared). Files: .wvc "
-             f"{result['bytes']['wvc'] / mib:.1f} MiB, .vti {result['bytes']['vti'] / mib:.1f} MiB, float32 "
-             f"{result['bytes']['float32'] / mib:.0f} MiB; the .wvc reader's chunk cache {f'{a.budget} MiB' if a.budget else 'its default (MemoryBudget 0)'} per rank. Made by `python3 bench/bench_paraview.py"
-             f"{' --quick' if a.quick else f' --size {n}'}`.", "",
-             "| reader | ranks | time to first image (s, in script) | pvbatch wall (s) | peak RSS per rank (MiB) |"
-             " chunks decoded per rank | reading s (pipeline update; reader's own) |", "|---|---|---|---|---|---|---|"]
-    for r in rows:
-        lines.append(f"| {r['reader']} | {r['ranks']} | {r['first_image_s']:.2f} | {r['wall_s']:.2f} | "
-                     f"{', '.join(f'{p / mib:.0f}' for p in r['peak_rss_bytes_per_rank'])} | "
-                     f"{', '.join(map(str, r.get('chunks_decoded_per_rank', []))) or '-'}"
-                     f"{' of ' + str(r['chunks_in_file']) if 'chunks_in_file' in r else ''} | "
-                     f"{', '.join(f'{t:.2f}' for t in r['read_s']) or '-'}"
-                     f"{'; ' + ', '.join(f'{t:.2f}' for t in r['read_s_per_rank'] if t is not None) if r.get('read_s_per_rank') else ''} |")
-    lines += ["", "Ratios: " + ", ".join(f"{k} {v:.2f}" for k, v in ratios.items()), ""]
-    if a.lod:
-        lines += [f"The `wvc level {a.lod}` rows read the file's level of detail {a.lod} (LevelOfDetail={a.lod}: "
-                  f"{n >> a.lod}^3 samples, the level's predicted error in the field data) and render it with "
-                  "the same camera and transfer function: not the same data as the .vti, so they are outside the "
-                  "full-resolution ratios and have their own.", ""]
-    out.with_suffix(".md").write_text("\n".join(lines))
-    print("\n".join(lines))
+    report(result, out)
     if not a.keep:
         shutil.rmtree(work)
 

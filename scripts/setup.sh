@@ -23,14 +23,15 @@ cmake -S . -B "$BUILD" -DCMAKE_BUILD_TYPE=Release -DWVOL_WITH_OPENVDB=ON -DWVOL_
   || { cat "$BUILD.configure.log"; exit 1; }
 cmake --build "$BUILD" -j "$(nproc)"
 
-# ParaView (docs/paraview.md). The reader plugin imports the wvol Python module, which must
-# not link Debian's VTK 9.1 (ParaView carries its own VTK; two in one process clash), so a
-# second copy is built without the VTK and OpenVDB adapters into $PV_BUILD. Debian's
-# python3-paraview conflicts with python3-vtk9 (both ship the `vtkmodules` package), which the
-# VTK adapter's tests need: its files are unpacked into $PV_BUILD/paraview-python instead of
-# installed, and the wrappers $PV_BUILD/pvpython and $PV_BUILD/pvbatch put them (and the
-# wvol build without VTK) on PYTHONPATH, with python/paraview/site/sitecustomize.py, which
-# keeps pvpython off Debian's VTK Python package.
+# ParaView (docs/paraview.md). The reader plugin (paraview/: vtkWVCReader, C++ against
+# paraview-dev) links the static libwvol of a second build without the VTK and OpenVDB adapters,
+# $PV_BUILD: ParaView carries its own VTK, and Debian's VTK 9.1 must not come into its process.
+# Debian's python3-paraview conflicts with python3-vtk9 (both ship the `vtkmodules` package),
+# which the VTK adapter's tests need: its files are unpacked into $PV_BUILD/paraview-python
+# instead of installed (the plugin's build takes the VTK wrapping's class hierarchies from
+# there, paraview/CMakeLists.txt), and the wrappers $PV_BUILD/pvpython and $PV_BUILD/pvbatch
+# put them on PYTHONPATH, with python/paraview/site/sitecustomize.py, which keeps pvpython off
+# Debian's VTK Python package.
 PV_BUILD=${WVOL_PARAVIEW_BUILD_DIR:-$BUILD-paraview}
 PV_BUILD=$(mkdir -p "$PV_BUILD" && cd "$PV_BUILD" && pwd)
 PVPY="$PV_BUILD/paraview-python"
@@ -52,13 +53,14 @@ for tool in pvpython pvbatch; do
   [ "$tool" = pvbatch ] || exe=$(ls "$PVPY"/usr/bin/pvpython3.*)
   cat > "$PV_BUILD/$tool" <<WRAP
 #!/bin/sh
-# $tool with ParaView's Python modules and the wvol package built without VTK (scripts/setup.sh)
-PYTHONPATH="$PVPY/usr/lib/python3/dist-packages:$PV_BUILD/python:$PWD/python/paraview/site\${PYTHONPATH:+:\$PYTHONPATH}" exec "$exe" "\$@"
+# $tool with ParaView's Python modules (scripts/setup.sh)
+PYTHONPATH="$PVPY/usr/lib/python3/dist-packages:$PWD/python/paraview/site\${PYTHONPATH:+:\$PYTHONPATH}" exec "$exe" "\$@"
 WRAP
   chmod +x "$PV_BUILD/$tool"
 done
 cmake -S . -B "$PV_BUILD" -DCMAKE_BUILD_TYPE=Release -DWVOL_WITH_OPENVDB=OFF -DWVOL_WITH_VTK=OFF \
-      -DWVOL_BUILD_APPS=OFF -DWVOL_BUILD_TESTS=OFF -DWVOL_BUILD_BENCH=OFF \
+      -DWVOL_BUILD_APPS=OFF -DWVOL_BUILD_TESTS=OFF -DWVOL_BUILD_BENCH=OFF -DWVOL_BUILD_PYTHON=OFF \
+      -DWVOL_BUILD_PARAVIEW_PLUGIN=ON \
       -DWVOL_WERROR="${WVOL_WERROR:-OFF}" > "$PV_BUILD.configure.log" 2>&1 \
   || { cat "$PV_BUILD.configure.log"; exit 1; }
-cmake --build "$PV_BUILD" -j "$(nproc)" --target wvol_paraview_plugin
+cmake --build "$PV_BUILD" -j "$(nproc)" --target WvolReader

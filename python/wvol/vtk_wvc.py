@@ -2,10 +2,10 @@
 """A VTK reader of .wvc files that decodes only the piece the pipeline asks for.
 
 :class:`WVCReader` is a ``VTKPythonAlgorithmBase`` (a source with one ``vtkImageData``
-output). It serves plain VTK scripts (Debian's ``python3-vtk9``) and, subclassed with
-ParaView's proxy decorators in ``python/paraview/wvol_wvc_plugin.py``, ParaView (pvpython,
-pvbatch, pvserver under MPI). The VTK modules are whichever ``vtkmodules`` the running
-Python has: ParaView's inside ParaView, Debian's VTK elsewhere.
+output) for plain VTK scripts (Debian's ``python3-vtk9``). ParaView has the same reader in C++,
+``vtkWVCReader`` (``paraview/``, the plugin scripts/setup.sh builds): the same contract, no
+Python in its read path (docs/paraview.md says why two). The VTK modules are whichever
+``vtkmodules`` the running Python has.
 
 Pipeline contract:
 

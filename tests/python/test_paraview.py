@@ -1,13 +1,14 @@
 # SPDX-License-Identifier: MIT
-"""The .wvc reader for VTK and ParaView (python/wvol/vtk_wvc.py, python/paraview/wvol_wvc_plugin.py,
-docs/paraview.md).
+"""The .wvc readers: for plain VTK (python/wvol/vtk_wvc.py) and for ParaView (the C++ plugin
+paraview/, vtkWVCReader; docs/paraview.md).
 
 - Plain VTK (Debian's VTK, in this process): the whole extent, a level of detail, a region and
   a piece equal the same samples of `wvol decompress`; a piece decodes only part of the chunks,
   two pieces' chunks together are the whole read's; bad files are refused with a message.
-- pvpython (ParaView's own VTK, the wvol build without VTK from scripts/setup.sh): the reader's
-  array equals `wvol decompress` at full resolution and at a dropped level; bad files give a
-  ParaView error message, and the session goes on.
+- pvpython (ParaView's own VTK; the C++ plugin from scripts/setup.sh's build without the VTK
+  adapter): the reader's array equals `wvol decompress` at full resolution and at a dropped
+  level; bad files, a region outside the volume and a level out of range give a ParaView error
+  message, and the session goes on; the plugin links no VTK but ParaView's.
 - pvbatch alone and under `mpiexec -n 2` (on an Xvfb display): each rank decodes about half of the chunks, their
   union is every chunk, and the volume rendering and Contour screenshots equal the one-process
   ones within compositing rounding.
@@ -17,6 +18,7 @@ rather than skip, when it is missing."""
 import json
 import os
 import pathlib
+import re
 import shutil
 import subprocess
 
@@ -27,7 +29,7 @@ from conftest import ROOT, WVOL_BIN
 from pvscripts import headless  # tests/python/pvscripts/headless.py
 
 PV_BUILD = pathlib.Path(os.environ.get("WVOL_PARAVIEW_BUILD_DIR", ROOT / "build-paraview"))
-PLUGIN = PV_BUILD / "paraview-plugins" / "wvol_wvc_plugin.py"
+PLUGIN = PV_BUILD / "paraview-plugins" / "WvolReader" / "WvolReader.so"  # the C++ reader (paraview/)
 SCRIPTS = pathlib.Path(__file__).resolve().parent / "pvscripts"
 SHAPE = (128, 64, 80)  # (z, y, x): unequal axes catch an axis-order mistake; z, the longest, is split
 ISO = 100.0
@@ -379,11 +381,14 @@ def pv_tool(name):
 
 @pytest.mark.parametrize("level", [0, 1])
 def test_pvpython_reader_equals_decompress(wvc, tmp_path, level):
+    """Level 0 loads the plugin with LoadPlugin, level 1 from PV_PLUGIN_PATH at start-up."""
     d, f, full, l1 = wvc
     out = tmp_path / "a.npy"
-    r = run([pv_tool("pvpython"), SCRIPTS / "pv_read.py", PLUGIN, f, level, out])
+    env = {"PV_PLUGIN_PATH": str(PLUGIN.parent)} if level == 1 else None
+    r = run([pv_tool("pvpython"), SCRIPTS / "pv_read.py", PLUGIN, f, level, out], env=env)
     assert r.returncode == 0, r.stdout + r.stderr
     meta = json.loads(r.stdout.strip().splitlines()[-1])
+    assert meta["autoloaded"] == (level == 1)
     close(np.load(out), full if level == 0 else l1)
     assert meta["spacing"] == pytest.approx([s * 2 ** level for s in (0.5, 0.75, 1.25)])
     assert meta["field"]["LevelOfDetail"] == level
@@ -399,18 +404,43 @@ def test_pvpython_region(wvc, tmp_path):
     close(np.load(out), full[0:13, 3:51, 10:21])
 
 
-@pytest.mark.parametrize("damage", ["garbage", "truncated", "missing"])
+@pytest.mark.parametrize("damage", ["garbage", "truncated", "header", "missing", "region", "level"])
 def test_pvpython_bad_file_is_an_error_not_a_crash(wvc, tmp_path, damage):
     d, f, _, _ = wvc
     path = tmp_path / "bad.wvc"
+    extra = []
     if damage == "garbage":
         path.write_bytes(b"\x00\x01garbage" * 300)
     elif damage == "truncated":
         path.write_bytes(f.read_bytes()[: f.stat().st_size // 2])
-    r = run([pv_tool("pvpython"), SCRIPTS / "pv_bad.py", PLUGIN, path])
+    elif damage == "header":  # the header alone: the chunk index cut short
+        path.write_bytes(f.read_bytes()[:200])
+    elif damage == "region":
+        path, extra = f, ["--region", "70", "90", "0", "10", "0", "10"]  # x0 beyond the last voxel (79)
+    elif damage == "level":
+        path, extra = f, ["--level", "7"]  # the file has 3 levels
+    r = run([pv_tool("pvpython"), SCRIPTS / "pv_bad.py", PLUGIN, path, *extra])
     assert r.returncode == 0, r.stdout + r.stderr
     assert "SURVIVED points=0" in r.stdout, r.stdout + r.stderr
     assert "WVCReader" in r.stderr and str(path) in r.stderr, r.stderr
+    words = {"region": "axis x", "level": "level of detail 7"}.get(damage)
+    if words:
+        assert words in r.stderr, r.stderr
+
+
+def test_plugin_links_paraviews_vtk_only():
+    """Two VTKs must not meet in one process: the plugin and its module link ParaView's VTK
+    libraries (libvtk*-pv5.11) and libwvol statically, never Debian's VTK 9.1 (the VTK adapter)
+    nor a shared libwvol."""
+    pv_tool("pvpython")
+    libs = [PLUGIN, *PLUGIN.parent.glob("libwvolWVCReader.so*")]
+    assert len(libs) == 2, libs
+    for lib in libs:
+        needed = re.findall(r"\(NEEDED\)\s+Shared library: \[([^\]]+)\]",
+                            run(["readelf", "-d", lib]).stdout)
+        vtk = [n for n in needed if n.startswith("libvtk")]
+        assert vtk and all("-pv5." in n for n in vtk), (lib, needed)
+        assert not any(n.startswith("libwvol.") or n.startswith("libwvol_adapters") for n in needed), (lib, needed)
 
 
 def chunk_lines(log):
@@ -455,6 +485,8 @@ def test_mpi_two_ranks_split_the_chunks_and_match_one_rank(wvc, tmp_path):
     assert sorted(first) == [0, 1], two
     assert sorted(e["piece"] for e in first.values()) == [0, 1]
     assert all(e["pieces"] == 2 for e in first.values())
+    # a z slab spanning x and y: decoded straight into the output array (the piece read)
+    assert all(e["read"] == "piece" for e in first.values()), first
     for e in first.values():
         # about half each (as test_vtk_reader_region_and_pieces: the coarse levels and the chunks
         # whose supports reach across the cut are decoded by both)

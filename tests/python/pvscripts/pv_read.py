@@ -2,18 +2,24 @@
 """Run by pvpython (tests/python/test_paraview.py): loads the .wvc reader plugin, reads a file at a
 level of detail (and optionally a region), saves the point array as .npy and prints the
 geometry and field data as one JSON line. Usage:
-    pvpython pv_read.py PLUGIN FILE LEVEL OUT.npy [x0 x1 y0 y1 z0 z1]"""
+    pvpython pv_read.py PLUGIN FILE LEVEL OUT.npy [x0 x1 y0 y1 z0 z1]
+(PLUGIN is loaded with LoadPlugin unless ParaView loaded it at start-up from PV_PLUGIN_PATH.)"""
 import json
 import sys
 
 import numpy as np
+import paraview.simple as pvs
 from paraview import servermanager
 from paraview.simple import LoadPlugin
 from vtkmodules.util.numpy_support import vtk_to_numpy
 
 plugin, path, level, out = sys.argv[1:5]
-LoadPlugin(plugin, ns=globals())
-reader = WVCReader(FileName=path, LevelOfDetail=int(level))  # noqa: F821 (defined by the plugin)
+autoloaded = hasattr(pvs, "WVCReader")  # loaded at start-up from PV_PLUGIN_PATH
+if autoloaded:
+    WVCReader = pvs.WVCReader
+else:
+    LoadPlugin(plugin, ns=globals())  # defines WVCReader here
+reader = WVCReader(FileName=path, LevelOfDetail=int(level))  # noqa: F821
 if len(sys.argv) > 5:
     reader.Region = [int(v) for v in sys.argv[5:11]]
 reader.UpdatePipeline()
@@ -27,5 +33,5 @@ if arr is None:
 np.save(out, vtk_to_numpy(arr).reshape(shape))
 fd = data.GetFieldData()
 field = {fd.GetArrayName(i): fd.GetArray(i).GetTuple1(0) for i in range(fd.GetNumberOfArrays())}
-print(json.dumps({"extent": list(ext), "spacing": list(data.GetSpacing()), "origin": list(data.GetOrigin()),
+print(json.dumps({"autoloaded": autoloaded, "extent": list(ext), "spacing": list(data.GetSpacing()), "origin": list(data.GetOrigin()),
                   "field": field}))

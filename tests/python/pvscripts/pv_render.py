@@ -4,12 +4,18 @@ bench/bench_paraview.py): reads a volume (a .wvc with the reader plugin: each ra
 chunks of its piece and appends a line to the chunk log; a .vti with ParaView's own reader),
 saves a volume rendering and a Contour of it as PNG screenshots with a fixed camera and transfer
 function (no data-dependent choices, so runs with different rank counts are comparable), and
-prints the seconds from the script's start to the first image. Usage:
+prints the seconds from the script's start to the first image (the plugin is loaded with LoadPlugin
+unless ParaView loaded it at start-up from PV_PLUGIN_PATH); with --time-read also the reading
+and the rendering apart, and this process's memory at each stage (one "memory" JSON line per
+rank: resident and peak resident MiB after start-up and the plugin, after reading, after the
+first image). Usage:
     pvbatch pv_render.py PLUGIN FILE OUTDIR CHUNKLOG VMIN VMAX ISO
             [--level S] [--array NAME] [--budget MIB] [--release] [--only volume|contour] [--time-read]"""
 import argparse
+import json
 import time
 
+import paraview.simple as pvs
 from paraview.simple import (ColorBy, Contour, CreateView, GetColorTransferFunction, GetOpacityTransferFunction,
                              LoadPlugin, SaveScreenshot, Show, XMLImageDataReader)
 
@@ -31,16 +37,41 @@ vmin, vmax, iso, only = a.vmin, a.vmax, a.iso, a.only
 if a.path.endswith(".vti"):
     reader = XMLImageDataReader(FileName=[a.path])
 else:
-    LoadPlugin(a.plugin, ns=globals())
-    reader = WVCReader(FileName=a.path, LevelOfDetail=a.level, ChunkLog=a.log,  # noqa: F821 (from the plugin)
-                       ArrayName=a.array, MemoryBudget=a.budget,
-                       ReleaseCache=int(a.release))
+    if hasattr(pvs, "WVCReader"):  # loaded at start-up from PV_PLUGIN_PATH
+        WVCReader = pvs.WVCReader
+    else:
+        LoadPlugin(a.plugin, ns=globals())  # defines WVCReader here
+    reader = WVCReader(FileName=a.path, LevelOfDetail=a.level, ChunkLog=a.log,  # noqa: F821
+                       ArrayName=a.array, MemoryBudget=a.budget, ReleaseCache=int(a.release))
 
 
+
+
+def memory_mib():
+    """This process's resident and peak resident set (VmRSS, VmHWM) in MiB, from /proc."""
+    got = {}
+    with open("/proc/self/status") as f:
+        for line in f:
+            if line.startswith(("VmRSS:", "VmHWM:")):
+                got[line.split(":")[0]] = int(line.split()[1]) / 1024.0
+    return got.get("VmRSS"), got.get("VmHWM")
+
+
+def rank():
+    from paraview.modules.vtkRemotingCore import vtkProcessModule
+    c = vtkProcessModule.GetProcessModule().GetGlobalController()
+    return c.GetLocalProcessId() if c is not None else 0
+
+
+stages = {}
 if a.time_read:
-    t_read = time.perf_counter()
+    stages["base"] = memory_mib()  # ParaView, its Python, the plugin: before any data
+    t_read, cpu_read = time.perf_counter(), time.process_time()  # process_time: all this process's threads
     reader.UpdatePipeline()
-    print(f"data read in {time.perf_counter() - t_read:.3f} s", flush=True)
+    read_s, read_cpu = time.perf_counter() - t_read, time.process_time() - cpu_read
+    stages["read"] = memory_mib()
+    print(f"data read in {read_s:.3f} s ({read_cpu:.3f} CPU s)", flush=True)
+t_render = time.perf_counter()
 
 
 def view_of(size=(480, 400)):
@@ -79,6 +110,11 @@ if only in (None, "volume"):
     place_camera(view)
     SaveScreenshot(f"{a.outdir}/volume.png", view, ImageResolution=list(view.ViewSize))
     print(f"first image after {time.perf_counter() - t0:.3f} s", flush=True)
+    if a.time_read:
+        print(f"rendered in {time.perf_counter() - t_render:.3f} s", flush=True)
+        stages["render"] = memory_mib()
+        print("memory " + json.dumps({"rank": rank(), **{k: {"rss_mib": v[0], "peak_mib": v[1]}
+                                                         for k, v in stages.items()}}), flush=True)
 
 if only in (None, "contour"):
     contour = Contour(Input=reader, ContourBy=["POINTS", a.array], Isosurfaces=[iso], ComputeScalars=0)
