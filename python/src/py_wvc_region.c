@@ -7,8 +7,6 @@
 #include "methods.h"
 #include "wvol/wvc.h"
 
-#include <math.h>
-
 #define CAPSULE_NAME "wvol.WvcFile"
 
 static void capsule_close(PyObject *cap)
@@ -43,14 +41,6 @@ static PyObject *py_wvc_file_open(PyObject *self, PyObject *args, PyObject *kw)
     return cap;
 }
 
-/* The (x, y, z) size of level s's grid: ceil(n / 2^s) along each transformed axis, n along
- * an axis the transform leaves alone. */
-static void level_grid(const wvol_wvc_info *in, int s, size_t g[3])
-{
-    const size_t n[3] = {in->nx, in->ny, in->nz}, p[3] = {in->px, in->py, in->pz};
-    for (int a = 0; a < 3; a++) g[a] = p[a] > 1 ? (n[a] + ((size_t)1 << s) - 1) >> s : n[a];
-}
-
 /* wvc_file_info(file) -> the header's dict (as wvc_info) plus "chunks", "tile" (x/y, z),
  * "level_shapes": the (z, y, x) grid of every level 0..levels (ceil(n / 2^s) along each
  * transformed axis, n along an axis the transform leaves alone) and "level_origins": the
@@ -61,24 +51,20 @@ static PyObject *py_wvc_file_info(PyObject *self, PyObject *cap)
 {
     wvol_wvc_file *f = file_of(cap);
     const wvol_wvc_info *in;
-    const wvol_filter *flt;
     wvol_error err;
     PyObject *d, *shapes = NULL, *origins = NULL, *v = NULL;
     (void)self;
     if (!f) return NULL;
     in = wvol_wvc_file_info(f);
-    if (wvol_filter_get(&flt, in->filter, &err) != WVOL_OK) return wvolpy_raise(&err);
+    if (wvol_wvc_level_geometry(in, 0, NULL, NULL, NULL, &err) != WVOL_OK) return wvolpy_raise(&err);
     if (!(d = wvolpy_wvc_info_dict(in))) return NULL;
     shapes = PyList_New(in->levels + 1);
     origins = PyList_New(in->levels + 1);
     if (!shapes || !origins) goto fail;
     for (int s = 0; s <= in->levels; s++) {
-        const size_t p[3] = {in->px, in->py, in->pz};
         size_t g[3];
         double o[3];
-        level_grid(in, s, g);
-        for (int a = 0; a < 3; a++)
-            o[a] = in->origin[a] + (p[a] > 1 ? in->spacing[a] * (ldexp(1.0, s) - 1.0) * flt->center : 0.0);
+        (void)wvol_wvc_level_geometry(in, s, g, NULL, o, NULL); /* checked above: the same filter, s in range */
         PyList_SET_ITEM(shapes, s, Py_BuildValue("(nnn)", (Py_ssize_t)g[2], (Py_ssize_t)g[1], (Py_ssize_t)g[0]));
         PyList_SET_ITEM(origins, s, Py_BuildValue("(ddd)", o[0], o[1], o[2]));
     }
@@ -155,8 +141,7 @@ static PyObject *py_wvc_file_region(PyObject *self, PyObject *args, PyObject *kw
     /* the box must lie in the level's grid before an array of its size is made; the
      * library refuses a level out of range itself, with its message */
     in = wvol_wvc_file_info(f);
-    if (level >= 0 && level <= in->levels) {
-        level_grid(in, level, g);
+    if (level >= 0 && level <= in->levels && wvol_wvc_level_geometry(in, level, g, NULL, NULL, NULL) == WVOL_OK) {
         for (int a = 0; a < 3; a++)
             if (lo[a] >= hi[a] || hi[a] > g[a]) {
                 PyErr_Format(PyExc_ValueError, "wvc region: box %zu..%zu along axis %d is empty or outside 0..%zu "

@@ -998,6 +998,18 @@ static void wvc2_regions_equal_the_full_decode(const char *wavelet, size_t nx, s
         double peak = 0;
         wvol_volume *full = level_volume(dec, level, &peak);
         if (!full) break;
+        {
+            /* the level's grid without decoding: the whole decode's level volume's (its
+             * spacing exact, its origin to the rounding of one product and sum) */
+            size_t g[3];
+            double sp[3], org[3];
+            int same = wvol_wvc_level_geometry(wvol_wvc_file_info(wf), level, g, sp, org, &err) == WVOL_OK;
+            for (int a = 0; same && a < 3; a++) {
+                const size_t n = a == 0 ? full->nx : a == 1 ? full->ny : full->nz;
+                same = g[a] == n && sp[a] == full->spacing[a] && fabs(org[a] - full->origin[a]) < 1e-9;
+            }
+            CHECK(same, "level geometry at level %d equals the decoded level volume's", level);
+        }
         for (int trial = 0; trial < 12; trial++) {
             size_t lo[3], hi[3], dims[3] = {full->nx, full->ny, full->nz};
             wvol_volume *r = NULL;
@@ -1048,6 +1060,9 @@ static void wvc2_regions_equal_the_full_decode(const char *wavelet, size_t nx, s
     }
     CHECK(bad == 0 && tried > 0, "%s %zux%zux%zu: %d region voxels differ from the full decode", wavelet, nx, ny, nz,
           bad);
+    CHECK(!wf || (wvol_wvc_level_geometry(wvol_wvc_file_info(wf), levels + 1, NULL, NULL, NULL, &err) == WVOL_ERR_ARG &&
+                  strstr(err.message, "level") && wvol_wvc_level_geometry(NULL, 0, NULL, NULL, NULL, &err) == WVOL_ERR_ARG),
+          "level geometry refuses a level past the last and a missing info");
     wvc2_file_fixture_free(&X, path);
 }
 

@@ -172,6 +172,15 @@ WVOL_API void wvol_wvc_close(wvol_wvc_file *f); /* NULL is fine */
 WVOL_API const wvol_wvc_info *wvol_wvc_file_info(const wvol_wvc_file *f);
 WVOL_API void wvol_wvc_file_stats(const wvol_wvc_file *f, wvol_wvc_cache_stats *st);
 
+/* Level `level`'s grid of a file (0: the original voxels; s: the grid of
+ * wvol_idwt3_level(c, s)), without decoding: its samples per axis (ceil(n / 2^s) along an
+ * axis the transform halves, n along one it leaves alone), its spacing, and the position
+ * of its first sample (origin + spacing (2^s - 1) c along a halved axis, c the filter's
+ * centre: wvol_idwt3_level's convention, which the region and piece reads follow). Any of
+ * grid, spacing and origin may be NULL; a level outside 0..levels is refused. */
+WVOL_API wvol_status wvol_wvc_level_geometry(const wvol_wvc_info *info, int level, size_t grid[3], double spacing[3],
+                                             double origin[3], wvol_error *err);
+
 /* The samples of the box [lo, hi) of level `level`'s grid (0: the original voxels;
  * s: the grid of wvol_idwt3_level(c, s), ceil(n / 2^s) per transformed axis), with
  * its values, spacing and origin (the box's first sample), decoding only the chunks

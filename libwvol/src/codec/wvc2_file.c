@@ -712,19 +712,40 @@ void wvol__wvc_file_level_max(const wvol_wvc_file *f, int m, float *max, size_t 
         for (size_t i = 0; i < g->lv[m].count; i++) max[i] = f->x->chunks[g->lv[m].first + i].maxabs;
 }
 
-/* Spacing and origin of the box starting at lo in level `level`'s grid, and the factor
- * 2^{-s/2} per transformed axis that wvol_idwt3_level applies to that level's low-pass. */
-static void region_geometry(const wvol_wvc_file *f, const wvol_filter *flt, int level, const size_t lo[3],
-                            double spacing[3], double origin[3], double *scale)
+wvol_status wvol_wvc_level_geometry(const wvol_wvc_info *info, int level, size_t grid[3], double spacing[3],
+                                    double origin[3], wvol_error *err)
 {
+    const wvol_filter *flt;
+    WVOL_RETURN_IF(!info, err, WVOL_ERR_ARG, "wvc level geometry: missing file info");
+    WVOL_RETURN_IF(level < 0 || level > info->levels, err, WVOL_ERR_ARG,
+                   "wvc level geometry: level %d outside 0..%d", level, info->levels);
+    WVOL_FORWARD(wvol_filter_get(&flt, info->filter, err));
+    {
+        const size_t n[3] = {info->nx, info->ny, info->nz}, p[3] = {info->px, info->py, info->pz};
+        for (int a = 0; a < 3; a++) {
+            const int halved = p[a] > 1;
+            if (grid) grid[a] = halved ? (n[a] + ((size_t)1 << level) - 1) >> level : n[a];
+            if (spacing) spacing[a] = info->spacing[a] * ldexp(1.0, halved ? level : 0);
+            if (origin)
+                origin[a] =
+                    info->origin[a] + (halved ? info->spacing[a] * (ldexp(1.0, level) - 1.0) * flt->center : 0);
+        }
+    }
+    return WVOL_OK;
+}
+
+/* Spacing and origin of the box starting at lo in level `level`'s grid (a level the
+ * caller has checked), and the factor 2^{-s/2} per transformed axis that
+ * wvol_idwt3_level applies to that level's low-pass. */
+static void region_geometry(const wvol_wvc_file *f, int level, const size_t lo[3], double spacing[3],
+                            double origin[3], double *scale)
+{
+    const size_t p[3] = {f->info.px, f->info.py, f->info.pz};
+    (void)wvol_wvc_level_geometry(&f->info, level, NULL, spacing, origin, NULL);
     *scale = 1.0;
     for (int a = 0; a < 3; a++) {
-        size_t p = a == 0 ? f->info.px : a == 1 ? f->info.py : f->info.pz;
-        double sp = f->info.spacing[a] * ldexp(1.0, p > 1 ? level : 0);
-        if (p > 1) *scale *= pow(2.0, -0.5 * level);
-        spacing[a] = sp;
-        origin[a] = f->info.origin[a] + (p > 1 ? f->info.spacing[a] * (ldexp(1.0, level) - 1.0) * flt->center : 0) +
-                    sp * (double)lo[a];
+        if (p[a] > 1) *scale *= pow(2.0, -0.5 * level);
+        origin[a] += spacing[a] * (double)lo[a];
     }
 }
 
@@ -826,7 +847,7 @@ wvol_status wvol_wvc_read_region_into(float *dst, wvol_wvc_file *f, const size_t
     st = reconstruct_parts(f, dst, &src, lo, hi, threads, err);
     if (st == WVOL_OK) st = wvol__wvc_file_error(f, err);
     if (st != WVOL_OK) return st;
-    region_geometry(f, flt, level, lo, sp, org, &scale);
+    region_geometry(f, level, lo, sp, org, &scale);
     for (int a = 0; a < 3; a++) {
         if (spacing) spacing[a] = sp[a];
         if (origin) origin[a] = org[a];

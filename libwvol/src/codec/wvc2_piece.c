@@ -369,11 +369,11 @@ wvol_status wvol_wvc_read_piece_into(float *work, size_t cap, wvol_wvc_file *f, 
         size_t nv = P.PX * P.PY * P.n[P.s];
         if (P.s > 0)
             for (size_t i = 0; i < nv; i++) work[i] = (float)(work[i] * scale);
+        double sp[3], org[3];
+        WVOL_FORWARD(wvol_wvc_level_geometry(I, P.s, NULL, sp, org, err));
         for (int a = 0; a < 3; a++) {
-            double sp = I->spacing[a] * ldexp(1.0, P.s);
-            if (spacing) spacing[a] = sp;
-            if (origin)
-                origin[a] = I->origin[a] + I->spacing[a] * (ldexp(1.0, P.s) - 1.0) * flt->center + sp * (double)lo[a];
+            if (spacing) spacing[a] = sp[a];
+            if (origin) origin[a] = org[a] + sp[a] * (double)lo[a];
         }
     }
     return WVOL_OK;

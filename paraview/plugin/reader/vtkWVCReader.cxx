@@ -45,17 +45,6 @@ using SDDP = vtkStreamingDemandDrivenPipeline;
 // (the box's coefficients and reconstruction buffers) beyond the output array.
 constexpr size_t SlabSamples = size_t(1) << 23;
 
-// The (x, y, z) size of level s's grid: ceil(n / 2^s) along a transformed axis (padded > 1),
-// n along an axis the transform leaves alone.
-void LevelGrid(const wvol_wvc_info* in, int s, size_t g[3])
-{
-  const size_t n[3] = { in->nx, in->ny, in->nz }, p[3] = { in->px, in->py, in->pz };
-  for (int a = 0; a < 3; a++)
-  {
-    g[a] = p[a] > 1 ? (n[a] + (size_t(1) << s) - 1) >> s : n[a];
-  }
-}
-
 bool Transformed(const wvol_wvc_info* in, int a)
 {
   const size_t p[3] = { in->px, in->py, in->pz };
@@ -242,17 +231,15 @@ int vtkWVCReader::RequestInformation(vtkInformation*, vtkInformationVector**, vt
     vtkErrorMacro(<< this->FileName << ": level of detail " << s << " outside 0.." << in->levels);
     return 0;
   }
-  const wvol_filter* flt;
+  const size_t n0[3] = { in->nx, in->ny, in->nz };
+  size_t g[3];
+  double spacing[3], origin[3];
   wvol_error err;
-  if (wvol_filter_get(&flt, in->filter, &err) != WVOL_OK)
+  if (wvol_wvc_level_geometry(in, s, g, spacing, origin, &err) != WVOL_OK)
   {
     vtkErrorMacro(<< this->FileName << ": " << err.message);
     return 0;
   }
-  const size_t n0[3] = { in->nx, in->ny, in->nz };
-  size_t g[3];
-  LevelGrid(in, s, g);
-  double spacing[3], origin[3];
   for (int a = 0; a < 3; a++)
   {
     long long lo = this->Region[2 * a], hi = this->Region[2 * a + 1];
@@ -269,10 +256,6 @@ int vtkWVCReader::RequestInformation(vtkInformation*, vtkInformationVector**, vt
     const long long f = Transformed(in, a) ? (1LL << s) : 1;
     this->WholeExtent[2 * a] = int(lo / f);
     this->WholeExtent[2 * a + 1] = int(std::min((hi + f) / f, (long long)g[a]) - 1);
-    const double scale = Transformed(in, a) ? std::ldexp(1.0, s) : 1.0;
-    spacing[a] = in->spacing[a] * scale;
-    // the level grid's first sample: wvol_idwt3_level's convention (the filter's centre)
-    origin[a] = in->origin[a] + (Transformed(in, a) ? in->spacing[a] * (scale - 1.0) * flt->center : 0.0);
   }
   vtkInformation* out = outputVector->GetInformationObject(0);
   out->Set(SDDP::WHOLE_EXTENT(), this->WholeExtent, 6);
