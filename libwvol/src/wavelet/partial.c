@@ -343,7 +343,8 @@ WVOL__SYNTH static void synth_x_planned(float *out, const float *lo, const float
     if (full) {
         ptrdiff_t rmin = 0, rmax = 0;
         for (ptrdiff_t i = 0; i < on; i++) {
-            ptrdiff_t gi = o0 + i, kmin = -floor_div2(L - 1 - gi), kmax = floor_div2(gi);
+            ptrdiff_t kmin, kmax, r;
+            tap_range(o0 + i, L, k0, kn, full, &kmin, &kmax, &r);
             if (i == 0 || kmin - k0 < rmin) rmin = kmin - k0;
             if (i == 0 || kmax - k0 > rmax) rmax = kmax - k0;
         }
@@ -353,13 +354,8 @@ WVOL__SYNTH static void synth_x_planned(float *out, const float *lo, const float
     }
     for (ptrdiff_t i = 0; i < on; i++) {
         ptrdiff_t gi = o0 + i, kmin, kmax, r;
-        if (unwrap) {
-            kmin = -floor_div2(L - 1 - gi);
-            kmax = floor_div2(gi);
-            r = kmin - k0 + off;
-        } else {
-            tap_range(gi, L, k0, kn, full, &kmin, &kmax, &r);
-        }
+        tap_range(gi, L, k0, kn, full, &kmin, &kmax, &r);
+        if (unwrap) r = kmin - k0 + off; /* the position in the unwrapped copy, not mod kn */
         first[i] = nt;
         r0[i] = r;
         for (ptrdiff_t k = kmin; k <= kmax; k++) {
