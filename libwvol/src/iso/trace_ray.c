@@ -181,8 +181,16 @@ void wvol__trace_ws_free(tws *w)
  * envelope: 1 (surely >= iso), 0 (surely < iso) or -1 (undecided). */
 static int decide(const tracer *tr, const double *a, double env)
 {
-    double B[NC], lo = INFINITY, hi = -INFINITY, pad;
+    double B[NC], lo = INFINITY, hi = -INFINITY, pad, r = 0;
     int j;
+    /* first the monomial form's bound |p(u) - a_0| <= sum_{k >= 1} |a_k| on [0, 1]: on a short
+     * piece far from iso it decides without the Bernstein coefficients. Its rounding (a few
+     * DBL_EPSILON of the summed magnitudes) is far below the pad. */
+    for (j = 1; j < NC; j++) r += fabs(a[j]);
+    pad = PAD_REL * (fabs(a[0]) + r + fabs(tr->iso) + env);
+    r += env + pad;
+    if (a[0] - tr->iso > r) return 1;
+    if (tr->iso - a[0] > r) return 0;
     pad = PAD_REL * (wvol__bernstein(&tr->g, a, B) + fabs(tr->iso) + env);
     for (j = 0; j < NC; j++) { /* B is finite: no fmin/fmax (a call each on baseline x86-64) */
         lo = B[j] < lo ? B[j] : lo;
