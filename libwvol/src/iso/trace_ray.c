@@ -5,6 +5,7 @@
  * change, bisection to the tolerance; the cell grid's decided cells stepped over.
  * Based on: Kalra & Barr 1989; Lane & Riesenfeld 1981. */
 #include <float.h>
+#include <stdint.h>
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -213,6 +214,19 @@ static size_t piece_at(const double *T, size_t E, double t)
     return lo;
 }
 
+/* frexp's exponent of a finite x > 0, without the library call for normal numbers (small_cut
+ * takes it of every function of every chunk). */
+static inline int binary_exponent(double x)
+{
+    uint64_t b;
+    int e;
+    memcpy(&b, &x, sizeof b);
+    e = (int)((b >> 52) & 0x7ff);
+    if (e == 0) frexp(x, &e); /* subnormal */
+    else e -= 1022;
+    return e;
+}
+
 /* The cut tau: functions with |c| max|w| <= tau are "small"; together they sum to at most
  * SMALL_BUDGET of the largest one (buckets by binary exponent, smallest first). */
 static double small_cut(const wvol_store_hit *hits, size_t n, const tracer *tr, double wmax)
@@ -223,13 +237,11 @@ static double small_cut(const wvol_store_hit *hits, size_t n, const tracer *tr, 
     int k, ex;
     if (!(wmax > 0)) return 0;
     memset(sum, 0, sizeof sum);
-    frexp(wmax, &ex);
+    ex = binary_exponent(wmax);
     for (i = 0; i < n; i++) {
         double wb = fabs((double)hits[i].value) * tr->k.fb[hits[i].level][hits[i].band];
-        int e;
         if (!(wb > 0)) continue;
-        frexp(wb, &e);
-        k = ex - e; /* 0: the largest bucket */
+        k = ex - binary_exponent(wb); /* 0: the largest bucket */
         sum[k < NB - 1 ? k : NB - 1] += wb;
     }
     for (k = NB - 1; k > 0; k--) {
