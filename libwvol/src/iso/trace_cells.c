@@ -20,7 +20,7 @@
                               ones always are refined: their bounds include far functions */
 /* ... when their bound would need to shrink more than tr->refine_gain: REFINE_GAIN_PER_RAY
  * times the rays across a finest cell's side, within [MIN, MAX] (wvol__trace_cells) */
-#define REFINE_GAIN_PER_RAY 2.0
+#define REFINE_GAIN_PER_RAY 4.0
 #define REFINE_GAIN_MIN 2.0
 #define REFINE_GAIN_MAX 8.0
 
