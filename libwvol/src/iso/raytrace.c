@@ -34,7 +34,8 @@
  *     a ray reaches it by wvol__iso_box_range (low-pass coefficients fitted by a plane through
  *     the spline's partition of unity and first moment, every other term the interval of its
  *     function's range on the cell): rays step over cells whose range excludes iso and trace
- *     runs of the others; an undecided cell's children are classified only where that can pay.
+ *     runs of the others; an undecided cell's children are classified only where that can pay
+ *     (more so the denser the rays: trace_cells.c).
  *
  * The guarantee. "Crossing" means f^ - iso changes sign in the classification f^ >= iso.
  * For the computed piece polynomials, the reported hit is the first crossing along the ray
