@@ -108,6 +108,8 @@ typedef struct wvol__tracer {
      * classified yet), computed from the store's rigorous box bounds the first time a ray
      * reaches it (a pure function of the box, so threads may race on it) */
     double cell;
+    double refine_gain; /* an undecided cell is refined only where its children's bounds would
+                           need to be at most this many times narrower to decide (trace_cells.c) */
     size_t nc[3];
     size_t ncl[WVOL__CELL_LEVELS][3];
     signed char *cls[WVOL__CELL_LEVELS];
@@ -151,8 +153,9 @@ typedef struct wvol__trace_ws {
 void wvol__trace_ws_free(wvol__trace_ws *w);
 
 /* Allocates the cell grid of tr, every class unknown (free with wvol__trace_cells_free, also
- * on failure). */
-wvol_status wvol__trace_cells(wvol__tracer *tr, wvol_error *err);
+ * on failure); spacing: the distance between neighbouring rays in the volume (voxels; 0 when
+ * unknown), which sets how far undecided cells are refined (tr->refine_gain). */
+wvol_status wvol__trace_cells(wvol__tracer *tr, double spacing, wvol_error *err);
 void wvol__trace_cells_free(wvol__tracer *tr);
 /* The class of f^ in the finest cell holding x (voxel coords): 1, 0 or -1 (undecided), going
  * down the hierarchy from the coarsest cell and classifying the cells met for the first time

@@ -34,7 +34,8 @@
  *     a ray reaches it by wvol__iso_box_range (low-pass coefficients fitted by a plane through
  *     the spline's partition of unity and first moment, every other term the interval of its
  *     function's range on the cell): rays step over cells whose range excludes iso and trace
- *     runs of the others; an undecided cell's children are classified only where that can pay.
+ *     runs of the others; an undecided cell's children are classified only where that can pay
+ *     (more so the denser the rays: trace_cells.c).
  *
  * The guarantee. "Crossing" means f^ - iso changes sign in the classification f^ >= iso.
  * For the computed piece polynomials, the reported hit is the first crossing along the ray
@@ -212,6 +213,37 @@ static void empty_message(const tracer *tr, double iso, char *msg, size_t cap)
     wvol_coeffs_destroy(c);
 }
 
+/* The distance (voxels) between the rays of neighbouring pixels where the central pixel's ray
+ * passes closest to the volume's centre: the geometric mean over the two image axes, 0 when
+ * not defined. */
+static double ray_spacing(const tracer *tr, const wvol_camera *cam)
+{
+    double o[3][3], d[3][3], ov[3][3], dv[3][3], c[3], t, dd = 0, sp[2];
+    double px = 0.5 * cam->width, py = 0.5 * cam->height;
+    int a, k;
+    c[0] = 0.5 * ((double)tr->g.info.nx - 1), c[1] = 0.5 * ((double)tr->g.info.ny - 1), c[2] = 0.5 * ((double)tr->g.info.nz - 1);
+    wvol_camera_ray(cam, px, py, o[0], d[0]);
+    wvol_camera_ray(cam, px + 1, py, o[1], d[1]);
+    wvol_camera_ray(cam, px, py + 1, o[2], d[2]);
+    for (k = 0; k < 3; k++) {
+        wvol_store_world_to_voxel(tr->g.s, o[k], ov[k]);
+        wvol_store_dir_to_voxel(tr->g.s, d[k], dv[k]);
+    }
+    for (t = 0, a = 0; a < 3; a++) t += (c[a] - ov[0][a]) * dv[0][a], dd += dv[0][a] * dv[0][a];
+    if (!(dd > 0)) return 0;
+    t /= dd;
+    for (k = 0; k < 2; k++) {
+        double s2 = 0;
+        for (a = 0; a < 3; a++) {
+            double q = (ov[k + 1][a] + t * dv[k + 1][a]) - (ov[0][a] + t * dv[0][a]);
+            s2 += q * q;
+        }
+        sp[k] = sqrt(s2);
+    }
+    t = sqrt(sp[0] * sp[1]);
+    return isfinite(t) ? t : 0;
+}
+
 wvol_status wvol_iso_raytrace(wvol_image *img, float *depth, float *normals, const wvol_store *s,
                               const wvol_camera *cam, double iso, const wvol_iso_trace_params *p,
                               wvol_iso_trace_stats *st, wvol_error *err)
@@ -229,7 +261,7 @@ wvol_status wvol_iso_raytrace(wvol_image *img, float *depth, float *normals, con
     }
     WVOL_FORWARD(make_tracer(&tr, s, iso, p, err));
     nth = wvol__threads(p->threads);
-    if (wvol__trace_cells(&tr, err) != WVOL_OK) {
+    if (wvol__trace_cells(&tr, ray_spacing(&tr, cam), err) != WVOL_OK) {
         wvol__trace_cells_free(&tr);
         wvol__iso_boxk_free(&tr.k);
         return err ? err->status : WVOL_ERR_INTERNAL;

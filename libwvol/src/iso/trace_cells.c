@@ -18,7 +18,11 @@
 #define CELL_FINAL (-3)    /* undecided, and its children would be too (box_class): not refined */
 #define STOP_SIDE 8.0      /* cells of this side or less may be left unrefined (box_class); larger
                               ones always are refined: their bounds include far functions */
-#define REFINE_GAIN 8.0    /* ... when their bound would need to shrink more than this */
+/* ... when their bound would need to shrink more than tr->refine_gain: REFINE_GAIN_PER_RAY
+ * times the rays across a finest cell's side, within [MIN, MAX] (wvol__trace_cells) */
+#define REFINE_GAIN_PER_RAY 4.0
+#define REFINE_GAIN_MIN 2.0
+#define REFINE_GAIN_MAX 8.0
 
 typedef wvol__tracer tracer;
 
@@ -311,11 +315,11 @@ static int box_class(const tracer *tr, const wvol_store_hits *hits, const double
     if (blo > tr->iso) return 1;
     if (bhi < tr->iso) return 0;
     /* would halving the cell help? Only if the children's bounds could exclude iso, which
-     * needs them REFINE_GAIN times narrower than this one, or more: then they are not worth
+     * needs them tr->refine_gain times narrower than this one, or more: then they are not worth
      * their queries, and the rays trace this cell exactly */
     hw = 0.5 * (bhi - blo);
     gap = fabs(0.5 * (bhi + blo) - tr->iso);
-    return may_stop && hw > REFINE_GAIN * gap ? CELL_FINAL : -1;
+    return may_stop && hw > tr->refine_gain * gap ? CELL_FINAL : -1;
 }
 
 void wvol__cell_ws_free(wvol__cell_ws *w)
@@ -370,7 +374,7 @@ static const wvol_store_hits *cell_hits(const tracer *tr, wvol__cell_ws *w, int 
     return &w->q[L];
 }
 
-wvol_status wvol__trace_cells(tracer *tr, wvol_error *err)
+wvol_status wvol__trace_cells(tracer *tr, double spacing, wvol_error *err)
 {
     size_t n[3] = {tr->g.info.nx, tr->g.info.ny, tr->g.info.nz};
     int L, a;
@@ -395,6 +399,12 @@ wvol_status wvol__trace_cells(tracer *tr, wvol_error *err)
         memset(tr->cls[L], CELL_UNKNOWN, total);
     }
     for (a = 0; a < 3; a++) tr->nc[a] = tr->ncl[WVOL__CELL_LEVELS - 1][a];
+    /* a cell's classification is paid once, what it saves once per ray crossing it: the sparser
+     * the rays, the less refining pays (bench/results/iso_trace_profile.md, "Refinement by ray
+     * density") */
+    tr->refine_gain = REFINE_GAIN_MAX;
+    if (spacing > 0 && isfinite(spacing))
+        tr->refine_gain = fmax(REFINE_GAIN_MIN, fmin(REFINE_GAIN_MAX, REFINE_GAIN_PER_RAY * tr->cell / spacing));
     return WVOL_OK;
 }
 

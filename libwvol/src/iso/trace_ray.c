@@ -5,6 +5,7 @@
  * change, bisection to the tolerance; the cell grid's decided cells stepped over.
  * Based on: Kalra & Barr 1989; Lane & Riesenfeld 1981. */
 #include <float.h>
+#include <stdint.h>
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -181,8 +182,16 @@ void wvol__trace_ws_free(tws *w)
  * envelope: 1 (surely >= iso), 0 (surely < iso) or -1 (undecided). */
 static int decide(const tracer *tr, const double *a, double env)
 {
-    double B[NC], lo = INFINITY, hi = -INFINITY, pad;
+    double B[NC], lo = INFINITY, hi = -INFINITY, pad, r = 0;
     int j;
+    /* first the monomial form's bound |p(u) - a_0| <= sum_{k >= 1} |a_k| on [0, 1]: on a short
+     * piece far from iso it decides without the Bernstein coefficients. Its rounding (a few
+     * DBL_EPSILON of the summed magnitudes) is far below the pad. */
+    for (j = 1; j < NC; j++) r += fabs(a[j]);
+    pad = PAD_REL * (fabs(a[0]) + r + fabs(tr->iso) + env);
+    r += env + pad;
+    if (a[0] - tr->iso > r) return 1;
+    if (tr->iso - a[0] > r) return 0;
     pad = PAD_REL * (wvol__bernstein(&tr->g, a, B) + fabs(tr->iso) + env);
     for (j = 0; j < NC; j++) { /* B is finite: no fmin/fmax (a call each on baseline x86-64) */
         lo = B[j] < lo ? B[j] : lo;
@@ -205,6 +214,19 @@ static size_t piece_at(const double *T, size_t E, double t)
     return lo;
 }
 
+/* frexp's exponent of a finite x > 0, without the library call for normal numbers (small_cut
+ * takes it of every function of every chunk). */
+static inline int binary_exponent(double x)
+{
+    uint64_t b;
+    int e;
+    memcpy(&b, &x, sizeof b);
+    e = (int)((b >> 52) & 0x7ff);
+    if (e == 0) frexp(x, &e); /* subnormal */
+    else e -= 1022;
+    return e;
+}
+
 /* The cut tau: functions with |c| max|w| <= tau are "small"; together they sum to at most
  * SMALL_BUDGET of the largest one (buckets by binary exponent, smallest first). */
 static double small_cut(const wvol_store_hit *hits, size_t n, const tracer *tr, double wmax)
@@ -215,13 +237,11 @@ static double small_cut(const wvol_store_hit *hits, size_t n, const tracer *tr, 
     int k, ex;
     if (!(wmax > 0)) return 0;
     memset(sum, 0, sizeof sum);
-    frexp(wmax, &ex);
+    ex = binary_exponent(wmax);
     for (i = 0; i < n; i++) {
         double wb = fabs((double)hits[i].value) * tr->k.fb[hits[i].level][hits[i].band];
-        int e;
         if (!(wb > 0)) continue;
-        frexp(wb, &e);
-        k = ex - e; /* 0: the largest bucket */
+        k = ex - binary_exponent(wb); /* 0: the largest bucket */
         sum[k < NB - 1 ? k : NB - 1] += wb;
     }
     for (k = NB - 1; k > 0; k--) {
