@@ -275,6 +275,12 @@ FORCE_INLINE int detail_band(int dec, int blocks, coder *cd, int32_t *Q, const s
             uint8_t *brow = blocks ? bstate + bx * ((y >> 2) + by * (z >> 2)) : NULL;
             int32_t *row = Q + wvc_index(p, b, 0, y, z);
             const int hasN = y > 0, hasU = z > 0, first = (y & 1) == 0 && (z & 1) == 0;
+            if (dec && y + 2 < ey) {
+                /* the decoder's stores and neighbour loads meet rows of a large array that are
+                 * cold: ask for the row two ahead while this one is decoded */
+                const char *ahead = (const char *)(row + 2 * sy);
+                for (size_t o = 0; o < ex * sizeof *row; o += 64) __builtin_prefetch(ahead + o, 1, 3);
+            }
             if (blocks && (y & 3) == 0 && (z & 3) == 0) block_row(dec, cd, m, Q, p, b, y >> 2, z >> 2, bx, by, bstate, bany);
             if (first) {
                 if (!blocks) {
