@@ -192,7 +192,12 @@ static inline size_t next_group(const uint8_t *grow, size_t g, size_t gx)
     uint64_t w;
     while (g + 8 <= gx) {
         memcpy(&w, grow + g, 8);
-        if (w) break;
+        /* the first non-zero byte of the eight: its index from the word's zero bits */
+#if __BYTE_ORDER__ == __ORDER_LITTLE_ENDIAN__
+        if (w) return g + (size_t)(__builtin_ctzll(w) >> 3);
+#else
+        if (w) return g + (size_t)(__builtin_clzll(w) >> 3);
+#endif
         g += 8;
     }
     while (g < gx && !grow[g]) g++;
