@@ -169,36 +169,6 @@ static inline void rc_dec_init(rc_dec *d, const uint8_t *buf, size_t size)
     for (i = 0; i < 4; i++) d->code = (d->code << 8) | rc_dec_byte(d);
 }
 
-/* Renormalisation: the number of bytes to shift in is the number of whole leading zero
- * bytes of range above the top byte (0, 1 or 2: one decision leaves range >= 2^11, a direct
- * bit halves it), so away from the end of the stream it is one big-endian 4-byte load and
- * two shifts, without a loop or a branch on the coded data. Near the end (fewer than 4
- * bytes left) the byte loop runs, feeding zeros past the end and counting them; both ways
- * shift in the same bytes. */
-static inline void rc_dec_norm_slow(rc_dec *d)
-{
-    while (d->range < RC_TOP) {
-        d->range <<= 8;
-        d->code = (d->code << 8) | rc_dec_byte(d);
-    }
-}
-
-static inline void rc_dec_norm(rc_dec *d)
-{
-    if (__builtin_expect(d->end - d->p >= 4, 1)) {
-        uint32_t w, n = (uint32_t)__builtin_clz(d->range | 1u) >> 3; /* 0..2: range >= 2^11 here */
-        memcpy(&w, d->p, 4);
-#if __BYTE_ORDER__ == __ORDER_LITTLE_ENDIAN__
-        w = __builtin_bswap32(w);
-#endif
-        d->code = (uint32_t)(((uint64_t)d->code << (8 * n)) | ((uint64_t)w >> (32 - 8 * n)));
-        d->range <<= 8 * n;
-        d->p += n;
-    } else {
-        rc_dec_norm_slow(d);
-    }
-}
-
 static inline int rc_dec_bit(rc_dec *d, rc_ctx *c)
 {
     uint32_t bound = (d->range >> 16) * rc_ctx_p0(c);
@@ -207,7 +177,10 @@ static inline int rc_dec_bit(rc_dec *d, rc_ctx *c)
     d->code -= bound & mask;
     d->range = bit ? d->range - bound : bound;
     rc_ctx_update(c, bit);
-    rc_dec_norm(d);
+    while (d->range < RC_TOP) {
+        d->range <<= 8;
+        d->code = (d->code << 8) | rc_dec_byte(d);
+    }
     return bit;
 }
 
@@ -217,9 +190,12 @@ static inline uint32_t rc_dec_direct(rc_dec *d, int nbits)
     while (nbits-- > 0) {
         d->range >>= 1;
         uint32_t b = d->code >= d->range;
-        d->code -= d->range & (0u - b);
+        if (b) d->code -= d->range;
         v = (v << 1) | b;
-        rc_dec_norm(d);
+        while (d->range < RC_TOP) {
+            d->range <<= 8;
+            d->code = (d->code << 8) | rc_dec_byte(d);
+        }
     }
     return v;
 }
