@@ -377,23 +377,28 @@ static void evict_for(wvol_wvc_file *f, size_t need, size_t need_data, int32_t *
 
 static centry *get_chunk(wvol_wvc_file *f, size_t id);
 
-static void dscratch_take(wvol_wvc_file *f, wvc2_scratch *s)
+/* Scratch kept between reads: a pool of at most SPARE_SCRATCH items of `size` bytes at
+ * `pool` (*n of them), under the lock. take copies one out, or zeros when the pool is
+ * empty; give keeps the item and returns 1, or returns 0 when the pool is full (the
+ * caller then frees it). */
+static void pool_take(wvol_wvc_file *f, void *pool, int *n, size_t size, void *item)
 {
     lock(f);
-    if (f->dspares > 0) *s = f->dspare[--f->dspares];
-    else memset(s, 0, sizeof *s);
+    if (*n > 0) memcpy(item, (char *)pool + (size_t)--*n * size, size);
+    else memset(item, 0, size);
     unlock(f);
 }
 
-static void dscratch_give(wvol_wvc_file *f, wvc2_scratch *s)
+static int pool_give(wvol_wvc_file *f, void *pool, int *n, size_t size, const void *item)
 {
+    int kept = 0;
     lock(f);
-    if (f->dspares < SPARE_SCRATCH) {
-        f->dspare[f->dspares++] = *s;
-        s = NULL;
+    if (*n < SPARE_SCRATCH) {
+        memcpy((char *)pool + (size_t)(*n)++ * size, item, size);
+        kept = 1;
     }
     unlock(f);
-    if (s) free(s->q);
+    return kept;
 }
 
 /* Reads and decodes chunk id (not all zero) into a new entry. */
@@ -470,11 +475,11 @@ static centry *decode_chunk(wvol_wvc_file *f, size_t id, int32_t *reuse, size_t 
         why = "cannot read the chunk (file shorter than its index says?)";
     } else if (wvol__wvc2_chunk_check(f->x, id, pay, &why) == 0) {
         wvc2_scratch scr;
-        dscratch_take(f, &scr);
+        pool_take(f, f->dspare, &f->dspares, sizeof scr, &scr);
         if (wvol__wvc2_chunk_decode(g, m, ext, child, parent, NULL, &scr, pay, c->bytes, &nz, &why) == 0 &&
             nz != c->nonzero)
             why = "decoded non-zero count does not match the index";
-        dscratch_give(f, &scr);
+        if (!pool_give(f, f->dspare, &f->dspares, sizeof scr, &scr)) free(scr.q);
     }
     free(pay);
     release(f, P);
@@ -827,21 +832,12 @@ static void region_geometry(const wvol_wvc_file *f, int level, const size_t lo[3
 
 static void scratch_take(wvol_wvc_file *f, wvol__brick_scratch *scr)
 {
-    lock(f);
-    if (f->spares > 0) *scr = f->spare[--f->spares];
-    else memset(scr, 0, sizeof *scr);
-    unlock(f);
+    pool_take(f, f->spare, &f->spares, sizeof *scr, scr);
 }
 
 static void scratch_give(wvol_wvc_file *f, wvol__brick_scratch *scr)
 {
-    lock(f);
-    if (f->spares < SPARE_SCRATCH) {
-        f->spare[f->spares++] = *scr;
-        scr = NULL;
-    }
-    unlock(f);
-    if (scr) wvol__brick_scratch_free(scr);
+    if (!pool_give(f, f->spare, &f->spares, sizeof *scr, scr)) wvol__brick_scratch_free(scr);
 }
 
 /* Reconstructs the box [lo, hi) of source src into dst with `threads` threads, each a
