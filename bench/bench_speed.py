@@ -22,8 +22,13 @@ main's binary: WVOL_BASE=path (or --base), else it is built from git's `main` in
 (a worktree, Release, with the optional libraries found, as scripts/setup.sh builds it: its
 start-up is part of what a user of main pays).
 
+The region read of issue 21 (--roi-file F --roi x0,y0,z0,x1,y1,z1): `wvol decompress F --roi ...`
+on one thread by both programs, alternated, best of the rounds, user and system CPU seconds of
+each (a .vti reader's time is the bar it has to beat), the two outputs compared byte for byte.
+
 Writes bench/results/speed.json and speed.md.
     python3 bench/bench_speed.py [--sizes 256 512] [--rounds 3] [--base PATH] [--wvol PATH]
+                                 [--roi-file F --roi 0,0,0,1024,1024,512]
 """
 import argparse
 import json
@@ -42,8 +47,8 @@ from benchutil import cpu_model  # noqa: E402
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
 
-def run(cmd, threads):
-    """(cpu seconds, wall seconds) of one whole process."""
+def run(cmd, threads, detail=False):
+    """(cpu seconds, wall seconds) of one whole process; with detail, (user, system, wall)."""
     env = dict(os.environ, OMP_NUM_THREADS=str(threads), OMP_WAIT_POLICY="passive")
     t0 = time.perf_counter()
     p = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, env=env)
@@ -53,7 +58,37 @@ def run(cmd, threads):
     p.stderr.close()
     if status != 0:
         raise RuntimeError(f"{' '.join(cmd)} failed: {err}")
+    if detail:
+        return ru.ru_utime, ru.ru_stime, wall
     return ru.ru_utime + ru.ru_stime, wall
+
+
+def same_bytes(a, b):
+    with open(a, "rb") as fa, open(b, "rb") as fb:
+        while True:
+            x, y = fa.read(1 << 20), fb.read(1 << 20)
+            if x != y:
+                return False
+            if not x:
+                return True
+
+
+def roi_case(base, new, path, roi, rounds, tmp):
+    """The issue-21 read: one thread, both programs alternated, best (by user + system) of the rounds."""
+    best = {}
+    outs = {w: os.path.join(tmp, f"roi_{w}.raw") for w in ("main", "new")}
+    for _ in range(rounds):
+        for who, exe in (("main", base), ("new", new)):
+            u, s, w = run([exe, "decompress", path, "--roi", roi, "-o", outs[who]], 1, detail=True)
+            if who not in best or u + s < best[who][0] + best[who][1]:
+                best[who] = (u, s, w)
+    row = {"file": path, "roi": roi, "identical": same_bytes(outs["main"], outs["new"]),
+           "bytes_out": os.path.getsize(outs["new"])}
+    for who, (u, s, w) in best.items():
+        row[f"{who}_user_s"], row[f"{who}_sys_s"], row[f"{who}_wall_s"] = u, s, w
+    for f in outs.values():
+        os.remove(f)
+    return row
 
 
 def build_main():
@@ -122,6 +157,8 @@ def main():
     ap.add_argument("--no-zfp", action="store_true")
     ap.add_argument("--from-log", help="rewrite the results from the JSON rows a run printed (a run cut short)")
     ap.add_argument("--note", default="", help="a line for the results file (e.g. what a cut run left out)")
+    ap.add_argument("--roi-file", help="a .wvc for the region read of issue 21")
+    ap.add_argument("--roi", default="0,0,0,1024,1024,512", help="its region x0,y0,z0,x1,y1,z1")
     a = ap.parse_args()
     if a.from_log:
         rows = [json.loads(line) for line in open(a.from_log) if line.startswith("{")]
@@ -157,6 +194,7 @@ def main():
                         run([exe, "compress", raw, *dims, "--psnr", str(target), "--threads", "1", "-o",
                              files[who]], 1)
                     bits = {w: 8 * os.path.getsize(f) / vol.size for w, f in files.items()}
+                    identical = same_bytes(files["main"], files["new"])
                     # the decoded volume's PSNR, from this tree's file
                     dec = os.path.join(tmp, "d.raw")
                     run([new, "decompress", files["new"], "-o", dec], 1)
@@ -173,7 +211,7 @@ def main():
                             for k, c in cmds.items():
                                 res[k].append(run(c, th))
                         row = {"kind": kind, "n": n, "target": target, "threads": th, "mb": mb,
-                               "bpv": bits, "psnr_new": p_new}
+                               "bpv": bits, "identical": identical, "psnr_new": p_new}
                         for (op, who), r in res.items():
                             row[f"{op}_{who}_cpu_s"] = min(x[0] for x in r)
                             row[f"{op}_{who}_wall_s"] = min(x[1] for x in r)
@@ -182,6 +220,9 @@ def main():
                         rows.append(row)
                         print(json.dumps(row), flush=True)
                 os.remove(raw)
+        if a.roi_file:
+            meta["roi"] = roi_case(base, new, a.roi_file, a.roi, a.rounds, tmp)
+            print(json.dumps(meta["roi"]), flush=True)
     finally:
         for f in os.listdir(tmp):
             os.remove(os.path.join(tmp, f))
@@ -221,6 +262,9 @@ def write_md(path, meta, rows):
                  f"{r['bpv']['new']:.4f} / {zb} | {cm:.0f} / {cn:.0f} ({cn / cm:.2f}x) | {dm:.0f} / {dn:.0f} "
                  f"({dn / dm:.2f}x) | {zr} | {r['compress_new_cpu_s']:.3f}, {r['decompress_new_cpu_s']:.3f} | "
                  f"{goal} |")
+    L += ["", "Files byte for byte: " + ("the two programs wrote the same bytes in every case" if all(
+        r.get("identical", False) for r in rows) else "DIFFER in: " + ", ".join(
+        f"{r['kind']} {r['n']} {r['target']:g} dB" for r in rows if not r.get("identical", False)))]
     L += ["", "Bits: new / main per case: " + ", ".join(
         f"{r['kind']} {r['n']} {r['target']:g} dB {r['bpv']['new'] / r['bpv']['main']:.4f}"
         for r in rows if r["threads"] == rows[0]["threads"]), "",
@@ -236,6 +280,17 @@ def write_md(path, meta, rows):
                      f"{d[1]['decompress_main_wall_s'] / d[2]['decompress_main_wall_s']:.2f}x, new "
                      f"{d[1]['decompress_new_wall_s'] / d[2]['decompress_new_wall_s']:.2f}x")
     L += ["", "Wall seconds of each case (best of the rounds): in speed.json (`*_wall_s`)."]
+    q = meta.get("roi")
+    if q:
+        tm, tn = q["main_user_s"] + q["main_sys_s"], q["new_user_s"] + q["new_sys_s"]
+        L += ["", f"Region read (issue 21): `wvol decompress {q['file']} --roi {q['roi']}`, one thread, the two "
+              f"programs alternated, best of {meta['rounds']} by user + system CPU seconds; outputs "
+              f"{'identical' if q['identical'] else 'DIFFERENT'} ({q['bytes_out']} bytes).", "",
+              "| program | user s | system s | user + system s | wall s |", "|---|---|---|---|---|",
+              f"| main | {q['main_user_s']:.2f} | {q['main_sys_s']:.2f} | {tm:.2f} | {q['main_wall_s']:.2f} |",
+              f"| this tree | {q['new_user_s']:.2f} | {q['new_sys_s']:.2f} | {tn:.2f} | {q['new_wall_s']:.2f} |",
+              "", f"main / this tree: {tm / tn:.2f}x in CPU seconds, {q['main_user_s'] / q['new_user_s']:.2f}x in "
+              "user seconds."]
     with open(path, "w") as f:
         f.write("\n".join(L) + "\n")
 

@@ -65,9 +65,11 @@ int wvol__wvc2_chunk_coords(const wvc2_geom *g, size_t id, size_t t[3])
 
 typedef wvc2_local local_grid;
 
-static int local_make(local_grid *lg, const wvc2_geom *g, int m, int band, const size_t ext[3])
+/* The local grid's geometry (band, then its parent region along x, one set of strides);
+ * returns its size in int32 values. */
+static size_t local_init(local_grid *lg, const wvc2_geom *g, int m, int band, const size_t ext[3])
 {
-    size_t off0[3] = {0, 0, 0}, poff[3], pext[3], n;
+    size_t off0[3] = {0, 0, 0}, poff[3], pext[3];
     int has_parent = m < g->levels && band != 0;
     wvc2_parent_box(g, off0, ext, poff, pext);
     memset(lg, 0, sizeof *lg);
@@ -83,7 +85,12 @@ static int local_make(local_grid *lg, const wvc2_geom *g, int m, int band, const
     }
     lg->b.poff[0] = has_parent ? ext[0] : 0;
     lg->b.count = (uint64_t)ext[0] * ext[1] * ext[2];
-    n = lg->p[0] * lg->p[1] * lg->p[2];
+    return lg->p[0] * lg->p[1] * lg->p[2];
+}
+
+static int local_make(local_grid *lg, const wvc2_geom *g, int m, int band, const size_t ext[3])
+{
+    size_t n = local_init(lg, g, m, band, ext);
     lg->q = calloc(n ? n : 1, sizeof *lg->q);
     return lg->q ? 0 : -1;
 }
@@ -291,18 +298,21 @@ static void direct_view(local_grid *lg, const wvc2_geom *g, int m, int band, con
 }
 
 int wvol__wvc2_chunk_decode(const wvc2_geom *g, int m, const size_t ext[3], const wvc2_qbox child[8],
-                            const wvc2_qbox parent[8], const wvc2_direct *direct, const uint8_t *payload,
-                            size_t bytes, uint64_t *nonzero, const char **why)
+                            const wvc2_qbox parent[8], const wvc2_direct *direct, wvc2_scratch *scratch,
+                            const uint8_t *payload, size_t bytes, uint64_t *nonzero, const char **why)
 {
     const wvc2_level *L = &g->lv[m];
     local_grid lg[8];
-    size_t len[8] = {0}, pos, sum = 0;
+    size_t len[8] = {0}, pos, sum = 0, at[8] = {0}, need = 0;
     uint8_t used = 0;
+    int32_t *base = NULL;
     int i, r = 0, mode;
     *nonzero = 0;
-    if (!direct)
-        for (i = 0; i < L->nb; i++) box_zero(&child[i], ext);
-    if (bytes == 0) return 0;
+    if (bytes == 0) {
+        if (!direct)
+            for (i = 0; i < L->nb; i++) box_zero(&child[i], ext);
+        return 0;
+    }
     mode = payload[0];
     pos = 1;
     if (mode == MODE_SHARED || mode == MODE_BLOCKS || mode == MODE_RANS) {
@@ -364,14 +374,35 @@ int wvol__wvc2_chunk_decode(const wvc2_geom *g, int m, const size_t ext[3], cons
         return -1;
     }
     memset(lg, 0, sizeof lg);
+    if (!direct) {
+        /* the bands the payload leaves out are zero; the others are copied out whole below */
+        for (i = 0; i < L->nb; i++)
+            if (!(used >> i & 1)) box_zero(&child[i], ext);
+        /* the used bands' local grids in one block, zeroed, then their parents copied in */
+        for (i = 0; i < L->nb; i++)
+            if (used >> i & 1) at[i] = need, need += local_init(&lg[i], g, m, L->bands[i], ext);
+        if (scratch) {
+            if (scratch->cap < need) {
+                free(scratch->q);
+                scratch->q = malloc(need * sizeof *scratch->q);
+                scratch->cap = scratch->q ? need : 0;
+            }
+            base = scratch->q;
+            if (base) memset(base, 0, need * sizeof *base);
+        } else {
+            base = calloc(need ? need : 1, sizeof *base);
+        }
+        if (!base) {
+            *why = "out of memory";
+            r = -1;
+        }
+    }
     for (i = 0; i < L->nb && !r; i++)
         if (used >> i & 1) {
             if (direct) {
                 direct_view(&lg[i], g, m, L->bands[i], ext, direct, i);
-            } else if (local_make(&lg[i], g, m, L->bands[i], ext)) {
-                *why = "out of memory";
-                r = -1;
             } else {
+                lg[i].q = base + at[i];
                 parent_in(&lg[i], &parent[i]);
             }
         }
@@ -415,7 +446,7 @@ int wvol__wvc2_chunk_decode(const wvc2_geom *g, int m, const size_t ext[3], cons
                 }
         }
         if (mode == MODE_BANDS) *nonzero += nz;
-        if (!direct) free(lg[i].q);
     }
+    if (!direct && !scratch) free(base);
     return r;
 }

@@ -33,6 +33,7 @@ typedef struct centry {
     size_t bytes;
     size_t ext[3];
     int32_t *q[8];              /* per band of the level's list, ext[0] ext[1] ext[2] each */
+    size_t cap;                 /* bytes allocated at q[0] */
     unsigned char nz[8];        /* per band: any non-zero value */
 } centry;
 
@@ -70,6 +71,9 @@ struct wvol_wvc_file {
      * pages for every slab */
     wvol__brick_scratch spare[SPARE_SCRATCH];
     int spares;
+    /* the chunk decoder's local grids, likewise kept between chunks (under the lock) */
+    wvc2_scratch dspare[SPARE_SCRATCH];
+    int dspares;
 #ifdef _OPENMP
     omp_lock_t lock;
 #endif
@@ -133,6 +137,7 @@ void wvol_wvc_close(wvol_wvc_file *f)
             }
     free(f->slot);
     for (int i = 0; i < f->spares; i++) wvol__brick_scratch_free(&f->spare[i]);
+    for (int i = 0; i < f->dspares; i++) free(f->dspare[i].q);
     wvol__wvc2_index_free(f->x);
     wvol_coeffs_destroy(f->dense);
     free(f->zeros);
@@ -343,10 +348,61 @@ static void evict(wvol_wvc_file *f)
     }
 }
 
+/* Under the lock, before chunk id is decoded: drops unpinned chunks, least recent first,
+ * until its decoded size fits the budget beside what is held, and hands back in *reuse
+ * (with its size in *reuse_cap) the first dropped buffer of its size (the interior tiles
+ * of a level all have one size; the accounting stays that of a fresh buffer). The new
+ * chunk then fills pages already mapped instead of faulting in fresh ones, and the
+ * cache holds at most the budget while it decodes. */
+static void evict_for(wvol_wvc_file *f, size_t need, size_t need_data, int32_t **reuse, size_t *reuse_cap)
+{
+    centry *e = f->lru;
+    while (f->held + need > f->budget && e) {
+        centry *prev = e->prev;
+        if (e->ref == 0) {
+            lru_unlink(f, e);
+            f->slot[e->id] = NULL;
+            f->held -= e->bytes;
+            if (!*reuse && e->cap == need_data) {
+                *reuse = e->q[0];
+                *reuse_cap = e->cap;
+            } else {
+                free(e->q[0]);
+            }
+            free(e);
+        }
+        e = prev;
+    }
+}
+
 static centry *get_chunk(wvol_wvc_file *f, size_t id);
 
+/* Scratch kept between reads: a pool of at most SPARE_SCRATCH items of `size` bytes at
+ * `pool` (*n of them), under the lock. take copies one out, or zeros when the pool is
+ * empty; give keeps the item and returns 1, or returns 0 when the pool is full (the
+ * caller then frees it). */
+static void pool_take(wvol_wvc_file *f, void *pool, int *n, size_t size, void *item)
+{
+    lock(f);
+    if (*n > 0) memcpy(item, (char *)pool + (size_t)--*n * size, size);
+    else memset(item, 0, size);
+    unlock(f);
+}
+
+static int pool_give(wvol_wvc_file *f, void *pool, int *n, size_t size, const void *item)
+{
+    int kept = 0;
+    lock(f);
+    if (*n < SPARE_SCRATCH) {
+        memcpy((char *)pool + (size_t)(*n)++ * size, item, size);
+        kept = 1;
+    }
+    unlock(f);
+    return kept;
+}
+
 /* Reads and decodes chunk id (not all zero) into a new entry. */
-static centry *decode_chunk(wvol_wvc_file *f, size_t id)
+static centry *decode_chunk(wvol_wvc_file *f, size_t id, int32_t *reuse, size_t reuse_cap)
 {
     const wvc2_geom *g = &f->x->g;
     const wvc2_chunk *c = &f->x->chunks[id];
@@ -369,7 +425,10 @@ static centry *decode_chunk(wvol_wvc_file *f, size_t id)
         wvc2_tile_box(g, m + 1, pt, po, pe);
         if (f->x->chunks[pid].bytes) {
             P = get_chunk(f, pid);
-            if (!P) return NULL;
+            if (!P) {
+                free(reuse);
+                return NULL;
+            }
         }
         for (int k = 0; k < nb; k++) {
             int pk = 0;
@@ -388,7 +447,15 @@ static centry *decode_chunk(wvol_wvc_file *f, size_t id)
     n = ext[0] * ext[1] * ext[2];
     e = calloc(1, sizeof *e);
     pay = malloc(c->bytes);
-    if (e) e->q[0] = malloc(n * (size_t)nb * sizeof(int32_t));
+    if (e && reuse && reuse_cap == n * (size_t)nb * sizeof(int32_t)) {
+        e->q[0] = reuse;
+        e->cap = reuse_cap;
+        reuse = NULL;
+    } else if (e) {
+        e->q[0] = malloc(n * (size_t)nb * sizeof(int32_t));
+        e->cap = n * (size_t)nb * sizeof(int32_t);
+    }
+    free(reuse);
     if (!e || !pay || !e->q[0]) {
         if (e) free(e->q[0]);
         free(e);
@@ -406,9 +473,13 @@ static centry *decode_chunk(wvol_wvc_file *f, size_t id)
     wvol__wvc2_describe(d, sizeof d, f->x, id);
     if (read_at(f->fd, pay, c->bytes, c->offset)) {
         why = "cannot read the chunk (file shorter than its index says?)";
-    } else if (wvol__wvc2_chunk_check(f->x, id, pay, &why) == 0 &&
-               wvol__wvc2_chunk_decode(g, m, ext, child, parent, NULL, pay, c->bytes, &nz, &why) == 0 && nz != c->nonzero) {
-        why = "decoded non-zero count does not match the index";
+    } else if (wvol__wvc2_chunk_check(f->x, id, pay, &why) == 0) {
+        wvc2_scratch scr;
+        pool_take(f, f->dspare, &f->dspares, sizeof scr, &scr);
+        if (wvol__wvc2_chunk_decode(g, m, ext, child, parent, NULL, &scr, pay, c->bytes, &nz, &why) == 0 &&
+            nz != c->nonzero)
+            why = "decoded non-zero count does not match the index";
+        if (!pool_give(f, f->dspare, &f->dspares, sizeof scr, &scr)) free(scr.q);
     }
     free(pay);
     release(f, P);
@@ -434,6 +505,8 @@ static centry *decode_chunk(wvol_wvc_file *f, size_t id)
 static centry *get_chunk(wvol_wvc_file *f, size_t id)
 {
     centry *e, *mine;
+    int32_t *reuse;
+    size_t reuse_cap;
     lock(f);
     while ((e = f->slot[id]) == DECODING) {
         unlock(f);
@@ -448,9 +521,17 @@ static centry *get_chunk(wvol_wvc_file *f, size_t id)
         unlock(f);
         return e;
     }
+    {
+        size_t t[3], need;
+        int m = wvol__wvc2_chunk_coords(&f->x->g, id, t);
+        need = chunk_decoded_bytes(&f->x->g, m, t);
+        reuse = NULL;
+        reuse_cap = 0;
+        evict_for(f, need, need - sizeof(centry), &reuse, &reuse_cap);
+    }
     f->slot[id] = DECODING;
     unlock(f);
-    mine = decode_chunk(f, id);
+    mine = decode_chunk(f, id, reuse, reuse_cap);
     lock(f);
     if (!mine) {
         f->slot[id] = NULL;
@@ -751,21 +832,12 @@ static void region_geometry(const wvol_wvc_file *f, int level, const size_t lo[3
 
 static void scratch_take(wvol_wvc_file *f, wvol__brick_scratch *scr)
 {
-    lock(f);
-    if (f->spares > 0) *scr = f->spare[--f->spares];
-    else memset(scr, 0, sizeof *scr);
-    unlock(f);
+    pool_take(f, f->spare, &f->spares, sizeof *scr, scr);
 }
 
 static void scratch_give(wvol_wvc_file *f, wvol__brick_scratch *scr)
 {
-    lock(f);
-    if (f->spares < SPARE_SCRATCH) {
-        f->spare[f->spares++] = *scr;
-        scr = NULL;
-    }
-    unlock(f);
-    if (scr) wvol__brick_scratch_free(scr);
+    if (!pool_give(f, f->spare, &f->spares, sizeof *scr, scr)) wvol__brick_scratch_free(scr);
 }
 
 /* Reconstructs the box [lo, hi) of source src into dst with `threads` threads, each a

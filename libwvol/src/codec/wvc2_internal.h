@@ -138,13 +138,24 @@ typedef struct wvc2_direct {
     size_t off[8][3], poff[8][3];
 } wvc2_direct;
 
+/* Memory for a chunk decode's local grids (the bands beside their parent regions), kept
+ * by a caller that decodes many chunks so that each decode reuses pages already mapped
+ * instead of faulting in fresh ones (on a VM the first touch of a page costs more than
+ * the decoding of its coefficients). Starts zeroed; free q with free(). */
+typedef struct wvc2_scratch {
+    int32_t *q;
+    size_t cap; /* int32 values */
+} wvc2_scratch;
+
 /* Decodes a chunk's payload (already checked against its CRC) into child[i] (the
  * boxes are written entirely, zeros included), with the parents' values as
- * context, or into direct (not NULL: child and parent are ignored). *nonzero
- * receives the non-zero count. Returns 0, or -1 with *why. */
+ * context, or into direct (not NULL: child, parent and scratch are ignored).
+ * scratch may be NULL (the local grids are then allocated per call). *nonzero
+ * receives the non-zero count. Returns 0, or -1 with *why (child's contents then
+ * unspecified). */
 int wvol__wvc2_chunk_decode(const wvc2_geom *g, int m, const size_t ext[3], const wvc2_qbox child[8],
-                            const wvc2_qbox parent[8], const wvc2_direct *direct, const uint8_t *payload,
-                            size_t bytes, uint64_t *nonzero, const char **why);
+                            const wvc2_qbox parent[8], const wvc2_direct *direct, wvc2_scratch *scratch,
+                            const uint8_t *payload, size_t bytes, uint64_t *nonzero, const char **why);
 
 /* wvol_wvc_encode's version-2 path: the pyramid c through the slab writer, coarse to
  * fine, with the step chosen and the dead zones widened (zero_edge, may be NULL) as the

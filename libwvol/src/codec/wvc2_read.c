@@ -226,7 +226,7 @@ wvol_status wvol__wvc2_decode_dense(int32_t *Q, const size_t p[3], const wvc2_in
                 r = -1;
             } else if (wvol__wvc2_chunk_check(x, id, buf + c->offset, &w)) {
                 r = -1;
-            } else if (wvol__wvc2_chunk_decode(g, m, ext, NULL, NULL, &dv, buf + c->offset, c->bytes, &nz, &w)) {
+            } else if (wvol__wvc2_chunk_decode(g, m, ext, NULL, NULL, &dv, NULL, buf + c->offset, c->bytes, &nz, &w)) {
                 r = -1;
             } else if (nz != c->nonzero) {
                 w = "decoded non-zero count does not match the index";

@@ -192,7 +192,12 @@ static inline size_t next_group(const uint8_t *grow, size_t g, size_t gx)
     uint64_t w;
     while (g + 8 <= gx) {
         memcpy(&w, grow + g, 8);
-        if (w) break;
+        /* the first non-zero byte of the eight: its index from the word's zero bits */
+#if __BYTE_ORDER__ == __ORDER_LITTLE_ENDIAN__
+        if (w) return g + (size_t)(__builtin_ctzll(w) >> 3);
+#else
+        if (w) return g + (size_t)(__builtin_clzll(w) >> 3);
+#endif
         g += 8;
     }
     while (g < gx && !grow[g]) g++;
@@ -275,6 +280,12 @@ FORCE_INLINE int detail_band(int dec, int blocks, coder *cd, int32_t *Q, const s
             uint8_t *brow = blocks ? bstate + bx * ((y >> 2) + by * (z >> 2)) : NULL;
             int32_t *row = Q + wvc_index(p, b, 0, y, z);
             const int hasN = y > 0, hasU = z > 0, first = (y & 1) == 0 && (z & 1) == 0;
+            if (dec && y + 2 < ey) {
+                /* the decoder's stores and neighbour loads meet rows of a large array that are
+                 * cold: ask for the row two ahead while this one is decoded */
+                const char *ahead = (const char *)(row + 2 * sy);
+                for (size_t o = 0; o < ex * sizeof *row; o += 64) __builtin_prefetch(ahead + o, 1, 3);
+            }
             if (blocks && (y & 3) == 0 && (z & 3) == 0) block_row(dec, cd, m, Q, p, b, y >> 2, z >> 2, bx, by, bstate, bany);
             if (first) {
                 if (!blocks) {
