@@ -167,6 +167,7 @@ static void mesh_brick(brick_out *o, const brick_grid *g, const size_t bidx[3], 
     jb.threads = 1;
     jb.normals = normals;
     jb.keys = &o->keys;
+    for (a = 0; a < 3; a++) jb.key_only[a] = bidx[a] + 1 < g->nb[a]; /* the owner test below */
     o->status = wvol__mc_run(&o->mesh, &jb, NULL, &o->err);
     if (o->status != WVOL_OK) return;
     o->owned = malloc(o->mesh->nverts + 1);

@@ -24,6 +24,10 @@ typedef struct wvol__mc_job {
     void (*gradient)(void *user, const double xyz[3], double grad[3]);
     void *gradient_user;
     uint64_t **keys;          /* optional: receives malloc'ed per-vertex edge keys */
+    /* with keys: key_only[a] = 1 says that a vertex whose edge starts on the region's last
+     * sample layer along a (local index n[a] - 1) is another mesh's (bricks: the next brick
+     * owns it): only its key is written, its position and normal are left unset */
+    int key_only[3];
 } wvol__mc_job;
 
 /* Edge key: ((gk * gny + gj) * 3 + axis) * gnx + gi for the edge from global

@@ -193,17 +193,20 @@ static void put_vertex(mc_ctx *c, uint64_t id, size_t i, size_t j, size_t k, int
             c->mesh->normals[3 * id + 2] = 0.0f;
         return;
     }
-    t = ((double)c->isof - (double)a) / ((double)b - (double)a);
-    for (d = 0; d < 3; d++) {
-        idx[d] = (double)((long long)(jb->lo[d] + q[d]) + jb->gofs[d]) + (d == axis ? t : 0.0);
-        pos[d] = jb->origin[d] + jb->spacing[d] * idx[d];
-        vp[d] = (float)pos[d];
-    }
     if (c->keys) {
         uint64_t gi = (uint64_t)((long long)(jb->lo[0] + i) + jb->gofs[0]);
         uint64_t gj = (uint64_t)((long long)(jb->lo[1] + j) + jb->gofs[1]);
         uint64_t gk = (uint64_t)((long long)(jb->lo[2] + k) + jb->gofs[2]);
         c->keys[id] = wvol__edge_key(jb->gdims, gi, gj, gk, axis);
+        if ((jb->key_only[0] && i == c->nx - 1) || (jb->key_only[1] && j == c->ny - 1) ||
+            (jb->key_only[2] && k == c->nz - 1))
+            return; /* another mesh places this vertex */
+    }
+    t = ((double)c->isof - (double)a) / ((double)b - (double)a);
+    for (d = 0; d < 3; d++) {
+        idx[d] = (double)((long long)(jb->lo[d] + q[d]) + jb->gofs[d]) + (d == axis ? t : 0.0);
+        pos[d] = jb->origin[d] + jb->spacing[d] * idx[d];
+        vp[d] = (float)pos[d];
     }
     if (c->mesh->normals) {
         double g[3], g0[3], g1[3], len;
