@@ -69,7 +69,7 @@ wvol_status wvol__iso_box_bound(const wvol_coeffs *c, const long s0[3], const lo
 typedef struct brick_out {
     wvol_mesh *mesh;
     uint64_t *keys;
-    unsigned char *owned;   /* per local vertex */
+    unsigned char *vflags;  /* per local vertex: WVOL__MC_KEY_ONLY (a later brick's), WVOL__MC_FIRST */
     size_t nowned;
     uint64_t *lkeys;        /* owned lower-face vertices' keys, sorted */
     uint32_t *lgid;         /* their rank among the owned vertices, then (stitched) global id */
@@ -167,27 +167,19 @@ static void mesh_brick(brick_out *o, const brick_grid *g, const size_t bidx[3], 
     jb.threads = 1;
     jb.normals = normals;
     jb.keys = &o->keys;
-    for (a = 0; a < 3; a++) jb.key_only[a] = bidx[a] + 1 < g->nb[a]; /* the owner test below */
+    /* a vertex on the upper layer along a is the next brick's (the edge's lower sample is in
+     * the next brick's cells), one on the lower layer may be asked for by the brick before */
+    for (a = 0; a < 3; a++) {
+        jb.key_only[a] = bidx[a] + 1 < g->nb[a];
+        jb.first_shared[a] = bidx[a] > 0;
+    }
+    jb.vflags = &o->vflags;
     o->status = wvol__mc_run(&o->mesh, &jb, NULL, &o->err);
     if (o->status != WVOL_OK) return;
-    o->owned = malloc(o->mesh->nverts + 1);
-    if (!o->owned) {
-        o->status = wvol_error_set(&o->err, WVOL_ERR_NOMEM, "brick: out of memory");
-        return;
-    }
     for (i = 0; i < o->mesh->nverts; i++) {
-        uint64_t p[3];
-        int axis, own = 1, lower = 0;
-        decode_key(g, o->keys[i], p, &axis);
-        /* the edge's lower sample lies in [c0, c1]: another brick owns it only on this
-         * brick's upper face, where the next brick starts; the brick before along an axis
-         * may ask for it only on the lower face */
-        for (a = 0; a < 3; a++) {
-            if (p[a] == c1[a] && bidx[a] + 1 < g->nb[a]) own = 0;
-            if (p[a] == c0[a] && bidx[a] > 0) lower = 1;
-        }
-        o->owned[i] = (unsigned char)own;
-        if (own && lower) {
+        const unsigned char f = o->vflags[i];
+        if (f & WVOL__MC_KEY_ONLY) continue;
+        if (f & WVOL__MC_FIRST) {
             if (!o->lkeys) {
                 o->lkeys = malloc(o->mesh->nverts * sizeof *o->lkeys);
                 o->lgid = malloc(o->mesh->nverts * sizeof *o->lgid);
@@ -199,7 +191,7 @@ static void mesh_brick(brick_out *o, const brick_grid *g, const size_t bidx[3], 
             o->lkeys[o->nlower] = o->keys[i];
             o->lgid[o->nlower++] = (uint32_t)o->nowned; /* < nverts <= UINT32_MAX (wvol__mc_run) */
         }
-        o->nowned += (size_t)own;
+        o->nowned++;
     }
 }
 
@@ -207,10 +199,10 @@ static void brick_out_release(brick_out *o)
 {
     wvol_mesh_destroy(o->mesh);
     free(o->keys);
-    free(o->owned);
+    free(o->vflags);
     o->mesh = NULL;
     o->keys = NULL;
-    o->owned = NULL;
+    o->vflags = NULL;
 }
 
 /* The index of key in the sorted keys[0 .. n), or -1. Branch-free halving (a conditional
@@ -338,7 +330,7 @@ static void stitch_brick(stitcher *s, brick_out *o)
         return;
     }
     for (k = 0; k < bm->nverts; k++) {
-        if (o->owned[k]) {
+        if (!(o->vflags[k] & WVOL__MC_KEY_ONLY)) {
             size_t gid = base + r++;
             memcpy(m->verts + 3 * gid, bm->verts + 3 * k, 3 * sizeof(float));
             if (m->normals) memcpy(m->normals + 3 * gid, bm->normals + 3 * k, 3 * sizeof(float));
@@ -357,7 +349,7 @@ static void stitch_brick(stitcher *s, brick_out *o)
         for (t = 0; t < 3 * bm->ntris; t++) {
             uint32_t lv = bm->tris[t];
             m->tris[tb + t] = s->map[lv];
-            if (!o->owned[lv]) {
+            if (o->vflags[lv] & WVOL__MC_KEY_ONLY) {
                 s->fix[s->nfix].pos = tb + t;
                 s->fix[s->nfix++].pend = s->map[lv];
             }
