@@ -205,6 +205,22 @@ static void brick_out_release(brick_out *o)
     o->vflags = NULL;
 }
 
+/* Each brick's bound: range[2 i], range[2 i + 1] = lo, hi of brick i's samples. */
+static void brick_ranges(const brick_grid *g, const wvol__brick_bounds *bb, size_t nbricks, double *range)
+{
+    for (size_t i = 0; i < nbricks; i++) {
+        size_t bidx[3], c0[3], c1[3];
+        long s0[3], s1[3];
+        brick_coords(g, i, bidx);
+        brick_cells(g, bidx, c0, c1);
+        for (int a = 0; a < 3; a++) {
+            s0[a] = (long)c0[a];
+            s1[a] = (long)c1[a];
+        }
+        wvol__bounds_box(bb, s0, s1, &range[2 * i], &range[2 * i + 1]);
+    }
+}
+
 /* The index of key in the sorted keys[0 .. n), or -1. Branch-free halving (a conditional
  * move per step): the keys looked up land anywhere in the owner's array, and the branches
  * of a plain binary search mispredicted at every step. */
@@ -408,6 +424,8 @@ static wvol_status extract_bricks(wvol_mesh **out, const wvol_coeffs *c, const w
     int stitching = 0;       /* a thread is stitching */
     stitcher sti;
     brick_out *res = NULL;
+    const double *range = NULL; /* per brick: lo, hi of its samples (NULL: unbounded) */
+    double *own_range = NULL;
     wvol_mesh *m = NULL;
     wvol_status s = WVOL_OK;
     double t0 = wvol__now(), t1, t2, gmin = INFINITY, gmax = -INFINITY;
@@ -471,23 +489,27 @@ static wvol_status extract_bricks(wvol_mesh **out, const wvol_coeffs *c, const w
         s = wvol_error_set(err, WVOL_ERR_NOMEM, "iso: out of memory for %zu bricks", nbricks);
         goto done;
     }
-    /* bounds per brick: samples [c0, c1] (owned cells plus the shared layer) */
+    /* bounds per brick: samples [c0, c1] (owned cells plus the shared layer); they depend
+     * on the coefficients and the brick size alone, so a store's view keeps them */
+    if (bb) {
+        range = blocks ? wvol__store_blocks_table(blocks, g.B) : NULL;
+        if (!range) {
+            own_range = malloc(2 * nbricks * sizeof *own_range);
+            if (!own_range) {
+                s = wvol_error_set(err, WVOL_ERR_NOMEM, "iso: out of memory for %zu bricks", nbricks);
+                goto done;
+            }
+            brick_ranges(&g, bb, nbricks, own_range);
+            if (blocks && wvol__store_blocks_keep_table(blocks, g.B, &own_range)) {
+                range = own_range;
+                own_range = NULL; /* the view's now */
+            } else {
+                range = own_range;
+            }
+        }
+    }
     for (i = 0; i < nbricks; i++) {
-        size_t bidx[3], c0[3], c1[3];
-        long s0[3], s1[3];
-        double lo, hi;
-        brick_coords(&g, i, bidx);
-        brick_cells(&g, bidx, c0, c1);
-        for (a = 0; a < 3; a++) {
-            s0[a] = (long)c0[a];
-            s1[a] = (long)c1[a];
-        }
-        if (bb) {
-            wvol__bounds_box(bb, s0, s1, &lo, &hi);
-        } else {
-            lo = -INFINITY;
-            hi = INFINITY;
-        }
+        double lo = range ? range[2 * i] : -INFINITY, hi = range ? range[2 * i + 1] : INFINITY;
         if (lo < gmin) gmin = lo;
         if (hi > gmax) gmax = hi;
         slot[i] = (size_t)-1;
@@ -648,6 +670,7 @@ done:
     free(need);
     free(slot);
     free(run);
+    free(own_range);
     wvol__bounds_free(bb);
     wvol__store_blocks_destroy(blocks);
     return s;
