@@ -714,6 +714,20 @@ static void store_view_is_kept(void)
                   "kept view, iso %g", isos[k]);
             wvol_mesh_destroy(again);
         }
+        /* the view keeps the bricks' bounds per brick size: another size gets its own */
+        {
+            wvol_mesh *other = NULL, *fresh5 = NULL;
+            wvol_iso_params p5 = p;
+            p5.brick = 5;
+            CHECK(wvol_iso_extract_store(&other, s, isos[1], &p5, NULL, &err) == WVOL_OK, "brick 5 from the kept view");
+            wvol_store *s5 = fixture_store(v, "db2", 3, 0.1, 4); /* its first extraction: brick 5 */
+            CHECK(s5 && wvol_iso_extract_store(&fresh5, s5, isos[1], &p5, NULL, &err) == WVOL_OK &&
+                      same_mesh(other, fresh5) && !same_mesh(other, ref[1]),
+                  "brick 5 after brick 8: a fresh view's brick-5 mesh");
+            wvol_mesh_destroy(other);
+            wvol_mesh_destroy(fresh5);
+            wvol_store_destroy(s5);
+        }
     }
     for (k = 0; k < 3; k++) {
         wvol_mesh_destroy(ref[k]);
