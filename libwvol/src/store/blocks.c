@@ -75,8 +75,9 @@ static void blocks_free(coef_blocks *cb)
  * block and bit, the same in each of its level's bands (whose extents agree), are found once
  * for its up to 7 coefficients (wvol_store_next would decode the key again for each one;
  * bench/results/render-tuning.md). */
-static inline size_t node_block(const coef_blocks *cb, const wvol__node *nd, int *m, int *bit, size_t pos[3])
+static inline size_t node_block(const coef_blocks *cb, const wvol__node *nd, int *m, int *bit)
 {
+    size_t pos[3];
     const band_view *bv;
     *m = wvol__key_level(nd->key);
     wvol__key_pos(nd->key, pos);
@@ -85,34 +86,9 @@ static inline size_t node_block(const coef_blocks *cb, const wvol__node *nd, int
     return (pos[0] >> CB_SHIFT) + bv->nb[0] * ((pos[1] >> CB_SHIFT) + bv->nb[1] * (pos[2] >> CB_SHIFT));
 }
 
-/* Pass 2 of the build: the values of the levels m0..m1, each at its rank within its block;
- * with bb, each value's magnitude also into the bound's block maxima (its levels; the same
- * maxima in whatever order they come, so the same as blocks_bounds takes from the view).
- * Cloned: a value's rank in its block is a population count, an instruction on x86-64-v3 and
- * a library call on the baseline. */
-WVOL__CLONES static void place_values(coef_blocks *cb, const wvol_store *s, int m0, int m1, wvol__brick_bounds *bb)
-{
-    for (size_t k = 0; k < s->nnodes; k++) {
-        const wvol__node *nd = &s->nodes[k];
-        const float *v = s->values + nd->coef_first;
-        int bit, m = wvol__key_level(nd->key);
-        size_t pos[3], i;
-        if (m < m0 || m > m1) continue;
-        i = node_block(cb, nd, &m, &bit, pos);
-        const uint64_t below = ((uint64_t)1 << bit) - 1;
-        for (unsigned bands = nd->band_mask; bands; bands &= bands - 1, v++) {
-            const int band = __builtin_ctz(bands) + 1;
-            const cblock *b = &cb->blocks[cb->bv[m][band].dir[i] - 1];
-            cb->values[b->first + (size_t)__builtin_popcountll(b->mask & below)] = *v;
-            if (bb) wvol__bounds_add(bb, m, band, pos[0], pos[1], pos[2], *v);
-        }
-    }
-}
-
-/* Builds the view, its values placed for the levels placed_first..M (the finer ones are
- * left to place_values: the bound's levels, whose maxima are taken as they are placed, after
- * the bound's low-pass cube is made from the coarser ones). Cloned: see place_values. */
-WVOL__CLONES static wvol_status blocks_build(coef_blocks *cb, const wvol_store *s, int placed_first, wvol_error *err)
+/* Builds the view. Cloned: a value's rank in its block is a population count, an
+ * instruction on x86-64-v3 and a library call on the baseline. */
+WVOL__CLONES static wvol_status blocks_build(coef_blocks *cb, const wvol_store *s, wvol_error *err)
 {
     wvol_store_info info;
     size_t pad[3];
@@ -144,7 +120,7 @@ WVOL__CLONES static wvol_status blocks_build(coef_blocks *cb, const wvol_store *
         for (size_t k = 0; k < s->nnodes; k++) {
             const wvol__node *nd = &s->nodes[k];
             int bit;
-            size_t pos[3], i = node_block(cb, nd, &m, &bit, pos);
+            size_t i = node_block(cb, nd, &m, &bit);
             for (unsigned bands = nd->band_mask; bands; bands &= bands - 1) {
                 band_view *bv = &cb->bv[m][__builtin_ctz(bands) + 1];
                 if (!bv->dir[i]) {
@@ -171,7 +147,19 @@ WVOL__CLONES static wvol_status blocks_build(coef_blocks *cb, const wvol_store *
     cb->values = malloc((cb->nvalues + 1) * sizeof *cb->values);
     WVOL_RETURN_IF(!cb->values, err, WVOL_ERR_NOMEM, "store: out of memory for %zu coefficients", cb->nvalues);
     cb->bytes += cb->nvalues * sizeof *cb->values;
-    place_values(cb, s, placed_first, cb->M, NULL);
+    /* pass 2: the values, each at its rank within its block; the bounds */
+    for (size_t k = 0; k < s->nnodes; k++) {
+        const wvol__node *nd = &s->nodes[k];
+        const float *v = s->values + nd->coef_first;
+        int bit;
+        size_t i = node_block(cb, nd, &m, &bit);
+        const uint64_t below = ((uint64_t)1 << bit) - 1;
+        for (unsigned bands = nd->band_mask; bands; bands &= bands - 1, v++) {
+            const int band = __builtin_ctz(bands) + 1;
+            const cblock *b = &cb->blocks[cb->bv[m][band].dir[i] - 1];
+            cb->values[b->first + (size_t)__builtin_popcountll(b->mask & below)] = *v;
+        }
+    }
     return WVOL_OK;
 }
 
@@ -505,15 +493,9 @@ static wvol_status build_view(wvol__store_blocks **out, wvol__brick_bounds **bou
     *out = NULL;
     if (bounds) *bounds = NULL;
     if (exact) *exact = 0;
-    int fine = 0; /* a built store's levels 1..fine: placed with the bound's maxima taken */
     wvol_store_get_info(s, &info);
-    const int bounded = bounds && info.px > 1 && info.py > 1 && info.pz > 1 && info.levels >= 1;
-    if (bounded && !s->file) {
-        const size_t pad[3] = {info.px, info.py, info.pz};
-        fine = wvol__bounds_levels_for(pad, info.levels);
-    }
     cb = malloc(sizeof *cb);
-    st = cb ? blocks_build(cb, s, fine + 1, err)
+    st = cb ? blocks_build(cb, s, err)
             : wvol_error_set(err, WVOL_ERR_NOMEM, "store: out of memory for the coefficient blocks");
     if (st != WVOL_OK) {
         wvol__store_blocks_destroy(cb);
@@ -525,7 +507,7 @@ static wvol_status build_view(wvol__store_blocks **out, wvol__brick_bounds **bou
     /* a store opened on a file: the detail bands come from its chunks, decoded on demand */
     if (s->file) wvol__wvc_file_source(&cb->cs, s->file, 0);
     /* the bound needs every axis transformed; without it every brick is reconstructed */
-    if (bounded) {
+    if (bounds && info.px > 1 && info.py > 1 && info.pz > 1 && info.levels >= 1) {
         file_tiles ft;
         int decoded = 0;
         memset(&ft, 0, sizeof ft);
@@ -541,11 +523,7 @@ static wvol_status build_view(wvol__store_blocks **out, wvol__brick_bounds **bou
         if (st == WVOL_OK) {
             if (decoded) st = decoded_bounds(bb, s, &ft, exact_threads, err);
             else if (s->file) file_bounds(bb, &ft);
-            else if (wvol__bounds_levels(bb) == fine) place_values(cb, s, 1, fine, bb); /* one pass */
-            else {
-                place_values(cb, s, 1, fine, NULL);
-                blocks_bounds(cb, bb);
-            }
+            else blocks_bounds(cb, bb);
         }
         tiles_free(&ft);
         if (st != WVOL_OK) {
