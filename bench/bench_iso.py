@@ -283,6 +283,8 @@ def brick_rows(args, raw, name, n, iso, t):
             e["baseline"] = {"seconds": bb.get("seconds"), "seconds_first": bb.get("seconds_first"),
                              "triangles": bb.get("triangles"), "bricks_skipped": bb.get("bricks_skipped"),
                              "dense_seconds": bd.get("seconds"), "dense_seconds_first": bd.get("seconds_first"),
+                             "cpu_seconds": bb.get("cpu_extract"), "cpu_seconds_first": bb.get("cpu_first"),
+                             "dense_cpu_seconds": bd.get("cpu_extract"), "dense_cpu_seconds_first": bd.get("cpu_first"),
                              "error": bb.get("error")}
         rows.append(e)
         print(f"{name:8s} {n}^3 bricks {w} {k}: {e.get('seconds', float('nan')) * 1e3:.1f} ms vs dense MC "
@@ -337,14 +339,16 @@ def write_md(res, out, name, tools):
               "than the wall clock; both the least over the rounds. first: the process's first extraction, which "
               "makes the view and the bounds (against dense MC's first). bounds = the view and the bricks' bounds "
               "in the fastest extraction; full inverse + MC = the whole inverse transform then dense MC"
-              + (f"; main = {base}, run alternated with this build in the same rounds (wall clock only: its CLI "
-                 "does not report CPU seconds; `iso_mc_profile.md` compares the two in thread CPU seconds)"
+              + (f"; main = {base}, run alternated with this build in the same rounds (main CPU ms and its "
+                 "ratios in CPU seconds where its CLI reports them, else wall clock; this / main = this CPU ms / "
+                 "main CPU ms)"
                  if base else "") + ":", "",
               "| phantom | size | wavelet | keep | ms | dense MC ms | ratio | CPU ms | dense MC CPU ms | CPU ratio "
               "| first ms | dense first ms | first ratio | first CPU ratio | bricks skipped | bounds ms "
               "| reconstruct+mesh ms | full inverse + MC ms |"
-              + (" main ms | main dense MC ms | main ratio | main first ratio | same triangles as main |" if base else ""),
-              "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|" + ("---|" * 5 if base else "")]
+              + (" main CPU ms | main dense MC CPU ms | main ratio | main first ratio | this / main | "
+                 "same triangles as main |" if base else ""),
+              "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|" + ("---|" * 6 if base else "")]
 
     def ratio(a, b):
         return f"{a / b:.2f}x" if a and b else "-"
@@ -367,9 +371,13 @@ def write_md(res, out, name, tools):
                f"{ms(e['seconds_reconstruct_mesh'])} | {ms(e['one_brick_seconds'])} |")
         if base:
             b = e.get("baseline") or {}
-            row += (f" {ms(b.get('seconds'))} | {ms(b.get('dense_seconds'))} | "
-                    f"{ratio(b.get('seconds'), b.get('dense_seconds'))} | "
-                    f"{ratio(b.get('seconds_first'), b.get('dense_seconds_first'))} | "
+            cpu = b.get("cpu_seconds") is not None and e.get("cpu_seconds") is not None
+            bs, bd = (b.get("cpu_seconds"), b.get("dense_cpu_seconds")) if cpu else (b.get("seconds"), b.get("dense_seconds"))
+            bf, bdf = ((b.get("cpu_seconds_first"), b.get("dense_cpu_seconds_first")) if cpu
+                       else (b.get("seconds_first"), b.get("dense_seconds_first")))
+            mine = e.get("cpu_seconds") if cpu else e.get("seconds")
+            row += (f" {ms(bs)} | {ms(bd)} | {ratio(bs, bd)} | {ratio(bf, bdf)} | "
+                    f"{f'{mine / bs:.3f}' if mine and bs else '-'} | "
                     f"{'yes' if b.get('triangles') == e.get('triangles') else 'NO'} |")
         lines.append(row)
     if res.get("raytrace"):

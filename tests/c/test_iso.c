@@ -714,6 +714,20 @@ static void store_view_is_kept(void)
                   "kept view, iso %g", isos[k]);
             wvol_mesh_destroy(again);
         }
+        /* the view keeps the bricks' bounds per brick size: another size gets its own */
+        {
+            wvol_mesh *other = NULL, *fresh5 = NULL;
+            wvol_iso_params p5 = p;
+            p5.brick = 5;
+            CHECK(wvol_iso_extract_store(&other, s, isos[1], &p5, NULL, &err) == WVOL_OK, "brick 5 from the kept view");
+            wvol_store *s5 = fixture_store(v, "db2", 3, 0.1, 4); /* its first extraction: brick 5 */
+            CHECK(s5 && wvol_iso_extract_store(&fresh5, s5, isos[1], &p5, NULL, &err) == WVOL_OK &&
+                      same_mesh(other, fresh5) && !same_mesh(other, ref[1]),
+                  "brick 5 after brick 8: a fresh view's brick-5 mesh");
+            wvol_mesh_destroy(other);
+            wvol_mesh_destroy(fresh5);
+            wvol_store_destroy(s5);
+        }
     }
     for (k = 0; k < 3; k++) {
         wvol_mesh_destroy(ref[k]);
@@ -721,6 +735,86 @@ static void store_view_is_kept(void)
     }
     wvol_store_destroy(s);
     wvol_volume_destroy(v);
+}
+
+/* The stitch runs while the bricks are meshed, in brick order whichever thread finishes a
+ * brick first, with the vertices a later brick owns left pending until the end: the mesh is
+ * the same bit for bit at 1 to 4 threads, closed and manifold with every vertex used (a
+ * pending corner resolved to a wrong vertex leaves misoriented or non-manifold edges, one
+ * left unresolved fails the extraction), and the store's mesh is the dense coefficients'.
+ * Odd sizes, haar / db2 / bl3, kept fractions 2% to 100%, bricks of 3 to 16 cells (at 3
+ * most vertices lie on a brick face), normals on and off. */
+static void stitch_independent_of_order(void)
+{
+    static const struct { const char *filter; int levels; size_t n[3]; int brick; double keep; double iso; int normals; } cases[] = {
+        {"haar", 3, {45, 38, 29}, 8, 0.02, 0.5, 1}, {"db2", 2, {45, 38, 29}, 3, 0.3, 0.4, 1},
+        {"bl3", 2, {37, 41, 33}, 5, 1.0, 0.5, 0},   {"db2", 3, {51, 43, 47}, 16, 0.05, 0.3, 1},
+        {"bl3", 1, {23, 31, 27}, 4, 0.1, 0.5, 1},   {"haar", 2, {33, 33, 33}, 7, 1.0, 0.6, 0},
+    };
+    size_t ci;
+    for (ci = 0; ci < sizeof cases / sizeof cases[0]; ci++) {
+        const size_t *n = cases[ci].n;
+        wvol_volume *v = NULL;
+        wvol_store *s = NULL;
+        wvol_coeffs *c = NULL;
+        wvol_mesh *ref = NULL, *mc = NULL;
+        wvol_iso_params p;
+        wvol_error err;
+        char what[112];
+        size_t i, j, k;
+        int t;
+        snprintf(what, sizeof what, "stitch %s L%d %zux%zux%zu brick %d keep %g", cases[ci].filter, cases[ci].levels,
+                 n[0], n[1], n[2], cases[ci].brick, cases[ci].keep);
+        CHECK(wvol_volume_create(&v, n[0], n[1], n[2], &err) == WVOL_OK, "%s: volume", what);
+        if (!v) continue;
+        /* two blobs and a ripple: several components, surface through many bricks */
+        for (k = 0; k < n[2]; k++)
+            for (j = 0; j < n[1]; j++)
+                for (i = 0; i < n[0]; i++) {
+                    double x[3] = {(double)i, (double)j, (double)k};
+                    double q1[4] = {0.45 * n[0], 0.5 * n[1], 0.55 * n[2], 0.2 * n[0]};
+                    double q2[4] = {0.2 * n[0], 0.25 * n[1], 0.3 * n[2], 0.1 * n[0]};
+                    v->data[i + n[0] * (j + n[1] * k)] =
+                        (float)(gaussian(x, q1) + gaussian(x, q2) + 0.05 * sin(0.9 * i) * cos(0.7 * j));
+                }
+        s = fixture_store(v, cases[ci].filter, cases[ci].levels, cases[ci].keep, 4);
+        CHECK(s != NULL, "%s: store", what);
+        wvol_iso_params_default(&p);
+        p.brick = cases[ci].brick;
+        if (!cases[ci].normals) p.normals = WVOL_ISO_NORMALS_NONE;
+        for (t = 1; s && t <= 4; t++) {
+            wvol_mesh *m = NULL;
+            wvol_iso_stats st;
+            p.threads = t;
+            CHECK(wvol_iso_extract_store(&m, s, cases[ci].iso, &p, &st, &err) == WVOL_OK, "%s: %d threads: %s", what,
+                  t, err.message);
+            if (!m) continue;
+            if (t == 1) {
+                wvol_mesh_topo topo;
+                ref = m;
+                CHECK(m->ntris > 0 && st.bricks_meshed > 1, "%s: %zu triangles from %zu bricks", what, m->ntris,
+                      st.bricks_meshed);
+                CHECK((m->normals != NULL) == (cases[ci].normals != 0), "%s: normals", what);
+                wvol_mesh_topology(m, &topo, NULL);
+                CHECK(topo.nonmanifold_edges == 0 && topo.misoriented_edges == 0 && topo.unused_verts == 0 &&
+                          topo.nonmanifold_verts == 0,
+                      "%s: nonmanifold %zu misoriented %zu unused %zu", what, topo.nonmanifold_edges,
+                      topo.misoriented_edges, topo.unused_verts);
+                continue;
+            }
+            CHECK(same_mesh(m, ref), "%s: %d threads differ from 1", what, t);
+            wvol_mesh_destroy(m);
+        }
+        p.threads = 2;
+        CHECK(s && wvol_store_densify(s, &c, &err) == WVOL_OK, "%s: densify", what);
+        CHECK(c && wvol_iso_extract_coeffs(&mc, c, cases[ci].iso, &p, NULL, &err) == WVOL_OK && same_mesh(mc, ref),
+              "%s: the store's mesh is not the dense coefficients'", what);
+        wvol_mesh_destroy(mc);
+        wvol_mesh_destroy(ref);
+        wvol_coeffs_destroy(c);
+        wvol_store_destroy(s);
+        wvol_volume_destroy(v);
+    }
 }
 
 int main(void)
@@ -738,6 +832,7 @@ int main(void)
     bricks_match_dense();
     store_matches_coeffs();
     store_view_is_kept();
+    stitch_independent_of_order();
     brick_bounds_hold();
     return check_summary("test_iso");
 }

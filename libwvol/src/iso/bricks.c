@@ -21,6 +21,9 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#if defined(__linux__)
+#include <sys/mman.h>
+#endif
 #ifdef _OPENMP
 #include <omp.h>
 #endif
@@ -59,13 +62,18 @@ wvol_status wvol__iso_box_bound(const wvol_coeffs *c, const long s0[3], const lo
 
 /* ---- per-brick meshing --------------------------------------------------------- */
 
+/* A meshed brick until it is stitched; after that only lkeys / lgid stay: the keys of its
+ * owned vertices that lie on a lower face (the only ones another brick can ask for: a
+ * vertex a brick does not own lies on its upper face, the owner's lower one), sorted,
+ * with their global ids. */
 typedef struct brick_out {
     wvol_mesh *mesh;
     uint64_t *keys;
-    unsigned char *owned;   /* per local vertex */
+    unsigned char *vflags;  /* per local vertex: WVOL__MC_KEY_ONLY (a later brick's), WVOL__MC_FIRST */
     size_t nowned;
-    uint64_t *owned_keys;   /* sorted */
-    size_t base;            /* global id of the first owned vertex */
+    uint64_t *lkeys;        /* owned lower-face vertices' keys, sorted */
+    uint32_t *lgid;         /* their rank among the owned vertices, then (stitched) global id */
+    size_t nlower;
     int status;
     wvol_error err;
 } brick_out;
@@ -159,24 +167,57 @@ static void mesh_brick(brick_out *o, const brick_grid *g, const size_t bidx[3], 
     jb.threads = 1;
     jb.normals = normals;
     jb.keys = &o->keys;
+    /* a vertex on the upper layer along a is the next brick's (the edge's lower sample is in
+     * the next brick's cells), one on the lower layer may be asked for by the brick before */
+    for (a = 0; a < 3; a++) {
+        jb.key_only[a] = bidx[a] + 1 < g->nb[a];
+        jb.first_shared[a] = bidx[a] > 0;
+    }
+    jb.vflags = &o->vflags;
     o->status = wvol__mc_run(&o->mesh, &jb, NULL, &o->err);
     if (o->status != WVOL_OK) return;
-    o->owned = malloc(o->mesh->nverts + 1);
-    o->owned_keys = malloc((o->mesh->nverts + 1) * sizeof *o->owned_keys);
-    if (!o->owned || !o->owned_keys) {
-        o->status = wvol_error_set(&o->err, WVOL_ERR_NOMEM, "brick: out of memory");
-        return;
-    }
     for (i = 0; i < o->mesh->nverts; i++) {
-        uint64_t p[3];
-        int axis, own = 1;
-        decode_key(g, o->keys[i], p, &axis);
-        /* the edge's lower sample lies in [c0, c1]: another brick owns it only on this
-         * brick's upper face, where the next brick starts */
-        for (a = 0; a < 3; a++)
-            if (p[a] == c1[a] && bidx[a] + 1 < g->nb[a]) own = 0;
-        o->owned[i] = (unsigned char)own;
-        if (own) o->owned_keys[o->nowned++] = o->keys[i];
+        const unsigned char f = o->vflags[i];
+        if (f & WVOL__MC_KEY_ONLY) continue;
+        if (f & WVOL__MC_FIRST) {
+            if (!o->lkeys) {
+                o->lkeys = malloc(o->mesh->nverts * sizeof *o->lkeys);
+                o->lgid = malloc(o->mesh->nverts * sizeof *o->lgid);
+                if (!o->lkeys || !o->lgid) {
+                    o->status = wvol_error_set(&o->err, WVOL_ERR_NOMEM, "brick: out of memory");
+                    return;
+                }
+            }
+            o->lkeys[o->nlower] = o->keys[i];
+            o->lgid[o->nlower++] = (uint32_t)o->nowned; /* < nverts <= UINT32_MAX (wvol__mc_run) */
+        }
+        o->nowned++;
+    }
+}
+
+static void brick_out_release(brick_out *o)
+{
+    wvol_mesh_destroy(o->mesh);
+    free(o->keys);
+    free(o->vflags);
+    o->mesh = NULL;
+    o->keys = NULL;
+    o->vflags = NULL;
+}
+
+/* Each brick's bound: range[2 i], range[2 i + 1] = lo, hi of brick i's samples. */
+static void brick_ranges(const brick_grid *g, const wvol__brick_bounds *bb, size_t nbricks, double *range)
+{
+    for (size_t i = 0; i < nbricks; i++) {
+        size_t bidx[3], c0[3], c1[3];
+        long s0[3], s1[3];
+        brick_coords(g, i, bidx);
+        brick_cells(g, bidx, c0, c1);
+        for (int a = 0; a < 3; a++) {
+            s0[a] = (long)c0[a];
+            s1[a] = (long)c1[a];
+        }
+        wvol__bounds_box(bb, s0, s1, &range[2 * i], &range[2 * i + 1]);
     }
 }
 
@@ -195,6 +236,179 @@ static long find_key(const uint64_t *keys, size_t n, uint64_t key)
     return *b == key ? (long)(b - keys) : -1;
 }
 
+/* ---- stitching, in brick order, as the bricks are meshed ------------------------- */
+
+/* The output mesh grows brick by brick: a brick's owned vertices take the next global ids
+ * (so the ids follow brick order, then each brick's own order, whatever the thread count),
+ * its triangles are appended with their owned corners mapped at once, and a corner on a
+ * vertex owned by a later brick is left pending until every brick is stitched. The bricks'
+ * own meshes are freed as they are stitched, so the extraction holds about one output mesh
+ * (not the bricks' meshes and the output mesh together, whose first touch of fresh pages
+ * cost as much as the stitch itself). */
+typedef struct stitch_corner {
+    size_t pos;     /* index into the output's tris */
+    uint32_t pend;  /* index into the pending keys */
+} stitch_corner;
+
+typedef struct stitcher {
+    wvol_mesh *m;           /* nverts / ntris: stitched so far; arrays grown (capacities below) */
+    size_t vcap, tcap;
+    uint64_t *pend;         /* keys of the vertices owned by later bricks, one per (brick, vertex) */
+    size_t npend, pcap;
+    stitch_corner *fix;
+    size_t nfix, fcap;
+    uint32_t *map;          /* per local vertex of the brick being stitched: global id or pending index */
+    size_t mapcap;
+    wvol_status status;     /* the first failure in brick order (then nothing more is stitched) */
+    wvol_error err;
+} stitcher;
+
+/* *p (capacity *cap elements of size el, first: the first capacity) holds at least n
+ * elements; 0 when out of memory. */
+static int grow(void **p, size_t *cap, size_t n, size_t el, size_t first)
+{
+    size_t c = *cap ? *cap : first;
+    void *q;
+    if (n <= *cap) return 1;
+    while (c < n) c *= 2;
+    q = realloc(*p, c * el);
+    if (!q) return 0;
+    *p = q;
+    *cap = c;
+    return 1;
+}
+
+/* The output arrays are reserved large from the start (OUT_RESERVE bytes of address space,
+ * touched only as far as they are filled): above malloc's largest mmap threshold, so they
+ * are mappings of their own that grow by remapping, never by copying, and are shrunk to
+ * size at the end; and asked for huge pages, so that filling them takes a page fault per
+ * 2 MiB rather than per 4 KiB (the first touch of the output was a tenth of an extraction).
+ * Where the reservation is refused (strict overcommit), the arrays grow from small. */
+#define OUT_RESERVE ((size_t)48 << 20)
+
+static void want_huge_pages(void *p, size_t bytes)
+{
+#if defined(__linux__) && defined(MADV_HUGEPAGE)
+    const uintptr_t huge = (uintptr_t)2 << 20;
+    uintptr_t a = ((uintptr_t)p + huge - 1) & ~(huge - 1), e = ((uintptr_t)p + bytes) & ~(huge - 1);
+    if (e > a) (void)madvise((void *)a, (size_t)(e - a), MADV_HUGEPAGE); /* a hint: its failure changes nothing */
+#else
+    (void)p;
+    (void)bytes;
+#endif
+}
+
+/* An output array (element size el) grown to at least n elements. */
+static int grow_out(void **p, size_t *cap, size_t n, size_t el)
+{
+    if (*cap == 0 && n <= OUT_RESERVE / el) {
+        void *q = realloc(*p, OUT_RESERVE);
+        if (q) {
+            *p = q;
+            *cap = OUT_RESERVE / el;
+            want_huge_pages(q, OUT_RESERVE);
+        }
+    }
+    return grow(p, cap, n, el, 4096);
+}
+
+/* The vertex arrays (verts, normals) share the capacity vcap. */
+static int grow_verts(stitcher *s, size_t n)
+{
+    size_t c = s->vcap, cn = s->vcap;
+    if (n <= s->vcap) return 1;
+    if (!grow_out((void **)&s->m->verts, &c, n, 3 * sizeof(float))) return 0;
+    if (s->m->normals && !grow_out((void **)&s->m->normals, &cn, n, 3 * sizeof(float))) return 0;
+    s->vcap = c < cn || !s->m->normals ? c : cn;
+    return 1;
+}
+
+static void stitch_brick(stitcher *s, brick_out *o)
+{
+    wvol_mesh *bm = o->mesh, *m = s->m;
+    size_t k, t, r = 0, base = m->nverts, tb = 3 * m->ntris;
+    if (s->status != WVOL_OK) return;
+    if (o->status != WVOL_OK) {
+        s->status = o->status;
+        s->err = o->err;
+        return;
+    }
+    if (base + o->nowned > UINT32_MAX) {
+        s->status = wvol_error_set(&s->err, WVOL_ERR_DIMS, "iso: more than %u vertices exceed 32-bit indices",
+                                   (unsigned)UINT32_MAX);
+        return;
+    }
+    if (!grow_verts(s, base + o->nowned) ||
+        !grow_out((void **)&m->tris, &s->tcap, m->ntris + bm->ntris, 3 * sizeof(uint32_t)) ||
+        !grow((void **)&s->map, &s->mapcap, bm->nverts, sizeof *s->map, 4096) ||
+        !grow((void **)&s->pend, &s->pcap, s->npend + bm->nverts - o->nowned, sizeof *s->pend, 4096)) {
+        s->status = wvol_error_set(&s->err, WVOL_ERR_NOMEM, "iso: out of memory while stitching bricks");
+        return;
+    }
+    for (k = 0; k < bm->nverts; k++) {
+        if (!(o->vflags[k] & WVOL__MC_KEY_ONLY)) {
+            size_t gid = base + r++;
+            memcpy(m->verts + 3 * gid, bm->verts + 3 * k, 3 * sizeof(float));
+            if (m->normals) memcpy(m->normals + 3 * gid, bm->normals + 3 * k, 3 * sizeof(float));
+            s->map[k] = (uint32_t)gid;
+        } else {
+            s->map[k] = (uint32_t)s->npend;
+            s->pend[s->npend++] = o->keys[k];
+        }
+    }
+    if (r < bm->nverts) {
+        /* corners on pending vertices: at most every corner of the brick */
+        if (!grow((void **)&s->fix, &s->fcap, s->nfix + 3 * bm->ntris, sizeof *s->fix, 4096)) {
+            s->status = wvol_error_set(&s->err, WVOL_ERR_NOMEM, "iso: out of memory while stitching bricks");
+            return;
+        }
+        for (t = 0; t < 3 * bm->ntris; t++) {
+            uint32_t lv = bm->tris[t];
+            m->tris[tb + t] = s->map[lv];
+            if (o->vflags[lv] & WVOL__MC_KEY_ONLY) {
+                s->fix[s->nfix].pos = tb + t;
+                s->fix[s->nfix++].pend = s->map[lv];
+            }
+        }
+    } else {
+        for (t = 0; t < 3 * bm->ntris; t++) m->tris[tb + t] = s->map[bm->tris[t]];
+    }
+    for (k = 0; k < o->nlower; k++) o->lgid[k] += (uint32_t)base;
+    m->nverts += o->nowned;
+    m->ntris += bm->ntris;
+}
+
+/* After every brick: the pending corners get their owners' ids (the owner: the brick
+ * holding the edge's lower sample; its lower-face keys); the number found nowhere. */
+static size_t stitch_finish(stitcher *s, const brick_grid *g, const brick_out *res, const size_t *slot, int nth)
+{
+    size_t misses = 0;
+    long p;
+    (void)nth;
+#ifdef _OPENMP
+#pragma omp parallel for schedule(static) num_threads(nth) if (nth > 1 && s->npend > 4096) reduction(+ : misses)
+#endif
+    for (p = 0; p < (long)s->npend; p++) {
+        uint64_t pt[3], key = s->pend[p];
+        int axis;
+        size_t ob, os;
+        long at = -1;
+        decode_key(g, key, pt, &axis);
+        ob = owner_axis(g, 0, pt[0]) + g->nb[0] * (owner_axis(g, 1, pt[1]) + g->nb[1] * owner_axis(g, 2, pt[2]));
+        os = slot[ob];
+        if (os != (size_t)-1) at = find_key(res[os].lkeys, res[os].nlower, key);
+        /* the pending key becomes its global id (UINT32_MAX: no owner) */
+        if (at >= 0) {
+            s->pend[p] = res[os].lgid[at];
+        } else {
+            s->pend[p] = UINT32_MAX;
+            misses++;
+        }
+    }
+    for (size_t f = 0; f < s->nfix; f++) s->m->tris[s->fix[f].pos] = (uint32_t)s->pend[s->fix[f].pend];
+    return misses;
+}
+
 /* The mesh of the reconstruction of coefficients c, or of store sto (the other NULL). */
 static wvol_status extract_bricks(wvol_mesh **out, const wvol_coeffs *c, const wvol_store *sto, double iso,
                                   const wvol_iso_params *p, wvol_iso_stats *st, wvol_error *err)
@@ -204,14 +418,20 @@ static wvol_status extract_bricks(wvol_mesh **out, const wvol_coeffs *c, const w
     wvol__brick_bounds *bb = NULL;  /* NULL (a store without the bound): every brick meshed */
     wvol__store_blocks *blocks = NULL;
     brick_grid g;
-    size_t nbricks, nneed = 0, nrun = 0, i, *need = NULL, *slot = NULL, *run = NULL, nv = 0, nt = 0, misses = 0;
-    size_t nomem = 0;
+    size_t nbricks, nneed = 0, nrun = 0, i, *need = NULL, *slot = NULL, *run = NULL, nt = 0, misses = 0;
+    size_t next = 0;         /* the next brick to stitch */
+    unsigned char *ready = NULL;
+    int stitching = 0;       /* a thread is stitching */
+    stitcher sti;
     brick_out *res = NULL;
+    const double *range = NULL; /* per brick: lo, hi of its samples (NULL: unbounded) */
+    double *own_range = NULL;
     wvol_mesh *m = NULL;
     wvol_status s = WVOL_OK;
     double t0 = wvol__now(), t1, t2, gmin = INFINITY, gmax = -INFINITY;
     int nth, a;
 
+    memset(&sti, 0, sizeof sti);
     if (!p) {
         wvol_iso_params_default(&def);
         p = &def;
@@ -269,23 +489,27 @@ static wvol_status extract_bricks(wvol_mesh **out, const wvol_coeffs *c, const w
         s = wvol_error_set(err, WVOL_ERR_NOMEM, "iso: out of memory for %zu bricks", nbricks);
         goto done;
     }
-    /* bounds per brick: samples [c0, c1] (owned cells plus the shared layer) */
+    /* bounds per brick: samples [c0, c1] (owned cells plus the shared layer); they depend
+     * on the coefficients and the brick size alone, so a store's view keeps them */
+    if (bb) {
+        range = blocks ? wvol__store_blocks_table(blocks, g.B) : NULL;
+        if (!range) {
+            own_range = malloc(2 * nbricks * sizeof *own_range);
+            if (!own_range) {
+                s = wvol_error_set(err, WVOL_ERR_NOMEM, "iso: out of memory for %zu bricks", nbricks);
+                goto done;
+            }
+            brick_ranges(&g, bb, nbricks, own_range);
+            if (blocks && wvol__store_blocks_keep_table(blocks, g.B, &own_range)) {
+                range = own_range;
+                own_range = NULL; /* the view's now */
+            } else {
+                range = own_range;
+            }
+        }
+    }
     for (i = 0; i < nbricks; i++) {
-        size_t bidx[3], c0[3], c1[3];
-        long s0[3], s1[3];
-        double lo, hi;
-        brick_coords(&g, i, bidx);
-        brick_cells(&g, bidx, c0, c1);
-        for (a = 0; a < 3; a++) {
-            s0[a] = (long)c0[a];
-            s1[a] = (long)c1[a];
-        }
-        if (bb) {
-            wvol__bounds_box(bb, s0, s1, &lo, &hi);
-        } else {
-            lo = -INFINITY;
-            hi = INFINITY;
-        }
+        double lo = range ? range[2 * i] : -INFINITY, hi = range ? range[2 * i + 1] : INFINITY;
         if (lo < gmin) gmin = lo;
         if (hi > gmax) gmax = hi;
         slot[i] = (size_t)-1;
@@ -301,10 +525,13 @@ static wvol_status extract_bricks(wvol_mesh **out, const wvol_coeffs *c, const w
     st->bricks_skipped = nbricks - nneed;
     st->seconds_bounds = t1 - t0;
     res = calloc(nneed + 1, sizeof *res);
-    if (!res) {
+    ready = calloc(nneed + 1, 1);
+    if (!res || !ready) {
         s = wvol_error_set(err, WVOL_ERR_NOMEM, "iso: out of memory for %zu bricks", nneed);
         goto done;
     }
+    s = wvol_mesh_create(&sti.m, 0, 0, p->normals != WVOL_ISO_NORMALS_NONE, err);
+    if (s != WVOL_OK) goto done;
     /* runs of consecutive needed bricks along x (need[] is in brick order, x fastest), each
      * reconstructed once as one box: neighbours share their apron, and the synthesis works
      * on longer rows; a run is capped so that the threads' work items stay small */
@@ -328,6 +555,7 @@ static wvol_status extract_bricks(wvol_mesh **out, const wvol_coeffs *c, const w
             size_t q0 = run[r], q1 = run[r + 1], lo[3], hi[3], blo[3], bhi[3], q, cnt;
             size_t first[3], last[3];
             wvol_status rs;
+            int mine = 0;
             brick_coords(&g, need[q0], first);
             brick_coords(&g, need[q1 - 1], last); /* the same row: only x differs */
             brick_box(&g, first, lo, hi);
@@ -342,14 +570,38 @@ static wvol_status extract_bricks(wvol_mesh **out, const wvol_coeffs *c, const w
             rs = v ? wvol__idwt3_brick_src(v, &g.cs, lo, hi, &scr, &res[q0].err)
                    : wvol_error_set(&res[q0].err, WVOL_ERR_NOMEM, "brick: out of memory");
             if (rs != WVOL_OK) {
-                res[q0].status = rs;
-                continue;
+                res[q0].status = rs; /* stitched first of its run: the run's failure */
+            } else {
+                for (q = q0; q < q1; q++) {
+                    size_t bidx[3];
+                    brick_coords(&g, need[q], bidx);
+                    mesh_brick(&res[q], &g, bidx, v, lo, hi, iso,
+                               p->normals == WVOL_ISO_NORMALS_NONE ? WVOL_ISO_NORMALS_NONE
+                                                                   : WVOL_ISO_NORMALS_GRADIENT);
+                }
             }
-            for (q = q0; q < q1; q++) {
-                size_t bidx[3];
-                brick_coords(&g, need[q], bidx);
-                mesh_brick(&res[q], &g, bidx, v, lo, hi, iso,
-                           p->normals == WVOL_ISO_NORMALS_NONE ? WVOL_ISO_NORMALS_NONE : WVOL_ISO_NORMALS_GRADIENT);
+            /* the bricks stitched in order: whichever thread finds the next one ready
+             * stitches from there while the others go on meshing */
+#ifdef _OPENMP
+#pragma omp critical(wvol_bricks_stitch)
+#endif
+            {
+                for (q = q0; q < q1; q++) ready[q] = 1;
+                if (!stitching) stitching = mine = 1;
+            }
+            while (mine) {
+                int go;
+#ifdef _OPENMP
+#pragma omp critical(wvol_bricks_stitch)
+#endif
+                {
+                    go = next < nneed && ready[next];
+                    if (!go) stitching = 0;
+                }
+                if (!go) break;
+                stitch_brick(&sti, &res[next]);
+                brick_out_release(&res[next]);
+                next++;
             }
         }
         free(v);
@@ -357,86 +609,28 @@ static wvol_status extract_bricks(wvol_mesh **out, const wvol_coeffs *c, const w
     }
     t2 = wvol__now();
     st->seconds_reconstruct = t2 - t1;
-    for (i = 0; i < nneed; i++)
-        if (res[i].status != WVOL_OK) {
-            if (err) *err = res[i].err;
-            s = res[i].status;
-            goto done;
-        }
-    /* stitch: owned vertices get global ids in brick order */
-    for (i = 0; i < nneed; i++) {
-        res[i].base = nv;
-        nv += res[i].nowned;
-        nt += res[i].mesh->ntris;
-    }
-    if (nv > UINT32_MAX) {
-        s = wvol_error_set(err, WVOL_ERR_DIMS, "iso: %zu vertices exceed 32-bit indices", nv);
+    if (sti.status != WVOL_OK) {
+        if (err) *err = sti.err;
+        s = sti.status;
         goto done;
     }
-    s = wvol_mesh_create(&m, nv, nt, p->normals != WVOL_ISO_NORMALS_NONE, err);
-    if (s != WVOL_OK) goto done;
-    {
-        long q;
-        size_t tri_base = 0;
-        size_t *tb = malloc((nneed + 1) * sizeof *tb);
-        if (!tb) {
-            s = wvol_error_set(err, WVOL_ERR_NOMEM, "iso: out of memory");
-            goto done;
-        }
-        for (i = 0; i < nneed; i++) {
-            tb[i] = tri_base;
-            tri_base += res[i].mesh->ntris;
-        }
-#ifdef _OPENMP
-#pragma omp parallel for schedule(dynamic, 4) num_threads(nth) if (nth > 1) reduction(+ : misses, nomem)
-#endif
-        for (q = 0; q < (long)nneed; q++) {
-            brick_out *o = &res[q];
-            wvol_mesh *bm = o->mesh;
-            uint32_t *map = malloc((bm->nverts + 1) * sizeof *map);
-            size_t k, r = 0, t;
-            if (!map) {
-                nomem++;
-                continue;
-            }
-            for (k = 0; k < bm->nverts; k++) {
-                if (o->owned[k]) {
-                    size_t gid = o->base + r++;
-                    memcpy(m->verts + 3 * gid, bm->verts + 3 * k, 3 * sizeof(float));
-                    if (m->normals) memcpy(m->normals + 3 * gid, bm->normals + 3 * k, 3 * sizeof(float));
-                    map[k] = (uint32_t)gid;
-                } else {
-                    uint64_t pt[3];
-                    int axis;
-                    size_t ob, os;
-                    long at = -1;
-                    decode_key(&g, o->keys[k], pt, &axis);
-                    ob = owner_axis(&g, 0, pt[0]) +
-                         g.nb[0] * (owner_axis(&g, 1, pt[1]) + g.nb[1] * owner_axis(&g, 2, pt[2]));
-                    os = slot[ob];
-                    if (os != (size_t)-1) at = find_key(res[os].owned_keys, res[os].nowned, o->keys[k]);
-                    if (at >= 0) {
-                        map[k] = (uint32_t)(res[os].base + (size_t)at);
-                    } else {
-                        map[k] = UINT32_MAX;
-                        misses++;
-                    }
-                }
-            }
-            for (t = 0; t < 3 * bm->ntris; t++) m->tris[3 * tb[q] + t] = map[bm->tris[t]];
-            free(map);
-        }
-        free(tb);
-    }
+    misses = stitch_finish(&sti, &g, res, slot, nth);
     if (misses) {
         s = wvol_error_set(err, WVOL_ERR_INTERNAL,
                            "iso: %zu brick-boundary vertices have no owner (inconsistent brick reconstructions)",
                            misses);
         goto done;
     }
-    if (nomem) {
-        s = wvol_error_set(err, WVOL_ERR_NOMEM, "iso: out of memory while stitching bricks");
-        goto done;
+    m = sti.m;
+    sti.m = NULL;
+    nt = m->ntris;
+    /* the arrays' spare capacity handed back (shrinking keeps the values) */
+    {
+        size_t vb = m->nverts ? 3 * m->nverts * sizeof(float) : 1, tb = m->ntris ? 3 * m->ntris * sizeof(uint32_t) : 1;
+        void *q;
+        if ((q = realloc(m->verts, vb))) m->verts = q;
+        if (m->normals && (q = realloc(m->normals, vb))) m->normals = q;
+        if ((q = realloc(m->tris, tb))) m->tris = q;
     }
     st->seconds[2] = t2 - t1;
     st->seconds[3] = wvol__now() - t0;
@@ -462,16 +656,21 @@ static wvol_status extract_bricks(wvol_mesh **out, const wvol_coeffs *c, const w
 done:
     if (res)
         for (i = 0; i < nneed; i++) {
-            wvol_mesh_destroy(res[i].mesh);
-            free(res[i].keys);
-            free(res[i].owned);
-            free(res[i].owned_keys);
+            brick_out_release(&res[i]);
+            free(res[i].lkeys);
+            free(res[i].lgid);
         }
     free(res);
+    free(ready);
+    wvol_mesh_destroy(sti.m);
+    free(sti.pend);
+    free(sti.fix);
+    free(sti.map);
     wvol_mesh_destroy(m);
     free(need);
     free(slot);
     free(run);
+    free(own_range);
     wvol__bounds_free(bb);
     wvol__store_blocks_destroy(blocks);
     return s;

@@ -24,7 +24,18 @@ typedef struct wvol__mc_job {
     void (*gradient)(void *user, const double xyz[3], double grad[3]);
     void *gradient_user;
     uint64_t **keys;          /* optional: receives malloc'ed per-vertex edge keys */
+    /* with keys: key_only[a] = 1 says that a vertex whose edge starts on the region's last
+     * sample layer along a (local index n[a] - 1) is another mesh's (bricks: the next brick
+     * owns it): only its key is written, its position and normal are left unset */
+    int key_only[3];
+    /* with keys, optional: receives malloc'ed per-vertex flags, WVOL__MC_KEY_ONLY for the
+     * vertices above, WVOL__MC_FIRST for one whose edge starts on the region's first sample
+     * layer along an axis a with first_shared[a] (bricks: the brick before may ask for it) */
+    unsigned char **vflags;
+    int first_shared[3];
 } wvol__mc_job;
+#define WVOL__MC_KEY_ONLY 1
+#define WVOL__MC_FIRST 2
 
 /* Edge key: ((gk * gny + gj) * 3 + axis) * gnx + gi for the edge from global
  * sample (gi, gj, gk) along axis. Keys increase in the kernel's vertex order. */

@@ -70,6 +70,7 @@ typedef struct mc_ctx {
     float isof;
     wvol_mesh *mesh;
     uint64_t *keys;
+    unsigned char *vflags;
     int bad;                   /* non-finite sample met */
     size_t bad_at[3];
 } mc_ctx;
@@ -193,17 +194,26 @@ static void put_vertex(mc_ctx *c, uint64_t id, size_t i, size_t j, size_t k, int
             c->mesh->normals[3 * id + 2] = 0.0f;
         return;
     }
+    if (c->keys) {
+        uint64_t gi = (uint64_t)((long long)(jb->lo[0] + i) + jb->gofs[0]);
+        uint64_t gj = (uint64_t)((long long)(jb->lo[1] + j) + jb->gofs[1]);
+        uint64_t gk = (uint64_t)((long long)(jb->lo[2] + k) + jb->gofs[2]);
+        const int key_only = (jb->key_only[0] && i == c->nx - 1) || (jb->key_only[1] && j == c->ny - 1) ||
+                             (jb->key_only[2] && k == c->nz - 1);
+        c->keys[id] = wvol__edge_key(jb->gdims, gi, gj, gk, axis);
+        if (c->vflags)
+            c->vflags[id] = (unsigned char)((key_only ? WVOL__MC_KEY_ONLY : 0) |
+                                            (((jb->first_shared[0] && i == 0) || (jb->first_shared[1] && j == 0) ||
+                                              (jb->first_shared[2] && k == 0))
+                                                 ? WVOL__MC_FIRST
+                                                 : 0));
+        if (key_only) return; /* another mesh places this vertex */
+    }
     t = ((double)c->isof - (double)a) / ((double)b - (double)a);
     for (d = 0; d < 3; d++) {
         idx[d] = (double)((long long)(jb->lo[d] + q[d]) + jb->gofs[d]) + (d == axis ? t : 0.0);
         pos[d] = jb->origin[d] + jb->spacing[d] * idx[d];
         vp[d] = (float)pos[d];
-    }
-    if (c->keys) {
-        uint64_t gi = (uint64_t)((long long)(jb->lo[0] + i) + jb->gofs[0]);
-        uint64_t gj = (uint64_t)((long long)(jb->lo[1] + j) + jb->gofs[1]);
-        uint64_t gk = (uint64_t)((long long)(jb->lo[2] + k) + jb->gofs[2]);
-        c->keys[id] = wvol__edge_key(jb->gdims, gi, gj, gk, axis);
     }
     if (c->mesh->normals) {
         double g[3], g0[3], g1[3], len;
@@ -376,6 +386,7 @@ wvol_status wvol__mc_run(wvol_mesh **out, const wvol__mc_job *jb, wvol_iso_stats
 
     *out = NULL;
     if (jb->keys) *jb->keys = NULL;
+    if (jb->vflags) *jb->vflags = NULL;
     memset(&c, 0, sizeof c);
     c.job = jb;
     c.nx = jb->n[0];
@@ -444,7 +455,8 @@ wvol_status wvol__mc_run(wvol_mesh **out, const wvol__mc_job *jb, wvol_iso_stats
     if (s != WVOL_OK) goto done;
     if (jb->keys && nv) {
         c.keys = malloc(nv * sizeof *c.keys);
-        if (!c.keys) {
+        if (jb->vflags) c.vflags = malloc(nv);
+        if (!c.keys || (jb->vflags && !c.vflags)) {
             s = wvol_error_set(err, WVOL_ERR_NOMEM, "marching cubes: out of memory for edge keys");
             goto done;
         }
@@ -484,10 +496,13 @@ wvol_status wvol__mc_run(wvol_mesh **out, const wvol__mc_job *jb, wvol_iso_stats
     if (jb->keys) {
         *jb->keys = c.keys;
         c.keys = NULL;
+        if (jb->vflags) *jb->vflags = c.vflags;
+        c.vflags = NULL;
     }
 done:
     wvol_mesh_destroy(m);
     free(c.keys);
+    free(c.vflags);
     free(bits);
     free(c.cnt);
     free(c.vbase);

@@ -13,6 +13,7 @@
 #include <math.h>
 #include <stdint.h>
 #include <stdlib.h>
+#include <pthread.h>
 #include <string.h>
 #ifdef _OPENMP
 #include <omp.h>
@@ -43,11 +44,27 @@ struct wvol__store_blocks {
     size_t bytes;
     wvol__coef_source cs;  /* a reconstruction's source reading through the view */
     int cached;            /* the store's own (wvol_store.view): destroy leaves it */
+    struct kept_table *tables; /* wvol__store_blocks_keep_table's, guarded by table_lock */
+    pthread_mutex_t table_lock;
+    int table_lock_ok;
+};
+
+struct kept_table {
+    int key;
+    double *v;
+    struct kept_table *next;
 };
 typedef struct wvol__store_blocks coef_blocks;
 
 static void blocks_free(coef_blocks *cb)
 {
+    while (cb->tables) {
+        struct kept_table *t = cb->tables;
+        cb->tables = t->next;
+        free(t->v);
+        free(t);
+    }
+    if (cb->table_lock_ok) pthread_mutex_destroy(&cb->table_lock);
     for (int m = 0; m <= WVOL_SELECT_MAX_LEVELS; m++)
         for (int l = 0; l < 8; l++) free(cb->bv[m][l].dir);
     free(cb->blocks);
@@ -484,6 +501,7 @@ static wvol_status build_view(wvol__store_blocks **out, wvol__brick_bounds **bou
         wvol__store_blocks_destroy(cb);
         return st;
     }
+    cb->table_lock_ok = pthread_mutex_init(&cb->table_lock, NULL) == 0; /* else no table is kept */
     cb->cs = (wvol__coef_source){.gather = gather_blocks, .ctx = cb, .filter = info.filter, .levels = info.levels,
                                  .dims = {info.nx, info.ny, info.nz}, .pad = {info.px, info.py, info.pz}};
     /* a store opened on a file: the detail bands come from its chunks, decoded on demand */
@@ -570,6 +588,45 @@ wvol_status wvol__store_blocks_create_exact(wvol__store_blocks **out, wvol__bric
 void wvol__store_blocks_source(wvol__coef_source *src, const wvol__store_blocks *b)
 {
     *src = b->cs;
+}
+
+static struct kept_table *find_table(const coef_blocks *b, int key)
+{
+    struct kept_table *t = b->tables;
+    while (t && t->key != key) t = t->next;
+    return t;
+}
+
+const double *wvol__store_blocks_table(wvol__store_blocks *b, int key)
+{
+    struct kept_table *t;
+    if (!b || !b->table_lock_ok) return NULL;
+    pthread_mutex_lock(&b->table_lock);
+    t = find_table(b, key);
+    pthread_mutex_unlock(&b->table_lock);
+    return t ? t->v : NULL;
+}
+
+int wvol__store_blocks_keep_table(wvol__store_blocks *b, int key, double **table)
+{
+    struct kept_table *t;
+    int kept = 0;
+    if (!b || !b->table_lock_ok || !*table) return 0;
+    pthread_mutex_lock(&b->table_lock);
+    t = find_table(b, key);
+    if (t) {
+        free(*table); /* another thread's made meanwhile: the same values */
+        *table = t->v;
+        kept = 1;
+    } else if ((t = malloc(sizeof *t))) {
+        t->key = key;
+        t->v = *table;
+        t->next = b->tables;
+        b->tables = t;
+        kept = 1;
+    }
+    pthread_mutex_unlock(&b->table_lock);
+    return kept;
 }
 
 size_t wvol__store_blocks_bytes(const wvol__store_blocks *b)

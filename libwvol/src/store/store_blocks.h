@@ -40,6 +40,16 @@ void wvol__store_blocks_source(wvol__coef_source *src, const wvol__store_blocks 
 /* Bytes the view allocated: its directories, blocks and values. */
 size_t wvol__store_blocks_bytes(const wvol__store_blocks *b);
 
+/* Tables a reader derives from the view and its bounds alone, kept with the view (a built
+ * store's view lives as long as the store, so its first extraction makes the table and the
+ * others read it): marching cubes' per-brick bounds, keyed by the brick size. _table: the
+ * table kept under key, or NULL. _keep_table: offers *table (malloc'ed); returns 1 when the
+ * view keeps it or already kept one under key (*table then points to the kept one, the
+ * offered one freed: the same values), 0 when it cannot keep it (the caller still owns
+ * *table). Safe from several threads at once; a kept table lives as long as the view. */
+const double *wvol__store_blocks_table(wvol__store_blocks *b, int key);
+int wvol__store_blocks_keep_table(wvol__store_blocks *b, int key, double **table);
+
 void wvol__store_blocks_destroy(wvol__store_blocks *b); /* NULL is fine */
 
 #endif
