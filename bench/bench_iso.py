@@ -27,7 +27,7 @@ processes (each the fastest of --reps extractions in one process, wall clock and
 seconds; the first builds the store's block view and bounds, which the later ones reuse), with
 the ratio to dense MC (goal <= 2x); `--bricks-baseline PROGRAM` runs another wvol's brick path
 and dense MC (e.g. main's) alternated with this build's; merged into the existing iso.json /
-iso.md (the brick-path section only).
+iso.md (the brick-path section only); --raytrace-only its ray tracer table and baseline line.
 
 Goal (issue 6): wvol at least as fast as vtkFlyingEdges3D at the same thread count.
 Writes bench/results/iso.json and bench/results/iso.md.
@@ -294,13 +294,16 @@ def brick_rows(args, raw, name, n, iso, t):
     return rows
 
 
-def splice_section(old, new, head):
+def splice_section(old, new, head, table=True):
     """old with its section starting at the line beginning with head (that line, a blank line and
-    the table after it) replaced by new's; old as it is if either lacks it."""
+    the table after it; with table=False that line alone) replaced by new's; old as it is if
+    either lacks it."""
     def bounds(lines):
         s = next((i for i, l in enumerate(lines) if l.startswith(head)), None)
         if s is None:
             return None
+        if not table:
+            return s, s + 1
         e = s + 2
         while e < len(lines) and lines[e].startswith("|"):
             e += 1
@@ -527,7 +530,15 @@ def main():
         res["raytrace_baseline"] = args.rt_baseline_note or args.rt_baseline or None
         res.pop("raytrace_note", None)  # a note describes one run: add it by hand after
         (out / f"{rname}.json").write_text(json.dumps(res, indent=1) + "\n")
+        md = out / f"{rname}.md"
+        old = md.read_text() if md.exists() else None
         write_md(res, out, rname, tools)
+        if old:  # only the ray tracer's table and its baseline line change: notes beside them stay
+            new = md.read_text()
+            merged = splice_section(splice_section(old, new, "Ray tracer ("), new, "Baseline: ", table=False)
+            if "\nBaseline: " not in new:  # no baseline this run: the old run's line would be stale
+                merged = "\n".join(l for l in merged.split("\n") if not l.startswith("Baseline: "))
+            md.write_text(merged)
         return
     res = {"machine": {"cpu": cpu_model(), "cores": os.cpu_count(), "load_avg_start": os.getloadavg()[0]},
            "n": n, "reps": args.reps, "mc": [], "bricks": []}
