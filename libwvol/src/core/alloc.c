@@ -36,3 +36,10 @@ void *wvol__malloc_large(size_t bytes)
     advise_huge(p, bytes);
     return p;
 }
+
+void *wvol__realloc_large(void *p, size_t bytes)
+{
+    void *q = realloc(p, bytes);
+    advise_huge(q, bytes);
+    return q;
+}

@@ -11,10 +11,29 @@
 #define WVOL_CORE_ALLOC_H
 
 #include <stddef.h>
+#include <stdlib.h>
 
 /* calloc(n, size), with huge pages asked for when the buffer is large. */
 void *wvol__calloc_large(size_t n, size_t size);
 /* malloc(bytes), likewise (for buffers the caller fills whole). */
 void *wvol__malloc_large(size_t bytes);
+/* realloc(p, bytes), likewise (a buffer that large is moved into a fresh mapping of its own,
+ * not touched beyond the old contents copied in). */
+void *wvol__realloc_large(void *p, size_t bytes);
+
+/* An array *p of *cap elements of elem bytes grown by doubling (from `first` elements when
+ * empty) until it holds need; 1, or 0 when out of memory (*p and *cap then unchanged). */
+static inline int wvol__grow(void **p, size_t *cap, size_t need, size_t elem, size_t first)
+{
+    size_t n = *cap ? *cap : first;
+    void *q;
+    if (need <= *cap) return 1;
+    while (n < need) n *= 2;
+    q = realloc(*p, n * elem);
+    if (!q) return 0;
+    *p = q;
+    *cap = n;
+    return 1;
+}
 
 #endif

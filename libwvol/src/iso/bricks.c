@@ -21,13 +21,11 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#if defined(__linux__)
-#include <sys/mman.h>
-#endif
 #ifdef _OPENMP
 #include <omp.h>
 #endif
 
+#include "core/alloc.h"
 #include "core/clock.h"
 #include "iso/iso_internal.h"
 #include "store/store_blocks.h"
@@ -243,8 +241,7 @@ static long find_key(const uint64_t *keys, size_t n, uint64_t key)
  * its triangles are appended with their owned corners mapped at once, and a corner on a
  * vertex owned by a later brick is left pending until every brick is stitched. The bricks'
  * own meshes are freed as they are stitched, so the extraction holds about one output mesh
- * (not the bricks' meshes and the output mesh together, whose first touch of fresh pages
- * cost as much as the stitch itself). */
+ * (not the bricks' meshes and the output mesh together: fewer fresh pages to touch). */
 typedef struct stitch_corner {
     size_t pos;     /* index into the output's tris */
     uint32_t pend;  /* index into the pending keys */
@@ -263,53 +260,25 @@ typedef struct stitcher {
     wvol_error err;
 } stitcher;
 
-/* *p (capacity *cap elements of size el, first: the first capacity) holds at least n
- * elements; 0 when out of memory. */
-static int grow(void **p, size_t *cap, size_t n, size_t el, size_t first)
-{
-    size_t c = *cap ? *cap : first;
-    void *q;
-    if (n <= *cap) return 1;
-    while (c < n) c *= 2;
-    q = realloc(*p, c * el);
-    if (!q) return 0;
-    *p = q;
-    *cap = c;
-    return 1;
-}
-
 /* The output arrays are reserved large from the start (OUT_RESERVE bytes of address space,
  * touched only as far as they are filled): above malloc's largest mmap threshold, so they
  * are mappings of their own that grow by remapping, never by copying, and are shrunk to
  * size at the end; and asked for huge pages, so that filling them takes a page fault per
- * 2 MiB rather than per 4 KiB (the first touch of the output was a tenth of an extraction).
+ * 2 MiB rather than per 4 KiB (core/alloc.h says why that matters).
  * Where the reservation is refused (strict overcommit), the arrays grow from small. */
 #define OUT_RESERVE ((size_t)48 << 20)
-
-static void want_huge_pages(void *p, size_t bytes)
-{
-#if defined(__linux__) && defined(MADV_HUGEPAGE)
-    const uintptr_t huge = (uintptr_t)2 << 20;
-    uintptr_t a = ((uintptr_t)p + huge - 1) & ~(huge - 1), e = ((uintptr_t)p + bytes) & ~(huge - 1);
-    if (e > a) (void)madvise((void *)a, (size_t)(e - a), MADV_HUGEPAGE); /* a hint: its failure changes nothing */
-#else
-    (void)p;
-    (void)bytes;
-#endif
-}
 
 /* An output array (element size el) grown to at least n elements. */
 static int grow_out(void **p, size_t *cap, size_t n, size_t el)
 {
     if (*cap == 0 && n <= OUT_RESERVE / el) {
-        void *q = realloc(*p, OUT_RESERVE);
+        void *q = wvol__realloc_large(*p, OUT_RESERVE);
         if (q) {
             *p = q;
             *cap = OUT_RESERVE / el;
-            want_huge_pages(q, OUT_RESERVE);
         }
     }
-    return grow(p, cap, n, el, 4096);
+    return wvol__grow(p, cap, n, el, 4096);
 }
 
 /* The vertex arrays (verts, normals) share the capacity vcap. */
@@ -340,8 +309,8 @@ static void stitch_brick(stitcher *s, brick_out *o)
     }
     if (!grow_verts(s, base + o->nowned) ||
         !grow_out((void **)&m->tris, &s->tcap, m->ntris + bm->ntris, 3 * sizeof(uint32_t)) ||
-        !grow((void **)&s->map, &s->mapcap, bm->nverts, sizeof *s->map, 4096) ||
-        !grow((void **)&s->pend, &s->pcap, s->npend + bm->nverts - o->nowned, sizeof *s->pend, 4096)) {
+        !wvol__grow((void **)&s->map, &s->mapcap, bm->nverts, sizeof *s->map, 4096) ||
+        !wvol__grow((void **)&s->pend, &s->pcap, s->npend + bm->nverts - o->nowned, sizeof *s->pend, 4096)) {
         s->status = wvol_error_set(&s->err, WVOL_ERR_NOMEM, "iso: out of memory while stitching bricks");
         return;
     }
@@ -358,7 +327,7 @@ static void stitch_brick(stitcher *s, brick_out *o)
     }
     if (r < bm->nverts) {
         /* corners on pending vertices: at most every corner of the brick */
-        if (!grow((void **)&s->fix, &s->fcap, s->nfix + 3 * bm->ntris, sizeof *s->fix, 4096)) {
+        if (!wvol__grow((void **)&s->fix, &s->fcap, s->nfix + 3 * bm->ntris, sizeof *s->fix, 4096)) {
             s->status = wvol_error_set(&s->err, WVOL_ERR_NOMEM, "iso: out of memory while stitching bricks");
             return;
         }

@@ -8,6 +8,7 @@
  * the implicit-surface ray tracer (iso/). Based on: Gross, Lippert et al. (paper, section 5,
  * eqs 34-40). */
 #include "store/store_ray.h"
+#include "core/alloc.h"
 #include "core/clones.h"
 #include "core/status_internal.h"
 
@@ -22,14 +23,7 @@ typedef wvol__spline_ws ray_ws;
 
 static int grow(void **p, size_t *cap, size_t need, size_t elem)
 {
-    if (need <= *cap) return 1;
-    size_t n = *cap ? *cap : 256;
-    while (n < need) n *= 2;
-    void *q = realloc(*p, n * elem);
-    if (!q) return 0;
-    *p = q;
-    *cap = n;
-    return 1;
+    return wvol__grow(p, cap, need, elem, 256);
 }
 
 static double binom(int n, int k)
