@@ -33,7 +33,6 @@ typedef struct centry {
     size_t bytes;
     size_t ext[3];
     int32_t *q[8];              /* per band of the level's list, ext[0] ext[1] ext[2] each */
-    size_t cap;                 /* bytes allocated at q[0] */
     unsigned char nz[8];        /* per band: any non-zero value */
 } centry;
 
@@ -331,30 +330,13 @@ static void release(wvol_wvc_file *f, centry *e)
     unlock(f);
 }
 
-/* Under the lock: drops unpinned chunks, least recent first, until the budget holds. */
-static void evict(wvol_wvc_file *f)
-{
-    centry *e = f->lru;
-    while (f->held > f->budget && e) {
-        centry *prev = e->prev;
-        if (e->ref == 0) {
-            lru_unlink(f, e);
-            f->slot[e->id] = NULL;
-            f->held -= e->bytes;
-            free(e->q[0]);
-            free(e);
-        }
-        e = prev;
-    }
-}
-
-/* Under the lock, before chunk id is decoded: drops unpinned chunks, least recent first,
- * until its decoded size fits the budget beside what is held, and hands back in *reuse
- * (with its size in *reuse_cap) the first dropped buffer of its size (the interior tiles
- * of a level all have one size; the accounting stays that of a fresh buffer). The new
- * chunk then fills pages already mapped instead of faulting in fresh ones, and the
- * cache holds at most the budget while it decodes. */
-static void evict_for(wvol_wvc_file *f, size_t need, size_t need_data, int32_t **reuse, size_t *reuse_cap)
+/* Under the lock: drops unpinned chunks, least recent first, until `need` more bytes fit
+ * the budget beside what is held. With reuse (before a chunk of decoded size `need` is
+ * decoded), the first dropped entry of that size hands its values buffer back in *reuse
+ * instead of freeing it (the interior tiles of a level all have one size; the accounting
+ * stays that of a fresh buffer): the new chunk then fills pages already mapped instead of
+ * faulting in fresh ones, and the cache holds at most the budget while it decodes. */
+static void evict_for(wvol_wvc_file *f, size_t need, int32_t **reuse)
 {
     centry *e = f->lru;
     while (f->held + need > f->budget && e) {
@@ -363,16 +345,18 @@ static void evict_for(wvol_wvc_file *f, size_t need, size_t need_data, int32_t *
             lru_unlink(f, e);
             f->slot[e->id] = NULL;
             f->held -= e->bytes;
-            if (!*reuse && e->cap == need_data) {
-                *reuse = e->q[0];
-                *reuse_cap = e->cap;
-            } else {
-                free(e->q[0]);
-            }
+            if (reuse && !*reuse && e->bytes == need) *reuse = e->q[0];
+            else free(e->q[0]);
             free(e);
         }
         e = prev;
     }
+}
+
+/* Under the lock: the same, until the budget holds. */
+static void evict(wvol_wvc_file *f)
+{
+    evict_for(f, 0, NULL);
 }
 
 static centry *get_chunk(wvol_wvc_file *f, size_t id);
@@ -401,8 +385,9 @@ static int pool_give(wvol_wvc_file *f, void *pool, int *n, size_t size, const vo
     return kept;
 }
 
-/* Reads and decodes chunk id (not all zero) into a new entry. */
-static centry *decode_chunk(wvol_wvc_file *f, size_t id, int32_t *reuse, size_t reuse_cap)
+/* Reads and decodes chunk id (not all zero) into a new entry; reuse, when not NULL, is a
+ * buffer of its decoded values' size (evict_for) that the entry takes (freed on failure). */
+static centry *decode_chunk(wvol_wvc_file *f, size_t id, int32_t *reuse)
 {
     const wvc2_geom *g = &f->x->g;
     const wvc2_chunk *c = &f->x->chunks[id];
@@ -447,13 +432,9 @@ static centry *decode_chunk(wvol_wvc_file *f, size_t id, int32_t *reuse, size_t 
     n = ext[0] * ext[1] * ext[2];
     e = calloc(1, sizeof *e);
     pay = malloc(c->bytes);
-    if (e && reuse && reuse_cap == n * (size_t)nb * sizeof(int32_t)) {
-        e->q[0] = reuse;
-        e->cap = reuse_cap;
+    if (e) {
+        e->q[0] = reuse ? reuse : malloc(n * (size_t)nb * sizeof(int32_t));
         reuse = NULL;
-    } else if (e) {
-        e->q[0] = malloc(n * (size_t)nb * sizeof(int32_t));
-        e->cap = n * (size_t)nb * sizeof(int32_t);
     }
     free(reuse);
     if (!e || !pay || !e->q[0]) {
@@ -505,8 +486,7 @@ static centry *decode_chunk(wvol_wvc_file *f, size_t id, int32_t *reuse, size_t 
 static centry *get_chunk(wvol_wvc_file *f, size_t id)
 {
     centry *e, *mine;
-    int32_t *reuse;
-    size_t reuse_cap;
+    int32_t *reuse = NULL;
     lock(f);
     while ((e = f->slot[id]) == DECODING) {
         unlock(f);
@@ -522,16 +502,13 @@ static centry *get_chunk(wvol_wvc_file *f, size_t id)
         return e;
     }
     {
-        size_t t[3], need;
+        size_t t[3];
         int m = wvol__wvc2_chunk_coords(&f->x->g, id, t);
-        need = chunk_decoded_bytes(&f->x->g, m, t);
-        reuse = NULL;
-        reuse_cap = 0;
-        evict_for(f, need, need - sizeof(centry), &reuse, &reuse_cap);
+        evict_for(f, chunk_decoded_bytes(&f->x->g, m, t), &reuse);
     }
     f->slot[id] = DECODING;
     unlock(f);
-    mine = decode_chunk(f, id, reuse, reuse_cap);
+    mine = decode_chunk(f, id, reuse);
     lock(f);
     if (!mine) {
         f->slot[id] = NULL;
