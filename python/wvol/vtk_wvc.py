@@ -40,7 +40,8 @@ import time
 import numpy as np
 from vtkmodules.util.vtkAlgorithm import VTKPythonAlgorithmBase
 from vtkmodules.util import numpy_support
-from vtkmodules.vtkCommonCore import VTK_FLOAT, vtkDoubleArray, vtkOutputWindow, vtkTypeInt64Array
+from vtkmodules.vtkCommonCore import (VTK_FLOAT, vtkDataArray, vtkDoubleArray, vtkInformationVector,
+                                      vtkOutputWindow, vtkTypeInt64Array)
 from vtkmodules.vtkCommonDataModel import vtkDataObject, vtkImageData
 from vtkmodules.vtkCommonExecutionModel import vtkAlgorithm, vtkStreamingDemandDrivenPipeline
 
@@ -87,6 +88,23 @@ def error_report(info):
     peak = float(info["value_range"][1] - info["value_range"][0])
     return {"rmse": l2 / math.sqrt(voxels), "psnr": _psnr(l2, voxels, peak), "kept": int(info["nonzero"]),
             "coefficients": int(np.prod(info["padded"]))}
+
+
+def _hand_over_range(arr, data):
+    """Puts the array's value range into vtkDataArray's range cache (PER_COMPONENT and
+    PER_FINITE_COMPONENT, one COMPONENT_RANGE each), as VTK does once it has scanned an array:
+    renderers and ParaView ask for both ranges of every array shown, and numpy's scan is faster
+    than VTK's. Only when every value is finite (the two ranges are then equal); otherwise VTK
+    computes them as usual. Called last: a Modified() on the array drops the keys."""
+    lo, hi = float(data.min()), float(data.max())  # NaN propagates: refused by isfinite below
+    if not (math.isfinite(lo) and math.isfinite(hi)):
+        return
+    info = arr.GetInformation()
+    for key in (vtkDataArray.PER_COMPONENT(), vtkDataArray.PER_FINITE_COMPONENT()):
+        per = vtkInformationVector()
+        per.SetNumberOfInformationObjects(1)
+        per.GetInformationObject(0).Set(vtkDataArray.COMPONENT_RANGE(), (lo, hi), 2)
+        info.Set(key, per)
 
 
 class WVCReader(VTKPythonAlgorithmBase):
@@ -337,6 +355,7 @@ class WVCReader(VTKPythonAlgorithmBase):
             arr = numpy_support.numpy_to_vtk(data.reshape(-1), deep=0)  # keeps a reference to data
             arr.SetName(self._array_name)
             output.GetPointData().SetScalars(arr)
+            _hand_over_range(arr, data)
         stats = _wvol.wvc_file_stats(self._file)
         decoded = stats["decoded"] - before
         rep = error_report(info)

@@ -104,6 +104,11 @@ def test_vtk_reader_whole_and_dropped_level(wvc, vtk_reader):
     img = r.GetOutputDataObject(0)
     close(image_array(img), full)
     assert img.GetSpacing() == pytest.approx((0.5, 0.75, 1.25))
+    # the value range handed over with the array (VTK's range cache) is the array's own
+    a, arr = image_array(img), img.GetPointData().GetScalars()
+    assert arr.GetInformation().Has(arr.PER_COMPONENT()) and arr.GetInformation().Has(arr.PER_FINITE_COMPONENT())
+    assert arr.GetRange(0) == (float(a.min()), float(a.max()))
+    assert arr.GetFiniteRange(0) == (float(a.min()), float(a.max()))
     assert img.GetOrigin() == pytest.approx(info["origin"])
     # the error report is the header's (wvc_info reads it independently)
     n = float(np.prod(SHAPE))
@@ -394,6 +399,12 @@ def test_pvpython_reader_equals_decompress(wvc, tmp_path, level):
     assert meta["field"]["LevelOfDetail"] == level
     assert meta["field"]["ChunksDecoded"] > 0
     assert np.isfinite(meta["field"]["PredictedPSNR"]) and meta["field"]["PredictedPSNR"] > 30
+    # the range handed over with the array (so that VTK does not scan it again) is the array's own,
+    # exactly: float32 extremes converted to double
+    a = np.load(out)
+    assert meta["known_range"] is not None
+    assert meta["known_range"]["range"] == [float(a.min()), float(a.max())]
+    assert meta["known_range"]["finite_range"] == [float(a.min()), float(a.max())]
 
 
 def test_pvpython_region(wvc, tmp_path):
