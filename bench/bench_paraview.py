@@ -62,7 +62,15 @@ def run_dir(work, row):
     return work / f"{row['reader']}{row['ranks']}_{row.get('repetition', 0)}"
 
 
-def run_pvbatch(path, ranks, outdir, vmin, vmax, iso, budget, level=0):
+def lit_fraction(png):
+    """The fraction of the image's pixels that are not the black background."""
+    from PIL import Image
+    import numpy as np
+    a = np.asarray(Image.open(png).convert("RGB"))
+    return float((a.max(axis=2) > 0).mean())
+
+
+def run_pvbatch(path, ranks, outdir, vmin, vmax, iso, budget, level=0, volume_mode="smart"):
     """One pvbatch run of the volume rendering (a .wvc at its level of detail `level`): a dict of
     the wall seconds, the in-script seconds to the first image, the reading and rendering
     seconds apart (the reader updated alone, then the image), the peak RSS per rank in bytes,
@@ -74,7 +82,7 @@ def run_pvbatch(path, ranks, outdir, vmin, vmax, iso, budget, level=0):
     rss = outdir / "rss"
     cmd = [sys.executable, PEAK, rss, PVBATCH, RENDER, PLUGIN, path, outdir, log, vmin, vmax, iso,
            "--array", "density", "--budget", budget, "--release", "--only", "volume", "--time-read",
-           "--level", level]
+           "--level", level, "--volume-mode", volume_mode]
     if ranks > 1:
         cmd = [shutil.which("mpiexec"), "-n", ranks, "--allow-run-as-root", "--oversubscribe", *cmd]
     with headless.display() as disp:
@@ -91,7 +99,13 @@ def run_pvbatch(path, ranks, outdir, vmin, vmax, iso, budget, level=0):
     mem = [json.loads(x) for x in re.findall(r"^memory (\{.*\})$", text, re.M)]
     peaks = rank_peaks(outdir)
     chunks = [json.loads(x) for x in log.read_text().splitlines()] if log.exists() else []
-    return {"wall_s": wall, "first_image_s": float(m.group(1)) if m else None, "read_s": reads, "read_cpu_s": read_cpu,
+    # a renderer that could not draw the volume (llvmpipe's GPU mapper with a piece over its texture
+    # size limit) leaves a black image: its time is not a time to first image
+    lit = lit_fraction(outdir / "volume.png")
+    if lit == 0.0:
+        sys.exit(f"{path}, {ranks} rank(s), volume mode {volume_mode}: the saved image is blank (the volume "
+                 "was not drawn); use --volume-mode raycast")
+    return {"image_lit_fraction": lit, "wall_s": wall, "first_image_s": float(m.group(1)) if m else None, "read_s": reads, "read_cpu_s": read_cpu,
             "render_s": renders, "peak_rss_bytes_per_rank": peaks, "max_peak_rss_bytes": max(peaks),
             "stage_memory_rank0": mem[0] if mem else None, "chunk_log": chunks}
 
@@ -198,7 +212,14 @@ def report(result, out):
              f"`python3 bench/bench_paraview.py{' --quick' if result.get('quick') else f' --size {n}'}"
              f"{f' --lod {lod}' if lod else ''}`; load average (1 min) {load[0]:.1f} at the start, {load[1]:.1f} at "
              "the end. Reading: the reader updated alone (`UpdatePipeline`); rendering: from there to the saved "
-             "volume rendering; time to first image: from the script's start (imports and the plugin included).", "",
+             "volume rendering; time to first image: from the script's start (imports and the plugin included). "
+             + {"smart": "Volume mapper: ParaView's default (Smart: the GPU mapper, here Mesa's llvmpipe).",
+                "raycast": "Volume mapper: ParaView's CPU ray caster ('Ray Cast Only'): the default GPU mapper draws "
+                           "nothing under Mesa's llvmpipe when a rank's piece is over its texture size limit (a 2 GiB piece is, a 512 MiB one is not).",
+                None: "Volume mapper: ParaView's default."}[result.get("volume_mode")]
+             + (f" Every saved image has the volume drawn ({min(r['image_lit_fraction'] for r in rows):.0%}-"
+                f"{max(r['image_lit_fraction'] for r in rows):.0%} of its pixels lit)."
+                if all("image_lit_fraction" in r for r in rows) else ""), "",
              "| reader | ranks | time to first image (s, in script) | reading (s) | reading, CPU s (rank 0) | rendering (s) | pvbatch wall (s) |"
              " peak RSS per rank (MiB) | peak RSS before / after reading, per rank (MiB) | chunks decoded per rank |"
              " reader's own read per rank (s) |", "|---|---|---|---|---|---|---|---|---|---|---|"]
@@ -268,6 +289,12 @@ def main():
                     help="runs of each 2-rank pair, interleaved (default 1)")
     ap.add_argument("--report", action="store_true",
                     help="rewrite the .md from the results' .json (with --keep: each rank's peak from the runs' files)")
+    ap.add_argument("--volume-mode", choices=("auto", "smart", "raycast"), default="auto",
+                    help="ParaView's volume mapper: smart (its default, the GPU mapper: under Mesa's llvmpipe the "
+                         "volume is one 3D texture, which draws nothing over llvmpipe's texture size limit) or raycast "
+                         "(its CPU ray caster, 'Ray Cast Only'); auto (default): smart when the whole float32 "
+                         "volume is at most 1 GiB (512^3 renders, a 2 GiB piece does not), else raycast, the same "
+                         "for every row")
     ap.add_argument("--lod", type=int, default=0,
                     help="also run the .wvc at this level of detail (1: half the samples along each axis), "
                          "reported beside the full-resolution rows, outside their ratios")
@@ -325,18 +352,19 @@ def main():
         with open(path, "rb") as f:
             while f.read(1 << 24):
                 pass
+    mode = a.volume_mode if a.volume_mode != "auto" else ("smart" if 4 * n ** 3 <= 1 << 30 else "raycast")
     for ranks in (1, 2):
         for rep in range(a.repeat if ranks == 1 else a.repeat2):  # interleaved: the load changes slowly
             for name, path in (("wvc", wvc), ("vti", vti)):
                 record(name, ranks, run_pvbatch(path, ranks, run_dir(work, {"reader": name, "ranks": ranks,
                                                                             "repetition": rep}),
-                                                 vmin, vmax, iso, a.budget), repetition=rep)
+                                                 vmin, vmax, iso, a.budget, volume_mode=mode), repetition=rep)
     for ranks in ((1, 2) if a.lod else ()):
         record(f"wvc level {a.lod}", ranks, run_pvbatch(wvc, ranks, run_dir(work, {"ranks": ranks, "level": a.lod}),
                                                          vmin, vmax, iso, a.budget,
-                                                         level=a.lod), level=a.lod)
+                                                         level=a.lod, volume_mode=mode), level=a.lod)
     result = {"machine": {"cpu": cpu_model(), "cores": os.cpu_count()}, "size": [n, n, n], "psnr": a.psnr,
-              "reader_budget_mib": a.budget, "lod": a.lod, "quick": a.quick,
+              "reader_budget_mib": a.budget, "lod": a.lod, "quick": a.quick, "volume_mode": mode,
               "bytes": {"wvc": wvc.stat().st_size, "vti": vti.stat().st_size, "float32": 4 * n ** 3},
               "prepare_s": prep, "load_avg_1min": [load_start[0], os.getloadavg()[0]], "runs": rows,
               "wvc_info": info,

@@ -10,7 +10,11 @@ and the rendering apart, and this process's memory at each stage (one "memory" J
 rank: resident and peak resident MiB after start-up and the plugin, after reading, after the
 first image). Usage:
     pvbatch pv_render.py PLUGIN FILE OUTDIR CHUNKLOG VMIN VMAX ISO
-            [--level S] [--array NAME] [--budget MIB] [--release] [--only volume|contour] [--time-read]"""
+            [--level S] [--array NAME] [--budget MIB] [--release] [--only volume|contour] [--time-read]
+            [--volume-mode smart|raycast]
+--volume-mode raycast renders the volume with ParaView's CPU ray caster ("Ray Cast Only") instead
+of the default (Smart: the GPU mapper, which under Mesa's llvmpipe holds the volume as one 3D
+texture and draws nothing where a rank's piece exceeds llvmpipe's texture size limit (a 2 GiB piece does, a 512 MiB one does not))."""
 import argparse
 import json
 import time
@@ -30,6 +34,7 @@ ap.add_argument("--array", default="values")
 ap.add_argument("--budget", type=int, default=0, help="the reader's MemoryBudget (MiB of decoded chunks)")
 ap.add_argument("--release", action="store_true", help="the reader's ReleaseCache (free chunks after reading)")
 ap.add_argument("--only", choices=("volume", "contour"))
+ap.add_argument("--volume-mode", choices=("smart", "raycast"), default="smart")
 ap.add_argument("--time-read", action="store_true",
                 help="update the reader alone first and print the seconds it took (the benchmark's split of the time)")
 a = ap.parse_args()
@@ -102,6 +107,8 @@ if only in (None, "volume"):
     view = view_of()
     disp = Show(reader, view)
     disp.SetRepresentationType("Volume")
+    if a.volume_mode == "raycast":
+        disp.VolumeRenderingMode = "Ray Cast Only"
     ColorBy(disp, ("POINTS", a.array))
     ctf = GetColorTransferFunction(a.array)
     ctf.RGBPoints = [vmin, 0.0, 0.0, 0.0, iso, 0.9, 0.5, 0.2, vmax, 1.0, 1.0, 0.9]
