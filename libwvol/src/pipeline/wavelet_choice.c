@@ -6,8 +6,8 @@
  * the estimate is from real file sizes.
  *
  * The sample: a volume no larger than the sample would be is transformed whole, as the file
- * is. A larger one gives a few CUBE^3 cubes spread through it, read slice by slice in
- * increasing z (a streamed source is read only over the cubes' slices, forward). A cube is
+ * is. A larger one gives a few CUBE^3 cubes spread through it, read in increasing z
+ * (a streamed source is read only over the cubes' slices, forward). A cube is
  * transformed periodically, but only the coefficients whose analysis window lies inside the
  * cube are counted: analysis reads forward (a[k] = sum_n h[n] x[2k + n], wvol/wavelet.h), so
  * a level-m coefficient at k reads samples 2^m k .. 2^m k + (2^m - 1)(L - 1), and those are
@@ -89,11 +89,16 @@ static void cube_origin(const sample *s, int i, size_t o[3])
     o[2] = (s->dims[2] - s->e[2]) * (size_t)(2 * i + 1) / (size_t)(2 * s->nb);
 }
 
+/* Reads the cubes' slices in increasing z, in slabs of consecutive needed slices (a
+ * generator makes a slab at a cost per call as well as per slice), each slab at most
+ * SLAB_BYTES or one slice: a slab of a large volume can be far larger than the sample. */
+#define SLAB_BYTES ((size_t)32 << 20)
+
 static wvol_status read_sample(sample *s, wvol_source *src, wvol_error *err)
 {
-    size_t o[CUBES_MAX][3], nx = s->dims[0], ny = s->dims[1], z, zlo = SIZE_MAX, zhi = 0;
+    size_t o[CUBES_MAX][3], nx = s->dims[0], ny = s->dims[1], z, zlo = SIZE_MAX, zhi = 0, slab_max;
     size_t cube = s->e[0] * s->e[1] * s->e[2];
-    float *slice;
+    float *slab;
     int i;
     for (i = 0; i < s->nb; i++) {
         s->b[i].data = malloc(cube * sizeof(float));
@@ -102,32 +107,48 @@ static wvol_status read_sample(sample *s, wvol_source *src, wvol_error *err)
         if (o[i][2] < zlo) zlo = o[i][2];
         if (o[i][2] + s->e[2] > zhi) zhi = o[i][2] + s->e[2];
     }
-    slice = malloc(nx * ny * sizeof(float));
-    WVOL_RETURN_IF(!slice, err, WVOL_ERR_NOMEM, "compress: wavelet trial: out of memory");
-    /* one slice at a time, forward: a slab of a large volume can be far larger than the sample */
-    for (z = zlo; z < zhi; z++) {
-        int used = 0;
-        for (i = 0; i < s->nb; i++) used |= z >= o[i][2] && z < o[i][2] + s->e[2];
-        if (!used) continue;
-        wvol_status st = wvol_source_read(src, slice, z, 1, err);
+    slab_max = SLAB_BYTES / (nx * ny * sizeof(float));
+    if (slab_max < 1) slab_max = 1;
+    if (slab_max > s->e[2]) slab_max = s->e[2];
+    slab = malloc(slab_max * nx * ny * sizeof(float));
+    WVOL_RETURN_IF(!slab, err, WVOL_ERR_NOMEM, "compress: wavelet trial: out of memory");
+    for (z = zlo; z < zhi;) {
+        size_t nz = 0;
+        /* the run of needed slices from z, at most slab_max */
+        while (z + nz < zhi && nz < slab_max) {
+            int used = 0;
+            for (i = 0; i < s->nb; i++) used |= z + nz >= o[i][2] && z + nz < o[i][2] + s->e[2];
+            if (!used) break;
+            nz++;
+        }
+        if (nz == 0) {
+            z++;
+            continue;
+        }
+        wvol_status st = wvol_source_read(src, slab, z, nz, err);
         if (st != WVOL_OK) {
-            free(slice);
+            free(slab);
             return st;
         }
-        for (i = 0; i < s->nb; i++) {
-            if (z < o[i][2] || z >= o[i][2] + s->e[2]) continue;
-            for (size_t y = 0; y < s->e[1]; y++) {
-                const float *row = slice + (o[i][1] + y) * nx + o[i][0];
-                float *dst = s->b[i].data + ((z - o[i][2]) * s->e[1] + y) * s->e[0];
-                memcpy(dst, row, s->e[0] * sizeof(float));
-                for (size_t x = 0; x < s->e[0]; x++) {
-                    if (row[x] < s->lo) s->lo = row[x];
-                    if (row[x] > s->hi) s->hi = row[x];
+        for (size_t k = 0; k < nz; k++) {
+            const float *slice = slab + k * nx * ny;
+            size_t zz = z + k;
+            for (i = 0; i < s->nb; i++) {
+                if (zz < o[i][2] || zz >= o[i][2] + s->e[2]) continue;
+                for (size_t y = 0; y < s->e[1]; y++) {
+                    const float *row = slice + (o[i][1] + y) * nx + o[i][0];
+                    float *dst = s->b[i].data + ((zz - o[i][2]) * s->e[1] + y) * s->e[0];
+                    memcpy(dst, row, s->e[0] * sizeof(float));
+                    for (size_t x = 0; x < s->e[0]; x++) {
+                        if (row[x] < s->lo) s->lo = row[x];
+                        if (row[x] > s->hi) s->hi = row[x];
+                    }
                 }
             }
         }
+        z += nz;
     }
-    free(slice);
+    free(slab);
     return WVOL_OK;
 }
 
@@ -349,13 +370,10 @@ wvol_status wvol_compress_choose_wavelet(wvol_wavelet_choice *out, wvol_source *
     if (s.whole) {
         s.b[0].data = malloc(dims[0] * dims[1] * dims[2] * sizeof(float));
         if (!s.b[0].data) st = wvol_error_set(err, WVOL_ERR_NOMEM, "compress: wavelet trial: out of memory");
-        for (size_t z = 0; st == WVOL_OK && z < dims[2]; z++) {
-            float *dst = s.b[0].data + z * dims[0] * dims[1];
-            st = wvol_source_read(src, dst, z, 1, err);
-            for (size_t i = 0; st == WVOL_OK && i < dims[0] * dims[1]; i++) {
-                if (dst[i] < s.lo) s.lo = dst[i];
-                if (dst[i] > s.hi) s.hi = dst[i];
-            }
+        if (st == WVOL_OK) st = wvol_source_read(src, s.b[0].data, 0, dims[2], err);
+        for (size_t i = 0; st == WVOL_OK && i < dims[0] * dims[1] * dims[2]; i++) {
+            if (s.b[0].data[i] < s.lo) s.lo = s.b[0].data[i];
+            if (s.b[0].data[i] > s.hi) s.hi = s.b[0].data[i];
         }
     } else {
         st = read_sample(&s, src, err);
