@@ -53,21 +53,26 @@ static wvol_status slab_read(void *ctx, float *dst, size_t z0, size_t nz, wvol_e
     return WVOL_OK;
 }
 
-static wvol_status choose(wvol_wavelet_choice *wc, const wvol_volume *v, int streamed, double psnr, double step)
+static wvol_status open_source(wvol_source **src, const wvol_volume *v, int streamed, wvol_error *err)
 {
     static const wvol_source_ops ops = {slab_read, NULL};
+    size_t dims[3] = {v->nx, v->ny, v->nz};
+    double sp[3] = {1, 1, 1}, org[3] = {0, 0, 0};
+    return streamed ? wvol_source_create(src, dims, sp, org, "slabs", 1, &ops, (void *)v, err)
+                    : wvol_source_of_volume(src, v, err);
+}
+
+static wvol_status choose(wvol_wavelet_choice *wc, const wvol_volume *v, int streamed, double psnr, double step)
+{
     wvol_source *src = NULL;
     wvol_compress_params p;
     wvol_error err;
-    size_t dims[3] = {v->nx, v->ny, v->nz};
-    double sp[3] = {1, 1, 1}, org[3] = {0, 0, 0};
     wvol_status s;
     wvol_compress_params_default(&p);
     p.for_file = 1;
     p.quant.psnr = psnr;
     p.quant.step = step;
-    s = streamed ? wvol_source_create(&src, dims, sp, org, "slabs", 1, &ops, (void *)v, &err)
-                 : wvol_source_of_volume(&src, v, &err);
+    s = open_source(&src, v, streamed, &err);
     if (s == WVOL_OK) s = wvol_compress_choose_wavelet(wc, src, &p, &err);
     CHECK(s == WVOL_OK, "choose: %s", err.message);
     wvol_source_destroy(src);
@@ -146,7 +151,6 @@ static void deterministic_and_streamed(void)
  * is used as given. */
 static void pipelines_resolve_auto(void)
 {
-    static const wvol_source_ops ops = {slab_read, NULL};
     wvol_volume *v = make(96, 0);
     wvol_wavelet_choice wc;
     wvol_compressed cc;
@@ -154,8 +158,6 @@ static void pipelines_resolve_auto(void)
     wvol_coeffs *dec = NULL;
     wvol_source *src = NULL;
     wvol_error err;
-    size_t dims[3] = {96, 96, 96};
-    double sp[3] = {1, 1, 1}, org[3] = {0, 0, 0};
     if (!v || choose(&wc, v, 0, 50, 0) != WVOL_OK) goto done;
     wvol_compress_params_default(&p);
     p.for_file = 1, p.build_store = 0, p.quant.psnr = 50;
@@ -164,7 +166,7 @@ static void pipelines_resolve_auto(void)
     CHECK(cc.coeffs && !strcmp(cc.coeffs->filter->name, wc.wavelet), "in memory: %s, trial %s",
           cc.coeffs ? cc.coeffs->filter->name : "-", wc.wavelet);
     wvol_compressed_free(&cc);
-    CHECK(wvol_source_create(&src, dims, sp, org, "slabs", 1, &ops, v, &err) == WVOL_OK, "%s", err.message);
+    CHECK(open_source(&src, v, 1, &err) == WVOL_OK, "%s", err.message);
     CHECK(src && wvol_compress_stream(DIR_ "/a.wvc", src, &p, NULL, &err) == WVOL_OK, "%s", err.message);
     CHECK(wvol_wvc_read(&dec, DIR_ "/a.wvc", NULL, NULL, &err) == WVOL_OK, "%s", err.message);
     CHECK(dec && !strcmp(dec->filter->name, wc.wavelet), "streamed file: %s", dec ? dec->filter->name : "-");
