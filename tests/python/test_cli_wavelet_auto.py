@@ -110,3 +110,14 @@ def test_bad_wavelet_refused_naming_the_option(wvol, tmp_path, bad):
         r = wvol("compress", "synth:turbulence,size=40", "-o", out, "--wavelet", bad, *extra)
         assert r.returncode == 2 and "--wavelet" in r.stderr and "auto" in r.stderr, r.stderr
         assert len(r.stderr.strip().splitlines()) == 1 and not out.exists()
+
+
+def test_python_compress_defaults_to_auto():
+    import wvol
+    turb = wvol.synth.turbulence(shape=(96, 96, 96))
+    assert wvol.compress(turb, psnr=55).wavelet in WIDER          # the library's trial, as the CLI's
+    assert wvol.compress(turb, "db2", psnr=55).wavelet == "db2"   # a named filter is used as given
+    noise = np.random.default_rng(2).standard_normal((80, 80, 80)).astype(np.float32)
+    assert wvol.compress(noise).wavelet == "db2"
+    with pytest.raises(ValueError, match="nope"):
+        wvol.compress(turb, "nope")
