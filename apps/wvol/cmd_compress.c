@@ -374,7 +374,7 @@ int wvol_cmd_compress(int argc, char **argv)
     wvol_error_clear(&err);
     chose = wvol_compress_wavelet_is_auto(cp.wavelet);
     if (!chose && wvol_filter_get(&f, cp.wavelet, &err) != WVOL_OK)
-        return cli_usage("compress", "--wavelet %s: %s (or auto)", cp.wavelet, err.message);
+        return cli_usage("compress", "--wavelet %s: %s, or auto (the default)", cp.wavelet, err.message);
 
     if (!in_memory && source_in_streams(in) && mode == MODE_PSNR && drop == 0 && format != 1) {
         cp.levels = (int)levels;
