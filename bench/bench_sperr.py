@@ -15,8 +15,9 @@ programs' process CPU seconds include the same file reading and writing.
 Per volume and target T:
   * SPERR compresses at T; its PSNR is measured on the decoded volume (numpy, float64:
     20 log10(range / RMSE), range = max - min of the original, the definition both use);
-  * wvol compresses with each filter of --wavelets (default db2, db4, coif2) at SPERR's
-    measured PSNR and 1 dB above; its bits at exactly SPERR's
+  * wvol compresses with each filter of --wavelets (default auto, db2, db4, coif2; "auto" is
+    what `wvol compress` does by default: a trial on a sample picks the filter, written in the
+    file and read back here with `wvol info`) at SPERR's measured PSNR and 1 dB above; its bits at exactly SPERR's
     PSNR are interpolated (log bits linear in PSNR between the two measured points), so the
     bits ratio compares equal errors;
   * speed: process CPU seconds (user + system) of compress and decompress, one thread each
@@ -68,6 +69,11 @@ def psnr(orig, path, shape):
     return 20 * math.log10(rng / rmse) if rmse > 0 else float("inf")
 
 
+def label(w, r):
+    """The row's wavelet: the filter, or "auto (the filter chosen)"."""
+    return f"auto ({r['chosen']})" if w == "auto" and "chosen" in r else w
+
+
 def build_driver(sperr_dir, out_dir):
     exe = out_dir / "sperr_driver"
     inc, lib = Path(sperr_dir) / "include", Path(sperr_dir) / "lib"
@@ -83,7 +89,7 @@ def main():
     ap.add_argument("--size", type=int, default=256)
     ap.add_argument("--targets", default="40,50,60")
     ap.add_argument("--rounds", type=int, default=3)
-    ap.add_argument("--wavelets", default="db2,db4,coif2", help="wvol's filters, each a row")
+    ap.add_argument("--wavelets", default="auto,db2,db4,coif2", help="wvol's filters, each a row (auto: the default)")
     ap.add_argument("--wvol", default=os.environ.get("WVOL_BIN", str(ROOT / "build" / "wvol")))
     ap.add_argument("--sperr-dir", default=os.environ.get("SPERR_DIR", ""))
     ap.add_argument("--out", default=str(ROOT / "bench" / "results" / "sperr"))
@@ -128,6 +134,16 @@ def main():
                         math.log(b0) + (math.log(b1) - math.log(b0)) * (p_s - p0) / (p1 - p0))
                     ws[w] = {"psnr": p0, "bits_measured": b0, "bits_at_sperr_psnr": bits, "bits_ratio": bits / bits_s,
                              "compress_cpu_s": 1e9, "decompress_cpu_s": 1e9}
+                    if w == "auto":
+                        # the filter written (the file at p_s), and the trial's report (untimed run)
+                        info = json.loads(subprocess.run([wvol, "info", wc, "--json"], check=True, text=True,
+                                                         stdout=subprocess.PIPE).stdout)
+                        rep = json.loads(subprocess.run(
+                            [wvol, "compress", raw, "--dims", dims, "--psnr", f"{p_s:.6f}", "--threads", "1", "-o",
+                             tmp / "w_trial.wvc", "--json"], check=True, text=True, env=env1,
+                            stdout=subprocess.PIPE).stdout)
+                        ws[w]["chosen"] = info["wavelet"]
+                        ws[w]["choice"] = rep["wavelet_choice"]
                 sc = sdc = 1e9
                 for rnd in range(a.rounds):
                     # the wavelets' order rotates per round: the first program after SPERR's
@@ -142,6 +158,11 @@ def main():
                     for w in order:
                         ws[w]["decompress_cpu_s"] = min(ws[w]["decompress_cpu_s"], run_cpu(
                             [wvol, "decompress", tmp / f"w_{w}.wvc", "-o", wd], env1))
+                if "auto" in ws and ws["auto"]["chosen"] in ws:
+                    # the trial's cost: auto's compress CPU less that of the filter it chose, same run
+                    c = ws[ws["auto"]["chosen"]]["compress_cpu_s"]
+                    ws["auto"]["trial_cpu_s"] = ws["auto"]["compress_cpu_s"] - c
+                    ws["auto"]["trial_share"] = ws["auto"]["trial_cpu_s"] / ws["auto"]["compress_cpu_s"]
                 for w, r in ws.items():
                     r["compress_mb_per_s"] = mb / r["compress_cpu_s"]
                     r["decompress_mb_per_s"] = mb / r["decompress_cpu_s"]
@@ -153,7 +174,7 @@ def main():
                        "bits_goal": GOAL_BITS.get(t), "wvol": ws}
                 rows.append(row)
                 for w, r in ws.items():
-                    print(f"{kind} {t:g} dB {w}: PSNR sperr {p_s:.2f} wvol {r['psnr']:.2f}; bits sperr {bits_s:.4f} "
+                    print(f"{kind} {t:g} dB {label(w, r)}: PSNR sperr {p_s:.2f} wvol {r['psnr']:.2f}; bits sperr {bits_s:.4f} "
                           f"wvol {r['bits_at_sperr_psnr']:.4f} ({r['bits_ratio']:.3f}x); compress MB/s sperr "
                           f"{mb / sc:.0f} wvol {r['compress_mb_per_s']:.0f} ({r['speed_ratio_compress']:.2f}x); "
                           f"decompress sperr {mb / sdc:.0f} wvol {r['decompress_mb_per_s']:.0f} "
@@ -179,11 +200,25 @@ def main():
     for r in rows:
         goal = f" (<= {r['bits_goal']:g})" if r["bits_goal"] else ""
         for w, q in r["wvol"].items():
-            L.append(f"| {r['volume']} | {r['target_db']:g} | {w} | {r['sperr_psnr']:.2f} / {q['psnr']:.2f} | "
+            L.append(f"| {r['volume']} | {r['target_db']:g} | {label(w, q)} | {r['sperr_psnr']:.2f} / {q['psnr']:.2f} | "
                      f"{r['sperr_bits']:.4f} | {q['bits_at_sperr_psnr']:.4f} | {q['bits_ratio']:.3f}{goal} | "
                      f"{r['sperr_compress_mb_per_s']:.0f} | {q['compress_mb_per_s']:.0f} | "
                      f"{q['speed_ratio_compress']:.2f} | {r['sperr_decompress_mb_per_s']:.0f} | "
                      f"{q['decompress_mb_per_s']:.0f} | {q['speed_ratio_decompress']:.2f} |")
+    auto = [(r, r["wvol"]["auto"]) for r in rows if "auto" in r["wvol"]]
+    if auto:
+        L += ["", "The default (`--wavelet auto`, the rows \"auto (filter chosen)\") against the bits goals; the "
+              "trial's cost is auto's compress CPU less that of the filter it chose in the same run (best of "
+              f"{a.rounds} each: on a shared machine the difference is within the noise of either), and the "
+              "trial's own wall time from `wvol compress --json`:", ""]
+        for r, q in auto:
+            g = r["bits_goal"]
+            verdict = "" if not g else (" meets" if q["bits_ratio"] <= g else " FAILS") + f" <= {g:g}"
+            est = ", ".join(f"{k} {v:.3f}" for k, v in q["choice"]["bits_per_coefficient"].items())
+            L.append(f"* {r['volume']} {r['target_db']:g} dB: {q['chosen']}, {q['bits_ratio']:.3f}x SPERR's bits"
+                     f"{verdict}; trial {q.get('trial_cpu_s', float('nan')):+.3f} CPU s of "
+                     f"{q['compress_cpu_s']:.3f} ({100 * q.get('trial_share', float('nan')):+.1f}%), "
+                     f"{1e3 * q['choice']['seconds']:.1f} ms wall; estimated bits per sampled coefficient: {est}")
     out.with_suffix(".md").write_text("\n".join(L) + "\n")
     print(f"wrote {out.with_suffix('.md')} and .json")
     return 0

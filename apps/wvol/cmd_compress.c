@@ -19,7 +19,8 @@ const char wvol_cmd_compress_summary[] = "compress a volume into a .wvc file (wa
 
 static const cli_opt opts[] = {
     {"output", 'o', 1, "output file OUT.wvc"},
-    {"wavelet", 'w', 1, "filter: haar, db1..db10, coif1..coif5, bl3 (default db2)"},
+    {"wavelet", 'w', 1, "filter: auto (default: a trial on a sample keeps db2 unless db4, coif2 or haar saves > 10% of "
+                        "the bits), haar, db1..db10, coif1..coif5, bl3"},
     {"levels", 'l', 1, "levels 1..max (default min(5, max))"},
     {"psnr", 0, 1, "target PSNR in dB (peak = data range): the quantiser step is chosen to meet it"},
     {"keep", 0, 1, "keep this fraction of the coefficients, largest first (5% or 0.05)"},
@@ -69,12 +70,48 @@ static int parse_roi(const char *s, wvol_lod_ellipsoid *e)
     return 1;
 }
 
+/* --wavelet auto: the library's trial (wvol_compress_choose_wavelet) on src; cp->wavelet
+ * becomes the filter chosen. The CLI runs it itself, not through wvol_compress, to report it. */
+static wvol_status choose_wavelet(wvol_wavelet_choice *wc, wvol_source *src, wvol_compress_params *cp,
+                                  wvol_error *err)
+{
+    wvol_status s = wvol_compress_choose_wavelet(wc, src, cp, err);
+    if (s == WVOL_OK) cp->wavelet = wc->wavelet;
+    return s;
+}
+
+static void choice_json(const wvol_wavelet_choice *wc)
+{
+    cli_json_open("wavelet_choice", '{');
+    cli_json_str("chosen", wc->wavelet);
+    cli_json_num("margin", wc->margin);
+    if (wc->psnr > 0) cli_json_num("psnr", wc->psnr);
+    cli_json_int("blocks", wc->blocks);
+    cli_json_int("sample_voxels", (long long)wc->sample_voxels);
+    cli_json_int("sample_coefficients", (long long)wc->sample_coefficients);
+    cli_json_open("bits_per_coefficient", '{');
+    for (int i = 0; i < wc->candidates; i++) cli_json_num(wc->name[i], wc->bits[i]);
+    cli_json_close('}');
+    cli_json_num("seconds", wc->seconds);
+    cli_json_close('}');
+}
+
+static void choice_text(const wvol_wavelet_choice *wc)
+{
+    printf("wavelet    auto: %s (estimated bits per sampled coefficient", wc->wavelet);
+    for (int i = 0; i < wc->candidates; i++) printf("%s %s %.4f", i ? "," : "", wc->name[i], wc->bits[i]);
+    printf("; db2 unless another saves > %.0f%%; %zu voxels sampled in %.3f s)\n", 100 * wc->margin,
+           wc->sample_voxels, wc->seconds);
+}
+
 /* The streamed path (wvol_compress_stream): the volume is never held; with verify the file
  * is decoded and compared with the source read again (that holds both volumes). */
 static int compress_streamed(const char *in, const char *outp, const wvol_load_options *lo, wvol_compress_params *cp,
                              double psnr, int verify, int json)
 {
     wvol_source *src = NULL;
+    wvol_wavelet_choice wc;
+    int chose = wvol_compress_wavelet_is_auto(cp->wavelet);
     wvol_compress_stream_report rep;
     wvol_error err;
     wvol_volume *v = NULL, *rec = NULL;
@@ -86,7 +123,6 @@ static int compress_streamed(const char *in, const char *outp, const wvol_load_o
     int rc = CLI_FAILED;
 
     wvol_error_clear(&err);
-    if (wvol_filter_get(&f, cp->wavelet, &err) != WVOL_OK) return cli_usage("compress", "--wavelet: %s", err.message);
     if (source_in_open(&src, in, lo, &err) != WVOL_OK) return cli_fail_err("compress", &err);
     wvol_source_geometry(src, dims, NULL, NULL);
     nvox = (double)dims[0] * (double)dims[1] * (double)dims[2];
@@ -96,6 +132,9 @@ static int compress_streamed(const char *in, const char *outp, const wvol_load_o
         goto done;
     }
     t0 = cli_now();
+    /* the trial reads the sample's slices; the passes then read the source from the start */
+    if (chose && choose_wavelet(&wc, src, cp, &err) != WVOL_OK) goto fail;
+    if (wvol_filter_get(&f, cp->wavelet, &err) != WVOL_OK) goto fail;
     if (wvol_compress_stream(outp, src, cp, &rep, &err) != WVOL_OK) {
         rc = psnr > 0 ? cli_fail("compress", "%s with --psnr %g: %s", in, psnr, err.message)
                       : cli_fail_err("compress", &err);
@@ -132,6 +171,7 @@ static int compress_streamed(const char *in, const char *outp, const wvol_load_o
         cli_json_str("input", in);
         cli_json_str("output", outp);
         cli_json_str("wavelet", f->name);
+        if (chose) choice_json(&wc);
         cli_json_int("levels", rep.levels);
         cli_json_int("threads", omp_get_max_threads());
         cli_json_size3("dims", dims[0], dims[1], dims[2]);
@@ -170,6 +210,7 @@ static int compress_streamed(const char *in, const char *outp, const wvol_load_o
             cli_json_close('}');
         }
         cli_json_open("seconds", '{');
+        if (chose) cli_json_num("wavelet_trial", wc.seconds);
         cli_json_num("statistics_pass", rep.seconds_stats);
         cli_json_num("write_pass", rep.seconds_write);
         cli_json_num("encode", t_all);
@@ -182,6 +223,7 @@ static int compress_streamed(const char *in, const char *outp, const wvol_load_o
         cli_json_end();
     } else {
         printf("%s -> %s (%s, %d levels, streamed in %d passes)\n", in, outp, f->name, rep.levels, rep.passes);
+        if (chose) choice_text(&wc);
         printf("size       %.0f -> %zu bytes, ratio %.1f, %.4f bits/voxel\n", raw_bytes, rep.bytes,
                raw_bytes / (double)rep.bytes, bpv);
         printf("quantiser  step %.6g, %llu of %llu coefficients non-zero\n", rep.step,
@@ -230,10 +272,12 @@ int wvol_cmd_compress(int argc, char **argv)
     size_t nbytes = 0, nvox;
     double vmin, vmax, t0, t_load, t_dwt, t_sel = 0, t_enc, t_write, t_dec, t_idwt, dropped = 0;
     double sse_pred, sse_meas = 0, maxerr = 0;
-    int use_select, verify = 0, in_memory = 0;
+    int use_select, verify = 0, in_memory = 0, chose;
+    wvol_wavelet_choice wc;
 
     memset(&cc, 0, sizeof cc);
     wvol_compress_params_default(&cp);
+    cp.wavelet = WVOL_COMPRESS_WAVELET_AUTO;
     wvol_load_options_default(&lo);
     cli_parser_init(&p, "compress", argc, argv, opts);
     while ((r = cli_next(&p, &o, &val)) >= 0) {
@@ -242,7 +286,7 @@ int wvol_cmd_compress(int argc, char **argv)
             if (cli_one_input("compress", &in, val)) return CLI_USAGE;
         } else if (o->short_name == 'h') {
             cli_print_help("compress",
-                           "IN -o OUT.wvc [--wavelet db2] [--levels 5] (--psnr 50 | --keep 5% | --keep-count K |\n"
+                           "IN -o OUT.wvc [--wavelet auto] [--levels 5] (--psnr 50 | --keep 5% | --keep-count K |\n"
                            "       --energy 0.999) [--roi cx,cy,cz,rx,ry,rz ...] [--drop-levels n] [--json]",
                            "Transforms the volume, optionally selects coefficients by energy (with regions of\n"
                            "interest and a level cut), quantises with a dead-zone step chosen from the error\n"
@@ -328,7 +372,9 @@ int wvol_cmd_compress(int argc, char **argv)
     if (sp->n_ellipsoids && mode == MODE_PSNR)
         return cli_usage("compress", "--roi ranks coefficients: use it with --keep, --keep-count or --energy");
     wvol_error_clear(&err);
-    if (wvol_filter_get(&f, cp.wavelet, &err) != WVOL_OK) return cli_usage("compress", "--wavelet: %s", err.message);
+    chose = wvol_compress_wavelet_is_auto(cp.wavelet);
+    if (!chose && wvol_filter_get(&f, cp.wavelet, &err) != WVOL_OK)
+        return cli_usage("compress", "--wavelet %s: %s, or auto (the default)", cp.wavelet, err.message);
 
     if (!in_memory && source_in_streams(in) && mode == MODE_PSNR && drop == 0 && format != 1) {
         cp.levels = (int)levels;
@@ -393,6 +439,21 @@ int wvol_cmd_compress(int argc, char **argv)
     cp.quant.format_version = (int)format;
     cp.quant.tile = (int)tile;
     cp.quant.tile_z = (int)tile_z;
+    if (chose) {
+        /* the same trial as the streamed path's, on the same sample read through a source */
+        wvol_source *vs = NULL;
+        wvol_status s = wvol_source_of_volume(&vs, v, &err);
+        if (s == WVOL_OK) s = choose_wavelet(&wc, vs, &cp, &err);
+        wvol_source_destroy(vs);
+        if (s != WVOL_OK) {
+            rc = cli_fail_err("compress", &err);
+            goto done;
+        }
+    }
+    if (wvol_filter_get(&f, cp.wavelet, &err) != WVOL_OK) {
+        rc = cli_fail_err("compress", &err);
+        goto done;
+    }
     if (wvol_compress(&cc, v, &cp, &err) != WVOL_OK) {
         rc = cli_fail_err("compress", &err);
         goto done;
@@ -446,7 +507,7 @@ int wvol_cmd_compress(int argc, char **argv)
         double p_rmse = sqrt(sse_pred / (double)nvox), m_rmse = sqrt(sse_meas / (double)nvox);
         double p_psnr = wvol_wvc_psnr(sse_pred, (double)nvox, vmin, vmax);
         double m_psnr = wvol_wvc_psnr(sse_meas, (double)nvox, vmin, vmax);
-        double t_total = t_dwt + t_sel + t_enc;
+        double t_total = t_dwt + t_sel + t_enc + (chose ? wc.seconds : 0);
         if (verify && mode == MODE_PSNR && step == 0 && m_psnr < psnr - 0.01) {
             /* a target is met or refused, never missed with status 0: the quantiser's error is
              * exact in double, so a miss is the float32 decoding's own rounding (subnormal values) */
@@ -464,6 +525,7 @@ int wvol_cmd_compress(int argc, char **argv)
             cli_json_str("input", in);
             cli_json_str("output", outp);
             cli_json_str("wavelet", f->name);
+            if (chose) choice_json(&wc);
             cli_json_int("levels", levels);
             cli_json_int("threads", omp_get_max_threads());
             cli_json_size3("dims", v->nx, v->ny, v->nz);
@@ -501,6 +563,7 @@ int wvol_cmd_compress(int argc, char **argv)
             }
             cli_json_open("seconds", '{');
             cli_json_num("load", t_load);
+            if (chose) cli_json_num("wavelet_trial", wc.seconds);
             cli_json_num("transform", t_dwt);
             cli_json_num("select", t_sel);
             cli_json_num("step_search", wrep.seconds_step);
@@ -519,6 +582,7 @@ int wvol_cmd_compress(int argc, char **argv)
             cli_json_end();
         } else {
             printf("%s -> %s (%s, %ld levels)\n", in, outp, f->name, levels);
+            if (chose) choice_text(&wc);
             printf("size       %.0f -> %zu bytes, ratio %.1f, %.4f bits/voxel (cabac %zu, zstd %zu payload bytes)\n",
                    raw_bytes, nbytes, ratio, bpv, wrep.bytes_cabac, wrep.bytes_zstd);
             printf("quantiser  step %.6g, %llu of %llu coefficients non-zero", wrep.step,

@@ -77,7 +77,8 @@ fail:
 /* compress(array, wavelet=None, levels=None, mode='all', value=0, drop_levels=0, roi=None,
  *          roi_floor=0, spacing=None, origin=None, measure=False, value_range=None)
  * -> (StoreHandle, report): one wvol_compress (transform, selection, store); None leaves the
- * library's default (wavelet db2; levels WVOL_COMPRESS_LEVELS_STORE, fewer for a small volume).
+ * library's default (wavelet db2; levels WVOL_COMPRESS_LEVELS_STORE, fewer for a small volume);
+ * wavelet "auto" is resolved by the library's trial (wvol_compress_choose_wavelet).
  * value_range (min, max) replaces the range of the float32 samples (the caller's data range
  * when it converted another dtype). */
 static PyObject *py_compress(PyObject *self, PyObject *args, PyObject *kw)

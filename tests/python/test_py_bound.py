@@ -44,7 +44,8 @@ def test_cli_bound_matches_python(tmp_path, blobs):
     assert r.returncode == 0, r.stderr
     info = json.loads(r.stdout)
     b = read_exr_rgba(tmp_path / "b.exr").reshape(SIZE[1], 4, SIZE[0])   # per row: A, B, G, R
-    _, bd = wvol.render(wvol.compress(blobs, keep=0.1, residual=True), "+z", SIZE, mode="xray", bound=True)
+    # the CLI's render store is db2 (wvol.compress's default "auto" may choose another filter)
+    _, bd = wvol.render(wvol.compress(blobs, "db2", keep=0.1, residual=True), "+z", SIZE, mode="xray", bound=True)
     assert np.array_equal(b[:, 3, :], bd[..., 0])
     assert info["bound_max"] == pytest.approx(float(bd[..., 0].max()), rel=1e-6)
 
@@ -63,7 +64,7 @@ def test_bound_refusals(tmp_path, blobs):
 
 
 def test_progressive_passes(blobs):
-    full = wvol.render(wvol.compress(blobs), "+z", SIZE, mode="xray")
+    full = wvol.render(wvol.compress(blobs, "db2"), "+z", SIZE, mode="xray")  # the passes' filter
     passes = list(wvol.render_progressive(blobs, "+z", SIZE, mode="xray"))
     assert passes[-1][2]["last"] and passes[-1][2]["stop"] == "complete"
     assert not any(info["last"] for _, _, info in passes[:-1])
@@ -107,7 +108,7 @@ def test_cli_progressive(tmp_path, blobs):
 
 
 def test_coarse_bound_above_the_exact(tmp_path, blobs):
-    kept = wvol.compress(blobs, keep=0.1, residual=True)
+    kept = wvol.compress(blobs, "db2", keep=0.1, residual=True)  # the CLI's render store below is db2
     cam = "persp dir=1,0.6,0.3"
     _, exact = wvol.render(kept, cam, SIZE, mode="xray", bound="exact")
     _, coarse = wvol.render(kept, cam, SIZE, mode="xray", bound="coarse")

@@ -47,7 +47,9 @@ typedef struct wvol_compress_quant {
 } wvol_compress_quant;
 
 typedef struct wvol_compress_params {
-    const char *wavelet;        /* family name for wvol_filter_get (default "db2") */
+    const char *wavelet;        /* family name for wvol_filter_get (default "db2"), or "auto"
+                                   (WVOL_COMPRESS_WAVELET_AUTO): wvol_compress_choose_wavelet
+                                   picks it from a trial on a sample of the volume */
     int levels;                 /* 0 (default): WVOL_COMPRESS_LEVELS_STORE, or _FILE when for_file */
     int for_file;               /* 1: the result will be coded into a .wvc (only the default levels
                                    depend on it); default 0 */
@@ -105,6 +107,41 @@ WVOL_API wvol_status wvol_compress_wvc_params(wvol_wvc_params *wp, const wvol_co
 /* Quantises and codes c->coeffs into a heap buffer (free with free()) with the rule above. */
 WVOL_API wvol_status wvol_compress_encode(void **buf, size_t *size, const wvol_compressed *c, const wvol_compress_params *p,
                                  wvol_wvc_report *report, wvol_error *err);
+
+/* ---- the automatic filter choice (wavelet "auto") ----------------------------------
+ * A trial on a sample of the volume (the whole volume when it is no larger than two 64^3
+ * cubes, else 2 to 8 64^3 cubes spread through it, read slice by slice in increasing z)
+ * transforms it with each candidate (db2, db4, coif2, haar), finds the quantiser step that
+ * meets the target on the sample (quant.step if given, else quant.psnr, else a PSNR
+ * selection's target, else 50 dB; PSNR over the sample's range) and estimates the bits (zeroth-order entropy of the quantised
+ * magnitudes per band, plus signs). db2, the project's default, is kept unless another
+ * candidate's estimate is smaller by more than WVOL_WAVELET_CHOICE_MARGIN: a wider filter
+ * makes rendering, marching cubes and the tracers slower (docs/wvc-format.md, "Choosing the
+ * filter"). Deterministic: the same volume and parameters give the same choice, whether the
+ * source streams or holds a volume in memory. wvol_compress and wvol_compress_stream run it
+ * when params.wavelet is "auto". */
+#define WVOL_COMPRESS_WAVELET_AUTO "auto"
+#define WVOL_WAVELET_CHOICE_CANDIDATES 4
+#define WVOL_WAVELET_CHOICE_MARGIN 0.10
+typedef struct wvol_wavelet_choice {
+    const char *wavelet;      /* the filter chosen (a static name for wvol_filter_get) */
+    int candidates;
+    const char *name[WVOL_WAVELET_CHOICE_CANDIDATES]; /* db2 first */
+    double bits[WVOL_WAVELET_CHOICE_CANDIDATES];      /* estimated bits per sampled coefficient */
+    double step[WVOL_WAVELET_CHOICE_CANDIDATES];      /* the step each met the target with */
+    double psnr;              /* the target the trial used (0 with a given step) */
+    double margin;            /* WVOL_WAVELET_CHOICE_MARGIN */
+    int blocks;               /* cubes read (1: the whole volume) */
+    size_t sample_voxels, sample_coefficients;
+    double seconds;           /* wall time of the trial, reading included */
+} wvol_wavelet_choice;
+/* 1 if name asks for the automatic choice ("auto"). */
+WVOL_API int wvol_compress_wavelet_is_auto(const char *name);
+/* Runs the trial on src (slices read forward; a streamed source is left wherever the last
+ * sampled slice was) with p's levels, for_file and quant (NULL: the defaults). A constant
+ * sample gives db2 with zero estimates. */
+WVOL_API wvol_status wvol_compress_choose_wavelet(wvol_wavelet_choice *out, wvol_source *src,
+                                                  const wvol_compress_params *p, wvol_error *err);
 
 /* ---- streamed compression: volumes larger than memory ------------------------------
  * A volume source (wvol/source.h: raw, NRRD, a generator) into a .wvc version-2 file with

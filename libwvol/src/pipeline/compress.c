@@ -92,6 +92,17 @@ wvol_status wvol_compress(wvol_compressed *out, const wvol_volume *v, const wvol
     WVOL_RETURN_IF(!v || !v->data, err, WVOL_ERR_ARG, "compress: no volume");
     if (params) p = *params;
     else wvol_compress_params_default(&p);
+    if (wvol_compress_wavelet_is_auto(p.wavelet)) {
+        /* the trial reads the volume through a source, as the streamed path reads its own:
+         * the same sample, so the same choice */
+        wvol_source *src = NULL;
+        wvol_wavelet_choice wc;
+        WVOL_FORWARD(wvol_source_of_volume(&src, v, err));
+        s = wvol_compress_choose_wavelet(&wc, src, &p, err);
+        wvol_source_destroy(src);
+        if (s != WVOL_OK) return s;
+        p.wavelet = wc.wavelet;
+    }
     WVOL_FORWARD(wvol_filter_get(&f, p.wavelet && p.wavelet[0] ? p.wavelet : "db2", err));
     maxl = wvol_dwt_max_levels(v->nx, v->ny, v->nz);
     WVOL_RETURN_IF(maxl < 1, err, WVOL_ERR_DIMS, "compress: a %zux%zux%zu volume cannot be transformed", v->nx,

@@ -133,6 +133,11 @@ wvol_status wvol_compress_stream(const char *path, wvol_source *src, const wvol_
     WVOL_RETURN_IF(!wvol_compress_streams(&p), err, WVOL_ERR_UNSUPPORTED,
                    "compress: the streamed path keeps every coefficient and writes .wvc version 2 (a selection, "
                    "dropped levels or version 1 need the volume in memory: wvol_compress)");
+    if (wvol_compress_wavelet_is_auto(p.wavelet)) {
+        wvol_wavelet_choice wc;
+        WVOL_FORWARD(wvol_compress_choose_wavelet(&wc, src, &p, err));
+        p.wavelet = wc.wavelet;
+    }
     WVOL_FORWARD(wvol_filter_get(&f, p.wavelet && p.wavelet[0] ? p.wavelet : "db2", err));
     wvol_source_geometry(src, dims, spacing, origin);
     maxl = wvol_dwt_max_levels(dims[0], dims[1], dims[2]);

@@ -1,0 +1,423 @@
+/* SPDX-License-Identifier: MIT */
+/* The automatic filter choice of the compression pipeline (wavelet "auto", wvol/compress.h):
+ * a trial on a sample of the volume estimates each candidate filter's bits at the requested
+ * target, and db2 is kept unless another filter's estimate is smaller by more than the
+ * margin. docs/wvc-format.md, "Choosing the filter", states the rule, the margin and how far
+ * the estimate is from real file sizes.
+ *
+ * The sample: a volume no larger than the sample would be is transformed whole, as the file
+ * is. A larger one gives a few CUBE^3 cubes spread through it, read in increasing z
+ * (a streamed source is read only over the cubes' slices, forward). A cube is
+ * transformed periodically, but only the coefficients whose analysis window lies inside the
+ * cube are counted: analysis reads forward (a[k] = sum_n h[n] x[2k + n], wvol/wavelet.h), so
+ * a level-m coefficient at k reads samples 2^m k .. 2^m k + (2^m - 1)(L - 1), and those are
+ * the coefficients the whole volume's transform has at that place. Every candidate is
+ * counted on the same positions (those valid for the longest filter), so the estimates
+ * compare like with like. Along an axis the cube covers whole, the cube's wrap is the
+ * file's, and every position counts.
+ *
+ * The estimate: for each candidate the quantiser step that meets the target on the sample
+ * (its squared error per coefficient equal to the target's per voxel: the filters are
+ * orthogonal, so coefficient error is voxel error), then the zeroth-order entropy of the
+ * quantised magnitudes per band plus a sign bit per non-zero. The coder's contexts code
+ * zeros more cheaply than a zeroth-order model says, so the estimate is an upper bound
+ * whose error is largely common to the candidates; the choice needs only their ratio. */
+#include "wvol/compress.h"
+
+#include "core/clock.h"
+#include "core/status_internal.h"
+
+#include <math.h>
+#include <stdint.h>
+#include <stdlib.h>
+#include <string.h>
+
+#define CUBE 64          /* sample cube edge: the longest candidate (coif2, 12 taps) still has
+                            valid level-2 coefficients (8 of 16 per axis) */
+#define CUBES_MIN 1
+#define CUBES_MAX 8
+#define CUBE_SHARE 64    /* one cube per 64 cubes' worth of volume, within CUBES_MIN..MAX */
+#define SUB 32           /* log-magnitude bins per octave for the error model */
+#define EXP_LO (-150)    /* frexp exponents of float32 magnitudes: subnormals to the largest */
+#define EXP_HI 130
+#define NBINS ((EXP_HI - EXP_LO) * SUB)
+#define QEXACT 64        /* |q| below this: one histogram bin each; above: one per octave */
+#define QBINS (QEXACT + 64)
+#define DEFAULT_PSNR 50.0 /* the target when the caller gives neither a PSNR nor a step */
+
+static const char *const candidates[WVOL_WAVELET_CHOICE_CANDIDATES] = {"db2", "db4", "coif2", "haar"};
+
+int wvol_compress_wavelet_is_auto(const char *name) { return name && !strcmp(name, WVOL_COMPRESS_WAVELET_AUTO); }
+
+/* One sampled block: its coefficients under the current candidate and, per level, how many
+ * positions along each axis are counted. */
+typedef struct sample_block {
+    float *data;        /* the samples, e[0] x e[1] x e[2] */
+    wvol_coeffs *c;     /* the current candidate's transform */
+} sample_block;
+
+typedef struct sample {
+    size_t dims[3], e[3];
+    int whole;          /* the block is the whole volume */
+    int levels;         /* levels of the blocks' transforms */
+    int nb;             /* blocks */
+    sample_block b[CUBES_MAX];
+    size_t valid[3][32];/* counted positions per axis and level (band extent when whole) */
+    double lo, hi;      /* range of the sampled voxels */
+} sample;
+
+static size_t valid_positions(size_t e, size_t n, size_t padded, int m, int taps)
+{
+    size_t span, ext = padded >> m;
+    if (e == 1) return 1;
+    if (e == n) return ext; /* the block holds the whole axis: its wrap is the file's */
+    span = (((size_t)1 << m) - 1) * (size_t)(taps - 1);
+    if (span + 1 > e) return 0;
+    /* 2^m k + span <= e - 1 */
+    size_t k = (e - 1 - span) / ((size_t)1 << m) + 1;
+    return k < ext ? k : ext;
+}
+
+/* Cube origins: z evenly spread; x and y from the R2 low-discrepancy sequence, so the cubes
+ * do not sit on one diagonal. Deterministic: the same dims give the same cubes. */
+static void cube_origin(const sample *s, int i, size_t o[3])
+{
+    static const double ax = 0.7548776662466927, ay = 0.5698402909980532;
+    double fx = fmod(0.5 + (i + 1) * ax, 1.0), fy = fmod(0.5 + (i + 1) * ay, 1.0);
+    o[0] = (size_t)(fx * (double)(s->dims[0] - s->e[0]));
+    o[1] = (size_t)(fy * (double)(s->dims[1] - s->e[1]));
+    o[2] = (s->dims[2] - s->e[2]) * (size_t)(2 * i + 1) / (size_t)(2 * s->nb);
+}
+
+/* Reads the cubes' slices in increasing z, in slabs of consecutive needed slices (a
+ * generator makes a slab at a cost per call as well as per slice), each slab at most
+ * SLAB_BYTES or one slice: a slab of a large volume can be far larger than the sample. */
+#define SLAB_BYTES ((size_t)32 << 20)
+
+static wvol_status read_sample(sample *s, wvol_source *src, wvol_error *err)
+{
+    size_t o[CUBES_MAX][3], nx = s->dims[0], ny = s->dims[1], z, zlo = SIZE_MAX, zhi = 0, slab_max;
+    size_t cube = s->e[0] * s->e[1] * s->e[2];
+    float *slab;
+    int i;
+    for (i = 0; i < s->nb; i++) {
+        s->b[i].data = malloc(cube * sizeof(float));
+        WVOL_RETURN_IF(!s->b[i].data, err, WVOL_ERR_NOMEM, "compress: wavelet trial: out of memory");
+        cube_origin(s, i, o[i]);
+        if (o[i][2] < zlo) zlo = o[i][2];
+        if (o[i][2] + s->e[2] > zhi) zhi = o[i][2] + s->e[2];
+    }
+    slab_max = SLAB_BYTES / (nx * ny * sizeof(float));
+    if (slab_max < 1) slab_max = 1;
+    if (slab_max > s->e[2]) slab_max = s->e[2];
+    slab = malloc(slab_max * nx * ny * sizeof(float));
+    WVOL_RETURN_IF(!slab, err, WVOL_ERR_NOMEM, "compress: wavelet trial: out of memory");
+    for (z = zlo; z < zhi;) {
+        size_t nz = 0;
+        /* the run of needed slices from z, at most slab_max */
+        while (z + nz < zhi && nz < slab_max) {
+            int used = 0;
+            for (i = 0; i < s->nb; i++) used |= z + nz >= o[i][2] && z + nz < o[i][2] + s->e[2];
+            if (!used) break;
+            nz++;
+        }
+        if (nz == 0) {
+            z++;
+            continue;
+        }
+        wvol_status st = wvol_source_read(src, slab, z, nz, err);
+        if (st != WVOL_OK) {
+            free(slab);
+            return st;
+        }
+        for (size_t k = 0; k < nz; k++) {
+            const float *slice = slab + k * nx * ny;
+            size_t zz = z + k;
+            for (i = 0; i < s->nb; i++) {
+                if (zz < o[i][2] || zz >= o[i][2] + s->e[2]) continue;
+                for (size_t y = 0; y < s->e[1]; y++) {
+                    const float *row = slice + (o[i][1] + y) * nx + o[i][0];
+                    float *dst = s->b[i].data + ((zz - o[i][2]) * s->e[1] + y) * s->e[0];
+                    memcpy(dst, row, s->e[0] * sizeof(float));
+                    for (size_t x = 0; x < s->e[0]; x++) {
+                        if (row[x] < s->lo) s->lo = row[x];
+                        if (row[x] > s->hi) s->hi = row[x];
+                    }
+                }
+            }
+        }
+        z += nz;
+    }
+    free(slab);
+    return WVOL_OK;
+}
+
+/* Calls fn(ctx, level, band, value) for every counted coefficient of every block. */
+typedef void (*coef_fn)(void *ctx, int level, int band, float c);
+
+static void for_each_counted(const sample *s, coef_fn fn, void *ctx)
+{
+    for (int i = 0; i < s->nb; i++) {
+        const wvol_coeffs *c = s->b[i].c;
+        for (int m = 1; m <= s->levels; m++) {
+            for (int band = (s->whole && m == s->levels) ? 0 : 1; band < 8; band++) {
+                size_t base = wvol_coeffs_index(c, m, band, 0, 0, 0), n[3], st[3] = {1, c->px, c->px * c->py};
+                if (base == (size_t)-1) continue;
+                for (int a = 0; a < 3; a++) n[a] = s->valid[a][m];
+                for (size_t r = 0; r < n[2]; r++)
+                    for (size_t q = 0; q < n[1]; q++) {
+                        const float *row = c->data + base + r * st[2] + q * st[1];
+                        for (size_t p = 0; p < n[0]; p++) fn(ctx, m, band, row[p]);
+                    }
+            }
+        }
+    }
+}
+
+/* ---- the error model: magnitudes in log bins, the step that meets a target ---------- */
+
+typedef struct err_bins {
+    double count[NBINS], sumsq[NBINS];
+    double n, energy;
+} err_bins;
+
+static int mag_bin(float a)
+{
+    int e;
+    double m = frexp((double)a, &e); /* a = m 2^e, m in [0.5, 1) */
+    int k = (e - EXP_LO) * SUB + (int)((m - 0.5) * 2.0 * SUB);
+    return k < 0 ? 0 : k >= NBINS ? NBINS - 1 : k;
+}
+
+static double bin_lower(int k) { return ldexp(0.5 + (double)(k % SUB) / (2.0 * SUB), k / SUB + EXP_LO); }
+
+static void add_err(void *ctx, int level, int band, float c)
+{
+    err_bins *b = ctx;
+    double a = fabs((double)c);
+    (void)level, (void)band;
+    b->n += 1, b->energy += a * a;
+    if (a == 0) return;
+    int k = mag_bin((float)a);
+    b->count[k] += 1, b->sumsq[k] += a * a;
+}
+
+/* Squared error of the dead-zone quantiser with this step: below the dead zone's edge
+ * (1 - rounding) step a coefficient becomes 0 (error c^2); above, the error is modelled as
+ * uniform over a step (step^2 / 12). The bin holding the edge is split in proportion. */
+static double model_sse(const err_bins *b, double step, double rounding)
+{
+    double t = (1.0 - rounding) * step, sse = 0, q = step * step / 12.0;
+    for (int k = 0; k < NBINS; k++) {
+        if (b->count[k] == 0) continue;
+        double lo = bin_lower(k), hi = bin_lower(k + 1);
+        if (hi <= t) sse += b->sumsq[k];
+        else if (lo >= t) sse += b->count[k] * q;
+        else {
+            double f = (t - lo) / (hi - lo);
+            sse += f * b->sumsq[k] + (1.0 - f) * b->count[k] * q;
+        }
+    }
+    return sse;
+}
+
+/* The step whose modelled error is target (per coefficient) x count; +inf when zeroing
+ * everything already meets it. Bisection on log(step): the error grows with the step. */
+static double step_for(const err_bins *b, double target, double rounding)
+{
+    double want = target * b->n, lo, hi;
+    if (b->energy <= want) return INFINITY;
+    lo = sqrt(target) * 1e-3, hi = sqrt(target) * 1e3;
+    while (model_sse(b, lo, rounding) > want && lo > 1e-300) lo *= 1e-3;
+    while (model_sse(b, hi, rounding) < want && hi < 1e300) hi *= 1e3;
+    for (int it = 0; it < 60; it++) {
+        double mid = sqrt(lo * hi);
+        if (model_sse(b, mid, rounding) < want) lo = mid;
+        else hi = mid;
+    }
+    return sqrt(lo * hi);
+}
+
+/* ---- the rate model: zeroth-order entropy of |q| per band, plus signs ---------------- */
+
+typedef struct rate_bins {
+    double step, rounding;
+    double hist[32][8][QBINS]; /* level, band, |q| bin */
+    double extra;              /* mantissa bits of the octave bins, and one sign bit per non-zero */
+} rate_bins;
+
+static void add_rate(void *ctx, int level, int band, float c)
+{
+    rate_bins *r = ctx;
+    double q = floor(fabs((double)c) / r->step + r->rounding);
+    int k;
+    if (q < QEXACT) {
+        k = (int)q;
+    } else {
+        int e;
+        frexp(q, &e); /* 2^(e-1) <= q < 2^e */
+        k = QEXACT + (e - 1) - 6;
+        if (k >= QBINS) k = QBINS - 1;
+        r->extra += e - 1; /* the bits below the leading one */
+    }
+    if (q > 0) r->extra += 1;
+    r->hist[level][band][k] += 1;
+}
+
+static double rate_bits(const rate_bins *r)
+{
+    double bits = r->extra;
+    for (int m = 0; m < 32; m++)
+        for (int b = 0; b < 8; b++) {
+            double n = 0;
+            for (int k = 0; k < QBINS; k++) n += r->hist[m][b][k];
+            if (n == 0) continue;
+            for (int k = 0; k < QBINS; k++) {
+                double h = r->hist[m][b][k];
+                if (h > 0) bits -= h * log2(h / n);
+            }
+        }
+    return bits;
+}
+
+/* ---- the trial ---------------------------------------------------------------------- */
+
+static void sample_free(sample *s)
+{
+    for (int i = 0; i < s->nb; i++) {
+        free(s->b[i].data);
+        wvol_coeffs_destroy(s->b[i].c);
+    }
+}
+
+/* The sample's geometry: blocks, their levels and counted positions. */
+static wvol_status plan_sample(sample *s, const size_t dims[3], int file_levels, int taps, wvol_error *err)
+{
+    double voxels = (double)dims[0] * (double)dims[1] * (double)dims[2], cube;
+    memset(s, 0, sizeof *s);
+    memcpy(s->dims, dims, sizeof s->dims);
+    for (int a = 0; a < 3; a++) s->e[a] = dims[a] < CUBE ? dims[a] : CUBE;
+    cube = (double)s->e[0] * (double)s->e[1] * (double)s->e[2];
+    s->whole = voxels <= cube;
+    if (s->whole) {
+        memcpy(s->e, dims, sizeof s->e);
+        s->nb = 1;
+        s->levels = file_levels;
+    } else {
+        double k = floor(voxels / (CUBE_SHARE * cube));
+        s->nb = k < CUBES_MIN ? CUBES_MIN : k > CUBES_MAX ? CUBES_MAX : (int)k;
+        s->levels = wvol_dwt_max_levels(s->e[0], s->e[1], s->e[2]);
+        if (s->levels > file_levels) s->levels = file_levels;
+    }
+    for (int m = 1; m <= s->levels; m++) {
+        int ok = 1;
+        for (int a = 0; a < 3; a++) {
+            size_t padded = s->e[a] == 1 ? 1 : wvol_dwt_padded_size(s->e[a], s->levels);
+            s->valid[a][m] = valid_positions(s->e[a], dims[a], padded, m, taps);
+            ok &= s->valid[a][m] > 0;
+        }
+        if (!ok) {
+            s->levels = m - 1; /* no coefficient of this level lies inside a cube */
+            break;
+        }
+    }
+    WVOL_RETURN_IF(s->levels < 1, err, WVOL_ERR_DIMS, "compress: wavelet trial: a %zux%zux%zu volume cannot be sampled",
+                   dims[0], dims[1], dims[2]);
+    return WVOL_OK;
+}
+
+wvol_status wvol_compress_choose_wavelet(wvol_wavelet_choice *out, wvol_source *src, const wvol_compress_params *p,
+                                         wvol_error *err)
+{
+    wvol_compress_params dp;
+    sample s;
+    size_t dims[3];
+    const wvol_filter *f[WVOL_WAVELET_CHOICE_CANDIDATES];
+    int taps = 0, file_levels, maxl, best = 0;
+    double t0 = wvol__now(), rounding, target = 0, step_given;
+    wvol_wvc_params wp;
+    wvol_status st = WVOL_OK;
+    err_bins *eb = NULL;
+    rate_bins *rb = NULL;
+
+    WVOL_RETURN_IF(!out || !src, err, WVOL_ERR_ARG, "compress: wavelet trial: no output or no source");
+    memset(out, 0, sizeof *out);
+    if (!p) wvol_compress_params_default(&dp), p = &dp;
+    for (int i = 0; i < WVOL_WAVELET_CHOICE_CANDIDATES; i++) {
+        WVOL_FORWARD(wvol_filter_get(&f[i], candidates[i], err));
+        if (f[i]->length > taps) taps = f[i]->length;
+        out->name[i] = f[i]->name;
+    }
+    out->candidates = WVOL_WAVELET_CHOICE_CANDIDATES;
+    out->margin = WVOL_WAVELET_CHOICE_MARGIN;
+    out->wavelet = f[0]->name;
+    wvol_source_geometry(src, dims, NULL, NULL);
+    maxl = wvol_dwt_max_levels(dims[0], dims[1], dims[2]);
+    WVOL_RETURN_IF(maxl < 1, err, WVOL_ERR_DIMS, "compress: a %zux%zux%zu volume cannot be transformed", dims[0],
+                   dims[1], dims[2]);
+    file_levels = p->levels > 0 ? p->levels : p->for_file ? WVOL_COMPRESS_LEVELS_FILE : WVOL_COMPRESS_LEVELS_STORE;
+    if (file_levels > maxl) file_levels = maxl;
+    wvol_wvc_params_default(&wp);
+    rounding = p->quant.rounding >= 0 && p->quant.rounding <= 0.5 ? p->quant.rounding : wp.rounding;
+    step_given = p->quant.step > 0 ? p->quant.step : 0;
+    out->psnr = step_given > 0                                              ? 0
+                : p->quant.psnr > 0                                         ? p->quant.psnr
+                : p->select.mode == WVOL_SELECT_PSNR && p->select.psnr > 0 ? p->select.psnr
+                                                                            : DEFAULT_PSNR;
+
+    WVOL_FORWARD(plan_sample(&s, dims, file_levels, taps, err));
+    s.lo = INFINITY, s.hi = -INFINITY;
+    if (s.whole) {
+        s.b[0].data = malloc(dims[0] * dims[1] * dims[2] * sizeof(float));
+        if (!s.b[0].data) st = wvol_error_set(err, WVOL_ERR_NOMEM, "compress: wavelet trial: out of memory");
+        if (st == WVOL_OK) st = wvol_source_read(src, s.b[0].data, 0, dims[2], err);
+        for (size_t i = 0; st == WVOL_OK && i < dims[0] * dims[1] * dims[2]; i++) {
+            if (s.b[0].data[i] < s.lo) s.lo = s.b[0].data[i];
+            if (s.b[0].data[i] > s.hi) s.hi = s.b[0].data[i];
+        }
+    } else {
+        st = read_sample(&s, src, err);
+    }
+    out->blocks = s.nb;
+    out->sample_voxels = (size_t)s.nb * s.e[0] * s.e[1] * s.e[2];
+    if (st != WVOL_OK) goto done;
+    if (step_given == 0) {
+        double peak = s.hi - s.lo;
+        if (!(peak > 0)) goto done; /* a constant sample: nothing to compare; db2 */
+        target = peak * peak * pow(10.0, -out->psnr / 10.0);
+    }
+    eb = malloc(sizeof *eb);
+    rb = malloc(sizeof *rb);
+    if (!eb || !rb) {
+        st = wvol_error_set(err, WVOL_ERR_NOMEM, "compress: wavelet trial: out of memory");
+        goto done;
+    }
+    for (int i = 0; i < WVOL_WAVELET_CHOICE_CANDIDATES; i++) {
+        for (int j = 0; j < s.nb && st == WVOL_OK; j++) {
+            wvol_volume *v = NULL;
+            wvol_coeffs_destroy(s.b[j].c);
+            s.b[j].c = NULL;
+            st = wvol_volume_wrap(&v, s.b[j].data, s.e[0], s.e[1], s.e[2], err);
+            if (st == WVOL_OK) st = wvol_dwt3(&s.b[j].c, v, f[i], s.levels, err);
+            wvol_volume_destroy(v);
+        }
+        if (st != WVOL_OK) goto done;
+        memset(eb, 0, sizeof *eb);
+        for_each_counted(&s, add_err, eb);
+        out->sample_coefficients = (size_t)eb->n;
+        out->step[i] = step_given > 0 ? step_given : step_for(eb, target, rounding);
+        memset(rb, 0, sizeof *rb);
+        rb->step = out->step[i], rb->rounding = rounding;
+        if (isfinite(out->step[i])) for_each_counted(&s, add_rate, rb);
+        out->bits[i] = isfinite(out->step[i]) ? rate_bits(rb) / eb->n : 0;
+        if (i > 0 && out->bits[i] < out->bits[best]) best = i;
+    }
+    /* db2 unless another filter's estimate is smaller by more than the margin */
+    if (best > 0 && out->bits[best] < (1.0 - WVOL_WAVELET_CHOICE_MARGIN) * out->bits[0]) out->wavelet = f[best]->name;
+done:
+    free(eb);
+    free(rb);
+    sample_free(&s);
+    out->seconds = wvol__now() - t0;
+    return st;
+}
