@@ -279,17 +279,17 @@ class Store:
 _MODES = ("keep", "keep_count", "energy", "psnr", "threshold")
 
 
-def compress(vol, wavelet="auto", levels=None, *, keep=None, keep_count=None, energy=None, psnr=None,
+def compress(vol, wavelet="db2", levels=None, *, keep=None, keep_count=None, energy=None, psnr=None,
              threshold=None, roi=None, roi_floor=0.1, drop_levels=0, spacing=None, origin=None, residual=False):
     """Transforms a volume and keeps its most important coefficients; returns a :class:`Store`.
     One call of the library's compression pipeline (wvol_compress: transform, selection, store).
 
     ``vol``: a (z, y, x) array or a :class:`Volume` (float32 C-order arrays are read in place).
-    ``wavelet``: a filter name (``"db2"``, ``"db4"``, ``"coif2"``, ``"haar"`` ...) or ``"auto"``
-    (default): a trial on a sample of the volume keeps db2 unless db4, coif2 or haar is estimated
-    to take more than 10% fewer bits at the target (``psnr`` if given, else 50 dB), as
-    ``wvol compress`` does (docs/wvc-format.md, "Choosing the filter"); ``store.wavelet`` names the
-    filter chosen.
+    ``wavelet``: a filter name (default ``"db2"``, the library's and ``wvol render``'s: the store is
+    what renders, and its work grows with the filter's support) or ``"auto"``: a trial on a sample
+    of the volume keeps db2 unless db4, coif2 or haar is estimated to take more than 10% fewer bits
+    at the target (``psnr`` if given, else 50 dB), as ``wvol compress`` does for a file
+    (docs/wvc-format.md, "Choosing the filter"); ``store.wavelet`` names the filter chosen.
     ``levels``: None for the library's default (3, fewer when the volume is too small for 3).
     At most one criterion (none: keep every coefficient):
 
