@@ -6,6 +6,7 @@
  * over the store's nodes: 4 bytes per kept coefficient, 12 per present block, 4 per
  * directory entry (1/64 of the bands' size). The low-pass cube is read from the store. */
 #include "store/store_blocks.h"
+#include "core/alloc.h"
 #include "core/clones.h"
 #include "store/store_internal.h"
 #include "codec/wvc_source.h"
@@ -110,7 +111,7 @@ WVOL__CLONES static wvol_status blocks_build(coef_blocks *cb, const wvol_store *
                 if (((l >> a) & 1) && pad[a] == 1) n = 0; /* no high-pass on an untransformed axis */
             }
             if (!n || s->file) continue; /* a file store's details come from its chunks */
-            bv->dir = calloc(n, sizeof *bv->dir);
+            bv->dir = wvol__calloc_large(n, sizeof *bv->dir);
             WVOL_RETURN_IF(!bv->dir, err, WVOL_ERR_NOMEM, "store: out of memory for the coefficient blocks");
             cb->bytes += n * sizeof *bv->dir;
         }
@@ -126,7 +127,7 @@ WVOL__CLONES static wvol_status blocks_build(coef_blocks *cb, const wvol_store *
                 if (!bv->dir[i]) {
                     if (cb->nblocks == cap) {
                         size_t nc = cap ? 2 * cap : 1024;
-                        cblock *nb = realloc(cb->blocks, nc * sizeof *nb);
+                        cblock *nb = wvol__realloc_large(cb->blocks, nc * sizeof *nb);
                         WVOL_RETURN_IF(!nb || nc >= UINT32_MAX, err, WVOL_ERR_NOMEM,
                                        "store: out of memory for the coefficient blocks");
                         cb->blocks = nb;
@@ -144,7 +145,7 @@ WVOL__CLONES static wvol_status blocks_build(coef_blocks *cb, const wvol_store *
         cb->blocks[i].first = (uint32_t)cb->nvalues;
         cb->nvalues += (size_t)__builtin_popcountll(cb->blocks[i].mask);
     }
-    cb->values = malloc((cb->nvalues + 1) * sizeof *cb->values);
+    cb->values = wvol__malloc_large((cb->nvalues + 1) * sizeof *cb->values);
     WVOL_RETURN_IF(!cb->values, err, WVOL_ERR_NOMEM, "store: out of memory for %zu coefficients", cb->nvalues);
     cb->bytes += cb->nvalues * sizeof *cb->values;
     /* pass 2: the values, each at its rank within its block; the bounds */
