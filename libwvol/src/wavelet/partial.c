@@ -397,13 +397,13 @@ WVOL__SYNTH static int synth_x_planned(float *out, const float *lo, const float 
         const float *lu = lo ? lo + u * kn : NULL, *hu = hi ? hi + u * kn : NULL;
         float *restrict o = out + u * on;
         if (unwrap) {
-            /* ext[.][t] = row[(t - off) mod kn] */
+            /* ext[.][t] = row[(t - off) mod kn], copied in runs up to the row's end */
             ptrdiff_t x = (-off) % kn;
             if (x < 0) x += kn;
-            for (ptrdiff_t t = 0; t < span; t++) {
-                if (lu) ext[0][t] = lu[x];
-                if (hu) ext[1][t] = hu[x];
-                if (++x == kn) x = 0;
+            for (ptrdiff_t t = 0, run; t < span; t += run, x = 0) {
+                run = kn - x < span - t ? kn - x : span - t;
+                if (lu) memcpy(ext[0] + t, lu + x, (size_t)run * sizeof *lu);
+                if (hu) memcpy(ext[1] + t, hu + x, (size_t)run * sizeof *hu);
             }
             lu = lu ? ext[0] : NULL;
             hu = hu ? ext[1] : NULL;
