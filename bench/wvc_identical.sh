@@ -2,7 +2,8 @@
 # SPDX-License-Identifier: MIT
 # Byte-for-byte comparison of this tree's `wvol compress` / `wvol decompress` with another
 # program's (e.g. main's build) on the speed benchmark's volumes: the noisy skull and the
-# turbulence field, four wavelet families, 40, 50 and 60 dB, one thread and two. A change
+# turbulence field, four wavelet families, 40, 50 and 60 dB, one thread and two; the whole
+# volume decoded and two region reads (--roi) of each file. A change
 # meant to make the coder faster without changing its output must print no DIFFER line.
 #   WVOL_BASE=path/to/wvol bash bench/wvc_identical.sh [SIZE] [WVOL]   # default 256, build/wvol
 set -uo pipefail
@@ -23,8 +24,16 @@ for kind in skull turbulence; do
         OMP_NUM_THREADS=$th "$BASE" compress "$TMP/v.raw" --dims ${N}x${N}x${N} --wavelet $fam --psnr $t --threads $th -o "$TMP/b.wvc" >/dev/null || exit 1
         "$W" decompress "$TMP/a.wvc" -o "$TMP/a.raw" >/dev/null || exit 1
         "$BASE" decompress "$TMP/a.wvc" -o "$TMP/b.raw" >/dev/null || exit 1
+        # region reads (the brick synthesis and the chunk gather): a box of odd bounds, and
+        # whole x rows (the x pass then synthesises full periodic rows)
+        roi1="3,5,7,$((N - 9)),$((N / 2 + 3)),$((N / 2 + 11))" roi2="0,$((N / 4)),$((N / 3)),$N,$((N / 2)),$((N / 2 + 5))"
+        "$W" decompress "$TMP/a.wvc" --roi "$roi1" -o "$TMP/a1.raw" >/dev/null || exit 1
+        "$BASE" decompress "$TMP/a.wvc" --roi "$roi1" -o "$TMP/b1.raw" >/dev/null || exit 1
+        "$W" decompress "$TMP/a.wvc" --roi "$roi2" -o "$TMP/a2.raw" >/dev/null || exit 1
+        "$BASE" decompress "$TMP/a.wvc" --roi "$roi2" -o "$TMP/b2.raw" >/dev/null || exit 1
         n=$((n + 1))
-        if cmp -s "$TMP/a.wvc" "$TMP/b.wvc" && cmp -s "$TMP/a.raw" "$TMP/b.raw"; then
+        if cmp -s "$TMP/a.wvc" "$TMP/b.wvc" && cmp -s "$TMP/a.raw" "$TMP/b.raw" && cmp -s "$TMP/a1.raw" "$TMP/b1.raw" &&
+          cmp -s "$TMP/a2.raw" "$TMP/b2.raw"; then
           echo "same   $kind $fam ${t} dB threads $th ($(stat -c %s "$TMP/a.wvc") bytes)"
         else
           echo "DIFFER $kind $fam ${t} dB threads $th"
@@ -34,5 +43,5 @@ for kind in skull turbulence; do
     done
   done
 done
-echo "$((n - bad)) of $n cases: identical files and decoded volumes"
+echo "$((n - bad)) of $n cases: identical files, decoded volumes and regions"
 [ "$bad" -eq 0 ]

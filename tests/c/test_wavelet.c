@@ -498,12 +498,14 @@ static void brick_equals_box_of_full(void)
  * bricked meshes and images rely on it where neighbouring bricks share a face. Boxes as
  * wide as the volume make every level's region a whole period (the synthesis then plans
  * the wrapped rows unwrapped), small ones do not; coefficients with most values zeroed
- * make some bands absent in some boxes. */
+ * make some bands absent in some boxes. The 1030-sample rows take the x pass's plan from
+ * the heap (more than its stack holds: 2 taps per output of db2 over more than 512 outputs)
+ * in the whole box and in boxes of whole rows, from the stack in the narrower boxes. */
 static void brick_samples_do_not_depend_on_the_box(void)
 {
-    static const size_t sizes[][3] = {{40, 24, 12}, {33, 17, 9}, {70, 9, 6}};
+    static const size_t sizes[][3] = {{40, 24, 12}, {33, 17, 9}, {70, 9, 6}, {1030, 6, 4}};
     static const char *names[] = {"haar", "db2", "coif1", "bl3"};
-    for (int si = 0; si < 3; si++) {
+    for (int si = 0; si < 4; si++) {
         wvol_volume *v = random_volume(sizes[si][0], sizes[si][1], sizes[si][2], -1, 1);
         const size_t n[3] = {v->nx, v->ny, v->nz}, all_lo[3] = {0, 0, 0};
         for (int fi = 0; fi < 4; fi++) {

@@ -20,6 +20,7 @@
 #endif
 
 #include "core/clock.h"
+#include "core/clones.h"
 #include "wvc2_read.h"
 #include "wvc_format.h"
 #include "wvc_source.h"
@@ -628,6 +629,28 @@ static int band_may_be_nonzero(wvol_wvc_file *f, pins *P, int m, int k, const pt
     return 0;
 }
 
+/* wvc2_read.h. The full decoder's arithmetic, so values are bit-equal to it, but without a
+ * branch per value: every lane computes (|v| + d2) * step and the selects pick o1 for +-1
+ * and +0 for 0 (a branch on each zero mispredicted wherever the zeros and non-zeros of a
+ * sparse band mix), so the loop vectorises. Contraction off: (|v| + d2) * step is rounded
+ * twice, as the decoder rounds it; no trapping math: without it GCC keeps a branch so as not
+ * to compute the unused lane's value, which cannot trap here (no FP exceptions are enabled,
+ * and each lane's value is finite). */
+WVOL__CLONES __attribute__((optimize("fp-contract=off", "no-trapping-math"))) int
+wvol__wvc_dequant_run(float *restrict dst, const int32_t *restrict q, size_t n, double o1, double d2, double step)
+{
+    const float f1 = (float)o1;
+    int32_t any = 0;
+    for (size_t i = 0; i < n; i++) {
+        const int32_t v = q[i];
+        const float big = (float)((fabs((double)v) + d2) * step);
+        const float a = v == 0 ? 0.0f : (v == 1 || v == -1) ? f1 : big;
+        dst[i] = v < 0 ? -a : a;
+        any |= v;
+    }
+    return any != 0;
+}
+
 static int gather_chunks(const void *ctx, float *dst, int mm, int band, const ptrdiff_t lo[3], const ptrdiff_t n[3])
 {
     const skip_ctx *sc = ctx;
@@ -675,18 +698,7 @@ static int gather_chunks(const void *ctx, float *dst, int mm, int band, const pt
                         const int32_t *q = e->q[k] + (x - tx0) +
                                            e->ext[0] * ((y - tc[1] * (size_t)g->tile[1]) +
                                                         e->ext[1] * (z - tc[2] * (size_t)g->tile[2]));
-                        for (size_t i = 0; i < run; i++) {
-                            int32_t v = q[i];
-                            float a;
-                            if (!v) {
-                                dst[t + i] = 0.0f;
-                                continue;
-                            }
-                            /* the full decoder's arithmetic, so values are bit-equal to it */
-                            a = (float)((v == 1 || v == -1) ? o1 : ((double)(v < 0 ? -v : v) + d2) * step);
-                            dst[t + i] = v < 0 ? -a : a;
-                            any = 1;
-                        }
+                        any |= wvol__wvc_dequant_run(dst + t, q, run, o1, d2, step);
                     }
                 }
                 t += run;

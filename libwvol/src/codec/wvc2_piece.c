@@ -153,16 +153,7 @@ static void scatter(const piece_ctx *C, int m, const size_t t[3], int32_t *const
                     memset(d, 0, ext[0] * sizeof *d);
                     continue;
                 }
-                for (size_t i = 0; i < ext[0]; i++) {
-                    int32_t v = src[i];
-                    float a;
-                    if (!v) {
-                        d[i] = 0.0f;
-                        continue;
-                    }
-                    a = (float)((v == 1 || v == -1) ? o1 : ((double)(v < 0 ? -v : v) + d2) * step);
-                    d[i] = v < 0 ? -a : a;
-                }
+                (void)wvol__wvc_dequant_run(d, src, ext[0], o1, d2, step);
             }
         }
     }

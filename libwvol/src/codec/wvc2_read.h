@@ -66,5 +66,9 @@ void wvol__wvc_file_unpin(wvol_wvc_file *f, void *pinned);
  * `pinned` more chunks are pinned at once; the current budget. */
 size_t wvol__wvc_file_pin_need(const wvol_wvc_file *f, int pinned);
 size_t wvol__wvc_file_budget(const wvol_wvc_file *f);
+/* dst[i] = the dequantised value of q[i], i < n, with a section's constants (o1 for +-1,
+ * (|v| + d2) * step beyond, in double as the full decoder computes them: bit-equal values);
+ * whether one is non-zero. The region read's gather and the piece reader's scatter. */
+int wvol__wvc_dequant_run(float *dst, const int32_t *q, size_t n, double o1, double d2, double step);
 
 #endif

@@ -311,7 +311,8 @@ WVOL__SYNTH static int synth_x_pairs_any(float *o, const float *lu, const float 
  * planned once for all rows: per output i, the input positions (rel), and the two filters'
  * taps, in the order of k, which synth_axis's general loop recomputes for every row (index
  * arithmetic outweighed the two or so multiply-adds per output of a short filter). Same sums
- * in the same order, so the same results. */
+ * in the same order, so the same results. A plan of up to SYNTH_PLAN_MAX taps lives on the
+ * stack; a longer one (a whole 1024-sample row of db2 has 2048) in one heap block. */
 #define SYNTH_PLAN_MAX 1024
 
 /* Output i of a planned x row: its taps first[i] .. first[i + 1] - 1 summed in the order of k
@@ -328,14 +329,28 @@ static inline float planned_sum(const float *lu, const float *hu, const ptrdiff_
     return acc;
 }
 
-WVOL__SYNTH static void synth_x_planned(float *out, const float *lo, const float *hi, ptrdiff_t kn, ptrdiff_t k0,
-                            ptrdiff_t o0, ptrdiff_t on, ptrdiff_t outer, int full, const wvol_filter *f)
+/* Returns 0 (nothing written) when a plan longer than the stack's finds no memory: the
+ * caller's general loop then computes the same values. */
+WVOL__SYNTH static int synth_x_planned(float *out, const float *lo, const float *hi, ptrdiff_t kn, ptrdiff_t k0,
+                                       ptrdiff_t o0, ptrdiff_t on, ptrdiff_t outer, int full, const wvol_filter *f)
 {
-    ptrdiff_t rel[SYNTH_PLAN_MAX], first[SYNTH_PLAN_MAX + 1], r0[SYNTH_PLAN_MAX], L = f->length, nt = 0;
+    ptrdiff_t rel_s[SYNTH_PLAN_MAX], first_s[SYNTH_PLAN_MAX + 1], r0_s[SYNTH_PLAN_MAX], L = f->length, nt = 0;
     ptrdiff_t p0 = (o0 & 1) ? 1 : 0, p1; /* the pairs: outputs p0 .. p1 - 1, the first of each even */
     ptrdiff_t off = 0, span = 0;
-    float wh[SYNTH_PLAN_MAX], wg[SYNTH_PLAN_MAX], ext[2][SYNTH_PLAN_MAX];
+    float wh_s[SYNTH_PLAN_MAX], wg_s[SYNTH_PLAN_MAX], ext_s[2][SYNTH_PLAN_MAX];
+    /* cap: the most taps (each output has at most (L + 1) / 2) and the longest unwrapped row */
+    const ptrdiff_t cap = on * ((L + 1) / 2) > on + 1 ? on * ((L + 1) / 2) : on + 1;
+    ptrdiff_t *rel = rel_s, *first = first_s, *r0 = r0_s;
+    float *wh = wh_s, *wg = wg_s, *ext[2] = {ext_s[0], ext_s[1]};
+    void *heap = NULL;
     int paired, taps, which = (lo ? 1 : 0) | (hi ? 2 : 0), unwrap = 0;
+    if (cap > SYNTH_PLAN_MAX) {
+        size_t n = (size_t)cap;
+        heap = malloc(n * (3 * sizeof(ptrdiff_t) + 4 * sizeof(float)) + sizeof(ptrdiff_t));
+        if (!heap) return 0;
+        rel = heap, first = rel + n, r0 = first + n + 1;
+        wh = (float *)(r0 + n), wg = wh + n, ext[0] = wg + n, ext[1] = ext[0] + n;
+    }
     /* A whole period (full): the taps wrap around the row. Planned on the unwrapped
      * positions instead, each row copied first into ext with its wrap-around continued
      * (span positions from -off), the taps become consecutive and the pairs apply: the
@@ -350,7 +365,7 @@ WVOL__SYNTH static void synth_x_planned(float *out, const float *lo, const float
         }
         off = -rmin;
         span = rmax - rmin + 1;
-        unwrap = span <= SYNTH_PLAN_MAX;
+        unwrap = span <= (heap ? cap : SYNTH_PLAN_MAX);
     }
     for (ptrdiff_t i = 0; i < on; i++) {
         ptrdiff_t gi = o0 + i, kmin, kmax, r;
@@ -382,13 +397,13 @@ WVOL__SYNTH static void synth_x_planned(float *out, const float *lo, const float
         const float *lu = lo ? lo + u * kn : NULL, *hu = hi ? hi + u * kn : NULL;
         float *restrict o = out + u * on;
         if (unwrap) {
-            /* ext[.][t] = row[(t - off) mod kn] */
+            /* ext[.][t] = row[(t - off) mod kn], copied in runs up to the row's end */
             ptrdiff_t x = (-off) % kn;
             if (x < 0) x += kn;
-            for (ptrdiff_t t = 0; t < span; t++) {
-                if (lu) ext[0][t] = lu[x];
-                if (hu) ext[1][t] = hu[x];
-                if (++x == kn) x = 0;
+            for (ptrdiff_t t = 0, run; t < span; t += run, x = 0) {
+                run = kn - x < span - t ? kn - x : span - t;
+                if (lu) memcpy(ext[0] + t, lu + x, (size_t)run * sizeof *lu);
+                if (hu) memcpy(ext[1] + t, hu + x, (size_t)run * sizeof *hu);
             }
             lu = lu ? ext[0] : NULL;
             hu = hu ? ext[1] : NULL;
@@ -408,6 +423,8 @@ WVOL__SYNTH static void synth_x_planned(float *out, const float *lo, const float
         else
             for (ptrdiff_t i = 0; i < on; i++) o[i] = planned_sum(lu, hu, rel, wh, wg, first, i, 2);
     }
+    free(heap);
+    return 1;
 }
 
 /* Synthesis along `axis` on unwrapped indices: in arrays lo/hi (either may be NULL: all
@@ -422,10 +439,7 @@ WVOL__SYNTH static void synth_axis(float *out, const float *lo, const float *hi,
     ptrdiff_t inner = 1, outer = 1, kn = in_n[axis], k0 = in_lo[axis], L = f->length;
     for (int a = 0; a < axis; a++) inner *= in_n[a];
     for (int a = axis + 1; a < 3; a++) outer *= in_n[a];
-    if (inner == 1 && on * ((L + 1) / 2) <= SYNTH_PLAN_MAX) {
-        synth_x_planned(out, lo, hi, kn, k0, o0, on, outer, full, f);
-        return;
-    }
+    if (inner == 1 && synth_x_planned(out, lo, hi, kn, k0, o0, on, outer, full, f)) return;
     for (ptrdiff_t u = 0; u < outer; u++) {
         const float *lu = lo ? lo + u * kn * inner : NULL, *hu = hi ? hi + u * kn * inner : NULL;
         for (ptrdiff_t i = 0; i < on; i++) {
