@@ -40,8 +40,19 @@ typedef struct wlevel {
     int32_t *q[8];       /* per band of the level's list: rows [z_base, z_next) */
     size_t tz_next;      /* next tile row to code */
     sec_stats *acc;      /* per chunk of the level x band */
-    float *maxabs;       /* per chunk */
+    float *maxabs;       /* per chunk of the level x band, as acc: each written by one task only */
 } wlevel;
+
+/* A chunk's largest |coefficient| over its bands. */
+static float chunk_maxabs(const wlevel *L, const wvc2_level *G, size_t id)
+{
+    float mx = 0.0f;
+    for (int i = 0; i < G->nb; i++) {
+        const float a = L->maxabs[id * (size_t)G->nb + (size_t)i];
+        mx = a > mx ? a : mx;
+    }
+    return mx;
+}
 
 struct wvc2_writer {
     wvc2_header h;
@@ -164,7 +175,7 @@ static wvol_status writer_new(wvc2_writer **out, const wvc2_header *h, wvol_erro
         const wvc2_level *G = &w->g.lv[m];
         L->plane = G->e[0] * G->e[1];
         L->acc = calloc(G->count * (size_t)G->nb + 1, sizeof *L->acc);
-        L->maxabs = calloc(G->count + 1, sizeof *L->maxabs);
+        L->maxabs = calloc(G->count * (size_t)G->nb + 1, sizeof *L->maxabs);
         if (!L->acc || !L->maxabs) {
             wvol__wvc2_writer_abort(w);
             return wvol_error_set(err, WVOL_ERR_NOMEM, "wvc2 writer: out of memory");
@@ -572,7 +583,7 @@ wvol_status wvol__wvc2_writer_put(wvc2_writer *w, int level, size_t z0, size_t n
             size_t tc[3] = {tx, ty, z / (size_t)w->g.tile[2]};
             size_t id = wvc2_chunk_id(&w->g, level, tc) - G->first;
             sec_stats *acc = &L->acc[id * (size_t)G->nb + (size_t)i];
-            float mx = L->maxabs[id];
+            float mx = L->maxabs[id * (size_t)G->nb + (size_t)i];
             for (size_t y = y0; y < y1; y++) {
                 const float *row = pl->band[band] + (y * pl->sy[band] + (z - z0) * pl->sz[band]) + x0;
                 int32_t *qrow = L->q[i] + (z - L->z_base) * L->plane + y * G->e[0] + x0;
@@ -588,7 +599,7 @@ wvol_status wvol__wvc2_writer_put(wvc2_writer *w, int level, size_t z0, size_t n
                     mx = a > mx ? a : mx;
                 }
             }
-            L->maxabs[id] = mx;
+            L->maxabs[id * (size_t)G->nb + (size_t)i] = mx;
         }
     }
     WVOL_RETURN_IF(bad, err, WVOL_ERR_NONFINITE, "wvc2 writer: level %d rows %zu..%zu hold NaN or Inf (or overflow)",
@@ -596,7 +607,7 @@ wvol_status wvol__wvc2_writer_put(wvc2_writer *w, int level, size_t z0, size_t n
     for (size_t id = 0; id < G->count; id++) {
         /* as the whole-pyramid encoder: |q| stays below WVC_QMAX / 2, and the largest value
          * the decoder can make, (|q| + offset) step with |offset| <= 1, is a float32 */
-        double mx = L->maxabs[id];
+        double mx = chunk_maxabs(L, G, id);
         WVOL_RETURN_IF(mx / w->h.step > (double)(WVC_QMAX / 2), err, WVOL_ERR_ARG,
                        "wvc2 writer: step %g is below %g, the smallest coefficients of %g allow", w->h.step,
                        mx / (double)(WVC_QMAX / 2), mx);
@@ -697,7 +708,7 @@ wvol_status wvol__wvc2_writer_close(wvc2_writer *w, void **out, size_t *out_size
         const wvc2_level *G = &w->g.lv[m];
         for (id = 0; id < G->count; id++) {
             chunk_rec *c = &w->chunks[G->first + id];
-            c->maxabs = w->lv[m].maxabs[id];
+            c->maxabs = chunk_maxabs(&w->lv[m], G, id);
             c->energy = 0;
             for (int i = 0; i < G->nb; i++) {
                 const sec_stats *a = &w->lv[m].acc[id * (size_t)G->nb + (size_t)i];
