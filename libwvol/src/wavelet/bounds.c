@@ -16,9 +16,11 @@
  * dense coefficients or coefficient by coefficient (a sparse store).
  * Based on: DESIGN.md section 9. */
 #include <math.h>
+#include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
 
+#include "core/alloc.h"
 #include "wavelet/wavelet_internal.h"
 
 /* ---- 1D responses ----------------------------------------------------------------- */
@@ -125,6 +127,9 @@ struct wvol__brick_bounds {
     int M;
     int nbands;
     float *own_low;    /* the low-pass cube when the bound reconstructed it (create_src) */
+    float *maxima;     /* every detail band's absmax, one allocation (whole huge pages when
+                        * large: a fresh bound's first touches of many small tables cost more
+                        * than its filling) */
     size_t bytes;      /* tables beyond the struct */
     int kept;          /* held by its maker (wvol__bounds_keep): wvol__bounds_free leaves it */
     band_blocks bb[7 * 32 + 1];
@@ -138,9 +143,8 @@ void wvol__bounds_keep(brick_bounds *b, int kept)
 
 void wvol__bounds_free(brick_bounds *b)
 {
-    int i;
     if (!b || b->kept) return;
-    for (i = 0; i < b->nbands; i++) free(b->bb[i].absmax);
+    free(b->maxima);
     free(b->own_low);
     free(b);
 }
@@ -153,6 +157,7 @@ static wvol_status bounds_create(brick_bounds **out, const wvol_filter *f, int l
     brick_bounds *b;
     resp1 lp[33], hp[33];
     int m, l, a;
+    size_t total = 0; /* detail blocks of every band */
     *out = NULL;
     WVOL_RETURN_IF(levels < 1 || levels > 32, err, WVOL_ERR_ARG, "brick bounds: %d levels", levels);
     for (a = 0; a < 3; a++)
@@ -194,13 +199,25 @@ static wvol_status bounds_create(brick_bounds **out, const wvol_filter *f, int l
             b->bytes += sizeof *q;
             if (l == 0) continue;
             nblk = q->nb[0] * q->nb[1] * q->nb[2];
-            q->absmax = calloc(nblk, sizeof(float));
-            if (!q->absmax) {
-                wvol__bounds_free(b);
-                return wvol_error_set(err, WVOL_ERR_NOMEM, "brick bounds: out of memory");
-            }
-            b->bytes += nblk * sizeof(float);
+            total += nblk;
         }
+    /* the detail bands' tables carved from one zeroed allocation, in band order */
+    {
+        size_t bytes = total * sizeof(float), at = 0;
+        b->maxima = total <= SIZE_MAX / sizeof(float) ? wvol__malloc_pages(&bytes) : NULL;
+        if (!b->maxima) {
+            wvol__bounds_free(b);
+            return wvol_error_set(err, WVOL_ERR_NOMEM, "brick bounds: out of memory");
+        }
+        memset(b->maxima, 0, total * sizeof(float));
+        for (int qi = 0; qi < b->nbands; qi++) {
+            band_blocks *q = &b->bb[qi];
+            if (q->band == 0) continue;
+            q->absmax = b->maxima + at;
+            at += q->nb[0] * q->nb[1] * q->nb[2];
+        }
+        b->bytes += total * sizeof(float);
+    }
     *out = b;
     return WVOL_OK;
 }
@@ -232,7 +249,10 @@ wvol_status wvol__bounds_create_src(brick_bounds **out, const wvol__coef_source 
         WVOL_RETURN_IF(src->pad[a] < 2, err, WVOL_ERR_DIMS, "brick bounds: axis %c is not transformed", "xyz"[a]);
     for (int a = 0; a < 3; a++) e[a] = src->pad[a] >> L;
     n = e[0] * e[1] * e[2];
-    low = malloc(n * sizeof *low);
+    {
+        size_t bytes = n * sizeof *low; /* written whole by the reconstruction below */
+        low = wvol__malloc_pages(&bytes);
+    }
     WVOL_RETURN_IF(!low, err, WVOL_ERR_NOMEM, "brick bounds: out of memory for a %zu x %zu x %zu low-pass cube", e[0],
                    e[1], e[2]);
     /* the pyramid above level L, reconstructed: its samples are the level-L low-pass */
