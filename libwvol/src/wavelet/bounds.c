@@ -483,6 +483,55 @@ static float block_absmax(const band_blocks *q, const long b0[3], const long b1[
  * reach most of a band, and the scan would cost more than the bound saves. */
 #define WHOLE_SCAN_MAX 4096
 
+/* What a box's bound takes from one band: a detail band's largest block maxima over the
+ * core's and the whole response's reach (whole: the band's global maximum when that reach is
+ * too long to scan); the low-pass band's range over the core's reach and the magnitude its
+ * tails carry. */
+typedef struct band_stat {
+    float a, b; /* detail: amax, wmax; low-pass: cmin, cmax (core) */
+    double wabs; /* low-pass: the tails' magnitude */
+} band_stat;
+
+/* The low-pass band's stat from its ranges over the core's reach (cmin > cmax: none) and
+ * the whole response's (scanned: whether it was, wmin > wmax: none). */
+static band_stat low_stat(const band_blocks *q, float cmin, float cmax, int scanned, float wmin, float wmax)
+{
+    band_stat r;
+    r.wabs = (double)q->gmax;
+    if (cmin > cmax) cmin = cmax = 0.0f; /* no core reaches (cannot happen for a non-empty box) */
+    if (q->tailw > 0 && scanned) r.wabs = wmin > wmax ? 0.0 : fmax(fabs((double)wmin), fabs((double)wmax));
+    else if (q->tailw == 0) r.wabs = fmax(fabs((double)cmin), fabs((double)cmax));
+    r.a = cmin, r.b = cmax;
+    return r;
+}
+
+/* The bound from every band's stat (st[qi]), in band order. Rounding: float coefficients
+ * summed in double, the result rounded to float; no absolute term, so that a box reached by
+ * zeros only is bounded by exactly [0, 0]. */
+static void combine(const brick_bounds *b, const band_stat *st, double *vmin, double *vmax)
+{
+    double detail = 0.0, lo = 0.0, hi = 0.0, mag = 0.0;
+    for (int qi = 0; qi < b->nbands; qi++) {
+        const band_blocks *q = &b->bb[qi];
+        if (q->band == 0) {
+            double a0 = 0.5 * ((double)st[qi].a + (double)st[qi].b), half = 0.5 * ((double)st[qi].b - (double)st[qi].a);
+            double p1 = a0 * q->smin, p2 = a0 * q->smax;
+            double off = half * q->leb + (st[qi].wabs + fabs(a0)) * q->tailw;
+            lo = (p1 < p2 ? p1 : p2) - off;
+            hi = (p1 > p2 ? p1 : p2) + off;
+            mag += st[qi].wabs * (q->leb + q->tailw);
+        } else {
+            detail += (double)st[qi].a * q->leb + (double)st[qi].b * q->tailw;
+        }
+    }
+    mag += detail;
+    {
+        double pad = 1e-5 * mag;
+        *vmin = lo - detail - pad;
+        *vmax = hi + detail + pad;
+    }
+}
+
 /* Bound of the reconstructed samples in the box [s0, s1] (inclusive, voxel indices).
  * The coefficients whose core reaches the box carry the core sums; those reached only
  * by the tails carry the tail weights, with their own maximum when the whole response's
@@ -493,30 +542,16 @@ static float block_absmax(const band_blocks *q, const long b0[3], const long b1[
  * the box rather than with the whole volume's. */
 void wvol__bounds_box(const brick_bounds *b, const long s0[3], const long s1[3], double *vmin, double *vmax)
 {
-    double detail = 0.0, lo = 0.0, hi = 0.0, mag = 0.0;
-    int qi;
-    for (qi = 0; qi < b->nbands; qi++) {
+    band_stat st[7 * 32 + 1];
+    for (int qi = 0; qi < b->nbands; qi++) {
         const band_blocks *q = &b->bb[qi];
         band_reach core = reach_box(q, 0, s0, s1), whole = reach_box(q, 1, s0, s1);
         if (q->band == 0) {
-            float cmin, cmax, wmin, wmax;
-            double wabs = (double)q->gmax;
+            float cmin, cmax, wmin = 0.0f, wmax = 0.0f;
+            const int scan = q->tailw > 0 && (size_t)whole.kn[0] * (size_t)whole.kn[1] * (size_t)whole.kn[2] <= WHOLE_SCAN_MAX;
             low_range(b, q, &core, &cmin, &cmax);
-            if (cmin > cmax) cmin = cmax = 0.0f; /* no core reaches (cannot happen for a non-empty box) */
-            if (q->tailw > 0 && (size_t)whole.kn[0] * (size_t)whole.kn[1] * (size_t)whole.kn[2] <= WHOLE_SCAN_MAX) {
-                low_range(b, q, &whole, &wmin, &wmax);
-                wabs = wmin > wmax ? 0.0 : fmax(fabs((double)wmin), fabs((double)wmax));
-            } else if (q->tailw == 0) {
-                wabs = fmax(fabs((double)cmin), fabs((double)cmax));
-            }
-            {
-                double a0 = 0.5 * ((double)cmin + (double)cmax), half = 0.5 * ((double)cmax - (double)cmin);
-                double p1 = a0 * q->smin, p2 = a0 * q->smax;
-                double off = half * q->leb + (wabs + fabs(a0)) * q->tailw;
-                lo = (p1 < p2 ? p1 : p2) - off;
-                hi = (p1 > p2 ? p1 : p2) + off;
-                mag += wabs * (q->leb + q->tailw);
-            }
+            if (scan) low_range(b, q, &whole, &wmin, &wmax);
+            st[qi] = low_stat(q, cmin, cmax, scan, wmin, wmax);
             continue;
         }
         /* detail band: block maxima over the reach */
@@ -527,15 +562,174 @@ void wvol__bounds_box(const brick_bounds *b, const long s0[3], const long s1[3],
                 size_t nw = block_span(q, &whole, b0, b1);
                 if (nw <= WHOLE_SCAN_MAX) wmax = nw ? block_absmax(q, b0, b1) : 0.0f;
             }
-            detail += (double)amax * q->leb + (double)wmax * q->tailw;
+            st[qi].a = amax, st[qi].b = wmax, st[qi].wabs = 0.0;
         }
     }
-    mag += detail;
-    /* rounding: float coefficients summed in double, the result rounded to float; no
-     * absolute term, so that a box reached by zeros only is bounded by exactly [0, 0] */
-    {
-        double pad = 1e-5 * mag;
-        *vmin = lo - detail - pad;
-        *vmax = hi + detail + pad;
+    combine(b, st, vmin, vmax);
+}
+
+/* ---- the bounds of a grid of boxes -------------------------------------------------- */
+
+/* One axis's windows: box t reads positions start[t] .. start[t] + len[t] - 1 of an axis of
+ * extent e, taken modulo e (len 0: none). */
+typedef struct axis_windows {
+    long *start, *len;
+} axis_windows;
+
+/* red[t0 + n0 (t1 + n1 t2)] = the reduction (the least with want_min, else the largest,
+ * starting from init) of a[x + sy y + sz z] over box t's windows along the three axes, taken
+ * axis by axis: x into tmp1 (n0 x e1 x e2), then y into tmp2 (n0 x n1 x e2), then z. The same
+ * values as the box by box scans (a minimum or maximum does not depend on the order). */
+static void reduce_grid(const float *a, const size_t e[3], size_t sy, size_t sz, const axis_windows w[3],
+                        const size_t n[3], int want_min, float init, float *tmp1, float *tmp2, float *red)
+{
+#define PICK(acc, v) (want_min ? (!((v) >= (acc)) ? (v) : (acc)) : (!((v) <= (acc)) ? (v) : (acc)))
+    for (size_t z = 0; z < e[2]; z++)
+        for (size_t y = 0; y < e[1]; y++) {
+            const float *row = a + sy * y + sz * z;
+            float *o = tmp1 + n[0] * (y + e[1] * z);
+            for (size_t t = 0; t < n[0]; t++) {
+                float acc = init;
+                size_t x = (size_t)w[0].start[t];
+                for (long k = 0; k < w[0].len[t]; k++) {
+                    acc = PICK(acc, row[x]);
+                    if (++x == e[0]) x = 0;
+                }
+                o[t] = acc;
+            }
+        }
+    for (size_t z = 0; z < e[2]; z++)
+        for (size_t t1 = 0; t1 < n[1]; t1++) {
+            float *o = tmp2 + n[0] * (t1 + n[1] * z);
+            size_t y0 = (size_t)w[1].start[t1];
+            for (size_t t0 = 0; t0 < n[0]; t0++) o[t0] = init;
+            for (long k = 0, y = (long)y0; k < w[1].len[t1]; k++) {
+                const float *in = tmp1 + n[0] * ((size_t)y + e[1] * z);
+                for (size_t t0 = 0; t0 < n[0]; t0++) o[t0] = PICK(o[t0], in[t0]);
+                if (++y == (long)e[1]) y = 0;
+            }
+        }
+    for (size_t t2 = 0; t2 < n[2]; t2++) {
+        float *o = red + n[0] * n[1] * t2;
+        size_t z = (size_t)w[2].start[t2];
+        for (size_t t = 0; t < n[0] * n[1]; t++) o[t] = init;
+        for (long k = 0; k < w[2].len[t2]; k++) {
+            const float *in = tmp2 + n[0] * n[1] * z;
+            for (size_t t = 0; t < n[0] * n[1]; t++) o[t] = PICK(o[t], in[t]);
+            if (++z == e[2]) z = 0;
+        }
     }
+#undef PICK
+}
+
+/* Box t's windows along axis a for band q (whole: the whole response's reach, else the
+ * core's): low-pass positions (blocks = 0), or the detail blocks block_span covers. */
+static void grid_windows(const band_blocks *q, int a, int whole, int blocks, const long *s0, const long *s1, size_t n,
+                         axis_windows *w)
+{
+    for (size_t t = 0; t < n; t++) {
+        long k0, kn;
+        reach(q, a, whole ? 0 : q->lo[a], whole ? q->len[a] - 1 : q->hi[a], s0[t], s1[t], &k0, &kn);
+        if (!blocks) {
+            w->start[t] = kn > 0 ? wrap(k0, (long)q->e[a]) : 0;
+            w->len[t] = kn > 0 ? kn : 0;
+            continue;
+        }
+        /* block_span along one axis */
+        {
+            long bs = (long)q->bs[a], nbk = (long)q->nb[a], b0, b1;
+            if (kn <= 0) {
+                w->start[t] = 0, w->len[t] = 0;
+                continue;
+            }
+            if (kn >= (long)q->e[a]) {
+                b0 = 0, b1 = nbk - 1;
+            } else {
+                long m0 = wrap(k0, (long)q->e[a]), last = m0 + kn - 1;
+                b0 = m0 / bs;
+                b1 = last < (long)q->e[a] ? last / bs : nbk + (last - (long)q->e[a]) / bs;
+                if (b1 - b0 + 1 > nbk) b1 = b0 + nbk - 1;
+            }
+            w->start[t] = b0 % nbk, w->len[t] = b1 - b0 + 1;
+        }
+    }
+}
+
+int wvol__bounds_grid(const brick_bounds *b, const long *const s0[3], const long *const s1[3], const size_t n[3],
+                      double *range)
+{
+    const size_t nbox = n[0] * n[1] * n[2];
+    size_t ntmp = 0, nw = n[0] + n[1] + n[2];
+    long *wbuf;
+    float *tmp1, *tmp2, *red, *red2;
+    band_stat *st;
+    axis_windows core[3], whole[3];
+    int ok = 1;
+    if (!nbox) return 1;
+    /* the scratch of the largest band */
+    for (int qi = 0; qi < b->nbands; qi++) {
+        const band_blocks *q = &b->bb[qi];
+        const size_t *ext = q->band == 0 ? q->e : q->nb;
+        size_t t1 = n[0] * ext[1] * ext[2], t2 = n[0] * n[1] * ext[2];
+        if (t1 > ntmp) ntmp = t1;
+        if (t2 > ntmp) ntmp = t2;
+    }
+    wbuf = malloc(4 * nw * sizeof *wbuf);
+    tmp1 = malloc((2 * ntmp + 4 * nbox) * sizeof *tmp1);
+    st = malloc(nbox * (size_t)b->nbands * sizeof *st);
+    if (!wbuf || !tmp1 || !st) {
+        free(wbuf);
+        free(tmp1);
+        free(st);
+        return 0;
+    }
+    tmp2 = tmp1 + ntmp;
+    red = tmp2 + ntmp;
+    red2 = red + 2 * nbox;
+    for (int a = 0, at = 0; a < 3; at += 2 * (int)n[a], a++) {
+        core[a].start = wbuf + at, core[a].len = wbuf + at + n[a];
+        whole[a].start = wbuf + 2 * nw + at, whole[a].len = wbuf + 2 * nw + at + n[a];
+    }
+    for (int qi = 0; qi < b->nbands; qi++) {
+        const band_blocks *q = &b->bb[qi];
+        const int low = q->band == 0;
+        for (int a = 0; a < 3; a++) {
+            grid_windows(q, a, 0, !low, s0[a], s1[a], n[a], &core[a]);
+            grid_windows(q, a, 1, !low, s0[a], s1[a], n[a], &whole[a]);
+        }
+        if (low) {
+            /* red: cmin, cmax over the core; red2: wmin, wmax over the whole reach */
+            reduce_grid(b->low, q->e, b->low_sy, b->low_sz, core, n, 1, INFINITY, tmp1, tmp2, red);
+            reduce_grid(b->low, q->e, b->low_sy, b->low_sz, core, n, 0, -INFINITY, tmp1, tmp2, red + nbox);
+            if (q->tailw > 0) {
+                reduce_grid(b->low, q->e, b->low_sy, b->low_sz, whole, n, 1, INFINITY, tmp1, tmp2, red2);
+                reduce_grid(b->low, q->e, b->low_sy, b->low_sz, whole, n, 0, -INFINITY, tmp1, tmp2, red2 + nbox);
+            }
+            for (size_t t = 0, k = 0; k < n[2]; k++)
+                for (size_t j = 0; j < n[1]; j++)
+                    for (size_t i = 0; i < n[0]; i++, t++) {
+                        const size_t cells = (size_t)whole[0].len[i] * (size_t)whole[1].len[j] * (size_t)whole[2].len[k];
+                        const int scan = q->tailw > 0 && cells <= WHOLE_SCAN_MAX;
+                        st[t * (size_t)b->nbands + (size_t)qi] =
+                            low_stat(q, red[t], red[nbox + t], scan, scan ? red2[t] : 0.0f, scan ? red2[nbox + t] : 0.0f);
+                    }
+        } else {
+            reduce_grid(q->absmax, q->nb, q->nb[0], q->nb[0] * q->nb[1], core, n, 0, 0.0f, tmp1, tmp2, red);
+            if (q->tailw > 0) reduce_grid(q->absmax, q->nb, q->nb[0], q->nb[0] * q->nb[1], whole, n, 0, 0.0f, tmp1, tmp2, red2);
+            for (size_t t = 0, k = 0; k < n[2]; k++)
+                for (size_t j = 0; j < n[1]; j++)
+                    for (size_t i = 0; i < n[0]; i++, t++) {
+                        const size_t blocks = (size_t)whole[0].len[i] * (size_t)whole[1].len[j] * (size_t)whole[2].len[k];
+                        band_stat *o = &st[t * (size_t)b->nbands + (size_t)qi];
+                        o->a = red[t];
+                        o->b = q->tailw > 0 && blocks <= WHOLE_SCAN_MAX ? red2[t] : q->gmax;
+                        o->wabs = 0.0;
+                    }
+        }
+    }
+    for (size_t t = 0; t < nbox; t++) combine(b, st + t * (size_t)b->nbands, &range[2 * t], &range[2 * t + 1]);
+    free(wbuf);
+    free(tmp1);
+    free(st);
+    return ok;
 }
