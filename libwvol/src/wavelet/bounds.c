@@ -376,9 +376,18 @@ void wvol__bounds_finish(brick_bounds *b)
                         if (!(av <= gmax)) gmax = isnan(av) ? INFINITY : av;
                     }
         } else {
+            /* the block maxima are magnitudes (+0 to +inf; NaN never stored): as int32 their
+             * bits order as the values, so the maximum is an integer one, which vectorises
+             * (a fresh 512^3 bound holds 14 MB of them); a NaN's bits sort above +inf's */
             size_t i, nblk = q->nb[0] * q->nb[1] * q->nb[2];
-            for (i = 0; i < nblk; i++)
-                if (!(q->absmax[i] <= gmax)) gmax = isnan(q->absmax[i]) ? INFINITY : q->absmax[i];
+            int32_t top = 0;
+            for (i = 0; i < nblk; i++) {
+                int32_t bits;
+                memcpy(&bits, &q->absmax[i], sizeof bits);
+                top = bits > top ? bits : top;
+            }
+            if (top > 0x7f800000) top = 0x7f800000;
+            memcpy(&gmax, &top, sizeof gmax);
         }
         q->gmax = gmax;
     }
