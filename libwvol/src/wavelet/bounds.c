@@ -446,22 +446,31 @@ static void low_range(const brick_bounds *b, const band_blocks *q, const band_re
     }
 }
 
+/* Blocks of a detail band covering the reached positions [k0, k0 + kn) along axis a: [*b0,
+ * *b1] (unwrapped); their count, 0 when none is reached. */
+static long axis_span(const band_blocks *q, int a, long k0, long kn, long *b0, long *b1)
+{
+    long bs = (long)q->bs[a], nbk = (long)q->nb[a];
+    if (kn <= 0) return 0;
+    if (kn >= (long)q->e[a]) {
+        *b0 = 0, *b1 = nbk - 1;
+    } else {
+        long m0 = wrap(k0, (long)q->e[a]), last = m0 + kn - 1;
+        *b0 = m0 / bs;
+        *b1 = last < (long)q->e[a] ? last / bs : nbk + (last - (long)q->e[a]) / bs;
+        if (*b1 - *b0 + 1 > nbk) *b1 = *b0 + nbk - 1;
+    }
+    return *b1 - *b0 + 1;
+}
+
 /* Blocks of a detail band covering the reached positions, per axis [b0, b1] (unwrapped). */
 static size_t block_span(const band_blocks *q, const band_reach *r, long b0[3], long b1[3])
 {
     size_t count = 1;
     for (int a = 0; a < 3; a++) {
-        long bs = (long)q->bs[a], nbk = (long)q->nb[a];
-        if (r->kn[a] <= 0) return 0;
-        if (r->kn[a] >= (long)q->e[a]) {
-            b0[a] = 0, b1[a] = nbk - 1;
-        } else {
-            long m0 = wrap(r->k0[a], (long)q->e[a]), last = m0 + r->kn[a] - 1;
-            b0[a] = m0 / bs;
-            b1[a] = last < (long)q->e[a] ? last / bs : nbk + (last - (long)q->e[a]) / bs;
-            if (b1[a] - b0[a] + 1 > nbk) b1[a] = b0[a] + nbk - 1;
-        }
-        count *= (size_t)(b1[a] - b0[a] + 1);
+        long n = axis_span(q, a, r->k0[a], r->kn[a], &b0[a], &b1[a]);
+        if (!n) return 0;
+        count *= (size_t)n;
     }
     return count;
 }
@@ -585,50 +594,66 @@ typedef struct axis_windows {
     long *start, *len;
 } axis_windows;
 
-/* red[t0 + n0 (t1 + n1 t2)] = the reduction (the least with want_min, else the largest,
- * starting from init) of a[x + sy y + sz z] over box t's windows along the three axes, taken
- * axis by axis: x into tmp1 (n0 x e1 x e2), then y into tmp2 (n0 x n1 x e2), then z. The same
- * values as the box by box scans (a minimum or maximum does not depend on the order). */
+/* red[t] = the largest of a[x + sy y + sz z] (from init) over box t's windows along the three
+ * axes, t = t0 + n0 (t1 + n1 t2); with both, also red[nbox + t] = the least (from +inf), in
+ * the same pass (the low-pass cube's range). Taken axis by axis: x into tmp1 (n0 x e1 x e2,
+ * the least after the largest), then y into tmp2 (n0 x n1 x e2), then z. The same values as
+ * the box by box scans: a minimum or maximum does not depend on the order. */
 static void reduce_grid(const float *a, const size_t e[3], size_t sy, size_t sz, const axis_windows w[3],
-                        const size_t n[3], int want_min, float init, float *tmp1, float *tmp2, float *red)
+                        const size_t n[3], int both, float init, float *tmp1, float *tmp2, float *red)
 {
-#define PICK(acc, v) (want_min ? (!((v) >= (acc)) ? (v) : (acc)) : (!((v) <= (acc)) ? (v) : (acc)))
+#define UP_MAX(acc, v) ((acc) = !((v) <= (acc)) ? (v) : (acc))
+#define UP_MIN(acc, v) ((acc) = !((v) >= (acc)) ? (v) : (acc))
+    const size_t t1n = n[0] * e[1] * e[2], t2n = n[0] * n[1] * e[2], nbox = n[0] * n[1] * n[2];
     for (size_t z = 0; z < e[2]; z++)
         for (size_t y = 0; y < e[1]; y++) {
             const float *row = a + sy * y + sz * z;
             float *o = tmp1 + n[0] * (y + e[1] * z);
             for (size_t t = 0; t < n[0]; t++) {
-                float acc = init;
+                float hi = init, lo = INFINITY;
                 size_t x = (size_t)w[0].start[t];
                 for (long k = 0; k < w[0].len[t]; k++) {
-                    acc = PICK(acc, row[x]);
+                    UP_MAX(hi, row[x]);
+                    if (both) UP_MIN(lo, row[x]);
                     if (++x == e[0]) x = 0;
                 }
-                o[t] = acc;
+                o[t] = hi;
+                if (both) o[t1n + t] = lo;
             }
         }
     for (size_t z = 0; z < e[2]; z++)
         for (size_t t1 = 0; t1 < n[1]; t1++) {
             float *o = tmp2 + n[0] * (t1 + n[1] * z);
-            size_t y0 = (size_t)w[1].start[t1];
-            for (size_t t0 = 0; t0 < n[0]; t0++) o[t0] = init;
-            for (long k = 0, y = (long)y0; k < w[1].len[t1]; k++) {
-                const float *in = tmp1 + n[0] * ((size_t)y + e[1] * z);
-                for (size_t t0 = 0; t0 < n[0]; t0++) o[t0] = PICK(o[t0], in[t0]);
-                if (++y == (long)e[1]) y = 0;
+            size_t y = (size_t)w[1].start[t1];
+            for (size_t t0 = 0; t0 < n[0]; t0++) {
+                o[t0] = init;
+                if (both) o[t2n + t0] = INFINITY;
+            }
+            for (long k = 0; k < w[1].len[t1]; k++) {
+                const float *in = tmp1 + n[0] * (y + e[1] * z);
+                for (size_t t0 = 0; t0 < n[0]; t0++) UP_MAX(o[t0], in[t0]);
+                if (both)
+                    for (size_t t0 = 0; t0 < n[0]; t0++) UP_MIN(o[t2n + t0], in[t1n + t0]);
+                if (++y == e[1]) y = 0;
             }
         }
     for (size_t t2 = 0; t2 < n[2]; t2++) {
         float *o = red + n[0] * n[1] * t2;
         size_t z = (size_t)w[2].start[t2];
-        for (size_t t = 0; t < n[0] * n[1]; t++) o[t] = init;
+        for (size_t t = 0; t < n[0] * n[1]; t++) {
+            o[t] = init;
+            if (both) o[nbox + t] = INFINITY;
+        }
         for (long k = 0; k < w[2].len[t2]; k++) {
             const float *in = tmp2 + n[0] * n[1] * z;
-            for (size_t t = 0; t < n[0] * n[1]; t++) o[t] = PICK(o[t], in[t]);
+            for (size_t t = 0; t < n[0] * n[1]; t++) UP_MAX(o[t], in[t]);
+            if (both)
+                for (size_t t = 0; t < n[0] * n[1]; t++) UP_MIN(o[nbox + t], in[t2n + t]);
             if (++z == e[2]) z = 0;
         }
     }
-#undef PICK
+#undef UP_MAX
+#undef UP_MIN
 }
 
 /* Box t's windows along axis a for band q (whole: the whole response's reach, else the
@@ -644,22 +669,9 @@ static void grid_windows(const band_blocks *q, int a, int whole, int blocks, con
             w->len[t] = kn > 0 ? kn : 0;
             continue;
         }
-        /* block_span along one axis */
         {
-            long bs = (long)q->bs[a], nbk = (long)q->nb[a], b0, b1;
-            if (kn <= 0) {
-                w->start[t] = 0, w->len[t] = 0;
-                continue;
-            }
-            if (kn >= (long)q->e[a]) {
-                b0 = 0, b1 = nbk - 1;
-            } else {
-                long m0 = wrap(k0, (long)q->e[a]), last = m0 + kn - 1;
-                b0 = m0 / bs;
-                b1 = last < (long)q->e[a] ? last / bs : nbk + (last - (long)q->e[a]) / bs;
-                if (b1 - b0 + 1 > nbk) b1 = b0 + nbk - 1;
-            }
-            w->start[t] = b0 % nbk, w->len[t] = b1 - b0 + 1;
+            long b0 = 0, b1 = 0, nblk = axis_span(q, a, k0, kn, &b0, &b1);
+            w->start[t] = nblk ? b0 % (long)q->nb[a] : 0, w->len[t] = nblk;
         }
     }
 }
@@ -673,7 +685,6 @@ int wvol__bounds_grid(const brick_bounds *b, const long *const s0[3], const long
     float *tmp1, *tmp2, *red, *red2;
     band_stat *st;
     axis_windows core[3], whole[3];
-    int ok = 1;
     if (!nbox) return 1;
     /* the scratch of the largest band */
     for (int qi = 0; qi < b->nbands; qi++) {
@@ -684,7 +695,7 @@ int wvol__bounds_grid(const brick_bounds *b, const long *const s0[3], const long
         if (t2 > ntmp) ntmp = t2;
     }
     wbuf = malloc(4 * nw * sizeof *wbuf);
-    tmp1 = malloc((2 * ntmp + 4 * nbox) * sizeof *tmp1);
+    tmp1 = malloc((4 * ntmp + 4 * nbox) * sizeof *tmp1); /* tmp1, tmp2: largest and least */
     st = malloc(nbox * (size_t)b->nbands * sizeof *st);
     if (!wbuf || !tmp1 || !st) {
         free(wbuf);
@@ -692,8 +703,8 @@ int wvol__bounds_grid(const brick_bounds *b, const long *const s0[3], const long
         free(st);
         return 0;
     }
-    tmp2 = tmp1 + ntmp;
-    red = tmp2 + ntmp;
+    tmp2 = tmp1 + 2 * ntmp;
+    red = tmp2 + 2 * ntmp;
     red2 = red + 2 * nbox;
     for (int a = 0, at = 0; a < 3; at += 2 * (int)n[a], a++) {
         core[a].start = wbuf + at, core[a].len = wbuf + at + n[a];
@@ -707,20 +718,16 @@ int wvol__bounds_grid(const brick_bounds *b, const long *const s0[3], const long
             grid_windows(q, a, 1, !low, s0[a], s1[a], n[a], &whole[a]);
         }
         if (low) {
-            /* red: cmin, cmax over the core; red2: wmin, wmax over the whole reach */
-            reduce_grid(b->low, q->e, b->low_sy, b->low_sz, core, n, 1, INFINITY, tmp1, tmp2, red);
-            reduce_grid(b->low, q->e, b->low_sy, b->low_sz, core, n, 0, -INFINITY, tmp1, tmp2, red + nbox);
-            if (q->tailw > 0) {
-                reduce_grid(b->low, q->e, b->low_sy, b->low_sz, whole, n, 1, INFINITY, tmp1, tmp2, red2);
-                reduce_grid(b->low, q->e, b->low_sy, b->low_sz, whole, n, 0, -INFINITY, tmp1, tmp2, red2 + nbox);
-            }
+            /* red: cmax, cmin over the core; red2: wmax, wmin over the whole reach */
+            reduce_grid(b->low, q->e, b->low_sy, b->low_sz, core, n, 1, -INFINITY, tmp1, tmp2, red);
+            if (q->tailw > 0) reduce_grid(b->low, q->e, b->low_sy, b->low_sz, whole, n, 1, -INFINITY, tmp1, tmp2, red2);
             for (size_t t = 0, k = 0; k < n[2]; k++)
                 for (size_t j = 0; j < n[1]; j++)
                     for (size_t i = 0; i < n[0]; i++, t++) {
                         const size_t cells = (size_t)whole[0].len[i] * (size_t)whole[1].len[j] * (size_t)whole[2].len[k];
                         const int scan = q->tailw > 0 && cells <= WHOLE_SCAN_MAX;
                         st[t * (size_t)b->nbands + (size_t)qi] =
-                            low_stat(q, red[t], red[nbox + t], scan, scan ? red2[t] : 0.0f, scan ? red2[nbox + t] : 0.0f);
+                            low_stat(q, red[nbox + t], red[t], scan, scan ? red2[nbox + t] : 0.0f, scan ? red2[t] : 0.0f);
                     }
         } else {
             reduce_grid(q->absmax, q->nb, q->nb[0], q->nb[0] * q->nb[1], core, n, 0, 0.0f, tmp1, tmp2, red);
@@ -740,5 +747,5 @@ int wvol__bounds_grid(const brick_bounds *b, const long *const s0[3], const long
     free(wbuf);
     free(tmp1);
     free(st);
-    return ok;
+    return 1;
 }
