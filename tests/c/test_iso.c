@@ -16,6 +16,7 @@
 #include "fixtures.h"
 #include "iso/iso_internal.h"
 #include "iso/mc_tables.h"
+#include "wavelet/wavelet_bricks.h"
 #include "wvol/store.h"
 #include "wvol/io.h"
 #include "wvol/iso.h"
@@ -817,6 +818,88 @@ static void stitch_independent_of_order(void)
     }
 }
 
+/* The bounds of a grid of bricks taken all at once (wvol__bounds_grid, which marching cubes
+ * from a store uses) are wvol__bounds_box's brick by brick, bit for bit: short and long
+ * filters, odd sizes, 2 to 5 levels (deep levels and long filters make the reach wrap around
+ * the period or cover it), bricks of 3 to 32 cells, the last brick of an axis short; 0%
+ * (all-zero bands: the bound is exactly [0, 0] there), 5% and 100% kept. A window off by one
+ * block or position along any axis changes some brick's maximum and fails it. */
+static void bounds_grid_matches_boxes(void)
+{
+    static const struct { const char *filter; int levels; size_t n[3]; double keep; } cases[] = {
+        {"haar", 5, {40, 37, 33}, 0.3}, {"db2", 3, {67, 53, 41}, 0.05}, {"db2", 5, {40, 37, 33}, 1.0},
+        {"db5", 3, {48, 45, 50}, 0.3},  {"coif2", 2, {35, 64, 29}, 0.3}, {"bl3", 3, {67, 53, 41}, 0.1},
+        {"bl3", 2, {33, 31, 30}, 0.0},
+    };
+    static const int bricks[] = {3, 5, 8, 16, 32};
+    for (size_t ci = 0; ci < sizeof cases / sizeof cases[0]; ci++) {
+        const wvol_filter *f = NULL;
+        wvol_volume *v = NULL;
+        wvol_coeffs *c = NULL;
+        wvol__coef_source src;
+        wvol__brick_bounds *bb = NULL;
+        size_t i, worst = 0, boxes = 0, nonzero = 0;
+        wvol_filter_get(&f, cases[ci].filter, NULL);
+        wvol_volume_create(&v, cases[ci].n[0], cases[ci].n[1], cases[ci].n[2], NULL);
+        for (i = 0; i < wvol_volume_count(v); i++) v->data[i] = (float)(rnd() * rnd() * 10.0 - 2.0);
+        if (wvol_dwt3(&c, v, f, cases[ci].levels, NULL) != WVOL_OK) {
+            CHECK(0, "%s: dwt", cases[ci].filter);
+            wvol_volume_destroy(v);
+            continue;
+        }
+        if (cases[ci].keep == 0.0) memset(c->data, 0, c->px * c->py * c->pz * sizeof *c->data);
+        else if (cases[ci].keep < 1.0) keep_fraction(c, cases[ci].keep);
+        wvol__coef_source_of_coeffs(&src, c);
+        if (wvol__bounds_create_src(&bb, &src, NULL, NULL) != WVOL_OK) {
+            CHECK(0, "%s: bounds", cases[ci].filter);
+            wvol_coeffs_destroy(c);
+            wvol_volume_destroy(v);
+            continue;
+        }
+        wvol__bounds_fill_coeffs(bb, c);
+        wvol__bounds_finish(bb);
+        for (size_t bi = 0; bi < sizeof bricks / sizeof bricks[0]; bi++) {
+            const long B = bricks[bi];
+            size_t nb[3];
+            long *lo[3], *hi[3];
+            double *grid, *one;
+            for (int a = 0; a < 3; a++) {
+                nb[a] = (cases[ci].n[a] - 1 + (size_t)B - 1) / (size_t)B;
+                lo[a] = malloc(nb[a] * sizeof *lo[a]);
+                hi[a] = malloc(nb[a] * sizeof *hi[a]);
+                for (size_t t = 0; t < nb[a]; t++) {
+                    lo[a][t] = (long)t * B;
+                    hi[a][t] = lo[a][t] + B < (long)cases[ci].n[a] - 1 ? lo[a][t] + B : (long)cases[ci].n[a] - 1;
+                }
+            }
+            grid = malloc(2 * nb[0] * nb[1] * nb[2] * sizeof *grid);
+            one = malloc(2 * nb[0] * nb[1] * nb[2] * sizeof *one);
+            CHECK(wvol__bounds_grid(bb, (const long *const *)lo, (const long *const *)hi, nb, grid),
+                  "%s: bounds grid", cases[ci].filter);
+            for (size_t t = 0, k = 0; k < nb[2]; k++)
+                for (size_t j = 0; j < nb[1]; j++)
+                    for (size_t ii = 0; ii < nb[0]; ii++, t++) {
+                        const long s0[3] = {lo[0][ii], lo[1][j], lo[2][k]}, s1[3] = {hi[0][ii], hi[1][j], hi[2][k]};
+                        wvol__bounds_box(bb, s0, s1, &one[2 * t], &one[2 * t + 1]);
+                        if (memcmp(&one[2 * t], &grid[2 * t], 2 * sizeof *one) != 0) worst++;
+                        if (one[2 * t] != 0.0 || one[2 * t + 1] != 0.0) nonzero++;
+                        boxes++;
+                    }
+            for (int a = 0; a < 3; a++) free(lo[a]), free(hi[a]);
+            free(grid);
+            free(one);
+        }
+        CHECK(worst == 0, "%s %d levels, %g kept: %zu of %zu brick bounds differ from the box's", cases[ci].filter,
+              cases[ci].levels, cases[ci].keep, worst, boxes);
+        /* the all-zero case bounds every brick by [0, 0]; the others bound none so */
+        CHECK(cases[ci].keep == 0.0 ? nonzero == 0 : nonzero == boxes, "%s: %zu of %zu bounds not [0, 0]",
+              cases[ci].filter, nonzero, boxes);
+        wvol__bounds_free(bb);
+        wvol_coeffs_destroy(c);
+        wvol_volume_destroy(v);
+    }
+}
+
 int main(void)
 {
     table_is_consistent();
@@ -834,5 +917,6 @@ int main(void)
     store_view_is_kept();
     stitch_independent_of_order();
     brick_bounds_hold();
+    bounds_grid_matches_boxes();
     return check_summary("test_iso");
 }

@@ -7,7 +7,7 @@
 #include <stdlib.h>
 #include <sys/mman.h>
 
-enum { HUGE_PAGE = 2u << 20, LARGE = 8u << 20 };
+enum { HUGE_PAGE = 2u << 20, LARGE = 8u << 20, PAGED = 1u << 20 };
 
 /* Asks for huge pages over the whole 2 MiB pages inside [p, p + bytes). glibc serves
  * buffers this large from a fresh mapping that it neither reads nor clears, so the
@@ -42,4 +42,19 @@ void *wvol__realloc_large(void *p, size_t bytes)
     void *q = realloc(p, bytes);
     advise_huge(q, bytes);
     return q;
+}
+
+void *wvol__malloc_pages(size_t *bytes)
+{
+    void *p = NULL;
+    size_t n = *bytes;
+    if (n < PAGED) return malloc(n ? n : 1);
+    if (n > SIZE_MAX - HUGE_PAGE) return NULL;
+    n = (n + HUGE_PAGE - 1) & ~(size_t)(HUGE_PAGE - 1);
+    if (posix_memalign(&p, HUGE_PAGE, n) != 0) return NULL;
+#ifdef MADV_HUGEPAGE
+    (void)madvise(p, n, MADV_HUGEPAGE); /* p and n whole huge pages; glibc has not touched them */
+#endif
+    *bytes = n;
+    return p;
 }

@@ -21,6 +21,13 @@ void *wvol__malloc_large(size_t bytes);
  * not touched beyond the old contents copied in). */
 void *wvol__realloc_large(void *p, size_t bytes);
 
+/* Scratch whose old contents never matter (a slot regrown is allocated afresh, nothing
+ * copied): at least *bytes bytes; from 1 MiB on, whole 2 MiB pages, aligned and asked for
+ * huge pages, *bytes then rounded up to them (the caller may use all of it). Buffers of a
+ * few MiB, below wvol__malloc_large's threshold, are where a fresh allocation's 4 KiB first
+ * touches cost most against their use (a reconstruction's band arrays). Free with free(). */
+void *wvol__malloc_pages(size_t *bytes);
+
 /* An array *p of *cap elements of elem bytes grown by doubling (from `first` elements when
  * empty) until it holds need; 1, or 0 when out of memory (*p and *cap then unchanged). */
 static inline int wvol__grow(void **p, size_t *cap, size_t need, size_t elem, size_t first)

@@ -203,9 +203,34 @@ static void brick_out_release(brick_out *o)
     o->vflags = NULL;
 }
 
-/* Each brick's bound: range[2 i], range[2 i + 1] = lo, hi of brick i's samples. */
+/* Each brick's bound: range[2 i], range[2 i + 1] = lo, hi of brick i's samples. The bricks
+ * form a tensor grid (a brick's cells along an axis depend on its index along that axis
+ * alone), so the bound takes them all at once (wvol__bounds_grid, the same values as brick by
+ * brick); brick by brick only when that is out of memory. */
 static void brick_ranges(const brick_grid *g, const wvol__brick_bounds *bb, size_t nbricks, double *range)
 {
+    long *ax = malloc(2 * (g->nb[0] + g->nb[1] + g->nb[2]) * sizeof *ax);
+    if (ax) {
+        const long *s0[3], *s1[3];
+        long *at = ax;
+        for (int a = 0; a < 3; a++) {
+            long *lo = at, *hi = at + g->nb[a];
+            for (size_t t = 0; t < g->nb[a]; t++) {
+                size_t bidx[3] = {0, 0, 0}, c0[3], c1[3];
+                bidx[a] = t;
+                brick_cells(g, bidx, c0, c1);
+                lo[t] = (long)c0[a];
+                hi[t] = (long)c1[a];
+            }
+            s0[a] = lo, s1[a] = hi;
+            at += 2 * g->nb[a];
+        }
+        if (wvol__bounds_grid(bb, s0, s1, g->nb, range)) {
+            free(ax);
+            return;
+        }
+        free(ax);
+    }
     for (size_t i = 0; i < nbricks; i++) {
         size_t bidx[3], c0[3], c1[3];
         long s0[3], s1[3];

@@ -37,6 +37,7 @@ typedef struct band_view {
 struct wvol__store_blocks {
     int M;
     band_view bv[WVOL_SELECT_MAX_LEVELS + 1][8];
+    uint32_t *dirs;    /* every band's directory, one allocation */
     cblock *blocks;    /* nblocks; directory entries index it + 1 */
     float *values;     /* nvalues, block by block, position order within a block */
     size_t nblocks, nvalues;
@@ -66,8 +67,7 @@ static void blocks_free(coef_blocks *cb)
         free(t);
     }
     if (cb->table_lock_ok) pthread_mutex_destroy(&cb->table_lock);
-    for (int m = 0; m <= WVOL_SELECT_MAX_LEVELS; m++)
-        for (int l = 0; l < 8; l++) free(cb->bv[m][l].dir);
+    free(cb->dirs);
     free(cb->blocks);
     free(cb->values);
 }
@@ -92,7 +92,7 @@ static inline size_t node_block(const coef_blocks *cb, const wvol__node *nd, int
 WVOL__CLONES static wvol_status blocks_build(coef_blocks *cb, const wvol_store *s, wvol_error *err)
 {
     wvol_store_info info;
-    size_t pad[3];
+    size_t pad[3], ndir = 0, at[WVOL_SELECT_MAX_LEVELS + 1][8] = {{0}}; /* a directory's offset + 1 */
     int a, m, l;
     wvol_store_get_info(s, &info);
     memset(cb, 0, sizeof *cb);
@@ -111,10 +111,21 @@ WVOL__CLONES static wvol_status blocks_build(coef_blocks *cb, const wvol_store *
                 if (((l >> a) & 1) && pad[a] == 1) n = 0; /* no high-pass on an untransformed axis */
             }
             if (!n || s->file) continue; /* a file store's details come from its chunks */
-            bv->dir = wvol__calloc_large(n, sizeof *bv->dir);
-            WVOL_RETURN_IF(!bv->dir, err, WVOL_ERR_NOMEM, "store: out of memory for the coefficient blocks");
-            cb->bytes += n * sizeof *bv->dir;
+            at[m][l] = ndir + 1;
+            ndir += n;
         }
+    /* every band's directory carved from one zeroed allocation (whole huge pages when large:
+     * a fresh view's first touches of many small directories cost more than their filling) */
+    if (ndir) {
+        size_t bytes = ndir * sizeof *cb->dirs;
+        cb->dirs = ndir <= SIZE_MAX / sizeof *cb->dirs ? wvol__malloc_pages(&bytes) : NULL;
+        WVOL_RETURN_IF(!cb->dirs, err, WVOL_ERR_NOMEM, "store: out of memory for the coefficient blocks");
+        memset(cb->dirs, 0, ndir * sizeof *cb->dirs);
+        cb->bytes += ndir * sizeof *cb->dirs;
+        for (m = 1; m <= cb->M; m++)
+            for (l = 1; l < 8; l++)
+                if (at[m][l]) cb->bv[m][l].dir = cb->dirs + (at[m][l] - 1);
+    }
     /* pass 1: the blocks and their masks; the blocks grow by doubling */
     {
         size_t cap = 0;

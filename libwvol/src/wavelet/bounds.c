@@ -16,9 +16,11 @@
  * dense coefficients or coefficient by coefficient (a sparse store).
  * Based on: DESIGN.md section 9. */
 #include <math.h>
+#include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
 
+#include "core/alloc.h"
 #include "wavelet/wavelet_internal.h"
 
 /* ---- 1D responses ----------------------------------------------------------------- */
@@ -125,6 +127,9 @@ struct wvol__brick_bounds {
     int M;
     int nbands;
     float *own_low;    /* the low-pass cube when the bound reconstructed it (create_src) */
+    float *maxima;     /* every detail band's absmax, one allocation (whole huge pages when
+                        * large: a fresh bound's first touches of many small tables cost more
+                        * than its filling) */
     size_t bytes;      /* tables beyond the struct */
     int kept;          /* held by its maker (wvol__bounds_keep): wvol__bounds_free leaves it */
     band_blocks bb[7 * 32 + 1];
@@ -138,9 +143,8 @@ void wvol__bounds_keep(brick_bounds *b, int kept)
 
 void wvol__bounds_free(brick_bounds *b)
 {
-    int i;
     if (!b || b->kept) return;
-    for (i = 0; i < b->nbands; i++) free(b->bb[i].absmax);
+    free(b->maxima);
     free(b->own_low);
     free(b);
 }
@@ -153,6 +157,7 @@ static wvol_status bounds_create(brick_bounds **out, const wvol_filter *f, int l
     brick_bounds *b;
     resp1 lp[33], hp[33];
     int m, l, a;
+    size_t total = 0; /* detail blocks of every band */
     *out = NULL;
     WVOL_RETURN_IF(levels < 1 || levels > 32, err, WVOL_ERR_ARG, "brick bounds: %d levels", levels);
     for (a = 0; a < 3; a++)
@@ -194,13 +199,25 @@ static wvol_status bounds_create(brick_bounds **out, const wvol_filter *f, int l
             b->bytes += sizeof *q;
             if (l == 0) continue;
             nblk = q->nb[0] * q->nb[1] * q->nb[2];
-            q->absmax = calloc(nblk, sizeof(float));
-            if (!q->absmax) {
-                wvol__bounds_free(b);
-                return wvol_error_set(err, WVOL_ERR_NOMEM, "brick bounds: out of memory");
-            }
-            b->bytes += nblk * sizeof(float);
+            total += nblk;
         }
+    /* the detail bands' tables carved from one zeroed allocation, in band order */
+    {
+        size_t bytes = total * sizeof(float), at = 0;
+        b->maxima = total <= SIZE_MAX / sizeof(float) ? wvol__malloc_pages(&bytes) : NULL;
+        if (!b->maxima) {
+            wvol__bounds_free(b);
+            return wvol_error_set(err, WVOL_ERR_NOMEM, "brick bounds: out of memory");
+        }
+        memset(b->maxima, 0, total * sizeof(float));
+        for (int qi = 0; qi < b->nbands; qi++) {
+            band_blocks *q = &b->bb[qi];
+            if (q->band == 0) continue;
+            q->absmax = b->maxima + at;
+            at += q->nb[0] * q->nb[1] * q->nb[2];
+        }
+        b->bytes += total * sizeof(float);
+    }
     *out = b;
     return WVOL_OK;
 }
@@ -232,7 +249,10 @@ wvol_status wvol__bounds_create_src(brick_bounds **out, const wvol__coef_source 
         WVOL_RETURN_IF(src->pad[a] < 2, err, WVOL_ERR_DIMS, "brick bounds: axis %c is not transformed", "xyz"[a]);
     for (int a = 0; a < 3; a++) e[a] = src->pad[a] >> L;
     n = e[0] * e[1] * e[2];
-    low = malloc(n * sizeof *low);
+    {
+        size_t bytes = n * sizeof *low; /* written whole by the reconstruction below */
+        low = wvol__malloc_pages(&bytes);
+    }
     WVOL_RETURN_IF(!low, err, WVOL_ERR_NOMEM, "brick bounds: out of memory for a %zu x %zu x %zu low-pass cube", e[0],
                    e[1], e[2]);
     /* the pyramid above level L, reconstructed: its samples are the level-L low-pass */
@@ -356,9 +376,18 @@ void wvol__bounds_finish(brick_bounds *b)
                         if (!(av <= gmax)) gmax = isnan(av) ? INFINITY : av;
                     }
         } else {
+            /* the block maxima are magnitudes (+0 to +inf; NaN never stored): as int32 their
+             * bits order as the values, so the maximum is an integer one, which vectorises
+             * (a fresh 512^3 bound holds 14 MB of them); a NaN's bits sort above +inf's */
             size_t i, nblk = q->nb[0] * q->nb[1] * q->nb[2];
-            for (i = 0; i < nblk; i++)
-                if (!(q->absmax[i] <= gmax)) gmax = isnan(q->absmax[i]) ? INFINITY : q->absmax[i];
+            int32_t top = 0;
+            for (i = 0; i < nblk; i++) {
+                int32_t bits;
+                memcpy(&bits, &q->absmax[i], sizeof bits);
+                top = bits > top ? bits : top;
+            }
+            if (top > 0x7f800000) top = 0x7f800000;
+            memcpy(&gmax, &top, sizeof gmax);
         }
         q->gmax = gmax;
     }
@@ -417,22 +446,31 @@ static void low_range(const brick_bounds *b, const band_blocks *q, const band_re
     }
 }
 
+/* Blocks of a detail band covering the reached positions [k0, k0 + kn) along axis a: [*b0,
+ * *b1] (unwrapped); their count, 0 when none is reached. */
+static long axis_span(const band_blocks *q, int a, long k0, long kn, long *b0, long *b1)
+{
+    long bs = (long)q->bs[a], nbk = (long)q->nb[a];
+    if (kn <= 0) return 0;
+    if (kn >= (long)q->e[a]) {
+        *b0 = 0, *b1 = nbk - 1;
+    } else {
+        long m0 = wrap(k0, (long)q->e[a]), last = m0 + kn - 1;
+        *b0 = m0 / bs;
+        *b1 = last < (long)q->e[a] ? last / bs : nbk + (last - (long)q->e[a]) / bs;
+        if (*b1 - *b0 + 1 > nbk) *b1 = *b0 + nbk - 1;
+    }
+    return *b1 - *b0 + 1;
+}
+
 /* Blocks of a detail band covering the reached positions, per axis [b0, b1] (unwrapped). */
 static size_t block_span(const band_blocks *q, const band_reach *r, long b0[3], long b1[3])
 {
     size_t count = 1;
     for (int a = 0; a < 3; a++) {
-        long bs = (long)q->bs[a], nbk = (long)q->nb[a];
-        if (r->kn[a] <= 0) return 0;
-        if (r->kn[a] >= (long)q->e[a]) {
-            b0[a] = 0, b1[a] = nbk - 1;
-        } else {
-            long m0 = wrap(r->k0[a], (long)q->e[a]), last = m0 + r->kn[a] - 1;
-            b0[a] = m0 / bs;
-            b1[a] = last < (long)q->e[a] ? last / bs : nbk + (last - (long)q->e[a]) / bs;
-            if (b1[a] - b0[a] + 1 > nbk) b1[a] = b0[a] + nbk - 1;
-        }
-        count *= (size_t)(b1[a] - b0[a] + 1);
+        long n = axis_span(q, a, r->k0[a], r->kn[a], &b0[a], &b1[a]);
+        if (!n) return 0;
+        count *= (size_t)n;
     }
     return count;
 }
@@ -463,6 +501,55 @@ static float block_absmax(const band_blocks *q, const long b0[3], const long b1[
  * reach most of a band, and the scan would cost more than the bound saves. */
 #define WHOLE_SCAN_MAX 4096
 
+/* What a box's bound takes from one band: a detail band's largest block maxima over the
+ * core's and the whole response's reach (whole: the band's global maximum when that reach is
+ * too long to scan); the low-pass band's range over the core's reach and the magnitude its
+ * tails carry. */
+typedef struct band_stat {
+    float a, b; /* detail: amax, wmax; low-pass: cmin, cmax (core) */
+    double wabs; /* low-pass: the tails' magnitude */
+} band_stat;
+
+/* The low-pass band's stat from its ranges over the core's reach (cmin > cmax: none) and
+ * the whole response's (scanned: whether it was, wmin > wmax: none). */
+static band_stat low_stat(const band_blocks *q, float cmin, float cmax, int scanned, float wmin, float wmax)
+{
+    band_stat r;
+    r.wabs = (double)q->gmax;
+    if (cmin > cmax) cmin = cmax = 0.0f; /* no core reaches (cannot happen for a non-empty box) */
+    if (q->tailw > 0 && scanned) r.wabs = wmin > wmax ? 0.0 : fmax(fabs((double)wmin), fabs((double)wmax));
+    else if (q->tailw == 0) r.wabs = fmax(fabs((double)cmin), fabs((double)cmax));
+    r.a = cmin, r.b = cmax;
+    return r;
+}
+
+/* The bound from every band's stat (st[qi]), in band order. Rounding: float coefficients
+ * summed in double, the result rounded to float; no absolute term, so that a box reached by
+ * zeros only is bounded by exactly [0, 0]. */
+static void combine(const brick_bounds *b, const band_stat *st, double *vmin, double *vmax)
+{
+    double detail = 0.0, lo = 0.0, hi = 0.0, mag = 0.0;
+    for (int qi = 0; qi < b->nbands; qi++) {
+        const band_blocks *q = &b->bb[qi];
+        if (q->band == 0) {
+            double a0 = 0.5 * ((double)st[qi].a + (double)st[qi].b), half = 0.5 * ((double)st[qi].b - (double)st[qi].a);
+            double p1 = a0 * q->smin, p2 = a0 * q->smax;
+            double off = half * q->leb + (st[qi].wabs + fabs(a0)) * q->tailw;
+            lo = (p1 < p2 ? p1 : p2) - off;
+            hi = (p1 > p2 ? p1 : p2) + off;
+            mag += st[qi].wabs * (q->leb + q->tailw);
+        } else {
+            detail += (double)st[qi].a * q->leb + (double)st[qi].b * q->tailw;
+        }
+    }
+    mag += detail;
+    {
+        double pad = 1e-5 * mag;
+        *vmin = lo - detail - pad;
+        *vmax = hi + detail + pad;
+    }
+}
+
 /* Bound of the reconstructed samples in the box [s0, s1] (inclusive, voxel indices).
  * The coefficients whose core reaches the box carry the core sums; those reached only
  * by the tails carry the tail weights, with their own maximum when the whole response's
@@ -473,30 +560,16 @@ static float block_absmax(const band_blocks *q, const long b0[3], const long b1[
  * the box rather than with the whole volume's. */
 void wvol__bounds_box(const brick_bounds *b, const long s0[3], const long s1[3], double *vmin, double *vmax)
 {
-    double detail = 0.0, lo = 0.0, hi = 0.0, mag = 0.0;
-    int qi;
-    for (qi = 0; qi < b->nbands; qi++) {
+    band_stat st[7 * 32 + 1];
+    for (int qi = 0; qi < b->nbands; qi++) {
         const band_blocks *q = &b->bb[qi];
         band_reach core = reach_box(q, 0, s0, s1), whole = reach_box(q, 1, s0, s1);
         if (q->band == 0) {
-            float cmin, cmax, wmin, wmax;
-            double wabs = (double)q->gmax;
+            float cmin, cmax, wmin = 0.0f, wmax = 0.0f;
+            const int scan = q->tailw > 0 && (size_t)whole.kn[0] * (size_t)whole.kn[1] * (size_t)whole.kn[2] <= WHOLE_SCAN_MAX;
             low_range(b, q, &core, &cmin, &cmax);
-            if (cmin > cmax) cmin = cmax = 0.0f; /* no core reaches (cannot happen for a non-empty box) */
-            if (q->tailw > 0 && (size_t)whole.kn[0] * (size_t)whole.kn[1] * (size_t)whole.kn[2] <= WHOLE_SCAN_MAX) {
-                low_range(b, q, &whole, &wmin, &wmax);
-                wabs = wmin > wmax ? 0.0 : fmax(fabs((double)wmin), fabs((double)wmax));
-            } else if (q->tailw == 0) {
-                wabs = fmax(fabs((double)cmin), fabs((double)cmax));
-            }
-            {
-                double a0 = 0.5 * ((double)cmin + (double)cmax), half = 0.5 * ((double)cmax - (double)cmin);
-                double p1 = a0 * q->smin, p2 = a0 * q->smax;
-                double off = half * q->leb + (wabs + fabs(a0)) * q->tailw;
-                lo = (p1 < p2 ? p1 : p2) - off;
-                hi = (p1 > p2 ? p1 : p2) + off;
-                mag += wabs * (q->leb + q->tailw);
-            }
+            if (scan) low_range(b, q, &whole, &wmin, &wmax);
+            st[qi] = low_stat(q, cmin, cmax, scan, wmin, wmax);
             continue;
         }
         /* detail band: block maxima over the reach */
@@ -507,15 +580,172 @@ void wvol__bounds_box(const brick_bounds *b, const long s0[3], const long s1[3],
                 size_t nw = block_span(q, &whole, b0, b1);
                 if (nw <= WHOLE_SCAN_MAX) wmax = nw ? block_absmax(q, b0, b1) : 0.0f;
             }
-            detail += (double)amax * q->leb + (double)wmax * q->tailw;
+            st[qi].a = amax, st[qi].b = wmax, st[qi].wabs = 0.0;
         }
     }
-    mag += detail;
-    /* rounding: float coefficients summed in double, the result rounded to float; no
-     * absolute term, so that a box reached by zeros only is bounded by exactly [0, 0] */
-    {
-        double pad = 1e-5 * mag;
-        *vmin = lo - detail - pad;
-        *vmax = hi + detail + pad;
+    combine(b, st, vmin, vmax);
+}
+
+/* ---- the bounds of a grid of boxes -------------------------------------------------- */
+
+/* One axis's windows: box t reads positions start[t] .. start[t] + len[t] - 1 of an axis of
+ * extent e, taken modulo e (len 0: none). */
+typedef struct axis_windows {
+    long *start, *len;
+} axis_windows;
+
+/* red[t] = the largest of a[x + sy y + sz z] (from init) over box t's windows along the three
+ * axes, t = t0 + n0 (t1 + n1 t2); with both, also red[nbox + t] = the least (from +inf), in
+ * the same pass (the low-pass cube's range). Taken axis by axis: x into tmp1 (n0 x e1 x e2,
+ * the least after the largest), then y into tmp2 (n0 x n1 x e2), then z. The same values as
+ * the box by box scans: a minimum or maximum does not depend on the order. */
+static void reduce_grid(const float *a, const size_t e[3], size_t sy, size_t sz, const axis_windows w[3],
+                        const size_t n[3], int both, float init, float *tmp1, float *tmp2, float *red)
+{
+#define UP_MAX(acc, v) ((acc) = !((v) <= (acc)) ? (v) : (acc))
+#define UP_MIN(acc, v) ((acc) = !((v) >= (acc)) ? (v) : (acc))
+    const size_t t1n = n[0] * e[1] * e[2], t2n = n[0] * n[1] * e[2], nbox = n[0] * n[1] * n[2];
+    for (size_t z = 0; z < e[2]; z++)
+        for (size_t y = 0; y < e[1]; y++) {
+            const float *row = a + sy * y + sz * z;
+            float *o = tmp1 + n[0] * (y + e[1] * z);
+            for (size_t t = 0; t < n[0]; t++) {
+                float hi = init, lo = INFINITY;
+                size_t x = (size_t)w[0].start[t];
+                for (long k = 0; k < w[0].len[t]; k++) {
+                    UP_MAX(hi, row[x]);
+                    if (both) UP_MIN(lo, row[x]);
+                    if (++x == e[0]) x = 0;
+                }
+                o[t] = hi;
+                if (both) o[t1n + t] = lo;
+            }
+        }
+    for (size_t z = 0; z < e[2]; z++)
+        for (size_t t1 = 0; t1 < n[1]; t1++) {
+            float *o = tmp2 + n[0] * (t1 + n[1] * z);
+            size_t y = (size_t)w[1].start[t1];
+            for (size_t t0 = 0; t0 < n[0]; t0++) {
+                o[t0] = init;
+                if (both) o[t2n + t0] = INFINITY;
+            }
+            for (long k = 0; k < w[1].len[t1]; k++) {
+                const float *in = tmp1 + n[0] * (y + e[1] * z);
+                for (size_t t0 = 0; t0 < n[0]; t0++) UP_MAX(o[t0], in[t0]);
+                if (both)
+                    for (size_t t0 = 0; t0 < n[0]; t0++) UP_MIN(o[t2n + t0], in[t1n + t0]);
+                if (++y == e[1]) y = 0;
+            }
+        }
+    for (size_t t2 = 0; t2 < n[2]; t2++) {
+        float *o = red + n[0] * n[1] * t2;
+        size_t z = (size_t)w[2].start[t2];
+        for (size_t t = 0; t < n[0] * n[1]; t++) {
+            o[t] = init;
+            if (both) o[nbox + t] = INFINITY;
+        }
+        for (long k = 0; k < w[2].len[t2]; k++) {
+            const float *in = tmp2 + n[0] * n[1] * z;
+            for (size_t t = 0; t < n[0] * n[1]; t++) UP_MAX(o[t], in[t]);
+            if (both)
+                for (size_t t = 0; t < n[0] * n[1]; t++) UP_MIN(o[nbox + t], in[t2n + t]);
+            if (++z == e[2]) z = 0;
+        }
     }
+#undef UP_MAX
+#undef UP_MIN
+}
+
+/* Box t's windows along axis a for band q (whole: the whole response's reach, else the
+ * core's): low-pass positions (blocks = 0), or the detail blocks block_span covers. */
+static void grid_windows(const band_blocks *q, int a, int whole, int blocks, const long *s0, const long *s1, size_t n,
+                         axis_windows *w)
+{
+    for (size_t t = 0; t < n; t++) {
+        long k0, kn;
+        reach(q, a, whole ? 0 : q->lo[a], whole ? q->len[a] - 1 : q->hi[a], s0[t], s1[t], &k0, &kn);
+        if (!blocks) {
+            w->start[t] = kn > 0 ? wrap(k0, (long)q->e[a]) : 0;
+            w->len[t] = kn > 0 ? kn : 0;
+            continue;
+        }
+        {
+            long b0 = 0, b1 = 0, nblk = axis_span(q, a, k0, kn, &b0, &b1);
+            w->start[t] = nblk ? b0 % (long)q->nb[a] : 0, w->len[t] = nblk;
+        }
+    }
+}
+
+int wvol__bounds_grid(const brick_bounds *b, const long *const s0[3], const long *const s1[3], const size_t n[3],
+                      double *range)
+{
+    const size_t nbox = n[0] * n[1] * n[2];
+    size_t ntmp = 0, nw = n[0] + n[1] + n[2];
+    long *wbuf;
+    float *tmp1, *tmp2, *red, *red2;
+    band_stat *st;
+    axis_windows core[3], whole[3];
+    if (!nbox) return 1;
+    /* the scratch of the largest band */
+    for (int qi = 0; qi < b->nbands; qi++) {
+        const band_blocks *q = &b->bb[qi];
+        const size_t *ext = q->band == 0 ? q->e : q->nb;
+        size_t t1 = n[0] * ext[1] * ext[2], t2 = n[0] * n[1] * ext[2];
+        if (t1 > ntmp) ntmp = t1;
+        if (t2 > ntmp) ntmp = t2;
+    }
+    wbuf = malloc(4 * nw * sizeof *wbuf);
+    tmp1 = malloc((4 * ntmp + 4 * nbox) * sizeof *tmp1); /* tmp1, tmp2: largest and least */
+    st = malloc(nbox * (size_t)b->nbands * sizeof *st);
+    if (!wbuf || !tmp1 || !st) {
+        free(wbuf);
+        free(tmp1);
+        free(st);
+        return 0;
+    }
+    tmp2 = tmp1 + 2 * ntmp;
+    red = tmp2 + 2 * ntmp;
+    red2 = red + 2 * nbox;
+    for (int a = 0, at = 0; a < 3; at += 2 * (int)n[a], a++) {
+        core[a].start = wbuf + at, core[a].len = wbuf + at + n[a];
+        whole[a].start = wbuf + 2 * nw + at, whole[a].len = wbuf + 2 * nw + at + n[a];
+    }
+    for (int qi = 0; qi < b->nbands; qi++) {
+        const band_blocks *q = &b->bb[qi];
+        const int low = q->band == 0;
+        for (int a = 0; a < 3; a++) {
+            grid_windows(q, a, 0, !low, s0[a], s1[a], n[a], &core[a]);
+            grid_windows(q, a, 1, !low, s0[a], s1[a], n[a], &whole[a]);
+        }
+        if (low) {
+            /* red: cmax, cmin over the core; red2: wmax, wmin over the whole reach */
+            reduce_grid(b->low, q->e, b->low_sy, b->low_sz, core, n, 1, -INFINITY, tmp1, tmp2, red);
+            if (q->tailw > 0) reduce_grid(b->low, q->e, b->low_sy, b->low_sz, whole, n, 1, -INFINITY, tmp1, tmp2, red2);
+            for (size_t t = 0, k = 0; k < n[2]; k++)
+                for (size_t j = 0; j < n[1]; j++)
+                    for (size_t i = 0; i < n[0]; i++, t++) {
+                        const size_t cells = (size_t)whole[0].len[i] * (size_t)whole[1].len[j] * (size_t)whole[2].len[k];
+                        const int scan = q->tailw > 0 && cells <= WHOLE_SCAN_MAX;
+                        st[t * (size_t)b->nbands + (size_t)qi] =
+                            low_stat(q, red[nbox + t], red[t], scan, scan ? red2[nbox + t] : 0.0f, scan ? red2[t] : 0.0f);
+                    }
+        } else {
+            reduce_grid(q->absmax, q->nb, q->nb[0], q->nb[0] * q->nb[1], core, n, 0, 0.0f, tmp1, tmp2, red);
+            if (q->tailw > 0) reduce_grid(q->absmax, q->nb, q->nb[0], q->nb[0] * q->nb[1], whole, n, 0, 0.0f, tmp1, tmp2, red2);
+            for (size_t t = 0, k = 0; k < n[2]; k++)
+                for (size_t j = 0; j < n[1]; j++)
+                    for (size_t i = 0; i < n[0]; i++, t++) {
+                        const size_t blocks = (size_t)whole[0].len[i] * (size_t)whole[1].len[j] * (size_t)whole[2].len[k];
+                        band_stat *o = &st[t * (size_t)b->nbands + (size_t)qi];
+                        o->a = red[t];
+                        o->b = q->tailw > 0 && blocks <= WHOLE_SCAN_MAX ? red2[t] : q->gmax;
+                        o->wabs = 0.0;
+                    }
+        }
+    }
+    for (size_t t = 0; t < nbox; t++) combine(b, st + t * (size_t)b->nbands, &range[2 * t], &range[2 * t + 1]);
+    free(wbuf);
+    free(tmp1);
+    free(st);
+    return 1;
 }

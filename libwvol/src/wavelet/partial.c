@@ -9,6 +9,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "core/alloc.h"
 #include "core/clones.h"
 #include "wavelet/wavelet_internal.h"
 
@@ -492,14 +493,23 @@ WVOL__SYNTH static void synth_axis(float *out, const float *lo, const float *hi,
     }
 }
 
-/* Scratch arrays: grown, never shrunk; freed by wvol__brick_scratch_free. */
+/* Scratch arrays: grown, never shrunk; freed by wvol__brick_scratch_free. A slot's contents
+ * are dead when it is taken (every user writes it whole first), so a slot too small is
+ * replaced, not copied, by whole huge pages where it is large (core/alloc.h): a fresh
+ * reconstruction's first touches of its band arrays were a visible part of a store's first
+ * marching cubes. */
 static float *scratch_get(wvol__brick_scratch *s, int slot, size_t n)
 {
     if (s->cap[slot] < n) {
-        float *p = realloc(s->buf[slot], n * sizeof *p);
-        if (!p) return NULL;
+        size_t bytes = n * sizeof(float);
+        float *p;
+        if (n > SIZE_MAX / sizeof(float)) return NULL;
+        free(s->buf[slot]);
+        s->buf[slot] = NULL;
+        s->cap[slot] = 0;
+        if (!(p = wvol__malloc_pages(&bytes))) return NULL;
         s->buf[slot] = p;
-        s->cap[slot] = n;
+        s->cap[slot] = bytes / sizeof(float);
     }
     return s->buf[slot];
 }

@@ -111,6 +111,13 @@ void wvol__bounds_add_dense(wvol__brick_bounds *b, int m, int band, const size_t
 void wvol__bounds_finish(wvol__brick_bounds *b);
 /* Bound of the samples in the box [s0, s1] (inclusive voxel indices). */
 void wvol__bounds_box(const wvol__brick_bounds *b, const long s0[3], const long s1[3], double *vmin, double *vmax);
+/* wvol__bounds_box of every box of a tensor grid at once, the same values bit for bit: box
+ * (i, j, k) is [s0[0][i], s1[0][i]] x [s0[1][j], s1[1][j]] x [s0[2][k], s1[2][k]], its bound
+ * at range[2 t], range[2 t + 1], t = i + n[0] (j + n[1] k). The block maxima over each box's
+ * reach are taken axis by axis (separable), shared by the boxes of a row, instead of box by
+ * box. 0 when out of memory (range then unwritten). */
+int wvol__bounds_grid(const wvol__brick_bounds *b, const long *const s0[3], const long *const s1[3],
+                      const size_t n[3], double *range);
 size_t wvol__bounds_bytes(const wvol__brick_bounds *b);
 /* kept = 1: b is shared by its maker (a store's cached bounds, read-only once finished), and
  * wvol__bounds_free leaves it; the maker sets 0 again before freeing it. */
