@@ -15,21 +15,7 @@
 #include "wvol_synth.h"
 
 static uint64_t rs = 0x9E3779B97F4A7C15ull;
-static double rnd(void)
-{
-    return fixture_urand(&rs);
-}
-
-static wvol_volume *phantom(const char *kind, size_t n)
-{
-    wvol_synth_params sp;
-    wvol_volume *v = NULL;
-    wvol_synth_params_default(&sp);
-    sp.dims[0] = sp.dims[1] = sp.dims[2] = n;
-    sp.seed = 5;
-    if (wvol_synth_make(&v, NULL, kind, &sp, NULL) != WVOL_OK) return NULL;
-    return v;
-}
+#define rnd() fixture_urand(&rs)
 
 /* On random 2-voxel cells (on the tracer's grid, and anywhere) the interval range cannot
  * decide, against iso levels just outside the sampled range of f^ (where a tighter range
@@ -156,9 +142,15 @@ int main(void)
     int decided = 0;
     int changed = 0;
     for (i = 0; i < sizeof cases / sizeof cases[0]; i++) {
-        wvol_volume *v = phantom(cases[i].kind, cases[i].n);
-        wvol_store *s = v ? fixture_store(v, cases[i].f, 3, cases[i].keep, 4) : NULL;
+        wvol_synth_params sp;
+        wvol_volume *v = NULL;
+        wvol_store *s;
         char what[96];
+        wvol_synth_params_default(&sp);
+        sp.dims[0] = sp.dims[1] = sp.dims[2] = cases[i].n;
+        sp.seed = 5;
+        if (wvol_synth_make(&v, NULL, cases[i].kind, &sp, NULL) != WVOL_OK) v = NULL;
+        s = v ? fixture_store(v, cases[i].f, 3, cases[i].keep, 4) : NULL;
         snprintf(what, sizeof what, "%s %zu^3 %s L3 keep %g iso %g", cases[i].kind, cases[i].n, cases[i].f,
                  cases[i].keep, cases[i].iso);
         CHECK(s != NULL, "%s: store", what);
