@@ -16,8 +16,8 @@
 /* the coarsest level's lattice patches a cell may have per axis (a 2-voxel cell on the
  * half-voxel lattice of level 3 at J = 4 has 5): more and the cell is left to the interval range */
 #define TT_P WVOL__TT_P
-/* distinct translates a cell's level-M functions have per axis (the rest: no tensor range) */
-#define TT_SPAN 16
+/* distinct translates a cell's level-M functions may have per axis (more: no tensor range) */
+#define TT_SPAN WVOL__TT_SPAN
 
 static inline double dmin(double a, double b) { return a < b ? a : b; }
 static inline double dmax(double a, double b) { return a > b ? a : b; }
