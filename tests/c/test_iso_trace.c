@@ -311,8 +311,8 @@ static void filtered_queries_equal(const wvol_store *s, const char *what)
                 break;
             }
         }
-        wvol__iso_box_range_list(&k, sub.hits, sub.count, clo, chi, &r0, &r1);
-        wvol__iso_box_range_list(&k, flt.hits, flt.count, clo, chi, &f0, &f1);
+        wvol__iso_box_range_list(&k, sub.hits, sub.count, clo, chi, &r0, &r1, NULL);
+        wvol__iso_box_range_list(&k, flt.hits, flt.count, clo, chi, &f0, &f1, NULL);
         if (r0 != f0 || r1 != f1) bad++;
     }
     printf("  %s: filtered box queries on 60 boxes (%zu hits): %d differ\n", what, total, bad);

@@ -76,6 +76,10 @@ typedef struct wvol__iso_boxk {
     int pieces, per_unit, runs;
     double inv_size[WVOL_SELECT_MAX_LEVELS + 1]; /* 2^-m: a level-m factor's variable per voxel */
     double support;
+    const wvol_basis *basis; /* the store's tables (the tensor range's pieces) */
+    double h;                /* their piece length, 2^-J units */
+    double bmax3[8];         /* per band: prod_a max |Bernstein coefficient| of its factor's pieces */
+    double lip3[8];          /* per band: sum_a dmax_a prod_{b != a} vmax_b (a factor's Lipschitz bound) */
 } wvol__iso_boxk;
 
 void wvol__iso_boxk_init(wvol__iso_boxk *k, const wvol_store *s);
@@ -101,9 +105,34 @@ wvol_status wvol__iso_box_range(const wvol__iso_boxk *k, const wvol_store *s, wv
  * memory; src and dst distinct). */
 int wvol__iso_hits_in_box(const wvol_store_hits *src, const double lo[3], const double hi[3], wvol_store_hits *dst);
 /* wvol__iso_box_range from the list of the functions touching the box (a box query's, in its
- * order; the result depends on the order only through rounding). */
+ * order; the result depends on the order only through rounding). fine (NULL or 2 doubles): the
+ * part of the functions below the coarsest level, as the midpoint sum fine[0] and the padded
+ * half-width fine[1] of their intervals (wvol__iso_box_class_tensor's finer levels). */
 void wvol__iso_box_range_list(const wvol__iso_boxk *k, const wvol_store_hit *hits, size_t n, const double lo[3],
-                              const double hi[3], double *vmin, double *vmax);
+                              const double hi[3], double *vmin, double *vmax, double *fine);
+
+/* Scratch of wvol__iso_box_class_tensor (one per thread; start zeroed, free its order). */
+#define WVOL__TT_P 6      /* lattice patches per axis of a cell, at most */
+#define WVOL__TT_SPAN 16  /* translates per axis of the coarsest level's functions touching a cell */
+#define WVOL__TT_LEVELS 8
+typedef struct wvol__tensor_ws {
+    unsigned char have[3][2 * WVOL__TT_SPAN];
+    double f[3][2 * WVOL__TT_SPAN][4 * WVOL__TT_P]; /* factors' Bernstein coefficients per sub-interval */
+    double fc[3][2 * WVOL__TT_SPAN];                /* and their values at the cell's centre */
+    size_t cnt[2 * WVOL__TT_SPAN][2 * WVOL__TT_SPAN];
+    uint32_t *order;
+    size_t cap;
+    double w[2 * WVOL__TT_SPAN * 16 * WVOL__TT_P * WVOL__TT_P]; /* per x key: W[q b][r c] */
+    double t[16 * WVOL__TT_P * WVOL__TT_P];                     /* one row T[p a][.] */
+} wvol__tensor_ws;
+/* The class of f^ on the closed box [lo, hi] (a small cell) where the interval range cannot
+ * decide it because the coarsest level's functions cancel: 1 (f^ > iso on all of it), 0 (f^ <
+ * iso) or -1 (undecided, or not tried: too many lattice patches or translates, an untransformed
+ * axis, no piece tables, out of memory). The coarsest level's sum is taken as tensor-product
+ * Bernstein forms on the box's patches of its lattice (their hull), the finer levels as the
+ * intervals fine[] of wvol__iso_box_range_list; rigorous (rounding padded, trace_tensor.c). */
+int wvol__iso_box_class_tensor(const wvol__iso_boxk *k, wvol__tensor_ws *w, const wvol_store_hit *hits, size_t n,
+                               const double lo[3], const double hi[3], const double fine[2], double iso);
 
 #define WVOL__CELL_LEVELS 4
 
@@ -119,6 +148,7 @@ typedef struct wvol__tracer {
      * classified yet), computed from the store's rigorous box bounds the first time a ray
      * reaches it (a pure function of the box, so threads may race on it) */
     double cell;
+    int tensor;         /* the finest cells undecided by the interval range try the tensor range */
     double refine_gain; /* an undecided cell is refined only where its children's bounds would
                            need to be at most this many times narrower to decide (trace_cells.c) */
     size_t nc[3];
@@ -143,6 +173,7 @@ typedef struct wvol__cell_ws {
     wvol_store_hits q[WVOL__CELL_LEVELS];
     double lo[WVOL__CELL_LEVELS][3], hi[WVOL__CELL_LEVELS][3];
     int have[WVOL__CELL_LEVELS];
+    wvol__tensor_ws *tt; /* the finest cells' tensor ranges (allocated on first use) */
 } wvol__cell_ws;
 void wvol__cell_ws_free(wvol__cell_ws *w);
 
@@ -168,6 +199,9 @@ void wvol__trace_ws_free(wvol__trace_ws *w);
  * unknown), which sets how far undecided cells are refined (tr->refine_gain). */
 wvol_status wvol__trace_cells(wvol__tracer *tr, double spacing, wvol_error *err);
 void wvol__trace_cells_free(wvol__tracer *tr);
+/* A test switch (0 by default): 1 turns the finest cells' tensor ranges off, so that tests can
+ * compare the images with and without them. Set it only while no image is traced. */
+extern int wvol__trace_tensor_off;
 /* The class of f^ in the finest cell holding x (voxel coords): 1, 0 or -1 (undecided), going
  * down the hierarchy from the coarsest cell and classifying the cells met for the first time
  * (w: the caller's query scratch; *evaluated counts them and *seconds adds their time; both

@@ -23,6 +23,10 @@
 #define REFINE_GAIN_PER_RAY 4.0
 #define REFINE_GAIN_MIN 2.0
 #define REFINE_GAIN_MAX 8.0
+#define TENSOR_MIN_RAYS 2.0    /* rays across a finest cell's side for its tensor range */
+#define TENSOR_REFINE_GAIN 16.0 /* the refinement gain with the tensor ranges */
+
+int wvol__trace_tensor_off = 0;
 
 typedef wvol__tracer tracer;
 
@@ -100,6 +104,30 @@ void wvol__iso_boxk_init(wvol__iso_boxk *k, const wvol_store *s)
     k->per_unit = b->per_unit;
     k->support = b->support;
     for (k->runs = 1; (1L << k->runs) <= b->pieces; k->runs++) {}
+    k->basis = b;
+    k->h = b->h;
+    {
+        double bm[2] = {0, 0};
+        int w, band, a2;
+        for (w = 0; w < 2; w++)
+            for (int i = 0; i < b->pieces; i++) {
+                double lo, hi;
+                wvol_basis_piece_range(b, w, i, &lo, &hi);
+                bm[w] = fmax(bm[w], fmax(fabs(lo), fabs(hi)));
+            }
+        for (band = 0; band < 8; band++) {
+            k->bmax3[band] = 1;
+            k->lip3[band] = 0;
+            for (a2 = 0; a2 < 3; a2++) {
+                int wa = (band >> a2) & 1;
+                double o = b->dmax[wa];
+                k->bmax3[band] *= bm[wa];
+                for (w = 0; w < 3; w++)
+                    if (w != a2) o *= b->vmax[(band >> w) & 1];
+                k->lip3[band] += o;
+            }
+        }
+    }
     k->prange = malloc((size_t)k->runs * (size_t)b->pieces * 4 * sizeof *k->prange);
     if (k->prange) { /* no table: every factor falls back to its global max (fb), as correct */
         for (int i = 0; i < b->pieces; i++)
@@ -211,9 +239,30 @@ static inline void factor_cached(fcache *fc, const wvol__iso_boxk *k, const wvol
     factor_range(k, which, (lo[a] - h->lo[a]) * sc, (hi[a] - h->lo[a]) * sc, flo, fhi);
 }
 
-WVOL__CLONES void wvol__iso_box_range_list(const wvol__iso_boxk *k, const wvol_store_hit *hits, size_t n, const double lo[3],
-                              const double hi[3], double *vmin, double *vmax)
+/* c w on the box lies in c [plo, phi] (plo = phi = the function's norm on entry): the product of
+ * the factors' ranges there; adds its midpoint to *mid and its half-width to *dev. */
+static inline void fn_interval(const wvol__iso_boxk *k, fcache *fc, const wvol_store_hit *h, double c, double plo,
+                               double phi, const double lo[3], const double hi[3], double *mid, double *dev)
 {
+    int a;
+    for (a = 0; a < 3; a++) {
+        double flo, fhi, p0, p1, p2, p3;
+        if (!k->transformed[a]) continue;
+        factor_cached(fc, k, h, a, lo, hi, &flo, &fhi);
+        /* the four products, no branch on their signs (which are unpredictable): rounding is
+         * monotone, so the extreme rounded product is the rounded extreme one */
+        p0 = plo * flo, p1 = plo * fhi, p2 = phi * flo, p3 = phi * fhi;
+        plo = dmin(dmin(p0, p1), dmin(p2, p3));
+        phi = dmax(dmax(p0, p1), dmax(p2, p3));
+    }
+    *mid += c * 0.5 * (plo + phi);
+    *dev += fabs(c) * 0.5 * (phi - plo);
+}
+
+WVOL__CLONES void wvol__iso_box_range_list(const wvol__iso_boxk *k, const wvol_store_hit *hits, size_t n, const double lo[3],
+                              const double hi[3], double *vmin, double *vmax, double *fine)
+{
+    double fmid = 0, fdev = 0, fmag = 0;
     size_t i, nlow = 0;
     double a0 = 0, pbar[3] = {0, 0, 0}, g[3] = {0, 0, 0}, sxx[3] = {0, 0, 0}, dev = 0, mid = 0, mag = 0, blo, bhi, t0,
            t1;
@@ -256,19 +305,19 @@ WVOL__CLONES void wvol__iso_box_range_list(const wvol__iso_boxk *k, const wvol_s
             dev += fabs(c) * k->fb[h->level][h->band];
             continue;
         }
-        /* c w on the box lies in c [plo, phi]: the product of the factors' ranges there */
-        for (a = 0; a < 3; a++) {
-            double flo, fhi, p0, p1, p2, p3;
-            if (!k->transformed[a]) continue;
-            factor_cached(&fc, k, h, a, lo, hi, &flo, &fhi);
-            /* the four products, no branch on their signs (which are unpredictable): rounding is
-             * monotone, so the extreme rounded product is the rounded extreme one */
-            p0 = plo * flo, p1 = plo * fhi, p2 = phi * flo, p3 = phi * fhi;
-            plo = dmin(dmin(p0, p1), dmin(p2, p3));
-            phi = dmax(dmax(p0, p1), dmax(p2, p3));
+        if (h->level < k->levels) { /* a finer level's: also summed apart (fine) */
+            double m1 = 0, d1 = 0;
+            fn_interval(k, &fc, h, c, plo, phi, lo, hi, &m1, &d1);
+            mid += m1, dev += d1;
+            fmid += m1, fdev += d1;
+            fmag += fabs((double)h->value) * k->fb[h->level][h->band];
+        } else {
+            fn_interval(k, &fc, h, c, plo, phi, lo, hi, &mid, &dev);
         }
-        mid += c * 0.5 * (plo + phi);
-        dev += fabs(c) * 0.5 * (phi - plo);
+    }
+    if (fine) {
+        fine[0] = fmid;
+        fine[1] = fdev + 1e-9 * (fmag + fabs(fmid)); /* rounding of the sums, as below */
     }
     /* a0 sum_p w_p = a0 norm S(x) */
     s_product(k, -1, &t0, &t1);
@@ -299,7 +348,7 @@ wvol_status wvol__iso_box_range(const wvol__iso_boxk *k, const wvol_store *s, wv
                                 const double hi[3], double *vmin, double *vmax, wvol_error *err)
 {
     WVOL_FORWARD(wvol_store_query_box(s, lo, hi, hl, err));
-    wvol__iso_box_range_list(k, hl->hits, hl->count, lo, hi, vmin, vmax);
+    wvol__iso_box_range_list(k, hl->hits, hl->count, lo, hi, vmin, vmax, NULL);
     return WVOL_OK;
 }
 
@@ -307,13 +356,21 @@ wvol_status wvol__iso_box_range(const wvol__iso_boxk *k, const wvol_store *s, wv
  * it, 0 when f^ < iso, -1 undecided (its children will be looked at) or CELL_FINAL (undecided,
  * and not refined; also when hits is NULL, a failed query: tracing a cell exactly is always
  * right). may_stop: the box is small enough to be left unrefined. */
-static int box_class(const tracer *tr, const wvol_store_hits *hits, const double lo[3], const double hi[3], int may_stop)
+static int box_class(const tracer *tr, wvol__cell_ws *w, const wvol_store_hits *hits, const double lo[3],
+                     const double hi[3], int may_stop, int finest)
 {
-    double blo, bhi, hw, gap;
+    double blo, bhi, hw, gap, fine[2];
     if (!hits) return CELL_FINAL;
-    wvol__iso_box_range_list(&tr->k, hits->hits, hits->count, lo, hi, &blo, &bhi);
+    wvol__iso_box_range_list(&tr->k, hits->hits, hits->count, lo, hi, &blo, &bhi, fine);
     if (blo > tr->iso) return 1;
     if (bhi < tr->iso) return 0;
+    /* a finest cell the interval range leaves undecided: the tensor range (dense rays only) */
+    if (finest && w && tr->tensor) {
+        int c;
+        if (!w->tt) w->tt = calloc(1, sizeof *w->tt);
+        if (w->tt && (c = wvol__iso_box_class_tensor(&tr->k, w->tt, hits->hits, hits->count, lo, hi, fine, tr->iso)) >= 0)
+            return c;
+    }
     /* would halving the cell help? Only if the children's bounds could exclude iso, which
      * needs them tr->refine_gain times narrower than this one, or more: then they are not worth
      * their queries, and the rays trace this cell exactly */
@@ -326,6 +383,8 @@ void wvol__cell_ws_free(wvol__cell_ws *w)
 {
     int L;
     for (L = 0; L < WVOL__CELL_LEVELS; L++) wvol_store_hits_free(&w->q[L]);
+    if (w->tt) free(w->tt->order);
+    free(w->tt);
     memset(w, 0, sizeof *w);
 }
 
@@ -403,8 +462,17 @@ wvol_status wvol__trace_cells(tracer *tr, double spacing, wvol_error *err)
      * the rays, the less refining pays (bench/results/iso_trace_profile.md, "Refinement by ray
      * density") */
     tr->refine_gain = REFINE_GAIN_MAX;
-    if (spacing > 0 && isfinite(spacing))
+    tr->tensor = 0;
+    if (spacing > 0 && isfinite(spacing)) {
         tr->refine_gain = fmax(REFINE_GAIN_MIN, fmin(REFINE_GAIN_MAX, REFINE_GAIN_PER_RAY * tr->cell / spacing));
+        /* the finest cells' tensor ranges cost several interval ranges each: they pay where
+         * TENSOR_MIN_RAYS or more rays cross a finest cell's side (bench/results/iso_trace_profile.md,
+         * "Tensor ranges"); the cells they can decide are then worth refining down to */
+        if (tr->cell / spacing >= TENSOR_MIN_RAYS && !wvol__trace_tensor_off) {
+            tr->tensor = 1;
+            tr->refine_gain = TENSOR_REFINE_GAIN;
+        }
+    }
     return WVOL_OK;
 }
 
@@ -446,7 +514,8 @@ int wvol__trace_cell_class(const tracer *tr, wvol__cell_ws *w, const double x[3]
         if (c == CELL_UNKNOWN) {
             /* a pure function of the box: threads racing here store the same value */
             double t0 = seconds ? wvol__now() : 0.0;
-            c = box_class(tr, cell_hits(tr, w, L, lo, hi, plo, phi), lo, hi, side <= STOP_SIDE);
+            c = box_class(tr, w, cell_hits(tr, w, L, lo, hi, plo, phi), lo, hi, side <= STOP_SIDE,
+                          L == WVOL__CELL_LEVELS - 1);
             __atomic_store_n(slot, (signed char)c, __ATOMIC_RELAXED);
             if (evaluated) (*evaluated)++;
             if (seconds) *seconds += wvol__now() - t0;
@@ -475,8 +544,8 @@ void wvol__trace_cells_top(const tracer *tr, wvol_store_hits *hl, size_t cnt[3])
         cell_index(tr, 0, x, side, lo, hi);
         c = __atomic_load_n(tr->cls[0] + i, __ATOMIC_RELAXED);
         if (c == CELL_UNKNOWN)
-            c = (signed char)box_class(
-                tr, wvol_store_query_box(tr->g.s, lo, hi, hl, NULL) == WVOL_OK ? hl : NULL, lo, hi, side <= STOP_SIDE);
+            c = (signed char)box_class(tr, NULL, wvol_store_query_box(tr->g.s, lo, hi, hl, NULL) == WVOL_OK ? hl : NULL,
+                                       lo, hi, side <= STOP_SIDE, 0);
         tr->cls[0][i] = c;
         if (c == CELL_FINAL) c = -1;
         cnt[c + 1]++;
