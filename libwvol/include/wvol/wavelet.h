@@ -316,6 +316,10 @@ static inline const double *wvol_basis_coeffs(const wvol_basis *b, int which, wv
  * d = 2^{-m} (beta + s) - p - i h.) out may alias c. */
 WVOL_API void wvol_poly3_affine(double out[4], const double c[4], double a, double d);
 
+/* Bernstein coefficients on [0, 1] of the cubic a[0] + a[1] t + a[2] t^2 + a[3] t^3: the cubic
+ * lies within their hull on [0, 1], and the end ones are its end values. bz may alias a. */
+WVOL_API void wvol_poly3_bernstein(double bz[4], const double a[4]);
+
 /* Cascade algorithm: values of phi (which 0) or psi (which 1) at x = n/2^J,
  * n = 0 .. (length-1)*2^J, into out (caller provides (length-1)*2^J + 1 values).
  * Method: the integer values phi(1..L-2) are the eigenvector of eigenvalue 1 of

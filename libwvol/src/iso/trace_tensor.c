@@ -28,10 +28,7 @@ static void restrict_bernstein(const double c[4], double u0, double u1, double b
 {
     double a[4];
     wvol_poly3_affine(a, c, u1 - u0, u0);
-    bz[0] = a[0];
-    bz[1] = a[0] + a[1] / 3.0;
-    bz[2] = a[0] + (2.0 * a[1] + a[2]) / 3.0;
-    bz[3] = a[0] + a[1] + a[2] + a[3];
+    wvol_poly3_bernstein(bz, a);
 }
 
 typedef struct axis_split {

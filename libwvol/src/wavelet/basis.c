@@ -254,10 +254,7 @@ static void piece_bernstein(const double *c, double h, double bz[4])
     double a[4], hp = 1.0;
     int k;
     for (k = 0; k < 4; k++, hp *= h) a[k] = c[k] * hp;
-    bz[0] = a[0];
-    bz[1] = a[0] + a[1] / 3.0;
-    bz[2] = a[0] + (2.0 * a[1] + a[2]) / 3.0;
-    bz[3] = a[0] + a[1] + a[2] + a[3];
+    wvol_poly3_bernstein(bz, a);
 }
 
 static void majorant_pieces(double *c, int P, double h)

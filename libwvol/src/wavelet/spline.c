@@ -195,3 +195,12 @@ void wvol_poly3_affine(double out[4], const double c[4], double a, double d)
     out[2] = c2 * a * a;
     out[3] = c3 * a * a * a;
 }
+
+void wvol_poly3_bernstein(double bz[4], const double a[4])
+{
+    const double a0 = a[0], a1 = a[1], a2 = a[2], a3 = a[3];
+    bz[0] = a0;
+    bz[1] = a0 + a1 / 3.0;
+    bz[2] = a0 + (2.0 * a1 + a2) / 3.0;
+    bz[3] = a0 + a1 + a2 + a3;
+}
