@@ -77,7 +77,7 @@ static uint8_t *round_trip(bands *B, size_t *size, const char *what)
     const char *why = "";
     int ok = 1;
     for (int i = 0; i < B->n; i++) P[i] = B->p[i], Bp[i] = &B->b[i];
-    if (wvol__wvc_rans_encode(&buf, size, B->n, B->q, P, Bp)) {
+    if (wvol__wvc_rans_encode(&buf, size, B->n, B->q, P, Bp, NULL)) {
         CHECK(0, "%s: encode failed", what);
         return NULL;
     }

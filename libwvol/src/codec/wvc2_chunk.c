@@ -5,10 +5,12 @@
  * its parent chunk (the coarser level's tile whose half-size region holds its parents,
  * which every read of the chunk's region needs anyway). Neighbours outside the tile
  * count as zero, as at a band's edge in version 1. */
+#include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
 #include <zlib.h>
 
+#include "core/alloc.h"
 #include "wvc2_internal.h"
 
 int wvol__wvc2_geom(wvc2_geom *g, const size_t p[3], int levels, int tile_xy, int tile_z)
@@ -88,13 +90,6 @@ static size_t local_init(local_grid *lg, const wvc2_geom *g, int m, int band, co
     return lg->p[0] * lg->p[1] * lg->p[2];
 }
 
-static int local_make(local_grid *lg, const wvc2_geom *g, int m, int band, const size_t ext[3])
-{
-    size_t n = local_init(lg, g, m, band, ext);
-    lg->q = calloc(n ? n : 1, sizeof *lg->q);
-    return lg->q ? 0 : -1;
-}
-
 static void box_copy_in(local_grid *lg, size_t x0, const wvc2_qbox *src, const size_t ext[3])
 {
     for (size_t z = 0; z < ext[2]; z++)
@@ -121,17 +116,69 @@ enum { MODE_BANDS = 0, MODE_SHARED = 1, MODE_BLOCKS = 2, MODE_RANS = 3 };
 #define RANS_MIN_DENSITY 0.25
 #define RANS_ALONE_NONZERO 65536
 
-void wvol__wvc2_job_free(wvc2_job *job)
+void wvol__wvc2_job_pool_free(wvc2_job_pool *pool)
 {
+    if (!pool) return;
+    for (int i = 0; i < pool->n; i++) free(pool->block[i]);
+    pool->n = 0;
+}
+
+/* A block of at least need values from pool (the smallest that fits), or a new one of
+ * whole huge pages; *cap its size. */
+static int32_t *pool_take(wvc2_job_pool *pool, size_t need, size_t *cap)
+{
+    int32_t *b = NULL;
+    size_t bytes;
+    if (pool) {
+#pragma omp critical(wvc2_job_pool)
+        {
+            int best = -1;
+            for (int i = 0; i < pool->n; i++)
+                if (pool->cap[i] >= need && (best < 0 || pool->cap[i] < pool->cap[best])) best = i;
+            if (best >= 0) {
+                b = pool->block[best];
+                *cap = pool->cap[best];
+                pool->n--;
+                pool->block[best] = pool->block[pool->n];
+                pool->cap[best] = pool->cap[pool->n];
+            }
+        }
+        if (b) return b;
+    }
+    if (need > SIZE_MAX / sizeof *b) return NULL;
+    bytes = need * sizeof *b;
+    b = wvol__malloc_pages(&bytes);
+    *cap = bytes / sizeof *b;
+    return b;
+}
+
+void wvol__wvc2_job_free(wvc2_job *job, wvc2_job_pool *pool)
+{
+    int kept = 0;
     if (!job) return;
-    for (int i = 0; i < 8; i++) free(job->lg[i].q);
+    if (job->block && pool) {
+#pragma omp critical(wvc2_job_pool)
+        {
+            const int max = pool->max < WVC2_POOL_MAX ? pool->max : WVC2_POOL_MAX;
+            if (pool->n < max) {
+                pool->block[pool->n] = job->block;
+                pool->cap[pool->n] = job->cap;
+                pool->n++;
+                kept = 1;
+            }
+        }
+    }
+    if (!kept) free(job->block);
+    job->block = NULL;
+    job->cap = 0;
     memset(job->lg, 0, sizeof job->lg);
 }
 
 int wvol__wvc2_job_make(wvc2_job *job, const wvc2_geom *g, int m, const size_t ext[3], const wvc2_qbox child[8],
-                        const wvc2_qbox parent[8])
+                        const wvc2_qbox parent[8], wvc2_job_pool *pool)
 {
     const wvc2_level *L = &g->lv[m];
+    size_t size[8] = {0}, need = 0, at = 0;
     memset(job, 0, sizeof *job);
     job->m = m;
     memcpy(job->ext, ext, sizeof job->ext);
@@ -144,18 +191,30 @@ int wvol__wvc2_job_make(wvc2_job *job, const wvc2_geom *g, int m, const size_t e
         if (job->nzb[i] == 0) continue;
         job->nonzero += job->nzb[i];
         job->mask |= (uint8_t)(1u << i);
-        if (local_make(&job->lg[i], g, m, L->bands[i], ext)) {
-            wvol__wvc2_job_free(job);
-            return -1;
-        }
+        size[i] = local_init(&job->lg[i], g, m, L->bands[i], ext);
+        need += size[i];
+        job->nused++;
+    }
+    if (!need) return 0;
+    job->block = pool_take(pool, need, &job->cap);
+    if (!job->block) {
+        memset(job, 0, sizeof *job);
+        return -1;
+    }
+    /* zeros where neither the tile nor its parent region is copied (as a fresh grid) */
+    memset(job->block, 0, need * sizeof *job->block);
+    for (int i = 0; i < L->nb; i++) {
+        if (!size[i]) continue;
+        job->lg[i].q = job->block + at;
+        at += size[i];
         box_copy_in(&job->lg[i], 0, &child[i], ext);
         parent_in(&job->lg[i], &parent[i]);
-        job->nused++;
     }
     return 0;
 }
 
-int wvol__wvc2_job_code(wvc2_coded *out, wvc2_job *job, const wvc2_geom *g, int coder, int zstd_level)
+int wvol__wvc2_job_code(wvc2_coded *out, wvc2_job *job, const wvc2_geom *g, int coder, int zstd_level,
+                        wvc_rans_scratch *scratch, wvc2_job_pool *pool)
 {
     const int m = job->m;
     const size_t *ext = job->ext;
@@ -186,7 +245,7 @@ int wvol__wvc2_job_code(wvc2_coded *out, wvc2_job *job, const wvc2_geom *g, int 
     for (i = 0; i < L->nb; i++)
         if (mask >> i & 1) Qs[ns] = lg[i].q, Ps[ns] = lg[i].p, Bs[ns] = &lg[i].b, ns++;
     if (rans_try) {
-        if (wvol__wvc_rans_encode(&rans, &rans_len, ns, Qs, Ps, Bs)) failed = 1;
+        if (wvol__wvc_rans_encode(&rans, &rans_len, ns, Qs, Ps, Bs, scratch)) failed = 1;
         out->alt_rans = rans_len;
     }
     if (!failed && nused && !(rans_try && rans_alone) && coder != WVOL_WVC_CODER_ZSTD) {
@@ -213,7 +272,7 @@ int wvol__wvc2_job_code(wvc2_coded *out, wvc2_job *job, const wvc2_geom *g, int 
             }
         out->alt_zstd = zsum;
     }
-    wvol__wvc2_job_free(job);
+    wvol__wvc2_job_free(job, pool);
     if (!failed && nused) {
         uint8_t hdr[1 + 8 + 8 * 10], *p;
         size_t head = 0, total;
@@ -259,14 +318,15 @@ int wvol__wvc2_job_code(wvc2_coded *out, wvc2_job *job, const wvc2_geom *g, int 
 }
 
 int wvol__wvc2_chunk_encode(wvc2_coded *out, const wvc2_geom *g, int m, const size_t ext[3],
-                            const wvc2_qbox child[8], const wvc2_qbox parent[8], int coder, int zstd_level)
+                            const wvc2_qbox child[8], const wvc2_qbox parent[8], int coder, int zstd_level,
+                            wvc_rans_scratch *scratch, wvc2_job_pool *pool)
 {
     wvc2_job job;
-    if (wvol__wvc2_job_make(&job, g, m, ext, child, parent)) {
+    if (wvol__wvc2_job_make(&job, g, m, ext, child, parent, pool)) {
         memset(out, 0, sizeof *out);
         return -1;
     }
-    return wvol__wvc2_job_code(out, &job, g, coder, zstd_level);
+    return wvol__wvc2_job_code(out, &job, g, coder, zstd_level, scratch, pool);
 }
 
 static void box_zero(const wvc2_qbox *b, const size_t ext[3])

@@ -111,23 +111,41 @@ typedef struct wvc2_job {
     int nused;
     uint64_t nzb[8], nonzero;
     wvc2_local lg[8];
+    int32_t *block; /* the grids, one after another */
+    size_t cap;     /* block's size in int32 values */
 } wvc2_job;
 
-/* Fills job from child/parent (as wvol__wvc2_chunk_encode takes them); 0 or -1 (memory,
- * job left empty). */
+/* Grid blocks of coded jobs kept for the next ones: a fresh block per chunk paid its
+ * first page touches every time, about as much as copying the chunk out. Blocks are
+ * taken and given back from any thread. Zero-initialised with max (at most
+ * WVC2_POOL_MAX): how many it keeps; freed with wvol__wvc2_job_pool_free. */
+enum { WVC2_POOL_MAX = 64 };
+typedef struct wvc2_job_pool {
+    int32_t *block[WVC2_POOL_MAX];
+    size_t cap[WVC2_POOL_MAX];
+    int n, max;
+} wvc2_job_pool;
+void wvol__wvc2_job_pool_free(wvc2_job_pool *pool);
+
+/* Fills job from child/parent (as wvol__wvc2_chunk_encode takes them), its grids in a
+ * block from pool (NULL: a new block); 0 or -1 (memory, job left empty). */
 int wvol__wvc2_job_make(wvc2_job *job, const wvc2_geom *g, int m, const size_t ext[3], const wvc2_qbox child[8],
-                        const wvc2_qbox parent[8]);
-/* Codes a job (as wvol__wvc2_chunk_encode) and frees its grids; 0 or -1 (memory). */
-int wvol__wvc2_job_code(wvc2_coded *out, wvc2_job *job, const wvc2_geom *g, int coder, int zstd_level);
-/* Frees a job's grids (NULL or an emptied job does nothing). */
-void wvol__wvc2_job_free(wvc2_job *job);
+                        const wvc2_qbox parent[8], wvc2_job_pool *pool);
+/* Codes a job (as wvol__wvc2_chunk_encode) and gives its grids back to pool (NULL:
+ * frees them); 0 or -1 (memory). */
+int wvol__wvc2_job_code(wvc2_coded *out, wvc2_job *job, const wvc2_geom *g, int coder, int zstd_level,
+                        wvc_rans_scratch *scratch, wvc2_job_pool *pool);
+/* Gives a job's grids back to pool, or frees them (pool NULL or full); NULL or an
+ * emptied job does nothing. */
+void wvol__wvc2_job_free(wvc2_job *job, wvc2_job_pool *pool);
 
 /* Codes the bands of one chunk: child[i] is band g->lv[m].bands[i]'s box of extent
  * ext, parent[i] its parent region (extent from wvc2_parent_box; ignored at m ==
  * levels). coder: AUTO, CABAC, ZSTD or RANS (mode 3 wherever the chunk has no low-pass
  * cube, else as CABAC). Returns 0 or -1 (memory). */
 int wvol__wvc2_chunk_encode(wvc2_coded *out, const wvc2_geom *g, int m, const size_t ext[3],
-                            const wvc2_qbox child[8], const wvc2_qbox parent[8], int coder, int zstd_level);
+                            const wvc2_qbox child[8], const wvc2_qbox parent[8], int coder, int zstd_level,
+                            wvc_rans_scratch *scratch, wvc2_job_pool *pool);
 
 /* A chunk decoded in place in a dense quantised pyramid Q (padded grid p, x fastest):
  * band i's tile at off[i], its parent region at poff[i] (both in Q's coordinates).

@@ -20,6 +20,7 @@
 #include <omp.h>
 #endif
 
+#include "core/alloc.h"
 #include "core/clock.h"
 #include "wvc2_internal.h"
 #include "wvc2_writer.h"
@@ -37,7 +38,8 @@ typedef struct chunk_rec {
 typedef struct wlevel {
     size_t plane;        /* e0 e1 */
     size_t z_base, z_next, cap_rows;
-    int32_t *q[8];       /* per band of the level's list: rows [z_base, z_next) */
+    int32_t *q[8];       /* per band of the level's list: rows [z_base, z_next), in block */
+    int32_t *block;
     size_t tz_next;      /* next tile row to code */
     sec_stats *acc;      /* per chunk of the level x band */
     float *maxabs;       /* per chunk of the level x band, as acc: each written by one task only */
@@ -75,7 +77,17 @@ struct wvc2_writer {
     int async;           /* set while the producer runs inside the writer's team */
     int inflight;        /* chunk tasks spawned and not finished (atomic) */
     int task_failed;     /* 1: memory, 2: the spill (atomic; a later failure may overwrite) */
+    /* the rANS encoder's buffers per OpenMP thread of the writer's teams (thread number) */
+    wvc_rans_scratch *scratch;
+    int nscratch;
+    wvc2_job_pool pool; /* grid blocks of coded jobs */
 };
+
+/* Chunks queued per coding thread before the producer codes the next one itself (and so
+ * slows down to the coders' pace): enough that a coder never waits for work while the
+ * producer has some, few enough that the copied jobs stay small (a level-1 chunk of
+ * 64 x 64 x 32 is 3.7 MB). */
+enum { JOBS_PER_THREAD = 2 };
 
 static int nthreads(const wvc2_writer *w)
 {
@@ -85,6 +97,18 @@ static int nthreads(const wvc2_writer *w)
     (void)w;
     return 1;
 #endif
+}
+
+/* The calling thread's encoder buffers (NULL, the encoder's own, past the array: a team
+ * larger than the writer's count). A chunk is coded by one thread from start to end. */
+static wvc_rans_scratch *thread_scratch(wvc2_writer *w)
+{
+#ifdef _OPENMP
+    const int t = omp_get_thread_num();
+#else
+    const int t = 0;
+#endif
+    return t < w->nscratch ? &w->scratch[t] : NULL;
 }
 
 void wvol__wvc2_header_default(wvc2_header *h)
@@ -166,7 +190,11 @@ static wvol_status writer_new(wvc2_writer **out, const wvc2_header *h, wvol_erro
         return wvol_error_set(err, WVOL_ERR_NOMEM, "wvc2 writer: out of memory");
     }
     w->chunks = calloc(w->g.nchunks ? w->g.nchunks : 1, sizeof *w->chunks);
-    if (!w->chunks) {
+    w->nscratch = nthreads(w);
+    w->scratch = calloc((size_t)w->nscratch, sizeof *w->scratch);
+    /* as many blocks as jobs can be queued and coded at once */
+    w->pool.max = JOBS_PER_THREAD * (w->nscratch - 1) + w->nscratch;
+    if (!w->chunks || !w->scratch) {
         wvol__wvc2_writer_abort(w);
         return wvol_error_set(err, WVOL_ERR_NOMEM, "wvc2 writer: out of memory");
     }
@@ -231,7 +259,7 @@ void wvol__wvc2_writer_abort(wvc2_writer *w)
 {
     if (!w) return;
     for (int m = 1; m <= WVOL_WVC_MAX_LEVELS; m++) {
-        for (int i = 0; i < 8; i++) free(w->lv[m].q[i]);
+        free(w->lv[m].block);
         free(w->lv[m].acc);
         free(w->lv[m].maxabs);
     }
@@ -239,6 +267,9 @@ void wvol__wvc2_writer_abort(wvc2_writer *w)
     if (w->spill) fclose(w->spill);
     free(w->mem);
     free(w->chunks);
+    for (int t = 0; w->scratch && t < w->nscratch; t++) wvol__wvc_rans_scratch_free(&w->scratch[t]);
+    wvol__wvc2_job_pool_free(&w->pool);
+    free(w->scratch);
     free(w->zero_edge);
     free(w);
 }
@@ -277,20 +308,33 @@ static int band_index(const wvc2_level *G, int band)
 
 enum { ROW_SLACK = 4 };
 
-static int reserve_rows(wlevel *L, const wvc2_level *G, size_t rows)
+static int reserve_rows(wlevel *L, const wvc2_level *G, size_t first, size_t rows)
 {
+    size_t cap, band, bytes;
+    int32_t *block;
     if (rows <= L->cap_rows) return 0;
-    /* grow by a few rows, not by doubling: a streamed arrival needs tile_z plus the lag of
-     * the coarser level's rows (a few), and at 2048^3 a level-1 row of 7 bands is 28 MiB, so
-     * doubling 32 + 3 rows to 64 would hold 0.8 GiB for nothing. Large blocks are mmapped,
-     * and realloc moves their pages without copying; growth stops after the first tile row. */
-    size_t cap = rows + ROW_SLACK;
+    /* the first reservation holds `first` rows (a tile row, the lag of the coarser level's
+     * rows, a few more: wvol__wvc2_writer_memory), later ones grow by a few, not by doubling:
+     * at 2048^3 a level-1 row of 7 bands is 28 MiB, so doubling 32 + 3 rows to 64 would
+     * hold 0.8 GiB for nothing. The level's bands share one block of whole huge pages
+     * (core/alloc.h): in 4 KiB pages the rows' first touches were the largest share of a
+     * compression's page faults. A regrown block is fresh, the rows kept copied in; growth
+     * stops after the first tile row. */
+    cap = rows + ROW_SLACK;
+    if (!L->cap_rows && cap < first) cap = first;
     if (cap > G->e[2]) cap = G->e[2];
+    if (cap > SIZE_MAX / sizeof(int32_t) / L->plane / 8) return -1;
+    band = cap * L->plane;
+    bytes = band * (size_t)G->nb * sizeof(int32_t);
+    block = wvol__malloc_pages(&bytes);
+    if (!block) return -1;
     for (int i = 0; i < G->nb; i++) {
-        int32_t *q = realloc(L->q[i], cap * L->plane * sizeof *q);
-        if (!q) return -1;
+        int32_t *q = block + (size_t)i * band;
+        if (L->q[i]) memcpy(q, L->q[i], (L->z_next - L->z_base) * L->plane * sizeof *q);
         L->q[i] = q;
     }
+    free(L->block);
+    L->block = block;
     L->cap_rows = cap;
     return 0;
 }
@@ -389,7 +433,7 @@ static void code_job(wvc2_writer *w, wvc2_job *job, size_t id)
     wvc2_coded cd;
     int m = job->m, r;
     double t0 = wvol__now();
-    r = wvol__wvc2_job_code(&cd, job, &w->g, (int)w->h.coder, w->h.zstd_level) ? 1 : 0;
+    r = wvol__wvc2_job_code(&cd, job, &w->g, (int)w->h.coder, w->h.zstd_level, thread_scratch(w), &w->pool) ? 1 : 0;
     free(job);
 #pragma omp critical(wvc2_writer_spill)
     {
@@ -405,11 +449,6 @@ static void code_job(wvc2_writer *w, wvc2_job *job, size_t id)
     w->inflight--;
 }
 
-/* Chunks queued per coding thread before the producer codes the next one itself (and so
- * slows down to the coders' pace): enough that a coder never waits for work while the
- * producer has some, few enough that the copied jobs stay small (a level-1 chunk of
- * 64 x 64 x 32 is 3.7 MB). */
-enum { JOBS_PER_THREAD = 2 };
 
 static wvol_status code_tile_row(wvc2_writer *w, int m, size_t k, wvol_error *err)
 {
@@ -428,7 +467,7 @@ static wvol_status code_tile_row(wvc2_writer *w, int m, size_t k, wvol_error *er
             wvc2_job *job = malloc(sizeof *job);
             int busy;
             chunk_boxes(w, m, tc, ext, child, parent);
-            if (!job || wvol__wvc2_job_make(job, &w->g, m, ext, child, parent)) {
+            if (!job || wvol__wvc2_job_make(job, &w->g, m, ext, child, parent, &w->pool)) {
                 free(job);
                 return wvol_error_set(err, WVOL_ERR_NOMEM, "wvc2 writer: out of memory while coding");
             }
@@ -454,7 +493,8 @@ static wvol_status code_tile_row(wvc2_writer *w, int m, size_t k, wvol_error *er
         size_t tc[3] = {(size_t)t % G->nt[0], (size_t)t / G->nt[0], k}, ext[3];
         wvc2_qbox child[8], parent[8];
         chunk_boxes(w, m, tc, ext, child, parent);
-        if (wvol__wvc2_chunk_encode(&coded[t], &w->g, m, ext, child, parent, (int)w->h.coder, w->h.zstd_level))
+        if (wvol__wvc2_chunk_encode(&coded[t], &w->g, m, ext, child, parent, (int)w->h.coder, w->h.zstd_level,
+                                    thread_scratch(w), &w->pool))
             failed = 1;
     }
     for (t = 0; t < (long)ntile && !failed; t++) {
@@ -563,7 +603,7 @@ wvol_status wvol__wvc2_writer_put(wvc2_writer *w, int level, size_t z0, size_t n
     WVOL_FORWARD(task_status(w, err));
     nth = nthreads(w);
     (void)nth;
-    WVOL_RETURN_IF(reserve_rows(L, G, z0 + nz - L->z_base), err, WVOL_ERR_NOMEM,
+    WVOL_RETURN_IF(reserve_rows(L, G, (size_t)w->g.tile[2] + w->h.lag_rows + ROW_SLACK, z0 + nz - L->z_base), err, WVOL_ERR_NOMEM,
                    "wvc2 writer: out of memory for level %d rows", level);
     /* one task per (band, tile column): each (chunk, band) sum is taken by one thread, in z, y, x order */
     ntask = (long)G->nb * (long)(G->nt[0] * G->nt[1]);

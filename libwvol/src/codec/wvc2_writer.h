@@ -81,6 +81,10 @@ typedef struct wvc2_header {
     wvol_wvc_coder coder;       /* AUTO (per band of a chunk, the smaller), CABAC or ZSTD */
     int zstd_level;             /* 0: 3 */
     int threads;                /* 0: OpenMP's default */
+    size_t lag_rows;            /* streamed arrival: rows a level may run ahead of the next
+                                   coarser one (0: unknown); a level's rows are first reserved
+                                   for tile_z + lag_rows + a few, as wvol__wvc2_writer_memory
+                                   counts them, so they are not regrown and copied */
 } wvc2_header;
 
 /* header with the defaults: rounding 0.38, tile 64 x 64 x 32, coder AUTO, zstd level 3; the

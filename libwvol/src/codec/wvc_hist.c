@@ -14,6 +14,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "core/alloc.h"
 #include "wvc_internal.h"
 
 #define HSHIFT 18 /* float bits >> HSHIFT = bin */
@@ -118,7 +119,7 @@ wvc_hist_est *wvol__wvc_hist_prepare(const uint64_t *H, const wvc_layout *L)
     wvc_hist_est *hl = malloc(sizeof *hl);
     if (!hl) return NULL;
     for (k = 0; k < (size_t)L->nsec * WVC_HBINS; k++) n += H[k] != 0;
-    hl->bins = malloc((n ? n : 1) * sizeof *hl->bins);
+    hl->bins = wvol__malloc_large((n ? n : 1) * sizeof *hl->bins);
     if (!hl->bins) {
         free(hl);
         return NULL;

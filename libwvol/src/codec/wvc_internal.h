@@ -85,11 +85,21 @@ int wvol__wvc_cabac_encode_multi(uint8_t **buf, size_t *size, int n, int32_t *co
                                  const wvc_band *const b[], int blocks);
 int wvol__wvc_cabac_decode_multi(int n, int32_t *const Q[], const size_t *const p[], const wvc_band *const b[],
                                  const uint8_t *buf, size_t size, int blocks, uint64_t *nonzero, const char **why);
+/* The rANS encoder's working buffers (symbols, contexts, streams: about 12 bytes per
+ * coefficient), kept by a caller that codes chunk after chunk on one thread: a fresh
+ * allocation per chunk paid its first page touches again every time, about as much as
+ * the coding. Zero-initialised when new; released with wvol__wvc_rans_scratch_free. */
+typedef struct wvc_rans_scratch {
+    void *p[5];
+    size_t cap[5];
+} wvc_rans_scratch;
+void wvol__wvc_rans_scratch_free(wvc_rans_scratch *s);
 /* Chunk mode 3 (wvc_rans.c): n detail bands in one static-model rANS stream and a raw
  * bit stream; same conventions as the _multi CABAC coder (the decoder writes only
- * non-zeros into Q, which must be zero over the bands, and counts them). */
+ * non-zeros into Q, which must be zero over the bands, and counts them); s: the
+ * encoder's buffers, kept for the next call (NULL: allocated and freed in the call). */
 int wvol__wvc_rans_encode(uint8_t **buf, size_t *size, int n, int32_t *const Q[], const size_t *const p[],
-                          const wvc_band *const b[]);
+                          const wvc_band *const b[], wvc_rans_scratch *s);
 int wvol__wvc_rans_decode(int n, int32_t *const Q[], const size_t *const p[], const wvc_band *const b[],
                           const uint8_t *buf, size_t size, uint64_t *nonzero, const char **why);
 int wvol__wvc_zstd_encode(uint8_t **buf, size_t *size, const int32_t *Q, const size_t p[3],

@@ -44,6 +44,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "core/alloc.h"
 #include "wvc2_internal.h"
 
 #define R3_NA 13              /* neighbourhood classes: bit length 0..12 */
@@ -407,9 +408,28 @@ FORCE_INLINE void r3_enc_group(const int G, const r3_enc *e, const r3_esym (*E)[
     for (int b = 0; b < G; b++) xm_out[b] = xm[b], xs_out[b] = xs[b];
 }
 
-int wvol__wvc_rans_encode(uint8_t **buf, size_t *size, int n, int32_t *const Q[], const size_t *const p[],
-                          const wvc_band *const b[])
+void wvol__wvc_rans_scratch_free(wvc_rans_scratch *s)
 {
+    if (!s) return;
+    for (int k = 0; k < 5; k++) free(s->p[k]);
+    memset(s, 0, sizeof *s);
+}
+
+/* Buffer k of s, at least bytes long (its contents not kept). */
+static void *r3_scratch(wvc_rans_scratch *s, int k, size_t bytes)
+{
+    if (bytes > s->cap[k]) {
+        free(s->p[k]);
+        s->p[k] = wvol__malloc_pages(&bytes); /* kept, so their first touches are paid once */
+        s->cap[k] = s->p[k] ? bytes : 0;
+    }
+    return s->p[k];
+}
+
+int wvol__wvc_rans_encode(uint8_t **buf, size_t *size, int n, int32_t *const Q[], const size_t *const p[],
+                          const wvc_band *const b[], wvc_rans_scratch *s)
+{
+    wvc_rans_scratch own = {0};
     r3_enc *e = NULL;
     r3_row w = {0};
     int32_t *zrow = NULL;
@@ -430,12 +450,13 @@ int wvol__wvc_rans_encode(uint8_t **buf, size_t *size, int n, int32_t *const Q[]
     E = calloc(R3_NC, sizeof *E);
     ES = calloc(R3_NSG, sizeof *ES);
     /* per band: at most 29 raw bits per coefficient; at most one word per symbol and the state */
-    raw = malloc(4 * total + 8 * (size_t)n + 8);
-    ms = malloc(2 * (total + 4 * (size_t)n));
-    ss = malloc(2 * (total + 4 * (size_t)n));
+    if (!s) s = &own;
+    raw = r3_scratch(s, 0, 4 * total + 8 * (size_t)n + 8);
+    ms = r3_scratch(s, 1, 2 * (total + 4 * (size_t)n));
+    ss = r3_scratch(s, 2, 2 * (total + 4 * (size_t)n));
     if (!e || !F || !E || !ES || !raw || !ms || !ss || r3_row_alloc(&w, &zrow, n, b)) goto done;
-    e->ctx = malloc(3 * (total ? total : 1));
-    e->sg = malloc(sizeof *e->sg * (total ? total : 1));
+    e->ctx = r3_scratch(s, 3, 3 * (total ? total : 1));
+    e->sg = r3_scratch(s, 4, sizeof *e->sg * (total ? total : 1));
     if (!e->ctx || !e->sg) goto done;
     e->sym = e->ctx + total;
     e->sctx = e->sym + total;
@@ -509,14 +530,11 @@ int wvol__wvc_rans_encode(uint8_t **buf, size_t *size, int n, int32_t *const Q[]
     *size = head;
     ok = 1;
 done:
-    if (e) free(e->ctx), free(e->sg);
+    wvol__wvc_rans_scratch_free(&own);
     free(e);
     free(F);
     free(E);
     free(ES);
-    free(raw);
-    free(ms);
-    free(ss);
     if (w.A) r3_row_free(&w, zrow);
     return ok ? 0 : -1;
 }

@@ -7,6 +7,7 @@
 #include <string.h>
 
 #include "codec/wvc_stream.h"
+#include "core/alloc.h"
 #include "wvc_format.h"
 #include "wvc_internal.h"
 
@@ -27,7 +28,13 @@ wvol_status wvol__wvc_stream_stats_create(wvc_stream_stats **out, size_t px, siz
     s = calloc(1, sizeof *s);
     WVOL_RETURN_IF(!s, err, WVOL_ERR_NOMEM, "wvc stream statistics: out of memory");
     wvol__wvc_layout(&s->L, px, py, pz, levels);
-    s->H = calloc((size_t)s->L.nsec * WVC_HBINS, sizeof *s->H);
+    {
+        /* histograms are sparse, but the estimator reads them whole: zeroed here in huge
+         * pages, not met later as thousands of untouched 4 KiB pages */
+        size_t bytes = (size_t)s->L.nsec * WVC_HBINS * sizeof *s->H;
+        s->H = wvol__malloc_large(bytes);
+        if (s->H) memset(s->H, 0, bytes);
+    }
     if (!s->H) {
         free(s);
         return wvol_error_set(err, WVOL_ERR_NOMEM, "wvc stream statistics: out of memory");

@@ -32,9 +32,12 @@ void *wvol__calloc_large(size_t n, size_t size)
 
 void *wvol__malloc_large(size_t bytes)
 {
-    void *p = malloc(bytes);
-    advise_huge(p, bytes);
-    return p;
+    /* whole huge pages from the start: malloc's block starts a little past a page, and the
+     * 4 KiB pages before its first and after its last 2 MiB boundary (up to 4 MiB) were
+     * faulted one by one. The caller fills the buffer whole, so the rounding costs no
+     * untouched page. */
+    if (bytes >= PAGED) return wvol__malloc_pages(&bytes);
+    return malloc(bytes);
 }
 
 void *wvol__realloc_large(void *p, size_t bytes)

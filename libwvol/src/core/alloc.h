@@ -15,7 +15,8 @@
 
 /* calloc(n, size), with huge pages asked for when the buffer is large. */
 void *wvol__calloc_large(size_t n, size_t size);
-/* malloc(bytes), likewise (for buffers the caller fills whole). */
+/* malloc(bytes), likewise (for buffers the caller fills whole): from 1 MiB on, as
+ * wvol__malloc_pages (whole huge pages, aligned). */
 void *wvol__malloc_large(size_t bytes);
 /* realloc(p, bytes), likewise (a buffer that large is moved into a fresh mapping of its own,
  * not touched beyond the old contents copied in). */

@@ -180,7 +180,8 @@ wvol_status wvol_compress_stream(const char *path, wvol_source *src, const wvol_
     h.tile_z = wp.tile_z;
     h.coder = wp.coder;
     h.zstd_level = wp.zstd_level;
-    out.writer_bytes = wvol__wvc2_writer_memory(&h, (size_t)f->length + 8);
+    h.lag_rows = (size_t)f->length + 8;
+    out.writer_bytes = wvol__wvc2_writer_memory(&h, h.lag_rows);
     wvol__wvc_stream_stats_free(pc.stats);
     pc.stats = NULL;
     for (int attempt = 0; !s; attempt++) {
