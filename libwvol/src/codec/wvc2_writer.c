@@ -313,15 +313,16 @@ static int reserve_rows(wlevel *L, const wvc2_level *G, size_t first, size_t row
     size_t cap, band, bytes;
     int32_t *block;
     if (rows <= L->cap_rows) return 0;
-    /* the first reservation holds `first` rows (a tile row, the lag of the coarser level's
-     * rows, a few more: wvol__wvc2_writer_memory), later ones grow by a few, not by doubling:
-     * at 2048^3 a level-1 row of 7 bands is 28 MiB, so doubling 32 + 3 rows to 64 would
-     * hold 0.8 GiB for nothing. The level's bands share one block of whole huge pages
-     * (core/alloc.h): in 4 KiB pages the rows' first touches were the largest share of a
-     * compression's page faults. A regrown block is fresh, the rows kept copied in; growth
-     * stops after the first tile row. */
+    /* The level's bands share one block of whole huge pages (core/alloc.h): in 4 KiB pages
+     * the rows' first touches were the largest share of a compression's page faults. The
+     * first reservation holds `first` rows (a tile row, the filter's lag of the coarser
+     * level's rows, a few more: wvol__wvc2_writer_memory), an upper bound: rows never
+     * reached are never touched, so they take no memory. A block regrown (the longest
+     * filters, whose lag the hint underestimates) is fresh, the rows copied in, by a
+     * quarter at least, so that few regrowths copy. */
     cap = rows + ROW_SLACK;
     if (!L->cap_rows && cap < first) cap = first;
+    if (L->cap_rows && cap < L->cap_rows + L->cap_rows / 4) cap = L->cap_rows + L->cap_rows / 4;
     if (cap > G->e[2]) cap = G->e[2];
     if (cap > SIZE_MAX / sizeof(int32_t) / L->plane / 8) return -1;
     band = cap * L->plane;
@@ -603,7 +604,8 @@ wvol_status wvol__wvc2_writer_put(wvc2_writer *w, int level, size_t z0, size_t n
     WVOL_FORWARD(task_status(w, err));
     nth = nthreads(w);
     (void)nth;
-    WVOL_RETURN_IF(reserve_rows(L, G, (size_t)w->g.tile[2] + w->h.lag_rows + ROW_SLACK, z0 + nz - L->z_base), err, WVOL_ERR_NOMEM,
+    WVOL_RETURN_IF(reserve_rows(L, G, (size_t)w->g.tile[2] + w->h.lag_rows + ROW_SLACK, z0 + nz - L->z_base), err,
+                   WVOL_ERR_NOMEM,
                    "wvc2 writer: out of memory for level %d rows", level);
     /* one task per (band, tile column): each (chunk, band) sum is taken by one thread, in z, y, x order */
     ntask = (long)G->nb * (long)(G->nt[0] * G->nt[1]);

@@ -13,9 +13,10 @@
 #include <sys/stat.h>
 #include <zlib.h>
 
+#include "core/alloc.h"
+#include "core/clones.h"
 #include "wvc2_read.h"
 #include "wvc_format.h"
-#include "core/clones.h"
 #include "wvc_internal.h"
 #include "wvol/io.h"
 
@@ -395,11 +396,12 @@ wvol_status wvol_wvc_save(const char *path, const void *buf, size_t size, wvol_e
     return wvol_atomic_commit(&f, err);
 }
 
-/* Reads the first `want` bytes (or fewer when the file is shorter) into a new buffer. */
+/* Reads the first `want` bytes (or fewer when the file is shorter) into a new buffer (in
+ * huge pages when large: a whole file's 4 KiB pages were most of a decode's page faults). */
 static wvol_status read_prefix(uint8_t **buf, size_t *got, FILE *fp, size_t want, const char *path,
                                wvol_error *err)
 {
-    uint8_t *b = malloc(want ? want : 1);
+    uint8_t *b = wvol__malloc_large(want ? want : 1);
     (void)path;
     WVOL_RETURN_IF(!b, err, WVOL_ERR_NOMEM, "out of memory");
     *got = fread(b, 1, want, fp);
