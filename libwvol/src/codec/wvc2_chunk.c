@@ -160,11 +160,23 @@ void wvol__wvc2_job_free(wvc2_job *job, wvc2_job_pool *pool)
 #pragma omp critical(wvc2_job_pool)
         {
             const int max = pool->max < WVC2_POOL_MAX ? pool->max : WVC2_POOL_MAX;
+            int small = 0;
             if (pool->n < max) {
                 pool->block[pool->n] = job->block;
                 pool->cap[pool->n] = job->cap;
                 pool->n++;
                 kept = 1;
+            } else if (pool->n > 0) {
+                /* full: the block replaces the smallest kept if it is larger (the coarse
+                 * levels' small chunks would otherwise hold the places the large ones need) */
+                for (int i = 1; i < pool->n; i++)
+                    if (pool->cap[i] < pool->cap[small]) small = i;
+                if (pool->cap[small] < job->cap) {
+                    int32_t *b = pool->block[small];
+                    pool->block[small] = job->block;
+                    pool->cap[small] = job->cap;
+                    job->block = b;
+                }
             }
         }
     }

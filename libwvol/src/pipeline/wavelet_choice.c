@@ -93,7 +93,7 @@ static void cube_origin(const sample *s, int i, size_t o[3])
 /* Reads the cubes' slices in increasing z, in slabs of consecutive needed slices (a
  * generator makes a slab at a cost per call as well as per slice), each slab at most
  * SLAB_BYTES or one slice: a slab of a large volume can be far larger than the sample. */
-#define SLAB_BYTES ((size_t)32 << 20)
+#define SLAB_BYTES ((size_t)8 << 20)
 
 static wvol_status read_sample(sample *s, wvol_source *src, wvol_error *err)
 {

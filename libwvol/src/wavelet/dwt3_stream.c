@@ -314,8 +314,9 @@ wvol_status wvol_dwt3_source(wvol_source *src, const wvol_filter *f, int levels,
     wvol_source_geometry(src, dims, NULL, NULL);
     WVOL_FORWARD(wvol_dwt3_stream_create(&s, f, levels, dims[0], dims[1], dims[2], fn, user, err));
     slice = dims[0] * dims[1];
-    /* slabs of about 16 MiB (at least a batch of slices when a slice is smaller) */
-    S = ((size_t)16 << 20) / (slice * sizeof(float));
+    /* slabs of about 4 MiB (at least a batch of slices when a slice is smaller): the slab
+     * is fresh memory for each pass, and a larger one made the reads no faster */
+    S = ((size_t)4 << 20) / (slice * sizeof(float));
     S = S < s->batch ? s->batch : S > dims[2] ? dims[2] : S;
     if (S > dims[2]) S = dims[2];
     buf = wvol__malloc_large(S * slice * sizeof(float));
