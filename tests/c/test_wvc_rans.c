@@ -14,6 +14,7 @@
 #include <string.h>
 
 #include "check.h"
+#include "codec/wvc2_internal.h"
 #include "codec/wvc_internal.h"
 #include "fixtures.h"
 #include "wvc_fixtures.h"
@@ -422,11 +423,108 @@ static void rans_needs_version_2(void)
     wvol_volume_destroy(v);
 }
 
+/* The encoder's kept buffers (wvc_rans_scratch) and the writer's pool of job grids
+ * (wvc2_job_pool) serve chunk after chunk: a chunk coded or copied out after a larger,
+ * denser one must come out as it does from fresh memory (no value of the earlier chunk
+ * left in a buffer or in a grid's zero margin). */
+static void reused_buffers_leave_nothing_behind(void)
+{
+    const size_t ea[3] = {9, 7, 6}, eb[3] = {5, 6, 3};
+    bands A, B;
+    wvc_rans_scratch s = {0};
+    uint8_t *pa = NULL, *pb = NULL, *pf = NULL;
+    size_t na = 0, nb = 0, nf = 0;
+    uint32_t r = 12345;
+    if (!bands_make(&A, 7, ea, 1) || !bands_make(&B, 3, eb, 1)) {
+        CHECK(0, "fixture");
+        bands_free(&A);
+        bands_free(&B);
+        return;
+    }
+    for (int i = 0; i < A.n; i++)
+        for (size_t k = 0; k < A.p[i][0] * ea[1] * ea[2]; k++) {
+            r = r * 1103515245u + 12345u;
+            A.q[i][k] = (int32_t)(r >> 16) % 4001 - 2000;
+        }
+    *at(&B, 1, 2, 3, 1) = 7;
+    *at(&B, 2, 0, 0, 0) = -1;
+    {
+        const size_t *PA[8], *PB[8];
+        const wvc_band *BA[8], *BB[8];
+        for (int i = 0; i < A.n; i++) PA[i] = A.p[i], BA[i] = &A.b[i];
+        for (int i = 0; i < B.n; i++) PB[i] = B.p[i], BB[i] = &B.b[i];
+        CHECK(wvol__wvc_rans_encode(&pa, &na, A.n, A.q, PA, BA, &s) == 0, "dense chunk with scratch");
+        CHECK(wvol__wvc_rans_encode(&pb, &nb, B.n, B.q, PB, BB, &s) == 0, "sparse chunk with scratch");
+        CHECK(wvol__wvc_rans_encode(&pf, &nf, B.n, B.q, PB, BB, NULL) == 0, "sparse chunk fresh");
+        CHECK(pb && pf && nb == nf && memcmp(pb, pf, nb) == 0,
+              "the sparse chunk after the dense one: %zu bytes against %zu from fresh buffers", nb, nf);
+    }
+    wvol__wvc_rans_scratch_free(&s);
+    CHECK(s.p[0] == NULL && s.cap[0] == 0, "scratch released");
+    free(pa), free(pb), free(pf);
+    bands_free(&A);
+    bands_free(&B);
+
+    /* job grids: a 32^3 grid, two levels, tiles 16 x 16 x 8; a level-1 chunk's bands taken
+     * from filled boxes, then a chunk with zeros and smaller extent from the same pool */
+    {
+        wvc2_geom g;
+        const size_t P[3] = {32, 32, 32}, full[3] = {16, 16, 8}, part[3] = {10, 16, 5};
+        int32_t *child = calloc(16 * 16 * 8 * 8, sizeof *child), *par = calloc(8 * 8 * 4 * 8, sizeof *par);
+        wvc2_qbox c[8], pr[8];
+        wvc2_job_pool pool = {0};
+        wvc2_job j1, j2, jf;
+        wvc2_coded out;
+        int32_t *kept;
+        int same = 1;
+        if (!child || !par || wvol__wvc2_geom(&g, P, 2, 16, 8)) {
+            CHECK(0, "job fixture");
+            free(child), free(par);
+            return;
+        }
+        pool.max = 1;
+        for (int i = 0; i < 8; i++) {
+            c[i].q = child + (size_t)i * 16 * 16 * 8, c[i].sy = 16, c[i].sz = 256;
+            pr[i].q = par + (size_t)i * 8 * 8 * 4, pr[i].sy = 8, pr[i].sz = 64;
+        }
+        for (size_t k = 0; k < 16 * 16 * 8 * 8; k++) child[k] = (int32_t)(k % 17) - 8;
+        for (size_t k = 0; k < 8 * 8 * 4 * 8; k++) par[k] = (int32_t)(k % 5) + 1;
+        CHECK(wvol__wvc2_job_make(&j1, &g, 1, full, c, pr, &pool) == 0 && j1.nused == g.lv[1].nb, "dense job");
+        kept = j1.block;
+        CHECK(wvol__wvc2_job_code(&out, &j1, &g, WVOL_WVC_CODER_AUTO, 3, NULL, &pool) == 0, "dense job coded");
+        free(out.payload);
+        CHECK(pool.n == 1 && pool.block[0] == kept, "the coded job's block kept (%d)", pool.n);
+        /* the next chunk: smaller, two bands all zero, a sparse parent */
+        memset(child, 0, 16 * 16 * 8 * 8 * sizeof *child);
+        memset(par, 0, 8 * 8 * 4 * 8 * sizeof *par);
+        for (int i = 2; i < 8; i++) c[i].q[3 + 16 * (2 + 16 * 1)] = i;
+        par[5] = 9;
+        CHECK(wvol__wvc2_job_make(&j2, &g, 1, part, c, pr, &pool) == 0, "sparse job from the pool");
+        CHECK(j2.block == kept && pool.n == 0, "the pool's block taken");
+        CHECK(wvol__wvc2_job_make(&jf, &g, 1, part, c, pr, NULL) == 0, "sparse job, fresh");
+        CHECK(j2.mask == jf.mask && j2.nused == jf.nused, "same bands: 0x%x / 0x%x", j2.mask, jf.mask);
+        for (int i = 0; i < 8; i++) {
+            size_t n = jf.lg[i].p[0] * jf.lg[i].p[1] * jf.lg[i].p[2];
+            if (!(jf.mask >> i & 1)) continue;
+            same &= memcmp(j2.lg[i].p, jf.lg[i].p, sizeof jf.lg[i].p) == 0 &&
+                    memcmp(j2.lg[i].q, jf.lg[i].q, n * sizeof *jf.lg[i].q) == 0;
+        }
+        CHECK(same, "a job's grids from a reused block equal a fresh job's (zero margins included)");
+        wvol__wvc2_job_free(&j2, &pool);
+        wvol__wvc2_job_free(&jf, NULL);
+        CHECK(pool.n == 1, "block back in the pool");
+        wvol__wvc2_job_pool_free(&pool);
+        CHECK(pool.n == 0, "pool released");
+        free(child), free(par);
+    }
+}
+
 int main(void)
 {
     rans_round_trips_hard_cases();
     rans_refuses_truncation_and_survives_bit_flips();
     rans_auto_choice();
     rans_needs_version_2();
+    reused_buffers_leave_nothing_behind();
     return check_summary("test_wvc_rans");
 }
