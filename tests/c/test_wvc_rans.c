@@ -4,10 +4,10 @@
  * the 2^30 bound, odd extents, one to seven bands, with and without parents), its refusal
  * of every truncated payload and its survival of every flipped bit; at the file level
  * --coder auto choosing mode 3 for dense chunks only, and --coder rans refused for version
- * 1; the encoder's kept buffers and the writer's pooled job grids reused for a later chunk
- * as if fresh. (test_wvc.c runs its round trips, truncation, bit-flip and garbage-payload tests again
- * with --coder rans, and decodes the mode-3 corpus file to the mode-1 and mode-2 files'
- * values.) */
+ * 1; the encoder's kept buffers and the writer's pooled job grids reused for a later
+ * chunk as if fresh. (test_wvc.c runs its round trips, truncation, bit-flip and
+ * garbage-payload tests again with --coder rans, and decodes the mode-3 corpus file to the
+ * mode-1 and mode-2 files' values.) */
 #define _POSIX_C_SOURCE 200809L
 #include <stdint.h>
 #include <stdio.h>
