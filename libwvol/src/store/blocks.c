@@ -26,6 +26,7 @@
 typedef struct cblock {
     uint64_t mask;     /* bit x + 4 y + 16 z: position kept */
     uint32_t first;    /* index of its first value in the values array */
+    float amax;        /* its values' largest magnitude (+inf where one is NaN) */
 } cblock;
 
 typedef struct band_view {
@@ -87,13 +88,163 @@ static inline size_t node_block(const coef_blocks *cb, const wvol__node *nd, int
     return (pos[0] >> CB_SHIFT) + bv->nb[0] * ((pos[1] >> CB_SHIFT) + bv->nb[1] * (pos[2] >> CB_SHIFT));
 }
 
-/* Builds the view. Cloned: a value's rank in its block is a population count, an
- * instruction on x86-64-v3 and a library call on the baseline. */
-WVOL__CLONES static wvol_status blocks_build(coef_blocks *cb, const wvol_store *s, wvol_error *err)
+/* A new block of band view bv at directory entry i with kept positions mask, its values
+ * taken from the running count (grouped levels) or numbered afterwards (first = 0 here); the
+ * blocks grow by doubling. */
+static int new_block(coef_blocks *cb, band_view *bv, size_t i, uint64_t mask, size_t *cap)
+{
+    if (cb->nblocks == *cap) {
+        size_t nc = *cap ? 2 * *cap : 1024;
+        cblock *nb = nc < UINT32_MAX ? wvol__realloc_large(cb->blocks, nc * sizeof *nb) : NULL;
+        if (!nb) return 0;
+        cb->blocks = nb;
+        *cap = nc;
+    }
+    cb->blocks[cb->nblocks] = (cblock){.mask = mask, .first = 0, .amax = 0.0f};
+    bv->dir[i] = (uint32_t)++cb->nblocks;
+    return 1;
+}
+
+static inline float absmax(const float *v, int n)
+{
+    float mx = 0.0f;
+    int nan = 0;
+    for (int i = 0; i < n; i++) {
+        const float av = fabsf(v[i]);
+        mx = av > mx ? av : mx;
+        nan |= av != av;
+    }
+    return nan ? INFINITY : mx;
+}
+
+/* The view of the nodes [0, end) in two passes: the blocks and their masks, then (values
+ * numbered from *nv on) each value at its rank within its block. For the coarsest two levels,
+ * whose blocks gather nodes of several roots. */
+WVOL__CLONES static wvol_status build_two_pass(coef_blocks *cb, const wvol_store *s, size_t end, size_t *cap,
+                                               size_t *nv, wvol_error *err)
+{
+    const size_t b0 = cb->nblocks;
+    int m;
+    for (size_t k = 0; k < end; k++) {
+        const wvol__node *nd = &s->nodes[k];
+        int bit;
+        size_t i = node_block(cb, nd, &m, &bit);
+        for (unsigned bands = nd->band_mask; bands; bands &= bands - 1) {
+            band_view *bv = &cb->bv[m][__builtin_ctz(bands) + 1];
+            if (!bv->dir[i] && !new_block(cb, bv, i, 0, cap))
+                return wvol_error_set(err, WVOL_ERR_NOMEM, "store: out of memory for the coefficient blocks");
+            cb->blocks[bv->dir[i] - 1].mask |= (uint64_t)1 << bit;
+        }
+    }
+    for (size_t i = b0; i < cb->nblocks; i++) {
+        cb->blocks[i].first = (uint32_t)*nv;
+        *nv += (size_t)__builtin_popcountll(cb->blocks[i].mask);
+    }
+    WVOL_RETURN_IF(*nv > s->nvalues, err, WVOL_ERR_INTERNAL, "store: the view holds more values than the store");
+    for (size_t k = 0; k < end; k++) {
+        const wvol__node *nd = &s->nodes[k];
+        const float *v = s->values + nd->coef_first;
+        int bit;
+        size_t i = node_block(cb, nd, &m, &bit);
+        const uint64_t below = ((uint64_t)1 << bit) - 1;
+        for (unsigned bands = nd->band_mask; bands; bands &= bands - 1, v++) {
+            const int band = __builtin_ctz(bands) + 1;
+            const cblock *b = &cb->blocks[cb->bv[m][band].dir[i] - 1];
+            cb->values[b->first + (size_t)__builtin_popcountll(b->mask & below)] = *v;
+        }
+    }
+    for (size_t i = b0; i < cb->nblocks; i++)
+        cb->blocks[i].amax = absmax(cb->values + cb->blocks[i].first, __builtin_popcountll(cb->blocks[i].mask));
+    return WVOL_OK;
+}
+
+/* The view of level m <= M - 2 in one pass over its nodes: a 4^3 block of level m holds the
+ * level-m descendants of one node two levels up (its position is the block's), and the store
+ * lists those descendants together (store.c: breadth first, each node's children together, so
+ * any node's descendants at one level are consecutive). Per such node g, in node order, its
+ * descendants' masks are taken, its up to 7 blocks made and their values placed while the few
+ * nodes are in cache, instead of two passes over all nodes that wait on the directory and
+ * blocks. g's children at level m + 1 are [child_first, + popcount(child_mask)); theirs at level m
+ * run from the first one's child_first to the last one's end (a node without children has
+ * child_first where they would be). [g0, g1): the nodes of level m + 2. */
+WVOL__CLONES static wvol_status build_grouped(coef_blocks *cb, const wvol_store *s, int m, size_t g0, size_t g1,
+                                              size_t *cap, size_t *nv, wvol_error *err)
+{
+    band_view *const bvs = cb->bv[m];
+    for (size_t g = g0; g < g1; g++) {
+        const wvol__node *gn = &s->nodes[g], *c0, *c1;
+        uint64_t mask[8] = {0};
+        uint32_t first[8];
+        size_t gpos[3], i, d0, d1, k;
+        if (!gn->child_mask) continue;
+        c0 = &s->nodes[gn->child_first];
+        c1 = &s->nodes[gn->child_first + (size_t)__builtin_popcount(gn->child_mask) - 1];
+        d0 = c0->child_first;
+        d1 = (size_t)c1->child_first + (size_t)__builtin_popcount(c1->child_mask);
+        if (d0 >= d1) continue;
+        WVOL_RETURN_IF(d1 > s->nnodes, err, WVOL_ERR_INTERNAL, "store: a node's descendants lie past the nodes");
+        for (k = d0; k < d1; k++) {
+            const wvol__node *nd = &s->nodes[k];
+            size_t pos[3];
+            wvol__key_pos(nd->key, pos);
+            const uint64_t bit = (uint64_t)1 << ((pos[0] & (CB - 1)) + CB * ((pos[1] & (CB - 1)) + CB * (pos[2] & (CB - 1))));
+            for (unsigned bands = nd->band_mask; bands; bands &= bands - 1) mask[__builtin_ctz(bands) + 1] |= bit;
+        }
+        wvol__key_pos(gn->key, gpos);
+        i = gpos[0] + bvs[1].nb[0] * (gpos[1] + bvs[1].nb[1] * gpos[2]);
+        for (int band = 1; band < 8; band++) {
+            if (!mask[band]) continue;
+            WVOL_RETURN_IF(*nv + (size_t)__builtin_popcountll(mask[band]) > s->nvalues, err, WVOL_ERR_INTERNAL,
+                           "store: the view holds more values than the store");
+            if (!new_block(cb, &bvs[band], i, mask[band], cap))
+                return wvol_error_set(err, WVOL_ERR_NOMEM, "store: out of memory for the coefficient blocks");
+            first[band] = (uint32_t)*nv;
+            cb->blocks[cb->nblocks - 1].first = first[band];
+            *nv += (size_t)__builtin_popcountll(mask[band]);
+        }
+        for (k = d0; k < d1; k++) {
+            const wvol__node *nd = &s->nodes[k];
+            const float *v = s->values + nd->coef_first;
+            size_t pos[3];
+            wvol__key_pos(nd->key, pos);
+            const uint64_t below =
+                ((uint64_t)1 << ((pos[0] & (CB - 1)) + CB * ((pos[1] & (CB - 1)) + CB * (pos[2] & (CB - 1))))) - 1;
+            for (unsigned bands = nd->band_mask; bands; bands &= bands - 1, v++) {
+                const int band = __builtin_ctz(bands) + 1;
+                cb->values[first[band] + (size_t)__builtin_popcountll(mask[band] & below)] = *v;
+            }
+        }
+        for (int band = 1; band < 8; band++)
+            if (mask[band]) {
+                cblock *b = &cb->blocks[bvs[band].dir[i] - 1];
+                b->amax = absmax(cb->values + b->first, __builtin_popcountll(b->mask));
+            }
+    }
+    return WVOL_OK;
+}
+
+/* The first node of a level lower than m (the store lists the levels from the coarsest
+ * down): levels are contiguous runs, found by halving. */
+static size_t level_end(const wvol_store *s, int m)
+{
+    size_t lo = 0, hi = s->nnodes;
+    while (lo < hi) {
+        const size_t mid = lo + (hi - lo) / 2;
+        if (wvol__key_level(s->nodes[mid].key) >= m) lo = mid + 1;
+        else hi = mid;
+    }
+    return lo;
+}
+
+/* Builds the view: the coarsest two levels in two passes over their nodes, each finer level in
+ * one (build_grouped). */
+static wvol_status blocks_build(coef_blocks *cb, const wvol_store *s, wvol_error *err)
 {
     wvol_store_info info;
     size_t pad[3], ndir = 0, at[WVOL_SELECT_MAX_LEVELS + 1][8] = {{0}}; /* a directory's offset + 1 */
+    size_t cap = 0, nv = 0;
     int a, m, l;
+    wvol_status st;
     wvol_store_get_info(s, &info);
     memset(cb, 0, sizeof *cb);
     cb->M = info.levels;
@@ -126,52 +277,18 @@ WVOL__CLONES static wvol_status blocks_build(coef_blocks *cb, const wvol_store *
             for (l = 1; l < 8; l++)
                 if (at[m][l]) cb->bv[m][l].dir = cb->dirs + (at[m][l] - 1);
     }
-    /* pass 1: the blocks and their masks; the blocks grow by doubling */
-    {
-        size_t cap = 0;
-        for (size_t k = 0; k < s->nnodes; k++) {
-            const wvol__node *nd = &s->nodes[k];
-            int bit;
-            size_t i = node_block(cb, nd, &m, &bit);
-            for (unsigned bands = nd->band_mask; bands; bands &= bands - 1) {
-                band_view *bv = &cb->bv[m][__builtin_ctz(bands) + 1];
-                if (!bv->dir[i]) {
-                    if (cb->nblocks == cap) {
-                        size_t nc = cap ? 2 * cap : 1024;
-                        cblock *nb = wvol__realloc_large(cb->blocks, nc * sizeof *nb);
-                        WVOL_RETURN_IF(!nb || nc >= UINT32_MAX, err, WVOL_ERR_NOMEM,
-                                       "store: out of memory for the coefficient blocks");
-                        cb->blocks = nb;
-                        cap = nc;
-                    }
-                    cb->blocks[cb->nblocks].mask = 0;
-                    bv->dir[i] = (uint32_t)++cb->nblocks;
-                }
-                cb->blocks[bv->dir[i] - 1].mask |= (uint64_t)1 << bit;
-            }
-        }
-        cb->bytes += cap * sizeof *cb->blocks;
-    }
-    for (size_t i = 0; i < cb->nblocks; i++) {
-        cb->blocks[i].first = (uint32_t)cb->nvalues;
-        cb->nvalues += (size_t)__builtin_popcountll(cb->blocks[i].mask);
-    }
-    cb->values = wvol__malloc_large((cb->nvalues + 1) * sizeof *cb->values);
-    WVOL_RETURN_IF(!cb->values, err, WVOL_ERR_NOMEM, "store: out of memory for %zu coefficients", cb->nvalues);
-    cb->bytes += cb->nvalues * sizeof *cb->values;
-    /* pass 2: the values, each at its rank within its block; the bounds */
-    for (size_t k = 0; k < s->nnodes; k++) {
-        const wvol__node *nd = &s->nodes[k];
-        const float *v = s->values + nd->coef_first;
-        int bit;
-        size_t i = node_block(cb, nd, &m, &bit);
-        const uint64_t below = ((uint64_t)1 << bit) - 1;
-        for (unsigned bands = nd->band_mask; bands; bands &= bands - 1, v++) {
-            const int band = __builtin_ctz(bands) + 1;
-            const cblock *b = &cb->blocks[cb->bv[m][band].dir[i] - 1];
-            cb->values[b->first + (size_t)__builtin_popcountll(b->mask & below)] = *v;
-        }
-    }
+    if (s->file || !s->nnodes) return WVOL_OK;
+    cb->values = wvol__malloc_large((s->nvalues + 1) * sizeof *cb->values);
+    WVOL_RETURN_IF(!cb->values, err, WVOL_ERR_NOMEM, "store: out of memory for %zu coefficients", s->nvalues);
+    st = build_two_pass(cb, s, level_end(s, cb->M - 1), &cap, &nv, err);
+    for (m = cb->M - 2; m >= 1 && st == WVOL_OK; m--)
+        st = build_grouped(cb, s, m, level_end(s, m + 3), level_end(s, m + 2), &cap, &nv, err);
+    cb->bytes += cap * sizeof *cb->blocks;
+    WVOL_FORWARD(st);
+    WVOL_RETURN_IF(nv != s->nvalues, err, WVOL_ERR_INTERNAL, "store: the view holds %zu of the store's %zu values",
+                   nv, s->nvalues);
+    cb->nvalues = nv;
+    cb->bytes += nv * sizeof *cb->values;
     return WVOL_OK;
 }
 
@@ -297,17 +414,6 @@ static int gather_blocks(const void *ctx, float *dst, int m, int band, const ptr
 }
 
 /* max |v| over n values, NaN as +inf; written so that it vectorises */
-static inline float absmax(const float *v, int n)
-{
-    float mx = 0.0f;
-    int nan = 0;
-    for (int i = 0; i < n; i++) {
-        const float av = fabsf(v[i]);
-        mx = av > mx ? av : mx;
-        nan |= av != av;
-    }
-    return nan ? INFINITY : mx;
-}
 
 /* The bounds' block maxima from the view, block by block: where the bound's blocks are at
  * least the view's 4^3 (level 1) a block's values are contiguous and give one maximum; bound
@@ -332,7 +438,7 @@ static void blocks_bounds(const coef_blocks *cb, wvol__brick_bounds *bb)
                         const size_t lo[3] = {x << CB_SHIFT, y << CB_SHIFT, z << CB_SHIFT};
                         if (edge >= CB) {
                             const size_t hi[3] = {lo[0] + CB, lo[1] + CB, lo[2] + CB};
-                            wvol__bounds_add_box(bb, m, band, lo, hi, absmax(v, __builtin_popcountll(b->mask)));
+                            wvol__bounds_add_box(bb, m, band, lo, hi, b->amax);
                         } else if (edge == 2) {
                             float oct[8] = {0};
                             for (uint64_t bits = b->mask; bits; bits &= bits - 1, v++) {
