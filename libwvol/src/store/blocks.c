@@ -2,9 +2,12 @@
  * A block-sparse view of a store's kept coefficients (store/store_blocks.h): per (level,
  * band) a directory of blocks of 4^3 coefficient positions, a block present only where a
  * kept coefficient lies: a 64-bit mask of its kept positions and the offset of its values,
- * stored compactly (rank of a position = popcount of the mask below it). Built in two passes
- * over the store's nodes: 4 bytes per kept coefficient, 12 per present block, 4 per
- * directory entry (1/64 of the bands' size). The low-pass cube is read from the store. */
+ * stored compactly (rank of a position = popcount of the mask below it), and its values'
+ * largest magnitude (what the bounds take). Built block by block from the store's tree, each
+ * block's few nodes read twice while in cache, the blocks numbered level by level in the
+ * directories' order at the coarsest two levels, the tree's below: 4 bytes per kept
+ * coefficient, 16 per present block, 4 per directory entry (1/64 of the bands' size). The
+ * low-pass cube is read from the store. */
 #include "store/store_blocks.h"
 #include "core/alloc.h"
 #include "core/clones.h"
@@ -74,35 +77,14 @@ static void blocks_free(coef_blocks *cb)
 }
 
 /* The store's nodes hold a position and the bands kept there (store_internal.h): a node's
- * block and bit, the same in each of its level's bands (whose extents agree), are found once
- * for its up to 7 coefficients (wvol_store_next would decode the key again for each one;
- * bench/results/render-tuning.md). */
-static inline size_t node_block(const coef_blocks *cb, const wvol__node *nd, int *m, int *bit)
+ * bit in its 4^3 block (x + 4 y + 16 z), the same in each of its level's bands (whose extents
+ * agree), is found once for its up to 7 coefficients (wvol_store_next would decode the key
+ * again for each one; bench/results/render-tuning.md). */
+static inline int node_bit(const wvol__node *nd)
 {
     size_t pos[3];
-    const band_view *bv;
-    *m = wvol__key_level(nd->key);
     wvol__key_pos(nd->key, pos);
-    bv = &cb->bv[*m][nd->band_mask ? __builtin_ctz(nd->band_mask) + 1 : 1];
-    *bit = (int)((pos[0] & (CB - 1)) + CB * ((pos[1] & (CB - 1)) + CB * (pos[2] & (CB - 1))));
-    return (pos[0] >> CB_SHIFT) + bv->nb[0] * ((pos[1] >> CB_SHIFT) + bv->nb[1] * (pos[2] >> CB_SHIFT));
-}
-
-/* A new block of band view bv at directory entry i with kept positions mask, its values
- * taken from the running count (grouped levels) or numbered afterwards (first = 0 here); the
- * blocks grow by doubling. */
-static int new_block(coef_blocks *cb, band_view *bv, size_t i, uint64_t mask, size_t *cap)
-{
-    if (cb->nblocks == *cap) {
-        size_t nc = *cap ? 2 * *cap : 1024;
-        cblock *nb = nc < UINT32_MAX ? wvol__realloc_large(cb->blocks, nc * sizeof *nb) : NULL;
-        if (!nb) return 0;
-        cb->blocks = nb;
-        *cap = nc;
-    }
-    cb->blocks[cb->nblocks] = (cblock){.mask = mask, .first = 0, .amax = 0.0f};
-    bv->dir[i] = (uint32_t)++cb->nblocks;
-    return 1;
+    return (int)((pos[0] & (CB - 1)) + CB * ((pos[1] & (CB - 1)) + CB * (pos[2] & (CB - 1))));
 }
 
 static inline float absmax(const float *v, int n)
@@ -117,109 +99,118 @@ static inline float absmax(const float *v, int n)
     return nan ? INFINITY : mx;
 }
 
-/* The view of the nodes [0, end) in two passes: the blocks and their masks, then (values
- * numbered from *nv on) each value at its rank within its block. For the coarsest two levels,
- * whose blocks gather nodes of several roots. */
-WVOL__CLONES static wvol_status build_two_pass(coef_blocks *cb, const wvol_store *s, size_t end, size_t *cap,
-                                               size_t *nv, wvol_error *err)
-{
-    const size_t b0 = cb->nblocks;
-    int m;
-    for (size_t k = 0; k < end; k++) {
-        const wvol__node *nd = &s->nodes[k];
-        int bit;
-        size_t i = node_block(cb, nd, &m, &bit);
-        for (unsigned bands = nd->band_mask; bands; bands &= bands - 1) {
-            band_view *bv = &cb->bv[m][__builtin_ctz(bands) + 1];
-            if (!bv->dir[i] && !new_block(cb, bv, i, 0, cap))
-                return wvol_error_set(err, WVOL_ERR_NOMEM, "store: out of memory for the coefficient blocks");
-            cb->blocks[bv->dir[i] - 1].mask |= (uint64_t)1 << bit;
-        }
-    }
-    for (size_t i = b0; i < cb->nblocks; i++) {
-        cb->blocks[i].first = (uint32_t)*nv;
-        *nv += (size_t)__builtin_popcountll(cb->blocks[i].mask);
-    }
-    WVOL_RETURN_IF(*nv > s->nvalues, err, WVOL_ERR_INTERNAL, "store: the view holds more values than the store");
-    for (size_t k = 0; k < end; k++) {
-        const wvol__node *nd = &s->nodes[k];
-        const float *v = s->values + nd->coef_first;
-        int bit;
-        size_t i = node_block(cb, nd, &m, &bit);
-        const uint64_t below = ((uint64_t)1 << bit) - 1;
-        for (unsigned bands = nd->band_mask; bands; bands &= bands - 1, v++) {
-            const int band = __builtin_ctz(bands) + 1;
-            const cblock *b = &cb->blocks[cb->bv[m][band].dir[i] - 1];
-            cb->values[b->first + (size_t)__builtin_popcountll(b->mask & below)] = *v;
-        }
-    }
-    for (size_t i = b0; i < cb->nblocks; i++)
-        cb->blocks[i].amax = absmax(cb->values + cb->blocks[i].first, __builtin_popcountll(cb->blocks[i].mask));
-    return WVOL_OK;
-}
-
-/* The view of level m <= M - 2 in one pass over its nodes: a 4^3 block of level m holds the
- * level-m descendants of one node two levels up (its position is the block's), and the store
- * lists those descendants together (store.c: breadth first, each node's children together, so
- * any node's descendants at one level are consecutive). Per such node g, in node order, its
- * descendants' masks are taken, its up to 7 blocks made and their values placed while the few
- * nodes are in cache, instead of two passes over all nodes that wait on the directory and
- * blocks. g's children at level m + 1 are [child_first, + popcount(child_mask)); theirs at level m
- * run from the first one's child_first to the last one's end (a node without children has
- * child_first where they would be). [g0, g1): the nodes of level m + 2. */
-WVOL__CLONES static wvol_status build_grouped(coef_blocks *cb, const wvol_store *s, int m, size_t g0, size_t g1,
-                                              size_t *cap, size_t *nv, wvol_error *err)
+/* Block i of level m from the level-m nodes of the node ranges r[0..nr) (r[j][0] to
+ * r[j][1]), which are all the block's nodes: their masks per band, the block of each band with
+ * a kept position (values numbered from *nv on), each value placed at its rank, and the
+ * blocks' largest magnitudes, while the few nodes are in cache. */
+WVOL__CLONES static wvol_status place_block(coef_blocks *cb, const wvol_store *s, int m, size_t i,
+                                            const size_t (*r)[2], int nr, size_t *cap, size_t *nv, wvol_error *err)
 {
     band_view *const bvs = cb->bv[m];
-    for (size_t g = g0; g < g1; g++) {
-        const wvol__node *gn = &s->nodes[g], *c0, *c1;
-        uint64_t mask[8] = {0};
-        uint32_t first[8];
-        size_t gpos[3], i, d0, d1, k;
-        if (!gn->child_mask) continue;
-        c0 = &s->nodes[gn->child_first];
-        c1 = &s->nodes[gn->child_first + (size_t)__builtin_popcount(gn->child_mask) - 1];
-        d0 = c0->child_first;
-        d1 = (size_t)c1->child_first + (size_t)__builtin_popcount(c1->child_mask);
-        if (d0 >= d1) continue;
-        WVOL_RETURN_IF(d1 > s->nnodes, err, WVOL_ERR_INTERNAL, "store: a node's descendants lie past the nodes");
-        for (k = d0; k < d1; k++) {
+    uint64_t mask[8] = {0};
+    uint32_t first[8];
+    int j, band;
+    for (j = 0; j < nr; j++)
+        for (size_t k = r[j][0]; k < r[j][1]; k++) {
             const wvol__node *nd = &s->nodes[k];
-            size_t pos[3];
-            wvol__key_pos(nd->key, pos);
-            const uint64_t bit = (uint64_t)1 << ((pos[0] & (CB - 1)) + CB * ((pos[1] & (CB - 1)) + CB * (pos[2] & (CB - 1))));
+            const uint64_t bit = (uint64_t)1 << node_bit(nd);
             for (unsigned bands = nd->band_mask; bands; bands &= bands - 1) mask[__builtin_ctz(bands) + 1] |= bit;
         }
-        wvol__key_pos(gn->key, gpos);
-        i = gpos[0] + bvs[1].nb[0] * (gpos[1] + bvs[1].nb[1] * gpos[2]);
-        for (int band = 1; band < 8; band++) {
-            if (!mask[band]) continue;
-            WVOL_RETURN_IF(*nv + (size_t)__builtin_popcountll(mask[band]) > s->nvalues, err, WVOL_ERR_INTERNAL,
-                           "store: the view holds more values than the store");
-            if (!new_block(cb, &bvs[band], i, mask[band], cap))
-                return wvol_error_set(err, WVOL_ERR_NOMEM, "store: out of memory for the coefficient blocks");
-            first[band] = (uint32_t)*nv;
-            cb->blocks[cb->nblocks - 1].first = first[band];
-            *nv += (size_t)__builtin_popcountll(mask[band]);
+    for (band = 1; band < 8; band++) {
+        const size_t n = (size_t)__builtin_popcountll(mask[band]);
+        if (!n) continue;
+        WVOL_RETURN_IF(n > s->nvalues - *nv, err, WVOL_ERR_INTERNAL, "store: the view holds more values than the store");
+        if (cb->nblocks == *cap) {
+            size_t nc = *cap ? 2 * *cap : 1024;
+            cblock *nb = nc < UINT32_MAX ? wvol__realloc_large(cb->blocks, nc * sizeof *nb) : NULL;
+            WVOL_RETURN_IF(!nb, err, WVOL_ERR_NOMEM, "store: out of memory for the coefficient blocks");
+            cb->blocks = nb;
+            *cap = nc;
         }
-        for (k = d0; k < d1; k++) {
+        first[band] = (uint32_t)*nv;
+        cb->blocks[cb->nblocks] = (cblock){.mask = mask[band], .first = first[band]};
+        bvs[band].dir[i] = (uint32_t)++cb->nblocks;
+        *nv += n;
+    }
+    for (j = 0; j < nr; j++)
+        for (size_t k = r[j][0]; k < r[j][1]; k++) {
             const wvol__node *nd = &s->nodes[k];
             const float *v = s->values + nd->coef_first;
-            size_t pos[3];
-            wvol__key_pos(nd->key, pos);
-            const uint64_t below =
-                ((uint64_t)1 << ((pos[0] & (CB - 1)) + CB * ((pos[1] & (CB - 1)) + CB * (pos[2] & (CB - 1))))) - 1;
+            const uint64_t below = ((uint64_t)1 << node_bit(nd)) - 1;
             for (unsigned bands = nd->band_mask; bands; bands &= bands - 1, v++) {
-                const int band = __builtin_ctz(bands) + 1;
+                band = __builtin_ctz(bands) + 1;
                 cb->values[first[band] + (size_t)__builtin_popcountll(mask[band] & below)] = *v;
             }
         }
-        for (int band = 1; band < 8; band++)
-            if (mask[band]) {
-                cblock *b = &cb->blocks[bvs[band].dir[i] - 1];
-                b->amax = absmax(cb->values + b->first, __builtin_popcountll(b->mask));
-            }
+    for (band = 1; band < 8; band++)
+        if (mask[band]) {
+            cblock *b = &cb->blocks[bvs[band].dir[i] - 1];
+            b->amax = absmax(cb->values + b->first, __builtin_popcountll(b->mask));
+        }
+    return WVOL_OK;
+}
+
+/* The children of node nd, [child_first, + popcount(child_mask)) (the store lists each
+ * node's children together; a node without children has child_first where they would be). */
+static inline size_t children_end(const wvol__node *nd)
+{
+    return (size_t)nd->child_first + (size_t)__builtin_popcount(nd->child_mask);
+}
+
+/* Level m <= M - 2: a 4^3 block of level m holds the level-m descendants of one node two
+ * levels up (its position is the block's), and the store lists them together (breadth first,
+ * each node's children together, so any node's descendants at one level are consecutive: from
+ * its first child's first child to its last child's last). [g0, g1): the nodes of level m + 2. */
+static wvol_status build_grouped(coef_blocks *cb, const wvol_store *s, int m, size_t g0, size_t g1, size_t *cap,
+                                 size_t *nv, wvol_error *err)
+{
+    const band_view *bv = &cb->bv[m][1]; /* the level's bands share their extents */
+    for (size_t g = g0; g < g1; g++) {
+        const wvol__node *gn = &s->nodes[g];
+        size_t gpos[3], r[1][2];
+        if (!gn->child_mask) continue;
+        WVOL_RETURN_IF(children_end(gn) > s->nnodes, err, WVOL_ERR_INTERNAL, "store: a node's children lie past the nodes");
+        r[0][0] = s->nodes[gn->child_first].child_first;
+        r[0][1] = children_end(&s->nodes[children_end(gn) - 1]);
+        if (r[0][0] >= r[0][1]) continue;
+        WVOL_RETURN_IF(r[0][1] > s->nnodes, err, WVOL_ERR_INTERNAL, "store: a node's descendants lie past the nodes");
+        wvol__key_pos(gn->key, gpos);
+        WVOL_FORWARD(place_block(cb, s, m, gpos[0] + bv->nb[0] * (gpos[1] + bv->nb[1] * gpos[2]),
+                                 (const size_t(*)[2])r, 1, cap, nv, err));
     }
+    return WVOL_OK;
+}
+
+/* The coarsest two levels, block by block in directory order: a block of level M holds up to
+ * 4^3 roots (the store's root table finds them), one of level M - 1 the children of up to 2^3
+ * roots. */
+static wvol_status build_rooted(coef_blocks *cb, const wvol_store *s, int m, size_t *cap, size_t *nv, wvol_error *err)
+{
+    const band_view *bv = &cb->bv[m][1];
+    const size_t w = m == cb->M ? CB : 2; /* roots per block edge */
+    for (size_t z = 0; z < bv->nb[2]; z++)
+        for (size_t y = 0; y < bv->nb[1]; y++)
+            for (size_t x = 0; x < bv->nb[0]; x++) {
+                size_t r[CB * CB * CB][2];
+                int nr = 0;
+                for (size_t k = z * w; k < (z + 1) * w && k < cb->E[2]; k++)
+                    for (size_t j = y * w; j < (y + 1) * w && j < cb->E[1]; j++)
+                        for (size_t i = x * w; i < (x + 1) * w && i < cb->E[0]; i++) {
+                            const int32_t ni = s->root_of[i + cb->E[0] * (j + cb->E[1] * k)];
+                            if (ni < 0) continue;
+                            if (m == cb->M) {
+                                r[nr][0] = (size_t)ni;
+                                r[nr++][1] = (size_t)ni + 1;
+                            } else if (s->nodes[ni].child_mask) {
+                                r[nr][0] = s->nodes[ni].child_first;
+                                r[nr++][1] = children_end(&s->nodes[ni]);
+                                WVOL_RETURN_IF(r[nr - 1][1] > s->nnodes, err, WVOL_ERR_INTERNAL,
+                                               "store: a root's children lie past the nodes");
+                            }
+                        }
+                if (nr) WVOL_FORWARD(place_block(cb, s, m, x + bv->nb[0] * (y + bv->nb[1] * z),
+                                                 (const size_t(*)[2])r, nr, cap, nv, err));
+            }
     return WVOL_OK;
 }
 
@@ -236,8 +227,8 @@ static size_t level_end(const wvol_store *s, int m)
     return lo;
 }
 
-/* Builds the view: the coarsest two levels in two passes over their nodes, each finer level in
- * one (build_grouped). */
+/* Builds the view, level by level from the coarsest, block by block (place_block), each
+ * block's nodes found from the store's tree. */
 static wvol_status blocks_build(coef_blocks *cb, const wvol_store *s, wvol_error *err)
 {
     wvol_store_info info;
@@ -280,9 +271,9 @@ static wvol_status blocks_build(coef_blocks *cb, const wvol_store *s, wvol_error
     if (s->file || !s->nnodes) return WVOL_OK;
     cb->values = wvol__malloc_large((s->nvalues + 1) * sizeof *cb->values);
     WVOL_RETURN_IF(!cb->values, err, WVOL_ERR_NOMEM, "store: out of memory for %zu coefficients", s->nvalues);
-    st = build_two_pass(cb, s, level_end(s, cb->M - 1), &cap, &nv, err);
-    for (m = cb->M - 2; m >= 1 && st == WVOL_OK; m--)
-        st = build_grouped(cb, s, m, level_end(s, m + 3), level_end(s, m + 2), &cap, &nv, err);
+    for (m = cb->M, st = WVOL_OK; m >= 1 && st == WVOL_OK; m--)
+        st = m >= cb->M - 1 ? build_rooted(cb, s, m, &cap, &nv, err)
+                            : build_grouped(cb, s, m, level_end(s, m + 3), level_end(s, m + 2), &cap, &nv, err);
     cb->bytes += cap * sizeof *cb->blocks;
     WVOL_FORWARD(st);
     WVOL_RETURN_IF(nv != s->nvalues, err, WVOL_ERR_INTERNAL, "store: the view holds %zu of the store's %zu values",
