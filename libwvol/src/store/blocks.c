@@ -120,13 +120,7 @@ WVOL__CLONES static wvol_status place_block(coef_blocks *cb, const wvol_store *s
         const size_t n = (size_t)__builtin_popcountll(mask[band]);
         if (!n) continue;
         WVOL_RETURN_IF(n > s->nvalues - *nv, err, WVOL_ERR_INTERNAL, "store: the view holds more values than the store");
-        if (cb->nblocks == *cap) {
-            size_t nc = *cap ? 2 * *cap : 1024;
-            cblock *nb = nc < UINT32_MAX ? wvol__realloc_large(cb->blocks, nc * sizeof *nb) : NULL;
-            WVOL_RETURN_IF(!nb, err, WVOL_ERR_NOMEM, "store: out of memory for the coefficient blocks");
-            cb->blocks = nb;
-            *cap = nc;
-        }
+        WVOL_RETURN_IF(cb->nblocks == *cap, err, WVOL_ERR_INTERNAL, "store: more blocks than directory entries");
         first[band] = (uint32_t)*nv;
         cb->blocks[cb->nblocks] = (cblock){.mask = mask[band], .first = first[band]};
         bvs[band].dir[i] = (uint32_t)++cb->nblocks;
@@ -271,10 +265,20 @@ static wvol_status blocks_build(coef_blocks *cb, const wvol_store *s, wvol_error
     if (s->file || !s->nnodes) return WVOL_OK;
     cb->values = wvol__malloc_large((s->nvalues + 1) * sizeof *cb->values);
     WVOL_RETURN_IF(!cb->values, err, WVOL_ERR_NOMEM, "store: out of memory for %zu coefficients", s->nvalues);
+    /* at most one block per directory entry and per value: reserved at once, in whole huge
+     * pages (only those filled are touched), instead of grown by doubling, whose copies and
+     * fresh pages cost a view of a million sparse blocks more than filling them */
+    {
+        const size_t most = ndir < s->nvalues ? ndir : s->nvalues;
+        size_t bytes = (most + 1) * sizeof *cb->blocks;
+        cb->blocks = most < UINT32_MAX ? wvol__malloc_pages(&bytes) : NULL;
+        WVOL_RETURN_IF(!cb->blocks, err, WVOL_ERR_NOMEM, "store: out of memory for the coefficient blocks");
+        cap = bytes / sizeof *cb->blocks;
+    }
     for (m = cb->M, st = WVOL_OK; m >= 1 && st == WVOL_OK; m--)
         st = m >= cb->M - 1 ? build_rooted(cb, s, m, &cap, &nv, err)
                             : build_grouped(cb, s, m, level_end(s, m + 3), level_end(s, m + 2), &cap, &nv, err);
-    cb->bytes += cap * sizeof *cb->blocks;
+    cb->bytes += cb->nblocks * sizeof *cb->blocks;
     WVOL_FORWARD(st);
     WVOL_RETURN_IF(nv != s->nvalues, err, WVOL_ERR_INTERNAL, "store: the view holds %zu of the store's %zu values",
                    nv, s->nvalues);
