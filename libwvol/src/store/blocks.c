@@ -87,18 +87,6 @@ static inline int node_bit(const wvol__node *nd)
     return (int)((pos[0] & (CB - 1)) + CB * ((pos[1] & (CB - 1)) + CB * (pos[2] & (CB - 1))));
 }
 
-static inline float absmax(const float *v, int n)
-{
-    float mx = 0.0f;
-    int nan = 0;
-    for (int i = 0; i < n; i++) {
-        const float av = fabsf(v[i]);
-        mx = av > mx ? av : mx;
-        nan |= av != av;
-    }
-    return nan ? INFINITY : mx;
-}
-
 /* Block i of level m from the level-m nodes of the node ranges r[0..nr) (r[j][0] to
  * r[j][1]), which are all the block's nodes: their masks per band, the block of each band with
  * a kept position (values numbered from *nv on), each value placed at its rank, and the
@@ -108,20 +96,27 @@ WVOL__CLONES static wvol_status place_block(coef_blocks *cb, const wvol_store *s
 {
     band_view *const bvs = cb->bv[m];
     uint64_t mask[8] = {0};
-    uint32_t first[8];
+    float amax[8] = {0};
+    uint32_t first[8], blk[8];
+    unsigned present = 0, nan = 0, bands;
     int j, band;
+    /* the per-node loops over a node's bands are branch-free where they can be: a block of
+     * sparse coefficients holds a few values, so mispredicted loop exits would cost more than
+     * the work */
     for (j = 0; j < nr; j++)
         for (size_t k = r[j][0]; k < r[j][1]; k++) {
             const wvol__node *nd = &s->nodes[k];
-            const uint64_t bit = (uint64_t)1 << node_bit(nd);
-            for (unsigned bands = nd->band_mask; bands; bands &= bands - 1) mask[__builtin_ctz(bands) + 1] |= bit;
+            const unsigned bm = nd->band_mask;
+            const int bit = node_bit(nd);
+            for (band = 1; band < 8; band++) mask[band] |= (uint64_t)((bm >> (band - 1)) & 1) << bit;
+            present |= bm;
         }
-    for (band = 1; band < 8; band++) {
-        const size_t n = (size_t)__builtin_popcountll(mask[band]);
-        if (!n) continue;
+    for (bands = present; bands; bands &= bands - 1) {
+        const size_t n = (size_t)__builtin_popcountll(mask[band = __builtin_ctz(bands) + 1]);
         WVOL_RETURN_IF(n > s->nvalues - *nv, err, WVOL_ERR_INTERNAL, "store: the view holds more values than the store");
         WVOL_RETURN_IF(cb->nblocks == *cap, err, WVOL_ERR_INTERNAL, "store: more blocks than directory entries");
         first[band] = (uint32_t)*nv;
+        blk[band] = (uint32_t)cb->nblocks;
         cb->blocks[cb->nblocks] = (cblock){.mask = mask[band], .first = first[band]};
         bvs[band].dir[i] = (uint32_t)++cb->nblocks;
         *nv += n;
@@ -131,16 +126,19 @@ WVOL__CLONES static wvol_status place_block(coef_blocks *cb, const wvol_store *s
             const wvol__node *nd = &s->nodes[k];
             const float *v = s->values + nd->coef_first;
             const uint64_t below = ((uint64_t)1 << node_bit(nd)) - 1;
-            for (unsigned bands = nd->band_mask; bands; bands &= bands - 1, v++) {
+            for (bands = nd->band_mask; bands; bands &= bands - 1, v++) {
+                const float av = fabsf(*v);
                 band = __builtin_ctz(bands) + 1;
                 cb->values[first[band] + (size_t)__builtin_popcountll(mask[band] & below)] = *v;
+                amax[band] = av > amax[band] ? av : amax[band];
+                nan |= (unsigned)(av != av) << band;
             }
         }
-    for (band = 1; band < 8; band++)
-        if (mask[band]) {
-            cblock *b = &cb->blocks[bvs[band].dir[i] - 1];
-            b->amax = absmax(cb->values + b->first, __builtin_popcountll(b->mask));
-        }
+    /* a block's largest magnitude, +inf where a value is NaN (the bound's convention) */
+    for (bands = present; bands; bands &= bands - 1) {
+        band = __builtin_ctz(bands) + 1;
+        cb->blocks[blk[band]].amax = (nan >> band) & 1 ? INFINITY : amax[band];
+    }
     return WVOL_OK;
 }
 
