@@ -408,11 +408,16 @@ static int gather_blocks(const void *ctx, float *dst, int m, int band, const ptr
 
 /* max |v| over n values, NaN as +inf; written so that it vectorises */
 
-/* The bounds' block maxima from the view, block by block: where the bound's blocks are at
- * least the view's 4^3 (level 1) a block's values are contiguous and give one maximum; bound
- * blocks of 2^3 (level 2) get the maxima of the view block's eight octants; finer ones take
- * each value at its position. Levels above the bound's own are skipped (its low-pass cube
- * holds them). */
+/* The bounds' block maxima from the view, block by block: where the bound's blocks are the
+ * view's 4^3 (level 1) a block's maximum (kept with it) is its slot's; bound blocks of 2^3 (level
+ * 2) get the maxima of the view block's eight octants; any other shape (larger blocks, or finer
+ * ones) takes the block's maximum over its box, or each value at its position. Levels above the
+ * bound's own are skipped (its low-pass cube holds them). */
+static inline void take_max(float *slot, float av)
+{
+    if (!(av <= *slot)) *slot = av; /* av is a magnitude, NaN already +inf */
+}
+
 static void blocks_bounds(const coef_blocks *cb, wvol__brick_bounds *bb)
 {
     const int L = wvol__bounds_levels(bb);
@@ -420,7 +425,12 @@ static void blocks_bounds(const coef_blocks *cb, wvol__brick_bounds *bb)
         const size_t edge = wvol__bounds_block(bb, m);
         for (int band = 1; band < 8; band++) {
             const band_view *bv = &cb->bv[m][band];
-            if (!bv->dir) continue;
+            size_t tn[3];
+            int sh[3];
+            float *t = bv->dir ? wvol__bounds_table(bb, m, band, tn, sh) : NULL;
+            const int same = t && sh[0] == CB_SHIFT && sh[1] == CB_SHIFT && sh[2] == CB_SHIFT;
+            const int half = t && sh[0] == 1 && sh[1] == 1 && sh[2] == 1;
+            if (!t) continue;
             for (size_t z = 0; z < bv->nb[2]; z++)
                 for (size_t y = 0; y < bv->nb[1]; y++)
                     for (size_t x = 0; x < bv->nb[0]; x++) {
@@ -429,10 +439,12 @@ static void blocks_bounds(const coef_blocks *cb, wvol__brick_bounds *bb)
                         const cblock *b = &cb->blocks[blk - 1];
                         const float *v = cb->values + b->first;
                         const size_t lo[3] = {x << CB_SHIFT, y << CB_SHIFT, z << CB_SHIFT};
-                        if (edge >= CB) {
+                        if (same) {
+                            take_max(&t[x + tn[0] * (y + tn[1] * z)], b->amax);
+                        } else if (edge >= CB) {
                             const size_t hi[3] = {lo[0] + CB, lo[1] + CB, lo[2] + CB};
                             wvol__bounds_add_box(bb, m, band, lo, hi, b->amax);
-                        } else if (edge == 2) {
+                        } else if (half) {
                             float oct[8] = {0};
                             for (uint64_t bits = b->mask; bits; bits &= bits - 1, v++) {
                                 const int bit = __builtin_ctzll(bits);
@@ -440,12 +452,11 @@ static void blocks_bounds(const coef_blocks *cb, wvol__brick_bounds *bb)
                                 const float av = fabsf(*v);
                                 if (!(av <= oct[o])) oct[o] = av != av ? INFINITY : av;
                             }
-                            for (int o = 0; o < 8; o++) {
-                                const size_t l[3] = {lo[0] + 2 * (size_t)(o & 1), lo[1] + (size_t)(o & 2),
-                                                     lo[2] + (size_t)((o >> 1) & 2)};
-                                const size_t h[3] = {l[0] + 2, l[1] + 2, l[2] + 2};
-                                if (oct[o] != 0) wvol__bounds_add_box(bb, m, band, l, h, oct[o]);
-                            }
+                            for (int o = 0; o < 8; o++)
+                                if (oct[o] != 0)
+                                    take_max(&t[(2 * x + (size_t)(o & 1)) +
+                                                tn[0] * ((2 * y + (size_t)((o >> 1) & 1)) + tn[1] * (2 * z + (size_t)(o >> 2)))],
+                                             oct[o]);
                         } else {
                             for (uint64_t bits = b->mask; bits; bits &= bits - 1, v++) {
                                 const int bit = __builtin_ctzll(bits);
