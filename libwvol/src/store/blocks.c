@@ -263,16 +263,13 @@ static wvol_status blocks_build(coef_blocks *cb, const wvol_store *s, wvol_error
     if (s->file || !s->nnodes) return WVOL_OK;
     cb->values = wvol__malloc_large((s->nvalues + 1) * sizeof *cb->values);
     WVOL_RETURN_IF(!cb->values, err, WVOL_ERR_NOMEM, "store: out of memory for %zu coefficients", s->nvalues);
-    /* at most one block per directory entry and per value: reserved at once, in whole huge
-     * pages (only those filled are touched), instead of grown by doubling, whose copies and
-     * fresh pages cost a view of a million sparse blocks more than filling them */
-    {
-        const size_t most = ndir < s->nvalues ? ndir : s->nvalues;
-        size_t bytes = (most + 1) * sizeof *cb->blocks;
-        cb->blocks = most < UINT32_MAX ? wvol__malloc_pages(&bytes) : NULL;
-        WVOL_RETURN_IF(!cb->blocks, err, WVOL_ERR_NOMEM, "store: out of memory for the coefficient blocks");
-        cap = bytes / sizeof *cb->blocks;
-    }
+    /* at most one block per directory entry and per value: reserved at once (only the pages
+     * filled are touched; huge pages where the reservation is large) instead of grown by
+     * doubling, whose copies and fresh pages cost a view of a million sparse blocks more than
+     * filling them */
+    cap = ndir < s->nvalues ? ndir : s->nvalues;
+    cb->blocks = cap < UINT32_MAX ? wvol__malloc_large((cap + 1) * sizeof *cb->blocks) : NULL;
+    WVOL_RETURN_IF(!cb->blocks, err, WVOL_ERR_NOMEM, "store: out of memory for the coefficient blocks");
     for (m = cb->M, st = WVOL_OK; m >= 1 && st == WVOL_OK; m--)
         st = m >= cb->M - 1 ? build_rooted(cb, s, m, &cap, &nv, err)
                             : build_grouped(cb, s, m, level_end(s, m + 3), level_end(s, m + 2), &cap, &nv, err);
