@@ -16,6 +16,7 @@
 #include "fixtures.h"
 #include "iso/iso_internal.h"
 #include "iso/mc_tables.h"
+#include "store/store_blocks.h"
 #include "wavelet/wavelet_bricks.h"
 #include "wvol/store.h"
 #include "wvol/io.h"
@@ -671,6 +672,133 @@ static int same_mesh(const wvol_mesh *a, const wvol_mesh *b)
            (!a->normals || memcmp(a->normals, b->normals, 3 * a->nverts * sizeof *a->normals) == 0);
 }
 
+/* A built store's block view (store/store_blocks.h), made block by block from the store's tree
+ * (the coarsest two levels from its roots, each finer level from the nodes two levels up),
+ * reads every detail band as the store's dense coefficients (wvol_store_densify) hold it, over
+ * a region that wraps on both sides of every axis, and its bounds (the view's block maxima and
+ * low-pass cube) are the dense coefficients' bit for bit on a grid of boxes: odd sizes, a flat
+ * volume (one axis untransformed: no bound), 1 to 5 levels, 1% to 100% kept. A value placed at
+ * the wrong rank, a block missed or a block maximum taken over the wrong values fails it. */
+static void store_view_matches_coeffs(void)
+{
+    static const struct { const char *filter; int levels; size_t n[3]; double keep; } cases[] = {
+        {"haar", 1, {37, 29, 23}, 0.3}, {"db2", 2, {37, 29, 23}, 0.05}, {"db2", 3, {64, 48, 40}, 0.02},
+        {"bl3", 4, {70, 66, 64}, 0.3},  {"coif1", 5, {96, 80, 72}, 0.01}, {"db2", 3, {45, 38, 1}, 0.5},
+        {"haar", 3, {33, 33, 33}, 1.0},
+    };
+    for (size_t ci = 0; ci < sizeof cases / sizeof cases[0]; ci++) {
+        const size_t *n = cases[ci].n;
+        wvol_volume *v = NULL;
+        wvol_store *s = NULL;
+        wvol_coeffs *c = NULL;
+        wvol__store_blocks *view = NULL;
+        wvol__brick_bounds *bv = NULL, *bd = NULL;
+        wvol__coef_source vs, ds;
+        wvol_store_info info;
+        wvol_error err;
+        char what[96];
+        size_t bands = 0, differ = 0;
+        snprintf(what, sizeof what, "view %s L%d %zux%zux%zu keep %g", cases[ci].filter, cases[ci].levels, n[0], n[1],
+                 n[2], cases[ci].keep);
+        if (wvol_volume_create(&v, n[0], n[1], n[2], NULL) == WVOL_OK)
+            for (size_t k = 0; k < n[2]; k++)
+                for (size_t j = 0; j < n[1]; j++)
+                    for (size_t i = 0; i < n[0]; i++) /* smooth shapes plus a rough texture */
+                        v->data[i + n[0] * (j + n[1] * k)] =
+                            (float)(exp(-0.01 * ((double)i - 20.0) * ((double)i - 20.0) - 0.02 * ((double)j - 9.0) *
+                                                                                              ((double)j - 9.0)) +
+                                    0.3 * sin(0.7 * (double)(i * j) + 1.3 * (double)k) + 0.01 * (double)(k % 5));
+        s = v ? fixture_store(v, cases[ci].filter, cases[ci].levels, cases[ci].keep, 4) : NULL;
+        CHECK(s && wvol_store_densify(s, &c, &err) == WVOL_OK, "%s: store", what);
+        CHECK(s && wvol__store_blocks_create(&view, &bv, s, &err) == WVOL_OK, "%s: view", what);
+        if (!s || !c || !view) goto next;
+        wvol_store_get_info(s, &info);
+        wvol__store_blocks_source(&vs, view);
+        wvol__coef_source_of_coeffs(&ds, c);
+        for (int m = 1; m <= info.levels; m++)
+            for (int band = 1; band < 8; band++) {
+                const size_t pad[3] = {info.px, info.py, info.pz};
+                ptrdiff_t lo[3], cnt[3];
+                size_t vol = 1, e[3];
+                float *a, *b;
+                int ok = 1, ga, gb;
+                for (int ax = 0; ax < 3; ax++) {
+                    e[ax] = wvol__extent(pad[ax], m);
+                    if (((band >> ax) & 1) && pad[ax] == 1) ok = 0; /* no such band */
+                    lo[ax] = -(ptrdiff_t)(e[ax] / 2) - 1;           /* wraps below ... */
+                    cnt[ax] = (ptrdiff_t)e[ax] + (ptrdiff_t)(e[ax] / 2) + 3; /* ... and above */
+                    vol *= (size_t)cnt[ax];
+                }
+                if (!ok) continue;
+                a = malloc(vol * sizeof *a);
+                b = calloc(vol, sizeof *b);
+                if (!a || !b) {
+                    CHECK(0, "%s: out of memory", what);
+                    free(a);
+                    free(b);
+                    continue;
+                }
+                bands++;
+                ga = vs.gather(vs.ctx, a, m, band, lo, cnt);
+                gb = ds.gather(ds.ctx, b, m, band, lo, cnt);
+                if (!ga) { /* the view says every value there is zero */
+                    for (size_t q = 0; q < vol; q++) differ += gb && b[q] != 0.0f;
+                } else {
+                    if (!gb) memset(b, 0, vol * sizeof *b);
+                    for (size_t q = 0; q < vol; q++) differ += a[q] != b[q];
+                }
+                free(a);
+                free(b);
+            }
+        CHECK(bands > 0 && differ == 0, "%s: %zu of the view's values differ from the dense coefficients' (%zu bands)",
+              what, differ, bands);
+        CHECK((bv != NULL) == (n[2] > 1), "%s: a bound exactly where every axis is transformed", what);
+        if (bv) {
+            const size_t d[3] = {n[0], n[1], n[2]}, B = 5;
+            size_t nb[3], total = 1;
+            long *s0[3] = {NULL, NULL, NULL}, *s1[3] = {NULL, NULL, NULL};
+            double *rv, *rd;
+            int have = 1;
+            CHECK(wvol__bounds_create_src(&bd, &ds, NULL, &err) == WVOL_OK, "%s: dense bound", what);
+            if (bd) {
+                wvol__bounds_fill_coeffs(bd, c);
+                wvol__bounds_finish(bd);
+            }
+            for (int ax = 0; ax < 3; ax++) {
+                nb[ax] = (d[ax] - 1 + B - 1) / B;
+                total *= nb[ax];
+                s0[ax] = malloc(nb[ax] * sizeof *s0[ax]);
+                s1[ax] = malloc(nb[ax] * sizeof *s1[ax]);
+                have = have && s0[ax] && s1[ax];
+                for (size_t i = 0; have && i < nb[ax]; i++) {
+                    s0[ax][i] = (long)(i * B);
+                    s1[ax][i] = (long)((i + 1) * B < d[ax] - 1 ? (i + 1) * B : d[ax] - 1);
+                }
+            }
+            rv = malloc(2 * total * sizeof *rv);
+            rd = malloc(2 * total * sizeof *rd);
+            if (bd && have && rv && rd)
+                CHECK(wvol__bounds_grid(bv, (const long *const *)s0, (const long *const *)s1, nb, rv) &&
+                          wvol__bounds_grid(bd, (const long *const *)s0, (const long *const *)s1, nb, rd) &&
+                          memcmp(rv, rd, 2 * total * sizeof *rv) == 0,
+                      "%s: the view's brick bounds are the dense coefficients'", what);
+            for (int ax = 0; ax < 3; ax++) {
+                free(s0[ax]);
+                free(s1[ax]);
+            }
+            free(rv);
+            free(rd);
+        }
+    next:
+        wvol__bounds_free(bd);
+        wvol__bounds_free(bv);
+        wvol__store_blocks_destroy(view);
+        wvol_coeffs_destroy(c);
+        wvol_store_destroy(s);
+        wvol_volume_destroy(v);
+    }
+}
+
 /* A built store makes its block view and brick bounds on first use and keeps them: two
  * threads extracting at once from a store that has none yet, and later extractions, all give
  * the mesh of a fresh store's first extraction, bit for bit, at every iso-value. */
@@ -915,6 +1043,7 @@ int main(void)
     bricks_match_dense();
     store_matches_coeffs();
     store_view_is_kept();
+    store_view_matches_coeffs();
     stitch_independent_of_order();
     brick_bounds_hold();
     bounds_grid_matches_boxes();

@@ -2,9 +2,12 @@
  * A block-sparse view of a store's kept coefficients (store/store_blocks.h): per (level,
  * band) a directory of blocks of 4^3 coefficient positions, a block present only where a
  * kept coefficient lies: a 64-bit mask of its kept positions and the offset of its values,
- * stored compactly (rank of a position = popcount of the mask below it). Built in two passes
- * over the store's nodes: 4 bytes per kept coefficient, 12 per present block, 4 per
- * directory entry (1/64 of the bands' size). The low-pass cube is read from the store. */
+ * stored compactly (rank of a position = popcount of the mask below it), and its values'
+ * largest magnitude (what the bounds take). Built block by block from the store's tree, each
+ * block's few nodes read twice while in cache, the blocks numbered level by level in the
+ * directories' order at the coarsest two levels, the tree's below: 4 bytes per kept
+ * coefficient, 16 per present block, 4 per directory entry (1/64 of the bands' size). The
+ * low-pass cube is read from the store. */
 #include "store/store_blocks.h"
 #include "core/alloc.h"
 #include "core/clones.h"
@@ -26,6 +29,7 @@
 typedef struct cblock {
     uint64_t mask;     /* bit x + 4 y + 16 z: position kept */
     uint32_t first;    /* index of its first value in the values array */
+    float amax;        /* its values' largest magnitude (+inf where one is NaN) */
 } cblock;
 
 typedef struct band_view {
@@ -73,27 +77,157 @@ static void blocks_free(coef_blocks *cb)
 }
 
 /* The store's nodes hold a position and the bands kept there (store_internal.h): a node's
- * block and bit, the same in each of its level's bands (whose extents agree), are found once
- * for its up to 7 coefficients (wvol_store_next would decode the key again for each one;
- * bench/results/render-tuning.md). */
-static inline size_t node_block(const coef_blocks *cb, const wvol__node *nd, int *m, int *bit)
+ * bit in its 4^3 block (x + 4 y + 16 z), the same in each of its level's bands (whose extents
+ * agree), is found once for its up to 7 coefficients (wvol_store_next would decode the key
+ * again for each one; bench/results/render-tuning.md). */
+static inline int node_bit(const wvol__node *nd)
 {
     size_t pos[3];
-    const band_view *bv;
-    *m = wvol__key_level(nd->key);
     wvol__key_pos(nd->key, pos);
-    bv = &cb->bv[*m][nd->band_mask ? __builtin_ctz(nd->band_mask) + 1 : 1];
-    *bit = (int)((pos[0] & (CB - 1)) + CB * ((pos[1] & (CB - 1)) + CB * (pos[2] & (CB - 1))));
-    return (pos[0] >> CB_SHIFT) + bv->nb[0] * ((pos[1] >> CB_SHIFT) + bv->nb[1] * (pos[2] >> CB_SHIFT));
+    return (int)((pos[0] & (CB - 1)) + CB * ((pos[1] & (CB - 1)) + CB * (pos[2] & (CB - 1))));
 }
 
-/* Builds the view. Cloned: a value's rank in its block is a population count, an
- * instruction on x86-64-v3 and a library call on the baseline. */
-WVOL__CLONES static wvol_status blocks_build(coef_blocks *cb, const wvol_store *s, wvol_error *err)
+/* Block i of level m from the level-m nodes of the node ranges r[0..nr) (r[j][0] to
+ * r[j][1]), which are all the block's nodes: their masks per band, the block of each band with
+ * a kept position (values numbered from *nv on), each value placed at its rank, and the
+ * blocks' largest magnitudes, while the few nodes are in cache. */
+WVOL__CLONES static wvol_status place_block(coef_blocks *cb, const wvol_store *s, int m, size_t i,
+                                            const size_t (*r)[2], int nr, size_t *cap, size_t *nv, wvol_error *err)
+{
+    band_view *const bvs = cb->bv[m];
+    uint64_t mask[8] = {0};
+    float amax[8] = {0};
+    uint32_t first[8], blk[8];
+    unsigned present = 0, nan = 0, bands;
+    int j, band;
+    /* the per-node loops over a node's bands are branch-free where they can be: a block of
+     * sparse coefficients holds a few values, so mispredicted loop exits would cost more than
+     * the work */
+    for (j = 0; j < nr; j++)
+        for (size_t k = r[j][0]; k < r[j][1]; k++) {
+            const wvol__node *nd = &s->nodes[k];
+            const unsigned bm = nd->band_mask;
+            const int bit = node_bit(nd);
+            for (band = 1; band < 8; band++) mask[band] |= (uint64_t)((bm >> (band - 1)) & 1) << bit;
+            present |= bm;
+        }
+    for (bands = present; bands; bands &= bands - 1) {
+        const size_t n = (size_t)__builtin_popcountll(mask[band = __builtin_ctz(bands) + 1]);
+        WVOL_RETURN_IF(n > s->nvalues - *nv, err, WVOL_ERR_INTERNAL, "store: the view holds more values than the store");
+        WVOL_RETURN_IF(cb->nblocks == *cap, err, WVOL_ERR_INTERNAL, "store: more blocks than directory entries");
+        first[band] = (uint32_t)*nv;
+        blk[band] = (uint32_t)cb->nblocks;
+        cb->blocks[cb->nblocks] = (cblock){.mask = mask[band], .first = first[band]};
+        bvs[band].dir[i] = (uint32_t)++cb->nblocks;
+        *nv += n;
+    }
+    for (j = 0; j < nr; j++)
+        for (size_t k = r[j][0]; k < r[j][1]; k++) {
+            const wvol__node *nd = &s->nodes[k];
+            const float *v = s->values + nd->coef_first;
+            const uint64_t below = ((uint64_t)1 << node_bit(nd)) - 1;
+            for (bands = nd->band_mask; bands; bands &= bands - 1, v++) {
+                const float av = fabsf(*v);
+                band = __builtin_ctz(bands) + 1;
+                cb->values[first[band] + (size_t)__builtin_popcountll(mask[band] & below)] = *v;
+                amax[band] = av > amax[band] ? av : amax[band];
+                nan |= (unsigned)(av != av) << band;
+            }
+        }
+    /* a block's largest magnitude, +inf where a value is NaN (the bound's convention) */
+    for (bands = present; bands; bands &= bands - 1) {
+        band = __builtin_ctz(bands) + 1;
+        cb->blocks[blk[band]].amax = (nan >> band) & 1 ? INFINITY : amax[band];
+    }
+    return WVOL_OK;
+}
+
+/* The children of node nd, [child_first, + popcount(child_mask)) (the store lists each
+ * node's children together; a node without children has child_first where they would be). */
+static inline size_t children_end(const wvol__node *nd)
+{
+    return (size_t)nd->child_first + (size_t)__builtin_popcount(nd->child_mask);
+}
+
+/* Level m <= M - 2: a 4^3 block of level m holds the level-m descendants of one node two
+ * levels up (its position is the block's), and the store lists them together (breadth first,
+ * each node's children together, so any node's descendants at one level are consecutive: from
+ * its first child's first child to its last child's last). [g0, g1): the nodes of level m + 2. */
+static wvol_status build_grouped(coef_blocks *cb, const wvol_store *s, int m, size_t g0, size_t g1, size_t *cap,
+                                 size_t *nv, wvol_error *err)
+{
+    const band_view *bv = &cb->bv[m][1]; /* the level's bands share their extents */
+    for (size_t g = g0; g < g1; g++) {
+        const wvol__node *gn = &s->nodes[g];
+        size_t gpos[3], r[1][2];
+        if (!gn->child_mask) continue;
+        WVOL_RETURN_IF(children_end(gn) > s->nnodes, err, WVOL_ERR_INTERNAL, "store: a node's children lie past the nodes");
+        r[0][0] = s->nodes[gn->child_first].child_first;
+        r[0][1] = children_end(&s->nodes[children_end(gn) - 1]);
+        if (r[0][0] >= r[0][1]) continue;
+        WVOL_RETURN_IF(r[0][1] > s->nnodes, err, WVOL_ERR_INTERNAL, "store: a node's descendants lie past the nodes");
+        wvol__key_pos(gn->key, gpos);
+        WVOL_FORWARD(place_block(cb, s, m, gpos[0] + bv->nb[0] * (gpos[1] + bv->nb[1] * gpos[2]),
+                                 (const size_t(*)[2])r, 1, cap, nv, err));
+    }
+    return WVOL_OK;
+}
+
+/* The coarsest two levels, block by block in directory order: a block of level M holds up to
+ * 4^3 roots (the store's root table finds them), one of level M - 1 the children of up to 2^3
+ * roots. */
+static wvol_status build_rooted(coef_blocks *cb, const wvol_store *s, int m, size_t *cap, size_t *nv, wvol_error *err)
+{
+    const band_view *bv = &cb->bv[m][1];
+    const size_t w = m == cb->M ? CB : 2; /* roots per block edge */
+    for (size_t z = 0; z < bv->nb[2]; z++)
+        for (size_t y = 0; y < bv->nb[1]; y++)
+            for (size_t x = 0; x < bv->nb[0]; x++) {
+                size_t r[CB * CB * CB][2];
+                int nr = 0;
+                for (size_t k = z * w; k < (z + 1) * w && k < cb->E[2]; k++)
+                    for (size_t j = y * w; j < (y + 1) * w && j < cb->E[1]; j++)
+                        for (size_t i = x * w; i < (x + 1) * w && i < cb->E[0]; i++) {
+                            const int32_t ni = s->root_of[i + cb->E[0] * (j + cb->E[1] * k)];
+                            if (ni < 0) continue;
+                            if (m == cb->M) {
+                                r[nr][0] = (size_t)ni;
+                                r[nr++][1] = (size_t)ni + 1;
+                            } else if (s->nodes[ni].child_mask) {
+                                r[nr][0] = s->nodes[ni].child_first;
+                                r[nr++][1] = children_end(&s->nodes[ni]);
+                                WVOL_RETURN_IF(r[nr - 1][1] > s->nnodes, err, WVOL_ERR_INTERNAL,
+                                               "store: a root's children lie past the nodes");
+                            }
+                        }
+                if (nr) WVOL_FORWARD(place_block(cb, s, m, x + bv->nb[0] * (y + bv->nb[1] * z),
+                                                 (const size_t(*)[2])r, nr, cap, nv, err));
+            }
+    return WVOL_OK;
+}
+
+/* The first node of a level lower than m (the store lists the levels from the coarsest
+ * down): levels are contiguous runs, found by halving. */
+static size_t level_end(const wvol_store *s, int m)
+{
+    size_t lo = 0, hi = s->nnodes;
+    while (lo < hi) {
+        const size_t mid = lo + (hi - lo) / 2;
+        if (wvol__key_level(s->nodes[mid].key) >= m) lo = mid + 1;
+        else hi = mid;
+    }
+    return lo;
+}
+
+/* Builds the view, level by level from the coarsest, block by block (place_block), each
+ * block's nodes found from the store's tree. */
+static wvol_status blocks_build(coef_blocks *cb, const wvol_store *s, wvol_error *err)
 {
     wvol_store_info info;
     size_t pad[3], ndir = 0, at[WVOL_SELECT_MAX_LEVELS + 1][8] = {{0}}; /* a directory's offset + 1 */
+    size_t cap = 0, nv = 0;
     int a, m, l;
+    wvol_status st;
     wvol_store_get_info(s, &info);
     memset(cb, 0, sizeof *cb);
     cb->M = info.levels;
@@ -126,52 +260,25 @@ WVOL__CLONES static wvol_status blocks_build(coef_blocks *cb, const wvol_store *
             for (l = 1; l < 8; l++)
                 if (at[m][l]) cb->bv[m][l].dir = cb->dirs + (at[m][l] - 1);
     }
-    /* pass 1: the blocks and their masks; the blocks grow by doubling */
-    {
-        size_t cap = 0;
-        for (size_t k = 0; k < s->nnodes; k++) {
-            const wvol__node *nd = &s->nodes[k];
-            int bit;
-            size_t i = node_block(cb, nd, &m, &bit);
-            for (unsigned bands = nd->band_mask; bands; bands &= bands - 1) {
-                band_view *bv = &cb->bv[m][__builtin_ctz(bands) + 1];
-                if (!bv->dir[i]) {
-                    if (cb->nblocks == cap) {
-                        size_t nc = cap ? 2 * cap : 1024;
-                        cblock *nb = wvol__realloc_large(cb->blocks, nc * sizeof *nb);
-                        WVOL_RETURN_IF(!nb || nc >= UINT32_MAX, err, WVOL_ERR_NOMEM,
-                                       "store: out of memory for the coefficient blocks");
-                        cb->blocks = nb;
-                        cap = nc;
-                    }
-                    cb->blocks[cb->nblocks].mask = 0;
-                    bv->dir[i] = (uint32_t)++cb->nblocks;
-                }
-                cb->blocks[bv->dir[i] - 1].mask |= (uint64_t)1 << bit;
-            }
-        }
-        cb->bytes += cap * sizeof *cb->blocks;
-    }
-    for (size_t i = 0; i < cb->nblocks; i++) {
-        cb->blocks[i].first = (uint32_t)cb->nvalues;
-        cb->nvalues += (size_t)__builtin_popcountll(cb->blocks[i].mask);
-    }
-    cb->values = wvol__malloc_large((cb->nvalues + 1) * sizeof *cb->values);
-    WVOL_RETURN_IF(!cb->values, err, WVOL_ERR_NOMEM, "store: out of memory for %zu coefficients", cb->nvalues);
-    cb->bytes += cb->nvalues * sizeof *cb->values;
-    /* pass 2: the values, each at its rank within its block; the bounds */
-    for (size_t k = 0; k < s->nnodes; k++) {
-        const wvol__node *nd = &s->nodes[k];
-        const float *v = s->values + nd->coef_first;
-        int bit;
-        size_t i = node_block(cb, nd, &m, &bit);
-        const uint64_t below = ((uint64_t)1 << bit) - 1;
-        for (unsigned bands = nd->band_mask; bands; bands &= bands - 1, v++) {
-            const int band = __builtin_ctz(bands) + 1;
-            const cblock *b = &cb->blocks[cb->bv[m][band].dir[i] - 1];
-            cb->values[b->first + (size_t)__builtin_popcountll(b->mask & below)] = *v;
-        }
-    }
+    if (s->file || !s->nnodes) return WVOL_OK;
+    cb->values = wvol__malloc_large((s->nvalues + 1) * sizeof *cb->values);
+    WVOL_RETURN_IF(!cb->values, err, WVOL_ERR_NOMEM, "store: out of memory for %zu coefficients", s->nvalues);
+    /* at most one block per directory entry and per value: reserved at once (only the pages
+     * filled are touched; huge pages where the reservation is large) instead of grown by
+     * doubling, whose copies and fresh pages cost a view of a million sparse blocks more than
+     * filling them */
+    cap = ndir < s->nvalues ? ndir : s->nvalues;
+    cb->blocks = cap < UINT32_MAX ? wvol__malloc_large((cap + 1) * sizeof *cb->blocks) : NULL;
+    WVOL_RETURN_IF(!cb->blocks, err, WVOL_ERR_NOMEM, "store: out of memory for the coefficient blocks");
+    for (m = cb->M, st = WVOL_OK; m >= 1 && st == WVOL_OK; m--)
+        st = m >= cb->M - 1 ? build_rooted(cb, s, m, &cap, &nv, err)
+                            : build_grouped(cb, s, m, level_end(s, m + 3), level_end(s, m + 2), &cap, &nv, err);
+    cb->bytes += cb->nblocks * sizeof *cb->blocks;
+    WVOL_FORWARD(st);
+    WVOL_RETURN_IF(nv != s->nvalues, err, WVOL_ERR_INTERNAL, "store: the view holds %zu of the store's %zu values",
+                   nv, s->nvalues);
+    cb->nvalues = nv;
+    cb->bytes += nv * sizeof *cb->values;
     return WVOL_OK;
 }
 
@@ -297,23 +404,17 @@ static int gather_blocks(const void *ctx, float *dst, int m, int band, const ptr
 }
 
 /* max |v| over n values, NaN as +inf; written so that it vectorises */
-static inline float absmax(const float *v, int n)
+
+/* The bounds' block maxima from the view, block by block: where the bound's blocks are the
+ * view's 4^3 (level 1) a block's maximum (kept with it) is its slot's; bound blocks of 2^3 (level
+ * 2) get the maxima of the view block's eight octants; any other shape (larger blocks, or finer
+ * ones) takes the block's maximum over its box, or each value at its position. Levels above the
+ * bound's own are skipped (its low-pass cube holds them). */
+static inline void take_max(float *slot, float av)
 {
-    float mx = 0.0f;
-    int nan = 0;
-    for (int i = 0; i < n; i++) {
-        const float av = fabsf(v[i]);
-        mx = av > mx ? av : mx;
-        nan |= av != av;
-    }
-    return nan ? INFINITY : mx;
+    if (!(av <= *slot)) *slot = av; /* av is a magnitude, NaN already +inf */
 }
 
-/* The bounds' block maxima from the view, block by block: where the bound's blocks are at
- * least the view's 4^3 (level 1) a block's values are contiguous and give one maximum; bound
- * blocks of 2^3 (level 2) get the maxima of the view block's eight octants; finer ones take
- * each value at its position. Levels above the bound's own are skipped (its low-pass cube
- * holds them). */
 static void blocks_bounds(const coef_blocks *cb, wvol__brick_bounds *bb)
 {
     const int L = wvol__bounds_levels(bb);
@@ -321,7 +422,12 @@ static void blocks_bounds(const coef_blocks *cb, wvol__brick_bounds *bb)
         const size_t edge = wvol__bounds_block(bb, m);
         for (int band = 1; band < 8; band++) {
             const band_view *bv = &cb->bv[m][band];
-            if (!bv->dir) continue;
+            size_t tn[3];
+            int sh[3];
+            float *t = bv->dir ? wvol__bounds_table(bb, m, band, tn, sh) : NULL;
+            const int same = t && sh[0] == CB_SHIFT && sh[1] == CB_SHIFT && sh[2] == CB_SHIFT;
+            const int half = t && sh[0] == 1 && sh[1] == 1 && sh[2] == 1;
+            if (!t) continue;
             for (size_t z = 0; z < bv->nb[2]; z++)
                 for (size_t y = 0; y < bv->nb[1]; y++)
                     for (size_t x = 0; x < bv->nb[0]; x++) {
@@ -330,10 +436,12 @@ static void blocks_bounds(const coef_blocks *cb, wvol__brick_bounds *bb)
                         const cblock *b = &cb->blocks[blk - 1];
                         const float *v = cb->values + b->first;
                         const size_t lo[3] = {x << CB_SHIFT, y << CB_SHIFT, z << CB_SHIFT};
-                        if (edge >= CB) {
+                        if (same) {
+                            take_max(&t[x + tn[0] * (y + tn[1] * z)], b->amax);
+                        } else if (edge >= CB) {
                             const size_t hi[3] = {lo[0] + CB, lo[1] + CB, lo[2] + CB};
-                            wvol__bounds_add_box(bb, m, band, lo, hi, absmax(v, __builtin_popcountll(b->mask)));
-                        } else if (edge == 2) {
+                            wvol__bounds_add_box(bb, m, band, lo, hi, b->amax);
+                        } else if (half) {
                             float oct[8] = {0};
                             for (uint64_t bits = b->mask; bits; bits &= bits - 1, v++) {
                                 const int bit = __builtin_ctzll(bits);
@@ -341,12 +449,11 @@ static void blocks_bounds(const coef_blocks *cb, wvol__brick_bounds *bb)
                                 const float av = fabsf(*v);
                                 if (!(av <= oct[o])) oct[o] = av != av ? INFINITY : av;
                             }
-                            for (int o = 0; o < 8; o++) {
-                                const size_t l[3] = {lo[0] + 2 * (size_t)(o & 1), lo[1] + (size_t)(o & 2),
-                                                     lo[2] + (size_t)((o >> 1) & 2)};
-                                const size_t h[3] = {l[0] + 2, l[1] + 2, l[2] + 2};
-                                if (oct[o] != 0) wvol__bounds_add_box(bb, m, band, l, h, oct[o]);
-                            }
+                            for (int o = 0; o < 8; o++)
+                                if (oct[o] != 0)
+                                    take_max(&t[(2 * x + (size_t)(o & 1)) +
+                                                tn[0] * ((2 * y + (size_t)((o >> 1) & 1)) + tn[1] * (2 * z + (size_t)(o >> 2)))],
+                                             oct[o]);
                         } else {
                             for (uint64_t bits = b->mask; bits; bits &= bits - 1, v++) {
                                 const int bit = __builtin_ctzll(bits);

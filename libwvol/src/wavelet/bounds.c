@@ -300,6 +300,14 @@ void wvol__bounds_add(brick_bounds *b, int m, int band, size_t p, size_t q, size
     if (!(av <= *slot)) *slot = isnan(av) ? INFINITY : av;
 }
 
+float *wvol__bounds_table(brick_bounds *b, int m, int band, size_t nb[3], int shift[3])
+{
+    band_blocks *bq = band_of(b, m, band);
+    if (!bq) return NULL;
+    for (int a = 0; a < 3; a++) nb[a] = bq->nb[a], shift[a] = bq->bshift[a];
+    return bq->absmax;
+}
+
 void wvol__bounds_add_box(brick_bounds *b, int m, int band, const size_t lo[3], const size_t hi[3], float value)
 {
     band_blocks *bq = band_of(b, m, band);

@@ -102,6 +102,11 @@ void wvol__bounds_add(wvol__brick_bounds *b, int m, int band, size_t p, size_t q
 /* The same for every position of the box [lo, hi) of a band at once (a bound of the box's
  * coefficients, e.g. a file chunk's maximum). */
 void wvol__bounds_add_box(wvol__brick_bounds *b, int m, int band, const size_t lo[3], const size_t hi[3], float value);
+/* The block maxima of band (m, band) for a filler that writes them itself (as the _add calls
+ * do: a slot takes max(slot, |value|), NaN as +inf): the maximum over block (x, y, z), the
+ * positions [x, y, z] << shift, at table[x + nb[0] (y + nb[1] z)]; NULL outside the bound's
+ * levels. Before wvol__bounds_finish. */
+float *wvol__bounds_table(wvol__brick_bounds *b, int m, int band, size_t nb[3], int shift[3]);
 /* The same for a dense box of one band: positions lo .. lo + n - 1 (inside the band's
  * extent, unwrapped), value (x, y, z) at v[x + sy y + sz z]. Calls on boxes that share no
  * block may run concurrently (boxes whose corners are multiples of 4 share none). */
