@@ -268,7 +268,7 @@ static wvol_status blocks_build(coef_blocks *cb, const wvol_store *s, wvol_error
      * doubling, whose copies and fresh pages cost a view of a million sparse blocks more than
      * filling them */
     cap = ndir < s->nvalues ? ndir : s->nvalues;
-    cb->blocks = cap < UINT32_MAX ? wvol__malloc_large((cap + 1) * sizeof *cb->blocks) : NULL;
+    cb->blocks = cap < UINT32_MAX ? wvol__malloc_reserve((cap + 1) * sizeof *cb->blocks) : NULL;
     WVOL_RETURN_IF(!cb->blocks, err, WVOL_ERR_NOMEM, "store: out of memory for the coefficient blocks");
     for (m = cb->M, st = WVOL_OK; m >= 1 && st == WVOL_OK; m--)
         st = m >= cb->M - 1 ? build_rooted(cb, s, m, &cap, &nv, err)
