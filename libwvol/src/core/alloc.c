@@ -40,13 +40,6 @@ void *wvol__malloc_large(size_t bytes)
     return malloc(bytes);
 }
 
-void *wvol__malloc_reserve(size_t bytes)
-{
-    void *p = malloc(bytes);
-    advise_huge(p, bytes);
-    return p;
-}
-
 void *wvol__realloc_large(void *p, size_t bytes)
 {
     void *q = realloc(p, bytes);

@@ -18,12 +18,9 @@ void *wvol__calloc_large(size_t n, size_t size);
 /* malloc(bytes), likewise (for buffers the caller fills whole): from 1 MiB on, as
  * wvol__malloc_pages (whole huge pages, aligned). */
 void *wvol__malloc_large(size_t bytes);
-/* malloc(bytes) for a reservation the caller fills only in part (an upper bound): huge
- * pages asked for over its whole 2 MiB pages from 8 MiB on, 4 KiB pages below, so that a
- * small one never faults in a whole huge page it barely uses. */
-void *wvol__malloc_reserve(size_t bytes);
-/* realloc(p, bytes), likewise (a buffer that large is moved into a fresh mapping of its own,
- * not touched beyond the old contents copied in). */
+/* realloc(p, bytes), huge pages asked for over its whole 2 MiB pages from 8 MiB on (a
+ * buffer that large is moved into a fresh mapping of its own, not touched beyond the old
+ * contents copied in). */
 void *wvol__realloc_large(void *p, size_t bytes);
 
 /* Scratch whose old contents never matter (a slot regrown is allocated afresh, nothing
