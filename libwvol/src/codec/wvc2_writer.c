@@ -308,6 +308,13 @@ static int band_index(const wvc2_level *G, int band)
 
 enum { ROW_SLACK = 4 };
 
+/* A level's rows reserved at first (reserve_rows) and counted by wvol__wvc2_writer_memory:
+ * a tile row, the coarser level's lag, a few more. */
+static size_t first_rows(const wvc2_header *h, size_t tile_z)
+{
+    return tile_z + h->lag_rows + ROW_SLACK;
+}
+
 static int reserve_rows(wlevel *L, const wvc2_level *G, size_t first, size_t rows)
 {
     size_t cap, band, bytes;
@@ -449,7 +456,6 @@ static void code_job(wvc2_writer *w, wvc2_job *job, size_t id)
 #pragma omp atomic
     w->inflight--;
 }
-
 
 static wvol_status code_tile_row(wvc2_writer *w, int m, size_t k, wvol_error *err)
 {
@@ -604,9 +610,8 @@ wvol_status wvol__wvc2_writer_put(wvc2_writer *w, int level, size_t z0, size_t n
     WVOL_FORWARD(task_status(w, err));
     nth = nthreads(w);
     (void)nth;
-    WVOL_RETURN_IF(reserve_rows(L, G, (size_t)w->g.tile[2] + w->h.lag_rows + ROW_SLACK, z0 + nz - L->z_base), err,
-                   WVOL_ERR_NOMEM,
-                   "wvc2 writer: out of memory for level %d rows", level);
+    WVOL_RETURN_IF(reserve_rows(L, G, first_rows(&w->h, (size_t)w->g.tile[2]), z0 + nz - L->z_base), err,
+                   WVOL_ERR_NOMEM, "wvc2 writer: out of memory for level %d rows", level);
     /* one task per (band, tile column): each (chunk, band) sum is taken by one thread, in z, y, x order */
     ntask = (long)G->nb * (long)(G->nt[0] * G->nt[1]);
 #pragma omp parallel for schedule(dynamic, 1) reduction(| : bad) if (ntask > 1 && G->e[0] * G->e[1] * nz > 32768) \
@@ -664,7 +669,7 @@ wvol_status wvol__wvc2_writer_put(wvc2_writer *w, int level, size_t z0, size_t n
 
 /* ---- close --------------------------------------------------------------------------- */
 
-size_t wvol__wvc2_writer_memory(const wvc2_header *h, size_t lag_rows)
+size_t wvol__wvc2_writer_memory(const wvc2_header *h)
 {
     size_t total = 0, p[3] = {h->px, h->py, h->pz};
     wvc2_geom g;
@@ -673,7 +678,7 @@ size_t wvol__wvc2_writer_memory(const wvc2_header *h, size_t lag_rows)
     size_t chunk = 0, nth = (size_t)(h->threads > 0 ? h->threads : omp_get_max_threads());
     for (int m = 1; m <= h->levels; m++) {
         const wvc2_level *G = &g.lv[m];
-        size_t rows = (size_t)tz + lag_rows + ROW_SLACK, c = (size_t)G->nb;
+        size_t rows = first_rows(h, (size_t)tz), c = (size_t)G->nb;
         if (rows > G->e[2]) rows = G->e[2];
         total += rows * G->e[0] * G->e[1] * (size_t)G->nb * sizeof(int32_t);
         total += G->count * ((size_t)G->nb * sizeof(sec_stats) + sizeof(float) + sizeof(chunk_rec));

@@ -131,9 +131,9 @@ wvol_status wvol__wvc2_writer_close(wvc2_writer *w, void **out, size_t *out_size
 void wvol__wvc2_writer_abort(wvc2_writer *w);
 
 /* Bytes the writer holds at most for a grid (quantised rows and buffers, the chunks being
- * coded, not the caller's planes), for a streamed (fine-to-coarse, lag <= lag_rows rows per
- * level) arrival, with h->threads threads (0: OpenMP's default). For callers who plan
+ * coded, not the caller's planes), for a streamed (fine-to-coarse, lag <= h->lag_rows rows
+ * per level) arrival, with h->threads threads (0: OpenMP's default). For callers who plan
  * memory. */
-size_t wvol__wvc2_writer_memory(const wvc2_header *h, size_t lag_rows);
+size_t wvol__wvc2_writer_memory(const wvc2_header *h);
 
 #endif

@@ -181,7 +181,7 @@ wvol_status wvol_compress_stream(const char *path, wvol_source *src, const wvol_
     h.coder = wp.coder;
     h.zstd_level = wp.zstd_level;
     h.lag_rows = (size_t)f->length + 8;
-    out.writer_bytes = wvol__wvc2_writer_memory(&h, h.lag_rows);
+    out.writer_bytes = wvol__wvc2_writer_memory(&h);
     wvol__wvc_stream_stats_free(pc.stats);
     pc.stats = NULL;
     for (int attempt = 0; !s; attempt++) {
