@@ -4,6 +4,7 @@
  * encoder's first guess and the target is met, the file decoding to the same
  * coefficients as the in-memory file made with that step; sources from files and
  * generators; refusals and no partial files. */
+#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -102,6 +103,57 @@ static void same_file_as_in_memory_with_a_step(void)
               cases[c].wavelet, n_str, n_mem);
         CHECK(rep.passes == 2 && rep.bytes == n_str, "case %zu: %d passes, %zu bytes reported", c, rep.passes,
               rep.bytes);
+        free(mem);
+        free(str);
+        wvol_source_destroy(src);
+        wvol_volume_destroy(v);
+    }
+}
+
+/* The range the streamed path takes in its checked reads (eight lanes and a tail): the
+ * volume's numeric range, a zero extreme stored as +0 by both paths (which zero a scan
+ * keeps depends on its order), and the file the in-memory one byte for byte. */
+static void range_of_the_reads(void)
+{
+    static const size_t dims[3] = {13, 7, 11}; /* 1001 values: no multiple of 8 */
+    for (int c = 0; c < 3; c++) {
+        wvol_volume *v = NULL;
+        wvol_source *src = NULL;
+        wvol_compress_params cp;
+        wvol_compress_stream_report rep;
+        wvol_wvc_info info;
+        wvol_error err;
+        size_t n = dims[0] * dims[1] * dims[2], n_mem = 0, n_str = 0;
+        void *mem, *str;
+        char path[256];
+        double lo, hi;
+        CHECK(wvol_volume_create(&v, dims[0], dims[1], dims[2], &err) == WVOL_OK, "%s", err.message);
+        if (!v) return;
+        for (size_t i = 0; i < n; i++) v->data[i] = (float)((i * 37) % 101) * 0.25f;
+        if (c == 0) {
+            v->data[n - 1] = -3.5f; /* the minimum in the tail, the maximum in a lane */
+            v->data[9] = 1000.0f;
+        } else {
+            /* zeros of both signs as the minimum (c = 1) or, negated, the maximum (c = 2) */
+            for (size_t i = 0; i < n; i += 5) v->data[i] = i % 2 ? 0.0f : -0.0f;
+            if (c == 2)
+                for (size_t i = 0; i < n; i++) v->data[i] = -v->data[i];
+        }
+        wvol_volume_range(v, &lo, &hi, NULL);
+        CHECK(wvol_source_of_volume(&src, v, &err) == WVOL_OK, "%s", err.message);
+        params(&cp, "db2", 2);
+        cp.quant.step = 0.5;
+        mem = in_memory(v, &cp, &n_mem, NULL);
+        snprintf(path, sizeof path, DIR_ "/range%d.wvc", c);
+        CHECK(src && wvol_compress_stream(path, src, &cp, &rep, &err) == WVOL_OK, "%s", err.message);
+        CHECK(rep.value_min == lo && rep.value_max == hi, "case %d: range %g..%g, the volume's %g..%g", c,
+              rep.value_min, rep.value_max, lo, hi);
+        CHECK(wvol_wvc_read_info(&info, path, &err) == WVOL_OK, "%s", err.message);
+        CHECK(info.value_min == lo && info.value_max == hi && (info.value_min != 0 || !signbit(info.value_min)) &&
+                  (info.value_max != 0 || !signbit(info.value_max)),
+              "case %d: header range %g..%g (a zero extreme must be +0)", c, info.value_min, info.value_max);
+        str = read_all(path, &n_str);
+        CHECK(mem && str && n_mem == n_str && memcmp(mem, str, n_mem) == 0, "case %d: not the in-memory file", c);
         free(mem);
         free(str);
         wvol_source_destroy(src);
@@ -367,7 +419,8 @@ static void same_bytes_on_any_thread_count(void)
 int main(void)
 {
     mkdir(DIR_, 0755);
-    memory_does_not_grow_with_depth();
+    memory_does_not_grow_with_depth(); /* first: it forks, before OpenMP's threads exist */
+    range_of_the_reads();
     same_file_as_in_memory_with_a_step();
     psnr_target_is_met_and_equals_in_memory_at_its_step();
     file_sources_compress_like_the_generator();

@@ -474,7 +474,7 @@ static void reused_buffers_leave_nothing_behind(void)
         int32_t *child = calloc(16 * 16 * 8 * 8, sizeof *child), *par = calloc(8 * 8 * 4 * 8, sizeof *par);
         wvc2_qbox c[8], pr[8];
         wvc2_job_pool pool = {0};
-        wvc2_job j1, j2, jf;
+        wvc2_job j1, j2, jf, jn;
         wvc2_coded out;
         int32_t *kept;
         int same = 1;
@@ -490,7 +490,7 @@ static void reused_buffers_leave_nothing_behind(void)
         }
         for (size_t k = 0; k < 16 * 16 * 8 * 8; k++) child[k] = (int32_t)(k % 17) - 8;
         for (size_t k = 0; k < 8 * 8 * 4 * 8; k++) par[k] = (int32_t)(k % 5) + 1;
-        CHECK(wvol__wvc2_job_make(&j1, &g, 1, full, c, pr, &pool) == 0 && j1.nused == g.lv[1].nb, "dense job");
+        CHECK(wvol__wvc2_job_make(&j1, &g, 1, full, c, pr, NULL, &pool) == 0 && j1.nused == g.lv[1].nb, "dense job");
         kept = j1.block;
         CHECK(wvol__wvc2_job_code(&out, &j1, &g, WVOL_WVC_CODER_AUTO, 3, NULL, &pool) == 0, "dense job coded");
         free(out.payload);
@@ -500,19 +500,25 @@ static void reused_buffers_leave_nothing_behind(void)
         memset(par, 0, 8 * 8 * 4 * 8 * sizeof *par);
         for (int i = 2; i < 8; i++) c[i].q[3 + 16 * (2 + 16 * 1)] = i;
         par[5] = 9;
-        CHECK(wvol__wvc2_job_make(&j2, &g, 1, part, c, pr, &pool) == 0, "sparse job from the pool");
+        CHECK(wvol__wvc2_job_make(&j2, &g, 1, part, c, pr, NULL, &pool) == 0, "sparse job from the pool");
         CHECK(j2.block == kept && pool.n == 0, "the pool's block taken");
-        CHECK(wvol__wvc2_job_make(&jf, &g, 1, part, c, pr, NULL) == 0, "sparse job, fresh");
+        CHECK(wvol__wvc2_job_make(&jf, &g, 1, part, c, pr, NULL, NULL) == 0, "sparse job, fresh");
+        /* the counts given (as the writer gives its quantiser's): the same job */
+        CHECK(wvol__wvc2_job_make(&jn, &g, 1, part, c, pr, jf.nzb, NULL) == 0, "sparse job, counts given");
+        CHECK(jn.mask == jf.mask && jn.nonzero == jf.nonzero && jn.nonzero == (uint64_t)g.lv[1].nb - 2, "counts given: mask 0x%x, %llu",
+              jn.mask, (unsigned long long)jn.nonzero);
         CHECK(j2.mask == jf.mask && j2.nused == jf.nused, "same bands: 0x%x / 0x%x", j2.mask, jf.mask);
         for (int i = 0; i < 8; i++) {
             size_t n = jf.lg[i].p[0] * jf.lg[i].p[1] * jf.lg[i].p[2];
             if (!(jf.mask >> i & 1)) continue;
             same &= memcmp(j2.lg[i].p, jf.lg[i].p, sizeof jf.lg[i].p) == 0 &&
-                    memcmp(j2.lg[i].q, jf.lg[i].q, n * sizeof *jf.lg[i].q) == 0;
+                    memcmp(j2.lg[i].q, jf.lg[i].q, n * sizeof *jf.lg[i].q) == 0 &&
+                    memcmp(jn.lg[i].q, jf.lg[i].q, n * sizeof *jf.lg[i].q) == 0;
         }
         CHECK(same, "a job's grids from a reused block equal a fresh job's (zero margins included)");
         wvol__wvc2_job_free(&j2, &pool);
         wvol__wvc2_job_free(&jf, NULL);
+        wvol__wvc2_job_free(&jn, NULL);
         CHECK(pool.n == 1, "block back in the pool");
         wvol__wvc2_job_pool_free(&pool);
         CHECK(pool.n == 0, "pool released");

@@ -187,7 +187,7 @@ void wvol__wvc2_job_free(wvc2_job *job, wvc2_job_pool *pool)
 }
 
 int wvol__wvc2_job_make(wvc2_job *job, const wvc2_geom *g, int m, const size_t ext[3], const wvc2_qbox child[8],
-                        const wvc2_qbox parent[8], wvc2_job_pool *pool)
+                        const wvc2_qbox parent[8], const uint64_t *nonzero, wvc2_job_pool *pool)
 {
     const wvc2_level *L = &g->lv[m];
     size_t size[8] = {0}, need = 0, at = 0;
@@ -195,11 +195,15 @@ int wvol__wvc2_job_make(wvc2_job *job, const wvc2_geom *g, int m, const size_t e
     job->m = m;
     memcpy(job->ext, ext, sizeof job->ext);
     for (int i = 0; i < L->nb; i++) {
-        for (size_t zz = 0; zz < ext[2]; zz++)
-            for (size_t y = 0; y < ext[1]; y++) {
-                const int32_t *r = child[i].q + y * child[i].sy + zz * child[i].sz;
-                for (size_t x = 0; x < ext[0]; x++) job->nzb[i] += r[x] != 0;
-            }
+        if (nonzero) {
+            job->nzb[i] = nonzero[i];
+        } else {
+            for (size_t zz = 0; zz < ext[2]; zz++)
+                for (size_t y = 0; y < ext[1]; y++) {
+                    const int32_t *r = child[i].q + y * child[i].sy + zz * child[i].sz;
+                    for (size_t x = 0; x < ext[0]; x++) job->nzb[i] += r[x] != 0;
+                }
+        }
         if (job->nzb[i] == 0) continue;
         job->nonzero += job->nzb[i];
         job->mask |= (uint8_t)(1u << i);
@@ -213,14 +217,20 @@ int wvol__wvc2_job_make(wvc2_job *job, const wvc2_geom *g, int m, const size_t e
         memset(job, 0, sizeof *job);
         return -1;
     }
-    /* zeros where neither the tile nor its parent region is copied (as a fresh grid) */
-    memset(job->block, 0, need * sizeof *job->block);
     for (int i = 0; i < L->nb; i++) {
+        local_grid *lg = &job->lg[i];
         if (!size[i]) continue;
-        job->lg[i].q = job->block + at;
+        lg->q = job->block + at;
         at += size[i];
-        box_copy_in(&job->lg[i], 0, &child[i], ext);
-        parent_in(&job->lg[i], &parent[i]);
+        box_copy_in(lg, 0, &child[i], ext);
+        parent_in(lg, &parent[i]);
+        /* zeros where the parent region leaves the grid's parent columns (the tile's part
+         * is copied whole), as in a fresh grid */
+        if (lg->b.has_parent)
+            for (size_t z = 0; z < ext[2]; z++)
+                for (size_t y = 0; y < ext[1]; y++)
+                    if (z >= lg->b.pext[2] || y >= lg->b.pext[1])
+                        memset(lg->q + ext[0] + lg->p[0] * (y + lg->p[1] * z), 0, lg->b.pext[0] * sizeof *lg->q);
     }
     return 0;
 }
@@ -330,11 +340,11 @@ int wvol__wvc2_job_code(wvc2_coded *out, wvc2_job *job, const wvc2_geom *g, int 
 }
 
 int wvol__wvc2_chunk_encode(wvc2_coded *out, const wvc2_geom *g, int m, const size_t ext[3],
-                            const wvc2_qbox child[8], const wvc2_qbox parent[8], int coder, int zstd_level,
-                            wvc_rans_scratch *scratch, wvc2_job_pool *pool)
+                            const wvc2_qbox child[8], const wvc2_qbox parent[8], const uint64_t *nonzero,
+                            int coder, int zstd_level, wvc_rans_scratch *scratch, wvc2_job_pool *pool)
 {
     wvc2_job job;
-    if (wvol__wvc2_job_make(&job, g, m, ext, child, parent, pool)) {
+    if (wvol__wvc2_job_make(&job, g, m, ext, child, parent, nonzero, pool)) {
         memset(out, 0, sizeof *out);
         return -1;
     }

@@ -128,9 +128,11 @@ typedef struct wvc2_job_pool {
 void wvol__wvc2_job_pool_free(wvc2_job_pool *pool);
 
 /* Fills job from child/parent (as wvol__wvc2_chunk_encode takes them), its grids in a
- * block from pool (NULL: a new block); 0 or -1 (memory, job left empty). */
+ * block from pool (NULL: a new block); nonzero: each child box's count of non-zero values
+ * where the caller has it (the writer's quantiser counts them), NULL to count them here;
+ * 0 or -1 (memory, job left empty). */
 int wvol__wvc2_job_make(wvc2_job *job, const wvc2_geom *g, int m, const size_t ext[3], const wvc2_qbox child[8],
-                        const wvc2_qbox parent[8], wvc2_job_pool *pool);
+                        const wvc2_qbox parent[8], const uint64_t *nonzero, wvc2_job_pool *pool);
 /* Codes a job (as wvol__wvc2_chunk_encode) and gives its grids back to pool (NULL:
  * frees them); 0 or -1 (memory). */
 int wvol__wvc2_job_code(wvc2_coded *out, wvc2_job *job, const wvc2_geom *g, int coder, int zstd_level,
@@ -141,11 +143,11 @@ void wvol__wvc2_job_free(wvc2_job *job, wvc2_job_pool *pool);
 
 /* Codes the bands of one chunk: child[i] is band g->lv[m].bands[i]'s box of extent
  * ext, parent[i] its parent region (extent from wvc2_parent_box; ignored at m ==
- * levels). coder: AUTO, CABAC, ZSTD or RANS (mode 3 wherever the chunk has no low-pass
+ * levels), nonzero as wvol__wvc2_job_make's. coder: AUTO, CABAC, ZSTD or RANS (mode 3 wherever the chunk has no low-pass
  * cube, else as CABAC). Returns 0 or -1 (memory). */
 int wvol__wvc2_chunk_encode(wvc2_coded *out, const wvc2_geom *g, int m, const size_t ext[3],
-                            const wvc2_qbox child[8], const wvc2_qbox parent[8], int coder, int zstd_level,
-                            wvc_rans_scratch *scratch, wvc2_job_pool *pool);
+                            const wvc2_qbox child[8], const wvc2_qbox parent[8], const uint64_t *nonzero,
+                            int coder, int zstd_level, wvc_rans_scratch *scratch, wvc2_job_pool *pool);
 
 /* A chunk decoded in place in a dense quantised pyramid Q (padded grid p, x fastest):
  * band i's tile at off[i], its parent region at poff[i] (both in Q's coordinates).

@@ -435,6 +435,14 @@ static void chunk_boxes(const wvc2_writer *w, int m, const size_t tc[3], size_t 
     }
 }
 
+/* Each band's count of non-zero values in chunk id of level m, from the quantiser's sums. */
+static void chunk_nonzero(const wvc2_writer *w, int m, size_t id, uint64_t nz[8])
+{
+    const wvc2_level *G = &w->g.lv[m];
+    const sec_stats *acc = w->lv[m].acc + (id - G->first) * (size_t)G->nb;
+    for (int i = 0; i < G->nb; i++) nz[i] = acc[i].n1 + acc[i].n2;
+}
+
 /* A task: codes one job and files it (under a lock: the spill is one stream). */
 static void code_job(wvc2_writer *w, wvc2_job *job, size_t id)
 {
@@ -471,10 +479,12 @@ static wvol_status code_tile_row(wvc2_writer *w, int m, size_t k, wvol_error *er
         for (size_t u = 0; u < ntile; u++) {
             size_t tc[3] = {u % G->nt[0], u / G->nt[0], k}, ext[3], id = wvc2_chunk_id(&w->g, m, tc);
             wvc2_qbox child[8], parent[8];
+            uint64_t nz[8];
             wvc2_job *job = malloc(sizeof *job);
             int busy;
             chunk_boxes(w, m, tc, ext, child, parent);
-            if (!job || wvol__wvc2_job_make(job, &w->g, m, ext, child, parent, &w->pool)) {
+            chunk_nonzero(w, m, id, nz);
+            if (!job || wvol__wvc2_job_make(job, &w->g, m, ext, child, parent, nz, &w->pool)) {
                 free(job);
                 return wvol_error_set(err, WVOL_ERR_NOMEM, "wvc2 writer: out of memory while coding");
             }
@@ -499,9 +509,11 @@ static wvol_status code_tile_row(wvc2_writer *w, int m, size_t k, wvol_error *er
     for (t = 0; t < (long)ntile; t++) {
         size_t tc[3] = {(size_t)t % G->nt[0], (size_t)t / G->nt[0], k}, ext[3];
         wvc2_qbox child[8], parent[8];
+        uint64_t nz[8];
         chunk_boxes(w, m, tc, ext, child, parent);
-        if (wvol__wvc2_chunk_encode(&coded[t], &w->g, m, ext, child, parent, (int)w->h.coder, w->h.zstd_level,
-                                    thread_scratch(w), &w->pool))
+        chunk_nonzero(w, m, wvc2_chunk_id(&w->g, m, tc), nz);
+        if (wvol__wvc2_chunk_encode(&coded[t], &w->g, m, ext, child, parent, nz, (int)w->h.coder,
+                                    w->h.zstd_level, thread_scratch(w), &w->pool))
             failed = 1;
     }
     for (t = 0; t < (long)ntile && !failed; t++) {

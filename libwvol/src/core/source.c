@@ -6,6 +6,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "core/finite.h"
 #include "core/source_volume.h"
 #include "core/status_internal.h"
 #include "wvol/source.h"
@@ -17,6 +18,7 @@ struct wvol_source {
     int streams;
     wvol_source_ops ops;
     void *ctx;
+    float seen[2]; /* wvol__source_seen_range */
 };
 
 wvol_status wvol_source_create(wvol_source **out, const size_t dims[3], const double spacing[3],
@@ -49,6 +51,7 @@ wvol_status wvol_source_create(wvol_source **out, const size_t dims[3], const do
     s->streams = streams;
     s->ops = *ops;
     s->ctx = ctx;
+    wvol__source_seen_reset(s);
     *out = s;
     return WVOL_OK;
 }
@@ -72,20 +75,35 @@ const char *wvol_source_name(const wvol_source *s) { return s ? s->name : ""; }
 
 int wvol_source_streams(const wvol_source *s) { return s ? s->streams : 0; }
 
+void wvol__source_seen_reset(wvol_source *s)
+{
+    if (!s) return;
+    s->seen[0] = INFINITY;
+    s->seen[1] = -INFINITY;
+}
+
+void wvol__source_seen_range(const wvol_source *s, float range[2])
+{
+    range[0] = s ? s->seen[0] : INFINITY;
+    range[1] = s ? s->seen[1] : -INFINITY;
+}
+
 wvol_status wvol_source_read(wvol_source *s, float *dst, size_t z0, size_t nz, wvol_error *err)
 {
     size_t slice, n;
+    float range[2];
     WVOL_RETURN_IF(!s || !dst, err, WVOL_ERR_ARG, "volume source: NULL argument");
     WVOL_RETURN_IF(nz == 0 || z0 > s->dims[2] || nz > s->dims[2] - z0, err, WVOL_ERR_ARG,
                    "%s: slices %zu .. %zu outside the volume's 0 .. %zu", s->name, z0, z0 + nz, s->dims[2]);
     WVOL_FORWARD(s->ops.read(s->ctx, dst, z0, nz, err));
     slice = s->dims[0] * s->dims[1];
     n = slice * nz;
-    /* the common case (all finite) in one branch-free pass; the voxel is found after */
-    {
-        int bad = 0;
-        for (size_t i = 0; i < n; i++) bad |= !isfinite(dst[i]);
-        if (!bad) return WVOL_OK;
+    /* the common case (all finite) in one branch-free pass, which takes the range too; the
+     * voxel is found after */
+    if (wvol__finite_range(dst, n, range)) {
+        s->seen[0] = range[0] < s->seen[0] ? range[0] : s->seen[0];
+        s->seen[1] = range[1] > s->seen[1] ? range[1] : s->seen[1];
+        return WVOL_OK;
     }
     for (size_t i = 0; i < n; i++)
         if (!isfinite(dst[i]))

@@ -1,5 +1,7 @@
 /* SPDX-License-Identifier: MIT */
 #include "core/alloc.h"
+#include "core/clones.h"
+#include "core/finite.h"
 #include "core/status_internal.h"
 #include "wvol/volume.h"
 
@@ -144,6 +146,47 @@ wvol_status wvol_check_finite(const float *data, size_t nx, size_t ny, size_t nz
         }
     }
     return WVOL_OK;
+}
+
+/* Eight lanes of a running minimum, maximum and exponent test (explicit vectors: GCC
+ * leaves a scalar float min/max reduction scalar without -ffast-math). */
+typedef float fr_v8f __attribute__((vector_size(32)));
+typedef int32_t fr_v8i __attribute__((vector_size(32)));
+
+WVOL__CLONES int wvol__finite_range(const float *d, size_t n, float range[2])
+{
+    const fr_v8i expo = {0x7F800000, 0x7F800000, 0x7F800000, 0x7F800000,
+                         0x7F800000, 0x7F800000, 0x7F800000, 0x7F800000};
+    fr_v8f lo = {INFINITY, INFINITY, INFINITY, INFINITY, INFINITY, INFINITY, INFINITY, INFINITY}, hi = -lo;
+    fr_v8i bad = {0, 0, 0, 0, 0, 0, 0, 0};
+    float l = INFINITY, h = -INFINITY;
+    uint32_t b = 0;
+    size_t i = 0;
+    for (; i + 8 <= n; i += 8) {
+        fr_v8f v;
+        fr_v8i mlo, mhi;
+        memcpy(&v, d + i, sizeof v);
+        bad |= ((fr_v8i)v & expo) == expo;
+        mlo = v < lo;
+        mhi = v > hi;
+        lo = (fr_v8f)(((fr_v8i)v & mlo) | ((fr_v8i)lo & ~mlo));
+        hi = (fr_v8f)(((fr_v8i)v & mhi) | ((fr_v8i)hi & ~mhi));
+    }
+    for (int k = 0; k < 8; k++) {
+        b |= (uint32_t)bad[k];
+        l = lo[k] < l ? lo[k] : l;
+        h = hi[k] > h ? hi[k] : h;
+    }
+    for (; i < n; i++) {
+        uint32_t u;
+        memcpy(&u, d + i, sizeof u);
+        b |= (uint32_t)((u & 0x7F800000u) == 0x7F800000u);
+        l = d[i] < l ? d[i] : l;
+        h = d[i] > h ? d[i] : h;
+    }
+    range[0] = l;
+    range[1] = h;
+    return !b;
 }
 
 void wvol_volume_range(const wvol_volume *v, double *vmin, double *vmax, double *mean)

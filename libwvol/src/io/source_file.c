@@ -8,6 +8,7 @@
 #define _FILE_OFFSET_BITS 64
 #define _POSIX_C_SOURCE 200809L
 #include <errno.h>
+#include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -30,6 +31,7 @@ typedef struct file_src {
     unsigned long long total; /* data bytes the sizes need */
     size_t slice_bytes;
     nrrd_header conv;         /* type, elem and byte order of the samples (only those fields) */
+    int direct;               /* float32 in the host's byte order: read into the caller's slab */
     unsigned char *buf;
 } file_src;
 
@@ -61,13 +63,18 @@ static wvol_status file_read(void *ctx, float *dst, size_t z0, size_t nz, wvol_e
         }
     }
     while (done < n) {
-        size_t want = n - done < CHUNK_BYTES ? n - done : CHUNK_BYTES, got;
+        /* float32 in the host's byte order goes straight into dst: no staging copy */
+        size_t want = n - done < CHUNK_BYTES || f->direct ? n - done : CHUNK_BYTES, got;
+        unsigned char *to = f->direct ? (unsigned char *)dst + done : f->buf;
         if (f->fp) {
-            got = fread(f->buf, 1, want, f->fp);
+            got = fread(to, 1, want, f->fp);
             WVOL_RETURN_IF(got != want, err, WVOL_ERR_IO, "%s: short read at byte %llu", f->path,
                            f->start + at + done + got);
         } else {
-            int r = gzread(f->gz, f->buf, (unsigned)want), code = Z_OK;
+            int r, code = Z_OK;
+            if (want > (size_t)1 << 30) want = (size_t)1 << 30; /* gzread takes an unsigned int */
+            if (!f->direct && want > CHUNK_BYTES) want = CHUNK_BYTES;
+            r = gzread(f->gz, to, (unsigned)want);
             if (r < 0) {
                 const char *msg = gzerror(f->gz, &code);
                 return wvol_error_set(err, WVOL_ERR_FORMAT, "corrupt gzip data in %s: %s", f->path,
@@ -79,7 +86,7 @@ static wvol_status file_read(void *ctx, float *dst, size_t z0, size_t nz, wvol_e
                            f->pos - f->start, f->total);
             got = want;
         }
-        wvol__nrrd_convert(dst + done / elem, f->buf, got / elem, &f->conv);
+        if (!f->direct) wvol__nrrd_convert(dst + done / elem, f->buf, got / elem, &f->conv);
         done += got;
     }
     if (f->gz && at + n == f->total) {
@@ -97,11 +104,13 @@ static const wvol_source_ops file_ops = {file_read, file_close};
 static wvol_status new_file_src(file_src **out, const char *path, int type, size_t elem, int big_endian,
                                 const size_t dims[3], wvol_error *err)
 {
+    const uint16_t one = 1;
     file_src *f = calloc(1, sizeof *f);
     WVOL_RETURN_IF(!f, err, WVOL_ERR_NOMEM, "%s: out of memory", path);
+    f->direct = type == WVOL_SAMPLE_TYPE_F32 && !big_endian == (*(const unsigned char *)&one == 1);
     f->path = strdup(path);
-    f->buf = malloc(CHUNK_BYTES + 8);
-    if (!f->path || !f->buf) {
+    f->buf = f->direct ? NULL : malloc(CHUNK_BYTES + 8);
+    if (!f->path || (!f->direct && !f->buf)) {
         file_close(f);
         return wvol_error_set(err, WVOL_ERR_NOMEM, "%s: out of memory", path);
     }

@@ -113,6 +113,7 @@ wvol_status wvol_compress(wvol_compressed *out, const wvol_volume *v, const wvol
     WVOL_RETURN_IF(p.select.drop_levels < 0 || p.select.drop_levels >= p.levels, err, WVOL_ERR_ARG,
                    "compress: drop_levels %d: must be below the levels (%d)", p.select.drop_levels, p.levels);
     wvol_volume_range(v, &out->value_min, &out->value_max, NULL);
+    out->value_min += 0.0, out->value_max += 0.0; /* a zero extreme as +0, as the streamed path */
     out->levels = p.levels;
 
     t0 = wvol__now();

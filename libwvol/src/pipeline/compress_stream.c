@@ -20,6 +20,7 @@
 
 #include "codec/wvc2_writer.h"
 #include "codec/wvc_stream.h"
+#include "core/source_volume.h"
 #include "core/clock.h"
 #include "core/status_internal.h"
 #include "wvol/compress.h"
@@ -74,32 +75,6 @@ static wvol_status write_rows(void *user, wvol_error *err)
     return wvol_dwt3_source(wp->src, wp->f, wp->pc->levels, on_rows, wp->pc, NULL, err);
 }
 
-/* ---- a source that keeps the range of what it reads ------------------------------- */
-
-typedef struct range_src {
-    wvol_source *inner;
-    double lo, hi;
-} range_src;
-
-static wvol_status range_read(void *ctx, float *dst, size_t z0, size_t nz, wvol_error *err)
-{
-    range_src *r = ctx;
-    size_t dims[3];
-    long i, n;
-    float lo = INFINITY, hi = -INFINITY; /* min and max of floats are exact in float */
-    WVOL_FORWARD(wvol_source_read(r->inner, dst, z0, nz, err));
-    wvol_source_geometry(r->inner, dims, NULL, NULL);
-    n = (long)(dims[0] * dims[1] * nz);
-#pragma omp parallel for schedule(static) reduction(min : lo) reduction(max : hi) if (n >= 262144)
-    for (i = 0; i < n; i++) {
-        lo = dst[i] < lo ? dst[i] : lo;
-        hi = dst[i] > hi ? dst[i] : hi;
-    }
-    r->lo = lo < r->lo ? lo : r->lo;
-    r->hi = hi > r->hi ? hi : r->hi;
-    return WVOL_OK;
-}
-
 /* ---- the pipeline ------------------------------------------------------------------ */
 
 int wvol_compress_streams(const wvol_compress_params *p)
@@ -112,12 +87,10 @@ int wvol_compress_streams(const wvol_compress_params *p)
 wvol_status wvol_compress_stream(const char *path, wvol_source *src, const wvol_compress_params *params,
                                  wvol_compress_stream_report *rep, wvol_error *err)
 {
-    static const wvol_source_ops range_ops = {range_read, NULL};
     wvol_compress_params p;
     wvol_compress_stream_report out;
     const wvol_filter *f = NULL;
-    wvol_source *rs = NULL;
-    range_src rctx;
+    float range[2];
     pass_ctx pc;
     wvol_wvc_params wp;
     wvc2_header h;
@@ -153,13 +126,14 @@ wvol_status wvol_compress_stream(const char *path, wvol_source *src, const wvol_
 
     /* pass 1: statistics (and the volume's range) */
     t0 = wvol__now();
-    rctx.inner = src, rctx.lo = INFINITY, rctx.hi = -INFINITY;
-    WVOL_FORWARD(wvol_source_create(&rs, dims, spacing, origin, wvol_source_name(src), 1, &range_ops, &rctx, err));
+    wvol__source_seen_reset(src);
     s = wvol__wvc_stream_stats_create(&pc.stats, pc.p[0], pc.p[1], pc.p[2], p.levels, err);
-    if (!s) s = wvol_dwt3_source(rs, f, p.levels, on_rows, &pc, &bytes, err);
-    wvol_source_destroy(rs);
+    if (!s) s = wvol_dwt3_source(src, f, p.levels, on_rows, &pc, &bytes, err);
     out.window_bytes = bytes;
-    out.value_min = rctx.lo, out.value_max = rctx.hi;
+    /* the range of what the pass read (the checked reads take it); + 0.0: a zero extreme as
+     * +0, whichever zero the scan kept (as wvol_compress) */
+    wvol__source_seen_range(src, range);
+    out.value_min = (double)range[0] + 0.0, out.value_max = (double)range[1] + 0.0;
     voxels = (double)dims[0] * (double)dims[1] * (double)dims[2];
     if (!s) s = wvol_compress_wvc_params(&wp, &p.quant, 0.0, voxels, out.value_min, out.value_max, err);
     if (!s) s = wvol__wvc_stream_step(pc.stats, &wp, scale, &out.step, NULL, err);
