@@ -396,8 +396,18 @@ wvol_status wvol_compress_choose_wavelet(wvol_wavelet_choice *out, wvol_source *
     }
     for (int i = 0; i < WVOL_WAVELET_CHOICE_CANDIDATES; i++) {
         for (int j = 0; j < s.nb && st == WVOL_OK; j++) {
+            wvol_coeffs *c = s.b[j].c;
             wvol_volume *v = NULL;
-            wvol_coeffs_destroy(s.b[j].c);
+            if (c && c->px == s.e[0] && c->py == s.e[1] && c->pz == s.e[2]) {
+                /* no padding: the block into the previous candidate's array, transformed there
+                 * (what wvol_dwt3 computes, without a fresh array per candidate) */
+                memcpy(c->data, s.b[j].data, s.e[0] * s.e[1] * s.e[2] * sizeof(float));
+                c->filter = f[i];
+                st = wvol_dwt3_inplace_f32(c->data, c->px, c->py, c->pz, f[i], s.levels, err);
+                if (st == WVOL_OK) st = wvol_check_finite(c->data, c->px, c->py, c->pz, "wavelet trial coefficients", err);
+                continue;
+            }
+            wvol_coeffs_destroy(c);
             s.b[j].c = NULL;
             st = wvol_volume_wrap(&v, s.b[j].data, s.e[0], s.e[1], s.e[2], err);
             if (st == WVOL_OK) st = wvol_dwt3(&s.b[j].c, v, f[i], s.levels, err);
