@@ -84,21 +84,28 @@ static inline __attribute__((always_inline)) void row_kernel(double t[8], const 
     memset(t, 0, 8 * sizeof *t);
     for (x = 0; x + 8 <= ex; x += 8) {
         wvc_v8f cf;
-        wvc_v8i hit;
-        wvc_v4l h4;
-        memcpy(&cf, row + x, sizeof cf);
-        hit = (wvc_v8f)((wvc_v8i)cf & absmask) >= vthr;
-        h4 = (wvc_v4l)hit;
-        if (!(h4[0] | h4[1] | h4[2] | h4[3])) {
-            /* all zero: only their energy */
-            wvc_v4f lo = {cf[0], cf[1], cf[2], cf[3]}, hi = {cf[4], cf[5], cf[6], cf[7]};
-            wvc_v4d dl = __builtin_convertvector(lo, wvc_v4d), dh = __builtin_convertvector(hi, wvc_v4d);
-            zq += dl * dl + dh * dh;
-            if (qrow && !sparse) memset(qrow + x, 0, 8 * sizeof *qrow);
-            continue;
+        /* a run of all-zero groups: only their energy, in a loop of its own (with the full
+         * arithmetic's accumulators live, zq was kept on the stack and each group waited on
+         * the previous one's store); the same operations in the same order */
+        {
+            wvc_v4d z = zq;
+            for (; x + 8 <= ex; x += 8) {
+                wvc_v8i hit;
+                wvc_v4l h4;
+                memcpy(&cf, row + x, sizeof cf);
+                hit = (wvc_v8f)((wvc_v8i)cf & absmask) >= vthr;
+                h4 = (wvc_v4l)hit;
+                if (h4[0] | h4[1] | h4[2] | h4[3]) break;
+                wvc_v4f lo = __builtin_shufflevector(cf, cf, 0, 1, 2, 3), hi = __builtin_shufflevector(cf, cf, 4, 5, 6, 7);
+                wvc_v4d dl = __builtin_convertvector(lo, wvc_v4d), dh = __builtin_convertvector(hi, wvc_v4d);
+                z += dl * dl + dh * dh;
+                if (qrow && !sparse) memset(qrow + x, 0, 8 * sizeof *qrow);
+            }
+            zq = z;
+            if (x + 8 > ex) break;
         }
         {
-            wvc_v4f lo = {cf[0], cf[1], cf[2], cf[3]}, hi = {cf[4], cf[5], cf[6], cf[7]};
+            wvc_v4f lo = __builtin_shufflevector(cf, cf, 0, 1, 2, 3), hi = __builtin_shufflevector(cf, cf, 4, 5, 6, 7);
             quad_stats(&A, lo, inv, f, qrow ? qrow + x : NULL, sparse);
             quad_stats(&A, hi, inv, f, qrow ? qrow + x + 4 : NULL, sparse);
         }
