@@ -22,6 +22,7 @@
 
 #include "core/alloc.h"
 #include "core/clock.h"
+#include "core/finite.h"
 #include "wvc2_internal.h"
 #include "wvc2_writer.h"
 #include "wvc_format.h"
@@ -653,8 +654,11 @@ wvol_status wvol__wvc2_writer_put(wvc2_writer *w, int level, size_t z0, size_t n
                     wvol__wvc_row_stats(t, row, qrow, x1 - x0, w->h.step, f);
                 if (!isfinite(t[1])) bad = 1;
                 acc_add(acc, t);
-                for (size_t x = 0; x < x1 - x0; x++) {
-                    float a = fabsf(row[x]);
+                {
+                    /* max |c| = max(max c, -min c), in eight lanes (core/finite.h); a zero as +0 */
+                    float rg[2], a;
+                    (void)wvol__finite_range(row, x1 - x0, rg);
+                    a = -rg[0] > rg[1] ? -rg[0] : rg[1];
                     mx = a > mx ? a : mx;
                 }
             }

@@ -16,6 +16,7 @@
 #include <string.h>
 
 #include "core/alloc.h"
+#include "core/clones.h"
 #include "wavelet/wavelet_internal.h"
 #include "wvol/source.h"
 
@@ -150,10 +151,20 @@ nomem:
 }
 
 /* Every value finite: the low-pass gains 2^1.5 per level, inputs near FLT_MAX overflow. */
+WVOL__CLONES static int plane_finite(const float *p, size_t n)
+{
+    uint32_t bad = 0;
+    for (size_t i = 0; i < n; i++) { /* NaN or Inf: the exponent bits all ones (vectorises) */
+        uint32_t u;
+        memcpy(&u, p + i, sizeof u);
+        bad |= (uint32_t)((u & 0x7F800000u) == 0x7F800000u);
+    }
+    return !bad;
+}
+
 static wvol_status check_plane(const float *p, size_t n, int level, wvol_error *err)
 {
-    int bad = 0;
-    for (size_t i = 0; i < n; i++) bad |= !(p[i] - p[i] == 0);
+    int bad = !plane_finite(p, n);
     WVOL_RETURN_IF(bad, err, WVOL_ERR_NONFINITE,
                    "streamed transform: coefficients of level %d overflow float32 (the low-pass grows by 2^1.5 per "
                    "level; input magnitudes must stay below about FLT_MAX / 2^(1.5 * levels))", level);
