@@ -45,6 +45,7 @@
 #include <string.h>
 
 #include "core/alloc.h"
+#include "rans_common.h"
 #include "wvc2_internal.h"
 
 #define R3_NA 13              /* neighbourhood classes: bit length 0..12 */
@@ -155,10 +156,6 @@ static void r3_row_free(r3_row *w, int32_t *zrow)
     free(zrow);
 }
 
-/* Raw bits below the first two and the magnitude symbol's base, per symbol. */
-static inline int r3_nraw(int s) { return s < 2 ? 0 : (s >> 1) - 1; }
-static inline uint32_t r3_base(int s) { return s < 2 ? (uint32_t)s : (2u | (uint32_t)(s & 1)) << ((s >> 1) - 1); }
-
 /* The decoder's per-symbol lookups (s < 64): base | mask of the raw bits << 32, and
  * the number of raw bits. */
 static uint64_t r3_symtab[64];
@@ -166,18 +163,17 @@ static uint8_t r3_symraw[64];
 static void r3_symtab_init(void)
 {
     for (int s = 0; s < 64; s++) {
-        int k = s < R3_NS ? r3_nraw(s) : 0;
-        r3_symtab[s] = (s < R3_NS ? r3_base(s) : 0) | (uint64_t)((1u << k) - 1) << 32;
+        int k = s < R3_NS ? wvc_rans_nraw(s) : 0;
+        r3_symtab[s] = (s < R3_NS ? wvc_rans_base(s) : 0) | (uint64_t)((1u << k) - 1) << 32;
         r3_symraw[s] = (uint8_t)k;
     }
 }
 
 /* ---- frequency tables ---- */
 
-/* Normalises counts cnt[0..ns) (sum > 0) to frequencies summing to R3_M, each present
- * symbol at least 1: scaled and rounded, then the difference taken from (or given to)
+/* Counts scaled and rounded, then the difference taken from (or given to)
  * the largest frequencies, which lose least by it. */
-static void r3_normalise(const uint32_t *cnt, int ns, uint32_t *f)
+void wvol__wvc_rans_normalise(const uint32_t *cnt, int ns, uint32_t *f, uint32_t m)
 {
     uint64_t total = 0;
     int64_t sum = 0;
@@ -186,39 +182,38 @@ static void r3_normalise(const uint32_t *cnt, int ns, uint32_t *f)
     for (s = 0; s < ns; s++) {
         f[s] = 0;
         if (!cnt[s]) continue;
-        f[s] = (uint32_t)(((uint64_t)cnt[s] * R3_M + total / 2) / total);
+        f[s] = (uint32_t)(((uint64_t)cnt[s] * m + total / 2) / total);
         if (f[s] == 0) f[s] = 1;
         sum += f[s];
         if (big < 0 || f[s] > f[big]) big = s;
     }
-    if (sum <= (int64_t)R3_M) {
-        f[big] += (uint32_t)((int64_t)R3_M - sum);
+    if (sum <= (int64_t)m) {
+        f[big] += (uint32_t)((int64_t)m - sum);
         return;
     }
-    while (sum > (int64_t)R3_M) {
-        int m = -1;
+    while (sum > (int64_t)m) {
+        int l = -1;
         uint32_t take;
         for (s = 0; s < ns; s++)
-            if (f[s] > 1 && (m < 0 || f[s] > f[m])) m = s;
-        take = f[m] / 8 + 1; /* a share of the largest, so the loss spreads over the large ones */
-        if (take > f[m] - 1) take = f[m] - 1;
-        if (take > (uint32_t)(sum - (int64_t)R3_M)) take = (uint32_t)(sum - (int64_t)R3_M);
-        f[m] -= take;
+            if (f[s] > 1 && (l < 0 || f[s] > f[l])) l = s;
+        take = f[l] / 8 + 1; /* a share of the largest, so the loss spreads over the large ones */
+        if (take > f[l] - 1) take = f[l] - 1;
+        if (take > (uint32_t)(sum - (int64_t)m)) take = (uint32_t)(sum - (int64_t)m);
+        f[l] -= take;
         sum -= take;
     }
 }
 
-/* Frequency of '+' of a sign context with pos and neg counts (not both 0). */
-static uint32_t r3_sign_f(uint64_t pos, uint64_t neg)
+uint32_t wvol__wvc_rans_binary_f(uint64_t n0, uint64_t n1, uint32_t m)
 {
     uint64_t f;
-    if (!neg) return R3_M;
-    if (!pos) return 0;
-    f = (pos * R3_M + (pos + neg) / 2) / (pos + neg);
-    return (uint32_t)(f < 1 ? 1 : f > R3_M - 1 ? R3_M - 1 : f);
+    if (!n1) return m;
+    if (!n0) return 0;
+    f = (n0 * m + (n0 + n1) / 2) / (n0 + n1);
+    return (uint32_t)(f < 1 ? 1 : f > m - 1 ? m - 1 : f);
 }
 
-static int r3_get_varint(const uint8_t *buf, size_t size, size_t *pos, uint32_t *v)
+int wvol__wvc_rans_get_varint(const uint8_t *buf, size_t size, size_t *pos, uint32_t *v)
 {
     uint32_t r = 0;
     for (int shift = 0; shift < 35; shift += 7) {
@@ -245,16 +240,6 @@ typedef struct r3_enc {
     uint8_t *raw; /* the current band's raw bits */
 } r3_enc;
 
-/* The bit length of t < 2^24 (0 for 0) through float's exponent, so that a loop of it
- * vectorises (x86-64-v3 has no vector count of leading zeros; it converts signed ints). */
-static inline uint32_t r3_bitlen24(uint32_t t)
-{
-    float f = (float)(int32_t)t;
-    uint32_t u;
-    memcpy(&u, &f, 4);
-    return ((u >> 23) - 126) & (0u - (t != 0));
-}
-
 /* One row of the encoder's first pass, in two loops without a chain (the encoder knows W
  * already; restrict parameters, so no overlap checks) that vectorise: 32-bit lengths
  * first (T: A[x] in, the bit length of the context sum out; N: |q|'s leading one), then
@@ -270,8 +255,8 @@ __attribute__((noinline)) WVOL__CLONES static void r3_scan_row(uint8_t *restrict
         const int32_t v = c[x];
         const uint32_t a = v < 0 ? (uint32_t)0 - (uint32_t)v : (uint32_t)v, big = a >= (1u << 24);
         /* |q| < 2^31: above 2^24 the length of a >> 8, plus 8 (exact, unlike a float of a) */
-        N[x] = r3_bitlen24(big ? a >> 8 : a | 1) + 8 * big - 1;
-        T[x] = r3_bitlen24(T[x] + 2 * r3_abs(c[x - 1])); /* the sum < 12 * 65535 */
+        N[x] = wvc_rans_bitlen24(big ? a >> 8 : a | 1) + 8 * big - 1;
+        T[x] = wvc_rans_bitlen24(T[x] + 2 * r3_abs(c[x - 1])); /* the sum < 12 * 65535 */
     }
     for (size_t x = 1; x < ex; x++) {
         const int32_t v = c[x], W = c[x - 1];
@@ -286,7 +271,7 @@ __attribute__((noinline)) WVOL__CLONES static void r3_scan_row(uint8_t *restrict
     if (ex) {
         const int32_t v = c[0];
         const uint32_t a = v < 0 ? (uint32_t)0 - (uint32_t)v : (uint32_t)v, neg = v < 0;
-        const uint32_t n = 31 - (uint32_t)__builtin_clz(a | 1), na = r3_bitlen24(T[0]);
+        const uint32_t n = 31 - (uint32_t)__builtin_clz(a | 1), na = wvc_rans_bitlen24(T[0]);
         ctx[0] = (uint8_t)((na < R3_NA - 1 ? na : R3_NA - 1) * R3_NP + PC[0]);
         sym[0] = (uint8_t)((a < 2 ? a : 2 * n + ((a >> (n - (n > 0))) & 1)) | neg << 7);
         sctx[0] = SG[0];
@@ -344,43 +329,12 @@ WVOL__CLONES static void r3_scan_band(r3_enc *e, const int32_t *Q, const size_t 
     e->nsg = ns;
 }
 
-/* An encoder symbol: frequency, start, and m = ceil(2^63 / f), with which x / f =
- * (x m) >> 63 exactly for every x < 2^32 (the error x (m - 2^63/f) / 2^63 < 2^-31 never
- * reaches the next integer, as x / f's fraction is at most 1 - 1/f and f <= 2^11): a
- * multiply instead of a division. */
-typedef struct r3_esym {
-    uint64_t m;
-    uint32_t f, start;
-} r3_esym;
-
-static inline r3_esym r3_esym_make(uint32_t f, uint32_t start)
-{
-    r3_esym e;
-    e.f = f;
-    e.start = start;
-    e.m = f ? (((uint64_t)1 << 63) + f - 1) / f : 0;
-    return e;
-}
-
-/* One rANS step of the encoder (16-bit renormalisation into *ptr, downwards). */
-static inline uint32_t r3_enc_put(uint32_t x, const r3_esym *e, uint16_t **ptr)
-{
-    /* the word is written either way (the buffer has room) and kept when due: no branch */
-    const uint32_t r = x >= ((uint64_t)e->f << (32 - R3_PBITS));
-    uint32_t q;
-    (*ptr)[-1] = (uint16_t)x;
-    *ptr -= r;
-    x >>= r << 4;
-    q = (uint32_t)(((unsigned __int128)x * e->m) >> 63);
-    return (q << R3_PBITS) + (x - q * e->f) + e->start;
-}
-
 /* G bands (i .. i + G - 1, the same count of coefficients) in lockstep, so that their
  * chains overlap: the magnitude streams over every coefficient, then the sign streams over
  * the non-zero ones (a zero's sign step is the identity, frequency 2^11: it changes
  * neither state nor stream, and is left out). Each stream in reverse, so that the
  * decoder reads it forward. ES1: the sign symbols by 2 x context + negative. */
-FORCE_INLINE void r3_enc_group(const int G, const r3_enc *e, const r3_esym (*E)[R3_NS], const r3_esym *ES1,
+FORCE_INLINE void r3_enc_group(const int G, const r3_enc *e, const wvc_rans_esym (*E)[R3_NS], const wvc_rans_esym *ES1,
                                const size_t *first, const size_t *nsg, int i, uint16_t **mp, uint16_t **sp,
                                uint32_t *xm_out, uint32_t *xs_out)
 {
@@ -396,13 +350,13 @@ FORCE_INLINE void r3_enc_group(const int G, const r3_enc *e, const r3_esym (*E)[
 #pragma GCC unroll 4
         for (int b = 0; b < G; b++) {
             const size_t jj = first[i + b] + j;
-            xm[b] = r3_enc_put(xm[b], &E[e->ctx[jj]][e->sym[jj] & 0x7F], &mp[i + b]);
+            xm[b] = wvc_rans_enc_put(xm[b], &E[e->ctx[jj]][e->sym[jj] & 0x7F], &mp[i + b], R3_PBITS);
         }
     }
     for (size_t k = nmax; k-- > 0;) {
 #pragma GCC unroll 4
         for (int b = 0; b < G; b++)
-            if (k < nsg[i + b]) xs[b] = r3_enc_put(xs[b], &ES1[e->sg[first[i + b] + k]], &sp[i + b]);
+            if (k < nsg[i + b]) xs[b] = wvc_rans_enc_put(xs[b], &ES1[e->sg[first[i + b] + k]], &sp[i + b], R3_PBITS);
     }
 #pragma GCC unroll 4
     for (int b = 0; b < G; b++) xm_out[b] = xm[b], xs_out[b] = xs[b];
@@ -434,7 +388,7 @@ int wvol__wvc_rans_encode(uint8_t **buf, size_t *size, int n, int32_t *const Q[]
     r3_row w = {0};
     int32_t *zrow = NULL;
     uint32_t (*F)[R3_NS] = NULL, SF[R3_NSG];
-    r3_esym (*E)[R3_NS] = NULL, (*ES)[2] = NULL;
+    wvc_rans_esym (*E)[R3_NS] = NULL, (*ES)[2] = NULL;
     uint8_t *raw = NULL, *out = NULL;
     uint16_t *ms = NULL, *ss = NULL;
     uint16_t *mp[8], *sp[8];
@@ -470,13 +424,13 @@ int wvol__wvc_rans_encode(uint8_t **buf, size_t *size, int n, int32_t *const Q[]
         uint32_t any = 0, cum = 0;
         for (int s = 0; s < R3_NS; s++) any |= e->H[c][s];
         if (!any) continue;
-        r3_normalise(e->H[c], R3_NS, F[c]);
-        for (int s = 0; s < R3_NS; s++) E[c][s] = r3_esym_make(F[c][s], cum), cum += F[c][s];
+        wvol__wvc_rans_normalise(e->H[c], R3_NS, F[c], R3_M);
+        for (int s = 0; s < R3_NS; s++) E[c][s] = wvc_rans_esym_make(F[c][s], cum), cum += F[c][s];
     }
     for (int c = 0; c < R3_NSG; c++) {
-        SF[c] = e->S[c][0] | e->S[c][1] ? r3_sign_f(e->S[c][0], e->S[c][1]) : 0;
-        ES[c][0] = r3_esym_make(SF[c], 0);
-        ES[c][1] = r3_esym_make(R3_M - SF[c], SF[c]);
+        SF[c] = e->S[c][0] | e->S[c][1] ? wvol__wvc_rans_binary_f(e->S[c][0], e->S[c][1], R3_M) : 0;
+        ES[c][0] = wvc_rans_esym_make(SF[c], 0);
+        ES[c][1] = wvc_rans_esym_make(R3_M - SF[c], SF[c]);
     }
     for (int i = 0; i < n; i++) {
         mp[i] = ms + first[i + 1] + 4 * (size_t)(i + 1);
@@ -740,13 +694,13 @@ int wvol__wvc_rans_decode(int n, int32_t *const Q[], const size_t *const p[], co
     pthread_once(&once, r3_symtab_init);
     for (int c = 0; c < R3_NC; c++) {
         uint32_t v, sum = 0;
-        if (r3_get_varint(buf, size, &pos, &v) || v > R3_NS) {
+        if (wvol__wvc_rans_get_varint(buf, size, &pos, &v) || v > R3_NS) {
             *why = "malformed frequency table";
             return -1;
         }
         ns[c] = (int)v;
         for (int s = 0; s < ns[c]; s++) {
-            if (r3_get_varint(buf, size, &pos, &v) || v > R3_M) {
+            if (wvol__wvc_rans_get_varint(buf, size, &pos, &v) || v > R3_M) {
                 *why = "malformed frequency table";
                 return -1;
             }
@@ -761,7 +715,7 @@ int wvol__wvc_rans_decode(int n, int32_t *const Q[], const size_t *const p[], co
     }
     for (int c = 0; c < R3_NSG; c++) {
         uint32_t v;
-        if (r3_get_varint(buf, size, &pos, &v) || v > R3_M + 1) {
+        if (wvol__wvc_rans_get_varint(buf, size, &pos, &v) || v > R3_M + 1) {
             *why = "malformed sign table";
             return -1;
         }
@@ -774,7 +728,7 @@ int wvol__wvc_rans_decode(int n, int32_t *const Q[], const size_t *const p[], co
         size_t rest;
         for (i = 0; i < n; i++)
             for (int k = 0; k < 3; k++)
-                if (r3_get_varint(buf, size, &pos, &len[i][k])) {
+                if (wvol__wvc_rans_get_varint(buf, size, &pos, &len[i][k])) {
                     *why = "malformed stream lengths";
                     return -1;
                 }
