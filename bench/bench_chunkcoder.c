@@ -66,7 +66,7 @@ static int code_one(const coder *cd, const chunk *c, int32_t *Q, int32_t *D, con
         wvc2_direct dv;
         const wvc2_chunk *fc = &x->chunks[c->id];
         t0 = now();
-        if (wvol__wvc2_chunk_encode(&out, g, c->m, c->ext, c->child, c->parent, WVOL_WVC_CODER_AUTO, 3, NULL, NULL))
+        if (wvol__wvc2_chunk_encode(&out, g, c->m, c->ext, c->child, c->parent, NULL, WVOL_WVC_CODER_AUTO, 3, NULL, NULL))
             return -1;
         *te += now() - t0;
         free(out.payload);
