@@ -289,7 +289,9 @@ int wvol__wvc2_job_code(wvc2_coded *out, wvc2_job *job, const wvc2_geom *g, int 
         coder != WVOL_WVC_CODER_RANS) {
         for (i = 0; i < L->nb && !failed; i++)
             if (mask >> i & 1) {
-                if (wvol__wvc_zstd_encode(&pay[i], &len[i], lg[i].q, lg[i].p, &lg[i].b, zstd_level)) failed = 1;
+                if (wvol__wvc_zstd_encode(&pay[i], &len[i], lg[i].q, lg[i].p, &lg[i].b, zstd_level,
+                                          scratch ? &scratch->zstd : NULL))
+                    failed = 1;
                 zsum += len[i];
             }
         out->alt_zstd = zsum;

@@ -328,7 +328,7 @@ wvol_status wvol_wvc_encode(void **out, size_t *out_size, const wvol_coeffs *c,
         /* auto: both, the smaller wins (zstd's matches beat the contexts on small
          * sections and on some regular ones, e.g. Haar levels 1-2 of smooth volumes) */
         if (p->coder != WVOL_WVC_CODER_CABAC) {
-            if (wvol__wvc_zstd_encode(&z, &nz, Q, L->p, b, p->zstd_level)) failed = 1;
+            if (wvol__wvc_zstd_encode(&z, &nz, Q, L->p, b, p->zstd_level, NULL)) failed = 1;
             alt_zstd[s] = nz;
         }
         if (a && (!z || na <= nz)) {

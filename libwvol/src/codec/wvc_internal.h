@@ -89,9 +89,19 @@ int wvol__wvc_cabac_decode_multi(int n, int32_t *const Q[], const size_t *const 
  * coefficient), kept by a caller that codes chunk after chunk on one thread: a fresh
  * allocation per chunk paid its first page touches again every time, about as much as
  * the coding. Zero-initialised when new; released with wvol__wvc_rans_scratch_free. */
+/* The zstd coder's: its compression context and symbol buffer (10 bytes per coefficient),
+ * kept the same way (a fresh context per call allocated and cleared its tables, and the
+ * trial runs beside most CABAC chunks); released with wvol__wvc_zstd_scratch_free. */
+typedef struct wvc_zstd_scratch {
+    void *cctx;
+    uint8_t *sym;
+    size_t cap;
+} wvc_zstd_scratch;
+void wvol__wvc_zstd_scratch_free(wvc_zstd_scratch *z);
 typedef struct wvc_rans_scratch {
     void *p[5];
     size_t cap[5];
+    wvc_zstd_scratch zstd; /* the chunk coder's zstd trial, on the same thread */
 } wvc_rans_scratch;
 void wvol__wvc_rans_scratch_free(wvc_rans_scratch *s);
 /* Chunk mode 3 (wvc_rans.c): n detail bands in one static-model rANS stream and a raw
@@ -102,8 +112,9 @@ int wvol__wvc_rans_encode(uint8_t **buf, size_t *size, int n, int32_t *const Q[]
                           const wvc_band *const b[], wvc_rans_scratch *s);
 int wvol__wvc_rans_decode(int n, int32_t *const Q[], const size_t *const p[], const wvc_band *const b[],
                           const uint8_t *buf, size_t size, uint64_t *nonzero, const char **why);
+/* z: buffers kept for the next call (NULL: allocated and freed in the call); the same bytes. */
 int wvol__wvc_zstd_encode(uint8_t **buf, size_t *size, const int32_t *Q, const size_t p[3],
-                          const wvc_band *b, int level);
+                          const wvc_band *b, int level, wvc_zstd_scratch *z);
 int wvol__wvc_zstd_decode(int32_t *Q, const size_t p[3], const wvc_band *b, const uint8_t *buf,
                           size_t size, const char **why);
 

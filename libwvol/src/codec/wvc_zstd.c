@@ -4,8 +4,10 @@
  * varints, compressed by zstd. Kept for comparison and for the sections where it
  * wins; the decoder checks every length and never trusts the frame header. */
 #include <stdlib.h>
+#include <string.h>
 #include <zstd.h>
 
+#include "core/alloc.h"
 #include "wvc_internal.h"
 
 static inline uint64_t zigzag(int64_t v) { return ((uint64_t)v << 1) ^ (uint64_t)(v >> 63); }
@@ -13,8 +15,18 @@ static inline int64_t unzigzag(uint64_t u) { return (int64_t)(u >> 1) ^ -(int64_
 
 #define VARINT_MAX 10
 
+void wvol__wvc_zstd_scratch_free(wvc_zstd_scratch *z)
+{
+    if (!z) return;
+    ZSTD_freeCCtx(z->cctx);
+    free(z->sym);
+    z->cctx = NULL;
+    z->sym = NULL;
+    z->cap = 0;
+}
+
 int wvol__wvc_zstd_encode(uint8_t **buf, size_t *size, const int32_t *Q, const size_t p[3],
-                          const wvc_band *b, int level)
+                          const wvc_band *b, int level, wvc_zstd_scratch *zs)
 {
     size_t cap, n = 0, bound, x, y, z;
     uint8_t *sym, *out;
@@ -22,14 +34,33 @@ int wvol__wvc_zstd_encode(uint8_t **buf, size_t *size, const int32_t *Q, const s
     *size = 0;
     if (b->count > SIZE_MAX / VARINT_MAX) return -1;
     cap = (size_t)b->count * VARINT_MAX;
-    sym = malloc(cap ? cap : 1);
-    if (!sym) return -1;
+    if (zs && cap > zs->cap) {
+        size_t bytes = cap;
+        free(zs->sym);
+        zs->sym = wvol__malloc_pages(&bytes); /* kept: its first touches paid once */
+        zs->cap = zs->sym ? bytes : 0;
+    }
+    if (zs && !zs->cctx) zs->cctx = ZSTD_createCCtx();
+    sym = zs ? zs->sym : malloc(cap ? cap : 1);
+    if (!sym || (zs && !zs->cctx)) return -1;
     for (z = 0; z < b->ext[2]; z++)
         for (y = 0; y < b->ext[1]; y++) {
             const int32_t *row = Q + wvc_index(p, b, 0, y, z);
             for (x = 0; x < b->ext[0]; x++) {
                 int64_t v = row[x];
                 uint64_t u;
+                if (b->band != 0 && !(x & 7) && x + 8 <= b->ext[0]) {
+                    /* eight zeros at once (most detail symbols are one zero byte each) */
+                    uint64_t w0, w1, w2, w3;
+                    memcpy(&w0, row + x, 8), memcpy(&w1, row + x + 2, 8);
+                    memcpy(&w2, row + x + 4, 8), memcpy(&w3, row + x + 6, 8);
+                    if (!(w0 | w1 | w2 | w3)) {
+                        memset(sym + n, 0, 8);
+                        n += 8;
+                        x += 7;
+                        continue;
+                    }
+                }
                 if (b->band == 0) v -= wvc_lorenzo(Q, p, b, x, y, z);
                 else if (v == 0) { /* most detail symbols: one zero byte */
                     sym[n++] = 0;
@@ -46,11 +77,12 @@ int wvol__wvc_zstd_encode(uint8_t **buf, size_t *size, const int32_t *Q, const s
     bound = ZSTD_compressBound(n);
     out = malloc(bound);
     if (!out) {
-        free(sym);
+        if (!zs) free(sym);
         return -1;
     }
-    bound = ZSTD_compress(out, bound, sym, n, level);
-    free(sym);
+    /* a kept context gives the bytes a fresh one does (the same parameters, reset per frame) */
+    bound = zs ? ZSTD_compressCCtx(zs->cctx, out, bound, sym, n, level) : ZSTD_compress(out, bound, sym, n, level);
+    if (!zs) free(sym);
     if (ZSTD_isError(bound)) {
         free(out);
         return -1;
