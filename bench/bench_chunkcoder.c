@@ -104,7 +104,9 @@ static int code_one(const coder *cd, const chunk *c, int32_t *Q, int32_t *D, con
         return 0;
     }
     if (cd->kind == C_MODE4CH) {
-        c4_opts om = {0, 16, 1, 0}, orw = {1, 16, 0, 0}; /* modelled signs with sign(N[x - 1]) */
+        /* modelled signs with sign(N[x - 1]) */
+        c4_opts om = {0, 16, 1, 0, cd->o.simd, cd->o.states, cd->o.sign_states};
+        c4_opts orw = {1, 16, 0, 0, cd->o.simd, cd->o.states, cd->o.sign_states};
         uint8_t *b2 = NULL;
         size_t s2 = 0;
         const c4_opts *use;
@@ -166,22 +168,37 @@ int main(int argc, char **argv)
     int32_t *Q, *D, *D0;
     chunk *ch;
     static const coder coders[] = {
-        {"auto", C_AUTO, {0, 0, 0, 0}},
-        {"mode2", C_MODE2, {0, 0, 0, 0}},
-        {"mode3", C_MODE3, {0, 0, 0, 0}},
-        {"mode4_g16_rawsign", C_MODE4, {1, 16, 0, 0}},
+        {"auto", C_AUTO, {0, 0, 0, 0, 0, 0, 0}},
+        {"mode2", C_MODE2, {0, 0, 0, 0, 0, 0, 0}},
+        {"mode3", C_MODE3, {0, 0, 0, 0, 0, 0, 0}},
+        {"mode4_g16_rawsign", C_MODE4, {1, 16, 0, 0, 0, 0, 0}},
         /* per chunk: modelled signs (band x N x U x N[x - 1]) where they take at least 1% fewer bytes than raw ones
          * (found by coding both ways here), else raw; one byte says which */
-        {"mode4_g16_choose", C_MODE4CH, {0, 16, 0, 0}},
+        {"mode4_g16_choose", C_MODE4CH, {0, 16, 0, 0, 0, 0, 0}},
+        /* the same streams decoded by the AVX2 engine (eight magnitude states in a register) */
+        {"mode4_g16_choose_simd", C_MODE4CH, {0, 16, 0, 0, 1, 0, 0}},
+        {"mode4_g16_rawsign_simd", C_MODE4, {1, 16, 0, 0, 1, 0, 0}},
+        {"mode4_g16_sign_simd", C_MODE4, {0, 16, 0, 0, 1, 0, 0}},
+        {"mode4_g16_choose_simd2", C_MODE4CH, {0, 16, 0, 0, 2, 0, 0}},
+        {"mode4_g16_sign_simd2", C_MODE4, {0, 16, 0, 0, 2, 0, 0}},
+        /* sixteen magnitude states (the stream differs: 16 + 4 final states) */
+        {"mode4s16_g16_choose", C_MODE4CH, {0, 16, 0, 0, 0, 16, 0}},
+        {"mode4s16_g16_choose_simd", C_MODE4CH, {0, 16, 0, 0, 1, 16, 0}},
+        {"mode4s16_g16_choose_simd2", C_MODE4CH, {0, 16, 0, 0, 2, 16, 0}},
+        {"mode4s16_g16_choose_simd3", C_MODE4CH, {0, 16, 0, 0, 3, 16, 0}},
+        /* and eight sign states */
+        {"mode4s24_g16_choose", C_MODE4CH, {0, 16, 0, 0, 0, 16, 8}},
+        {"mode4s24_g16_choose_simd3", C_MODE4CH, {0, 16, 0, 0, 3, 16, 8}},
+        {"mode4_g16_choose_simd3", C_MODE4CH, {0, 16, 0, 0, 3, 0, 0}},
         /* bits only: W in the contexts (encoded, not decoded: the chunk copied instead) */
-        {"mode4_g16_sign_with_w", C_MODE4W, {0, 16, 0, 1}},
-        {"mode4_g16_sign", C_MODE4, {0, 16, 0, 0}},
-        {"mode4_g16_sign_c1", C_MODE4, {0, 16, 1, 0}},
-        {"mode4_g16_sign_c2", C_MODE4, {0, 16, 2, 0}},
-        {"mode4_g16_sign_c4", C_MODE4, {0, 16, 4, 0}},
-        {"mode4_g16_sign_c7", C_MODE4, {0, 16, 7, 0}},
-        {"mode4_g8_sign", C_MODE4, {0, 8, 0, 0}},
-        {"mode4_g32_sign", C_MODE4, {0, 32, 0, 0}},
+        {"mode4_g16_sign_with_w", C_MODE4W, {0, 16, 0, 1, 0, 0, 0}},
+        {"mode4_g16_sign", C_MODE4, {0, 16, 0, 0, 0, 0, 0}},
+        {"mode4_g16_sign_c1", C_MODE4, {0, 16, 1, 0, 0, 0, 0}},
+        {"mode4_g16_sign_c2", C_MODE4, {0, 16, 2, 0, 0, 0, 0}},
+        {"mode4_g16_sign_c4", C_MODE4, {0, 16, 4, 0, 0, 0, 0}},
+        {"mode4_g16_sign_c7", C_MODE4, {0, 16, 7, 0, 0, 0, 0}},
+        {"mode4_g8_sign", C_MODE4, {0, 8, 0, 0, 0, 0, 0}},
+        {"mode4_g32_sign", C_MODE4, {0, 32, 0, 0, 0, 0, 0}},
     };
     const char *only = getenv("CODERS");
     if (argc < 2 || reps < 1) {

@@ -1,7 +1,8 @@
 #!/usr/bin/env python3
 """Runs build/bench/bench_chunkcoder on .wvc files, rounds alternating over the files, and
 keeps per file and coder the bytes and the best encode and decode CPU seconds (the
-benchmark times each coder with the thread's CPU clock; the machine is shared).
+benchmark times each coder with the thread's CPU clock; the machine is shared), and each
+round's best (decode_s_rounds, encode_s_rounds) for the spread.
 
   bench_chunkcoder.py --out bench/results/chunkcoder.json [--rounds 3] [--reps 3] FILE.wvc ...
 
@@ -40,6 +41,8 @@ def main():
                     raise SystemExit("bytes differ between rounds or round trip failed: %s" % line)
                 e["encode_s"] = min(e["encode_s"], d["encode_s"])
                 e["decode_s"] = min(e["decode_s"], d["decode_s"])
+                e.setdefault("decode_s_rounds", []).append(d["decode_s"])  # each round's best: the spread
+                e.setdefault("encode_s_rounds", []).append(d["encode_s"])
         load.append(os.getloadavg()[0])
     rows = []
     for (f, coder), e in sorted(best.items()):
@@ -62,7 +65,7 @@ def main():
     with open(a.out, "w") as fh:
         json.dump(res, fh, indent=1)
     for e in rows:
-        print("%-8s %-20s bytes %9d x%.4f  enc %.4f  dec %.4f  (%.2f ns/coef)  speedup %s" % (
+        print("%-8s %-20s bytes %9d x%s  enc %.4f  dec %.4f  (%.2f ns/coef)  speedup %s" % (
             e["file"], e["coder"], e["bytes"], e["bytes_vs_auto"], e["encode_s"], e["decode_s"],
             e["decode_ns_coef"], e["decode_speedup_vs_ref"]))
 

@@ -16,6 +16,12 @@ typedef struct c4_opts {
                     * (y - 2, z - 2) in the magnitude sum; 4 the parent's x neighbours in its class */
     int with_w;    /* encoder only, to measure bits: W (the left neighbour) in the magnitude and
                     * sign contexts, as mode 3 has it (no decoder: that is the serial chain) */
+    int simd;      /* decoder only, the same stream: 0 scalar; where the CPU has AVX2: 1 the magnitudes in
+                    * AVX2, 2 the modelled signs too */
+    int states;    /* magnitude states: 8 (0 means 8) or 16 (coefficient x on state x mod 16: the two
+                    * halves of a group of 16 independent, for the AVX2 engine's two registers) */
+    int sign_states; /* modelled signs' states: 4 (0 means 4) or 8 (with states = 16 only): the k-th
+                      * non-zero of a group on sign state k mod 8, a group's signs in two vector steps */
 } c4_opts;
 
 int c4_encode(uint8_t **buf, size_t *size, int n, int32_t *const Q[], const size_t *const p[],
