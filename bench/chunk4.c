@@ -63,11 +63,6 @@
 
 #define FORCE_INLINE static inline __attribute__((always_inline))
 
-static inline uint32_t c4_abs(int32_t v)
-{
-    uint32_t a = v < 0 ? (uint32_t)0 - (uint32_t)v : (uint32_t)v;
-    return a > 65535 ? 65535 : a;
-}
 
 static inline uint32_t c4_bitlen(uint32_t t) { return 31 - (uint32_t)__builtin_clz(2 * t + 1); }
 
@@ -88,12 +83,10 @@ WVOL__CLONES static void c4_row_prep(const c4_row *w, const int32_t *Q, const si
     uint32_t *restrict A = w->A;
     uint8_t *restrict PC = w->PC, *restrict CX = w->CX, *restrict SG = w->SG;
     size_t x;
-    for (x = 0; x < ex; x++) A[x] = 2 * (c4_abs(N[x]) + c4_abs(U[x])) + c4_abs(UN[x]) + c4_abs(US[x]);
-    for (x = 1; x < ex; x++) A[x] += c4_abs(N[x - 1]) + c4_abs(U[x - 1]);
-    for (x = 0; x + 1 < ex; x++) A[x] += c4_abs(N[x + 1]) + c4_abs(U[x + 1]);
+    wvc_rans_row_sum(A, N, U, UN, US, ex);
     if (comp & 2) {
         const int32_t *NN = y > 1 ? c - 2 * sy : zrow, *UU = z > 1 ? c - 2 * sz : zrow;
-        for (x = 0; x < ex; x++) A[x] += c4_abs(NN[x]) + c4_abs(UU[x]);
+        for (x = 0; x < ex; x++) A[x] += wvc_rans_abs(NN[x]) + wvc_rans_abs(UU[x]);
     }
     if (signs) /* the sign contexts, when the signs are modelled */
         for (x = 0; x < ex; x++) SG[x] = (uint8_t)(sbase + 3 * ((U[x] > 0) + 2 * (U[x] < 0)) + (N[x] > 0) + 2 * (N[x] < 0));
@@ -102,30 +95,16 @@ WVOL__CLONES static void c4_row_prep(const c4_row *w, const int32_t *Q, const si
     if (!b->has_parent) {
         memset(PC, 0, ex);
     } else {
-        const size_t pe = b->pext[0];
-        size_t pj = y >> 1, pk = z >> 1, half = ex >> 1 < pe ? ex >> 1 : pe;
-        const int32_t *pr;
-        if (pj >= b->pext[1]) pj = b->pext[1] - 1;
-        if (pk >= b->pext[2]) pk = b->pext[2] - 1;
-        pr = Q + b->poff[0] + sy * (b->poff[1] + pj) + sz * (b->poff[2] + pk);
-        if (comp & 4) /* 2|p| + its x neighbours */
+        const size_t pe = b->pext[0], half = ex >> 1 < pe ? ex >> 1 : pe;
+        const int32_t *pr = wvc_rans_parent_row(Q, sy, sz, b, y, z);
+        wvc_rans_parent_classes(PC, pr, pe, ex); /* mode 3's */
+        if (comp & 4) /* the candidate: 2|p| + its x neighbours */
             for (x = 0; x < half; x++) {
-                uint32_t a = 2 * c4_abs(pr[x]) + (x ? c4_abs(pr[x - 1]) : 0) + (x + 1 < pe ? c4_abs(pr[x + 1]) : 0);
+                uint32_t a = 2 * wvc_rans_abs(pr[x]) + (x ? wvc_rans_abs(pr[x - 1]) : 0) + (x + 1 < pe ? wvc_rans_abs(pr[x + 1]) : 0);
                 uint8_t k = (uint8_t)((a > 0) + (a > 2) + (a > 6));
                 PC[2 * x] = k;
                 PC[2 * x + 1] = k;
             }
-        else
-            for (x = 0; x < half; x++) {
-                uint32_t a = c4_abs(pr[x]);
-                uint8_t k = (uint8_t)((a > 0) + (a > 1) + (a > 3));
-                PC[2 * x] = k;
-                PC[2 * x + 1] = k;
-            }
-        for (x = 2 * half; x < ex; x++) {
-            uint32_t a = c4_abs(pr[(x >> 1) < pe ? x >> 1 : pe - 1]);
-            PC[x] = (uint8_t)((a > 0) + (a > 1) + (a > 3));
-        }
     }
     for (x = 0; x < ex; x++) {
         uint32_t n = wvc_rans_bitlen24(A[x]);
@@ -253,7 +232,7 @@ int c4_encode(uint8_t **buf, size_t *size, int n, int32_t *const Q[], const size
                 c4_row_prep(&w, Q[i], p[i], b[i], y, z, zrow, gs, !o->raw_signs, o->comp);
                 if (o->with_w)
                     for (size_t x = 1; x < ex; x++) {
-                        const uint32_t n = c4_bitlen(w.A[x] + 2 * c4_abs(c[x - 1]));
+                        const uint32_t n = c4_bitlen(w.A[x] + 2 * wvc_rans_abs(c[x - 1]));
                         w.CX[x] = (uint8_t)((n < C4_NA - 1 ? n : C4_NA - 1) * C4_NP + w.PC[x]);
                         w.SG[x] = (uint8_t)(w.SG[x] + C4_NSG * ((c[x - 1] > 0) + 2 * (c[x - 1] < 0)));
                     }

@@ -64,12 +64,6 @@
 
 #define FORCE_INLINE static inline __attribute__((always_inline))
 
-static inline uint32_t r3_abs(int32_t v)
-{
-    uint32_t a = v < 0 ? (uint32_t)0 - (uint32_t)v : (uint32_t)v;
-    return a > 65535 ? 65535 : a;
-}
-
 static inline uint8_t r3_sg(int32_t v) { return (uint8_t)(v > 0 ? 1 : v < 0 ? 2 : 0); }
 
 static inline uint32_t r3_mag_ctx(uint32_t t, uint8_t pc)
@@ -98,9 +92,7 @@ WVOL__CLONES static void r3_row_prep(const r3_row *w, const int32_t *Q, const si
     uint32_t *restrict A = w->A;
     uint8_t *restrict SG = w->SG, *restrict PC = w->PC;
     size_t x;
-    for (x = 0; x < ex; x++) A[x] = 2 * (r3_abs(N[x]) + r3_abs(U[x])) + r3_abs(UN[x]) + r3_abs(US[x]);
-    for (x = 1; x < ex; x++) A[x] += r3_abs(N[x - 1]) + r3_abs(U[x - 1]);
-    for (x = 0; x + 1 < ex; x++) A[x] += r3_abs(N[x + 1]) + r3_abs(U[x + 1]);
+    wvc_rans_row_sum(A, N, U, UN, US, ex);
     /* comparisons as 0/1, so the loops vectorise */
     for (x = 0; x < ex; x++)
         SG[x] = (uint8_t)(sbase + 9 * ((U[x] > 0) + 2 * (U[x] < 0)) + (N[x] > 0) + 2 * (N[x] < 0));
@@ -108,24 +100,7 @@ WVOL__CLONES static void r3_row_prep(const r3_row *w, const int32_t *Q, const si
         memset(PC, 0, ex);
         return;
     }
-    {
-        const size_t pe = b->pext[0];
-        size_t pj = y >> 1, pk = z >> 1, half = ex >> 1 < pe ? ex >> 1 : pe;
-        const int32_t *pr;
-        if (pj >= b->pext[1]) pj = b->pext[1] - 1;
-        if (pk >= b->pext[2]) pk = b->pext[2] - 1;
-        pr = Q + b->poff[0] + sy * (b->poff[1] + pj) + sz * (b->poff[2] + pk);
-        for (x = 0; x < half; x++) {
-            uint32_t a = r3_abs(pr[x]);
-            uint8_t k = (uint8_t)((a > 0) + (a > 1) + (a > 3));
-            PC[2 * x] = k;
-            PC[2 * x + 1] = k;
-        }
-        for (x = 2 * half; x < ex; x++) {
-            uint32_t a = r3_abs(pr[(x >> 1) < pe ? x >> 1 : pe - 1]);
-            PC[x] = (uint8_t)((a > 0) + (a > 1) + (a > 3));
-        }
-    }
+    wvc_rans_parent_classes(PC, wvc_rans_parent_row(Q, sy, sz, b, y, z), b->pext[0], ex);
 }
 
 static int r3_row_alloc(r3_row *w, int32_t **zrow, int n, const wvc_band *const b[])
@@ -256,7 +231,7 @@ __attribute__((noinline)) WVOL__CLONES static void r3_scan_row(uint8_t *restrict
         const uint32_t a = v < 0 ? (uint32_t)0 - (uint32_t)v : (uint32_t)v, big = a >= (1u << 24);
         /* |q| < 2^31: above 2^24 the length of a >> 8, plus 8 (exact, unlike a float of a) */
         N[x] = wvc_rans_bitlen24(big ? a >> 8 : a | 1) + 8 * big - 1;
-        T[x] = wvc_rans_bitlen24(T[x] + 2 * r3_abs(c[x - 1])); /* the sum < 12 * 65535 */
+        T[x] = wvc_rans_bitlen24(T[x] + 2 * wvc_rans_abs(c[x - 1])); /* the sum < 12 * 65535 */
     }
     for (size_t x = 1; x < ex; x++) {
         const int32_t v = c[x], W = c[x - 1];
