@@ -505,7 +505,8 @@ static void reused_buffers_leave_nothing_behind(void)
         CHECK(wvol__wvc2_job_make(&jf, &g, 1, part, c, pr, NULL, NULL) == 0, "sparse job, fresh");
         /* the counts given (as the writer gives its quantiser's): the same job */
         CHECK(wvol__wvc2_job_make(&jn, &g, 1, part, c, pr, jf.nzb, NULL) == 0, "sparse job, counts given");
-        CHECK(jn.mask == jf.mask && jn.nonzero == jf.nonzero && jn.nonzero == (uint64_t)g.lv[1].nb - 2, "counts given: mask 0x%x, %llu",
+        CHECK(jn.mask == jf.mask && jn.nonzero == jf.nonzero && jn.nonzero == (uint64_t)g.lv[1].nb - 2,
+              "counts given: mask 0x%x, %llu",
               jn.mask, (unsigned long long)jn.nonzero);
         CHECK(j2.mask == jf.mask && j2.nused == jf.nused, "same bands: 0x%x / 0x%x", j2.mask, jf.mask);
         for (int i = 0; i < 8; i++) {

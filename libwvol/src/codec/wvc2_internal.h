@@ -143,8 +143,8 @@ void wvol__wvc2_job_free(wvc2_job *job, wvc2_job_pool *pool);
 
 /* Codes the bands of one chunk: child[i] is band g->lv[m].bands[i]'s box of extent
  * ext, parent[i] its parent region (extent from wvc2_parent_box; ignored at m ==
- * levels), nonzero as wvol__wvc2_job_make's. coder: AUTO, CABAC, ZSTD or RANS (mode 3 wherever the chunk has no low-pass
- * cube, else as CABAC). Returns 0 or -1 (memory). */
+ * levels), nonzero as wvol__wvc2_job_make's. coder: AUTO, CABAC, ZSTD or RANS (mode 3
+ * wherever the chunk has no low-pass cube, else as CABAC). Returns 0 or -1 (memory). */
 int wvol__wvc2_chunk_encode(wvc2_coded *out, const wvc2_geom *g, int m, const size_t ext[3],
                             const wvc2_qbox child[8], const wvc2_qbox parent[8], const uint64_t *nonzero,
                             int coder, int zstd_level, wvc_rans_scratch *scratch, wvc2_job_pool *pool);

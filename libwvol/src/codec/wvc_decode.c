@@ -255,17 +255,10 @@ static inline __attribute__((always_inline)) uint64_t dequant8(float *o, size_t 
 /* One row of n values: groups of eight zeros (0.0f already) skipped in one test. */
 WVOL__CLONES static uint64_t dequant_row(float *o, size_t n, double o1, double d2, double step, uint64_t *over)
 {
-    uint64_t nz = 0, w0, w1, w2, w3;
+    uint64_t nz = 0;
     size_t x;
-    for (x = 0; x + 8 <= n; x += 8) {
-        /* four scalar loads: a copy into an array went through the stack, and the
-         * reloads waited on the store (most groups are zero at low rates) */
-        memcpy(&w0, o + x, sizeof w0);
-        memcpy(&w1, o + x + 2, sizeof w1);
-        memcpy(&w2, o + x + 4, sizeof w2);
-        memcpy(&w3, o + x + 6, sizeof w3);
-        if (w0 | w1 | w2 | w3) nz += dequant8(o + x, 8, o1, d2, step, over);
-    }
+    for (x = 0; x + 8 <= n; x += 8) /* most groups are zero at low rates */
+        if (!wvc_zero8(o + x)) nz += dequant8(o + x, 8, o1, d2, step, over);
     if (x < n) nz += dequant8(o + x, n - x, o1, d2, step, over);
     return nz;
 }

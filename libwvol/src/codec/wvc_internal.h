@@ -85,23 +85,24 @@ int wvol__wvc_cabac_encode_multi(uint8_t **buf, size_t *size, int n, int32_t *co
                                  const wvc_band *const b[], int blocks);
 int wvol__wvc_cabac_decode_multi(int n, int32_t *const Q[], const size_t *const p[], const wvc_band *const b[],
                                  const uint8_t *buf, size_t size, int blocks, uint64_t *nonzero, const char **why);
-/* The rANS encoder's working buffers (symbols, contexts, streams: about 12 bytes per
- * coefficient), kept by a caller that codes chunk after chunk on one thread: a fresh
- * allocation per chunk paid its first page touches again every time, about as much as
- * the coding. Zero-initialised when new; released with wvol__wvc_rans_scratch_free. */
-/* The zstd coder's: its compression context and symbol buffer (10 bytes per coefficient),
- * kept the same way (a fresh context per call allocated and cleared its tables, and the
- * trial runs beside most CABAC chunks); released with wvol__wvc_zstd_scratch_free. */
+/* The zstd coder's working buffers: its compression context and symbol buffer (10 bytes
+ * per coefficient), kept by a caller that codes chunk after chunk (a fresh context per call
+ * allocated and cleared its tables, and the trial runs beside most CABAC chunks); released
+ * with wvol__wvc_zstd_scratch_free. */
 typedef struct wvc_zstd_scratch {
     void *cctx;
     uint8_t *sym;
     size_t cap;
 } wvc_zstd_scratch;
 void wvol__wvc_zstd_scratch_free(wvc_zstd_scratch *z);
+/* The rANS encoder's working buffers (symbols, contexts, streams: about 12 bytes per
+ * coefficient), kept by a caller that codes chunk after chunk on one thread: a fresh
+ * allocation per chunk paid its first page touches again every time, about as much as
+ * the coding. Zero-initialised when new; released with wvol__wvc_rans_scratch_free. */
 typedef struct wvc_rans_scratch {
     void *p[5];
     size_t cap[5];
-    wvc_zstd_scratch zstd; /* the chunk coder's zstd trial, on the same thread */
+    wvc_zstd_scratch zstd; /* the chunk coder's zstd trial, on the same thread (freed with s) */
 } wvc_rans_scratch;
 void wvol__wvc_rans_scratch_free(wvc_rans_scratch *s);
 /* Chunk mode 3 (wvc_rans.c): n detail bands in one static-model rANS stream and a raw
@@ -137,6 +138,19 @@ static inline size_t wvc_index(const size_t p[3], const wvc_band *b, size_t x, s
 }
 
 /* Little-endian field access. */
+/* Whether the eight int32 values at q are all zero: four scalar loads (a copy into an
+ * array went through the stack, and the reloads waited on the store). */
+static inline int wvc_zero8(const void *q)
+{
+    const unsigned char *c = q;
+    uint64_t w0, w1, w2, w3;
+    memcpy(&w0, c, 8);
+    memcpy(&w1, c + 8, 8);
+    memcpy(&w2, c + 16, 8);
+    memcpy(&w3, c + 24, 8);
+    return !(w0 | w1 | w2 | w3);
+}
+
 static inline void wvc_put_u16(uint8_t *d, uint16_t v) { d[0] = (uint8_t)v; d[1] = (uint8_t)(v >> 8); }
 static inline void wvc_put_u32(uint8_t *d, uint32_t v)
 {

@@ -96,7 +96,8 @@ static inline __attribute__((always_inline)) void row_kernel(double t[8], const 
                 hit = (wvc_v8f)((wvc_v8i)cf & absmask) >= vthr;
                 h4 = (wvc_v4l)hit;
                 if (h4[0] | h4[1] | h4[2] | h4[3]) break;
-                wvc_v4f lo = __builtin_shufflevector(cf, cf, 0, 1, 2, 3), hi = __builtin_shufflevector(cf, cf, 4, 5, 6, 7);
+                wvc_v4f lo = __builtin_shufflevector(cf, cf, 0, 1, 2, 3);
+                wvc_v4f hi = __builtin_shufflevector(cf, cf, 4, 5, 6, 7);
                 wvc_v4d dl = __builtin_convertvector(lo, wvc_v4d), dh = __builtin_convertvector(hi, wvc_v4d);
                 z += dl * dl + dh * dh;
                 if (qrow && !sparse) memset(qrow + x, 0, 8 * sizeof *qrow);
@@ -105,7 +106,8 @@ static inline __attribute__((always_inline)) void row_kernel(double t[8], const 
             if (x + 8 > ex) break;
         }
         {
-            wvc_v4f lo = __builtin_shufflevector(cf, cf, 0, 1, 2, 3), hi = __builtin_shufflevector(cf, cf, 4, 5, 6, 7);
+            wvc_v4f lo = __builtin_shufflevector(cf, cf, 0, 1, 2, 3);
+            wvc_v4f hi = __builtin_shufflevector(cf, cf, 4, 5, 6, 7);
             quad_stats(&A, lo, inv, f, qrow ? qrow + x : NULL, sparse);
             quad_stats(&A, hi, inv, f, qrow ? qrow + x + 4 : NULL, sparse);
         }

@@ -33,7 +33,7 @@ int wvol__wvc_zstd_encode(uint8_t **buf, size_t *size, const int32_t *Q, const s
     *buf = NULL;
     *size = 0;
     if (b->count > SIZE_MAX / VARINT_MAX) return -1;
-    cap = (size_t)b->count * VARINT_MAX;
+    cap = b->count ? (size_t)b->count * VARINT_MAX : 1;
     if (zs && cap > zs->cap) {
         size_t bytes = cap;
         free(zs->sym);
@@ -41,7 +41,7 @@ int wvol__wvc_zstd_encode(uint8_t **buf, size_t *size, const int32_t *Q, const s
         zs->cap = zs->sym ? bytes : 0;
     }
     if (zs && !zs->cctx) zs->cctx = ZSTD_createCCtx();
-    sym = zs ? zs->sym : malloc(cap ? cap : 1);
+    sym = zs ? zs->sym : malloc(cap);
     if (!sym || (zs && !zs->cctx)) return -1;
     for (z = 0; z < b->ext[2]; z++)
         for (y = 0; y < b->ext[1]; y++) {
@@ -51,10 +51,7 @@ int wvol__wvc_zstd_encode(uint8_t **buf, size_t *size, const int32_t *Q, const s
                 uint64_t u;
                 if (b->band != 0 && !(x & 7) && x + 8 <= b->ext[0]) {
                     /* eight zeros at once (most detail symbols are one zero byte each) */
-                    uint64_t w0, w1, w2, w3;
-                    memcpy(&w0, row + x, 8), memcpy(&w1, row + x + 2, 8);
-                    memcpy(&w2, row + x + 4, 8), memcpy(&w3, row + x + 6, 8);
-                    if (!(w0 | w1 | w2 | w3)) {
+                    if (wvc_zero8(row + x)) {
                         memset(sym + n, 0, 8);
                         n += 8;
                         x += 7;

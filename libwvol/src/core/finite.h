@@ -1,11 +1,15 @@
 /* SPDX-License-Identifier: MIT */
 /* Declared internal interface of core/volume.c for the other modules (not installed): the
- * one pass over a slab that the checked reads make (NaN and Inf refused at the door) and
- * that gives the slab's range as well, so a caller that needs both reads the data once. */
+ * test for NaN and Inf (refused at the door, and wherever values may overflow), and the one
+ * pass over a slab that the checked reads make, which gives the slab's range as well, so a
+ * caller that needs both reads the data once. */
 #ifndef WVOL_CORE_FINITE_H
 #define WVOL_CORE_FINITE_H
 
 #include <stddef.h>
+
+/* 1 when d[0..n) is all finite (no NaN, no Inf), else 0; in eight lanes. */
+int wvol__all_finite(const float *d, size_t n);
 
 /* 1 when d[0..n) is all finite, with range[0] and range[1] its smallest and largest value
  * (the sign of a zero extreme is not specified: compare them as numbers); 0 when a NaN or

@@ -113,23 +113,27 @@ wvol_status wvol_volume_set_geometry(wvol_volume *v, const double spacing[3], co
     return WVOL_OK;
 }
 
-/* Whether data[0..n) is all finite: a float is NaN or Inf exactly when its exponent bits
- * are all ones. Blocks of 1024 are tested without an early exit, which the compiler
- * vectorises (the exit-on-first-hit loop stays scalar); only a block that fails is
- * searched value by value. */
+/* A float is NaN or Inf exactly when its exponent bits are all ones: tested without an
+ * early exit, which the compiler vectorises (the exit-on-first-hit loop stays scalar). */
+WVOL__CLONES int wvol__all_finite(const float *d, size_t n)
+{
+    uint32_t bad = 0;
+    for (size_t i = 0; i < n; i++) {
+        uint32_t u;
+        memcpy(&u, d + i, sizeof u);
+        bad |= (uint32_t)((u & 0x7F800000u) == 0x7F800000u);
+    }
+    return !bad;
+}
+
+/* The first block of 1024 of data[0..n) that is not all finite (the tail from the last
+ * whole block on when all are); only that block is searched value by value. */
 static size_t first_nonfinite_block(const float *data, size_t n)
 {
     enum { BLOCK = 1024 };
     size_t b;
-    for (b = 0; b + BLOCK <= n; b += BLOCK) {
-        uint32_t bad = 0;
-        for (size_t i = 0; i < BLOCK; i++) {
-            uint32_t u;
-            memcpy(&u, data + b + i, sizeof u);
-            bad |= (uint32_t)((u & 0x7F800000u) == 0x7F800000u);
-        }
-        if (bad) return b;
-    }
+    for (b = 0; b + BLOCK <= n; b += BLOCK)
+        if (!wvol__all_finite(data + b, BLOCK)) return b;
     return b;
 }
 

@@ -404,7 +404,8 @@ wvol_status wvol_compress_choose_wavelet(wvol_wavelet_choice *out, wvol_source *
                 memcpy(c->data, s.b[j].data, s.e[0] * s.e[1] * s.e[2] * sizeof(float));
                 c->filter = f[i];
                 st = wvol_dwt3_inplace_f32(c->data, c->px, c->py, c->pz, f[i], s.levels, err);
-                if (st == WVOL_OK) st = wvol_check_finite(c->data, c->px, c->py, c->pz, "wavelet trial coefficients", err);
+                if (st == WVOL_OK)
+                    st = wvol_check_finite(c->data, c->px, c->py, c->pz, "wavelet trial coefficients", err);
                 continue;
             }
             wvol_coeffs_destroy(c);

@@ -16,7 +16,7 @@
 #include <string.h>
 
 #include "core/alloc.h"
-#include "core/clones.h"
+#include "core/finite.h"
 #include "wavelet/wavelet_internal.h"
 #include "wvol/source.h"
 
@@ -151,20 +151,9 @@ nomem:
 }
 
 /* Every value finite: the low-pass gains 2^1.5 per level, inputs near FLT_MAX overflow. */
-WVOL__CLONES static int plane_finite(const float *p, size_t n)
-{
-    uint32_t bad = 0;
-    for (size_t i = 0; i < n; i++) { /* NaN or Inf: the exponent bits all ones (vectorises) */
-        uint32_t u;
-        memcpy(&u, p + i, sizeof u);
-        bad |= (uint32_t)((u & 0x7F800000u) == 0x7F800000u);
-    }
-    return !bad;
-}
-
 static wvol_status check_plane(const float *p, size_t n, int level, wvol_error *err)
 {
-    int bad = !plane_finite(p, n);
+    int bad = !wvol__all_finite(p, n);
     WVOL_RETURN_IF(bad, err, WVOL_ERR_NONFINITE,
                    "streamed transform: coefficients of level %d overflow float32 (the low-pass grows by 2^1.5 per "
                    "level; input magnitudes must stay below about FLT_MAX / 2^(1.5 * levels))", level);
