@@ -87,7 +87,7 @@ int wvol__wvc_cabac_decode_multi(int n, int32_t *const Q[], const size_t *const 
                                  const uint8_t *buf, size_t size, int blocks, uint64_t *nonzero, const char **why);
 /* The zstd coder's working buffers: its compression context and symbol buffer (10 bytes
  * per coefficient), kept by a caller that codes chunk after chunk (a fresh context per call
- * allocated and cleared its tables, and the trial runs beside most CABAC chunks); released
+ * allocates and clears its tables, and the trial runs beside most CABAC chunks); released
  * with wvol__wvc_zstd_scratch_free. */
 typedef struct wvc_zstd_scratch {
     void *cctx;
@@ -139,7 +139,7 @@ static inline size_t wvc_index(const size_t p[3], const wvc_band *b, size_t x, s
 
 /* Little-endian field access. */
 /* Whether the eight int32 values at q are all zero: four scalar loads (a copy into an
- * array went through the stack, and the reloads waited on the store). */
+ * array goes through the stack, and the reloads wait on the store). */
 static inline int wvc_zero8(const void *q)
 {
     const unsigned char *c = q;

@@ -85,7 +85,7 @@ static inline __attribute__((always_inline)) void row_kernel(double t[8], const 
     for (x = 0; x + 8 <= ex; x += 8) {
         wvc_v8f cf;
         /* a run of all-zero groups: only their energy, in a loop of its own (with the full
-         * arithmetic's accumulators live, zq was kept on the stack and each group waited on
+         * arithmetic's accumulators live, GCC keeps zq on the stack and each group waits on
          * the previous one's store); the same operations in the same order */
         {
             wvc_v4d z = zq;
