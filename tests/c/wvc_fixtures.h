@@ -8,11 +8,11 @@
 #include <string.h>
 
 /* Chunk payload modes, byte 0 of each non-empty chunk of a version-2 file (count[0..3]). */
-static inline int wvc_chunk_modes(const uint8_t *b, size_t n, int count[4])
+static inline int wvc_chunk_modes(const uint8_t *b, size_t n, int count[5])
 {
     uint32_t nsec;
     uint64_t nchunks;
-    memset(count, 0, 4 * sizeof *count);
+    memset(count, 0, 5 * sizeof *count);
     if (n < 224) return 0;
     memcpy(&nsec, b + 12, 4);
     memcpy(&nchunks, b + 208, 8);
@@ -23,7 +23,7 @@ static inline int wvc_chunk_modes(const uint8_t *b, size_t n, int count[4])
         memcpy(&off, e, 8);
         memcpy(&bytes, e + 8, 4);
         if (!bytes) continue;
-        if (off >= n || b[off] > 3) return 0;
+        if (off >= n || b[off] > 4) return 0;
         count[b[off]]++;
     }
     return 1;
