@@ -144,13 +144,13 @@ static int r4_row_bad(const r4_dec *D, int over, size_t ps, uint64_t bits, const
 }
 
 #define R4_COEF(SP, X) \
-    r4_coef(D, SP, &ps, &bits, c + (X), w->CX[X], raw_signs, safe, &nzc, &over, &m, (int)((X)-g0))
+    r4_coef(D, SP, &S.ps, &S.bits, c + (X), w->CX[X], raw_signs, safe, &S.nzc, &over, &m, (int)((X)-g0))
 /* the sign of the next non-zero of mask m (coefficients g0 ..) on state TV */
 #define R4_SIGN(TV)                                                                            \
     do {                                                                                       \
         const int i_ = __builtin_ctz(m);                                                       \
         const uint32_t neg_ = r4_bin(&TV, D->SF[w->SG[g0 + (size_t)i_]]);                      \
-        TV = r4_renorm(TV, D, &ps, safe);                                                      \
+        TV = r4_renorm(TV, D, &S.ps, safe);                                                      \
         m &= m - 1;                                                                            \
         c[g0 + (size_t)i_] = (int32_t)(((uint32_t)c[g0 + (size_t)i_] ^ (0u - neg_)) + neg_);   \
     } while (0)
@@ -174,17 +174,15 @@ FORCE_INLINE int r4_band(const r4_dec *D, int32_t *Q, const size_t p[3], const w
     uint32_t s8 = xs[8], s9 = xs[9], s10 = xs[10], s11 = xs[11], s12 = xs[12], s13 = xs[13], s14 = xs[14], s15 = xs[15];
     uint32_t t0 = xs[R4_TS], t1 = xs[R4_TS + 1], t2 = xs[R4_TS + 2], t3 = xs[R4_TS + 3];
     uint32_t t4 = xs[R4_TS + 4], t5 = xs[R4_TS + 5], t6 = xs[R4_TS + 6], t7 = xs[R4_TS + 7];
-    size_t ps = P->ps, row = P->row;
-    uint64_t bits = P->bits, nzc = P->nzc;
-    uint32_t plast = P->plast;
+    r4_pos S = *P; /* a local copy, in registers */
     int r = 0;
-    for (; row < rows; row++) {
-        const size_t y = row % ey, z = row / ey;
+    for (; S.row < rows; S.row++) {
+        const size_t y = S.row % ey, z = S.row / ey;
         int32_t *c = Q + wvc_index(p, b, 0, y, z);
         uint32_t over = 0, any = 0, m;
-        if (!safe && !r4_room(D, ps, bits)) break;
-        if (!r4_row_flag(D, Q, p, b, y, z, &plast, &s0, &ps, safe)) {
-            if (r4_row_bad(D, 0, ps, bits, why)) {
+        if (!safe && !r4_room(D, S.ps, S.bits)) break;
+        if (!r4_row_flag(D, Q, p, b, y, z, &S.plast, &s0, &S.ps, safe)) {
+            if (r4_row_bad(D, 0, S.ps, S.bits, why)) {
                 r = -1;
                 break;
             }
@@ -196,7 +194,7 @@ FORCE_INLINE int r4_band(const r4_dec *D, int32_t *Q, const size_t p[3], const w
             uint32_t nz = 1;
             if (ng > 1 && (g + 1 < ng || any)) {
                 nz = r4_bin(&s0, D->GF[w->GX[g]]);
-                s0 = r4_renorm(s0, D, &ps, safe);
+                s0 = r4_renorm(s0, D, &S.ps, safe);
             }
             any |= nz;
             if (!nz) continue;
@@ -234,7 +232,7 @@ FORCE_INLINE int r4_band(const r4_dec *D, int32_t *Q, const size_t p[3], const w
                     R4_SIGNS4(t4, t5, t6, t7);
                 }
         }
-        if (r4_row_bad(D, over != 0, ps, bits, why)) {
+        if (r4_row_bad(D, over != 0, S.ps, S.bits, why)) {
             r = -1;
             break;
         }
@@ -243,11 +241,7 @@ FORCE_INLINE int r4_band(const r4_dec *D, int32_t *Q, const size_t p[3], const w
     xs[8] = s8, xs[9] = s9, xs[10] = s10, xs[11] = s11, xs[12] = s12, xs[13] = s13, xs[14] = s14, xs[15] = s15;
     xs[R4_TS] = t0, xs[R4_TS + 1] = t1, xs[R4_TS + 2] = t2, xs[R4_TS + 3] = t3;
     xs[R4_TS + 4] = t4, xs[R4_TS + 5] = t5, xs[R4_TS + 6] = t6, xs[R4_TS + 7] = t7;
-    P->ps = ps;
-    P->row = row;
-    P->bits = bits;
-    P->nzc = nzc;
-    P->plast = plast;
+    *P = S;
     return r;
 }
 
@@ -501,19 +495,17 @@ R4_AVX2_INLINE int r4_band_v(const r4_dec *D, int32_t *Q, const size_t p[3], con
     const __m256i qmax = _mm256_set1_epi32(WVC_QMAX);
     __m256i X = _mm256_loadu_si256((const __m256i *)xs), X1 = _mm256_loadu_si256((const __m256i *)(xs + 8));
     __m256i T8 = _mm256_loadu_si256((const __m256i *)(xs + R4_TS)), amax = _mm256_setzero_si256();
-    size_t ps = P->ps, row = P->row;
-    uint64_t bits = P->bits, nzc = P->nzc;
-    uint32_t plast = P->plast;
+    r4_pos S = *P; /* a local copy, in registers */
     int r = 0;
-    for (; row < rows; row++) {
-        const size_t y = row % ey, z = row / ey;
+    for (; S.row < rows; S.row++) {
+        const size_t y = S.row % ey, z = S.row / ey;
         int32_t *c = Q + wvc_index(p, b, 0, y, z);
         uint32_t any = 0, m, s0 = r4v_get0(X), ok;
-        if (!r4_room(D, ps, bits)) break;
-        m = r4_row_flag(D, Q, p, b, y, z, &plast, &s0, &ps, 0);
+        if (!r4_room(D, S.ps, S.bits)) break;
+        m = r4_row_flag(D, Q, p, b, y, z, &S.plast, &s0, &S.ps, 0);
         X = r4v_set0(X, s0);
         if (!m) {
-            if (r4_row_bad(D, 0, ps, bits, why)) {
+            if (r4_row_bad(D, 0, S.ps, S.bits, why)) {
                 r = -1;
                 break;
             }
@@ -527,18 +519,18 @@ R4_AVX2_INLINE int r4_band_v(const r4_dec *D, int32_t *Q, const size_t p[3], con
             if (ng > 1 && (g + 1 < ng || any)) {
                 s0 = r4v_get0(X);
                 nz = r4_bin(&s0, D->GF[w->GX[g]]);
-                s0 = r4_renorm(s0, D, &ps, 0);
+                s0 = r4_renorm(s0, D, &S.ps, 0);
                 X = r4v_set0(X, s0);
             }
             any |= nz;
             if (!nz) continue;
-            m = r4v_eight(D, &X, w->CX + g0, &ps, &bits, c + g0, raw_signs, &amax);
-            if (g1 - g0 > 8) m |= r4v_eight(D, &X1, w->CX + g0 + 8, &ps, &bits, c + g0 + 8, raw_signs, &amax) << 8;
-            nzc += (uint64_t)_mm_popcnt_u32(m);
-            if (!raw_signs && m) r4v_signs8(D, &T8, w->SG + g0, m, c + g0, g1 - g0, &ps);
+            m = r4v_eight(D, &X, w->CX + g0, &S.ps, &S.bits, c + g0, raw_signs, &amax);
+            if (g1 - g0 > 8) m |= r4v_eight(D, &X1, w->CX + g0 + 8, &S.ps, &S.bits, c + g0 + 8, raw_signs, &amax) << 8;
+            S.nzc += (uint64_t)_mm_popcnt_u32(m);
+            if (!raw_signs && m) r4v_signs8(D, &T8, w->SG + g0, m, c + g0, g1 - g0, &S.ps);
         }
         ok = (uint32_t)_mm256_movemask_ps(_mm256_castsi256_ps(_mm256_cmpeq_epi32(_mm256_max_epu32(amax, qmax), qmax)));
-        if (r4_row_bad(D, ok != 0xFF, ps, bits, why)) {
+        if (r4_row_bad(D, ok != 0xFF, S.ps, S.bits, why)) {
             r = -1;
             break;
         }
@@ -546,11 +538,7 @@ R4_AVX2_INLINE int r4_band_v(const r4_dec *D, int32_t *Q, const size_t p[3], con
     _mm256_storeu_si256((__m256i *)xs, X);
     _mm256_storeu_si256((__m256i *)(xs + 8), X1);
     _mm256_storeu_si256((__m256i *)(xs + R4_TS), T8);
-    P->ps = ps;
-    P->row = row;
-    P->bits = bits;
-    P->nzc = nzc;
-    P->plast = plast;
+    *P = S;
     return r;
 }
 
