@@ -5,12 +5,13 @@
  * gather, the renormalisation's words by a permutation indexed by the mask of the lanes that
  * take one, as in Giesen's SIMD rANS; the raw bits by a gather at their prefix-summed
  * offsets), a group's modelled signs eight per vector, a row's contexts in one vector pass.
- * The payload is read in place. The fast rows read up to a row's worth past the stream
- * positions without a test (a word per renormalisation, a 16-byte load of words, 8 bytes of
- * raw bits per step); they run while that much of the payload remains after the positions,
- * and the rows after them, a few at the chunk's end, go through the scalar decoder with
- * bounds-checked reads. Each row ends with the checks of the positions and of the
- * magnitudes' range, so a damaged stream stops within a row. */
+ * The payload is read in place. A row reads up to a row's worth past the stream positions
+ * without a test (a word per renormalisation, a 16-byte load of words, 8 bytes of raw bits
+ * per step, the engine's gathers up to 36 bytes on); a row starts only while that much of the
+ * buffer remains after both positions. When a position comes that close to the payload's end,
+ * its stream is read from then on from a copy of the payload's last bytes followed by as many
+ * zeros (a few hundred bytes), so every row has room. Each row ends with the checks of the
+ * positions and of the magnitudes' range, so a damaged stream stops within a row. */
 #include <stdlib.h>
 #include <string.h>
 
@@ -44,10 +45,11 @@ typedef struct r4_dec {
     const uint32_t *flat; /* R4_NC tables of R4_M entries */
     uint32_t GF[R4_NG], SF[R4_NSGW + 1], RF[R4_NR];
     uint8_t *rnz;       /* the band's row flags */
-    const uint8_t *w;   /* the 16-bit words (little-endian, any alignment), in the payload */
-    const uint8_t *raw; /* the raw bits, after the words, to the payload's end */
+    const uint8_t *w;   /* the 16-bit words (little-endian, any alignment): in the payload or its tail's copy */
+    const uint8_t *raw; /* the raw bits, after the words, to the payload's end; or in the copy */
     size_t nw, nraw;
-    size_t wrow, rrow; /* payload bytes a fast row may read past the word and raw positions */
+    size_t wrow, rrow;   /* bytes a row may read past the word and raw positions */
+    size_t wspan, rspan; /* bytes readable from w and raw */
 } r4_dec;
 
 /* Where a band's decoding stands: the next row (y fastest), the word and raw-bit positions,
@@ -58,29 +60,24 @@ typedef struct r4_pos {
     uint32_t plast;
 } r4_pos;
 
-/* Whether a fast row may start here (ps <= nw and bits <= 8 nraw: each row ends checked). */
+/* Whether a row may start here (ps <= nw and bits <= 8 nraw: each row ends checked). */
 static inline int r4_room(const r4_dec *D, size_t ps, uint64_t bits)
 {
-    return 2 * (D->nw - ps) + D->nraw >= D->wrow && D->nraw - (size_t)(bits >> 3) >= D->rrow;
+    return 2 * ps + D->wrow <= D->wspan && (size_t)(bits >> 3) + D->rrow <= D->rspan;
 }
 
-FORCE_INLINE uint32_t r4_word(const r4_dec *D, size_t pos, int safe)
+FORCE_INLINE uint32_t r4_word(const r4_dec *D, size_t pos)
 {
-    uint16_t v = 0;
-    if (!safe || pos < D->nw) memcpy(&v, D->w + 2 * pos, 2);
+    uint16_t v;
+    memcpy(&v, D->w + 2 * pos, 2);
     return v;
 }
 
-/* the 64 raw bits from bit bp on (zeros past the stream where safe) */
-FORCE_INLINE uint64_t r4_raw64(const r4_dec *D, uint64_t bp, int safe)
+/* the 64 raw bits from bit bp on */
+FORCE_INLINE uint64_t r4_raw64(const r4_dec *D, uint64_t bp)
 {
-    const size_t i = (size_t)(bp >> 3);
-    uint64_t v = 0;
-    if (!safe || i + 8 <= D->nraw) {
-        memcpy(&v, D->raw + i, 8);
-    } else {
-        for (size_t k = 0; i + k < D->nraw && k < 8; k++) v |= (uint64_t)D->raw[i + k] << (8 * k);
-    }
+    uint64_t v;
+    memcpy(&v, D->raw + (bp >> 3), 8);
     return v >> (bp & 7);
 }
 
@@ -92,10 +89,10 @@ FORCE_INLINE uint32_t r4_bin(uint32_t *x, uint32_t f0)
     return bit;
 }
 
-FORCE_INLINE uint32_t r4_renorm(uint32_t x, const r4_dec *D, size_t *pos, int safe)
+FORCE_INLINE uint32_t r4_renorm(uint32_t x, const r4_dec *D, size_t *pos)
 {
     const uint32_t r = x < R4_L;
-    const uint32_t v = r4_word(D, *pos, safe);
+    const uint32_t v = r4_word(D, *pos);
     *pos += r;
     return (x << (r << 4)) | (v & (0u - r));
 }
@@ -103,14 +100,14 @@ FORCE_INLINE uint32_t r4_renorm(uint32_t x, const r4_dec *D, size_t *pos, int sa
 /* One coefficient on state *x: magnitude, raw bits, raw sign; with modelled signs bit i of *m
  * marks a non-zero (its sign follows the group's magnitudes). */
 FORCE_INLINE void r4_coef(const r4_dec *D, uint32_t *x, size_t *pos, uint64_t *bp, int32_t *c, uint32_t cx,
-                          int raw_signs, int safe, uint64_t *nzc, uint32_t *over, uint32_t *m, int i)
+                          int raw_signs, uint64_t *nzc, uint32_t *over, uint32_t *m, int i)
 {
     const uint32_t e = D->flat[cx * R4_M + (*x & (R4_M - 1))];
     const uint32_t s = e & 63, nz = s != 0, k = r4_symraw[s];
-    const uint64_t st = r4_symtab[s], word = r4_raw64(D, *bp, safe);
+    const uint64_t st = r4_symtab[s], word = r4_raw64(D, *bp);
     uint32_t a, neg = 0;
     *x = (e >> R4_FSHIFT & (2 * R4_M - 1)) * (*x >> R4_PBITS) + (e >> R4_OSHIFT);
-    *x = r4_renorm(*x, D, pos, safe);
+    *x = r4_renorm(*x, D, pos);
     a = (uint32_t)st | ((uint32_t)word & (uint32_t)(st >> 32));
     if (raw_signs) {
         neg = (uint32_t)(word >> k) & nz;
@@ -126,10 +123,10 @@ FORCE_INLINE void r4_coef(const r4_dec *D, uint32_t *x, size_t *pos, uint64_t *b
 
 /* Row (y, z)'s flag on state *s0, recorded for the rows after it. */
 FORCE_INLINE uint32_t r4_row_flag(const r4_dec *D, const int32_t *Q, const size_t p[3], const wvc_band *b, size_t y,
-                                  size_t z, uint32_t *plast, uint32_t *s0, size_t *ps, int safe)
+                                  size_t z, uint32_t *plast, uint32_t *s0, size_t *ps)
 {
     const uint32_t rowz = r4_bin(s0, D->RF[r4_row_ctx(D->rnz, Q, p, b, y, z, plast)]);
-    *s0 = r4_renorm(*s0, D, ps, safe);
+    *s0 = r4_renorm(*s0, D, ps);
     D->rnz[z * b->ext[1] + y] = (uint8_t)rowz;
     return rowz;
 }
@@ -144,13 +141,13 @@ static int r4_row_bad(const r4_dec *D, int over, size_t ps, uint64_t bits, const
 }
 
 #define R4_COEF(SP, X) \
-    r4_coef(D, SP, &S.ps, &S.bits, c + (X), w->CX[X], raw_signs, safe, &S.nzc, &over, &m, (int)((X)-g0))
+    r4_coef(D, SP, &S.ps, &S.bits, c + (X), w->CX[X], raw_signs, &S.nzc, &over, &m, (int)((X)-g0))
 /* the sign of the next non-zero of mask m (coefficients g0 ..) on state TV */
 #define R4_SIGN(TV)                                                                            \
     do {                                                                                       \
         const int i_ = __builtin_ctz(m);                                                       \
         const uint32_t neg_ = r4_bin(&TV, D->SF[w->SG[g0 + (size_t)i_]]);                      \
-        TV = r4_renorm(TV, D, &S.ps, safe);                                                      \
+        TV = r4_renorm(TV, D, &S.ps);                                                            \
         m &= m - 1;                                                                            \
         c[g0 + (size_t)i_] = (int32_t)(((uint32_t)c[g0 + (size_t)i_] ^ (0u - neg_)) + neg_);   \
     } while (0)
@@ -163,11 +160,11 @@ static int r4_row_bad(const r4_dec *D, int over, size_t ps, uint64_t bits, const
     if (!m) break;             \
     R4_SIGN(D_)
 
-/* The scalar decoder of one band from row P->row on: safe = 0 stops before a row without
- * room for a fast row's reads (P->row says where), safe = 1 checks every read. States stay in
- * registers: every access names its variable. Returns 0, or -1 with *why. */
+/* The scalar decoder of one band from row P->row on; it stops before a row without room for
+ * its reads (P->row says where). States stay in registers: every access names its variable.
+ * Returns 0, or -1 with *why. */
 FORCE_INLINE int r4_band(const r4_dec *D, int32_t *Q, const size_t p[3], const wvc_band *b, const r4_row *w,
-                         const int32_t *zrow, int raw_signs, int safe, uint32_t xs[R4_NX], r4_pos *P, const char **why)
+                         const int32_t *zrow, int raw_signs, uint32_t xs[R4_NX], r4_pos *P, const char **why)
 {
     const size_t ex = b->ext[0], ey = b->ext[1], rows = ey * b->ext[2], ng = (ex + R4_GROUP - 1) / R4_GROUP;
     uint32_t s0 = xs[0], s1 = xs[1], s2 = xs[2], s3 = xs[3], s4 = xs[4], s5 = xs[5], s6 = xs[6], s7 = xs[7];
@@ -180,8 +177,8 @@ FORCE_INLINE int r4_band(const r4_dec *D, int32_t *Q, const size_t p[3], const w
         const size_t y = S.row % ey, z = S.row / ey;
         int32_t *c = Q + wvc_index(p, b, 0, y, z);
         uint32_t over = 0, any = 0, m;
-        if (!safe && !r4_room(D, S.ps, S.bits)) break;
-        if (!r4_row_flag(D, Q, p, b, y, z, &S.plast, &s0, &S.ps, safe)) {
+        if (!r4_room(D, S.ps, S.bits)) break;
+        if (!r4_row_flag(D, Q, p, b, y, z, &S.plast, &s0, &S.ps)) {
             if (r4_row_bad(D, 0, S.ps, S.bits, why)) {
                 r = -1;
                 break;
@@ -194,7 +191,7 @@ FORCE_INLINE int r4_band(const r4_dec *D, int32_t *Q, const size_t p[3], const w
             uint32_t nz = 1;
             if (ng > 1 && (g + 1 < ng || any)) {
                 nz = r4_bin(&s0, D->GF[w->GX[g]]);
-                s0 = r4_renorm(s0, D, &S.ps, safe);
+                s0 = r4_renorm(s0, D, &S.ps);
             }
             any |= nz;
             if (!nz) continue;
@@ -248,17 +245,15 @@ FORCE_INLINE int r4_band(const r4_dec *D, int32_t *Q, const size_t p[3], const w
 typedef int (*r4_band_fn)(const r4_dec *D, int32_t *Q, const size_t p[3], const wvc_band *b, const r4_row *w,
                           const int32_t *zrow, uint32_t xs[R4_NX], r4_pos *P, const char **why);
 
-#define R4_BAND_SCALAR(NAME, RAW, SAFE)                                                                      \
+#define R4_BAND_SCALAR(NAME, RAW)                                                                            \
     WVOL__CLONES static int NAME(const r4_dec *D, int32_t *Q, const size_t p[3], const wvc_band *b,          \
                                  const r4_row *w, const int32_t *zrow, uint32_t xs[R4_NX], r4_pos *P,        \
                                  const char **why)                                                           \
     {                                                                                                        \
-        return r4_band(D, Q, p, b, w, zrow, RAW, SAFE, xs, P, why);                                          \
+        return r4_band(D, Q, p, b, w, zrow, RAW, xs, P, why);                                                \
     }
-R4_BAND_SCALAR(r4_band_raw, 1, 0)
-R4_BAND_SCALAR(r4_band_sgn, 0, 0)
-R4_BAND_SCALAR(r4_band_raw_safe, 1, 1)
-R4_BAND_SCALAR(r4_band_sgn_safe, 0, 1)
+R4_BAND_SCALAR(r4_band_raw, 1)
+R4_BAND_SCALAR(r4_band_sgn, 0)
 
 #ifdef R4_HAVE_AVX2
 #define R4_AVX2 __attribute__((target("avx2,bmi,bmi2,popcnt")))
@@ -485,7 +480,7 @@ R4_AVX2_INLINE __m256i r4v_set0(__m256i X, uint32_t s0)
     return _mm256_blend_epi32(X, _mm256_castsi128_si256(_mm_cvtsi32_si128((int)s0)), 1);
 }
 
-/* r4_band's fast rows (safe = 0) for extents that are multiples of 8: the magnitude states in
+/* r4_band for extents that are multiples of 8: the magnitude states in
  * two registers (s0 .. s7, s8 .. s15: the halves of a group of 16), the sign states in one,
  * the flags on lane 0 (s0) taken out of the register and put back. */
 R4_AVX2_INLINE int r4_band_v(const r4_dec *D, int32_t *Q, const size_t p[3], const wvc_band *b, const r4_row *w,
@@ -502,7 +497,7 @@ R4_AVX2_INLINE int r4_band_v(const r4_dec *D, int32_t *Q, const size_t p[3], con
         int32_t *c = Q + wvc_index(p, b, 0, y, z);
         uint32_t any = 0, m, s0 = r4v_get0(X), ok;
         if (!r4_room(D, S.ps, S.bits)) break;
-        m = r4_row_flag(D, Q, p, b, y, z, &S.plast, &s0, &S.ps, 0);
+        m = r4_row_flag(D, Q, p, b, y, z, &S.plast, &s0, &S.ps);
         X = r4v_set0(X, s0);
         if (!m) {
             if (r4_row_bad(D, 0, S.ps, S.bits, why)) {
@@ -519,7 +514,7 @@ R4_AVX2_INLINE int r4_band_v(const r4_dec *D, int32_t *Q, const size_t p[3], con
             if (ng > 1 && (g + 1 < ng || any)) {
                 s0 = r4v_get0(X);
                 nz = r4_bin(&s0, D->GF[w->GX[g]]);
-                s0 = r4_renorm(s0, D, &S.ps, 0);
+                s0 = r4_renorm(s0, D, &S.ps);
                 X = r4v_set0(X, s0);
             }
             any |= nz;
@@ -594,6 +589,40 @@ static int r4_get_tables(const uint8_t *buf, size_t size, size_t *pos, uint32_t 
     return 0;
 }
 
+/* The payload's last bytes (from ts to end, at most T) and T zeros, for the rows that would
+ * read past the payload's end; which streams read from it. */
+typedef struct r4_tail {
+    uint8_t *buf;
+    const uint8_t *ts, *end;
+    size_t T;
+    int w, raw;
+} r4_tail;
+
+/* base's stream, read at the same positions from the copy: its address of byte ts is buf's */
+static const uint8_t *r4_in_tail(const r4_tail *t, const uint8_t *base)
+{
+    return (const uint8_t *)((uintptr_t)t->buf - (uintptr_t)(t->ts - base));
+}
+
+/* Moves each stream without room for a row at P to the tail's copy (its position is then
+ * within the payload's last T bytes, which the copy holds, and T bytes of room follow).
+ * Returns -1 when none moves (a row without room after the move: not expected). */
+static int r4_to_tail(r4_dec *D, const r4_pos *P, r4_tail *t)
+{
+    int moved = 0;
+    if (!t->w && 2 * P->ps + D->wrow > D->wspan) {
+        D->w = r4_in_tail(t, D->w);
+        D->wspan += t->T;
+        t->w = moved = 1;
+    }
+    if (!t->raw && (size_t)(P->bits >> 3) + D->rrow > D->rspan) {
+        D->raw = r4_in_tail(t, D->raw);
+        D->rspan += t->T;
+        t->raw = moved = 1;
+    }
+    return moved ? 0 : -1;
+}
+
 int wvol__wvc_rans4_decode(int n, int32_t *const Q[], const size_t *const p[], const wvc_band *const b[],
                            const uint8_t *buf, size_t size, int engine, uint64_t *nonzero, const char **why)
 {
@@ -606,7 +635,8 @@ int wvol__wvc_rans4_decode(int n, int32_t *const Q[], const size_t *const p[], c
     r4_pos P;
     size_t pos = 1 + R4_HEAD;
     int r = -1, raw_signs, vec = 0;
-    r4_band_fn fast, safe;
+    r4_tail tail = {0};
+    r4_band_fn band;
     *nonzero = 0;
     memset(&D, 0, sizeof D);
     memset(&P, 0, sizeof P);
@@ -645,22 +675,38 @@ int wvol__wvc_rans4_decode(int n, int32_t *const Q[], const size_t *const p[], c
     D.raw = D.w + 2 * (size_t)nw;
     D.nw = nw;
     D.nraw = nraw;
+    /* a row's reads past the positions: a word per step (a row flag, its group flags, a
+     * magnitude and a sign per coefficient) and a 16-byte load; up to 31 raw bits per
+     * coefficient and the engine's 36 bytes past a step's first */
     D.wrow = 2 * (2 * ex + ng + 1) + 32;
     D.rrow = 4 * ex + 64;
+    D.wspan = size - pos;
+    D.rspan = nraw;
+    tail.T = D.wrow > D.rrow ? D.wrow : D.rrow;
+    tail.end = buf + size;
+    tail.ts = tail.end - (tail.T < size - pos ? tail.T : size - pos);
+    tail.buf = calloc(2 * tail.T, 1);
     D.rnz = malloc(b[0]->ext[1] * b[0]->ext[2] + 1);
-    if (!D.rnz || wvol__wvc_rans4_row_alloc(&row, &zrow, ex)) goto nomem;
-    fast = raw_signs ? r4_band_raw : r4_band_sgn;
-    safe = raw_signs ? r4_band_raw_safe : r4_band_sgn_safe;
+    if (!tail.buf || !D.rnz || wvol__wvc_rans4_row_alloc(&row, &zrow, ex)) goto nomem;
+    memcpy(tail.buf, tail.ts, (size_t)(tail.end - tail.ts));
+    band = raw_signs ? r4_band_raw : r4_band_sgn;
 #ifdef R4_HAVE_AVX2
     vec = engine == WVC_RANS4_AUTO && ex % 8 == 0 && r4_cpu_avx2();
-    if (vec) fast = raw_signs ? r4_band_avx2_raw : r4_band_avx2_sgn;
+    if (vec) band = raw_signs ? r4_band_avx2_raw : r4_band_avx2_sgn;
 #endif
     (void)vec;
     for (int i = 0; i < n; i++) {
+        const size_t rows = b[i]->ext[1] * b[i]->ext[2];
         P.row = 0;
         P.plast = 0;
-        if (fast(&D, Q[i], p[i], b[i], &row, zrow, xs, &P, why)) goto done;
-        if (P.row < b[i]->ext[1] * b[i]->ext[2] && safe(&D, Q[i], p[i], b[i], &row, zrow, xs, &P, why)) goto done;
+        for (;;) {
+            if (band(&D, Q[i], p[i], b[i], &row, zrow, xs, &P, why)) goto done;
+            if (P.row >= rows) break;
+            if (r4_to_tail(&D, &P, &tail)) {
+                *why = "mode-4 decoder: no room for a row";
+                goto done;
+            }
+        }
     }
     *nonzero = P.nzc;
     for (int l = 0; l < R4_NX; l++)
@@ -681,6 +727,7 @@ bad_table:
     *why = "mode-4 table malformed";
 done:
     free(flat);
+    free(tail.buf);
     free(D.rnz);
     wvol__wvc_rans4_row_free(&row, zrow);
     return r;
