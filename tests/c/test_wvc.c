@@ -677,6 +677,8 @@ static void wvc_refuses_bad_parameters(void)
 
 /* The fuzz corpus doubles as golden files: valid_* decode, damaged_* are refused.
  * A change of the coder that breaks them needs a new format version (and a new corpus). */
+/* The corpus's small mode-4 file fits the fuzzer's 4096-byte inputs (scripts/fuzz.sh): `wvol
+ * synth skull --size 16 --noise 20`, `--step 100 --levels 2 --tile 8 --coder rans4`. */
 static void wvc_corpus_files_decode_or_are_refused(void)
 {
     const char *root = getenv("WVOL_SOURCE_DIR");
@@ -687,7 +689,7 @@ static void wvc_corpus_files_decode_or_are_refused(void)
                            "valid_v2_coif1_16x16x1_zstd.wvc", "damaged_v2_bitflip_chunk.wvc",
                            "damaged_v2_bitflip_index.wvc", "valid_v2_mode1_skull32_step600.wvc",
                            "valid_v2_mode2_skull32_step600.wvc", "valid_v2_mode3_skull32_step600.wvc",
-                           "valid_v2_mode4_skull32_step600.wvc"};
+                           "valid_v2_mode4_skull32_step600.wvc", "valid_v2_mode4_skull16_step100.wvc"};
     char path[1024];
     size_t i;
     if (!root) {

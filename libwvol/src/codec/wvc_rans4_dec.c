@@ -32,7 +32,7 @@
 /* A magnitude symbol's base value and raw-bit mask (mask << 32), and its raw-bit count.
  * Symbol 63 is what an unused context's table gives: a magnitude out of range, which the
  * row's range check refuses (no test in the step). */
-#define R4_SK(s) ((s) < 2 || (s) >= R4_NS ? 0u : (uint32_t)(((s) >> 1) - 1))
+#define R4_SK(s) ((s) >= R4_NS ? 0u : (uint32_t)((s) >> 1) - ((s) > 1 ? 1u : 0u))
 #define R4_SB(s) ((s) == 63 ? 0x7FFFFFFFu : (s) >= R4_NS ? 0u : (s) < 2 ? (uint32_t)(s) : (2u | ((s)&1u)) << R4_SK(s))
 #define R4_ST(s) (R4_SB(s) | (uint64_t)((1u << R4_SK(s)) - 1) << 32)
 #define R4_X4(F, s) F(s), F(s + 1), F(s + 2), F(s + 3)
