@@ -63,7 +63,8 @@ static void fixture_free(fixture *F)
 }
 
 /* The format version encode() writes (0: the default, version 2), and its tile (0: default);
- * g_coder, when not AUTO, replaces AUTO in encode() (the tests run again with chunk mode 3). */
+ * g_coder, when not AUTO, replaces AUTO in encode() (the tests run again with chunk modes 3
+ * and 4, and --coder compact). */
 static int g_version, p_tile;
 static wvol_wvc_coder g_coder = WVOL_WVC_CODER_AUTO;
 
@@ -484,7 +485,7 @@ static void wvc2_refuses_crafted_headers_and_indexes(void)
         uint32_t len = e[8] | (e[9] << 8) | (e[10] << 16) | ((uint32_t)e[11] << 24), c;
         for (int i = 7; i >= 0; i--) off = (off << 8) | e[i];
         memcpy(t, buf, n);
-        t[off] = 9;
+        t[off] = 5; /* the first mode after the known ones */
         c = (uint32_t)crc32(0L, t + off, len);
         for (int i = 0; i < 4; i++) t[idx + 32 * first_coded + 12 + i] = (uint8_t)(c >> (8 * i));
         reseal2(t);
@@ -1340,6 +1341,13 @@ int main(void)
     wvc_survives_garbage_payloads_with_valid_checksums(2);
     /* chunk mode 3 (static-model rANS) wherever a chunk has no low-pass cube */
     g_coder = WVOL_WVC_CODER_RANS;
+    for (int i = 0; i < 4; i++) wvc_round_trip_meets_psnr_target(fam[i], 16, 16, 16, 2);
+    wvc_odd_sizes_and_flat_axes_round_trip();
+    wvc_refuses_truncation_and_bit_flips_everywhere(2);
+    wvc_survives_garbage_payloads_with_valid_checksums(2);
+    /* chunk mode 4 wherever a chunk has no low-pass cube (auto leaves these small chunks to
+     * compact's rule) */
+    g_coder = WVOL_WVC_CODER_RANS4;
     for (int i = 0; i < 4; i++) wvc_round_trip_meets_psnr_target(fam[i], 16, 16, 16, 2);
     wvc_odd_sizes_and_flat_axes_round_trip();
     wvc_refuses_truncation_and_bit_flips_everywhere(2);

@@ -513,15 +513,18 @@ static void rans_auto_choice(void)
                   "compact, step %s: %d chunks of mode 3, %d of mode 2, %d of mode 4", fine ? "fine" : "coarse",
                   modes[3], modes[2], modes[4]);
         }
-        /* auto: mode 4 for every non-empty chunk without the low-pass cube (the coarsest
-         * level's one chunk holds it), as many as compact's file has */
+        /* auto: mode 4 for every chunk without the low-pass cube (the coarsest level's one
+         * chunk holds it) that has 4096 non-zeros, the others as compact's (modes 0-3) */
         if (buf[1] && buf[2]) {
-            int modes[5], mc[5];
-            CHECK(wvc_chunk_modes(buf[2], n[2], modes) && wvc_chunk_modes(buf[1], n[1], mc), "modes");
-            CHECK(modes[4] == mc[0] + mc[1] + mc[2] + mc[3] - 1 && modes[3] == 0 && modes[0] + modes[1] + modes[2] == 1 &&
-                      (!fine || modes[4] > 0),
-                  "auto, step %s: %d chunks of mode 4, %d of mode 3, %d of modes 0-2", fine ? "fine" : "coarse",
-                  modes[4], modes[3], modes[0] + modes[1] + modes[2]);
+            int modes[5], big[5], mc[5];
+            CHECK(wvc_chunk_modes(buf[2], n[2], modes) && wvc_chunk_modes_from(buf[2], n[2], 4096, big) &&
+                      wvc_chunk_modes(buf[1], n[1], mc),
+                  "modes");
+            CHECK(modes[0] + modes[1] + modes[2] + modes[3] + modes[4] == mc[0] + mc[1] + mc[2] + mc[3] &&
+                      modes[4] == big[4] && big[0] + big[1] + big[2] + big[3] <= 1 && (!fine || modes[4] > 0),
+                  "auto, step %s: %d chunks of mode 4 (of %d with 4096 non-zeros), %d of modes 0-3",
+                  fine ? "fine" : "coarse", modes[4], big[0] + big[1] + big[2] + big[3] + big[4],
+                  modes[0] + modes[1] + modes[2] + modes[3]);
         }
         for (int k = 1; k < 3; k++)
             if (d[0] && d[k])

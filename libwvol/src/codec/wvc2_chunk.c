@@ -116,6 +116,12 @@ enum { MODE_BANDS = 0, MODE_SHARED = 1, MODE_BLOCKS = 2, MODE_RANS = 3, MODE_RAN
 #define RANS_MIN_DENSITY 0.25
 #define RANS_ALONE_NONZERO 65536
 
+/* --coder auto's use of mode 4 (docs/wvc-format.md, "Chunk mode 4: the choice"): below this
+ * many non-zeros a chunk's decode takes microseconds in any mode, while mode 4's fixed part
+ * (its 24 states, its tables) is most of its bytes, and its size jumps with one coefficient
+ * more or less (a table entry, the sign choice): those chunks are coded as --coder compact. */
+#define RANS4_MIN_NONZERO 4096
+
 void wvol__wvc2_job_pool_free(wvc2_job_pool *pool)
 {
     if (!pool) return;
@@ -287,9 +293,10 @@ int wvol__wvc2_job_code(wvc2_coded *out, wvc2_job *job, const wvc2_geom *g, int 
     int ns = 0;
     memset(out, 0, sizeof *out);
     out->nonzero = job->nonzero;
-    /* --coder auto: mode 4 wherever it can code the chunk (detail bands only), the decoder's
-     * speed first; the low-pass cube's chunk as --coder compact */
-    if (nused && L->bands[0] != 0 && (coder == WVOL_WVC_CODER_RANS4 || coder == WVOL_WVC_CODER_AUTO))
+    /* --coder auto: mode 4 wherever it can code the chunk (detail bands only) and the chunk has
+     * RANS4_MIN_NONZERO non-zeros, the decoder's speed first; other chunks as --coder compact */
+    if (nused && L->bands[0] != 0 &&
+        (coder == WVOL_WVC_CODER_RANS4 || (coder == WVOL_WVC_CODER_AUTO && out->nonzero >= RANS4_MIN_NONZERO)))
         return job_code_rans4(out, job, L, pool);
     if (coder == WVOL_WVC_CODER_COMPACT || coder == WVOL_WVC_CODER_RANS4) coder = WVOL_WVC_CODER_AUTO;
     {
