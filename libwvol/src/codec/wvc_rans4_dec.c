@@ -38,8 +38,13 @@
 #define R4_X4(F, s) F(s), F(s + 1), F(s + 2), F(s + 3)
 #define R4_X16(F, s) R4_X4(F, s), R4_X4(F, s + 4), R4_X4(F, s + 8), R4_X4(F, s + 12)
 #define R4_X64(F, s) R4_X16(F, s), R4_X16(F, s + 16), R4_X16(F, s + 32), R4_X16(F, s + 48)
+#define R4_X256(F, s) R4_X64(F, s), R4_X64(F, s + 64), R4_X64(F, s + 128), R4_X64(F, s + 192)
 static const uint64_t r4_symtab[64] = {R4_X64(R4_ST, 0)};
 static const uint8_t r4_symraw[64] = {R4_X64(R4_SK, 0)};
+/* an unused context's table: symbol 63 by an identity step at every slot */
+#define R4_ID(k) (63u | R4_M << R4_FSHIFT | (uint32_t)(k) << R4_OSHIFT)
+static const uint32_t r4_unused[R4_M] = {R4_X256(R4_ID, 0), R4_X256(R4_ID, 256), R4_X256(R4_ID, 512),
+                                         R4_X256(R4_ID, 768)};
 
 typedef struct r4_dec {
     const uint32_t *flat; /* R4_NC tables of R4_M entries */
@@ -577,7 +582,7 @@ static int r4_get_tables(const uint8_t *buf, size_t size, size_t *pos, uint32_t 
             sum += v;
         }
         if (!ns) {
-            for (uint32_t k = 0; k < R4_M; k++) t[k] = 63u | R4_M << R4_FSHIFT | k << R4_OSHIFT;
+            memcpy(t, r4_unused, sizeof r4_unused);
             continue;
         }
         if (sum != R4_M || !freq[ns - 1]) return -1;
