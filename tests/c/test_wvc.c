@@ -1339,24 +1339,18 @@ int main(void)
     wvc2_refuses_crafted_headers_and_indexes();
     wvc_survives_garbage_payloads_with_valid_checksums(1);
     wvc_survives_garbage_payloads_with_valid_checksums(2);
-    /* chunk mode 3 (static-model rANS) wherever a chunk has no low-pass cube */
-    g_coder = WVOL_WVC_CODER_RANS;
-    for (int i = 0; i < 4; i++) wvc_round_trip_meets_psnr_target(fam[i], 16, 16, 16, 2);
-    wvc_odd_sizes_and_flat_axes_round_trip();
-    wvc_refuses_truncation_and_bit_flips_everywhere(2);
-    wvc_survives_garbage_payloads_with_valid_checksums(2);
-    /* chunk mode 4 wherever a chunk has no low-pass cube (auto leaves these small chunks to
-     * compact's rule) */
-    g_coder = WVOL_WVC_CODER_RANS4;
-    for (int i = 0; i < 4; i++) wvc_round_trip_meets_psnr_target(fam[i], 16, 16, 16, 2);
-    wvc_odd_sizes_and_flat_axes_round_trip();
-    wvc_refuses_truncation_and_bit_flips_everywhere(2);
-    wvc_survives_garbage_payloads_with_valid_checksums(2);
-    /* and --coder compact (auto's rule before mode 4: modes 0, 2, 3) */
-    g_coder = WVOL_WVC_CODER_COMPACT;
-    for (int i = 0; i < 4; i++) wvc_round_trip_meets_psnr_target(fam[i], 16, 16, 16, 2);
-    wvc_odd_sizes_and_flat_axes_round_trip();
-    wvc_refuses_truncation_and_bit_flips_everywhere(2);
+    /* chunk modes 3 and 4 wherever a chunk has no low-pass cube (auto leaves these small
+     * chunks to compact's rule), and --coder compact (auto's rule before mode 4: modes 0-3) */
+    {
+        const wvol_wvc_coder again[3] = {WVOL_WVC_CODER_RANS, WVOL_WVC_CODER_RANS4, WVOL_WVC_CODER_COMPACT};
+        for (int k = 0; k < 3; k++) {
+            g_coder = again[k];
+            for (int i = 0; i < 4; i++) wvc_round_trip_meets_psnr_target(fam[i], 16, 16, 16, 2);
+            wvc_odd_sizes_and_flat_axes_round_trip();
+            wvc_refuses_truncation_and_bit_flips_everywhere(2);
+            wvc_survives_garbage_payloads_with_valid_checksums(2);
+        }
+    }
     g_coder = WVOL_WVC_CODER_AUTO;
     wvc_files_are_atomic_and_checked();
     wvc_refuses_bad_parameters();

@@ -1,14 +1,16 @@
 /* SPDX-License-Identifier: MIT */
 /* Chunk modes 3 and 4 of .wvc version 2 (codec/wvc_rans.c, codec/wvc_rans4_*.c): the coders'
- * round trips on the cases
- * its tables and streams find hardest (all-zero bands, a single non-zero, magnitudes up to
- * the 2^30 bound, odd extents, one to seven bands, with and without parents), its refusal
- * of every truncated payload and its survival of every flipped bit; at the file level
- * --coder auto choosing mode 3 for dense chunks only, and --coder rans refused for version
- * 1; the encoder's kept buffers and the writer's pooled job grids reused for a later
- * chunk as if fresh. (test_wvc.c runs its round trips, truncation, bit-flip and
- * garbage-payload tests again with --coder rans, and decodes the mode-3 corpus file to the
- * mode-1 and mode-2 files' values.) */
+ * round trips on the cases their tables and streams find hardest (all-zero bands, a single
+ * non-zero, impulses and magnitudes up to the 2^30 bound, odd extents, rows shorter than
+ * mode 4's group, one to seven bands, with and without parents; mode 4 with raw and modelled
+ * signs, through its AVX2 engine and its scalar decoder), their refusal of every truncated
+ * payload and survival of every flipped bit (mode 4: both decoders alike); at the file level
+ * --coder compact choosing mode 3 for dense chunks only, --coder auto mode 4 for the chunks
+ * with 4096 non-zeros, and the rANS coders refused for version 1; the encoder's kept buffers
+ * and the writer's pooled job grids reused for a later chunk as if fresh. (test_wvc.c runs
+ * its round trips, truncation, bit-flip and garbage-payload tests again with --coder rans,
+ * rans4 and compact, and decodes the mode-3 and mode-4 corpus files to the mode-1 and mode-2
+ * files' values.) */
 #define _POSIX_C_SOURCE 200809L
 #include <stdint.h>
 #include <stdio.h>
@@ -318,6 +320,18 @@ static int get_varint(const uint8_t *b, size_t size, size_t *pos, uint32_t *v)
     return -1;
 }
 
+/* Passes over the 52 magnitude tables at *pos (each a count, then that many frequencies). */
+static int skip_tables(const uint8_t *b, size_t size, size_t *pos)
+{
+    int ok = 1;
+    for (int c = 0; ok && c < 52; c++) {
+        uint32_t ns, f;
+        ok = !get_varint(b, size, pos, &ns);
+        for (uint32_t k = 0; ok && k < ns; k++) ok = !get_varint(b, size, pos, &f);
+    }
+    return ok;
+}
+
 static size_t put_varint(uint8_t *d, uint32_t v)
 {
     size_t n = 0;
@@ -343,12 +357,8 @@ static void rans_short_stream_is_stopped(int which)
     uint32_t v, len[3][3];
     int ok = 1;
     buf = random_payload(&B, e, 3e6, 1, 5 + (uint64_t)which, &size, "short stream fixture");
-    /* the tables: 52 magnitude contexts (a count, then that many frequencies), 189 signs */
-    for (int c = 0; buf && ok && c < 52; c++) {
-        uint32_t ns, f;
-        ok = !get_varint(buf, size, &pos, &ns);
-        for (uint32_t k = 0; ok && k < ns; k++) ok = !get_varint(buf, size, &pos, &f);
-    }
+    /* the tables: 52 magnitude contexts, 189 signs */
+    ok = buf && skip_tables(buf, size, &pos);
     for (int c = 0; buf && ok && c < 189; c++) ok = !get_varint(buf, size, &pos, &v);
     lenpos = pos;
     for (int i = 0; buf && ok && i < 3; i++)
@@ -402,11 +412,7 @@ static void rans4_short_stream_is_stopped(int which)
     int ok = 1;
     buf = random_payload(&B, e, 3e6, 1, 5 + (uint64_t)which, &size, "mode-4 short stream fixture");
     /* 52 magnitude tables, 32 group flags, 189 signs when modelled, 12 row flags */
-    for (int c = 0; buf && ok && c < 52; c++) {
-        uint32_t ns, f;
-        ok = !get_varint(buf, size, &pos, &ns);
-        for (uint32_t k = 0; ok && k < ns; k++) ok = !get_varint(buf, size, &pos, &f);
-    }
+    ok = buf && skip_tables(buf, size, &pos);
     for (int c = 0; buf && ok && c < 32 + (buf[0] & 1 ? 189 : 0) + 12; c++) ok = !get_varint(buf, size, &pos, &v);
     lenpos = pos;
     ok = ok && buf && !get_varint(buf, size, &pos, &nw) && !get_varint(buf, size, &pos, &nraw);
@@ -466,8 +472,9 @@ static void rans_refuses_truncation_and_survives_bit_flips(void)
     }
 }
 
-/* --coder auto: mode 3 for the dense chunks of a fine quantiser, none for a coarse one
- * (its chunks are sparse); both decode to what --coder cabac's file decodes to. The
+/* --coder compact: mode 3 for the dense chunks of a fine quantiser, none for a coarse one
+ * (its chunks are sparse); --coder auto: mode 4 for the chunks with 4096 non-zeros; all
+ * decode to what --coder cabac's file decodes to. The
  * default tiles, so that level 1's dense chunks hold more than 65536 non-zeros (mode 3
  * alone). */
 static double noisy_blob(const wvol_volume *v, size_t i, size_t j, size_t k, const void *ctx)
