@@ -3,9 +3,10 @@
  * coefficients (decoded exactly from its chunks): every chunk below the coarsest level
  * (whose chunks also hold the low-pass cube) coded level by level, coarse to fine, as the
  * writer codes them (its non-zero detail bands, the parents from the level above), with
- * chunk mode 2 (CABAC with block flags), mode 3 (static-model rANS), the prototype of
- * bench/chunk4.c in its variants, and the file's own choice ("auto": the payloads as
- * written; encode timed through the codec's chunk coder with --coder auto's choice).
+ * chunk mode 2 (CABAC with block flags), mode 3 (static-model rANS), mode 4 (rANS with
+ * contexts from the rows before; its AVX2 engine where the CPU has it, and its scalar
+ * decoder), and the file's own choice ("auto": the payloads as written; encode timed
+ * through the codec's chunk coder with --coder auto).
  * Then decoded into a pyramid holding only the coarsest level, and compared with the
  * file's coefficients. Prints one JSON line per coder: bytes (payloads with their mode
  * and mask bytes), best encode and decode seconds of the repetitions, round trip.
@@ -19,7 +20,6 @@
 #include <string.h>
 #include <time.h>
 
-#include "chunk4.h"
 #include "codec/wvc2_read.h"
 
 static double now(void)
@@ -38,12 +38,12 @@ typedef struct chunk {
     uint64_t nonzero, count;
 } chunk;
 
-enum { C_AUTO, C_MODE2, C_MODE3, C_MODE4, C_MODE4CH, C_MODE4W };
+enum { C_AUTO, C_MODE2, C_MODE3, C_MODE4 };
 
 typedef struct coder {
     const char *name;
     int kind;
-    c4_opts o;
+    int engine; /* mode 4's decoder: WVC_RANS4_AUTO or WVC_RANS4_SCALAR */
 } coder;
 
 static size_t level_bytes[3][WVOL_WVC_MAX_LEVELS + 1];
@@ -89,60 +89,16 @@ static int code_one(const coder *cd, const chunk *c, int32_t *Q, int32_t *D, con
         level_bytes[0][c->m] += fc->bytes;
         return 0;
     }
-    if (cd->kind == C_MODE4W) {
-        t0 = now();
-        if (c4_encode(&buf, &sz, c->n, Qs, Ps, Bs, &cd->o)) return -1;
-        *te += now() - t0;
-        free(buf);
-        for (int k = 0; k < c->n; k++)
-            for (size_t z = 0; z < c->b[k].ext[2]; z++)
-                for (size_t y = 0; y < c->b[k].ext[1]; y++) {
-                    const size_t at = wvc_index(p, &c->b[k], 0, y, z);
-                    memcpy(D + at, Q + at, c->b[k].ext[0] * sizeof *D);
-                }
-        *bytes += sz + 2;
-        return 0;
-    }
-    if (cd->kind == C_MODE4CH) {
-        /* modelled signs with sign(N[x - 1]) */
-        c4_opts om = {0, 16, 1, 0, cd->o.simd, cd->o.states, cd->o.sign_states};
-        c4_opts orw = {1, 16, 0, 0, cd->o.simd, cd->o.states, cd->o.sign_states};
-        uint8_t *b2 = NULL;
-        size_t s2 = 0;
-        const c4_opts *use;
-        t0 = now();
-        if (c4_encode(&buf, &sz, c->n, Qs, Ps, Bs, &om) || c4_encode(&b2, &s2, c->n, Qs, Ps, Bs, &orw)) return -1;
-        if ((double)sz > 0.99 * (double)s2) { /* raw signs */
-            free(buf);
-            buf = b2;
-            sz = s2;
-            use = &orw;
-        } else {
-            free(b2);
-            use = &om;
-        }
-        *te += now() - t0;
-        t0 = now();
-        e = c4_decode(c->n, Ds, Ps, Bs, buf, sz, use, &nz, &why);
-        *td += now() - t0;
-        free(buf);
-        if (e || nz != c->nonzero) {
-            fprintf(stderr, "%s: chunk %zu: %s\n", cd->name, c->id, e ? why : "non-zero count");
-            return -1;
-        }
-        *bytes += sz + 3;
-        return 0;
-    }
     t0 = now();
     e = cd->kind == C_MODE2   ? wvol__wvc_cabac_encode_multi(&buf, &sz, c->n, Qs, Ps, Bs, 1)
         : cd->kind == C_MODE3 ? wvol__wvc_rans_encode(&buf, &sz, c->n, Qs, Ps, Bs, NULL)
-                              : c4_encode(&buf, &sz, c->n, Qs, Ps, Bs, &cd->o);
+                              : wvol__wvc_rans4_encode(&buf, &sz, c->n, Qs, Ps, Bs);
     *te += now() - t0;
     if (e) return -1;
     t0 = now();
     e = cd->kind == C_MODE2   ? wvol__wvc_cabac_decode_multi(c->n, Ds, Ps, Bs, buf, sz, 1, &nz, &why)
         : cd->kind == C_MODE3 ? wvol__wvc_rans_decode(c->n, Ds, Ps, Bs, buf, sz, &nz, &why)
-                              : c4_decode(c->n, Ds, Ps, Bs, buf, sz, &cd->o, &nz, &why);
+                              : wvol__wvc_rans4_decode(c->n, Ds, Ps, Bs, buf, sz, cd->engine, &nz, &why);
     *td += now() - t0;
     free(buf);
     if (e || nz != c->nonzero) {
@@ -168,37 +124,11 @@ int main(int argc, char **argv)
     int32_t *Q, *D, *D0;
     chunk *ch;
     static const coder coders[] = {
-        {"auto", C_AUTO, {0, 0, 0, 0, 0, 0, 0}},
-        {"mode2", C_MODE2, {0, 0, 0, 0, 0, 0, 0}},
-        {"mode3", C_MODE3, {0, 0, 0, 0, 0, 0, 0}},
-        {"mode4_g16_rawsign", C_MODE4, {1, 16, 0, 0, 0, 0, 0}},
-        /* per chunk: modelled signs (band x N x U x N[x - 1]) where they take at least 1% fewer bytes than raw ones
-         * (found by coding both ways here), else raw; one byte says which */
-        {"mode4_g16_choose", C_MODE4CH, {0, 16, 0, 0, 0, 0, 0}},
-        /* the same streams decoded by the AVX2 engine (eight magnitude states in a register) */
-        {"mode4_g16_choose_simd", C_MODE4CH, {0, 16, 0, 0, 1, 0, 0}},
-        {"mode4_g16_rawsign_simd", C_MODE4, {1, 16, 0, 0, 1, 0, 0}},
-        {"mode4_g16_sign_simd", C_MODE4, {0, 16, 0, 0, 1, 0, 0}},
-        {"mode4_g16_choose_simd2", C_MODE4CH, {0, 16, 0, 0, 2, 0, 0}},
-        {"mode4_g16_sign_simd2", C_MODE4, {0, 16, 0, 0, 2, 0, 0}},
-        /* sixteen magnitude states (the stream differs: 16 + 4 final states) */
-        {"mode4s16_g16_choose", C_MODE4CH, {0, 16, 0, 0, 0, 16, 0}},
-        {"mode4s16_g16_choose_simd", C_MODE4CH, {0, 16, 0, 0, 1, 16, 0}},
-        {"mode4s16_g16_choose_simd2", C_MODE4CH, {0, 16, 0, 0, 2, 16, 0}},
-        {"mode4s16_g16_choose_simd3", C_MODE4CH, {0, 16, 0, 0, 3, 16, 0}},
-        /* and eight sign states */
-        {"mode4s24_g16_choose", C_MODE4CH, {0, 16, 0, 0, 0, 16, 8}},
-        {"mode4s24_g16_choose_simd3", C_MODE4CH, {0, 16, 0, 0, 3, 16, 8}},
-        {"mode4_g16_choose_simd3", C_MODE4CH, {0, 16, 0, 0, 3, 0, 0}},
-        /* bits only: W in the contexts (encoded, not decoded: the chunk copied instead) */
-        {"mode4_g16_sign_with_w", C_MODE4W, {0, 16, 0, 1, 0, 0, 0}},
-        {"mode4_g16_sign", C_MODE4, {0, 16, 0, 0, 0, 0, 0}},
-        {"mode4_g16_sign_c1", C_MODE4, {0, 16, 1, 0, 0, 0, 0}},
-        {"mode4_g16_sign_c2", C_MODE4, {0, 16, 2, 0, 0, 0, 0}},
-        {"mode4_g16_sign_c4", C_MODE4, {0, 16, 4, 0, 0, 0, 0}},
-        {"mode4_g16_sign_c7", C_MODE4, {0, 16, 7, 0, 0, 0, 0}},
-        {"mode4_g8_sign", C_MODE4, {0, 8, 0, 0, 0, 0, 0}},
-        {"mode4_g32_sign", C_MODE4, {0, 32, 0, 0, 0, 0, 0}},
+        {"auto", C_AUTO, 0},
+        {"mode2", C_MODE2, 0},
+        {"mode3", C_MODE3, 0},
+        {"mode4", C_MODE4, WVC_RANS4_AUTO},
+        {"mode4_scalar", C_MODE4, WVC_RANS4_SCALAR},
     };
     const char *only = getenv("CODERS");
     if (argc < 2 || reps < 1) {
@@ -308,12 +238,6 @@ int main(int argc, char **argv)
                argv[1], cd->name, nch, (unsigned long long)coefs, (unsigned long long)nonzero, bytes, be, bd,
                1e9 * bd / (double)coefs, bad ? "false" : "true");
         fflush(stdout);
-    }
-    {
-        extern uint64_t c4_stats[4];
-        fprintf(stderr, "mode 4 (all variants, all repetitions): rows %llu non-zero rows %llu non-zero groups %llu events %llu\n",
-                (unsigned long long)c4_stats[0], (unsigned long long)c4_stats[1], (unsigned long long)c4_stats[2],
-                (unsigned long long)c4_stats[3]);
     }
     if (getenv("LEVELS"))
         for (int m = g->levels - 1; m >= 1; m--)

@@ -24,7 +24,7 @@ def main():
     ap.add_argument("--exe", default=os.path.join(HERE, "..", "build", "bench", "bench_chunkcoder"))
     ap.add_argument("--rounds", type=int, default=3)
     ap.add_argument("--reps", type=int, default=3)
-    ap.add_argument("--coders", default="auto,mode2,mode3,mode4_g16_sign,mode4_g16_rawsign")
+    ap.add_argument("--coders", default="auto,mode2,mode3,mode4,mode4_scalar")
     ap.add_argument("--out", required=True)
     a = ap.parse_args()
     best = {}

@@ -31,7 +31,9 @@ static const cli_opt opts[] = {
     {"roi-floor", 0, 1, "LOD weight far from every region, 0..1 (default 0.1)"},
     {"drop-levels", 0, 1, "drop the n finest levels entirely"},
     {"quant-share", 0, 1, "selection modes: quantisation error as a share of the dropped energy (default 0.02)"},
-    {"coder", 0, 1, "auto (default: per chunk by the rule in docs/wvc-format.md), cabac, zstd or rans"},
+    {"coder", 0, 1,
+     "auto (default: chunk mode 4, the fastest decode, where a chunk allows; docs/wvc-format.md), compact (the "
+     "smaller of modes 0, 2, 3 per chunk), cabac, zstd, rans or rans4"},
     {"rounding", 0, 1, "dead-zone rounding offset in [0, 0.5] (default 0.38)"},
     {"format", 0, 1, ".wvc format version: 2 (default: chunks, random access) or 1"},
     {"tile", 0, 1, "format 2: chunk size in coefficients, XY or XY,Z, powers of two in 8..256 (default 64,32)"},
@@ -342,7 +344,9 @@ int wvol_cmd_compress(int argc, char **argv)
             else if (!strcmp(val, "cabac")) coder = WVOL_WVC_CODER_CABAC;
             else if (!strcmp(val, "zstd")) coder = WVOL_WVC_CODER_ZSTD;
             else if (!strcmp(val, "rans")) coder = WVOL_WVC_CODER_RANS;
-            else return cli_usage("compress", "--coder '%s': expected auto, cabac, zstd or rans", val);
+            else if (!strcmp(val, "rans4")) coder = WVOL_WVC_CODER_RANS4;
+            else if (!strcmp(val, "compact")) coder = WVOL_WVC_CODER_COMPACT;
+            else return cli_usage("compress", "--coder '%s': expected auto, compact, cabac, zstd, rans or rans4", val);
         } else if (!strcmp(o->name, "format")) {
             if (!cli_parse_long("compress", "format", val, 1, 2, &format)) return CLI_USAGE;
         } else if (!strcmp(o->name, "tile")) {

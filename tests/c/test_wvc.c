@@ -63,7 +63,8 @@ static void fixture_free(fixture *F)
 }
 
 /* The format version encode() writes (0: the default, version 2), and its tile (0: default);
- * g_coder, when not AUTO, replaces AUTO in encode() (the tests run again with chunk mode 3). */
+ * g_coder, when not AUTO, replaces AUTO in encode() (the tests run again with chunk modes 3
+ * and 4, and --coder compact). */
 static int g_version, p_tile;
 static wvol_wvc_coder g_coder = WVOL_WVC_CODER_AUTO;
 
@@ -167,10 +168,10 @@ static void wvc_coders_decode_to_the_same_coefficients(void)
     if (!F.c) return;
     CHECK(encode(&b1, &n1, &F, 0, 0.05, WVOL_WVC_CODER_CABAC, &r1), "cabac");
     CHECK(encode(&b2, &n2, &F, 0, 0.05, WVOL_WVC_CODER_ZSTD, &r2), "zstd");
-    CHECK(encode(&b3, &n3, &F, 0, 0.05, WVOL_WVC_CODER_AUTO, &r3), "auto");
+    CHECK(encode(&b3, &n3, &F, 0, 0.05, WVOL_WVC_CODER_COMPACT, &r3), "compact");
     CHECK(r1.step == 0.05 && r2.step == 0.05, "fixed step kept: %g", r1.step);
     CHECK(r1.bytes_zstd == 0 && r2.bytes_cabac == 0 && r3.bytes_cabac > 0 && r3.bytes_zstd > 0, "alternatives");
-    CHECK(n3 <= n1 && n3 <= n2, "auto keeps the smaller per section: %zu %zu %zu", n1, n2, n3);
+    CHECK(n3 <= n1 && n3 <= n2, "compact keeps the smaller per section: %zu %zu %zu", n1, n2, n3);
     CHECK(wvol_wvc_decode(&d1, b1, n1, NULL, NULL, NULL) == WVOL_OK, "decode cabac");
     CHECK(wvol_wvc_decode(&d2, b2, n2, NULL, NULL, NULL) == WVOL_OK, "decode zstd");
     CHECK(wvol_wvc_decode(&d3, b3, n3, NULL, NULL, NULL) == WVOL_OK, "decode auto");
@@ -484,7 +485,7 @@ static void wvc2_refuses_crafted_headers_and_indexes(void)
         uint32_t len = e[8] | (e[9] << 8) | (e[10] << 16) | ((uint32_t)e[11] << 24), c;
         for (int i = 7; i >= 0; i--) off = (off << 8) | e[i];
         memcpy(t, buf, n);
-        t[off] = 9;
+        t[off] = 5; /* the first mode after the known ones */
         c = (uint32_t)crc32(0L, t + off, len);
         for (int i = 0; i < 4; i++) t[idx + 32 * first_coded + 12 + i] = (uint8_t)(c >> (8 * i));
         reseal2(t);
@@ -677,6 +678,8 @@ static void wvc_refuses_bad_parameters(void)
 
 /* The fuzz corpus doubles as golden files: valid_* decode, damaged_* are refused.
  * A change of the coder that breaks them needs a new format version (and a new corpus). */
+/* The corpus's small mode-4 file fits the fuzzer's 4096-byte inputs (scripts/fuzz.sh): `wvol
+ * synth skull --size 16 --noise 20`, `--step 100 --levels 2 --tile 8 --coder rans4`. */
 static void wvc_corpus_files_decode_or_are_refused(void)
 {
     const char *root = getenv("WVOL_SOURCE_DIR");
@@ -686,7 +689,8 @@ static void wvc_corpus_files_decode_or_are_refused(void)
                            "valid_v2_db2_8.wvc", "valid_v2_haar_12x10x9_tiles.wvc",
                            "valid_v2_coif1_16x16x1_zstd.wvc", "damaged_v2_bitflip_chunk.wvc",
                            "damaged_v2_bitflip_index.wvc", "valid_v2_mode1_skull32_step600.wvc",
-                           "valid_v2_mode2_skull32_step600.wvc", "valid_v2_mode3_skull32_step600.wvc"};
+                           "valid_v2_mode2_skull32_step600.wvc", "valid_v2_mode3_skull32_step600.wvc",
+                           "valid_v2_mode4_skull32_step600.wvc", "valid_v2_mode4_skull16_step100.wvc"};
     char path[1024];
     size_t i;
     if (!root) {
@@ -714,7 +718,8 @@ static void wvc_corpus_files_decode_or_are_refused(void)
  * current coders (modes 2 and 3) give for the same quantised coefficients. The corpus files
  * are `wvol synth skull --size 32 --noise 20` compressed with `--step 600 --tile 8
  * --levels 2 --coder cabac`, by the encoder before mode 2 and by a current one, and with
- * `--coder rans` (mode 3 but for the low-pass cube's level, mode 2) (the same quantised
+ * `--coder rans` (mode 3 but for the low-pass cube's level, mode 2) and `--coder rans4` (mode 4
+ * likewise) (the same quantised
  * values: the same transform and step). Decoding involves no transform,
  * only integers and one double rounding per value, so the values do not depend on the
  * build: the CRC-32 of the mode-1 file's decoded coefficients is pinned (computed when
@@ -722,27 +727,27 @@ static void wvc_corpus_files_decode_or_are_refused(void)
 static void wvc2_mode1_files_decode_to_the_same_values(void)
 {
     const char *root = getenv("WVOL_SOURCE_DIR");
-    const char *names[3] = {"valid_v2_mode1_skull32_step600.wvc", "valid_v2_mode2_skull32_step600.wvc",
-                            "valid_v2_mode3_skull32_step600.wvc"};
-    wvol_coeffs *d[3] = {NULL, NULL, NULL};
+    const char *names[4] = {"valid_v2_mode1_skull32_step600.wvc", "valid_v2_mode2_skull32_step600.wvc",
+                            "valid_v2_mode3_skull32_step600.wvc", "valid_v2_mode4_skull32_step600.wvc"};
+    wvol_coeffs *d[4] = {NULL, NULL, NULL, NULL};
     wvol_error err;
     if (!root) {
         printf("test_wvc: WVOL_SOURCE_DIR not set, mode-1 file check skipped\n");
         return;
     }
-    for (int k = 0; k < 3; k++) {
+    for (int k = 0; k < 4; k++) {
         char path[1024];
         uint8_t raw[16384];
         size_t got;
-        int modes[4];
+        int modes[5];
         FILE *fp;
         snprintf(path, sizeof path, "%s/tests/fuzz/corpus/%s", root, names[k]);
         fp = fopen(path, "rb");
         got = fp ? fread(raw, 1, sizeof raw, fp) : 0;
         if (fp) fclose(fp);
-        /* mode 1 or 2 alone; mode 3 with mode 2 for the low-pass cube's level, no mode 1 */
+        /* mode 1 or 2 alone; mode 3 or 4 with mode 2 for the low-pass cube's level, no mode 1 */
         CHECK(got > 0 && got < sizeof raw && wvc_chunk_modes(raw, got, modes) && modes[1 + k] > 0 &&
-                  modes[k == 0 ? 2 : 1] == 0 && (k == 2 || modes[3] == 0),
+                  modes[k == 0 ? 2 : 1] == 0 && (k == 2 || modes[3] == 0) && (k == 3 || modes[4] == 0),
               "%s holds mode-%d chunks", names[k], 1 + k);
         CHECK(wvol_wvc_read(&d[k], path, NULL, NULL, &err) == WVOL_OK, "%s: %s", names[k], err.message);
     }
@@ -754,11 +759,14 @@ static void wvc2_mode1_files_decode_to_the_same_values(void)
         CHECK(d[2] && d[2]->px == d[0]->px && d[2]->py == d[0]->py && d[2]->pz == d[0]->pz &&
                   !memcmp(d[0]->data, d[2]->data, count * sizeof(float)),
               "mode 1 and mode 3 decode differently");
+        CHECK(d[3] && d[3]->px == d[0]->px && d[3]->py == d[0]->py && d[3]->pz == d[0]->pz &&
+                  !memcmp(d[0]->data, d[3]->data, count * sizeof(float)),
+              "mode 1 and mode 4 decode differently");
         for (size_t i = 0; i < count; i++) nz += d[0]->data[i] != 0;
         CHECK(nz > 100 && nz < count / 2, "a meaningful file: %zu of %zu non-zero", nz, count);
         CHECK(crc == MODE1_DECODED_CRC, "mode-1 file decodes to other values: CRC-32 %08lx", (unsigned long)crc);
     }
-    for (int k = 0; k < 3; k++) wvol_coeffs_destroy(d[k]);
+    for (int k = 0; k < 4; k++) wvol_coeffs_destroy(d[k]);
 }
 
 /* Nearly empty pyramids: all-zero chunks, a chunk with one non-zero coefficient (at a
@@ -1331,12 +1339,18 @@ int main(void)
     wvc2_refuses_crafted_headers_and_indexes();
     wvc_survives_garbage_payloads_with_valid_checksums(1);
     wvc_survives_garbage_payloads_with_valid_checksums(2);
-    /* chunk mode 3 (static-model rANS) wherever a chunk has no low-pass cube */
-    g_coder = WVOL_WVC_CODER_RANS;
-    for (int i = 0; i < 4; i++) wvc_round_trip_meets_psnr_target(fam[i], 16, 16, 16, 2);
-    wvc_odd_sizes_and_flat_axes_round_trip();
-    wvc_refuses_truncation_and_bit_flips_everywhere(2);
-    wvc_survives_garbage_payloads_with_valid_checksums(2);
+    /* chunk modes 3 and 4 wherever a chunk has no low-pass cube (auto leaves these small
+     * chunks to compact's rule), and --coder compact (auto's rule before mode 4: modes 0-3) */
+    {
+        const wvol_wvc_coder again[3] = {WVOL_WVC_CODER_RANS, WVOL_WVC_CODER_RANS4, WVOL_WVC_CODER_COMPACT};
+        for (int k = 0; k < 3; k++) {
+            g_coder = again[k];
+            for (int i = 0; i < 4; i++) wvc_round_trip_meets_psnr_target(fam[i], 16, 16, 16, 2);
+            wvc_odd_sizes_and_flat_axes_round_trip();
+            wvc_refuses_truncation_and_bit_flips_everywhere(2);
+            wvc_survives_garbage_payloads_with_valid_checksums(2);
+        }
+    }
     g_coder = WVOL_WVC_CODER_AUTO;
     wvc_files_are_atomic_and_checked();
     wvc_refuses_bad_parameters();

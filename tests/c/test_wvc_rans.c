@@ -1,13 +1,16 @@
 /* SPDX-License-Identifier: MIT */
-/* Chunk mode 3 of .wvc version 2 (codec/wvc_rans.c): the coder's round trips on the cases
- * its tables and streams find hardest (all-zero bands, a single non-zero, magnitudes up to
- * the 2^30 bound, odd extents, one to seven bands, with and without parents), its refusal
- * of every truncated payload and its survival of every flipped bit; at the file level
- * --coder auto choosing mode 3 for dense chunks only, and --coder rans refused for version
- * 1; the encoder's kept buffers and the writer's pooled job grids reused for a later
- * chunk as if fresh. (test_wvc.c runs its round trips, truncation, bit-flip and
- * garbage-payload tests again with --coder rans, and decodes the mode-3 corpus file to the
- * mode-1 and mode-2 files' values.) */
+/* Chunk modes 3 and 4 of .wvc version 2 (codec/wvc_rans.c, codec/wvc_rans4_*.c): the coders'
+ * round trips on the cases their tables and streams find hardest (all-zero bands, a single
+ * non-zero, impulses and magnitudes up to the 2^30 bound, odd extents, rows shorter than
+ * mode 4's group, one to seven bands, with and without parents; mode 4 with raw and modelled
+ * signs, through its AVX2 engine and its scalar decoder), their refusal of every truncated
+ * payload and survival of every flipped bit (mode 4: both decoders alike); at the file level
+ * --coder compact choosing mode 3 for dense chunks only, --coder auto mode 4 for the chunks
+ * with 4096 non-zeros, and the rANS coders refused for version 1; the encoder's kept buffers
+ * and the writer's pooled job grids reused for a later chunk as if fresh. (test_wvc.c runs
+ * its round trips, truncation, bit-flip and garbage-payload tests again with --coder rans,
+ * rans4 and compact, and decodes the mode-3 and mode-4 corpus files to the mode-1 and mode-2
+ * files' values.) */
 #define _POSIX_C_SOURCE 200809L
 #include <stdint.h>
 #include <stdio.h>
@@ -67,6 +70,57 @@ static int32_t *at(bands *B, int i, size_t x, size_t y, size_t z)
     return B->q[i] + x + B->p[i][0] * (y + B->p[i][1] * z);
 }
 
+/* The coder under test: chunk mode 3, or mode 4 with its signs as g_signs says (-1 the
+ * encoder's choice, 0 modelled, 1 raw). Mode 4's payloads are decoded by the AVX2 engine
+ * (where the CPU has it) and by the scalar decoder, which must agree. */
+static int g_mode = 3, g_signs = -1;
+
+static int coder_encode(uint8_t **buf, size_t *size, int n, int32_t *const Q[], const size_t *const P[],
+                        const wvc_band *const B[])
+{
+    uint8_t *s = NULL;
+    wvc_rans4_opts o;
+    if (g_mode == 3) return wvol__wvc_rans_encode(buf, size, n, Q, P, B, NULL);
+    if (g_signs < 0) return wvol__wvc_rans4_encode(buf, size, n, Q, P, B);
+    o.raw_signs = g_signs;
+    if (wvol__wvc_rans4_encode_stream(&s, size, n, Q, P, B, &o)) return -1;
+    *buf = malloc(*size + 1);
+    if (*buf) {
+        (*buf)[0] = g_signs ? 0 : 1; /* the flags byte: bit 0, signs modelled */
+        memcpy(*buf + 1, s, *size);
+        *size += 1;
+    }
+    free(s);
+    return *buf ? 0 : -1;
+}
+
+static int coder_decode(int n, int32_t *const D[], const size_t *const P[], const wvc_band *const B[],
+                        const uint8_t *buf, size_t size, int engine, uint64_t *nz, const char **why)
+{
+    if (g_mode == 3) return wvol__wvc_rans_decode(n, D, P, B, buf, size, nz, why);
+    return wvol__wvc_rans4_decode(n, D, P, B, buf, size, engine, nz, why);
+}
+
+/* zeroed copies of B's grids (the tiles zero, the parent regions as they are); the tiles'
+ * non-zeros counted into *want. Returns 0 when out of memory. */
+static int zero_tiles(bands *B, int32_t *D[8], uint64_t *want)
+{
+    for (int i = 0; i < B->n; i++) {
+        size_t cnt = B->p[i][0] * B->p[i][1] * B->p[i][2];
+        D[i] = malloc(cnt * sizeof(int32_t));
+        if (!D[i]) return 0;
+        memcpy(D[i], B->q[i], cnt * sizeof(int32_t));
+        for (size_t z = 0; z < B->b[i].ext[2]; z++)
+            for (size_t y = 0; y < B->b[i].ext[1]; y++)
+                for (size_t x = 0; x < B->b[i].ext[0]; x++) {
+                    size_t k = x + B->p[i][0] * (y + B->p[i][1] * z);
+                    *want += D[i][k] != 0;
+                    D[i][k] = 0;
+                }
+    }
+    return 1;
+}
+
 /* Encodes B, decodes into zeroed copies of its grids (parents kept), compares the tiles.
  * Returns the payload (caller frees) or NULL after a failed check. */
 static uint8_t *round_trip(bands *B, size_t *size, const char *what)
@@ -77,42 +131,29 @@ static uint8_t *round_trip(bands *B, size_t *size, const char *what)
     uint8_t *buf = NULL;
     uint64_t nz = 0, want = 0;
     const char *why = "";
-    int ok = 1;
     for (int i = 0; i < B->n; i++) P[i] = B->p[i], Bp[i] = &B->b[i];
-    if (wvol__wvc_rans_encode(&buf, size, B->n, B->q, P, Bp, NULL)) {
+    if (coder_encode(&buf, size, B->n, B->q, P, Bp)) {
         CHECK(0, "%s: encode failed", what);
         return NULL;
     }
-    for (int i = 0; i < B->n && ok; i++) {
-        size_t cnt = B->p[i][0] * B->p[i][1] * B->p[i][2];
-        D[i] = malloc(cnt * sizeof(int32_t));
-        if (!D[i]) ok = 0;
-        else memcpy(D[i], B->q[i], cnt * sizeof(int32_t));
-        /* the tile zero, the parent region as it was */
-        for (size_t z = 0; ok && z < B->b[i].ext[2]; z++)
-            for (size_t y = 0; y < B->b[i].ext[1]; y++)
-                for (size_t x = 0; x < B->b[i].ext[0]; x++) {
-                    size_t k = x + B->p[i][0] * (y + B->p[i][1] * z);
-                    want += D[i][k] != 0;
-                    D[i][k] = 0;
-                }
-    }
-    CHECK(ok, "%s: memory", what);
-    if (ok) {
-        int r = wvol__wvc_rans_decode(B->n, D, P, Bp, buf, *size, &nz, &why);
-        CHECK(r == 0, "%s: decode refused its own payload: %s", what, why);
+    for (int engine = 0; engine <= (g_mode == 4); engine++) {
+        int ok = zero_tiles(B, D, &want), r;
+        CHECK(ok, "%s: memory", what);
+        r = ok ? coder_decode(B->n, D, P, Bp, buf, *size, engine, &nz, &why) : -1;
+        CHECK(!ok || r == 0, "%s: decode (engine %d) refused its own payload: %s", what, engine, why);
         if (r == 0) {
             size_t bad = 0;
             for (int i = 0; i < B->n; i++) {
                 size_t cnt = B->p[i][0] * B->p[i][1] * B->p[i][2];
                 bad += memcmp(D[i], B->q[i], cnt * sizeof(int32_t)) != 0;
             }
-            CHECK(bad == 0, "%s: %zu bands decode differently", what, bad);
+            CHECK(bad == 0, "%s: %zu bands decode differently (engine %d)", what, bad, engine);
             CHECK(nz == want, "%s: %llu non-zeros counted, %llu coded", what, (unsigned long long)nz,
                   (unsigned long long)want);
         }
+        for (int i = 0; i < B->n; i++) free(D[i]), D[i] = NULL;
+        want = 0;
     }
-    for (int i = 0; i < B->n; i++) free(D[i]);
     return buf;
 }
 
@@ -127,19 +168,21 @@ static int32_t draw(uint64_t *rng, double s)
 
 static void rans_round_trips_hard_cases(void)
 {
-    const size_t shapes[5][3] = {{8, 8, 8}, {5, 3, 7}, {1, 1, 1}, {16, 2, 1}, {9, 9, 4}};
+    /* mode 4's groups of 16 and vectors of 8: rows shorter than a group, whole groups, a last
+     * group of 8, extents no multiple of 8 (the scalar decoder only) */
+    const size_t shapes[8][3] = {{8, 8, 8}, {5, 3, 7}, {1, 1, 1}, {16, 2, 1}, {9, 9, 4}, {64, 3, 2}, {24, 4, 3}, {40, 6, 3}};
     uint64_t rng = 777;
-    for (int sh = 0; sh < 5; sh++)
+    for (int sh = 0; sh < 8; sh++)
         for (int n = 1; n <= 7; n += 3)
             for (int par = 0; par <= 1; par++)
-                for (int kind = 0; kind < 7; kind++) {
+                for (int kind = 0; kind < 8; kind++) {
                     bands B;
                     char what[128];
                     uint8_t *buf;
                     size_t size;
                     const size_t *e = shapes[sh];
-                    snprintf(what, sizeof what, "%zux%zux%zu, %d bands, parent %d, case %d", e[0], e[1], e[2], n, par,
-                             kind);
+                    snprintf(what, sizeof what, "mode %d signs %d: %zux%zux%zu, %d bands, parent %d, case %d", g_mode,
+                             g_signs, e[0], e[1], e[2], n, par, kind);
                     if (!bands_make(&B, n, e, par)) {
                         CHECK(0, "%s: memory", what);
                         bands_free(&B);
@@ -165,6 +208,8 @@ static void rans_round_trips_hard_cases(void)
                                         if ((x + y) % 5 == 1) m = (1u << 24) - 1 + (uint32_t)(z % 3);
                                         v = fixture_urand(&rng) < 0.5 ? -(int32_t)m : (int32_t)m;
                                     }
+                                    if (kind == 7 && fixture_urand(&rng) < 0.02) /* impulses of the largest magnitude */
+                                        v = fixture_urand(&rng) < 0.5 ? -WVC_QMAX : WVC_QMAX;
                                     *at(&B, i, x, y, z) = v;
                                 }
                         if (kind == 1 && i == n - 1) *at(&B, i, e[0] - 1, e[1] - 1, e[2] - 1) = -(1 << 30); /* one */
@@ -201,7 +246,7 @@ static uint8_t *random_payload(bands *B, const size_t e[3], double scale, int32_
 static void rans_damage_case(const size_t e[3], double scale, uint64_t seed, double min_refused)
 {
     bands B;
-    size_t size = 0, bad = 0, refused_flips = 0;
+    size_t size = 0, bad = 0, refused_flips = 0, differ = 0;
     uint8_t *buf = random_payload(&B, e, scale, 0, seed, &size, "damage fixture");
     for (size_t len = 0; buf && len < size; len++) {
         int32_t *D[8];
@@ -216,7 +261,7 @@ static void rans_damage_case(const size_t e[3], double scale, uint64_t seed, dou
             P[i] = B.p[i];
             Bp[i] = &B.b[i];
         }
-        if (wvol__wvc_rans_decode(3, D, P, Bp, t, len, &nz, &why) == 0 || !why || !why[0]) bad++;
+        if (coder_decode(3, D, P, Bp, t, len, 0, &nz, &why) == 0 || !why || !why[0]) bad++;
         for (int i = 0; i < 3; i++) free(D[i]);
         free(t);
     }
@@ -226,8 +271,9 @@ static void rans_damage_case(const size_t e[3], double scale, uint64_t seed, dou
         const size_t *P[8];
         const wvc_band *Bp[8];
         uint8_t *t = malloc(size);
-        uint64_t nz;
+        uint64_t nz = 0;
         const char *why = NULL;
+        int r;
         memcpy(t, buf, size);
         t[pos / 8] ^= (uint8_t)(1u << (pos % 8));
         for (int i = 0; i < 3; i++) {
@@ -235,16 +281,29 @@ static void rans_damage_case(const size_t e[3], double scale, uint64_t seed, dou
             P[i] = B.p[i];
             Bp[i] = &B.b[i];
         }
-        if (wvol__wvc_rans_decode(3, D, P, Bp, t, size, &nz, &why)) {
+        r = coder_decode(3, D, P, Bp, t, size, 0, &nz, &why);
+        if (r) {
             refused_flips++;
             CHECK(why && why[0], "bit %zu: refused without a reason", pos);
+        }
+        if (g_mode == 4) { /* the scalar decoder: the same outcome, the same values */
+            int32_t *S[8];
+            uint64_t nz2 = 0;
+            int same = 1, r2;
+            for (int i = 0; i < 3; i++) S[i] = calloc(B.p[i][0] * e[1] * e[2], sizeof(int32_t));
+            r2 = coder_decode(3, S, P, Bp, t, size, WVC_RANS4_SCALAR, &nz2, &why);
+            for (int i = 0; i < 3 && !r; i++) same &= !memcmp(S[i], D[i], B.p[i][0] * e[1] * e[2] * sizeof(int32_t));
+            differ += r != r2 || !same || (!r && nz != nz2);
+            for (int i = 0; i < 3; i++) free(S[i]);
         }
         for (int i = 0; i < 3; i++) free(D[i]);
         free(t);
     }
     /* the tables, lengths and states are checked: most flips outside the raw bits are caught */
-    CHECK((double)refused_flips > min_refused * 8.0 * (double)size, "only %zu of %zu bit flips refused (%ux%ux%u)",
-          refused_flips, 8 * size, (unsigned)e[0], (unsigned)e[1], (unsigned)e[2]);
+    CHECK((double)refused_flips > min_refused * 8.0 * (double)size,
+          "mode %d: only %zu of %zu bit flips refused (%ux%ux%u)", g_mode, refused_flips, 8 * size, (unsigned)e[0],
+          (unsigned)e[1], (unsigned)e[2]);
+    CHECK(differ == 0, "mode 4: %zu flipped payloads decode differently by the engine and the scalar decoder", differ);
     free(buf);
     bands_free(&B);
 }
@@ -259,6 +318,18 @@ static int get_varint(const uint8_t *b, size_t size, size_t *pos, uint32_t *v)
         if (!(c & 0x80)) return 0;
     }
     return -1;
+}
+
+/* Passes over the 52 magnitude tables at *pos (each a count, then that many frequencies). */
+static int skip_tables(const uint8_t *b, size_t size, size_t *pos)
+{
+    int ok = 1;
+    for (int c = 0; ok && c < 52; c++) {
+        uint32_t ns, f;
+        ok = !get_varint(b, size, pos, &ns);
+        for (uint32_t k = 0; ok && k < ns; k++) ok = !get_varint(b, size, pos, &f);
+    }
+    return ok;
 }
 
 static size_t put_varint(uint8_t *d, uint32_t v)
@@ -286,12 +357,8 @@ static void rans_short_stream_is_stopped(int which)
     uint32_t v, len[3][3];
     int ok = 1;
     buf = random_payload(&B, e, 3e6, 1, 5 + (uint64_t)which, &size, "short stream fixture");
-    /* the tables: 52 magnitude contexts (a count, then that many frequencies), 189 signs */
-    for (int c = 0; buf && ok && c < 52; c++) {
-        uint32_t ns, f;
-        ok = !get_varint(buf, size, &pos, &ns);
-        for (uint32_t k = 0; ok && k < ns; k++) ok = !get_varint(buf, size, &pos, &f);
-    }
+    /* the tables: 52 magnitude contexts, 189 signs */
+    ok = buf && skip_tables(buf, size, &pos);
     for (int c = 0; buf && ok && c < 189; c++) ok = !get_varint(buf, size, &pos, &v);
     lenpos = pos;
     for (int i = 0; buf && ok && i < 3; i++)
@@ -330,17 +397,84 @@ static void rans_short_stream_is_stopped(int which)
     bands_free(&B);
 }
 
-static void rans_refuses_truncation_and_survives_bit_flips(void)
+/* Mode 4: word and raw-bit counts that add up but leave the words (which = 0) or the raw
+ * bits (which = 1) far too short: the decoder reads the payload in place, so its fast rows
+ * run while a row's worth of reads remains in the payload and the scalar decoder's checked
+ * reads take the rest; it must stop with a reason, and ASan sees every read past the
+ * (exactly sized) payload. */
+static void rans4_short_stream_is_stopped(int which)
 {
-    const size_t small[3] = {6, 5, 4}, wide[3] = {64, 3, 2};
-    rans_damage_case(small, 6, 99, 0.5);
-    rans_damage_case(wide, 5000, 7, 0.05);
-    rans_short_stream_is_stopped(0);
-    rans_short_stream_is_stopped(1);
+    const size_t e[3] = {64, 4, 3};
+    bands B;
+    uint8_t *buf, *t;
+    size_t size = 0, pos = 1 + 96, lenpos, o;
+    uint32_t v, nw = 0, nraw = 0;
+    int ok = 1;
+    buf = random_payload(&B, e, 3e6, 1, 5 + (uint64_t)which, &size, "mode-4 short stream fixture");
+    /* 52 magnitude tables, 32 group flags, 189 signs when modelled, 12 row flags */
+    ok = buf && skip_tables(buf, size, &pos);
+    for (int c = 0; buf && ok && c < 32 + (buf[0] & 1 ? 189 : 0) + 12; c++) ok = !get_varint(buf, size, &pos, &v);
+    lenpos = pos;
+    ok = ok && buf && !get_varint(buf, size, &pos, &nw) && !get_varint(buf, size, &pos, &nraw);
+    CHECK(buf && ok && nw > 300 && nraw > 600, "mode-4 short stream fixture: %u words, %u raw bytes", nw, nraw);
+    t = buf && ok ? malloc(size) : NULL;
+    if (t) {
+        const uint32_t moved = which == 0 ? nw - 4 : (nraw - 8) / 2; /* words */
+        uint64_t nz;
+        const char *why = NULL;
+        int32_t *D[8];
+        const size_t *P[8];
+        const wvc_band *Bp[8];
+        if (which == 0) nw -= moved, nraw += 2 * moved;
+        else nw += moved, nraw -= 2 * moved;
+        memcpy(t, buf, lenpos);
+        o = lenpos + put_varint(t + lenpos, nw);
+        o += put_varint(t + o, nraw);
+        if (o <= pos) { /* the lengths' varints no longer than before: the streams shift left */
+            memmove(t + o, buf + pos, size - pos);
+            o += size - pos;
+            for (int engine = 0; engine <= 1; engine++) {
+                uint8_t *u = malloc(o); /* exact size */
+                memcpy(u, t, o);
+                for (int i = 0; i < 3; i++) {
+                    D[i] = calloc(B.p[i][0] * e[1] * e[2], sizeof(int32_t));
+                    P[i] = B.p[i];
+                    Bp[i] = &B.b[i];
+                }
+                why = NULL;
+                CHECK(coder_decode(3, D, P, Bp, u, o, engine, &nz, &why) != 0 && why && why[0],
+                      "mode 4, %s cut short (engine %d): decoded, or refused without a reason",
+                      which ? "raw bits" : "words", engine);
+                for (int i = 0; i < 3; i++) free(D[i]);
+                free(u);
+            }
+        } else {
+            CHECK(0, "mode-4 short stream fixture: the lengths' varints grew");
+        }
+    }
+    free(t);
+    free(buf);
+    bands_free(&B);
 }
 
-/* --coder auto: mode 3 for the dense chunks of a fine quantiser, none for a coarse one
- * (its chunks are sparse); both decode to what --coder cabac's file decodes to. The
+static void rans_refuses_truncation_and_survives_bit_flips(void)
+{
+    const size_t small[3] = {6, 5, 4}, wide[3] = {64, 3, 2}, wide8[3] = {24, 5, 3};
+    rans_damage_case(small, 6, 99, 0.5);
+    rans_damage_case(wide, 5000, 7, 0.05);
+    if (g_mode == 3) {
+        rans_short_stream_is_stopped(0);
+        rans_short_stream_is_stopped(1);
+    } else {
+        rans_damage_case(wide8, 40, 11, 0.05);
+        rans4_short_stream_is_stopped(0);
+        rans4_short_stream_is_stopped(1);
+    }
+}
+
+/* --coder compact: mode 3 for the dense chunks of a fine quantiser, none for a coarse one
+ * (its chunks are sparse); --coder auto: mode 4 for the chunks with 4096 non-zeros; all
+ * decode to what --coder cabac's file decodes to. The
  * default tiles, so that level 1's dense chunks hold more than 65536 non-zeros (mode 3
  * alone). */
 static double noisy_blob(const wvol_volume *v, size_t i, size_t j, size_t k, const void *ctx)
@@ -364,30 +498,46 @@ static void rans_auto_choice(void)
     }
     wvol_volume_range(v, &vmin, &vmax, NULL);
     for (int fine = 0; fine <= 1; fine++) {
-        void *buf[2] = {NULL, NULL};
-        size_t n[2] = {0, 0};
-        wvol_coeffs *d[2] = {NULL, NULL};
-        for (int k = 0; k < 2; k++) {
+        const wvol_wvc_coder coders[3] = {WVOL_WVC_CODER_CABAC, WVOL_WVC_CODER_COMPACT, WVOL_WVC_CODER_AUTO};
+        void *buf[3] = {NULL, NULL, NULL};
+        size_t n[3] = {0, 0, 0};
+        wvol_coeffs *d[3] = {NULL, NULL, NULL};
+        for (int k = 0; k < 3; k++) {
             wvol_wvc_params p;
             wvol_wvc_params_default(&p);
             p.value_min = vmin;
             p.value_max = vmax;
             p.step = fine ? 0.05 : 40;
-            p.coder = k ? WVOL_WVC_CODER_AUTO : WVOL_WVC_CODER_CABAC;
+            p.coder = coders[k];
             CHECK(wvol_wvc_encode(&buf[k], &n[k], c, &p, NULL, &err) == WVOL_OK, "encode: %s", err.message);
             CHECK(buf[k] && wvol_wvc_decode(&d[k], buf[k], n[k], NULL, NULL, &err) == WVOL_OK, "decode: %s",
                   err.message);
         }
         if (buf[1]) {
-            int modes[4];
+            int modes[5];
             CHECK(wvc_chunk_modes(buf[1], n[1], modes), "modes");
-            CHECK(fine ? modes[3] > 0 : modes[3] == 0, "step %s: %d chunks of mode 3, %d of mode 2",
-                  fine ? "fine" : "coarse", modes[3], modes[2]);
+            CHECK((fine ? modes[3] > 0 : modes[3] == 0) && modes[4] == 0,
+                  "compact, step %s: %d chunks of mode 3, %d of mode 2, %d of mode 4", fine ? "fine" : "coarse",
+                  modes[3], modes[2], modes[4]);
         }
-        if (d[0] && d[1])
-            CHECK(!memcmp(d[0]->data, d[1]->data, d[0]->px * d[0]->py * d[0]->pz * sizeof(float)),
-                  "auto and cabac decode differently");
-        for (int k = 0; k < 2; k++) {
+        /* auto: mode 4 for every chunk without the low-pass cube (the coarsest level's one
+         * chunk holds it) that has 4096 non-zeros, the others as compact's (modes 0-3) */
+        if (buf[1] && buf[2]) {
+            int modes[5], big[5], mc[5];
+            CHECK(wvc_chunk_modes(buf[2], n[2], modes) && wvc_chunk_modes_from(buf[2], n[2], 4096, big) &&
+                      wvc_chunk_modes(buf[1], n[1], mc),
+                  "modes");
+            CHECK(modes[0] + modes[1] + modes[2] + modes[3] + modes[4] == mc[0] + mc[1] + mc[2] + mc[3] &&
+                      modes[4] == big[4] && big[0] + big[1] + big[2] + big[3] <= 1 && (!fine || modes[4] > 0),
+                  "auto, step %s: %d chunks of mode 4 (of %d with 4096 non-zeros), %d of modes 0-3",
+                  fine ? "fine" : "coarse", modes[4], big[0] + big[1] + big[2] + big[3] + big[4],
+                  modes[0] + modes[1] + modes[2] + modes[3]);
+        }
+        for (int k = 1; k < 3; k++)
+            if (d[0] && d[k])
+                CHECK(!memcmp(d[0]->data, d[k]->data, d[0]->px * d[0]->py * d[0]->pz * sizeof(float)),
+                      "coder %d and cabac decode differently", (int)coders[k]);
+        for (int k = 0; k < 3; k++) {
             free(buf[k]);
             wvol_coeffs_destroy(d[k]);
         }
@@ -396,7 +546,7 @@ static void rans_auto_choice(void)
     wvol_volume_destroy(v);
 }
 
-/* The rANS coder is version 2's: asking for it with version 1 is refused. */
+/* The rANS coders are version 2's: asking for either with version 1 is refused. */
 static void rans_needs_version_2(void)
 {
     wvol_volume *v = fixture_volume(8, 8, 8, fixture_shell_blob, NULL);
@@ -415,11 +565,14 @@ static void rans_needs_version_2(void)
     p.value_max = 1;
     p.step = 0.01;
     p.version = 1;
-    p.coder = WVOL_WVC_CODER_RANS;
-    memset(&err, 0, sizeof err);
-    CHECK(wvol_wvc_encode(&buf, &n, c, &p, NULL, &err) == WVOL_ERR_ARG && strstr(err.message, "rANS"),
-          "version 1 with rANS: '%s'", err.message);
-    free(buf);
+    for (int k = 0; k < 2; k++) {
+        p.coder = k ? WVOL_WVC_CODER_RANS4 : WVOL_WVC_CODER_RANS;
+        memset(&err, 0, sizeof err);
+        CHECK(wvol_wvc_encode(&buf, &n, c, &p, NULL, &err) == WVOL_ERR_ARG && strstr(err.message, "rANS"),
+              "version 1 with rANS (mode %d): '%s'", 3 + k, err.message);
+        free(buf);
+        buf = NULL;
+    }
     wvol_coeffs_destroy(c);
     wvol_volume_destroy(v);
 }
@@ -531,6 +684,13 @@ int main(void)
 {
     rans_round_trips_hard_cases();
     rans_refuses_truncation_and_survives_bit_flips();
+    g_mode = 4; /* mode 4: the encoder's choice of signs, then each way */
+    for (g_signs = -1; g_signs <= 1; g_signs++) rans_round_trips_hard_cases();
+    g_signs = 0;
+    rans_refuses_truncation_and_survives_bit_flips();
+    g_signs = 1;
+    rans_refuses_truncation_and_survives_bit_flips();
+    g_mode = 3;
     rans_auto_choice();
     rans_needs_version_2();
     reused_buffers_leave_nothing_behind();

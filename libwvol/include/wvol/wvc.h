@@ -32,12 +32,20 @@ extern "C" {
 #define WVOL_WVC_MAX_SECTIONS (1 + 7 * WVOL_WVC_MAX_LEVELS)
 
 typedef enum wvol_wvc_coder {
-    WVOL_WVC_CODER_AUTO = 0,  /* per section, the smaller of CABAC and zstd (encoder only) */
+    WVOL_WVC_CODER_AUTO = 0,  /* encoder only: version 2, chunk mode 4 wherever a chunk has no
+                                 low-pass cube (the decoder's speed first), else as COMPACT;
+                                 version 1, per section the smaller of CABAC and zstd */
     WVOL_WVC_CODER_EMPTY = 0, /* in a file: all coefficients of the section are zero */
     WVOL_WVC_CODER_CABAC = 1, /* context-adaptive binary range coder */
     WVOL_WVC_CODER_ZSTD = 2,  /* zigzag varints of the same symbols, zstd */
-    WVOL_WVC_CODER_RANS = 3   /* encoder only, version 2: static-model rANS chunks (mode 3)
+    WVOL_WVC_CODER_RANS = 3,  /* encoder only, version 2: static-model rANS chunks (mode 3)
                                  wherever a chunk has no low-pass cube */
+    WVOL_WVC_CODER_RANS4 = 4, /* encoder only, version 2: chunk mode 4 (rANS with contexts from
+                                 the rows before, a vector decoder) wherever a chunk has no
+                                 low-pass cube */
+    WVOL_WVC_CODER_COMPACT = 5 /* encoder only: per chunk the smallest of modes 0, 2 and 3
+                                  (version 2; the rule --coder auto had before mode 4);
+                                  version 1 as AUTO */
 } wvol_wvc_coder;
 
 typedef struct wvol_wvc_params {

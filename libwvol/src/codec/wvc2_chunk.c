@@ -106,15 +106,21 @@ static void parent_in(local_grid *lg, const wvc2_qbox *parent)
 /* Payload modes: one stream per band (each CABAC or zstd); one CABAC stream whose model
  * adapts across the chunk's bands; the same with a flag per 4x4x4 block of a detail
  * band (wvc_cabac.c's block_row), which the encoder writes. */
-enum { MODE_BANDS = 0, MODE_SHARED = 1, MODE_BLOCKS = 2, MODE_RANS = 3 };
+enum { MODE_BANDS = 0, MODE_SHARED = 1, MODE_BLOCKS = 2, MODE_RANS = 3, MODE_RANS4 = 4 };
 
-/* --coder auto's use of mode 3 (docs/wvc-format.md, "Chunk mode 3: the choice"): a chunk
+/* --coder compact's use of mode 3 (docs/wvc-format.md, "Chunk mode 3: the choice"): a chunk
  * without the low-pass cube with at least a quarter of its coefficients non-zero; from
  * 65536 non-zeros on mode 3 alone, below it both modes are coded and the smaller kept
  * (small dense chunks, the coarse levels, are where a static table pays most for itself,
  * and coding both costs little there). */
 #define RANS_MIN_DENSITY 0.25
 #define RANS_ALONE_NONZERO 65536
+
+/* --coder auto's use of mode 4 (docs/wvc-format.md, "Chunk mode 4: the choice"): below this
+ * many non-zeros a chunk's decode takes microseconds in any mode, while mode 4's fixed part
+ * (its 24 states, its tables) is most of its bytes, and its size jumps with one coefficient
+ * more or less (a table entry, the sign choice): those chunks are coded as --coder compact. */
+#define RANS4_MIN_NONZERO 4096
 
 void wvol__wvc2_job_pool_free(wvc2_job_pool *pool)
 {
@@ -235,6 +241,37 @@ int wvol__wvc2_job_make(wvc2_job *job, const wvc2_geom *g, int m, const size_t e
     return 0;
 }
 
+/* A chunk in mode 4: mode, band mask, the coder's payload. */
+static int job_code_rans4(wvc2_coded *out, wvc2_job *job, const wvc2_level *L, wvc2_job_pool *pool)
+{
+    int32_t *Qs[8];
+    const size_t *Ps[8];
+    const wvc_band *Bs[8];
+    uint8_t *pay = NULL, *p = NULL;
+    size_t len = 0;
+    int ns = 0;
+    for (int i = 0; i < L->nb; i++)
+        if (job->mask >> i & 1) Qs[ns] = job->lg[i].q, Ps[ns] = job->lg[i].p, Bs[ns] = &job->lg[i].b, ns++;
+    if (!wvol__wvc_rans4_encode(&pay, &len, ns, Qs, Ps, Bs)) p = malloc(len + 2);
+    wvol__wvc2_job_free(job, pool);
+    if (!p) {
+        free(pay);
+        memset(out, 0, sizeof *out);
+        return -1;
+    }
+    p[0] = MODE_RANS4;
+    p[1] = job->mask;
+    memcpy(p + 2, pay, len);
+    free(pay);
+    /* per-band shares of one stream are not separable: split by non-zero counts */
+    for (int i = 0; i < L->nb; i++)
+        out->band_bytes[i] = (size_t)((double)(len + 2) * (double)job->nzb[i] / (double)out->nonzero);
+    out->payload = p;
+    out->bytes = len + 2;
+    out->crc = (uint32_t)crc32(0L, p, (uInt)(len + 2));
+    return 0;
+}
+
 int wvol__wvc2_job_code(wvc2_coded *out, wvc2_job *job, const wvc2_geom *g, int coder, int zstd_level,
                         wvc_rans_scratch *scratch, wvc2_job_pool *pool)
 {
@@ -256,6 +293,12 @@ int wvol__wvc2_job_code(wvc2_coded *out, wvc2_job *job, const wvc2_geom *g, int 
     int ns = 0;
     memset(out, 0, sizeof *out);
     out->nonzero = job->nonzero;
+    /* --coder auto: mode 4 wherever it can code the chunk (detail bands only) and the chunk has
+     * RANS4_MIN_NONZERO non-zeros, the decoder's speed first; other chunks as --coder compact */
+    if (nused && L->bands[0] != 0 &&
+        (coder == WVOL_WVC_CODER_RANS4 || (coder == WVOL_WVC_CODER_AUTO && out->nonzero >= RANS4_MIN_NONZERO)))
+        return job_code_rans4(out, job, L, pool);
+    if (coder == WVOL_WVC_CODER_COMPACT || coder == WVOL_WVC_CODER_RANS4) coder = WVOL_WVC_CODER_AUTO;
     {
         uint64_t count = (uint64_t)L->nb * ext[0] * ext[1] * ext[2];
         int dense = (double)out->nonzero >= RANS_MIN_DENSITY * (double)count;
@@ -399,7 +442,7 @@ int wvol__wvc2_chunk_decode(const wvc2_geom *g, int m, const size_t ext[3], cons
     }
     mode = payload[0];
     pos = 1;
-    if (mode == MODE_SHARED || mode == MODE_BLOCKS || mode == MODE_RANS) {
+    if (mode == MODE_SHARED || mode == MODE_BLOCKS || mode == MODE_RANS || mode == MODE_RANS4) {
         if (bytes < 3) {
             *why = "chunk header truncated";
             return -1;
@@ -409,8 +452,8 @@ int wvol__wvc2_chunk_decode(const wvc2_geom *g, int m, const size_t ext[3], cons
             *why = "chunk band mask is not valid";
             return -1;
         }
-        if (mode == MODE_RANS && L->bands[0] == 0) {
-            *why = "chunk mode 3 with the low-pass cube";
+        if ((mode == MODE_RANS || mode == MODE_RANS4) && L->bands[0] == 0) {
+            *why = mode == MODE_RANS ? "chunk mode 3 with the low-pass cube" : "chunk mode 4 with the low-pass cube";
             return -1;
         }
     } else if (mode == MODE_BANDS) {
@@ -497,7 +540,9 @@ int wvol__wvc2_chunk_decode(const wvc2_geom *g, int m, const size_t ext[3], cons
         int k = 0;
         for (i = 0; i < L->nb; i++)
             if (used >> i & 1) Q[k] = lg[i].q, P[k] = lg[i].p, B[k] = &lg[i].b, k++;
-        if (mode == MODE_RANS)
+        if (mode == MODE_RANS4)
+            r = wvol__wvc_rans4_decode(k, Q, P, B, payload + pos, bytes - pos, WVC_RANS4_AUTO, nonzero, why);
+        else if (mode == MODE_RANS)
             r = wvol__wvc_rans_decode(k, Q, P, B, payload + pos, bytes - pos, nonzero, why);
         else
             r = wvol__wvc_cabac_decode_multi(k, Q, P, B, payload + pos, bytes - pos, mode == MODE_BLOCKS, nonzero,

@@ -155,7 +155,7 @@ static wvol_status check_header(const wvc2_header *h, wvol_error *err)
                    "wvc2 writer: tile %d is not a power of two in [%d, %d]", tile, WVC2_TILE_MIN, WVC2_TILE_MAX);
     WVOL_RETURN_IF(tz < WVC2_TILE_MIN || tz > WVC2_TILE_MAX || (tz & (tz - 1)), err, WVOL_ERR_ARG,
                    "wvc2 writer: tile depth %d is not a power of two in [%d, %d]", tz, WVC2_TILE_MIN, WVC2_TILE_MAX);
-    WVOL_RETURN_IF(h->coder < WVOL_WVC_CODER_AUTO || h->coder > WVOL_WVC_CODER_RANS, err, WVOL_ERR_ARG,
+    WVOL_RETURN_IF(h->coder < WVOL_WVC_CODER_AUTO || h->coder > WVOL_WVC_CODER_COMPACT, err, WVOL_ERR_ARG,
                    "wvc2 writer: unknown coder %d", (int)h->coder);
     if (h->zero_edge)
         for (a = 0; a < 1 + 7 * h->levels; a++)

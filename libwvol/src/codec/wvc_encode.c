@@ -192,10 +192,10 @@ wvol_status wvol_wvc_encode(void **out, size_t *out_size, const wvol_coeffs *c,
     WVOL_RETURN_IF(!isfinite(p->value_min) || !isfinite(p->value_max) || p->value_min > p->value_max ||
                        !(p->dropped_energy >= 0) || !isfinite(p->dropped_energy),
                    err, WVOL_ERR_ARG, "wvc encode: bad value range or dropped energy");
-    WVOL_RETURN_IF(p->coder < WVOL_WVC_CODER_AUTO || p->coder > WVOL_WVC_CODER_RANS, err, WVOL_ERR_ARG,
+    WVOL_RETURN_IF(p->coder < WVOL_WVC_CODER_AUTO || p->coder > WVOL_WVC_CODER_COMPACT, err, WVOL_ERR_ARG,
                    "wvc encode: unknown coder %d", (int)p->coder);
-    WVOL_RETURN_IF(p->coder == WVOL_WVC_CODER_RANS && p->version == 1, err, WVOL_ERR_ARG,
-                   "wvc encode: the rANS coder writes chunks of version 2 (not --format 1)");
+    WVOL_RETURN_IF((p->coder == WVOL_WVC_CODER_RANS || p->coder == WVOL_WVC_CODER_RANS4) && p->version == 1, err,
+                   WVOL_ERR_ARG, "wvc encode: the rANS coders write chunks of version 2 (not --format 1)");
     for (s = 0; s < 3; s++)
         WVOL_RETURN_IF(!(isfinite(c->spacing[s]) && c->spacing[s] > 0) || !isfinite(c->origin[s]), err,
                        WVOL_ERR_ARG, "wvc encode: spacing must be > 0 and origin finite");

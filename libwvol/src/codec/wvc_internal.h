@@ -113,6 +113,23 @@ int wvol__wvc_rans_encode(uint8_t **buf, size_t *size, int n, int32_t *const Q[]
                           const wvc_band *const b[], wvc_rans_scratch *s);
 int wvol__wvc_rans_decode(int n, int32_t *const Q[], const size_t *const p[], const wvc_band *const b[],
                           const uint8_t *buf, size_t size, uint64_t *nonzero, const char **why);
+/* Chunk mode 4 (wvc_rans4_enc.c, wvc_rans4_dec.c): n detail bands of one extent in one
+ * stream of 24 interleaved rANS states and a raw bit stream, with contexts from the rows coded
+ * before only (docs/wvc-format.md); same conventions as mode 3. The payload starts with a
+ * flags byte (bit 0: signs modelled, else raw); _encode chooses per chunk
+ * (wvc_rans4_enc.c), _encode_stream codes the stream after that byte as o says. */
+typedef struct wvc_rans4_opts {
+    int raw_signs; /* 1: signs as raw bits; 0: binary rANS, band x sign(N) x sign(U) x sign(N(x-1)) */
+} wvc_rans4_opts;
+int wvol__wvc_rans4_encode(uint8_t **buf, size_t *size, int n, int32_t *const Q[], const size_t *const p[],
+                           const wvc_band *const b[]);
+int wvol__wvc_rans4_encode_stream(uint8_t **buf, size_t *size, int n, int32_t *const Q[], const size_t *const p[],
+                                  const wvc_band *const b[], const wvc_rans4_opts *o);
+/* engine: WVC_RANS4_AUTO the AVX2 engine where the CPU has it (and the extent allows), else
+ * the scalar decoder; WVC_RANS4_SCALAR the scalar decoder (the same result, for the tests) */
+enum { WVC_RANS4_AUTO = 0, WVC_RANS4_SCALAR = 1 };
+int wvol__wvc_rans4_decode(int n, int32_t *const Q[], const size_t *const p[], const wvc_band *const b[],
+                           const uint8_t *buf, size_t size, int engine, uint64_t *nonzero, const char **why);
 /* z: buffers kept for the next call (NULL: allocated and freed in the call); the same bytes. */
 int wvol__wvc_zstd_encode(uint8_t **buf, size_t *size, const int32_t *Q, const size_t p[3],
                           const wvc_band *b, int level, wvc_zstd_scratch *z);

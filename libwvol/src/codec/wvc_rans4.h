@@ -1,0 +1,75 @@
+/* SPDX-License-Identifier: MIT
+ * Chunk mode 4 (docs/wvc-format.md, "Chunk mode 4"): what its encoder (wvc_rans4_enc.c) and
+ * decoder (wvc_rans4_dec.c) share: the layout's constants, the per-row contexts (from the rows
+ * decoded before only) and the row flag's context. Not installed. */
+#ifndef WVOL_CODEC_WVC_RANS4_H
+#define WVOL_CODEC_WVC_RANS4_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#include "wvc_internal.h"
+
+#define R4_NA 13                /* magnitude context: bit length classes of the neighbour sum */
+#define R4_NP 4                 /* x the parent's classes */
+#define R4_NC (R4_NA * R4_NP)   /* magnitude contexts */
+#define R4_NS 62                /* magnitude symbols (rans_common.h) */
+#define R4_NGA 8                /* group flag: bit length classes of the group's sum */
+#define R4_NG (R4_NGA * R4_NP)  /* group-flag contexts */
+#define R4_NSG 63               /* sign contexts: band x sign(U) x sign(N) */
+#define R4_NSGW (3 * R4_NSG)    /* x sign(N(x - 1)) */
+#define R4_NR 12                /* row-flag contexts */
+#define R4_PBITS 10             /* frequencies sum to 2^10 */
+#define R4_M (1u << R4_PBITS)
+#define R4_L (1u << 16)         /* rANS states in [2^16, 2^32) */
+#define R4_GROUP 16             /* coefficients per group flag */
+#define R4_STATES 16            /* magnitude states: coefficient x on state x mod 16 */
+#define R4_SSTATES 8            /* sign states: the k-th non-zero of a group on state k mod 8 */
+#define R4_TS 16                /* the sign states' index in a state array */
+#define R4_NX (R4_TS + R4_SSTATES)
+#define R4_HEAD (4 * R4_NX)     /* the final states at the stream's head */
+#define R4_SIGNS_MODELLED 1     /* the flags byte before the stream: bit 0 */
+
+/* Per row: A the neighbour sums, CX the magnitude contexts, PC the parent classes, SG the
+ * sign contexts, GX the group-flag contexts (one block of 4 ex + 8 bytes after A). */
+typedef struct r4_row {
+    uint32_t *A;
+    uint8_t *CX, *PC, *SG, *GX;
+} r4_row;
+
+int wvol__wvc_rans4_row_alloc(r4_row *w, int32_t **zrow, size_t ex);
+void wvol__wvc_rans4_row_free(r4_row *w, int32_t *zrow);
+
+/* Row (y, z)'s contexts into w (sign contexts when signs is set); zrow: ex zeros, for the
+ * rows outside the band. */
+void wvol__wvc_rans4_row_prep(const r4_row *w, const int32_t *Q, const size_t p[3], const wvc_band *b, size_t y,
+                              size_t z, const int32_t *zrow, int signs);
+
+/* The context of row (y, z)'s flag: whether the rows N and U are non-zero, either diagonal
+ * row above (U +- y), the parent row. rnz: the band's row flags so far, y fastest; *plast:
+ * the parent row's flag, kept for the odd row after it (which has the same parent row). */
+static inline uint32_t r4_row_ctx(const uint8_t *rnz, const int32_t *Q, const size_t p[3], const wvc_band *b, size_t y,
+                                  size_t z, uint32_t *plast)
+{
+    const size_t ey = b->ext[1];
+    uint32_t n = y ? rnz[z * ey + y - 1] : 0, up = z ? rnz[(z - 1) * ey + y] : 0, d = 0, pr = 0;
+    if (z) d = (y ? rnz[(z - 1) * ey + y - 1] : 0) | (y + 1 < ey ? rnz[(z - 1) * ey + y + 1] : 0);
+    if (y & 1) {
+        pr = *plast;
+    } else if (b->has_parent) {
+        size_t pj = y >> 1, pk = z >> 1;
+        const int32_t *r;
+        int32_t o = 0;
+        if (pj >= b->pext[1]) pj = b->pext[1] - 1;
+        if (pk >= b->pext[2]) pk = b->pext[2] - 1;
+        r = Q + b->poff[0] + p[0] * (b->poff[1] + pj) + p[0] * p[1] * (b->poff[2] + pk);
+        if (pj + 2 < b->pext[1]) /* the parent rows are a level decoded long before: fetch ahead */
+            for (size_t x = 0; x < b->pext[0]; x += 16) __builtin_prefetch(r + 2 * p[0] + x);
+        for (size_t x = 0; x < b->pext[0]; x++) o |= r[x];
+        pr = o != 0;
+    }
+    *plast = pr;
+    return ((n + up) * 2 + d) * 2 + pr;
+}
+
+#endif
