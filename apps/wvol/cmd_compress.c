@@ -41,6 +41,8 @@ static const cli_opt opts[] = {
     {"threads", 0, 1, "threads for the transforms and the coder (default: all, or OMP_NUM_THREADS)"},
     {"verify", 0, 0, "decode the file written and measure its error (the encoder's own error is exact)"},
     {"in-memory", 0, 0, "hold the volume in memory even when the input streams (raw, NRRD, synth:)"},
+    {"memory", 0, 1, "streamed input: keep the transformed volume between the two passes when it fits in this many "
+                     "bytes, K/M/G (default 1G; a smaller budget reads and transforms the source twice)"},
     CLI_JSON_OPT,
     CLI_HELP_OPT,
     {NULL, 0, 0, NULL}};
@@ -181,6 +183,8 @@ static int compress_streamed(const char *in, const char *outp, const wvol_load_o
         cli_json_key("streamed");
         printf("true");
         cli_json_int("passes", rep.passes);
+        cli_json_int("source_reads", rep.source_reads);
+        cli_json_int("kept_bytes", (long long)rep.kept_bytes);
         if (psnr > 0) cli_json_num("target_psnr", psnr);
         cli_json_int("raw_bytes", (long long)raw_bytes);
         cli_json_int("bytes", (long long)rep.bytes);
@@ -224,7 +228,8 @@ static int compress_streamed(const char *in, const char *outp, const wvol_load_o
         cli_json_num("compress_mb_per_s", raw_bytes / 1e6 / (t_all > 0 ? t_all : 1e-9));
         cli_json_end();
     } else {
-        printf("%s -> %s (%s, %d levels, streamed in %d passes)\n", in, outp, f->name, rep.levels, rep.passes);
+        printf("%s -> %s (%s, %d levels, streamed in %d passes, the source read %s)\n", in, outp, f->name,
+               rep.levels, rep.passes, rep.source_reads == 1 ? "once" : rep.source_reads == 2 ? "twice" : "more often");
         if (chose) choice_text(&wc);
         printf("size       %.0f -> %zu bytes, ratio %.1f, %.4f bits/voxel\n", raw_bytes, rep.bytes,
                raw_bytes / (double)rep.bytes, bpv);
@@ -234,8 +239,8 @@ static int compress_streamed(const char *in, const char *outp, const wvol_load_o
                sqrt(rep.sse_quant / nvox), p_psnr, rep.value_max - rep.value_min);
         if (verify)
             printf("measured   RMSE %.6g, PSNR %.3f dB, max error %.6g\n", sqrt(sse_meas / nvox), m_psnr, maxerr);
-        printf("memory     transform window %.1f MiB, writer rows %.1f MiB\n", rep.window_bytes / 1048576.0,
-               rep.writer_bytes / 1048576.0);
+        printf("memory     transform window %.1f MiB, writer rows %.1f MiB, kept coefficients %.1f MiB\n",
+               rep.window_bytes / 1048576.0, rep.writer_bytes / 1048576.0, rep.kept_bytes / 1048576.0);
         printf("time       statistics pass %.3f s, write pass %.3f s: %.1f MB/s\n", rep.seconds_stats, rep.seconds_write,
                raw_bytes / 1e6 / (t_all > 0 ? t_all : 1e-9));
     }
@@ -360,6 +365,8 @@ int wvol_cmd_compress(int argc, char **argv)
             verify = 1;
         } else if (!strcmp(o->name, "in-memory")) {
             in_memory = 1;
+        } else if (!strcmp(o->name, "memory")) {
+            if (!cli_parse_bytes("compress", "memory", val, &cp.memory)) return CLI_USAGE;
         } else if (!strcmp(o->name, "threads")) {
             long th;
             if (!cli_parse_long("compress", "threads", val, 1, 4096, &th)) return CLI_USAGE;

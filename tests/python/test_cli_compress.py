@@ -201,9 +201,9 @@ def test_nrrd_geometry_survives_the_round_trip(wvol, tmp_path):
 
 
 def test_streamed_and_in_memory_paths(wvol, volume, tmp_path):
-    """A raw input streams (two passes, the volume never held); with a given step the file is
-    the in-memory pipeline's byte for byte; without --verify nothing is decoded and the error
-    reported is the encoder's."""
+    """A raw input streams (two passes; the volume is never held, its coefficients only within
+    --memory); with a given step the file is the in-memory pipeline's byte for byte; without
+    --verify nothing is decoded and the error reported is the encoder's."""
     src, v = volume
     a, b = tmp_path / "a.wvc", tmp_path / "b.wvc"
     ra = json.loads(wvol("compress", src, "--dims", f"{N}x{N}x{N}", "-o", a, "--json", "--step", "0.5",
@@ -213,6 +213,13 @@ def test_streamed_and_in_memory_paths(wvol, volume, tmp_path):
     assert ra.get("streamed") is True and ra["passes"] == 2 and "streamed" not in rb
     assert "measured" not in ra and "measured" not in rb
     assert a.read_bytes() == b.read_bytes()
+    # the coefficients fit the default --memory, so the source was read once; a budget below
+    # them reads and transforms it twice, to the same bytes
+    assert ra["source_reads"] == 1 and ra["kept_bytes"] >= 4 * N**3
+    c = tmp_path / "c.wvc"
+    rc = json.loads(wvol("compress", src, "--dims", f"{N}x{N}x{N}", "-o", c, "--json", "--step", "0.5",
+                         "--levels", "3", "--memory", "64K").stdout)
+    assert rc["source_reads"] == 2 and rc["kept_bytes"] == 0 and c.read_bytes() == a.read_bytes()
     # --verify measures what the encoder predicted (no padding at 32^3: the same sum)
     r = json.loads(wvol("compress", src, "--dims", f"{N}x{N}x{N}", "-o", a, "--json", "--psnr", "50",
                         "--verify").stdout)

@@ -59,6 +59,10 @@ typedef struct wvol_compress_params {
                                    coefficients (per-pixel error bounds); default 0 */
     wvol_store_params store;    /* the store's spline tables */
     wvol_compress_quant quant;  /* wvol_compress_encode only */
+    size_t memory;              /* wvol_compress_stream only: bytes it may use to keep the
+                                   transformed volume (4 bytes a padded voxel) between its
+                                   passes instead of transforming the source twice; 0 (default):
+                                   WVOL_WVC_DEFAULT_BUDGET (1 GiB) */
 } wvol_compress_params;
 
 WVOL_API void wvol_compress_params_default(wvol_compress_params *p);
@@ -151,7 +155,9 @@ WVOL_API wvol_status wvol_compress_choose_wavelet(wvol_wavelet_choice *out, wvol
  * (the in-memory encoder's first guess, from the same histograms), then the transform
  * again into the chunk writer, which reports the exact quantisation error. Should that
  * miss the error target, another pass writes with a smaller step (so a target is met, as
- * in memory). With a given step (quant.step) the file holds the same bytes as
+ * in memory). When the padded volume's coefficients fit p->memory, the first pass keeps
+ * them and the later passes write from that copy (one read and transform of the source;
+ * the same bytes). With a given step (quant.step) the file holds the same bytes as
  * wvol_compress + wvol_compress_encode of the same volume; with an error target the
  * in-memory encoder may refine the step and spend the unused budget with exact passes
  * over the whole pyramid, so the files can differ while both meet the target
@@ -166,7 +172,11 @@ typedef struct wvol_compress_stream_report {
                                     volume's squared error, the padding's included, so an upper
                                     bound of the error over the original voxels) */
     size_t bytes;                /* the file */
-    int passes;                  /* transforms of the source: 2, more when the error missed */
+    int passes;                  /* passes over the coefficients: 2 (statistics, writing), more
+                                    when the error missed */
+    int source_reads;            /* reads and transforms of the source: 1 when its coefficients
+                                    were kept, else passes */
+    size_t kept_bytes;           /* the coefficients kept between the passes (0: none) */
     size_t window_bytes;         /* the transform's window and slab buffer */
     size_t writer_bytes;         /* the writer's bound for its rows (wvc2_writer_memory) */
     double seconds_stats, seconds_write;

@@ -12,7 +12,12 @@
  * histograms predict it to within about 1%), a further pass writes with a step scaled
  * down by the miss. A spill of the coefficients to a temporary file would cost the
  * volume's size on disk and its read-back; a second transform costs less than reading
- * 4 bytes per voxel back on the machines we measure (docs/store.md). */
+ * 4 bytes per voxel back on the machines we measure (docs/store.md). When the pyramid
+ * fits the caller's memory budget, pass 1 also keeps the rows the transform emits, in their
+ * order, and the later passes replay them into the writer instead of reading and
+ * transforming the source again: the same rows in the same order, so the same bytes. The
+ * replay reads one sequential buffer, which the writer's strided reads of a pyramid laid
+ * out in place would not be. */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -20,6 +25,7 @@
 
 #include "codec/wvc2_writer.h"
 #include "codec/wvc_stream.h"
+#include "core/alloc.h"
 #include "core/source_volume.h"
 #include "core/clock.h"
 #include "core/status_internal.h"
@@ -28,16 +34,33 @@
 
 /* ---- the rows of a level as the writer's planes ----------------------------------- */
 
+/* A row call of the transform kept for the replay: its planes' offsets in the buffer */
+typedef struct kept_row {
+    int level;
+    size_t r, low, high; /* high: SIZE_MAX when the call had none (z not transformed) */
+} kept_row;
+
+typedef struct kept_rows {
+    float *data;
+    size_t cap, used; /* floats */
+    kept_row *row;
+    size_t n, nmax;
+} kept_rows;
+
 typedef struct pass_ctx {
     int levels;
     size_t p[3];
     wvc_stream_stats *stats; /* pass 1 */
+    kept_rows *keep;         /* pass 1, when the rows fit the budget: their copy */
     wvc2_writer *writer;     /* pass 2 */
 } pass_ctx;
 
+/* the extent of level m's input along an axis of padded size p (1: not transformed) */
+static size_t level_extent(size_t p, int m) { return p == 1 ? 1 : p >> (m - 1); }
+
 static void planes_of(wvc2_planes *pl, const pass_ctx *c, int m, const float *low, const float *high)
 {
-    size_t cx = c->p[0] == 1 ? 1 : c->p[0] >> (m - 1), cy = c->p[1] == 1 ? 1 : c->p[1] >> (m - 1);
+    size_t cx = level_extent(c->p[0], m), cy = level_extent(c->p[1], m);
     size_t hx = cx > 1 ? cx / 2 : 0, hy = cy > 1 ? cy / 2 : 0;
     memset(pl, 0, sizeof *pl);
     for (int b = 0; b < 8; b++) {
@@ -50,6 +73,28 @@ static void planes_of(wvc2_planes *pl, const pass_ctx *c, int m, const float *lo
     }
 }
 
+static wvol_status keep_row(kept_rows *k, const pass_ctx *c, int level, size_t r, const float *low,
+                            const float *high, wvol_error *err)
+{
+    size_t plane = level_extent(c->p[0], level) * level_extent(c->p[1], level), need = high ? 2 * plane : plane;
+    kept_row *e;
+    WVOL_RETURN_IF(k->n == k->nmax || need > k->cap - k->used, err, WVOL_ERR_INTERNAL,
+                   "compress: the transform emitted more rows than a %zux%zux%zu pyramid holds", c->p[0], c->p[1],
+                   c->p[2]);
+    e = &k->row[k->n++];
+    e->level = level, e->r = r;
+    e->low = k->used;
+    memcpy(k->data + k->used, low, plane * sizeof(float));
+    k->used += plane;
+    e->high = SIZE_MAX;
+    if (high) {
+        e->high = k->used;
+        memcpy(k->data + k->used, high, plane * sizeof(float));
+        k->used += plane;
+    }
+    return WVOL_OK;
+}
+
 static wvol_status on_rows(void *user, int level, size_t r, const float *low, const float *high, wvol_error *err)
 {
     pass_ctx *c = user;
@@ -57,7 +102,7 @@ static wvol_status on_rows(void *user, int level, size_t r, const float *low, co
     planes_of(&pl, c, level, low, high);
     if (c->stats) {
         wvol__wvc_stream_stats_add(c->stats, level, 1, &pl);
-        return WVOL_OK;
+        return c->keep ? keep_row(c->keep, c, level, r, low, high, err) : WVOL_OK;
     }
     return wvol__wvc2_writer_put(c->writer, level, r, 1, &pl, err);
 }
@@ -72,10 +117,56 @@ typedef struct write_pass {
 static wvol_status write_rows(void *user, wvol_error *err)
 {
     write_pass *wp = user;
+    const kept_rows *k = wp->pc->keep;
+    if (k) {
+        for (size_t i = 0; i < k->n; i++) {
+            const kept_row *e = &k->row[i];
+            WVOL_FORWARD(on_rows(wp->pc, e->level, e->r, k->data + e->low,
+                                 e->high == SIZE_MAX ? NULL : k->data + e->high, err));
+        }
+        return WVOL_OK;
+    }
     return wvol_dwt3_source(wp->src, wp->f, wp->pc->levels, on_rows, wp->pc, NULL, err);
 }
 
 /* ---- the pipeline ------------------------------------------------------------------ */
+
+/* The buffer for every row call of a levels-deep transform of a p[0] x p[1] x p[2] grid,
+ * when it fits `budget` bytes; *out stays NULL when it does not (or memory is short: the
+ * source is then read twice, as without a budget). */
+static void keep_create(kept_rows **out, const size_t p[3], int levels, size_t budget)
+{
+    size_t floats = 0, calls = 0;
+    kept_rows *k;
+    *out = NULL;
+    for (int m = 1; m <= levels; m++) {
+        size_t cz = level_extent(p[2], m), rows = cz > 1 ? cz / 2 : 1;
+        double plane = (double)level_extent(p[0], m) * (double)level_extent(p[1], m);
+        double add = (double)rows * plane * (cz > 1 ? 2.0 : 1.0);
+        if ((double)floats + add > (double)budget / sizeof(float)) return;
+        floats += (size_t)add;
+        calls += rows;
+    }
+    if (!(k = calloc(1, sizeof *k))) return;
+    k->data = wvol__malloc_large(floats * sizeof(float));
+    k->row = malloc(calls * sizeof *k->row);
+    if (!k->data || !k->row) {
+        free(k->data);
+        free(k->row);
+        free(k);
+        return;
+    }
+    k->cap = floats, k->nmax = calls;
+    *out = k;
+}
+
+static void keep_destroy(kept_rows *k)
+{
+    if (!k) return;
+    free(k->data);
+    free(k->row);
+    free(k);
+}
 
 int wvol_compress_streams(const wvol_compress_params *p)
 {
@@ -124,10 +215,12 @@ wvol_status wvol_compress_stream(const char *path, wvol_source *src, const wvol_
     pc.levels = p.levels;
     for (int a = 0; a < 3; a++) pc.p[a] = wvol_dwt_padded_size(dims[a], p.levels);
 
-    /* pass 1: statistics (and the volume's range) */
+    /* pass 1: statistics (and the volume's range), and the pyramid when it fits */
     t0 = wvol__now();
     wvol__source_seen_reset(src);
     s = wvol__wvc_stream_stats_create(&pc.stats, pc.p[0], pc.p[1], pc.p[2], p.levels, err);
+    if (!s) keep_create(&pc.keep, pc.p, p.levels, p.memory ? p.memory : WVOL_WVC_DEFAULT_BUDGET);
+    if (pc.keep) out.kept_bytes = pc.keep->cap * sizeof(float);
     if (!s) s = wvol_dwt3_source(src, f, p.levels, on_rows, &pc, &bytes, err);
     out.window_bytes = bytes;
     /* the range of what the pass read (the checked reads take it); + 0.0: a zero extreme as
@@ -171,6 +264,7 @@ wvol_status wvol_compress_stream(const char *path, wvol_source *src, const wvol_
         else wvol__wvc2_writer_abort(pc.writer);
         pc.writer = NULL;
         out.passes = attempt + 2;
+        out.source_reads = pc.keep ? 1 : out.passes;
         out.seconds_write += wvol__now() - t0;
         if (s) break;
         out.wvc = wr;
@@ -187,6 +281,7 @@ wvol_status wvol_compress_stream(const char *path, wvol_source *src, const wvol_
         /* the error grows about as step^2 near the target: aim a little below it */
         out.step *= 0.995 * sqrt(wp.target_sse / wr.sse_quant);
     }
+    keep_destroy(pc.keep);
     out.wvc.step = out.step;
     if (rep) *rep = out;
     return s;
