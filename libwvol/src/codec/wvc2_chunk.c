@@ -242,7 +242,8 @@ int wvol__wvc2_job_make(wvc2_job *job, const wvc2_geom *g, int m, const size_t e
 }
 
 /* A chunk in mode 4: mode, band mask, the coder's payload. */
-static int job_code_rans4(wvc2_coded *out, wvc2_job *job, const wvc2_level *L, wvc2_job_pool *pool)
+static int job_code_rans4(wvc2_coded *out, wvc2_job *job, const wvc2_level *L, wvc_rans_scratch *scratch,
+                          wvc2_job_pool *pool)
 {
     int32_t *Qs[8];
     const size_t *Ps[8];
@@ -252,7 +253,7 @@ static int job_code_rans4(wvc2_coded *out, wvc2_job *job, const wvc2_level *L, w
     int ns = 0;
     for (int i = 0; i < L->nb; i++)
         if (job->mask >> i & 1) Qs[ns] = job->lg[i].q, Ps[ns] = job->lg[i].p, Bs[ns] = &job->lg[i].b, ns++;
-    if (!wvol__wvc_rans4_encode(&pay, &len, ns, Qs, Ps, Bs)) p = malloc(len + 2);
+    if (!wvol__wvc_rans4_encode(&pay, &len, ns, Qs, Ps, Bs, scratch)) p = malloc(len + 2);
     wvol__wvc2_job_free(job, pool);
     if (!p) {
         free(pay);
@@ -297,7 +298,7 @@ int wvol__wvc2_job_code(wvc2_coded *out, wvc2_job *job, const wvc2_geom *g, int 
      * RANS4_MIN_NONZERO non-zeros, the decoder's speed first; other chunks as --coder compact */
     if (nused && L->bands[0] != 0 &&
         (coder == WVOL_WVC_CODER_RANS4 || (coder == WVOL_WVC_CODER_AUTO && out->nonzero >= RANS4_MIN_NONZERO)))
-        return job_code_rans4(out, job, L, pool);
+        return job_code_rans4(out, job, L, scratch, pool);
     if (coder == WVOL_WVC_CODER_COMPACT || coder == WVOL_WVC_CODER_RANS4) coder = WVOL_WVC_CODER_AUTO;
     {
         uint64_t count = (uint64_t)L->nb * ext[0] * ext[1] * ext[2];

@@ -103,6 +103,7 @@ typedef struct wvc_rans_scratch {
     void *p[5];
     size_t cap[5];
     wvc_zstd_scratch zstd; /* the chunk coder's zstd trial, on the same thread (freed with s) */
+    void *rans4;           /* mode 4's encoder (wvc_rans4_enc.c; freed with s) */
 } wvc_rans_scratch;
 void wvol__wvc_rans_scratch_free(wvc_rans_scratch *s);
 /* Chunk mode 3 (wvc_rans.c): n detail bands in one static-model rANS stream and a raw
@@ -120,9 +121,12 @@ int wvol__wvc_rans_decode(int n, int32_t *const Q[], const size_t *const p[], co
  * (wvc_rans4_enc.c), _encode_stream codes the stream after that byte as o says. */
 typedef struct wvc_rans4_opts {
     int raw_signs; /* 1: signs as raw bits; 0: binary rANS, band x sign(N) x sign(U) x sign(N(x-1)) */
+    int scalar;    /* 1: the scalar encoder whatever the CPU (the same bytes, for the tests) */
 } wvc_rans4_opts;
+/* s: the thread's buffers, kept for the next call (NULL: allocated and freed in the call). */
 int wvol__wvc_rans4_encode(uint8_t **buf, size_t *size, int n, int32_t *const Q[], const size_t *const p[],
-                           const wvc_band *const b[]);
+                           const wvc_band *const b[], wvc_rans_scratch *s);
+void wvol__wvc_rans4_scratch_free(void *p); /* wvc_rans_scratch.rans4 */
 int wvol__wvc_rans4_encode_stream(uint8_t **buf, size_t *size, int n, int32_t *const Q[], const size_t *const p[],
                                   const wvc_band *const b[], const wvc_rans4_opts *o);
 /* engine: WVC_RANS4_AUTO the AVX2 engine where the CPU has it (and the extent allows), else

@@ -342,6 +342,7 @@ void wvol__wvc_rans_scratch_free(wvc_rans_scratch *s)
     if (!s) return;
     for (int k = 0; k < 5; k++) free(s->p[k]);
     wvol__wvc_zstd_scratch_free(&s->zstd);
+    wvol__wvc_rans4_scratch_free(s->rans4);
     memset(s, 0, sizeof *s);
 }
 
