@@ -252,12 +252,22 @@ static uint8_t *random_payload(bands *B, const size_t e[3], double scale, int32_
     return round_trip(B, size, what);
 }
 
+/* Under AddressSanitizer mode 4's damage loops take every 7th truncation and bit flip (7 is
+ * prime to 8: every bit position of a byte still comes up): each decode there maps and unmaps
+ * the decoder's 213 kB of tables, which made the whole loop take minutes. The release build
+ * runs every one. */
+#if defined(__SANITIZE_ADDRESS__)
+#define DAMAGE_STRIDE (g_mode == 4 ? 7 : 1)
+#else
+#define DAMAGE_STRIDE 1
+#endif
+
 static void rans_damage_case(const size_t e[3], double scale, uint64_t seed, double min_refused)
 {
     bands B;
-    size_t size = 0, bad = 0, refused_flips = 0, differ = 0;
+    size_t size = 0, bad = 0, refused_flips = 0, flips = 0, differ = 0;
     uint8_t *buf = random_payload(&B, e, scale, 0, seed, &size, "damage fixture");
-    for (size_t len = 0; buf && len < size; len++) {
+    for (size_t len = 0; buf && len < size; len += DAMAGE_STRIDE) {
         int32_t *D[8];
         const size_t *P[8];
         const wvc_band *Bp[8];
@@ -275,7 +285,7 @@ static void rans_damage_case(const size_t e[3], double scale, uint64_t seed, dou
         free(t);
     }
     CHECK(bad == 0, "%zu truncations accepted or refused without a reason", bad);
-    for (size_t pos = 0; buf && pos < 8 * size; pos++) {
+    for (size_t pos = 0; buf && pos < 8 * size; pos += DAMAGE_STRIDE) {
         int32_t *D[8];
         const size_t *P[8];
         const wvc_band *Bp[8];
@@ -283,6 +293,7 @@ static void rans_damage_case(const size_t e[3], double scale, uint64_t seed, dou
         uint64_t nz = 0;
         const char *why = NULL;
         int r;
+        flips++;
         memcpy(t, buf, size);
         t[pos / 8] ^= (uint8_t)(1u << (pos % 8));
         for (int i = 0; i < 3; i++) {
@@ -309,8 +320,8 @@ static void rans_damage_case(const size_t e[3], double scale, uint64_t seed, dou
         free(t);
     }
     /* the tables, lengths and states are checked: most flips outside the raw bits are caught */
-    CHECK((double)refused_flips > min_refused * 8.0 * (double)size,
-          "mode %d: only %zu of %zu bit flips refused (%ux%ux%u)", g_mode, refused_flips, 8 * size, (unsigned)e[0],
+    CHECK((double)refused_flips > min_refused * (double)flips,
+          "mode %d: only %zu of %zu bit flips refused (%ux%ux%u)", g_mode, refused_flips, flips, (unsigned)e[0],
           (unsigned)e[1], (unsigned)e[2]);
     CHECK(differ == 0, "mode 4: %zu flipped payloads decode differently by the engine and the scalar decoder", differ);
     free(buf);
