@@ -18,11 +18,7 @@
 #include "core/clones.h"
 #include "rans_common.h"
 #include "wvc_rans4.h"
-
-#if defined(__x86_64__) && defined(__GNUC__)
-#include <immintrin.h>
-#define R4_HAVE_AVX2 1
-#endif
+#include "wvc_rans4_avx2.h"
 
 #define FORCE_INLINE static inline __attribute__((always_inline))
 /* a table entry: symbol | frequency << 6 | (slot - cumulative frequency) << 17 */
@@ -261,8 +257,6 @@ R4_BAND_SCALAR(r4_band_raw, 1)
 R4_BAND_SCALAR(r4_band_sgn, 0)
 
 #ifdef R4_HAVE_AVX2
-#define R4_AVX2 __attribute__((target("avx2,bmi,bmi2,popcnt")))
-#define R4_AVX2_INLINE static inline __attribute__((always_inline, target("avx2,bmi,bmi2,popcnt")))
 
 /* For a renormalisation mask (bit i: lane i takes a word): lane i's word is the
  * popcount(mask below i)-th of the words read in lane order. */
@@ -389,32 +383,6 @@ R4_AVX2_INLINE void r4v_signs8(const r4_dec *D, __m256i *T8, const uint8_t *sg, 
     }
 }
 
-R4_AVX2_INLINE __m256i r4v_abs16(__m256i v) { return _mm256_min_epu32(_mm256_abs_epi32(v), _mm256_set1_epi32(65535)); }
-/* lanes i -> i - 1 (lane 0 from p's lane 7) and i -> i + 1 (lane 7 from n's lane 0) */
-R4_AVX2_INLINE __m256i r4v_left(__m256i v, __m256i p)
-{
-    return _mm256_permutevar8x32_epi32(_mm256_blend_epi32(v, p, 0x80), _mm256_setr_epi32(7, 0, 1, 2, 3, 4, 5, 6));
-}
-R4_AVX2_INLINE __m256i r4v_right(__m256i v, __m256i n)
-{
-    return _mm256_permutevar8x32_epi32(_mm256_blend_epi32(v, n, 0x01), _mm256_setr_epi32(1, 2, 3, 4, 5, 6, 7, 0));
-}
-/* (v > 0) + 2 (v < 0) */
-R4_AVX2_INLINE __m256i r4v_sgn3(__m256i v)
-{
-    const __m256i z = _mm256_setzero_si256();
-    return _mm256_sub_epi32(_mm256_sub_epi32(z, _mm256_cmpgt_epi32(v, z)),
-                            _mm256_add_epi32(_mm256_cmpgt_epi32(z, v), _mm256_cmpgt_epi32(z, v)));
-}
-/* the low bytes of the eight lanes */
-R4_AVX2_INLINE void r4v_bytes(uint8_t *d, __m256i v)
-{
-    const __m256i sh = _mm256_setr_epi8(0, 4, 8, 12, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, 0, 4, 8, 12, -1,
-                                        -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1);
-    v = _mm256_permutevar8x32_epi32(_mm256_shuffle_epi8(v, sh), _mm256_setr_epi32(0, 4, 1, 1, 1, 1, 1, 1));
-    _mm_storel_epi64((__m128i *)d, _mm256_castsi256_si128(v));
-}
-
 /* wvol__wvc_rans4_row_prep in one pass of eight-lane vectors (the same numbers, the x
  * neighbours shifted in across lanes), for extents that are multiples of 8 up to 64 whose
  * parent row is at least half as long; returns 0 (nothing done) otherwise. */
@@ -426,7 +394,7 @@ R4_AVX2_INLINE int r4v_row_prep(const r4_row *w, const int32_t *Q, const size_t 
     const int32_t *N = y > 0 ? c - sy : zrow, *U = z > 0 ? c - sz : zrow;
     const int32_t *UN = z > 0 && y > 0 ? c - sz - sy : zrow, *US = z > 0 && y + 1 < b->ext[1] ? c - sz + sy : zrow;
     const int32_t *pr = NULL;
-    const __m256i zero = _mm256_setzero_si256(), one = _mm256_set1_epi32(1);
+    const __m256i zero = _mm256_setzero_si256();
     __m256i S[8], Nv[8];
     if (ex % 8 || ex > 64 || (b->has_parent && b->pext[0] < ex / 2)) return 0;
     if (z > 0 && y + 4 < b->ext[1]) /* the plane above is far back (a plane of the pyramid): fetch ahead */
@@ -444,14 +412,7 @@ R4_AVX2_INLINE int r4v_row_prep(const r4_row *w, const int32_t *Q, const size_t 
                                                       r4v_abs16(_mm256_loadu_si256((const __m256i *)(US + x)))));
         __m256i PC = zero, n;
         _mm256_storeu_si256((__m256i *)(w->A + x), A);
-        if (pr) {
-            const __m256i a = _mm256_abs_epi32(
-                _mm256_permutevar8x32_epi32(_mm256_castsi128_si256(_mm_loadu_si128((const __m128i *)(pr + x / 2))),
-                                            _mm256_setr_epi32(0, 0, 1, 1, 2, 2, 3, 3)));
-            PC = _mm256_sub_epi32(
-                _mm256_sub_epi32(zero, _mm256_cmpgt_epi32(a, zero)),
-                _mm256_add_epi32(_mm256_cmpgt_epi32(a, one), _mm256_cmpgt_epi32(a, _mm256_set1_epi32(3))));
-        }
+        if (pr) PC = r4v_parent_class(pr + x / 2);
         r4v_bytes(w->PC + x, PC);
         /* bit length through float's exponent (A < 2^24), capped at R4_NA - 1 */
         n = _mm256_sub_epi32(_mm256_srli_epi32(_mm256_castps_si256(_mm256_cvtepi32_ps(A)), 23), _mm256_set1_epi32(126));
@@ -480,10 +441,6 @@ R4_AVX2_INLINE int r4v_row_prep(const r4_row *w, const int32_t *Q, const size_t 
 }
 
 R4_AVX2_INLINE uint32_t r4v_get0(__m256i X) { return (uint32_t)_mm256_cvtsi256_si32(X); }
-R4_AVX2_INLINE __m256i r4v_set0(__m256i X, uint32_t s0)
-{
-    return _mm256_blend_epi32(X, _mm256_castsi128_si256(_mm_cvtsi32_si128((int)s0)), 1);
-}
 
 /* r4_band for extents that are multiples of 8: the magnitude states in
  * two registers (s0 .. s7, s8 .. s15: the halves of a group of 16), the sign states in one,
@@ -551,11 +508,6 @@ R4_AVX2_INLINE int r4_band_v(const r4_dec *D, int32_t *Q, const size_t p[3], con
 R4_BAND_AVX2(r4_band_avx2_raw, 1)
 R4_BAND_AVX2(r4_band_avx2_sgn, 0)
 
-/* The CPU's features, as libgcc's (or compiler-rt's) constructor found them: read only. */
-static int r4_cpu_avx2(void)
-{
-    return __builtin_cpu_supports("avx2") && __builtin_cpu_supports("bmi2") && __builtin_cpu_supports("popcnt");
-}
 #endif
 
 /* One binary context's frequency f0 from the payload (f0 + 1; 0 for unused: f0 = 2^10, the

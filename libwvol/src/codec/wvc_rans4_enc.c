@@ -22,17 +22,12 @@
 #include "rans_common.h"
 #include "wvc2_internal.h"
 #include "wvc_rans4.h"
+#include "wvc_rans4_avx2.h"
 
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
 
-#if defined(__x86_64__) && defined(__GNUC__)
-#include <immintrin.h>
-#define C4E_HAVE_AVX2 1
-#define C4E_AVX2 __attribute__((target("avx2,bmi,bmi2,popcnt")))
-#define C4E_AVX2_INLINE static inline __attribute__((always_inline, target("avx2,bmi,bmi2,popcnt")))
-#endif
 
 /* event numbers: magnitude context x 64 + symbol, then group flags, signs, row flags */
 #define C4E_EV_FLAG (R4_NC * 64)
@@ -243,46 +238,22 @@ WVOL__CLONES static void c4e_row_scalar(const c4e_row *w, const int32_t *Q, cons
     }
 }
 
-#ifdef C4E_HAVE_AVX2
-/* Lane helpers (the decoder's engine has its own in wvc_rans4_dec.c). */
-C4E_AVX2_INLINE __m256i c4e_abs16(__m256i v) { return _mm256_min_epu32(_mm256_abs_epi32(v), _mm256_set1_epi32(65535)); }
-/* lanes i -> i - 1 (lane 0 from p's lane 7) and i -> i + 1 (lane 7 from n's lane 0) */
-C4E_AVX2_INLINE __m256i c4e_left(__m256i v, __m256i p)
-{
-    return _mm256_permutevar8x32_epi32(_mm256_blend_epi32(v, p, 0x80), _mm256_setr_epi32(7, 0, 1, 2, 3, 4, 5, 6));
-}
-C4E_AVX2_INLINE __m256i c4e_right(__m256i v, __m256i n)
-{
-    return _mm256_permutevar8x32_epi32(_mm256_blend_epi32(v, n, 0x01), _mm256_setr_epi32(1, 2, 3, 4, 5, 6, 7, 0));
-}
-C4E_AVX2_INLINE __m256i c4e_vsgn3(__m256i v)
-{
-    const __m256i z = _mm256_setzero_si256(), neg = _mm256_cmpgt_epi32(z, v);
-    return _mm256_sub_epi32(_mm256_sub_epi32(z, _mm256_cmpgt_epi32(v, z)), _mm256_add_epi32(neg, neg));
-}
-/* the low bytes of the eight lanes to d[0..7] */
-C4E_AVX2_INLINE void c4e_bytes(uint8_t *d, __m256i v)
-{
-    const __m256i sh = _mm256_setr_epi8(0, 4, 8, 12, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, 0, 4, 8, 12, -1,
-                                        -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1);
-    v = _mm256_permutevar8x32_epi32(_mm256_shuffle_epi8(v, sh), _mm256_setr_epi32(0, 4, 1, 1, 1, 1, 1, 1));
-    _mm_storel_epi64((__m128i *)d, _mm256_castsi256_si128(v));
-}
+#ifdef R4_HAVE_AVX2
 /* the bit length of lanes below 2^24 (0 for 0) through float's exponent */
-C4E_AVX2_INLINE __m256i c4e_bitlen24(__m256i t)
+R4_AVX2_INLINE __m256i c4e_bitlen24(__m256i t)
 {
     const __m256i n = _mm256_sub_epi32(_mm256_srli_epi32(_mm256_castps_si256(_mm256_cvtepi32_ps(t)), 23),
                                        _mm256_set1_epi32(126));
     return _mm256_andnot_si256(_mm256_cmpeq_epi32(t, _mm256_setzero_si256()), n);
 }
-C4E_AVX2_INLINE uint32_t c4e_hsum(__m256i v)
+R4_AVX2_INLINE uint32_t c4e_hsum(__m256i v)
 {
     __m128i s = _mm_add_epi32(_mm256_castsi256_si128(v), _mm256_extracti128_si256(v, 1));
     s = _mm_add_epi32(s, _mm_shuffle_epi32(s, 0x4E));
     s = _mm_add_epi32(s, _mm_shuffle_epi32(s, 0xB1));
     return (uint32_t)_mm_cvtsi128_si32(s);
 }
-C4E_AVX2_INLINE uint32_t c4e_hor(__m256i v)
+R4_AVX2_INLINE uint32_t c4e_hor(__m256i v)
 {
     __m128i s = _mm_or_si128(_mm256_castsi256_si128(v), _mm256_extracti128_si256(v, 1));
     s = _mm_or_si128(s, _mm_shuffle_epi32(s, 0x4E));
@@ -292,7 +263,7 @@ C4E_AVX2_INLINE uint32_t c4e_hor(__m256i v)
 
 /* c4e_row_scalar in vectors of eight, for extents that are multiples of 16 with a parent row at
  * least half as long (else the scalar pass): the same numbers. */
-C4E_AVX2 static void c4e_row_avx2(const c4e_row *w, const int32_t *Q, const size_t p[3], const wvc_band *b, size_t y,
+R4_AVX2 static void c4e_row_avx2(const c4e_row *w, const int32_t *Q, const size_t p[3], const wvc_band *b, size_t y,
                                   size_t z, const int32_t *zrow, int signs)
 {
     C4E_NEIGHBOURS;
@@ -308,16 +279,16 @@ C4E_AVX2 static void c4e_row_avx2(const c4e_row *w, const int32_t *Q, const size
     }
     if (b->has_parent) pr = wvc_rans_parent_row(Q, sy, sz, b, y, z);
     Nc = _mm256_loadu_si256((const __m256i *)N);
-    Sc = _mm256_add_epi32(c4e_abs16(Nc), c4e_abs16(_mm256_loadu_si256((const __m256i *)U)));
+    Sc = _mm256_add_epi32(r4v_abs16(Nc), r4v_abs16(_mm256_loadu_si256((const __m256i *)U)));
     for (size_t v = 0; v < nv; v++) {
         const size_t x = 8 * v;
         const __m256i Nn = v + 1 < nv ? _mm256_loadu_si256((const __m256i *)(N + x + 8)) : zero;
-        const __m256i Sn = v + 1 < nv ? _mm256_add_epi32(c4e_abs16(Nn), c4e_abs16(_mm256_loadu_si256((const __m256i *)(U + x + 8))))
+        const __m256i Sn = v + 1 < nv ? _mm256_add_epi32(r4v_abs16(Nn), r4v_abs16(_mm256_loadu_si256((const __m256i *)(U + x + 8))))
                                       : zero;
         const __m256i A = _mm256_add_epi32(
-            _mm256_add_epi32(_mm256_add_epi32(Sc, Sc), _mm256_add_epi32(c4e_left(Sc, Sp), c4e_right(Sc, Sn))),
-            _mm256_add_epi32(c4e_abs16(_mm256_loadu_si256((const __m256i *)(UN + x))),
-                             c4e_abs16(_mm256_loadu_si256((const __m256i *)(US + x)))));
+            _mm256_add_epi32(_mm256_add_epi32(Sc, Sc), _mm256_add_epi32(r4v_left(Sc, Sp), r4v_right(Sc, Sn))),
+            _mm256_add_epi32(r4v_abs16(_mm256_loadu_si256((const __m256i *)(UN + x))),
+                             r4v_abs16(_mm256_loadu_si256((const __m256i *)(US + x)))));
         const __m256i q = _mm256_loadu_si256((const __m256i *)(c + x)), a = _mm256_abs_epi32(q);
         /* floor(log2 a) through float's exponent, exact for a >= 2^24 too (shifted by 8 first) */
         const __m256i big = _mm256_and_si256(_mm256_cmpgt_epi32(a, _mm256_set1_epi32((1 << 24) - 1)), _mm256_set1_epi32(8));
@@ -330,14 +301,7 @@ C4E_AVX2 static void c4e_row_avx2(const c4e_row *w, const int32_t *Q, const size
         const __m256i sym = _mm256_blendv_epi8(
             a, _mm256_add_epi32(_mm256_add_epi32(nb, nb), _mm256_and_si256(_mm256_srlv_epi32(a, K), one)), ge2);
         __m256i PC = zero, n, cx, ev;
-        if (pr) {
-            const __m256i pa = _mm256_abs_epi32(
-                _mm256_permutevar8x32_epi32(_mm256_castsi128_si256(_mm_loadu_si128((const __m128i *)(pr + x / 2))),
-                                            _mm256_setr_epi32(0, 0, 1, 1, 2, 2, 3, 3)));
-            PC = _mm256_sub_epi32(
-                _mm256_sub_epi32(zero, _mm256_cmpgt_epi32(pa, zero)),
-                _mm256_add_epi32(_mm256_cmpgt_epi32(pa, one), _mm256_cmpgt_epi32(pa, _mm256_set1_epi32(3))));
-        }
+        if (pr) PC = r4v_parent_class(pr + x / 2);
         n = _mm256_min_epi32(c4e_bitlen24(A), _mm256_set1_epi32(R4_NA - 1));
         cx = _mm256_add_epi32(_mm256_slli_epi32(n, 2), PC);
         ev = _mm256_add_epi32(_mm256_slli_epi32(cx, 6), sym);
@@ -345,15 +309,15 @@ C4E_AVX2 static void c4e_row_avx2(const c4e_row *w, const int32_t *Q, const size
                          _mm_packus_epi32(_mm256_castsi256_si128(ev), _mm256_extracti128_si256(ev, 1)));
         if (signs) { /* sign contexts, and sign events for the counts (C4E_NEV for a zero) */
             const __m256i sg = _mm256_add_epi32(
-                _mm256_add_epi32(sbase, _mm256_mullo_epi32(c4e_vsgn3(_mm256_loadu_si256((const __m256i *)(U + x))),
+                _mm256_add_epi32(sbase, _mm256_mullo_epi32(r4v_sgn3(_mm256_loadu_si256((const __m256i *)(U + x))),
                                                            _mm256_set1_epi32(3))),
-                _mm256_add_epi32(c4e_vsgn3(Nc),
-                                 _mm256_mullo_epi32(c4e_vsgn3(c4e_left(Nc, Np)), _mm256_set1_epi32(R4_NSG))));
+                _mm256_add_epi32(r4v_sgn3(Nc),
+                                 _mm256_mullo_epi32(r4v_sgn3(r4v_left(Nc, Np)), _mm256_set1_epi32(R4_NSG))));
             const __m256i se = _mm256_blendv_epi8(
                 _mm256_sub_epi32(_mm256_add_epi32(_mm256_set1_epi32(C4E_EV_SIGN), _mm256_add_epi32(sg, sg)),
                                  _mm256_cmpgt_epi32(zero, q)),
                 _mm256_set1_epi32(C4E_NEV), _mm256_cmpeq_epi32(q, zero));
-            c4e_bytes(w->SG + x, sg);
+            r4v_bytes(w->SG + x, sg);
             _mm_storeu_si128((__m128i *)(w->SE + x),
                              _mm_packus_epi32(_mm256_castsi256_si128(se), _mm256_extracti128_si256(se, 1)));
         }
@@ -388,7 +352,7 @@ typedef struct c4e_job {
 
 static inline void c4e_prep(const c4e_job *J, int i, size_t y, size_t z, int signs)
 {
-#ifdef C4E_HAVE_AVX2
+#ifdef R4_HAVE_AVX2
     if (J->vec) {
         c4e_row_avx2(&J->s->w, J->Q[i], J->p[i], J->b[i], y, z, J->s->zrow, signs);
         return;
@@ -637,10 +601,10 @@ static void c4e_pass2_scalar(c4e_job *J, uint32_t xs[R4_NX], uint16_t **wpp, c4e
     *wpp = wp;
 }
 
-#ifdef C4E_HAVE_AVX2
+#ifdef R4_HAVE_AVX2
 /* One encoder step on eight states x (lanes in act; the others unchanged) with the events ev:
  * the words of the lanes that renormalise stored below *wp in lane order. */
-C4E_AVX2_INLINE __m256i c4e_step8(__m256i x, __m256i ev, __m256i act, const c4e_scratch *s, uint16_t **wp)
+R4_AVX2_INLINE __m256i c4e_step8(__m256i x, __m256i ev, __m256i act, const c4e_scratch *s, uint16_t **wp)
 {
     const __m256i P = _mm256_i32gather_epi32((const int *)s->pk, ev, 4);
     const __m256i MG = _mm256_i32gather_epi32((const int *)s->mg, ev, 4);
@@ -665,15 +629,11 @@ C4E_AVX2_INLINE __m256i c4e_step8(__m256i x, __m256i ev, __m256i act, const c4e_
     return _mm256_blendv_epi8(x, y, act);
 }
 
-C4E_AVX2_INLINE __m256i c4e_set0(__m256i X, uint32_t s0)
-{
-    return _mm256_blend_epi32(X, _mm256_castsi128_si256(_mm_cvtsi32_si128((int)s0)), 1);
-}
 
 /* The raw bits of eight coefficients q (symbols in sym's low 6 bits), written backwards: merged
  * into one 64-bit field (offsets by a prefix sum of the lengths, 64-bit shifts) when they fit,
  * else one by one. */
-C4E_AVX2_INLINE void c4e_raw8(c4e_bitsw *bw, __m256i q, __m256i sym, int raw_signs)
+R4_AVX2_INLINE void c4e_raw8(c4e_bitsw *bw, __m256i q, __m256i sym, int raw_signs)
 {
     const __m256i one = _mm256_set1_epi32(1), zero = _mm256_setzero_si256();
     const __m256i S = _mm256_and_si256(sym, _mm256_set1_epi32(63));
@@ -713,7 +673,7 @@ C4E_AVX2_INLINE void c4e_raw8(c4e_bitsw *bw, __m256i q, __m256i sym, int raw_sig
 
 /* The backward pass in vectors (extents multiples of 16): magnitude states 0..7 in X0, 8..15 in
  * X1, the sign states in T; the flags on X0's lane 0. */
-C4E_AVX2 static void c4e_pass2_avx2(c4e_job *J, uint32_t xs[R4_NX], uint16_t **wpp, c4e_bitsw *bw)
+R4_AVX2 static void c4e_pass2_avx2(c4e_job *J, uint32_t xs[R4_NX], uint16_t **wpp, c4e_bitsw *bw)
 {
     c4e_scratch *s = J->s;
     const int raw = J->raw_signs;
@@ -722,7 +682,7 @@ C4E_AVX2 static void c4e_pass2_avx2(c4e_job *J, uint32_t xs[R4_NX], uint16_t **w
     __m256i X0 = _mm256_loadu_si256((const __m256i *)xs), X1 = _mm256_loadu_si256((const __m256i *)(xs + 8));
     __m256i T = _mm256_loadu_si256((const __m256i *)(xs + R4_TS));
     uint16_t *wp = *wpp;
-#define C4E_FLAG_V(EV) (X0 = c4e_set0(X0, wvc_rans_enc_put((uint32_t)_mm256_cvtsi256_si32(X0), &s->es[EV], &wp, R4_PBITS)))
+#define C4E_FLAG_V(EV) (X0 = r4v_set0(X0, wvc_rans_enc_put((uint32_t)_mm256_cvtsi256_si32(X0), &s->es[EV], &wp, R4_PBITS)))
 #define C4E_GROUP_V                                                                                                    \
     {                                                                                                                  \
         const __m256i q0 = _mm256_loadu_si256((const __m256i *)(c + x0));                                              \
@@ -762,11 +722,6 @@ C4E_AVX2 static void c4e_pass2_avx2(c4e_job *J, uint32_t xs[R4_NX], uint16_t **w
     *wpp = wp;
 }
 
-/* The CPU's features, as libgcc's (or compiler-rt's) constructor found them: read only. */
-static int c4e_cpu_avx2(void)
-{
-    return __builtin_cpu_supports("avx2") && __builtin_cpu_supports("bmi2") && __builtin_cpu_supports("popcnt");
-}
 #endif
 
 /* The stream with `lead` bytes reserved before it; raw_req: -1 the per-chunk choice, else the
@@ -798,8 +753,8 @@ static int c4e_encode(uint8_t **buf, size_t *size, size_t lead, int n, int32_t *
     J.s = c4e_scratch_get(slot, ex, rows, total, rows * ((ex + R4_GROUP - 1) / R4_GROUP),
                           2 * total + total / 8 + rows + 64, (30 * total + 7) / 8 + 16);
     if (!J.s) return -1;
-#ifdef C4E_HAVE_AVX2
-    J.vec = !scalar && ex % R4_GROUP == 0 && c4e_cpu_avx2();
+#ifdef R4_HAVE_AVX2
+    J.vec = !scalar && ex % R4_GROUP == 0 && r4_cpu_avx2();
 #else
     (void)scalar;
 #endif
@@ -822,7 +777,7 @@ static int c4e_encode(uint8_t **buf, size_t *size, size_t lead, int n, int32_t *
     bw.p = J.s->rbuf + nraw;
     for (int l = 0; l < R4_NX; l++) xs[l] = R4_L;
     wend = wp = J.s->wbuf + J.s->words;
-#ifdef C4E_HAVE_AVX2
+#ifdef R4_HAVE_AVX2
     if (J.vec)
         c4e_pass2_avx2(&J, xs, &wp, &bw);
     else
