@@ -40,11 +40,11 @@
 /* A row's contexts and symbols from the forward pass: per coefficient EV (its magnitude
  * event), SG (its sign context) and SE (its sign event, C4E_NEV for a zero: counted only); per
  * group GM (the mask of its non-zeros) and GX (its flag's context). EV, SG, GM and GX point into
- * the chunk's buffers, which the backward pass reads; A and PC are the scalar pass's. */
+ * the chunk's buffers, which the backward pass reads; A, CX and PC are the scalar pass's. */
 typedef struct c4e_row {
     uint32_t *A;
     uint16_t *EV, *SE, *GM;
-    uint8_t *PC, *SG, *GX;
+    uint8_t *CX, *PC, *SG, *GX;
 } c4e_row;
 
 typedef struct c4e_scratch {
@@ -119,7 +119,7 @@ static c4e_scratch *c4e_scratch_get(void **slot, size_t ex, size_t rows, size_t 
     }
     if (ex > s->ex) {
         const size_t e = ex + 16; /* room for a vector store past a row */
-        uint8_t *m = malloc(e * (4 + 2 + 1) + 64);
+        uint8_t *m = malloc(e * (4 + 2 + 1 + 1) + 64);
         int32_t *z = calloc(e, sizeof *z);
         if (!m || !z) {
             free(m);
@@ -133,6 +133,7 @@ static c4e_scratch *c4e_scratch_get(void **slot, size_t ex, size_t rows, size_t 
         s->w.A = (uint32_t *)m;
         s->w.SE = (uint16_t *)(s->w.A + e);
         s->w.PC = (uint8_t *)(s->w.SE + e);
+        s->w.CX = s->w.PC + e;
         s->ex = ex;
     }
     if (c4e_grow((void **)&s->rnz, s->rows, rows, 1) || c4e_grow((void **)&s->rctx, s->rows, rows, 1)) {
@@ -181,8 +182,6 @@ static inline __attribute__((always_inline)) void c4e_prefetch(const int32_t *Q,
     }
 }
 
-static inline uint32_t c4e_sgn3(int32_t v) { return (uint32_t)(v > 0) + 2 * (uint32_t)(v < 0); }
-
 /* A group's flag context from its neighbour sum s (< 16 * 12 * 65535 < 2^24) and the OR of its
  * parent classes. */
 static inline uint8_t c4e_gx(uint32_t s, uint32_t pm)
@@ -191,49 +190,30 @@ static inline uint8_t c4e_gx(uint32_t s, uint32_t pm)
     return (uint8_t)((n < R4_NGA - 1 ? n : R4_NGA - 1) * R4_NP + (pm > 3 ? 3 : pm));
 }
 
-/* The rows N, U, UN, US of row (y, z) (zrow outside the band). */
-#define C4E_NEIGHBOURS                                                                                                \
-    const size_t sy = p[0], sz = p[0] * p[1], ex = b->ext[0];                                                         \
-    const int32_t *c = Q + wvc_index(p, b, 0, y, z);                                                                  \
-    const int32_t *N = y > 0 ? c - sy : zrow, *U = z > 0 ? c - sz : zrow;                                             \
-    const int32_t *UN = z > 0 && y > 0 ? c - sz - sy : zrow, *US = z > 0 && y + 1 < b->ext[1] ? c - sz + sy : zrow
-
-/* Row (y, z)'s contexts and symbols (scalar). */
+/* Row (y, z)'s contexts (the decoder's scalar pass, wvc_rans4_ctx.c) and symbols. */
 WVOL__CLONES static void c4e_row_scalar(const c4e_row *w, const int32_t *Q, const size_t p[3], const wvc_band *b,
                                         size_t y, size_t z, const int32_t *zrow, int signs)
 {
-    C4E_NEIGHBOURS;
-    const uint32_t sbase = 9 * (uint32_t)(b->band - 1);
-    uint32_t *restrict A = w->A;
-    uint8_t *restrict PC = w->PC, *restrict SG = w->SG;
+    const r4_row r = {w->A, w->CX, w->PC, w->SG, w->GX};
+    const int32_t *c = Q + wvc_index(p, b, 0, y, z);
+    const size_t ex = b->ext[0];
+    const uint8_t *restrict CX = w->CX, *restrict SG = w->SG;
     uint16_t *restrict EV = w->EV, *restrict SE = w->SE;
-    wvc_rans_row_sum(A, N, U, UN, US, ex);
-    if (!b->has_parent)
-        memset(PC, 0, ex);
-    else
-        wvc_rans_parent_classes(PC, wvc_rans_parent_row(Q, sy, sz, b, y, z), b->pext[0], ex);
+    wvol__wvc_rans4_row_prep(&r, Q, p, b, y, z, zrow, signs);
     /* loops without a chain or a count of leading zeros, so that they vectorise */
     for (size_t x = 0; x < ex; x++) {
-        const uint32_t n = wvc_rans_bitlen24(A[x]), cx = (n < R4_NA - 1 ? n : R4_NA - 1) * R4_NP + PC[x];
         const int32_t v = c[x];
         const uint32_t a = v < 0 ? (uint32_t)0 - (uint32_t)v : (uint32_t)v;
         const uint32_t sh = a >> 24 ? 8 : 0, nb = wvc_rans_bitlen24(a >> sh) + sh - 1; /* floor(log2 a), a > 0 */
         const uint32_t sym = a < 2 ? a : 2 * nb + ((a >> ((nb - 1) & 31)) & 1);
-        EV[x] = (uint16_t)(cx * 64 + sym);
+        EV[x] = (uint16_t)((uint32_t)CX[x] * 64 + sym);
     }
-    if (signs) {
-        for (size_t x = 0; x < ex; x++) SG[x] = (uint8_t)(sbase + 3 * c4e_sgn3(U[x]) + c4e_sgn3(N[x]));
-        for (size_t x = 1; x < ex; x++) SG[x] = (uint8_t)(SG[x] + R4_NSG * c4e_sgn3(N[x - 1]));
+    if (signs)
         for (size_t x = 0; x < ex; x++) SE[x] = (uint16_t)(c[x] ? C4E_EV_SIGN + 2 * (uint32_t)SG[x] + (c[x] < 0) : C4E_NEV);
-    }
     for (size_t g = 0, x0 = 0; x0 < ex; g++, x0 += R4_GROUP) {
         const size_t x1 = x0 + R4_GROUP < ex ? x0 + R4_GROUP : ex;
-        uint32_t sum = 0, pm = 0, gm = 0;
-        for (size_t x = x0; x < x1; x++) {
-            sum += A[x], pm |= PC[x];
-            gm |= (uint32_t)(c[x] != 0) << (x - x0);
-        }
-        w->GX[g] = c4e_gx(sum, pm);
+        uint32_t gm = 0;
+        for (size_t x = x0; x < x1; x++) gm |= (uint32_t)(c[x] != 0) << (x - x0);
         w->GM[g] = (uint16_t)gm;
     }
 }
@@ -266,7 +246,11 @@ R4_AVX2_INLINE uint32_t c4e_hor(__m256i v)
 R4_AVX2 static void c4e_row_avx2(const c4e_row *w, const int32_t *Q, const size_t p[3], const wvc_band *b, size_t y,
                                   size_t z, const int32_t *zrow, int signs)
 {
-    C4E_NEIGHBOURS;
+    /* the rows N, U, UN, US of row (y, z) (zrow outside the band) */
+    const size_t sy = p[0], sz = p[0] * p[1], ex = b->ext[0];
+    const int32_t *c = Q + wvc_index(p, b, 0, y, z);
+    const int32_t *N = y > 0 ? c - sy : zrow, *U = z > 0 ? c - sz : zrow;
+    const int32_t *UN = z > 0 && y > 0 ? c - sz - sy : zrow, *US = z > 0 && y + 1 < b->ext[1] ? c - sz + sy : zrow;
     const size_t nv = ex / 8;
     const __m256i zero = _mm256_setzero_si256(), one = _mm256_set1_epi32(1);
     const __m256i sbase = _mm256_set1_epi32(9 * (b->band - 1));
