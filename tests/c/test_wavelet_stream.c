@@ -2,7 +2,7 @@
 /* The forward transform streamed along z (wavelet/dwt3_stream.c): bit-identical to the
  * in-memory wvol_dwt3 for every family, odd and even sizes, 1-5 levels, any slab
  * split; rows arrive in increasing z per level; the window does not grow with the
- * depth; refusals. */
+ * depth; rows made in the caller's memory (wvol_dwt3_stream_set_place); refusals. */
 #include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
@@ -207,6 +207,105 @@ out:
     wvol_coeffs_destroy(k.c);
 }
 
+/* Rows made in the caller's memory: a pyramid laid out level by level, each row's room
+ * 2 cx cy floats (cx cy when z is not transformed). */
+typedef struct placed {
+    collect k;
+    float *data;
+    size_t at[32], row[32], rows[32], plane[32];
+    int in_room; /* every callback's planes were the room given for the row */
+    size_t null_at; /* > 0: the room of level 1's row null_at - 1 is NULL */
+} placed;
+
+static float *place(void *user, int level, size_t r)
+{
+    placed *p = user;
+    if (p->null_at && level == 1 && r + 1 == p->null_at) return NULL;
+    return r < p->rows[level] ? p->data + p->at[level] + r * p->row[level] : NULL;
+}
+
+static wvol_status on_placed(void *user, int level, size_t r, const float *low, const float *high, wvol_error *err)
+{
+    placed *p = user;
+    const float *room = p->data + p->at[level] + r * p->row[level];
+    if (low != room || high != (p->row[level] > p->plane[level] ? room + p->plane[level] : NULL)) p->in_room = 0;
+    return on_rows(&p->k, level, r, low, high, err);
+}
+
+static void placed_rows_equal_the_in_memory_transform(void)
+{
+    static const size_t sizes[][3] = {{40, 36, 64}, {33, 29, 37}, {48, 40, 1}};
+    const wvol_filter *f = NULL;
+    wvol_error err;
+    CHECK(wvol_filter_get(&f, "coif2", &err) == WVOL_OK, "%s", err.message);
+    for (int si = 0; f && si < 3; si++) {
+        const size_t *d = sizes[si];
+        const int levels = 3;
+        wvol_volume *v = volume(d[0], d[1], d[2], 11 + (uint64_t)si);
+        wvol_coeffs *ref = NULL, *again = NULL;
+        wvol_dwt3_stream *s = NULL;
+        placed p;
+        size_t total = 0, n;
+        memset(&p, 0, sizeof p);
+        p.in_room = 1;
+        if (!v) continue;
+        CHECK(wvol_dwt3(&ref, v, f, levels, &err) == WVOL_OK, "%s", err.message);
+        CHECK(wvol_coeffs_create(&p.k.c, f, levels, v->nx, v->ny, v->nz, &err) == WVOL_OK, "%s", err.message);
+        CHECK(wvol_coeffs_create(&again, f, levels, v->nx, v->ny, v->nz, &err) == WVOL_OK, "%s", err.message);
+        if (!ref || !p.k.c || !again) goto next;
+        for (int m = 1; m <= levels; m++) {
+            size_t cx = ref->px >> (m - 1), cy = ref->py >> (m - 1), cz = ref->pz == 1 ? 1 : ref->pz >> (m - 1);
+            p.plane[m] = cx * cy;
+            p.row[m] = cz > 1 ? 2 * cx * cy : cx * cy;
+            p.rows[m] = cz > 1 ? cz / 2 : 1;
+            p.at[m] = total;
+            total += p.rows[m] * p.row[m];
+        }
+        p.data = malloc(total * sizeof(float));
+        CHECK(p.data != NULL, "room for the pyramid");
+        if (!p.data) goto next;
+        CHECK(wvol_dwt3_stream_create(&s, f, levels, v->nx, v->ny, v->nz, on_placed, &p, &err) == WVOL_OK, "%s",
+              err.message);
+        CHECK(s && wvol_dwt3_stream_set_place(s, place, &err) == WVOL_OK, "%s", err.message);
+        CHECK(s && wvol_dwt3_stream_push(s, v->data, v->nz, &err) == WVOL_OK, "%s", err.message);
+        CHECK(s && wvol_dwt3_stream_set_place(s, NULL, &err) == WVOL_ERR_ARG && strstr(err.message, "first slice"),
+              "placing rows after the first slice refused: %s", err.message);
+        CHECK(s && wvol_dwt3_stream_finish(s, &err) == WVOL_OK, "%s", err.message);
+        CHECK(p.in_room, "%zux%zux%zu: the callback's planes are the rooms given", d[0], d[1], d[2]);
+        n = ref->px * ref->py * ref->pz;
+        CHECK(memcmp(ref->data, p.k.c->data, n * sizeof(float)) == 0, "%zux%zux%zu: placed rows differ", d[0], d[1],
+              d[2]);
+        /* the rooms still hold every row after the run: the pyramid is kept as it was made */
+        for (int m = 1; m <= levels; m++)
+            for (size_t r = 0; r < p.rows[m]; r++) {
+                const float *room = p.data + p.at[m] + r * p.row[m];
+                wvol_coeffs_put_rows(again, m, r, room, p.row[m] > p.plane[m] ? room + p.plane[m] : NULL);
+            }
+        CHECK(memcmp(ref->data, again->data, n * sizeof(float)) == 0, "%zux%zux%zu: the kept rooms differ", d[0],
+              d[1], d[2]);
+        /* a NULL room stops the transform with the row named */
+        wvol_dwt3_stream_destroy(s);
+        s = NULL;
+        p.null_at = 3;
+        CHECK(wvol_dwt3_stream_create(&s, f, levels, v->nx, v->ny, v->nz, on_placed, &p, &err) == WVOL_OK, "%s",
+              err.message);
+        CHECK(s && wvol_dwt3_stream_set_place(s, place, &err) == WVOL_OK, "%s", err.message);
+        if (s && p.rows[1] >= 3) {
+            wvol_status st = wvol_dwt3_stream_push(s, v->data, v->nz, &err);
+            if (!st) st = wvol_dwt3_stream_finish(s, &err);
+            CHECK(st == WVOL_ERR_ARG && strstr(err.message, "row 2 of level 1"), "NULL room refused: %s",
+                  err.message);
+        }
+    next:
+        wvol_dwt3_stream_destroy(s);
+        free(p.data);
+        wvol_coeffs_destroy(ref);
+        wvol_coeffs_destroy(again);
+        wvol_coeffs_destroy(p.k.c);
+        wvol_volume_destroy(v);
+    }
+}
+
 static void refusals(void)
 {
     const wvol_filter *f = NULL;
@@ -282,6 +381,7 @@ int main(void)
     memory_does_not_grow_with_depth();
     source_transform_equals_in_memory();
     large_slices_equal_the_in_memory_transform();
+    placed_rows_equal_the_in_memory_transform();
     refusals();
     return check_summary("test_wavelet_stream");
 }

@@ -172,10 +172,22 @@ WVOL_API wvol_status wvol_dwt3_stream_push(wvol_dwt3_stream *s, const float *sli
 WVOL_API wvol_status wvol_dwt3_stream_finish(wvol_dwt3_stream *s, wvol_error *err);
 WVOL_API size_t wvol_dwt3_stream_bytes(const wvol_dwt3_stream *s);
 WVOL_API void wvol_dwt3_stream_destroy(wvol_dwt3_stream *s); /* NULL is fine */
+/* Rows made in the caller's memory (optional; set before the first slice, NULL to undo):
+ * place(user, level, r) returns room for 2 cx cy floats (cx cy when the z axis is not
+ * transformed) where row r of level m is then computed, low plane first, high plane after
+ * it; the callback's planes point into that room, and the room must stay as it is until
+ * the push or finish call that made the row returns (the next level reads the low plane).
+ * A kept pyramid laid out in rows is written in place this way, without a copy. A NULL
+ * room stops the transform with an error. */
+typedef float *(*wvol_dwt3_place_fn)(void *user, int level, size_t r);
+WVOL_API wvol_status wvol_dwt3_stream_set_place(wvol_dwt3_stream *s, wvol_dwt3_place_fn place, wvol_error *err);
 /* The whole streamed transform of a source (wvol/source.h), read in slabs of about
  * 16 MiB; bytes (may be NULL): the memory it held (window and slab). */
 WVOL_API wvol_status wvol_dwt3_source(wvol_source *src, const wvol_filter *f, int levels, wvol_dwt3_rows_fn fn,
                                       void *user, size_t *bytes, wvol_error *err);
+/* The same with the rows made where place says (wvol_dwt3_stream_set_place). */
+WVOL_API wvol_status wvol_dwt3_source_placed(wvol_source *src, const wvol_filter *f, int levels, wvol_dwt3_rows_fn fn,
+                                             wvol_dwt3_place_fn place, void *user, size_t *bytes, wvol_error *err);
 /* Copies a callback's rows into their places in c (created for the same size, filter
  * and levels, e.g. by wvol_coeffs_create): after every row of every level, c holds what
  * wvol_dwt3 makes. */

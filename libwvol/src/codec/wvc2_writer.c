@@ -601,6 +601,57 @@ static wvol_status code_ready(wvc2_writer *w, wvol_error *err)
     return WVOL_OK;
 }
 
+/* Quantises the rows z0 .. z0 + nz - 1 of one (band, tile column) of level `level` (task
+ * number `task` of writer_put's loop) into the level's rows, adding their sums and max |c| to
+ * the chunks'. Returns 1 when a sum is not finite. */
+static int put_segment(wvc2_writer *w, int level, size_t z0, size_t nz, const wvc2_planes *pl, long task)
+{
+    const wvc2_level *G = &w->g.lv[level];
+    wlevel *L = &w->lv[level];
+    int i = (int)(task % G->nb), band = G->bands[i], s = wvc2_section(w->g.levels, level, band), bad = 0;
+    size_t tt = (size_t)task / (size_t)G->nb, tx = tt % G->nt[0], ty = tt / G->nt[0];
+    const size_t T = (size_t)w->g.tile[0];
+    size_t x0 = tx * T, y0 = ty * T;
+    size_t x1 = x0 + T < G->e[0] ? x0 + T : G->e[0];
+    size_t y1 = y0 + T < G->e[1] ? y0 + T : G->e[1];
+    double f = band == 0 ? 0.5 : w->h.rounding;
+    double edge = (w->zero_edge && band != 0) ? w->zero_edge[s] : 0.0;
+    int use_edge = edge > 1.0 - f;
+    for (size_t z = z0; z < z0 + nz; z++) {
+        size_t tc[3] = {tx, ty, z / (size_t)w->g.tile[2]};
+        size_t id = wvc2_chunk_id(&w->g, level, tc) - G->first;
+        sec_stats *acc = &L->acc[id * (size_t)G->nb + (size_t)i];
+        float mx = L->maxabs[id * (size_t)G->nb + (size_t)i];
+        for (size_t y = y0; y < y1; y++) {
+            const float *row = pl->band[band] + (y * pl->sy[band] + (z - z0) * pl->sz[band]) + x0;
+            {
+                /* a kept pyramid is read from memory one short segment per row, too short for
+                 * the hardware's prefetch to see: the rows a few ahead (the next plane's first at
+                 * the end of a plane) are asked for now */
+                size_t ahead = y + 4 < y1 ? 4 * pl->sy[band] : pl->sz[band];
+                for (size_t x = 0; x < x1 - x0; x += 16) __builtin_prefetch(row + ahead + x);
+            }
+            int32_t *qrow = L->q[i] + (z - L->z_base) * L->plane + y * G->e[0] + x0;
+            double t[8];
+            if (use_edge)
+                row_stats_edge(t, row, qrow, x1 - x0, w->h.step, f, edge);
+            else
+                wvol__wvc_row_stats(t, row, qrow, x1 - x0, w->h.step, f);
+            if (!isfinite(t[1])) bad = 1;
+            acc_add(acc, t);
+            {
+                /* max |c| = max(max c, -min c), in eight lanes (core/finite.h); a zero as +0 */
+                float rg[2], a;
+                (void)wvol__finite_range(row, x1 - x0, rg);
+                a = -rg[0] > rg[1] ? -rg[0] : rg[1];
+                mx = a > mx ? a : mx;
+            }
+        }
+        L->maxabs[id * (size_t)G->nb + (size_t)i] = mx;
+    }
+    return bad;
+}
+
 wvol_status wvol__wvc2_writer_put(wvc2_writer *w, int level, size_t z0, size_t nz, const wvc2_planes *pl,
                                   wvol_error *err)
 {
@@ -627,43 +678,24 @@ wvol_status wvol__wvc2_writer_put(wvc2_writer *w, int level, size_t z0, size_t n
                    WVOL_ERR_NOMEM, "wvc2 writer: out of memory for level %d rows", level);
     /* one task per (band, tile column): each (chunk, band) sum is taken by one thread, in z, y, x order */
     ntask = (long)G->nb * (long)(G->nt[0] * G->nt[1]);
+#ifdef _OPENMP
+    if (w->async && omp_get_num_threads() > 1) {
+        /* inside the writer's team (wvol__wvc2_writer_run): task loops, so that a thread
+         * with no chunk to code shares the rows (a nested parallel region would run on the
+         * producer alone) */
+#pragma omp taskloop grainsize(1) shared(bad) \
+    if (G->e[0] * G->e[1] * nz > 32768)
+        for (task = 0; task < ntask; task++)
+            if (put_segment(w, level, z0, nz, pl, task)) {
+#pragma omp atomic write
+                bad = 1;
+            }
+    } else
+#endif
+    {
 #pragma omp parallel for schedule(dynamic, 1) reduction(| : bad) if (ntask > 1 && G->e[0] * G->e[1] * nz > 32768) \
     num_threads(nth)
-    for (task = 0; task < ntask; task++) {
-        int i = (int)(task % G->nb), band = G->bands[i], s = wvc2_section(w->g.levels, level, band);
-        size_t tt = (size_t)task / (size_t)G->nb, tx = tt % G->nt[0], ty = tt / G->nt[0];
-        const size_t T = (size_t)w->g.tile[0];
-        size_t x0 = tx * T, y0 = ty * T;
-        size_t x1 = x0 + T < G->e[0] ? x0 + T : G->e[0];
-        size_t y1 = y0 + T < G->e[1] ? y0 + T : G->e[1];
-        double f = band == 0 ? 0.5 : w->h.rounding;
-        double edge = (w->zero_edge && band != 0) ? w->zero_edge[s] : 0.0;
-        int use_edge = edge > 1.0 - f;
-        for (size_t z = z0; z < z0 + nz; z++) {
-            size_t tc[3] = {tx, ty, z / (size_t)w->g.tile[2]};
-            size_t id = wvc2_chunk_id(&w->g, level, tc) - G->first;
-            sec_stats *acc = &L->acc[id * (size_t)G->nb + (size_t)i];
-            float mx = L->maxabs[id * (size_t)G->nb + (size_t)i];
-            for (size_t y = y0; y < y1; y++) {
-                const float *row = pl->band[band] + (y * pl->sy[band] + (z - z0) * pl->sz[band]) + x0;
-                int32_t *qrow = L->q[i] + (z - L->z_base) * L->plane + y * G->e[0] + x0;
-                double t[8];
-                if (use_edge)
-                    row_stats_edge(t, row, qrow, x1 - x0, w->h.step, f, edge);
-                else
-                    wvol__wvc_row_stats(t, row, qrow, x1 - x0, w->h.step, f);
-                if (!isfinite(t[1])) bad = 1;
-                acc_add(acc, t);
-                {
-                    /* max |c| = max(max c, -min c), in eight lanes (core/finite.h); a zero as +0 */
-                    float rg[2], a;
-                    (void)wvol__finite_range(row, x1 - x0, rg);
-                    a = -rg[0] > rg[1] ? -rg[0] : rg[1];
-                    mx = a > mx ? a : mx;
-                }
-            }
-            L->maxabs[id * (size_t)G->nb + (size_t)i] = mx;
-        }
+        for (task = 0; task < ntask; task++) bad |= put_segment(w, level, z0, nz, pl, task);
     }
     WVOL_RETURN_IF(bad, err, WVOL_ERR_NONFINITE, "wvc2 writer: level %d rows %zu..%zu hold NaN or Inf (or overflow)",
                    level, z0, z0 + nz);

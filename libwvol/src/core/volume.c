@@ -153,34 +153,44 @@ wvol_status wvol_check_finite(const float *data, size_t nx, size_t ny, size_t nz
 }
 
 /* Eight lanes of a running minimum, maximum and exponent test (explicit vectors: GCC
- * leaves a scalar float min/max reduction scalar without -ffast-math). */
+ * leaves a scalar float min/max reduction scalar without -ffast-math), in four independent
+ * accumulators: one would make every group of eight wait on the previous one's compare and
+ * blend. Which zero a zero extreme comes out as depends on the order; callers store it as +0. */
 typedef float fr_v8f __attribute__((vector_size(32)));
 typedef int32_t fr_v8i __attribute__((vector_size(32)));
 
-WVOL__CLONES int wvol__finite_range(const float *d, size_t n, float range[2])
+static inline __attribute__((always_inline)) void fr_step(const float *d, fr_v8f *lo, fr_v8f *hi, fr_v8i *bad)
 {
     const fr_v8i expo = {0x7F800000, 0x7F800000, 0x7F800000, 0x7F800000,
                          0x7F800000, 0x7F800000, 0x7F800000, 0x7F800000};
-    fr_v8f lo = {INFINITY, INFINITY, INFINITY, INFINITY, INFINITY, INFINITY, INFINITY, INFINITY}, hi = -lo;
+    fr_v8f v;
+    fr_v8i mlo, mhi;
+    memcpy(&v, d, sizeof v);
+    *bad |= ((fr_v8i)v & expo) == expo;
+    mlo = v < *lo;
+    mhi = v > *hi;
+    *lo = (fr_v8f)(((fr_v8i)v & mlo) | ((fr_v8i)*lo & ~mlo));
+    *hi = (fr_v8f)(((fr_v8i)v & mhi) | ((fr_v8i)*hi & ~mhi));
+}
+
+WVOL__CLONES int wvol__finite_range(const float *d, size_t n, float range[2])
+{
+    fr_v8f lo[4], hi[4];
     fr_v8i bad = {0, 0, 0, 0, 0, 0, 0, 0};
     float l = INFINITY, h = -INFINITY;
     uint32_t b = 0;
     size_t i = 0;
-    for (; i + 8 <= n; i += 8) {
-        fr_v8f v;
-        fr_v8i mlo, mhi;
-        memcpy(&v, d + i, sizeof v);
-        bad |= ((fr_v8i)v & expo) == expo;
-        mlo = v < lo;
-        mhi = v > hi;
-        lo = (fr_v8f)(((fr_v8i)v & mlo) | ((fr_v8i)lo & ~mlo));
-        hi = (fr_v8f)(((fr_v8i)v & mhi) | ((fr_v8i)hi & ~mhi));
-    }
-    for (int k = 0; k < 8; k++) {
-        b |= (uint32_t)bad[k];
-        l = lo[k] < l ? lo[k] : l;
-        h = hi[k] > h ? hi[k] : h;
-    }
+    for (int a = 0; a < 4; a++)
+        for (int k = 0; k < 8; k++) lo[a][k] = INFINITY, hi[a][k] = -INFINITY;
+    for (; i + 32 <= n; i += 32)
+        for (int a = 0; a < 4; a++) fr_step(d + i + 8 * a, &lo[a], &hi[a], &bad);
+    for (; i + 8 <= n; i += 8) fr_step(d + i, &lo[0], &hi[0], &bad);
+    for (int a = 0; a < 4; a++)
+        for (int k = 0; k < 8; k++) {
+            l = lo[a][k] < l ? lo[a][k] : l;
+            h = hi[a][k] > h ? hi[a][k] : h;
+        }
+    for (int k = 0; k < 8; k++) b |= (uint32_t)bad[k];
     for (; i < n; i++) {
         uint32_t u;
         memcpy(&u, d + i, sizeof u);

@@ -34,31 +34,37 @@
 
 /* ---- the rows of a level as the writer's planes ----------------------------------- */
 
-/* A row call of the transform kept for the replay: its planes' offsets in the buffer */
+/* The pyramid kept for the replay, level by level: row r of level m at level[m] + r * row[m]
+ * (its low plane, then its high plane when z is transformed), where the transform makes it
+ * (wvol_dwt3_source_placed), so that a run of a level's rows is planes a fixed stride apart.
+ * `order` lists the rows as the transform emitted them. */
 typedef struct kept_row {
     int level;
-    size_t r, low, high; /* high: SIZE_MAX when the call had none (z not transformed) */
+    size_t r;
 } kept_row;
 
 typedef struct kept_rows {
     float *data;
-    size_t cap, used; /* floats */
-    kept_row *row;
+    size_t level[32], row[32], rows[32]; /* offset, floats per row, rows, per level */
+    kept_row *order;
     size_t n, nmax;
 } kept_rows;
 
 typedef struct pass_ctx {
     int levels;
     size_t p[3];
+    size_t tile_z;           /* the writer's chunk depth: the replay's batches of level-1 rows */
     wvc_stream_stats *stats; /* pass 1 */
-    kept_rows *keep;         /* pass 1, when the rows fit the budget: their copy */
+    kept_rows *keep;         /* pass 1, when the rows fit the budget: the pyramid */
     wvc2_writer *writer;     /* pass 2 */
 } pass_ctx;
 
 /* the extent of level m's input along an axis of padded size p (1: not transformed) */
 static size_t level_extent(size_t p, int m) { return p == 1 ? 1 : p >> (m - 1); }
 
-static void planes_of(wvc2_planes *pl, const pass_ctx *c, int m, const float *low, const float *high)
+/* The planes of a level's row call; consecutive rows' planes `zstride` floats apart. */
+static void planes_of(wvc2_planes *pl, const pass_ctx *c, int m, const float *low, const float *high,
+                      size_t zstride)
 {
     size_t cx = level_extent(c->p[0], m), cy = level_extent(c->p[1], m);
     size_t hx = cx > 1 ? cx / 2 : 0, hy = cy > 1 ? cy / 2 : 0;
@@ -69,42 +75,45 @@ static void planes_of(wvc2_planes *pl, const pass_ctx *c, int m, const float *lo
         /* a band with a high-pass along an untransformed axis is empty: its pointer is ignored */
         pl->band[b] = src + (b & 1 ? hx : 0) + (b & 2 ? hy * cx : 0);
         pl->sy[b] = cx;
-        pl->sz[b] = cx * cy;
+        pl->sz[b] = zstride;
     }
 }
 
-static wvol_status keep_row(kept_rows *k, const pass_ctx *c, int level, size_t r, const float *low,
-                            const float *high, wvol_error *err)
+/* wvol_dwt3_place_fn: row r of level m's place in the kept pyramid */
+static float *place_row(void *user, int level, size_t r)
 {
-    size_t plane = level_extent(c->p[0], level) * level_extent(c->p[1], level), need = high ? 2 * plane : plane;
-    kept_row *e;
-    WVOL_RETURN_IF(k->n == k->nmax || need > k->cap - k->used, err, WVOL_ERR_INTERNAL,
-                   "compress: the transform emitted more rows than a %zux%zux%zu pyramid holds", c->p[0], c->p[1],
-                   c->p[2]);
-    e = &k->row[k->n++];
-    e->level = level, e->r = r;
-    e->low = k->used;
-    memcpy(k->data + k->used, low, plane * sizeof(float));
-    k->used += plane;
-    e->high = SIZE_MAX;
-    if (high) {
-        e->high = k->used;
-        memcpy(k->data + k->used, high, plane * sizeof(float));
-        k->used += plane;
-    }
-    return WVOL_OK;
+    const kept_rows *k = ((const pass_ctx *)user)->keep;
+    return r < k->rows[level] ? k->data + k->level[level] + r * k->row[level] : NULL;
 }
 
 static wvol_status on_rows(void *user, int level, size_t r, const float *low, const float *high, wvol_error *err)
 {
     pass_ctx *c = user;
     wvc2_planes pl;
-    planes_of(&pl, c, level, low, high);
+    planes_of(&pl, c, level, low, high, 0);
     if (c->stats) {
+        kept_rows *k = c->keep;
         wvol__wvc_stream_stats_add(c->stats, level, 1, &pl);
-        return c->keep ? keep_row(c->keep, c, level, r, low, high, err) : WVOL_OK;
+        if (!k) return WVOL_OK;
+        WVOL_RETURN_IF(k->n == k->nmax, err, WVOL_ERR_INTERNAL,
+                       "compress: the transform emitted more rows than a %zux%zux%zu pyramid holds", c->p[0],
+                       c->p[1], c->p[2]);
+        k->order[k->n].level = level, k->order[k->n].r = r;
+        k->n++;
+        return WVOL_OK;
     }
     return wvol__wvc2_writer_put(c->writer, level, r, 1, &pl, err);
+}
+
+/* Rows r .. r + nz - 1 of a level of the kept pyramid into the writer. */
+static wvol_status put_kept(pass_ctx *c, int level, size_t r, size_t nz, wvol_error *err)
+{
+    const kept_rows *k = c->keep;
+    const float *low = k->data + k->level[level] + r * k->row[level];
+    size_t plane = level_extent(c->p[0], level) * level_extent(c->p[1], level);
+    wvc2_planes pl;
+    planes_of(&pl, c, level, low, k->row[level] > plane ? low + plane : NULL, k->row[level]);
+    return wvol__wvc2_writer_put(c->writer, level, r, nz, &pl, err);
 }
 
 /* pass 2's producer: the streamed transform into the writer (wvol__wvc2_writer_run) */
@@ -117,54 +126,76 @@ typedef struct write_pass {
 static wvol_status write_rows(void *user, wvol_error *err)
 {
     write_pass *wp = user;
-    const kept_rows *k = wp->pc->keep;
-    if (k) {
-        for (size_t i = 0; i < k->n; i++) {
-            const kept_row *e = &k->row[i];
-            WVOL_FORWARD(on_rows(wp->pc, e->level, e->r, k->data + e->low,
-                                 e->high == SIZE_MAX ? NULL : k->data + e->high, err));
+    pass_ctx *c = wp->pc;
+    const kept_rows *k = c->keep;
+    size_t run = 0, run_r = 0;
+    if (!k) return wvol_dwt3_source(wp->src, wp->f, c->levels, on_rows, c, NULL, err);
+    /* The replay: the rows in the order the transform made them, except that level 1's
+     * (seven eighths of the coefficients) go in whole chunk rows, so that the writer's
+     * quantiser has a chunk row's tasks to share among its threads. The coarser rows that
+     * came between go in before them; a level's own rows keep their order, and a chunk's
+     * sums are taken in the same order whatever the rows per call: the same bytes. */
+    for (size_t i = 0; i < k->n; i++) {
+        const kept_row *e = &k->order[i];
+        if (e->level != 1 || c->levels == 1) {
+            WVOL_FORWARD(put_kept(c, e->level, e->r, 1, err));
+            continue;
         }
-        return WVOL_OK;
+        if (!run) run_r = e->r;
+        run++;
+        if ((e->r + 1) % c->tile_z == 0 || e->r + 1 == k->rows[1]) {
+            WVOL_FORWARD(put_kept(c, 1, run_r, run, err));
+            run = 0;
+        }
     }
-    return wvol_dwt3_source(wp->src, wp->f, wp->pc->levels, on_rows, wp->pc, NULL, err);
+    WVOL_RETURN_IF(run, err, WVOL_ERR_INTERNAL, "compress: the replay ended inside a chunk row of level 1");
+    return WVOL_OK;
 }
 
 /* ---- the pipeline ------------------------------------------------------------------ */
 
-/* The buffer for every row call of a levels-deep transform of a p[0] x p[1] x p[2] grid,
- * when it fits `budget` bytes; *out stays NULL when it does not (or memory is short: the
- * source is then read twice, as without a budget). */
+/* The kept pyramid of a levels-deep transform of a p[0] x p[1] x p[2] grid, when it fits
+ * `budget` bytes; *out stays NULL when it does not (or memory is short: the source is then
+ * read twice, as without a budget). */
 static void keep_create(kept_rows **out, const size_t p[3], int levels, size_t budget)
 {
     size_t floats = 0, calls = 0;
     kept_rows *k;
     *out = NULL;
+    if (!(k = calloc(1, sizeof *k))) return;
     for (int m = 1; m <= levels; m++) {
         size_t cz = level_extent(p[2], m), rows = cz > 1 ? cz / 2 : 1;
-        double plane = (double)level_extent(p[0], m) * (double)level_extent(p[1], m);
-        double add = (double)rows * plane * (cz > 1 ? 2.0 : 1.0);
-        if ((double)floats + add > (double)budget / sizeof(float)) return;
-        floats += (size_t)add;
+        size_t row = level_extent(p[0], m) * level_extent(p[1], m) * (cz > 1 ? 2 : 1);
+        if ((double)floats + (double)rows * (double)row > (double)budget / sizeof(float)) {
+            free(k);
+            return;
+        }
+        k->level[m] = floats, k->row[m] = row, k->rows[m] = rows;
+        floats += rows * row;
         calls += rows;
     }
-    if (!(k = calloc(1, sizeof *k))) return;
     k->data = wvol__malloc_large(floats * sizeof(float));
-    k->row = malloc(calls * sizeof *k->row);
-    if (!k->data || !k->row) {
+    k->order = malloc(calls * sizeof *k->order);
+    if (!k->data || !k->order) {
         free(k->data);
-        free(k->row);
+        free(k->order);
         free(k);
         return;
     }
-    k->cap = floats, k->nmax = calls;
+    k->nmax = calls;
     *out = k;
+}
+
+static size_t keep_bytes(const kept_rows *k, int levels)
+{
+    return k ? (k->level[levels] + k->rows[levels] * k->row[levels]) * sizeof(float) : 0;
 }
 
 static void keep_destroy(kept_rows *k)
 {
     if (!k) return;
     free(k->data);
-    free(k->row);
+    free(k->order);
     free(k);
 }
 
@@ -220,8 +251,8 @@ wvol_status wvol_compress_stream(const char *path, wvol_source *src, const wvol_
     wvol__source_seen_reset(src);
     s = wvol__wvc_stream_stats_create(&pc.stats, pc.p[0], pc.p[1], pc.p[2], p.levels, err);
     if (!s) keep_create(&pc.keep, pc.p, p.levels, p.memory ? p.memory : WVOL_WVC_DEFAULT_BUDGET);
-    if (pc.keep) out.kept_bytes = pc.keep->cap * sizeof(float);
-    if (!s) s = wvol_dwt3_source(src, f, p.levels, on_rows, &pc, &bytes, err);
+    out.kept_bytes = keep_bytes(pc.keep, p.levels);
+    if (!s) s = wvol_dwt3_source_placed(src, f, p.levels, on_rows, pc.keep ? place_row : NULL, &pc, &bytes, err);
     out.window_bytes = bytes;
     /* the range of what the pass read (the checked reads take it); + 0.0: a zero extreme as
      * +0, whichever zero the scan kept (as wvol_compress) */
@@ -247,6 +278,7 @@ wvol_status wvol_compress_stream(const char *path, wvol_source *src, const wvol_
     h.tile_z = wp.tile_z;
     h.coder = wp.coder;
     h.zstd_level = wp.zstd_level;
+    pc.tile_z = (size_t)(h.tile_z ? h.tile_z : WVC2_TILE_Z_DEFAULT);
     h.lag_rows = (size_t)f->length + 8;
     out.writer_bytes = wvol__wvc2_writer_memory(&h);
     wvol__wvc_stream_stats_free(pc.stats);

@@ -49,6 +49,7 @@ struct wvol_dwt3_stream {
     int finished, failed;
     size_t bytes;
     wvol_dwt3_rows_fn fn;
+    wvol_dwt3_place_fn place; /* NULL: the rows are made in lv[m].lo / hi */
     void *user;
 };
 
@@ -71,6 +72,14 @@ void wvol_dwt3_stream_destroy(wvol_dwt3_stream *s)
 }
 
 size_t wvol_dwt3_stream_bytes(const wvol_dwt3_stream *s) { return s ? s->bytes : 0; }
+
+wvol_status wvol_dwt3_stream_set_place(wvol_dwt3_stream *s, wvol_dwt3_place_fn place, wvol_error *err)
+{
+    WVOL_RETURN_IF(!s, err, WVOL_ERR_ARG, "streamed transform: NULL argument");
+    WVOL_RETURN_IF(s->pushed, err, WVOL_ERR_ARG, "streamed transform: rows placed after the first slice");
+    s->place = place;
+    return WVOL_OK;
+}
 
 wvol_status wvol_dwt3_stream_create(wvol_dwt3_stream **out, const wvol_filter *f, int levels, size_t nx, size_t ny,
                                     size_t nz, wvol_dwt3_rows_fn fn, void *user, wvol_error *err)
@@ -150,11 +159,11 @@ nomem:
     }
 }
 
-/* Every value finite: the low-pass gains 2^1.5 per level, inputs near FLT_MAX overflow. */
-static wvol_status check_plane(const float *p, size_t n, int level, wvol_error *err)
+/* Every value finite (`finite`: the row's test): the low-pass gains 2^1.5 per level, inputs
+ * near FLT_MAX overflow. */
+static wvol_status check_plane(int finite, int level, wvol_error *err)
 {
-    int bad = !wvol__all_finite(p, n);
-    WVOL_RETURN_IF(bad, err, WVOL_ERR_NONFINITE,
+    WVOL_RETURN_IF(!finite, err, WVOL_ERR_NONFINITE,
                    "streamed transform: coefficients of level %d overflow float32 (the low-pass grows by 2^1.5 per "
                    "level; input magnitudes must stay below about FLT_MAX / 2^(1.5 * levels))", level);
     return WVOL_OK;
@@ -172,32 +181,52 @@ static int team_tasks(const wvol_dwt3_stream *s)
     return omp_in_parallel() && omp_get_num_threads() > 1 && omp_get_num_threads() <= s->threads;
 }
 
+/* The z pass of rows y0 .. y1 - 1 of output row k (input rows `rows`) into lo and hi,
+ * then their finiteness; returns 0 when a value is NaN or Inf. */
+static int zrows_checked(const wvol_dwt3_stream *s, const level_state *l, float *lo, float *hi,
+                         const float *const *rows, size_t y0, size_t y1)
+{
+    size_t n = (y1 - y0) * l->cx;
+    wvol__dwt_zrows_f32(lo, hi, rows, l->cx, y0, y1, l->cz, s->h, s->g, s->L);
+    return wvol__all_finite(lo + y0 * l->cx, n) && wvol__all_finite(hi + y0 * l->cx, n);
+}
+
 /* Output row k of level m: the callback, then the next level's input row k. */
 static wvol_status emit(wvol_dwt3_stream *s, int m, size_t k, wvol_error *err)
 {
     level_state *l = &s->lv[m];
     const float *low, *high = NULL;
+    float *room = NULL;
+    if (s->place) {
+        room = s->place(s->user, m, k);
+        WVOL_RETURN_IF(!room, err, WVOL_ERR_ARG, "streamed transform: no room given for row %zu of level %d", k, m);
+    }
     if (l->cz > 1) {
         const float *rows[WVOL__MAX_TAPS];
+        float *lo = room ? room : l->lo, *hi = room ? room + l->plane : l->hi;
         long long ny = (long long)l->cy, chunk = 8;
+        int finite = 1;
         for (int t = 0; t < s->L; t++) rows[t] = slot(l, (2 * k + (size_t)t) % l->cz);
+        /* each task checks the rows it made: the check is shared as the pass is */
         if (team_tasks(s)) {
-#pragma omp taskloop grainsize(1) if (l->plane > 32768)
+#pragma omp taskloop grainsize(1) shared(finite) if (l->plane > 32768)
             for (long long y = 0; y < ny; y += chunk)
-                wvol__dwt_zrows_f32(l->lo, l->hi, rows, l->cx, (size_t)y, (size_t)(y + chunk < ny ? y + chunk : ny),
-                                    l->cz, s->h, s->g, s->L);
+                if (!zrows_checked(s, l, lo, hi, rows, (size_t)y, (size_t)(y + chunk < ny ? y + chunk : ny))) {
+#pragma omp atomic write
+                    finite = 0;
+                }
         } else {
-#pragma omp parallel for schedule(dynamic, 1) num_threads(s->threads) if (l->plane > 32768)
+#pragma omp parallel for schedule(dynamic, 1) num_threads(s->threads) if (l->plane > 32768) reduction(& : finite)
             for (long long y = 0; y < ny; y += chunk)
-                wvol__dwt_zrows_f32(l->lo, l->hi, rows, l->cx, (size_t)y, (size_t)(y + chunk < ny ? y + chunk : ny),
-                                    l->cz, s->h, s->g, s->L);
+                finite &= zrows_checked(s, l, lo, hi, rows, (size_t)y, (size_t)(y + chunk < ny ? y + chunk : ny));
         }
-        low = l->lo, high = l->hi;
-        WVOL_FORWARD(check_plane(l->hi, l->plane, m, err));
+        WVOL_FORWARD(check_plane(finite, m, err));
+        low = lo, high = hi;
     } else {
         low = slot(l, 0); /* an untransformed z axis: the xy-transformed slice itself */
+        WVOL_FORWARD(check_plane(wvol__all_finite(low, l->plane), m, err));
+        if (room) low = memcpy(room, low, l->plane * sizeof(float));
     }
-    WVOL_FORWARD(check_plane(low, l->plane, m, err));
     WVOL_FORWARD(s->fn(s->user, m, k, low, high, err));
     if (m < s->levels) {
         level_state *n = &s->lv[m + 1];
@@ -303,8 +332,8 @@ wvol_status wvol_dwt3_stream_finish(wvol_dwt3_stream *s, wvol_error *err)
     return WVOL_OK;
 }
 
-wvol_status wvol_dwt3_source(wvol_source *src, const wvol_filter *f, int levels, wvol_dwt3_rows_fn fn, void *user,
-                             size_t *bytes, wvol_error *err)
+wvol_status wvol_dwt3_source_placed(wvol_source *src, const wvol_filter *f, int levels, wvol_dwt3_rows_fn fn,
+                                    wvol_dwt3_place_fn place, void *user, size_t *bytes, wvol_error *err)
 {
     wvol_dwt3_stream *s;
     size_t dims[3], S, slice;
@@ -313,6 +342,7 @@ wvol_status wvol_dwt3_source(wvol_source *src, const wvol_filter *f, int levels,
     WVOL_RETURN_IF(!src, err, WVOL_ERR_ARG, "streamed transform: no source");
     wvol_source_geometry(src, dims, NULL, NULL);
     WVOL_FORWARD(wvol_dwt3_stream_create(&s, f, levels, dims[0], dims[1], dims[2], fn, user, err));
+    s->place = place;
     slice = dims[0] * dims[1];
     /* slabs of about 4 MiB (at least a batch of slices when a slice is smaller): the slab
      * is fresh memory for each pass, and a larger one made the reads no faster */
@@ -334,6 +364,12 @@ wvol_status wvol_dwt3_source(wvol_source *src, const wvol_filter *f, int levels,
     free(buf);
     wvol_dwt3_stream_destroy(s);
     return st;
+}
+
+wvol_status wvol_dwt3_source(wvol_source *src, const wvol_filter *f, int levels, wvol_dwt3_rows_fn fn, void *user,
+                             size_t *bytes, wvol_error *err)
+{
+    return wvol_dwt3_source_placed(src, f, levels, fn, NULL, user, bytes, err);
 }
 
 void wvol_coeffs_put_rows(wvol_coeffs *c, int level, size_t r, const float *low, const float *high)
