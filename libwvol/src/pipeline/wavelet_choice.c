@@ -26,6 +26,7 @@
 
 #include "core/alloc.h"
 #include "core/clock.h"
+#include "core/clones.h"
 #include "core/status_internal.h"
 
 #include <math.h>
@@ -38,7 +39,8 @@
 #define CUBES_MIN 1
 #define CUBES_MAX 8
 #define CUBE_SHARE 64    /* one cube per 64 cubes' worth of volume, within CUBES_MIN..MAX */
-#define SUB 32           /* log-magnitude bins per octave for the error model */
+#define SUB_BITS 5
+#define SUB (1 << SUB_BITS) /* log-magnitude bins per octave for the error model */
 #define EXP_LO (-150)    /* frexp exponents of float32 magnitudes: subnormals to the largest */
 #define EXP_HI 130
 #define NBINS ((EXP_HI - EXP_LO) * SUB)
@@ -50,11 +52,9 @@ static const char *const candidates[WVOL_WAVELET_CHOICE_CANDIDATES] = {"db2", "d
 
 int wvol_compress_wavelet_is_auto(const char *name) { return name && !strcmp(name, WVOL_COMPRESS_WAVELET_AUTO); }
 
-/* One sampled block: its coefficients under the current candidate and, per level, how many
- * positions along each axis are counted. */
+/* One sampled block */
 typedef struct sample_block {
     float *data;        /* the samples, e[0] x e[1] x e[2] */
-    wvol_coeffs *c;     /* the current candidate's transform */
 } sample_block;
 
 typedef struct sample {
@@ -154,13 +154,14 @@ static wvol_status read_sample(sample *s, wvol_source *src, wvol_error *err)
     return WVOL_OK;
 }
 
-/* Calls fn(ctx, level, band, value) for every counted coefficient of every block. */
-typedef void (*coef_fn)(void *ctx, int level, int band, float c);
+/* Calls fn(ctx, level, band, row, n) for every row of counted coefficients of every block,
+ * in the blocks' order, then level, band, z and y. */
+typedef void (*row_fn)(void *ctx, int level, int band, const float *row, size_t n);
 
-static void for_each_counted(const sample *s, coef_fn fn, void *ctx)
+static void for_each_counted(const sample *s, wvol_coeffs *const *blocks, row_fn fn, void *ctx)
 {
     for (int i = 0; i < s->nb; i++) {
-        const wvol_coeffs *c = s->b[i].c;
+        const wvol_coeffs *c = blocks[i];
         for (int m = 1; m <= s->levels; m++) {
             for (int band = (s->whole && m == s->levels) ? 0 : 1; band < 8; band++) {
                 size_t base = wvol_coeffs_index(c, m, band, 0, 0, 0), n[3], st[3] = {1, c->px, c->px * c->py};
@@ -168,8 +169,7 @@ static void for_each_counted(const sample *s, coef_fn fn, void *ctx)
                 for (int a = 0; a < 3; a++) n[a] = s->valid[a][m];
                 for (size_t r = 0; r < n[2]; r++)
                     for (size_t q = 0; q < n[1]; q++) {
-                        const float *row = c->data + base + r * st[2] + q * st[1];
-                        for (size_t p = 0; p < n[0]; p++) fn(ctx, m, band, row[p]);
+                        fn(ctx, m, band, c->data + base + r * st[2] + q * st[1], n[0]);
                     }
             }
         }
@@ -181,27 +181,40 @@ static void for_each_counted(const sample *s, coef_fn fn, void *ctx)
 typedef struct err_bins {
     double count[NBINS], sumsq[NBINS];
     double n, energy;
+    const double *lower; /* bin_lower(k), k = 0 .. NBINS */
 } err_bins;
 
+/* Bin (e - EXP_LO) SUB + floor((m - 1/2) 2 SUB) of a = m 2^e, m in [1/2, 1). A normal float's
+ * fields give it directly: e = E - 126 for the biased exponent E, and (m - 1/2) 2 SUB is the
+ * mantissa's top log2(SUB) bits (exact: m = (1 + f 2^-23) / 2); a subnormal goes to frexp. */
 static int mag_bin(float a)
 {
-    int e;
-    double m = frexp((double)a, &e); /* a = m 2^e, m in [0.5, 1) */
-    int k = (e - EXP_LO) * SUB + (int)((m - 0.5) * 2.0 * SUB);
+    uint32_t u;
+    int k;
+    memcpy(&u, &a, sizeof u);
+    if ((u >> 23) != 0) {
+        k = ((int)(u >> 23) - 126 - EXP_LO) * SUB + (int)((u & 0x7FFFFFu) >> (23 - SUB_BITS));
+    } else {
+        int e;
+        double m = frexp((double)a, &e); /* a = m 2^e, m in [0.5, 1) */
+        k = (e - EXP_LO) * SUB + (int)((m - 0.5) * 2.0 * SUB);
+    }
     return k < 0 ? 0 : k >= NBINS ? NBINS - 1 : k;
 }
 
 static double bin_lower(int k) { return ldexp(0.5 + (double)(k % SUB) / (2.0 * SUB), k / SUB + EXP_LO); }
 
-static void add_err(void *ctx, int level, int band, float c)
+static void add_err(void *ctx, int level, int band, const float *row, size_t n)
 {
     err_bins *b = ctx;
-    double a = fabs((double)c);
     (void)level, (void)band;
-    b->n += 1, b->energy += a * a;
-    if (a == 0) return;
-    int k = mag_bin((float)a);
-    b->count[k] += 1, b->sumsq[k] += a * a;
+    for (size_t p = 0; p < n; p++) {
+        double a = fabs((double)row[p]);
+        b->n += 1, b->energy += a * a;
+        if (a == 0) continue;
+        int k = mag_bin((float)a);
+        b->count[k] += 1, b->sumsq[k] += a * a;
+    }
 }
 
 /* Squared error of the dead-zone quantiser with this step: below the dead zone's edge
@@ -212,7 +225,7 @@ static double model_sse(const err_bins *b, double step, double rounding)
     double t = (1.0 - rounding) * step, sse = 0, q = step * step / 12.0;
     for (int k = 0; k < NBINS; k++) {
         if (b->count[k] == 0) continue;
-        double lo = bin_lower(k), hi = bin_lower(k + 1);
+        double lo = b->lower[k], hi = b->lower[k + 1];
         if (hi <= t) sse += b->sumsq[k];
         else if (lo >= t) sse += b->count[k] * q;
         else {
@@ -248,22 +261,36 @@ typedef struct rate_bins {
     double extra;              /* mantissa bits of the octave bins, and one sign bit per non-zero */
 } rate_bins;
 
-static void add_rate(void *ctx, int level, int band, float c)
+/* Every count is a whole number (exact in a double whatever the order of the sums), so
+ * the zeros, most of a row, are counted in a register and added once; q = 0 exactly when
+ * the sum before the floor is below 1. (No multiply-add here for the x86-64-v3 clone to
+ * contract: both clones give the same values.) */
+WVOL__CLONES static void add_rate(void *ctx, int level, int band, const float *row, size_t n)
 {
     rate_bins *r = ctx;
-    double q = floor(fabs((double)c) / r->step + r->rounding);
-    int k;
-    if (q < QEXACT) {
-        k = (int)q;
-    } else {
-        int e;
-        frexp(q, &e); /* 2^(e-1) <= q < 2^e */
-        k = QEXACT + (e - 1) - 6;
-        if (k >= QBINS) k = QBINS - 1;
-        r->extra += e - 1; /* the bits below the leading one */
+    double *h = r->hist[level][band];
+    size_t zeros = 0;
+    for (size_t p = 0; p < n; p++) {
+        double t = fabs((double)row[p]) / r->step + r->rounding, q;
+        int k;
+        if (t < 1.0) {
+            zeros++;
+            continue;
+        }
+        q = floor(t);
+        if (q < QEXACT) {
+            k = (int)q;
+        } else {
+            int e;
+            frexp(q, &e); /* 2^(e-1) <= q < 2^e */
+            k = QEXACT + (e - 1) - 6;
+            if (k >= QBINS) k = QBINS - 1;
+            r->extra += e - 1; /* the bits below the leading one */
+        }
+        r->extra += 1;
+        h[k] += 1;
     }
-    if (q > 0) r->extra += 1;
-    r->hist[level][band][k] += 1;
+    h[0] += (double)zeros;
 }
 
 static double rate_bits(const rate_bins *r)
@@ -288,8 +315,48 @@ static void sample_free(sample *s)
 {
     for (int i = 0; i < s->nb; i++) {
         free(s->b[i].data);
-        wvol_coeffs_destroy(s->b[i].c);
     }
+}
+
+/* One candidate's estimate: its transform of every block, the step that meets the target
+ * on them, and the bits that step gives. */
+typedef struct trial {
+    const wvol_filter *f;
+    double target, step_given, rounding;
+    const double *lower;                 /* the error bins' bounds */
+    double step, bits, coefficients;     /* out */
+    wvol_status st;
+    wvol_error err;
+} trial;
+
+static wvol_status trial_candidate(trial *t, const sample *s)
+{
+    wvol_coeffs *c[CUBES_MAX] = {NULL};
+    err_bins *eb = malloc(sizeof *eb);
+    rate_bins *rb = malloc(sizeof *rb);
+    wvol_status st = WVOL_OK;
+    if (!eb || !rb) st = wvol_error_set(&t->err, WVOL_ERR_NOMEM, "compress: wavelet trial: out of memory");
+    for (int j = 0; j < s->nb && st == WVOL_OK; j++) {
+        wvol_volume *v = NULL;
+        st = wvol_volume_wrap(&v, s->b[j].data, s->e[0], s->e[1], s->e[2], &t->err);
+        if (st == WVOL_OK) st = wvol_dwt3(&c[j], v, t->f, s->levels, &t->err);
+        wvol_volume_destroy(v);
+    }
+    if (st == WVOL_OK) {
+        memset(eb, 0, sizeof *eb);
+        eb->lower = t->lower;
+        for_each_counted(s, c, add_err, eb);
+        t->coefficients = eb->n;
+        t->step = t->step_given > 0 ? t->step_given : step_for(eb, t->target, t->rounding);
+        memset(rb, 0, sizeof *rb);
+        rb->step = t->step, rb->rounding = t->rounding;
+        if (isfinite(t->step)) for_each_counted(s, c, add_rate, rb);
+        t->bits = isfinite(t->step) ? rate_bits(rb) / eb->n : 0;
+    }
+    for (int j = 0; j < s->nb; j++) wvol_coeffs_destroy(c[j]);
+    free(eb);
+    free(rb);
+    return st;
 }
 
 /* The sample's geometry: blocks, their levels and counted positions. */
@@ -339,8 +406,7 @@ wvol_status wvol_compress_choose_wavelet(wvol_wavelet_choice *out, wvol_source *
     double t0 = wvol__now(), rounding, target = 0, step_given;
     wvol_wvc_params wp;
     wvol_status st = WVOL_OK;
-    err_bins *eb = NULL;
-    rate_bins *rb = NULL;
+    double *lower = NULL;
 
     WVOL_RETURN_IF(!out || !src, err, WVOL_ERR_ARG, "compress: wavelet trial: no output or no source");
     memset(out, 0, sizeof *out);
@@ -388,48 +454,41 @@ wvol_status wvol_compress_choose_wavelet(wvol_wavelet_choice *out, wvol_source *
         if (!(peak > 0)) goto done; /* a constant sample: nothing to compare; db2 */
         target = peak * peak * pow(10.0, -out->psnr / 10.0);
     }
-    eb = malloc(sizeof *eb);
-    rb = malloc(sizeof *rb);
-    if (!eb || !rb) {
+    lower = malloc((NBINS + 1) * sizeof *lower);
+    if (!lower) {
         st = wvol_error_set(err, WVOL_ERR_NOMEM, "compress: wavelet trial: out of memory");
         goto done;
     }
-    for (int i = 0; i < WVOL_WAVELET_CHOICE_CANDIDATES; i++) {
-        for (int j = 0; j < s.nb && st == WVOL_OK; j++) {
-            wvol_coeffs *c = s.b[j].c;
-            wvol_volume *v = NULL;
-            if (c && c->px == s.e[0] && c->py == s.e[1] && c->pz == s.e[2]) {
-                /* no padding: the block into the previous candidate's array, transformed there
-                 * (what wvol_dwt3 computes, without a fresh array per candidate) */
-                memcpy(c->data, s.b[j].data, s.e[0] * s.e[1] * s.e[2] * sizeof(float));
-                c->filter = f[i];
-                st = wvol_dwt3_inplace_f32(c->data, c->px, c->py, c->pz, f[i], s.levels, err);
-                if (st == WVOL_OK)
-                    st = wvol_check_finite(c->data, c->px, c->py, c->pz, "wavelet trial coefficients", err);
-                continue;
+    for (int k = 0; k <= NBINS; k++) lower[k] = bin_lower(k);
+    {
+        /* the candidates side by side, each in its own arrays: the same estimates whatever
+         * the threads; the first candidate's failure (in their order) is the one reported */
+        trial t[WVOL_WAVELET_CHOICE_CANDIDATES];
+        int i;
+        memset(t, 0, sizeof t);
+#pragma omp parallel for schedule(dynamic, 1)
+        for (i = 0; i < WVOL_WAVELET_CHOICE_CANDIDATES; i++) {
+            t[i].f = f[i], t[i].target = target, t[i].step_given = step_given, t[i].rounding = rounding;
+            t[i].lower = lower;
+            t[i].st = trial_candidate(&t[i], &s);
+        }
+        for (i = 0; i < WVOL_WAVELET_CHOICE_CANDIDATES && st == WVOL_OK; i++)
+            if (t[i].st != WVOL_OK) {
+                st = t[i].st;
+                if (err) *err = t[i].err;
             }
-            wvol_coeffs_destroy(c);
-            s.b[j].c = NULL;
-            st = wvol_volume_wrap(&v, s.b[j].data, s.e[0], s.e[1], s.e[2], err);
-            if (st == WVOL_OK) st = wvol_dwt3(&s.b[j].c, v, f[i], s.levels, err);
-            wvol_volume_destroy(v);
+        for (i = 0; i < WVOL_WAVELET_CHOICE_CANDIDATES && st == WVOL_OK; i++) {
+            out->sample_coefficients = (size_t)t[i].coefficients;
+            out->step[i] = t[i].step;
+            out->bits[i] = t[i].bits;
+            if (i > 0 && out->bits[i] < out->bits[best]) best = i;
         }
         if (st != WVOL_OK) goto done;
-        memset(eb, 0, sizeof *eb);
-        for_each_counted(&s, add_err, eb);
-        out->sample_coefficients = (size_t)eb->n;
-        out->step[i] = step_given > 0 ? step_given : step_for(eb, target, rounding);
-        memset(rb, 0, sizeof *rb);
-        rb->step = out->step[i], rb->rounding = rounding;
-        if (isfinite(out->step[i])) for_each_counted(&s, add_rate, rb);
-        out->bits[i] = isfinite(out->step[i]) ? rate_bits(rb) / eb->n : 0;
-        if (i > 0 && out->bits[i] < out->bits[best]) best = i;
     }
     /* db2 unless another filter's estimate is smaller by more than the margin */
     if (best > 0 && out->bits[best] < (1.0 - WVOL_WAVELET_CHOICE_MARGIN) * out->bits[0]) out->wavelet = f[best]->name;
 done:
-    free(eb);
-    free(rb);
+    free(lower);
     sample_free(&s);
     out->seconds = wvol__now() - t0;
     return st;
