@@ -329,33 +329,59 @@ typedef struct trial {
     wvol_error err;
 } trial;
 
-static wvol_status trial_candidate(trial *t, const sample *s)
+/* A thread's arrays, kept from one candidate to the next: fresh memory per candidate was a
+ * large share of a trial's time (its first touches). */
+typedef struct workspace {
+    wvol_coeffs *c[CUBES_MAX];
+    err_bins *eb;
+    rate_bins *rb;
+} workspace;
+
+static void workspace_free(workspace *w)
 {
-    wvol_coeffs *c[CUBES_MAX] = {NULL};
-    err_bins *eb = malloc(sizeof *eb);
-    rate_bins *rb = malloc(sizeof *rb);
+    for (int j = 0; j < CUBES_MAX; j++) wvol_coeffs_destroy(w->c[j]);
+    free(w->eb);
+    free(w->rb);
+}
+
+static wvol_status trial_candidate(trial *t, const sample *s, workspace *w)
+{
     wvol_status st = WVOL_OK;
-    if (!eb || !rb) st = wvol_error_set(&t->err, WVOL_ERR_NOMEM, "compress: wavelet trial: out of memory");
+    if (!w->eb) w->eb = malloc(sizeof *w->eb);
+    if (!w->rb) w->rb = malloc(sizeof *w->rb);
+    if (!w->eb || !w->rb) return wvol_error_set(&t->err, WVOL_ERR_NOMEM, "compress: wavelet trial: out of memory");
     for (int j = 0; j < s->nb && st == WVOL_OK; j++) {
+        wvol_coeffs *c = w->c[j];
         wvol_volume *v = NULL;
+        if (c && c->px == s->e[0] && c->py == s->e[1] && c->pz == s->e[2]) {
+            /* no padding: the block into the previous candidate's array, transformed there
+             * (what wvol_dwt3 computes, without a fresh array per candidate) */
+            memcpy(c->data, s->b[j].data, s->e[0] * s->e[1] * s->e[2] * sizeof(float));
+            c->filter = t->f;
+            st = wvol_dwt3_inplace_f32(c->data, c->px, c->py, c->pz, t->f, s->levels, &t->err);
+            if (st == WVOL_OK)
+                st = wvol_check_finite(c->data, c->px, c->py, c->pz, "wavelet trial coefficients", &t->err);
+            continue;
+        }
+        wvol_coeffs_destroy(c);
+        w->c[j] = NULL;
         st = wvol_volume_wrap(&v, s->b[j].data, s->e[0], s->e[1], s->e[2], &t->err);
-        if (st == WVOL_OK) st = wvol_dwt3(&c[j], v, t->f, s->levels, &t->err);
+        if (st == WVOL_OK) st = wvol_dwt3(&w->c[j], v, t->f, s->levels, &t->err);
         wvol_volume_destroy(v);
     }
     if (st == WVOL_OK) {
+        err_bins *eb = w->eb;
+        rate_bins *rb = w->rb;
         memset(eb, 0, sizeof *eb);
         eb->lower = t->lower;
-        for_each_counted(s, c, add_err, eb);
+        for_each_counted(s, w->c, add_err, eb);
         t->coefficients = eb->n;
         t->step = t->step_given > 0 ? t->step_given : step_for(eb, t->target, t->rounding);
         memset(rb, 0, sizeof *rb);
         rb->step = t->step, rb->rounding = t->rounding;
-        if (isfinite(t->step)) for_each_counted(s, c, add_rate, rb);
+        if (isfinite(t->step)) for_each_counted(s, w->c, add_rate, rb);
         t->bits = isfinite(t->step) ? rate_bits(rb) / eb->n : 0;
     }
-    for (int j = 0; j < s->nb; j++) wvol_coeffs_destroy(c[j]);
-    free(eb);
-    free(rb);
     return st;
 }
 
@@ -461,16 +487,22 @@ wvol_status wvol_compress_choose_wavelet(wvol_wavelet_choice *out, wvol_source *
     }
     for (int k = 0; k <= NBINS; k++) lower[k] = bin_lower(k);
     {
-        /* the candidates side by side, each in its own arrays: the same estimates whatever
-         * the threads; the first candidate's failure (in their order) is the one reported */
+        /* the candidates side by side, each thread in its own arrays: the same estimates
+         * whatever the threads; the first candidate's failure (in their order) is reported */
         trial t[WVOL_WAVELET_CHOICE_CANDIDATES];
         int i;
         memset(t, 0, sizeof t);
-#pragma omp parallel for schedule(dynamic, 1)
-        for (i = 0; i < WVOL_WAVELET_CHOICE_CANDIDATES; i++) {
-            t[i].f = f[i], t[i].target = target, t[i].step_given = step_given, t[i].rounding = rounding;
-            t[i].lower = lower;
-            t[i].st = trial_candidate(&t[i], &s);
+#pragma omp parallel
+        {
+            workspace w;
+            memset(&w, 0, sizeof w);
+#pragma omp for schedule(dynamic, 1)
+            for (i = 0; i < WVOL_WAVELET_CHOICE_CANDIDATES; i++) {
+                t[i].f = f[i], t[i].target = target, t[i].step_given = step_given, t[i].rounding = rounding;
+                t[i].lower = lower;
+                t[i].st = trial_candidate(&t[i], &s, &w);
+            }
+            workspace_free(&w);
         }
         for (i = 0; i < WVOL_WAVELET_CHOICE_CANDIDATES && st == WVOL_OK; i++)
             if (t[i].st != WVOL_OK) {
