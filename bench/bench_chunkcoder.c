@@ -92,7 +92,7 @@ static int code_one(const coder *cd, const chunk *c, int32_t *Q, int32_t *D, con
     t0 = now();
     e = cd->kind == C_MODE2   ? wvol__wvc_cabac_encode_multi(&buf, &sz, c->n, Qs, Ps, Bs, 1)
         : cd->kind == C_MODE3 ? wvol__wvc_rans_encode(&buf, &sz, c->n, Qs, Ps, Bs, NULL)
-                              : wvol__wvc_rans4_encode(&buf, &sz, c->n, Qs, Ps, Bs, NULL);
+                              : wvol__wvc_rans4_encode(&buf, &sz, 0, c->n, Qs, Ps, Bs, NULL);
     *te += now() - t0;
     if (e) return -1;
     t0 = now();

@@ -86,7 +86,7 @@ static int coder_encode(uint8_t **buf, size_t *size, int n, int32_t *const Q[], 
     size_t ts = 0;
     wvc_rans4_opts o = {0};
     if (g_mode == 3) return wvol__wvc_rans_encode(buf, size, n, Q, P, B, NULL);
-    if (g_signs < 0) return wvol__wvc_rans4_encode(buf, size, n, Q, P, B, NULL);
+    if (g_signs < 0) return wvol__wvc_rans4_encode(buf, size, 0, n, Q, P, B, NULL);
     o.raw_signs = g_signs;
     if (wvol__wvc_rans4_encode_stream(&s, size, n, Q, P, B, &o)) return -1;
     o.scalar = 1;

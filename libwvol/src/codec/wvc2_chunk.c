@@ -248,28 +248,26 @@ static int job_code_rans4(wvc2_coded *out, wvc2_job *job, const wvc2_level *L, w
     int32_t *Qs[8];
     const size_t *Ps[8];
     const wvc_band *Bs[8];
-    uint8_t *pay = NULL, *p = NULL;
+    uint8_t *p = NULL;
     size_t len = 0;
-    int ns = 0;
+    int ns = 0, r;
     for (int i = 0; i < L->nb; i++)
         if (job->mask >> i & 1) Qs[ns] = job->lg[i].q, Ps[ns] = job->lg[i].p, Bs[ns] = &job->lg[i].b, ns++;
-    if (!wvol__wvc_rans4_encode(&pay, &len, ns, Qs, Ps, Bs, scratch)) p = malloc(len + 2);
+    /* the mode and band-mask bytes go in the two bytes the encoder leaves before its stream */
+    r = wvol__wvc_rans4_encode(&p, &len, 2, ns, Qs, Ps, Bs, scratch);
     wvol__wvc2_job_free(job, pool);
-    if (!p) {
-        free(pay);
+    if (r) {
         memset(out, 0, sizeof *out);
         return -1;
     }
     p[0] = MODE_RANS4;
     p[1] = job->mask;
-    memcpy(p + 2, pay, len);
-    free(pay);
     /* per-band shares of one stream are not separable: split by non-zero counts */
     for (int i = 0; i < L->nb; i++)
-        out->band_bytes[i] = (size_t)((double)(len + 2) * (double)job->nzb[i] / (double)out->nonzero);
+        out->band_bytes[i] = (size_t)((double)len * (double)job->nzb[i] / (double)out->nonzero);
     out->payload = p;
-    out->bytes = len + 2;
-    out->crc = (uint32_t)crc32(0L, p, (uInt)(len + 2));
+    out->bytes = len;
+    out->crc = (uint32_t)crc32(0L, p, (uInt)len);
     return 0;
 }
 

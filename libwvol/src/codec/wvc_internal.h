@@ -123,9 +123,10 @@ typedef struct wvc_rans4_opts {
     int raw_signs; /* 1: signs as raw bits; 0: binary rANS, band x sign(N) x sign(U) x sign(N(x-1)) */
     int scalar;    /* 1: the scalar encoder whatever the CPU (the same bytes, for the tests) */
 } wvc_rans4_opts;
-/* s: the thread's buffers, kept for the next call (NULL: allocated and freed in the call). */
-int wvol__wvc_rans4_encode(uint8_t **buf, size_t *size, int n, int32_t *const Q[], const size_t *const p[],
-                           const wvc_band *const b[], wvc_rans_scratch *s);
+/* lead: bytes left before the flags byte for the caller (its mode byte, say); s: the thread's
+ * buffers, kept for the next call (NULL: allocated and freed in the call). */
+int wvol__wvc_rans4_encode(uint8_t **buf, size_t *size, size_t lead, int n, int32_t *const Q[],
+                           const size_t *const p[], const wvc_band *const b[], wvc_rans_scratch *s);
 void wvol__wvc_rans4_scratch_free(void *p); /* wvc_rans_scratch.rans4 */
 int wvol__wvc_rans4_encode_stream(uint8_t **buf, size_t *size, int n, int32_t *const Q[], const size_t *const p[],
                                   const wvc_band *const b[], const wvc_rans4_opts *o);

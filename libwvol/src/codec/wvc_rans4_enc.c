@@ -789,13 +789,13 @@ static int c4e_encode(uint8_t **buf, size_t *size, size_t lead, int n, int32_t *
 /* The caller's scratch slot, or one for this call (freed by the caller's *own). */
 static void **c4e_slot(wvc_rans_scratch *s, void **own) { return s ? &s->rans4 : own; }
 
-int wvol__wvc_rans4_encode(uint8_t **buf, size_t *size, int n, int32_t *const Q[], const size_t *const p[],
-                           const wvc_band *const b[], wvc_rans_scratch *s)
+int wvol__wvc_rans4_encode(uint8_t **buf, size_t *size, size_t lead, int n, int32_t *const Q[],
+                           const size_t *const p[], const wvc_band *const b[], wvc_rans_scratch *s)
 {
     void *own = NULL;
-    int raw = 0, r = c4e_encode(buf, size, 1, n, Q, p, b, -1, 0, c4e_slot(s, &own), &raw);
+    int raw = 0, r = c4e_encode(buf, size, lead + 1, n, Q, p, b, -1, 0, c4e_slot(s, &own), &raw);
     wvol__wvc_rans4_scratch_free(own);
-    if (!r) (*buf)[0] = raw ? 0 : R4_SIGNS_MODELLED;
+    if (!r) (*buf)[lead] = raw ? 0 : R4_SIGNS_MODELLED;
     return r;
 }
 
