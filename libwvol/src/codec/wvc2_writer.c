@@ -624,15 +624,13 @@ static int put_segment(wvc2_writer *w, int level, size_t z0, size_t nz, const wv
         float mx = L->maxabs[id * (size_t)G->nb + (size_t)i];
         for (size_t y = y0; y < y1; y++) {
             const float *row = pl->band[band] + (y * pl->sy[band] + (z - z0) * pl->sz[band]) + x0;
-            {
-                /* a kept pyramid is read from memory one short segment per row, too short for
-                 * the hardware's prefetch to see: the rows a few ahead (the next plane's first at
-                 * the end of a plane) are asked for now */
-                size_t ahead = y + 4 < y1 ? 4 * pl->sy[band] : pl->sz[band];
-                for (size_t x = 0; x < x1 - x0; x += 16) __builtin_prefetch(row + ahead + x);
-            }
             int32_t *qrow = L->q[i] + (z - L->z_base) * L->plane + y * G->e[0] + x0;
+            /* a kept pyramid is read from memory one short segment per row, too short for the
+             * hardware's prefetch to see: the rows a few ahead (the next plane's first at the
+             * end of a plane) are asked for now */
+            size_t ahead = y + 4 < y1 ? 4 * pl->sy[band] : pl->sz[band];
             double t[8];
+            for (size_t x = 0; x < x1 - x0; x += 16) __builtin_prefetch(row + ahead + x);
             if (use_edge)
                 row_stats_edge(t, row, qrow, x1 - x0, w->h.step, f, edge);
             else

@@ -137,7 +137,7 @@ static wvol_status write_rows(void *user, wvol_error *err)
      * sums are taken in the same order whatever the rows per call: the same bytes. */
     for (size_t i = 0; i < k->n; i++) {
         const kept_row *e = &k->order[i];
-        if (e->level != 1 || c->levels == 1) {
+        if (e->level != 1) {
             WVOL_FORWARD(put_kept(c, e->level, e->r, 1, err));
             continue;
         }
