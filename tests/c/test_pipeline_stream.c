@@ -68,13 +68,16 @@ static void same_file_as_in_memory_with_a_step(void)
     static const struct {
         const char *kind, *wavelet;
         size_t dims[3];
-        int levels, tile;
+        int levels, tile, tile_z;
         double step;
     } cases[] = {
-        {"skull", "db2", {48, 40, 37}, 3, 0, 20.0},
-        {"turbulence", "coif1", {33, 32, 70}, 4, 8, 0.05},
-        {"skull", "haar", {40, 40, 40}, 5, 16, 4.0},
-        {"turbulence", "db4", {36, 30, 1}, 3, 0, 0.02},
+        {"skull", "db2", {48, 40, 37}, 3, 0, 0, 20.0},
+        {"turbulence", "coif1", {33, 32, 70}, 4, 8, 0, 0.05},
+        {"skull", "haar", {40, 40, 40}, 5, 16, 0, 4.0},
+        {"turbulence", "db4", {36, 30, 1}, 3, 0, 0, 0.02},
+        /* level 1's 44 rows replayed in chunk rows of 8: the last one short */
+        {"skull", "coif2", {40, 36, 86}, 2, 16, 8, 10.0},
+        {"turbulence", "db2", {32, 32, 50}, 1, 8, 16, 0.05}, /* one level: level 1 is the coarsest */
     };
     for (size_t c = 0; c < sizeof cases / sizeof cases[0]; c++) {
         wvol_synth_params sp;
@@ -94,6 +97,7 @@ static void same_file_as_in_memory_with_a_step(void)
         params(&cp, cases[c].wavelet, cases[c].levels);
         cp.quant.step = cases[c].step;
         cp.quant.tile = cases[c].tile;
+        cp.quant.tile_z = cases[c].tile_z;
         mem = v ? in_memory(v, &cp, &n_mem, NULL) : NULL;
         /* the coefficients kept between the passes (the default budget), then a budget below
          * them: the source read and transformed twice; the same bytes either way */
