@@ -13,11 +13,10 @@
  * down by the miss. A spill of the coefficients to a temporary file would cost the
  * volume's size on disk and its read-back; a second transform costs less than reading
  * 4 bytes per voxel back on the machines we measure (docs/store.md). When the pyramid
- * fits the caller's memory budget, pass 1 also keeps the rows the transform emits, in their
- * order, and the later passes replay them into the writer instead of reading and
- * transforming the source again: the same rows in the same order, so the same bytes. The
- * replay reads one sequential buffer, which the writer's strided reads of a pyramid laid
- * out in place would not be. */
+ * fits the caller's memory budget, pass 1 also keeps the rows the transform emits (made
+ * in place in a buffer laid out level by level, wvol_dwt3_source_placed), and the later
+ * passes replay them into the writer instead of reading and transforming the source again:
+ * each level's rows in the same order (level 1's a chunk row per call), so the same bytes. */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>

@@ -318,13 +318,17 @@ static void sample_free(sample *s)
     }
 }
 
+/* What every candidate's estimate shares. */
+typedef struct trial_in {
+    const sample *s;
+    double target, step_given, rounding;
+    const double *lower; /* the error bins' bounds, bin_lower(0 .. NBINS) */
+} trial_in;
+
 /* One candidate's estimate: its transform of every block, the step that meets the target
  * on them, and the bits that step gives. */
 typedef struct trial {
-    const wvol_filter *f;
-    double target, step_given, rounding;
-    const double *lower;                 /* the error bins' bounds */
-    double step, bits, coefficients;     /* out */
+    double step, bits, coefficients;
     wvol_status st;
     wvol_error err;
 } trial;
@@ -344,8 +348,9 @@ static void workspace_free(workspace *w)
     free(w->rb);
 }
 
-static wvol_status trial_candidate(trial *t, const sample *s, workspace *w)
+static wvol_status trial_candidate(trial *t, const wvol_filter *f, const trial_in *in, workspace *w)
 {
+    const sample *s = in->s;
     wvol_status st = WVOL_OK;
     if (!w->eb) w->eb = malloc(sizeof *w->eb);
     if (!w->rb) w->rb = malloc(sizeof *w->rb);
@@ -357,8 +362,8 @@ static wvol_status trial_candidate(trial *t, const sample *s, workspace *w)
             /* no padding: the block into the previous candidate's array, transformed there
              * (what wvol_dwt3 computes, without a fresh array per candidate) */
             memcpy(c->data, s->b[j].data, s->e[0] * s->e[1] * s->e[2] * sizeof(float));
-            c->filter = t->f;
-            st = wvol_dwt3_inplace_f32(c->data, c->px, c->py, c->pz, t->f, s->levels, &t->err);
+            c->filter = f;
+            st = wvol_dwt3_inplace_f32(c->data, c->px, c->py, c->pz, f, s->levels, &t->err);
             if (st == WVOL_OK)
                 st = wvol_check_finite(c->data, c->px, c->py, c->pz, "wavelet trial coefficients", &t->err);
             continue;
@@ -366,19 +371,19 @@ static wvol_status trial_candidate(trial *t, const sample *s, workspace *w)
         wvol_coeffs_destroy(c);
         w->c[j] = NULL;
         st = wvol_volume_wrap(&v, s->b[j].data, s->e[0], s->e[1], s->e[2], &t->err);
-        if (st == WVOL_OK) st = wvol_dwt3(&w->c[j], v, t->f, s->levels, &t->err);
+        if (st == WVOL_OK) st = wvol_dwt3(&w->c[j], v, f, s->levels, &t->err);
         wvol_volume_destroy(v);
     }
     if (st == WVOL_OK) {
         err_bins *eb = w->eb;
         rate_bins *rb = w->rb;
         memset(eb, 0, sizeof *eb);
-        eb->lower = t->lower;
+        eb->lower = in->lower;
         for_each_counted(s, w->c, add_err, eb);
         t->coefficients = eb->n;
-        t->step = t->step_given > 0 ? t->step_given : step_for(eb, t->target, t->rounding);
+        t->step = in->step_given > 0 ? in->step_given : step_for(eb, in->target, in->rounding);
         memset(rb, 0, sizeof *rb);
-        rb->step = t->step, rb->rounding = t->rounding;
+        rb->step = t->step, rb->rounding = in->rounding;
         if (isfinite(t->step)) for_each_counted(s, w->c, add_rate, rb);
         t->bits = isfinite(t->step) ? rate_bits(rb) / eb->n : 0;
     }
@@ -489,6 +494,7 @@ wvol_status wvol_compress_choose_wavelet(wvol_wavelet_choice *out, wvol_source *
     {
         /* the candidates side by side, each thread in its own arrays: the same estimates
          * whatever the threads; the first candidate's failure (in their order) is reported */
+        const trial_in in = {&s, target, step_given, rounding, lower};
         trial t[WVOL_WAVELET_CHOICE_CANDIDATES];
         int i;
         memset(t, 0, sizeof t);
@@ -497,11 +503,7 @@ wvol_status wvol_compress_choose_wavelet(wvol_wavelet_choice *out, wvol_source *
             workspace w;
             memset(&w, 0, sizeof w);
 #pragma omp for schedule(dynamic, 1)
-            for (i = 0; i < WVOL_WAVELET_CHOICE_CANDIDATES; i++) {
-                t[i].f = f[i], t[i].target = target, t[i].step_given = step_given, t[i].rounding = rounding;
-                t[i].lower = lower;
-                t[i].st = trial_candidate(&t[i], &s, &w);
-            }
+            for (i = 0; i < WVOL_WAVELET_CHOICE_CANDIDATES; i++) t[i].st = trial_candidate(&t[i], f[i], &in, &w);
             workspace_free(&w);
         }
         for (i = 0; i < WVOL_WAVELET_CHOICE_CANDIDATES && st == WVOL_OK; i++)
