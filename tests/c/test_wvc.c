@@ -839,9 +839,11 @@ static void wvc2_sparse_chunks_round_trip(void)
 /* The slab writer fed as a streamed transform would feed it (finest level first, a
  * few rows at a time, each coarser level lagging behind the finer one) writes the
  * same bytes as wvol_wvc_encode from the whole pyramid, and every put out of order is
- * refused. */
+ * refused. in_place: the writer quantises the rows where they lie (a copy of the
+ * pyramid, which it overwrites), the same bytes; rows put where the first rows' layout
+ * does not put them are refused. */
 static void wvc2_streamed_rows_give_the_same_bytes(const char *wavelet, size_t nx, size_t ny, size_t nz, int levels,
-                                                   int tile, int tile_z)
+                                                   int tile, int tile_z, int in_place)
 {
     fixture F;
     void *dense = NULL, *streamed = NULL;
@@ -853,8 +855,19 @@ static void wvc2_streamed_rows_give_the_same_bytes(const char *wavelet, size_t n
     wvc2_writer *w = NULL;
     uint64_t rng = 12345;
     int done = 0;
+    float *room;
     CHECK(fixture_make(&F, nx, ny, nz, wavelet, levels), "fixture");
     if (!F.c) return;
+    room = F.c->data;
+    if (in_place) {
+        room = malloc(F.c->px * F.c->py * F.c->pz * sizeof *room);
+        CHECK(room != NULL, "out of memory");
+        if (!room) {
+            fixture_free(&F);
+            return;
+        }
+        memcpy(room, F.c->data, F.c->px * F.c->py * F.c->pz * sizeof *room);
+    }
     wvol_wvc_params_default(&p);
     p.value_min = F.vmin;
     p.value_max = F.vmax;
@@ -877,6 +890,30 @@ static void wvc2_streamed_rows_give_the_same_bytes(const char *wavelet, size_t n
     h.value_min = F.vmin, h.value_max = F.vmax;
     h.step = rep.step;
     h.tile = tile, h.tile_z = tile_z;
+    h.in_place = in_place;
+    if (in_place && F.c->pz > 2) {
+        /* level 1's second row put one float off its place */
+        wvc2_planes pl;
+        CHECK(wvol__wvc2_writer_open_mem(&w, &h, &err) == WVOL_OK, "open: %s", err.message);
+        memset(&pl, 0, sizeof pl);
+        for (int b = levels == 1 ? 0 : 1; b < 8; b++) {
+            size_t o[3];
+            for (int a = 0; a < 3; a++) {
+                size_t pa = a == 0 ? F.c->px : a == 1 ? F.c->py : F.c->pz;
+                o[a] = ((b >> a) & 1) && pa > 1 ? pa >> 1 : 0;
+            }
+            pl.band[b] = room + o[0] + F.c->px * (o[1] + F.c->py * o[2]);
+            pl.sy[b] = F.c->px;
+            pl.sz[b] = F.c->px * F.c->py;
+        }
+        CHECK(w && wvol__wvc2_writer_put(w, 1, 0, 1, &pl, &err) == WVOL_OK, "first row in place: %s", err.message);
+        for (int b = 0; b < 8; b++)
+            if (pl.band[b]) pl.band[b] += pl.sz[b] + 1;
+        CHECK(w && wvol__wvc2_writer_put(w, 1, 1, 1, &pl, &err) == WVOL_ERR_ARG && strstr(err.message, "in place"),
+              "a row off its place is refused: %s", err.message);
+        wvol__wvc2_writer_abort(w);
+        memcpy(room, F.c->data, F.c->px * F.c->py * F.c->pz * sizeof *room);
+    }
     CHECK(wvol__wvc2_writer_open_mem(&w, &h, &err) == WVOL_OK, "open: %s", err.message);
     for (int m = 1; m <= levels; m++) ez[m] = F.c->pz > 1 ? F.c->pz >> m : 1;
     while (w && !done) {
@@ -899,7 +936,7 @@ static void wvc2_streamed_rows_give_the_same_bytes(const char *wavelet, size_t n
                     o[a] = ((b >> a) & 1) && pa > 1 ? pa >> m : 0;
                 }
                 o[2] += next[m];
-                pl.band[b] = F.c->data + o[0] + F.c->px * (o[1] + F.c->py * o[2]);
+                pl.band[b] = room + o[0] + F.c->px * (o[1] + F.c->py * o[2]);
                 pl.sy[b] = F.c->px;
                 pl.sz[b] = F.c->px * F.c->py;
             }
@@ -919,8 +956,8 @@ static void wvc2_streamed_rows_give_the_same_bytes(const char *wavelet, size_t n
         CHECK(wvol__wvc2_writer_close(w, &streamed, &ns, NULL, &err) == WVOL_OK, "close: %s", err.message);
     }
     CHECK(ns == nd && streamed && dense && memcmp(streamed, dense, nd) == 0,
-          "%s %zux%zux%zu, %d levels, tile %d,%d: streamed %zu bytes, dense %zu, %s", wavelet, nx, ny, nz, levels,
-          tile, tile_z, ns, nd, ns == nd ? "contents differ" : "sizes differ");
+          "%s %zux%zux%zu, %d levels, tile %d,%d%s: streamed %zu bytes, dense %zu, %s", wavelet, nx, ny, nz, levels,
+          tile, tile_z, in_place ? ", in place" : "", ns, nd, ns == nd ? "contents differ" : "sizes differ");
     {
         /* a level left incomplete is refused at close, and nothing is handed out */
         void *o = NULL;
@@ -931,6 +968,7 @@ static void wvc2_streamed_rows_give_the_same_bytes(const char *wavelet, size_t n
     }
     free(streamed);
     free(dense);
+    if (in_place) free(room);
     fixture_free(&F);
 }
 
@@ -1319,10 +1357,12 @@ int main(void)
     wvc_odd_sizes_and_flat_axes_round_trip();
     g_version = 0;
     wvc_coders_decode_to_the_same_coefficients();
-    wvc2_streamed_rows_give_the_same_bytes("db2", 40, 36, 44, 2, 8, 8);
-    wvc2_streamed_rows_give_the_same_bytes("haar", 33, 17, 70, 3, 8, 16);
-    wvc2_streamed_rows_give_the_same_bytes("bl3", 32, 32, 32, 2, 16, 8);
-    wvc2_streamed_rows_give_the_same_bytes("db2", 24, 20, 1, 2, 8, 8);
+    for (int in_place = 0; in_place < 2; in_place++) {
+        wvc2_streamed_rows_give_the_same_bytes("db2", 40, 36, 44, 2, 8, 8, in_place);
+        wvc2_streamed_rows_give_the_same_bytes("haar", 33, 17, 70, 3, 8, 16, in_place);
+        wvc2_streamed_rows_give_the_same_bytes("bl3", 32, 32, 32, 2, 16, 8, in_place);
+        wvc2_streamed_rows_give_the_same_bytes("db2", 24, 20, 1, 2, 8, 8, in_place);
+    }
     wvc2_regions_equal_the_full_decode("db2", 40, 36, 44, 2, 8, 8);
     wvc2_regions_equal_the_full_decode("haar", 33, 17, 70, 3, 8, 16);
     wvc2_regions_equal_the_full_decode("bl3", 32, 32, 32, 2, 16, 8);

@@ -175,7 +175,9 @@ typedef struct wvol_compress_stream_report {
     int passes;                  /* passes over the coefficients: 2 (statistics, writing), more
                                     when the error missed */
     int source_reads;            /* reads and transforms of the source: 1 when its coefficients
-                                    were kept, else passes */
+                                    were kept (they are quantised in place by the first write,
+                                    so a further pass reads the source again: passes - 1), else
+                                    passes */
     size_t kept_bytes;           /* the coefficients kept between the passes (0: none) */
     size_t window_bytes;         /* the transform's window and slab buffer */
     size_t writer_bytes;         /* the writer's bound for its rows (wvc2_writer_memory) */

@@ -22,7 +22,6 @@
 
 #include "core/alloc.h"
 #include "core/clock.h"
-#include "core/finite.h"
 #include "wvc2_internal.h"
 #include "wvc2_writer.h"
 #include "wvc_format.h"
@@ -41,6 +40,8 @@ typedef struct wlevel {
     size_t z_base, z_next, cap_rows;
     int32_t *q[8];       /* per band of the level's list: rows [z_base, z_next), in block */
     int32_t *block;
+    int32_t *xq[8];      /* in place (h.in_place): each band's row 0 in the caller's planes, */
+    size_t xsy[8], xsz[8]; /* and its strides */
     size_t tz_next;      /* next tile row to code */
     sec_stats *acc;      /* per chunk of the level x band */
     float *maxabs;       /* per chunk of the level x band, as acc: each written by one task only */
@@ -349,13 +350,16 @@ static int reserve_rows(wlevel *L, const wvc2_level *G, size_t first, size_t row
 }
 
 /* Quantises one row segment with a widened dead zone (|c| < edge step gives 0); the
- * same sums as wvol__wvc_row_stats. */
-static void row_stats_edge(double t[8], const float *row, int32_t *qrow, size_t n, double step, double f, double edge)
+ * same sums and largest |c| as wvol__wvc_row_stats (qrow may be the row itself). */
+static float row_stats_edge(double t[8], const float *row, int32_t *qrow, size_t n, double step, double f,
+                            double edge)
 {
     const double inv = 1.0 / step;
+    float amax = 0.0f;
     memset(t, 0, 8 * sizeof *t);
     for (size_t x = 0; x < n; x++) {
         double c = row[x], a = fabs(c) * inv, tt = a + f, cc = c * c;
+        amax = fabsf(row[x]) > amax ? fabsf(row[x]) : amax;
         double q = a < edge ? 0.0 : (double)(int32_t)(tt < WVC_QMAX ? tt : WVC_QMAX), r = a - q;
         t[1] += cc;
         if (q == 0) t[0] += cc;
@@ -363,6 +367,7 @@ static void row_stats_edge(double t[8], const float *row, int32_t *qrow, size_t 
         else t[4] += r, t[5] += r * r, t[7] += 1;
         qrow[x] = c < 0 ? -(int32_t)q : (int32_t)q;
     }
+    return amax;
 }
 
 static void acc_add(sec_stats *s, const double t[8])
@@ -379,9 +384,15 @@ static void acc_add(sec_stats *s, const double t[8])
 
 /* ---- coding ---------------------------------------------------------------------- */
 
-static wvc2_qbox box_of(const wlevel *L, const wvc2_level *G, int i, const size_t off[3])
+static wvc2_qbox box_of(const wvc2_writer *w, const wlevel *L, const wvc2_level *G, int i, const size_t off[3])
 {
     wvc2_qbox b;
+    if (w->h.in_place) {
+        b.q = L->xq[i] + off[2] * L->xsz[i] + off[1] * L->xsy[i] + off[0];
+        b.sy = L->xsy[i];
+        b.sz = L->xsz[i];
+        return b;
+    }
     b.q = L->q[i] + (off[2] - L->z_base) * L->plane + off[1] * G->e[0] + off[0];
     b.sy = G->e[0];
     b.sz = L->plane;
@@ -428,10 +439,10 @@ static void chunk_boxes(const wvc2_writer *w, int m, const size_t tc[3], size_t 
     wvc2_parent_box(&w->g, off, ext, poff, pext);
     memset(parent, 0, 8 * sizeof *parent);
     for (int i = 0; i < G->nb; i++) {
-        child[i] = box_of(&w->lv[m], G, i, off);
+        child[i] = box_of(w, &w->lv[m], G, i, off);
         if (m < w->g.levels) {
             const wvc2_level *PG = &w->g.lv[m + 1];
-            parent[i] = box_of(&w->lv[m + 1], PG, band_index(PG, G->bands[i]), poff);
+            parent[i] = box_of(w, &w->lv[m + 1], PG, band_index(PG, G->bands[i]), poff);
         }
     }
 }
@@ -444,14 +455,29 @@ static void chunk_nonzero(const wvc2_writer *w, int m, size_t id, uint64_t nz[8]
     for (int i = 0; i < G->nb; i++) nz[i] = acc[i].n1 + acc[i].n2;
 }
 
-/* A task: codes one job and files it (under a lock: the spill is one stream). */
-static void code_job(wvc2_writer *w, wvc2_job *job, size_t id)
+/* A chunk whose rows stay where they are (in place): coded from them by the task. */
+typedef struct box_job {
+    int m;
+    size_t ext[3];
+    wvc2_qbox child[8], parent[8];
+    uint64_t nz[8];
+} box_job;
+
+/* A task: codes one job (a copy of its rows, or a box_job) and files it (under a lock: the
+ * spill is one stream). */
+static void code_job(wvc2_writer *w, wvc2_job *job, box_job *bj, size_t id)
 {
     wvc2_coded cd;
-    int m = job->m, r;
+    int m = job ? job->m : bj->m, r;
     double t0 = wvol__now();
-    r = wvol__wvc2_job_code(&cd, job, &w->g, (int)w->h.coder, w->h.zstd_level, thread_scratch(w), &w->pool) ? 1 : 0;
+    if (job)
+        r = wvol__wvc2_job_code(&cd, job, &w->g, (int)w->h.coder, w->h.zstd_level, thread_scratch(w), &w->pool);
+    else
+        r = wvol__wvc2_chunk_encode(&cd, &w->g, m, bj->ext, bj->child, bj->parent, bj->nz, (int)w->h.coder,
+                                    w->h.zstd_level, thread_scratch(w), &w->pool);
+    r = r ? 1 : 0;
     free(job);
+    free(bj);
 #pragma omp critical(wvc2_writer_spill)
     {
         if (!r) r = chunk_store(w, m, id, &cd);
@@ -476,28 +502,37 @@ static wvol_status code_tile_row(wvc2_writer *w, int m, size_t k, wvol_error *er
     double t0;
     int nth = nthreads(w);
     if (w->async) {
-        /* the copies are made here, so the rows can move on; the coding is a task */
+        /* the copies are made here, so the rows can move on, and the coding is a task; rows
+         * quantised in place stay, so the task makes its own copy (the producer goes on) */
         for (size_t u = 0; u < ntile; u++) {
-            size_t tc[3] = {u % G->nt[0], u / G->nt[0], k}, ext[3], id = wvc2_chunk_id(&w->g, m, tc);
-            wvc2_qbox child[8], parent[8];
-            uint64_t nz[8];
-            wvc2_job *job = malloc(sizeof *job);
+            size_t tc[3] = {u % G->nt[0], u / G->nt[0], k}, id = wvc2_chunk_id(&w->g, m, tc);
+            wvc2_job *job = NULL;
+            box_job *bj = malloc(sizeof *bj);
             int busy;
-            chunk_boxes(w, m, tc, ext, child, parent);
-            chunk_nonzero(w, m, id, nz);
-            if (!job || wvol__wvc2_job_make(job, &w->g, m, ext, child, parent, nz, &w->pool)) {
-                free(job);
-                return wvol_error_set(err, WVOL_ERR_NOMEM, "wvc2 writer: out of memory while coding");
+            if (bj) {
+                bj->m = m;
+                chunk_boxes(w, m, tc, bj->ext, bj->child, bj->parent);
+                chunk_nonzero(w, m, id, bj->nz);
+                if (!w->h.in_place) {
+                    job = malloc(sizeof *job);
+                    if (job && wvol__wvc2_job_make(job, &w->g, m, bj->ext, bj->child, bj->parent, bj->nz, &w->pool)) {
+                        free(job);
+                        job = NULL;
+                    }
+                    free(bj);
+                    bj = NULL;
+                }
             }
+            if (!job && !bj) return wvol_error_set(err, WVOL_ERR_NOMEM, "wvc2 writer: out of memory while coding");
 #pragma omp atomic read
             busy = w->inflight;
 #pragma omp atomic
             w->inflight++;
             if (busy >= JOBS_PER_THREAD * (nth - 1)) {
-                code_job(w, job, id); /* the others have enough queued: this one here */
+                code_job(w, job, bj, id); /* the others have enough queued: this one here */
             } else {
-#pragma omp task default(none) firstprivate(w, job, id)
-                code_job(w, job, id);
+#pragma omp task default(none) firstprivate(w, job, bj, id)
+                code_job(w, job, bj, id);
             }
         }
         return WVOL_OK;
@@ -570,7 +605,7 @@ static void release_rows(wvc2_writer *w, int m)
     wlevel *L = &w->lv[m];
     const wvc2_level *G = &w->g.lv[m];
     size_t keep = L->tz_next * (size_t)w->g.tile[2], nb, i;
-    if (!w->g.tr[2]) return; /* one row per level */
+    if (!w->g.tr[2] || w->h.in_place) return; /* one row per level, or the caller's rows */
     if (m > 1) {
         size_t child = w->lv[m - 1].tz_next * (size_t)w->g.tile[2] / 2;
         if (child < keep) keep = child;
@@ -624,30 +659,46 @@ static int put_segment(wvc2_writer *w, int level, size_t z0, size_t nz, const wv
         float mx = L->maxabs[id * (size_t)G->nb + (size_t)i];
         for (size_t y = y0; y < y1; y++) {
             const float *row = pl->band[band] + (y * pl->sy[band] + (z - z0) * pl->sz[band]) + x0;
-            int32_t *qrow = L->q[i] + (z - L->z_base) * L->plane + y * G->e[0] + x0;
+            int32_t *qrow = w->h.in_place ? L->xq[i] + z * L->xsz[i] + y * L->xsy[i] + x0
+                                          : L->q[i] + (z - L->z_base) * L->plane + y * G->e[0] + x0;
             /* a kept pyramid is read from memory one short segment per row, too short for the
              * hardware's prefetch to see: the rows a few ahead (the next plane's first at the
              * end of a plane) are asked for now */
             size_t ahead = y + 4 < y1 ? 4 * pl->sy[band] : pl->sz[band];
             double t[8];
+            float a;
             for (size_t x = 0; x < x1 - x0; x += 16) __builtin_prefetch(row + ahead + x);
             if (use_edge)
-                row_stats_edge(t, row, qrow, x1 - x0, w->h.step, f, edge);
+                a = row_stats_edge(t, row, qrow, x1 - x0, w->h.step, f, edge);
             else
-                wvol__wvc_row_stats(t, row, qrow, x1 - x0, w->h.step, f);
+                a = wvol__wvc_row_stats(t, row, qrow, x1 - x0, w->h.step, f);
             if (!isfinite(t[1])) bad = 1;
             acc_add(acc, t);
-            {
-                /* max |c| = max(max c, -min c), in eight lanes (core/finite.h); a zero as +0 */
-                float rg[2], a;
-                (void)wvol__finite_range(row, x1 - x0, rg);
-                a = -rg[0] > rg[1] ? -rg[0] : rg[1];
-                mx = a > mx ? a : mx;
-            }
+            mx = a > mx ? a : mx;
         }
         L->maxabs[id * (size_t)G->nb + (size_t)i] = mx;
     }
     return bad;
+}
+
+/* In place: the first rows of a level fix where its bands' rows are; later rows must be
+ * where that layout puts them (the chunks are coded from there). */
+static wvol_status place_rows(wlevel *L, const wvc2_level *G, int level, size_t z0, const wvc2_planes *pl,
+                              wvol_error *err)
+{
+    for (int i = 0; i < G->nb; i++) {
+        const int b = G->bands[i];
+        if (z0 == 0) {
+            L->xq[i] = (int32_t *)(uintptr_t)pl->band[b];
+            L->xsy[i] = pl->sy[b], L->xsz[i] = pl->sz[b];
+        }
+        WVOL_RETURN_IF(pl->sy[b] != L->xsy[i] || pl->sz[b] != L->xsz[i] ||
+                           (const void *)pl->band[b] != (const void *)(L->xq[i] + z0 * L->xsz[i]),
+                       err, WVOL_ERR_ARG,
+                       "wvc2 writer: level %d band %d rows from %zu are not where its first rows' layout puts "
+                       "them (quantised in place)", level, b, z0);
+    }
+    return WVOL_OK;
 }
 
 wvol_status wvol__wvc2_writer_put(wvc2_writer *w, int level, size_t z0, size_t nz, const wvc2_planes *pl,
@@ -672,8 +723,12 @@ wvol_status wvol__wvc2_writer_put(wvc2_writer *w, int level, size_t z0, size_t n
     WVOL_FORWARD(task_status(w, err));
     nth = nthreads(w);
     (void)nth;
-    WVOL_RETURN_IF(reserve_rows(L, G, first_rows(&w->h, (size_t)w->g.tile[2]), z0 + nz - L->z_base), err,
-                   WVOL_ERR_NOMEM, "wvc2 writer: out of memory for level %d rows", level);
+    if (w->h.in_place) {
+        WVOL_FORWARD(place_rows(L, G, level, z0, pl, err));
+    } else {
+        WVOL_RETURN_IF(reserve_rows(L, G, first_rows(&w->h, (size_t)w->g.tile[2]), z0 + nz - L->z_base), err,
+                       WVOL_ERR_NOMEM, "wvc2 writer: out of memory for level %d rows", level);
+    }
     /* one task per (band, tile column): each (chunk, band) sum is taken by one thread, in z, y, x order */
     ntask = (long)G->nb * (long)(G->nt[0] * G->nt[1]);
 #ifdef _OPENMP
@@ -724,7 +779,7 @@ size_t wvol__wvc2_writer_memory(const wvc2_header *h)
     size_t chunk = 0, nth = (size_t)(h->threads > 0 ? h->threads : omp_get_max_threads());
     for (int m = 1; m <= h->levels; m++) {
         const wvc2_level *G = &g.lv[m];
-        size_t rows = first_rows(h, (size_t)tz), c = (size_t)G->nb;
+        size_t rows = h->in_place ? 0 : first_rows(h, (size_t)tz), c = (size_t)G->nb;
         if (rows > G->e[2]) rows = G->e[2];
         total += rows * G->e[0] * G->e[1] * (size_t)G->nb * sizeof(int32_t);
         total += G->count * ((size_t)G->nb * sizeof(sec_stats) + sizeof(float) + sizeof(chunk_rec));

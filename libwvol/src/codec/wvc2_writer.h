@@ -18,7 +18,8 @@
  *   their pointers are ignored). Rows of one level must arrive in increasing z,
  *   each exactly once, without gaps; levels may be interleaved in any order (fine
  *   to coarse as a streamed transform emits them, or coarse to fine). The planes
- *   are read during the call only (the caller may reuse them at once).
+ *   are read during the call only (the caller may reuse them at once), unless the
+ *   header asks for the quantisation in place (in_place).
  * - The writer quantises each row as it arrives (q = sign(c) floor(|c|/step + f);
  *   NaN/Inf refused), keeps the quantised rows of the current tile row, and codes
  *   a chunk (one level x one tile of tile x tile x tile_z coefficients in every band of that
@@ -85,6 +86,12 @@ typedef struct wvc2_header {
                                    coarser one (0: unknown); a level's rows are first reserved
                                    for tile_z + lag_rows + a few, as wvol__wvc2_writer_memory
                                    counts them, so they are not regrown and copied */
+    int in_place;               /* put() quantises the rows where they are: each coefficient's
+                                   q (int32) is written over its float and the chunks are coded
+                                   from there, so the writer holds no rows of its own. A level's
+                                   rows then keep one layout (band[b] of rows from z0 at z0 *
+                                   sz[b] past the first put's, the same strides), and stay in
+                                   place, untouched by the caller, until close() or abort() */
 } wvc2_header;
 
 /* header with the defaults: rounding 0.38, tile 64 x 64 x 32, coder AUTO, zstd level 3; the

@@ -67,10 +67,12 @@ static inline __attribute__((always_inline)) void quad_stats(row_acc *A, wvc_v4f
 }
 
 /* Sums of one row of n coefficients into t[8] (zeroed energy, energy, r and r^2 for
- * |q| = 1, r and r^2 for |q| >= 2, counts of |q| = 1 and |q| >= 2); qrow as in rows_stats. */
-static inline __attribute__((always_inline)) void row_kernel(double t[8], const float *restrict row,
-                                                              int32_t *restrict qrow, size_t ex, double step,
-                                                              double f, int sparse)
+ * |q| = 1, r and r^2 for |q| >= 2, counts of |q| = 1 and |q| >= 2); qrow as in rows_stats,
+ * or the row itself (every group is loaded before its q is stored, so no restrict); the
+ * largest |c| into *amax when given. */
+static inline __attribute__((always_inline)) void row_kernel(double t[8], float *amax, const float *row,
+                                                              int32_t *qrow, size_t ex, double step, double f,
+                                                              int sparse)
 {
     const double inv = 1.0 / step, qmax = WVC_QMAX;
     /* below this |c| / step + f < 1 for sure: the relative margin 1e-6 dwarfs float rounding */
@@ -80,6 +82,7 @@ static inline __attribute__((always_inline)) void row_kernel(double t[8], const 
     size_t x;
     row_acc A;
     wvc_v4d zq = {0, 0, 0, 0};
+    wvc_v8i vmax = {0, 0, 0, 0, 0, 0, 0, 0}; /* max |c|: as non-negative floats' bits, ordered as integers */
     memset(&A, 0, sizeof A);
     memset(t, 0, 8 * sizeof *t);
     for (x = 0; x + 8 <= ex; x += 8) {
@@ -93,7 +96,11 @@ static inline __attribute__((always_inline)) void row_kernel(double t[8], const 
                 wvc_v8i hit;
                 wvc_v4l h4;
                 memcpy(&cf, row + x, sizeof cf);
-                hit = (wvc_v8f)((wvc_v8i)cf & absmask) >= vthr;
+                {
+                    wvc_v8i ab = (wvc_v8i)cf & absmask, up = ab > vmax;
+                    vmax = (ab & up) | (vmax & ~up);
+                    hit = (wvc_v8f)ab >= vthr;
+                }
                 h4 = (wvc_v4l)hit;
                 if (h4[0] | h4[1] | h4[2] | h4[3]) break;
                 wvc_v4f lo = __builtin_shufflevector(cf, cf, 0, 1, 2, 3);
@@ -116,6 +123,16 @@ static inline __attribute__((always_inline)) void row_kernel(double t[8], const 
         t[0] += A.rz[k] + zq[k], t[1] += A.re[k] + zq[k], t[2] += A.r1[k], t[3] += A.rr1[k];
         t[4] += A.r2[k], t[5] += A.rr2[k], t[6] += A.c1[k], t[7] += A.c2[k];
     }
+    if (amax) {
+        float m = 0.0f;
+        for (int k = 0; k < 8; k++) {
+            float v;
+            memcpy(&v, &vmax[k], sizeof v);
+            m = v > m ? v : m;
+        }
+        for (size_t k = x; k < ex; k++) m = fabsf(row[k]) > m ? fabsf(row[k]) : m;
+        *amax = m;
+    }
     for (; x < ex; x++) {
         double c = row[x], ac = fabs(c), a = ac * inv, tt = a + f;
         double q = (double)(int32_t)(tt < qmax ? tt : qmax), r = a - q, cc = c * c;
@@ -127,9 +144,11 @@ static inline __attribute__((always_inline)) void row_kernel(double t[8], const 
     }
 }
 
-WVOL__CLONES void wvol__wvc_row_stats(double t[8], const float *row, int32_t *qrow, size_t n, double step, double f)
+WVOL__CLONES float wvol__wvc_row_stats(double t[8], const float *row, int32_t *qrow, size_t n, double step, double f)
 {
-    row_kernel(t, row, qrow, n, step, f, 0);
+    float amax;
+    row_kernel(t, &amax, row, qrow, n, step, f, 0);
+    return amax;
 }
 
 WVOL__CLONES static void rows_stats(sec_stats *st, const float *C, int32_t *Q, const size_t p[3], const wvc_band *b,
@@ -142,7 +161,7 @@ WVOL__CLONES static void rows_stats(sec_stats *st, const float *C, int32_t *Q, c
         for (y = 0; y < b->ext[1]; y++) {
             size_t base = wvc_index(p, b, 0, y, z);
             double t[8];
-            row_kernel(t, C + base, Q ? Q + base : NULL, b->ext[0], step, f, sparse);
+            row_kernel(t, NULL, C + base, Q ? Q + base : NULL, b->ext[0], step, f, sparse);
             zero_sse += t[0];
             energy += t[1];
             s1 += t[2];

@@ -33,8 +33,10 @@ int wvol__wvc_all_stats(sec_stats *st, const wvc_layout *L, const float *C, int3
 /* One row of n coefficients quantised into qrow (may be NULL), its sums into t[8]:
  * zeroed energy, energy, sum r and r^2 over |q| = 1, the same over |q| >= 2, the
  * counts of |q| = 1 and of |q| >= 2 (exact in double). The same arithmetic as the
- * whole-pyramid pass, for the v2 writer's rows. */
-void wvol__wvc_row_stats(double t[8], const float *row, int32_t *qrow, size_t n, double step, double f);
+ * whole-pyramid pass, for the v2 writer's rows. Returns the row's largest |c| (a zero
+ * as +0). qrow may be the row itself (a quantisation in place: each value is read
+ * before its q is written). */
+float wvol__wvc_row_stats(double t[8], const float *row, int32_t *qrow, size_t n, double step, double f);
 /* The offsets as stored (float32) and the section's exact squared error with them. */
 double wvol__wvc_sec_error(const sec_stats *st, double step, float *d1, float *d2);
 /* The largest step whose error stays within [0.985, 1] x target; on return Q and st

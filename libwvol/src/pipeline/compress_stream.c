@@ -14,9 +14,12 @@
  * volume's size on disk and its read-back; a second transform costs less than reading
  * 4 bytes per voxel back on the machines we measure (docs/store.md). When the pyramid
  * fits the caller's memory budget, pass 1 also keeps the rows the transform emits (made
- * in place in a buffer laid out level by level, wvol_dwt3_source_placed), and the later
- * passes replay them into the writer instead of reading and transforming the source again:
- * each level's rows in the same order (level 1's a chunk row per call), so the same bytes. */
+ * in place in a buffer laid out level by level, wvol_dwt3_source_placed), and pass 2
+ * replays them into the writer instead of reading and transforming the source again: each
+ * level's rows in the same order (level 1's a chunk row per call), so the same bytes. The
+ * writer quantises them where they lie (its rows would be as much fresh memory again, whose
+ * first touch costs more than the quantiser's arithmetic); a further pass, rare, reads and
+ * transforms the source again. */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -247,6 +250,7 @@ wvol_status wvol_compress_stream(const char *path, wvol_source *src, const wvol_
 
     /* pass 1: statistics (and the volume's range), and the pyramid when it fits */
     t0 = wvol__now();
+    out.source_reads = 1;
     wvol__source_seen_reset(src);
     s = wvol__wvc_stream_stats_create(&pc.stats, pc.p[0], pc.p[1], pc.p[2], p.levels, err);
     if (!s) keep_create(&pc.keep, pc.p, p.levels, p.memory ? p.memory : WVOL_WVC_DEFAULT_BUDGET);
@@ -279,6 +283,7 @@ wvol_status wvol_compress_stream(const char *path, wvol_source *src, const wvol_
     h.zstd_level = wp.zstd_level;
     pc.tile_z = (size_t)(h.tile_z ? h.tile_z : WVC2_TILE_Z_DEFAULT);
     h.lag_rows = (size_t)f->length + 8;
+    h.in_place = pc.keep != NULL;
     out.writer_bytes = wvol__wvc2_writer_memory(&h);
     wvol__wvc_stream_stats_free(pc.stats);
     pc.stats = NULL;
@@ -286,6 +291,10 @@ wvol_status wvol_compress_stream(const char *path, wvol_source *src, const wvol_
         wvol_wvc_report wr;
         t0 = wvol__now();
         h.step = out.step;
+        /* the kept pyramid is quantised where it lies (no rows of the writer's own to fill):
+         * a further pass reads and transforms the source again */
+        h.in_place = pc.keep != NULL;
+        out.source_reads += !pc.keep;
         s = wvol__wvc2_writer_open(&pc.writer, path, &h, err);
         if (!s) {
             write_pass wpass = {src, f, &pc};
@@ -295,7 +304,8 @@ wvol_status wvol_compress_stream(const char *path, wvol_source *src, const wvol_
         else wvol__wvc2_writer_abort(pc.writer);
         pc.writer = NULL;
         out.passes = attempt + 2;
-        out.source_reads = pc.keep ? 1 : out.passes;
+        keep_destroy(pc.keep);
+        pc.keep = NULL;
         out.seconds_write += wvol__now() - t0;
         if (s) break;
         out.wvc = wr;
