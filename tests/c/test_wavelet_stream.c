@@ -2,7 +2,8 @@
 /* The forward transform streamed along z (wavelet/dwt3_stream.c): bit-identical to the
  * in-memory wvol_dwt3 for every family, odd and even sizes, 1-5 levels, any slab
  * split; rows arrive in increasing z per level; the window does not grow with the
- * depth; rows made in the caller's memory (wvol_dwt3_stream_set_place); refusals. */
+ * depth; rows made in the caller's memory (wvol_dwt3_stream_set_place); rows seen piece by
+ * piece as the threads make them (wvol_dwt3_stream_set_pieces); refusals. */
 #include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
@@ -306,6 +307,96 @@ static void placed_rows_equal_the_in_memory_transform(void)
     }
 }
 
+/* Pieces (wvol_dwt3_stream_set_pieces): copied where they belong and counted per plane row;
+ * at each row's callback every plane row of it was seen exactly once, with the row's values. */
+typedef struct pieces {
+    collect k;
+    size_t cx[32], cy[32];
+    unsigned *cover[32]; /* rows x cy */
+    float *lo[32], *hi[32]; /* rows x cx cy */
+    int once, same, calls;
+} pieces;
+
+static void on_piece(void *user, int level, size_t r, size_t y0, size_t y1, const float *low, const float *high)
+{
+    pieces *p = user;
+    const size_t cx = p->cx[level], cy = p->cy[level];
+    for (size_t y = y0; y < y1; y++) __atomic_fetch_add(&p->cover[level][r * cy + y], 1u, __ATOMIC_RELAXED);
+    memcpy(p->lo[level] + (r * cy + y0) * cx, low, (y1 - y0) * cx * sizeof(float));
+    if (high) memcpy(p->hi[level] + (r * cy + y0) * cx, high, (y1 - y0) * cx * sizeof(float));
+    __atomic_fetch_add(&p->calls, 1, __ATOMIC_RELAXED);
+}
+
+static wvol_status on_piece_rows(void *user, int level, size_t r, const float *low, const float *high,
+                                 wvol_error *err)
+{
+    pieces *p = user;
+    const size_t cx = p->cx[level], cy = p->cy[level];
+    for (size_t y = 0; y < cy; y++)
+        if (p->cover[level][r * cy + y] != 1) p->once = 0;
+    if (memcmp(p->lo[level] + r * cy * cx, low, cx * cy * sizeof(float)) != 0 ||
+        (high && memcmp(p->hi[level] + r * cy * cx, high, cx * cy * sizeof(float)) != 0))
+        p->same = 0;
+    return on_rows(&p->k, level, r, low, high, err);
+}
+
+static void pieces_cover_every_row_once(void)
+{
+    /* 256 x 160: a level-1 plane large enough for the z pass's threads */
+    static const size_t sizes[][3] = {{256, 160, 20}, {33, 29, 37}, {48, 40, 1}};
+    const wvol_filter *f = NULL;
+    wvol_error err;
+    CHECK(wvol_filter_get(&f, "db2", &err) == WVOL_OK, "%s", err.message);
+    for (int si = 0; f && si < 3; si++) {
+        const size_t *d = sizes[si];
+        const int levels = 2;
+        wvol_volume *v = volume(d[0], d[1], d[2], 21 + (uint64_t)si);
+        wvol_coeffs *ref = NULL;
+        wvol_dwt3_stream *s = NULL;
+        pieces p;
+        int room = 1;
+        memset(&p, 0, sizeof p);
+        p.once = p.same = 1;
+        if (!v) continue;
+        CHECK(wvol_dwt3(&ref, v, f, levels, &err) == WVOL_OK, "%s", err.message);
+        CHECK(wvol_coeffs_create(&p.k.c, f, levels, v->nx, v->ny, v->nz, &err) == WVOL_OK, "%s", err.message);
+        if (!ref || !p.k.c) goto next;
+        for (int m = 1; m <= levels; m++) {
+            size_t cz = ref->pz == 1 ? 1 : ref->pz >> (m - 1), rows = cz > 1 ? cz / 2 : 1;
+            p.cx[m] = ref->px >> (m - 1), p.cy[m] = ref->py >> (m - 1);
+            p.cover[m] = calloc(rows * p.cy[m], sizeof(unsigned));
+            p.lo[m] = calloc(rows * p.cx[m] * p.cy[m], sizeof(float));
+            p.hi[m] = calloc(rows * p.cx[m] * p.cy[m], sizeof(float));
+            room &= p.cover[m] && p.lo[m] && p.hi[m];
+        }
+        CHECK(room, "out of memory");
+        if (!room) goto next;
+        CHECK(wvol_dwt3_stream_create(&s, f, levels, v->nx, v->ny, v->nz, on_piece_rows, &p, &err) == WVOL_OK, "%s",
+              err.message);
+        CHECK(s && wvol_dwt3_stream_set_pieces(s, on_piece, &err) == WVOL_OK, "%s", err.message);
+        CHECK(s && wvol_dwt3_stream_push(s, v->data, v->nz, &err) == WVOL_OK, "%s", err.message);
+        CHECK(s && wvol_dwt3_stream_set_pieces(s, NULL, &err) == WVOL_ERR_ARG && strstr(err.message, "first slice"),
+              "pieces asked for after the first slice refused: %s", err.message);
+        CHECK(s && wvol_dwt3_stream_finish(s, &err) == WVOL_OK, "%s", err.message);
+        CHECK(p.once, "%zux%zux%zu: every plane row seen exactly once before its row's callback", d[0], d[1], d[2]);
+        CHECK(p.same, "%zux%zux%zu: the pieces hold the row's values", d[0], d[1], d[2]);
+        CHECK(p.calls > 0 && (d[0] < 256 || p.calls > 2 * (int)(ref->pz / 2)),
+              "%zux%zux%zu: %d pieces (a large plane comes in several)", d[0], d[1], d[2], p.calls);
+        CHECK(memcmp(ref->data, p.k.c->data, ref->px * ref->py * ref->pz * sizeof(float)) == 0,
+              "%zux%zux%zu: rows with pieces differ", d[0], d[1], d[2]);
+    next:
+        wvol_dwt3_stream_destroy(s);
+        for (int m = 1; m <= levels; m++) {
+            free(p.cover[m]);
+            free(p.lo[m]);
+            free(p.hi[m]);
+        }
+        wvol_coeffs_destroy(ref);
+        wvol_coeffs_destroy(p.k.c);
+        wvol_volume_destroy(v);
+    }
+}
+
 static void refusals(void)
 {
     const wvol_filter *f = NULL;
@@ -382,6 +473,7 @@ int main(void)
     source_transform_equals_in_memory();
     large_slices_equal_the_in_memory_transform();
     placed_rows_equal_the_in_memory_transform();
+    pieces_cover_every_row_once();
     refusals();
     return check_summary("test_wavelet_stream");
 }

@@ -181,13 +181,27 @@ WVOL_API void wvol_dwt3_stream_destroy(wvol_dwt3_stream *s); /* NULL is fine */
  * room stops the transform with an error. */
 typedef float *(*wvol_dwt3_place_fn)(void *user, int level, size_t r);
 WVOL_API wvol_status wvol_dwt3_stream_set_place(wvol_dwt3_stream *s, wvol_dwt3_place_fn place, wvol_error *err);
+/* Rows seen piece by piece as they are made (optional; set before the first slice, NULL to
+ * undo): piece(user, level, r, y0, y1, low, high) gets rows y0 .. y1 - 1 (of cy) of row r's
+ * planes, low and high pointing at their row y0 (high NULL when the z axis is not
+ * transformed), right after the thread that made them has checked them, on that thread:
+ * pieces of one row arrive on several threads at once (the callee is thread-safe, and
+ * may keep per-thread state by omp_get_thread_num(), below the threads OpenMP allows),
+ * each plane row exactly once, all before the row's callback. For work that reads every
+ * coefficient once (a histogram) while the rows are still in the thread's cache. */
+typedef void (*wvol_dwt3_piece_fn)(void *user, int level, size_t r, size_t y0, size_t y1, const float *low,
+                                   const float *high);
+WVOL_API wvol_status wvol_dwt3_stream_set_pieces(wvol_dwt3_stream *s, wvol_dwt3_piece_fn piece, wvol_error *err);
 /* The whole streamed transform of a source (wvol/source.h), read in slabs of about
  * 16 MiB; bytes (may be NULL): the memory it held (window and slab). */
 WVOL_API wvol_status wvol_dwt3_source(wvol_source *src, const wvol_filter *f, int levels, wvol_dwt3_rows_fn fn,
                                       void *user, size_t *bytes, wvol_error *err);
-/* The same with the rows made where place says (wvol_dwt3_stream_set_place). */
-WVOL_API wvol_status wvol_dwt3_source_placed(wvol_source *src, const wvol_filter *f, int levels, wvol_dwt3_rows_fn fn,
-                                             wvol_dwt3_place_fn place, void *user, size_t *bytes, wvol_error *err);
+/* The same with the rows made where place says (wvol_dwt3_stream_set_place; NULL: in the
+ * stream's own buffers) and seen piece by piece (wvol_dwt3_stream_set_pieces; may
+ * be NULL). */
+WVOL_API wvol_status wvol_dwt3_source_hooked(wvol_source *src, const wvol_filter *f, int levels, wvol_dwt3_rows_fn fn,
+                                             wvol_dwt3_place_fn place, wvol_dwt3_piece_fn piece, void *user,
+                                             size_t *bytes, wvol_error *err);
 /* Copies a callback's rows into their places in c (created for the same size, filter
  * and levels, e.g. by wvol_coeffs_create): after every row of every level, c holds what
  * wvol_dwt3 makes. */

@@ -6,16 +6,60 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include <omp.h>
+
 #include "codec/wvc_stream.h"
 #include "core/alloc.h"
 #include "wvc_format.h"
 #include "wvc_internal.h"
 
+/* histogram sets at most (1.4 MiB each at 3 levels): a larger team's further threads take
+ * turns in the first set */
+enum { SETS_MAX = 16 };
+
 struct wvc_stream_stats {
     wvc_layout L;
-    uint64_t *H;      /* nsec x WVC_HBINS */
-    uint32_t maxbits; /* of |c| over everything counted */
+    uint64_t *H;      /* sets x nsec x WVC_HBINS: one set of histograms per thread, summed
+                         into the first by merge() (counts: the same sums in any order) */
+    int sets;
+    uint32_t maxbits[SETS_MAX]; /* of |c| over everything a set counted */
 };
+
+/* Rows y0 .. y1 - 1 of the planes of one transform row of a level (bands first .. last - 1
+ * of the layout) into set k. */
+static void stats_rows(wvc_stream_stats *s, int k, int first, int last, size_t y0, size_t y1, const wvc2_planes *pl)
+{
+    uint64_t *H = s->H + (size_t)k * s->L.nsec * WVC_HBINS;
+    for (int i = first; i < last; i++) {
+        const wvc_band *b = &s->L.sec[i];
+        /* a band low along y holds the plane's rows 0 .. ey - 1, one high along y (y then
+         * transformed: two halves) rows ey .. 2 ey - 1 */
+        const size_t ey = b->ext[1], lo = (b->band & 2) ? ey : 0;
+        size_t r0 = y0 > lo ? y0 - lo : 0, r1 = y1 > lo ? y1 - lo : 0;
+        r0 = r0 < ey ? r0 : ey;
+        r1 = r1 < ey ? r1 : ey;
+        if (!b->count || !pl->band[b->band] || r0 >= r1) continue;
+        wvol__wvc_slice_hist(H + (size_t)i * WVC_HBINS, pl->band[b->band] + r0 * pl->sy[b->band], b->ext[0], r1 - r0,
+                             pl->sy[b->band], &s->maxbits[k]);
+    }
+}
+
+/* Every set's counts added into the first, the others cleared (so a second call adds
+ * nothing); the first set is then the pyramid's histograms. */
+static const uint64_t *merge(wvc_stream_stats *s)
+{
+    const size_t n = (size_t)s->L.nsec * WVC_HBINS;
+    for (int k = 1; k < s->sets; k++) {
+        s->maxbits[0] = s->maxbits[k] > s->maxbits[0] ? s->maxbits[k] : s->maxbits[0];
+        s->maxbits[k] = 0;
+    }
+    for (int k = 1; k < s->sets; k++) {
+        uint64_t *h = s->H + (size_t)k * n;
+        for (size_t i = 0; i < n; i++) s->H[i] += h[i];
+        memset(h, 0, n * sizeof *h);
+    }
+    return s->H;
+}
 
 wvol_status wvol__wvc_stream_stats_create(wvc_stream_stats **out, size_t px, size_t py, size_t pz, int levels,
                                           wvol_error *err)
@@ -31,7 +75,10 @@ wvol_status wvol__wvc_stream_stats_create(wvc_stream_stats **out, size_t px, siz
     {
         /* histograms are sparse, but the estimator reads them whole: zeroed here in huge
          * pages, not met later as thousands of untouched 4 KiB pages */
-        size_t bytes = (size_t)s->L.nsec * WVC_HBINS * sizeof *s->H;
+        size_t bytes;
+        s->sets = omp_get_max_threads() < SETS_MAX ? omp_get_max_threads() : SETS_MAX;
+        if (s->sets < 1) s->sets = 1;
+        bytes = (size_t)s->sets * s->L.nsec * WVC_HBINS * sizeof *s->H;
         s->H = wvol__malloc_large(bytes);
         if (s->H) memset(s->H, 0, bytes);
     }
@@ -50,44 +97,38 @@ void wvol__wvc_stream_stats_free(wvc_stream_stats *s)
     free(s);
 }
 
-void wvol__wvc_stream_stats_add(wvc_stream_stats *s, int level, size_t nz, const wvc2_planes *pl)
+void wvol__wvc_stream_stats_add_rows(wvc_stream_stats *s, int level, size_t y0, size_t y1, const wvc2_planes *pl)
 {
-    /* the level's bands in parallel: each counts into its own section's histogram, so the
-     * counts do not depend on the threads; a small row is not worth waking them */
     const int first = level == s->L.levels ? 0 : 1 + 7 * (s->L.levels - level);
     const int last = first + (level == s->L.levels ? 8 : 7);
-    const size_t plane = s->L.sec[last - 1].ext[0] * s->L.sec[last - 1].ext[1] * nz;
-    uint32_t mb = s->maxbits;
-    int i;
-#pragma omp parallel for schedule(dynamic, 1) reduction(max : mb) if (plane >= 8192)
-    for (i = first; i < last; i++) {
-        const wvc_band *b = &s->L.sec[i];
-        uint32_t m = 0;
-        if (!b->count || !pl->band[b->band]) continue;
-        for (size_t k = 0; k < nz; k++)
-            wvol__wvc_slice_hist(s->H + (size_t)i * WVC_HBINS, pl->band[b->band] + k * pl->sz[b->band], b->ext[0],
-                                 b->ext[1], pl->sy[b->band], &m);
-        mb = m > mb ? m : mb;
+    const int tid = omp_get_thread_num();
+    if (tid >= s->sets) {
+        /* a team larger than the sets (not made by the pipeline): one at a time in set 0 */
+#pragma omp critical(wvc_stream_stats)
+        stats_rows(s, 0, first, last, y0, y1, pl);
+        return;
     }
-    s->maxbits = mb;
+    stats_rows(s, tid, first, last, y0, y1, pl);
 }
 
-double wvol__wvc_stream_predict(const wvc_stream_stats *s, double step, double rounding)
+double wvol__wvc_stream_predict(wvc_stream_stats *s, double step, double rounding)
 {
-    wvc_hist_est *e = wvol__wvc_hist_prepare(s->H, &s->L);
+    wvc_hist_est *e = wvol__wvc_hist_prepare(merge(s), &s->L);
     double v = e ? wvol__wvc_hist_error(e, &s->L, step, rounding) : NAN;
     wvol__wvc_hist_free(e);
     return v;
 }
 
-wvol_status wvol__wvc_stream_step(const wvc_stream_stats *s, const wvol_wvc_params *p, double target_scale,
+wvol_status wvol__wvc_stream_step(wvc_stream_stats *s, const wvol_wvc_params *p, double target_scale,
                                   double *step, double *maxabs_out, wvol_error *err)
 {
     double maxabs, min_step, d;
     float m;
     WVOL_RETURN_IF(!s || !p || !step, err, WVOL_ERR_ARG, "wvc stream step: NULL argument");
-    WVOL_RETURN_IF(s->maxbits >= 0x7F800000u, err, WVOL_ERR_NONFINITE, "wvc encode: coefficients hold NaN or Inf");
-    memcpy(&m, &s->maxbits, 4);
+    (void)merge(s);
+    WVOL_RETURN_IF(s->maxbits[0] >= 0x7F800000u, err, WVOL_ERR_NONFINITE,
+                   "wvc encode: coefficients hold NaN or Inf");
+    memcpy(&m, &s->maxbits[0], 4);
     maxabs = m;
     if (maxabs_out) *maxabs_out = maxabs;
     WVOL_RETURN_IF(!(p->rounding >= 0 && p->rounding <= 0.5), err, WVOL_ERR_ARG,
@@ -106,7 +147,7 @@ wvol_status wvol__wvc_stream_step(const wvc_stream_stats *s, const wvol_wvc_para
     } else if (maxabs == 0) {
         d = 1.0; /* every coefficient is zero: any step is exact */
     } else {
-        wvc_hist_est *e = wvol__wvc_hist_prepare(s->H, &s->L);
+        wvc_hist_est *e = wvol__wvc_hist_prepare(merge(s), &s->L);
         WVOL_RETURN_IF(!e, err, WVOL_ERR_NOMEM, "wvc encode: out of memory");
         d = wvol__wvc_hist_step(e, &s->L, target_scale * p->target_sse, p->rounding, min_step, 4 * maxabs);
         wvol__wvc_hist_free(e);

@@ -18,18 +18,23 @@ typedef struct wvc_stream_stats wvc_stream_stats;
 /* For the pyramid of a px x py x pz padded grid with `levels` levels. */
 wvol_status wvol__wvc_stream_stats_create(wvc_stream_stats **out, size_t px, size_t py, size_t pz, int levels,
                                           wvol_error *err);
-/* Counts nz rows of every band of `level` (the writer's put() arguments; band 0 only at
- * level == levels). Rows may come in any order; each row once. */
-void wvol__wvc_stream_stats_add(wvc_stream_stats *s, int level, size_t nz, const wvc2_planes *planes);
+/* Counts the rows y0 .. y1 - 1 of the two planes of one row of `level` as the streamed
+ * transform makes them (its x fastest, cx x cy planes), every band of the level they hold:
+ * planes as the writer's put() takes them for that row (band 0 only at level == levels),
+ * pointing at the bands' first rows. Rows may come in any order, each once, and from
+ * several threads at once (each counts into histograms of its own, for as many threads as
+ * OpenMP allowed at create, up to 16; a further thread takes turns in the first's). */
+void wvol__wvc_stream_stats_add_rows(wvc_stream_stats *s, int level, size_t y0, size_t y1,
+                                     const wvc2_planes *planes);
 /* The step for params p, as wvol_wvc_encode chooses it before its exact passes: p->step
  * when given (checked against the coefficients' range), else the largest step whose
  * error the histograms predict within target_scale x p->target_sse (the encoder's first
  * guess is 0.9925). Refuses NaN/Inf coefficients and a step whose dequantised values
  * would overflow float32, with the encoder's messages. *maxabs (may be NULL): max |c|. */
-wvol_status wvol__wvc_stream_step(const wvc_stream_stats *s, const wvol_wvc_params *p, double target_scale,
+wvol_status wvol__wvc_stream_step(wvc_stream_stats *s, const wvol_wvc_params *p, double target_scale,
                                   double *step, double *maxabs, wvol_error *err);
 /* The error the histograms predict for a step (sum over the pyramid). */
-double wvol__wvc_stream_predict(const wvc_stream_stats *s, double step, double rounding);
+double wvol__wvc_stream_predict(wvc_stream_stats *s, double step, double rounding);
 void wvol__wvc_stream_stats_free(wvc_stream_stats *s); /* NULL is fine */
 
 #endif

@@ -14,7 +14,7 @@
  * volume's size on disk and its read-back; a second transform costs less than reading
  * 4 bytes per voxel back on the machines we measure (docs/store.md). When the pyramid
  * fits the caller's memory budget, pass 1 also keeps the rows the transform emits (made
- * in place in a buffer laid out level by level, wvol_dwt3_source_placed), and pass 2
+ * in place in a buffer laid out level by level, wvol_dwt3_source_hooked), and pass 2
  * replays them into the writer instead of reading and transforming the source again: each
  * level's rows in the same order (level 1's a chunk row per call), so the same bytes. The
  * writer quantises them where they lie (its rows would be as much fresh memory again, whose
@@ -38,7 +38,7 @@
 
 /* The pyramid kept for the replay, level by level: row r of level m at level[m] + r * row[m]
  * (its low plane, then its high plane when z is transformed), where the transform makes it
- * (wvol_dwt3_source_placed), so that a run of a level's rows is planes a fixed stride apart.
+ * (wvol_dwt3_source_hooked), so that a run of a level's rows is planes a fixed stride apart.
  * `order` lists the rows as the transform emitted them. */
 typedef struct kept_row {
     int level;
@@ -88,14 +88,24 @@ static float *place_row(void *user, int level, size_t r)
     return r < k->rows[level] ? k->data + k->level[level] + r * k->row[level] : NULL;
 }
 
+/* wvol_dwt3_piece_fn: pass 1 counts the rows as each thread makes them (the planes of the
+ * whole row start y0 rows before the piece) */
+static void on_piece(void *user, int level, size_t r, size_t y0, size_t y1, const float *low, const float *high)
+{
+    pass_ctx *c = user;
+    size_t cx = level_extent(c->p[0], level);
+    wvc2_planes pl;
+    (void)r;
+    planes_of(&pl, c, level, low - y0 * cx, high ? high - y0 * cx : NULL, 0);
+    wvol__wvc_stream_stats_add_rows(c->stats, level, y0, y1, &pl);
+}
+
 static wvol_status on_rows(void *user, int level, size_t r, const float *low, const float *high, wvol_error *err)
 {
     pass_ctx *c = user;
     wvc2_planes pl;
-    planes_of(&pl, c, level, low, high, 0);
     if (c->stats) {
         kept_rows *k = c->keep;
-        wvol__wvc_stream_stats_add(c->stats, level, 1, &pl);
         if (!k) return WVOL_OK;
         WVOL_RETURN_IF(k->n == k->nmax, err, WVOL_ERR_INTERNAL,
                        "compress: the transform emitted more rows than a %zux%zux%zu pyramid holds", c->p[0],
@@ -104,6 +114,7 @@ static wvol_status on_rows(void *user, int level, size_t r, const float *low, co
         k->n++;
         return WVOL_OK;
     }
+    planes_of(&pl, c, level, low, high, 0);
     return wvol__wvc2_writer_put(c->writer, level, r, 1, &pl, err);
 }
 
@@ -255,7 +266,9 @@ wvol_status wvol_compress_stream(const char *path, wvol_source *src, const wvol_
     s = wvol__wvc_stream_stats_create(&pc.stats, pc.p[0], pc.p[1], pc.p[2], p.levels, err);
     if (!s) keep_create(&pc.keep, pc.p, p.levels, p.memory ? p.memory : WVOL_WVC_DEFAULT_BUDGET);
     out.kept_bytes = keep_bytes(pc.keep, p.levels);
-    if (!s) s = wvol_dwt3_source_placed(src, f, p.levels, on_rows, pc.keep ? place_row : NULL, &pc, &bytes, err);
+    if (!s)
+        s = wvol_dwt3_source_hooked(src, f, p.levels, on_rows, pc.keep ? place_row : NULL, on_piece, &pc, &bytes,
+                                    err);
     out.window_bytes = bytes;
     /* the range of what the pass read (the checked reads take it); + 0.0: a zero extreme as
      * +0, whichever zero the scan kept (as wvol_compress) */

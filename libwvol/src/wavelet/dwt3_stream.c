@@ -50,6 +50,7 @@ struct wvol_dwt3_stream {
     size_t bytes;
     wvol_dwt3_rows_fn fn;
     wvol_dwt3_place_fn place; /* NULL: the rows are made in lv[m].lo / hi */
+    wvol_dwt3_piece_fn piece; /* NULL: none */
     void *user;
 };
 
@@ -78,6 +79,14 @@ wvol_status wvol_dwt3_stream_set_place(wvol_dwt3_stream *s, wvol_dwt3_place_fn p
     WVOL_RETURN_IF(!s, err, WVOL_ERR_ARG, "streamed transform: NULL argument");
     WVOL_RETURN_IF(s->pushed, err, WVOL_ERR_ARG, "streamed transform: rows placed after the first slice");
     s->place = place;
+    return WVOL_OK;
+}
+
+wvol_status wvol_dwt3_stream_set_pieces(wvol_dwt3_stream *s, wvol_dwt3_piece_fn piece, wvol_error *err)
+{
+    WVOL_RETURN_IF(!s, err, WVOL_ERR_ARG, "streamed transform: NULL argument");
+    WVOL_RETURN_IF(s->pushed, err, WVOL_ERR_ARG, "streamed transform: pieces asked for after the first slice");
+    s->piece = piece;
     return WVOL_OK;
 }
 
@@ -181,14 +190,17 @@ static int team_tasks(const wvol_dwt3_stream *s)
     return omp_in_parallel() && omp_get_num_threads() > 1 && omp_get_num_threads() <= s->threads;
 }
 
-/* The z pass of rows y0 .. y1 - 1 of output row k (input rows `rows`) into lo and hi,
- * then their finiteness; returns 0 when a value is NaN or Inf. */
-static int zrows_checked(const wvol_dwt3_stream *s, const level_state *l, float *lo, float *hi,
+/* The z pass of rows y0 .. y1 - 1 of output row k of level m (input rows `rows`) into lo
+ * and hi, then their finiteness and the caller's piece; returns 0 when a value is NaN or
+ * Inf. */
+static int zrows_checked(const wvol_dwt3_stream *s, const level_state *l, int m, size_t k, float *lo, float *hi,
                          const float *const *rows, size_t y0, size_t y1)
 {
     size_t n = (y1 - y0) * l->cx;
     wvol__dwt_zrows_f32(lo, hi, rows, l->cx, y0, y1, l->cz, s->h, s->g, s->L);
-    return wvol__all_finite(lo + y0 * l->cx, n) && wvol__all_finite(hi + y0 * l->cx, n);
+    if (!wvol__all_finite(lo + y0 * l->cx, n) || !wvol__all_finite(hi + y0 * l->cx, n)) return 0;
+    if (s->piece) s->piece(s->user, m, k, y0, y1, lo + y0 * l->cx, hi + y0 * l->cx);
+    return 1;
 }
 
 /* Output row k of level m: the callback, then the next level's input row k. */
@@ -211,14 +223,14 @@ static wvol_status emit(wvol_dwt3_stream *s, int m, size_t k, wvol_error *err)
         if (team_tasks(s)) {
 #pragma omp taskloop grainsize(1) shared(finite) if (l->plane > 32768)
             for (long long y = 0; y < ny; y += chunk)
-                if (!zrows_checked(s, l, lo, hi, rows, (size_t)y, (size_t)(y + chunk < ny ? y + chunk : ny))) {
+                if (!zrows_checked(s, l, m, k, lo, hi, rows, (size_t)y, (size_t)(y + chunk < ny ? y + chunk : ny))) {
 #pragma omp atomic write
                     finite = 0;
                 }
         } else {
 #pragma omp parallel for schedule(dynamic, 1) num_threads(s->threads) if (l->plane > 32768) reduction(& : finite)
             for (long long y = 0; y < ny; y += chunk)
-                finite &= zrows_checked(s, l, lo, hi, rows, (size_t)y, (size_t)(y + chunk < ny ? y + chunk : ny));
+                finite &= zrows_checked(s, l, m, k, lo, hi, rows, (size_t)y, (size_t)(y + chunk < ny ? y + chunk : ny));
         }
         WVOL_FORWARD(check_plane(finite, m, err));
         low = lo, high = hi;
@@ -226,6 +238,7 @@ static wvol_status emit(wvol_dwt3_stream *s, int m, size_t k, wvol_error *err)
         low = slot(l, 0); /* an untransformed z axis: the xy-transformed slice itself */
         WVOL_FORWARD(check_plane(wvol__all_finite(low, l->plane), m, err));
         if (room) low = memcpy(room, low, l->plane * sizeof(float));
+        if (s->piece) s->piece(s->user, m, k, 0, l->cy, low, NULL);
     }
     WVOL_FORWARD(s->fn(s->user, m, k, low, high, err));
     if (m < s->levels) {
@@ -332,8 +345,9 @@ wvol_status wvol_dwt3_stream_finish(wvol_dwt3_stream *s, wvol_error *err)
     return WVOL_OK;
 }
 
-wvol_status wvol_dwt3_source_placed(wvol_source *src, const wvol_filter *f, int levels, wvol_dwt3_rows_fn fn,
-                                    wvol_dwt3_place_fn place, void *user, size_t *bytes, wvol_error *err)
+wvol_status wvol_dwt3_source_hooked(wvol_source *src, const wvol_filter *f, int levels, wvol_dwt3_rows_fn fn,
+                                    wvol_dwt3_place_fn place, wvol_dwt3_piece_fn piece, void *user, size_t *bytes,
+                                    wvol_error *err)
 {
     wvol_dwt3_stream *s;
     size_t dims[3], S, slice;
@@ -343,6 +357,7 @@ wvol_status wvol_dwt3_source_placed(wvol_source *src, const wvol_filter *f, int 
     wvol_source_geometry(src, dims, NULL, NULL);
     WVOL_FORWARD(wvol_dwt3_stream_create(&s, f, levels, dims[0], dims[1], dims[2], fn, user, err));
     s->place = place;
+    s->piece = piece;
     slice = dims[0] * dims[1];
     /* slabs of about 4 MiB (at least a batch of slices when a slice is smaller): the slab
      * is fresh memory for each pass, and a larger one made the reads no faster */
@@ -369,7 +384,7 @@ wvol_status wvol_dwt3_source_placed(wvol_source *src, const wvol_filter *f, int 
 wvol_status wvol_dwt3_source(wvol_source *src, const wvol_filter *f, int levels, wvol_dwt3_rows_fn fn, void *user,
                              size_t *bytes, wvol_error *err)
 {
-    return wvol_dwt3_source_placed(src, f, levels, fn, NULL, user, bytes, err);
+    return wvol_dwt3_source_hooked(src, f, levels, fn, NULL, NULL, user, bytes, err);
 }
 
 void wvol_coeffs_put_rows(wvol_coeffs *c, int level, size_t r, const float *low, const float *high)
