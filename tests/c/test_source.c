@@ -2,15 +2,20 @@
 /* Volume sources (core/source.c, io/source_file.c) and the slab writer (io/nrrd_write.c):
  * slabs read from raw and NRRD (raw, gzip, detached) files equal the same slices of the
  * whole-file readers in any order; other formats are read whole; damaged files, NaN and
- * bad ranges are refused with a message; the slab writer's files equal the whole-volume
- * writers' and nothing is left when a write is abandoned. */
+ * bad ranges are refused with a message; slabs of several MiB, read and checked on several
+ * threads, are the same; the slab writer's files equal the whole-volume writers' and
+ * nothing is left when a write is abandoned. */
+#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include <omp.h>
+
 #include "check.h"
+#include "wvol/compress.h"
 #include "wvol/io.h"
 #include "wvol/source.h"
 #include "wvol_synth.h"
@@ -235,10 +240,81 @@ static void slab_writer_writes_what_the_volume_writers_write(void)
     wvol_volume_destroy(v);
 }
 
+/* A raw float32 file whose slabs are large enough (4 MiB) to be read in parts on several
+ * threads (io/source_file.c) and checked the same way (core/source.c): the same values, the
+ * range a compression reports, and a NaN or Inf in any part refused with its voxel named. */
+static void large_slabs_read_on_threads(void)
+{
+    const size_t nx = 128, ny = 96, nz = 110, slice = nx * ny;
+    wvol_volume *v = skull(nx, ny, nz);
+    float *buf = malloc(nz * slice * sizeof *buf);
+    wvol_load_options lo;
+    wvol_error err;
+    const int before = omp_get_max_threads();
+    double vmin, vmax;
+    if (!v || !buf) {
+        CHECK(0, "out of memory");
+        goto out;
+    }
+    wvol_volume_range(v, &vmin, &vmax, NULL);
+    CHECK(wvol_raw_write(v, DIR_ "/big.raw", &err) == WVOL_OK, "%s", err.message);
+    wvol_load_options_default(&lo);
+    lo.dims[0] = nx, lo.dims[1] = ny, lo.dims[2] = nz;
+    for (int threads = 1; threads <= 3; threads++) {
+        static const size_t plan[][2] = {{0, 110}, {7, 100}, {0, 90}, {30, 80}};
+        wvol_source *s = NULL;
+        wvol_compress_params cp;
+        wvol_compress_stream_report rep;
+        omp_set_num_threads(threads);
+        CHECK(wvol_source_open(&s, DIR_ "/big.raw", &lo, &err) == WVOL_OK, "%s", err.message);
+        for (size_t i = 0; s && i < sizeof plan / sizeof plan[0]; i++) {
+            size_t z0 = plan[i][0], n = plan[i][1];
+            memset(buf, 0, n * slice * sizeof *buf);
+            CHECK(wvol_source_read(s, buf, z0, n, &err) == WVOL_OK, "%d threads, slab %zu+%zu: %s", threads, z0, n,
+                  err.message);
+            CHECK(memcmp(buf, v->data + z0 * slice, n * slice * sizeof *buf) == 0, "%d threads: slab %zu+%zu differs",
+                  threads, z0, n);
+        }
+        wvol_compress_params_default(&cp);
+        cp.for_file = 1;
+        cp.quant.psnr = 40;
+        CHECK(s && wvol_compress_stream(DIR_ "/big.wvc", s, &cp, &rep, &err) == WVOL_OK, "%s", err.message);
+        CHECK(rep.value_min == vmin && rep.value_max == vmax, "%d threads: range %g..%g, the volume's %g..%g", threads,
+              rep.value_min, rep.value_max, vmin, vmax);
+        wvol_source_destroy(s);
+        s = NULL;
+        /* a NaN near the start, an Inf in the last part: the voxel named */
+        for (int k = 0; k < 2; k++) {
+            size_t at = k ? (nz - 2) * slice + 5 * nx + 9 : 3 * slice + 2;
+            float keep = v->data[at];
+            FILE *fp;
+            v->data[at] = k ? INFINITY : NAN;
+            fp = fopen(DIR_ "/bad.raw", "wb");
+            if (fp) fwrite(v->data, sizeof(float), nz * slice, fp), fclose(fp);
+            v->data[at] = keep;
+            CHECK(wvol_source_open(&s, DIR_ "/bad.raw", &lo, &err) == WVOL_OK, "%s", err.message);
+            if (s) {
+                char want[64];
+                snprintf(want, sizeof want, "(i=%zu, j=%zu, k=%zu)", at % nx, (at % slice) / nx, at / slice);
+                CHECK(wvol_source_read(s, buf, 0, nz, &err) == WVOL_ERR_NONFINITE && strstr(err.message, want) &&
+                          strstr(err.message, k ? "Inf" : "NaN"),
+                      "%d threads: %s refused at %s: %s", threads, k ? "Inf" : "NaN", want, err.message);
+            }
+            wvol_source_destroy(s);
+            s = NULL;
+        }
+    }
+    omp_set_num_threads(before);
+out:
+    free(buf);
+    wvol_volume_destroy(v);
+}
+
 int main(void)
 {
     mkdir(DIR_, 0755);
     file_sources_equal_whole_reads();
+    large_slabs_read_on_threads();
     damaged_files_are_refused();
     slab_writer_writes_what_the_volume_writers_write();
     return check_summary("test_source");
