@@ -124,12 +124,9 @@ static inline __attribute__((always_inline)) void row_kernel(double t[8], float 
         t[4] += A.r2[k], t[5] += A.rr2[k], t[6] += A.c1[k], t[7] += A.c2[k];
     }
     if (amax) {
-        float m = 0.0f;
-        for (int k = 0; k < 8; k++) {
-            float v;
-            memcpy(&v, &vmax[k], sizeof v);
-            m = v > m ? v : m;
-        }
+        float m = 0.0f, lanes[8];
+        memcpy(lanes, &vmax, sizeof lanes); /* the lanes' bits as floats */
+        for (int k = 0; k < 8; k++) m = lanes[k] > m ? lanes[k] : m;
         for (size_t k = x; k < ex; k++) m = fabsf(row[k]) > m ? fabsf(row[k]) : m;
         *amax = m;
     }
