@@ -1,9 +1,13 @@
 /* SPDX-License-Identifier: MIT */
 /* Volume type, status messages, raw I/O and atomic writes. */
+#include <math.h>
 #include <stdint.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include <unistd.h>
+
+#include <omp.h>
 
 #include "check.h"
 #include "wvol/io.h"
@@ -35,6 +39,33 @@ static void test_finite(void)
     d[2] = INFINITY;
     CHECK(wvol_check_finite(d, 2, 2, 2, "x", &err) == WVOL_ERR_NONFINITE && strstr(err.message, "Inf"),
           "Inf refused: %s", err.message);
+    {
+        /* large enough to be searched on the threads (in parts of whole 1024-value blocks):
+         * the first NaN or Inf named, wherever the parts fall, on 1 to 3 threads; a tail
+         * shorter than a block searched too */
+        const size_t nx = 1031, ny = 64, nz = 67, n = nx * ny * nz;
+        const size_t at[][2] = {{n - 3, n - 1}, {5, n - 2}, {n / 2 + 7, n / 2 + 900}, {n / 3 - 1, 2 * n / 3}};
+        float *big = calloc(n, sizeof *big);
+        const int before = omp_get_max_threads();
+        CHECK(big != NULL, "out of memory");
+        for (int threads = 1; big && threads <= 3; threads++) {
+            omp_set_num_threads(threads);
+            CHECK(wvol_check_finite(big, nx, ny, nz, "big", &err) == WVOL_OK, "%d threads: all finite", threads);
+            for (size_t c = 0; c < sizeof at / sizeof at[0]; c++) {
+                char want[64];
+                size_t i = at[c][0];
+                big[at[c][0]] = NAN;
+                big[at[c][1]] = INFINITY;
+                snprintf(want, sizeof want, "NaN at voxel (i=%zu, j=%zu, k=%zu)", i % nx, i / nx % ny, i / (nx * ny));
+                CHECK(wvol_check_finite(big, nx, ny, nz, "big", &err) == WVOL_ERR_NONFINITE &&
+                          strstr(err.message, want),
+                      "%d threads: the first (%s) named: %s", threads, want, err.message);
+                big[at[c][0]] = 0, big[at[c][1]] = 0;
+            }
+        }
+        omp_set_num_threads(before);
+        free(big);
+    }
 }
 
 static void test_raw_roundtrip(void)

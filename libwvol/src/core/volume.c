@@ -10,6 +10,10 @@
 #include <stdlib.h>
 #include <string.h>
 
+#ifdef _OPENMP
+#include <omp.h>
+#endif
+
 int wvol_size_mul3(size_t a, size_t b, size_t c, size_t elem, size_t *out)
 {
     size_t r = a;
@@ -137,11 +141,37 @@ static size_t first_nonfinite_block(const float *data, size_t n)
     return b;
 }
 
+/* The same on the OpenMP threads when the array is large (a whole volume after a parallel
+ * transform or decode): contiguous parts of whole blocks, and the earliest part's first
+ * block that is not all finite, so the same block as the serial search (and the same
+ * voxel named). */
+static size_t first_nonfinite_block_threads(const float *data, size_t n)
+{
+    enum { BLOCK = 1024 };
+    int threads = 1;
+    size_t part, first = n;
+#ifdef _OPENMP
+    if (n >= ((size_t)1 << 22) && !omp_in_parallel()) threads = omp_get_max_threads();
+#endif
+    if (threads < 2) return first_nonfinite_block(data, n);
+    part = (n / (size_t)threads + BLOCK - 1) / BLOCK * BLOCK;
+#pragma omp parallel for schedule(static, 1) num_threads(threads) reduction(min : first)
+    for (int t = 0; t < threads; t++) {
+        size_t a = (size_t)t * part, b = a + part < n ? a + part : n, r;
+        if (a >= n) continue;
+        r = a + first_nonfinite_block(data + a, b - a);
+        /* a part's tail (only the last part has one) is searched by the caller */
+        if (r < b) first = r < first ? r : first;
+    }
+    if (first == n) first = n / BLOCK * BLOCK; /* all whole blocks finite: the tail */
+    return first;
+}
+
 wvol_status wvol_check_finite(const float *data, size_t nx, size_t ny, size_t nz, const char *what,
                               wvol_error *err)
 {
     size_t n = nx * ny * nz, idx;
-    for (idx = first_nonfinite_block(data, n); idx < n; idx++) {
+    for (idx = first_nonfinite_block_threads(data, n); idx < n; idx++) {
         if (!isfinite(data[idx])) {
             size_t i = idx % nx, j = (idx / nx) % ny, k = idx / (nx * ny);
             return wvol_error_set(err, WVOL_ERR_NONFINITE,
