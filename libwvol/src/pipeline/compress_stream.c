@@ -16,7 +16,7 @@
  * fits the caller's memory budget, pass 1 also keeps the rows the transform emits (made
  * in place in a buffer laid out level by level, wvol_dwt3_source_hooked), and pass 2
  * replays them into the writer instead of reading and transforming the source again: each
- * level's rows in the same order (level 1's a chunk row per call), so the same bytes. The
+ * level's rows in the same order (a chunk row per call), so the same bytes. The
  * writer quantises them where they lie (its rows would be as much fresh memory again, whose
  * first touch costs more than the quantiser's arithmetic); a further pass, rare, reads and
  * transforms the source again. */
@@ -141,27 +141,26 @@ static wvol_status write_rows(void *user, wvol_error *err)
     write_pass *wp = user;
     pass_ctx *c = wp->pc;
     const kept_rows *k = c->keep;
-    size_t run = 0, run_r = 0;
+    size_t run[32] = {0}, run_r[32] = {0};
     if (!k) return wvol_dwt3_source(wp->src, wp->f, c->levels, on_rows, c, NULL, err);
-    /* The replay: the rows in the order the transform made them, except that level 1's
-     * (seven eighths of the coefficients) go in whole chunk rows, so that the writer's
-     * quantiser has a chunk row's tasks to share among its threads. The coarser rows that
-     * came between go in before them; a level's own rows keep their order, and a chunk's
-     * sums are taken in the same order whatever the rows per call: the same bytes. */
+    /* The replay: each level's rows in the order the transform made them, in whole chunk
+     * rows (level 1 holds seven eighths of the coefficients; level 2 one eighth), so that
+     * the writer's quantiser has a chunk row's tasks to share among its threads. A level's
+     * chunk row goes in when its last row was made; a chunk is coded once its own rows and
+     * its parent's are in, whatever the order of the levels' calls, and a chunk's sums are
+     * taken in the same order whatever the rows per call: the same bytes. */
     for (size_t i = 0; i < k->n; i++) {
         const kept_row *e = &k->order[i];
-        if (e->level != 1) {
-            WVOL_FORWARD(put_kept(c, e->level, e->r, 1, err));
-            continue;
-        }
-        if (!run) run_r = e->r;
-        run++;
-        if ((e->r + 1) % c->tile_z == 0 || e->r + 1 == k->rows[1]) {
-            WVOL_FORWARD(put_kept(c, 1, run_r, run, err));
-            run = 0;
+        const int m = e->level;
+        if (!run[m]) run_r[m] = e->r;
+        run[m]++;
+        if ((e->r + 1) % c->tile_z == 0 || e->r + 1 == k->rows[m]) {
+            WVOL_FORWARD(put_kept(c, m, run_r[m], run[m], err));
+            run[m] = 0;
         }
     }
-    WVOL_RETURN_IF(run, err, WVOL_ERR_INTERNAL, "compress: the replay ended inside a chunk row of level 1");
+    for (int m = 1; m <= c->levels; m++)
+        WVOL_RETURN_IF(run[m], err, WVOL_ERR_INTERNAL, "compress: the replay ended inside a chunk row of level %d", m);
     return WVOL_OK;
 }
 
