@@ -13,7 +13,8 @@ int wvol__all_finite(const float *d, size_t n);
 
 /* 1 when d[0..n) is all finite, with range[0] and range[1] its smallest and largest value
  * (the sign of a zero extreme is not specified: compare them as numbers); 0 when a NaN or
- * an Inf is among them (range then unspecified). n = 0 gives 1 and the range (+Inf, -Inf). */
+ * an Inf is among them (range then unspecified). n = 0 gives 1 and the range (+Inf, -Inf).
+ * From 1 Mi values, outside a parallel region, split among the OpenMP threads. */
 int wvol__finite_range(const float *d, size_t n, float range[2]);
 
 #endif

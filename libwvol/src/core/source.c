@@ -6,10 +6,6 @@
 #include <stdlib.h>
 #include <string.h>
 
-#ifdef _OPENMP
-#include <omp.h>
-#endif
-
 #include "core/finite.h"
 #include "core/source_volume.h"
 #include "core/status_internal.h"
@@ -92,29 +88,6 @@ void wvol__source_seen_range(const wvol_source *s, float range[2])
     range[1] = s ? s->seen[1] : -INFINITY;
 }
 
-/* wvol__finite_range of a slab, split among the threads when it is large (a min and a max:
- * the same whatever the split, but for which zero an extreme of 0 is). */
-static int slab_range(const float *d, size_t n, float range[2])
-{
-    int threads = 1, finite = 1;
-    float lo = INFINITY, hi = -INFINITY;
-#ifdef _OPENMP
-    if (n >= ((size_t)1 << 20) && !omp_in_parallel()) threads = omp_get_max_threads();
-#endif
-    if (threads < 2) return wvol__finite_range(d, n, range);
-#pragma omp parallel for schedule(static, 1) num_threads(threads) reduction(& : finite) reduction(min : lo) \
-    reduction(max : hi)
-    for (int t = 0; t < threads; t++) {
-        size_t a = n / (size_t)threads * (size_t)t, b = t + 1 == threads ? n : a + n / (size_t)threads;
-        float r[2];
-        finite &= wvol__finite_range(d + a, b - a, r);
-        lo = r[0] < lo ? r[0] : lo;
-        hi = r[1] > hi ? r[1] : hi;
-    }
-    range[0] = lo, range[1] = hi;
-    return finite;
-}
-
 wvol_status wvol_source_read(wvol_source *s, float *dst, size_t z0, size_t nz, wvol_error *err)
 {
     size_t slice, n;
@@ -127,7 +100,7 @@ wvol_status wvol_source_read(wvol_source *s, float *dst, size_t z0, size_t nz, w
     n = slice * nz;
     /* the common case (all finite) in one branch-free pass, which takes the range too; the
      * voxel is found after */
-    if (slab_range(dst, n, range)) {
+    if (wvol__finite_range(dst, n, range)) {
         s->seen[0] = range[0] < s->seen[0] ? range[0] : s->seen[0];
         s->seen[1] = range[1] > s->seen[1] ? range[1] : s->seen[1];
         return WVOL_OK;

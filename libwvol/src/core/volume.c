@@ -141,18 +141,26 @@ static size_t first_nonfinite_block(const float *data, size_t n)
     return b;
 }
 
-/* The same on the OpenMP threads when the array is large (a whole volume after a parallel
- * transform or decode): contiguous parts of whole blocks, and the earliest part's first
- * block that is not all finite, so the same block as the serial search (and the same
- * voxel named). */
+/* The threads a scan of n values takes: all of OpenMP's from 1 Mi values (a volume or a
+ * slab after a parallel read, transform or decode, which one thread would scan while the
+ * others wait), one below that or inside a parallel region. */
+static int scan_threads(size_t n)
+{
+#ifdef _OPENMP
+    if (n >= ((size_t)1 << 20) && !omp_in_parallel()) return omp_get_max_threads();
+#endif
+    (void)n;
+    return 1;
+}
+
+/* The same on the threads (scan_threads): contiguous parts of whole blocks, and the
+ * earliest part's first block that is not all finite, so the same block as the serial
+ * search (and the same voxel named). */
 static size_t first_nonfinite_block_threads(const float *data, size_t n)
 {
     enum { BLOCK = 1024 };
-    int threads = 1;
+    const int threads = scan_threads(n);
     size_t part, first = n;
-#ifdef _OPENMP
-    if (n >= ((size_t)1 << 22) && !omp_in_parallel()) threads = omp_get_max_threads();
-#endif
     if (threads < 2) return first_nonfinite_block(data, n);
     part = (n / (size_t)threads + BLOCK - 1) / BLOCK * BLOCK;
 #pragma omp parallel for schedule(static, 1) num_threads(threads) reduction(min : first)
@@ -203,7 +211,7 @@ static inline __attribute__((always_inline)) void fr_step(const float *d, fr_v8f
     *hi = (fr_v8f)(((fr_v8i)v & mhi) | ((fr_v8i)*hi & ~mhi));
 }
 
-WVOL__CLONES int wvol__finite_range(const float *d, size_t n, float range[2])
+WVOL__CLONES static int finite_range_serial(const float *d, size_t n, float range[2])
 {
     fr_v8f lo[4], hi[4];
     fr_v8i bad = {0, 0, 0, 0, 0, 0, 0, 0};
@@ -231,6 +239,26 @@ WVOL__CLONES int wvol__finite_range(const float *d, size_t n, float range[2])
     range[0] = l;
     range[1] = h;
     return !b;
+}
+
+int wvol__finite_range(const float *d, size_t n, float range[2])
+{
+    const int threads = scan_threads(n);
+    int finite = 1;
+    float lo = INFINITY, hi = -INFINITY;
+    if (threads < 2) return finite_range_serial(d, n, range);
+    /* a min and a max: the same whatever the split (but for which zero a zero extreme is) */
+#pragma omp parallel for schedule(static, 1) num_threads(threads) reduction(& : finite) reduction(min : lo) \
+    reduction(max : hi)
+    for (int t = 0; t < threads; t++) {
+        size_t a = n / (size_t)threads * (size_t)t, b = t + 1 == threads ? n : a + n / (size_t)threads;
+        float r[2];
+        finite &= finite_range_serial(d + a, b - a, r);
+        lo = r[0] < lo ? r[0] : lo;
+        hi = r[1] > hi ? r[1] : hi;
+    }
+    range[0] = lo, range[1] = hi;
+    return finite;
 }
 
 void wvol_volume_range(const wvol_volume *v, double *vmin, double *vmax, double *mean)
