@@ -9,7 +9,13 @@
  * soon as row 2k + L - 1 has arrived (the last ones when the last row has), by the same
  * kernels, blocks and tap order as the in-memory transform (dwt3_impl.h), so the
  * coefficients are bit-identical to wvol_dwt3's. The z-low row's low-low quadrant is
- * the next level's input row k. A level shallower than 2L keeps all its rows. */
+ * the next level's input row k. A level shallower than 2L keeps all its rows.
+ *
+ * The outputs a batch of slices allows are made together, a group per task's rows: output
+ * k reads L input rows and k + 1 reads L - 2 of the same, so a task that makes the group's
+ * outputs of its few plane rows one after the other finds their inputs in its cache. Made
+ * one output at a time across the whole plane, each input row was read L / 2 times from
+ * wherever the window was: memory, once the L planes outgrow the cache (1024^2 slices). */
 #include <omp.h>
 #include <stdint.h>
 #include <stdlib.h>
@@ -20,25 +26,29 @@
 #include "wavelet/wavelet_internal.h"
 #include "wvol/source.h"
 
-/* slices transformed in x and y together (in parallel) before the z outputs they allow;
- * fewer when a slice is large (BATCH_BYTES of them at most, but at least 2): each one in
- * the batch costs a ring slot per level and a slice of the reader's slab, and at 2048^2
- * eight slices are 128 MiB twice over while two keep two threads busy */
+/* slices transformed in x and y together (in parallel) before the z outputs they allow,
+ * which are made as a group of half as many; fewer when a slice is large (BATCH_BYTES of
+ * them at most, but at least 2): each one in the batch costs a ring slot per level, a
+ * slice of the reader's slab and half a group's output rows, and at 2048^2 eight slices
+ * are 128 MiB three times over while two keep two threads busy. Up to 1024^2 the batch
+ * stays 8: a group of 4 outputs reads 18 input planes (coif2), where one output at a
+ * time read 12 for each */
 enum { BATCH = 8 };
-#define BATCH_BYTES ((size_t)16 << 20)
+#define BATCH_BYTES ((size_t)32 << 20)
 
 typedef struct level_state {
     size_t cx, cy, cz, plane; /* this level's input cube (cz rows of cx x cy) */
     size_t head, ring, slots; /* wrap rows kept, ring rows; all rows when head == cz */
     float *rows;              /* slots x plane */
     size_t got, next;         /* input rows received, next output row */
-    float *lo, *hi;           /* the output rows (plane each) */
+    float *out;               /* a group's output rows: low then high plane of each */
 } level_state;
 
 struct wvol_dwt3_stream {
     const wvol_filter *f;
     int levels, L, threads; /* threads: scratch slots, and the most the parallel loops use */
     size_t batch;           /* slices per take() (BATCH, fewer for large slices) */
+    size_t group;           /* outputs of a level made together (batch / 2) */
     size_t n[3], p[3];
     float h[WVOL__MAX_TAPS], g[WVOL__MAX_TAPS];
     level_state lv[31];
@@ -65,7 +75,7 @@ void wvol_dwt3_stream_destroy(wvol_dwt3_stream *s)
     if (!s) return;
     for (int m = 0; m < 31; m++) {
         free(s->lv[m].rows);
-        free(s->lv[m].lo);
+        free(s->lv[m].out);
     }
     free(s->scratch);
     free(s->last);
@@ -117,6 +127,7 @@ wvol_status wvol_dwt3_stream_create(wvol_dwt3_stream **out, const wvol_filter *f
     for (int i = 0; i < f->length; i++) s->h[i] = (float)f->h[i], s->g[i] = (float)f->g[i];
     s->batch = BATCH;
     while (s->batch > 2 && s->batch * s->p[0] * s->p[1] * sizeof(float) > BATCH_BYTES) s->batch /= 2;
+    s->group = s->batch / 2;
     /* scratch per thread: the in-memory plan's for the x rows and y column blocks (the z
      * pass reads the window's rows in place) */
     {
@@ -153,10 +164,9 @@ wvol_status wvol_dwt3_stream_create(wvol_dwt3_stream **out, const wvol_filter *f
             l->head = L - 2, l->ring = L + s->batch, l->slots = l->head + l->ring;
         }
         l->rows = wvol__malloc_large(l->slots * l->plane * sizeof(float));
-        l->lo = wvol__malloc_large(2 * l->plane * sizeof(float));
-        if (!l->rows || !l->lo) goto nomem;
-        l->hi = l->lo + l->plane;
-        s->bytes += (l->slots + 2) * l->plane * sizeof(float);
+        l->out = wvol__malloc_large(2 * s->group * l->plane * sizeof(float));
+        if (!l->rows || !l->out) goto nomem;
+        s->bytes += (l->slots + 2 * s->group) * l->plane * sizeof(float);
     }
     *out = s;
     return WVOL_OK;
@@ -190,80 +200,106 @@ static int team_tasks(const wvol_dwt3_stream *s)
     return omp_in_parallel() && omp_get_num_threads() > 1 && omp_get_num_threads() <= s->threads;
 }
 
-/* The z pass of rows y0 .. y1 - 1 of output row k of level m (input rows `rows`) into lo
- * and hi, then their finiteness and the caller's piece; returns 0 when a value is NaN or
- * Inf. */
-static int zrows_checked(const wvol_dwt3_stream *s, const level_state *l, int m, size_t k, float *lo, float *hi,
-                         const float *const *rows, size_t y0, size_t y1)
+/* The z pass of rows y0 .. y1 - 1 of output rows k0 .. k0 + n - 1 of level m (row k0 + j
+ * into lo[j], hi[j]), one output after the other while their inputs are in this thread's
+ * cache, each followed by its finiteness check and the caller's piece; returns 0 when a
+ * value is NaN or Inf. */
+static int zrows_checked(const wvol_dwt3_stream *s, const level_state *l, int m, size_t k0, size_t n,
+                         float *const *lo, float *const *hi, size_t y0, size_t y1)
 {
-    size_t n = (y1 - y0) * l->cx;
-    wvol__dwt_zrows_f32(lo, hi, rows, l->cx, y0, y1, l->cz, s->h, s->g, s->L);
-    if (!wvol__all_finite(lo + y0 * l->cx, n) || !wvol__all_finite(hi + y0 * l->cx, n)) return 0;
-    if (s->piece) s->piece(s->user, m, k, y0, y1, lo + y0 * l->cx, hi + y0 * l->cx);
+    const size_t cnt = (y1 - y0) * l->cx;
+    for (size_t j = 0; j < n; j++) {
+        const size_t k = k0 + j;
+        const float *rows[WVOL__MAX_TAPS];
+        for (int t = 0; t < s->L; t++) rows[t] = slot(l, (2 * k + (size_t)t) % l->cz);
+        wvol__dwt_zrows_f32(lo[j], hi[j], rows, l->cx, y0, y1, l->cz, s->h, s->g, s->L);
+        if (!wvol__all_finite(lo[j] + y0 * l->cx, cnt) || !wvol__all_finite(hi[j] + y0 * l->cx, cnt)) return 0;
+        if (s->piece) s->piece(s->user, m, k, y0, y1, lo[j] + y0 * l->cx, hi[j] + y0 * l->cx);
+    }
     return 1;
 }
 
-/* Output row k of level m: the callback, then the next level's input row k. */
-static wvol_status emit(wvol_dwt3_stream *s, int m, size_t k, wvol_error *err)
+/* Plane rows per z-pass task: a group's input and output rows of the task within about
+ * half a core's L2 (2 + L - 2 + 2 per output, 4 bytes each), at most 8 */
+static long long zpass_rows(const wvol_dwt3_stream *s, const level_state *l, size_t n)
+{
+    size_t per = (2 * n + (size_t)s->L - 2 + 2 * n) * l->cx * sizeof(float), r = ((size_t)512 << 10) / per;
+    return r < 1 ? 1 : r > 8 ? 8 : (long long)r;
+}
+
+/* Output rows k0 .. k1 - 1 of level m (k1 - k0 <= group): the z pass of all of them, then
+ * each one's callback and the next level's input row in order, then the next level's
+ * outputs they allow. */
+static wvol_status emit(wvol_dwt3_stream *s, int m, size_t k0, size_t k1, wvol_error *err)
 {
     level_state *l = &s->lv[m];
-    const float *low, *high = NULL;
-    float *room = NULL;
-    if (s->place) {
-        room = s->place(s->user, m, k);
-        WVOL_RETURN_IF(!room, err, WVOL_ERR_ARG, "streamed transform: no room given for row %zu of level %d", k, m);
+    const size_t n = k1 - k0;
+    float *lo[BATCH], *hi[BATCH];
+    for (size_t j = 0; j < n; j++) {
+        float *room = s->place ? s->place(s->user, m, k0 + j) : l->out + 2 * j * l->plane;
+        WVOL_RETURN_IF(!room, err, WVOL_ERR_ARG, "streamed transform: no room given for row %zu of level %d", k0 + j,
+                       m);
+        lo[j] = room, hi[j] = room + l->plane;
     }
     if (l->cz > 1) {
-        const float *rows[WVOL__MAX_TAPS];
-        float *lo = room ? room : l->lo, *hi = room ? room + l->plane : l->hi;
-        long long ny = (long long)l->cy, chunk = 8;
+        long long ny = (long long)l->cy, chunk = zpass_rows(s, l, n);
         int finite = 1;
-        for (int t = 0; t < s->L; t++) rows[t] = slot(l, (2 * k + (size_t)t) % l->cz);
         /* each task checks the rows it made: the check is shared as the pass is */
         if (team_tasks(s)) {
 #pragma omp taskloop grainsize(1) shared(finite) if (l->plane > 32768)
             for (long long y = 0; y < ny; y += chunk)
-                if (!zrows_checked(s, l, m, k, lo, hi, rows, (size_t)y, (size_t)(y + chunk < ny ? y + chunk : ny))) {
+                if (!zrows_checked(s, l, m, k0, n, lo, hi, (size_t)y, (size_t)(y + chunk < ny ? y + chunk : ny))) {
 #pragma omp atomic write
                     finite = 0;
                 }
         } else {
 #pragma omp parallel for schedule(dynamic, 1) num_threads(s->threads) if (l->plane > 32768) reduction(& : finite)
             for (long long y = 0; y < ny; y += chunk)
-                finite &= zrows_checked(s, l, m, k, lo, hi, rows, (size_t)y, (size_t)(y + chunk < ny ? y + chunk : ny));
+                finite &= zrows_checked(s, l, m, k0, n, lo, hi, (size_t)y, (size_t)(y + chunk < ny ? y + chunk : ny));
         }
         WVOL_FORWARD(check_plane(finite, m, err));
-        low = lo, high = hi;
     } else {
-        low = slot(l, 0); /* an untransformed z axis: the xy-transformed slice itself */
+        /* an untransformed z axis: the xy-transformed slice itself (one row, k = 0), copied
+         * only into a room the caller gave */
+        float *low = slot(l, 0);
         WVOL_FORWARD(check_plane(wvol__all_finite(low, l->plane), m, err));
-        if (room) low = memcpy(room, low, l->plane * sizeof(float));
-        if (s->piece) s->piece(s->user, m, k, 0, l->cy, low, NULL);
+        lo[0] = s->place ? memcpy(lo[0], low, l->plane * sizeof(float)) : low;
+        hi[0] = NULL;
+        if (s->piece) s->piece(s->user, m, k0, 0, l->cy, lo[0], NULL);
     }
-    WVOL_FORWARD(s->fn(s->user, m, k, low, high, err));
-    if (m < s->levels) {
-        level_state *n = &s->lv[m + 1];
-        float *dst = slot(n, k);
-        if (n->cx > 1) { /* the x pass reads the low-low quadrant's rows where they are */
-            wvol__dwt_slice_xy_from_f32(dst, low, l->cx, n->cy, n->cx, n->cy, s->h, s->g, s->L, s->scratch);
-        } else {
-            for (size_t y = 0; y < n->cy; y++) memcpy(dst + y * n->cx, low + y * l->cx, n->cx * sizeof(float));
-            wvol__dwt_slice_xy_f32(dst, n->cx, n->cy, s->h, s->g, s->L, s->scratch);
+    for (size_t j = 0; j < n; j++) {
+        const size_t k = k0 + j;
+        WVOL_FORWARD(s->fn(s->user, m, k, lo[j], hi[j], err));
+        if (m < s->levels) {
+            level_state *nx = &s->lv[m + 1];
+            float *dst = slot(nx, k);
+            if (nx->cx > 1) { /* the x pass reads the low-low quadrant's rows where they are */
+                wvol__dwt_slice_xy_from_f32(dst, lo[j], l->cx, nx->cy, nx->cx, nx->cy, s->h, s->g, s->L, s->scratch);
+            } else {
+                for (size_t y = 0; y < nx->cy; y++) memcpy(dst + y * nx->cx, lo[j] + y * l->cx, nx->cx * sizeof(float));
+                wvol__dwt_slice_xy_f32(dst, nx->cx, nx->cy, s->h, s->g, s->L, s->scratch);
+            }
         }
-        WVOL_FORWARD(arrive(s, m + 1, k, err));
     }
+    if (m < s->levels) WVOL_FORWARD(arrive(s, m + 1, k1 - 1, err));
     return WVOL_OK;
 }
 
-/* Row i of level m is in its slot, xy-transformed: make the outputs it completes. */
+/* Rows up to i of level m are in their slots, xy-transformed: make the outputs they
+ * complete, a group at a time. */
 static wvol_status arrive(wvol_dwt3_stream *s, int m, size_t i, wvol_error *err)
 {
     level_state *l = &s->lv[m];
-    size_t half = l->cz > 1 ? l->cz / 2 : 1, L = (size_t)s->L;
+    size_t half = l->cz > 1 ? l->cz / 2 : 1, L = (size_t)s->L, lim;
     l->got = i + 1;
-    while (l->next < half && (l->cz == 1 ? 1 : 2 * l->next + L - 1 <= i || i + 1 == l->cz)) {
-        WVOL_FORWARD(emit(s, m, l->next, err));
-        l->next++;
+    /* output k needs rows 2k .. 2k + L - 1; the last ones wrap to the rows kept first */
+    if (l->cz == 1 || i + 1 == l->cz) lim = half;
+    else lim = i + 1 >= L ? (i + 1 - L) / 2 + 1 : 0;
+    if (lim > half) lim = half;
+    while (l->next < lim) {
+        size_t k1 = l->next + s->group < lim ? l->next + s->group : lim;
+        WVOL_FORWARD(emit(s, m, l->next, k1, err));
+        l->next = k1;
     }
     return WVOL_OK;
 }
@@ -301,8 +337,7 @@ static wvol_status take(wvol_dwt3_stream *s, const float *slices, size_t z0, siz
 #pragma omp parallel for schedule(dynamic, 1) num_threads(s->threads) if (cnt > 1)
         for (long long t = 0; t < c; t++) take_one(s, slices, z0, (size_t)t);
     }
-    for (size_t t = 0; t < cnt; t++) WVOL_FORWARD(arrive(s, 1, z0 + t, err));
-    return WVOL_OK;
+    return cnt ? arrive(s, 1, z0 + cnt - 1, err) : WVOL_OK;
 }
 
 wvol_status wvol_dwt3_stream_push(wvol_dwt3_stream *s, const float *slices, size_t count, wvol_error *err)
