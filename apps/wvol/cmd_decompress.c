@@ -16,7 +16,7 @@ static const cli_opt opts[] = {
     {"output", 'o', 1, "output volume OUT.raw, OUT.nrrd (or another format this build writes)"},
     {"level", 0, 1, "stop after this level: 0 = full resolution (default), m = the level-m low-pass volume"},
     {"roi", 0, 1, "only the box x0,y0,z0,x1,y1,z1 (voxels of the original grid, x1 exclusive): decodes only the chunks it needs"},
-    {"memory", 0, 1, "with --roi: budget for decoded chunks, bytes or with K/M/G (default 1G); a .raw/.nrrd/.nhdr output is written slab by slab within it"},
+    {"memory", 0, 1, "budget for decoded chunks, bytes or with K/M/G (default 1G): a region (--roi), or the whole volume when its decode would not fit, is read through the chunk cache within it and a .raw/.nrrd/.nhdr output written slab by slab"},
     CLI_JSON_OPT,
     CLI_HELP_OPT,
     {NULL, 0, 0, NULL}};
@@ -89,7 +89,7 @@ int wvol_cmd_decompress(int argc, char **argv)
     wvol_coeffs *c = NULL;
     wvol_volume *v = NULL;
     double t0, t_read, t_inv, t_write;
-    int roi = 0;
+    int roi = 0; /* 1: --roi; 2: the whole box read as a region (a decode over the budget) */
     size_t box[6], budget = 0;
     wvol_wvc_file *wf = NULL;
     wvol_wvc_cache_stats cs;
@@ -108,7 +108,10 @@ int wvol_cmd_decompress(int argc, char **argv)
                            "coarser than m are read (the file is read up to there) and the result is the\n"
                            "level-m low-pass volume: 2^m times coarser, spacing 2^m times larger. With --roi\n"
                            "only the box is reconstructed (at the level's resolution), from the chunks of a\n"
-                           "version-2 file whose basis functions reach it, within --memory.",
+                           "version-2 file whose basis functions reach it, within --memory. A whole volume\n"
+                           "is decoded in memory when its coefficients fit --memory (default 1G), else read\n"
+                           "as the region of the whole box (a .raw, .nrrd or .nhdr output, written slab by\n"
+                           "slab; other formats are made in memory whatever their size).",
                            opts);
             return CLI_OK;
         } else if (!strcmp(o->name, "output")) {
@@ -150,6 +153,21 @@ int wvol_cmd_decompress(int argc, char **argv)
     if (level > info->levels) {
         rc = cli_usage("decompress", "--level %ld: %s has levels 0..%d", level, in, info->levels);
         goto done;
+    }
+    /* a whole decode holds every coefficient (the padded grid, whatever the level): when that
+     * is over the budget and the output can be written slab by slab, the whole box is read
+     * as a region, through the chunk cache (the same values up to float rounding: the
+     * region's synthesis sums in another order) */
+    if (!roi && slab_format(outp) &&
+        (double)info->px * (double)info->py * (double)info->pz * sizeof(float) >
+            (double)(budget ? budget : WVOL_WVC_DEFAULT_BUDGET)) {
+        if (wvol_wvc_open(&wf, in, budget, &err)) {
+            rc = cli_fail_err("decompress", &err);
+            goto done;
+        }
+        box[0] = box[1] = box[2] = 0;
+        box[3] = info->nx, box[4] = info->ny, box[5] = info->nz;
+        roi = 2;
     }
     if (roi) {
         /* the box at the level: the level's samples that cover the voxels asked for */
@@ -241,9 +259,10 @@ int wvol_cmd_decompress(int argc, char **argv)
         cli_json_end();
     } else {
         if (wf)
-            printf("%s -> %s: %zu x %zu x %zu region%s (%llu of %llu chunks decoded, %llu bytes read, cache peak %zu "
+            printf("%s -> %s: %zu x %zu x %zu %s%s (%llu of %llu chunks decoded, %llu bytes read, cache peak %zu "
                    "bytes; read+reconstruct %.3f s, write %.3f s)\n",
-                   in, outp, dims[0], dims[1], dims[2], level ? " of a coarser level" : "", (unsigned long long)cs.decoded,
+                   in, outp, dims[0], dims[1], dims[2], roi == 2 ? "volume, slab by slab within --memory" : "region",
+                   level ? " of a coarser level" : "", (unsigned long long)cs.decoded,
                    (unsigned long long)wvol_wvc_file_info(wf)->chunks, (unsigned long long)cs.bytes_read, cs.peak,
                    t_read, t_write);
         else
