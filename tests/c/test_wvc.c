@@ -842,9 +842,12 @@ static void wvc2_sparse_chunks_round_trip(void)
  * refused. in_place: the writer quantises the rows where they lie (a copy of the
  * pyramid, which it overwrites), the same bytes; rows put where the first rows' layout
  * does not put them are refused. */
+/* rows: 0 the writer's own int32 rows, 1 quantised in place, 2 the writer's own int16 rows
+ * (wvc2_header.narrow, every level: the values here fit) */
 static void wvc2_streamed_rows_give_the_same_bytes(const char *wavelet, size_t nx, size_t ny, size_t nz, int levels,
-                                                   int tile, int tile_z, int in_place)
+                                                   int tile, int tile_z, int rows_kind)
 {
+    const int in_place = rows_kind == 1;
     fixture F;
     void *dense = NULL, *streamed = NULL;
     size_t nd = 0, ns = 0, next[WVOL_WVC_MAX_LEVELS + 1] = {0}, ez[WVOL_WVC_MAX_LEVELS + 1];
@@ -891,6 +894,12 @@ static void wvc2_streamed_rows_give_the_same_bytes(const char *wavelet, size_t n
     h.step = rep.step;
     h.tile = tile, h.tile_z = tile_z;
     h.in_place = in_place;
+    if (rows_kind == 2) {
+        double mx = 0;
+        for (size_t i = 0; i < F.c->px * F.c->py * F.c->pz; i++) mx = fmax(mx, fabs((double)F.c->data[i]));
+        CHECK(mx / rep.step < 30000, "the values fit 16 bits (max |c| / step %g)", mx / rep.step);
+        h.narrow = ~0u << 1;
+    }
     if (in_place && F.c->pz > 2) {
         /* level 1's second row put one float off its place */
         wvc2_planes pl;
@@ -957,7 +966,30 @@ static void wvc2_streamed_rows_give_the_same_bytes(const char *wavelet, size_t n
     }
     CHECK(ns == nd && streamed && dense && memcmp(streamed, dense, nd) == 0,
           "%s %zux%zux%zu, %d levels, tile %d,%d%s: streamed %zu bytes, dense %zu, %s", wavelet, nx, ny, nz, levels,
-          tile, tile_z, in_place ? ", in place" : "", ns, nd, ns == nd ? "contents differ" : "sizes differ");
+          tile, tile_z, in_place ? ", in place" : rows_kind == 2 ? ", 16-bit rows" : "", ns, nd,
+          ns == nd ? "contents differ" : "sizes differ");
+    if (rows_kind == 2) {
+        /* a value beyond 16 bits in narrow rows (a caller's wrong bound) is refused, not wrapped */
+        wvc2_planes pl;
+        h.step = rep.step / 1e4;
+        CHECK(wvol__wvc2_writer_open_mem(&w, &h, &err) == WVOL_OK, "open: %s", err.message);
+        memset(&pl, 0, sizeof pl);
+        for (int b = levels == 1 ? 0 : 1; b < 8; b++) {
+            size_t o[3];
+            for (int a = 0; a < 3; a++) {
+                size_t pa = a == 0 ? F.c->px : a == 1 ? F.c->py : F.c->pz;
+                o[a] = ((b >> a) & 1) && pa > 1 ? pa >> 1 : 0;
+            }
+            pl.band[b] = room + o[0] + F.c->px * (o[1] + F.c->py * o[2]);
+            pl.sy[b] = F.c->px;
+            pl.sz[b] = F.c->px * F.c->py;
+        }
+        CHECK(w && wvol__wvc2_writer_put(w, 1, 0, F.c->pz > 1 ? F.c->pz / 2 : 1, &pl, &err) == WVOL_ERR_INTERNAL &&
+                  strstr(err.message, "16-bit"),
+              "a value beyond the 16-bit rows is refused: %s", err.message);
+        wvol__wvc2_writer_abort(w);
+        h.step = rep.step;
+    }
     {
         /* a level left incomplete is refused at close, and nothing is handed out */
         void *o = NULL;
@@ -1357,11 +1389,11 @@ int main(void)
     wvc_odd_sizes_and_flat_axes_round_trip();
     g_version = 0;
     wvc_coders_decode_to_the_same_coefficients();
-    for (int in_place = 0; in_place < 2; in_place++) {
-        wvc2_streamed_rows_give_the_same_bytes("db2", 40, 36, 44, 2, 8, 8, in_place);
-        wvc2_streamed_rows_give_the_same_bytes("haar", 33, 17, 70, 3, 8, 16, in_place);
-        wvc2_streamed_rows_give_the_same_bytes("bl3", 32, 32, 32, 2, 16, 8, in_place);
-        wvc2_streamed_rows_give_the_same_bytes("db2", 24, 20, 1, 2, 8, 8, in_place);
+    for (int rows_kind = 0; rows_kind < 3; rows_kind++) {
+        wvc2_streamed_rows_give_the_same_bytes("db2", 40, 36, 44, 2, 8, 8, rows_kind);
+        wvc2_streamed_rows_give_the_same_bytes("haar", 33, 17, 70, 3, 8, 16, rows_kind);
+        wvc2_streamed_rows_give_the_same_bytes("bl3", 32, 32, 32, 2, 16, 8, rows_kind);
+        wvc2_streamed_rows_give_the_same_bytes("db2", 24, 20, 1, 2, 8, 8, rows_kind);
     }
     wvc2_regions_equal_the_full_decode("db2", 40, 36, 44, 2, 8, 8);
     wvc2_regions_equal_the_full_decode("haar", 33, 17, 70, 3, 8, 16);

@@ -93,9 +93,15 @@ static size_t local_init(local_grid *lg, const wvc2_geom *g, int m, int band, co
 static void box_copy_in(local_grid *lg, size_t x0, const wvc2_qbox *src, const size_t ext[3])
 {
     for (size_t z = 0; z < ext[2]; z++)
-        for (size_t y = 0; y < ext[1]; y++)
-            memcpy(lg->q + x0 + lg->p[0] * (y + lg->p[1] * z), src->q + y * src->sy + z * src->sz,
-                   ext[0] * sizeof(int32_t));
+        for (size_t y = 0; y < ext[1]; y++) {
+            int32_t *d = lg->q + x0 + lg->p[0] * (y + lg->p[1] * z);
+            if (src->q) {
+                memcpy(d, src->q + y * src->sy + z * src->sz, ext[0] * sizeof(int32_t));
+            } else {
+                const int16_t *r = src->q16 + y * src->sy + z * src->sz;
+                for (size_t x = 0; x < ext[0]; x++) d[x] = r[x];
+            }
+        }
 }
 
 static void parent_in(local_grid *lg, const wvc2_qbox *parent)
@@ -206,8 +212,9 @@ int wvol__wvc2_job_make(wvc2_job *job, const wvc2_geom *g, int m, const size_t e
         } else {
             for (size_t zz = 0; zz < ext[2]; zz++)
                 for (size_t y = 0; y < ext[1]; y++) {
-                    const int32_t *r = child[i].q + y * child[i].sy + zz * child[i].sz;
-                    for (size_t x = 0; x < ext[0]; x++) job->nzb[i] += r[x] != 0;
+                    const size_t o = y * child[i].sy + zz * child[i].sz;
+                    for (size_t x = 0; x < ext[0]; x++)
+                        job->nzb[i] += (child[i].q ? child[i].q[o + x] : child[i].q16[o + x]) != 0;
                 }
         }
         if (job->nzb[i] == 0) continue;

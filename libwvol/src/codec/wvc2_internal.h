@@ -77,10 +77,12 @@ static inline void wvc2_parent_box(const wvc2_geom *g, const size_t off[3], cons
     }
 }
 
-/* A strided int32 box: element (x, y, z) at q[x + y sy + z sz]. */
+/* A strided box of quantised values: element (x, y, z) at q[x + y sy + z sz], or, when q is
+ * NULL, at q16[x + y sy + z sz] (a writer's narrow rows, wvc2_writer.h; copied in as int32). */
 typedef struct wvc2_qbox {
     int32_t *q;
     size_t sy, sz;
+    const int16_t *q16;
 } wvc2_qbox;
 
 /* Results of coding one chunk. */

@@ -38,8 +38,10 @@ typedef struct chunk_rec {
 typedef struct wlevel {
     size_t plane;        /* e0 e1 */
     size_t z_base, z_next, cap_rows;
+    int narrow;          /* the rows are int16 (h.narrow): q16 holds them, q is unused */
     int32_t *q[8];       /* per band of the level's list: rows [z_base, z_next), in block */
-    int32_t *block;
+    int16_t *q16[8];
+    void *block;
     int32_t *xq[8];      /* in place (h.in_place): each band's row 0 in the caller's planes, */
     size_t xsy[8], xsz[8]; /* and its strides */
     size_t tz_next;      /* next tile row to code */
@@ -204,6 +206,7 @@ static wvol_status writer_new(wvc2_writer **out, const wvc2_header *h, wvol_erro
         wlevel *L = &w->lv[m];
         const wvc2_level *G = &w->g.lv[m];
         L->plane = G->e[0] * G->e[1];
+        L->narrow = !h->in_place && (h->narrow >> m & 1u);
         L->acc = calloc(G->count * (size_t)G->nb + 1, sizeof *L->acc);
         L->maxabs = calloc(G->count * (size_t)G->nb + 1, sizeof *L->maxabs);
         if (!L->acc || !L->maxabs) {
@@ -319,8 +322,9 @@ static size_t first_rows(const wvc2_header *h, size_t tile_z)
 
 static int reserve_rows(wlevel *L, const wvc2_level *G, size_t first, size_t rows)
 {
+    const size_t es = L->narrow ? sizeof(int16_t) : sizeof(int32_t);
     size_t cap, band, bytes;
-    int32_t *block;
+    char *block;
     if (rows <= L->cap_rows) return 0;
     /* The level's bands share one block of whole huge pages (core/alloc.h): in 4 KiB pages
      * the rows' first touches were the largest share of a compression's page faults. The
@@ -335,13 +339,15 @@ static int reserve_rows(wlevel *L, const wvc2_level *G, size_t first, size_t row
     if (cap > G->e[2]) cap = G->e[2];
     if (cap > SIZE_MAX / sizeof(int32_t) / L->plane / 8) return -1;
     band = cap * L->plane;
-    bytes = band * (size_t)G->nb * sizeof(int32_t);
+    bytes = band * (size_t)G->nb * es;
     block = wvol__malloc_pages(&bytes);
     if (!block) return -1;
     for (int i = 0; i < G->nb; i++) {
-        int32_t *q = block + (size_t)i * band;
-        if (L->q[i]) memcpy(q, L->q[i], (L->z_next - L->z_base) * L->plane * sizeof *q);
-        L->q[i] = q;
+        char *q = block + (size_t)i * band * es;
+        void *old = L->narrow ? (void *)L->q16[i] : (void *)L->q[i];
+        if (old) memcpy(q, old, (L->z_next - L->z_base) * L->plane * es);
+        if (L->narrow) L->q16[i] = (int16_t *)(void *)q;
+        else L->q[i] = (int32_t *)(void *)q;
     }
     free(L->block);
     L->block = block;
@@ -386,14 +392,15 @@ static void acc_add(sec_stats *s, const double t[8])
 
 static wvc2_qbox box_of(const wvc2_writer *w, const wlevel *L, const wvc2_level *G, int i, const size_t off[3])
 {
-    wvc2_qbox b;
+    wvc2_qbox b = {NULL, 0, 0, NULL};
     if (w->h.in_place) {
         b.q = L->xq[i] + off[2] * L->xsz[i] + off[1] * L->xsy[i] + off[0];
         b.sy = L->xsy[i];
         b.sz = L->xsz[i];
         return b;
     }
-    b.q = L->q[i] + (off[2] - L->z_base) * L->plane + off[1] * G->e[0] + off[0];
+    if (L->narrow) b.q16 = L->q16[i] + (off[2] - L->z_base) * L->plane + off[1] * G->e[0] + off[0];
+    else b.q = L->q[i] + (off[2] - L->z_base) * L->plane + off[1] * G->e[0] + off[0];
     b.sy = G->e[0];
     b.sz = L->plane;
     return b;
@@ -613,8 +620,12 @@ static void release_rows(wvc2_writer *w, int m)
     if (keep > L->z_next) keep = L->z_next;
     if (keep <= L->z_base) return;
     nb = keep - L->z_base;
-    for (i = 0; i < (size_t)G->nb; i++)
-        memmove(L->q[i], L->q[i] + nb * L->plane, (L->z_next - keep) * L->plane * sizeof(int32_t));
+    for (i = 0; i < (size_t)G->nb; i++) {
+        if (L->narrow)
+            memmove(L->q16[i], L->q16[i] + nb * L->plane, (L->z_next - keep) * L->plane * sizeof(int16_t));
+        else
+            memmove(L->q[i], L->q[i] + nb * L->plane, (L->z_next - keep) * L->plane * sizeof(int32_t));
+    }
     L->z_base = keep;
 }
 
@@ -636,9 +647,21 @@ static wvol_status code_ready(wvc2_writer *w, wvol_error *err)
     return WVOL_OK;
 }
 
+/* A row segment of int32 values into int16 (h.narrow); 1 when one does not fit. */
+static int narrow_row(int16_t *restrict d, const int32_t *restrict q, size_t n)
+{
+    int32_t lo = 0, hi = 0;
+    for (size_t x = 0; x < n; x++) {
+        lo = q[x] < lo ? q[x] : lo;
+        hi = q[x] > hi ? q[x] : hi;
+        d[x] = (int16_t)q[x];
+    }
+    return lo < -INT16_MAX || hi > INT16_MAX;
+}
+
 /* Quantises the rows z0 .. z0 + nz - 1 of one (band, tile column) of level `level` (task
  * number `task` of writer_put's loop) into the level's rows, adding their sums and max |c| to
- * the chunks'. Returns 1 when a sum is not finite. */
+ * the chunks'. Returns 1 when a sum is not finite, 2 when a value does not fit narrow rows. */
 static int put_segment(wvc2_writer *w, int level, size_t z0, size_t nz, const wvc2_planes *pl, long task)
 {
     const wvc2_level *G = &w->g.lv[level];
@@ -659,7 +682,9 @@ static int put_segment(wvc2_writer *w, int level, size_t z0, size_t nz, const wv
         float mx = L->maxabs[id * (size_t)G->nb + (size_t)i];
         for (size_t y = y0; y < y1; y++) {
             const float *row = pl->band[band] + (y * pl->sy[band] + (z - z0) * pl->sz[band]) + x0;
+            int32_t wide[WVC2_TILE_MAX];
             int32_t *qrow = w->h.in_place ? L->xq[i] + z * L->xsz[i] + y * L->xsy[i] + x0
+                            : L->narrow   ? wide
                                           : L->q[i] + (z - L->z_base) * L->plane + y * G->e[0] + x0;
             /* a kept pyramid is read from memory one short segment per row, too short for the
              * hardware's prefetch to see: the rows a few ahead (the next plane's first at the
@@ -673,6 +698,8 @@ static int put_segment(wvc2_writer *w, int level, size_t z0, size_t nz, const wv
             else
                 a = wvol__wvc_row_stats(t, row, qrow, x1 - x0, w->h.step, f);
             if (!isfinite(t[1])) bad = 1;
+            if (L->narrow && narrow_row(L->q16[i] + (z - L->z_base) * L->plane + y * G->e[0] + x0, wide, x1 - x0))
+                bad |= 2;
             acc_add(acc, t);
             mx = a > mx ? a : mx;
         }
@@ -738,11 +765,13 @@ wvol_status wvol__wvc2_writer_put(wvc2_writer *w, int level, size_t z0, size_t n
          * producer alone) */
 #pragma omp taskloop grainsize(1) shared(bad) \
     if (G->e[0] * G->e[1] * nz > 32768)
-        for (task = 0; task < ntask; task++)
-            if (put_segment(w, level, z0, nz, pl, task)) {
-#pragma omp atomic write
-                bad = 1;
+        for (task = 0; task < ntask; task++) {
+            int r = put_segment(w, level, z0, nz, pl, task);
+            if (r) {
+#pragma omp atomic
+                bad |= r;
             }
+        }
     } else
 #endif
     {
@@ -750,6 +779,9 @@ wvol_status wvol__wvc2_writer_put(wvc2_writer *w, int level, size_t z0, size_t n
     num_threads(nth)
         for (task = 0; task < ntask; task++) bad |= put_segment(w, level, z0, nz, pl, task);
     }
+    WVOL_RETURN_IF(bad & 2, err, WVOL_ERR_INTERNAL,
+                   "wvc2 writer: level %d rows %zu..%zu: a quantised value beyond the 16-bit rows the caller asked "
+                   "for (its bound on |q| was wrong)", level, z0, z0 + nz);
     WVOL_RETURN_IF(bad, err, WVOL_ERR_NONFINITE, "wvc2 writer: level %d rows %zu..%zu hold NaN or Inf (or overflow)",
                    level, z0, z0 + nz);
     for (size_t id = 0; id < G->count; id++) {
@@ -781,7 +813,7 @@ size_t wvol__wvc2_writer_memory(const wvc2_header *h)
         const wvc2_level *G = &g.lv[m];
         size_t rows = h->in_place ? 0 : first_rows(h, (size_t)tz), c = (size_t)G->nb;
         if (rows > G->e[2]) rows = G->e[2];
-        total += rows * G->e[0] * G->e[1] * (size_t)G->nb * sizeof(int32_t);
+        total += rows * G->e[0] * G->e[1] * (size_t)G->nb * (h->narrow >> m & 1u ? sizeof(int16_t) : sizeof(int32_t));
         total += G->count * ((size_t)G->nb * sizeof(sec_stats) + sizeof(float) + sizeof(chunk_rec));
         for (int a = 0; a < 3; a++) c *= G->e[a] < (size_t)g.tile[a] ? G->e[a] : (size_t)g.tile[a];
         if (c > chunk) chunk = c;

@@ -86,6 +86,10 @@ typedef struct wvc2_header {
                                    coarser one (0: unknown); a level's rows are first reserved
                                    for tile_z + lag_rows + a few, as wvol__wvc2_writer_memory
                                    counts them, so they are not regrown and copied */
+    unsigned narrow;            /* bit m (1 .. levels): level m's rows of the writer's own are
+                                   held as int16, the caller having bounded every |q| of the
+                                   level by 32767 (a value beyond it fails the put); half the
+                                   memory of int32 rows, the file the same */
     int in_place;               /* put() quantises the rows where they are: each coefficient's
                                    q (int32) is written over its float and the chunks are coded
                                    from there, so the writer holds no rows of its own. A level's

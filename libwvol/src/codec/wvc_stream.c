@@ -22,12 +22,15 @@ struct wvc_stream_stats {
     uint64_t *H;      /* sets x nsec x WVC_HBINS: one set of histograms per thread, summed
                          into the first by merge() (counts: the same sums in any order) */
     int sets;
-    uint32_t maxbits[SETS_MAX]; /* of |c| over everything a set counted */
+    /* of |c| over everything a set counted, per level (the low-pass cube with the coarsest);
+     * [k][0]: over all levels, after merge() */
+    uint32_t maxbits[SETS_MAX][WVOL_WVC_MAX_LEVELS + 1];
 };
 
 /* Rows y0 .. y1 - 1 of the planes of one transform row of a level (bands first .. last - 1
  * of the layout) into set k. */
-static void stats_rows(wvc_stream_stats *s, int k, int first, int last, size_t y0, size_t y1, const wvc2_planes *pl)
+static void stats_rows(wvc_stream_stats *s, int k, int level, int first, int last, size_t y0, size_t y1,
+                       const wvc2_planes *pl)
 {
     uint64_t *H = s->H + (size_t)k * s->L.nsec * WVC_HBINS;
     for (int i = first; i < last; i++) {
@@ -40,7 +43,7 @@ static void stats_rows(wvc_stream_stats *s, int k, int first, int last, size_t y
         r1 = r1 < ey ? r1 : ey;
         if (!b->count || !pl->band[b->band] || r0 >= r1) continue;
         wvol__wvc_slice_hist(H + (size_t)i * WVC_HBINS, pl->band[b->band] + r0 * pl->sy[b->band], b->ext[0], r1 - r0,
-                             pl->sy[b->band], &s->maxbits[k]);
+                             pl->sy[b->band], &s->maxbits[k][level]);
     }
 }
 
@@ -49,9 +52,12 @@ static void stats_rows(wvc_stream_stats *s, int k, int first, int last, size_t y
 static const uint64_t *merge(wvc_stream_stats *s)
 {
     const size_t n = (size_t)s->L.nsec * WVC_HBINS;
-    for (int k = 1; k < s->sets; k++) {
-        s->maxbits[0] = s->maxbits[k] > s->maxbits[0] ? s->maxbits[k] : s->maxbits[0];
-        s->maxbits[k] = 0;
+    for (int m = 1; m <= s->L.levels; m++) {
+        for (int k = 1; k < s->sets; k++) {
+            s->maxbits[0][m] = s->maxbits[k][m] > s->maxbits[0][m] ? s->maxbits[k][m] : s->maxbits[0][m];
+            s->maxbits[k][m] = 0;
+        }
+        s->maxbits[0][0] = s->maxbits[0][m] > s->maxbits[0][0] ? s->maxbits[0][m] : s->maxbits[0][0];
     }
     for (int k = 1; k < s->sets; k++) {
         uint64_t *h = s->H + (size_t)k * n;
@@ -105,10 +111,19 @@ void wvol__wvc_stream_stats_add_rows(wvc_stream_stats *s, int level, size_t y0, 
     if (tid >= s->sets) {
         /* a team larger than the sets (not made by the pipeline): one at a time in set 0 */
 #pragma omp critical(wvc_stream_stats)
-        stats_rows(s, 0, first, last, y0, y1, pl);
+        stats_rows(s, 0, level, first, last, y0, y1, pl);
         return;
     }
-    stats_rows(s, tid, first, last, y0, y1, pl);
+    stats_rows(s, tid, level, first, last, y0, y1, pl);
+}
+
+double wvol__wvc_stream_level_maxabs(wvc_stream_stats *s, int level)
+{
+    float m;
+    if (level < 1 || level > s->L.levels) return 0.0;
+    (void)merge(s);
+    memcpy(&m, &s->maxbits[0][level], 4);
+    return m;
 }
 
 double wvol__wvc_stream_predict(wvc_stream_stats *s, double step, double rounding)
@@ -126,9 +141,9 @@ wvol_status wvol__wvc_stream_step(wvc_stream_stats *s, const wvol_wvc_params *p,
     float m;
     WVOL_RETURN_IF(!s || !p || !step, err, WVOL_ERR_ARG, "wvc stream step: NULL argument");
     (void)merge(s);
-    WVOL_RETURN_IF(s->maxbits[0] >= 0x7F800000u, err, WVOL_ERR_NONFINITE,
+    WVOL_RETURN_IF(s->maxbits[0][0] >= 0x7F800000u, err, WVOL_ERR_NONFINITE,
                    "wvc encode: coefficients hold NaN or Inf");
-    memcpy(&m, &s->maxbits[0], 4);
+    memcpy(&m, &s->maxbits[0][0], 4);
     maxabs = m;
     if (maxabs_out) *maxabs_out = maxabs;
     WVOL_RETURN_IF(!(p->rounding >= 0 && p->rounding <= 0.5), err, WVOL_ERR_ARG,

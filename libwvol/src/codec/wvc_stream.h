@@ -33,6 +33,9 @@ void wvol__wvc_stream_stats_add_rows(wvc_stream_stats *s, int level, size_t y0, 
  * would overflow float32, with the encoder's messages. *maxabs (may be NULL): max |c|. */
 wvol_status wvol__wvc_stream_step(wvc_stream_stats *s, const wvol_wvc_params *p, double target_scale,
                                   double *step, double *maxabs, wvol_error *err);
+/* max |c| of level `level` (its detail bands; with the low-pass cube at the coarsest level),
+ * as counted (NaN or Inf: a value above FLT_MAX); 0 for a level outside 1..levels. */
+double wvol__wvc_stream_level_maxabs(wvc_stream_stats *s, int level);
 /* The error the histograms predict for a step (sum over the pyramid). */
 double wvol__wvc_stream_predict(wvc_stream_stats *s, double step, double rounding);
 void wvol__wvc_stream_stats_free(wvc_stream_stats *s); /* NULL is fine */

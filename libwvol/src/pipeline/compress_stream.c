@@ -21,6 +21,7 @@
  * first touch costs more than the quantiser's arithmetic); a further pass, rare, reads and
  * transforms the source again. */
 #include <math.h>
+#include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -211,6 +212,24 @@ static void keep_destroy(kept_rows *k)
     free(k);
 }
 
+/* Each level's largest |c| from pass 1 (maxabs[1 .. levels]). */
+static void level_maxabs(wvc_stream_stats *st, int levels, double *maxabs)
+{
+    for (int m = 1; m <= levels; m++) maxabs[m] = wvol__wvc_stream_level_maxabs(st, m);
+}
+
+/* The levels whose quantised values all fit int16 at this step (wvc2_header.narrow): the
+ * writer then holds their rows in half the memory (at 2048^2 with coif2 its rows are most
+ * of a compression's resident peak). |q| <= floor(|c| / step + 1/2) for any rounding and
+ * dead zone; one more for the last bit of the quantiser's arithmetic. */
+static unsigned narrow_levels(const double *maxabs, int levels, double step)
+{
+    unsigned bits = 0;
+    for (int m = 1; m <= levels; m++)
+        if (step > 0 && floor(maxabs[m] / step + 0.5) + 1.0 <= (double)INT16_MAX) bits |= 1u << m;
+    return bits;
+}
+
 int wvol_compress_streams(const wvol_compress_params *p)
 {
     if (!p) return 1;
@@ -229,7 +248,7 @@ wvol_status wvol_compress_stream(const char *path, wvol_source *src, const wvol_
     wvol_wvc_params wp;
     wvc2_header h;
     size_t dims[3], bytes = 0;
-    double spacing[3], origin[3], voxels, t0, scale = 0.9925;
+    double spacing[3], origin[3], voxels, t0, scale = 0.9925, maxabs[32] = {0};
     int maxl;
     wvol_status s;
 
@@ -276,6 +295,7 @@ wvol_status wvol_compress_stream(const char *path, wvol_source *src, const wvol_
     voxels = (double)dims[0] * (double)dims[1] * (double)dims[2];
     if (!s) s = wvol_compress_wvc_params(&wp, &p.quant, 0.0, voxels, out.value_min, out.value_max, err);
     if (!s) s = wvol__wvc_stream_step(pc.stats, &wp, scale, &out.step, NULL, err);
+    if (!s) level_maxabs(pc.stats, p.levels, maxabs);
     out.seconds_stats = wvol__now() - t0;
     out.target_sse = wp.step > 0 ? 0 : wp.target_sse;
 
@@ -296,6 +316,7 @@ wvol_status wvol_compress_stream(const char *path, wvol_source *src, const wvol_
     pc.tile_z = (size_t)(h.tile_z ? h.tile_z : WVC2_TILE_Z_DEFAULT);
     h.lag_rows = (size_t)f->length + 8;
     h.in_place = pc.keep != NULL;
+    h.narrow = narrow_levels(maxabs, p.levels, out.step);
     out.writer_bytes = wvol__wvc2_writer_memory(&h);
     wvol__wvc_stream_stats_free(pc.stats);
     pc.stats = NULL;
@@ -306,6 +327,7 @@ wvol_status wvol_compress_stream(const char *path, wvol_source *src, const wvol_
         /* the kept pyramid is quantised where it lies (no rows of the writer's own to fill):
          * a further pass reads and transforms the source again */
         h.in_place = pc.keep != NULL;
+        h.narrow = narrow_levels(maxabs, p.levels, h.step);
         out.source_reads += !pc.keep;
         s = wvol__wvc2_writer_open(&pc.writer, path, &h, err);
         if (!s) {
