@@ -26,7 +26,8 @@
  *   level) as soon as all its rows and the rows of its parent region (the same
  *   tile's half-size region in the next coarser level, whose quantised values are
  *   the coder's context) have arrived. Memory held: per level about
- *   (tile_z + the coarser level's lag) rows of int32 quantised values, plus the
+ *   (tile_z + the coarser level's lag) rows of int32 quantised values (int16 for
+ *   the levels h.narrow names), plus the
  *   parent tile row until both of its child tile rows are coded; with coarse-to-
  *   fine arrival the whole quantised pyramid (what wvol_wvc_encode holds anyway).
  *   Coded chunk payloads are spilled to a temporary file (or kept in memory for
