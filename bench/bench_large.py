@@ -406,9 +406,8 @@ def plot(res, path):
                        label=f"{kind} in memory")
         for t, ls in zip(TARGETS, ("-", ":")):
             zr = [r for r in rows if r.get("zfp", {}).get(str(t), {}).get("bpv")]
-            ax[2].plot([r["n"] for r in rows if len(r["compress"]) > 1 or t == 40],
-                       [c["bpv"] for r in rows for c in r["compress"] if c["target"] == t], mk + ls,
-                       label=f"{kind} wvol {t} dB")
+            pts = [(r["n"], c["bpv"]) for r in rows for c in r["compress"] if c["target"] == t]
+            ax[2].plot([q[0] for q in pts], [q[1] for q in pts], mk + ls, label=f"{kind} wvol {t} dB")
             ax[2].plot([r["n"] for r in zr], [r["zfp"][str(t)]["bpv"] for r in zr], mk + ls, alpha=0.4,
                        label=f"{kind} ZFP {t} dB")
     ax[1].axhline(2, color="grey", lw=0.8)
