@@ -155,10 +155,11 @@ int wvol_cmd_decompress(int argc, char **argv)
         goto done;
     }
     /* a whole decode holds every coefficient (the padded grid, whatever the level): when that
-     * is over the budget and the output can be written slab by slab, the whole box is read
-     * as a region, through the chunk cache (the same values up to float rounding: the
-     * region's synthesis sums in another order) */
-    if (!roi && slab_format(outp) &&
+     * is over the budget and the output can be written slab by slab, the whole box of a
+     * version-2 file is read as a region, through the chunk cache (the same values up to
+     * float rounding: the region's synthesis sums in another order); version 1 has no
+     * chunks to read by region and is decoded whole, as before */
+    if (!roi && info->version == 2 && slab_format(outp) &&
         (double)info->px * (double)info->py * (double)info->pz * sizeof(float) >
             (double)(budget ? budget : WVOL_WVC_DEFAULT_BUDGET)) {
         if (wvol_wvc_open(&wf, in, budget, &err)) {

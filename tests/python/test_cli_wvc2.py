@@ -113,8 +113,8 @@ def test_region_output_is_streamed_in_slabs(tmp_path):
 def test_whole_decode_over_the_budget_is_read_slab_by_slab(wvc):
     """A whole decode whose coefficients (96^3 floats, 3.4 MiB) exceed --memory reads the whole
     box through the chunk cache, written slab by slab: the cache within the budget, the volume
-    the in-memory decode's up to float rounding. Within the budget, or to a format that is not
-    written by slabs, it is decoded in memory as before."""
+    the in-memory decode's up to float rounding. Within the budget, to a format that is not
+    written by slabs, or from a version-1 file, it is decoded in memory as before."""
     d, f, full = wvc
     r = subprocess.run([WVOL_BIN, "decompress", str(f), "-o", str(d / "s.raw"), "--memory", "3M", "--json"],
                        capture_output=True, text=True)
@@ -130,6 +130,13 @@ def test_whole_decode_over_the_budget_is_read_slab_by_slab(wvc):
         assert r.returncode == 0, r.stderr
         assert "slabs" not in json.loads(r.stdout), (out, budget)
     assert np.array_equal(np.fromfile(d / "m.raw", dtype="<f4").reshape(N, N, N), full)
+    # a version-1 file has no chunks to read by region: decoded whole whatever the budget
+    v1 = d / "v1.wvc"
+    for cmd in (["compress", d / "m.raw", "--dims", f"{N}x{N}x{N}", "--psnr", "50", "--format", "1", "-o", v1],
+                ["decompress", v1, "-o", d / "v1.raw", "--memory", "1M", "--json"]):
+        r = subprocess.run([WVOL_BIN, *map(str, cmd)], capture_output=True, text=True)
+        assert r.returncode == 0, r.stderr
+    assert "slabs" not in json.loads(r.stdout)
 
 
 def test_every_command_takes_a_wvc(wvc):
