@@ -842,6 +842,22 @@ static void wvc2_sparse_chunks_round_trip(void)
  * refused. in_place: the writer quantises the rows where they lie (a copy of the
  * pyramid, which it overwrites), the same bytes; rows put where the first rows' layout
  * does not put them are refused. */
+/* The writer's planes of level 1's rows from 0, in the pyramid `room` laid out as c's. */
+static void level1_planes(wvc2_planes *pl, const wvol_coeffs *c, float *room, int levels)
+{
+    memset(pl, 0, sizeof *pl);
+    for (int b = levels == 1 ? 0 : 1; b < 8; b++) {
+        size_t o[3];
+        for (int a = 0; a < 3; a++) {
+            size_t pa = a == 0 ? c->px : a == 1 ? c->py : c->pz;
+            o[a] = ((b >> a) & 1) && pa > 1 ? pa >> 1 : 0;
+        }
+        pl->band[b] = room + o[0] + c->px * (o[1] + c->py * o[2]);
+        pl->sy[b] = c->px;
+        pl->sz[b] = c->px * c->py;
+    }
+}
+
 /* rows: 0 the writer's own int32 rows, 1 quantised in place, 2 the writer's own int16 rows
  * (wvc2_header.narrow, every level: the values here fit) */
 static void wvc2_streamed_rows_give_the_same_bytes(const char *wavelet, size_t nx, size_t ny, size_t nz, int levels,
@@ -904,17 +920,7 @@ static void wvc2_streamed_rows_give_the_same_bytes(const char *wavelet, size_t n
         /* level 1's second row put one float off its place */
         wvc2_planes pl;
         CHECK(wvol__wvc2_writer_open_mem(&w, &h, &err) == WVOL_OK, "open: %s", err.message);
-        memset(&pl, 0, sizeof pl);
-        for (int b = levels == 1 ? 0 : 1; b < 8; b++) {
-            size_t o[3];
-            for (int a = 0; a < 3; a++) {
-                size_t pa = a == 0 ? F.c->px : a == 1 ? F.c->py : F.c->pz;
-                o[a] = ((b >> a) & 1) && pa > 1 ? pa >> 1 : 0;
-            }
-            pl.band[b] = room + o[0] + F.c->px * (o[1] + F.c->py * o[2]);
-            pl.sy[b] = F.c->px;
-            pl.sz[b] = F.c->px * F.c->py;
-        }
+        level1_planes(&pl, F.c, room, levels);
         CHECK(w && wvol__wvc2_writer_put(w, 1, 0, 1, &pl, &err) == WVOL_OK, "first row in place: %s", err.message);
         for (int b = 0; b < 8; b++)
             if (pl.band[b]) pl.band[b] += pl.sz[b] + 1;
@@ -973,17 +979,7 @@ static void wvc2_streamed_rows_give_the_same_bytes(const char *wavelet, size_t n
         wvc2_planes pl;
         h.step = rep.step / 1e4;
         CHECK(wvol__wvc2_writer_open_mem(&w, &h, &err) == WVOL_OK, "open: %s", err.message);
-        memset(&pl, 0, sizeof pl);
-        for (int b = levels == 1 ? 0 : 1; b < 8; b++) {
-            size_t o[3];
-            for (int a = 0; a < 3; a++) {
-                size_t pa = a == 0 ? F.c->px : a == 1 ? F.c->py : F.c->pz;
-                o[a] = ((b >> a) & 1) && pa > 1 ? pa >> 1 : 0;
-            }
-            pl.band[b] = room + o[0] + F.c->px * (o[1] + F.c->py * o[2]);
-            pl.sy[b] = F.c->px;
-            pl.sz[b] = F.c->px * F.c->py;
-        }
+        level1_planes(&pl, F.c, room, levels);
         CHECK(w && wvol__wvc2_writer_put(w, 1, 0, F.c->pz > 1 ? F.c->pz / 2 : 1, &pl, &err) == WVOL_ERR_INTERNAL &&
                   strstr(err.message, "16-bit"),
               "a value beyond the 16-bit rows is refused: %s", err.message);
