@@ -260,10 +260,11 @@ int wvol_cmd_decompress(int argc, char **argv)
         cli_json_end();
     } else {
         if (wf)
-            printf("%s -> %s: %zu x %zu x %zu %s%s (%llu of %llu chunks decoded, %llu bytes read, cache peak %zu "
+            printf("%s -> %s: %zu x %zu x %zu %s%s%s (%llu of %llu chunks decoded, %llu bytes read, cache peak %zu "
                    "bytes; read+reconstruct %.3f s, write %.3f s)\n",
-                   in, outp, dims[0], dims[1], dims[2], roi == 2 ? "volume, slab by slab within --memory" : "region",
-                   level ? " of a coarser level" : "", (unsigned long long)cs.decoded,
+                   in, outp, dims[0], dims[1], dims[2], roi == 2 ? "volume" : "region",
+                   level ? " of a coarser level" : "", roi == 2 ? ", slab by slab within --memory" : "",
+                   (unsigned long long)cs.decoded,
                    (unsigned long long)wvol_wvc_file_info(wf)->chunks, (unsigned long long)cs.bytes_read, cs.peak,
                    t_read, t_write);
         else
