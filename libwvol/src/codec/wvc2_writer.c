@@ -38,9 +38,8 @@ typedef struct chunk_rec {
 typedef struct wlevel {
     size_t plane;        /* e0 e1 */
     size_t z_base, z_next, cap_rows;
-    int narrow;          /* the rows are int16 (h.narrow): q16 holds them, q is unused */
-    int32_t *q[8];       /* per band of the level's list: rows [z_base, z_next), in block */
-    int16_t *q16[8];
+    size_t es;           /* bytes per value of the rows: 4 (int32), 2 (int16, h.narrow) */
+    void *q[8];          /* per band of the level's list: rows [z_base, z_next), in block */
     void *block;
     int32_t *xq[8];      /* in place (h.in_place): each band's row 0 in the caller's planes, */
     size_t xsy[8], xsz[8]; /* and its strides */
@@ -206,7 +205,7 @@ static wvol_status writer_new(wvc2_writer **out, const wvc2_header *h, wvol_erro
         wlevel *L = &w->lv[m];
         const wvc2_level *G = &w->g.lv[m];
         L->plane = G->e[0] * G->e[1];
-        L->narrow = !h->in_place && (h->narrow >> m & 1u);
+        L->es = !h->in_place && (h->narrow >> m & 1u) ? sizeof(int16_t) : sizeof(int32_t);
         L->acc = calloc(G->count * (size_t)G->nb + 1, sizeof *L->acc);
         L->maxabs = calloc(G->count * (size_t)G->nb + 1, sizeof *L->maxabs);
         if (!L->acc || !L->maxabs) {
@@ -322,7 +321,7 @@ static size_t first_rows(const wvc2_header *h, size_t tile_z)
 
 static int reserve_rows(wlevel *L, const wvc2_level *G, size_t first, size_t rows)
 {
-    const size_t es = L->narrow ? sizeof(int16_t) : sizeof(int32_t);
+    const size_t es = L->es;
     size_t cap, band, bytes;
     char *block;
     if (rows <= L->cap_rows) return 0;
@@ -344,10 +343,8 @@ static int reserve_rows(wlevel *L, const wvc2_level *G, size_t first, size_t row
     if (!block) return -1;
     for (int i = 0; i < G->nb; i++) {
         char *q = block + (size_t)i * band * es;
-        void *old = L->narrow ? (void *)L->q16[i] : (void *)L->q[i];
-        if (old) memcpy(q, old, (L->z_next - L->z_base) * L->plane * es);
-        if (L->narrow) L->q16[i] = (int16_t *)(void *)q;
-        else L->q[i] = (int32_t *)(void *)q;
+        if (L->q[i]) memcpy(q, L->q[i], (L->z_next - L->z_base) * L->plane * es);
+        L->q[i] = q;
     }
     free(L->block);
     L->block = block;
@@ -399,8 +396,9 @@ static wvc2_qbox box_of(const wvc2_writer *w, const wlevel *L, const wvc2_level 
         b.sz = L->xsz[i];
         return b;
     }
-    if (L->narrow) b.q16 = L->q16[i] + (off[2] - L->z_base) * L->plane + off[1] * G->e[0] + off[0];
-    else b.q = L->q[i] + (off[2] - L->z_base) * L->plane + off[1] * G->e[0] + off[0];
+    const size_t o = (off[2] - L->z_base) * L->plane + off[1] * G->e[0] + off[0];
+    if (L->es == sizeof(int16_t)) b.q16 = (const int16_t *)L->q[i] + o;
+    else b.q = (int32_t *)L->q[i] + o;
     b.sy = G->e[0];
     b.sz = L->plane;
     return b;
@@ -620,12 +618,8 @@ static void release_rows(wvc2_writer *w, int m)
     if (keep > L->z_next) keep = L->z_next;
     if (keep <= L->z_base) return;
     nb = keep - L->z_base;
-    for (i = 0; i < (size_t)G->nb; i++) {
-        if (L->narrow)
-            memmove(L->q16[i], L->q16[i] + nb * L->plane, (L->z_next - keep) * L->plane * sizeof(int16_t));
-        else
-            memmove(L->q[i], L->q[i] + nb * L->plane, (L->z_next - keep) * L->plane * sizeof(int32_t));
-    }
+    for (i = 0; i < (size_t)G->nb; i++)
+        memmove(L->q[i], (char *)L->q[i] + nb * L->plane * L->es, (L->z_next - keep) * L->plane * L->es);
     L->z_base = keep;
 }
 
@@ -682,10 +676,12 @@ static int put_segment(wvc2_writer *w, int level, size_t z0, size_t nz, const wv
         float mx = L->maxabs[id * (size_t)G->nb + (size_t)i];
         for (size_t y = y0; y < y1; y++) {
             const float *row = pl->band[band] + (y * pl->sy[band] + (z - z0) * pl->sz[band]) + x0;
+            const size_t at = (z - L->z_base) * L->plane + y * G->e[0] + x0; /* in the writer's rows */
+            const int narrow = L->es == sizeof(int16_t);
             int32_t wide[WVC2_TILE_MAX];
             int32_t *qrow = w->h.in_place ? L->xq[i] + z * L->xsz[i] + y * L->xsy[i] + x0
-                            : L->narrow   ? wide
-                                          : L->q[i] + (z - L->z_base) * L->plane + y * G->e[0] + x0;
+                            : narrow      ? wide
+                                          : (int32_t *)L->q[i] + at;
             /* a kept pyramid is read from memory one short segment per row, too short for the
              * hardware's prefetch to see: the rows a few ahead (the next plane's first at the
              * end of a plane) are asked for now */
@@ -698,8 +694,7 @@ static int put_segment(wvc2_writer *w, int level, size_t z0, size_t nz, const wv
             else
                 a = wvol__wvc_row_stats(t, row, qrow, x1 - x0, w->h.step, f);
             if (!isfinite(t[1])) bad = 1;
-            if (L->narrow && narrow_row(L->q16[i] + (z - L->z_base) * L->plane + y * G->e[0] + x0, wide, x1 - x0))
-                bad |= 2;
+            if (narrow && narrow_row((int16_t *)L->q[i] + at, wide, x1 - x0)) bad |= 2;
             acc_add(acc, t);
             mx = a > mx ? a : mx;
         }
@@ -813,7 +808,8 @@ size_t wvol__wvc2_writer_memory(const wvc2_header *h)
         const wvc2_level *G = &g.lv[m];
         size_t rows = h->in_place ? 0 : first_rows(h, (size_t)tz), c = (size_t)G->nb;
         if (rows > G->e[2]) rows = G->e[2];
-        total += rows * G->e[0] * G->e[1] * (size_t)G->nb * (h->narrow >> m & 1u ? sizeof(int16_t) : sizeof(int32_t));
+        total += rows * G->e[0] * G->e[1] * (size_t)G->nb *
+                 (!h->in_place && (h->narrow >> m & 1u) ? sizeof(int16_t) : sizeof(int32_t));
         total += G->count * ((size_t)G->nb * sizeof(sec_stats) + sizeof(float) + sizeof(chunk_rec));
         for (int a = 0; a < 3; a++) c *= G->e[a] < (size_t)g.tile[a] ? G->e[a] : (size_t)g.tile[a];
         if (c > chunk) chunk = c;

@@ -14,8 +14,8 @@
  * The outputs a batch of slices allows are made together, a group per task's rows: output
  * k reads L input rows and k + 1 reads L - 2 of the same, so a task that makes the group's
  * outputs of its few plane rows one after the other finds their inputs in its cache. Made
- * one output at a time across the whole plane, each input row was read L / 2 times from
- * wherever the window was: memory, once the L planes outgrow the cache (1024^2 slices). */
+ * one output at a time across the whole plane, each input row would be read L / 2 times
+ * from wherever the window is: memory, once the L planes outgrow the cache (1024^2 slices). */
 #include <omp.h>
 #include <stdint.h>
 #include <stdlib.h>
@@ -32,7 +32,7 @@
  * slice of the reader's slab and half a group's output rows, and at 2048^2 eight slices
  * are 128 MiB three times over while two keep two threads busy. Up to 1024^2 the batch
  * stays 8: a group of 4 outputs reads 18 input planes (coif2), where one output at a
- * time read 12 for each */
+ * time would read 12 for each */
 enum { BATCH = 8 };
 #define BATCH_BYTES ((size_t)32 << 20)
 
@@ -40,7 +40,7 @@ typedef struct level_state {
     size_t cx, cy, cz, plane; /* this level's input cube (cz rows of cx x cy) */
     size_t head, ring, slots; /* wrap rows kept, ring rows; all rows when head == cz */
     float *rows;              /* slots x plane */
-    size_t got, next;         /* input rows received, next output row */
+    size_t next;              /* next output row */
     float *out;               /* a group's output rows: low then high plane of each */
 } level_state;
 
@@ -291,7 +291,6 @@ static wvol_status arrive(wvol_dwt3_stream *s, int m, size_t i, wvol_error *err)
 {
     level_state *l = &s->lv[m];
     size_t half = l->cz > 1 ? l->cz / 2 : 1, L = (size_t)s->L, lim;
-    l->got = i + 1;
     /* output k needs rows 2k .. 2k + L - 1; the last ones wrap to the rows kept first */
     if (l->cz == 1 || i + 1 == l->cz) lim = half;
     else lim = i + 1 >= L ? (i + 1 - L) / 2 + 1 : 0;
