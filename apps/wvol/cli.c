@@ -225,6 +225,7 @@ void cli_json_wvc_cache(const char *key, const wvol_wvc_cache_stats *cs, uint64_
 {
     cli_json_open(key, '{');
     cli_json_int("decoded", (long long)cs->decoded);
+    cli_json_int("decoded_narrow", (long long)cs->decoded_narrow);
     cli_json_int("cache_hits", (long long)cs->hits);
     cli_json_int("bytes_read", (long long)cs->bytes_read);
     cli_json_int("cache_peak_bytes", (long long)cs->peak);

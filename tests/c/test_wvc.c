@@ -1001,7 +1001,7 @@ static void wvc2_streamed_rows_give_the_same_bytes(const char *wavelet, size_t n
 }
 
 
-/* A fixture volume coded as a version-2 file at path (PSNR 50, the given tiles), its whole
+/* A fixture volume coded as a version-2 file at path (the given PSNR and tiles), its whole
  * decode and the file opened (default budget): what the random-access tests read. */
 typedef struct wvc2_file_fixture {
     fixture F;
@@ -1012,7 +1012,7 @@ typedef struct wvc2_file_fixture {
 } wvc2_file_fixture;
 
 static int wvc2_file_fixture_make(wvc2_file_fixture *X, const char *path, const char *wavelet, size_t nx, size_t ny,
-                                  size_t nz, int levels, int tile, int tile_z)
+                                  size_t nz, int levels, int tile, int tile_z, double psnr)
 {
     wvol_error err;
     wvol_wvc_params p;
@@ -1021,7 +1021,7 @@ static int wvc2_file_fixture_make(wvc2_file_fixture *X, const char *path, const 
     if (!X->F.c) return 0;
     wvol_wvc_params_default(&p);
     p.value_min = X->F.vmin, p.value_max = X->F.vmax;
-    p.target_sse = wvol_wvc_sse_for_psnr(50, (double)(nx * ny * nz), X->F.vmin, X->F.vmax);
+    p.target_sse = wvol_wvc_sse_for_psnr(psnr, (double)(nx * ny * nz), X->F.vmin, X->F.vmax);
     p.tile = tile, p.tile_z = tile_z;
     CHECK(wvol_wvc_encode(&X->buf, &X->n, X->F.c, &p, NULL, &err) == WVOL_OK, "encode: %s", err.message);
     CHECK(wvol_wvc_save(path, X->buf, X->n, &err) == WVOL_OK, "save: %s", err.message);
@@ -1051,13 +1051,39 @@ static void wvc2_file_fixture_free(wvc2_file_fixture *X, const char *path)
     fixture_free(&X->F);
 }
 
+/* A copy of the file at path with chunk k's maximum in the index set to 0 (resealed): its
+ * values then claim to fit 16 bits. */
+static void wvc2_understate_chunk_max(const char *path, const char *out, size_t k)
+{
+    FILE *fp = fopen(path, "rb");
+    uint8_t *b = NULL;
+    long n = -1;
+    wvol_wvc_info info;
+    wvol_error err;
+    if (fp && fseek(fp, 0, SEEK_END) == 0) n = ftell(fp);
+    if (n > 0 && (b = malloc((size_t)n)) && fseek(fp, 0, SEEK_SET) == 0 && fread(b, 1, (size_t)n, fp) == (size_t)n &&
+        wvol_wvc_parse_info(&info, b, (size_t)n, &err) == WVOL_OK) {
+        memset(b + 224 + (size_t)info.nsections * 48 + 32 * k + 16, 0, 4);
+        reseal2(b);
+        CHECK(wvol_wvc_save(out, b, (size_t)n, &err) == WVOL_OK, "save: %s", err.message);
+    } else {
+        CHECK(0, "reading %s back", path);
+    }
+    if (fp) fclose(fp);
+    free(b);
+}
+
 /* Region reads: random boxes (edges included, where the periodic basis wraps) at every
  * level equal the same box of the whole decoded file's level volume. Tolerance: both
  * sum the same float coefficients through the synthesis in a different order (a local
  * brick against the whole pyramid), so they differ by float rounding: 1e-5 of the
- * volume's peak magnitude is ~100 ulps of it. */
+ * volume's peak magnitude is ~100 ulps of it. The cache holds a chunk as 16-bit values
+ * where the index's maximum allows: at 50 dB every chunk of these volumes, at 100 dB the
+ * coarse low-pass's need 32 bits (|q| in the hundred thousands) and the details still fit,
+ * so both kinds are read; a file whose index understates a wide chunk's maximum is refused
+ * when that chunk decodes, not wrapped. */
 static void wvc2_regions_equal_the_full_decode(const char *wavelet, size_t nx, size_t ny, size_t nz, int levels,
-                                               int tile, int tile_z)
+                                               int tile, int tile_z, double psnr)
 {
     wvc2_file_fixture X;
     const char *path = "test_wvc_region.wvc";
@@ -1066,7 +1092,7 @@ static void wvc2_regions_equal_the_full_decode(const char *wavelet, size_t nx, s
     wvol_coeffs *dec;
     uint64_t rng = 99;
     int bad = 0, tried = 0;
-    if (!wvc2_file_fixture_make(&X, path, wavelet, nx, ny, nz, levels, tile, tile_z)) return;
+    if (!wvc2_file_fixture_make(&X, path, wavelet, nx, ny, nz, levels, tile, tile_z, psnr)) return;
     wf = X.wf, dec = X.dec;
     for (int level = 0; wf && dec && level <= levels; level++) {
         double peak = 0;
@@ -1132,8 +1158,33 @@ static void wvc2_regions_equal_the_full_decode(const char *wavelet, size_t nx, s
         }
         wvol_volume_destroy(full);
     }
-    CHECK(bad == 0 && tried > 0, "%s %zux%zux%zu: %d region voxels differ from the full decode", wavelet, nx, ny, nz,
-          bad);
+    CHECK(bad == 0 && tried > 0, "%s %zux%zux%zu at %g dB: %d region voxels differ from the full decode", wavelet, nx,
+          ny, nz, psnr, bad);
+    if (wf) {
+        wvol_wvc_cache_stats cs;
+        wvol_wvc_file_stats(wf, &cs);
+        if (psnr <= 50)
+            CHECK(cs.decoded > 0 && cs.decoded_narrow == cs.decoded, "%g dB: %llu of %llu chunks held as 16 bits", psnr,
+                  (unsigned long long)cs.decoded_narrow, (unsigned long long)cs.decoded);
+        else
+            CHECK(cs.decoded_narrow > 0 && cs.decoded_narrow < cs.decoded, "%g dB: %llu of %llu chunks held as 16 bits",
+                  psnr, (unsigned long long)cs.decoded_narrow, (unsigned long long)cs.decoded);
+    }
+    if (wf && psnr > 50) {
+        /* the first chunk (the coarsest level's, with the low-pass cube) is wide here */
+        const char *lie = "test_wvc_region_lie.wvc";
+        wvol_wvc_file *lf = NULL;
+        wvol_volume *r = NULL;
+        const size_t lo[3] = {0, 0, 0}, hi[3] = {nx, ny, nz};
+        wvc2_understate_chunk_max(path, lie, 0);
+        CHECK(wvol_wvc_open(&lf, lie, 0, &err) == WVOL_OK, "open: %s", err.message);
+        CHECK(lf && wvol_wvc_read_region(&r, lf, lo, hi, 0, &err) == WVOL_ERR_FORMAT && strstr(err.message, "chunk") &&
+                  strstr(err.message, "maximum"),
+              "a chunk whose values exceed its index maximum is refused: %s", err.message);
+        wvol_volume_destroy(r);
+        wvol_wvc_close(lf);
+        remove(lie);
+    }
     CHECK(!wf || (wvol_wvc_level_geometry(wvol_wvc_file_info(wf), levels + 1, NULL, NULL, NULL, &err) == WVOL_ERR_ARG &&
                   strstr(err.message, "level") && wvol_wvc_level_geometry(NULL, 0, NULL, NULL, NULL, &err) == WVOL_ERR_ARG),
           "level geometry refuses a level past the last and a missing info");
@@ -1155,7 +1206,7 @@ static void wvc2_pieces_equal_the_full_decode(const char *wavelet, size_t nx, si
     wvol_coeffs *dec;
     uint64_t rng = 7;
     int bad = 0, tried = 0;
-    if (!wvc2_file_fixture_make(&X, path, wavelet, nx, ny, nz, levels, tile, tile_z)) return;
+    if (!wvc2_file_fixture_make(&X, path, wavelet, nx, ny, nz, levels, tile, tile_z, 50)) return;
     wf = X.wf, dec = X.dec;
     for (int level = 0; wf && dec && level < levels; level++) {
         double peak = 0;
@@ -1391,10 +1442,11 @@ int main(void)
         wvc2_streamed_rows_give_the_same_bytes("bl3", 32, 32, 32, 2, 16, 8, rows_kind);
         wvc2_streamed_rows_give_the_same_bytes("db2", 24, 20, 1, 2, 8, 8, rows_kind);
     }
-    wvc2_regions_equal_the_full_decode("db2", 40, 36, 44, 2, 8, 8);
-    wvc2_regions_equal_the_full_decode("haar", 33, 17, 70, 3, 8, 16);
-    wvc2_regions_equal_the_full_decode("bl3", 32, 32, 32, 2, 16, 8);
-    wvc2_regions_equal_the_full_decode("coif1", 24, 20, 1, 2, 8, 8);
+    wvc2_regions_equal_the_full_decode("db2", 40, 36, 44, 2, 8, 8, 50);
+    wvc2_regions_equal_the_full_decode("haar", 33, 17, 70, 3, 8, 16, 50);
+    wvc2_regions_equal_the_full_decode("bl3", 32, 32, 32, 2, 16, 8, 50);
+    wvc2_regions_equal_the_full_decode("coif1", 24, 20, 1, 2, 8, 8, 50);
+    wvc2_regions_equal_the_full_decode("db2", 40, 36, 44, 2, 8, 8, 100);
     wvc2_pieces_equal_the_full_decode("db2", 40, 36, 44, 2, 8, 8);
     wvc2_pieces_equal_the_full_decode("haar", 32, 16, 72, 3, 8, 16);
     wvc2_pieces_equal_the_full_decode("bl3", 32, 32, 32, 2, 16, 8);

@@ -167,6 +167,8 @@ typedef struct wvol_wvc_cache_stats {
     size_t held, peak;       /* decoded chunk bytes held now, and at most so far */
     size_t chunk_bytes;      /* decoded size of the largest chunk */
     uint64_t decoded;        /* chunk decodes (a chunk evicted and needed again counts twice) */
+    uint64_t decoded_narrow; /* of those, held as 16-bit values (half the bytes): the chunks whose
+                                index maximum bounds every quantised value by 32767 */
     uint64_t hits;           /* requests served from the cache */
     uint64_t bytes_read;     /* payload bytes read from the file */
 } wvol_wvc_cache_stats;

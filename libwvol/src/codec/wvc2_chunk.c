@@ -405,7 +405,26 @@ int wvol__wvc2_chunk_encode(wvc2_coded *out, const wvc2_geom *g, int m, const si
 static void box_zero(const wvc2_qbox *b, const size_t ext[3])
 {
     for (size_t z = 0; z < ext[2]; z++)
-        for (size_t y = 0; y < ext[1]; y++) memset(b->q + y * b->sy + z * b->sz, 0, ext[0] * sizeof(int32_t));
+        for (size_t y = 0; y < ext[1]; y++) {
+            const size_t o = y * b->sy + z * b->sz;
+            if (b->q) memset(b->q + o, 0, ext[0] * sizeof(int32_t));
+            else memset(b->q16 + o, 0, ext[0] * sizeof(int16_t));
+        }
+}
+
+/* A decoded row into a narrow box: the count of non-zeros, or -1 when a value does not
+ * fit int16 (the index's maximum, which chose the narrow box, was wrong). */
+static int64_t row_to_int16(int16_t *restrict d, const int32_t *restrict s, size_t n)
+{
+    int64_t nz = 0;
+    int32_t out = 0;
+    for (size_t x = 0; x < n; x++) {
+        const int32_t v = s[x];
+        out |= (v + 32768) >> 16; /* 0 exactly for v in [-32768, 32767] */
+        d[x] = (int16_t)v;
+        nz += v != 0;
+    }
+    return out ? -1 : nz;
 }
 
 /* band i of a direct decode: the coder's view on the pyramid itself */
@@ -517,7 +536,7 @@ int wvol__wvc2_chunk_decode(const wvc2_geom *g, int m, const size_t ext[3], cons
         if (scratch) {
             if (scratch->cap < need) {
                 free(scratch->q);
-                scratch->q = malloc(need * sizeof *scratch->q);
+                scratch->q = wvol__malloc_large(need * sizeof *scratch->q);
                 scratch->cap = scratch->q ? need : 0;
             }
             base = scratch->q;
@@ -573,11 +592,22 @@ int wvol__wvc2_chunk_decode(const wvc2_geom *g, int m, const size_t ext[3], cons
                     for (size_t x = 0; x < ext[0]; x++) nz += s[x] != 0;
                 }
         } else if (!r && (used >> i & 1) && !direct) {
-            for (size_t z = 0; z < ext[2]; z++)
+            for (size_t z = 0; z < ext[2] && !r; z++)
                 for (size_t y = 0; y < ext[1]; y++) {
                     const int32_t *s = lg[i].q + lg[i].p[0] * (y + lg[i].p[1] * z);
-                    int32_t *d = child[i].q + y * child[i].sy + z * child[i].sz;
-                    for (size_t x = 0; x < ext[0]; x++) nz += (d[x] = s[x]) != 0;
+                    const size_t o = y * child[i].sy + z * child[i].sz;
+                    if (child[i].q) {
+                        int32_t *d = child[i].q + o;
+                        for (size_t x = 0; x < ext[0]; x++) nz += (d[x] = s[x]) != 0;
+                    } else {
+                        const int64_t k = row_to_int16(child[i].q16 + o, s, ext[0]);
+                        if (k < 0) {
+                            *why = "a decoded value exceeds the chunk's maximum in the index";
+                            r = -1;
+                            break;
+                        }
+                        nz += (uint64_t)k;
+                    }
                 }
         }
         if (mode == MODE_BANDS) *nonzero += nz;

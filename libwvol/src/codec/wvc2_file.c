@@ -19,6 +19,7 @@
 #include <omp.h>
 #endif
 
+#include "core/alloc.h"
 #include "core/clock.h"
 #include "core/clones.h"
 #include "wvc2_read.h"
@@ -33,7 +34,8 @@ typedef struct centry {
     struct centry *prev, *next; /* LRU list, most recent first */
     size_t bytes;
     size_t ext[3];
-    int32_t *q[8];              /* per band of the level's list, ext[0] ext[1] ext[2] each */
+    void *q[8];                 /* per band of the level's list, ext[0] ext[1] ext[2] each */
+    int es;                     /* their size: int32, or int16 where the index's maximum allows */
     unsigned char nz[8];        /* per band: any non-zero value */
 } centry;
 
@@ -63,7 +65,7 @@ struct wvol_wvc_file {
     centry *mru, *lru;
     size_t budget, held, peak, chunk_max;
     size_t chain;               /* one decoded chunk per level: the least budget (format 2) */
-    uint64_t decoded, hits, bytes_read;
+    uint64_t decoded, decoded_narrow, hits, bytes_read;
     wvol_status first_status;
     char first_message[sizeof(((wvol_error *)0)->message)];
     /* reconstruction scratch kept between region reads (under the lock): a reader that
@@ -124,6 +126,22 @@ static size_t chunk_decoded_bytes(const wvc2_geom *g, int m, const size_t t[3])
     size_t off[3], ext[3];
     wvc2_tile_box(g, m, t, off, ext);
     return sizeof(centry) + ext[0] * ext[1] * ext[2] * (size_t)g->lv[m].nb * sizeof(int32_t);
+}
+
+/* The value size of chunk id's cache entry: int16 when the index's maximum bounds every
+ * |q| by 32767 (half the memory a cache of int32 values fills and first-touches), int32
+ * otherwise. chunk_decoded_bytes stays the budget's bound per chunk. */
+static int entry_es(const wvol_wvc_file *f, size_t id)
+{
+    return wvc2_fits_int16(f->x->chunks[id].maxabs, f->x->step) ? (int)sizeof(int16_t) : (int)sizeof(int32_t);
+}
+
+static size_t entry_bytes(const wvol_wvc_file *f, size_t id)
+{
+    size_t t[3], off[3], ext[3];
+    int m = wvol__wvc2_chunk_coords(&f->x->g, id, t);
+    wvc2_tile_box(&f->x->g, m, t, off, ext);
+    return sizeof(centry) + ext[0] * ext[1] * ext[2] * (size_t)f->x->g.lv[m].nb * (size_t)entry_es(f, id);
 }
 
 void wvol_wvc_close(wvol_wvc_file *f)
@@ -298,6 +316,7 @@ void wvol_wvc_file_stats(const wvol_wvc_file *f, wvol_wvc_cache_stats *st)
     st->peak = f->peak;
     st->chunk_bytes = f->chunk_max;
     st->decoded = f->decoded;
+    st->decoded_narrow = f->decoded_narrow;
     st->hits = f->hits;
     st->bytes_read = f->bytes_read;
     unlock((wvol_wvc_file *)f);
@@ -337,7 +356,7 @@ static void release(wvol_wvc_file *f, centry *e)
  * instead of freeing it (the interior tiles of a level all have one size; the accounting
  * stays that of a fresh buffer): the new chunk then fills pages already mapped instead of
  * faulting in fresh ones, and the cache holds at most the budget while it decodes. */
-static void evict_for(wvol_wvc_file *f, size_t need, int32_t **reuse)
+static void evict_for(wvol_wvc_file *f, size_t need, void **reuse)
 {
     centry *e = f->lru;
     while (f->held + need > f->budget && e) {
@@ -388,7 +407,7 @@ static int pool_give(wvol_wvc_file *f, void *pool, int *n, size_t size, const vo
 
 /* Reads and decodes chunk id (not all zero) into a new entry; reuse, when not NULL, is a
  * buffer of its decoded values' size (evict_for) that the entry takes (freed on failure). */
-static centry *decode_chunk(wvol_wvc_file *f, size_t id, int32_t *reuse)
+static centry *decode_chunk(wvol_wvc_file *f, size_t id, void *reuse)
 {
     const wvc2_geom *g = &f->x->g;
     const wvc2_chunk *c = &f->x->chunks[id];
@@ -403,6 +422,7 @@ static centry *decode_chunk(wvol_wvc_file *f, size_t id, int32_t *reuse)
     wvc2_tile_box(g, m, t, off, ext);
     wvc2_parent_box(g, off, ext, poff, pext);
     memset(parent, 0, sizeof parent);
+    memset(child, 0, sizeof child);
     if (m < g->levels) {
         size_t pt[3], pid, po[3], pe[3];
         const wvc2_level *PG = &g->lv[m + 1];
@@ -420,7 +440,9 @@ static centry *decode_chunk(wvol_wvc_file *f, size_t id, int32_t *reuse)
             int pk = 0;
             while (PG->bands[pk] != g->lv[m].bands[k]) pk++;
             if (P) {
-                parent[k].q = P->q[pk] + (poff[0] - po[0]) + pe[0] * ((poff[1] - po[1]) + pe[1] * (poff[2] - po[2]));
+                const size_t o = (poff[0] - po[0]) + pe[0] * ((poff[1] - po[1]) + pe[1] * (poff[2] - po[2]));
+                if (P->es == sizeof(int16_t)) parent[k].q16 = (int16_t *)P->q[pk] + o;
+                else parent[k].q = (int32_t *)P->q[pk] + o;
                 parent[k].sy = pe[0];
                 parent[k].sz = pe[0] * pe[1];
             } else {
@@ -434,7 +456,8 @@ static centry *decode_chunk(wvol_wvc_file *f, size_t id, int32_t *reuse)
     e = calloc(1, sizeof *e);
     pay = malloc(c->bytes);
     if (e) {
-        e->q[0] = reuse ? reuse : malloc(n * (size_t)nb * sizeof(int32_t));
+        e->es = entry_es(f, id);
+        e->q[0] = reuse ? reuse : wvol__malloc_large(n * (size_t)nb * (size_t)e->es);
         reuse = NULL;
     }
     free(reuse);
@@ -447,8 +470,9 @@ static centry *decode_chunk(wvol_wvc_file *f, size_t id, int32_t *reuse)
         return NULL;
     }
     for (int k = 0; k < nb; k++) {
-        e->q[k] = e->q[0] + (size_t)k * n;
-        child[k].q = e->q[k];
+        e->q[k] = (char *)e->q[0] + (size_t)k * n * (size_t)e->es;
+        if (e->es == sizeof(int16_t)) child[k].q16 = e->q[k];
+        else child[k].q = e->q[k];
         child[k].sy = ext[0];
         child[k].sz = ext[0] * ext[1];
     }
@@ -473,12 +497,15 @@ static centry *decode_chunk(wvol_wvc_file *f, size_t id, int32_t *reuse)
     }
     for (int k = 0; k < nb; k++) {
         int32_t any = 0;
-        for (size_t i = 0; i < n; i++) any |= e->q[k][i];
+        if (e->es == sizeof(int16_t))
+            for (size_t i = 0; i < n; i++) any |= ((const int16_t *)e->q[k])[i];
+        else
+            for (size_t i = 0; i < n; i++) any |= ((const int32_t *)e->q[k])[i];
         e->nz[k] = any != 0;
     }
     e->id = id;
     memcpy(e->ext, ext, sizeof ext);
-    e->bytes = sizeof *e + n * (size_t)nb * sizeof(int32_t);
+    e->bytes = sizeof *e + n * (size_t)nb * (size_t)e->es;
     return e;
 }
 
@@ -487,7 +514,7 @@ static centry *decode_chunk(wvol_wvc_file *f, size_t id, int32_t *reuse)
 static centry *get_chunk(wvol_wvc_file *f, size_t id)
 {
     centry *e, *mine;
-    int32_t *reuse = NULL;
+    void *reuse = NULL;
     lock(f);
     while ((e = f->slot[id]) == DECODING) {
         unlock(f);
@@ -502,11 +529,7 @@ static centry *get_chunk(wvol_wvc_file *f, size_t id)
         unlock(f);
         return e;
     }
-    {
-        size_t t[3];
-        int m = wvol__wvc2_chunk_coords(&f->x->g, id, t);
-        evict_for(f, chunk_decoded_bytes(&f->x->g, m, t), &reuse);
-    }
+    evict_for(f, entry_bytes(f, id), &reuse);
     f->slot[id] = DECODING;
     unlock(f);
     mine = decode_chunk(f, id, reuse);
@@ -517,6 +540,7 @@ static centry *get_chunk(wvol_wvc_file *f, size_t id)
         return NULL;
     }
     f->decoded++;
+    f->decoded_narrow += mine->es == (int)sizeof(int16_t);
     f->bytes_read += f->x->chunks[id].bytes;
     mine->ref = 1;
     f->slot[id] = mine;
@@ -535,10 +559,11 @@ static centry *get_chunk(wvol_wvc_file *f, size_t id)
     return mine;
 }
 
-void *wvol__wvc_file_pin(wvol_wvc_file *f, size_t id, int32_t *const **q)
+void *wvol__wvc_file_pin(wvol_wvc_file *f, size_t id, void *const **q, int *es)
 {
     centry *e = get_chunk(f, id);
     if (e && q) *q = e->q;
+    if (e && es) *es = e->es;
     return e;
 }
 
@@ -636,19 +661,29 @@ static int band_may_be_nonzero(wvol_wvc_file *f, pins *P, int m, int k, const pt
  * twice, as the decoder rounds it; no trapping math: without it GCC keeps a branch so as not
  * to compute the unused lane's value, which cannot trap here (no FP exceptions are enabled,
  * and each lane's value is finite). */
-WVOL__CLONES __attribute__((optimize("fp-contract=off", "no-trapping-math"))) int
-wvol__wvc_dequant_run(float *restrict dst, const int32_t *restrict q, size_t n, double o1, double d2, double step)
-{
-    const float f1 = (float)o1;
-    int32_t any = 0;
-    for (size_t i = 0; i < n; i++) {
-        const int32_t v = q[i];
-        const float big = (float)((fabs((double)v) + d2) * step);
-        const float a = v == 0 ? 0.0f : (v == 1 || v == -1) ? f1 : big;
-        dst[i] = v < 0 ? -a : a;
-        any |= v;
+#define WVC_DEQUANT_RUN(name, T)                                                                               \
+    WVOL__CLONES __attribute__((optimize("fp-contract=off", "no-trapping-math"))) int name(                       \
+        float *restrict dst, const T *restrict q, size_t n, double o1, double d2, double step)                    \
+    {                                                                                                             \
+        const float f1 = (float)o1;                                                                               \
+        int32_t any = 0;                                                                                          \
+        for (size_t i = 0; i < n; i++) {                                                                          \
+            const int32_t v = q[i];                                                                               \
+            const float big = (float)((fabs((double)v) + d2) * step);                                             \
+            const float a = v == 0 ? 0.0f : (v == 1 || v == -1) ? f1 : big;                                       \
+            dst[i] = v < 0 ? -a : a;                                                                              \
+            any |= v;                                                                                             \
+        }                                                                                                         \
+        return any != 0;                                                                                          \
     }
-    return any != 0;
+WVC_DEQUANT_RUN(wvol__wvc_dequant_run, int32_t)
+WVC_DEQUANT_RUN(wvol__wvc_dequant_run16, int16_t)
+#undef WVC_DEQUANT_RUN
+
+int wvol__wvc_dequant_any(float *dst, const void *q, int es, size_t at, size_t n, double o1, double d2, double step)
+{
+    if (es == (int)sizeof(int16_t)) return wvol__wvc_dequant_run16(dst, (const int16_t *)q + at, n, o1, d2, step);
+    return wvol__wvc_dequant_run(dst, (const int32_t *)q + at, n, o1, d2, step);
 }
 
 static int gather_chunks(const void *ctx, float *dst, int mm, int band, const ptrdiff_t lo[3], const ptrdiff_t n[3])
@@ -695,10 +730,9 @@ static int gather_chunks(const void *ctx, float *dst, int mm, int band, const pt
                     if (!e) {
                         memset(dst + t, 0, run * sizeof *dst);
                     } else {
-                        const int32_t *q = e->q[k] + (x - tx0) +
-                                           e->ext[0] * ((y - tc[1] * (size_t)g->tile[1]) +
-                                                        e->ext[1] * (z - tc[2] * (size_t)g->tile[2]));
-                        any |= wvol__wvc_dequant_run(dst + t, q, run, o1, d2, step);
+                        const size_t o = (x - tx0) + e->ext[0] * ((y - tc[1] * (size_t)g->tile[1]) +
+                                                                  e->ext[1] * (z - tc[2] * (size_t)g->tile[2]));
+                        any |= wvol__wvc_dequant_any(dst + t, e->q[k], e->es, o, run, o1, d2, step);
                     }
                 }
                 t += run;

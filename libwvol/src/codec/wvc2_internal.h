@@ -78,12 +78,21 @@ static inline void wvc2_parent_box(const wvc2_geom *g, const size_t off[3], cons
 }
 
 /* A strided box of quantised values: element (x, y, z) at q[x + y sy + z sz], or, when q is
- * NULL, at q16[x + y sy + z sz] (a writer's narrow rows, wvc2_writer.h; copied in as int32). */
+ * NULL, at q16[x + y sy + z sz] (a writer's narrow rows, wvc2_writer.h, copied in as int32;
+ * a file cache's narrow chunk, decoded into with every value checked to fit). */
 typedef struct wvc2_qbox {
     int32_t *q;
     size_t sy, sz;
-    const int16_t *q16;
+    int16_t *q16;
 } wvc2_qbox;
+
+/* Whether every quantised value of coefficients with |c| <= maxabs fits int16 for the step:
+ * |q| <= floor(maxabs / step + 1/2) (the quantiser's rounding is at most 1/2), and that
+ * floor at most 32766, one below INT16_MAX for the rounding of the division. */
+static inline int wvc2_fits_int16(double maxabs, double step)
+{
+    return step > 0 && maxabs / step + 0.5 < (double)INT16_MAX;
+}
 
 /* Results of coding one chunk. */
 typedef struct wvc2_coded {

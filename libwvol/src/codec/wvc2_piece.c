@@ -130,7 +130,7 @@ typedef struct piece_ctx {
 
 /* Dequantises (q NULL: zeros) the part of chunk (m, t) inside level m's window into the
  * layout: the full decoder's arithmetic, so values are bit-equal to it. */
-static void scatter(const piece_ctx *C, int m, const size_t t[3], int32_t *const *q)
+static void scatter(const piece_ctx *C, int m, const size_t t[3], void *const *q, int es)
 {
     const wvc2_geom *g = &C->x->g;
     const wvc2_level *G = &g->lv[m];
@@ -148,12 +148,11 @@ static void scatter(const piece_ctx *C, int m, const size_t t[3], int32_t *const
             float *dz = C->work + (w + ((b & 4) ? P->S[m] : 0)) * plane;
             for (size_t y = 0; y < ext[1]; y++) {
                 float *d = dz + (yo + y) * P->PX + xo;
-                const int32_t *src = q ? q[k] + ext[0] * (y + ext[1] * z) : NULL;
-                if (!src) {
+                if (!q) {
                     memset(d, 0, ext[0] * sizeof *d);
                     continue;
                 }
-                (void)wvol__wvc_dequant_run(d, src, ext[0], o1, d2, step);
+                (void)wvol__wvc_dequant_any(d, q[k], es, ext[0] * (y + ext[1] * z), ext[0], o1, d2, step);
             }
         }
     }
@@ -174,13 +173,14 @@ static void walk(const piece_ctx *C, int m, const size_t t[3])
 {
     const wvc2_geom *g = &C->x->g;
     size_t id = wvc2_chunk_id(g, m, t);
-    int32_t *const *q = NULL;
+    void *const *q = NULL;
+    int es = (int)sizeof(int32_t);
     void *pin = NULL;
     if (C->x->chunks[id].bytes) {
-        pin = wvol__wvc_file_pin(C->f, id, &q);
+        pin = wvol__wvc_file_pin(C->f, id, &q, &es);
         if (!pin) return; /* recorded: the caller reports it */
     }
-    if (C->own[m][t[2]]) scatter(C, m, t, pin ? q : NULL);
+    if (C->own[m][t[2]]) scatter(C, m, t, pin ? q : NULL, es);
     if (m - 1 > C->P->s) {
         const wvc2_level *F = &g->lv[m - 1];
         size_t kids[8][3];

@@ -58,9 +58,10 @@ wvol_status wvol__wvc2_decode_dense(int32_t *Q, const size_t p[3], const wvc2_in
 /* The index of an open version-2 file; NULL for version 1 (decoded whole at open). */
 const wvc2_index *wvol__wvc_file_index(const wvol_wvc_file *f);
 /* Decoded chunk id (index bytes > 0), pinned in the cache: *q receives its bands'
- * quantised values (the level's band list order, the tile box x fastest each); NULL after
- * recording an error (wvol__wvc_file_error). Unpin it with wvol__wvc_file_unpin. */
-void *wvol__wvc_file_pin(wvol_wvc_file *f, size_t id, int32_t *const **q);
+ * quantised values (the level's band list order, the tile box x fastest each), *es their
+ * size (int32, or int16 where the index's maximum allows); NULL after recording an error
+ * (wvol__wvc_file_error). Unpin it with wvol__wvc_file_unpin. */
+void *wvol__wvc_file_pin(wvol_wvc_file *f, size_t id, void *const **q, int *es);
 void wvol__wvc_file_unpin(wvol_wvc_file *f, void *pinned);
 /* Bytes of decoded chunks the cache holds while a chain of parents (one per level) and
  * `pinned` more chunks are pinned at once; the current budget. */
@@ -70,5 +71,8 @@ size_t wvol__wvc_file_budget(const wvol_wvc_file *f);
  * (|v| + d2) * step beyond, in double as the full decoder computes them: bit-equal values);
  * whether one is non-zero. The region read's gather and the piece reader's scatter. */
 int wvol__wvc_dequant_run(float *dst, const int32_t *q, size_t n, double o1, double d2, double step);
+int wvol__wvc_dequant_run16(float *dst, const int16_t *q, size_t n, double o1, double d2, double step);
+/* The same on values of size es (4 or 2 bytes) from element `at` of q. */
+int wvol__wvc_dequant_any(float *dst, const void *q, int es, size_t at, size_t n, double o1, double d2, double step);
 
 #endif

@@ -397,7 +397,7 @@ static wvc2_qbox box_of(const wvc2_writer *w, const wlevel *L, const wvc2_level 
         return b;
     }
     const size_t o = (off[2] - L->z_base) * L->plane + off[1] * G->e[0] + off[0];
-    if (L->es == sizeof(int16_t)) b.q16 = (const int16_t *)L->q[i] + o;
+    if (L->es == sizeof(int16_t)) b.q16 = (int16_t *)L->q[i] + o;
     else b.q = (int32_t *)L->q[i] + o;
     b.sy = G->e[0];
     b.sz = L->plane;
@@ -796,6 +796,14 @@ wvol_status wvol__wvc2_writer_put(wvc2_writer *w, int level, size_t z0, size_t n
 }
 
 /* ---- close --------------------------------------------------------------------------- */
+
+unsigned wvol__wvc2_narrow_levels(const double *maxabs, int levels, double step)
+{
+    unsigned bits = 0;
+    for (int m = 1; m <= levels; m++)
+        if (wvc2_fits_int16(maxabs[m], step)) bits |= 1u << m;
+    return bits;
+}
 
 size_t wvol__wvc2_writer_memory(const wvc2_header *h)
 {

@@ -148,4 +148,9 @@ void wvol__wvc2_writer_abort(wvc2_writer *w);
  * memory. */
 size_t wvol__wvc2_writer_memory(const wvc2_header *h);
 
+/* The levels (bit m, 1 .. levels) whose quantised values all fit int16 for the step, given
+ * each level's largest |c| (maxabs[m]): what wvc2_header.narrow may name. The file cache
+ * holds a chunk's values as int16 by the same rule on the index's maximum. */
+unsigned wvol__wvc2_narrow_levels(const double *maxabs, int levels, double step);
+
 #endif

@@ -222,13 +222,6 @@ static void level_maxabs(wvc_stream_stats *st, int levels, double *maxabs)
  * writer then holds their rows in half the memory (at 2048^2 with coif2 its rows are most
  * of a compression's resident peak). |q| <= floor(|c| / step + 1/2) for any rounding and
  * dead zone; one more for the last bit of the quantiser's arithmetic. */
-static unsigned narrow_levels(const double *maxabs, int levels, double step)
-{
-    unsigned bits = 0;
-    for (int m = 1; m <= levels; m++)
-        if (step > 0 && floor(maxabs[m] / step + 0.5) + 1.0 <= (double)INT16_MAX) bits |= 1u << m;
-    return bits;
-}
 
 int wvol_compress_streams(const wvol_compress_params *p)
 {
@@ -316,7 +309,7 @@ wvol_status wvol_compress_stream(const char *path, wvol_source *src, const wvol_
     pc.tile_z = (size_t)(h.tile_z ? h.tile_z : WVC2_TILE_Z_DEFAULT);
     h.lag_rows = (size_t)f->length + 8;
     h.in_place = pc.keep != NULL;
-    h.narrow = narrow_levels(maxabs, p.levels, out.step);
+    h.narrow = wvol__wvc2_narrow_levels(maxabs, p.levels, out.step);
     out.writer_bytes = wvol__wvc2_writer_memory(&h);
     wvol__wvc_stream_stats_free(pc.stats);
     pc.stats = NULL;
@@ -327,7 +320,7 @@ wvol_status wvol_compress_stream(const char *path, wvol_source *src, const wvol_
         /* the kept pyramid is quantised where it lies (no rows of the writer's own to fill):
          * a further pass reads and transforms the source again */
         h.in_place = pc.keep != NULL;
-        h.narrow = narrow_levels(maxabs, p.levels, h.step);
+        h.narrow = wvol__wvc2_narrow_levels(maxabs, p.levels, h.step);
         out.source_reads += !pc.keep;
         s = wvol__wvc2_writer_open(&pc.writer, path, &h, err);
         if (!s) {
