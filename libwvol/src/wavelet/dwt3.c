@@ -15,15 +15,17 @@ int wvol__thread_id(void) { return omp_get_thread_num(); }
 /* Columns per block of a strided-axis pass: the block's n + L rows are copied into scratch
  * and filtered there, so the scratch (rows x width) should stay in L2 beside the rows being
  * written, while each strided row read fetches several cache lines rather than one. A
- * quarter of a 1 MiB L2: at 1024^2 slices the blocks are 48 columns (3 lines per row read;
- * half the budget gave 16 columns, one line, and made the transform 1.5-2x slower at 1024^3,
- * 10-20% at 512^3, bench_dwt); at 256^2 and below a block is the whole row. The width only
- * groups columns: every column is filtered with the same arithmetic whatever the block. */
+ * quarter of a 1 MiB L2, and at least 48 columns (3 lines per row read): 48 at 1024^2 and
+ * 2048^2 slices (a 128 KiB budget gave 16 columns, one line, and made the transform 1.5-2x
+ * slower at 1024^3, 10-20% at 512^3, bench_dwt; at 2048^2 the 256 KiB budget alone gives 16
+ * again, and 48 made the statistics pass about 12% faster); at 256^2 and below a block is the
+ * whole row. The width only groups columns: every column is filtered with the same
+ * arithmetic whatever the block. */
 size_t wvol__block_width(size_t cx, size_t n, int L, size_t elem)
 {
     const size_t budget = 256 * 1024;
     size_t rows = n + (size_t)L, B = budget / (elem * rows), nb;
-    B = B < 16 ? 16 : B & ~(size_t)15;
+    B = B < 48 ? 48 : B & ~(size_t)15;
     if (cx <= B) return cx;
     nb = (cx + B - 1) / B;         /* even blocks: no thin last block */
     B = (cx + nb - 1) / nb;
