@@ -125,7 +125,7 @@ static size_t chunk_decoded_bytes(const wvc2_geom *g, int m, const size_t t[3])
 {
     size_t off[3], ext[3];
     wvc2_tile_box(g, m, t, off, ext);
-    return sizeof(centry) + ext[0] * ext[1] * ext[2] * (size_t)g->lv[m].nb * sizeof(int32_t);
+    return sizeof(centry) + wvol__pages_bytes(ext[0] * ext[1] * ext[2] * (size_t)g->lv[m].nb * sizeof(int32_t));
 }
 
 /* The value size of chunk id's cache entry: int16 when the index's maximum bounds every
@@ -136,12 +136,15 @@ static int entry_es(const wvol_wvc_file *f, size_t id)
     return wvc2_fits_int16(f->x->chunks[id].maxabs, f->x->step) ? (int)sizeof(int16_t) : (int)sizeof(int32_t);
 }
 
+/* The bytes chunk id's entry holds resident: its values in whole huge pages (the cache's
+ * buffers are huge pages, which a decode fills whole) and the entry itself. */
 static size_t entry_bytes(const wvol_wvc_file *f, size_t id)
 {
     size_t t[3], off[3], ext[3];
     int m = wvol__wvc2_chunk_coords(&f->x->g, id, t);
     wvc2_tile_box(&f->x->g, m, t, off, ext);
-    return sizeof(centry) + ext[0] * ext[1] * ext[2] * (size_t)f->x->g.lv[m].nb * (size_t)entry_es(f, id);
+    return sizeof(centry) +
+           wvol__pages_bytes(ext[0] * ext[1] * ext[2] * (size_t)f->x->g.lv[m].nb * (size_t)entry_es(f, id));
 }
 
 void wvol_wvc_close(wvol_wvc_file *f)
@@ -456,8 +459,10 @@ static centry *decode_chunk(wvol_wvc_file *f, size_t id, void *reuse)
     e = calloc(1, sizeof *e);
     pay = malloc(c->bytes);
     if (e) {
+        size_t vb;
         e->es = entry_es(f, id);
-        e->q[0] = reuse ? reuse : wvol__malloc_large(n * (size_t)nb * (size_t)e->es);
+        vb = n * (size_t)nb * (size_t)e->es;
+        e->q[0] = reuse ? reuse : wvol__malloc_pages(&vb);
         reuse = NULL;
     }
     free(reuse);
@@ -505,7 +510,7 @@ static centry *decode_chunk(wvol_wvc_file *f, size_t id, void *reuse)
     }
     e->id = id;
     memcpy(e->ext, ext, sizeof ext);
-    e->bytes = sizeof *e + n * (size_t)nb * (size_t)e->es;
+    e->bytes = entry_bytes(f, id);
     return e;
 }
 

@@ -47,13 +47,19 @@ void *wvol__realloc_large(void *p, size_t bytes)
     return q;
 }
 
+size_t wvol__pages_bytes(size_t bytes)
+{
+    if (bytes < PAGED || bytes > SIZE_MAX - HUGE_PAGE) return bytes;
+    return (bytes + HUGE_PAGE - 1) & ~(size_t)(HUGE_PAGE - 1);
+}
+
 void *wvol__malloc_pages(size_t *bytes)
 {
     void *p = NULL;
     size_t n = *bytes;
     if (n < PAGED) return malloc(n ? n : 1);
     if (n > SIZE_MAX - HUGE_PAGE) return NULL;
-    n = (n + HUGE_PAGE - 1) & ~(size_t)(HUGE_PAGE - 1);
+    n = wvol__pages_bytes(n);
     if (posix_memalign(&p, HUGE_PAGE, n) != 0) return NULL;
 #ifdef MADV_HUGEPAGE
     (void)madvise(p, n, MADV_HUGEPAGE); /* p and n whole huge pages; glibc has not touched them */

@@ -29,6 +29,9 @@ void *wvol__realloc_large(void *p, size_t bytes);
  * few MiB, below wvol__malloc_large's threshold, are where a fresh allocation's 4 KiB first
  * touches cost most against their use (a reconstruction's band arrays). Free with free(). */
 void *wvol__malloc_pages(size_t *bytes);
+/* The size wvol__malloc_pages gives for a request of `bytes` (a buffer's resident size
+ * once it is filled: whole huge pages from 1 MiB on), for callers who account memory. */
+size_t wvol__pages_bytes(size_t bytes);
 
 /* An array *p of *cap elements of elem bytes grown by doubling (from `first` elements when
  * empty) until it holds need; 1, or 0 when out of memory (*p and *cap then unchanged). */
