@@ -123,7 +123,8 @@ static PyObject *py_wvc_region(PyObject *self, PyObject *args, PyObject *kw)
     if (s != WVOL_OK) return wvolpy_raise(&err);
     arr = wvolpy_volume_take(v, 0);
     if (!arr) return NULL;
-    stats = Py_BuildValue("{s:K,s:K,s:K,s:n,s:n}", "chunks_decoded", (unsigned long long)cs.decoded, "bytes_read",
+    stats = Py_BuildValue("{s:K,s:K,s:K,s:K,s:n,s:n}", "chunks_decoded", (unsigned long long)cs.decoded,
+                          "chunks_decoded_narrow", (unsigned long long)cs.decoded_narrow, "bytes_read",
                           (unsigned long long)cs.bytes_read, "cache_hits", (unsigned long long)cs.hits,
                           "cache_peak_bytes", (Py_ssize_t)cs.peak, "budget_bytes", (Py_ssize_t)cs.budget);
     if (!stats) {

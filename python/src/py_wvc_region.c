@@ -250,9 +250,10 @@ static PyObject *py_wvc_file_stats(PyObject *self, PyObject *cap)
     (void)self;
     if (!f) return NULL;
     wvol_wvc_file_stats(f, &st);
-    return Py_BuildValue("{s:K,s:K,s:K,s:K,s:K,s:K,s:K}", "budget", (unsigned long long)st.budget, "held",
+    return Py_BuildValue("{s:K,s:K,s:K,s:K,s:K,s:K,s:K,s:K}", "budget", (unsigned long long)st.budget, "held",
                          (unsigned long long)st.held, "peak", (unsigned long long)st.peak, "chunk_bytes",
-                         (unsigned long long)st.chunk_bytes, "decoded", (unsigned long long)st.decoded, "hits",
+                         (unsigned long long)st.chunk_bytes, "decoded", (unsigned long long)st.decoded,
+                         "decoded_narrow", (unsigned long long)st.decoded_narrow, "hits",
                          (unsigned long long)st.hits, "bytes_read", (unsigned long long)st.bytes_read);
 }
 
