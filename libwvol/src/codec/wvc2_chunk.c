@@ -417,10 +417,10 @@ static void box_zero(const wvc2_qbox *b, const size_t ext[3])
 static int64_t row_to_int16(int16_t *restrict d, const int32_t *restrict s, size_t n)
 {
     int64_t nz = 0;
-    int32_t out = 0;
+    uint32_t out = 0;
     for (size_t x = 0; x < n; x++) {
         const int32_t v = s[x];
-        out |= (v + 32768) >> 16; /* 0 exactly for v in [-32768, 32767] */
+        out |= ((uint32_t)v + 32768u) >> 16; /* 0 exactly for v in [-32768, 32767] (unsigned: no overflow) */
         d[x] = (int16_t)v;
         nz += v != 0;
     }
