@@ -412,21 +412,6 @@ static void box_zero(const wvc2_qbox *b, const size_t ext[3])
         }
 }
 
-/* A decoded row into a narrow box: the count of non-zeros, or -1 when a value does not
- * fit int16 (the index's maximum, which chose the narrow box, was wrong). */
-static int64_t row_to_int16(int16_t *restrict d, const int32_t *restrict s, size_t n)
-{
-    int64_t nz = 0;
-    uint32_t out = 0;
-    for (size_t x = 0; x < n; x++) {
-        const int32_t v = s[x];
-        out |= ((uint32_t)v + 32768u) >> 16; /* 0 exactly for v in [-32768, 32767] (unsigned: no overflow) */
-        d[x] = (int16_t)v;
-        nz += v != 0;
-    }
-    return out ? -1 : nz;
-}
-
 /* band i of a direct decode: the coder's view on the pyramid itself */
 static void direct_view(local_grid *lg, const wvc2_geom *g, int m, int band, const size_t ext[3],
                         const wvc2_direct *d, int i)
@@ -599,14 +584,10 @@ int wvol__wvc2_chunk_decode(const wvc2_geom *g, int m, const size_t ext[3], cons
                     if (child[i].q) {
                         int32_t *d = child[i].q + o;
                         for (size_t x = 0; x < ext[0]; x++) nz += (d[x] = s[x]) != 0;
-                    } else {
-                        const int64_t k = row_to_int16(child[i].q16 + o, s, ext[0]);
-                        if (k < 0) {
-                            *why = "a decoded value exceeds the chunk's maximum in the index";
-                            r = -1;
-                            break;
-                        }
-                        nz += (uint64_t)k;
+                    } else if (wvc2_row_to_int16(child[i].q16 + o, s, ext[0], &nz)) {
+                        *why = "a decoded value exceeds the chunk's maximum in the index";
+                        r = -1;
+                        break;
                     }
                 }
         }

@@ -121,11 +121,20 @@ wvol_status wvol__wvc_file_error(wvol_wvc_file *f, wvol_error *err)
     return s;
 }
 
-static size_t chunk_decoded_bytes(const wvc2_geom *g, int m, const size_t t[3])
+/* The bytes an entry of chunk (m, t) holds resident with values of es bytes: the values in
+ * whole huge pages (the cache's buffers are huge pages, which a decode fills whole) and the
+ * entry itself. */
+static size_t entry_size(const wvc2_geom *g, int m, const size_t t[3], size_t es)
 {
     size_t off[3], ext[3];
     wvc2_tile_box(g, m, t, off, ext);
-    return sizeof(centry) + wvol__pages_bytes(ext[0] * ext[1] * ext[2] * (size_t)g->lv[m].nb * sizeof(int32_t));
+    return sizeof(centry) + wvol__pages_bytes(ext[0] * ext[1] * ext[2] * (size_t)g->lv[m].nb * es);
+}
+
+/* The budget's bound per chunk: its entry with int32 values. */
+static size_t chunk_decoded_bytes(const wvc2_geom *g, int m, const size_t t[3])
+{
+    return entry_size(g, m, t, sizeof(int32_t));
 }
 
 /* The value size of chunk id's cache entry: int16 when the index's maximum bounds every
@@ -136,15 +145,12 @@ static int entry_es(const wvol_wvc_file *f, size_t id)
     return wvc2_fits_int16(f->x->chunks[id].maxabs, f->x->step) ? (int)sizeof(int16_t) : (int)sizeof(int32_t);
 }
 
-/* The bytes chunk id's entry holds resident: its values in whole huge pages (the cache's
- * buffers are huge pages, which a decode fills whole) and the entry itself. */
+/* The bytes chunk id's entry holds resident. */
 static size_t entry_bytes(const wvol_wvc_file *f, size_t id)
 {
-    size_t t[3], off[3], ext[3];
+    size_t t[3];
     int m = wvol__wvc2_chunk_coords(&f->x->g, id, t);
-    wvc2_tile_box(&f->x->g, m, t, off, ext);
-    return sizeof(centry) +
-           wvol__pages_bytes(ext[0] * ext[1] * ext[2] * (size_t)f->x->g.lv[m].nb * (size_t)entry_es(f, id));
+    return entry_size(&f->x->g, m, t, (size_t)entry_es(f, id));
 }
 
 void wvol_wvc_close(wvol_wvc_file *f)

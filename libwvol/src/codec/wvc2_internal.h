@@ -94,6 +94,23 @@ static inline int wvc2_fits_int16(double maxabs, double step)
     return step > 0 && maxabs / step + 0.5 < (double)INT16_MAX;
 }
 
+/* A row of n quantised values into int16 (the writer's narrow rows, the file cache's narrow
+ * chunks): 0 when every |v| <= INT16_MAX, else 1 (what wvc2_fits_int16 promised was wrong; the
+ * values written are then meaningless). *nz, when given, gains the row's non-zero count. */
+static inline int wvc2_row_to_int16(int16_t *restrict d, const int32_t *restrict s, size_t n, uint64_t *nz)
+{
+    uint32_t out = 0;
+    uint64_t k = 0;
+    for (size_t x = 0; x < n; x++) {
+        const int32_t v = s[x];
+        out |= (uint32_t)v + (uint32_t)INT16_MAX > 2u * (uint32_t)INT16_MAX; /* unsigned: no overflow */
+        d[x] = (int16_t)v;
+        k += v != 0;
+    }
+    if (nz) *nz += k;
+    return out != 0;
+}
+
 /* Results of coding one chunk. */
 typedef struct wvc2_coded {
     uint8_t *payload;    /* malloc'ed, NULL when every band is zero */

@@ -166,6 +166,13 @@ static wvol_status check_header(const wvc2_header *h, wvol_error *err)
     return WVOL_OK;
 }
 
+/* Bytes per value of level m's rows of the writer's own: int16 where h.narrow names the
+ * level, int32 otherwise (in place the rows are the caller's int32). */
+static size_t rows_es(const wvc2_header *h, int m)
+{
+    return !h->in_place && (h->narrow >> m & 1u) ? sizeof(int16_t) : sizeof(int32_t);
+}
+
 static wvol_status writer_new(wvc2_writer **out, const wvc2_header *h, wvol_error *err)
 {
     wvc2_writer *w;
@@ -205,7 +212,7 @@ static wvol_status writer_new(wvc2_writer **out, const wvc2_header *h, wvol_erro
         wlevel *L = &w->lv[m];
         const wvc2_level *G = &w->g.lv[m];
         L->plane = G->e[0] * G->e[1];
-        L->es = !h->in_place && (h->narrow >> m & 1u) ? sizeof(int16_t) : sizeof(int32_t);
+        L->es = rows_es(h, m);
         L->acc = calloc(G->count * (size_t)G->nb + 1, sizeof *L->acc);
         L->maxabs = calloc(G->count * (size_t)G->nb + 1, sizeof *L->maxabs);
         if (!L->acc || !L->maxabs) {
@@ -641,18 +648,6 @@ static wvol_status code_ready(wvc2_writer *w, wvol_error *err)
     return WVOL_OK;
 }
 
-/* A row segment of int32 values into int16 (h.narrow); 1 when one does not fit. */
-static int narrow_row(int16_t *restrict d, const int32_t *restrict q, size_t n)
-{
-    int32_t lo = 0, hi = 0;
-    for (size_t x = 0; x < n; x++) {
-        lo = q[x] < lo ? q[x] : lo;
-        hi = q[x] > hi ? q[x] : hi;
-        d[x] = (int16_t)q[x];
-    }
-    return lo < -INT16_MAX || hi > INT16_MAX;
-}
-
 /* Quantises the rows z0 .. z0 + nz - 1 of one (band, tile column) of level `level` (task
  * number `task` of writer_put's loop) into the level's rows, adding their sums and max |c| to
  * the chunks'. Returns 1 when a sum is not finite, 2 when a value does not fit narrow rows. */
@@ -694,7 +689,7 @@ static int put_segment(wvc2_writer *w, int level, size_t z0, size_t nz, const wv
             else
                 a = wvol__wvc_row_stats(t, row, qrow, x1 - x0, w->h.step, f);
             if (!isfinite(t[1])) bad = 1;
-            if (narrow && narrow_row((int16_t *)L->q[i] + at, wide, x1 - x0)) bad |= 2;
+            if (narrow && wvc2_row_to_int16((int16_t *)L->q[i] + at, wide, x1 - x0, NULL)) bad |= 2;
             acc_add(acc, t);
             mx = a > mx ? a : mx;
         }
@@ -816,8 +811,7 @@ size_t wvol__wvc2_writer_memory(const wvc2_header *h)
         const wvc2_level *G = &g.lv[m];
         size_t rows = h->in_place ? 0 : first_rows(h, (size_t)tz), c = (size_t)G->nb;
         if (rows > G->e[2]) rows = G->e[2];
-        total += rows * G->e[0] * G->e[1] * (size_t)G->nb *
-                 (!h->in_place && (h->narrow >> m & 1u) ? sizeof(int16_t) : sizeof(int32_t));
+        total += rows * G->e[0] * G->e[1] * (size_t)G->nb * rows_es(h, m);
         total += G->count * ((size_t)G->nb * sizeof(sec_stats) + sizeof(float) + sizeof(chunk_rec));
         for (int a = 0; a < 3; a++) c *= G->e[a] < (size_t)g.tile[a] ? G->e[a] : (size_t)g.tile[a];
         if (c > chunk) chunk = c;

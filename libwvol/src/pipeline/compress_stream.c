@@ -21,7 +21,6 @@
  * first touch costs more than the quantiser's arithmetic); a further pass, rare, reads and
  * transforms the source again. */
 #include <math.h>
-#include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -217,11 +216,6 @@ static void level_maxabs(wvc_stream_stats *st, int levels, double *maxabs)
 {
     for (int m = 1; m <= levels; m++) maxabs[m] = wvol__wvc_stream_level_maxabs(st, m);
 }
-
-/* The levels whose quantised values all fit int16 at this step (wvc2_header.narrow): the
- * writer then holds their rows in half the memory (at 2048^2 with coif2 its rows are most
- * of a compression's resident peak). |q| <= floor(|c| / step + 1/2) for any rounding and
- * dead zone; one more for the last bit of the quantiser's arithmetic. */
 
 int wvol_compress_streams(const wvol_compress_params *p)
 {

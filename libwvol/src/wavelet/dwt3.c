@@ -14,13 +14,12 @@ int wvol__thread_id(void) { return omp_get_thread_num(); }
 
 /* Columns per block of a strided-axis pass: the block's n + L rows are copied into scratch
  * and filtered there, so the scratch (rows x width) should stay in L2 beside the rows being
- * written, while each strided row read fetches several cache lines rather than one. A
- * quarter of a 1 MiB L2, and at least 48 columns (3 lines per row read): 48 at 1024^2 and
- * 2048^2 slices (a 128 KiB budget gave 16 columns, one line, and made the transform 1.5-2x
- * slower at 1024^3, 10-20% at 512^3, bench_dwt; at 2048^2 the 256 KiB budget alone gives 16
- * again, and 48 made the statistics pass about 12% faster); at 256^2 and below a block is the
- * whole row. The width only groups columns: every column is filtered with the same
- * arithmetic whatever the block. */
+ * written, while each strided row read fetches several cache lines rather than one: a
+ * quarter of a 1 MiB L2, and at least 48 columns (3 lines per row read), which large slices
+ * (1024^2, 2048^2) would otherwise cut to 16, one line per read (measured in
+ * bench/results/speed_profile.md); at 256^2 and below a block is the whole row. The width
+ * only groups columns: every column is filtered with the same arithmetic whatever the
+ * block. */
 size_t wvol__block_width(size_t cx, size_t n, int L, size_t elem)
 {
     const size_t budget = 256 * 1024;
