@@ -65,8 +65,9 @@ static void report(const iso_args *a, int levels, const wvol_mesh *m, const wvol
                    const double cpu[2], double t_load, double t_save, const wvol_volume *coarse, double level_energy, double t_level)
 {
     wvol_mesh_topo topo;
-    double area = wvol_mesh_area(m), vol = wvol_mesh_volume(m);
+    double area = wvol_mesh_area(m), vol = wvol_mesh_volume(m), t_topo = cli_now();
     int have_topo = wvol_mesh_topology(m, &topo, NULL) == WVOL_OK;
+    t_topo = cli_now() - t_topo;
     if (a->json) {
         cli_json_begin();
         cli_json_str("input", a->in);
@@ -118,6 +119,7 @@ static void report(const iso_args *a, int levels, const wvol_mesh *m, const wvol
         cli_json_num("count", st->seconds[1]);
         cli_json_num("generate", st->seconds[2]);
         cli_json_num("save", t_save);
+        cli_json_num("topology", t_topo); /* the mesh checks reported above */
         cli_json_close('}');
         cli_json_int("threads", a->threads);
         cli_json_int("repeat", a->repeat);

@@ -1028,9 +1028,83 @@ static void bounds_grid_matches_boxes(void)
     }
 }
 
+/* A mesh of the given triangles over nv vertices (positions unused by the topology). */
+static wvol_mesh *index_mesh(size_t nv, const uint32_t *tris, size_t nt)
+{
+    wvol_mesh *m = NULL;
+    if (wvol_mesh_create(&m, nv, nt, 0, NULL) != WVOL_OK) return NULL;
+    memset(m->verts, 0, nv * 3 * sizeof *m->verts);
+    memcpy(m->tris, tris, nt * 3 * sizeof *tris);
+    return m;
+}
+
+/* The topology's counts on meshes made to have each defect once, and on a fan whose centre
+ * has more edges than the small-bucket sort handles (100 > 32): every count follows from the
+ * construction, so a miscount in the edge grouping shows. */
+static void topology_counts_defects(void)
+{
+    static const uint32_t tet[] = {0, 2, 1, 0, 1, 3, 1, 2, 3, 0, 3, 2};
+    /* one face flipped: its three edges are each walked twice the same way */
+    static const uint32_t flip[] = {0, 1, 2, 0, 1, 3, 1, 2, 3, 0, 3, 2};
+    /* three triangles on edge (0, 1); a degenerate one (its vertex 5 then unused, as 6) */
+    static const uint32_t fin[] = {0, 1, 2, 1, 0, 3, 0, 1, 4, 2, 2, 5};
+    /* two triangles sharing only vertex 0 (a bowtie): one vertex whose fan is two discs */
+    static const uint32_t bow[] = {0, 1, 2, 0, 3, 4};
+    uint32_t fan[3 * 100];
+    wvol_mesh_topo t;
+    wvol_mesh *m;
+
+    m = index_mesh(4, tet, 4);
+    CHECK(m && wvol_mesh_topology(m, &t, NULL) == WVOL_OK, "tetrahedron: topology");
+    CHECK(t.edges == 6 && t.boundary_edges == 0 && t.misoriented_edges == 0 && t.nonmanifold_edges == 0 &&
+              t.euler == 2 && t.components == 1 && t.watertight,
+          "tetrahedron: edges %zu boundary %zu misoriented %zu euler %lld watertight %d", t.edges, t.boundary_edges,
+          t.misoriented_edges, t.euler, t.watertight);
+    wvol_mesh_destroy(m);
+
+    m = index_mesh(4, flip, 4);
+    CHECK(m && wvol_mesh_topology(m, &t, NULL) == WVOL_OK, "flipped face: topology");
+    CHECK(t.edges == 6 && t.misoriented_edges == 3 && t.boundary_edges == 0 && !t.watertight,
+          "flipped face: edges %zu misoriented %zu", t.edges, t.misoriented_edges);
+    wvol_mesh_destroy(m);
+
+    m = index_mesh(7, fin, 4);
+    CHECK(m && wvol_mesh_topology(m, &t, NULL) == WVOL_OK, "fin: topology");
+    CHECK(t.edges == 7 && t.nonmanifold_edges == 1 && t.boundary_edges == 6 && t.degenerate_tris == 1 &&
+              t.unused_verts == 2 && t.components == 1 && t.euler == 5 - 7 + 3 && !t.watertight,
+          "fin: edges %zu nonmanifold %zu boundary %zu degenerate %zu unused %zu components %zu euler %lld", t.edges,
+          t.nonmanifold_edges, t.boundary_edges, t.degenerate_tris, t.unused_verts, t.components, t.euler);
+    wvol_mesh_destroy(m);
+
+    m = index_mesh(5, bow, 2);
+    CHECK(m && wvol_mesh_topology(m, &t, NULL) == WVOL_OK, "bowtie: topology");
+    CHECK(t.edges == 6 && t.boundary_edges == 6 && t.nonmanifold_verts == 1 && t.components == 1,
+          "bowtie: edges %zu nonmanifold vertices %zu components %zu", t.edges, t.nonmanifold_verts, t.components);
+    wvol_mesh_destroy(m);
+
+    /* a disc: centre 100 (the largest index, so its edges land in its neighbours' buckets),
+     * and the same disc with centre 0 (all 100 spokes in one bucket, sorted by qsort) */
+    for (int c = 0; c < 2; c++) {
+        const uint32_t centre = c ? 0 : 100, first = c ? 1 : 0;
+        for (uint32_t k = 0; k < 100; k++) {
+            fan[3 * k] = centre;
+            fan[3 * k + 1] = first + k;
+            fan[3 * k + 2] = first + (k + 1) % 100;
+        }
+        m = index_mesh(101, fan, 100);
+        CHECK(m && wvol_mesh_topology(m, &t, NULL) == WVOL_OK, "disc %d: topology", c);
+        CHECK(t.edges == 200 && t.boundary_edges == 100 && t.misoriented_edges == 0 && t.nonmanifold_edges == 0 &&
+                  t.nonmanifold_verts == 0 && t.euler == 1,
+              "disc %d: edges %zu boundary %zu misoriented %zu euler %lld", c, t.edges, t.boundary_edges,
+              t.misoriented_edges, t.euler);
+        wvol_mesh_destroy(m);
+    }
+}
+
 int main(void)
 {
     table_is_consistent();
+    topology_counts_defects();
     sphere_distance_field();
     gaussian_blob();
     torus_genus_one();

@@ -6,6 +6,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "core/alloc.h"
 #include "core/status_internal.h"
 #include "wvol/iso.h"
 
@@ -115,17 +116,28 @@ void wvol_mesh_bounds(const wvol_mesh *m, double lo[3], double hi[3])
 
 /* ---- topology -------------------------------------------------------------- */
 
-typedef struct half_edge {
-    uint32_t a, b; /* a < b */
-    int dir;       /* +1 if the triangle walks a -> b */
-} half_edge;
-
-static int cmp_half_edge(const void *x, const void *y)
+/* A use of the undirected edge (a, b), a < b, seen from its smaller vertex a: b << 1 | 1
+ * when the triangle walks a -> b. */
+static int cmp_edge_key(const void *x, const void *y)
 {
-    const half_edge *p = x, *q = y;
-    if (p->a != q->a) return p->a < q->a ? -1 : 1;
-    if (p->b != q->b) return p->b < q->b ? -1 : 1;
-    return p->dir - q->dir;
+    const uint64_t p = *(const uint64_t *)x, q = *(const uint64_t *)y;
+    return p < q ? -1 : p > q;
+}
+
+/* Sorts a bucket's keys: insertion for the few edges a vertex usually has, qsort for a
+ * vertex with many (a fan of thousands would make insertion quadratic). */
+static void sort_bucket(uint64_t *k, size_t n)
+{
+    if (n > 32) {
+        qsort(k, n, sizeof *k, cmp_edge_key);
+        return;
+    }
+    for (size_t i = 1; i < n; i++) {
+        uint64_t v = k[i];
+        size_t j = i;
+        for (; j > 0 && k[j - 1] > v; j--) k[j] = k[j - 1];
+        k[j] = v;
+    }
 }
 
 static uint32_t uf_find(uint32_t *par, uint32_t x)
@@ -139,9 +151,10 @@ static uint32_t uf_find(uint32_t *par, uint32_t x)
 
 wvol_status wvol_mesh_topology(const wvol_mesh *m, wvol_mesh_topo *o, wvol_error *err)
 {
-    size_t nt, nv, t, i, nh = 0, used = 0;
-    half_edge *h = NULL;
-    uint32_t *par = NULL, *start = NULL, *fan = NULL, *cnt = NULL;
+    size_t nt, nv, t, i, used = 0, kmax = 0;
+    uint64_t *key = NULL;
+    uint32_t *par = NULL, *fan = NULL, *cnt = NULL;
+    size_t *start = NULL; /* 3 nt fan entries may pass 2^32 */
     unsigned char *seen = NULL;
     wvol_status s = WVOL_OK;
 
@@ -152,77 +165,85 @@ wvol_status wvol_mesh_topology(const wvol_mesh *m, wvol_mesh_topo *o, wvol_error
     for (t = 0; t < 3 * nt; t++)
         WVOL_RETURN_IF(m->tris[t] >= nv, err, WVOL_ERR_FORMAT, "mesh: triangle %zu uses vertex %u of %zu",
                        t / 3, m->tris[t], nv);
-    h = malloc((3 * nt + 1) * sizeof *h);
-    par = malloc((nv + 1) * sizeof *par);
-    start = calloc(nv + 2, sizeof *start);
-    fan = malloc((3 * nt + 1) * sizeof *fan);
-    cnt = calloc(nv + 1, sizeof *cnt);
-    seen = calloc(nt + 1, 1);
-    if (!h || !par || !start || !fan || !cnt || !seen) {
+    /* huge pages: a 2.7 M triangle mesh's fans alone are 33 MB, whose first touch in 4 KiB
+     * pages took longer than the checks (core/alloc.h) */
+    par = wvol__malloc_large((nv + 1) * sizeof *par);
+    start = wvol__calloc_large(nv + 2, sizeof *start);
+    fan = wvol__malloc_large((3 * nt + 1) * sizeof *fan);
+    cnt = wvol__calloc_large(nv + 1, sizeof *cnt);
+    seen = wvol__calloc_large(nt + 1, 1);
+    if (!par || !start || !fan || !cnt || !seen) {
         s = wvol_error_set(err, WVOL_ERR_NOMEM, "mesh topology: out of memory");
         goto done;
     }
+    /* each vertex's triangles (its fan), and the components by union-find over the edges */
     for (i = 0; i < nv; i++) par[i] = (uint32_t)i;
     for (t = 0; t < nt; t++) {
         const uint32_t *v = m->tris + 3 * t;
-        int a;
         if (v[0] == v[1] || v[1] == v[2] || v[0] == v[2]) {
             o->degenerate_tris++;
             continue;
         }
-        for (a = 0; a < 3; a++) {
-            uint32_t p = v[a], q = v[(a + 1) % 3];
-            h[nh].a = p < q ? p : q;
-            h[nh].b = p < q ? q : p;
-            h[nh].dir = p < q ? 1 : -1;
-            nh++;
-            {
-                uint32_t rp = uf_find(par, p), rq = uf_find(par, q);
-                if (rp != rq) par[rp] = rq;
-            }
+        for (int a = 0; a < 3; a++) {
+            uint32_t rp = uf_find(par, v[a]), rq = uf_find(par, v[(a + 1) % 3]);
+            if (rp != rq) par[rp] = rq;
+            cnt[v[a]]++;
         }
     }
-    qsort(h, nh, sizeof *h, cmp_half_edge);
-    for (i = 0; i < nh;) {
-        size_t j = i, fwd = 0, bwd = 0;
-        while (j < nh && h[j].a == h[i].a && h[j].b == h[i].b) {
-            if (h[j].dir > 0) fwd++; else bwd++;
-            j++;
-        }
-        o->edges++;
-        if (j - i == 1)
-            o->boundary_edges++;
-        else if (j - i > 2)
-            o->nonmanifold_edges++;
-        else if (fwd != 1 || bwd != 1)
-            o->misoriented_edges++;
-        i = j;
+    for (i = 0; i < nv; i++) {
+        start[i + 1] = start[i] + cnt[i];
+        if (cnt[i] > kmax) kmax = cnt[i];
     }
-    /* vertex fans: triangles around each vertex must form one disc or one half-disc;
-     * walk the fan through shared edges and compare with the vertex's triangle count */
-    for (t = 0; t < nt; t++) {
-        const uint32_t *v = m->tris + 3 * t;
-        int a;
-        if (v[0] == v[1] || v[1] == v[2] || v[0] == v[2]) continue;
-        for (a = 0; a < 3; a++) cnt[v[a]]++;
-    }
-    for (i = 0; i < nv; i++) start[i + 1] = start[i] + cnt[i];
     memset(cnt, 0, nv * sizeof *cnt);
     for (t = 0; t < nt; t++) {
         const uint32_t *v = m->tris + 3 * t;
-        int a;
         if (v[0] == v[1] || v[1] == v[2] || v[0] == v[2]) continue;
-        for (a = 0; a < 3; a++) fan[start[v[a]] + cnt[v[a]]++] = (uint32_t)t;
+        for (int a = 0; a < 3; a++) fan[start[v[a]] + cnt[v[a]]++] = (uint32_t)t;
+    }
+    key = malloc((2 * kmax + 1) * sizeof *key);
+    if (!key) {
+        s = wvol_error_set(err, WVOL_ERR_NOMEM, "mesh topology: out of memory");
+        goto done;
     }
     for (i = 0; i < nv; i++) {
         uint32_t k = cnt[i], reached = 1, cur, prev_other, q;
         const uint32_t *f = fan + start[i];
+        size_t nk = 0;
         if (k == 0) {
             o->unused_verts++;
             continue;
         }
         used++;
-        /* walk from the first triangle in one direction, then the other */
+        /* The edges from i to larger vertices, each use once: a triangle of i's fan walks
+         * i -> its next vertex and its previous vertex -> i. Every use of an edge is found in
+         * the fan of its smaller end alone; sorted by the other end, an edge is a run (linear
+         * in the triangles, where a sort of all half-edges was not, and no array of them). */
+        for (q = 0; q < k; q++) {
+            const uint32_t *v = m->tris + 3 * f[q];
+            const int a = v[0] == i ? 0 : v[1] == i ? 1 : 2;
+            const uint32_t next = v[(a + 1) % 3], prev = v[(a + 2) % 3];
+            if (next > i) key[nk++] = (uint64_t)next << 1 | 1;
+            if (prev > i) key[nk++] = (uint64_t)prev << 1;
+        }
+        sort_bucket(key, nk);
+        for (size_t e = 0; e < nk;) {
+            size_t j = e, fwd = 0, bwd = 0;
+            while (j < nk && key[j] >> 1 == key[e] >> 1) {
+                if (key[j] & 1) fwd++;
+                else bwd++;
+                j++;
+            }
+            o->edges++;
+            if (j - e == 1)
+                o->boundary_edges++;
+            else if (j - e > 2)
+                o->nonmanifold_edges++;
+            else if (fwd != 1 || bwd != 1)
+                o->misoriented_edges++;
+            e = j;
+        }
+        /* the fan must be one disc or one half-disc: walk it through shared edges from the
+         * first triangle in one direction, then the other, and compare with its count */
         for (int dirn = 0; dirn < 2; dirn++) {
             cur = f[0];
             {
@@ -268,7 +289,7 @@ wvol_status wvol_mesh_topology(const wvol_mesh *m, wvol_mesh_topo *o, wvol_error
     o->watertight = o->boundary_edges == 0 && o->nonmanifold_edges == 0 && o->misoriented_edges == 0 &&
                     o->nonmanifold_verts == 0;
 done:
-    free(h);
+    free(key);
     free(par);
     free(start);
     free(fan);
