@@ -27,6 +27,7 @@
 #include <emmintrin.h>
 #endif
 
+#include "core/alloc.h"
 #include "core/clock.h"
 #include "iso/iso_internal.h"
 #include "iso/mc_tables.h"
@@ -454,7 +455,7 @@ wvol_status wvol__mc_run(wvol_mesh **out, const wvol__mc_job *jb, wvol_iso_stats
     s = wvol_mesh_create(&m, (size_t)nv, (size_t)nt, jb->normals != WVOL_ISO_NORMALS_NONE, err);
     if (s != WVOL_OK) goto done;
     if (jb->keys && nv) {
-        c.keys = malloc(nv * sizeof *c.keys);
+        c.keys = wvol__malloc_large(nv * sizeof *c.keys);
         if (jb->vflags) c.vflags = malloc(nv);
         if (!c.keys || (jb->vflags && !c.vflags)) {
             s = wvol_error_set(err, WVOL_ERR_NOMEM, "marching cubes: out of memory for edge keys");

@@ -22,9 +22,11 @@ wvol_status wvol_mesh_create(wvol_mesh **out, size_t nverts, size_t ntris, int w
     if (!m) return wvol_error_set(err, WVOL_ERR_NOMEM, "mesh: out of memory");
     m->nverts = nverts;
     m->ntris = ntris;
-    m->verts = malloc(vb ? vb : 1);
-    m->tris = malloc(tb ? tb : 1);
-    if (with_normals) m->normals = malloc(vb ? vb : 1);
+    /* huge pages: a 2.7 M triangle mesh's arrays are 65 MB, filled whole by the caller, whose
+     * 4 KiB first touches cost more than the marching cubes that fill them (core/alloc.h) */
+    m->verts = wvol__malloc_large(vb ? vb : 1);
+    m->tris = wvol__malloc_large(tb ? tb : 1);
+    if (with_normals) m->normals = wvol__malloc_large(vb ? vb : 1);
     if (!m->verts || !m->tris || (with_normals && !m->normals)) {
         wvol_mesh_destroy(m);
         return wvol_error_set(err, WVOL_ERR_NOMEM, "mesh of %zu vertices, %zu triangles: out of memory",
