@@ -22,8 +22,9 @@ wvol_status wvol_mesh_create(wvol_mesh **out, size_t nverts, size_t ntris, int w
     if (!m) return wvol_error_set(err, WVOL_ERR_NOMEM, "mesh: out of memory");
     m->nverts = nverts;
     m->ntris = ntris;
-    /* huge pages: a 2.7 M triangle mesh's arrays are 65 MB, filled whole by the caller, whose
-     * 4 KiB first touches cost more than the marching cubes that fill them (core/alloc.h) */
+    /* huge pages: a 2.7 M triangle mesh's arrays are 65 MB, filled whole by the caller, and
+     * first touches in 4 KiB pages cost more than the marching cubes that fill them
+     * (core/alloc.h; bench/results/iso_topology.md) */
     m->verts = wvol__malloc_large(vb ? vb : 1);
     m->tris = wvol__malloc_large(tb ? tb : 1);
     if (with_normals) m->normals = wvol__malloc_large(vb ? vb : 1);
@@ -142,6 +143,12 @@ static void sort_bucket(uint64_t *k, size_t n)
     }
 }
 
+/* Whether triangle v repeats a vertex (such triangles are counted, and left out of the checks). */
+static inline int degenerate(const uint32_t *v) { return v[0] == v[1] || v[1] == v[2] || v[0] == v[2]; }
+
+/* The corner (0, 1, 2) of triangle v at vertex i, which v has. */
+static inline int corner_of(const uint32_t *v, size_t i) { return v[0] == i ? 0 : v[1] == i ? 1 : 2; }
+
 static uint32_t uf_find(uint32_t *par, uint32_t x)
 {
     while (par[x] != x) {
@@ -167,8 +174,8 @@ wvol_status wvol_mesh_topology(const wvol_mesh *m, wvol_mesh_topo *o, wvol_error
     for (t = 0; t < 3 * nt; t++)
         WVOL_RETURN_IF(m->tris[t] >= nv, err, WVOL_ERR_FORMAT, "mesh: triangle %zu uses vertex %u of %zu",
                        t / 3, m->tris[t], nv);
-    /* huge pages: a 2.7 M triangle mesh's fans alone are 33 MB, whose first touch in 4 KiB
-     * pages took longer than the checks (core/alloc.h) */
+    /* huge pages: a 2.7 M triangle mesh's fans alone are 33 MB, and first touches in 4 KiB
+     * pages cost more than the checks (core/alloc.h; bench/results/iso_topology.md) */
     par = wvol__malloc_large((nv + 1) * sizeof *par);
     start = wvol__calloc_large(nv + 2, sizeof *start);
     fan = wvol__malloc_large((3 * nt + 1) * sizeof *fan);
@@ -182,7 +189,7 @@ wvol_status wvol_mesh_topology(const wvol_mesh *m, wvol_mesh_topo *o, wvol_error
     for (i = 0; i < nv; i++) par[i] = (uint32_t)i;
     for (t = 0; t < nt; t++) {
         const uint32_t *v = m->tris + 3 * t;
-        if (v[0] == v[1] || v[1] == v[2] || v[0] == v[2]) {
+        if (degenerate(v)) {
             o->degenerate_tris++;
             continue;
         }
@@ -199,7 +206,7 @@ wvol_status wvol_mesh_topology(const wvol_mesh *m, wvol_mesh_topo *o, wvol_error
     memset(cnt, 0, nv * sizeof *cnt);
     for (t = 0; t < nt; t++) {
         const uint32_t *v = m->tris + 3 * t;
-        if (v[0] == v[1] || v[1] == v[2] || v[0] == v[2]) continue;
+        if (degenerate(v)) continue;
         for (int a = 0; a < 3; a++) fan[start[v[a]] + cnt[v[a]]++] = (uint32_t)t;
     }
     key = malloc((2 * kmax + 1) * sizeof *key);
@@ -218,11 +225,11 @@ wvol_status wvol_mesh_topology(const wvol_mesh *m, wvol_mesh_topo *o, wvol_error
         used++;
         /* The edges from i to larger vertices, each use once: a triangle of i's fan walks
          * i -> its next vertex and its previous vertex -> i. Every use of an edge is found in
-         * the fan of its smaller end alone; sorted by the other end, an edge is a run (linear
-         * in the triangles, where a sort of all half-edges was not, and no array of them). */
+         * the fan of its smaller end alone; sorted by the other end, an edge is a run: linear in
+         * the triangles, with no array of all half-edges. */
         for (q = 0; q < k; q++) {
             const uint32_t *v = m->tris + 3 * f[q];
-            const int a = v[0] == i ? 0 : v[1] == i ? 1 : 2;
+            const int a = corner_of(v, i);
             const uint32_t next = v[(a + 1) % 3], prev = v[(a + 2) % 3];
             if (next > i) key[nk++] = (uint64_t)next << 1 | 1;
             if (prev > i) key[nk++] = (uint64_t)prev << 1;
@@ -250,7 +257,7 @@ wvol_status wvol_mesh_topology(const wvol_mesh *m, wvol_mesh_topo *o, wvol_error
             cur = f[0];
             {
                 const uint32_t *v = m->tris + 3 * cur;
-                int a = v[0] == i ? 0 : v[1] == i ? 1 : 2;
+                int a = corner_of(v, i);
                 prev_other = dirn == 0 ? v[(a + 1) % 3] : v[(a + 2) % 3];
             }
             for (;;) {
