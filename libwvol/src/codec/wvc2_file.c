@@ -526,6 +526,7 @@ static centry *get_chunk(wvol_wvc_file *f, size_t id)
 {
     centry *e, *mine;
     void *reuse = NULL;
+    int over;
     lock(f);
     while ((e = f->slot[id]) == DECODING) {
         unlock(f);
@@ -559,8 +560,10 @@ static centry *get_chunk(wvol_wvc_file *f, size_t id)
     f->held += mine->bytes;
     evict(f);
     if (f->held > f->peak) f->peak = f->held;
+    /* read under the lock: another thread's insertion raises held before its own eviction */
+    over = f->held > f->budget;
     unlock(f);
-    if (f->held > f->budget) {
+    if (over) {
         char b[64];
         snprintf(b, sizeof b, "%zu", f->budget);
         record(f, WVOL_ERR_NOMEM,
