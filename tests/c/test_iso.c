@@ -13,6 +13,10 @@
 #include <unistd.h>
 
 #include "check.h"
+#include "core/alloc.h"
+#ifdef _OPENMP
+#include <omp.h>
+#endif
 #include "fixtures.h"
 #include "iso/iso_internal.h"
 #include "iso/mc_tables.h"
@@ -1101,10 +1105,98 @@ static void topology_counts_defects(void)
     }
 }
 
+/* The reuse pool behind the meshes' arrays (core/alloc.h): a buffer given back serves the next
+ * request of at least half its size, not a smaller one; what it holds stays within its bound
+ * (8 buffers, 128 MiB); small and huge blocks are not kept; a mesh destroyed gives its arrays
+ * to the next mesh of its size; two threads taking and giving never share a buffer. */
+static void reuse_pool_bounds(void)
+{
+    const size_t MiB = (size_t)1 << 20;
+    size_t nb, bytes, nb0, bytes0, i;
+    unsigned char *p, *q, *r;
+    { /* a mesh destroyed gives its three arrays to the pool, and the next one takes three */
+        wvol_mesh *a = NULL, *b = NULL;
+        wvol_error err = {0};
+        size_t nv = 200000, nt = 400000, n1, n2, n3;
+        CHECK(wvol_mesh_create(&a, nv, nt, 1, &err) == WVOL_OK, "%s", err.message);
+        if (a) {
+            memset(a->verts, 0, nv * 3 * sizeof(float));
+            memset(a->normals, 0, nv * 3 * sizeof(float));
+            memset(a->tris, 0, nt * 3 * sizeof(uint32_t));
+        }
+        wvol__reuse_held(&n1, &bytes);
+        wvol_mesh_destroy(a);
+        wvol__reuse_held(&n2, &bytes);
+        CHECK(wvol_mesh_create(&b, nv, nt, 1, &err) == WVOL_OK, "%s", err.message);
+        wvol__reuse_held(&n3, &bytes);
+        CHECK(n2 == n1 + 3 && n3 == n2 - 3, "pool before / after destroy / after create: %zu / %zu / %zu", n1, n2, n3);
+        wvol_mesh_destroy(b);
+    }
+    wvol__reuse_held(&nb0, &bytes0);
+    /* sizes no other buffer in the pool can serve (the meshes' are below 8 MiB) */
+    p = wvol__reuse_get(40 * MiB);
+    CHECK(p != NULL, "reuse_get(40 MiB)");
+    if (!p) return;
+    memset(p, 1, 40 * MiB);
+    wvol__reuse_put(p);
+    r = wvol__reuse_get(15 * MiB); /* less than half of p's size: not p */
+    CHECK(r != NULL && r != p, "a 15 MiB request took a 40 MiB buffer");
+    q = wvol__reuse_get(30 * MiB); /* at least half: p again */
+    CHECK(q == p, "a 30 MiB request did not get the 40 MiB buffer given back (%p, %p)", (void *)q, (void *)p);
+    if (q) memset(q, 2, 30 * MiB);
+    wvol__reuse_put(q);
+    if (r) memset(r, 3, 15 * MiB);
+    wvol__reuse_put(r);
+    wvol__reuse_held(&nb, &bytes);
+    CHECK(nb >= 2 && bytes >= 55 * MiB, "two buffers given back, %zu held (%zu bytes)", nb, bytes);
+    for (i = 0; i < 12; i++) { /* more than the bound: the oldest go */
+        unsigned char *b = malloc(24 * MiB);
+        CHECK(b != NULL, "malloc");
+        if (!b) break;
+        b[0] = b[24 * MiB - 1] = 3;
+        wvol__reuse_put(b);
+        wvol__reuse_held(&nb, &bytes);
+        CHECK(nb <= 8 && bytes <= 128 * MiB, "the pool holds %zu buffers, %zu bytes", nb, bytes);
+    }
+    CHECK(bytes >= 4 * 24 * MiB, "the pool kept only %zu bytes of 24 MiB buffers", bytes);
+    wvol__reuse_held(&nb0, &bytes0);
+    wvol__reuse_put(malloc(1000));         /* small: freed */
+    wvol__reuse_put(malloc(200 * MiB));    /* beyond the bound: freed (untouched, so cheap) */
+    wvol__reuse_put(NULL);
+    wvol__reuse_held(&nb, &bytes);
+    CHECK(nb == nb0 && bytes == bytes0, "small or huge blocks were kept: %zu/%zu -> %zu/%zu", nb0, bytes0, nb,
+          bytes);
+    {
+        int bad = 0;
+#ifdef _OPENMP
+#pragma omp parallel num_threads(2) reduction(+ : bad)
+#endif
+        for (int it = 0; it < 200; it++) {
+            int tid = 0;
+            size_t n = (2 + (size_t)(it % 3)) * MiB;
+            unsigned char *b;
+#ifdef _OPENMP
+            tid = omp_get_thread_num();
+#endif
+            b = wvol__reuse_get(n);
+            if (!b) {
+                bad++;
+                continue;
+            }
+            memset(b, 10 + tid, n);
+            for (size_t k = 0; k < n; k += 4096) bad += b[k] != 10 + tid; /* another owner would overwrite */
+            bad += b[n - 1] != 10 + tid;
+            wvol__reuse_put(b);
+        }
+        CHECK(bad == 0, "%d bytes changed under their owner, or allocations failed", bad);
+    }
+}
+
 int main(void)
 {
     table_is_consistent();
     topology_counts_defects();
+    reuse_pool_bounds();
     sphere_distance_field();
     gaussian_blob();
     torus_genus_one();

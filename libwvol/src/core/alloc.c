@@ -3,6 +3,8 @@
 #define _DEFAULT_SOURCE
 #include "core/alloc.h"
 
+#include <malloc.h>
+#include <pthread.h>
 #include <stdint.h>
 #include <stdlib.h>
 #include <sys/mman.h>
@@ -66,4 +68,85 @@ void *wvol__malloc_pages(size_t *bytes)
 #endif
     *bytes = n;
     return p;
+}
+
+/* ---- the reuse pool (core/alloc.h) ---- */
+
+enum { POOL_SLOTS = 8 };
+#define POOL_BYTES ((size_t)128 << 20)
+static struct {
+    void *p;
+    size_t bytes; /* malloc_usable_size: the block's true size (also after a realloc) */
+    size_t cls;   /* what it serves: bytes in whole huge pages, rounded down (an aligned block's
+                     usable size runs to the end of its mapping, up to a huge page more) */
+    unsigned long age;
+} pool[POOL_SLOTS];
+static size_t pool_total;
+static unsigned long pool_clock;
+static pthread_mutex_t pool_lock = PTHREAD_MUTEX_INITIALIZER;
+
+void *wvol__reuse_get(size_t bytes)
+{
+    void *p = NULL;
+    size_t need = wvol__pages_bytes(bytes);
+    int i, best = -1;
+    if (bytes < PAGED) return malloc(bytes ? bytes : 1); /* malloc's free lists reuse these */
+    pthread_mutex_lock(&pool_lock);
+    for (i = 0; i < POOL_SLOTS; i++)
+        if (pool[i].p && pool[i].cls >= need && pool[i].cls / 2 <= need &&
+            (best < 0 || pool[i].cls < pool[best].cls))
+            best = i;
+    if (best >= 0) {
+        p = pool[best].p;
+        pool_total -= pool[best].bytes;
+        pool[best].p = NULL;
+    }
+    pthread_mutex_unlock(&pool_lock);
+    return p ? p : wvol__malloc_large(bytes);
+}
+
+void wvol__reuse_put(void *p)
+{
+    void *drop[POOL_SLOTS];
+    size_t bytes, cls;
+    int i, n = 0;
+    if (!p) return;
+    bytes = malloc_usable_size(p);
+    cls = bytes & ~(size_t)(HUGE_PAGE - 1);
+    if (cls < HUGE_PAGE || bytes > POOL_BYTES) {
+        free(p);
+        return;
+    }
+    pthread_mutex_lock(&pool_lock);
+    for (;;) { /* the oldest given back until a slot is free and the bytes fit */
+        int empty = -1, oldest = -1;
+        for (i = 0; i < POOL_SLOTS; i++) {
+            if (!pool[i].p) empty = empty < 0 ? i : empty;
+            else if (oldest < 0 || pool[i].age < pool[oldest].age) oldest = i;
+        }
+        if (empty >= 0 && pool_total + bytes <= POOL_BYTES) {
+            pool[empty].p = p;
+            pool[empty].bytes = bytes;
+            pool[empty].cls = cls;
+            pool[empty].age = ++pool_clock;
+            pool_total += bytes;
+            break;
+        }
+        drop[n++] = pool[oldest].p; /* nothing fits and the pool is not empty: oldest >= 0 */
+        pool_total -= pool[oldest].bytes;
+        pool[oldest].p = NULL;
+    }
+    pthread_mutex_unlock(&pool_lock);
+    for (i = 0; i < n; i++) free(drop[i]); /* outside the lock: a large free unmaps */
+}
+
+void wvol__reuse_held(size_t *buffers, size_t *bytes)
+{
+    size_t n = 0;
+    int i;
+    pthread_mutex_lock(&pool_lock);
+    for (i = 0; i < POOL_SLOTS; i++) n += pool[i].p != NULL;
+    *buffers = n;
+    *bytes = pool_total;
+    pthread_mutex_unlock(&pool_lock);
 }

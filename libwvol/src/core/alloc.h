@@ -33,6 +33,25 @@ void *wvol__malloc_pages(size_t *bytes);
  * once it is filled: whole huge pages from 1 MiB on), for callers who account memory. */
 size_t wvol__pages_bytes(size_t bytes);
 
+/* Large buffers kept between one use and the next. A fresh mapping's pages are cleared by the
+ * kernel on first touch, huge pages too, and on the machines measured that clearing costs more
+ * than, say, a marching cubes that fills a mesh's arrays (bench/results/iso_topology.md);
+ * malloc's heap reuses the memory of small blocks, but gives blocks this large back to the
+ * system on free. A program that does the same work again in one process (a Python loop over
+ * iso-values or time steps, a viewer re-executing a filter, a benchmark's repetitions) gets
+ * pages it has touched before from this pool instead. Bounded: a few buffers and 128 MiB held
+ * at most, the oldest given back first.
+ * wvol__reuse_get: at least `bytes` bytes of unspecified contents (the caller fills them): a
+ * kept buffer of at most twice that size (counted in whole huge pages), else
+ * wvol__malloc_large's. NULL when out of memory.
+ * wvol__reuse_put: gives p back (NULL is fine): kept when it is large enough to be worth it
+ * and fits the bound, else freed. Any malloc'ed block may be given back, and a block from
+ * wvol__reuse_get may be freed with free() instead. Both are thread-safe. */
+void *wvol__reuse_get(size_t bytes);
+void wvol__reuse_put(void *p);
+/* The pool's buffers and bytes held now (tests). */
+void wvol__reuse_held(size_t *buffers, size_t *bytes);
+
 /* An array *p of *cap elements of elem bytes grown by doubling (from `first` elements when
  * empty) until it holds need; 1, or 0 when out of memory (*p and *cap then unchanged). */
 static inline int wvol__grow(void **p, size_t *cap, size_t need, size_t elem, size_t first)

@@ -378,7 +378,7 @@ static void empty_stats(wvol_iso_stats *st, const wvol__mc_job *jb, const char *
 wvol_status wvol__mc_run(wvol_mesh **out, const wvol__mc_job *jb, wvol_iso_stats *st, wvol_error *err)
 {
     mc_ctx c;
-    size_t rows, r, nw, bits_words;
+    size_t rows, r, nw, bits_words, cnt_bytes;
     uint64_t *bits = NULL, nv = 0, nt = 0, active = 0;
     wvol_status s = WVOL_OK;
     int nth = jb->threads > 0 ? jb->threads : 1;
@@ -407,16 +407,18 @@ wvol_status wvol__mc_run(wvol_mesh **out, const wvol__mc_job *jb, wvol_iso_stats
     /* nx - 1 valid cell/x-edge bits in all; the last word holds (nx - 1) - 64 (nw - 1)
      * of them, between 0 and 63 */
     c.last_mask = (((uint64_t)1) << ((c.nx - 1) - 64 * (nw - 1))) - 1;
-    if (!wvol_size_mul3(rows, nw, 1, sizeof(uint64_t), &bits_words))
+    /* one block for the mask, the row offsets and the row counts, each filled whole: in huge
+     * pages, and the last extraction's block again where extractions follow one another
+     * (core/alloc.h): in 4 KiB pages their first touches, paid anew on every extraction,
+     * cost about a third of a 256^3 extraction (bench/results/iso_topology.md) */
+    if (!wvol_size_mul3(rows, nw + 2, 1, sizeof(uint64_t), &bits_words) ||
+        !wvol_size_mul3(rows, 5, 1, sizeof *c.cnt, &cnt_bytes) || bits_words > SIZE_MAX - cnt_bytes - 16)
         return wvol_error_set(err, WVOL_ERR_NOMEM, "marching cubes: mask size overflows");
-    bits = malloc(bits_words);
-    c.cnt = malloc(rows * 5 * sizeof *c.cnt);
-    c.vbase = malloc((rows + 1) * sizeof *c.vbase);
-    c.tbase = malloc((rows + 1) * sizeof *c.tbase);
-    if (!bits || !c.cnt || !c.vbase || !c.tbase) {
-        s = wvol_error_set(err, WVOL_ERR_NOMEM, "marching cubes: out of memory for %zu rows", rows);
-        goto done;
-    }
+    bits = wvol__reuse_get(bits_words + 16 + cnt_bytes);
+    if (!bits) return wvol_error_set(err, WVOL_ERR_NOMEM, "marching cubes: out of memory for %zu rows", rows);
+    c.vbase = bits + rows * nw;
+    c.tbase = c.vbase + rows + 1;
+    c.cnt = (uint32_t *)(c.tbase + rows + 1);
     c.bits = bits;
 
     /* pass 1 */
@@ -504,10 +506,7 @@ done:
     wvol_mesh_destroy(m);
     free(c.keys);
     free(c.vflags);
-    free(bits);
-    free(c.cnt);
-    free(c.vbase);
-    free(c.tbase);
+    wvol__reuse_put(bits);
     return s;
 }
 

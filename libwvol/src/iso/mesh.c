@@ -22,12 +22,13 @@ wvol_status wvol_mesh_create(wvol_mesh **out, size_t nverts, size_t ntris, int w
     if (!m) return wvol_error_set(err, WVOL_ERR_NOMEM, "mesh: out of memory");
     m->nverts = nverts;
     m->ntris = ntris;
-    /* huge pages: a 2.7 M triangle mesh's arrays are 65 MB, filled whole by the caller, and
-     * first touches in 4 KiB pages cost more than the marching cubes that fill them
-     * (core/alloc.h; bench/results/iso_topology.md) */
-    m->verts = wvol__malloc_large(vb ? vb : 1);
-    m->tris = wvol__malloc_large(tb ? tb : 1);
-    if (with_normals) m->normals = wvol__malloc_large(vb ? vb : 1);
+    /* a 2.7 M triangle mesh's arrays are 65 MB, filled whole by the caller, and first touches
+     * of fresh memory cost more than the marching cubes that fill them: huge pages, and the
+     * last meshes' arrays again where meshes are made one after another (core/alloc.h;
+     * bench/results/iso_topology.md) */
+    m->verts = wvol__reuse_get(vb);
+    m->tris = wvol__reuse_get(tb);
+    if (with_normals) m->normals = wvol__reuse_get(vb);
     if (!m->verts || !m->tris || (with_normals && !m->normals)) {
         wvol_mesh_destroy(m);
         return wvol_error_set(err, WVOL_ERR_NOMEM, "mesh of %zu vertices, %zu triangles: out of memory",
@@ -40,9 +41,9 @@ wvol_status wvol_mesh_create(wvol_mesh **out, size_t nverts, size_t ntris, int w
 void wvol_mesh_destroy(wvol_mesh *m)
 {
     if (!m) return;
-    free(m->verts);
-    free(m->normals);
-    free(m->tris);
+    wvol__reuse_put(m->verts);
+    wvol__reuse_put(m->normals);
+    wvol__reuse_put(m->tris);
     free(m);
 }
 
@@ -176,15 +177,18 @@ wvol_status wvol_mesh_topology(const wvol_mesh *m, wvol_mesh_topo *o, wvol_error
                        t / 3, m->tris[t], nv);
     /* huge pages: a 2.7 M triangle mesh's fans alone are 33 MB, and first touches in 4 KiB
      * pages cost more than the checks (core/alloc.h; bench/results/iso_topology.md) */
-    par = wvol__malloc_large((nv + 1) * sizeof *par);
-    start = wvol__calloc_large(nv + 2, sizeof *start);
-    fan = wvol__malloc_large((3 * nt + 1) * sizeof *fan);
-    cnt = wvol__calloc_large(nv + 1, sizeof *cnt);
-    seen = wvol__calloc_large(nt + 1, 1);
+    par = wvol__reuse_get((nv + 1) * sizeof *par);
+    start = wvol__reuse_get((nv + 2) * sizeof *start);
+    fan = wvol__reuse_get((3 * nt + 1) * sizeof *fan);
+    cnt = wvol__reuse_get((nv + 1) * sizeof *cnt);
+    seen = wvol__reuse_get(nt + 1);
     if (!par || !start || !fan || !cnt || !seen) {
         s = wvol_error_set(err, WVOL_ERR_NOMEM, "mesh topology: out of memory");
         goto done;
     }
+    memset(start, 0, (nv + 2) * sizeof *start);
+    memset(cnt, 0, (nv + 1) * sizeof *cnt);
+    memset(seen, 0, nt + 1);
     /* each vertex's triangles (its fan), and the components by union-find over the edges */
     for (i = 0; i < nv; i++) par[i] = (uint32_t)i;
     for (t = 0; t < nt; t++) {
@@ -299,10 +303,10 @@ wvol_status wvol_mesh_topology(const wvol_mesh *m, wvol_mesh_topo *o, wvol_error
                     o->nonmanifold_verts == 0;
 done:
     free(key);
-    free(par);
-    free(start);
-    free(fan);
-    free(cnt);
-    free(seen);
+    wvol__reuse_put(par);
+    wvol__reuse_put(start);
+    wvol__reuse_put(fan);
+    wvol__reuse_put(cnt);
+    wvol__reuse_put(seen);
     return s;
 }
