@@ -76,7 +76,7 @@ enum { POOL_SLOTS = 8 };
 #define POOL_BYTES ((size_t)128 << 20)
 static struct {
     void *p;
-    size_t bytes; /* malloc_usable_size: the block's true size (also after a realloc) */
+    size_t bytes; /* counted against POOL_BYTES: the block's touched bytes, at most its usable size */
     size_t cls;   /* what it serves: bytes in whole huge pages, rounded down (an aligned block's
                      usable size runs to the end of its mapping, up to a huge page more) */
     unsigned long age;
@@ -107,12 +107,18 @@ void *wvol__reuse_get(size_t bytes)
 
 void wvol__reuse_put(void *p)
 {
+    wvol__reuse_put_used(p, SIZE_MAX);
+}
+
+void wvol__reuse_put_used(void *p, size_t used)
+{
     void *drop[POOL_SLOTS];
     size_t bytes, cls;
     int i, n = 0;
     if (!p) return;
-    bytes = malloc_usable_size(p);
+    bytes = malloc_usable_size(p); /* the block's true size, also after a realloc */
     cls = bytes & ~(size_t)(HUGE_PAGE - 1);
+    if (used < bytes) bytes = used;
     if (cls < HUGE_PAGE || bytes > POOL_BYTES) {
         free(p);
         return;

@@ -49,6 +49,9 @@ size_t wvol__pages_bytes(size_t bytes);
  * wvol__reuse_get may be freed with free() instead. Both are thread-safe. */
 void *wvol__reuse_get(size_t bytes);
 void wvol__reuse_put(void *p);
+/* wvol__reuse_put for a block whose first `used` bytes alone were touched (a large
+ * reservation filled in part): those count against the bound, not the whole block. */
+void wvol__reuse_put_used(void *p, size_t used);
 /* The pool's buffers and bytes held now (tests). */
 void wvol__reuse_held(size_t *buffers, size_t *bytes);
 

@@ -287,9 +287,11 @@ typedef struct stitcher {
 
 /* The output arrays are reserved large from the start (OUT_RESERVE bytes of address space,
  * touched only as far as they are filled): above malloc's largest mmap threshold, so they
- * are mappings of their own that grow by remapping, never by copying, and are shrunk to
- * size at the end; and asked for huge pages, so that filling them takes a page fault per
- * 2 MiB rather than per 4 KiB (core/alloc.h says why that matters).
+ * are mappings of their own that grow by remapping, never by copying; in huge pages, so that
+ * filling them takes a page fault per 2 MiB rather than per 4 KiB; and taken from the reuse
+ * pool, so that an extraction after another fills pages the last one's mesh touched
+ * (core/alloc.h says why that matters). The mesh keeps the reservations (unused address
+ * space costs nothing resident), and gives them back to the pool when it is destroyed.
  * Where the reservation is refused (strict overcommit), the arrays grow from small. */
 #define OUT_RESERVE ((size_t)48 << 20)
 
@@ -297,8 +299,9 @@ typedef struct stitcher {
 static int grow_out(void **p, size_t *cap, size_t n, size_t el)
 {
     if (*cap == 0 && n <= OUT_RESERVE / el) {
-        void *q = wvol__realloc_large(*p, OUT_RESERVE);
+        void *q = wvol__reuse_get(OUT_RESERVE); /* nothing to keep: the array holds no element */
         if (q) {
+            free(*p);
             *p = q;
             *cap = OUT_RESERVE / el;
         }
@@ -618,14 +621,6 @@ static wvol_status extract_bricks(wvol_mesh **out, const wvol_coeffs *c, const w
     m = sti.m;
     sti.m = NULL;
     nt = m->ntris;
-    /* the arrays' spare capacity handed back (shrinking keeps the values) */
-    {
-        size_t vb = m->nverts ? 3 * m->nverts * sizeof(float) : 1, tb = m->ntris ? 3 * m->ntris * sizeof(uint32_t) : 1;
-        void *q;
-        if ((q = realloc(m->verts, vb))) m->verts = q;
-        if (m->normals && (q = realloc(m->normals, vb))) m->normals = q;
-        if ((q = realloc(m->tris, tb))) m->tris = q;
-    }
     st->seconds[2] = t2 - t1;
     st->seconds[3] = wvol__now() - t0;
     if (nt == 0) {

@@ -41,9 +41,10 @@ wvol_status wvol_mesh_create(wvol_mesh **out, size_t nverts, size_t ntris, int w
 void wvol_mesh_destroy(wvol_mesh *m)
 {
     if (!m) return;
-    wvol__reuse_put(m->verts);
-    wvol__reuse_put(m->normals);
-    wvol__reuse_put(m->tris);
+    /* the brick path's arrays are reservations filled in part: their used bytes are counted */
+    wvol__reuse_put_used(m->verts, 3 * m->nverts * sizeof(float));
+    wvol__reuse_put_used(m->normals, 3 * m->nverts * sizeof(float));
+    wvol__reuse_put_used(m->tris, 3 * m->ntris * sizeof(uint32_t));
     free(m);
 }
 
