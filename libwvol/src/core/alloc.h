@@ -39,8 +39,8 @@ size_t wvol__pages_bytes(size_t bytes);
  * malloc's heap reuses the memory of small blocks, but gives blocks this large back to the
  * system on free. A program that does the same work again in one process (a Python loop over
  * iso-values or time steps, a viewer re-executing a filter, a benchmark's repetitions) gets
- * pages it has touched before from this pool instead. Bounded: a few buffers and 128 MiB held
- * at most, the oldest given back first.
+ * pages it has touched before from this pool instead. Bounded: 8 buffers and 128 MiB of their
+ * used bytes held at most, the oldest given back first.
  * wvol__reuse_get: at least `bytes` bytes of unspecified contents (the caller fills them): a
  * kept buffer of at most twice that size (counted in whole huge pages), else
  * wvol__malloc_large's. NULL when out of memory.

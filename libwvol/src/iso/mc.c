@@ -409,8 +409,8 @@ wvol_status wvol__mc_run(wvol_mesh **out, const wvol__mc_job *jb, wvol_iso_stats
     c.last_mask = (((uint64_t)1) << ((c.nx - 1) - 64 * (nw - 1))) - 1;
     /* one block for the mask, the row offsets and the row counts, each filled whole: in huge
      * pages, and the last extraction's block again where extractions follow one another
-     * (core/alloc.h): in 4 KiB pages their first touches, paid anew on every extraction,
-     * cost about a third of a 256^3 extraction (bench/results/iso_topology.md) */
+     * (core/alloc.h): in 4 KiB pages their first touches were paid anew on every extraction
+     * (bench/results/iso_topology.md) */
     if (!wvol_size_mul3(rows, nw + 2, 1, sizeof(uint64_t), &bits_words) ||
         !wvol_size_mul3(rows, 5, 1, sizeof *c.cnt, &cnt_bytes) || bits_words > SIZE_MAX - cnt_bytes - 16)
         return wvol_error_set(err, WVOL_ERR_NOMEM, "marching cubes: mask size overflows");
