@@ -775,6 +775,78 @@ static void wvc2_mode1_files_decode_to_the_same_values(void)
  * reconstruction offsets are then 0), every other coefficient decodes to 0, and the
  * index counts what is there. Odd band extents (10 x 9 x 7 at level 1) leave partial
  * groups and blocks at the far edges. */
+/* --coder compact codes a chunk's bands apart (chunk mode 0, each band CABAC with its own model
+ * or zstd) where that is smaller than one shared stream: here band 1 of level 1 holds rows that
+ * repeat (zstd's matches take them almost for free) and band 7 scattered values (CABAC's
+ * ground), so the level's chunk is mode 0 with one band of each kind; the coefficients, all
+ * multiples of the step, decode exactly. */
+static void wvc2_bands_coded_apart_round_trip(void)
+{
+    const wvol_filter *f;
+    wvol_error err;
+    wvol_coeffs *c = NULL, *d = NULL;
+    wvol_wvc_params p;
+    wvol_wvc_info info;
+    void *buf = NULL;
+    size_t n = 0, count, h, x, y, z, bad = 0, mixed = 0;
+    uint64_t rng = 777;
+    CHECK(wvol_filter_get(&f, "haar", &err) == WVOL_OK, "haar");
+    if (wvol_coeffs_create(&c, f, 2, 32, 32, 32, &err) != WVOL_OK) {
+        CHECK(0, "coeffs: %s", err.message);
+        return;
+    }
+    count = c->px * c->py * c->pz;
+    h = c->px / 2;
+    c->data[0] = 400;
+    for (z = 0; z < h; z++)
+        for (y = 0; y < h; y++)
+            for (x = 0; x < h; x++) {
+                /* band 1 (x odd half): the same row again and again */
+                c->data[(h + x) + c->px * (y + c->py * z)] = (float)(8 * (1 + (int)((x * 7) % 5)));
+                /* band 7 (all odd halves): a few scattered values */
+                if (fixture_urand(&rng) < 0.06)
+                    c->data[(h + x) + c->px * ((h + y) + c->py * (h + z))] =
+                        (float)((fixture_urand(&rng) < 0.5 ? -8 : 8) * (1 + (int)(fixture_urand(&rng) * 30)));
+            }
+    wvol_wvc_params_default(&p);
+    p.value_min = -500;
+    p.value_max = 500;
+    p.step = 8;
+    p.coder = WVOL_WVC_CODER_COMPACT;
+    p.tile = p.tile_z = 16; /* one chunk for level 1's bands */
+    CHECK(wvol_wvc_encode(&buf, &n, c, &p, NULL, &err) == WVOL_OK, "encode: %s", err.message);
+    if (buf) { /* the level-1 chunk: mode 0 with a CABAC band and a zstd band */
+        const uint8_t *b = buf;
+        uint32_t nsec;
+        uint64_t nchunks;
+        memcpy(&nsec, b + 12, 4);
+        memcpy(&nchunks, b + 208, 8);
+        for (uint64_t i = 0; i < nchunks && 224 + (size_t)nsec * 48 + (i + 1) * 32 <= n; i++) {
+            const uint8_t *e = b + 224 + (size_t)nsec * 48 + i * 32;
+            uint64_t off;
+            uint32_t bytes;
+            int cabac = 0, zstd = 0;
+            memcpy(&off, e, 8);
+            memcpy(&bytes, e + 8, 4);
+            if (!bytes || off + 8 > n || b[off] != 0) continue;
+            for (int k = 1; k <= 7; k++) {
+                cabac += b[off + k] == WVOL_WVC_CODER_CABAC;
+                zstd += b[off + k] == WVOL_WVC_CODER_ZSTD;
+            }
+            mixed += cabac > 0 && zstd > 0;
+        }
+    }
+    CHECK(mixed == 1, "%zu mode-0 chunks with both CABAC and zstd bands (1 expected)", mixed);
+    CHECK(buf && wvol_wvc_decode(&d, buf, n, NULL, &info, &err) == WVOL_OK, "decode: %s", err.message);
+    if (d) {
+        for (size_t i = 0; i < count; i++) bad += d->data[i] != c->data[i];
+        CHECK(bad == 0, "%zu coefficients differ", bad);
+    }
+    free(buf);
+    wvol_coeffs_destroy(c);
+    wvol_coeffs_destroy(d);
+}
+
 static void wvc2_sparse_chunks_round_trip(void)
 {
     const wvol_filter *f;
@@ -1477,5 +1549,6 @@ int main(void)
     wvc_corpus_files_decode_or_are_refused();
     wvc2_mode1_files_decode_to_the_same_values();
     wvc2_sparse_chunks_round_trip();
+    wvc2_bands_coded_apart_round_trip();
     return check_summary("test_wvc");
 }

@@ -120,6 +120,9 @@ enum { MODE_BANDS = 0, MODE_SHARED = 1, MODE_BLOCKS = 2, MODE_RANS = 3, MODE_RAN
  * (small dense chunks, the coarse levels, are where a static table pays most for itself,
  * and coding both costs little there). */
 #define RANS_MIN_DENSITY 0.25
+/* --coder compact tries each band on its own (CABAC or zstd) when all-zstd is within this
+ * factor of the shared stream (wvol__wvc2_job_code) */
+#define ZSTD_NEAR 1.25
 #define RANS_ALONE_NONZERO 65536
 
 /* --coder auto's use of mode 4 (docs/wvc-format.md, "Chunk mode 4: the choice"): below this
@@ -288,7 +291,7 @@ int wvol__wvc2_job_code(wvc2_coded *out, wvc2_job *job, const wvc2_geom *g, int 
     const uint64_t *nzb = job->nzb;
     const uint8_t mask = job->mask;
     const int nused = job->nused;
-    uint8_t *shared = NULL, *pay[8] = {0};
+    uint8_t *shared = NULL, *pay[8] = {0}, kind[8];
     size_t shared_len = 0, len[8] = {0}, zsum = 0;
     int i, failed = 0, use_rans = 0, rans_try, rans_alone;
     uint8_t *rans = NULL;
@@ -341,9 +344,35 @@ int wvol__wvc2_job_code(wvc2_coded *out, wvc2_job *job, const wvc2_geom *g, int 
                 if (wvol__wvc_zstd_encode(&pay[i], &len[i], lg[i].q, lg[i].p, &lg[i].b, zstd_level,
                                           scratch ? &scratch->zstd : NULL))
                     failed = 1;
+                kind[i] = WVOL_WVC_CODER_ZSTD;
                 zsum += len[i];
             }
         out->alt_zstd = zsum;
+    }
+    /* compact: each band on its own where zstd is close, CABAC with its own model or zstd,
+     * whichever is smaller (mode 0, version 1's choice per band): where the bands' statistics
+     * differ (a piecewise-constant volume's Haar details, whose runs zstd matches along one
+     * axis and not the others) one shared model costs more than the separate ones. Tried only
+     * when all-zstd is within ZSTD_NEAR of the shared stream: elsewhere zstd loses on every
+     * band and the second CABAC pass would be wasted. */
+    if (!failed && shared && !use_rans && out->alt_zstd && (double)zsum <= ZSTD_NEAR * (double)shared_len) {
+        size_t msum = 0;
+        for (i = 0; i < L->nb && !failed; i++)
+            if (mask >> i & 1) {
+                uint8_t *cb = NULL;
+                size_t cl = 0;
+                if (wvol__wvc_cabac_encode(&cb, &cl, lg[i].q, lg[i].p, &lg[i].b)) {
+                    free(cb);
+                    failed = 1;
+                } else if (cl < len[i]) {
+                    free(pay[i]);
+                    pay[i] = cb, len[i] = cl, kind[i] = WVOL_WVC_CODER_CABAC;
+                } else {
+                    free(cb);
+                }
+                msum += len[i];
+            }
+        zsum = msum;
     }
     wvol__wvc2_job_free(job, pool);
     if (!failed && nused) {
@@ -355,7 +384,7 @@ int wvol__wvc2_job_code(wvc2_coded *out, wvc2_job *job, const wvc2_geom *g, int 
             hdr[head++] = mask;
             total = head + shared_len;
         } else {
-            for (i = 0; i < L->nb; i++) hdr[head++] = (mask >> i & 1) ? WVOL_WVC_CODER_ZSTD : WVOL_WVC_CODER_EMPTY;
+            for (i = 0; i < L->nb; i++) hdr[head++] = (mask >> i & 1) ? kind[i] : WVOL_WVC_CODER_EMPTY;
             for (i = 0; i < L->nb; i++)
                 if (mask >> i & 1) head += wvc2_put_varint(hdr + head, len[i]);
             total = head + zsum;

@@ -11,7 +11,6 @@
 
 #include "wvc_quant.h"
 
-static double sec_rounding(const wvc_band *b, double f) { return b->band == 0 ? 0.5 : f; }
 
 /* Sums over slices [z0, z1) of one band (serial; the caller spreads work items over
  * threads). Q (may be NULL) receives the quantised values; with `sparse` Q is known
@@ -222,7 +221,7 @@ int wvol__wvc_all_stats(sec_stats *st, const wvc_layout *L, const float *C, int3
     }
 #pragma omp parallel for schedule(dynamic, 1) if (n > 2)
     for (i = 0; i < n; i++)
-        rows_stats(&part[i], C, Q, L->p, &L->sec[w[i].sec], step, sec_rounding(&L->sec[w[i].sec], f), w[i].z0,
+        rows_stats(&part[i], C, Q, L->p, &L->sec[w[i].sec], step, wvol__wvc_sec_rounding(&L->sec[w[i].sec], f), w[i].z0,
                    w[i].z1, sparse);
     if (Q) *qzero = 0;
     memset(st, 0, (size_t)L->nsec * sizeof *st);
@@ -255,28 +254,38 @@ double wvol__wvc_sec_error(const sec_stats *st, double step, float *d1, float *d
     return e < 0 ? 0 : e;
 }
 
-static double total_error(const wvc_layout *L, const float *C, double step, double f, sec_stats *st, int32_t *Q,
-                          int *qzero)
+/* The in-memory pyramid's exact error for a step (wvc_step_error_fn): one pass that also
+ * quantises into Q and leaves the sums in st. */
+typedef struct pyramid_pass {
+    const wvc_layout *L;
+    const float *C;
+    double f;
+    sec_stats *st;
+    int32_t *Q;
+    int *qzero;
+} pyramid_pass;
+
+static double total_error(void *ctx, double step)
 {
+    pyramid_pass *c = ctx;
     double e = 0;
     int s;
-    if (wvol__wvc_all_stats(st, L, C, Q, step, f, qzero)) return NAN;
-    for (s = 0; s < L->nsec; s++) e += wvol__wvc_sec_error(&st[s], step, NULL, NULL);
+    if (wvol__wvc_all_stats(c->st, c->L, c->C, c->Q, step, c->f, c->qzero)) return NAN;
+    for (s = 0; s < c->L->nsec; s++) e += wvol__wvc_sec_error(&c->st[s], step, NULL, NULL);
     return e;
 }
 
 /* Finds the largest step (to within ~0.2%) whose error lies in [accept, 1] x target:
- * secant iterations on log(error) against log(step) from d0, each an exact pass
- * that also quantises into Q. *last: the step of the last pass (what Q holds). */
-static double search_step(const wvc_layout *L, const float *C, double target, double f, double maxabs,
-                          double min_step, sec_stats *st, int *iters, double d0, double accept, int32_t *Q,
-                          int *qzero, double *last)
+ * secant iterations on log(error) against log(step) from d0, each an exact pass.
+ * *last: the step of the last pass. */
+static double search_step(wvc_step_error_fn error, void *ctx, double target, double maxabs, double min_step,
+                          int *iters, double d0, double accept, double *last)
 {
     double e0, d1, e1, best_ok = 0, best_bad = INFINITY, slope = 2.0;
     int it;
     if (d0 < min_step) d0 = min_step;
     if (maxabs > 0 && d0 > 4 * maxabs) d0 = 4 * maxabs;
-    e0 = total_error(L, C, d0, f, st, Q, qzero);
+    e0 = error(ctx, d0);
     if (!isfinite(e0)) return NAN;
     *last = d0;
     (*iters)++;
@@ -307,7 +316,7 @@ static double search_step(const wvc_layout *L, const float *C, double target, do
         d0 = d1;
         e0 = e1;
         d1 = next;
-        e1 = total_error(L, C, d1, f, st, Q, qzero);
+        e1 = error(ctx, d1);
         if (!isfinite(e1)) return NAN;
         *last = d1;
         (*iters)++;
@@ -327,6 +336,23 @@ static double search_step(const wvc_layout *L, const float *C, double target, do
     /* not reached even at the smallest step the quantiser allows */
     return min_step;
 }
+
+double wvol__wvc_refine_step(wvc_hist_est *est, const wvc_layout *L, double f, double target, double maxabs,
+                             double min_step, wvc_step_error_fn error, void *ctx, int *iters, double *last)
+{
+    const double aim = 0.9925, accept = 0.985;
+    double d = wvol__wvc_hist_step(est, L, aim * target, f, min_step, 4 * maxabs), e = error(ctx, d);
+    *iters = 1;
+    *last = d;
+    if (!isfinite(e)) return NAN;
+    if (!(e <= target && e >= accept * target)) {
+        double predicted = wvol__wvc_hist_error(est, L, d, f), k = predicted > 0 && e > 0 ? e / predicted : 1;
+        d = wvol__wvc_hist_step(est, L, aim * target / k, f, min_step, 4 * maxabs);
+        d = search_step(error, ctx, target, maxabs, min_step, iters, d, accept, last);
+    }
+    return d;
+}
+
 /* The largest step whose error stays within [0.985, 1] x target (PSNR at most
  * 0.066 dB above the target): the step the histograms predict for 0.9925 x target
  * (no pass over the data); an exact pass that also quantises into Q; if that misses,
@@ -336,24 +362,15 @@ static double search_step(const wvc_layout *L, const float *C, double target, do
 double wvol__wvc_choose_step(const wvc_layout *L, const float *C, const uint64_t *H, double target, double f,
                              double maxabs, double min_step, sec_stats *st, int *iters, int32_t *Q, int *qzero)
 {
-    const double aim = 0.9925, accept = 0.985;
-    double d, e, last = 0;
+    pyramid_pass pass = {L, C, f, st, Q, qzero};
+    double d, last = 0;
     wvc_hist_est *est = wvol__wvc_hist_prepare(H, L);
     if (!est) return NAN;
-    *iters = 1;
-    d = wvol__wvc_hist_step(est, L, aim * target, f, min_step, 4 * maxabs);
-    e = total_error(L, C, d, f, st, Q, qzero);
-    last = d;
-    if (isfinite(e) && !(e <= target && e >= accept * target)) {
-        double predicted = wvol__wvc_hist_error(est, L, d, f), k = predicted > 0 && e > 0 ? e / predicted : 1;
-        d = wvol__wvc_hist_step(est, L, aim * target / k, f, min_step, 4 * maxabs);
-        d = search_step(L, C, target, f, maxabs, min_step, st, iters, d, accept, Q, qzero, &last);
-    }
+    d = wvol__wvc_refine_step(est, L, f, target, maxabs, min_step, total_error, &pass, iters, &last);
     wvol__wvc_hist_free(est);
-    if (!isfinite(e)) return NAN;
-    if (isfinite(d) && last != d) {
+    if (isfinite(d) && last != d) { /* Q and st hold the last pass: quantise with d again */
         (*iters)++;
-        if (!isfinite(total_error(L, C, d, f, st, Q, qzero))) return NAN;
+        if (!isfinite(total_error(&pass, d))) return NAN;
     }
     return d;
 }

@@ -39,8 +39,21 @@ int wvol__wvc_all_stats(sec_stats *st, const wvc_layout *L, const float *C, int3
 float wvol__wvc_row_stats(double t[8], const float *row, int32_t *qrow, size_t n, double step, double f);
 /* The offsets as stored (float32) and the section's exact squared error with them. */
 double wvol__wvc_sec_error(const sec_stats *st, double step, float *d1, float *d2);
-/* The largest step whose error stays within [0.985, 1] x target; on return Q and st
- * hold the quantisation with it. NAN when out of memory. */
+/* A section's rounding offset: the low-pass cube rounds to nearest, details with f. */
+static inline double wvol__wvc_sec_rounding(const wvc_band *b, double f) { return b->band == 0 ? 0.5 : f; }
+/* The exact squared error of the quantisation with a step, by a pass over the coefficients
+ * (NAN when out of memory). */
+typedef double (*wvc_step_error_fn)(void *ctx, double step);
+/* The largest step whose exact error stays within [0.985, 1] x target (PSNR at most 0.066 dB
+ * above it): the step the histograms (est, over layout L) predict for 0.9925 x target, one
+ * exact pass; if that misses, the prediction again, scaled by what the pass measured against
+ * what was predicted at that step, then secant iterations on exact passes (rarely needed).
+ * *iters counts the passes, *last is the step of the last one. NAN when a pass fails. */
+double wvol__wvc_refine_step(wvc_hist_est *est, const wvc_layout *L, double f, double target, double maxabs,
+                             double min_step, wvc_step_error_fn error, void *ctx, int *iters, double *last);
+/* The largest step whose error stays within [0.985, 1] x target (wvol__wvc_refine_step over
+ * the in-memory pyramid C); on return Q and st hold the quantisation with it. NAN when out of
+ * memory. */
 double wvol__wvc_choose_step(const wvc_layout *L, const float *C, const uint64_t *H, double target, double f,
                              double maxabs, double min_step, sec_stats *st, int *iters, int32_t *Q, int *qzero);
 /* Zeroes the cheapest |q| = 1 coefficients within `slack` and updates the sums in st

@@ -12,6 +12,7 @@
 #include "core/alloc.h"
 #include "wvc_format.h"
 #include "wvc_internal.h"
+#include "wvc_quant.h"
 
 /* histogram sets at most (1.4 MiB each at 3 levels): a larger team's further threads take
  * turns in the first set */
@@ -173,5 +174,94 @@ wvol_status wvol__wvc_stream_step(wvc_stream_stats *s, const wvol_wvc_params *p,
                    "3.4e38; scale the volume down (or give a smaller step)",
                    maxabs, d);
     *step = d;
+    return WVOL_OK;
+}
+
+/* ---- exact passes over a pyramid held as planes (wvol__wvc_stream_refine) ---- */
+
+typedef struct planes_pass {
+    const wvc_layout *L;
+    const wvc2_planes *planes; /* [level]: the level's bands' first rows, z rows sz apart */
+    const size_t *nz;          /* [level]: the z rows held */
+    double f;
+    work_item *items;          /* one per (section, z row) */
+    int nitems;
+    sec_stats *part, *st;      /* per item, per section */
+} planes_pass;
+
+static double planes_error(void *ctx, double step)
+{
+    planes_pass *c = ctx;
+    double e = 0;
+    int i;
+#pragma omp parallel for schedule(dynamic, 4) if (c->nitems > 8)
+    for (i = 0; i < c->nitems; i++) {
+        const wvc_band *b = &c->L->sec[c->items[i].sec];
+        const wvc2_planes *pl = &c->planes[b->level];
+        const float *base = pl->band[b->band] + c->items[i].z0 * pl->sz[b->band];
+        const double f = wvol__wvc_sec_rounding(b, c->f);
+        sec_stats *a = &c->part[i];
+        memset(a, 0, sizeof *a);
+        for (size_t y = 0; y < b->ext[1]; y++) {
+            double t[8];
+            (void)wvol__wvc_row_stats(t, base + y * pl->sy[b->band], NULL, b->ext[0], step, f);
+            a->zero_sse += t[0], a->energy += t[1], a->s1 += t[2], a->ss1 += t[3];
+            a->s2 += t[4], a->ss2 += t[5], a->n1 += (uint64_t)t[6], a->n2 += (uint64_t)t[7];
+        }
+    }
+    memset(c->st, 0, (size_t)c->L->nsec * sizeof *c->st);
+    for (i = 0; i < c->nitems; i++) { /* in item order: the same sums for any thread count */
+        sec_stats *d = &c->st[c->items[i].sec], *a = &c->part[i];
+        d->zero_sse += a->zero_sse, d->energy += a->energy, d->s1 += a->s1, d->ss1 += a->ss1;
+        d->s2 += a->s2, d->ss2 += a->ss2, d->n1 += a->n1, d->n2 += a->n2;
+    }
+    for (i = 0; i < c->L->nsec; i++) e += wvol__wvc_sec_error(&c->st[i], step, NULL, NULL);
+    return e;
+}
+
+wvol_status wvol__wvc_stream_refine(wvc_stream_stats *s, const wvc2_planes *planes, const size_t *nz,
+                                    const wvol_wvc_params *p, double *step, int *passes, wvol_error *err)
+{
+    planes_pass c;
+    wvc_hist_est *est;
+    double maxabs, min_step, d, last = 0;
+    float m;
+    int n = 0;
+    WVOL_RETURN_IF(!s || !planes || !nz || !p || !step, err, WVOL_ERR_ARG, "wvc stream refine: NULL argument");
+    *passes = 0;
+    if (p->step > 0 || !(p->target_sse > 0)) return WVOL_OK;
+    (void)merge(s);
+    memcpy(&m, &s->maxbits[0][0], 4);
+    maxabs = m;
+    if (!(maxabs > 0) || !isfinite(maxabs)) return WVOL_OK; /* all zero: any step; NaN: refused before */
+    min_step = maxabs / (double)(WVC_QMAX / 2);
+    if (min_step < WVC_MIN_STEP) min_step = WVC_MIN_STEP;
+    memset(&c, 0, sizeof c);
+    c.L = &s->L, c.planes = planes, c.nz = nz, c.f = p->rounding;
+    for (int i = 0; i < s->L.nsec; i++) {
+        const wvc_band *b = &s->L.sec[i];
+        if (b->count && planes[b->level].band[b->band]) n += (int)(b->ext[2] < nz[b->level] ? b->ext[2] : nz[b->level]);
+    }
+    c.items = malloc((n ? n : 1) * sizeof *c.items);
+    c.part = malloc((n ? n : 1) * sizeof *c.part);
+    c.st = malloc((size_t)s->L.nsec * sizeof *c.st);
+    est = wvol__wvc_hist_prepare(merge(s), &s->L);
+    if (!c.items || !c.part || !c.st || !est) {
+        free(c.items), free(c.part), free(c.st), wvol__wvc_hist_free(est);
+        return wvol_error_set(err, WVOL_ERR_NOMEM, "wvc encode: out of memory");
+    }
+    for (int i = 0; i < s->L.nsec; i++) {
+        const wvc_band *b = &s->L.sec[i];
+        size_t zn = b->ext[2] < nz[b->level] ? b->ext[2] : nz[b->level];
+        if (!b->count || !planes[b->level].band[b->band]) continue;
+        for (size_t z = 0; z < zn; z++) c.items[c.nitems].sec = i, c.items[c.nitems].z0 = z, c.items[c.nitems++].z1 = z + 1;
+    }
+    d = wvol__wvc_refine_step(est, &s->L, p->rounding, p->target_sse, maxabs, min_step, planes_error, &c, passes,
+                              &last);
+    wvol__wvc_hist_free(est);
+    free(c.items), free(c.part), free(c.st);
+    WVOL_RETURN_IF(!isfinite(d), err, WVOL_ERR_NOMEM, "wvc encode: out of memory");
+    /* the bounds wvol__wvc_stream_step keeps: else the histograms' guess stands */
+    if (d <= WVC_MAX_STEP && (floor(maxabs / d + 0.5) + 1.0) * d <= WVC_MAX_STEP) *step = d;
     return WVOL_OK;
 }

@@ -33,6 +33,17 @@ void wvol__wvc_stream_stats_add_rows(wvc_stream_stats *s, int level, size_t y0, 
  * would overflow float32, with the encoder's messages. *maxabs (may be NULL): max |c|. */
 wvol_status wvol__wvc_stream_step(wvc_stream_stats *s, const wvol_wvc_params *p, double target_scale,
                                   double *step, double *maxabs, wvol_error *err);
+/* The step for an error target refined by exact passes over the whole pyramid, as the
+ * in-memory encoder refines it (wvol__wvc_refine_step), for a caller that holds every
+ * coefficient (the streamed path's kept pyramid): planes[m] (1 <= m <= levels) level m's
+ * rows as the writer's put() takes them, its bands' first rows with their z rows sz apart,
+ * nz[m] of them. The file's error then lies within [0.985, 1] x p->target_sse where the
+ * histograms' guess alone can miss by more (a piecewise-constant volume's few distinct
+ * magnitudes). *step: the refined step (unchanged with a given step, an all-zero pyramid, or
+ * a refined step past the float32 bounds wvol__wvc_stream_step checks); *passes: the exact
+ * passes made. */
+wvol_status wvol__wvc_stream_refine(wvc_stream_stats *s, const wvc2_planes *planes, const size_t *nz,
+                                    const wvol_wvc_params *p, double *step, int *passes, wvol_error *err);
 /* max |c| of level `level` (its detail bands; with the low-pass cube at the coarsest level),
  * as counted (NaN or Inf: a value above FLT_MAX); 0 for a level outside 1..levels. */
 double wvol__wvc_stream_level_maxabs(wvc_stream_stats *s, int level);
