@@ -23,10 +23,21 @@ static int parse_normals(const char *name, wvol_iso_normals *out)
 }
 
 /* (vertices (n, 3) float32, faces (m, 3) uint32, normals (n, 3) float32 or None, stats); destroys m. */
+/* p shrunk to bytes (the brick path's arrays are large reservations filled in part, which a
+ * program keeping many meshes should not hold); p itself when realloc declines. */
+static void *fit(void *p, size_t bytes)
+{
+    void *q = p ? realloc(p, bytes ? bytes : 1) : NULL;
+    return q ? q : p;
+}
+
 static PyObject *mesh_take(wvol_mesh *m, const wvol_iso_stats *st)
 {
     npy_intp vd[2] = {(npy_intp)m->nverts, 3}, td[2] = {(npy_intp)m->ntris, 3};
     PyObject *v, *t, *n, *d;
+    m->verts = fit(m->verts, m->nverts * 3 * sizeof(float));
+    m->normals = fit(m->normals, m->nverts * 3 * sizeof(float));
+    m->tris = fit(m->tris, m->ntris * 3 * sizeof(uint32_t));
     v = wvolpy_array_take_type(m->verts, 2, vd, NPY_FLOAT32);
     m->verts = NULL;
     t = wvolpy_array_take_type(m->tris, 2, td, NPY_UINT32);
