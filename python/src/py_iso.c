@@ -22,7 +22,6 @@ static int parse_normals(const char *name, wvol_iso_normals *out)
     return 0;
 }
 
-/* (vertices (n, 3) float32, faces (m, 3) uint32, normals (n, 3) float32 or None, stats); destroys m. */
 /* p shrunk to bytes (the brick path's arrays are large reservations filled in part, which a
  * program keeping many meshes should not hold); p itself when realloc declines. */
 static void *fit(void *p, size_t bytes)
@@ -30,6 +29,8 @@ static void *fit(void *p, size_t bytes)
     void *q = p ? realloc(p, bytes ? bytes : 1) : NULL;
     return q ? q : p;
 }
+
+/* (vertices (n, 3) float32, faces (m, 3) uint32, normals (n, 3) float32 or None, stats); destroys m. */
 
 static PyObject *mesh_take(wvol_mesh *m, const wvol_iso_stats *st)
 {

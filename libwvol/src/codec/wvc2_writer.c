@@ -380,18 +380,6 @@ static float row_stats_edge(double t[8], const float *row, int32_t *qrow, size_t
     return amax;
 }
 
-static void acc_add(sec_stats *s, const double t[8])
-{
-    s->zero_sse += t[0];
-    s->energy += t[1];
-    s->s1 += t[2];
-    s->ss1 += t[3];
-    s->s2 += t[4];
-    s->ss2 += t[5];
-    s->n1 += (uint64_t)t[6];
-    s->n2 += (uint64_t)t[7];
-}
-
 /* ---- coding ---------------------------------------------------------------------- */
 
 static wvc2_qbox box_of(const wvc2_writer *w, const wlevel *L, const wvc2_level *G, int i, const size_t off[3])
@@ -690,7 +678,7 @@ static int put_segment(wvc2_writer *w, int level, size_t z0, size_t nz, const wv
                 a = wvol__wvc_row_stats(t, row, qrow, x1 - x0, w->h.step, f);
             if (!isfinite(t[1])) bad = 1;
             if (narrow && wvc2_row_to_int16((int16_t *)L->q[i] + at, wide, x1 - x0, NULL)) bad |= 2;
-            acc_add(acc, t);
+            wvol__wvc_sec_add_row(acc, t);
             mx = a > mx ? a : mx;
         }
         L->maxabs[id * (size_t)G->nb + (size_t)i] = mx;
@@ -890,8 +878,7 @@ wvol_status wvol__wvc2_writer_close(wvc2_writer *w, void **out, size_t *out_size
             c->energy = 0;
             for (int i = 0; i < G->nb; i++) {
                 const sec_stats *a = &w->lv[m].acc[id * (size_t)G->nb + (size_t)i];
-                double t[8] = {a->zero_sse, a->energy, a->s1, a->ss1, a->s2, a->ss2, (double)a->n1, (double)a->n2};
-                acc_add(&st[wvc2_section(w->g.levels, m, G->bands[i])], t);
+                wvol__wvc_sec_merge(&st[wvc2_section(w->g.levels, m, G->bands[i])], a);
                 c->energy += a->energy;
             }
         }

@@ -11,7 +11,6 @@
 
 #include "wvc_quant.h"
 
-
 /* Sums over slices [z0, z1) of one band (serial; the caller spreads work items over
  * threads). Q (may be NULL) receives the quantised values; with `sparse` Q is known
  * to be all zero and only groups with a non-zero are written (the pages of an
@@ -225,17 +224,7 @@ int wvol__wvc_all_stats(sec_stats *st, const wvc_layout *L, const float *C, int3
                    w[i].z1, sparse);
     if (Q) *qzero = 0;
     memset(st, 0, (size_t)L->nsec * sizeof *st);
-    for (i = 0; i < n; i++) {
-        sec_stats *d = &st[w[i].sec], *a = &part[i];
-        d->zero_sse += a->zero_sse;
-        d->energy += a->energy;
-        d->s1 += a->s1;
-        d->ss1 += a->ss1;
-        d->s2 += a->s2;
-        d->ss2 += a->ss2;
-        d->n1 += a->n1;
-        d->n2 += a->n2;
-    }
+    for (i = 0; i < n; i++) wvol__wvc_sec_merge(&st[w[i].sec], &part[i]);
     free(part);
     free(w);
     return 0;

@@ -17,6 +17,32 @@ typedef struct sec_stats {
     uint64_t n1, n2;
 } sec_stats;
 
+/* s += a row's sums t[8] as wvol__wvc_row_stats gives them. */
+static inline void wvol__wvc_sec_add_row(sec_stats *s, const double t[8])
+{
+    s->zero_sse += t[0];
+    s->energy += t[1];
+    s->s1 += t[2];
+    s->ss1 += t[3];
+    s->s2 += t[4];
+    s->ss2 += t[5];
+    s->n1 += (uint64_t)t[6];
+    s->n2 += (uint64_t)t[7];
+}
+
+/* d += a. */
+static inline void wvol__wvc_sec_merge(sec_stats *d, const sec_stats *a)
+{
+    d->zero_sse += a->zero_sse;
+    d->energy += a->energy;
+    d->s1 += a->s1;
+    d->ss1 += a->ss1;
+    d->s2 += a->s2;
+    d->ss2 += a->ss2;
+    d->n1 += a->n1;
+    d->n2 += a->n2;
+}
+
 /* Work items: slabs of about 64K coefficients of one section each. */
 typedef struct work_item {
     int sec;

@@ -135,26 +135,39 @@ double wvol__wvc_stream_predict(wvc_stream_stats *s, double step, double roundin
     return v;
 }
 
+/* The pyramid's max |c| and the smallest step it allows (|q| stays below WVC_QMAX/2 so that
+ * the quantiser never clips, as wvol_wvc_encode); 0 when it holds NaN or Inf. */
+static int step_range(wvc_stream_stats *s, double *maxabs, double *min_step)
+{
+    float m;
+    (void)merge(s);
+    if (s->maxbits[0][0] >= 0x7F800000u) return 0;
+    memcpy(&m, &s->maxbits[0][0], 4);
+    *maxabs = m;
+    *min_step = *maxabs > 0 ? *maxabs / (double)(WVC_QMAX / 2) : WVC_MIN_STEP;
+    if (*min_step < WVC_MIN_STEP) *min_step = WVC_MIN_STEP;
+    return 1;
+}
+
+/* Whether every value dequantised with step d stays within float32 (below WVC_MAX_STEP). */
+static int step_fits(double maxabs, double d)
+{
+    return (floor(maxabs / d + 0.5) + 1.0) * d <= WVC_MAX_STEP;
+}
+
 wvol_status wvol__wvc_stream_step(wvc_stream_stats *s, const wvol_wvc_params *p, double target_scale,
                                   double *step, double *maxabs_out, wvol_error *err)
 {
     double maxabs, min_step, d;
-    float m;
     WVOL_RETURN_IF(!s || !p || !step, err, WVOL_ERR_ARG, "wvc stream step: NULL argument");
-    (void)merge(s);
-    WVOL_RETURN_IF(s->maxbits[0][0] >= 0x7F800000u, err, WVOL_ERR_NONFINITE,
+    WVOL_RETURN_IF(!step_range(s, &maxabs, &min_step), err, WVOL_ERR_NONFINITE,
                    "wvc encode: coefficients hold NaN or Inf");
-    memcpy(&m, &s->maxbits[0][0], 4);
-    maxabs = m;
     if (maxabs_out) *maxabs_out = maxabs;
     WVOL_RETURN_IF(!(p->rounding >= 0 && p->rounding <= 0.5), err, WVOL_ERR_ARG,
                    "wvc encode: rounding %g outside [0, 0.5]", p->rounding);
     WVOL_RETURN_IF(!(p->step >= 0) || !isfinite(p->step) || !(p->target_sse >= 0) || !isfinite(p->target_sse) ||
                        (p->step == 0 && p->target_sse <= 0),
                    err, WVOL_ERR_ARG, "wvc encode: give a step > 0 or an error target > 0");
-    /* |q| stays below WVC_QMAX/2 so that the quantiser never clips (as wvol_wvc_encode) */
-    min_step = maxabs > 0 ? maxabs / (double)(WVC_QMAX / 2) : WVC_MIN_STEP;
-    if (min_step < WVC_MIN_STEP) min_step = WVC_MIN_STEP;
     if (p->step > 0) {
         d = p->step;
         WVOL_RETURN_IF(d > WVC_MAX_STEP, err, WVOL_ERR_ARG, "wvc encode: step %g is above %g", d, WVC_MAX_STEP);
@@ -169,7 +182,7 @@ wvol_status wvol__wvc_stream_step(wvc_stream_stats *s, const wvol_wvc_params *p,
         wvol__wvc_hist_free(e);
         if (d > WVC_MAX_STEP) d = WVC_MAX_STEP;
     }
-    WVOL_RETURN_IF((floor(maxabs / d + 0.5) + 1.0) * d > WVC_MAX_STEP, err, WVOL_ERR_NONFINITE,
+    WVOL_RETURN_IF(!step_fits(maxabs, d), err, WVOL_ERR_NONFINITE,
                    "wvc encode: coefficients reach %g: with step %g a dequantised value could exceed float32's "
                    "3.4e38; scale the volume down (or give a smaller step)",
                    maxabs, d);
@@ -182,12 +195,18 @@ wvol_status wvol__wvc_stream_step(wvc_stream_stats *s, const wvol_wvc_params *p,
 typedef struct planes_pass {
     const wvc_layout *L;
     const wvc2_planes *planes; /* [level]: the level's bands' first rows, z rows sz apart */
-    const size_t *nz;          /* [level]: the z rows held */
     double f;
     work_item *items;          /* one per (section, z row) */
     int nitems;
     sec_stats *part, *st;      /* per item, per section */
 } planes_pass;
+
+/* The z rows of section b the planes hold (0: an empty band, or one the planes leave out). */
+static size_t section_rows(const wvc_band *b, const wvc2_planes *planes, const size_t *nz)
+{
+    if (!b->count || !planes[b->level].band[b->band]) return 0;
+    return b->ext[2] < nz[b->level] ? b->ext[2] : nz[b->level];
+}
 
 static double planes_error(void *ctx, double step)
 {
@@ -200,21 +219,16 @@ static double planes_error(void *ctx, double step)
         const wvc2_planes *pl = &c->planes[b->level];
         const float *base = pl->band[b->band] + c->items[i].z0 * pl->sz[b->band];
         const double f = wvol__wvc_sec_rounding(b, c->f);
-        sec_stats *a = &c->part[i];
-        memset(a, 0, sizeof *a);
+        memset(&c->part[i], 0, sizeof c->part[i]);
         for (size_t y = 0; y < b->ext[1]; y++) {
             double t[8];
             (void)wvol__wvc_row_stats(t, base + y * pl->sy[b->band], NULL, b->ext[0], step, f);
-            a->zero_sse += t[0], a->energy += t[1], a->s1 += t[2], a->ss1 += t[3];
-            a->s2 += t[4], a->ss2 += t[5], a->n1 += (uint64_t)t[6], a->n2 += (uint64_t)t[7];
+            wvol__wvc_sec_add_row(&c->part[i], t);
         }
     }
     memset(c->st, 0, (size_t)c->L->nsec * sizeof *c->st);
-    for (i = 0; i < c->nitems; i++) { /* in item order: the same sums for any thread count */
-        sec_stats *d = &c->st[c->items[i].sec], *a = &c->part[i];
-        d->zero_sse += a->zero_sse, d->energy += a->energy, d->s1 += a->s1, d->ss1 += a->ss1;
-        d->s2 += a->s2, d->ss2 += a->ss2, d->n1 += a->n1, d->n2 += a->n2;
-    }
+    /* in item order: the same sums for any thread count */
+    for (i = 0; i < c->nitems; i++) wvol__wvc_sec_merge(&c->st[c->items[i].sec], &c->part[i]);
     for (i = 0; i < c->L->nsec; i++) e += wvol__wvc_sec_error(&c->st[i], step, NULL, NULL);
     return e;
 }
@@ -225,23 +239,16 @@ wvol_status wvol__wvc_stream_refine(wvc_stream_stats *s, const wvc2_planes *plan
     planes_pass c;
     wvc_hist_est *est;
     double maxabs, min_step, d, last = 0;
-    float m;
-    int n = 0;
-    WVOL_RETURN_IF(!s || !planes || !nz || !p || !step, err, WVOL_ERR_ARG, "wvc stream refine: NULL argument");
+    size_t n = 0;
+    WVOL_RETURN_IF(!s || !planes || !nz || !p || !step || !passes, err, WVOL_ERR_ARG,
+                   "wvc stream refine: NULL argument");
     *passes = 0;
     if (p->step > 0 || !(p->target_sse > 0)) return WVOL_OK;
-    (void)merge(s);
-    memcpy(&m, &s->maxbits[0][0], 4);
-    maxabs = m;
-    if (!(maxabs > 0) || !isfinite(maxabs)) return WVOL_OK; /* all zero: any step; NaN: refused before */
-    min_step = maxabs / (double)(WVC_QMAX / 2);
-    if (min_step < WVC_MIN_STEP) min_step = WVC_MIN_STEP;
+    /* all zero: any step; NaN or Inf: wvol__wvc_stream_step refused them */
+    if (!step_range(s, &maxabs, &min_step) || !(maxabs > 0)) return WVOL_OK;
     memset(&c, 0, sizeof c);
-    c.L = &s->L, c.planes = planes, c.nz = nz, c.f = p->rounding;
-    for (int i = 0; i < s->L.nsec; i++) {
-        const wvc_band *b = &s->L.sec[i];
-        if (b->count && planes[b->level].band[b->band]) n += (int)(b->ext[2] < nz[b->level] ? b->ext[2] : nz[b->level]);
-    }
+    c.L = &s->L, c.planes = planes, c.f = p->rounding;
+    for (int i = 0; i < s->L.nsec; i++) n += section_rows(&s->L.sec[i], planes, nz);
     c.items = malloc((n ? n : 1) * sizeof *c.items);
     c.part = malloc((n ? n : 1) * sizeof *c.part);
     c.st = malloc((size_t)s->L.nsec * sizeof *c.st);
@@ -250,18 +257,15 @@ wvol_status wvol__wvc_stream_refine(wvc_stream_stats *s, const wvc2_planes *plan
         free(c.items), free(c.part), free(c.st), wvol__wvc_hist_free(est);
         return wvol_error_set(err, WVOL_ERR_NOMEM, "wvc encode: out of memory");
     }
-    for (int i = 0; i < s->L.nsec; i++) {
-        const wvc_band *b = &s->L.sec[i];
-        size_t zn = b->ext[2] < nz[b->level] ? b->ext[2] : nz[b->level];
-        if (!b->count || !planes[b->level].band[b->band]) continue;
-        for (size_t z = 0; z < zn; z++) c.items[c.nitems].sec = i, c.items[c.nitems].z0 = z, c.items[c.nitems++].z1 = z + 1;
-    }
+    for (int i = 0; i < s->L.nsec; i++)
+        for (size_t z = 0, zn = section_rows(&s->L.sec[i], planes, nz); z < zn; z++, c.nitems++)
+            c.items[c.nitems].sec = i, c.items[c.nitems].z0 = z, c.items[c.nitems].z1 = z + 1;
     d = wvol__wvc_refine_step(est, &s->L, p->rounding, p->target_sse, maxabs, min_step, planes_error, &c, passes,
                               &last);
     wvol__wvc_hist_free(est);
     free(c.items), free(c.part), free(c.st);
     WVOL_RETURN_IF(!isfinite(d), err, WVOL_ERR_NOMEM, "wvc encode: out of memory");
     /* the bounds wvol__wvc_stream_step keeps: else the histograms' guess stands */
-    if (d <= WVC_MAX_STEP && (floor(maxabs / d + 0.5) + 1.0) * d <= WVC_MAX_STEP) *step = d;
+    if (d <= WVC_MAX_STEP && step_fits(maxabs, d)) *step = d;
     return WVOL_OK;
 }
