@@ -284,10 +284,9 @@ wvol_status wvol_compress_stream(const char *path, wvol_source *src, const wvol_
     if (!s) s = wvol__wvc_stream_step(pc.stats, &wp, scale, &out.step, NULL, err);
     /* Haar with every coefficient at hand: the in-memory encoder's exact refinement. Haar's
      * coefficients of a piecewise-constant or integer-valued volume take a few distinct
-     * magnitudes, which the histograms' model of values spread within a bin misses (the 256^3
-     * Shepp-Logan phantom at 60 dB: 62.2 dB written, 9.8% more bytes than needed); the longer
-     * filters spread them, and there one exact pass (20-37 ms at 256^3, a tenth of the
-     * compression) only confirmed the guess on every volume measured (docs/wvc-format.md). */
+     * magnitudes, which the histograms' model of values spread within a bin misses by about
+     * 2 dB; the longer filters spread them, and there the exact pass, a tenth of a compression,
+     * only confirmed the guess on every volume measured (docs/wvc-format.md). */
     if (!s && pc.keep && f->length == 2) {
         wvc2_planes pl[32];
         size_t nz[32] = {0};
