@@ -152,7 +152,7 @@ int main(int argc, char **argv)
     D0 = calloc(n, sizeof *D0);
     ch = calloc(g->nchunks, sizeof *ch);
     if (!Q || !D || !D0 || !ch) return 1;
-    if (wvol__wvc2_decode_dense(Q, g->p, x, file, (size_t)fsize, 0, &err) != WVOL_OK) {
+    if (wvol__wvc2_decode_dense(Q, g->p, x, file, (size_t)fsize, 0, NULL, NULL, &err) != WVOL_OK) {
         fprintf(stderr, "bench_chunkcoder: %s\n", err.message);
         return 1;
     }

@@ -15,6 +15,7 @@
 #include "fixtures.h"
 #include "wvc_fixtures.h"
 #include "codec/wvc2_writer.h"
+#include "codec/wvc_dequant.h"
 #include "codec/wvc_format.h"
 #include "wvol/io.h"
 #include "wvol/wvc.h"
@@ -242,6 +243,132 @@ static void wvc_early_stop_gives_the_coarser_volume(void)
     }
     wvol_coeffs_destroy(full);
     free(buf);
+    fixture_free(&F);
+}
+
+/* The dequantised value of q as the format defines it, written out independently of the
+ * codec: sign(q) o1 for |q| = 1, sign(q) (|q| + d2) step beyond, each rounded once from
+ * double; +0 for 0. */
+static float dequant_reference(int32_t q, double o1, double d2, double step)
+{
+    double a = fabs((double)q), v = a == 0 ? 0.0 : a == 1 ? o1 : (a + d2) * step;
+    float f = (float)v;
+    return q < 0 ? -f : f;
+}
+
+/* The vector dequantiser (eight values, the selects on the float bits) gives the reference's
+ * bits and counts the non-zeros, on zeros, +-1, +-2, large |q| and random values, for
+ * constants at the edges wvc_dequant_fits allows (d2 = -1 and near 1, a step near the
+ * float32 bound, a tiny step). */
+static void wvc_dequant_vector_form_matches_reference(void)
+{
+    const double steps[] = {1e-30, 0.0508673, 3.0, 7.3e28};
+    const double d2s[] = {-1.0, -0.25, 0.0, 0.37, 0.999};
+    const double d1s[] = {-0.5, 0.0, 0.42};
+    uint32_t rng = 12345;
+    long bad = 0, checked = 0, badnz = 0;
+    for (size_t si = 0; si < sizeof steps / sizeof *steps; si++)
+        for (size_t di = 0; di < sizeof d2s / sizeof *d2s; di++)
+            for (size_t oi = 0; oi < sizeof d1s / sizeof *d1s; oi++) {
+                const double step = steps[si], d2 = d2s[di], o1 = (1.0 + d1s[oi]) * step;
+                CHECK(wvc_dequant_fits(o1, d2, step), "constants step %g d2 %g o1 %g should fit", step, d2, o1);
+                for (int round = 0; round < 64; round++) {
+                    int32_t q[8], nzref = 0;
+                    float out[8];
+                    wvc_dq_i8 nz = {0, 0, 0, 0, 0, 0, 0, 0};
+                    for (int k = 0; k < 8; k++) {
+                        int32_t v;
+                        rng = rng * 1664525u + 1013904223u;
+                        switch ((rng >> 8) % 6) {
+                        case 0: v = 0; break;
+                        case 1: v = 1; break;
+                        case 2: v = 2; break;
+                        case 3: v = (int32_t)((rng >> 12) % 1000); break;
+                        case 4: v = (int32_t)(rng >> 2); break; /* up to 2^30 */
+                        default: v = (int32_t)((rng >> 16) & 0xff); break;
+                        }
+                        q[k] = (rng & 1) ? -v : v;
+                        nzref += q[k] != 0;
+                    }
+                    wvc_dequant8(out, q, (float)o1, d2, step, &nz);
+                    for (int k = 0; k < 8; k++) {
+                        float r = dequant_reference(q[k], o1, d2, step), w = wvc_dequant1(q[k], (float)o1, d2, step);
+                        uint32_t rb, ob, wb;
+                        memcpy(&rb, &r, 4);
+                        memcpy(&ob, &out[k], 4);
+                        memcpy(&wb, &w, 4);
+                        bad += rb != ob || rb != wb;
+                        checked++;
+                    }
+                    badnz += nz[0] + nz[1] + nz[2] + nz[3] + nz[4] + nz[5] + nz[6] + nz[7] != nzref;
+                }
+            }
+    CHECK(bad == 0, "%ld of %ld dequantised values differ from the reference's bits", bad, checked);
+    CHECK(badnz == 0, "%ld groups counted their non-zeros wrong", badnz);
+    CHECK(!wvc_dequant_fits(1.0, 0.0, 1e30), "a step whose largest value passes float32 must not fit");
+    CHECK(!wvc_dequant_fits(1.0, -1.5, 1.0), "d2 below -1 must not fit");
+    CHECK(!wvc_dequant_fits(NAN, 0.0, 1.0) && !wvc_dequant_fits(1.0, 0.0, 0.0), "NaN o1 or a zero step must not fit");
+}
+
+/* Every decoded coefficient of a version-2 file lies on its section's quantiser lattice with
+ * the reference's bits, at every stop level: the finest decoded level is dequantised chunk by
+ * chunk as the chunks are decoded, the others in a pass of their own, and a tile missed or
+ * dequantised twice would leave values off the lattice (an int32's bits read as a float, or a
+ * value scaled twice). Several chunks per level (96 x 80 x 72, tiles 32 x 32 x 16), 45 and
+ * 60 dB. */
+static void wvc2_decoded_values_on_the_quantiser_lattice(void)
+{
+    fixture F;
+    const int levels = 3, save_tile = p_tile;
+    CHECK(fixture_make(&F, 96, 80, 72, "db2", levels), "fixture");
+    p_tile = 32;
+    for (int t = 0; t < 2 && F.c; t++) {
+        void *buf = NULL;
+        size_t n;
+        wvol_wvc_info info;
+        CHECK(encode(&buf, &n, &F, t ? 60 : 45, 0, WVOL_WVC_CODER_AUTO, NULL), "encode");
+        if (!buf) continue;
+        CHECK(wvol_wvc_parse_info(&info, buf, n, NULL) == WVOL_OK && info.version == 2 && info.chunks > 8,
+              "a version-2 file of several chunks per level");
+        for (int m = 0; m < levels; m++) {
+            wvol_wvc_read_options o;
+            wvol_coeffs *c = NULL;
+            wvol_error err;
+            long off = 0, nonzero = 0;
+            wvol_wvc_read_options_default(&o);
+            o.stop_level = m;
+            CHECK(wvol_wvc_decode(&c, buf, n, &o, NULL, &err) == WVOL_OK, "stop %d: %s", m, err.message);
+            for (size_t i = 0; c && i < c->px * c->py * c->pz; i++) {
+                int lev, band, s;
+                size_t a, b, d;
+                double o1, d2, mag;
+                int32_t q;
+                float r, v = c->data[i];
+                wvol_coeffs_locate(c, i, &lev, &band, &a, &b, &d);
+                if (band != 0 && lev <= m) continue; /* not decoded */
+                for (s = 0; s < info.nsections; s++)
+                    if (info.sections[s].level == lev && info.sections[s].band == band) break;
+                if (s == info.nsections) {
+                    off++;
+                    continue;
+                }
+                o1 = (1.0 + (double)info.sections[s].delta1) * info.step;
+                d2 = info.sections[s].delta2;
+                mag = fabs((double)v);
+                q = mag == 0 ? 0 : (float)mag == (float)o1 ? 1 : (int32_t)llround(mag / info.step - d2);
+                if (v < 0) q = -q;
+                r = dequant_reference(q, o1, d2, info.step);
+                off += memcmp(&r, &v, sizeof r) != 0;
+                nonzero += q != 0;
+            }
+            CHECK(c && off == 0, "%s dB, stop %d: %ld coefficients off the quantiser's lattice", t ? "60" : "45", m,
+                  off);
+            CHECK(nonzero > 0, "stop %d: some coefficients are non-zero", m);
+            wvol_coeffs_destroy(c);
+        }
+        free(buf);
+    }
+    p_tile = save_tile;
     fixture_free(&F);
 }
 
@@ -1525,6 +1652,8 @@ int main(void)
     wvc2_pieces_equal_the_full_decode("coif2", 64, 32, 96, 4, 8, 8);
     wvc2_budget_and_damage();
     wvc_early_stop_gives_the_coarser_volume();
+    wvc_dequant_vector_form_matches_reference();
+    wvc2_decoded_values_on_the_quantiser_lattice();
     wvc_refuses_truncation_and_bit_flips_everywhere(2);
     wvc_refuses_truncation_and_bit_flips_everywhere(1);
     wvc_refuses_crafted_headers();

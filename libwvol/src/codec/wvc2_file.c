@@ -23,6 +23,7 @@
 #include "core/clock.h"
 #include "core/clones.h"
 #include "wvc2_read.h"
+#include "wvc_dequant.h"
 #include "wvc_format.h"
 #include "wvc_source.h"
 
@@ -668,13 +669,13 @@ static int band_may_be_nonzero(wvol_wvc_file *f, pins *P, int m, int k, const pt
     return 0;
 }
 
-/* wvc2_read.h. The full decoder's arithmetic, so values are bit-equal to it, but without a
- * branch per value: every lane computes (|v| + d2) * step and the selects pick o1 for +-1
- * and +0 for 0 (a branch on each zero mispredicted wherever the zeros and non-zeros of a
- * sparse band mix), so the loop vectorises. Contraction off: (|v| + d2) * step is rounded
- * twice, as the decoder rounds it; no trapping math: without it GCC keeps a branch so as not
- * to compute the unused lane's value, which cannot trap here (no FP exceptions are enabled,
- * and each lane's value is finite). */
+/* wvc2_read.h. The full decoder's arithmetic (wvc_dequant.h), so values are bit-equal to
+ * it, without a branch per value: every lane computes (|v| + d2) * step and the selects
+ * pick o1 for +-1 and +0 for 0 (a branch on each zero mispredicted wherever the zeros and
+ * non-zeros of a sparse band mix), so the loop vectorises. Contraction off: (|v| + d2) *
+ * step is rounded twice, as the decoder rounds it; no trapping math: without it GCC keeps a
+ * branch so as not to compute the unused lane's value, which cannot trap here (no FP
+ * exceptions are enabled, and each lane's value is finite). */
 #define WVC_DEQUANT_RUN(name, T)                                                                               \
     WVOL__CLONES __attribute__((optimize("fp-contract=off", "no-trapping-math"))) int name(                       \
         float *restrict dst, const T *restrict q, size_t n, double o1, double d2, double step)                    \
@@ -683,9 +684,7 @@ static int band_may_be_nonzero(wvol_wvc_file *f, pins *P, int m, int k, const pt
         int32_t any = 0;                                                                                          \
         for (size_t i = 0; i < n; i++) {                                                                          \
             const int32_t v = q[i];                                                                               \
-            const float big = (float)((fabs((double)v) + d2) * step);                                             \
-            const float a = v == 0 ? 0.0f : (v == 1 || v == -1) ? f1 : big;                                       \
-            dst[i] = v < 0 ? -a : a;                                                                              \
+            dst[i] = wvc_dequant1(v, f1, d2, step);                                                               \
             any |= v;                                                                                             \
         }                                                                                                         \
         return any != 0;                                                                                          \

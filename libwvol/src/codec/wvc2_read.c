@@ -192,7 +192,8 @@ void wvol__wvc2_describe(char *buf, size_t n, const wvc2_index *x, size_t id)
 }
 
 wvol_status wvol__wvc2_decode_dense(int32_t *Q, const size_t p[3], const wvc2_index *x, const uint8_t *buf,
-                                    size_t avail, int stop_level, wvol_error *err)
+                                    size_t avail, int stop_level, wvc2_tile_done_fn done, void *ctx,
+                                    wvol_error *err)
 {
     const wvc2_geom *g = &x->g;
     /* the low-pass cube shares its chunks with the coarsest details: decoded even for
@@ -231,6 +232,8 @@ wvol_status wvol__wvc2_decode_dense(int32_t *Q, const size_t p[3], const wvc2_in
             } else if (nz != c->nonzero) {
                 w = "decoded non-zero count does not match the index";
                 r = -1;
+            } else if (done && m == stop_level + 1) {
+                done(ctx, m, off, ext);
             }
             if (r) {
 #pragma omp critical(wvc2_decode_error)

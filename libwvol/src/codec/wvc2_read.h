@@ -48,10 +48,19 @@ int wvol__wvc2_chunk_check(const wvc2_index *x, size_t id, const uint8_t *payloa
 /* "chunk N (level m, tile x,y,z)" for error messages. */
 void wvol__wvc2_describe(char *buf, size_t n, const wvc2_index *x, size_t id);
 
+/* Called for each chunk of the finest level decoded (stop_level + 1, when stop_level <
+ * levels) as soon as it is decoded, by the thread that decoded it: nothing reads that
+ * level's quantised values afterwards (a chunk's contexts stay inside its tile and its
+ * parent), so the caller may turn the tile's values (off, ext in the level's band
+ * coordinates, every band of the level) into floats while they are in its cache. */
+typedef void (*wvc2_tile_done_fn)(void *ctx, int level, const size_t off[3], const size_t ext[3]);
+
 /* Decodes the levels above stop_level into the dense quantised pyramid Q (padded
- * grid p, zeroed by the caller) from buf, the file's first avail bytes. */
+ * grid p, zeroed by the caller) from buf, the file's first avail bytes; done (may be
+ * NULL) as above. */
 wvol_status wvol__wvc2_decode_dense(int32_t *Q, const size_t p[3], const wvc2_index *x, const uint8_t *buf,
-                                    size_t avail, int stop_level, wvol_error *err);
+                                    size_t avail, int stop_level, wvc2_tile_done_fn done, void *ctx,
+                                    wvol_error *err);
 
 /* ---- an open file's chunk cache (wvc2_file.c), for the piece reader (wvc2_piece.c) ---- */
 

@@ -15,7 +15,9 @@
 
 #include "core/alloc.h"
 #include "core/clones.h"
+#include "wvc2_internal.h"
 #include "wvc2_read.h"
+#include "wvc_dequant.h"
 #include "wvc_format.h"
 #include "wvc_internal.h"
 #include "wvol/io.h"
@@ -252,15 +254,79 @@ static inline __attribute__((always_inline)) uint64_t dequant8(float *o, size_t 
     return (uint64_t)(nzc[0] + nzc[1] + nzc[2] + nzc[3]);
 }
 
-/* One row of n values: groups of eight zeros (0.0f already) skipped in one test. */
+/* One row of n values: groups of eight zeros (0.0f already) skipped in one test. Where
+ * the section's constants allow (wvc_dequant_fits, every valid file) the shared unchecked
+ * form, which gives the same bits with a third of the operations; else every value is
+ * checked against float32's range. */
 WVOL__CLONES static uint64_t dequant_row(float *o, size_t n, double o1, double d2, double step, uint64_t *over)
 {
     uint64_t nz = 0;
-    size_t x;
-    for (x = 0; x + 8 <= n; x += 8) /* most groups are zero at low rates */
+    size_t x = 0;
+    if (wvc_dequant_fits(o1, d2, step)) {
+        const float f1 = (float)o1;
+        wvc_dq_i8 nzv = {0, 0, 0, 0, 0, 0, 0, 0};
+        for (; x + 8 <= n; x += 8) {
+            if (!wvc_zero8(o + x)) wvc_dequant8(o + x, o + x, f1, d2, step, &nzv); /* most are zero at low rates */
+        }
+        for (int k = 0; k < 8; k++) nz += (uint64_t)(uint32_t)nzv[k];
+        for (; x < n; x++) {
+            int32_t v;
+            memcpy(&v, o + x, sizeof v);
+            nz += v != 0;
+            o[x] = wvc_dequant1(v, f1, d2, step);
+        }
+        return nz;
+    }
+    for (; x + 8 <= n; x += 8)
         if (!wvc_zero8(o + x)) nz += dequant8(o + x, 8, o1, d2, step, over);
     if (x < n) nz += dequant8(o + x, n - x, o1, d2, step, over);
     return nz;
+}
+
+/* The dequantisation constants of section s (in double, rounded once: the only error
+ * left beyond the quantiser's is half an ulp). */
+static void section_constants(const wvol_wvc_info *I, int s, double *step, double *o1, double *d2)
+{
+    *step = I->step;
+    *o1 = (1.0 + (double)I->sections[s].delta1) * I->step;
+    *d2 = I->sections[s].delta2;
+}
+
+/* A version-2 file's finest decoded level, dequantised chunk by chunk as the chunks are
+ * decoded (wvc2_tile_done_fn): that level holds seven eighths of the coefficients, and a
+ * separate pass would read and write them again from memory. Per section the non-zero
+ * and out-of-range counts, which the section pass then checks as its own. */
+typedef struct tile_dequant {
+    const wvol_wvc_info *I;
+    const wvc_layout *L;
+    float *data;
+    uint64_t *nz, *over; /* per section */
+} tile_dequant;
+
+static void dequant_tile(void *ctx, int level, const size_t off[3], const size_t ext[3])
+{
+    tile_dequant *t = ctx;
+    for (int band = level == t->I->levels ? 0 : 1; band < 8; band++) {
+        const int s = wvc2_section(t->I->levels, level, band);
+        const wvc_band *b = &t->L->sec[s];
+        double step, o1, d2;
+        uint64_t nz = 0, over = 0;
+        if (!b->count || t->I->sections[s].coder == WVOL_WVC_CODER_EMPTY) continue;
+        section_constants(t->I, s, &step, &o1, &d2);
+        for (size_t z = off[2]; z < off[2] + ext[2]; z++)
+            for (size_t y = off[1]; y < off[1] + ext[1]; y++) {
+                float *row = t->data + wvc_index(t->L->p, b, off[0], y, z);
+                /* a tile's rows are short runs a plane's row apart, too short for the
+                 * hardware's prefetch to follow: the row a few ahead is asked for now */
+                const size_t ahead = y + 4 < off[1] + ext[1] ? 4 * t->L->p[0] : t->L->p[0] * t->L->p[1];
+                for (size_t x = 0; x < ext[0]; x += 16) __builtin_prefetch(row + ahead + x);
+                nz += dequant_row(row, ext[0], o1, d2, step, &over);
+            }
+#pragma omp atomic
+        t->nz[s] += nz;
+#pragma omp atomic
+        t->over[s] += over;
+    }
 }
 
 /* Decodes the sections of levels > stop_level from buf (the file's first avail bytes).
@@ -272,7 +338,8 @@ static wvol_status decode(wvol_coeffs **out, const uint8_t *buf, size_t avail, c
     wvc_layout *L;
     int32_t *Q;
     wvol_coeffs *c = NULL;
-    int s, first, last, bad_sec = -1;
+    tile_dequant td = {NULL, NULL, NULL, NULL, NULL};
+    int s, first, last, bad_sec = -1, fused = 0; /* fused: the level dequantised by dequant_tile */
     const char *why = NULL;
     wvol_status st;
 
@@ -290,10 +357,17 @@ static wvol_status decode(wvol_coeffs **out, const uint8_t *buf, size_t avail, c
     if (I->version == 2) {
         wvc2_index *x = NULL;
         wvol_wvc_info tmp = *I;
+        td.I = I, td.L = L, td.data = c->data;
+        td.nz = calloc((size_t)L->nsec, sizeof *td.nz);
+        td.over = calloc((size_t)L->nsec, sizeof *td.over);
+        fused = td.nz && td.over && stop_level < I->levels ? stop_level + 1 : 0;
         st = wvol__wvc2_parse(&tmp, &x, buf, avail, I->file_bytes, err);
-        if (st == WVOL_OK) st = wvol__wvc2_decode_dense(Q, L->p, x, buf, avail, stop_level, err);
+        if (st == WVOL_OK)
+            st = wvol__wvc2_decode_dense(Q, L->p, x, buf, avail, stop_level, fused ? dequant_tile : NULL, &td, err);
         wvol__wvc2_index_free(x);
         if (st != WVOL_OK) {
+            free(td.nz);
+            free(td.over);
             free(L);
             wvol_coeffs_destroy(c);
             return st;
@@ -334,17 +408,21 @@ static wvol_status decode(wvol_coeffs **out, const uint8_t *buf, size_t avail, c
     for (s = 0; s < L->nsec && bad_sec < 0; s++) {
         const wvc_band *b = &L->sec[s];
         const wvol_wvc_section *S = &I->sections[s];
-        /* in double, rounded once: the only error left beyond the quantiser's is half an ulp */
-        const double step = I->step, o1 = (1.0 + (double)S->delta1) * step, d2 = S->delta2;
+        double step, o1, d2;
         uint64_t nz = 0, over = 0;
         long z;
         if (s > 0 && b->level <= stop_level) break;
         if (S->coder == WVOL_WVC_CODER_EMPTY) continue;
+        section_constants(I, s, &step, &o1, &d2);
+        if (fused && b->level == fused) {
+            nz = td.nz[s], over = td.over[s]; /* dequantised chunk by chunk */
+        } else {
 #pragma omp parallel for schedule(static) reduction(+ : nz, over) if (b->count > 65536)
-        for (z = 0; z < (long)b->ext[2]; z++) {
-            size_t y;
-            for (y = 0; y < b->ext[1]; y++) {
-                nz += dequant_row(c->data + wvc_index(L->p, b, 0, y, (size_t)z), b->ext[0], o1, d2, step, &over);
+            for (z = 0; z < (long)b->ext[2]; z++) {
+                size_t y;
+                for (y = 0; y < b->ext[1]; y++) {
+                    nz += dequant_row(c->data + wvc_index(L->p, b, 0, y, (size_t)z), b->ext[0], o1, d2, step, &over);
+                }
             }
         }
         if (over) {
@@ -355,6 +433,8 @@ static wvol_status decode(wvol_coeffs **out, const uint8_t *buf, size_t avail, c
             why = "decoded coefficient count does not match the section table";
         }
     }
+    free(td.nz);
+    free(td.over);
     free(L);
     if (bad_sec >= 0) {
         st = wvol_error_set(err, WVOL_ERR_FORMAT, ".wvc section level %d band %d: %s",
