@@ -139,14 +139,14 @@ static inline __attribute__((always_inline)) void row_kernel(double t[8], float 
     }
 }
 
-WVOL__CLONES float wvol__wvc_row_stats(double t[8], const float *row, int32_t *qrow, size_t n, double step, double f)
+WVOL__CLONES_V4 float wvol__wvc_row_stats(double t[8], const float *row, int32_t *qrow, size_t n, double step, double f)
 {
     float amax;
     row_kernel(t, &amax, row, qrow, n, step, f, 0);
     return amax;
 }
 
-WVOL__CLONES static void rows_stats(sec_stats *st, const float *C, int32_t *Q, const size_t p[3], const wvc_band *b,
+WVOL__CLONES_V4 static void rows_stats(sec_stats *st, const float *C, int32_t *Q, const size_t p[3], const wvc_band *b,
                                double step, double f, size_t z0, size_t z1, int sparse)
 {
     double zero_sse = 0, energy = 0, s1 = 0, ss1 = 0, s2 = 0, ss2 = 0;

@@ -10,8 +10,13 @@
 #if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__) && !defined(__SANITIZE_ADDRESS__) && \
     !defined(WVOL_NO_CLONES)
 #define WVOL__CLONES __attribute__((target_clones("arch=x86-64-v3", "default")))
+/* A third copy for x86-64-v4 (AVX-512), for kernels whose live vectors outnumber AVX2's 16
+ * registers: the same 256-bit arithmetic, with AVX-512VL's 32 registers instead of spills
+ * to the stack (the quantiser's eight double accumulators). */
+#define WVOL__CLONES_V4 __attribute__((target_clones("arch=x86-64-v4", "arch=x86-64-v3", "default")))
 #else
 #define WVOL__CLONES
+#define WVOL__CLONES_V4
 #endif
 
 #endif
