@@ -8,9 +8,27 @@
 #include "info_wvc.h"
 #include "wvol/wvc.h"
 
-static const char *coder_name(int c)
+/* A section's coder: version 1 codes each section with one coder; in version 2 a band is
+ * spread over chunks, each coded in its own mode (the chunk_modes table). */
+static const char *coder_name(const wvol_wvc_info *I, int c)
 {
+    if (c == WVOL_WVC_CODER_EMPTY) return "empty";
+    if (I->version >= 2) return "chunks";
     return c == WVOL_WVC_CODER_CABAC ? "cabac" : c == WVOL_WVC_CODER_ZSTD ? "zstd" : "empty";
+}
+
+/* Chunk modes by name, as counted by wvol_wvc_file_chunk_modes. */
+static const char *const mode_names[WVOL_WVC_CHUNK_MODES] = {"bands_apart", "cabac", "cabac_blocks", "rans",
+                                                             "rans4", "empty"};
+
+/* A version-2 file's chunks per level and mode (counts[m][k]); 0, or 1 with the error set. */
+static int chunk_modes(const char *path, uint64_t counts[][WVOL_WVC_CHUNK_MODES], wvol_error *err)
+{
+    wvol_wvc_file *f = NULL;
+    wvol_status st = wvol_wvc_open(&f, path, 0, err);
+    if (st == WVOL_OK) st = wvol_wvc_file_chunk_modes(f, counts, err);
+    wvol_wvc_close(f);
+    return st != WVOL_OK;
 }
 
 /* What the sections of one level hold together. */
@@ -40,11 +58,15 @@ int wvol_cli_info_wvc(const char *path, int json)
     wvol_error err;
     wvol_wvc_info *I = malloc(sizeof *I);
     double nvox, raw, ratio, bpv, sse, rmse, psnr;
-    uint64_t count = 0;
+    uint64_t count = 0, modes[WVOL_WVC_MAX_LEVELS + 1][WVOL_WVC_CHUNK_MODES];
     int s, m;
     if (!I) return cli_fail("info", "out of memory");
     wvol_error_clear(&err);
     if (wvol_wvc_read_info(I, path, &err) != WVOL_OK) {
+        free(I);
+        return cli_fail_err("info", &err);
+    }
+    if (I->version >= 2 && chunk_modes(path, modes, &err)) {
         free(I);
         return cli_fail_err("info", &err);
     }
@@ -107,7 +129,7 @@ int wvol_cli_info_wvc(const char *path, int json)
             cli_json_open(NULL, '{');
             cli_json_int("level", S->level);
             cli_json_int("band", S->band);
-            cli_json_str("coder", coder_name(S->coder));
+            cli_json_str("coder", coder_name(I, S->coder));
             cli_json_int("bytes", (long long)S->bytes);
             cli_json_int("coefficients", (long long)S->count);
             cli_json_int("nonzero", (long long)S->nonzero);
@@ -116,6 +138,16 @@ int wvol_cli_info_wvc(const char *path, int json)
             cli_json_close('}');
         }
         cli_json_close(']');
+        if (I->version >= 2) {
+            cli_json_open("chunk_modes", '[');
+            for (m = I->levels; m >= 1; m--) {
+                cli_json_open(NULL, '{');
+                cli_json_int("level", m);
+                for (int k = 0; k < WVOL_WVC_CHUNK_MODES; k++) cli_json_int(mode_names[k], (long long)modes[m][k]);
+                cli_json_close('}');
+            }
+            cli_json_close(']');
+        }
         cli_json_end();
     } else {
         printf("file       %s (.wvc version %d)\n", path, I->version);
@@ -141,6 +173,20 @@ int wvol_cli_info_wvc(const char *path, int json)
             else printf("%-9d ", m);
             printf("%12llu %12llu %10llu %14.6g %14.6g\n", (unsigned long long)t.count,
                    (unsigned long long)t.nonzero, (unsigned long long)t.bytes, t.energy, t.error);
+        }
+        if (I->version >= 2) {
+            printf("chunk modes (0 bands apart, 1 cabac, 2 cabac with block flags, 3 rans, 4 rans with row contexts)\n");
+            for (m = I->levels; m >= 1; m--) {
+                const char *sep = "";
+                printf("  level %d:", m);
+                for (int k = 0; k < WVOL_WVC_CHUNK_MODES; k++)
+                    if (modes[m][k]) {
+                        if (k + 1 < WVOL_WVC_CHUNK_MODES) printf("%s %llu in mode %d", sep, (unsigned long long)modes[m][k], k);
+                        else printf("%s %llu empty", sep, (unsigned long long)modes[m][k]);
+                        sep = ",";
+                    }
+                printf("\n");
+            }
         }
     }
     free(I);

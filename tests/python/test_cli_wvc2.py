@@ -6,6 +6,7 @@ chunk fails only the regions that need it, naming it; a budget too small is refu
 import json
 import os
 import subprocess
+import zlib
 
 import numpy as np
 import pytest
@@ -149,6 +150,60 @@ def test_every_command_takes_a_wvc(wvc):
     r = subprocess.run([WVOL_BIN, "info", str(f), "--json"], capture_output=True, text=True)
     info = json.loads(r.stdout)
     assert info["version"] == 2 and info["chunks"] > 1
+
+
+def test_info_counts_chunk_modes(wvc):
+    """`wvol info` reports each level's chunks by coding mode, as the chunks' first payload
+    bytes say (read here from the index independently), and a band's coder as "chunks"."""
+    d, f, _ = wvc
+    data = f.read_bytes()
+    info = json.loads(subprocess.run([WVOL_BIN, "info", str(f), "--json"], capture_output=True,
+                                     text=True, check=True).stdout)
+    levels, nchunks = info["levels"], info["chunks"]
+    idx = 224 + 48 * (1 + 7 * levels)
+    names = ["bands_apart", "cabac", "cabac_blocks", "rans", "rans4"]
+    want = {m: dict.fromkeys(names + ["empty"], 0) for m in range(1, levels + 1)}
+    # chunks per level with 16^3 tiles: level m's bands are N / 2^m along each axis
+    per_level = {m: (-(-(N >> m) // 16)) ** 3 for m in range(1, levels + 1)}
+    assert sum(per_level.values()) == nchunks
+    i = 0
+    for m in range(levels, 0, -1):
+        for _ in range(per_level[m]):
+            e = idx + 32 * i
+            off, size = int.from_bytes(data[e:e + 8], "little"), int.from_bytes(data[e + 8:e + 12], "little")
+            want[m][names[data[off]] if size else "empty"] += 1
+            i += 1
+    got = {e["level"]: {k: e[k] for k in names + ["empty"]} for e in info["chunk_modes"]}
+    assert got == want
+    assert sum(want[1].values()) == per_level[1] and any(v for k, v in want[1].items() if k != "empty")
+    for sec in info["sections"]:
+        assert sec["coder"] == ("chunks" if sec["nonzero"] else "empty")
+    text = subprocess.run([WVOL_BIN, "info", str(f)], capture_output=True, text=True, check=True).stdout
+    assert "chunk modes" in text and f"level {levels}:" in text
+
+
+def test_info_refuses_an_unknown_chunk_mode(wvc, tmp_path):
+    """A chunk whose mode byte no reader knows, its checksums made to match (a crafted file:
+    the chunk's CRC in the index and the header's CRC over the index), makes `wvol info` fail
+    naming the chunk and the mode."""
+    d, f, _ = wvc
+    data = bytearray(f.read_bytes())
+    info = json.loads(subprocess.run([WVOL_BIN, "info", str(f), "--json"], capture_output=True,
+                                     text=True, check=True).stdout)
+    idx = 224 + 48 * (1 + 7 * info["levels"])
+    hbytes = idx + 32 * info["chunks"] + 4
+    for i in range(info["chunks"]):
+        e = idx + 32 * i
+        off, size = int.from_bytes(data[e:e + 8], "little"), int.from_bytes(data[e + 8:e + 12], "little")
+        if size:
+            data[off] = 9
+            data[e + 12:e + 16] = zlib.crc32(bytes(data[off:off + size])).to_bytes(4, "little")
+            break
+    data[hbytes - 4:hbytes] = zlib.crc32(bytes(data[:hbytes - 4])).to_bytes(4, "little")
+    bad = tmp_path / "mode.wvc"
+    bad.write_bytes(bytes(data))
+    r = subprocess.run([WVOL_BIN, "info", str(bad)], capture_output=True, text=True)
+    assert r.returncode == 1 and "chunk" in r.stderr and "unknown chunk mode 9" in r.stderr, r.stderr
 
 
 def test_damage_is_named_and_confined(wvc):

@@ -66,7 +66,8 @@ WVOL_API void wvol_wvc_params_default(wvol_wvc_params *p);
 
 /* One section of a file (the low-pass cube is level == levels, band 0). In a
  * version-2 file a band is spread over the chunks: offset and crc are 0, coder is
- * CABAC for a band with non-zeros (each chunk picks per band), bytes its share. */
+ * CABAC for a band with non-zeros (each chunk picks its own mode:
+ * wvol_wvc_file_chunk_modes), bytes its share. */
 typedef struct wvol_wvc_section {
     int level, band;
     int coder;               /* wvol_wvc_coder */
@@ -181,6 +182,15 @@ WVOL_API void wvol_wvc_close(wvol_wvc_file *f); /* NULL is fine */
 /* What the header, band table and index say (the file's info). */
 WVOL_API const wvol_wvc_info *wvol_wvc_file_info(const wvol_wvc_file *f);
 WVOL_API void wvol_wvc_file_stats(const wvol_wvc_file *f, wvol_wvc_cache_stats *st);
+/* How a version-2 file's chunks are coded: counts[m][k] is the number of level-m chunks
+ * (m = 1 .. levels; counts[0] unused) whose payload is in chunk mode k (0 bands coded apart,
+ * 1 one CABAC stream, 2 CABAC with block flags, 3 static rANS, 4 rANS with contexts from the
+ * rows above; docs/wvc-format.md), counts[m][5] the chunks without a payload (all zero).
+ * Reads each chunk's first byte (the index says where). A version-1 file has no chunks: all
+ * zero. A mode byte that no reader knows is refused, naming the chunk. */
+#define WVOL_WVC_CHUNK_MODES 6
+WVOL_API wvol_status wvol_wvc_file_chunk_modes(wvol_wvc_file *f, uint64_t counts[][WVOL_WVC_CHUNK_MODES],
+                                               wvol_error *err);
 
 /* Level `level`'s grid of a file (0: the original voxels; s: the grid of
  * wvol_idwt3_level(c, s)), without decoding: its samples per axis (ceil(n / 2^s) along an

@@ -316,6 +316,29 @@ const char *wvol__wvc_file_path(const wvol_wvc_file *f) { return f->path; }
 
 const wvol_wvc_info *wvol_wvc_file_info(const wvol_wvc_file *f) { return f ? &f->info : NULL; }
 
+wvol_status wvol_wvc_file_chunk_modes(wvol_wvc_file *f, uint64_t counts[][WVOL_WVC_CHUNK_MODES], wvol_error *err)
+{
+    WVOL_RETURN_IF(!f || !counts, err, WVOL_ERR_ARG, "wvc: missing argument");
+    memset(counts, 0, (size_t)(f->info.levels + 1) * sizeof *counts);
+    if (!f->x) return WVOL_OK; /* version 1 */
+    for (size_t id = 0; id < f->x->g.nchunks; id++) {
+        const wvc2_chunk *c = &f->x->chunks[id];
+        size_t t[3];
+        const int m = wvol__wvc2_chunk_coords(&f->x->g, id, t);
+        uint8_t mode = WVOL_WVC_CHUNK_MODES - 1;
+        if (c->bytes) {
+            char d[96];
+            wvol__wvc2_describe(d, sizeof d, f->x, id);
+            WVOL_RETURN_IF(read_at(f->fd, &mode, 1, c->offset), err, WVOL_ERR_IO, ".wvc %s: cannot read its first byte",
+                           d);
+            WVOL_RETURN_IF(mode >= WVOL_WVC_CHUNK_MODES - 1, err, WVOL_ERR_FORMAT, ".wvc %s: unknown chunk mode %d", d,
+                           mode);
+        }
+        counts[m][mode]++;
+    }
+    return WVOL_OK;
+}
+
 void wvol_wvc_file_stats(const wvol_wvc_file *f, wvol_wvc_cache_stats *st)
 {
     memset(st, 0, sizeof *st);
