@@ -17,10 +17,6 @@ static const char *coder_name(const wvol_wvc_info *I, int c)
     return c == WVOL_WVC_CODER_CABAC ? "cabac" : c == WVOL_WVC_CODER_ZSTD ? "zstd" : "empty";
 }
 
-/* Chunk modes by name, as counted by wvol_wvc_file_chunk_modes. */
-static const char *const mode_names[WVOL_WVC_CHUNK_MODES] = {"bands_apart", "cabac", "cabac_blocks", "rans",
-                                                             "rans4", "empty"};
-
 /* A version-2 file's chunks per level and mode (counts[m][k]); 0, or 1 with the error set. */
 static int chunk_modes(const char *path, uint64_t counts[][WVOL_WVC_CHUNK_MODES], wvol_error *err)
 {
@@ -143,7 +139,7 @@ int wvol_cli_info_wvc(const char *path, int json)
             for (m = I->levels; m >= 1; m--) {
                 cli_json_open(NULL, '{');
                 cli_json_int("level", m);
-                for (int k = 0; k < WVOL_WVC_CHUNK_MODES; k++) cli_json_int(mode_names[k], (long long)modes[m][k]);
+                for (int k = 0; k < WVOL_WVC_CHUNK_MODES; k++) cli_json_int(wvol_wvc_chunk_mode_name(k), (long long)modes[m][k]);
                 cli_json_close('}');
             }
             cli_json_close(']');

@@ -42,6 +42,7 @@ static PyObject *py_wvc_file_open(PyObject *self, PyObject *args, PyObject *kw)
 }
 
 /* wvc_file_info(file) -> the header's dict (as wvc_info) plus "chunks", "tile" (x/y, z),
+ * "chunk_modes" (version 2: per level 1..levels a dict of its chunks by coding mode),
  * "level_shapes": the (z, y, x) grid of every level 0..levels (ceil(n / 2^s) along each
  * transformed axis, n along an axis the transform leaves alone) and "level_origins": the
  * (x, y, z) position of each level grid's first sample (origin + spacing (2^s - 1) c along a
@@ -73,7 +74,33 @@ static PyObject *py_wvc_file_info(PyObject *self, PyObject *cap)
     if (!(v = Py_BuildValue("K", (unsigned long long)in->chunks)) || PyDict_SetItemString(d, "chunks", v) < 0) goto fail;
     Py_CLEAR(v);
     if (!(v = Py_BuildValue("(ii)", in->tile, in->tile_z)) || PyDict_SetItemString(d, "tile", v) < 0) goto fail;
-    Py_DECREF(v);
+    Py_CLEAR(v);
+    if (in->version >= 2) {
+        /* "chunk_modes": per level 1..levels, the chunks by coding mode (wvol_wvc_file_chunk_modes) */
+        uint64_t counts[WVOL_WVC_MAX_LEVELS + 1][WVOL_WVC_CHUNK_MODES];
+        if (wvol_wvc_file_chunk_modes(f, counts, &err) != WVOL_OK) {
+            Py_DECREF(d);
+            Py_DECREF(shapes);
+            Py_DECREF(origins);
+            return wvolpy_raise(&err);
+        }
+        if (!(v = PyList_New(in->levels))) goto fail;
+        for (int m = 1; m <= in->levels; m++) {
+            PyObject *e = PyDict_New();
+            if (!e) goto fail;
+            PyList_SET_ITEM(v, m - 1, e);
+            for (int k = 0; k < WVOL_WVC_CHUNK_MODES; k++) {
+                PyObject *n = PyLong_FromUnsignedLongLong((unsigned long long)counts[m][k]);
+                if (!n || PyDict_SetItemString(e, wvol_wvc_chunk_mode_name(k), n) < 0) {
+                    Py_XDECREF(n);
+                    goto fail;
+                }
+                Py_DECREF(n);
+            }
+        }
+        if (PyDict_SetItemString(d, "chunk_modes", v) < 0) goto fail;
+        Py_CLEAR(v);
+    }
     Py_DECREF(shapes);
     Py_DECREF(origins);
     return d;

@@ -191,6 +191,9 @@ WVOL_API void wvol_wvc_file_stats(const wvol_wvc_file *f, wvol_wvc_cache_stats *
 #define WVOL_WVC_CHUNK_MODES 6
 WVOL_API wvol_status wvol_wvc_file_chunk_modes(wvol_wvc_file *f, uint64_t counts[][WVOL_WVC_CHUNK_MODES],
                                                wvol_error *err);
+/* The name of counts' column k ("bands_apart", "cabac", "cabac_blocks", "rans", "rans4",
+ * "empty"); NULL outside 0 .. WVOL_WVC_CHUNK_MODES - 1. */
+WVOL_API const char *wvol_wvc_chunk_mode_name(int k);
 
 /* Level `level`'s grid of a file (0: the original voxels; s: the grid of
  * wvol_idwt3_level(c, s)), without decoding: its samples per axis (ceil(n / 2^s) along an

@@ -316,6 +316,13 @@ const char *wvol__wvc_file_path(const wvol_wvc_file *f) { return f->path; }
 
 const wvol_wvc_info *wvol_wvc_file_info(const wvol_wvc_file *f) { return f ? &f->info : NULL; }
 
+const char *wvol_wvc_chunk_mode_name(int k)
+{
+    static const char *const names[WVOL_WVC_CHUNK_MODES] = {"bands_apart", "cabac", "cabac_blocks",
+                                                            "rans",        "rans4", "empty"};
+    return k >= 0 && k < WVOL_WVC_CHUNK_MODES ? names[k] : NULL;
+}
+
 wvol_status wvol_wvc_file_chunk_modes(wvol_wvc_file *f, uint64_t counts[][WVOL_WVC_CHUNK_MODES], wvol_error *err)
 {
     WVOL_RETURN_IF(!f || !counts, err, WVOL_ERR_ARG, "wvc: missing argument");
