@@ -63,6 +63,16 @@ static void params(wvol_compress_params *cp, const char *wavelet, int levels)
     cp->build_store = 0;
 }
 
+/* The generator's volume in memory and the same volume as a streamed source (sp's dims and
+ * noise); a failure is a check failed, with *v or *src left NULL. */
+static void synth_both(wvol_volume **v, wvol_source **src, const char *kind, const wvol_synth_params *sp)
+{
+    wvol_error err;
+    *v = NULL, *src = NULL;
+    CHECK(wvol_synth_make(v, NULL, kind, sp, &err) == WVOL_OK, "%s: %s", kind, err.message);
+    CHECK(wvol_synth_source(src, kind, sp, &err) == WVOL_OK, "%s: %s", kind, err.message);
+}
+
 static void same_file_as_in_memory_with_a_step(void)
 {
     static const struct {
@@ -92,8 +102,7 @@ static void same_file_as_in_memory_with_a_step(void)
         wvol_synth_params_default(&sp);
         memcpy(sp.dims, cases[c].dims, sizeof sp.dims);
         sp.noise = !strcmp(cases[c].kind, "skull") ? 20 : 0;
-        CHECK(wvol_synth_make(&v, NULL, cases[c].kind, &sp, &err) == WVOL_OK, "%s", err.message);
-        CHECK(wvol_synth_source(&src, cases[c].kind, &sp, &err) == WVOL_OK, "%s", err.message);
+        synth_both(&v, &src, cases[c].kind, &sp);
         params(&cp, cases[c].wavelet, cases[c].levels);
         cp.quant.step = cases[c].step;
         cp.quant.tile = cases[c].tile;
@@ -200,8 +209,7 @@ static void psnr_target_is_met_and_equals_in_memory_at_its_step(void)
             const double nvox = (double)(shapes[sh][0] * shapes[sh][1] * shapes[sh][2]);
             memcpy(sp.dims, shapes[sh], sizeof sp.dims);
             sp.noise = k == 0 ? 20 : 0.01;
-            CHECK(wvol_synth_make(&v, NULL, kinds[k], &sp, &err) == WVOL_OK, "%s", err.message);
-            CHECK(wvol_synth_source(&src, kinds[k], &sp, &err) == WVOL_OK, "%s", err.message);
+            synth_both(&v, &src, kinds[k], &sp);
             if (!v || !src) goto next;
             params(&cp, "db2", 3);
             cp.quant.psnr = psnrs[q];
@@ -269,8 +277,7 @@ static void haar_step_refined_like_in_memory(void)
         char path[256];
         wvol_synth_params_default(&sp);
         sp.dims[0] = sp.dims[1] = sp.dims[2] = 64;
-        CHECK(wvol_synth_make(&v, NULL, "shepp-logan", &sp, &err) == WVOL_OK, "%s", err.message);
-        CHECK(wvol_synth_source(&src, "shepp-logan", &sp, &err) == WVOL_OK, "%s", err.message);
+        synth_both(&v, &src, "shepp-logan", &sp);
         if (!v || !src) goto next;
         params(&cp, "haar", 5);
         cp.quant.psnr = psnrs[q];

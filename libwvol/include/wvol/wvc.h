@@ -182,8 +182,9 @@ WVOL_API void wvol_wvc_close(wvol_wvc_file *f); /* NULL is fine */
 /* What the header, band table and index say (the file's info). */
 WVOL_API const wvol_wvc_info *wvol_wvc_file_info(const wvol_wvc_file *f);
 WVOL_API void wvol_wvc_file_stats(const wvol_wvc_file *f, wvol_wvc_cache_stats *st);
-/* How a version-2 file's chunks are coded: counts[m][k] is the number of level-m chunks
- * (m = 1 .. levels; counts[0] unused) whose payload is in chunk mode k (0 bands coded apart,
+/* How a version-2 file's chunks are coded: counts (at least levels + 1 rows; rows 0 ..
+ * levels are written) gets in counts[m][k] the number of level-m chunks (m = 1 .. levels;
+ * row 0 zero) whose payload is in chunk mode k (0 bands coded apart,
  * 1 one CABAC stream, 2 CABAC with block flags, 3 static rANS, 4 rANS with contexts from the
  * rows above; docs/wvc-format.md), counts[m][5] the chunks without a payload (all zero).
  * Reads each chunk's first byte (the index says where). A version-1 file has no chunks: all
