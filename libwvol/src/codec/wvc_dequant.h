@@ -7,10 +7,12 @@
  * (o1 = (1 + delta1) step) and +0 for 0: computed in double and rounded once to float, so the
  * only error beyond the quantiser's is half an ulp. Eight values at a time in explicit
  * vectors (|q| widened to double in two halves, the selects done on the float bits); the same
- * operations as the scalar form wvc_dequant1, hence the same bits. Valid only for a section
- * whose constants pass wvc_dequant_fits: then no |q| < 2^31 gives a value beyond float32 or a
- * negative magnitude, so nothing needs checking per value (a crafted file's constants take
- * the decoder's checked path instead). */
+ * operations as the scalar form wvc_dequant1, hence the same bits wherever d2 >= -1 (which a
+ * version-2 band table enforces). Neither checks a value: the whole-file decoder uses them
+ * only for a section whose constants pass wvc_dequant_fits (no |q| < 2^31 then gives a value
+ * beyond float32), and keeps its checked form, which refuses such a value, for the others (a
+ * crafted file's constants); the chunk readers take them as they are (a value beyond float32
+ * becomes inf). */
 #ifndef WVOL_CODEC_WVC_DEQUANT_H
 #define WVOL_CODEC_WVC_DEQUANT_H
 
