@@ -11,8 +11,8 @@
 
 #include "wvc_quant.h"
 
-/* Sums over slices [z0, z1) of one band (serial; the caller spreads work items over
- * threads). Q (may be NULL) receives the quantised values; with `sparse` Q is known
+/* Sums over rows of one band (serial; the caller spreads work items over threads,
+ * wvol__wvc_rows_stats). Q (may be NULL) receives the quantised values; with `sparse` Q is known
  * to be all zero and only groups with a non-zero are written (the pages of an
  * all-zero stretch are never touched: fresh pages cost more to write than to read).
  *
@@ -65,7 +65,7 @@ static inline __attribute__((always_inline)) void quad_stats(row_acc *A, wvc_v4f
 }
 
 /* Sums of one row of n coefficients into t[8] (zeroed energy, energy, r and r^2 for
- * |q| = 1, r and r^2 for |q| >= 2, counts of |q| = 1 and |q| >= 2); qrow as in rows_stats,
+ * |q| = 1, r and r^2 for |q| >= 2, counts of |q| = 1 and |q| >= 2); qrow as in wvol__wvc_rows_stats,
  * or the row itself (every group is loaded before its q is stored, so no restrict); the
  * largest |c| into *amax when given. */
 static inline __attribute__((always_inline)) void row_kernel(double t[8], float *amax, const float *row,
@@ -146,35 +146,17 @@ WVOL__CLONES_V4 float wvol__wvc_row_stats(double t[8], const float *row, int32_t
     return amax;
 }
 
-WVOL__CLONES_V4 static void rows_stats(sec_stats *st, const float *C, int32_t *Q, const size_t p[3], const wvc_band *b,
-                               double step, double f, size_t z0, size_t z1, int sparse)
+WVOL__CLONES_V4 void wvol__wvc_rows_stats(sec_stats *st, const float *c, int32_t *q, size_t ex, size_t ey, size_t nz,
+                                          size_t sy, size_t sz, double step, double f, int sparse)
 {
-    double zero_sse = 0, energy = 0, s1 = 0, ss1 = 0, s2 = 0, ss2 = 0;
-    uint64_t n1 = 0, n2 = 0;
-    size_t y, z;
-    for (z = z0; z < z1; z++)
-        for (y = 0; y < b->ext[1]; y++) {
-            size_t base = wvc_index(p, b, 0, y, z);
-            double t[8];
-            row_kernel(t, NULL, C + base, Q ? Q + base : NULL, b->ext[0], step, f, sparse);
-            zero_sse += t[0];
-            energy += t[1];
-            s1 += t[2];
-            ss1 += t[3];
-            s2 += t[4];
-            ss2 += t[5];
-            n1 += (uint64_t)t[6];
-            n2 += (uint64_t)t[7];
-        }
     memset(st, 0, sizeof *st);
-    st->zero_sse = zero_sse;
-    st->energy = energy;
-    st->s1 = s1;
-    st->ss1 = ss1;
-    st->s2 = s2;
-    st->ss2 = ss2;
-    st->n1 = n1;
-    st->n2 = n2;
+    for (size_t z = 0; z < nz; z++)
+        for (size_t y = 0; y < ey; y++) {
+            const size_t at = y * sy + z * sz;
+            double t[8];
+            row_kernel(t, NULL, c + at, q ? q + at : NULL, ex, step, f, sparse);
+            wvol__wvc_sec_add_row(st, t);
+        }
 }
 #undef SEL
 work_item *wvol__wvc_work_items(const wvc_layout *L, int *count)
@@ -204,7 +186,7 @@ work_item *wvol__wvc_work_items(const wvc_layout *L, int *count)
     return w;
 }
 
-/* Per-section sums over the whole pyramid in one parallel pass; Q as in rows_stats
+/* Per-section sums over the whole pyramid in one parallel pass; Q as in wvol__wvc_rows_stats
  * (*qzero: Q is all zero, cleared once written). */
 int wvol__wvc_all_stats(sec_stats *st, const wvc_layout *L, const float *C, int32_t *Q, double step, double f,
                         int *qzero)
@@ -219,9 +201,12 @@ int wvol__wvc_all_stats(sec_stats *st, const wvc_layout *L, const float *C, int3
         return -1;
     }
 #pragma omp parallel for schedule(dynamic, 1) if (n > 2)
-    for (i = 0; i < n; i++)
-        rows_stats(&part[i], C, Q, L->p, &L->sec[w[i].sec], step, wvol__wvc_sec_rounding(&L->sec[w[i].sec], f), w[i].z0,
-                   w[i].z1, sparse);
+    for (i = 0; i < n; i++) {
+        const wvc_band *b = &L->sec[w[i].sec];
+        const size_t at = wvc_index(L->p, b, 0, 0, w[i].z0);
+        wvol__wvc_rows_stats(&part[i], C + at, Q ? Q + at : NULL, b->ext[0], b->ext[1], w[i].z1 - w[i].z0, L->p[0],
+                             L->p[0] * L->p[1], step, wvol__wvc_sec_rounding(b, f), sparse);
+    }
     if (Q) *qzero = 0;
     memset(st, 0, (size_t)L->nsec * sizeof *st);
     for (i = 0; i < n; i++) wvol__wvc_sec_merge(&st[w[i].sec], &part[i]);

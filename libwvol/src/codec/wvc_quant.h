@@ -63,6 +63,12 @@ int wvol__wvc_all_stats(sec_stats *st, const wvc_layout *L, const float *C, int3
  * as +0). qrow may be the row itself (a quantisation in place: each value is read
  * before its q is written). */
 float wvol__wvc_row_stats(double t[8], const float *row, int32_t *qrow, size_t n, double step, double f);
+/* The sums of nz planes of ey rows of ex coefficients (row y of plane z at c + y sy + z sz)
+ * into st, each row as wvol__wvc_row_stats sums it, added in z then y order; q (may be NULL)
+ * receives the quantised values at the same offsets, written only where a group has a
+ * non-zero when `sparse` (q is known to be all zero). */
+void wvol__wvc_rows_stats(sec_stats *st, const float *c, int32_t *q, size_t ex, size_t ey, size_t nz, size_t sy,
+                          size_t sz, double step, double f, int sparse);
 /* The offsets as stored (float32) and the section's exact squared error with them. */
 double wvol__wvc_sec_error(const sec_stats *st, double step, float *d1, float *d2);
 /* A section's rounding offset: the low-pass cube rounds to nearest, details with f. */

@@ -218,13 +218,8 @@ static double planes_error(void *ctx, double step)
         const wvc_band *b = &c->L->sec[c->items[i].sec];
         const wvc2_planes *pl = &c->planes[b->level];
         const float *base = pl->band[b->band] + c->items[i].z0 * pl->sz[b->band];
-        const double f = wvol__wvc_sec_rounding(b, c->f);
-        memset(&c->part[i], 0, sizeof c->part[i]);
-        for (size_t y = 0; y < b->ext[1]; y++) {
-            double t[8];
-            (void)wvol__wvc_row_stats(t, base + y * pl->sy[b->band], NULL, b->ext[0], step, f);
-            wvol__wvc_sec_add_row(&c->part[i], t);
-        }
+        wvol__wvc_rows_stats(&c->part[i], base, NULL, b->ext[0], b->ext[1], 1, pl->sy[b->band], pl->sz[b->band], step,
+                             wvol__wvc_sec_rounding(b, c->f), 0);
     }
     memset(c->st, 0, (size_t)c->L->nsec * sizeof *c->st);
     /* in item order: the same sums for any thread count */
