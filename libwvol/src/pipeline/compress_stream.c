@@ -118,14 +118,21 @@ static wvol_status on_rows(void *user, int level, size_t r, const float *low, co
     return wvol__wvc2_writer_put(c->writer, level, r, 1, &pl, err);
 }
 
-/* Rows r .. r + nz - 1 of a level of the kept pyramid into the writer. */
-static wvol_status put_kept(pass_ctx *c, int level, size_t r, size_t nz, wvol_error *err)
+/* The planes of the kept pyramid's level from its row r on (consecutive rows row[level]
+ * floats apart). */
+static void kept_planes(wvc2_planes *pl, const pass_ctx *c, int level, size_t r)
 {
     const kept_rows *k = c->keep;
     const float *low = k->data + k->level[level] + r * k->row[level];
     size_t plane = level_extent(c->p[0], level) * level_extent(c->p[1], level);
+    planes_of(pl, c, level, low, k->row[level] > plane ? low + plane : NULL, k->row[level]);
+}
+
+/* Rows r .. r + nz - 1 of a level of the kept pyramid into the writer. */
+static wvol_status put_kept(pass_ctx *c, int level, size_t r, size_t nz, wvol_error *err)
+{
     wvc2_planes pl;
-    planes_of(&pl, c, level, low, k->row[level] > plane ? low + plane : NULL, k->row[level]);
+    kept_planes(&pl, c, level, r);
     return wvol__wvc2_writer_put(c->writer, level, r, nz, &pl, err);
 }
 
@@ -292,11 +299,8 @@ wvol_status wvol_compress_stream(const char *path, wvol_source *src, const wvol_
         size_t nz[32] = {0};
         int passes;
         for (int m = 1; m <= p.levels; m++) {
-            const kept_rows *k = pc.keep;
-            const float *low = k->data + k->level[m];
-            size_t plane = level_extent(pc.p[0], m) * level_extent(pc.p[1], m);
-            planes_of(&pl[m], &pc, m, low, k->row[m] > plane ? low + plane : NULL, k->row[m]);
-            nz[m] = k->rows[m];
+            kept_planes(&pl[m], &pc, m, 0);
+            nz[m] = pc.keep->rows[m];
         }
         s = wvol__wvc_stream_refine(pc.stats, pl, nz, &wp, &out.step, &passes, err);
     }
