@@ -31,7 +31,6 @@ static void *fit(void *p, size_t bytes)
 }
 
 /* (vertices (n, 3) float32, faces (m, 3) uint32, normals (n, 3) float32 or None, stats); destroys m. */
-
 static PyObject *mesh_take(wvol_mesh *m, const wvol_iso_stats *st)
 {
     npy_intp vd[2] = {(npy_intp)m->nverts, 3}, td[2] = {(npy_intp)m->ntris, 3};

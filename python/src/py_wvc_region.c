@@ -42,7 +42,6 @@ static PyObject *py_wvc_file_open(PyObject *self, PyObject *args, PyObject *kw)
 }
 
 /* wvc_file_info(file) -> the header's dict (as wvc_info) plus "chunks", "tile" (x/y, z),
- * "chunk_modes" (version 2: per level 1..levels a dict of its chunks by coding mode),
  * "level_shapes": the (z, y, x) grid of every level 0..levels (ceil(n / 2^s) along each
  * transformed axis, n along an axis the transform leaves alone) and "level_origins": the
  * (x, y, z) position of each level grid's first sample (origin + spacing (2^s - 1) c along a
@@ -74,33 +73,7 @@ static PyObject *py_wvc_file_info(PyObject *self, PyObject *cap)
     if (!(v = Py_BuildValue("K", (unsigned long long)in->chunks)) || PyDict_SetItemString(d, "chunks", v) < 0) goto fail;
     Py_CLEAR(v);
     if (!(v = Py_BuildValue("(ii)", in->tile, in->tile_z)) || PyDict_SetItemString(d, "tile", v) < 0) goto fail;
-    Py_CLEAR(v);
-    if (in->version >= 2) {
-        /* "chunk_modes": per level 1..levels, the chunks by coding mode (wvol_wvc_file_chunk_modes) */
-        uint64_t counts[WVOL_WVC_MAX_LEVELS + 1][WVOL_WVC_CHUNK_MODES];
-        if (wvol_wvc_file_chunk_modes(f, counts, &err) != WVOL_OK) {
-            Py_DECREF(d);
-            Py_DECREF(shapes);
-            Py_DECREF(origins);
-            return wvolpy_raise(&err);
-        }
-        if (!(v = PyList_New(in->levels))) goto fail;
-        for (int m = 1; m <= in->levels; m++) {
-            PyObject *e = PyDict_New();
-            if (!e) goto fail;
-            PyList_SET_ITEM(v, m - 1, e);
-            for (int k = 0; k < WVOL_WVC_CHUNK_MODES; k++) {
-                PyObject *n = PyLong_FromUnsignedLongLong((unsigned long long)counts[m][k]);
-                if (!n || PyDict_SetItemString(e, wvol_wvc_chunk_mode_name(k), n) < 0) {
-                    Py_XDECREF(n);
-                    goto fail;
-                }
-                Py_DECREF(n);
-            }
-        }
-        if (PyDict_SetItemString(d, "chunk_modes", v) < 0) goto fail;
-        Py_CLEAR(v);
-    }
+    Py_DECREF(v);
     Py_DECREF(shapes);
     Py_DECREF(origins);
     return d;
@@ -109,6 +82,40 @@ fail:
     Py_XDECREF(shapes);
     Py_XDECREF(origins);
     Py_DECREF(d);
+    return NULL;
+}
+
+/* wvc_file_chunk_modes(file) -> per level 1..levels a dict of its chunks by coding mode
+ * (wvol_wvc_file_chunk_modes: reads each chunk's first byte, so kept out of wvc_file_info,
+ * which a reader calls at open); every count zero for a version-1 file. */
+static PyObject *py_wvc_file_chunk_modes(PyObject *self, PyObject *cap)
+{
+    wvol_wvc_file *f = file_of(cap);
+    uint64_t counts[WVOL_WVC_MAX_LEVELS + 1][WVOL_WVC_CHUNK_MODES];
+    wvol_error err;
+    PyObject *out;
+    int levels;
+    (void)self;
+    if (!f) return NULL;
+    if (wvol_wvc_file_chunk_modes(f, counts, &err) != WVOL_OK) return wvolpy_raise(&err);
+    levels = wvol_wvc_file_info(f)->levels;
+    if (!(out = PyList_New(levels))) return NULL;
+    for (int m = 1; m <= levels; m++) {
+        PyObject *e = PyDict_New();
+        if (!e) goto fail;
+        PyList_SET_ITEM(out, m - 1, e);
+        for (int k = 0; k < WVOL_WVC_CHUNK_MODES; k++) {
+            PyObject *n = PyLong_FromUnsignedLongLong((unsigned long long)counts[m][k]);
+            if (!n || PyDict_SetItemString(e, wvol_wvc_chunk_mode_name(k), n) < 0) {
+                Py_XDECREF(n);
+                goto fail;
+            }
+            Py_DECREF(n);
+        }
+    }
+    return out;
+fail:
+    Py_DECREF(out);
     return NULL;
 }
 
@@ -334,6 +341,7 @@ PyMethodDef wvolpy_wvc_region_methods[] = {
     {"wvc_file_open", (PyCFunction)(void (*)(void))py_wvc_file_open, METH_VARARGS | METH_KEYWORDS,
      "wvc_file_open(path, budget=0) -> file"},
     {"wvc_file_info", py_wvc_file_info, METH_O, "wvc_file_info(file) -> info"},
+    {"wvc_file_chunk_modes", py_wvc_file_chunk_modes, METH_O, "wvc_file_chunk_modes(file) -> [per level {mode: chunks}]"},
     {"wvc_file_region", (PyCFunction)(void (*)(void))py_wvc_file_region, METH_VARARGS | METH_KEYWORDS,
      "wvc_file_region(file, lo, hi, level=0, out=None, threads=1) -> (array, spacing, origin)"},
     {"wvc_file_piece", (PyCFunction)(void (*)(void))py_wvc_file_piece, METH_VARARGS | METH_KEYWORDS,

@@ -181,7 +181,7 @@ def test_info_counts_chunk_modes(wvc):
     text = subprocess.run([WVOL_BIN, "info", str(f)], capture_output=True, text=True, check=True).stdout
     assert "chunk modes" in text and f"level {levels}:" in text
     from wvol import _wvol  # the Python binding reports the same counts, level 1 first
-    py = _wvol.wvc_file_info(_wvol.wvc_file_open(str(f)))["chunk_modes"]
+    py = _wvol.wvc_file_chunk_modes(_wvol.wvc_file_open(str(f)))
     assert py == [want[m] for m in range(1, levels + 1)]
 
 

@@ -334,12 +334,13 @@ wvol_status wvol_wvc_file_chunk_modes(wvol_wvc_file *f, uint64_t counts[][WVOL_W
         const int m = wvol__wvc2_chunk_coords(&f->x->g, id, t);
         uint8_t mode = WVOL_WVC_CHUNK_MODES - 1;
         if (c->bytes) {
-            char d[96];
-            wvol__wvc2_describe(d, sizeof d, f->x, id);
-            WVOL_RETURN_IF(read_at(f->fd, &mode, 1, c->offset), err, WVOL_ERR_IO, ".wvc %s: cannot read its first byte",
-                           d);
-            WVOL_RETURN_IF(mode >= WVOL_WVC_CHUNK_MODES - 1, err, WVOL_ERR_FORMAT, ".wvc %s: unknown chunk mode %d", d,
-                           mode);
+            const int unread = read_at(f->fd, &mode, 1, c->offset) != 0;
+            if (unread || mode >= WVOL_WVC_CHUNK_MODES - 1) {
+                char d[96];
+                wvol__wvc2_describe(d, sizeof d, f->x, id);
+                if (unread) return wvol_error_set(err, WVOL_ERR_IO, ".wvc %s: cannot read its first byte", d);
+                return wvol_error_set(err, WVOL_ERR_FORMAT, ".wvc %s: unknown chunk mode %d", d, mode);
+            }
         }
         counts[m][mode]++;
     }
