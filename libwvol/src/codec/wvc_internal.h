@@ -117,11 +117,13 @@ int wvol__wvc_rans_decode(int n, int32_t *const Q[], const size_t *const p[], co
 /* Chunk mode 4 (wvc_rans4_enc.c, wvc_rans4_dec.c): n detail bands of one extent in one
  * stream of 24 interleaved rANS states and a raw bit stream, with contexts from the rows coded
  * before only (docs/wvc-format.md); same conventions as mode 3. The payload starts with a
- * flags byte (bit 0: signs modelled, else raw); _encode chooses per chunk
- * (wvc_rans4_enc.c), _encode_stream codes the stream after that byte as o says. */
+ * flags byte (bit 0: signs modelled, else raw; bit 1: tables packed, else LEB128); _encode
+ * chooses the signs per chunk and packs the tables (wvc_rans4_enc.c), _encode_stream codes the
+ * stream after that byte as o says. */
 typedef struct wvc_rans4_opts {
-    int raw_signs; /* 1: signs as raw bits; 0: binary rANS, band x sign(N) x sign(U) x sign(N(x-1)) */
-    int scalar;    /* 1: the scalar encoder whatever the CPU (the same bytes, for the tests) */
+    int raw_signs;     /* 1: signs as raw bits; 0: binary rANS, band x sign(N) x sign(U) x sign(N(x-1)) */
+    int packed_tables; /* 1: the tables packed (flags bit 1); 0: LEB128 entries, as files before it */
+    int scalar;        /* 1: the scalar encoder whatever the CPU (the same bytes, for the tests) */
 } wvc_rans4_opts;
 /* lead: bytes left before the flags byte for the caller (its mode byte, say); s: the thread's
  * buffers, kept for the next call (NULL: allocated and freed in the call). */

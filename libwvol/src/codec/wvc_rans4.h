@@ -29,6 +29,22 @@
 #define R4_NX (R4_TS + R4_SSTATES)
 #define R4_HEAD (4 * R4_NX)     /* the final states at the stream's head */
 #define R4_SIGNS_MODELLED 1     /* the flags byte before the stream: bit 0 */
+#define R4_TABLES_PACKED 2      /* bit 1: the tables as packed bits (below), else LEB128 entries */
+
+/* Packed tables (docs/wvc-format.md, "Packed tables"): bits, most significant first, from the
+ * byte after the states; the byte holding the last bit ends them. A magnitude table: Elias-gamma
+ * ns + 1 (0: unused), then R4_PFIELD bits of its precision P - R4_PMIN, then frequencies
+ * F_0 .. F_{ns-2} of a total 2^P as Elias-gamma F + 1 (the last is what the total leaves, at
+ * least 1); each frequency is F << (10 - P). A binary entry: R4_BKIND bits of kind, and for
+ * R4_BIN_EXPLICIT R4_BPFIELD bits of P (R4_BPMIN .. 10) and P bits of f0 (1 .. 2^P - 1). */
+#define R4_PMIN 3
+#define R4_PFIELD 3
+#define R4_BKIND 2
+#define R4_BPFIELD 4
+#define R4_BPMIN 2
+#define R4_EG_MAXZ 10 /* Elias-gamma values below 2^11: every packed value */
+/* binary kinds: f0 = 2^10 (no event, or zeros only), 0 (ones only), 2^9, given */
+enum { R4_BIN_ZEROS = 0, R4_BIN_ONES = 1, R4_BIN_HALF = 2, R4_BIN_EXPLICIT = 3 };
 
 /* Per row: A the neighbour sums, CX the magnitude contexts, PC the parent classes, SG the
  * sign contexts, GX the group-flag contexts (one block of 4 ex + 8 bytes after A). */

@@ -520,29 +520,132 @@ static int r4_get_binary(const uint8_t *buf, size_t size, size_t *pos, uint32_t 
     return 0;
 }
 
-/* The magnitude tables into flat (R4_NC x R4_M entries): symbol | frequency << 6 | (slot -
- * cumulative) << 17; an unused context's entries give symbol 63 by an identity step. */
+/* One magnitude table into t (R4_M entries): symbol | frequency << 6 | (slot - cumulative) << 17;
+ * an unused context's (ns 0) entries give symbol 63 by an identity step. The frequencies sum to
+ * R4_M (checked by the callers). */
+static void r4_fill_table(uint32_t *t, const uint32_t *freq, uint32_t ns)
+{
+    uint32_t cum = 0;
+    if (!ns) {
+        memcpy(t, r4_unused, sizeof r4_unused);
+        return;
+    }
+    for (uint32_t s = 0; s < ns; s++) {
+        for (uint32_t k = 0; k < freq[s]; k++) t[cum + k] = s | freq[s] << R4_FSHIFT | k << R4_OSHIFT;
+        cum += freq[s];
+    }
+}
+
+/* The LEB128 magnitude tables into flat (R4_NC tables). */
 static int r4_get_tables(const uint8_t *buf, size_t size, size_t *pos, uint32_t *flat)
 {
     uint32_t freq[R4_NS];
     for (int c = 0; c < R4_NC; c++) {
-        uint32_t *t = flat + (size_t)c * R4_M, v, sum = 0, ns, cum = 0;
+        uint32_t v, sum = 0, ns;
         if (wvol__wvc_rans_get_varint(buf, size, pos, &ns) || ns > R4_NS) return -1;
         for (uint32_t s = 0; s < ns; s++) {
             if (wvol__wvc_rans_get_varint(buf, size, pos, &v) || v > R4_M) return -1;
             freq[s] = v;
             sum += v;
         }
-        if (!ns) {
-            memcpy(t, r4_unused, sizeof r4_unused);
-            continue;
-        }
-        if (sum != R4_M || !freq[ns - 1]) return -1;
-        for (uint32_t s = 0; s < ns; s++) {
-            for (uint32_t k = 0; k < freq[s]; k++) t[cum + k] = s | freq[s] << R4_FSHIFT | k << R4_OSHIFT;
-            cum += freq[s];
-        }
+        if (ns && (sum != R4_M || !freq[ns - 1])) return -1;
+        r4_fill_table(flat + (size_t)c * R4_M, freq, ns);
     }
+    return 0;
+}
+
+/* Packed tables (wvc_rans4.h): a bit reader, most significant bit first, that refuses to read
+ * past the payload. */
+typedef struct r4_bitr {
+    const uint8_t *p;
+    size_t n, end; /* bits read, bits there are */
+} r4_bitr;
+
+static int r4_bits_get(r4_bitr *r, uint32_t len, uint32_t *v)
+{
+    uint32_t x = 0;
+    if (len > r->end - r->n) return -1;
+    for (uint32_t i = 0; i < len; i++, r->n++) x = x << 1 | (uint32_t)(r->p[r->n >> 3] >> (7 - (r->n & 7)) & 1);
+    *v = x;
+    return 0;
+}
+
+static int r4_eg_get(r4_bitr *r, uint32_t *v)
+{
+    uint32_t z = 0, b = 0, rest;
+    for (;;) {
+        if (r4_bits_get(r, 1, &b)) return -1;
+        if (b) break;
+        if (++z > R4_EG_MAXZ) return -1;
+    }
+    if (r4_bits_get(r, z, &rest)) return -1;
+    *v = 1u << z | rest;
+    return 0;
+}
+
+static int r4_get_tables_packed(r4_bitr *r, uint32_t *flat)
+{
+    uint32_t freq[R4_NS];
+    for (int c = 0; c < R4_NC; c++) {
+        uint32_t v, ns, P, sum = 0;
+        if (r4_eg_get(r, &v) || v - 1 > R4_NS) return -1;
+        ns = v - 1;
+        if (ns) {
+            if (r4_bits_get(r, R4_PFIELD, &P)) return -1;
+            P += R4_PMIN;
+            if (P > R4_PBITS) return -1;
+            for (uint32_t s = 0; s + 1 < ns; s++) {
+                if (r4_eg_get(r, &v)) return -1;
+                sum += v - 1;
+                if (sum >= 1u << P) return -1; /* the last frequency is at least 1 */
+                freq[s] = (v - 1) << (R4_PBITS - P);
+            }
+            freq[ns - 1] = ((1u << P) - sum) << (R4_PBITS - P);
+        }
+        r4_fill_table(flat + (size_t)c * R4_M, freq, ns);
+    }
+    return 0;
+}
+
+static int r4_get_binary_packed(r4_bitr *r, uint32_t *f0)
+{
+    static const uint32_t fixed[3] = {R4_M, 0, R4_M / 2}; /* R4_BIN_ZEROS, _ONES, _HALF */
+    uint32_t kind, P, f;
+    if (r4_bits_get(r, R4_BKIND, &kind)) return -1;
+    if (kind != R4_BIN_EXPLICIT) {
+        *f0 = fixed[kind];
+        return 0;
+    }
+    if (r4_bits_get(r, R4_BPFIELD, &P) || P < R4_BPMIN || P > R4_PBITS || r4_bits_get(r, P, &f) || !f ||
+        f >= 1u << P)
+        return -1;
+    *f0 = f << (R4_PBITS - P);
+    return 0;
+}
+
+/* Every table and binary entry, packed or LEB128 as the flags say; *pos past them. */
+static int r4_get_all_tables(r4_dec *D, uint32_t *flat, const uint8_t *buf, size_t size, size_t *pos, int packed,
+                             int raw_signs)
+{
+    if (packed) {
+        r4_bitr r = {buf + *pos, 0, 8 * (size - *pos)};
+        if (r4_get_tables_packed(&r, flat)) return -1;
+        for (int c = 0; c < R4_NG; c++)
+            if (r4_get_binary_packed(&r, &D->GF[c])) return -1;
+        for (int c = 0; c < R4_NSGW; c++)
+            if (!raw_signs && r4_get_binary_packed(&r, &D->SF[c])) return -1;
+        for (int c = 0; c < R4_NR; c++)
+            if (r4_get_binary_packed(&r, &D->RF[c])) return -1;
+        *pos += (r.n + 7) / 8;
+        return 0;
+    }
+    if (r4_get_tables(buf, size, pos, flat)) return -1;
+    for (int c = 0; c < R4_NG; c++)
+        if (r4_get_binary(buf, size, pos, &D->GF[c])) return -1;
+    for (int c = 0; c < R4_NSGW; c++)
+        if (!raw_signs && r4_get_binary(buf, size, pos, &D->SF[c])) return -1;
+    for (int c = 0; c < R4_NR; c++)
+        if (r4_get_binary(buf, size, pos, &D->RF[c])) return -1;
     return 0;
 }
 
@@ -601,7 +704,7 @@ int wvol__wvc_rans4_decode(int n, int32_t *const Q[], const size_t *const p[], c
         *why = "mode-4 payload truncated";
         return -1;
     }
-    if (buf[0] & ~R4_SIGNS_MODELLED) {
+    if (buf[0] & ~(R4_SIGNS_MODELLED | R4_TABLES_PACKED)) {
         *why = "mode-4 flags not known";
         return -1;
     }
@@ -614,20 +717,14 @@ int wvol__wvc_rans4_decode(int n, int32_t *const Q[], const size_t *const p[], c
         }
     flat = malloc((size_t)R4_NC * R4_M * sizeof *flat);
     if (!flat) goto nomem;
-    if (r4_get_tables(buf, size, &pos, flat)) goto bad_table;
-    for (int c = 0; c < R4_NG; c++)
-        if (r4_get_binary(buf, size, &pos, &D.GF[c])) goto bad_table;
-    for (int c = 0; c < R4_NSGW; c++)
-        if (!raw_signs && r4_get_binary(buf, size, &pos, &D.SF[c])) goto bad_table;
+    D.flat = flat;
+    if (r4_get_all_tables(&D, flat, buf, size, &pos, buf[0] & R4_TABLES_PACKED, raw_signs)) goto bad_table;
     D.SF[R4_NSGW] = R4_M;
-    for (int c = 0; c < R4_NR; c++)
-        if (r4_get_binary(buf, size, &pos, &D.RF[c])) goto bad_table;
     if (wvol__wvc_rans_get_varint(buf, size, &pos, &nw) || wvol__wvc_rans_get_varint(buf, size, &pos, &nraw) ||
         2 * (size_t)nw > size - pos || nraw != size - pos - 2 * (size_t)nw) {
         *why = "mode-4 stream lengths do not match the payload";
         goto done;
     }
-    D.flat = flat;
     D.w = buf + pos;
     D.raw = D.w + 2 * (size_t)nw;
     D.nw = nw;

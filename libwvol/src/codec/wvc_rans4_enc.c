@@ -35,7 +35,10 @@
 #define C4E_EV_ROW (C4E_EV_SIGN + 2 * R4_NSGW)
 #define C4E_NEV (C4E_EV_ROW + 2 * R4_NR)
 #define C4E_AHEAD 4 /* rows fetched ahead */
-#define C4E_HEADMAX (4 * R4_NX + R4_NC * (1 + 2 * R4_NS) + 2 * (R4_NG + R4_NSGW + R4_NR) + 32)
+#define C4E_NBIN (R4_NG + R4_NSGW + R4_NR) /* binary contexts: group flags, signs, row flags (event order) */
+/* the header's bound: per magnitude table its count and precision in 2 bytes and each frequency
+ * in 3 (LEB128 needs 2, a packed one at most 21 bits); a binary entry in 2 */
+#define C4E_HEADMAX (4 * R4_NX + R4_NC * (2 + 3 * R4_NS) + 2 * C4E_NBIN + 32)
 
 /* A row's contexts and symbols from the forward pass: per coefficient EV (its magnitude
  * event), SG (its sign context) and SE (its sign event, C4E_NEV for a zero: counted only); per
@@ -64,6 +67,9 @@ typedef struct c4e_scratch {
     uint8_t cmp[256][16];             /* the compressing shuffles of the words (by renormalisation mask) */
     uint8_t cidx[256][8];             /* the lanes of a mask's set bits, in order (then zeros) */
     uint8_t head[C4E_HEADMAX];
+    double lg[R4_M + 1];                /* log2 k, for the packed tables' costs */
+    uint8_t tp[R4_NC];                  /* packed: each magnitude table's precision (0: unused) */
+    uint8_t bk[C4E_NBIN], bp[C4E_NBIN]; /* packed: each binary entry's kind and precision */
 } c4e_scratch;
 
 void wvol__wvc_rans4_scratch_free(void *p)
@@ -103,6 +109,7 @@ static c4e_scratch *c4e_scratch_get(void **slot, size_t ex, size_t rows, size_t 
     if (!s) {
         s = calloc(1, sizeof *s);
         if (!s) return NULL;
+        for (uint32_t k = 1; k <= R4_M; k++) s->lg[k] = log2((double)k);
         for (int mk = 0; mk < 256; mk++) { /* the words of the lanes in mk at the top of 8, in lane order */
             int j = 8 - __builtin_popcount((unsigned)mk), k = 0;
             for (int i = 0; i < 8; i++)
@@ -434,24 +441,35 @@ static void c4e_vec_entry(const wvc_rans_esym *e, uint32_t *pk, uint32_t *mg)
     *pk = f | e->start << 11 | sh2 << 22 | sh1 << 26;
 }
 
-/* The tables into s->head (after the final states' room) and the encoder's entries; returns
- * the header's length. Also the estimated bytes of the modelled and the raw signs. */
+/* The four copies of the counts summed into the first (returned); the chunk's raw magnitude
+ * bits and non-zeros from them. */
+static uint32_t *c4e_counts(c4e_job *J)
+{
+    c4e_scratch *s = J->s;
+    uint32_t *cnt = s->cnt[0];
+    for (int e = 0; e < C4E_NEV; e++) cnt[e] += s->cnt[1][e] + s->cnt[2][e] + s->cnt[3][e];
+    for (int c = 0; c < R4_NC; c++)
+        for (int k = 0; k < R4_NS; k++) {
+            J->sumk += (uint64_t)cnt[64 * c + k] * (uint64_t)wvc_rans_nraw(k);
+            J->nnz += k ? cnt[64 * c + k] : 0;
+        }
+    return cnt;
+}
+
+/* The LEB128 tables (flags bit 1 clear) into s->head (after the final states' room) and the
+ * encoder's entries; returns the header's length. Also the estimated bytes of the modelled and
+ * the raw signs. */
 static size_t c4e_tables(c4e_job *J, int signs, double *est_mod, double *est_raw)
 {
     c4e_scratch *s = J->s;
-    uint32_t *cnt = s->cnt[0], F[R4_NS];
+    uint32_t *cnt = c4e_counts(J), F[R4_NS];
     size_t head = 4 * R4_NX, head_signs;
     double bits = 0, sbits = 0;
-    for (int e = 0; e < C4E_NEV; e++) cnt[e] += s->cnt[1][e] + s->cnt[2][e] + s->cnt[3][e];
     for (int c = 0; c < R4_NC; c++) {
         uint32_t any = 0, cum = 0;
         int ns = 0;
         const uint32_t *h = cnt + 64 * c;
-        for (int k = 0; k < R4_NS; k++) {
-            any |= h[k];
-            J->sumk += (uint64_t)h[k] * (uint64_t)wvc_rans_nraw(k);
-            J->nnz += k ? h[k] : 0;
-        }
+        for (int k = 0; k < R4_NS; k++) any |= h[k];
         if (any) wvol__wvc_rans_normalise(h, R4_NS, F, R4_M);
         for (int k = 0; k < R4_NS; k++) {
             if (!any) F[k] = 0;
@@ -483,6 +501,141 @@ static size_t c4e_tables(c4e_job *J, int signs, double *est_mod, double *est_raw
     *est_raw = (double)(head - head_signs) + bits / 8 + (double)((J->sumk + J->nnz + 7) / 8);
     *est_mod = (double)head + (bits + sbits) / 8 + (double)((J->sumk + 7) / 8);
     return head;
+}
+
+/* Packed tables (wvc_rans4.h): Elias-gamma lengths, and the bit writer (most significant bit
+ * first, into a zeroed buffer). */
+static uint32_t c4e_eg_len(uint32_t v) { return 2 * (31 - (uint32_t)__builtin_clz(v)) + 1; }
+
+typedef struct c4e_bitw {
+    uint8_t *p;
+    size_t n; /* bits written */
+} c4e_bitw;
+
+static void c4e_bits_put(c4e_bitw *w, uint32_t v, uint32_t len)
+{
+    for (uint32_t i = len; i-- > 0; w->n++)
+        if (v >> i & 1) w->p[w->n >> 3] |= (uint8_t)(0x80u >> (w->n & 7));
+}
+
+static void c4e_eg_put(c4e_bitw *w, uint32_t v)
+{
+    const uint32_t n = 31 - (uint32_t)__builtin_clz(v);
+    c4e_bits_put(w, 0, n);
+    c4e_bits_put(w, v, n + 1);
+}
+
+/* A magnitude context's frequencies F (of 2^10) at the precision P that minimises its packed
+ * table's bits plus its events' ideal code length under it (a table costs about as much as the
+ * events it describes in a sparse chunk, where few events fall in most contexts). P from 10
+ * down, stopping where the total grows. Returns P (0: no event); *tab and *code the two parts. */
+static int c4e_mag_choose(const c4e_scratch *s, const uint32_t *h, uint32_t F[R4_NS], double *tab, double *code)
+{
+    uint32_t T[R4_NS];
+    int ns = 0, used = 0, best = 0;
+    double least = 0;
+    for (int k = 0; k < R4_NS; k++)
+        if (h[k]) ns = k + 1, used++;
+    memset(F, 0, R4_NS * sizeof *F);
+    *tab = c4e_eg_len(1), *code = 0;
+    for (int P = R4_PBITS; ns && P >= R4_PMIN && used <= 1 << P; P--) {
+        double t = c4e_eg_len((uint32_t)ns + 1) + R4_PFIELD, c = 0;
+        wvol__wvc_rans_normalise(h, ns, T, 1u << P);
+        for (int k = 0; k < ns; k++) {
+            if (k + 1 < ns) t += c4e_eg_len(T[k] + 1);
+            if (h[k]) c += (double)h[k] * (P - s->lg[T[k]]);
+        }
+        if (best && t + c >= least) break;
+        best = P, least = t + c, *tab = t, *code = c;
+        for (int k = 0; k < ns; k++) F[k] = T[k] << (R4_PBITS - P);
+    }
+    return best;
+}
+
+/* A binary context's packed kind from its counts (n0 of the first symbol, n1 of the second):
+ * the least entry plus code length; *P its precision (explicit kind), *f0 the first symbol's
+ * frequency of 2^10. */
+static int c4e_bin_choose(const c4e_scratch *s, uint32_t n0, uint32_t n1, int *P, uint32_t *f0, double *tab,
+                          double *code)
+{
+    int kind = R4_BIN_HALF;
+    double least;
+    *P = 0, *tab = R4_BKIND, *code = 0;
+    if (!n1) {
+        *f0 = R4_M;
+        return R4_BIN_ZEROS;
+    }
+    if (!n0) {
+        *f0 = 0;
+        return R4_BIN_ONES;
+    }
+    *f0 = R4_M / 2, *code = (double)n0 + (double)n1;
+    least = *tab + *code;
+    for (int p = R4_PBITS; p >= R4_BPMIN; p--) {
+        const uint32_t m = 1u << p, f = wvol__wvc_rans_binary_f(n0, n1, m);
+        const double t = R4_BKIND + R4_BPFIELD + p, c = n0 * (p - s->lg[f]) + n1 * (p - s->lg[m - f]);
+        if (t + c < least) least = t + c, kind = R4_BIN_EXPLICIT, *P = p, *f0 = f << (R4_PBITS - p), *tab = t, *code = c;
+    }
+    return kind;
+}
+
+/* The packed tables' choices and the encoder's entries from the counts (signs: their contexts
+ * were counted); the estimated bytes of the modelled and the raw signs, as c4e_tables'. */
+static void c4e_tables_packed(c4e_job *J, int signs, double *est_mod, double *est_raw)
+{
+    c4e_scratch *s = J->s;
+    const uint32_t *cnt = c4e_counts(J);
+    uint32_t F[R4_NS];
+    double bits = 8.0 * R4_HEAD, sbits = 0, t, c;
+    for (int x = 0; x < R4_NC; x++) {
+        uint32_t cum = 0;
+        s->tp[x] = (uint8_t)c4e_mag_choose(s, cnt + 64 * x, F, &t, &c);
+        bits += t + c;
+        for (int k = 0; k < R4_NS; k++) s->es[64 * x + k] = wvc_rans_esym_make(F[k], cum), cum += F[k];
+    }
+    for (int j = 0; j < C4E_NBIN; j++) {
+        const int e = C4E_EV_FLAG + 2 * j, sign = e >= C4E_EV_SIGN && e < C4E_EV_ROW;
+        int P = 0;
+        uint32_t f0 = R4_M;
+        s->bk[j] = sign && !signs ? R4_BIN_ZEROS
+                                  : (uint8_t)c4e_bin_choose(s, cnt[e], cnt[e + 1], &P, &f0, &t, &c);
+        s->bp[j] = (uint8_t)P;
+        s->es[e] = wvc_rans_esym_make(f0, 0);
+        s->es[e + 1] = wvc_rans_esym_make(R4_M - f0, f0);
+        if (sign && signs) sbits += t + c;
+        else if (!sign) bits += t + c;
+    }
+    *est_raw = bits / 8 + (double)((J->sumk + J->nnz + 7) / 8);
+    *est_mod = (bits + sbits) / 8 + (double)((J->sumk + 7) / 8);
+}
+
+/* The packed tables into s->head after the final states' room (the sign entries when the signs
+ * are modelled); returns the header's length. */
+static size_t c4e_write_packed(const c4e_job *J)
+{
+    c4e_scratch *s = J->s;
+    c4e_bitw w = {s->head + R4_HEAD, 0};
+    memset(w.p, 0, sizeof s->head - R4_HEAD);
+    for (int x = 0; x < R4_NC; x++) {
+        const wvc_rans_esym *es = s->es + 64 * x;
+        const uint32_t P = s->tp[x];
+        uint32_t ns = 0;
+        for (uint32_t k = 0; k < R4_NS; k++)
+            if (es[k].f) ns = k + 1;
+        c4e_eg_put(&w, ns + 1);
+        if (!ns) continue;
+        c4e_bits_put(&w, P - R4_PMIN, R4_PFIELD);
+        for (uint32_t k = 0; k + 1 < ns; k++) c4e_eg_put(&w, (es[k].f >> (R4_PBITS - P)) + 1);
+    }
+    for (int j = 0; j < C4E_NBIN; j++) {
+        const int e = C4E_EV_FLAG + 2 * j;
+        if (J->raw_signs && e >= C4E_EV_SIGN && e < C4E_EV_ROW) continue;
+        c4e_bits_put(&w, s->bk[j], R4_BKIND);
+        if (s->bk[j] != R4_BIN_EXPLICIT) continue;
+        c4e_bits_put(&w, s->bp[j], R4_BPFIELD);
+        c4e_bits_put(&w, s->es[e].f >> (R4_PBITS - s->bp[j]), s->bp[j]);
+    }
+    return R4_HEAD + (w.n + 7) / 8;
 }
 
 /* The per-chunk sign choice (the prototype's rule, on estimated bytes): raw signs unless the
@@ -709,9 +862,10 @@ R4_AVX2 static void c4e_pass2_avx2(c4e_job *J, uint32_t xs[R4_NX], uint16_t **wp
 #endif
 
 /* The stream with `lead` bytes reserved before it; raw_req: -1 the per-chunk choice, else the
- * signs raw (1) or modelled (0); scalar: the scalar passes whatever the CPU. */
+ * signs raw (1) or modelled (0); packed: the tables packed (else LEB128); scalar: the scalar
+ * passes whatever the CPU. */
 static int c4e_encode(uint8_t **buf, size_t *size, size_t lead, int n, int32_t *const Q[], const size_t *const p[],
-                      const wvc_band *const b[], int raw_req, int scalar, void **slot, int *raw_out)
+                      const wvc_band *const b[], int raw_req, int packed, int scalar, void **slot, int *raw_out)
 {
     c4e_job J;
     size_t total = 0, rows = 0, head, nw, nraw, pos;
@@ -745,11 +899,17 @@ static int c4e_encode(uint8_t **buf, size_t *size, size_t lead, int n, int32_t *
     memset(J.s->cnt, 0, sizeof J.s->cnt);
     /* sign contexts are counted unless the signs are raw by request */
     c4e_pass1(&J, raw_req != 1);
-    head = c4e_tables(&J, raw_req != 1, &est_mod, &est_raw);
-    J.raw_signs = raw_req < 0 ? c4e_keep_raw_signs(est_mod, est_raw) : raw_req;
-    if (J.raw_signs && J.sglen) { /* the sign table was written for the estimate: drop it */
-        memmove(J.s->head + J.sgoff, J.s->head + J.sgoff + J.sglen, head - J.sgoff - J.sglen);
-        head -= J.sglen;
+    if (packed) {
+        c4e_tables_packed(&J, raw_req != 1, &est_mod, &est_raw);
+        J.raw_signs = raw_req < 0 ? c4e_keep_raw_signs(est_mod, est_raw) : raw_req;
+        head = c4e_write_packed(&J);
+    } else {
+        head = c4e_tables(&J, raw_req != 1, &est_mod, &est_raw);
+        J.raw_signs = raw_req < 0 ? c4e_keep_raw_signs(est_mod, est_raw) : raw_req;
+        if (J.raw_signs && J.sglen) { /* the sign table was written for the estimate: drop it */
+            memmove(J.s->head + J.sgoff, J.s->head + J.sgoff + J.sglen, head - J.sgoff - J.sglen);
+            head -= J.sglen;
+        }
     }
     if (raw_out) *raw_out = J.raw_signs;
     for (int e = 0; e < C4E_NEV; e++) c4e_vec_entry(&J.s->es[e], &J.s->pk[e], &J.s->mg[e]);
@@ -793,9 +953,9 @@ int wvol__wvc_rans4_encode(uint8_t **buf, size_t *size, size_t lead, int n, int3
                            const size_t *const p[], const wvc_band *const b[], wvc_rans_scratch *s)
 {
     void *own = NULL;
-    int raw = 0, r = c4e_encode(buf, size, lead + 1, n, Q, p, b, -1, 0, c4e_slot(s, &own), &raw);
+    int raw = 0, r = c4e_encode(buf, size, lead + 1, n, Q, p, b, -1, 1, 0, c4e_slot(s, &own), &raw);
     wvol__wvc_rans4_scratch_free(own);
-    if (!r) (*buf)[lead] = raw ? 0 : R4_SIGNS_MODELLED;
+    if (!r) (*buf)[lead] = (uint8_t)((raw ? 0 : R4_SIGNS_MODELLED) | R4_TABLES_PACKED);
     return r;
 }
 
@@ -803,7 +963,7 @@ int wvol__wvc_rans4_encode_stream(uint8_t **buf, size_t *size, int n, int32_t *c
                                   const wvc_band *const b[], const wvc_rans4_opts *o)
 {
     void *own = NULL;
-    int r = c4e_encode(buf, size, 0, n, Q, p, b, o->raw_signs ? 1 : 0, o->scalar, &own, NULL);
+    int r = c4e_encode(buf, size, 0, n, Q, p, b, o->raw_signs ? 1 : 0, o->packed_tables, o->scalar, &own, NULL);
     wvol__wvc_rans4_scratch_free(own);
     return r;
 }
