@@ -68,12 +68,12 @@ def main():
                     d = {k: tmp / f"{k}.raw" for k in ("base", "new")}
                     for k, b in (("base", base), ("new", new)):
                         run_cpu([b, "compress", src, "-o", f[k], "--psnr", str(db), "--threads", "1"] + copts)
-                        run_cpu([b, "decompress", f[k], "-o", d[k], "--threads", "1"])
+                        run_cpu([b, "decompress", f[k], "-o", d[k]])
                     same = filecmp.cmp(d["base"], d["new"], shallow=False)
                     dec = {"base": 1e9, "new": 1e9}
                     for r in range(a.rounds):
                         for k, b in ((("base", base), ("new", new)) if r % 2 == 0 else (("new", new), ("base", base))):
-                            dec[k] = min(dec[k], run_cpu([b, "decompress", f[k], "-o", d[k], "--threads", "1"]))
+                            dec[k] = min(dec[k], run_cpu([b, "decompress", f[k], "-o", d[k]]))
                     row = {"volume": vol, "config": cname, "psnr": db, "bytes_base": f["base"].stat().st_size,
                            "bytes_new": f["new"].stat().st_size, "decoded_identical": same,
                            "decompress_cpu_s_base": dec["base"], "decompress_cpu_s_new": dec["new"]}
