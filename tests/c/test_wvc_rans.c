@@ -528,6 +528,104 @@ static void rans4_packed_tables_are_smaller(void)
     bands_free(&B);
 }
 
+/* Crafted packed tables (wvc_rans4.h's layout), to see each check refuse its own defect. The
+ * payload: flags (packed, raw signs), 24 states at 2^16, the tables (table 0: symbols 0 and 1 at
+ * P = 3, F_0 = 5; group-flag entry 0 given at P = 4, f0 = 3; the rest unused, p = 1/2 or zeros
+ * only), zero word and raw-byte counts. With every row flag "zeros only" (an identity step) the
+ * valid payload decodes, to zeros; each defect must be refused as a malformed table. */
+enum { PT_VALID, PT_NS, PT_SUM, PT_EG, PT_P_LOW, PT_P_HIGH, PT_F0, PT_CASES };
+typedef struct crafted_bits {
+    uint8_t b[512];
+    size_t n;
+} crafted_bits;
+
+static void cb_put(crafted_bits *w, uint32_t v, int len)
+{
+    for (int i = len; i-- > 0; w->n++)
+        if (v >> i & 1) w->b[w->n >> 3] |= (uint8_t)(0x80u >> (w->n & 7));
+}
+
+static void cb_eg(crafted_bits *w, uint32_t v)
+{
+    const int n = 31 - __builtin_clz(v);
+    cb_put(w, 0, n);
+    cb_put(w, v, n + 1);
+}
+
+static size_t crafted_packed(uint8_t *out, int defect)
+{
+    crafted_bits w;
+    size_t len = 0;
+    memset(&w, 0, sizeof w);
+    for (int c = 0; c < 52; c++) { /* magnitude tables */
+        if (c) {
+            cb_eg(&w, 1);
+            continue;
+        }
+        if (defect == PT_EG) cb_put(&w, 0, 11); /* 11 leading zeros: a value of 2^11 or more */
+        cb_eg(&w, defect == PT_NS ? 64 : 3);    /* ns + 1: ns = 63 is one symbol too many */
+        cb_put(&w, 0, 3);                       /* P - 3 */
+        cb_eg(&w, (defect == PT_SUM ? 8 : 5) + 1); /* F_0 = 8 leaves the last 0 */
+    }
+    for (int c = 0; c < 32; c++) { /* group-flag entries */
+        if (c) {
+            cb_put(&w, 2, 2);
+            continue;
+        }
+        cb_put(&w, 3, 2);
+        cb_put(&w, defect == PT_P_LOW ? 1 : defect == PT_P_HIGH ? 11 : 4, 4); /* R4_BPMIN .. 10 */
+        cb_put(&w, defect == PT_F0 ? 0 : 3, 4);                                /* f0 in 1 .. 2^P - 1 */
+    }
+    for (int c = 0; c < 12; c++) cb_put(&w, 0, 2); /* row-flag entries: zeros only */
+    out[len++] = 2;                                /* flags: tables packed, signs raw */
+    for (int l = 0; l < 24; l++, len += 4) {
+        const uint32_t x = 1u << 16;
+        memcpy(out + len, &x, 4);
+    }
+    memcpy(out + len, w.b, (w.n + 7) / 8);
+    len += (w.n + 7) / 8;
+    out[len++] = 0; /* words */
+    out[len++] = 0; /* raw bytes */
+    return len;
+}
+
+static void rans4_packed_tables_refused(void)
+{
+    const size_t e[3] = {16, 4, 2};
+    bands B;
+    if (!bands_make(&B, 1, e, 0)) {
+        CHECK(0, "crafted packed tables: memory");
+        bands_free(&B);
+        return;
+    }
+    for (int defect = 0; defect < PT_CASES; defect++)
+        for (int engine = 0; engine <= 1; engine++) {
+            uint8_t buf[1024];
+            const size_t size = crafted_packed(buf, defect);
+            uint8_t *t = malloc(size); /* exact size: ASan sees a read past the end */
+            const size_t *P[1] = {B.p[0]};
+            const wvc_band *Bp[1] = {&B.b[0]};
+            int32_t *D[1] = {calloc(B.p[0][0] * e[1] * e[2], sizeof(int32_t))};
+            uint64_t nz = 1;
+            const char *why = NULL;
+            int r = -1;
+            if (t && D[0]) {
+                memcpy(t, buf, size);
+                r = wvol__wvc_rans4_decode(1, D, P, Bp, t, size, engine ? WVC_RANS4_SCALAR : WVC_RANS4_AUTO, &nz, &why);
+            }
+            if (defect == PT_VALID)
+                CHECK(r == 0 && nz == 0, "crafted packed tables (engine %d): the valid payload refused (%s)", engine,
+                      why ? why : "");
+            else
+                CHECK(r != 0 && why && !strcmp(why, "mode-4 table malformed"),
+                      "crafted packed tables, defect %d (engine %d): %s", defect, engine,
+                      r ? (why ? why : "no reason") : "accepted");
+            free(t);
+            free(D[0]);
+        }
+    bands_free(&B);
+}
+
 /* --coder compact: mode 3 for the dense chunks of a fine quantiser, none for a coarse one
  * (its chunks are sparse); --coder auto: mode 4 for the chunks with 4096 non-zeros; all
  * decode to what --coder cabac's file decodes to. The
@@ -750,6 +848,7 @@ int main(void)
         }
     g_packed = 0;
     rans4_packed_tables_are_smaller();
+    rans4_packed_tables_refused();
     CHECK(g_enc_compared > 0 && g_enc_differ == 0, "mode 4: %d of %d streams differ between the vector and scalar encoders",
           g_enc_differ, g_enc_compared);
     g_mode = 3;

@@ -616,9 +616,8 @@ static int r4_get_binary_packed(r4_bitr *r, uint32_t *f0)
         *f0 = fixed[kind];
         return 0;
     }
-    if (r4_bits_get(r, R4_BPFIELD, &P) || P < R4_BPMIN || P > R4_PBITS || r4_bits_get(r, P, &f) || !f ||
-        f >= 1u << P)
-        return -1;
+    if (r4_bits_get(r, R4_BPFIELD, &P) || P < R4_BPMIN || P > R4_PBITS || r4_bits_get(r, P, &f) || !f)
+        return -1; /* f0 in 1 .. 2^P - 1: P bits and not 0 */
     *f0 = f << (R4_PBITS - P);
     return 0;
 }
