@@ -622,29 +622,25 @@ static int r4_get_binary_packed(r4_bitr *r, uint32_t *f0)
     return 0;
 }
 
+/* One binary entry in the form the flags say: from the bit reader r (packed) or LEB128 at *pos. */
+static int r4_get_entry(int packed, r4_bitr *r, const uint8_t *buf, size_t size, size_t *pos, uint32_t *f0)
+{
+    return packed ? r4_get_binary_packed(r, f0) : r4_get_binary(buf, size, pos, f0);
+}
+
 /* Every table and binary entry, packed or LEB128 as the flags say; *pos past them. */
 static int r4_get_all_tables(r4_dec *D, uint32_t *flat, const uint8_t *buf, size_t size, size_t *pos, int packed,
                              int raw_signs)
 {
-    if (packed) {
-        r4_bitr r = {buf + *pos, 0, 8 * (size - *pos)};
-        if (r4_get_tables_packed(&r, flat)) return -1;
-        for (int c = 0; c < R4_NG; c++)
-            if (r4_get_binary_packed(&r, &D->GF[c])) return -1;
-        for (int c = 0; c < R4_NSGW; c++)
-            if (!raw_signs && r4_get_binary_packed(&r, &D->SF[c])) return -1;
-        for (int c = 0; c < R4_NR; c++)
-            if (r4_get_binary_packed(&r, &D->RF[c])) return -1;
-        *pos += (r.n + 7) / 8;
-        return 0;
-    }
-    if (r4_get_tables(buf, size, pos, flat)) return -1;
+    r4_bitr r = {buf + *pos, 0, 8 * (size - *pos)};
+    if (packed ? r4_get_tables_packed(&r, flat) : r4_get_tables(buf, size, pos, flat)) return -1;
     for (int c = 0; c < R4_NG; c++)
-        if (r4_get_binary(buf, size, pos, &D->GF[c])) return -1;
+        if (r4_get_entry(packed, &r, buf, size, pos, &D->GF[c])) return -1;
     for (int c = 0; c < R4_NSGW; c++)
-        if (!raw_signs && r4_get_binary(buf, size, pos, &D->SF[c])) return -1;
+        if (!raw_signs && r4_get_entry(packed, &r, buf, size, pos, &D->SF[c])) return -1;
     for (int c = 0; c < R4_NR; c++)
-        if (r4_get_binary(buf, size, pos, &D->RF[c])) return -1;
+        if (r4_get_entry(packed, &r, buf, size, pos, &D->RF[c])) return -1;
+    if (packed) *pos += (r.n + 7) / 8;
     return 0;
 }
 
