@@ -134,12 +134,13 @@ enum { MODE_BANDS = 0, MODE_SHARED = 1, MODE_BLOCKS = 2, MODE_RANS = 3, MODE_RAN
 void wvol__wvc2_job_pool_free(wvc2_job_pool *pool)
 {
     if (!pool) return;
-    for (int i = 0; i < pool->n; i++) free(pool->block[i]);
+    for (int i = 0; i < pool->n; i++) wvol__reuse_put(pool->block[i]);
     pool->n = 0;
 }
 
-/* A block of at least need values from pool (the smallest that fits), or a new one of
- * whole huge pages; *cap its size. */
+/* A block of at least need values from pool (the smallest that fits), or one from the
+ * library's reuse pool (core/alloc.h: pages another pass touched before, else whole huge
+ * pages); *cap its size. */
 static int32_t *pool_take(wvc2_job_pool *pool, size_t need, size_t *cap)
 {
     int32_t *b = NULL;
@@ -162,8 +163,8 @@ static int32_t *pool_take(wvc2_job_pool *pool, size_t need, size_t *cap)
     }
     if (need > SIZE_MAX / sizeof *b) return NULL;
     bytes = need * sizeof *b;
-    b = wvol__malloc_pages(&bytes);
-    *cap = bytes / sizeof *b;
+    b = wvol__reuse_get(bytes);
+    *cap = wvol__pages_bytes(bytes) / sizeof *b;
     return b;
 }
 
@@ -195,7 +196,7 @@ void wvol__wvc2_job_free(wvc2_job *job, wvc2_job_pool *pool)
             }
         }
     }
-    if (!kept) free(job->block);
+    if (!kept) wvol__reuse_put(job->block);
     job->block = NULL;
     job->cap = 0;
     memset(job->lg, 0, sizeof job->lg);

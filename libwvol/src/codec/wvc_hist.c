@@ -119,7 +119,7 @@ wvc_hist_est *wvol__wvc_hist_prepare(const uint64_t *H, const wvc_layout *L)
     wvc_hist_est *hl = malloc(sizeof *hl);
     if (!hl) return NULL;
     for (k = 0; k < (size_t)L->nsec * WVC_HBINS; k++) n += H[k] != 0;
-    hl->bins = wvol__malloc_large((n ? n : 1) * sizeof *hl->bins);
+    hl->bins = wvol__reuse_get((n ? n : 1) * sizeof *hl->bins);
     if (!hl->bins) {
         free(hl);
         return NULL;
@@ -142,7 +142,7 @@ wvc_hist_est *wvol__wvc_hist_prepare(const uint64_t *H, const wvc_layout *L)
 
 void wvol__wvc_hist_free(wvc_hist_est *hl)
 {
-    if (hl) free(hl->bins);
+    if (hl) wvol__reuse_put(hl->bins);
     free(hl);
 }
 

@@ -19,6 +19,7 @@
  * Scratch (rows, tables, the word and raw-bit buffers) is the caller's per thread
  * (wvc_rans_scratch) and grown, not allocated per chunk. The scalar path (other CPUs, extents
  * that are not a multiple of 16, or asked for) gives the same bytes. */
+#include "core/alloc.h"
 #include "rans_common.h"
 #include "wvc2_internal.h"
 #include "wvc_rans4.h"
@@ -78,25 +79,29 @@ void wvol__wvc_rans4_scratch_free(void *p)
     if (!s) return;
     free(s->rowmem);
     free(s->zrow);
-    free(s->rnz);
-    free(s->rctx);
-    free(s->evb);
-    free(s->gmb);
-    free(s->sgb);
-    free(s->gxb);
-    free(s->wbuf);
-    free(s->rbuf);
+    /* the buffers c4e_grow made, back to the reuse pool */
+    wvol__reuse_put(s->rnz);
+    wvol__reuse_put(s->rctx);
+    wvol__reuse_put(s->evb);
+    wvol__reuse_put(s->gmb);
+    wvol__reuse_put(s->sgb);
+    wvol__reuse_put(s->gxb);
+    wvol__reuse_put(s->wbuf);
+    wvol__reuse_put(s->rbuf);
     free(s);
 }
 
-/* Grows a buffer to n elements of size sz (contents not kept). */
+/* Grows a buffer to n elements of size sz (contents not kept), from the reuse pool
+ * (core/alloc.h): a dense chunk's buffers are megabytes, which fresh memory in 4 KiB pages
+ * faulted in one at a time; the pool has pages an earlier pass touched, else whole huge
+ * pages. */
 static int c4e_grow(void **p, size_t cap, size_t n, size_t sz)
 {
     void *q;
     if (n <= cap) return 0;
-    q = malloc(n * sz);
+    q = wvol__reuse_get(n * sz);
     if (!q) return -1;
-    free(*p);
+    wvol__reuse_put(*p);
     *p = q;
     return 0;
 }

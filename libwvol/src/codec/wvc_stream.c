@@ -86,7 +86,7 @@ wvol_status wvol__wvc_stream_stats_create(wvc_stream_stats **out, size_t px, siz
         s->sets = omp_get_max_threads() < SETS_MAX ? omp_get_max_threads() : SETS_MAX;
         if (s->sets < 1) s->sets = 1;
         bytes = (size_t)s->sets * s->L.nsec * WVC_HBINS * sizeof *s->H;
-        s->H = wvol__malloc_large(bytes);
+        s->H = wvol__reuse_get(bytes);
         if (s->H) memset(s->H, 0, bytes);
     }
     if (!s->H) {
@@ -100,7 +100,7 @@ wvol_status wvol__wvc_stream_stats_create(wvc_stream_stats **out, size_t px, siz
 void wvol__wvc_stream_stats_free(wvc_stream_stats *s)
 {
     if (!s) return;
-    free(s->H);
+    wvol__reuse_put(s->H);
     free(s);
 }
 

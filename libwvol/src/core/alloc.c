@@ -7,6 +7,7 @@
 #include <pthread.h>
 #include <stdint.h>
 #include <stdlib.h>
+#include <string.h>
 #include <sys/mman.h>
 
 enum { HUGE_PAGE = 2u << 20, LARGE = 8u << 20, PAGED = 1u << 20 };
@@ -27,8 +28,24 @@ static void advise_huge(void *p, size_t bytes)
 
 void *wvol__calloc_large(size_t n, size_t size)
 {
-    void *p = calloc(n, size);
-    if (p) advise_huge(p, n * size); /* calloc refused an overflowing n * size */
+    size_t bytes;
+    void *p;
+    if (size && n > SIZE_MAX / size) return NULL;
+    bytes = n * size;
+    if (bytes < PAGED) return calloc(n, size);
+    /* Whole huge pages, as wvol__malloc_pages: calloc's block starts a little past a page,
+     * and the 4 KiB pages before its first and after its last 2 MiB boundary (up to 4 MiB)
+     * were faulted one by one, at a cost per page that on some virtual machines is many times
+     * the clearing of a huge page. The block may be heap memory used before: MADV_DONTNEED
+     * clears it without writing it (the block is whole pages of its own in a private
+     * anonymous mapping, whose dropped pages read as zero, fresh from the kernel when
+     * touched); memset where the advice is refused. */
+    p = wvol__malloc_pages(&bytes);
+    if (!p) return NULL;
+#ifdef MADV_DONTNEED
+    if (madvise(p, bytes, MADV_DONTNEED) != 0)
+#endif
+        memset(p, 0, bytes);
     return p;
 }
 

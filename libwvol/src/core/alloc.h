@@ -13,7 +13,7 @@
 #include <stddef.h>
 #include <stdlib.h>
 
-/* calloc(n, size), with huge pages asked for when the buffer is large. */
+/* calloc(n, size); from 1 MiB on, whole huge pages as wvol__malloc_pages gives them. */
 void *wvol__calloc_large(size_t n, size_t size);
 /* malloc(bytes), likewise (for buffers the caller fills whole): from 1 MiB on, as
  * wvol__malloc_pages (whole huge pages, aligned). */

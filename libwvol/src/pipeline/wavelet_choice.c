@@ -102,7 +102,7 @@ static wvol_status read_sample(sample *s, wvol_source *src, wvol_error *err)
     float *slab;
     int i;
     for (i = 0; i < s->nb; i++) {
-        s->b[i].data = wvol__malloc_large(cube * sizeof(float));
+        s->b[i].data = wvol__reuse_get(cube * sizeof(float));
         WVOL_RETURN_IF(!s->b[i].data, err, WVOL_ERR_NOMEM, "compress: wavelet trial: out of memory");
         cube_origin(s, i, o[i]);
         if (o[i][2] < zlo) zlo = o[i][2];
@@ -112,7 +112,7 @@ static wvol_status read_sample(sample *s, wvol_source *src, wvol_error *err)
     if (slab_max < 1) slab_max = 1;
     if (slab_max > s->e[2]) slab_max = s->e[2];
     /* in huge pages (core/alloc.h): in 4 KiB pages its reads were most of a trial's page faults */
-    slab = wvol__malloc_large(slab_max * nx * ny * sizeof(float));
+    slab = wvol__reuse_get(slab_max * nx * ny * sizeof(float));
     WVOL_RETURN_IF(!slab, err, WVOL_ERR_NOMEM, "compress: wavelet trial: out of memory");
     for (z = zlo; z < zhi;) {
         size_t nz = 0;
@@ -129,7 +129,7 @@ static wvol_status read_sample(sample *s, wvol_source *src, wvol_error *err)
         }
         wvol_status st = wvol_source_read(src, slab, z, nz, err);
         if (st != WVOL_OK) {
-            free(slab);
+            wvol__reuse_put(slab);
             return st;
         }
         for (size_t k = 0; k < nz; k++) {
@@ -150,7 +150,7 @@ static wvol_status read_sample(sample *s, wvol_source *src, wvol_error *err)
         }
         z += nz;
     }
-    free(slab);
+    wvol__reuse_put(slab);
     return WVOL_OK;
 }
 
@@ -314,7 +314,7 @@ static double rate_bits(const rate_bins *r)
 static void sample_free(sample *s)
 {
     for (int i = 0; i < s->nb; i++) {
-        free(s->b[i].data);
+        wvol__reuse_put(s->b[i].data);
     }
 }
 
@@ -467,7 +467,7 @@ wvol_status wvol_compress_choose_wavelet(wvol_wavelet_choice *out, wvol_source *
     WVOL_FORWARD(plan_sample(&s, dims, file_levels, taps, err));
     s.lo = INFINITY, s.hi = -INFINITY;
     if (s.whole) {
-        s.b[0].data = wvol__malloc_large(dims[0] * dims[1] * dims[2] * sizeof(float));
+        s.b[0].data = wvol__reuse_get(dims[0] * dims[1] * dims[2] * sizeof(float));
         if (!s.b[0].data) st = wvol_error_set(err, WVOL_ERR_NOMEM, "compress: wavelet trial: out of memory");
         if (st == WVOL_OK) st = wvol_source_read(src, s.b[0].data, 0, dims[2], err);
         for (size_t i = 0; st == WVOL_OK && i < dims[0] * dims[1] * dims[2]; i++) {

@@ -74,8 +74,8 @@ void wvol_dwt3_stream_destroy(wvol_dwt3_stream *s)
 {
     if (!s) return;
     for (int m = 0; m < 31; m++) {
-        free(s->lv[m].rows);
-        free(s->lv[m].out);
+        wvol__reuse_put(s->lv[m].rows);
+        wvol__reuse_put(s->lv[m].out);
     }
     free(s->scratch);
     free(s->last);
@@ -163,8 +163,8 @@ wvol_status wvol_dwt3_stream_create(wvol_dwt3_stream **out, const wvol_filter *f
         } else {
             l->head = L - 2, l->ring = L + s->batch, l->slots = l->head + l->ring;
         }
-        l->rows = wvol__malloc_large(l->slots * l->plane * sizeof(float));
-        l->out = wvol__malloc_large(2 * s->group * l->plane * sizeof(float));
+        l->rows = wvol__reuse_get(l->slots * l->plane * sizeof(float));
+        l->out = wvol__reuse_get(2 * s->group * l->plane * sizeof(float));
         if (!l->rows || !l->out) goto nomem;
         s->bytes += (l->slots + 2 * s->group) * l->plane * sizeof(float);
     }
@@ -398,7 +398,7 @@ wvol_status wvol_dwt3_source_hooked(wvol_source *src, const wvol_filter *f, int 
     S = ((size_t)4 << 20) / (slice * sizeof(float));
     S = S < s->batch ? s->batch : S > dims[2] ? dims[2] : S;
     if (S > dims[2]) S = dims[2];
-    buf = wvol__malloc_large(S * slice * sizeof(float));
+    buf = wvol__reuse_get(S * slice * sizeof(float));
     if (!buf) {
         wvol_dwt3_stream_destroy(s);
         return wvol_error_set(err, WVOL_ERR_NOMEM, "streamed transform: no memory for a slab of %zu slices", S);
@@ -410,7 +410,7 @@ wvol_status wvol_dwt3_source_hooked(wvol_source *src, const wvol_filter *f, int 
     }
     if (!st) st = wvol_dwt3_stream_finish(s, err);
     if (bytes) *bytes = wvol_dwt3_stream_bytes(s) + S * slice * sizeof(float);
-    free(buf);
+    wvol__reuse_put(buf);
     wvol_dwt3_stream_destroy(s);
     return st;
 }
