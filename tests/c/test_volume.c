@@ -10,6 +10,7 @@
 #include <omp.h>
 
 #include "check.h"
+#include "core/alloc.h"
 #include "wvol/io.h"
 
 static void test_create_and_overflow(void)
@@ -110,11 +111,44 @@ static void test_sample_types(void)
     CHECK(wvol_sample_type_parse("int16") == WVOL_SAMPLE_TYPE_I16 && wvol_sample_type_parse("bogus") < 0, "parse");
 }
 
+/* wvol__calloc_large gives zeros also where malloc hands back heap memory written before: its
+ * blocks from 1 MiB on are whole huge pages cleared by MADV_DONTNEED, not by calloc. A 32 MiB
+ * block freed first raises glibc's mmap threshold, so the later blocks come from the heap and
+ * a freed, written block is the likely next one. */
+static void test_calloc_large_zeroes(void)
+{
+    const size_t sizes[] = {4000, (size_t)1 << 20, ((size_t)3 << 20) + 12, ((size_t)9 << 20) + 4};
+    void *big = malloc((size_t)32 << 20);
+    int reused = 0;
+    free(big);
+    for (size_t k = 0; k < sizeof sizes / sizeof *sizes; k++) {
+        const size_t n = sizes[k];
+        size_t bytes = n, bad = 0;
+        unsigned char *p = wvol__malloc_pages(&bytes), *q;
+        CHECK(p != NULL, "malloc_pages %zu", n);
+        if (!p) continue;
+        memset(p, 0xA5, bytes);
+        free(p);
+        q = wvol__calloc_large(n / 4, 4);
+        CHECK(q != NULL, "calloc_large %zu", n);
+        if (!q) continue;
+        reused += q == p;
+        for (size_t i = 0; i < n / 4 * 4; i++) bad += q[i] != 0;
+        CHECK(bad == 0, "calloc_large of %zu bytes: %zu bytes not zero (the block %s a freed, written one)", n,
+              bad, q == p ? "is" : "is not");
+        memset(q, 0x5A, n / 4 * 4);
+        free(q);
+    }
+    printf("  calloc_large: %d of 4 blocks were a freed, written block\n", reused);
+    CHECK(wvol__calloc_large(SIZE_MAX / 2, 4) == NULL, "calloc_large refuses an overflowing size");
+}
+
 int main(void)
 {
     test_create_and_overflow();
     test_finite();
     test_raw_roundtrip();
     test_sample_types();
+    test_calloc_large_zeroes();
     return check_summary("test_volume");
 }
