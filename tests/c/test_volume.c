@@ -143,6 +143,45 @@ static void test_calloc_large_zeroes(void)
     CHECK(wvol__calloc_large(SIZE_MAX / 2, 4) == NULL, "calloc_large refuses an overflowing size");
 }
 
+/* The reuse pool's middle tier (core/alloc.h): a block of some hundred KiB given back serves the
+ * next request of at least half its size, not a smaller one, and the tier stays within its bound
+ * (16 blocks, 16 MiB). */
+static void test_reuse_mid_tier(void)
+{
+    const size_t KiB = 1024;
+    size_t nb, bytes, nb0, bytes0;
+    unsigned char *p, *q, *r;
+    wvol__reuse_held_mid(&nb0, &bytes0);
+    p = wvol__reuse_get(300 * KiB);
+    CHECK(p != NULL, "reuse_get(300 KiB)");
+    if (!p) return;
+    memset(p, 1, 300 * KiB);
+    wvol__reuse_put(p);
+    wvol__reuse_held_mid(&nb, &bytes);
+    CHECK(nb == nb0 + 1 && bytes >= bytes0 + 300 * KiB, "a 300 KiB block given back is kept: %zu -> %zu", nb0, nb);
+    r = wvol__reuse_get(100 * KiB); /* less than half of p's size: not p */
+    CHECK(r != NULL && r != p, "a 100 KiB request took a 300 KiB block");
+    q = wvol__reuse_get(200 * KiB); /* at least half: p again */
+    CHECK(q == p, "a 200 KiB request did not get the 300 KiB block given back");
+    if (q) memset(q, 2, 200 * KiB);
+    wvol__reuse_put(q);
+    if (r) memset(r, 3, 100 * KiB);
+    wvol__reuse_put(r);
+    for (int i = 0; i < 40; i++) { /* more than the bound: the oldest go */
+        unsigned char *b = malloc(900 * KiB);
+        CHECK(b != NULL, "malloc");
+        if (!b) break;
+        b[0] = b[900 * KiB - 1] = 4;
+        wvol__reuse_put(b);
+        wvol__reuse_held_mid(&nb, &bytes);
+        CHECK(nb <= 16 && bytes <= ((size_t)16 << 20), "the tier holds %zu blocks, %zu bytes", nb, bytes);
+    }
+    wvol__reuse_held_mid(&nb0, &bytes0);
+    wvol__reuse_put(malloc(1000)); /* small: freed */
+    wvol__reuse_held_mid(&nb, &bytes);
+    CHECK(nb == nb0 && bytes == bytes0, "a small block was kept: %zu -> %zu", nb0, nb);
+}
+
 int main(void)
 {
     test_create_and_overflow();
@@ -150,5 +189,6 @@ int main(void)
     test_raw_roundtrip();
     test_sample_types();
     test_calloc_large_zeroes();
+    test_reuse_mid_tier();
     return check_summary("test_volume");
 }

@@ -483,7 +483,7 @@ static void code_job(wvc2_writer *w, wvc2_job *job, box_job *bj, size_t id)
         if (!r) r = chunk_store(w, m, id, &cd);
         w->seconds_code += wvol__now() - t0;
     }
-    free(cd.payload);
+    wvol__reuse_put(cd.payload); /* the mode-4 payloads come from the pool's middle tier */
     if (r) {
 #pragma omp atomic write
         w->task_failed = r;
@@ -556,7 +556,7 @@ static wvol_status code_tile_row(wvc2_writer *w, int m, size_t k, wvol_error *er
         size_t tc[3] = {(size_t)t % G->nt[0], (size_t)t / G->nt[0], k};
         failed = chunk_store(w, m, wvc2_chunk_id(&w->g, m, tc), &coded[t]);
     }
-    for (t = 0; t < (long)ntile; t++) free(coded[t].payload);
+    for (t = 0; t < (long)ntile; t++) wvol__reuse_put(coded[t].payload);
     free(coded);
     w->seconds_code += wvol__now() - t0;
     WVOL_RETURN_IF(failed == 2, err, WVOL_ERR_IO, "wvc2 writer: cannot write the spill: %s", strerror(errno));

@@ -937,7 +937,9 @@ static int c4e_encode(uint8_t **buf, size_t *size, size_t lead, int n, int32_t *
         J.s->rbuf[k] = (uint8_t)(bw.acc >> (8 * k));
     nw = (size_t)(wend - wp);
     for (int l = 0; l < R4_NX; l++) memcpy(J.s->head + 4 * l, &xs[l], 4); /* little-endian, as the codec */
-    out = malloc(lead + head + 20 + 2 * nw + nraw);
+    /* from the reuse pool's middle tier: a chunk's payload is a few hundred KiB, made and freed
+     * (by the writer, wvol__reuse_put) a few chunks at a time */
+    out = wvol__reuse_get(lead + head + 20 + 2 * nw + nraw);
     if (!out) return -1;
     memcpy(out + lead, J.s->head, head);
     pos = lead + head;

@@ -102,12 +102,72 @@ static size_t pool_total;
 static unsigned long pool_clock;
 static pthread_mutex_t pool_lock = PTHREAD_MUTEX_INITIALIZER;
 
+/* The middle tier: blocks from MID_MIN to a huge page, served to requests of at least half
+ * their size. malloc's heap grows and shrinks with them at its top: a writer's few chunk
+ * payloads of some hundred KiB each, made and freed in turn, were trimmed from the heap and
+ * faulted in again, 4 KiB at a time, every few chunks. Requests are rounded up to MID_MIN so that
+ * the next one, a little larger, finds the block given back. */
+enum { MID_SLOTS = 16, MID_MIN = 64u << 10 };
+#define MID_BYTES ((size_t)16 << 20)
+static struct {
+    void *p;
+    size_t size; /* usable bytes */
+    unsigned long age;
+} mid[MID_SLOTS];
+static size_t mid_total;
+
+static void *mid_get(size_t bytes)
+{
+    void *p = NULL;
+    int best = -1;
+    pthread_mutex_lock(&pool_lock);
+    for (int i = 0; i < MID_SLOTS; i++)
+        if (mid[i].p && mid[i].size >= bytes && mid[i].size / 2 <= bytes &&
+            (best < 0 || mid[i].size < mid[best].size))
+            best = i;
+    if (best >= 0) {
+        p = mid[best].p;
+        mid_total -= mid[best].size;
+        mid[best].p = NULL;
+    }
+    pthread_mutex_unlock(&pool_lock);
+    return p ? p : malloc((bytes + MID_MIN - 1) & ~(size_t)(MID_MIN - 1));
+}
+
+/* Keeps p (size usable bytes) in the middle tier, the oldest given back first when full. */
+static void mid_put(void *p, size_t size)
+{
+    void *drop[MID_SLOTS];
+    int n = 0;
+    pthread_mutex_lock(&pool_lock);
+    for (;;) {
+        int empty = -1, oldest = -1;
+        for (int i = 0; i < MID_SLOTS; i++) {
+            if (!mid[i].p) empty = empty < 0 ? i : empty;
+            else if (oldest < 0 || mid[i].age < mid[oldest].age) oldest = i;
+        }
+        if (empty >= 0 && mid_total + size <= MID_BYTES) {
+            mid[empty].p = p;
+            mid[empty].size = size;
+            mid[empty].age = ++pool_clock;
+            mid_total += size;
+            break;
+        }
+        drop[n++] = mid[oldest].p; /* size < MID_BYTES: the tier is not empty here */
+        mid_total -= mid[oldest].size;
+        mid[oldest].p = NULL;
+    }
+    pthread_mutex_unlock(&pool_lock);
+    for (int i = 0; i < n; i++) free(drop[i]);
+}
+
 void *wvol__reuse_get(size_t bytes)
 {
     void *p = NULL;
     size_t need = wvol__pages_bytes(bytes);
     int i, best = -1;
-    if (bytes < PAGED) return malloc(bytes ? bytes : 1); /* malloc's free lists reuse these */
+    if (bytes < MID_MIN) return malloc(bytes ? bytes : 1); /* malloc's free lists reuse these */
+    if (bytes < PAGED) return mid_get(bytes);
     pthread_mutex_lock(&pool_lock);
     for (i = 0; i < POOL_SLOTS; i++)
         if (pool[i].p && pool[i].cls >= need && pool[i].cls / 2 <= need &&
@@ -135,8 +195,13 @@ void wvol__reuse_put_used(void *p, size_t used)
     if (!p) return;
     bytes = malloc_usable_size(p); /* the block's true size, also after a realloc */
     cls = bytes & ~(size_t)(HUGE_PAGE - 1);
+    if (cls < HUGE_PAGE) {
+        if (bytes >= MID_MIN) mid_put(p, bytes);
+        else free(p);
+        return;
+    }
     if (used < bytes) bytes = used;
-    if (cls < HUGE_PAGE || bytes > POOL_BYTES) {
+    if (bytes > POOL_BYTES) {
         free(p);
         return;
     }
@@ -171,5 +236,15 @@ void wvol__reuse_held(size_t *buffers, size_t *bytes)
     for (i = 0; i < POOL_SLOTS; i++) n += pool[i].p != NULL;
     *buffers = n;
     *bytes = pool_total;
+    pthread_mutex_unlock(&pool_lock);
+}
+
+void wvol__reuse_held_mid(size_t *buffers, size_t *bytes)
+{
+    size_t n = 0;
+    pthread_mutex_lock(&pool_lock);
+    for (int i = 0; i < MID_SLOTS; i++) n += mid[i].p != NULL;
+    *buffers = n;
+    *bytes = mid_total;
     pthread_mutex_unlock(&pool_lock);
 }

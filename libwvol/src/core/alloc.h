@@ -43,7 +43,10 @@ size_t wvol__pages_bytes(size_t bytes);
  * used bytes held at most, the oldest given back first.
  * wvol__reuse_get: at least `bytes` bytes of unspecified contents (the caller fills them): a
  * kept buffer of at most twice that size (counted in whole huge pages), else
- * wvol__malloc_large's. NULL when out of memory.
+ * wvol__malloc_large's. NULL when out of memory. Blocks from 64 KiB to 1 MiB, which malloc's
+ * heap gives back to the system when freed at its top (a writer's chunk payloads, made and
+ * freed a few at a time), are kept in a tier of their own (wvol__reuse_held_mid); smaller
+ * ones are plain malloc.
  * wvol__reuse_put: gives p back (NULL is fine): kept when it is large enough to be worth it
  * and fits the bound, else freed. Any malloc'ed block may be given back, and a block from
  * wvol__reuse_get may be freed with free() instead. Both are thread-safe. */
@@ -52,8 +55,11 @@ void wvol__reuse_put(void *p);
 /* wvol__reuse_put for a block whose first `used` bytes alone were touched (a large
  * reservation filled in part): those count against the bound, not the whole block. */
 void wvol__reuse_put_used(void *p, size_t used);
-/* The pool's buffers and bytes held now (tests). */
+/* The pool's buffers and bytes held now (tests): its large buffers, and (_mid) the blocks
+ * from 64 KiB to 2 MiB it keeps beside them (16 blocks and 16 MiB at most), which serve
+ * requests from 64 KiB to 1 MiB of at least half their size. */
 void wvol__reuse_held(size_t *buffers, size_t *bytes);
+void wvol__reuse_held_mid(size_t *buffers, size_t *bytes);
 
 /* An array *p of *cap elements of elem bytes grown by doubling (from `first` elements when
  * empty) until it holds need; 1, or 0 when out of memory (*p and *cap then unchanged). */
