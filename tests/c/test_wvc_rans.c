@@ -528,6 +528,71 @@ static void rans4_packed_tables_are_smaller(void)
     bands_free(&B);
 }
 
+/* Mode 4's encoder on bands whose parent region lies in a block of its own (wvc_band's pq, psy,
+ * psz: a chunk coded where its rows lie, wvc2_chunk.c) and whose rows are further apart than
+ * the tile: the same bytes as from the local grids, the parent beside the tile, for both
+ * encoders and both table forms. Sizes with a parent region at least half the tile (the vector
+ * pass) and narrower (the scalar pass), and a short last group. */
+static void rans4_parent_in_own_block(void)
+{
+    const size_t exts[3][3] = {{64, 16, 8}, {32, 9, 5}, {48, 7, 6}};
+    for (int k = 0; k < 3; k++) {
+        const size_t *e = exts[k];
+        const size_t gap = 24, sy = e[0] + gap, sz = sy * (e[1] + 3);
+        uint64_t rng = 777 + (uint64_t)k;
+        bands B;
+        int32_t *Q2[7] = {0}, *P2[7] = {0};
+        size_t dims2[7][3];
+        wvc_band b2[7];
+        const size_t *Ps2[7];
+        const wvc_band *Bs2[7];
+        int32_t *Qs[7];
+        const size_t *Ps[7];
+        const wvc_band *Bs[7];
+        int ok = bands_make(&B, 7, e, 1);
+        for (int i = 0; i < 7 && ok; i++) {
+            const wvc_band *b = &B.b[i];
+            const size_t psy = b->pext[0] + 5, psz = psy * (b->pext[1] + 2);
+            Q2[i] = calloc(sz * e[2], sizeof(int32_t));
+            P2[i] = calloc(psz * b->pext[2], sizeof(int32_t));
+            ok = Q2[i] && P2[i];
+            for (size_t z = 0; ok && z < b->pext[2]; z++)
+                for (size_t y = 0; y < b->pext[1]; y++)
+                    for (size_t x = 0; x < b->pext[0]; x++)
+                        P2[i][x + psy * y + psz * z] = *at(&B, i, e[0] + x, y, z) =
+                            fixture_urand(&rng) < 0.4 ? draw(&rng, 6) : 0;
+            for (size_t z = 0; ok && z < e[2]; z++)
+                for (size_t y = 0; y < e[1]; y++)
+                    for (size_t x = 0; x < e[0]; x++)
+                        Q2[i][x + sy * y + sz * z] = *at(&B, i, x, y, z) = fixture_urand(&rng) < 0.3 ? draw(&rng, 5) : 0;
+            b2[i] = *b;
+            memset(b2[i].poff, 0, sizeof b2[i].poff); /* unused: the parent is at pq */
+            b2[i].pq = P2[i], b2[i].psy = psy, b2[i].psz = psz;
+            dims2[i][0] = sy, dims2[i][1] = sz / sy, dims2[i][2] = e[2];
+            Qs[i] = B.q[i], Ps[i] = B.p[i], Bs[i] = &B.b[i];
+            Ps2[i] = dims2[i], Bs2[i] = &b2[i];
+        }
+        CHECK(ok, "parent in its own block: memory");
+        for (int packed = 0; ok && packed <= 1; packed++)
+            for (int scalar = 0; scalar <= 1; scalar++) {
+                wvc_rans4_opts o = {0};
+                uint8_t *s1 = NULL, *s2 = NULL;
+                size_t n1 = 0, n2 = 0;
+                o.packed_tables = packed, o.scalar = scalar;
+                CHECK(!wvol__wvc_rans4_encode_stream(&s1, &n1, 7, Qs, Ps, Bs, &o) &&
+                          !wvol__wvc_rans4_encode_stream(&s2, &n2, 7, Q2, Ps2, Bs2, &o),
+                      "parent in its own block: encode");
+                CHECK(n1 > 0 && n1 == n2 && s1 && s2 && !memcmp(s1, s2, n1),
+                      "parent in its own block, %zux%zux%zu, packed %d, scalar %d: %zu bytes against %zu", e[0], e[1],
+                      e[2], packed, scalar, n2, n1);
+                free(s1);
+                free(s2);
+            }
+        for (int i = 0; i < 7; i++) free(Q2[i]), free(P2[i]);
+        bands_free(&B);
+    }
+}
+
 /* Crafted packed tables (wvc_rans4.h's layout), to see each check refuse its own defect. The
  * payload: flags (packed, raw signs), 24 states at 2^16, the tables (table 0: symbols 0 and 1 at
  * P = 3, F_0 = 5; group-flag entry 0 given at P = 4, f0 = 3; the rest unused, p = 1/2 or zeros
@@ -849,6 +914,7 @@ int main(void)
     g_packed = 0;
     rans4_packed_tables_are_smaller();
     rans4_packed_tables_refused();
+    rans4_parent_in_own_block();
     CHECK(g_enc_compared > 0 && g_enc_differ == 0, "mode 4: %d of %d streams differ between the vector and scalar encoders",
           g_enc_differ, g_enc_compared);
     g_mode = 3;

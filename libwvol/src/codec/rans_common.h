@@ -52,14 +52,16 @@ static inline void wvc_rans_row_sum(uint32_t *restrict A, const int32_t *N, cons
     for (x = 0; x + 1 < ex; x++) A[x] += wvc_rans_abs(N[x + 1]) + wvc_rans_abs(U[x + 1]);
 }
 
-/* The parent row of row (y, z) of band b (which has a parent) in Q (strides sy, sz): the
- * parents' rows clamped to the parent region, as at its edge. */
+/* The parent row of row (y, z) of band b (which has a parent) in Q (strides sy, sz), or in
+ * b->pq's block when the band has one: the parents' rows clamped to the parent region, as at
+ * its edge. */
 static inline const int32_t *wvc_rans_parent_row(const int32_t *Q, size_t sy, size_t sz, const wvc_band *b, size_t y,
                                                  size_t z)
 {
     size_t pj = y >> 1, pk = z >> 1;
     if (pj >= b->pext[1]) pj = b->pext[1] - 1;
     if (pk >= b->pext[2]) pk = b->pext[2] - 1;
+    if (b->pq) return b->pq + b->psy * pj + b->psz * pk;
     return Q + b->poff[0] + sy * (b->poff[1] + pj) + sz * (b->poff[2] + pk);
 }
 

@@ -252,34 +252,51 @@ int wvol__wvc2_job_make(wvc2_job *job, const wvc2_geom *g, int m, const size_t e
     return 0;
 }
 
-/* A chunk in mode 4: mode, band mask, the coder's payload. */
+/* The mode-4 stream of the present bands (Qs, Ps, Bs: ns of them) as a chunk's payload: mode,
+ * band mask, the coder's stream; out->nonzero set by the caller. */
+static int rans4_payload(wvc2_coded *out, const wvc2_level *L, uint8_t mask, const uint64_t *nzb, int ns,
+                         int32_t *const Qs[], const size_t *const Ps[], const wvc_band *const Bs[],
+                         wvc_rans_scratch *scratch)
+{
+    uint8_t *p = NULL;
+    size_t len = 0;
+    /* the mode and band-mask bytes go in the two bytes the encoder leaves before its stream */
+    if (wvol__wvc_rans4_encode(&p, &len, 2, ns, Qs, Ps, Bs, scratch)) {
+        memset(out, 0, sizeof *out);
+        return -1;
+    }
+    p[0] = MODE_RANS4;
+    p[1] = mask;
+    /* per-band shares of one stream are not separable: split by non-zero counts */
+    for (int i = 0; i < L->nb; i++)
+        out->band_bytes[i] = (size_t)((double)len * (double)nzb[i] / (double)out->nonzero);
+    out->payload = p;
+    out->bytes = len;
+    out->crc = (uint32_t)crc32(0L, p, (uInt)len);
+    return 0;
+}
+
+/* A chunk in mode 4 from its job's local grids. */
 static int job_code_rans4(wvc2_coded *out, wvc2_job *job, const wvc2_level *L, wvc_rans_scratch *scratch,
                           wvc2_job_pool *pool)
 {
     int32_t *Qs[8];
     const size_t *Ps[8];
     const wvc_band *Bs[8];
-    uint8_t *p = NULL;
-    size_t len = 0;
     int ns = 0, r;
     for (int i = 0; i < L->nb; i++)
         if (job->mask >> i & 1) Qs[ns] = job->lg[i].q, Ps[ns] = job->lg[i].p, Bs[ns] = &job->lg[i].b, ns++;
-    /* the mode and band-mask bytes go in the two bytes the encoder leaves before its stream */
-    r = wvol__wvc_rans4_encode(&p, &len, 2, ns, Qs, Ps, Bs, scratch);
+    r = rans4_payload(out, L, job->mask, job->nzb, ns, Qs, Ps, Bs, scratch);
     wvol__wvc2_job_free(job, pool);
-    if (r) {
-        memset(out, 0, sizeof *out);
-        return -1;
-    }
-    p[0] = MODE_RANS4;
-    p[1] = job->mask;
-    /* per-band shares of one stream are not separable: split by non-zero counts */
-    for (int i = 0; i < L->nb; i++)
-        out->band_bytes[i] = (size_t)((double)len * (double)job->nzb[i] / (double)out->nonzero);
-    out->payload = p;
-    out->bytes = len;
-    out->crc = (uint32_t)crc32(0L, p, (uInt)len);
-    return 0;
+    return r;
+}
+
+/* --coder auto's and --coder rans4's choice of mode 4 (docs/wvc-format.md, "Chunk mode 4: the
+ * choice"): a chunk of detail bands, with RANS4_MIN_NONZERO non-zeros under auto. */
+static int use_rans4(const wvc2_level *L, int nused, uint64_t nonzero, int coder)
+{
+    return nused && L->bands[0] != 0 &&
+           (coder == WVOL_WVC_CODER_RANS4 || (coder == WVOL_WVC_CODER_AUTO && nonzero >= RANS4_MIN_NONZERO));
 }
 
 int wvol__wvc2_job_code(wvc2_coded *out, wvc2_job *job, const wvc2_geom *g, int coder, int zstd_level,
@@ -305,9 +322,7 @@ int wvol__wvc2_job_code(wvc2_coded *out, wvc2_job *job, const wvc2_geom *g, int 
     out->nonzero = job->nonzero;
     /* --coder auto: mode 4 wherever it can code the chunk (detail bands only) and the chunk has
      * RANS4_MIN_NONZERO non-zeros, the decoder's speed first; other chunks as --coder compact */
-    if (nused && L->bands[0] != 0 &&
-        (coder == WVOL_WVC_CODER_RANS4 || (coder == WVOL_WVC_CODER_AUTO && out->nonzero >= RANS4_MIN_NONZERO)))
-        return job_code_rans4(out, job, L, scratch, pool);
+    if (use_rans4(L, nused, out->nonzero, coder)) return job_code_rans4(out, job, L, scratch, pool);
     if (coder == WVOL_WVC_CODER_COMPACT || coder == WVOL_WVC_CODER_RANS4) coder = WVOL_WVC_CODER_AUTO;
     {
         uint64_t count = (uint64_t)L->nb * ext[0] * ext[1] * ext[2];
@@ -420,11 +435,61 @@ int wvol__wvc2_job_code(wvc2_coded *out, wvc2_job *job, const wvc2_geom *g, int 
     return 0;
 }
 
+/* A chunk in mode 4 coded where its rows lie (int32 boxes whose plane stride is a whole number
+ * of rows), the parents through the bands' own pointers: the same stream as from a job's copy
+ * (the coder reads the same values, the parent rows clamped to the parent region alike), without
+ * the copy. 1 when the chunk is not such a chunk (the caller makes a job), else 0 or -1 as
+ * rans4_payload. */
+static int direct_rans4(wvc2_coded *out, const wvc2_geom *g, int m, const size_t ext[3], const wvc2_qbox child[8],
+                        const wvc2_qbox parent[8], const uint64_t *nonzero, int coder, wvc_rans_scratch *scratch)
+{
+    const wvc2_level *L = &g->lv[m];
+    wvc_band bands[8];
+    size_t dims[8][3], zero[3] = {0, 0, 0}, poff[3], pext[3];
+    int32_t *Qs[8];
+    const size_t *Ps[8];
+    const wvc_band *Bs[8];
+    uint64_t total = 0;
+    uint8_t mask = 0;
+    int ns = 0;
+    if (!nonzero) return 1;
+    for (int i = 0; i < L->nb; i++)
+        if (nonzero[i]) total += nonzero[i], mask |= (uint8_t)(1u << i), ns++;
+    if (!use_rans4(L, ns, total, coder)) return 1;
+    wvc2_parent_box(g, zero, ext, poff, pext);
+    ns = 0;
+    for (int i = 0; i < L->nb; i++) {
+        const wvc2_qbox *c = &child[i], *pa = &parent[i];
+        wvc_band *b = &bands[ns];
+        if (!(mask >> i & 1)) continue;
+        if (!c->q || c->sy < ext[0] || c->sz % c->sy || c->sz / c->sy < ext[1]) return 1;
+        memset(b, 0, sizeof *b);
+        b->level = m;
+        b->band = L->bands[i];
+        b->has_parent = m < g->levels && b->band != 0;
+        if (b->has_parent && !pa->q) return 1;
+        for (int a = 0; a < 3; a++) {
+            b->ext[a] = ext[a];
+            b->pext[a] = b->has_parent ? pext[a] : 0;
+        }
+        b->count = (uint64_t)ext[0] * ext[1] * ext[2];
+        if (b->has_parent) b->pq = pa->q, b->psy = pa->sy, b->psz = pa->sz;
+        dims[ns][0] = c->sy, dims[ns][1] = c->sz / c->sy, dims[ns][2] = ext[2];
+        Qs[ns] = c->q, Ps[ns] = dims[ns], Bs[ns] = b;
+        ns++;
+    }
+    memset(out, 0, sizeof *out);
+    out->nonzero = total;
+    return rans4_payload(out, L, mask, nonzero, ns, Qs, Ps, Bs, scratch);
+}
+
 int wvol__wvc2_chunk_encode(wvc2_coded *out, const wvc2_geom *g, int m, const size_t ext[3],
                             const wvc2_qbox child[8], const wvc2_qbox parent[8], const uint64_t *nonzero,
                             int coder, int zstd_level, wvc_rans_scratch *scratch, wvc2_job_pool *pool)
 {
     wvc2_job job;
+    int r = direct_rans4(out, g, m, ext, child, parent, nonzero, coder, scratch);
+    if (r <= 0) return r;
     if (wvol__wvc2_job_make(&job, g, m, ext, child, parent, nonzero, pool)) {
         memset(out, 0, sizeof *out);
         return -1;

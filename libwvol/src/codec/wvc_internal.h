@@ -19,6 +19,11 @@ typedef struct wvc_band {
     int has_parent;          /* level < levels and band != 0 */
     size_t poff[3], pext[3]; /* the parent band (level + 1, same band) */
     uint64_t count;
+    /* the parent region in a block of its own when pq is set (its origin, strides psy, psz): a
+     * chunk coded where its rows lie, the parent's rows in another level's block; else at poff
+     * on the band's own grid */
+    const int32_t *pq;
+    size_t psy, psz;
 } wvc_band;
 
 typedef struct wvc_layout {

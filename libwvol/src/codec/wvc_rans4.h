@@ -8,6 +8,7 @@
 #include <stddef.h>
 #include <stdint.h>
 
+#include "rans_common.h"
 #include "wvc_internal.h"
 
 #define R4_NA 13                /* magnitude context: bit length classes of the neighbour sum */
@@ -73,14 +74,11 @@ static inline uint32_t r4_row_ctx(const uint8_t *rnz, const int32_t *Q, const si
     if (y & 1) {
         pr = *plast;
     } else if (b->has_parent) {
-        size_t pj = y >> 1, pk = z >> 1;
-        const int32_t *r;
+        const int32_t *r = wvc_rans_parent_row(Q, p[0], p[0] * p[1], b, y, z);
+        const size_t prow = b->pq ? b->psy : p[0];
         int32_t o = 0;
-        if (pj >= b->pext[1]) pj = b->pext[1] - 1;
-        if (pk >= b->pext[2]) pk = b->pext[2] - 1;
-        r = Q + b->poff[0] + p[0] * (b->poff[1] + pj) + p[0] * p[1] * (b->poff[2] + pk);
-        if (pj + 2 < b->pext[1]) /* the parent rows are a level decoded long before: fetch ahead */
-            for (size_t x = 0; x < b->pext[0]; x += 16) __builtin_prefetch(r + 2 * p[0] + x);
+        if ((y >> 1) + 2 < b->pext[1]) /* the parent rows are a level decoded long before: fetch ahead */
+            for (size_t x = 0; x < b->pext[0]; x += 16) __builtin_prefetch(r + 2 * prow + x);
         for (size_t x = 0; x < b->pext[0]; x++) o |= r[x];
         pr = o != 0;
     }
