@@ -5,10 +5,41 @@
 #include "core/status_internal.h"
 #include "wvol/analysis.h"
 
+#include <dlfcn.h>
 #include <lapacke.h>
 #include <math.h>
+#include <pthread.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+
+/* LAPACKE is loaded on the first PCA, not linked (CMakeLists.txt says why): dsyev from its
+ * runtime library, by the names Debian and other distributions give it. */
+typedef lapack_int (*dsyev_fn)(int layout, char jobz, char uplo, lapack_int n, double *a, lapack_int lda, double *w);
+static pthread_once_t lapacke_once = PTHREAD_ONCE_INIT;
+static dsyev_fn lapacke_dsyev;
+static char lapacke_why[512];
+
+static void lapacke_load(void)
+{
+    static const char *const names[] = {"liblapacke.so.3", "liblapacke.so"};
+    lapacke_why[0] = '\0';
+    for (size_t i = 0; i < sizeof names / sizeof *names && !lapacke_dsyev; i++) {
+        void *h = dlopen(names[i], RTLD_NOW | RTLD_LOCAL);
+        const char *e;
+        if (!h) {
+            e = dlerror();
+            if (!lapacke_why[0]) snprintf(lapacke_why, sizeof lapacke_why, "%s", e ? e : names[i]);
+            continue;
+        }
+        *(void **)&lapacke_dsyev = dlsym(h, "LAPACKE_dsyev");
+        if (!lapacke_dsyev) {
+            e = dlerror();
+            snprintf(lapacke_why, sizeof lapacke_why, "%s has no LAPACKE_dsyev: %s", names[i], e ? e : "?");
+            dlclose(h);
+        }
+    }
+}
 
 wvol_status wvol_features_pca(wvol_features *f, double variance, double *eigenvalues, wvol_error *err)
 {
@@ -48,7 +79,13 @@ wvol_status wvol_features_pca(wvol_features *f, double variance, double *eigenva
         }
     }
     /* eigenvectors in the columns of cov (row-major: cov[i*F + j] = component j's weight i) */
-    if (LAPACKE_dsyev(LAPACK_ROW_MAJOR, 'V', 'U', F, cov, F, eval) != 0) {
+    pthread_once(&lapacke_once, lapacke_load);
+    if (!lapacke_dsyev) {
+        s = wvol_error_set(err, WVOL_ERR_UNSUPPORTED, "pca: LAPACKE (LAPACK's C interface) could not be loaded: %s",
+                           lapacke_why);
+        goto done;
+    }
+    if (lapacke_dsyev(LAPACK_ROW_MAJOR, 'V', 'U', F, cov, F, eval) != 0) {
         s = wvol_error_set(err, WVOL_ERR_INTERNAL, "pca: LAPACK dsyev did not converge");
         goto done;
     }
