@@ -10,6 +10,7 @@
 
 #include "store/store_internal.h"
 #include "codec/wvc_source.h"
+#include "core/alloc.h"
 
 #define DEFAULT_J 4
 
@@ -232,7 +233,7 @@ wvol_status wvol_store_build(wvol_store **out, const wvol_coeffs *c, const wvol_
     /* node presence per level: own kept coefficients, then propagated to ancestors */
     for (int m = 1; m <= M; m++) {
         pres[m].n = wvol__ext(&ly, 0, m) * wvol__ext(&ly, 1, m) * wvol__ext(&ly, 2, m);
-        pres[m].w = calloc((pres[m].n + 63) / 64, sizeof(uint64_t));
+        pres[m].w = wvol__calloc_large((pres[m].n + 63) / 64, sizeof(uint64_t));
         if (!pres[m].w) goto nomem;
         mark_level(&ly, kept, m, pres + m);
     }
@@ -251,9 +252,11 @@ wvol_status wvol_store_build(wvol_store **out, const wvol_coeffs *c, const wvol_
         st = wvol_error_set(err, WVOL_ERR_DIMS, "store: %zu nodes (at most 2^32 - 16)", total);
         goto fail;
     }
-    s->nodes = calloc(total ? total : 1, sizeof *s->nodes);
+    /* the store's arrays in huge pages (core/alloc.h): a 5% store of a 256^3 volume is some
+     * 20 MB of them, which in 4 KiB pages took thousands of page faults to fill */
+    s->nodes = wvol__calloc_large(total ? total : 1, sizeof *s->nodes);
     s->nvalues = sel->kept - nlow;
-    s->values = malloc((s->nvalues ? s->nvalues : 1) * sizeof *s->values);
+    s->values = wvol__malloc_large((s->nvalues ? s->nvalues : 1) * sizeof *s->values);
     if (!s->nodes || !s->values) goto nomem;
 
     /* nodes breadth first: roots in raster order, then each node's children together */
@@ -321,7 +324,7 @@ wvol_status wvol_store_build(wvol_store **out, const wvol_coeffs *c, const wvol_
     {
         size_t slots = 16;
         while (slots < 2 * s->nnodes) slots <<= 1;
-        s->hash = calloc(slots, sizeof *s->hash);
+        s->hash = wvol__calloc_large(slots, sizeof *s->hash);
         if (!s->hash) goto nomem;
         s->hash_mask = slots - 1;
         for (size_t ni = 0; ni < s->nnodes; ni++) {
