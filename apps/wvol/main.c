@@ -3,6 +3,9 @@
  * generates the table below from those file names. */
 #include <stdio.h>
 #include <string.h>
+#ifdef __GLIBC__
+#include <malloc.h>
+#endif
 
 #include "cli.h"
 #include "commands.h"
@@ -25,9 +28,26 @@ static void usage(FILE *out)
     fprintf(out, "\nwvol %s\n", wvol_version_string());
 }
 
+/* The program's allocator policy (the library leaves malloc's settings to the program that
+ * links it). Blocks from 1 MiB on always get mappings of their own: the library asks for huge
+ * pages on its large buffers, which a 2 MiB range of the heap that already has a page table
+ * cannot get, and glibc's threshold otherwise rises with every large block freed (a 4 MiB read
+ * buffer freed once sent every later scratch block below 4 MiB to the heap, and its absence
+ * sent them to fresh mappings, faulted in again at every extraction). The heap keeps what it
+ * has grown to up to 128 MiB instead of giving its top back between a writer's chunks.
+ * bench/results/speed_profile.md has the measurements. */
+static void allocator_policy(void)
+{
+#if defined(__GLIBC__) && defined(M_MMAP_THRESHOLD) && defined(M_TRIM_THRESHOLD)
+    (void)mallopt(M_MMAP_THRESHOLD, 1 << 20);
+    (void)mallopt(M_TRIM_THRESHOLD, 128 << 20);
+#endif
+}
+
 int main(int argc, char **argv)
 {
     size_t i;
+    allocator_policy();
     if (argc < 2) {
         usage(stderr);
         return CLI_USAGE;

@@ -8,6 +8,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "core/alloc.h"
 #include "store/store_internal.h"
 
 #define NBIN 65536
@@ -260,7 +261,7 @@ static double volume_peak(const wvol_volume *v)
 static wvol_status recon64(double **out, const wvol_coeffs *c, const wvol__layout *ly, const uint64_t *bits,
                            int keep, wvol_error *err)
 {
-    double *x = malloc(ly->N * sizeof *x);
+    double *x = wvol__malloc_large(ly->N * sizeof *x);
     wvol_status s;
     *out = NULL;
     WVOL_RETURN_IF(!x, err, WVOL_ERR_NOMEM, "selection: out of memory for a reconstruction (%zu values)", ly->N);
@@ -342,7 +343,7 @@ static wvol_status alloc_selection(wvol_selection **out, const wvol__layout *ly,
 {
     wvol_selection *s = calloc(1, sizeof *s);
     *out = NULL;
-    if (s) s->bits = calloc((ly->N + 63) / 64, sizeof *s->bits);
+    if (s) s->bits = wvol__calloc_large((ly->N + 63) / 64, sizeof *s->bits); /* huge pages from 1 MiB */
     if (!s || !s->bits) {
         if (s) free(s);
         return wvol_error_set(err, WVOL_ERR_NOMEM, "selection: out of memory for %zu bits", ly->N);
