@@ -29,17 +29,19 @@ static void usage(FILE *out)
 }
 
 /* The program's allocator policy (the library leaves malloc's settings to the program that
- * links it). Blocks from 1 MiB on always get mappings of their own: the library asks for huge
- * pages on its large buffers, which a 2 MiB range of the heap that already has a page table
- * cannot get, and glibc's threshold otherwise rises with every large block freed (a 4 MiB read
- * buffer freed once sent every later scratch block below 4 MiB to the heap, and its absence
- * sent them to fresh mappings, faulted in again at every extraction). The heap keeps what it
- * has grown to up to 128 MiB instead of giving its top back between a writer's chunks.
- * bench/results/speed_profile.md has the measurements. */
+ * links it): a fixed mmap threshold of 4 MiB and a trim threshold of 128 MiB. glibc's threshold
+ * otherwise moves with every large block freed: a 4 MiB read buffer freed at the start kept the
+ * brick path's scratch (blocks of some hundred KiB to a few MiB, made and freed per brick) in
+ * the heap, and without that buffer they went to fresh mappings, faulted in again at every
+ * extraction (a store's steady marching cubes 4.8 -> 10-17 ms). Blocks from 4 MiB on (the
+ * library's large buffers, asked for huge pages) get mappings of their own, where huge pages
+ * work; the heap keeps what it has grown to instead of giving its top back between a
+ * writer's chunks. A threshold of 1 MiB made the skull's steady marching cubes 6% slower, 32 MiB
+ * the first ones slower (bench/results/speed_profile.md). */
 static void allocator_policy(void)
 {
 #if defined(__GLIBC__) && defined(M_MMAP_THRESHOLD) && defined(M_TRIM_THRESHOLD)
-    (void)mallopt(M_MMAP_THRESHOLD, 1 << 20);
+    (void)mallopt(M_MMAP_THRESHOLD, 4 << 20);
     (void)mallopt(M_TRIM_THRESHOLD, 128 << 20);
 #endif
 }
