@@ -89,96 +89,97 @@ void *wvol__malloc_pages(size_t *bytes)
 
 /* ---- the reuse pool (core/alloc.h) ---- */
 
-enum { POOL_SLOTS = 8 };
-#define POOL_BYTES ((size_t)128 << 20)
-static struct {
+/* A tier of kept blocks: each serves requests of at least half its class (`cls`), the best fit
+ * first; `bytes` is what it counts against the tier's bound. Kept blocks past the slots or the
+ * bound go, the oldest first. Under pool_lock. */
+typedef struct kept_block {
     void *p;
-    size_t bytes; /* counted against POOL_BYTES: the block's touched bytes, at most its usable size */
-    size_t cls;   /* what it serves: bytes in whole huge pages, rounded down (an aligned block's
-                     usable size runs to the end of its mapping, up to a huge page more) */
+    size_t bytes, cls;
     unsigned long age;
-} pool[POOL_SLOTS];
-static size_t pool_total;
-static unsigned long pool_clock;
+} kept_block;
+
+typedef struct tier {
+    kept_block *slot;
+    int n;
+    size_t total, max;
+} tier;
+
 static pthread_mutex_t pool_lock = PTHREAD_MUTEX_INITIALIZER;
+static unsigned long pool_clock;
 
-/* The middle tier: blocks from MID_MIN to a huge page, served to requests of at least half
- * their size. malloc's heap grows and shrinks with them at its top: a writer's few chunk
- * payloads of some hundred KiB each, made and freed in turn, were trimmed from the heap and
- * faulted in again, 4 KiB at a time, every few chunks. Requests are rounded up to MID_MIN so that
- * the next one, a little larger, finds the block given back. */
+/* The large buffers: 8 slots, 128 MiB of their touched bytes; a block's class is its size in
+ * whole huge pages, rounded down (an aligned block's usable size runs to the end of its mapping,
+ * up to a huge page more). */
+enum { POOL_SLOTS = 8 };
+static kept_block big_slot[POOL_SLOTS];
+static tier big = {big_slot, POOL_SLOTS, 0, (size_t)128 << 20};
+
+/* The middle tier: blocks from MID_MIN to a huge page (class: their usable size). malloc's heap
+ * grows and shrinks with them at its top: a writer's few chunk payloads of some hundred KiB each,
+ * made and freed in turn, were trimmed from the heap and faulted in again, 4 KiB at a time,
+ * every few chunks. Requests are rounded up to MID_MIN so that the next one, a little larger,
+ * finds the block given back. */
 enum { MID_SLOTS = 16, MID_MIN = 64u << 10 };
-#define MID_BYTES ((size_t)16 << 20)
-static struct {
-    void *p;
-    size_t size; /* usable bytes */
-    unsigned long age;
-} mid[MID_SLOTS];
-static size_t mid_total;
+static kept_block mid_slot[MID_SLOTS];
+static tier mid = {mid_slot, MID_SLOTS, 0, (size_t)16 << 20};
 
-static void *mid_get(size_t bytes)
+/* The kept block that serves need (NULL: none), taken out of the tier. */
+static void *tier_take(tier *t, size_t need)
 {
     void *p = NULL;
     int best = -1;
     pthread_mutex_lock(&pool_lock);
-    for (int i = 0; i < MID_SLOTS; i++)
-        if (mid[i].p && mid[i].size >= bytes && mid[i].size / 2 <= bytes &&
-            (best < 0 || mid[i].size < mid[best].size))
+    for (int i = 0; i < t->n; i++)
+        if (t->slot[i].p && t->slot[i].cls >= need && t->slot[i].cls / 2 <= need &&
+            (best < 0 || t->slot[i].cls < t->slot[best].cls))
             best = i;
     if (best >= 0) {
-        p = mid[best].p;
-        mid_total -= mid[best].size;
-        mid[best].p = NULL;
+        p = t->slot[best].p;
+        t->total -= t->slot[best].bytes;
+        t->slot[best].p = NULL;
     }
     pthread_mutex_unlock(&pool_lock);
-    return p ? p : malloc((bytes + MID_MIN - 1) & ~(size_t)(MID_MIN - 1));
+    return p;
 }
 
-/* Keeps p (size usable bytes) in the middle tier, the oldest given back first when full. */
-static void mid_put(void *p, size_t size)
+/* Keeps p (class cls, counting bytes <= t->max) in the tier, the oldest given back until a slot
+ * is free and the bytes fit. */
+static void tier_keep(tier *t, void *p, size_t cls, size_t bytes)
 {
-    void *drop[MID_SLOTS];
+    void *drop[(int)MID_SLOTS + (int)POOL_SLOTS]; /* at most a tier's slots */
     int n = 0;
     pthread_mutex_lock(&pool_lock);
     for (;;) {
         int empty = -1, oldest = -1;
-        for (int i = 0; i < MID_SLOTS; i++) {
-            if (!mid[i].p) empty = empty < 0 ? i : empty;
-            else if (oldest < 0 || mid[i].age < mid[oldest].age) oldest = i;
+        for (int i = 0; i < t->n; i++) {
+            if (!t->slot[i].p) empty = empty < 0 ? i : empty;
+            else if (oldest < 0 || t->slot[i].age < t->slot[oldest].age) oldest = i;
         }
-        if (empty >= 0 && mid_total + size <= MID_BYTES) {
-            mid[empty].p = p;
-            mid[empty].size = size;
-            mid[empty].age = ++pool_clock;
-            mid_total += size;
+        if (empty >= 0 && t->total + bytes <= t->max) {
+            t->slot[empty].p = p;
+            t->slot[empty].bytes = bytes;
+            t->slot[empty].cls = cls;
+            t->slot[empty].age = ++pool_clock;
+            t->total += bytes;
             break;
         }
-        drop[n++] = mid[oldest].p; /* size < MID_BYTES: the tier is not empty here */
-        mid_total -= mid[oldest].size;
-        mid[oldest].p = NULL;
+        drop[n++] = t->slot[oldest].p; /* nothing fits and the tier is not empty: oldest >= 0 */
+        t->total -= t->slot[oldest].bytes;
+        t->slot[oldest].p = NULL;
     }
     pthread_mutex_unlock(&pool_lock);
-    for (int i = 0; i < n; i++) free(drop[i]);
+    for (int i = 0; i < n; i++) free(drop[i]); /* outside the lock: a large free unmaps */
 }
 
 void *wvol__reuse_get(size_t bytes)
 {
-    void *p = NULL;
-    size_t need = wvol__pages_bytes(bytes);
-    int i, best = -1;
+    void *p;
     if (bytes < MID_MIN) return malloc(bytes ? bytes : 1); /* malloc's free lists reuse these */
-    if (bytes < PAGED) return mid_get(bytes);
-    pthread_mutex_lock(&pool_lock);
-    for (i = 0; i < POOL_SLOTS; i++)
-        if (pool[i].p && pool[i].cls >= need && pool[i].cls / 2 <= need &&
-            (best < 0 || pool[i].cls < pool[best].cls))
-            best = i;
-    if (best >= 0) {
-        p = pool[best].p;
-        pool_total -= pool[best].bytes;
-        pool[best].p = NULL;
+    if (bytes < PAGED) {
+        p = tier_take(&mid, bytes);
+        return p ? p : malloc((bytes + MID_MIN - 1) & ~(size_t)(MID_MIN - 1));
     }
-    pthread_mutex_unlock(&pool_lock);
+    p = tier_take(&big, wvol__pages_bytes(bytes));
     return p ? p : wvol__malloc_large(bytes);
 }
 
@@ -189,62 +190,33 @@ void wvol__reuse_put(void *p)
 
 void wvol__reuse_put_used(void *p, size_t used)
 {
-    void *drop[POOL_SLOTS];
     size_t bytes, cls;
-    int i, n = 0;
     if (!p) return;
     bytes = malloc_usable_size(p); /* the block's true size, also after a realloc */
     cls = bytes & ~(size_t)(HUGE_PAGE - 1);
     if (cls < HUGE_PAGE) {
-        if (bytes >= MID_MIN) mid_put(p, bytes);
+        if (bytes >= MID_MIN) tier_keep(&mid, p, bytes, bytes);
         else free(p);
         return;
     }
     if (used < bytes) bytes = used;
-    if (bytes > POOL_BYTES) {
+    if (bytes > big.max) {
         free(p);
         return;
     }
-    pthread_mutex_lock(&pool_lock);
-    for (;;) { /* the oldest given back until a slot is free and the bytes fit */
-        int empty = -1, oldest = -1;
-        for (i = 0; i < POOL_SLOTS; i++) {
-            if (!pool[i].p) empty = empty < 0 ? i : empty;
-            else if (oldest < 0 || pool[i].age < pool[oldest].age) oldest = i;
-        }
-        if (empty >= 0 && pool_total + bytes <= POOL_BYTES) {
-            pool[empty].p = p;
-            pool[empty].bytes = bytes;
-            pool[empty].cls = cls;
-            pool[empty].age = ++pool_clock;
-            pool_total += bytes;
-            break;
-        }
-        drop[n++] = pool[oldest].p; /* nothing fits and the pool is not empty: oldest >= 0 */
-        pool_total -= pool[oldest].bytes;
-        pool[oldest].p = NULL;
-    }
-    pthread_mutex_unlock(&pool_lock);
-    for (i = 0; i < n; i++) free(drop[i]); /* outside the lock: a large free unmaps */
+    tier_keep(&big, p, cls, bytes);
 }
 
-void wvol__reuse_held(size_t *buffers, size_t *bytes)
-{
-    size_t n = 0;
-    int i;
-    pthread_mutex_lock(&pool_lock);
-    for (i = 0; i < POOL_SLOTS; i++) n += pool[i].p != NULL;
-    *buffers = n;
-    *bytes = pool_total;
-    pthread_mutex_unlock(&pool_lock);
-}
-
-void wvol__reuse_held_mid(size_t *buffers, size_t *bytes)
+static void tier_held(tier *t, size_t *buffers, size_t *bytes)
 {
     size_t n = 0;
     pthread_mutex_lock(&pool_lock);
-    for (int i = 0; i < MID_SLOTS; i++) n += mid[i].p != NULL;
+    for (int i = 0; i < t->n; i++) n += t->slot[i].p != NULL;
     *buffers = n;
-    *bytes = mid_total;
+    *bytes = t->total;
     pthread_mutex_unlock(&pool_lock);
 }
+
+void wvol__reuse_held(size_t *buffers, size_t *bytes) { tier_held(&big, buffers, bytes); }
+
+void wvol__reuse_held_mid(size_t *buffers, size_t *bytes) { tier_held(&mid, buffers, bytes); }
