@@ -1,13 +1,15 @@
 /* SPDX-License-Identifier: MIT
  * What the io module's files share with each other and with the C++ adapters (not
  * installed): the axis-flipping geometry every image reader applies, the number
- * syntax of text headers, the DICOM series reader and the MetaImage header check. */
+ * syntax of text headers, the DICOM series reader, the MetaImage header check and the
+ * raw file source. */
 #ifndef WVOL_IO_INTERNAL_H
 #define WVOL_IO_INTERNAL_H
 
 #include <stddef.h>
 
 #include "wvol/io.h"
+#include "wvol/source.h"
 
 #ifdef __cplusplus
 extern "C" {
@@ -20,6 +22,12 @@ extern "C" {
  * positive; any other rotation is dropped. Fails as wvol_volume_set_geometry does. */
 wvol_status wvol__io_apply_geometry(wvol_volume *v, const double origin[3], const double spacing[3],
                                     const double dir[3][3], wvol_error *err);
+
+/* A raw file as a volume source (wvol/source.h), whatever its name: the dimensions, sample
+ * type, byte order and geometry from opt, the file's length checked against them
+ * (io/source_file.c); wvol_raw_read reads the whole volume through it. */
+wvol_status wvol__source_open_raw(wvol_source **out, const char *path, const wvol_load_options *opt,
+                                  wvol_error *err);
 
 /* Numbers of a text header, as C++'s `istream >> double` reads them one after the
  * other: whitespace, then [+-]digits[.digits][e[+-]digits]; stops at the first text

@@ -2,9 +2,9 @@
 /* File volume sources (wvol/source.h): raw files and NRRD raw data are read slab by slab
  * with a seek; NRRD gzip data through zlib's gzread/gzseek (a forward seek inflates and
  * discards, a backward one restarts the stream); every other format is loaded whole on
- * open. The checks are those of the whole-file readers (raw.c, nrrd_read.c): the data
- * length against the sizes before anything is read, and for gzip the end of the stream
- * at the last slab (too long or truncated data are refused there). */
+ * open. The checks are those of the whole-file readers (nrrd_read.c; raw.c reads through the
+ * raw source itself): the data length against the sizes before anything is read, and for
+ * gzip the end of the stream at the last slab (too long or truncated data are refused there). */
 #define _FILE_OFFSET_BITS 64
 #define _POSIX_C_SOURCE 200809L
 #include <errno.h>
@@ -21,6 +21,7 @@
 #endif
 
 #include "core/source_volume.h"
+#include "io/io_internal.h"
 #include "io/nrrd_internal.h"
 #include "wvol/source.h"
 
@@ -165,7 +166,8 @@ static wvol_status new_file_src(file_src **out, const char *path, int type, size
     return WVOL_OK;
 }
 
-static wvol_status open_raw(wvol_source **out, const char *path, const wvol_load_options *opt, wvol_error *err)
+wvol_status wvol__source_open_raw(wvol_source **out, const char *path, const wvol_load_options *opt,
+                                  wvol_error *err)
 {
     size_t elem, bytes;
     struct stat st;
@@ -284,7 +286,7 @@ wvol_status wvol_source_open(wvol_source **out, const char *path, const wvol_loa
 {
     WVOL_RETURN_IF(!out || !path, err, WVOL_ERR_ARG, "volume source: NULL argument");
     *out = NULL;
-    if (wvol_path_has_ext(path, ".raw")) return open_raw(out, path, opt, err);
+    if (wvol_path_has_ext(path, ".raw")) return wvol__source_open_raw(out, path, opt, err);
     if (wvol_path_has_ext(path, ".nrrd") || wvol_path_has_ext(path, ".nhdr")) {
         int whole = 0;
         WVOL_FORWARD(open_nrrd(out, path, &whole, err));
