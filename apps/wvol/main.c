@@ -29,15 +29,14 @@ static void usage(FILE *out)
 }
 
 /* The program's allocator policy (the library leaves malloc's settings to the program that
- * links it): a fixed mmap threshold of 4 MiB and a trim threshold of 128 MiB. glibc's threshold
- * otherwise moves with every large block freed: a 4 MiB read buffer freed at the start kept the
- * brick path's scratch (blocks of some hundred KiB to a few MiB, made and freed per brick) in
- * the heap, and without that buffer they went to fresh mappings, faulted in again at every
- * extraction (a store's steady marching cubes 4.8 -> 10-17 ms). Blocks from 4 MiB on (the
- * library's large buffers, asked for huge pages) get mappings of their own, where huge pages
- * work; the heap keeps what it has grown to instead of giving its top back between a
- * writer's chunks. A threshold of 1 MiB made the skull's steady marching cubes 6% slower, 32 MiB
- * the first ones slower (bench/results/speed_profile.md). */
+ * links it): a fixed mmap threshold of 4 MiB and a trim threshold of 128 MiB. glibc's own
+ * threshold moves with every large block freed, so whether the brick path's scratch (blocks of
+ * some hundred KiB to a few MiB, made and freed per brick) stayed in the heap or went to fresh
+ * mappings, faulted in again at every extraction, depended on what had been freed before.
+ * Blocks from 4 MiB on (the library's large buffers, asked for huge pages) get mappings of their
+ * own, where huge pages work; the heap keeps what it has grown to instead of giving its top back
+ * between a writer's chunks. docs/cli.md says the same; bench/results/speed_profile.md has the
+ * thresholds measured. */
 static void allocator_policy(void)
 {
 #if defined(__GLIBC__) && defined(M_MMAP_THRESHOLD) && defined(M_TRIM_THRESHOLD)

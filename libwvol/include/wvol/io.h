@@ -99,8 +99,7 @@ WVOL_API void wvol_slab_writer_abort(wvol_slab_writer *w); /* NULL is fine */
 WVOL_API int wvol_format_supported(const char *path, int for_writing);
 
 /* Converts n samples of type t (byte order as given) to float32; reports values
- * that float32 cannot hold exactly only through the return of non-finite checks. For
- * float32 samples dst may be src (the byte order put right in place). */
+ * that float32 cannot hold exactly only through the return of non-finite checks. */
 WVOL_API void wvol_samples_to_float(float *dst, const void *src, size_t n, wvol_sample_type t, int big_endian);
 
 /* Atomic output file: write to "<path>.tmp-XXXXXX" beside the target, then rename.

@@ -252,8 +252,8 @@ wvol_status wvol_store_build(wvol_store **out, const wvol_coeffs *c, const wvol_
         st = wvol_error_set(err, WVOL_ERR_DIMS, "store: %zu nodes (at most 2^32 - 16)", total);
         goto fail;
     }
-    /* the store's arrays in huge pages (core/alloc.h): a 5% store of a 256^3 volume is some
-     * 20 MB of them, which in 4 KiB pages took thousands of page faults to fill */
+    /* the store's arrays in huge pages (core/alloc.h): they are megabytes, which in 4 KiB pages
+     * are faulted in one page at a time as they are filled */
     s->nodes = wvol__calloc_large(total ? total : 1, sizeof *s->nodes);
     s->nvalues = sel->kept - nlow;
     s->values = wvol__malloc_large((s->nvalues ? s->nvalues : 1) * sizeof *s->values);
