@@ -22,7 +22,7 @@ static const char *format_name(const char *path)
         {".raw", "raw"}, {".bin", "raw"}, {".nrrd", "NRRD"}, {".nhdr", "NRRD (detached)"},
         {".vdb", "OpenVDB"}, {".vti", "VTK XML image"}, {".vtk", "VTK legacy structured points"},
         {".mha", "MetaImage"}, {".mhd", "MetaImage (detached)"}, {".nii", "NIfTI"},
-        {".nii.gz", "NIfTI (gzip)"}};
+        {".nii.gz", "NIfTI (gzip)"}, {".wvc", "wvol .wvc, decoded"}};
     size_t i;
     for (i = 0; i < sizeof names / sizeof names[0]; i++)
         if (wvol_path_has_ext(path, names[i].ext)) return names[i].name;
@@ -51,7 +51,7 @@ int wvol_cmd_convert(int argc, char **argv)
         } else if (o->short_name == 'h') {
             cli_print_help("convert", "IN OUT [--dims NXxNYxNZ --type T] [--grid NAME]",
                            "Reads IN and writes OUT; the formats follow the extensions.\n"
-                           "Readable: .raw .nrrd .nhdr .vdb .vti .vtk .mha .mhd .nii .nii.gz, a DICOM folder.\n"
+                           "Readable: .raw .nrrd .nhdr .vdb .vti .vtk .mha .mhd .nii .nii.gz .wvc, a DICOM folder.\n"
                            "Writable: .raw (float32) .nrrd .vdb .vti .vtk .mha .nii .nii.gz.\n"
                            "Samples are float32 in between: integer input is converted exactly.",
                            opts);

@@ -147,6 +147,7 @@ def test_every_command_takes_a_wvc(wvc):
                 ["convert", f, d / "c.nrrd"]):
         r = subprocess.run([WVOL_BIN, *map(str, cmd)], capture_output=True, text=True)
         assert r.returncode == 0, (cmd, r.stderr)
+    assert "(wvol .wvc, decoded) ->" in r.stdout, r.stdout  # convert names the input's format
     r = subprocess.run([WVOL_BIN, "info", str(f), "--json"], capture_output=True, text=True)
     info = json.loads(r.stdout)
     assert info["version"] == 2 and info["chunks"] > 1
