@@ -1,10 +1,15 @@
 /* SPDX-License-Identifier: MIT */
 /* wvol: the command-line program. Sub-commands live in cmd_<name>.c; CMake
  * generates the table below from those file names. */
+#define _DEFAULT_SOURCE /* sbrk */
 #include <stdio.h>
 #include <string.h>
 #ifdef __GLIBC__
 #include <malloc.h>
+#include <stdint.h>
+#include <stdlib.h>
+#include <sys/mman.h>
+#include <unistd.h>
 #endif
 
 #include "cli.h"
@@ -35,13 +40,43 @@ static void usage(FILE *out)
  * mappings, faulted in again at every extraction, depended on what had been freed before.
  * Blocks from 4 MiB on (the library's large buffers, asked for huge pages) get mappings of their
  * own, where huge pages work; the heap keeps what it has grown to instead of giving its top back
- * between a writer's chunks. docs/cli.md says the same; bench/results/speed_profile.md has the
- * thresholds measured. */
+ * between a writer's chunks.
+ *
+ * And the heap in huge pages: its first HEAP_RESERVE bytes above what start-up used are asked
+ * for transparent huge pages (glibc's own switch for that, the glibc.malloc.hugetlb tunable,
+ * is read from the environment at start only). The heap serves every block below 4 MiB (mesh
+ * pieces, payloads, row buffers, the coders' tables), and in 4 KiB pages each first touch was a
+ * fault of its own: most of a compression's page faults and of a store's first marching cubes'.
+ * The heap is grown once by the reserve (address space only: pages become resident as they are
+ * touched, 2 MiB at a time) and the advice given to its whole 2 MiB pages; growth past the
+ * reserve gets 4 KiB pages as before. Where the advice is refused, nothing changes.
+ * docs/cli.md says the same; bench/results/speed_profile.md has the thresholds and the
+ * faults measured. */
+#define HEAP_RESERVE ((size_t)64 << 20)
+
 static void allocator_policy(void)
 {
 #if defined(__GLIBC__) && defined(M_MMAP_THRESHOLD) && defined(M_TRIM_THRESHOLD)
     (void)mallopt(M_MMAP_THRESHOLD, 4 << 20);
     (void)mallopt(M_TRIM_THRESHOLD, 128 << 20);
+#if defined(M_TOP_PAD) && defined(MADV_HUGEPAGE)
+    {
+        const uintptr_t huge = (uintptr_t)2 << 20;
+        void *p;
+        char *top;
+        /* the next growth of the heap takes the reserve with it; the block is freed at once
+         * into the top of the heap, which the trim threshold keeps */
+        (void)mallopt(M_TOP_PAD, (int)HEAP_RESERVE);
+        p = malloc((size_t)1 << 20);
+        top = sbrk(0);
+        (void)mallopt(M_TOP_PAD, 128 << 10); /* glibc's default */
+        if (p && top != (char *)-1 && (char *)p < top) {
+            uintptr_t a = ((uintptr_t)p + huge - 1) & ~(huge - 1), b = (uintptr_t)top & ~(huge - 1);
+            if (b > a) (void)madvise((void *)a, (size_t)(b - a), MADV_HUGEPAGE);
+        }
+        free(p);
+    }
+#endif
 #endif
 }
 
