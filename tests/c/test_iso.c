@@ -1192,6 +1192,82 @@ static void reuse_pool_bounds(void)
     }
 }
 
+/* wvol__bounds_add_dense folds a box's magnitudes into the block maxima (it takes them a row
+ * at a time, folded per block row, then per block) exactly as a value-by-value maximum would:
+ * boxes at offsets that are not multiples of the blocks, taller than its fold of block rows,
+ * with NaN (as +inf), -0, infinities and values below what the table holds already, on bands
+ * of level 1 (blocks of 4) and level 2 (blocks of 2). */
+static void bounds_add_dense_matches_values(void)
+{
+    const wvol_filter *f = fixture_filter("db2");
+    wvol_volume *v = NULL;
+    wvol_coeffs *c = NULL;
+    wvol__coef_source src;
+    wvol__brick_bounds *b = NULL;
+    uint64_t st = 0x5eed1234abcdULL;
+    size_t mismatch = 0, boxes = 0;
+    const size_t n = 512; /* level 1: 256 wide, more than 64 block rows of 4 */
+    if (wvol_volume_create(&v, n, n, 16, NULL) != WVOL_OK || wvol_dwt3(&c, v, f, 2, NULL) != WVOL_OK) {
+        CHECK(0, "bounds add dense: setup");
+        goto done;
+    }
+    wvol__coef_source_of_coeffs(&src, c);
+    if (wvol__bounds_create_src(&b, &src, NULL, NULL) != WVOL_OK) {
+        CHECK(0, "bounds add dense: bound");
+        goto done;
+    }
+    for (int m = 1; m <= 2; m++)
+        for (int band = 1; band < 8; band += 3) {
+            size_t nb[3], e[3], cnt;
+            int sh[3];
+            float *t = wvol__bounds_table(b, m, band, nb, sh), *ref;
+            if (!t) {
+                CHECK(0, "bounds add dense: no table for level %d band %d", m, band);
+                continue;
+            }
+            for (int a = 0; a < 3; a++) e[a] = (a < 2 ? n : 16) >> m;
+            cnt = nb[0] * nb[1] * nb[2];
+            ref = malloc(cnt * sizeof *ref);
+            if (!ref) continue;
+            for (size_t i = 0; i < cnt; i++) t[i] = ref[i] = (float)(fixture_urand(&st) * 50.0);
+            for (int trial = 0; trial < 12; trial++, boxes++) {
+                size_t lo[3], bn[3], sy, sz;
+                float *val;
+                for (int a = 0; a < 3; a++) {
+                    lo[a] = (size_t)(fixture_urand(&st) * (double)e[a]);
+                    bn[a] = 1 + (size_t)(fixture_urand(&st) * (double)(e[a] - lo[a]));
+                }
+                if (trial == 0) lo[1] = 1, bn[1] = e[1] - 1; /* every block row but in part the first */
+                sy = bn[0] + 3, sz = sy * (bn[1] + 1);
+                val = malloc(sz * bn[2] * sizeof *val);
+                if (!val) continue;
+                for (size_t i = 0; i < sz * bn[2]; i++) {
+                    double u = fixture_urand(&st);
+                    val[i] = u < 0.01 ? NAN : u < 0.02 ? -0.0f : u < 0.025 ? -INFINITY
+                                                                  : (float)((fixture_urand(&st) - 0.5) * 200.0);
+                }
+                wvol__bounds_add_dense(b, m, band, lo, bn, val, sy, sz);
+                for (size_t z = 0; z < bn[2]; z++)
+                    for (size_t y = 0; y < bn[1]; y++)
+                        for (size_t x = 0; x < bn[0]; x++) {
+                            float av = fabsf(val[x + sy * y + sz * z]);
+                            float *slot = &ref[((lo[0] + x) >> sh[0]) +
+                                               nb[0] * (((lo[1] + y) >> sh[1]) + nb[1] * ((lo[2] + z) >> sh[2]))];
+                            if (!(av <= *slot)) *slot = isnan(av) ? INFINITY : av;
+                        }
+                free(val);
+            }
+            for (size_t i = 0; i < cnt; i++) mismatch += memcmp(&t[i], &ref[i], sizeof *t) != 0;
+            free(ref);
+        }
+    CHECK(boxes == 72 && mismatch == 0, "bounds add dense: %zu block maxima of %zu boxes differ from the values' maximum",
+          mismatch, boxes);
+done:
+    wvol__bounds_free(b);
+    wvol_coeffs_destroy(c);
+    wvol_volume_destroy(v);
+}
+
 int main(void)
 {
     table_is_consistent();
@@ -1213,5 +1289,6 @@ int main(void)
     stitch_independent_of_order();
     brick_bounds_hold();
     bounds_grid_matches_boxes();
+    bounds_add_dense_matches_values();
     return check_summary("test_iso");
 }

@@ -21,6 +21,7 @@
 #include <string.h>
 
 #include "core/alloc.h"
+#include "core/clones.h"
 #include "wavelet/wavelet_internal.h"
 
 /* ---- 1D responses ----------------------------------------------------------------- */
@@ -327,25 +328,83 @@ void wvol__bounds_add_box(brick_bounds *b, int m, int band, const size_t lo[3], 
             }
 }
 
-void wvol__bounds_add_dense(brick_bounds *b, int m, int band, const size_t lo[3], const size_t n[3], const float *v,
-                            size_t sy, size_t sz)
+/* The block maxima of a region, in two steps that vectorise: the magnitudes' bits (as integers
+ * they order as the values, and NaN's above +inf's) folded row by row into one row per block row
+ * of the current z-block (an element-wise maximum over whole rows), then each such row's blocks
+ * reduced into the table when the z-block is done. The same maxima as one value at a time. */
+#define FOLD_ROWS 64 /* block rows folded at once (a region's rows in one z-block) */
+
+static void flush_fold(band_blocks *q, const size_t lo[3], size_t z, size_t y0, size_t y1, const uint32_t *fold,
+                       size_t n0)
+{
+    const int sh = q->bshift[0], shy = q->bshift[1];
+    for (size_t yb = (lo[1] + y0) >> shy, k = 0; yb <= (lo[1] + y1 - 1) >> shy; yb++, k++) {
+        float *brow = q->absmax + q->nb[0] * (yb + q->nb[1] * ((lo[2] + z) >> q->bshift[2]));
+        const uint32_t *f = fold + k * n0;
+        for (size_t x = 0; x < n0;) {
+            const size_t bx = (lo[0] + x) >> sh, end = ((bx + 1) << sh) - lo[0] < n0 ? ((bx + 1) << sh) - lo[0] : n0;
+            uint32_t m = 0;
+            float av;
+            for (; x < end; x++) m = f[x] > m ? f[x] : m;
+            if (m > 0x7f800000u) m = 0x7f800000u; /* NaN propagates as +inf */
+            memcpy(&av, &m, sizeof av);
+            if (!(av <= brow[bx])) brow[bx] = av;
+        }
+    }
+}
+
+WVOL__CLONES void wvol__bounds_add_dense(brick_bounds *b, int m, int band, const size_t lo[3], const size_t n[3],
+                                         const float *v, size_t sy, size_t sz)
 {
     band_blocks *q = band_of(b, m, band);
-    size_t x, y, z;
+    uint32_t *fold;
+    size_t nfold;
     if (!q) return;
     for (int a = 0; a < 3; a++)
         if (lo[a] >= q->e[a] || n[a] > q->e[a] - lo[a]) return; /* outside the band: the caller's error */
-    for (z = 0; z < n[2]; z++)
-        for (y = 0; y < n[1]; y++) {
-            const float *row = v + sy * y + sz * z;
-            float *brow = q->absmax + q->nb[0] * (((lo[1] + y) >> q->bshift[1]) + q->nb[1] * ((lo[2] + z) >> q->bshift[2]));
-            const int sh = q->bshift[0];
-            for (x = 0; x < n[0]; x++) {
-                float av = fabsf(row[x]);
-                size_t bx = (lo[0] + x) >> sh;
-                if (!(av <= brow[bx])) brow[bx] = isnan(av) ? INFINITY : av; /* NaN propagates as +inf */
+    if (!n[0] || !n[1] || !n[2]) return;
+    /* the block rows of a stretch of y: the region's, at most FOLD_ROWS of them, n[0] wide */
+    nfold = ((lo[1] + n[1] - 1) >> q->bshift[1]) - (lo[1] >> q->bshift[1]) + 1;
+    if (nfold > FOLD_ROWS) nfold = FOLD_ROWS;
+    fold = malloc(nfold * n[0] * sizeof *fold);
+    if (!fold) { /* one value at a time */
+        for (size_t z = 0; z < n[2]; z++)
+            for (size_t y = 0; y < n[1]; y++) {
+                const float *row = v + sy * y + sz * z;
+                float *brow = q->absmax + q->nb[0] * (((lo[1] + y) >> q->bshift[1]) + q->nb[1] * ((lo[2] + z) >> q->bshift[2]));
+                for (size_t x = 0; x < n[0]; x++) {
+                    float av = fabsf(row[x]);
+                    size_t bx = (lo[0] + x) >> q->bshift[0];
+                    if (!(av <= brow[bx])) brow[bx] = isnan(av) ? INFINITY : av;
+                }
             }
+        return;
+    }
+    /* y stretches of at most FOLD_ROWS block rows; within one, z-blocks in turn */
+    for (size_t y0 = 0; y0 < n[1];) {
+        const size_t yb0 = (lo[1] + y0) >> q->bshift[1];
+        size_t y1 = (((yb0 + FOLD_ROWS) << q->bshift[1]) - lo[1]);
+        if (y1 > n[1]) y1 = n[1];
+        for (size_t z0 = 0; z0 < n[2];) {
+            const size_t zb = (lo[2] + z0) >> q->bshift[2];
+            size_t z1 = ((zb + 1) << q->bshift[2]) - lo[2];
+            if (z1 > n[2]) z1 = n[2];
+            memset(fold, 0, (((lo[1] + y1 - 1) >> q->bshift[1]) - yb0 + 1) * n[0] * sizeof *fold);
+            for (size_t z = z0; z < z1; z++)
+                for (size_t y = y0; y < y1; y++) {
+                    const uint32_t *row = (const uint32_t *)(const void *)(v + sy * y + sz * z);
+                    uint32_t *f = fold + (((lo[1] + y) >> q->bshift[1]) - yb0) * n[0];
+                    for (size_t x = 0; x < n[0]; x++) {
+                        const uint32_t a = row[x] & 0x7fffffffu;
+                        f[x] = a > f[x] ? a : f[x];
+                    }
+                }
+            flush_fold(q, lo, z0, y0, y1, fold, n[0]);
+            z0 = z1;
         }
+        y0 = y1;
+    }
+    free(fold);
 }
 
 void wvol__bounds_fill_coeffs(brick_bounds *b, const wvol_coeffs *c)
