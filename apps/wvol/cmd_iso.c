@@ -109,6 +109,7 @@ static void report(const iso_args *a, int levels, const wvol_mesh *m, const wvol
         cli_json_int("cells_active", (long long)st->cells_active);
         cli_json_int("bricks_total", (long long)st->bricks_total);
         cli_json_int("bricks_skipped", (long long)st->bricks_skipped);
+        if (st->bricks_total) cli_json_int("whole_inverse", st->whole_inverse);
         cli_json_open("seconds", '{');
         cli_json_num("load", t_load);
         cli_json_num("extract", best);
@@ -140,9 +141,9 @@ static void report(const iso_args *a, int levels, const wvol_mesh *m, const wvol
         printf("time       extract %.3f ms (classify %.3f, count %.3f, generate %.3f), load %.3f s, save %.3f s\n",
                best * 1e3, st->seconds[0] * 1e3, st->seconds[1] * 1e3, st->seconds[2] * 1e3, t_load, t_save);
         if (st->bricks_total)
-            printf("bricks     %zu of %zu skipped (%d^3 cells each; bounds %.3f ms, reconstruct + mesh %.3f ms)\n",
+            printf("bricks     %zu of %zu skipped (%d^3 cells each; bounds %.3f ms, %s + mesh %.3f ms)\n",
                    st->bricks_skipped, st->bricks_total, a->brick, st->seconds_bounds * 1e3,
-                   st->seconds_reconstruct * 1e3);
+                   st->whole_inverse ? "whole inverse transform" : "reconstruct", st->seconds_reconstruct * 1e3);
     }
 }
 

@@ -187,8 +187,66 @@ static void file_store_meshes_and_renders_like_the_memory_store(void)
     remove(PATH);
 }
 
+/* A file store whose bricks to mesh would cost more to rebuild one by one than the whole
+ * inverse transform reads them from the whole reconstruction when its budget has room for the
+ * pyramid (stats->whole_inverse), and rebuilds them brick by brick when it has not: the same
+ * mesh both ways, and the memory store's, up to the float rounding of the two reconstructions
+ * (the same triangles; vertices within 1e-4 voxels, as above); the budget is kept. */
+static void file_store_meshes_from_the_whole_inverse_when_it_is_cheaper(void)
+{
+    double vmin, vmax;
+    const size_t n = 56;
+    wvol_store *ms = file_and_memory_store(n, &vmin, &vmax), *whole = NULL, *tight = NULL;
+    wvol_mesh *mm = NULL, *mw = NULL, *mt = NULL;
+    wvol_iso_params ip;
+    wvol_iso_stats sm, sw, st;
+    wvol_wvc_cache_stats cs;
+    wvol_error err;
+    /* the padded 56 x 56 x 64 float pyramid */
+    const size_t pyramid = 56 * 56 * 64 * sizeof(float);
+    const double iso = vmin + 0.3 * (vmax - vmin);
+    size_t budget = 0;
+    double maxd = 0;
+    if (!ms) return;
+    wvol_iso_params_default(&ip);
+    ip.brick = 8; /* small bricks: wide aprons against their size, so the bricks cost more */
+    CHECK(wvol_store_open(&whole, PATH, 0, NULL, &err) == WVOL_OK, "open: %s", err.message);
+    if (whole) {
+        CHECK(wvol_iso_extract_store(&mw, whole, iso, &ip, &sw, &err) == WVOL_OK, "mc file: %s", err.message);
+        CHECK(wvol_store_file_stats(whole, &cs, &err) == WVOL_OK, "no decoding error: %s", err.message);
+        budget = cs.peak + pyramid / 2; /* the decoded chunks, and not the pyramid beside them */
+        CHECK(wvol_store_open(&tight, PATH, budget, NULL, &err) == WVOL_OK, "open: %s", err.message);
+    }
+    if (whole && tight) {
+        CHECK(wvol_iso_extract_store(&mm, ms, iso, &ip, &sm, &err) == WVOL_OK, "mc memory: %s", err.message);
+        CHECK(wvol_iso_extract_store(&mt, tight, iso, &ip, &st, &err) == WVOL_OK, "mc file: %s", err.message);
+        CHECK(!sm.whole_inverse && sw.whole_inverse && !st.whole_inverse,
+              "whole inverse: memory store %d, room for the pyramid %d, no room %d (%zu of %zu bricks meshed)",
+              sm.whole_inverse, sw.whole_inverse, st.whole_inverse, sw.bricks_meshed, sw.bricks_total);
+        if (mm && mw && mt) {
+            CHECK(mw->ntris == mm->ntris && mt->ntris == mm->ntris && mw->nverts == mm->nverts && mm->ntris > 100,
+                  "triangles: memory %zu, whole %zu, bricks %zu", mm->ntris, mw->ntris, mt->ntris);
+            if (mw->nverts == mm->nverts)
+                for (size_t i = 0; i < 3 * mm->nverts; i++)
+                    if (fabs((double)mw->verts[i] - (double)mm->verts[i]) > maxd)
+                        maxd = fabs((double)mw->verts[i] - (double)mm->verts[i]);
+            CHECK(maxd < 1e-4, "whole inverse against the bricks: vertices differ by %g voxels", maxd);
+        }
+        CHECK(wvol_store_file_stats(tight, &cs, &err) == WVOL_OK && cs.peak <= budget,
+              "tight budget kept: cache peak %zu of %zu", cs.peak, budget);
+    }
+    wvol_mesh_destroy(mm);
+    wvol_mesh_destroy(mw);
+    wvol_mesh_destroy(mt);
+    wvol_store_destroy(whole);
+    wvol_store_destroy(tight);
+    wvol_store_destroy(ms);
+    remove(PATH);
+}
+
 int main(void)
 {
     file_store_meshes_and_renders_like_the_memory_store();
+    file_store_meshes_from_the_whole_inverse_when_it_is_cheaper();
     return check_summary("test_wvc_store");
 }

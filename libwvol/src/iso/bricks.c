@@ -406,6 +406,59 @@ static size_t stitch_finish(stitcher *s, const brick_grid *g, const brick_out *r
     return misses;
 }
 
+/* The box of samples the run of needed bricks need[q0 .. q1) meshes from (one row: only x
+ * differs): the first brick's box stretched to the last's. */
+static void run_box(const brick_grid *g, const size_t *need, size_t q0, size_t q1, size_t lo[3], size_t hi[3])
+{
+    size_t first[3], last[3], blo[3], bhi[3];
+    brick_coords(g, need[q0], first);
+    brick_coords(g, need[q1 - 1], last);
+    brick_box(g, first, lo, hi);
+    brick_box(g, last, blo, bhi);
+    hi[0] = bhi[0];
+}
+
+/* For a store opened on a .wvc file: the whole reconstruction into *whole when the needed
+ * bricks' reconstructions would gather more coefficient positions than the whole pyramid has
+ * and the file's budget has room for the pyramid beside the chunks its cache holds (else
+ * *whole stays NULL, and the bricks are rebuilt one run at a time). A brick's reconstruction
+ * takes the coefficients whose support reaches it, an apron around it at every level (wide
+ * for long filters and deep levels), while the whole inverse transform takes each once: with
+ * half the bricks straddling the iso-value (a noisy volume) the bricks cost more. A file's
+ * chunks are decoded in full whichever way they are read, so the whole pyramid costs no
+ * decoding beyond the bricks'. The samples are the whole inverse transform's (the same as
+ * decoding the file whole), which differ from the bricks' by the float rounding of sums taken
+ * in another order. */
+static wvol_status whole_if_cheaper(wvol_volume **whole, const brick_grid *g, const wvol_store *sto,
+                                    const size_t *need, const size_t *run, size_t nrun, int nth, wvol_error *err)
+{
+    const size_t *pad = g->cs.pad;
+    size_t work = 0, positions;
+    wvol_coeffs *c = NULL;
+    wvol_status s;
+    *whole = NULL;
+    if (pad[0] > SIZE_MAX / pad[1] || pad[0] * pad[1] > SIZE_MAX / pad[2] / sizeof(float)) return WVOL_OK;
+    positions = pad[0] * pad[1] * pad[2];
+    if (g->cs.levels < 1 || !wvol__store_file_room(sto, positions * sizeof(float))) return WVOL_OK;
+    for (size_t r = 0; r < nrun && work <= positions; r++) {
+        size_t lo[3], hi[3];
+        run_box(g, need, run[r], run[r + 1], lo, hi);
+        work += wvol__idwt3_brick_positions(&g->cs, lo, hi);
+    }
+    if (work <= positions) return WVOL_OK;
+    WVOL_FORWARD(wvol_coeffs_create(&c, g->cs.filter, g->cs.levels, g->n[0], g->n[1], g->n[2], err));
+    if (c->px != pad[0] || c->py != pad[1] || c->pz != pad[2]) { /* not the file's padding: keep to the bricks */
+        wvol_coeffs_destroy(c);
+        return WVOL_OK;
+    }
+    /* a chunk that does not decode reads as zeros, as the bricks' gathers read it, and the
+     * file records the error for the caller (wvol_store_file_stats) */
+    s = wvol__coef_source_fill(c, &g->cs, nth, err);
+    if (s == WVOL_OK) return wvol_idwt3_consume(whole, &c, err);
+    wvol_coeffs_destroy(c);
+    return s;
+}
+
 /* The mesh of the reconstruction of coefficients c, or of store sto (the other NULL). */
 static wvol_status extract_bricks(wvol_mesh **out, const wvol_coeffs *c, const wvol_store *sto, double iso,
                                   const wvol_iso_params *p, wvol_iso_stats *st, wvol_error *err)
@@ -418,6 +471,7 @@ static wvol_status extract_bricks(wvol_mesh **out, const wvol_coeffs *c, const w
     size_t nbricks, nneed = 0, nrun = 0, i, *need = NULL, *slot = NULL, *run = NULL, nt = 0, misses = 0;
     size_t next = 0;         /* the next brick to stitch */
     unsigned char *ready = NULL;
+    wvol_volume *whole = NULL; /* the whole reconstruction, when the bricks would cost more */
     int stitching = 0;       /* a thread is stitching */
     stitcher sti;
     brick_out *res = NULL;
@@ -536,6 +590,11 @@ static wvol_status extract_bricks(wvol_mesh **out, const wvol_coeffs *c, const w
         if (i == 0 || need[i] != need[i - 1] + 1 || need[i] % g.nb[0] == 0 || i - run[nrun - 1] == RUN_MAX)
             run[nrun++] = i;
     run[nrun] = nneed;
+    if (sto && nneed) {
+        s = whole_if_cheaper(&whole, &g, sto, need, run, nrun, nth, err);
+        if (s != WVOL_OK) goto done;
+        st->whole_inverse = whole != NULL;
+    }
 #ifdef _OPENMP
 #pragma omp parallel num_threads(nth) if (nth > 1)
 #endif
@@ -549,30 +608,31 @@ static wvol_status extract_bricks(wvol_mesh **out, const wvol_coeffs *c, const w
 #pragma omp for schedule(dynamic, 1)
 #endif
         for (r = 0; r < (long)nrun; r++) {
-            size_t q0 = run[r], q1 = run[r + 1], lo[3], hi[3], blo[3], bhi[3], q, cnt;
-            size_t first[3], last[3];
+            size_t q0 = run[r], q1 = run[r + 1], lo[3], hi[3], q, cnt;
             wvol_status rs;
             int mine = 0;
-            brick_coords(&g, need[q0], first);
-            brick_coords(&g, need[q1 - 1], last); /* the same row: only x differs */
-            brick_box(&g, first, lo, hi);
-            brick_box(&g, last, blo, bhi);
-            hi[0] = bhi[0];
+            run_box(&g, need, q0, q1, lo, hi);
             cnt = (hi[0] - lo[0]) * (hi[1] - lo[1]) * (hi[2] - lo[2]);
-            if (cnt > vcap) {
-                free(v);
-                v = malloc(cnt * sizeof *v);
-                vcap = v ? cnt : 0;
+            if (whole) {
+                /* the run's bricks read the whole reconstruction as their box */
+                for (a = 0; a < 3; a++) lo[a] = 0, hi[a] = g.n[a];
+                rs = WVOL_OK;
+            } else {
+                if (cnt > vcap) {
+                    free(v);
+                    v = malloc(cnt * sizeof *v);
+                    vcap = v ? cnt : 0;
+                }
+                rs = v ? wvol__idwt3_brick_src(v, &g.cs, lo, hi, &scr, &res[q0].err)
+                       : wvol_error_set(&res[q0].err, WVOL_ERR_NOMEM, "brick: out of memory");
             }
-            rs = v ? wvol__idwt3_brick_src(v, &g.cs, lo, hi, &scr, &res[q0].err)
-                   : wvol_error_set(&res[q0].err, WVOL_ERR_NOMEM, "brick: out of memory");
             if (rs != WVOL_OK) {
                 res[q0].status = rs; /* stitched first of its run: the run's failure */
             } else {
                 for (q = q0; q < q1; q++) {
                     size_t bidx[3];
                     brick_coords(&g, need[q], bidx);
-                    mesh_brick(&res[q], &g, bidx, v, lo, hi, iso,
+                    mesh_brick(&res[q], &g, bidx, whole ? whole->data : v, lo, hi, iso,
                                p->normals == WVOL_ISO_NORMALS_NONE ? WVOL_ISO_NORMALS_NONE
                                                                    : WVOL_ISO_NORMALS_GRADIENT);
                 }
@@ -660,6 +720,7 @@ done:
     free(slot);
     free(run);
     free(own_range);
+    wvol_volume_destroy(whole);
     wvol__bounds_free(bb);
     wvol__store_blocks_destroy(blocks);
     return s;

@@ -753,6 +753,14 @@ int wvol__store_blocks_keep_table(wvol__store_blocks *b, int key, double **table
     return kept;
 }
 
+int wvol__store_file_room(const wvol_store *s, size_t bytes)
+{
+    wvol_wvc_cache_stats cst;
+    if (!s || !s->file) return 0;
+    wvol_wvc_file_stats(s->file, &cst);
+    return cst.held <= cst.budget && bytes <= cst.budget - cst.held;
+}
+
 size_t wvol__store_blocks_bytes(const wvol__store_blocks *b)
 {
     return b ? b->bytes : 0;

@@ -50,6 +50,11 @@ size_t wvol__store_blocks_bytes(const wvol__store_blocks *b);
 const double *wvol__store_blocks_table(wvol__store_blocks *b, int key);
 int wvol__store_blocks_keep_table(wvol__store_blocks *b, int key, double **table);
 
+/* For a store opened on a .wvc file: whether its memory budget leaves `bytes` more beside the
+ * decoded chunks its cache holds now (a reader's dense copy of the whole pyramid, say). 0 for
+ * a store in memory, which has no budget of its own. */
+int wvol__store_file_room(const wvol_store *s, size_t bytes);
+
 void wvol__store_blocks_destroy(wvol__store_blocks *b); /* NULL is fine */
 
 #endif
