@@ -96,10 +96,13 @@ static void file_store_meshes_and_renders_like_the_memory_store(void)
             CHECK(maxd < 1e-4, "vertices differ by %g voxels", maxd);
         }
         {
-            /* bricks of 8 (some of them away from the shell): with a budget that holds every
-             * chunk, the bounds come from the decoded chunks, the same block maxima as the
-             * memory store's, so the same bricks are skipped, and the same mesh; with the small
-             * budget (fs) they stay the index's per-chunk maxima, which skip fewer */
+            /* bricks of 8 (some of them away from the shell): the same mesh from the three
+             * stores. With the small budget (fs) the bricks are decided by the index's per-chunk
+             * maxima, which skip fewer than the memory store's; with a budget that holds the whole
+             * pyramid (big) the bricks the index leaves cost more to rebuild one by one than the
+             * whole inverse transform, which the file is then decoded for. The decoded chunks'
+             * bounds (the route of a budget that holds every chunk and not the pyramid) are the
+             * memory store's, box for box (below). */
             wvol_store *big = NULL;
             wvol_mesh *mm = NULL, *mf = NULL, *mb = NULL;
             wvol_iso_stats s8m, s8f, s8b;
@@ -112,10 +115,11 @@ static void file_store_meshes_and_renders_like_the_memory_store(void)
                   err.message);
             CHECK(mm && mb && mf && mb->ntris == mm->ntris && mb->nverts == mm->nverts && mf->ntris == mm->ntris,
                   "bricks of 8: the same mesh from the three stores");
-            CHECK(s8b.bricks_skipped == s8m.bricks_skipped && s8f.bricks_skipped < s8b.bricks_skipped,
-                  "bricks skipped: %zu from the decoded chunks' bounds, %zu from the memory store's, %zu from the "
+            CHECK(s8b.whole_inverse && !s8f.whole_inverse && s8b.bricks_skipped == s8f.bricks_skipped &&
+                      s8f.bricks_skipped < s8m.bricks_skipped,
+                  "bricks skipped: %zu with the whole inverse (%d), %zu from the memory store's bounds, %zu from the "
                   "index's (of %zu)",
-                  s8b.bricks_skipped, s8m.bricks_skipped, s8f.bricks_skipped, s8m.bricks_total);
+                  s8b.bricks_skipped, s8b.whole_inverse, s8m.bricks_skipped, s8f.bricks_skipped, s8m.bricks_total);
             {
                 /* the tables' granularity: per chunk (tile 8) for the index's maxima, which hold one
                  * value per chunk (at 2048^3 the small blocks would repeat each over a gigabyte),
@@ -126,6 +130,30 @@ static void file_store_meshes_and_renders_like_the_memory_store(void)
                 CHECK(wvol__store_blocks_create_exact(&vb, &bbb, big, 1, &exact_b, &err) == WVOL_OK &&
                           wvol__store_blocks_create_exact(&vf, &bbf, fs, 1, &exact_f, &err) == WVOL_OK,
                       "views: %s", err.message);
+                {
+                    /* the decoded chunks' bounds of every brick of 8 are the memory store's */
+                    wvol__store_blocks *vm = NULL;
+                    wvol__brick_bounds *bbm = NULL;
+                    long *s0[3], *s1[3], buf[6][8];
+                    size_t nb[3], total = 1;
+                    const size_t dims[3] = {n, n - 6, n + 4};
+                    double rm[2 * 8 * 8 * 8], rb[2 * 8 * 8 * 8];
+                    for (int ax = 0; ax < 3; ax++) {
+                        nb[ax] = (dims[ax] - 1 + 7) / 8;
+                        total *= nb[ax];
+                        s0[ax] = buf[2 * ax], s1[ax] = buf[2 * ax + 1];
+                        for (size_t i = 0; i < nb[ax]; i++) {
+                            s0[ax][i] = (long)(8 * i);
+                            s1[ax][i] = (long)(8 * i + 8 < dims[ax] - 1 ? 8 * i + 8 : dims[ax] - 1);
+                        }
+                    }
+                    CHECK(total <= 8 * 8 * 8 && wvol__store_blocks_create(&vm, &bbm, ms, &err) == WVOL_OK && bbm && bbb &&
+                              wvol__bounds_grid(bbm, (const long *const *)s0, (const long *const *)s1, nb, rm) &&
+                              wvol__bounds_grid(bbb, (const long *const *)s0, (const long *const *)s1, nb, rb) &&
+                              memcmp(rm, rb, 2 * total * sizeof *rm) == 0,
+                          "the decoded chunks' brick bounds are the memory store's (%zu bricks)", total);
+                    wvol__store_blocks_destroy(vm);
+                }
                 CHECK(exact_b && !exact_f && wvol__bounds_block(bbb, 1) == 4 && wvol__bounds_block(bbf, 1) == 8 &&
                           wvol__bounds_block(bbf, 2) == 8 && wvol__bounds_bytes(bbf) < wvol__bounds_bytes(bbb),
                       "bound blocks: decoded %d (edge %zu, %zu bytes), index %d (edges %zu %zu, %zu bytes)", exact_b,
@@ -189,9 +217,10 @@ static void file_store_meshes_and_renders_like_the_memory_store(void)
 
 /* A file store whose bricks to mesh would cost more to rebuild one by one than the whole
  * inverse transform reads them from the whole reconstruction when its budget has room for the
- * pyramid (stats->whole_inverse), and rebuilds them brick by brick when it has not: the same
- * mesh both ways, and the memory store's, up to the float rounding of the two reconstructions
- * (the same triangles; vertices within 1e-4 voxels, as above); the budget is kept. */
+ * pyramid (stats->whole_inverse; the file decoded whole, not through its chunk cache), and
+ * rebuilds them brick by brick when it has not: the same mesh both ways, and the memory
+ * store's, up to the float rounding of the two reconstructions (the same triangles; vertices
+ * within 1e-4 voxels, as above); the budget is kept. */
 static void file_store_meshes_from_the_whole_inverse_when_it_is_cheaper(void)
 {
     double vmin, vmax;
@@ -214,7 +243,11 @@ static void file_store_meshes_from_the_whole_inverse_when_it_is_cheaper(void)
     if (whole) {
         CHECK(wvol_iso_extract_store(&mw, whole, iso, &ip, &sw, &err) == WVOL_OK, "mc file: %s", err.message);
         CHECK(wvol_store_file_stats(whole, &cs, &err) == WVOL_OK, "no decoding error: %s", err.message);
-        budget = cs.peak + pyramid / 2; /* the decoded chunks, and not the pyramid beside them */
+        /* the file decoded whole, straight into the pyramid: through its chunk cache only the
+         * low-pass cube's chunk, which the index's bounds read */
+        CHECK(cs.decoded <= 1 && wvol_store_file_info(whole)->chunks > 50,
+              "whole inverse: %llu chunks decoded through the cache", (unsigned long long)cs.decoded);
+        budget = pyramid / 2; /* chunks a brick pins, not the pyramid */
         CHECK(wvol_store_open(&tight, PATH, budget, NULL, &err) == WVOL_OK, "open: %s", err.message);
     }
     if (whole && tight) {

@@ -420,43 +420,76 @@ static void run_box(const brick_grid *g, const size_t *need, size_t q0, size_t q
 
 /* For a store opened on a .wvc file: the whole reconstruction into *whole when the needed
  * bricks' reconstructions would gather more coefficient positions than the whole pyramid has
- * and the file's budget has room for the pyramid beside the chunks its cache holds (else
- * *whole stays NULL, and the bricks are rebuilt one run at a time). A brick's reconstruction
- * takes the coefficients whose support reaches it, an apron around it at every level (wide
- * for long filters and deep levels), while the whole inverse transform takes each once: with
- * half the bricks straddling the iso-value (a noisy volume) the bricks cost more. A file's
- * chunks are decoded in full whichever way they are read, so the whole pyramid costs no
- * decoding beyond the bricks'. The samples are the whole inverse transform's (the same as
- * decoding the file whole), which differ from the bricks' by the float rounding of sums taken
- * in another order. */
+ * and the file's budget has room for the pyramid (else *whole stays NULL, and the bricks are
+ * rebuilt one run at a time). A brick's reconstruction takes the coefficients whose support
+ * reaches it, an apron around it at every level (wide for long filters and deep levels),
+ * while the whole inverse transform takes each once: with half the bricks straddling the
+ * iso-value (a noisy volume) the bricks cost more. With `decode` (the bricks decided by the
+ * index's bounds, nothing decoded yet) the file is decoded whole, straight into the pyramid
+ * (room for the file's bytes too); else the pyramid is filled from the chunks the cache holds
+ * (decoded for the exact bounds), beside them. The samples are the whole inverse transform's,
+ * as when the file is decoded whole, and differ from the bricks' by the float rounding of sums
+ * taken in another order. */
+static wvol_status whole_volume(wvol_volume **whole, const brick_grid *g, const wvol_store *sto, int decode, int nth,
+                                wvol_error *err);
+
 static wvol_status whole_if_cheaper(wvol_volume **whole, const brick_grid *g, const wvol_store *sto,
-                                    const size_t *need, const size_t *run, size_t nrun, int nth, wvol_error *err)
+                                    const size_t *need, const size_t *run, size_t nrun, int decode, int nth,
+                                    wvol_error *err)
 {
     const size_t *pad = g->cs.pad;
-    size_t work = 0, positions;
-    wvol_coeffs *c = NULL;
+    size_t work = 0, positions, room;
     wvol_status s;
     *whole = NULL;
-    if (pad[0] > SIZE_MAX / pad[1] || pad[0] * pad[1] > SIZE_MAX / pad[2] / sizeof(float)) return WVOL_OK;
+    if (pad[0] > SIZE_MAX / pad[1] || pad[0] * pad[1] > SIZE_MAX / pad[2] / sizeof(float) / 2) return WVOL_OK;
     positions = pad[0] * pad[1] * pad[2];
-    if (g->cs.levels < 1 || !wvol__store_file_room(sto, positions * sizeof(float))) return WVOL_OK;
+    room = positions * sizeof(float) + (decode ? wvol__store_file_bytes(sto) : 0);
+    if (g->cs.levels < 1 || !wvol__store_file_room(sto, room)) return WVOL_OK;
     for (size_t r = 0; r < nrun && work <= positions; r++) {
         size_t lo[3], hi[3];
         run_box(g, need, run[r], run[r + 1], lo, hi);
         work += wvol__idwt3_brick_positions(&g->cs, lo, hi);
     }
     if (work <= positions) return WVOL_OK;
-    WVOL_FORWARD(wvol_coeffs_create(&c, g->cs.filter, g->cs.levels, g->n[0], g->n[1], g->n[2], err));
-    if (c->px != pad[0] || c->py != pad[1] || c->pz != pad[2]) { /* not the file's padding: keep to the bricks */
+#ifdef _OPENMP
+    /* the decoder's and the inverse transform's parallel regions take the calling thread's
+     * default: the extraction's thread count for the while */
+    const int saved = omp_get_max_threads();
+    omp_set_num_threads(nth);
+#endif
+    s = whole_volume(whole, g, sto, decode, nth, err);
+#ifdef _OPENMP
+    omp_set_num_threads(saved);
+#endif
+    return s;
+}
+
+/* The whole reconstruction for whole_if_cheaper (NULL where the pyramid is not the view's). */
+static wvol_status whole_volume(wvol_volume **whole, const brick_grid *g, const wvol_store *sto, int decode, int nth,
+                                wvol_error *err)
+{
+    const size_t *pad = g->cs.pad;
+    wvol_coeffs *c = NULL;
+    wvol_status s;
+    if (decode) {
+        WVOL_FORWARD(wvol__store_file_decode(&c, sto, err));
+    } else {
+        WVOL_FORWARD(wvol_coeffs_create(&c, g->cs.filter, g->cs.levels, g->n[0], g->n[1], g->n[2], err));
+        /* a chunk that does not decode reads as zeros, as the bricks' gathers read it, and the
+         * file records the error for the caller (wvol_store_file_stats) */
+        s = c->px == pad[0] && c->py == pad[1] && c->pz == pad[2] ? wvol__coef_source_fill(c, &g->cs, nth, err)
+                                                                   : WVOL_OK;
+        if (s != WVOL_OK) {
+            wvol_coeffs_destroy(c);
+            return s;
+        }
+    }
+    if (c->px != pad[0] || c->py != pad[1] || c->pz != pad[2] || c->nx != g->n[0] || c->ny != g->n[1] ||
+        c->nz != g->n[2]) { /* not the view's grid: keep to the bricks */
         wvol_coeffs_destroy(c);
         return WVOL_OK;
     }
-    /* a chunk that does not decode reads as zeros, as the bricks' gathers read it, and the
-     * file records the error for the caller (wvol_store_file_stats) */
-    s = wvol__coef_source_fill(c, &g->cs, nth, err);
-    if (s == WVOL_OK) return wvol_idwt3_consume(whole, &c, err);
-    wvol_coeffs_destroy(c);
-    return s;
+    return wvol_idwt3_consume(whole, &c, err);
 }
 
 /* The mesh of the reconstruction of coefficients c, or of store sto (the other NULL). */
@@ -472,6 +505,8 @@ static wvol_status extract_bricks(wvol_mesh **out, const wvol_coeffs *c, const w
     size_t next = 0;         /* the next brick to stitch */
     unsigned char *ready = NULL;
     wvol_volume *whole = NULL; /* the whole reconstruction, when the bricks would cost more */
+    int probe = 0;             /* a file store's bricks decided by its index's bounds so far */
+    double t_whole = 0;        /* seconds making the whole reconstruction */
     int stitching = 0;       /* a thread is stitching */
     stitcher sti;
     brick_out *res = NULL;
@@ -528,9 +563,13 @@ static wvol_status extract_bricks(wvol_mesh **out, const wvol_coeffs *c, const w
         wvol__coef_source_of_coeffs(&g.cs, c);
     } else {
         int exact;
-        /* a file's index bounds a tile of all bands by one maximum: the decoded chunks' own
-         * maxima decide far more bricks, and the chunks are needed for the meshing */
-        WVOL_FORWARD(wvol__store_blocks_create_exact(&blocks, &bb, sto, nth, &exact, err));
+        /* a file store: first the index's bounds (one maximum per chunk, nothing decoded),
+         * which say whether the bricks they leave would cost more than the whole inverse;
+         * if not, the decoded chunks' own maxima (below), which decide far more bricks, and the
+         * chunks are needed for the meshing */
+        probe = wvol_store_is_file(sto);
+        WVOL_FORWARD(probe ? wvol__store_blocks_create(&blocks, &bb, sto, err)
+                           : wvol__store_blocks_create_exact(&blocks, &bb, sto, nth, &exact, err));
         wvol__store_blocks_source(&g.cs, blocks);
     }
     need = malloc(nbricks * sizeof *need);
@@ -542,39 +581,74 @@ static wvol_status extract_bricks(wvol_mesh **out, const wvol_coeffs *c, const w
     }
     /* bounds per brick: samples [c0, c1] (owned cells plus the shared layer); they depend
      * on the coefficients and the brick size alone, so a store's view keeps them */
-    if (bb) {
-        range = blocks ? wvol__store_blocks_table(blocks, g.B) : NULL;
-        if (!range) {
-            own_range = malloc(2 * nbricks * sizeof *own_range);
-            if (!own_range) {
-                s = wvol_error_set(err, WVOL_ERR_NOMEM, "iso: out of memory for %zu bricks", nbricks);
-                goto done;
-            }
-            brick_ranges(&g, bb, nbricks, own_range);
-            if (blocks && wvol__store_blocks_keep_table(blocks, g.B, &own_range)) {
-                range = own_range;
-                own_range = NULL; /* the view's now */
-            } else {
-                range = own_range;
+    for (;;) {
+        double tw;
+        if (bb) {
+            range = blocks ? wvol__store_blocks_table(blocks, g.B) : NULL;
+            if (!range) {
+                own_range = malloc(2 * nbricks * sizeof *own_range);
+                if (!own_range) {
+                    s = wvol_error_set(err, WVOL_ERR_NOMEM, "iso: out of memory for %zu bricks", nbricks);
+                    goto done;
+                }
+                brick_ranges(&g, bb, nbricks, own_range);
+                if (blocks && wvol__store_blocks_keep_table(blocks, g.B, &own_range)) {
+                    range = own_range;
+                    own_range = NULL; /* the view's now */
+                } else {
+                    range = own_range;
+                }
             }
         }
-    }
-    for (i = 0; i < nbricks; i++) {
-        double lo = range ? range[2 * i] : -INFINITY, hi = range ? range[2 * i + 1] : INFINITY;
-        if (lo < gmin) gmin = lo;
-        if (hi > gmax) gmax = hi;
-        slot[i] = (size_t)-1;
-        /* a sample is positive when >= iso: skip when all are surely positive or negative */
-        if (!(lo >= iso) && !(hi < iso)) {
-            slot[i] = nneed;
-            need[nneed++] = i;
+        nneed = nrun = 0;
+        gmin = INFINITY, gmax = -INFINITY;
+        for (i = 0; i < nbricks; i++) {
+            double lo = range ? range[2 * i] : -INFINITY, hi = range ? range[2 * i + 1] : INFINITY;
+            if (lo < gmin) gmin = lo;
+            if (hi > gmax) gmax = hi;
+            slot[i] = (size_t)-1;
+            /* a sample is positive when >= iso: skip when all are surely positive or negative */
+            if (!(lo >= iso) && !(hi < iso)) {
+                slot[i] = nneed;
+                need[nneed++] = i;
+            }
         }
+        /* runs of consecutive needed bricks along x (need[] is in brick order, x fastest),
+         * each reconstructed once as one box: neighbours share their apron, and the synthesis
+         * works on longer rows; a run is capped so that the threads' work items stay small */
+        for (i = 0; i < nneed; i++)
+            if (i == 0 || need[i] != need[i - 1] + 1 || need[i] % g.nb[0] == 0 || i - run[nrun - 1] == RUN_MAX)
+                run[nrun++] = i;
+        run[nrun] = nneed;
+        if (!sto || !nneed) break;
+        tw = wvol__now();
+        s = whole_if_cheaper(&whole, &g, sto, need, run, nrun, probe, nth, err);
+        t_whole = wvol__now() - tw;
+        if (s != WVOL_OK) goto done;
+        if (whole || !probe) break;
+        /* the index's bounds leave the bricks cheaper than the whole inverse: the decoded
+         * chunks' bounds, which skip more of them */
+        probe = 0;
+        range = NULL;
+        free(own_range);
+        own_range = NULL;
+        wvol__bounds_free(bb);
+        bb = NULL;
+        wvol__store_blocks_destroy(blocks);
+        blocks = NULL;
+        {
+            int exact;
+            s = wvol__store_blocks_create_exact(&blocks, &bb, sto, nth, &exact, err);
+            if (s != WVOL_OK) goto done;
+        }
+        wvol__store_blocks_source(&g.cs, blocks);
     }
+    st->whole_inverse = whole != NULL;
     t1 = wvol__now();
     st->bricks_total = nbricks;
     st->bricks_meshed = nneed;
     st->bricks_skipped = nbricks - nneed;
-    st->seconds_bounds = t1 - t0;
+    st->seconds_bounds = t1 - t0 - t_whole;
     res = calloc(nneed + 1, sizeof *res);
     ready = calloc(nneed + 1, 1);
     if (!res || !ready) {
@@ -583,18 +657,6 @@ static wvol_status extract_bricks(wvol_mesh **out, const wvol_coeffs *c, const w
     }
     s = wvol_mesh_create(&sti.m, 0, 0, p->normals != WVOL_ISO_NORMALS_NONE, err);
     if (s != WVOL_OK) goto done;
-    /* runs of consecutive needed bricks along x (need[] is in brick order, x fastest), each
-     * reconstructed once as one box: neighbours share their apron, and the synthesis works
-     * on longer rows; a run is capped so that the threads' work items stay small */
-    for (i = 0; i < nneed; i++)
-        if (i == 0 || need[i] != need[i - 1] + 1 || need[i] % g.nb[0] == 0 || i - run[nrun - 1] == RUN_MAX)
-            run[nrun++] = i;
-    run[nrun] = nneed;
-    if (sto && nneed) {
-        s = whole_if_cheaper(&whole, &g, sto, need, run, nrun, nth, err);
-        if (s != WVOL_OK) goto done;
-        st->whole_inverse = whole != NULL;
-    }
 #ifdef _OPENMP
 #pragma omp parallel num_threads(nth) if (nth > 1)
 #endif
@@ -665,7 +727,7 @@ static wvol_status extract_bricks(wvol_mesh **out, const wvol_coeffs *c, const w
         wvol__brick_scratch_free(&scr);
     }
     t2 = wvol__now();
-    st->seconds_reconstruct = t2 - t1;
+    st->seconds_reconstruct = t2 - t1 + t_whole;
     if (sti.status != WVOL_OK) {
         if (err) *err = sti.err;
         s = sti.status;
@@ -681,7 +743,7 @@ static wvol_status extract_bricks(wvol_mesh **out, const wvol_coeffs *c, const w
     m = sti.m;
     sti.m = NULL;
     nt = m->ntris;
-    st->seconds[2] = t2 - t1;
+    st->seconds[2] = t2 - t1 + t_whole;
     st->seconds[3] = wvol__now() - t0;
     if (nt == 0) {
         st->empty = 1;
