@@ -418,33 +418,30 @@ static void run_box(const brick_grid *g, const size_t *need, size_t q0, size_t q
     hi[0] = bhi[0];
 }
 
-/* For a store opened on a .wvc file: the whole reconstruction into *whole when the needed
- * bricks' reconstructions would gather more coefficient positions than the whole pyramid has
- * and the file's budget has room for the pyramid (else *whole stays NULL, and the bricks are
- * rebuilt one run at a time). A brick's reconstruction takes the coefficients whose support
- * reaches it, an apron around it at every level (wide for long filters and deep levels),
- * while the whole inverse transform takes each once: with half the bricks straddling the
- * iso-value (a noisy volume) the bricks cost more. With `decode` (the bricks decided by the
- * index's bounds, nothing decoded yet) the file is decoded whole, straight into the pyramid
- * (room for the file's bytes too); else the pyramid is filled from the chunks the cache holds
- * (decoded for the exact bounds), beside them. The samples are the whole inverse transform's,
- * as when the file is decoded whole, and differ from the bricks' by the float rounding of sums
- * taken in another order. */
-static wvol_status whole_volume(wvol_volume **whole, const brick_grid *g, const wvol_store *sto, int decode, int nth,
-                                wvol_error *err);
-
+/* For a store opened on a .wvc file whose bricks the index's bounds decided (nothing decoded):
+ * the whole reconstruction into *whole when those bricks' reconstructions would gather more
+ * coefficient positions than the whole pyramid has and the file's budget has room for the
+ * pyramid and the file's bytes (else *whole stays NULL). A brick's reconstruction takes the
+ * coefficients whose support reaches it, an apron around it at every level (wide for long
+ * filters and deep levels), while the whole inverse transform takes each once: where the
+ * surface crosses most of the index's coarse blocks (a noisy volume) the bricks cost more. The
+ * file is then decoded whole, straight into the pyramid, on the extraction's threads (the
+ * decoder's and the inverse transform's parallel regions take the calling thread's default,
+ * set for the while). The samples are the whole inverse transform's, as when the file is
+ * decoded whole, and differ from the bricks' by the float rounding of sums taken in another
+ * order. */
 static wvol_status whole_if_cheaper(wvol_volume **whole, const brick_grid *g, const wvol_store *sto,
-                                    const size_t *need, const size_t *run, size_t nrun, int decode, int nth,
-                                    wvol_error *err)
+                                    const size_t *need, const size_t *run, size_t nrun, int nth, wvol_error *err)
 {
     const size_t *pad = g->cs.pad;
-    size_t work = 0, positions, room;
+    size_t work = 0, positions;
+    wvol_coeffs *c = NULL;
     wvol_status s;
     *whole = NULL;
     if (pad[0] > SIZE_MAX / pad[1] || pad[0] * pad[1] > SIZE_MAX / pad[2] / sizeof(float) / 2) return WVOL_OK;
     positions = pad[0] * pad[1] * pad[2];
-    room = positions * sizeof(float) + (decode ? wvol__store_file_bytes(sto) : 0);
-    if (g->cs.levels < 1 || !wvol__store_file_room(sto, room)) return WVOL_OK;
+    if (g->cs.levels < 1 || !wvol__store_file_room(sto, positions * sizeof(float) + wvol__store_file_bytes(sto)))
+        return WVOL_OK;
     for (size_t r = 0; r < nrun && work <= positions; r++) {
         size_t lo[3], hi[3];
         run_box(g, need, run[r], run[r + 1], lo, hi);
@@ -452,44 +449,23 @@ static wvol_status whole_if_cheaper(wvol_volume **whole, const brick_grid *g, co
     }
     if (work <= positions) return WVOL_OK;
 #ifdef _OPENMP
-    /* the decoder's and the inverse transform's parallel regions take the calling thread's
-     * default: the extraction's thread count for the while */
     const int saved = omp_get_max_threads();
     omp_set_num_threads(nth);
+#else
+    (void)nth;
 #endif
-    s = whole_volume(whole, g, sto, decode, nth, err);
+    s = wvol__store_file_decode(&c, sto, err);
+    if (s == WVOL_OK && (c->px != pad[0] || c->py != pad[1] || c->pz != pad[2] || c->nx != g->n[0] ||
+                         c->ny != g->n[1] || c->nz != g->n[2])) {
+        wvol_coeffs_destroy(c); /* not the view's grid: keep to the bricks */
+        c = NULL;
+    }
+    if (s == WVOL_OK && c) s = wvol_idwt3_consume(whole, &c, err);
 #ifdef _OPENMP
     omp_set_num_threads(saved);
 #endif
+    wvol_coeffs_destroy(c);
     return s;
-}
-
-/* The whole reconstruction for whole_if_cheaper (NULL where the pyramid is not the view's). */
-static wvol_status whole_volume(wvol_volume **whole, const brick_grid *g, const wvol_store *sto, int decode, int nth,
-                                wvol_error *err)
-{
-    const size_t *pad = g->cs.pad;
-    wvol_coeffs *c = NULL;
-    wvol_status s;
-    if (decode) {
-        WVOL_FORWARD(wvol__store_file_decode(&c, sto, err));
-    } else {
-        WVOL_FORWARD(wvol_coeffs_create(&c, g->cs.filter, g->cs.levels, g->n[0], g->n[1], g->n[2], err));
-        /* a chunk that does not decode reads as zeros, as the bricks' gathers read it, and the
-         * file records the error for the caller (wvol_store_file_stats) */
-        s = c->px == pad[0] && c->py == pad[1] && c->pz == pad[2] ? wvol__coef_source_fill(c, &g->cs, nth, err)
-                                                                   : WVOL_OK;
-        if (s != WVOL_OK) {
-            wvol_coeffs_destroy(c);
-            return s;
-        }
-    }
-    if (c->px != pad[0] || c->py != pad[1] || c->pz != pad[2] || c->nx != g->n[0] || c->ny != g->n[1] ||
-        c->nz != g->n[2]) { /* not the view's grid: keep to the bricks */
-        wvol_coeffs_destroy(c);
-        return WVOL_OK;
-    }
-    return wvol_idwt3_consume(whole, &c, err);
 }
 
 /* The mesh of the reconstruction of coefficients c, or of store sto (the other NULL). */
@@ -620,12 +596,12 @@ static wvol_status extract_bricks(wvol_mesh **out, const wvol_coeffs *c, const w
             if (i == 0 || need[i] != need[i - 1] + 1 || need[i] % g.nb[0] == 0 || i - run[nrun - 1] == RUN_MAX)
                 run[nrun++] = i;
         run[nrun] = nneed;
-        if (!sto || !nneed) break;
+        if (!probe || !nneed) break;
         tw = wvol__now();
-        s = whole_if_cheaper(&whole, &g, sto, need, run, nrun, probe, nth, err);
+        s = whole_if_cheaper(&whole, &g, sto, need, run, nrun, nth, err);
         t_whole = wvol__now() - tw;
         if (s != WVOL_OK) goto done;
-        if (whole || !probe) break;
+        if (whole) break;
         /* the index's bounds leave the bricks cheaper than the whole inverse: the decoded
          * chunks' bounds, which skip more of them */
         probe = 0;

@@ -8,9 +8,6 @@
 #include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
-#ifdef _OPENMP
-#include <omp.h>
-#endif
 
 #include "core/alloc.h"
 #include "core/clones.h"
@@ -567,70 +564,6 @@ size_t wvol__idwt3_brick_positions(const wvol__coef_source *src, const size_t lo
         n += (size_t)(bands - (m < src->levels)) * region_count(rn[m]);
     }
     return n;
-}
-
-wvol_status wvol__coef_source_fill(wvol_coeffs *c, const wvol__coef_source *src, int threads, wvol_error *err)
-{
-    const size_t pad[3] = {c->px, c->py, c->pz};
-    const int M = c->levels;
-    long items, i;
-    int oom = 0;
-    WVOL_RETURN_IF(M < 1 || M != src->levels || c->filter != src->filter || pad[0] != src->pad[0] ||
-                       pad[1] != src->pad[1] || pad[2] != src->pad[2],
-                   err, WVOL_ERR_ARG, "coefficients: a pyramid filled from a source of another shape");
-    /* work items: (level, band, z) planes of the pyramid; band 0 of the coarsest level is its
-     * low-pass cube */
-    items = 0;
-    for (int m = 1; m <= M; m++) items += 8 * (long)wvol__extent(pad[2], m);
-    (void)threads;
-#ifdef _OPENMP
-#pragma omp parallel num_threads(threads > 0 ? threads : omp_get_max_threads()) if (threads != 1)
-#endif
-    {
-        float *plane = NULL;
-        size_t cap = 0;
-#ifdef _OPENMP
-#pragma omp for schedule(dynamic, 4)
-#endif
-        for (i = 0; i < items; i++) {
-            long r = i;
-            int m = 1, band, valid = 1;
-            size_t e[3], off[3];
-            for (; m <= M; m++) {
-                const long per = 8 * (long)wvol__extent(pad[2], m);
-                if (r < per) break;
-                r -= per;
-            }
-            for (int a = 0; a < 3; a++) e[a] = wvol__extent(pad[a], m);
-            band = (int)(r / (long)e[2]);
-            const size_t z = (size_t)(r % (long)e[2]);
-            if (band == 0 && m < M) continue; /* a finer level's low-pass is the coarser levels */
-            for (int a = 0; a < 3; a++) {
-                if (((band >> a) & 1) && pad[a] == 1) valid = 0; /* no high-pass on an untransformed axis */
-                off[a] = ((band >> a) & 1) ? e[a] : 0;
-            }
-            if (!valid) continue;
-            if (e[0] * e[1] > cap) {
-                free(plane);
-                cap = e[0] * e[1];
-                if (!(plane = malloc(cap * sizeof *plane))) {
-                    cap = 0;
-#ifdef _OPENMP
-#pragma omp atomic write
-#endif
-                    oom = 1;
-                    continue;
-                }
-            }
-            const ptrdiff_t lo[3] = {0, 0, (ptrdiff_t)z}, n[3] = {(ptrdiff_t)e[0], (ptrdiff_t)e[1], 1};
-            float *dst = c->data + off[0] + c->px * (off[1] + c->py * (off[2] + z));
-            if (!src->gather(src->ctx, plane, m, band, lo, n)) continue; /* all zero: c is zeroed */
-            for (size_t y = 0; y < e[1]; y++) memcpy(dst + c->px * y, plane + e[0] * y, e[0] * sizeof *plane);
-        }
-        free(plane);
-    }
-    WVOL_RETURN_IF(oom, err, WVOL_ERR_NOMEM, "coefficients: out of memory filling a pyramid");
-    return WVOL_OK;
 }
 
 wvol_status wvol__idwt3_brick_src(float *out, const wvol__coef_source *src, const size_t lo[3], const size_t hi[3],

@@ -62,9 +62,6 @@ wvol_status wvol__idwt3_brick_src(float *out, const wvol__coef_source *src, cons
  * (every band of every level, whether it holds a non-zero or not): a measure of its work against
  * the whole inverse transform's, which takes each of the pyramid's positions once. */
 size_t wvol__idwt3_brick_positions(const wvol__coef_source *src, const size_t lo[3], const size_t hi[3]);
-/* Fills c (made by wvol_coeffs_create for src's filter, levels and padded sizes, all zero) with
- * src's coefficients, plane by plane, `threads` threads (0: OpenMP's default). */
-wvol_status wvol__coef_source_fill(wvol_coeffs *c, const wvol__coef_source *src, int threads, wvol_error *err);
 
 /* ---- whole-slice inverse (dwt3.c) --------------------------------------------------- */
 
