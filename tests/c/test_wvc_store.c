@@ -217,10 +217,11 @@ static void file_store_meshes_and_renders_like_the_memory_store(void)
 
 /* A file store whose bricks to mesh would cost more to rebuild one by one than the whole
  * inverse transform reads them from the whole reconstruction when its budget has room for the
- * pyramid (stats->whole_inverse; the file decoded whole, not through its chunk cache), and
- * rebuilds them brick by brick when it has not: the same mesh both ways, and the memory
- * store's, up to the float rounding of the two reconstructions (the same triangles; vertices
- * within 1e-4 voxels, as above); the budget is kept. */
+ * pyramid and the file (stats->whole_inverse; the file decoded whole, not through its chunk
+ * cache; with no brick skipped, the mesh of the file decoded whole, bit for bit), and rebuilds
+ * them brick by brick when it has not (the memory store's mesh up to the float rounding of the
+ * reconstructions: the same triangles, vertices within 1e-4 voxels, as above); the budget is
+ * kept. */
 static void file_store_meshes_from_the_whole_inverse_when_it_is_cheaper(void)
 {
     double vmin, vmax;
@@ -257,13 +258,31 @@ static void file_store_meshes_from_the_whole_inverse_when_it_is_cheaper(void)
               "whole inverse: memory store %d, room for the pyramid %d, no room %d (%zu of %zu bricks meshed)",
               sm.whole_inverse, sw.whole_inverse, st.whole_inverse, sw.bricks_meshed, sw.bricks_total);
         if (mm && mw && mt) {
-            CHECK(mw->ntris == mm->ntris && mt->ntris == mm->ntris && mw->nverts == mm->nverts && mm->ntris > 100,
+            /* no brick skipped by the index here: the whole reconstruction's dense marching
+             * cubes, which is the mesh of the file decoded whole and meshed, bit for bit */
+            wvol_coeffs *dc = NULL;
+            wvol_volume *dv = NULL;
+            wvol_mesh *md = NULL;
+            CHECK(sw.bricks_skipped == 0 && wvol_wvc_read(&dc, PATH, NULL, NULL, &err) == WVOL_OK &&
+                      wvol_idwt3_consume(&dv, &dc, &err) == WVOL_OK &&
+                      wvol_iso_extract(&md, dv, iso, &ip, NULL, &err) == WVOL_OK,
+                  "the file decoded whole and meshed: %s", err.message);
+            CHECK(md && md->ntris == mw->ntris && md->nverts == mw->nverts &&
+                      !memcmp(md->verts, mw->verts, 3 * mw->nverts * sizeof *mw->verts) &&
+                      !memcmp(md->tris, mw->tris, 3 * mw->ntris * sizeof *mw->tris),
+                  "whole inverse: the mesh of the file decoded whole (%zu / %zu triangles)", mw->ntris,
+                  md ? md->ntris : 0);
+            wvol_mesh_destroy(md);
+            wvol_volume_destroy(dv);
+            wvol_coeffs_destroy(dc);
+            /* the bricks (no room) against the memory store's: the same reconstructions */
+            CHECK(mw->ntris == mm->ntris && mt->ntris == mm->ntris && mt->nverts == mm->nverts && mm->ntris > 100,
                   "triangles: memory %zu, whole %zu, bricks %zu", mm->ntris, mw->ntris, mt->ntris);
-            if (mw->nverts == mm->nverts)
+            if (mt->nverts == mm->nverts)
                 for (size_t i = 0; i < 3 * mm->nverts; i++)
-                    if (fabs((double)mw->verts[i] - (double)mm->verts[i]) > maxd)
-                        maxd = fabs((double)mw->verts[i] - (double)mm->verts[i]);
-            CHECK(maxd < 1e-4, "whole inverse against the bricks: vertices differ by %g voxels", maxd);
+                    if (fabs((double)mt->verts[i] - (double)mm->verts[i]) > maxd)
+                        maxd = fabs((double)mt->verts[i] - (double)mm->verts[i]);
+            CHECK(maxd < 1e-4, "bricks from the file against the memory store's: vertices differ by %g voxels", maxd);
         }
         CHECK(wvol_store_file_stats(tight, &cs, &err) == WVOL_OK && cs.peak <= budget,
               "tight budget kept: cache peak %zu of %zu", cs.peak, budget);

@@ -625,6 +625,24 @@ static wvol_status extract_bricks(wvol_mesh **out, const wvol_coeffs *c, const w
     st->bricks_meshed = nneed;
     st->bricks_skipped = nbricks - nneed;
     st->seconds_bounds = t1 - t0 - t_whole;
+    if (whole && nneed == nbricks) {
+        /* every brick to mesh: the whole reconstruction's dense marching cubes, the mesh of the
+         * file decoded whole exactly, without the bricks' stitching */
+        wvol_iso_stats ds;
+        s = wvol_iso_extract(&m, whole, iso, p, &ds, err);
+        if (s != WVOL_OK) goto done;
+        memcpy(st->seconds, ds.seconds, sizeof st->seconds);
+        st->seconds[2] += t_whole;
+        st->seconds[3] = wvol__now() - t0;
+        st->seconds_reconstruct = t_whole + ds.seconds[3];
+        st->cells_active = ds.cells_active;
+        st->empty = ds.empty;
+        st->data_min = ds.data_min, st->data_max = ds.data_max;
+        memcpy(st->message, ds.message, sizeof st->message);
+        *out = m;
+        m = NULL;
+        goto done;
+    }
     res = calloc(nneed + 1, sizeof *res);
     ready = calloc(nneed + 1, 1);
     if (!res || !ready) {
