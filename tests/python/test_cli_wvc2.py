@@ -140,6 +140,23 @@ def test_whole_decode_over_the_budget_is_read_slab_by_slab(wvc):
     assert "slabs" not in json.loads(r.stdout)
 
 
+def test_iso_from_a_noisy_wvc_meshes_the_whole_decode(wvc):
+    """Marching cubes from the noisy skull's .wvc: its index leaves every brick, whose rebuilding
+    would cost more than the whole inverse, so with room in --memory the file is decoded whole
+    and meshed densely (the report says so): the very mesh of `--brick 0`, byte for byte. A
+    budget without room for the padded grid keeps to the bricks: the same triangles."""
+    d, f, _ = wvc
+    out = {}
+    for tag, extra in (("whole", []), ("dense", ["--brick", "0"]), ("bricks", ["--memory", "2M"])):
+        r = subprocess.run([WVOL_BIN, "iso", str(f), "--iso", "300", "-o", str(d / f"{tag}.ply"), "--json", *extra],
+                           capture_output=True, text=True)
+        assert r.returncode == 0, r.stderr
+        out[tag] = json.loads(r.stdout)
+    assert out["whole"]["whole_inverse"] == 1 and out["bricks"]["whole_inverse"] == 0
+    assert (d / "whole.ply").read_bytes() == (d / "dense.ply").read_bytes()
+    assert out["bricks"]["triangles"] == out["whole"]["triangles"] > 1000
+
+
 def test_every_command_takes_a_wvc(wvc):
     d, f, _ = wvc
     for cmd in (["render", f, "-o", d / "img.png", "--size", "48x48", "--memory", "8M"],
