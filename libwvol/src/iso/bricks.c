@@ -429,8 +429,8 @@ static void run_box(const brick_grid *g, const size_t *need, size_t q0, size_t q
  * decoder's and the inverse transform's parallel regions take the calling thread's default,
  * set for the while). The samples are the whole inverse transform's, as when the file is
  * decoded whole, and differ from the bricks' by the float rounding of sums taken in another
- * order. */
-static wvol_status whole_if_cheaper(wvol_volume **whole, const brick_grid *g, const wvol_store *sto,
+ * order. *refine: whether the bricks left are worth the decoded chunks' bounds (below). */
+static wvol_status whole_if_cheaper(wvol_volume **whole, int *refine, const brick_grid *g, const wvol_store *sto,
                                     const size_t *need, const size_t *run, size_t nrun, int nth, wvol_error *err)
 {
     const size_t *pad = g->cs.pad;
@@ -438,16 +438,21 @@ static wvol_status whole_if_cheaper(wvol_volume **whole, const brick_grid *g, co
     wvol_coeffs *c = NULL;
     wvol_status s;
     *whole = NULL;
+    *refine = 1;
     if (pad[0] > SIZE_MAX / pad[1] || pad[0] * pad[1] > SIZE_MAX / pad[2] / sizeof(float) / 2) return WVOL_OK;
     positions = pad[0] * pad[1] * pad[2];
-    if (g->cs.levels < 1 || !wvol__store_file_room(sto, positions * sizeof(float) + wvol__store_file_bytes(sto)))
-        return WVOL_OK;
     for (size_t r = 0; r < nrun && work <= positions; r++) {
         size_t lo[3], hi[3];
         run_box(g, need, run[r], run[r + 1], lo, hi);
         work += wvol__idwt3_brick_positions(&g->cs, lo, hi);
     }
-    if (work <= positions) return WVOL_OK;
+    /* the decoded chunks' bounds cost a decode of every chunk, about what rebuilding the
+     * pyramid's worth of positions costs: worth it only where the bricks left would gather at
+     * least half that many */
+    *refine = work >= positions / 2;
+    if (work <= positions || g->cs.levels < 1 ||
+        !wvol__store_file_room(sto, positions * sizeof(float) + wvol__store_file_bytes(sto)))
+        return WVOL_OK;
 #ifdef _OPENMP
     const int saved = omp_get_max_threads();
     omp_set_num_threads(nth);
@@ -482,6 +487,7 @@ static wvol_status extract_bricks(wvol_mesh **out, const wvol_coeffs *c, const w
     unsigned char *ready = NULL;
     wvol_volume *whole = NULL; /* the whole reconstruction, when the bricks would cost more */
     int probe = 0;             /* a file store's bricks decided by its index's bounds so far */
+    int refine = 0;            /* the index's bricks leave enough work for the decoded bounds */
     double t_whole = 0;        /* seconds making the whole reconstruction */
     int stitching = 0;       /* a thread is stitching */
     stitcher sti;
@@ -598,12 +604,12 @@ static wvol_status extract_bricks(wvol_mesh **out, const wvol_coeffs *c, const w
         run[nrun] = nneed;
         if (!probe || !nneed) break;
         tw = wvol__now();
-        s = whole_if_cheaper(&whole, &g, sto, need, run, nrun, nth, err);
+        s = whole_if_cheaper(&whole, &refine, &g, sto, need, run, nrun, nth, err);
         t_whole = wvol__now() - tw;
         if (s != WVOL_OK) goto done;
-        if (whole) break;
-        /* the index's bounds leave the bricks cheaper than the whole inverse: the decoded
-         * chunks' bounds, which skip more of them */
+        if (whole || !refine) break;
+        /* the index's bounds leave the bricks cheaper than the whole inverse, and enough of
+         * them to pay for the decoded chunks' bounds, which skip more */
         probe = 0;
         range = NULL;
         free(own_range);
