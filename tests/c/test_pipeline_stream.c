@@ -438,8 +438,13 @@ static void memory_does_not_grow_with_depth(void)
     deep = child_peak(1024, hd);
     CHECK(shallow > 0 && deep > 0, "children compressed (%lld, %lld)", shallow, deep);
     if (shallow <= 0 || deep <= 0) return;
-    /* 8 MiB: the allocator's and the page cache's noise between two runs */
-    CHECK(deep <= shallow + (8 << 20), "peak %lld bytes at depth 1024, %lld at 256", deep, shallow);
+    printf("test_pipeline_stream: peak resident %lld bytes at depth 256, %lld at 1024 (window %zu, writer %zu)\n",
+           shallow, deep, hd[0], hd[1]);
+    /* 16 MiB: the noise between two runs of one depth, which the window's and writer's
+     * buffers make (each in huge pages or not, as the kernel finds them; the payloads in
+     * flight): the same depth's peak has moved by over 10 MiB between runs, against the 108 MiB
+     * the volume grows by */
+    CHECK(deep <= shallow + (16 << 20), "peak %lld bytes at depth 1024, %lld at 256", deep, shallow);
     /* 16 MiB: the generator's tables, stdio and the chunk payloads in flight */
     CHECK(deep <= floor_ + (long long)(hd[0] + hd[1]) + (16 << 20),
           "peak %lld bytes above this process's %lld + window %zu + writer %zu", deep, floor_, hd[0], hd[1]);

@@ -115,8 +115,9 @@ typedef struct wvol_iso_stats {
     size_t bricks_total, bricks_skipped, bricks_meshed;
     double seconds_bounds, seconds_reconstruct;
     /* from a store opened on a .wvc file: 1 when the bricks to mesh were read from the whole
-     * inverse transform (made when their own reconstructions would have taken more of the
-     * pyramid's coefficients than the pyramid holds, and the file's budget had room for it) */
+     * inverse transform of the file decoded whole (made when their own reconstructions would
+     * have taken more coefficient positions than the pyramid holds, and the file's budget had
+     * room for the pyramid and the file) */
     int whole_inverse;
 } wvol_iso_stats;
 
@@ -147,11 +148,13 @@ WVOL_API wvol_status wvol_iso_extract_coeffs(wvol_mesh **out, const wvol_coeffs 
  * renderer reconstructs its bricks (the dense coefficients are never formed), meshed and
  * stitched. The mesh is wvol_iso_extract_coeffs's on wvol_store_densify(s), exactly: the
  * same vertices, normals and triangles in the same order. Where the bound does not apply
- * (a store without transformed levels) every brick is reconstructed. From a store opened on a
- * .wvc file whose bricks to mesh would cost more to reconstruct one by one than the whole
- * inverse transform (a noisy volume, long filters) and whose budget has room for the whole
- * pyramid, they are read from the whole reconstruction (stats->whole_inverse): the same mesh
- * up to the float rounding of the two reconstructions, as from the file decoded whole. */
+ * (a store without transformed levels) every brick is reconstructed. A store opened on a .wvc
+ * file decides its bricks from the file's index first: where those would cost more to
+ * reconstruct one by one than the whole inverse transform (a noisy volume, long filters) and
+ * the budget has room for the whole pyramid and the file, the file is decoded whole and the
+ * bricks are read from its inverse transform (stats->whole_inverse; when the index leaves every
+ * brick, wvol_iso_extract on it: the mesh of the file decoded whole); the same mesh as the
+ * bricks' up to the float rounding of the two reconstructions. */
 WVOL_API wvol_status wvol_iso_extract_store(wvol_mesh **out, const wvol_store *s, double iso,
                                    const wvol_iso_params *p, wvol_iso_stats *stats, wvol_error *err);
 
