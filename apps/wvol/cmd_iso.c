@@ -225,6 +225,11 @@ static int run_mc(const iso_args *a)
         }
         t_level = cli_now() - t1;
     }
+    if (kept.store && v) {
+        /* the store holds what the extraction reads: the volume's memory goes back before it */
+        wvol_volume_destroy(v);
+        v = NULL;
+    }
     for (r = 0; r < a->repeat; r++) {
         double t1 = cli_now(), c1 = cli_cpu_now(), dt, dc;
         wvol_status s;
