@@ -624,30 +624,6 @@ size_t wvol__wvc_file_pin_need(const wvol_wvc_file *f, int pinned)
 
 size_t wvol__wvc_file_budget(const wvol_wvc_file *f) { return f->budget; }
 
-uint64_t wvol__wvc_file_size(const wvol_wvc_file *f)
-{
-    struct stat sb;
-    return fstat(f->fd, &sb) == 0 && sb.st_size > 0 ? (uint64_t)sb.st_size : 0;
-}
-
-wvol_status wvol__wvc_file_decode_whole(wvol_coeffs **out, wvol_wvc_file *f, wvol_error *err)
-{
-    const uint64_t n = wvol__wvc_file_size(f);
-    wvol_status st;
-    void *buf;
-    *out = NULL;
-    WVOL_RETURN_IF(n == 0 || n > SIZE_MAX, err, WVOL_ERR_IO, "%s: cannot tell the file's size", f->path);
-    buf = wvol__malloc_large((size_t)n);
-    WVOL_RETURN_IF(!buf, err, WVOL_ERR_NOMEM, "%s: out of memory reading the file whole", f->path);
-    if (read_at(f->fd, buf, (size_t)n, 0)) {
-        free(buf);
-        return wvol_error_set(err, WVOL_ERR_IO, "%s: cannot read the file whole", f->path);
-    }
-    st = wvol_wvc_decode(out, buf, (size_t)n, NULL, NULL, err);
-    free(buf);
-    return st;
-}
-
 /* ---- gathering ------------------------------------------------------------------- */
 
 /* Pins of one gather: a few recent chunks stay pinned while a region is copied. */

@@ -20,13 +20,6 @@ void wvol__wvc_file_source(wvol__coef_source *src, wvol_wvc_file *f, int skip);
 /* The path the file was opened from. */
 const char *wvol__wvc_file_path(const wvol_wvc_file *f);
 
-/* The file's size in bytes (0 when it cannot be told). */
-uint64_t wvol__wvc_file_size(const wvol_wvc_file *f);
-/* The whole file decoded at once into dense coefficients, as wvol_wvc_decode decodes its bytes
- * (read through the open descriptor; the cache is neither used nor changed): for a reader that
- * needs every coefficient, to which the whole decode is cheaper than chunk by chunk. */
-wvol_status wvol__wvc_file_decode_whole(wvol_coeffs **out, wvol_wvc_file *f, wvol_error *err);
-
 /* The first error a gather met since the last call (WVOL_OK if none), copied to err,
  * and cleared. */
 wvol_status wvol__wvc_file_error(wvol_wvc_file *f, wvol_error *err);

@@ -435,6 +435,7 @@ static wvol_status whole_if_cheaper(wvol_volume **whole, int *refine, const bric
 {
     const size_t *pad = g->cs.pad;
     size_t work = 0, positions;
+    uint64_t file_bytes;
     wvol_coeffs *c = NULL;
     wvol_status s;
     *whole = NULL;
@@ -450,8 +451,9 @@ static wvol_status whole_if_cheaper(wvol_volume **whole, int *refine, const bric
      * pyramid's worth of positions costs: worth it only where the bricks left would gather at
      * least half that many */
     *refine = work >= positions / 2;
-    if (work <= positions || g->cs.levels < 1 ||
-        !wvol__store_file_room(sto, positions * sizeof(float) + wvol__store_file_bytes(sto)))
+    file_bytes = wvol_store_file_info(sto)->file_bytes;
+    if (work <= positions || g->cs.levels < 1 || file_bytes > SIZE_MAX - positions * sizeof(float) ||
+        !wvol__store_file_room(sto, positions * sizeof(float) + (size_t)file_bytes))
         return WVOL_OK;
 #ifdef _OPENMP
     const int saved = omp_get_max_threads();
@@ -459,7 +461,7 @@ static wvol_status whole_if_cheaper(wvol_volume **whole, int *refine, const bric
 #else
     (void)nth;
 #endif
-    s = wvol__store_file_decode(&c, sto, err);
+    s = wvol_store_densify(sto, &c, err); /* a file store's: the file decoded whole, no cache */
     if (s == WVOL_OK && (c->px != pad[0] || c->py != pad[1] || c->pz != pad[2] || c->nx != g->n[0] ||
                          c->ny != g->n[1] || c->nz != g->n[2])) {
         wvol_coeffs_destroy(c); /* not the view's grid: keep to the bricks */
@@ -673,13 +675,13 @@ static wvol_status extract_bricks(wvol_mesh **out, const wvol_coeffs *c, const w
             size_t q0 = run[r], q1 = run[r + 1], lo[3], hi[3], q, cnt;
             wvol_status rs;
             int mine = 0;
-            run_box(&g, need, q0, q1, lo, hi);
-            cnt = (hi[0] - lo[0]) * (hi[1] - lo[1]) * (hi[2] - lo[2]);
             if (whole) {
                 /* the run's bricks read the whole reconstruction as their box */
                 for (a = 0; a < 3; a++) lo[a] = 0, hi[a] = g.n[a];
                 rs = WVOL_OK;
             } else {
+                run_box(&g, need, q0, q1, lo, hi);
+                cnt = (hi[0] - lo[0]) * (hi[1] - lo[1]) * (hi[2] - lo[2]);
                 if (cnt > vcap) {
                     free(v);
                     v = malloc(cnt * sizeof *v);

@@ -761,19 +761,6 @@ int wvol__store_file_room(const wvol_store *s, size_t bytes)
     return cst.held <= cst.budget && bytes <= cst.budget - cst.held;
 }
 
-size_t wvol__store_file_bytes(const wvol_store *s)
-{
-    const uint64_t n = s && s->file ? wvol__wvc_file_size(s->file) : 0;
-    return n <= SIZE_MAX ? (size_t)n : SIZE_MAX;
-}
-
-wvol_status wvol__store_file_decode(wvol_coeffs **out, const wvol_store *s, wvol_error *err)
-{
-    *out = NULL;
-    WVOL_RETURN_IF(!s || !s->file, err, WVOL_ERR_ARG, "store: not opened on a file");
-    return wvol__wvc_file_decode_whole(out, s->file, err);
-}
-
 size_t wvol__store_blocks_bytes(const wvol__store_blocks *b)
 {
     return b ? b->bytes : 0;

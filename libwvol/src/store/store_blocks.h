@@ -54,11 +54,6 @@ int wvol__store_blocks_keep_table(wvol__store_blocks *b, int key, double **table
  * decoded chunks its cache holds now (a reader's dense copy of the whole pyramid, say). 0 for
  * a store in memory, which has no budget of its own. */
 int wvol__store_file_room(const wvol_store *s, size_t bytes);
-/* For a store opened on a .wvc file: the file's size in bytes, and its whole pyramid decoded at
- * once (the file read whole, its chunks decoded straight into the pyramid; the chunk cache not
- * used). */
-size_t wvol__store_file_bytes(const wvol_store *s);
-wvol_status wvol__store_file_decode(wvol_coeffs **out, const wvol_store *s, wvol_error *err);
 
 void wvol__store_blocks_destroy(wvol__store_blocks *b); /* NULL is fine */
 
