@@ -3,8 +3,9 @@
  * slabs read from raw and NRRD (raw, gzip, detached) files equal the same slices of the
  * whole-file readers in any order; other formats are read whole; damaged files, NaN and
  * bad ranges are refused with a message; slabs of several MiB, read and checked on several
- * threads, are the same; the slab writer's files equal the whole-volume writers' and
- * nothing is left when a write is abandoned. */
+ * threads, are the same; row bands of the sources that seek equal the same rows; the slab
+ * writer's files equal the whole-volume writers' and nothing is left when a write is
+ * abandoned. */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -19,6 +20,7 @@
 #include "wvol/io.h"
 #include "wvol/source.h"
 #include "wvol_synth.h"
+#include "core/source_volume.h"
 
 #define DIR_ "test_source.d"
 
@@ -35,6 +37,37 @@ static wvol_volume *skull(size_t nx, size_t ny, size_t nz)
 }
 
 /* Reads every slab of a source in the given order of (z0, nz) and compares with v. */
+/* Row bands (core/source_volume.h) equal the same rows of the volume, where the source has
+ * them (expect_rows); a source without them says so and reads nothing. */
+static void rows_match(wvol_source *s, const wvol_volume *v, int expect_rows, const char *what)
+{
+    static const size_t plan[][4] = {{0, 3, 0, 2}, {5, 4, 3, 7}, {1, 1, 0, 1}, {9, 2, 1, 16}, {2, 5, 4, 1}};
+    const size_t nx = v->nx;
+    float *buf = malloc(v->nx * v->ny * v->nz * sizeof *buf);
+    wvol_error err;
+    for (size_t i = 0; buf && i < sizeof plan / sizeof plan[0]; i++) {
+        size_t z0 = plan[i][0], nz = plan[i][1], y0 = plan[i][2], ny = plan[i][3];
+        wvol_status st;
+        int same = 1;
+        if (z0 + nz > v->nz || y0 + ny > v->ny) continue;
+        st = wvol__source_read_rows(s, buf, z0, nz, y0, ny, &err);
+        if (!expect_rows) {
+            CHECK(st == WVOL_ERR_UNSUPPORTED, "%s: no row bands (status %d)", what, (int)st);
+            break;
+        }
+        CHECK(st == WVOL_OK, "%s: rows %zu+%zu of slices %zu+%zu: %s", what, y0, ny, z0, nz, err.message);
+        for (size_t k = 0; k < nz; k++)
+            same &= memcmp(buf + k * nx * ny, v->data + nx * (v->ny * (z0 + k) + y0), nx * ny * sizeof *buf) == 0;
+        CHECK(same, "%s: rows %zu+%zu of slices %zu+%zu differ", what, y0, ny, z0, nz);
+    }
+    if (expect_rows && buf) {
+        CHECK(wvol__source_read_rows(s, buf, 0, 1, v->ny - 1, 2, &err) == WVOL_ERR_ARG, "%s: rows past the end", what);
+        CHECK(wvol__source_read_rows(s, buf, v->nz - 1, 2, 0, 1, &err) == WVOL_ERR_ARG, "%s: slices past the end",
+              what);
+    }
+    free(buf);
+}
+
 static void slabs_match(wvol_source *s, const wvol_volume *v, const char *what)
 {
     /* forward, then backward, then overlapping: gzip restarts for the backward reads */
@@ -76,6 +109,7 @@ static void file_sources_equal_whole_reads(void)
                       org[2] == v->origin[2],
                   "%s: geometry", what);
             slabs_match(s, v, what);
+            rows_match(s, v, !gz, what);
             wvol_source_destroy(s);
             s = NULL;
         }
@@ -84,6 +118,7 @@ static void file_sources_equal_whole_reads(void)
     lo.dims[0] = 21, lo.dims[1] = 17, lo.dims[2] = 23;
     CHECK(wvol_source_open(&s, DIR_ "/c.raw", &lo, &err) == WVOL_OK, "%s", err.message);
     if (s) slabs_match(s, v, "raw");
+    if (s) rows_match(s, v, 1, "raw");
     wvol_source_destroy(s);
     s = NULL;
     /* a raw file of another sample type converts as the whole reader does */
@@ -98,6 +133,7 @@ static void file_sources_equal_whole_reads(void)
         CHECK(wvol_raw_read(&back, DIR_ "/u.raw", &lo, &err) == WVOL_OK, "%s", err.message);
         CHECK(wvol_source_open(&s, DIR_ "/u.raw", &lo, &err) == WVOL_OK, "%s", err.message);
         if (s && back) slabs_match(s, back, "uint16 raw");
+        if (s && back) rows_match(s, back, 1, "uint16 raw");
         wvol_source_destroy(s);
         wvol_volume_destroy(back);
         s = NULL, back = NULL;
@@ -107,9 +143,15 @@ static void file_sources_equal_whole_reads(void)
         CHECK(wvol_source_open(&s, DIR_ "/d.vti", NULL, &err) == WVOL_OK, "%s", err.message);
         CHECK(s && !wvol_source_streams(s), ".vti is read whole");
         if (s) slabs_match(s, v, "vti");
+        if (s) rows_match(s, v, 1, "vti");
         wvol_source_destroy(s);
         s = NULL;
     }
+    /* a volume in memory has row bands too */
+    CHECK(wvol_source_of_volume(&s, v, &err) == WVOL_OK, "%s", err.message);
+    if (s) rows_match(s, v, 1, "volume");
+    wvol_source_destroy(s);
+    s = NULL;
     /* the whole volume through the source */
     CHECK(wvol_source_open(&s, DIR_ "/a.nrrd", NULL, &err) == WVOL_OK, "%s", err.message);
     CHECK(s && wvol_source_read_volume(s, &back, &err) == WVOL_OK, "%s", err.message);
@@ -176,6 +218,11 @@ static void damaged_files_are_refused(void)
     CHECK(s && wvol_source_read(s, buf, 0, 8, &err) == WVOL_OK, "slices before the NaN read");
     CHECK(s && wvol_source_read(s, buf, 6, 4, &err) == WVOL_ERR_NONFINITE && strstr(err.message, "i=5, j=7, k=8"),
           "NaN named: %s", err.message);
+    /* the same in a row band: rows 5 .. 8 of slices 7 .. 8, the voxel in the volume's indices */
+    CHECK(s && wvol__source_read_rows(s, buf, 7, 2, 5, 4, &err) == WVOL_ERR_NONFINITE &&
+              strstr(err.message, "i=5, j=7, k=8"),
+          "NaN named in a row band: %s", err.message);
+    CHECK(s && wvol__source_read_rows(s, buf, 7, 2, 0, 5, &err) == WVOL_OK, "rows before the NaN's read");
     wvol_source_destroy(s);
     s = NULL;
     CHECK(wvol_source_open(&s, DIR_ "/none.nrrd", NULL, &err) == WVOL_ERR_IO, "missing file refused");

@@ -130,7 +130,8 @@ static void degenerate_volumes(void)
         }
 }
 
-/* The same choice and estimates, bit for bit, on repeated runs and from a streamed source. */
+/* The same choice and estimates, bit for bit, on repeated runs and from a streamed source (its
+ * cubes read from whole slices) as from a volume in memory (read as row bands). */
 static void deterministic_and_streamed(void)
 {
     wvol_volume *v = make(96, 0);

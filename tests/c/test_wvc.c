@@ -17,6 +17,7 @@
 #include "codec/wvc2_writer.h"
 #include "codec/wvc_dequant.h"
 #include "codec/wvc_format.h"
+#include "codec/wvc_quant.h"
 #include "wvol/io.h"
 #include "wvol/wvc.h"
 
@@ -907,6 +908,68 @@ static void wvc2_mode1_files_decode_to_the_same_values(void)
  * repeat (zstd's matches take them almost for free) and band 7 scattered values (CABAC's
  * ground), so the level's chunk is mode 0 with one band of each kind; the coefficients, all
  * multiples of the step, decode exactly. */
+/* One value of the quantiser kernels' test rows: zeros (both signs), values below the dead
+ * zone, values a hair either side of a decision (|c| / step + f at an integer), large ones
+ * beyond the clamp of |q|, subnormals, a coarse noise. */
+static float quant_value(unsigned *rng, double step, double f)
+{
+    unsigned r = (*rng = *rng * 1103515245u + 12345u) >> 8;
+    double u = (double)(r & 0xFFFF) / 65536.0, k = (double)((r >> 16) & 7);
+    float s = (r & 0x10000) ? -1.0f : 1.0f;
+    switch (r % 9) {
+    case 0: return (r & 2) ? 0.0f : -0.0f;
+    case 1: return s * (float)(u * (1.0 - f) * step);                     /* dead zone */
+    case 2: return s * nextafterf((float)((k + 1 - f) * step), 0.0f);       /* just below a decision */
+    case 3: return s * nextafterf((float)((k + 1 - f) * step), INFINITY);   /* just above */
+    case 4: return s * (float)(u * 2e9 * step);                             /* |q| clamped */
+    case 5: return s * 1e-40f * (float)u;                                   /* subnormal */
+    default: return s * (float)(u * u * 40.0 * step);
+    }
+}
+
+/* The x86-64-v4 kernel of the quantiser's sums (where the CPU has it) against row_kernel as
+ * the compiler builds it for the same CPU: the same sums bit for bit, the same largest |c|,
+ * the same quantised values, and in the sparse form the same values written and nothing else;
+ * rows of every length from 0 to 70 and a few longer ones, zero runs, both writers. On a CPU
+ * without x86-64-v4 both are row_kernel and the check holds trivially. */
+static void wvc_quant_kernels_agree(void)
+{
+    const double steps[3] = {8.484323856428156, 0.37, 269.34};
+    const double fs[3] = {0.38, 0.5, 0.0};
+    unsigned rng = 12345u;
+    float row[1100];
+    int32_t q1[1100], q2[1100];
+    int bad = 0;
+    for (int si = 0; si < 3; si++)
+        for (int fi = 0; fi < 3; fi++)
+            for (size_t n = 0; n < 1100; n = n < 70 ? n + 1 : n * 2 + 37) {
+                double t1[8], t2[8];
+                float a1, a2;
+                /* a few rows with long zero runs (the dead zone's fast path) */
+                int runs = (int)(n % 3);
+                for (size_t x = 0; x < n; x++) {
+                    row[x] = quant_value(&rng, steps[si], fs[fi]);
+                    if (runs && (x / 8) % (size_t)(runs + 1)) row[x] = 0.25f * (float)((1.0 - fs[fi]) * steps[si]);
+                }
+                memset(q1, 0x5a, sizeof q1);
+                memset(q2, 0x5a, sizeof q2);
+                a1 = wvol__wvc_row_stats(t1, row, q1, n, steps[si], fs[fi]);
+                a2 = wvol__wvc_row_stats_generic(t2, row, q2, n, steps[si], fs[fi]);
+                bad += memcmp(t1, t2, sizeof t1) != 0 || memcmp(&a1, &a2, sizeof a1) != 0 || memcmp(q1, q2, sizeof q1) != 0;
+                for (int sparse = 0; sparse < 2; sparse++) {
+                    sec_stats s1, s2;
+                    const size_t ex = n / 3 + 1, ey = 2, nz = 2, sy = ex + 3, sz = 3 * sy;
+                    if (nz * sz > 1100) continue;
+                    memset(q1, 0, sizeof q1);
+                    memset(q2, 0, sizeof q2);
+                    wvol__wvc_rows_stats(&s1, row, q1, ex, ey, nz, sy, sz, steps[si], fs[fi], sparse);
+                    wvol__wvc_rows_stats_generic(&s2, row, q2, ex, ey, nz, sy, sz, steps[si], fs[fi], sparse);
+                    bad += memcmp(&s1, &s2, sizeof s1) != 0 || memcmp(q1, q2, sizeof q1) != 0;
+                }
+            }
+    CHECK(bad == 0, "quantiser kernels: %d rows differ between the x86-64-v4 kernel and the generic one", bad);
+}
+
 static void wvc2_bands_coded_apart_round_trip(void)
 {
     const wvol_filter *f;
@@ -1679,5 +1742,6 @@ int main(void)
     wvc2_mode1_files_decode_to_the_same_values();
     wvc2_sparse_chunks_round_trip();
     wvc2_bands_coded_apart_round_trip();
+    wvc_quant_kernels_agree();
     return check_summary("test_wvc");
 }

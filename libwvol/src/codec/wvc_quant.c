@@ -21,7 +21,9 @@
  * zeroed energy; the others get the full arithmetic, in double. Explicit vectors
  * (AVX2 in the x86-64-v3 clone; GCC will not reorder a double reduction itself),
  * branch-free selects; counts are summed as doubles within a row (exact below
- * 2^53); the scalar tail does the same arithmetic. */
+ * 2^53); the scalar tail does the same arithmetic. The file is compiled without
+ * contracted multiply-adds (CMakeLists.txt): the sums and the quantised values are the
+ * same whichever clone or kernel runs. */
 typedef double wvc_v4d __attribute__((vector_size(32)));
 typedef int64_t wvc_v4l __attribute__((vector_size(32)));
 typedef int32_t wvc_v4i __attribute__((vector_size(16)));
@@ -139,17 +141,127 @@ static inline __attribute__((always_inline)) void row_kernel(double t[8], float 
     }
 }
 
-WVOL__CLONES_V4 float wvol__wvc_row_stats(double t[8], const float *row, int32_t *qrow, size_t n, double step, double f)
+#if WVOL__HAVE_V4
+#include <immintrin.h>
+
+/* acc += lo where the mask's lanes 0-3 are set, then += hi where lanes 4-7 are */
+#define MADD2(acc, k, lo, hi) \
+    ((acc) = _mm256_mask_add_pd((acc), (k), (acc), (lo)), \
+     (acc) = _mm256_mask_add_pd((acc), (__mmask8)((k) >> 4), (acc), (hi)))
+
+/* row_kernel for x86-64-v4 CPUs, in its intrinsics: eight coefficients per step in one
+ * 512-bit vector, each accumulator's selects as masked adds. The values are row_kernel's
+ * operation for operation (this file is compiled without contracted multiply-adds, so
+ * neither fuses a product), and each accumulator adds the group's lower four lanes and then
+ * its upper four, as row_kernel adds its two quads: the same sums, bit for bit
+ * (tests/c/test_wvc.c, wvc_quant_kernels_agree). */
+WVOL__TARGET_V4 static float row_kernel_v4(double t[8], const float *row, int32_t *qrow, size_t ex, double step,
+                                           double f, int sparse)
+{
+    const double inv = 1.0 / step, qmax = WVC_QMAX;
+    const float thr = (float)((1.0 - f) * step * (1.0 - 1e-6));
+    const __m512d vinv = _mm512_set1_pd(inv), vf = _mm512_set1_pd(f), vq = _mm512_set1_pd(qmax);
+    const __m512d one = _mm512_set1_pd(1.0), two = _mm512_set1_pd(2.0);
+    const __m256 vthr = _mm256_set1_ps(thr);
+    const __m256i absmask = _mm256_set1_epi32(INT32_MAX);
+    const __m256d one4 = _mm256_set1_pd(1.0);
+    __m256d rz = _mm256_setzero_pd(), re = rz, r1 = rz, rr1 = rz, r2 = rz, rr2 = rz, c1 = rz, c2 = rz, zq = rz;
+    __m256i vmax = _mm256_setzero_si256();
+    size_t x;
+    float m = 0.0f, lanes[8];
+    memset(t, 0, 8 * sizeof *t);
+    for (x = 0; x + 8 <= ex; x += 8) {
+        const __m256 cf = _mm256_loadu_ps(row + x);
+        const __m256i ab = _mm256_and_si256(_mm256_castps_si256(cf), absmask);
+        vmax = _mm256_max_epu32(vmax, ab);
+        const __m512d c = _mm512_cvtps_pd(cf);
+        if (!_mm256_cmp_ps_mask(_mm256_castsi256_ps(ab), vthr, _CMP_GE_OQ)) {
+            /* a group below the dead zone: its energy only */
+            const __m256d dl = _mm512_castpd512_pd256(c), dh = _mm512_extractf64x4_pd(c, 1);
+            zq = _mm256_add_pd(zq, _mm256_add_pd(_mm256_mul_pd(dl, dl), _mm256_mul_pd(dh, dh)));
+            if (qrow && !sparse) _mm256_storeu_si256((__m256i *)(qrow + x), _mm256_setzero_si256());
+            continue;
+        }
+        const __m512d a = _mm512_mul_pd(_mm512_abs_pd(c), vinv);
+        /* truncation, not floor(): t >= 0; min with the clamp as row_kernel's select */
+        const __m512d tt = _mm512_min_pd(_mm512_add_pd(a, vf), vq);
+        const __m256i qi = _mm512_cvttpd_epi32(tt);
+        const __m512d q = _mm512_cvtepi32_pd(qi);
+        const __m512d r = _mm512_sub_pd(a, q), cc = _mm512_mul_pd(c, c), rr = _mm512_mul_pd(r, r);
+        const __mmask8 k0 = _mm512_cmp_pd_mask(q, one, _CMP_LT_OQ), k1 = _mm512_cmp_pd_mask(q, one, _CMP_EQ_OQ);
+        const __mmask8 k2 = _mm512_cmp_pd_mask(q, two, _CMP_GE_OQ);
+        const __m256d cl = _mm512_castpd512_pd256(cc), ch = _mm512_extractf64x4_pd(cc, 1);
+        const __m256d rl = _mm512_castpd512_pd256(r), rh = _mm512_extractf64x4_pd(r, 1);
+        const __m256d sl = _mm512_castpd512_pd256(rr), sh = _mm512_extractf64x4_pd(rr, 1);
+        re = _mm256_add_pd(_mm256_add_pd(re, cl), ch);
+        MADD2(rz, k0, cl, ch);
+        MADD2(c1, k1, one4, one4);
+        MADD2(r1, k1, rl, rh);
+        MADD2(rr1, k1, sl, sh);
+        MADD2(c2, k2, one4, one4);
+        MADD2(r2, k2, rl, rh);
+        MADD2(rr2, k2, sl, sh);
+        if (qrow) {
+            const __m256i neg = _mm256_castps_si256(_mm256_cmp_ps(cf, _mm256_setzero_ps(), _CMP_LT_OQ));
+            const __m256i sq = _mm256_sub_epi32(_mm256_xor_si256(qi, neg), neg);
+            if (!sparse) {
+                _mm256_storeu_si256((__m256i *)(qrow + x), sq);
+            } else {
+                /* only the quads holding a non-zero (q is known to be all zero) */
+                const __mmask8 nz = _mm256_test_epi32_mask(qi, qi);
+                if (nz & 0x0F) _mm_storeu_si128((__m128i *)(qrow + x), _mm256_castsi256_si128(sq));
+                if (nz & 0xF0) _mm_storeu_si128((__m128i *)(qrow + x + 4), _mm256_extracti128_si256(sq, 1));
+            }
+        }
+    }
+    {
+        double a[8][4];
+        _mm256_storeu_pd(a[0], rz), _mm256_storeu_pd(a[1], re), _mm256_storeu_pd(a[2], r1);
+        _mm256_storeu_pd(a[3], rr1), _mm256_storeu_pd(a[4], r2), _mm256_storeu_pd(a[5], rr2);
+        _mm256_storeu_pd(a[6], c1), _mm256_storeu_pd(a[7], c2);
+        double z[4];
+        _mm256_storeu_pd(z, zq);
+        for (int k = 0; k < 4; k++) {
+            t[0] += a[0][k] + z[k], t[1] += a[1][k] + z[k], t[2] += a[2][k], t[3] += a[3][k];
+            t[4] += a[4][k], t[5] += a[5][k], t[6] += a[6][k], t[7] += a[7][k];
+        }
+    }
+    _mm256_storeu_si256((__m256i *)lanes, vmax); /* the lanes' bits as floats */
+    for (int k = 0; k < 8; k++) m = lanes[k] > m ? lanes[k] : m;
+    for (size_t k = x; k < ex; k++) m = fabsf(row[k]) > m ? fabsf(row[k]) : m;
+    for (; x < ex; x++) {
+        double c = row[x], ac = fabs(c), a = ac * inv, tt = a + f;
+        double q = (double)(int32_t)(tt < qmax ? tt : qmax), r = a - q, cc = c * c;
+        t[1] += cc;
+        if (q == 0) t[0] += cc;
+        else if (q == 1) t[2] += r, t[3] += r * r, t[6] += 1;
+        else t[4] += r, t[5] += r * r, t[7] += 1;
+        if (qrow && (!sparse || q != 0)) qrow[x] = c < 0 ? -(int32_t)q : (int32_t)q;
+    }
+    return m;
+}
+#undef MADD2
+#endif
+
+WVOL__CLONES_V4 static float row_stats_clone(double t[8], const float *row, int32_t *qrow, size_t n, double step,
+                                             double f)
 {
     float amax;
     row_kernel(t, &amax, row, qrow, n, step, f, 0);
     return amax;
 }
 
-WVOL__CLONES_V4 void wvol__wvc_rows_stats(sec_stats *st, const float *c, int32_t *q, size_t ex, size_t ey, size_t nz,
-                                          size_t sy, size_t sz, double step, double f, int sparse)
+float wvol__wvc_row_stats(double t[8], const float *row, int32_t *qrow, size_t n, double step, double f)
 {
-    memset(st, 0, sizeof *st);
+#if WVOL__HAVE_V4
+    if (WVOL__CPU_V4()) return row_kernel_v4(t, row, qrow, n, step, f, 0);
+#endif
+    return row_stats_clone(t, row, qrow, n, step, f);
+}
+
+WVOL__CLONES_V4 static void rows_stats_clone(sec_stats *st, const float *c, int32_t *q, size_t ex, size_t ey,
+                                             size_t nz, size_t sy, size_t sz, double step, double f, int sparse)
+{
     for (size_t z = 0; z < nz; z++)
         for (size_t y = 0; y < ey; y++) {
             const size_t at = y * sy + z * sz;
@@ -157,6 +269,37 @@ WVOL__CLONES_V4 void wvol__wvc_rows_stats(sec_stats *st, const float *c, int32_t
             row_kernel(t, NULL, c + at, q ? q + at : NULL, ex, step, f, sparse);
             wvol__wvc_sec_add_row(st, t);
         }
+}
+
+float wvol__wvc_row_stats_generic(double t[8], const float *row, int32_t *qrow, size_t n, double step, double f)
+{
+    return row_stats_clone(t, row, qrow, n, step, f);
+}
+
+void wvol__wvc_rows_stats_generic(sec_stats *st, const float *c, int32_t *q, size_t ex, size_t ey, size_t nz,
+                                  size_t sy, size_t sz, double step, double f, int sparse)
+{
+    memset(st, 0, sizeof *st);
+    rows_stats_clone(st, c, q, ex, ey, nz, sy, sz, step, f, sparse);
+}
+
+void wvol__wvc_rows_stats(sec_stats *st, const float *c, int32_t *q, size_t ex, size_t ey, size_t nz, size_t sy,
+                          size_t sz, double step, double f, int sparse)
+{
+    memset(st, 0, sizeof *st);
+#if WVOL__HAVE_V4
+    if (WVOL__CPU_V4()) {
+        for (size_t z = 0; z < nz; z++)
+            for (size_t y = 0; y < ey; y++) {
+                const size_t at = y * sy + z * sz;
+                double t[8];
+                row_kernel_v4(t, c + at, q ? q + at : NULL, ex, step, f, sparse);
+                wvol__wvc_sec_add_row(st, t);
+            }
+        return;
+    }
+#endif
+    rows_stats_clone(st, c, q, ex, ey, nz, sy, sz, step, f, sparse);
 }
 #undef SEL
 work_item *wvol__wvc_work_items(const wvc_layout *L, int *count)

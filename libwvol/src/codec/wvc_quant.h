@@ -69,6 +69,11 @@ float wvol__wvc_row_stats(double t[8], const float *row, int32_t *qrow, size_t n
  * non-zero when `sparse` (q is known to be all zero). */
 void wvol__wvc_rows_stats(sec_stats *st, const float *c, int32_t *q, size_t ex, size_t ey, size_t nz, size_t sy,
                           size_t sz, double step, double f, int sparse);
+/* The same without the x86-64-v4 kernel (its intrinsics), for the tests that compare them:
+ * row_kernel as compiled for the running CPU's level. */
+float wvol__wvc_row_stats_generic(double t[8], const float *row, int32_t *qrow, size_t n, double step, double f);
+void wvol__wvc_rows_stats_generic(sec_stats *st, const float *c, int32_t *q, size_t ex, size_t ey, size_t nz,
+                                  size_t sy, size_t sz, double step, double f, int sparse);
 /* The offsets as stored (float32) and the section's exact squared error with them. */
 double wvol__wvc_sec_error(const sec_stats *st, double step, float *d1, float *d2);
 /* A section's rounding offset: the low-pass cube rounds to nearest, details with f. */

@@ -14,9 +14,17 @@
  * registers: the same 256-bit arithmetic, with AVX-512VL's 32 registers instead of spills
  * to the stack (the quantiser's eight double accumulators). */
 #define WVOL__CLONES_V4 __attribute__((target_clones("arch=x86-64-v4", "arch=x86-64-v3", "default")))
+/* A kernel written for x86-64-v4 with its intrinsics (immintrin.h), called only where
+ * WVOL__CPU_V4() says the CPU has that level; WVOL__HAVE_V4 says whether such kernels are
+ * compiled at all. */
+#define WVOL__HAVE_V4 1
+#define WVOL__TARGET_V4 __attribute__((target("arch=x86-64-v4")))
+#define WVOL__CPU_V4() __builtin_cpu_supports("x86-64-v4")
 #else
 #define WVOL__CLONES
 #define WVOL__CLONES_V4
+#define WVOL__HAVE_V4 0
+#define WVOL__CPU_V4() 0
 #endif
 
 #endif

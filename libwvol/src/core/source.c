@@ -18,6 +18,7 @@ struct wvol_source {
     int streams;
     wvol_source_ops ops;
     void *ctx;
+    wvol__source_rows_fn rows; /* NULL: no row bands (wvol__source_set_rows) */
     float seen[2]; /* wvol__source_seen_range */
 };
 
@@ -88,16 +89,13 @@ void wvol__source_seen_range(const wvol_source *s, float range[2])
     range[1] = s ? s->seen[1] : -INFINITY;
 }
 
-wvol_status wvol_source_read(wvol_source *s, float *dst, size_t z0, size_t nz, wvol_error *err)
+/* What a read returned (rows y0 .. y0 + ny - 1 of slices z0 ..): its range into the seen
+ * range, or the first non-finite sample refused by its voxel. */
+static wvol_status check_read(wvol_source *s, const float *dst, size_t z0, size_t nz, size_t y0, size_t ny,
+                              wvol_error *err)
 {
-    size_t slice, n;
+    const size_t nx = s->dims[0], band = nx * ny, n = band * nz;
     float range[2];
-    WVOL_RETURN_IF(!s || !dst, err, WVOL_ERR_ARG, "volume source: NULL argument");
-    WVOL_RETURN_IF(nz == 0 || z0 > s->dims[2] || nz > s->dims[2] - z0, err, WVOL_ERR_ARG,
-                   "%s: slices %zu .. %zu outside the volume's 0 .. %zu", s->name, z0, z0 + nz, s->dims[2]);
-    WVOL_FORWARD(s->ops.read(s->ctx, dst, z0, nz, err));
-    slice = s->dims[0] * s->dims[1];
-    n = slice * nz;
     /* the common case (all finite) in one branch-free pass, which takes the range too; the
      * voxel is found after */
     if (wvol__finite_range(dst, n, range)) {
@@ -109,9 +107,35 @@ wvol_status wvol_source_read(wvol_source *s, float *dst, size_t z0, size_t nz, w
         if (!isfinite(dst[i]))
             return wvol_error_set(err, WVOL_ERR_NONFINITE,
                                   "%s: %s at voxel (i=%zu, j=%zu, k=%zu); NaN and Inf are refused", s->name,
-                                  isnan(dst[i]) ? "NaN" : "Inf", i % s->dims[0], (i % slice) / s->dims[0],
-                                  z0 + i / slice);
+                                  isnan(dst[i]) ? "NaN" : "Inf", i % nx, y0 + (i % band) / nx, z0 + i / band);
     return WVOL_OK;
+}
+
+wvol_status wvol_source_read(wvol_source *s, float *dst, size_t z0, size_t nz, wvol_error *err)
+{
+    WVOL_RETURN_IF(!s || !dst, err, WVOL_ERR_ARG, "volume source: NULL argument");
+    WVOL_RETURN_IF(nz == 0 || z0 > s->dims[2] || nz > s->dims[2] - z0, err, WVOL_ERR_ARG,
+                   "%s: slices %zu .. %zu outside the volume's 0 .. %zu", s->name, z0, z0 + nz, s->dims[2]);
+    WVOL_FORWARD(s->ops.read(s->ctx, dst, z0, nz, err));
+    return check_read(s, dst, z0, nz, 0, s->dims[1], err);
+}
+
+void wvol__source_set_rows(wvol_source *s, wvol__source_rows_fn fn)
+{
+    if (s) s->rows = fn;
+}
+
+wvol_status wvol__source_read_rows(wvol_source *s, float *dst, size_t z0, size_t nz, size_t y0, size_t ny,
+                                   wvol_error *err)
+{
+    WVOL_RETURN_IF(!s || !dst, err, WVOL_ERR_ARG, "volume source: NULL argument");
+    if (!s->rows) return WVOL_ERR_UNSUPPORTED;
+    WVOL_RETURN_IF(nz == 0 || z0 > s->dims[2] || nz > s->dims[2] - z0 || ny == 0 || y0 > s->dims[1] ||
+                       ny > s->dims[1] - y0,
+                   err, WVOL_ERR_ARG, "%s: rows %zu .. %zu of slices %zu .. %zu outside the volume's %zu x %zu",
+                   s->name, y0, y0 + ny, z0, z0 + nz, s->dims[1], s->dims[2]);
+    WVOL_FORWARD(s->rows(s->ctx, dst, z0, nz, y0, ny, err));
+    return check_read(s, dst, z0, nz, y0, ny, err);
 }
 
 wvol_status wvol_source_read_volume(wvol_source *s, wvol_volume **out, wvol_error *err)
@@ -139,6 +163,16 @@ wvol_status wvol__source_volume_read(void *ctx, float *dst, size_t z0, size_t nz
     return WVOL_OK;
 }
 
+wvol_status wvol__source_volume_rows(void *ctx, float *dst, size_t z0, size_t nz, size_t y0, size_t ny,
+                                     wvol_error *err)
+{
+    const wvol_volume *v = ctx;
+    const size_t band = v->nx * ny;
+    (void)err;
+    for (size_t k = 0; k < nz; k++) memcpy(dst + k * band, v->data + v->nx * (v->ny * (z0 + k) + y0), band * sizeof(float));
+    return WVOL_OK;
+}
+
 wvol_status wvol_source_of_volume(wvol_source **out, const wvol_volume *v, wvol_error *err)
 {
     static const wvol_source_ops ops = {wvol__source_volume_read, NULL};
@@ -147,5 +181,7 @@ wvol_status wvol_source_of_volume(wvol_source **out, const wvol_volume *v, wvol_
     *out = NULL;
     WVOL_RETURN_IF(!v || !v->data, err, WVOL_ERR_ARG, "volume source: volume is NULL");
     dims[0] = v->nx, dims[1] = v->ny, dims[2] = v->nz;
-    return wvol_source_create(out, dims, v->spacing, v->origin, "volume", 0, &ops, (void *)v, err);
+    WVOL_FORWARD(wvol_source_create(out, dims, v->spacing, v->origin, "volume", 0, &ops, (void *)v, err));
+    wvol__source_set_rows(*out, wvol__source_volume_rows);
+    return WVOL_OK;
 }

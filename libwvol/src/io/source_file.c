@@ -34,7 +34,7 @@ typedef struct file_src {
     unsigned long long start; /* raw: file offset of the first sample; gzip: bytes to skip after inflating */
     unsigned long long pos;   /* gzip: inflated bytes consumed so far */
     unsigned long long total; /* data bytes the sizes need */
-    size_t slice_bytes;
+    size_t slice_bytes, row_bytes;
     nrrd_header conv;         /* type, elem and byte order of the samples (only those fields) */
     int direct;               /* float32 in the host's byte order: read into the caller's slab */
     unsigned char *buf;
@@ -51,6 +51,20 @@ static void file_close(void *ctx)
     free(f);
 }
 
+/* n bytes at file offset off into dst with pread (the stream's position untouched); 1 when
+ * they come short (an error or the file's end). */
+static int pread_full(int fd, unsigned char *dst, size_t n, unsigned long long off)
+{
+    size_t a = 0;
+    while (a < n) {
+        ssize_t r = pread(fd, dst + a, n - a, (off_t)(off + a));
+        if (r < 0 && errno == EINTR) continue;
+        if (r <= 0) return 1;
+        a += (size_t)r;
+    }
+    return 0;
+}
+
 /* n bytes at file offset off into dst, split among the threads in contiguous parts, each
  * read with pread: reading a cached file is the kernel's copy out of the page cache, which
  * runs on the reading thread. 1 when a part comes short (an error or the file's end). */
@@ -61,15 +75,7 @@ static int read_split(int fd, unsigned char *dst, unsigned long long off, size_t
 #pragma omp parallel for schedule(static, 1) num_threads(threads) reduction(| : failed)
     for (int t = 0; t < threads; t++) {
         size_t a = (size_t)t * part, b = a + part < n ? a + part : n;
-        while (a < b) {
-            ssize_t r = pread(fd, dst + a, b - a, (off_t)(off + a));
-            if (r < 0 && errno == EINTR) continue;
-            if (r <= 0) {
-                failed = 1;
-                break;
-            }
-            a += (size_t)r;
-        }
+        if (a < b) failed |= pread_full(fd, dst + a, b - a, off + a);
     }
     return failed;
 }
@@ -142,7 +148,38 @@ static wvol_status file_read(void *ctx, float *dst, size_t z0, size_t nz, wvol_e
     return WVOL_OK;
 }
 
+/* Row bands of raw data (core/source_volume.h): per slice the band's bytes read at their
+ * offset, converted as file_read converts a slab when the samples are not float32. */
+static wvol_status file_rows(void *ctx, float *dst, size_t z0, size_t nz, size_t y0, size_t ny, wvol_error *err)
+{
+    file_src *f = ctx;
+    const size_t elem = f->conv.elem, n = f->row_bytes * ny;
+    for (size_t k = 0; k < nz; k++) {
+        const unsigned long long at = f->start + (unsigned long long)(z0 + k) * f->slice_bytes + y0 * f->row_bytes;
+        float *out = dst + k * (n / elem);
+        for (size_t done = 0; done < n;) {
+            size_t want = f->direct || n - done < CHUNK_BYTES ? n - done : CHUNK_BYTES;
+            unsigned char *to = f->direct ? (unsigned char *)out + done : f->buf;
+            WVOL_RETURN_IF(pread_full(fileno(f->fp), to, want, at + done), err, WVOL_ERR_IO,
+                           "%s: short read in bytes %llu .. %llu (the file shrank or cannot be read)", f->path,
+                           at + done, at + done + want);
+            if (!f->direct) wvol__nrrd_convert(out + done / elem, f->buf, want / elem, &f->conv);
+            done += want;
+        }
+    }
+    return WVOL_OK;
+}
+
 static const wvol_source_ops file_ops = {file_read, file_close};
+
+/* A source over raw data (f->fp): slabs, and row bands where the data can be sought. */
+static wvol_status raw_source(wvol_source **out, const size_t dims[3], const double spacing[3], const double origin[3],
+                              const char *path, file_src *f, wvol_error *err)
+{
+    WVOL_FORWARD(wvol_source_create(out, dims, spacing, origin, path, 1, &file_ops, f, err));
+    wvol__source_set_rows(*out, file_rows);
+    return WVOL_OK;
+}
 
 static wvol_status new_file_src(file_src **out, const char *path, int type, size_t elem, int big_endian,
                                 const size_t dims[3], wvol_error *err)
@@ -160,6 +197,7 @@ static wvol_status new_file_src(file_src **out, const char *path, int type, size
     f->conv.type = type;
     f->conv.elem = elem;
     f->conv.big_endian = big_endian;
+    f->row_bytes = dims[0] * elem;
     f->slice_bytes = dims[0] * dims[1] * elem;
     f->total = (unsigned long long)f->slice_bytes * dims[2];
     *out = f;
@@ -190,7 +228,7 @@ wvol_status wvol__source_open_raw(wvol_source **out, const char *path, const wvo
         file_close(f);
         return s;
     }
-    return wvol_source_create(out, opt->dims, opt->spacing, opt->origin, path, 1, &file_ops, f, err);
+    return raw_source(out, opt->dims, opt->spacing, opt->origin, path, f, err);
 }
 
 /* NRRD with raw or gzip data and no "line skip": slab by slab. *whole = 1 (nothing
@@ -251,7 +289,8 @@ static wvol_status open_nrrd(wvol_source **out, const char *path, int *whole, wv
         f->start = (unsigned long long)h.byte_skip;
         f->pos = 0;
     }
-    s = wvol_source_create(out, dims, h.spacing, h.origin, path, 1, &file_ops, f, err);
+    s = f->fp ? raw_source(out, dims, h.spacing, h.origin, path, f, err)
+              : wvol_source_create(out, dims, h.spacing, h.origin, path, 1, &file_ops, f, err);
     f = NULL; /* the source owns it now, or has closed it */
 done:
     file_close(f);
@@ -273,7 +312,9 @@ static wvol_status open_whole(wvol_source **out, const char *path, const wvol_lo
     size_t dims[3];
     WVOL_FORWARD(wvol_volume_load(&v, path, opt, err));
     dims[0] = v->nx, dims[1] = v->ny, dims[2] = v->nz;
-    return wvol_source_create(out, dims, v->spacing, v->origin, path, 0, &ops, v, err);
+    WVOL_FORWARD(wvol_source_create(out, dims, v->spacing, v->origin, path, 0, &ops, v, err));
+    wvol__source_set_rows(*out, wvol__source_volume_rows);
+    return WVOL_OK;
 }
 
 int wvol_source_format_streams(const char *path)

@@ -27,6 +27,7 @@
 #include "core/alloc.h"
 #include "core/clock.h"
 #include "core/clones.h"
+#include "core/source_volume.h"
 #include "core/status_internal.h"
 
 #include <math.h>
@@ -92,8 +93,58 @@ static void cube_origin(const sample *s, int i, size_t o[3])
 
 /* Reads the cubes' slices in increasing z, in slabs of consecutive needed slices (a
  * generator makes a slab at a cost per call as well as per slice), each slab at most
- * SLAB_BYTES or one slice: a slab of a large volume can be far larger than the sample. */
+ * SLAB_BYTES or one slice: a slab of a large volume can be far larger than the sample.
+ * A source that reads row bands (a raw file, NRRD raw data, a volume in memory:
+ * core/source_volume.h) gives each cube its own rows instead, a few slices at a time: a
+ * 64^3 cube of a 256^3 volume then reads a quarter of the bytes of its slices, of a 2048^3
+ * volume a thirty-second. */
 #define SLAB_BYTES ((size_t)8 << 20)
+#define BAND_BYTES ((size_t)64 << 10)
+
+/* A cube's samples from rows read as a band (nz slices of e[1] rows of nx, from the cube's y
+ * origin) into dst (the cube's data at the band's first slice); their range into s->lo, s->hi. */
+static void cube_from_band(sample *s, float *dst, const float *band, size_t nx, size_t x0, size_t nz)
+{
+    for (size_t k = 0; k < nz; k++)
+        for (size_t y = 0; y < s->e[1]; y++) {
+            const float *row = band + (k * s->e[1] + y) * nx + x0;
+            memcpy(dst + (k * s->e[1] + y) * s->e[0], row, s->e[0] * sizeof(float));
+            for (size_t x = 0; x < s->e[0]; x++) {
+                if (row[x] < s->lo) s->lo = row[x];
+                if (row[x] > s->hi) s->hi = row[x];
+            }
+        }
+}
+
+/* The cubes read as row bands, a few slices at a time into one small buffer: 1 when the source
+ * has no row bands (nothing read: the caller reads slices), else 0 with the outcome in *st. */
+static int read_sample_rows(sample *s, wvol_source *src, const size_t o[][3], wvol_status *st, wvol_error *err)
+{
+    const size_t nx = s->dims[0], band = nx * s->e[1];
+    size_t step = BAND_BYTES / (band * sizeof(float));
+    float *buf;
+    if (step < 1) step = 1;
+    if (step > s->e[2]) step = s->e[2];
+    buf = malloc(step * band * sizeof *buf);
+    if (!buf) {
+        *st = wvol_error_set(err, WVOL_ERR_NOMEM, "compress: wavelet trial: out of memory");
+        return 0;
+    }
+    *st = WVOL_OK;
+    for (int i = 0; i < s->nb && *st == WVOL_OK; i++)
+        for (size_t k = 0; k < s->e[2] && *st == WVOL_OK; k += step) {
+            size_t nz = s->e[2] - k < step ? s->e[2] - k : step;
+            *st = wvol__source_read_rows(src, buf, o[i][2] + k, nz, o[i][1], s->e[1], err);
+            if (*st == WVOL_ERR_UNSUPPORTED) {
+                free(buf);
+                *st = WVOL_OK;
+                return 1;
+            }
+            if (*st == WVOL_OK) cube_from_band(s, s->b[i].data + k * s->e[0] * s->e[1], buf, nx, o[i][0], nz);
+        }
+    free(buf);
+    return 0;
+}
 
 static wvol_status read_sample(sample *s, wvol_source *src, wvol_error *err)
 {
@@ -101,6 +152,7 @@ static wvol_status read_sample(sample *s, wvol_source *src, wvol_error *err)
     size_t cube = s->e[0] * s->e[1] * s->e[2];
     float *slab;
     int i;
+    wvol_status st;
     for (i = 0; i < s->nb; i++) {
         s->b[i].data = wvol__reuse_get(cube * sizeof(float));
         WVOL_RETURN_IF(!s->b[i].data, err, WVOL_ERR_NOMEM, "compress: wavelet trial: out of memory");
@@ -108,6 +160,7 @@ static wvol_status read_sample(sample *s, wvol_source *src, wvol_error *err)
         if (o[i][2] < zlo) zlo = o[i][2];
         if (o[i][2] + s->e[2] > zhi) zhi = o[i][2] + s->e[2];
     }
+    if (!read_sample_rows(s, src, (const size_t(*)[3])o, &st, err)) return st;
     slab_max = SLAB_BYTES / (nx * ny * sizeof(float));
     if (slab_max < 1) slab_max = 1;
     if (slab_max > s->e[2]) slab_max = s->e[2];
@@ -477,6 +530,7 @@ wvol_status wvol_compress_choose_wavelet(wvol_wavelet_choice *out, wvol_source *
     } else {
         st = read_sample(&s, src, err);
     }
+
     out->blocks = s.nb;
     out->sample_voxels = (size_t)s.nb * s.e[0] * s.e[1] * s.e[2];
     if (st != WVOL_OK) goto done;

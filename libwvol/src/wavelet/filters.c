@@ -2,7 +2,8 @@
 /* The filter catalogue: Haar, Daubechies db1..db10, Coiflets coif1..coif5 (published
  * values, filter_tables.h) and Battle-Lemarie bl3 (computed from its Fourier form).
  * Everything derived (g, defect, centre, BL taps) is computed once, under pthread_once,
- * so lookup is thread-safe and the returned filters are immutable afterwards. */
+ * so lookup is thread-safe and the returned filters are immutable afterwards. bl3 is the
+ * catalogue's last entry. */
 #include <math.h>
 #include <pthread.h>
 #include <stdio.h>
@@ -38,8 +39,10 @@ static const filter_src sources[NFILTERS] = {
 static wvol_filter filters[NFILTERS];
 static double gbuf[NFILTERS][WVOL__MAX_TAPS];
 static double blbuf[WVOL__MAX_TAPS];
-static pthread_once_t once = PTHREAD_ONCE_INIT;
-static int nfilters; /* filters successfully built (bl3 dropped if it failed) */
+/* the published filters at once; bl3, whose Fourier construction costs a process start about
+ * a millisecond, only when it is asked for (by name or by enumerating the catalogue) */
+static pthread_once_t once = PTHREAD_ONCE_INIT, once_bl = PTHREAD_ONCE_INIT;
+static int bl_ok; /* bl3 built (else dropped from the catalogue) */
 
 double wvol__filter_defect(const double *h, int length)
 {
@@ -53,37 +56,49 @@ double wvol__filter_defect(const double *h, int length)
     return worst;
 }
 
+/* filters[i] from sources[i] with taps h[0 .. len) */
+static void build_filter(int i, const double *h, int len)
+{
+    const filter_src *s = &sources[i];
+    wvol_filter *f = &filters[i];
+    double m1 = 0.0;
+    int n;
+    memset(f, 0, sizeof *f);
+    snprintf(f->name, sizeof f->name, "%s", s->name);
+    f->family = s->family;
+    f->order = s->order;
+    f->length = len;
+    f->h = h;
+    for (n = 0; n < len; n++) gbuf[i][n] = ((n & 1) ? -1.0 : 1.0) * h[len - 1 - n];
+    f->g = gbuf[i];
+    f->vanishing_moments = s->vanishing_moments;
+    f->defect = wvol__filter_defect(h, len);
+    /* Centre s = int x phi(x) dx. From phi(t) = sqrt2 sum h[n] phi(2t - n) and
+     * int phi = 1: M1 = (sqrt2/4) sum h[n] (M1 + n) = M1/2 + (sqrt2/4) sum n h[n],
+     * so M1 = sum n h[n] / sqrt2 (Haar: 1/2; a symmetric filter: its centre tap). */
+    for (n = 0; n < len; n++) m1 += n * h[n];
+    f->center = m1 / sqrt(2.0);
+}
+
 static void init_filters(void)
 {
-    int i, n, k = 0;
-    for (i = 0; i < NFILTERS; i++) {
-        const filter_src *s = &sources[i];
-        wvol_filter *f = &filters[k];
-        const double *h = s->h;
-        int len = s->length;
-        double m1 = 0.0;
-        if (s->family == WVOL_FAMILY_BATTLE_LEMARIE) {
-            if (wvol__bl_compute(s->order, 1e-10, blbuf, WVOL__MAX_TAPS, &len) != 0) continue;
-            h = blbuf;
-        }
-        memset(f, 0, sizeof *f);
-        snprintf(f->name, sizeof f->name, "%s", s->name);
-        f->family = s->family;
-        f->order = s->order;
-        f->length = len;
-        f->h = h;
-        for (n = 0; n < len; n++) gbuf[k][n] = ((n & 1) ? -1.0 : 1.0) * h[len - 1 - n];
-        f->g = gbuf[k];
-        f->vanishing_moments = s->vanishing_moments;
-        f->defect = wvol__filter_defect(h, len);
-        /* Centre s = int x phi(x) dx. From phi(t) = sqrt2 sum h[n] phi(2t - n) and
-         * int phi = 1: M1 = (sqrt2/4) sum h[n] (M1 + n) = M1/2 + (sqrt2/4) sum n h[n],
-         * so M1 = sum n h[n] / sqrt2 (Haar: 1/2; a symmetric filter: its centre tap). */
-        for (n = 0; n < len; n++) m1 += n * h[n];
-        f->center = m1 / sqrt(2.0);
-        k++;
-    }
-    nfilters = k;
+    for (int i = 0; i < NFILTERS - 1; i++) build_filter(i, sources[i].h, sources[i].length);
+}
+
+static void init_bl(void)
+{
+    int len = 0;
+    if (wvol__bl_compute(sources[NFILTERS - 1].order, 1e-10, blbuf, WVOL__MAX_TAPS, &len) != 0) return;
+    build_filter(NFILTERS - 1, blbuf, len);
+    bl_ok = 1;
+}
+
+/* The catalogue's size, every filter built. */
+static int catalogue(void)
+{
+    pthread_once(&once, init_filters);
+    pthread_once(&once_bl, init_bl);
+    return NFILTERS - 1 + bl_ok;
 }
 
 const char *wvol_family_name(wvol_family f)
@@ -97,17 +112,9 @@ const char *wvol_family_name(wvol_family f)
     return "?";
 }
 
-int wvol_filter_count(void)
-{
-    pthread_once(&once, init_filters);
-    return nfilters;
-}
+int wvol_filter_count(void) { return catalogue(); }
 
-const wvol_filter *wvol_filter_at(int i)
-{
-    pthread_once(&once, init_filters);
-    return (i >= 0 && i < nfilters) ? &filters[i] : NULL;
-}
+const wvol_filter *wvol_filter_at(int i) { return (i >= 0 && i < catalogue()) ? &filters[i] : NULL; }
 
 wvol_status wvol_filter_get(const wvol_filter **out, const char *name, wvol_error *err)
 {
@@ -115,13 +122,17 @@ wvol_status wvol_filter_get(const wvol_filter **out, const char *name, wvol_erro
     *out = NULL;
     WVOL_RETURN_IF(!name, err, WVOL_ERR_ARG, "wvol_filter_get: name is NULL");
     pthread_once(&once, init_filters);
-    for (int i = 0; i < nfilters; i++)
+    for (int i = 0; i < NFILTERS - 1; i++)
         if (!strcmp(filters[i].name, name)) {
             *out = &filters[i];
             return WVOL_OK;
         }
-    if (!strcmp(name, "bl3"))
-        return wvol_error_set(err, WVOL_ERR_INTERNAL, "filter 'bl3': Fourier construction failed");
+    if (!strcmp(name, sources[NFILTERS - 1].name)) {
+        pthread_once(&once_bl, init_bl);
+        WVOL_RETURN_IF(!bl_ok, err, WVOL_ERR_INTERNAL, "filter 'bl3': Fourier construction failed");
+        *out = &filters[NFILTERS - 1];
+        return WVOL_OK;
+    }
     return wvol_error_set(err, WVOL_ERR_ARG,
                           "unknown wavelet '%s' (haar, db1..db10, coif1..coif5, bl3)", name);
 }
