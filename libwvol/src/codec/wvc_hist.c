@@ -35,18 +35,36 @@ static inline double bin_edge(uint32_t k)
     return v;
 }
 
+/* Eight values at a time: their magnitudes' bits, running maximum and bins in vectors, then
+ * the eight counts (the counting itself cannot be vectorised: bins repeat). */
+typedef uint32_t hist_v8u __attribute__((vector_size(32)));
+
 WVOL__CLONES void wvol__wvc_slice_hist(uint64_t *restrict H, const float *restrict row0, size_t ex, size_t ey, size_t sy,
                                uint32_t *maxbits)
 {
+    const hist_v8u absmask = {0x7FFFFFFFu, 0x7FFFFFFFu, 0x7FFFFFFFu, 0x7FFFFFFFu,
+                              0x7FFFFFFFu, 0x7FFFFFFFu, 0x7FFFFFFFu, 0x7FFFFFFFu};
+    hist_v8u vmax = {0, 0, 0, 0, 0, 0, 0, 0};
     uint32_t mx = *maxbits;
     for (size_t y = 0; y < ey; y++) {
         const float *restrict row = row0 + y * sy;
-        for (size_t x = 0; x < ex; x++) {
+        size_t x = 0;
+        for (; x + 8 <= ex; x += 8) {
+            hist_v8u u, gt;
+            memcpy(&u, row + x, sizeof u);
+            u &= absmask;
+            gt = (hist_v8u)(u > vmax);
+            vmax = (u & gt) | (vmax & ~gt);
+            u >>= HSHIFT;
+            H[u[0]]++, H[u[1]]++, H[u[2]]++, H[u[3]]++, H[u[4]]++, H[u[5]]++, H[u[6]]++, H[u[7]]++;
+        }
+        for (; x < ex; x++) {
             uint32_t u = float_bits(row[x]) & 0x7FFFFFFFu;
             mx = u > mx ? u : mx;
             H[u >> HSHIFT]++;
         }
     }
+    for (int k = 0; k < 8; k++) mx = vmax[k] > mx ? vmax[k] : mx;
     *maxbits = mx;
 }
 
