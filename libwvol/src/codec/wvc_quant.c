@@ -66,6 +66,29 @@ static inline __attribute__((always_inline)) void quad_stats(row_acc *A, wvc_v4f
     }
 }
 
+/* The end of a row, shared by the kernels: the largest |c| from the vector lanes' maxima (their
+ * bits as floats) and the values from x on, then those values' arithmetic one by one (the
+ * same operations as a group's, in double). */
+static inline __attribute__((always_inline)) float row_end(double t[8], const float lanes[8], const float *row,
+                                                            int32_t *qrow, size_t x, size_t ex, double inv, double f,
+                                                            int sparse)
+{
+    const double qmax = WVC_QMAX;
+    float m = 0.0f;
+    for (int k = 0; k < 8; k++) m = lanes[k] > m ? lanes[k] : m;
+    for (size_t k = x; k < ex; k++) m = fabsf(row[k]) > m ? fabsf(row[k]) : m;
+    for (; x < ex; x++) {
+        double c = row[x], ac = fabs(c), a = ac * inv, tt = a + f;
+        double q = (double)(int32_t)(tt < qmax ? tt : qmax), r = a - q, cc = c * c;
+        t[1] += cc;
+        if (q == 0) t[0] += cc;
+        else if (q == 1) t[2] += r, t[3] += r * r, t[6] += 1;
+        else t[4] += r, t[5] += r * r, t[7] += 1;
+        if (qrow && (!sparse || q != 0)) qrow[x] = c < 0 ? -(int32_t)q : (int32_t)q;
+    }
+    return m;
+}
+
 /* Sums of one row of n coefficients into t[8] (zeroed energy, energy, r and r^2 for
  * |q| = 1, r and r^2 for |q| >= 2, counts of |q| = 1 and |q| >= 2); qrow as in wvol__wvc_rows_stats,
  * or the row itself (every group is loaded before its q is stored, so no restrict); the
@@ -74,7 +97,7 @@ static inline __attribute__((always_inline)) void row_kernel(double t[8], float 
                                                               int32_t *qrow, size_t ex, double step, double f,
                                                               int sparse)
 {
-    const double inv = 1.0 / step, qmax = WVC_QMAX;
+    const double inv = 1.0 / step;
     /* below this |c| / step + f < 1 for sure: the relative margin 1e-6 dwarfs float rounding */
     const float thr = (float)((1.0 - f) * step * (1.0 - 1e-6));
     const wvc_v8f vthr = {thr, thr, thr, thr, thr, thr, thr, thr};
@@ -123,21 +146,11 @@ static inline __attribute__((always_inline)) void row_kernel(double t[8], float 
         t[0] += A.rz[k] + zq[k], t[1] += A.re[k] + zq[k], t[2] += A.r1[k], t[3] += A.rr1[k];
         t[4] += A.r2[k], t[5] += A.rr2[k], t[6] += A.c1[k], t[7] += A.c2[k];
     }
-    if (amax) {
-        float m = 0.0f, lanes[8];
+    {
+        float lanes[8], m;
         memcpy(lanes, &vmax, sizeof lanes); /* the lanes' bits as floats */
-        for (int k = 0; k < 8; k++) m = lanes[k] > m ? lanes[k] : m;
-        for (size_t k = x; k < ex; k++) m = fabsf(row[k]) > m ? fabsf(row[k]) : m;
-        *amax = m;
-    }
-    for (; x < ex; x++) {
-        double c = row[x], ac = fabs(c), a = ac * inv, tt = a + f;
-        double q = (double)(int32_t)(tt < qmax ? tt : qmax), r = a - q, cc = c * c;
-        t[1] += cc;
-        if (q == 0) t[0] += cc;
-        else if (q == 1) t[2] += r, t[3] += r * r, t[6] += 1;
-        else t[4] += r, t[5] += r * r, t[7] += 1;
-        if (qrow && (!sparse || q != 0)) qrow[x] = c < 0 ? -(int32_t)q : (int32_t)q;
+        m = row_end(t, lanes, row, qrow, x, ex, inv, f, sparse);
+        if (amax) *amax = m;
     }
 }
 
@@ -158,9 +171,9 @@ static inline __attribute__((always_inline)) void row_kernel(double t[8], float 
 WVOL__TARGET_V4 static float row_kernel_v4(double t[8], const float *row, int32_t *qrow, size_t ex, double step,
                                            double f, int sparse)
 {
-    const double inv = 1.0 / step, qmax = WVC_QMAX;
+    const double inv = 1.0 / step;
     const float thr = (float)((1.0 - f) * step * (1.0 - 1e-6));
-    const __m512d vinv = _mm512_set1_pd(inv), vf = _mm512_set1_pd(f), vq = _mm512_set1_pd(qmax);
+    const __m512d vinv = _mm512_set1_pd(inv), vf = _mm512_set1_pd(f), vq = _mm512_set1_pd(WVC_QMAX);
     const __m512d one = _mm512_set1_pd(1.0), two = _mm512_set1_pd(2.0);
     const __m256 vthr = _mm256_set1_ps(thr);
     const __m256i absmask = _mm256_set1_epi32(INT32_MAX);
@@ -168,7 +181,7 @@ WVOL__TARGET_V4 static float row_kernel_v4(double t[8], const float *row, int32_
     __m256d rz = _mm256_setzero_pd(), re = rz, r1 = rz, rr1 = rz, r2 = rz, rr2 = rz, c1 = rz, c2 = rz, zq = rz;
     __m256i vmax = _mm256_setzero_si256();
     size_t x;
-    float m = 0.0f, lanes[8];
+    float lanes[8];
     memset(t, 0, 8 * sizeof *t);
     for (x = 0; x + 8 <= ex; x += 8) {
         const __m256 cf = _mm256_loadu_ps(row + x);
@@ -227,18 +240,7 @@ WVOL__TARGET_V4 static float row_kernel_v4(double t[8], const float *row, int32_
         }
     }
     _mm256_storeu_si256((__m256i *)lanes, vmax); /* the lanes' bits as floats */
-    for (int k = 0; k < 8; k++) m = lanes[k] > m ? lanes[k] : m;
-    for (size_t k = x; k < ex; k++) m = fabsf(row[k]) > m ? fabsf(row[k]) : m;
-    for (; x < ex; x++) {
-        double c = row[x], ac = fabs(c), a = ac * inv, tt = a + f;
-        double q = (double)(int32_t)(tt < qmax ? tt : qmax), r = a - q, cc = c * c;
-        t[1] += cc;
-        if (q == 0) t[0] += cc;
-        else if (q == 1) t[2] += r, t[3] += r * r, t[6] += 1;
-        else t[4] += r, t[5] += r * r, t[7] += 1;
-        if (qrow && (!sparse || q != 0)) qrow[x] = c < 0 ? -(int32_t)q : (int32_t)q;
-    }
-    return m;
+    return row_end(t, lanes, row, qrow, x, ex, inv, f, sparse);
 }
 #undef MADD2
 #endif
