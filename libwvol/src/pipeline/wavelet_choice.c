@@ -6,11 +6,12 @@
  * the estimate is from real file sizes.
  *
  * The sample: a volume no larger than the sample would be is transformed whole, as the file
- * is. A larger one gives a few CUBE^3 cubes spread through it, read in increasing z
- * (a streamed source is read only over the cubes' slices, forward). A cube is
- * transformed periodically, but only the coefficients whose analysis window lies inside the
- * cube are counted: analysis reads forward (a[k] = sum_n h[n] x[2k + n], wvol/wavelet.h), so
- * a level-m coefficient at k reads samples 2^m k .. 2^m k + (2^m - 1)(L - 1), and those are
+ * is. A larger one gives a few CUBE^3 cubes spread through it, read as the cubes' rows where
+ * the source can (row bands), else over the cubes' slices in increasing z (a streamed source
+ * forward). A cube is transformed periodically, but only the coefficients whose analysis
+ * window lies inside the cube are counted: analysis reads forward (a[k] = sum_n h[n]
+ * x[2k + n], wvol/wavelet.h), so a level-m coefficient at k reads samples 2^m k ..
+ * 2^m k + (2^m - 1)(L - 1), and those are
  * the coefficients the whole volume's transform has at that place. Every candidate is
  * counted on the same positions (those valid for the longest filter), so the estimates
  * compare like with like. Along an axis the cube covers whole, the cube's wrap is the
@@ -530,7 +531,6 @@ wvol_status wvol_compress_choose_wavelet(wvol_wavelet_choice *out, wvol_source *
     } else {
         st = read_sample(&s, src, err);
     }
-
     out->blocks = s.nb;
     out->sample_voxels = (size_t)s.nb * s.e[0] * s.e[1] * s.e[2];
     if (st != WVOL_OK) goto done;
