@@ -9,6 +9,7 @@
 #include <strings.h>
 
 #include "synth_internal.h"
+#include "core/source_volume.h"
 
 
 /* ---- parameters and geometry --------------------------------------------- */
@@ -82,15 +83,21 @@ static inline double hashed_normal(uint64_t seed, uint64_t idx)
 void wvol__synth_rows(const synth_plan *pl, float *values, float *labels, size_t k0, size_t nz,
                       wvol_synth_progress_fn progress, void *progress_user)
 {
+    wvol__synth_band(pl, values, labels, k0, nz, 0, pl->g.ny, progress, progress_user);
+}
+
+void wvol__synth_band(const synth_plan *pl, float *values, float *labels, size_t k0, size_t nz, size_t j0,
+                      size_t nj, wvol_synth_progress_fn progress, void *progress_user)
+{
     const synth_grid *g = &pl->g;
-    long long rows = (long long)(g->ny * nz), r;
+    long long rows = (long long)(nj * nz), r;
     long long done = 0, reported = 0, step = rows / 100 > 0 ? rows / 100 : 1;
     uint64_t noise_seed = wvol_hash64(pl->seed ^ 0xC0FFEE0DDF00Dull);
     double sigma = pl->noise;
 
 #pragma omp parallel for schedule(dynamic, 4)
     for (r = 0; r < rows; r++) {
-        size_t j = (size_t)r % g->ny, k = k0 + (size_t)r / g->ny, i, local = (size_t)r * g->nx;
+        size_t j = j0 + (size_t)r % nj, k = k0 + (size_t)r / nj, i, local = (size_t)r * g->nx;
         size_t base = (j + g->ny * k) * g->nx; /* the voxel's index in the whole volume */
         float *row = values + local;
         pl->fn(pl->ctx, g, j, k, row, labels ? labels + local : NULL);
@@ -301,6 +308,16 @@ static wvol_status gen_read(void *ctx, float *dst, size_t z0, size_t nz, wvol_er
     return wvol_synth_gen_slab(ctx, dst, NULL, z0, nz, err);
 }
 
+/* Row bands (core/source_volume.h; the source checked the range): only the rows asked for are
+ * made, each as a slab makes it (the noise hashed from the voxel's index in the volume). */
+static wvol_status gen_rows(void *ctx, float *dst, size_t z0, size_t nz, size_t y0, size_t ny, wvol_error *err)
+{
+    const wvol_synth_gen *g = ctx;
+    (void)err;
+    wvol__synth_band(&g->plan, dst, NULL, z0, nz, y0, ny, NULL, NULL);
+    return WVOL_OK;
+}
+
 static void gen_close(void *ctx) { wvol_synth_gen_close(ctx); }
 
 wvol_status wvol_synth_source(wvol_source **out, const char *kind, const wvol_synth_params *p, wvol_error *err)
@@ -315,5 +332,7 @@ wvol_status wvol_synth_source(wvol_source **out, const char *kind, const wvol_sy
     WVOL_FORWARD(wvol_synth_gen_open(&g, kind, p, err));
     wvol_synth_gen_geometry(g, dims, spacing, origin);
     snprintf(name, sizeof name, "synth %s", kind);
-    return wvol_source_create(out, dims, spacing, origin, name, 1, &ops, g, err);
+    WVOL_FORWARD(wvol_source_create(out, dims, spacing, origin, name, 1, &ops, g, err));
+    wvol__source_set_rows(*out, gen_rows);
+    return WVOL_OK;
 }

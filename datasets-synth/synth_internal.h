@@ -56,6 +56,10 @@ void wvol__synth_plan_free(synth_plan *pl);
  * hash of (seed, global voxel index); progress (may be NULL) as in wvol_synth_params. */
 void wvol__synth_rows(const synth_plan *pl, float *values, float *labels, size_t k0, size_t nz,
                       wvol_synth_progress_fn progress, void *progress_user);
+/* The same for rows j0 .. j0 + nj - 1 of each slice (nx * nj * nz values): the same values as
+ * those rows of a slab. */
+void wvol__synth_band(const synth_plan *pl, float *values, float *labels, size_t k0, size_t nz, size_t j0,
+                      size_t nj, wvol_synth_progress_fn progress, void *progress_user);
 
 /* The planners, one per generator. */
 wvol_status wvol__synth_plan_gaussian(synth_plan *pl, const wvol_synth_params *p, wvol_error *err);

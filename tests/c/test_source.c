@@ -3,9 +3,9 @@
  * slabs read from raw and NRRD (raw, gzip, detached) files equal the same slices of the
  * whole-file readers in any order; other formats are read whole; damaged files, NaN and
  * bad ranges are refused with a message; slabs of several MiB, read and checked on several
- * threads, are the same; row bands of the sources that seek equal the same rows; the slab
- * writer's files equal the whole-volume writers' and nothing is left when a write is
- * abandoned. */
+ * threads, are the same; row bands of the sources that seek and of the generators equal the
+ * same rows; the slab writer's files equal the whole-volume writers' and nothing is left when
+ * a write is abandoned. */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -36,7 +36,6 @@ static wvol_volume *skull(size_t nx, size_t ny, size_t nz)
     return v;
 }
 
-/* Reads every slab of a source in the given order of (z0, nz) and compares with v. */
 /* Row bands (core/source_volume.h) equal the same rows of the volume, where the source has
  * them (expect_rows); a source without them says so and reads nothing. */
 static void rows_match(wvol_source *s, const wvol_volume *v, int expect_rows, const char *what)
@@ -68,6 +67,7 @@ static void rows_match(wvol_source *s, const wvol_volume *v, int expect_rows, co
     free(buf);
 }
 
+/* Reads every slab of a source in the given order of (z0, nz) and compares with v. */
 static void slabs_match(wvol_source *s, const wvol_volume *v, const char *what)
 {
     /* forward, then backward, then overlapping: gzip restarts for the backward reads */
@@ -159,6 +159,26 @@ static void file_sources_equal_whole_reads(void)
     wvol_source_destroy(s);
     wvol_volume_destroy(back);
     wvol_volume_destroy(v);
+}
+
+/* A generator's row bands equal the same rows of the volume it makes whole, noise included. */
+static void synth_rows_equal_whole(void)
+{
+    const char *kinds[] = {"skull", "turbulence", "shepp-logan"};
+    for (int i = 0; i < 3; i++) {
+        wvol_synth_params p;
+        wvol_volume *v = NULL;
+        wvol_source *s = NULL;
+        wvol_error err;
+        wvol_synth_params_default(&p);
+        p.dims[0] = 19, p.dims[1] = 17, p.dims[2] = 23;
+        p.noise = 7;
+        CHECK(wvol_synth_make(&v, NULL, kinds[i], &p, &err) == WVOL_OK, "%s", err.message);
+        CHECK(wvol_synth_source(&s, kinds[i], &p, &err) == WVOL_OK, "%s", err.message);
+        if (v && s) rows_match(s, v, 1, kinds[i]);
+        wvol_source_destroy(s);
+        wvol_volume_destroy(v);
+    }
 }
 
 static void copy_truncated(const char *from, const char *to, long cut)
@@ -361,6 +381,7 @@ int main(void)
 {
     mkdir(DIR_, 0755);
     file_sources_equal_whole_reads();
+    synth_rows_equal_whole();
     large_slabs_read_on_threads();
     damaged_files_are_refused();
     slab_writer_writes_what_the_volume_writers_write();
