@@ -388,7 +388,9 @@ static void c4e_pass1(c4e_job *J, int signs)
                 size_t first;
                 c4e_prefetch(J->Q[i], J->p[i], b, y, z, C4E_AHEAD);
                 rc = r4_row_ctx(rnz, J->Q[i], J->p[i], b, y, z, &plast);
-                for (size_t x = 0; x < ex; x++) o |= c[x];
+                /* whether the row holds a non-zero: sixteen values at a time, to the first */
+                for (size_t x = 0; x < ex && !o; x += 16)
+                    for (size_t k = x; k < x + 16 && k < ex; k++) o |= c[k];
                 rnz[z * ey + y] = (uint8_t)(o != 0);
                 rctx[z * ey + y] = (uint8_t)rc;
                 s->cnt[0][C4E_EV_ROW + 2 * rc + (o != 0)]++;

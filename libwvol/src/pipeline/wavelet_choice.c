@@ -311,21 +311,23 @@ static double step_for(const err_bins *b, double target, double rounding)
 
 typedef struct rate_bins {
     double step, rounding;
-    double hist[32][8][QBINS]; /* level, band, |q| bin */
-    double extra;              /* mantissa bits of the octave bins, and one sign bit per non-zero */
+    uint32_t hist[32][8][QBINS]; /* level, band, |q| bin (a sample holds fewer than 2^32) */
+    uint64_t extra;              /* mantissa bits of the octave bins, and one sign bit per non-zero */
 } rate_bins;
 
-/* Every count is a whole number (exact in a double whatever the order of the sums), so
- * the zeros, most of a row, are counted in a register and added once; q = 0 exactly when
+/* Whole counts, in integers (a repeated bin's increment waits one cycle, not a floating add):
+ * the zeros, most of a row, and the extra bits in registers, added once; q = 0 exactly when
  * the sum before the floor is below 1. (No multiply-add here for the x86-64-v3 clone to
  * contract: both clones give the same values.) */
 WVOL__CLONES static void add_rate(void *ctx, int level, int band, const float *row, size_t n)
 {
     rate_bins *r = ctx;
-    double *h = r->hist[level][band];
-    size_t zeros = 0;
+    uint32_t *h = r->hist[level][band];
+    const double step = r->step, rounding = r->rounding;
+    uint32_t zeros = 0;
+    uint64_t extra = 0;
     for (size_t p = 0; p < n; p++) {
-        double t = fabs((double)row[p]) / r->step + r->rounding, q;
+        double t = fabs((double)row[p]) / step + rounding, q;
         int k;
         if (t < 1.0) {
             zeros++;
@@ -339,17 +341,18 @@ WVOL__CLONES static void add_rate(void *ctx, int level, int band, const float *r
             frexp(q, &e); /* 2^(e-1) <= q < 2^e */
             k = QEXACT + (e - 1) - 6;
             if (k >= QBINS) k = QBINS - 1;
-            r->extra += e - 1; /* the bits below the leading one */
+            extra += (uint64_t)(e - 1); /* the bits below the leading one */
         }
-        r->extra += 1;
-        h[k] += 1;
+        extra++;
+        h[k]++;
     }
-    h[0] += (double)zeros;
+    h[0] += zeros;
+    r->extra += extra;
 }
 
 static double rate_bits(const rate_bins *r)
 {
-    double bits = r->extra;
+    double bits = (double)r->extra;
     for (int m = 0; m < 32; m++)
         for (int b = 0; b < 8; b++) {
             double n = 0;
