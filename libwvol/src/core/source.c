@@ -169,7 +169,8 @@ wvol_status wvol__source_volume_rows(void *ctx, float *dst, size_t z0, size_t nz
     const wvol_volume *v = ctx;
     const size_t band = v->nx * ny;
     (void)err;
-    for (size_t k = 0; k < nz; k++) memcpy(dst + k * band, v->data + v->nx * (v->ny * (z0 + k) + y0), band * sizeof(float));
+    for (size_t k = 0; k < nz; k++)
+        memcpy(dst + k * band, v->data + v->nx * (v->ny * (z0 + k) + y0), band * sizeof(float));
     return WVOL_OK;
 }
 
