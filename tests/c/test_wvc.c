@@ -955,7 +955,8 @@ static void wvc_quant_kernels_agree(void)
                 memset(q2, 0x5a, sizeof q2);
                 a1 = wvol__wvc_row_stats(t1, row, q1, n, steps[si], fs[fi]);
                 a2 = wvol__wvc_row_stats_generic(t2, row, q2, n, steps[si], fs[fi]);
-                bad += memcmp(t1, t2, sizeof t1) != 0 || memcmp(&a1, &a2, sizeof a1) != 0 || memcmp(q1, q2, sizeof q1) != 0;
+                bad += memcmp(t1, t2, sizeof t1) != 0 || memcmp(&a1, &a2, sizeof a1) != 0 ||
+                       memcmp(q1, q2, sizeof q1) != 0;
                 for (int sparse = 0; sparse < 2; sparse++) {
                     sec_stats s1, s2;
                     const size_t ex = n / 3 + 1, ey = 2, nz = 2, sy = ex + 3, sz = 3 * sy;
