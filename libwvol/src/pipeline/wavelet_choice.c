@@ -46,6 +46,7 @@
 #define EXP_LO (-150)    /* frexp exponents of float32 magnitudes: subnormals to the largest */
 #define EXP_HI 130
 #define NBINS ((EXP_HI - EXP_LO) * SUB)
+_Static_assert(NBINS <= INT16_MAX, "step_for lists the bins as int16_t");
 #define QEXACT 64        /* |q| below this: one histogram bin each; above: one per octave */
 #define QBINS (QEXACT + 64)
 #define DEFAULT_PSNR 50.0 /* the target when the caller gives neither a PSNR nor a step */
@@ -274,11 +275,11 @@ static void add_err(void *ctx, int level, int band, const float *row, size_t n)
 /* Squared error of the dead-zone quantiser with this step: below the dead zone's edge
  * (1 - rounding) step a coefficient becomes 0 (error c^2); above, the error is modelled as
  * uniform over a step (step^2 / 12). The bin holding the edge is split in proportion. */
-static double model_sse(const err_bins *b, double step, double rounding)
+static double model_sse(const err_bins *b, const int16_t *used, int nused, double step, double rounding)
 {
     double t = (1.0 - rounding) * step, sse = 0, q = step * step / 12.0;
-    for (int k = 0; k < NBINS; k++) {
-        if (b->count[k] == 0) continue;
+    for (int u = 0; u < nused; u++) {
+        const int k = used[u];
         double lo = b->lower[k], hi = b->lower[k + 1];
         if (hi <= t) sse += b->sumsq[k];
         else if (lo >= t) sse += b->count[k] * q;
@@ -291,17 +292,23 @@ static double model_sse(const err_bins *b, double step, double rounding)
 }
 
 /* The step whose modelled error is target (per coefficient) x count; +inf when zeroing
- * everything already meets it. Bisection on log(step): the error grows with the step. */
+ * everything already meets it. Bisection on log(step): the error grows with the step. The
+ * model's sums run over the bins that hold a count (a few hundred of the NBINS), in bin
+ * order as before. */
 static double step_for(const err_bins *b, double target, double rounding)
 {
     double want = target * b->n, lo, hi;
+    int16_t used[NBINS];
+    int nused = 0;
     if (b->energy <= want) return INFINITY;
+    for (int k = 0; k < NBINS; k++)
+        if (b->count[k] != 0) used[nused++] = (int16_t)k;
     lo = sqrt(target) * 1e-3, hi = sqrt(target) * 1e3;
-    while (model_sse(b, lo, rounding) > want && lo > 1e-300) lo *= 1e-3;
-    while (model_sse(b, hi, rounding) < want && hi < 1e300) hi *= 1e3;
+    while (model_sse(b, used, nused, lo, rounding) > want && lo > 1e-300) lo *= 1e-3;
+    while (model_sse(b, used, nused, hi, rounding) < want && hi < 1e300) hi *= 1e3;
     for (int it = 0; it < 60; it++) {
         double mid = sqrt(lo * hi);
-        if (model_sse(b, mid, rounding) < want) lo = mid;
+        if (model_sse(b, used, nused, mid, rounding) < want) lo = mid;
         else hi = mid;
     }
     return sqrt(lo * hi);
