@@ -89,56 +89,62 @@ static int read_threads(size_t n)
     return 1;
 }
 
+/* n bytes of raw data from file offset at into dst: float32 in the host's byte order
+ * straight in (split among the threads when large), other samples through f->buf and
+ * converted, a chunk at a time. pread: no stream position to keep. */
+static wvol_status raw_at(file_src *f, float *dst, unsigned long long at, size_t n, wvol_error *err)
+{
+    const size_t elem = f->conv.elem;
+    const int threads = f->direct ? read_threads(n) : 1;
+    if (threads > 1) {
+        WVOL_RETURN_IF(read_split(fileno(f->fp), (unsigned char *)dst, at, n, threads), err, WVOL_ERR_IO,
+                       "%s: short read in bytes %llu .. %llu (the file shrank or cannot be read)", f->path, at,
+                       at + n);
+        return WVOL_OK;
+    }
+    for (size_t done = 0; done < n;) {
+        size_t want = f->direct || n - done < CHUNK_BYTES ? n - done : CHUNK_BYTES;
+        unsigned char *to = f->direct ? (unsigned char *)dst + done : f->buf;
+        WVOL_RETURN_IF(pread_full(fileno(f->fp), to, want, at + done), err, WVOL_ERR_IO,
+                       "%s: short read in bytes %llu .. %llu (the file shrank or cannot be read)", f->path,
+                       at + done, at + done + want);
+        if (!f->direct) wvol__nrrd_convert(dst + done / elem, f->buf, want / elem, &f->conv);
+        done += want;
+    }
+    return WVOL_OK;
+}
+
 static wvol_status file_read(void *ctx, float *dst, size_t z0, size_t nz, wvol_error *err)
 {
     file_src *f = ctx;
     size_t elem = f->conv.elem, n = f->slice_bytes * nz, done = 0;
     unsigned long long at = (unsigned long long)z0 * f->slice_bytes;
-    if (f->fp && f->direct && read_threads(n) > 1) {
-        WVOL_RETURN_IF(read_split(fileno(f->fp), (unsigned char *)dst, f->start + at, n, read_threads(n)), err,
-                       WVOL_ERR_IO, "%s: short read in bytes %llu .. %llu (the file shrank or cannot be read)",
-                       f->path, f->start + at, f->start + at + n);
-        return WVOL_OK;
-    }
-    if (f->fp) {
-        WVOL_RETURN_IF(fseeko(f->fp, (off_t)(f->start + at), SEEK_SET) != 0, err, WVOL_ERR_IO, "%s: cannot seek: %s",
-                       f->path, strerror(errno));
-    } else {
-        unsigned long long want = f->start + at;
-        if (want != f->pos) {
-            WVOL_RETURN_IF(gzseek(f->gz, (z_off_t)want, SEEK_SET) < 0, err, WVOL_ERR_FORMAT,
-                           "%s: cannot reach slice %zu of the gzip data (truncated or corrupt)", f->path, z0);
-            f->pos = want;
-        }
+    if (f->fp) return raw_at(f, dst, f->start + at, n, err);
+    if (f->start + at != f->pos) {
+        WVOL_RETURN_IF(gzseek(f->gz, (z_off_t)(f->start + at), SEEK_SET) < 0, err, WVOL_ERR_FORMAT,
+                       "%s: cannot reach slice %zu of the gzip data (truncated or corrupt)", f->path, z0);
+        f->pos = f->start + at;
     }
     while (done < n) {
         /* float32 in the host's byte order goes straight into dst: no staging copy */
-        size_t want = n - done < CHUNK_BYTES || f->direct ? n - done : CHUNK_BYTES, got;
+        size_t want = n - done < CHUNK_BYTES || f->direct ? n - done : CHUNK_BYTES;
         unsigned char *to = f->direct ? (unsigned char *)dst + done : f->buf;
-        if (f->fp) {
-            got = fread(to, 1, want, f->fp);
-            WVOL_RETURN_IF(got != want, err, WVOL_ERR_IO, "%s: short read at byte %llu", f->path,
-                           f->start + at + done + got);
-        } else {
-            int r, code = Z_OK;
-            if (want > (size_t)1 << 30) want = (size_t)1 << 30; /* gzread takes an unsigned int */
-            if (!f->direct && want > CHUNK_BYTES) want = CHUNK_BYTES;
-            r = gzread(f->gz, to, (unsigned)want);
-            if (r < 0) {
-                const char *msg = gzerror(f->gz, &code);
-                return wvol_error_set(err, WVOL_ERR_FORMAT, "corrupt gzip data in %s: %s", f->path,
-                                      msg ? msg : "inflate failed");
-            }
-            f->pos += (unsigned)r;
-            WVOL_RETURN_IF((size_t)r != want, err, WVOL_ERR_FORMAT,
-                           "gzip data in %s end early after %llu of %llu bytes (truncated)", f->path,
-                           f->pos - f->start, f->total);
-            got = want;
+        int r, code = Z_OK;
+        if (want > (size_t)1 << 30) want = (size_t)1 << 30; /* gzread takes an unsigned int */
+        r = gzread(f->gz, to, (unsigned)want);
+        if (r < 0) {
+            const char *msg = gzerror(f->gz, &code);
+            return wvol_error_set(err, WVOL_ERR_FORMAT, "corrupt gzip data in %s: %s", f->path,
+                                  msg ? msg : "inflate failed");
         }
-        if (!f->direct) wvol__nrrd_convert(dst + done / elem, f->buf, got / elem, &f->conv);
-        done += got;
+        f->pos += (unsigned)r;
+        WVOL_RETURN_IF((size_t)r != want, err, WVOL_ERR_FORMAT,
+                       "gzip data in %s end early after %llu of %llu bytes (truncated)", f->path,
+                       f->pos - f->start, f->total);
+        if (!f->direct) wvol__nrrd_convert(dst + done / elem, f->buf, want / elem, &f->conv);
+        done += want;
     }
-    if (f->gz && at + n == f->total) {
+    if (at + n == f->total) {
         /* the last slab: the stream must end here */
         unsigned char extra;
         int r = gzread(f->gz, &extra, 1);
@@ -148,25 +154,14 @@ static wvol_status file_read(void *ctx, float *dst, size_t z0, size_t nz, wvol_e
     return WVOL_OK;
 }
 
-/* Row bands of raw data (core/source_volume.h): per slice the band's bytes read at their
- * offset, converted as file_read converts a slab when the samples are not float32. */
+/* Row bands of raw data (core/source_volume.h): per slice the band's bytes at their offset. */
 static wvol_status file_rows(void *ctx, float *dst, size_t z0, size_t nz, size_t y0, size_t ny, wvol_error *err)
 {
     file_src *f = ctx;
-    const size_t elem = f->conv.elem, n = f->row_bytes * ny;
-    for (size_t k = 0; k < nz; k++) {
-        const unsigned long long at = f->start + (unsigned long long)(z0 + k) * f->slice_bytes + y0 * f->row_bytes;
-        float *out = dst + k * (n / elem);
-        for (size_t done = 0; done < n;) {
-            size_t want = f->direct || n - done < CHUNK_BYTES ? n - done : CHUNK_BYTES;
-            unsigned char *to = f->direct ? (unsigned char *)out + done : f->buf;
-            WVOL_RETURN_IF(pread_full(fileno(f->fp), to, want, at + done), err, WVOL_ERR_IO,
-                           "%s: short read in bytes %llu .. %llu (the file shrank or cannot be read)", f->path,
-                           at + done, at + done + want);
-            if (!f->direct) wvol__nrrd_convert(out + done / elem, f->buf, want / elem, &f->conv);
-            done += want;
-        }
-    }
+    const size_t n = f->row_bytes * ny;
+    for (size_t k = 0; k < nz; k++)
+        WVOL_FORWARD(raw_at(f, dst + k * (n / f->conv.elem),
+                            f->start + (unsigned long long)(z0 + k) * f->slice_bytes + y0 * f->row_bytes, n, err));
     return WVOL_OK;
 }
 
