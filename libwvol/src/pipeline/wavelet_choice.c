@@ -103,49 +103,41 @@ static void cube_origin(const sample *s, int i, size_t o[3])
 #define SLAB_BYTES ((size_t)8 << 20)
 #define BAND_BYTES ((size_t)64 << 10)
 
-/* A cube's samples from rows read as a band (nz slices of e[1] rows of nx, from the cube's y
- * origin) into dst (the cube's data at the band's first slice); their range into s->lo, s->hi. */
-static void cube_from_band(sample *s, float *dst, const float *band, size_t nx, size_t x0, size_t nz)
+/* One slice of a cube: e[1] rows of e[0] samples from src (rows nx apart) into dst, their
+ * range into s->lo, s->hi. */
+static void cube_slice(sample *s, float *dst, const float *src, size_t nx)
 {
-    for (size_t k = 0; k < nz; k++)
-        for (size_t y = 0; y < s->e[1]; y++) {
-            const float *row = band + (k * s->e[1] + y) * nx + x0;
-            memcpy(dst + (k * s->e[1] + y) * s->e[0], row, s->e[0] * sizeof(float));
-            for (size_t x = 0; x < s->e[0]; x++) {
-                if (row[x] < s->lo) s->lo = row[x];
-                if (row[x] > s->hi) s->hi = row[x];
-            }
+    for (size_t y = 0; y < s->e[1]; y++) {
+        const float *row = src + y * nx;
+        memcpy(dst + y * s->e[0], row, s->e[0] * sizeof(float));
+        for (size_t x = 0; x < s->e[0]; x++) {
+            if (row[x] < s->lo) s->lo = row[x];
+            if (row[x] > s->hi) s->hi = row[x];
         }
+    }
 }
 
-/* The cubes read as row bands, a few slices at a time into one small buffer: 1 when the source
- * has no row bands (nothing read: the caller reads slices), else 0 with the outcome in *st. */
-static int read_sample_rows(sample *s, wvol_source *src, const size_t o[][3], wvol_status *st, wvol_error *err)
+/* The cubes read as row bands, a few slices at a time into one small buffer;
+ * WVOL_ERR_UNSUPPORTED (nothing read, no message) when the source has no row bands. */
+static wvol_status read_sample_rows(sample *s, wvol_source *src, const size_t o[][3], wvol_error *err)
 {
-    const size_t nx = s->dims[0], band = nx * s->e[1];
+    const size_t nx = s->dims[0], band = nx * s->e[1], slice = s->e[0] * s->e[1];
     size_t step = BAND_BYTES / (band * sizeof(float));
+    wvol_status st = WVOL_OK;
     float *buf;
     if (step < 1) step = 1;
     if (step > s->e[2]) step = s->e[2];
     buf = malloc(step * band * sizeof *buf);
-    if (!buf) {
-        *st = wvol_error_set(err, WVOL_ERR_NOMEM, "compress: wavelet trial: out of memory");
-        return 0;
-    }
-    *st = WVOL_OK;
-    for (int i = 0; i < s->nb && *st == WVOL_OK; i++)
-        for (size_t k = 0; k < s->e[2] && *st == WVOL_OK; k += step) {
+    WVOL_RETURN_IF(!buf, err, WVOL_ERR_NOMEM, "compress: wavelet trial: out of memory");
+    for (int i = 0; i < s->nb && st == WVOL_OK; i++)
+        for (size_t k = 0; k < s->e[2] && st == WVOL_OK; k += step) {
             size_t nz = s->e[2] - k < step ? s->e[2] - k : step;
-            *st = wvol__source_read_rows(src, buf, o[i][2] + k, nz, o[i][1], s->e[1], err);
-            if (*st == WVOL_ERR_UNSUPPORTED) {
-                free(buf);
-                *st = WVOL_OK;
-                return 1;
-            }
-            if (*st == WVOL_OK) cube_from_band(s, s->b[i].data + k * s->e[0] * s->e[1], buf, nx, o[i][0], nz);
+            st = wvol__source_read_rows(src, buf, o[i][2] + k, nz, o[i][1], s->e[1], err);
+            for (size_t j = 0; st == WVOL_OK && j < nz; j++)
+                cube_slice(s, s->b[i].data + (k + j) * slice, buf + j * band + o[i][0], nx);
         }
     free(buf);
-    return 0;
+    return st;
 }
 
 static wvol_status read_sample(sample *s, wvol_source *src, wvol_error *err)
@@ -162,7 +154,8 @@ static wvol_status read_sample(sample *s, wvol_source *src, wvol_error *err)
         if (o[i][2] < zlo) zlo = o[i][2];
         if (o[i][2] + s->e[2] > zhi) zhi = o[i][2] + s->e[2];
     }
-    if (!read_sample_rows(s, src, (const size_t(*)[3])o, &st, err)) return st;
+    st = read_sample_rows(s, src, (const size_t(*)[3])o, err);
+    if (st != WVOL_ERR_UNSUPPORTED) return st;
     slab_max = SLAB_BYTES / (nx * ny * sizeof(float));
     if (slab_max < 1) slab_max = 1;
     if (slab_max > s->e[2]) slab_max = s->e[2];
@@ -182,7 +175,7 @@ static wvol_status read_sample(sample *s, wvol_source *src, wvol_error *err)
             z++;
             continue;
         }
-        wvol_status st = wvol_source_read(src, slab, z, nz, err);
+        st = wvol_source_read(src, slab, z, nz, err);
         if (st != WVOL_OK) {
             wvol__reuse_put(slab);
             return st;
@@ -190,18 +183,10 @@ static wvol_status read_sample(sample *s, wvol_source *src, wvol_error *err)
         for (size_t k = 0; k < nz; k++) {
             const float *slice = slab + k * nx * ny;
             size_t zz = z + k;
-            for (i = 0; i < s->nb; i++) {
-                if (zz < o[i][2] || zz >= o[i][2] + s->e[2]) continue;
-                for (size_t y = 0; y < s->e[1]; y++) {
-                    const float *row = slice + (o[i][1] + y) * nx + o[i][0];
-                    float *dst = s->b[i].data + ((zz - o[i][2]) * s->e[1] + y) * s->e[0];
-                    memcpy(dst, row, s->e[0] * sizeof(float));
-                    for (size_t x = 0; x < s->e[0]; x++) {
-                        if (row[x] < s->lo) s->lo = row[x];
-                        if (row[x] > s->hi) s->hi = row[x];
-                    }
-                }
-            }
+            for (i = 0; i < s->nb; i++)
+                if (zz >= o[i][2] && zz < o[i][2] + s->e[2])
+                    cube_slice(s, s->b[i].data + (zz - o[i][2]) * s->e[1] * s->e[0],
+                               slice + o[i][1] * nx + o[i][0], nx);
         }
         z += nz;
     }
