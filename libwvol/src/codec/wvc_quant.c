@@ -245,63 +245,61 @@ WVOL__TARGET_V4 static float row_kernel_v4(double t[8], const float *row, int32_
 #undef MADD2
 #endif
 
-WVOL__CLONES_V4 static float row_stats_clone(double t[8], const float *row, int32_t *qrow, size_t n, double step,
-                                             double f)
+/* A row's sums: one of the kernels (the same sums, bit for bit). */
+typedef float (*row_fn)(double t[8], const float *row, int32_t *qrow, size_t n, double step, double f, int sparse);
+
+/* row_kernel, as compiled for the running CPU's level */
+WVOL__CLONES_V4 static float row_generic(double t[8], const float *row, int32_t *qrow, size_t n, double step,
+                                         double f, int sparse)
 {
     float amax;
-    row_kernel(t, &amax, row, qrow, n, step, f, 0);
+    row_kernel(t, &amax, row, qrow, n, step, f, sparse);
     return amax;
 }
 
-float wvol__wvc_row_stats(double t[8], const float *row, int32_t *qrow, size_t n, double step, double f)
+/* The kernel for this CPU: the x86-64-v4 one where it runs, else row_generic. */
+static row_fn row_best(void)
 {
 #if WVOL__HAVE_V4
-    if (WVOL__CPU_V4()) return row_kernel_v4(t, row, qrow, n, step, f, 0);
+    if (WVOL__CPU_V4()) return row_kernel_v4;
 #endif
-    return row_stats_clone(t, row, qrow, n, step, f);
+    return row_generic;
 }
 
-WVOL__CLONES_V4 static void rows_stats_clone(sec_stats *st, const float *c, int32_t *q, size_t ex, size_t ey,
-                                             size_t nz, size_t sy, size_t sz, double step, double f, int sparse)
+/* wvol__wvc_rows_stats with the kernel fn */
+static void rows_with(row_fn fn, sec_stats *st, const float *c, int32_t *q, size_t ex, size_t ey, size_t nz,
+                      size_t sy, size_t sz, double step, double f, int sparse)
 {
+    memset(st, 0, sizeof *st);
     for (size_t z = 0; z < nz; z++)
         for (size_t y = 0; y < ey; y++) {
             const size_t at = y * sy + z * sz;
             double t[8];
-            row_kernel(t, NULL, c + at, q ? q + at : NULL, ex, step, f, sparse);
+            fn(t, c + at, q ? q + at : NULL, ex, step, f, sparse);
             wvol__wvc_sec_add_row(st, t);
         }
 }
 
-float wvol__wvc_row_stats_generic(double t[8], const float *row, int32_t *qrow, size_t n, double step, double f)
+float wvol__wvc_row_stats(double t[8], const float *row, int32_t *qrow, size_t n, double step, double f)
 {
-    return row_stats_clone(t, row, qrow, n, step, f);
+    return row_best()(t, row, qrow, n, step, f, 0);
 }
 
-void wvol__wvc_rows_stats_generic(sec_stats *st, const float *c, int32_t *q, size_t ex, size_t ey, size_t nz,
-                                  size_t sy, size_t sz, double step, double f, int sparse)
+float wvol__wvc_row_stats_generic(double t[8], const float *row, int32_t *qrow, size_t n, double step, double f)
 {
-    memset(st, 0, sizeof *st);
-    rows_stats_clone(st, c, q, ex, ey, nz, sy, sz, step, f, sparse);
+    return row_generic(t, row, qrow, n, step, f, 0);
 }
 
 void wvol__wvc_rows_stats(sec_stats *st, const float *c, int32_t *q, size_t ex, size_t ey, size_t nz, size_t sy,
                           size_t sz, double step, double f, int sparse)
 {
-    memset(st, 0, sizeof *st);
-#if WVOL__HAVE_V4
-    if (WVOL__CPU_V4()) {
-        for (size_t z = 0; z < nz; z++)
-            for (size_t y = 0; y < ey; y++) {
-                const size_t at = y * sy + z * sz;
-                double t[8];
-                row_kernel_v4(t, c + at, q ? q + at : NULL, ex, step, f, sparse);
-                wvol__wvc_sec_add_row(st, t);
-            }
-        return;
-    }
-#endif
-    rows_stats_clone(st, c, q, ex, ey, nz, sy, sz, step, f, sparse);
+    rows_with(row_best(), st, c, q, ex, ey, nz, sy, sz, step, f, sparse);
+}
+
+void wvol__wvc_rows_stats_generic(sec_stats *st, const float *c, int32_t *q, size_t ex, size_t ey, size_t nz,
+                                  size_t sy, size_t sz, double step, double f, int sparse)
+{
+    rows_with(row_generic, st, c, q, ex, ey, nz, sy, sz, step, f, sparse);
 }
 #undef SEL
 work_item *wvol__wvc_work_items(const wvc_layout *L, int *count)
