@@ -21,11 +21,11 @@ void wvol__source_seen_range(const wvol_source *s, float range[2]);
 
 /* Row bands: rows y0 .. y0 + ny - 1 of slices z0 .. z0 + nz - 1 into dst (nx * ny * nz floats,
  * x fastest), for a reader that needs a small box of a large volume (the wavelet trial's
- * cubes) without the slices' other rows. A source gives it when it can seek (a raw file, NRRD
- * raw data, a volume in memory: wvol__source_set_rows); wvol__source_read_rows then refuses
- * a range outside the volume and non-finite samples as wvol_source_read does, and returns
- * WVOL_ERR_UNSUPPORTED, with no message, for a source without it (gzip, generators, sources
- * of one's own: read whole slices instead). */
+ * cubes) without the slices' other rows. A source gives it when it can reach any row (a raw
+ * file, NRRD raw data, a volume in memory, a generator: wvol__source_set_rows);
+ * wvol__source_read_rows then refuses a range outside the volume and non-finite samples as
+ * wvol_source_read does, and returns WVOL_ERR_UNSUPPORTED, with no message, for a source
+ * without it (gzip data, sources of one's own: read whole slices instead). */
 typedef wvol_status (*wvol__source_rows_fn)(void *ctx, float *dst, size_t z0, size_t nz, size_t y0, size_t ny,
                                              wvol_error *err);
 void wvol__source_set_rows(wvol_source *s, wvol__source_rows_fn fn);

@@ -96,7 +96,7 @@ static void cube_origin(const sample *s, int i, size_t o[3])
 /* Reads the cubes' slices in increasing z, in slabs of consecutive needed slices (a
  * generator makes a slab at a cost per call as well as per slice), each slab at most
  * SLAB_BYTES or one slice: a slab of a large volume can be far larger than the sample.
- * A source that reads row bands (a raw file, NRRD raw data, a volume in memory:
+ * A source that reads row bands (a raw file, NRRD raw data, a volume in memory, a generator:
  * core/source_volume.h) gives each cube its own rows instead, a few slices at a time: a
  * 64^3 cube of a 256^3 volume then reads a quarter of the bytes of its slices, of a 2048^3
  * volume a thirty-second. */
@@ -279,7 +279,7 @@ static double model_sse(const err_bins *b, const int16_t *used, int nused, doubl
 /* The step whose modelled error is target (per coefficient) x count; +inf when zeroing
  * everything already meets it. Bisection on log(step): the error grows with the step. The
  * model's sums run over the bins that hold a count (a few hundred of the NBINS), in bin
- * order as before. */
+ * order. */
 static double step_for(const err_bins *b, double target, double rounding)
 {
     double want = target * b->n, lo, hi;

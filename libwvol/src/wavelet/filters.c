@@ -39,8 +39,9 @@ static const filter_src sources[NFILTERS] = {
 static wvol_filter filters[NFILTERS];
 static double gbuf[NFILTERS][WVOL__MAX_TAPS];
 static double blbuf[WVOL__MAX_TAPS];
-/* the published filters at once; bl3, whose Fourier construction costs a process start about
- * a millisecond, only when it is asked for (by name or by enumerating the catalogue) */
+/* the published filters at once; bl3, whose Fourier construction (thousands of samples of its
+ * transfer function and a cosine sum per tap) no other filter needs, only when it is asked
+ * for (by name or by enumerating the catalogue) */
 static pthread_once_t once = PTHREAD_ONCE_INIT, once_bl = PTHREAD_ONCE_INIT;
 static int bl_ok; /* bl3 built (else dropped from the catalogue) */
 
