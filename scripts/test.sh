@@ -2,7 +2,8 @@
 # SPDX-License-Identifier: MIT
 # The whole test suite: setup + build (warnings are errors), C tests under ctest,
 # Python tests under pytest, the C tests again under AddressSanitizer and
-# UndefinedBehaviorSanitizer, the library built without its optional dependencies
+# UndefinedBehaviorSanitizer, the same .wvc bytes from the release and the sanitizer builds
+# (scripts/test_same_bytes.sh), the library built without its optional dependencies
 # (scripts/test_minimal.sh), and a bounded libFuzzer run of the .wvc reader.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -22,6 +23,9 @@ cmake -S . -B build-asan -DCMAKE_BUILD_TYPE=Debug -DWVOL_SANITIZE=ON -DWVOL_WERR
 cmake --build build-asan -j "$(nproc)"
 ASAN_OPTIONS=detect_leaks=1 UBSAN_OPTIONS=print_stacktrace=1 \
   ctest --test-dir build-asan --output-on-failure -j 2
+
+echo "== the same bytes from the release build (CPU-level clones) and the sanitizer build (none)"
+ASAN_OPTIONS=detect_leaks=1 bash scripts/test_same_bytes.sh build/wvol build-asan/wvol
 
 echo "== the library without its optional dependencies"
 bash scripts/test_minimal.sh

@@ -117,15 +117,30 @@ WVOL__KERNEL static void FN(inv_row)(T *restrict row, size_t n, const T *restric
 /* One output row pair of the strided forward pass: a = sum_m h[m] r[m][x],
  * d = sum_m g[m] r[m][x] for x < w, r[m] the L input rows (of the scratch copy in the
  * in-memory pass; of the window itself in the streamed one, which needs no copy: its
- * rows are whole). Columns go in chunks of 2*VL with the accumulators in registers across
- * the taps. The in-memory pass (fwd_cols) and the streamed one (zrows) both call this one
+ * rows are whole). Columns go in chunks of 4*VL (then 2*VL) with the accumulators in
+ * registers across the taps: eight independent sums per tap, as this file is built without
+ * contracted multiply-adds (a product and a sum per tap and column, the same on every CPU
+ * level: docs/wvc-format.md, "The same bytes on every CPU"); each column's sum still runs over
+ * the taps in order, so the chunk width does not change a bit. The in-memory pass (fwd_cols) and the streamed one (zrows) both call this one
  * function on the same column blocks, so their coefficients are computed by the same
  * instructions: bit-identical whatever the compiler makes of the loops. */
 WVOL__KERNEL static void FN(cols_row)(T *restrict a, T *restrict d, const T *const *r, size_t w,
                                       const T *restrict h, const T *restrict g, int L)
 {
     size_t x, x0;
-    for (x0 = 0; x0 + 2 * VL <= w; x0 += 2 * VL) {
+    for (x0 = 0; x0 + 4 * VL <= w; x0 += 4 * VL) {
+        V a0 = VZERO, a1 = VZERO, a2 = VZERO, a3 = VZERO, d0 = VZERO, d1 = VZERO, d2 = VZERO, d3 = VZERO;
+        for (int m = 0; m < L; m++) {
+            const T *tm = r[m] + x0;
+            V u0 = VLOAD(tm), u1 = VLOAD(tm + VL), u2 = VLOAD(tm + 2 * VL), u3 = VLOAD(tm + 3 * VL);
+            T hm = h[m], gm = g[m];
+            a0 += hm * u0, a1 += hm * u1, a2 += hm * u2, a3 += hm * u3;
+            d0 += gm * u0, d1 += gm * u1, d2 += gm * u2, d3 += gm * u3;
+        }
+        VSTORE(a + x0, a0), VSTORE(a + x0 + VL, a1), VSTORE(a + x0 + 2 * VL, a2), VSTORE(a + x0 + 3 * VL, a3);
+        VSTORE(d + x0, d0), VSTORE(d + x0 + VL, d1), VSTORE(d + x0 + 2 * VL, d2), VSTORE(d + x0 + 3 * VL, d3);
+    }
+    for (; x0 + 2 * VL <= w; x0 += 2 * VL) {
         V a0 = VZERO, a1 = VZERO, d0 = VZERO, d1 = VZERO;
         for (int m = 0; m < L; m++) {
             const T *tm = r[m] + x0;
