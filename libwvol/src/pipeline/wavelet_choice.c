@@ -247,14 +247,17 @@ static double bin_lower(int k) { return ldexp(0.5 + (double)(k % SUB) / (2.0 * S
 static void add_err(void *ctx, int level, int band, const float *row, size_t n)
 {
     err_bins *b = ctx;
+    double energy = b->energy; /* summed in the values' order, as one running sum */
     (void)level, (void)band;
+    b->n += (double)n;
     for (size_t p = 0; p < n; p++) {
-        double a = fabs((double)row[p]);
-        b->n += 1, b->energy += a * a;
+        const double a = fabs((double)row[p]), a2 = a * a;
+        energy += a2;
         if (a == 0) continue;
-        int k = mag_bin((float)a);
-        b->count[k] += 1, b->sumsq[k] += a * a;
+        const int k = mag_bin((float)a);
+        b->count[k] += 1, b->sumsq[k] += a2;
     }
+    b->energy = energy;
 }
 
 /* Squared error of the dead-zone quantiser with this step: below the dead zone's edge
@@ -307,38 +310,43 @@ typedef struct rate_bins {
     uint64_t extra;              /* mantissa bits of the octave bins, and one sign bit per non-zero */
 } rate_bins;
 
-/* Whole counts, in integers (a repeated bin's increment waits one cycle, not a floating add):
- * the zeros, most of a row, and the extra bits in registers, added once; q = 0 exactly when
- * the sum before the floor is below 1. (No multiply-add here for the x86-64-v3 clone to
- * contract: both clones give the same values.) */
+/* Whole counts, in integers (a repeated bin's increment waits one cycle, not a floating add).
+ * A run of values at a time: their quotients first, in vectors (the division's latency then
+ * overlaps instead of chaining through a branch per value whose outcome the data decides),
+ * then each value's bin and extra bits without a branch, the non-zeros' compacted (zeros,
+ * most of a row at low rates, only counted), then the non-zeros' increments. q = 0 exactly
+ * when the sum before the floor is below 1; an octave bin's extra bits are floor(log2 q), the
+ * exponent of the double q >= 64. (No multiply-add here for the x86-64-v3 clone to contract:
+ * both clones give the same values, the same as a value-by-value loop.) */
+#define RATE_RUN 64
 WVOL__CLONES static void add_rate(void *ctx, int level, int band, const float *row, size_t n)
 {
     rate_bins *r = ctx;
     uint32_t *h = r->hist[level][band];
     const double step = r->step, rounding = r->rounding;
-    uint32_t zeros = 0;
-    uint64_t extra = 0;
-    for (size_t p = 0; p < n; p++) {
-        double t = fabs((double)row[p]) / step + rounding, q;
-        int k;
-        if (t < 1.0) {
-            zeros++;
-            continue;
+    uint64_t extra = 0, zeros = 0;
+    for (size_t p0 = 0; p0 < n; p0 += RATE_RUN) {
+        const size_t pn = n - p0 < RATE_RUN ? n - p0 : RATE_RUN;
+        double t[RATE_RUN];
+        uint8_t bin[RATE_RUN];
+        uint16_t ext[RATE_RUN];
+        size_t m = 0;
+        for (size_t i = 0; i < pn; i++) t[i] = fabs((double)row[p0 + i]) / step + rounding;
+        for (size_t i = 0; i < pn; i++) {
+            const double q = floor(t[i]);
+            uint64_t u;
+            memcpy(&u, &q, sizeof u);
+            const int e1 = (int)(u >> 52) - 1023; /* floor(log2 q) for q >= 1 */
+            const int small = q < QEXACT, oct = QEXACT + e1 - 6;
+            const int k = small ? (int)fmin(q, QEXACT) : oct < QBINS ? oct : QBINS - 1;
+            bin[m] = (uint8_t)k;
+            ext[m] = (uint16_t)(1 + (small ? 0 : e1)); /* a sign bit, and the octave's bits */
+            m += !(t[i] < 1.0);
         }
-        q = floor(t);
-        if (q < QEXACT) {
-            k = (int)q;
-        } else {
-            int e;
-            frexp(q, &e); /* 2^(e-1) <= q < 2^e */
-            k = QEXACT + (e - 1) - 6;
-            if (k >= QBINS) k = QBINS - 1;
-            extra += (uint64_t)(e - 1); /* the bits below the leading one */
-        }
-        extra++;
-        h[k]++;
+        zeros += pn - m;
+        for (size_t i = 0; i < m; i++) h[bin[i]]++, extra += ext[i];
     }
-    h[0] += zeros;
+    h[0] += (uint32_t)zeros;
     r->extra += extra;
 }
 
