@@ -310,14 +310,14 @@ typedef struct rate_bins {
     uint64_t extra;              /* mantissa bits of the octave bins, and one sign bit per non-zero */
 } rate_bins;
 
-/* Whole counts, in integers (a repeated bin's increment waits one cycle, not a floating add).
- * A run of values at a time: their quotients first, in vectors (the division's latency then
- * overlaps instead of chaining through a branch per value whose outcome the data decides),
- * then each value's bin and extra bits without a branch, the non-zeros' compacted (zeros,
- * most of a row at low rates, only counted), then the non-zeros' increments. q = 0 exactly
- * when the sum before the floor is below 1; an octave bin's extra bits are floor(log2 q), the
- * exponent of the double q >= 64. (No multiply-add here for the x86-64-v3 clone to contract:
- * both clones give the same values, the same as a value-by-value loop.) */
+/* Whole counts, in integers (a repeated bin's increment waits one cycle, not a floating add),
+ * a run of values at a time: first their quotients, in vectors (the divisions overlap instead
+ * of each waiting on a branch that the data decides); then each value's bin and extra bits
+ * without a branch, kept for the non-zeros only (the zeros, most of a row at low rates, are
+ * just counted); then the non-zeros' increments. q = 0 exactly when the sum before the floor
+ * is below 1; an octave bin's extra bits are floor(log2 q), the exponent of the double
+ * q >= 64. The same counts as a value-by-value loop. (No multiply-add here for the x86-64-v3
+ * clone to contract: both clones give the same values.) */
 #define RATE_RUN 64
 WVOL__CLONES static void add_rate(void *ctx, int level, int band, const float *row, size_t n)
 {
@@ -338,7 +338,7 @@ WVOL__CLONES static void add_rate(void *ctx, int level, int band, const float *r
             memcpy(&u, &q, sizeof u);
             const int e1 = (int)(u >> 52) - 1023; /* floor(log2 q) for q >= 1 */
             const int small = q < QEXACT, oct = QEXACT + e1 - 6;
-            const int k = small ? (int)fmin(q, QEXACT) : oct < QBINS ? oct : QBINS - 1;
+            const int k = small ? (int)q : oct < QBINS ? oct : QBINS - 1;
             bin[m] = (uint8_t)k;
             ext[m] = (uint16_t)(1 + (small ? 0 : e1)); /* a sign bit, and the octave's bits */
             m += !(t[i] < 1.0);

@@ -118,12 +118,13 @@ WVOL__KERNEL static void FN(inv_row)(T *restrict row, size_t n, const T *restric
  * d = sum_m g[m] r[m][x] for x < w, r[m] the L input rows (of the scratch copy in the
  * in-memory pass; of the window itself in the streamed one, which needs no copy: its
  * rows are whole). Columns go in chunks of 4*VL (then 2*VL) with the accumulators in
- * registers across the taps: eight independent sums per tap, as this file is built without
- * contracted multiply-adds (a product and a sum per tap and column, the same on every CPU
- * level: docs/wvc-format.md, "The same bytes on every CPU"); each column's sum still runs over
- * the taps in order, so the chunk width does not change a bit. The in-memory pass (fwd_cols) and the streamed one (zrows) both call this one
- * function on the same column blocks, so their coefficients are computed by the same
- * instructions: bit-identical whatever the compiler makes of the loops. */
+ * registers across the taps: eight independent sums per tap, enough to keep the adds busy
+ * with a product and a sum per tap and column (this file is built without contracted
+ * multiply-adds, for the same bits on every CPU level: docs/wvc-format.md, "The same bytes
+ * on every CPU"). Each column's sum runs over the taps in order whatever the chunk, so the
+ * chunk width does not change a bit. The in-memory pass (fwd_cols) and the streamed one
+ * (zrows) both call this one function on the same column blocks, so their coefficients are
+ * computed by the same instructions: bit-identical whatever the compiler makes of the loops. */
 WVOL__KERNEL static void FN(cols_row)(T *restrict a, T *restrict d, const T *const *r, size_t w,
                                       const T *restrict h, const T *restrict g, int L)
 {
