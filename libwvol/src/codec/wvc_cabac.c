@@ -280,13 +280,14 @@ FORCE_INLINE int detail_band(int dec, int blocks, coder *cd, int32_t *Q, const s
             uint8_t *brow = blocks ? bstate + bx * ((y >> 2) + by * (z >> 2)) : NULL;
             int32_t *row = Q + wvc_index(p, b, 0, y, z);
             const int hasN = y > 0, hasU = z > 0, first = (y & 1) == 0 && (z & 1) == 0;
-            if (dec && y + 2 < ey) {
+            if (blocks && (y & 3) == 0 && (z & 3) == 0) block_row(dec, cd, m, Q, p, b, y >> 2, z >> 2, bx, by, bstate, bany);
+            if (dec && y + 2 < ey && (!blocks || next_group(brow, 0, bx) < bx)) {
                 /* the decoder's stores and neighbour loads meet rows of a large array that are
-                 * cold: ask for the row two ahead while this one is decoded */
+                 * cold: ask for the row two ahead while this one is decoded, unless this row's
+                 * blocks are all zero (a sparse band's rows are mostly such: never touched) */
                 const char *ahead = (const char *)(row + 2 * sy);
                 for (size_t o = 0; o < ex * sizeof *row; o += 64) __builtin_prefetch(ahead + o, 1, 3);
             }
-            if (blocks && (y & 3) == 0 && (z & 3) == 0) block_row(dec, cd, m, Q, p, b, y >> 2, z >> 2, bx, by, bstate, bany);
             if (first) {
                 if (!blocks) {
                     parent_row(Q, p, b, gx, 0, gx, gj, gk, gpc + gx * gj, gP + gx * gj);
@@ -306,7 +307,8 @@ FORCE_INLINE int detail_band(int dec, int blocks, coder *cd, int32_t *Q, const s
             for (x = 0; x < ex; x++) {
                 const size_t gi = x >> 1;
                 int32_t *c = row + x;
-                uint32_t P, aW, aN, aU, dsum;
+                uint32_t P, dsum;
+                int32_t vW, vN, vU, v[6];
                 int pc, sig, a, dn;
                 uint64_t mag;
                 if (first && (x & 1) == 0) {
@@ -340,29 +342,25 @@ FORCE_INLINE int detail_band(int dec, int blocks, coder *cd, int32_t *Q, const s
                     continue;
                 }
                 pc = gpc[gi + gx * gj];
-                P = gP[gi + gx * gj];
-                aW = x > 0 ? absq(c[-1]) : 0;
-                aN = hasN ? absq(c[-sy]) : 0;
-                aU = hasU ? absq(c[-sz]) : 0;
-                dsum = 0;
-                dn = 0;
-                if (hasN) {
-                    if (x > 0) { uint32_t t = absq(c[-sy - 1]); dsum += t; dn += t != 0; }
-                    if (x + 1 < ex) { uint32_t t = absq(c[-sy + 1]); dsum += t; dn += t != 0; }
-                }
-                if (hasU) {
-                    if (x > 0) { uint32_t t = absq(c[-sz - 1]); dsum += t; dn += t != 0; }
-                    if (x + 1 < ex) { uint32_t t = absq(c[-sz + 1]); dsum += t; dn += t != 0; }
-                    if (y > 0) { uint32_t t = absq(c[-sz - sy]); dsum += t; dn += t != 0; }
-                    if (y + 1 < ey) { uint32_t t = absq(c[-sz + sy]); dsum += t; dn += t != 0; }
-                }
+                /* the neighbours' values (0 outside the band); the significance context needs
+                 * only which are non-zero, the magnitudes only for a significant one */
+                vW = x > 0 ? c[-1] : 0;
+                vN = hasN ? c[-sy] : 0;
+                vU = hasU ? c[-sz] : 0;
+                v[0] = hasN && x > 0 ? c[-sy - 1] : 0;
+                v[1] = hasN && x + 1 < ex ? c[-sy + 1] : 0;
+                v[2] = hasU && x > 0 ? c[-sz - 1] : 0;
+                v[3] = hasU && x + 1 < ex ? c[-sz + 1] : 0;
+                v[4] = hasU && y > 0 ? c[-sz - sy] : 0;
+                v[5] = hasU && y + 1 < ey ? c[-sz + sy] : 0;
                 {
                     /* the last child of a non-zero group whose others are all zero is non-zero */
                     int last = (x == ex - 1 || (x & 1)) && (y == ey - 1 || (y & 1)) && (z == ez - 1 || (z & 1));
                     if (last && grow[gi] == 1) {
                         sig = 1;
                     } else {
-                        a = (aW != 0) + (aN != 0) + (aU != 0);
+                        dn = (v[0] != 0) + (v[1] != 0) + (v[2] != 0) + (v[3] != 0) + (v[4] != 0) + (v[5] != 0);
+                        a = (vW != 0) + (vN != 0) + (vU != 0);
                         STAT_CAT(1);
                         sig = code_bit(dec, cd, &m->sig[(pc * 4 + a) * 4 + (dn > 3 ? 3 : dn)], *c != 0);
                     }
@@ -372,7 +370,9 @@ FORCE_INLINE int detail_band(int dec, int blocks, coder *cd, int32_t *Q, const s
                 if (dec) cd->nz++;
                 STAT_CAT(2);
                 mag = dec ? 0 : *c < 0 ? (uint64_t)(-(int64_t)*c) : (uint64_t)*c;
-                mag = code_mag(dec, cd, m, mag_class(2 * (aW + aN + aU) + dsum + 4 * P), mag, 30);
+                P = gP[gi + gx * gj];
+                dsum = absq(v[0]) + absq(v[1]) + absq(v[2]) + absq(v[3]) + absq(v[4]) + absq(v[5]);
+                mag = code_mag(dec, cd, m, mag_class(2 * (absq(vW) + absq(vN) + absq(vU)) + dsum + 4 * P), mag, 30);
                 STAT_CAT(3);
                 {
                     rc_ctx *sc = &m->sign[3 * (x > 0 ? sign_of(c[-1]) : 0) + (hasN ? sign_of(c[-sy]) : 0)];
