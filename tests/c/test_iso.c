@@ -681,15 +681,19 @@ static int same_mesh(const wvol_mesh *a, const wvol_mesh *b)
  * reads every detail band as the store's dense coefficients (wvol_store_densify) hold it, over
  * a region that wraps on both sides of every axis, and its bounds (the view's block maxima and
  * low-pass cube) are the dense coefficients' bit for bit on a grid of boxes: odd sizes, a flat
- * volume (one axis untransformed: no bound), 1 to 5 levels, 1% to 100% kept. A value placed at
- * the wrong rank, a block missed or a block maximum taken over the wrong values fails it. */
+ * volume (one axis untransformed: no bound), 1 to 5 levels, 1% to 100% kept, built on one
+ * thread and on three (the finer levels' groups cut into ranges, each placed at the offsets its
+ * counts give: a range's count or offset wrong fails it). A value placed at the wrong rank, a
+ * block missed or a block maximum taken over the wrong values fails it. */
 static void store_view_matches_coeffs(void)
 {
-    static const struct { const char *filter; int levels; size_t n[3]; double keep; } cases[] = {
-        {"haar", 1, {37, 29, 23}, 0.3}, {"db2", 2, {37, 29, 23}, 0.05}, {"db2", 3, {64, 48, 40}, 0.02},
-        {"bl3", 4, {70, 66, 64}, 0.3},  {"coif1", 5, {96, 80, 72}, 0.01}, {"db2", 3, {45, 38, 1}, 0.5},
-        {"haar", 3, {33, 33, 33}, 1.0},
+    static const struct { const char *filter; int levels; size_t n[3]; double keep; int threads; } cases[] = {
+        {"haar", 1, {37, 29, 23}, 0.3, 1},   {"db2", 2, {37, 29, 23}, 0.05, 1}, {"db2", 3, {64, 48, 40}, 0.02, 1},
+        {"bl3", 4, {70, 66, 64}, 0.3, 1},    {"coif1", 5, {96, 80, 72}, 0.01, 1}, {"db2", 3, {45, 38, 1}, 0.5, 1},
+        {"haar", 3, {33, 33, 33}, 1.0, 1},   {"db2", 3, {64, 48, 40}, 0.02, 3}, {"bl3", 4, {70, 66, 64}, 0.3, 3},
+        {"coif1", 5, {96, 80, 72}, 0.01, 3}, {"haar", 3, {66, 58, 61}, 1.0, 3}, {"db2", 3, {45, 38, 1}, 0.5, 3},
     };
+    size_t bytes_one[sizeof cases / sizeof cases[0]] = {0};
     for (size_t ci = 0; ci < sizeof cases / sizeof cases[0]; ci++) {
         const size_t *n = cases[ci].n;
         wvol_volume *v = NULL;
@@ -702,8 +706,8 @@ static void store_view_matches_coeffs(void)
         wvol_error err;
         char what[96];
         size_t bands = 0, differ = 0;
-        snprintf(what, sizeof what, "view %s L%d %zux%zux%zu keep %g", cases[ci].filter, cases[ci].levels, n[0], n[1],
-                 n[2], cases[ci].keep);
+        snprintf(what, sizeof what, "view %s L%d %zux%zux%zu keep %g threads %d", cases[ci].filter, cases[ci].levels,
+                 n[0], n[1], n[2], cases[ci].keep, cases[ci].threads);
         if (wvol_volume_create(&v, n[0], n[1], n[2], NULL) == WVOL_OK)
             for (size_t k = 0; k < n[2]; k++)
                 for (size_t j = 0; j < n[1]; j++)
@@ -714,8 +718,16 @@ static void store_view_matches_coeffs(void)
                                     0.3 * sin(0.7 * (double)(i * j) + 1.3 * (double)k) + 0.01 * (double)(k % 5));
         s = v ? fixture_store(v, cases[ci].filter, cases[ci].levels, cases[ci].keep, 4) : NULL;
         CHECK(s && wvol_store_densify(s, &c, &err) == WVOL_OK, "%s: store", what);
-        CHECK(s && wvol__store_blocks_create(&view, &bv, s, &err) == WVOL_OK, "%s: view", what);
+        CHECK(s && wvol__store_blocks_create(&view, &bv, s, cases[ci].threads, &err) == WVOL_OK, "%s: view", what);
         if (!s || !c || !view) goto next;
+        /* the same case on one thread made a view of the same size, block for block */
+        bytes_one[ci] = wvol__store_blocks_bytes(view);
+        for (size_t cj = 0; cj < ci; cj++)
+            if (cases[cj].threads == 1 && !strcmp(cases[cj].filter, cases[ci].filter) &&
+                cases[cj].levels == cases[ci].levels && !memcmp(cases[cj].n, cases[ci].n, sizeof cases[ci].n) &&
+                cases[cj].keep == cases[ci].keep)
+                CHECK(bytes_one[cj] == bytes_one[ci], "%s: %zu bytes of view, %zu on one thread", what, bytes_one[ci],
+                      bytes_one[cj]);
         wvol_store_get_info(s, &info);
         wvol__store_blocks_source(&vs, view);
         wvol__coef_source_of_coeffs(&ds, c);

@@ -147,7 +147,7 @@ static void file_store_meshes_and_renders_like_the_memory_store(void)
                             s1[ax][i] = (long)(8 * i + 8 < dims[ax] - 1 ? 8 * i + 8 : dims[ax] - 1);
                         }
                     }
-                    CHECK(total <= 8 * 8 * 8 && wvol__store_blocks_create(&vm, &bbm, ms, &err) == WVOL_OK && bbm && bbb &&
+                    CHECK(total <= 8 * 8 * 8 && wvol__store_blocks_create(&vm, &bbm, ms, 1, &err) == WVOL_OK && bbm && bbb &&
                               wvol__bounds_grid(bbm, (const long *const *)s0, (const long *const *)s1, nb, rm) &&
                               wvol__bounds_grid(bbb, (const long *const *)s0, (const long *const *)s1, nb, rb) &&
                               memcmp(rm, rb, 2 * total * sizeof *rm) == 0,

@@ -552,7 +552,7 @@ static wvol_status extract_bricks(wvol_mesh **out, const wvol_coeffs *c, const w
          * if not, the decoded chunks' own maxima (below), which decide far more bricks, and the
          * chunks are needed for the meshing */
         probe = wvol_store_is_file(sto);
-        WVOL_FORWARD(probe ? wvol__store_blocks_create(&blocks, &bb, sto, err)
+        WVOL_FORWARD(probe ? wvol__store_blocks_create(&blocks, &bb, sto, nth, err)
                            : wvol__store_blocks_create_exact(&blocks, &bb, sto, nth, &exact, err));
         wvol__store_blocks_source(&g.cs, blocks);
     }

@@ -242,7 +242,7 @@ wvol_status wvol__caster_create(wvol__caster **out, const wvol_render_source *sr
         wvol_store_get_info(src->store, &info);
         c->n[0] = info.nx, c->n[1] = info.ny, c->n[2] = info.nz;
         for (a = 0; a < 3; a++) c->origin[a] = info.origin[a], c->spacing[a] = info.spacing[a];
-        st = wvol__store_blocks_create(&c->blocks, &c->bb, src->store, err);
+        st = wvol__store_blocks_create(&c->blocks, &c->bb, src->store, p->threads, err);
         if (st != WVOL_OK) {
             wvol__caster_destroy(c);
             return st;

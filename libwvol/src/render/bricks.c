@@ -711,7 +711,7 @@ wvol_status wvol__bricks_create(wvol__bricks **out, const wvol_store *st, const 
     b->skip_inside = src->skip_inside = p.bricks.skip_inside;
     for (int a = 0; a < 3; a++) src->bn[a] = (src->n[a] + (size_t)src->B - 1) / (size_t)src->B;
     src->slot_floats = (size_t)(src->B + 2) * (size_t)(src->B + 2) * (size_t)(src->B + 2);
-    status = wvol__store_blocks_create(&src->blocks, &src->bounds, st, err);
+    status = wvol__store_blocks_create(&src->blocks, &src->bounds, st, src->nthreads, err);
     if (status != WVOL_OK) goto fail;
     wvol__store_blocks_source(&src->cs, src->blocks);
     b->grad_drop = grad_drop_of(&p);

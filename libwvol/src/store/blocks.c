@@ -87,12 +87,19 @@ static inline int node_bit(const wvol__node *nd)
     return (int)((pos[0] & (CB - 1)) + CB * ((pos[1] & (CB - 1)) + CB * (pos[2] & (CB - 1))));
 }
 
+/* Where place_block numbers what it makes: blocks from *nb up to cap, values from *nv up to
+ * vcap (a range of groups built by one thread owns such a range, sized by count_groups). */
+typedef struct cursor {
+    size_t nb, cap, nv, vcap;
+} cursor;
+
 /* Block i of level m from the level-m nodes of the node ranges r[0..nr) (r[j][0] to
  * r[j][1]), which are all the block's nodes: their masks per band, the block of each band with
- * a kept position (values numbered from *nv on), each value placed at its rank, and the
- * blocks' largest magnitudes, while the few nodes are in cache. */
-WVOL__CLONES static wvol_status place_block(coef_blocks *cb, const wvol_store *s, int m, size_t i,
-                                            const size_t (*r)[2], int nr, size_t *cap, size_t *nv, wvol_error *err)
+ * a kept position (numbered at the cursor), each value placed at its rank, and the blocks'
+ * largest magnitudes, while the few nodes are in cache. 1 when the cursor's range is too
+ * small (the store's tree is not what the counts said). */
+WVOL__CLONES static int place_block(coef_blocks *cb, const wvol_store *s, int m, size_t i, const size_t (*r)[2],
+                                    int nr, cursor *cu)
 {
     band_view *const bvs = cb->bv[m];
     uint64_t mask[8] = {0};
@@ -113,13 +120,12 @@ WVOL__CLONES static wvol_status place_block(coef_blocks *cb, const wvol_store *s
         }
     for (bands = present; bands; bands &= bands - 1) {
         const size_t n = (size_t)__builtin_popcountll(mask[band = __builtin_ctz(bands) + 1]);
-        WVOL_RETURN_IF(n > s->nvalues - *nv, err, WVOL_ERR_INTERNAL, "store: the view holds more values than the store");
-        WVOL_RETURN_IF(cb->nblocks == *cap, err, WVOL_ERR_INTERNAL, "store: more blocks than directory entries");
-        first[band] = (uint32_t)*nv;
-        blk[band] = (uint32_t)cb->nblocks;
-        cb->blocks[cb->nblocks] = (cblock){.mask = mask[band], .first = first[band]};
-        bvs[band].dir[i] = (uint32_t)++cb->nblocks;
-        *nv += n;
+        if (n > cu->vcap - cu->nv || cu->nb == cu->cap) return 1;
+        first[band] = (uint32_t)cu->nv;
+        blk[band] = (uint32_t)cu->nb;
+        cb->blocks[cu->nb] = (cblock){.mask = mask[band], .first = first[band]};
+        bvs[band].dir[i] = (uint32_t)++cu->nb;
+        cu->nv += n;
     }
     for (j = 0; j < nr; j++)
         for (size_t k = r[j][0]; k < r[j][1]; k++) {
@@ -139,7 +145,7 @@ WVOL__CLONES static wvol_status place_block(coef_blocks *cb, const wvol_store *s
         band = __builtin_ctz(bands) + 1;
         cb->blocks[blk[band]].amax = (nan >> band) & 1 ? INFINITY : amax[band];
     }
-    return WVOL_OK;
+    return 0;
 }
 
 /* The children of node nd, [child_first, + popcount(child_mask)) (the store lists each
@@ -152,34 +158,110 @@ static inline size_t children_end(const wvol__node *nd)
 /* Level m <= M - 2: a 4^3 block of level m holds the level-m descendants of one node two
  * levels up (its position is the block's), and the store lists them together (breadth first,
  * each node's children together, so any node's descendants at one level are consecutive: from
- * its first child's first child to its last child's last). [g0, g1): the nodes of level m + 2. */
-static wvol_status build_grouped(coef_blocks *cb, const wvol_store *s, int m, size_t g0, size_t g1, size_t *cap,
-                                 size_t *nv, wvol_error *err)
+ * its first child's first child to its last child's last). Group g is the node of level m + 2;
+ * its descendants' range into r: 1, or 0 when it has none, -1 when they lie past the nodes. */
+static int group_range(const wvol_store *s, size_t g, size_t r[2])
+{
+    const wvol__node *gn = &s->nodes[g];
+    if (!gn->child_mask) return 0;
+    if (children_end(gn) > s->nnodes) return -1;
+    r[0] = s->nodes[gn->child_first].child_first;
+    r[1] = children_end(&s->nodes[children_end(gn) - 1]);
+    if (r[0] >= r[1]) return 0;
+    return r[1] <= s->nnodes ? 1 : -1;
+}
+
+/* The blocks of groups [g0, g1), placed at the cursor; 1 when the store's tree is not what
+ * the view expects. */
+static int build_groups(coef_blocks *cb, const wvol_store *s, int m, size_t g0, size_t g1, cursor *cu)
 {
     const band_view *bv = &cb->bv[m][1]; /* the level's bands share their extents */
     for (size_t g = g0; g < g1; g++) {
-        const wvol__node *gn = &s->nodes[g];
         size_t gpos[3], r[1][2];
-        if (!gn->child_mask) continue;
-        WVOL_RETURN_IF(children_end(gn) > s->nnodes, err, WVOL_ERR_INTERNAL, "store: a node's children lie past the nodes");
-        r[0][0] = s->nodes[gn->child_first].child_first;
-        r[0][1] = children_end(&s->nodes[children_end(gn) - 1]);
-        if (r[0][0] >= r[0][1]) continue;
-        WVOL_RETURN_IF(r[0][1] > s->nnodes, err, WVOL_ERR_INTERNAL, "store: a node's descendants lie past the nodes");
-        wvol__key_pos(gn->key, gpos);
-        WVOL_FORWARD(place_block(cb, s, m, gpos[0] + bv->nb[0] * (gpos[1] + bv->nb[1] * gpos[2]),
-                                 (const size_t(*)[2])r, 1, cap, nv, err));
+        const int has = group_range(s, g, r[0]);
+        if (has < 0) return 1;
+        if (!has) continue;
+        wvol__key_pos(s->nodes[g].key, gpos);
+        if (place_block(cb, s, m, gpos[0] + bv->nb[0] * (gpos[1] + bv->nb[1] * gpos[2]), (const size_t(*)[2])r, 1,
+                        cu))
+            return 1;
     }
+    return 0;
+}
+
+/* What groups [g0, g1) will make: blocks (a (group, band) holding a kept position) and values. */
+static void count_groups(const wvol_store *s, size_t g0, size_t g1, size_t *blocks, size_t *values)
+{
+    size_t nb = 0, nv = 0;
+    for (size_t g = g0; g < g1; g++) {
+        size_t r[2];
+        unsigned present = 0;
+        if (group_range(s, g, r) <= 0) continue; /* a tree past the nodes: build_groups says so */
+        for (size_t k = r[0]; k < r[1]; k++) {
+            present |= s->nodes[k].band_mask;
+            nv += (size_t)__builtin_popcount(s->nodes[k].band_mask);
+        }
+        nb += (size_t)__builtin_popcount(present);
+    }
+    *blocks = nb, *values = nv;
+}
+
+/* Level m <= M - 2 from the groups [g0, g1). With threads, the groups are cut into ranges,
+ * each range's blocks and values counted first, so that every range places its own at the
+ * offsets the ranges before it leave: the view is the one thread's, block for block. */
+static wvol_status build_grouped(coef_blocks *cb, const wvol_store *s, int m, size_t g0, size_t g1, int threads,
+                                 size_t cap, size_t *nv, wvol_error *err)
+{
+    size_t per, nr, (*at)[2] = NULL;
+    int bad = 0;
+#ifdef _OPENMP
+    const int nth = threads > 0 ? threads : omp_get_max_threads();
+#else
+    const int nth = 1;
+    (void)threads;
+#endif
+    /* about eight ranges a thread, for the dynamic schedule to even out */
+    per = (g1 - g0) / (8 * (size_t)nth);
+    per = per < 64 ? 64 : per;
+    nr = (g1 - g0 + per - 1) / per;
+    if (nth <= 1 || nr < 2) {
+        cursor cu = {cb->nblocks, cap, *nv, s->nvalues};
+        bad = build_groups(cb, s, m, g0, g1, &cu);
+        cb->nblocks = cu.nb, *nv = cu.nv;
+    } else {
+        at = malloc((nr + 1) * sizeof *at);
+        WVOL_RETURN_IF(!at, err, WVOL_ERR_NOMEM, "store: out of memory for the coefficient blocks");
+        long long n = (long long)nr;
+#pragma omp parallel for schedule(dynamic, 1) num_threads(nth)
+        for (long long k = 0; k < n; k++) {
+            const size_t a = g0 + (size_t)k * per, b = a + per < g1 ? a + per : g1;
+            count_groups(s, a, b, &at[k + 1][0], &at[k + 1][1]);
+        }
+        at[0][0] = cb->nblocks, at[0][1] = *nv;
+        for (size_t k = 1; k <= nr; k++) at[k][0] += at[k - 1][0], at[k][1] += at[k - 1][1];
+        if (at[nr][0] > cap || at[nr][1] > s->nvalues) bad = 1;
+#pragma omp parallel for schedule(dynamic, 1) num_threads(nth) reduction(| : bad) if (!bad)
+        for (long long k = 0; k < n; k++) {
+            const size_t a = g0 + (size_t)k * per, b = a + per < g1 ? a + per : g1;
+            cursor cu = {at[k][0], at[k + 1][0], at[k][1], at[k + 1][1]};
+            bad |= build_groups(cb, s, m, a, b, &cu) || cu.nb != at[k + 1][0] || cu.nv != at[k + 1][1];
+        }
+        cb->nblocks = at[nr][0], *nv = at[nr][1];
+        free(at);
+    }
+    WVOL_RETURN_IF(bad, err, WVOL_ERR_INTERNAL, "store: level %d's nodes are not the tree the view expects", m);
     return WVOL_OK;
 }
 
 /* The coarsest two levels, block by block in directory order: a block of level M holds up to
  * 4^3 roots (the store's root table finds them), one of level M - 1 the children of up to 2^3
  * roots. */
-static wvol_status build_rooted(coef_blocks *cb, const wvol_store *s, int m, size_t *cap, size_t *nv, wvol_error *err)
+static wvol_status build_rooted(coef_blocks *cb, const wvol_store *s, int m, size_t cap, size_t *nv, wvol_error *err)
 {
     const band_view *bv = &cb->bv[m][1];
     const size_t w = m == cb->M ? CB : 2; /* roots per block edge */
+    cursor cu = {cb->nblocks, cap, *nv, s->nvalues};
+    int bad = 0;
     for (size_t z = 0; z < bv->nb[2]; z++)
         for (size_t y = 0; y < bv->nb[1]; y++)
             for (size_t x = 0; x < bv->nb[0]; x++) {
@@ -200,9 +282,10 @@ static wvol_status build_rooted(coef_blocks *cb, const wvol_store *s, int m, siz
                                                "store: a root's children lie past the nodes");
                             }
                         }
-                if (nr) WVOL_FORWARD(place_block(cb, s, m, x + bv->nb[0] * (y + bv->nb[1] * z),
-                                                 (const size_t(*)[2])r, nr, cap, nv, err));
+                if (nr) bad |= place_block(cb, s, m, x + bv->nb[0] * (y + bv->nb[1] * z), (const size_t(*)[2])r, nr, &cu);
             }
+    cb->nblocks = cu.nb, *nv = cu.nv;
+    WVOL_RETURN_IF(bad, err, WVOL_ERR_INTERNAL, "store: level %d's blocks exceed the directory or the values", m);
     return WVOL_OK;
 }
 
@@ -220,8 +303,9 @@ static size_t level_end(const wvol_store *s, int m)
 }
 
 /* Builds the view, level by level from the coarsest, block by block (place_block), each
- * block's nodes found from the store's tree. */
-static wvol_status blocks_build(coef_blocks *cb, const wvol_store *s, wvol_error *err)
+ * block's nodes found from the store's tree; the finer levels on `threads` (0: OpenMP's
+ * default). */
+static wvol_status blocks_build(coef_blocks *cb, const wvol_store *s, int threads, wvol_error *err)
 {
     wvol_store_info info;
     size_t pad[3], ndir = 0, at[WVOL_SELECT_MAX_LEVELS + 1][8] = {{0}}; /* a directory's offset + 1 */
@@ -276,8 +360,8 @@ static wvol_status blocks_build(coef_blocks *cb, const wvol_store *s, wvol_error
     }
     WVOL_RETURN_IF(!cb->blocks, err, WVOL_ERR_NOMEM, "store: out of memory for the coefficient blocks");
     for (m = cb->M, st = WVOL_OK; m >= 1 && st == WVOL_OK; m--)
-        st = m >= cb->M - 1 ? build_rooted(cb, s, m, &cap, &nv, err)
-                            : build_grouped(cb, s, m, level_end(s, m + 3), level_end(s, m + 2), &cap, &nv, err);
+        st = m >= cb->M - 1 ? build_rooted(cb, s, m, cap, &nv, err)
+                            : build_grouped(cb, s, m, level_end(s, m + 3), level_end(s, m + 2), threads, cap, &nv, err);
     cb->bytes += cb->nblocks * sizeof *cb->blocks;
     WVOL_FORWARD(st);
     WVOL_RETURN_IF(nv != s->nvalues, err, WVOL_ERR_INTERNAL, "store: the view holds %zu of the store's %zu values",
@@ -420,54 +504,62 @@ static inline void take_max(float *slot, float av)
     if (!(av <= *slot)) *slot = av; /* av is a magnitude, NaN already +inf */
 }
 
-static void blocks_bounds(const coef_blocks *cb, wvol__brick_bounds *bb)
+static void blocks_bounds(const coef_blocks *cb, wvol__brick_bounds *bb, int threads)
 {
-    const int L = wvol__bounds_levels(bb);
-    for (int m = 1; m <= cb->M && m <= L; m++) {
+    const int L = wvol__bounds_levels(bb) < cb->M ? wvol__bounds_levels(bb) : cb->M;
+    /* a task per (level, band): each fills its band's table alone */
+    long long tasks = 7LL * L;
+#ifdef _OPENMP
+    const int nth = threads > 0 ? threads : omp_get_max_threads();
+#else
+    const int nth = 1;
+    (void)threads;
+#endif
+#pragma omp parallel for schedule(dynamic, 1) num_threads(nth) if (nth > 1)
+    for (long long task = 0; task < tasks; task++) {
+        const int m = 1 + (int)(task / 7), band = 1 + (int)(task % 7);
         const size_t edge = wvol__bounds_block(bb, m);
-        for (int band = 1; band < 8; band++) {
-            const band_view *bv = &cb->bv[m][band];
-            size_t tn[3];
-            int sh[3];
-            float *t = bv->dir ? wvol__bounds_table(bb, m, band, tn, sh) : NULL;
-            const int same = t && sh[0] == CB_SHIFT && sh[1] == CB_SHIFT && sh[2] == CB_SHIFT;
-            const int half = t && sh[0] == 1 && sh[1] == 1 && sh[2] == 1;
-            if (!t) continue;
-            for (size_t z = 0; z < bv->nb[2]; z++)
-                for (size_t y = 0; y < bv->nb[1]; y++)
-                    for (size_t x = 0; x < bv->nb[0]; x++) {
-                        const uint32_t blk = bv->dir[x + bv->nb[0] * (y + bv->nb[1] * z)];
-                        if (!blk) continue;
-                        const cblock *b = &cb->blocks[blk - 1];
-                        const float *v = cb->values + b->first;
-                        const size_t lo[3] = {x << CB_SHIFT, y << CB_SHIFT, z << CB_SHIFT};
-                        if (same) {
-                            take_max(&t[x + tn[0] * (y + tn[1] * z)], b->amax);
-                        } else if (edge >= CB) {
-                            const size_t hi[3] = {lo[0] + CB, lo[1] + CB, lo[2] + CB};
-                            wvol__bounds_add_box(bb, m, band, lo, hi, b->amax);
-                        } else if (half) {
-                            float oct[8] = {0};
-                            for (uint64_t bits = b->mask; bits; bits &= bits - 1, v++) {
-                                const int bit = __builtin_ctzll(bits);
-                                const int o = ((bit >> 1) & 1) | ((bit >> 2) & 2) | ((bit >> 3) & 4);
-                                const float av = fabsf(*v);
-                                if (!(av <= oct[o])) oct[o] = av != av ? INFINITY : av;
-                            }
-                            for (int o = 0; o < 8; o++)
-                                if (oct[o] != 0)
-                                    take_max(&t[(2 * x + (size_t)(o & 1)) +
-                                                tn[0] * ((2 * y + (size_t)((o >> 1) & 1)) + tn[1] * (2 * z + (size_t)(o >> 2)))],
-                                             oct[o]);
-                        } else {
-                            for (uint64_t bits = b->mask; bits; bits &= bits - 1, v++) {
-                                const int bit = __builtin_ctzll(bits);
-                                wvol__bounds_add(bb, m, band, lo[0] + (size_t)(bit & 3), lo[1] + (size_t)((bit >> 2) & 3),
-                                                 lo[2] + (size_t)(bit >> 4), *v);
-                            }
+        const band_view *bv = &cb->bv[m][band];
+        size_t tn[3];
+        int sh[3];
+        float *t = bv->dir ? wvol__bounds_table(bb, m, band, tn, sh) : NULL;
+        const int same = t && sh[0] == CB_SHIFT && sh[1] == CB_SHIFT && sh[2] == CB_SHIFT;
+        const int half = t && sh[0] == 1 && sh[1] == 1 && sh[2] == 1;
+        if (!t) continue;
+        for (size_t z = 0; z < bv->nb[2]; z++)
+            for (size_t y = 0; y < bv->nb[1]; y++)
+                for (size_t x = 0; x < bv->nb[0]; x++) {
+                    const uint32_t blk = bv->dir[x + bv->nb[0] * (y + bv->nb[1] * z)];
+                    if (!blk) continue;
+                    const cblock *b = &cb->blocks[blk - 1];
+                    const float *v = cb->values + b->first;
+                    const size_t lo[3] = {x << CB_SHIFT, y << CB_SHIFT, z << CB_SHIFT};
+                    if (same) {
+                        take_max(&t[x + tn[0] * (y + tn[1] * z)], b->amax);
+                    } else if (edge >= CB) {
+                        const size_t hi[3] = {lo[0] + CB, lo[1] + CB, lo[2] + CB};
+                        wvol__bounds_add_box(bb, m, band, lo, hi, b->amax);
+                    } else if (half) {
+                        float oct[8] = {0};
+                        for (uint64_t bits = b->mask; bits; bits &= bits - 1, v++) {
+                            const int bit = __builtin_ctzll(bits);
+                            const int o = ((bit >> 1) & 1) | ((bit >> 2) & 2) | ((bit >> 3) & 4);
+                            const float av = fabsf(*v);
+                            if (!(av <= oct[o])) oct[o] = av != av ? INFINITY : av;
+                        }
+                        for (int o = 0; o < 8; o++)
+                            if (oct[o] != 0)
+                                take_max(&t[(2 * x + (size_t)(o & 1)) +
+                                            tn[0] * ((2 * y + (size_t)((o >> 1) & 1)) + tn[1] * (2 * z + (size_t)(o >> 2)))],
+                                         oct[o]);
+                    } else {
+                        for (uint64_t bits = b->mask; bits; bits &= bits - 1, v++) {
+                            const int bit = __builtin_ctzll(bits);
+                            wvol__bounds_add(bb, m, band, lo[0] + (size_t)(bit & 3), lo[1] + (size_t)((bit >> 2) & 3),
+                                             lo[2] + (size_t)(bit >> 4), *v);
                         }
                     }
-        }
+                }
     }
 }
 
@@ -608,7 +700,7 @@ static wvol_status decoded_bounds(wvol__brick_bounds *bb, const wvol_store *s, c
  * block (one value per chunk and band: at 2048^3 the default small blocks would take over a
  * gigabyte to repeat them). */
 static wvol_status build_view(wvol__store_blocks **out, wvol__brick_bounds **bounds, const wvol_store *s,
-                              int exact_threads, int *exact, wvol_error *err)
+                              int threads, int exact_threads, int *exact, wvol_error *err)
 {
     wvol_store_info info;
     wvol__brick_bounds *bb = NULL;
@@ -619,7 +711,7 @@ static wvol_status build_view(wvol__store_blocks **out, wvol__brick_bounds **bou
     if (exact) *exact = 0;
     wvol_store_get_info(s, &info);
     cb = malloc(sizeof *cb);
-    st = cb ? blocks_build(cb, s, err)
+    st = cb ? blocks_build(cb, s, threads, err)
             : wvol_error_set(err, WVOL_ERR_NOMEM, "store: out of memory for the coefficient blocks");
     if (st != WVOL_OK) {
         wvol__store_blocks_destroy(cb);
@@ -647,7 +739,7 @@ static wvol_status build_view(wvol__store_blocks **out, wvol__brick_bounds **bou
         if (st == WVOL_OK) {
             if (decoded) st = decoded_bounds(bb, s, &ft, exact_threads, err);
             else if (s->file) file_bounds(bb, &ft);
-            else blocks_bounds(cb, bb);
+            else blocks_bounds(cb, bb, threads);
         }
         tiles_free(&ft);
         if (st != WVOL_OK) {
@@ -668,11 +760,11 @@ static wvol_status build_view(wvol__store_blocks **out, wvol__brick_bounds **bou
  * the shared view and bounds (destroying or freeing them is then a no-op). A store opened on a
  * file builds them each time: its bounds depend on what its chunk cache can hold. */
 static wvol_status create(wvol__store_blocks **out, wvol__brick_bounds **bounds, const wvol_store *s,
-                          int exact_threads, int *exact, wvol_error *err)
+                          int threads, int exact_threads, int *exact, wvol_error *err)
 {
     wvol_store *w = (wvol_store *)s; /* the lazily made view: guarded by its lock */
     wvol_status st = WVOL_OK;
-    if (s->file || !s->view_lock_ok) return build_view(out, bounds, s, exact_threads, exact, err);
+    if (s->file || !s->view_lock_ok) return build_view(out, bounds, s, threads, exact_threads, exact, err);
     *out = NULL;
     if (bounds) *bounds = NULL;
     if (exact) *exact = 0;
@@ -680,7 +772,7 @@ static wvol_status create(wvol__store_blocks **out, wvol__brick_bounds **bounds,
     if (!w->view) {
         wvol__store_blocks *v = NULL;
         wvol__brick_bounds *b = NULL; /* stays NULL where the bound does not apply */
-        st = build_view(&v, &b, s, -1, NULL, err);
+        st = build_view(&v, &b, s, threads, -1, NULL, err);
         if (st == WVOL_OK) {
             v->cached = 1;
             wvol__bounds_keep(b, 1);
@@ -697,16 +789,16 @@ static wvol_status create(wvol__store_blocks **out, wvol__brick_bounds **bounds,
 }
 
 wvol_status wvol__store_blocks_create(wvol__store_blocks **out, wvol__brick_bounds **bounds, const wvol_store *s,
-                                      wvol_error *err)
+                                      int threads, wvol_error *err)
 {
-    return create(out, bounds, s, -1, NULL, err);
+    return create(out, bounds, s, threads, -1, NULL, err);
 }
 
 wvol_status wvol__store_blocks_create_exact(wvol__store_blocks **out, wvol__brick_bounds **bounds,
                                             const wvol_store *s, int threads, int *exact, wvol_error *err)
 {
     if (exact) *exact = 0;
-    return create(out, bounds, s, threads > 0 ? threads : 0, exact, err);
+    return create(out, bounds, s, threads, threads > 0 ? threads : 0, exact, err);
 }
 
 void wvol__store_blocks_source(wvol__coef_source *src, const wvol__store_blocks *b)

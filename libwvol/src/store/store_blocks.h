@@ -14,13 +14,14 @@
 
 typedef struct wvol__store_blocks wvol__store_blocks;
 
-/* Builds the view of s's kept coefficients. When bounds is not NULL, *bounds receives the
+/* Builds the view of s's kept coefficients (on `threads`, 0: OpenMP's default; the view is the
+ * same whatever the count). When bounds is not NULL, *bounds receives the
  * rigorous bounds of the reconstruction's boxes (wavelet/bounds.c), fed by the same pass
  * over the store and finished; it is NULL when the bound does not apply (an untransformed
  * axis, no levels: every brick must then be reconstructed). Free it with
  * wvol__bounds_free; it reads the store's low-pass cube, so the store must outlive it. */
 wvol_status wvol__store_blocks_create(wvol__store_blocks **out, wvol__brick_bounds **bounds, const wvol_store *s,
-                                      wvol_error *err);
+                                      int threads, wvol_error *err);
 
 /* The same, for a reader that will need most chunks anyway (marching cubes): a store opened
  * on a file gets its bounds from the decoded coefficients instead of the index's per-chunk
