@@ -718,7 +718,13 @@ static void store_view_matches_coeffs(void)
                                     0.3 * sin(0.7 * (double)(i * j) + 1.3 * (double)k) + 0.01 * (double)(k % 5));
         s = v ? fixture_store(v, cases[ci].filter, cases[ci].levels, cases[ci].keep, 4) : NULL;
         CHECK(s && wvol_store_densify(s, &c, &err) == WVOL_OK, "%s: store", what);
-        CHECK(s && wvol__store_blocks_create(&view, &bv, s, cases[ci].threads, &err) == WVOL_OK, "%s: view", what);
+        {
+            /* small views go through the threaded path too */
+            const size_t was = wvol__store_blocks_parallel_min(cases[ci].threads > 1 ? 0 : (size_t)-1);
+            CHECK(s && wvol__store_blocks_create(&view, &bv, s, cases[ci].threads, &err) == WVOL_OK, "%s: view",
+                  what);
+            wvol__store_blocks_parallel_min(was);
+        }
         if (!s || !c || !view) goto next;
         /* the same case on one thread made a view of the same size, block for block */
         bytes_one[ci] = wvol__store_blocks_bytes(view);

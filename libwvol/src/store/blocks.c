@@ -87,8 +87,20 @@ static inline int node_bit(const wvol__node *nd)
     return (int)((pos[0] & (CB - 1)) + CB * ((pos[1] & (CB - 1)) + CB * (pos[2] & (CB - 1))));
 }
 
-/* Where place_block numbers what it makes: blocks from *nb up to cap, values from *nv up to
- * vcap (a range of groups built by one thread owns such a range, sized by count_groups). */
+/* Below this many nodes a level's view (and below this many blocks the bounds' tables) is
+ * made on one thread: a small view takes less time than the threads' start and the ranges'
+ * counting (bench/results/view_threads.md). The tests lower it. */
+static size_t parallel_min = (size_t)1 << 17;
+
+size_t wvol__store_blocks_parallel_min(size_t n)
+{
+    const size_t was = parallel_min;
+    parallel_min = n;
+    return was;
+}
+
+/* Where place_block numbers what it makes: its blocks from nb (below cap), its values from nv
+ * (below vcap). A range of groups built by one thread owns such a range, sized by count_groups. */
 typedef struct cursor {
     size_t nb, cap, nv, vcap;
 } cursor;
@@ -153,6 +165,19 @@ WVOL__CLONES static int place_block(coef_blocks *cb, const wvol_store *s, int m,
 static inline size_t children_end(const wvol__node *nd)
 {
     return (size_t)nd->child_first + (size_t)__builtin_popcount(nd->child_mask);
+}
+
+/* The first node of a level lower than m (the store lists the levels from the coarsest
+ * down): levels are contiguous runs, found by halving. */
+static size_t level_end(const wvol_store *s, int m)
+{
+    size_t lo = 0, hi = s->nnodes;
+    while (lo < hi) {
+        const size_t mid = lo + (hi - lo) / 2;
+        if (wvol__key_level(s->nodes[mid].key) >= m) lo = mid + 1;
+        else hi = mid;
+    }
+    return lo;
 }
 
 /* Level m <= M - 2: a 4^3 block of level m holds the level-m descendants of one node two
@@ -224,7 +249,7 @@ static wvol_status build_grouped(coef_blocks *cb, const wvol_store *s, int m, si
     per = (g1 - g0) / (8 * (size_t)nth);
     per = per < 64 ? 64 : per;
     nr = (g1 - g0 + per - 1) / per;
-    if (nth <= 1 || nr < 2) {
+    if (nth <= 1 || nr < 2 || level_end(s, m) - level_end(s, m + 1) < parallel_min) {
         cursor cu = {cb->nblocks, cap, *nv, s->nvalues};
         bad = build_groups(cb, s, m, g0, g1, &cu);
         cb->nblocks = cu.nb, *nv = cu.nv;
@@ -287,19 +312,6 @@ static wvol_status build_rooted(coef_blocks *cb, const wvol_store *s, int m, siz
     cb->nblocks = cu.nb, *nv = cu.nv;
     WVOL_RETURN_IF(bad, err, WVOL_ERR_INTERNAL, "store: level %d's blocks exceed the directory or the values", m);
     return WVOL_OK;
-}
-
-/* The first node of a level lower than m (the store lists the levels from the coarsest
- * down): levels are contiguous runs, found by halving. */
-static size_t level_end(const wvol_store *s, int m)
-{
-    size_t lo = 0, hi = s->nnodes;
-    while (lo < hi) {
-        const size_t mid = lo + (hi - lo) / 2;
-        if (wvol__key_level(s->nodes[mid].key) >= m) lo = mid + 1;
-        else hi = mid;
-    }
-    return lo;
 }
 
 /* Builds the view, level by level from the coarsest, block by block (place_block), each
@@ -515,7 +527,7 @@ static void blocks_bounds(const coef_blocks *cb, wvol__brick_bounds *bb, int thr
     const int nth = 1;
     (void)threads;
 #endif
-#pragma omp parallel for schedule(dynamic, 1) num_threads(nth) if (nth > 1)
+#pragma omp parallel for schedule(dynamic, 1) num_threads(nth) if (nth > 1 && cb->nblocks >= parallel_min)
     for (long long task = 0; task < tasks; task++) {
         const int m = 1 + (int)(task / 7), band = 1 + (int)(task % 7);
         const size_t edge = wvol__bounds_block(bb, m);

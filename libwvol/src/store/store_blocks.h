@@ -23,6 +23,11 @@ typedef struct wvol__store_blocks wvol__store_blocks;
 wvol_status wvol__store_blocks_create(wvol__store_blocks **out, wvol__brick_bounds **bounds, const wvol_store *s,
                                       int threads, wvol_error *err);
 
+/* Tests: below n nodes in a level (n blocks for the bounds' tables) the view is made on one
+ * thread (the default suits real volumes; 0 sends every view through the threaded path).
+ * Returns the setting it replaces. Not thread-safe: set it before any view is made. */
+size_t wvol__store_blocks_parallel_min(size_t n);
+
 /* The same, for a reader that will need most chunks anyway (marching cubes): a store opened
  * on a file gets its bounds from the decoded coefficients instead of the index's per-chunk
  * maxima, decoding every non-empty chunk (threads over chunks; 0 = OpenMP's default) into
