@@ -10,6 +10,7 @@
  * low-pass cube is read from the store. */
 #include "store/store_blocks.h"
 #include "core/alloc.h"
+#include "core/clock.h"
 #include "core/clones.h"
 #include "store/store_internal.h"
 #include "codec/wvc_source.h"
@@ -239,12 +240,7 @@ static wvol_status build_grouped(coef_blocks *cb, const wvol_store *s, int m, si
 {
     size_t per, nr, (*at)[2] = NULL;
     int bad = 0;
-#ifdef _OPENMP
-    const int nth = threads > 0 ? threads : omp_get_max_threads();
-#else
-    const int nth = 1;
-    (void)threads;
-#endif
+    const int nth = wvol__threads(threads);
     /* about eight ranges a thread, for the dynamic schedule to even out */
     per = (g1 - g0) / (8 * (size_t)nth);
     per = per < 64 ? 64 : per;
@@ -521,12 +517,7 @@ static void blocks_bounds(const coef_blocks *cb, wvol__brick_bounds *bb, int thr
     const int L = wvol__bounds_levels(bb) < cb->M ? wvol__bounds_levels(bb) : cb->M;
     /* a task per (level, band): each fills its band's table alone */
     long long tasks = 7LL * L;
-#ifdef _OPENMP
-    const int nth = threads > 0 ? threads : omp_get_max_threads();
-#else
-    const int nth = 1;
-    (void)threads;
-#endif
+    const int nth = wvol__threads(threads);
 #pragma omp parallel for schedule(dynamic, 1) num_threads(nth) if (nth > 1 && cb->nblocks >= parallel_min)
     for (long long task = 0; task < tasks; task++) {
         const int m = 1 + (int)(task / 7), band = 1 + (int)(task % 7);
