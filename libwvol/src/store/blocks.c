@@ -282,7 +282,6 @@ static wvol_status build_rooted(coef_blocks *cb, const wvol_store *s, int m, siz
     const band_view *bv = &cb->bv[m][1];
     const size_t w = m == cb->M ? CB : 2; /* roots per block edge */
     cursor cu = {cb->nblocks, cap, *nv, s->nvalues};
-    int bad = 0;
     for (size_t z = 0; z < bv->nb[2]; z++)
         for (size_t y = 0; y < bv->nb[1]; y++)
             for (size_t x = 0; x < bv->nb[0]; x++) {
@@ -303,10 +302,12 @@ static wvol_status build_rooted(coef_blocks *cb, const wvol_store *s, int m, siz
                                                "store: a root's children lie past the nodes");
                             }
                         }
-                if (nr) bad |= place_block(cb, s, m, x + bv->nb[0] * (y + bv->nb[1] * z), (const size_t(*)[2])r, nr, &cu);
+                WVOL_RETURN_IF(nr && place_block(cb, s, m, x + bv->nb[0] * (y + bv->nb[1] * z),
+                                                 (const size_t(*)[2])r, nr, &cu),
+                               err, WVOL_ERR_INTERNAL, "store: level %d's blocks exceed the directory or the values",
+                               m);
             }
     cb->nblocks = cu.nb, *nv = cu.nv;
-    WVOL_RETURN_IF(bad, err, WVOL_ERR_INTERNAL, "store: level %d's blocks exceed the directory or the values", m);
     return WVOL_OK;
 }
 
