@@ -4,7 +4,7 @@
 # Python tests under pytest, the C tests again under AddressSanitizer and
 # UndefinedBehaviorSanitizer, the same .wvc bytes from the release and the sanitizer builds
 # (scripts/test_same_bytes.sh), the library built without its optional dependencies
-# (scripts/test_minimal.sh), and a bounded libFuzzer run of the .wvc reader.
+# (scripts/test_minimal.sh), and bounded libFuzzer runs of the readers (scripts/fuzz.sh).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
