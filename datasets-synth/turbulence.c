@@ -49,7 +49,7 @@ static inline void row_factor(const turb_ctx *c, int m, size_t j, size_t k, floa
  * as one mode per sweep, so the same bytes. Contraction to FMA is off, so the AVX2 copy
  * (WVOL__CLONES) gives the baseline's bytes too. */
 #define MODE_BLOCK 4
-WVOL__CLONES __attribute__((optimize("fp-contract=off"))) static void
+WVOL__CLONES WVOL__NO_CONTRACT static void
 turb_row(const void *vctx, const synth_grid *g, size_t j, size_t k, float *row, float *lab)
 {
     const turb_ctx *c = vctx;

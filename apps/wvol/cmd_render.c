@@ -485,7 +485,8 @@ static void report(const render_args *a, const render_input *in, const wvol_rend
             printf("level of detail: level %d of %d (%zu x %zu x %zu, voxel %.4g <= pixel footprint %.4g), extra "
                    "error RMSE %.4g (PSNR %.2f dB); --full-resolution renders the full grid\n",
                    lod->level, lod->levels, lod->dims[0], lod->dims[1], lod->dims[2], lod->voxel, lod->footprint,
-                   lod->rmse, lod_psnr);        if (a->rp.skip_tolerance > 0)
+                   lod->rmse, lod_psnr);
+        if (a->rp.skip_tolerance > 0)
             printf("skipped %zu nearly empty brick runs: each pixel within %.3g of the unskipped image (tolerance %g)\n",
                    st->skipped_tolerance, st->skip_bound, a->rp.skip_tolerance);
         if (a->bound_path)

@@ -48,10 +48,9 @@ static uint32_t copy_absmax(float *restrict dst, const float *restrict src, size
     long long count = (long long)n;
 #pragma omp parallel for simd reduction(max : m) schedule(static) if (count > (1 << 20))
     for (long long i = 0; i < count; i++) {
-        int32_t u;
+        union { float f; int32_t i; } v = {src[i]}; /* not memcpy: clang does not vectorise that */
+        const int32_t u = v.i & 0x7fffffff;
         dst[i] = src[i];
-        memcpy(&u, &src[i], sizeof u);
-        u &= 0x7fffffff;
         m = u > m ? u : m;
     }
     return (uint32_t)m;

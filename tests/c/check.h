@@ -7,6 +7,16 @@
 #include <math.h>
 #include <stdio.h>
 
+/* WVOL_TEST_ASAN: built with AddressSanitizer (GCC says so by __SANITIZE_ADDRESS__, clang by
+ * __has_feature), where tests trim their slowest loops and skip resident-memory checks. */
+#if defined(__SANITIZE_ADDRESS__)
+#define WVOL_TEST_ASAN 1
+#elif defined(__has_feature)
+#if __has_feature(address_sanitizer)
+#define WVOL_TEST_ASAN 1
+#endif
+#endif
+
 static int check_passed, check_failed;
 
 #define CHECK(cond, ...)                                                   \

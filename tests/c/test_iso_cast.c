@@ -25,7 +25,7 @@
 
 /* Under AddressSanitizer (unoptimised, instrumented) a quarter of the rays: the sanitizer run
  * checks memory, the release run the numbers. */
-#if defined(__SANITIZE_ADDRESS__)
+#if defined(WVOL_TEST_ASAN)
 #define RAYS(n) ((n) / 4 > 0 ? (n) / 4 : 1)
 #else
 #define RAYS(n) (n)

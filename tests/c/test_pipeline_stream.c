@@ -374,7 +374,7 @@ static void refusals_leave_no_file(void)
     }
 }
 
-#if !defined(__SANITIZE_ADDRESS__)
+#if !defined(WVOL_TEST_ASAN)
 /* Compresses synth turbulence 192 x 192 x depth (streamed, 50 dB) in a child process and
  * returns the child's peak resident bytes from the kernel's accounting (wait4), with the
  * window and writer bytes the report gives; -1 on failure. The child starts as a copy of
@@ -426,7 +426,7 @@ static long long child_peak(size_t depth, size_t held[2])
  * quarantine): the sizes are not checked there, the release build checks them. */
 static void memory_does_not_grow_with_depth(void)
 {
-#if defined(__SANITIZE_ADDRESS__)
+#if defined(WVOL_TEST_ASAN)
     printf("test_pipeline_stream: resident-memory check not run under AddressSanitizer\n");
 #else
     struct rusage self;

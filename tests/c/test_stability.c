@@ -370,7 +370,7 @@ static const entry entries[] = {
  * the smallest normal float, the rest subnormal), -116, -100, -66, 0, 66, 100, 110 (peaks
  * ~1e33, the issue's 1e30 case), 120 and 126 (near the top: the transform's low-pass gain
  * 2^(1.5 levels) leaves float32 there, refused). */
-#if defined(__SANITIZE_ADDRESS__)
+#if defined(WVOL_TEST_ASAN)
 /* under AddressSanitizer (scripts/test.sh's Debug build, ~20x slower) the run checks memory,
  * not numbers: every entry and volume at the ends and in between, db2 only */
 static const int scales[] = {-136, 66, 126};

@@ -258,7 +258,7 @@ static uint8_t *random_payload(bands *B, const size_t e[3], double scale, int32_
  * prime to 8: every bit position of a byte still comes up): each decode there maps and unmaps
  * the decoder's 213 kB of tables, which made the whole loop take minutes. The release build
  * runs every one. */
-#if defined(__SANITIZE_ADDRESS__)
+#if defined(WVOL_TEST_ASAN)
 #define DAMAGE_STRIDE (g_mode == 4 ? 7 : 1)
 #else
 #define DAMAGE_STRIDE 1

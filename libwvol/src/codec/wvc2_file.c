@@ -708,7 +708,7 @@ static int band_may_be_nonzero(wvol_wvc_file *f, pins *P, int m, int k, const pt
  * branch so as not to compute the unused lane's value, which cannot trap here (no FP
  * exceptions are enabled, and each lane's value is finite). */
 #define WVC_DEQUANT_RUN(name, T)                                                                               \
-    WVOL__CLONES __attribute__((optimize("fp-contract=off", "no-trapping-math"))) int name(                       \
+    WVOL__CLONES WVOL__NO_CONTRACT_NO_TRAP int name(                                                              \
         float *restrict dst, const T *restrict q, size_t n, double o1, double d2, double step)                    \
     {                                                                                                             \
         const float f1 = (float)o1;                                                                               \

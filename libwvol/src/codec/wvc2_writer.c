@@ -743,8 +743,8 @@ wvol_status wvol__wvc2_writer_put(wvc2_writer *w, int level, size_t z0, size_t n
          * producer alone) */
 #pragma omp taskloop grainsize(1) shared(bad) \
     if (G->e[0] * G->e[1] * nz > 32768)
-        for (task = 0; task < ntask; task++) {
-            int r = put_segment(w, level, z0, nz, pl, task);
+        for (size_t t = 0; t < (size_t)ntask; t++) { /* unsigned: as dwt3_stream.c's taskloops */
+            int r = put_segment(w, level, z0, nz, pl, (long)t);
             if (r) {
 #pragma omp atomic
                 bad |= r;

@@ -151,8 +151,10 @@ static void zero_edges(double *edge, const wvc_layout *L, const float *C, const 
                     if (Q[base + x] != 0 && a + f < 2.0 && a < mn) mn = a;
                 }
             }
-        /* every |q| = 1 coefficient went: zero the whole |q| = 1 cell */
-        edge[s] = isfinite(mn) ? mn : 2.0 - f;
+        /* every |q| = 1 coefficient went: zero the whole |q| = 1 cell. Not isfinite(mn): a
+         * min reduction's private copies start at the type's largest value, which is +inf with
+         * GCC's runtime and DBL_MAX with clang's; every |q| = 1 value is below 2 - f anyway. */
+        edge[s] = mn < 2.0 - f ? mn : 2.0 - f;
     }
 }
 

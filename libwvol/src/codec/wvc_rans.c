@@ -64,8 +64,6 @@
 
 #define FORCE_INLINE static inline __attribute__((always_inline))
 
-static inline uint8_t r3_sg(int32_t v) { return (uint8_t)(v > 0 ? 1 : v < 0 ? 2 : 0); }
-
 static inline uint32_t r3_mag_ctx(uint32_t t, uint8_t pc)
 {
     /* the bit length of t < 2^31, without a branch on t == 0 */

@@ -27,4 +27,17 @@
 #define WVOL__CPU_V4() 0
 #endif
 
+/* Contraction off for one function, so that no clone fuses a product and a sum into one FMA
+ * (docs/wvc-format.md, "The same bytes on every CPU"): GCC's optimize attribute. Clang has no
+ * such attribute; CMakeLists.txt compiles the files that use these with -ffp-contract=off
+ * there. _NO_TRAP adds GCC's no-trapping-math (clang's default), for loops whose branches GCC
+ * otherwise keeps so as not to compute an unused lane's value. */
+#if defined(__GNUC__) && !defined(__clang__)
+#define WVOL__NO_CONTRACT __attribute__((optimize("fp-contract=off")))
+#define WVOL__NO_CONTRACT_NO_TRAP __attribute__((optimize("fp-contract=off", "no-trapping-math")))
+#else
+#define WVOL__NO_CONTRACT
+#define WVOL__NO_CONTRACT_NO_TRAP
+#endif
+
 #endif

@@ -10,7 +10,7 @@
 /* The walk's two entry points are multi-versioned (core/clones.h: AVX2 where the CPU has it;
  * the sample loops are inlined into them) with contraction off, so that no clone fuses a
  * multiply and an add: every clone rounds as the baseline does, the same image bit for bit. */
-#define RAY_CLONES WVOL__CLONES __attribute__((optimize("fp-contract=off")))
+#define RAY_CLONES WVOL__CLONES WVOL__NO_CONTRACT
 
 #include <string.h>
 

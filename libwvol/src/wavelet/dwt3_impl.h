@@ -223,7 +223,7 @@ WVOL__KERNEL static void FN(inv_cols)(T *base, size_t n, size_t stride, size_t w
         for (x = x0; x < w; x++) {
             T se = 0, so = 0;
             for (size_t j = 0; j < J; j++) {
-                T av = a0[x - j * B], dv = d0[x - j * B];
+                T av = (a0 - j * B)[x], dv = (d0 - j * B)[x]; /* not a0[x - j B]: x - j B wraps */
                 se += h[2 * j] * av + g[2 * j] * dv;
                 if (2 * j + 1 < (size_t)L) so += h[2 * j + 1] * av + g[2 * j + 1] * dv;
             }

@@ -246,9 +246,11 @@ static wvol_status emit(wvol_dwt3_stream *s, int m, size_t k0, size_t k1, wvol_e
         int finite = 1;
         /* each task checks the rows it made: the check is shared as the pass is */
         if (team_tasks(s)) {
+            /* unsigned: clang's taskloop compares a signed variable with its unsigned count */
+            const size_t uy = (size_t)ny, uc = (size_t)chunk;
 #pragma omp taskloop grainsize(1) shared(finite) if (l->plane > 32768)
-            for (long long y = 0; y < ny; y += chunk)
-                if (!zrows_checked(s, l, m, k0, n, lo, hi, (size_t)y, (size_t)(y + chunk < ny ? y + chunk : ny))) {
+            for (size_t y = 0; y < uy; y += uc)
+                if (!zrows_checked(s, l, m, k0, n, lo, hi, y, y + uc < uy ? y + uc : uy)) {
 #pragma omp atomic write
                     finite = 0;
                 }
@@ -331,7 +333,7 @@ static wvol_status take(wvol_dwt3_stream *s, const float *slices, size_t z0, siz
     long long c = (long long)cnt;
     if (team_tasks(s)) {
 #pragma omp taskloop grainsize(1) if (cnt > 1)
-        for (long long t = 0; t < c; t++) take_one(s, slices, z0, (size_t)t);
+        for (size_t t = 0; t < cnt; t++) take_one(s, slices, z0, t); /* unsigned: as above */
     } else {
 #pragma omp parallel for schedule(dynamic, 1) num_threads(s->threads) if (cnt > 1)
         for (long long t = 0; t < c; t++) take_one(s, slices, z0, (size_t)t);

@@ -197,7 +197,7 @@ static inline void tap_range(ptrdiff_t gi, ptrdiff_t L, ptrdiff_t k0, ptrdiff_t 
  * with contraction off, so that no clone fuses a multiply and an add into an FMA: every
  * clone rounds each product and each sum as the baseline does, the same samples bit for bit
  * on every CPU. */
-#define WVOL__SYNTH WVOL__CLONES __attribute__((optimize("fp-contract=off")))
+#define WVOL__SYNTH WVOL__CLONES WVOL__NO_CONTRACT
 
 /* A run of outputs along y or z (inner > 1): o[x] = sum_j wh[j] l[j][x] + wg[j] h[j][x]
  * over whole inner rows, in one pass (the general loop adds each tap into o in its own pass). */
