@@ -175,7 +175,7 @@ static void band_origin(size_t o[3], const size_t p[3], const wvc2_geom *g, int 
 /* The box of band `band` of chunk t at level m inside a dense pyramid Q (padded grid p). */
 static wvc2_qbox dense_box(int32_t *Q, const size_t p[3], const wvc2_geom *g, int m, int band, const size_t off[3])
 {
-    wvc2_qbox b;
+    wvc2_qbox b = {NULL, 0, 0, NULL};
     size_t o[3];
     for (int a = 0; a < 3; a++) o[a] = off[a] + ((((band >> a) & 1) && g->tr[a]) ? g->lv[m].e[a] : 0);
     b.q = Q + o[0] + p[0] * (o[1] + p[1] * o[2]);
