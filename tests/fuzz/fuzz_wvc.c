@@ -2,13 +2,20 @@
 /* libFuzzer target for the .wvc reader (versions 1 and 2). Each input is decoded twice:
  * as it is (the checksums must catch damage), and "resealed", with the header (and
  * index) checksum and every section's or chunk's checksum recomputed, so that the fuzzer reaches the field checks and
- * the entropy decoders behind them (a crafted file can carry valid checksums).
+ * the entropy decoders behind them (a crafted file can carry valid checksums). A resealed
+ * version-2 input is also read as a file, by region and level through the chunk cache
+ * (wvol_wvc_open: codec/wvc2_file.c), with a budget small enough to evict, where its volume is
+ * small.
  * Build and run: scripts/fuzz.sh. */
+#define _GNU_SOURCE
 #include <stdint.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <unistd.h>
 #include <zlib.h>
 
+#include "wvol/volume.h"
 #include "wvol/wvc.h"
 
 #define HDR 208
@@ -36,6 +43,57 @@ static void decode(const uint8_t *data, size_t size)
     o.stop_level = 1;
     c = NULL;
     if (wvol_wvc_decode(&c, data, size, &o, NULL, NULL) == WVOL_OK) wvol_coeffs_destroy(c);
+}
+
+static char dir[64], path[96];
+
+static void cleanup(void)
+{
+    unlink(path);
+    rmdir(dir);
+}
+
+/* The box [lo, hi) of `level`'s grid, read through the file's cache (and into an array). */
+static void read_box(wvol_wvc_file *f, const size_t lo[3], const size_t hi[3], int level)
+{
+    wvol_volume *v = NULL;
+    if (wvol_wvc_read_region(&v, f, lo, hi, level, NULL) == WVOL_OK) wvol_volume_destroy(v);
+}
+
+/* The input as a file: opened, its chunk modes read, and a few boxes of small volumes. */
+static void file_reads(const uint8_t *t, size_t size)
+{
+    wvol_wvc_file *f = NULL;
+    FILE *out;
+    int ok;
+    if (!dir[0]) {
+        snprintf(dir, sizeof dir, "/tmp/wvol_fuzz_wvc_XXXXXX");
+        if (!mkdtemp(dir)) abort();
+        snprintf(path, sizeof path, "%s/in.wvc", dir);
+        atexit(cleanup);
+    }
+    if (!(out = fopen(path, "wb"))) abort();
+    ok = fwrite(t, 1, size, out) == size;
+    if (fclose(out) != 0 || !ok) abort();
+    if (wvol_wvc_open(&f, path, (size_t)1 << 16, NULL) != WVOL_OK) return;
+    {
+        const wvol_wvc_info *in = wvol_wvc_file_info(f);
+        uint64_t counts[WVOL_WVC_MAX_LEVELS + 1][WVOL_WVC_CHUNK_MODES];
+        size_t grid[3], lo[3] = {0, 0, 0}, mid[3], hi[3];
+        wvol_wvc_file_chunk_modes(f, counts, NULL);
+        /* small volumes only, and no whole read at full resolution (decode() has it): every
+         * read decodes its chunks again, which under the sanitizers is what a run costs */
+        if ((uint64_t)in->nx * in->ny * in->nz <= (uint64_t)1 << 12) {
+            for (int a = 0; a < 3; a++) {
+                const size_t n = a == 0 ? in->nx : a == 1 ? in->ny : in->nz;
+                mid[a] = n / 3, hi[a] = n / 3 + (n > 6 ? 5 : 1);
+            }
+            read_box(f, mid, hi, 0);
+            if (wvol_wvc_level_geometry(in, in->levels, grid, NULL, NULL, NULL) == WVOL_OK)
+                read_box(f, lo, grid, in->levels);
+        }
+    }
+    wvol_wvc_close(f);
 }
 
 /* Version 2: header 224 bytes, band table 48 x S, chunk index 32 x C, one CRC. */
@@ -69,6 +127,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
         memcpy(t, data, size);
         reseal_v2(t, size);
         decode(t, size);
+        file_reads(t, size);
         free(t);
         return 0;
     }
