@@ -2,11 +2,11 @@
 # SPDX-License-Identifier: MIT
 # Builds the libFuzzer targets with clang in build-fuzz/ and runs each for a bounded
 # time on its corpus (new inputs they find go to a scratch folder, not into the tree):
-# the .wvc reader on tests/fuzz/corpus for FUZZ_SECONDS (default 45), the DICOM file
-# parser on tests/fuzz/corpus_dicom for FUZZ_DICOM_SECONDS (default 15), the NRRD readers and
-# the MetaImage header on tests/fuzz/corpus_nrrd for FUZZ_NRRD_SECONDS (default 20), the
+# the .wvc reader on tests/fuzz/corpus for FUZZ_SECONDS (default 35), the DICOM file
+# parser on tests/fuzz/corpus_dicom for FUZZ_DICOM_SECONDS (default 10), the NRRD readers and
+# the MetaImage header on tests/fuzz/corpus_nrrd for FUZZ_NRRD_SECONDS (default 15), the
 # camera and transfer-function text on tests/fuzz/corpus_text for FUZZ_TEXT_SECONDS
-# (default 10); the last two with a dictionary of their formats' words.
+# (default 5); the last two with a dictionary of their formats' words.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 command -v clang >/dev/null || { echo "fuzz.sh: clang not found (scripts/setup.sh installs it)"; exit 1; }
@@ -27,7 +27,7 @@ run() { # target seconds corpus [libFuzzer options]
     | grep -v '^"' | tail -n 25
   echo "fuzz.sh: $target: no crash in $seconds s"
 }
-run fuzz_wvc "${FUZZ_SECONDS:-45}" tests/fuzz/corpus
-run fuzz_dicom "${FUZZ_DICOM_SECONDS:-15}" tests/fuzz/corpus_dicom
-run fuzz_nrrd "${FUZZ_NRRD_SECONDS:-20}" tests/fuzz/corpus_nrrd -dict=tests/fuzz/nrrd.dict
-run fuzz_text "${FUZZ_TEXT_SECONDS:-10}" tests/fuzz/corpus_text -dict=tests/fuzz/text.dict
+run fuzz_wvc "${FUZZ_SECONDS:-35}" tests/fuzz/corpus
+run fuzz_dicom "${FUZZ_DICOM_SECONDS:-10}" tests/fuzz/corpus_dicom
+run fuzz_nrrd "${FUZZ_NRRD_SECONDS:-15}" tests/fuzz/corpus_nrrd -dict=tests/fuzz/nrrd.dict
+run fuzz_text "${FUZZ_TEXT_SECONDS:-5}" tests/fuzz/corpus_text -dict=tests/fuzz/text.dict
