@@ -5,48 +5,28 @@
  * header read as MetaImage (io/metaimage.c). A header may name a detached data file: the
  * files it can reach are the input's own (the scratch folder holds nothing else) and the
  * system's. Build and run: scripts/fuzz.sh. */
-#define _GNU_SOURCE
+#include "fuzz_file.h" /* first: it sets the feature macros */
 #include <stdint.h>
-#include <stdio.h>
 #include <stdlib.h>
-#include <string.h>
-#include <unistd.h>
 
 #include "io/io_internal.h"
 #include "wvol/io.h"
 #include "wvol/source.h"
+#include "wvol/volume.h"
 
 /* the source's slabs, read whole, when the volume is at most this many samples */
 #define MAX_SAMPLES (1u << 20)
-
-static char dir[64], nrrd[96], mha[96];
-
-static void cleanup(void)
-{
-    unlink(nrrd);
-    unlink(mha);
-    rmdir(dir);
-}
-
-static int write_file(const char *path, const uint8_t *data, size_t size)
-{
-    FILE *f = fopen(path, "wb");
-    int ok;
-    if (!f) return 0;
-    ok = fwrite(data, 1, size, f) == size;
-    return fclose(f) == 0 && ok;
-}
 
 static void read_source(const char *path)
 {
     wvol_source *s = NULL;
     wvol_error err;
-    size_t dims[3];
+    size_t dims[3], n;
     double sp[3], org[3];
     float *slab;
     if (wvol_source_open(&s, path, NULL, &err) != WVOL_OK) return;
     wvol_source_geometry(s, dims, sp, org);
-    if (dims[0] * dims[1] <= MAX_SAMPLES && dims[0] * dims[1] * dims[2] <= MAX_SAMPLES &&
+    if (wvol_size_mul3(dims[0], dims[1], dims[2], 1, &n) && n <= MAX_SAMPLES &&
         (slab = malloc(dims[0] * dims[1] * 2 * sizeof *slab))) {
         for (size_t z = 0; z < dims[2]; z += 2) {
             const size_t nz = dims[2] - z < 2 ? dims[2] - z : 2;
@@ -59,17 +39,10 @@ static void read_source(const char *path)
 
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
 {
+    const char *nrrd = fuzz_write("in.nrrd", data, size), *mha = fuzz_write("in.mha", data, size);
     wvol_volume *v = NULL;
     wvol__meta_header mh;
     wvol_error err;
-    if (!dir[0]) {
-        snprintf(dir, sizeof dir, "/tmp/wvol_fuzz_nrrd_XXXXXX");
-        if (!mkdtemp(dir)) abort();
-        snprintf(nrrd, sizeof nrrd, "%s/in.nrrd", dir);
-        snprintf(mha, sizeof mha, "%s/in.mha", dir);
-        atexit(cleanup);
-    }
-    if (!write_file(nrrd, data, size) || !write_file(mha, data, size)) abort();
     if (wvol_nrrd_read(&v, nrrd, &err) == WVOL_OK) wvol_volume_destroy(v);
     read_source(nrrd);
     wvol__meta_read_header(&mh, mha, &err);

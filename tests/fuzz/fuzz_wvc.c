@@ -7,12 +7,10 @@
  * (wvol_wvc_open: codec/wvc2_file.c), with a budget small enough to evict, where its volume is
  * small.
  * Build and run: scripts/fuzz.sh. */
-#define _GNU_SOURCE
+#include "fuzz_file.h" /* first: it sets the feature macros */
 #include <stdint.h>
-#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <unistd.h>
 #include <zlib.h>
 
 #include "wvol/volume.h"
@@ -45,14 +43,6 @@ static void decode(const uint8_t *data, size_t size)
     if (wvol_wvc_decode(&c, data, size, &o, NULL, NULL) == WVOL_OK) wvol_coeffs_destroy(c);
 }
 
-static char dir[64], path[96];
-
-static void cleanup(void)
-{
-    unlink(path);
-    rmdir(dir);
-}
-
 /* The box [lo, hi) of `level`'s grid, read through the file's cache (and into an array). */
 static void read_box(wvol_wvc_file *f, const size_t lo[3], const size_t hi[3], int level)
 {
@@ -64,26 +54,15 @@ static void read_box(wvol_wvc_file *f, const size_t lo[3], const size_t hi[3], i
 static void file_reads(const uint8_t *t, size_t size)
 {
     wvol_wvc_file *f = NULL;
-    FILE *out;
-    int ok;
-    if (!dir[0]) {
-        snprintf(dir, sizeof dir, "/tmp/wvol_fuzz_wvc_XXXXXX");
-        if (!mkdtemp(dir)) abort();
-        snprintf(path, sizeof path, "%s/in.wvc", dir);
-        atexit(cleanup);
-    }
-    if (!(out = fopen(path, "wb"))) abort();
-    ok = fwrite(t, 1, size, out) == size;
-    if (fclose(out) != 0 || !ok) abort();
-    if (wvol_wvc_open(&f, path, (size_t)1 << 16, NULL) != WVOL_OK) return;
+    if (wvol_wvc_open(&f, fuzz_write("in.wvc", t, size), (size_t)1 << 16, NULL) != WVOL_OK) return;
     {
         const wvol_wvc_info *in = wvol_wvc_file_info(f);
         uint64_t counts[WVOL_WVC_MAX_LEVELS + 1][WVOL_WVC_CHUNK_MODES];
-        size_t grid[3], lo[3] = {0, 0, 0}, mid[3], hi[3];
+        size_t grid[3], lo[3] = {0, 0, 0}, mid[3], hi[3], n;
         wvol_wvc_file_chunk_modes(f, counts, NULL);
         /* small volumes only, and no whole read at full resolution (decode() has it): every
          * read decodes its chunks again, which under the sanitizers is what a run costs */
-        if ((uint64_t)in->nx * in->ny * in->nz <= (uint64_t)1 << 12) {
+        if (wvol_size_mul3(in->nx, in->ny, in->nz, 1, &n) && n <= (size_t)1 << 12) {
             for (int a = 0; a < 3; a++) {
                 const size_t n = a == 0 ? in->nx : a == 1 ? in->ny : in->nz;
                 mid[a] = n / 3, hi[a] = n / 3 + (n > 6 ? 5 : 1);
