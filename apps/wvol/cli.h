@@ -39,16 +39,15 @@ int cli_next(cli_parser *p, const cli_opt **opt, const char **value);
 /* A .wvc input read within a memory budget (decoded chunks held at once). */
 #define CLI_MEMORY_OPT {"memory", 0, 1, ".wvc input: budget for decoded chunks, e.g. 512M or 2G (default 1G)"}
 
-/* The raw and .vdb input options of the commands that load a volume. */
-#define CLI_LOAD_OPTS                                                    \
-    {"dims", 0, 1, "raw input: NXxNYxNZ"},                                \
-    {"type", 0, 1, "raw input: sample type (float32, uint8, int16, ...)"}, \
-    {"grid", 0, 1, ".vdb input: grid name (default: first float grid)"}
-
-/* Where a raw input sits in the world (also read by cli_load_option). */
-#define CLI_PLACE_OPTS                                                                   \
+/* The raw and .vdb input options of the commands that load a volume (cli_load_option):
+ * a raw file's samples, byte order and place in the world, a .vdb file's grid. */
+#define CLI_LOAD_OPTS                                                                    \
+    {"dims", 0, 1, "raw input: NXxNYxNZ"},                                                \
+    {"type", 0, 1, "raw input: sample type (float32, uint8, int16, ...)"},                 \
+    {"big-endian", 0, 0, "raw input: samples are big-endian"},                           \
     {"spacing", 0, 1, "raw input: voxel spacing X,Y,Z or one number (default 1)"},        \
-    {"origin", 0, 1, "raw input: world position of voxel (0,0,0), X,Y,Z (default 0)"}
+    {"origin", 0, 1, "raw input: world position of voxel (0,0,0), X,Y,Z (default 0)"},    \
+    {"grid", 0, 1, ".vdb input: grid name (default: first float grid)"}
 
 /* Applies o to lo when o is one of the loading options (--dims, --type, --big-endian,
  * --spacing, --origin, --grid): returns CLI_OK, or CLI_USAGE after printing an error

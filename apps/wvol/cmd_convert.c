@@ -10,8 +10,6 @@ const char wvol_cmd_convert_summary[] = "convert a volume between formats (raw, 
 
 static const cli_opt opts[] = {
     CLI_LOAD_OPTS,
-    {"big-endian", 0, 0, "raw input: samples are big-endian"},
-    CLI_PLACE_OPTS,
     CLI_HELP_OPT,
     {NULL, 0, 0, NULL}};
 

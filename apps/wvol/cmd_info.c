@@ -60,7 +60,7 @@ int wvol_cmd_info(int argc, char **argv)
         if (!o) {
             if (cli_one_input("info", &path, val)) return CLI_USAGE;
         } else if (o->short_name == 'h') {
-            cli_print_help("info", "FILE [--dims NXxNYxNZ --type T] [--json]",
+            cli_print_help("info", "FILE [--dims NXxNYxNZ --type T [--spacing X,Y,Z]] [--grid NAME] [--json]",
                            "Prints type, dimensions, spacing, origin, range and a histogram summary\n"
                            "of a volume, or the contents of a .wvc store.", opts);
             return CLI_OK;

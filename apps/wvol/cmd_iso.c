@@ -43,7 +43,6 @@ static const cli_opt opts[] = {
                     "then dense MC)"},
     CLI_MEMORY_OPT,
     CLI_LOAD_OPTS,
-    CLI_PLACE_OPTS,
     CLI_JSON_OPT,
     CLI_HELP_OPT,
     {NULL, 0, 0, NULL}};

@@ -157,7 +157,8 @@ int wvol_cmd_synth(int argc, char **argv)
             kind_name = val;
         } else if (o->short_name == 'h') {
             cli_print_help("synth", "KIND -o OUT [--size N|NXxNYxNZ] [--spacing X,Y,Z] [--seed S] [--noise SIGMA]\n"
-                                    "       [--labels OUT] [--variant NAME] [--gzip] [--slab Z0,NZ] [--json]",
+                                    "       [--sigma S] [--count N] [--labels OUT] [--variant NAME] [--gzip]\n"
+                                    "       [--slab Z0,NZ] [--json]",
                            "Makes a deterministic synthetic volume (same parameters and seed, same bytes)\n"
                            "and writes it in the format its extension names. Generators (--list):\n"
                            "gaussian, blobs, skull, textures, shepp-logan, turbulence. docs/datasets.md describes them.\n"

@@ -54,16 +54,16 @@ def scene(s) -> Scene:
     return Scene(*_wvol.radiosity_scene(_scene_arg(s)))
 
 
-def solve(s, basis: str = "haar", epsilon: float = 1e-3, max_level: int = 5, brightness: bool = False,
+def solve(scene, basis: str = "haar", epsilon: float = 1e-3, max_level: int = 5, brightness: bool = False,
           full_matrix: bool = False, max_iterations: int = 200, tolerance: float = 1e-7, res: int = 0,
           uv=None, camera: Optional[str] = None, size=(256, 256)) -> Solution:
-    """Solves the radiosity of scene ``s`` with ``basis`` (haar, m2, m3, m4, f2, f3), oracle threshold
+    """Solves the radiosity of ``scene`` with ``basis`` (haar, m2, m3, m4, f2, f3), oracle threshold
     ``epsilon``, finest level ``max_level``; ``brightness`` weights the oracle by the transferred
     brightness; ``full_matrix`` is classical radiosity (every finest cell linked to every other).
     ``res`` > 0 samples each patch on a res x res grid; ``uv`` (m, 2) evaluates every patch at those
     parameter points; ``camera`` (a ``wvol render`` camera string) renders an image of ``size``."""
     uv_arr = None if uv is None else np.ascontiguousarray(uv, dtype=np.float64)
-    d = _wvol.radiosity_solve(_scene_arg(s), basis, float(epsilon), int(max_level), bool(brightness),
+    d = _wvol.radiosity_solve(_scene_arg(scene), basis, float(epsilon), int(max_level), bool(brightness),
                               bool(full_matrix), int(max_iterations), float(tolerance), int(res), uv_arr, camera,
                               tuple(int(v) for v in size))
     samples, values, image = d.pop("samples", None), d.pop("values", None), d.pop("image", None)

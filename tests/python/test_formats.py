@@ -85,6 +85,43 @@ def sample_volume(nx=7, ny=5, nz=3, seed=1):
 
 # ---------------------------------------------------------------- round trips
 
+def test_raw_options_on_every_loading_command(wvol, tmp_path):
+    """Every command that loads a volume reads a raw file's byte order and place in the world
+    (--big-endian, --spacing, --origin): the values and geometry come through info, compress
+    (into the .wvc header), iso and render, and a bad spacing is refused by each."""
+    z, y, x = np.mgrid[0:10, 0:12, 0:14].astype(np.float64)
+    a = (100 * np.exp(-((x - 7) ** 2 + (y - 6) ** 2 + (z - 5) ** 2) / 12)).astype(np.int16)
+    raw = tmp_path / "be.raw"
+    a.astype(">i2").tofile(raw)
+    opts = ("--dims", dims_arg(a), "--type", "int16", "--big-endian", "--spacing", "0.5,0.75,2",
+            "--origin", "-3,4,10")
+    d = info(wvol, raw, *opts)
+    assert d["dims"] == [14, 12, 10] and d["spacing"] == [0.5, 0.75, 2] and d["origin"] == [-3, 4, 10]
+    assert d["min"] == a.min() and d["max"] == a.max()  # big-endian read as such: 0 .. 100
+    wvc = tmp_path / "be.wvc"
+    r = wvol("compress", raw, "-o", wvc, "--psnr", "60", *opts)
+    assert r.returncode == 0, r.stderr
+    d = info(wvol, wvc)
+    assert d["spacing"] == [0.5, 0.75, 2] and d["origin"] == [-3, 4, 10]
+    # the mesh is in world units: its enclosed volume is the voxel-unit mesh's times the voxel's
+    # volume, 0.5 * 0.75 * 2 (the vertices scale per axis; float32 positions: 1e-5)
+    vols = []
+    for place in (opts, opts[:5]):
+        r = wvol("iso", raw, "-o", tmp_path / "m.ply", "--iso", "50", "--json", *place)
+        assert r.returncode == 0, r.stderr
+        vols.append(json.loads(r.stdout)["enclosed_volume"])
+    assert vols[1] > 0 and abs(vols[0] / vols[1] - 0.75) < 1e-5, vols
+    for cmd, out in (("render", "r.png"), ("segment", "s.raw"), ("transform", "t.raw")):
+        more = ("--size", "16x16") if cmd == "render" else ()
+        r = wvol(cmd, raw, "-o", tmp_path / out, *more, *opts)
+        assert r.returncode == 0, (cmd, r.stderr)
+    for cmd in ("info", "compress", "render", "iso", "segment", "transform", "convert"):
+        args = [cmd, raw] + (["-o", tmp_path / "x.out"] if cmd not in ("info", "convert") else
+                             [tmp_path / "x.nrrd"] if cmd == "convert" else [])
+        r = wvol(*args, "--dims", dims_arg(a), "--type", "int16", "--spacing", "1,-1,1")
+        assert r.returncode == 2 and "--spacing" in r.stderr, (cmd, r.stderr)
+
+
 @pytest.mark.parametrize("spacing", ["0.37", "0.5,0.25,1.75"])
 def test_round_trip_raw_vdb_vti_raw(wvol, tmp_path, spacing):
     a = sample_volume()

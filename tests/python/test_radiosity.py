@@ -142,7 +142,7 @@ def test_obj_scene_matches_builtin(tmp_path):
     lines += ["usemtl light", "f 1 2 3 4", "usemtl floor", "f 5 6 7 8"]
     (tmp_path / "p.obj").write_text("\n".join(lines) + "\n")
     a = wvol.radiosity.solve(str(tmp_path / "p.obj"), max_level=3, res=4)
-    b = wvol.radiosity.solve("parallel", max_level=3, res=4)
+    b = wvol.radiosity.solve(scene="parallel", max_level=3, res=4)  # the documented keyword
     # tinyobjloader parses numbers to within an ulp or so, not correctly rounded: the corners
     # differ from the built-in's by ~1e-16 relative, the solution by a few times that
     assert np.allclose(a.samples, b.samples, rtol=1e-12, atol=0)
