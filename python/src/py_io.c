@@ -1,12 +1,14 @@
 /* SPDX-License-Identifier: MIT */
 /* load / save of volume files. */
+#include <math.h>
+
 #include "pyutil.h"
 #include "methods.h"
 
 static PyObject *py_load(PyObject *self, PyObject *args, PyObject *kw)
 {
-    static char *kwlist[] = {"path", "dims", "dtype", "grid", "big_endian", NULL};
-    PyObject *path_obj, *dims_obj = Py_None, *bytes = NULL, *arr, *res;
+    static char *kwlist[] = {"path", "dims", "dtype", "grid", "big_endian", "spacing", "origin", NULL};
+    PyObject *path_obj, *dims_obj = Py_None, *spacing_obj = Py_None, *origin_obj = Py_None, *bytes = NULL, *arr, *res;
     const char *dtype = "float32", *grid = NULL;
     int big_endian = 0;
     wvol_load_options lo;
@@ -14,8 +16,8 @@ static PyObject *py_load(PyObject *self, PyObject *args, PyObject *kw)
     wvol_error err;
     wvol_status s;
     (void)self;
-    if (!PyArg_ParseTupleAndKeywords(args, kw, "O|Ozzp", kwlist, &path_obj, &dims_obj, &dtype, &grid,
-                                     &big_endian))
+    if (!PyArg_ParseTupleAndKeywords(args, kw, "O|OzzpOO", kwlist, &path_obj, &dims_obj, &dtype, &grid,
+                                     &big_endian, &spacing_obj, &origin_obj))
         return NULL;
     if (!PyUnicode_FSConverter(path_obj, &bytes)) return NULL;
     wvol_load_options_default(&lo);
@@ -41,6 +43,14 @@ static PyObject *py_load(PyObject *self, PyObject *args, PyObject *kw)
     }
     lo.big_endian = big_endian;
     lo.grid_name = grid;
+    /* a raw file's place in the world (the other formats carry their own, as on the command line) */
+    if (wvolpy_triple(spacing_obj, lo.spacing, "spacing") < 0 || wvolpy_triple(origin_obj, lo.origin, "origin") < 0)
+        goto fail;
+    for (int a = 0; a < 3; a++)
+        if (!(isfinite(lo.spacing[a]) && lo.spacing[a] > 0) || !isfinite(lo.origin[a])) {
+            PyErr_SetString(PyExc_ValueError, "spacing must be positive and finite, origin finite");
+            goto fail;
+        }
     Py_BEGIN_ALLOW_THREADS
     s = wvol_volume_load(&v, PyBytes_AS_STRING(bytes), &lo, &err);
     Py_END_ALLOW_THREADS

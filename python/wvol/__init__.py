@@ -46,12 +46,14 @@ def _data(vol):
     return vol.data if isinstance(vol, Volume) else vol
 
 
-def load(path, dims=None, dtype="float32", grid=None, big_endian=False):
-    """Reads a volume file (.raw needs ``dims=(nx, ny, nz)``; .nrrd, .vdb, .vti, ... carry theirs).
+def load(path, dims=None, dtype="float32", grid=None, big_endian=False, spacing=None, origin=None):
+    """Reads a volume file (.raw needs ``dims=(nx, ny, nz)``, and takes ``spacing`` and ``origin``,
+    (x, y, z) or one number, default 1 and 0; .nrrd, .vdb, .vti, ... carry theirs).
 
     Returns a :class:`Volume`.
     """
-    data, spacing, origin = _wvol.load(path, dims=dims, dtype=dtype, grid=grid, big_endian=big_endian)
+    data, spacing, origin = _wvol.load(path, dims=dims, dtype=dtype, grid=grid, big_endian=big_endian,
+                                       spacing=spacing, origin=origin)
     return Volume(data, spacing, origin)
 
 

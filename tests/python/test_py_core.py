@@ -14,6 +14,23 @@ def test_save_load_roundtrip_keeps_values_and_geometry(tmp_path):
     v = wvol.load(p, dims=(7, 6, 5))
     assert v.data.shape == (5, 6, 7)
     assert np.array_equal(v.data, a)
+    assert v.spacing == (1.0, 1.0, 1.0) and v.origin == (0.0, 0.0, 0.0)
+
+
+def test_load_raw_places_it_in_the_world(tmp_path):
+    """A raw file's spacing, origin and byte order come from the call (the CLI's --spacing,
+    --origin, --big-endian); bad ones are refused before anything is read."""
+    a = (np.arange(5 * 6 * 7) % 251).astype(np.int16).reshape(5, 6, 7)
+    p = tmp_path / "be.raw"
+    a.astype(">i2").tofile(p)
+    v = wvol.load(p, dims=(7, 6, 5), dtype="int16", big_endian=True, spacing=(0.5, 0.75, 2), origin=(-1, 2, 3))
+    assert np.array_equal(v.data, a.astype(np.float32))
+    assert v.spacing == (0.5, 0.75, 2.0) and v.origin == (-1.0, 2.0, 3.0)
+    assert wvol.load(p, dims=(7, 6, 5), dtype="int16", big_endian=True, spacing=0.25).spacing == (0.25,) * 3
+    for bad in ({"spacing": (1, 0, 1)}, {"spacing": (1, float("nan"), 1)}, {"origin": (0, float("inf"), 0)},
+                {"spacing": (1, 1)}):
+        with pytest.raises(ValueError):
+            wvol.load(p, dims=(7, 6, 5), dtype="int16", **bad)
 
 
 def test_filters_match_pywavelets():
