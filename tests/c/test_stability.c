@@ -432,6 +432,9 @@ static void run_cell(const entry *en, const wvol_volume *v1, const result *base,
     } else if (r.st != WVOL_OK) {
         CHECK(r.msg[0] != 0, "%s: refused without a message", cell);
         CHECK(e >= 120 || e <= -126, "%s: refused inside the supported range: %s", cell, r.msg);
+        /* the reason is float32's range, said so (or the transform's refusal, which says it) */
+        CHECK(strstr(r.msg, "float32") || strstr(r.msg, "the transform refused"),
+              "%s: refused without naming float32's range: %s", cell, r.msg);
         if (getenv("WVOL_STABILITY_TIMES")) fprintf(stderr, "refused: %s: %s\n", cell, r.msg);
     } else {
         compare(en, &r, base, e, cell);
@@ -502,6 +505,9 @@ int main(void)
                     continue;
                 double t0 = clock() / (double)CLOCKS_PER_SEC;
                 entries[ei].run(&base, v1, families[fi], 0);
+                /* at scale 1 every entry answers, but --psnr on a constant volume (no range, no PSNR) */
+                CHECK(base.st == WVOL_OK || (entries[ei].run == run_psnr && vk == V_CONST),
+                      "%s / %s / %s: refused at scale 1: %s", entries[ei].name, vol_names[vk], families[fi], base.msg);
                 for (si = 0; si < NSCALES; si++)
                     if (scales[si] != 0) run_cell(&entries[ei], v1, &base, vol_names[vk], families[fi], scales[si]);
                 res_free(&base);

@@ -49,8 +49,9 @@ def test_model_bound_in_stats(gauss):
     s = wvol.compress(gauss, "db4", 3, keep=1.0)
     _, _, st = wvol.isoimage(s, 0.5, "persp dir=1,0.6,-0.3", (16, 16), brick=8, model_bound=True, return_stats=True)
     assert st["fhat_bound_bricks"] + st["fhat_bound_faces"] == st["bricks_built"] > 0
-    if st["fhat_bound_bricks"]:
-        assert 0 < st["fhat_bound_mean"] <= st["fhat_bound_max"] < float("inf")
+    # 8-cell bricks of a 32^3 grid: the inner ones' windows reach no face, so some are bounded
+    assert st["fhat_bound_bricks"] > 0
+    assert 0 < st["fhat_bound_mean"] <= st["fhat_bound_max"] < float("inf")
     _, _, st = wvol.isoimage(s, 0.5, "persp dir=1,0.6,-0.3", (16, 16), brick=8, return_stats=True)
     assert st["fhat_bound_bricks"] == 0 and st["fhat_bound_max"] == 0
 
