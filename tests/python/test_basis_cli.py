@@ -50,4 +50,4 @@ def test_basis_bad_usage(wvol):
     r = wvol("basis", "--wavelet", "db42")
     assert r.returncode == 2 and "db42" in r.stderr
     r = wvol("basis", "--csv", "x.csv")
-    assert r.returncode == 2
+    assert r.returncode == 2 and "--csv needs one --wavelet and one -J value" in r.stderr

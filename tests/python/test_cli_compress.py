@@ -166,10 +166,10 @@ def test_damaged_files_are_refused_and_nothing_partial_is_left(wvol, volume, tmp
         assert name in r.stderr and len(r.stderr.strip().splitlines()) == 1, (name, r.stderr)
         assert not out.exists()
         r = wvol("info", p)
-        assert r.returncode == 1, name
+        assert r.returncode == 1 and name in r.stderr, (name, r.stderr)
     # a failed write (missing folder) leaves nothing behind
     r = compress(wvol, src, tmp_path / "nodir" / "v.wvc", "--psnr", "40")
-    assert r.returncode == 1
+    assert r.returncode == 1 and "nodir/v.wvc: cannot create output file" in r.stderr
     assert not (tmp_path / "nodir").exists()
     leftovers = [p.name for p in tmp_path.iterdir() if ".tmp-" in p.name]
     assert leftovers == []

@@ -111,11 +111,11 @@ def test_iso_level_is_marching_cubes_on_the_coarse_decode(wvol, skull, tmp_path)
 def test_bad_levels_are_refused(wvol, skull, tmp_path):
     vol, wvc = skull
     r = wvol("iso", wvc, "--iso", "400", "--level", "4", "-o", tmp_path / "x.ply")
-    assert r.returncode != 0 and "level 4 outside 0..3" in r.stderr and not (tmp_path / "x.ply").exists()
+    assert r.returncode == 2 and "level 4 outside 0..3" in r.stderr and not (tmp_path / "x.ply").exists()
     r = wvol("iso", wvc, "--iso", "400", "--level", "-1")
-    assert r.returncode != 0 and "level" in r.stderr
+    assert r.returncode == 2 and "--level '-1': expected an integer from 0 to 30" in r.stderr
     r = wvol("iso", wvc, "--iso", "400", "--level", "1", "--method", "cast")
-    assert r.returncode != 0 and "--level applies to --method mc" in r.stderr
+    assert r.returncode == 2 and "--level applies to --method mc" in r.stderr
 
 
 def test_python_lod(skull):

@@ -59,7 +59,7 @@ def test_bound_refusals(tmp_path, blobs):
                        (["--bound", tmp_path / "b.exr", "--mode", "absorption-linear"], "absorption-linear"),
                        (["--bound", tmp_path / "b.exr", "--shading"], "shading")):
         r = run_wvol("render", src, "-o", tmp_path / "x.exr", "--keep", "10%", *extra)
-        assert r.returncode != 0 and msg in r.stderr, r.stderr
+        assert r.returncode == 2 and msg in r.stderr, r.stderr
         assert not (tmp_path / "b.exr").exists()
 
 
@@ -104,7 +104,7 @@ def test_cli_progressive(tmp_path, blobs):
     last = read_exr_rgba(tmp_path / "p.exr")
     assert np.array_equal(last, read_exr_rgba(tmp_path / f"p.pass{n - 1}.exr"))
     r = run_wvol("render", src, "-o", tmp_path / "q.exr", "--max-error", "1")
-    assert r.returncode != 0 and "--progressive" in r.stderr
+    assert r.returncode == 2 and "add --progressive" in r.stderr
 
 
 def test_coarse_bound_above_the_exact(tmp_path, blobs):

@@ -129,8 +129,10 @@ def test_cli_refuses_missing_mtl_and_bad_usage(tmp_path):
     r = run(str(obj), "-o", str(tmp_path / "x.png"))
     assert r.returncode == 1 and "nowhere.mtl" in r.stderr and r.stderr.count("\n") == 1
     assert not (tmp_path / "x.png").exists()
-    assert run("box", "-o", str(tmp_path / "x.txt")).returncode == 2
-    assert run("box", "-o", str(tmp_path / "x.png"), "--basis", "m9").returncode == 2
+    r = run("box", "-o", str(tmp_path / "x.txt"))
+    assert r.returncode == 2 and "use .png, .exr, .ply or .vtp" in r.stderr
+    r = run("box", "-o", str(tmp_path / "x.png"), "--basis", "m9")
+    assert r.returncode == 2 and "unknown 'm9'" in r.stderr
     assert run("--help").returncode == 0
 
 
