@@ -264,12 +264,13 @@ static void parallel_error_falls_with_order(void)
     CHECK(e3 < e2 / 2, "m3 %g vs m2 %g", e3, e2);
 }
 
-static void expect_refused(const wvol_radiosity_quad *q, size_t n, const char *what, const char *a, const char *b)
+static void expect_refused(const wvol_radiosity_quad *q, size_t n, const char *what, wvol_status want, const char *a,
+                           const char *b)
 {
     wvol_radiosity_scene *s = NULL;
     wvol_error err;
     wvol_status st = wvol_radiosity_scene_create(&s, q, n, &err);
-    CHECK(st != WVOL_OK && !s, "%s accepted", what);
+    CHECK(st == want && !s, "%s: status %d, expected %d", what, (int)st, (int)want);
     if (st != WVOL_OK)
         CHECK(strstr(err.message, a) && (!b || strstr(err.message, b)), "%s: message '%s' lacks '%s'/'%s'", what,
               err.message, a, b ? b : "");
@@ -284,15 +285,16 @@ static int write_file(const char *path, const char *text)
     return fclose(fp) == 0;
 }
 
-/* An OBJ file with `text` is refused with a message holding a (and b when not NULL). */
-static void obj_refused(const char *path, const char *text, const char *a, const char *b)
+/* An OBJ file with `text` is refused with status want and a message holding a (and b when not
+ * NULL). */
+static void obj_refused(const char *path, const char *text, wvol_status want, const char *a, const char *b)
 {
     wvol_radiosity_scene *s = NULL;
     wvol_error err;
     wvol_status st;
     write_file(path, text);
     st = wvol_radiosity_scene_load_obj(&s, path, &err);
-    CHECK(st != WVOL_OK && !s, "obj accepted: %s", text);
+    CHECK(st == want && !s, "obj: status %d, expected %d: %s", (int)st, (int)want, text);
     if (st != WVOL_OK)
         CHECK(strstr(err.message, a) && (!b || strstr(err.message, b)), "message '%s' lacks '%s'/'%s'", err.message, a,
               b ? b : "");
@@ -307,24 +309,24 @@ static void bad_scenes_are_refused(void)
     char dir[] = "/tmp/wvol_rad_XXXXXX", path[256], mtl[256];
     q[0] = good, q[1] = good;
     q[1].p[2][2] = 0.3;
-    expect_refused(q, 2, "non-planar", "quad 1", "non-planar");
+    expect_refused(q, 2, "non-planar", WVOL_ERR_ARG, "quad 1", "non-planar");
     q[1] = good;
     memcpy(q[1].p[2], q[1].p[1], sizeof q[1].p[1]);
-    expect_refused(q, 2, "degenerate", "quad 1", "degenerate");
+    expect_refused(q, 2, "degenerate", WVOL_ERR_ARG, "quad 1", "degenerate");
     q[1] = good;
     q[1].p[0][1] = NAN;
-    expect_refused(q, 2, "NaN corner", "quad 1", "not finite");
+    expect_refused(q, 2, "NaN corner", WVOL_ERR_NONFINITE, "quad 1", "not finite");
     q[1] = good;
     q[1].reflectance[2] = 1.5;
-    expect_refused(q, 2, "reflectance > 1", "quad 1", "reflectance[2]");
+    expect_refused(q, 2, "reflectance > 1", WVOL_ERR_ARG, "quad 1", "reflectance[2]");
     q[1] = good;
     q[1].reflectance[0] = -0.1;
-    expect_refused(q, 2, "reflectance < 0", "quad 1", "reflectance[0]");
+    expect_refused(q, 2, "reflectance < 0", WVOL_ERR_ARG, "quad 1", "reflectance[0]");
     q[1] = good;
     q[1].emission[1] = NAN;
-    expect_refused(q, 2, "NaN emission", "quad 1", "emission[1]");
-    expect_refused(q, 0, "empty scene", "empty", NULL);
-    CHECK(wvol_radiosity_scene_builtin(&s, "cornell", &err) != WVOL_OK && strstr(err.message, "cornell"),
+    expect_refused(q, 2, "NaN emission", WVOL_ERR_NONFINITE, "quad 1", "emission[1]");
+    expect_refused(q, 0, "empty scene", WVOL_ERR_ARG, "empty", NULL);
+    CHECK(wvol_radiosity_scene_builtin(&s, "cornell", &err) == WVOL_ERR_ARG && strstr(err.message, "cornell"),
           "unknown built-in");
     if (!mkdtemp(dir)) return;
     /* OBJ: a good file, then a missing MTL, a triangle, a face without material, Kd > 1 */
@@ -351,13 +353,15 @@ static void bad_scenes_are_refused(void)
     }
     wvol_radiosity_scene_destroy(s);
     obj_refused(path, "mtllib missing.mtl\nv 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nusemtl white\nf 1 2 3 4\n",
-                "missing.mtl", NULL);
-    obj_refused(path, "mtllib s.mtl\nv 0 0 0\nv 1 0 0\nv 1 1 0\nusemtl white\nf 1 2 3\n", "face 1", "3 vertices");
-    obj_refused(path, "mtllib s.mtl\nv 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 3 4\n", "face 1", "no material");
+                WVOL_ERR_FORMAT, "missing.mtl", NULL); /* the OBJ names what cannot be found: its content */
+    obj_refused(path, "mtllib s.mtl\nv 0 0 0\nv 1 0 0\nv 1 1 0\nusemtl white\nf 1 2 3\n", WVOL_ERR_UNSUPPORTED, "face 1",
+                "3 vertices");
+    obj_refused(path, "mtllib s.mtl\nv 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 3 4\n", WVOL_ERR_FORMAT, "face 1",
+                "no material");
     obj_refused(path,
                 "mtllib s.mtl\nv 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nusemtl white\nf 1 2 3 4\nusemtl bad\nf 4 3 2 1\n",
-                "face 2", "reflectance[1]");
-    obj_refused(path, "mtllib s.mtl\n", "empty", NULL);
+                WVOL_ERR_ARG, "face 2", "reflectance[1]");
+    obj_refused(path, "mtllib s.mtl\n", WVOL_ERR_ARG, "empty", NULL);
     unlink(path);
     unlink(mtl);
     rmdir(dir);

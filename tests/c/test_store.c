@@ -607,7 +607,8 @@ static void empty_selection_and_bad_input(void)
     wvol_store_params sp;
     wvol_store_params_default(&sp);
     sp.spline_J = 40;
-    CHECK(wvol_store_build(&st2, c, sel, &sp, &err) != WVOL_OK && st2 == NULL, "spline J 40 refused");
+    CHECK(wvol_store_build(&st2, c, sel, &sp, &err) == WVOL_ERR_ARG && st2 == NULL && strstr(err.message, "J = 40"),
+          "spline J 40 refused: %s", err.message);
     wvol_store_destroy(NULL);
     wvol_store_hits_free(&hits);
     wvol_coeffs_destroy(other);

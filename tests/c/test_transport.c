@@ -493,8 +493,11 @@ static void bad_input_is_refused(void)
         snprintf(path, sizeof path, "%s/junk.png", dir);
         f = fopen(path, "wb");
         if (f) fputs("not a png at all", f), fclose(f);
-        CHECK(wvol_transport_window_read_png(&w, path, &e) != WVOL_OK && e.message[0], "junk PNG: %s", e.message);
+        CHECK(wvol_transport_window_read_png(&w, path, &e) == WVOL_ERR_FORMAT && strstr(e.message, "junk.png"),
+              "junk PNG: %s", e.message);
         unlink(path);
+        CHECK(wvol_transport_window_read_png(&w, path, &e) == WVOL_ERR_IO && strstr(e.message, "junk.png"),
+              "missing PNG: %s", e.message);
         rmdir(dir);
     }
     {

@@ -576,7 +576,7 @@ static void bad_arguments_are_refused(void)
     CHECK(wvol_idwt3_brick(&r, c, lo, hi2, &err) == WVOL_ERR_ARG && !r, "box outside");
     CHECK(wvol_idwt3_brick(&r, c, NULL, hi2, &err) == WVOL_ERR_ARG, "NULL box");
     c->levels = 5; /* inconsistent with the sizes */
-    CHECK(wvol_idwt3(&r, c, &err) != WVOL_OK && !r, "inconsistent coefficients");
+    CHECK(wvol_idwt3(&r, c, &err) == WVOL_ERR_ARG && !r, "inconsistent coefficients: %s", err.message);
     c->levels = 2;
     wvol_coeffs *d = NULL;
     CHECK(wvol_coeffs_clone(&d, c, &err) == WVOL_OK && memcmp(d->data, c->data, c->px * c->py * c->pz * 4) == 0, "clone");

@@ -4,9 +4,11 @@
 #include "wvol/image.h"
 #include "wvol/io.h"
 
+#include <errno.h>
 #include <math.h>
 #include <png.h>
 #include <setjmp.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -117,15 +119,23 @@ wvol_status wvol_png_read_rgb(float **out, int *width, int *height, int *colour,
     png_image im;
     unsigned char *buf;
     size_t n;
+    FILE *fp;
     WVOL_RETURN_IF(!out || !width || !height || !path, err, WVOL_ERR_ARG, "PNG read: NULL argument");
     *out = NULL;
     *width = *height = 0;
     memset(&im, 0, sizeof im);
     im.version = PNG_IMAGE_VERSION;
-    if (!png_image_begin_read_from_file(&im, path))
-        return wvol_error_set(err, WVOL_ERR_IO, "%s: cannot read as PNG: %s", path, im.message);
+    /* opened here, so that a file that cannot be read (IO) and one that is not a PNG (FORMAT)
+     * are told apart: libpng's file reader reports both alike */
+    fp = fopen(path, "rb");
+    WVOL_RETURN_IF(!fp, err, WVOL_ERR_IO, "%s: cannot open: %s", path, strerror(errno));
+    if (!png_image_begin_read_from_stdio(&im, fp)) {
+        fclose(fp);
+        return wvol_error_set(err, WVOL_ERR_FORMAT, "%s: not a readable PNG: %s", path, im.message);
+    }
     if (im.width < 1 || im.height < 1 || im.width > 65536 || im.height > 65536) {
         png_image_free(&im);
+        fclose(fp);
         return wvol_error_set(err, WVOL_ERR_DIMS, "%s: %ux%u outside 1..65536 per side", path, im.width,
                               im.height);
     }
@@ -134,12 +144,15 @@ wvol_status wvol_png_read_rgb(float **out, int *width, int *height, int *colour,
     buf = malloc(PNG_IMAGE_SIZE(im));
     if (!buf) {
         png_image_free(&im);
+        fclose(fp);
         return wvol_error_set(err, WVOL_ERR_NOMEM, "%s: out of memory", path);
     }
     if (!png_image_finish_read(&im, NULL, buf, 0, NULL)) { /* frees im on failure */
         free(buf);
+        fclose(fp);
         return wvol_error_set(err, WVOL_ERR_FORMAT, "%s: PNG decoding failed: %s", path, im.message);
     }
+    fclose(fp);
     n = (size_t)im.width * im.height * 3;
     *out = malloc(n * sizeof **out);
     if (!*out) {
