@@ -41,7 +41,8 @@ def test_psnr_target_is_met_and_measured(wvol, volume, tmp_path, wavelet, target
     rep = json.loads(r.stdout)
     assert rep["bytes"] == out.stat().st_size
     assert target <= rep["measured"]["psnr"] < target + 0.5
-    assert abs(rep["measured"]["psnr"] - rep["predicted"]["psnr"]) < 0.01
+    # no padding at 32^3 with 3 levels: Parseval makes them the same sum (as --verify below)
+    assert abs(rep["measured"]["psnr"] - rep["predicted"]["psnr"]) < 1e-3
     assert rep["bits_per_voxel"] == pytest.approx(8 * rep["bytes"] / N**3)
     assert rep["ratio"] == pytest.approx(4 * N**3 / rep["bytes"])
     for k in ("encode", "decode"):

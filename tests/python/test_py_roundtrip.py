@@ -47,7 +47,7 @@ def test_synth_compress_save_open_reconstruct_render_isosurface(tmp_path):
     # the model difference (largest at the peak, a few % there), so compare the total and
     # the mean per-pixel difference (measured: 1e-7 relative and 0.4% of the peak pixel)
     a, b = spline[..., 0].astype(np.float64), ref[..., 0].astype(np.float64)
-    assert abs(a.sum() - b.sum()) < 0.01 * b.sum()
+    assert abs(a.sum() - b.sum()) < 1e-5 * b.sum()  # measured 1e-7: float32 sums of ~256 pixels
     assert np.abs(a - b).mean() < 0.01 * b.max()
     # emission-absorption from the store (spline integrator; tiny image, it is the slow one)
     colour = wvol.render(opened, camera="persp dir=1,1,0.5", size=(9, 9), method="spline")
