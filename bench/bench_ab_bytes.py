@@ -6,8 +6,8 @@ For a change to the coded form (say mode 4's packed tables, docs/wvc-format.md) 
 is the build before it: `--base` and `--new` are two `wvol` binaries. Each compresses the same
 volumes (made once by `--new`'s `wvol synth`: the noisy skull, Shepp-Logan, the turbulence
 field) at 40, 50 and 60 dB with the default options and with bench_wvc2.py's (db2, 5 levels),
-one thread; per case the bytes of both files, whether their decoded volumes are identical
-(`cmp`), and each build decoding its own file (`wvol decompress`, one thread, process CPU
+one thread; per case the bytes of both files, whether the files and their decoded volumes are
+identical (`cmp`), and each build decoding its own file (`wvol decompress`, one thread, process CPU
 seconds, the least of --rounds alternated runs: on a shared VM the same binary's runs differ by
 up to 1.5x with what ran before, so only the least is compared).
 
@@ -76,6 +76,7 @@ def main():
                             dec[k] = min(dec[k], run_cpu([b, "decompress", f[k], "-o", d[k]]))
                     row = {"volume": vol, "config": cname, "psnr": db, "bytes_base": f["base"].stat().st_size,
                            "bytes_new": f["new"].stat().st_size, "decoded_identical": same,
+                           "files_identical": filecmp.cmp(f["base"], f["new"], shallow=False),
                            "decompress_cpu_s_base": dec["base"], "decompress_cpu_s_new": dec["new"]}
                     row["bytes_ratio"] = row["bytes_new"] / row["bytes_base"]
                     rows.append(row)

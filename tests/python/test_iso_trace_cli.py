@@ -3,7 +3,9 @@
 channel, PNG), an empty image with a note for an iso-value outside the range, bad output refused."""
 import json
 
-from test_render import N, gaussian_raw, png_size
+import numpy as np
+
+from test_render import N, gaussian_raw, png_size, read_exr_rgba
 
 import pytest
 
@@ -26,6 +28,16 @@ def exr_channels(path):
     return names
 
 
+def depth_where_hit(path, info, w, h):
+    """Per row the channels A, B, G, R, Z: a depth where a ray hit (positive: in front of the
+    eye of a perspective camera), none (Inf) elsewhere, and full alpha exactly there."""
+    px = read_exr_rgba(path).reshape(h, 5, w)
+    z, alpha = px[:, 4, :], px[:, 0, :]
+    hit = np.isfinite(z)
+    assert hit.sum() == info["hits"] and (z[hit] > 0).all()
+    assert (alpha[hit] == 1).all() and (alpha[~hit] == 0).all()
+
+
 def test_raytrace_exr_has_depth(wvol, vol, tmp_path):
     out = tmp_path / "s.exr"
     r = wvol("iso", vol, "--dims", f"{N}x{N}x{N}", "--iso", "0.5", "--method", "raytrace", "--keep", "20%",
@@ -35,6 +47,7 @@ def test_raytrace_exr_has_depth(wvol, vol, tmp_path):
     assert info["method"] == "raytrace" and info["rays"] == 24 * 20
     assert 0 < info["hits"] < 24 * 20 and info["grazes"] == 0 and info["empty"] == 0
     assert sorted(exr_channels(out)) == ["A", "B", "G", "R", "Z"]
+    depth_where_hit(out, info, 24, 20)
 
 
 def test_raytrace_png_and_text_report(wvol, vol, tmp_path):
@@ -90,6 +103,7 @@ def test_cast_exr_has_depth(wvol, vol, tmp_path, store):
     assert info["rays"] == 24 * 20 and 0 < info["hits"] < 24 * 20 and info["empty"] == 0
     assert 0 < info["bricks_built"] <= info["bricks_total"] and info["brick"] == 8
     assert sorted(exr_channels(out)) == ["A", "B", "G", "R", "Z"]
+    depth_where_hit(out, info, 24, 20)
 
 
 def test_cast_empty_and_hybrid_cast(wvol, vol, tmp_path):

@@ -135,13 +135,13 @@ def test_python_lod(skull):
     # origin, a wrong scale) would be off by tens of percent
     rng = float(full[..., 0].max() - full[..., 0].min())
     assert rng > 0 and np.abs(img[..., 0] - full[..., 0]).mean() < 0.02 * rng
-    with pytest.raises(Exception, match="0..3"):
+    with pytest.raises(ValueError, match="level of detail 4 outside 0..3"):
         wv.render(s, lod_level=4, **kw)
     # marching cubes at a level: the store's and the dense volume's coarse grids
     verts, faces, normals, ist = wv.isosurface(s, 400.0, level=1, return_stats=True)
     assert ist["level"]["dims"] == (32, 32, 32) and len(faces) > 0
     assert ist["level"]["spacing"] == pytest.approx((2.0, 2.0, 2.0))
-    with pytest.raises(Exception):
+    with pytest.raises(ValueError, match="level 4 outside 0..3"):
         wv.isosurface(s, 400.0, level=4)
     with pytest.raises(ValueError):
         wv.isosurface(v, 400.0, level=-1)

@@ -61,14 +61,14 @@ def test_files_errors(vol, tmp_path):
     s.save(p)
     data = bytearray(p.read_bytes())
     (tmp_path / "trunc.wvc").write_bytes(data[: len(data) // 2])
-    with pytest.raises(OSError):
+    with pytest.raises(OSError, match="trunc.wvc: .wvc "):
         wvol.open(tmp_path / "trunc.wvc")
     data[-5] ^= 0xFF                                             # payload bit flip: CRC mismatch
     (tmp_path / "flip.wvc").write_bytes(data)
-    with pytest.raises(OSError):
+    with pytest.raises(OSError, match="flip.wvc: .wvc chunk .*checksum mismatch"):
         wvol.open(tmp_path / "flip.wvc")
     (tmp_path / "junk.wvc").write_bytes(b"not a wvc file at all" * 20)
-    with pytest.raises(OSError):
+    with pytest.raises(OSError, match=r"junk.wvc: not a .wvc file \(wrong magic bytes\)"):
         wvol.wvc_info(tmp_path / "junk.wvc")
     for kw in (dict(step=-1.0), dict(step=float("nan")), dict(quant_share=0)):
         with pytest.raises(ValueError):

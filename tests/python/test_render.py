@@ -6,6 +6,8 @@ import math
 import struct
 import zlib
 
+import numpy as np
+
 import pytest
 
 N = 16
@@ -49,14 +51,22 @@ def test_reference_png_and_exr(wvol, vol, tmp_path):
 
 
 def test_transfer_function_file(wvol, vol, tmp_path):
-    tf = tmp_path / "tf.txt"
-    tf.write_text("units diagonal\n0 0 0 1 0\n1 1 1 0 10\n")
-    r = wvol("render", vol, "--dims", f"{N}x{N}x{N}", "-o", tmp_path / "t.png", "--size", "8x8", "--tf", tf)
-    assert r.returncode == 0, r.stderr
-    tfj = tmp_path / "tf.json"
-    tfj.write_text('{"units": "world", "points": [[0, 0,0,0, 0], [1, 1,1,1, 0.5]]}')
-    r = wvol("render", vol, "--dims", f"{N}x{N}x{N}", "-o", tmp_path / "t.png", "--size", "8x8", "--tf", tfj)
-    assert r.returncode == 0, r.stderr
+    """A TF file is read and applied: the same points as text and as JSON give the same image, and
+    swapping its red and blue columns swaps the image's red and blue planes (alpha unchanged)."""
+    files = {"tf.txt": "units diagonal\n0 0 0 1 0\n1 1 1 0 10\n",
+             "swap.txt": "units diagonal\n0 1 0 0 0\n1 0 1 1 10\n",
+             "tf.json": '{"units": "diagonal", "points": [[0, 0,0,1, 0], [1, 1,1,0, 10]]}'}
+    img = {}
+    for name, text in files.items():
+        (tmp_path / name).write_text(text)
+        r = wvol("render", vol, "--dims", f"{N}x{N}x{N}", "-o", tmp_path / (name + ".exr"), "--size", "8x8",
+                 "--tf", tmp_path / name)
+        assert r.returncode == 0, r.stderr
+        img[name] = read_exr_rgba(tmp_path / (name + ".exr")).reshape(8, 4, 8)  # per row A, B, G, R
+    a, s = img["tf.txt"], img["swap.txt"]
+    assert a[:, 0].max() > 0.1 and a[:, 3].max() > 0  # seen, with some red
+    assert np.array_equal(img["tf.json"], a)
+    assert np.array_equal(s[:, 0], a[:, 0]) and np.array_equal(s[:, 1], a[:, 3]) and np.array_equal(s[:, 3], a[:, 1])
 
 
 @pytest.mark.parametrize("args, code, words", [
