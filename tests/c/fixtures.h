@@ -8,6 +8,7 @@
 #include <stdint.h>
 #include <stdio.h>
 
+#include "check.h"
 #include "wvol/compress.h"
 #include "wvol/store.h"
 #include "wvol/volume.h"
@@ -85,7 +86,7 @@ static inline int fixture_compress(wvol_compressed *out, const wvol_volume *v, c
         p.select.fraction = keep;
     }
     if (wvol_compress(out, v, &p, &err) == WVOL_OK) return 0;
-    fprintf(stderr, "compress: %s\n", err.message);
+    CHECK(0, "fixture compress (%s, %d levels, keep %g): %s", filter, levels, keep, err.message); /* not silent */
     return -1;
 }
 

@@ -54,6 +54,7 @@ static void test_two_gratings(void)
     CHECK(wvol_som_train(&som, f, &sp, &err) == WVOL_OK, "som: %s", err.message);
     CHECK(wvol_som_classify(lab, NULL, som, f, &err) == WVOL_OK, "classify: %s", err.message);
     CHECK(wvol_segmentation_score(&score, lab, truth, n, n, 1, 8, &err) == WVOL_OK, "score");
+    CHECK(score.interior > 0, "interior pixels to score");
     CHECK(score.error_interior == 0.0, "two gratings split cleanly away from the boundary: %g",
           score.error_interior);
     wvol_som_destroy(som);
@@ -77,11 +78,11 @@ static void test_determinism(void)
     p.dims[2] = 1;
     CHECK(wvol_synth_textures(&v, &labels, &p, &err) == WVOL_OK, "textures: %s", err.message);
     CHECK(wvol_features_compute(&f, v, fixture_filter("haar"), NULL, &err) == WVOL_OK, "features: %s", err.message);
-    wvol_features_pca(f, 1.0, NULL, &err);
+    CHECK(f && wvol_features_pca(f, 1.0, NULL, &err) == WVOL_OK, "pca: %s", err.message);
     wvol_som_params_default(&sp);
     sp.iterations = 2000;
-    wvol_som_train(&a, f, &sp, &err);
-    wvol_som_train(&b, f, &sp, &err);
+    CHECK(f && wvol_som_train(&a, f, &sp, &err) == WVOL_OK, "som a: %s", err.message);
+    CHECK(f && wvol_som_train(&b, f, &sp, &err) == WVOL_OK, "som b: %s", err.message);
     CHECK(a && b && memcmp(a->weights, b->weights, (size_t)a->neurons * a->features * sizeof(float)) == 0,
           "same seed, same weights");
     wvol_som_destroy(b);
@@ -119,12 +120,14 @@ static void test_gratings_mosaic(void)
     for (size_t i = 0; labels && i < n * n; i++) truth[i] = (int32_t)labels->data[i];
     wvol_feature_params_default(&fp);
     fp.levels = 3;
-    wvol_features_compute(&f, v, fixture_filter("db2"), &fp, &err);
-    wvol_features_pca(f, 1.0, NULL, &err);
+    CHECK(wvol_features_compute(&f, v, fixture_filter("db2"), &fp, &err) == WVOL_OK, "features: %s", err.message);
+    CHECK(f && wvol_features_pca(f, 1.0, NULL, &err) == WVOL_OK, "pca: %s", err.message);
     wvol_som_params_default(&sp);
-    wvol_som_train(&som, f, &sp, &err);
+    CHECK(f && wvol_som_train(&som, f, &sp, &err) == WVOL_OK, "som: %s", err.message);
     CHECK(som && wvol_som_classify(lab, NULL, som, f, &err) == WVOL_OK, "classify");
-    wvol_segmentation_score(&score, lab, truth, n, n, 1, 8, &err);
+    memset(&score, 0, sizeof score);
+    CHECK(wvol_segmentation_score(&score, lab, truth, n, n, 1, 8, &err) == WVOL_OK, "score: %s", err.message);
+    CHECK(score.interior > 0, "interior pixels to score");
     printf("gratings mosaic 128^2 db2 M=3: error %.3f overall, %.3f interior (%zu px)\n", score.error_all,
            score.error_interior, score.interior);
     CHECK(score.error_interior < WVOL_TEST_MOSAIC_BOUND, "interior error %.4f", score.error_interior);

@@ -117,6 +117,7 @@ static int image_equal(const wvol_store *s, double iso, int width, int height, d
     }
     printf("  %s, %dx%d zoom %g: %d hits, %d differ, depth within %.2g voxels; undecided finest cells %zu -> %zu\n",
            what, width, height, zoom, hits, differ, worst, st0.cells_undecided, st1.cells_undecided);
+    CHECK(hits > 0, "%s: the image hits the surface", what);
     CHECK(differ == 0, "%s: %d pixels differ in hit with the tensor ranges", what, differ);
     CHECK(worst <= 2e-3, "%s: depth differs by %g voxels with the tensor ranges", what, worst);
     wvol_image_destroy(img);

@@ -194,13 +194,15 @@ static void preintegrated_render_beats_the_step(void)
         /* refused outside absorption mode, with a colour volume, by the spline method */
         p.preintegrate = 1;
         p.mode = WVOL_RENDER_MODE_XRAY;
-        CHECK(wvol_render_reference(img, v, &cam, &tf, &p, NULL, &err) == WVOL_ERR_ARG, "X-ray took preintegrate");
+        CHECK(wvol_render_reference(img, v, &cam, &tf, &p, NULL, &err) == WVOL_ERR_ARG &&
+                  strstr(err.message, "needs mode absorption"), "X-ray took preintegrate: %s", err.message);
         p.mode = WVOL_RENDER_MODE_ABSORPTION_LINEAR;
-        CHECK(wvol_render_reference(img, v, &cam, &tf, &p, NULL, &err) == WVOL_ERR_ARG,
-              "absorption-linear took preintegrate");
+        CHECK(wvol_render_reference(img, v, &cam, &tf, &p, NULL, &err) == WVOL_ERR_ARG &&
+                  strstr(err.message, "needs mode absorption"), "absorption-linear took preintegrate: %s", err.message);
         p.mode = WVOL_RENDER_MODE_ABSORPTION;
         p.preintegrate = 2;
-        CHECK(wvol_render_reference(img, v, &cam, &tf, &p, NULL, &err) == WVOL_ERR_ARG, "preintegrate 2 accepted");
+        CHECK(wvol_render_reference(img, v, &cam, &tf, &p, NULL, &err) == WVOL_ERR_ARG &&
+                  strstr(err.message, "preintegrate 2 (0 or 1)"), "preintegrate 2 accepted: %s", err.message);
     }
     wvol_image_destroy(ref);
     wvol_image_destroy(img);

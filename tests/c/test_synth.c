@@ -254,7 +254,8 @@ static void skull_same_anatomy_at_any_resolution(void)
     int s, c;
     wvol_synth_params_default(&p);
     p.dims[0] = p.dims[1] = p.dims[2] = 128;
-    if (wvol_synth_skull(&v, &lab, &p, &err) != WVOL_OK) return;
+    CHECK(wvol_synth_skull(&v, &lab, &p, &err) == WVOL_OK, "skull 128: %s", err.message);
+    if (!v || !lab) return;
     class_fractions(lab, ref);
     wvol_volume_destroy(v);
     wvol_volume_destroy(lab);

@@ -14,18 +14,10 @@
 
 enum { CHUNK = 1 << 16 };
 
-/* The .vtp writer lives in the VTK adapter (io/); this weak stand-in only answers
- * until a build links the adapter's definition, which then takes precedence. */
-wvol_status wvol__vtk_write_mesh(const char *path, const float *xyz, size_t nverts, const unsigned *tris,
-                                 size_t ntris, const float *normals, wvol_error *err);
-__attribute__((weak)) wvol_status wvol__vtk_write_mesh(const char *path, const float *xyz, size_t nverts,
-                                                       const unsigned *tris, size_t ntris,
-                                                       const float *normals, wvol_error *err)
-{
-    (void)xyz, (void)nverts, (void)tris, (void)ntris, (void)normals;
-    return wvol_error_set(err, WVOL_ERR_UNSUPPORTED, "%s: .vtp output is not built (needs the VTK adapter)",
-                          path);
-}
+/* The .vtp writer is the VTK adapter's (io/adapters.h): the library always holds a definition,
+ * the adapter module's forwarder or, in a build without VTK, a refusal (adapters_missing.c). A
+ * weak stand-in here once kept a program that links the static library and writes only meshes
+ * from pulling in the forwarder: its .vtp files were refused. */
 
 static int host_is_le(void)
 {
