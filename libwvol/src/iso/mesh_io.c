@@ -15,9 +15,9 @@
 enum { CHUNK = 1 << 16 };
 
 /* The .vtp writer is the VTK adapter's (io/adapters.h): the library always holds a definition,
- * the adapter module's forwarder or, in a build without VTK, a refusal (adapters_missing.c). A
- * weak stand-in here once kept a program that links the static library and writes only meshes
- * from pulling in the forwarder: its .vtp files were refused. */
+ * the adapter module's forwarder or, in a build without VTK, a refusal (adapters_missing.c).
+ * No weak stand-in here: it would satisfy the reference, and a program that links the static
+ * library and writes only meshes would never link the forwarder in. */
 
 static int host_is_le(void)
 {
