@@ -111,10 +111,20 @@ def test_raw_options_on_every_loading_command(wvol, tmp_path):
         assert r.returncode == 0, r.stderr
         vols.append(json.loads(r.stdout)["enclosed_volume"])
     assert vols[1] > 0 and abs(vols[0] / vols[1] - 0.75) < 1e-5, vols
+    # the same volume as a little-endian NRRD carrying the geometry: the same outputs, byte for byte
+    nrrd = tmp_path / "le.nrrd"
+    assert convert(wvol, raw, nrrd, *opts).returncode == 0
     for cmd, out in (("render", "r.png"), ("segment", "s.raw"), ("transform", "t.raw")):
-        more = ("--size", "16x16") if cmd == "render" else ()
+        more = ("--size", "16x16", "--camera", "persp dir=1,0.5,0.3") if cmd == "render" else ()
         r = wvol(cmd, raw, "-o", tmp_path / out, *more, *opts)
         assert r.returncode == 0, (cmd, r.stderr)
+        r = wvol(cmd, nrrd, "-o", tmp_path / ("n" + out), *more)
+        assert r.returncode == 0, (cmd, r.stderr)
+        assert (tmp_path / out).read_bytes() == (tmp_path / ("n" + out)).read_bytes(), cmd
+    # and the geometry matters: without it the frame is another
+    r = wvol("render", raw, "-o", tmp_path / "u.png", "--size", "16x16", "--camera", "persp dir=1,0.5,0.3",
+             *opts[:5])
+    assert r.returncode == 0 and (tmp_path / "u.png").read_bytes() != (tmp_path / "r.png").read_bytes()
     for cmd in ("info", "compress", "render", "iso", "segment", "transform", "convert"):
         args = [cmd, raw] + (["-o", tmp_path / "x.out"] if cmd not in ("info", "convert") else
                              [tmp_path / "x.nrrd"] if cmd == "convert" else [])

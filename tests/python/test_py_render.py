@@ -147,9 +147,9 @@ def test_preintegrate_and_lowpass_gradient(gauss):
     (dict(method="axis"), ValueError, "X-ray only"),
     (dict(method="splat"), ValueError, "X-ray only"),
     (dict(method="splat", mode="xray", camera="persp dir=1,1,0"), NotImplementedError, "orthographic"),
-    (dict(method="reference-fhat", spline_j=40), ValueError, ""),
+    (dict(method="reference-fhat", spline_j=40), ValueError, "spline_j must be in 0..12"),
     (dict(method="spline", spline_j=-1), ValueError, "spline_j"),
-    (dict(gauss_nodes=0), ValueError, ""),
+    (dict(gauss_nodes=0), ValueError, r"gauss_nodes 0 \(1..10\)"),
     (dict(method="spline", skip_tolerance=1e-3), NotImplementedError, "skip tolerance"),
 ])
 def test_bad_store_arguments(gauss, kw, exc, words):
