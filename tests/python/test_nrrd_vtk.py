@@ -6,7 +6,7 @@ components, a guess of its own, so the x size here is larger than that.)"""
 import numpy as np
 import pytest
 
-vtk_image = pytest.importorskip("vtkmodules.vtkIOImage")
+import vtkmodules.vtkIOImage as vtk_image  # noqa: E402  (python3-vtk9: part of the setup)
 from vtkmodules.util.numpy_support import vtk_to_numpy  # noqa: E402
 
 DIMS = (23, 17, 11)
@@ -49,4 +49,4 @@ def test_vtk_and_wvol_agree_on_a_skull(wvol, tmp_path):
     im, values = read_vtk(out / "skull.nrrd")
     assert im.GetDimensions() == (128, 128, 128)
     assert im.GetSpacing() == pytest.approx((1.875,) * 3)
-    assert values.min() == -1000 and values.max() <= 1800
+    assert values.min() == -1000 and 1700 <= values.max() <= 1800  # air; cortical bone and teeth 1750-1800
