@@ -38,7 +38,7 @@ def test_info_raw_size_mismatch(wvol, tmp_path):
     p.write_bytes(b"\0" * (4 * 4 * 4 * 4 - 1))
     r = wvol("info", p, "--dims", "4x4x4")
     assert r.returncode == 1
-    assert "bytes" in r.stderr
+    assert "file has 255 bytes but 4x4x4 float32 samples need 256" in r.stderr
 
 
 def test_info_overflowing_dims(wvol, tmp_path):

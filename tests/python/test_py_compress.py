@@ -106,37 +106,37 @@ def test_dwt3_hands_over_memory_and_reads_in_place():
     assert np.abs(back - a).max() < 1e-5
 
 
-@pytest.mark.parametrize("kwargs, exc", [
-    (dict(keep=0.1, energy=0.9), ValueError),
-    (dict(keep=1.5), ValueError),
-    (dict(keep=float("nan")), ValueError),
-    (dict(energy=-0.1), ValueError),
-    (dict(keep_count=-3), ValueError),
-    (dict(keep_count=2.5), ValueError),
-    (dict(drop_levels=3), ValueError),
-    (dict(levels=9), ValueError),
-    (dict(wavelet="nope"), ValueError),
-    (dict(roi=[((1, 2), (1, 1, 1))]), ValueError),
-    (dict(roi=[((1, 2, 3), (0, 1, 1))]), ValueError),
-    (dict(roi=5), TypeError),
-    (dict(spacing=(1, -1, 1)), ValueError),
+@pytest.mark.parametrize("kwargs, exc, words", [
+    (dict(keep=0.1, energy=0.9), ValueError, "at most one of keep"),
+    (dict(keep=1.5), ValueError, r"fraction 1.5 is not in \[0, 1\]"),
+    (dict(keep=float("nan")), ValueError, "selection value must be finite"),
+    (dict(energy=-0.1), ValueError, r"energy share -0.1 is not in \[0, 1\]"),
+    (dict(keep_count=-3), ValueError, "keep_count must be >= 0"),
+    (dict(keep_count=2.5), ValueError, "keep_count must be an integer"),
+    (dict(drop_levels=3), ValueError, "drop_levels 3: must be below the levels"),
+    (dict(levels=9), ValueError, "levels 9: a 8x8x8 volume allows 1..3"),
+    (dict(wavelet="nope"), ValueError, "unknown wavelet 'nope'"),
+    (dict(roi=[((1, 2), (1, 1, 1))]), ValueError, "roi center: expected 3 values"),
+    (dict(roi=[((1, 2, 3), (0, 1, 1))]), ValueError, "radius 0 on axis 0 must be > 0"),
+    (dict(roi=5), TypeError, "roi must be a list"),
+    (dict(spacing=(1, -1, 1)), ValueError, r"spacing\[1\] = -1"),
 ])
-def test_compress_refuses_bad_arguments(kwargs, exc):
-    with pytest.raises(exc):
+def test_compress_refuses_bad_arguments(kwargs, exc, words):
+    with pytest.raises(exc, match=words):
         wvol.compress(_blob((8, 8, 8)), **kwargs)
 
 
-@pytest.mark.parametrize("arr, exc", [
-    (np.zeros((0, 4, 4), np.float32), ValueError),
-    (np.zeros(8, np.float32), ValueError),
-    (np.zeros((2, 2, 2, 2), np.float32), ValueError),
-    (np.full((8, 8, 8), np.nan, np.float32), ValueError),
-    (np.zeros((8, 8, 8), complex), TypeError),
-    (np.zeros((8, 8, 8), object), TypeError),
-    ("not an array", TypeError),
+@pytest.mark.parametrize("arr, exc, words", [
+    (np.zeros((0, 4, 4), np.float32), ValueError, "the array is empty"),
+    (np.zeros(8, np.float32), ValueError, "got 1 dimensions"),
+    (np.zeros((2, 2, 2, 2), np.float32), ValueError, "got 4 dimensions"),
+    (np.full((8, 8, 8), np.nan, np.float32), ValueError, r"NaN at voxel \(i=0, j=0, k=0\)"),
+    (np.zeros((8, 8, 8), complex), TypeError, "real numbers"),
+    (np.zeros((8, 8, 8), object), TypeError, "real numbers"),
+    ("not an array", TypeError, "real numbers"),
 ])
-def test_compress_refuses_bad_arrays(arr, exc):
-    with pytest.raises(exc):
+def test_compress_refuses_bad_arrays(arr, exc, words):
+    with pytest.raises(exc, match=words):
         wvol.compress(arr, keep=0.1)
 
 

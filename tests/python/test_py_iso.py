@@ -103,7 +103,7 @@ def test_save_mesh_formats(gauss, tmp_path):
                      ((v, f, n[:-1]), ValueError), ((np.full_like(v, np.nan), f), ValueError)]:
         with pytest.raises(exc):
             wvol.save_mesh(tmp_path / "bad.ply", *bad)
-    with pytest.raises((OSError, NotImplementedError)):
+    with pytest.raises(NotImplementedError, match="unknown mesh format"):
         wvol.save_mesh(tmp_path / "s.xyz", v, f)
-    with pytest.raises(OSError):
+    with pytest.raises(OSError, match="cannot create output file"):
         wvol.save_mesh(tmp_path / "no" / "s.ply", v, f)

@@ -12,16 +12,16 @@ import wvol
 
 GOOD = np.random.default_rng(0).random((8, 8, 8), dtype=np.float32)
 
-BAD_ARRAYS = [
-    (np.zeros((8, 8, 8), complex), TypeError),
-    (np.array([["a", "b"]]), TypeError),
-    (np.zeros((8, 8, 8), object), TypeError),
-    (np.zeros(8, np.float32), ValueError),                 # 1D
-    (np.zeros((2, 2, 2, 2), np.float32), ValueError),      # 4D
-    (np.zeros((0, 8, 8), np.float32), ValueError),         # empty
-    (np.full((8, 8, 8), np.nan, np.float32), ValueError),  # NaN
-    (np.full((8, 8, 8), np.inf), ValueError),              # Inf (float64)
-    (None, TypeError),
+BAD_ARRAYS = [  # (array, exception, what its message says)
+    (np.zeros((8, 8, 8), complex), TypeError, "expected an array of real numbers"),
+    (np.array([["a", "b"]]), TypeError, "expected an array of real numbers"),
+    (np.zeros((8, 8, 8), object), TypeError, "expected an array of real numbers"),
+    (np.zeros(8, np.float32), ValueError, "got 1 dimensions"),
+    (np.zeros((2, 2, 2, 2), np.float32), ValueError, "got 4 dimensions"),
+    (np.zeros((0, 8, 8), np.float32), ValueError, "the array is empty"),
+    (np.full((8, 8, 8), np.nan, np.float32), ValueError, r"NaN at voxel \(i=0, j=0, k=0\)"),
+    (np.full((8, 8, 8), np.inf), ValueError, r"Inf at voxel \(i=0, j=0, k=0\)"),  # float64
+    (None, TypeError, "expected an array of real numbers"),
 ]
 
 ENTRY_POINTS = {
@@ -37,9 +37,9 @@ ENTRY_POINTS = {
 
 
 @pytest.mark.parametrize("name", sorted(ENTRY_POINTS))
-@pytest.mark.parametrize("arr, exc", BAD_ARRAYS, ids=[f"bad{i}" for i in range(len(BAD_ARRAYS))])
-def test_entry_points_refuse_bad_arrays(name, arr, exc, tmp_path):
-    with pytest.raises(exc):
+@pytest.mark.parametrize("arr, exc, words", BAD_ARRAYS, ids=[f"bad{i}" for i in range(len(BAD_ARRAYS))])
+def test_entry_points_refuse_bad_arrays(name, arr, exc, words, tmp_path):
+    with pytest.raises(exc, match=words):
         ENTRY_POINTS[name](arr, tmp_path)
 
 

@@ -132,15 +132,17 @@ def test_cli_refuses_bad_input(wvol, tmp_path):
     assert proc.returncode == 1 and "i=3, j=2, k=1" in proc.stderr
     assert not (tmp_path / "c.raw").exists()
     np.ones((4, 4, 4), np.float32).tofile(tmp_path / "ok.raw")
-    for args, code in [(("--levels", "3"), 2), (("--levels", "0"), 2), (("--wavelet", "db42"), 2),
-                       (("--pad", "mirror"), 2)]:
+    for args, words in [(("--levels", "3"), "--levels 3: a 4 x 4 x 4 volume allows 1..2"),
+                        (("--levels", "0"), "--levels '0': expected an integer from 1 to 30"),
+                        (("--wavelet", "db42"), "unknown wavelet 'db42'"),
+                        (("--pad", "mirror"), "--pad 'mirror': expected edge, zero or periodic")]:
         proc = wvol("transform", tmp_path / "ok.raw", "--dims", "4x4x4", "-o", tmp_path / "c.raw", *args)
-        assert proc.returncode == code, (args, proc.stderr)
-        assert proc.stderr.startswith("wvol transform: ")
+        assert proc.returncode == 2, (args, proc.stderr)
+        assert proc.stderr.startswith("wvol transform: ") and words in proc.stderr, proc.stderr
     wvol("transform", tmp_path / "ok.raw", "--dims", "4x4x4", "-o", tmp_path / "c.raw", check=True)
     with open(tmp_path / "c.raw", "ab") as fp:       # a truncated / extended coefficient file
         fp.write(b"\0\0\0\0")
     proc = wvol("inverse", tmp_path / "c.raw", "-o", tmp_path / "r.raw")
-    assert proc.returncode == 1 and "bytes" in proc.stderr
+    assert proc.returncode == 1 and "260 bytes, the sidecar says 64 float32 values" in proc.stderr
     proc = wvol("inverse", tmp_path / "missing.raw", "-o", tmp_path / "r.raw")
-    assert proc.returncode == 1 and "sidecar" in proc.stderr
+    assert proc.returncode == 1 and "cannot open the sidecar of" in proc.stderr
