@@ -44,6 +44,7 @@ static double noisy(const wvol_volume *v, size_t i, size_t j, size_t k, const vo
 }
 
 static double worst_rel; /* largest difference / S measured */
+static int compared, added; /* rays whose builds were compared with functions on them; and the add path */
 
 /* Largest |a - b| over n coefficients. */
 static double maxdiff(const double *a, const double *b, size_t n)
@@ -88,7 +89,7 @@ static void one_ray(const wvol__spline_geom *g, wvol__spline_ws *ref, wvol__spli
     CHECK(fac->lev[1].E == E, "%s: merged pieces", what);
     if (fac->lev[1].E == E) diff = fmax(diff, maxdiff(ref->macc, fac->macc, E * NC));
     CHECK(diff <= TOL_REL * S, "%s: %zu functions, %zu pieces: difference %.3g, S %.3g", what, n, E, diff, S);
-    if (S > 0) worst_rel = fmax(worst_rel, diff / S);
+    if (S > 0) worst_rel = fmax(worst_rel, diff / S), compared++;
     if (n < 2 || !E) return;
     /* the small functions' path: a build from the first half, the rest on a sub-range */
     copy = malloc(n * sizeof *copy);
@@ -105,7 +106,7 @@ static void one_ray(const wvol__spline_geom *g, wvol__spline_ws *ref, wvol__spli
     if (ref->lev[1].E == E && fac->lev[1].E == E) {
         diff = maxdiff(ref->macc, fac->macc, E * NC);
         CHECK(diff <= TOL_REL * S, "%s: add on [%zu, %zu) of %zu: difference %.3g, S %.3g", what, elo, ehi, E, diff, S);
-        if (S > 0) worst_rel = fmax(worst_rel, diff / S);
+        if (S > 0) worst_rel = fmax(worst_rel, diff / S), added++;
     }
     free(copy);
 }
@@ -113,6 +114,7 @@ static void one_ray(const wvol__spline_geom *g, wvol__spline_ws *ref, wvol__spli
 static void family(const char *filter, int levels, size_t nx, size_t ny, size_t nz, double keep, int nrays, double minlen,
                    double maxlen)
 {
+    const int compared0 = compared, added0 = added;
     wvol_volume *v = fixture_volume(nx, ny, nz, noisy, NULL);
     wvol_store *s = v ? fixture_store(v, filter, levels, keep, 4) : NULL;
     wvol__spline_geom g;
@@ -148,6 +150,9 @@ static void family(const char *filter, int levels, size_t nx, size_t ny, size_t 
         snprintf(what, sizeof what, "%s L%d keep %g ray %d", filter, levels, keep, r);
         one_ray(&g, &ref, &fac, o, d, ta, tb, what);
     }
+    /* random rays can miss every kept function: at least one of each family's must meet some */
+    CHECK(compared > compared0 && added > added0, "%s L%d keep %g: no ray compared (%d) or added (%d)", filter, levels,
+          keep, compared - compared0, added - added0);
     wvol__spline_ws_free(&ref);
     wvol__spline_ws_free(&fac);
     wvol_store_destroy(s);

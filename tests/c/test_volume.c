@@ -24,7 +24,8 @@ static void test_create_and_overflow(void)
     v = NULL;
     CHECK(wvol_volume_create(&v, SIZE_MAX / 2, 4, 4, &err) == WVOL_ERR_DIMS, "overflow refused");
     CHECK(v == NULL && strstr(err.message, "overflow") != NULL, "message names overflow: %s", err.message);
-    CHECK(wvol_volume_create(&v, 0, 4, 4, &err) == WVOL_ERR_DIMS, "zero dim refused");
+    CHECK(wvol_volume_create(&v, 0, 4, 4, &err) == WVOL_ERR_DIMS && strstr(err.message, "every dimension must be at least 1"),
+          "zero dim refused: %s", err.message);
     wvol_volume_destroy(NULL);
 }
 

@@ -60,7 +60,9 @@ def test_energy_between_facing_surfaces_and_reflection():
     d = T.scene(levels=2, quadrature="hammersley", samples=64)
     src, inc, out = (np.array(d[k]) for k in ("power_window", "power_floor_in", "power_floor_out"))
     assert np.all(inc > 0) and np.all(inc <= src)      # what misses the floor is lost, nothing is made
-    assert np.all(out > 0) and np.all(out <= 0.76 * inc * 1.02)   # tiles reflect at most kd + ks = 0.75
+    # tiles reflect at most kd + ks = 0.75 of what they receive (measured 0.68); 1% for the
+    # reflection's quadrature (64 Hammersley directions over the lobe)
+    assert np.all(out > 0) and np.all(out <= 0.75 * inc * 1.01)
     assert np.all(np.isfinite(d["incident"])) and np.all(np.isfinite(d["reflected"]))
 
 
