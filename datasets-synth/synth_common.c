@@ -38,8 +38,8 @@ wvol_status wvol__synth_geometry(synth_grid *g, const wvol_synth_params *p, cons
         if (p->spacing[a] > 0) given++;
     }
     WVOL_RETURN_IF(given != 0 && given != 3, err, WVOL_ERR_ARG,
-                   "synth %s: spacing (%g, %g, %g): give all three or none", kind, p->spacing[0],
-                   p->spacing[1], p->spacing[2]);
+                   "synth %s: spacing (%g, %g, %g): give three positive values, or none (0: the default)", kind,
+                   p->spacing[0], p->spacing[1], p->spacing[2]);
     memset(g, 0, sizeof *g);
     g->nx = p->dims[0];
     g->ny = p->dims[1];

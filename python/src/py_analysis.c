@@ -85,7 +85,7 @@ static PyObject *py_segment(PyObject *self, PyObject *args, PyObject *kw)
         sp.seed = (uint64_t)x;
     }
     if (!(variance > 0 && variance <= 1))
-        return PyErr_Format(PyExc_ValueError, "variance must be in (0, 1], got %g", variance);
+        return wvolpy_value_error("variance must be in (0, 1], got %g", variance);
     if (wvol_filter_get(&f, name, &err) != WVOL_OK) return wvolpy_raise(&err);
     if (wvolpy_as_volume(arr_obj, &v, &holder, 1) < 0) return NULL;
     n = wvol_volume_count(&v);
@@ -179,7 +179,7 @@ static PyObject *py_features(PyObject *self, PyObject *args, PyObject *kw)
         variance = PyFloat_AsDouble(var_obj);
         if (PyErr_Occurred()) return NULL;
         if (!(variance > 0 && variance <= 1))
-            return PyErr_Format(PyExc_ValueError, "variance must be in (0, 1], got %g", variance);
+            return wvolpy_value_error("variance must be in (0, 1], got %g", variance);
     }
     wvol_feature_params_default(&fp);
     fp.levels = levels;

@@ -256,12 +256,12 @@ static PyObject *store_save(PyObject *self, PyObject *args, PyObject *kw)
         p.quant.step = PyFloat_AsDouble(step_obj);
         if (PyErr_Occurred()) return NULL;
         if (!(p.quant.step > 0) || !isfinite(p.quant.step))
-            return PyErr_Format(PyExc_ValueError, "step must be finite and > 0, got %g", p.quant.step);
+            return wvolpy_value_error("step must be finite and > 0, got %g", p.quant.step);
     } else if (share_obj != Py_None) {
         p.quant.share = PyFloat_AsDouble(share_obj);
         if (PyErr_Occurred()) return NULL;
         if (!(p.quant.share > 0 && p.quant.share <= 1))
-            return PyErr_Format(PyExc_ValueError, "quant_share must be in (0, 1], got %g", p.quant.share);
+            return wvolpy_value_error("quant_share must be in (0, 1], got %g", p.quant.share);
     }
     if (!PyUnicode_FSConverter(path_obj, &bytes)) return NULL;
     Py_BEGIN_ALLOW_THREADS

@@ -1,6 +1,8 @@
 /* SPDX-License-Identifier: MIT */
 #include "pyutil.h"
 
+#include <stdarg.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -323,4 +325,15 @@ int wvolpy_parse_levels(PyObject *obj, int *levels)
     }
     *levels = (int)l;
     return 0;
+}
+
+PyObject *wvolpy_value_error(const char *fmt, ...)
+{
+    char msg[512];
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(msg, sizeof msg, fmt, ap);
+    va_end(ap);
+    PyErr_SetString(PyExc_ValueError, msg);
+    return NULL;
 }

@@ -85,4 +85,7 @@ void wvolpy_buffer_free(wvolpy_buffer *b); /* an empty b is fine */
 /* Parses an optional 3-sequence of floats (x, y, z order); returns 0 or -1 with exception. */
 int wvolpy_triple(PyObject *obj, double out[3], const char *what);
 
+/* Sets a ValueError formatted as printf does (PyErr_Format knows no %g) and returns NULL. */
+PyObject *wvolpy_value_error(const char *fmt, ...) __attribute__((format(printf, 1, 2)));
+
 #endif

@@ -371,6 +371,8 @@ def segment(vol, wavelet="db2", levels=3, *, smooth=1, include_lowpass=True, var
     (misclassified share overall and away from boundaries of radius ``boundary``, default
     ``2**levels``). Returns a :class:`Segmentation`.
     """
+    if not hasattr(som, "__len__") or len(som) != 3:
+        raise TypeError(f"som must be the lattice's three sides (a, b, c), got {som!r}")
     r = _wvol.segment(_data(vol), wavelet=wavelet, levels=levels, smooth=smooth,
                       include_lowpass=bool(include_lowpass), variance=variance, som=tuple(som),
                       iterations=iterations, seed=seed, truth=truth, train_mask=train_mask,

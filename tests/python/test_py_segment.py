@@ -55,26 +55,27 @@ def test_features_planes_and_pca(mosaic):
     assert wvol.features(mosaic, levels=2, pca=0.5).shape[0] < 8
 
 
-@pytest.mark.parametrize("kwargs, exc", [
-    (dict(levels=0), ValueError),
-    (dict(som=(0, 4, 4)), ValueError),
-    (dict(som=(4, 4)), TypeError),
-    (dict(iterations=0), ValueError),
-    (dict(variance=0.0), ValueError),
-    (dict(wavelet="db99"), ValueError),
-    (dict(truth=np.zeros((1, 8, 8), np.int32)), ValueError),          # wrong shape
-    (dict(truth=np.full((1, 64, 64), -1, np.int32)), ValueError),     # negative class
-    (dict(train_mask=np.ones((1, 64, 64), bool)), ValueError),        # mask without truth
-    (dict(seed=-2), ValueError),
+@pytest.mark.parametrize("kwargs, exc, words", [
+    (dict(levels=0), ValueError, "levels = 0, must be 1..6"),
+    (dict(som=(0, 4, 4)), ValueError, "lattice dimension 0 is 0"),
+    (dict(som=(4, 4)), TypeError, "som must be the lattice's three sides"),
+    (dict(iterations=0), ValueError, "iterations must be >= 1"),
+    (dict(variance=0.0), ValueError, r"variance must be in \(0, 1\], got 0$"),
+    (dict(wavelet="db99"), ValueError, "unknown wavelet 'db99'"),
+    (dict(truth=np.zeros((1, 8, 8), np.int32)), ValueError, "truth must have the volume's shape"),
+    (dict(truth=np.full((1, 64, 64), -1, np.int32)), ValueError, "class -1 at voxel 0"),
+    (dict(train_mask=np.ones((1, 64, 64), bool)), ValueError, "train_mask needs truth"),
+    (dict(seed=-2), ValueError, "seed must be an integer"),
 ])
-def test_segment_refuses_bad_arguments(mosaic, kwargs, exc):
+def test_segment_refuses_bad_arguments(mosaic, kwargs, exc, words):
     kwargs.setdefault("iterations", 100)
-    with pytest.raises(exc):
+    with pytest.raises(exc, match=words):
         wvol.segment(mosaic, **kwargs)
 
 
 def test_segment_refuses_bad_arrays():
-    for arr, exc in [(np.zeros((0, 8, 8)), ValueError), (np.array([[np.nan] * 8] * 8), ValueError),
-                     (np.zeros((8, 8), complex), TypeError)]:
-        with pytest.raises(exc):
+    for arr, exc, words in [(np.zeros((0, 8, 8)), ValueError, "the array is empty"),
+                            (np.array([[np.nan] * 8] * 8), ValueError, "NaN at voxel"),
+                            (np.zeros((8, 8), complex), TypeError, "real numbers")]:
+        with pytest.raises(exc, match=words):
             wvol.segment(arr, levels=1, iterations=10)

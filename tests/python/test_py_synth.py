@@ -57,17 +57,17 @@ def test_shepp_logan_variants():
     assert wvol.synth.make("shepp-logan", shape=(32, 32, 32)).data.tobytes() == a.data.tobytes()
 
 
-@pytest.mark.parametrize("call, exc", [
-    (lambda: wvol.synth.gaussian(shape=(0, 4, 4)), ValueError),
-    (lambda: wvol.synth.gaussian(shape=(4, 4)), TypeError),
-    (lambda: wvol.synth.gaussian(shape=(4, 4, 4), spacing=(1, 0, 1)), ValueError),
-    (lambda: wvol.synth.gaussian(shape=(4, 4, 4), noise=-1), ValueError),
-    (lambda: wvol.synth.gaussian(shape=(4, 4, 4), noise=float("nan")), ValueError),
-    (lambda: wvol.synth.gaussian(shape=(4, 4, 4), seed=-1), ValueError),
-    (lambda: wvol.synth.blobs(shape=(4, 4, 4), count=1000), ValueError),
-    (lambda: wvol.synth.textures(shape=(4, 16, 16), variant="plaid"), ValueError),
-    (lambda: wvol.synth.make("teapot"), ValueError),
+@pytest.mark.parametrize("call, exc, words", [
+    (lambda: wvol.synth.gaussian(shape=(0, 4, 4)), ValueError, "every dimension must be >= 1"),
+    (lambda: wvol.synth.gaussian(shape=(4, 4)), TypeError, r"shape must be \(nz, ny, nx\)"),
+    (lambda: wvol.synth.gaussian(shape=(4, 4, 4), spacing=(1, 0, 1)), ValueError, "three positive values"),
+    (lambda: wvol.synth.gaussian(shape=(4, 4, 4), noise=-1), ValueError, "noise must be finite and >= 0"),
+    (lambda: wvol.synth.gaussian(shape=(4, 4, 4), noise=float("nan")), ValueError, "noise must be finite"),
+    (lambda: wvol.synth.gaussian(shape=(4, 4, 4), seed=-1), ValueError, "seed must be an integer"),
+    (lambda: wvol.synth.blobs(shape=(4, 4, 4), count=1000), ValueError, "count 1000 must be from 1 to 64"),
+    (lambda: wvol.synth.textures(shape=(4, 16, 16), variant="plaid"), ValueError, "unknown variant 'plaid'"),
+    (lambda: wvol.synth.make("teapot"), ValueError, "unknown synthetic volume 'teapot'"),
 ])
-def test_bad_arguments_raise(call, exc):
-    with pytest.raises(exc):
+def test_bad_arguments_raise(call, exc, words):
+    with pytest.raises(exc, match=words):
         call()

@@ -70,8 +70,10 @@ def test_files_errors(vol, tmp_path):
     (tmp_path / "junk.wvc").write_bytes(b"not a wvc file at all" * 20)
     with pytest.raises(OSError, match=r"junk.wvc: not a .wvc file \(wrong magic bytes\)"):
         wvol.wvc_info(tmp_path / "junk.wvc")
-    for kw in (dict(step=-1.0), dict(step=float("nan")), dict(quant_share=0)):
-        with pytest.raises(ValueError):
+    for kw, words in ((dict(step=-1.0), "step must be finite and > 0, got -1$"),
+                      (dict(step=float("nan")), "step must be finite and > 0, got nan$"),
+                      (dict(quant_share=0), r"quant_share must be in \(0, 1\], got 0$")):
+        with pytest.raises(ValueError, match=words):
             s.save(tmp_path / "y.wvc", **kw)
     with pytest.raises(ValueError):
         wvol.open(p, level=-1)
