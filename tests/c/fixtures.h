@@ -8,7 +8,6 @@
 #include <stdint.h>
 #include <stdio.h>
 
-#include "check.h"
 #include "wvol/compress.h"
 #include "wvol/store.h"
 #include "wvol/volume.h"
@@ -70,7 +69,8 @@ static inline double fixture_shell_blob(const wvol_volume *v, size_t i, size_t j
 
 /* The library's pipeline (wvol_compress) on v: filter, levels, the largest fraction `keep` of
  * the coefficients (all when keep >= 1), splines with 2^J knots per unit (0: the default), the
- * store when `store` is set. 0 on success; on failure the message goes to stderr. */
+ * store when `store` is set. 0 on success; on failure the message goes to stderr (a refusal may
+ * be what a test expects: callers that need the result CHECK it). */
 static inline int fixture_compress(wvol_compressed *out, const wvol_volume *v, const char *filter, int levels,
                                    double keep, int J, int store)
 {
@@ -86,7 +86,7 @@ static inline int fixture_compress(wvol_compressed *out, const wvol_volume *v, c
         p.select.fraction = keep;
     }
     if (wvol_compress(out, v, &p, &err) == WVOL_OK) return 0;
-    CHECK(0, "fixture compress (%s, %d levels, keep %g): %s", filter, levels, keep, err.message); /* not silent */
+    fprintf(stderr, "fixture compress (%s, %d levels, keep %g): %s\n", filter, levels, keep, err.message);
     return -1;
 }
 

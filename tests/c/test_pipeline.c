@@ -103,7 +103,7 @@ static void quantiser_rule(void)
 static void render_resolves_auto(void)
 {
     wvol_volume *v = fixture_volume(24, 24, 16, blob, NULL);
-    wvol_compressed c;
+    wvol_compressed c = {0};
     wvol_render_source vol, st;
     wvol_render_params p;
     wvol_render_stats s;
@@ -112,7 +112,11 @@ static void render_resolves_auto(void)
     wvol_image *a = NULL, *b = NULL;
     wvol_tf tf;
     wvol_error err;
-    if (!v || fixture_compress(&c, v, "db2", 3, 0.2, 0, 1) != 0) return;
+    CHECK(v && fixture_compress(&c, v, "db2", 3, 0.2, 0, 1) == 0, "volume and store");
+    if (!c.store) {
+        wvol_volume_destroy(v);
+        return;
+    }
     wvol_geometry_of_volume(&g, v);
     wvol_camera_parse(&ortho, "+z", &g, 24, 24, NULL);
     wvol_camera_parse(&persp, "persp dir=1,0.7,0.4", &g, 24, 24, NULL);

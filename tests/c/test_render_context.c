@@ -107,6 +107,7 @@ static void frames_equal_one_shot(void)
     const char *cams[3] = {"persp dir=1,0.7,0.4", "ortho dir=0.3,1,-0.5", "ortho dir=0,0,1"};
     const size_t brick_bytes = 10 * 10 * 10 * sizeof(float); /* bricks of 8: 10^3 voxels */
     const size_t budgets[3] = {1000 * brick_bytes, 12 * brick_bytes, 0};
+    CHECK(s != NULL, "store");
     if (!s) goto done;
     wvol_geometry_of_volume(&g, v);
     for (int c = 0; c < 3; c++)
@@ -182,6 +183,7 @@ static void changes_drop_what_depends_on_them(void)
     wvol_image *img = NULL;
     wvol_tf tf;
     wvol_error err;
+    CHECK(s1 && s2, "stores");
     if (!s1 || !s2) goto done;
     wvol_geometry_of_volume(&g, v);
     cam = turned(&g, "persp dir=1,0.7,0.4", 0);
@@ -257,6 +259,7 @@ static void own_tiles_build_new_bricks(void)
     wvol_geometry g;
     wvol_camera cam;
     wvol_error err;
+    CHECK(s != NULL, "store");
     if (!s) goto done;
     wvol_geometry_of_volume(&g, v);
     wvol_render_params_default(&p);
