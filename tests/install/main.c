@@ -1,6 +1,8 @@
 /* SPDX-License-Identifier: MIT
  * Uses an installed libwvol from outside the tree: the version, a db2 transform and
- * its inverse, and the optional parts (missing ones must answer WVOL_ERR_UNSUPPORTED). */
+ * its inverse, and the optional parts (missing ones must answer WVOL_ERR_UNSUPPORTED). Like
+ * many users' programs, it loads no volume file: a .vtp mesh must still reach the VTK adapter
+ * (with the static library, nothing else here links the adapter module's forwarders in). */
 #include <math.h>
 #include <stdio.h>
 #include <string.h>
@@ -39,6 +41,27 @@ int main(void)
     }
     for (i = 0; i < n; i++) maxerr = fmax(maxerr, fabs((double)back->data[i] - (double)v->data[i]));
     EXPECT(maxerr < 1e-4, "db2 round trip error %g", maxerr);
+
+    {
+        /* a mesh of the test volume's level set, written as .vtp */
+        wvol_mesh *m = NULL;
+        const char *path = "wvol_consumer_mesh.vtp";
+        wvol_status s = wvol_iso_extract(&m, v, 2.0, NULL, NULL, &err);
+        EXPECT(s == WVOL_OK && m && m->ntris > 0, "marching cubes: %s", err.message);
+        if (m) {
+            s = wvol_mesh_save(m, path, &err);
+            if (wvol_has_feature(WVOL_FEATURE_VTK)) {
+                FILE *fp = fopen(path, "rb");
+                EXPECT(s == WVOL_OK && fp, ".vtp mesh with VTK: %s", err.message);
+                if (fp) fclose(fp);
+            } else {
+                EXPECT(s == WVOL_ERR_UNSUPPORTED && strstr(err.message, "no VTK support"), ".vtp without VTK: %s",
+                       err.message);
+            }
+            remove(path);
+        }
+        wvol_mesh_destroy(m);
+    }
 
     if (!wvol_has_feature(WVOL_FEATURE_PNG)) {
         float px[3] = {0.5f, 0.5f, 0.5f};
