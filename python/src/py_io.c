@@ -1,7 +1,5 @@
 /* SPDX-License-Identifier: MIT */
 /* load / save of volume files. */
-#include <math.h>
-
 #include "pyutil.h"
 #include "methods.h"
 
@@ -43,14 +41,10 @@ static PyObject *py_load(PyObject *self, PyObject *args, PyObject *kw)
     }
     lo.big_endian = big_endian;
     lo.grid_name = grid;
-    /* a raw file's place in the world (the other formats carry their own, as on the command line) */
+    /* a raw file's place in the world (the other formats carry their own, as on the command line);
+     * the file's source refuses a spacing or origin that is not a place */
     if (wvolpy_triple(spacing_obj, lo.spacing, "spacing") < 0 || wvolpy_triple(origin_obj, lo.origin, "origin") < 0)
         goto fail;
-    for (int a = 0; a < 3; a++)
-        if (!(isfinite(lo.spacing[a]) && lo.spacing[a] > 0) || !isfinite(lo.origin[a])) {
-            PyErr_SetString(PyExc_ValueError, "spacing must be positive and finite, origin finite");
-            goto fail;
-        }
     Py_BEGIN_ALLOW_THREADS
     s = wvol_volume_load(&v, PyBytes_AS_STRING(bytes), &lo, &err);
     Py_END_ALLOW_THREADS

@@ -121,6 +121,19 @@ static void file_sources_equal_whole_reads(void)
     if (s) rows_match(s, v, 1, "raw");
     wvol_source_destroy(s);
     s = NULL;
+    /* a raw file's geometry from the options: one that is not a place is refused when the source
+     * is made, by the whole reader as by the streamed one */
+    {
+        wvol_volume *w = NULL;
+        lo.spacing[1] = 0;
+        CHECK(wvol_source_open(&s, DIR_ "/c.raw", &lo, &err) == WVOL_ERR_ARG && !s &&
+                  strstr(err.message, "spacing[1] = 0"), "raw source with spacing 0: %s", err.message);
+        lo.spacing[1] = 1;
+        lo.origin[2] = NAN;
+        CHECK(wvol_volume_load(&w, DIR_ "/c.raw", &lo, &err) == WVOL_ERR_ARG && !w && strstr(err.message, "origin[2]"),
+              "raw volume with a NaN origin: %s", err.message);
+        lo.origin[2] = 0;
+    }
     /* a raw file of another sample type converts as the whole reader does */
     {
         unsigned short u[4 * 3 * 2];

@@ -27,9 +27,11 @@ def test_load_raw_places_it_in_the_world(tmp_path):
     assert np.array_equal(v.data, a.astype(np.float32))
     assert v.spacing == (0.5, 0.75, 2.0) and v.origin == (-1.0, 2.0, 3.0)
     assert wvol.load(p, dims=(7, 6, 5), dtype="int16", big_endian=True, spacing=0.25).spacing == (0.25,) * 3
-    for bad in ({"spacing": (1, 0, 1)}, {"spacing": (1, float("nan"), 1)}, {"origin": (0, float("inf"), 0)},
-                {"spacing": (1, 1)}):
-        with pytest.raises(ValueError):
+    for bad, words in (({"spacing": (1, 0, 1)}, r"spacing\[1\] = 0: spacing must be finite and positive"),
+                       ({"spacing": (1, float("nan"), 1)}, r"spacing\[1\] = nan"),
+                       ({"origin": (0, float("inf"), 0)}, r"origin\[1\] = inf: origin must be finite"),
+                       ({"spacing": (1, 1)}, "spacing: expected 3 values")):
+        with pytest.raises(ValueError, match=words):
             wvol.load(p, dims=(7, 6, 5), dtype="int16", **bad)
 
 

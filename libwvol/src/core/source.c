@@ -38,6 +38,10 @@ wvol_status wvol_source_create(wvol_source **out, const size_t dims[3], const do
         return wvol_error_set(err, WVOL_ERR_DIMS, "volume source %s: bad size %zu x %zu x %zu", name ? name : "",
                               dims[0], dims[1], dims[2]);
     }
+    if (wvol__geometry_check(spacing, origin, err) != WVOL_OK) {
+        if (ops->close) ops->close(ctx);
+        return WVOL_ERR_ARG;
+    }
     s = calloc(1, sizeof *s);
     if (!s) {
         if (ops->close) ops->close(ctx);

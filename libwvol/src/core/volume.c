@@ -97,12 +97,9 @@ size_t wvol_volume_count(const wvol_volume *v)
     return v ? v->nx * v->ny * v->nz : 0;
 }
 
-wvol_status wvol_volume_set_geometry(wvol_volume *v, const double spacing[3], const double origin[3],
-                                     wvol_error *err)
+wvol_status wvol__geometry_check(const double spacing[3], const double origin[3], wvol_error *err)
 {
-    int a;
-    WVOL_RETURN_IF(!v, err, WVOL_ERR_ARG, "volume is NULL");
-    for (a = 0; a < 3; a++) {
+    for (int a = 0; a < 3; a++) {
         if (spacing) {
             WVOL_RETURN_IF(!(spacing[a] > 0) || !isfinite(spacing[a]), err, WVOL_ERR_ARG,
                            "spacing[%d] = %g: spacing must be finite and positive", a, spacing[a]);
@@ -112,6 +109,14 @@ wvol_status wvol_volume_set_geometry(wvol_volume *v, const double spacing[3], co
                            "origin[%d] = %g: origin must be finite", a, origin[a]);
         }
     }
+    return WVOL_OK;
+}
+
+wvol_status wvol_volume_set_geometry(wvol_volume *v, const double spacing[3], const double origin[3],
+                                     wvol_error *err)
+{
+    WVOL_RETURN_IF(!v, err, WVOL_ERR_ARG, "volume is NULL");
+    WVOL_FORWARD(wvol__geometry_check(spacing, origin, err));
     if (spacing) memcpy(v->spacing, spacing, sizeof v->spacing);
     if (origin) memcpy(v->origin, origin, sizeof v->origin);
     return WVOL_OK;
