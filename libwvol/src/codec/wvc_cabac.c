@@ -24,6 +24,7 @@
  * so encoder and decoder share every context decision by construction. */
 #include <stdlib.h>
 
+#include "core/clones.h"
 #include "rangecoder.h"
 #include "wvc_internal.h"
 
@@ -127,7 +128,7 @@ static inline uint32_t absq(int32_t v)
  * (a row has gx groups), written to pc[g0..g1) and P[g0..g1). A group's parent is its
  * index clamped to the parent band; rows and columns outside the parent band count as
  * zero (the pointer then aims at the parent row itself and the flag masks it out). */
-static void parent_row(const int32_t *Q, const size_t p[3], const wvc_band *b, size_t gx, size_t g0, size_t g1,
+WVOL__CLONES static void parent_row(const int32_t *Q, const size_t p[3], const wvc_band *b, size_t gx, size_t g0, size_t g1,
                        size_t gj, size_t gk, uint8_t *pc, uint32_t *P)
 {
     const ptrdiff_t sy = (ptrdiff_t)p[0], sz = (ptrdiff_t)(p[0] * p[1]);
@@ -171,7 +172,7 @@ static void parent_row(const int32_t *Q, const size_t p[3], const wvc_band *b, s
 }
 
 /* Encoder: whether each 2x2x2 group of the group row starting at (y, z) holds a non-zero. */
-static void any_row(const int32_t *Q, const size_t p[3], const wvc_band *b, size_t y, size_t z, size_t gx,
+WVOL__CLONES static void any_row(const int32_t *Q, const size_t p[3], const wvc_band *b, size_t y, size_t z, size_t gx,
                     uint8_t *any)
 {
     const size_t ex = b->ext[0];
@@ -460,7 +461,7 @@ int wvol__wvc_cabac_decode(int32_t *Q, const size_t p[3], const wvc_band *b, con
 /* Several bands in one stream with one model that keeps adapting from band to band: a
  * version-2 chunk's bands are small, and one model learns once instead of per band
  * (a fixed prior for the flags instead of 1/2 did not help). */
-int wvol__wvc_cabac_encode_multi(uint8_t **buf, size_t *size, int n, int32_t *const Q[], const size_t *const p[],
+WVOL__CLONES int wvol__wvc_cabac_encode_multi(uint8_t **buf, size_t *size, int n, int32_t *const Q[], const size_t *const p[],
                                  const wvc_band *const b[], int blocks)
 {
     rc_enc e;
