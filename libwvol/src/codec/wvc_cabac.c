@@ -271,16 +271,23 @@ FORCE_INLINE int detail_band(int dec, int blocks, coder *cd, int32_t *Q, const s
     uint32_t *gP = (uint32_t *)(void *)(gstate + ((ngroups + 7) & ~(size_t)7));
     uint8_t *gpc = (uint8_t *)(gP + gx * gy), *gany = gpc + gx * gy;
     uint8_t *bstate = gany + gx, *bany = bstate + bx * by * ((gz + 1) / 2);
+    /* a row of zeros (x from -1 to ex) that stands in for a neighbour row outside the band */
+    int32_t *zr = (int32_t *)(void *)(((uintptr_t)(bany + bx) + 15) & ~(uintptr_t)15) + 1;
     size_t x, y, z;
     /* a group of a zero block is never touched: its state must read zero */
     if (blocks) memset(gstate, 0, ngroups);
+    memset(zr - 1, 0, (ex + 2) * sizeof *zr);
     for (z = 0; z < ez; z++)
         for (y = 0; y < ey; y++) {
             const size_t gk = z >> 1, gj = y >> 1;
             uint8_t *grow = gstate + gx * (gj + gy * gk);
             uint8_t *brow = blocks ? bstate + bx * ((y >> 2) + by * (z >> 2)) : NULL;
             int32_t *row = Q + wvc_index(p, b, 0, y, z);
-            const int hasN = y > 0, hasU = z > 0, first = (y & 1) == 0 && (z & 1) == 0;
+            const int first = (y & 1) == 0 && (z & 1) == 0;
+            /* the neighbour rows N (y - 1), U (z - 1) and U's rows y -+ 1: the zero row where
+             * the band has none */
+            const int32_t *rN = y > 0 ? row - sy : zr, *rU = z > 0 ? row - sz : zr;
+            const int32_t *rUN = z > 0 && y > 0 ? row - sz - sy : zr, *rUS = z > 0 && y + 1 < ey ? row - sz + sy : zr;
             if (blocks && (y & 3) == 0 && (z & 3) == 0) block_row(dec, cd, m, Q, p, b, y >> 2, z >> 2, bx, by, bstate, bany);
             if (dec && y + 2 < ey && (!blocks || next_group(brow, 0, bx) < bx)) {
                 /* the decoder's stores and neighbour loads meet rows of a large array that are
@@ -346,14 +353,14 @@ FORCE_INLINE int detail_band(int dec, int blocks, coder *cd, int32_t *Q, const s
                 /* the neighbours' values (0 outside the band); the significance context needs
                  * only which are non-zero, the magnitudes only for a significant one */
                 vW = x > 0 ? c[-1] : 0;
-                vN = hasN ? c[-sy] : 0;
-                vU = hasU ? c[-sz] : 0;
-                v[0] = hasN && x > 0 ? c[-sy - 1] : 0;
-                v[1] = hasN && x + 1 < ex ? c[-sy + 1] : 0;
-                v[2] = hasU && x > 0 ? c[-sz - 1] : 0;
-                v[3] = hasU && x + 1 < ex ? c[-sz + 1] : 0;
-                v[4] = hasU && y > 0 ? c[-sz - sy] : 0;
-                v[5] = hasU && y + 1 < ey ? c[-sz + sy] : 0;
+                vN = rN[x];
+                vU = rU[x];
+                v[0] = x > 0 ? rN[x - 1] : 0;
+                v[1] = x + 1 < ex ? rN[x + 1] : 0;
+                v[2] = x > 0 ? rU[x - 1] : 0;
+                v[3] = x + 1 < ex ? rU[x + 1] : 0;
+                v[4] = rUN[x];
+                v[5] = rUS[x];
                 {
                     /* the last child of a non-zero group whose others are all zero is non-zero */
                     int last = (x == ex - 1 || (x & 1)) && (y == ey - 1 || (y & 1)) && (z == ez - 1 || (z & 1));
@@ -376,7 +383,7 @@ FORCE_INLINE int detail_band(int dec, int blocks, coder *cd, int32_t *Q, const s
                 mag = code_mag(dec, cd, m, mag_class(2 * (absq(vW) + absq(vN) + absq(vU)) + dsum + 4 * P), mag, 30);
                 STAT_CAT(3);
                 {
-                    rc_ctx *sc = &m->sign[3 * (x > 0 ? sign_of(c[-1]) : 0) + (hasN ? sign_of(c[-sy]) : 0)];
+                    rc_ctx *sc = &m->sign[3 * sign_of(vW) + sign_of(vN)];
                     if (dec) {
                         if (mag == 0 || mag > WVC_QMAX) return -1;
                         *c = code_bit(dec, cd, sc, 0) ? -(int32_t)mag : (int32_t)mag;
@@ -431,14 +438,16 @@ static void model_init(band_model *m)
 }
 
 /* detail_band's scratch: group states, a slab of parent classes and magnitudes, the
- * encoder's group row flags, block states and the encoder's block row flags */
+ * encoder's group row flags, block states, the encoder's block row flags and a row of zeros
+ * (detail_band's zr) */
 static int band_scratch(const wvc_band *b, void **scratch)
 {
     size_t g[3], bl[3];
     for (int a = 0; a < 3; a++) g[a] = (b->ext[a] + 1) / 2, bl[a] = (g[a] + 1) / 2;
     size_t gxy = g[0] * g[1], ng = gxy * g[2];
     size_t n = b->band == 0 ? (size_t)b->count * sizeof(uint16_t)
-                             : ((ng + 7) & ~(size_t)7) + gxy * 5 + g[0] + bl[0] * bl[1] * bl[2] + bl[0];
+                             : ((ng + 7) & ~(size_t)7) + gxy * 5 + g[0] + bl[0] * bl[1] * bl[2] + bl[0] + 16 +
+                                   (b->ext[0] + 2) * sizeof(int32_t);
     *scratch = malloc(n ? n : 1);
     return *scratch ? 0 : -1;
 }
