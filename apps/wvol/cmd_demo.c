@@ -188,7 +188,10 @@ static int stage_render(demo *d)
     if (s == WVOL_OK) s = wvol_image_write_png(img, d->image_path, NULL, 1.0, &err);
     wvol_image_destroy(img);
     img = NULL;
-    if (s != WVOL_OK) return cli_fail_err("demo", &err);
+    if (s != WVOL_OK) {
+        d->image_path[0] = '\0'; /* not written: the cleanup leaves whatever is at that path */
+        return cli_fail_err("demo", &err);
+    }
     if (!d->json)
         printf("render   %s (512 x 512, ct-bone, reference caster, %.2f s)\n", d->image_path, d->render_stats.seconds);
 
@@ -213,7 +216,10 @@ static int stage_render(demo *d)
         s = wvol_image_write_png(img, d->xray_path, NULL, 1.0, &err);
     }
     wvol_image_destroy(img);
-    if (s != WVOL_OK) return cli_fail_err("demo", &err);
+    if (s != WVOL_OK) {
+        d->xray_path[0] = '\0';
+        return cli_fail_err("demo", &err);
+    }
     if (!d->json)
         printf("render   %s (512 x 512, X-ray from the %.0f%% store alone, %s, %.3f s)\n", d->xray_path,
                100.0 * d->keep, wvol_render_method_name(d->xray_stats.method), d->xray_stats.seconds);
@@ -251,6 +257,7 @@ static int stage_compress(demo *d)
     t0 = cli_now();
     if (wvol_compress_encode(&buf, &n, &d->kept, &prm, &wr, &err) != WVOL_OK ||
         wvol_wvc_save(d->wvc_path, buf, n, &err) != WVOL_OK) {
+        d->wvc_path[0] = '\0'; /* not written */
         code = cli_fail_err("demo", &err);
         goto done;
     }
@@ -275,7 +282,7 @@ static int stage_compress(demo *d)
                d->wvc_pred_psnr, d->wvc_rmse, d->wvc_psnr, d->wvc_max);
     }
 done:
-    if (code != CLI_OK) remove(d->wvc_path);
+    if (code != CLI_OK && d->wvc_path[0]) remove(d->wvc_path);
     free(buf);
     wvol_volume_destroy(rec);
     wvol_coeffs_destroy(back);
@@ -398,6 +405,10 @@ int wvol_cmd_demo(int argc, char **argv)
             if (!cli_parse_dims("demo", "size", val, d.dims)) return CLI_USAGE;
             if (!wvol_size_mul3(d.dims[0], d.dims[1], d.dims[2], sizeof(float), &bytes) || bytes > ((size_t)-1 >> 1))
                 return cli_usage("demo", "--size %s: the voxel count overflows the address space", val);
+            /* refused before any stage runs: the transform's levels need the size */
+            if (wvol_dwt_max_levels(d.dims[0], d.dims[1], d.dims[2]) < d.levels)
+                return cli_usage("demo", "--size %s: too small for the demo's %d wavelet levels (at least %d per axis)",
+                                 val, d.levels, 1 << d.levels);
         } else if (!strcmp(o->name, "seed")) {
             if (!parse_seed("demo", val, &d.seed)) return CLI_USAGE;
         }

@@ -141,7 +141,10 @@ int wvol_cmd_radiosity(int argc, char **argv)
     } else if (wvol_radiosity_write_mesh(sol, out, (int)mesh_res, &err) != WVOL_OK) {
         goto fail;
     }
-    if (mesh && wvol_radiosity_write_mesh(sol, mesh, (int)mesh_res, &err) != WVOL_OK) goto fail;
+    if (mesh && wvol_radiosity_write_mesh(sol, mesh, (int)mesh_res, &err) != WVOL_OK) {
+        remove(out); /* written just now: no half of the outputs stays */
+        goto fail;
+    }
     t_out = cli_now() - t_out;
     if (json) {
         cli_json_begin();

@@ -734,9 +734,13 @@ int wvol_cmd_render(int argc, char **argv)
     memset(&lstats, 0, sizeof lstats);
     if (render_repeat(img, &src, &cam, &tf, &a, &a.rp, &lp, &stats, &lstats, &cpu_max, rss, &rt, &err) != WVOL_OK)
         goto fail;
-    if (write_image(img, &a, &err) != WVOL_OK) goto fail;
-    if (write_bound(&a, &in, &cam, &tf, &bstats, &err) != WVOL_OK) goto fail;
+    /* a chunk of a .wvc found damaged while rendering fails the command before any output */
     if ((rc = cli_check_wvc_store("render", &in.store, 0)) != CLI_OK) goto done;
+    if (write_image(img, &a, &err) != WVOL_OK) goto fail;
+    if (write_bound(&a, &in, &cam, &tf, &bstats, &err) != WVOL_OK) {
+        remove(a.out); /* written just now: no half of the outputs stays */
+        goto fail;
+    }
     report(&a, &in, &stats, &lstats, t_prep, cpu_max, rss, &bstats, &rt);
     rc = CLI_OK;
     goto done;

@@ -125,28 +125,31 @@ int wvol_cmd_transport(int argc, char **argv)
             if (q < 0) return cli_usage("transport", "--quadrature: unknown rule '%s'", val);
             tp.quadrature = (wvol_transport_quadrature)q;
         } else if (!strcmp(o->name, "samples")) {
-            if (!cli_parse_long("transport", "--samples", val, 1, 1 << 20, &ns)) return CLI_USAGE;
+            if (!cli_parse_long("transport", "samples", val, 1, 1 << 20, &ns)) return CLI_USAGE;
             tp.samples = (int)ns;
         } else if (!strcmp(o->name, "levels")) {
-            if (!cli_parse_long("transport", "--levels", val, 1, 5, &lv)) return CLI_USAGE;
+            if (!cli_parse_long("transport", "levels", val, 1, 5, &lv)) return CLI_USAGE;
             tp.levels = (int)lv;
         } else if (!strcmp(o->name, "keep")) {
-            if (!cli_parse_fraction("transport", "--keep", val, &keep)) return CLI_USAGE;
+            if (!cli_parse_fraction("transport", "keep", val, &keep)) return CLI_USAGE;
         } else if (!strcmp(o->name, "threads")) {
             long th;
-            if (!cli_parse_long("transport", "--threads", val, 1, 1024, &th)) return CLI_USAGE;
+            if (!cli_parse_long("transport", "threads", val, 1, 1024, &th)) return CLI_USAGE;
             tp.threads = (int)th;
         } else if (!strcmp(o->name, "size")) {
-            if (!cli_parse_size("transport", "--size", val, &fw, &fh)) return CLI_USAGE;
+            if (!cli_parse_size("transport", "size", val, &fw, &fh)) return CLI_USAGE;
         }
     }
     if (!out.dir) return cli_usage("transport", "an output folder is required (-o OUTDIR)");
-    if ((r = cli_make_dirs(out.dir)) != 0)
-        return cli_fail("transport", "cannot create output folder %s: %s", out.dir, strerror(r));
     t0 = cli_now();
+    /* the input first: a window that cannot be read leaves no output folder behind */
     s = window_path ? wvol_transport_window_read_png(&win, window_path, &out.err)
                     : wvol_transport_window_synthetic(&win, 256, &out.err);
     if (s != WVOL_OK) goto fail;
+    if ((r = cli_make_dirs(out.dir)) != 0) {
+        code = cli_fail("transport", "cannot create output folder %s: %s", out.dir, strerror(r));
+        goto done;
+    }
     if (wvol_png_write(out_path(&out, "window.png"), win.width, win.height, 3, win.rgb, &out.err) != WVOL_OK) goto fail;
     if (wvol_transport_scene_run(&res, &sc, &win, &tp, &out.err) != WVOL_OK) goto fail;
     exp_in = exposure_of(res.incident);

@@ -8,6 +8,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
 
 #include "wvol/io.h"
 
@@ -141,6 +142,19 @@ static int get_size3(const char *json, const char *key, size_t out[3])
     return 1;
 }
 
+/* 1 when path is a regular file (links followed); else 0 with errno set, so that fopen is
+ * never asked to open a FIFO (which would wait for a writer) or a device. */
+static int regular(const char *path)
+{
+    struct stat st;
+    if (stat(path, &st) != 0) return 0;
+    if (!S_ISREG(st.st_mode)) {
+        errno = EINVAL;
+        return 0;
+    }
+    return 1;
+}
+
 wvol_status coeffs_file_read(wvol_coeffs **out, const char *raw_path, wvol_error *err)
 {
     char *json_path = coeffs_sidecar_path(raw_path), *json = NULL, name[32], fmt[32];
@@ -153,7 +167,7 @@ wvol_status coeffs_file_read(wvol_coeffs **out, const char *raw_path, wvol_error
     wvol_status st = WVOL_OK;
     *out = NULL;
     if (!json_path) return wvol_error_set(err, WVOL_ERR_NOMEM, "out of memory");
-    fp = fopen(json_path, "rb");
+    fp = regular(json_path) ? fopen(json_path, "rb") : NULL;
     if (!fp) {
         st = wvol_error_set(err, WVOL_ERR_IO, "%s: cannot open the sidecar of %s: %s", json_path, raw_path,
                             strerror(errno));
@@ -200,7 +214,7 @@ wvol_status coeffs_file_read(wvol_coeffs **out, const char *raw_path, wvol_error
         memcpy(c->origin, origin, sizeof origin);
     }
     n = c->px * c->py * c->pz;
-    fp = fopen(raw_path, "rb");
+    fp = regular(raw_path) ? fopen(raw_path, "rb") : NULL;
     if (!fp) {
         st = wvol_error_set(err, WVOL_ERR_IO, "%s: cannot open: %s", raw_path, strerror(errno));
         goto done;

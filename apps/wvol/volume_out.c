@@ -28,7 +28,11 @@ wvol_status volume_out_save(volume_out *f, const wvol_volume *v, const char *pat
     strcpy(f->path, path);
     if (wvol_path_has_ext(path, ".nhdr")) wvol_nrrd_data_path(f->data_path, sizeof f->data_path, path, gzip);
     s = nrrd ? wvol_nrrd_write_gzip(v, path, gzip ? 6 : 0, err) : wvol_volume_save(v, path, err);
-    if (s) return s;
+    if (s) {
+        /* nothing was written (the writers are atomic): a cleanup must not remove what is there */
+        f->path[0] = f->data_path[0] = '\0';
+        return s;
+    }
     f->bytes = size_of(f->path) + (f->data_path[0] ? size_of(f->data_path) : 0);
     return WVOL_OK;
 }

@@ -104,8 +104,8 @@ static PyObject *py_wvc_region(PyObject *self, PyObject *args, PyObject *kw)
     wvol_error err;
     wvol_status s;
     (void)self;
-    if (!PyArg_ParseTupleAndKeywords(args, kw, "O(nnn)(nnn)|iK", kwlist, &path_obj, &lo_in[0], &lo_in[1],
-                                     &lo_in[2], &hi_in[0], &hi_in[1], &hi_in[2], &level, &memory))
+    if (!PyArg_ParseTupleAndKeywords(args, kw, "O(nnn)(nnn)|iO&", kwlist, &path_obj, &lo_in[0], &lo_in[1],
+                                     &lo_in[2], &hi_in[0], &hi_in[1], &hi_in[2], &level, wvolpy_conv_budget, &memory))
         return NULL;
     for (int a = 0; a < 3; a++) {
         if (lo_in[a] < 0 || hi_in[a] < 0) return PyErr_Format(PyExc_ValueError, "region bounds must be >= 0");

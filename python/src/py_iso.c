@@ -318,15 +318,24 @@ static PyObject *py_save_mesh(PyObject *self, PyObject *args, PyObject *kw)
     wvol_status s;
     (void)self;
     if (!PyArg_ParseTupleAndKeywords(args, kw, "OOO|O", kwlist, &path_obj, &vo, &fo, &no)) return NULL;
-    va = (PyArrayObject *)PyArray_FROM_OTF(vo, NPY_FLOAT32, NPY_ARRAY_IN_ARRAY | NPY_ARRAY_FORCECAST);
+    va = wvolpy_real_f32(vo); /* complex, bool, object and strings refused, not cast */
     if (!va) goto done;
     if (PyArray_NDIM(va) != 2 || PyArray_DIM(va, 1) != 3) {
         PyErr_SetString(PyExc_ValueError, "vertices must be an (n, 3) array");
         goto done;
     }
     {
-        PyArrayObject *f64 = (PyArrayObject *)PyArray_FROM_OTF(fo, NPY_INT64, NPY_ARRAY_IN_ARRAY);
+        PyArrayObject *fin = (PyArrayObject *)PyArray_FROM_O(fo), *f64;
         npy_intp nf, nv = PyArray_DIM(va, 0);
+        if (!fin) goto done;
+        if (!PyArray_ISINTEGER(fin)) {
+            PyErr_Format(PyExc_TypeError, "faces must be an array of integer vertex indices, got dtype %S",
+                         (PyObject *)PyArray_DESCR(fin));
+            Py_DECREF(fin);
+            goto done;
+        }
+        f64 = (PyArrayObject *)PyArray_FROM_OTF((PyObject *)fin, NPY_INT64, NPY_ARRAY_IN_ARRAY | NPY_ARRAY_FORCECAST);
+        Py_DECREF(fin);
         if (!f64) goto done;
         if (PyArray_NDIM(f64) != 2 || PyArray_DIM(f64, 1) != 3) {
             Py_DECREF(f64);
@@ -338,9 +347,10 @@ static PyObject *py_save_mesh(PyObject *self, PyObject *args, PyObject *kw)
             const int64_t *f = PyArray_DATA(f64);
             for (npy_intp i = 0; i < 3 * nf; i++)
                 if (f[i] < 0 || f[i] >= nv) {
-                    Py_DECREF(f64);
+                    /* the message reads f[i]: formatted before the array that holds it goes */
                     PyErr_Format(PyExc_ValueError, "faces: index %lld of face %zd is not a vertex (0..%zd)",
                                  (long long)f[i], (Py_ssize_t)(i / 3), (Py_ssize_t)nv - 1);
+                    Py_DECREF(f64);
                     goto done;
                 }
         }
@@ -349,11 +359,19 @@ static PyObject *py_save_mesh(PyObject *self, PyObject *args, PyObject *kw)
         if (!fa) goto done;
     }
     if (no != Py_None) {
-        na = (PyArrayObject *)PyArray_FROM_OTF(no, NPY_FLOAT32, NPY_ARRAY_IN_ARRAY | NPY_ARRAY_FORCECAST);
+        na = wvolpy_real_f32(no);
         if (!na) goto done;
         if (PyArray_NDIM(na) != 2 || PyArray_DIM(na, 1) != 3 || PyArray_DIM(na, 0) != PyArray_DIM(va, 0)) {
             PyErr_SetString(PyExc_ValueError, "normals must be an (n, 3) array, one per vertex");
             goto done;
+        }
+        {
+            const float *q = PyArray_DATA(na);
+            for (npy_intp i = 0; i < 3 * PyArray_DIM(na, 0); i++)
+                if (!isfinite(q[i])) {
+                    PyErr_Format(PyExc_ValueError, "normals: non-finite value at vertex %zd", (Py_ssize_t)(i / 3));
+                    goto done;
+                }
         }
     }
     {

@@ -128,10 +128,24 @@ static PyObject *py_radiosity_point_ff(PyObject *self, PyObject *args)
         return NULL;
     }
     if (patch < 0 || (size_t)patch >= wvol_radiosity_scene_count(s)) {
+        /* the message reads the scene: formatted before it goes */
+        PyErr_Format(PyExc_ValueError, "patch %zd is not a patch of the scene (0..%zd)", patch,
+                     (Py_ssize_t)wvol_radiosity_scene_count(s) - 1);
         wvol_radiosity_scene_destroy(s);
         Py_DECREF(pts);
-        return PyErr_Format(PyExc_ValueError, "patch %zd of %zu", patch, wvol_radiosity_scene_count(s));
+        return NULL;
     }
+    if (!(isfinite(n[0]) && isfinite(n[1]) && isfinite(n[2])) || n[0] * n[0] + n[1] * n[1] + n[2] * n[2] == 0) {
+        wvol_radiosity_scene_destroy(s);
+        Py_DECREF(pts);
+        return wvolpy_value_error("normal (%g, %g, %g) must be finite and non-zero", n[0], n[1], n[2]);
+    }
+    for (npy_intp i = 0; i < 3 * PyArray_DIM(pts, 0); i++)
+        if (!isfinite(((const double *)PyArray_DATA(pts))[i])) {
+            wvol_radiosity_scene_destroy(s);
+            Py_DECREF(pts);
+            return wvolpy_value_error("points: non-finite coordinate at point %zd", (Py_ssize_t)(i / 3));
+        }
     m = PyArray_DIM(pts, 0);
     out = new_f64(1, &m);
     if (out)

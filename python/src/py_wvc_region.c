@@ -30,7 +30,7 @@ static PyObject *py_wvc_file_open(PyObject *self, PyObject *args, PyObject *kw)
     wvol_error err;
     wvol_status s;
     (void)self;
-    if (!PyArg_ParseTupleAndKeywords(args, kw, "O&|K", kwlist, PyUnicode_FSConverter, &bytes, &budget)) return NULL;
+    if (!PyArg_ParseTupleAndKeywords(args, kw, "O&|O&", kwlist, PyUnicode_FSConverter, &bytes, wvolpy_conv_budget, &budget)) return NULL;
     Py_BEGIN_ALLOW_THREADS
     s = wvol_wvc_open(&f, PyBytes_AS_STRING(bytes), (size_t)budget, &err);
     Py_END_ALLOW_THREADS
@@ -168,8 +168,8 @@ static PyObject *py_wvc_file_region(PyObject *self, PyObject *args, PyObject *kw
     if (!PyArg_ParseTupleAndKeywords(args, kw, "OOO|iOi", kwlist, &cap, &lo_o, &hi_o, &level, &out_o, &threads))
         return NULL;
     if (!(f = file_of(cap)) || size3(lo_o, lo, "lo") < 0 || size3(hi_o, hi, "hi") < 0) return NULL;
-    if (threads < 0) {
-        PyErr_Format(PyExc_ValueError, "threads must be >= 0 (0: all), got %d", threads);
+    if (threads < 0 || threads > WVOLPY_MAX_THREADS) {
+        PyErr_Format(PyExc_ValueError, "threads must be in 0..%d (0: all), got %d", WVOLPY_MAX_THREADS, threads);
         return NULL;
     }
     /* the box must lie in the level's grid before an array of its size is made; the
@@ -233,7 +233,8 @@ static PyObject *py_wvc_file_piece(PyObject *self, PyObject *args, PyObject *kw)
     (void)self;
     if (!PyArg_ParseTupleAndKeywords(args, kw, "OOO|ii", kwlist, &cap, &lo_o, &hi_o, &level, &threads)) return NULL;
     if (!(f = file_of(cap)) || size3(lo_o, lo, "lo") < 0 || size3(hi_o, hi, "hi") < 0) return NULL;
-    if (threads < 0) return PyErr_Format(PyExc_ValueError, "threads must be >= 0 (0: all), got %d", threads);
+    if (threads < 0 || threads > WVOLPY_MAX_THREADS)
+        return PyErr_Format(PyExc_ValueError, "threads must be in 0..%d (0: all), got %d", WVOLPY_MAX_THREADS, threads);
     if (!(cap_n = wvol_wvc_piece_samples(f, level, lo, hi))) Py_RETURN_NONE;
     box = (hi[0] - lo[0]) * (hi[1] - lo[1]) * (hi[2] - lo[2]);
     if (!(work = malloc(cap_n * sizeof *work))) return PyErr_NoMemory();
@@ -272,6 +273,8 @@ static PyObject *py_wvc_file_piece_budget(PyObject *self, PyObject *args, PyObje
     wvol_wvc_file *f;
     (void)self;
     if (!PyArg_ParseTupleAndKeywords(args, kw, "O|i", kwlist, &cap, &threads)) return NULL;
+    if (threads < 0 || threads > WVOLPY_MAX_THREADS)
+        return PyErr_Format(PyExc_ValueError, "threads must be in 0..%d (0: all), got %d", WVOLPY_MAX_THREADS, threads);
     if (!(f = file_of(cap))) return NULL;
     return PyLong_FromSize_t(wvol_wvc_piece_budget(f, threads));
 }

@@ -284,6 +284,23 @@ int wvolpy_as_placed_volume(PyObject *obj, PyObject *spacing, PyObject *origin, 
     return 0;
 }
 
+int wvolpy_conv_budget(PyObject *obj, void *out)
+{
+    unsigned long long v;
+    if (!PyLong_Check(obj) || PyBool_Check(obj)) {
+        PyErr_Format(PyExc_TypeError, "memory budget must be an int (bytes), got %s", Py_TYPE(obj)->tp_name);
+        return 0;
+    }
+    if (_PyLong_Sign(obj) < 0) {
+        PyErr_Format(PyExc_ValueError, "memory budget must be >= 0 bytes, got %S", obj);
+        return 0;
+    }
+    v = PyLong_AsUnsignedLongLong(obj);
+    if (PyErr_Occurred()) return 0;
+    *(unsigned long long *)out = v;
+    return 1;
+}
+
 int wvolpy_triple(PyObject *obj, double out[3], const char *what)
 {
     PyObject *seq;

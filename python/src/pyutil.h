@@ -82,6 +82,10 @@ void wvolpy_buffer_free(wvolpy_buffer *b); /* an empty b is fine */
  * process when it cannot create the threads asked for, so absurd counts are refused. */
 #define WVOLPY_MAX_THREADS 4096
 
+/* PyArg "O&" converter for a memory budget in bytes: an int >= 0 into *(unsigned long long *)out
+ * (negative numbers and non-integers refused with a ValueError / TypeError naming the budget). */
+int wvolpy_conv_budget(PyObject *obj, void *out);
+
 /* Parses an optional 3-sequence of floats (x, y, z order); returns 0 or -1 with exception. */
 int wvolpy_triple(PyObject *obj, double out[3], const char *what);
 

@@ -7,6 +7,8 @@ of the library (x fastest). 2D images are (y, x). Spacing and origin are given i
 data), OSError (files), MemoryError or NotImplementedError (feature not built).
 """
 import math
+import numbers
+import operator
 import os
 from dataclasses import dataclass, field
 from typing import NamedTuple, Optional
@@ -104,12 +106,61 @@ class ErrorEstimate(NamedTuple):
     max: Optional[float] = None
 
 
+def _real(v, name):
+    """v as a float; a string, a bool or anything that is not a real number is refused (a
+    string would otherwise pass as a sequence of its characters)."""
+    if isinstance(v, (str, bytes, bool, np.bool_)) or not isinstance(v, (numbers.Real, np.floating, np.integer)):
+        raise TypeError(f"{name}: expected a real number, got {v!r}")
+    return float(v)
+
+
+def _triple(v, name, default):
+    """A geometry argument: None (the default), one number for all three axes, or 3 numbers (x, y, z)."""
+    if v is None:
+        return default
+    if isinstance(v, (numbers.Real, np.floating, np.integer)) and not isinstance(v, (bool, np.bool_)):
+        return (float(v),) * 3
+    if isinstance(v, (str, bytes)) or not hasattr(v, "__len__"):
+        raise TypeError(f"{name}: expected a number or 3 numbers (x, y, z), got {v!r}")
+    if len(v) != 3:
+        raise ValueError(f"{name}: expected 3 values (x, y, z), got {len(v)}")
+    return tuple(_real(x, name) for x in v)
+
+
+def _size(size, name="size"):
+    """(width, height) as two ints; floats, strings and bools are refused, not truncated."""
+    if isinstance(size, (str, bytes)) or not hasattr(size, "__len__"):
+        raise TypeError(f"{name}: expected (width, height), two ints, got {size!r}")
+    if len(size) != 2:
+        raise ValueError(f"{name}: expected (width, height), two ints, got {len(size)} values")
+    out = []
+    for v in size:
+        if isinstance(v, (bool, np.bool_)):
+            raise TypeError(f"{name}: expected ints, got {v!r}")
+        try:
+            out.append(operator.index(v))
+        except TypeError:
+            raise TypeError(f"{name}: expected ints, got {v!r}") from None
+    return tuple(out)
+
+
+def _box_corner(v, name):
+    """(x, y, z) grid indices as ints; floats are refused, not truncated."""
+    if isinstance(v, (str, bytes)) or not hasattr(v, "__len__"):
+        raise TypeError(f"{name}: expected (x, y, z), three ints, got {v!r}")
+    if len(v) != 3:
+        raise ValueError(f"{name}: expected (x, y, z), three ints, got {len(v)} values")
+    try:
+        return tuple(operator.index(x) for x in v)
+    except TypeError:
+        raise TypeError(f"{name}: expected (x, y, z), three ints, got {v!r}") from None
+
+
 def _geometry(vol, spacing, origin):
     if isinstance(vol, Volume):
         spacing = vol.spacing if spacing is None else spacing
         origin = vol.origin if origin is None else origin
-    return (tuple(float(v) for v in spacing) if spacing is not None else (1.0, 1.0, 1.0),
-            tuple(float(v) for v in origin) if origin is not None else (0.0, 0.0, 0.0))
+    return _triple(spacing, "spacing", (1.0, 1.0, 1.0)), _triple(origin, "origin", (0.0, 0.0, 0.0))
 
 
 def _psnr(l2, n, peak):
@@ -218,10 +269,15 @@ class Store:
         if ref is None:
             raise ValueError("measured_error: no original volume (pass original=...)")
         ref = np.asarray(ref)
-        if ref.shape != self.shape and ref.reshape(-1).size == self.voxels:
+        if ref.dtype.kind not in "iuf":
+            raise TypeError(f"measured_error: original must hold real numbers, got dtype {ref.dtype}")
+        # a 2D (y, x) array for a store of shape (1, y, x): the same samples; no other reshaping
+        if ref.shape != self.shape and [d for d in ref.shape if d != 1] == [d for d in self.shape if d != 1]:
             ref = ref.reshape(self.shape)
         if ref.shape != self.shape:
             raise ValueError(f"measured_error: original shape {ref.shape} differs from the store's {self.shape}")
+        if not np.all(np.isfinite(ref)):
+            raise ValueError("measured_error: original holds NaN or Inf")
         diff = self.reconstruct().data.astype(np.float64) - ref.astype(np.float64)
         l2 = float(np.sqrt(np.sum(diff * diff)))
         peak = float(ref.max()) - float(ref.min())
@@ -489,7 +545,7 @@ def render(source, camera="+z", size=(256, 256), *, mode="absorption", tf="gauss
     "method" (the one that ran), rays, samples, seconds, cpu_seconds...; through a context also
     "context_frame", "rates_reused", "bricks_reused", "cache_bytes" and "tiles_own" (docs/render.md).
     """
-    w, h = (int(v) for v in size)
+    w, h = _size(size)
     opts = dict(camera=camera, width=w, height=h, mode=mode, method=method, tf=tf, tf_units=tf_units, step=step,
                 shading=int(bool(shading)), ambient=ambient, gauss_nodes=gauss_nodes, spline_j=spline_j,
                 brick=brick, termination=termination, threads=threads, colors=colors,
@@ -528,7 +584,7 @@ def render_progressive(vol, camera="+z", size=(256, 256), *, mode="absorption", 
     the sampling options are those of :func:`render` (a bound needs mode "xray" or
     "absorption", no shading). Each pass is computed when the generator is advanced.
     """
-    w, h = (int(v) for v in size)
+    w, h = _size(size)
     spacing, origin = _geometry(vol, None, None)
     state = _wvol.progressive_begin(_data(vol), spacing, origin, wavelet, levels,
                                     0.0 if max_error is None else float(max_error),
@@ -591,8 +647,8 @@ def isoimage(source, iso, camera="+z", size=(256, 256), *, method="cast", brick=
     surface, depth (h, w) float32 the ray parameter of the hit (world units, +inf on a miss).
     A ray entering the box inside the surface reports where it leaves it (docs/iso.md).
     """
-    w, h = size
-    kw = dict(camera=camera, width=int(w), height=int(h), method=method, threads=threads, brick=brick or 0,
+    w, h = _size(size)
+    kw = dict(camera=camera, width=w, height=h, method=method, threads=threads, brick=brick or 0,
               tolerance=tolerance or 0.0, model_bound=bool(model_bound))
     if isinstance(source, Store):
         rgba, depth, st = _wvol.isoimage(source._handle, iso, **kw)
@@ -632,8 +688,8 @@ def wvc_region(path, lo, hi, level=0, memory=0):
     decoding only the chunks of a format-2 file whose basis functions reach the box, within
     ``memory`` bytes of decoded chunks (0: 1 GiB). Returns ``(array, stats)``: a float32
     array indexed ``[z, y, x]`` and the chunk cache's counters."""
-    return _wvol.wvc_region(os.fspath(path), tuple(int(v) for v in lo), tuple(int(v) for v in hi),
-                            int(level), int(memory))
+    return _wvol.wvc_region(os.fspath(path), _box_corner(lo, "lo"), _box_corner(hi, "hi"),
+                            operator.index(level), memory)
 
 
 def wvc_info(path):

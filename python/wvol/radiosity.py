@@ -12,6 +12,7 @@ from typing import NamedTuple, Optional
 import numpy as np
 
 from . import _wvol
+from . import _size
 
 __all__ = ["BASES", "Scene", "Solution", "scene", "solve", "point_form_factor", "gauss_grid", "patch_points"]
 
@@ -65,7 +66,7 @@ def solve(scene, basis: str = "haar", epsilon: float = 1e-3, max_level: int = 5,
     uv_arr = None if uv is None else np.ascontiguousarray(uv, dtype=np.float64)
     d = _wvol.radiosity_solve(_scene_arg(scene), basis, float(epsilon), int(max_level), bool(brightness),
                               bool(full_matrix), int(max_iterations), float(tolerance), int(res), uv_arr, camera,
-                              tuple(int(v) for v in size))
+                              _size(size))
     samples, values, image = d.pop("samples", None), d.pop("values", None), d.pop("image", None)
     return Solution(d, samples, values, image)
 

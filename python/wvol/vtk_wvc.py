@@ -162,7 +162,10 @@ class WVCReader(VTKPythonAlgorithmBase):
         """Decoded chunks kept per process, in MiB (0: what reading slab by slab needs,
         wvol_wvc_slab_budget, for the whole grid). A budget below that need still works, but
         decodes chunks several times (ChunksDecoded shows it)."""
-        self._set("_budget_mib", int(mib))
+        mib = int(mib)
+        if mib < 0:
+            raise ValueError(f"MemoryBudget must be >= 0 MiB (0: what slab by slab needs), got {mib}")
+        self._set("_budget_mib", mib)
 
     def SetArrayName(self, name):
         self._set("_array_name", str(name))
@@ -181,8 +184,8 @@ class WVCReader(VTKPythonAlgorithmBase):
         """Threads that reconstruct a piece (slices along z at once); 0 (default): the cores
         this process may use, shared among the MPI ranks of this node."""
         threads = int(threads)
-        if threads < 0:
-            raise ValueError(f"Threads must be >= 0 (0: automatic), got {threads}")
+        if not 0 <= threads <= 4096:
+            raise ValueError(f"Threads must be in 0..4096 (0: automatic), got {threads}")
         self._set("_threads", threads)
 
     def GetThreads(self):

@@ -138,3 +138,106 @@ def test_float32_c_order_input_is_not_copied():
 
     assert peak(a32) < 64 * 1024
     assert peak(a64) >= a32.nbytes
+
+
+def test_save_mesh_names_the_bad_face_index(tmp_path):
+    # a large faces array: the message's index is read before that array is released
+    v = np.zeros((3, 3), np.float32)
+    f = np.zeros((100000, 3), np.int32)
+    f[-1, 2] = 7
+    with pytest.raises(ValueError, match=r"^faces: index 7 of face 99999 is not a vertex \(0\.\.2\)$"):
+        wvol.save_mesh(tmp_path / "x.ply", v, f)
+    with pytest.raises(TypeError, match="faces must be an array of integer vertex indices, got dtype float64"):
+        wvol.save_mesh(tmp_path / "x.ply", v, np.zeros((1, 3)))
+    with pytest.raises(TypeError, match="expected an array of real numbers"):
+        wvol.save_mesh(tmp_path / "x.ply", v.astype(complex), np.zeros((1, 3), np.int32))
+    n = np.ones((3, 3), np.float32)
+    n[1, 2] = np.nan
+    with pytest.raises(ValueError, match="normals: non-finite value at vertex 1"):
+        wvol.save_mesh(tmp_path / "x.ply", v, np.zeros((1, 3), np.int32), n)
+    assert not list(tmp_path.iterdir())
+
+
+def test_point_form_factor_checks_patch_points_and_normal():
+    s = wvol.radiosity.scene("parallel")
+    n = len(s.patches) if hasattr(s, "patches") else None
+    with pytest.raises(ValueError, match=r"patch 99 is not a patch of the scene \(0\.\.\d+\)"):
+        wvol.radiosity.point_form_factor("parallel", 99, [[0, 0, 1]], (0, 0, -1))
+    with pytest.raises(ValueError, match="normal .* must be finite and non-zero"):
+        wvol.radiosity.point_form_factor("parallel", 0, [[0, 0, 1]], (0, 0, 0))
+    with pytest.raises(ValueError, match="points: non-finite coordinate at point 1"):
+        wvol.radiosity.point_form_factor("parallel", 0, [[0, 0, 1], [np.nan, 0, 1]], (0, 0, -1))
+    assert n is None or n > 0
+
+
+def test_thread_counts_and_budgets_are_bounded(tmp_path):
+    a = np.random.default_rng(1).random((16, 16, 16), dtype=np.float32)
+    p = tmp_path / "a.wvc"
+    wvol.compress(a, "haar", 2, keep=0.5).save(p)
+    from wvol import _wvol
+    fh = _wvol.wvc_file_open(str(p))
+    for call in (lambda: _wvol.wvc_file_piece(fh, (0, 0, 0), (16, 16, 16), 0, 100000),
+                 lambda: _wvol.wvc_file_piece_budget(fh, 100000),
+                 lambda: _wvol.wvc_file_region(fh, (0, 0, 0), (16, 16, 16), threads=100000)):
+        with pytest.raises(ValueError, match=r"threads must be in 0\.\.4096"):
+            call()
+    with pytest.raises(ValueError, match="memory budget must be >= 0 bytes, got -1"):
+        _wvol.wvc_file_open(str(p), -1)
+    with pytest.raises(ValueError, match="memory budget must be >= 0 bytes, got -1"):
+        wvol.wvc_region(p, (0, 0, 0), (4, 4, 4), memory=-1)
+    with pytest.raises(TypeError, match="memory budget must be an int"):
+        wvol.wvc_region(p, (0, 0, 0), (4, 4, 4), memory=1.5)
+
+
+def test_strings_and_floats_are_not_sequences_or_sizes():
+    a = np.random.default_rng(2).random((8, 8, 8), dtype=np.float32)
+    with pytest.raises(TypeError, match="spacing: expected a number or 3 numbers"):
+        wvol.compress(a, "haar", 1, keep=0.5, spacing="123")
+    with pytest.raises(TypeError, match="origin: expected a real number"):
+        wvol.compress(a, "haar", 1, keep=0.5, origin=(0, "1", 2))
+    with pytest.raises(TypeError, match=r"size: expected \(width, height\)"):
+        wvol.render(a, size="44")
+    with pytest.raises(TypeError, match="size: expected ints, got 4.7"):
+        wvol.render(a, size=(4.7, 4))
+    with pytest.raises(TypeError, match=r"size: expected \(width, height\)"):
+        wvol.isoimage(a, 0.5, size="44")
+    # one number is every axis's spacing, as wvol.load takes it
+    s = wvol.compress(a, "haar", 1, keep=0.5, spacing=2)
+    assert s.spacing == (2.0, 2.0, 2.0)
+
+
+def test_render_step_and_progressive_growth_are_bounded():
+    a = np.random.default_rng(3).random((8, 8, 8), dtype=np.float32)
+    with pytest.raises(ValueError, match=r"step 1e-20 voxels \(must be a finite number >= 1e-4\)"):
+        wvol.render(a, size=(4, 4), method="reference", step=1e-20)
+    # a growth that rounds the count back to itself still adds a coefficient a pass: the passes end
+    kept = [info["kept"] for _, _, info in wvol.render_progressive(a, size=(4, 4), growth=1 + 1e-15)]
+    assert kept == sorted(set(kept)) and kept[-1] == 512
+
+
+def test_measured_error_checks_the_original():
+    b = np.random.default_rng(0).random((4, 8, 16), np.float32)
+    s = wvol.compress(b, "haar", 1, keep=0.5)
+    with pytest.raises(ValueError, match=r"original shape \(16, 8, 4\) differs"):
+        s.measured_error(np.ascontiguousarray(b.T))
+    with pytest.raises(ValueError, match="original shape"):
+        s.measured_error(b.reshape(-1))
+    bad = b.copy()
+    bad[0, 0, 0] = np.nan
+    with pytest.raises(ValueError, match="original holds NaN or Inf"):
+        s.measured_error(bad)
+    with pytest.raises(TypeError, match="original must hold real numbers"):
+        s.measured_error(b.astype(complex))
+    assert s.measured_error(b).psnr == s.measured_error().psnr
+
+
+def test_evaluate_far_outside_is_the_periodic_value():
+    a = np.random.default_rng(4).random((16, 16, 16), dtype=np.float32)
+    s = wvol.compress(a, "db2", 2, keep=0.3)
+    near = np.array([[3.25, 5.5, 7.75]])
+    # whole periods (16 voxels) away: the same point of the periodic model, to rounding
+    far = near + np.array([[16.0 * 2 ** 40, -16.0 * 2 ** 36, 16.0 * 3]])  # exact in float64
+    v0, g0 = s.evaluate(near)
+    v1, g1 = s.evaluate(far)
+    np.testing.assert_allclose(v1, v0, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(g1, g0, rtol=0, atol=1e-12)

@@ -59,7 +59,9 @@ def test_features_planes_and_pca(mosaic):
     (dict(levels=0), ValueError, "levels = 0, must be 1..6"),
     (dict(som=(0, 4, 4)), ValueError, "lattice dimension 0 is 0"),
     (dict(som=(4, 4)), TypeError, "som must be the lattice's three sides"),
-    (dict(iterations=0), ValueError, "iterations must be >= 1"),
+    (dict(iterations=0), ValueError, "iterations 0 must be in 1..100000000"),
+    # the training cannot be interrupted: a count that would run for days is refused up front
+    (dict(iterations=2**40), ValueError, "iterations 1099511627776 must be in 1..100000000"),
     (dict(variance=0.0), ValueError, r"variance must be in \(0, 1\], got 0$"),
     (dict(wavelet="db99"), ValueError, "unknown wavelet 'db99'"),
     (dict(truth=np.zeros((1, 8, 8), np.int32)), ValueError, "truth must have the volume's shape"),

@@ -45,7 +45,7 @@ WVOL_API wvol_status wvol_features_pca(wvol_features *f, double variance, double
 /* 3D Kohonen map. */
 typedef struct wvol_som_params {
     int dims[3];          /* lattice a x b x c, each >= 1 */
-    long iterations;      /* training samples presented */
+    long iterations;      /* training samples presented, 1..100000000 */
     double eta0, eta1;    /* learning rate: eta0 -> eta1, exponential decay */
     double sigma0, sigma1;/* neighbourhood radius in lattice units: sigma0 -> sigma1 */
     uint64_t seed;

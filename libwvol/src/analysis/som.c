@@ -75,7 +75,9 @@ wvol_status wvol_som_train(wvol_som **out, const wvol_features *f, const wvol_so
     for (int a = 0; a < 3; a++)
         WVOL_RETURN_IF(p->dims[a] < 1 || p->dims[a] > 64, err, WVOL_ERR_ARG,
                        "som: lattice dimension %d is %d, must be 1..64", a, p->dims[a]);
-    WVOL_RETURN_IF(p->iterations < 1, err, WVOL_ERR_ARG, "som: iterations must be >= 1");
+    /* the training cannot be interrupted: a bound keeps a call within minutes */
+    WVOL_RETURN_IF(p->iterations < 1 || p->iterations > 100000000L, err, WVOL_ERR_ARG,
+                   "som: iterations %ld must be in 1..100000000", p->iterations);
     WVOL_RETURN_IF(!(p->eta0 > 0 && p->eta0 <= 1 && p->eta1 > 0 && p->eta1 <= p->eta0), err,
                    WVOL_ERR_ARG, "som: learning rates must satisfy 0 < eta1 <= eta0 <= 1 (got %g, %g)",
                    p->eta0, p->eta1);

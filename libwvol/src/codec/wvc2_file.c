@@ -19,6 +19,7 @@
 #include <omp.h>
 #endif
 
+#include "core/file_open.h"
 #include "core/alloc.h"
 #include "core/clock.h"
 #include "core/clones.h"
@@ -226,13 +227,16 @@ wvol_status wvol_wvc_open(wvol_wvc_file **out, const char *path, size_t budget, 
 #ifdef _OPENMP
     omp_init_lock(&f->lock);
 #endif
-    f->fd = open(path, O_RDONLY);
+    if (wvol__open_regular(&f->fd, path, err) != WVOL_OK) {
+        wvol_status s = err ? err->status : WVOL_ERR_IO;
+        wvol_wvc_close(f);
+        return s;
+    }
     f->path = strdup(path);
     f->budget = budget ? budget : WVOL_WVC_DEFAULT_BUDGET;
-    if (f->fd < 0 || !f->path) {
-        int e = errno;
+    if (!f->path) {
         wvol_wvc_close(f);
-        return wvol_error_set(err, WVOL_ERR_IO, "%s: cannot open: %s", path, strerror(e));
+        return wvol_error_set(err, WVOL_ERR_NOMEM, "wvc open: out of memory");
     }
     if (fstat(f->fd, &sb) != 0 || !S_ISREG(sb.st_mode)) {
         wvol_wvc_close(f);

@@ -13,6 +13,7 @@
 #include <sys/stat.h>
 #include <zlib.h>
 
+#include "core/file_open.h"
 #include "core/alloc.h"
 #include "core/clones.h"
 #include "wvc2_internal.h"
@@ -504,8 +505,7 @@ static wvol_status read_file(wvol_coeffs **out, wvol_wvc_info *info, const char 
     int stop = opt ? opt->stop_level : 0, s;
 
     WVOL_RETURN_IF(!path, err, WVOL_ERR_ARG, "wvc: missing path");
-    fp = fopen(path, "rb");
-    WVOL_RETURN_IF(!fp, err, WVOL_ERR_IO, "%s: cannot open: %s", path, strerror(errno));
+    WVOL_FORWARD(wvol__fopen_regular(&fp, path, err));
     if (fstat(fileno(fp), &sb) != 0 || !S_ISREG(sb.st_mode)) {
         fclose(fp);
         return wvol_error_set(err, WVOL_ERR_IO, "%s: not a regular file", path);

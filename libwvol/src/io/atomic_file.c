@@ -1,9 +1,11 @@
 /* SPDX-License-Identifier: MIT */
-#define _POSIX_C_SOURCE 200809L
+#define _XOPEN_SOURCE 700 /* realpath, mkstemp, lstat */
 #include "core/status_internal.h"
+#include "io/io_internal.h"
 #include "wvol/io.h"
 
 #include <errno.h>
+#include <limits.h>
 #include <stdlib.h>
 #include <string.h>
 #include <strings.h>
@@ -19,28 +21,54 @@ int wvol_path_has_ext(const char *path, const char *ext)
     return n >= e && strcasecmp(path + n - e, ext) == 0;
 }
 
+wvol_status wvol__output_path(char **final, const char *path, wvol_error *err)
+{
+    struct stat st;
+    *final = NULL;
+    WVOL_RETURN_IF(!path || !*path, err, WVOL_ERR_ARG, "output path is empty");
+    if (lstat(path, &st) == 0 && S_ISLNK(st.st_mode)) {
+        char *r = realpath(path, NULL);
+        WVOL_RETURN_IF(!r, err, WVOL_ERR_IO, "%s: a symbolic link to no file (%s): not written", path, strerror(errno));
+        if (stat(r, &st) != 0 || !S_ISREG(st.st_mode)) {
+            free(r);
+            return wvol_error_set(err, WVOL_ERR_IO, "%s: links to something that is not a regular file: not written",
+                                  path);
+        }
+        *final = r;
+        return WVOL_OK;
+    }
+    /* a missing path is what an output usually is; another error shows when it is created */
+    WVOL_RETURN_IF(stat(path, &st) == 0 && !S_ISREG(st.st_mode), err, WVOL_ERR_IO,
+                   "%s: exists and is not a regular file (a folder, device or FIFO): not written", path);
+    *final = strdup(path);
+    WVOL_RETURN_IF(!*final, err, WVOL_ERR_NOMEM, "%s: out of memory", path);
+    return WVOL_OK;
+}
+
 wvol_status wvol_atomic_open(wvol_atomic_file *f, const char *path, wvol_error *err)
 {
     int fd;
     size_t n;
     memset(f, 0, sizeof *f);
-    WVOL_RETURN_IF(!path || !*path, err, WVOL_ERR_ARG, "output path is empty");
+    WVOL_FORWARD(wvol__output_path(&f->final_path, path, err));
+    path = f->final_path;
     n = strlen(path);
-    f->final_path = strdup(path);
     f->tmp_path = malloc(n + 16);
-    if (!f->final_path || !f->tmp_path) {
-        wvol_atomic_abort(f);
-        return wvol_error_set(err, WVOL_ERR_NOMEM, "%s: out of memory", path);
+    if (!f->tmp_path) {
+        wvol_status st = wvol_error_set(err, WVOL_ERR_NOMEM, "%s: out of memory", path);
+        wvol_atomic_abort(f); /* frees path's string: the message is made first */
+        return st;
     }
     memcpy(f->tmp_path, path, n);
     memcpy(f->tmp_path + n, ".tmp-XXXXXX", 12);
     fd = mkstemp(f->tmp_path);
     if (fd < 0) {
         int e = errno;
+        wvol_status st = wvol_error_set(err, WVOL_ERR_IO, "%s: cannot create output file: %s", path, strerror(e));
         free(f->tmp_path);
         f->tmp_path = NULL;
         wvol_atomic_abort(f);
-        return wvol_error_set(err, WVOL_ERR_IO, "%s: cannot create output file: %s", path, strerror(e));
+        return st;
     }
     /* mkstemp creates the file 0600; give it the mode a plain fopen would (0666
      * less the umask). Reading the umask means setting it back at once. */
@@ -51,9 +79,10 @@ wvol_status wvol_atomic_open(wvol_atomic_file *f, const char *path, wvol_error *
     }
     f->fp = fdopen(fd, "wb");
     if (!f->fp) {
+        wvol_status st = wvol_error_set(err, WVOL_ERR_IO, "%s: cannot open output stream", path);
         close(fd);
         wvol_atomic_abort(f);
-        return wvol_error_set(err, WVOL_ERR_IO, "%s: cannot open output stream", path);
+        return st;
     }
     return WVOL_OK;
 }

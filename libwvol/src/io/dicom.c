@@ -8,6 +8,7 @@
  * unsigned, and stores rows bottom-up). The patient orientation is not kept.
  * Based on: DICOM PS3.5 (data elements, transfer syntaxes) and PS3.10 (file format). */
 #define _POSIX_C_SOURCE 200809L
+#include "core/file_open.h"
 #include "core/status_internal.h"
 #include "io/dicom_internal.h"
 #include "io/io_internal.h"
@@ -37,11 +38,11 @@ static const char *base_name(const char *p)
 /* The whole file; NULL with *missing set when it cannot be opened, else NULL: no memory. */
 static unsigned char *read_file(const char *path, size_t *size, int *missing)
 {
-    FILE *fp = fopen(path, "rb");
+    FILE *fp;
     size_t cap = 1 << 16, n = 0, got;
     unsigned char *b;
     *missing = 0;
-    if (!fp) {
+    if (wvol__fopen_regular(&fp, path, NULL) != WVOL_OK) {
         *missing = 1;
         return NULL;
     }

@@ -1,5 +1,6 @@
 /* SPDX-License-Identifier: MIT
  * 8-bit PNG through libpng: linear floats, sRGB-encoded, written atomically. */
+#include "core/file_open.h"
 #include "core/status_internal.h"
 #include "wvol/image.h"
 #include "wvol/io.h"
@@ -127,8 +128,7 @@ wvol_status wvol_png_read_rgb(float **out, int *width, int *height, int *colour,
     im.version = PNG_IMAGE_VERSION;
     /* opened here, so that a file that cannot be read (IO) and one that is not a PNG (FORMAT)
      * are told apart: libpng's file reader reports both alike */
-    fp = fopen(path, "rb");
-    WVOL_RETURN_IF(!fp, err, WVOL_ERR_IO, "%s: cannot open: %s", path, strerror(errno));
+    WVOL_FORWARD(wvol__fopen_regular(&fp, path, err));
     if (!png_image_begin_read_from_stdio(&im, fp)) {
         fclose(fp);
         return wvol_error_set(err, WVOL_ERR_FORMAT, "%s: not a readable PNG: %s", path, im.message);

@@ -38,6 +38,13 @@ size_t wvol__io_parse_numbers(const char *s, double *out, size_t cap);
 /* A folder holding one DICOM series (uncompressed little-endian grayscale Part 10
  * files, one slice each): stacked along the slice normal, RescaleSlope/Intercept
  * applied. Other files in the folder are ignored. */
+/* The file an output written to `path` replaces (by a temporary beside it, renamed over it):
+ * path itself, or, when path is a symbolic link, the regular file it names, so that the link
+ * stays a link; *final is malloc'ed. Refused (WVOL_ERR_IO, nothing touched): an existing path
+ * that is not a regular file (a device, a FIFO, a folder), whose rename would replace it, and
+ * a link to nothing. */
+wvol_status wvol__output_path(char **final, const char *path, wvol_error *err);
+
 wvol_status wvol__dicom_read(wvol_volume **out, const char *dir, wvol_error *err);
 
 /* The fields of a MetaImage header (.mha/.mhd) the VTK adapter checks or takes at

@@ -5,6 +5,7 @@
  * and keeps the numbers VTK rounds at full precision.
  * Based on: the MetaIO documentation (itk.org, "MetaIO"), the header's keys. */
 #define _POSIX_C_SOURCE 200809L
+#include "core/file_open.h"
 #include "core/status_internal.h"
 #include "io/io_internal.h"
 
@@ -37,7 +38,7 @@ static int key_is(const char *key, size_t klen, const char *name)
 
 wvol_status wvol__meta_read_header(wvol__meta_header *h, const char *path, wvol_error *err)
 {
-    FILE *fp = fopen(path, "rb");
+    FILE *fp;
     char *line = NULL;
     size_t cap = 0;
     ssize_t got;
@@ -46,7 +47,7 @@ wvol_status wvol__meta_read_header(wvol__meta_header *h, const char *path, wvol_
 
     memset(h, 0, sizeof *h);
     h->channels = 1;
-    if (!fp) return wvol_error_set(err, WVOL_ERR_IO, "%s: cannot open: %s", path, strerror(errno));
+    WVOL_FORWARD(wvol__fopen_regular(&fp, path, err));
     while (lines < 200 && (got = getline(&line, &cap, fp)) >= 0) {
         size_t n = (size_t)got, eq, ka = 0, kb;
         const char *val;

@@ -6,6 +6,7 @@
  * The reader trusts nothing in the file: every number is parsed in full and range
  * checked, and sizes are multiplied with overflow checks. */
 #define _POSIX_C_SOURCE 200809L
+#include "core/file_open.h"
 #include "io/nrrd_internal.h"
 
 #include <ctype.h>
@@ -531,7 +532,6 @@ wvol_status wvol__nrrd_open_header(nrrd_header *h, const char *path, FILE **fp, 
 {
     memset(h, 0, sizeof *h);
     h->path = path;
-    *fp = fopen(path, "rb");
-    if (!*fp) return wvol_error_set(err, WVOL_ERR_IO, "%s: %s", path, strerror(errno));
+    WVOL_FORWARD(wvol__fopen_regular(fp, path, err));
     return wvol__nrrd_read_header(h, *fp, err);
 }

@@ -6,6 +6,7 @@
  * The data length is compared with what the sizes need before anything large is
  * allocated, and samples are converted chunk by chunk from bounded buffers. */
 #define _POSIX_C_SOURCE 200809L
+#include "core/file_open.h"
 #include "io/nrrd_internal.h"
 
 #include <ctype.h>
@@ -291,8 +292,8 @@ wvol_status wvol__nrrd_open_data(const nrrd_header *h, FILE *fp, FILE **dfp, cha
     if (h->value[F_DATA_FILE]) {
         *dpath = wvol__nrrd_data_path_of(h->path, h->value[F_DATA_FILE]);
         if (!*dpath) return HFAIL(h, WVOL_ERR_NOMEM, "out of memory");
-        *dfp = fopen(*dpath, "rb");
-        if (!*dfp) return HFAIL(h, WVOL_ERR_IO, "data file %s: %s", *dpath, strerror(errno));
+        wvol_error e;
+        if (wvol__fopen_regular(dfp, *dpath, &e) != WVOL_OK) return HFAIL(h, WVOL_ERR_IO, "data file %s", e.message);
         *dname = *dpath;
         return WVOL_OK;
     }

@@ -2,6 +2,7 @@
 /* Wavefront OBJ + MTL through Debian's tinyobjloader (double precision build), behind the C
  * interface of adapters.h. Faces are read as written (no triangulation): the callers decide
  * which polygons they accept. */
+#include "core/file_open.h"
 #include "io/adapters.h"
 #include "io/adapter_errors.hpp"
 
@@ -32,6 +33,7 @@ extern "C" wvol_status wvol__obj_read(wvol__obj *out, const char *path, wvol_err
 {
     if (!out || !path) return wvol_error_set(err, WVOL_ERR_ARG, "OBJ: NULL argument");
     std::memset(out, 0, sizeof *out);
+    if (wvol__check_regular(path, err) != WVOL_OK) return err ? err->status : WVOL_ERR_IO;
     try {
         tinyobj::ObjReaderConfig cfg;
         cfg.triangulate = false;

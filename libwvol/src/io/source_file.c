@@ -20,6 +20,7 @@
 #include <omp.h>
 #endif
 
+#include "core/file_open.h"
 #include "core/source_volume.h"
 #include "io/io_internal.h"
 #include "io/nrrd_internal.h"
@@ -217,9 +218,8 @@ wvol_status wvol__source_open_raw(wvol_source **out, const char *path, const wvo
                    "%s: file has %lld bytes but %zux%zux%zu %s samples need %zu", path, (long long)st.st_size,
                    opt->dims[0], opt->dims[1], opt->dims[2], wvol_sample_type_name(opt->raw_type), bytes);
     WVOL_FORWARD(new_file_src(&f, path, (int)opt->raw_type, elem, opt->big_endian, opt->dims, err));
-    f->fp = fopen(path, "rb");
-    if (!f->fp) {
-        wvol_status s = wvol_error_set(err, WVOL_ERR_IO, "%s: %s", path, strerror(errno));
+    if (wvol__fopen_regular(&f->fp, path, err) != WVOL_OK) {
+        wvol_status s = err ? err->status : WVOL_ERR_IO;
         file_close(f);
         return s;
     }

@@ -1,6 +1,7 @@
 /* SPDX-License-Identifier: MIT */
 /* Load/save dispatch by extension (see wvol/io.h for the table). */
 #define _POSIX_C_SOURCE 200809L
+#include "core/file_open.h"
 #include "core/status_internal.h"
 #include "wvol/io.h"
 #include "io/adapters.h"
@@ -71,6 +72,8 @@ wvol_status wvol_volume_load(wvol_volume **out, const char *path, const wvol_loa
         opt = &defaults;
     }
     WVOL_RETURN_IF(stat(path, &st) != 0, err, WVOL_ERR_IO, "%s: %s", path, strerror(errno));
+    /* a FIFO or device would make the format libraries wait or read without end */
+    if (format_of(path) != FMT_DICOM) WVOL_FORWARD(wvol__check_regular(path, err));
     switch (format_of(path)) {
     case FMT_RAW: return wvol_raw_read(out, path, opt, err);
     case FMT_NRRD: return wvol_nrrd_read(out, path, err);

@@ -206,14 +206,25 @@ bool has_ext(const char *path, const char *ext)
 // Temporary name beside the target that keeps its extension (VTK's writers look at it).
 class TempFile {
 public:
-    TempFile(const char *path, const char *ext) : final_(path)
+    TempFile(const char *path, const char *ext)
     {
-        std::string t = std::string(path) + ".tmp-XXXXXX" + ext;
+        char *resolved = nullptr;
+        wvol_error e;
+        if (wvol__output_path(&resolved, path, &e) != WVOL_OK) fail(e.status, e.message);
+        final_ = resolved;
+        std::free(resolved);
+        std::string t = final_ + ".tmp-XXXXXX" + ext;
         std::vector<char> buf(t.begin(), t.end());
         buf.push_back('\0');
         int fd = mkstemps(buf.data(), int(std::strlen(ext)));
         if (fd < 0)
             fail(WVOL_ERR_IO, std::string(path) + ": cannot create output file: " + std::strerror(errno));
+        {
+            // mkstemps makes the file 0600: the mode a plain open would give (as wvol_atomic_open)
+            mode_t mask = umask(0);
+            umask(mask);
+            (void)fchmod(fd, 0666 & ~mask);
+        }
         close(fd);
         tmp_ = buf.data();
     }

@@ -7,6 +7,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "core/file_open.h"
 #include "io/adapters.h"
 #include "core/status_internal.h"
 #include "wvol/io.h"
@@ -243,8 +244,7 @@ wvol_status wvol_mesh_read_ply(wvol_mesh **out, const char *path, wvol_error *er
     unsigned char rec[32];
 
     *out = NULL;
-    fp = fopen(path, "rb");
-    WVOL_RETURN_IF(!fp, err, WVOL_ERR_IO, "%s: cannot open", path);
+    WVOL_FORWARD(wvol__fopen_regular(&fp, path, err));
     if (!fgets(line, sizeof line, fp) || strncmp(line, "ply", 3) != 0) {
         fclose(fp);
         return wvol_error_set(err, WVOL_ERR_FORMAT, "%s: not a PLY file", path);

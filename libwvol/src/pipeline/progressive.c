@@ -128,6 +128,9 @@ wvol_status wvol_progressive_next(wvol_progressive *pr, wvol_image *img, wvol_im
     pr->index++;
     next = (double)pr->next_count * pr->pp.growth;
     pr->next_count = next >= (double)pr->total ? pr->total : (size_t)next;
+    /* a growth so close to 1 that the count rounds back to itself still adds one coefficient
+     * a pass, so that the passes end */
+    if (pr->next_count <= pass->kept && pass->kept < pr->total) pr->next_count = pass->kept + 1;
     if (pass->kept >= pr->total) pass->stop = "complete";
     else if (pr->pp.max_error > 0 && pass->bound_max <= pr->pp.max_error) pass->stop = "max-error";
     else if (pr->pp.seconds > 0 && pass->elapsed + pass->seconds * pr->pp.growth > pr->pp.seconds)

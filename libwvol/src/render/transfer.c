@@ -1,6 +1,7 @@
 /* SPDX-License-Identifier: MIT
  * Transfer functions: piecewise-linear value -> (linear colour, extinction), presets,
  * a line-oriented text form and a small JSON form (docs/render.md). */
+#include "core/file_open.h"
 #include "render_internal.h"
 
 #include <ctype.h>
@@ -245,8 +246,7 @@ wvol_status wvol_tf_load(wvol_tf *tf, const char *path, wvol_error *err)
     size_t got;
     wvol_status s;
     WVOL_RETURN_IF(!path, err, WVOL_ERR_ARG, "transfer function: no file name");
-    fp = fopen(path, "rb");
-    WVOL_RETURN_IF(!fp, err, WVOL_ERR_IO, "%s: cannot open transfer function file", path);
+    WVOL_FORWARD(wvol__fopen_regular(&fp, path, err));
     if (fseek(fp, 0, SEEK_END) != 0 || (n = ftell(fp)) < 0 || fseek(fp, 0, SEEK_SET) != 0) {
         fclose(fp);
         return wvol_error_set(err, WVOL_ERR_IO, "%s: cannot read", path);

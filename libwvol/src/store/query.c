@@ -508,8 +508,15 @@ double wvol_store_eval(const wvol_store *s, const double x[3], double grad[3])
     memset(&tv, 0, sizeof tv);
     ev.f = ev.g[0] = ev.g[1] = ev.g[2] = 0.0;
     for (int a = 0; a < 3; a++) {
-        if (!isfinite(x[a])) return NAN;
-        tv.a[a] = tv.b[a] = ev.x[a] = x[a];
+        double xa = x[a], P = (double)s->ly.P[a];
+        if (!isfinite(xa)) return NAN;
+        /* f^ is periodic: a point far outside is brought within a period first, exactly
+         * (fmod), before the supports' integer translates are taken from it */
+        if (xa < -P || xa >= 2 * P) {
+            xa = fmod(xa, P);
+            if (xa < 0) xa += P;
+        }
+        tv.a[a] = tv.b[a] = ev.x[a] = xa;
     }
     tv.s = s, tv.fn = eval_fn, tv.arg = &ev;
     ev.cached = s->ly.levels <= EV_LEVELS && s->ly.L <= EV_SPAN;
@@ -518,11 +525,11 @@ double wvol_store_eval(const wvol_store *s, const double x[3], double grad[3])
             double scale = s->ipow2[m];
             for (int a = 0; a < 3; a++) {
                 if (!s->ly.tr[a]) continue;
-                int64_t j0 = (int64_t)ceil((x[a] + s->ly.s) * scale - (s->ly.L - 1));
+                int64_t j0 = (int64_t)ceil((ev.x[a] + s->ly.s) * scale - (s->ly.L - 1));
                 ev.j0[m][a] = j0;
                 for (int i = 0; i < s->ly.L; i++) {
                     double *B = ev.B[m][a][i];
-                    spline4(s, (x[a] - ((double)(j0 + i) * s->pow2[m] - s->ly.s)) * scale, B);
+                    spline4(s, (ev.x[a] - ((double)(j0 + i) * s->pow2[m] - s->ly.s)) * scale, B);
                     B[2] *= scale, B[3] *= scale;
                 }
             }

@@ -1,0 +1,155 @@
+# SPDX-License-Identifier: MIT
+"""What is at a path before wvol reads or writes it: a FIFO, a folder, a symbolic link.
+
+Readers take regular files only: open() of a FIFO waits for a writer, forever when none
+comes, so every reader refuses one at once (the subprocess timeout here is what a hang
+would hit). Writers replace their output by renaming a temporary over it: they refuse a
+path that holds a folder, FIFO or device (the rename would replace it), write through a
+symbolic link to the file it names (the link stays), and commands with several outputs
+leave none of them when one fails, and never remove what they did not write."""
+import os
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from conftest import WVOL_BIN
+
+import wvol
+
+TIMEOUT = 60  # a reader that waits on a FIFO runs into this
+
+
+def run(*args, cwd=None):
+    return subprocess.run([WVOL_BIN, *map(str, args)], capture_output=True, text=True, cwd=cwd, timeout=TIMEOUT)
+
+
+@pytest.fixture
+def phantom(tmp_path):
+    p = tmp_path / "g.nrrd"
+    assert run("synth", "gaussian", "--size", "16", "-o", p).returncode == 0
+    return p
+
+
+@pytest.mark.parametrize("ext, extra", [(".wvc", []), (".nrrd", []), (".mha", []), (".vti", []),
+                                        (".raw", ["--dims", "2x2x2"])])
+def test_cli_readers_refuse_a_fifo(tmp_path, ext, extra):
+    f = tmp_path / f"f{ext}"
+    os.mkfifo(f)
+    r = run("info", f, *extra)
+    assert r.returncode == 1, r.stderr
+    assert f"{f}: not a regular file" in r.stderr
+
+
+def test_cli_side_files_refuse_a_fifo(tmp_path, phantom):
+    tf = tmp_path / "tf.txt"
+    os.mkfifo(tf)
+    r = run("render", phantom, "-o", tmp_path / "x.png", "--size", "8x8", "--tf", tf)
+    assert r.returncode == 2 and "--tf" in r.stderr, r.stderr
+    obj = tmp_path / "scene.obj"
+    os.mkfifo(obj)
+    r = run("radiosity", obj, "-o", tmp_path / "r.png")
+    assert r.returncode == 1 and f"{obj}: not a regular file" in r.stderr, r.stderr
+    png = tmp_path / "w.png"
+    os.mkfifo(png)
+    r = run("transport", "-o", tmp_path / "t", "--window", png)
+    assert r.returncode == 1 and f"{png}: not a regular file" in r.stderr, r.stderr
+    assert not (tmp_path / "t").exists()  # the input is read before the output folder is made
+
+
+def test_python_readers_refuse_a_fifo(tmp_path):
+    f = tmp_path / "f.wvc"
+    os.mkfifo(f)
+    n = tmp_path / "f.nrrd"
+    os.mkfifo(n)
+    # in a subprocess, so that a reader that waits shows as a timeout, not a stuck test run
+    code = ("import wvol, sys\n"
+            "for fn, p in ((wvol.wvc_info, sys.argv[1]), (wvol.open, sys.argv[1]), (wvol.load, sys.argv[2])):\n"
+            "    try:\n"
+            "        fn(p)\n"
+            "        print('accepted', p)\n"
+            "    except OSError as e:\n"
+            "        print('refused', e)\n")
+    r = subprocess.run([sys.executable, "-c", code, str(f), str(n)], capture_output=True, text=True,
+                       timeout=TIMEOUT, env=os.environ)
+    lines = r.stdout.splitlines()
+    assert lines == [f"refused {f}: not a regular file"] * 2 + [f"refused {n}: not a regular file"], r.stdout + r.stderr
+
+
+@pytest.mark.parametrize("ext", [".nrrd", ".vti"])
+def test_output_through_a_link_keeps_the_link(tmp_path, ext):
+    target = tmp_path / f"target{ext}"
+    target.write_text("old")
+    link = tmp_path / f"link{ext}"
+    link.symlink_to(target.name)
+    r = run("synth", "gaussian", "--size", "8", "-o", link)
+    assert r.returncode == 0, r.stderr
+    assert link.is_symlink() and os.readlink(link) == target.name
+    assert target.read_bytes() != b"old" and wvol.load(target).data.shape == (8, 8, 8)
+
+
+def test_outputs_that_are_not_regular_files_are_refused_and_kept(tmp_path):
+    fifo = tmp_path / "f.nrrd"
+    os.mkfifo(fifo)
+    folder = tmp_path / "d.nrrd"
+    folder.mkdir()
+    dangling = tmp_path / "l.nrrd"
+    dangling.symlink_to("nothing.nrrd")
+    for p, words in ((fifo, "exists and is not a regular file"), (folder, "exists and is not a regular file"),
+                     (dangling, "a symbolic link to no file")):
+        r = run("synth", "gaussian", "--size", "8", "-o", p)
+        assert r.returncode == 1 and f"{p}: {words}" in r.stderr, r.stderr
+    assert fifo.is_fifo() and folder.is_dir() and dangling.is_symlink()
+    assert sorted(x.name for x in tmp_path.iterdir()) == ["d.nrrd", "f.nrrd", "l.nrrd"]  # no temporaries
+    # the library's writers, through Python
+    a = np.zeros((4, 4, 4), np.float32)
+    with pytest.raises(OSError, match="exists and is not a regular file"):
+        wvol.save(a, fifo)
+    with pytest.raises(OSError, match="exists and is not a regular file"):
+        wvol.compress(a, "haar", 1).save(folder)
+    assert fifo.is_fifo() and folder.is_dir()
+
+
+def test_demo_leaves_what_it_did_not_write(tmp_path):
+    out = tmp_path / "dd"
+    (out / "skull.wvc").mkdir(parents=True)  # the demo cannot write its .wvc there
+    r = run("demo", "--size", "16", "--out", out)
+    assert r.returncode == 1 and "skull.wvc" in r.stderr, r.stderr
+    assert (out / "skull.wvc").is_dir()  # not removed by the cleanup
+    assert sorted(x.name for x in out.iterdir()) == ["skull.wvc"]  # what it wrote before is gone
+
+
+def test_demo_refuses_a_size_too_small_before_any_work(tmp_path):
+    out = tmp_path / "d2"
+    r = run("demo", "--size", "4", "--out", out)
+    assert r.returncode == 2 and "too small for the demo's 3 wavelet levels (at least 8 per axis)" in r.stderr
+    assert r.stdout == "" and not out.exists()
+
+
+def test_render_of_a_damaged_file_writes_nothing(tmp_path, phantom):
+    wvc = tmp_path / "g.wvc"
+    assert run("compress", phantom, "-o", wvc, "--psnr", "60").returncode == 0
+    b = bytearray(wvc.read_bytes())
+    b[-3] ^= 0xFF  # inside the last chunk's payload: found when that chunk is decoded
+    wvc.write_bytes(bytes(b))
+    out = tmp_path / "o.png"
+    r = run("render", wvc, "-o", out, "--size", "32x32", "--full-resolution")
+    assert r.returncode == 1 and "checksum mismatch" in r.stderr, r.stderr
+    assert not out.exists()
+
+
+def test_multi_output_commands_leave_no_half(tmp_path, phantom):
+    img = tmp_path / "o.png"
+    r = run("render", phantom, "-o", img, "--size", "16x16", "--keep", "10%", "--bound", tmp_path / "no" / "b.exr")
+    assert r.returncode == 1 and "b.exr" in r.stderr, r.stderr
+    assert not img.exists()
+    lab = tmp_path / "l.nrrd"
+    r = run("segment", phantom, "-o", lab, "--levels", "1", "--iters", "50",
+            "--colors", tmp_path / "no" / "c.raw")
+    assert r.returncode == 1 and "c.raw" in r.stderr, r.stderr
+    assert not lab.exists()
+    mesh_img = tmp_path / "r.png"
+    r = run("radiosity", "box", "-o", mesh_img, "--mesh", tmp_path / "no" / "m.ply")
+    assert r.returncode == 1 and "m.ply" in r.stderr, r.stderr
+    assert not mesh_img.exists()
