@@ -9,6 +9,7 @@
 #include <strings.h>
 
 #include "synth_internal.h"
+#include "core/finite.h"
 #include "core/source_volume.h"
 
 
@@ -133,6 +134,16 @@ static wvol_status make_plan(synth_plan *pl, synth_plan_fn plan, const wvol_synt
     }
     pl->noise = p->noise;
     pl->seed = p->seed;
+    /* what would make samples or the placement non-finite is refused before any sample is
+     * made: a spacing whose centred origin overflows, a noise beyond float32 (the samples'
+     * type) at ten standard deviations */
+    s = wvol__geometry_check(pl->g.spacing, pl->g.origin, err);
+    if (!s && !(fabs(p->noise) <= 3e37))
+        s = wvol_error_set(err, WVOL_ERR_ARG, "noise %g: at most 3e37 (the samples are float32)", p->noise);
+    if (s) {
+        wvol__synth_plan_free(pl);
+        return s;
+    }
     return WVOL_OK;
 }
 
@@ -163,6 +174,18 @@ wvol_status wvol__synth_whole(wvol_volume **out, wvol_volume **labels, synth_pla
     wvol__synth_rows(&pl, (*out)->data, labels && *labels ? (*labels)->data : NULL, 0, pl.g.nz, p->progress,
                      p->progress_user);
     wvol__synth_plan_free(&pl);
+    /* a generator's parameters (sizes of objects, amplitudes) could still overflow float32 */
+    s = wvol_check_finite((*out)->data, pl.g.nx, pl.g.ny, pl.g.nz, "synthetic volume", err);
+    if (s) {
+        wvol_volume_destroy(*out);
+        *out = NULL;
+        if (labels) {
+            wvol_volume_destroy(*labels);
+            *labels = NULL;
+        }
+        wvol_error_prefix(err, "synth %s", kind);
+        return s;
+    }
     return WVOL_OK;
 }
 

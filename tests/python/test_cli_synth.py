@@ -253,3 +253,18 @@ def test_demo_unwritable_folder(wvol, tmp_path):
     r = wvol("demo", "--out", tmp_path / "file" / "sub", "--size", "8")
     one_line_error(r, 1, "cannot create output folder")
     assert listing(tmp_path) == ["file"]
+
+
+def test_synth_refuses_what_would_not_be_finite(tmp_path, wvol):
+    out = tmp_path / "s.nrrd"
+    r = wvol("synth", "gaussian", "--size", "8", "-o", out, "--noise", "1e39")
+    assert r.returncode == 2 and "noise 1e+39: at most 3e37 (the samples are float32)" in r.stderr, r.stderr
+    r = wvol("synth", "gaussian", "--size", "8", "-o", out, "--spacing", "1e308")
+    assert r.returncode == 2 and "origin[0] = -inf: origin must be finite" in r.stderr, r.stderr
+    assert not out.exists()
+    # a spacing this large is still a place: written, and read back (the NRRD reader's vector
+    # length by hypot, whose squares would overflow)
+    r = wvol("synth", "gaussian", "--size", "8", "-o", out, "--spacing", "1e300")
+    assert r.returncode == 0, r.stderr
+    r = wvol("info", out)
+    assert r.returncode == 0 and "spacing  1e+300 1e+300 1e+300" in r.stdout, r.stdout + r.stderr

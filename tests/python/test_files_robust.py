@@ -153,3 +153,25 @@ def test_multi_output_commands_leave_no_half(tmp_path, phantom):
     r = run("radiosity", "box", "-o", mesh_img, "--mesh", tmp_path / "no" / "m.ply")
     assert r.returncode == 1 and "m.ply" in r.stderr, r.stderr
     assert not mesh_img.exists()
+
+
+@pytest.mark.parametrize("header, words", [
+    ("DimSize = 65536 65536 65536\nElementType = MET_FLOAT\n", "the header asks for 1125899906842624 bytes of samples"),
+    ("DimSize = -1 2 2\nElementType = MET_FLOAT\n", "DimSize -1 is not a size"),
+    ("DimSize = 2 2\nElementType = MET_FLOAT\n", "DimSize has 2 numbers for NDims = 3"),
+    ("DimSize = 2048 2048 2048\nElementType = MET_FLOAT\nCompressedData = True\n",
+     "cannot come from 4 compressed bytes"),
+    ("DimSize = 1 1 1\nElementType = MET_FLOAT\nCompressedData = True\nCompressedDataSize = 99999999999\n",
+     "CompressedDataSize 99999999999 but only 4 bytes"),
+    ("DimSize = 1 1 1\nElementType = MET_NOPE\n", "ElementType missing or not a MetaIO type"),
+])
+def test_metaimage_header_must_fit_its_file(tmp_path, header, words):
+    # VTK's MetaIO allocates what the header says before reading: checked first, from the file's size
+    p = tmp_path / "m.mha"
+    p.write_bytes(b"ObjectType = Image\nNDims = 3\n" + header.encode() + b"ElementDataFile = LOCAL\n" + bytes(4))
+    r = run("info", p)
+    assert r.returncode == 1 and words in r.stderr, r.stderr
+    lst = tmp_path / "l.mha"
+    lst.write_text("ObjectType = Image\nNDims = 3\nDimSize = 1 1 1\nElementType = MET_FLOAT\nElementDataFile = LIST\n")
+    r = run("info", lst)
+    assert r.returncode == 1 and "ElementDataFile LIST (a list of files) is not supported" in r.stderr

@@ -162,3 +162,16 @@ def test_brightness_oracle_scales_with_the_light():
                                                     brightness=bright).stats["interactions"]
     assert links[1.0, False] == links[0.01, False]
     assert links[0.01, True] < links[1.0, True] / 2, links
+
+
+@pytest.mark.parametrize("coord", ["nan", "inf", "1x", "1e999"])
+def test_obj_vertices_must_be_finite_numbers(tmp_path, coord):
+    # tinyobjloader would read these as 0 and solve a different scene
+    (tmp_path / "s.mtl").write_text("newmtl w\nKd 0.5 0.5 0.5\nKe 1 1 1\n")
+    obj = tmp_path / "s.obj"
+    obj.write_text(f"mtllib s.mtl\nv {coord} 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nusemtl w\nf 1 2 3 4\n")
+    r = run(str(obj), "-o", str(tmp_path / "x.png"))
+    assert r.returncode == 1 and f"line 2: vertex coordinate '{coord}' is not a finite number" in r.stderr, r.stderr
+    assert not (tmp_path / "x.png").exists()
+    with pytest.raises(OSError, match="is not a finite number"):  # a malformed file, as every reader
+        wvol.radiosity.scene(str(obj))

@@ -14,6 +14,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
 
 static const char *known_keys[] = {"ObjectType", "ObjectSubType", "NDims", "Comment", "TransformType",
                                    "Name", "ID", "ParentID", "CompressedData", "CompressedDataSize",
@@ -36,13 +37,91 @@ static int key_is(const char *key, size_t klen, const char *name)
     return strlen(name) == klen && memcmp(key, name, klen) == 0;
 }
 
+/* Bytes per sample of a MetaIO ElementType (0: unknown). */
+static size_t element_bytes(const char *v)
+{
+    static const struct {
+        const char *name;
+        size_t bytes;
+    } types[] = {{"MET_CHAR", 1}, {"MET_UCHAR", 1}, {"MET_SHORT", 2}, {"MET_USHORT", 2}, {"MET_INT", 4},
+                 {"MET_UINT", 4}, {"MET_LONG", 4}, {"MET_ULONG", 4}, {"MET_LONG_LONG", 8},
+                 {"MET_ULONG_LONG", 8}, {"MET_FLOAT", 4}, {"MET_DOUBLE", 8}};
+    while (blank(*v)) v++;
+    for (size_t i = 0; i < sizeof types / sizeof *types; i++) {
+        size_t n = strlen(types[i].name);
+        if (strncmp(v, types[i].name, n) == 0 && (v[n] == '\0' || blank(v[n]))) return types[i].bytes;
+    }
+    return 0;
+}
+
+/* deflate expands no stream more than 1032-fold: a compressed image's samples can never need
+ * more bytes than that many times what holds them */
+#define META_DEFLATE_MAX_RATIO 1032.0
+
+/* The samples the header asks for must fit what the file holds, checked before VTK's reader
+ * allocates them (it takes the header's sizes on trust: a 100-byte file could ask for a
+ * terabyte). */
+static wvol_status check_data_size(const char *path, const double *dims, size_t ndims, size_t elem, int compressed,
+                                   double compressed_size, long data_offset, const char *data_file,
+                                   wvol_error *err)
+{
+    double need = (double)elem, have;
+    struct stat st;
+    for (size_t a = 0; a < ndims; a++) {
+        WVOL_RETURN_IF(!(dims[a] >= 1 && dims[a] <= 1048576 && dims[a] == floor(dims[a])), err, WVOL_ERR_FORMAT,
+                       "%s: DimSize %g is not a size (an integer in 1..1048576)", path, dims[a]);
+        need *= dims[a];
+    }
+    if (strcmp(data_file, "LOCAL") == 0) {
+        WVOL_RETURN_IF(stat(path, &st) != 0, err, WVOL_ERR_IO, "%s: %s", path, strerror(errno));
+        have = (double)st.st_size - (double)data_offset;
+    } else {
+        char *dp = NULL;
+        const char *slash = strrchr(path, '/');
+        WVOL_RETURN_IF(strcmp(data_file, "LIST") == 0 || strchr(data_file, '%'), err, WVOL_ERR_UNSUPPORTED,
+                       "%s: ElementDataFile %s (a list of files) is not supported", path, data_file);
+        if (data_file[0] != '/' && slash) {
+            size_t d = (size_t)(slash - path) + 1;
+            dp = malloc(d + strlen(data_file) + 1);
+            WVOL_RETURN_IF(!dp, err, WVOL_ERR_NOMEM, "%s: out of memory", path);
+            memcpy(dp, path, d);
+            strcpy(dp + d, data_file);
+        }
+        if (stat(dp ? dp : data_file, &st) != 0 || !S_ISREG(st.st_mode)) {
+            wvol_status r = wvol_error_set(err, WVOL_ERR_IO, "%s: data file %s is missing or not a regular file",
+                                           path, dp ? dp : data_file);
+            free(dp);
+            return r;
+        }
+        free(dp);
+        have = (double)st.st_size;
+    }
+    if (compressed) {
+        WVOL_RETURN_IF(compressed_size > have, err, WVOL_ERR_FORMAT,
+                       "%s: CompressedDataSize %.0f but only %.0f bytes of data follow the header", path,
+                       compressed_size, have);
+        WVOL_RETURN_IF(need > META_DEFLATE_MAX_RATIO * have + 1024, err, WVOL_ERR_FORMAT,
+                       "%s: the header's %.0f bytes of samples cannot come from %.0f compressed bytes", path, need,
+                       have);
+    } else {
+        WVOL_RETURN_IF(need > have, err, WVOL_ERR_FORMAT,
+                       "%s: the header asks for %.0f bytes of samples but only %.0f follow (truncated, or a wrong "
+                       "DimSize or ElementType)",
+                       path, need, have);
+    }
+    return WVOL_OK;
+}
+
 wvol_status wvol__meta_read_header(wvol__meta_header *h, const char *path, wvol_error *err)
 {
     FILE *fp;
     char *line = NULL;
-    size_t cap = 0;
+    size_t cap = 0, ndimsize = 0, elem = 0;
     ssize_t got;
-    int lines = 0, have_dims = 0, have_data_file = 0;
+    int lines = 0, have_dims = 0, have_data_file = 0, compressed = 0;
+    double dims[WVOL__META_MAX_NUMBERS], csize = 0;
+    char data_file[1024] = "";
+    long data_offset = 0;
     wvol_status s = WVOL_OK;
 
     memset(h, 0, sizeof *h);
@@ -90,11 +169,21 @@ wvol_status wvol__meta_read_header(wvol__meta_header *h, const char *path, wvol_
         else if (KEY("TransformMatrix") || KEY("Rotation") || KEY("Orientation"))
             h->nmatrix = wvol__io_parse_numbers(val, h->matrix, WVOL__META_MAX_NUMBERS);
         else if (KEY("ElementNumberOfChannels")) h->channels = atoi(val);
-        else if (KEY("DimSize")) have_dims = 1;
+        else if (KEY("DimSize")) {
+            have_dims = 1;
+            ndimsize = wvol__io_parse_numbers(val, dims, WVOL__META_MAX_NUMBERS);
+        } else if (KEY("ElementType")) elem = element_bytes(val);
+        else if (KEY("CompressedData")) {
+            while (blank(*val)) val++;
+            compressed = strncmp(val, "True", 4) == 0 || strncmp(val, "true", 4) == 0;
+        } else if (KEY("CompressedDataSize")) csize = atof(val);
         else if (KEY("ElementDataFile")) {
-            size_t i = (size_t)(val - line);
+            size_t i = (size_t)(val - line), e = n;
             while (i < n && blank(line[i])) i++;
+            while (e > i && blank(line[e - 1])) e--;
             have_data_file = i < n;
+            if (e - i < sizeof data_file) memcpy(data_file, line + i, e - i), data_file[e - i] = '\0';
+            data_offset = ftell(fp);
             break;
         }
 #undef KEY
@@ -111,7 +200,12 @@ wvol_status wvol__meta_read_header(wvol__meta_header *h, const char *path, wvol_
     if (h->channels != 1)
         return wvol_error_set(err, WVOL_ERR_UNSUPPORTED,
                               "%s: %d channels per voxel; only scalar volumes are supported", path, h->channels);
-    return WVOL_OK;
+    WVOL_RETURN_IF(ndimsize != (size_t)h->ndims, err, WVOL_ERR_FORMAT, "%s: DimSize has %zu numbers for NDims = %d",
+                   path, ndimsize, h->ndims);
+    WVOL_RETURN_IF(!elem, err, WVOL_ERR_FORMAT, "%s: ElementType missing or not a MetaIO type (MET_UCHAR ... MET_DOUBLE)",
+                   path);
+    WVOL_RETURN_IF(!data_file[0], err, WVOL_ERR_FORMAT, "%s: ElementDataFile name too long", path);
+    return check_data_size(path, dims, ndimsize, elem, compressed, csize, data_offset, data_file, err);
 }
 
 double wvol__meta_precise(double vtk_value, const double *hdr, size_t n, size_t i)

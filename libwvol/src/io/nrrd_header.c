@@ -474,8 +474,9 @@ static wvol_status interpret(nrrd_header *h, wvol_error *err)
         if (have_dirs && !dir_none[a]) {
             double len = 0;
             int c;
-            for (c = 0; c < h->space_dim; c++) len += dirs[a][c] * dirs[a][c];
-            h->spacing[a] = sqrt(len);
+            /* hypot: the squares of a spacing near 1e300 would overflow where its length does not */
+            for (c = 0; c < h->space_dim; c++) len = hypot(len, dirs[a][c]);
+            h->spacing[a] = len;
         } else if (have_spacings && isfinite(spacings[a])) {
             h->spacing[a] = fabs(spacings[a]);
         }

@@ -6,6 +6,7 @@
 #include "io/adapters.h"
 #include "io/adapter_errors.hpp"
 
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
@@ -29,11 +30,50 @@ std::string first_line(const std::string &s)
 
 }  // namespace
 
+// tinyobjloader reads a coordinate it cannot parse ("nan", "1x") as 0, silently: the vertex
+// lines are checked first, each coordinate a finite number. 0, or the first bad line's number.
+static long bad_vertex_line(const char *path, std::string &what)
+{
+    FILE *fp = std::fopen(path, "rb");
+    char buf[4096];
+    long line = 0;
+    if (!fp) return 0; // the reader reports it
+    while (std::fgets(buf, sizeof buf, fp)) {
+        const char *q = buf;
+        line++;
+        while (*q == ' ' || *q == '\t') q++;
+        if (q[0] != 'v' || (q[1] != ' ' && q[1] != '\t')) continue;
+        q += 2;
+        for (int c = 0; c < 3; c++) {
+            char *end;
+            while (*q == ' ' || *q == '\t') q++;
+            double v = std::strtod(q, &end);
+            bool sep = *end == '\0' || *end == ' ' || *end == '\t' || *end == '\n' || *end == '\r';
+            if (end == q || !sep || !std::isfinite(v)) {
+                size_t n = std::strcspn(q, " \t\r\n");
+                what.assign(q, n < 32 ? n : 32);
+                std::fclose(fp);
+                return line;
+            }
+            q = end;
+        }
+    }
+    std::fclose(fp);
+    return 0;
+}
+
 extern "C" wvol_status wvol__obj_read(wvol__obj *out, const char *path, wvol_error *err)
 {
     if (!out || !path) return wvol_error_set(err, WVOL_ERR_ARG, "OBJ: NULL argument");
     std::memset(out, 0, sizeof *out);
     if (wvol__check_regular(path, err) != WVOL_OK) return err ? err->status : WVOL_ERR_IO;
+    {
+        std::string what;
+        long line = bad_vertex_line(path, what);
+        if (line)
+            return wvol_error_set(err, WVOL_ERR_FORMAT, "%s: line %ld: vertex coordinate '%s' is not a finite number",
+                                  path, line, what.c_str());
+    }
     try {
         tinyobj::ObjReaderConfig cfg;
         cfg.triangulate = false;

@@ -54,6 +54,10 @@ static wvol_status build_patch(rad_patch *p, const wvol_radiosity_quad *q, const
                        isfinite(q->reflectance[c]) ? WVOL_ERR_ARG : WVOL_ERR_NONFINITE,
                        "%s: reflectance[%d] = %g must be in [0, 1]", name, c, q->reflectance[c]);
     }
+    for (k = 0; k < 4; k++)
+        for (int c = 0; c < 3; c++)
+            WVOL_RETURN_IF(!isfinite(q->p[k][c]), err, WVOL_ERR_NONFINITE, "%s: corner %d coordinate %d is %g (not finite)",
+                           name, k, c, q->p[k][c]);
     for (k = 0; k < 4; k++) sub3(q->p[(k + 1) % 4], q->p[k], e[k]);
     /* Newell normal: robust for any planar polygon */
     for (k = 0; k < 4; k++) {
