@@ -1,11 +1,12 @@
 /* SPDX-License-Identifier: MIT */
 /* Shared helpers of the wvol sub-commands (cli.h): option parsing, messages, JSON, progress. */
-#define _POSIX_C_SOURCE 200809L
+#define _XOPEN_SOURCE 700 /* realpath */
 #include "cli.h"
 #include "wvol/compress.h"
 #include "wvol/store.h"
 
 #include <errno.h>
+#include <limits.h>
 #include <math.h>
 #include <stdarg.h>
 #include <stdio.h>
@@ -459,6 +460,46 @@ void cli_progress_done(void)
     if (progress_shown) fputs("\r\033[K", stderr);
     progress_shown = 0;
     progress_start = -1;
+}
+
+/* path's canonical form: the real path of its folder (links and "." resolved) and its own name;
+ * an existing file's link resolved too. 0 when the folder cannot be resolved. */
+static int canonical_output(const char *path, char *buf, size_t cap)
+{
+    char dir[PATH_MAX], *r;
+    const char *slash = strrchr(path, '/'), *name = slash ? slash + 1 : path;
+    size_t d = slash ? (size_t)(slash - path) : 0;
+    if ((r = realpath(path, NULL))) { /* it exists: where it really is */
+        int ok = strlen(r) < cap;
+        if (ok) strcpy(buf, r);
+        free(r);
+        return ok;
+    }
+    if (d >= sizeof dir) return 0;
+    memcpy(dir, slash ? path : ".", slash ? (d ? d : 1) : 1);
+    dir[slash ? (d ? d : 1) : 1] = '\0';
+    if (!(r = realpath(dir, NULL))) return 0;
+    d = (size_t)snprintf(buf, cap, "%s/%s", r, name);
+    free(r);
+    return d < cap;
+}
+
+const char *cli_same_output(const char *const *outs, int n)
+{
+    char canon[16][PATH_MAX], data[PATH_MAX];
+    const char *named[16];
+    int m = 0;
+    for (int i = 0; i < n && m < 15; i++) {
+        if (!outs[i]) continue;
+        if (canonical_output(outs[i], canon[m], sizeof canon[m])) named[m++] = outs[i];
+        if (wvol_path_has_ext(outs[i], ".nhdr") && wvol_nrrd_data_path(data, sizeof data, outs[i], 0) &&
+            canonical_output(data, canon[m], sizeof canon[m]))
+            named[m++] = outs[i];
+    }
+    for (int i = 0; i < m; i++)
+        for (int j = i + 1; j < m; j++)
+            if (!strcmp(canon[i], canon[j])) return named[j];
+    return NULL;
 }
 
 int cli_make_dirs(const char *dir)

@@ -115,6 +115,10 @@ void cli_progress_done(void);
 
 /* mkdir -p: 0, or the errno of the step that failed (ENOTDIR when the path is a file). */
 int cli_make_dirs(const char *dir);
+/* The first file two of the outputs outs[0..n) would both write (an .nhdr's detached data file
+ * counted as its own output), or NULL: paths that differ as strings can name one file
+ * ("./a.nrrd" and "a.nrrd", a link, "s.nhdr" and its "s.raw"). NULL entries are skipped. */
+const char *cli_same_output(const char *const *outs, int n);
 
 /* Seconds from a monotonic clock. */
 double cli_now(void);

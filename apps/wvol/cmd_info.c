@@ -35,7 +35,8 @@ static void percentiles(const wvol_volume *v, double lo, double hi, const double
     }
     for (b = 0; b < BINS && k < nq; b++) {
         acc += hist[b];
-        while (k < nq && (double)acc >= q[k] * (double)n) out[k++] = lo + (b + 1) * w;
+        /* a bin's upper edge, never past the maximum (a constant volume has one bin of width 0) */
+        while (k < nq && (double)acc >= q[k] * (double)n) out[k++] = hi > lo ? fmin(lo + (b + 1) * w, hi) : hi;
     }
     for (; k < nq; k++) out[k] = hi;
     free(hist);

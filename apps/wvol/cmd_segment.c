@@ -159,6 +159,10 @@ int wvol_cmd_segment(int argc, char **argv)
     }
     if (!in) return cli_usage("segment", "missing input volume (see 'wvol segment --help')");
     if (!outp && !colors && !truth_path && !features_out) return cli_usage("segment", "nothing to do: give -o, --colors or --truth");
+    {
+        const char *outs[3] = {outp, colors, features_out}, *same = cli_same_output(outs, 3);
+        if (same) return cli_usage("segment", "two outputs would write the same file (%s)", same);
+    }
     if (features_out && !wvol_path_has_ext(features_out, ".raw"))
         return cli_usage("segment", "--features-out %s: only .raw is written", features_out);
     if (colors && !wvol_path_has_ext(colors, ".raw"))

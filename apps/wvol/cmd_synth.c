@@ -223,7 +223,8 @@ int wvol_cmd_synth(int argc, char **argv)
                              wvol_synth_kind_name(kind));
         if (!wvol_format_supported(labels_out, 1))
             return cli_usage("synth", "%s: cannot write this format (use .raw, .nrrd or .nhdr)", labels_out);
-        if (!strcmp(labels_out, out)) return cli_usage("synth", "--labels and -o name the same file %s", out);
+        const char *outs[2] = {out, labels_out}, *same = cli_same_output(outs, 2);
+        if (same) return cli_usage("synth", "--labels and -o would write the same file (%s)", same);
     }
     if (!have_size) wvol_synth_kind_default_dims(kind, sp.dims);
     if (!wvol_size_mul3(sp.dims[0], sp.dims[1], sp.dims[2], sizeof(float), &bytes) || bytes > ((size_t)-1 >> 1))

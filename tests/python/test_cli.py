@@ -2,6 +2,11 @@
 """The wvol program's contract: exit codes 0/1/2 and one clear line on stderr."""
 import json
 
+import numpy as np
+import pytest
+
+from conftest import run_wvol
+
 
 def test_no_command_is_usage_error(wvol):
     r = wvol()
@@ -69,3 +74,14 @@ def test_info_raw_json(wvol, tmp_path):
     assert d["dims"] == [2, 3, 4]
     assert d["min"] == 0 and d["max"] == 23
     assert abs(d["mean"] - 11.5) < 1e-12
+
+
+def test_info_percentiles_of_a_constant_volume_are_its_value(tmp_path):
+    # the 1024-bin histogram of a constant volume has width 0: its percentiles are the value
+    # itself, not the value + 1 (a bin width of 1 stood in for 0)
+    raw = tmp_path / "c.raw"
+    np.full((4, 4, 4), 0.00248, np.float32).tofile(raw)
+    r = run_wvol("info", raw, "--dims", "4x4x4", "--json")
+    assert r.returncode == 0, r.stderr
+    pct = json.loads(r.stdout)["percentiles"]
+    assert pct and all(v == pytest.approx(0.00248, rel=1e-6) for v in pct.values()), pct

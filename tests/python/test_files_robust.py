@@ -175,3 +175,18 @@ def test_metaimage_header_must_fit_its_file(tmp_path, header, words):
     lst.write_text("ObjectType = Image\nNDims = 3\nDimSize = 1 1 1\nElementType = MET_FLOAT\nElementDataFile = LIST\n")
     r = run("info", lst)
     assert r.returncode == 1 and "ElementDataFile LIST (a list of files) is not supported" in r.stderr
+
+
+def test_two_outputs_that_are_one_file_are_refused(tmp_path):
+    # different strings, one file: each would overwrite the other and both be reported written
+    for args, words in ((["synth", "skull", "--size", "8", "--labels", "./s.nrrd", "-o", "s.nrrd"],
+                         "--labels and -o would write the same file (./s.nrrd)"),
+                        (["synth", "skull", "--size", "8", "-o", "s.nhdr", "--labels", "s.raw"],  # the .nhdr's data file
+                         "--labels and -o would write the same file (s.raw)")):
+        r = run(*args, cwd=tmp_path)
+        assert r.returncode == 2 and words in r.stderr, r.stderr
+    assert not list(tmp_path.iterdir())
+    assert run("synth", "textures", "--size", "16", "-o", "t.nrrd", cwd=tmp_path).returncode == 0
+    r = run("segment", "t.nrrd", "-o", "l.raw", "--colors", "./l.raw", cwd=tmp_path)
+    assert r.returncode == 2 and "two outputs would write the same file (./l.raw)" in r.stderr, r.stderr
+    assert sorted(x.name for x in tmp_path.iterdir()) == ["t.nrrd"]
