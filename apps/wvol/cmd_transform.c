@@ -73,6 +73,9 @@ int wvol_cmd_transform(int argc, char **argv)
     }
     if (!in) return cli_usage("transform", "missing input file (see 'wvol transform --help')");
     if (!outp) return cli_usage("transform", "missing -o OUT.raw");
+    /* headerless coefficients: a name that says a volume format would be read as one */
+    if (!wvol_path_has_ext(outp, ".raw"))
+        return cli_usage("transform", "-o %s: the coefficients are written as OUT.raw (and OUT.json)", outp);
     wvol_error_clear(&err);
     if (wvol_filter_get(&f, wname, &err) != WVOL_OK) return cli_usage("transform", "--wavelet: %s", err.message);
     if (wvol_volume_load(&v, in, &lo, &err) != WVOL_OK) return cli_fail_err("transform", &err);

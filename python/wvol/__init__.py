@@ -64,7 +64,7 @@ def save(vol, path, spacing=None, origin=None):
     if isinstance(vol, Volume):
         spacing = vol.spacing if spacing is None else spacing
         origin = vol.origin if origin is None else origin
-    _wvol.save(_data(vol), str(path), spacing=spacing, origin=origin)
+    _wvol.save(_data(vol), os.fsdecode(path), spacing=spacing, origin=origin)
 
 
 def filters():
@@ -218,9 +218,9 @@ class Store:
         self._original = original
 
     def __repr__(self):
-        e = self.predicted_error
-        return (f"<wvol.Store {self.wavelet} levels={self.levels} shape={self.shape} kept={self.kept}/"
-                f"{self.total} predicted PSNR {e.psnr:.2f} dB>")
+        pred = ("coefficients replaced" if self.report.get("replaced") else
+                f"predicted PSNR {self.predicted_error.psnr:.2f} dB")
+        return f"<wvol.Store {self.wavelet} levels={self.levels} shape={self.shape} kept={self.kept}/{self.total} {pred}>"
 
     @property
     def coeffs(self):
@@ -233,6 +233,9 @@ class Store:
         # a new handle over a copy (checked: the padded grid's size, finite values); the
         # store, reconstructions and files then follow the new coefficients
         self._handle = self._handle.replace_coeffs(array)
+        # the selection's numbers no longer describe the store: its count is the new array's,
+        # and what it dropped from the original is unknown (predicted_error refuses)
+        self.report = dict(self.report, kept=int(self._handle.info()["kept"]), replaced=True)
 
     @property
     def kept(self):
@@ -258,7 +261,11 @@ class Store:
     def predicted_error(self):
         """:class:`ErrorEstimate` from Parseval: the energy of what was dropped (and, for a
         store read from a .wvc file, the quantisation error its header records). Over the
-        padded grid, so an upper bound of the error over the original voxels."""
+        padded grid, so an upper bound of the error over the original voxels. A store whose
+        coefficients were replaced (``coeffs = ...``) has no prediction: ValueError."""
+        if self.report.get("replaced"):
+            raise ValueError("predicted_error: the coefficients were replaced, so what was dropped is unknown; "
+                             "use measured_error()")
         l2 = math.sqrt(max(self.report["energy_dropped"], 0.0))
         return ErrorEstimate(l2, l2 / math.sqrt(self.voxels), _psnr(l2, self.voxels, self.peak))
 

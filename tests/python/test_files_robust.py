@@ -190,3 +190,9 @@ def test_two_outputs_that_are_one_file_are_refused(tmp_path):
     r = run("segment", "t.nrrd", "-o", "l.raw", "--colors", "./l.raw", cwd=tmp_path)
     assert r.returncode == 2 and "two outputs would write the same file (./l.raw)" in r.stderr, r.stderr
     assert sorted(x.name for x in tmp_path.iterdir()) == ["t.nrrd"]
+
+
+def test_transform_writes_raw_coefficients_only_to_a_raw_name(tmp_path, phantom):
+    r = run("transform", phantom, "-o", tmp_path / "c.nrrd")
+    assert r.returncode == 2 and "the coefficients are written as OUT.raw (and OUT.json)" in r.stderr, r.stderr
+    assert not (tmp_path / "c.nrrd").exists() and not (tmp_path / "c.nrrd.json").exists()

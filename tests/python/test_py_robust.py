@@ -4,6 +4,7 @@
 hands buffers over without leaking or aliasing."""
 import concurrent.futures as cf
 import gc
+import os
 
 import numpy as np
 import pytest
@@ -241,3 +242,23 @@ def test_evaluate_far_outside_is_the_periodic_value():
     v1, g1 = s.evaluate(far)
     np.testing.assert_allclose(v1, v0, rtol=0, atol=1e-12)
     np.testing.assert_allclose(g1, g0, rtol=0, atol=1e-12)
+
+
+def test_replaced_coefficients_have_no_prediction(tmp_path):
+    a = np.random.default_rng(5).random((8, 8, 8), dtype=np.float32)
+    s = wvol.compress(a, "haar", 1, keep=0.5)
+    before = s.kept
+    s.coeffs = np.zeros_like(s.coeffs)
+    # the new store's count (its low-pass cube is always held), not the selection's
+    assert s.kept == s.info()["kept"] < before
+    with pytest.raises(ValueError, match="the coefficients were replaced"):
+        s.predicted_error
+    assert "coefficients replaced" in repr(s)
+    assert s.measured_error(a).psnr < 20  # all zero: far from the original
+
+
+def test_save_takes_a_bytes_path(tmp_path):
+    a = np.zeros((4, 4, 4), np.float32)
+    p = tmp_path / "a.nrrd"
+    wvol.save(a, os.fsencode(p))
+    assert wvol.load(p).data.shape == (4, 4, 4)
