@@ -16,7 +16,33 @@ static PyArrayObject *label_array(PyObject *obj, const wvol_volume *v, int as_ma
     npy_intp *d;
     *none = obj == Py_None;
     if (*none) return NULL;
-    a = (PyArrayObject *)PyArray_FROM_OTF(obj, as_mask ? NPY_UINT8 : NPY_INT32, NPY_ARRAY_IN_ARRAY | NPY_ARRAY_FORCECAST);
+    {
+        /* class ids are integers (a mask also bool): a float is not truncated, an int64 beyond
+         * int32 not wrapped */
+        PyArrayObject *in = (PyArrayObject *)PyArray_FROM_O(obj);
+        if (!in) return NULL;
+        if (!(PyArray_ISINTEGER(in) || (as_mask && PyArray_ISBOOL(in)))) {
+            PyErr_Format(PyExc_TypeError, "%s must be an array of %s, got dtype %S", what,
+                         as_mask ? "bools or integers" : "integer class ids", (PyObject *)PyArray_DESCR(in));
+            Py_DECREF(in);
+            return NULL;
+        }
+        if (!as_mask && PyArray_SIZE(in) > 0) {
+            PyObject *mx = PyArray_Max(in, NPY_MAXDIMS, NULL), *mn = PyArray_Min(in, NPY_MAXDIMS, NULL);
+            long long hi = mx ? PyLong_AsLongLong(mx) : 0, lo = mn ? PyLong_AsLongLong(mn) : 0;
+            Py_XDECREF(mx);
+            Py_XDECREF(mn);
+            if (PyErr_Occurred() || hi > INT32_MAX || lo < INT32_MIN) {
+                PyErr_Clear();
+                PyErr_Format(PyExc_ValueError, "%s: class ids must fit int32", what);
+                Py_DECREF(in);
+                return NULL;
+            }
+        }
+        a = (PyArrayObject *)PyArray_FROM_OTF((PyObject *)in, as_mask ? NPY_UINT8 : NPY_INT32,
+                                              NPY_ARRAY_IN_ARRAY | NPY_ARRAY_FORCECAST);
+        Py_DECREF(in);
+    }
     if (!a) return NULL;
     nd = PyArray_NDIM(a);
     d = PyArray_DIMS(a);

@@ -137,7 +137,17 @@ static PyObject *store_evaluate(PyObject *self, PyObject *pts_obj)
     PyArrayObject *pts;
     wvol_store_info in;
     npy_intp n;
-    pts = (PyArrayObject *)PyArray_FROM_OTF(pts_obj, NPY_FLOAT64, NPY_ARRAY_IN_ARRAY | NPY_ARRAY_FORCECAST);
+    {
+        PyArrayObject *in = (PyArrayObject *)PyArray_FROM_O(pts_obj);
+        if (!in) return NULL;
+        if (!(PyArray_ISFLOAT(in) || PyArray_ISINTEGER(in)) || PyArray_ISCOMPLEX(in)) {
+            PyErr_Format(PyExc_TypeError, "points must be real numbers, got dtype %S", (PyObject *)PyArray_DESCR(in));
+            Py_DECREF(in);
+            return NULL;
+        }
+        pts = (PyArrayObject *)PyArray_FROM_OTF((PyObject *)in, NPY_FLOAT64, NPY_ARRAY_IN_ARRAY | NPY_ARRAY_FORCECAST);
+        Py_DECREF(in);
+    }
     if (!pts) return NULL;
     if (PyArray_NDIM(pts) != 2 || PyArray_DIM(pts, 1) != 3) {
         Py_DECREF(pts);

@@ -306,7 +306,7 @@ class Store:
         """The continuous model f^ (sum of the kept coefficients' spline basis functions) at
         world positions ``points`` ((n, 3), (x, y, z) order); returns ``(values (n,),
         gradients (n, 3))`` in world units."""
-        return self._handle.evaluate(np.atleast_2d(np.asarray(points, dtype=np.float64)))
+        return self._handle.evaluate(np.atleast_2d(np.asarray(points)))  # real dtypes only (checked there)
 
     def reconstruct(self, level=None, box=None):
         """Reconstructs a :class:`Volume` from the kept coefficients.

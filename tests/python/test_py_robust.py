@@ -262,3 +262,25 @@ def test_save_takes_a_bytes_path(tmp_path):
     p = tmp_path / "a.nrrd"
     wvol.save(a, os.fsencode(p))
     assert wvol.load(p).data.shape == (4, 4, 4)
+
+
+def test_class_ids_and_points_are_not_cast_silently():
+    a = np.random.default_rng(6).random((8, 8, 8), dtype=np.float32)
+    with pytest.raises(ValueError, match="truth: class ids must fit int32"):
+        wvol.segment(a, levels=1, iterations=10, truth=np.full((8, 8, 8), 2 ** 40, np.int64))
+    with pytest.raises(TypeError, match="truth must be an array of integer class ids, got dtype float64"):
+        wvol.segment(a, levels=1, iterations=10, truth=np.zeros((8, 8, 8)))
+    s = wvol.compress(a, "haar", 1, keep=0.5)
+    with pytest.raises(TypeError, match="points must be real numbers, got dtype complex128"):
+        s.evaluate(np.zeros((1, 3), complex))
+    v, g = s.evaluate([[1, 2, 3]])  # a list of ints is fine
+    assert v.shape == (1,) and g.shape == (1, 3)
+
+
+def test_features_refuse_magnitudes_that_overflow():
+    # finite samples, but 3e38 overflows float32 in the transform's sums: refused, not NaN features
+    a = np.full((8, 8, 8), 3e38, np.float32)
+    with pytest.raises(ValueError, match=r"features: the volume.s magnitudes overflow float32 in feature \d+ \(scale the volume down"):
+        wvol.features(a, levels=1)
+    with pytest.raises(ValueError, match="magnitudes overflow float32"):
+        wvol.segment(a, levels=1, iterations=10)

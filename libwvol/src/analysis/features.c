@@ -206,6 +206,17 @@ wvol_status wvol_features_compute(wvol_features **out, const wvol_volume *v, con
             interpolate(res->data + (size_t)plane_index++ * n, low, half, m, f->center, v->nx, v->ny,
                         v->nz);
     }
+    /* magnitudes near float32's limit overflow in the transform and the smoothing sums: such a
+     * volume is refused (scaled down it gives the same segmentation) rather than handed on
+     * with Inf or NaN features, which the PCA cannot take */
+    for (size_t i = 0; i < n * (size_t)res->count; i++)
+        if (!isfinite(res->data[i])) {
+            s = wvol_error_set(err, WVOL_ERR_NONFINITE,
+                               "features: the volume's magnitudes overflow float32 in feature %zu (scale the volume "
+                               "down: the segmentation does not change)",
+                               i / n);
+            goto done;
+        }
     *out = res;
     res = NULL;
 done:
