@@ -196,3 +196,17 @@ def test_transform_writes_raw_coefficients_only_to_a_raw_name(tmp_path, phantom)
     r = run("transform", phantom, "-o", tmp_path / "c.nrrd")
     assert r.returncode == 2 and "the coefficients are written as OUT.raw (and OUT.json)" in r.stderr, r.stderr
     assert not (tmp_path / "c.nrrd").exists() and not (tmp_path / "c.nrrd.json").exists()
+
+
+@pytest.mark.parametrize("text, words", [
+    ('{"points": [[0,0,0,0,0],[1,1,1,1,1]]', "the object is not closed"),
+    ('{"points": [[0,0,0,0,0],[1,1,1,1,1]], "points": 5}', '"points" given twice'),
+    ('{"points": [[0,0,0,0,0],[1,1,1,1,1]]} trailing', "text after the closing brace"),
+    ('{"points": [[0,0,0,0,0],[1,1,1,1,1]}', "brackets do not match"),
+])
+def test_json_transfer_functions_must_be_well_formed(tmp_path, phantom, text, words):
+    tf = tmp_path / "tf.json"
+    tf.write_text(text)
+    r = run("render", phantom, "-o", tmp_path / "o.png", "--size", "8x8", "--tf", tf)
+    assert r.returncode == 1 and f"malformed JSON transfer function: {words}" in r.stderr, r.stderr
+    assert not (tmp_path / "o.png").exists()

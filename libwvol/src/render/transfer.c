@@ -130,11 +130,52 @@ static const char *skip_ws(const char *s)
     return s;
 }
 
+/* The document's shape, which the reader below does not follow: one object, brackets and
+ * braces matched (outside strings), nothing after it, "points" and "units" each once. 0 or the
+ * problem. */
+static const char *json_shape(const char *text)
+{
+    char stack[64];
+    int depth = 0, in_str = 0, points = 0, units = 0;
+    const char *s = skip_ws(text);
+    if (*s != '{') return "not a JSON object";
+    for (; *s; s++) {
+        char c = *s;
+        if (in_str) {
+            if (c == '\\' && s[1]) s++;
+            else if (c == '"') in_str = 0;
+            continue;
+        }
+        if (c == '"') {
+            in_str = 1;
+            if (depth == 1 && !strncmp(s, "\"points\"", 8)) points++;
+            if (depth == 1 && !strncmp(s, "\"units\"", 7)) units++;
+        } else if (c == '{' || c == '[') {
+            if (depth == (int)sizeof stack) return "nested too deeply";
+            stack[depth++] = c;
+        } else if (c == '}' || c == ']') {
+            if (!depth || stack[depth - 1] != (c == '}' ? '{' : '[')) return "brackets do not match";
+            if (--depth == 0) {
+                s = skip_ws(s + 1);
+                if (*s) return "text after the closing brace";
+                break;
+            }
+        }
+    }
+    if (in_str) return "a string is not closed";
+    if (depth) return "the object is not closed (a missing '}' or ']')";
+    if (points > 1) return "\"points\" given twice";
+    if (units > 1) return "\"units\" given twice";
+    return NULL;
+}
+
 static wvol_status parse_json(wvol_tf *tf, const char *text, const char *what, wvol_error *err)
 {
     const char *s = text, *pts = strstr(text, "\"points\""), *units = strstr(text, "\"units\"");
     int depth = 0, n = 0;
     double vals[5];
+    const char *bad = json_shape(text);
+    WVOL_RETURN_IF(bad, err, WVOL_ERR_FORMAT, "%s: malformed JSON transfer function: %s", what, bad);
     WVOL_RETURN_IF(!pts, err, WVOL_ERR_FORMAT, "%s: JSON transfer function has no \"points\" array", what);
     if (units) {
         const char *u = skip_ws(units + 7);
