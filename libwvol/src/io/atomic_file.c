@@ -5,7 +5,6 @@
 #include "wvol/io.h"
 
 #include <errno.h>
-#include <limits.h>
 #include <stdlib.h>
 #include <string.h>
 #include <strings.h>
