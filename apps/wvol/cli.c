@@ -82,10 +82,20 @@ void cli_print_help(const char *cmd, const char *usage, const char *about, const
 
 static int vmessage(const char *cmd, int code, const char *fmt, va_list ap)
 {
+    char msg[2048];
     cli_progress_done();
-    fprintf(stderr, "wvol %s: ", cmd);
-    vfprintf(stderr, fmt, ap);
-    fputc('\n', stderr);
+    vsnprintf(msg, sizeof msg, fmt, ap);
+    /* a message can quote bytes of a damaged file (a reader's own text): control bytes are
+     * shown as '?', so that the line stays one line of text on any terminal */
+    for (char *c = msg; *c; c++)
+        if ((unsigned char)*c < 0x20 || *c == 0x7f) *c = '?';
+    {
+        /* a library message that names the command already ("compress: levels ...") is not
+         * prefixed twice */
+        size_t n = strlen(cmd);
+        const char *m = strncmp(msg, cmd, n) == 0 && msg[n] == ':' && msg[n + 1] == ' ' ? msg + n + 2 : msg;
+        fprintf(stderr, "wvol %s: %s\n", cmd, m);
+    }
     return code;
 }
 
@@ -150,7 +160,9 @@ int cli_parse_double(const char *cmd, const char *opt, const char *s, double *ou
     errno = 0;
     *out = strtod(s, &end);
     if (!*s || *end || errno || !isfinite(*out)) {
-        cli_usage(cmd, "--%s '%s': expected a finite number", opt, s);
+        /* ERANGE: beyond double's range, or below its normal numbers (1e-320) */
+        cli_usage(cmd, "--%s '%s': expected a finite number%s", opt, s,
+                  errno == ERANGE ? " within double's normal range (about 2.2e-308 to 1.8e308 in magnitude)" : "");
         return 0;
     }
     return 1;

@@ -210,3 +210,16 @@ def test_json_transfer_functions_must_be_well_formed(tmp_path, phantom, text, wo
     r = run("render", phantom, "-o", tmp_path / "o.png", "--size", "8x8", "--tf", tf)
     assert r.returncode == 1 and f"malformed JSON transfer function: {words}" in r.stderr, r.stderr
     assert not (tmp_path / "o.png").exists()
+
+
+def test_messages_quoting_a_damaged_file_stay_one_line_of_text(tmp_path):
+    bad = tmp_path / "a.nrrd"
+    bad.write_bytes(b"NRRD0004\ntype: float\ndimension: 3\nsizes: 2 1 1\nencoding: ascii\n\n1 5x\n")
+    r = run("info", bad)
+    assert r.returncode == 1 and "value 2 '5x' is not a number" in r.stderr, r.stderr
+    noise = tmp_path / "r.vtk"
+    noise.write_bytes(bytes(range(256)) * 2)
+    r = run("info", noise)
+    assert r.returncode == 1
+    assert r.stderr.endswith("\n") and r.stderr.count("\n") == 1
+    assert all(c >= " " and c != "\x7f" for c in r.stderr[:-1]), repr(r.stderr)

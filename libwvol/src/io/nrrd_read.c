@@ -250,9 +250,11 @@ static wvol_status read_ascii(const nrrd_header *h, FILE *fp, const char *name, 
         if (!*p) break;
         errno = 0;
         v = strtod(p, &end);
-        if (end == p || errno == ERANGE) {
-            wvol_status s = HFAIL(h, WVOL_ERR_FORMAT, "ascii data in %s: value %zu '%.20s' is not a number", name,
-                                  n + 1, p);
+        /* a number ends at a separator: "5x" is one bad value, not 5 and then x */
+        if (end == p || errno == ERANGE || (*end && !isspace((unsigned char)*end) && *end != ',')) {
+            size_t len = strcspn(p, " \t\r\n\v\f,");
+            wvol_status s = HFAIL(h, WVOL_ERR_FORMAT, "ascii data in %s: value %zu '%.*s' is not a number", name,
+                                  n + 1, (int)(len < 20 ? len : 20), p);
             free(text); /* after the message: it quotes the text */
             return s;
         }
