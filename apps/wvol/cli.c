@@ -304,8 +304,12 @@ int cli_parse_size(const char *cmd, const char *opt, const char *s, long *w, lon
 int cli_load_tf(const char *cmd, const char *name, double vmin, double vmax, struct wvol_tf *tf)
 {
     wvol_error err;
+    struct stat st;
     wvol_status s = wvol_tf_resolve(tf, name, vmin, vmax, &err);
     if (s == WVOL_OK) return CLI_OK;
+    /* what is wrong inside a file is bad input (1), whatever the library calls it; a name that is
+     * neither a preset nor a file is bad usage (2) */
+    if (stat(name, &st) == 0 && S_ISREG(st.st_mode)) return cli_fail(cmd, "--tf: %s", err.message);
     return s == WVOL_ERR_ARG ? cli_usage(cmd, "--tf: %s", err.message) : cli_fail_err(cmd, &err);
 }
 

@@ -117,7 +117,8 @@ int wvol_cmd_radiosity(int argc, char **argv)
     if (!mesh_res) mesh_res = 1L << (par.max_level < 8 ? par.max_level : 8);
 
     if (wvol_path_has_ext(scene_arg, ".obj")) {
-        if (wvol_radiosity_scene_load_obj(&scene, scene_arg, &err) != WVOL_OK) return cli_fail_err(cmd, &err);
+        /* a quad the file describes badly is bad input (exit 1), not bad usage */
+        if (wvol_radiosity_scene_load_obj(&scene, scene_arg, &err) != WVOL_OK) return cli_fail(cmd, "%s", err.message);
     } else if (wvol_radiosity_scene_builtin(&scene, scene_arg, &err) != WVOL_OK) {
         return cli_usage(cmd, "%s", err.message);
     }

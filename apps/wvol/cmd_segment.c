@@ -48,7 +48,8 @@ static int load_labels(int32_t **out, const char *path, const wvol_volume *like,
     size_t n;
     if (wvol_volume_load(&t, path, lo, err)) return err->status;
     if (t->nx != like->nx || t->ny != like->ny || t->nz != like->nz) {
-        wvol_error_set(err, WVOL_ERR_DIMS, "%s: truth is %zux%zux%zu but the volume is %zux%zux%zu", path,
+        /* two files that do not match: bad input (exit 1), as docs/cli.md has it */
+        wvol_error_set(err, WVOL_ERR_FORMAT, "%s: truth is %zux%zux%zu but the volume is %zux%zux%zu", path,
                        t->nx, t->ny, t->nz, like->nx, like->ny, like->nz);
         wvol_volume_destroy(t);
         return err->status;

@@ -223,3 +223,23 @@ def test_messages_quoting_a_damaged_file_stay_one_line_of_text(tmp_path):
     assert r.returncode == 1
     assert r.stderr.endswith("\n") and r.stderr.count("\n") == 1
     assert all(c >= " " and c != "\x7f" for c in r.stderr[:-1]), repr(r.stderr)
+
+
+def test_what_is_wrong_inside_an_input_file_is_exit_1(tmp_path, phantom):
+    # docs/cli.md: 1 for malformed input, 2 for bad usage; a file's content is input
+    tf = tmp_path / "tf.txt"
+    tf.write_text("0 0 0 0 0\n1 1 1 1 nan\n")
+    r = run("render", phantom, "-o", tmp_path / "o.png", "--size", "8x8", "--tf", tf)
+    assert r.returncode == 1 and "--tf:" in r.stderr, r.stderr
+    r = run("render", phantom, "-o", tmp_path / "o.png", "--size", "8x8", "--tf", "nosuchpreset")
+    assert r.returncode == 2  # neither a preset nor a file: usage
+    (tmp_path / "s.mtl").write_text("newmtl w\nKd 0.5 0.5 0.5\nKe 1 1 1\n")
+    obj = tmp_path / "s.obj"
+    obj.write_text("mtllib s.mtl\nv 0 0 0\nv 1 0 0\nv 2 0 0\nv 3 0 0\nusemtl w\nf 1 2 3 4\n")  # degenerate
+    r = run("radiosity", obj, "-o", tmp_path / "r.png")
+    assert r.returncode == 1 and "degenerate quad" in r.stderr, r.stderr
+    truth = tmp_path / "t.nrrd"
+    assert run("synth", "gaussian", "--size", "8", "-o", truth).returncode == 0
+    r = run("segment", phantom, "-o", tmp_path / "l.nrrd", "--levels", "1", "--iters", "20", "--truth", truth)
+    assert r.returncode == 1 and "truth is 8x8x8 but the volume is 16x16x16" in r.stderr, r.stderr
+    assert not (tmp_path / "o.png").exists() and not (tmp_path / "r.png").exists() and not (tmp_path / "l.nrrd").exists()
