@@ -311,3 +311,18 @@ def test_skip_tolerance_reports_its_bound(wvol, tmp_path):
     a, b = (read_exr_rgba(tmp_path / f).reshape(24, 4, 24)[:, 0, :] for f in ("a.exr", "b.exr"))
     assert a.max() > 0.1  # the volume is seen
     assert abs(a - b).max() <= info["skip_bound"] + 2e-6
+
+
+@pytest.mark.parametrize("camera, words", [
+    ("ortho persp", "'persp' says again what an earlier word said (the projection)"),
+    ("+x +y", "'+y' says again what an earlier word said (the direction)"),
+    ("persp fov=30 fov=40", "'fov=40' says again what an earlier word said"),
+    ("ortho fov=30", "fov= is for a perspective camera"),
+    ("persp height=3", "height= is for an orthographic camera"),
+    ("eye=1,2,3 dir=1,0,0", "eye=/center= and a direction (an axis, from= or dir=) both give the view direction"),
+])
+def test_camera_words_that_conflict_are_refused(wvol, vol, tmp_path, camera, words):
+    # the later word used to override the earlier silently
+    r = wvol("render", vol, "--dims", f"{N}x{N}x{N}", "-o", tmp_path / "x.png", "--size", "8x8", "--camera", camera)
+    assert r.returncode == 2 and words in r.stderr, r.stderr
+    assert not (tmp_path / "x.png").exists()

@@ -267,6 +267,7 @@ static int parse_axis(const char *s, double dir[3])
     if ((s[0] != '+' && s[0] != '-') || !s[1] || s[2]) return 0;
     a = s[1] == 'x' || s[1] == 'X' ? 0 : s[1] == 'y' || s[1] == 'Y' ? 1 : s[1] == 'z' || s[1] == 'Z' ? 2 : -1;
     if (a < 0) return 0;
+    if (!dir) return 1; /* only asked whether s is an axis */
     dir[0] = dir[1] = dir[2] = 0;
     dir[a] = s[0] == '+' ? -1.0 : 1.0; /* looking from +a means looking along -a */
     return 1;
@@ -278,6 +279,7 @@ wvol_status wvol_camera_parse(wvol_camera *cam, const char *spec, const wvol_geo
     char buf[512], *tok, *save = NULL;
     double dir[3] = {0, 0, -1}, eye[3], center[3], up[3], fov = 0, height_w = 0, zoom = 1;
     int have_eye = 0, have_center = 0, have_up = 0, a;
+    int n_proj = 0, n_dir = 0, n_fov = 0, n_height = 0, n_zoom = 0; /* each said at most once */
     wvol_projection proj = WVOL_PROJECTION_ORTHOGRAPHIC;
     wvol_status s;
 
@@ -288,6 +290,17 @@ wvol_status wvol_camera_parse(wvol_camera *cam, const char *spec, const wvol_geo
         char *eq = strchr(tok, '=');
         const char *val = eq ? eq + 1 : NULL;
         if (eq) *eq = 0;
+        /* a second word of one kind would silently override the first ("ortho persp", "+x +y") */
+        int proj_word = !eq && (!strcmp(tok, "ortho") || !strcmp(tok, "orthographic") || !strcmp(tok, "persp") ||
+                                !strcmp(tok, "perspective"));
+        int dir_word = (!eq && parse_axis(tok, NULL)) || (eq && (!strcmp(tok, "from") || !strcmp(tok, "dir")));
+        int dup = (proj_word && n_proj++) || (dir_word && n_dir++) || (eq && !strcmp(tok, "eye") && have_eye) ||
+                  (eq && !strcmp(tok, "center") && have_center) || (eq && !strcmp(tok, "up") && have_up) ||
+                  (eq && !strcmp(tok, "fov") && n_fov++) || (eq && !strcmp(tok, "height") && n_height++) ||
+                  (eq && !strcmp(tok, "zoom") && n_zoom++);
+        WVOL_RETURN_IF(dup, err, WVOL_ERR_ARG, "camera: '%s%s%s' says again what an earlier word said (%s)", tok,
+                       eq ? "=" : "", val ? val : "",
+                       proj_word ? "the projection" : dir_word ? "the direction" : "the same setting");
         if (!eq && (!strcmp(tok, "ortho") || !strcmp(tok, "orthographic"))) proj = WVOL_PROJECTION_ORTHOGRAPHIC;
         else if (!eq && (!strcmp(tok, "persp") || !strcmp(tok, "perspective"))) proj = WVOL_PROJECTION_PERSPECTIVE;
         else if (!eq && parse_axis(tok, dir)) continue;
@@ -320,6 +333,12 @@ wvol_status wvol_camera_parse(wvol_camera *cam, const char *spec, const wvol_geo
                                   tok, eq ? "=" : "", val ? val : "");
         }
     }
+    WVOL_RETURN_IF((have_eye || have_center) && n_dir, err, WVOL_ERR_ARG,
+                   "camera: eye=/center= and a direction (an axis, from= or dir=) both give the view direction");
+    WVOL_RETURN_IF(n_fov && proj != WVOL_PROJECTION_PERSPECTIVE, err, WVOL_ERR_ARG,
+                   "camera: fov= is for a perspective camera (persp)");
+    WVOL_RETURN_IF(n_height && proj == WVOL_PROJECTION_PERSPECTIVE, err, WVOL_ERR_ARG,
+                   "camera: height= is for an orthographic camera (a perspective one takes fov= and zoom=)");
     if (have_eye || have_center) {
         double lo[3], hi[3];
         WVOL_RETURN_IF(!g && !(have_eye && have_center), err, WVOL_ERR_ARG, "camera: eye and center both needed");
