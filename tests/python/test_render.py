@@ -322,7 +322,7 @@ def test_skip_tolerance_reports_its_bound(wvol, tmp_path):
     ("eye=1,2,3 dir=1,0,0", "eye=/center= and a direction (an axis, from= or dir=) both give the view direction"),
 ])
 def test_camera_words_that_conflict_are_refused(wvol, vol, tmp_path, camera, words):
-    # the later word used to override the earlier silently
+    # a later word would override the earlier one silently
     r = wvol("render", vol, "--dims", f"{N}x{N}x{N}", "-o", tmp_path / "x.png", "--size", "8x8", "--camera", camera)
     assert r.returncode == 2 and words in r.stderr, r.stderr
     assert not (tmp_path / "x.png").exists()
