@@ -71,10 +71,7 @@ static int iso_setup(double iso, int threads, int brick, const char *normals, wv
         PyErr_SetString(PyExc_ValueError, "iso-value must be finite");
         return -1;
     }
-    if (threads < 0 || threads > WVOLPY_MAX_THREADS) {
-        PyErr_Format(PyExc_ValueError, "threads must be in 0..%d (0: default)", WVOLPY_MAX_THREADS);
-        return -1;
-    }
+    if (wvolpy_check_threads(threads) < 0) return -1;
     if (brick < 0) {
         PyErr_SetString(PyExc_ValueError, "brick must be >= 0 (0: default)");
         return -1;
@@ -205,8 +202,7 @@ static PyObject *py_isoimage(PyObject *self, PyObject *args, PyObject *kw)
     if (strcmp(method, "cast") && strcmp(method, "exact"))
         return PyErr_Format(PyExc_ValueError, "method '%s': expected 'cast' or 'exact'", method);
     exact = !strcmp(method, "exact");
-    if (threads < 0 || threads > WVOLPY_MAX_THREADS)
-        return PyErr_Format(PyExc_ValueError, "threads must be in 0..%d (0: default)", WVOLPY_MAX_THREADS);
+    if (wvolpy_check_threads(threads) < 0) return NULL;
     if (!(tol >= 0) || !isfinite(tol)) return PyErr_Format(PyExc_ValueError, "tolerance must be >= 0 (0: default)");
     if (brick < 0) return PyErr_Format(PyExc_ValueError, "brick must be >= 0 (0: default)");
     if (WVOLPY_IS_STORE(src_obj)) {
@@ -366,21 +362,19 @@ static PyObject *py_save_mesh(PyObject *self, PyObject *args, PyObject *kw)
             goto done;
         }
         {
-            const float *q = PyArray_DATA(na);
-            for (npy_intp i = 0; i < 3 * PyArray_DIM(na, 0); i++)
-                if (!isfinite(q[i])) {
-                    PyErr_Format(PyExc_ValueError, "normals: non-finite value at vertex %zd", (Py_ssize_t)(i / 3));
-                    goto done;
-                }
+            Py_ssize_t bad = wvolpy_first_nonfinite3(PyArray_DATA(na), 3 * PyArray_DIM(na, 0));
+            if (bad >= 0) {
+                PyErr_Format(PyExc_ValueError, "normals: non-finite value at vertex %zd", bad);
+                goto done;
+            }
         }
     }
     {
-        const float *p = PyArray_DATA(va);
-        for (npy_intp i = 0; i < 3 * PyArray_DIM(va, 0); i++)
-            if (!isfinite(p[i])) {
-                PyErr_Format(PyExc_ValueError, "vertices: non-finite coordinate at vertex %zd", (Py_ssize_t)(i / 3));
-                goto done;
-            }
+        Py_ssize_t bad = wvolpy_first_nonfinite3(PyArray_DATA(va), 3 * PyArray_DIM(va, 0));
+        if (bad >= 0) {
+            PyErr_Format(PyExc_ValueError, "vertices: non-finite coordinate at vertex %zd", bad);
+            goto done;
+        }
     }
     if (!PyUnicode_FSConverter(path_obj, &bytes)) goto done;
     m.nverts = (size_t)PyArray_DIM(va, 0);

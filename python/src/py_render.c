@@ -220,10 +220,7 @@ static int parse_params(PyObject *opts, wvol_render_params *rp, int *J)
         opt_int(opts, "brick", &brick) < 0 || opt_int(opts, "spline_j", J) < 0)
         return -1;
     if (brick) rp->reference.brick = rp->bricks.brick = brick; /* as wvol render --brick */
-    if (rp->threads < 0 || rp->threads > WVOLPY_MAX_THREADS) {
-        PyErr_Format(PyExc_ValueError, "threads must be in 0..%d (0: default)", WVOLPY_MAX_THREADS);
-        return -1;
-    }
+    if (wvolpy_check_threads(rp->threads) < 0) return -1;
     return 0;
 raise:
     wvolpy_raise(&err);

@@ -168,10 +168,7 @@ static PyObject *py_wvc_file_region(PyObject *self, PyObject *args, PyObject *kw
     if (!PyArg_ParseTupleAndKeywords(args, kw, "OOO|iOi", kwlist, &cap, &lo_o, &hi_o, &level, &out_o, &threads))
         return NULL;
     if (!(f = file_of(cap)) || size3(lo_o, lo, "lo") < 0 || size3(hi_o, hi, "hi") < 0) return NULL;
-    if (threads < 0 || threads > WVOLPY_MAX_THREADS) {
-        PyErr_Format(PyExc_ValueError, "threads must be in 0..%d (0: all), got %d", WVOLPY_MAX_THREADS, threads);
-        return NULL;
-    }
+    if (wvolpy_check_threads(threads) < 0) return NULL;
     /* the box must lie in the level's grid before an array of its size is made; the
      * library refuses a level out of range itself, with its message */
     in = wvol_wvc_file_info(f);
@@ -233,8 +230,7 @@ static PyObject *py_wvc_file_piece(PyObject *self, PyObject *args, PyObject *kw)
     (void)self;
     if (!PyArg_ParseTupleAndKeywords(args, kw, "OOO|ii", kwlist, &cap, &lo_o, &hi_o, &level, &threads)) return NULL;
     if (!(f = file_of(cap)) || size3(lo_o, lo, "lo") < 0 || size3(hi_o, hi, "hi") < 0) return NULL;
-    if (threads < 0 || threads > WVOLPY_MAX_THREADS)
-        return PyErr_Format(PyExc_ValueError, "threads must be in 0..%d (0: all), got %d", WVOLPY_MAX_THREADS, threads);
+    if (wvolpy_check_threads(threads) < 0) return NULL;
     if (!(cap_n = wvol_wvc_piece_samples(f, level, lo, hi))) Py_RETURN_NONE;
     box = (hi[0] - lo[0]) * (hi[1] - lo[1]) * (hi[2] - lo[2]);
     if (!(work = malloc(cap_n * sizeof *work))) return PyErr_NoMemory();
@@ -273,8 +269,7 @@ static PyObject *py_wvc_file_piece_budget(PyObject *self, PyObject *args, PyObje
     wvol_wvc_file *f;
     (void)self;
     if (!PyArg_ParseTupleAndKeywords(args, kw, "O|i", kwlist, &cap, &threads)) return NULL;
-    if (threads < 0 || threads > WVOLPY_MAX_THREADS)
-        return PyErr_Format(PyExc_ValueError, "threads must be in 0..%d (0: all), got %d", WVOLPY_MAX_THREADS, threads);
+    if (wvolpy_check_threads(threads) < 0) return NULL;
     if (!(f = file_of(cap))) return NULL;
     return PyLong_FromSize_t(wvol_wvc_piece_budget(f, threads));
 }
@@ -319,13 +314,12 @@ static PyObject *py_wvc_file_slab_budget(PyObject *self, PyObject *args, PyObjec
 static PyObject *py_wvc_file_set_budget(PyObject *self, PyObject *args)
 {
     PyObject *cap;
-    long long budget;
+    unsigned long long budget;
     wvol_wvc_file *f;
     wvol_error err;
     (void)self;
-    if (!PyArg_ParseTuple(args, "OL", &cap, &budget)) return NULL;
+    if (!PyArg_ParseTuple(args, "OO&", &cap, wvolpy_conv_budget, &budget)) return NULL;
     if (!(f = file_of(cap))) return NULL;
-    if (budget < 0) return PyErr_Format(PyExc_ValueError, "budget %lld is negative", budget);
     if (wvol_wvc_set_budget(f, (size_t)budget, &err) != WVOL_OK) return wvolpy_raise(&err);
     Py_RETURN_NONE;
 }

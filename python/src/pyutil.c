@@ -1,6 +1,7 @@
 /* SPDX-License-Identifier: MIT */
 #include "pyutil.h"
 
+#include <math.h>
 #include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -287,11 +288,18 @@ int wvolpy_as_placed_volume(PyObject *obj, PyObject *spacing, PyObject *origin, 
 int wvolpy_conv_budget(PyObject *obj, void *out)
 {
     unsigned long long v;
+    int negative;
     if (!PyLong_Check(obj) || PyBool_Check(obj)) {
         PyErr_Format(PyExc_TypeError, "memory budget must be an int (bytes), got %s", Py_TYPE(obj)->tp_name);
         return 0;
     }
-    if (_PyLong_Sign(obj) < 0) {
+    {
+        PyObject *zero = PyLong_FromLong(0);
+        negative = zero ? PyObject_RichCompareBool(obj, zero, Py_LT) : -1;
+        Py_XDECREF(zero);
+    }
+    if (negative < 0) return 0;
+    if (negative) {
         PyErr_Format(PyExc_ValueError, "memory budget must be >= 0 bytes, got %S", obj);
         return 0;
     }
@@ -299,6 +307,20 @@ int wvolpy_conv_budget(PyObject *obj, void *out)
     if (PyErr_Occurred()) return 0;
     *(unsigned long long *)out = v;
     return 1;
+}
+
+int wvolpy_check_threads(int threads)
+{
+    if (threads >= 0 && threads <= WVOLPY_MAX_THREADS) return 0;
+    PyErr_Format(PyExc_ValueError, "threads must be in 0..%d (0: all), got %d", WVOLPY_MAX_THREADS, threads);
+    return -1;
+}
+
+Py_ssize_t wvolpy_first_nonfinite3(const float *p, Py_ssize_t n3)
+{
+    for (Py_ssize_t i = 0; i < n3; i++)
+        if (!isfinite(p[i])) return i / 3;
+    return -1;
 }
 
 int wvolpy_triple(PyObject *obj, double out[3], const char *what)

@@ -81,6 +81,10 @@ void wvolpy_buffer_free(wvolpy_buffer *b); /* an empty b is fine */
 /* Most OpenMP threads a call may ask for (as the command line): libgomp aborts the
  * process when it cannot create the threads asked for, so absurd counts are refused. */
 #define WVOLPY_MAX_THREADS 4096
+/* 0 when threads is in 0..WVOLPY_MAX_THREADS (0: the default), else -1 with a ValueError. */
+int wvolpy_check_threads(int threads);
+/* The row (of 3 values) of the first non-finite value among n3 floats, or -1 when all are finite. */
+Py_ssize_t wvolpy_first_nonfinite3(const float *p, Py_ssize_t n3);
 
 /* PyArg "O&" converter for a memory budget in bytes: an int >= 0 into *(unsigned long long *)out
  * (negative numbers and non-integers refused with a ValueError / TypeError naming the budget). */

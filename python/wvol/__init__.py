@@ -127,33 +127,28 @@ def _triple(v, name, default):
     return tuple(_real(x, name) for x in v)
 
 
-def _size(size, name="size"):
-    """(width, height) as two ints; floats, strings and bools are refused, not truncated."""
-    if isinstance(size, (str, bytes)) or not hasattr(size, "__len__"):
-        raise TypeError(f"{name}: expected (width, height), two ints, got {size!r}")
-    if len(size) != 2:
-        raise ValueError(f"{name}: expected (width, height), two ints, got {len(size)} values")
+def _ints(v, name, form):
+    """A fixed-length tuple of ints, ``form`` naming it ("(width, height)", "(x, y, z)"): floats,
+    strings and bools are refused, not truncated or read as characters."""
+    count = form.count(",") + 1
+    if isinstance(v, (str, bytes)) or not hasattr(v, "__len__"):
+        raise TypeError(f"{name}: expected {form}, {count} ints, got {v!r}")
+    if len(v) != count:
+        raise ValueError(f"{name}: expected {form}, {count} ints, got {len(v)} values")
     out = []
-    for v in size:
-        if isinstance(v, (bool, np.bool_)):
-            raise TypeError(f"{name}: expected ints, got {v!r}")
+    for x in v:
+        if isinstance(x, (bool, np.bool_)):
+            raise TypeError(f"{name}: expected ints, got {x!r}")
         try:
-            out.append(operator.index(v))
+            out.append(operator.index(x))
         except TypeError:
-            raise TypeError(f"{name}: expected ints, got {v!r}") from None
+            raise TypeError(f"{name}: expected ints, got {x!r}") from None
     return tuple(out)
 
 
-def _box_corner(v, name):
-    """(x, y, z) grid indices as ints; floats are refused, not truncated."""
-    if isinstance(v, (str, bytes)) or not hasattr(v, "__len__"):
-        raise TypeError(f"{name}: expected (x, y, z), three ints, got {v!r}")
-    if len(v) != 3:
-        raise ValueError(f"{name}: expected (x, y, z), three ints, got {len(v)} values")
-    try:
-        return tuple(operator.index(x) for x in v)
-    except TypeError:
-        raise TypeError(f"{name}: expected (x, y, z), three ints, got {v!r}") from None
+def _size(size, name="size"):
+    """(width, height) in pixels."""
+    return _ints(size, name, "(width, height)")
 
 
 def _geometry(vol, spacing, origin):
@@ -695,7 +690,7 @@ def wvc_region(path, lo, hi, level=0, memory=0):
     decoding only the chunks of a format-2 file whose basis functions reach the box, within
     ``memory`` bytes of decoded chunks (0: 1 GiB). Returns ``(array, stats)``: a float32
     array indexed ``[z, y, x]`` and the chunk cache's counters."""
-    return _wvol.wvc_region(os.fspath(path), _box_corner(lo, "lo"), _box_corner(hi, "hi"),
+    return _wvol.wvc_region(os.fspath(path), _ints(lo, "lo", "(x, y, z)"), _ints(hi, "hi", "(x, y, z)"),
                             operator.index(level), memory)
 
 

@@ -238,9 +238,10 @@ wvol_status wvol_wvc_open(wvol_wvc_file **out, const char *path, size_t budget, 
         wvol_wvc_close(f);
         return wvol_error_set(err, WVOL_ERR_NOMEM, "wvc open: out of memory");
     }
-    if (fstat(f->fd, &sb) != 0 || !S_ISREG(sb.st_mode)) {
+    if (fstat(f->fd, &sb) != 0) { /* a regular file (wvol__open_regular): its size */
+        wvol_status s = wvol_error_set(err, WVOL_ERR_IO, "%s: cannot stat: %s", path, strerror(errno));
         wvol_wvc_close(f);
-        return wvol_error_set(err, WVOL_ERR_IO, "%s: not a regular file", path);
+        return s;
     }
     /* the fixed header says how long the table and the index are */
     want = WVC2_HEADER_SIZE;

@@ -506,9 +506,10 @@ static wvol_status read_file(wvol_coeffs **out, wvol_wvc_info *info, const char 
 
     WVOL_RETURN_IF(!path, err, WVOL_ERR_ARG, "wvc: missing path");
     WVOL_FORWARD(wvol__fopen_regular(&fp, path, err));
-    if (fstat(fileno(fp), &sb) != 0 || !S_ISREG(sb.st_mode)) {
+    if (fstat(fileno(fp), &sb) != 0) { /* a regular file (wvol__fopen_regular): its size */
+        wvol_status s = wvol_error_set(err, WVOL_ERR_IO, "%s: cannot stat: %s", path, strerror(errno));
         fclose(fp);
-        return wvol_error_set(err, WVOL_ERR_IO, "%s: not a regular file", path);
+        return s;
     }
     fsize = (uint64_t)sb.st_size;
     I = malloc(sizeof *I);

@@ -106,3 +106,16 @@ size_t wvol__io_parse_numbers(const char *s, double *out, size_t cap)
     free(tok);
     return count;
 }
+
+char *wvol__io_data_path_of(const char *header_path, const char *data_file)
+{
+    const char *slash = strrchr(header_path, '/');
+    size_t dir = slash ? (size_t)(slash - header_path) + 1 : 0, n = strlen(data_file);
+    char *p;
+    if (data_file[0] == '/' || dir == 0) return strdup(data_file);
+    p = malloc(dir + n + 1);
+    if (!p) return NULL;
+    memcpy(p, header_path, dir);
+    memcpy(p + dir, data_file, n + 1);
+    return p;
+}

@@ -45,6 +45,11 @@ size_t wvol__io_parse_numbers(const char *s, double *out, size_t cap);
  * a link to nothing. */
 wvol_status wvol__output_path(char **final, const char *path, wvol_error *err);
 
+/* A header's detached data file (NRRD "data file:", MetaImage ElementDataFile): data_file
+ * itself when absolute, else relative to the header's folder (malloc'ed; NULL when out of
+ * memory). */
+char *wvol__io_data_path_of(const char *header_path, const char *data_file);
+
 wvol_status wvol__dicom_read(wvol_volume **out, const char *dir, wvol_error *err);
 
 /* The fields of a MetaImage header (.mha/.mhd) the VTK adapter checks or takes at

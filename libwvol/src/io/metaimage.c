@@ -76,20 +76,14 @@ static wvol_status check_data_size(const char *path, const double *dims, size_t 
         WVOL_RETURN_IF(stat(path, &st) != 0, err, WVOL_ERR_IO, "%s: %s", path, strerror(errno));
         have = (double)st.st_size - (double)data_offset;
     } else {
-        char *dp = NULL;
-        const char *slash = strrchr(path, '/');
+        char *dp;
         WVOL_RETURN_IF(strcmp(data_file, "LIST") == 0 || strchr(data_file, '%'), err, WVOL_ERR_UNSUPPORTED,
                        "%s: ElementDataFile %s (a list of files) is not supported", path, data_file);
-        if (data_file[0] != '/' && slash) {
-            size_t d = (size_t)(slash - path) + 1;
-            dp = malloc(d + strlen(data_file) + 1);
-            WVOL_RETURN_IF(!dp, err, WVOL_ERR_NOMEM, "%s: out of memory", path);
-            memcpy(dp, path, d);
-            strcpy(dp + d, data_file);
-        }
-        if (stat(dp ? dp : data_file, &st) != 0 || !S_ISREG(st.st_mode)) {
-            wvol_status r = wvol_error_set(err, WVOL_ERR_IO, "%s: data file %s is missing or not a regular file",
-                                           path, dp ? dp : data_file);
+        dp = wvol__io_data_path_of(path, data_file);
+        WVOL_RETURN_IF(!dp, err, WVOL_ERR_NOMEM, "%s: out of memory", path);
+        if (stat(dp, &st) != 0 || !S_ISREG(st.st_mode)) {
+            wvol_status r =
+                wvol_error_set(err, WVOL_ERR_IO, "%s: data file %s is missing or not a regular file", path, dp);
             free(dp);
             return r;
         }

@@ -62,9 +62,6 @@ void wvol__nrrd_header_free(nrrd_header *h);
 
 /* n samples of the header's type and byte order to float32. */
 void wvol__nrrd_convert(float *dst, const unsigned char *src, size_t n, const nrrd_header *h);
-/* The detached data file's path: absolute, or relative to the header's folder (malloc'ed;
- * NULL when out of memory). */
-char *wvol__nrrd_data_path_of(const char *header_path, const char *data_file);
 
 /* Opens the samples: the detached data file (*dpath: its malloc'ed path) or fp itself
  * positioned at the first data byte; *dname names it in messages. The caller closes *dfp

@@ -7,6 +7,7 @@
  * allocated, and samples are converted chunk by chunk from bounded buffers. */
 #define _POSIX_C_SOURCE 200809L
 #include "core/file_open.h"
+#include "io/io_internal.h"
 #include "io/nrrd_internal.h"
 
 #include <ctype.h>
@@ -273,26 +274,12 @@ static wvol_status read_ascii(const nrrd_header *h, FILE *fp, const char *name, 
     return WVOL_OK;
 }
 
-/* The detached data file's path: absolute, or relative to the header's folder. */
-char *wvol__nrrd_data_path_of(const char *header_path, const char *data_file)
-{
-    const char *slash = strrchr(header_path, '/');
-    size_t dir = slash ? (size_t)(slash - header_path) + 1 : 0, n = strlen(data_file);
-    char *p;
-    if (data_file[0] == '/' || dir == 0) return strdup(data_file);
-    p = malloc(dir + n + 1);
-    if (!p) return NULL;
-    memcpy(p, header_path, dir);
-    memcpy(p + dir, data_file, n + 1);
-    return p;
-}
-
 wvol_status wvol__nrrd_open_data(const nrrd_header *h, FILE *fp, FILE **dfp, char **dpath, const char **dname,
                                  wvol_error *err)
 {
     *dfp = NULL, *dpath = NULL, *dname = h->path;
     if (h->value[F_DATA_FILE]) {
-        *dpath = wvol__nrrd_data_path_of(h->path, h->value[F_DATA_FILE]);
+        *dpath = wvol__io_data_path_of(h->path, h->value[F_DATA_FILE]);
         if (!*dpath) return HFAIL(h, WVOL_ERR_NOMEM, "out of memory");
         wvol_error e;
         if (wvol__fopen_regular(dfp, *dpath, &e) != WVOL_OK) return HFAIL(h, WVOL_ERR_IO, "data file %s", e.message);

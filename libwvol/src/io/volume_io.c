@@ -65,6 +65,7 @@ wvol_status wvol_volume_load(wvol_volume **out, const char *path, const wvol_loa
 {
     wvol_load_options defaults;
     struct stat st;
+    fmt_kind fmt;
     WVOL_RETURN_IF(!out || !path, err, WVOL_ERR_ARG, "load: NULL argument");
     *out = NULL;
     if (!opt) {
@@ -72,9 +73,10 @@ wvol_status wvol_volume_load(wvol_volume **out, const char *path, const wvol_loa
         opt = &defaults;
     }
     WVOL_RETURN_IF(stat(path, &st) != 0, err, WVOL_ERR_IO, "%s: %s", path, strerror(errno));
+    fmt = format_of(path);
     /* a FIFO or device would make the format libraries wait or read without end */
-    if (format_of(path) != FMT_DICOM) WVOL_FORWARD(wvol__check_regular(path, err));
-    switch (format_of(path)) {
+    if (fmt != FMT_DICOM) WVOL_FORWARD(wvol__check_regular(path, err));
+    switch (fmt) {
     case FMT_RAW: return wvol_raw_read(out, path, opt, err);
     case FMT_NRRD: return wvol_nrrd_read(out, path, err);
     case FMT_VDB: return wvol__vdb_read(out, path, opt->grid_name, err);
