@@ -300,7 +300,7 @@ static int image_open(const iso_args *a, int store, image_job *j, wvol_error *er
     wvol_volume_range(j->v, &j->vmin, &j->vmax, NULL);
     wvol_geometry_of_volume(&j->g, j->v);
     if (wvol_camera_parse(&j->cam, a->camera, &j->g, (int)a->width, (int)a->height, err) != WVOL_OK)
-        return cli_usage("iso", "--camera: %s", err->message);
+        return cli_usage("iso", "%s", err->message);
     if (store) {
         if ((rc = prepare_kept(a, j->v, 1, &j->kept, err)) != CLI_OK) return rc;
         wvol_coeffs_destroy(j->kept.coeffs);

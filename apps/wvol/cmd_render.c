@@ -655,7 +655,7 @@ static int render_progressive(render_args *a)
     wvol_volume_range(v, &vmin, &vmax, NULL);
     wvol_geometry_of_volume(&g, v);
     if (wvol_camera_parse(&cam, a->camspec, &g, (int)a->width, (int)a->height, &err) != WVOL_OK) {
-        rc = cli_usage("render", "--camera: %s", err.message);
+        rc = cli_usage("render", "%s", err.message);
         goto done;
     }
     if (a->rp.mode != WVOL_RENDER_MODE_XRAY && (rc = cli_load_tf("render", a->tfname, vmin, vmax, &tf)) != CLI_OK)
@@ -719,7 +719,7 @@ int wvol_cmd_render(int argc, char **argv)
     if ((rc = load_input(&a, &in, &err)) != CLI_OK) goto done;
     if ((rc = load_colors(&a, &in, &a.rp, &err)) != CLI_OK) goto done;
     if (wvol_camera_parse(&cam, a.camspec, &in.geometry, (int)a.width, (int)a.height, &err) != WVOL_OK) {
-        rc = cli_usage("render", "--camera: %s", err.message);
+        rc = cli_usage("render", "%s", err.message);
         goto done;
     }
     if (a.rp.mode != WVOL_RENDER_MODE_XRAY && (rc = cli_load_tf("render", a.tfname, in.vmin, in.vmax, &tf)) != CLI_OK)
