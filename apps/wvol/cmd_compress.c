@@ -383,6 +383,12 @@ int wvol_cmd_compress(int argc, char **argv)
     if (mode == MODE_NONE) mode = MODE_PSNR, psnr = 50;
     if (sp->n_ellipsoids && mode == MODE_PSNR)
         return cli_usage("compress", "--roi ranks coefficients: use it with --keep, --keep-count or --energy");
+    if (cli_given(&p, "roi-floor") && !sp->n_ellipsoids)
+        return cli_usage("compress", "--roi-floor weights the coefficients outside the --roi regions: add --roi");
+    if ((coder == WVOL_WVC_CODER_RANS || coder == WVOL_WVC_CODER_RANS4) && format == 1)
+        return cli_usage("compress", "--coder rans and rans4 write chunks of format 2: --format 1 has none");
+    if (cli_given(&p, "tile") && format == 1)
+        return cli_usage("compress", "--tile sets the chunks of format 2: --format 1 has none");
     wvol_error_clear(&err);
     chose = wvol_compress_wavelet_is_auto(cp.wavelet);
     if (!chose && wvol_filter_get(&f, cp.wavelet, &err) != WVOL_OK)

@@ -75,6 +75,22 @@ static const char about[] =
     "decodes only the levels kept. --full-resolution turns it off.\n"
     "See docs/render.md for cameras, transfer-function files and errors.";
 
+/* The options only some methods read (bit m: wvol_render_method m). AUTO picks reference,
+ * bricks or axis, never spline or splat, so it takes what those three read. */
+#define M_(m) (1u << WVOL_RENDER_METHOD_##m)
+#define M_SAMPLING (M_(AUTO) | M_(REFERENCE) | M_(REFERENCE_FHAT) | M_(BRICKS))
+static const cli_method_rule method_rules[] = {
+    {"gauss", M_(SPLINE), "spline"},
+    {"step", M_SAMPLING, "auto, reference, reference-fhat or bricks"},
+    {"termination", M_SAMPLING | M_(SPLINE), "auto, reference, reference-fhat, bricks or spline"},
+    {"brick", M_(AUTO) | M_(REFERENCE) | M_(BRICKS), "auto, reference or bricks"},
+    {"skip-tolerance", M_(AUTO) | M_(REFERENCE) | M_(BRICKS), "auto, reference or bricks"},
+    {"preintegrate", M_SAMPLING, "auto, reference, reference-fhat or bricks"},
+    {"gradient-levels", M_(AUTO) | M_(BRICKS), "auto or bricks"},
+    {NULL, 0, NULL}};
+#undef M_SAMPLING
+#undef M_
+
 typedef struct render_args {
     const char *in, *out, *camspec, *tfname, *colors_path, *bound_path;
     long width, height, repeat;
@@ -251,6 +267,18 @@ static int parse_args(render_args *a, int argc, char **argv)
         a->rp.method != WVOL_RENDER_METHOD_REFERENCE_FHAT && a->rp.method != WVOL_RENDER_METHOD_BRICKS)
         return cli_usage(cmd, "--colors needs --method reference, reference-fhat or bricks (got %s)",
                          wvol_render_method_name(a->rp.method));
+    if ((r = cli_method_rules(&ps, method_rules, (int)a->rp.method, wvol_render_method_name(a->rp.method))) != CLI_OK)
+        return r;
+    if ((a->rp.method == WVOL_RENDER_METHOD_AXIS || a->rp.method == WVOL_RENDER_METHOD_SPLAT) &&
+        a->rp.mode != WVOL_RENDER_MODE_XRAY)
+        return cli_usage(cmd, "--method %s renders X-ray images only: add --mode xray",
+                         wvol_render_method_name(a->rp.method));
+    if (cli_given(&ps, "gradient-levels") && !a->rp.shading)
+        return cli_usage(cmd, "--gradient-levels sets the gradient --shading takes: add --shading");
+    if (cli_given(&ps, "growth") && !a->progressive)
+        return cli_usage(cmd, "--growth sets how progressive passes grow: add --progressive");
+    if (cli_given(&ps, "bound-method") && !a->bound_path && !(a->progressive && a->pp.max_error > 0))
+        return cli_usage(cmd, "--bound-method chooses how a bound is computed: add --bound (or --progressive --max-error)");
     if ((a->pp.max_error > 0 || a->pp.seconds > 0) && !a->progressive)
         return cli_usage(cmd, "--max-error and --budget stop progressive passes: add --progressive");
     if (a->progressive) {
