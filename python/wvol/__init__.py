@@ -393,7 +393,11 @@ def compress(vol, wavelet="db2", levels=None, *, keep=None, keep_count=None, ene
     handle, report = _wvol.compress(arr, wavelet=wavelet, levels=levels, mode=mode, value=value,
                                     drop_levels=drop_levels, roi=roi, roi_floor=roi_floor, spacing=spacing,
                                     origin=origin, value_range=value_range, residual=bool(residual))
-    return Store(handle, report, original=arr)
+    # measured_error()'s default original: a copy of the samples as they were compressed, so
+    # that changing the caller's array afterwards changes neither the store nor its error
+    original = np.array(arr, copy=True)
+    original.flags.writeable = False
+    return Store(handle, report, original=original)
 
 
 

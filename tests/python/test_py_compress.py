@@ -44,6 +44,23 @@ def test_predicted_error_matches_measured_without_padding(wavelet):
     assert abs(p.psnr - m.psnr) < 0.01
 
 
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+def test_measured_error_does_not_follow_later_changes_to_the_input(dtype):
+    """measured_error() compares with the samples as they were compressed, not with what the
+    caller's array holds later (a float32 array is read in place by compress; a float64 one
+    converted)."""
+    a = _blob().astype(dtype)
+    s = wvol.compress(a, keep=0.05)
+    before = s.measured_error()
+    a *= 3
+    a[0, 0, 0] = np.nan
+    after = s.measured_error()
+    assert after == before and math.isfinite(after.psnr) and after.l2 > 0
+    # an original passed in is read when called: the changed array is measured as it is now
+    a[0, 0, 0] = 0
+    assert s.measured_error(a).l2 > 2 * before.l2
+
+
 def test_energy_and_psnr_targets_are_met():
     a = _blob()
     s = wvol.compress(a, energy=0.999)
