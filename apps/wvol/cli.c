@@ -25,6 +25,22 @@ void cli_parser_init(cli_parser *p, const char *cmd, int argc, char **argv, cons
     p->i = 1;
     p->cmd = cmd;
     p->opts = opts;
+    memset(p->given, 0, sizeof p->given);
+}
+
+int cli_given(const cli_parser *p, const char *name)
+{
+    for (size_t k = 0; k < sizeof p->given && p->opts[k].name; k++)
+        if (!strcmp(p->opts[k].name, name)) return p->given[k];
+    return 0;
+}
+
+int cli_method_rules(const cli_parser *p, const cli_method_rule *rules, int method, const char *method_name)
+{
+    for (const cli_method_rule *r = rules; r->opt; r++)
+        if (!(r->methods >> method & 1u) && cli_given(p, r->opt))
+            return cli_usage(p->cmd, "--%s applies only to --method %s (not %s)", r->opt, r->which, method_name);
+    return CLI_OK;
 }
 
 int cli_next(cli_parser *p, const cli_opt **opt, const char **value)
@@ -53,6 +69,7 @@ int cli_next(cli_parser *p, const cli_opt **opt, const char **value)
     }
     if (!o->name) return cli_usage(p->cmd, "unknown option '%s' (see 'wvol %s --help')", arg, p->cmd);
     *opt = o;
+    if ((size_t)(o - p->opts) < sizeof p->given) p->given[o - p->opts] = 1;
     if (o->takes_value) {
         if (eq) {
             *value = eq + 1;

@@ -24,6 +24,7 @@ typedef struct cli_parser {
     int i;
     const char *cmd;
     const cli_opt *opts;  /* terminated by {NULL} */
+    unsigned char given[128]; /* given[k]: opts[k] was on the command line (the first 128 options) */
 } cli_parser;
 
 void cli_parser_init(cli_parser *p, const char *cmd, int argc, char **argv, const cli_opt *opts);
@@ -33,6 +34,21 @@ void cli_parser_init(cli_parser *p, const char *cmd, int argc, char **argv, cons
  * printing an error for an unknown option or a missing value. "--help"/"-h" must
  * be listed in opts by the command if it wants them (cli_help_opt). */
 int cli_next(cli_parser *p, const cli_opt **opt, const char **value);
+
+/* Options read by some methods only: `opt` (long name) applies to the methods whose bits are set
+ * in `methods` (bit m for method number m of the command); `which` names them for the message. */
+typedef struct cli_method_rule {
+    const char *opt;
+    unsigned methods;
+    const char *which;
+} cli_method_rule;
+
+/* Whether --name was given. */
+int cli_given(const cli_parser *p, const char *name);
+/* CLI_OK, or CLI_USAGE after "--OPT applies only to --method WHICH (not NAME)" for the first rule
+ * (terminated by {NULL}) whose option was given and whose methods lack `method`: an option the
+ * chosen method would not read is refused rather than ignored. */
+int cli_method_rules(const cli_parser *p, const cli_method_rule *rules, int method, const char *method_name);
 
 #define CLI_HELP_OPT {"help", 'h', 0, "show this help"}
 #define CLI_JSON_OPT {"json", 0, 0, "machine-readable JSON on stdout"}

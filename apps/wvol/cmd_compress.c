@@ -140,8 +140,9 @@ static int compress_streamed(const char *in, const char *outp, const wvol_load_o
     if (chose && choose_wavelet(&wc, src, cp, &err) != WVOL_OK) goto fail;
     if (wvol_filter_get(&f, cp->wavelet, &err) != WVOL_OK) goto fail;
     if (wvol_compress_stream(outp, src, cp, &rep, &err) != WVOL_OK) {
-        rc = psnr > 0 ? cli_fail("compress", "%s with --psnr %g: %s", in, psnr, err.message)
-                      : cli_fail_err("compress", &err);
+        /* a target the input cannot meet is bad input (exit 1), whatever the status; the
+         * library's message names the target */
+        rc = psnr > 0 ? cli_fail("compress", "%s", err.message) : cli_fail_err("compress", &err);
         goto done;
     }
     t_all = cli_now() - t0;
@@ -382,6 +383,12 @@ int wvol_cmd_compress(int argc, char **argv)
     if (mode == MODE_NONE) mode = MODE_PSNR, psnr = 50;
     if (sp->n_ellipsoids && mode == MODE_PSNR)
         return cli_usage("compress", "--roi ranks coefficients: use it with --keep, --keep-count or --energy");
+    if (cli_given(&p, "roi-floor") && !sp->n_ellipsoids)
+        return cli_usage("compress", "--roi-floor weights the coefficients outside the --roi regions: add --roi");
+    if ((coder == WVOL_WVC_CODER_RANS || coder == WVOL_WVC_CODER_RANS4) && format == 1)
+        return cli_usage("compress", "--coder rans and rans4 write chunks of format 2: --format 1 has none");
+    if (cli_given(&p, "tile") && format == 1)
+        return cli_usage("compress", "--tile sets the chunks of format 2: --format 1 has none");
     wvol_error_clear(&err);
     chose = wvol_compress_wavelet_is_auto(cp.wavelet);
     if (!chose && wvol_filter_get(&f, cp.wavelet, &err) != WVOL_OK)
@@ -475,13 +482,9 @@ int wvol_cmd_compress(int argc, char **argv)
     dropped = cc.report.energy_dropped;
     t0 = cli_now();
     if (wvol_compress_encode(&buf, &nbytes, &cc, &cp, &wrep, &err) != WVOL_OK) {
-        /* the error target cannot be met (a constant volume, or levels dropped beyond it) */
-        if (mode == MODE_PSNR && drop > 0)
-            rc = cli_fail("compress", "--drop-levels %ld with --psnr %g: %s", drop, psnr, err.message);
-        else if (mode == MODE_PSNR)
-            rc = cli_fail("compress", "%s with --psnr %g: %s", in, psnr, err.message);
-        else
-            rc = cli_fail_err("compress", &err);
+        /* the error target cannot be met (a constant volume, or levels dropped beyond it): bad
+         * input (exit 1), whatever the status; the library's message names the target */
+        rc = mode == MODE_PSNR ? cli_fail("compress", "%s", err.message) : cli_fail_err("compress", &err);
         goto done;
     }
     t_enc = cli_now() - t0;

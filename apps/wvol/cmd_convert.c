@@ -60,8 +60,8 @@ int wvol_cmd_convert(int argc, char **argv)
     }
     if (!in || !out) return cli_usage("convert", "expected IN and OUT files (see 'wvol convert --help')");
     if (!wvol_format_supported(out, 1))
-        return cli_fail("convert", "%s: cannot write this format with this build (see 'wvol convert --help')",
-                        out);
+        return cli_usage("convert", "%s: cannot write this format with this build (see 'wvol convert --help')",
+                         out);
 
     t0 = cli_now();
     wvol_error_clear(&err);

@@ -47,6 +47,25 @@ static const cli_opt opts[] = {
     CLI_HELP_OPT,
     {NULL, 0, 0, NULL}};
 
+/* --method's names, in the order of the bits of method_rules */
+static const char *const method_names[] = {"mc", "cast", "raytrace", "hybrid"};
+enum { M_MC = 1, M_CAST = 2, M_RAYTRACE = 4, M_HYBRID = 8, M_IMAGES = M_CAST | M_RAYTRACE | M_HYBRID };
+static const cli_method_rule method_rules[] = {
+    {"model-bound", M_CAST, "cast"},
+    {"surface", M_HYBRID, "hybrid"},
+    {"camera", M_IMAGES, "cast, raytrace or hybrid"},
+    {"size", M_IMAGES, "cast, raytrace or hybrid"},
+    {"tolerance", M_IMAGES, "cast, raytrace or hybrid"},
+    {"tf", M_HYBRID, "hybrid"},
+    {"spline-j", M_IMAGES, "cast, raytrace or hybrid"},
+    {"chunk", M_RAYTRACE | M_HYBRID, "raytrace or hybrid"},
+    {"normals", M_MC, "mc"},
+    {"repeat", M_MC, "mc"},
+    {"level", M_MC, "mc"},
+    {"memory", M_MC, "mc"},
+    {"brick", M_MC | M_CAST, "mc or cast"},
+    {NULL, 0, NULL}};
+
 typedef struct iso_args {
     const char *in, *out;
     double iso;
@@ -60,7 +79,14 @@ typedef struct iso_args {
     size_t memory;  /* .wvc input: budget of the file-backed store (0: default) */
 } iso_args;
 
-static void report(const iso_args *a, int levels, const wvol_mesh *m, const wvol_iso_stats *st, double best, double first,
+/* A store of kept coefficients is made (the library's pipeline) when --wavelet or --keep says
+ * which: for the mesh and the cast image alike. */
+static int from_store(const iso_args *a)
+{
+    return a->wavelet || a->have_keep;
+}
+
+static void report(const iso_args *a, const wvol_compressed *kept, const wvol_mesh *m, const wvol_iso_stats *st, double best, double first,
                    const double cpu[2], double t_load, double t_save, const wvol_volume *coarse, double level_energy, double t_level)
 {
     wvol_mesh_topo topo;
@@ -71,10 +97,10 @@ static void report(const iso_args *a, int levels, const wvol_mesh *m, const wvol
         cli_json_begin();
         cli_json_str("input", a->in);
         if (a->out) cli_json_str("output", a->out);
-        cli_json_str("method", a->wavelet ? "mc-bricks" : "mc");
-        if (a->wavelet) {
-            cli_json_str("wavelet", a->wavelet);
-            cli_json_int("levels", levels);
+        cli_json_str("method", from_store(a) ? "mc-bricks" : "mc");
+        if (from_store(a)) {
+            cli_json_str("wavelet", wvol_store_basis(kept->store)->filter->name);
+            cli_json_int("levels", kept->levels);
             cli_json_num("keep", a->keep);
         }
         if (st->bricks_total) { /* the brick path: from a store, or from a .wvc's file store */
@@ -197,7 +223,7 @@ static int run_mc(const iso_args *a)
     p.normals = a->normals;
     p.brick = a->brick > 0 ? a->brick : 32;
     memset(&best_st, 0, sizeof best_st);
-    if (a->wavelet && v) {
+    if (from_store(a) && v) {
         rc = prepare_kept(a, v, 0, &kept, &err);
         if (rc != CLI_OK) goto done;
         if (a->brick != 0) { /* the brick path reads the store; only --brick 0 needs the dense coefficients */
@@ -268,7 +294,7 @@ static int run_mc(const iso_args *a)
     }
     if (best_st.empty && !a->json) fprintf(stderr, "wvol iso: %s\n", best_st.message);
     if (!v && (rc = cli_check_wvc_store("iso", &kept, 0)) != CLI_OK) goto done;
-    report(a, kept.levels, m, &best_st, best, first, cpu, t_load, t_save, coarse, level_energy, t_level);
+    report(a, &kept, m, &best_st, best, first, cpu, t_load, t_save, coarse, level_energy, t_level);
 done:
     wvol_volume_destroy(coarse);
     wvol_mesh_destroy(m);
@@ -300,7 +326,7 @@ static int image_open(const iso_args *a, int store, image_job *j, wvol_error *er
     wvol_volume_range(j->v, &j->vmin, &j->vmax, NULL);
     wvol_geometry_of_volume(&j->g, j->v);
     if (wvol_camera_parse(&j->cam, a->camera, &j->g, (int)a->width, (int)a->height, err) != WVOL_OK)
-        return cli_usage("iso", "--camera: %s", err->message);
+        return cli_usage("iso", "%s", err->message);
     if (store) {
         if ((rc = prepare_kept(a, j->v, 1, &j->kept, err)) != CLI_OK) return rc;
         wvol_coeffs_destroy(j->kept.coeffs);
@@ -340,12 +366,12 @@ static int run_cast(const iso_args *a)
     wvol_iso_cast_params cp;
     wvol_iso_cast_stats cs;
     double t0 = cli_now(), t_prep;
-    int from_store = a->wavelet || a->have_keep, rc;
+    int rc;
 
     wvol_error_clear(&err);
-    if ((rc = image_open(a, from_store, &j, &err)) != CLI_OK) goto done;
+    if ((rc = image_open(a, from_store(a), &j, &err)) != CLI_OK) goto done;
     rc = CLI_FAILED;
-    src = from_store ? wvol_render_source_store(j.kept.store) : wvol_render_source_volume(j.v);
+    src = from_store(a) ? wvol_render_source_store(j.kept.store) : wvol_render_source_volume(j.v);
     wvol_iso_cast_params_default(&cp);
     cp.threads = a->threads;
     cp.brick = a->brick > 0 ? a->brick : 32;
@@ -363,8 +389,8 @@ static int run_cast(const iso_args *a)
         cli_json_str("input", a->in);
         if (a->out) cli_json_str("output", a->out);
         cli_json_str("method", "cast");
-        cli_json_str("source", from_store ? "store" : "volume");
-        if (from_store) {
+        cli_json_str("source", from_store(a) ? "store" : "volume");
+        if (from_store(a)) {
             cli_json_str("wavelet", wvol_store_basis(j.kept.store)->filter->name);
             cli_json_int("levels", j.kept.levels);
             cli_json_num("keep", a->keep);
@@ -608,13 +634,14 @@ int wvol_cmd_iso(int argc, char **argv)
     }
     if (!a.in) return cli_usage("iso", "missing input volume (see 'wvol iso --help')");
     if (!a.have_iso) return cli_usage("iso", "missing --iso THETA");
+    for (r = 0; strcmp(a.method, method_names[r]); r++) {}
+    if ((r = cli_method_rules(&p, method_rules, r, a.method)) != CLI_OK) return r;
+    if (cli_given(&p, "levels") && !from_store(&a) && (!strcmp(a.method, "mc") || !strcmp(a.method, "cast")))
+        return cli_usage("iso", "--levels sets the levels of a store: add --wavelet or --keep (method %s)", a.method);
     if (strcmp(a.method, "mc")) {
         if (a.out && !wvol_path_has_ext(a.out, ".exr") && !wvol_path_has_ext(a.out, ".png"))
             return cli_usage("iso", "-o '%s': --method %s writes an image: .exr (with Z depth) or .png", a.out,
                              a.method);
-        if (a.level) return cli_usage("iso", "--level applies to --method mc (a mesh of the coarser grid)");
-        if (a.surface_cast && strcmp(a.method, "hybrid"))
-            return cli_usage("iso", "--surface applies to --method hybrid");
         return !strcmp(a.method, "cast") ? run_cast(&a) : run_image(&a);
     }
     if (a.out && !wvol_path_has_ext(a.out, ".ply") && !wvol_path_has_ext(a.out, ".obj") &&

@@ -90,7 +90,7 @@ int wvol_cmd_radiosity(int argc, char **argv)
         }
         if (!strcmp(o->name, "output")) out = val;
         else if (!strcmp(o->name, "basis")) {
-            if (wvol_radiosity_basis_parse(val, &par.basis, &err) != WVOL_OK) return cli_usage(cmd, "--basis: %s", err.message);
+            if (wvol_radiosity_basis_parse(val, &par.basis, &err) != WVOL_OK) return cli_usage(cmd, "%s", err.message);
         } else if (!strcmp(o->name, "epsilon")) {
             if (!cli_parse_double(cmd, "epsilon", val, &par.epsilon)) return CLI_USAGE;
             if (!(par.epsilon >= 0) || !isfinite(par.epsilon)) return cli_usage(cmd, "--epsilon %s: must be >= 0", val);
@@ -129,7 +129,7 @@ int wvol_cmd_radiosity(int argc, char **argv)
         wvol_geometry g;
         wvol_radiosity_geometry(scene, &g);
         if (wvol_camera_parse(&cam, camspec, &g, (int)width, (int)height, &err) != WVOL_OK) {
-            rc = cli_usage(cmd, "--camera: %s", err.message);
+            rc = cli_usage(cmd, "%s", err.message);
             goto done;
         }
         if (wvol_image_create(&img, (int)width, (int)height, &err) != WVOL_OK) goto fail;

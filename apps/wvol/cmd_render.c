@@ -75,6 +75,22 @@ static const char about[] =
     "decodes only the levels kept. --full-resolution turns it off.\n"
     "See docs/render.md for cameras, transfer-function files and errors.";
 
+/* The options only some methods read (bit m: wvol_render_method m). AUTO picks reference,
+ * bricks or axis, never spline or splat, so it takes what those three read. */
+#define M_(m) (1u << WVOL_RENDER_METHOD_##m)
+#define M_SAMPLING (M_(AUTO) | M_(REFERENCE) | M_(REFERENCE_FHAT) | M_(BRICKS))
+static const cli_method_rule method_rules[] = {
+    {"gauss", M_(SPLINE), "spline"},
+    {"step", M_SAMPLING, "auto, reference, reference-fhat or bricks"},
+    {"termination", M_SAMPLING | M_(SPLINE), "auto, reference, reference-fhat, bricks or spline"},
+    {"brick", M_(AUTO) | M_(REFERENCE) | M_(BRICKS), "auto, reference or bricks"},
+    {"skip-tolerance", M_(AUTO) | M_(REFERENCE) | M_(BRICKS), "auto, reference or bricks"},
+    {"preintegrate", M_SAMPLING, "auto, reference, reference-fhat or bricks"},
+    {"gradient-levels", M_(AUTO) | M_(BRICKS), "auto or bricks"},
+    {NULL, 0, NULL}};
+#undef M_SAMPLING
+#undef M_
+
 typedef struct render_args {
     const char *in, *out, *camspec, *tfname, *colors_path, *bound_path;
     long width, height, repeat;
@@ -251,6 +267,18 @@ static int parse_args(render_args *a, int argc, char **argv)
         a->rp.method != WVOL_RENDER_METHOD_REFERENCE_FHAT && a->rp.method != WVOL_RENDER_METHOD_BRICKS)
         return cli_usage(cmd, "--colors needs --method reference, reference-fhat or bricks (got %s)",
                          wvol_render_method_name(a->rp.method));
+    if ((r = cli_method_rules(&ps, method_rules, (int)a->rp.method, wvol_render_method_name(a->rp.method))) != CLI_OK)
+        return r;
+    if ((a->rp.method == WVOL_RENDER_METHOD_AXIS || a->rp.method == WVOL_RENDER_METHOD_SPLAT) &&
+        a->rp.mode != WVOL_RENDER_MODE_XRAY)
+        return cli_usage(cmd, "--method %s renders X-ray images only: add --mode xray",
+                         wvol_render_method_name(a->rp.method));
+    if (cli_given(&ps, "gradient-levels") && !a->rp.shading)
+        return cli_usage(cmd, "--gradient-levels sets the gradient --shading takes: add --shading");
+    if (cli_given(&ps, "growth") && !a->progressive)
+        return cli_usage(cmd, "--growth sets how progressive passes grow: add --progressive");
+    if (cli_given(&ps, "bound-method") && !a->bound_path && !(a->progressive && a->pp.max_error > 0))
+        return cli_usage(cmd, "--bound-method chooses how a bound is computed: add --bound (or --progressive --max-error)");
     if ((a->pp.max_error > 0 || a->pp.seconds > 0) && !a->progressive)
         return cli_usage(cmd, "--max-error and --budget stop progressive passes: add --progressive");
     if (a->progressive) {
@@ -655,7 +683,7 @@ static int render_progressive(render_args *a)
     wvol_volume_range(v, &vmin, &vmax, NULL);
     wvol_geometry_of_volume(&g, v);
     if (wvol_camera_parse(&cam, a->camspec, &g, (int)a->width, (int)a->height, &err) != WVOL_OK) {
-        rc = cli_usage("render", "--camera: %s", err.message);
+        rc = cli_usage("render", "%s", err.message);
         goto done;
     }
     if (a->rp.mode != WVOL_RENDER_MODE_XRAY && (rc = cli_load_tf("render", a->tfname, vmin, vmax, &tf)) != CLI_OK)
@@ -719,7 +747,7 @@ int wvol_cmd_render(int argc, char **argv)
     if ((rc = load_input(&a, &in, &err)) != CLI_OK) goto done;
     if ((rc = load_colors(&a, &in, &a.rp, &err)) != CLI_OK) goto done;
     if (wvol_camera_parse(&cam, a.camspec, &in.geometry, (int)a.width, (int)a.height, &err) != WVOL_OK) {
-        rc = cli_usage("render", "--camera: %s", err.message);
+        rc = cli_usage("render", "%s", err.message);
         goto done;
     }
     if (a.rp.mode != WVOL_RENDER_MODE_XRAY && (rc = cli_load_tf("render", a.tfname, in.vmin, in.vmax, &tf)) != CLI_OK)

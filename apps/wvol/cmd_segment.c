@@ -169,6 +169,7 @@ int wvol_cmd_segment(int argc, char **argv)
     if (colors && !wvol_path_has_ext(colors, ".raw"))
         return cli_usage("segment", "--colors %s: only .raw (interleaved RGB float32) is written", colors);
     if (have_box && !truth_path) return cli_usage("segment", "--train-box needs --truth");
+    if (boundary >= 0 && !truth_path) return cli_usage("segment", "--boundary shapes the score against --truth: add --truth");
     if (wvol_filter_get(&filt, wname, &err)) return cli_usage("segment", "--wavelet: %s", err.message);
 
     if (wvol_volume_load(&v, in, &lo, &err)) return cli_fail_err("segment", &err);

@@ -309,7 +309,9 @@ typedef struct bad_case {
     const char *header;  /* written as is */
     int data;            /* 0: none; 1: 8 floats; 2: 7 floats; 3: 9 floats; 4: gzip 8 floats;
                             5: gzip truncated; 6: gzip corrupt; 7: gzip 9 floats; 8: gzip + junk;
-                            9: 8 floats with a NaN; 10: ascii 7 values; 11: ascii 9; 12: ascii junk */
+                            9: 8 floats with a NaN; 10: ascii 7 values; 11: ascii 9; 12: ascii junk;
+                            13: ascii 300 third; 14: ascii -1 second; 15: ascii 1e40 sixth;
+                            16: ascii 2.5 second (the types' limits are read: every_type_and_byte_order) */
     wvol_status status;
     const char *needle;  /* must appear in the message */
 } bad_case;
@@ -416,6 +418,15 @@ static const bad_case bad_cases[] = {
      "too long"},
     {"ascii junk", "NRRD0004\ntype: float\ndimension: 3\nsizes: 2 2 2\nencoding: ascii\n\n", 12, WVOL_ERR_FORMAT,
      "not a number"},
+    /* a text value the declared type cannot hold is malformed, as a binary file cannot hold it */
+    {"ascii uchar 300", "NRRD0004\ntype: uchar\ndimension: 3\nsizes: 2 2 2\nencoding: ascii\n\n", 13,
+     WVOL_ERR_FORMAT, "value 3 '300' is outside the range of type 'uchar' (0 to 255)"},
+    {"ascii ushort -1", "NRRD0004\ntype: ushort\ndimension: 3\nsizes: 2 2 2\nencoding: ascii\n\n", 14,
+     WVOL_ERR_FORMAT, "value 2 '-1' is outside the range of type 'ushort' (0 to 65535)"},
+    {"ascii float 1e40", "NRRD0004\ntype: float\ndimension: 3\nsizes: 2 2 2\nencoding: ascii\n\n", 15,
+     WVOL_ERR_FORMAT, "value 6 '1e40' is outside the range of type 'float'"},
+    {"ascii int 2.5", "NRRD0004\ntype: int\ndimension: 3\nsizes: 2 2 2\nencoding: ascii\n\n", 16,
+     WVOL_ERR_FORMAT, "value 2 '2.5' is not an integer (type 'int')"},
 };
 
 static void malformed_headers_refused(void)
@@ -453,6 +464,10 @@ static void malformed_headers_refused(void)
         case 10: data = "1 2 3 4 5 6 7", n = 13; break;
         case 11: data = "1 2 3 4 5 6 7 8 9", n = 17; break;
         case 12: data = "1 2 3 four 5 6 7 8", n = 18; break;
+        case 13: data = "1 2 300 4 5 6 7 8", n = 17; break;
+        case 14: data = "1 -1 3 4 5 6 7 8", n = 16; break;
+        case 15: data = "1 2 3 4 5 1e40 7 8", n = 18; break;
+        case 16: data = "1 2.5 3 4 5 6 7 8", n = 17; break;
         }
         write_file(path, b->header, strlen(b->header), data, n);
         d9[3] = 4;

@@ -85,3 +85,96 @@ def test_info_percentiles_of_a_constant_volume_are_its_value(tmp_path):
     assert r.returncode == 0, r.stderr
     pct = json.loads(r.stdout)["percentiles"]
     assert pct and all(v == pytest.approx(0.00248, rel=1e-6) for v in pct.values()), pct
+
+
+@pytest.fixture
+def small(tmp_path):
+    """A 16^3 float32 volume with a bright ball: the input of the option checks below."""
+    z, y, x = np.mgrid[:16, :16, :16]
+    raw = tmp_path / "v.raw"
+    np.exp(-((x - 7.5) ** 2 + (y - 7.5) ** 2 + (z - 7.5) ** 2) / 20).astype("<f4").tofile(raw)
+    return [raw, "--dims", "16x16x16"]
+
+
+# docs/cli.md: 2 is bad usage, decided by the options alone (an option the chosen method does not
+# read, or one that needs another; a combination no method takes; an output extension this
+# build cannot write); nothing is read or written, and the line names the option
+@pytest.mark.parametrize("args,words", [
+    (["render", "-o", "x.exr", "--gauss", "3"], "--gauss applies only to --method spline (not auto)"),
+    (["render", "-o", "x.exr", "--method", "spline", "--keep", "50%", "--step", "0.3"],
+     "--step applies only to --method auto, reference, reference-fhat or bricks (not spline)"),
+    (["render", "-o", "x.exr", "--method", "axis", "--keep", "50%", "--brick", "8"],
+     "--brick applies only to --method auto, reference or bricks (not axis)"),
+    (["render", "-o", "x.exr", "--method", "splat", "--keep", "50%"], "--method splat renders X-ray images only"),
+    (["render", "-o", "x.exr", "--method", "spline", "--keep", "50%", "--preintegrate"],
+     "--preintegrate applies only to --method"),
+    (["render", "-o", "x.exr", "--method", "bricks", "--gradient-levels", "1"], "--gradient-levels"),
+    (["render", "-o", "x.exr", "--growth", "2"], "add --progressive"),
+    (["render", "-o", "x.exr", "--bound-method", "coarse"], "add --bound"),
+    (["iso", "-o", "x.ply", "--iso", "0.5", "--tf", "grey"], "--tf applies only to --method hybrid (not mc)"),
+    (["iso", "-o", "x.ply", "--iso", "0.5", "--camera", "+x"], "--camera applies only to --method cast, raytrace"),
+    (["iso", "-o", "x.ply", "--iso", "0.5", "--surface", "exact"], "--surface applies only to --method hybrid"),
+    (["iso", "-o", "x.exr", "--iso", "0.5", "--method", "cast", "--normals", "none"],
+     "--normals applies only to --method mc (not cast)"),
+    (["iso", "-o", "x.exr", "--iso", "0.5", "--method", "raytrace", "--brick", "8"],
+     "--brick applies only to --method mc or cast (not raytrace)"),
+    (["iso", "-o", "x.exr", "--iso", "0.5", "--method", "cast", "--chunk", "8"],
+     "--chunk applies only to --method raytrace or hybrid (not cast)"),
+    (["iso", "-o", "x.ply", "--iso", "0.5", "--levels", "2"], "--levels sets the levels of a store"),
+    (["compress", "-o", "x.wvc", "--roi-floor", "0.2"], "--roi-floor"),
+    (["compress", "-o", "x.wvc", "--format", "1", "--tile", "16"], "--tile"),
+    (["compress", "-o", "x.wvc", "--format", "1", "--coder", "rans4"], "--format 1"),
+    (["segment", "-o", "x.raw", "--boundary", "2"], "--boundary"),
+])
+def test_options_the_method_does_not_read_are_usage_errors(wvol, small, tmp_path, args, words):
+    cmd, rest = args[0], [str(tmp_path / a) if a.startswith("x.") else a for a in args[1:]]
+    r = wvol(cmd, *small, *rest)
+    assert r.returncode == 2, (r.returncode, r.stderr)
+    assert words in r.stderr and len(r.stderr.strip().splitlines()) == 1, r.stderr
+    assert list(tmp_path.iterdir()) == [small[0]]  # nothing written
+
+
+def test_convert_to_an_unwritable_format_is_usage(wvol, small, tmp_path):
+    r = wvol("convert", *small[:1], tmp_path / "x.mhd", *small[1:])
+    assert r.returncode == 2 and "x.mhd: cannot write this format" in r.stderr, r.stderr
+    r = wvol("synth", "gaussian", "-o", tmp_path / "x.mhd")  # the same refusal, the same code
+    assert r.returncode == 2 and "cannot write this format" in r.stderr, r.stderr
+
+
+# 1 is bad input: what only the input's contents decide, with options that are fine by themselves
+@pytest.mark.parametrize("args,words", [
+    (["compress", "-o", "x.wvc", "--psnr", "40"], "the volume is constant; PSNR 40 "),
+    (["render", "-o", "x.exr", "--tf", "bad.tf"], "bad.tf:1"),
+    (["info", "--dims", "15x16x16"], "file has 16384 bytes but 15x16x16 float32 samples need 15360"),
+])
+def test_bad_input_fails_with_1(wvol, tmp_path, args, words):
+    raw = tmp_path / "c.raw"
+    np.full((16, 16, 16), 3.0, "<f4").tofile(raw)
+    (tmp_path / "bad.tf").write_text("0 1 1\n")
+    rest = [str(tmp_path / a) if a.startswith(("x.", "bad.")) else a for a in args[1:]]
+    dims = [] if "--dims" in rest else ["--dims", "16x16x16"]
+    r = wvol(args[0], raw, *dims, *rest)
+    assert r.returncode == 1, (r.returncode, r.stderr)
+    assert words in r.stderr and len(r.stderr.strip().splitlines()) == 1, r.stderr
+
+
+def test_library_message_is_not_prefixed_twice(wvol, tmp_path):
+    # the library's messages name their module ("compress: ...", "camera: ..."); the program
+    # prints them after its own "wvol CMD: " and puts no second label in front of them
+    raw = tmp_path / "c.raw"
+    np.full((8, 8, 8), 3.0, "<f4").tofile(raw)
+    r = wvol("compress", raw, "--dims", "8x8x8", "-o", tmp_path / "c.wvc")
+    assert r.returncode == 1
+    assert r.stderr.startswith("wvol compress: the volume is constant; PSNR 50 "), r.stderr
+    assert r.stderr.count("compress:") == 1, r.stderr
+    r = wvol("render", raw, "--dims", "8x8x8", "-o", tmp_path / "c.exr", "--camera", "persp fov=500")
+    assert r.returncode == 2
+    assert r.stderr.strip() == "wvol render: camera: fov='500' (degrees in (0, 180))", r.stderr
+
+
+def test_keep_alone_meshes_from_a_store(wvol, small, tmp_path):
+    # --keep used to be read only with --wavelet: the mesh was the full volume's
+    full = json.loads(wvol("iso", *small, "--iso", "0.5", "--json").stdout)
+    kept = json.loads(wvol("iso", *small, "--iso", "0.5", "--keep", "1%", "--json").stdout)
+    assert full["method"] == "mc" and kept["method"] == "mc-bricks" and kept["wavelet"] == "db2"
+    assert kept["area"] != full["area"]

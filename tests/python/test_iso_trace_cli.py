@@ -86,7 +86,7 @@ def test_image_methods_refuse_mesh_outputs(wvol, vol, tmp_path):
     r = wvol("iso", vol, "--dims", f"{N}x{N}x{N}", "--iso", "0.5", "--method", "nope")
     assert r.returncode == 2 and "mc, cast, raytrace or hybrid" in r.stderr
     r = wvol("iso", vol, "--dims", f"{N}x{N}x{N}", "--iso", "0.5", "--method", "raytrace", "--surface", "cast")
-    assert r.returncode == 2 and "--surface applies to --method hybrid" in r.stderr
+    assert r.returncode == 2 and "--surface applies only to --method hybrid" in r.stderr
     r = wvol("iso", vol, "--dims", f"{N}x{N}x{N}", "--iso", "0.5", "--method", "hybrid", "--surface", "mesh")
     assert r.returncode == 2 and "expected exact or cast" in r.stderr
 

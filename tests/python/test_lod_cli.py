@@ -115,7 +115,7 @@ def test_bad_levels_are_refused(wvol, skull, tmp_path):
     r = wvol("iso", wvc, "--iso", "400", "--level", "-1")
     assert r.returncode == 2 and "--level '-1': expected an integer from 0 to 30" in r.stderr
     r = wvol("iso", wvc, "--iso", "400", "--level", "1", "--method", "cast")
-    assert r.returncode == 2 and "--level applies to --method mc" in r.stderr
+    assert r.returncode == 2 and "--level applies only to --method mc" in r.stderr
 
 
 def test_python_lod(skull):

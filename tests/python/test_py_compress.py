@@ -44,6 +44,26 @@ def test_predicted_error_matches_measured_without_padding(wavelet):
     assert abs(p.psnr - m.psnr) < 0.01
 
 
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+def test_measured_error_refuses_an_input_changed_since(dtype):
+    """measured_error() compares with the array the store was compressed from, kept by
+    reference (a float32 array is read in place by compress; a float64 one converted): when
+    the caller has changed it since, the default is refused instead of measuring against
+    other samples; an original passed in is read when called."""
+    a = _blob().astype(dtype)
+    s = wvol.compress(a, keep=0.05)
+    before = s.measured_error()
+    assert math.isfinite(before.psnr) and before.l2 > 0
+    keep = a.copy()
+    a *= 3
+    with pytest.raises(ValueError, match="changed since"):
+        s.measured_error()
+    assert s.measured_error(a).l2 > 2 * before.l2
+    assert s.measured_error(keep) == before
+    a[...] = keep  # the same samples again: the default is accepted
+    assert s.measured_error() == before
+
+
 def test_energy_and_psnr_targets_are_met():
     a = _blob()
     s = wvol.compress(a, energy=0.999)

@@ -79,7 +79,8 @@ def test_transfer_function_file(wvol, vol, tmp_path):
     (["--method", "magic"], 2, "--method"),
     (["--skip-tolerance", "-1"], 2, "--skip-tolerance"),
     (["--skip-tolerance", "lots"], 2, "skip-tolerance"),
-    (["--skip-tolerance", "0.01", "--method", "spline", "--keep", "50%"], 1, "skip tolerance"),
+    (["--skip-tolerance", "0.01", "--method", "spline", "--keep", "50%"], 2,
+     "--skip-tolerance applies only to --method auto, reference or bricks (not spline)"),
     (["--repeat", "0"], 2, "--repeat"),
     (["--repeat", "101"], 2, "--repeat"),
     (["--repeat", "two"], 2, "--repeat"),
@@ -127,7 +128,8 @@ def test_spline_and_axis_agree_along_an_axis(wvol, vol, tmp_path):
 def test_splat_from_the_cli(wvol, vol, tmp_path):
     # --method splat: X-ray of an oblique orthographic view, the spline model up to the
     # footprint tables' interpolation (C tests: 4e-4..4.4e-3 relative RMSE; here allowed 1e-2
-    # of the peak on any pixel); a mode or camera it cannot render is refused with exit 1
+    # of the peak on any pixel); a mode it cannot render is bad usage (exit 2, the options alone
+    # decide it), a camera it cannot take fails when it is placed (exit 1, docs/cli.md)
     common = [vol, "--dims", f"{N}x{N}x{N}", "--mode", "xray", "--size", "16x12", "--camera",
               "ortho dir=1,0.7,0.4", "--wavelet", "db2", "--levels", "2", "--keep", "20%", "--json",
               "--spline-j", "3"]
@@ -139,7 +141,7 @@ def test_splat_from_the_cli(wvol, vol, tmp_path):
     assert a.size == b.size == 4 * 16 * 12 and abs(a - b).max() < 1e-2 * abs(b).max()
     bad = [vol, "--dims", f"{N}x{N}x{N}", "--size", "8x8", "--keep", "20%", "--method", "splat"]
     r = wvol("render", *bad, "-o", tmp_path / "x.exr")
-    assert r.returncode == 1 and "X-ray only" in r.stderr and not (tmp_path / "x.exr").exists()
+    assert r.returncode == 2 and "X-ray images only" in r.stderr and not (tmp_path / "x.exr").exists()
     r = wvol("render", *bad, "--mode", "xray", "--camera", "persp dir=1,1,0", "-o", tmp_path / "y.exr")
     assert r.returncode == 1 and "orthographic" in r.stderr and not (tmp_path / "y.exr").exists()
 

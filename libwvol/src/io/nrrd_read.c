@@ -12,6 +12,8 @@
 
 #include <ctype.h>
 #include <errno.h>
+#include <float.h>
+#include <math.h>
 #include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -224,12 +226,36 @@ done:
     return s;
 }
 
+/* The values a sample of the header's type can hold, [*lo, *hi]; *integral for the integer
+ * types. The binary encodings cannot hold anything else; a text value outside them is as
+ * malformed as one that is not a number. */
+static void type_range(int type, double *lo, double *hi, int *integral)
+{
+    *integral = 1;
+    switch (type) {
+    case WVOL_SAMPLE_TYPE_I8: *lo = INT8_MIN, *hi = INT8_MAX; break;
+    case WVOL_SAMPLE_TYPE_U8: *lo = 0, *hi = UINT8_MAX; break;
+    case WVOL_SAMPLE_TYPE_I16: *lo = INT16_MIN, *hi = INT16_MAX; break;
+    case WVOL_SAMPLE_TYPE_U16: *lo = 0, *hi = UINT16_MAX; break;
+    case WVOL_SAMPLE_TYPE_I32: *lo = INT32_MIN, *hi = INT32_MAX; break;
+    case WVOL_SAMPLE_TYPE_U32: *lo = 0, *hi = UINT32_MAX; break;
+    case T_I64: *lo = -9223372036854775808.0, *hi = 9223372036854775807.0; break;
+    case T_U64: *lo = 0, *hi = 18446744073709551615.0; break;
+    case WVOL_SAMPLE_TYPE_F32: *integral = 0, *lo = -FLT_MAX, *hi = FLT_MAX; break;
+    default: *integral = 0, *lo = -DBL_MAX, *hi = DBL_MAX; break;
+    }
+}
+
 static wvol_status read_ascii(const nrrd_header *h, FILE *fp, const char *name, wvol_volume **v, wvol_error *err)
 {
     float *out;
     long long size = 0, pos;
     char *text, *p;
     size_t n = 0, got;
+    char why[128];
+    double lo, hi;
+    int integral;
+    type_range(h->type, &lo, &hi, &integral);
     WVOL_FORWARD(file_size(h, fp, name, &size, err));
     pos = ftell(fp);
     /* each value takes at least a digit and a separator */
@@ -251,11 +277,19 @@ static wvol_status read_ascii(const nrrd_header *h, FILE *fp, const char *name, 
         if (!*p) break;
         errno = 0;
         v = strtod(p, &end);
-        /* a number ends at a separator: "5x" is one bad value, not 5 and then x */
-        if (end == p || errno == ERANGE || (*end && !isspace((unsigned char)*end) && *end != ',')) {
+        /* a number ends at a separator: "5x" is one bad value, not 5 and then x. NaN and Inf in
+         * a floating-point type are left to the samples' finite check, which names the voxel */
+        why[0] = '\0';
+        if (end == p || errno == ERANGE || (*end && !isspace((unsigned char)*end) && *end != ','))
+            snprintf(why, sizeof why, "is not a number");
+        else if (isfinite(v) ? !(v >= lo && v <= hi) : integral)
+            snprintf(why, sizeof why, "is outside the range of type '%.20s' (%.9g to %.9g)", h->value[F_TYPE], lo, hi);
+        else if (integral && v != floor(v))
+            snprintf(why, sizeof why, "is not an integer (type '%.20s')", h->value[F_TYPE]);
+        if (why[0]) {
             size_t len = strcspn(p, " \t\r\n\v\f,");
-            wvol_status s = HFAIL(h, WVOL_ERR_FORMAT, "ascii data in %s: value %zu '%.*s' is not a number", name,
-                                  n + 1, (int)(len < 20 ? len : 20), p);
+            wvol_status s = HFAIL(h, WVOL_ERR_FORMAT, "ascii data in %s: value %zu '%.*s' %s", name, n + 1,
+                                  (int)(len < 20 ? len : 20), p, why);
             free(text); /* after the message: it quotes the text */
             return s;
         }

@@ -170,7 +170,8 @@ wvol_status wvol_compress_wvc_params(wvol_wvc_params *wp, const wvol_compress_qu
     if (q->psnr > 0) {
         double budget = wvol_wvc_sse_for_psnr(q->psnr, voxels, vmin, vmax);
         WVOL_RETURN_IF(!(vmax > vmin), err, WVOL_ERR_ARG,
-                       "compress: the volume is constant; PSNR (peak = range) is undefined: give a quantiser step");
+                       "compress: the volume is constant; PSNR %g (peak = range) is undefined: give a quantiser step",
+                       q->psnr);
         WVOL_RETURN_IF(dropped >= budget, err, WVOL_ERR_ARG,
                        "compress: the dropped levels alone lose more than PSNR %g allows (%.2f dB)", q->psnr,
                        wvol_wvc_psnr(dropped, voxels, vmin, vmax));
