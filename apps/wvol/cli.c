@@ -15,6 +15,7 @@
 #include <time.h>
 #include <sys/stat.h>
 #include <unistd.h>
+#include <omp.h>
 
 #include "wvol/render.h"
 
@@ -212,6 +213,15 @@ int cli_parse_long(const char *cmd, const char *opt, const char *s, long lo, lon
         cli_usage(cmd, "--%s '%s': expected an integer from %ld to %ld", opt, s, lo, hi);
         return 0;
     }
+    return 1;
+}
+
+int cli_threads(const char *cmd, const char *val, int *threads)
+{
+    long n;
+    if (!cli_parse_long(cmd, "threads", val, 1, CLI_MAX_THREADS, &n)) return 0;
+    omp_set_num_threads((int)n); /* the process's default: every OpenMP region of this run */
+    if (threads) *threads = (int)n;
     return 1;
 }
 

@@ -52,6 +52,13 @@ int cli_method_rules(const cli_parser *p, const cli_method_rule *rules, int meth
 
 #define CLI_HELP_OPT {"help", 'h', 0, "show this help"}
 #define CLI_JSON_OPT {"json", 0, 0, "machine-readable JSON on stdout"}
+/* --threads, the same on every command that runs in parallel. */
+#define CLI_THREADS_OPT {"threads", 0, 1, "threads (default: all cores, or OMP_NUM_THREADS)"}
+#define CLI_MAX_THREADS 4096
+/* --threads N (1..CLI_MAX_THREADS): the process's OpenMP default for every parallel region of
+ * the run, also stored in *threads (for a library call's own threads field) when not NULL.
+ * 1, or 0 after printing the usage error. */
+int cli_threads(const char *cmd, const char *val, int *threads);
 /* A .wvc input read within a memory budget (decoded chunks held at once). */
 #define CLI_MEMORY_OPT {"memory", 0, 1, ".wvc input: budget for decoded chunks, e.g. 512M or 2G (default 1G)"}
 

@@ -38,7 +38,7 @@ static const cli_opt opts[] = {
     {"format", 0, 1, ".wvc format version: 2 (default: chunks, random access) or 1"},
     {"tile", 0, 1, "format 2: chunk size in coefficients, XY or XY,Z, powers of two in 8..256 (default 64,32)"},
     CLI_LOAD_OPTS,
-    {"threads", 0, 1, "threads for the transforms and the coder (default: all, or OMP_NUM_THREADS)"},
+    CLI_THREADS_OPT,
     {"verify", 0, 0, "decode the file written and measure its error (the encoder's own error is exact)"},
     {"in-memory", 0, 0, "hold the volume in memory even when the input streams (raw, NRRD, synth:)"},
     {"memory", 0, 1, "streamed input: keep the transformed volume between the two passes when it fits in this many "
@@ -369,9 +369,7 @@ int wvol_cmd_compress(int argc, char **argv)
         } else if (!strcmp(o->name, "memory")) {
             if (!cli_parse_bytes("compress", "memory", val, &cp.memory)) return CLI_USAGE;
         } else if (!strcmp(o->name, "threads")) {
-            long th;
-            if (!cli_parse_long("compress", "threads", val, 1, 4096, &th)) return CLI_USAGE;
-            omp_set_num_threads((int)th); /* the process's default: every OpenMP region of this run */
+            if (!cli_threads("compress", val, NULL)) return CLI_USAGE;
         } else if (cli_load_option("compress", o, val, &lo) == CLI_USAGE) {
             return CLI_USAGE;
         }

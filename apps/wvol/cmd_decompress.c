@@ -17,6 +17,7 @@ static const cli_opt opts[] = {
     {"level", 0, 1, "stop after this level: 0 = full resolution (default), m = the level-m low-pass volume"},
     {"roi", 0, 1, "only the box x0,y0,z0,x1,y1,z1 (voxels of the original grid, x1 exclusive): decodes only the chunks it needs"},
     {"memory", 0, 1, "budget for decoded chunks, bytes or with K/M/G (default 1G): a region (--roi), or the whole volume when its decode would not fit, is read through the chunk cache within it and a .raw/.nrrd/.nhdr output written slab by slab"},
+    CLI_THREADS_OPT,
     CLI_JSON_OPT,
     CLI_HELP_OPT,
     {NULL, 0, 0, NULL}};
@@ -133,6 +134,8 @@ int wvol_cmd_decompress(int argc, char **argv)
             roi = 1;
         } else if (!strcmp(o->name, "memory")) {
             if (!cli_parse_bytes("decompress", "memory", val, &budget)) return CLI_USAGE;
+        } else if (!strcmp(o->name, "threads")) {
+            if (!cli_threads("decompress", val, NULL)) return CLI_USAGE;
         } else if (!strcmp(o->name, "json")) {
             json = 1;
         }

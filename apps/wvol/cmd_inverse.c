@@ -18,6 +18,7 @@ static const cli_opt opts[] = {
     {"level", 0, 1, "stop at this level: a coarser volume (0 = full, the default)"},
     {"brick", 0, 1, "reconstruct only the box X0,Y0,Z0,X1,Y1,Z1 (voxels [X0,X1) ...)"},
     {"f64", 0, 0, "compute in float64"},
+    CLI_THREADS_OPT,
     CLI_JSON_OPT,
     CLI_HELP_OPT,
     {NULL, 0, 0, NULL}};
@@ -70,6 +71,8 @@ int wvol_cmd_inverse(int argc, char **argv)
             brick = 1;
         } else if (!strcmp(o->name, "f64")) {
             f64 = 1;
+        } else if (!strcmp(o->name, "threads")) {
+            if (!cli_threads("inverse", val, NULL)) return CLI_USAGE;
         } else if (!strcmp(o->name, "json")) {
             json = 1;
         }

@@ -30,7 +30,7 @@ static const cli_opt opts[] = {
     {"tolerance", 0, 1, "image methods: depth tolerance in voxels (default 0.001; cast 0.00001)"},
     {"spline-j", 0, 1, "raytrace/hybrid: basis splines with 2^J knots per unit (default 4)"},
     {"chunk", 0, 1, "raytrace/hybrid: ray segment built at a time, voxels (default 16)"},
-    {"threads", 0, 1, "threads (default: all)"},
+    CLI_THREADS_OPT,
     {"normals", 0, 1, "gradient (default) or none"},
     {"repeat", 0, 1, "extract N times and report the fastest (benchmarking; --json adds the first, extract_first)"},
     {"wavelet", 0, 1, "mesh the reconstruction of kept wavelet coefficients (haar, db2, coif1, bl3, ...);\n"
@@ -584,8 +584,7 @@ int wvol_cmd_iso(int argc, char **argv)
                 return cli_usage("iso", "--surface '%s': expected exact or cast", val);
             a.surface_cast = !strcmp(val, "cast");
         } else if (!strcmp(o->name, "threads")) {
-            if (!cli_parse_long("iso", "threads", val, 1, 4096, &lv)) return CLI_USAGE;
-            a.threads = (int)lv;
+            if (!cli_threads("iso", val, &a.threads)) return CLI_USAGE;
         } else if (!strcmp(o->name, "repeat")) {
             if (!cli_parse_long("iso", "repeat", val, 1, 1000, &lv)) return CLI_USAGE;
             a.repeat = (int)lv;

@@ -40,7 +40,7 @@ static const cli_opt opts[] = {
     {"gradient-levels", 0, 1, "bricks with --shading: gradient of the low-pass model, the L finest levels' details dropped (default 0: the samples' own)"},
     {"preintegrate", 0, 0, "absorption, sampling methods: pre-integrated TF (value linear between samples, exact per segment)"},
     {"colors", 0, 1, "colour volume replacing the TF colour: interleaved RGB float32 .raw, e.g. from 'wvol segment --colors'"},
-    {"threads", 0, 1, "threads (default: all)"},
+    CLI_THREADS_OPT,
     {"repeat", 0, 1, "render N frames (1..100) through one render context (its set-up kept), report the first frame's and the later frames' fastest times (benchmarks; default 1)"},
     {"orbit", 0, 1, "with --repeat N: frame i's camera turned by (N-1-i) x DEG degrees about the view's up axis through its centre, so every frame differs and the last, the one written, is --camera's (default 0)"},
     {"context-cache", 0, 1, "with --repeat: the render context's brick cache budget, bytes (K/M/G suffixes; default the dense volume's float32 size, at least 8 MiB)"},
@@ -233,8 +233,7 @@ static int parse_args(render_args *a, int argc, char **argv)
         } else if (!strcmp(o->name, "one-shot")) {
             a->one_shot = 1;
         } else if (!strcmp(o->name, "threads")) {
-            if (!cli_parse_long(cmd, "threads", val, 0, 4096, &v)) return CLI_USAGE;
-            a->rp.threads = (int)v;
+            if (!cli_threads(cmd, val, &a->rp.threads)) return CLI_USAGE;
         } else if (!strcmp(o->name, "step")) {
             if (!cli_parse_double(cmd, "step", val, &a->rp.step)) return CLI_USAGE;
             if (!(a->rp.step > 0)) return cli_usage(cmd, "--step %g: must be > 0", a->rp.step);

@@ -26,6 +26,7 @@ static const cli_opt opts[] = {
     {"train-box", 0, 1, "supervised: label neurons from truth inside x0,y0,z0,x1,y1,z1 (voxels, half-open)"},
     {"boundary", 0, 1, "radius (voxels) defining 'away from boundaries' in the score (default 2^levels)"},
     CLI_LOAD_OPTS,
+    CLI_THREADS_OPT,
     CLI_JSON_OPT,
     CLI_HELP_OPT,
     {NULL, 0, 0, NULL}};
@@ -152,6 +153,8 @@ int wvol_cmd_segment(int argc, char **argv)
             have_box = 1;
         } else if (!strcmp(o->name, "boundary")) {
             if (!cli_parse_long("segment", "boundary", val, 0, 64, &boundary)) return CLI_USAGE;
+        } else if (!strcmp(o->name, "threads")) {
+            if (!cli_threads("segment", val, NULL)) return CLI_USAGE;
         } else if (!strcmp(o->name, "json")) {
             json = 1;
         } else if (cli_load_option("segment", o, val, &lo) == CLI_USAGE) {

@@ -29,6 +29,7 @@ static const cli_opt opts[] = {
     {"gzip", 0, 0, "NRRD output: gzip encoding instead of raw"},
     {"slab", 0, 1, "Z0,NZ: write only slices Z0 .. Z0+NZ-1 of the volume (raw or NRRD; origin moved to slice Z0)"},
     {"list", 0, 0, "list the generators and exit"},
+    CLI_THREADS_OPT,
     CLI_JSON_OPT,
     CLI_HELP_OPT,
     {NULL, 0, 0, NULL}};
@@ -169,6 +170,8 @@ int wvol_cmd_synth(int argc, char **argv)
             for (int i = 0; i < wvol_synth_kind_count(); i++)
                 printf("%-12s %s\n", wvol_synth_kind_name(i), wvol_synth_kind_about(i));
             return CLI_OK;
+        } else if (!strcmp(o->name, "threads")) {
+            if (!cli_threads("synth", val, NULL)) return CLI_USAGE;
         } else if (!strcmp(o->name, "json")) {
             json = 1;
         } else if (!strcmp(o->name, "gzip")) {

@@ -18,6 +18,7 @@ static const cli_opt opts[] = {
     {"pad", 0, 1, "padding to a multiple of 2^levels: edge (default), zero, periodic"},
     {"f64", 0, 0, "compute in float64 (coefficients are still stored as float32)"},
     CLI_LOAD_OPTS,
+    CLI_THREADS_OPT,
     CLI_JSON_OPT,
     CLI_HELP_OPT,
     {NULL, 0, 0, NULL}};
@@ -65,6 +66,8 @@ int wvol_cmd_transform(int argc, char **argv)
             else return cli_usage("transform", "--pad '%s': expected edge, zero or periodic", val);
         } else if (!strcmp(o->name, "f64")) {
             f64 = 1;
+        } else if (!strcmp(o->name, "threads")) {
+            if (!cli_threads("transform", val, NULL)) return CLI_USAGE;
         } else if (!strcmp(o->name, "json")) {
             json = 1;
         } else if (cli_load_option("transform", o, val, &lo) == CLI_USAGE) {

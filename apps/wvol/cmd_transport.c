@@ -21,7 +21,7 @@ static const cli_opt opts[] = {
     {"levels", 'l', 1, "Haar levels: 2^L cells per axis of (u, v, k, l), 1..5 (default 3)"},
     {"keep", 0, 1, "fraction of coefficients the compressed result keeps (default 5%)"},
     {"size", 0, 1, "floor frames WxH (default 320x240)"},
-    {"threads", 't', 1, "threads for the transport (default: OpenMP's)"},
+    {"threads", 't', 1, "threads (default: all cores, or OMP_NUM_THREADS)"},
     {"output", 'o', 1, "output folder (required)"},
     CLI_JSON_OPT,
     CLI_HELP_OPT,
@@ -133,9 +133,7 @@ int wvol_cmd_transport(int argc, char **argv)
         } else if (!strcmp(o->name, "keep")) {
             if (!cli_parse_fraction("transport", "keep", val, &keep)) return CLI_USAGE;
         } else if (!strcmp(o->name, "threads")) {
-            long th;
-            if (!cli_parse_long("transport", "threads", val, 1, 1024, &th)) return CLI_USAGE;
-            tp.threads = (int)th;
+            if (!cli_threads("transport", val, &tp.threads)) return CLI_USAGE;
         } else if (!strcmp(o->name, "size")) {
             if (!cli_parse_size("transport", "size", val, &fw, &fh)) return CLI_USAGE;
         }

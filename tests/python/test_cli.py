@@ -178,3 +178,40 @@ def test_keep_alone_meshes_from_a_store(wvol, small, tmp_path):
     kept = json.loads(wvol("iso", *small, "--iso", "0.5", "--keep", "1%", "--json").stdout)
     assert full["method"] == "mc" and kept["method"] == "mc-bricks" and kept["wavelet"] == "db2"
     assert kept["area"] != full["area"]
+
+
+# docs/cli.md: --threads on every command that runs in parallel, 1..4096, the same outputs for
+# any count (the commands' parallel parts sum in a fixed order)
+def _outputs_with_threads(wvol, tmp_path, small, threads):
+    d = tmp_path / f"t{threads}"
+    d.mkdir()
+    t = ("--threads", str(threads))
+    runs = [
+        ("synth", "skull", "--size", "24x20x17", "--noise", "20", "-o", d / "s.raw", *t),
+        ("transform", *small, "-o", d / "c.raw", "--levels", "2", *t),
+        ("inverse", d / "c.raw", "-o", d / "i.raw", *t),
+        ("compress", *small, "-o", d / "v.wvc", "--psnr", "40", *t),
+        ("decompress", d / "v.wvc", "-o", d / "d.raw", *t),
+        ("segment", *small, "-o", d / "l.raw", "--som", "2x2x1", *t),
+    ]
+    for args in runs:
+        r = wvol(*args)
+        assert r.returncode == 0, (args[0], r.stderr)
+    return {p.name: p.read_bytes() for p in sorted(d.iterdir())}
+
+
+def test_threads_option_gives_the_same_outputs(wvol, small, tmp_path):
+    one = _outputs_with_threads(wvol, tmp_path, small, 1)
+    two = _outputs_with_threads(wvol, tmp_path, small, 2)
+    assert sorted(one) == sorted(two) and len(one) >= 6
+    for name in one:
+        assert one[name] == two[name], name
+
+
+@pytest.mark.parametrize("cmd", ["synth", "transform", "inverse", "compress", "decompress", "render", "iso",
+                                 "segment", "transport"])
+@pytest.mark.parametrize("bad", ["0", "4097", "two", ""])
+def test_threads_option_range_is_usage(wvol, tmp_path, cmd, bad):
+    r = wvol(cmd, "--threads", bad)
+    assert r.returncode == 2, r.stderr
+    assert f"--threads '{bad}': expected an integer from 1 to 4096" in r.stderr
