@@ -30,7 +30,12 @@ Pipeline contract:
   benchmark see each rank's share.
 - Errors (a missing, damaged or refused file, a region outside the volume, a level out of
   range) are reported through VTK's error output with the library's message, and the
-  request fails: the pipeline stops, the process does not.
+  request fails: the pipeline stops, the process does not, and the output is empty (also
+  when a request fails after an earlier one succeeded).
+- The open file is the one at ``FileName``: a file replaced at that path since it was opened
+  (another device, inode, size or modification time) is opened again by the next
+  ``RequestInformation``; ``RequestData`` refuses to read a replaced file whose information the
+  pipeline has not asked for again (``ReleaseCache`` reopens by path).
 """
 import json
 import math
@@ -54,6 +59,18 @@ SLAB_SAMPLES = 1 << 23
 # Pieces that span the grid along x and y are decoded straight into their array (the piece
 # read); False sends every request through the slab-by-slab region read (tests compare both).
 PIECE_READS = True
+# The largest MemoryBudget, MiB: the C++ reader's int property (vtkWVCReader).
+MAX_BUDGET_MIB = 2**31 - 1
+
+
+def _identity(path):
+    """The file at path as (device, inode, size, modification time), None where there is none:
+    a file replaced at the path has another."""
+    try:
+        st = os.stat(path)
+    except OSError:
+        return None
+    return (st.st_dev, st.st_ino, st.st_size, st.st_mtime_ns)
 
 
 def _return_freed_memory():
@@ -122,7 +139,8 @@ class WVCReader(VTKPythonAlgorithmBase):
         self._release = False
         self._threads = 0
         self._file = None       # open handle (capsule) of self._opened
-        self._opened = None     # (path, budget) the handle was opened with
+        self._opened = None     # (path, budget, identity) the handle was opened with
+        self._info_identity = None  # identity of the file the last RequestInformation described
         self._info = None
         self._extent = None     # whole extent of the current level and region
 
@@ -163,8 +181,8 @@ class WVCReader(VTKPythonAlgorithmBase):
         wvol_wvc_slab_budget, for the whole grid). A budget below that need still works, but
         decodes chunks several times (ChunksDecoded shows it)."""
         mib = int(mib)
-        if mib < 0:
-            raise ValueError(f"MemoryBudget must be >= 0 MiB (0: what slab by slab needs), got {mib}")
+        if not 0 <= mib <= MAX_BUDGET_MIB:
+            raise ValueError(f"MemoryBudget must be in 0..{MAX_BUDGET_MIB} MiB (0: what slab by slab needs), got {mib}")
         self._set("_budget_mib", mib)
 
     def SetArrayName(self, name):
@@ -211,7 +229,7 @@ class WVCReader(VTKPythonAlgorithmBase):
     def _open(self):
         if not self._filename:
             raise ValueError("no file name set")
-        key = (self._filename, self._budget_mib)
+        key = (self._filename, self._budget_mib, _identity(self._filename))
         if self._opened != key:
             self._file = self._info = self._opened = None
             self._file = _wvol.wvc_file_open(self._filename, budget=self._budget_mib << 20)
@@ -239,12 +257,18 @@ class WVCReader(VTKPythonAlgorithmBase):
         return tuple(ext)
 
     def RequestInformation(self, request, inInfoVec, outInfoVec):
+        # a failed request leaves an empty output, not the previous file's data (the executive
+        # does not call RequestData after a failed RequestInformation)
+        previous = vtkImageData.GetData(outInfoVec, 0)
+        if previous is not None:
+            previous.Initialize()
         try:
             self._open()
             self._extent = self._level_extent()
         except (OSError, ValueError, MemoryError) as e:
             self._extent = None
             return self._fail(str(e))
+        self._info_identity = self._opened[2]
         info, s = self._info, self._level
         out = outInfoVec.GetInformationObject(0)
         padded = info["padded"][::-1]
@@ -322,6 +346,8 @@ class WVCReader(VTKPythonAlgorithmBase):
         return out, spacing
 
     def RequestData(self, request, inInfoVec, outInfoVec):
+        output = vtkImageData.GetData(outInfoVec, 0)
+        output.Initialize()
         if self._extent is None:
             return self._fail("no file information (RequestInformation failed)")
         if self._file is None:  # released after the previous execution
@@ -329,6 +355,12 @@ class WVCReader(VTKPythonAlgorithmBase):
                 self._open()
             except (OSError, ValueError, MemoryError) as e:
                 return self._fail(str(e))
+            if self._opened[2] != self._info_identity:
+                # another file at the path: its extent, spacing and origin are not the ones the
+                # pipeline was given
+                self._file = self._opened = None
+                return self._fail("the file was replaced since its information was read: update the pipeline "
+                                  "again (Modified())")
         out_info = outInfoVec.GetInformationObject(0)
         ue = list(out_info.Get(SDDP.UPDATE_EXTENT()) or self._extent)
         piece = out_info.Get(SDDP.UPDATE_PIECE_NUMBER()) if out_info.Has(SDDP.UPDATE_PIECE_NUMBER()) else 0
@@ -338,7 +370,6 @@ class WVCReader(VTKPythonAlgorithmBase):
         for a in range(3):
             ue[2 * a] = max(ue[2 * a], self._extent[2 * a])
             ue[2 * a + 1] = min(ue[2 * a + 1], self._extent[2 * a + 1])
-        output = vtkImageData.GetData(outInfoVec, 0)
         info = self._info
         started = time.perf_counter()
         spacing = out_info.Get(vtkDataObject.SPACING())
@@ -381,8 +412,12 @@ class WVCReader(VTKPythonAlgorithmBase):
                                "decoded_total": stats["decoded"], "chunks": info["chunks"],
                                "cache_peak_bytes": stats["peak"], "threads": self._thread_count(), "read": how,
                                "seconds": time.perf_counter() - started})
-            with open(self._chunk_log, "a") as f:  # one short write per line: O_APPEND keeps lines whole
-                f.write(line + "\n")
+            try:
+                with open(self._chunk_log, "a") as f:  # one short write per line: O_APPEND keeps lines whole
+                    f.write(line + "\n")
+            except OSError as e:  # the data is read: a log that cannot be written is a warning
+                vtkOutputWindow.GetInstance().DisplayWarningText(
+                    f"Warning: WVCReader: cannot append to the chunk log {self._chunk_log}: {e.strerror}\n")
         if self._release:
             self._file = self._opened = None
         _return_freed_memory()

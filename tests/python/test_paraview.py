@@ -376,6 +376,108 @@ def test_vtk_reader_refuses_bad_input(wvc, vtk_reader, tmp_path, damage):
     assert r.GetOutputDataObject(0).GetNumberOfPoints() == 0
 
 
+def _errors_of(fn):
+    """fn() with VTK's error output caught: its text."""
+    from vtkmodules.vtkCommonCore import vtkOutputWindow, vtkStringOutputWindow
+    sink = vtkStringOutputWindow()
+    previous = vtkOutputWindow.GetInstance()
+    vtkOutputWindow.SetInstance(sink)
+    try:
+        fn()
+    finally:
+        vtkOutputWindow.SetInstance(previous)
+    return sink.GetOutput()
+
+
+@pytest.fixture(scope="module")
+def other_wvc(tmp_path_factory):
+    """A second, smaller file (24x20x16) with its whole decode: what replaces the first."""
+    d = tmp_path_factory.mktemp("pv2")
+    vol, f = d / "g.nrrd", d / "g.wvc"
+    for cmd in (["synth", "gaussian", "--size", "24x20x16", "-o", vol],
+                ["compress", vol, "-o", f, "--psnr", "45", "--levels", "2", "--tile", "8"],
+                ["decompress", f, "-o", d / "full.raw"]):
+        r = run([WVOL_BIN, *cmd])
+        assert r.returncode == 0, r.stderr
+    return f, np.fromfile(d / "full.raw", dtype="<f4").reshape(16, 20, 24)
+
+
+def test_vtk_reader_failed_update_empties_the_output(wvc, vtk_reader):
+    """A request that fails after one that succeeded leaves an empty output, not the previous
+    data (RequestInformation fails, and the executive does not call RequestData)."""
+    d, f, full, _ = wvc
+    r = vtk_reader()
+    r.SetFileName(str(f))
+    r.Update()
+    assert r.GetOutputDataObject(0).GetNumberOfPoints() == full.size
+    for change in (lambda: r.SetLevelOfDetail(7), lambda: r.SetFileName(str(d / "missing.wvc")),
+                   lambda: r.SetRegion(70, 90, 0, 10, 0, 10)):
+        r.SetFileName(str(f))
+        r.SetLevelOfDetail(0)
+        r.SetRegion(0, -1, 0, -1, 0, -1)
+        r.Update()
+        assert r.GetOutputDataObject(0).GetNumberOfPoints() == full.size
+        change()
+        out = _errors_of(r.Update)
+        assert "WVCReader" in out, out
+        img = r.GetOutputDataObject(0)
+        assert img.GetNumberOfPoints() == 0 and img.GetPointData().GetScalars() is None
+
+
+def test_vtk_reader_sees_a_file_replaced_at_its_path(wvc, other_wvc, vtk_reader, tmp_path):
+    """The open handle is the file at FileName: replaced there (os.replace, as an atomic writer
+    does), the next update reads the new file with its own extent; with ReleaseCache a piece
+    requested without new information is refused rather than read in the old file's frame."""
+    d, f, full, _ = wvc
+    g, gfull = other_wvc
+    path = tmp_path / "r.wvc"
+    shutil.copy(f, path)
+    r = vtk_reader()
+    r.SetFileName(str(path))
+    r.Update()
+    assert r.GetOutputDataObject(0).GetExtent() == (0, 79, 0, 63, 0, 127)
+    shutil.copy(g, tmp_path / "new.wvc")
+    os.replace(tmp_path / "new.wvc", path)
+    r.Modified()
+    r.Update()
+    img = r.GetOutputDataObject(0)
+    assert img.GetExtent() == (0, 23, 0, 19, 0, 15)
+    close(image_array(img), gfull)
+
+    shutil.copy(f, path)
+    r2 = vtk_reader()
+    r2.SetFileName(str(path))
+    r2.SetReleaseCache(True)
+    r2.UpdatePiece(0, 2, 0)
+    assert r2.GetOutputDataObject(0).GetNumberOfPoints() > 0
+    shutil.copy(g, tmp_path / "new.wvc")
+    os.replace(tmp_path / "new.wvc", path)
+    out = _errors_of(lambda: r2.UpdatePiece(1, 2, 0))
+    assert "replaced since its information was read" in out, out
+    assert r2.GetOutputDataObject(0).GetNumberOfPoints() == 0
+
+
+def test_vtk_reader_refuses_a_budget_beyond_the_cpp_readers(vtk_reader):
+    r = vtk_reader()
+    with pytest.raises(ValueError, match="MemoryBudget must be in 0..2147483647"):
+        r.SetMemoryBudget(2**44)
+    r.SetMemoryBudget(2**31 - 1)
+
+
+def test_vtk_reader_unwritable_chunk_log_is_a_warning(wvc, vtk_reader, tmp_path):
+    """The data is read; a chunk log that cannot be appended to is reported, the request does
+    not fail, and ReleaseCache still closes the file."""
+    d, f, full, _ = wvc
+    r = vtk_reader()
+    r.SetFileName(str(f))
+    r.SetChunkLog(str(tmp_path / "no" / "such" / "log.jsonl"))
+    r.SetReleaseCache(True)
+    out = _errors_of(r.Update)
+    assert "cannot append to the chunk log" in out, out
+    assert r.GetOutputDataObject(0).GetNumberOfPoints() == full.size
+    assert r.GetChunkStats() is None
+
+
 # ---- ParaView -------------------------------------------------------------------------------
 
 def pv_tool(name):
@@ -439,6 +541,29 @@ def test_pvpython_bad_file_is_an_error_not_a_crash(wvc, tmp_path, damage):
     words = {"missing": "cannot open", "garbage": "not a .wvc file", "truncated": "chunk",
              "header": "truncated", "region": "axis x", "level": "level of detail 7"}[damage]
     assert words in r.stderr, r.stderr
+
+
+def test_pvpython_reader_sequence(wvc, other_wvc, tmp_path):
+    """The C++ reader driven as a VTK pipeline drives it (tests/python/pvscripts/pv_sequence.py):
+    a failed execution empties the output; a file replaced at the path is read anew after
+    Modified(); with ReleaseCache a replaced file is refused, not read in the old frame;
+    Threads out of range is refused. The messages name the file once."""
+    d, f, full, _ = wvc
+    g, _ = other_wvc
+    r = run([pv_tool("pvpython"), SCRIPTS / "pv_sequence.py", PLUGIN, f, g, tmp_path])
+    assert r.returncode == 0, r.stdout + r.stderr
+    steps = json.loads(r.stdout.strip().splitlines()[-1])
+    assert steps["first"]["points"] == full.size
+    assert steps["bad_level"]["points"] == 0 and not steps["bad_level"]["scalars"]
+    assert steps["copy"]["extent"] == [0, 79, 0, 63, 0, 127]
+    assert steps["replaced"]["extent"] == [0, 23, 0, 19, 0, 15] and steps["replaced"]["points"] == 24 * 20 * 16
+    assert steps["piece0"]["points"] > 0
+    assert steps["piece1_replaced"]["points"] == 0
+    assert steps["threads"]["points"] == 0
+    err = r.stderr
+    assert "level of detail 7" in err and "replaced since its information was read" in err, err
+    assert "Threads must be in 0..4096" in err, err
+    assert f"{f}: {f}" not in err, err
 
 
 def test_plugin_links_paraviews_vtk_only():

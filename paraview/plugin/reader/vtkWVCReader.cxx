@@ -34,6 +34,7 @@
 #endif
 #include <sched.h>
 #include <sys/mman.h> // madvise
+#include <sys/stat.h>
 #include <time.h>
 #include <unistd.h>
 
@@ -210,6 +211,27 @@ void vtkWVCReader::PrintSelf(ostream& os, vtkIndent indent)
   os << indent << "Threads: " << this->Threads << "\n";
 }
 
+vtkWVCReader::Identity vtkWVCReader::IdentityOf(const char* path)
+{
+  Identity id;
+  struct stat st;
+  if (path && stat(path, &st) == 0)
+  {
+    id.dev = st.st_dev;
+    id.ino = st.st_ino;
+    id.size = (unsigned long long)st.st_size;
+    id.mtime_sec = st.st_mtim.tv_sec;
+    id.mtime_nsec = st.st_mtim.tv_nsec;
+  }
+  return id;
+}
+
+std::string vtkWVCReader::Describe(const std::string& message) const
+{
+  const std::string name = this->FileName && *this->FileName ? this->FileName : "(no file)";
+  return message.find(name) != std::string::npos ? message : name + ": " + message;
+}
+
 void vtkWVCReader::Close()
 {
   wvol_wvc_close(this->File);
@@ -230,7 +252,15 @@ bool vtkWVCReader::Open(std::string& message)
     message = "MemoryBudget must be >= 0 MiB (0: what the read needs)";
     return false;
   }
-  if (this->File && this->OpenedPath == this->FileName && this->OpenedBudget == this->MemoryBudget)
+  if (this->Threads < 0 || this->Threads > 4096)
+  {
+    message = "Threads must be in 0..4096 (0: this node's cores shared among its ranks), got " +
+      std::to_string(this->Threads);
+    return false;
+  }
+  const Identity id = IdentityOf(this->FileName);
+  if (this->File && this->OpenedPath == this->FileName && this->OpenedBudget == this->MemoryBudget &&
+    this->OpenedIdentity == id)
   {
     return true;
   }
@@ -244,6 +274,7 @@ bool vtkWVCReader::Open(std::string& message)
   }
   this->OpenedPath = this->FileName;
   this->OpenedBudget = this->MemoryBudget;
+  this->OpenedIdentity = id;
   return true;
 }
 
@@ -282,10 +313,16 @@ int vtkWVCReader::ThreadCount() const
 int vtkWVCReader::RequestInformation(vtkInformation*, vtkInformationVector**, vtkInformationVector* outputVector)
 {
   this->HaveInformation = false;
+  // a failed request leaves an empty output, not the previous file's data (the executive does
+  // not call RequestData after a failed RequestInformation)
+  if (vtkImageData* previous = vtkImageData::GetData(outputVector, 0))
+  {
+    previous->Initialize();
+  }
   std::string message;
   if (!this->Open(message))
   {
-    vtkErrorMacro(<< (this->FileName ? this->FileName : "(no file)") << ": " << message);
+    vtkErrorMacro(<< this->Describe(message));
     return 0;
   }
   const wvol_wvc_info* in = wvol_wvc_file_info(this->File);
@@ -301,7 +338,7 @@ int vtkWVCReader::RequestInformation(vtkInformation*, vtkInformationVector**, vt
   wvol_error err;
   if (wvol_wvc_level_geometry(in, s, g, spacing, origin, &err) != WVOL_OK)
   {
-    vtkErrorMacro(<< this->FileName << ": " << err.message);
+    vtkErrorMacro(<< this->Describe(err.message));
     return 0;
   }
   for (int a = 0; a < 3; a++)
@@ -327,6 +364,7 @@ int vtkWVCReader::RequestInformation(vtkInformation*, vtkInformationVector**, vt
   out->Set(vtkDataObject::ORIGIN(), origin, 3);
   out->Set(vtkAlgorithm::CAN_PRODUCE_SUB_EXTENT(), 1);
   vtkDataObject::SetPointDataActiveScalarInfo(out, VTK_FLOAT, 1);
+  this->InformationIdentity = this->OpenedIdentity;
   this->HaveInformation = true;
   return 1;
 }
@@ -354,7 +392,16 @@ int vtkWVCReader::RequestData(vtkInformation*, vtkInformationVector**, vtkInform
   std::string message;
   if (!this->Open(message)) // closed after the previous execution (ReleaseCache)
   {
-    vtkErrorMacro(<< name << ": " << message);
+    vtkErrorMacro(<< this->Describe(message));
+    return 0;
+  }
+  if (!(this->OpenedIdentity == this->InformationIdentity))
+  {
+    // reopened by path (ReleaseCache) and another file is there now: its extent, spacing and
+    // origin are not the ones the pipeline was given
+    vtkErrorMacro(<< name << ": the file was replaced since its information was read: update the pipeline "
+                  << "again (Modified(), or ParaView's Reload Files)");
+    this->Close();
     return 0;
   }
   int ue[6];
@@ -465,7 +512,7 @@ int vtkWVCReader::RequestData(vtkInformation*, vtkInformationVector**, vtkInform
     }
     if (st != WVOL_OK)
     {
-      vtkErrorMacro(<< name << ": " << err.message);
+      vtkErrorMacro(<< this->Describe(err.message));
       output->Initialize();
       ReturnFreedMemory();
       return 0;

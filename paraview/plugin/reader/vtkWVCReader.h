@@ -17,7 +17,12 @@
 //   ChunksDecodedTotal (since the file was opened), Piece, NumberOfPieces, LevelOfDetail.
 // - Errors (missing, damaged, truncated or refused file, region outside the volume, level out
 //   of range, memory) go through vtkErrorMacro with the library's message and fail the
-//   request: the output is empty, the process goes on.
+//   request: the output is empty (also when RequestInformation fails after an earlier
+//   success), the process goes on.
+// - The open file is the one at FileName: a file replaced at that path since it was opened
+//   (another device, inode, size or modification time) is opened again by the next
+//   RequestInformation; RequestData refuses to read a replaced file whose information the
+//   pipeline has not asked for again (ReleaseCache reopens by path).
 #ifndef vtkWVCReader_h
 #define vtkWVCReader_h
 
@@ -72,9 +77,24 @@ private:
   vtkWVCReader(const vtkWVCReader&) = delete;
   void operator=(const vtkWVCReader&) = delete;
 
+  // The identity of the file at a path (device, inode, size, modification time), so that a
+  // file replaced at FileName is noticed.
+  struct Identity
+  {
+    unsigned long long dev = 0, ino = 0, size = 0;
+    long long mtime_sec = 0, mtime_nsec = 0;
+    bool operator==(const Identity& o) const
+    {
+      return dev == o.dev && ino == o.ino && size == o.size && mtime_sec == o.mtime_sec && mtime_nsec == o.mtime_nsec;
+    }
+  };
+  static Identity IdentityOf(const char* path);
+
   bool Open(std::string& message);
   void Close();
   int ThreadCount() const;
+  // "FileName: message", the file name left out where the library's message already has it.
+  std::string Describe(const std::string& message) const;
 
   char* FileName = nullptr;
   int LevelOfDetail = 0;
@@ -88,6 +108,8 @@ private:
   wvol_wvc_file* File = nullptr; // open handle of OpenedPath with OpenedBudget
   std::string OpenedPath;
   int OpenedBudget = -1;
+  Identity OpenedIdentity;      // of the file File reads
+  Identity InformationIdentity; // of the file the last RequestInformation described
   int WholeExtent[6] = { 0, -1, 0, -1, 0, -1 };
   bool HaveInformation = false;
 };
