@@ -41,6 +41,14 @@ wvol_status wvol__synth_geometry(synth_grid *g, const wvol_synth_params *p, cons
     WVOL_RETURN_IF(given != 0 && given != 3, err, WVOL_ERR_ARG,
                    "synth %s: spacing (%g, %g, %g): give three positive values, or none (0: the default)", kind,
                    p->spacing[0], p->spacing[1], p->spacing[2]);
+    {
+        /* the samples' bytes must be countable (a generator's per-axis tables are smaller) */
+        size_t bytes;
+        WVOL_RETURN_IF(!wvol_size_mul3(p->dims[0], p->dims[1], p->dims[2], sizeof(float), &bytes) ||
+                           bytes > (SIZE_MAX >> 1),
+                       err, WVOL_ERR_DIMS, "synth %s: size %zux%zux%zu overflows", kind, p->dims[0], p->dims[1],
+                       p->dims[2]);
+    }
     memset(g, 0, sizeof *g);
     g->nx = p->dims[0];
     g->ny = p->dims[1];

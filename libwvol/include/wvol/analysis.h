@@ -79,7 +79,8 @@ WVOL_API wvol_status wvol_som_classify(int32_t *labels, float *rgb, const wvol_s
 WVOL_API wvol_status wvol_som_label(wvol_som *s, const wvol_features *f, const int32_t *truth,
                                     const uint8_t *mask, wvol_error *err);
 
-/* Maps winner labels to classes through s->neuron_class (after wvol_som_label). */
+/* Maps winner labels to classes through s->neuron_class (after wvol_som_label); a winner
+ * outside the map's neurons (or no labels yet) maps to -1. */
 WVOL_API void wvol_som_apply_classes(int32_t *classes, const int32_t *winners, size_t n, const wvol_som *s);
 
 /* Evaluation: maps each predicted cluster to the ground-truth class it overlaps most

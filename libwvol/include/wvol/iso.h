@@ -42,7 +42,8 @@ WVOL_API wvol_status wvol_mesh_create(wvol_mesh **out, size_t nverts, size_t ntr
                                       wvol_error *err);
 WVOL_API void wvol_mesh_destroy(wvol_mesh *m); /* NULL is fine */
 
-/* Surface area (float64 accumulation). */
+/* Surface area (float64 accumulation). Both measures give NaN for a mesh whose arrays are
+ * missing or whose triangles name vertices it does not have, and 0 for NULL. */
 WVOL_API double wvol_mesh_area(const wvol_mesh *m);
 /* Signed enclosed volume by the divergence theorem: positive when the mesh is
  * closed and wound as above around a region of f >= iso. Meaningful only for a

@@ -204,7 +204,7 @@ WVOL_API wvol_status wvol_dwt3_source_hooked(wvol_source *src, const wvol_filter
                                              size_t *bytes, wvol_error *err);
 /* Copies a callback's rows into their places in c (created for the same size, filter
  * and levels, e.g. by wvol_coeffs_create): after every row of every level, c holds what
- * wvol_dwt3 makes. */
+ * wvol_dwt3 makes. A level or row c does not have is ignored. */
 WVOL_API void wvol_coeffs_put_rows(wvol_coeffs *c, int level, size_t r, const float *low, const float *high);
 
 /* 1D periodic single level (the plain reference form, double): n even; out has n
@@ -307,7 +307,8 @@ WVOL_API double wvol_basis_periodised_sup(const wvol_basis *b, int which);
 
 /* The range of value piece i (0 <= i < pieces) of phi (which 0) or psi (1): the hull
  * [*lo, *hi] of its Bernstein coefficients, which contains the piece's cubic on the piece,
- * padded by 1e-12 of their magnitudes for rounding (the iso tracer's box ranges). */
+ * padded by 1e-12 of their magnitudes for rounding (the iso tracer's box ranges). An i
+ * outside [0, pieces) gives the empty range [+inf, -inf]. */
 WVOL_API void wvol_basis_piece_range(const wvol_basis *b, int which, int i, double *lo, double *hi);
 
 /* Evaluate the spline model: which is WVOL_BASIS_PHI or WVOL_BASIS_PSI. O(1), no allocation.

@@ -214,5 +214,11 @@ wvol_status wvol_som_label(wvol_som *s, const wvol_features *f, const int32_t *t
 
 void wvol_som_apply_classes(int32_t *classes, const int32_t *winners, size_t n, const wvol_som *s)
 {
-    for (size_t i = 0; i < n; i++) classes[i] = s->neuron_class[winners[i]];
+    const int neurons = s ? s->neurons : 0;
+    if (!classes || !winners) return;
+    for (size_t i = 0; i < n; i++) {
+        const int32_t w = winners[i];
+        /* a winner that names no neuron (not one of wvol_som_apply's labels) has no class */
+        classes[i] = s && s->neuron_class && w >= 0 && w < neurons ? s->neuron_class[w] : -1;
+    }
 }

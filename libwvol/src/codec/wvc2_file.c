@@ -985,6 +985,7 @@ wvol_status wvol_wvc_read_region_into(float *dst, wvol_wvc_file *f, const size_t
     double scale, sp[3], org[3];
     const wvol_filter *flt;
     WVOL_RETURN_IF(!dst, err, WVOL_ERR_ARG, "wvc region: missing argument");
+    WVOL_FORWARD(wvol__threads_check(threads, "wvc region", err));
     WVOL_FORWARD(region_source(&src, f, lo, hi, level, err));
     WVOL_FORWARD(wvol_filter_get(&flt, f->info.filter, err));
     (void)wvol__wvc_file_error(f, NULL);
@@ -1038,10 +1039,13 @@ size_t wvol_wvc_slab_budget(const wvol_wvc_file *f, int level, const size_t lo[3
 {
     const wvc2_geom *g;
     const wvol_filter *flt;
-    size_t total = 0;
+    size_t total = 0, grid[3];
     if (!f || !f->x || !lo || !hi || level < 0 || level > f->info.levels ||
-        wvol_filter_get(&flt, f->info.filter, NULL) != WVOL_OK)
+        wvol_filter_get(&flt, f->info.filter, NULL) != WVOL_OK ||
+        wvol_wvc_level_geometry(&f->info, level, grid, NULL, NULL, NULL) != WVOL_OK)
         return 0;
+    for (int a = 0; a < 3; a++)
+        if (lo[a] >= hi[a] || hi[a] > grid[a]) return 0; /* not a box of the level's grid */
     g = &f->x->g;
     for (int m = level + 1; m <= g->levels; m++) {
         size_t t0[3] = {0, 0, 0}, count = 1;

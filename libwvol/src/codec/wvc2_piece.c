@@ -291,6 +291,7 @@ wvol_status wvol_wvc_read_piece_into(float *work, size_t cap, wvol_wvc_file *f, 
     size_t need, T;
     wvol_status st = WVOL_OK;
     WVOL_RETURN_IF(!work || !f || !lo || !hi, err, WVOL_ERR_ARG, "wvc piece: missing argument");
+    WVOL_FORWARD(wvol__threads_check(threads, "wvc piece", err));
     WVOL_RETURN_IF(!plan_piece(&P, f, level, lo, hi), err, WVOL_ERR_ARG,
                    "%s: wvc piece: the box must span level %d's grid along x and y (of a version-2 file whose "
                    "axes are all transformed, level below %d); read it with wvol_wvc_read_region_into",

@@ -18,7 +18,8 @@ double wvol_wvc_max_coeff_error(const wvol_wvc_info *info)
 {
     double worst = 0;
     int i;
-    if (!info || !(info->step > 0)) return 0;
+    /* a descriptor not made by the parser (more sections than it can hold) has no bound */
+    if (!info || !(info->step > 0) || info->nsections < 0 || info->nsections > WVOL_WVC_MAX_SECTIONS) return 0;
     for (i = 0; i < info->nsections; i++) {
         const wvol_wvc_section *s = &info->sections[i];
         double r = s->band == 0 ? 0.5 : info->rounding;

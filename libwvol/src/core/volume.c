@@ -183,7 +183,10 @@ static size_t first_nonfinite_block_threads(const float *data, size_t n)
 wvol_status wvol_check_finite(const float *data, size_t nx, size_t ny, size_t nz, const char *what,
                               wvol_error *err)
 {
-    size_t n = nx * ny * nz, idx;
+    size_t n, idx;
+    WVOL_RETURN_IF(!wvol_size_mul3(nx, ny, nz, 1, &n), err, WVOL_ERR_ARG, "%s: dimensions %zux%zux%zu overflow",
+                   what ? what : "input", nx, ny, nz);
+    WVOL_RETURN_IF(!data && n, err, WVOL_ERR_ARG, "%s: no samples (NULL)", what ? what : "input");
     for (idx = first_nonfinite_block_threads(data, n); idx < n; idx++) {
         if (!isfinite(data[idx])) {
             size_t i = idx % nx, j = (idx / nx) % ny, k = idx / (nx * ny);

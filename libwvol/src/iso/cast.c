@@ -225,7 +225,7 @@ wvol_status wvol__caster_create(wvol__caster **out, const wvol_render_source *sr
                    p->brick);
     WVOL_RETURN_IF(!(p->tolerance > 0) || !isfinite(p->tolerance), err, WVOL_ERR_ARG,
                    "iso cast: tolerance %g must be a positive number of voxels", p->tolerance);
-    WVOL_RETURN_IF(p->threads < 0, err, WVOL_ERR_ARG, "iso cast: threads %d < 0", p->threads);
+    WVOL_FORWARD(wvol__threads_check(p->threads, "iso cast", err));
     c = calloc(1, sizeof *c);
     WVOL_RETURN_IF(!c, err, WVOL_ERR_NOMEM, "iso cast: out of memory");
     c->iso = iso;

@@ -533,7 +533,7 @@ wvol_status wvol_iso_extract(wvol_mesh **out, const wvol_volume *v, double iso, 
     }
     WVOL_RETURN_IF(p->normals == WVOL_ISO_NORMALS_ANALYTIC && !p->gradient, err, WVOL_ERR_ARG,
                    "iso: analytic normals requested without a gradient function");
-    WVOL_RETURN_IF(p->threads < 0, err, WVOL_ERR_ARG, "iso: threads = %d must be >= 0", p->threads);
+    WVOL_FORWARD(wvol__threads_check(p->threads, "iso", err));
     if (st) memset(st, 0, sizeof *st);
     memset(&jb, 0, sizeof jb);
     jb.data = v->data;

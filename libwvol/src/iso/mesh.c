@@ -57,10 +57,22 @@ static void tri_pts(const wvol_mesh *m, size_t t, double p[3][3])
     }
 }
 
+/* Whether a mesh's arrays are there and its triangles name its vertices: the measures read
+ * the vertices through the indices, so a mesh filled by the caller is checked first. */
+static int mesh_readable(const wvol_mesh *m)
+{
+    if (!m) return 0;
+    if ((m->nverts && !m->verts) || (m->ntris && !m->tris)) return 0;
+    for (size_t i = 0; i < 3 * m->ntris; i++)
+        if (m->tris[i] >= m->nverts) return 0;
+    return 1;
+}
+
 double wvol_mesh_area(const wvol_mesh *m)
 {
     double sum = 0.0;
     long long t, n = m ? (long long)m->ntris : 0;
+    if (m && !mesh_readable(m)) return NAN;
 #ifdef _OPENMP
 #pragma omp parallel for reduction(+ : sum) schedule(static)
 #endif
@@ -85,6 +97,7 @@ double wvol_mesh_volume(const wvol_mesh *m)
     double sum = 0.0, ref[3] = {0, 0, 0}, lo[3], hi[3];
     long long t, n = m ? (long long)m->ntris : 0;
     int d;
+    if (m && !mesh_readable(m)) return NAN;
     if (n == 0) return 0.0;
     /* relative to the bounding-box centre: keeps the sum well conditioned far from the origin */
     wvol_mesh_bounds(m, lo, hi);

@@ -144,10 +144,18 @@ static wvol_status make_tracer(tracer *tr, const wvol_store *s, double iso, cons
     WVOL_RETURN_IF(!isfinite(iso), err, WVOL_ERR_ARG, "iso trace: iso-value %g is not finite", iso);
     WVOL_RETURN_IF(p && (!isfinite(p->tolerance) || !isfinite(p->chunk) || p->chunk < 0), err, WVOL_ERR_ARG,
                    "iso trace: tolerance %g / chunk %g not valid", p->tolerance, p->chunk);
+    /* a ray is built a chunk at a time: chunks far below a voxel would take without end */
+    WVOL_RETURN_IF(p && p->chunk > 0 && p->chunk < 0.5, err, WVOL_ERR_ARG,
+                   "iso trace: chunk %g voxels is below 0.5 (0: the default, 16)", p->chunk);
     memset(tr, 0, sizeof *tr);
     WVOL_FORWARD(wvol__spline_geom_init(&tr->g, s, err));
     tr->iso = iso;
     smin = fmin(tr->g.info.spacing[0], fmin(tr->g.info.spacing[1], tr->g.info.spacing[2]));
+    /* the depth is refined by bisection in float64: a tolerance near the positions' rounding
+     * cannot be reached */
+    WVOL_RETURN_IF(p && p->tolerance > 0 && p->tolerance < 1e-9 * smin, err, WVOL_ERR_ARG,
+                   "iso trace: tolerance %g is below 1e-9 of the smallest spacing %g (<= 0: the default)",
+                   p->tolerance, smin);
     tr->tol = p && p->tolerance > 0 ? p->tolerance : 1e-3 * smin;
     tr->chunk = p && p->chunk > 0 ? p->chunk : 16.0;
     wvol__iso_boxk_init(&tr->k, s);
@@ -259,6 +267,7 @@ wvol_status wvol_iso_raytrace(wvol_image *img, float *depth, float *normals, con
         wvol_iso_trace_params_default(&def);
         p = &def;
     }
+    WVOL_FORWARD(wvol__threads_check(p->threads, "iso trace", err));
     WVOL_FORWARD(make_tracer(&tr, s, iso, p, err));
     nth = wvol__threads(p->threads);
     if (wvol__trace_cells(&tr, ray_spacing(&tr, cam), err) != WVOL_OK) {

@@ -52,6 +52,7 @@ static double bisect(const double *a, double iso, double u0, double u1, double d
     int s0 = pos(a, u0, iso);
     while (u1 - u0 > du) {
         double m = 0.5 * (u0 + u1);
+        if (m <= u0 || m >= u1) break; /* adjacent doubles: as fine as the interval gets */
         (*evals)++;
         if (pos(a, m, iso) == s0) u0 = m;
         else u1 = m;

@@ -61,7 +61,7 @@ wvol_status wvol__render_check(const wvol_image *img, const wvol_camera *cam, co
                    "render: brick %d (bricks: 2..4096, or 0 for the default)", p->bricks.brick);
     WVOL_RETURN_IF(p->bricks.skip_inside != 0 && p->bricks.skip_inside != 1, err, WVOL_ERR_ARG,
                    "render: bricks.skip_inside %d (0 or 1)", p->bricks.skip_inside);
-    WVOL_RETURN_IF(p->threads < 0, err, WVOL_ERR_ARG, "render: threads %d (>= 0)", p->threads);
+    WVOL_FORWARD(wvol__threads_check(p->threads, "render", err));
     WVOL_RETURN_IF(!(p->skip_tolerance >= 0) || !isfinite(p->skip_tolerance), err, WVOL_ERR_ARG,
                    "render: skip tolerance %g (must be finite and >= 0)", p->skip_tolerance);
     WVOL_RETURN_IF(p->preintegrate != 0 && p->preintegrate != 1, err, WVOL_ERR_ARG,

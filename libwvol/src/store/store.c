@@ -477,7 +477,8 @@ int wvol_store_next(const wvol_store *s, wvol_store_iter *it, wvol_store_coeff *
     }
     while (it->node - 1 < s->nnodes) {
         const wvol__node *nd = s->nodes + (it->node - 1);
-        unsigned rest = nd->band_mask & ~((1u << it->k) - 1u);
+        /* an iterator not advanced by this function may hold any k: past the bands, none left */
+        unsigned rest = it->k < 8 ? nd->band_mask & ~((1u << it->k) - 1u) : 0u;
         if (rest) {
             int bit = __builtin_ctz(rest);
             if (c) {

@@ -166,7 +166,7 @@ wvol_status wvol_transport_run(wvol_transport_tree **out, const wvol_transport_t
     WVOL_FORWARD(wvol_transport_quad_check(src_quad, err));
     WVOL_FORWARD(wvol_transport_quad_check(dst_quad, err));
     WVOL_FORWARD(wvol__transport_params_check(p, err));
-    WVOL_RETURN_IF(p->threads < 0, err, WVOL_ERR_ARG, "transport: threads %d must be >= 0", p->threads);
+    WVOL_FORWARD(wvol__threads_check(p->threads, "transport", err));
     items = expand(src, &nitems);
     WVOL_RETURN_IF(!items, err, WVOL_ERR_NOMEM, "transport: out of memory");
     nt = wvol__threads(p->threads);

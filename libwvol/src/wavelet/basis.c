@@ -294,6 +294,11 @@ void wvol_basis_piece_range(const wvol_basis *b, int which, int i, double *lo, d
 {
     double bz[4], mag = 0.0;
     int j;
+    if (!lo || !hi) return;
+    if (!b || i < 0 || i >= b->pieces) { /* no such piece: an empty range */
+        *lo = INFINITY, *hi = -INFINITY;
+        return;
+    }
     piece_bernstein(wvol_basis_coeffs(b, which, WVOL_BASIS_VALUE, i), b->h, bz);
     *lo = *hi = bz[0];
     for (j = 0; j < 4; j++) {

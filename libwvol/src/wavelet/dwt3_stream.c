@@ -430,6 +430,7 @@ void wvol_coeffs_put_rows(wvol_coeffs *c, int level, size_t r, const float *low,
     px = c->px, py = c->py;
     cx = wvol__extent(px, level - 1), cy = wvol__extent(py, level - 1), cz = wvol__extent(c->pz, level - 1);
     hx = cx > 1 ? cx / 2 : 1, hy = cy > 1 ? cy / 2 : 1;
+    if (r >= (cz > 1 ? cz / 2 : 1)) return; /* no such row at this level */
     for (int half = 0; half < 2; half++) {
         const float *src = half ? high : low;
         size_t z = half ? cz / 2 + r : r;

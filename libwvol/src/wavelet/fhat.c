@@ -94,8 +94,8 @@ double wvol_fhat_eval(const wvol_coeffs *c, const wvol_basis *b, const double x[
     double y[3], val = 0.0, g[3] = {0.0, 0.0, 0.0};
     int m, a, band, need = grad != NULL;
 
-    if (!c || !b || !x || !c->data || !same_filter(c->filter, b->filter) || !(x[0] == x[0]) ||
-        !(x[1] == x[1]) || !(x[2] == x[2]) || c->levels < 1 || c->levels > 62) {
+    if (!c || !b || !x || !c->data || !same_filter(c->filter, b->filter) || !isfinite(x[0]) ||
+        !isfinite(x[1]) || !isfinite(x[2]) || c->levels < 1 || c->levels > 62) {
         if (grad) grad[0] = grad[1] = grad[2] = NAN;
         return NAN;
     }
