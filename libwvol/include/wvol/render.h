@@ -129,7 +129,9 @@ WVOL_API wvol_status wvol_tf_load(wvol_tf *tf, const char *path, wvol_error *err
  * (wvol_tf_preset with vmin, vmax; an unknown name is WVOL_ERR_ARG). */
 WVOL_API wvol_status wvol_tf_resolve(wvol_tf *tf, const char *spec, double vmin, double vmax, wvol_error *err);
 
-/* Colour and kappa (in the TF's own units) at value v. Either output may be NULL. */
+/* Colour and kappa (in the TF's own units) at value v. Either output may be NULL. The
+ * per-sample call checks nothing: tf must be one wvol_tf_check accepts (what the wvol_tf_*
+ * constructors make, and what the renderers check once per frame). */
 WVOL_API void wvol_tf_eval(const wvol_tf *tf, double v, double rgb[3], double *kappa);
 
 /* ---- rendering ------------------------------------------------------------------------------ */

@@ -13,6 +13,10 @@
 extern "C" {
 #endif
 
+/* A volume: made by wvol_volume_create, _wrap, _clone or a loader, whose sizes and data
+ * agree (nx ny nz samples at data). Callers may change the samples, spacing and origin; the
+ * entry points trust the sizes to describe the array, as a pointer and a length are trusted,
+ * so a descriptor assembled with other sizes is outside their contract. */
 typedef struct wvol_volume {
     size_t nx, ny, nz;
     double spacing[3];

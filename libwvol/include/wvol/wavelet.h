@@ -53,7 +53,9 @@ WVOL_API const wvol_filter *wvol_filter_at(int i);
 WVOL_API int wvol_dwt_max_levels(size_t nx, size_t ny, size_t nz);
 
 /* Coefficients of a multi-level transform, Mallat layout on the padded grid
- * px x py x pz (each a multiple of 2^levels, or 1 for an untransformed axis).
+ * px x py x pz (each a multiple of 2^levels, or 1 for an untransformed axis). Made by
+ * wvol_coeffs_create or a transform: as for wvol_volume, the entry points trust the sizes to
+ * describe the array.
  * Level m = 1..levels (1 finest), band l = 1..7: bit0 high-pass in x, bit1 in y,
  * bit2 in z; band 0 = the low-pass cube, only at level == levels. */
 typedef struct wvol_coeffs {
