@@ -43,6 +43,7 @@ typedef struct wvol_load_options {
     const char *grid_name;     /* .vdb only: NULL = first float grid */
 } wvol_load_options;
 
+/* Fills the defaults; NULL: does nothing. */
 WVOL_API void wvol_load_options_default(wvol_load_options *opt);
 
 /* Loads any supported format (by extension; a directory is read as a DICOM series; a

@@ -17,6 +17,7 @@
 
 void wvol_som_params_default(wvol_som_params *p)
 {
+    if (!p) return;
     p->dims[0] = p->dims[1] = p->dims[2] = 4;
     p->iterations = 20000;
     p->eta0 = 0.5;

@@ -65,6 +65,7 @@ struct wvol__caster {
 
 void wvol_iso_cast_params_default(wvol_iso_cast_params *p)
 {
+    if (!p) return;
     memset(p, 0, sizeof *p);
     p->brick = 32;
     p->tolerance = 1e-5;

@@ -512,6 +512,7 @@ done:
 
 void wvol_iso_params_default(wvol_iso_params *p)
 {
+    if (!p) return;
     memset(p, 0, sizeof *p);
     p->threads = 0;
     p->normals = WVOL_ISO_NORMALS_GRADIENT;

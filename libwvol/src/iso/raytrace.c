@@ -65,6 +65,7 @@ typedef wvol__trace_ws tws;
 
 void wvol_iso_trace_params_default(wvol_iso_trace_params *p)
 {
+    if (!p) return;
     memset(p, 0, sizeof *p);
     p->tolerance = 0.0; /* 1e-3 of the smallest spacing */
     p->chunk = 16.0;

@@ -13,6 +13,7 @@
 
 void wvol_compress_params_default(wvol_compress_params *p)
 {
+    if (!p) return;
     memset(p, 0, sizeof *p);
     p->wavelet = "db2";
     p->levels = 0;

@@ -12,6 +12,7 @@
 
 void wvol_radiosity_params_default(wvol_radiosity_params *p)
 {
+    if (!p) return;
     memset(p, 0, sizeof *p);
     p->basis = WVOL_RADIOSITY_BASIS_HAAR;
     p->epsilon = 1e-3;

@@ -8,6 +8,7 @@
 
 void wvol_render_params_default(wvol_render_params *p)
 {
+    if (!p) return;
     memset(p, 0, sizeof *p);
     p->mode = WVOL_RENDER_MODE_ABSORPTION;
     p->method = WVOL_RENDER_METHOD_AUTO;

@@ -16,6 +16,7 @@
 
 void wvol_store_params_default(wvol_store_params *p)
 {
+    if (!p) return;
     memset(p, 0, sizeof *p);
     p->spline_J = DEFAULT_J;
 }
@@ -524,15 +525,18 @@ wvol_status wvol_store_densify(const wvol_store *s, wvol_coeffs **out, wvol_erro
 
 void wvol_store_world_to_voxel(const wvol_store *s, const double world[3], double voxel[3])
 {
-    for (int a = 0; a < 3; a++) voxel[a] = (world[a] - s->origin[a]) / s->spacing[a];
+    if (!voxel) return;
+    for (int a = 0; a < 3; a++) voxel[a] = s && world ? (world[a] - s->origin[a]) / s->spacing[a] : 0.0;
 }
 
 void wvol_store_voxel_to_world(const wvol_store *s, const double voxel[3], double world[3])
 {
-    for (int a = 0; a < 3; a++) world[a] = s->origin[a] + voxel[a] * s->spacing[a];
+    if (!world) return;
+    for (int a = 0; a < 3; a++) world[a] = s && voxel ? s->origin[a] + voxel[a] * s->spacing[a] : 0.0;
 }
 
 void wvol_store_dir_to_voxel(const wvol_store *s, const double dworld[3], double dvoxel[3])
 {
-    for (int a = 0; a < 3; a++) dvoxel[a] = dworld[a] / s->spacing[a];
+    if (!dvoxel) return;
+    for (int a = 0; a < 3; a++) dvoxel[a] = s && dworld ? dworld[a] / s->spacing[a] : 0.0;
 }

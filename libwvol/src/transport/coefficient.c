@@ -219,6 +219,7 @@ wvol_status wvol__transport_params_check(const wvol_transport_params *p, wvol_er
 
 void wvol_transport_params_default(wvol_transport_params *p)
 {
+    if (!p) return;
     memset(p, 0, sizeof *p);
     p->levels = 3;
     p->quadrature = WVOL_TRANSPORT_QUADRATURE_TRAPEZOID;
