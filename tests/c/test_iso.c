@@ -441,6 +441,24 @@ static void mesh_files(void)
 #endif
         remove(path);
     }
+    /* a NaN vertex or normal is not written (a reader would refuse the file) */
+    if (m->nverts > 0) {
+        float keep = m->verts[4];
+        snprintf(path, sizeof path, "%s/nan.ply", dir);
+        m->verts[4] = NAN;
+        CHECK(wvol_mesh_save(m, path, &err) == WVOL_ERR_NONFINITE && strstr(err.message, "vertex") &&
+                  access(path, F_OK) != 0,
+              "NaN vertex: %s", err.message);
+        m->verts[4] = keep;
+        if (m->normals) {
+            keep = m->normals[2];
+            m->normals[2] = INFINITY;
+            CHECK(wvol_mesh_save(m, path, &err) == WVOL_ERR_NONFINITE && strstr(err.message, "normal") &&
+                      access(path, F_OK) != 0,
+                  "Inf normal: %s", err.message);
+            m->normals[2] = keep;
+        }
+    }
     /* an unwritable path fails cleanly */
     CHECK(wvol_mesh_save(m, "/nonexistent-dir/a.ply", &err) == WVOL_ERR_IO &&
               strstr(err.message, "cannot create output file"), "unwritable path: %s", err.message);

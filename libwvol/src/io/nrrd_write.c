@@ -3,6 +3,7 @@
  * its data file), every file written atomically.
  * Based on: the NRRD file format, teem.sourceforge.net/nrrd/format.html (NRRD0004). */
 #define _POSIX_C_SOURCE 200809L
+#include "core/finite.h"
 #include "core/status_internal.h"
 #include "wvol/io.h"
 
@@ -137,6 +138,7 @@ wvol_status wvol_slab_writer_open(wvol_slab_writer **out, const char *path, cons
     int nrrd;
     WVOL_RETURN_IF(!out || !path || !dims, err, WVOL_ERR_ARG, "volume write: NULL argument");
     *out = NULL;
+    WVOL_FORWARD(wvol__geometry_check(spacing, origin, err));
     nrrd = wvol_path_has_ext(path, ".nhdr") || wvol_path_has_ext(path, ".nrrd");
     WVOL_RETURN_IF(!nrrd && !wvol_path_has_ext(path, ".raw"), err, WVOL_ERR_UNSUPPORTED,
                    "%s: slab by slab writes only .raw, .nrrd and .nhdr", path);
@@ -166,13 +168,18 @@ static int deflate_out(wvol_slab_writer *w, const void *src, size_t n, int flush
     return 0;
 }
 
-wvol_status wvol_slab_writer_put(wvol_slab_writer *w, const float *slab, size_t nz, wvol_error *err)
+/* checked: NaN and Inf refused (the slab writer's callers); the whole-volume writers, whose
+ * files hold what the volume holds as the raw writer's do, pass 0 */
+static wvol_status put_slab(wvol_slab_writer *w, const float *slab, size_t nz, int checked, wvol_error *err)
 {
     size_t n;
     WVOL_RETURN_IF(!w || !slab, err, WVOL_ERR_ARG, "volume write: NULL argument");
     WVOL_RETURN_IF(nz > w->dims[2] - w->written, err, WVOL_ERR_ARG, "%s: %zu slices past the %zu of the volume",
                    w->path, nz, w->dims[2]);
     n = w->dims[0] * w->dims[1] * nz;
+    WVOL_RETURN_IF(checked && !wvol__all_finite(slab, n), err, WVOL_ERR_NONFINITE,
+                   "%s: slices %zu..%zu hold NaN or Inf; NaN and Inf are refused", w->path, w->written,
+                   w->written + nz - 1);
     /* Samples are written in host order (the NRRD header says which); every supported host
      * is little-endian, which is what a raw file holds. */
     if (w->gzip ? deflate_out(w, slab, n * sizeof(float), Z_NO_FLUSH) != 0
@@ -180,6 +187,11 @@ wvol_status wvol_slab_writer_put(wvol_slab_writer *w, const float *slab, size_t 
         return wvol_error_set(err, WVOL_ERR_IO, "%s: write failed", w->path);
     w->written += nz;
     return WVOL_OK;
+}
+
+wvol_status wvol_slab_writer_put(wvol_slab_writer *w, const float *slab, size_t nz, wvol_error *err)
+{
+    return put_slab(w, slab, nz, 1, err);
 }
 
 wvol_status wvol_slab_writer_commit(wvol_slab_writer *w, unsigned long long *bytes, wvol_error *err)
@@ -223,7 +235,7 @@ wvol_status wvol_nrrd_write_gzip(const wvol_volume *v, const char *path, int gzi
                    "%s: gzip level %d must be from 0 (raw) to 9", path, gzip_level);
     dims[0] = v->nx, dims[1] = v->ny, dims[2] = v->nz;
     WVOL_FORWARD(open_writer(&w, path, 1, dims, v->spacing, v->origin, gzip_level, err));
-    s = wvol_slab_writer_put(w, v->data, v->nz, err);
+    s = put_slab(w, v->data, v->nz, 0, err);
     if (s) {
         wvol_slab_writer_abort(w);
         return s;

@@ -11,6 +11,7 @@
 #include "store/store_internal.h"
 #include "codec/wvc_source.h"
 #include "core/alloc.h"
+#include "core/finite.h"
 
 #define DEFAULT_J 4
 
@@ -195,6 +196,8 @@ wvol_status wvol_store_build(wvol_store **out, const wvol_coeffs *c, const wvol_
     WVOL_RETURN_IF(!out, err, WVOL_ERR_ARG, "wvol_store_build: out is NULL");
     *out = NULL;
     WVOL_FORWARD(wvol__layout_init(&ly, c, err));
+    WVOL_FORWARD(wvol__geometry_check(c->spacing, c->origin, err));
+    WVOL_FORWARD(wvol_check_finite(c->data, c->px, c->py, c->pz, "store: coefficients", err));
     M = ly.levels;
     for (int a = 0; a < 3; a++)
         WVOL_RETURN_IF(ly.tr[a] && (ly.P[a] >> 1) > WVOL__POS_MAX, err, WVOL_ERR_DIMS,
