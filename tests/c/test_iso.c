@@ -336,6 +336,18 @@ static void rejects_bad_input(void)
     CHECK(wvol_iso_extract(&m, v, NAN, NULL, NULL, &err) == WVOL_ERR_ARG, "NaN iso refused");
     p.normals = WVOL_ISO_NORMALS_ANALYTIC;
     CHECK(wvol_iso_extract(&m, v, 0.5, &p, NULL, &err) == WVOL_ERR_ARG, "analytic normals need a function");
+    p.normals = (wvol_iso_normals)9;
+    CHECK(wvol_iso_extract(&m, v, 0.5, &p, NULL, &err) == WVOL_ERR_ARG && !m && strstr(err.message, "normals 9"),
+          "unknown normals refused: %s", err.message);
+    {
+        wvol_coeffs *c = NULL;
+        CHECK(wvol_dwt3(&c, v, fixture_filter("haar"), 1, &err) == WVOL_OK, "%s", err.message);
+        if (c)
+            CHECK(wvol_iso_extract_coeffs(&m, c, 0.5, &p, NULL, &err) == WVOL_ERR_ARG && !m &&
+                      strstr(err.message, "normals 9"),
+                  "unknown normals refused (coefficients): %s", err.message);
+        wvol_coeffs_destroy(c);
+    }
     CHECK(wvol_iso_extract(&m, NULL, 0.5, NULL, NULL, &err) == WVOL_ERR_ARG, "NULL volume refused");
     wvol_volume_destroy(v);
     /* a flat volume has no cells: empty, not an error */

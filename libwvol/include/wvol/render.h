@@ -117,7 +117,8 @@ WVOL_API wvol_status wvol_tf_check(const wvol_tf *tf, wvol_error *err);
 
 /* Presets: "gaussian" (linear ramp over [vmin, vmax], the data range: blue to warm white,
  * kappa from 0 to 16 per diagonal), "ct-bone" and "ct-soft" (Hounsfield units; vmin/vmax
- * unused), "grey" (white, kappa linear 0..8 per diagonal over [vmin, vmax]). */
+ * unused), "grey" (white, kappa linear 0..8 per diagonal over [vmin, vmax]). vmin and vmax
+ * must be finite with vmin <= vmax (WVOL_ERR_ARG), for every preset. */
 WVOL_API wvol_status wvol_tf_preset(wvol_tf *tf, const char *name, double vmin, double vmax, wvol_error *err);
 
 /* Parses the text form: one point per line "value r g b opacity", '#' comments, and optional

@@ -145,6 +145,18 @@ static wvol_status make_tracer(tracer *tr, const wvol_store *s, double iso, cons
     WVOL_RETURN_IF(!isfinite(iso), err, WVOL_ERR_ARG, "iso trace: iso-value %g is not finite", iso);
     WVOL_RETURN_IF(p && (!isfinite(p->tolerance) || !isfinite(p->chunk) || p->chunk < 0), err, WVOL_ERR_ARG,
                    "iso trace: tolerance %g / chunk %g not valid", p->tolerance, p->chunk);
+    if (p) {
+        WVOL_RETURN_IF(p->surface != WVOL_ISO_SURFACE_EXACT && p->surface != WVOL_ISO_SURFACE_CAST, err, WVOL_ERR_ARG,
+                       "iso trace: unknown surface %d (0: exact, 1: cast)", (int)p->surface);
+        WVOL_RETURN_IF(!(p->ambient >= 0 && p->ambient <= 1), err, WVOL_ERR_ARG,
+                       "iso trace: ambient %g (must be in [0, 1])", (double)p->ambient);
+        for (int a = 0; a < 3; a++) {
+            WVOL_RETURN_IF(!isfinite(p->light[a]), err, WVOL_ERR_ARG, "iso trace: light[%d] = %g (must be finite)", a,
+                           p->light[a]);
+            WVOL_RETURN_IF(!isfinite(p->color[a]), err, WVOL_ERR_ARG, "iso trace: colour[%d] = %g (must be finite)",
+                           a, (double)p->color[a]);
+        }
+    }
     memset(tr, 0, sizeof *tr);
     WVOL_FORWARD(wvol__spline_geom_init(&tr->g, s, err));
     tr->iso = iso;

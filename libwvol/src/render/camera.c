@@ -215,6 +215,9 @@ wvol_status wvol_camera_frame(wvol_camera *cam, const wvol_geometry *g, const do
     WVOL_RETURN_IF(!(norm3(d) > 0), err, WVOL_ERR_ARG, "camera: view direction is zero");
     WVOL_RETURN_IF(width < 1 || height < 1 || width > 65536 || height > 65536, err, WVOL_ERR_ARG,
                    "camera: image size %dx%d (each side 1..65536)", width, height);
+    /* fov_y <= 0 asks for the default; NaN or Inf would make every ray NaN */
+    WVOL_RETURN_IF(projection == WVOL_PROJECTION_PERSPECTIVE && (!isfinite(fov_y) || fov_y >= 180), err, WVOL_ERR_ARG,
+                   "camera: field of view %g degrees (must be below 180, or <= 0 for the default)", fov_y);
     wvol_geometry_bounds(g, lo, hi);
     for (a = 0; a < 3; a++) c[a] = 0.5 * (lo[a] + hi[a]);
     if (fabs(d[2]) > 0.999999 * sqrt(dot3(d, d))) up[1] = 1, up[2] = 0;
