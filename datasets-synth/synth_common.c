@@ -256,6 +256,7 @@ int wvol_synth_kind_has_labels(int i)
 void wvol_synth_kind_default_dims(int i, size_t dims[3])
 {
     int a;
+    if (!dims) return;
     for (a = 0; a < 3; a++) dims[a] = i >= 0 && i < KIND_COUNT ? kinds[i].dims[a] : 64;
 }
 

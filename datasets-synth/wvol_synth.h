@@ -110,7 +110,7 @@ WVOL_API const char *wvol_synth_kind_about(int i);    /* one line */
 WVOL_API int wvol_synth_kind_find(const char *name);
 /* 1 if the kind makes a label map. */
 WVOL_API int wvol_synth_kind_has_labels(int i);
-/* The kind's default size (used when the caller has none). */
+/* The kind's default size (used when the caller has none); NULL dims: does nothing. */
 WVOL_API void wvol_synth_kind_default_dims(int i, size_t dims[3]);
 
 /* ---- slab by slab -------------------------------------------------------------

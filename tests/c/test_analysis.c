@@ -161,6 +161,12 @@ static void test_bad_input(void)
     wvol_som_params_default(&sp);
     sp.dims[0] = 0;
     CHECK(wvol_som_train(&som, f, &sp, &err) == WVOL_ERR_ARG && !som, "zero lattice refused");
+    wvol_som_params_default(&sp);
+    if (f) {
+        f->data[5] = NAN;
+        CHECK(wvol_som_train(&som, f, &sp, &err) == WVOL_ERR_NONFINITE && !som && strstr(err.message, "NaN"),
+              "NaN features refused: %s", err.message);
+    }
     wvol_features_destroy(f);
     wvol_volume_destroy(v);
 }

@@ -336,6 +336,18 @@ static void rejects_bad_input(void)
     CHECK(wvol_iso_extract(&m, v, NAN, NULL, NULL, &err) == WVOL_ERR_ARG, "NaN iso refused");
     p.normals = WVOL_ISO_NORMALS_ANALYTIC;
     CHECK(wvol_iso_extract(&m, v, 0.5, &p, NULL, &err) == WVOL_ERR_ARG, "analytic normals need a function");
+    p.normals = (wvol_iso_normals)9;
+    CHECK(wvol_iso_extract(&m, v, 0.5, &p, NULL, &err) == WVOL_ERR_ARG && !m && strstr(err.message, "normals 9"),
+          "unknown normals refused: %s", err.message);
+    {
+        wvol_coeffs *c = NULL;
+        CHECK(wvol_dwt3(&c, v, fixture_filter("haar"), 1, &err) == WVOL_OK, "%s", err.message);
+        if (c)
+            CHECK(wvol_iso_extract_coeffs(&m, c, 0.5, &p, NULL, &err) == WVOL_ERR_ARG && !m &&
+                      strstr(err.message, "normals 9"),
+                  "unknown normals refused (coefficients): %s", err.message);
+        wvol_coeffs_destroy(c);
+    }
     CHECK(wvol_iso_extract(&m, NULL, 0.5, NULL, NULL, &err) == WVOL_ERR_ARG, "NULL volume refused");
     wvol_volume_destroy(v);
     /* a flat volume has no cells: empty, not an error */
@@ -440,6 +452,24 @@ static void mesh_files(void)
               "vtp without VTK: %s", err.message);
 #endif
         remove(path);
+    }
+    /* a NaN vertex or normal is not written (a reader would refuse the file) */
+    if (m->nverts > 0) {
+        float keep = m->verts[4];
+        snprintf(path, sizeof path, "%s/nan.ply", dir);
+        m->verts[4] = NAN;
+        CHECK(wvol_mesh_save(m, path, &err) == WVOL_ERR_NONFINITE && strstr(err.message, "vertex") &&
+                  access(path, F_OK) != 0,
+              "NaN vertex: %s", err.message);
+        m->verts[4] = keep;
+        if (m->normals) {
+            keep = m->normals[2];
+            m->normals[2] = INFINITY;
+            CHECK(wvol_mesh_save(m, path, &err) == WVOL_ERR_NONFINITE && strstr(err.message, "normal") &&
+                      access(path, F_OK) != 0,
+                  "Inf normal: %s", err.message);
+            m->normals[2] = keep;
+        }
     }
     /* an unwritable path fails cleanly */
     CHECK(wvol_mesh_save(m, "/nonexistent-dir/a.ply", &err) == WVOL_ERR_IO &&

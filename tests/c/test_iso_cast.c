@@ -314,6 +314,24 @@ static void images(const wvol_volume *v, const wvol_store *s, double iso, const 
     CHECK(wvol_iso_cast(im1, z1, NULL, &src, &cam, 1e9, &p, &st, NULL) == WVOL_OK && st.hits == 0 && st.message[0],
           "%s: empty image and message", what);
     CHECK(wvol_iso_cast(im1, z1, NULL, &src, &cam, NAN, &p, &st, NULL) == WVOL_ERR_ARG, "%s: NaN iso refused", what);
+    {
+        wvol_iso_cast_params q = p;
+        wvol_error err;
+        q.model_bound = 9;
+        CHECK(wvol_iso_cast(im1, z1, NULL, &src, &cam, 0.5, &q, &st, &err) == WVOL_ERR_ARG &&
+                  strstr(err.message, "model_bound 9"),
+              "%s: model_bound 9: %s", what, err.message);
+        q = p;
+        q.ambient = NAN;
+        CHECK(wvol_iso_cast(im1, z1, NULL, &src, &cam, 0.5, &q, &st, &err) == WVOL_ERR_ARG &&
+                  strstr(err.message, "ambient"),
+              "%s: NaN ambient: %s", what, err.message);
+        q = p;
+        q.light[0] = INFINITY;
+        CHECK(wvol_iso_cast(im1, z1, NULL, &src, &cam, 0.5, &q, &st, &err) == WVOL_ERR_ARG &&
+                  strstr(err.message, "light[0]"),
+              "%s: infinite light: %s", what, err.message);
+    }
     wvol_image_destroy(im1);
     wvol_volume_destroy(rec);
     wvol_coeffs_destroy(cf);

@@ -544,6 +544,35 @@ static void image_and_empty(const wvol_store *s, double iso, const char *what)
           "%s: message '%s'", what, st.message);
     printf("  %s: iso 3: %zu hits, %s\n", what, st.hits, st.message);
     CHECK(wvol_iso_raytrace(img, depth, NULL, s, &cam, NAN, NULL, &st, NULL) == WVOL_ERR_ARG, "%s: NaN iso", what);
+    {
+        /* shading parameters that would make NaN pixels, and an unknown surface, are refused */
+        wvol_iso_trace_params tp;
+        wvol_error err;
+        wvol_iso_trace_params_default(&tp);
+        tp.light[1] = NAN;
+        CHECK(wvol_iso_raytrace(img, depth, NULL, s, &cam, iso, &tp, &st, &err) == WVOL_ERR_ARG &&
+                  strstr(err.message, "light[1]"),
+              "%s: NaN light: %s", what, err.message);
+        wvol_iso_trace_params_default(&tp);
+        tp.ambient = NAN;
+        CHECK(wvol_iso_raytrace(img, depth, NULL, s, &cam, iso, &tp, &st, &err) == WVOL_ERR_ARG &&
+                  strstr(err.message, "ambient"),
+              "%s: NaN ambient: %s", what, err.message);
+        tp.ambient = 1.5f;
+        CHECK(wvol_iso_raytrace(img, depth, NULL, s, &cam, iso, &tp, &st, &err) == WVOL_ERR_ARG &&
+                  strstr(err.message, "ambient 1.5"),
+              "%s: ambient 1.5: %s", what, err.message);
+        wvol_iso_trace_params_default(&tp);
+        tp.color[2] = NAN;
+        CHECK(wvol_iso_raytrace(img, depth, NULL, s, &cam, iso, &tp, &st, &err) == WVOL_ERR_ARG &&
+                  strstr(err.message, "colour[2]"),
+              "%s: NaN colour: %s", what, err.message);
+        wvol_iso_trace_params_default(&tp);
+        tp.surface = (wvol_iso_surface)5;
+        CHECK(wvol_iso_render_hybrid(img, depth, s, &cam, NULL, iso, NULL, &tp, NULL, NULL, &err) == WVOL_ERR_ARG &&
+                  strstr(err.message, "surface 5"),
+              "%s: hybrid surface 5: %s", what, err.message);
+    }
     wvol_image_destroy(img);
     free(depth);
 }

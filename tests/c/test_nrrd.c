@@ -572,6 +572,44 @@ static void writer_leaves_nothing_on_failure(void)
     rmdir(DIR_ "/w/h.nhdr");
     CHECK(wvol_nrrd_write_gzip(v, DIR_ "/w/x.nrrd", 10, &err) == WVOL_ERR_ARG, "gzip level 10 refused");
     CHECK(count_dir_entries(DIR_ "/w") == 0, "nothing written");
+    /* NaN samples and a spacing or origin the readers would refuse are not written */
+    {
+        wvol_slab_writer *sw = NULL;
+        const size_t dims[3] = {4, 4, 4};
+        const double sp[3] = {1, 1, 1}, org[3] = {0, 0, 0}, bad_sp[3] = {1, NAN, 1}, zero_sp[3] = {1, 1, 0},
+                     neg_sp[3] = {-1, 1, 1}, inf_org[3] = {0, INFINITY, 0};
+        CHECK(wvol_slab_writer_open(&sw, DIR_ "/w/g.nrrd", dims, bad_sp, org, 0, &err) == WVOL_ERR_ARG && !sw &&
+                  strstr(err.message, "spacing"),
+              "NaN spacing: %s", err.message);
+        CHECK(wvol_slab_writer_open(&sw, DIR_ "/w/g.nrrd", dims, zero_sp, org, 0, &err) == WVOL_ERR_ARG &&
+                  strstr(err.message, "spacing"),
+              "zero spacing: %s", err.message);
+        CHECK(wvol_slab_writer_open(&sw, DIR_ "/w/g.raw", dims, neg_sp, org, 0, &err) == WVOL_ERR_ARG &&
+                  strstr(err.message, "spacing"),
+              "negative spacing: %s", err.message);
+        CHECK(wvol_slab_writer_open(&sw, DIR_ "/w/g.nrrd", dims, sp, inf_org, 0, &err) == WVOL_ERR_ARG &&
+                  strstr(err.message, "origin"),
+              "infinite origin: %s", err.message);
+        CHECK(count_dir_entries(DIR_ "/w") == 0, "nothing written for a bad geometry");
+        CHECK(wvol_slab_writer_open(&sw, DIR_ "/w/g.nrrd", dims, sp, org, 0, &err) == WVOL_OK, "%s", err.message);
+        if (sw) {
+            float slab[16] = {0};
+            CHECK(wvol_slab_writer_put(sw, slab, 1, &err) == WVOL_OK, "%s", err.message);
+            slab[7] = NAN; /* written as given, as the whole-volume writers write it */
+            CHECK(wvol_slab_writer_put(sw, slab, 1, &err) == WVOL_OK, "NaN sample: %s", err.message);
+            wvol_slab_writer_abort(sw);
+        }
+        CHECK(count_dir_entries(DIR_ "/w") == 0, "nothing left after the abort");
+        v->spacing[2] = 0;
+        CHECK(wvol_volume_save(v, DIR_ "/w/s.raw", &err) == WVOL_ERR_ARG && strstr(err.message, "spacing"),
+              "save with zero spacing: %s", err.message);
+        v->spacing[2] = 1;
+        v->origin[0] = -INFINITY;
+        CHECK(wvol_volume_save(v, DIR_ "/w/s.nrrd", &err) == WVOL_ERR_ARG && strstr(err.message, "origin"),
+              "save with an infinite origin: %s", err.message);
+        v->origin[0] = 0;
+        CHECK(count_dir_entries(DIR_ "/w") == 0, "nothing saved");
+    }
     /* written files get the usual mode, not mkstemp's 0600 */
     old = umask(022);
     CHECK(wvol_nrrd_write(v, DIR_ "/w/mode.nrrd", &err) == WVOL_OK, "%s", err.message);

@@ -65,6 +65,19 @@ static void compress_defaults_and_refusals(void)
     p.wavelet = "db99";
     CHECK(wvol_compress(&c, v, &p, &err) == WVOL_ERR_ARG && strstr(err.message, "db99"), "%s", err.message);
     CHECK(wvol_compress(&c, NULL, NULL, &err) == WVOL_ERR_ARG, "no volume");
+    p.wavelet = "db2";
+    p.for_file = 1;
+    p.select.mode = WVOL_SELECT_ALL;
+    CHECK(wvol_compress(&c, v, &p, &err) == WVOL_OK, "%s", err.message);
+    {
+        void *buf = NULL;
+        size_t n = 0;
+        p.quant.format_version = 7;
+        CHECK(wvol_compress_encode(&buf, &n, &c, &p, NULL, &err) == WVOL_ERR_ARG &&
+                  strstr(err.message, "format version 7") && !buf,
+              "format version 7: %s", err.message);
+    }
+    wvol_compressed_free(&c);
     wvol_volume_destroy(v);
 }
 
@@ -98,6 +111,38 @@ static void quantiser_rule(void)
     q.share = 0.02;
     q.step = 0.25;
     CHECK(wvol_compress_wvc_params(&wp, &q, 1.0, n, 0, 1, &err) == WVOL_OK && wp.step == 0.25, "explicit step");
+    /* refused whatever the rule (a step given too), naming the value */
+    q.format_version = 7;
+    CHECK(wvol_compress_wvc_params(&wp, &q, 1.0, n, 0, 1, &err) == WVOL_ERR_ARG &&
+              strstr(err.message, "format version 7"),
+          "format version 7: %s", err.message);
+    q.format_version = 0;
+    q.psnr = NAN;
+    CHECK(wvol_compress_wvc_params(&wp, &q, 1.0, n, 0, 1, &err) == WVOL_ERR_ARG && strstr(err.message, "PSNR"),
+          "NaN PSNR: %s", err.message);
+    q.psnr = -1;
+    CHECK(wvol_compress_wvc_params(&wp, &q, 1.0, n, 0, 1, &err) == WVOL_ERR_ARG && strstr(err.message, "PSNR -1"),
+          "negative PSNR: %s", err.message);
+    q.psnr = 0;
+    CHECK(wvol_compress_wvc_params(&wp, &q, NAN, n, 0, 1, &err) == WVOL_ERR_ARG && strstr(err.message, "dropped"),
+          "NaN dropped: %s", err.message);
+    CHECK(wvol_compress_wvc_params(&wp, &q, -1, n, 0, 1, &err) == WVOL_ERR_ARG && strstr(err.message, "dropped"),
+          "negative dropped: %s", err.message);
+    CHECK(wvol_compress_wvc_params(&wp, &q, 1.0, 0, 0, 1, &err) == WVOL_ERR_ARG && strstr(err.message, "voxel"),
+          "no voxels: %s", err.message);
+    CHECK(wvol_compress_wvc_params(&wp, &q, 1.0, -5, 0, 1, &err) == WVOL_ERR_ARG && strstr(err.message, "voxel"),
+          "negative voxels: %s", err.message);
+    CHECK(wvol_compress_wvc_params(&wp, &q, 1.0, NAN, 0, 1, &err) == WVOL_ERR_ARG && strstr(err.message, "voxel"),
+          "NaN voxels: %s", err.message);
+    CHECK(wvol_compress_wvc_params(&wp, &q, 1.0, n, 2, 1, &err) == WVOL_ERR_ARG &&
+              strstr(err.message, "value range"),
+          "vmin > vmax: %s", err.message);
+    CHECK(wvol_compress_wvc_params(&wp, &q, 1.0, n, 0, INFINITY, &err) == WVOL_ERR_ARG &&
+              strstr(err.message, "value range"),
+          "infinite vmax: %s", err.message);
+    CHECK(wvol_compress_wvc_params(&wp, &q, 1.0, n, NAN, 1, &err) == WVOL_ERR_ARG &&
+              strstr(err.message, "value range"),
+          "NaN vmin: %s", err.message);
 }
 
 static void render_resolves_auto(void)

@@ -196,6 +196,19 @@ static void closed_box_absorbs_what_it_emits(void)
     p.basis = WVOL_RADIOSITY_BASIS_F2;
     p.max_level = 4;
     p.epsilon = 1e-3;
+    {
+        /* flags other than 0 or 1 and a pass count below 1 are refused */
+        wvol_radiosity_params bad = p;
+        bad.brightness = 9;
+        CHECK(wvol_radiosity_solve(&r, box, &bad, &st, &err) == WVOL_ERR_ARG && !r &&
+                  strstr(err.message, "brightness = 9"),
+              "brightness 9: %s", err.message);
+        bad = p;
+        bad.refine_passes = -1;
+        CHECK(wvol_radiosity_solve(&r, box, &bad, &st, &err) == WVOL_ERR_ARG && !r &&
+                  strstr(err.message, "refine_passes = -1"),
+              "refine_passes -1: %s", err.message);
+    }
     CHECK(wvol_radiosity_solve(&r, box, &p, &st, &err) == WVOL_OK, "%s", err.message);
     if (r) {
         printf("box f2: links %zu evals %zu iterations %d emitted %.6f absorbed %.6f %.6f %.6f energy error %.4f\n",

@@ -67,6 +67,17 @@ static void camera_description_is_parsed_and_checked(void)
           "%s", err.message);
     CHECK(wvol_camera_parse(&cam, "+z", &g, 0, 8, &err) == WVOL_ERR_ARG, "%s", err.message);
     CHECK(wvol_camera_parse(&cam, "+z height=-1", &g, 8, 8, &err) == WVOL_ERR_ARG, "%s", err.message);
+    {
+        const double dir[3] = {0, 0, -1};
+        CHECK(wvol_camera_frame(&cam, &g, dir, WVOL_PROJECTION_PERSPECTIVE, 8, 8, NAN, &err) == WVOL_ERR_ARG &&
+                  strstr(err.message, "field of view"),
+              "NaN fov: %s", err.message);
+        CHECK(wvol_camera_frame(&cam, &g, dir, WVOL_PROJECTION_PERSPECTIVE, 8, 8, INFINITY, &err) == WVOL_ERR_ARG,
+              "infinite fov: %s", err.message);
+        CHECK(wvol_camera_frame(&cam, &g, dir, WVOL_PROJECTION_PERSPECTIVE, 8, 8, 0, &err) == WVOL_OK &&
+                  cam.fov_y == 30,
+              "fov 0: the default: %s", err.message);
+    }
 }
 
 static void transfer_functions_parse_and_refuse_bad_input(void)
@@ -99,6 +110,12 @@ static void transfer_functions_parse_and_refuse_bad_input(void)
     CHECK(wvol_tf_preset(&tf, "ct-bone", 0, 0, &err) == WVOL_OK, "%s", err.message);
     CHECK(wvol_tf_preset(&tf, "gaussian", 0, 1, &err) == WVOL_OK, "%s", err.message);
     CHECK(wvol_tf_preset(&tf, "nope", 0, 1, &err) == WVOL_ERR_ARG && strstr(err.message, "nope"), "%s", err.message);
+    CHECK(wvol_tf_preset(&tf, "gaussian", 2, 1, &err) == WVOL_ERR_ARG && strstr(err.message, "data range"),
+          "vmin > vmax: %s", err.message);
+    CHECK(wvol_tf_preset(&tf, "ct-bone", 0, NAN, &err) == WVOL_ERR_ARG && strstr(err.message, "data range"),
+          "NaN vmax: %s", err.message);
+    CHECK(wvol_tf_preset(&tf, "grey", -INFINITY, 1, &err) == WVOL_ERR_ARG && strstr(err.message, "data range"),
+          "infinite vmin: %s", err.message);
 }
 
 static void image_files_round_trip(void)
@@ -136,6 +153,18 @@ static void image_files_round_trip(void)
     CHECK(access("render_test_img.png", F_OK) == 0, "png written");
     CHECK(wvol_image_write_exr(img, "no_such_dir/x.exr", NULL, &err) == WVOL_ERR_IO, "%s", err.message);
     CHECK(wvol_image_write_png(img, "no_such_dir/x.png", NULL, 1.0, &err) == WVOL_ERR_IO, "%s", err.message);
+    {
+        const double bad_exposure[3] = {NAN, -1, INFINITY};
+        const float nan_back[3] = {0, NAN, 0};
+        for (i = 0; i < 3; i++)
+            CHECK(wvol_image_write_png(img, "render_test_bad.png", NULL, bad_exposure[i], &err) == WVOL_ERR_ARG &&
+                      strstr(err.message, "exposure"),
+                  "exposure %g: %s", bad_exposure[i], err.message);
+        CHECK(wvol_image_write_png(img, "render_test_bad.png", nan_back, 1.0, &err) == WVOL_ERR_ARG &&
+                  strstr(err.message, "background[1]"),
+              "NaN background: %s", err.message);
+        CHECK(access("render_test_bad.png", F_OK) != 0, "nothing written");
+    }
     CHECK_NEAR(wvol_linear_to_srgb(0.5), 0.735356983052, 1e-9, "sRGB of 0.5");
     CHECK_NEAR(wvol_linear_to_srgb(0.002), 0.02584, 1e-9, "sRGB linear segment");
     remove(path);
@@ -278,6 +307,12 @@ static void degenerate_rays_give_no_nan(void)
     wvol_camera_parse(&cam, "+z", &g, 8, 8, NULL);
     CHECK(wvol_render_reference(img, v, &cam, &tf, NULL, NULL, &err) == WVOL_ERR_ARG && strstr(err.message, "24x24"),
           "%s", err.message);
+    /* shading is a flag: another value is refused */
+    wvol_camera_parse(&cam, "+z", &g, 24, 24, NULL);
+    wvol_render_params_default(&p);
+    p.shading = 7;
+    CHECK(wvol_render_reference(img, v, &cam, &tf, &p, NULL, &err) == WVOL_ERR_ARG && strstr(err.message, "shading 7"),
+          "shading 7: %s", err.message);
     wvol_image_destroy(img);
     wvol_volume_destroy(v);
     wvol_volume_destroy(e);

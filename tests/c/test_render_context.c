@@ -295,6 +295,18 @@ static void refusals(void)
     CHECK(wvol_render_context_create(&ctx, &none, NULL, 0, &err) == WVOL_ERR_ARG && !ctx, "NULL store taken");
     CHECK(wvol_render_context_create(&ctx, &odd, NULL, 0, &err) == WVOL_ERR_ARG && !ctx, "unknown kind taken");
     CHECK(wvol_render_context_create(NULL, &none, NULL, 0, &err) == WVOL_ERR_ARG, "NULL output taken");
+    {
+        wvol_volume *v = NULL;
+        wvol_render_params p;
+        wvol_render_source src;
+        CHECK(wvol_volume_create(&v, 4, 4, 4, &err) == WVOL_OK, "%s", err.message);
+        src = wvol_render_source_volume(v);
+        wvol_render_params_default(&p);
+        p.step = NAN;
+        CHECK(wvol_render_context_create(&ctx, &src, &p, 0, &err) == WVOL_ERR_ARG && !ctx && strstr(err.message, "step"),
+              "NaN step taken: %s", err.message);
+        wvol_volume_destroy(v);
+    }
     CHECK(wvol_render_context_frame(NULL, NULL, NULL, NULL, NULL, NULL, &err) == WVOL_ERR_ARG, "NULL context taken");
     wvol_render_context_destroy(NULL);
 }

@@ -390,9 +390,34 @@ out:
     wvol_volume_destroy(v);
 }
 
+/* A user's read callback that fails without a message: the source names itself and the slab. */
+static wvol_status silent_failure(void *ctx, float *dst, size_t z0, size_t nz, wvol_error *err)
+{
+    (void)ctx, (void)dst, (void)z0, (void)nz, (void)err;
+    return WVOL_ERR_IO;
+}
+
+static void silent_callback_failure_gets_a_message(void)
+{
+    static const wvol_source_ops ops = {silent_failure, NULL};
+    const size_t dims[3] = {4, 4, 8};
+    wvol_source *s = NULL;
+    wvol_error err;
+    float buf[4 * 4 * 3];
+    CHECK(wvol_source_create(&s, dims, NULL, NULL, "mine", 1, &ops, NULL, &err) == WVOL_OK, "%s", err.message);
+    if (!s) return;
+    wvol_error_set(&err, WVOL_ERR_ARG, "an earlier message");
+    CHECK(wvol_source_read(s, buf, 2, 3, &err) == WVOL_ERR_IO && err.status == WVOL_ERR_IO &&
+              strstr(err.message, "mine: read of slices 2..4 failed (status"),
+          "generic message: %s", err.message);
+    CHECK(wvol_source_read(s, buf, 2, 3, NULL) == WVOL_ERR_IO, "no err: the status alone");
+    wvol_source_destroy(s);
+}
+
 int main(void)
 {
     mkdir(DIR_, 0755);
+    silent_callback_failure_gets_a_message();
     file_sources_equal_whole_reads();
     synth_rows_equal_whole();
     large_slabs_read_on_threads();

@@ -609,6 +609,28 @@ static void empty_selection_and_bad_input(void)
     sp.spline_J = 40;
     CHECK(wvol_store_build(&st2, c, sel, &sp, &err) == WVOL_ERR_ARG && st2 == NULL && strstr(err.message, "J = 40"),
           "spline J 40 refused: %s", err.message);
+    /* NaN or Inf coefficients and a bad geometry are refused, naming the problem */
+    {
+        float keep = c->data[9];
+        c->data[9] = NAN;
+        CHECK(wvol_store_build(&st2, c, NULL, NULL, &err) == WVOL_ERR_NONFINITE && !st2 && strstr(err.message, "NaN"),
+              "NaN coefficient: %s", err.message);
+        c->data[9] = -INFINITY;
+        CHECK(wvol_store_build(&st2, c, sel, NULL, &err) == WVOL_ERR_NONFINITE && !st2 && strstr(err.message, "Inf"),
+              "Inf coefficient: %s", err.message);
+        c->data[9] = keep;
+        c->spacing[0] = NAN;
+        CHECK(wvol_store_build(&st2, c, NULL, NULL, &err) == WVOL_ERR_ARG && !st2 && strstr(err.message, "spacing"),
+              "NaN spacing: %s", err.message);
+        c->spacing[0] = -2;
+        CHECK(wvol_store_build(&st2, c, NULL, NULL, &err) == WVOL_ERR_ARG && strstr(err.message, "spacing"),
+              "negative spacing: %s", err.message);
+        c->spacing[0] = 1;
+        c->origin[1] = INFINITY;
+        CHECK(wvol_store_build(&st2, c, NULL, NULL, &err) == WVOL_ERR_ARG && strstr(err.message, "origin"),
+              "infinite origin: %s", err.message);
+        c->origin[1] = 0;
+    }
     wvol_store_destroy(NULL);
     wvol_store_hits_free(&hits);
     wvol_coeffs_destroy(other);

@@ -440,6 +440,12 @@ static void bad_parameters_are_refused(void)
     CHECK(wvol_synth_kind_has_labels(wvol_synth_kind_find("skull")) &&
               !wvol_synth_kind_has_labels(wvol_synth_kind_find("gaussian")),
           "label kinds");
+    {
+        size_t dims[3] = {0, 0, 0};
+        wvol_synth_kind_default_dims(0, NULL); /* does nothing */
+        wvol_synth_kind_default_dims(0, dims);
+        CHECK(dims[0] > 0 && dims[1] > 0 && dims[2] > 0, "default dims");
+    }
 }
 
 static double last_fraction;

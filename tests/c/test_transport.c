@@ -513,6 +513,11 @@ static void bad_input_is_refused(void)
         CHECK(wvol_transport_coefficient(&T, &floor_sq, &ceiling_sq, &j, &k, &p, &e) == WVOL_ERR_ARG &&
                   mentions(&e, "samples"),
               "bad samples: %s", e.message);
+        p.samples = 16;
+        p.use_oracle = 9;
+        CHECK(wvol_transport_coefficient(&T, &floor_sq, &ceiling_sq, &j, &k, &p, &e) == WVOL_ERR_ARG &&
+                  mentions(&e, "use_oracle 9"),
+              "use_oracle 9: %s", e.message);
     }
 }
 

@@ -11,7 +11,7 @@
 
 #include "check.h"
 #include "core/alloc.h"
-#include "wvol/io.h"
+#include "wvol/wvol.h"
 
 static void test_create_and_overflow(void)
 {
@@ -183,6 +183,107 @@ static void test_reuse_mid_tier(void)
     CHECK(nb == nb0 && bytes == bytes0, "a small block was kept: %zu -> %zu", nb0, nb);
 }
 
+/* A NULL output pointer is refused with WVOL_ERR_ARG and a message; the void setters and
+ * getters given NULL do nothing, or zero their outputs. */
+static void test_null_pointers(void)
+{
+    wvol_volume *v = NULL, *w = NULL;
+    wvol_error err;
+    float data[8] = {0};
+    size_t n = 7;
+    CHECK(wvol_volume_create(NULL, 2, 2, 2, &err) == WVOL_ERR_ARG && strstr(err.message, "output pointer"),
+          "create NULL: %s", err.message);
+    CHECK(wvol_volume_wrap(NULL, data, 2, 2, 2, &err) == WVOL_ERR_ARG && strstr(err.message, "output pointer"),
+          "wrap NULL: %s", err.message);
+    CHECK(wvol_volume_create(&v, 2, 2, 2, &err) == WVOL_OK, "create: %s", err.message);
+    CHECK(wvol_volume_clone(NULL, v, &err) == WVOL_ERR_ARG && strstr(err.message, "output pointer"),
+          "clone NULL: %s", err.message);
+    if (v) {
+        float *keep = v->data;
+        v->data = NULL;
+        CHECK(wvol_volume_clone(&w, v, &err) == WVOL_ERR_ARG && strstr(err.message, "no data") && !w,
+              "clone of no data: %s", err.message);
+        v->data = keep;
+    }
+    wvol_volume_destroy(v);
+    CHECK(wvol_size_mul3(2, 3, 4, 4, NULL) == 0, "size_mul3 NULL out gives 0");
+    CHECK(wvol_size_mul3(2, 3, 4, 4, &n) == 1 && n == 96, "size_mul3");
+    CHECK(wvol_image_create(NULL, 4, 4, &err) == WVOL_ERR_ARG && strstr(err.message, "image: output pointer"),
+          "image NULL: %s", err.message);
+    CHECK(wvol_mesh_create(NULL, 3, 1, 1, &err) == WVOL_ERR_ARG && strstr(err.message, "mesh: output pointer"),
+          "mesh NULL: %s", err.message);
+    {
+        float *px = NULL;
+        int wd = 0, ht = 0;
+        CHECK(wvol_exr_read_channel(NULL, &wd, &ht, "x.exr", "R", &err) == WVOL_ERR_ARG &&
+                  strstr(err.message, "output pointers"),
+              "exr NULL data: %s", err.message);
+        CHECK(wvol_exr_read_channel(&px, NULL, &ht, "x.exr", "R", &err) == WVOL_ERR_ARG, "exr NULL width");
+        CHECK(wvol_exr_read_channel(&px, &wd, NULL, "x.exr", "R", &err) == WVOL_ERR_ARG, "exr NULL height");
+    }
+    CHECK(wvol_atomic_open(NULL, "never.raw", &err) == WVOL_ERR_ARG && strstr(err.message, "atomic file"),
+          "atomic_open NULL: %s", err.message);
+    CHECK(access("never.raw", F_OK) != 0, "nothing written");
+    CHECK(wvol_atomic_commit(NULL, &err) == WVOL_ERR_ARG && strstr(err.message, "atomic file"),
+          "atomic_commit NULL: %s", err.message);
+    CHECK(wvol_render_method_parse(NULL, "auto", &err) == WVOL_ERR_ARG && strstr(err.message, "render: method"),
+          "method parse NULL: %s", err.message);
+    CHECK(wvol_render_mode_parse(NULL, "xray", &err) == WVOL_ERR_ARG && strstr(err.message, "render: mode"),
+          "mode parse NULL: %s", err.message);
+    CHECK(wvol_volume_create(NULL, 2, 2, 2, NULL) == WVOL_ERR_ARG, "a NULL err too");
+
+    /* the _default functions: NULL does nothing */
+    wvol_feature_params_default(NULL);
+    wvol_som_params_default(NULL);
+    wvol_compress_params_default(NULL);
+    wvol_load_options_default(NULL);
+    wvol_iso_params_default(NULL);
+    wvol_iso_trace_params_default(NULL);
+    wvol_iso_cast_params_default(NULL);
+    wvol_lod_params_default(NULL);
+    wvol_progressive_params_default(NULL);
+    wvol_radiosity_params_default(NULL);
+    wvol_render_params_default(NULL);
+    wvol_select_params_default(NULL);
+    wvol_store_params_default(NULL);
+    wvol_transport_params_default(NULL);
+    wvol_transport_scene_default(NULL);
+    wvol_wvc_params_default(NULL);
+    wvol_wvc_read_options_default(NULL);
+
+    /* NULL handles: nothing done, outputs zeroed, values 0 or NaN */
+    {
+        double o[3] = {5, 5, 5}, d[3] = {5, 5, 5}, q[4] = {5, 5, 5, 5};
+        const double c4[4] = {1, 2, 3, 4};
+        wvol_geometry g;
+        wvol_rng_seed(NULL, 1);
+        CHECK(wvol_rng_next(NULL) == 0 && wvol_rng_uniform(NULL) == 0 && wvol_rng_normal(NULL) == 0, "rng NULL");
+        CHECK(isnan(wvol_basis_periodised_sup(NULL, 0)) && isnan(wvol_basis_value(NULL, 0, 0.5)), "basis NULL");
+        wvol_poly3_affine(NULL, c4, 1, 0);
+        wvol_poly3_bernstein(NULL, c4);
+        wvol_poly3_affine(q, NULL, 1, 0);
+        CHECK(q[0] == 0 && q[3] == 0, "poly3_affine of NULL c zeroes out");
+        q[0] = q[3] = 5;
+        wvol_poly3_bernstein(q, NULL);
+        CHECK(q[0] == 0 && q[3] == 0, "poly3_bernstein of NULL a zeroes bz");
+        wvol_store_world_to_voxel(NULL, c4, o);
+        CHECK(o[0] == 0 && o[2] == 0, "world_to_voxel of no store zeroes voxel");
+        wvol_store_voxel_to_world(NULL, c4, NULL);
+        d[0] = 5;
+        wvol_store_dir_to_voxel(NULL, c4, d);
+        CHECK(d[0] == 0 && d[2] == 0, "dir_to_voxel of no store zeroes dvoxel");
+        memset(&g, 0x7f, sizeof g);
+        wvol_geometry_of_coeffs(&g, NULL);
+        CHECK(g.dims[0] == 0 && g.spacing[1] == 0 && g.origin[2] == 0, "geometry of no coefficients is zero");
+        o[0] = d[0] = 5;
+        wvol_geometry_bounds(NULL, o, d);
+        CHECK(o[0] == 0 && d[0] == 0, "bounds of no geometry zeroed");
+        o[0] = d[0] = 5;
+        wvol_camera_ray(NULL, 0.5, 0.5, o, d);
+        CHECK(o[0] == 0 && d[0] == 0 && d[2] == 0, "ray of no camera zeroed");
+    }
+}
+
 int main(void)
 {
     test_create_and_overflow();
@@ -191,5 +292,6 @@ int main(void)
     test_sample_types();
     test_calloc_large_zeroes();
     test_reuse_mid_tier();
+    test_null_pointers();
     return check_summary("test_volume");
 }

@@ -350,6 +350,49 @@ static void nonfinite_input_refused_with_voxel(void)
     CHECK(wvol_dwt3(&c, v, fixture_filter("db2"), 3, &err) == WVOL_ERR_NONFINITE && !c, "overflow refused");
     CHECK(strstr(err.message, "overflow") != NULL, "says overflow: %s", err.message);
     wvol_volume_destroy(v);
+    /* the other entry points refuse NaN and Inf too: a coarse level reconstructed from an Inf
+     * coefficient, the level-0 copy of a NaN volume, the in-place transform of NaN data */
+    v = random_volume(16, 16, 8, 0, 1);
+    c = NULL;
+    CHECK(wvol_dwt3(&c, v, fixture_filter("db2"), 2, &err) == WVOL_OK, "%s", err.message);
+    if (c) {
+        wvol_volume *r = NULL;
+        c->data[1] = INFINITY;
+        CHECK(wvol_idwt3_level(&r, c, 1, &err) == WVOL_ERR_NONFINITE && !r && strstr(err.message, "Inf"),
+              "idwt3_level of an Inf coefficient: %s", err.message);
+        c->data[1] = NAN;
+        CHECK(wvol_idwt3_level(&r, c, 2, &err) == WVOL_ERR_NONFINITE && !r && strstr(err.message, "NaN"),
+              "idwt3_level of a NaN coefficient: %s", err.message);
+        wvol_coeffs_destroy(c);
+    }
+    {
+        wvol_volume *r = NULL;
+        v->data[77] = NAN;
+        CHECK(wvol_volume_level(&r, v, fixture_filter("db2"), 0, NULL, &err) == WVOL_ERR_NONFINITE && !r &&
+                  strstr(err.message, "NaN"),
+              "volume_level 0 of a NaN volume: %s", err.message);
+        CHECK(wvol_volume_level(&r, v, fixture_filter("db2"), 1, NULL, &err) == WVOL_ERR_NONFINITE && !r,
+              "volume_level 1 of a NaN volume: %s", err.message);
+        CHECK(wvol_dwt3_inplace_f32(v->data, 16, 16, 8, fixture_filter("db2"), 1, &err) == WVOL_ERR_NONFINITE &&
+                  strstr(err.message, "NaN or Inf") && isnan(v->data[77]) && v->data[0] == v->data[0],
+              "in-place transform of NaN data: %s", err.message);
+        v->data[77] = 0;
+        /* geometry: a transform keeps it, so a bad one is refused as the loaders refuse it */
+        v->spacing[1] = NAN;
+        CHECK(wvol_dwt3(&c, v, fixture_filter("db2"), 1, &err) == WVOL_ERR_ARG && !c && strstr(err.message, "spacing"),
+              "NaN spacing: %s", err.message);
+        v->spacing[1] = 0;
+        CHECK(wvol_dwt3(&c, v, fixture_filter("db2"), 1, &err) == WVOL_ERR_ARG && strstr(err.message, "spacing"),
+              "zero spacing: %s", err.message);
+        v->spacing[1] = -1;
+        CHECK(wvol_dwt3(&c, v, fixture_filter("db2"), 1, &err) == WVOL_ERR_ARG && strstr(err.message, "spacing"),
+              "negative spacing: %s", err.message);
+        v->spacing[1] = 1;
+        v->origin[2] = INFINITY;
+        CHECK(wvol_dwt3(&c, v, fixture_filter("db2"), 1, &err) == WVOL_ERR_ARG && strstr(err.message, "origin"),
+              "infinite origin: %s", err.message);
+    }
+    wvol_volume_destroy(v);
 }
 
 /* ---- layout ---------------------------------------------------------------------- */

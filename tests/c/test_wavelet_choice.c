@@ -130,6 +130,39 @@ static void degenerate_volumes(void)
         }
 }
 
+/* Levels outside 0..what the volume allows, a NaN step and a negative PSNR are refused,
+ * naming the parameter. */
+static void bad_parameters_refused(void)
+{
+    wvol_volume *v = make(16, 2);
+    wvol_source *src = NULL;
+    wvol_compress_params p;
+    wvol_wavelet_choice wc;
+    wvol_error err;
+    if (!v || wvol_source_of_volume(&src, v, &err) != WVOL_OK) {
+        CHECK(0, "fixture");
+        wvol_volume_destroy(v);
+        return;
+    }
+    wvol_compress_params_default(&p);
+    p.levels = 9;
+    CHECK(wvol_compress_choose_wavelet(&wc, src, &p, &err) == WVOL_ERR_ARG && strstr(err.message, "levels 9"),
+          "levels 9: %s", err.message);
+    p.levels = -1;
+    CHECK(wvol_compress_choose_wavelet(&wc, src, &p, &err) == WVOL_ERR_ARG && strstr(err.message, "levels -1"),
+          "levels -1: %s", err.message);
+    p.levels = 0;
+    p.quant.step = NAN;
+    CHECK(wvol_compress_choose_wavelet(&wc, src, &p, &err) == WVOL_ERR_ARG && strstr(err.message, "step"),
+          "NaN step: %s", err.message);
+    p.quant.step = 0;
+    p.quant.psnr = -3;
+    CHECK(wvol_compress_choose_wavelet(&wc, src, &p, &err) == WVOL_ERR_ARG && strstr(err.message, "PSNR -3"),
+          "negative PSNR: %s", err.message);
+    wvol_source_destroy(src);
+    wvol_volume_destroy(v);
+}
+
 /* The same choice and estimates, bit for bit, on repeated runs and from a streamed source (its
  * cubes read from whole slices) as from a volume in memory (read as row bands). */
 static void deterministic_and_streamed(void)
@@ -197,5 +230,6 @@ int main(void)
     degenerate_volumes();
     deterministic_and_streamed();
     pipelines_resolve_auto();
+    bad_parameters_refused();
     return check_summary("test_wavelet_choice");
 }

@@ -805,6 +805,30 @@ static void wvc_refuses_bad_parameters(void)
     p.step = 0.1;
     CHECK(wvol_wvc_encode(&buf, &n, F.c, &p, NULL, &err) == WVOL_ERR_NONFINITE, "nan coefficient");
     CHECK(buf == NULL, "no output on failure");
+    F.c->data[5] = 0;
+    CHECK(wvol_wvc_encode(NULL, &n, F.c, &p, NULL, &err) == WVOL_ERR_ARG && strstr(err.message, "output pointer"),
+          "NULL buffer pointer: %s", err.message);
+    CHECK(wvol_wvc_encode(&buf, NULL, F.c, &p, NULL, &err) == WVOL_ERR_ARG && strstr(err.message, "output pointer"),
+          "NULL size pointer: %s", err.message);
+    {
+        /* only versions 1 and 2 (0: the default) are written: another would be mislabelled */
+        const int bad_versions[] = {3, 99, -1};
+        for (int i = 0; i < 3; i++) {
+            p.version = bad_versions[i];
+            CHECK(wvol_wvc_encode(&buf, &n, F.c, &p, NULL, &err) == WVOL_ERR_ARG &&
+                      strstr(err.message, "format version"),
+                  "version %d refused: %s", bad_versions[i], err.message);
+            CHECK(buf == NULL, "no output for version %d", bad_versions[i]);
+        }
+        p.version = 0;
+    }
+    {
+        wvol_wvc_cache_stats st;
+        memset(&st, 0xff, sizeof st);
+        wvol_wvc_file_stats(NULL, &st);
+        CHECK(st.budget == 0 && st.hits == 0, "stats of no file are zero");
+        wvol_wvc_file_stats(NULL, NULL); /* does nothing */
+    }
     fixture_free(&F);
 }
 

@@ -29,6 +29,7 @@ typedef struct wvol_feature_params {
     int include_lowpass; /* add each level's low-pass value (the paper does; default 1) */
 } wvol_feature_params;
 
+/* Fills the defaults; NULL: does nothing. */
 WVOL_API void wvol_feature_params_default(wvol_feature_params *p);
 
 WVOL_API wvol_status wvol_features_compute(wvol_features **out, const wvol_volume *v, const wvol_filter *f,
@@ -51,6 +52,7 @@ typedef struct wvol_som_params {
     uint64_t seed;
 } wvol_som_params;
 
+/* Fills the defaults; NULL: does nothing. */
 WVOL_API void wvol_som_params_default(wvol_som_params *p);
 
 typedef struct wvol_som {

@@ -65,6 +65,7 @@ typedef struct wvol_compress_params {
                                    WVOL_WVC_DEFAULT_BUDGET (1 GiB) */
 } wvol_compress_params;
 
+/* Fills the defaults; NULL: does nothing. */
 WVOL_API void wvol_compress_params_default(wvol_compress_params *p);
 
 /* What wvol_compress made; free with wvol_compressed_free. */

@@ -43,6 +43,7 @@ typedef struct wvol_load_options {
     const char *grid_name;     /* .vdb only: NULL = first float grid */
 } wvol_load_options;
 
+/* Fills the defaults; NULL: does nothing. */
 WVOL_API void wvol_load_options_default(wvol_load_options *opt);
 
 /* Loads any supported format (by extension; a directory is read as a DICOM series; a
@@ -87,7 +88,9 @@ WVOL_API int wvol_nrrd_data_path(char *buf, size_t cap, const char *nhdr_path, i
  * memory can be written: .raw (samples only), .nrrd or .nhdr (the header NRRD writers
  * write, raw or gzip_level 1..9 encoding). Nothing appears under path until commit,
  * which refuses a volume with slices missing; abort (or any failure) leaves no file.
- * commit and abort free the writer; bytes (may be NULL) gets the bytes written. */
+ * commit and abort free the writer; bytes (may be NULL) gets the bytes written. The
+ * spacing must be finite and positive, the origin finite; the samples are written as given
+ * (NaN and Inf too, as the raw and NRRD writers write a volume's). */
 typedef struct wvol_slab_writer wvol_slab_writer;
 WVOL_API wvol_status wvol_slab_writer_open(wvol_slab_writer **out, const char *path, const size_t dims[3],
                                            const double spacing[3], const double origin[3], int gzip_level,

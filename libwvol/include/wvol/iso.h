@@ -104,6 +104,7 @@ typedef struct wvol_iso_params {
     int brick;                  /* coefficient path: cells per brick edge (default 32) */
 } wvol_iso_params;
 
+/* Fills the defaults; NULL: does nothing. */
 WVOL_API void wvol_iso_params_default(wvol_iso_params *p);
 
 typedef struct wvol_iso_stats {
@@ -188,6 +189,7 @@ typedef struct wvol_iso_trace_params {
     wvol_iso_surface surface; /* wvol_iso_render_hybrid only (default EXACT) */
 } wvol_iso_trace_params;
 
+/* Fills the defaults; NULL: does nothing. */
 WVOL_API void wvol_iso_trace_params_default(wvol_iso_trace_params *p);
 
 typedef struct wvol_iso_hit {
@@ -267,6 +269,7 @@ typedef struct wvol_iso_cast_params {
                            query of the functions touching each brick and a halo of samples) */
 } wvol_iso_cast_params;
 
+/* Fills the defaults; NULL: does nothing. */
 WVOL_API void wvol_iso_cast_params_default(wvol_iso_cast_params *p);
 
 typedef struct wvol_iso_cast_stats {

@@ -38,7 +38,7 @@ typedef struct wvol_lod_params {
                                     enabled */
 } wvol_lod_params;
 
-/* enabled 1, filter NULL, level -1. */
+/* enabled 1, filter NULL, level -1. NULL: does nothing. */
 WVOL_API void wvol_lod_params_default(wvol_lod_params *p);
 
 typedef struct wvol_lod_stats {

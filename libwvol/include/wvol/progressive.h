@@ -33,6 +33,7 @@ typedef struct wvol_progressive_params {
                            at O(1) a pixel) or _NONE; max_error needs one */
 } wvol_progressive_params;
 
+/* Fills the defaults; NULL: does nothing. */
 WVOL_API void wvol_progressive_params_default(wvol_progressive_params *p);
 
 typedef struct wvol_progressive_pass {

@@ -85,6 +85,7 @@ typedef struct wvol_radiosity_params {
     double tolerance;           /* stop when the largest coefficient change <= tolerance x largest; 1e-7 */
 } wvol_radiosity_params;
 
+/* Fills the defaults; NULL: does nothing. */
 WVOL_API void wvol_radiosity_params_default(wvol_radiosity_params *p);
 
 typedef struct wvol_radiosity_stats {

@@ -36,8 +36,10 @@ typedef struct wvol_geometry {
 } wvol_geometry;
 
 WVOL_API void wvol_geometry_of_volume(wvol_geometry *g, const wvol_volume *v);
+/* A NULL c zeroes *g; a NULL g does nothing. */
 WVOL_API void wvol_geometry_of_coeffs(wvol_geometry *g, const wvol_coeffs *c);
-/* World box of the rendered domain: lo = origin - spacing/2, hi = origin + (n - 1/2) spacing. */
+/* World box of the rendered domain: lo = origin - spacing/2, hi = origin + (n - 1/2) spacing.
+ * A NULL g zeroes lo and hi; a NULL lo or hi does nothing. */
 WVOL_API void wvol_geometry_bounds(const wvol_geometry *g, double lo[3], double hi[3]);
 
 /* ---- cameras ---------------------------------------------------------------------------- */
@@ -88,7 +90,8 @@ WVOL_API wvol_status wvol_camera_parse(wvol_camera *cam, const char *spec, const
                               int height, wvol_error *err);
 
 /* World ray of pixel position (px, py) in pixel units (px = x + 0.5 is pixel x's centre):
- * origin and unit direction. The camera must have passed wvol_camera_check. */
+ * origin and unit direction. The camera must have passed wvol_camera_check. A NULL cam zeroes
+ * origin and dir; a NULL origin or dir does nothing. */
 WVOL_API void wvol_camera_ray(const wvol_camera *cam, double px, double py, double origin[3], double dir[3]);
 
 /* ---- transfer functions ------------------------------------------------------------------- */
@@ -114,7 +117,8 @@ WVOL_API wvol_status wvol_tf_check(const wvol_tf *tf, wvol_error *err);
 
 /* Presets: "gaussian" (linear ramp over [vmin, vmax], the data range: blue to warm white,
  * kappa from 0 to 16 per diagonal), "ct-bone" and "ct-soft" (Hounsfield units; vmin/vmax
- * unused), "grey" (white, kappa linear 0..8 per diagonal over [vmin, vmax]). */
+ * unused), "grey" (white, kappa linear 0..8 per diagonal over [vmin, vmax]). vmin and vmax
+ * must be finite with vmin <= vmax (WVOL_ERR_ARG), for every preset. */
 WVOL_API wvol_status wvol_tf_preset(wvol_tf *tf, const char *name, double vmin, double vmax, wvol_error *err);
 
 /* Parses the text form: one point per line "value r g b opacity", '#' comments, and optional
@@ -235,6 +239,7 @@ typedef struct wvol_render_params {
     wvol_render_spline_params spline;
 } wvol_render_params;
 
+/* Fills the defaults; NULL: does nothing. */
 WVOL_API void wvol_render_params_default(wvol_render_params *p);
 
 typedef struct wvol_render_stats {

@@ -17,6 +17,7 @@ typedef struct wvol_rng {
     uint64_t s[4];
 } wvol_rng;
 
+/* A NULL generator: seed does nothing, next, uniform and normal return 0. */
 WVOL_API void wvol_rng_seed(wvol_rng *r, uint64_t seed);
 WVOL_API uint64_t wvol_rng_next(wvol_rng *r);
 WVOL_API double wvol_rng_uniform(wvol_rng *r);  /* [0, 1) with 53 random bits */

@@ -50,7 +50,8 @@ WVOL_API void wvol_source_geometry(const wvol_source *s, size_t dims[3], double 
 WVOL_API const char *wvol_source_name(const wvol_source *s);
 WVOL_API int wvol_source_streams(const wvol_source *s);
 /* Slices z0 .. z0 + nz - 1 into dst (nx * ny * nz floats); refuses a range outside the
- * volume and non-finite samples. */
+ * volume and non-finite samples. A read callback's failure without a message gets one naming
+ * the source and the slices. */
 WVOL_API wvol_status wvol_source_read(wvol_source *s, float *dst, size_t z0, size_t nz, wvol_error *err);
 /* The whole volume (for the in-memory paths and tests). */
 WVOL_API wvol_status wvol_source_read_volume(wvol_source *s, wvol_volume **out, wvol_error *err);

@@ -81,7 +81,7 @@ typedef struct wvol_select_params {
     int measure;           /* 1: reconstruct and fill the measured_* fields of the report */
 } wvol_select_params;
 
-/* Everything zero except mode = WVOL_SELECT_ALL (and power 1 in each ellipsoid). */
+/* Everything zero except mode = WVOL_SELECT_ALL (and power 1 in each ellipsoid). NULL: does nothing. */
 WVOL_API void wvol_select_params_default(wvol_select_params *p);
 
 typedef struct wvol_select_report {
@@ -163,6 +163,7 @@ typedef struct wvol_store_params {
                               store for wvol_render_bound). Default 0 */
 } wvol_store_params;
 
+/* Fills the defaults; NULL: does nothing. */
 WVOL_API void wvol_store_params_default(wvol_store_params *p);
 
 /* Builds the store of the coefficients of c kept by sel (NULL: every nonzero
@@ -333,7 +334,8 @@ WVOL_API wvol_status wvol_store_level_volume(wvol_volume **out, const wvol_store
  * file-backed store sums its band table's energies (the encoder's, before quantisation). */
 WVOL_API wvol_status wvol_store_level_energy(const wvol_store *s, int level, double *energy, wvol_error *err);
 
-/* World <-> voxel coordinates of the store's grid. */
+/* World <-> voxel coordinates of the store's grid; a NULL store or input gives 0, a NULL
+ * output does nothing (the same for dir_to_voxel). */
 WVOL_API void wvol_store_world_to_voxel(const wvol_store *s, const double world[3], double voxel[3]);
 WVOL_API void wvol_store_voxel_to_world(const wvol_store *s, const double voxel[3], double world[3]);
 /* A direction: d_voxel[a] = d_world[a] / spacing[a] (keeps the ray parameter). */

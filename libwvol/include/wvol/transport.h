@@ -67,6 +67,7 @@ typedef struct wvol_transport_params {
                                              * results depend on the count only through float sums */
 } wvol_transport_params;
 
+/* Fills the defaults; NULL: does nothing. */
 WVOL_API void wvol_transport_params_default(wvol_transport_params *p);
 
 /* A pure smoothing (n = 0) Haar index: level and cell m = (m_u, m_v, m_k, m_l), 0 <= m < 2^level. */
@@ -192,6 +193,7 @@ typedef struct wvol_transport_scene {
     wvol_transport_brdf diffuse, glossy;  /* the two tile BRDFs */
 } wvol_transport_scene;
 
+/* Fills the defaults; NULL: does nothing. */
 WVOL_API void wvol_transport_scene_default(wvol_transport_scene *s);
 
 /* The window's outgoing radiance as a tree: image (mean of 8 x 8 nearest-pixel

@@ -25,7 +25,8 @@ typedef struct wvol_volume {
     int owns; /* 1: data was allocated by the library and is freed with the volume */
 } wvol_volume;
 
-/* Multiplies a*b*c (and element size) with overflow checks; returns 0 on overflow. */
+/* Multiplies a*b*c (and element size) with overflow checks; returns 0 on overflow or a
+ * NULL out. */
 WVOL_API int wvol_size_mul3(size_t a, size_t b, size_t c, size_t elem, size_t *out);
 
 /* Allocates a zero-filled volume, spacing 1, origin 0. Dimensions must be >= 1

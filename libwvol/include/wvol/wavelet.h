@@ -304,7 +304,8 @@ WVOL_API wvol_status wvol_basis_create_majorant(wvol_basis **out, const wvol_fil
 /* An upper bound of sup_u sum_k |theta(u - k)| (theta = phi for which 0, psi for 1): for each
  * position within a unit interval, the pieces of every integer shift, each bounded by its
  * largest Bernstein coefficient. It bounds the sum of |B_j(x)| over one level and band of
- * basis functions (used by the per-pixel error bound's coefficient-error term). */
+ * basis functions (used by the per-pixel error bound's coefficient-error term). NaN for a
+ * NULL b. */
 WVOL_API double wvol_basis_periodised_sup(const wvol_basis *b, int which);
 
 /* The range of value piece i (0 <= i < pieces) of phi (which 0) or psi (1): the hull
@@ -314,7 +315,8 @@ WVOL_API double wvol_basis_periodised_sup(const wvol_basis *b, int which);
 WVOL_API void wvol_basis_piece_range(const wvol_basis *b, int which, int i, double *lo, double *hi);
 
 /* Evaluate the spline model: which is WVOL_BASIS_PHI or WVOL_BASIS_PSI. O(1), no allocation.
- * value/deriv are 0 outside [0, support); primitive is the integral from 0 to x. */
+ * value/deriv are 0 outside [0, support); primitive is the integral from 0 to x. value is NaN
+ * for a NULL b. */
 WVOL_API double wvol_basis_value(const wvol_basis *b, int which, double x);
 WVOL_API double wvol_basis_deriv(const wvol_basis *b, int which, double x);
 WVOL_API double wvol_basis_primitive(const wvol_basis *b, int which, double x);
@@ -342,11 +344,12 @@ static inline const double *wvol_basis_coeffs(const wvol_basis *b, int which, wv
 /* A cubic c(u) = c0 + c1 u + c2 u^2 + c3 u^3 composed with u = a t + d, as a
  * cubic in t: out(t) = c(a t + d). (A ray x(t) = alpha t + beta puts the level-m
  * factor 2^{-m/2} phi(2^{-m} (x + s) - p) on piece i with a = 2^{-m} alpha and
- * d = 2^{-m} (beta + s) - p - i h.) out may alias c. */
+ * d = 2^{-m} (beta + s) - p - i h.) out may alias c. NULL out: does nothing; NULL c: out = 0. */
 WVOL_API void wvol_poly3_affine(double out[4], const double c[4], double a, double d);
 
 /* Bernstein coefficients on [0, 1] of the cubic a[0] + a[1] t + a[2] t^2 + a[3] t^3: the cubic
- * lies within their hull on [0, 1], and the end ones are its end values. bz may alias a. */
+ * lies within their hull on [0, 1], and the end ones are its end values. bz may alias a.
+ * NULL bz: does nothing; NULL a: bz = 0. */
 WVOL_API void wvol_poly3_bernstein(double bz[4], const double a[4]);
 
 /* Cascade algorithm: values of phi (which 0) or psi (which 1) at x = n/2^J,

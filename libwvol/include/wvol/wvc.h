@@ -62,6 +62,7 @@ typedef struct wvol_wvc_params {
     int tile_z;          /* version 2: chunk depth along z, the same range (0: 32) */
 } wvol_wvc_params;
 
+/* Fills the defaults; NULL: does nothing. */
 WVOL_API void wvol_wvc_params_default(wvol_wvc_params *p);
 
 /* One section of a file (the low-pass cube is level == levels, band 0). In a
@@ -133,6 +134,7 @@ typedef struct wvol_wvc_read_options {
     uint64_t max_voxels;     /* refuse larger padded grids (0: 2^34) */
 } wvol_wvc_read_options;
 
+/* Fills the defaults; NULL: does nothing. */
 WVOL_API void wvol_wvc_read_options_default(wvol_wvc_read_options *o);
 
 /* Parses and checks the header and section table of a buffer (the whole file,
@@ -181,6 +183,7 @@ WVOL_API wvol_status wvol_wvc_open(wvol_wvc_file **out, const char *path, size_t
 WVOL_API void wvol_wvc_close(wvol_wvc_file *f); /* NULL is fine */
 /* What the header, band table and index say (the file's info). */
 WVOL_API const wvol_wvc_info *wvol_wvc_file_info(const wvol_wvc_file *f);
+/* A NULL f zeroes *st; a NULL st does nothing. */
 WVOL_API void wvol_wvc_file_stats(const wvol_wvc_file *f, wvol_wvc_cache_stats *st);
 /* How a version-2 file's chunks are coded: counts (at least levels + 1 rows; rows 0 ..
  * levels are written) gets in counts[m][k] the number of level-m chunks (m = 1 .. levels;

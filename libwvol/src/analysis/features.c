@@ -13,6 +13,7 @@
 
 void wvol_feature_params_default(wvol_feature_params *p)
 {
+    if (!p) return;
     p->levels = 3;
     p->smooth = 1;
     p->include_lowpass = 1;

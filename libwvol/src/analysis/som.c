@@ -6,6 +6,7 @@
  *   dw_j = eta(t) h(j, winner, t) (g - w_j),
  * with eta decaying exponentially eta0 -> eta1 and h a Gaussian of lattice distance
  * whose radius decays sigma0 -> sigma1 (cut at 3 sigma). Deterministic per seed (wvol_rng). */
+#include "core/finite.h"
 #include "core/status_internal.h"
 #include "wvol/analysis.h"
 #include "wvol/rng.h"
@@ -17,6 +18,7 @@
 
 void wvol_som_params_default(wvol_som_params *p)
 {
+    if (!p) return;
     p->dims[0] = p->dims[1] = p->dims[2] = 4;
     p->iterations = 20000;
     p->eta0 = 0.5;
@@ -84,6 +86,9 @@ wvol_status wvol_som_train(wvol_som **out, const wvol_features *f, const wvol_so
     WVOL_RETURN_IF(!(p->sigma0 > 0 && p->sigma1 > 0 && p->sigma1 <= p->sigma0), err, WVOL_ERR_ARG,
                    "som: radii must satisfy 0 < sigma1 <= sigma0 (got %g, %g)", p->sigma0, p->sigma1);
     n = f->nx * f->ny * f->nz;
+    WVOL_RETURN_IF(f->count < 1, err, WVOL_ERR_ARG, "som: %d features per voxel (at least 1)", f->count);
+    WVOL_RETURN_IF(!wvol__all_finite(f->data, n * (size_t)f->count), err, WVOL_ERR_NONFINITE,
+                   "som: the features hold NaN or Inf");
     s = calloc(1, sizeof *s);
     if (!s) return wvol_error_set(err, WVOL_ERR_NOMEM, "som: out of memory");
     memcpy(s->dims, p->dims, sizeof s->dims);

@@ -354,6 +354,7 @@ wvol_status wvol_wvc_file_chunk_modes(wvol_wvc_file *f, uint64_t counts[][WVOL_W
 
 void wvol_wvc_file_stats(const wvol_wvc_file *f, wvol_wvc_cache_stats *st)
 {
+    if (!st) return;
     memset(st, 0, sizeof *st);
     if (!f) return;
     lock((wvol_wvc_file *)f);

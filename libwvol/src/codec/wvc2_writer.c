@@ -116,6 +116,7 @@ static wvc_rans_scratch *thread_scratch(wvc2_writer *w)
 
 void wvol__wvc2_header_default(wvc2_header *h)
 {
+    if (!h) return;
     memset(h, 0, sizeof *h);
     h->rounding = WVC_DEFAULT_ROUNDING;
     h->tile = WVC2_TILE_DEFAULT;

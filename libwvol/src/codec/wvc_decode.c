@@ -25,6 +25,7 @@
 
 void wvol_wvc_read_options_default(wvol_wvc_read_options *o)
 {
+    if (!o) return;
     memset(o, 0, sizeof *o);
 }
 

@@ -24,6 +24,7 @@ static double now(void)
 
 void wvol_wvc_params_default(wvol_wvc_params *p)
 {
+    if (!p) return;
     memset(p, 0, sizeof *p);
     p->rounding = WVC_DEFAULT_ROUNDING;
     p->coder = WVOL_WVC_CODER_AUTO;
@@ -181,9 +182,12 @@ wvol_status wvol_wvc_encode(void **out, size_t *out_size, const wvol_coeffs *c,
     wvol_wvc_report rep;
 
     memset(&rep, 0, sizeof rep);
+    WVOL_RETURN_IF(!out || !out_size, err, WVOL_ERR_ARG, "wvc encode: output pointer is NULL");
     *out = NULL;
     *out_size = 0;
     WVOL_RETURN_IF(!c || !c->data || !c->filter || !p, err, WVOL_ERR_ARG, "wvc encode: missing input");
+    WVOL_RETURN_IF(p->version < 0 || p->version > 2, err, WVOL_ERR_ARG,
+                   "wvc encode: format version %d: expected 1, 2 or 0 (the default, 2)", p->version);
     WVOL_RETURN_IF(c->levels < 1 || c->levels > WVOL_WVC_MAX_LEVELS, err, WVOL_ERR_ARG,
                    "wvc encode: levels %d outside 1..%d", c->levels, WVOL_WVC_MAX_LEVELS);
     WVOL_RETURN_IF(!(p->rounding >= 0 && p->rounding <= 0.5), err, WVOL_ERR_ARG,

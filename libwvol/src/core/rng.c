@@ -17,6 +17,7 @@ void wvol_rng_seed(wvol_rng *r, uint64_t seed)
 {
     int i;
     uint64_t x = seed;
+    if (!r) return;
     for (i = 0; i < 4; i++) {
         r->s[i] = wvol_hash64(x);
         x += 0x9E3779B97F4A7C15ull;
@@ -30,8 +31,11 @@ static inline uint64_t rotl(uint64_t x, int k)
 
 uint64_t wvol_rng_next(wvol_rng *r)
 {
-    uint64_t *s = r->s;
-    uint64_t result = rotl(s[1] * 5, 7) * 9, t = s[1] << 17;
+    uint64_t *s, result, t;
+    if (!r) return 0;
+    s = r->s;
+    result = rotl(s[1] * 5, 7) * 9;
+    t = s[1] << 17;
     s[2] ^= s[0];
     s[3] ^= s[1];
     s[1] ^= s[2];
@@ -49,6 +53,7 @@ double wvol_rng_uniform(wvol_rng *r)
 double wvol_rng_normal(wvol_rng *r)
 {
     /* Box-Muller, one value per call: u1 in (0, 1] keeps the log finite. */
+    if (!r) return 0.0;
     double u1 = 1.0 - wvol_rng_uniform(r), u2 = wvol_rng_uniform(r);
     return sqrt(-2.0 * log(u1)) * cos(6.283185307179586 * u2);
 }

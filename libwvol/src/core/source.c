@@ -120,7 +120,21 @@ wvol_status wvol_source_read(wvol_source *s, float *dst, size_t z0, size_t nz, w
     WVOL_RETURN_IF(!s || !dst, err, WVOL_ERR_ARG, "volume source: NULL argument");
     WVOL_RETURN_IF(nz == 0 || z0 > s->dims[2] || nz > s->dims[2] - z0, err, WVOL_ERR_ARG,
                    "%s: slices %zu .. %zu outside the volume's 0 .. %zu", s->name, z0, z0 + nz, s->dims[2]);
-    WVOL_FORWARD(s->ops.read(s->ctx, dst, z0, nz, err));
+    {
+        /* a user's callback may fail without a message: cleared first, so that an empty one
+         * is told from an earlier call's, then filled in naming the source and the slab */
+        wvol_status st;
+        wvol_error_clear(err);
+        st = s->ops.read(s->ctx, dst, z0, nz, err);
+        if (st != WVOL_OK) {
+            if (err && !err->message[0])
+                wvol_error_set(err, st, "%s: read of slices %zu..%zu failed (status %d)", s->name, z0, z0 + nz - 1,
+                               (int)st);
+            else if (err)
+                err->status = st;
+            return st;
+        }
+    }
     return check_read(s, dst, z0, nz, 0, s->dims[1], err);
 }
 

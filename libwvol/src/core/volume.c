@@ -17,6 +17,7 @@
 int wvol_size_mul3(size_t a, size_t b, size_t c, size_t elem, size_t *out)
 {
     size_t r = a;
+    if (!out) return 0;
     if (b && r > SIZE_MAX / b) return 0;
     r *= b;
     if (c && r > SIZE_MAX / c) return 0;
@@ -51,6 +52,7 @@ static wvol_status volume_new(wvol_volume **out, size_t nx, size_t ny, size_t nz
 wvol_status wvol_volume_create(wvol_volume **out, size_t nx, size_t ny, size_t nz, wvol_error *err)
 {
     wvol_volume *v;
+    WVOL_RETURN_IF(!out, err, WVOL_ERR_ARG, "volume_create: output pointer is NULL");
     WVOL_FORWARD(volume_new(&v, nx, ny, nz, err));
     v->data = wvol__calloc_large(nx * ny * nz, sizeof(float));
     if (!v->data) {
@@ -67,6 +69,7 @@ wvol_status wvol_volume_wrap(wvol_volume **out, float *data, size_t nx, size_t n
                              wvol_error *err)
 {
     wvol_volume *v;
+    WVOL_RETURN_IF(!out, err, WVOL_ERR_ARG, "volume_wrap: output pointer is NULL");
     WVOL_RETURN_IF(!data, err, WVOL_ERR_ARG, "volume_wrap: data pointer is NULL");
     WVOL_FORWARD(volume_new(&v, nx, ny, nz, err));
     v->data = data;
@@ -77,7 +80,9 @@ wvol_status wvol_volume_wrap(wvol_volume **out, float *data, size_t nx, size_t n
 
 wvol_status wvol_volume_clone(wvol_volume **out, const wvol_volume *v, wvol_error *err)
 {
+    WVOL_RETURN_IF(!out, err, WVOL_ERR_ARG, "volume_clone: output pointer is NULL");
     WVOL_RETURN_IF(!v, err, WVOL_ERR_ARG, "volume_clone: input is NULL");
+    WVOL_RETURN_IF(!v->data, err, WVOL_ERR_ARG, "volume_clone: input has no data");
     WVOL_FORWARD(wvol_volume_create(out, v->nx, v->ny, v->nz, err));
     memcpy((*out)->data, v->data, wvol_volume_count(v) * sizeof(float));
     memcpy((*out)->spacing, v->spacing, sizeof v->spacing);

@@ -48,6 +48,7 @@ wvol_status wvol_atomic_open(wvol_atomic_file *f, const char *path, wvol_error *
 {
     int fd;
     size_t n;
+    WVOL_RETURN_IF(!f, err, WVOL_ERR_ARG, "atomic file: handle is NULL");
     memset(f, 0, sizeof *f);
     WVOL_FORWARD(wvol__output_path(&f->final_path, path, err));
     path = f->final_path;
@@ -89,6 +90,7 @@ wvol_status wvol_atomic_open(wvol_atomic_file *f, const char *path, wvol_error *
 wvol_status wvol_atomic_commit(wvol_atomic_file *f, wvol_error *err)
 {
     int bad = 0, e = 0;
+    WVOL_RETURN_IF(!f, err, WVOL_ERR_ARG, "atomic file: handle is NULL");
     if (!f->fp) return wvol_error_set(err, WVOL_ERR_ARG, "atomic file is not open");
     if (fflush(f->fp) != 0 || ferror(f->fp)) { bad = 1; e = errno; }
     if (fclose(f->fp) != 0 && !bad) { bad = 1; e = errno; }

@@ -169,6 +169,8 @@ wvol_status wvol_exr_read_channel(float **out, int *width, int *height, const ch
     int w, h, lines, y, k, found = 0, have_dec = 0;
     const char *what = "";
 
+    WVOL_RETURN_IF(!out || !width || !height, err, WVOL_ERR_ARG,
+                   "EXR read: the data, width and height output pointers are required");
     *out = NULL;
     WVOL_RETURN_IF(!path || !name, err, WVOL_ERR_ARG, "EXR read: path and channel name are required");
     memset(&io, 0, sizeof io);

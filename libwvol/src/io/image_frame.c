@@ -9,6 +9,7 @@
 wvol_status wvol_image_create(wvol_image **out, int width, int height, wvol_error *err)
 {
     wvol_image *img;
+    WVOL_RETURN_IF(!out, err, WVOL_ERR_ARG, "image: output pointer is NULL");
     *out = NULL;
     WVOL_RETURN_IF(width < 1 || height < 1 || width > 65536 || height > 65536, err, WVOL_ERR_DIMS,
                    "image size %dx%d: each side must be 1..65536", width, height);

@@ -53,6 +53,8 @@ wvol_status wvol_exr_read_channel(float **out, int *width, int *height, const ch
     if (out) *out = NULL;
     if (width) *width = 0;
     if (height) *height = 0;
+    if (!out || !width || !height)
+        return wvol_error_set(err, WVOL_ERR_ARG, "EXR read: the data, width and height output pointers are required");
     return wvol_exr_write(path, 0, 0, NULL, 0, err);
 }
 #endif

@@ -99,6 +99,11 @@ wvol_status wvol_image_write_png(const wvol_image *img, const char *path, const 
     float *rgb;
     wvol_status s;
     WVOL_RETURN_IF(!img || !img->rgba, err, WVOL_ERR_ARG, "%s: no image", path ? path : "(null)");
+    WVOL_RETURN_IF(!(exposure >= 0) || !isfinite(exposure), err, WVOL_ERR_ARG,
+                   "%s: PNG exposure %g (must be finite and >= 0)", path ? path : "(null)", exposure);
+    for (int c = 0; background && c < 3; c++)
+        WVOL_RETURN_IF(!isfinite(background[c]), err, WVOL_ERR_ARG, "%s: PNG background[%d] = %g (must be finite)",
+                       path ? path : "(null)", c, (double)background[c]);
     if (!background) background = black;
     n = (size_t)img->width * (size_t)img->height;
     rgb = malloc(n * 3 * sizeof *rgb);

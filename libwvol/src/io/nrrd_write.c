@@ -3,6 +3,7 @@
  * its data file), every file written atomically.
  * Based on: the NRRD file format, teem.sourceforge.net/nrrd/format.html (NRRD0004). */
 #define _POSIX_C_SOURCE 200809L
+#include "core/finite.h"
 #include "core/status_internal.h"
 #include "wvol/io.h"
 
@@ -137,6 +138,7 @@ wvol_status wvol_slab_writer_open(wvol_slab_writer **out, const char *path, cons
     int nrrd;
     WVOL_RETURN_IF(!out || !path || !dims, err, WVOL_ERR_ARG, "volume write: NULL argument");
     *out = NULL;
+    WVOL_FORWARD(wvol__geometry_check(spacing, origin, err));
     nrrd = wvol_path_has_ext(path, ".nhdr") || wvol_path_has_ext(path, ".nrrd");
     WVOL_RETURN_IF(!nrrd && !wvol_path_has_ext(path, ".raw"), err, WVOL_ERR_UNSUPPORTED,
                    "%s: slab by slab writes only .raw, .nrrd and .nhdr", path);

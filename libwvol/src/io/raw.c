@@ -13,6 +13,7 @@
 
 void wvol_load_options_default(wvol_load_options *opt)
 {
+    if (!opt) return;
     memset(opt, 0, sizeof *opt);
     opt->raw_type = WVOL_SAMPLE_TYPE_F32;
     opt->spacing[0] = opt->spacing[1] = opt->spacing[2] = 1.0;

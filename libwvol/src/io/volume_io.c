@@ -2,6 +2,7 @@
 /* Load/save dispatch by extension (see wvol/io.h for the table). */
 #define _POSIX_C_SOURCE 200809L
 #include "core/file_open.h"
+#include "core/finite.h"
 #include "core/status_internal.h"
 #include "wvol/io.h"
 #include "io/adapters.h"
@@ -94,6 +95,7 @@ wvol_status wvol_volume_load(wvol_volume **out, const char *path, const wvol_loa
 wvol_status wvol_volume_save(const wvol_volume *v, const char *path, wvol_error *err)
 {
     WVOL_RETURN_IF(!v || !path, err, WVOL_ERR_ARG, "save: NULL argument");
+    WVOL_FORWARD(wvol__geometry_check(v->spacing, v->origin, err));
     switch (format_of(path)) {
     case FMT_RAW: return wvol_raw_write(v, path, err);
     case FMT_NRRD: return wvol_nrrd_write(v, path, err);

@@ -512,6 +512,7 @@ done:
 
 void wvol_iso_params_default(wvol_iso_params *p)
 {
+    if (!p) return;
     memset(p, 0, sizeof *p);
     p->threads = 0;
     p->normals = WVOL_ISO_NORMALS_GRADIENT;
@@ -531,6 +532,8 @@ wvol_status wvol_iso_extract(wvol_mesh **out, const wvol_volume *v, double iso, 
         wvol_iso_params_default(&def);
         p = &def;
     }
+    WVOL_RETURN_IF(p->normals < WVOL_ISO_NORMALS_NONE || p->normals > WVOL_ISO_NORMALS_ANALYTIC, err, WVOL_ERR_ARG,
+                   "iso: unknown normals %d (0: none, 1: gradient, 2: analytic)", (int)p->normals);
     WVOL_RETURN_IF(p->normals == WVOL_ISO_NORMALS_ANALYTIC && !p->gradient, err, WVOL_ERR_ARG,
                    "iso: analytic normals requested without a gradient function");
     WVOL_FORWARD(wvol__threads_check(p->threads, "iso", err));

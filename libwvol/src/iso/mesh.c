@@ -14,6 +14,7 @@ wvol_status wvol_mesh_create(wvol_mesh **out, size_t nverts, size_t ntris, int w
 {
     wvol_mesh *m;
     size_t vb, tb;
+    WVOL_RETURN_IF(!out, err, WVOL_ERR_ARG, "mesh: output pointer is NULL");
     *out = NULL;
     if (!wvol_size_mul3(nverts, 3, 1, sizeof(float), &vb) || !wvol_size_mul3(ntris, 3, 1, sizeof(uint32_t), &tb))
         return wvol_error_set(err, WVOL_ERR_NOMEM, "mesh of %zu vertices, %zu triangles is too large", nverts,

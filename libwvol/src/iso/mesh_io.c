@@ -8,6 +8,7 @@
 #include <string.h>
 
 #include "core/file_open.h"
+#include "core/finite.h"
 #include "io/adapters.h"
 #include "core/status_internal.h"
 #include "wvol/io.h"
@@ -56,6 +57,10 @@ static wvol_status check_mesh(const wvol_mesh *m, const char *path, wvol_error *
     for (i = 0; i < 3 * m->ntris; i++)
         WVOL_RETURN_IF(m->tris[i] >= m->nverts, err, WVOL_ERR_ARG,
                        "%s: triangle %zu refers to vertex %u of %zu", path, i / 3, m->tris[i], m->nverts);
+    WVOL_RETURN_IF(!wvol__all_finite(m->verts, 3 * m->nverts), err, WVOL_ERR_NONFINITE,
+                   "%s: a vertex holds NaN or Inf: not written", path);
+    WVOL_RETURN_IF(m->normals && !wvol__all_finite(m->normals, 3 * m->nverts), err, WVOL_ERR_NONFINITE,
+                   "%s: a normal holds NaN or Inf: not written", path);
     return WVOL_OK;
 }
 

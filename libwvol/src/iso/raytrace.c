@@ -65,6 +65,7 @@ typedef wvol__trace_ws tws;
 
 void wvol_iso_trace_params_default(wvol_iso_trace_params *p)
 {
+    if (!p) return;
     memset(p, 0, sizeof *p);
     p->tolerance = 0.0; /* 1e-3 of the smallest spacing */
     p->chunk = 16.0;
@@ -147,6 +148,18 @@ static wvol_status make_tracer(tracer *tr, const wvol_store *s, double iso, cons
     /* a ray is built a chunk at a time: chunks far below a voxel would take without end */
     WVOL_RETURN_IF(p && p->chunk > 0 && p->chunk < 0.5, err, WVOL_ERR_ARG,
                    "iso trace: chunk %g voxels is below 0.5 (0: the default, 16)", p->chunk);
+    if (p) {
+        WVOL_RETURN_IF(p->surface != WVOL_ISO_SURFACE_EXACT && p->surface != WVOL_ISO_SURFACE_CAST, err, WVOL_ERR_ARG,
+                       "iso trace: unknown surface %d (0: exact, 1: cast)", (int)p->surface);
+        WVOL_RETURN_IF(!(p->ambient >= 0 && p->ambient <= 1), err, WVOL_ERR_ARG,
+                       "iso trace: ambient %g (must be in [0, 1])", (double)p->ambient);
+        for (int a = 0; a < 3; a++) {
+            WVOL_RETURN_IF(!isfinite(p->light[a]), err, WVOL_ERR_ARG, "iso trace: light[%d] = %g (must be finite)", a,
+                           p->light[a]);
+            WVOL_RETURN_IF(!isfinite(p->color[a]), err, WVOL_ERR_ARG, "iso trace: colour[%d] = %g (must be finite)",
+                           a, (double)p->color[a]);
+        }
+    }
     memset(tr, 0, sizeof *tr);
     WVOL_FORWARD(wvol__spline_geom_init(&tr->g, s, err));
     tr->iso = iso;

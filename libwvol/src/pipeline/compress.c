@@ -13,6 +13,7 @@
 
 void wvol_compress_params_default(wvol_compress_params *p)
 {
+    if (!p) return;
     memset(p, 0, sizeof *p);
     p->wavelet = "db2";
     p->levels = 0;
@@ -156,6 +157,15 @@ wvol_status wvol_compress_wvc_params(wvol_wvc_params *wp, const wvol_compress_qu
                    "compress: quantiser step %g (must be finite and >= 0)", q->step);
     WVOL_RETURN_IF(q->rounding > 0.5 || isnan(q->rounding), err, WVOL_ERR_ARG,
                    "compress: rounding %g (must be in [0, 0.5], or < 0 for the default)", q->rounding);
+    WVOL_RETURN_IF(q->format_version < 0 || q->format_version > 2, err, WVOL_ERR_ARG,
+                   "compress: format version %d (must be 1, 2 or 0 for the default)", q->format_version);
+    WVOL_RETURN_IF(!(q->psnr >= 0), err, WVOL_ERR_ARG, "compress: PSNR %g (must be > 0, or 0 for none)", q->psnr);
+    WVOL_RETURN_IF(!(dropped >= 0) || !isfinite(dropped), err, WVOL_ERR_ARG,
+                   "compress: dropped energy %g (must be finite and >= 0)", dropped);
+    WVOL_RETURN_IF(!(voxels >= 1) || !isfinite(voxels), err, WVOL_ERR_ARG,
+                   "compress: voxel count %g (must be finite and >= 1)", voxels);
+    WVOL_RETURN_IF(!isfinite(vmin) || !isfinite(vmax) || vmin > vmax, err, WVOL_ERR_ARG,
+                   "compress: value range [%g, %g] (must be finite, min <= max)", vmin, vmax);
     wvol_wvc_params_default(wp);
     wp->value_min = vmin;
     wp->value_max = vmax;

@@ -14,6 +14,7 @@ static const double PI = 3.14159265358979323846;
 
 void wvol_lod_params_default(wvol_lod_params *p)
 {
+    if (!p) return;
     memset(p, 0, sizeof *p);
     p->enabled = 1;
     p->filter = NULL;

@@ -22,6 +22,7 @@ struct wvol_progressive {
 
 void wvol_progressive_params_default(wvol_progressive_params *p)
 {
+    if (!p) return;
     memset(p, 0, sizeof *p);
     p->growth = 4.0;
     p->bound = WVOL_BOUND_EXACT;

@@ -511,6 +511,13 @@ wvol_status wvol_compress_choose_wavelet(wvol_wavelet_choice *out, wvol_source *
     maxl = wvol_dwt_max_levels(dims[0], dims[1], dims[2]);
     WVOL_RETURN_IF(maxl < 1, err, WVOL_ERR_DIMS, "compress: a %zux%zux%zu volume cannot be transformed", dims[0],
                    dims[1], dims[2]);
+    WVOL_RETURN_IF(p->levels < 0 || p->levels > maxl, err, WVOL_ERR_ARG,
+                   "compress: wavelet trial: levels %d: a %zux%zux%zu volume allows 1..%d (0: the default)",
+                   p->levels, dims[0], dims[1], dims[2], maxl);
+    WVOL_RETURN_IF(!(p->quant.step >= 0) || !isfinite(p->quant.step), err, WVOL_ERR_ARG,
+                   "compress: wavelet trial: quantiser step %g (must be finite and >= 0)", p->quant.step);
+    WVOL_RETURN_IF(!(p->quant.psnr >= 0), err, WVOL_ERR_ARG,
+                   "compress: wavelet trial: PSNR %g (must be > 0, or 0 for none)", p->quant.psnr);
     file_levels = p->levels > 0 ? p->levels : p->for_file ? WVOL_COMPRESS_LEVELS_FILE : WVOL_COMPRESS_LEVELS_STORE;
     if (file_levels > maxl) file_levels = maxl;
     wvol_wvc_params_default(&wp);

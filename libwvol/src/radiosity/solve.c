@@ -12,6 +12,7 @@
 
 void wvol_radiosity_params_default(wvol_radiosity_params *p)
 {
+    if (!p) return;
     memset(p, 0, sizeof *p);
     p->basis = WVOL_RADIOSITY_BASIS_HAAR;
     p->epsilon = 1e-3;
@@ -222,8 +223,10 @@ wvol_status wvol_radiosity_solve(wvol_radiosity **out, const wvol_radiosity_scen
                    par->max_iterations);
     WVOL_RETURN_IF(!(par->tolerance >= 0), err, WVOL_ERR_ARG, "radiosity: tolerance = %g must be >= 0",
                    par->tolerance);
-    WVOL_RETURN_IF(par->brightness && par->refine_passes < 1, err, WVOL_ERR_ARG,
-                   "radiosity: refine_passes = %d must be >= 1", par->refine_passes);
+    WVOL_RETURN_IF(par->brightness != 0 && par->brightness != 1, err, WVOL_ERR_ARG,
+                   "radiosity: brightness = %d must be 0 or 1", par->brightness);
+    WVOL_RETURN_IF(par->refine_passes < 1, err, WVOL_ERR_ARG, "radiosity: refine_passes = %d must be >= 1",
+                   par->refine_passes);
     r = calloc(1, sizeof *r);
     WVOL_RETURN_IF(!r, err, WVOL_ERR_NOMEM, "radiosity: solution");
     r->scene = scene;

@@ -25,6 +25,11 @@ void wvol_geometry_of_volume(wvol_geometry *g, const wvol_volume *v)
 void wvol_geometry_of_coeffs(wvol_geometry *g, const wvol_coeffs *c)
 {
     int a;
+    if (!g) return;
+    if (!c) {
+        memset(g, 0, sizeof *g);
+        return;
+    }
     g->dims[0] = c->nx;
     g->dims[1] = c->ny;
     g->dims[2] = c->nz;
@@ -37,6 +42,11 @@ void wvol_geometry_of_coeffs(wvol_geometry *g, const wvol_coeffs *c)
 void wvol_geometry_bounds(const wvol_geometry *g, double lo[3], double hi[3])
 {
     int a;
+    if (!lo || !hi) return;
+    if (!g) {
+        for (a = 0; a < 3; a++) lo[a] = hi[a] = 0.0;
+        return;
+    }
     for (a = 0; a < 3; a++) {
         lo[a] = g->origin[a] - 0.5 * g->spacing[a];
         hi[a] = g->origin[a] + ((double)g->dims[a] - 0.5) * g->spacing[a];
@@ -159,6 +169,11 @@ void wvol__cam_box_pixels(const wvol__cam *k, const double lo[3], const double h
 void wvol_camera_ray(const wvol_camera *cam, double px, double py, double origin[3], double dir[3])
 {
     wvol__cam k;
+    if (!origin || !dir) return;
+    if (!cam) {
+        for (int a = 0; a < 3; a++) origin[a] = dir[a] = 0.0;
+        return;
+    }
     wvol__cam_init(&k, cam);
     wvol__cam_ray(&k, px, py, origin, dir);
 }
@@ -200,6 +215,9 @@ wvol_status wvol_camera_frame(wvol_camera *cam, const wvol_geometry *g, const do
     WVOL_RETURN_IF(!(norm3(d) > 0), err, WVOL_ERR_ARG, "camera: view direction is zero");
     WVOL_RETURN_IF(width < 1 || height < 1 || width > 65536 || height > 65536, err, WVOL_ERR_ARG,
                    "camera: image size %dx%d (each side 1..65536)", width, height);
+    /* fov_y <= 0 asks for the default; NaN or Inf would make every ray NaN */
+    WVOL_RETURN_IF(projection == WVOL_PROJECTION_PERSPECTIVE && (!isfinite(fov_y) || fov_y >= 180), err, WVOL_ERR_ARG,
+                   "camera: field of view %g degrees (must be below 180, or <= 0 for the default)", fov_y);
     wvol_geometry_bounds(g, lo, hi);
     for (a = 0; a < 3; a++) c[a] = 0.5 * (lo[a] + hi[a]);
     if (fabs(d[2]) > 0.999999 * sqrt(dot3(d, d))) up[1] = 1, up[2] = 0;

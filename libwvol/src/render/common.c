@@ -8,6 +8,7 @@
 
 void wvol_render_params_default(wvol_render_params *p)
 {
+    if (!p) return;
     memset(p, 0, sizeof *p);
     p->mode = WVOL_RENDER_MODE_ABSORPTION;
     p->method = WVOL_RENDER_METHOD_AUTO;
@@ -53,6 +54,7 @@ wvol_status wvol__render_check(const wvol_image *img, const wvol_camera *cam, co
                    "render: termination threshold %g (must be in [0, 1))", p->termination);
     WVOL_RETURN_IF(!(p->ambient >= 0 && p->ambient <= 1), err, WVOL_ERR_ARG, "render: ambient %g (must be in [0, 1])",
                    p->ambient);
+    WVOL_RETURN_IF(p->shading != 0 && p->shading != 1, err, WVOL_ERR_ARG, "render: shading %d (0 or 1)", p->shading);
     WVOL_RETURN_IF(p->tile < 0 || p->tile > 4096, err, WVOL_ERR_ARG, "render: tile %d (0 for the default, or 1..4096)",
                    p->tile);
     WVOL_RETURN_IF(p->reference.brick < 0 || p->reference.brick > 4096, err, WVOL_ERR_ARG,

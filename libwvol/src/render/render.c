@@ -21,6 +21,7 @@ const char *wvol_render_mode_name(wvol_render_mode m)
 
 wvol_status wvol_render_method_parse(wvol_render_method *m, const char *name, wvol_error *err)
 {
+    WVOL_RETURN_IF(!m, err, WVOL_ERR_ARG, "render: method output pointer is NULL");
     for (int i = 0; name && i < COUNT(method_names); i++)
         if (!strcmp(name, method_names[i])) {
             *m = (wvol_render_method)i;
@@ -33,6 +34,7 @@ wvol_status wvol_render_method_parse(wvol_render_method *m, const char *name, wv
 
 wvol_status wvol_render_mode_parse(wvol_render_mode *m, const char *name, wvol_error *err)
 {
+    WVOL_RETURN_IF(!m, err, WVOL_ERR_ARG, "render: mode output pointer is NULL");
     for (int i = 0; name && i < COUNT(mode_names); i++)
         if (!strcmp(name, mode_names[i])) {
             *m = (wvol_render_mode)i;

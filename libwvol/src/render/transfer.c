@@ -47,6 +47,8 @@ static void set_pt(wvol_tf_point *p, double v, double r, double g, double b, dou
 wvol_status wvol_tf_preset(wvol_tf *tf, const char *name, double vmin, double vmax, wvol_error *err)
 {
     WVOL_RETURN_IF(!tf || !name, err, WVOL_ERR_ARG, "transfer function: no preset name");
+    WVOL_RETURN_IF(!isfinite(vmin) || !isfinite(vmax) || vmin > vmax, err, WVOL_ERR_ARG,
+                   "transfer function '%s': data range [%g, %g] (must be finite, vmin <= vmax)", name, vmin, vmax);
     memset(tf, 0, sizeof *tf);
     tf->per_diagonal = 1;
     if (!strcmp(name, "gaussian") || !strcmp(name, "grey") || !strcmp(name, "gray")) {

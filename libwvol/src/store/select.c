@@ -15,6 +15,7 @@
 
 void wvol_select_params_default(wvol_select_params *p)
 {
+    if (!p) return;
     memset(p, 0, sizeof *p);
     p->mode = WVOL_SELECT_ALL;
     for (int e = 0; e < WVOL_LOD_MAX_ELLIPSOIDS; e++) p->ellipsoids[e].power = 1.0;

@@ -11,11 +11,13 @@
 #include "store/store_internal.h"
 #include "codec/wvc_source.h"
 #include "core/alloc.h"
+#include "core/finite.h"
 
 #define DEFAULT_J 4
 
 void wvol_store_params_default(wvol_store_params *p)
 {
+    if (!p) return;
     memset(p, 0, sizeof *p);
     p->spline_J = DEFAULT_J;
 }
@@ -194,6 +196,8 @@ wvol_status wvol_store_build(wvol_store **out, const wvol_coeffs *c, const wvol_
     WVOL_RETURN_IF(!out, err, WVOL_ERR_ARG, "wvol_store_build: out is NULL");
     *out = NULL;
     WVOL_FORWARD(wvol__layout_init(&ly, c, err));
+    WVOL_FORWARD(wvol__geometry_check(c->spacing, c->origin, err));
+    WVOL_FORWARD(wvol_check_finite(c->data, c->px, c->py, c->pz, "store: coefficients", err));
     M = ly.levels;
     for (int a = 0; a < 3; a++)
         WVOL_RETURN_IF(ly.tr[a] && (ly.P[a] >> 1) > WVOL__POS_MAX, err, WVOL_ERR_DIMS,
@@ -525,15 +529,18 @@ wvol_status wvol_store_densify(const wvol_store *s, wvol_coeffs **out, wvol_erro
 
 void wvol_store_world_to_voxel(const wvol_store *s, const double world[3], double voxel[3])
 {
-    for (int a = 0; a < 3; a++) voxel[a] = (world[a] - s->origin[a]) / s->spacing[a];
+    if (!voxel) return;
+    for (int a = 0; a < 3; a++) voxel[a] = s && world ? (world[a] - s->origin[a]) / s->spacing[a] : 0.0;
 }
 
 void wvol_store_voxel_to_world(const wvol_store *s, const double voxel[3], double world[3])
 {
-    for (int a = 0; a < 3; a++) world[a] = s->origin[a] + voxel[a] * s->spacing[a];
+    if (!world) return;
+    for (int a = 0; a < 3; a++) world[a] = s && voxel ? s->origin[a] + voxel[a] * s->spacing[a] : 0.0;
 }
 
 void wvol_store_dir_to_voxel(const wvol_store *s, const double dworld[3], double dvoxel[3])
 {
-    for (int a = 0; a < 3; a++) dvoxel[a] = dworld[a] / s->spacing[a];
+    if (!dvoxel) return;
+    for (int a = 0; a < 3; a++) dvoxel[a] = s && dworld ? dworld[a] / s->spacing[a] : 0.0;
 }

@@ -214,11 +214,14 @@ wvol_status wvol__transport_params_check(const wvol_transport_params *p, wvol_er
                    (int)p->quadrature);
     WVOL_RETURN_IF(p->samples < 1 || p->samples > (1 << 24), err, WVOL_ERR_ARG, "transport: samples %d outside 1..2^24",
                    p->samples);
+    WVOL_RETURN_IF(p->use_oracle != 0 && p->use_oracle != 1, err, WVOL_ERR_ARG, "transport: use_oracle %d (0 or 1)",
+                   p->use_oracle);
     return WVOL_OK;
 }
 
 void wvol_transport_params_default(wvol_transport_params *p)
 {
+    if (!p) return;
     memset(p, 0, sizeof *p);
     p->levels = 3;
     p->quadrature = WVOL_TRANSPORT_QUADRATURE_TRAPEZOID;

@@ -76,6 +76,7 @@ void wvol_transport_scene_default(wvol_transport_scene *s)
 {
     static const wvol_transport_quad window = {{{0, 0, 1}, {0, 1, 1}, {1, 1, 1}, {1, 0, 1}}}; /* normal -z */
     static const wvol_transport_quad floor = {{{-0.5, -1, 0}, {2.5, -1, 0}, {2.5, 2, 0}, {-0.5, 2, 0}}}; /* +z */
+    if (!s) return;
     memset(s, 0, sizeof *s);
     s->window = window;
     s->floor = floor;

@@ -275,8 +275,10 @@ static void majorant_pieces(double *c, int P, double h)
 
 double wvol_basis_periodised_sup(const wvol_basis *b, int which)
 {
-    int per = b->per_unit, i, k, j;
+    int per, i, k, j;
     double best = 0;
+    if (!b) return NAN;
+    per = b->per_unit;
     for (i = 0; i < per; i++) {
         double sum = 0;
         for (k = i; k < b->pieces; k += per) {
@@ -337,6 +339,7 @@ void wvol_basis_destroy(wvol_basis *b)
 
 double wvol_basis_value(const wvol_basis *b, int which, double x)
 {
+    if (!b) return NAN;
     int i = wvol_basis_piece(b, x);
     if (i < 0) return x == x ? 0.0 : x;
     return horner3((which ? b->psi : b->phi) + 4 * (size_t)i, x - i * b->h);

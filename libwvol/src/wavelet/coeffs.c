@@ -7,6 +7,7 @@
 #include <string.h>
 
 #include "core/alloc.h"
+#include "core/finite.h"
 #include "wavelet/wavelet_internal.h"
 
 int wvol_dwt_max_levels(size_t nx, size_t ny, size_t nz)
@@ -125,6 +126,7 @@ wvol_status wvol_dwt3_ex(wvol_coeffs **out, const wvol_volume *v, const wvol_fil
     WVOL_RETURN_IF(pad != WVOL_PAD_EDGE && pad != WVOL_PAD_ZERO && pad != WVOL_PAD_PERIODIC, err,
                    WVOL_ERR_ARG, "wvol_dwt3: unknown pad mode %d", (int)pad);
     WVOL_FORWARD(check_levels(f, levels, v->nx, v->ny, v->nz, err));
+    WVOL_FORWARD(wvol__geometry_check(v->spacing, v->origin, err));
     WVOL_FORWARD(wvol_check_finite(v->data, v->nx, v->ny, v->nz, "wavelet transform input", err));
     WVOL_FORWARD(wvol_coeffs_create(&c, f, levels, v->nx, v->ny, v->nz, err));
     memcpy(c->spacing, v->spacing, sizeof c->spacing);
@@ -142,7 +144,7 @@ wvol_status wvol_dwt3_ex(wvol_coeffs **out, const wvol_volume *v, const wvol_fil
         free(d);
     } else {
         pad_fill_float(c->data, c, v, pad);
-        st = wvol_dwt3_inplace_f32(c->data, c->px, c->py, c->pz, f, levels, err);
+        st = wvol__dwt3_inplace_f32_finite(c->data, c->px, c->py, c->pz, f, levels, err);
     }
     /* the low-pass gains 2^(3/2) per level: inputs near FLT_MAX overflow float32 */
     if (st == WVOL_OK &&

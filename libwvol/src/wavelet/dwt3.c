@@ -8,6 +8,7 @@
 #include <string.h>
 
 #include "core/clones.h"
+#include "core/finite.h"
 #include "wavelet/wavelet_internal.h"
 
 int wvol__thread_id(void) { return omp_get_thread_num(); }
@@ -87,6 +88,18 @@ wvol_status wvol__dwt_plan(dwt_plan *pl, const void *data, const size_t n[3], co
 
 wvol_status wvol_dwt3_inplace_f32(float *data, size_t nx, size_t ny, size_t nz, const wvol_filter *f,
                                   int levels, wvol_error *err)
+{
+    dwt_plan pl;
+    const size_t n[3] = {nx, ny, nz};
+    /* the plan's checks first: data and its size are valid before the finite test reads it */
+    WVOL_FORWARD(wvol__dwt_plan(&pl, data, n, f, levels, sizeof(float), err));
+    WVOL_RETURN_IF(!wvol__all_finite(data, nx * ny * nz), err, WVOL_ERR_NONFINITE,
+                   "wavelet transform: the input holds NaN or Inf");
+    return transform_f32(data, nx, ny, nz, f, levels, 0, 0, err);
+}
+
+wvol_status wvol__dwt3_inplace_f32_finite(float *data, size_t nx, size_t ny, size_t nz, const wvol_filter *f,
+                                          int levels, wvol_error *err)
 {
     return transform_f32(data, nx, ny, nz, f, levels, 0, 0, err);
 }

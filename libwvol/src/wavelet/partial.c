@@ -11,6 +11,7 @@
 
 #include "core/alloc.h"
 #include "core/clones.h"
+#include "core/finite.h"
 #include "wavelet/wavelet_internal.h"
 
 wvol_status wvol_idwt3_level(wvol_volume **out, const wvol_coeffs *c, int stop_level, wvol_error *err)
@@ -26,6 +27,7 @@ wvol_status wvol_idwt3_level(wvol_volume **out, const wvol_coeffs *c, int stop_l
     WVOL_RETURN_IF(stop_level < 0 || stop_level > c->levels, err, WVOL_ERR_ARG,
                    "wvol_idwt3_level: level %d outside 0..%d", stop_level, c->levels);
     if (stop_level == 0) return wvol_idwt3(out, c, err);
+    WVOL_FORWARD(wvol_check_finite(c->data, c->px, c->py, c->pz, "wvol_idwt3_level: coefficients", err));
     pad[0] = c->px, pad[1] = c->py, pad[2] = c->pz;
     dims[0] = c->nx, dims[1] = c->ny, dims[2] = c->nz;
     n = c->px * c->py * c->pz;
@@ -74,11 +76,15 @@ wvol_status wvol_volume_level(wvol_volume **out, const wvol_volume *v, const wvo
     WVOL_RETURN_IF(!out, err, WVOL_ERR_ARG, "wvol_volume_level: out is NULL");
     *out = NULL;
     if (energy) *energy = 0.0;
-    WVOL_RETURN_IF(!v || !f, err, WVOL_ERR_ARG, "wvol_volume_level: volume or filter is NULL");
+    WVOL_RETURN_IF(!v || !v->data || !f, err, WVOL_ERR_ARG, "wvol_volume_level: volume or filter is NULL");
     WVOL_RETURN_IF(level < 0 || level > wvol_dwt_max_levels(v->nx, v->ny, v->nz), err, WVOL_ERR_ARG,
                    "wvol_volume_level: level %d outside 0..%d for a %zu x %zu x %zu volume", level,
                    wvol_dwt_max_levels(v->nx, v->ny, v->nz), v->nx, v->ny, v->nz);
-    if (level == 0) return wvol_volume_clone(out, v, err);
+    if (level == 0) {
+        /* the transform below tests the data (level > 0); the copy must refuse the same */
+        WVOL_FORWARD(wvol_check_finite(v->data, v->nx, v->ny, v->nz, "wvol_volume_level: volume", err));
+        return wvol_volume_clone(out, v, err);
+    }
     WVOL_FORWARD(wvol_dwt3(&c, v, f, level, err));
     n = c->px * c->py * c->pz;
     e[0] = wvol__extent(c->px, level), e[1] = wvol__extent(c->py, level), e[2] = wvol__extent(c->pz, level);

@@ -186,6 +186,11 @@ double wvol__cubic_absint(const double *c, double h)
 void wvol_poly3_affine(double out[4], const double c[4], double a, double d)
 {
     /* c(a t + d): Taylor shift to d, then scale by a */
+    if (!out) return;
+    if (!c) {
+        out[0] = out[1] = out[2] = out[3] = 0.0;
+        return;
+    }
     double c0 = c[0] + d * (c[1] + d * (c[2] + d * c[3]));
     double c1 = c[1] + d * (2.0 * c[2] + 3.0 * d * c[3]);
     double c2 = c[2] + 3.0 * d * c[3];
@@ -198,6 +203,11 @@ void wvol_poly3_affine(double out[4], const double c[4], double a, double d)
 
 void wvol_poly3_bernstein(double bz[4], const double a[4])
 {
+    if (!bz) return;
+    if (!a) {
+        bz[0] = bz[1] = bz[2] = bz[3] = 0.0;
+        return;
+    }
     const double a0 = a[0], a1 = a[1], a2 = a[2], a3 = a[3];
     bz[0] = a0;
     bz[1] = a0 + a1 / 3.0;

@@ -36,6 +36,11 @@ wvol_status wvol__dwt_plan(dwt_plan *pl, const void *data, const size_t n[3], co
 size_t wvol__block_width(size_t cx, size_t n, int L, size_t elem);
 int wvol__thread_id(void);
 
+/* wvol_dwt3_inplace_f32 without its test for NaN and Inf: for data already tested (the
+ * padded copy of a volume wvol_dwt3 has tested), which is then read once, not twice. */
+wvol_status wvol__dwt3_inplace_f32_finite(float *data, size_t nx, size_t ny, size_t nz, const wvol_filter *f,
+                                          int levels, wvol_error *err);
+
 /* Inverse of levels..stop+1 only, in place: the corner cube of extent n >> stop then
  * holds the level-`stop` low-pass coefficients. */
 wvol_status wvol__idwt3_partial_f32(float *data, size_t nx, size_t ny, size_t nz, const wvol_filter *f,
