@@ -180,6 +180,10 @@ static void test_descriptors_and_indices(void)
         CHECK(fabs(wvol_mesh_area(&m) - 0.5) < 1e-12, "area of the unit right triangle");
         m.verts = NULL, m.nverts = 5;
         CHECK(isnan(wvol_mesh_area(&m)), "no vertex array");
+        CHECK(wvol_mesh_save(&m, "/tmp/wvol_api_bounds_no_vertices.ply", &err) == WVOL_ERR_ARG &&
+                  has(&err, "no array"),
+              "save without vertices: %s", err.message);
+        CHECK(access("/tmp/wvol_api_bounds_no_vertices.ply", F_OK) != 0, "nothing written");
         CHECK(wvol_mesh_area(NULL) == 0.0, "NULL mesh");
     }
 

@@ -54,6 +54,8 @@ static wvol_status check_mesh(const wvol_mesh *m, const char *path, wvol_error *
     size_t i;
     WVOL_RETURN_IF(!m, err, WVOL_ERR_ARG, "%s: mesh is NULL", path ? path : "(null)");
     WVOL_RETURN_IF(!path || !*path, err, WVOL_ERR_ARG, "mesh output path is empty");
+    WVOL_RETURN_IF((m->nverts && !m->verts) || (m->ntris && !m->tris), err, WVOL_ERR_ARG,
+                   "%s: the mesh has %zu vertices and %zu triangles but no array for them", path, m->nverts, m->ntris);
     for (i = 0; i < 3 * m->ntris; i++)
         WVOL_RETURN_IF(m->tris[i] >= m->nverts, err, WVOL_ERR_ARG,
                        "%s: triangle %zu refers to vertex %u of %zu", path, i / 3, m->tris[i], m->nverts);
