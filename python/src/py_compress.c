@@ -32,9 +32,17 @@ static int parse_roi(PyObject *roi, wvol_select_params *prm)
         PyObject *c = NULL, *r = NULL;
         double power = 1.0;
         wvol_lod_ellipsoid *e = &prm->ellipsoids[i];
-        if (!PyArg_ParseTuple(PySequence_Fast_GET_ITEM(seq, i), "OO|d;roi entry must be (center, radii[, power])",
-                              &c, &r, &power))
+        PyObject *item = PySequence_Fast_GET_ITEM(seq, i), *entry;
+        int ok;
+        /* any sequence of two or three items, not only a tuple */
+        if (PyUnicode_Check(item) || PyBytes_Check(item) || !PySequence_Check(item)) {
+            PyErr_Format(PyExc_TypeError, "roi entry %zd must be (center, radii[, power]), got %R", i, item);
             goto fail;
+        }
+        if (!(entry = PySequence_Tuple(item))) goto fail;
+        ok = PyArg_ParseTuple(entry, "OO|d;roi entry must be (center, radii[, power])", &c, &r, &power);
+        Py_DECREF(entry);
+        if (!ok) goto fail;
         if (wvolpy_triple(c, e->center, "roi center") < 0 || wvolpy_triple(r, e->radii, "roi radii") < 0) goto fail;
         e->power = power;
     }

@@ -14,7 +14,7 @@ static PyObject *py_load(PyObject *self, PyObject *args, PyObject *kw)
     wvol_error err;
     wvol_status s;
     (void)self;
-    if (!PyArg_ParseTupleAndKeywords(args, kw, "O|OzzpOO", kwlist, &path_obj, &dims_obj, &dtype, &grid,
+    if (!PyArg_ParseTupleAndKeywords(args, kw, "O|OszpOO", kwlist, &path_obj, &dims_obj, &dtype, &grid,
                                      &big_endian, &spacing_obj, &origin_obj))
         return NULL;
     if (!PyUnicode_FSConverter(path_obj, &bytes)) return NULL;

@@ -30,8 +30,9 @@ static void *fit(void *p, size_t bytes)
     return q ? q : p;
 }
 
-/* (vertices (n, 3) float32, faces (m, 3) uint32, normals (n, 3) float32 or None, stats); destroys m. */
-static PyObject *mesh_take(wvol_mesh *m, const wvol_iso_stats *st)
+/* (vertices (n, 3) float32, faces (m, 3) uint32, normals (n, 3) float32, or None when not asked
+ * for, stats); destroys m. */
+static PyObject *mesh_take(wvol_mesh *m, const wvol_iso_stats *st, int want_normals)
 {
     npy_intp vd[2] = {(npy_intp)m->nverts, 3}, td[2] = {(npy_intp)m->ntris, 3};
     PyObject *v, *t, *n, *d;
@@ -45,12 +46,17 @@ static PyObject *mesh_take(wvol_mesh *m, const wvol_iso_stats *st)
     if (m->normals) {
         n = wvolpy_array_take_type(m->normals, 2, vd, NPY_FLOAT32);
         m->normals = NULL;
+    } else if (want_normals) { /* an empty mesh: no array was made for no vertices */
+        n = PyArray_SimpleNew(2, vd, NPY_FLOAT32);
     } else {
         n = Py_NewRef(Py_None);
     }
     wvol_mesh_destroy(m);
-    d = Py_BuildValue("{s:O,s:s,s:(dd),s:n,s:n,s:n,s:n,s:d}", "empty", st->empty ? Py_True : Py_False, "message",
-                      st->message, "data_range", st->data_min, st->data_max, "cells_active",
+    /* the data's range is measured only to say why a mesh is empty (wvol_iso_stats) */
+    d = Py_BuildValue("{s:O,s:s,s:N,s:n,s:n,s:n,s:n,s:d}", "empty", st->empty ? Py_True : Py_False, "message",
+                      st->message, "data_range",
+                      st->empty ? Py_BuildValue("(dd)", st->data_min, st->data_max) : Py_NewRef(Py_None),
+                      "cells_active",
                       (Py_ssize_t)st->cells_active, "bricks_total", (Py_ssize_t)st->bricks_total, "bricks_skipped",
                       (Py_ssize_t)st->bricks_skipped, "bricks_meshed", (Py_ssize_t)st->bricks_meshed, "seconds",
                       st->seconds[3]);
@@ -83,13 +89,14 @@ static int iso_setup(double iso, int threads, int brick, const char *normals, wv
 }
 
 /* The extraction's result as mesh_take's tuple, or its error raised. */
-static PyObject *iso_finish(wvol_mesh *m, wvol_status s, const wvol_iso_stats *st, const wvol_error *err)
+static PyObject *iso_finish(wvol_mesh *m, wvol_status s, const wvol_iso_stats *st, int want_normals,
+                            const wvol_error *err)
 {
     if (s != WVOL_OK) {
         wvol_mesh_destroy(m);
         return wvolpy_raise(err);
     }
-    return mesh_take(m, st);
+    return mesh_take(m, st, want_normals);
 }
 
 /* isosurface(source, iso, spacing=None, origin=None, normals='gradient', threads=0, brick=None)
@@ -150,7 +157,7 @@ static PyObject *py_isosurface(PyObject *self, PyObject *args, PyObject *kw)
     Py_END_ALLOW_THREADS
     Py_XDECREF(holder);
     {
-        PyObject *r = iso_finish(m, s, &st, &err);
+        PyObject *r = iso_finish(m, s, &st, p.normals != WVOL_ISO_NORMALS_NONE, &err);
         if (r && coarse) {
             /* the stats dict is the last item: add the level's grid and dropped energy */
             PyObject *d = PyTuple_GET_ITEM(r, PyTuple_GET_SIZE(r) - 1), *o;

@@ -327,7 +327,7 @@ int wvolpy_triple(PyObject *obj, double out[3], const char *what)
 {
     PyObject *seq;
     if (obj == NULL || obj == Py_None) return 0;
-    if (PyNumber_Check(obj)) {
+    if (PyNumber_Check(obj) && !PySequence_Check(obj)) { /* an array of 3 is a number too */
         double v = PyFloat_AsDouble(obj);
         if (PyErr_Occurred()) return -1;
         out[0] = out[1] = out[2] = v;

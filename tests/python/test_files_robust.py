@@ -243,3 +243,31 @@ def test_what_is_wrong_inside_an_input_file_is_exit_1(tmp_path, phantom):
     r = run("segment", phantom, "-o", tmp_path / "l.nrrd", "--levels", "1", "--iters", "20", "--truth", truth)
     assert r.returncode == 1 and "truth is 8x8x8 but the volume is 16x16x16" in r.stderr, r.stderr
     assert not (tmp_path / "o.png").exists() and not (tmp_path / "r.png").exists() and not (tmp_path / "l.nrrd").exists()
+
+
+# A write that fails part way (a full disk, here a file-size limit: writes past it fail with
+# EFBIG) is an error and leaves nothing at the path. MetaImage's, NIfTI's and OpenVDB's own
+# writers report no failed write, so their file is read back before it is renamed into place.
+_FULL_DISK = r'''
+import resource, signal, sys
+import wvol
+signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
+v = wvol.synth.turbulence(shape=(48, 48, 48))
+resource.setrlimit(resource.RLIMIT_FSIZE, (48 * 1024, 48 * 1024))
+try:
+    wvol.save(v, sys.argv[1])
+except OSError as e:
+    print("OSError:", e)
+else:
+    print("saved")
+'''
+
+
+@pytest.mark.parametrize("ext", [".mha", ".nii", ".nii.gz", ".vdb", ".vti", ".vtk", ".raw", ".nrrd"])
+def test_save_on_a_full_disk_fails_and_leaves_nothing(tmp_path, ext):
+    out = tmp_path / f"v{ext}"
+    r = subprocess.run([sys.executable, "-c", _FULL_DISK, str(out)], capture_output=True, text=True, timeout=TIMEOUT,
+                       env={**os.environ})
+    assert r.returncode == 0, r.stderr
+    assert r.stdout.startswith("OSError:") and str(out) in r.stdout, r.stdout + r.stderr
+    assert os.listdir(tmp_path) == [], os.listdir(tmp_path)

@@ -284,3 +284,35 @@ def test_features_refuse_magnitudes_that_overflow():
         wvol.features(a, levels=1)
     with pytest.raises(ValueError, match="magnitudes overflow float32"):
         wvol.segment(a, levels=1, iterations=10)
+
+
+def test_load_dtype_none_is_a_type_error(tmp_path):
+    """dtype=None was passed on as a NULL name (a segfault); it is refused as any non-string."""
+    p = tmp_path / "v.raw"
+    np.zeros((4, 4, 4), "<f4").tofile(p)
+    with pytest.raises(TypeError):
+        wvol.load(p, dims=(4, 4, 4), dtype=None)
+
+
+def test_roi_entries_may_be_any_sequence():
+    """A roi entry given as a list or an array was a SystemError (parsed as a tuple only)."""
+    v = wvol.synth.gaussian(shape=(16, 16, 16))
+    want = wvol.compress(v, keep=0.1, roi=[((8, 8, 8), (4, 4, 4))]).kept
+    assert wvol.compress(v, keep=0.1, roi=[[(8, 8, 8), (4, 4, 4)]]).kept == want
+    assert wvol.compress(v, keep=0.1, roi=[np.array([[8, 8, 8], [4, 4, 4]])]).kept == want
+    for bad in ([None], ["ab"], [3]):
+        with pytest.raises(TypeError, match="roi entry 0"):
+            wvol.compress(v, keep=0.1, roi=bad)
+
+
+def test_isosurface_stats_and_normals_of_empty_and_full_meshes():
+    """data_range is measured only for an empty mesh (to say why): None otherwise, not (0, 0); an
+    empty mesh's normals are an empty array unless normals='none'."""
+    v = wvol.synth.gaussian(shape=(16, 16, 16))
+    verts, faces, normals, st = wvol.isosurface(v, 0.5, return_stats=True)
+    assert len(verts) > 0 and not st["empty"] and st["data_range"] is None
+    verts, faces, normals, st = wvol.isosurface(v, 5.0, return_stats=True)
+    assert st["empty"] and verts.shape == (0, 3) and normals.shape == (0, 3)
+    lo, hi = st["data_range"]
+    assert lo < hi < 5.0
+    assert wvol.isosurface(v, 5.0, normals="none")[2] is None

@@ -460,6 +460,13 @@ void write_vdb(const wvol_volume *v, const char *path)
         openvdb::GridCPtrVec list{grid};
         out.write(list, file_meta);
         out.close();
+        // OpenVDB's stream reports no failed write (a full disk leaves a short file): the file
+        // is read back before it is renamed into place
+        wvol_volume_destroy(read_vdb(f.tmp_path, nullptr));
+    } catch (const wvol_adapter::Failure &fl) {
+        wvol_atomic_abort(&f);
+        fail(WVOL_ERR_IO, std::string(path) + ": the written file does not read back: " + fl.message +
+                              " (is the disk full?)");
     } catch (const std::exception &ex) {
         wvol_atomic_abort(&f);
         fail(WVOL_ERR_IO, std::string(path) + ": writing the OpenVDB file failed (" + ex.what() + ")");

@@ -556,6 +556,27 @@ void write_legacy(const wvol_volume *v, const char *tmp, const char *path)
     if (!ok) fail(WVOL_ERR_IO, std::string(path) + ": write failed: " + std::strerror(errno));
 }
 
+// MetaImage's and NIfTI's writers report no failed write (a full disk leaves a short file and
+// no error code): their file is read back before it is renamed into place, and one that does
+// not read back as the volume written is refused. (The XML writer reports its errors.)
+void read_back(const char *tmp, const char *path, const wvol_volume *v)
+{
+    wvol_volume *back = nullptr;
+    std::string why;
+    try {
+        back = read_vtk(tmp);
+    } catch (const wvol_adapter::Failure &f) {
+        why = f.message;
+    } catch (const std::exception &e) {
+        why = e.what();
+    }
+    const bool same = back && back->nx == v->nx && back->ny == v->ny && back->nz == v->nz;
+    wvol_volume_destroy(back);
+    if (!same)
+        fail(WVOL_ERR_IO, std::string(path) + ": the written file does not read back" +
+                              (why.empty() ? std::string(" with the volume's size") : ": " + why) + " (is the disk full?)");
+}
+
 void write_vtk(const wvol_volume *v, const char *path)
 {
     const char *ext = has_ext(path, ".vti")      ? ".vti"
@@ -572,7 +593,9 @@ void write_vtk(const wvol_volume *v, const char *path)
         tmp.commit();
         return;
     }
-    Quiet quiet;
+    bool verify = false;
+    {
+    Quiet quiet; // held until the writer is done: read_back takes it again
     vtkSmartPointer<vtkImageData> img = image_of(v);
     if (!std::strcmp(ext, ".vti")) {
         vtkNew<vtkXMLImageDataWriter> w;
@@ -589,13 +612,17 @@ void write_vtk(const wvol_volume *v, const char *path)
         w->SetInputData(img);
         w->SetCompression(true);
         run_writer(w.Get(), path, "MetaImage", quiet);
+        verify = true;
     } else {
         vtkNew<vtkNIFTIImageWriter> w;
         w->SetFileName(tmp.name());
         w->SetInputData(img);
         w->SetDescription("libwvol");
         run_writer(w.Get(), path, "NIfTI", quiet);
+        verify = true;
     }
+    }
+    if (verify) read_back(tmp.name(), path, v);
     tmp.commit();
 }
 
