@@ -152,6 +152,16 @@ def _ints(v, name, form):
     return tuple(out)
 
 
+def _int(v, name):
+    """One int: floats, strings and bools are refused, not truncated or parsed (numpy ints pass)."""
+    if isinstance(v, (bool, np.bool_)):
+        raise TypeError(f"{name}: expected an int, got {v!r}")
+    try:
+        return operator.index(v)
+    except TypeError:
+        raise TypeError(f"{name}: expected an int, got {v!r}") from None
+
+
 def _size(size, name="size"):
     """(width, height) in pixels."""
     return _ints(size, name, "(width, height)")
@@ -183,7 +193,7 @@ def _box_bounds(box, shape):
                 raise ValueError("box slices must have step 1")
             start, stop, _ = r.indices(n)
         else:
-            start, stop = (int(v) for v in r)
+            start, stop = _ints(r, "box", "(start, stop)")
         if not 0 <= start < stop <= n:
             raise ValueError(f"box: axis {'zyx'[ax]} range [{start}, {stop}) must be non-empty and inside [0, {n})")
         lo.append(start)
@@ -333,7 +343,7 @@ class Store:
             return Volume(self._handle.reconstruct()[0], self.spacing, self.origin)
         if not isinstance(level, (int, np.integer)):
             raise TypeError(f"level must be an integer, got {type(level).__name__}")
-        data, spacing, origin = self._handle.reconstruct(int(level))
+        data, spacing, origin = self._handle.reconstruct(_int(level, "level"))
         return Volume(data, spacing, origin)
 
     def save(self, path, quant_share=None, step=None):
@@ -387,9 +397,12 @@ def compress(vol, wavelet="db2", levels=None, *, keep=None, keep_count=None, ene
         if name == "keep_count":
             if isinstance(value, float) and not value.is_integer():
                 raise ValueError("keep_count must be an integer")
-            if int(value) < 0:
+            value = value if isinstance(value, float) else _int(value, "keep_count")
+            if value < 0:
                 raise ValueError("keep_count must be >= 0")
-        value = float(value)
+            if value > 2**63:
+                raise ValueError(f"keep_count {value} is beyond any volume's coefficients")
+        value = _real(value, name)
     spacing, origin = _geometry(vol, spacing, origin)
     arr = _data(vol)
     if roi is not None and not isinstance(roi, (list, tuple)):
@@ -483,7 +496,7 @@ class RenderContext:
     was kept; a volume (array) renders as without a context. Not for two threads at once."""
 
     def __init__(self, cache_bytes=0):
-        self._handle = _wvol.render_context_new(int(cache_bytes))
+        self._handle = _wvol.render_context_new(_int(cache_bytes, "cache_bytes"))
 
 
 def render(source, camera="+z", size=(256, 256), *, mode="absorption", tf="gaussian", tf_units="world",
@@ -563,9 +576,9 @@ def render(source, camera="+z", size=(256, 256), *, mode="absorption", tf="gauss
     opts = dict(camera=camera, width=w, height=h, mode=mode, method=method, tf=tf, tf_units=tf_units, step=step,
                 shading=int(bool(shading)), ambient=ambient, gauss_nodes=gauss_nodes, spline_j=spline_j,
                 brick=brick, termination=termination, threads=threads, colors=colors,
-                skip_tolerance=skip_tolerance, preintegrate=int(bool(preintegrate)), gradient_levels=int(gradient_levels),
+                skip_tolerance=skip_tolerance, preintegrate=int(bool(preintegrate)), gradient_levels=_int(gradient_levels, "gradient_levels"),
                 bound=_bound_method(bound), lod=int(bool(lod)),
-                lod_level=-1 if lod_level is None else int(lod_level), lod_wavelet=lod_wavelet)
+                lod_level=-1 if lod_level is None else _int(lod_level, "lod_level"), lod_wavelet=lod_wavelet)
     if context is not None:
         if not isinstance(context, RenderContext):
             raise TypeError("context must be a wvol.RenderContext")
@@ -636,11 +649,11 @@ def isosurface(source, iso, *, normals="gradient", brick=None, threads=0, level=
     """
     if isinstance(source, Store):
         v, f, n, st = _wvol.isosurface(source._handle, iso, normals=normals, threads=threads, brick=brick,
-                                       level=int(level), wavelet=wavelet)
+                                       level=_int(level, "level"), wavelet=wavelet)
     else:
         spacing, origin = _geometry(source, None, None)
         v, f, n, st = _wvol.isosurface(_data(source), iso, spacing=spacing, origin=origin, normals=normals,
-                                       threads=threads, brick=brick, level=int(level), wavelet=wavelet)
+                                       threads=threads, brick=brick, level=_int(level, "level"), wavelet=wavelet)
     return (v, f, n, st) if return_stats else (v, f, n)
 
 
@@ -689,7 +702,7 @@ def open(path, level=None):  # noqa: A001  (wvol.open mirrors the built-in for .
     levels coarser than m (the finer ones stay zero): ``store.reconstruct(level=m)`` is then
     the coarser volume at a fraction of the decoding cost. The store's ``predicted_error`` is
     the header's record: selection + quantisation error of the whole file."""
-    handle, info = _wvol.store_open(os.fspath(path), stop_level=0 if level is None else int(level))
+    handle, info = _wvol.store_open(os.fspath(path), stop_level=0 if level is None else _int(level, "level"))
     report = {"kept": int(info["nonzero"]), "total": int(np.prod(info["padded"])),
               "energy_dropped": float(info["sse"]), "energy_total": float(info["energy"]),
               "file_bytes": int(info["file_bytes"]), "step": float(info["step"])}

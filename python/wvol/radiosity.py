@@ -12,7 +12,7 @@ from typing import NamedTuple, Optional
 import numpy as np
 
 from . import _wvol
-from . import _size
+from . import _int, _size
 
 __all__ = ["BASES", "Scene", "Solution", "scene", "solve", "point_form_factor", "gauss_grid", "patch_points"]
 
@@ -64,8 +64,9 @@ def solve(scene, basis: str = "haar", epsilon: float = 1e-3, max_level: int = 5,
     ``res`` > 0 samples each patch on a res x res grid; ``uv`` (m, 2) evaluates every patch at those
     parameter points; ``camera`` (a ``wvol render`` camera string) renders an image of ``size``."""
     uv_arr = None if uv is None else np.ascontiguousarray(uv, dtype=np.float64)
-    d = _wvol.radiosity_solve(_scene_arg(scene), basis, float(epsilon), int(max_level), bool(brightness),
-                              bool(full_matrix), int(max_iterations), float(tolerance), int(res), uv_arr, camera,
+    d = _wvol.radiosity_solve(_scene_arg(scene), basis, float(epsilon), _int(max_level, "max_level"),
+                              bool(brightness), bool(full_matrix), _int(max_iterations, "max_iterations"),
+                              float(tolerance), _int(res, "res"), uv_arr, camera,
                               _size(size))
     samples, values, image = d.pop("samples", None), d.pop("values", None), d.pop("image", None)
     return Solution(d, samples, values, image)
@@ -74,7 +75,7 @@ def solve(scene, basis: str = "haar", epsilon: float = 1e-3, max_level: int = 5,
 def point_form_factor(s, patch: int, points, normal) -> np.ndarray:
     """Closed-form (Lambert) form factor from points (m, 3) with unit ``normal`` to quad ``patch``,
     without occlusion: the analytic radiosity a unit emitter gives a receiver of reflectance 1."""
-    return _wvol.radiosity_point_form_factor(_scene_arg(s), int(patch),
+    return _wvol.radiosity_point_form_factor(_scene_arg(s), _int(patch, "patch"),
                                              np.ascontiguousarray(points, dtype=np.float64),
                                              tuple(float(v) for v in normal))
 

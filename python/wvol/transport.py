@@ -9,7 +9,7 @@ p0 p1 p2 p3; its normal (p1 - p0) x (p3 - p0) is the side light leaves or arrive
 """
 import numpy as np
 
-from . import _wvol
+from . import _int, _wvol
 
 __all__ = ["QUADRATURES", "haar", "coefficients", "transport", "scene", "window", "power"]
 
@@ -26,21 +26,23 @@ def coefficients(src, dst, j, level, quadrature="trapezoid", samples=16, seed=1)
     """All transport coefficients T_jk from the pure smoothing source basis ``j = (level, mu, mv,
     mk, ml)`` to the destination bases of ``level`` (float64, 16**level values, k's cell index
     u fastest), by the 2D reduction and the named rule."""
-    return _wvol.transport_coefficients(np.asarray(src, float), np.asarray(dst, float), tuple(int(x) for x in j),
-                                        int(level), quadrature, int(samples), int(seed))
+    return _wvol.transport_coefficients(np.asarray(src, float), np.asarray(dst, float), tuple(_int(x, "j") for x in j),
+                                        _int(level, "level"), quadrature, _int(samples, "samples"),
+                                        _int(seed, "seed"))
 
 
 def transport(cells, src, dst, levels=3, quadrature="trapezoid", samples=16, seed=1, oracle=True):
     """Transports the source's outgoing radiance cells to the destination's incident radiance
     cells (``levels`` levels) by the oracle-driven tree propagation; ``(cells, stats)``."""
     return _wvol.transport_run(np.asarray(cells, dtype=np.float32), np.asarray(src, float), np.asarray(dst, float),
-                               int(levels), quadrature, int(samples), int(seed), bool(oracle))
+                               _int(levels, "levels"), quadrature, _int(samples, "samples"), _int(seed, "seed"),
+                               bool(oracle))
 
 
 def scene(levels=3, quadrature="trapezoid", samples=16, window=None):
     """The stained-glass experiment (§7.3): dict with the ``source``, ``incident`` and
     ``reflected`` cells, transport ``stats`` and the powers (RGB) through window and floor."""
-    return _wvol.transport_scene(int(levels), quadrature, int(samples), window)
+    return _wvol.transport_scene(_int(levels, "levels"), quadrature, _int(samples, "samples"), window)
 
 
 def window(path=None):

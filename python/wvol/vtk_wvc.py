@@ -50,7 +50,7 @@ from vtkmodules.vtkCommonCore import (VTK_FLOAT, vtkDataArray, vtkDoubleArray, v
 from vtkmodules.vtkCommonDataModel import vtkDataObject, vtkImageData
 from vtkmodules.vtkCommonExecutionModel import vtkAlgorithm, vtkStreamingDemandDrivenPipeline
 
-from . import _psnr, _wvol
+from . import _int, _ints, _psnr, _wvol
 
 SDDP = vtkStreamingDemandDrivenPipeline
 # Samples reconstructed per region read (32 MiB of float32): bounds the working memory of a
@@ -159,7 +159,7 @@ class WVCReader(VTKPythonAlgorithmBase):
 
     def SetLevelOfDetail(self, level):
         """0: full resolution; s: the grid 2^s coarser (the finest s levels not decoded)."""
-        self._set("_level", int(level))
+        self._set("_level", _int(level, "LevelOfDetail"))
 
     def GetLevelOfDetail(self):
         return self._level
@@ -168,9 +168,7 @@ class WVCReader(VTKPythonAlgorithmBase):
         """Voxels (x0, x1, y0, y1, z0, z1) of the original grid, bounds included, like a VTK
         extent; an upper bound below 0 means the last voxel. The default is the whole volume.
         At a coarser level the region covers the coarse samples whose cells meet it."""
-        ext = tuple(int(v) for v in (ext[0] if len(ext) == 1 else ext))
-        if len(ext) != 6:
-            raise ValueError(f"Region takes 6 integers (x0, x1, y0, y1, z0, z1), got {len(ext)}")
+        ext = _ints(ext[0] if len(ext) == 1 else ext, "Region", "(x0, x1, y0, y1, z0, z1)")
         self._set("_region", ext)
 
     def GetRegion(self):
@@ -180,7 +178,7 @@ class WVCReader(VTKPythonAlgorithmBase):
         """Decoded chunks kept per process, in MiB (0: what reading slab by slab needs,
         wvol_wvc_slab_budget, for the whole grid). A budget below that need still works, but
         decodes chunks several times (ChunksDecoded shows it)."""
-        mib = int(mib)
+        mib = _int(mib, "MemoryBudget")
         if not 0 <= mib <= MAX_BUDGET_MIB:
             raise ValueError(f"MemoryBudget must be in 0..{MAX_BUDGET_MIB} MiB (0: what slab by slab needs), got {mib}")
         self._set("_budget_mib", mib)
@@ -201,7 +199,7 @@ class WVCReader(VTKPythonAlgorithmBase):
     def SetThreads(self, threads):
         """Threads that reconstruct a piece (slices along z at once); 0 (default): the cores
         this process may use, shared among the MPI ranks of this node."""
-        threads = int(threads)
+        threads = _int(threads, "Threads")
         if not 0 <= threads <= 4096:
             raise ValueError(f"Threads must be in 0..4096 (0: automatic), got {threads}")
         self._set("_threads", threads)

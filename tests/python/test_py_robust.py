@@ -316,3 +316,33 @@ def test_isosurface_stats_and_normals_of_empty_and_full_meshes():
     lo, hi = st["data_range"]
     assert lo < hi < 5.0
     assert wvol.isosurface(v, 5.0, normals="none")[2] is None
+
+
+@pytest.mark.parametrize("call", [
+    lambda s, v: s.reconstruct(level=1.5),
+    lambda s, v: s.reconstruct(level="1"),
+    lambda s, v: s.reconstruct(box=((0, 8.5), (0, 8), (0, 8))),
+    lambda s, v: s.reconstruct(box="abc"),
+    lambda s, v: wvol.isosurface(s, 0.5, level=1.5),
+    lambda s, v: wvol.render(s, size=(8, 8), lod_level="1"),
+    lambda s, v: wvol.render(s, size=(8, 8), gradient_levels=1.7),
+    lambda s, v: wvol.RenderContext(True),
+    lambda s, v: wvol.compress(v, keep="0.1"),
+    lambda s, v: wvol.compress(v, keep=True),
+    lambda s, v: wvol.compress(v, keep_count="5"),
+    lambda s, v: wvol.transport.transport(np.zeros((16, 16, 4, 4, 3), np.float32), [[0, 0, 0]] * 4, [[0, 0, 1]] * 4,
+                                          levels=1.5),
+])
+def test_ints_are_not_coerced(call):
+    """docs/python.md: a string, a bool or a float where an int (or a number) is meant is
+    refused with a TypeError, not truncated, parsed or taken as 1."""
+    v = wvol.synth.gaussian(shape=(16, 16, 16))
+    s = wvol.compress(v, keep=0.5)
+    with pytest.raises(TypeError):
+        call(s, v)
+
+
+def test_keep_count_beyond_any_volume_says_so():
+    v = wvol.synth.gaussian(shape=(8, 8, 8))
+    with pytest.raises(ValueError, match="beyond any volume"):
+        wvol.compress(v, keep_count=2**70)

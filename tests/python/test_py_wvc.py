@@ -83,7 +83,7 @@ def test_files_errors(vol, tmp_path):
     (lambda s, d: wvol.open(d / "missing.wvc"), OSError, "cannot open"),
     (lambda s, d: wvol.open(d), OSError, "not a regular file"),
     (lambda s, d: wvol.open(123), TypeError, "PathLike"),
-    (lambda s, d: wvol.open(d / "x.wvc", level="fine"), ValueError, ""),
+    (lambda s, d: wvol.open(d / "x.wvc", level="fine"), TypeError, "level: expected an int"),
     (lambda s, d: wvol.wvc_info(d / "missing.wvc"), OSError, "cannot open"),
     (lambda s, d: wvol.wvc_info(None), TypeError, ""),
     (lambda s, d: s.save(d), OSError, ""),                                # a directory
