@@ -289,21 +289,26 @@ int wvolpy_conv_budget(PyObject *obj, void *out)
 {
     unsigned long long v;
     int negative;
-    if (!PyLong_Check(obj) || PyBool_Check(obj)) {
+    PyObject *num;
+    /* an int or what stands for one (numpy's integers), never a bool or a float */
+    if (PyBool_Check(obj) || !PyIndex_Check(obj) || !(num = PyNumber_Index(obj))) {
+        PyErr_Clear();
         PyErr_Format(PyExc_TypeError, "memory budget must be an int (bytes), got %s", Py_TYPE(obj)->tp_name);
         return 0;
     }
+    obj = num;
     {
         PyObject *zero = PyLong_FromLong(0);
         negative = zero ? PyObject_RichCompareBool(obj, zero, Py_LT) : -1;
         Py_XDECREF(zero);
     }
-    if (negative < 0) return 0;
     if (negative) {
-        PyErr_Format(PyExc_ValueError, "memory budget must be >= 0 bytes, got %S", obj);
+        if (negative > 0) PyErr_Format(PyExc_ValueError, "memory budget must be >= 0 bytes, got %S", obj);
+        Py_DECREF(num);
         return 0;
     }
     v = PyLong_AsUnsignedLongLong(obj);
+    Py_DECREF(num);
     if (PyErr_Occurred()) return 0;
     *(unsigned long long *)out = v;
     return 1;

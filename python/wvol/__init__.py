@@ -162,6 +162,14 @@ def _int(v, name):
         raise TypeError(f"{name}: expected an int, got {v!r}") from None
 
 
+def _lod_level(v):
+    """render's lod_level: a level >= 0 (None, not -1, asks for the automatic choice)."""
+    v = _int(v, "lod_level")
+    if v < 0:
+        raise ValueError(f"lod_level {v}: a level >= 0 (None: chosen from the pixel footprint)")
+    return v
+
+
 def _size(size, name="size"):
     """(width, height) in pixels."""
     return _ints(size, name, "(width, height)")
@@ -578,7 +586,7 @@ def render(source, camera="+z", size=(256, 256), *, mode="absorption", tf="gauss
                 brick=brick, termination=termination, threads=threads, colors=colors,
                 skip_tolerance=skip_tolerance, preintegrate=int(bool(preintegrate)), gradient_levels=_int(gradient_levels, "gradient_levels"),
                 bound=_bound_method(bound), lod=int(bool(lod)),
-                lod_level=-1 if lod_level is None else _int(lod_level, "lod_level"), lod_wavelet=lod_wavelet)
+                lod_level=-1 if lod_level is None else _lod_level(lod_level), lod_wavelet=lod_wavelet)
     if context is not None:
         if not isinstance(context, RenderContext):
             raise TypeError("context must be a wvol.RenderContext")

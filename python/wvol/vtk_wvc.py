@@ -184,7 +184,9 @@ class WVCReader(VTKPythonAlgorithmBase):
         self._set("_budget_mib", mib)
 
     def SetArrayName(self, name):
-        self._set("_array_name", str(name))
+        if not isinstance(name, str) or not name:
+            raise TypeError(f"ArrayName must be a non-empty string, got {name!r}")
+        self._set("_array_name", name)
 
     def SetChunkLog(self, path):
         """A file that gets one JSON line per execution (piece, rank, extent, chunks); "" for none."""
