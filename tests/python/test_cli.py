@@ -173,7 +173,7 @@ def test_library_message_is_not_prefixed_twice(wvol, tmp_path):
 
 
 def test_keep_alone_meshes_from_a_store(wvol, small, tmp_path):
-    # --keep used to be read only with --wavelet: the mesh was the full volume's
+    # --keep alone selects the coefficients (db2, the default filter): the mesh is the store's
     full = json.loads(wvol("iso", *small, "--iso", "0.5", "--json").stdout)
     kept = json.loads(wvol("iso", *small, "--iso", "0.5", "--keep", "1%", "--json").stdout)
     assert full["method"] == "mc" and kept["method"] == "mc-bricks" and kept["wavelet"] == "db2"

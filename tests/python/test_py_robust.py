@@ -287,7 +287,8 @@ def test_features_refuse_magnitudes_that_overflow():
 
 
 def test_load_dtype_none_is_a_type_error(tmp_path):
-    """dtype=None was passed on as a NULL name (a segfault); it is refused as any non-string."""
+    """dtype must name a sample type: None is refused as any non-string (a TypeError, not a
+    crash)."""
     p = tmp_path / "v.raw"
     np.zeros((4, 4, 4), "<f4").tofile(p)
     with pytest.raises(TypeError):
@@ -295,7 +296,8 @@ def test_load_dtype_none_is_a_type_error(tmp_path):
 
 
 def test_roi_entries_may_be_any_sequence():
-    """A roi entry given as a list or an array was a SystemError (parsed as a tuple only)."""
+    """A roi entry is any sequence (center, radii[, power]): a tuple, a list or an array; anything
+    else is a TypeError naming the entry."""
     v = wvol.synth.gaussian(shape=(16, 16, 16))
     want = wvol.compress(v, keep=0.1, roi=[((8, 8, 8), (4, 4, 4))]).kept
     assert wvol.compress(v, keep=0.1, roi=[[(8, 8, 8), (4, 4, 4)]]).kept == want
@@ -306,7 +308,7 @@ def test_roi_entries_may_be_any_sequence():
 
 
 def test_isosurface_stats_and_normals_of_empty_and_full_meshes():
-    """data_range is measured only for an empty mesh (to say why): None otherwise, not (0, 0); an
+    """data_range is measured only for an empty mesh (to say why), None otherwise; an
     empty mesh's normals are an empty array unless normals='none'."""
     v = wvol.synth.gaussian(shape=(16, 16, 16))
     verts, faces, normals, st = wvol.isosurface(v, 0.5, return_stats=True)
