@@ -162,6 +162,14 @@ def _int(v, name):
         raise TypeError(f"{name}: expected an int, got {v!r}") from None
 
 
+def _threads(v):
+    """A thread count, 0..4096 (0: OpenMP's default), as the command line's --threads."""
+    v = _int(v, "threads")
+    if not 0 <= v <= 4096:
+        raise ValueError(f"threads must be in 0..4096 (0: all), got {v}")
+    return v
+
+
 def _lod_level(v):
     """render's lod_level: a level >= 0 (None, not -1, asks for the automatic choice)."""
     v = _int(v, "lod_level")
@@ -583,8 +591,9 @@ def render(source, camera="+z", size=(256, 256), *, mode="absorption", tf="gauss
     w, h = _size(size)
     opts = dict(camera=camera, width=w, height=h, mode=mode, method=method, tf=tf, tf_units=tf_units, step=step,
                 shading=int(bool(shading)), ambient=ambient, gauss_nodes=gauss_nodes, spline_j=spline_j,
-                brick=brick, termination=termination, threads=threads, colors=colors,
-                skip_tolerance=skip_tolerance, preintegrate=int(bool(preintegrate)), gradient_levels=_int(gradient_levels, "gradient_levels"),
+                brick=brick, termination=termination, threads=_threads(threads), colors=colors,
+                skip_tolerance=skip_tolerance, preintegrate=int(bool(preintegrate)),
+                gradient_levels=_int(gradient_levels, "gradient_levels"),
                 bound=_bound_method(bound), lod=int(bool(lod)),
                 lod_level=-1 if lod_level is None else _lod_level(lod_level), lod_wavelet=lod_wavelet)
     if context is not None:
@@ -626,7 +635,7 @@ def render_progressive(vol, camera="+z", size=(256, 256), *, mode="absorption", 
                                     0.0 if seconds is None else float(seconds), float(growth),
                                     _bound_method(bound))
     opts = dict(camera=camera, width=w, height=h, mode=mode, tf=os.fspath(tf) if isinstance(tf, os.PathLike) else tf,
-                tf_units=tf_units, step=step, termination=termination, threads=threads)
+                tf_units=tf_units, step=step, termination=termination, threads=_threads(threads))
     while True:
         img, bd, info = _wvol.progressive_next(state, opts)
         yield img, bd, info
@@ -656,12 +665,13 @@ def isosurface(source, iso, *, normals="gradient", brick=None, threads=0, level=
     levels' energy. A level above the levels available raises.
     """
     if isinstance(source, Store):
-        v, f, n, st = _wvol.isosurface(source._handle, iso, normals=normals, threads=threads, brick=brick,
+        v, f, n, st = _wvol.isosurface(source._handle, iso, normals=normals, threads=_threads(threads), brick=brick,
                                        level=_int(level, "level"), wavelet=wavelet)
     else:
         spacing, origin = _geometry(source, None, None)
         v, f, n, st = _wvol.isosurface(_data(source), iso, spacing=spacing, origin=origin, normals=normals,
-                                       threads=threads, brick=brick, level=_int(level, "level"), wavelet=wavelet)
+                                       threads=_threads(threads), brick=brick, level=_int(level, "level"),
+                                       wavelet=wavelet)
     return (v, f, n, st) if return_stats else (v, f, n)
 
 
@@ -683,7 +693,7 @@ def isoimage(source, iso, camera="+z", size=(256, 256), *, method="cast", brick=
     A ray entering the box inside the surface reports where it leaves it (docs/iso.md).
     """
     w, h = _size(size)
-    kw = dict(camera=camera, width=w, height=h, method=method, threads=threads, brick=brick or 0,
+    kw = dict(camera=camera, width=w, height=h, method=method, threads=_threads(threads), brick=brick or 0,
               tolerance=tolerance or 0.0, model_bound=bool(model_bound))
     if isinstance(source, Store):
         rgba, depth, st = _wvol.isoimage(source._handle, iso, **kw)

@@ -348,3 +348,17 @@ def test_keep_count_beyond_any_volume_says_so():
     v = wvol.synth.gaussian(shape=(8, 8, 8))
     with pytest.raises(ValueError, match="beyond any volume"):
         wvol.compress(v, keep_count=2**70)
+
+
+@pytest.mark.parametrize("threads,exc", [(True, TypeError), (1.5, TypeError), ("2", TypeError), (-1, ValueError),
+                                         (4097, ValueError), (2**31, ValueError)])
+def test_thread_counts_are_checked_alike(threads, exc):
+    """Every entry point taking threads: an int in 0..4096, else the same exception."""
+    v = wvol.synth.gaussian(shape=(16, 16, 16))
+    s = wvol.compress(v, keep=0.5)
+    for call in (lambda: wvol.render(s, size=(8, 8), threads=threads),
+                 lambda: wvol.isosurface(v, 0.5, threads=threads),
+                 lambda: wvol.isosurface(s, 0.5, threads=threads),
+                 lambda: wvol.isoimage(s, 0.5, size=(8, 8), threads=threads)):
+        with pytest.raises(exc, match="threads"):
+            call()
