@@ -49,6 +49,7 @@ static const cli_opt opts[] = {
 
 /* --method's names, in the order of the bits of method_rules */
 static const char *const method_names[] = {"mc", "cast", "raytrace", "hybrid"};
+enum { METHOD_COUNT = sizeof method_names / sizeof *method_names };
 enum { M_MC = 1, M_CAST = 2, M_RAYTRACE = 4, M_HYBRID = 8, M_IMAGES = M_CAST | M_RAYTRACE | M_HYBRID };
 static const cli_method_rule method_rules[] = {
     {"model-bound", M_CAST, "cast"},
@@ -532,7 +533,7 @@ int wvol_cmd_iso(int argc, char **argv)
     cli_parser p;
     const cli_opt *o;
     const char *val;
-    int r;
+    int r, method = 0; /* index in method_names */
     long lv;
     iso_args a;
 
@@ -574,9 +575,11 @@ int wvol_cmd_iso(int argc, char **argv)
             if (!cli_parse_double("iso", "iso", val, &a.iso)) return CLI_USAGE;
             a.have_iso = 1;
         } else if (!strcmp(o->name, "method")) {
-            if (strcmp(val, "mc") && strcmp(val, "cast") && strcmp(val, "raytrace") && strcmp(val, "hybrid"))
+            for (method = 0; method < METHOD_COUNT && strcmp(val, method_names[method]); method++) {
+            }
+            if (method == METHOD_COUNT)
                 return cli_usage("iso", "--method '%s': expected mc, cast, raytrace or hybrid", val);
-            a.method = val;
+            a.method = method_names[method];
         } else if (!strcmp(o->name, "model-bound")) {
             a.model_bound = 1;
         } else if (!strcmp(o->name, "surface")) {
@@ -633,9 +636,8 @@ int wvol_cmd_iso(int argc, char **argv)
     }
     if (!a.in) return cli_usage("iso", "missing input volume (see 'wvol iso --help')");
     if (!a.have_iso) return cli_usage("iso", "missing --iso THETA");
-    for (r = 0; strcmp(a.method, method_names[r]); r++) {}
-    if ((r = cli_method_rules(&p, method_rules, r, a.method)) != CLI_OK) return r;
-    if (cli_given(&p, "levels") && !from_store(&a) && (!strcmp(a.method, "mc") || !strcmp(a.method, "cast")))
+    if ((r = cli_method_rules(&p, method_rules, method, a.method)) != CLI_OK) return r;
+    if (cli_given(&p, "levels") && !from_store(&a) && ((1u << method) & (M_MC | M_CAST)))
         return cli_usage("iso", "--levels sets the levels of a store: add --wavelet or --keep (method %s)", a.method);
     if (strcmp(a.method, "mc")) {
         if (a.out && !wvol_path_has_ext(a.out, ".exr") && !wvol_path_has_ext(a.out, ".png"))

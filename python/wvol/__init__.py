@@ -162,11 +162,11 @@ def _int(v, name):
         raise TypeError(f"{name}: expected an int, got {v!r}") from None
 
 
-def _threads(v):
+def _threads(v, name="threads"):
     """A thread count, 0..4096 (0: OpenMP's default), as the command line's --threads."""
-    v = _int(v, "threads")
+    v = _int(v, name)
     if not 0 <= v <= 4096:
-        raise ValueError(f"threads must be in 0..4096 (0: all), got {v}")
+        raise ValueError(f"{name} must be in 0..4096 (0: all), got {v}")
     return v
 
 

@@ -50,7 +50,7 @@ from vtkmodules.vtkCommonCore import (VTK_FLOAT, vtkDataArray, vtkDoubleArray, v
 from vtkmodules.vtkCommonDataModel import vtkDataObject, vtkImageData
 from vtkmodules.vtkCommonExecutionModel import vtkAlgorithm, vtkStreamingDemandDrivenPipeline
 
-from . import _int, _ints, _psnr, _wvol
+from . import _int, _ints, _psnr, _threads, _wvol
 
 SDDP = vtkStreamingDemandDrivenPipeline
 # Samples reconstructed per region read (32 MiB of float32): bounds the working memory of a
@@ -201,10 +201,7 @@ class WVCReader(VTKPythonAlgorithmBase):
     def SetThreads(self, threads):
         """Threads that reconstruct a piece (slices along z at once); 0 (default): the cores
         this process may use, shared among the MPI ranks of this node."""
-        threads = _int(threads, "Threads")
-        if not 0 <= threads <= 4096:
-            raise ValueError(f"Threads must be in 0..4096 (0: automatic), got {threads}")
-        self._set("_threads", threads)
+        self._set("_threads", _threads(threads, "Threads"))
 
     def GetThreads(self):
         return self._threads

@@ -512,11 +512,7 @@ static wvol_status extract_bricks(wvol_mesh **out, const wvol_coeffs *c, const w
                    "iso-value %g is not a finite float", iso);
     WVOL_RETURN_IF(p->brick < 2 || p->brick > 4096, err, WVOL_ERR_ARG, "iso: brick size %d outside 2..4096",
                    p->brick);
-    WVOL_FORWARD(wvol__threads_check(p->threads, "iso", err));
-    WVOL_RETURN_IF(p->normals < WVOL_ISO_NORMALS_NONE || p->normals > WVOL_ISO_NORMALS_ANALYTIC, err, WVOL_ERR_ARG,
-                   "iso: unknown normals %d (0: none, 1: gradient, 2: analytic)", (int)p->normals);
-    WVOL_RETURN_IF(p->normals == WVOL_ISO_NORMALS_ANALYTIC && !p->gradient, err, WVOL_ERR_ARG,
-                   "iso: analytic normals requested without a gradient function");
+    WVOL_FORWARD(wvol__iso_params_check(p, err));
     if (c) {
         g.n[0] = c->nx, g.n[1] = c->ny, g.n[2] = c->nz;
         for (a = 0; a < 3; a++) g.origin[a] = c->origin[a], g.spacing[a] = c->spacing[a];

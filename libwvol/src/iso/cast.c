@@ -229,14 +229,7 @@ wvol_status wvol__caster_create(wvol__caster **out, const wvol_render_source *sr
     WVOL_FORWARD(wvol__threads_check(p->threads, "iso cast", err));
     WVOL_RETURN_IF(p->model_bound != 0 && p->model_bound != 1, err, WVOL_ERR_ARG, "iso cast: model_bound %d (0 or 1)",
                    p->model_bound);
-    WVOL_RETURN_IF(!(p->ambient >= 0 && p->ambient <= 1), err, WVOL_ERR_ARG, "iso cast: ambient %g (must be in [0, 1])",
-                   (double)p->ambient);
-    for (a = 0; a < 3; a++) {
-        WVOL_RETURN_IF(!isfinite(p->light[a]), err, WVOL_ERR_ARG, "iso cast: light[%d] = %g (must be finite)", a,
-                       p->light[a]);
-        WVOL_RETURN_IF(!isfinite(p->color[a]), err, WVOL_ERR_ARG, "iso cast: colour[%d] = %g (must be finite)", a,
-                       (double)p->color[a]);
-    }
+    WVOL_FORWARD(wvol__iso_shading_check(p->light, p->color, p->ambient, "iso cast", err));
     c = calloc(1, sizeof *c);
     WVOL_RETURN_IF(!c, err, WVOL_ERR_NOMEM, "iso cast: out of memory");
     c->iso = iso;

@@ -45,6 +45,10 @@ static inline uint64_t wvol__edge_key(const size_t gdims[3], uint64_t gi, uint64
     return ((gk * gdims[1] + gj) * 3 + (uint64_t)axis) * gdims[0] + gi;
 }
 
+/* Refuses an unknown normals mode, analytic normals without a gradient, or a thread count
+ * out of range: the checks of wvol_iso_params both extraction paths (dense, bricks) share. */
+wvol_status wvol__iso_params_check(const wvol_iso_params *p, wvol_error *err);
+
 /* Meshes the region; *out is a new mesh (possibly empty). stats may be NULL. */
 wvol_status wvol__mc_run(wvol_mesh **out, const wvol__mc_job *job, wvol_iso_stats *stats,
                          wvol_error *err);
@@ -237,6 +241,11 @@ int wvol__cell_crossing(const double c[8], const double q0[3], const double dq[3
 /* Refuses a missing image or camera, a bad camera, or an image of another size (what: the
  * caller's name for messages). */
 wvol_status wvol__iso_image_check(const wvol_image *img, const wvol_camera *cam, const char *what, wvol_error *err);
+
+/* Refuses a non-finite light or colour, or an ambient outside [0, 1] (what: the caller's name
+ * for messages): the shading parameters wvol__iso_shade takes. */
+wvol_status wvol__iso_shading_check(const double light[3], const float color[3], float ambient, const char *what,
+                                    wvol_error *err);
 
 /* Shades a hit into rgba (Lambert, two-sided, albedo color, ambient; light all 0: a headlight
  * along -d); a miss is transparent black. */

@@ -510,6 +510,15 @@ done:
     return s;
 }
 
+wvol_status wvol__iso_params_check(const wvol_iso_params *p, wvol_error *err)
+{
+    WVOL_RETURN_IF(p->normals < WVOL_ISO_NORMALS_NONE || p->normals > WVOL_ISO_NORMALS_ANALYTIC, err, WVOL_ERR_ARG,
+                   "iso: unknown normals %d (0: none, 1: gradient, 2: analytic)", (int)p->normals);
+    WVOL_RETURN_IF(p->normals == WVOL_ISO_NORMALS_ANALYTIC && !p->gradient, err, WVOL_ERR_ARG,
+                   "iso: analytic normals requested without a gradient function");
+    return wvol__threads_check(p->threads, "iso", err);
+}
+
 void wvol_iso_params_default(wvol_iso_params *p)
 {
     if (!p) return;
@@ -532,11 +541,7 @@ wvol_status wvol_iso_extract(wvol_mesh **out, const wvol_volume *v, double iso, 
         wvol_iso_params_default(&def);
         p = &def;
     }
-    WVOL_RETURN_IF(p->normals < WVOL_ISO_NORMALS_NONE || p->normals > WVOL_ISO_NORMALS_ANALYTIC, err, WVOL_ERR_ARG,
-                   "iso: unknown normals %d (0: none, 1: gradient, 2: analytic)", (int)p->normals);
-    WVOL_RETURN_IF(p->normals == WVOL_ISO_NORMALS_ANALYTIC && !p->gradient, err, WVOL_ERR_ARG,
-                   "iso: analytic normals requested without a gradient function");
-    WVOL_FORWARD(wvol__threads_check(p->threads, "iso", err));
+    WVOL_FORWARD(wvol__iso_params_check(p, err));
     if (st) memset(st, 0, sizeof *st);
     memset(&jb, 0, sizeof jb);
     jb.data = v->data;

@@ -85,6 +85,20 @@ wvol_status wvol__iso_image_check(const wvol_image *img, const wvol_camera *cam,
     return WVOL_OK;
 }
 
+wvol_status wvol__iso_shading_check(const double light[3], const float color[3], float ambient, const char *what,
+                                    wvol_error *err)
+{
+    WVOL_RETURN_IF(!(ambient >= 0 && ambient <= 1), err, WVOL_ERR_ARG, "%s: ambient %g (must be in [0, 1])", what,
+                   (double)ambient);
+    for (int a = 0; a < 3; a++) {
+        WVOL_RETURN_IF(!isfinite(light[a]), err, WVOL_ERR_ARG, "%s: light[%d] = %g (must be finite)", what, a,
+                       light[a]);
+        WVOL_RETURN_IF(!isfinite(color[a]), err, WVOL_ERR_ARG, "%s: colour[%d] = %g (must be finite)", what, a,
+                       (double)color[a]);
+    }
+    return WVOL_OK;
+}
+
 void wvol__iso_shade(float rgba[4], const wvol_iso_hit *h, const double d[3], const double light[3],
                      const float color[3], float ambient)
 {
@@ -151,14 +165,7 @@ static wvol_status make_tracer(tracer *tr, const wvol_store *s, double iso, cons
     if (p) {
         WVOL_RETURN_IF(p->surface != WVOL_ISO_SURFACE_EXACT && p->surface != WVOL_ISO_SURFACE_CAST, err, WVOL_ERR_ARG,
                        "iso trace: unknown surface %d (0: exact, 1: cast)", (int)p->surface);
-        WVOL_RETURN_IF(!(p->ambient >= 0 && p->ambient <= 1), err, WVOL_ERR_ARG,
-                       "iso trace: ambient %g (must be in [0, 1])", (double)p->ambient);
-        for (int a = 0; a < 3; a++) {
-            WVOL_RETURN_IF(!isfinite(p->light[a]), err, WVOL_ERR_ARG, "iso trace: light[%d] = %g (must be finite)", a,
-                           p->light[a]);
-            WVOL_RETURN_IF(!isfinite(p->color[a]), err, WVOL_ERR_ARG, "iso trace: colour[%d] = %g (must be finite)",
-                           a, (double)p->color[a]);
-        }
+        WVOL_FORWARD(wvol__iso_shading_check(p->light, p->color, p->ambient, "iso trace", err));
     }
     memset(tr, 0, sizeof *tr);
     WVOL_FORWARD(wvol__spline_geom_init(&tr->g, s, err));

@@ -5,6 +5,7 @@
 
 #include "core/clock.h"
 #include "core/status_internal.h"
+#include "store/store_build.h"
 
 #include <math.h>
 #include <stdlib.h>
@@ -62,7 +63,8 @@ static wvol_status select_and_store(wvol_compressed *out, const wvol_volume *v, 
     t0 = wvol__now();
     if (s == WVOL_OK && p->build_store) {
         const wvol_selection *sel = out->report.kept < out->report.total ? out->selection : NULL;
-        s = wvol_store_build(&out->store, out->coeffs, sel, &p->store, err);
+        /* wvol_select has read every coefficient (refusing NaN and Inf) */
+        s = wvol__store_build_tested(&out->store, out->coeffs, sel, &p->store, err);
     }
     if (s == WVOL_OK && dropped) {
         /* what the selection zeroed: the original minus the kept (exact: each entry is either
@@ -73,7 +75,7 @@ static wvol_status select_and_store(wvol_compressed *out, const wvol_volume *v, 
             if (out->coeffs->data[i] != 0.0f) dropped->data[i] = 0.0f;
         wvol_store_params rp = p->store;
         rp.majorant = 1;
-        s = wvol_store_build(&out->residual, dropped, NULL, &rp, err);
+        s = wvol__store_build_tested(&out->residual, dropped, NULL, &rp, err);
     }
     wvol_coeffs_destroy(dropped);
     out->seconds_store = wvol__now() - t0;

@@ -33,6 +33,15 @@ void wvol__params(wvol_render_params *out, const wvol_render_params *in)
     else wvol_render_params_default(out);
 }
 
+wvol_status wvol__render_step_check(double step, const char *what, wvol_error *err)
+{
+    /* from 1e-4 voxels on: a ray's sample count (at most the grid's diagonal over the step)
+     * stays within an int, and finer steps change no image by more than their rounding */
+    WVOL_RETURN_IF(!(step >= 1e-4) || !isfinite(step), err, WVOL_ERR_ARG,
+                   "%s: step %g voxels (must be a finite number >= 1e-4)", what, step);
+    return WVOL_OK;
+}
+
 wvol_status wvol__render_check(const wvol_image *img, const wvol_camera *cam, const wvol_tf *tf,
                                const wvol_render_params *p, wvol_error *err)
 {
@@ -46,10 +55,7 @@ wvol_status wvol__render_check(const wvol_image *img, const wvol_camera *cam, co
         WVOL_RETURN_IF(!tf, err, WVOL_ERR_ARG, "render: absorption modes need a transfer function");
         WVOL_FORWARD(wvol_tf_check(tf, err));
     }
-    /* from 1e-4 voxels on: a ray's sample count (at most the grid's diagonal over the step)
-     * stays within an int, and finer steps change no image by more than their rounding */
-    WVOL_RETURN_IF(!(p->step >= 1e-4) || !isfinite(p->step), err, WVOL_ERR_ARG,
-                   "render: step %g voxels (must be a finite number >= 1e-4)", p->step);
+    WVOL_FORWARD(wvol__render_step_check(p->step, "render", err));
     WVOL_RETURN_IF(!(p->termination >= 0 && p->termination < 1), err, WVOL_ERR_ARG,
                    "render: termination threshold %g (must be in [0, 1))", p->termination);
     WVOL_RETURN_IF(!(p->ambient >= 0 && p->ambient <= 1), err, WVOL_ERR_ARG, "render: ambient %g (must be in [0, 1])",

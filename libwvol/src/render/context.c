@@ -5,7 +5,6 @@
  * (render.c), so every frame's image is wvol_render's. */
 #include "render_internal.h"
 
-#include <math.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -49,8 +48,7 @@ wvol_status wvol_render_context_create(wvol_render_context **out, const wvol_ren
     WVOL_RETURN_IF(!out, err, WVOL_ERR_ARG, "render context: no output");
     *out = NULL;
     WVOL_FORWARD(check_source(source, err));
-    WVOL_RETURN_IF(params && (!(params->step >= 1e-4) || !isfinite(params->step)), err, WVOL_ERR_ARG,
-                   "render context: step %g voxels (must be a finite number >= 1e-4)", params->step);
+    if (params) WVOL_FORWARD(wvol__render_step_check(params->step, "render context", err));
     c = calloc(1, sizeof *c);
     WVOL_RETURN_IF(!c, err, WVOL_ERR_NOMEM, "render context: out of memory");
     c->source = *source;

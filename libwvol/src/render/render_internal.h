@@ -78,6 +78,10 @@ double wvol__shade(const double grad[3], const double dir[3], double ambient);
 /* Fills defaults for a NULL params. */
 void wvol__params(wvol_render_params *out, const wvol_render_params *in);
 
+/* Refuses a sampling step below 1e-4 voxels or not finite (what: the caller's name for
+ * messages): wvol__render_check's step rule, which a render context checks at creation too. */
+wvol_status wvol__render_step_check(double step, const char *what, wvol_error *err);
+
 /* Checks img size against the camera, the camera, the TF (for absorption modes). */
 wvol_status wvol__render_check(const wvol_image *img, const wvol_camera *cam, const wvol_tf *tf,
                                const wvol_render_params *p, wvol_error *err);

@@ -9,6 +9,7 @@
 #include <string.h>
 
 #include "store/store_internal.h"
+#include "store/store_build.h"
 #include "codec/wvc_source.h"
 #include "core/alloc.h"
 #include "core/finite.h"
@@ -184,6 +185,17 @@ static inline float stored(const wvol_store_params *prm, float c) { return prm &
 wvol_status wvol_store_build(wvol_store **out, const wvol_coeffs *c, const wvol_selection *sel,
                              const wvol_store_params *prm, wvol_error *err)
 {
+    wvol__layout ly;
+    WVOL_RETURN_IF(!out, err, WVOL_ERR_ARG, "wvol_store_build: out is NULL");
+    *out = NULL;
+    WVOL_FORWARD(wvol__layout_init(&ly, c, err));
+    WVOL_FORWARD(wvol_check_finite(c->data, c->px, c->py, c->pz, "store: coefficients", err));
+    return wvol__store_build_tested(out, c, sel, prm, err);
+}
+
+wvol_status wvol__store_build_tested(wvol_store **out, const wvol_coeffs *c, const wvol_selection *sel,
+                                     const wvol_store_params *prm, wvol_error *err)
+{
     wvol_store *s;
     wvol_selection *own = NULL;
     const uint64_t *kept;
@@ -197,7 +209,6 @@ wvol_status wvol_store_build(wvol_store **out, const wvol_coeffs *c, const wvol_
     *out = NULL;
     WVOL_FORWARD(wvol__layout_init(&ly, c, err));
     WVOL_FORWARD(wvol__geometry_check(c->spacing, c->origin, err));
-    WVOL_FORWARD(wvol_check_finite(c->data, c->px, c->py, c->pz, "store: coefficients", err));
     M = ly.levels;
     for (int a = 0; a < 3; a++)
         WVOL_RETURN_IF(ly.tr[a] && (ly.P[a] >> 1) > WVOL__POS_MAX, err, WVOL_ERR_DIMS,
