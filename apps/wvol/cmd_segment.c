@@ -215,8 +215,9 @@ int wvol_cmd_segment(int argc, char **argv)
     t_class = cli_now();
 
     wvol_seg_score score = {0, 0, 0};
+    int rad = 0;
     if (truth) {
-        int rad = boundary >= 0 ? (int)boundary : 1 << fp.levels;
+        rad = boundary >= 0 ? (int)boundary : 1 << fp.levels;
         if (wvol_segmentation_score(&score, labels, truth, v->nx, v->ny, v->nz, rad, &err)) goto fail;
     }
     if (outp) {
@@ -247,9 +248,12 @@ int wvol_cmd_segment(int argc, char **argv)
     } else {
         printf("segmented %s (%zux%zux%zu) with %s, %d levels: %d features -> %d PCA components -> %d neurons\n",
                in, v->nx, v->ny, v->nz, filt->name, fp.levels, raw_features, feat->count, som->neurons);
-        if (truth)
+        if (truth && score.interior)
             printf("misclassified: %.2f%% overall, %.2f%% away from boundaries (%zu voxels)\n",
                    100 * score.error_all, 100 * score.error_interior, score.interior);
+        else if (truth)
+            printf("misclassified: %.2f%% overall; no voxel lies away from the boundaries (radius %d)\n",
+                   100 * score.error_all, rad);
         printf("time: features %.2fs, pca %.2fs, som %.2fs, classify %.2fs\n", t_feat - t0, t_pca - t_feat,
                t_som - t_pca, t_class - t_som);
         if (outp) printf("labels: %s\n", outp);

@@ -46,6 +46,10 @@ class Volume:
 
 
 def _data(vol):
+    """The samples of a volume argument; a Store or Coeffs where a volume is expected is named as
+    such (NumPy would otherwise refuse it as an array of dtype object)."""
+    if isinstance(vol, (Store, Coeffs)):
+        raise TypeError(f"expected a volume (a NumPy array or wvol.Volume), got a wvol.{type(vol).__name__}")
     return vol.data if isinstance(vol, Volume) else vol
 
 
@@ -446,7 +450,7 @@ class Segmentation:
     ``colors`` (z, y, x, 3) float32 = its RGB colour from the lattice position (in [0, 1]),
     ``classes`` (z, y, x) int32 = ground-truth class each neuron was given (only when
     ``truth`` was passed), ``score`` = {"error_all", "error_interior", "interior"} (only with
-    ``truth``), and the sizes ``features`` (raw), ``components`` (after PCA), ``neurons``."""
+    ``truth``; ``error_interior`` is NaN when no voxel lies away from the boundaries), and the sizes ``features`` (raw), ``components`` (after PCA), ``neurons``."""
     labels: np.ndarray
     colors: np.ndarray
     classes: Optional[np.ndarray]

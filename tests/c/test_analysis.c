@@ -171,8 +171,30 @@ static void test_bad_input(void)
     wvol_volume_destroy(v);
 }
 
+/* Scores: every voxel within the radius of a class boundary leaves no interior, whose error is
+ * then undefined (NaN), not 0; the overall error is still counted. */
+static void test_score_without_interior(void)
+{
+    enum { n = 6 };
+    int32_t truth[n * n], pred[n * n];
+    wvol_seg_score score;
+    wvol_error err;
+    for (int i = 0; i < n * n; i++) {
+        truth[i] = (i % n) < n / 2; /* two halves along x */
+        pred[i] = i == 0 ? 1 - truth[i] : truth[i];
+    }
+    CHECK(wvol_segmentation_score(&score, pred, truth, n, n, 1, n, &err) == WVOL_OK, "score: %s", err.message);
+    CHECK(score.interior == 0 && isnan(score.error_interior), "no interior: NaN, not %g (%zu voxels)",
+          score.error_interior, score.interior);
+    CHECK(fabs(score.error_all - 1.0 / (n * n)) < 1e-12, "one voxel of %d misclassified: %g", n * n, score.error_all);
+    CHECK(wvol_segmentation_score(&score, pred, truth, n, n, 1, 1, &err) == WVOL_OK && score.interior > 0 &&
+              isfinite(score.error_interior),
+          "radius 1 leaves an interior: %zu voxels, error %g", score.interior, score.error_interior);
+}
+
 int main(void)
 {
+    test_score_without_interior();
     test_two_gratings();
     test_determinism();
     test_gratings_mosaic();

@@ -67,6 +67,26 @@ static void camera_description_is_parsed_and_checked(void)
           "%s", err.message);
     CHECK(wvol_camera_parse(&cam, "+z", &g, 0, 8, &err) == WVOL_ERR_ARG, "%s", err.message);
     CHECK(wvol_camera_parse(&cam, "+z height=-1", &g, 8, 8, &err) == WVOL_ERR_ARG, "%s", err.message);
+    /* positions far out are refused as such (their squared distances would overflow), not as an
+     * eye at the centre; directions of any finite length keep their direction */
+    CHECK(wvol_camera_parse(&cam, "persp eye=1e308,0,0", &g, 8, 8, &err) == WVOL_ERR_ARG &&
+              strstr(err.message, "eye='1e308,0,0' lies beyond") && !strstr(err.message, "coincide"),
+          "%s", err.message);
+    CHECK(wvol_camera_parse(&cam, "eye=3,3,3 center=3,3,3", &g, 8, 8, &err) == WVOL_ERR_ARG &&
+              strstr(err.message, "coincide"),
+          "%s", err.message);
+    CHECK(wvol_camera_parse(&cam, "ortho dir=1e300,0,0", &g, 8, 8, &err) == WVOL_OK, "%s", err.message);
+    {
+        wvol_camera ref;
+        CHECK(wvol_camera_parse(&ref, "ortho dir=1,0,0", &g, 8, 8, &err) == WVOL_OK, "%s", err.message);
+        for (int a = 0; a < 3; a++)
+            CHECK_NEAR(cam.eye[a], ref.eye[a], 1e-9 * (1 + fabs(ref.eye[a])), "dir=1e300,0,0 frames as dir=1,0,0");
+        CHECK(wvol_camera_parse(&cam, "persp eye=100,100,100 center=26,35,32 up=0,0,1e200", &g, 8, 8, &err) ==
+                  WVOL_OK,
+              "a long up vector: %s", err.message);
+        cam.eye[0] = 1e200;
+        CHECK(wvol_camera_check(&cam, &err) == WVOL_ERR_ARG && strstr(err.message, "within"), "%s", err.message);
+    }
     {
         const double dir[3] = {0, 0, -1};
         CHECK(wvol_camera_frame(&cam, &g, dir, WVOL_PROJECTION_PERSPECTIVE, 8, 8, NAN, &err) == WVOL_ERR_ARG &&

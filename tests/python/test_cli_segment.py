@@ -69,3 +69,17 @@ def test_bad_input(wvol, tmp_path):
         assert r.returncode == code, (args, r.stderr)
         assert text in r.stderr and len(r.stderr.strip().splitlines()) == 1, r.stderr
     assert sorted(p.name for p in tmp_path.iterdir()) == before
+
+
+def test_no_interior_is_said_not_scored_as_zero(wvol, tmp_path):
+    """A boundary radius that leaves no voxel away from the boundaries: the interior error is
+    undefined (JSON null), and the text says so instead of printing 0%."""
+    img, lab = make_mosaic(wvol, tmp_path, n=16)
+    out = tmp_path / "seg.raw"
+    args = ("segment", img, "--dims", "16x16x1", "--truth", lab, "-o", out, "--levels", "2", "--boundary", "16")
+    r = wvol(*args, "--json")
+    assert r.returncode == 0, r.stderr
+    d = json.loads(r.stdout)
+    assert d["interior_voxels"] == 0 and d["error_interior"] is None and 0 <= d["error_all"] <= 1
+    r = wvol(*args)
+    assert r.returncode == 0 and "no voxel lies away from the boundaries (radius 16)" in r.stdout, r.stdout

@@ -362,3 +362,15 @@ def test_thread_counts_are_checked_alike(threads, exc):
                  lambda: wvol.isoimage(s, 0.5, size=(8, 8), threads=threads)):
         with pytest.raises(exc, match="threads"):
             call()
+
+
+def test_a_store_where_a_volume_is_expected_is_named():
+    """A Store or Coeffs given where only a volume is taken: a TypeError that names it (NumPy's
+    own refusal spoke of a dtype)."""
+    v = wvol.synth.gaussian(shape=(16, 16, 16))
+    s = wvol.compress(v, keep=0.5)
+    c = wvol.dwt3(v, levels=2)
+    for call in (lambda: next(wvol.render_progressive(s, size=(8, 8))), lambda: wvol.dwt3(s),
+                 lambda: wvol.compress(c), lambda: s.measured_error(s), lambda: wvol.segment(s)):
+        with pytest.raises(TypeError, match=r"expected a volume .*got a wvol\.(Store|Coeffs)"):
+            call()

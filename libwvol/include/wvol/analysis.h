@@ -90,7 +90,7 @@ WVOL_API void wvol_som_apply_classes(int32_t *classes, const int32_t *winners, s
  * (voxels whose (2r+1)^d neighbourhood holds one truth class). */
 typedef struct wvol_seg_score {
     double error_all;        /* fraction misclassified */
-    double error_interior;   /* same, away from boundaries */
+    double error_interior;   /* same, away from boundaries; NaN when no voxel is (interior = 0) */
     size_t interior;         /* voxels counted as away from boundaries */
 } wvol_seg_score;
 

@@ -4,6 +4,7 @@
 #include "core/status_internal.h"
 #include "wvol/analysis.h"
 
+#include <math.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -99,7 +100,8 @@ wvol_status wvol_segmentation_score(wvol_seg_score *score, const int32_t *pred, 
             }
         }
         score->error_all = (double)wrong / (double)n;
-        score->error_interior = interior_n ? (double)wrong_in / (double)interior_n : 0.0;
+        /* no voxel away from a boundary: the interior error is undefined, not 0 */
+        score->error_interior = interior_n ? (double)wrong_in / (double)interior_n : NAN;
         score->interior = interior_n;
     }
     free(table);

@@ -60,13 +60,27 @@ static void cross3(double o[3], const double a[3], const double b[3])
     o[1] = a[2] * b[0] - a[0] * b[2];
     o[2] = a[0] * b[1] - a[1] * b[0];
 }
+/* Normalises a in place and returns its length; scaled first, so that a finite vector of any
+ * magnitude keeps its direction (dot3 of a 1e200 vector is Inf). */
 static double norm3(double a[3])
 {
-    double n = sqrt(dot3(a, a));
-    if (n > 0) a[0] /= n, a[1] /= n, a[2] /= n;
-    return n;
+    double m = fmax(fabs(a[0]), fmax(fabs(a[1]), fabs(a[2]))), n;
+    if (!(m > 0) || !isfinite(m)) return m > 0 ? m : 0.0;
+    a[0] /= m, a[1] /= m, a[2] /= m;
+    n = sqrt(dot3(a, a));
+    a[0] /= n, a[1] /= n, a[2] /= n;
+    return n * m;
 }
 static int finite3(const double a[3]) { return isfinite(a[0]) && isfinite(a[1]) && isfinite(a[2]); }
+
+/* Camera positions (eye, center) within +-1e150: the rays and the framing take squared lengths of
+ * their differences, which overflow to Inf beyond about 1e154. Directions (dir=, up) may have any
+ * finite length: norm3 scales them first. */
+#define CAMERA_COORD_MAX 1e150
+static int in_range3(const double a[3])
+{
+    return fabs(a[0]) <= CAMERA_COORD_MAX && fabs(a[1]) <= CAMERA_COORD_MAX && fabs(a[2]) <= CAMERA_COORD_MAX;
+}
 
 wvol_status wvol_camera_check(const wvol_camera *cam, wvol_error *err)
 {
@@ -79,6 +93,9 @@ wvol_status wvol_camera_check(const wvol_camera *cam, wvol_error *err)
                    "camera: unknown projection %d", (int)cam->projection);
     WVOL_RETURN_IF(!finite3(cam->eye) || !finite3(cam->center) || !finite3(cam->up), err, WVOL_ERR_ARG,
                    "camera: eye, center and up must be finite");
+    WVOL_RETURN_IF(!in_range3(cam->eye) || !in_range3(cam->center), err, WVOL_ERR_ARG,
+                   "camera: eye (%g, %g, %g) and center (%g, %g, %g) must lie within +-%g", cam->eye[0], cam->eye[1],
+                   cam->eye[2], cam->center[0], cam->center[1], cam->center[2], CAMERA_COORD_MAX);
     for (a = 0; a < 3; a++) {
         f[a] = cam->center[a] - cam->eye[a];
         u[a] = cam->up[a];
@@ -329,9 +346,13 @@ wvol_status wvol_camera_parse(wvol_camera *cam, const char *spec, const wvol_geo
             WVOL_RETURN_IF(!parse_vec(val, dir), err, WVOL_ERR_ARG, "camera: dir='%s' is not X,Y,Z", val);
         } else if (eq && !strcmp(tok, "eye")) {
             WVOL_RETURN_IF(!parse_vec(val, eye), err, WVOL_ERR_ARG, "camera: eye='%s' is not X,Y,Z", val);
+            WVOL_RETURN_IF(!in_range3(eye), err, WVOL_ERR_ARG, "camera: eye='%s' lies beyond +-%g", val,
+                           CAMERA_COORD_MAX);
             have_eye = 1;
         } else if (eq && !strcmp(tok, "center")) {
             WVOL_RETURN_IF(!parse_vec(val, center), err, WVOL_ERR_ARG, "camera: center='%s' is not X,Y,Z", val);
+            WVOL_RETURN_IF(!in_range3(center), err, WVOL_ERR_ARG, "camera: center='%s' lies beyond +-%g", val,
+                           CAMERA_COORD_MAX);
             have_center = 1;
         } else if (eq && !strcmp(tok, "up")) {
             WVOL_RETURN_IF(!parse_vec(val, up), err, WVOL_ERR_ARG, "camera: up='%s' is not X,Y,Z", val);
@@ -367,6 +388,8 @@ wvol_status wvol_camera_parse(wvol_camera *cam, const char *spec, const wvol_geo
             WVOL_RETURN_IF(1, err, WVOL_ERR_ARG, "camera: center= given without eye=");
         }
         for (a = 0; a < 3; a++) dir[a] = center[a] - eye[a];
+        WVOL_RETURN_IF(dir[0] == 0 && dir[1] == 0 && dir[2] == 0, err, WVOL_ERR_ARG,
+                       "camera: eye and center coincide (%g, %g, %g)", eye[0], eye[1], eye[2]);
     }
     WVOL_RETURN_IF(!g, err, WVOL_ERR_ARG, "camera: no volume geometry to frame");
     s = wvol_camera_frame(cam, g, dir, proj, width, height, fov, err);
