@@ -170,7 +170,10 @@ WVOL_API wvol_status wvol_transport_reflect(wvol_transport_tree **out, const wvo
 
 /* ---- the stained-glass window scene (paper §7.3, Figs. 12-16) ------------------------------------ */
 
-/* An RGB window image, linear floats rgb[3 * (x + width * y)], row 0 at the top (far edge). */
+/* An RGB window image, linear floats rgb[3 * (x + width * y)], row 0 at the top (far edge). The
+ * entry points taking one check that rgb is set and the sizes positive, and trust rgb to hold
+ * 3 width height floats, as a pointer and a length are trusted (a window made by the readers
+ * above always does). */
 typedef struct wvol_transport_window {
     int width, height;
     float *rgb;
