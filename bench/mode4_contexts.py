@@ -13,17 +13,28 @@ level), sums the ideal code length of the symbols mode 4 codes under per-chunk s
 * groups of 8 and 4 along x instead of 16;
 * mode 2's contexts inside the same groups: the significance by the six parent classes x the
   non-zero face neighbours (W, N, U) x the non-zero diagonal ones, the magnitude of a non-zero
-  by mode 2's magnitude class.
+  by mode 2's magnitude class;
+* mode 2's sets instead of rows and 16-groups (`--sets`): a flag per 4^3 block (context: its
+  parents' largest class x its non-zero causal neighbour blocks), a flag per 2^3 group of a
+  non-zero block (mode 2's six parent classes x non-zero neighbour groups; the last group of a
+  block implied), then per coefficient of a non-zero group (the last one implied non-zero when
+  the others are zero) either mode 2's binarisation (significance by mode 2's context, then the
+  magnitude symbol by mode 2's class) or one magnitude symbol by mode 4's context sum, with or
+  without W. With `--sets` each total is also given with a rough packed-table cost (4 bits a
+  context and 5 a symbol up to its last used one) and as the code length of an adaptive
+  multi-symbol model (counts from 1, +24 an event, halved past 2^13; fresh per chunk), what a
+  static per-chunk table would be traded for.
 
 Tables and states are not counted (each variant has as many contexts as mode 4, except the
 mode-2 one): the difference between variants is what the contexts alone would save. Levels 1
 and 2 (the sparse ones at 40 dB). Results: bench/results/mode4_sparse.md.
 
-  python3 bench/mode4_contexts.py VOLUME.raw N STEP [--wavelet db2] [--levels 5]
+  python3 bench/mode4_contexts.py VOLUME.raw N STEP [--wavelet db2] [--levels 5] [--sets]
 
 (VOLUME.raw: float32, N^3; STEP: the `step` of `wvol compress --json` for the same volume,
 filter and levels.)"""
 import argparse
+import math
 import pathlib
 import sys
 
@@ -65,13 +76,86 @@ def bits(ctx, sym):
     return float(-(cnt * np.log2(cnt / tot[u // 64])).sum())
 
 
+def table_bits(ctx, sym):
+    """A rough packed-table cost: 4 bits a used context, 5 a symbol up to its last used one."""
+    key = ctx.astype(np.int64) * 64 + sym
+    u = np.unique(key)
+    out = 0.0
+    for c in np.unique(u // 64):
+        syms = u[u // 64 == c] % 64
+        out += 4 + (5 * (int(syms.max()) + 1) if len(syms) > 1 else 0)
+    return out
+
+
+def adaptive_bits(ctx, sym, inc=24, limit=1 << 13, nsym=64):
+    """Code length of sym, in order, under one adaptive frequency table per context (counts from
+    1, +inc an event, halved when their total passes limit)."""
+    tab, total = {}, 0.0
+    for c, v in zip(ctx.tolist(), sym.tolist()):
+        t = tab.get(c)
+        if t is None:
+            t = tab[c] = [1] * nsym + [nsym]
+        total -= math.log2(t[v] / t[nsym])
+        t[v] += inc
+        t[nsym] += inc
+        if t[nsym] > limit:
+            for i in range(nsym):
+                t[i] = (t[i] + 1) >> 1
+            t[nsym] = sum(t[:nsym])
+    return total
+
+
+def causal(f, axis):
+    """f moved one step along axis (the causal neighbour's value), 0 outside."""
+    g = np.zeros_like(f)
+    to, fro = [slice(None)] * 3, [slice(None)] * 3
+    to[axis], fro[axis] = slice(1, None), slice(None, -1)
+    g[tuple(to)] = f[tuple(fro)]
+    return g
+
+
+def up(f, k):
+    """f repeated k times along every axis."""
+    return np.repeat(np.repeat(np.repeat(f, k, 0), k, 1), k, 2)
+
+
+def set_terms(a, pv, pn, pc6, face, dn, mclass, A, W):
+    """Mode 2's sets (4^3 blocks, 2^3 groups) over one band's tile a (z, y, x; even extents):
+    {variant: [(context, symbol), ...]}."""
+    az, ay, ax = a.shape
+    nz = a != 0
+    blk = nz.reshape(az // 4, 4, ay // 4, 4, ax // 4, 4).any(axis=(1, 3, 5))
+    bcls = np.minimum(pv.reshape(az // 4, 4, ay // 4, 4, ax // 4, 4).max(axis=(1, 3, 5)), 2)
+    bnb = causal(blk, 2).astype(int) + causal(blk, 1) + causal(blk, 0)
+    flags = [((bcls * 4 + bnb).ravel(), blk.ravel().astype(np.int64))]
+    grp = nz.reshape(az // 2, 2, ay // 2, 2, ax // 2, 2).any(axis=(1, 3, 5))
+    gnb = causal(grp, 2).astype(int) + causal(grp, 1) + causal(grp, 0)
+    last_g = ((np.arange(az // 2)[:, None, None] % 2) * 4 + (np.arange(ay // 2)[None, :, None] % 2) * 2 +
+              (np.arange(ax // 2)[None, None, :] % 2)) == 7
+    alone_g = up(grp.reshape(az // 4, 2, ay // 4, 2, ax // 4, 2).sum(axis=(1, 3, 5)), 2) == 1
+    coded_g = up(blk, 2) & ~(last_g & alone_g & grp)
+    flags.append(((pc6[::2, ::2, ::2] * 4 + gnb)[coded_g], grp[coded_g].astype(np.int64)))
+    last_c = ((np.arange(az)[:, None, None] % 2) * 4 + (np.arange(ay)[None, :, None] % 2) * 2 +
+              (np.arange(ax)[None, None, :] % 2)) == 7
+    implied = last_c & (up(nz.reshape(az // 2, 2, ay // 2, 2, ax // 2, 2).sum(axis=(1, 3, 5)), 2) == 1) & nz
+    coded = up(grp, 2) & ~implied
+    sym = symbol(a)
+    imp = (mclass[implied] + 100, sym[implied])
+    sig = pc6 * 16 + face * 4 + dn
+    out = {"sets, mode 2's binarisation": flags + [(sig[coded], nz[coded].astype(np.int64)), (mclass[nz], sym[nz])]}
+    for name, s in (("", A), ("+W", A + 2 * W)):
+        ctx = np.minimum(bitlen(np.minimum(s, 65535)), 12) * 5 + pc6
+        out[f"sets, one symbol by mode 4's sum{name}"] = flags + [(ctx[coded], sym[coded]), imp]
+    return out
+
+
 def band(q, n, m, b):
     e = n >> m
     o = [e if b & (1 << a) else 0 for a in range(3)]  # x, y, z
     return q[o[2]:o[2] + e, o[1]:o[1] + e, o[0]:o[0] + e]
 
 
-def chunk_terms(a, pv, pn):
+def chunk_terms(a, pv, pn, sets=False):
     """The per-variant (context, symbol) arrays of one band's tile a (z, y, x), its parents' |q|
     pv and their non-zero neighbour counts pn (both per coefficient)."""
     p = np.pad(a, ((1, 0), (1, 1), (1, 1)))  # one slice before, one row and column either side
@@ -104,6 +188,9 @@ def chunk_terms(a, pv, pn):
     out["groups of 16, mode 2's contexts"] = [out["groups of 16"][0],
                                               ((pc6 * 16 + face * 4 + dn)[coded], (a != 0)[coded].astype(np.int64)),
                                               (mclass[nz], symbol(a)[nz])]
+    if sets:
+        out.update(set_terms(a, pv, pn, pc6, face, dn, np.minimum(bitlen(2 * (W + N + U) + sum(diag) + 4 * pv), 15),
+                             A, W))
     return out
 
 
@@ -114,6 +201,7 @@ def main():
     ap.add_argument("step", type=float)
     ap.add_argument("--wavelet", default="db2")
     ap.add_argument("--levels", type=int, default=5)
+    ap.add_argument("--sets", action="store_true", help="also mode 2's sets, with table costs and adaptive models")
     args = ap.parse_args()
     n = args.n
     v = np.fromfile(args.volume, dtype=np.float32).reshape(n, n, n)
@@ -137,16 +225,21 @@ def main():
                                    for dz, dy, dx in ((1, 0, 0), (-1, 0, 0), (0, 1, 0), (0, -1, 0), (0, 0, 1), (0, 0, -1)))
                         Z, Y, X = np.meshgrid(np.arange(z0, z0 + tz) // 2, np.arange(y0, y0 + t) // 2,
                                               np.arange(x0, x0 + t) // 2, indexing="ij")
-                        for k, parts in chunk_terms(a, par[Z, Y, X], nbrs[Z, Y, X]).items():
+                        for k, parts in chunk_terms(a, par[Z, Y, X], nbrs[Z, Y, X], args.sets).items():
                             acc = terms.setdefault(k, [([], []) for _ in parts])
                             for (cs, ss), (cx, sx) in zip(acc, parts):
                                 cs.append(cx)
                                 ss.append(sx)
                     for k, acc in terms.items():
-                        total[k] = total.get(k, 0.0) + sum(bits(np.concatenate(cs), np.concatenate(ss))
-                                                           for cs, ss in acc)
-        for k, b in total.items():
-            print(f"level {m}: {k:34s} {b / 8:10.0f} bytes (flags and magnitude symbols, no tables)")
+                        parts = [(np.concatenate(cs), np.concatenate(ss)) for cs, ss in acc]
+                        tk = total.setdefault(k, [0.0, 0.0, 0.0])
+                        tk[0] += sum(bits(c, v) for c, v in parts)
+                        if args.sets:
+                            tk[1] += sum(table_bits(c, v) for c, v in parts)
+                            tk[2] += sum(adaptive_bits(c, v) for c, v in parts)
+        for k, (b, tb, ad) in total.items():
+            more = f"; + tables ~{tb / 8:7.0f}; adaptive {ad / 8:10.0f}" if args.sets else ""
+            print(f"level {m}: {k:42s} {b / 8:10.0f} bytes (flags and magnitude symbols, no tables){more}")
 
 
 if __name__ == "__main__":
