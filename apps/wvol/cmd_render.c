@@ -613,20 +613,41 @@ static int pass_name(char *buf, size_t n, const char *path, int index)
     return w > 0 && (size_t)w < n;
 }
 
-/* One pass's files: OUT.passN (and BOUND.passN), and for the last OUT (and BOUND) too. */
+/* One pass's files: OUT.passN (and BOUND.passN with --bound; a bound computed only for
+ * --max-error is not written), and for the last OUT (and BOUND) too. On a failure the files this
+ * call wrote are removed again. */
 static wvol_status write_pass(const render_args *a, const wvol_image *img, const wvol_image *bimg,
                               const wvol_progressive_pass *pass, wvol_error *err)
 {
-    char name[4096];
+    char name[4096], bname[4096];
+    const char *done[4];
+    int nd = 0;
+    wvol_status st = WVOL_OK;
+    const int bounded = bimg && a->bound_path;
     if (!pass_name(name, sizeof name, a->out, pass->index))
         return wvol_error_set(err, WVOL_ERR_ARG, "output name %s too long", a->out);
-    if (write_image_to(img, a, name, err) != WVOL_OK) return err->status;
-    if (pass->last && write_image_to(img, a, a->out, err) != WVOL_OK) return err->status;
-    if (!bimg) return WVOL_OK;
-    if (!pass_name(name, sizeof name, a->bound_path, pass->index))
+    if (bounded && !pass_name(bname, sizeof bname, a->bound_path, pass->index))
         return wvol_error_set(err, WVOL_ERR_ARG, "bound name %s too long", a->bound_path);
-    if (wvol_image_write_exr(bimg, name, NULL, err) != WVOL_OK) return err->status;
-    return pass->last ? wvol_image_write_exr(bimg, a->bound_path, NULL, err) : WVOL_OK;
+    if ((st = write_image_to(img, a, name, err)) == WVOL_OK) done[nd++] = name;
+    if (st == WVOL_OK && pass->last && (st = write_image_to(img, a, a->out, err)) == WVOL_OK) done[nd++] = a->out;
+    if (st == WVOL_OK && bounded && (st = wvol_image_write_exr(bimg, bname, NULL, err)) == WVOL_OK)
+        done[nd++] = bname;
+    if (st == WVOL_OK && bounded && pass->last && (st = wvol_image_write_exr(bimg, a->bound_path, NULL, err)) == WVOL_OK)
+        done[nd++] = a->bound_path;
+    if (st != WVOL_OK)
+        while (nd > 0) remove(done[--nd]);
+    return st;
+}
+
+/* After a failure: removes the files of the complete passes 0..n-1 (none of them the last, so
+ * OUT and BOUND were not written), so that the folder is left as it was found. */
+static void remove_passes(const render_args *a, int n)
+{
+    char name[4096];
+    for (int i = 0; i < n; i++) {
+        if (pass_name(name, sizeof name, a->out, i)) remove(name);
+        if (a->bound_path && pass_name(name, sizeof name, a->bound_path, i)) remove(name);
+    }
 }
 
 static void report_passes(const render_args *a, const wvol_progressive_pass *ps, int n)
@@ -709,6 +730,7 @@ static int render_progressive(render_args *a)
     report_passes(a, ps, n);
     goto done;
 fail:
+    remove_passes(a, n);
     rc = cli_fail_err("render", &err);
 done:
     free(ps);

@@ -107,6 +107,33 @@ def test_cli_progressive(tmp_path, blobs):
     assert r.returncode == 2 and "add --progressive" in r.stderr
 
 
+def test_cli_progressive_max_error_without_a_bound_file(tmp_path, blobs):
+    """--max-error alone computes the bound for its stop rule and writes no bound file (it used
+    to crash on the bound file's missing name)."""
+    src = tmp_path / "blobs.nrrd"
+    wvol.save(blobs, src)
+    r = run_wvol("render", src, "-o", tmp_path / "p.png", "--mode", "xray", "--size", f"{SIZE[0]}x{SIZE[1]}",
+                 "--progressive", "--max-error", "0.5", "--json")
+    assert r.returncode == 0, r.stderr
+    info = json.loads(r.stdout)
+    n = len(info["passes"])
+    assert info["stop"] in ("max-error", "complete") and info["passes"][-1]["bound_max"] <= 0.5
+    names = sorted(p.name for p in tmp_path.iterdir())
+    assert names == sorted(["blobs.nrrd", "p.png"] + [f"p.pass{k}.png" for k in range(n)]), names
+
+
+def test_cli_progressive_failure_leaves_the_folder_as_found(tmp_path, blobs):
+    """A pass that cannot be written (its bound's name is taken by a folder): the passes written
+    before it are removed, and the folder holds what it held."""
+    src = tmp_path / "blobs.nrrd"
+    wvol.save(blobs, src)
+    (tmp_path / "b.pass1.exr").mkdir()
+    r = run_wvol("render", src, "-o", tmp_path / "p.exr", "--mode", "xray", "--size", f"{SIZE[0]}x{SIZE[1]}",
+                 "--progressive", "--bound", tmp_path / "b.exr")
+    assert r.returncode == 1 and "b.pass1.exr" in r.stderr, r.stderr
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["b.pass1.exr", "blobs.nrrd"]
+
+
 def test_coarse_bound_above_the_exact(tmp_path, blobs):
     kept = wvol.compress(blobs, "db2", keep=0.1, residual=True)  # the CLI's render store below is db2
     cam = "persp dir=1,0.6,0.3"
