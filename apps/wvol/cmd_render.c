@@ -340,10 +340,11 @@ static int load_input(const render_args *a, render_input *in, wvol_error *err)
         if (wvol_wvc_read(&c, a->in, NULL, &wi, err) != WVOL_OK) return cli_fail_err("render", err);
         if (a->bound_path && wi.dropped_energy > 0) {
             wvol_coeffs_destroy(c);
-            return cli_usage("render",
-                             "--bound: %s dropped coefficients before coding (energy %g); their values are not in "
-                             "the file, so no per-pixel bound. Compress with --keep 100%% to have one",
-                             a->in, wi.dropped_energy);
+            /* the file's content, not the options, rules the bound out: bad input (docs/cli.md) */
+            return cli_fail("render",
+                            "--bound: %s dropped coefficients before coding (energy %g); their values are not in "
+                            "the file, so no per-pixel bound. Compress with --keep 100%% to have one",
+                            a->in, wi.dropped_energy);
         }
         in->coeff_error = wvol_wvc_max_coeff_error(&wi);
         in->vmin = wi.value_min;

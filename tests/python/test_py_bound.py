@@ -134,6 +134,18 @@ def test_cli_progressive_failure_leaves_the_folder_as_found(tmp_path, blobs):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["b.pass1.exr", "blobs.nrrd"]
 
 
+def test_cli_bound_of_a_file_with_dropped_coefficients_is_bad_input(tmp_path, blobs):
+    """The file's content rules the bound out (its dropped coefficients are not in it): exit 1,
+    bad input (docs/cli.md), naming the remedy; no image is written."""
+    src, kept = tmp_path / "blobs.nrrd", tmp_path / "kept.wvc"
+    wvol.save(blobs, src)
+    assert run_wvol("compress", src, "-o", kept, "--keep", "5%").returncode == 0
+    r = run_wvol("render", kept, "-o", tmp_path / "k.exr", "--mode", "xray", "--size", "8x8", "--bound",
+                 tmp_path / "kb.exr")
+    assert r.returncode == 1 and "dropped coefficients before coding" in r.stderr, r.stderr
+    assert not (tmp_path / "k.exr").exists() and not (tmp_path / "kb.exr").exists()
+
+
 def test_coarse_bound_above_the_exact(tmp_path, blobs):
     kept = wvol.compress(blobs, "db2", keep=0.1, residual=True)  # the CLI's render store below is db2
     cam = "persp dir=1,0.6,0.3"
