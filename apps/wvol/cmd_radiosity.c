@@ -114,6 +114,13 @@ int wvol_cmd_radiosity(int argc, char **argv)
     if (!out) return cli_usage(cmd, "no output (-o OUT.png|.exr|.ply|.vtp)");
     if (!is_image(out) && !is_mesh(out)) return cli_usage(cmd, "-o %s: use .png, .exr, .ply or .vtp", out);
     if (mesh && !is_mesh(mesh)) return cli_usage(cmd, "--mesh %s: use .ply or .vtp", mesh);
+    /* options that shape an output this run does not write are refused, not ignored (docs/cli.md) */
+    if (mesh_res && !mesh && !is_mesh(out))
+        return cli_usage(cmd, "--mesh-res sets the written mesh's cells: add --mesh (or -o a .ply or .vtp)");
+    if (!is_image(out) && (cli_given(&p, "camera") || cli_given(&p, "size") || cli_given(&p, "exposure")))
+        return cli_usage(cmd, "--camera, --size and --exposure shape an image: -o %s writes a mesh", out);
+    if (exposure > 0 && !wvol_path_has_ext(out, ".png"))
+        return cli_usage(cmd, "--exposure scales a PNG's values: -o %s is not a .png", out);
     if (!mesh_res) mesh_res = 1L << (par.max_level < 8 ? par.max_level : 8);
 
     if (wvol_path_has_ext(scene_arg, ".obj")) {

@@ -274,6 +274,9 @@ static int parse_args(render_args *a, int argc, char **argv)
                          wvol_render_method_name(a->rp.method));
     if (cli_given(&ps, "gradient-levels") && !a->rp.shading)
         return cli_usage(cmd, "--gradient-levels sets the gradient --shading takes: add --shading");
+    if ((cli_given(&ps, "orbit") || cli_given(&ps, "one-shot") || cli_given(&ps, "context-cache")) &&
+        !cli_given(&ps, "repeat"))
+        return cli_usage(cmd, "--orbit, --one-shot and --context-cache shape the frames of --repeat: add --repeat");
     if (cli_given(&ps, "growth") && !a->progressive)
         return cli_usage(cmd, "--growth sets how progressive passes grow: add --progressive");
     if (cli_given(&ps, "bound-method") && !a->bound_path && !(a->progressive && a->pp.max_error > 0))

@@ -111,6 +111,9 @@ def small(tmp_path):
     (["render", "-o", "x.exr", "--method", "bricks", "--gradient-levels", "1"], "--gradient-levels"),
     (["render", "-o", "x.exr", "--growth", "2"], "add --progressive"),
     (["render", "-o", "x.exr", "--bound-method", "coarse"], "add --bound"),
+    (["render", "-o", "x.exr", "--orbit", "10"], "add --repeat"),
+    (["render", "-o", "x.exr", "--one-shot"], "add --repeat"),
+    (["render", "-o", "x.exr", "--context-cache", "8M"], "add --repeat"),
     (["iso", "-o", "x.ply", "--iso", "0.5", "--tf", "grey"], "--tf applies only to --method hybrid (not mc)"),
     (["iso", "-o", "x.ply", "--iso", "0.5", "--camera", "+x"], "--camera applies only to --method cast, raytrace"),
     (["iso", "-o", "x.ply", "--iso", "0.5", "--surface", "exact"], "--surface applies only to --method hybrid"),
@@ -132,6 +135,23 @@ def test_options_the_method_does_not_read_are_usage_errors(wvol, small, tmp_path
     assert r.returncode == 2, (r.returncode, r.stderr)
     assert words in r.stderr and len(r.stderr.strip().splitlines()) == 1, r.stderr
     assert list(tmp_path.iterdir()) == [small[0]]  # nothing written
+
+
+@pytest.mark.parametrize("args,words", [
+    (["-o", "x.png", "--mesh-res", "8", "--size", "16x16"], "--mesh-res sets the written mesh's cells: add --mesh"),
+    (["-o", "x.ply", "--camera", "+z"], "--camera, --size and --exposure shape an image"),
+    (["-o", "x.vtp", "--size", "8x8"], "--camera, --size and --exposure shape an image"),
+    (["-o", "x.exr", "--exposure", "2"], "--exposure scales a PNG's values"),
+])
+def test_radiosity_options_for_an_output_not_written_are_usage_errors(wvol, tmp_path, args, words):
+    rest = [str(tmp_path / a) if a.startswith("x.") else a for a in args]
+    r = wvol("radiosity", "box", "--max-level", "2", *rest)
+    assert r.returncode == 2 and words in r.stderr, (r.returncode, r.stderr)
+    assert list(tmp_path.iterdir()) == []
+    # the same options where their output is written are taken
+    ok = {"x.png": ["--mesh", str(tmp_path / "m.ply")], "x.ply": [], "x.vtp": [], "x.exr": []}[args[1]]
+    if args[1] == "x.png":
+        assert wvol("radiosity", "box", "--max-level", "2", *rest, *ok).returncode == 0
 
 
 def test_convert_to_an_unwritable_format_is_usage(wvol, small, tmp_path):
