@@ -10,6 +10,7 @@ const char wvol_cmd_convert_summary[] = "convert a volume between formats (raw, 
 
 static const cli_opt opts[] = {
     CLI_LOAD_OPTS,
+    CLI_JSON_OPT,
     CLI_HELP_OPT,
     {NULL, 0, 0, NULL}};
 
@@ -32,7 +33,7 @@ int wvol_cmd_convert(int argc, char **argv)
     cli_parser p;
     const cli_opt *o;
     const char *val, *in = NULL, *out = NULL;
-    int r;
+    int r, json = 0;
     wvol_load_options lo;
     wvol_error err;
     wvol_volume *v = NULL;
@@ -47,13 +48,15 @@ int wvol_cmd_convert(int argc, char **argv)
             else if (!out) out = val;
             else return cli_usage("convert", "two files expected (IN OUT), got '%s' too", val);
         } else if (o->short_name == 'h') {
-            cli_print_help("convert", "IN OUT [--dims NXxNYxNZ --type T] [--grid NAME]",
+            cli_print_help("convert", "IN OUT [--dims NXxNYxNZ --type T] [--grid NAME] [--json]",
                            "Reads IN and writes OUT; the formats follow the extensions.\n"
                            "Readable: .raw .nrrd .nhdr .vdb .vti .vtk .mha .mhd .nii .nii.gz .wvc, a DICOM folder.\n"
                            "Writable: .raw (float32) .nrrd .vdb .vti .vtk .mha .nii .nii.gz.\n"
                            "Samples are float32 in between: integer input is converted exactly.",
                            opts);
             return CLI_OK;
+        } else if (!strcmp(o->name, "json")) {
+            json = 1;
         } else if (cli_load_option("convert", o, val, &lo) == CLI_USAGE) {
             return CLI_USAGE;
         }
@@ -70,10 +73,24 @@ int wvol_cmd_convert(int argc, char **argv)
         wvol_volume_destroy(v);
         return cli_fail_err("convert", &err);
     }
-    printf("converted %s (%s) -> %s (%s): %zu x %zu x %zu float32 voxels, spacing %.10g %.10g %.10g, "
-           "origin %.10g %.10g %.10g, %.2f s\n",
-           in, format_name(in), out, format_name(out), v->nx, v->ny, v->nz, v->spacing[0],
-           v->spacing[1], v->spacing[2], v->origin[0], v->origin[1], v->origin[2], cli_now() - t0);
+    if (json) {
+        const double dims[3] = {(double)v->nx, (double)v->ny, (double)v->nz};
+        cli_json_begin();
+        cli_json_str("input", in);
+        cli_json_str("input_format", format_name(in));
+        cli_json_str("output", out);
+        cli_json_str("output_format", format_name(out));
+        cli_json_num3("dims", dims);
+        cli_json_num3("spacing", v->spacing);
+        cli_json_num3("origin", v->origin);
+        cli_json_num("seconds", cli_now() - t0);
+        cli_json_end();
+    } else {
+        printf("converted %s (%s) -> %s (%s): %zu x %zu x %zu float32 voxels, spacing %.10g %.10g %.10g, "
+               "origin %.10g %.10g %.10g, %.2f s\n",
+               in, format_name(in), out, format_name(out), v->nx, v->ny, v->nz, v->spacing[0],
+               v->spacing[1], v->spacing[2], v->origin[0], v->origin[1], v->origin[2], cli_now() - t0);
+    }
     wvol_volume_destroy(v);
     return CLI_OK;
 }

@@ -22,13 +22,13 @@ def _make(kind, shape, spacing, seed, noise, sigma=0.0, count=0, variant=None):
     return Volume(data, sp, org, labels=labels)
 
 
-def gaussian(shape=(64, 64, 64), spacing=None, seed=1, noise=0.0, sigma=0.25):
+def gaussian(shape=None, spacing=None, seed=1, noise=0.0, sigma=0.25):
     """Centred isotropic Gaussian ``exp(-|u|^2 / (2 sigma^2))``, peak 1, ``u`` normalised to
     [-1, 1] across the largest extent (the paper's Fig. 15 density)."""
     return _make("gaussian", shape, spacing, seed, noise, sigma=sigma)
 
 
-def blobs(shape=(64, 64, 64), spacing=None, seed=1, noise=0.0, count=5):
+def blobs(shape=None, spacing=None, seed=1, noise=0.0, count=5):
     """Sum of ``count`` (1..64) rotated anisotropic Gaussians drawn from ``seed``."""
     return _make("blobs", shape, spacing, seed, noise, count=count)
 

@@ -626,6 +626,17 @@ def test_convert_usage(wvol, tmp_path):
     assert not (tmp_path / "b.vti").exists()
 
 
+def test_convert_json(wvol, tmp_path):
+    """--json: what the text line says, as fields (README: the commands that report numbers have it)."""
+    write_raw(tmp_path / "a.raw", np.arange(24, dtype=np.float32).reshape(4, 3, 2))
+    r = convert(wvol, tmp_path / "a.raw", tmp_path / "b.nrrd", "--dims", "2x3x4", "--spacing", "0.5",
+                "--origin", "1,2,3", "--json")
+    assert r.returncode == 0, r.stderr
+    d = json.loads(r.stdout)
+    assert d["input_format"] == "raw" and d["output_format"] == "NRRD" and d["dims"] == [2, 3, 4]
+    assert d["spacing"] == [0.5, 0.5, 0.5] and d["origin"] == [1, 2, 3] and d["seconds"] >= 0
+
+
 def test_mesh_written_by_c_test_reads_in_vtk(tmp_path):
     exe = os.path.join(os.path.dirname(WVOL_BIN), "test_formats")
     assert os.path.exists(exe), f"{exe}: the C tests are built with the program (scripts/setup.sh)"

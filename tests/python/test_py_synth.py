@@ -1,5 +1,7 @@
 # SPDX-License-Identifier: MIT
 """wvol.synth.*: shapes, geometry, labels, determinism, bad arguments."""
+import inspect
+
 import numpy as np
 import pytest
 
@@ -71,3 +73,15 @@ def test_shepp_logan_variants():
 def test_bad_arguments_raise(call, exc, words):
     with pytest.raises(exc, match=words):
         call()
+
+
+def test_default_sizes_are_the_generators():
+    """shape=None everywhere, and the sizes docs/datasets.md gives, as the CLI and make() have them."""
+    want = {"gaussian": (32, 32, 32), "blobs": (64, 64, 64), "skull": (128, 128, 128), "textures": (1, 256, 256),
+            "shepp_logan": (128, 128, 128), "turbulence": (128, 128, 128)}
+    for name, shape in want.items():
+        fn = getattr(wvol.synth, name)
+        assert inspect.signature(fn).parameters["shape"].default is None, name
+        if name in ("gaussian", "blobs", "textures"):  # the small ones: made, not only declared
+            assert fn().data.shape == shape, name
+            assert wvol.synth.make(name.replace("_", "-")).data.shape == shape, name
