@@ -206,13 +206,13 @@ static int compress_streamed(const char *in, const char *outp, const wvol_load_o
         cli_json_num("quantisation_sse", rep.sse_quant);
         cli_json_num("sse", rep.sse_quant);
         cli_json_num("rmse", sqrt(rep.sse_quant / nvox));
-        cli_json_num("psnr", isfinite(p_psnr) ? p_psnr : 999);
+        cli_json_num("psnr", p_psnr); /* null when infinite (lossless) */
         cli_json_close('}');
         if (verify) {
             cli_json_open("measured", '{');
             cli_json_num("sse", sse_meas);
             cli_json_num("rmse", sqrt(sse_meas / nvox));
-            cli_json_num("psnr", isfinite(m_psnr) ? m_psnr : 999);
+            cli_json_num("psnr", m_psnr); /* null when infinite (lossless) */
             cli_json_num("max_error", maxerr);
             cli_json_close('}');
         }
@@ -563,13 +563,13 @@ int wvol_cmd_compress(int argc, char **argv)
             cli_json_num("quantisation_sse", wrep.sse_quant);
             cli_json_num("sse", sse_pred);
             cli_json_num("rmse", p_rmse);
-            cli_json_num("psnr", isfinite(p_psnr) ? p_psnr : 999);
+            cli_json_num("psnr", p_psnr); /* null when infinite (lossless) */
             cli_json_close('}');
             if (verify) {
                 cli_json_open("measured", '{');
                 cli_json_num("sse", sse_meas);
                 cli_json_num("rmse", m_rmse);
-                cli_json_num("psnr", isfinite(m_psnr) ? m_psnr : 999);
+                cli_json_num("psnr", m_psnr); /* null when infinite (lossless) */
                 cli_json_num("max_error", maxerr);
                 cli_json_close('}');
             }

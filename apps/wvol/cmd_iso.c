@@ -71,6 +71,7 @@ typedef struct iso_args {
     const char *in, *out;
     double iso;
     int have_iso, json, threads, repeat, levels, brick, spline_j, have_keep, have_tol, surface_cast, model_bound;
+    int levels_given; /* --levels said: refused beyond the volume's, not capped */
     int level;      /* mc --level: the coarser grid of this wavelet level (0: full resolution) */
     long width, height;
     double keep, tolerance, chunk;
@@ -174,8 +175,8 @@ static void report(const iso_args *a, const wvol_compressed *kept, const wvol_me
 }
 
 /* The library's pipeline for --wavelet and the tracer: transform, selection of --keep, and
- * the store. --levels beyond what the volume allows is refused for meshes and capped for
- * images. */
+ * the store. --levels beyond what the volume allows is refused when given; an image's default
+ * (3) is capped to a small volume's levels. */
 static int prepare_kept(const iso_args *a, const wvol_volume *v, int for_image, wvol_compressed *out,
                         wvol_error *err)
 {
@@ -185,7 +186,8 @@ static int prepare_kept(const iso_args *a, const wvol_volume *v, int for_image, 
     if (a->wavelet) cp.wavelet = a->wavelet;
     cp.levels = a->levels;
     if (a->levels > maxl) {
-        if (!for_image) return cli_usage("iso", "--levels %d: this volume allows 1..%d", a->levels, maxl);
+        if (!for_image || a->levels_given)
+            return cli_usage("iso", "--levels %d: this volume allows 1..%d", a->levels, maxl);
         cp.levels = maxl;
     }
     if (a->spline_j) cp.store.spline_J = a->spline_j;
@@ -596,6 +598,7 @@ int wvol_cmd_iso(int argc, char **argv)
         } else if (!strcmp(o->name, "levels")) {
             if (!cli_parse_long("iso", "levels", val, 1, 30, &lv)) return CLI_USAGE;
             a.levels = (int)lv;
+            a.levels_given = 1;
         } else if (!strcmp(o->name, "keep")) {
             if (!cli_parse_fraction("iso", "keep", val, &a.keep)) return CLI_USAGE;
             a.have_keep = 1;

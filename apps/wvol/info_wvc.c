@@ -104,7 +104,7 @@ int wvol_cli_info_wvc(const char *path, int json)
         cli_json_num("dropped_energy", I->dropped_energy);
         cli_json_num("quantisation_sse", I->sse);
         cli_json_num("predicted_rmse", rmse);
-        cli_json_num("predicted_psnr", isfinite(psnr) ? psnr : 999);
+        cli_json_num("predicted_psnr", psnr); /* null when infinite */
         cli_json_open("levels_detail", '[');
         for (int k = 0; k <= I->levels; k++) {
             level_totals t = level_sum(I, k, &m);

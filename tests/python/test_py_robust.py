@@ -284,6 +284,9 @@ def test_features_refuse_magnitudes_that_overflow():
         wvol.features(a, levels=1)
     with pytest.raises(ValueError, match="magnitudes overflow float32"):
         wvol.segment(a, levels=1, iterations=10)
+    # two levels: the first level's low-pass overflows; the second transform is not told NaN input
+    with pytest.raises(ValueError, match=r"magnitudes overflow float32 in level 1's low-pass"):
+        wvol.features(a, levels=2)
 
 
 def test_load_dtype_none_is_a_type_error(tmp_path):

@@ -4,6 +4,7 @@
  * split once; each detail band present gives a magnitude plane |d| and the new
  * low-pass cube gives a value plane, both on the level's coarse grid. Each plane is
  * then interpolated (trilinear; bilinear in 2D) back to every voxel. */
+#include "core/finite.h"
 #include "core/status_internal.h"
 #include "wvol/analysis.h"
 
@@ -180,6 +181,14 @@ wvol_status wvol_features_compute(wvol_features **out, const wvol_volume *v, con
             dims += pn[a] > 1;
         }
         memcpy(work, low, cur[0] * cur[1] * cur[2] * sizeof(float));
+        /* the input was checked finite: Inf in a coarser level's input is the low-pass outgrowing
+         * float32 (the transform would call it NaN or Inf input); said as the features' check says it */
+        if (m > 1 && !wvol__all_finite(work, cur[0] * cur[1] * cur[2])) {
+            s = wvol_error_set(err, WVOL_ERR_NONFINITE,
+                               "features: the volume's magnitudes overflow float32 in level %d's low-pass (scale "
+                               "the volume down: the segmentation does not depend on the scale)", m - 1);
+            goto done;
+        }
         s = wvol_dwt3_inplace_f32(work, cur[0], cur[1], cur[2], f, 1, err);
         if (s) goto done;
         for (int b = 0; b < nbands; b++) {

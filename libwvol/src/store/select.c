@@ -411,6 +411,10 @@ wvol_status wvol_select(wvol_selection **out, const wvol_coeffs *c, const wvol_s
     WVOL_FORWARD(check_original(c, original, err));
     if (peak == 0.0 && (prm->mode == WVOL_SELECT_PSNR || original))
         WVOL_FORWARD(full_peak(&peak, c, &ly, original, err));
+    /* a constant volume has no peak: a PSNR target would keep every rounding residue */
+    WVOL_RETURN_IF(prm->mode == WVOL_SELECT_PSNR && !(peak > 0.0), err, WVOL_ERR_ARG,
+                   "selection: the volume is constant; PSNR %g (peak = range) is undefined: keep a count, a "
+                   "fraction or an energy share instead", prm->psnr);
 
     WVOL_FORWARD(wvol__segplan_init(&sp, &ly, err));
     if ((s = wvol__lod_weights(&lw, c, &ly, prm, err)) != WVOL_OK) {
