@@ -340,8 +340,29 @@ int cli_load_tf(const char *cmd, const char *name, double vmin, double vmax, str
     return s == WVOL_ERR_ARG ? cli_usage(cmd, "--tf: %s", err.message) : cli_fail_err(cmd, &err);
 }
 
+/* The loading options given so far, by name (this process parses one command line). */
+static const char *const load_names[] = {"dims", "type", "big-endian", "spacing", "origin", "grid"};
+static unsigned load_given;
+
+static int is_raw_path(const char *p) { return p && (wvol_path_has_ext(p, ".raw") || wvol_path_has_ext(p, ".bin")); }
+
+int cli_load_options_fit(const char *cmd, const char *path, const char *also)
+{
+    const int raw = is_raw_path(path) || is_raw_path(also);
+    if (!path) return CLI_OK;
+    for (int i = 0; i < 5; i++)
+        if (!raw && ((load_given >> i) & 1))
+            return cli_usage(cmd, "--%s describes raw input (.raw, .bin): %s %s", load_names[i], path,
+                             strncmp(path, "synth:", 6) ? "carries its own" : "is a generator (its spec takes size=)");
+    if (((load_given >> 5) & 1) && !wvol_path_has_ext(path, ".vdb") && !(also && wvol_path_has_ext(also, ".vdb")))
+        return cli_usage(cmd, "--grid names a grid of an OpenVDB file: %s is not a .vdb", path);
+    return CLI_OK;
+}
+
 int cli_load_option(const char *cmd, const cli_opt *o, const char *val, wvol_load_options *lo)
 {
+    for (int i = 0; i < 6; i++)
+        if (!strcmp(o->name, load_names[i])) load_given |= 1u << i;
     if (!strcmp(o->name, "dims")) {
         if (!cli_parse_dims(cmd, "dims", val, lo->dims)) return CLI_USAGE;
     } else if (!strcmp(o->name, "type")) {

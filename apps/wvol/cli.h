@@ -78,6 +78,13 @@ int cli_threads(const char *cmd, const char *val, int *threads);
  * of those names describe the input volume. */
 int cli_load_option(const char *cmd, const cli_opt *o, const char *val, wvol_load_options *lo);
 
+/* After parsing: CLI_USAGE (with a message) when a loading option given to cli_load_option does
+ * not apply to the input at path (the raw-only ones to a file that carries its own geometry and
+ * type, or a synth: generator; --grid to a file other than .vdb), which would otherwise be
+ * ignored; CLI_OK otherwise (also for path NULL). also: a second input the same options load
+ * (segment's truth), or NULL: the options fit when they fit either. */
+int cli_load_options_fit(const char *cmd, const char *path, const char *also);
+
 /* Takes val as the one positional input file of cmd: CLI_OK, or CLI_USAGE after an
  * error if *in is already set. */
 int cli_one_input(const char *cmd, const char **in, const char *val);

@@ -376,6 +376,7 @@ int wvol_cmd_compress(int argc, char **argv)
     }
     if (!in) return cli_usage("compress", "missing input file (see 'wvol compress --help')");
     if (!outp) return cli_usage("compress", "missing -o OUT.wvc");
+    if (cli_load_options_fit("compress", in, NULL) != CLI_OK) return CLI_USAGE;
     if (!wvol_path_has_ext(outp, ".wvc")) return cli_usage("compress", "-o %s: the output must end in .wvc", outp);
     if (modes > 1) return cli_usage("compress", "choose one of --psnr, --keep, --keep-count, --energy");
     if (mode == MODE_NONE) mode = MODE_PSNR, psnr = 50;

@@ -72,6 +72,7 @@ int wvol_cmd_info(int argc, char **argv)
         }
     }
     if (!path) return cli_usage("info", "missing input file (see 'wvol info --help')");
+    if (cli_load_options_fit("info", path, NULL) != CLI_OK) return CLI_USAGE;
     if (wvol_path_has_ext(path, ".wvc")) return wvol_cli_info_wvc(path, json);
 
     wvol_error_clear(&err);

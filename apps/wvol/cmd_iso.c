@@ -639,6 +639,7 @@ int wvol_cmd_iso(int argc, char **argv)
     }
     if (!a.in) return cli_usage("iso", "missing input volume (see 'wvol iso --help')");
     if (!a.have_iso) return cli_usage("iso", "missing --iso THETA");
+    if (cli_load_options_fit("iso", a.in, NULL) != CLI_OK) return CLI_USAGE;
     if ((r = cli_method_rules(&p, method_rules, method, a.method)) != CLI_OK) return r;
     if (cli_given(&p, "levels") && !from_store(&a) && ((1u << method) & (M_MC | M_CAST)))
         return cli_usage("iso", "--levels sets the levels of a store: add --wavelet or --keep (method %s)", a.method);

@@ -294,6 +294,7 @@ static int parse_args(render_args *a, int argc, char **argv)
             return cli_usage(cmd, "--progressive with a bound (--bound, --max-error) needs --mode xray or absorption, "
                                   "no --shading");
     }
+    if (cli_load_options_fit(cmd, a->in, NULL) != CLI_OK) return CLI_USAGE;
     if (a->bound_path) {
         if (!wvol_path_has_ext(a->bound_path, ".exr"))
             return cli_usage(cmd, "--bound %s: the bound image is float data, the extension must be .exr", a->bound_path);

@@ -174,6 +174,7 @@ int wvol_cmd_segment(int argc, char **argv)
     if (have_box && !truth_path) return cli_usage("segment", "--train-box needs --truth");
     if (boundary >= 0 && !truth_path) return cli_usage("segment", "--boundary shapes the score against --truth: add --truth");
     if (wvol_filter_get(&filt, wname, &err)) return cli_usage("segment", "--wavelet: %s", err.message);
+    if (cli_load_options_fit("segment", in, truth_path) != CLI_OK) return CLI_USAGE;
 
     if (wvol_volume_load(&v, in, &lo, &err)) return cli_fail_err("segment", &err);
     size_t n = wvol_volume_count(v);

@@ -81,6 +81,7 @@ int wvol_cmd_transform(int argc, char **argv)
         return cli_usage("transform", "-o %s: the coefficients are written as OUT.raw (and OUT.json)", outp);
     wvol_error_clear(&err);
     if (wvol_filter_get(&f, wname, &err) != WVOL_OK) return cli_usage("transform", "--wavelet: %s", err.message);
+    if (cli_load_options_fit("transform", in, NULL) != CLI_OK) return CLI_USAGE;
     if (wvol_volume_load(&v, in, &lo, &err) != WVOL_OK) return cli_fail_err("transform", &err);
     max = wvol_dwt_max_levels(v->nx, v->ny, v->nz);
     if (levels == 0) levels = max < 3 ? max : 3;

@@ -235,3 +235,56 @@ def test_threads_option_range_is_usage(wvol, tmp_path, cmd, bad):
     r = wvol(cmd, "--threads", bad)
     assert r.returncode == 2, r.stderr
     assert f"--threads '{bad}': expected an integer from 1 to 4096" in r.stderr
+
+
+@pytest.mark.parametrize("cmd,extra", [("info", []), ("convert", ["x.vti"]), ("compress", ["-o", "x.wvc"]),
+                                       ("iso", ["-o", "x.ply", "--iso", "0.5"]), ("render", ["-o", "x.png"]),
+                                       ("transform", ["-o", "x.raw"]), ("segment", ["-o", "x.raw"])])
+@pytest.mark.parametrize("opt", [["--dims", "16x16x16"], ["--origin", "1,2,3"], ["--spacing", "2"],
+                                 ["--type", "uint8"], ["--big-endian"], ["--grid", "density"]])
+def test_loading_options_the_input_does_not_take_are_usage_errors(wvol, small, tmp_path, cmd, extra, opt):
+    """--dims, --type, --big-endian, --spacing and --origin describe raw input, --grid an OpenVDB
+    file's: given for a file that carries its own (here NRRD), or for a generator, they are
+    refused before anything is read, never ignored (docs/cli.md)."""
+    src = tmp_path / "v.nrrd"
+    assert wvol("convert", *small, src).returncode == 0
+    rest = [str(tmp_path / a) if a.startswith("x.") else a for a in extra]
+    r = wvol(cmd, src, *rest, *opt)
+    assert r.returncode == 2 and opt[0] in r.stderr and "v.nrrd" in r.stderr, (r.returncode, r.stderr)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["v.nrrd", "v.raw"]  # nothing written
+    if cmd == "compress" and opt[0] != "--grid":
+        r = wvol("compress", "synth:gaussian,size=8", "-o", tmp_path / "s.wvc", *opt)
+        assert r.returncode == 2 and "is a generator" in r.stderr, r.stderr
+
+
+def test_a_raw_truth_takes_the_raw_options_beside_a_nrrd_input(wvol, tmp_path):
+    """segment: the loading options also read the truth, so a raw truth beside a NRRD input takes them."""
+    img, lab = tmp_path / "t.nrrd", tmp_path / "t_labels.raw"
+    assert wvol("synth", "textures", "-o", img, "--size", "32x32x1", "--labels", lab).returncode == 0
+    r = wvol("segment", img, "--truth", lab, "--dims", "32x32x1", "-o", tmp_path / "s.raw", "--levels", "2")
+    assert r.returncode == 0, r.stderr
+
+
+@pytest.mark.parametrize("origin,words", [("1e7,0,0", "float32 vertices are 1.19209 apart"),
+                                          ("1e39,0,0", "beyond float32's range")])
+def test_meshes_float32_cannot_hold_are_refused(wvol, small, tmp_path, origin, words):
+    """A mesh's vertices are float32 world coordinates: far from 0 they snap to whole voxels (an
+    origin of 1e9 collapsed a mesh to one point), beyond FLT_MAX they are Inf. Refused, naming why."""
+    for store in ([], ["--keep", "50%"]):
+        r = wvol("iso", *small, "--origin", origin, "--iso", "0.5", "-o", tmp_path / "m.ply", *store)
+        assert r.returncode == 2 and words in r.stderr and "origin" in r.stderr, r.stderr
+        assert not (tmp_path / "m.ply").exists()
+    r = wvol("iso", *small, "--origin", "1e6,0,0", "--iso", "0.5", "-o", tmp_path / "m.ply")
+    assert r.returncode == 0, r.stderr  # 1/16 of a voxel apart: within the eighth allowed
+
+
+def test_levels_beyond_a_small_volume_are_refused_for_images_too(wvol, tmp_path):
+    v = tmp_path / "r8.nrrd"
+    assert wvol("synth", "gaussian", "--size", "8", "-o", v).returncode == 0
+    for method in ("raytrace", "hybrid"):
+        r = wvol("iso", v, "-o", tmp_path / "o.exr", "--iso", "0.5", "--method", method, "--levels", "5",
+                 "--size", "8x8")
+        assert r.returncode == 2 and "--levels 5: this volume allows 1..3" in r.stderr, r.stderr
+    r = wvol("iso", v, "-o", tmp_path / "o.exr", "--iso", "0.5", "--method", "raytrace", "--size", "8x8",
+             "--keep", "50%", "--json")  # the default (3) fits; without --levels a larger default is capped
+    assert r.returncode == 0 and json.loads(r.stdout)["levels"] == 3, r.stderr

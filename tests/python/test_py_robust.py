@@ -377,3 +377,17 @@ def test_a_store_where_a_volume_is_expected_is_named():
                  lambda: wvol.compress(c), lambda: s.measured_error(s), lambda: wvol.segment(s)):
         with pytest.raises(TypeError, match=r"expected a volume .*got a wvol\.(Store|Coeffs)"):
             call()
+
+
+def test_isosurface_vertices_float32_cannot_hold_are_refused():
+    """Vertices are float32 world coordinates: an origin of 1e9 collapsed a mesh to one point and a
+    spacing of 1e38 gave Inf vertices; both are refused, naming why, dense and from a store."""
+    a = wvol.synth.gaussian(shape=(16, 16, 16)).data
+    for spacing, origin, words in ((1.0, 1e9, "float32 vertices are"), (1e38, 0.0, "beyond float32's range")):
+        v = wvol.Volume(a, (spacing,) * 3, (origin,) * 3)
+        with pytest.raises(ValueError, match=words):
+            wvol.isosurface(v, 0.5)
+        with pytest.raises(ValueError, match=words):
+            wvol.isosurface(wvol.compress(v, keep=0.5), 0.5)
+    verts, _, _ = wvol.isosurface(wvol.Volume(a, (1.0,) * 3, (1e5,) * 3), 0.5)
+    assert len(verts) and np.isfinite(verts).all()

@@ -139,6 +139,8 @@ def compress(tmp, wv, kind, s, family, crit):
     bits = rep["bits_per_voxel"]
     small = s <= 1e-30
     btol = 0.10 if kind == "constant" else 0.05 if small else 0.01
+    if psnr is None:  # a constant volume: no peak, the PSNR undefined (JSON null), nothing to compare
+        return np.zeros(0), {"bits_per_voxel": (bits, btol * bits)}
     ptol = math.inf if "--psnr" in crit or psnr > 100 else 0.5 if small else 0.1
     return np.zeros(0), {"bits_per_voxel": (bits, btol * bits), "psnr": (psnr, ptol)}
 

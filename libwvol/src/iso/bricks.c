@@ -523,6 +523,7 @@ static wvol_status extract_bricks(wvol_mesh **out, const wvol_coeffs *c, const w
         for (a = 0; a < 3; a++) g.origin[a] = info.origin[a], g.spacing[a] = info.spacing[a];
     }
     g.B = p->brick;
+    WVOL_FORWARD(wvol__iso_vertex_range_check(g.origin, g.spacing, g.n, err));
     if (g.n[0] < 2 || g.n[1] < 2 || g.n[2] < 2) {
         WVOL_FORWARD(wvol_mesh_create(out, 0, 0, 0, err));
         st->empty = 1;

@@ -49,6 +49,13 @@ static inline uint64_t wvol__edge_key(const size_t gdims[3], uint64_t gi, uint64
  * out of range: the checks of wvol_iso_params both extraction paths (dense, bricks) share. */
 wvol_status wvol__iso_params_check(const wvol_iso_params *p, wvol_error *err);
 
+/* Refuses a grid whose mesh the float32 vertices cannot hold: world coordinates beyond
+ * FLT_MAX, or so large that float32 cannot resolve an eighth of the finest spacing there (an
+ * origin of 1e7 with unit voxels snaps every vertex to whole voxels; 1e9 collapses the mesh).
+ * Both extraction paths (dense, bricks) share it. */
+wvol_status wvol__iso_vertex_range_check(const double origin[3], const double spacing[3], const size_t n[3],
+                                         wvol_error *err);
+
 /* Meshes the region; *out is a new mesh (possibly empty). stats may be NULL. */
 wvol_status wvol__mc_run(wvol_mesh **out, const wvol__mc_job *job, wvol_iso_stats *stats,
                          wvol_error *err);

@@ -16,6 +16,7 @@
  * depend on the thread count.
  * Based on: Lorensen & Cline 1987 (marching cubes); Schroeder, Maynard & Geveci
  * 2015 (flying edges: edge-based passes, precomputed output sizes). */
+#include <float.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -519,6 +520,28 @@ wvol_status wvol__iso_params_check(const wvol_iso_params *p, wvol_error *err)
     return wvol__threads_check(p->threads, "iso", err);
 }
 
+wvol_status wvol__iso_vertex_range_check(const double origin[3], const double spacing[3], const size_t n[3],
+                                         wvol_error *err)
+{
+    double reach = 0.0, finest = INFINITY;
+    for (int a = 0; a < 3; a++) {
+        const double hi = origin[a] + spacing[a] * (double)(n[a] ? n[a] - 1 : 0);
+        reach = fmax(reach, fmax(fabs(origin[a]), fabs(hi)));
+        finest = fmin(finest, spacing[a]);
+    }
+    WVOL_RETURN_IF(!(reach <= FLT_MAX), err, WVOL_ERR_ARG,
+                   "iso: the volume reaches %g in world units, beyond float32's range (%g): the mesh's float32 "
+                   "vertices cannot hold it; give a smaller spacing or origin",
+                   reach, (double)FLT_MAX);
+    /* float32's spacing at |x| is at most |x| 2^-23 */
+    WVOL_RETURN_IF(ldexp(reach, -23) > finest / 8, err, WVOL_ERR_ARG,
+                   "iso: the volume reaches %g in world units, where float32 vertices are %g apart, more than an "
+                   "eighth of its voxel spacing %g: the mesh would be snapped out of shape; move the origin nearer "
+                   "0 (the mesh can be placed back with its world offset)",
+                   reach, ldexp(reach, -23), finest);
+    return WVOL_OK;
+}
+
 void wvol_iso_params_default(wvol_iso_params *p)
 {
     if (!p) return;
@@ -554,6 +577,7 @@ wvol_status wvol_iso_extract(wvol_mesh **out, const wvol_volume *v, double iso, 
         WVOL_RETURN_IF(!(v->spacing[a] > 0.0) || !isfinite(v->spacing[a]) || !isfinite(v->origin[a]), err,
                        WVOL_ERR_ARG, "iso: spacing/origin along axis %d is invalid", a);
     }
+    WVOL_FORWARD(wvol__iso_vertex_range_check(jb.origin, jb.spacing, jb.n, err));
     jb.iso = iso;
 #ifdef _OPENMP
     jb.threads = p->threads > 0 ? p->threads : omp_get_max_threads();
