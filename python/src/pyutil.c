@@ -197,7 +197,8 @@ PyObject *wvolpy_raise(const wvol_error *err)
     case WVOL_ERR_FORMAT: type = PyExc_OSError; break;
     case WVOL_ERR_NOMEM: type = PyExc_MemoryError; break;
     case WVOL_ERR_UNSUPPORTED: type = PyExc_NotImplementedError; break;
-    case WVOL_ERR_INTERNAL: type = PyExc_RuntimeError; break;
+    case WVOL_ERR_INTERNAL:
+    case WVOL_ERR_NUMERIC: type = PyExc_RuntimeError; break;
     default: type = PyExc_ValueError; break;
     }
     PyErr_SetString(type, err->message[0] ? err->message : wvol_status_string(err->status));

@@ -176,3 +176,26 @@ def test_obj_vertices_must_be_finite_numbers(tmp_path, coord):
     assert not (tmp_path / "x.png").exists()
     with pytest.raises(OSError, match="is not a finite number"):  # a malformed file, as every reader
         wvol.radiosity.scene(str(obj))
+
+
+def test_a_scene_that_does_not_settle_has_no_solution(tmp_path):
+    """Every reflectance 1 in the closed box: the light is never absorbed and the sweeps never
+    settle. No solution (RuntimeError, naming why), not the last sweep's values as if they were one;
+    the CLI fails with 1 and writes nothing."""
+    s = wvol.radiosity.scene("box")
+    r = np.ones_like(s.reflectance)
+    with pytest.raises(RuntimeError, match=r"no solution after 200 sweeps .*tolerance 1e-07"):
+        wvol.radiosity.solve((s.quads, s.emission, r), max_level=2)
+    sol = wvol.radiosity.solve((s.quads, s.emission, 0.5 * r), max_level=2)  # absorbing: settles
+    assert sol.stats["iterations"] < 200 and sol.stats["energy_error"] < 0.05
+    # the same box as an .obj scene, every material white (Kd 1), the light's emission kept
+    obj, mtl = tmp_path / "white.obj", tmp_path / "white.mtl"
+    mtl.write_text("".join(f"newmtl m{i}\nKd 1 1 1\nKe {e[0]} {e[1]} {e[2]}\n" for i, e in enumerate(s.emission)))
+    lines = ["mtllib white.mtl"]
+    for i, quad in enumerate(s.quads):
+        lines += [f"v {x} {y} {z}" for x, y, z in quad] + [f"usemtl m{i}", f"f {4 * i + 1} {4 * i + 2} {4 * i + 3} {4 * i + 4}"]
+    obj.write_text("\n".join(lines) + "\n")
+    out = tmp_path / "x.png"
+    p = run(str(obj), "-o", str(out), "--max-level", "2", "--size", "8x8")
+    assert p.returncode == 1 and "no solution after" in p.stderr, (p.returncode, p.stderr)
+    assert not out.exists()

@@ -105,7 +105,8 @@ typedef struct wvol_radiosity_stats {
 
 typedef struct wvol_radiosity wvol_radiosity;
 
-/* Solves the scene (which must outlive the solution). stats may be NULL. */
+/* Solves the scene (which must outlive the solution). stats may be NULL. WVOL_ERR_NUMERIC, and no
+ * solution, when the sweeps do not settle within max_iterations. */
 WVOL_API wvol_status wvol_radiosity_solve(wvol_radiosity **out, const wvol_radiosity_scene *scene,
                                  const wvol_radiosity_params *p, wvol_radiosity_stats *stats, wvol_error *err);
 WVOL_API void wvol_radiosity_destroy(wvol_radiosity *r); /* NULL is fine */

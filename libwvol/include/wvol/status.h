@@ -21,7 +21,8 @@ typedef enum wvol_status {
     WVOL_ERR_UNSUPPORTED = 5,  /* feature not built in, or format variant not handled */
     WVOL_ERR_NONFINITE = 6,    /* NaN or Inf in the input */
     WVOL_ERR_DIMS = 7,         /* dimensions invalid, inconsistent or overflowing */
-    WVOL_ERR_INTERNAL = 8      /* a bug: an invariant did not hold */
+    WVOL_ERR_INTERNAL = 8,     /* a bug: an invariant did not hold */
+    WVOL_ERR_NUMERIC = 9       /* an iterative computation did not converge: no result */
 } wvol_status;
 
 #define WVOL_ERROR_MSG_MAX 512

@@ -17,6 +17,7 @@ const char *wvol_status_string(wvol_status s)
     case WVOL_ERR_NONFINITE: return "non-finite value";
     case WVOL_ERR_DIMS: return "bad dimensions";
     case WVOL_ERR_INTERNAL: return "internal error";
+    case WVOL_ERR_NUMERIC: return "did not converge";
     }
     return "unknown status";
 }

@@ -174,21 +174,25 @@ static pp_state sweep(struct wvol_radiosity *r)
     return st;
 }
 
-static void iterate(struct wvol_radiosity *r, wvol_radiosity_stats *stats)
+/* Jacobi sweeps until the largest change is within the tolerance; 0 when max_iterations ran out
+ * first (a closed scene whose reflectances are 1 never settles: its light bounces forever). */
+static int iterate(struct wvol_radiosity *r, wvol_radiosity_stats *stats)
 {
     pp_state st = {0, 0, {0, 0, 0}};
-    int it;
+    int it, converged = 0;
     for (it = 0; it < r->par.max_iterations; it++) {
         gather(r);
         st = sweep(r);
         if (st.change <= r->par.tolerance * st.largest) {
             it++;
+            converged = 1;
             break;
         }
     }
     stats->iterations = it;
     stats->change = st.largest > 0 ? st.change / st.largest : 0;
     memcpy(stats->absorbed, st.absorbed, sizeof st.absorbed);
+    return converged;
 }
 
 void wvol_radiosity_destroy(wvol_radiosity *r)
@@ -251,8 +255,15 @@ wvol_status wvol_radiosity_solve(wvol_radiosity **out, const wvol_radiosity_scen
         t1 = wvol__now();
         stats.seconds_refine += t1 - t0;
         if (s != WVOL_OK) break;
-        iterate(r, &stats);
+        if (!iterate(r, &stats))
+            s = wvol_error_set(err, WVOL_ERR_NUMERIC,
+                               "radiosity: no solution after %d sweeps (the largest change is still %.3g of the "
+                               "largest coefficient, above the tolerance %g): a scene whose light is not absorbed "
+                               "(reflectances near 1 all round) has none; lower the reflectances or raise "
+                               "max_iterations",
+                               stats.iterations, stats.change, r->par.tolerance);
         stats.seconds_solve += wvol__now() - t1;
+        if (s != WVOL_OK) break;
     }
     if (s != WVOL_OK) {
         wvol_radiosity_destroy(r);
