@@ -199,3 +199,16 @@ def test_a_scene_that_does_not_settle_has_no_solution(tmp_path):
     p = run(str(obj), "-o", str(out), "--max-level", "2", "--size", "8x8")
     assert p.returncode == 1 and "no solution after" in p.stderr, (p.returncode, p.stderr)
     assert not out.exists()
+
+
+@pytest.mark.parametrize("g,words", [(1e80, r"must lie within \+-1e60"), (1e-80, "at least 1e-60 across")])
+def test_scenes_beyond_the_form_factors_range_are_refused(g, words):
+    """Form factors take fourth powers of lengths: a convex quad at 1e77 and up was called non-convex,
+    at 1e200 its area NaN, at 1e-100 0. Refused naming the range; 1e50 solves (its oracle threshold
+    is an area: scaled with the scene, the energy balance is the unit scene's to 1%)."""
+    s = wvol.radiosity.scene("box")
+    with pytest.raises(ValueError, match=words):
+        wvol.radiosity.scene((s.quads * g, s.emission, s.reflectance))
+    a = wvol.radiosity.solve(s, max_level=2)
+    b = wvol.radiosity.solve((s.quads * 1e50, s.emission, s.reflectance), max_level=2, epsilon=1e-3 * 1e100)
+    assert b.stats["energy_error"] == pytest.approx(a.stats["energy_error"], rel=0.02)

@@ -156,3 +156,17 @@ def test_cli_refuses_bad_input(tmp_path):
     assert r.returncode == 2 and "output" in r.stderr
     r = run_wvol("transport", "--help")
     assert r.returncode == 0 and "--window" in r.stdout
+
+
+@pytest.mark.parametrize("g,words", [(1e80, r"coordinates must lie within \+-1e60"), (1e-100, "at least 1e-60 long")])
+def test_scenes_beyond_the_integrals_range_are_refused(g, words):
+    """The transfer integrals take fourth powers of lengths: at 1e80 they came out 0 (no error), at
+    1e-100 the refusal spoke of an area of 0. Both now name the range; 1e50 still transports."""
+    cells = np.ones((2, 2, 2, 2, 3), np.float32)
+    scaled = lambda q, s: [[s * c for c in p] for p in q]  # noqa: E731
+    with pytest.raises(ValueError, match=words):
+        T.transport(cells, scaled(FLOOR, g), scaled(CEILING, g), levels=2)
+    ref, _ = T.transport(cells, FLOOR, CEILING, levels=2)
+    big, _ = T.transport(cells, scaled(FLOOR, 1e50), scaled(CEILING, 1e50), levels=2)
+    # radiance transported between facing squares does not depend on the scale
+    assert np.allclose(big, ref, rtol=1e-6) and np.abs(ref).max() > 0

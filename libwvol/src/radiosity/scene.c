@@ -58,6 +58,14 @@ static wvol_status build_patch(rad_patch *p, const wvol_radiosity_quad *q, const
         for (int c = 0; c < 3; c++)
             WVOL_RETURN_IF(!isfinite(q->p[k][c]), err, WVOL_ERR_NONFINITE, "%s: corner %d coordinate %d is %g (not finite)",
                            name, k, c, q->p[k][c]);
+    /* form factors take up to fourth powers of lengths: beyond 1e60, or edges below 1e-60, they
+     * leave double's range (convex quads were called degenerate, areas NaN) */
+    for (k = 0; k < 4; k++)
+        for (int c = 0; c < 3; c++)
+            WVOL_RETURN_IF(fabs(q->p[k][c]) > 1e60, err, WVOL_ERR_ARG,
+                           "%s: corner %d coordinate %d is %g: coordinates must lie within +-1e60 (form factors "
+                           "take fourth powers of lengths); scale the scene",
+                           name, k, c, q->p[k][c]);
     for (k = 0; k < 4; k++) sub3(q->p[(k + 1) % 4], q->p[k], e[k]);
     /* Newell normal: robust for any planar polygon */
     for (k = 0; k < 4; k++) {
@@ -69,6 +77,10 @@ static wvol_status build_patch(rad_patch *p, const wvol_radiosity_quad *q, const
     nrm = norm3(p->n);
     diag = 0;
     for (k = 0; k < 4; k++) diag = fmax(diag, norm3(e[k]));
+    WVOL_RETURN_IF(diag > 0 && diag < 1e-60, err, WVOL_ERR_ARG,
+                   "%s: its longest edge is %g: quads must be at least 1e-60 across (form factors take fourth "
+                   "powers of lengths); scale the scene",
+                   name, diag);
     WVOL_RETURN_IF(!(diag > 0) || !(nrm > 1e-10 * diag * diag), err, WVOL_ERR_ARG,
                    "%s: degenerate quad (area %g)", name, nrm / 2);
     for (k = 0; k < 3; k++) p->n[k] /= nrm;

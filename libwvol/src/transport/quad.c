@@ -26,6 +26,14 @@ wvol_status wvol_transport_quad_check(const wvol_transport_quad *q, wvol_error *
         for (int c = 0; c < 3; c++)
             WVOL_RETURN_IF(!isfinite(q->p[i][c]), err, WVOL_ERR_NONFINITE, "quad: vertex %d coordinate %d is not finite",
                            i, c);
+    /* the transfer integrals take up to fourth powers of lengths (areas over squared distances,
+     * squared): beyond 1e60, or edges below 1e-60, they leave double's range and came out 0 */
+    for (int i = 0; i < 4; i++)
+        for (int c = 0; c < 3; c++)
+            WVOL_RETURN_IF(fabs(q->p[i][c]) > 1e60, err, WVOL_ERR_ARG,
+                           "quad: vertex %d coordinate %d is %g: coordinates must lie within +-1e60 (the transfer "
+                           "integrals take fourth powers of lengths); scale the scene",
+                           i, c, q->p[i][c]);
     sub3(q->p[1], q->p[0], eu);
     sub3(q->p[3], q->p[0], ev);
     cross3(eu, ev, n);
@@ -33,6 +41,10 @@ wvol_status wvol_transport_quad_check(const wvol_transport_quad *q, wvol_error *
     lv = sqrt(wvol__dot3(ev, ev));
     ln = sqrt(wvol__dot3(n, n));
     scale = lu > lv ? lu : lv;
+    WVOL_RETURN_IF(lu > 0 && lv > 0 && (lu < 1e-60 || lv < 1e-60), err, WVOL_ERR_ARG,
+                   "quad: edges p0p1 and p0p3 of lengths %g and %g: edges must be at least 1e-60 long (the "
+                   "transfer integrals take fourth powers of lengths); scale the scene",
+                   lu, lv);
     WVOL_RETURN_IF(!(lu > 0 && lv > 0) || !(ln > 1e-9 * lu * lv), err, WVOL_ERR_ARG,
                    "quad: degenerate (edges p0p1 and p0p3 of lengths %g and %g span an area of %g)", lu, lv, ln);
     /* p2 must be p1 + p3 - p0: first out of the plane (non-planar), then in it (not a parallelogram) */
