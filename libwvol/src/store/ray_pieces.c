@@ -41,7 +41,11 @@ static size_t lattice(const wvol__spline_geom *c, ray_ws *ws, level_ws *L, doubl
 {
     size_t n[3] = {0, 0, 0}, pos[3] = {0, 0, 0}, total = 2, E = 0;
     int a;
-    double eps = 1e-12 * (fabs(ta) + fabs(tb) + 1.0);
+    /* crossings closer than eps are one: relative to the ray parameter's magnitude and to its
+     * length per voxel (d is the voxel-space direction), never an absolute length, which at a
+     * spacing of 1e-12 merged whole pieces */
+    double dmax = fmax(fabs(d[0]), fmax(fabs(d[1]), fabs(d[2])));
+    double eps = 1e-12 * (fabs(ta) + fabs(tb) + (dmax > 0 ? 1.0 / dmax : 1.0));
     *ok = 1;
     for (a = 0; a < 3; a++) {
         double x0, x1, kd0, kd1;
