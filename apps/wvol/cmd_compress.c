@@ -130,6 +130,10 @@ static int compress_streamed(const char *in, const char *outp, const wvol_load_o
     if (source_in_open(&src, in, lo, &err) != WVOL_OK) return cli_fail_err("compress", &err);
     wvol_source_geometry(src, dims, NULL, NULL);
     nvox = (double)dims[0] * (double)dims[1] * (double)dims[2];
+    if (wvol_dwt_max_levels(dims[0], dims[1], dims[2]) < 1) { /* as the in-memory path says it */
+        rc = cli_fail("compress", "%s: a %zux%zux%zu volume cannot be transformed", in, dims[0], dims[1], dims[2]);
+        goto done;
+    }
     if (cp->levels > 0 && cp->levels > wvol_dwt_max_levels(dims[0], dims[1], dims[2])) {
         rc = cli_usage("compress", "--levels %d: a %zux%zux%zu volume allows 1..%d", cp->levels, dims[0], dims[1],
                        dims[2], wvol_dwt_max_levels(dims[0], dims[1], dims[2]));
@@ -140,9 +144,10 @@ static int compress_streamed(const char *in, const char *outp, const wvol_load_o
     if (chose && choose_wavelet(&wc, src, cp, &err) != WVOL_OK) goto fail;
     if (wvol_filter_get(&f, cp->wavelet, &err) != WVOL_OK) goto fail;
     if (wvol_compress_stream(outp, src, cp, &rep, &err) != WVOL_OK) {
-        /* a target the input cannot meet is bad input (exit 1), whatever the status; the
-         * library's message names the target */
-        rc = psnr > 0 ? cli_fail("compress", "%s", err.message) : cli_fail_err("compress", &err);
+        /* the options were checked above: what fails now is what the input decides (a target or
+         * a step its coefficients cannot have: bad input, exit 1, as the in-memory path), or
+         * reading and writing; the library's message names it */
+        rc = cli_fail("compress", "%s", err.message);
         goto done;
     }
     t_all = cli_now() - t0;

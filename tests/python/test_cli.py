@@ -288,3 +288,18 @@ def test_levels_beyond_a_small_volume_are_refused_for_images_too(wvol, tmp_path)
     r = wvol("iso", v, "-o", tmp_path / "o.exr", "--iso", "0.5", "--method", "raytrace", "--size", "8x8",
              "--keep", "50%", "--json")  # the default (3) fits; without --levels a larger default is capped
     assert r.returncode == 0 and json.loads(r.stdout)["levels"] == 3, r.stderr
+
+
+@pytest.mark.parametrize("mode", [[], ["--in-memory"]])
+def test_streamed_and_in_memory_compression_fail_alike(wvol, tmp_path, mode):
+    """The same input and options: the same exit code and message, streamed or in memory (a step
+    the coefficients cannot have exited 2 streamed and 1 in memory; a 1x1x1 volume was named only
+    in memory)."""
+    big, one = tmp_path / "c30.raw", tmp_path / "one.raw"
+    np.full((8, 8, 8), 1e30, "<f4").tofile(big)
+    np.ones(1, "<f4").tofile(one)
+    r = wvol("compress", big, "--dims", "8x8x8", "-o", tmp_path / "x.wvc", "--step", "0.5", *mode)
+    assert r.returncode == 1 and "step 0.5 is below" in r.stderr, r.stderr
+    r = wvol("compress", one, "--dims", "1x1x1", "-o", tmp_path / "x.wvc", *mode)
+    assert r.returncode == 1 and "one.raw: a 1x1x1 volume cannot be transformed" in r.stderr, r.stderr
+    assert not (tmp_path / "x.wvc").exists()
