@@ -292,13 +292,17 @@ class Store:
     @property
     def predicted_error(self):
         """:class:`ErrorEstimate` from Parseval: the energy of what was dropped (and, for a
-        store read from a .wvc file, the quantisation error its header records). Over the
-        padded grid, so an upper bound of the error over the original voxels. A store whose
-        coefficients were replaced (``coeffs = ...``) has no prediction: ValueError."""
+        store read from a .wvc file, the quantisation error its header records), plus, for a
+        volume on a large offset, what float32 rounding adds there (the selection's
+        ``predicted_l2``). Over the padded grid, so an upper bound of the error over the original
+        voxels. A store whose coefficients were replaced (``coeffs = ...``) has no prediction:
+        ValueError."""
         if self.report.get("replaced"):
             raise ValueError("predicted_error: the coefficients were replaced, so what was dropped is unknown; "
                              "use measured_error()")
-        l2 = math.sqrt(max(self.report["energy_dropped"], 0.0))
+        l2 = self.report.get("predicted_l2")
+        if l2 is None:
+            l2 = math.sqrt(max(self.report["energy_dropped"], 0.0))
         return ErrorEstimate(l2, l2 / math.sqrt(self.voxels), _psnr(l2, self.voxels, self.peak))
 
     def measured_error(self, original=None):

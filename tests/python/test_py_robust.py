@@ -408,3 +408,25 @@ def test_spline_paths_do_not_depend_on_the_spacing():
         if ref is None:
             ref = (img, hits)
         assert np.array_equal(img, ref[0]) and hits == ref[1], s
+
+
+@pytest.mark.parametrize("off", [1e4, 1e5])
+def test_a_store_on_a_large_offset_predicts_an_upper_bound(off):
+    """Data far from 0 against its range: the transforms take the offset out (the round trip is
+    float32's rounding at that magnitude, where it lost every detail before), and the store's
+    predicted error counts float32's share, so it stays an upper bound of the measured one (at
+    1e5 a PSNR-40 store measured 35.3 dB under a prediction of 40.0); where float32 alone cannot
+    hold the target, the selection refuses it."""
+    n = 32
+    z, y, x = np.mgrid[:n, :n, :n] / n
+    s = (np.exp(-((x - .5) ** 2 + (y - .5) ** 2 + (z - .5) ** 2) / 0.05) + 0.33 * np.sin(6 * x)).astype(np.float32)
+    v = (np.float32(off) + s).astype(np.float32)
+    r = np.asarray(wvol.idwt3(wvol.dwt3(v, "db2", 5)).data)
+    assert np.abs(r - v).max() <= np.spacing(np.float32(2 * off))  # one rounding at the samples' magnitude
+    for kw in (dict(psnr=40), dict(keep=0.1), dict()):
+        st = wvol.compress(v, **kw)
+        assert st.measured_error().psnr >= st.predicted_error.psnr - 1e-9, (off, kw)
+        if "psnr" in kw:
+            assert st.measured_error().psnr >= 40 - 0.01
+    with pytest.raises(ValueError, match="float32 alone rounds"):
+        wvol.compress((np.float32(1e6) + s).astype(np.float32), psnr=40)

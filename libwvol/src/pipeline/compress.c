@@ -6,6 +6,8 @@
 #include "core/clock.h"
 #include "core/status_internal.h"
 #include "store/store_build.h"
+#include "pipeline/compress_floor.h"
+#include "wavelet/wavelet_bricks.h"
 
 #include <math.h>
 #include <stdlib.h>
@@ -211,6 +213,23 @@ wvol_status wvol_compress_wvc_params(wvol_wvc_params *wp, const wvol_compress_qu
     return WVOL_OK;
 }
 
+wvol_status wvol__compress_float_floors(wvol_wvc_params *wp, const wvol_compress_quant *q, const wvol_filter *f,
+                                        int levels, const size_t pad[3], double voxels, double vmin, double vmax,
+                                        wvol_error *err)
+{
+    double floor_sse;
+    if (!(q->psnr > 0) || q->step > 0 || !(wp->target_sse > 0)) return WVOL_OK;
+    floor_sse = wvol__f32_floor_sse(fmax(fabs(vmin), fabs(vmax)), voxels, f, levels, pad);
+    if (!(floor_sse >= 1e-3 * wp->target_sse)) return WVOL_OK;
+    WVOL_RETURN_IF(floor_sse > 0.5 * wp->target_sse, err, WVOL_ERR_ARG,
+                   "compress: PSNR %g: the volume's values reach %g over a range of %g, where float32 alone rounds "
+                   "the decoded samples and the low-pass coefficients to about %.1f dB; give a lower PSNR, or "
+                   "compress the volume less its offset",
+                   q->psnr, fmax(fabs(vmin), fabs(vmax)), vmax - vmin, wvol_wvc_psnr(floor_sse, voxels, vmin, vmax));
+    wp->target_sse -= floor_sse;
+    return WVOL_OK;
+}
+
 wvol_status wvol_compress_encode(void **buf, size_t *size, const wvol_compressed *c, const wvol_compress_params *params,
                                  wvol_wvc_report *report, wvol_error *err)
 {
@@ -223,5 +242,10 @@ wvol_status wvol_compress_encode(void **buf, size_t *size, const wvol_compressed
     voxels = (double)c->coeffs->nx * (double)c->coeffs->ny * (double)c->coeffs->nz;
     WVOL_FORWARD(wvol_compress_wvc_params(&wp, &p.quant, c->report.energy_dropped, voxels, c->value_min,
                                           c->value_max, err));
+    {
+        const size_t pad[3] = {c->coeffs->px, c->coeffs->py, c->coeffs->pz};
+        WVOL_FORWARD(wvol__compress_float_floors(&wp, &p.quant, c->coeffs->filter, c->coeffs->levels, pad, voxels,
+                                                 c->value_min, c->value_max, err));
+    }
     return wvol_wvc_encode(buf, size, c->coeffs, &wp, report, err);
 }

@@ -32,6 +32,7 @@
 #include "core/clock.h"
 #include "core/status_internal.h"
 #include "wvol/compress.h"
+#include "pipeline/compress_floor.h"
 #include "wvol/source.h"
 
 /* ---- the rows of a level as the writer's planes ----------------------------------- */
@@ -288,6 +289,7 @@ wvol_status wvol_compress_stream(const char *path, wvol_source *src, const wvol_
     out.value_min = (double)range[0] + 0.0, out.value_max = (double)range[1] + 0.0;
     voxels = (double)dims[0] * (double)dims[1] * (double)dims[2];
     if (!s) s = wvol_compress_wvc_params(&wp, &p.quant, 0.0, voxels, out.value_min, out.value_max, err);
+    if (!s) s = wvol__compress_float_floors(&wp, &p.quant, f, p.levels, pc.p, voxels, out.value_min, out.value_max, err);
     if (!s) s = wvol__wvc_stream_step(pc.stats, &wp, scale, &out.step, NULL, err);
     /* Haar with every coefficient at hand: the in-memory encoder's exact refinement. Haar's
      * coefficients of a piecewise-constant or integer-valued volume take a few distinct

@@ -10,6 +10,7 @@
 
 #include "core/alloc.h"
 #include "store/store_internal.h"
+#include "wavelet/wavelet_bricks.h"
 
 #define NBIN 65536
 
@@ -224,6 +225,18 @@ static double psnr_of(double peak, double rmse)
     return 20.0 * log10(peak / rmse);
 }
 
+/* float32's share of a reconstruction's squared error for data on a large offset (the one the
+ * transforms took out and put into the low-pass band: wavelet_bricks.h, "DC offset"); 0 for data
+ * near 0, whose reconstruction float32 rounds far below anything a selection drops */
+static double float_floor_sse(const wvol_coeffs *c)
+{
+    const size_t p[3] = {c->px, c->py, c->pz};
+    const float mu = wvol__lowpass_offset(c->data, p, c->levels);
+    if (mu == 0.0f) return 0.0;
+    return wvol__f32_floor_sse(fabs((double)mu) / wvol__dc_gain_f32(c->filter, c->levels, p),
+                               (double)c->nx * (double)c->ny * (double)c->nz, c->filter, c->levels, p);
+}
+
 static void fill_report(wvol_select_report *rep, const wvol_coeffs *c, const wvol__layout *ly, const stats *st,
                         const mark *mk, double peak)
 {
@@ -237,7 +250,7 @@ static void fill_report(wvol_select_report *rep, const wvol_coeffs *c, const wvo
     for (int m = 0; m <= ly->levels; m++) rep->energy_total += st->level_energy[m];
     rep->energy_kept = mk->energy_kept;
     rep->energy_dropped = mk->energy_dropped;
-    rep->predicted_l2 = sqrt(mk->energy_dropped);
+    rep->predicted_l2 = sqrt(mk->energy_dropped + float_floor_sse(c));
     rep->predicted_rmse = rep->predicted_l2 / sqrt((double)nvox);
     rep->peak = peak;
     rep->predicted_psnr = psnr_of(peak, rep->predicted_rmse);
@@ -471,8 +484,16 @@ wvol_status wvol_select(wvol_selection **out, const wvol_coeffs *c, const wvol_s
         if (prm->mode == WVOL_SELECT_ENERGY) {
             D = total - prm->energy * total;
         } else {
-            double rmse = peak * pow(10.0, -prm->psnr / 20.0);
+            double rmse = peak * pow(10.0, -prm->psnr / 20.0), fl = float_floor_sse(c);
             D = (double)(c->nx * c->ny * c->nz) * rmse * rmse;
+            if (fl > 0.5 * D) {
+                s = wvol_error_set(err, WVOL_ERR_ARG,
+                                   "selection: PSNR %g: the volume sits on an offset where float32 alone rounds the "
+                                   "reconstruction to about %.1f dB; give a lower PSNR, or the volume less its offset",
+                                   prm->psnr, psnr_of(peak, sqrt(fl / (double)(c->nx * c->ny * c->nz))));
+                goto done;
+            }
+            D -= fl; /* the budget of what the selection drops: float32 takes its share first */
         }
         /* energy that is dropped regardless: the cut levels */
         double fixed = 0.0;

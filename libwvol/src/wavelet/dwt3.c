@@ -86,6 +86,39 @@ wvol_status wvol__dwt_plan(dwt_plan *pl, const void *data, const size_t n[3], co
 #undef T
 #undef SUF
 
+/* The float32 transforms with a large offset taken out (dc_offset.c): forward, the first
+ * slice's offset out of every sample and, times the kernels' gain, into the low-pass band;
+ * inverse, the band's offset out of it and, over the gain, into every sample. The transforms
+ * are periodic on the array they are given, on which a constant goes to the low-pass band
+ * alone, whatever padding made it. */
+static wvol_status forward_f32(float *data, size_t nx, size_t ny, size_t nz, const wvol_filter *f, int levels,
+                               wvol_error *err)
+{
+    const size_t n = nx * ny * nz, p[3] = {nx, ny, nz};
+    const float mu = wvol__slice_offset(data, nx * ny);
+    if (mu != 0.0f)
+        for (size_t i = 0; i < n; i++) data[i] -= mu;
+    WVOL_FORWARD(transform_f32(data, nx, ny, nz, f, levels, 0, 0, err));
+    if (mu != 0.0f) wvol__lowpass_add(data, p, levels, (double)mu * wvol__dc_gain_f32(f, levels, p));
+    return WVOL_OK;
+}
+
+static wvol_status inverse_f32(float *data, size_t nx, size_t ny, size_t nz, const wvol_filter *f, int levels,
+                               wvol_error *err)
+{
+    const size_t n = nx * ny * nz, p[3] = {nx, ny, nz};
+    const float mu = wvol__lowpass_offset(data, p, levels);
+    double back = 0.0;
+    if (mu != 0.0f) {
+        wvol__lowpass_add(data, p, levels, -(double)mu); /* exact: the band lies within a factor 2 of mu */
+        back = (double)mu / wvol__dc_gain_f32(f, levels, p);
+    }
+    WVOL_FORWARD(transform_f32(data, nx, ny, nz, f, levels, 1, 0, err));
+    if (mu != 0.0f)
+        for (size_t i = 0; i < n; i++) data[i] = (float)((double)data[i] + back);
+    return WVOL_OK;
+}
+
 wvol_status wvol_dwt3_inplace_f32(float *data, size_t nx, size_t ny, size_t nz, const wvol_filter *f,
                                   int levels, wvol_error *err)
 {
@@ -95,19 +128,19 @@ wvol_status wvol_dwt3_inplace_f32(float *data, size_t nx, size_t ny, size_t nz, 
     WVOL_FORWARD(wvol__dwt_plan(&pl, data, n, f, levels, sizeof(float), err));
     WVOL_RETURN_IF(!wvol__all_finite(data, nx * ny * nz), err, WVOL_ERR_NONFINITE,
                    "wavelet transform: the input holds NaN or Inf");
-    return transform_f32(data, nx, ny, nz, f, levels, 0, 0, err);
+    return forward_f32(data, nx, ny, nz, f, levels, err);
 }
 
 wvol_status wvol__dwt3_inplace_f32_finite(float *data, size_t nx, size_t ny, size_t nz, const wvol_filter *f,
                                           int levels, wvol_error *err)
 {
-    return transform_f32(data, nx, ny, nz, f, levels, 0, 0, err);
+    return forward_f32(data, nx, ny, nz, f, levels, err);
 }
 
 wvol_status wvol_idwt3_inplace_f32(float *data, size_t nx, size_t ny, size_t nz, const wvol_filter *f,
                                    int levels, wvol_error *err)
 {
-    return transform_f32(data, nx, ny, nz, f, levels, 1, 0, err);
+    return inverse_f32(data, nx, ny, nz, f, levels, err);
 }
 
 wvol_status wvol_dwt3_inplace_f64(double *data, size_t nx, size_t ny, size_t nz, const wvol_filter *f,

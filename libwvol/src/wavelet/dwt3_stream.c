@@ -55,6 +55,8 @@ struct wvol_dwt3_stream {
     float *scratch;
     size_t scratch_per;
     float *last;              /* the last original slice (z padding repeats it) */
+    float offset;             /* taken out of every sample (dc_offset.c; set by the first slice) */
+    double dc;                /* offset x the kernels' gain: added to the coarsest low-pass band */
     size_t pushed;            /* original slices received */
     int finished, failed;
     size_t bytes;
@@ -190,6 +192,15 @@ static wvol_status check_plane(int finite, int level, wvol_error *err)
 
 static wvol_status arrive(wvol_dwt3_stream *s, int m, size_t i, wvol_error *err);
 
+/* The offset back into rows y0 .. y1 - 1 of a z-low output plane of the coarsest level: its
+ * low-low quadrant is the low-pass band (as wvol__lowpass_add does on the whole pyramid). */
+static void lowpass_rows_add(const wvol_dwt3_stream *s, const level_state *l, float *low, size_t y0, size_t y1)
+{
+    const size_t hx = l->cx > 1 ? l->cx / 2 : 1, hy = l->cy > 1 ? l->cy / 2 : 1;
+    for (size_t y = y0; y < y1 && y < hy; y++)
+        for (size_t x = 0; x < hx; x++) low[x + y * l->cx] = (float)((double)low[x + y * l->cx] + s->dc);
+}
+
 /* Called from a task of a running team (a streamed compression's producer, whose team's
  * other threads code chunks: codec/wvc2_writer.h run()): the loops become task loops, so
  * that idle threads of the team share them (a nested parallel region would run on the
@@ -213,6 +224,7 @@ static int zrows_checked(const wvol_dwt3_stream *s, const level_state *l, int m,
         const float *rows[WVOL__MAX_TAPS];
         for (int t = 0; t < s->L; t++) rows[t] = slot(l, (2 * k + (size_t)t) % l->cz);
         wvol__dwt_zrows_f32(lo[j], hi[j], rows, l->cx, y0, y1, l->cz, s->h, s->g, s->L);
+        if (m == s->levels && s->dc != 0.0) lowpass_rows_add(s, l, lo[j], y0, y1);
         if (!wvol__all_finite(lo[j] + y0 * l->cx, cnt) || !wvol__all_finite(hi[j] + y0 * l->cx, cnt)) return 0;
         if (s->piece) s->piece(s->user, m, k, y0, y1, lo[j] + y0 * l->cx, hi[j] + y0 * l->cx);
     }
@@ -264,6 +276,7 @@ static wvol_status emit(wvol_dwt3_stream *s, int m, size_t k0, size_t k1, wvol_e
         /* an untransformed z axis: the xy-transformed slice itself (one row, k = 0), copied
          * only into a room the caller gave */
         float *low = slot(l, 0);
+        if (m == s->levels && s->dc != 0.0) lowpass_rows_add(s, l, low, 0, l->cy);
         WVOL_FORWARD(check_plane(wvol__all_finite(low, l->plane), m, err));
         lo[0] = s->place ? memcpy(lo[0], low, l->plane * sizeof(float)) : low;
         hi[0] = NULL;
@@ -314,7 +327,7 @@ static void take_one(wvol_dwt3_stream *s, const float *slices, size_t z0, size_t
     const float *src = slices ? slices + t * nx * ny : s->last;
     float *dst = slot(l, z0 + t);
     float *scratch = s->scratch + (size_t)omp_get_thread_num() * s->scratch_per;
-    if (nx == l->cx && nx > 1) { /* no padding along x: the x pass reads the source rows */
+    if (nx == l->cx && nx > 1 && s->offset == 0.0f) { /* no padding along x: the x pass reads the source rows */
         wvol__dwt_slice_xy_from_f32(dst, src, nx, ny, l->cx, l->cy, s->h, s->g, s->L, scratch);
         return;
     }
@@ -323,6 +336,8 @@ static void take_one(wvol_dwt3_stream *s, const float *slices, size_t z0, size_t
         float *o = dst + j * l->cx;
         memcpy(o, row, nx * sizeof(float));
         for (size_t i = nx; i < l->cx; i++) o[i] = row[nx - 1];
+        if (s->offset != 0.0f) /* the offset out, as wvol_dwt3 takes it out of the padded samples */
+            for (size_t i = 0; i < l->cx; i++) o[i] -= s->offset;
     }
     wvol__dwt_slice_xy_f32(dst, l->cx, l->cy, s->h, s->g, s->L, scratch);
 }
@@ -349,6 +364,11 @@ wvol_status wvol_dwt3_stream_push(wvol_dwt3_stream *s, const float *slices, size
     WVOL_RETURN_IF(count > s->n[2] - s->pushed, err, WVOL_ERR_ARG,
                    "streamed transform: %zu slices past the volume's %zu", s->pushed + count, s->n[2]);
     slice = s->n[0] * s->n[1];
+    if (!s->pushed && count) { /* the first slice sets the offset, as wvol_dwt3's does */
+        const size_t pad[3] = {s->p[0], s->p[1], s->p[2]};
+        s->offset = wvol__slice_offset(slices, slice);
+        s->dc = s->offset != 0.0f ? (double)s->offset * wvol__dc_gain_f32(s->f, s->levels, pad) : 0.0;
+    }
     for (size_t done = 0; done < count;) {
         size_t b = count - done < s->batch ? count - done : s->batch;
         wvol_status st = take(s, slices + done * slice, s->pushed, b, err);

@@ -16,6 +16,27 @@ wvol_status wvol__coeffs_check(const wvol_coeffs *c, wvol_error *err);
 /* Extent of axis a at level m (0 = the padded grid): 1 stays 1. */
 static inline size_t wvol__extent(size_t p, int m) { return p == 1 ? 1 : p >> m; }
 
+/* ---- DC offset (dc_offset.c) ----------------------------------------------------------
+ * Data far from 0 against its spread goes through the float32 transforms without its offset:
+ * the forward transform subtracts wvol__slice_offset of the first z-slice (0 unless its
+ * midrange is more than 64 times its spread) from every sample and adds offset x
+ * wvol__dc_gain_f32 (the float32 kernels' gain on a constant) to the coarsest low-pass band;
+ * the inverse subtracts wvol__lowpass_offset (the same rule on that band) from it and adds
+ * offset / gain to every sample. Both the in-memory and the streamed transform do it, the
+ * same way. */
+float wvol__slice_offset(const float *slice, size_t n);
+double wvol__dc_gain_f32(const wvol_filter *f, int levels, const size_t pad[3]);
+/* a added (in double, then rounded) to the coarsest low-pass block of a padded p[0] x p[1] x
+ * p[2] Mallat pyramid of `levels` levels */
+void wvol__lowpass_add(float *data, const size_t p[3], int levels, double a);
+float wvol__lowpass_offset(const float *data, const size_t p[3], int levels);
+/* What float32 adds, as a squared error over `voxels` samples, to a reconstruction of data of
+ * magnitude up to `mag` from a pyramid of that gain: the samples rounded at their magnitude
+ * (variance spacing^2 / 12 each) and the coarsest low-pass coefficients at theirs (up to half a
+ * spacing each). The compression's PSNR targets and the selection's predicted error count it
+ * for data on a large offset. */
+double wvol__f32_floor_sse(double mag, double voxels, const wvol_filter *f, int levels, const size_t pad[3]);
+
 /* ---- local reconstruction (partial.c) ---------------------------------------------- */
 
 /* Where a brick reconstruction reads coefficients: gather() fills dst with band `band`
