@@ -1,5 +1,5 @@
 /* SPDX-License-Identifier: MIT */
-/* Data on a large offset through the float32 transforms (wavelet_internal.h, "DC offset").
+/* Data on a large offset through the float32 transforms (wavelet_bricks.h, "DC offset").
  *
  * A volume whose values sit far from 0 against their spread (1e4 + a signal of range 1.4)
  * loses its details in float32 arithmetic: every detail coefficient is a difference of
