@@ -28,26 +28,19 @@ static int slab_format(const char *path)
     return wvol_path_has_ext(path, ".raw") || wvol_path_has_ext(path, ".nrrd") || wvol_path_has_ext(path, ".nhdr");
 }
 
-/* The box [lo, hi) of level `level` into the file at path, slabs of whole slices in order:
- * a slab is about 1/16 of the chunk budget (at least 8 slices, at most the tile depth), so the
- * process holds the decoded chunks (within the budget), one slab and the threads' parts of it. */
+/* The box [lo, hi) of level `level` into the file at path, slabs of whole slices in order (as
+ * many as the library reads at a time: wvol_wvc_region_slab_slices), so the process holds the
+ * decoded chunks (within the budget), one slab and the threads' parts of it. */
 static wvol_status read_region_slabs(wvol_wvc_file *f, const size_t lo[3], const size_t hi[3], int level,
-                                     size_t budget, const char *path, double spacing[3], double *t_write,
-                                     wvol_error *err)
+                                     const char *path, double spacing[3], double *t_write, wvol_error *err)
 {
     const size_t nx = hi[0] - lo[0], ny = hi[1] - lo[1], nz = hi[2] - lo[2], slice = nx * ny * sizeof(float);
-    const size_t dims[3] = {nx, ny, nz}, tile_z = (size_t)wvol_wvc_file_info(f)->tile_z;
-    size_t per = (budget ? budget : WVOL_WVC_DEFAULT_BUDGET) / 16 / slice;
+    const size_t dims[3] = {nx, ny, nz}, per = wvol_wvc_region_slab_slices(f, lo, hi);
     double origin[3];
     float *slab;
     wvol_slab_writer *w = NULL;
     wvol_status s;
     *t_write = 0;
-    if (per < 8) per = 8;
-    /* no thicker than a tile layer: a slab and its halo then meet two layers of every level,
-     * what wvol_wvc_slab_budget sizes the cache for */
-    if (tile_z > 0 && per > tile_z) per = tile_z;
-    if (per > nz) per = nz;
     slab = malloc(per * slice);
     if (!slab) return wvol_error_set(err, WVOL_ERR_NOMEM, "decompress: out of memory for a slab of %zu slices", per);
     for (size_t z = lo[2]; z < hi[2]; z += per) {
@@ -205,7 +198,7 @@ int wvol_cmd_decompress(int argc, char **argv)
                 fprintf(stderr, "decompress: note: --memory %zu bytes is below the %zu bytes of chunks a slab of this box "
                         "needs; chunks evicted between slabs will be decoded again\n", budget, need);
             }
-            if (read_region_slabs(wf, lo, hi, (int)level, budget, outp, spacing, &t_write, &err) != WVOL_OK) {
+            if (read_region_slabs(wf, lo, hi, (int)level, outp, spacing, &t_write, &err) != WVOL_OK) {
                 rc = cli_fail_err("decompress", &err);
                 goto done;
             }

@@ -215,8 +215,13 @@ WVOL_API wvol_status wvol_wvc_level_geometry(const wvol_wvc_info *info, int leve
  * to the same box of wvol_idwt3_level on the whole decoded file up to float rounding. */
 WVOL_API wvol_status wvol_wvc_read_region(wvol_volume **out, wvol_wvc_file *f, const size_t lo[3],
                                           const size_t hi[3], int level, wvol_error *err);
-/* The same box into the caller's array dst ((hi - lo) samples, x fastest), with `threads`
- * threads reconstructing parts of it along y (0: OpenMP's default; 1 in a build without
+/* Slices of the box [lo, hi) a region read makes at a time (wvol_wvc_read_region_into): about
+ * 1/16 of the file's chunk budget in samples (at least 8 slices, at most the tile depth, at most
+ * the box's); 0 for an empty box. A reader that writes its output slab by slab takes as many. */
+WVOL_API size_t wvol_wvc_region_slab_slices(const wvol_wvc_file *f, const size_t lo[3], const size_t hi[3]);
+/* The same box into the caller's array dst ((hi - lo) samples, x fastest), made slab by slab
+ * along z (wvol_wvc_region_slab_slices), with `threads`
+ * threads reconstructing parts of each slab along y (0: OpenMP's default; 1 in a build without
  * OpenMP; each part holds a copy of its samples while it is made), so that a reader can fill its output in place, slab by slab. spacing and
  * origin (either may be NULL) receive the box's. The values equal wvol_wvc_read_region's
  * bit for bit whatever the thread count: every sample is synthesised from the same

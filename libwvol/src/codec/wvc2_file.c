@@ -978,6 +978,19 @@ static wvol_status region_source(wvol__coef_source *src, wvol_wvc_file *f, const
     return WVOL_OK;
 }
 
+size_t wvol_wvc_region_slab_slices(const wvol_wvc_file *f, const size_t lo[3], const size_t hi[3])
+{
+    size_t slice, per;
+    if (!f || !lo || !hi || hi[0] <= lo[0] || hi[1] <= lo[1] || hi[2] <= lo[2]) return 0;
+    slice = (hi[0] - lo[0]) * (hi[1] - lo[1]) * sizeof(float);
+    per = f->budget / 16 / slice;
+    if (per < 8) per = 8;
+    /* no thicker than a tile layer: a slab and its margins then meet two layers of every
+     * level, what wvol_wvc_slab_budget sizes the cache for */
+    if (f->info.tile_z > 0 && per > (size_t)f->info.tile_z) per = (size_t)f->info.tile_z;
+    return per < hi[2] - lo[2] ? per : hi[2] - lo[2];
+}
+
 wvol_status wvol_wvc_read_region_into(float *dst, wvol_wvc_file *f, const size_t lo[3], const size_t hi[3],
                                       int level, int threads, double spacing[3], double origin[3], wvol_error *err)
 {
@@ -990,8 +1003,19 @@ wvol_status wvol_wvc_read_region_into(float *dst, wvol_wvc_file *f, const size_t
     WVOL_FORWARD(region_source(&src, f, lo, hi, level, err));
     WVOL_FORWARD(wvol_filter_get(&flt, f->info.filter, err));
     (void)wvol__wvc_file_error(f, NULL);
-    st = reconstruct_parts(f, dst, &src, lo, hi, threads, err);
-    if (st == WVOL_OK) st = wvol__wvc_file_error(f, err);
+    {
+        /* slab by slab along z: a box made whole held working buffers of about twice its size
+         * beyond the budget, and its gathers pinned more chunks than a small budget holds, which
+         * were then evicted and decoded again without end; a sample does not depend on the box
+         * it is made in, so the slabs give the whole box's bits */
+        const size_t per = wvol_wvc_region_slab_slices(f, lo, hi), plane = (hi[0] - lo[0]) * (hi[1] - lo[1]);
+        st = WVOL_OK;
+        for (size_t z = lo[2]; z < hi[2] && st == WVOL_OK; z += per) {
+            const size_t l[3] = {lo[0], lo[1], z}, h[3] = {hi[0], hi[1], z + per < hi[2] ? z + per : hi[2]};
+            st = reconstruct_parts(f, dst + (z - lo[2]) * plane, &src, l, h, threads, err);
+            if (st == WVOL_OK) st = wvol__wvc_file_error(f, err);
+        }
+    }
     if (st != WVOL_OK) return st;
     region_geometry(f, level, lo, sp, org, &scale);
     for (int a = 0; a < 3; a++) {
