@@ -1004,9 +1004,9 @@ wvol_status wvol_wvc_read_region_into(float *dst, wvol_wvc_file *f, const size_t
     WVOL_FORWARD(wvol_filter_get(&flt, f->info.filter, err));
     (void)wvol__wvc_file_error(f, NULL);
     {
-        /* slab by slab along z: a box made whole held working buffers of about twice its size
-         * beyond the budget, and its gathers pinned more chunks than a small budget holds, which
-         * were then evicted and decoded again without end; a sample does not depend on the box
+        /* slab by slab along z: a box made whole would hold working buffers of about twice its
+         * size beyond the budget, and its gathers could pin more chunks than a small budget
+         * holds, each evicted and decoded again without end; a sample does not depend on the box
          * it is made in, so the slabs give the whole box's bits */
         const size_t per = wvol_wvc_region_slab_slices(f, lo, hi), plane = (hi[0] - lo[0]) * (hi[1] - lo[1]);
         st = WVOL_OK;

@@ -59,7 +59,7 @@ static wvol_status build_patch(rad_patch *p, const wvol_radiosity_quad *q, const
             WVOL_RETURN_IF(!isfinite(q->p[k][c]), err, WVOL_ERR_NONFINITE, "%s: corner %d coordinate %d is %g (not finite)",
                            name, k, c, q->p[k][c]);
     /* form factors take up to fourth powers of lengths: beyond 1e60, or edges below 1e-60, they
-     * leave double's range (convex quads were called degenerate, areas NaN) */
+     * leave double's range (a convex quad would test as degenerate, its area as NaN) */
     for (k = 0; k < 4; k++)
         for (int c = 0; c < 3; c++)
             WVOL_RETURN_IF(fabs(q->p[k][c]) > 1e60, err, WVOL_ERR_ARG,

@@ -43,7 +43,7 @@ static size_t lattice(const wvol__spline_geom *c, ray_ws *ws, level_ws *L, doubl
     int a;
     /* crossings closer than eps are one: relative to the ray parameter's magnitude and to its
      * length per voxel (d is the voxel-space direction), never an absolute length, which at a
-     * spacing of 1e-12 merged whole pieces */
+     * spacing of 1e-12 would merge whole pieces */
     double dmax = fmax(fabs(d[0]), fmax(fabs(d[1]), fabs(d[2])));
     double eps = 1e-12 * (fabs(ta) + fabs(tb) + (dmax > 0 ? 1.0 / dmax : 1.0));
     *ok = 1;
