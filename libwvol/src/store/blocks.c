@@ -724,6 +724,7 @@ static wvol_status build_view(wvol__store_blocks **out, wvol__brick_bounds **bou
     cb->table_lock_ok = pthread_mutex_init(&cb->table_lock, NULL) == 0; /* else no table is kept */
     cb->cs = (wvol__coef_source){.gather = gather_blocks, .ctx = cb, .filter = info.filter, .levels = info.levels,
                                  .dims = {info.nx, info.ny, info.nz}, .pad = {info.px, info.py, info.pz}};
+    if (cb->low && !s->file) cb->cs.dc = wvol__lowpass_offset(cb->low, cb->E, 0); /* the cube is the band */
     /* a store opened on a file: the detail bands come from its chunks, decoded on demand */
     if (s->file) wvol__wvc_file_source(&cb->cs, s->file, 0);
     /* the bound needs every axis transformed; without it every brick is reconstructed */

@@ -146,6 +146,7 @@ void wvol__coef_source_of_coeffs(wvol__coef_source *src, const wvol_coeffs *c)
     src->levels = c->levels;
     src->dims[0] = c->nx, src->dims[1] = c->ny, src->dims[2] = c->nz;
     src->pad[0] = c->px, src->pad[1] = c->py, src->pad[2] = c->pz;
+    src->dc = wvol__lowpass_offset(c->data, src->pad, c->levels);
 }
 
 /* The coarser pyramid of a source: levels m + skip seen as m, the low-pass cube as is. */
@@ -580,6 +581,7 @@ wvol_status wvol__idwt3_brick_src(float *out, const wvol__coef_source *src, cons
     /* bands[b] is scratch slot slot[b] or NULL (all zero); slots 0..7 hold bands, 8..15 spare */
     float *bands[8];
     int slot[8], free_slots[16], nfree = 0, M = src->levels, a, last_ax = -1;
+    double back = 0.0; /* the offset taken out of the low-pass band, in sample units */
     size_t outn = (hi[0] - lo[0]) * (hi[1] - lo[1]) * (hi[2] - lo[2]);
     WVOL_RETURN_IF(M < 0 || M > 32, err, WVOL_ERR_ARG, "brick: %d levels", M);
     brick_regions(src, lo, hi, rlo, rn);
@@ -605,6 +607,11 @@ wvol_status wvol__idwt3_brick_src(float *out, const wvol__coef_source *src, cons
     } else {
         TAKE(0, region_count(rn[M]));
         if (!src->gather(src->ctx, bands[0], M, 0, rlo[M], rn[M])) DROP(0);
+        if (src->dc != 0.0f && bands[0]) { /* the offset out (exact: the band lies within a factor 2 of it) */
+            const size_t cnt = region_count(rn[M]);
+            for (size_t i = 0; i < cnt; i++) bands[0][i] -= src->dc;
+            back = (double)src->dc / wvol__dc_gain_f32(src->filter, M, pad);
+        }
     }
     for (int m = M; m >= 1; m--) {
         size_t cnt = region_count(rn[m]);
@@ -650,6 +657,8 @@ wvol_status wvol__idwt3_brick_src(float *out, const wvol__coef_source *src, cons
     } else {
         memset(out, 0, outn * sizeof *out);
     }
+    if (back != 0.0)
+        for (size_t i = 0; i < outn; i++) out[i] = (float)((double)out[i] + back);
 #undef TAKE
 #undef DROP
     return WVOL_OK;

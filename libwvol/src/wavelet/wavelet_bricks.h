@@ -50,6 +50,11 @@ typedef struct wvol__coef_source {
     const wvol_filter *filter;
     int levels;
     size_t dims[3], pad[3];
+    /* the coarsest low-pass band's offset ("DC offset" above; 0: none): a reconstruction takes
+     * it out of the gathered band and adds it over the gain to its samples, as the whole
+     * inverse does. Set by the makers of sources over bands they hold; 0 keeps the plain
+     * synthesis. */
+    float dc;
 } wvol__coef_source;
 
 void wvol__coef_source_of_coeffs(wvol__coef_source *src, const wvol_coeffs *c);
