@@ -1718,6 +1718,87 @@ static void wvc2_budget_and_damage(void)
     fixture_free(&F);
 }
 
+/* 1e4 + a signal of range about 1.4: data far from 0 against its spread. */
+static double offset_volume_at(const wvol_volume *v, size_t i, size_t j, size_t k, const void *ctx)
+{
+    (void)ctx;
+    return 1e4 + make_volume_at(v, i, j, k, NULL) / 100.0;
+}
+
+/* Data far from 0: region, level and piece reads from a file take the coarsest low-pass band's
+ * offset out and add it back to their samples last, as the whole inverse does, so they agree
+ * with the whole decode to float32's rounding at the samples' magnitude. Synthesising the band
+ * with the offset in it rounded every sum at 1e4's spacing instead: the reads were about ten of
+ * those spacings off the whole decode. */
+static void wvc2_reads_on_a_large_offset(void)
+{
+    const char *path = "test_wvc_offset.wvc";
+    const size_t nx = 40, ny = 32, nz = 44;
+    const int levels = 3;
+    wvol_volume *v = fixture_volume(nx, ny, nz, offset_volume_at, NULL);
+    wvol_coeffs *c = NULL, *dec = NULL;
+    const wvol_filter *flt;
+    wvol_wvc_params p;
+    wvol_wvc_file *wf = NULL;
+    wvol_error err;
+    void *buf = NULL;
+    size_t n = 0;
+    double vmin, vmax;
+    if (!v) return;
+    wvol_volume_range(v, &vmin, &vmax, NULL);
+    CHECK(wvol_filter_get(&flt, "db2", &err) == WVOL_OK && wvol_dwt3(&c, v, flt, levels, &err) == WVOL_OK,
+          "dwt3: %s", err.message);
+    wvol_wvc_params_default(&p);
+    p.value_min = vmin, p.value_max = vmax;
+    p.target_sse = wvol_wvc_sse_for_psnr(70, (double)(nx * ny * nz), vmin, vmax);
+    p.tile = 8, p.tile_z = 8;
+    CHECK(c && wvol_wvc_encode(&buf, &n, c, &p, NULL, &err) == WVOL_OK, "encode: %s", err.message);
+    CHECK(buf && wvol_wvc_save(path, buf, n, &err) == WVOL_OK, "save: %s", err.message);
+    CHECK(buf && wvol_wvc_decode(&dec, buf, n, NULL, NULL, &err) == WVOL_OK, "decode: %s", err.message);
+    CHECK(wvol_wvc_open(&wf, path, 0, &err) == WVOL_OK, "open: %s", err.message);
+    for (int level = 0; wf && dec && level < 2; level++) {
+        double peak = 0, worst_region = 0, worst_piece = 0, tol;
+        wvol_volume *full = level_volume(dec, level, &peak), *reg = NULL;
+        size_t lo[3] = {3, 0, 5}, hi[3], cap, nv;
+        float *work;
+        if (!full) break;
+        /* two roundings at the samples' magnitude (the whole decode's and the read's) */
+        tol = 2.0 * ldexp(1.0, ilogb(peak) - 23);
+        hi[0] = full->nx - 2, hi[1] = full->ny, hi[2] = full->nz - 1;
+        CHECK(wvol_wvc_read_region(&reg, wf, lo, hi, level, &err) == WVOL_OK, "region at level %d: %s", level,
+              err.message);
+        for (size_t k = lo[2]; reg && k < hi[2]; k++)
+            for (size_t j = lo[1]; j < hi[1]; j++)
+                for (size_t i = lo[0]; i < hi[0]; i++) {
+                    double d = fabs((double)reg->data[(i - lo[0]) + reg->nx * ((j - lo[1]) + reg->ny * (k - lo[2]))] -
+                                    (double)full->data[i + full->nx * (j + full->ny * k)]);
+                    worst_region = d > worst_region ? d : worst_region;
+                }
+        lo[0] = 0, hi[0] = full->nx;
+        cap = wvol_wvc_piece_samples(wf, level, lo, hi);
+        nv = full->nx * full->ny * (hi[2] - lo[2]);
+        work = cap ? malloc(cap * sizeof *work) : NULL;
+        CHECK(work && wvol_wvc_read_piece_into(work, cap, wf, lo, hi, level, 1, NULL, NULL, &err) == WVOL_OK,
+              "piece at level %d: %s", level, work ? err.message : "not a piece");
+        for (size_t i = 0; work && i < nv; i++) {
+            double d = fabs((double)work[i] - (double)full->data[i + full->nx * full->ny * lo[2]]);
+            worst_piece = d > worst_piece ? d : worst_piece;
+        }
+        CHECK(worst_region <= tol && worst_piece <= tol,
+              "level %d on an offset of 1e4: region %.3g and piece %.3g from the whole decode (<= %.3g)", level,
+              worst_region, worst_piece, tol);
+        free(work);
+        wvol_volume_destroy(reg);
+        wvol_volume_destroy(full);
+    }
+    wvol_wvc_close(wf);
+    remove(path);
+    wvol_coeffs_destroy(dec);
+    wvol_coeffs_destroy(c);
+    free(buf);
+    wvol_volume_destroy(v);
+}
+
 int main(void)
 {
     const char *fam[] = {"haar", "db2", "coif1", "bl3"};
@@ -1745,6 +1826,7 @@ int main(void)
     wvc2_pieces_equal_the_full_decode("haar", 32, 16, 72, 3, 8, 16);
     wvc2_pieces_equal_the_full_decode("bl3", 32, 32, 32, 2, 16, 8);
     wvc2_pieces_equal_the_full_decode("coif2", 64, 32, 96, 4, 8, 8);
+    wvc2_reads_on_a_large_offset();
     wvc2_budget_and_damage();
     wvc_early_stop_gives_the_coarser_volume();
     wvc_dequant_vector_form_matches_reference();

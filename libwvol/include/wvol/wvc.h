@@ -238,7 +238,9 @@ WVOL_API wvol_status wvol_wvc_read_region_into(float *dst, wvol_wvc_file *f, con
  * wvol_wvc_read_region's up to float rounding. Working memory beyond the box: the work
  * array's few planes of filter margins (wvol_wvc_piece_samples), the cache's decoded chunks
  * (a chain of parents and `threads` chunks in flight: wvol_wvc_piece_budget, which the
- * file's budget must hold) and a z-pass buffer per thread; each chunk is decoded once.
+ * file's budget must hold) and a z-pass buffer per thread; each chunk is decoded once (on a
+ * file's first reconstruction of data far from 0, the coarsest level's once more, one at a
+ * time, to find its low-pass offset: docs/wavelets.md, "Data on an offset").
  * threads: 0 for OpenMP's default. */
 WVOL_API wvol_status wvol_wvc_read_piece_into(float *work, size_t cap, wvol_wvc_file *f, const size_t lo[3],
                                               const size_t hi[3], int level, int threads, double spacing[3],

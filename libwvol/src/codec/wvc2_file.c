@@ -62,6 +62,10 @@ struct wvol_wvc_file {
     skip_ctx skips[WVOL_WVC_MAX_LEVELS + 1];
     double o1[WVOL_WVC_MAX_SECTIONS], d2[WVOL_WVC_MAX_SECTIONS];
     int32_t *zeros;             /* a parent region of an all-zero chunk */
+    /* the coarsest low-pass band's offset (wavelet_bricks.h, "DC offset"), under the lock;
+     * found from the whole band on the first reconstruction (wvol__wvc_file_dc) */
+    float dc;
+    int dc_known;
     /* cache, under the lock */
     centry **slot;
     centry *mru, *lru;
@@ -815,6 +819,9 @@ void wvol__wvc_file_source(wvol__coef_source *src, wvol_wvc_file *f, int skip)
     f->skips[skip].skip = skip;
     src->gather = f->dense ? gather_dense_skip : gather_chunks;
     src->ctx = &f->skips[skip];
+    lock(f);
+    src->dc = f->dc;
+    unlock(f);
     src->filter = flt;
     src->levels = f->info.levels - skip;
     for (int a = 0; a < 3; a++) {
@@ -823,15 +830,97 @@ void wvol__wvc_file_source(wvol__coef_source *src, wvol_wvc_file *f, int skip)
     }
 }
 
+/* The band's offset found: kept for the sources made after (under the lock). */
+static float dc_set(wvol_wvc_file *f, float dc)
+{
+    lock(f);
+    f->dc = dc;
+    f->dc_known = 1;
+    unlock(f);
+    return dc;
+}
+
+/* No offset worth finding: no levels (nothing is synthesised), or the data's own range near 0
+ * against its spread, where what taking one out gains is below float32's rounding of the
+ * spread (and not worth decoding the band for). */
+static int dc_ruled_out(const wvol_wvc_file *f)
+{
+    return f->info.levels == 0 || wvol__band_range_offset(f->info.value_min, f->info.value_max) == 0.0f;
+}
+
 wvol_status wvol__wvc_file_lowpass(wvol_wvc_file *f, float *dst, wvol_error *err)
 {
     wvol__coef_source src;
     ptrdiff_t lo[3] = {0, 0, 0}, n[3];
+    size_t e[3];
+    wvol_status st;
     wvol__wvc_file_source(&src, f, 0);
-    for (int a = 0; a < 3; a++) n[a] = (ptrdiff_t)(src.pad[a] > 1 ? src.pad[a] >> f->info.levels : 1);
+    for (int a = 0; a < 3; a++) {
+        n[a] = (ptrdiff_t)(src.pad[a] > 1 ? src.pad[a] >> f->info.levels : 1);
+        e[a] = (size_t)n[a];
+    }
     if (!src.gather(src.ctx, dst, f->info.levels, 0, lo, n))
         memset(dst, 0, (size_t)(n[0] * n[1] * n[2]) * sizeof *dst);
-    return wvol__wvc_file_error(f, err);
+    st = wvol__wvc_file_error(f, err);
+    if (st == WVOL_OK) (void)dc_set(f, dc_ruled_out(f) ? 0.0f : wvol__lowpass_offset(dst, e, 0)); /* band at hand */
+    return st;
+}
+
+wvol_status wvol__wvc_file_dc(wvol_wvc_file *f, float *dc, wvol_error *err)
+{
+    wvol__coef_source src;
+    const wvc2_geom *g;
+    double lo = INFINITY, hi = -INFINITY;
+    size_t t[3], cap;
+    float *tile, v;
+    wvol_status st = WVOL_OK;
+    int known;
+    lock(f);
+    known = f->dc_known;
+    v = f->dc;
+    unlock(f);
+    if (!known) {
+        if (dc_ruled_out(f)) v = dc_set(f, 0.0f);
+        else if (f->dense) /* version 1 holds the band in memory */
+            v = dc_set(f, wvol__lowpass_offset(f->dense->data, (size_t[3]){f->dense->px, f->dense->py, f->dense->pz},
+                                               f->info.levels));
+        else
+            known = -1;
+    }
+    if (known >= 0) {
+        if (dc) *dc = v;
+        return WVOL_OK;
+    }
+    /* tile by tile: a read under the least budget pins one chunk at a time */
+    g = &f->x->g;
+    cap = (size_t)g->tile[0] * (size_t)g->tile[1] * (size_t)g->tile[2];
+    tile = malloc(cap * sizeof *tile);
+    WVOL_RETURN_IF(!tile, err, WVOL_ERR_NOMEM, "%s: out of memory for a tile of the low-pass band", f->path);
+    wvol__wvc_file_source(&src, f, 0);
+    (void)wvol__wvc_file_error(f, NULL);
+    for (t[2] = 0; t[2] < g->lv[g->levels].nt[2] && st == WVOL_OK; t[2]++)
+        for (t[1] = 0; t[1] < g->lv[g->levels].nt[1] && st == WVOL_OK; t[1]++)
+            for (t[0] = 0; t[0] < g->lv[g->levels].nt[0] && st == WVOL_OK; t[0]++) {
+                ptrdiff_t b0[3], bn[3];
+                size_t cnt = 1;
+                for (int a = 0; a < 3; a++) {
+                    const size_t T = (size_t)g->tile[a], x0 = t[a] * T, e = g->lv[g->levels].e[a];
+                    b0[a] = (ptrdiff_t)x0;
+                    bn[a] = (ptrdiff_t)(x0 + T < e ? T : e - x0);
+                    cnt *= (size_t)bn[a];
+                }
+                if (!src.gather(src.ctx, tile, g->levels, 0, b0, bn)) memset(tile, 0, cnt * sizeof *tile);
+                st = wvol__wvc_file_error(f, err);
+                for (size_t i = 0; i < cnt && st == WVOL_OK; i++) {
+                    lo = tile[i] < lo ? tile[i] : lo;
+                    hi = tile[i] > hi ? tile[i] : hi;
+                }
+            }
+    free(tile);
+    if (st != WVOL_OK) return st;
+    v = dc_set(f, wvol__band_range_offset(lo, hi));
+    if (dc) *dc = v;
+    return WVOL_OK;
 }
 
 void wvol__wvc_file_level_max(const wvol_wvc_file *f, int m, float *max, size_t nt[3], size_t tile[3])
@@ -975,6 +1064,7 @@ static wvol_status region_source(wvol__coef_source *src, wvol_wvc_file *f, const
         WVOL_RETURN_IF(lo[a] >= hi[a] || hi[a] > src->dims[a], err, WVOL_ERR_ARG,
                        "wvc region: box %zu..%zu along axis %d is empty or outside 0..%zu (level %d)", lo[a], hi[a],
                        a, src->dims[a], level);
+    WVOL_FORWARD(wvol__wvc_file_dc(f, &src->dc, err)); /* the source was made before it was known */
     return WVOL_OK;
 }
 

@@ -289,6 +289,8 @@ wvol_status wvol_wvc_read_piece_into(float *work, size_t cap, wvol_wvc_file *f, 
     const wvc2_geom *g;
     float h[MAX_TAPS], gg[MAX_TAPS];
     size_t need, T;
+    float dc = 0.0f;
+    double back = 0.0;
     wvol_status st = WVOL_OK;
     WVOL_RETURN_IF(!work || !f || !lo || !hi, err, WVOL_ERR_ARG, "wvc piece: missing argument");
     WVOL_FORWARD(wvol__threads_check(threads, "wvc piece", err));
@@ -306,6 +308,7 @@ wvol_status wvol_wvc_read_piece_into(float *work, size_t cap, wvol_wvc_file *f, 
                    "%s: memory budget of %zu bytes is below the %zu bytes a piece read with %d threads pins at once "
                    "(wvol_wvc_piece_budget)",
                    wvol__wvc_file_path(f), wvol__wvc_file_budget(f), need, threads);
+    WVOL_FORWARD(wvol__wvc_file_dc(f, &dc, err));
     for (int i = 0; i < flt->length; i++) {
         h[i] = (float)flt->h[i];
         gg[i] = (float)flt->g[i];
@@ -352,8 +355,21 @@ wvol_status wvol_wvc_read_piece_into(float *work, size_t cap, wvol_wvc_file *f, 
     }
     ctx_free(&C);
     WVOL_FORWARD(wvol__wvc_file_error(f, err));
+    if (dc != 0.0f) { /* the band's offset out, back into the samples last, as every inverse does */
+        const size_t ex = P.PX >> (P.M - P.s), ey = P.PY >> (P.M - P.s), pad[3] = {P.PX, P.PY, 2};
+        for (size_t z = 0; z < P.n[P.M]; z++)
+            for (size_t y = 0; y < ey; y++) {
+                float *row = work + P.PX * (y + P.PY * z);
+                for (size_t x = 0; x < ex; x++) row[x] -= dc;
+            }
+        back = (double)dc / wvol__dc_gain_f32(flt, P.M - P.s, pad);
+    }
     for (int m = P.M; m > P.s && st == WVOL_OK; m--) st = synth_level(&P, m, work, h, gg, threads, err);
     if (st != WVOL_OK) return st;
+    if (back != 0.0) {
+        const size_t nv = P.PX * P.PY * P.n[P.s];
+        for (size_t i = 0; i < nv; i++) work[i] = (float)((double)work[i] + back);
+    }
     {
         /* wvol_idwt3_level's values: the level-s low-pass times 2^{-s/2} per axis */
         const wvol_wvc_info *I = wvol_wvc_file_info(f);

@@ -25,8 +25,15 @@ const char *wvol__wvc_file_path(const wvol_wvc_file *f);
 wvol_status wvol__wvc_file_error(wvol_wvc_file *f, wvol_error *err);
 
 /* The low-pass cube of the coarsest level (dims px >> levels etc.), dequantised, into
- * dst. */
+ * dst; it also finds the band's offset (below). */
 wvol_status wvol__wvc_file_lowpass(wvol_wvc_file *f, float *dst, wvol_error *err);
+
+/* The coarsest low-pass band's offset (wavelet_bricks.h, "DC offset") into *dc (dc may be
+ * NULL), found once (decoding that band, a chunk at a time) and kept: the sources made after
+ * carry it as their dc, so that every reconstruction from the file takes it out and adds it
+ * back as the whole inverse does. A source made before carries none (dc 0). Opening a file
+ * decodes nothing; the first reconstruction calls this. */
+wvol_status wvol__wvc_file_dc(wvol_wvc_file *f, float *dc, wvol_error *err);
 
 /* max |c| over the chunks of level m that cover band positions [lo, hi] (inclusive,
  * taken periodically) of any band, from the index (no decoding); for bounds. Fills

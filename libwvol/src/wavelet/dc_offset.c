@@ -83,6 +83,8 @@ float wvol__lowpass_offset(const float *data, const size_t p[3], int levels)
     return offset_of(lo, hi, 1);
 }
 
+float wvol__band_range_offset(double lo, double hi) { return offset_of(lo, hi, 1); }
+
 /* float32's spacing at |x| (its ulp), as a double */
 static double f32_spacing(double x)
 {

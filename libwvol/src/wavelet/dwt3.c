@@ -161,7 +161,15 @@ wvol_status wvol__idwt3_partial_f32(float *data, size_t nx, size_t ny, size_t nz
     WVOL_RETURN_IF(stop < 0 || stop > levels, err, WVOL_ERR_ARG,
                    "partial inverse: stop level %d outside 0..%d", stop, levels);
     if (stop == levels) return WVOL_OK;
-    return transform_f32(data, nx, ny, nz, f, levels, 1, stop, err);
+    {
+        /* the band's offset out and back into level stop's low-pass last, as inverse_f32 does */
+        const size_t p[3] = {nx, ny, nz};
+        const float mu = wvol__lowpass_offset(data, p, levels);
+        if (mu != 0.0f) wvol__lowpass_add(data, p, levels, -(double)mu);
+        WVOL_FORWARD(transform_f32(data, nx, ny, nz, f, levels, 1, stop, err));
+        if (mu != 0.0f) wvol__lowpass_add(data, p, stop, (double)mu / wvol__dc_gain_f32(f, levels - stop, p));
+        return WVOL_OK;
+    }
 }
 
 /* ---- kernels of the streamed transform (dwt3_stream.c), float32 --------------------- */

@@ -30,6 +30,8 @@ double wvol__dc_gain_f32(const wvol_filter *f, int levels, const size_t pad[3]);
  * p[2] Mallat pyramid of `levels` levels */
 void wvol__lowpass_add(float *data, const size_t p[3], int levels, double a);
 float wvol__lowpass_offset(const float *data, const size_t p[3], int levels);
+/* wvol__lowpass_offset's rule on a band whose values span [lo, hi], found piece by piece */
+float wvol__band_range_offset(double lo, double hi);
 /* What float32 adds, as a squared error over `voxels` samples, to a reconstruction of data of
  * magnitude up to `mag` from a pyramid of that gain: the samples rounded at their magnitude
  * (variance spacing^2 / 12 each) and the coarsest low-pass coefficients at theirs (up to half a
