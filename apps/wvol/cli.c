@@ -280,7 +280,19 @@ int cli_check_wvc_store(const char *cmd, const wvol_compressed *c, int json)
     wvol_error err;
     if (!c->store || !wvol_store_is_file(c->store)) return CLI_OK;
     wvol_error_clear(&err);
-    if (wvol_store_file_stats(c->store, &cs, &err) != WVOL_OK) return cli_fail_err(cmd, &err);
+    memset(&cs, 0, sizeof cs);
+    if (wvol_store_file_stats(c->store, &cs, &err) != WVOL_OK) {
+        const int rc = cli_fail_err(cmd, &err);
+        /* the run went on past the first excess, each chunk decoded still: its peak is what
+         * the requests held at once, the budget that would have held them */
+        if (err.status == WVOL_ERR_NOMEM && cs.peak > cs.budget) {
+            const int mib = cs.peak >= ((size_t)16 << 20); /* K below 16 MiB, M above (rounded up) */
+            const size_t unit = (size_t)1 << (mib ? 20 : 10);
+            fprintf(stderr, "wvol %s: its requests held up to %zu bytes of chunks at once: --memory %zu%c would have held them\n",
+                    cmd, cs.peak, (cs.peak + unit - 1) / unit, mib ? 'M' : 'K');
+        }
+        return rc;
+    }
     if (json) {
         cli_json_wvc_cache("chunks", &cs, wvol_store_file_info(c->store)->chunks);
     } else {

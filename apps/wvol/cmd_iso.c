@@ -287,6 +287,9 @@ static int run_mc(const iso_args *a)
             best_st = st;
         }
     }
+    /* a chunk of a .wvc found damaged, or a budget exceeded, while meshing fails the command
+     * before any output */
+    if (!v && (rc = cli_check_wvc_store("iso", &kept, 0)) != CLI_OK) goto done;
     if (a->out) {
         double t1 = cli_now();
         if (wvol_mesh_save(m, a->out, &err) != WVOL_OK) {
@@ -296,7 +299,6 @@ static int run_mc(const iso_args *a)
         t_save = cli_now() - t1;
     }
     if (best_st.empty && !a->json) fprintf(stderr, "wvol iso: %s\n", best_st.message);
-    if (!v && (rc = cli_check_wvc_store("iso", &kept, 0)) != CLI_OK) goto done;
     report(a, &kept, m, &best_st, best, first, cpu, t_load, t_save, coarse, level_energy, t_level);
 done:
     wvol_volume_destroy(coarse);

@@ -40,10 +40,12 @@ static int parse_roi(PyObject *roi, wvol_select_params *prm)
             goto fail;
         }
         if (!(entry = PySequence_Tuple(item))) goto fail;
-        ok = PyArg_ParseTuple(entry, "OO|d;roi entry must be (center, radii[, power])", &c, &r, &power);
+        /* c and r are borrowed from entry, whose items may be its own (an array's rows are made
+         * by the iteration): entry lives until they are read */
+        ok = PyArg_ParseTuple(entry, "OO|d;roi entry must be (center, radii[, power])", &c, &r, &power) &&
+             wvolpy_triple(c, e->center, "roi center") == 0 && wvolpy_triple(r, e->radii, "roi radii") == 0;
         Py_DECREF(entry);
         if (!ok) goto fail;
-        if (wvolpy_triple(c, e->center, "roi center") < 0 || wvolpy_triple(r, e->radii, "roi radii") < 0) goto fail;
         e->power = power;
     }
     prm->n_ellipsoids = (int)n;

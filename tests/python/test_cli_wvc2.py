@@ -5,6 +5,7 @@ peak of the process measured; every command that takes a volume takes a .wvc; a 
 chunk fails only the regions that need it, naming it; a budget too small is refused."""
 import json
 import os
+import re
 import subprocess
 import zlib
 
@@ -278,6 +279,25 @@ def test_damage_is_named_and_confined(wvc):
     r = subprocess.run([WVOL_BIN, "decompress", str(f), "-o", str(d / "z.raw"), "--roi", "0,0,0,8,8,8",
                         "--memory", "1K"], capture_output=True, text=True)
     assert r.returncode == 1 and "budget" in r.stderr, r.stderr
+
+
+def test_a_budget_exceeded_writes_nothing_and_names_what_would_do(wvc):
+    """iso and render from a .wvc under a budget above one chain of chunks but below what one
+    request pins: the run goes on to its end (a gather cannot stop it), then fails before any
+    output (iso wrote its mesh first), giving the most its requests held at once as a --memory;
+    on one thread that --memory then holds them (with more, the threads' timing moves it)."""
+    d, f, _ = wvc
+    for cmd, extra in (("iso", ["--iso", "300"]), ("render", ["--size", "64x64", "--full-resolution"])):
+        out = d / ("budget." + ("ply" if cmd == "iso" else "png"))
+        r = subprocess.run([WVOL_BIN, cmd, str(f), "-o", str(out), *extra, "--memory", "300K", "--threads", "1"],
+                           capture_output=True, text=True)
+        assert r.returncode == 1 and "exceeded" in r.stderr, r.stderr
+        assert not out.exists(), cmd
+        m = re.search(r"--memory (\d+K) would have held them", r.stderr)
+        assert m, r.stderr
+        r = subprocess.run([WVOL_BIN, cmd, str(f), "-o", str(out), *extra, "--memory", m.group(1), "--threads", "1"],
+                           capture_output=True, text=True)
+        assert r.returncode == 0 and out.exists(), r.stderr
 
 
 def test_python_region_equals_the_whole_decode(wvc):

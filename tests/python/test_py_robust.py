@@ -5,6 +5,8 @@ hands buffers over without leaking or aliasing."""
 import concurrent.futures as cf
 import gc
 import os
+import subprocess
+import sys
 
 import numpy as np
 import pytest
@@ -308,6 +310,22 @@ def test_roi_entries_may_be_any_sequence():
     for bad in ([None], ["ab"], [3]):
         with pytest.raises(TypeError, match="roi entry 0"):
             wvol.compress(v, keep=0.1, roi=bad)
+
+
+def test_roi_array_entries_are_read_before_they_are_freed():
+    """An array entry's rows are made by its iteration, owned by the tuple the parser makes of
+    it: the centre and radii were read after that tuple was freed (a use after free that left
+    the heap corrupted and crashed a later, unrelated test). Python's debug allocator, which
+    overwrites freed memory, makes that a wrong value or a crash every time."""
+    code = ("import numpy as np, wvol\n"
+            "v = wvol.synth.gaussian(shape=(16, 16, 16))\n"
+            "want = wvol.compress(v, keep=0.1, roi=[((8, 8, 8), (4, 4, 4))]).kept\n"
+            "for _ in range(5):\n"
+            "    assert wvol.compress(v, keep=0.1, roi=[np.array([[8, 8, 8], [4, 4, 4]])]).kept == want\n"
+            "    assert wvol.compress(v, keep=0.1, roi=[np.array([[8, 8, 8], [4, 4, 4], [1, 1, 1]])[:2]]).kept == want\n")
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                       env={**os.environ, "PYTHONMALLOC": "debug"})
+    assert r.returncode == 0, r.stderr[-2000:]
 
 
 def test_isosurface_stats_and_normals_of_empty_and_full_meshes():
