@@ -1778,8 +1778,17 @@ static void wvc2_reads_on_a_large_offset(void)
         cap = wvol_wvc_piece_samples(wf, level, lo, hi);
         nv = full->nx * full->ny * (hi[2] - lo[2]);
         work = cap ? malloc(cap * sizeof *work) : NULL;
-        CHECK(work && wvol_wvc_read_piece_into(work, cap, wf, lo, hi, level, 1, NULL, NULL, &err) == WVOL_OK,
-              "piece at level %d: %s", level, work ? err.message : "not a piece");
+        {
+            /* a file of its own under the least budget a piece read takes: finding the offset
+             * (the coarsest level decoded a chunk at a time) fits in it too */
+            wvol_wvc_file *pf = NULL;
+            CHECK(wvol_wvc_open(&pf, path, 0, &err) == WVOL_OK, "open: %s", err.message);
+            CHECK(pf && wvol_wvc_set_budget(pf, wvol_wvc_piece_budget(pf, 1), &err) == WVOL_OK, "budget: %s",
+                  err.message);
+            CHECK(pf && work && wvol_wvc_read_piece_into(work, cap, pf, lo, hi, level, 1, NULL, NULL, &err) == WVOL_OK,
+                  "piece at level %d: %s", level, work ? err.message : "not a piece");
+            wvol_wvc_close(pf);
+        }
         for (size_t i = 0; work && i < nv; i++) {
             double d = fabs((double)work[i] - (double)full->data[i + full->nx * full->ny * lo[2]]);
             worst_piece = d > worst_piece ? d : worst_piece;
