@@ -28,13 +28,18 @@ static PyArrayObject *label_array(PyObject *obj, const wvol_volume *v, int as_ma
             return NULL;
         }
         if (!as_mask && PyArray_SIZE(in) > 0) {
-            PyObject *mx = PyArray_Max(in, NPY_MAXDIMS, NULL), *mn = PyArray_Min(in, NPY_MAXDIMS, NULL);
-            long long hi = mx ? PyLong_AsLongLong(mx) : 0, lo = mn ? PyLong_AsLongLong(mn) : 0;
+            /* each step only after the one before succeeded: no NumPy call with an error pending */
+            PyObject *mx = PyArray_Max(in, NPY_MAXDIMS, NULL), *mn = mx ? PyArray_Min(in, NPY_MAXDIMS, NULL) : NULL;
+            long long hi = mn ? PyLong_AsLongLong(mx) : 0, lo = 0;
+            int fits = 0;
+            if (mn && !PyErr_Occurred()) lo = PyLong_AsLongLong(mn);
             Py_XDECREF(mx);
             Py_XDECREF(mn);
-            if (PyErr_Occurred() || hi > INT32_MAX || lo < INT32_MIN) {
-                PyErr_Clear();
-                PyErr_Format(PyExc_ValueError, "%s: class ids must fit int32", what);
+            if (mn && !PyErr_Occurred()) fits = hi <= INT32_MAX && lo >= INT32_MIN;
+            else if (mn && PyErr_ExceptionMatches(PyExc_OverflowError)) PyErr_Clear(); /* beyond 64 bits */
+            if (!fits) {
+                /* a failure of its own (out of memory) stays the error; a range is named */
+                if (!PyErr_Occurred()) PyErr_Format(PyExc_ValueError, "%s: class ids must fit int32", what);
                 Py_DECREF(in);
                 return NULL;
             }
@@ -99,17 +104,7 @@ static PyObject *py_segment(PyObject *self, PyObject *args, PyObject *kw)
     fp.include_lowpass = lowpass;
     for (int a = 0; a < 3; a++) sp.dims[a] = sd[a];
     sp.iterations = iters;
-    if (seed_obj && seed_obj != Py_None) {
-        unsigned long long x = PyLong_AsUnsignedLongLong(seed_obj);
-        if (PyErr_Occurred()) {
-            if (PyErr_ExceptionMatches(PyExc_OverflowError)) {
-                PyErr_Clear();
-                PyErr_SetString(PyExc_ValueError, "seed must be an integer in 0..2^64-1");
-            }
-            return NULL;
-        }
-        sp.seed = (uint64_t)x;
-    }
+    if (wvolpy_seed(seed_obj, &sp.seed) < 0) return NULL;
     if (!(variance > 0 && variance <= 1))
         return wvolpy_value_error("variance must be in (0, 1], got %g", variance);
     if (wvol_filter_get(&f, name, &err) != WVOL_OK) return wvolpy_raise(&err);

@@ -21,7 +21,7 @@ static int parse_roi(PyObject *roi, wvol_select_params *prm)
     PyObject *seq;
     Py_ssize_t n;
     if (roi == Py_None) return 0;
-    seq = PySequence_Fast(roi, "roi must be a sequence of (center, radii[, power]) tuples");
+    seq = wvolpy_fast_snapshot(roi, "roi must be a sequence of (center, radii[, power]) tuples");
     if (!seq) return -1;
     n = PySequence_Fast_GET_SIZE(seq);
     if (n > WVOL_LOD_MAX_ELLIPSOIDS) {
@@ -61,12 +61,12 @@ static PyObject *report_dict(const wvol_select_report *r)
     PyObject *lk = PyList_New(r->levels + 1), *lt = PyList_New(r->levels + 1);
     PyObject *le = PyList_New(r->levels + 1), *lek = PyList_New(r->levels + 1);
     if (!lk || !lt || !le || !lek) goto fail;
-    for (int m = 0; m <= r->levels; m++) {
-        PyList_SET_ITEM(lk, m, PyLong_FromSize_t(r->level_kept[m]));
-        PyList_SET_ITEM(lt, m, PyLong_FromSize_t(m == 0 ? r->kept_lowpass : r->level_total[m]));
-        PyList_SET_ITEM(le, m, PyFloat_FromDouble(r->level_energy[m]));
-        PyList_SET_ITEM(lek, m, PyFloat_FromDouble(r->level_energy_kept[m]));
-    }
+    for (int m = 0; m <= r->levels; m++)
+        if (wvolpy_list_set(lk, m, PyLong_FromSize_t(r->level_kept[m])) < 0 ||
+            wvolpy_list_set(lt, m, PyLong_FromSize_t(m == 0 ? r->kept_lowpass : r->level_total[m])) < 0 ||
+            wvolpy_list_set(le, m, PyFloat_FromDouble(r->level_energy[m])) < 0 ||
+            wvolpy_list_set(lek, m, PyFloat_FromDouble(r->level_energy_kept[m])) < 0)
+            goto fail;
     return Py_BuildValue("{s:n,s:n,s:n,s:n,s:d,s:d,s:d,s:d,s:d,s:d,s:d,s:d,s:i,s:d,s:d,s:d,s:d,s:N,s:N,s:N,s:N}",
                          "total", (Py_ssize_t)r->total, "kept", (Py_ssize_t)r->kept, "kept_lowpass",
                          (Py_ssize_t)r->kept_lowpass, "candidates", (Py_ssize_t)r->candidates, "key_cut",

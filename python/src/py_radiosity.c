@@ -38,10 +38,11 @@ static int to_scene(PyObject *obj, wvol_radiosity_scene **out)
         if (!PyArg_ParseTuple(obj, "OOO;scene must be a name, an .obj path or (quads, emission, reflectance)", &qo,
                               &eo, &ro))
             return -1;
-        q = (PyArrayObject *)PyArray_FROM_OTF(qo, NPY_DOUBLE, NPY_ARRAY_IN_ARRAY);
-        e = (PyArrayObject *)PyArray_FROM_OTF(eo, NPY_DOUBLE, NPY_ARRAY_IN_ARRAY);
-        r = (PyArrayObject *)PyArray_FROM_OTF(ro, NPY_DOUBLE, NPY_ARRAY_IN_ARRAY);
-        if (!q || !e || !r) goto done;
+        /* one after the other: a conversion runs Python code, not with an error pending */
+        if (!(q = (PyArrayObject *)PyArray_FROM_OTF(qo, NPY_DOUBLE, NPY_ARRAY_IN_ARRAY)) ||
+            !(e = (PyArrayObject *)PyArray_FROM_OTF(eo, NPY_DOUBLE, NPY_ARRAY_IN_ARRAY)) ||
+            !(r = (PyArrayObject *)PyArray_FROM_OTF(ro, NPY_DOUBLE, NPY_ARRAY_IN_ARRAY)))
+            goto done;
         n = PyArray_NDIM(q) == 3 ? PyArray_DIM(q, 0) : -1;
         if (n < 0 || PyArray_DIM(q, 1) != 4 || PyArray_DIM(q, 2) != 3) {
             PyErr_SetString(PyExc_ValueError, "quads must have shape (n, 4, 3)");

@@ -57,9 +57,8 @@ static const char *opt_str(PyObject *opts, const char *key, const char *dflt)
 static int parse_tf(PyObject *opts, wvol_tf *tf, double vmin, double vmax)
 {
     PyObject *o = PyDict_GetItemString(opts, "tf");
-    const char *units = opt_str(opts, "tf_units", "world");
+    const char *units;
     wvol_error err;
-    if (!units) return -1;
     memset(tf, 0, sizeof *tf);
     if (!o || o == Py_None || PyUnicode_Check(o)) {
         const char *spec = (!o || o == Py_None) ? "gaussian" : PyUnicode_AsUTF8(o);
@@ -75,7 +74,7 @@ static int parse_tf(PyObject *opts, wvol_tf *tf, double vmin, double vmax)
         return 0;
     }
     {
-        PyObject *seq = PySequence_Fast(o, "tf must be a preset name, a file, or a list of (value, r, g, b, opacity)");
+        PyObject *seq = wvolpy_fast_snapshot(o, "tf must be a preset name, a file, or a list of (value, r, g, b, opacity)");
         Py_ssize_t n;
         if (!seq) return -1;
         n = PySequence_Fast_GET_SIZE(seq);
@@ -101,6 +100,9 @@ static int parse_tf(PyObject *opts, wvol_tf *tf, double vmin, double vmax)
         }
         Py_DECREF(seq);
         tf->count = (int)n;
+        /* read after the points: their conversions run Python code, which could replace the
+         * string this pointer would lie in */
+        if (!(units = opt_str(opts, "tf_units", "world"))) return -1;
         if (!strcmp(units, "diagonal")) tf->per_diagonal = 1;
         else if (strcmp(units, "world")) {
             PyErr_Format(PyExc_ValueError, "tf_units '%s': expected 'world' or 'diagonal'", units);
@@ -297,13 +299,18 @@ static PyObject *py_render_context_new(PyObject *self, PyObject *args)
 
 /* The context of opts "context" (a capsule) set to render src: a store other than the one it
  * holds state for replaces it (everything kept dropped), a dense volume is set each frame (its
- * array is this call's; nothing is kept for it). NULL without a context; -1 on error. */
-static int context_for(PyObject *opts, PyObject *src_obj, const wvol_render_source *src, py_context **out)
+ * array is this call's; nothing is kept for it). NULL without a context; -1 on error. On
+ * success with a context, *hold is a new reference to its capsule, which the caller releases
+ * after the frame: without the GIL, another thread could drop the dict's reference and the
+ * capsule's destructor would free the context under the render. */
+static int context_for(PyObject *opts, PyObject *src_obj, const wvol_render_source *src, py_context **out,
+                       PyObject **hold)
 {
     PyObject *cap = PyDict_GetItemString(opts, "context");
     py_context *pc;
     wvol_error err;
     *out = NULL;
+    *hold = NULL;
     if (!cap || cap == Py_None) return 0;
     if (!(pc = PyCapsule_GetPointer(cap, CONTEXT_CAPSULE))) return -1;
     if (pc->busy) {
@@ -324,6 +331,8 @@ static int context_for(PyObject *opts, PyObject *src_obj, const wvol_render_sour
             pc->store = src->store;
         }
     }
+    Py_INCREF(cap);
+    *hold = cap;
     *out = pc;
     return 0;
 }
@@ -356,6 +365,7 @@ static PyObject *py_render(PyObject *self, PyObject *args)
     double vmin, vmax;
     int want_bound = 0;
     py_context *pc = NULL;
+    PyObject *pc_hold = NULL;
     (void)self;
     if (!PyArg_ParseTuple(args, "OOOO!", &src_obj, &sp, &org, &PyDict_Type, &opts)) return NULL;
     if (parse_params(opts, &rp, &J) < 0) return NULL;
@@ -408,7 +418,7 @@ static PyObject *py_render(PyObject *self, PyObject *args)
     if (parse_colors(opts, &g, &rp, &colors) < 0) goto done;
     memset(&st, 0, sizeof st);
     memset(&bs, 0, sizeof bs);
-    if (context_for(opts, src_obj, &src, &pc) < 0) goto done;
+    if (context_for(opts, src_obj, &src, &pc, &pc_hold) < 0) goto done;
     if (pc) pc->busy = 1;
     Py_BEGIN_ALLOW_THREADS
     s = wvol_image_create(&img, cam.width, cam.height, &err);
@@ -422,6 +432,7 @@ static PyObject *py_render(PyObject *self, PyObject *args)
                                                                                           &tf, &rp, &bs, &err);
     Py_END_ALLOW_THREADS
     if (pc) pc->busy = 0;
+    Py_XDECREF(pc_hold);
     Py_XDECREF(holder);
     Py_XDECREF(colors);
     if (s != WVOL_OK) {

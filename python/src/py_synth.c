@@ -38,17 +38,7 @@ static PyObject *py_synth(PyObject *self, PyObject *args, PyObject *kw)
         }
     }
     if (sp != Py_None && wvolpy_triple(sp, p.spacing, "spacing") < 0) return NULL;
-    if (seed_obj && seed_obj != Py_None) {
-        unsigned long long sd = PyLong_AsUnsignedLongLong(seed_obj);
-        if (PyErr_Occurred()) {
-            if (PyErr_ExceptionMatches(PyExc_OverflowError)) {
-                PyErr_Clear();
-                PyErr_SetString(PyExc_ValueError, "seed must be an integer in 0..2^64-1");
-            }
-            return NULL;
-        }
-        p.seed = (uint64_t)sd;
-    }
+    if (wvolpy_seed(seed_obj, &p.seed) < 0) return NULL;
     if (!isfinite(noise) || noise < 0) return PyErr_Format(PyExc_ValueError, "noise must be finite and >= 0");
     if (!isfinite(sigma) || sigma < 0) return PyErr_Format(PyExc_ValueError, "sigma must be finite and >= 0");
     p.noise = noise;

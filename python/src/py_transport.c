@@ -110,14 +110,16 @@ static PyObject *py_coefficients(PyObject *self, PyObject *args, PyObject *kw)
     wvol_transport_params p;
     const char *qn = "trapezoid";
     int level, samples = 16;
-    unsigned long long seed = 1;
+    uint64_t seed = 1;
+    PyObject *seed_obj = NULL;
     double *T;
     npy_intp n;
     wvol_error err;
     wvol_status s = WVOL_OK;
     (void)self;
-    if (!PyArg_ParseTupleAndKeywords(args, kw, "OO(iiiii)i|siK", kwlist, &so, &dobj, &j.level, &j.m[0], &j.m[1], &j.m[2],
-                                     &j.m[3], &level, &qn, &samples, &seed))
+    if (!PyArg_ParseTupleAndKeywords(args, kw, "OO(iiiii)i|siO", kwlist, &so, &dobj, &j.level, &j.m[0], &j.m[1], &j.m[2],
+                                     &j.m[3], &level, &qn, &samples, &seed_obj) ||
+        wvolpy_seed(seed_obj, &seed) < 0)
         return NULL;
     if (parse_quad(so, &sq, "src") < 0 || parse_quad(dobj, &dq, "dst") < 0) return NULL;
     if (parse_params(&p, 1, qn, samples, seed, 0) < 0) return NULL;
@@ -157,12 +159,14 @@ static PyObject *py_run(PyObject *self, PyObject *args, PyObject *kw)
     wvol_transport_stats st;
     const char *qn = "trapezoid";
     int levels = 3, samples = 16, oracle = 1;
-    unsigned long long seed = 1;
+    uint64_t seed = 1;
+    PyObject *seed_obj = NULL;
     wvol_error err;
     wvol_status s;
     (void)self;
-    if (!PyArg_ParseTupleAndKeywords(args, kw, "OOO|isiKp", kwlist, &cells, &so, &dobj, &levels, &qn, &samples, &seed,
-                                     &oracle))
+    if (!PyArg_ParseTupleAndKeywords(args, kw, "OOO|isiOp", kwlist, &cells, &so, &dobj, &levels, &qn, &samples, &seed_obj,
+                                     &oracle) ||
+        wvolpy_seed(seed_obj, &seed) < 0)
         return NULL;
     if (parse_quad(so, &sq, "src") < 0 || parse_quad(dobj, &dq, "dst") < 0) return NULL;
     if (parse_params(&p, levels, qn, samples, seed, oracle) < 0) return NULL;

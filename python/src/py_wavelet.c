@@ -18,7 +18,11 @@ static PyObject *py_filters(PyObject *self, PyObject *noargs)
         const wvol_filter *f = wvol_filter_at(i);
         PyObject *h = PyList_New(f->length), *d;
         if (!h) goto fail;
-        for (int k = 0; k < f->length; k++) PyList_SET_ITEM(h, k, PyFloat_FromDouble(f->h[k]));
+        for (int k = 0; k < f->length; k++)
+            if (wvolpy_list_set(h, k, PyFloat_FromDouble(f->h[k])) < 0) {
+                Py_DECREF(h);
+                goto fail;
+            }
         d = Py_BuildValue("{s:s,s:i,s:i,s:N,s:i,s:d,s:d}", "name", f->name, "order", f->order, "taps",
                           f->length, "h", h, "vanishing_moments", f->vanishing_moments, "defect", f->defect,
                           "center", f->center);

@@ -65,8 +65,9 @@ static PyObject *py_wvc_file_info(PyObject *self, PyObject *cap)
         size_t g[3];
         double o[3];
         (void)wvol_wvc_level_geometry(in, s, g, NULL, o, NULL); /* checked above: the same filter, s in range */
-        PyList_SET_ITEM(shapes, s, Py_BuildValue("(nnn)", (Py_ssize_t)g[2], (Py_ssize_t)g[1], (Py_ssize_t)g[0]));
-        PyList_SET_ITEM(origins, s, Py_BuildValue("(ddd)", o[0], o[1], o[2]));
+        if (wvolpy_list_set(shapes, s, Py_BuildValue("(nnn)", (Py_ssize_t)g[2], (Py_ssize_t)g[1], (Py_ssize_t)g[0])) < 0 ||
+            wvolpy_list_set(origins, s, Py_BuildValue("(ddd)", o[0], o[1], o[2])) < 0)
+            goto fail;
     }
     if (PyDict_SetItemString(d, "level_shapes", shapes) < 0 || PyDict_SetItemString(d, "level_origins", origins) < 0)
         goto fail;
@@ -121,7 +122,7 @@ fail:
 
 static int size3(PyObject *o, size_t out[3], const char *what)
 {
-    PyObject *seq = PySequence_Fast(o, what);
+    PyObject *seq = wvolpy_fast_snapshot(o, what);
     if (!seq) return -1;
     if (PySequence_Fast_GET_SIZE(seq) != 3) {
         PyErr_Format(PyExc_ValueError, "%s must have 3 entries (x, y, z)", what);
@@ -188,11 +189,13 @@ static PyObject *py_wvc_file_region(PyObject *self, PyObject *args, PyObject *kw
         return NULL;
     } else {
         o = (PyArrayObject *)out_o;
-        if (PyArray_TYPE(o) != NPY_FLOAT32 || PyArray_NDIM(o) != 3 || !PyArray_IS_C_CONTIGUOUS(o) ||
-            !PyArray_ISWRITEABLE(o) || PyArray_DIM(o, 0) != want[0] || PyArray_DIM(o, 1) != want[1] ||
+        /* the type number of '>f4' is float32's too: the byte order and alignment are checked */
+        if (PyArray_TYPE(o) != NPY_FLOAT32 || PyArray_NDIM(o) != 3 || !PyArray_ISCARRAY(o) ||
+            !PyArray_ISNOTSWAPPED(o) || PyArray_DIM(o, 0) != want[0] || PyArray_DIM(o, 1) != want[1] ||
             PyArray_DIM(o, 2) != want[2]) {
             PyErr_Format(PyExc_ValueError,
-                         "out must be a writable C-contiguous float32 array of shape (%ld, %ld, %ld) (z, y, x)",
+                         "out must be a writable, aligned, C-contiguous float32 array in the machine's byte "
+                         "order of shape (%ld, %ld, %ld) (z, y, x)",
                          (long)want[0], (long)want[1], (long)want[2]);
             return NULL;
         }

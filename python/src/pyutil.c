@@ -329,6 +329,38 @@ Py_ssize_t wvolpy_first_nonfinite3(const float *p, Py_ssize_t n3)
     return -1;
 }
 
+int wvolpy_list_set(PyObject *list, Py_ssize_t i, PyObject *item)
+{
+    if (!item) return -1;
+    PyList_SET_ITEM(list, i, item);
+    return 0;
+}
+
+int wvolpy_seed(PyObject *obj, uint64_t *out)
+{
+    unsigned long long v;
+    if (!obj || obj == Py_None) return 0;
+    v = PyLong_AsUnsignedLongLong(obj);
+    if (PyErr_Occurred()) {
+        if (PyErr_ExceptionMatches(PyExc_OverflowError)) {
+            PyErr_Clear();
+            PyErr_SetString(PyExc_ValueError, "seed must be an integer in 0..2^64-1");
+        }
+        return -1;
+    }
+    *out = (uint64_t)v;
+    return 0;
+}
+
+PyObject *wvolpy_fast_snapshot(PyObject *o, const char *msg)
+{
+    PyObject *seq = PySequence_Fast(o, msg), *t;
+    if (!seq || !PyList_Check(seq)) return seq; /* a tuple, or a list of its own */
+    t = PyList_AsTuple(seq);
+    Py_DECREF(seq);
+    return t;
+}
+
 int wvolpy_triple(PyObject *obj, double out[3], const char *what)
 {
     PyObject *seq;
@@ -339,7 +371,7 @@ int wvolpy_triple(PyObject *obj, double out[3], const char *what)
         out[0] = out[1] = out[2] = v;
         return 0;
     }
-    seq = PySequence_Fast(obj, "expected a number or a sequence of 3 numbers");
+    seq = wvolpy_fast_snapshot(obj, "expected a number or a sequence of 3 numbers");
     if (!seq) return -1;
     if (PySequence_Fast_GET_SIZE(seq) != 3) {
         PyErr_Format(PyExc_ValueError, "%s: expected 3 values (x, y, z), got %zd", what,

@@ -90,6 +90,18 @@ Py_ssize_t wvolpy_first_nonfinite3(const float *p, Py_ssize_t n3);
  * (negative numbers and non-integers refused with a ValueError / TypeError naming the budget). */
 int wvolpy_conv_budget(PyObject *obj, void *out);
 
+/* PyList_SET_ITEM of a new reference that may be NULL (a failed allocation, its error set):
+ * -1 then, and the list's slot stays empty (a list frees with its NULL slots). */
+int wvolpy_list_set(PyObject *list, Py_ssize_t i, PyObject *item);
+
+/* A seed: an int in 0..2^64-1 into *out (None or NULL leaves it); 0, or -1 with a ValueError
+ * (out of range) or TypeError (not an int). */
+int wvolpy_seed(PyObject *obj, uint64_t *out);
+
+/* PySequence_Fast whose items stay put while they are read: a list the caller passed (which an
+ * item's __float__ or __index__ could shrink or clear mid-loop) comes back as a tuple copy. */
+PyObject *wvolpy_fast_snapshot(PyObject *o, const char *msg);
+
 /* Parses an optional 3-sequence of floats (x, y, z order); returns 0 or -1 with exception. */
 int wvolpy_triple(PyObject *obj, double out[3], const char *what);
 

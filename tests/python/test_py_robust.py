@@ -328,6 +328,104 @@ def test_roi_array_entries_are_read_before_they_are_freed():
     assert r.returncode == 0, r.stderr[-2000:]
 
 
+# Run under Python's debug allocator (freed memory overwritten): each case read an item of the
+# caller's own list after Python code it ran (an item's __float__ or __index__, a NumPy
+# conversion) had cleared that list, or a string or render context after its last reference
+# went; each crashed or read garbage there.
+_MUTATED_DURING_READ = """
+import threading, time
+import numpy as np, wvol
+from wvol import _wvol
+v = wvol.synth.gaussian(shape=(16, 16, 16))
+def shrinking(values, make, spot):
+    lst = []
+    class Hook:
+        def __init__(self, x): self.x = x
+        def __float__(self): lst.clear(); return float(self.x)
+        def __index__(self): lst.clear(); return int(self.x)
+    lst[:] = [Hook(x) if i == spot else x for i, x in enumerate(values)]
+    return lst
+want = wvol.compress(v, keep=0.1, roi=[((8, 8, 8), (4, 4, 4))]).kept
+roi = []
+class F:
+    def __float__(self): roi.clear(); return 8.0
+roi[:] = [((F(), 8, 8), (4, 4, 4)), ((8, 8, 8), (4, 4, 4))]
+assert wvol.compress(v, keep=0.1, roi=roi).kept == want
+sp = shrinking([1.0, 1.0, 1.0], float, 0)
+assert wvol.synth.blobs(shape=(8, 8, 8), spacing=sp).spacing == (1.0, 1.0, 1.0)
+tf = []
+class G:
+    def __float__(self): tf.clear(); return 0.0
+tf[:] = [(G(), 1, 0, 0, 0.0), (1.0, 1, 1, 1, 1.0)]
+assert wvol.render(v, size=(8, 8), tf=tf).shape == (8, 8, 4)
+path = {path!r}
+wvol.compress(v).save(path)
+f = _wvol.wvc_file_open(path)
+lo = shrinking([0, 0, 0], int, 0)
+assert _wvol.wvc_file_region(f, lo, [4, 4, 4])[0].shape == (4, 4, 4)
+opts = {{"width": 8, "height": 8, "tf_units": "".join(["wor", "ld"]) + "x" * 200}}
+class U:
+    def __float__(self): opts["tf_units"] = "world"; return 0.0
+opts["tf"] = [(U(), 1, 0, 0, 0.0), (1.0, 1, 1, 1, 1.0)]
+assert _wvol.render(np.asarray(v.data), None, None, opts)[0].shape == (8, 8, 4)
+# a render context dropped by another thread while a frame renders with it
+h = wvol.compress(wvol.synth.blobs(shape=(48, 48, 48)))._handle
+ropts = {{"width": 256, "height": 256, "method": "bricks", "context": _wvol.render_context_new(0)}}
+ref = _wvol.render(h, None, None, {{"width": 256, "height": 256, "method": "bricks"}})[0]
+t0 = time.time(); _wvol.render(h, None, None, dict(ropts)); dt = time.time() - t0
+out = []
+th = threading.Thread(target=lambda: out.append(_wvol.render(h, None, None, ropts)[0]))
+th.start(); time.sleep(dt * 0.3); ropts.pop("context"); th.join()
+assert np.array_equal(out[0], ref)
+"""
+
+
+def test_items_read_after_python_code_ran_stay_valid(tmp_path):
+    code = _MUTATED_DURING_READ.format(path=str(tmp_path / "m.wvc"))
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                       env={**os.environ, "PYTHONMALLOC": "debug"})
+    assert r.returncode == 0, r.stderr[-3000:]
+
+
+def test_region_out_must_be_in_native_byte_order(tmp_path):
+    """'>f4' has float32's type number: the reader wrote native floats into it (values like
+    -6.6e20 came back); now it is refused, as a misaligned array is."""
+    path = str(tmp_path / "o.wvc")
+    wvol.compress(wvol.synth.gaussian(shape=(8, 8, 8))).save(path)
+    f = wvol._wvol.wvc_file_open(path)
+    with pytest.raises(ValueError, match="byte order"):
+        wvol._wvol.wvc_file_region(f, [0, 0, 0], [8, 8, 8], out=np.zeros((8, 8, 8), ">f4"))
+    raw = np.zeros(8 * 8 * 8 * 4 + 1, np.uint8)[1:].view(np.float32).reshape(8, 8, 8)
+    assert not raw.flags.aligned
+    with pytest.raises(ValueError, match="aligned"):
+        wvol._wvol.wvc_file_region(f, [0, 0, 0], [8, 8, 8], out=raw)
+    good = np.zeros((8, 8, 8), np.float32)
+    wvol._wvol.wvc_file_region(f, [0, 0, 0], [8, 8, 8], out=good)
+    assert np.abs(good - np.asarray(wvol.open(path).reconstruct().data)).max() < 1e-5
+
+
+def test_transport_seeds_outside_64_bits_are_refused():
+    """The transport calls parsed the seed without an overflow check: 2**64 + 1 ran as 1 and -1 as
+    2**64 - 1; refused now, as synth and segment refuse them."""
+    import wvol.transport as T
+    src = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], float)
+    dst = np.array([[0, 0, 1], [0, 1, 1], [1, 1, 1], [1, 0, 1]], float)
+    T.coefficients(src, dst, (0, 0, 0, 0, 0), 1, "monte-carlo", 8, 2 ** 64 - 1)
+    for bad in (2 ** 64 + 1, -1):
+        with pytest.raises(ValueError, match="seed"):
+            T.coefficients(src, dst, (0, 0, 0, 0, 0), 1, "monte-carlo", 8, bad)
+
+
+def test_a_scene_whose_quads_fail_keeps_that_error():
+    """The emission and reflectance conversions ran with the quads' error pending: Python code
+    they called saw it, and the caller got a SystemError instead of the quads' error."""
+    class A:
+        def __array__(self, dtype=None):
+            raise AssertionError("converted with an error pending")
+    with pytest.raises(ValueError, match="could not convert"):
+        wvol._wvol.radiosity_scene(("xyz", A(), A()))
+
+
 def test_isosurface_stats_and_normals_of_empty_and_full_meshes():
     """data_range is measured only for an empty mesh (to say why), None otherwise; an
     empty mesh's normals are an empty array unless normals='none'."""
