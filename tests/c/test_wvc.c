@@ -10,6 +10,9 @@
 #include <string.h>
 #include <unistd.h>
 #include <zlib.h>
+#ifdef _OPENMP
+#include <omp.h>
+#endif
 
 #include "check.h"
 #include "fixtures.h"
@@ -1709,6 +1712,39 @@ static void wvc2_budget_and_damage(void)
               err.message);
         CHECK(wvol_wvc_read_region(&r, wf, lo, hi, 1, &err) == WVOL_OK, "the coarser level there decodes: %s",
               err.message);
+        {
+            /* two threads reading at once, one the damaged box and one the far box, each
+             * call its own error: the far reads all succeed with the samples read alone, the
+             * near ones all fail (a shared slot handed one's error to the other, or cleared it
+             * and returned zeros as success) */
+            int near_ok = 0, far_bad = 0;
+#pragma omp parallel num_threads(2)
+            {
+#ifdef _OPENMP
+                const int near = omp_get_thread_num() == 0;
+#else
+                const int near = 0; /* one thread: the far reads alone */
+#endif
+                float *box = malloc(8 * 8 * 8 * sizeof *box);
+                wvol_error e;
+                for (int it = 0; box && it < 200; it++) {
+                    const wvol_status st =
+                        wvol_wvc_read_region_into(box, wf, near ? lo : far_lo, near ? hi : far_hi, 0, 1, NULL, NULL, &e);
+                    if (near && st == WVOL_OK) {
+#pragma omp atomic
+                        near_ok++;
+                    }
+                    if (!near && (st != WVOL_OK || (r2 && memcmp(box, r2->data, 8 * 8 * 8 * sizeof *box)))) {
+#pragma omp atomic
+                        far_bad++;
+                    }
+                }
+                free(box);
+            }
+            CHECK(near_ok == 0 && far_bad == 0,
+                  "concurrent reads keep their own errors: %d near reads succeeded, %d far reads failed or differed",
+                  near_ok, far_bad);
+        }
         wvol_wvc_close(wf);
     }
     wvol_volume_destroy(r);

@@ -47,9 +47,12 @@ typedef struct centry {
 static centry decoding_marker;
 #define DECODING (&decoding_marker)
 
+/* A source's context: the file, the levels skipped, where its gathers' errors go (NULL: the
+ * file's own slot) */
 typedef struct skip_ctx {
     wvol_wvc_file *f;
     int skip;
+    wvc2_read_errors *E;
 } skip_ctx;
 
 struct wvol_wvc_file {
@@ -72,8 +75,7 @@ struct wvol_wvc_file {
     size_t budget, held, peak, chunk_max;
     size_t chain;               /* one decoded chunk per level: the least budget (format 2) */
     uint64_t decoded, decoded_narrow, hits, bytes_read;
-    wvol_status first_status;
-    char first_message[sizeof(((wvol_error *)0)->message)];
+    wvc2_read_errors errors;    /* the stores' reads' (wvc2_read.h) */
     /* reconstruction scratch kept between region reads (under the lock): a reader that
      * fills its output slab by slab reuses the same buffers instead of faulting in fresh
      * pages for every slab */
@@ -105,27 +107,33 @@ static void unlock(wvol_wvc_file *f)
 #endif
 }
 
-/* The first error of a gather is kept for the caller (gathers cannot return one). */
-static void record(wvol_wvc_file *f, wvol_status s, const char *fmt, const char *a, const char *b)
+/* The first error of a read is kept for it in E (NULL: the file's slot), gathers and pins
+ * being unable to return one. */
+static void record(wvol_wvc_file *f, wvc2_read_errors *E, wvol_status s, const char *fmt, const char *a,
+                   const char *b)
 {
+    wvc2_read_errors *T = E ? E : &f->errors;
     lock(f);
-    if (f->first_status == WVOL_OK) {
-        f->first_status = s;
-        snprintf(f->first_message, sizeof f->first_message, fmt, a, b);
+    if (T->status == WVOL_OK) {
+        T->status = s;
+        snprintf(T->message, sizeof T->message, fmt, a, b);
     }
     unlock(f);
 }
 
-wvol_status wvol__wvc_file_error(wvol_wvc_file *f, wvol_error *err)
+wvol_status wvol__wvc_file_read_error(wvol_wvc_file *f, wvc2_read_errors *E, wvol_error *err)
 {
+    wvc2_read_errors *T = E ? E : &f->errors;
     wvol_status s;
     lock(f);
-    s = f->first_status;
-    if (s != WVOL_OK) wvol_error_set(err, s, "%s: %s", f->path, f->first_message);
-    f->first_status = WVOL_OK;
+    s = T->status;
+    if (s != WVOL_OK) wvol_error_set(err, s, "%s: %s", f->path, T->message);
+    T->status = WVOL_OK;
     unlock(f);
     return s;
 }
+
+wvol_status wvol__wvc_file_error(wvol_wvc_file *f, wvol_error *err) { return wvol__wvc_file_read_error(f, NULL, err); }
 
 /* The bytes an entry of chunk (m, t) holds resident with values of es bytes: the values in
  * whole huge pages (the cache's buffers are huge pages, which a decode fills whole) and the
@@ -228,6 +236,8 @@ wvol_status wvol_wvc_open(wvol_wvc_file **out, const char *path, size_t budget, 
     *out = NULL;
     f = calloc(1, sizeof *f);
     WVOL_RETURN_IF(!f, err, WVOL_ERR_NOMEM, "wvc open: out of memory");
+    for (int s = 0; s <= WVOL_WVC_MAX_LEVELS; s++) /* the stores' sources' contexts, never written after */
+        f->skips[s] = (skip_ctx){.f = f, .skip = s, .E = NULL};
 #ifdef _OPENMP
     omp_init_lock(&f->lock);
 #endif
@@ -430,7 +440,7 @@ static void evict(wvol_wvc_file *f)
     evict_for(f, 0, NULL);
 }
 
-static centry *get_chunk(wvol_wvc_file *f, size_t id);
+static centry *get_chunk(wvol_wvc_file *f, wvc2_read_errors *E, size_t id);
 
 /* Scratch kept between reads: a pool of at most SPARE_SCRATCH items of `size` bytes at
  * `pool` (*n of them), under the lock. take copies one out, or zeros when the pool is
@@ -458,7 +468,7 @@ static int pool_give(wvol_wvc_file *f, void *pool, int *n, size_t size, const vo
 
 /* Reads and decodes chunk id (not all zero) into a new entry; reuse, when not NULL, is a
  * buffer of its decoded values' size (evict_for) that the entry takes (freed on failure). */
-static centry *decode_chunk(wvol_wvc_file *f, size_t id, void *reuse)
+static centry *decode_chunk(wvol_wvc_file *f, wvc2_read_errors *E, size_t id, void *reuse)
 {
     const wvc2_geom *g = &f->x->g;
     const wvc2_chunk *c = &f->x->chunks[id];
@@ -481,7 +491,7 @@ static centry *decode_chunk(wvol_wvc_file *f, size_t id, void *reuse)
         pid = wvc2_chunk_id(g, m + 1, pt);
         wvc2_tile_box(g, m + 1, pt, po, pe);
         if (f->x->chunks[pid].bytes) {
-            P = get_chunk(f, pid);
+            P = get_chunk(f, E, pid);
             if (!P) {
                 free(reuse);
                 return NULL;
@@ -519,7 +529,7 @@ static centry *decode_chunk(wvol_wvc_file *f, size_t id, void *reuse)
         free(e);
         free(pay);
         release(f, P);
-        record(f, WVOL_ERR_NOMEM, "out of memory decoding a chunk%s%s", "", "");
+        record(f, E, WVOL_ERR_NOMEM, "out of memory decoding a chunk%s%s", "", "");
         return NULL;
     }
     for (int k = 0; k < nb; k++) {
@@ -543,7 +553,7 @@ static centry *decode_chunk(wvol_wvc_file *f, size_t id, void *reuse)
     free(pay);
     release(f, P);
     if (why) {
-        record(f, WVOL_ERR_FORMAT, ".wvc %s: %s", d, why);
+        record(f, E, WVOL_ERR_FORMAT, ".wvc %s: %s", d, why);
         free(e->q[0]);
         free(e);
         return NULL;
@@ -564,7 +574,7 @@ static centry *decode_chunk(wvol_wvc_file *f, size_t id, void *reuse)
 
 /* The decoded chunk id, pinned (release it), or NULL after recording an error. The
  * chunk must not be all zero (index bytes 0). */
-static centry *get_chunk(wvol_wvc_file *f, size_t id)
+static centry *get_chunk(wvol_wvc_file *f, wvc2_read_errors *E, size_t id)
 {
     centry *e, *mine;
     void *reuse = NULL;
@@ -586,7 +596,7 @@ static centry *get_chunk(wvol_wvc_file *f, size_t id)
     evict_for(f, entry_bytes(f, id), &reuse);
     f->slot[id] = DECODING;
     unlock(f);
-    mine = decode_chunk(f, id, reuse);
+    mine = decode_chunk(f, E, id, reuse);
     lock(f);
     if (!mine) {
         f->slot[id] = NULL;
@@ -608,16 +618,16 @@ static centry *get_chunk(wvol_wvc_file *f, size_t id)
     if (over) {
         char b[64];
         snprintf(b, sizeof b, "%zu", f->budget);
-        record(f, WVOL_ERR_NOMEM,
+        record(f, E, WVOL_ERR_NOMEM,
                "memory budget of %s bytes exceeded by the chunks one request holds at once%s (raise --memory)", b,
                "");
     }
     return mine;
 }
 
-void *wvol__wvc_file_pin(wvol_wvc_file *f, size_t id, void *const **q, int *es)
+void *wvol__wvc_file_pin(wvol_wvc_file *f, wvc2_read_errors *E, size_t id, void *const **q, int *es)
 {
-    centry *e = get_chunk(f, id);
+    centry *e = get_chunk(f, E, id);
     if (e && q) *q = e->q;
     if (e && es) *es = e->es;
     return e;
@@ -641,13 +651,14 @@ size_t wvol__wvc_file_budget(const wvol_wvc_file *f) { return f->budget; }
 typedef struct pins {
     centry *e[PINS];
     size_t n, next;
+    wvc2_read_errors *E; /* the gather's read's */
 } pins;
 
 static centry *pin(wvol_wvc_file *f, pins *p, size_t id)
 {
     for (size_t i = 0; i < p->n; i++)
         if (p->e[i]->id == id) return p->e[i];
-    centry *e = get_chunk(f, id);
+    centry *e = get_chunk(f, p->E, id);
     if (!e) return NULL;
     if (p->n < PINS) {
         p->e[p->n++] = e;
@@ -761,6 +772,7 @@ static int gather_chunks(const void *ctx, float *dst, int mm, int band, const pt
         d2 = f->d2[s];
     }
     memset(&P, 0, sizeof P);
+    P.E = sc->E;
     if (!band_may_be_nonzero(f, &P, m, k, lo, n)) {
         unpin_all(f, &P);
         return 0; /* every chunk there is empty or has this band all zero: the caller skips it */
@@ -809,14 +821,20 @@ static int gather_dense_skip(const void *ctx, float *dst, int mm, int band, cons
     return sc->f->dense_src.gather(sc->f->dense_src.ctx, dst, m, mm == 0 ? 0 : band, lo, n);
 }
 
+/* A source for one read, whose gathers record their errors in E through ctx (the caller's). */
+static void read_source(wvol__coef_source *src, skip_ctx *ctx, wvol_wvc_file *f, int skip, wvc2_read_errors *E)
+{
+    wvol__wvc_file_source(src, f, skip);
+    *ctx = (skip_ctx){.f = f, .skip = skip, .E = E};
+    src->ctx = ctx;
+}
+
 void wvol__wvc_file_source(wvol__coef_source *src, wvol_wvc_file *f, int skip)
 {
     const wvol_filter *flt = NULL;
     size_t n[3] = {f->info.nx, f->info.ny, f->info.nz}, p[3] = {f->info.px, f->info.py, f->info.pz};
     memset(src, 0, sizeof *src);
     wvol_filter_get(&flt, f->info.filter, NULL);
-    f->skips[skip].f = f;
-    f->skips[skip].skip = skip;
     src->gather = f->dense ? gather_dense_skip : gather_chunks;
     src->ctx = &f->skips[skip];
     lock(f);
@@ -851,17 +869,19 @@ static int dc_ruled_out(const wvol_wvc_file *f)
 wvol_status wvol__wvc_file_lowpass(wvol_wvc_file *f, float *dst, wvol_error *err)
 {
     wvol__coef_source src;
+    skip_ctx ctx;
+    wvc2_read_errors E = {0};
     ptrdiff_t lo[3] = {0, 0, 0}, n[3];
     size_t e[3];
     wvol_status st;
-    wvol__wvc_file_source(&src, f, 0);
+    read_source(&src, &ctx, f, 0, &E);
     for (int a = 0; a < 3; a++) {
         n[a] = (ptrdiff_t)(src.pad[a] > 1 ? src.pad[a] >> f->info.levels : 1);
         e[a] = (size_t)n[a];
     }
     if (!src.gather(src.ctx, dst, f->info.levels, 0, lo, n))
         memset(dst, 0, (size_t)(n[0] * n[1] * n[2]) * sizeof *dst);
-    st = wvol__wvc_file_error(f, err);
+    st = wvol__wvc_file_read_error(f, &E, err);
     if (st == WVOL_OK) (void)dc_set(f, dc_ruled_out(f) ? 0.0f : wvol__lowpass_offset(dst, e, 0)); /* band at hand */
     return st;
 }
@@ -869,6 +889,8 @@ wvol_status wvol__wvc_file_lowpass(wvol_wvc_file *f, float *dst, wvol_error *err
 wvol_status wvol__wvc_file_dc(wvol_wvc_file *f, float *dc, wvol_error *err)
 {
     wvol__coef_source src;
+    skip_ctx ctx;
+    wvc2_read_errors E = {0};
     const wvc2_geom *g;
     double lo = INFINITY, hi = -INFINITY;
     size_t t[3], cap;
@@ -896,8 +918,7 @@ wvol_status wvol__wvc_file_dc(wvol_wvc_file *f, float *dc, wvol_error *err)
     cap = (size_t)g->tile[0] * (size_t)g->tile[1] * (size_t)g->tile[2];
     tile = malloc(cap * sizeof *tile);
     WVOL_RETURN_IF(!tile, err, WVOL_ERR_NOMEM, "%s: out of memory for a tile of the low-pass band", f->path);
-    wvol__wvc_file_source(&src, f, 0);
-    (void)wvol__wvc_file_error(f, NULL);
+    read_source(&src, &ctx, f, 0, &E);
     for (t[2] = 0; t[2] < g->lv[g->levels].nt[2] && st == WVOL_OK; t[2]++)
         for (t[1] = 0; t[1] < g->lv[g->levels].nt[1] && st == WVOL_OK; t[1]++)
             for (t[0] = 0; t[0] < g->lv[g->levels].nt[0] && st == WVOL_OK; t[0]++) {
@@ -910,7 +931,7 @@ wvol_status wvol__wvc_file_dc(wvol_wvc_file *f, float *dc, wvol_error *err)
                     cnt *= (size_t)bn[a];
                 }
                 if (!src.gather(src.ctx, tile, g->levels, 0, b0, bn)) memset(tile, 0, cnt * sizeof *tile);
-                st = wvol__wvc_file_error(f, err);
+                st = wvol__wvc_file_read_error(f, &E, err);
                 for (size_t i = 0; i < cnt && st == WVOL_OK; i++) {
                     lo = tile[i] < lo ? tile[i] : lo;
                     hi = tile[i] > hi ? tile[i] : hi;
@@ -1052,14 +1073,15 @@ static wvol_status reconstruct_parts(wvol_wvc_file *f, float *dst, const wvol__c
 }
 
 /* Checks a region request (the box inside level `level`'s grid) and gives the level's
- * coefficient source: both region reads validate here, before anything is allocated. */
-static wvol_status region_source(wvol__coef_source *src, wvol_wvc_file *f, const size_t lo[3], const size_t hi[3],
-                                 int level, wvol_error *err)
+ * coefficient source for this read (its errors into E, through ctx): both region reads
+ * validate here, before anything is allocated. */
+static wvol_status region_source(wvol__coef_source *src, skip_ctx *ctx, wvc2_read_errors *E, wvol_wvc_file *f,
+                                 const size_t lo[3], const size_t hi[3], int level, wvol_error *err)
 {
     WVOL_RETURN_IF(!f || !lo || !hi, err, WVOL_ERR_ARG, "wvc region: missing argument");
     WVOL_RETURN_IF(level < 0 || level > f->info.levels, err, WVOL_ERR_ARG, "wvc region: level %d outside 0..%d",
                    level, f->info.levels);
-    wvol__wvc_file_source(src, f, level);
+    read_source(src, ctx, f, level, E);
     for (int a = 0; a < 3; a++)
         WVOL_RETURN_IF(lo[a] >= hi[a] || hi[a] > src->dims[a], err, WVOL_ERR_ARG,
                        "wvc region: box %zu..%zu along axis %d is empty or outside 0..%zu (level %d)", lo[a], hi[a],
@@ -1085,14 +1107,15 @@ wvol_status wvol_wvc_read_region_into(float *dst, wvol_wvc_file *f, const size_t
                                       int level, int threads, double spacing[3], double origin[3], wvol_error *err)
 {
     wvol__coef_source src;
+    skip_ctx ctx;
+    wvc2_read_errors E = {0};
     wvol_status st;
     double scale, sp[3], org[3];
     const wvol_filter *flt;
     WVOL_RETURN_IF(!dst, err, WVOL_ERR_ARG, "wvc region: missing argument");
     WVOL_FORWARD(wvol__threads_check(threads, "wvc region", err));
-    WVOL_FORWARD(region_source(&src, f, lo, hi, level, err));
+    WVOL_FORWARD(region_source(&src, &ctx, &E, f, lo, hi, level, err));
     WVOL_FORWARD(wvol_filter_get(&flt, f->info.filter, err));
-    (void)wvol__wvc_file_error(f, NULL);
     {
         /* slab by slab along z: a box made whole would hold working buffers of about twice its
          * size beyond the budget, and its gathers could pin more chunks than a small budget
@@ -1103,7 +1126,7 @@ wvol_status wvol_wvc_read_region_into(float *dst, wvol_wvc_file *f, const size_t
         for (size_t z = lo[2]; z < hi[2] && st == WVOL_OK; z += per) {
             const size_t l[3] = {lo[0], lo[1], z}, h[3] = {hi[0], hi[1], z + per < hi[2] ? z + per : hi[2]};
             st = reconstruct_parts(f, dst + (z - lo[2]) * plane, &src, l, h, threads, err);
-            if (st == WVOL_OK) st = wvol__wvc_file_error(f, err);
+            if (st == WVOL_OK) st = wvol__wvc_file_read_error(f, &E, err);
         }
     }
     if (st != WVOL_OK) return st;
@@ -1123,11 +1146,13 @@ wvol_status wvol_wvc_read_region(wvol_volume **out, wvol_wvc_file *f, const size
                                  int level, wvol_error *err)
 {
     wvol__coef_source src;
+    skip_ctx ctx;
+    wvc2_read_errors E = {0};
     wvol_volume *v = NULL;
     wvol_status st;
     WVOL_RETURN_IF(!out, err, WVOL_ERR_ARG, "wvc region: missing argument");
     *out = NULL;
-    WVOL_FORWARD(region_source(&src, f, lo, hi, level, err));
+    WVOL_FORWARD(region_source(&src, &ctx, &E, f, lo, hi, level, err));
     WVOL_FORWARD(wvol_volume_create(&v, hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2], err));
     st = wvol_wvc_read_region_into(v->data, f, lo, hi, level, 1, v->spacing, v->origin, err);
     if (st != WVOL_OK) {

@@ -126,6 +126,7 @@ typedef struct piece_ctx {
     unsigned char *own[WVOL_WVC_MAX_LEVELS + 1];  /* per z tile: meets the level's window */
     unsigned char *need[WVOL_WVC_MAX_LEVELS + 1]; /* ... or a descendant's */
     int threads;
+    wvc2_read_errors *E; /* this read's */
 } piece_ctx;
 
 /* Dequantises (q NULL: zeros) the part of chunk (m, t) inside level m's window into the
@@ -177,7 +178,7 @@ static void walk(const piece_ctx *C, int m, const size_t t[3])
     int es = (int)sizeof(int32_t);
     void *pin = NULL;
     if (C->x->chunks[id].bytes) {
-        pin = wvol__wvc_file_pin(C->f, id, &q, &es);
+        pin = wvol__wvc_file_pin(C->f, C->E, id, &q, &es);
         if (!pin) return; /* recorded: the caller reports it */
     }
     if (C->own[m][t[2]]) scatter(C, m, t, pin ? q : NULL, es);
@@ -291,6 +292,7 @@ wvol_status wvol_wvc_read_piece_into(float *work, size_t cap, wvol_wvc_file *f, 
     size_t need, T;
     float dc = 0.0f;
     double back = 0.0;
+    wvc2_read_errors E = {0};
     wvol_status st = WVOL_OK;
     WVOL_RETURN_IF(!work || !f || !lo || !hi, err, WVOL_ERR_ARG, "wvc piece: missing argument");
     WVOL_FORWARD(wvol__threads_check(threads, "wvc piece", err));
@@ -319,6 +321,7 @@ wvol_status wvol_wvc_read_piece_into(float *work, size_t cap, wvol_wvc_file *f, 
     C.P = &P;
     C.work = work;
     C.threads = threads;
+    C.E = &E;
     g = &C.x->g;
     T = (size_t)g->tile[2];
     for (int sct = 0; sct < wvol_wvc_file_info(f)->nsections; sct++) {
@@ -344,7 +347,6 @@ wvol_status wvol_wvc_read_piece_into(float *work, size_t cap, wvol_wvc_file *f, 
                 if ((c0 < nc && C.need[m - 1][c0]) || (c1 < nc && C.need[m - 1][c1])) C.need[m][tz] = 1;
             }
         }
-    (void)wvol__wvc_file_error(f, NULL);
     {
         const wvc2_level *G = &g->lv[P.M];
         size_t t[3];
@@ -354,7 +356,7 @@ wvol_status wvol_wvc_read_piece_into(float *work, size_t cap, wvol_wvc_file *f, 
                     if (C.need[P.M][t[2]]) walk(&C, P.M, t);
     }
     ctx_free(&C);
-    WVOL_FORWARD(wvol__wvc_file_error(f, err));
+    WVOL_FORWARD(wvol__wvc_file_read_error(f, &E, err));
     if (dc != 0.0f) { /* the band's offset out, back into the samples last, as every inverse does */
         const size_t ex = P.PX >> (P.M - P.s), ey = P.PY >> (P.M - P.s), pad[3] = {P.PX, P.PY, 2};
         for (size_t z = 0; z < P.n[P.M]; z++)

@@ -64,13 +64,24 @@ wvol_status wvol__wvc2_decode_dense(int32_t *Q, const size_t p[3], const wvc2_in
 
 /* ---- an open file's chunk cache (wvc2_file.c), for the piece reader (wvc2_piece.c) ---- */
 
+/* The first error one read met (pins and gathers cannot return one; the read takes it at the
+ * end). Each region, piece and offset read keeps its own, so that reads of one file from several
+ * threads neither take nor clear each other's errors; the stores opened on the file share the
+ * file's own (wvol__wvc_file_error). Written under the file's lock; start it zeroed. */
+typedef struct wvc2_read_errors {
+    wvol_status status;
+    char message[sizeof(((wvol_error *)0)->message)];
+} wvc2_read_errors;
+/* E's error, if any, into err (naming the file) and E cleared; the status. */
+wvol_status wvol__wvc_file_read_error(wvol_wvc_file *f, wvc2_read_errors *E, wvol_error *err);
+
 /* The index of an open version-2 file; NULL for version 1 (decoded whole at open). */
 const wvc2_index *wvol__wvc_file_index(const wvol_wvc_file *f);
 /* Decoded chunk id (index bytes > 0), pinned in the cache: *q receives its bands'
  * quantised values (the level's band list order, the tile box x fastest each), *es their
  * size (int32, or int16 where the index's maximum allows); NULL after recording an error
- * (wvol__wvc_file_error). Unpin it with wvol__wvc_file_unpin. */
-void *wvol__wvc_file_pin(wvol_wvc_file *f, size_t id, void *const **q, int *es);
+ * in E. Unpin it with wvol__wvc_file_unpin. */
+void *wvol__wvc_file_pin(wvol_wvc_file *f, wvc2_read_errors *E, size_t id, void *const **q, int *es);
 void wvol__wvc_file_unpin(wvol_wvc_file *f, void *pinned);
 /* Bytes of decoded chunks the cache holds while a chain of parents (one per level) and
  * `pinned` more chunks are pinned at once; the current budget. */

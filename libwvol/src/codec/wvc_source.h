@@ -14,13 +14,16 @@
  * reconstruction then gives the level-s low-pass samples (unscaled: 2^{d s / 2} times
  * wvol_idwt3_level's values). Safe from several threads at once; f must outlive it.
  * A gather that cannot decode (a damaged chunk, the budget exceeded by pinned chunks)
- * fills zeros and leaves an error that wvol__wvc_file_error returns. */
+ * fills zeros and leaves an error in the file's own slot, which wvol__wvc_file_error returns:
+ * the slot of the stores opened on the file. The file's region, piece and offset reads keep
+ * an error slot per call instead (wvc2_read.h), so that reads from several threads neither
+ * take nor clear each other's. */
 void wvol__wvc_file_source(wvol__coef_source *src, wvol_wvc_file *f, int skip);
 
 /* The path the file was opened from. */
 const char *wvol__wvc_file_path(const wvol_wvc_file *f);
 
-/* The first error a gather met since the last call (WVOL_OK if none), copied to err,
+/* The first error a store's gather met since the last call (WVOL_OK if none), copied to err,
  * and cleared. */
 wvol_status wvol__wvc_file_error(wvol_wvc_file *f, wvol_error *err);
 

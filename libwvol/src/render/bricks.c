@@ -358,7 +358,15 @@ static void slot_release(brick_cache *c, size_t slot)
 /* Brick b's sub-cells and rate from its voxels' range for the current TF, on view v. */
 static double brick_tf_view(const brick_src *src, size_t b, wvol__view *v, float *plane)
 {
-    const double rate = wvol__brick_rate(src->tf, src->mode, src->vmin[b], src->vmax[b]);
+    float lo, hi;
+    double rate;
+    /* atomic, as their writers are: another thread building the same brick may write them
+     * (the same values) at the same time */
+#pragma omp atomic read
+    lo = src->vmin[b];
+#pragma omp atomic read
+    hi = src->vmax[b];
+    rate = wvol__brick_rate(src->tf, src->mode, lo, hi);
     memset(v->sub_zero, 0, sizeof v->sub_zero);
     v->sub_any = 0;
     if (rate > 0 && src->skip_inside) sub_cells(src, b, v, plane); /* rate 0: skipped whole */
