@@ -160,7 +160,9 @@ WVOL_API wvol_status wvol_wvc_read(wvol_coeffs **out, const char *path, const wv
 /* An open .wvc file whose chunks are decoded on demand into a cache of at most
  * `budget` bytes of decoded chunks (least recently used first out). A version-1
  * file has no index: it is decoded whole at open, refused when that exceeds the
- * budget. One handle may serve several threads (the cache has a lock). */
+ * budget. One handle may serve several threads (the cache has a lock); each region,
+ * piece or level read reports its own errors (a damaged chunk fails the reads that need
+ * it and no other). */
 typedef struct wvol_wvc_file wvol_wvc_file;
 
 #define WVOL_WVC_DEFAULT_BUDGET ((size_t)1 << 30) /* 1 GiB */
