@@ -1745,6 +1745,70 @@ static void wvc2_budget_and_damage(void)
                   "concurrent reads keep their own errors: %d near reads succeeded, %d far reads failed or differed",
                   near_ok, far_bad);
         }
+        {
+            /* the budget changed while two threads read (the Python module lets one thread do
+             * that while others read): a read either gives the samples read alone or fails as
+             * over a budget too small for it, never another error or other samples. Regions
+             * and pieces (a z slab clear of the damage) alternate: a piece read checks the
+             * budget before it starts. */
+            const size_t low = wvol_wvc_piece_budget(wf, 1), q_lo[3] = {0, 0, 40}, q_hi[3] = {64, 64, 48};
+            const size_t cap = wvol_wvc_piece_samples(wf, 0, q_lo, q_hi), slab = 64 * 64 * 8;
+            float *piece_ref = cap >= slab ? malloc(cap * sizeof *piece_ref) : NULL;
+            int read_bad = 0, set_bad = 0, readers_done = 0;
+            CHECK(low > 0 && piece_ref && r2 &&
+                      wvol_wvc_read_piece_into(piece_ref, cap, wf, q_lo, q_hi, 0, 1, NULL, NULL, &err) == WVOL_OK,
+                  "a slab read alone: %s", err.message);
+#pragma omp parallel num_threads(3) if (piece_ref && r2)
+            {
+#ifdef _OPENMP
+                /* a setter only beside two readers: it waits for both */
+                const int setter = omp_get_num_threads() == 3 && omp_get_thread_num() == 0;
+#else
+                const int setter = 0;
+#endif
+                wvol_error e;
+                if (setter) {
+                    for (int it = 0, d = 0; d < 2; it++) {
+                        if (wvol_wvc_set_budget(wf, (it & 1) ? low : 0, &e) != WVOL_OK) {
+#pragma omp atomic
+                            set_bad++;
+                        }
+#pragma omp atomic read
+                        d = readers_done;
+                    }
+                } else if (piece_ref && r2) {
+                    float *work = malloc(cap * sizeof *work);
+                    for (int it = 0; work && it < 100; it++) {
+                        const int piece = it & 1;
+                        const wvol_status st =
+                            piece ? wvol_wvc_read_piece_into(work, cap, wf, q_lo, q_hi, 0, 1, NULL, NULL, &e)
+                                  : wvol_wvc_read_region_into(work, wf, far_lo, far_hi, 0, 1, NULL, NULL, &e);
+                        if (st == WVOL_ERR_NOMEM) continue;
+                        if (st != WVOL_OK || memcmp(work, piece ? piece_ref : r2->data,
+                                                    (piece ? slab : 8 * 8 * 8) * sizeof *work)) {
+#pragma omp atomic
+                            read_bad++;
+                        }
+                    }
+                    if (!work) {
+#pragma omp atomic
+                        read_bad++;
+                    }
+                    free(work);
+                }
+                if (!setter) {
+#pragma omp atomic
+                    readers_done++;
+                }
+            }
+            CHECK(set_bad == 0 && read_bad == 0,
+                  "budget set during reads: %d settings refused, %d reads failed otherwise or differed", set_bad,
+                  read_bad);
+            CHECK(piece_ref && wvol_wvc_set_budget(wf, 0, &err) == WVOL_OK &&
+                      wvol_wvc_read_region_into(piece_ref, wf, far_lo, far_hi, 0, 1, NULL, NULL, &err) == WVOL_OK,
+                  "a read after: %s", err.message);
+            free(piece_ref);
+        }
         wvol_wvc_close(wf);
     }
     wvol_volume_destroy(r);

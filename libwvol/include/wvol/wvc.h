@@ -270,8 +270,9 @@ WVOL_API size_t wvol_wvc_slab_budget(const wvol_wvc_file *f, int level, const si
 /* Sets an open file's chunk cache budget (0: WVOL_WVC_DEFAULT_BUDGET), e.g. to what
  * wvol_wvc_slab_budget says a read needs, without opening the file again. A budget below one
  * chain of decoded chunks (one per level; a version-1 file: its whole decode) is refused as at
- * open, and the budget is unchanged. A lower budget evicts unpinned chunks at once. Not while
- * a read on f is in progress in another thread. */
+ * open, and the budget is unchanged. A lower budget evicts unpinned chunks at once. Other
+ * threads may be reading f meanwhile: a read in progress goes on under the new budget and
+ * fails as over it (WVOL_ERR_NOMEM) where that cannot hold what the read pins. */
 WVOL_API wvol_status wvol_wvc_set_budget(wvol_wvc_file *f, size_t budget, wvol_error *err);
 
 /* Predicted and measured error. sse is a sum of squared errors over n samples;

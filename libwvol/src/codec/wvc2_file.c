@@ -579,6 +579,7 @@ static centry *get_chunk(wvol_wvc_file *f, wvc2_read_errors *E, size_t id)
     centry *e, *mine;
     void *reuse = NULL;
     int over;
+    size_t budget;
     lock(f);
     while ((e = f->slot[id]) == DECODING) {
         unlock(f);
@@ -614,10 +615,11 @@ static centry *get_chunk(wvol_wvc_file *f, wvc2_read_errors *E, size_t id)
     if (f->held > f->peak) f->peak = f->held;
     /* read under the lock: another thread's insertion raises held before its own eviction */
     over = f->held > f->budget;
+    budget = f->budget;
     unlock(f);
     if (over) {
         char b[64];
-        snprintf(b, sizeof b, "%zu", f->budget);
+        snprintf(b, sizeof b, "%zu", budget);
         record(f, E, WVOL_ERR_NOMEM,
                "memory budget of %s bytes exceeded by the chunks one request holds at once%s (raise --memory)", b,
                "");
@@ -642,7 +644,17 @@ size_t wvol__wvc_file_pin_need(const wvol_wvc_file *f, int pinned)
     return f->chain + (size_t)(pinned > 0 ? pinned : 0) * f->chunk_max;
 }
 
-size_t wvol__wvc_file_budget(const wvol_wvc_file *f) { return f->budget; }
+/* Outside the lock a budget is read atomically: wvol_wvc_set_budget may change it while a read
+ * is in progress (the Python module holds no lock of its own around reads). */
+static size_t budget_now(const wvol_wvc_file *f)
+{
+    size_t b;
+#pragma omp atomic read
+    b = f->budget;
+    return b;
+}
+
+size_t wvol__wvc_file_budget(const wvol_wvc_file *f) { return budget_now(f); }
 
 /* ---- gathering ------------------------------------------------------------------- */
 
@@ -1095,7 +1107,7 @@ size_t wvol_wvc_region_slab_slices(const wvol_wvc_file *f, const size_t lo[3], c
     size_t slice, per;
     if (!f || !lo || !hi || hi[0] <= lo[0] || hi[1] <= lo[1] || hi[2] <= lo[2]) return 0;
     slice = (hi[0] - lo[0]) * (hi[1] - lo[1]) * sizeof(float);
-    per = f->budget / 16 / slice;
+    per = budget_now(f) / 16 / slice;
     if (per < 8) per = 8;
     /* no thicker than a tile layer: a slab and its margins then meet two layers of every
      * level, what wvol_wvc_slab_budget sizes the cache for */
@@ -1169,6 +1181,7 @@ wvol_status wvol_wvc_set_budget(wvol_wvc_file *f, size_t budget, wvol_error *err
     WVOL_RETURN_IF(!f, err, WVOL_ERR_ARG, "wvc set budget: file is NULL");
     WVOL_FORWARD(budget_holds(f, b, err));
     lock(f);
+#pragma omp atomic write
     f->budget = b;
     if (!f->dense) evict(f); /* a lower budget: unpinned chunks go, least recent first */
     unlock(f);
