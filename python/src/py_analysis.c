@@ -7,7 +7,7 @@
 #include <math.h>
 #include <string.h>
 
-/* An int32 (or bool/uint8 when as_mask) C array of exactly v's shape, or NULL with an
+/* A private int32 (or bool/uint8 when as_mask) C array of exactly v's shape, or NULL with an
  * exception. None gives NULL without an exception (*none set). */
 static PyArrayObject *label_array(PyObject *obj, const wvol_volume *v, int as_mask, const char *what, int *none)
 {
@@ -44,8 +44,11 @@ static PyArrayObject *label_array(PyObject *obj, const wvol_volume *v, int as_ma
                 return NULL;
             }
         }
+        /* always a copy: the C side checks the ids in one pass and indexes its tables with them
+         * in another, with the GIL released, so an id another thread wrote in between would
+         * index past a table */
         a = (PyArrayObject *)PyArray_FROM_OTF((PyObject *)in, as_mask ? NPY_UINT8 : NPY_INT32,
-                                              NPY_ARRAY_IN_ARRAY | NPY_ARRAY_FORCECAST);
+                                              NPY_ARRAY_IN_ARRAY | NPY_ARRAY_FORCECAST | NPY_ARRAY_ENSURECOPY);
         Py_DECREF(in);
     }
     if (!a) return NULL;

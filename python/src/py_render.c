@@ -473,6 +473,7 @@ typedef struct prog_state {
     wvol_geometry g;
     double vmin, vmax;
     int bound;
+    int busy; /* a pass runs without the GIL: a second thread's pass is refused (progressive.h) */
 } prog_state;
 
 #define PROG_CAPSULE "wvol.progressive"
@@ -558,11 +559,18 @@ static PyObject *py_progressive_next(PyObject *self, PyObject *args)
     if (wvol_camera_parse(&cam, camspec, &ps->g, width, height, &err) != WVOL_OK) return wvolpy_raise(&err);
     memset(&tf, 0, sizeof tf);
     if (rp.mode != WVOL_RENDER_MODE_XRAY && parse_tf(opts, &tf, ps->vmin, ps->vmax) < 0) return NULL;
+    if (ps->busy) {
+        PyErr_SetString(PyExc_RuntimeError,
+                        "progressive render: a pass of this render is running in another thread (one at a time)");
+        return NULL;
+    }
+    ps->busy = 1; /* set and cleared with the GIL held */
     Py_BEGIN_ALLOW_THREADS
     s = wvol_image_create(&img, cam.width, cam.height, &err);
     if (s == WVOL_OK && ps->bound) s = wvol_image_create(&bimg, cam.width, cam.height, &err);
     if (s == WVOL_OK) s = wvol_progressive_next(ps->pr, img, bimg, &cam, &tf, &rp, &pass, &err);
     Py_END_ALLOW_THREADS
+    ps->busy = 0;
     if (s != WVOL_OK) {
         wvol_image_destroy(img);
         wvol_image_destroy(bimg);

@@ -236,7 +236,9 @@ class Store:
     """
 
     def __init__(self, handle, report, original=None, file_info=None):
-        self._handle = handle
+        # the handle and its report change together (the coeffs setter): one attribute, so a
+        # thread reading them while another replaces the coefficients sees one pair or the other
+        self._state = (handle, report)
         meta = handle.meta
         self.wavelet = meta["wavelet"]
         self.levels = int(meta["levels"])
@@ -244,7 +246,6 @@ class Store:
         self.spacing = tuple(meta["spacing"])
         self.origin = tuple(meta["origin"])
         self.value_range = tuple(meta["value_range"])
-        self.report = report
         self.file_info = file_info
         self._original = original
         self._original_crc = None if original is None else _fingerprint(original)
@@ -253,6 +254,15 @@ class Store:
         pred = ("coefficients replaced" if self.report.get("replaced") else
                 f"predicted PSNR {self.predicted_error.psnr:.2f} dB")
         return f"<wvol.Store {self.wavelet} levels={self.levels} shape={self.shape} kept={self.kept}/{self.total} {pred}>"
+
+    @property
+    def _handle(self):
+        return self._state[0]
+
+    @property
+    def report(self):
+        """The selection's numbers (a dict)."""
+        return self._state[1]
 
     @property
     def coeffs(self):
@@ -264,10 +274,11 @@ class Store:
     def coeffs(self, array):
         # a new handle over a copy (checked: the padded grid's size, finite values); the
         # store, reconstructions and files then follow the new coefficients
-        self._handle = self._handle.replace_coeffs(array)
+        handle, report = self._state
+        handle = handle.replace_coeffs(array)
         # the selection's numbers no longer describe the store: its count is the new array's,
         # and what it dropped from the original is unknown (predicted_error refuses)
-        self.report = dict(self.report, kept=int(self._handle.info()["kept"]), replaced=True)
+        self._state = (handle, dict(report, kept=int(handle.info()["kept"]), replaced=True))
 
     @property
     def kept(self):

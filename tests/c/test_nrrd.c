@@ -62,6 +62,20 @@ static int count_dir_entries(const char *dir)
     return n;
 }
 
+/* The process's umask from /proc/self/status, -1 where it cannot be read (the umask call
+ * would set it). */
+static int proc_umask(void)
+{
+    char line[128];
+    unsigned m;
+    int found = 0;
+    FILE *fp = fopen("/proc/self/status", "r");
+    if (!fp) return -1;
+    while (!found && fgets(line, sizeof line, fp)) found = sscanf(line, "Umask: %o", &m) == 1;
+    fclose(fp);
+    return found ? (int)m : -1;
+}
+
 static void clean_dir(const char *dir)
 {
     DIR *d = opendir(dir);
@@ -610,10 +624,18 @@ static void writer_leaves_nothing_on_failure(void)
         v->origin[0] = 0;
         CHECK(count_dir_entries(DIR_ "/w") == 0, "nothing saved");
     }
-    /* written files get the usual mode, not mkstemp's 0600 */
+    /* written files get the usual mode (0666 less the umask), not mkstemp's 0600, and the
+     * library never sets the umask (reading it means setting it: racy with other threads;
+     * /proc reads it without) */
     old = umask(022);
     CHECK(wvol_nrrd_write(v, DIR_ "/w/mode.nrrd", &err) == WVOL_OK, "%s", err.message);
     CHECK(stat(DIR_ "/w/mode.nrrd", &st) == 0 && (st.st_mode & 0777) == 0644, "mode %o", (unsigned)(st.st_mode & 0777));
+    umask(027);
+    CHECK(wvol_nrrd_write(v, DIR_ "/w/mode.nrrd", &err) == WVOL_OK && proc_umask() == 027, "%s, umask %o",
+          err.message, proc_umask());
+    CHECK(remove(DIR_ "/w/mode.nrrd") == 0 && wvol_nrrd_write(v, DIR_ "/w/mode.nrrd", &err) == WVOL_OK &&
+              stat(DIR_ "/w/mode.nrrd", &st) == 0 && (st.st_mode & 0777) == 0640,
+          "umask 027: mode %o", (unsigned)(st.st_mode & 0777));
     umask(old);
     wvol_volume_destroy(v);
 }

@@ -161,3 +161,42 @@ def test_coarse_bound_above_the_exact(tmp_path, blobs):
     assert r.returncode == 0, r.stderr
     b = read_exr_rgba(tmp_path / "b.exr").reshape(SIZE[1], 4, SIZE[0])
     assert np.array_equal(b[:, 3, :], coarse[..., 0])
+
+
+def test_progressive_state_advances_one_pass_at_a_time(blobs):
+    # the state behind the generator is one thread at a time (progressive.h): a second thread's
+    # pass is refused, never run beside the first (which repeated or skipped passes)
+    import threading
+    from wvol import _wvol
+    opts = dict(camera="+z", width=SIZE[0], height=SIZE[1], mode="xray", tf="gaussian", tf_units="world",
+                step=None, termination=None, threads=1)
+    ref = {info["index"]: img for img, _, info in wvol.render_progressive(blobs, "+z", SIZE, mode="xray",
+                                                                          threads=1)}
+    for _ in range(5):
+        state = _wvol.progressive_begin(blobs.data, blobs.spacing, blobs.origin, "db2", None, 0.0, 0.0, 4.0, 1)
+        got, refused, lock, done = [], [], threading.Lock(), threading.Event()
+
+        def advance():
+            while not done.is_set():
+                try:
+                    img, _, info = _wvol.progressive_next(state, opts)
+                except RuntimeError as e:
+                    with lock:
+                        refused.append(str(e))
+                    continue
+                except ValueError as e:   # the other thread rendered the last pass meanwhile
+                    assert "last pass" in str(e)
+                    return
+                with lock:
+                    got.append((info["index"], img))
+                if info["last"]:
+                    done.set()
+
+        threads = [threading.Thread(target=advance) for _ in range(2)]
+        for t in threads:
+            t.start()
+        for t in threads:
+            t.join()
+        assert sorted(k for k, _ in got) == sorted(ref), (len(got), refused[:1])
+        assert all(np.array_equal(img, ref[k]) for k, img in got)
+        assert all("another thread" in m for m in refused)

@@ -81,3 +81,30 @@ def test_segment_refuses_bad_arrays():
                             (np.zeros((8, 8), complex), TypeError, "real numbers")]:
         with pytest.raises(exc, match=words):
             wvol.segment(arr, levels=1, iterations=10)
+
+
+def test_segment_truth_written_by_another_thread(mosaic):
+    # the ids are copied before the call releases the GIL: the C side checks them in one pass
+    # and indexes its vote table with them in another, so an id written in between (here
+    # 9, beyond the checked largest class 2) indexed past the table (ASan: heap overflow)
+    import threading
+    truth = mosaic.labels.astype(np.int32).copy()
+    flat = truth.reshape(-1)
+    k, orig = flat.size - 1, int(flat[-1])
+    stop = threading.Event()
+
+    def writer():
+        while not stop.is_set():
+            flat[k] = 9
+            flat[k] = orig
+
+    w = threading.Thread(target=writer)
+    w.start()
+    try:
+        for _ in range(100):
+            r = wvol.segment(mosaic.data, levels=1, som=(2, 2, 2), iterations=50, truth=truth)
+            # a class is one the map saw: the original three, or 9 if the copy caught it
+            assert set(np.unique(r.classes)) <= {0, 1, 2, 9}
+    finally:
+        stop.set()
+        w.join()

@@ -1,14 +1,17 @@
 /* SPDX-License-Identifier: MIT */
-#define _XOPEN_SOURCE 700 /* realpath, mkstemp, lstat */
+#define _XOPEN_SOURCE 700 /* realpath, lstat, clock_gettime */
 #include "core/status_internal.h"
 #include "io/io_internal.h"
 #include "wvol/io.h"
 
 #include <errno.h>
+#include <fcntl.h>
+#include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
 #include <strings.h>
 #include <sys/stat.h>
+#include <time.h>
 #include <unistd.h>
 
 int wvol_path_has_ext(const char *path, const char *ext)
@@ -44,6 +47,41 @@ wvol_status wvol__output_path(char **final, const char *path, wvol_error *err)
     return WVOL_OK;
 }
 
+/* splitmix64's finaliser: spreads a counter and a clock over a name's characters */
+static uint64_t mix64(uint64_t x)
+{
+    x = (x ^ (x >> 30)) * 0xbf58476d1ce4e5b9ULL;
+    x = (x ^ (x >> 27)) * 0x94d049bb133111ebULL;
+    return x ^ (x >> 31);
+}
+
+int wvol__create_temp(char *tmpl, size_t suffix_len)
+{
+    static const char set[] = "abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789";
+    static uint64_t counter;
+    const size_t n = tmpl ? strlen(tmpl) : 0;
+    char *x;
+    if (n < 6 + suffix_len || memcmp(tmpl + n - suffix_len - 6, "XXXXXX", 6) != 0) {
+        errno = EINVAL;
+        return -1;
+    }
+    x = tmpl + n - suffix_len - 6;
+    for (int attempt = 0; attempt < 1000; attempt++) {
+        struct timespec ts;
+        uint64_t r;
+        int fd;
+        clock_gettime(CLOCK_REALTIME, &ts);
+        /* the name need only be unlikely to exist: O_EXCL makes taking it safe */
+        r = mix64(__atomic_add_fetch(&counter, 1, __ATOMIC_RELAXED) ^ ((uint64_t)getpid() << 40) ^
+                  ((uint64_t)ts.tv_sec << 20) ^ (uint64_t)ts.tv_nsec);
+        for (int i = 0; i < 6; i++, r /= sizeof set - 1) x[i] = set[r % (sizeof set - 1)];
+        fd = open(tmpl, O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0666);
+        if (fd >= 0 || errno != EEXIST) return fd;
+    }
+    errno = EEXIST;
+    return -1;
+}
+
 wvol_status wvol_atomic_open(wvol_atomic_file *f, const char *path, wvol_error *err)
 {
     int fd;
@@ -61,7 +99,7 @@ wvol_status wvol_atomic_open(wvol_atomic_file *f, const char *path, wvol_error *
     }
     memcpy(f->tmp_path, path, n);
     memcpy(f->tmp_path + n, ".tmp-XXXXXX", 12);
-    fd = mkstemp(f->tmp_path);
+    fd = wvol__create_temp(f->tmp_path, 0);
     if (fd < 0) {
         int e = errno;
         wvol_status st = wvol_error_set(err, WVOL_ERR_IO, "%s: cannot create output file: %s", path, strerror(e));
@@ -69,13 +107,6 @@ wvol_status wvol_atomic_open(wvol_atomic_file *f, const char *path, wvol_error *
         f->tmp_path = NULL;
         wvol_atomic_abort(f);
         return st;
-    }
-    /* mkstemp creates the file 0600; give it the mode a plain fopen would (0666
-     * less the umask). Reading the umask means setting it back at once. */
-    {
-        mode_t mask = umask(0);
-        umask(mask);
-        (void)fchmod(fd, 0666 & ~mask); /* on failure the file merely stays private */
     }
     f->fp = fdopen(fd, "wb");
     if (!f->fp) {

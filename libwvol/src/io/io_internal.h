@@ -45,6 +45,13 @@ size_t wvol__io_parse_numbers(const char *s, double *out, size_t cap);
  * a link to nothing. */
 wvol_status wvol__output_path(char **final, const char *path, wvol_error *err);
 
+/* Creates and opens (write only, close-on-exec) a new file named by tmpl, whose six 'X'
+ * characters before its last suffix_len characters are replaced by random ones until the name
+ * is new, with the mode a plain fopen gives (0666 less the umask, which the kernel applies:
+ * mkstemp's 0600 would need the umask read, and reading it sets it, which races with other
+ * threads). Returns the descriptor, or -1 with errno set. */
+int wvol__create_temp(char *tmpl, size_t suffix_len);
+
 /* A header's detached data file (NRRD "data file:", MetaImage ElementDataFile): data_file
  * itself when absolute, else relative to the header's folder (malloc'ed; NULL when out of
  * memory). */

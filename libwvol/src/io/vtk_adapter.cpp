@@ -216,15 +216,9 @@ public:
         std::string t = final_ + ".tmp-XXXXXX" + ext;
         std::vector<char> buf(t.begin(), t.end());
         buf.push_back('\0');
-        int fd = mkstemps(buf.data(), int(std::strlen(ext)));
+        int fd = wvol__create_temp(buf.data(), std::strlen(ext));
         if (fd < 0)
             fail(WVOL_ERR_IO, std::string(path) + ": cannot create output file: " + std::strerror(errno));
-        {
-            // mkstemps makes the file 0600: the mode a plain open would give (as wvol_atomic_open)
-            mode_t mask = umask(0);
-            umask(mask);
-            (void)fchmod(fd, 0666 & ~mask);
-        }
         close(fd);
         tmp_ = buf.data();
     }
