@@ -35,10 +35,7 @@ static int write_colors(const char *path, const float *rgb, size_t n, wvol_error
 {
     wvol_atomic_file f;
     if (wvol_atomic_open(&f, path, err)) return err->status;
-    if (fwrite(rgb, 3 * sizeof(float), n, f.fp) != n) {
-        wvol_atomic_abort(&f);
-        return wvol_error_set(err, WVOL_ERR_IO, "%s: write failed", path);
-    }
+    if (fwrite(rgb, 3 * sizeof(float), n, f.fp) != n) return wvol_atomic_fail(&f, err);
     return wvol_atomic_commit(&f, err);
 }
 

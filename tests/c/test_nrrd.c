@@ -5,10 +5,13 @@
 #define _POSIX_C_SOURCE 200809L
 #include <dirent.h>
 #include <errno.h>
+#include <signal.h>
 #include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/resource.h>
 #include <sys/stat.h>
+#include <sys/wait.h>
 #include <unistd.h>
 #include <zlib.h>
 
@@ -640,6 +643,51 @@ static void writer_leaves_nothing_on_failure(void)
     wvol_volume_destroy(v);
 }
 
+/* A detached header whose write fails (a file size limit the header crosses and its 2x2x2
+ * data does not) keeps the old pair: the data must not replace the old data file before the
+ * header is known to be written (a full disk once left the old header naming no data). */
+static void detached_pair_kept_when_the_header_fails(void)
+{
+    wvol_volume *v = test_volume(2, 2, 2);
+    pid_t pid;
+    int status = 0;
+    mkdir(DIR_ "/pair", 0777);
+    clean_dir(DIR_ "/pair");
+    fflush(NULL);
+    pid = fork();
+    if (pid == 0) {
+        struct rlimit lim = {100, 100};
+        wvol_error err;
+        char buf[64] = {0};
+        FILE *fp;
+        int bad = 0;
+        if (!v) _exit(64);
+        for (int k = 0; k < 2; k++) {
+            fp = fopen(k ? DIR_ "/pair/d.raw" : DIR_ "/pair/d.nhdr", "w");
+            if (!fp || fputs(k ? "old data" : "old header", fp) == EOF || fclose(fp) != 0) _exit(65);
+        }
+        signal(SIGXFSZ, SIG_IGN);
+        if (setrlimit(RLIMIT_FSIZE, &lim) != 0) _exit(66);
+        if (wvol_nrrd_write(v, DIR_ "/pair/d.nhdr", &err) != WVOL_ERR_IO) bad |= 1;
+        else if (!strstr(err.message, "d.nhdr") || !strstr(err.message, strerror(EFBIG))) bad |= 2;
+        fp = fopen(DIR_ "/pair/d.raw", "r");
+        if (!fp || !fgets(buf, sizeof buf, fp) || strcmp(buf, "old data") != 0) bad |= 4;
+        if (fp) fclose(fp);
+        fp = fopen(DIR_ "/pair/d.nhdr", "r");
+        if (!fp || !fgets(buf, sizeof buf, fp) || strcmp(buf, "old header") != 0) bad |= 8;
+        if (fp) fclose(fp);
+        _exit(bad);
+    }
+    CHECK(pid > 0 && waitpid(pid, &status, 0) == pid && WIFEXITED(status) && WEXITSTATUS(status) == 0,
+          "detached write failing in its header: status %d (1: not an I/O error, 2: message without the file or "
+          "cause, 4: old data replaced, 8: old header replaced)",
+          WIFEXITED(status) ? WEXITSTATUS(status) : -1);
+    CHECK(count_dir_entries(DIR_ "/pair") == 2, "the old pair alone (no temporaries)");
+    clean_dir(DIR_ "/pair");
+    rmdir(DIR_ "/pair");
+    wvol_volume_destroy(v);
+}
+
 int main(void)
 {
     mkdir(DIR_, 0777);
@@ -653,5 +701,6 @@ int main(void)
     long_and_binary_header_lines_refused();
     mutations_never_crash();
     writer_leaves_nothing_on_failure();
+    detached_pair_kept_when_the_header_fails();
     return check_summary("test_nrrd");
 }

@@ -1,10 +1,15 @@
 /* SPDX-License-Identifier: MIT
  * Tests of the renderer (libwvol/src/render) and the image files (libwvol/src/io/image_*.c). */
 #define _POSIX_C_SOURCE 200809L
+#include <dirent.h>
+#include <errno.h>
 #include <math.h>
+#include <signal.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/resource.h>
+#include <sys/wait.h>
 #include <unistd.h>
 
 #include "check.h"
@@ -138,6 +143,23 @@ static void transfer_functions_parse_and_refuse_bad_input(void)
           "infinite vmin: %s", err.message);
 }
 
+/* Files in the current folder whose names start with prefix and hold ".tmp-" (a writer's
+ * temporaries), removed when remove_them (a run killed before this one may have left some). */
+static int temporaries(const char *prefix, int remove_them)
+{
+    int n = 0;
+    struct dirent *e;
+    DIR *d = opendir(".");
+    if (!d) return -1;
+    while ((e = readdir(d)))
+        if (!strncmp(e->d_name, prefix, strlen(prefix)) && strstr(e->d_name, ".tmp-")) {
+            n++;
+            if (remove_them) remove(e->d_name);
+        }
+    closedir(d);
+    return n;
+}
+
 static void image_files_round_trip(void)
 {
     wvol_image *img = NULL;
@@ -190,6 +212,59 @@ static void image_files_round_trip(void)
     remove(path);
     remove("render_test_img.png");
     free(z);
+    wvol_image_destroy(img);
+}
+
+/* A write that fails (here a file size limit: EFBIG, as a full disk gives ENOSPC) is an error
+ * naming its cause, the previous file stays and no temporary is left; in a child process
+ * under an alarm, since an EXR write failing in its header once deadlocked in OpenEXR's lock. */
+static void image_writes_that_fail(void)
+{
+    const char *exr = "render_test_full.exr", *png = "render_test_full.png";
+    wvol_image *img = NULL;
+    wvol_error err;
+    pid_t pid;
+    int status = 0;
+    CHECK(wvol_image_create(&img, 64, 48, &err) == WVOL_OK, "%s", err.message);
+    if (!img) return;
+    temporaries("render_test_full.", 1);
+    for (int i = 0; i < 64 * 48 * 4; i++) img->rgba[i] = (float)((i * 7919) % 1000) / 1000.0f; /* incompressible */
+    fflush(NULL);
+    pid = fork();
+    if (pid == 0) {
+        struct rlimit lim = {100, 100};
+        int bad = 0;
+        FILE *fp;
+        char old[8] = {0};
+        for (int k = 0; k < 2; k++) {
+            const char *path = k ? png : exr;
+            wvol_status st;
+            fp = fopen(path, "w");
+            if (!fp || fputs("old", fp) == EOF || fclose(fp) != 0) _exit(64);
+            signal(SIGXFSZ, SIG_IGN);
+            if (setrlimit(RLIMIT_FSIZE, &lim) != 0) _exit(65);
+            alarm(60);
+            st = k ? wvol_image_write_png(img, path, NULL, 1.0, &err) : wvol_image_write_exr(img, path, NULL, &err);
+            if (st != WVOL_ERR_IO) bad |= 1 << (3 * k);
+            else if (!strstr(err.message, path) || !strstr(err.message, strerror(EFBIG))) {
+                fprintf(stderr, "message: %s\n", err.message);
+                bad |= 2 << (3 * k);
+            }
+            fp = fopen(path, "r");
+            if (!fp || !fgets(old, sizeof old, fp) || strcmp(old, "old") != 0) bad |= 4 << (3 * k);
+            if (fp) fclose(fp);
+            remove(path);
+        }
+        _exit(bad);
+    }
+    CHECK(pid > 0 && waitpid(pid, &status, 0) == pid, "fork and wait");
+    CHECK(WIFEXITED(status), "the writes returned (signal %d: SIGALRM means a hang)",
+          WIFSIGNALED(status) ? WTERMSIG(status) : 0);
+    CHECK(WIFEXITED(status) && WEXITSTATUS(status) == 0,
+          "failed writes: exit %d (bits 0/3: not an I/O error (EXR/PNG), 1/4: message without the path or cause, "
+          "2/5: the old file changed)",
+          WIFEXITED(status) ? WEXITSTATUS(status) : -1);
+    CHECK(temporaries("render_test_full.", 1) == 0, "no temporary left");
     wvol_image_destroy(img);
 }
 
@@ -521,6 +596,7 @@ int main(void)
     camera_box_pixels_hold_every_hit();
     transfer_functions_parse_and_refuse_bad_input();
     image_files_round_trip();
+    image_writes_that_fail();
     reference_xray_along_axis_sums_voxels();
     empty_space_skipping_changes_nothing();
     degenerate_rays_give_no_nan();

@@ -116,6 +116,9 @@ typedef struct wvol_atomic_file {
 WVOL_API wvol_status wvol_atomic_open(wvol_atomic_file *f, const char *path, wvol_error *err);
 WVOL_API wvol_status wvol_atomic_commit(wvol_atomic_file *f, wvol_error *err);
 WVOL_API void wvol_atomic_abort(wvol_atomic_file *f);
+/* After a write to f->fp failed: aborts f and returns WVOL_ERR_IO with "PATH: write failed:
+ * CAUSE", the cause from errno as the failed call left it (a full disk, a size limit). */
+WVOL_API wvol_status wvol_atomic_fail(wvol_atomic_file *f, wvol_error *err);
 
 /* 1 if path ends with ext (case-insensitive). */
 WVOL_API int wvol_path_has_ext(const char *path, const char *ext);

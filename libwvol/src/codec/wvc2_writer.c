@@ -80,6 +80,7 @@ struct wvc2_writer {
     int async;           /* set while the producer runs inside the writer's team */
     int inflight;        /* chunk tasks spawned and not finished (atomic) */
     int task_failed;     /* 1: memory, 2: the spill (atomic; a later failure may overwrite) */
+    int spill_errno;     /* why the spill's write failed (set by spill_write, which one thread runs at a time) */
     /* the rANS encoder's buffers per OpenMP thread of the writer's teams (thread number) */
     wvc_rans_scratch *scratch;
     int nscratch;
@@ -296,17 +297,30 @@ static int spill_write(wvc2_writer *w, const uint8_t *d, size_t n, uint64_t *off
             uint8_t *m;
             while (cap < w->mem_size + n) cap *= 2;
             m = realloc(w->mem, cap);
-            if (!m) return -1;
+            if (!m) {
+                w->spill_errno = ENOMEM;
+                return -1;
+            }
             w->mem = m;
             w->mem_cap = cap;
         }
         memcpy(w->mem + w->mem_size, d, n);
         w->mem_size += n;
     } else if (fwrite(d, 1, n, w->spill) != n) {
+        w->spill_errno = errno ? errno : EIO;
         return -1;
     }
     w->spill_size += n;
     return 0;
+}
+
+/* The error of a failed spill_write: the file it names and why (a full disk, mostly). */
+static wvol_status spill_error(const wvc2_writer *w, wvol_error *err)
+{
+    if (w->to_mem || w->spill_errno == ENOMEM)
+        return wvol_error_set(err, WVOL_ERR_NOMEM, "wvc2 writer: out of memory for the coded chunks");
+    return wvol_error_set(err, WVOL_ERR_IO, "%s: cannot write the coded chunks to the spill file beside it: %s",
+                          w->out.final_path ? w->out.final_path : "", strerror(w->spill_errno ? w->spill_errno : EIO));
 }
 
 /* ---- rows ------------------------------------------------------------------------ */
@@ -560,7 +574,7 @@ static wvol_status code_tile_row(wvc2_writer *w, int m, size_t k, wvol_error *er
     for (t = 0; t < (long)ntile; t++) wvol__reuse_put(coded[t].payload);
     free(coded);
     w->seconds_code += wvol__now() - t0;
-    WVOL_RETURN_IF(failed == 2, err, WVOL_ERR_IO, "wvc2 writer: cannot write the spill: %s", strerror(errno));
+    if (failed == 2) return spill_error(w, err);
     WVOL_RETURN_IF(failed, err, WVOL_ERR_NOMEM, "wvc2 writer: out of memory while coding");
     return WVOL_OK;
 }
@@ -571,7 +585,7 @@ static wvol_status task_status(const wvc2_writer *w, wvol_error *err)
     int f;
 #pragma omp atomic read
     f = w->task_failed;
-    WVOL_RETURN_IF(f == 2, err, WVOL_ERR_IO, "wvc2 writer: cannot write the spill");
+    if (f == 2) return spill_error(w, err);
     WVOL_RETURN_IF(f, err, WVOL_ERR_NOMEM, "wvc2 writer: out of memory while coding");
     return WVOL_OK;
 }

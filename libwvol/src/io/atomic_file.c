@@ -139,6 +139,19 @@ wvol_status wvol_atomic_commit(wvol_atomic_file *f, wvol_error *err)
     return WVOL_OK;
 }
 
+wvol_status wvol__write_failed(const char *path, wvol_error *err)
+{
+    const int e = errno;
+    return wvol_error_set(err, WVOL_ERR_IO, "%s: write failed: %s", path ? path : "", e ? strerror(e) : "stream error");
+}
+
+wvol_status wvol_atomic_fail(wvol_atomic_file *f, wvol_error *err)
+{
+    wvol_status s = wvol__write_failed(f ? f->final_path : NULL, err); /* before the abort's own calls */
+    wvol_atomic_abort(f);
+    return s;
+}
+
 void wvol_atomic_abort(wvol_atomic_file *f)
 {
     if (!f) return;

@@ -8,6 +8,7 @@
 #include "wvol/image.h"
 #include "wvol/io.h"
 
+#include <errno.h>
 #include <openexr.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -19,13 +20,17 @@ typedef struct exr_io {
     char msg[256];
 } exr_io;
 
+/* The calls of one read or write on this thread, for the error handler. It cannot ask the
+ * context for its user data: OpenEXR may report an error while it holds the context's lock
+ * (a write that fails inside exr_write_header), and exr_get_user_data takes that lock again. */
+static _Thread_local exr_io *current_io;
+
 static void on_exr_error(exr_const_context_t ctxt, exr_result_t code, const char *msg)
 {
-    void *ud = NULL;
-    exr_io *io;
-    if (exr_get_user_data(ctxt, &ud) != EXR_ERR_SUCCESS || !ud) return;
-    io = ud;
-    if (!io->msg[0]) snprintf(io->msg, sizeof io->msg, "%s (%s)", msg ? msg : "", exr_get_error_code_as_string(code));
+    exr_io *io = current_io;
+    (void)ctxt;
+    if (io && !io->msg[0])
+        snprintf(io->msg, sizeof io->msg, "%s (%s)", msg ? msg : "", exr_get_error_code_as_string(code));
 }
 
 static int64_t write_at(exr_const_context_t ctxt, void *ud, const void *buf, uint64_t sz, uint64_t off,
@@ -33,7 +38,10 @@ static int64_t write_at(exr_const_context_t ctxt, void *ud, const void *buf, uin
 {
     exr_io *io = ud;
     if (fseeko(io->fp, (off_t)off, SEEK_SET) != 0 || fwrite(buf, 1, sz, io->fp) != sz) {
-        if (error_cb) error_cb(ctxt, EXR_ERR_WRITE_IO, "write of %llu bytes failed", (unsigned long long)sz);
+        const int e = errno;
+        if (error_cb)
+            error_cb(ctxt, EXR_ERR_WRITE_IO, "write of %llu bytes failed: %s", (unsigned long long)sz,
+                     e ? strerror(e) : "stream error");
         return -1;
     }
     return (int64_t)sz;
@@ -73,6 +81,7 @@ wvol_status wvol_exr_write(const char *path, int width, int height, const wvol_e
     WVOL_FORWARD(wvol_atomic_open(&f, path, err));
     memset(&io, 0, sizeof io);
     io.fp = f.fp;
+    current_io = &io;
     init.error_handler_fn = on_exr_error;
     init.user_data = &io;
     init.write_fn = write_at;
@@ -175,6 +184,7 @@ wvol_status wvol_exr_read_channel(float **out, int *width, int *height, const ch
     WVOL_RETURN_IF(!path || !name, err, WVOL_ERR_ARG, "EXR read: path and channel name are required");
     memset(&io, 0, sizeof io);
     memset(&dec, 0, sizeof dec);
+    current_io = &io;
     init.error_handler_fn = on_exr_error;
     init.user_data = &io;
 #define EXR_TRY(call, label)              \

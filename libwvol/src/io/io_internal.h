@@ -52,6 +52,9 @@ wvol_status wvol__output_path(char **final, const char *path, wvol_error *err);
  * threads). Returns the descriptor, or -1 with errno set. */
 int wvol__create_temp(char *tmpl, size_t suffix_len);
 
+/* WVOL_ERR_IO "PATH: write failed: CAUSE", the cause from errno as a failed write left it. */
+wvol_status wvol__write_failed(const char *path, wvol_error *err);
+
 /* A header's detached data file (NRRD "data file:", MetaImage ElementDataFile): data_file
  * itself when absolute, else relative to the header's folder (malloc'ed; NULL when out of
  * memory). */

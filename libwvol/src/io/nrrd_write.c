@@ -5,6 +5,7 @@
 #define _POSIX_C_SOURCE 200809L
 #include "core/finite.h"
 #include "core/status_internal.h"
+#include "io/io_internal.h"
 #include "wvol/io.h"
 
 #include <stdint.h>
@@ -118,11 +119,11 @@ static wvol_status open_writer(wvol_slab_writer **out, const char *path, int nrr
         s = wvol_atomic_open(&w->header, path, err);
         if (!s) s = wvol_atomic_open(&w->data, dpath, err);
         if (!s && write_header(w->header.fp, dims, spacing, origin, gzip_level > 0, base) != 0)
-            s = wvol_error_set(err, WVOL_ERR_IO, "%s: write failed", path);
+            s = wvol__write_failed(path, err);
     } else {
         s = wvol_atomic_open(&w->data, path, err);
         if (!s && nrrd && write_header(w->data.fp, dims, spacing, origin, gzip_level > 0, NULL) != 0)
-            s = wvol_error_set(err, WVOL_ERR_IO, "%s: write failed", path);
+            s = wvol__write_failed(path, err);
     }
     if (s) {
         wvol_slab_writer_abort(w);
@@ -179,7 +180,7 @@ wvol_status wvol_slab_writer_put(wvol_slab_writer *w, const float *slab, size_t 
      * is little-endian, which is what a raw file holds. */
     if (w->gzip ? deflate_out(w, slab, n * sizeof(float), Z_NO_FLUSH) != 0
                 : fwrite(slab, sizeof(float), n, w->data.fp) != n)
-        return wvol_error_set(err, WVOL_ERR_IO, "%s: write failed", w->path);
+        return wvol__write_failed(w->path, err);
     w->written += nz;
     return WVOL_OK;
 }
@@ -195,12 +196,24 @@ wvol_status wvol_slab_writer_commit(wvol_slab_writer *w, unsigned long long *byt
         return s;
     }
     if (w->gzip && deflate_out(w, "", 0, Z_FINISH) != 0) {
-        s = wvol_error_set(err, WVOL_ERR_IO, "%s: write failed", w->path);
+        s = wvol__write_failed(w->path, err);
         wvol_slab_writer_abort(w);
         return s;
     }
-    if (fflush(w->data.fp) == 0) data_bytes = ftell(w->data.fp);
-    if (w->header.fp && fflush(w->header.fp) == 0) header_bytes = ftell(w->header.fp);
+    /* both files' bytes out before either replaces an older one: a full disk shows here, and
+     * a detached header's old data file is not replaced by data whose header then fails */
+    if (fflush(w->data.fp) != 0 || ferror(w->data.fp)) {
+        s = wvol__write_failed(w->data.final_path, err);
+        wvol_slab_writer_abort(w);
+        return s;
+    }
+    if (w->header.fp && (fflush(w->header.fp) != 0 || ferror(w->header.fp))) {
+        s = wvol__write_failed(w->path, err);
+        wvol_slab_writer_abort(w);
+        return s;
+    }
+    data_bytes = ftell(w->data.fp);
+    if (w->header.fp) header_bytes = ftell(w->header.fp);
     s = wvol_atomic_commit(&w->data, err);
     w->data.fp = NULL;
     if (!s && w->header.fp) {

@@ -43,9 +43,6 @@ wvol_status wvol_raw_write(const wvol_volume *v, const char *path, wvol_error *e
     WVOL_FORWARD(wvol_atomic_open(&f, path, err));
     n = wvol_volume_count(v);
     /* Samples are written in host order; every supported host is little-endian. */
-    if (fwrite(v->data, sizeof(float), n, f.fp) != n) {
-        wvol_atomic_abort(&f);
-        return wvol_error_set(err, WVOL_ERR_IO, "%s: write failed", path);
-    }
+    if (fwrite(v->data, sizeof(float), n, f.fp) != n) return wvol_atomic_fail(&f, err);
     return wvol_atomic_commit(&f, err);
 }

@@ -68,11 +68,7 @@ static wvol_status check_mesh(const wvol_mesh *m, const char *path, wvol_error *
 
 static wvol_status write_buf(wvol_atomic_file *f, const void *buf, size_t n, wvol_error *err)
 {
-    if (n && fwrite(buf, 1, n, f->fp) != n) {
-        wvol_status s = wvol_error_set(err, WVOL_ERR_IO, "%s: write failed", f->final_path);
-        wvol_atomic_abort(f);
-        return s;
-    }
+    if (n && fwrite(buf, 1, n, f->fp) != n) return wvol_atomic_fail(f, err);
     return WVOL_OK;
 }
 
@@ -159,10 +155,7 @@ wvol_status wvol_mesh_write_obj(const wvol_mesh *m, const char *path, wvol_error
                            : fprintf(f.fp, "f %lu %lu %lu\n", a, b, c);
         if (r < 0) bad = 1;
     }
-    if (bad) {
-        wvol_atomic_abort(&f);
-        return wvol_error_set(err, WVOL_ERR_IO, "%s: write failed", path);
-    }
+    if (bad) return wvol_atomic_fail(&f, err);
     return wvol_atomic_commit(&f, err);
 }
 

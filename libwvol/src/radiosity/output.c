@@ -145,8 +145,7 @@ wvol_status wvol_radiosity_write_mesh(const wvol_radiosity *r, const char *path,
         else
             write_vtp(af.fp, r, res, rgb);
         if (ferror(af.fp)) {
-            wvol_atomic_abort(&af);
-            s = wvol_error_set(err, WVOL_ERR_IO, "%s: write failed", path);
+            s = wvol_atomic_fail(&af, err);
         } else {
             s = wvol_atomic_commit(&af, err);
         }
