@@ -986,8 +986,7 @@ wvol_status wvol__wvc2_writer_close(wvc2_writer *w, void **out, size_t *out_size
     wvol__wvc2_writer_abort(w);
     return WVOL_OK;
 io_fail:
-    status = wvol_error_set(err, WVOL_ERR_IO, "%s: write failed: %s", w->out.final_path ? w->out.final_path : "",
-                            strerror(errno));
+    status = wvol_atomic_fail(&w->out, err);
 fail:
     free(h);
     wvol__wvc2_writer_abort(w);

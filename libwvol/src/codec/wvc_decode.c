@@ -470,11 +470,7 @@ wvol_status wvol_wvc_save(const char *path, const void *buf, size_t size, wvol_e
     /* an empty buffer is no .wvc file: a reader would refuse what this wrote */
     WVOL_RETURN_IF(!buf || size == 0, err, WVOL_ERR_ARG, "wvc save: %s: no encoded bytes to write", path ? path : "(null)");
     WVOL_FORWARD(wvol_atomic_open(&f, path, err));
-    if (fwrite(buf, 1, size, f.fp) != size) {
-        int e = errno;
-        wvol_atomic_abort(&f);
-        return wvol_error_set(err, WVOL_ERR_IO, "%s: write failed: %s", path, strerror(e));
-    }
+    if (fwrite(buf, 1, size, f.fp) != size) return wvol_atomic_fail(&f, err);
     return wvol_atomic_commit(&f, err);
 }
 

@@ -128,10 +128,8 @@ wvol_status wvol_atomic_commit(wvol_atomic_file *f, wvol_error *err)
     f->fp = NULL;
     if (!bad && rename(f->tmp_path, f->final_path) != 0) { bad = 1; e = errno; }
     if (bad) {
-        wvol_status s = wvol_error_set(err, WVOL_ERR_IO, "%s: write failed: %s", f->final_path,
-                                       e ? strerror(e) : "stream error");
-        wvol_atomic_abort(f);
-        return s;
+        errno = e; /* the first failure's cause */
+        return wvol_atomic_fail(f, err);
     }
     free(f->tmp_path);
     free(f->final_path);
