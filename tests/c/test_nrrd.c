@@ -645,7 +645,7 @@ static void writer_leaves_nothing_on_failure(void)
 
 /* A detached header whose write fails (a file size limit the header crosses and its 2x2x2
  * data does not) keeps the old pair: the data must not replace the old data file before the
- * header is known to be written (a full disk once left the old header naming no data). */
+ * header is known to be written (else a failed header leaves the old one naming no data). */
 static void detached_pair_kept_when_the_header_fails(void)
 {
     wvol_volume *v = test_volume(2, 2, 2);

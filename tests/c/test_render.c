@@ -217,7 +217,8 @@ static void image_files_round_trip(void)
 
 /* A write that fails (here a file size limit: EFBIG, as a full disk gives ENOSPC) is an error
  * naming its cause, the previous file stays and no temporary is left; in a child process
- * under an alarm, since an EXR write failing in its header once deadlocked in OpenEXR's lock. */
+ * under an alarm: OpenEXR reports a failure in its header holding its context's lock, and an
+ * error handler that takes the lock again would hang. */
 static void image_writes_that_fail(void)
 {
     const char *exr = "render_test_full.exr", *png = "render_test_full.png";

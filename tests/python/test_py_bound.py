@@ -165,7 +165,7 @@ def test_coarse_bound_above_the_exact(tmp_path, blobs):
 
 def test_progressive_state_advances_one_pass_at_a_time(blobs):
     # the state behind the generator is one thread at a time (progressive.h): a second thread's
-    # pass is refused, never run beside the first (which repeated or skipped passes)
+    # pass is refused, never run beside the first (two at once would repeat or skip passes)
     import threading
     from wvol import _wvol
     opts = dict(camera="+z", width=SIZE[0], height=SIZE[1], mode="xray", tf="gaussian", tf_units="world",

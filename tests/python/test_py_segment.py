@@ -86,7 +86,8 @@ def test_segment_refuses_bad_arrays():
 def test_segment_truth_written_by_another_thread(mosaic):
     # the ids are copied before the call releases the GIL: the C side checks them in one pass
     # and indexes its vote table with them in another, so an id written in between (here
-    # 9, beyond the checked largest class 2) indexed past the table (ASan: heap overflow)
+    # 9, beyond the checked largest class 2) would index past the table (ASan, under which
+    # scripts/test.sh runs this, reports that as a heap overflow)
     import threading
     truth = mosaic.labels.astype(np.int32).copy()
     flat = truth.reshape(-1)
