@@ -8,6 +8,7 @@
 #include <string.h>
 
 #include "cli.h"
+#include "output_set.h"
 #include "source_in.h"
 #include "wvol/compress.h"
 #include "wvol/io.h"
@@ -143,6 +144,8 @@ static int compress_streamed(const char *in, const char *outp, const wvol_load_o
     /* the trial reads the sample's slices; the passes then read the source from the start */
     if (chose && choose_wavelet(&wc, src, cp, &err) != WVOL_OK) goto fail;
     if (wvol_filter_get(&f, cp->wavelet, &err) != WVOL_OK) goto fail;
+    /* written, then decoded to check a target: a miss undoes it (main's output_set_undo) */
+    if (output_set_add(outp, &err) != WVOL_OK) goto fail;
     if (wvol_compress_stream(outp, src, cp, &rep, &err) != WVOL_OK) {
         /* the options were checked above: what fails now is what the input decides (a target or
          * a step its coefficients cannot have: bad input, exit 1, as the in-memory path), or
@@ -164,12 +167,11 @@ static int compress_streamed(const char *in, const char *outp, const wvol_load_o
         m_psnr = wvol_wvc_psnr(sse_meas, nvox, rep.value_min, rep.value_max);
         if (psnr > 0 && m_psnr < psnr - 0.01) {
             /* as in memory: the encoder's error is exact in double, so a miss is the float32
-             * decoding's own rounding (subnormal values); no file is left */
-            remove(outp);
+             * decoding's own rounding (subnormal values); the output is undone */
             rc = cli_fail("compress",
                           "%s with --psnr %g: the decoded volume measures %.3f dB (predicted %.3f dB): float32 "
                           "cannot hold the reconstruction that precisely at magnitudes ~%.3g (subnormal below "
-                          "1.18e-38); no file written",
+                          "1.18e-38); the output is left as it was",
                           in, psnr, m_psnr, p_psnr, fmax(fabs(rep.value_min), fabs(rep.value_max)));
             goto done;
         }
@@ -493,7 +495,7 @@ int wvol_cmd_compress(int argc, char **argv)
     }
     t_enc = cli_now() - t0;
     t0 = cli_now();
-    if (wvol_wvc_save(outp, buf, nbytes, &err) != WVOL_OK) {
+    if (output_set_add(outp, &err) != WVOL_OK || wvol_wvc_save(outp, buf, nbytes, &err) != WVOL_OK) {
         rc = cli_fail_err("compress", &err);
         goto done;
     }
@@ -529,11 +531,10 @@ int wvol_cmd_compress(int argc, char **argv)
         if (verify && mode == MODE_PSNR && step == 0 && m_psnr < psnr - 0.01) {
             /* a target is met or refused, never missed with status 0: the quantiser's error is
              * exact in double, so a miss is the float32 decoding's own rounding (subnormal values) */
-            remove(outp);
             rc = cli_fail("compress",
                           "%s with --psnr %g: the decoded volume measures %.3f dB (predicted %.3f dB): float32 "
                           "cannot hold the reconstruction that precisely at magnitudes ~%.3g (subnormal below "
-                          "1.18e-38); no file written",
+                          "1.18e-38); the output is left as it was",
                           in, psnr, m_psnr, p_psnr, fmax(fabs(vmin), fabs(vmax)));
             goto done;
         }

@@ -11,6 +11,7 @@
 #include <sys/stat.h>
 
 #include "cli.h"
+#include "output_set.h"
 #include "volume_out.h"
 #include "wvol/compress.h"
 #include "wvol/image.h"
@@ -176,6 +177,7 @@ static int stage_render(demo *d)
     wvol_error_clear(&err);
     if ((size_t)snprintf(d->image_path, sizeof d->image_path, "%s/skull.png", d->out_dir) >= sizeof d->image_path)
         return cli_fail("demo", "--out %s: path too long", d->out_dir);
+    if (output_set_add(d->image_path, &err) != WVOL_OK) return cli_fail_err("demo", &err);
     wvol_geometry_of_volume(&g, d->phantom);
     wvol_render_params_default(&p);
     p.shading = 1;
@@ -188,10 +190,7 @@ static int stage_render(demo *d)
     if (s == WVOL_OK) s = wvol_image_write_png(img, d->image_path, NULL, 1.0, &err);
     wvol_image_destroy(img);
     img = NULL;
-    if (s != WVOL_OK) {
-        d->image_path[0] = '\0'; /* not written: the cleanup leaves whatever is at that path */
-        return cli_fail_err("demo", &err);
-    }
+    if (s != WVOL_OK) return cli_fail_err("demo", &err);
     if (!d->json)
         printf("render   %s (512 x 512, ct-bone, reference caster, %.2f s)\n", d->image_path, d->render_stats.seconds);
 
@@ -199,6 +198,7 @@ static int stage_render(demo *d)
      * path where it applies) */
     if ((size_t)snprintf(d->xray_path, sizeof d->xray_path, "%s/skull_xray.png", d->out_dir) >= sizeof d->xray_path)
         return cli_fail("demo", "--out %s: path too long", d->out_dir);
+    if (output_set_add(d->xray_path, &err) != WVOL_OK) return cli_fail_err("demo", &err);
     wvol_render_params_default(&p);
     p.mode = WVOL_RENDER_MODE_XRAY;
     src = wvol_render_source_store(d->kept.store);
@@ -216,10 +216,7 @@ static int stage_render(demo *d)
         s = wvol_image_write_png(img, d->xray_path, NULL, 1.0, &err);
     }
     wvol_image_destroy(img);
-    if (s != WVOL_OK) {
-        d->xray_path[0] = '\0';
-        return cli_fail_err("demo", &err);
-    }
+    if (s != WVOL_OK) return cli_fail_err("demo", &err);
     if (!d->json)
         printf("render   %s (512 x 512, X-ray from the %.0f%% store alone, %s, %.3f s)\n", d->xray_path,
                100.0 * d->keep, wvol_render_method_name(d->xray_stats.method), d->xray_stats.seconds);
@@ -252,12 +249,12 @@ static int stage_compress(demo *d)
     wvol_error_clear(&err);
     if ((size_t)snprintf(d->wvc_path, sizeof d->wvc_path, "%s/skull.wvc", d->out_dir) >= sizeof d->wvc_path)
         return cli_fail("demo", "--out %s: path too long", d->out_dir);
+    if (output_set_add(d->wvc_path, &err) != WVOL_OK) return cli_fail_err("demo", &err);
     /* the library's quantiser rule: 2% of the energy the selection dropped (RMSE +1%) */
     wvol_compress_params_default(&prm);
     t0 = cli_now();
     if (wvol_compress_encode(&buf, &n, &d->kept, &prm, &wr, &err) != WVOL_OK ||
         wvol_wvc_save(d->wvc_path, buf, n, &err) != WVOL_OK) {
-        d->wvc_path[0] = '\0'; /* not written */
         code = cli_fail_err("demo", &err);
         goto done;
     }
@@ -282,7 +279,6 @@ static int stage_compress(demo *d)
                d->wvc_pred_psnr, d->wvc_rmse, d->wvc_psnr, d->wvc_max);
     }
 done:
-    if (code != CLI_OK && d->wvc_path[0]) remove(d->wvc_path);
     free(buf);
     wvol_volume_destroy(rec);
     wvol_coeffs_destroy(back);
@@ -317,12 +313,12 @@ static int stage_mesh(demo *d)
     wvol_error_clear(&err);
     if ((size_t)snprintf(d->mesh_path, sizeof d->mesh_path, "%s/bone.ply", d->out_dir) >= sizeof d->mesh_path)
         return cli_fail("demo", "--out %s: path too long", d->out_dir);
+    if (output_set_add(d->mesh_path, &err) != WVOL_OK) return cli_fail_err("demo", &err);
     wvol_iso_params_default(&prm);
     /* marching cubes brick by brick on the 5% reconstruction: only bricks whose
      * coefficient bound straddles the iso-value are reconstructed */
     if (wvol_iso_extract_store(&mesh, d->kept.store, d->bone_iso, &prm, &st, &err) != WVOL_OK ||
         wvol_mesh_save(mesh, d->mesh_path, &err) != WVOL_OK) {
-        d->mesh_path[0] = '\0';
         code = cli_fail_err("demo", &err);
     } else {
         d->mesh_tris = mesh->ntris;
@@ -422,11 +418,6 @@ int wvol_cmd_demo(int argc, char **argv)
         t[s] = cli_now() - t0;
     }
     if (code != CLI_OK) {
-        volume_out_remove(&d.phantom_file); /* no half-made results */
-        if (d.wvc_path[0]) remove(d.wvc_path);
-        if (d.mesh_path[0]) remove(d.mesh_path);
-        if (d.image_path[0]) remove(d.image_path);
-        if (d.xray_path[0]) remove(d.xray_path);
         demo_free(&d);
         return code;
     }

@@ -7,6 +7,7 @@
 #include <string.h>
 
 #include "cli.h"
+#include "output_set.h"
 #include "wvol/radiosity.h"
 
 const char wvol_cmd_radiosity_summary[] = "wavelet radiosity of quads (OBJ or built-in): image or mesh";
@@ -131,6 +132,7 @@ int wvol_cmd_radiosity(int argc, char **argv)
     }
     if (wvol_radiosity_solve(&sol, scene, &par, &st, &err) != WVOL_OK) goto fail;
     t_out = cli_now();
+    if (output_set_add(out, &err) != WVOL_OK) goto fail;
     if (is_image(out)) {
         wvol_camera cam;
         wvol_geometry g;
@@ -149,10 +151,8 @@ int wvol_cmd_radiosity(int argc, char **argv)
     } else if (wvol_radiosity_write_mesh(sol, out, (int)mesh_res, &err) != WVOL_OK) {
         goto fail;
     }
-    if (mesh && wvol_radiosity_write_mesh(sol, mesh, (int)mesh_res, &err) != WVOL_OK) {
-        remove(out); /* written just now: no half of the outputs stays */
+    if (mesh && (output_set_add(mesh, &err) || wvol_radiosity_write_mesh(sol, mesh, (int)mesh_res, &err) != WVOL_OK))
         goto fail;
-    }
     t_out = cli_now() - t_out;
     if (json) {
         cli_json_begin();

@@ -9,6 +9,7 @@
 #include <string.h>
 
 #include "cli.h"
+#include "output_set.h"
 #include "wvol/compress.h"
 #include "wvol/image.h"
 #include "wvol/io.h"
@@ -460,9 +461,18 @@ static wvol_status render_repeat(wvol_image *img, const wvol_render_source *src,
     return s;
 }
 
+/* A bound image: EXR, joining the command's outputs (output_set.h). */
+static wvol_status write_bound_exr(const wvol_image *img, const char *path, wvol_error *err)
+{
+    wvol_status s = output_set_add(path, err);
+    return s ? s : wvol_image_write_exr(img, path, NULL, err);
+}
+
 static wvol_status write_image_to(const wvol_image *img, const render_args *a, const char *path, wvol_error *err)
 {
     double exposure = a->exposure;
+    wvol_status s = output_set_add(path, err);
+    if (s) return s;
     if (wvol_path_has_ext(path, ".exr")) return wvol_image_write_exr(img, path, NULL, err);
     if (!a->exposure_given) {
         exposure = 1.0;
@@ -495,7 +505,7 @@ static wvol_status write_bound(const render_args *a, const render_input *in, con
     if (in->store.residual)
         s = (a->bound_method == WVOL_BOUND_COARSE ? wvol_render_bound_coarse : wvol_render_bound)(
             b, in->store.residual, in->coeff_error, cam, tf, &a->rp, bs, err);
-    if (s == WVOL_OK) s = wvol_image_write_exr(b, a->bound_path, NULL, err);
+    if (s == WVOL_OK) s = write_bound_exr(b, a->bound_path, err);
     wvol_image_destroy(b);
     return s;
 }
@@ -619,40 +629,23 @@ static int pass_name(char *buf, size_t n, const char *path, int index)
 }
 
 /* One pass's files: OUT.passN (and BOUND.passN with --bound; a bound computed only for
- * --max-error is not written), and for the last OUT (and BOUND) too. On a failure the files this
- * call wrote are removed again. */
+ * --max-error is not written), and for the last OUT (and BOUND) too. A failure undoes every
+ * pass's files (main's output_set_undo): none or all of them stay. */
 static wvol_status write_pass(const render_args *a, const wvol_image *img, const wvol_image *bimg,
                               const wvol_progressive_pass *pass, wvol_error *err)
 {
     char name[4096], bname[4096];
-    const char *done[4];
-    int nd = 0;
     wvol_status st = WVOL_OK;
     const int bounded = bimg && a->bound_path;
     if (!pass_name(name, sizeof name, a->out, pass->index))
         return wvol_error_set(err, WVOL_ERR_ARG, "output name %s too long", a->out);
     if (bounded && !pass_name(bname, sizeof bname, a->bound_path, pass->index))
         return wvol_error_set(err, WVOL_ERR_ARG, "bound name %s too long", a->bound_path);
-    if ((st = write_image_to(img, a, name, err)) == WVOL_OK) done[nd++] = name;
-    if (st == WVOL_OK && pass->last && (st = write_image_to(img, a, a->out, err)) == WVOL_OK) done[nd++] = a->out;
-    if (st == WVOL_OK && bounded && (st = wvol_image_write_exr(bimg, bname, NULL, err)) == WVOL_OK)
-        done[nd++] = bname;
-    if (st == WVOL_OK && bounded && pass->last && (st = wvol_image_write_exr(bimg, a->bound_path, NULL, err)) == WVOL_OK)
-        done[nd++] = a->bound_path;
-    if (st != WVOL_OK)
-        while (nd > 0) remove(done[--nd]);
+    st = write_image_to(img, a, name, err);
+    if (st == WVOL_OK && pass->last) st = write_image_to(img, a, a->out, err);
+    if (st == WVOL_OK && bounded) st = write_bound_exr(bimg, bname, err);
+    if (st == WVOL_OK && bounded && pass->last) st = write_bound_exr(bimg, a->bound_path, err);
     return st;
-}
-
-/* After a failure: removes the files of the complete passes 0..n-1 (none of them the last, so
- * OUT and BOUND were not written), so that the folder is left as it was found. */
-static void remove_passes(const render_args *a, int n)
-{
-    char name[4096];
-    for (int i = 0; i < n; i++) {
-        if (pass_name(name, sizeof name, a->out, i)) remove(name);
-        if (a->bound_path && pass_name(name, sizeof name, a->bound_path, i)) remove(name);
-    }
 }
 
 static void report_passes(const render_args *a, const wvol_progressive_pass *ps, int n)
@@ -735,7 +728,6 @@ static int render_progressive(render_args *a)
     report_passes(a, ps, n);
     goto done;
 fail:
-    remove_passes(a, n);
     rc = cli_fail_err("render", &err);
 done:
     free(ps);
@@ -791,10 +783,7 @@ int wvol_cmd_render(int argc, char **argv)
     /* a chunk of a .wvc found damaged while rendering fails the command before any output */
     if ((rc = cli_check_wvc_store("render", &in.store, 0)) != CLI_OK) goto done;
     if (write_image(img, &a, &err) != WVOL_OK) goto fail;
-    if (write_bound(&a, &in, &cam, &tf, &bstats, &err) != WVOL_OK) {
-        remove(a.out); /* written just now: no half of the outputs stays */
-        goto fail;
-    }
+    if (write_bound(&a, &in, &cam, &tf, &bstats, &err) != WVOL_OK) goto fail;
     report(&a, &in, &stats, &lstats, t_prep, cpu_max, rss, &bstats, &rt);
     rc = CLI_OK;
     goto done;

@@ -6,6 +6,8 @@
 #include <string.h>
 
 #include "cli.h"
+#include "output_set.h"
+#include "volume_out.h"
 #include "wvol/analysis.h"
 #include "wvol/io.h"
 
@@ -79,8 +81,8 @@ int wvol_cmd_segment(int argc, char **argv)
     cli_parser p;
     const cli_opt *o;
     const char *val, *in = NULL, *outp = NULL, *colors = NULL, *truth_path = NULL, *wname = "db2",
-               *features_out = NULL, *written[2];
-    int nwritten = 0;
+               *features_out = NULL;
+    volume_out labels_file;
     int r, json = 0, have_box = 0, rc = CLI_FAILED;
     long lv, boundary = -1;
     double box[6] = {0}, variance = 1.0;
@@ -183,8 +185,7 @@ int wvol_cmd_segment(int argc, char **argv)
     t_pca = cli_now();
     if (features_out) {
         wvol_volume planes = {v->nx, v->ny, v->nz * (size_t)feat->count, {1, 1, 1}, {0, 0, 0}, feat->data, 0};
-        if (wvol_raw_write(&planes, features_out, &err)) goto fail;
-        written[nwritten++] = features_out;
+        if (output_set_add(features_out, &err) || wvol_raw_write(&planes, features_out, &err)) goto fail;
     }
     if (wvol_som_train(&som, feat, &sp, &err)) goto fail;
     t_som = cli_now();
@@ -220,10 +221,9 @@ int wvol_cmd_segment(int argc, char **argv)
     }
     if (outp) {
         for (size_t i = 0; i < n; i++) v->data[i] = (float)labels[i];
-        if (wvol_volume_save(v, outp, &err)) goto fail;
-        written[nwritten++] = outp;
+        if (volume_out_save(&labels_file, v, outp, 0, &err)) goto fail;
     }
-    if (colors && write_colors(colors, rgb, n, &err)) goto fail;
+    if (colors && (output_set_add(colors, &err) || write_colors(colors, rgb, n, &err))) goto fail;
 
     if (json) {
         cli_json_begin();
@@ -262,8 +262,6 @@ int wvol_cmd_segment(int argc, char **argv)
 fail:
     rc = cli_fail_err("segment", &err);
 out:
-    /* the outputs written before a failure go too: none or all of them stay */
-    for (int i = 0; rc != CLI_OK && i < nwritten; i++) remove(written[i]);
     wvol_volume_destroy(v);
     wvol_features_destroy(feat);
     wvol_som_destroy(som);

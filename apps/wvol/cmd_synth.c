@@ -90,6 +90,7 @@ static wvol_status synth_stream(wvol_volume *v, wvol_volume *lab, volume_out fil
         int nrrd = wvol_path_has_ext(paths[f], ".nrrd") || wvol_path_has_ext(paths[f], ".nhdr");
         if (wvol_path_has_ext(paths[f], ".nhdr"))
             wvol_nrrd_data_path(files[f].data_path, sizeof files[f].data_path, paths[f], gzip);
+        if ((s = volume_out_claim(&files[f], err)) != WVOL_OK) break;
         s = wvol_slab_writer_open(&w[f], paths[f], dims, v->spacing, v->origin, gzip && nrrd ? 6 : 0, err);
     }
     for (size_t z0 = 0; z0 < dims[2] && !s; z0 += S) {
@@ -117,7 +118,6 @@ static wvol_status synth_stream(wvol_volume *v, wvol_volume *lab, volume_out fil
         if (!s && w[1]) {
             s = wvol_slab_writer_commit(w[1], &bytes[1], err);
             w[1] = NULL;
-            if (s) volume_out_remove(&files[0]); /* no half-made result */
         }
     }
     wvol_slab_writer_abort(w[0]);
@@ -261,7 +261,6 @@ int wvol_cmd_synth(int argc, char **argv)
             return cli_fail_err("synth", &err);
         }
         if (lab && volume_out_save(&files[1], lab, labels_out, gzip, &err) != WVOL_OK) {
-            volume_out_remove(&files[0]); /* no half-made result */
             wvol_volume_destroy(v);
             wvol_volume_destroy(lab);
             return cli_fail_err("synth", &err);

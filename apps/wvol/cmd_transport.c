@@ -9,6 +9,7 @@
 #include <string.h>
 
 #include "cli.h"
+#include "output_set.h"
 #include "wvol/image.h"
 #include "wvol/transport.h"
 
@@ -70,10 +71,12 @@ static int write_image(outputs *o, wvol_image *img, const char *stem, int exr)
     char name[256];
     wvol_status s;
     snprintf(name, sizeof name, "%s.png", stem);
-    s = wvol_image_write_png(img, out_path(o, name), NULL, 1, &o->err);
+    s = output_set_add(out_path(o, name), &o->err);
+    if (s == WVOL_OK) s = wvol_image_write_png(img, o->path, NULL, 1, &o->err);
     if (s == WVOL_OK && exr) {
         snprintf(name, sizeof name, "%s.exr", stem);
-        s = wvol_image_write_exr(img, out_path(o, name), NULL, &o->err);
+        s = output_set_add(out_path(o, name), &o->err);
+        if (s == WVOL_OK) s = wvol_image_write_exr(img, o->path, NULL, &o->err);
     }
     wvol_image_destroy(img);
     return s == WVOL_OK ? 0 : -1;
@@ -148,7 +151,9 @@ int wvol_cmd_transport(int argc, char **argv)
         code = cli_fail("transport", "cannot create output folder %s: %s", out.dir, strerror(r));
         goto done;
     }
-    if (wvol_png_write(out_path(&out, "window.png"), win.width, win.height, 3, win.rgb, &out.err) != WVOL_OK) goto fail;
+    if (output_set_add(out_path(&out, "window.png"), &out.err) != WVOL_OK ||
+        wvol_png_write(out.path, win.width, win.height, 3, win.rgb, &out.err) != WVOL_OK)
+        goto fail;
     if (wvol_transport_scene_run(&res, &sc, &win, &tp, &out.err) != WVOL_OK) goto fail;
     exp_in = exposure_of(res.incident);
     exp_out = exposure_of(res.reflected);

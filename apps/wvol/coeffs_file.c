@@ -10,6 +10,7 @@
 #include <string.h>
 #include <sys/stat.h>
 
+#include "output_set.h"
 #include "wvol/io.h"
 
 char *coeffs_sidecar_path(const char *raw_path)
@@ -45,7 +46,10 @@ wvol_status coeffs_file_write(const wvol_coeffs *c, const char *raw_path, const 
     size_t n = c->px * c->py * c->pz;
     char *json_path = coeffs_sidecar_path(raw_path);
     if (!json_path) return wvol_error_set(err, WVOL_ERR_NOMEM, "out of memory");
-    wvol_status st = wvol_atomic_open(&rf, raw_path, err);
+    /* two files: the command's output set undoes the first committed if the second fails */
+    wvol_status st = output_set_add(raw_path, err);
+    if (st == WVOL_OK) st = output_set_add(json_path, err);
+    if (st == WVOL_OK) st = wvol_atomic_open(&rf, raw_path, err);
     if (st != WVOL_OK) {
         free(json_path);
         return st;
@@ -54,9 +58,9 @@ wvol_status coeffs_file_write(const wvol_coeffs *c, const char *raw_path, const 
     size_t wrote = fwrite(c->data, sizeof(float), n, rf.fp);
     if (host_is_big_endian()) swap4(c->data, n);
     if (wrote != n) {
-        wvol_atomic_abort(&rf);
+        st = wvol_atomic_fail(&rf, err);
         free(json_path);
-        return wvol_error_set(err, WVOL_ERR_IO, "%s: write failed: %s", raw_path, strerror(errno));
+        return st;
     }
     st = wvol_atomic_open(&jf, json_path, err);
     if (st != WVOL_OK) {

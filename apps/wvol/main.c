@@ -13,6 +13,7 @@
 #endif
 
 #include "cli.h"
+#include "output_set.h"
 #include "commands.h"
 #include "wvol/version.h"
 
@@ -97,7 +98,12 @@ int main(int argc, char **argv)
         return CLI_OK;
     }
     for (i = 0; i < sizeof commands / sizeof commands[0]; i++)
-        if (!strcmp(argv[1], commands[i].name)) return commands[i].run(argc - 1, argv + 1);
+        if (!strcmp(argv[1], commands[i].name)) {
+            int rc = commands[i].run(argc - 1, argv + 1);
+            if (rc != CLI_OK) output_set_undo(); /* a failed command leaves the files it was to write as they were */
+            else output_set_done();
+            return rc;
+        }
     fprintf(stderr, "wvol: unknown command '%s' (run 'wvol --help' for the list)\n", argv[1]);
     return CLI_USAGE;
 }

@@ -1,6 +1,6 @@
 /* SPDX-License-Identifier: MIT */
-/* Writing a volume from a sub-command: remembers every file written (a detached
- * .nhdr header has a data file beside it) so a later failure can remove them all. */
+/* Writing a volume from a sub-command: every file written (a detached .nhdr header has a data
+ * file beside it) joins the command's output set (output_set.h), so a later failure undoes them. */
 #ifndef WVOL_APP_VOLUME_OUT_H
 #define WVOL_APP_VOLUME_OUT_H
 
@@ -16,8 +16,9 @@ typedef struct volume_out {
 
 /* Saves v to path (format by extension; gzip: NRRD gzip encoding). */
 wvol_status volume_out_save(volume_out *f, const wvol_volume *v, const char *path, int gzip, wvol_error *err);
-/* Removes what volume_out_save wrote. */
-void volume_out_remove(const volume_out *f);
+/* Adds f's path (and a detached header's data file) to the command's output set; volume_out_save
+ * does this itself, a command writing by slabs calls it before it opens the writers. */
+wvol_status volume_out_claim(const volume_out *f, wvol_error *err);
 /* JSON fields "file", "files", "bytes", "dims", "spacing", "origin". */
 void volume_out_json(const volume_out *f, const wvol_volume *v);
 /* JSON fields "dims", "spacing", "origin" of v. */

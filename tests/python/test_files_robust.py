@@ -155,6 +155,47 @@ def test_multi_output_commands_leave_no_half(tmp_path, phantom):
     assert not mesh_img.exists()
 
 
+def _outputs_kept(tmp_path, phantom, old, blocked, args, cwd=None):
+    """Runs a command whose output `blocked` is a folder (refused when that output is written, after
+    the others): every file in `old` must hold its earlier bytes afterwards, and nothing be added."""
+    for f in old:
+        f.parent.mkdir(parents=True, exist_ok=True)
+        f.write_bytes(b"earlier " + f.name.encode())
+    blocked.mkdir(parents=True)
+    before = sorted(p for p in tmp_path.rglob("*"))
+    r = run(*args, cwd=cwd)
+    assert r.returncode == 1 and blocked.name in r.stderr and "not a regular file" in r.stderr, r.stderr
+    for f in old:
+        assert f.read_bytes() == b"earlier " + f.name.encode(), f
+    assert sorted(p for p in tmp_path.rglob("*")) == before  # no kept link or temporary stays
+
+
+def test_a_failed_command_puts_back_the_files_it_replaced(tmp_path, phantom):
+    # each writer replaces its path atomically; a later output failing must undo the earlier ones
+    # to what was there before, not remove them (the user's earlier results would be lost)
+    t = tmp_path
+    _outputs_kept(t, phantom, [t / "o.png"], t / "b.exr",
+                  ["render", phantom, "-o", t / "o.png", "--size", "16x16", "--keep", "10%", "--bound", t / "b.exr"])
+    _outputs_kept(t, phantom, [t / "p.png", t / "p.pass0.png", t / "p.pass1.png"], t / "p.pass2.png",
+                  ["render", phantom, "-o", t / "p.png", "--size", "16x16", "--progressive", "--growth", "2"])
+    _outputs_kept(t, phantom, [t / "l.nrrd"], t / "c.raw",
+                  ["segment", phantom, "-o", t / "l.nrrd", "--levels", "1", "--iters", "50", "--colors", t / "c.raw"])
+    _outputs_kept(t, phantom, [t / "r.png"], t / "m.ply", ["radiosity", "box", "-o", t / "r.png", "--mesh", t / "m.ply"])
+    # synth by slabs (raw and NRRD) and whole (other formats)
+    _outputs_kept(t, phantom, [t / "s.nhdr", t / "s.raw"], t / "sl.nrrd",
+                  ["synth", "skull", "--size", "16", "-o", t / "s.nhdr", "--labels", t / "sl.nrrd"])
+    _outputs_kept(t, phantom, [t / "s.vti"], t / "sl.raw",
+                  ["synth", "skull", "--size", "16", "-o", t / "s.vti", "--labels", t / "sl.raw"])
+    _outputs_kept(t, phantom, [t / "k.raw"], t / "k.json", ["transform", phantom, "-o", t / "k.raw"])
+    d = t / "demo"
+    _outputs_kept(t, phantom, [d / "skull.nrrd", d / "skull.png", d / "skull_xray.png", d / "skull.wvc"],
+                  d / "bone.ply", ["demo", "--out", d, "--size", "32"])
+    tr = t / "tr"
+    _outputs_kept(t, phantom, [tr / "window.png", tr / "incident.png", tr / "incident.exr", tr / "detail.png"],
+                  tr / "reflected.png",
+                  ["transport", "-o", tr])
+
+
 @pytest.mark.parametrize("header, words", [
     ("DimSize = 65536 65536 65536\nElementType = MET_FLOAT\n", "the header asks for 1125899906842624 bytes of samples"),
     ("DimSize = -1 2 2\nElementType = MET_FLOAT\n", "DimSize -1 is not a size"),
