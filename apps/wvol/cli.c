@@ -2,6 +2,7 @@
 /* Shared helpers of the wvol sub-commands (cli.h): option parsing, messages, JSON, progress. */
 #define _XOPEN_SOURCE 700 /* realpath */
 #include "cli.h"
+#include "output_set.h"
 #include "wvol/compress.h"
 #include "wvol/store.h"
 
@@ -588,7 +589,12 @@ int cli_make_dirs(const char *dir)
     for (i = 1; i <= n; i++) {
         if (buf[i] != '/' && buf[i] != '\0') continue;
         buf[i] = '\0';
-        if (mkdir(buf, 0777) != 0 && errno != EEXIST) return errno;
+        if (mkdir(buf, 0777) == 0) {
+            wvol_error e;
+            if (output_set_add_dir(buf, &e) != WVOL_OK) return ENOMEM; /* a failure removes it again */
+        } else if (errno != EEXIST) {
+            return errno;
+        }
         buf[i] = i < n ? '/' : '\0';
     }
     if (stat(dir, &st) != 0) return errno;

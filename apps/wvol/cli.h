@@ -143,7 +143,8 @@ void cli_json_num3(const char *key, const double v[3]);
 void cli_progress(const char *label, double fraction);
 void cli_progress_done(void);
 
-/* mkdir -p: 0, or the errno of the step that failed (ENOTDIR when the path is a file). */
+/* mkdir -p: 0, or the errno of the step that failed (ENOTDIR when the path is a file). The
+ * folders it makes join the command's output set (output_set.h): a failure removes them again. */
 int cli_make_dirs(const char *dir);
 /* The first file two of the outputs outs[0..n) would both write (an .nhdr's detached data file
  * counted as its own output), or NULL: paths that differ as strings can name one file

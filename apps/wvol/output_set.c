@@ -21,6 +21,8 @@ typedef struct output_entry {
 
 static output_entry *entries;
 static int count, cap;
+static char **dirs; /* in the order made: parents first */
+static int ndirs, capdirs;
 
 /* A hard link to path under a new name beside it; NULL when none can be made. */
 static char *keep_link(const char *path)
@@ -80,6 +82,35 @@ wvol_status output_set_add(const char *path, wvol_error *err)
     return WVOL_OK;
 }
 
+wvol_status output_set_add_dir(const char *path, wvol_error *err)
+{
+    char *p = strdup(path);
+    if (p && ndirs == capdirs) {
+        int nc = capdirs ? 2 * capdirs : 4;
+        char **q = realloc(dirs, (size_t)nc * sizeof *q);
+        if (!q) {
+            free(p);
+            p = NULL;
+        } else {
+            dirs = q, capdirs = nc;
+        }
+    }
+    if (!p) return wvol_error_set(err, WVOL_ERR_NOMEM, "%s: out of memory", path);
+    dirs[ndirs++] = p;
+    return WVOL_OK;
+}
+
+static void drop_dirs(int remove_them)
+{
+    while (ndirs > 0) {
+        char *d = dirs[--ndirs];
+        if (remove_them) (void)rmdir(d); /* only if empty: what someone else put there stays */
+        free(d);
+    }
+    free(dirs);
+    dirs = NULL, capdirs = 0;
+}
+
 void output_set_undo(void)
 {
     while (count > 0) {
@@ -99,6 +130,7 @@ void output_set_undo(void)
     }
     free(entries);
     entries = NULL, cap = 0;
+    drop_dirs(1);
 }
 
 void output_set_done(void)
@@ -111,4 +143,5 @@ void output_set_done(void)
     }
     free(entries);
     entries = NULL, cap = 0;
+    drop_dirs(0);
 }

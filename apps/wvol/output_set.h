@@ -17,7 +17,10 @@
 /* Before path is written. A path already in the set, or NULL, is ignored. Fails only when out of
  * memory. */
 wvol_status output_set_add(const char *path, wvol_error *err);
-/* After a failure: every path as it was before output_set_add. */
+/* A folder the command created for its outputs (cli_make_dirs): an undo removes it again if it
+ * is empty then. Fails only when out of memory. */
+wvol_status output_set_add_dir(const char *path, wvol_error *err);
+/* After a failure: every path as it was before output_set_add, the folders made removed. */
 void output_set_undo(void);
 /* After a success: removes the kept links. */
 void output_set_done(void);

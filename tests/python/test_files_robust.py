@@ -196,6 +196,24 @@ def test_a_failed_command_puts_back_the_files_it_replaced(tmp_path, phantom):
                   ["transport", "-o", tr])
 
 
+def _small_files_only():
+    # in the child: writes beyond 4 KiB fail with EFBIG (SIGXFSZ ignored, as the C tests do)
+    import resource
+    import signal
+    signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
+    resource.setrlimit(resource.RLIMIT_FSIZE, (4096, 4096))
+
+
+@pytest.mark.parametrize("cmd", [["transport"], ["demo", "--size", "32"]])
+def test_a_failed_command_removes_the_folders_it_made(tmp_path, cmd):
+    out = tmp_path / "new" / "sub"
+    flag = "-o" if cmd[0] == "transport" else "--out"
+    r = subprocess.run([WVOL_BIN, *cmd, flag, str(out)], capture_output=True, text=True, timeout=TIMEOUT,
+                       preexec_fn=_small_files_only)
+    assert r.returncode == 1 and "File too large" in r.stderr, r.stderr
+    assert list(tmp_path.iterdir()) == []
+
+
 @pytest.mark.parametrize("header, words", [
     ("DimSize = 65536 65536 65536\nElementType = MET_FLOAT\n", "the header asks for 1125899906842624 bytes of samples"),
     ("DimSize = -1 2 2\nElementType = MET_FLOAT\n", "DimSize -1 is not a size"),
