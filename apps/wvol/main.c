@@ -2,6 +2,8 @@
 /* wvol: the command-line program. Sub-commands live in cmd_<name>.c; CMake
  * generates the table below from those file names. */
 #define _DEFAULT_SOURCE /* sbrk */
+#include <errno.h>
+#include <signal.h>
 #include <stdio.h>
 #include <string.h>
 #ifdef __GLIBC__
@@ -15,6 +17,7 @@
 #include "cli.h"
 #include "output_set.h"
 #include "commands.h"
+#include "wvol/io.h"
 #include "wvol/version.h"
 
 typedef struct command {
@@ -81,6 +84,44 @@ static void allocator_policy(void)
 #endif
 }
 
+/* SIGINT, SIGTERM, SIGHUP: a command stopped is a command failed, which leaves the folder as it
+ * found it: the library's open temporaries are removed and the outputs already replaced are put
+ * back; then the signal, its default action restored (SA_RESETHAND), ends the process as it
+ * would have (status 128 + the signal), once the handler returns. */
+static void on_stop_signal(int sig)
+{
+    const int saved = errno;
+    wvol_atomic_remove_pending();
+    output_set_undo_on_signal();
+    raise(sig); /* blocked while the handler runs: delivered, with the default action, on return */
+    errno = saved;
+}
+
+static void catch_stop_signals(void)
+{
+    static const int sigs[] = {SIGINT, SIGTERM, SIGHUP};
+    struct sigaction sa;
+    memset(&sa, 0, sizeof sa);
+    sa.sa_handler = on_stop_signal;
+    sa.sa_flags = SA_RESETHAND;
+    sigfillset(&sa.sa_mask); /* one handler at a time */
+    for (size_t i = 0; i < sizeof sigs / sizeof sigs[0]; i++) {
+        struct sigaction old;
+        /* a signal the caller set to be ignored (nohup, a shell's background job) stays ignored */
+        if (sigaction(sigs[i], NULL, &old) == 0 && old.sa_handler != SIG_IGN) sigaction(sigs[i], &sa, NULL);
+    }
+}
+
+/* The command's report, and for `info` its whole result, went to stdout: a write that failed
+ * there (a full disk, a closed pipe with SIGPIPE ignored) fails the command. */
+static int check_stdout(const char *cmd, int rc)
+{
+    errno = 0;
+    if (fflush(stdout) == 0 && !ferror(stdout)) return rc;
+    fprintf(stderr, "wvol %s: cannot write to standard output: %s\n", cmd, errno ? strerror(errno) : "stream error");
+    return rc == CLI_OK ? CLI_FAILED : rc;
+}
+
 int main(int argc, char **argv)
 {
     size_t i;
@@ -99,7 +140,9 @@ int main(int argc, char **argv)
     }
     for (i = 0; i < sizeof commands / sizeof commands[0]; i++)
         if (!strcmp(argv[1], commands[i].name)) {
-            int rc = commands[i].run(argc - 1, argv + 1);
+            int rc;
+            catch_stop_signals();
+            rc = check_stdout(argv[1], commands[i].run(argc - 1, argv + 1));
             if (rc != CLI_OK) output_set_undo(); /* a failed command leaves the files it was to write as they were */
             else output_set_done();
             return rc;

@@ -1,9 +1,12 @@
 /* SPDX-License-Identifier: MIT */
-/* The outputs of one command, kept or undone together (output_set.h). */
+/* The outputs of one command, kept or undone together (output_set.h). A signal handler undoes
+ * the set too (output_set_undo_on_signal), so entries are never moved or freed while the command
+ * runs: they live in blocks allocated once, published by the count after they are complete. */
 #define _XOPEN_SOURCE 700 /* realpath, lstat */
 #include "output_set.h"
 
 #include <errno.h>
+#include <signal.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -19,10 +22,16 @@ typedef struct output_entry {
     ino_t ino;
 } output_entry;
 
-static output_entry *entries;
-static int count, cap;
-static char **dirs; /* in the order made: parents first */
-static int ndirs, capdirs;
+enum { BLOCK = 64, MAX_BLOCKS = 256, MAX_DIRS = 64 };
+static output_entry *blocks[MAX_BLOCKS];
+static volatile sig_atomic_t count; /* entries complete */
+static char *dirs[MAX_DIRS];        /* in the order made: parents first */
+static volatile sig_atomic_t ndirs;
+
+static output_entry *entry(int i)
+{
+    return &blocks[i / BLOCK][i % BLOCK];
+}
 
 /* A hard link to path under a new name beside it; NULL when none can be made. */
 static char *keep_link(const char *path)
@@ -49,6 +58,7 @@ wvol_status output_set_add(const char *path, wvol_error *err)
 {
     struct stat st;
     output_entry e;
+    const int n = count;
     if (!path || !*path) return WVOL_OK;
     memset(&e, 0, sizeof e);
     if (lstat(path, &st) == 0 && S_ISLNK(st.st_mode)) {
@@ -56,19 +66,15 @@ wvol_status output_set_add(const char *path, wvol_error *err)
     } else if (!(e.path = strdup(path))) {
         return wvol_error_set(err, WVOL_ERR_NOMEM, "%s: out of memory", path);
     }
-    for (int i = 0; i < count; i++)
-        if (!strcmp(entries[i].path, e.path)) {
+    for (int i = 0; i < n; i++)
+        if (!strcmp(entry(i)->path, e.path)) {
             free(e.path);
             return WVOL_OK;
         }
-    if (count == cap) {
-        int nc = cap ? 2 * cap : 8;
-        output_entry *q = realloc(entries, (size_t)nc * sizeof *q);
-        if (!q) {
-            free(e.path);
-            return wvol_error_set(err, WVOL_ERR_NOMEM, "%s: out of memory", path);
-        }
-        entries = q, cap = nc;
+    if (n == BLOCK * MAX_BLOCKS || (!blocks[n / BLOCK] && !(blocks[n / BLOCK] = calloc(BLOCK, sizeof e)))) {
+        free(e.path);
+        return wvol_error_set(err, n == BLOCK * MAX_BLOCKS ? WVOL_ERR_ARG : WVOL_ERR_NOMEM,
+                              "%s: %s", path, n == BLOCK * MAX_BLOCKS ? "too many output files" : "out of memory");
     }
     if (stat(e.path, &st) == 0) {
         if (!S_ISREG(st.st_mode)) { /* a folder or device: the writers refuse it, nothing to undo */
@@ -78,70 +84,72 @@ wvol_status output_set_add(const char *path, wvol_error *err)
         e.existed = 1, e.dev = st.st_dev, e.ino = st.st_ino;
         e.kept = keep_link(e.path);
     }
-    entries[count++] = e;
+    *entry(n) = e;
+    __atomic_signal_fence(__ATOMIC_SEQ_CST); /* the entry complete before a handler can see it */
+    count = n + 1;
     return WVOL_OK;
 }
 
 wvol_status output_set_add_dir(const char *path, wvol_error *err)
 {
-    char *p = strdup(path);
-    if (p && ndirs == capdirs) {
-        int nc = capdirs ? 2 * capdirs : 4;
-        char **q = realloc(dirs, (size_t)nc * sizeof *q);
-        if (!q) {
-            free(p);
-            p = NULL;
-        } else {
-            dirs = q, capdirs = nc;
-        }
-    }
-    if (!p) return wvol_error_set(err, WVOL_ERR_NOMEM, "%s: out of memory", path);
-    dirs[ndirs++] = p;
+    char *p;
+    if (ndirs == MAX_DIRS) return WVOL_OK; /* deeper still: those stay after a failure */
+    if (!(p = strdup(path))) return wvol_error_set(err, WVOL_ERR_NOMEM, "%s: out of memory", path);
+    dirs[ndirs] = p;
+    __atomic_signal_fence(__ATOMIC_SEQ_CST);
+    ndirs = ndirs + 1;
     return WVOL_OK;
 }
 
-static void drop_dirs(int remove_them)
+/* Every path as it was, the folders made removed; async-signal-safe (stat, rename, unlink,
+ * rmdir), touching no allocation. */
+static void undo_all(void)
 {
-    while (ndirs > 0) {
-        char *d = dirs[--ndirs];
-        if (remove_them) (void)rmdir(d); /* only if empty: what someone else put there stays */
-        free(d);
-    }
-    free(dirs);
-    dirs = NULL, capdirs = 0;
-}
-
-void output_set_undo(void)
-{
-    while (count > 0) {
-        output_entry *e = &entries[--count];
+    for (int i = count - 1; i >= 0; i--) {
+        const output_entry *e = entry(i);
         struct stat st;
         const int now = stat(e->path, &st) == 0;
         const int same = now && e->existed && st.st_dev == e->dev && st.st_ino == e->ino;
         if (same) {
-            if (e->kept) remove(e->kept); /* never replaced */
+            if (e->kept) (void)unlink(e->kept); /* never replaced */
         } else if (e->kept) {
             (void)rename(e->kept, e->path); /* if that fails, the earlier file stays under the kept name */
         } else if (now) {
-            remove(e->path);
+            (void)unlink(e->path);
         }
-        free(e->kept);
-        free(e->path);
     }
-    free(entries);
-    entries = NULL, cap = 0;
-    drop_dirs(1);
+    for (int i = ndirs - 1; i >= 0; i--) (void)rmdir(dirs[i]); /* only if empty: what others put there stays */
+}
+
+static void release(void)
+{
+    const int n = count, nd = ndirs;
+    count = 0, ndirs = 0;
+    for (int i = 0; i < n; i++) {
+        free(entry(i)->kept);
+        free(entry(i)->path);
+    }
+    for (int b = 0; b < MAX_BLOCKS && blocks[b]; b++) {
+        free(blocks[b]);
+        blocks[b] = NULL;
+    }
+    for (int i = 0; i < nd; i++) free(dirs[i]);
+}
+
+void output_set_undo(void)
+{
+    undo_all();
+    release();
+}
+
+void output_set_undo_on_signal(void)
+{
+    undo_all();
 }
 
 void output_set_done(void)
 {
-    while (count > 0) {
-        output_entry *e = &entries[--count];
-        if (e->kept) remove(e->kept);
-        free(e->kept);
-        free(e->path);
-    }
-    free(entries);
-    entries = NULL, cap = 0;
-    drop_dirs(0);
+    for (int i = count - 1; i >= 0; i--)
+        if (entry(i)->kept) (void)unlink(entry(i)->kept);
+    release();
 }

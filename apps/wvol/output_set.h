@@ -14,14 +14,17 @@
 
 #include "wvol/status.h"
 
-/* Before path is written. A path already in the set, or NULL, is ignored. Fails only when out of
- * memory. */
+/* Before path is written. A path already in the set, or NULL, is ignored. Fails when out of
+ * memory or past 16384 outputs. */
 wvol_status output_set_add(const char *path, wvol_error *err);
 /* A folder the command created for its outputs (cli_make_dirs): an undo removes it again if it
  * is empty then. Fails only when out of memory. */
 wvol_status output_set_add_dir(const char *path, wvol_error *err);
 /* After a failure: every path as it was before output_set_add, the folders made removed. */
 void output_set_undo(void);
+/* From a handler of a signal that ends the process: undoes the set as output_set_undo does,
+ * async-signal-safe (it frees nothing). */
+void output_set_undo_on_signal(void);
 /* After a success: removes the kept links. */
 void output_set_done(void);
 

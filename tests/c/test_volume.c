@@ -284,6 +284,49 @@ static void test_null_pointers(void)
     }
 }
 
+/* wvol_atomic_remove_pending (a signal handler's clean-up) removes exactly the temporaries not
+ * yet committed or aborted, and a writer whose temporary it removed fails at its commit. */
+static void test_remove_pending(void)
+{
+    wvol_atomic_file a, b, c;
+    wvol_error err;
+    char ta[4200], tb[4200];
+    CHECK(wvol_atomic_open(&a, "pending_a.txt", &err) == WVOL_OK, "open a: %s", err.message);
+    CHECK(wvol_atomic_open(&b, "pending_b.txt", &err) == WVOL_OK, "open b: %s", err.message);
+    CHECK(wvol_atomic_open(&c, "pending_c.txt", &err) == WVOL_OK, "open c: %s", err.message);
+    snprintf(ta, sizeof ta, "%s", a.tmp_path);
+    snprintf(tb, sizeof tb, "%s", b.tmp_path);
+    fputs("a", a.fp);
+    CHECK(wvol_atomic_commit(&a, &err) == WVOL_OK, "commit a: %s", err.message);
+    wvol_atomic_abort(&c);
+    CHECK(access(tb, F_OK) == 0, "b's temporary exists before");
+    wvol_atomic_remove_pending();
+    CHECK(access(tb, F_OK) != 0, "b's temporary removed");
+    CHECK(access("pending_a.txt", F_OK) == 0 && access(ta, F_OK) != 0, "a committed, untouched");
+    fputs("b", b.fp);
+    CHECK(wvol_atomic_commit(&b, &err) == WVOL_ERR_IO && strstr(err.message, "pending_b.txt"),
+          "b's commit fails: %s", err.message);
+    CHECK(access("pending_b.txt", F_OK) != 0 && access("pending_c.txt", F_OK) != 0, "b and c not written");
+    /* more temporaries than the registry's slots: every one still opens and commits */
+    {
+        enum { N = 80 };
+        wvol_atomic_file f[N];
+        char name[64];
+        int ok = 1;
+        for (int i = 0; i < N; i++) {
+            snprintf(name, sizeof name, "pending_%d.txt", i);
+            ok &= wvol_atomic_open(&f[i], name, &err) == WVOL_OK;
+        }
+        for (int i = 0; i < N; i++) ok &= wvol_atomic_commit(&f[i], &err) == WVOL_OK;
+        for (int i = 0; i < N; i++) {
+            snprintf(name, sizeof name, "pending_%d.txt", i);
+            ok &= remove(name) == 0;
+        }
+        CHECK(ok, "80 atomic files at once");
+    }
+    remove("pending_a.txt");
+}
+
 int main(void)
 {
     test_create_and_overflow();
@@ -293,5 +336,6 @@ int main(void)
     test_calloc_large_zeroes();
     test_reuse_mid_tier();
     test_null_pointers();
+    test_remove_pending();
     return check_summary("test_volume");
 }

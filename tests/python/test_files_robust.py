@@ -196,6 +196,33 @@ def test_a_failed_command_puts_back_the_files_it_replaced(tmp_path, phantom):
                   ["transport", "-o", tr])
 
 
+def test_a_stopped_command_puts_back_what_it_replaced(tmp_path, phantom):
+    # SIGINT or SIGTERM mid-run: the temporaries go and the files already replaced come back (the
+    # handler undoes the output set), then the signal ends the process as it would have
+    import signal
+    import time
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        d = tmp_path / sig.name
+        d.mkdir()
+        old = [d / "p.png", d / "p.pass0.png", d / "p.pass1.png", d / "p.pass2.png"]
+        for f in old:
+            f.write_bytes(b"earlier")
+        before = sorted(d.iterdir())
+        first = os.stat(old[1]).st_ino
+        # about 130 passes: the first ones are written long before the last
+        p = subprocess.Popen([WVOL_BIN, "render", phantom, "-o", d / "p.png", "--progressive", "--growth", "1.05",
+                              "--size", "96x96"], stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+        t0 = time.monotonic()
+        while (not (d / "p.pass3.png").exists() and p.poll() is None and time.monotonic() - t0 < TIMEOUT):
+            time.sleep(0.001)
+        assert os.stat(old[1]).st_ino != first  # pass 0 was replaced before the signal
+        p.send_signal(sig)
+        p.wait(timeout=TIMEOUT)
+        assert p.returncode == -sig, p.stderr.read()
+        assert sorted(d.iterdir()) == before
+        assert all(f.read_bytes() == b"earlier" for f in old)
+
+
 def _small_files_only():
     # in the child: writes beyond 4 KiB fail with EFBIG (SIGXFSZ ignored, as the C tests do)
     import resource
@@ -330,3 +357,16 @@ def test_save_on_a_full_disk_fails_and_leaves_nothing(tmp_path, ext):
     assert r.returncode == 0, r.stderr
     assert r.stdout.startswith("OSError:") and str(out) in r.stdout, r.stdout + r.stderr
     assert os.listdir(tmp_path) == [], os.listdir(tmp_path)
+
+
+def test_a_report_that_cannot_be_written_fails_the_command(tmp_path, phantom):
+    # info's result is its report: written to a full disk, it must not exit 0 as if read
+    with open("/dev/full", "w") as full:
+        r = subprocess.run([WVOL_BIN, "info", str(phantom), "--json"], stdout=full, stderr=subprocess.PIPE,
+                           text=True, timeout=TIMEOUT)
+        assert r.returncode == 1 and "cannot write to standard output: No space left on device" in r.stderr, r.stderr
+        out = tmp_path / "s.nrrd"
+        r = subprocess.run([WVOL_BIN, "synth", "gaussian", "--size", "8", "-o", str(out)], stdout=full,
+                           stderr=subprocess.PIPE, text=True, timeout=TIMEOUT)
+        assert r.returncode == 1 and "cannot write to standard output" in r.stderr, r.stderr
+        assert not out.exists()  # a failed command's outputs are undone

@@ -120,6 +120,12 @@ WVOL_API void wvol_atomic_abort(wvol_atomic_file *f);
  * CAUSE", the cause from errno as the failed call left it (a full disk, a size limit). */
 WVOL_API wvol_status wvol_atomic_fail(wvol_atomic_file *f, wvol_error *err);
 
+/* Removes every temporary output file the library has open (an output's "<path>.tmp-XXXXXX"
+ * that is neither committed nor aborted yet, of any thread). Async-signal-safe: for a program's
+ * SIGINT or SIGTERM handler, which then ends the process (the library installs no handler).
+ * The writers whose temporaries it removed fail if they go on. */
+WVOL_API void wvol_atomic_remove_pending(void);
+
 /* 1 if path ends with ext (case-insensitive). */
 WVOL_API int wvol_path_has_ext(const char *path, const char *ext);
 

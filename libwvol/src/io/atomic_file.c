@@ -47,6 +47,49 @@ wvol_status wvol__output_path(char **final, const char *path, wvol_error *err)
     return WVOL_OK;
 }
 
+/* The temporaries open now, for wvol_atomic_remove_pending, which may run in a signal handler:
+ * fixed slots (no allocation), each claimed by an atomic exchange, its name copied in, then
+ * marked live. A temporary that finds no free slot, or whose name does not fit, is not removed
+ * by it (its writer still removes it on an error). */
+enum { TEMP_FREE, TEMP_FILLING, TEMP_LIVE, TEMP_SLOTS = 64 };
+static struct {
+    int state;
+    char path[4096];
+} temps[TEMP_SLOTS];
+
+static void temp_track(const char *path)
+{
+    const size_t n = strlen(path);
+    if (n >= sizeof temps[0].path) return;
+    for (int i = 0; i < TEMP_SLOTS; i++) {
+        int expected = TEMP_FREE;
+        if (__atomic_compare_exchange_n(&temps[i].state, &expected, TEMP_FILLING, 0, __ATOMIC_ACQUIRE,
+                                        __ATOMIC_RELAXED)) {
+            memcpy(temps[i].path, path, n + 1);
+            __atomic_store_n(&temps[i].state, TEMP_LIVE, __ATOMIC_RELEASE);
+            return;
+        }
+    }
+}
+
+void wvol__temp_done(const char *path)
+{
+    if (!path) return;
+    /* only the owner marks its slot free: temporaries' names are unique, so no other live slot
+     * can hold this name */
+    for (int i = 0; i < TEMP_SLOTS; i++)
+        if (__atomic_load_n(&temps[i].state, __ATOMIC_ACQUIRE) == TEMP_LIVE && !strcmp(temps[i].path, path)) {
+            __atomic_store_n(&temps[i].state, TEMP_FREE, __ATOMIC_RELEASE);
+            return;
+        }
+}
+
+void wvol_atomic_remove_pending(void)
+{
+    for (int i = 0; i < TEMP_SLOTS; i++)
+        if (__atomic_load_n(&temps[i].state, __ATOMIC_ACQUIRE) == TEMP_LIVE) (void)unlink(temps[i].path);
+}
+
 /* splitmix64's finaliser: spreads a counter and a clock over a name's characters */
 static uint64_t mix64(uint64_t x)
 {
@@ -76,6 +119,7 @@ int wvol__create_temp(char *tmpl, size_t suffix_len)
                   ((uint64_t)ts.tv_sec << 20) ^ (uint64_t)ts.tv_nsec);
         for (int i = 0; i < 6; i++, r /= sizeof set - 1) x[i] = set[r % (sizeof set - 1)];
         fd = open(tmpl, O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0666);
+        if (fd >= 0) temp_track(tmpl);
         if (fd >= 0 || errno != EEXIST) return fd;
     }
     errno = EEXIST;
@@ -127,6 +171,7 @@ wvol_status wvol_atomic_commit(wvol_atomic_file *f, wvol_error *err)
     if (fclose(f->fp) != 0 && !bad) { bad = 1; e = errno; }
     f->fp = NULL;
     if (!bad && rename(f->tmp_path, f->final_path) != 0) { bad = 1; e = errno; }
+    if (!bad) wvol__temp_done(f->tmp_path);
     if (bad) {
         errno = e; /* the first failure's cause */
         return wvol_atomic_fail(f, err);
@@ -155,7 +200,10 @@ void wvol_atomic_abort(wvol_atomic_file *f)
     if (!f) return;
     if (f->fp) fclose(f->fp);
     f->fp = NULL;
-    if (f->tmp_path) remove(f->tmp_path);
+    if (f->tmp_path) {
+        remove(f->tmp_path);
+        wvol__temp_done(f->tmp_path);
+    }
     free(f->tmp_path);
     free(f->final_path);
     f->tmp_path = f->final_path = NULL;

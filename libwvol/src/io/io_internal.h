@@ -51,6 +51,9 @@ wvol_status wvol__output_path(char **final, const char *path, wvol_error *err);
  * mkstemp's 0600 would need the umask read, and reading it sets it, which races with other
  * threads). Returns the descriptor, or -1 with errno set. */
 int wvol__create_temp(char *tmpl, size_t suffix_len);
+/* A temporary from wvol__create_temp was renamed into place or removed: it is no longer one that
+ * wvol_atomic_remove_pending removes. */
+void wvol__temp_done(const char *path);
 
 /* WVOL_ERR_IO "PATH: write failed: CAUSE", the cause from errno as a failed write left it. */
 wvol_status wvol__write_failed(const char *path, wvol_error *err);

@@ -224,13 +224,16 @@ public:
     }
     ~TempFile()
     {
-        if (!tmp_.empty()) std::remove(tmp_.c_str());
+        if (tmp_.empty()) return;
+        std::remove(tmp_.c_str());
+        wvol__temp_done(tmp_.c_str());
     }
     const char *name() const { return tmp_.c_str(); }
     void commit()
     {
         if (std::rename(tmp_.c_str(), final_.c_str()) != 0)
             fail(WVOL_ERR_IO, final_ + ": cannot rename the written file into place: " + std::strerror(errno));
+        wvol__temp_done(tmp_.c_str());
         tmp_.clear();
     }
 
