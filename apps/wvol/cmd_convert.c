@@ -4,6 +4,7 @@
 #include <string.h>
 
 #include "cli.h"
+#include "volume_out.h"
 #include "wvol/io.h"
 
 const char wvol_cmd_convert_summary[] = "convert a volume between formats (raw, nrrd, vdb, vti, mha, nii, ...)";
@@ -70,7 +71,7 @@ int wvol_cmd_convert(int argc, char **argv)
     t0 = cli_now();
     wvol_error_clear(&err);
     if (wvol_volume_load(&v, in, &lo, &err) != WVOL_OK) return cli_fail_err("convert", &err);
-    if (wvol_volume_save(v, out, &err) != WVOL_OK) {
+    if (volume_out_claim(out, 0, &err) != WVOL_OK || wvol_volume_save(v, out, &err) != WVOL_OK) {
         wvol_volume_destroy(v);
         return cli_fail_err("convert", &err);
     }

@@ -6,6 +6,7 @@
 #include <string.h>
 
 #include "cli.h"
+#include "volume_out.h"
 #include "wvol/io.h"
 #include "wvol/wavelet.h"
 #include "wvol/wvc.h"
@@ -52,7 +53,8 @@ static wvol_status read_region_slabs(wvol_wvc_file *f, const size_t lo[3], const
         if (!w) {
             memcpy(spacing, sp, sizeof sp);
             memcpy(origin, org, sizeof org);
-            s = wvol_slab_writer_open(&w, path, dims, spacing, origin, 0, err);
+            s = volume_out_claim(path, 0, err);
+            if (s == WVOL_OK) s = wvol_slab_writer_open(&w, path, dims, spacing, origin, 0, err);
             if (s != WVOL_OK) break;
         }
         s = wvol_slab_writer_put(w, slab, h[2] - z, err);
@@ -231,7 +233,7 @@ int wvol_cmd_decompress(int argc, char **argv)
     }
     if (!streamed) {
         t0 = cli_now();
-        if (wvol_volume_save(v, outp, &err) != WVOL_OK) {
+        if (volume_out_claim(outp, 0, &err) != WVOL_OK || wvol_volume_save(v, outp, &err) != WVOL_OK) {
             rc = cli_fail_err("decompress", &err);
             goto done;
         }

@@ -94,7 +94,7 @@ int wvol_cmd_inverse(int argc, char **argv)
     t0 = cli_now() - t0;
     wvol_coeffs_destroy(c);
     if (st != WVOL_OK) return cli_fail_err("inverse", &err);
-    if (wvol_volume_save(v, outp, &err) != WVOL_OK) {
+    if (volume_out_claim(outp, 0, &err) != WVOL_OK || wvol_volume_save(v, outp, &err) != WVOL_OK) {
         wvol_volume_destroy(v);
         return cli_fail_err("inverse", &err);
     }

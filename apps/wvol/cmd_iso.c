@@ -8,6 +8,7 @@
 #include <string.h>
 
 #include "cli.h"
+#include "output_set.h"
 #include "wvol/compress.h"
 #include "wvol/image.h"
 #include "wvol/io.h"
@@ -292,7 +293,7 @@ static int run_mc(const iso_args *a)
     if (!v && (rc = cli_check_wvc_store("iso", &kept, 0)) != CLI_OK) goto done;
     if (a->out) {
         double t1 = cli_now();
-        if (wvol_mesh_save(m, a->out, &err) != WVOL_OK) {
+        if (output_set_add(a->out, &err) != WVOL_OK || wvol_mesh_save(m, a->out, &err) != WVOL_OK) {
             rc = cli_fail_err("iso", &err);
             goto done;
         }
@@ -356,7 +357,8 @@ static void image_close(image_job *j)
 /* The image and its depth to -o (.exr with Z, or .png). */
 static wvol_status save_image(const char *out, const wvol_image *img, const float *depth, wvol_error *err)
 {
-    if (!out) return WVOL_OK;
+    wvol_status s = output_set_add(out, err);
+    if (!out || s) return s;
     return wvol_path_has_ext(out, ".exr") ? wvol_image_write_exr(img, out, depth, err)
                                           : wvol_image_write_png(img, out, NULL, 1.0, err);
 }

@@ -90,7 +90,7 @@ static wvol_status synth_stream(wvol_volume *v, wvol_volume *lab, volume_out fil
         int nrrd = wvol_path_has_ext(paths[f], ".nrrd") || wvol_path_has_ext(paths[f], ".nhdr");
         if (wvol_path_has_ext(paths[f], ".nhdr"))
             wvol_nrrd_data_path(files[f].data_path, sizeof files[f].data_path, paths[f], gzip);
-        if ((s = volume_out_claim(&files[f], err)) != WVOL_OK) break;
+        if ((s = volume_out_claim(paths[f], gzip && nrrd, err)) != WVOL_OK) break;
         s = wvol_slab_writer_open(&w[f], paths[f], dims, v->spacing, v->origin, gzip && nrrd ? 6 : 0, err);
     }
     for (size_t z0 = 0; z0 < dims[2] && !s; z0 += S) {

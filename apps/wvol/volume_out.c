@@ -28,7 +28,7 @@ wvol_status volume_out_save(volume_out *f, const wvol_volume *v, const char *pat
         return wvol_error_set(err, WVOL_ERR_ARG, "%s: path too long", path);
     strcpy(f->path, path);
     if (wvol_path_has_ext(path, ".nhdr")) wvol_nrrd_data_path(f->data_path, sizeof f->data_path, path, gzip);
-    if ((s = volume_out_claim(f, err)) != WVOL_OK) return s;
+    if ((s = volume_out_claim(path, gzip, err)) != WVOL_OK) return s;
     s = nrrd ? wvol_nrrd_write_gzip(v, path, gzip ? 6 : 0, err) : wvol_volume_save(v, path, err);
     if (s) {
         /* nothing was written (the writers are atomic): a cleanup must not remove what is there */
@@ -39,10 +39,14 @@ wvol_status volume_out_save(volume_out *f, const wvol_volume *v, const char *pat
     return WVOL_OK;
 }
 
-wvol_status volume_out_claim(const volume_out *f, wvol_error *err)
+wvol_status volume_out_claim(const char *path, int gzip, wvol_error *err)
 {
-    wvol_status s = output_set_add(f->path, err);
-    return s ? s : output_set_add(f->data_path[0] ? f->data_path : NULL, err);
+    char data[4096];
+    wvol_status s = output_set_add(path, err);
+    if (s || !wvol_path_has_ext(path, ".nhdr")) return s;
+    if (!wvol_nrrd_data_path(data, sizeof data, path, gzip))
+        return wvol_error_set(err, WVOL_ERR_ARG, "%s: path too long", path);
+    return output_set_add(data, err);
 }
 
 void volume_out_json(const volume_out *f, const wvol_volume *v)

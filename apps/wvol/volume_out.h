@@ -16,9 +16,10 @@ typedef struct volume_out {
 
 /* Saves v to path (format by extension; gzip: NRRD gzip encoding). */
 wvol_status volume_out_save(volume_out *f, const wvol_volume *v, const char *path, int gzip, wvol_error *err);
-/* Adds f's path (and a detached header's data file) to the command's output set; volume_out_save
- * does this itself, a command writing by slabs calls it before it opens the writers. */
-wvol_status volume_out_claim(const volume_out *f, wvol_error *err);
+/* Adds path (and a detached .nhdr header's data file, gzip naming it .raw.gz) to the command's
+ * output set (output_set.h), before the volume is written there; volume_out_save does this
+ * itself, the other writers' callers call it first. */
+wvol_status volume_out_claim(const char *path, int gzip, wvol_error *err);
 /* JSON fields "file", "files", "bytes", "dims", "spacing", "origin". */
 void volume_out_json(const volume_out *f, const wvol_volume *v);
 /* JSON fields "dims", "spacing", "origin" of v. */
