@@ -4,6 +4,7 @@ OpenVDB's and VTK's own tools, and bad input (clear error naming the file, exit 
 
 The build under test must have both adapters (scripts/setup.sh configures them ON).
 DICOM series are generated here by a minimal Part 10 writer (no pydicom on the image)."""
+import gzip
 import json
 import os
 import shutil
@@ -394,6 +395,32 @@ def test_integers_float32_cannot_hold_are_refused(wvol, tmp_path):
     vtk_write(vtk.vtkXMLImageDataWriter, tmp_path / "j.vti", vtk_image(a, (1, 1, 1), (0, 0, 0)))
     b, _ = load(wvol, tmp_path / "j.vti", tmp_path)
     assert b[0, 0, 2] == (1 << 24) + 2
+
+
+@pytest.mark.parametrize("dtype, value", [("<i4", (1 << 24) + 1), ("<i4", -(1 << 31) + 1), (">u4", (1 << 32) - 1),
+                                          ("<i8", (1 << 40) + 1), (">u8", (1 << 64) - 1)])
+def test_raw_and_nrrd_integers_float32_cannot_hold_are_refused(wvol, tmp_path, dtype, value):
+    # the same rule as the VTK-read formats: raw, NRRD raw, gzip and ascii all refuse, naming the sample
+    a = np.array([7, 1 << 24, value, 3], dtype)
+    ty = {"i4": "int32", "u4": "uint32", "i8": "int64", "u8": "uint64"}[dtype[1:]]
+    endian = "big" if dtype[0] == ">" else "little"
+    if ty in ("int32", "uint32"):
+        (tmp_path / "a.raw").write_bytes(a.tobytes())
+        raw_args = ["--dims", "4x1x1", "--type", ty] + (["--big-endian"] if endian == "big" else [])
+        assert_error(wvol("info", tmp_path / "a.raw", *raw_args), "a.raw: sample 2", str(value), "float32")
+    head = f"NRRD0004\ntype: {ty}\ndimension: 3\nsizes: 4 1 1\nendian: {endian}\n"
+    (tmp_path / "r.nrrd").write_bytes((head + "encoding: raw\n\n").encode() + a.tobytes())
+    (tmp_path / "g.nrrd").write_bytes((head + "encoding: gzip\n\n").encode() + gzip.compress(a.tobytes()))
+    for name in ("r.nrrd", "g.nrrd"):
+        assert_error(wvol("info", tmp_path / name), f"{name}: sample 2", str(value), "float32")
+    if abs(value) < (1 << 53):  # ascii goes through double
+        (tmp_path / "t.nrrd").write_text(head + "encoding: ascii\n\n" + " ".join(map(str, a.tolist())) + "\n")
+        assert_error(wvol("info", tmp_path / "t.nrrd"), "t.nrrd: sample 2", str(value), "float32")
+    # 2^24 itself and its even neighbours are exact: read
+    b = np.array([7, 1 << 24, (1 << 24) + 2, 3], dtype)
+    (tmp_path / "ok.nrrd").write_bytes((head + "encoding: raw\n\n").encode() + b.tobytes())
+    c, _ = load(wvol, tmp_path / "ok.nrrd", tmp_path)
+    assert c.ravel().tolist() == [7, 1 << 24, (1 << 24) + 2, 3]
 
 
 def test_multi_component_refused(wvol, tmp_path):

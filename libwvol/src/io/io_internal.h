@@ -55,6 +55,10 @@ int wvol__create_temp(char *tmpl, size_t suffix_len);
  * wvol_atomic_remove_pending removes. */
 void wvol__temp_done(const char *path);
 
+/* WVOL_ERR_UNSUPPORTED "PATH: sample INDEX holds the integer VALUE, which float32 cannot hold
+ * exactly ...; refused": the readers' one message for integers above 2^24 that would be rounded. */
+wvol_status wvol__inexact_integer(const char *path, unsigned long long index, const char *value, wvol_error *err);
+
 /* WVOL_ERR_IO "PATH: write failed: CAUSE", the cause from errno as a failed write left it. */
 wvol_status wvol__write_failed(const char *path, wvol_error *err);
 

@@ -60,8 +60,11 @@ wvol_status wvol__nrrd_read_header(nrrd_header *h, FILE *fp, wvol_error *err);
 wvol_status wvol__nrrd_open_header(nrrd_header *h, const char *path, FILE **fp, wvol_error *err);
 void wvol__nrrd_header_free(nrrd_header *h);
 
-/* n samples of the header's type and byte order to float32. */
-void wvol__nrrd_convert(float *dst, const unsigned char *src, size_t n, const nrrd_header *h);
+/* n samples of the header's type and byte order to float32. A 32- or 64-bit integer that float32
+ * cannot hold exactly is refused (wvol__inexact_integer: the data file `name`, the sample's index
+ * `first` + its place in src), as every reader refuses it (docs/formats.md, "Samples"). */
+wvol_status wvol__nrrd_convert(float *dst, const unsigned char *src, size_t n, const nrrd_header *h, const char *name,
+                               unsigned long long first, wvol_error *err);
 
 /* Opens the samples: the detached data file (*dpath: its malloc'ed path) or fp itself
  * positioned at the first data byte; *dname names it in messages. The caller closes *dfp

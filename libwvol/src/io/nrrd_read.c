@@ -23,19 +23,37 @@
 
 /* ---- reading the data --------------------------------------------------------- */
 
-void wvol__nrrd_convert(float *dst, const unsigned char *src, size_t n, const nrrd_header *h)
+/* The integer sample at p (4 or 8 bytes, the header's byte order) as a magnitude and a sign. */
+static void integer_at(const unsigned char *p, const nrrd_header *h, unsigned long long *mag, int *neg)
 {
-    size_t i;
-    int b;
-    if (h->type != T_I64 && h->type != T_U64) {
-        wvol_samples_to_float(dst, src, n, (wvol_sample_type)h->type, h->big_endian);
-        return;
+    const int size = h->type == T_I64 || h->type == T_U64 ? 8 : 4;
+    const int is_signed = h->type == T_I64 || h->type == WVOL_SAMPLE_TYPE_I32;
+    uint64_t u = 0;
+    for (int b = 0; b < size; b++) u |= (uint64_t)p[h->big_endian ? size - 1 - b : b] << (8 * b);
+    *neg = is_signed && (u >> (8 * size - 1)) & 1;
+    if (*neg) u = size == 8 ? ~u + 1 : (uint64_t)(uint32_t)(~(uint32_t)u + 1u); /* two's complement magnitude */
+    *mag = u;
+}
+
+wvol_status wvol__nrrd_convert(float *dst, const unsigned char *src, size_t n, const nrrd_header *h, const char *name,
+                               unsigned long long first, wvol_error *err)
+{
+    const int wide = h->type == T_I64 || h->type == T_U64;
+    if (!wide) wvol_samples_to_float(dst, src, n, (wvol_sample_type)h->type, h->big_endian);
+    if (!wide && h->type != WVOL_SAMPLE_TYPE_I32 && h->type != WVOL_SAMPLE_TYPE_U32) return WVOL_OK;
+    for (size_t i = 0; i < n; i++) {
+        unsigned long long mag;
+        int neg;
+        integer_at(src + i * h->elem, h, &mag, &neg);
+        if (wide) dst[i] = neg ? -(float)mag : (float)mag;
+        /* long double holds every 64-bit integer, and 2^64 (where the largest round to) */
+        if (mag > (1ull << 24) && (long double)fabsf(dst[i]) != (long double)mag) {
+            char digits[24];
+            snprintf(digits, sizeof digits, "%s%llu", neg ? "-" : "", mag);
+            return wvol__inexact_integer(name, first + i, digits, err);
+        }
     }
-    for (i = 0; i < n; i++, src += 8) {
-        uint64_t u = 0;
-        for (b = 0; b < 8; b++) u |= (uint64_t)src[h->big_endian ? b : 7 - b] << (8 * (7 - b));
-        dst[i] = h->type == T_U64 ? (float)u : (float)(int64_t)u;
-    }
+    return WVOL_OK;
 }
 
 static wvol_status skip_lines(const nrrd_header *h, FILE *fp, wvol_error *err)
@@ -97,6 +115,7 @@ static wvol_status read_raw(const nrrd_header *h, FILE *fp, const char *name, wv
     long long pos;
     size_t done = 0;
     unsigned char *buf;
+    wvol_status s;
     WVOL_FORWARD(wvol__nrrd_raw_start(h, fp, name, &pos, err));
     if (fseek(fp, (long)pos, SEEK_SET) != 0) return HFAIL(h, WVOL_ERR_IO, "cannot seek in %s", name);
     WVOL_FORWARD(new_volume(h, v, err));
@@ -109,7 +128,10 @@ static wvol_status read_raw(const nrrd_header *h, FILE *fp, const char *name, wv
             free(buf);
             return HFAIL(h, WVOL_ERR_IO, "read error in %s at sample %zu", name, done);
         }
-        wvol__nrrd_convert(out + done, buf, want, h);
+        if ((s = wvol__nrrd_convert(out + done, buf, want, h, name, done, err)) != WVOL_OK) {
+            free(buf);
+            return s;
+        }
         done += want;
     }
     free(buf);
@@ -187,7 +209,7 @@ static wvol_status read_gzip(const nrrd_header *h, FILE *fp, const char *name, w
             goto done;
         }
         if (filled == chunk_bytes || (filled > 0 && total == want_total)) {
-            wvol__nrrd_convert(out + done, chunk, filled / h->elem, h);
+            if ((s = wvol__nrrd_convert(out + done, chunk, filled / h->elem, h, name, done, err)) != WVOL_OK) goto done;
             done += filled / h->elem;
             filled = 0;
         }
@@ -290,6 +312,15 @@ static wvol_status read_ascii(const nrrd_header *h, FILE *fp, const char *name, 
             size_t len = strcspn(p, " \t\r\n\v\f,");
             wvol_status s = HFAIL(h, WVOL_ERR_FORMAT, "ascii data in %s: value %zu '%.*s' %s", name, n + 1,
                                   (int)(len < 20 ? len : 20), p, why);
+            free(text); /* after the message: it quotes the text */
+            return s;
+        }
+        if (integral && fabs(v) > 16777216.0 && (double)(float)v != v) {
+            char digits[24];
+            wvol_status s;
+            size_t len = strcspn(p, " \t\r\n\v\f,");
+            snprintf(digits, sizeof digits, "%.*s", (int)(len < 23 ? len : 23), p);
+            s = wvol__inexact_integer(name, n, digits, err);
             free(text); /* after the message: it quotes the text */
             return s;
         }

@@ -55,6 +55,14 @@ static int host_is_big_endian(void)
     return *(const unsigned char *)&one == 0;
 }
 
+wvol_status wvol__inexact_integer(const char *path, unsigned long long index, const char *value, wvol_error *err)
+{
+    return wvol_error_set(err, WVOL_ERR_UNSUPPORTED,
+                          "%s: sample %llu holds the integer %s, which float32 cannot hold exactly (integers above "
+                          "2^24 in magnitude lose digits); refused",
+                          path, index, value);
+}
+
 void wvol_samples_to_float(float *dst, const void *src, size_t n, wvol_sample_type t, int big_endian)
 {
     const unsigned char *s = src;

@@ -109,7 +109,9 @@ static wvol_status raw_at(file_src *f, float *dst, unsigned long long at, size_t
         WVOL_RETURN_IF(pread_full(fileno(f->fp), to, want, at + done), err, WVOL_ERR_IO,
                        "%s: short read in bytes %llu .. %llu (the file shrank or cannot be read)", f->path,
                        at + done, at + done + want);
-        if (!f->direct) wvol__nrrd_convert(dst + done / elem, f->buf, want / elem, &f->conv);
+        if (!f->direct)
+            WVOL_FORWARD(wvol__nrrd_convert(dst + done / elem, f->buf, want / elem, &f->conv, f->path,
+                                            (at + done - f->start) / elem, err));
         done += want;
     }
     return WVOL_OK;
@@ -142,7 +144,9 @@ static wvol_status file_read(void *ctx, float *dst, size_t z0, size_t nz, wvol_e
         WVOL_RETURN_IF((size_t)r != want, err, WVOL_ERR_FORMAT,
                        "gzip data in %s end early after %llu of %llu bytes (truncated)", f->path,
                        f->pos - f->start, f->total);
-        if (!f->direct) wvol__nrrd_convert(dst + done / elem, f->buf, want / elem, &f->conv);
+        if (!f->direct)
+            WVOL_FORWARD(wvol__nrrd_convert(dst + done / elem, f->buf, want / elem, &f->conv, f->path,
+                                            (at + done) / elem, err));
         done += want;
     }
     if (at + n == f->total) {

@@ -253,11 +253,14 @@ void to_float(const T *src, size_t n, float *dst, const char *path)
         if (std::is_integral<T>::value && sizeof(T) > 2) {
             // long double holds every 64-bit integer exactly
             if (static_cast<long double>(f) != static_cast<long double>(x)) {
-                char buf[160];
-                std::snprintf(buf, sizeof buf, "%s: sample %zu holds the integer %lld, which float32 cannot hold exactly "
-                                               "(integers above 2^24 in magnitude lose digits); refused",
-                              path, i, (long long)x);
-                fail(WVOL_ERR_UNSUPPORTED, buf);
+                char digits[24];
+                wvol_error e;
+                if (std::is_signed<T>::value)
+                    std::snprintf(digits, sizeof digits, "%lld", static_cast<long long>(x));
+                else
+                    std::snprintf(digits, sizeof digits, "%llu", static_cast<unsigned long long>(x));
+                wvol__inexact_integer(path, i, digits, &e);
+                fail(e.status, e.message);
             }
         }
         dst[i] = f;
