@@ -247,8 +247,9 @@ static void header_variants_accepted(void)
                                    "sizes: 2 2 2\nspacings: 0.5 -2 nan\naxis mins: 1 2 3\nendian: little\n"
                                    "encoding: raw\n\n", d8, sizeof d8, &err);
     CHECK(v && v->spacing[0] == 0.5 && v->spacing[1] == 2 && v->spacing[2] == 1, "spacings: %s", v ? "" : err.message);
-    CHECK(v && v->origin[0] == 1 && v->origin[2] == 3, "axis mins give the origin");
-    CHECK(v && v->data[7] == 8, "data");
+    /* spacing -2: y runs backwards, so the axis is reversed and the origin is the last row's */
+    CHECK(v && v->origin[0] == 1 && v->origin[1] == 0 && v->origin[2] == 3, "axis mins give the origin");
+    CHECK(v && v->data[7] == 6 && v->data[5] == 8 && v->data[0] == 3, "data, y reversed");
     wvol_volume_destroy(v);
 
     v = read_text("crlf.nrrd", "NRRD0004\r\ntype: float\r\ndimension: 3\r\nspace: RAS\r\nsizes: 2 2 2\r\n"

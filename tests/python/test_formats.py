@@ -423,6 +423,31 @@ def test_raw_and_nrrd_integers_float32_cannot_hold_are_refused(wvol, tmp_path, d
     assert c.ravel().tolist() == [7, 1 << 24, (1 << 24) + 2, 3]
 
 
+@pytest.mark.parametrize("geometry, flips, origin", [
+    ("space: left-posterior-superior\nspace directions: (-0.5,0,0) (0,1.25,0) (0,0,3)\nspace origin: (-10,5.5,100)",
+     (2,), [-11.5, 5.5, 100.0]),
+    ("spacings: -0.5 1.25 -3\naxis mins: -10 5.5 100", (0, 2), [-11.5, 5.5, 97.0]),
+    ("space dimension: 3\nspace directions: (0.5,0,0) (0,-1.25,0) (0,0,-3)\nspace origin: (-10,5.5,100)",
+     (0, 1), [-10.0, 3.0, 97.0]),
+])
+@pytest.mark.parametrize("encoding", ["raw", "gzip"])
+def test_nrrd_axes_that_run_backwards_are_reversed(wvol, tmp_path, geometry, flips, origin, encoding):
+    # docs/formats.md: a flip (negative direction or spacing) is applied exactly; the NRRD reader
+    # took the lengths alone, and every voxel of a reversed axis sat at its mirror position
+    a = (np.arange(24, dtype=np.float32) * 1.5).reshape(2, 3, 4)  # (z, y, x); flips are numpy axes
+    data = a.tobytes() if encoding == "raw" else gzip.compress(a.tobytes())
+    f = tmp_path / "f.nrrd"
+    f.write_bytes(f"NRRD0004\ntype: float\ndimension: 3\nsizes: 4 3 2\nendian: little\nencoding: {encoding}\n"
+                  f"{geometry}\n\n".encode() + data)
+    b, d = load(wvol, f, tmp_path)
+    assert d["spacing"] == [0.5, 1.25, 3.0] and d["origin"] == origin
+    assert np.array_equal(b, np.flip(a, flips))
+    # the streamed compression reads it whole (a reversed axis is not read slab by slab): the same volume
+    assert wvol("compress", f, "-o", tmp_path / "f.wvc", "--psnr", "120").returncode == 0
+    back, d2 = load(wvol, tmp_path / "f.wvc", tmp_path)
+    assert d2["origin"] == origin and np.allclose(back, b, atol=1e-3)
+
+
 def test_multi_component_refused(wvol, tmp_path):
     a = np.zeros((2, 2, 2, 3), np.float32)
     img = vtk.vtkImageData()

@@ -39,22 +39,29 @@ static void flip_axis(wvol_volume *v, int axis)
     }
 }
 
+int wvol__io_reversed_axes(const double spacing[3], const double dir[3][3])
+{
+    int diagonal = 1, axes = 0;
+    for (int r = 0; r < 3; r++)
+        for (int c = 0; c < 3; c++)
+            if (r != c && fabs(dir[r][c]) > 1e-6) diagonal = 0;
+    for (int a = 0; a < 3; a++)
+        if (spacing[a] * (diagonal ? (dir[a][a] < 0 ? -1.0 : 1.0) : 1.0) < 0) axes |= 1 << a;
+    return axes;
+}
+
 wvol_status wvol__io_apply_geometry(wvol_volume *v, const double origin_in[3], const double spacing_in[3],
                                     const double dir[3][3], wvol_error *err)
 {
     const size_t n[3] = {v->nx, v->ny, v->nz};
-    int diagonal = 1;
+    const int reversed = wvol__io_reversed_axes(spacing_in, dir);
     double spacing[3], origin[3];
-    for (int r = 0; r < 3; r++)
-        for (int c = 0; c < 3; c++)
-            if (r != c && fabs(dir[r][c]) > 1e-6) diagonal = 0;
     for (int a = 0; a < 3; a++) {
-        double step = spacing_in[a] * (diagonal ? (dir[a][a] < 0 ? -1.0 : 1.0) : 1.0);
         origin[a] = origin_in[a];
-        spacing[a] = fabs(step);
-        if (step < 0) {
+        spacing[a] = fabs(spacing_in[a]);
+        if (reversed >> a & 1) {
             flip_axis(v, a);
-            origin[a] = origin_in[a] + (double)(n[a] - 1) * step;
+            origin[a] = origin_in[a] - (double)(n[a] - 1) * spacing[a];
         }
     }
     return wvol_volume_set_geometry(v, spacing, origin, err);

@@ -22,6 +22,8 @@ extern "C" {
  * positive; any other rotation is dropped. Fails as wvol_volume_set_geometry does. */
 wvol_status wvol__io_apply_geometry(wvol_volume *v, const double origin[3], const double spacing[3],
                                     const double dir[3][3], wvol_error *err);
+/* The axes wvol__io_apply_geometry reverses for this spacing and direction: bit a for axis a. */
+int wvol__io_reversed_axes(const double spacing[3], const double dir[3][3]);
 
 /* A raw file as a volume source (wvol/source.h), whatever its name: the dimensions, sample
  * type, byte order and geometry from opt, the file's length checked against them

@@ -467,6 +467,8 @@ static wvol_status interpret(nrrd_header *h, wvol_error *err)
         }
         have_mins = 1;
     }
+    for (a = 0; a < 3; a++)
+        for (int c = 0; c < 3; c++) h->dir[c][a] = a == c;
     for (a = 0; a < 3; a++) {
         h->spacing[a] = 1.0;
         h->origin[a] = 0.0;
@@ -477,16 +479,17 @@ static wvol_status interpret(nrrd_header *h, wvol_error *err)
             /* hypot: the squares of a spacing near 1e300 would overflow where its length does not */
             for (c = 0; c < h->space_dim; c++) len = hypot(len, dirs[a][c]);
             h->spacing[a] = len;
+            for (c = 0; c < 3; c++) h->dir[c][a] = c < h->space_dim ? dirs[a][c] / len : 0;
         } else if (have_spacings && isfinite(spacings[a])) {
-            h->spacing[a] = fabs(spacings[a]);
+            h->spacing[a] = spacings[a]; /* negative: the reader reverses the axis */
         }
         if (h->value[F_SPACE_ORIGIN]) {
             if (a < h->space_dim) h->origin[a] = origin[a];
         } else if (have_mins && isfinite(mins[a])) {
             h->origin[a] = mins[a];
         }
-        if (!isfinite(h->spacing[a]) || !(h->spacing[a] > 0))
-            return HFAIL(h, WVOL_ERR_FORMAT, "axis %d: spacing %g is not finite and positive", a, h->spacing[a]);
+        if (!isfinite(h->spacing[a]) || h->spacing[a] == 0)
+            return HFAIL(h, WVOL_ERR_FORMAT, "axis %d: spacing %g is not finite and non-zero", a, h->spacing[a]);
     }
 
     /* where the data are */

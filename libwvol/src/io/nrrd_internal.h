@@ -42,7 +42,8 @@ typedef struct nrrd_header {
     int encoding;
     int big_endian;
     int space_dim;
-    double spacing[3], origin[3];
+    double spacing[3], origin[3]; /* spacing < 0: the axis runs backwards ('spacings') */
+    double dir[3][3];             /* columns: the axes' unit directions ('space directions') */
     long long byte_skip, line_skip;
     size_t count, bytes;  /* samples, and bytes they need in the file */
     long data_offset;     /* attached data: offset just past the blank line */

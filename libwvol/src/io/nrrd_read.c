@@ -378,7 +378,7 @@ wvol_status wvol_nrrd_read(wvol_volume **out, const char *path, wvol_error *err)
     if (h.encoding == ENC_RAW) s = read_raw(&h, dfp, dname, &v, err);
     else if (h.encoding == ENC_GZIP) s = read_gzip(&h, dfp, dname, &v, err);
     else s = read_ascii(&h, dfp, dname, &v, err);
-    if (!s) s = wvol_volume_set_geometry(v, h.spacing, h.origin, err);
+    if (!s) s = wvol__io_apply_geometry(v, h.origin, h.spacing, h.dir, err); /* flips applied */
     if (!s) s = wvol_check_finite(v->data, v->nx, v->ny, v->nz, path, err);
 done:
     if (dfp && dfp != fp) fclose(dfp);

@@ -231,7 +231,8 @@ wvol_status wvol__source_open_raw(wvol_source **out, const char *path, const wvo
 }
 
 /* NRRD with raw or gzip data and no "line skip": slab by slab. *whole = 1 (nothing
- * opened) for what only the whole-volume reader handles (ascii data, line skips). */
+ * opened) for what only the whole-volume reader handles (ascii data, line skips, an axis
+ * that runs backwards: the reader reverses it in memory). */
 static wvol_status open_nrrd(wvol_source **out, const char *path, int *whole, wvol_error *err)
 {
     nrrd_header h;
@@ -248,7 +249,7 @@ static wvol_status open_nrrd(wvol_source **out, const char *path, int *whole, wv
     s = wvol__nrrd_open_header(&h, path, &fp, err);
     if (!fp) return s;
     if (s) goto done;
-    if (h.encoding == ENC_ASCII || h.line_skip > 0) {
+    if (h.encoding == ENC_ASCII || h.line_skip > 0 || wvol__io_reversed_axes(h.spacing, h.dir)) {
         *whole = 1;
         goto done;
     }
