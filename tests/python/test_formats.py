@@ -365,6 +365,47 @@ def test_nifti_scaling_and_qform(wvol, tmp_path):
     assert d["spacing"] == [1.5, 2.0, 3.0]
 
 
+def _nifti1(path, a, srow):
+    """A NIfTI-1 file written by hand (a float32 volume a (z,y,x), pixdim from the sform's columns,
+    sform code 1): what a scanner writes, independent of VTK's writer."""
+    nz, ny, nx = a.shape
+    srow = np.asarray(srow, dtype=np.float64)
+    h = bytearray(352)
+    struct.pack_into("<i", h, 0, 348)
+    struct.pack_into("<8h", h, 40, 3, nx, ny, nz, 1, 1, 1, 1)
+    struct.pack_into("<hh", h, 70, 16, 32)
+    struct.pack_into("<8f", h, 76, 1, *np.linalg.norm(srow[:, :3], axis=0), 1, 1, 1, 1)
+    struct.pack_into("<f", h, 108, 352.0)
+    struct.pack_into("<hh", h, 252, 0, 1)
+    struct.pack_into("<12f", h, 280, *srow.ravel())
+    h[344:348] = b"n+1\0"
+    path.write_bytes(bytes(h) + a.astype("<f4").tobytes())
+
+
+@pytest.mark.parametrize("rot, z", [
+    ([[0.8660254, -0.5, 0], [0.5, 0.8660254, 0]], -1),   # 30 degrees about z, z down: determinant < 0
+    ([[0, 1, 0], [1, 0, 0]], -1),                        # x and y swapped, z down: determinant > 0
+    ([[-0.8660254, -0.5, 0], [-0.5, 0.8660254, 0]], 1),  # a reflection in x-y, z up: determinant < 0
+])
+def test_nifti_rotation_with_a_reversed_axis(wvol, tmp_path, rot, z):
+    # a scanner's oblique sform: the rotation in x-y is dropped (docs/formats.md), but z keeps its
+    # direction. VTK's reader reverses the slices when the determinant is negative and hands back
+    # a matrix with the z column negated; that sign was dropped with the rotation, so the volume
+    # was read upside down (the probe's LAS-like case: origin z 190 for a file starting at 100).
+    a = (np.arange(5)[:, None, None] * 10000 + np.arange(4)[None, :, None] * 100
+         + np.arange(3)[None, None, :]).astype(np.float32)
+    sp = np.array([0.5, 1.25, 3.0])
+    r3 = np.array(rot + [[0, 0, z]], dtype=np.float64)
+    srow = np.hstack([r3 * sp, np.array([[-10.0], [5.5], [100.0]])])
+    _nifti1(tmp_path / "o.nii", a, srow)
+    b, d = load(wvol, tmp_path / "o.nii", tmp_path)
+    assert d["spacing"] == pytest.approx([0.5, 1.25, 3.0], rel=1e-6)
+    if z > 0:  # the file's first slice at the sform's translation
+        assert d["origin"] == [-10.0, 5.5, 100.0] and np.array_equal(b, a)
+    else:  # world z grows: the file's last slice first
+        assert d["origin"] == [-10.0, 5.5, 100.0 - 4 * 3.0] and np.array_equal(b, a[::-1])
+
+
 def test_metaimage_header_spacing_kept_in_full(wvol, tmp_path):
     a = np.arange(8, dtype="<i2").reshape(2, 2, 2)
     (tmp_path / "h.raw").write_bytes(a.tobytes())

@@ -41,12 +41,15 @@ static void flip_axis(wvol_volume *v, int axis)
 
 int wvol__io_reversed_axes(const double spacing[3], const double dir[3][3])
 {
-    int diagonal = 1, axes = 0;
-    for (int r = 0; r < 3; r++)
-        for (int c = 0; c < 3; c++)
-            if (r != c && fabs(dir[r][c]) > 1e-6) diagonal = 0;
-    for (int a = 0; a < 3; a++)
-        if (spacing[a] * (diagonal ? (dir[a][a] < 0 ? -1.0 : 1.0) : 1.0) < 0) axes |= 1 << a;
+    int axes = 0;
+    for (int a = 0; a < 3; a++) {
+        /* axis a keeps its direction's sign when the rotation leaves it on world axis a (its
+         * column and row zero elsewhere): a rotation in x-y with z reversed still reverses z */
+        int aligned = 1;
+        for (int o = 0; o < 3; o++)
+            if (o != a && (fabs(dir[o][a]) > 1e-6 || fabs(dir[a][o]) > 1e-6)) aligned = 0;
+        if (spacing[a] * (aligned && dir[a][a] < 0 ? -1.0 : 1.0) < 0) axes |= 1 << a;
+    }
     return axes;
 }
 

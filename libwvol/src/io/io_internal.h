@@ -19,7 +19,8 @@ extern "C" {
  * the first sample as stored, spacing per axis (may be negative: the axis runs
  * backwards), dir the direction matrix (rows: world axes). Axes whose direction is
  * -1 (or whose spacing is negative) are reversed in place so that the spacing is
- * positive; any other rotation is dropped. Fails as wvol_volume_set_geometry does. */
+ * positive, also when a rotation of the other axes comes with it; any other rotation is
+ * dropped. Fails as wvol_volume_set_geometry does. */
 wvol_status wvol__io_apply_geometry(wvol_volume *v, const double origin[3], const double spacing[3],
                                     const double dir[3][3], wvol_error *err);
 /* The axes wvol__io_apply_geometry reverses for this spacing and direction: bit a for axis a. */
