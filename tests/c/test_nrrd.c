@@ -257,8 +257,9 @@ static void header_variants_accepted(void)
                                "endian: little\r\nencoding: raw\r\nspace origin: (1.5, -2,3)\r\n\r\n", d8, sizeof d8, &err);
     CHECK(v && v->spacing[0] == 0.5 && v->spacing[1] == 2 && v->spacing[2] == 3, "CRLF, rotated directions: %s",
           v ? "" : err.message);
-    /* the x-y swap is dropped; z, left on its own axis, runs down and is reversed */
-    CHECK(v && v->origin[0] == 1.5 && v->origin[1] == -2 && v->origin[2] == 0, "space origin with spaces");
+    /* RAS into LPS: the origin's x and y negated; the x-y swap is dropped; z, left on its own
+     * axis, runs down and is reversed */
+    CHECK(v && v->origin[0] == -1.5 && v->origin[1] == 2 && v->origin[2] == 0, "space origin with spaces");
     CHECK(v && v->data[0] == 5 && v->data[4] == 1, "z reversed");
     wvol_volume_destroy(v);
 

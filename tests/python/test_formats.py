@@ -489,6 +489,26 @@ def test_nrrd_axes_that_run_backwards_are_reversed(wvol, tmp_path, geometry, fli
     assert d2["origin"] == origin and np.allclose(back, b, atol=1e-3)
 
 
+@pytest.mark.parametrize("space, flips, origin", [
+    ("left-posterior-superior", (), [-10.0, 5.5, 100.0]),
+    ("RAS", (1, 2), [10.0 - 3 * 0.5, -5.5 - 2 * 1.25, 100.0]),
+    ("left-anterior-superior", (1,), [-10.0, -5.5 - 2 * 1.25, 100.0]),
+    ("scanner-xyz", (), [-10.0, 5.5, 100.0]),
+])
+def test_nrrd_spaces_are_read_into_the_frame_written(wvol, tmp_path, space, flips, origin):
+    # the NRRD writer declares left-posterior-superior; a file in RAS or LAS was relabelled as
+    # LPS by `wvol convert` without its numbers changing, mirroring it in x and y for every tool
+    # that reads the space. Read into LPS (flips applied), it describes the same positions.
+    a = (np.arange(24, dtype=np.float32) * 1.5).reshape(2, 3, 4)  # (z, y, x); flips are numpy axes
+    f = tmp_path / "f.nrrd"
+    f.write_bytes(f"NRRD0004\ntype: float\ndimension: 3\nsizes: 4 3 2\nendian: little\nencoding: raw\n"
+                  f"space: {space}\nspace directions: (0.5,0,0) (0,1.25,0) (0,0,3)\nspace origin: (-10,5.5,100)\n\n"
+                  .encode() + a.tobytes())
+    b, d = load(wvol, f, tmp_path)
+    assert d["spacing"] == [0.5, 1.25, 3.0] and d["origin"] == origin
+    assert np.array_equal(b, np.flip(a, flips))
+
+
 def test_multi_component_refused(wvol, tmp_path):
     a = np.zeros((2, 2, 2, 3), np.float32)
     img = vtk.vtkImageData()

@@ -491,6 +491,22 @@ static wvol_status interpret(nrrd_header *h, wvol_error *err)
         if (!isfinite(h->spacing[a]) || h->spacing[a] == 0)
             return HFAIL(h, WVOL_ERR_FORMAT, "axis %d: spacing %g is not finite and non-zero", a, h->spacing[a]);
     }
+    /* into the frame the writer declares, left-posterior-superior (DICOM's): a right- or
+     * anterior-pointing space's x or y is negated, directions and origin alike (the reader then
+     * reverses the axes that run backwards); other spaces are taken as they are */
+    if (h->value[F_SPACE]) {
+        const char *t = h->value[F_SPACE];
+        const int right = !strcasecmp(t, "RAS") || !strcasecmp(t, "right-anterior-superior");
+        const int anterior = right || !strcasecmp(t, "LAS") || !strcasecmp(t, "left-anterior-superior");
+        for (a = 0; a < 3; a++) {
+            if (right) h->dir[0][a] = -h->dir[0][a];
+            if (anterior) h->dir[1][a] = -h->dir[1][a];
+        }
+        if (h->value[F_SPACE_ORIGIN]) {
+            if (right) h->origin[0] = -h->origin[0];
+            if (anterior) h->origin[1] = -h->origin[1];
+        }
+    }
 
     /* where the data are */
     h->byte_skip = 0;
