@@ -561,6 +561,15 @@ static int canonical_output(const char *path, char *buf, size_t cap)
     return d < cap;
 }
 
+const char *cli_data_file_is_input(const char *in, const char *out, int gzip)
+{
+    static char data[PATH_MAX];
+    char a[PATH_MAX], b[PATH_MAX];
+    if (!in || !out || !wvol_path_has_ext(out, ".nhdr") || !wvol_nrrd_data_path(data, sizeof data, out, gzip))
+        return NULL;
+    return canonical_output(in, a, sizeof a) && canonical_output(data, b, sizeof b) && !strcmp(a, b) ? data : NULL;
+}
+
 const char *cli_same_output(const char *const *outs, int n)
 {
     char canon[16][PATH_MAX], data[PATH_MAX];

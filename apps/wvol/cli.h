@@ -150,6 +150,9 @@ int cli_make_dirs(const char *dir);
  * counted as its own output), or NULL: paths that differ as strings can name one file
  * ("./a.nrrd" and "a.nrrd", a link, "s.nhdr" and its "s.raw"). NULL entries are skipped. */
 const char *cli_same_output(const char *const *outs, int n);
+/* The detached data file a .nhdr output writes (gzip: NAME.raw.gz) when it is the input file
+ * itself, or NULL: the volume read from it would replace it, a side effect nobody asked for. */
+const char *cli_data_file_is_input(const char *in, const char *out, int gzip);
 
 /* Seconds from a monotonic clock. */
 double cli_now(void);

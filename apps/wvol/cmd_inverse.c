@@ -80,6 +80,11 @@ int wvol_cmd_inverse(int argc, char **argv)
     if (!in) return cli_usage("inverse", "missing coefficient file (see 'wvol inverse --help')");
     if (!outp) return cli_usage("inverse", "missing -o OUT");
     if (brick && level) return cli_usage("inverse", "--brick and --level exclude each other");
+    if (!wvol_format_supported(outp, 1))
+        return cli_usage("inverse", "-o %s: cannot write this format with this build (.raw .nrrd .nhdr .vti ...)", outp);
+    if (cli_data_file_is_input(in, outp, 0))
+        return cli_usage("inverse", "%s: its data file %s is the input, which it would replace: give the header "
+                                    "another name", outp, cli_data_file_is_input(in, outp, 0));
     wvol_error_clear(&err);
     if (coeffs_file_read(&c, in, &err) != WVOL_OK) return cli_fail_err("inverse", &err);
     if (level > c->levels) {

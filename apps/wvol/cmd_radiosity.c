@@ -115,6 +115,10 @@ int wvol_cmd_radiosity(int argc, char **argv)
     if (!out) return cli_usage(cmd, "no output (-o OUT.png|.exr|.ply|.vtp)");
     if (!is_image(out) && !is_mesh(out)) return cli_usage(cmd, "-o %s: use .png, .exr, .ply or .vtp", out);
     if (mesh && !is_mesh(mesh)) return cli_usage(cmd, "--mesh %s: use .ply or .vtp", mesh);
+    {
+        const char *outs[2] = {out, mesh}, *same = cli_same_output(outs, 2);
+        if (same) return cli_usage(cmd, "--mesh and -o would write the same file (%s)", same);
+    }
     /* options that shape an output this run does not write are refused, not ignored (docs/cli.md) */
     if (mesh_res && !mesh && !is_mesh(out))
         return cli_usage(cmd, "--mesh-res sets the written mesh's cells: add --mesh (or -o a .ply or .vtp)");

@@ -303,6 +303,10 @@ static int parse_args(render_args *a, int argc, char **argv)
             return cli_usage(cmd, "--bound needs --mode xray or absorption (absorption-linear has no bound)");
         if (a->rp.shading) return cli_usage(cmd, "--bound does not cover --shading: render the bound without it");
         if (a->colors_path) return cli_usage(cmd, "--bound does not cover --colors");
+        {
+            const char *outs[2] = {a->out, a->bound_path}, *same = cli_same_output(outs, 2);
+            if (same) return cli_usage(cmd, "--bound and -o would write the same file (%s)", same);
+        }
         a->cp.build_residual = 1;
     }
     if (a->keep < 1.0) {

@@ -370,3 +370,27 @@ def test_a_report_that_cannot_be_written_fails_the_command(tmp_path, phantom):
                            stderr=subprocess.PIPE, text=True, timeout=TIMEOUT)
         assert r.returncode == 1 and "cannot write to standard output" in r.stderr, r.stderr
         assert not out.exists()  # a failed command's outputs are undone
+
+
+def test_outputs_that_would_replace_another_output_or_the_input_are_refused(tmp_path, phantom):
+    # -o and --bound (or --mesh) naming one file wrote the image and then the bound over it, exit 0;
+    # a detached header's data file named like the input replaced the input with float32 samples
+    assert run("synth", "gaussian", "--size", "8", "-o", "v.raw", cwd=tmp_path).returncode == 0
+    before = (tmp_path / "v.raw").read_bytes()
+    cases = [
+        (["render", "v.raw", "--dims", "8x8x8", "-o", "a.exr", "--bound", "./a.exr", "--keep", "50%"],
+         "--bound and -o would write the same file (./a.exr)"),
+        (["radiosity", "box", "-o", "r.ply", "--mesh", "./r.ply"], "--mesh and -o would write the same file (./r.ply)"),
+        (["convert", "v.raw", "v.nhdr", "--dims", "8x8x8"], "v.nhdr: its data file v.raw is the input"),
+        (["segment", "v.raw", "--dims", "8x8x8", "-o", "v.nhdr"], "v.nhdr: its data file v.raw is the input"),
+    ]
+    for args, words in cases:
+        r = run(*args, cwd=tmp_path)
+        assert r.returncode == 2 and words in r.stderr, (args, r.stderr)
+    assert run("transform", "v.raw", "--dims", "8x8x8", "-o", "c.raw", cwd=tmp_path).returncode == 0
+    r = run("inverse", "c.raw", "-o", "c.nhdr", cwd=tmp_path)
+    assert r.returncode == 2 and "c.nhdr: its data file c.raw is the input" in r.stderr, r.stderr
+    r = run("inverse", "c.raw", "-o", "c.zzz", cwd=tmp_path)  # refused before the inverse transform
+    assert r.returncode == 2 and "-o c.zzz: cannot write this format" in r.stderr, r.stderr
+    assert (tmp_path / "v.raw").read_bytes() == before
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["c.json", "c.raw", "g.nrrd", "v.raw"]
