@@ -33,14 +33,22 @@ static output_entry *entry(int i)
     return &blocks[i / BLOCK][i % BLOCK];
 }
 
-/* A hard link to path under a new name beside it; NULL when none can be made. */
+/* A hard link to path under a new name beside it, "PATH.old-XXXXXX" (the file's own name
+ * shortened, at a character's start, where the whole would pass 255 bytes, as the library's
+ * temporaries are); NULL when none can be made. */
 static char *keep_link(const char *path)
 {
     static const char set[] = "abcdefghijklmnopqrstuvwxyz0123456789";
-    const size_t n = strlen(path);
-    char *name = malloc(n + 12);
+    const char *slash = strrchr(path, '/'), *base = slash ? slash + 1 : path;
+    size_t keep = strlen(base), n;
+    char *name;
     unsigned long r = (unsigned long)getpid() * 2654435761u ^ (unsigned long)time(NULL);
-    if (!name) return NULL;
+    if (keep > 255 - 11) {
+        keep = 255 - 11;
+        while (keep > 0 && ((unsigned char)base[keep] & 0xC0) == 0x80) keep--;
+    }
+    n = (size_t)(base - path) + keep;
+    if (!(name = malloc(n + 12))) return NULL;
     memcpy(name, path, n);
     memcpy(name + n, ".old-", 5);
     for (int attempt = 0; attempt < 100; attempt++) {

@@ -394,3 +394,18 @@ def test_outputs_that_would_replace_another_output_or_the_input_are_refused(tmp_
     assert r.returncode == 2 and "-o c.zzz: cannot write this format" in r.stderr, r.stderr
     assert (tmp_path / "v.raw").read_bytes() == before
     assert sorted(p.name for p in tmp_path.iterdir()) == ["c.json", "c.raw", "g.nrrd", "v.raw"]
+
+
+def test_names_up_to_the_longest_a_folder_allows_are_written(tmp_path):
+    # the temporary beside the output (and the kept earlier file) took the output's name plus
+    # 11 bytes: a name of 245-255 bytes could not be written or replaced
+    name = "b" * 249 + ".nrrd"
+    uname = "é" * 122 + ".nrrd"  # 249 bytes of two-byte characters: shortened at a character's start
+    for n in (name, uname):
+        for _ in range(2):  # written, then replaced (the earlier file kept beside it meanwhile)
+            r = run("synth", "gaussian", "--size", "8", "-o", n, cwd=tmp_path)
+            assert r.returncode == 0, r.stderr
+        r = run("convert", n, n[:-5] + ".vti", cwd=tmp_path)  # VTK's writers' temporaries too
+        assert r.returncode == 0, r.stderr
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(
+        [name, name[:-5] + ".vti", uname, uname[:-5] + ".vti"])

@@ -126,23 +126,38 @@ int wvol__create_temp(char *tmpl, size_t suffix_len)
     return -1;
 }
 
+char *wvol__temp_template(const char *final, const char *ext)
+{
+    static const char tag[] = ".tmp-XXXXXX";
+    const char *slash = strrchr(final, '/'), *base = slash ? slash + 1 : final;
+    const size_t dir = (size_t)(base - final), e = strlen(ext), room = 255 - (sizeof tag - 1) - e;
+    size_t keep = strlen(base);
+    char *t;
+    if (e > 64) return NULL; /* no writer's extension is that long */
+    if (keep > room) {
+        keep = room;
+        while (keep > 0 && ((unsigned char)base[keep] & 0xC0) == 0x80) keep--; /* not inside a character */
+    }
+    if (!(t = malloc(dir + keep + sizeof tag + e))) return NULL;
+    memcpy(t, final, dir + keep);
+    memcpy(t + dir + keep, tag, sizeof tag - 1);
+    memcpy(t + dir + keep + sizeof tag - 1, ext, e + 1);
+    return t;
+}
+
 wvol_status wvol_atomic_open(wvol_atomic_file *f, const char *path, wvol_error *err)
 {
     int fd;
-    size_t n;
     WVOL_RETURN_IF(!f, err, WVOL_ERR_ARG, "atomic file: handle is NULL");
     memset(f, 0, sizeof *f);
     WVOL_FORWARD(wvol__output_path(&f->final_path, path, err));
     path = f->final_path;
-    n = strlen(path);
-    f->tmp_path = malloc(n + 16);
+    f->tmp_path = wvol__temp_template(path, "");
     if (!f->tmp_path) {
         wvol_status st = wvol_error_set(err, WVOL_ERR_NOMEM, "%s: out of memory", path);
         wvol_atomic_abort(f); /* frees path's string: the message is made first */
         return st;
     }
-    memcpy(f->tmp_path, path, n);
-    memcpy(f->tmp_path + n, ".tmp-XXXXXX", 12);
     fd = wvol__create_temp(f->tmp_path, 0);
     if (fd < 0) {
         int e = errno;

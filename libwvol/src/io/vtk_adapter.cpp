@@ -213,9 +213,10 @@ public:
         if (wvol__output_path(&resolved, path, &e) != WVOL_OK) fail(e.status, e.message);
         final_ = resolved;
         std::free(resolved);
-        std::string t = final_ + ".tmp-XXXXXX" + ext;
-        std::vector<char> buf(t.begin(), t.end());
-        buf.push_back('\0');
+        char *t = wvol__temp_template(final_.c_str(), ext);
+        if (!t) fail(WVOL_ERR_NOMEM, std::string(path) + ": out of memory");
+        std::vector<char> buf(t, t + std::strlen(t) + 1);
+        std::free(t);
         int fd = wvol__create_temp(buf.data(), std::strlen(ext));
         if (fd < 0)
             fail(WVOL_ERR_IO, std::string(path) + ": cannot create output file: " + std::strerror(errno));
