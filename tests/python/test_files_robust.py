@@ -407,5 +407,7 @@ def test_names_up_to_the_longest_a_folder_allows_are_written(tmp_path):
             assert r.returncode == 0, r.stderr
         r = run("convert", n, n[:-5] + ".vti", cwd=tmp_path)  # VTK's writers' temporaries too
         assert r.returncode == 0, r.stderr
+        r = run("compress", n, "-o", n[:-5] + ".wvc", "--psnr", "40", "--memory", "64K", cwd=tmp_path)
+        assert r.returncode == 0, r.stderr  # the streamed writer's spill file beside it
     assert sorted(p.name for p in tmp_path.iterdir()) == sorted(
-        [name, name[:-5] + ".vti", uname, uname[:-5] + ".vti"])
+        [name, name[:-5] + ".vti", name[:-5] + ".wvc", uname, uname[:-5] + ".vti", uname[:-5] + ".wvc"])

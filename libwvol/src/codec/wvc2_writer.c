@@ -22,6 +22,7 @@
 
 #include "core/alloc.h"
 #include "core/clock.h"
+#include "core/file_open.h"
 #include "wvc2_internal.h"
 #include "wvc2_writer.h"
 #include "wvc_format.h"
@@ -238,7 +239,6 @@ wvol_status wvol__wvc2_writer_open(wvc2_writer **w, const char *path, const wvc2
 {
     wvc2_writer *x;
     char *spill_path;
-    size_t n;
     int fd;
     WVOL_RETURN_IF(!w || !path, err, WVOL_ERR_ARG, "wvc2 writer: missing argument");
     WVOL_FORWARD(writer_new(&x, h, err));
@@ -247,14 +247,11 @@ wvol_status wvol__wvc2_writer_open(wvc2_writer **w, const char *path, const wvc2
         return err ? err->status : WVOL_ERR_IO;
     }
     /* the spill lives beside the output (same file system, same space), unlinked at once */
-    n = strlen(path);
-    spill_path = malloc(n + 20);
+    spill_path = wvol__temp_template(path, ".spill-", "");
     if (!spill_path) {
         wvol__wvc2_writer_abort(x);
         return wvol_error_set(err, WVOL_ERR_NOMEM, "wvc2 writer: out of memory");
     }
-    memcpy(spill_path, path, n);
-    memcpy(spill_path + n, ".spill-XXXXXX", 14);
     fd = mkstemp(spill_path);
     if (fd >= 0) unlink(spill_path);
     free(spill_path);

@@ -1,5 +1,6 @@
 /* SPDX-License-Identifier: MIT
- * Opening an input file (not installed; the readers' shared first step). A path may name a
+ * Opening an input file (not installed; the readers' shared first step), and naming the
+ * temporaries written beside outputs (the writers' first step). A path may name a
  * FIFO, a device or a directory: open() of a FIFO for reading waits for a writer, forever
  * if none comes, and a device can be endless. The readers take only regular files: the path
  * (symbolic links followed) is opened without waiting (O_NONBLOCK), checked with fstat, and
@@ -23,6 +24,12 @@ wvol_status wvol__fopen_regular(FILE **fp, const char *path, wvol_error *err);
 /* WVOL_OK when path names a regular file (links followed), else WVOL_ERR_IO as above, for
  * readers whose library opens the file itself (VTK, OpenVDB, OpenEXR, tinyobjloader). */
 wvol_status wvol__check_regular(const char *path, wvol_error *err);
+
+/* The template of a temporary beside final: "FINAL" tag "XXXXXX" ext (tag ".tmp-" for the
+ * outputs' temporaries; ext may be ""), final's own name shortened (at a UTF-8 character's
+ * start) when the whole would pass the 255 bytes a name may have, so that a name that fits
+ * can always be written. malloc'ed; NULL when out of memory. */
+char *wvol__temp_template(const char *final, const char *tag, const char *ext);
 
 #ifdef __cplusplus
 }

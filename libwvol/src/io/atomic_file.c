@@ -1,5 +1,6 @@
 /* SPDX-License-Identifier: MIT */
 #define _XOPEN_SOURCE 700 /* realpath, lstat, clock_gettime */
+#include "core/file_open.h"
 #include "core/status_internal.h"
 #include "io/io_internal.h"
 #include "wvol/io.h"
@@ -126,25 +127,6 @@ int wvol__create_temp(char *tmpl, size_t suffix_len)
     return -1;
 }
 
-char *wvol__temp_template(const char *final, const char *ext)
-{
-    static const char tag[] = ".tmp-XXXXXX";
-    const char *slash = strrchr(final, '/'), *base = slash ? slash + 1 : final;
-    const size_t dir = (size_t)(base - final), e = strlen(ext), room = 255 - (sizeof tag - 1) - e;
-    size_t keep = strlen(base);
-    char *t;
-    if (e > 64) return NULL; /* no writer's extension is that long */
-    if (keep > room) {
-        keep = room;
-        while (keep > 0 && ((unsigned char)base[keep] & 0xC0) == 0x80) keep--; /* not inside a character */
-    }
-    if (!(t = malloc(dir + keep + sizeof tag + e))) return NULL;
-    memcpy(t, final, dir + keep);
-    memcpy(t + dir + keep, tag, sizeof tag - 1);
-    memcpy(t + dir + keep + sizeof tag - 1, ext, e + 1);
-    return t;
-}
-
 wvol_status wvol_atomic_open(wvol_atomic_file *f, const char *path, wvol_error *err)
 {
     int fd;
@@ -152,7 +134,7 @@ wvol_status wvol_atomic_open(wvol_atomic_file *f, const char *path, wvol_error *
     memset(f, 0, sizeof *f);
     WVOL_FORWARD(wvol__output_path(&f->final_path, path, err));
     path = f->final_path;
-    f->tmp_path = wvol__temp_template(path, "");
+    f->tmp_path = wvol__temp_template(path, ".tmp-", "");
     if (!f->tmp_path) {
         wvol_status st = wvol_error_set(err, WVOL_ERR_NOMEM, "%s: out of memory", path);
         wvol_atomic_abort(f); /* frees path's string: the message is made first */

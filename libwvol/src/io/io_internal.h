@@ -54,11 +54,6 @@ wvol_status wvol__output_path(char **final, const char *path, wvol_error *err);
  * mkstemp's 0600 would need the umask read, and reading it sets it, which races with other
  * threads). Returns the descriptor, or -1 with errno set. */
 int wvol__create_temp(char *tmpl, size_t suffix_len);
-/* The template of a temporary beside final: "FINAL.tmp-XXXXXX" followed by ext (may be ""),
- * its own name shortened (at a UTF-8 character's start) when the whole would pass the 255
- * bytes a name may have, so that a name that fits can always be written. malloc'ed; NULL
- * when out of memory. */
-char *wvol__temp_template(const char *final, const char *ext);
 /* A temporary from wvol__create_temp was renamed into place or removed: it is no longer one that
  * wvol_atomic_remove_pending removes. */
 void wvol__temp_done(const char *path);

@@ -23,6 +23,7 @@
 // the library prints nothing, and VTK's words end up in the wvol_error message.
 #include "io/adapters.h"
 #include "io/adapter_errors.hpp"
+#include "core/file_open.h"
 #include "io/io_internal.h"
 
 #include <vtkCellArray.h>
@@ -213,7 +214,7 @@ public:
         if (wvol__output_path(&resolved, path, &e) != WVOL_OK) fail(e.status, e.message);
         final_ = resolved;
         std::free(resolved);
-        char *t = wvol__temp_template(final_.c_str(), ext);
+        char *t = wvol__temp_template(final_.c_str(), ".tmp-", ext);
         if (!t) fail(WVOL_ERR_NOMEM, std::string(path) + ": out of memory");
         std::vector<char> buf(t, t + std::strlen(t) + 1);
         std::free(t);
