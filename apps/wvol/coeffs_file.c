@@ -146,22 +146,29 @@ static int get_size3(const char *json, const char *key, size_t out[3])
     return 1;
 }
 
-/* 1 when path is a regular file (links followed); else 0 with errno set, so that fopen is
- * never asked to open a FIFO (which would wait for a writer) or a device. */
-static int regular(const char *path)
+/* path opened for reading when it is a regular file (links followed), so that fopen is never
+ * asked to open a FIFO (which would wait for a writer) or a device; else NULL and *why says
+ * what is wrong, in the readers' words ("not a regular file", or the system's reason). */
+static FILE *open_regular(const char *path, const char **why)
 {
     struct stat st;
-    if (stat(path, &st) != 0) return 0;
-    if (!S_ISREG(st.st_mode)) {
-        errno = EINVAL;
-        return 0;
+    FILE *fp;
+    if (stat(path, &st) != 0) {
+        *why = strerror(errno);
+        return NULL;
     }
-    return 1;
+    if (!S_ISREG(st.st_mode)) {
+        *why = "not a regular file";
+        return NULL;
+    }
+    if (!(fp = fopen(path, "rb"))) *why = strerror(errno);
+    return fp;
 }
 
 wvol_status coeffs_file_read(wvol_coeffs **out, const char *raw_path, wvol_error *err)
 {
     char *json_path = coeffs_sidecar_path(raw_path), *json = NULL, name[32], fmt[32];
+    const char *why = "";
     FILE *fp = NULL;
     long len;
     double levels_d, spacing[3], origin[3];
@@ -171,10 +178,8 @@ wvol_status coeffs_file_read(wvol_coeffs **out, const char *raw_path, wvol_error
     wvol_status st = WVOL_OK;
     *out = NULL;
     if (!json_path) return wvol_error_set(err, WVOL_ERR_NOMEM, "out of memory");
-    fp = regular(json_path) ? fopen(json_path, "rb") : NULL;
-    if (!fp) {
-        st = wvol_error_set(err, WVOL_ERR_IO, "%s: cannot open the sidecar of %s: %s", json_path, raw_path,
-                            strerror(errno));
+    if (!(fp = open_regular(json_path, &why))) {
+        st = wvol_error_set(err, WVOL_ERR_IO, "%s: cannot open the sidecar of %s: %s", json_path, raw_path, why);
         goto done;
     }
     if (fseek(fp, 0, SEEK_END) != 0 || (len = ftell(fp)) < 0 || len > (1 << 20) || fseek(fp, 0, SEEK_SET)) {
@@ -218,9 +223,8 @@ wvol_status coeffs_file_read(wvol_coeffs **out, const char *raw_path, wvol_error
         memcpy(c->origin, origin, sizeof origin);
     }
     n = c->px * c->py * c->pz;
-    fp = regular(raw_path) ? fopen(raw_path, "rb") : NULL;
-    if (!fp) {
-        st = wvol_error_set(err, WVOL_ERR_IO, "%s: cannot open: %s", raw_path, strerror(errno));
+    if (!(fp = open_regular(raw_path, &why))) {
+        st = wvol_error_set(err, WVOL_ERR_IO, "%s: cannot open: %s", raw_path, why);
         goto done;
     }
     if (fseek(fp, 0, SEEK_END) != 0 || (len = ftell(fp)) < 0 || (size_t)len != n * sizeof(float)) {

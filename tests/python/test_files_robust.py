@@ -411,3 +411,19 @@ def test_names_up_to_the_longest_a_folder_allows_are_written(tmp_path):
         assert r.returncode == 0, r.stderr  # the streamed writer's spill file beside it
     assert sorted(p.name for p in tmp_path.iterdir()) == sorted(
         [name, name[:-5] + ".vti", name[:-5] + ".wvc", uname, uname[:-5] + ".vti", uname[:-5] + ".wvc"])
+
+
+def test_a_tf_or_sidecar_that_is_not_a_file_is_named_so(tmp_path, phantom):
+    # a --tf naming a FIFO or folder was reported as an unknown preset; inverse's coefficient file
+    # or sidecar as a FIFO said "Invalid argument"
+    os.mkfifo(tmp_path / "tf")
+    (tmp_path / "tfd").mkdir()
+    for t in ("tf", "tfd"):
+        r = run("render", phantom, "-o", tmp_path / "o.png", "--size", "8x8", "--tf", tmp_path / t)
+        assert r.returncode == 1 and f"{t}: not a regular file" in r.stderr, r.stderr
+    assert run("transform", phantom, "-o", tmp_path / "c.raw").returncode == 0
+    (tmp_path / "c.json").unlink()
+    os.mkfifo(tmp_path / "c.json")
+    r = run("inverse", tmp_path / "c.raw", "-o", tmp_path / "x.nrrd")
+    assert r.returncode == 1 and "cannot open the sidecar of" in r.stderr and "not a regular file" in r.stderr, r.stderr
+    assert not (tmp_path / "o.png").exists() and not (tmp_path / "x.nrrd").exists()

@@ -318,7 +318,11 @@ wvol_status wvol_tf_load(wvol_tf *tf, const char *path, wvol_error *err)
 wvol_status wvol_tf_resolve(wvol_tf *tf, const char *spec, double vmin, double vmax, wvol_error *err)
 {
     struct stat st;
+    wvol_status s;
     WVOL_RETURN_IF(!tf || !spec, err, WVOL_ERR_ARG, "transfer function: none given");
     if (stat(spec, &st) == 0 && S_ISREG(st.st_mode)) return wvol_tf_load(tf, spec, err);
-    return wvol_tf_preset(tf, spec, vmin, vmax, err);
+    s = wvol_tf_preset(tf, spec, vmin, vmax, err);
+    /* not a preset, but something by that name exists (a folder, a FIFO): say that, not "unknown preset" */
+    if (s == WVOL_ERR_ARG && stat(spec, &st) == 0) return wvol_tf_load(tf, spec, err);
+    return s;
 }
