@@ -342,3 +342,33 @@ def test_a_volume_on_a_large_offset_meets_its_psnr_or_is_refused(wvol, tmp_path)
                  *mode)
         assert r.returncode == 1 and "float32 alone rounds" in r.stderr and "offset" in r.stderr, r.stderr
         assert not (tmp_path / "y.wvc").exists()
+
+
+def test_splat_xray_is_the_same_for_any_thread_count(wvol, tmp_path):
+    # the splat summed per-thread images whose coefficients a dynamic schedule dealt out: a pixel's
+    # double sum changed with the count and from run to run (one float32 step on the noisy skull
+    # at 96x80); each thread now owns rows and adds in the coefficients' order
+    vol, wvc = tmp_path / "s.nrrd", tmp_path / "s.wvc"
+    assert wvol("synth", "skull", "--size", "96", "--noise", "20", "-o", vol).returncode == 0
+    assert wvol("compress", vol, "-o", wvc, "--psnr", "50").returncode == 0
+    images = set()
+    for t in (1, 2, 3, 4, 7, 16, 2, 3):
+        out = tmp_path / f"x{t}.exr"
+        r = wvol("render", wvc, "-o", out, "--method", "splat", "--mode", "xray", "--size", "96x80", "--threads", t)
+        assert r.returncode == 0, r.stderr
+        images.add(out.read_bytes())
+    assert len(images) == 1
+
+
+def test_reported_sums_are_the_same_for_any_thread_count(wvol, tmp_path):
+    # the mesh's area and volume and a compression's measured error were OpenMP reductions whose
+    # order followed the thread count (the 13th digit moved); fixed blocks added in order now
+    vol = tmp_path / "s.nrrd"
+    assert wvol("synth", "skull", "--size", "64", "--noise", "20", "-o", vol).returncode == 0
+    seen = set()
+    for t in (1, 2, 3, 7):
+        iso = json.loads(wvol("iso", vol, "-o", tmp_path / "m.ply", "--iso", "300", "--json", "--threads", t).stdout)
+        comp = json.loads(wvol("compress", vol, "-o", tmp_path / "x.wvc", "--psnr", "50", "--verify", "--json",
+                               "--threads", t).stdout)
+        seen.add((iso["area"], iso["signed_volume"], comp["measured"]["sse"], comp["measured"]["psnr"]))
+    assert len(seen) == 1, seen

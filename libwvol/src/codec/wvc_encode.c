@@ -425,17 +425,26 @@ double wvol_wvc_sse_for_psnr(double psnr, double n, double vmin, double vmax)
 wvol_status wvol_wvc_compare(double *sse, double *maxabs, const wvol_volume *a,
                              const wvol_volume *b, wvol_error *err)
 {
-    double s = 0, m = 0;
-    long i, n;
+    enum { BLOCKS = 256 };
+    double s = 0, m = 0, part[BLOCKS];
+    size_t n;
     WVOL_RETURN_IF(!a || !b || a->nx != b->nx || a->ny != b->ny || a->nz != b->nz, err, WVOL_ERR_DIMS,
                    "compare: volumes differ in size");
-    n = (long)wvol_volume_count(a);
-#pragma omp parallel for reduction(+ : s) reduction(max : m) schedule(static)
-    for (i = 0; i < n; i++) {
-        double d = (double)a->data[i] - (double)b->data[i];
-        s += d * d;
-        if (fabs(d) > m) m = fabs(d);
+    n = wvol_volume_count(a);
+    /* fixed blocks summed in order: the same error to the last bit for any thread count */
+#pragma omp parallel for reduction(max : m) schedule(static)
+    for (int k = 0; k < BLOCKS; k++) {
+        double sk = 0;
+        for (size_t i = n / BLOCKS * (size_t)k + (n % BLOCKS) * (size_t)k / BLOCKS,
+                    end = n / BLOCKS * (size_t)(k + 1) + (n % BLOCKS) * (size_t)(k + 1) / BLOCKS;
+             i < end; i++) {
+            double d = (double)a->data[i] - (double)b->data[i];
+            sk += d * d;
+            if (fabs(d) > m) m = fabs(d);
+        }
+        part[k] = sk;
     }
+    for (int k = 0; k < BLOCKS; k++) s += part[k];
     if (sse) *sse = s;
     if (maxabs) *maxabs = m;
     return WVOL_OK;

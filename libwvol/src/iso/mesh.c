@@ -69,54 +69,70 @@ static int mesh_readable(const wvol_mesh *m)
     return 1;
 }
 
+/* The sum of term over the triangles in fixed blocks added in order: the same to the last bit
+ * for any thread count (the reports print it), the blocks' sums in parallel. */
+static double triangle_sum(const wvol_mesh *m, double (*term)(const wvol_mesh *, size_t, const double[3]),
+                           const double ref[3])
+{
+    enum { BLOCKS = 256 };
+    const size_t n = m ? m->ntris : 0;
+    double part[BLOCKS], sum = 0.0;
+#ifdef _OPENMP
+#pragma omp parallel for schedule(static)
+#endif
+    for (int k = 0; k < BLOCKS; k++) {
+        double s = 0.0;
+        for (size_t t = n / BLOCKS * (size_t)k + (n % BLOCKS) * (size_t)k / BLOCKS,
+                    end = n / BLOCKS * (size_t)(k + 1) + (n % BLOCKS) * (size_t)(k + 1) / BLOCKS;
+             t < end; t++)
+            s += term(m, t, ref);
+        part[k] = s;
+    }
+    for (int k = 0; k < BLOCKS; k++) sum += part[k];
+    return sum;
+}
+
+static double tri_area(const wvol_mesh *m, size_t t, const double ref[3])
+{
+    double p[3][3], u[3], v[3], c[3];
+    (void)ref;
+    tri_pts(m, t, p);
+    for (int d = 0; d < 3; d++) {
+        u[d] = p[1][d] - p[0][d];
+        v[d] = p[2][d] - p[0][d];
+    }
+    c[0] = u[1] * v[2] - u[2] * v[1];
+    c[1] = u[2] * v[0] - u[0] * v[2];
+    c[2] = u[0] * v[1] - u[1] * v[0];
+    return 0.5 * sqrt(c[0] * c[0] + c[1] * c[1] + c[2] * c[2]);
+}
+
+/* six times the signed volume of the tetrahedron (ref, triangle t) */
+static double tri_volume6(const wvol_mesh *m, size_t t, const double ref[3])
+{
+    double p[3][3];
+    tri_pts(m, t, p);
+    for (int a = 0; a < 3; a++)
+        for (int e = 0; e < 3; e++) p[a][e] -= ref[e];
+    return p[0][0] * (p[1][1] * p[2][2] - p[1][2] * p[2][1]) - p[0][1] * (p[1][0] * p[2][2] - p[1][2] * p[2][0]) +
+           p[0][2] * (p[1][0] * p[2][1] - p[1][1] * p[2][0]);
+}
+
 double wvol_mesh_area(const wvol_mesh *m)
 {
-    double sum = 0.0;
-    long long t, n = m ? (long long)m->ntris : 0;
     if (m && !mesh_readable(m)) return NAN;
-#ifdef _OPENMP
-#pragma omp parallel for reduction(+ : sum) schedule(static)
-#endif
-    for (t = 0; t < n; t++) {
-        double p[3][3], u[3], v[3], c[3];
-        int d;
-        tri_pts(m, (size_t)t, p);
-        for (d = 0; d < 3; d++) {
-            u[d] = p[1][d] - p[0][d];
-            v[d] = p[2][d] - p[0][d];
-        }
-        c[0] = u[1] * v[2] - u[2] * v[1];
-        c[1] = u[2] * v[0] - u[0] * v[2];
-        c[2] = u[0] * v[1] - u[1] * v[0];
-        sum += 0.5 * sqrt(c[0] * c[0] + c[1] * c[1] + c[2] * c[2]);
-    }
-    return sum;
+    return triangle_sum(m, tri_area, NULL);
 }
 
 double wvol_mesh_volume(const wvol_mesh *m)
 {
-    double sum = 0.0, ref[3] = {0, 0, 0}, lo[3], hi[3];
-    long long t, n = m ? (long long)m->ntris : 0;
-    int d;
+    double ref[3] = {0, 0, 0}, lo[3], hi[3];
     if (m && !mesh_readable(m)) return NAN;
-    if (n == 0) return 0.0;
+    if (!m || m->ntris == 0) return 0.0;
     /* relative to the bounding-box centre: keeps the sum well conditioned far from the origin */
     wvol_mesh_bounds(m, lo, hi);
-    for (d = 0; d < 3; d++) ref[d] = 0.5 * (lo[d] + hi[d]);
-#ifdef _OPENMP
-#pragma omp parallel for reduction(+ : sum) schedule(static)
-#endif
-    for (t = 0; t < n; t++) {
-        double p[3][3];
-        int a, e;
-        tri_pts(m, (size_t)t, p);
-        for (a = 0; a < 3; a++)
-            for (e = 0; e < 3; e++) p[a][e] -= ref[e];
-        sum += p[0][0] * (p[1][1] * p[2][2] - p[1][2] * p[2][1]) -
-               p[0][1] * (p[1][0] * p[2][2] - p[1][2] * p[2][0]) +
-               p[0][2] * (p[1][0] * p[2][1] - p[1][1] * p[2][0]);
-    }
-    return sum / 6.0;
+    for (int d = 0; d < 3; d++) ref[d] = 0.5 * (lo[d] + hi[d]);
+    return triangle_sum(m, tri_volume6, ref) / 6.0;
 }
 
 void wvol_mesh_bounds(const wvol_mesh *m, double lo[3], double hi[3])

@@ -327,8 +327,9 @@ typedef struct splat_view {
 } splat_view;
 
 /* Adds one function image (level m, band, lower corner lo, weight value * norm) to acc. */
+/* Adds one basis function's projection to the image rows y = phase (mod every) that it covers. */
 static void splat_one(const splat_tables *t, const splat_view *v, const wvol_basis *b, double *acc, int m, int band,
-                      const double lo[3], double weight, size_t *pixels)
+                      const double lo[3], double weight, int phase, int every, size_t *pixels)
 {
     double sc = ldexp(1.0, -m), sup = b->support * ldexp(1.0, m), X[3], y0[3], pmin[2] = {INFINITY, INFINITY},
            pmax[2] = {-INFINITY, -INFINITY}, base[3], dx[3], dy[3], pq[3];
@@ -351,14 +352,15 @@ static void splat_one(const splat_tables *t, const splat_view *v, const wvol_bas
     x1 = pmax[0] - 0.5 >= v->W ? v->W - 1 : (int)floor(pmax[0] - 0.5);
     yy0 = pmin[1] - 0.5 < 0 ? 0 : (int)ceil(pmin[1] - 0.5);
     yy1 = pmax[1] - 0.5 >= v->H ? v->H - 1 : (int)floor(pmax[1] - 0.5);
+    yy0 += ((phase - yy0) % every + every) % every; /* this caller's first row */
     if (x0 > x1 || yy0 > yy1) return;
     /* y0(px, py) = (O0 - lo)/2^m + px Ex/2^m + py Ey/2^m, in the table's frame (u1, u2, rho) */
     for (a = 0; a < 3; a++) y0[a] = (v->O0[a] - lo[a]) * sc;
     base[0] = dot3(y0, t->e1), base[1] = dot3(y0, t->e2), base[2] = dot3(y0, t->e);
     dx[0] = dot3(v->Ex, t->e1) * sc, dx[1] = dot3(v->Ex, t->e2) * sc, dx[2] = dot3(v->Ex, t->e) * sc;
     dy[0] = dot3(v->Ey, t->e1) * sc, dy[1] = dot3(v->Ey, t->e2) * sc, dy[2] = dot3(v->Ey, t->e) * sc;
-    *pixels += (size_t)(x1 - x0 + 1) * (size_t)(yy1 - yy0 + 1);
-    for (y = yy0; y <= yy1; y++) {
+    *pixels += (size_t)(x1 - x0 + 1) * (size_t)((yy1 - yy0) / every + 1);
+    for (y = yy0; y <= yy1; y += every) {
         double py = y + 0.5;
         int x;
         for (a = 0; a < 3; a++) pq[a] = base[a] + py * dy[a] + (x0 + 0.5) * dx[a];
@@ -460,14 +462,18 @@ wvol_status wvol_render_xray_splat(wvol_image *img, const wvol_store *s, const w
         while (wvol_store_next(s, &it, &c) && ncf < cap) cf[ncf++] = c;
     }
 
+    /* Each thread owns the image rows y = its number (mod the threads) and adds every function's
+     * part in them, in the coefficients' order: a pixel's sum is the same additions in the same
+     * order for any thread count and run (docs/cli.md: images the same for any count). The
+     * footprints are found by every thread; the pixels' work is split. */
     nthreads = wvol__threads(p.threads);
-    acc = calloc((size_t)nthreads * npx, sizeof(double));
+    if (nthreads > v.H) nthreads = v.H;
+    acc = calloc(npx, sizeof(double));
     if (!acc) goto nomem;
 #pragma omp parallel num_threads(nthreads) reduction(+ : images, pixels)
     {
-        double *mine = acc + (size_t)omp_get_thread_num() * npx;
+        const int me = omp_get_thread_num(), every = omp_get_num_threads();
         long n;
-#pragma omp for schedule(dynamic, 64)
         for (n = 0; n < (long)ncf; n++) {
             const wvol_store_coeff *c = &cf[n];
             int m = c->level;
@@ -488,24 +494,22 @@ wvol_status wvol_render_xray_splat(wvol_image *img, const wvol_store *s, const w
                         lo[0] = (double)j0 * step - sft;
                         lo[1] = (double)j1 * step - sft;
                         lo[2] = (double)j2 * step - sft;
-                        images++;
-                        splat_one(&t, &v, b, mine, m, c->band, lo, (double)c->value * norm, &pixels);
+                        images += me == 0;
+                        splat_one(&t, &v, b, acc, m, c->band, lo, (double)c->value * norm, me, every, &pixels);
                     }
         }
     }
-    /* sum the threads' images; X-ray pixels are (I, I, I, 1) where the ray meets the box */
+    /* X-ray pixels are (I, I, I, 1) where the ray meets the box */
     for (i = 0; i < npx; i++) {
-        double sum = 0;
-        int th;
+        const double sum = acc[i];
         float *px = img->rgba + 4 * i;
-        for (th = 0; th < nthreads; th++) sum += acc[(size_t)th * npx + i];
         if (v.tin[i] == v.tin[i]) px[0] = px[1] = px[2] = (float)sum, px[3] = 1.0f;
         else px[0] = px[1] = px[2] = px[3] = 0.0f;
     }
     {
         wvol__counts c = {.rays_hit = rays_hit, .functions = images, .samples = pixels,
                           .bytes = 4 * 8 * ((size_t)t.n1 * t.n2 + 2 * (size_t)t.m1 * t.m2 * t.mr) +
-                                   (size_t)nthreads * npx * sizeof(double) + 2 * npx * sizeof(double) +
+                                   npx * sizeof(double) + 2 * npx * sizeof(double) +
                                    cap * sizeof *cf};
         wvol__stats_fill(stats, img, t_start, c_start, &c);
     }
