@@ -27,6 +27,7 @@ void cli_parser_init(cli_parser *p, const char *cmd, int argc, char **argv, cons
     p->i = 1;
     p->cmd = cmd;
     p->opts = opts;
+    p->positional_only = 0;
     memset(p->given, 0, sizeof p->given);
 }
 
@@ -54,7 +55,12 @@ int cli_next(cli_parser *p, const cli_opt **opt, const char **value)
     *value = NULL;
     if (p->i >= p->argc) return -1;
     arg = p->argv[p->i++];
-    if (arg[0] != '-' || arg[1] == '\0' || (arg[1] >= '0' && arg[1] <= '9') || arg[1] == '.') {
+    if (!p->positional_only && !strcmp(arg, "--")) { /* the usual end of the options */
+        p->positional_only = 1;
+        if (p->i >= p->argc) return -1;
+        arg = p->argv[p->i++];
+    }
+    if (p->positional_only || arg[0] != '-' || arg[1] == '\0' || (arg[1] >= '0' && arg[1] <= '9') || arg[1] == '.') {
         *value = arg; /* positional, including negative numbers */
         return 0;
     }

@@ -25,12 +25,14 @@ typedef struct cli_parser {
     const char *cmd;
     const cli_opt *opts;  /* terminated by {NULL} */
     unsigned char given[128]; /* given[k]: opts[k] was on the command line (the first 128 options) */
+    int positional_only;      /* after "--": every argument is positional (a file named "-x") */
 } cli_parser;
 
 void cli_parser_init(cli_parser *p, const char *cmd, int argc, char **argv, const cli_opt *opts);
 
 /* Returns 1 for an option (*opt set, *value its value or NULL), 0 for a positional
- * argument (*opt NULL, *value the argument), -1 at the end, CLI_USAGE after
+ * argument (*opt NULL, *value the argument; every argument after "--" is one), -1 at
+ * the end, CLI_USAGE after
  * printing an error for an unknown option or a missing value. "--help"/"-h" must
  * be listed in opts by the command if it wants them (cli_help_opt). */
 int cli_next(cli_parser *p, const cli_opt **opt, const char **value);

@@ -274,6 +274,13 @@ static PyObject *store_save(PyObject *self, PyObject *args, PyObject *kw)
             return wvolpy_value_error("quant_share must be in (0, 1], got %g", p.quant.share);
     }
     if (!PyUnicode_FSConverter(path_obj, &bytes)) return NULL;
+    if (!wvol_path_has_ext(PyBytes_AS_STRING(bytes), ".wvc")) {
+        /* every reader goes by the extension: a .wvc named x.nrrd could not be read back */
+        PyObject *e = wvolpy_value_error("save: the path must end in .wvc (the format follows the extension), got '%s'",
+                                         PyBytes_AS_STRING(bytes));
+        Py_DECREF(bytes);
+        return e;
+    }
     Py_BEGIN_ALLOW_THREADS
     s = wvol_compress_encode(&buf, &nbytes, &h->c, &p, &rep, &err);
     if (s == WVOL_OK) s = wvol_wvc_save(PyBytes_AS_STRING(bytes), buf, nbytes, &err);

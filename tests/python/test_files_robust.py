@@ -7,6 +7,7 @@ would hit). Writers replace their output by renaming a temporary over it: they r
 path that holds a folder, FIFO or device (the rename would replace it), write through a
 symbolic link to the file it names (the link stays), and commands with several outputs
 leave none of them when one fails, and never remove what they did not write."""
+import json
 import os
 import subprocess
 import sys
@@ -106,9 +107,10 @@ def test_outputs_that_are_not_regular_files_are_refused_and_kept(tmp_path):
     a = np.zeros((4, 4, 4), np.float32)
     with pytest.raises(OSError, match="exists and is not a regular file"):
         wvol.save(a, fifo)
+    (tmp_path / "w.wvc").mkdir()
     with pytest.raises(OSError, match="exists and is not a regular file"):
-        wvol.compress(a, "haar", 1).save(folder)
-    assert fifo.is_fifo() and folder.is_dir()
+        wvol.compress(a, "haar", 1).save(tmp_path / "w.wvc")
+    assert fifo.is_fifo() and folder.is_dir() and (tmp_path / "w.wvc").is_dir()
 
 
 def test_demo_leaves_what_it_did_not_write(tmp_path):
@@ -425,3 +427,12 @@ def test_a_tf_folder_or_sidecar_fifo_is_named_so(tmp_path, phantom):
     r = run("inverse", tmp_path / "c.raw", "-o", tmp_path / "x.nrrd")
     assert r.returncode == 1 and "cannot open the sidecar of" in r.stderr and "not a regular file" in r.stderr, r.stderr
     assert not (tmp_path / "o.png").exists() and not (tmp_path / "x.nrrd").exists()
+
+
+def test_double_dash_ends_the_options(tmp_path):
+    # a file whose name starts with '-' was taken for an option ("unknown option '--'")
+    assert run("synth", "gaussian", "--size", "8", "-o", "./-a.nrrd", cwd=tmp_path).returncode == 0
+    r = run("convert", "--", "-a.nrrd", "-b.vti", cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+    r = run("info", "--json", "--", "-b.vti", cwd=tmp_path)
+    assert r.returncode == 0 and json.loads(r.stdout)["dims"] == [8, 8, 8], r.stderr

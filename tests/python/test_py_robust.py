@@ -585,3 +585,13 @@ def test_a_file_on_a_large_offset_reads_as_the_whole_decode(tmp_path):
         coarse = np.asarray(st.reconstruct(level=1).data)
         region1 = np.asarray(wvol.wvc_region(path, (0, 0, 0), (20, 20, 20), level=1)[0])
         assert np.abs(region1 - coarse).max() <= 2 * spacing, levels
+
+
+def test_store_save_needs_a_wvc_name(tmp_path):
+    # a .wvc written as x.nrrd could not be read back by anything (the readers go by the extension)
+    s = wvol.compress(wvol.synth.gaussian(shape=(8, 8, 8)))
+    with pytest.raises(ValueError, match="must end in .wvc"):
+        s.save(tmp_path / "x.nrrd")
+    assert not list(tmp_path.iterdir())
+    s.save(tmp_path / "x.WVC")  # the extension's case does not matter, as for every reader
+    assert tuple(wvol.wvc_info(tmp_path / "x.WVC")["shape"]) == (8, 8, 8)
