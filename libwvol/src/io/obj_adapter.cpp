@@ -32,12 +32,10 @@ std::string first_line(const std::string &s)
 
 // tinyobjloader reads a coordinate it cannot parse ("nan", "1x") as 0, silently: the vertex
 // lines are checked first, each coordinate a finite number. 0, or the first bad line's number.
-static long bad_vertex_line(const char *path, std::string &what)
+static long bad_vertex_line(FILE *fp, std::string &what)
 {
-    FILE *fp = std::fopen(path, "rb");
     char buf[4096];
     long line = 0;
-    if (!fp) return 0; // the reader reports it
     while (std::fgets(buf, sizeof buf, fp)) {
         const char *q = buf;
         line++;
@@ -52,13 +50,11 @@ static long bad_vertex_line(const char *path, std::string &what)
             if (end == q || !sep || !std::isfinite(v)) {
                 size_t n = std::strcspn(q, " \t\r\n");
                 what.assign(q, n < 32 ? n : 32);
-                std::fclose(fp);
                 return line;
             }
             q = end;
         }
     }
-    std::fclose(fp);
     return 0;
 }
 
@@ -66,10 +62,14 @@ extern "C" wvol_status wvol__obj_read(wvol__obj *out, const char *path, wvol_err
 {
     if (!out || !path) return wvol_error_set(err, WVOL_ERR_ARG, "OBJ: NULL argument");
     std::memset(out, 0, sizeof *out);
-    if (wvol__check_regular(path, err) != WVOL_OK) return err ? err->status : WVOL_ERR_IO;
     {
+        // opened here first: a file that cannot be read is named with the system's reason
+        // (tinyobjloader says only "Cannot open file")
         std::string what;
-        long line = bad_vertex_line(path, what);
+        FILE *fp = nullptr;
+        if (wvol__fopen_regular(&fp, path, err) != WVOL_OK) return err ? err->status : WVOL_ERR_IO;
+        long line = bad_vertex_line(fp, what);
+        std::fclose(fp);
         if (line)
             return wvol_error_set(err, WVOL_ERR_FORMAT, "%s: line %ld: vertex coordinate '%s' is not a finite number",
                                   path, line, what.c_str());
