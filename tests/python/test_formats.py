@@ -418,6 +418,18 @@ def test_metaimage_header_spacing_kept_in_full(wvol, tmp_path):
     assert d["spacing"] == [0.1, 0.2, 0.3] and d["origin"] == [0.1, -0.3, 1e-5]
 
 
+def test_metaimage_negative_spacing_flips(wvol, tmp_path):
+    # VTK's MetaIO hands back |ElementSpacing|: the x axis running backwards was read forwards
+    a = np.arange(8, dtype="<f4").reshape(2, 2, 2)
+    (tmp_path / "n.mha").write_bytes(
+        b"ObjectType = Image\nNDims = 3\nBinaryData = True\nBinaryDataByteOrderMSB = False\n"
+        b"Offset = 10 0 0\nElementSpacing = -0.5 1 1\nDimSize = 2 2 2\nElementType = MET_FLOAT\n"
+        b"ElementDataFile = LOCAL\n" + a.tobytes())
+    b, d = load(wvol, tmp_path / "n.mha", tmp_path)
+    assert np.array_equal(b, a[:, :, ::-1])
+    assert d["origin"] == [9.5, 0.0, 0.0] and d["spacing"] == [0.5, 1.0, 1.0]
+
+
 def test_legacy_negative_spacing_flips(wvol, tmp_path):
     a = np.arange(6, dtype=np.float32).reshape(1, 2, 3)
     img = vtk_image(a, (1.0, -2.0, 1.0), (0.0, 10.0, 0.0))

@@ -89,7 +89,7 @@ typedef struct wvol__meta_header {
 wvol_status wvol__meta_read_header(wvol__meta_header *h, const char *path, wvol_error *err);
 
 /* VTK's value (float precision) of header number i, or the header's own text of it
- * when that is the same number more precisely. */
+ * when that is the same magnitude more precisely (its sign kept: a negative spacing). */
 double wvol__meta_precise(double vtk_value, const double *hdr, size_t n, size_t i);
 
 #ifdef __cplusplus

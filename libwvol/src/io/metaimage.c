@@ -207,5 +207,7 @@ double wvol__meta_precise(double vtk_value, const double *hdr, size_t n, size_t 
     double v;
     if (i >= n || i >= WVOL__META_MAX_NUMBERS) return vtk_value;
     v = hdr[i];
-    return fabs((double)(float)v - vtk_value) <= 1e-6 * fabs(v) + 1e-300 ? v : vtk_value;
+    /* by magnitude: VTK's MetaIO returns a negative ElementSpacing as positive, and the header's
+     * sign is what says the axis runs backwards (the reader then reverses it) */
+    return fabs((double)(float)fabs(v) - fabs(vtk_value)) <= 1e-6 * fabs(v) + 1e-300 ? v : vtk_value;
 }
