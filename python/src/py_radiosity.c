@@ -15,7 +15,7 @@ static int to_scene(PyObject *obj, wvol_radiosity_scene **out)
     wvol_status s;
     *out = NULL;
     if (PyUnicode_Check(obj)) {
-        const char *name = PyUnicode_AsUTF8(obj);
+        const char *name = wvolpy_utf8(obj, "scene");
         size_t n;
         if (!name) return -1;
         n = strlen(name);

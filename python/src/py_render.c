@@ -45,11 +45,7 @@ static const char *opt_str(PyObject *opts, const char *key, const char *dflt)
 {
     PyObject *o = PyDict_GetItemString(opts, key);
     if (!o || o == Py_None) return dflt;
-    if (!PyUnicode_Check(o)) {
-        PyErr_Format(PyExc_TypeError, "%s must be a string", key);
-        return NULL;
-    }
-    return PyUnicode_AsUTF8(o);
+    return wvolpy_utf8(o, key);
 }
 
 /* tf: a preset name or file path (str, wvol_tf_resolve), or a sequence of (value, r, g, b,
@@ -61,8 +57,20 @@ static int parse_tf(PyObject *opts, wvol_tf *tf, double vmin, double vmax)
     wvol_error err;
     memset(tf, 0, sizeof *tf);
     if (!o || o == Py_None || PyUnicode_Check(o)) {
-        const char *spec = (!o || o == Py_None) ? "gaussian" : PyUnicode_AsUTF8(o);
+        const char *spec;
         wvol_status s;
+        /* checked here too, though a preset or file carries its own units: 'diagonal' would be
+         * ignored, and a misspelt value would pass unseen */
+        if (!(units = opt_str(opts, "tf_units", "world"))) return -1;
+        if (strcmp(units, "world") && strcmp(units, "diagonal")) {
+            PyErr_Format(PyExc_ValueError, "tf_units '%s': expected 'world' or 'diagonal'", units);
+            return -1;
+        }
+        if (!strcmp(units, "diagonal")) {
+            PyErr_SetString(PyExc_ValueError, "tf_units='diagonal' applies to a list of points, not a preset or file");
+            return -1;
+        }
+        spec = (!o || o == Py_None) ? "gaussian" : wvolpy_utf8(o, "tf");
         if (!spec) return -1;
         Py_BEGIN_ALLOW_THREADS
         s = wvol_tf_resolve(tf, spec, vmin, vmax, &err);
@@ -536,13 +544,46 @@ static PyObject *py_progressive_begin(PyObject *self, PyObject *args)
     return cap;
 }
 
+/* A progressive pass's options (as render's): 0, or -1 with an exception. */
+static int progressive_opts(const prog_state *ps, PyObject *opts, wvol_render_params *rp, wvol_camera *cam,
+                            wvol_tf *tf)
+{
+    const char *camspec;
+    int width = 256, height = 256, J = 0;
+    wvol_error err;
+    if (parse_params(opts, rp, &J) < 0) return -1;
+    if (opt_int(opts, "width", &width) < 0 || opt_int(opts, "height", &height) < 0) return -1;
+    if (!(camspec = opt_str(opts, "camera", "+z"))) return -1;
+    if (wvol_camera_parse(cam, camspec, &ps->g, width, height, &err) != WVOL_OK) {
+        wvolpy_raise(&err);
+        return -1;
+    }
+    memset(tf, 0, sizeof *tf);
+    if (rp->mode != WVOL_RENDER_MODE_XRAY && parse_tf(opts, tf, ps->vmin, ps->vmax) < 0) return -1;
+    return 0;
+}
+
+/* progressive_check(capsule, opts) -> None: the options checked as progressive_next checks
+ * them, nothing rendered (render_progressive refuses bad ones at its call). */
+static PyObject *py_progressive_check(PyObject *self, PyObject *args)
+{
+    PyObject *cap, *opts;
+    prog_state *ps;
+    wvol_camera cam;
+    wvol_tf tf;
+    wvol_render_params rp;
+    (void)self;
+    if (!PyArg_ParseTuple(args, "OO!", &cap, &PyDict_Type, &opts)) return NULL;
+    if (!(ps = PyCapsule_GetPointer(cap, PROG_CAPSULE))) return NULL;
+    if (progressive_opts(ps, opts, &rp, &cam, &tf) < 0) return NULL;
+    Py_RETURN_NONE;
+}
+
 /* progressive_next(capsule, opts) -> (image, bound or None, pass dict); opts as render's. */
 static PyObject *py_progressive_next(PyObject *self, PyObject *args)
 {
     PyObject *cap, *opts, *a, *b = Py_None, *d;
     prog_state *ps;
-    const char *camspec;
-    int width = 256, height = 256, J = 0;
     wvol_camera cam;
     wvol_tf tf;
     wvol_render_params rp;
@@ -553,12 +594,7 @@ static PyObject *py_progressive_next(PyObject *self, PyObject *args)
     (void)self;
     if (!PyArg_ParseTuple(args, "OO!", &cap, &PyDict_Type, &opts)) return NULL;
     if (!(ps = PyCapsule_GetPointer(cap, PROG_CAPSULE))) return NULL;
-    if (parse_params(opts, &rp, &J) < 0) return NULL;
-    if (opt_int(opts, "width", &width) < 0 || opt_int(opts, "height", &height) < 0) return NULL;
-    if (!(camspec = opt_str(opts, "camera", "+z"))) return NULL;
-    if (wvol_camera_parse(&cam, camspec, &ps->g, width, height, &err) != WVOL_OK) return wvolpy_raise(&err);
-    memset(&tf, 0, sizeof tf);
-    if (rp.mode != WVOL_RENDER_MODE_XRAY && parse_tf(opts, &tf, ps->vmin, ps->vmax) < 0) return NULL;
+    if (progressive_opts(ps, opts, &rp, &cam, &tf) < 0) return NULL;
     if (ps->busy) {
         PyErr_SetString(PyExc_RuntimeError,
                         "progressive render: a pass of this render is running in another thread (one at a time)");
@@ -607,4 +643,6 @@ PyMethodDef wvolpy_render_methods[] = {
      "progressive_begin(array, spacing, origin, wavelet, levels, max_error, seconds, growth, bound) -> state"},
     {"progressive_next", py_progressive_next, METH_VARARGS,
      "progressive_next(state, opts) -> (image, bound or None, pass)"},
+    {"progressive_check", py_progressive_check, METH_VARARGS,
+     "progressive_check(state, opts) -> None: the options checked, nothing rendered"},
     {NULL, NULL, 0, NULL}};

@@ -404,6 +404,22 @@ int wvolpy_parse_levels(PyObject *obj, int *levels)
     return 0;
 }
 
+const char *wvolpy_utf8(PyObject *o, const char *what)
+{
+    Py_ssize_t n;
+    const char *s;
+    if (!PyUnicode_Check(o)) {
+        PyErr_Format(PyExc_TypeError, "%s must be a string", what);
+        return NULL;
+    }
+    if (!(s = PyUnicode_AsUTF8AndSize(o, &n))) return NULL;
+    if ((size_t)n != strlen(s)) {
+        PyErr_Format(PyExc_ValueError, "%s: embedded null character", what);
+        return NULL;
+    }
+    return s;
+}
+
 PyObject *wvolpy_value_error(const char *fmt, ...)
 {
     char msg[512];

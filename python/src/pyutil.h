@@ -105,6 +105,11 @@ PyObject *wvolpy_fast_snapshot(PyObject *o, const char *msg);
 /* Parses an optional 3-sequence of floats (x, y, z order); returns 0 or -1 with exception. */
 int wvolpy_triple(PyObject *obj, double out[3], const char *what);
 
+/* The UTF-8 text of str o (owned by o), or NULL with an exception: a TypeError when o is not a
+ * str, a ValueError when it holds a NUL ("'xray\0junk'" would be read as "xray"); what names
+ * the argument. */
+const char *wvolpy_utf8(PyObject *o, const char *what);
+
 /* Sets a ValueError formatted as printf does (PyErr_Format knows no %g) and returns NULL. */
 PyObject *wvolpy_value_error(const char *fmt, ...) __attribute__((format(printf, 1, 2)));
 

@@ -124,6 +124,15 @@ def _real(v, name):
     return float(v)
 
 
+def _real_array(v, name, dtype=np.float64):
+    """An array argument of real numbers as ``dtype``: complex, string, object and bool arrays are
+    refused (np.asarray(..., float) would drop an imaginary part with a warning, or parse text)."""
+    a = np.asarray(v)
+    if a.dtype.kind not in "iuf":
+        raise TypeError(f"{name}: expected real numbers, got an array of {a.dtype}")
+    return np.ascontiguousarray(a, dtype=dtype)
+
+
 def _triple(v, name, default):
     """A geometry argument: None (the default), one number for all three axes, or 3 numbers (x, y, z)."""
     if v is None:
@@ -647,19 +656,26 @@ def render_progressive(vol, camera="+z", size=(256, 256), *, mode="absorption", 
     the sampling options are those of :func:`render` (a bound needs mode "xray" or
     "absorption", no shading). Each pass is computed when the generator is advanced.
     """
+    # the arguments are checked and the volume transformed here, at the call; the generator
+    # below only renders (a generator function would defer every check to the first next())
     w, h = _size(size)
     spacing, origin = _geometry(vol, None, None)
     state = _wvol.progressive_begin(_data(vol), spacing, origin, wavelet, levels,
-                                    0.0 if max_error is None else float(max_error),
-                                    0.0 if seconds is None else float(seconds), float(growth),
+                                    0.0 if max_error is None else _real(max_error, "max_error"),
+                                    0.0 if seconds is None else _real(seconds, "seconds"), _real(growth, "growth"),
                                     _bound_method(bound))
     opts = dict(camera=camera, width=w, height=h, mode=mode, tf=os.fspath(tf) if isinstance(tf, os.PathLike) else tf,
                 tf_units=tf_units, step=step, termination=termination, threads=_threads(threads))
-    while True:
-        img, bd, info = _wvol.progressive_next(state, opts)
-        yield img, bd, info
-        if info["last"]:
-            return
+    _wvol.progressive_check(state, opts)
+
+    def passes():
+        while True:
+            img, bd, info = _wvol.progressive_next(state, opts)
+            yield img, bd, info
+            if info["last"]:
+                return
+
+    return passes()
 
 
 # ---- isosurfaces ----------------------------------------------------------------------------

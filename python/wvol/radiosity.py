@@ -7,12 +7,13 @@ path (quads, MTL ``Kd`` reflectance and ``Ke`` emission), or a tuple of arrays
 square bilinearly: ``x(u, v) = p0 + u (p1 - p0) + v (p3 - p0) + u v (p0 - p1 + p2 - p3)``.
 Errors raise ValueError (bad scenes name the quad and field) or OSError (files).
 """
+import os
 from typing import NamedTuple, Optional
 
 import numpy as np
 
 from . import _wvol
-from . import _int, _size
+from . import _int, _real, _real_array, _size
 
 __all__ = ["BASES", "Scene", "Solution", "scene", "solve", "point_form_factor", "gauss_grid", "patch_points"]
 
@@ -42,12 +43,14 @@ class Solution(NamedTuple):
 
 
 def _scene_arg(s):
-    if isinstance(s, str):
-        return s
+    if isinstance(s, (str, os.PathLike)):
+        return os.fspath(s)
     if isinstance(s, Scene):
         return (s.quads, s.emission, s.reflectance)
+    if isinstance(s, bytes) or not hasattr(s, "__len__") or len(s) != 3:
+        raise TypeError(f"scene: expected a name, an .obj path or (quads, emission, reflectance), got {s!r}")
     q, e, r = s
-    return (np.asarray(q, dtype=np.float64), np.asarray(e, dtype=np.float64), np.asarray(r, dtype=np.float64))
+    return (_real_array(q, "quads"), _real_array(e, "emission"), _real_array(r, "reflectance"))
 
 
 def scene(s) -> Scene:
@@ -63,10 +66,10 @@ def solve(scene, basis: str = "haar", epsilon: float = 1e-3, max_level: int = 5,
     brightness; ``full_matrix`` is classical radiosity (every finest cell linked to every other).
     ``res`` > 0 samples each patch on a res x res grid; ``uv`` (m, 2) evaluates every patch at those
     parameter points; ``camera`` (a ``wvol render`` camera string) renders an image of ``size``."""
-    uv_arr = None if uv is None else np.ascontiguousarray(uv, dtype=np.float64)
-    d = _wvol.radiosity_solve(_scene_arg(scene), basis, float(epsilon), _int(max_level, "max_level"),
+    uv_arr = None if uv is None else _real_array(uv, "uv")
+    d = _wvol.radiosity_solve(_scene_arg(scene), basis, _real(epsilon, "epsilon"), _int(max_level, "max_level"),
                               bool(brightness), bool(full_matrix), _int(max_iterations, "max_iterations"),
-                              float(tolerance), _int(res, "res"), uv_arr, camera,
+                              _real(tolerance, "tolerance"), _int(res, "res"), uv_arr, camera,
                               _size(size))
     samples, values, image = d.pop("samples", None), d.pop("values", None), d.pop("image", None)
     return Solution(d, samples, values, image)
@@ -75,9 +78,10 @@ def solve(scene, basis: str = "haar", epsilon: float = 1e-3, max_level: int = 5,
 def point_form_factor(s, patch: int, points, normal) -> np.ndarray:
     """Closed-form (Lambert) form factor from points (m, 3) with unit ``normal`` to quad ``patch``,
     without occlusion: the analytic radiosity a unit emitter gives a receiver of reflectance 1."""
-    return _wvol.radiosity_point_form_factor(_scene_arg(s), _int(patch, "patch"),
-                                             np.ascontiguousarray(points, dtype=np.float64),
-                                             tuple(float(v) for v in normal))
+    if isinstance(normal, (str, bytes)) or not hasattr(normal, "__len__") or len(normal) != 3:
+        raise TypeError(f"normal: expected 3 numbers (x, y, z), got {normal!r}")
+    return _wvol.radiosity_point_form_factor(_scene_arg(s), _int(patch, "patch"), _real_array(points, "points"),
+                                             tuple(_real(v, "normal") for v in normal))
 
 
 def gauss_grid(cells: int = 64, n: int = 4):

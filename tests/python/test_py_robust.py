@@ -5,8 +5,10 @@ hands buffers over without leaking or aliasing."""
 import concurrent.futures as cf
 import gc
 import os
+import struct
 import subprocess
 import sys
+import zlib
 
 import numpy as np
 import pytest
@@ -595,3 +597,52 @@ def test_store_save_needs_a_wvc_name(tmp_path):
     assert not list(tmp_path.iterdir())
     s.save(tmp_path / "x.WVC")  # the extension's case does not matter, as for every reader
     assert tuple(wvol.wvc_info(tmp_path / "x.WVC")["shape"]) == (8, 8, 8)
+
+
+def test_arguments_misread_before_are_refused(tmp_path):
+    """Strings cut at a NUL, a tf_units nobody checked, complex or text arrays whose imaginary
+    part or characters were dropped or parsed, string normals read as their characters, and a
+    progressive render that checked nothing until the first pass."""
+    import pathlib
+    import wvol.radiosity as R
+    import wvol.transport as T
+    a = wvol.synth.gaussian(shape=(8, 8, 8))
+    for kw, words in ((dict(mode="xray\x00junk"), "mode: embedded null"), (dict(camera="+z\x00j"), "camera: embedded"),
+                      (dict(tf="grey\x00j"), "tf: embedded"), (dict(tf_units="bogus"), "tf_units 'bogus'"),
+                      (dict(tf_units="diagonal"), "applies to a list of points")):
+        with pytest.raises(ValueError, match=words):
+            wvol.render(a, size=(8, 8), **kw)
+    q = np.array([[[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]]], float)
+    e, r = np.ones((1, 3)), np.full((1, 3), 0.5)
+    for bad, name in (((q + 1j, e, r), "quads"), ((q.astype(str), e, r), "quads"), ((q, e + 1j, r), "emission")):
+        with pytest.raises(TypeError, match=name):
+            R.scene(bad)
+    with pytest.raises(TypeError, match="normal"):
+        R.point_form_factor((q, e, r), 0, [[0, 0, 0.5]], "001")
+    with pytest.raises(TypeError, match="epsilon"):
+        R.solve((q, e, r), epsilon="1e-3")
+    quad = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], float)
+    with pytest.raises(TypeError, match="cells"):
+        T.haar(np.zeros((2, 2, 2, 2, 3), complex))
+    with pytest.raises(TypeError, match="src"):
+        T.coefficients(quad + 1j, quad, (0, 0, 0, 0, 0), 0)
+    with pytest.raises(ValueError, match="quad"):
+        T.power(np.ones((2, 2, 2, 2, 3)), quad[:2])
+    with pytest.raises(ValueError, match="cells"):
+        T.power(np.ones((2, 2, 2, 2, 4)), quad)
+    assert T.power(np.ones((2, 2, 2, 2, 3)), quad).tolist() == [4.0, 4.0, 4.0]
+    with pytest.raises(ValueError, match="size"):
+        wvol.render_progressive(a, size=(0, 8))  # at the call, not at the first next()
+    with pytest.raises(TypeError, match="growth"):
+        wvol.render_progressive(a, growth="4")
+    # paths as pathlib.Path, as every other reader takes them
+    obj = tmp_path / "s.obj"
+    (tmp_path / "s.mtl").write_text("newmtl w\nKd 0.5 0.5 0.5\nKe 1 1 1\n")
+    obj.write_text("mtllib s.mtl\nv 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nusemtl w\nf 1 2 3 4\n")
+    assert R.scene(pathlib.Path(obj)).quads.shape == (1, 4, 3)
+    png = tmp_path / "w.png"
+    raw = b"".join(b"\x00" + bytes([255, 0, 0] * 4) for _ in range(4))
+    chunk = lambda t, d: struct.pack(">I", len(d)) + t + d + struct.pack(">I", zlib.crc32(t + d))
+    png.write_bytes(b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", struct.pack(">IIBBBBB", 4, 4, 8, 2, 0, 0, 0)) +
+                    chunk(b"IDAT", zlib.compress(raw)) + chunk(b"IEND", b""))
+    assert T.window(pathlib.Path(png)).shape == (4, 4, 3)

@@ -1,5 +1,7 @@
 # SPDX-License-Identifier: MIT
 """Store.save / wvol.open / wvol.wvc_info: .wvc round trips from Python."""
+import os
+
 import numpy as np
 import pytest
 
@@ -86,7 +88,8 @@ def test_files_errors(vol, tmp_path):
     (lambda s, d: wvol.open(d / "x.wvc", level="fine"), TypeError, "level: expected an int"),
     (lambda s, d: wvol.wvc_info(d / "missing.wvc"), OSError, "cannot open"),
     (lambda s, d: wvol.wvc_info(None), TypeError, ""),
-    (lambda s, d: s.save(d), OSError, ""),                                # a directory
+    (lambda s, d: s.save(d), ValueError, "must end in .wvc"),             # a directory, named so
+    (lambda s, d: (os.mkdir(d / "w.wvc"), s.save(d / "w.wvc")), OSError, "not a regular file"),
     (lambda s, d: s.save(None), TypeError, ""),
     (lambda s, d: s.save(d / "y.wvc", quant_share=float("nan")), ValueError, "quant_share"),
 ])
