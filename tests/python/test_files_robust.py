@@ -436,3 +436,13 @@ def test_double_dash_ends_the_options(tmp_path):
     assert r.returncode == 0, r.stderr
     r = run("info", "--json", "--", "-b.vti", cwd=tmp_path)
     assert r.returncode == 0 and json.loads(r.stdout)["dims"] == [8, 8, 8], r.stderr
+
+
+def test_a_truncated_index_names_the_file_size(tmp_path):
+    # the message gave the bytes read first (224), not the file's size
+    assert run("synth", "skull", "--size", "64", "-o", tmp_path / "b.nrrd").returncode == 0
+    assert run("compress", tmp_path / "b.nrrd", "-o", tmp_path / "b.wvc", "--psnr", "50").returncode == 0
+    data = (tmp_path / "b.wvc").read_bytes()
+    (tmp_path / "t.wvc").write_bytes(data[:1000])
+    r = run("info", tmp_path / "t.wvc")
+    assert r.returncode == 1 and ".wvc file truncated: 1000 bytes, the header alone needs" in r.stderr, r.stderr

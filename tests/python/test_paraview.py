@@ -518,7 +518,7 @@ def test_pvpython_region(wvc, tmp_path):
     close(np.load(out), full[0:13, 3:51, 10:21])
 
 
-@pytest.mark.parametrize("damage", ["garbage", "truncated", "header", "missing", "region", "level"])
+@pytest.mark.parametrize("damage", ["garbage", "truncated", "header", "missing", "region", "level", "array"])
 def test_pvpython_bad_file_is_an_error_not_a_crash(wvc, tmp_path, damage):
     d, f, _, _ = wvc
     path = tmp_path / "bad.wvc"
@@ -533,14 +533,19 @@ def test_pvpython_bad_file_is_an_error_not_a_crash(wvc, tmp_path, damage):
         path, extra = f, ["--region", "70", "90", "0", "10", "0", "10"]  # x0 beyond the last voxel (79)
     elif damage == "level":
         path, extra = f, ["--level", "7"]  # the file has 3 levels
+    elif damage == "array":
+        path, extra = f, ["--array="]  # no name to colour by (was an unnamed array); pvpython dies on an empty argv item
     r = run([pv_tool("pvpython"), SCRIPTS / "pv_bad.py", PLUGIN, path, *extra])
     assert r.returncode == 0, r.stdout + r.stderr
     assert "SURVIVED points=0" in r.stdout, r.stdout + r.stderr
     assert "WVCReader" in r.stderr and str(path) in r.stderr, r.stderr
     # the library's own reason (half a file: its index or a chunk named as damaged)
     words = {"missing": "cannot open", "garbage": "not a .wvc file", "truncated": "chunk",
-             "header": "truncated", "region": "axis x", "level": "level of detail 7"}[damage]
+             "header": "truncated", "region": "axis x", "level": "level of detail 7",
+             "array": "ArrayName is empty"}[damage]
     assert words in r.stderr, r.stderr
+    # ParaView calls RequestData after a failed RequestInformation: no second message from it
+    assert "no file information" not in r.stderr, r.stderr
 
 
 def test_pvpython_reader_sequence(wvc, other_wvc, tmp_path):

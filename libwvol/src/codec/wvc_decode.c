@@ -67,7 +67,8 @@ static wvol_status parse(wvol_wvc_info *I, const uint8_t *h, size_t avail, uint6
     }
     WVOL_RETURN_IF(file_size < hbytes || avail < hbytes, err, WVOL_ERR_FORMAT,
                    ".wvc file truncated: %llu bytes, the header alone needs %llu",
-                   (unsigned long long)(file_size < avail ? file_size : avail), (unsigned long long)hbytes);
+                   /* the file's size when that is short; else what the caller read of it */
+                   (unsigned long long)(file_size < hbytes ? file_size : avail), (unsigned long long)hbytes);
     WVOL_RETURN_IF(wvc_get_u32(h + hbytes - 4) != (uint32_t)crc32(0L, h, (uInt)(hbytes - 4)), err,
                    WVOL_ERR_FORMAT, I->version == 1 ? ".wvc header checksum mismatch: the file is corrupt"
                                                     : ".wvc header or index checksum mismatch: the file is corrupt");

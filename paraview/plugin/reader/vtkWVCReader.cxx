@@ -386,7 +386,14 @@ int vtkWVCReader::RequestData(vtkInformation*, vtkInformationVector**, vtkInform
   const char* name = this->FileName ? this->FileName : "(no file)";
   if (!this->HaveInformation)
   {
-    vtkErrorMacro(<< name << ": no file information (RequestInformation failed)");
+    // RequestInformation failed and said why; ParaView's executive still calls RequestData (up
+    // to three times an update), which fails again without repeating a message of its own
+    return 0;
+  }
+  if (this->ArrayName && !*this->ArrayName)
+  {
+    // no name to colour by; the Python reader refuses it as well
+    vtkErrorMacro(<< name << ": ArrayName is empty: name the point array (default values)");
     return 0;
   }
   std::string message;
