@@ -1521,6 +1521,14 @@ static void wvc2_pieces_equal_the_full_decode(const char *wavelet, size_t nx, si
             if (trial == 2) lo[2] = full->nz - 1, hi[2] = full->nz;
             cap = wvol_wvc_piece_samples(wf, level, lo, hi);
             nv = full->nx * full->ny * (hi[2] - lo[2]);
+            {
+                /* a level whose samples are rolled into place (wvol_level_shift) is read as a region */
+                const wvol_filter *flt = NULL;
+                if (wvol_filter_get(&flt, wavelet, NULL) == WVOL_OK && level > 0 && wvol_level_shift(flt, level)) {
+                    CHECK(cap == 0, "%s level %d: a shifted level is not a piece", wavelet, level);
+                    continue;
+                }
+            }
             CHECK(cap >= nv, "level %d z %zu..%zu is a piece (%zu samples of work for %zu)", level, lo[2], hi[2], cap,
                   nv);
             if (cap < nv) continue;

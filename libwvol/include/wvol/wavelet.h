@@ -98,12 +98,22 @@ WVOL_API wvol_status wvol_idwt3_ex(wvol_volume **out, const wvol_coeffs *c, int 
  * the outcome (destroyed and set to NULL); the result equals wvol_idwt3's bit for bit. */
 WVOL_API wvol_status wvol_idwt3_consume(wvol_volume **out, wvol_coeffs **c, wvol_error *err);
 
+/* Where level s's grid lies (s >= 1, a transformed axis): a level-s scaling function p is
+ * centred at 2^s p + (2^s - 1) * f->center voxels. The grid starts with the one centred in the
+ * first cell, p = -shift (mod the level's period), shift = floor((2^s - 1) * center / 2^s), at
+ * offset = (2^s - 1) * center - 2^s * shift voxels (in [0, 2^s)). Filters with centre <= 1
+ * (Haar, db2, db3) have shift 0 at every level; the Coiflets and bl3 do not, and without the
+ * shift their coarse grids started inside the volume and wrapped its end around. */
+WVOL_API size_t wvol_level_shift(const wvol_filter *f, int level);
+WVOL_API double wvol_level_offset(const wvol_filter *f, int level);
+
 /* Coarser volume: undo levels..stop_level+1 only, giving the low-pass cube of
  * level stop_level s, cropped to the cells that touch the original grid: size
  * ceil(n/2^s) per transformed axis (1-voxel axes stay 1), spacing * 2^s, values scaled
  * by 2^{-s/2} per transformed axis (2^{-3s/2} for a full 3D volume) so they are
- * comparable with the samples, and origin moved to the scaling functions' centres:
- * origin + spacing * (2^s - 1) * filter->center. stop_level 0 = wvol_idwt3. */
+ * comparable with the samples, sample i the level's coefficient i - wvol_level_shift (mod
+ * the level's period) and origin + spacing * wvol_level_offset: the scaling functions'
+ * centres, the first in the first cell. stop_level 0 = wvol_idwt3. */
 WVOL_API wvol_status wvol_idwt3_level(wvol_volume **out, const wvol_coeffs *c, int stop_level, wvol_error *err);
 
 /* A dense volume's level-`level` low-pass volume through family f: wvol_idwt3_level of

@@ -204,8 +204,9 @@ WVOL_API const char *wvol_wvc_chunk_mode_name(int k);
 /* Level `level`'s grid of a file (0: the original voxels; s: the grid of
  * wvol_idwt3_level(c, s)), without decoding: its samples per axis (ceil(n / 2^s) along an
  * axis the transform halves, n along one it leaves alone), its spacing, and the position
- * of its first sample (origin + spacing (2^s - 1) c along a halved axis, c the filter's
- * centre: wvol_idwt3_level's convention, which the region and piece reads follow). Any of
+ * of its first sample (origin + spacing * wvol_level_offset along a halved axis: the first
+ * scaling function's centre in the first cell; wvol_idwt3_level's convention, which the region
+ * and piece reads follow, a level with a wvol_level_shift being read as a region). Any of
  * grid, spacing and origin may be NULL; a level outside 0..levels is refused. */
 WVOL_API wvol_status wvol_wvc_level_geometry(const wvol_wvc_info *info, int level, size_t grid[3], double spacing[3],
                                              double origin[3], wvol_error *err);

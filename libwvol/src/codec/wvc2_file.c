@@ -1002,9 +1002,7 @@ wvol_status wvol_wvc_level_geometry(const wvol_wvc_info *info, int level, size_t
             const int halved = p[a] > 1;
             if (grid) grid[a] = halved ? (n[a] + ((size_t)1 << level) - 1) >> level : n[a];
             if (spacing) spacing[a] = info->spacing[a] * ldexp(1.0, halved ? level : 0);
-            if (origin)
-                origin[a] =
-                    info->origin[a] + (halved ? info->spacing[a] * (ldexp(1.0, level) - 1.0) * flt->center : 0);
+            if (origin) origin[a] = info->origin[a] + (halved ? info->spacing[a] * wvol_level_offset(flt, level) : 0);
         }
     }
     return WVOL_OK;
@@ -1134,9 +1132,15 @@ wvol_status wvol_wvc_read_region_into(float *dst, wvol_wvc_file *f, const size_t
          * holds, each evicted and decoded again without end; a sample does not depend on the box
          * it is made in, so the slabs give the whole box's bits */
         const size_t per = wvol_wvc_region_slab_slices(f, lo, hi), plane = (hi[0] - lo[0]) * (hi[1] - lo[1]);
+        /* the level grid's sample i is the level's coefficient i - shift (wvol_level_shift): the
+         * box moved by that, in the unwrapped indices the reconstruction reads periodically */
+        size_t sh[3];
+        for (int a = 0; a < 3; a++)
+            sh[a] = src.pad[a] > 1 ? (src.pad[a] - wvol_level_shift(flt, level) % src.pad[a]) % src.pad[a] : 0;
         st = WVOL_OK;
         for (size_t z = lo[2]; z < hi[2] && st == WVOL_OK; z += per) {
-            const size_t l[3] = {lo[0], lo[1], z}, h[3] = {hi[0], hi[1], z + per < hi[2] ? z + per : hi[2]};
+            const size_t l[3] = {lo[0] + sh[0], lo[1] + sh[1], z + sh[2]},
+                         h[3] = {hi[0] + sh[0], hi[1] + sh[1], (z + per < hi[2] ? z + per : hi[2]) + sh[2]};
             st = reconstruct_parts(f, dst + (z - lo[2]) * plane, &src, l, h, threads, err);
             if (st == WVOL_OK) st = wvol__wvc_file_read_error(f, &E, err);
         }

@@ -74,6 +74,9 @@ static int plan_piece(piece_plan *P, const wvol_wvc_file *f, int s, const size_t
     for (int a = 0; a < 2; a++)
         if (lo[a] != 0 || hi[a] != (p[a] >> s) || dims[a] != (p[a] >> s)) return 0;
     if (lo[2] >= hi[2] || hi[2] > dims[2]) return 0;
+    /* a level whose grid starts after the first coarse samples (wvol_level_shift) is read as a
+     * region, which rolls them into place */
+    if (s > 0 && wvol_level_shift(flt, s) != 0) return 0;
     memset(P, 0, sizeof *P);
     P->s = s;
     P->M = I->levels;

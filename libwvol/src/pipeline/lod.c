@@ -86,24 +86,6 @@ static void source_geometry(const wvol_render_source *src, wvol_geometry *g, int
     }
 }
 
-/* The finest of L and the coarser levels whose grid covers the volume: a level-s sample is
- * centred (2^s - 1) x the filter's centre voxels past its cell's start (DESIGN.md section 2),
- * and where that passes the cell (centre > 1: the Coiflets, bl3, db4 at high levels) the grid
- * of wvol_idwt3_level starts inside the volume and wraps its last samples around to the
- * volume's start. The automatic choice takes only levels it can place (docs/render.md). */
-static int covering_level(const wvol_render_source *src, const wvol_lod_params *lod, int L)
-{
-    const wvol_filter *f = lod->filter;
-    if (src->kind == WVOL_RENDER_SOURCE_STORE) {
-        wvol_store_info si;
-        wvol_store_get_info(src->store, &si);
-        f = si.filter;
-    }
-    if (!f && wvol_filter_get(&f, "db2", NULL) != WVOL_OK) return 0;
-    while (L > 0 && (ldexp(1.0, L) - 1.0) * f->center >= ldexp(1.0, L)) L--;
-    return L;
-}
-
 /* The level-L volume of the source and the energy dropped to reach it. */
 static wvol_status coarse_volume(wvol_volume **out, double *energy, const wvol_render_source *src,
                                  const wvol_lod_params *lod, int L, wvol_error *err)
@@ -151,7 +133,6 @@ static wvol_status render_lod(wvol_image *img, const wvol_render_source *source,
     L = wvol_lod_level(cam, &g, levels, &ls.footprint);
     if (lp.level >= 0) L = lp.level;
     else if (!lp.enabled) L = 0;
-    else L = covering_level(source, &lp, L);
     if (L > 0 && !lod_applies(source, &p)) L = 0;
     if (L > 0 && source->kind == WVOL_RENDER_SOURCE_STORE && p.method == WVOL_RENDER_METHOD_AUTO &&
         p.mode == WVOL_RENDER_MODE_XRAY) {

@@ -48,14 +48,27 @@ wvol_status wvol_store_level_energy(const wvol_store *s, int level, double *ener
 }
 
 /* Values scaled as wvol_idwt3_level scales them (2^{-L/2} per transformed axis), spacing
- * 2^L times, origin on the level-L scaling functions' centres. */
+ * 2^L times, origin on the level-L scaling functions' centres, the first in the first cell. */
 static void coarse_geometry(wvol_volume *v, const wvol_store *s, int level)
 {
     for (int a = 0; a < 3; a++) {
-        double q = s->ly.tr[a] ? ldexp(1.0, level) : 1.0;
-        v->spacing[a] = s->spacing[a] * q;
-        v->origin[a] = s->origin[a] + s->spacing[a] * (q - 1.0) * s->filter->center;
+        v->spacing[a] = s->spacing[a] * (s->ly.tr[a] ? ldexp(1.0, level) : 1.0);
+        v->origin[a] = s->origin[a] + (s->ly.tr[a] ? s->spacing[a] * wvol_level_offset(s->filter, level) : 0.0);
     }
+}
+
+/* dst (e samples per axis) from src, a whole period P of the level's samples (row length P[0],
+ * slice P[0] P[1]): sample i is src's i - wvol_level_shift, read periodically. */
+static void crop_level(float *dst, const size_t e[3], const float *src, const size_t P[3], const wvol_store *s,
+                       int level, double scale)
+{
+    size_t sh[3];
+    for (int a = 0; a < 3; a++) sh[a] = P[a] == 1 ? 0 : P[a] - wvol_level_shift(s->filter, level) % P[a];
+    for (size_t z = 0; z < e[2]; z++)
+        for (size_t y = 0; y < e[1]; y++) {
+            const float *row = src + P[0] * ((y + sh[1]) % P[1] + P[1] * ((z + sh[2]) % P[2]));
+            for (size_t x = 0; x < e[0]; x++) dst[x + e[0] * (y + e[1] * z)] = (float)(scale * row[(x + sh[0]) % P[0]]);
+        }
 }
 
 static wvol_status built_level(wvol_volume **out, const wvol_store *s, int level, wvol_error *err)
@@ -74,15 +87,16 @@ static wvol_status built_level(wvol_volume **out, const wvol_store *s, int level
     }
     if (level == s->ly.levels) {
         /* the low-pass cube itself, cropped to the cells that touch the grid */
+        const size_t E[3] = {s->E[0], s->E[1], s->E[2]};
         WVOL_FORWARD(wvol_volume_create(&v, e[0], e[1], e[2], err));
-        for (size_t z = 0; z < e[2]; z++)
-            for (size_t y = 0; y < e[1]; y++)
-                for (size_t x = 0; x < e[0]; x++)
-                    v->data[x + e[0] * (y + e[1] * z)] = (float)(scale * s->lowpass[x + s->E[0] * (y + s->E[1] * z)]);
+        crop_level(v->data, e, s->lowpass, E, s, level, scale);
     } else {
         /* levels L+1..M become levels 1..M-L of a pyramid on the coarse grid, whose padded
-         * size is P / 2^L (P is a multiple of 2^M) */
-        WVOL_FORWARD(wvol_coeffs_create(&c, s->filter, s->ly.levels - level, e[0], e[1], e[2], err));
+         * size is P / 2^L (P is a multiple of 2^M); inverted whole, then cropped */
+        wvol_volume *whole = NULL;
+        size_t P[3];
+        for (int a = 0; a < 3; a++) P[a] = s->ly.tr[a] ? s->ly.P[a] >> level : 1;
+        WVOL_FORWARD(wvol_coeffs_create(&c, s->filter, s->ly.levels - level, P[0], P[1], P[2], err));
         if (c->px != (s->ly.tr[0] ? s->ly.P[0] >> level : 1) || c->py != (s->ly.tr[1] ? s->ly.P[1] >> level : 1) ||
             c->pz != (s->ly.tr[2] ? s->ly.P[2] >> level : 1)) {
             wvol_coeffs_destroy(c);
@@ -94,8 +108,11 @@ static wvol_status built_level(wvol_volume **out, const wvol_store *s, int level
             i = wvol_coeffs_index(c, k.level - level, k.band, k.p, k.q, k.r);
             if (i != (size_t)-1) c->data[i] = (float)(scale * k.value);
         }
-        st = wvol_idwt3(&v, c, err);
+        st = wvol_idwt3(&whole, c, err);
         wvol_coeffs_destroy(c);
+        if (st == WVOL_OK) st = wvol_volume_create(&v, e[0], e[1], e[2], err);
+        if (st == WVOL_OK) crop_level(v->data, e, whole->data, P, s, level, 1.0);
+        wvol_volume_destroy(whole);
         if (st != WVOL_OK) return st;
     }
     coarse_geometry(v, s, level);

@@ -50,20 +50,45 @@ wvol_status wvol_idwt3_level(wvol_volume **out, const wvol_coeffs *c, int stop_l
         free(d);
         return st;
     }
-    for (size_t k = 0; k < e[2]; k++)
-        for (size_t j = 0; j < e[1]; j++)
-            for (size_t i = 0; i < e[0]; i++)
-                v->data[i + e[0] * (j + e[1] * k)] = (float)(scale * d[i + c->px * (j + c->py * k)]);
+    {
+        /* sample i is the level's coefficient i - shift, read periodically (wvol_level_shift) */
+        size_t P[3], sh[3];
+        for (int a = 0; a < 3; a++) {
+            P[a] = pad[a] == 1 ? 1 : pad[a] >> stop_level;
+            sh[a] = pad[a] == 1 ? 0 : P[a] - wvol_level_shift(c->filter, stop_level) % P[a];
+        }
+        for (size_t k = 0; k < e[2]; k++)
+            for (size_t j = 0; j < e[1]; j++) {
+                const float *row = d + c->px * ((j + sh[1]) % P[1] + c->py * ((k + sh[2]) % P[2]));
+                float *to = v->data + e[0] * (j + e[1] * k);
+                for (size_t i = 0; i < e[0]; i++) to[i] = (float)(scale * row[(i + sh[0]) % P[0]]);
+            }
+    }
     free(d);
     for (int a = 0; a < 3; a++) {
-        double q = pad[a] == 1 ? 1.0 : ldexp(1.0, stop_level);
-        v->spacing[a] = c->spacing[a] * q;
-        /* a level-s scaling function covers voxels [2^s p, 2^s (p+1)) and is centred at
-         * 2^s p + (2^s - 1) * centre in voxel units (DESIGN.md section 2) */
-        v->origin[a] = c->origin[a] + c->spacing[a] * (q - 1.0) * c->filter->center;
+        const int tr = pad[a] != 1;
+        v->spacing[a] = c->spacing[a] * (tr ? ldexp(1.0, stop_level) : 1.0);
+        v->origin[a] = c->origin[a] + (tr ? c->spacing[a] * wvol_level_offset(c->filter, stop_level) : 0.0);
     }
     *out = v;
     return WVOL_OK;
+}
+
+size_t wvol_level_shift(const wvol_filter *f, int level)
+{
+    double t, off;
+    if (!f || level <= 0 || level > 62) return 0;
+    t = ldexp(1.0, level);
+    off = (t - 1.0) * f->center; /* in voxels; exact for the centres the filters have */
+    return (size_t)floor(off / t);
+}
+
+double wvol_level_offset(const wvol_filter *f, int level)
+{
+    double t;
+    if (!f || level <= 0 || level > 62) return 0.0;
+    t = ldexp(1.0, level);
+    return (t - 1.0) * f->center - t * (double)wvol_level_shift(f, level);
 }
 
 wvol_status wvol_volume_level(wvol_volume **out, const wvol_volume *v, const wvol_filter *f, int level,
