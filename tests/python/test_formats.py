@@ -545,7 +545,7 @@ def _el(group, elem, vr, value, implicit=False):
 
 
 def write_dicom(path, img, series, instance, position, spacing=(0.5, 0.75), slope=None, intercept=None,
-                implicit=False):
+                implicit=False, iop="1\\0\\0\\0\\1\\0"):
     """One CT slice, uncompressed little-endian; spacing = DICOM PixelSpacing (row, column)."""
     img = np.asarray(img)
     rows, cols = img.shape
@@ -570,7 +570,7 @@ def write_dicom(path, img, series, instance, position, spacing=(0.5, 0.75), slop
         el(0x0020, 0x000D, "UI", "1.2.3.4"), el(0x0020, 0x000E, "UI", series),
         el(0x0020, 0x0013, "IS", str(instance)),
         el(0x0020, 0x0032, "DS", "\\".join(f"{p:g}" for p in position)),
-        el(0x0020, 0x0037, "DS", "1\\0\\0\\0\\1\\0"),
+        el(0x0020, 0x0037, "DS", iop),
         el(0x0028, 0x0002, "US", struct.pack("<H", 1)), el(0x0028, 0x0004, "CS", "MONOCHROME2"),
         el(0x0028, 0x0010, "US", struct.pack("<H", rows)), el(0x0028, 0x0011, "US", struct.pack("<H", cols)),
         el(0x0028, 0x0030, "DS", f"{spacing[0]:g}\\{spacing[1]:g}"),
@@ -602,6 +602,17 @@ def test_dicom_series(wvol, tmp_path, implicit):
     assert d["dims"] == [5, 4, 3]
     assert d["spacing"] == [0.75, 0.5, 2.5]  # columns, rows (PixelSpacing is row\column), slices
     assert d["origin"] == [10.0, 20.0, -30.0]
+
+
+def test_dicom_rows_running_up_are_reversed(wvol, tmp_path):
+    # ImageOrientationPatient 1\0\0\0\-1\0: the columns run towards -y (and the slice normal
+    # to -z); the orientation was not read at all, so rows sat mirrored about the volume's middle
+    vol = (np.arange(5 * 4 * 3).reshape(3, 4, 5) * 7 - 100).astype(np.int16)
+    dicom_series(tmp_path / "ct", vol, iop="1\\0\\0\\0\\-1\\0")
+    b, d = load(wvol, tmp_path / "ct", tmp_path)
+    assert np.array_equal(b, vol[:, ::-1, :].astype(np.float32))
+    assert d["spacing"] == [0.75, 0.5, 2.5]
+    assert d["origin"] == [10.0, 20.0 - 3 * 0.5, -30.0]
 
 
 def test_dicom_fractional_rescale_of_signed_pixels(wvol, tmp_path):

@@ -5,7 +5,9 @@
  * series per folder. RescaleSlope/Intercept are applied in double and rounded to
  * float32 (not as vtkDICOMImageReader in VTK 9.1, which rescales in the stored
  * integer type, so 30000 * 4 wraps, reads a signed slice with a fractional slope as
- * unsigned, and stores rows bottom-up). The patient orientation is not kept.
+ * unsigned, and stores rows bottom-up). The patient orientation's flips are applied (rows or
+ * columns running against a patient axis are reversed), its rotations dropped, as for every
+ * format (docs/formats.md, "Geometry").
  * Based on: DICOM PS3.5 (data elements, transfer syntaxes) and PS3.10 (file format). */
 #define _POSIX_C_SOURCE 200809L
 #include "core/file_open.h"
@@ -161,6 +163,13 @@ static char *series_list(const dicom_info *slices, size_t n, size_t *distinct)
     return out;
 }
 
+/* The slice normal: the row direction x the column direction (ImageOrientationPatient). */
+static void slice_normal(const dicom_info *s, double n[3])
+{
+    const double *r = s->iop, *c = s->iop + 3;
+    n[0] = r[1] * c[2] - r[2] * c[1], n[1] = r[2] * c[0] - r[0] * c[2], n[2] = r[0] * c[1] - r[1] * c[0];
+}
+
 static double key_of(const dicom_info *s, const double normal[3])
 {
     return s->ipp[0] * normal[0] + s->ipp[1] * normal[1] + s->ipp[2] * normal[2];
@@ -172,10 +181,9 @@ static wvol_status check_and_order(const char *dir, dicom_info *slices, size_t n
                                    wvol_error *err)
 {
     const dicom_info *s0 = &slices[0];
-    const double *rdir = s0->iop, *cdir = s0->iop + 3;
-    const double normal[3] = {rdir[1] * cdir[2] - rdir[2] * cdir[1], rdir[2] * cdir[0] - rdir[0] * cdir[2],
-                              rdir[0] * cdir[1] - rdir[1] * cdir[0]};
+    double normal[3];
     int all_ipp = 1;
+    slice_normal(s0, normal);
     for (size_t i = 0; i < ns; i++) {
         const dicom_info *s = &slices[i];
         if (s->encapsulated || (strcmp(s->syntax, WVOL__DICOM_IMPLICIT_LE) && strcmp(s->syntax, WVOL__DICOM_EXPLICIT_LE)))
@@ -344,7 +352,7 @@ static wvol_status read_folder(wvol_volume **out, const char *dir, dicom_info *s
     size_t distinct = 0, nx, ny;
     char *list;
     double dz = 1, origin[3], spacing[3];
-    static const double identity[3][3] = {{1, 0, 0}, {0, 1, 0}, {0, 0, 1}};
+    double axes[3][3];
     wvol_volume *v = NULL;
     wvol_error e;
     wvol_status s;
@@ -391,7 +399,14 @@ static wvol_status read_folder(wvol_volume **out, const char *dir, dicom_info *s
         spacing[0] = s0->pixel_spacing[1]; /* PixelSpacing is row spacing (y) \ column spacing (x) */
         spacing[1] = s0->pixel_spacing[0];
         spacing[2] = dz;
-        if (wvol__io_apply_geometry(v, origin, spacing, identity, &e) != WVOL_OK)
+        {
+            /* columns: the axes' directions, x along a row (ImageOrientationPatient's first
+             * triple), y down the columns (its second), z the normal the slices are ordered along */
+            double n[3];
+            slice_normal(s0, n);
+            for (int a = 0; a < 3; a++) axes[a][0] = s0->iop[a], axes[a][1] = s0->iop[3 + a], axes[a][2] = n[a];
+        }
+        if (wvol__io_apply_geometry(v, origin, spacing, axes, &e) != WVOL_OK)
             s = wvol_error_set(err, WVOL_ERR_FORMAT, "%s: %s", dir, e.message);
     }
     if (!s && wvol_check_finite(v->data, nx, ny, ns, dir, &e) != WVOL_OK)
