@@ -95,7 +95,7 @@ def dwt3(vol, wavelet="db2", levels=3):
     """Forward separable 3D periodic transform (float32 arithmetic, edge-replicate padding
     to multiples of ``2**levels``); returns :class:`Coeffs`. ``wavelet`` is a name of
     :func:`filters` ("haar", "db1".."db10", "coif1".."coif5", "bl3")."""
-    data, info = _wvol.dwt3(_data(vol), wavelet=wavelet, levels=levels)
+    data, info = _wvol.dwt3(_data(vol), wavelet=wavelet, levels=_int(levels, "levels"))
     return Coeffs(data, info["wavelet"], info["levels"], info["shape"])
 
 
@@ -397,7 +397,8 @@ class Store:
         ``quant_share`` (in (0, 1]; None: the library's 0.02) of the squared error the
         selection dropped, never less than what 120 dB PSNR allows, unless ``step`` is given.
         Atomic: no partial file. Returns the encoder's report (step, sse_quant, nonzero, bytes)."""
-        return self._handle.save(os.fspath(path), quant_share=quant_share, step=step)
+        share = None if quant_share is None else _real(quant_share, "quant_share")
+        return self._handle.save(os.fspath(path), quant_share=share, step=None if step is None else _real(step, "step"))
 
 
 _MODES = ("keep", "keep_count", "energy", "psnr", "threshold")
@@ -457,7 +458,8 @@ def compress(vol, wavelet="db2", levels=None, *, keep=None, keep_count=None, ene
     value_range = None
     if a.dtype != np.float32 and a.dtype.kind in "iuf" and a.size:
         value_range = (float(a.min()), float(a.max()))
-    handle, report = _wvol.compress(arr, wavelet=wavelet, levels=levels, mode=mode, value=value,
+    handle, report = _wvol.compress(arr, wavelet=wavelet, levels=None if levels is None else _int(levels, "levels"),
+                                    mode=mode, value=value,
                                     drop_levels=drop_levels, roi=roi, roi_floor=roi_floor, spacing=spacing,
                                     origin=origin, value_range=value_range, residual=bool(residual))
     # measured_error()'s default original is the caller's array, kept by reference (a copy would
@@ -700,11 +702,11 @@ def isosurface(source, iso, *, normals="gradient", brick=None, threads=0, level=
     levels' energy. A level above the levels available raises.
     """
     if isinstance(source, Store):
-        v, f, n, st = _wvol.isosurface(source._handle, iso, normals=normals, threads=_threads(threads), brick=brick,
+        v, f, n, st = _wvol.isosurface(source._handle, _real(iso, "iso"), normals=normals, threads=_threads(threads), brick=brick,
                                        level=_int(level, "level"), wavelet=wavelet)
     else:
         spacing, origin = _geometry(source, None, None)
-        v, f, n, st = _wvol.isosurface(_data(source), iso, spacing=spacing, origin=origin, normals=normals,
+        v, f, n, st = _wvol.isosurface(_data(source), _real(iso, "iso"), spacing=spacing, origin=origin, normals=normals,
                                        threads=_threads(threads), brick=brick, level=_int(level, "level"),
                                        wavelet=wavelet)
     return (v, f, n, st) if return_stats else (v, f, n)
@@ -769,7 +771,7 @@ def wvc_region(path, lo, hi, level=0, memory=0):
     ``memory`` bytes of decoded chunks (0: 1 GiB). Returns ``(array, stats)``: a float32
     array indexed ``[z, y, x]`` and the chunk cache's counters."""
     return _wvol.wvc_region(os.fspath(path), _ints(lo, "lo", "(x, y, z)"), _ints(hi, "hi", "(x, y, z)"),
-                            operator.index(level), memory)
+                            _int(level, "level"), memory)
 
 
 def wvc_info(path):

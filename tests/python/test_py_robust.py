@@ -646,3 +646,19 @@ def test_arguments_misread_before_are_refused(tmp_path):
     png.write_bytes(b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", struct.pack(">IIBBBBB", 4, 4, 8, 2, 0, 0, 0)) +
                     chunk(b"IDAT", zlib.compress(raw)) + chunk(b"IEND", b""))
     assert T.window(pathlib.Path(png)).shape == (4, 4, 3)
+
+
+def test_bools_are_not_taken_for_numbers(tmp_path):
+    """levels=True ran one level, isosurface(a, True) meshed at 1.0, save(step=True) quantised with
+    step 1: a bool is refused where a number is asked for, as _int and _real refuse it elsewhere."""
+    a = wvol.synth.gaussian(shape=(16, 16, 16))
+    s = wvol.compress(a, "haar", 1)
+    s.save(tmp_path / "a.wvc")
+    for call, name in ((lambda: wvol.dwt3(a, "haar", True), "levels"),
+                       (lambda: wvol.compress(a, "haar", True), "levels"),
+                       (lambda: wvol.isosurface(a, True), "iso"),
+                       (lambda: s.save(tmp_path / "b.wvc", step=True), "step"),
+                       (lambda: wvol.wvc_region(tmp_path / "a.wvc", (0, 0, 0), (4, 4, 4), level=True), "level")):
+        with pytest.raises(TypeError, match=name):
+            call()
+    assert not (tmp_path / "b.wvc").exists()
