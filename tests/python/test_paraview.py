@@ -510,6 +510,15 @@ def test_pvpython_reader_equals_decompress(wvc, tmp_path, level):
     assert meta["known_range"]["finite_range"] == [float(a.min()), float(a.max())]
 
 
+def test_pvpython_level_slider_follows_the_file(wvc):
+    # the LevelOfDetail slider was fixed at 0..8: levels a 3-level file lacks, and not the 30 a
+    # file can have; its range now comes from the file (LevelRangeInfo)
+    d, f, _, _ = wvc
+    r = run([pv_tool("pvpython"), SCRIPTS / "pv_levels.py", PLUGIN, f])
+    assert r.returncode == 0, r.stdout + r.stderr
+    assert "RANGE 0 3" in r.stdout, r.stdout
+
+
 def test_pvpython_region(wvc, tmp_path):
     d, f, full, _ = wvc
     out = tmp_path / "a.npy"

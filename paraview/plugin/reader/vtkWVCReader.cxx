@@ -327,6 +327,8 @@ int vtkWVCReader::RequestInformation(vtkInformation*, vtkInformationVector**, vt
   }
   const wvol_wvc_info* in = wvol_wvc_file_info(this->File);
   const int s = this->LevelOfDetail;
+  this->LevelRange[0] = 0;
+  this->LevelRange[1] = in->levels;
   if (s < 0 || s > in->levels)
   {
     vtkErrorMacro(<< this->FileName << ": level of detail " << s << " outside 0.." << in->levels);

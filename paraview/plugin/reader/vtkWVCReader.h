@@ -46,6 +46,9 @@ public:
   // 0: full resolution; s: the grid 2^s coarser (the finest s levels are not decoded).
   vtkSetMacro(LevelOfDetail, int);
   vtkGetMacro(LevelOfDetail, int);
+  // 0 and the file's number of levels, the LevelOfDetail it offers (ParaView's slider range),
+  // once RequestInformation has opened it; 0 and 8 before.
+  vtkGetVector2Macro(LevelRange, int);
   // Voxels (x0, x1, y0, y1, z0, z1) of the full grid, bounds included; an upper bound < 0 is
   // the last voxel. At a coarser level: the coarse samples whose cells meet it.
   vtkSetVector6Macro(Region, int);
@@ -98,6 +101,7 @@ private:
 
   char* FileName = nullptr;
   int LevelOfDetail = 0;
+  int LevelRange[2] = { 0, 8 };
   int Region[6] = { 0, -1, 0, -1, 0, -1 };
   int MemoryBudget = 0;
   int ReleaseCache = 0;
