@@ -178,7 +178,7 @@ def part2(args):
 def part3(args):
     import subprocess
     import tempfile
-    wv = os.environ.get("WVOL_BIN", os.path.join(os.path.dirname(RESULTS), "..", "build", "wvol"))
+    wv = os.environ.get("WVOL_BIN", os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "build", "wvol"))
     out = []
     with tempfile.TemporaryDirectory() as tmp:
         for name, v in volumes(args.size, args.noise).items():
@@ -279,6 +279,7 @@ def write(args, rows, prog, wvc=()):
 
 
 def main():
+    global RESULTS  # --out moves the results
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--size", type=int, default=128)
     ap.add_argument("--small", type=int, default=48)
@@ -288,7 +289,9 @@ def main():
     ap.add_argument("--growth", type=float, default=4.0)
     ap.add_argument("--psnr", default="40,60")
     ap.add_argument("--only-wvc", action="store_true")
+    ap.add_argument("--out", default=RESULTS, help="folder for bound.json, .md and .png (default bench/results)")
     args = ap.parse_args()
+    RESULTS = args.out
     if args.only_wvc:
         with open(os.path.join(RESULTS, "bound.json")) as f:
             old = json.load(f)

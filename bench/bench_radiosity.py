@@ -107,9 +107,12 @@ def near_links(cfg, basis, level, target=8000):
 
 
 def main():
+    global RESULTS  # --out moves the results
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--quick", action="store_true", help="coarse sweeps (smoke run)")
+    ap.add_argument("--out", default=RESULTS, help="folder for the JSON and figures (default bench/results)")
     a = ap.parse_args()
+    RESULTS = a.out
     os.makedirs(RESULTS, exist_ok=True)
     eps = np.logspace(-0.5, -13, 12 if a.quick else 34)
     levels = [2, 3] if a.quick else [2, 3, 4, 5]

@@ -327,6 +327,8 @@ def main():
                     help="ct suite: another wvol program (e.g. main's build) whose bricks rows at VTK's step, at the "
                          "default termination and at VTK's, run in the same run, labelled '(baseline)'")
     a = ap.parse_args()
+    if a.ct_frames < 2:  # the later frames' timings are the point: wvol render --repeat 1 reports none
+        ap.error("--ct-frames must be at least 2 (the first frame and the later ones are timed apart)")
     outdir = pathlib.Path(a.out); outdir.mkdir(parents=True, exist_ok=True)
     tmp = pathlib.Path(tempfile.mkdtemp(prefix="bench_render_"))
     n, img, thr = a.size, a.image, str(a.threads)

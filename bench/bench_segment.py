@@ -62,10 +62,13 @@ def save_png(path, labels):
 
 
 def main():
+    global OUT  # --out moves the results
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--size", type=int, default=256)
     ap.add_argument("--quick", action="store_true", help="one family and depth (smoke run)")
+    ap.add_argument("--out", default=str(OUT), help="folder for segment.json and the images (default bench/results)")
     args = ap.parse_args()
+    OUT = pathlib.Path(args.out)
     n = args.size
     OUT.mkdir(parents=True, exist_ok=True)
     families = ["db2"] if args.quick else ["haar", "db2", "coif1", "bl3"]

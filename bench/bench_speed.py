@@ -283,14 +283,15 @@ def write_md(path, meta, rows):
     q = meta.get("roi")
     if q:
         tm, tn = q["main_user_s"] + q["main_sys_s"], q["new_user_s"] + q["new_sys_s"]
+        tiny = 1e-9  # a tiny region's CPU seconds round to 0
         L += ["", f"Region read (issue 21): `wvol decompress {q['file']} --roi {q['roi']}`, one thread, the two "
               f"programs alternated, best of {meta['rounds']} by user + system CPU seconds; outputs "
               f"{'identical' if q['identical'] else 'DIFFERENT'} ({q['bytes_out']} bytes).", "",
               "| program | user s | system s | user + system s | wall s |", "|---|---|---|---|---|",
               f"| main | {q['main_user_s']:.2f} | {q['main_sys_s']:.2f} | {tm:.2f} | {q['main_wall_s']:.2f} |",
               f"| this tree | {q['new_user_s']:.2f} | {q['new_sys_s']:.2f} | {tn:.2f} | {q['new_wall_s']:.2f} |",
-              "", f"main / this tree: {tm / tn:.2f}x in CPU seconds, {q['main_user_s'] / q['new_user_s']:.2f}x in "
-              "user seconds."]
+              "", f"main / this tree: {tm / max(tn, tiny):.2f}x in CPU seconds, "
+              f"{q['main_user_s'] / max(q['new_user_s'], tiny):.2f}x in user seconds."]
     with open(path, "w") as f:
         f.write("\n".join(L) + "\n")
 

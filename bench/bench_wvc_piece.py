@@ -44,7 +44,10 @@ g = _wvol.wvc_file_info(f)["shape"][::-1]
 lo, hi = [0, 0, 0], [g[0], g[1], int(round(g[2] * z1f))]
 if how == "piece":
     _wvol.wvc_file_set_budget(f, _wvol.wvc_file_piece_budget(f, threads))
-    a = _wvol.wvc_file_piece(f, lo, hi, 0, threads)[0]
+    got = _wvol.wvc_file_piece(f, lo, hi, 0, threads)
+    if got is None:  # not a piece: a padded x-y grid, or a level the piece reader declines
+        sys.exit(f"{path}: the whole volume is not a piece (x and y must be the padded grid): use another file")
+    a = got[0]
 else:
     _wvol.wvc_file_set_budget(f, _wvol.wvc_file_slab_budget(f, [0, 0, 0], g))
     nz, ny, nx = hi[2], hi[1], hi[0]
