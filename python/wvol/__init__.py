@@ -60,10 +60,21 @@ def _fingerprint(arr):
 
 def load(path, dims=None, dtype="float32", grid=None, big_endian=False, spacing=None, origin=None):
     """Reads a volume file (.raw needs ``dims=(nx, ny, nz)``, and takes ``spacing`` and ``origin``,
-    (x, y, z) or one number, default 1 and 0; .nrrd, .vdb, .vti, ... carry theirs).
+    (x, y, z) or one number, default 1 and 0; .nrrd, .vdb, .vti, ... carry theirs, and giving
+    them for such a file is refused, as the command line refuses them; ``grid`` names a .vdb's).
 
     Returns a :class:`Volume`.
     """
+    name = os.fsdecode(path) if isinstance(path, (str, bytes, os.PathLike)) else None
+    if name is not None:
+        raw = name.lower().endswith((".raw", ".bin"))
+        given = [k for k, v in (("dims", dims is not None), ("dtype", dtype != "float32"),
+                                ("big_endian", bool(big_endian)), ("spacing", spacing is not None),
+                                ("origin", origin is not None)) if v]
+        if given and not raw:  # they were ignored: a file's own geometry wins
+            raise ValueError(f"{given[0]} describes raw input (.raw, .bin): {name} carries its own")
+        if grid is not None and not name.lower().endswith(".vdb"):
+            raise ValueError(f"grid names a grid of an OpenVDB file: {name} is not a .vdb")
     data, spacing, origin = _wvol.load(path, dims=dims, dtype=dtype, grid=grid, big_endian=big_endian,
                                        spacing=spacing, origin=origin)
     return Volume(data, spacing, origin)

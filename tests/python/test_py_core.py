@@ -74,7 +74,7 @@ def test_noncontiguous_and_integer_arrays_are_accepted():
     (lambda: wvol.save(np.array([[1.0, np.nan]]), "/tmp/wvol_never.raw"), ValueError, r"NaN at voxel \(i=1, j=0, k=0\)"),
     (lambda: wvol.save(np.array([["a"]]), "/tmp/wvol_never.raw"), TypeError, "real numbers"),
     (lambda: wvol.load("/nonexistent/x.raw", dims=(1, 1, 1)), OSError, "/nonexistent/x.raw: No such file"),
-    (lambda: wvol.load("/tmp", dims=(0, 1, 1)), ValueError, "dims: each dimension must be a positive integer"),
+    (lambda: wvol.load("/tmp/none.raw", dims=(0, 1, 1)), ValueError, "dims: each dimension must be a positive integer"),
     (lambda: wvol.dwt3(np.zeros((8, 8, 8)), "db99"), ValueError, "unknown wavelet 'db99'"),
     (lambda: wvol.dwt3(np.zeros((8, 8, 8)), "db2", 9), ValueError, r"levels = 9 for a 8 x 8 x 8 volume \(1..3\)"),
     (lambda: wvol.dwt3(np.zeros(5)), ValueError, "got 1 dimensions"),

@@ -662,3 +662,16 @@ def test_bools_are_not_taken_for_numbers(tmp_path):
         with pytest.raises(TypeError, match=name):
             call()
     assert not (tmp_path / "b.wvc").exists()
+
+
+def test_load_refuses_raw_options_for_files_with_their_own_geometry(tmp_path):
+    # spacing, origin and dims given for a .nrrd were ignored without a word (the command line
+    # refuses them: docs/cli.md, "never ignored"); grid names a .vdb's grid only
+    p = tmp_path / "g.nrrd"
+    wvol.save(wvol.synth.gaussian(shape=(8, 8, 8)), p)
+    for kw, words in ((dict(spacing=2), "spacing describes raw input"), (dict(origin=7), "origin describes"),
+                      (dict(dims=(8, 8, 8)), "dims describes"), (dict(big_endian=True), "big_endian describes"),
+                      (dict(grid="density"), "grid names a grid of an OpenVDB file")):
+        with pytest.raises(ValueError, match=words):
+            wvol.load(p, **kw)
+    assert wvol.load(p).data.shape == (8, 8, 8)
