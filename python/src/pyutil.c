@@ -1,6 +1,7 @@
 /* SPDX-License-Identifier: MIT */
 #include "pyutil.h"
 
+#include <float.h>
 #include <math.h>
 #include <stdarg.h>
 #include <stdio.h>
@@ -205,6 +206,55 @@ PyObject *wvolpy_raise(const wvol_error *err)
     return NULL;
 }
 
+/* The files' rule for arrays (docs/formats.md, "Samples"): a 32- or 64-bit integer that float32
+ * cannot hold exactly is refused rather than rounded. f is arr cast to float32, C-ordered; 0, or
+ * -1 with a ValueError. */
+static int exact_in_f32(PyArrayObject *arr, PyArrayObject *f)
+{
+    const int is_unsigned = PyArray_DESCR(arr)->kind == 'u';
+    PyArrayObject *src =
+        (PyArrayObject *)PyArray_FROM_OTF((PyObject *)arr, is_unsigned ? NPY_UINT64 : NPY_INT64, NPY_ARRAY_IN_ARRAY);
+    const float *y = PyArray_DATA(f);
+    const npy_intp n = PyArray_SIZE(f);
+    if (!src) return -1;
+    for (npy_intp i = 0; i < n; i++) {
+        const unsigned long long u = ((const unsigned long long *)PyArray_DATA(src))[i];
+        const long long v = ((const long long *)PyArray_DATA(src))[i];
+        if (is_unsigned ? (long double)y[i] != (long double)u : (long double)y[i] != (long double)v) {
+            char digits[24];
+            if (is_unsigned) snprintf(digits, sizeof digits, "%llu", u);
+            else snprintf(digits, sizeof digits, "%lld", v);
+            wvolpy_value_error("the array's integer %s at flat index %zd cannot be held exactly by float32 (integers "
+                               "above 2^24 in magnitude lose digits); refused",
+                               digits, (Py_ssize_t)i);
+            Py_DECREF(src);
+            return -1;
+        }
+    }
+    Py_DECREF(src);
+    return 0;
+}
+
+/* A finite float64 beyond float32's range is named as such (the cast would make it Inf, which
+ * the finite check would call an Inf in the data). 0, or -1 with a ValueError. */
+static int f64_in_range(PyArrayObject *arr)
+{
+    PyArrayObject *src = (PyArrayObject *)PyArray_FROM_OTF((PyObject *)arr, NPY_FLOAT64, NPY_ARRAY_IN_ARRAY);
+    const npy_intp n = src ? PyArray_SIZE(src) : 0;
+    if (!src) return -1;
+    for (npy_intp i = 0; i < n; i++) {
+        const double x = ((const double *)PyArray_DATA(src))[i];
+        if (isfinite(x) && fabs(x) > FLT_MAX) {
+            wvolpy_value_error("the array's value %g at flat index %zd is beyond float32's range (3.4e38)", x,
+                               (Py_ssize_t)i);
+            Py_DECREF(src);
+            return -1;
+        }
+    }
+    Py_DECREF(src);
+    return 0;
+}
+
 PyArrayObject *wvolpy_real_f32(PyObject *obj)
 {
     PyArrayObject *arr, *f;
@@ -218,7 +268,12 @@ PyArrayObject *wvolpy_real_f32(PyObject *obj)
         Py_DECREF(arr);
         return NULL;
     }
+    if (dt->kind == 'f' && dt->elsize == 8 && f64_in_range(arr) < 0) { /* before the cast, which warns */
+        Py_DECREF(arr);
+        return NULL;
+    }
     f = (PyArrayObject *)PyArray_FROM_OTF((PyObject *)arr, NPY_FLOAT32, NPY_ARRAY_IN_ARRAY | NPY_ARRAY_FORCECAST);
+    if (f && dt->kind != 'f' && dt->elsize >= 4 && exact_in_f32(arr, f) < 0) Py_CLEAR(f);
     Py_DECREF(arr);
     return f;
 }

@@ -675,3 +675,16 @@ def test_load_refuses_raw_options_for_files_with_their_own_geometry(tmp_path):
         with pytest.raises(ValueError, match=words):
             wvol.load(p, **kw)
     assert wvol.load(p).data.shape == (8, 8, 8)
+
+
+def test_arrays_follow_the_files_sample_rule():
+    # the files refuse integers float32 cannot hold (docs/formats.md); arrays rounded them without a
+    # word (int32 16777217 became 16777216), and a finite float64 past float32's range was called an
+    # Inf in the data
+    for a, words in ((np.full((4, 4, 4), 2 ** 24 + 1, np.int32), "integer 16777217 at flat index 0"),
+                     (np.full((4, 4, 4), 2 ** 64 - 1, np.uint64), "integer 18446744073709551615"),
+                     (np.full((4, 4, 4), 1e300), "value 1e\\+300 at flat index 0 is beyond float32's range")):
+        with pytest.raises(ValueError, match=words):
+            wvol.compress(a, "haar", 1)
+    exact = np.full((4, 4, 4), 2 ** 24 + 2, np.int64)  # even: float32 holds it
+    assert np.array_equal(wvol.dwt3(exact, "haar", 1).data, wvol.dwt3(exact.astype(np.float32), "haar", 1).data)
