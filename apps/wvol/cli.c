@@ -567,6 +567,12 @@ static int canonical_output(const char *path, char *buf, size_t cap)
     return d < cap;
 }
 
+const char *cli_write_hint(const char *path)
+{
+    if (wvol_path_has_ext(path, ".mhd")) return "MetaImage is written as .mha, header and data in one file";
+    return "see 'wvol convert --help' for the formats this build writes";
+}
+
 const char *cli_data_file_is_input(const char *in, const char *out, int gzip)
 {
     static char data[PATH_MAX];

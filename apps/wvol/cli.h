@@ -152,6 +152,9 @@ int cli_make_dirs(const char *dir);
  * counted as its own output), or NULL: paths that differ as strings can name one file
  * ("./a.nrrd" and "a.nrrd", a link, "s.nhdr" and its "s.raw"). NULL entries are skipped. */
 const char *cli_same_output(const char *const *outs, int n);
+/* What to write instead of a volume path no build writes: .mhd (read only) is .mha, otherwise
+ * the list 'wvol convert --help' gives. */
+const char *cli_write_hint(const char *path);
 /* The detached data file a .nhdr output writes (gzip: NAME.raw.gz) when it is the input file
  * itself, or NULL: the volume read from it would replace it, a side effect nobody asked for. */
 const char *cli_data_file_is_input(const char *in, const char *out, int gzip);

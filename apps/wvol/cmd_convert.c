@@ -68,8 +68,7 @@ int wvol_cmd_convert(int argc, char **argv)
         return cli_usage("convert", "%s: its data file %s is the input, which it would replace: give the header "
                                     "another name", out, cli_data_file_is_input(in, out, 0));
     if (!wvol_format_supported(out, 1))
-        return cli_usage("convert", "%s: cannot write this format with this build (see 'wvol convert --help')",
-                         out);
+        return cli_usage("convert", "%s: cannot write this format (%s)", out, cli_write_hint(out));
 
     t0 = cli_now();
     wvol_error_clear(&err);

@@ -81,7 +81,7 @@ int wvol_cmd_inverse(int argc, char **argv)
     if (!outp) return cli_usage("inverse", "missing -o OUT");
     if (brick && level) return cli_usage("inverse", "--brick and --level exclude each other");
     if (!wvol_format_supported(outp, 1))
-        return cli_usage("inverse", "-o %s: cannot write this format with this build (.raw .nrrd .nhdr .vti ...)", outp);
+        return cli_usage("inverse", "-o %s: cannot write this format (%s)", outp, cli_write_hint(outp));
     if (cli_data_file_is_input(in, outp, 0))
         return cli_usage("inverse", "%s: its data file %s is the input, which it would replace: give the header "
                                     "another name", outp, cli_data_file_is_input(in, outp, 0));

@@ -446,3 +446,12 @@ def test_a_truncated_index_names_the_file_size(tmp_path):
     (tmp_path / "t.wvc").write_bytes(data[:1000])
     r = run("info", tmp_path / "t.wvc")
     assert r.returncode == 1 and ".wvc file truncated: 1000 bytes, the header alone needs" in r.stderr, r.stderr
+
+
+def test_an_unwritable_format_says_what_to_write(tmp_path, phantom):
+    # "cannot write this format with this build" suggested that another build would write .mhd
+    r = run("convert", phantom, tmp_path / "o.mhd")
+    assert r.returncode == 2 and "MetaImage is written as .mha" in r.stderr, r.stderr
+    r = run("convert", phantom, tmp_path / "o.zzz")
+    assert r.returncode == 2 and "see 'wvol convert --help' for the formats this build writes" in r.stderr, r.stderr
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["g.nrrd"]
