@@ -10,6 +10,7 @@
 #include <string.h>
 
 #include "store/store_internal.h"
+#include "wavelet/wavelet_bricks.h"
 #include "wvol/wvc.h"
 
 static wvol_status check_level(const wvol_store *s, int level, wvol_error *err)
@@ -57,20 +58,6 @@ static void coarse_geometry(wvol_volume *v, const wvol_store *s, int level)
     }
 }
 
-/* dst (e samples per axis) from src, a whole period P of the level's samples (row length P[0],
- * slice P[0] P[1]): sample i is src's i - wvol_level_shift, read periodically. */
-static void crop_level(float *dst, const size_t e[3], const float *src, const size_t P[3], const wvol_store *s,
-                       int level, double scale)
-{
-    size_t sh[3];
-    for (int a = 0; a < 3; a++) sh[a] = P[a] == 1 ? 0 : P[a] - wvol_level_shift(s->filter, level) % P[a];
-    for (size_t z = 0; z < e[2]; z++)
-        for (size_t y = 0; y < e[1]; y++) {
-            const float *row = src + P[0] * ((y + sh[1]) % P[1] + P[1] * ((z + sh[2]) % P[2]));
-            for (size_t x = 0; x < e[0]; x++) dst[x + e[0] * (y + e[1] * z)] = (float)(scale * row[(x + sh[0]) % P[0]]);
-        }
-}
-
 static wvol_status built_level(wvol_volume **out, const wvol_store *s, int level, wvol_error *err)
 {
     size_t n[3] = {s->nx, s->ny, s->nz}, e[3];
@@ -89,7 +76,7 @@ static wvol_status built_level(wvol_volume **out, const wvol_store *s, int level
         /* the low-pass cube itself, cropped to the cells that touch the grid */
         const size_t E[3] = {s->E[0], s->E[1], s->E[2]};
         WVOL_FORWARD(wvol_volume_create(&v, e[0], e[1], e[2], err));
-        crop_level(v->data, e, s->lowpass, E, s, level, scale);
+        wvol__level_crop(v->data, e, s->lowpass, E, E[0], E[0] * E[1], s->filter, level, scale);
     } else {
         /* levels L+1..M become levels 1..M-L of a pyramid on the coarse grid, whose padded
          * size is P / 2^L (P is a multiple of 2^M); inverted whole, then cropped */
@@ -111,7 +98,7 @@ static wvol_status built_level(wvol_volume **out, const wvol_store *s, int level
         st = wvol_idwt3(&whole, c, err);
         wvol_coeffs_destroy(c);
         if (st == WVOL_OK) st = wvol_volume_create(&v, e[0], e[1], e[2], err);
-        if (st == WVOL_OK) crop_level(v->data, e, whole->data, P, s, level, 1.0);
+        if (st == WVOL_OK) wvol__level_crop(v->data, e, whole->data, P, P[0], P[0] * P[1], s->filter, level, 1.0);
         wvol_volume_destroy(whole);
         if (st != WVOL_OK) return st;
     }

@@ -51,18 +51,9 @@ wvol_status wvol_idwt3_level(wvol_volume **out, const wvol_coeffs *c, int stop_l
         return st;
     }
     {
-        /* sample i is the level's coefficient i - shift, read periodically (wvol_level_shift) */
-        size_t P[3], sh[3];
-        for (int a = 0; a < 3; a++) {
-            P[a] = pad[a] == 1 ? 1 : pad[a] >> stop_level;
-            sh[a] = pad[a] == 1 ? 0 : P[a] - wvol_level_shift(c->filter, stop_level) % P[a];
-        }
-        for (size_t k = 0; k < e[2]; k++)
-            for (size_t j = 0; j < e[1]; j++) {
-                const float *row = d + c->px * ((j + sh[1]) % P[1] + c->py * ((k + sh[2]) % P[2]));
-                float *to = v->data + e[0] * (j + e[1] * k);
-                for (size_t i = 0; i < e[0]; i++) to[i] = (float)(scale * row[(i + sh[0]) % P[0]]);
-            }
+        const size_t P[3] = {wvol__extent(pad[0], stop_level), wvol__extent(pad[1], stop_level),
+                             wvol__extent(pad[2], stop_level)};
+        wvol__level_crop(v->data, e, d, P, c->px, c->px * c->py, c->filter, stop_level, scale);
     }
     free(d);
     for (int a = 0; a < 3; a++) {
@@ -72,6 +63,19 @@ wvol_status wvol_idwt3_level(wvol_volume **out, const wvol_coeffs *c, int stop_l
     }
     *out = v;
     return WVOL_OK;
+}
+
+void wvol__level_crop(float *dst, const size_t e[3], const float *src, const size_t P[3], size_t row, size_t slice,
+                      const wvol_filter *f, int level, double scale)
+{
+    size_t sh[3]; /* i - shift, kept non-negative: i + (P - shift mod P) */
+    for (int a = 0; a < 3; a++) sh[a] = P[a] == 1 ? 0 : P[a] - wvol_level_shift(f, level) % P[a];
+    for (size_t k = 0; k < e[2]; k++)
+        for (size_t j = 0; j < e[1]; j++) {
+            const float *r = src + row * ((j + sh[1]) % P[1]) + slice * ((k + sh[2]) % P[2]);
+            float *to = dst + e[0] * (j + e[1] * k);
+            for (size_t i = 0; i < e[0]; i++) to[i] = (float)(scale * r[(i + sh[0]) % P[0]]);
+        }
 }
 
 size_t wvol_level_shift(const wvol_filter *f, int level)

@@ -16,6 +16,13 @@ wvol_status wvol__coeffs_check(const wvol_coeffs *c, wvol_error *err);
 /* Extent of axis a at level m (0 = the padded grid): 1 stays 1. */
 static inline size_t wvol__extent(size_t p, int m) { return p == 1 ? 1 : p >> m; }
 
+/* Level `level`'s grid (wvol_idwt3_level's) out of a whole period of its samples: dst, e[0] x
+ * e[1] x e[2], x fastest, gets src's sample i - wvol_level_shift(f, level) per axis, read
+ * periodically over P (1 on an untransformed axis), times scale. src's rows are `row` floats
+ * apart and its slices `slice`: a whole padded pyramid's corner, or a period by itself. */
+void wvol__level_crop(float *dst, const size_t e[3], const float *src, const size_t P[3], size_t row, size_t slice,
+                      const wvol_filter *f, int level, double scale);
+
 /* ---- DC offset (dc_offset.c) ----------------------------------------------------------
  * Data far from 0 against its spread goes through the float32 transforms without its offset:
  * the forward transform subtracts wvol__slice_offset of the first z-slice (0 unless its
