@@ -573,13 +573,14 @@ const char *cli_write_hint(const char *path)
     return "see 'wvol convert --help' for the formats this build writes";
 }
 
-const char *cli_data_file_is_input(const char *in, const char *out, int gzip)
+int cli_data_file_not_input(const char *cmd, const char *in, const char *out)
 {
-    static char data[PATH_MAX];
-    char a[PATH_MAX], b[PATH_MAX];
-    if (!in || !out || !wvol_path_has_ext(out, ".nhdr") || !wvol_nrrd_data_path(data, sizeof data, out, gzip))
-        return NULL;
-    return canonical_output(in, a, sizeof a) && canonical_output(data, b, sizeof b) && !strcmp(a, b) ? data : NULL;
+    char data[PATH_MAX], a[PATH_MAX], b[PATH_MAX];
+    if (!in || !out || !wvol_path_has_ext(out, ".nhdr") || !wvol_nrrd_data_path(data, sizeof data, out, 0) ||
+        !canonical_output(in, a, sizeof a) || !canonical_output(data, b, sizeof b) || strcmp(a, b))
+        return CLI_OK;
+    return cli_usage(cmd, "%s: its data file %s is the input, which it would replace: give the header another name",
+                     out, data);
 }
 
 const char *cli_same_output(const char *const *outs, int n)

@@ -155,9 +155,10 @@ const char *cli_same_output(const char *const *outs, int n);
 /* What to write instead of a volume path no build writes: .mhd (read only) is .mha, otherwise
  * the list 'wvol convert --help' gives. */
 const char *cli_write_hint(const char *path);
-/* The detached data file a .nhdr output writes (gzip: NAME.raw.gz) when it is the input file
- * itself, or NULL: the volume read from it would replace it, a side effect nobody asked for. */
-const char *cli_data_file_is_input(const char *in, const char *out, int gzip);
+/* CLI_OK, or CLI_USAGE after saying so when the detached data file an .nhdr output writes
+ * (NAME.raw) is the input file itself: the volume read from it would replace it, a side effect
+ * nobody asked for. */
+int cli_data_file_not_input(const char *cmd, const char *in, const char *out);
 
 /* Seconds from a monotonic clock. */
 double cli_now(void);

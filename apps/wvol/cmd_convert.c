@@ -64,9 +64,7 @@ int wvol_cmd_convert(int argc, char **argv)
     }
     if (!in || !out) return cli_usage("convert", "expected IN and OUT files (see 'wvol convert --help')");
     if (cli_load_options_fit("convert", in, NULL) != CLI_OK) return CLI_USAGE;
-    if (cli_data_file_is_input(in, out, 0))
-        return cli_usage("convert", "%s: its data file %s is the input, which it would replace: give the header "
-                                    "another name", out, cli_data_file_is_input(in, out, 0));
+    if (cli_data_file_not_input("convert", in, out) != CLI_OK) return CLI_USAGE;
     if (!wvol_format_supported(out, 1))
         return cli_usage("convert", "%s: cannot write this format (%s)", out, cli_write_hint(out));
 

@@ -82,9 +82,7 @@ int wvol_cmd_inverse(int argc, char **argv)
     if (brick && level) return cli_usage("inverse", "--brick and --level exclude each other");
     if (!wvol_format_supported(outp, 1))
         return cli_usage("inverse", "-o %s: cannot write this format (%s)", outp, cli_write_hint(outp));
-    if (cli_data_file_is_input(in, outp, 0))
-        return cli_usage("inverse", "%s: its data file %s is the input, which it would replace: give the header "
-                                    "another name", outp, cli_data_file_is_input(in, outp, 0));
+    if (cli_data_file_not_input("inverse", in, outp) != CLI_OK) return CLI_USAGE;
     wvol_error_clear(&err);
     if (coeffs_file_read(&c, in, &err) != WVOL_OK) return cli_fail_err("inverse", &err);
     if (level > c->levels) {

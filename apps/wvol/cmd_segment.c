@@ -165,9 +165,7 @@ int wvol_cmd_segment(int argc, char **argv)
     {
         const char *outs[3] = {outp, colors, features_out}, *same = cli_same_output(outs, 3);
         if (same) return cli_usage("segment", "two outputs would write the same file (%s)", same);
-        if (cli_data_file_is_input(in, outp, 0))
-            return cli_usage("segment", "%s: its data file %s is the input, which it would replace: give the "
-                                        "header another name", outp, cli_data_file_is_input(in, outp, 0));
+        if (cli_data_file_not_input("segment", in, outp) != CLI_OK) return CLI_USAGE;
     }
     if (features_out && !wvol_path_has_ext(features_out, ".raw"))
         return cli_usage("segment", "--features-out %s: only .raw is written", features_out);

@@ -1,5 +1,6 @@
 /* SPDX-License-Identifier: MIT */
-/* Volume output of the sub-commands (volume_out.h): every file written is remembered for cleanup. */
+/* Volume output of the sub-commands (volume_out.h): every file written joins the command's
+ * output set, which undoes them after a failure. */
 #define _POSIX_C_SOURCE 200809L
 #include "volume_out.h"
 
@@ -30,11 +31,7 @@ wvol_status volume_out_save(volume_out *f, const wvol_volume *v, const char *pat
     if (wvol_path_has_ext(path, ".nhdr")) wvol_nrrd_data_path(f->data_path, sizeof f->data_path, path, gzip);
     if ((s = volume_out_claim(path, gzip, err)) != WVOL_OK) return s;
     s = nrrd ? wvol_nrrd_write_gzip(v, path, gzip ? 6 : 0, err) : wvol_volume_save(v, path, err);
-    if (s) {
-        /* nothing was written (the writers are atomic): a cleanup must not remove what is there */
-        f->path[0] = f->data_path[0] = '\0';
-        return s;
-    }
+    if (s) return s;
     f->bytes = size_of(f->path) + (f->data_path[0] ? size_of(f->data_path) : 0);
     return WVOL_OK;
 }
