@@ -391,7 +391,7 @@ def test_nifti_rotation_with_a_reversed_axis(wvol, tmp_path, rot, z):
     # a scanner's oblique sform: the rotation in x-y is dropped (docs/formats.md), but z keeps its
     # direction. VTK's reader reverses the slices when the determinant is negative and hands back
     # a matrix with the z column negated; that sign was dropped with the rotation, so the volume
-    # was read upside down (the probe's LAS-like case: origin z 190 for a file starting at 100).
+    # was read upside down (an LAS-like scanner sform: origin z 190 for a file starting at 100).
     a = (np.arange(5)[:, None, None] * 10000 + np.arange(4)[None, :, None] * 100
          + np.arange(3)[None, None, :]).astype(np.float32)
     sp = np.array([0.5, 1.25, 3.0])
